@@ -72,8 +72,9 @@ class MatchScores:
     confusion: np.ndarray
 
 
-def match_clusters(y_true: Any, clusters: Any, n_candidates: int,
-                   n_clusters: int | None = None) -> MatchScores:
+def match_clusters(
+    y_true: Any, clusters: Any, n_candidates: int, n_clusters: int | None = None
+) -> MatchScores:
     """Match clusters to candidates so that the macro F1 is as high as possible.
 
     The F1 of the pair (cluster c, candidate j) is ``2 n_cj / (|c| + |j|)``; macro F1 is
@@ -101,8 +102,7 @@ def match_clusters(y_true: Any, clusters: Any, n_candidates: int,
     contingency = np.zeros((n_clusters, n_candidates))
     np.add.at(contingency, (clusters, y_true), 1.0)
     sizes = contingency.sum(axis=1)[:, None] + contingency.sum(axis=0)[None, :]
-    pair_f1 = np.divide(2.0 * contingency, sizes, out=np.zeros_like(contingency),
-                        where=sizes > 0)
+    pair_f1 = np.divide(2.0 * contingency, sizes, out=np.zeros_like(contingency), where=sizes > 0)
     rows, cols = linear_sum_assignment(pair_f1, maximize=True)
     mapping = np.full(n_clusters, -1, dtype=int)
     mapping[rows] = cols
@@ -129,7 +129,7 @@ def _as_dataset(X: Any) -> np.ndarray:
     return arr
 
 
-class InertiaClassifier(BaseEstimator):  # type: ignore[misc]
+class InertiaClassifier(BaseEstimator):
     """Time-series k-means classifier of rate responses (the paper's TSC).
 
     :param metric: "dtw" (the paper's), "softdtw" or "euclidean".
@@ -193,14 +193,15 @@ class InertiaClassifier(BaseEstimator):  # type: ignore[misc]
 
     def _metric_params(self) -> dict[str, Any] | None:
         if self.metric == "dtw" and self.sakoe_chiba_radius is not None:
-            return {"global_constraint": "sakoe_chiba",
-                    "sakoe_chiba_radius": self.sakoe_chiba_radius}
+            return {
+                "global_constraint": "sakoe_chiba",
+                "sakoe_chiba_radius": self.sakoe_chiba_radius,
+            }
         if self.metric == "softdtw":
             return {"gamma": self.gamma_}
         return None
 
-    def fit(self, X: Any, y: Any, *, candidate_names: list[str] | None = None
-            ) -> InertiaClassifier:
+    def fit(self, X: Any, y: Any, *, candidate_names: list[str] | None = None) -> InertiaClassifier:
         """Cluster the series into K = number of candidates, then match and score.
 
         :param X: (n_series, length, 3) rates, rad/s.
@@ -215,9 +216,7 @@ class InertiaClassifier(BaseEstimator):  # type: ignore[misc]
         n_candidates = int(y.max()) + 1 if y.size else 0
         missing = sorted(set(range(n_candidates)) - set(y.tolist()))
         if n_candidates < 2 or missing or y.min() < 0:
-            raise ValueError(
-                f"y must label every candidate 0..K-1 with K >= 2; missing {missing}"
-            )
+            raise ValueError(f"y must label every candidate 0..K-1 with K >= 2; missing {missing}")
         if candidate_names is not None and len(candidate_names) != n_candidates:
             raise ValueError(
                 f"{len(candidate_names)} candidate names for {n_candidates} candidates"
@@ -243,8 +242,9 @@ class InertiaClassifier(BaseEstimator):  # type: ignore[misc]
             kmeans.fit(Xs)
         self.cluster_centers_ = np.asarray(kmeans.cluster_centers_) * self.scale_
         self.n_candidates_ = n_candidates
-        self.candidate_names_ = list(candidate_names or [f"candidate {i}" for i in
-                                                         range(n_candidates)])
+        self.candidate_names_ = list(
+            candidate_names or [f"candidate {i}" for i in range(n_candidates)]
+        )
         self.inertia_ = float(kmeans.inertia_)
         distances = self._cluster_distances(X)
         self.labels_ = distances.argmin(axis=1)
@@ -254,10 +254,12 @@ class InertiaClassifier(BaseEstimator):  # type: ignore[misc]
         self.accuracy_ = scores.accuracy
         self.confusion_ = scores.confusion
         own = distances[np.arange(len(X)), self.labels_]
-        self.max_training_distance_ = np.array([
-            own[self.labels_ == c].max() if np.any(self.labels_ == c) else np.inf
-            for c in range(n_candidates)
-        ])
+        self.max_training_distance_ = np.array(
+            [
+                own[self.labels_ == c].max() if np.any(self.labels_ == c) else np.inf
+                for c in range(n_candidates)
+            ]
+        )
         return self
 
     @staticmethod
@@ -359,9 +361,11 @@ class InertiaClassifier(BaseEstimator):  # type: ignore[misc]
             "f1": self.f1_,
             "accuracy": self.accuracy_,
             "confusion": self.confusion_.tolist(),
-            "scenario": None if getattr(self, "scenario_", None) is None
+            "scenario": None
+            if getattr(self, "scenario_", None) is None
             else self.scenario_.model_dump(mode="json"),
-            "sequence": None if getattr(self, "sequence_", None) is None
+            "sequence": None
+            if getattr(self, "sequence_", None) is None
             else np.asarray(self.sequence_).tolist(),
         }
 
@@ -381,27 +385,33 @@ class InertiaClassifier(BaseEstimator):  # type: ignore[misc]
             model.f1_ = float(data["f1"])
             model.accuracy_ = float(data["accuracy"])
             model.confusion_ = np.asarray(data["confusion"], dtype=int)
-            model.scenario_ = (None if data.get("scenario") is None
-                               else Scenario.model_validate(data["scenario"]))
-            model.sequence_ = (None if data.get("sequence") is None
-                               else np.asarray(data["sequence"], dtype=int))
+            model.scenario_ = (
+                None if data.get("scenario") is None else Scenario.model_validate(data["scenario"])
+            )
+            model.sequence_ = (
+                None if data.get("sequence") is None else np.asarray(data["sequence"], dtype=int)
+            )
         except (KeyError, TypeError, ValueError) as exc:
             raise ValueError(f"not a valid classifier document: {exc}") from None
         k = len(model.cluster_centers_)
         if model.cluster_to_candidate_.shape != (k,) or model.max_training_distance_.shape != (k,):
-            raise ValueError(f"not a valid classifier document: {k} centroids but "
-                             f"{model.cluster_to_candidate_.shape} cluster matches")
+            raise ValueError(
+                f"not a valid classifier document: {k} centroids but "
+                f"{model.cluster_to_candidate_.shape} cluster matches"
+            )
         return model
 
     def to_json(self) -> str:
         """The fitted classifier as a checksummed JSON document."""
         payload = self.to_dict()
-        return json.dumps({
-            "format": FORMAT,
-            "version": FORMAT_VERSION,
-            "sha256": _checksum(payload),
-            "classifier": payload,
-        })
+        return json.dumps(
+            {
+                "format": FORMAT,
+                "version": FORMAT_VERSION,
+                "sha256": _checksum(payload),
+                "classifier": payload,
+            }
+        )
 
     @classmethod
     def from_json(cls, text: str | bytes) -> InertiaClassifier:

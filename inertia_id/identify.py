@@ -127,8 +127,9 @@ def parse_telemetry(text: str, *, fmt: str = "auto") -> Telemetry:
     omegas: list[list[float]] = []
     for n, row in enumerate(rows, start=1):
         if len(row) != 4:
-            raise ValueError(f"CSV data row {n} has {len(row)} columns, expected 4 "
-                             f"(time_s, wx, wy, wz): {row}")
+            raise ValueError(
+                f"CSV data row {n} has {len(row)} columns, expected 4 (time_s, wx, wy, wz): {row}"
+            )
         try:
             values = [float(c) for c in row]
         except ValueError:
@@ -171,8 +172,9 @@ def resample(telemetry: Telemetry, grid_s: np.ndarray) -> np.ndarray:
     return np.stack([np.interp(grid_s, t, omega[:, axis]) for axis in range(3)], axis=-1)
 
 
-def identify(classifier: InertiaClassifier, telemetry: Telemetry | dict[str, Any]
-             ) -> Identification:
+def identify(
+    classifier: InertiaClassifier, telemetry: Telemetry | dict[str, Any]
+) -> Identification:
     """Classify one telemetry series to a candidate, or say it matches none.
 
     :param classifier: fitted classifier that carries its scenario and sequence.
@@ -197,14 +199,16 @@ def identify(classifier: InertiaClassifier, telemetry: Telemetry | dict[str, Any
     verdict = (
         f"matches none of the candidates: nearest is {name!r} at distance "
         f"{distances[best]:.4g}, beyond {threshold:.4g} seen in training"
-        if matches_none else f"{name}"
+        if matches_none
+        else f"{name}"
     )
     return Identification(
         candidate_index=best,
         candidate=name,
         inertia_kg_m2=scenario.inertia_candidates[best].inertia_kg_m2,
-        distances={n: float(d) for n, d in zip(classifier.candidate_names_, distances,
-                                               strict=True)},
+        distances={
+            n: float(d) for n, d in zip(classifier.candidate_names_, distances, strict=True)
+        },
         margin=margin,
         relative_margin=margin / runner_up if runner_up > 0 else 0.0,
         threshold=threshold,

@@ -14,9 +14,9 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 __all__ = [
+    "PRESETS",
     "CandidateGenerator",
     "InertiaCandidate",
-    "PRESETS",
     "Scenario",
     "Thrusters",
     "Timing",
@@ -196,7 +196,9 @@ class Thrusters(_Model):
     def _matrix(cls, value: list[list[float]]) -> list[list[float]]:
         lengths = [len(row) for row in value]
         if len(value) != 3 or len(set(lengths)) != 1 or lengths[0] < 1:
-            raise ValueError(f"torque_matrix_nm must be 3 x N with N >= 1, got rows of lengths {lengths}")
+            raise ValueError(
+                f"torque_matrix_nm must be 3 x N with N >= 1, got rows of lengths {lengths}"
+            )
         arr = np.asarray(value, dtype=float)
         if not np.all(np.isfinite(arr)):
             raise ValueError(f"torque_matrix_nm has non-finite entries: {_fmt(arr)}")
@@ -234,15 +236,21 @@ class Timing(_Model):
 
     @model_validator(mode="after")
     def _commensurate(self) -> Self:
-        _whole(self.step_duration_s / self.integration_step_s,
-               f"step_duration_s = {self.step_duration_s} is not a whole number of "
-               f"integration_step_s = {self.integration_step_s}")
-        _whole(1.0 / (self.sample_rate_hz * self.integration_step_s),
-               f"the sample period 1/sample_rate_hz = {1.0 / self.sample_rate_hz:.6g} s is "
-               f"not a whole number of integration_step_s = {self.integration_step_s}")
-        _whole(self.step_duration_s * self.sample_rate_hz,
-               f"step_duration_s = {self.step_duration_s} is not a whole number of sample "
-               f"periods at sample_rate_hz = {self.sample_rate_hz}")
+        _whole(
+            self.step_duration_s / self.integration_step_s,
+            f"step_duration_s = {self.step_duration_s} is not a whole number of "
+            f"integration_step_s = {self.integration_step_s}",
+        )
+        _whole(
+            1.0 / (self.sample_rate_hz * self.integration_step_s),
+            f"the sample period 1/sample_rate_hz = {1.0 / self.sample_rate_hz:.6g} s is "
+            f"not a whole number of integration_step_s = {self.integration_step_s}",
+        )
+        _whole(
+            self.step_duration_s * self.sample_rate_hz,
+            f"step_duration_s = {self.step_duration_s} is not a whole number of sample "
+            f"periods at sample_rate_hz = {self.sample_rate_hz}",
+        )
         if self.substeps_per_step > 100_000:
             raise ValueError(
                 f"{self.substeps_per_step} integration steps per actuation step is too many"
@@ -348,12 +356,16 @@ class Scenario(_Model):
     def _disturbance_grid(self) -> Self:
         dt = self.timing.integration_step_s
         interval = self.uncertainty.disturbance_interval_s
-        _whole(interval / dt,
-               f"disturbance_interval_s = {interval} is not a whole number of "
-               f"integration_step_s = {dt}")
-        _whole(self.timing.step_duration_s / interval,
-               f"step_duration_s = {self.timing.step_duration_s} is not a whole number of "
-               f"disturbance_interval_s = {interval}")
+        _whole(
+            interval / dt,
+            f"disturbance_interval_s = {interval} is not a whole number of "
+            f"integration_step_s = {dt}",
+        )
+        _whole(
+            self.timing.step_duration_s / interval,
+            f"step_duration_s = {self.timing.step_duration_s} is not a whole number of "
+            f"disturbance_interval_s = {interval}",
+        )
         return self
 
     # Arrays the numerical code works with.
@@ -442,8 +454,7 @@ class Scenario(_Model):
         lever arms this is proportional to propellant mass.
         """
         per_thruster = np.linalg.norm(self.torque_matrix, axis=0)
-        return float(self.duties(sequence).sum(axis=0) @ per_thruster
-                     * self.timing.step_duration_s)
+        return float(self.duties(sequence).sum(axis=0) @ per_thruster * self.timing.step_duration_s)
 
     def with_uncertainty(self, **changes: Any) -> Scenario:
         """A copy with some uncertainty fields changed (validated)."""

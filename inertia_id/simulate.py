@@ -160,8 +160,10 @@ class Simulator:
     ) -> None:
         if not isinstance(n_realisations, int | np.integer) or n_realisations < 1:
             raise ValueError(f"n_realisations must be a positive integer, got {n_realisations!r}")
-        for name, value in (("process_noise_scale", process_noise_scale),
-                            ("measurement_noise_scale", measurement_noise_scale)):
+        for name, value in (
+            ("process_noise_scale", process_noise_scale),
+            ("measurement_noise_scale", measurement_noise_scale),
+        ):
             if not np.isfinite(value) or value < 0:
                 raise ValueError(f"{name} must be finite and >= 0, got {value!r}")
         self.scenario = scenario
@@ -217,7 +219,7 @@ class Simulator:
     def start(self, initial: InitialDraw) -> SimulationState:
         return SimulationState(
             omega=initial.omega0.copy(),
-            torque=np.zeros(self.shape + (3,)),
+            torque=np.zeros((*self.shape, 3)),
             initial=initial,
             n_steps=0,
         )
@@ -252,9 +254,7 @@ class Simulator:
         """Simulate a whole sequence with the given randomness."""
         sequence = self.scenario.check_sequence(sequence)
         if len(noise.steps) < len(sequence):
-            raise ValueError(
-                f"noise holds {len(noise.steps)} steps, the sequence {len(sequence)}"
-            )
+            raise ValueError(f"noise holds {len(noise.steps)} steps, the sequence {len(sequence)}")
         state = self.start(noise.initial)
         responses = []
         for levels, draw in zip(sequence, noise.steps, strict=False):

@@ -108,24 +108,30 @@ def run_sweep(
     streams = np.random.SeedSequence(seed).spawn(len(noises) * len(multiples))
     points: list[SweepPoint] = []
     total = len(streams)
-    for i, (noise, multiple) in enumerate(
-        (n, m) for n in noises for m in multiples
-    ):
+    for i, (noise, multiple) in enumerate((n, m) for n in noises for m in multiples):
         if should_stop is not None and should_stop():
             break
         scales = {"process_noise_scale": 1.0, "measurement_noise_scale": 1.0}
         scales[f"{noise}_noise_scale"] = float(multiple)
-        result = simulate(scenario, sequence, per_candidate, np.random.default_rng(streams[i]),
-                          **scales)
+        result = simulate(
+            scenario, sequence, per_candidate, np.random.default_rng(streams[i]), **scales
+        )
         X, y = result.dataset()
         scores = classifier.evaluate(X, y)
         correct = int(np.trace(scores["confusion"]))
         low, high = wilson_interval(correct, len(y))
-        points.append(SweepPoint(
-            noise=noise, multiple=float(multiple), accuracy=scores["accuracy"],
-            ci_low=low, ci_high=high, f1=scores["f1"], n_series=len(y),
-            confusion=scores["confusion"].tolist(),
-        ))
+        points.append(
+            SweepPoint(
+                noise=noise,
+                multiple=float(multiple),
+                accuracy=scores["accuracy"],
+                ci_low=low,
+                ci_high=high,
+                f1=scores["f1"],
+                n_series=len(y),
+                confusion=scores["confusion"].tolist(),
+            )
+        )
         if progress is not None:
             progress((i + 1) / total)
     return SweepResult(

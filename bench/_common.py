@@ -1,0 +1,243 @@
+"""Helpers shared by the benchmark scripts in this folder.
+
+The scripts are run as ``python bench/<name>.py``, which puts this folder on
+``sys.path``, so they import this module as ``_common``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import re
+import statistics
+import sys
+import time
+import warnings
+from collections.abc import Callable, Sequence
+from typing import Any, TypeVar
+
+import numpy as np
+
+T = TypeVar("T")
+
+# A cell that reads as a number (possibly with thousands separators, a trailing "x" or
+# "%", or "-" for missing) is right-aligned.
+_NUMERIC = re.compile(r"^(-|nan|[-+]?[\d,]*\.?\d+(e[-+]?\d+)?[x%]?)$")
+
+# The paper's hand-designed sequence: the three positive-axis thrusters at full duty
+# (level index 4 of 0..4) every step, the three negative-axis ones off.
+GOOD_SEQUENCE: list[list[int]] = [[4, 4, 4, 0, 0, 0]] * 4
+
+
+def base_parser(description: str) -> argparse.ArgumentParser:
+    """An argument parser with the options every benchmark takes (--seed, --json)."""
+    parser = argparse.ArgumentParser(
+        description=description,
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    parser.add_argument("--seed", type=int, default=0, help="seed of every random draw")
+    parser.add_argument("--json", metavar="PATH", default=None,
+                        help="also write the figures as JSON to PATH")
+    return parser
+
+
+def int_list(text: str) -> list[int]:
+    """argparse type: a comma-separated list of positive integers."""
+    try:
+        values = [int(part) for part in text.split(",") if part.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected integers separated by commas, got {text!r}"
+                                         ) from None
+    if not values or any(v < 1 for v in values):
+        raise argparse.ArgumentTypeError(f"expected positive integers, got {text!r}")
+    return values
+
+
+def positive_int(text: str) -> int:
+    """argparse type: an integer >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {value}")
+    return value
+
+
+def random_sequence(rng: np.random.Generator, n_steps: int, n_thrusters: int,
+                    n_levels: int) -> np.ndarray:
+    """(n_steps, n_thrusters) level indices drawn uniformly in 0..n_levels-1."""
+    return rng.integers(0, n_levels, size=(n_steps, n_thrusters))
+
+
+def sequence_text(sequence: Any) -> str:
+    """A sequence on one line: steps separated by '/', e.g. '444000/444000'."""
+    arr = np.asarray(sequence, dtype=int)
+    sep = "" if arr.max(initial=0) < 10 else ","
+    return "/".join(sep.join(str(v) for v in row) for row in arr)
+
+
+def best_of(fn: Callable[[], T], repeats: int) -> tuple[float, list[float], T]:
+    """Call ``fn`` ``repeats`` times; return (best seconds, all seconds, last result)."""
+    times: list[float] = []
+    result: Any = None
+    for _ in range(max(1, repeats)):
+        start = time.perf_counter()
+        result = fn()
+        times.append(time.perf_counter() - start)
+    return min(times), times, result
+
+
+def timed(fn: Callable[[], T]) -> tuple[float, T]:
+    """Call ``fn`` once; return (seconds, result)."""
+    start = time.perf_counter()
+    result = fn()
+    return time.perf_counter() - start, result
+
+
+def summary(values: Sequence[float]) -> dict[str, float]:
+    """min / median / max / mean of some figures."""
+    vals = [float(v) for v in values]
+    return {
+        "min": min(vals),
+        "median": float(statistics.median(vals)),
+        "max": max(vals),
+        "mean": float(statistics.fmean(vals)),
+    }
+
+
+def format_table(headers: Sequence[str], rows: Sequence[Sequence[Any]],
+                 title: str | None = None) -> str:
+    """A plain-text table; numbers right-aligned, text left-aligned."""
+    cells = [[_cell(v) for v in row] for row in rows]
+    widths = [len(h) for h in headers]
+    for row in cells:
+        for i, text in enumerate(row):
+            widths[i] = max(widths[i], len(text))
+    numeric = [
+        bool(cells) and all(_NUMERIC.match(row[i]) for row in cells if i < len(row))
+        for i in range(len(headers))
+    ]
+
+    def line(values: Sequence[str]) -> str:
+        parts = [
+            v.rjust(widths[i]) if numeric[i] else v.ljust(widths[i])
+            for i, v in enumerate(values)
+        ]
+        return "  ".join(parts).rstrip()
+
+    out = []
+    if title:
+        out.append(title)
+    out.append(line(list(headers)))
+    out.append("  ".join("-" * w for w in widths))
+    out.extend(line(row) for row in cells)
+    return "\n".join(out)
+
+
+def print_table(headers: Sequence[str], rows: Sequence[Sequence[Any]],
+                title: str | None = None) -> None:
+    print(format_table(headers, rows, title))
+    print(flush=True)
+
+
+def _cell(value: Any) -> str:
+    if value is None:
+        return "-"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, int | np.integer):
+        return f"{int(value):,}"
+    if isinstance(value, float | np.floating):
+        value = float(value)
+        if value != value:  # NaN
+            return "nan"
+        if value == 0.0:
+            return "0"
+        magnitude = abs(value)
+        if magnitude >= 1e6 or magnitude < 1e-3:
+            return f"{value:.3g}"
+        if magnitude >= 100:
+            return f"{value:,.1f}"
+        return f"{value:.3f}"
+    return str(value)
+
+
+def environment() -> dict[str, Any]:
+    """Versions and machine facts recorded with every run."""
+    import numba
+    import sklearn
+    import tslearn
+
+    import inertia_id
+
+    return {
+        "python": sys.version.split()[0],
+        "platform": platform.platform(),
+        "cpu_count": os.cpu_count(),
+        "numpy": np.__version__,
+        "numba": numba.__version__,
+        "scikit-learn": sklearn.__version__,
+        "tslearn": tslearn.__version__,
+        "inertia_id": inertia_id.__version__,
+    }
+
+
+def print_header(title: str, args: argparse.Namespace) -> None:
+    env = environment()
+    print(title)
+    print("=" * len(title))
+    print(f"python {env['python']}, numpy {env['numpy']}, tslearn {env['tslearn']}, "
+          f"numba {env['numba']}; {env['cpu_count']} CPUs ({env['platform']})")
+    options = ", ".join(f"{k}={v}" for k, v in vars(args).items() if k != "json")
+    print(f"options: {options}")
+    print(flush=True)
+
+
+def write_json(path: str | None, args: argparse.Namespace, figures: dict[str, Any]) -> None:
+    """Write ``figures`` with the options and environment to ``path`` (if given)."""
+    if not path:
+        return
+    doc = {"options": vars(args), "environment": environment(), **figures}
+    with open(path, "w", encoding="utf-8") as fh:
+        json.dump(doc, fh, indent=2, default=_json_default)
+        fh.write("\n")
+    print(f"figures written to {path}")
+
+
+def _json_default(value: Any) -> Any:
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, np.floating):
+        return float(value)
+    raise TypeError(f"cannot write {type(value).__name__} as JSON")
+
+
+def warm_up_numba() -> float:
+    """JIT-compile tslearn's DTW and soft-DTW kernels on a tiny problem; return seconds.
+
+    Fits both our classifier and tslearn's TimeSeriesKMeans with every metric on ten
+    short random series, so that later timings do not include numba's compilation.
+    """
+    from inertia_id import METRICS, InertiaClassifier
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        from tslearn.clustering import TimeSeriesKMeans
+
+    rng = np.random.default_rng(12345)
+    X = rng.standard_normal((10, 8, 3)) * 1e-3
+    y = np.repeat(np.arange(2), 5)
+    start = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for metric in METRICS:
+            InertiaClassifier(metric, n_init=1, max_iter=2, max_iter_barycenter=2,
+                              random_state=0).fit(X, y)
+            TimeSeriesKMeans(n_clusters=2, metric=metric, max_iter=2,
+                             max_iter_barycenter=2, random_state=0).fit(X)
+    return time.perf_counter() - start

@@ -1,0 +1,551 @@
+"""The ``inertia-id`` command line.
+
+Every command takes a scenario (``--preset paper`` or ``--scenario FILE.json``) and a
+seed; bad input ends with a one-line error naming the value, never a traceback.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import os
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, TypeVar
+
+import click
+import numpy as np
+
+from .classify import METRICS, InertiaClassifier, train
+from .identify import identify, load_telemetry
+from .scenario import PRESETS, Scenario, preset
+from .simulate import simulate
+from .sweep import NOISE_KINDS, run_sweep
+
+# The hand-designed excitation: the three positive-axis thrusters at full duty for
+# every step. Used by `paper` until a searched sequence is given.
+PAPER_DEFAULT_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def _friendly_errors(func: F) -> F:
+    """Turn the core's ValueErrors into one-line CLI errors."""
+
+    @functools.wraps(func)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return func(*args, **kwargs)
+        except (ValueError, OSError) as exc:
+            raise click.ClickException(str(exc)) from None
+
+    return wrapper  # type: ignore[return-value]
+
+
+def _scenario_options(func: F) -> F:
+    func = click.option(
+        "--scenario",
+        "scenario_path",
+        type=click.Path(dir_okay=False),
+        help="Scenario JSON file (overrides --preset).",
+    )(func)
+    func = click.option(
+        "--preset",
+        "preset_name",
+        default="paper",
+        show_default=True,
+        type=click.Choice(sorted(PRESETS)),
+        help="Built-in scenario.",
+    )(func)
+    return func
+
+
+def _load_scenario(preset_name: str, scenario_path: str | None) -> Scenario:
+    if scenario_path is None:
+        return preset(preset_name)
+    text = Path(scenario_path).read_text(encoding="utf-8")
+    return Scenario.model_validate_json(text)
+
+
+def parse_sequence(text: str) -> list[list[int]]:
+    """A sequence from ``"4,4,4,0,0,0;0,0,0,4,4,4"`` (rows separated by ';'), a JSON
+    list of rows, or a path to a JSON file holding one."""
+    source = text
+    if os.path.isfile(text):
+        source = Path(text).read_text(encoding="utf-8")
+    source = source.strip()
+    try:
+        if source.startswith("["):
+            rows = json.loads(source)
+        else:
+            rows = [[int(v) for v in row.split(",")] for row in source.split(";") if row.strip()]
+    except (ValueError, json.JSONDecodeError):
+        raise ValueError(
+            f"sequence {text!r} is not rows of level indices like '4,4,4,0,0,0;0,0,0,4,4,4' "
+            "or a JSON list of rows"
+        ) from None
+    if not isinstance(rows, list) or not rows:
+        raise ValueError(f"sequence {text!r} holds no steps")
+    return rows
+
+
+def _sequence_option(default: str | None = None) -> Callable[[F], F]:
+    return click.option(
+        "--sequence",
+        "sequence_text",
+        default=default,
+        required=default is None,
+        show_default=default is not None,
+        help="Level indices per thruster, steps separated by ';' (e.g. '4,4,4,0,0,0;"
+        "4,4,4,0,0,0'), a JSON list of rows, or a JSON file.",
+    )
+
+
+def _seed_option(func: F) -> F:
+    return click.option(
+        "--seed", default=0, show_default=True, type=int, help="Seed of every random draw."
+    )(func)
+
+
+def _write_json(path: str | os.PathLike[str] | None, data: Any) -> None:
+    text = json.dumps(data, indent=2)
+    if path is None or str(path) == "-":
+        click.echo(text)
+    else:
+        Path(path).write_text(text + "\n", encoding="utf-8")
+        click.echo(f"wrote {path}", err=True)
+
+
+def _progress_bar(total: int, desc: str) -> Any:
+    from tqdm import tqdm
+
+    return tqdm(total=total, desc=desc, unit="pt", file=sys.stderr, leave=False)
+
+
+@click.group()
+@click.version_option(package_name="inertia-id")
+def main() -> None:
+    """Tell which known inertia configuration a spacecraft is in, from its rate
+    response to a deliberately chosen thruster sequence."""
+
+
+@main.command("scenario")
+@_scenario_options
+@click.option("--out", type=click.Path(dir_okay=False), help="Write here instead of stdout.")
+@_friendly_errors
+def scenario_cmd(preset_name: str, scenario_path: str | None, out: str | None) -> None:
+    """Print a scenario as JSON (a starting point to edit), after validating it."""
+    scenario = _load_scenario(preset_name, scenario_path)
+    _write_json(out, scenario.model_dump(mode="json"))
+
+
+@main.command("simulate")
+@_scenario_options
+@_sequence_option(";".join(",".join(map(str, r)) for r in PAPER_DEFAULT_SEQUENCE))
+@click.option(
+    "-n",
+    "--realisations",
+    default=20,
+    show_default=True,
+    type=click.IntRange(1),
+    help="Noisy realisations per candidate.",
+)
+@click.option(
+    "--process-noise",
+    default=1.0,
+    show_default=True,
+    type=click.FloatRange(0),
+    help="Multiple of the scenario's disturbance torque.",
+)
+@click.option(
+    "--measurement-noise",
+    default=1.0,
+    show_default=True,
+    type=click.FloatRange(0),
+    help="Multiple of the scenario's gyro noise.",
+)
+@_seed_option
+@click.option(
+    "--out", type=click.Path(dir_okay=False), help="Write every series: .npz (arrays) or .json."
+)
+@click.option(
+    "--telemetry",
+    type=click.Path(dir_okay=False),
+    help="Write one series as telemetry CSV (time_s,wx,wy,wz) for `identify`.",
+)
+@click.option(
+    "--candidate",
+    default="0",
+    show_default=True,
+    help="Candidate (index or name) whose series --telemetry writes.",
+)
+@click.option(
+    "--realisation",
+    default=0,
+    show_default=True,
+    type=click.IntRange(0),
+    help="Which realisation --telemetry writes.",
+)
+@_friendly_errors
+def simulate_cmd(
+    preset_name: str,
+    scenario_path: str | None,
+    sequence_text: str,
+    realisations: int,
+    process_noise: float,
+    measurement_noise: float,
+    seed: int,
+    out: str | None,
+    telemetry: str | None,
+    candidate: str,
+    realisation: int,
+) -> None:
+    """Simulate every candidate's gyro response to a sequence."""
+    scenario = _load_scenario(preset_name, scenario_path)
+    result = simulate(
+        scenario,
+        parse_sequence(sequence_text),
+        realisations,
+        np.random.default_rng(seed),
+        process_noise_scale=process_noise,
+        measurement_noise_scale=measurement_noise,
+    )
+    summary = {
+        "candidates": result.candidate_names,
+        "series_shape": list(result.omega_measured.shape),
+        "impulse_nms": result.impulse_nms,
+        "mean_final_rate_rad_s": result.mean_final_rate_rad_s,
+        "final_rate_rad_s_per_candidate": result.final_rate_rad_s.mean(axis=1).tolist(),
+    }
+    if out:
+        arrays = {
+            "time_s": result.time_s,
+            "omega_measured_rad_s": result.omega_measured,
+            "omega_true_rad_s": result.omega_true,
+            "applied_torque_nm": result.applied_torque_nm,
+            "sequence": result.sequence,
+        }
+        if out.endswith(".npz"):
+            np.savez_compressed(out, **arrays)  # type: ignore[arg-type]
+        else:
+            Path(out).write_text(
+                json.dumps({**summary, **{k: v.tolist() for k, v in arrays.items()}}),
+                encoding="utf-8",
+            )
+        click.echo(f"wrote {out}", err=True)
+    if telemetry:
+        k = _candidate_index(scenario, candidate)
+        if realisation >= realisations:
+            raise ValueError(f"--realisation {realisation} but only {realisations} simulated")
+        rows = np.column_stack([result.time_s, result.omega_measured[k, realisation]])
+        np.savetxt(
+            telemetry,
+            rows,
+            delimiter=",",
+            header="time_s,wx_rad_s,wy_rad_s,wz_rad_s",
+            comments="",
+            fmt="%.10g",
+        )
+        click.echo(
+            f"wrote {telemetry} ({scenario.candidate_names[k]}, realisation {realisation})",
+            err=True,
+        )
+    _write_json(None, summary)
+
+
+def _candidate_index(scenario: Scenario, candidate: str) -> int:
+    names = scenario.candidate_names
+    if candidate in names:
+        return names.index(candidate)
+    if candidate.isdigit() and int(candidate) < len(names):
+        return int(candidate)
+    raise ValueError(
+        f"candidate {candidate!r} is neither an index 0..{len(names) - 1} nor one of {names}"
+    )
+
+
+def _metric_option(func: F) -> F:
+    return click.option(
+        "--metric",
+        default="dtw",
+        show_default=True,
+        type=click.Choice(METRICS),
+        help="Clustering metric (dtw is the paper's; softdtw is slow).",
+    )(func)
+
+
+@main.command("train")
+@_scenario_options
+@_sequence_option(";".join(",".join(map(str, r)) for r in PAPER_DEFAULT_SEQUENCE))
+@_metric_option
+@click.option(
+    "-n",
+    "--realisations",
+    default=20,
+    show_default=True,
+    type=click.IntRange(1),
+    help="Training realisations per candidate.",
+)
+@click.option(
+    "--n-init",
+    default=5,
+    show_default=True,
+    type=click.IntRange(1),
+    help="k-means initialisations; the lowest-inertia one is kept.",
+)
+@click.option(
+    "--band",
+    default=None,
+    type=click.IntRange(0),
+    help="Sakoe-Chiba band half-width (samples) for dtw; default unconstrained.",
+)
+@_seed_option
+@click.option(
+    "--out",
+    default="classifier.json",
+    show_default=True,
+    type=click.Path(dir_okay=False),
+    help="Where to write the classifier JSON.",
+)
+@_friendly_errors
+def train_cmd(
+    preset_name: str,
+    scenario_path: str | None,
+    sequence_text: str,
+    metric: str,
+    realisations: int,
+    n_init: int,
+    band: int | None,
+    seed: int,
+    out: str,
+) -> None:
+    """Train the clustering classifier for a sequence at 1x noise."""
+    scenario = _load_scenario(preset_name, scenario_path)
+    sequence = parse_sequence(sequence_text)
+    click.echo(
+        f"training {metric} classifier on {scenario.n_candidates} candidates x "
+        f"{realisations} realisations ...",
+        err=True,
+    )
+    started = time.perf_counter()
+    model = train(
+        scenario,
+        sequence,
+        realisations,
+        np.random.default_rng(seed),
+        metric=metric,
+        n_init=n_init,
+        sakoe_chiba_radius=band,
+    )
+    model.save(out)
+    click.echo(f"wrote {out} in {time.perf_counter() - started:.1f} s", err=True)
+    _write_json(
+        None,
+        {
+            "f1": model.f1_,
+            "accuracy": model.accuracy_,
+            "confusion": model.confusion_.tolist(),
+            "candidates": model.candidate_names_,
+        },
+    )
+
+
+def _parse_multiples(text: str) -> list[float]:
+    try:
+        values = [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise ValueError(f"--multiples {text!r} is not a comma-separated list of numbers") from None
+    return values
+
+
+@main.command("sweep")
+@click.option(
+    "--classifier",
+    "classifier_path",
+    required=True,
+    type=click.Path(exists=True, dir_okay=False),
+    help="Classifier JSON from `train`.",
+)
+@click.option(
+    "--multiples",
+    default="1,2,3,4,5,6,7,8",
+    show_default=True,
+    help="Noise multiples of the training level.",
+)
+@click.option(
+    "--noise",
+    "noises",
+    multiple=True,
+    type=click.Choice(NOISE_KINDS),
+    help="Noise to sweep (repeatable); default both.",
+)
+@click.option(
+    "--n-test",
+    default=200,
+    show_default=True,
+    type=click.IntRange(1),
+    help="Test series per point, spread over the candidates.",
+)
+@_seed_option
+@click.option("--out", default="sweep.json", show_default=True, type=click.Path(dir_okay=False))
+@_friendly_errors
+def sweep_cmd(
+    classifier_path: str, multiples: str, noises: tuple[str, ...], n_test: int, seed: int, out: str
+) -> None:
+    """Accuracy of a trained classifier as process and measurement noise grow."""
+    model = InertiaClassifier.load(classifier_path)
+    noise_kinds = noises or NOISE_KINDS
+    values = _parse_multiples(multiples)
+    with _progress_bar(len(values) * len(noise_kinds), "sweep") as bar:
+        result = run_sweep(
+            model,
+            multiples=values,
+            noises=noise_kinds,
+            n_test=n_test,
+            seed=seed,
+            progress=lambda _f: bar.update(1),
+        )
+    _write_json(out, result.model_dump(mode="json"))
+    for p in result.points:
+        click.echo(
+            f"{p.noise:12s} x{p.multiple:<5g} accuracy {p.accuracy:.3f} "
+            f"[{p.ci_low:.3f}, {p.ci_high:.3f}]"
+        )
+
+
+@main.command("identify")
+@click.option(
+    "--classifier",
+    "classifier_path",
+    required=True,
+    type=click.Path(exists=True, dir_okay=False),
+    help="Classifier JSON from `train`.",
+)
+@click.option(
+    "--telemetry",
+    "telemetry_path",
+    required=True,
+    type=click.Path(exists=True, dir_okay=False),
+    help="CSV (time_s,wx,wy,wz; header optional) or JSON "
+    "({time_s: [...], omega_rad_s: [[...], ...]}), time from the sequence start.",
+)
+@_friendly_errors
+def identify_cmd(classifier_path: str, telemetry_path: str) -> None:
+    """Classify telemetry to a candidate inertia, or say it matches none."""
+    model = InertiaClassifier.load(classifier_path)
+    verdict = identify(model, load_telemetry(telemetry_path))
+    _write_json(None, verdict.model_dump(mode="json"))
+
+
+@main.command("paper")
+@_sequence_option(";".join(",".join(map(str, r)) for r in PAPER_DEFAULT_SEQUENCE))
+@_metric_option
+@click.option(
+    "-n",
+    "--realisations",
+    default=20,
+    show_default=True,
+    type=click.IntRange(1),
+    help="Training realisations per candidate (the paper's 20).",
+)
+@click.option(
+    "--multiples",
+    default="1,2,3,4,5,6,7,8",
+    show_default=True,
+    help="Noise multiples of the sweep.",
+)
+@click.option(
+    "--n-test",
+    default=200,
+    show_default=True,
+    type=click.IntRange(1),
+    help="Test series per sweep point.",
+)
+@_seed_option
+@click.option(
+    "--out-dir",
+    default="results/paper",
+    show_default=True,
+    type=click.Path(file_okay=False),
+    help="Where results and report.html go.",
+)
+@_friendly_errors
+def paper_cmd(
+    sequence_text: str,
+    metric: str,
+    realisations: int,
+    multiples: str,
+    n_test: int,
+    seed: int,
+    out_dir: str,
+) -> None:
+    """The paper's pipeline on its preset: simulate, train, sweep, report.
+
+    The default sequence is the hand-designed excitation (the three positive-axis
+    thrusters at full duty every step); pass a searched one with --sequence.
+    """
+    scenario = Scenario.paper()
+    sequence = scenario.check_sequence(parse_sequence(sequence_text))
+    values = _parse_multiples(multiples)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    seeds = np.random.SeedSequence(seed).spawn(3)
+    started = time.perf_counter()
+    click.echo(
+        f"[1/3] training {metric} classifier ({scenario.n_candidates} candidates x "
+        f"{realisations} realisations, {len(sequence)} steps)",
+        err=True,
+    )
+    model = train(scenario, sequence, realisations, np.random.default_rng(seeds[0]), metric=metric)
+    model.save(out / "classifier.json")
+    click.echo(f"      training F1 {model.f1_:.3f}, accuracy {model.accuracy_:.3f}", err=True)
+    click.echo("[2/3] accuracy vs noise", err=True)
+    with _progress_bar(2 * len(values), "sweep") as bar:
+        sweep = run_sweep(
+            model,
+            multiples=values,
+            n_test=n_test,
+            seed=int(seeds[1].generate_state(1)[0]),
+            progress=lambda _f: bar.update(1),
+        )
+    (out / "sweep.json").write_text(sweep.model_dump_json(indent=2), encoding="utf-8")
+    click.echo("[3/3] report", err=True)
+    result = simulate(scenario, sequence, realisations, np.random.default_rng(seeds[2]))
+    from .report import write_report
+
+    write_report(
+        out / "report.html",
+        scenario=scenario,
+        sequence=sequence,
+        result=result,
+        classifier=model,
+        sweep=sweep,
+    )
+    (out / "scenario.json").write_text(scenario.model_dump_json(indent=2), encoding="utf-8")
+    summary = {
+        "sequence": sequence.tolist(),
+        "metric": metric,
+        "seed": seed,
+        "training_f1": model.f1_,
+        "training_accuracy": model.accuracy_,
+        "impulse_nms": result.impulse_nms,
+        "mean_final_rate_rad_s": result.mean_final_rate_rad_s,
+        "accuracy": {
+            noise: {f"{p.multiple:g}": p.accuracy for p in sweep.curve(noise)}
+            for noise in NOISE_KINDS
+        },
+        "wall_time_s": time.perf_counter() - started,
+    }
+    _write_json(out / "summary.json", summary)
+    click.echo(
+        f"training F1 {model.f1_:.3f}; accuracy at x{values[-1]:g}: process "
+        f"{sweep.curve('process')[-1].accuracy:.3f}, measurement "
+        f"{sweep.curve('measurement')[-1].accuracy:.3f}"
+    )
+    click.echo(f"report: {out / 'report.html'}")
+
+
+if __name__ == "__main__":
+    main()
