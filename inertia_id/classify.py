@@ -329,8 +329,17 @@ class InertiaClassifier(BaseEstimator):
 
     def evaluate(self, X: Any, y: Any) -> dict[str, Any]:
         """F1 (macro), accuracy and confusion matrix of predictions against ``y``."""
-        y = np.asarray(y, dtype=int)
         predicted = self.predict(X)
+        y = np.asarray(y)
+        if y.shape != predicted.shape:
+            raise ValueError(f"y must hold one label per series ({len(predicted)}), got {y.shape}")
+        if y.size and (
+            not np.issubdtype(y.dtype, np.integer) or y.min() < 0 or y.max() >= self.n_candidates_
+        ):
+            raise ValueError(
+                f"labels must lie in 0..{self.n_candidates_ - 1} (candidate indices), got "
+                f"{sorted(set(y.tolist()))[:10]}"
+            )
         confusion = np.zeros((self.n_candidates_, self.n_candidates_), dtype=int)
         np.add.at(confusion, (y, predicted), 1)
         return {

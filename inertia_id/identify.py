@@ -45,8 +45,8 @@ class Telemetry(BaseModel):
         if np.any(steps <= 0):
             i = int(np.flatnonzero(steps <= 0)[0])
             raise ValueError(
-                f"time stamps must increase strictly: time_s[{i}] = {arr[i]!r}, "
-                f"time_s[{i + 1}] = {arr[i + 1]!r}"
+                f"time stamps must increase strictly: time_s[{i}] = {value[i]!r}, "
+                f"time_s[{i + 1}] = {value[i + 1]!r}"
             )
         return value
 

@@ -458,9 +458,10 @@ class Scenario(_Model):
 
     def with_uncertainty(self, **changes: Any) -> Scenario:
         """A copy with some uncertainty fields changed (validated)."""
-        data = self.uncertainty.model_dump()
-        data.update(changes)
-        return self.model_copy(update={"uncertainty": Uncertainty.model_validate(data)})
+        # Validate the whole scenario again: some rules (the disturbance interval on the
+        # integration grid) span the uncertainty and the timing.
+        uncertainty = {**self.uncertainty.model_dump(), **changes}
+        return type(self).model_validate({**self.model_dump(), "uncertainty": uncertainty})
 
     @classmethod
     def paper(cls) -> Scenario:
@@ -496,8 +497,14 @@ def _paper() -> Scenario:
 PRESETS = {"paper": _paper}
 
 
-def preset(name: str, **overrides: Any) -> Scenario:
-    """A named preset scenario, optionally with top-level fields overridden."""
+def preset(name: str, /, **overrides: Any) -> Scenario:
+    """A named preset scenario, optionally with top-level fields overridden.
+
+    A dict override is merged into the preset's section, so
+    ``preset("paper", uncertainty={"gyro_noise_sigma_rad_s": 2e-3})`` changes one field;
+    ``thrusters={"nominal_torque_nm": 3}`` or ``{"n_levels": 3}`` replace the matrix or
+    the levels they generate.
+    """
     try:
         base = PRESETS[name]()
     except KeyError:
@@ -507,6 +514,14 @@ def preset(name: str, **overrides: Any) -> Scenario:
     data = base.model_dump()
     if "candidate_generator" in overrides and "inertia_candidates" not in overrides:
         data["inertia_candidates"] = []
+    if "inertia_candidates" in overrides and "candidate_generator" not in overrides:
+        data["candidate_generator"] = None  # explicit candidates: the generator no longer applies
+    thrusters = overrides.get("thrusters")
+    if isinstance(thrusters, dict):
+        if thrusters.get("nominal_torque_nm") is not None:
+            data["thrusters"].pop("torque_matrix_nm", None)
+        if thrusters.get("n_levels") is not None:
+            data["thrusters"].pop("levels", None)
     for key, value in overrides.items():
         if isinstance(value, dict) and isinstance(data.get(key), dict):
             data[key] = {**data[key], **value}

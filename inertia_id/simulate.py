@@ -158,7 +158,11 @@ class Simulator:
         process_noise_scale: float = 1.0,
         measurement_noise_scale: float = 1.0,
     ) -> None:
-        if not isinstance(n_realisations, int | np.integer) or n_realisations < 1:
+        if (
+            isinstance(n_realisations, bool)
+            or not isinstance(n_realisations, int | np.integer)
+            or n_realisations < 1
+        ):
             raise ValueError(f"n_realisations must be a positive integer, got {n_realisations!r}")
         for name, value in (
             ("process_noise_scale", process_noise_scale),

@@ -99,7 +99,13 @@ def run_sweep(
     unknown = [n for n in noises if n not in NOISE_KINDS]
     if unknown or not noises:
         raise ValueError(f"noises must be among {list(NOISE_KINDS)}, got {list(noises)}")
-    bad = [m for m in multiples if not (math.isfinite(m) and m >= 0)]
+    bad = [
+        m
+        for m in multiples
+        if isinstance(m, bool)
+        or not isinstance(m, int | float | np.integer | np.floating)
+        or not (math.isfinite(m) and m >= 0)
+    ]
     if bad or not multiples:
         raise ValueError(f"noise multiples must be finite and >= 0, got {list(multiples)}")
     if n_test < scenario.n_candidates:
