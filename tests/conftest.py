@@ -1,0 +1,90 @@
+"""Shared fixtures for the inertia_id test suite.
+
+Everything here is deterministic: every random draw comes from a seeded generator, so a
+failure is reproducible and no test depends on timing.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+import pytest
+
+from inertia_id import InertiaClassifier, Scenario, train
+
+# The paper's "good" sequence: the three positive-axis thrusters at full duty, 4 steps.
+GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
+
+# Every source of randomness switched off, and the actuation low-pass too.
+ZERO_UNCERTAINTY: dict[str, Any] = {
+    "duty_jitter_sigma": 0.0,
+    "lowpass_time_constant_s": 0.0,
+    "thrust_scale_sigma": 0.0,
+    "disturbance_torque_sigma_nm": 0.0,
+    "gyro_noise_sigma_rad_s": 0.0,
+    "gyro_bias_rad_s": (0.0, 0.0, 0.0),
+    "gyro_bias_sigma_rad_s": 0.0,
+    "initial_rate_sigma_rad_s": 0.0,
+}
+
+
+@pytest.fixture(scope="session")
+def paper() -> Scenario:
+    """The paper preset (5 candidates, 6 thrusters, 5 levels). Frozen, so shareable."""
+    return Scenario.paper()
+
+
+@pytest.fixture(scope="session")
+def good_sequence() -> np.ndarray:
+    return np.array(GOOD_SEQUENCE)
+
+
+@pytest.fixture(scope="session")
+def zero_uncertainty() -> dict[str, Any]:
+    return dict(ZERO_UNCERTAINTY)
+
+
+@pytest.fixture(scope="session")
+def quiet_paper(paper: Scenario) -> Scenario:
+    """The paper preset with every noise and the low-pass switched off."""
+    return paper.with_uncertainty(**ZERO_UNCERTAINTY)
+
+
+@pytest.fixture(scope="session")
+def scenario_like() -> Callable[..., Scenario]:
+    """Build a scenario with the paper's thrusters/timing/uncertainty and given tensors.
+
+    ``scenario_like({"heavy": tensor, ...}, timing=..., uncertainty=...)``.
+    """
+
+    def build(candidates: dict[str, Any], **overrides: Any) -> Scenario:
+        base = Scenario.paper().model_dump()
+        data = {
+            "name": "test",
+            "inertia_candidates": [
+                {"name": name, "inertia_kg_m2": np.asarray(tensor, float).tolist()}
+                for name, tensor in candidates.items()
+            ],
+            "thrusters": base["thrusters"],
+            "timing": base["timing"],
+            "uncertainty": base["uncertainty"],
+        }
+        for key, value in overrides.items():
+            if isinstance(value, dict) and isinstance(data.get(key), dict):
+                data[key] = {**data[key], **value}
+            else:
+                data[key] = value
+        return Scenario.model_validate(data)
+
+    return build
+
+
+@pytest.fixture(scope="module")
+def euclidean_classifier(paper: Scenario) -> InertiaClassifier:
+    """Euclidean classifier trained on the paper preset with the good sequence (fast).
+
+    Module-scoped: trained once per test module. Tests must not mutate it.
+    """
+    return train(paper, GOOD_SEQUENCE, 20, np.random.default_rng(1), metric="euclidean")

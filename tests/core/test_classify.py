@@ -1,0 +1,403 @@
+"""Cluster matching, the k-means classifier, and its checksummed JSON storage."""
+
+from __future__ import annotations
+
+import itertools
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from sklearn.metrics import f1_score
+
+from inertia_id import InertiaClassifier, Scenario, match_clusters, simulate, train
+
+GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
+
+
+# match_clusters: the Hungarian matching of clusters to candidates.
+
+
+def macro_f1(y: np.ndarray, predicted: np.ndarray) -> float:
+    """Textbook macro F1 over the candidates present: mean of 2 TP / (|true| + |predicted|)."""
+    scores = [
+        2.0 * np.sum((y == j) & (predicted == j)) / (np.sum(y == j) + np.sum(predicted == j))
+        for j in np.unique(y)
+    ]
+    return float(np.mean(scores))
+
+
+def brute_force_f1(y: np.ndarray, clusters: np.ndarray, k: int) -> float:
+    """Best macro F1 over every one-to-one cluster -> candidate assignment."""
+    return max(macro_f1(y, np.asarray(perm)[clusters]) for perm in itertools.permutations(range(k)))
+
+
+def test_perfect_clustering_scores_one() -> None:
+    y = np.array([0, 0, 1, 1, 2, 2])
+    clusters = np.array([2, 2, 0, 0, 1, 1])
+    scores = match_clusters(y, clusters, 3)
+    assert scores.f1 == 1.0 and scores.accuracy == 1.0
+    np.testing.assert_array_equal(scores.cluster_to_candidate, [1, 2, 0])
+    np.testing.assert_array_equal(scores.confusion, 2 * np.eye(3, dtype=int))
+
+
+def test_known_contingency_table_gives_hand_computed_f1() -> None:
+    # Cluster 0 holds two of candidate 0; cluster 1 holds one of candidate 0 and all
+    # three of candidate 1. Matching 0->0, 1->1:
+    #   F1(candidate 0) = 2*2 / (2 + 3) = 0.8, F1(candidate 1) = 2*3 / (4 + 3) = 6/7.
+    y = np.array([0, 0, 0, 1, 1, 1])
+    clusters = np.array([0, 0, 1, 1, 1, 1])
+    scores = match_clusters(y, clusters, 2)
+    assert scores.f1 == pytest.approx((0.8 + 6 / 7) / 2, rel=1e-15)
+    assert scores.accuracy == pytest.approx(5 / 6, rel=1e-15)
+    np.testing.assert_array_equal(scores.confusion, [[2, 1], [0, 3]])
+    np.testing.assert_array_equal(scores.cluster_to_candidate, [0, 1])
+
+
+def test_matching_is_global_not_greedy() -> None:
+    # Greedy would pair the largest entry (cluster 0, candidate 0: F1 = 2*4/(6+5) = 0.727)
+    # first, leaving cluster 1 -> candidate 1 (F1 = 0). The optimum swaps them:
+    # cluster 0 -> candidate 1 (2*2/(6+2) = 0.5), cluster 1 -> candidate 0
+    # (2*1/(1+5) = 1/3): total 0.833 > 0.727.
+    y = np.array([0, 0, 0, 0, 1, 1, 0])
+    clusters = np.array([0, 0, 0, 0, 0, 0, 1])
+    scores = match_clusters(y, clusters, 2)
+    np.testing.assert_array_equal(scores.cluster_to_candidate, [1, 0])
+    assert scores.f1 == pytest.approx((0.5 + 1 / 3) / 2, rel=1e-15)
+    assert scores.f1 == pytest.approx(brute_force_f1(y, clusters, 2), rel=1e-12)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_matching_is_optimal_against_brute_force(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    k = int(rng.integers(2, 6))
+    y = np.concatenate([np.arange(k), rng.integers(0, k, size=40)])
+    clusters = np.where(rng.random(y.size) < 0.5, (y + 1) % k, rng.integers(0, k, y.size))
+    scores = match_clusters(y, clusters, k)
+    assert scores.f1 == pytest.approx(brute_force_f1(y, clusters, k), rel=1e-12)
+    assert scores.f1 == pytest.approx(
+        f1_score(y, scores.cluster_to_candidate[clusters], average="macro"), rel=1e-12
+    )
+    # Accuracy and confusion are those of the returned mapping.
+    predicted = scores.cluster_to_candidate[clusters]
+    assert scores.accuracy == pytest.approx(np.mean(predicted == y))
+    assert scores.confusion.sum() == y.size
+    assert np.trace(scores.confusion) == np.sum(predicted == y)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_relabelling_clusters_changes_nothing(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    y = np.repeat(np.arange(5), 30)
+    clusters = np.where(rng.random(y.size) < 0.7, y, rng.integers(0, 5, y.size))
+    base = match_clusters(y, clusters, 5)
+    perm = rng.permutation(5)
+    relabelled = match_clusters(y, perm[clusters], 5)
+    assert relabelled.f1 == base.f1
+    assert relabelled.accuracy == base.accuracy
+    np.testing.assert_array_equal(relabelled.confusion, base.confusion)
+    # The mapping follows the relabelling: new cluster perm[c] maps where c did.
+    np.testing.assert_array_equal(relabelled.cluster_to_candidate[perm], base.cluster_to_candidate)
+
+
+def test_twelve_candidates_use_hungarian_matching() -> None:
+    k = 12
+    rng = np.random.default_rng(0)
+    y = np.repeat(np.arange(k), 10)
+    perm = rng.permutation(k)
+    clusters = perm[y]
+    wrong = rng.choice(y.size, size=7, replace=False)
+    clusters[wrong] = perm[(y[wrong] + 1) % k]  # 7 series land in a neighbour's cluster
+    scores = match_clusters(y, clusters, k)
+    inverse = np.argsort(perm)
+    np.testing.assert_array_equal(scores.cluster_to_candidate, inverse)
+    assert scores.accuracy == pytest.approx(1 - 7 / 120, rel=1e-15)
+    assert scores.f1 == pytest.approx(f1_score(y, inverse[clusters], average="macro"), rel=1e-12)
+    assert scores.f1 < 1.0
+
+
+def test_extra_clusters_stay_unmatched() -> None:
+    y = np.array([0, 0, 1, 1])
+    clusters = np.array([0, 2, 1, 1])
+    scores = match_clusters(y, clusters, 2, n_clusters=3)
+    assert (scores.cluster_to_candidate == -1).sum() == 1
+    assert scores.accuracy < 1.0
+    assert scores.confusion.sum() == 4 - np.sum(scores.cluster_to_candidate[clusters] < 0)
+
+
+def test_match_clusters_validates_its_input() -> None:
+    with pytest.raises(ValueError, match=r"equal length, got \(3,\) and \(2,\)"):
+        match_clusters([0, 1, 1], [0, 1], 2)
+    with pytest.raises(ValueError, match=r"candidate labels must lie in 0\.\.1"):
+        match_clusters([0, 2], [0, 1], 2)
+    with pytest.raises(ValueError, match=r"cluster labels must lie in 0\.\.1"):
+        match_clusters([0, 1], [0, 5], 2)
+
+
+# The classifier.
+
+
+@pytest.fixture(scope="module")
+def fresh_set(paper: Scenario) -> tuple[np.ndarray, np.ndarray]:
+    """Series never seen in training (another seed)."""
+    return simulate(paper, GOOD_SEQUENCE, 20, np.random.default_rng(99)).dataset()
+
+
+@pytest.fixture(scope="module")
+def dtw_classifier(paper: Scenario) -> InertiaClassifier:
+    """The paper's DTW classifier. The first DTW fit of a session compiles numba (~10 s)."""
+    return train(paper, GOOD_SEQUENCE, 20, np.random.default_rng(2), metric="dtw")
+
+
+def test_euclidean_classifier_separates_every_candidate(
+    euclidean_classifier: InertiaClassifier,
+    paper: Scenario,
+    fresh_set: tuple[np.ndarray, np.ndarray],
+) -> None:
+    clf = euclidean_classifier
+    assert clf.f1_ == 1.0 and clf.accuracy_ == 1.0
+    np.testing.assert_array_equal(clf.confusion_, 20 * np.eye(5, dtype=int))
+    assert sorted(clf.cluster_to_candidate_.tolist()) == list(range(5))
+    assert clf.candidate_names_ == paper.candidate_names
+    X, y = fresh_set
+    report = clf.evaluate(X, y)
+    assert report["f1"] == 1.0 and report["accuracy"] == 1.0
+    assert clf.score(X, y) == 1.0
+    np.testing.assert_array_equal(clf.predict(X), y)
+
+
+def test_euclidean_centroids_are_the_mean_responses(
+    euclidean_classifier: InertiaClassifier, paper: Scenario, zero_uncertainty: dict
+) -> None:
+    """Euclidean k-means centroids are cluster means, close to the noise-free response."""
+    clf = euclidean_classifier
+    X, y = simulate(paper, GOOD_SEQUENCE, 20, np.random.default_rng(1)).dataset()
+    quiet = paper.with_uncertainty(**{**zero_uncertainty, "lowpass_time_constant_s": 0.1})
+    clean = simulate(quiet, GOOD_SEQUENCE, 1, np.random.default_rng(0)).omega_true[:, 0]
+    for k in range(5):
+        centroid = clf.cluster_centers_[np.flatnonzero(clf.cluster_to_candidate_ == k)[0]]
+        np.testing.assert_allclose(centroid, X[y == k].mean(axis=0), rtol=0, atol=1e-12)
+        # Mean of 20 noisy responses: within a few mrad/s of the noise-free one (~0.14).
+        assert np.abs(centroid - clean[k]).max() < 5e-3
+        assert np.abs(clean[k]).max() > 0.1
+
+
+def test_transform_predict_and_thresholds(
+    euclidean_classifier: InertiaClassifier, fresh_set: tuple[np.ndarray, np.ndarray]
+) -> None:
+    clf = euclidean_classifier
+    X, y = fresh_set
+    distances = clf.transform(X)
+    assert distances.shape == (100, 5)
+    assert np.all(distances >= 0) and np.all(np.isfinite(distances))
+    np.testing.assert_array_equal(clf.predict(X), distances.argmin(axis=1))
+    # A single (length, 3) series is accepted as a batch of one.
+    np.testing.assert_array_equal(clf.transform(X[3]), distances[3:4])
+    # Euclidean distance in units of the training RMS rate, by hand.
+    centroid = clf.cluster_centers_[np.flatnonzero(clf.cluster_to_candidate_ == 2)[0]]
+    assert distances[7, 2] == pytest.approx(np.linalg.norm(X[7] - centroid) / clf.scale_, rel=1e-12)
+    thresholds = clf.novelty_thresholds()
+    expected = (
+        clf.novelty_factor * clf.max_training_distance_[np.argsort(clf.cluster_to_candidate_)]
+    )
+    np.testing.assert_allclose(thresholds, expected, rtol=1e-15)
+    assert np.all(distances.min(axis=1) < thresholds[y])
+
+
+def test_fit_predict_returns_candidates(paper: Scenario) -> None:
+    X, y = simulate(paper, GOOD_SEQUENCE, 6, np.random.default_rng(3)).dataset()
+    clf = InertiaClassifier("euclidean", random_state=0)
+    np.testing.assert_array_equal(clf.fit_predict(X, y), y)
+    # Warm start from the fitted centroids converges to the same partition.
+    warm = InertiaClassifier("euclidean", init=clf.cluster_centers_).fit(X, y)
+    np.testing.assert_array_equal(warm.predict(X), y)
+
+
+def test_dtw_classifier_separates_every_candidate(
+    dtw_classifier: InertiaClassifier, fresh_set: tuple[np.ndarray, np.ndarray]
+) -> None:
+    assert dtw_classifier.metric == "dtw"
+    assert dtw_classifier.f1_ == 1.0
+    X, y = fresh_set
+    assert dtw_classifier.score(X, y) == 1.0
+
+
+def test_dtw_json_round_trip(
+    dtw_classifier: InertiaClassifier, fresh_set: tuple[np.ndarray, np.ndarray]
+) -> None:
+    X, _ = fresh_set
+    loaded = InertiaClassifier.from_json(dtw_classifier.to_json())
+    np.testing.assert_array_equal(loaded.transform(X[:10]), dtw_classifier.transform(X[:10]))
+    np.testing.assert_array_equal(loaded.predict(X[:10]), dtw_classifier.predict(X[:10]))
+    assert loaded.to_json() == dtw_classifier.to_json()
+
+
+def test_save_load_round_trip(
+    euclidean_classifier: InertiaClassifier,
+    tmp_path: Path,
+    fresh_set: tuple[np.ndarray, np.ndarray],
+) -> None:
+    clf = euclidean_classifier
+    path = tmp_path / "classifier.json"
+    clf.save(path)
+    loaded = InertiaClassifier.load(path)
+    X, _ = fresh_set
+    np.testing.assert_array_equal(loaded.transform(X), clf.transform(X))
+    np.testing.assert_array_equal(loaded.predict(X), clf.predict(X))
+    np.testing.assert_array_equal(loaded.novelty_thresholds(), clf.novelty_thresholds())
+    assert loaded.get_params() == {**clf.get_params(), "init": None}
+    assert loaded.scenario_ == clf.scenario_
+    np.testing.assert_array_equal(loaded.sequence_, clf.sequence_)
+    assert (loaded.f1_, loaded.accuracy_, loaded.inertia_) == (clf.f1_, clf.accuracy_, clf.inertia_)
+    assert loaded.candidate_names_ == clf.candidate_names_
+    # The document is plain JSON with the documented envelope.
+    doc = json.loads(path.read_text(encoding="utf-8"))
+    assert doc["format"] == "inertia-id/classifier" and doc["version"] == 1
+    assert len(doc["sha256"]) == 64
+
+
+def test_softdtw_tiny_fit_and_round_trip(paper: Scenario) -> None:
+    """Soft-DTW is slow; 2 candidates x 4 realisations x 1 step only."""
+    data = paper.model_dump()
+    data["inertia_candidates"] = data["inertia_candidates"][:2]
+    data["candidate_generator"] = None
+    small = Scenario.model_validate(data)
+    clf = train(
+        small,
+        GOOD_SEQUENCE[:1],
+        4,
+        np.random.default_rng(0),
+        metric="softdtw",
+        n_init=1,
+        max_iter=5,
+        max_iter_barycenter=5,
+    )
+    # gamma is set from the data (noise energy of unit-RMS series), not tslearn's 1.
+    assert 1e-6 <= clf.gamma_ < 0.5
+    X, _ = simulate(small, GOOD_SEQUENCE[:1], 2, np.random.default_rng(5)).dataset()
+    distances = clf.transform(X)
+    assert np.all(distances >= -1e-9)  # normalised soft-DTW is a divergence
+    loaded = InertiaClassifier.from_json(clf.to_json())
+    assert loaded.gamma_ == clf.gamma_
+    np.testing.assert_array_equal(loaded.transform(X), distances)
+
+
+# Storage integrity and validation.
+
+
+def tamper(text: str, edit: Any) -> str:
+    doc = json.loads(text)
+    edit(doc["classifier"])
+    return json.dumps(doc)
+
+
+@pytest.mark.parametrize(
+    "edit",
+    [
+        lambda c: c["cluster_centers_rad_s"][0][0].__setitem__(
+            0, c["cluster_centers_rad_s"][0][0][0] + 1e-6
+        ),
+        lambda c: c.__setitem__("scale", c["scale"] * 2),
+        lambda c: c.__setitem__("max_training_distance", [9.0] * 5),
+        lambda c: c["params"].__setitem__("novelty_factor", 100.0),
+    ],
+)
+def test_tampered_document_is_rejected(euclidean_classifier: InertiaClassifier, edit: Any) -> None:
+    text = tamper(euclidean_classifier.to_json(), edit)
+    with pytest.raises(
+        ValueError,
+        match=r"checksum mismatch: document says '[0-9a-f]{64}', "
+        r"content hashes to '[0-9a-f]{64}'",
+    ):
+        InertiaClassifier.from_json(text)
+
+
+def test_tampered_text_is_rejected(euclidean_classifier: InertiaClassifier) -> None:
+    text = euclidean_classifier.to_json()
+    assert '"f1": 1.0' in text
+    with pytest.raises(ValueError, match="checksum mismatch"):
+        InertiaClassifier.from_json(text.replace('"f1": 1.0', '"f1": 0.5', 1))
+
+
+def test_bad_documents_are_rejected(euclidean_classifier: InertiaClassifier) -> None:
+    good = json.loads(euclidean_classifier.to_json())
+    with pytest.raises(ValueError, match="not JSON"):
+        InertiaClassifier.from_json("{nope")
+    with pytest.raises(ValueError, match="not an inertia-id/classifier document"):
+        InertiaClassifier.from_json(json.dumps({**good, "format": "other"}))
+    with pytest.raises(ValueError, match="unsupported classifier format version 2"):
+        InertiaClassifier.from_json(json.dumps({**good, "version": 2}))
+    with pytest.raises(ValueError, match="no classifier payload"):
+        InertiaClassifier.from_json(json.dumps({**good, "classifier": [1, 2]}))
+
+
+def test_invalid_parameters_are_rejected(paper: Scenario) -> None:
+    X, y = simulate(paper, GOOD_SEQUENCE[:1], 2, np.random.default_rng(0)).dataset()
+    cases = [
+        (
+            {"metric": "cosine"},
+            r"metric must be one of \['dtw', 'softdtw', 'euclidean'\], got 'cosine'",
+        ),
+        ({"n_init": 0}, r"n_init must be a positive integer, got 0"),
+        ({"sakoe_chiba_radius": -1}, r"sakoe_chiba_radius must be None or an integer >= 0, got -1"),
+        ({"gamma": -0.5}, r"gamma must be 'auto' or a number > 0, got -0\.5"),
+        ({"novelty_factor": 0.5}, r"novelty_factor must be >= 1, got 0\.5"),
+    ]
+    for params, match in cases:
+        with pytest.raises(ValueError, match=match):
+            InertiaClassifier(**params).fit(X, y)
+    with pytest.raises(ValueError, match=r"got 'cosine'"):
+        train(paper, GOOD_SEQUENCE[:1], 2, np.random.default_rng(0), metric="cosine")
+
+
+def test_fit_input_is_validated() -> None:
+    rng = np.random.default_rng(0)
+    X = rng.normal(size=(6, 10, 3))
+    clf = InertiaClassifier("euclidean")
+    with pytest.raises(ValueError, match=r"missing \[1\]"):
+        clf.fit(X, [0, 0, 2, 2, 0, 2])
+    with pytest.raises(ValueError, match=r"one label per series \(6\), got \(5,\)"):
+        clf.fit(X, [0, 1, 0, 1, 0])
+    with pytest.raises(ValueError, match=r"3 candidate names for 2 candidates"):
+        clf.fit(X, [0, 1, 0, 1, 0, 1], candidate_names=["a", "b", "c"])
+    with pytest.raises(ValueError, match=r"shaped \(n_series, length, 3\), got \(6, 10, 2\)"):
+        clf.fit(X[..., :2], [0, 1, 0, 1, 0, 1])
+    bad = X.copy()
+    bad[2, 3, 1] = np.nan
+    with pytest.raises(ValueError, match="NaN or infinite"):
+        clf.fit(bad, [0, 1, 0, 1, 0, 1])
+
+
+@pytest.mark.parametrize(
+    ("labels", "match"),
+    [
+        (lambda y: y + 5, r"labels? .*(outside|lie in) 0\.\.4"),
+        (lambda y: y[:3], r"one label per series \(100\)"),
+    ],
+)
+def test_evaluate_validates_labels(
+    euclidean_classifier: InertiaClassifier,
+    fresh_set: tuple[np.ndarray, np.ndarray],
+    labels: Any,
+    match: str,
+) -> None:
+    X, y = fresh_set
+    with pytest.raises(ValueError, match=match):
+        euclidean_classifier.evaluate(X, labels(y))
+
+
+def test_prediction_input_is_validated(euclidean_classifier: InertiaClassifier) -> None:
+    clf = euclidean_classifier
+    with pytest.raises(
+        ValueError, match="series have 79 samples; the classifier was trained on 80"
+    ):
+        clf.predict(np.zeros((2, 79, 3)))
+    with pytest.raises(ValueError, match="series have 81 samples"):
+        clf.transform(np.zeros((81, 3)))
+    with pytest.raises(ValueError, match=r"got \(2, 80, 4\)"):
+        clf.predict(np.zeros((2, 80, 4)))
+    with pytest.raises(ValueError, match="NaN or infinite"):
+        clf.predict(np.full((1, 80, 3), np.inf))
+    with pytest.raises(ValueError, match="not fitted yet"):
+        InertiaClassifier("euclidean").predict(np.zeros((1, 80, 3)))

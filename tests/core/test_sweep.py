@@ -1,0 +1,194 @@
+"""Accuracy versus noise multiple, with Wilson intervals."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from inertia_id import (
+    InertiaClassifier,
+    Scenario,
+    SweepResult,
+    run_sweep,
+    simulate,
+    wilson_interval,
+)
+
+GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
+Z = 1.959964
+
+
+@pytest.fixture(scope="module")
+def sweep(euclidean_classifier: InertiaClassifier) -> SweepResult:
+    # 500 test series per point (100 per candidate): enough for disjoint intervals.
+    return run_sweep(euclidean_classifier, multiples=(1, 8), n_test=500, seed=3)
+
+
+# Wilson interval.
+
+
+def test_wilson_known_values() -> None:
+    # With no successes the lower bound is 0 and the upper z^2 / (n + z^2).
+    low, high = wilson_interval(0, 10)
+    assert low == pytest.approx(0.0, abs=1e-15)
+    assert high == pytest.approx(Z**2 / (10 + Z**2), rel=1e-12)
+    assert high == pytest.approx(0.2775, abs=1e-4)
+    # All successes: lower bound n / (n + z^2), upper 1.
+    low, high = wilson_interval(10, 10)
+    assert low == pytest.approx(10 / (10 + Z**2), rel=1e-12)
+    assert low == pytest.approx(0.7225, abs=1e-4)
+    assert high == pytest.approx(1.0, abs=1e-15)
+    for low, high in (wilson_interval(0, 10), wilson_interval(10, 10)):
+        assert 0.0 <= low <= high <= 1.0
+    low, high = wilson_interval(50, 100)
+    assert low == pytest.approx(0.4038, abs=1e-4)
+    assert high == pytest.approx(0.5962, abs=1e-4)
+    assert wilson_interval(0, 0) == (0.0, 1.0)
+
+
+@pytest.mark.parametrize(("k", "n"), [(1, 7), (3, 20), (17, 40), (99, 100), (480, 500)])
+def test_wilson_properties(k: int, n: int) -> None:
+    low, high = wilson_interval(k, n)
+    assert 0.0 <= low < k / n < high <= 1.0
+    # Symmetric under swapping successes and failures.
+    mirror = wilson_interval(n - k, n)
+    assert low == pytest.approx(1.0 - mirror[1], abs=1e-12)
+    assert high == pytest.approx(1.0 - mirror[0], abs=1e-12)
+    # Narrower with ten times the data at the same proportion.
+    wide, narrow = high - low, np.subtract(*reversed(wilson_interval(10 * k, 10 * n)))
+    assert narrow < wide
+    # Wider for 99 % than for 95 %.
+    low99, high99 = wilson_interval(k, n, z=2.575829)
+    assert low99 < low and high99 > high
+
+
+# The sweep.
+
+
+def test_sweep_result_contents(sweep: SweepResult, paper: Scenario) -> None:
+    assert sweep.candidate_names == paper.candidate_names
+    assert sweep.sequence == GOOD_SEQUENCE
+    assert sweep.metric == "euclidean"
+    assert sweep.seed == 3
+    assert sweep.n_test_per_candidate == 100
+    assert [(p.noise, p.multiple) for p in sweep.points] == [
+        ("process", 1.0),
+        ("process", 8.0),
+        ("measurement", 1.0),
+        ("measurement", 8.0),
+    ]
+    assert [p.multiple for p in sweep.curve("process")] == [1.0, 8.0]
+    assert [p.noise for p in sweep.curve("measurement")] == ["measurement"] * 2
+    for point in sweep.points:
+        confusion = np.asarray(point.confusion)
+        assert point.n_series == 500 == confusion.sum()
+        np.testing.assert_array_equal(confusion.sum(axis=1), 100)
+        correct = int(np.trace(confusion))
+        assert point.accuracy == pytest.approx(correct / 500, rel=1e-15)
+        assert (point.ci_low, point.ci_high) == pytest.approx(wilson_interval(correct, 500))
+        assert point.ci_low <= point.accuracy <= point.ci_high
+        assert 0.0 <= point.f1 <= 1.0
+
+
+def test_sweep_json_round_trip(sweep: SweepResult) -> None:
+    text = sweep.model_dump_json()
+    again = SweepResult.model_validate_json(text)
+    assert again == sweep
+    assert again.model_dump_json() == text
+
+
+def test_more_noise_is_no_easier(sweep: SweepResult) -> None:
+    process = {p.multiple: p for p in sweep.curve("process")}
+    measurement = {p.multiple: p for p in sweep.curve("measurement")}
+    assert process[1.0].accuracy >= process[8.0].accuracy
+    assert measurement[1.0].accuracy >= measurement[8.0].accuracy
+    # At 1x the good sequence separates everything; 8x the process noise really hurts:
+    # the Wilson intervals do not even overlap.
+    assert process[1.0].accuracy == 1.0
+    assert process[1.0].ci_low > process[8.0].ci_high
+
+
+def test_zero_noise_multiple_is_allowed(euclidean_classifier: InertiaClassifier) -> None:
+    result = run_sweep(euclidean_classifier, multiples=[0.0], noises=["process"], n_test=25)
+    assert len(result.points) == 1 and result.points[0].accuracy == 1.0
+
+
+def test_progress_is_reported(euclidean_classifier: InertiaClassifier) -> None:
+    fractions: list[float] = []
+    run_sweep(euclidean_classifier, multiples=(1, 2), n_test=10, progress=fractions.append)
+    assert fractions == pytest.approx([0.25, 0.5, 0.75, 1.0])
+
+
+def test_should_stop_stops_early(euclidean_classifier: InertiaClassifier) -> None:
+    polls: list[int] = []
+
+    def stop_after_one_point() -> bool:
+        polls.append(1)
+        return len(polls) > 1
+
+    fractions: list[float] = []
+    result = run_sweep(
+        euclidean_classifier,
+        multiples=(1, 2, 3),
+        n_test=10,
+        should_stop=stop_after_one_point,
+        progress=fractions.append,
+    )
+    assert len(result.points) == 1
+    assert (result.points[0].noise, result.points[0].multiple) == ("process", 1.0)
+    assert fractions == pytest.approx([1 / 6])
+    assert len(polls) == 2
+    nothing = run_sweep(euclidean_classifier, multiples=(1, 2), n_test=10, should_stop=lambda: True)
+    assert nothing.points == []
+
+
+def test_points_do_not_depend_on_what_else_is_swept(
+    euclidean_classifier: InertiaClassifier,
+) -> None:
+    """Each point has its own stream: the first point is the same whatever follows."""
+    a = run_sweep(euclidean_classifier, multiples=(8,), noises=["process"], n_test=50, seed=1)
+    b = run_sweep(euclidean_classifier, multiples=(8, 2), noises=["process"], n_test=50, seed=1)
+    assert a.points[0] == b.points[0]
+
+
+def test_explicit_scenario_and_sequence(paper: Scenario) -> None:
+    X, y = simulate(paper, GOOD_SEQUENCE, 6, np.random.default_rng(0)).dataset()
+    bare = InertiaClassifier("euclidean", random_state=0).fit(X, y)
+    with pytest.raises(ValueError, match="does not carry its scenario and sequence; pass them"):
+        run_sweep(bare, multiples=(1,), n_test=10)
+    result = run_sweep(bare, scenario=paper, sequence=GOOD_SEQUENCE, multiples=(1,), n_test=10)
+    assert len(result.points) == 2 and result.n_test_per_candidate == 2
+
+
+@pytest.mark.parametrize(
+    "multiples",
+    [[-1.0], [1.0, math.nan], [math.inf], []],
+)
+def test_bad_multiples_are_rejected(
+    euclidean_classifier: InertiaClassifier, multiples: list[float]
+) -> None:
+    shown = str(list(multiples)).replace("[", r"\[").replace("]", r"\]")
+    with pytest.raises(ValueError, match=rf"multiples must be finite and >= 0, got {shown}"):
+        run_sweep(euclidean_classifier, multiples=multiples, n_test=10)
+
+
+@pytest.mark.parametrize("noises", [["thermal"], ["process", "gyro"], []])
+def test_bad_noises_are_rejected(
+    euclidean_classifier: InertiaClassifier, noises: list[str]
+) -> None:
+    shown = str(list(noises)).replace("[", r"\[").replace("]", r"\]")
+    with pytest.raises(
+        ValueError,
+        match=rf"noises must be among \['process', 'measurement'\], "
+        rf"got {shown}",
+    ):
+        run_sweep(euclidean_classifier, noises=noises, n_test=10)
+
+
+def test_bad_sizes_and_sequences_are_rejected(euclidean_classifier: InertiaClassifier) -> None:
+    with pytest.raises(ValueError, match="n_test = 3 is fewer than the 5 candidates"):
+        run_sweep(euclidean_classifier, n_test=3)
+    with pytest.raises(ValueError, match=r"level index 9 is outside 0\.\.4"):
+        run_sweep(euclidean_classifier, sequence=[[9, 0, 0, 0, 0, 0]], n_test=10)
