@@ -18,7 +18,6 @@ from inertia_id import (
     Uncertainty,
     check_inertia_tensor,
     preset,
-    simulate,
 )
 
 I0 = np.diag([100.0, 60.0, 90.0])
