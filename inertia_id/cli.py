@@ -27,6 +27,7 @@ from .sweep import NOISE_KINDS, run_sweep
 # The hand-designed excitation: the three positive-axis thrusters at full duty for
 # every step. Used by `paper` until a searched sequence is given.
 PAPER_DEFAULT_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
+DEFAULT_SEQUENCE_TEXT = ";".join(",".join(map(str, row)) for row in PAPER_DEFAULT_SEQUENCE)
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -103,6 +104,32 @@ def _sequence_option(default: str | None = None) -> Callable[[F], F]:
     )
 
 
+def _realisations_option(help_text: str) -> Callable[[F], F]:
+    return click.option(
+        "-n",
+        "--realisations",
+        default=20,
+        show_default=True,
+        type=click.IntRange(1),
+        help=help_text,
+    )
+
+
+_multiples_option = click.option(
+    "--multiples",
+    default="1,2,3,4,5,6,7,8",
+    show_default=True,
+    help="Noise multiples of the training level, comma-separated.",
+)
+_n_test_option = click.option(
+    "--n-test",
+    default=200,
+    show_default=True,
+    type=click.IntRange(1),
+    help="Test series per sweep point, spread over the candidates.",
+)
+
+
 def _seed_option(func: F) -> F:
     return click.option(
         "--seed", default=0, show_default=True, type=int, help="Seed of every random draw."
@@ -143,15 +170,8 @@ def scenario_cmd(preset_name: str, scenario_path: str | None, out: str | None) -
 
 @main.command("simulate")
 @_scenario_options
-@_sequence_option(";".join(",".join(map(str, r)) for r in PAPER_DEFAULT_SEQUENCE))
-@click.option(
-    "-n",
-    "--realisations",
-    default=20,
-    show_default=True,
-    type=click.IntRange(1),
-    help="Noisy realisations per candidate.",
-)
+@_sequence_option(DEFAULT_SEQUENCE_TEXT)
+@_realisations_option("Noisy realisations per candidate.")
 @click.option(
     "--process-noise",
     default=1.0,
@@ -278,16 +298,9 @@ def _metric_option(func: F) -> F:
 
 @main.command("train")
 @_scenario_options
-@_sequence_option(";".join(",".join(map(str, r)) for r in PAPER_DEFAULT_SEQUENCE))
+@_sequence_option(DEFAULT_SEQUENCE_TEXT)
 @_metric_option
-@click.option(
-    "-n",
-    "--realisations",
-    default=20,
-    show_default=True,
-    type=click.IntRange(1),
-    help="Training realisations per candidate.",
-)
+@_realisations_option("Training realisations per candidate.")
 @click.option(
     "--n-init",
     default=5,
@@ -368,12 +381,7 @@ def _parse_multiples(text: str) -> list[float]:
     type=click.Path(exists=True, dir_okay=False),
     help="Classifier JSON from `train`.",
 )
-@click.option(
-    "--multiples",
-    default="1,2,3,4,5,6,7,8",
-    show_default=True,
-    help="Noise multiples of the training level.",
-)
+@_multiples_option
 @click.option(
     "--noise",
     "noises",
@@ -381,13 +389,7 @@ def _parse_multiples(text: str) -> list[float]:
     type=click.Choice(NOISE_KINDS),
     help="Noise to sweep (repeatable); default both.",
 )
-@click.option(
-    "--n-test",
-    default=200,
-    show_default=True,
-    type=click.IntRange(1),
-    help="Test series per point, spread over the candidates.",
-)
+@_n_test_option
 @_seed_option
 @click.option("--out", default="sweep.json", show_default=True, type=click.Path(dir_okay=False))
 @_friendly_errors
@@ -440,29 +442,11 @@ def identify_cmd(classifier_path: str, telemetry_path: str) -> None:
 
 
 @main.command("paper")
-@_sequence_option(";".join(",".join(map(str, r)) for r in PAPER_DEFAULT_SEQUENCE))
+@_sequence_option(DEFAULT_SEQUENCE_TEXT)
 @_metric_option
-@click.option(
-    "-n",
-    "--realisations",
-    default=20,
-    show_default=True,
-    type=click.IntRange(1),
-    help="Training realisations per candidate (the paper's 20).",
-)
-@click.option(
-    "--multiples",
-    default="1,2,3,4,5,6,7,8",
-    show_default=True,
-    help="Noise multiples of the sweep.",
-)
-@click.option(
-    "--n-test",
-    default=200,
-    show_default=True,
-    type=click.IntRange(1),
-    help="Test series per sweep point.",
-)
+@_realisations_option("Training realisations per candidate (the paper's 20).")
+@_multiples_option
+@_n_test_option
 @_seed_option
 @click.option(
     "--out-dir",

@@ -1,0 +1,127 @@
+"""The inertia-id command line: the workflow a user runs, and clean errors."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from inertia_id import InertiaClassifier
+from inertia_id.cli import main, parse_sequence
+
+
+@pytest.fixture()
+def runner() -> CliRunner:
+    return CliRunner()
+
+
+def test_train_simulate_identify_round_trip(runner: CliRunner, tmp_path: Path) -> None:
+    classifier = tmp_path / "c.json"
+    telemetry = tmp_path / "t.csv"
+    trained = runner.invoke(
+        main, ["train", "--metric", "euclidean", "-n", "10", "--out", str(classifier)]
+    )
+    assert trained.exit_code == 0, trained.output
+    assert json.loads(trained.stdout)["f1"] == 1.0
+    assert InertiaClassifier.load(classifier).metric == "euclidean"
+    simulated = runner.invoke(
+        main,
+        [
+            "simulate",
+            "-n",
+            "1",
+            "--seed",
+            "7",
+            "--candidate",
+            "payload 3 ejected",
+            "--telemetry",
+            str(telemetry),
+        ],
+    )
+    assert simulated.exit_code == 0, simulated.output
+    assert telemetry.read_text().startswith("time_s,")
+    identified = runner.invoke(
+        main, ["identify", "--classifier", str(classifier), "--telemetry", str(telemetry)]
+    )
+    assert identified.exit_code == 0, identified.output
+    verdict = json.loads(identified.stdout)
+    assert verdict["candidate"] == "payload 3 ejected"
+    assert verdict["matches_none"] is False
+
+
+def test_paper_writes_results_and_report(runner: CliRunner, tmp_path: Path) -> None:
+    out = tmp_path / "paper"
+    result = runner.invoke(
+        main,
+        [
+            "paper",
+            "--metric",
+            "euclidean",
+            "-n",
+            "10",
+            "--multiples",
+            "1,8",
+            "--n-test",
+            "50",
+            "--out-dir",
+            str(out),
+        ],
+    )
+    assert result.exit_code == 0, result.output
+    for name in ("classifier.json", "sweep.json", "scenario.json", "summary.json", "report.html"):
+        assert (out / name).is_file(), name
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["training_f1"] == 1.0
+    assert set(summary["accuracy"]["process"]) == {"1", "8"}
+    assert "Accuracy vs noise" in (out / "report.html").read_text()
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["simulate", "--sequence", "9,0,0,0,0,0"], "level index 9 is outside 0..4"),
+        (["simulate", "--sequence", "4,4"], "got shape (1, 2)"),
+        (["train", "--sequence", "a,b"], "sequence 'a,b' is not rows of level indices"),
+        (["simulate", "--candidate", "nobody", "--telemetry", "x.csv"], "'nobody'"),
+        (["sweep", "--classifier", "missing.json"], "does not exist"),
+    ],
+)
+def test_bad_input_is_one_line_error(
+    runner: CliRunner,
+    args: list[str],
+    message: str,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    result = runner.invoke(main, args)
+    assert result.exit_code != 0
+    assert message in result.output
+    assert "Traceback" not in result.output
+
+
+def test_tampered_classifier_is_refused(runner: CliRunner, tmp_path: Path) -> None:
+    classifier = tmp_path / "c.json"
+    assert (
+        runner.invoke(
+            main, ["train", "--metric", "euclidean", "-n", "4", "--out", str(classifier)]
+        ).exit_code
+        == 0
+    )
+    doc = json.loads(classifier.read_text())
+    doc["classifier"]["scale"] *= 2
+    classifier.write_text(json.dumps(doc))
+    result = runner.invoke(main, ["sweep", "--classifier", str(classifier)])
+    assert result.exit_code == 1
+    assert "checksum mismatch" in result.output
+
+
+def test_parse_sequence_forms(tmp_path: Path) -> None:
+    rows = [[4, 4, 4, 0, 0, 0], [0, 0, 0, 1, 2, 3]]
+    assert parse_sequence("4,4,4,0,0,0;0,0,0,1,2,3") == rows
+    assert parse_sequence(json.dumps(rows)) == rows
+    path = tmp_path / "seq.json"
+    path.write_text(json.dumps(rows))
+    assert parse_sequence(str(path)) == rows
