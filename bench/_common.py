@@ -38,8 +38,9 @@ def base_parser(description: str) -> argparse.ArgumentParser:
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
     parser.add_argument("--seed", type=int, default=0, help="seed of every random draw")
-    parser.add_argument("--json", metavar="PATH", default=None,
-                        help="also write the figures as JSON to PATH")
+    parser.add_argument(
+        "--json", metavar="PATH", default=None, help="also write the figures as JSON to PATH"
+    )
     return parser
 
 
@@ -48,8 +49,9 @@ def int_list(text: str) -> list[int]:
     try:
         values = [int(part) for part in text.split(",") if part.strip()]
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected integers separated by commas, got {text!r}"
-                                         ) from None
+        raise argparse.ArgumentTypeError(
+            f"expected integers separated by commas, got {text!r}"
+        ) from None
     if not values or any(v < 1 for v in values):
         raise argparse.ArgumentTypeError(f"expected positive integers, got {text!r}")
     return values
@@ -66,8 +68,9 @@ def positive_int(text: str) -> int:
     return value
 
 
-def random_sequence(rng: np.random.Generator, n_steps: int, n_thrusters: int,
-                    n_levels: int) -> np.ndarray:
+def random_sequence(
+    rng: np.random.Generator, n_steps: int, n_thrusters: int, n_levels: int
+) -> np.ndarray:
     """(n_steps, n_thrusters) level indices drawn uniformly in 0..n_levels-1."""
     return rng.integers(0, n_levels, size=(n_steps, n_thrusters))
 
@@ -108,8 +111,9 @@ def summary(values: Sequence[float]) -> dict[str, float]:
     }
 
 
-def format_table(headers: Sequence[str], rows: Sequence[Sequence[Any]],
-                 title: str | None = None) -> str:
+def format_table(
+    headers: Sequence[str], rows: Sequence[Sequence[Any]], title: str | None = None
+) -> str:
     """A plain-text table; numbers right-aligned, text left-aligned."""
     cells = [[_cell(v) for v in row] for row in rows]
     widths = [len(h) for h in headers]
@@ -123,8 +127,7 @@ def format_table(headers: Sequence[str], rows: Sequence[Sequence[Any]],
 
     def line(values: Sequence[str]) -> str:
         parts = [
-            v.rjust(widths[i]) if numeric[i] else v.ljust(widths[i])
-            for i, v in enumerate(values)
+            v.rjust(widths[i]) if numeric[i] else v.ljust(widths[i]) for i, v in enumerate(values)
         ]
         return "  ".join(parts).rstrip()
 
@@ -137,8 +140,9 @@ def format_table(headers: Sequence[str], rows: Sequence[Sequence[Any]],
     return "\n".join(out)
 
 
-def print_table(headers: Sequence[str], rows: Sequence[Sequence[Any]],
-                title: str | None = None) -> None:
+def print_table(
+    headers: Sequence[str], rows: Sequence[Sequence[Any]], title: str | None = None
+) -> None:
     print(format_table(headers, rows, title))
     print(flush=True)
 
@@ -189,8 +193,10 @@ def print_header(title: str, args: argparse.Namespace) -> None:
     env = environment()
     print(title)
     print("=" * len(title))
-    print(f"python {env['python']}, numpy {env['numpy']}, tslearn {env['tslearn']}, "
-          f"numba {env['numba']}; {env['cpu_count']} CPUs ({env['platform']})")
+    print(
+        f"python {env['python']}, numpy {env['numpy']}, tslearn {env['tslearn']}, "
+        f"numba {env['numba']}; {env['cpu_count']} CPUs ({env['platform']})"
+    )
     options = ", ".join(f"{k}={v}" for k, v in vars(args).items() if k != "json")
     print(f"options: {options}")
     print(flush=True)
@@ -236,8 +242,10 @@ def warm_up_numba() -> float:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         for metric in METRICS:
-            InertiaClassifier(metric, n_init=1, max_iter=2, max_iter_barycenter=2,
-                              random_state=0).fit(X, y)
-            TimeSeriesKMeans(n_clusters=2, metric=metric, max_iter=2,
-                             max_iter_barycenter=2, random_state=0).fit(X)
+            InertiaClassifier(
+                metric, n_init=1, max_iter=2, max_iter_barycenter=2, random_state=0
+            ).fit(X, y)
+            TimeSeriesKMeans(
+                n_clusters=2, metric=metric, max_iter=2, max_iter_barycenter=2, random_state=0
+            ).fit(X)
     return time.perf_counter() - start

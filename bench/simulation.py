@@ -29,18 +29,34 @@ from inertia_id.reference import simulate_per_series
 
 def main() -> None:
     parser = base_parser(__doc__.splitlines()[0])
-    parser.add_argument("--realisations", type=int_list, default=[20, 200],
-                        help="realisations per candidate for the batched simulator "
-                             "(comma-separated)")
-    parser.add_argument("--loop-realisations", type=positive_int, default=20,
-                        help="realisations per candidate for the per-series loop (and the "
-                             "size at which the speed-up and agreement are measured)")
-    parser.add_argument("--steps", type=positive_int, default=4,
-                        help="actuation steps L of the random sequence")
-    parser.add_argument("--repeats", type=positive_int, default=7,
-                        help="timed repeats of the batched simulator (best is kept)")
-    parser.add_argument("--loop-repeats", type=positive_int, default=2,
-                        help="timed repeats of the per-series loop (best is kept)")
+    parser.add_argument(
+        "--realisations",
+        type=int_list,
+        default=[20, 200],
+        help="realisations per candidate for the batched simulator (comma-separated)",
+    )
+    parser.add_argument(
+        "--loop-realisations",
+        type=positive_int,
+        default=20,
+        help="realisations per candidate for the per-series loop (and the "
+        "size at which the speed-up and agreement are measured)",
+    )
+    parser.add_argument(
+        "--steps", type=positive_int, default=4, help="actuation steps L of the random sequence"
+    )
+    parser.add_argument(
+        "--repeats",
+        type=positive_int,
+        default=7,
+        help="timed repeats of the batched simulator (best is kept)",
+    )
+    parser.add_argument(
+        "--loop-repeats",
+        type=positive_int,
+        default=2,
+        help="timed repeats of the per-series loop (best is kept)",
+    )
     args = parser.parse_args()
     print_header("Simulation throughput: batched simulator vs per-series RK4 loop", args)
 
@@ -50,11 +66,15 @@ def main() -> None:
     sequence = random_sequence(rng, args.steps, scenario.n_thrusters, scenario.n_levels)
     rk4_steps = timing.substeps_per_step * args.steps
     k = scenario.n_candidates
-    print(f"scenario: {scenario.name}, {k} candidates, {scenario.n_thrusters} thrusters, "
-          f"{scenario.n_levels} levels; RK4 dt = {timing.integration_step_s} s, "
-          f"{timing.substeps_per_step} RK4 steps per actuation step")
-    print(f"sequence (seed {args.seed}, {args.steps} steps): {sequence_text(sequence)}; "
-          f"{rk4_steps} RK4 steps per series")
+    print(
+        f"scenario: {scenario.name}, {k} candidates, {scenario.n_thrusters} thrusters, "
+        f"{scenario.n_levels} levels; RK4 dt = {timing.integration_step_s} s, "
+        f"{timing.substeps_per_step} RK4 steps per actuation step"
+    )
+    print(
+        f"sequence (seed {args.seed}, {args.steps} steps): {sequence_text(sequence)}; "
+        f"{rk4_steps} RK4 steps per series"
+    )
     print("noise is drawn once per size, outside the timed region; best-of-N wall time")
     print(flush=True)
 
@@ -65,8 +85,7 @@ def main() -> None:
     for n in sizes:
         simulator = Simulator(scenario, n)
         noise = simulator.draw_noise(np.random.default_rng([args.seed, n]), args.steps)
-        best, times, result = best_of(lambda s=simulator, z=noise: s.run(sequence, z),
-                                      args.repeats)
+        best, times, result = best_of(lambda s=simulator, z=noise: s.run(sequence, z), args.repeats)
         series = k * n
         record = {
             "implementation": "batched Simulator.run",
@@ -88,7 +107,8 @@ def main() -> None:
     record_b, noise, result = batched_at_loop_size  # type: ignore[misc]
     n = args.loop_realisations
     best, times, loop_out = best_of(
-        lambda: simulate_per_series(scenario, sequence, noise), args.loop_repeats)
+        lambda: simulate_per_series(scenario, sequence, noise), args.loop_repeats
+    )
     series = k * n
     max_diff = float(np.max(np.abs(loop_out - result.omega_measured)))
     max_rate = float(np.max(np.abs(result.omega_measured)))
@@ -108,47 +128,77 @@ def main() -> None:
     for rec in records:
         rec["speedup_vs_loop"] = rec["series_steps_per_s"] / loop_rate
 
-    records.sort(key=lambda r: (r["implementation"].startswith("per-series"),
-                                r["realisations_per_candidate"]))
+    records.sort(
+        key=lambda r: (
+            r["implementation"].startswith("per-series"),
+            r["realisations_per_candidate"],
+        )
+    )
     for rec in records:
-        rows.append([
-            rec["implementation"],
-            rec["realisations_per_candidate"],
-            rec["series"],
-            rec["series_steps"],
-            f"{rec['repeats']}",
-            rec["best_s"] * 1e3,
-            f"{rec['series_steps_per_s']:,.0f}",
-            f"{rec['speedup_vs_loop']:.1f}x",
-        ])
+        rows.append(
+            [
+                rec["implementation"],
+                rec["realisations_per_candidate"],
+                rec["series"],
+                rec["series_steps"],
+                f"{rec['repeats']}",
+                rec["best_s"] * 1e3,
+                f"{rec['series_steps_per_s']:,.0f}",
+                f"{rec['speedup_vs_loop']:.1f}x",
+            ]
+        )
     print_table(
-        ["simulator", "real./cand.", "series", "series·steps", "repeats", "best ms",
-         "series·steps/s", "speed-up"],
+        [
+            "simulator",
+            "real./cand.",
+            "series",
+            "series·steps",
+            "repeats",
+            "best ms",
+            "series·steps/s",
+            "speed-up",
+        ],
         rows,
         title=f"Throughput ({rk4_steps} RK4 steps per series; speed-up = throughput ratio "
-              "to the loop)",
+        "to the loop)",
     )
     print_table(
-        ["compared at", "series", "max |batched - loop| (rad/s)", "max |omega| (rad/s)",
-         "speed-up (same work)"],
-        [[f"{n} realisations/candidate", series, max_diff, max_rate,
-          f"{loop_record['best_s'] / record_b['best_s']:.1f}x"]],
+        [
+            "compared at",
+            "series",
+            "max |batched - loop| (rad/s)",
+            "max |omega| (rad/s)",
+            "speed-up (same work)",
+        ],
+        [
+            [
+                f"{n} realisations/candidate",
+                series,
+                max_diff,
+                max_rate,
+                f"{loop_record['best_s'] / record_b['best_s']:.1f}x",
+            ]
+        ],
         title="Agreement (same noise for both)",
     )
-    write_json(args.json, args, {
-        "benchmark": "simulation",
-        "scenario": scenario.name,
-        "sequence": sequence.tolist(),
-        "rk4_steps_per_series": rk4_steps,
-        "results": records,
-        "agreement": {
-            "realisations_per_candidate": n,
-            "series": series,
-            "max_abs_difference_rad_s": max_diff,
-            "max_abs_rate_rad_s": max_rate,
+    write_json(
+        args.json,
+        args,
+        {
+            "benchmark": "simulation",
+            "scenario": scenario.name,
+            "sequence": sequence.tolist(),
+            "rk4_steps_per_series": rk4_steps,
+            "results": records,
+            "agreement": {
+                "realisations_per_candidate": n,
+                "series": series,
+                "max_abs_difference_rad_s": max_diff,
+                "max_abs_rate_rad_s": max_rate,
+            },
+            "speedup_same_work": loop_record["best_s"] / record_b["best_s"],
         },
-        "speedup_same_work": loop_record["best_s"] / record_b["best_s"],
-    })
+    )
 
 
 if __name__ == "__main__":
