@@ -9,7 +9,17 @@ if [ ! -x .venv/bin/python ]; then
   "$PYTHON" -m venv .venv
 fi
 . .venv/bin/activate
-pip install --quiet --disable-pip-version-check --upgrade pip 2>&1 | grep -v "is ignored" || true
-pip install --quiet --disable-pip-version-check "torch==2.13.0" 2>&1 | grep -v "is ignored" || true
-pip install --quiet --disable-pip-version-check -e ".[test]" 2>&1 | grep -v "is ignored" || true
+# pip's own exit status decides; its "location is ignored" notes about this machine's
+# extra package indexes are filtered from the log only.
+quiet_pip() {
+  local log status
+  log=$(mktemp)
+  if pip install --quiet --disable-pip-version-check "$@" >"$log" 2>&1; then status=0; else status=$?; fi
+  grep -v "is ignored: it is neither a file nor a directory" "$log" || true
+  rm -f "$log"
+  return "$status"
+}
+quiet_pip --upgrade pip
+quiet_pip "torch==2.13.0"
+quiet_pip -e ".[test]"
 python -c "import inertia_id, tslearn, torch; print('installed inertia-id', inertia_id.__version__, '| torch', torch.__version__)"
