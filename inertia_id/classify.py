@@ -264,9 +264,11 @@ class InertiaClassifier(BaseEstimator):
 
     @staticmethod
     def _auto_gamma(Xs: np.ndarray) -> float:
-        # Rates are smooth at the sample rate, so sample-to-sample differences are
-        # dominated by gyro noise: half their mean energy estimates the noise energy per
-        # sample. Alignments whose costs differ by less than that are indistinguishable.
+        # Half the energy of sample-to-sample differences estimates the gyro noise energy
+        # per sample, plus the rate's own change per sample; under a steep ramp (the
+        # paper preset at full duty) that change doubles the estimate, which only smooths
+        # soft-DTW a little more. Alignments whose costs differ by less than the noise
+        # energy are indistinguishable, so that is the scale gamma should have.
         diffs = np.diff(Xs, axis=1)
         energy = 0.5 * float(np.median(np.sum(diffs**2, axis=2).mean(axis=1)))
         return max(energy, 1e-6)
