@@ -10,6 +10,8 @@ Run: python bench/simulation.py [--realisations 20,200] [--repeats 7] [--json PA
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from _common import (
     base_parser,
@@ -25,6 +27,28 @@ from _common import (
 
 from inertia_id import Scenario, Simulator
 from inertia_id.reference import simulate_per_series
+
+
+def throughput_record(
+    implementation: str,
+    realisations: int,
+    series: int,
+    rk4_steps: int,
+    times: list[float],
+    best: float,
+) -> dict[str, Any]:
+    """One row of the throughput table: series x RK4 steps per second at the best time."""
+    return {
+        "implementation": implementation,
+        "realisations_per_candidate": realisations,
+        "series": series,
+        "rk4_steps_per_series": rk4_steps,
+        "series_steps": series * rk4_steps,
+        "repeats": len(times),
+        "times_s": times,
+        "best_s": best,
+        "series_steps_per_s": series * rk4_steps / best,
+    }
 
 
 def main() -> None:
@@ -86,18 +110,7 @@ def main() -> None:
         simulator = Simulator(scenario, n)
         noise = simulator.draw_noise(np.random.default_rng([args.seed, n]), args.steps)
         best, times, result = best_of(lambda s=simulator, z=noise: s.run(sequence, z), args.repeats)
-        series = k * n
-        record = {
-            "implementation": "batched Simulator.run",
-            "realisations_per_candidate": n,
-            "series": series,
-            "rk4_steps_per_series": rk4_steps,
-            "series_steps": series * rk4_steps,
-            "repeats": len(times),
-            "times_s": times,
-            "best_s": best,
-            "series_steps_per_s": series * rk4_steps / best,
-        }
+        record = throughput_record("batched Simulator.run", n, k * n, rk4_steps, times, best)
         if n == args.loop_realisations:
             batched_at_loop_size = (record, noise, result)
         if n in args.realisations or n == args.loop_realisations:
@@ -112,17 +125,9 @@ def main() -> None:
     series = k * n
     max_diff = float(np.max(np.abs(loop_out - result.omega_measured)))
     max_rate = float(np.max(np.abs(result.omega_measured)))
-    loop_record = {
-        "implementation": "per-series loop (reference)",
-        "realisations_per_candidate": n,
-        "series": series,
-        "rk4_steps_per_series": rk4_steps,
-        "series_steps": series * rk4_steps,
-        "repeats": len(times),
-        "times_s": times,
-        "best_s": best,
-        "series_steps_per_s": series * rk4_steps / best,
-    }
+    loop_record = throughput_record(
+        "per-series loop (reference)", n, series, rk4_steps, times, best
+    )
     records.append(loop_record)
     loop_rate = loop_record["series_steps_per_s"]
     for rec in records:

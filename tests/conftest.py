@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from inertia_id import InertiaClassifier, Scenario, train
+from inertia_id import InertiaClassifier, Scenario, preset, train
 
 # The paper's "good" sequence: the three positive-axis thrusters at full duty, 4 steps.
 GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
@@ -60,23 +60,11 @@ def scenario_like() -> Callable[..., Scenario]:
     """
 
     def build(candidates: dict[str, Any], **overrides: Any) -> Scenario:
-        base = Scenario.paper().model_dump()
-        data = {
-            "name": "test",
-            "inertia_candidates": [
-                {"name": name, "inertia_kg_m2": np.asarray(tensor, float).tolist()}
-                for name, tensor in candidates.items()
-            ],
-            "thrusters": base["thrusters"],
-            "timing": base["timing"],
-            "uncertainty": base["uncertainty"],
-        }
-        for key, value in overrides.items():
-            if isinstance(value, dict) and isinstance(data.get(key), dict):
-                data[key] = {**data[key], **value}
-            else:
-                data[key] = value
-        return Scenario.model_validate(data)
+        tensors = [
+            {"name": name, "inertia_kg_m2": np.asarray(tensor, float).tolist()}
+            for name, tensor in candidates.items()
+        ]
+        return preset("paper", name="test", inertia_candidates=tensors, **overrides)
 
     return build
 
