@@ -1,0 +1,284 @@
+"""Fast DTW k-means: band-constrained DTW, DBA barycentres and Lloyd iterations in numba.
+
+The search scores thousands of candidate sequences, each by clustering ~100 rate series,
+so the clustering must take milliseconds, not the ~1 s of tslearn's ``TimeSeriesKMeans``
+(Python loops around its numba DTW). This module computes the same things:
+
+- DTW with a squared-Euclidean local cost, optionally inside a Sakoe-Chiba band
+  (``radius`` samples either side of the diagonal; ``None`` = unconstrained), returning
+  the square root of the accumulated cost, as ``tslearn.metrics.dtw`` does;
+- DBA barycentres (Petitjean et al. 2011) by the same majorise-minimise iteration as
+  ``tslearn.barycenters.dtw_barycenter_averaging``;
+- k-means with DTW k-means++ seeding, DBA centroid updates, and the lowest-inertia run
+  kept over several initialisations.
+
+The cumulative cost is stored as a band (T x (2 radius + 1)) rather than T x T, so a
+band-constrained distance costs O(T radius). ``radius=0`` is exactly the Euclidean
+distance (and the DBA update the plain mean), which gives the fast Euclidean metric for
+free. Series must all have the same length.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+__all__ = ["KMeansResult", "cdist_dtw", "dba", "dtw", "kmeans_dtw"]
+
+_INF = np.inf
+
+
+def _band(radius: int | None, length: int) -> int:
+    if radius is None:
+        return length - 1
+    if isinstance(radius, bool) or not isinstance(radius, int | np.integer) or radius < 0:
+        raise ValueError(f"radius must be None or an integer >= 0, got {radius!r}")
+    return int(min(radius, length - 1))
+
+
+@njit(cache=True)
+def _accumulate(a: np.ndarray, b: np.ndarray, r: int, acc: np.ndarray) -> float:
+    """Fill the banded cumulative cost of aligning a to b; return the total (squared).
+
+    ``acc[i + 1, j - i + r + 1]`` holds the cost of the best path to (i, j); row 0 and the
+    first and last columns are padding (+inf, except the start cell), so the recurrence
+    needs no bounds tests.
+    """
+    t = a.shape[0]
+    d = a.shape[1]
+    acc[:, :] = _INF
+    acc[0, r + 1] = 0.0
+    for i in range(t):
+        lo = max(0, i - r)
+        hi = min(t - 1, i + r)
+        for j in range(lo, hi + 1):
+            col = j - i + r + 1
+            cost = 0.0
+            for c in range(d):
+                diff = a[i, c] - b[j, c]
+                cost += diff * diff
+            best = acc[i, col]  # (i-1, j-1)
+            if acc[i, col + 1] < best:  # (i-1, j)
+                best = acc[i, col + 1]
+            if acc[i + 1, col - 1] < best:  # (i, j-1)
+                best = acc[i + 1, col - 1]
+            acc[i + 1, col] = cost + best
+    return acc[t, r + 1]
+
+
+@njit(cache=True)
+def _cdist(x: np.ndarray, y: np.ndarray, r: int) -> np.ndarray:
+    n = x.shape[0]
+    m = y.shape[0]
+    out = np.empty((n, m))
+    acc = np.empty((x.shape[1] + 1, 2 * r + 3))
+    for i in range(n):
+        for j in range(m):
+            out[i, j] = np.sqrt(_accumulate(x[i], y[j], r, acc))
+    return out
+
+
+@njit(cache=True)
+def _dba_iterations(
+    series: np.ndarray, barycenter: np.ndarray, r: int, max_iter: int, tol: float
+) -> tuple[np.ndarray, float]:
+    """DBA from ``barycenter``; stops when the mean squared DTW changes by < tol."""
+    n, t, d = series.shape
+    acc = np.empty((t + 1, 2 * r + 3))
+    sums = np.empty((t, d))
+    counts = np.empty(t)
+    current = barycenter.copy()
+    cost_prev = _INF
+    for _ in range(max_iter):
+        sums[:] = 0.0
+        counts[:] = 0.0
+        cost = 0.0
+        for s in range(n):
+            cost += _accumulate(current, series[s], r, acc)
+            # Backtrack the optimal path, preferring the diagonal, then (i-1, j), then
+            # (i, j-1) on ties (tslearn's order). Padding keeps the walk inside.
+            i = t - 1
+            j = t - 1
+            while True:
+                for c in range(d):
+                    sums[i, c] += series[s, j, c]
+                counts[i] += 1.0
+                if i == 0 and j == 0:
+                    break
+                col = j - i + r + 1
+                diag = acc[i, col]
+                up = acc[i, col + 1]
+                left = acc[i + 1, col - 1]
+                if diag <= up and diag <= left:
+                    i -= 1
+                    j -= 1
+                elif up <= left:
+                    i -= 1
+                else:
+                    j -= 1
+        cost /= n
+        # The update is always applied, then convergence checked (tslearn's order).
+        for i in range(t):
+            for c in range(d):
+                current[i, c] = sums[i, c] / counts[i]
+        if abs(cost_prev - cost) < tol or cost > cost_prev:
+            cost_prev = min(cost, cost_prev)
+            break
+        cost_prev = cost
+    return current, cost_prev
+
+
+@njit(cache=True)
+def _lloyd(
+    x: np.ndarray,
+    centers: np.ndarray,
+    r: int,
+    max_iter: int,
+    max_iter_barycenter: int,
+    tol: float,
+) -> tuple[np.ndarray, np.ndarray, float, int]:
+    """Lloyd iterations with DBA updates; empty clusters take the worst-fitted series."""
+    n = x.shape[0]
+    k = centers.shape[0]
+    centers = centers.copy()
+    labels = np.zeros(n, dtype=np.int64)
+    inertia = _INF
+    old_inertia = _INF
+    iterations = 0
+    for it in range(max_iter):
+        iterations = it + 1
+        dist = _cdist(x, centers, r)
+        own = np.empty(n)
+        for s in range(n):
+            best = 0
+            for c in range(1, k):
+                if dist[s, c] < dist[s, best]:
+                    best = c
+            labels[s] = best
+            own[s] = dist[s, best]
+        # Reseed empty clusters from the series farthest from their centroid.
+        for c in range(k):
+            if not np.any(labels == c):
+                worst = int(np.argmax(own))
+                labels[worst] = c
+                own[worst] = 0.0
+                centers[c] = x[worst]
+        inertia = float(np.mean(own**2))
+        if abs(old_inertia - inertia) < tol:
+            break
+        old_inertia = inertia
+        for c in range(k):
+            members = x[labels == c]
+            centers[c], _ = _dba_iterations(members, centers[c], r, max_iter_barycenter, tol)
+    return labels, centers, inertia, iterations
+
+
+def dtw(a: np.ndarray, b: np.ndarray, radius: int | None = None) -> float:
+    """DTW distance between two (T, d) series of equal length (``tslearn.metrics.dtw``)."""
+    a = np.ascontiguousarray(a, dtype=float)
+    b = np.ascontiguousarray(b, dtype=float)
+    if a.shape != b.shape or a.ndim != 2:
+        raise ValueError(f"series must be (T, d) of equal shape, got {a.shape} and {b.shape}")
+    return float(cdist_dtw(a[None], b[None], radius)[0, 0])
+
+
+def cdist_dtw(x: np.ndarray, y: np.ndarray, radius: int | None = None) -> np.ndarray:
+    """DTW distance of every series of x (n, T, d) to every series of y (m, T, d)."""
+    x = np.ascontiguousarray(x, dtype=float)
+    y = np.ascontiguousarray(y, dtype=float)
+    if x.ndim != 3 or y.ndim != 3 or x.shape[1:] != y.shape[1:]:
+        raise ValueError(f"series must be (n, T, d) of equal T and d, got {x.shape}, {y.shape}")
+    return np.asarray(_cdist(x, y, _band(radius, x.shape[1])))
+
+
+def dba(
+    x: np.ndarray,
+    init: np.ndarray | None = None,
+    radius: int | None = None,
+    *,
+    max_iter: int = 30,
+    tol: float = 1e-5,
+) -> np.ndarray:
+    """DBA barycentre of x (n, T, d), starting from ``init`` (default: the plain mean)."""
+    x = np.ascontiguousarray(x, dtype=float)
+    if x.ndim != 3 or len(x) == 0:
+        raise ValueError(f"series must be (n, T, d) with n >= 1, got {x.shape}")
+    start = x.mean(axis=0) if init is None else np.array(init, dtype=float)
+    barycenter, _ = _dba_iterations(x, start, _band(radius, x.shape[1]), max_iter, tol)
+    return np.asarray(barycenter)
+
+
+@dataclass(frozen=True)
+class KMeansResult:
+    """A DTW k-means clustering.
+
+    :param labels: cluster of each series (n,).
+    :param centers: (k, T, d) DBA centroids.
+    :param inertia: mean squared DTW distance of each series to its centroid.
+    :param n_iter: Lloyd iterations of the kept run.
+    """
+
+    labels: np.ndarray
+    centers: np.ndarray
+    inertia: float
+    n_iter: int
+
+
+def _kmeans_plusplus(x: np.ndarray, k: int, r: int, rng: np.random.Generator) -> np.ndarray:
+    n = len(x)
+    chosen = [int(rng.integers(n))]
+    closest = _cdist(x, x[chosen[-1]][None], r)[:, 0] ** 2
+    for _ in range(1, k):
+        total = closest.sum()
+        if total <= 0:
+            pick = int(rng.integers(n))
+        else:
+            pick = int(rng.choice(n, p=closest / total))
+        chosen.append(pick)
+        closest = np.minimum(closest, _cdist(x, x[pick][None], r)[:, 0] ** 2)
+    return np.asarray(x[chosen].copy())
+
+
+def kmeans_dtw(
+    x: np.ndarray,
+    n_clusters: int,
+    rng: np.random.Generator,
+    *,
+    radius: int | None = None,
+    n_init: int = 3,
+    init: np.ndarray | None = None,
+    max_iter: int = 50,
+    max_iter_barycenter: int = 30,
+    tol: float = 1e-6,
+) -> KMeansResult:
+    """DTW k-means of x (n, T, d); the lowest-inertia of the runs is returned.
+
+    :param rng: seeds the k-means++ initialisations.
+    :param radius: Sakoe-Chiba band half-width in samples; None = unconstrained DTW,
+        0 = Euclidean k-means.
+    :param n_init: k-means++ initialisations.
+    :param init: optional (n_clusters, T, d) centroids to start one more run from (a warm
+        start, e.g. the previous prefix's centroids extended).
+    :param tol: stop when the inertia (mean squared distance) changes by less.
+    """
+    x = np.ascontiguousarray(x, dtype=float)
+    if x.ndim != 3 or len(x) < n_clusters or n_clusters < 1:
+        raise ValueError(f"need (n, T, d) series with n >= {n_clusters}, got {x.shape}")
+    r = _band(radius, x.shape[1])
+    starts = [_kmeans_plusplus(x, n_clusters, r, rng) for _ in range(n_init)]
+    if init is not None:
+        init = np.ascontiguousarray(init, dtype=float)
+        if init.shape != (n_clusters, *x.shape[1:]):
+            raise ValueError(f"init must be {(n_clusters, *x.shape[1:])}, got {init.shape}")
+        starts.insert(0, init)
+    if not starts:
+        raise ValueError("need n_init >= 1 or an init")
+    best: KMeansResult | None = None
+    for start in starts:
+        labels, centers, inertia, n_iter = _lloyd(x, start, r, max_iter, max_iter_barycenter, tol)
+        if best is None or inertia < best.inertia:
+            best = KMeansResult(np.asarray(labels), np.asarray(centers), float(inertia), n_iter)
+    assert best is not None
+    return best

@@ -1,0 +1,70 @@
+"""Search for the actuation sequence that makes the inertia candidates most distinguishable.
+
+Three methods, one result shape (:class:`SearchResult`): :func:`ppo_search` (the paper's
+reinforcement learning), :func:`exhaustive_search` (small spaces) and
+:func:`random_search` (the baseline). All drive :class:`SequenceSearchEnv`, registered
+with Gymnasium as ``InertiaId/SequenceSearch-v0``.
+"""
+
+from typing import Any
+
+import gymnasium as gym
+
+from ..scenario import Scenario
+from .env import ENV_ID, SequenceSearchEnv
+from .exhaustive import exhaustive_search
+from .ppo import PPO_DEFAULTS, SearchCallback, check_ppo_params, ppo_search
+from .random import random_search
+from .result import (
+    CurvePoint,
+    EpisodeRecord,
+    FreshEvaluation,
+    SearchProgress,
+    SearchResult,
+    SearchTracker,
+    evaluate_sequence,
+    space_size,
+)
+from .scorer import SCORER_METRICS, PrefixScore, PrefixScorer, ScorerSettings
+
+if ENV_ID not in gym.registry:
+    gym.register(id=ENV_ID, entry_point="inertia_id.search.env:SequenceSearchEnv")
+
+SEARCH_METHODS = ("ppo", "exhaustive", "random")
+
+
+def search(method: str, scenario: Scenario, **options: Any) -> SearchResult:
+    """Run the search ``method`` ("ppo", "exhaustive" or "random") with its options."""
+    if method == "ppo":
+        return ppo_search(scenario, **options)
+    if method == "exhaustive":
+        return exhaustive_search(scenario, **options)
+    if method == "random":
+        return random_search(scenario, **options)
+    raise ValueError(f"search method must be one of {list(SEARCH_METHODS)}, got {method!r}")
+
+
+__all__ = [
+    "ENV_ID",
+    "PPO_DEFAULTS",
+    "SCORER_METRICS",
+    "SEARCH_METHODS",
+    "CurvePoint",
+    "EpisodeRecord",
+    "FreshEvaluation",
+    "PrefixScore",
+    "PrefixScorer",
+    "ScorerSettings",
+    "SearchCallback",
+    "SearchProgress",
+    "SearchResult",
+    "SearchTracker",
+    "SequenceSearchEnv",
+    "check_ppo_params",
+    "evaluate_sequence",
+    "exhaustive_search",
+    "ppo_search",
+    "random_search",
+    "search",
+    "space_size",
+]

@@ -1,0 +1,136 @@
+"""The paper's sequence-search environment (Gymnasium)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from ..scenario import Scenario
+from .scorer import PrefixScorer, ScorerSettings
+
+__all__ = ["ENV_ID", "SequenceSearchEnv"]
+
+ENV_ID = "InertiaId/SequenceSearch-v0"
+
+
+class SequenceSearchEnv(gym.Env[np.ndarray, np.ndarray]):
+    """Build an actuation sequence step by step; the reward says how separable it is.
+
+    One episode builds a sequence of ``sequence_length`` (L) steps for the scenario's N
+    thrusters, each fired at one of M duty levels. The agent never sees the spacecraft:
+    it chooses the next row of the sequence from the rows chosen so far.
+
+    ============  ===========================================================================
+    Observation   ``MultiDiscrete([M + 1] * (L * N))``: the actuation history, row-major;
+                  entry ``i * N + j`` is the level index of thruster j at step i, or M for
+                  steps not taken yet.
+    Action        ``MultiDiscrete([M] * N)``: one level index per thruster for the next step.
+    Reward        Steps before the last: ``-1 + 3 F1``, with F1 the clustering score of the
+                  candidates' responses to the prefix so far. Last step: ``-|ω_final|``, the
+                  mean final rate over every candidate and realisation, rad/s (the paper's
+                  detumbling term). Every step also subtracts ``fuel_weight`` times the
+                  angular impulse it commands, N m s (the paper's multi-objective variant).
+    Episode end   Terminated after L steps; never truncated.
+    Info          ``f1``, ``accuracy``, ``final_rate_rad_s``, ``fuel_nms`` (the prefix's
+                  impulse), ``step_fuel_nms``, ``step`` and ``sequence`` (the prefix).
+    ============  ===========================================================================
+
+    Every candidate and realisation is simulated at each step (extending the previous
+    step's state), on noise drawn once per seed (``noise="fixed"``: common random
+    numbers, so sequences are compared on the same draws and scores are cached) or anew
+    every episode (``noise="fresh"``).
+
+    :param scenario: the spacecraft (default: the paper preset).
+    :param sequence_length: L, actuation steps per episode.
+    :param fuel_weight: reward cost per N m s of commanded impulse.
+    :param noise: "fixed" or "fresh", see above.
+    :param seed: noise seed; ``reset(seed=...)`` draws new noise from that seed.
+    :param settings: how prefixes are simulated and clustered (realisations, metric,
+        DTW band, k-means runs); keyword arguments of :class:`ScorerSettings` may be
+        given instead.
+    """
+
+    metadata: dict[str, Any] = {"render_modes": []}  # noqa: RUF012 (Gymnasium's protocol)
+
+    def __init__(
+        self,
+        scenario: Scenario | None = None,
+        *,
+        sequence_length: int = 4,
+        fuel_weight: float = 0.0,
+        noise: str = "fixed",
+        seed: int | None = None,
+        settings: ScorerSettings | None = None,
+        **settings_kwargs: Any,
+    ) -> None:
+        super().__init__()
+        if settings is not None and settings_kwargs:
+            raise ValueError("give either settings or its keyword arguments, not both")
+        settings = settings or ScorerSettings(**settings_kwargs)
+        if not (np.isfinite(fuel_weight) and fuel_weight >= 0):
+            raise ValueError(f"fuel_weight must be finite and >= 0, got {fuel_weight!r}")
+        if noise not in ("fixed", "fresh"):
+            raise ValueError(f"noise must be 'fixed' or 'fresh', got {noise!r}")
+        self.scenario = scenario or Scenario.paper()
+        self.sequence_length = sequence_length
+        self.fuel_weight = float(fuel_weight)
+        self.noise = noise
+        self.scorer = PrefixScorer(self.scenario, sequence_length, settings, seed=seed)
+        n, m = self.scenario.n_thrusters, self.scenario.n_levels
+        self.observation_space = spaces.MultiDiscrete(np.full(sequence_length * n, m + 1))
+        self.action_space = spaces.MultiDiscrete(np.full(n, m))
+        self._prefix: list[tuple[int, ...]] = []
+        self._episodes = 0
+
+    @property
+    def settings(self) -> ScorerSettings:
+        return self.scorer.settings
+
+    def _observation(self) -> np.ndarray:
+        n, m = self.scenario.n_thrusters, self.scenario.n_levels
+        obs = np.full((self.sequence_length, n), m, dtype=np.int64)
+        if self._prefix:
+            obs[: len(self._prefix)] = self._prefix
+        return obs.reshape(-1)
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        super().reset(seed=seed)
+        if seed is not None:
+            self.scorer.reseed(seed)
+        elif self.noise == "fresh" and self._episodes > 0:
+            self.scorer.reseed(int(self.np_random.integers(2**63 - 1)))
+        self._prefix = []
+        self._episodes += 1
+        return self._observation(), {}
+
+    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        if len(self._prefix) >= self.sequence_length:
+            raise RuntimeError("the episode has ended; call reset()")
+        levels = np.asarray(action).reshape(-1)
+        if not self.action_space.contains(levels.astype(np.int64)) or np.any(
+            levels != np.round(levels)
+        ):
+            raise ValueError(
+                f"action must be {self.scenario.n_thrusters} level indices in "
+                f"0..{self.scenario.n_levels - 1}, got {np.asarray(action).tolist()}"
+            )
+        self._prefix.append(tuple(int(v) for v in levels))
+        score = self.scorer.score(self._prefix)
+        last = len(self._prefix) == self.sequence_length
+        reward = -score.final_rate_rad_s if last else -1.0 + 3.0 * score.f1
+        reward -= self.fuel_weight * score.step_impulse_nms
+        info = {
+            "f1": score.f1,
+            "accuracy": score.accuracy,
+            "final_rate_rad_s": score.final_rate_rad_s,
+            "fuel_nms": score.impulse_nms,
+            "step_fuel_nms": score.step_impulse_nms,
+            "step": len(self._prefix),
+            "sequence": [list(row) for row in self._prefix],
+        }
+        return self._observation(), float(reward), last, False, info

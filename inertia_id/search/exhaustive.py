@@ -1,0 +1,91 @@
+"""Exhaustive search: every sequence of a small space, in prefix order."""
+
+from __future__ import annotations
+
+import itertools
+import time
+from collections.abc import Callable, Iterator
+
+import numpy as np
+
+from ..scenario import Scenario
+from .env import SequenceSearchEnv
+from .result import SearchProgress, SearchResult, SearchTracker, finish, run_episodes, space_size
+from .scorer import ScorerSettings
+
+__all__ = ["exhaustive_search"]
+
+
+def exhaustive_search(
+    scenario: Scenario,
+    *,
+    sequence_length: int = 2,
+    max_sequences: int = 100_000,
+    fuel_weight: float = 0.0,
+    seed: int = 0,
+    settings: ScorerSettings | None = None,
+    report_every: int = 2048,
+    n_fresh_draws: int = 5,
+    progress: Callable[[SearchProgress], None] | None = None,
+    should_stop: Callable[[], bool] | None = None,
+) -> SearchResult:
+    """Score every sequence of length L and return the best.
+
+    The space holds (M^N)^L sequences; a space larger than ``max_sequences`` is refused
+    before any work, with its size. Sequences are visited in lexicographic order, so a
+    prefix shared by consecutive sequences is simulated and clustered once (the
+    environment caches it).
+
+    :param max_sequences: the budget: the largest space this call will enumerate.
+    """
+    size = space_size(scenario, sequence_length)
+    if isinstance(max_sequences, bool) or not isinstance(max_sequences, int) or max_sequences < 1:
+        raise ValueError(f"max_sequences must be a positive integer, got {max_sequences!r}")
+    m, n = scenario.n_levels, scenario.n_thrusters
+    if size > max_sequences:
+        raise ValueError(
+            f"the space holds ({m}^{n})^{sequence_length} = {size:.4g} sequences, more than "
+            f"the budget of {max_sequences} for exhaustive search; shorten the sequence, use "
+            f"fewer levels or thrusters, raise the budget, or use random or PPO search"
+        )
+    started = time.perf_counter()
+    env = SequenceSearchEnv(
+        scenario,
+        sequence_length=sequence_length,
+        fuel_weight=fuel_weight,
+        seed=seed,
+        settings=settings,
+    )
+    tracker = SearchTracker(fuel_weight=fuel_weight)
+    rows = [np.asarray(r) for r in itertools.product(range(m), repeat=n)]
+
+    def sequences() -> Iterator[np.ndarray]:
+        for combo in itertools.product(range(len(rows)), repeat=sequence_length):
+            yield np.stack([rows[i] for i in combo])
+
+    stopped = run_episodes(
+        env,
+        sequences(),
+        tracker,
+        total_timesteps=size * sequence_length,
+        report_every=report_every,
+        progress=progress,
+        should_stop=should_stop,
+    )
+    params = {
+        "sequence_length": sequence_length,
+        "max_sequences": max_sequences,
+        "fuel_weight": fuel_weight,
+        "seed": seed,
+        "scorer": env.settings.as_dict(),
+    }
+    return finish(
+        "exhaustive",
+        env,
+        tracker,
+        seed=seed,
+        started=started,
+        stopped=stopped,
+        settings=params,
+        n_fresh_draws=n_fresh_draws,
+    )

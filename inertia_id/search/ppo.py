@@ -1,0 +1,185 @@
+"""PPO search (stable-baselines3) over the sequence-search environment."""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable
+from typing import Any
+
+import torch
+from stable_baselines3 import PPO
+from stable_baselines3.common.callbacks import BaseCallback
+
+from ..scenario import Scenario
+from .env import SequenceSearchEnv
+from .random import _check_budget
+from .result import SearchProgress, SearchResult, SearchTracker, _report, finish
+from .scorer import ScorerSettings
+
+__all__ = ["PPO_DEFAULTS", "SearchCallback", "check_ppo_params", "ppo_search"]
+
+#: The paper's PPO hyperparameters (stable-baselines3 names).
+PPO_DEFAULTS: dict[str, Any] = {
+    "n_steps": 2048,
+    "learning_rate": 3e-4,
+    "batch_size": 64,
+    "n_epochs": 10,
+    "gamma": 0.99,
+    "gae_lambda": 0.95,
+    "clip_range": 0.2,
+    "ent_coef": 0.05,
+    "vf_coef": 0.5,
+    "max_grad_norm": 0.5,
+}
+
+_POSITIVE_INT = ("n_steps", "batch_size", "n_epochs")
+_UNIT_INTERVAL = ("gamma", "gae_lambda")
+_POSITIVE = ("learning_rate", "clip_range", "max_grad_norm")
+_NON_NEGATIVE = ("ent_coef", "vf_coef")
+
+
+def check_ppo_params(params: dict[str, Any] | None) -> dict[str, Any]:
+    """The paper's defaults updated with ``params``, each checked; unknown names refused."""
+    params = dict(params or {})
+    unknown = sorted(set(params) - set(PPO_DEFAULTS))
+    if unknown:
+        raise ValueError(f"unknown PPO parameters {unknown}; allowed: {sorted(PPO_DEFAULTS)}")
+    merged = {**PPO_DEFAULTS, **params}
+    for name, value in merged.items():
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise ValueError(f"PPO parameter {name} must be a number, got {value!r}")
+        if name in _POSITIVE_INT and (not float(value).is_integer() or value < 1):
+            raise ValueError(f"PPO parameter {name} must be a positive integer, got {value!r}")
+        if name in _UNIT_INTERVAL and not 0 <= value <= 1:
+            raise ValueError(f"PPO parameter {name} must lie in [0, 1], got {value!r}")
+        if name in _POSITIVE and not value > 0:
+            raise ValueError(f"PPO parameter {name} must be > 0, got {value!r}")
+        if name in _NON_NEGATIVE and not value >= 0:
+            raise ValueError(f"PPO parameter {name} must be >= 0, got {value!r}")
+    for name in _POSITIVE_INT:
+        merged[name] = int(merged[name])
+    if merged["batch_size"] > merged["n_steps"]:
+        raise ValueError(
+            f"PPO batch_size ({merged['batch_size']}) must not exceed n_steps ({merged['n_steps']})"
+        )
+    return merged
+
+
+class SearchCallback(BaseCallback):
+    """Follows PPO's episodes: best sequence, learning curve, cancel and early stop.
+
+    At the end of every rollout a curve point (mean episode reward, mean and best F1)
+    is added and ``progress`` called with it: this is what feeds a reward curve while
+    training runs. Training stops at the next environment step when ``should_stop()``
+    says so (a cancel) or when the tracker reached its target (F1 = 1 and no better
+    sequence for ``patience_episodes`` episodes).
+
+    :param tracker: collects episodes and the curve.
+    :param total_timesteps: the training budget, for progress fractions.
+    :param progress: called with a :class:`SearchProgress` after every rollout.
+    :param should_stop: polled every environment step; True cancels training.
+    """
+
+    def __init__(
+        self,
+        tracker: SearchTracker,
+        total_timesteps: int,
+        progress: Callable[[SearchProgress], None] | None = None,
+        should_stop: Callable[[], bool] | None = None,
+    ) -> None:
+        super().__init__()
+        self.tracker = tracker
+        self.total = total_timesteps
+        self.progress = progress
+        self.should_stop = should_stop
+        self.stopped = "budget"
+
+    def _on_step(self) -> bool:
+        rewards, dones, infos = self.locals["rewards"], self.locals["dones"], self.locals["infos"]
+        for reward, done, info in zip(rewards, dones, infos, strict=True):
+            self.tracker.on_step(float(reward), bool(done), info)
+        if self.should_stop is not None and self.should_stop():
+            self.stopped = "cancelled"
+            return False
+        if self.tracker.reached_target():
+            self.stopped = "target"
+            return False
+        return True
+
+    def _on_rollout_end(self) -> None:
+        _report(self.tracker, self.total, self.progress)
+
+
+def ppo_search(
+    scenario: Scenario,
+    *,
+    sequence_length: int = 4,
+    total_timesteps: int = 20_480,
+    fuel_weight: float = 0.0,
+    seed: int = 0,
+    settings: ScorerSettings | None = None,
+    ppo_params: dict[str, Any] | None = None,
+    patience_episodes: int | None = 500,
+    policy_path: str | os.PathLike[str] | None = None,
+    n_fresh_draws: int = 5,
+    progress: Callable[[SearchProgress], None] | None = None,
+    should_stop: Callable[[], bool] | None = None,
+) -> SearchResult:
+    """Train PPO on the sequence-search environment and return the best sequence it met.
+
+    :param total_timesteps: environment steps of training.
+    :param ppo_params: overrides of :data:`PPO_DEFAULTS` (the paper's values).
+    :param patience_episodes: stop once the best F1 is 1 and nothing better came for
+        this many episodes; None trains for the whole budget.
+    :param policy_path: where to save the trained policy (stable-baselines3 zip).
+    :param seed: seeds the environment's noise, the policy and PPO's sampling: the same
+        seed gives the same learning curve.
+    """
+    started = time.perf_counter()
+    _check_budget("total_timesteps", total_timesteps, sequence_length)
+    params = check_ppo_params(ppo_params)
+    env = SequenceSearchEnv(
+        scenario,
+        sequence_length=sequence_length,
+        fuel_weight=fuel_weight,
+        seed=seed,
+        settings=settings,
+    )
+    tracker = SearchTracker(fuel_weight=fuel_weight, patience_episodes=patience_episodes)
+    callback = SearchCallback(tracker, total_timesteps, progress, should_stop)
+    threads = torch.get_num_threads()
+    # A small MLP: one thread is as fast, and keeps the learning curve reproducible.
+    torch.set_num_threads(1)
+    try:
+        model = PPO("MlpPolicy", env, seed=seed, device="cpu", verbose=0, **params)
+        model.learn(total_timesteps=total_timesteps, callback=callback)
+        saved = None
+        if policy_path is not None:
+            saved = os.fspath(policy_path)
+            model.save(saved)
+            if not saved.endswith(".zip"):
+                saved += ".zip"
+    finally:
+        torch.set_num_threads(threads)
+    if not tracker.curve or tracker.curve[-1].timesteps != tracker.timesteps:
+        _report(tracker, total_timesteps, progress)
+    return finish(
+        "ppo",
+        env,
+        tracker,
+        seed=seed,
+        started=started,
+        stopped=callback.stopped,
+        settings={
+            "sequence_length": sequence_length,
+            "timesteps": total_timesteps,
+            "fuel_weight": fuel_weight,
+            "seed": seed,
+            "patience_episodes": patience_episodes,
+            "ppo": params,
+            "scorer": env.settings.as_dict(),
+        },
+        n_fresh_draws=n_fresh_draws,
+        policy_path=saved,
+    )

@@ -1,0 +1,94 @@
+"""Random search: the honest baseline a learned search must beat."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterator
+
+import numpy as np
+
+from ..scenario import Scenario
+from .env import SequenceSearchEnv
+from .result import SearchProgress, SearchResult, SearchTracker, finish, run_episodes
+from .scorer import ScorerSettings
+
+__all__ = ["random_search"]
+
+
+def random_search(
+    scenario: Scenario,
+    *,
+    sequence_length: int = 4,
+    total_timesteps: int = 20_480,
+    fuel_weight: float = 0.0,
+    seed: int = 0,
+    settings: ScorerSettings | None = None,
+    patience_episodes: int | None = None,
+    report_every: int = 2048,
+    n_fresh_draws: int = 5,
+    progress: Callable[[SearchProgress], None] | None = None,
+    should_stop: Callable[[], bool] | None = None,
+) -> SearchResult:
+    """Try uniformly random sequences in the environment until the step budget.
+
+    Sequences are scored exactly as PPO's episodes are (same environment, same noise
+    draw for the same seed), so the two compare at an equal number of environment steps.
+
+    :param total_timesteps: environment steps (sequence_length per sequence).
+    :param report_every: environment steps between learning-curve points (2048 = one
+        PPO rollout at the paper's n_steps).
+    """
+    started = time.perf_counter()
+    _check_budget("total_timesteps", total_timesteps, sequence_length)
+    env = SequenceSearchEnv(
+        scenario,
+        sequence_length=sequence_length,
+        fuel_weight=fuel_weight,
+        seed=seed,
+        settings=settings,
+    )
+    tracker = SearchTracker(fuel_weight=fuel_weight, patience_episodes=patience_episodes)
+    rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(2)[1])
+
+    def sequences() -> Iterator[np.ndarray]:
+        while True:
+            yield rng.integers(0, scenario.n_levels, (sequence_length, scenario.n_thrusters))
+
+    stopped = run_episodes(
+        env,
+        sequences(),
+        tracker,
+        total_timesteps=total_timesteps,
+        report_every=report_every,
+        progress=progress,
+        should_stop=should_stop,
+    )
+    params = {
+        "sequence_length": sequence_length,
+        "timesteps": total_timesteps,
+        "fuel_weight": fuel_weight,
+        "seed": seed,
+        "scorer": env.settings.as_dict(),
+    }
+    return finish(
+        "random",
+        env,
+        tracker,
+        seed=seed,
+        started=started,
+        stopped=stopped,
+        settings=params,
+        n_fresh_draws=n_fresh_draws,
+    )
+
+
+def _check_budget(name: str, value: int, sequence_length: int) -> None:
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, int | np.integer)
+        or value < sequence_length
+    ):
+        raise ValueError(
+            f"{name} must be an integer of at least one sequence ({sequence_length} steps), "
+            f"got {value!r}"
+        )
