@@ -1,20 +1,26 @@
-"""A plain per-series simulator: the yardstick for the batched one.
+"""Plain implementations: the yardsticks for the batched simulator and the fast scorer.
 
 This is what a straightforward implementation looks like: one series at a time, one
 RK4 step at a time, 3-vectors and ``np.cross`` / ``np.linalg.solve``. It consumes the
 same :class:`~inertia_id.simulate.SequenceNoise` as the batched simulator, so the two
 must agree to rounding error (tests check 1e-12), and it is the baseline the
-simulation benchmark measures the batched simulator against. Not for production use.
+simulation benchmark measures the batched simulator against. :func:`plain_prefix_score`
+is the plain environment step of the search (re-simulate the whole prefix series by
+series, then tslearn's ``TimeSeriesKMeans(metric="dtw")`` with its defaults), the
+baseline of ``bench/search_env.py``. Not for production use.
 """
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
+from .classify import match_clusters
 from .scenario import Scenario
 from .simulate import SequenceNoise
 
-__all__ = ["simulate_per_series"]
+__all__ = ["plain_prefix_score", "simulate_per_series"]
 
 
 def simulate_per_series(
@@ -72,3 +78,30 @@ def simulate_per_series(
                         )
                         sample += 1
     return out
+
+
+def plain_prefix_score(
+    scenario: Scenario, prefix: np.ndarray, noise: SequenceNoise, *, random_state: int = 0
+) -> tuple[float, float]:
+    """F1 and mean final rate of ``prefix``, the plain way; returns (f1, rad/s).
+
+    The whole prefix is re-simulated one series at a time, then clustered by tslearn's
+    ``TimeSeriesKMeans(n_clusters=K, metric="dtw")`` with its defaults (one k-means++
+    run, unconstrained DTW, 100 DBA iterations).
+    """
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        from tslearn.clustering import TimeSeriesKMeans
+
+    omega = simulate_per_series(scenario, prefix, noise)
+    k, n, t, _ = omega.shape
+    labels = np.repeat(np.arange(k), n)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model = TimeSeriesKMeans(n_clusters=k, metric="dtw", random_state=random_state)
+        clusters = model.fit_predict(omega.reshape(k * n, t, 3))
+    f1 = match_clusters(labels, clusters, k).f1
+    # The true final rate: the last measured sample less its gyro bias and noise.
+    last = noise.steps[len(prefix) - 1]
+    true_final = omega[:, :, -1, :] - noise.initial.gyro_bias - last.gyro_noise[:, :, -1, :]
+    return f1, float(np.linalg.norm(true_final, axis=-1).mean())
