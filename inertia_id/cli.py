@@ -25,7 +25,7 @@ from .simulate import simulate
 from .sweep import NOISE_KINDS, run_sweep
 
 # The hand-designed excitation: the three positive-axis thrusters at full duty for
-# every step. Used by `paper` until a searched sequence is given.
+# every step. Used by `paper --search none`.
 PAPER_DEFAULT_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
 DEFAULT_SEQUENCE_TEXT = ";".join(",".join(map(str, row)) for row in PAPER_DEFAULT_SEQUENCE)
 
@@ -441,8 +441,216 @@ def identify_cmd(classifier_path: str, telemetry_path: str) -> None:
     _write_json(None, verdict.model_dump(mode="json"))
 
 
+def _parse_radius(text: str) -> int | None:
+    if text.strip().lower() in ("none", "full", "unconstrained"):
+        return None
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise ValueError(f"--radius must be an integer >= 0 or 'none', got {text!r}")
+    return value
+
+
+def _parse_ppo_params(pairs: tuple[str, ...]) -> dict[str, Any]:
+    params: dict[str, Any] = {}
+    for pair in pairs:
+        name, sep, value = pair.partition("=")
+        if not sep or not name.strip():
+            raise ValueError(f"--ppo takes NAME=VALUE (e.g. ent_coef=0.01), got {pair!r}")
+        try:
+            number = float(value)
+        except ValueError:
+            raise ValueError(f"--ppo {name.strip()} must be a number, got {value!r}") from None
+        params[name.strip()] = int(number) if number.is_integer() and "." not in value else number
+    return params
+
+
+def _search_options(func: F) -> F:
+    options = [
+        click.option(
+            "--length",
+            "sequence_length",
+            default=4,
+            show_default=True,
+            type=click.IntRange(1, 50),
+            help="Actuation steps L of the sequence.",
+        ),
+        click.option(
+            "--timesteps",
+            default=20_480,
+            show_default=True,
+            type=click.IntRange(1),
+            help="Environment-step budget (ppo, random).",
+        ),
+        click.option(
+            "--search-metric",
+            "search_metric",
+            default="dtw",
+            show_default=True,
+            type=click.Choice(["dtw", "euclidean", "softdtw"]),
+            help="Clustering metric that scores sequences (dtw is the paper's).",
+        ),
+        click.option(
+            "--radius",
+            default="2",
+            show_default=True,
+            help="DTW Sakoe-Chiba band half-width in samples, or 'none'.",
+        ),
+        click.option(
+            "--search-realisations",
+            default=20,
+            show_default=True,
+            type=click.IntRange(1),
+            help="Realisations per candidate in each environment step.",
+        ),
+        click.option(
+            "--fuel-weight",
+            default=0.0,
+            show_default=True,
+            type=click.FloatRange(0),
+            help="Reward cost per N m s of commanded impulse.",
+        ),
+        click.option(
+            "--patience",
+            default=500,
+            show_default=True,
+            type=click.IntRange(1),
+            help="ppo/random: stop once F1 = 1 and no better sequence came for this many episodes.",
+        ),
+        click.option(
+            "--ppo",
+            "ppo_pairs",
+            multiple=True,
+            metavar="NAME=VALUE",
+            help="Override a PPO hyperparameter (repeatable), e.g. --ppo n_steps=1024.",
+        ),
+    ]
+    for option in reversed(options):
+        func = option(func)
+    return func
+
+
+def _run_search(
+    method: str,
+    scenario: Scenario,
+    *,
+    seed: int,
+    sequence_length: int,
+    timesteps: int,
+    search_metric: str,
+    radius: str,
+    search_realisations: int,
+    fuel_weight: float,
+    patience: int,
+    ppo_pairs: tuple[str, ...],
+    max_sequences: int = 100_000,
+    policy_path: str | None = None,
+) -> Any:
+    from .search import ScorerSettings, SearchProgress, search, space_size
+
+    settings = ScorerSettings(
+        n_realisations=search_realisations,
+        metric=search_metric,
+        sakoe_chiba_radius=_parse_radius(radius),
+    )
+    size = space_size(scenario, sequence_length)
+    click.echo(
+        f"searching ({method}) for a {sequence_length}-step sequence in a space of "
+        f"({scenario.n_levels}^{scenario.n_thrusters})^{sequence_length} = {size:.4g} sequences",
+        err=True,
+    )
+    options: dict[str, Any] = {
+        "sequence_length": sequence_length,
+        "fuel_weight": fuel_weight,
+        "seed": seed,
+        "settings": settings,
+    }
+    if method == "exhaustive":
+        options["max_sequences"] = max_sequences
+        total = size * sequence_length if size <= max_sequences else 1
+    else:
+        options["total_timesteps"] = timesteps
+        options["patience_episodes"] = patience
+        total = timesteps
+    if method == "ppo":
+        options["ppo_params"] = _parse_ppo_params(ppo_pairs)
+        options["policy_path"] = policy_path
+    elif ppo_pairs:
+        raise ValueError(f"--ppo applies to --method ppo only, not {method!r}")
+    with _progress_bar(total, method) as bar:
+        bar.unit = "step"
+
+        def progress(report: SearchProgress) -> None:
+            bar.update(report.timesteps - bar.n)
+            bar.set_postfix(
+                reward=f"{report.point.mean_episode_reward:.3f}",
+                best_f1=f"{report.point.best_f1:.3f}",
+            )
+
+        result = search(method, scenario, progress=progress, **options)
+    click.echo(result.summary(), err=True)
+    return result
+
+
+@main.command("search")
+@_scenario_options
+@click.option(
+    "--method",
+    default="ppo",
+    show_default=True,
+    type=click.Choice(["ppo", "exhaustive", "random"]),
+    help="PPO (the paper's), exhaustive (small spaces) or random (the baseline).",
+)
+@_search_options
+@click.option(
+    "--max-sequences",
+    default=100_000,
+    show_default=True,
+    type=click.IntRange(1),
+    help="exhaustive: refuse spaces larger than this.",
+)
+@click.option(
+    "--policy",
+    "policy_path",
+    type=click.Path(dir_okay=False),
+    help="ppo: save the trained policy here (stable-baselines3 zip).",
+)
+@_seed_option
+@click.option("--out", default="search.json", show_default=True, type=click.Path(dir_okay=False))
+@_friendly_errors
+def search_cmd(
+    preset_name: str,
+    scenario_path: str | None,
+    method: str,
+    out: str,
+    **options: Any,
+) -> None:
+    """Find the actuation sequence that best separates the candidates.
+
+    Writes the best sequence, its F1 on the search's noise draw and on fresh draws, its
+    fuel and final rate, and the learning curve, as JSON.
+    """
+    scenario = _load_scenario(preset_name, scenario_path)
+    result = _run_search(method, scenario, **options)
+    Path(out).write_text(result.to_json(), encoding="utf-8")
+    click.echo(f"wrote {out}", err=True)
+    click.echo(json.dumps(result.best.sequence))
+
+
 @main.command("paper")
-@_sequence_option(DEFAULT_SEQUENCE_TEXT)
+@_sequence_option(None)
+@click.option(
+    "--search",
+    "search_method",
+    default="ppo",
+    show_default=True,
+    type=click.Choice(["ppo", "random", "none"]),
+    help="How to find the sequence when --sequence is not given ('none': the "
+    "hand-designed excitation).",
+)
+@_search_options
 @_metric_option
 @_realisations_option("Training realisations per candidate (the paper's 20).")
 @_multiples_option
@@ -457,26 +665,42 @@ def identify_cmd(classifier_path: str, telemetry_path: str) -> None:
 )
 @_friendly_errors
 def paper_cmd(
-    sequence_text: str,
+    sequence_text: str | None,
+    search_method: str,
     metric: str,
     realisations: int,
     multiples: str,
     n_test: int,
     seed: int,
     out_dir: str,
+    **search_options: Any,
 ) -> None:
-    """The paper's pipeline on its preset: simulate, train, sweep, report.
+    """The paper's pipeline on its preset: search, train, sweep, report.
 
-    The default sequence is the hand-designed excitation (the three positive-axis
-    thrusters at full duty every step); pass a searched one with --sequence.
+    Without --sequence, a sequence is searched for first (PPO by default, stopping once
+    it has F1 = 1 and nothing better turned up for --patience episodes); --search none
+    uses the hand-designed excitation (the three positive-axis thrusters at full duty
+    every step).
     """
     scenario = Scenario.paper()
-    sequence = scenario.check_sequence(parse_sequence(sequence_text))
     values = _parse_multiples(multiples)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     seeds = np.random.SeedSequence(seed).spawn(3)
     started = time.perf_counter()
+    searched = None
+    if sequence_text is not None:
+        sequence = scenario.check_sequence(parse_sequence(sequence_text))
+    elif search_method == "none":
+        sequence = scenario.check_sequence(PAPER_DEFAULT_SEQUENCE)
+    else:
+        click.echo("[0/3] searching for the sequence", err=True)
+        policy = str(out / "policy.zip") if search_method == "ppo" else None
+        searched = _run_search(
+            search_method, scenario, seed=seed, policy_path=policy, **search_options
+        )
+        (out / "search.json").write_text(searched.to_json(), encoding="utf-8")
+        sequence = searched.best_sequence
     click.echo(
         f"[1/3] training {metric} classifier ({scenario.n_candidates} candidates x "
         f"{realisations} realisations, {len(sequence)} steps)",
@@ -506,10 +730,15 @@ def paper_cmd(
         result=result,
         classifier=model,
         sweep=sweep,
+        search=searched,
     )
     (out / "scenario.json").write_text(scenario.model_dump_json(indent=2), encoding="utf-8")
     summary = {
         "sequence": sequence.tolist(),
+        "sequence_from": "given" if searched is None else f"{searched.method} search",
+        "search_f1": None if searched is None else searched.best.f1,
+        "search_fresh_f1_mean": None if searched is None else searched.fresh.f1_mean,
+        "search_timesteps": None if searched is None else searched.timesteps,
         "metric": metric,
         "seed": seed,
         "training_f1": model.f1_,

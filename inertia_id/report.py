@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import html
 import os
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import plotly.graph_objects as go
@@ -16,7 +16,16 @@ from .scenario import Scenario
 from .simulate import SimulationResult
 from .sweep import SweepResult
 
-__all__ = ["accuracy_figure", "response_figure", "sequence_figure", "write_report"]
+if TYPE_CHECKING:
+    from .search import SearchResult
+
+__all__ = [
+    "accuracy_figure",
+    "learning_curve_figure",
+    "response_figure",
+    "sequence_figure",
+    "write_report",
+]
 
 _COLOURS = [
     "#1f77b4",
@@ -154,11 +163,68 @@ def sequence_figure(scenario: Scenario, sequence: np.ndarray) -> go.Figure:
     return fig
 
 
+def learning_curve_figure(search: SearchResult) -> go.Figure:
+    """Mean episode reward (left axis) and mean / best F1 (right axis) vs environment steps."""
+    fig = make_subplots(specs=[[{"secondary_y": True}]])
+    x = [p.timesteps for p in search.curve]
+    fig.add_trace(
+        go.Scatter(
+            x=x,
+            y=[p.mean_episode_reward for p in search.curve],
+            mode="lines+markers",
+            name="mean episode reward",
+            line={"color": _COLOURS[0]},
+        ),
+        secondary_y=False,
+    )
+    for i, (name, values) in enumerate(
+        (
+            ("mean F1 of the episodes' sequences", [p.mean_f1 for p in search.curve]),
+            ("best F1 so far", [p.best_f1 for p in search.curve]),
+        )
+    ):
+        fig.add_trace(
+            go.Scatter(
+                x=x,
+                y=values,
+                mode="lines",
+                name=name,
+                line={"color": _COLOURS[i + 1], "dash": "dot" if i == 0 else "solid"},
+            ),
+            secondary_y=True,
+        )
+    fig.update_layout(
+        title=f"Search ({search.method}): learning curve",
+        xaxis_title="environment steps",
+        height=400,
+    )
+    fig.update_yaxes(title_text="mean episode reward", secondary_y=False)
+    fig.update_yaxes(title_text="F1", range=[0, 1.02], secondary_y=True)
+    return fig
+
+
 def _table(rows: list[tuple[str, Any]]) -> str:
     cells = "".join(
         f"<tr><th>{html.escape(str(k))}</th><td>{html.escape(str(v))}</td></tr>" for k, v in rows
     )
     return f"<table>{cells}</table>"
+
+
+def _search_rows(search: SearchResult | None) -> list[tuple[str, Any]]:
+    if search is None:
+        return [("sequence from", "given (no search)")]
+    return [
+        (
+            "sequence from",
+            f"{search.method} search, {search.timesteps} environment steps, "
+            f"{search.wall_time_s:.0f} s, stopped: {search.stopped}",
+        ),
+        ("search F1 (its own noise draw)", f"{search.best.f1:.3f}"),
+        (
+            f"F1 on {len(search.fresh.f1)} fresh draws (mean, min)",
+            f"{search.fresh.f1_mean:.3f}, {search.fresh.f1_min:.3f}",
+        ),
+    ]
 
 
 def write_report(
@@ -169,8 +235,9 @@ def write_report(
     result: SimulationResult,
     classifier: InertiaClassifier,
     sweep: SweepResult | None = None,
+    search: SearchResult | None = None,
 ) -> None:
-    """Write the HTML report: summary, candidates, sequence, responses, accuracy vs noise."""
+    """Write the HTML report: summary, candidates, search, sequence, responses, accuracy."""
     candidates = "".join(
         f"<tr><td>{html.escape(c.name)}</td><td>"
         f"{', '.join(f'{m:.2f}' for m in c.principal_moments_kg_m2)}</td></tr>"
@@ -191,9 +258,12 @@ def write_report(
             ("training accuracy", f"{classifier.accuracy_:.3f}"),
             ("fuel use (total angular impulse)", f"{result.impulse_nms:.3f} N m s"),
             ("mean final rate |ω|", f"{result.mean_final_rate_rad_s:.4g} rad/s"),
+            *_search_rows(search),
         ]
     )
     figures = [sequence_figure(scenario, sequence), response_figure(result)]
+    if search is not None:
+        figures.insert(0, learning_curve_figure(search))
     if sweep is not None:
         figures.append(accuracy_figure(sweep))
     charts = "".join(

@@ -57,6 +57,8 @@ def test_paper_writes_results_and_report(runner: CliRunner, tmp_path: Path) -> N
         main,
         [
             "paper",
+            "--search",
+            "none",
             "--metric",
             "euclidean",
             "-n",
@@ -76,6 +78,73 @@ def test_paper_writes_results_and_report(runner: CliRunner, tmp_path: Path) -> N
     assert summary["training_f1"] == 1.0
     assert set(summary["accuracy"]["process"]) == {"1", "8"}
     assert "Accuracy vs noise" in (out / "report.html").read_text()
+    assert summary["sequence"] == [[4, 4, 4, 0, 0, 0]] * 4
+    assert summary["sequence_from"] == "given"
+
+
+def test_paper_uses_the_searched_sequence(runner: CliRunner, tmp_path: Path) -> None:
+    out = tmp_path / "paper"
+    result = runner.invoke(
+        main,
+        [
+            "paper",
+            "--search",
+            "random",
+            "--length",
+            "2",
+            "--timesteps",
+            "40",
+            "--search-realisations",
+            "5",
+            "--metric",
+            "euclidean",
+            "-n",
+            "10",
+            "--multiples",
+            "1",
+            "--n-test",
+            "20",
+            "--out-dir",
+            str(out),
+        ],
+    )
+    assert result.exit_code == 0, result.output
+    search = json.loads((out / "search.json").read_text())
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["sequence"] == search["best"]["sequence"]
+    assert len(summary["sequence"]) == 2
+    assert summary["sequence_from"] == "random search"
+    assert summary["search_timesteps"] == search["timesteps"] <= 40
+    assert "learning curve" in (out / "report.html").read_text()
+
+
+def test_search_writes_the_best_sequence(runner: CliRunner, tmp_path: Path) -> None:
+    out = tmp_path / "search.json"
+    result = runner.invoke(
+        main,
+        [
+            "search",
+            "--method",
+            "random",
+            "--length",
+            "2",
+            "--timesteps",
+            "24",
+            "--search-realisations",
+            "4",
+            "--seed",
+            "3",
+            "--out",
+            str(out),
+        ],
+    )
+    assert result.exit_code == 0, result.output
+    doc = json.loads(out.read_text())
+    assert doc["method"] == "random"
+    assert doc["timesteps"] == 24 and doc["episodes"] == 12
+    assert len(doc["fresh"]["f1"]) == 5
+    assert doc["settings"]["scorer"]["n_realisations"] == 4
+    assert json.loads(result.stdout.strip().splitlines()[-1]) == doc["best"]["sequence"]
 
 
 @pytest.mark.parametrize(
@@ -86,6 +155,12 @@ def test_paper_writes_results_and_report(runner: CliRunner, tmp_path: Path) -> N
         (["train", "--sequence", "a,b"], "sequence 'a,b' is not rows of level indices"),
         (["simulate", "--candidate", "nobody", "--telemetry", "x.csv"], "'nobody'"),
         (["sweep", "--classifier", "missing.json"], "does not exist"),
+        (["search", "--method", "exhaustive"], "(5^6)^4 = 5.96e+16 sequences"),
+        (["search", "--ppo", "n_step=8"], "unknown PPO parameters ['n_step']"),
+        (["search", "--ppo", "ent_coef=-1"], "ent_coef must be >= 0, got -1"),
+        (["search", "--ppo", "gamma"], "--ppo takes NAME=VALUE"),
+        (["search", "--radius", "-2"], "--radius must be an integer >= 0 or 'none', got '-2'"),
+        (["search", "--method", "random", "--ppo", "gamma=0.9"], "--ppo applies to --method"),
     ],
 )
 def test_bad_input_is_one_line_error(
