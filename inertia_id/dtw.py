@@ -158,15 +158,28 @@ def _lloyd(
                     best = c
             labels[s] = best
             own[s] = dist[s, best]
-        # Reseed empty clusters from the series farthest from their centroid.
+        # Reseed an empty cluster with the series farthest from its centroid among
+        # clusters that keep a member after giving it up (n >= k, so one always does).
+        counts = np.zeros(k, dtype=np.int64)
+        for s in range(n):
+            counts[labels[s]] += 1
+        reseeded = False
         for c in range(k):
-            if not np.any(labels == c):
-                worst = int(np.argmax(own))
+            if counts[c] == 0:
+                worst = -1
+                worst_distance = -1.0
+                for s in range(n):
+                    if counts[labels[s]] > 1 and own[s] > worst_distance:
+                        worst = s
+                        worst_distance = own[s]
+                counts[labels[worst]] -= 1
                 labels[worst] = c
+                counts[c] = 1
                 own[worst] = 0.0
                 centers[c] = x[worst]
+                reseeded = True
         inertia = float(np.mean(own**2))
-        if abs(old_inertia - inertia) < tol:
+        if abs(old_inertia - inertia) < tol and not reseeded:
             break
         old_inertia = inertia
         for c in range(k):

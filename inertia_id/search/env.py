@@ -7,6 +7,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
+from gymnasium.utils import seeding
 
 from ..scenario import Scenario
 from .scorer import PrefixScorer, ScorerSettings
@@ -84,6 +85,10 @@ class SequenceSearchEnv(gym.Env[np.ndarray, np.ndarray]):
         self.action_space = spaces.MultiDiscrete(np.full(n, m))
         self._prefix: list[tuple[int, ...]] = []
         self._episodes = 0
+        if seed is not None:
+            # Fresh-noise episodes draw their seeds from np_random: seed it too, so the
+            # constructor's seed alone fixes every episode.
+            self._np_random, self._np_random_seed = seeding.np_random(seed)
 
     @property
     def settings(self) -> ScorerSettings:

@@ -59,6 +59,9 @@ def check_ppo_params(params: dict[str, Any] | None) -> dict[str, Any]:
             raise ValueError(f"PPO parameter {name} must be >= 0, got {value!r}")
     for name in _POSITIVE_INT:
         merged[name] = int(merged[name])
+    if merged["batch_size"] < 2:
+        # stable-baselines3 normalises advantages over a minibatch: one sample is refused.
+        raise ValueError(f"PPO parameter batch_size must be at least 2, got {merged['batch_size']}")
     if merged["batch_size"] > merged["n_steps"]:
         raise ValueError(
             f"PPO batch_size ({merged['batch_size']}) must not exceed n_steps ({merged['n_steps']})"

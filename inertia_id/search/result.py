@@ -238,6 +238,8 @@ class SearchResult:
     :param space_size: number of distinct sequences, (M^N)^L.
     :param settings: the search's parameters, as given.
     :param policy_path: where PPO saved its policy, if it did.
+    :param cache_hits: environment steps whose prefix score came from the cache.
+    :param cache_misses: environment steps that simulated and clustered a new prefix.
     """
 
     method: str
@@ -251,6 +253,8 @@ class SearchResult:
     space_size: int
     settings: dict[str, Any] = field(default_factory=dict)
     policy_path: str | None = None
+    cache_hits: int = 0
+    cache_misses: int = 0
 
     @property
     def best_sequence(self) -> np.ndarray:
@@ -383,4 +387,6 @@ def finish(
         space_size=space_size(env.scenario, env.sequence_length),
         settings=settings,
         policy_path=policy_path,
+        cache_hits=env.scorer.hits,
+        cache_misses=env.scorer.misses,
     )

@@ -156,6 +156,7 @@ class PrefixScorer:
         self._thruster_impulse = (
             np.linalg.norm(scenario.torque_matrix, axis=0) * scenario.timing.step_duration_s
         )
+        #: Prefixes asked for whose score was cached / had to be computed.
         self.hits = 0
         self.misses = 0
         self.reseed(seed)
@@ -190,7 +191,12 @@ class PrefixScorer:
 
     def score(self, prefix: Any) -> PrefixScore:
         """Score of the sequence ``prefix`` ((L, N) level indices), cached."""
-        node = self._node(self.check_prefix(prefix))
+        key = self.check_prefix(prefix)
+        if key in self._cache:
+            self.hits += 1
+        else:
+            self.misses += 1
+        node = self._node(key)
         assert node.score is not None
         return node.score
 
@@ -199,10 +205,8 @@ class PrefixScorer:
             return self._root
         node = self._cache.get(prefix)
         if node is not None:
-            self.hits += 1
             self._cache.move_to_end(prefix)
             return node
-        self.misses += 1
         node = self._extend(self._node(prefix[:-1]), prefix)
         self._remember(prefix, node)
         return node

@@ -5,6 +5,7 @@ from __future__ import annotations
 import itertools
 import re
 import warnings
+from collections.abc import Callable
 
 import numpy as np
 import pytest
@@ -22,7 +23,9 @@ def random_series(seed: int, n: int, length: int = 15, dims: int = 3) -> np.ndar
     return np.random.default_rng(seed).standard_normal((n, length, dims))
 
 
-def separated_groups(seed: int, per_group: int = 8, length: int = 40) -> tuple[np.ndarray, np.ndarray]:
+def separated_groups(
+    seed: int, per_group: int = 8, length: int = 40
+) -> tuple[np.ndarray, np.ndarray]:
     """Three groups of time-shifted sinusoids (different frequency and offset) plus noise."""
     rng = np.random.default_rng(seed)
     t = np.linspace(0.0, 1.0, length)
@@ -58,9 +61,7 @@ def test_cdist_matches_tslearn_unconstrained(seed: int) -> None:
 @pytest.mark.parametrize("radius", [0, 1, 3])
 def test_cdist_matches_tslearn_in_a_sakoe_chiba_band(radius: int) -> None:
     x, y = random_series(radius, 6), random_series(radius + 100, 5)
-    expected = tslearn_cdist_dtw(
-        x, y, global_constraint="sakoe_chiba", sakoe_chiba_radius=radius
-    )
+    expected = tslearn_cdist_dtw(x, y, global_constraint="sakoe_chiba", sakoe_chiba_radius=radius)
     np.testing.assert_allclose(cdist_dtw(x, y, radius), expected, rtol=0, atol=1e-10)
 
 
@@ -233,7 +234,7 @@ def test_too_few_series_or_no_start_is_refused() -> None:
 def test_degenerate_init_gives_no_empty_cluster(radius: int | None) -> None:
     # Every centroid equal: all series tie for cluster 0 at first, so every other
     # cluster starts empty and must be reseeded.
-    x, y = separated_groups(25)
+    x, _ = separated_groups(25)
     init = np.repeat(x[:1], 3, axis=0)
     result = kmeans_dtw(x, 3, np.random.default_rng(0), radius=radius, n_init=0, init=init)
     np.testing.assert_array_equal(np.sort(np.unique(result.labels)), [0, 1, 2])
@@ -241,20 +242,28 @@ def test_degenerate_init_gives_no_empty_cluster(radius: int | None) -> None:
     assert np.isfinite(result.inertia)
 
 
-@pytest.mark.xfail(
-    raises=ZeroDivisionError,
-    strict=True,
-    reason="library bug: reseeding an empty cluster can take the only member of another "
-    "cluster, whose DBA update then divides by zero (inertia_id/dtw.py, _lloyd)",
-)
-def test_reseeding_does_not_empty_another_cluster() -> None:
+def singleton_stolen() -> tuple[np.ndarray, np.ndarray]:
     # Series 2 is alone in cluster 1 and is the worst-fitted series, so reseeding the
     # empty cluster 2 takes it and leaves cluster 1 empty.
     a = np.zeros((6, 1))
-    x = np.stack([a, a + 0.01, a + 10.0])
-    init = np.stack([a, a + 11.0, a])
+    return np.stack([a, a + 0.01, a + 10.0]), np.stack([a, a + 11.0, a])
+
+
+def identical_series() -> tuple[np.ndarray, np.ndarray]:
+    # Every series the same (a noise-free response to thrusters off): every distance is
+    # zero, so each empty cluster is reseeded from the same series.
+    x = np.zeros((6, 5, 3))
+    return x, x[:3].copy()
+
+
+@pytest.mark.parametrize("case", [singleton_stolen, identical_series])
+def test_reseeding_does_not_empty_another_cluster(
+    case: Callable[[], tuple[np.ndarray, np.ndarray]],
+) -> None:
+    x, init = case()
     result = kmeans_dtw(x, 3, np.random.default_rng(0), n_init=0, init=init)
-    np.testing.assert_array_equal(np.sort(result.labels), [0, 1, 2])
+    np.testing.assert_array_equal(np.unique(result.labels), [0, 1, 2])
+    assert np.all(np.isfinite(result.centers))
 
 
 # The paper's problem.

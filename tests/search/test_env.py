@@ -1,0 +1,308 @@
+"""The sequence-search environment: Gymnasium's API, its spaces, and its reward."""
+
+from __future__ import annotations
+
+import re
+import warnings
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium import spaces
+from gymnasium.utils.env_checker import check_env
+
+from inertia_id import Scenario, preset
+from inertia_id.search import ENV_ID, PrefixScorer, ScorerSettings, SequenceSearchEnv
+from inertia_id.simulate import Simulator
+
+# Three steps of the paper's six thrusters, at varied levels (M = 5: duty 0, .25, .5, .75, 1).
+# Commanded impulse per step, |A_j| = 2 N m and 1 s steps: 2 * (sum of duties) N m s.
+MIXED_SEQUENCE = [[4, 4, 4, 0, 0, 0], [0, 2, 0, 1, 0, 0], [1, 0, 3, 0, 0, 4]]
+MIXED_STEP_IMPULSE_NMS = [6.0, 1.5, 4.0]
+
+SMALL: dict[str, Any] = {"sequence_length": 3, "n_realisations": 5}
+
+
+def play(
+    env: SequenceSearchEnv, sequence: Any, *, seed: int | None = None
+) -> tuple[list[float], list[dict[str, Any]]]:
+    """Reset and play ``sequence``; the rewards and infos of each step."""
+    env.reset(seed=seed)
+    rewards, infos = [], []
+    for row in sequence:
+        _, reward, _, _, info = env.step(np.asarray(row))
+        rewards.append(reward)
+        infos.append(info)
+    return rewards, infos
+
+
+# Gymnasium's API.
+
+
+def test_passes_gymnasiums_environment_checker(paper: Scenario) -> None:
+    env = gym.make(ENV_ID, scenario=paper, seed=0, **SMALL)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        check_env(env.unwrapped)
+    complaints = [str(w.message) for w in caught if issubclass(w.category, UserWarning)]
+    assert complaints == []
+
+
+def test_checker_passes_without_make(paper: Scenario) -> None:
+    check_env(SequenceSearchEnv(paper, seed=0, **SMALL), skip_render_check=True)
+
+
+def test_registered_under_its_id_and_playable_through_make(paper: Scenario) -> None:
+    assert ENV_ID in gym.registry
+    env = gym.make(ENV_ID, scenario=paper, seed=0, **SMALL)
+    assert isinstance(env.unwrapped, SequenceSearchEnv)
+    obs, _ = env.reset(seed=0)
+    assert env.observation_space.contains(obs)
+    terminated = False
+    steps = 0
+    while not terminated:
+        obs, _, terminated, truncated, _ = env.step(env.action_space.sample())
+        assert not truncated
+        steps += 1
+    assert steps == 3
+
+
+def test_default_scenario_is_the_paper_preset() -> None:
+    env = gym.make(ENV_ID, **SMALL)
+    assert env.unwrapped.scenario == Scenario.paper()  # type: ignore[attr-defined]
+    assert env.action_space == spaces.MultiDiscrete([5] * 6)
+
+
+# Spaces and observations.
+
+
+def test_spaces_for_the_paper_preset(paper: Scenario) -> None:
+    env = SequenceSearchEnv(paper, seed=0, **SMALL)
+    assert env.action_space == spaces.MultiDiscrete([5] * 6)
+    assert env.observation_space == spaces.MultiDiscrete([6] * (3 * 6))
+
+
+def test_spaces_follow_the_thrusters_and_levels() -> None:
+    scenario = preset(
+        "paper",
+        thrusters={"torque_matrix_nm": np.diag([2.0, 2.0, 2.0]).tolist(), "levels": [0.0, 1.0]},
+    )
+    env = SequenceSearchEnv(scenario, sequence_length=2, n_realisations=2, seed=0)
+    assert env.action_space == spaces.MultiDiscrete([2] * 3)
+    assert env.observation_space == spaces.MultiDiscrete([3] * (2 * 3))
+
+
+def test_observation_is_the_actuation_history_with_unused_steps_at_m(paper: Scenario) -> None:
+    env = SequenceSearchEnv(paper, seed=0, **SMALL)
+    obs, info = env.reset(seed=0)
+    assert info == {}
+    np.testing.assert_array_equal(obs, np.full(18, 5))
+    for k, row in enumerate(MIXED_SEQUENCE, start=1):
+        obs, *_ = env.step(np.asarray(row))
+        assert env.observation_space.contains(obs)
+        rows = obs.reshape(3, 6)
+        np.testing.assert_array_equal(rows[:k], MIXED_SEQUENCE[:k])
+        np.testing.assert_array_equal(rows[k:], 5)
+    obs, _ = env.reset()
+    np.testing.assert_array_equal(obs, np.full(18, 5))
+
+
+# Episodes.
+
+
+def test_episode_lasts_exactly_the_sequence_length(paper: Scenario) -> None:
+    env = SequenceSearchEnv(paper, seed=0, **SMALL)
+    env.reset(seed=0)
+    flags = [env.step(np.asarray(row))[2:4] for row in MIXED_SEQUENCE]
+    assert flags == [(False, False), (False, False), (True, False)]
+    with pytest.raises(RuntimeError, match="reset"):
+        env.step(np.asarray(MIXED_SEQUENCE[0]))
+    env.reset()
+    _, _, terminated, _, info = env.step(np.asarray(MIXED_SEQUENCE[0]))
+    assert not terminated and info["step"] == 1
+
+
+# The reward.
+
+
+def test_rewards_follow_the_documented_formula(paper: Scenario) -> None:
+    settings = ScorerSettings(n_realisations=5)
+    env = SequenceSearchEnv(paper, sequence_length=3, seed=7, settings=settings)
+    rewards, infos = play(env, MIXED_SEQUENCE)
+
+    # Before the last step: -1 + 3 F1, F1 as an independent scorer on the same seed sees it.
+    scorer = PrefixScorer(paper, 3, settings, seed=7)
+    for k in (1, 2):
+        f1 = scorer.score(MIXED_SEQUENCE[:k]).f1
+        assert infos[k - 1]["f1"] == f1
+        assert rewards[k - 1] == pytest.approx(-1.0 + 3.0 * f1, abs=1e-12)
+        assert infos[k - 1]["step"] == k
+        assert infos[k - 1]["sequence"] == MIXED_SEQUENCE[:k]
+
+    # Last step: minus the mean true final rate over candidates and realisations, as the
+    # simulator gives it for the same noise.
+    simulated = Simulator(paper, 5).run(np.asarray(MIXED_SEQUENCE), env.scorer.noise)
+    final_rate = float(np.linalg.norm(simulated.omega_true[:, :, -1, :], axis=-1).mean())
+    assert infos[-1]["final_rate_rad_s"] == pytest.approx(final_rate, rel=1e-12)
+    assert rewards[-1] == pytest.approx(-final_rate, rel=1e-12)
+    assert 0.0 < final_rate < 1.0
+
+
+def test_fuel_weight_charges_each_step_its_impulse(paper: Scenario) -> None:
+    weight = 0.1
+    free, free_infos = play(SequenceSearchEnv(paper, seed=7, **SMALL), MIXED_SEQUENCE)
+    charged, infos = play(
+        SequenceSearchEnv(paper, seed=7, fuel_weight=weight, **SMALL), MIXED_SEQUENCE
+    )
+    for k, impulse in enumerate(MIXED_STEP_IMPULSE_NMS):
+        assert infos[k]["step_fuel_nms"] == pytest.approx(impulse, rel=1e-12)
+        assert charged[k] == pytest.approx(free[k] - weight * impulse, abs=1e-12)
+        assert infos[k]["f1"] == free_infos[k]["f1"]  # the fuel weight changes no score
+    assert infos[-1]["fuel_nms"] == pytest.approx(sum(MIXED_STEP_IMPULSE_NMS), rel=1e-12)
+    assert infos[-1]["fuel_nms"] == pytest.approx(paper.impulse_nms(MIXED_SEQUENCE), rel=1e-12)
+
+
+def test_noise_free_good_sequence_separates_every_candidate_at_every_step(
+    quiet_paper: Scenario, good_sequence: np.ndarray
+) -> None:
+    # Without noise every realisation of a candidate is the same series, and the good
+    # sequence drives the candidates apart from the first step: F1 = 1, reward -1 + 3 = 2.
+    env = SequenceSearchEnv(quiet_paper, sequence_length=4, n_realisations=5, seed=0)
+    rewards, infos = play(env, good_sequence)
+    assert [info["f1"] for info in infos] == [1.0] * 4
+    assert rewards[:3] == [2.0, 2.0, 2.0]
+    assert rewards[3] == -infos[3]["final_rate_rad_s"] < 0.0
+    # Nothing random: another seed and another number of realisations change nothing.
+    other = SequenceSearchEnv(quiet_paper, sequence_length=4, n_realisations=3, seed=1)
+    assert play(other, good_sequence)[0] == pytest.approx(rewards, rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("sequence", "seconds_on"), [([[1, 0, 0], [0, 0, 0]], 1), ([[1, 0, 0]] * 2, 2)]
+)
+def test_final_rate_of_a_spin_about_a_principal_axis_is_closed_form(
+    zero_uncertainty: dict[str, Any], sequence: list[list[int]], seconds_on: int
+) -> None:
+    # One thruster torquing the body x axis (2 N m), no noise, no lag, diagonal inertia
+    # tensors: ω stays on x, ω_x = 2 N m * t / I_xx, and coasting keeps it (Euler's
+    # equations have no gyroscopic term for a spin about a principal axis).
+    scenario = preset(
+        "paper",
+        thrusters={"torque_matrix_nm": np.diag([2.0, 2.0, 2.0]).tolist(), "levels": [0.0, 1.0]},
+        uncertainty=zero_uncertainty,
+    )
+    env = SequenceSearchEnv(scenario, sequence_length=2, n_realisations=2, seed=0)
+    rewards, infos = play(env, sequence)
+    i_xx = scenario.inertia_array[:, 0, 0]
+    expected = float(np.mean(2.0 * seconds_on / i_xx))
+    assert infos[-1]["final_rate_rad_s"] == pytest.approx(expected, rel=1e-12)
+    assert rewards[-1] == pytest.approx(-expected, rel=1e-12)
+
+
+def test_noise_free_step_with_thrusters_off_scores(quiet_paper: Scenario) -> None:
+    env = SequenceSearchEnv(quiet_paper, sequence_length=2, n_realisations=3, seed=0)
+    env.reset()
+    _, reward, *_ = env.step(np.zeros(6, dtype=int))
+    # All candidates respond identically (not at all): one cluster holds everything.
+    assert reward < 2.0
+
+
+# Seeds and noise.
+
+
+def test_same_seed_same_episode(paper: Scenario) -> None:
+    first = play(SequenceSearchEnv(paper, seed=11, **SMALL), MIXED_SEQUENCE)
+    second = play(SequenceSearchEnv(paper, seed=11, **SMALL), MIXED_SEQUENCE)
+    assert first == second
+
+
+def test_different_seeds_draw_different_noise(paper: Scenario) -> None:
+    _, first = play(SequenceSearchEnv(paper, seed=11, **SMALL), MIXED_SEQUENCE)
+    _, second = play(SequenceSearchEnv(paper, seed=12, **SMALL), MIXED_SEQUENCE)
+    assert first[-1]["final_rate_rad_s"] != second[-1]["final_rate_rad_s"]
+
+
+def test_reset_with_a_seed_redraws_the_noise_from_it(paper: Scenario) -> None:
+    env = SequenceSearchEnv(paper, seed=0, **SMALL)
+    before = play(env, MIXED_SEQUENCE)
+    reseeded = play(env, MIXED_SEQUENCE, seed=5)
+    assert reseeded != before
+    assert reseeded == play(SequenceSearchEnv(paper, seed=5, **SMALL), MIXED_SEQUENCE)
+    assert play(env, MIXED_SEQUENCE, seed=0) == before
+
+
+def test_fixed_noise_scores_a_sequence_the_same_every_episode(paper: Scenario) -> None:
+    env = SequenceSearchEnv(paper, seed=3, noise="fixed", **SMALL)
+    first = play(env, MIXED_SEQUENCE, seed=3)
+    assert play(env, MIXED_SEQUENCE) == first
+    assert play(env, MIXED_SEQUENCE) == first
+
+
+def test_fresh_noise_redraws_every_episode_reproducibly(paper: Scenario) -> None:
+    def episodes() -> list[float]:
+        env = SequenceSearchEnv(paper, seed=3, noise="fresh", **SMALL)
+        rates = [play(env, MIXED_SEQUENCE, seed=3)[1][-1]["final_rate_rad_s"]]
+        rates += [play(env, MIXED_SEQUENCE)[1][-1]["final_rate_rad_s"] for _ in range(2)]
+        return rates
+
+    rates = episodes()
+    assert len(set(rates)) == 3
+    assert episodes() == rates
+
+
+def test_fresh_noise_is_reproducible_from_the_constructor_seed(paper: Scenario) -> None:
+    def second_episode() -> float:
+        env = SequenceSearchEnv(paper, seed=3, noise="fresh", **SMALL)
+        play(env, MIXED_SEQUENCE)
+        return play(env, MIXED_SEQUENCE)[1][-1]["final_rate_rad_s"]
+
+    assert second_episode() == second_episode()
+
+
+# Refusals.
+
+
+@pytest.mark.parametrize(
+    ("action", "quoted"),
+    [
+        ([4, 4, 4, 0, 0], "[4, 4, 4, 0, 0]"),
+        ([4, 4, 4, 0, 0, 0, 0], "[4, 4, 4, 0, 0, 0, 0]"),
+        ([5, 0, 0, 0, 0, 0], "[5, 0, 0, 0, 0, 0]"),
+        ([-1, 0, 0, 0, 0, 0], "[-1, 0, 0, 0, 0, 0]"),
+        ([1.5, 0, 0, 0, 0, 0], "[1.5, 0.0, 0.0, 0.0, 0.0, 0.0]"),
+    ],
+)
+def test_invalid_action_is_refused_and_leaves_the_episode_as_it_was(
+    paper: Scenario, action: list[float], quoted: str
+) -> None:
+    env = SequenceSearchEnv(paper, seed=0, **SMALL)
+    env.reset()
+    with pytest.raises(ValueError, match=re.escape(quoted)):
+        env.step(np.asarray(action))
+    _, _, _, _, info = env.step(np.asarray(MIXED_SEQUENCE[0]))
+    assert info["step"] == 1
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "quoted"),
+    [
+        ({"fuel_weight": -1.0}, "-1.0"),
+        ({"fuel_weight": float("nan")}, "nan"),
+        ({"noise": "x"}, "'x'"),
+        ({"metric": "cosine"}, "'cosine'"),
+        ({"n_realisations": 0}, "0"),
+        ({"sequence_length": 0}, "0"),
+    ],
+)
+def test_bad_constructor_arguments_are_refused(
+    paper: Scenario, kwargs: dict[str, Any], quoted: str
+) -> None:
+    options = {**SMALL, **kwargs}
+    with pytest.raises(ValueError, match=re.escape(quoted)):
+        SequenceSearchEnv(paper, seed=0, **options)
+
+
+def test_settings_and_their_keywords_together_are_refused(paper: Scenario) -> None:
+    with pytest.raises(ValueError, match="not both"):
+        SequenceSearchEnv(paper, settings=ScorerSettings(n_realisations=2), n_realisations=3)

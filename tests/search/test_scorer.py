@@ -1,0 +1,178 @@
+"""The prefix scorer: cache exactness, its simulation against the plain one, its metrics."""
+
+from __future__ import annotations
+
+import re
+from typing import Any
+
+import numpy as np
+import pytest
+
+from inertia_id import Scenario
+from inertia_id.reference import plain_prefix_score
+from inertia_id.search import PrefixScorer, ScorerSettings, evaluate_sequence
+from inertia_id.search.result import fresh_seed
+
+ROWS = [[4, 4, 4, 0, 0, 0], [0, 2, 0, 1, 0, 0], [1, 0, 3, 0, 0, 4]]
+# A tree of prefixes sharing parents, in the order a depth-first search would score them.
+PREFIXES = [
+    [ROWS[0]],
+    [ROWS[0], ROWS[1]],
+    [ROWS[0], ROWS[1], ROWS[2]],
+    [ROWS[0], ROWS[2]],
+    [ROWS[0], ROWS[2], ROWS[1]],
+    [ROWS[1]],
+    [ROWS[1], ROWS[0], ROWS[2]],
+    [ROWS[2], ROWS[2]],
+]
+
+
+def score_all(scorer: PrefixScorer, order: list[int]) -> dict[int, Any]:
+    return {i: scorer.score(PREFIXES[i]) for i in order}
+
+
+# Common random numbers and the cache.
+
+
+def test_a_prefix_scores_the_same_whatever_was_scored_before(paper: Scenario) -> None:
+    settings = ScorerSettings(n_realisations=4)
+    forward = PrefixScorer(paper, 3, settings, seed=2)
+    backward = PrefixScorer(paper, 3, settings, seed=2)
+    expected = score_all(forward, list(range(len(PREFIXES))))
+    assert score_all(backward, list(reversed(range(len(PREFIXES))))) == expected
+    # Scoring again is a cache hit and changes nothing.
+    misses = forward.misses
+    assert score_all(forward, [3, 0, 7]) == {i: expected[i] for i in (3, 0, 7)}
+    assert forward.misses == misses and forward.hits >= 3
+    # The scores differ between prefixes, so the comparison above can tell them apart.
+    assert len({s.f1 for s in expected.values()}) > 2
+
+
+def test_without_a_cache_every_prefix_scores_the_same(paper: Scenario) -> None:
+    cached = PrefixScorer(paper, 3, ScorerSettings(n_realisations=4), seed=2)
+    uncached = PrefixScorer(paper, 3, ScorerSettings(n_realisations=4, cache_mb=0.0), seed=2)
+    order = [2, 6, 0, 4, 1, 7, 3, 5]
+    assert score_all(uncached, order) == score_all(cached, order)
+    # The uncached scorer really recomputed the shared parents.
+    assert uncached.cache_size == 1
+    assert uncached.misses > cached.misses
+
+
+def test_prefix_score_accumulates_the_commanded_impulse(paper: Scenario) -> None:
+    scorer = PrefixScorer(paper, 3, ScorerSettings(n_realisations=2), seed=0)
+    for prefix in PREFIXES:
+        score = scorer.score(prefix)
+        assert score.impulse_nms == pytest.approx(paper.impulse_nms(prefix), rel=1e-12)
+        assert score.step_impulse_nms == pytest.approx(paper.impulse_nms(prefix[-1:]), rel=1e-12)
+
+
+def test_reseeding_draws_new_noise_and_forgets_the_cache(paper: Scenario) -> None:
+    scorer = PrefixScorer(paper, 3, ScorerSettings(n_realisations=4), seed=2)
+    before = scorer.score(PREFIXES[2])
+    scorer.reseed(9)
+    assert scorer.cache_size == 0
+    after = scorer.score(PREFIXES[2])
+    assert after.final_rate_rad_s != before.final_rate_rad_s
+    assert after == PrefixScorer(paper, 3, ScorerSettings(n_realisations=4), seed=9).score(
+        PREFIXES[2]
+    )
+
+
+# The simulation, against the plain series-by-series one.
+
+
+@pytest.mark.parametrize("length", [1, 3])
+def test_final_rate_matches_the_plain_simulation_on_the_same_noise(
+    paper: Scenario, length: int
+) -> None:
+    scorer = PrefixScorer(paper, 3, ScorerSettings(n_realisations=3), seed=4)
+    prefix = np.asarray(ROWS[:length])
+    _, plain_rate = plain_prefix_score(paper, prefix, scorer.noise)
+    assert scorer.score(prefix).final_rate_rad_s == pytest.approx(plain_rate, rel=1e-12, abs=0)
+
+
+# Metrics.
+
+
+def test_euclidean_metric_is_dtw_with_a_zero_band(paper: Scenario) -> None:
+    euclidean = PrefixScorer(paper, 3, ScorerSettings(n_realisations=4, metric="euclidean"), seed=1)
+    zero_band = PrefixScorer(
+        paper, 3, ScorerSettings(n_realisations=4, metric="dtw", sakoe_chiba_radius=0), seed=1
+    )
+    for prefix in PREFIXES[:3]:
+        score = euclidean.score(prefix)
+        assert 0.0 <= score.f1 <= 1.0 and 0.0 <= score.accuracy <= 1.0
+        assert score == zero_band.score(prefix)
+
+
+def test_euclidean_metric_separates_noise_free_candidates(
+    quiet_paper: Scenario, good_sequence: np.ndarray
+) -> None:
+    scorer = PrefixScorer(quiet_paper, 4, ScorerSettings(n_realisations=3, metric="euclidean"))
+    assert scorer.score(good_sequence).f1 == 1.0
+    assert scorer.score(good_sequence).accuracy == 1.0
+
+
+def test_softdtw_metric_scores_on_the_same_simulation(paper: Scenario) -> None:
+    soft = PrefixScorer(paper, 1, ScorerSettings(n_realisations=3, metric="softdtw"), seed=0)
+    dtw = PrefixScorer(paper, 1, ScorerSettings(n_realisations=3), seed=0)
+    score = soft.score([ROWS[0]])
+    assert 0.0 <= score.f1 <= 1.0
+    assert score.final_rate_rad_s == dtw.score([ROWS[0]]).final_rate_rad_s
+    again = PrefixScorer(paper, 1, ScorerSettings(n_realisations=3, metric="softdtw"), seed=0)
+    assert again.score([ROWS[0]]) == score  # seeded: the same clustering again
+
+
+# Refusals.
+
+
+@pytest.mark.parametrize(
+    ("changes", "quoted"),
+    [
+        ({"metric": "cosine"}, "'cosine'"),
+        ({"n_realisations": 0}, "n_realisations"),
+        ({"max_iter": 1.5}, "1.5"),
+        ({"n_init": -1}, "-1"),
+        ({"n_init": 0, "warm_start": False}, "warm_start"),
+        ({"sakoe_chiba_radius": -2}, "-2"),
+        ({"cache_mb": -1.0}, "-1.0"),
+    ],
+)
+def test_bad_settings_are_refused(paper: Scenario, changes: dict[str, Any], quoted: str) -> None:
+    with pytest.raises(ValueError, match=re.escape(quoted)):
+        PrefixScorer(paper, 2, ScorerSettings(**changes))
+
+
+def test_prefix_longer_than_the_scorer_is_refused(paper: Scenario) -> None:
+    scorer = PrefixScorer(paper, 2, ScorerSettings(n_realisations=2), seed=0)
+    with pytest.raises(ValueError, match="3 steps"):
+        scorer.score(ROWS)
+    with pytest.raises(ValueError, match=re.escape("outside 0..4")):
+        scorer.score([[5, 0, 0, 0, 0, 0]])
+
+
+# Re-scoring on fresh draws.
+
+
+def test_fresh_seed_is_deterministic_and_differs_from_its_source() -> None:
+    assert fresh_seed(0) == fresh_seed(0)
+    seeds = [fresh_seed(s) for s in range(20)]
+    assert all(child != s for s, child in enumerate(seeds))
+    assert len(set(seeds)) == 20
+    assert all(0 <= child < 2**63 for child in seeds)
+
+
+def test_evaluate_sequence_scores_independent_draws(paper: Scenario) -> None:
+    settings = ScorerSettings(n_realisations=3)
+    seed = fresh_seed(5)
+    evaluation = evaluate_sequence(paper, ROWS[:2], settings, seed=seed, n_draws=3)
+    assert evaluation.seed == seed
+    assert len(evaluation.f1) == 3 and len(evaluation.final_rate_rad_s) == 3
+    assert all(0.0 <= f1 <= 1.0 for f1 in evaluation.f1)
+    assert evaluation.f1_min <= evaluation.f1_mean <= max(evaluation.f1)
+    # Each draw has its own noise, none of them the search's own draw (seed 5).
+    rates = evaluation.final_rate_rad_s
+    assert len(set(rates)) == 3
+    searched = PrefixScorer(paper, 2, settings, seed=5).score(ROWS[:2]).final_rate_rad_s
+    assert searched not in rates
+    assert evaluate_sequence(paper, ROWS[:2], settings, seed=seed, n_draws=3) == evaluation

@@ -1,0 +1,392 @@
+"""Exhaustive, random and PPO search: what they return, when they stop, and that they agree."""
+
+from __future__ import annotations
+
+import importlib
+import itertools
+import json
+import math
+import re
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from stable_baselines3 import PPO
+
+from inertia_id import Scenario, preset
+from inertia_id.search import (
+    PPO_DEFAULTS,
+    ScorerSettings,
+    SearchProgress,
+    SearchResult,
+    SequenceSearchEnv,
+    check_ppo_params,
+    exhaustive_search,
+    ppo_search,
+    random_search,
+    search,
+)
+
+# Three thrusters, one per body axis, each off or on: (2^3)^2 = 64 sequences of 2 steps.
+TINY_THRUSTERS = {"torque_matrix_nm": np.diag([2.0, 2.0, 2.0]).tolist(), "levels": [0.0, 1.0]}
+SETTINGS = ScorerSettings(n_realisations=4)
+TINY_PPO = {"n_steps": 32, "batch_size": 16, "n_epochs": 2}
+
+
+@pytest.fixture(scope="module")
+def tiny() -> Scenario:
+    return preset("paper", name="tiny", thrusters=TINY_THRUSTERS)
+
+
+@pytest.fixture(scope="module")
+def tiny_quiet(zero_uncertainty: dict[str, Any]) -> Scenario:
+    """The tiny scenario almost noise-free: F1 = 1 is easy to reach.
+
+    A trace of gyro noise is kept so that sequences starting with every thruster off do
+    not give identical series (which k-means cannot split; see test_env.py).
+    """
+    uncertainty = {**zero_uncertainty, "gyro_noise_sigma_rad_s": 1e-6}
+    return preset("paper", name="tiny quiet", thrusters=TINY_THRUSTERS, uncertainty=uncertainty)
+
+
+@pytest.fixture(scope="module")
+def ppo_run(tiny: Scenario, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    """One tiny PPO search, with its progress reports and saved policy."""
+    reports: list[SearchProgress] = []
+    result = ppo_search(
+        tiny,
+        sequence_length=2,
+        total_timesteps=96,
+        seed=0,
+        settings=SETTINGS,
+        ppo_params=TINY_PPO,
+        n_fresh_draws=1,
+        policy_path=tmp_path_factory.mktemp("ppo") / "policy",
+        progress=reports.append,
+    )
+    return {"result": result, "reports": reports}
+
+
+def finished_episodes(monkeypatch: pytest.MonkeyPatch) -> list[dict[str, Any]]:
+    """Record the info of every episode's last step that any environment plays."""
+    infos: list[dict[str, Any]] = []
+    original = SequenceSearchEnv.step
+
+    def step(self: SequenceSearchEnv, action: Any) -> Any:
+        out = original(self, action)
+        if out[2]:
+            infos.append(out[4])
+        return out
+
+    monkeypatch.setattr(SequenceSearchEnv, "step", step)
+    return infos
+
+
+def assert_json_clean(result: SearchResult) -> dict[str, Any]:
+    def refuse(token: str) -> None:
+        raise AssertionError(f"non-finite {token} in the JSON")
+
+    data = json.loads(result.to_json(), parse_constant=refuse)
+    assert data["method"] == result.method
+    assert data["best"]["sequence"] == result.best.sequence
+    assert data["fresh"]["f1_mean"] == pytest.approx(result.fresh.f1_mean)
+    return data
+
+
+# Exhaustive search.
+
+
+@pytest.mark.parametrize("scenario_name", ["tiny", "tiny_quiet"])
+def test_exhaustive_search_finds_the_brute_force_best(
+    scenario_name: str, request: pytest.FixtureRequest
+) -> None:
+    # Noisy, the best F1 is unique; almost noise-free, many sequences reach F1 = 1 and the
+    # final rate decides.
+    tiny: Scenario = request.getfixturevalue(scenario_name)
+    rows = list(itertools.product(range(2), repeat=3))
+    env = SequenceSearchEnv(tiny, sequence_length=2, seed=3, settings=SETTINGS)
+    played = []
+    for sequence in itertools.product(rows, repeat=2):
+        env.reset()
+        for row in sequence:
+            *_, info = env.step(np.asarray(row))
+        played.append(([list(r) for r in sequence], info["f1"], info["final_rate_rad_s"]))
+    # Highest F1, then lowest final rate; the first such in enumeration order.
+    expected = max(played, key=lambda p: (p[1], -p[2]))
+    assert sum(p[1] == expected[1] for p in played) < len(played)  # F1 tells them apart
+    assert expected[0] != played[0][0]
+
+    result = exhaustive_search(tiny, sequence_length=2, seed=3, settings=SETTINGS, n_fresh_draws=2)
+    assert result.best.sequence == expected[0]
+    assert result.best.f1 == expected[1]
+    assert result.best.final_rate_rad_s == expected[2]
+    assert result.best.fuel_nms == pytest.approx(tiny.impulse_nms(expected[0]), rel=1e-12)
+    assert (result.episodes, result.timesteps, result.space_size) == (64, 128, 64)
+    assert result.stopped == "exhausted"
+    assert result.method == "exhaustive"
+    assert len(result.fresh.f1) == 2
+
+
+def test_exhaustive_search_refuses_a_large_space_before_any_work(
+    paper: Scenario, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    module = importlib.import_module("inertia_id.search.exhaustive")
+
+    def no_env(*args: Any, **kwargs: Any) -> None:
+        raise AssertionError("an environment was built for a refused space")
+
+    monkeypatch.setattr(module, "SequenceSearchEnv", no_env)
+    with pytest.raises(ValueError, match=re.escape("(5^6)^2")):
+        exhaustive_search(paper, sequence_length=2)
+
+
+def test_exhaustive_search_budget_is_the_largest_space_it_enumerates(tiny: Scenario) -> None:
+    with pytest.raises(ValueError, match=re.escape("(2^3)^2 = 64")):
+        exhaustive_search(tiny, sequence_length=2, max_sequences=63, settings=SETTINGS)
+    with pytest.raises(ValueError, match="max_sequences"):
+        exhaustive_search(tiny, sequence_length=2, max_sequences=0, settings=SETTINGS)
+
+
+# Random search.
+
+
+def test_random_search_reports_what_it_played(
+    tiny: Scenario, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    episodes = finished_episodes(monkeypatch)
+    reports: list[SearchProgress] = []
+    result = random_search(
+        tiny,
+        sequence_length=2,
+        total_timesteps=41,
+        seed=1,
+        settings=SETTINGS,
+        report_every=8,
+        n_fresh_draws=3,
+        progress=reports.append,
+    )
+    assert result.method == "random"
+    assert result.stopped == "budget"
+    assert (result.timesteps, result.episodes) == (40, 20)  # whole sequences within 41 steps
+    assert len(episodes) == result.episodes
+
+    best_f1 = max(info["f1"] for info in episodes)
+    assert result.best.f1 == best_f1
+    assert result.best.final_rate_rad_s == min(
+        info["final_rate_rad_s"] for info in episodes if info["f1"] == best_f1
+    )
+    assert result.best.sequence in [info["sequence"] for info in episodes]
+
+    assert [p.timesteps for p in result.curve] == [8, 16, 24, 32, 40]
+    assert [p.best_f1 for p in result.curve] == sorted(p.best_f1 for p in result.curve)
+    assert result.curve[-1].best_f1 == result.best.f1
+    assert [r.point for r in reports] == result.curve
+    assert [r.fraction for r in reports] == pytest.approx(
+        [8 / 41, 16 / 41, 24 / 41, 32 / 41, 40 / 41]
+    )
+
+    assert result.fresh.seed != 1 and len(result.fresh.f1) == 3
+    assert all(0.0 <= f1 <= 1.0 for f1 in result.fresh.f1)
+    assert_json_clean(result)
+
+
+def test_random_search_is_reproducible(tiny: Scenario) -> None:
+    def run(seed: int) -> SearchResult:
+        return random_search(
+            tiny, sequence_length=2, total_timesteps=20, seed=seed, settings=SETTINGS,
+            n_fresh_draws=1,
+        )  # fmt: skip
+
+    first, second = run(4), run(4)
+    assert first.best == second.best and first.curve == second.curve
+    assert run(5).curve != first.curve
+
+
+def test_random_search_stops_at_the_target(tiny_quiet: Scenario) -> None:
+    result = random_search(
+        tiny_quiet,
+        sequence_length=2,
+        total_timesteps=400,
+        seed=0,
+        settings=ScorerSettings(n_realisations=3),
+        patience_episodes=5,
+        n_fresh_draws=1,
+    )
+    assert result.stopped == "target"
+    assert result.timesteps < 400
+    assert result.best.f1 == 1.0
+    # It stopped as soon as five episodes in a row brought nothing better.
+    assert result.episodes == result.best.episode + 5
+
+
+def test_random_search_cancel_is_checked_before_each_sequence(tiny: Scenario) -> None:
+    calls = 0
+
+    def should_stop() -> bool:
+        nonlocal calls
+        calls += 1
+        return calls > 3
+
+    result = random_search(
+        tiny, sequence_length=2, total_timesteps=100, settings=SETTINGS, n_fresh_draws=1,
+        should_stop=should_stop,
+    )  # fmt: skip
+    assert result.stopped == "cancelled"
+    assert (result.episodes, result.timesteps) == (3, 6)
+
+
+def test_budget_shorter_than_a_sequence_is_refused(tiny: Scenario) -> None:
+    with pytest.raises(ValueError, match="got 1"):
+        random_search(tiny, sequence_length=2, total_timesteps=1, settings=SETTINGS)
+    with pytest.raises(ValueError, match="got 1"):
+        ppo_search(tiny, sequence_length=2, total_timesteps=1, settings=SETTINGS)
+
+
+def test_unknown_search_method_is_refused(tiny: Scenario) -> None:
+    with pytest.raises(ValueError, match="'annealing'"):
+        search("annealing", tiny)
+
+
+# PPO search.
+
+
+def test_ppo_result_has_the_shape_of_every_search(ppo_run: dict[str, Any], tiny: Scenario) -> None:
+    result: SearchResult = ppo_run["result"]
+    baseline = random_search(
+        tiny, sequence_length=2, total_timesteps=8, settings=SETTINGS, n_fresh_draws=1
+    )
+    assert result.method == "ppo" and result.stopped == "budget"
+    assert (result.timesteps, result.episodes, result.space_size) == (96, 48, 64)
+    ppo_json, random_json = assert_json_clean(result), assert_json_clean(baseline)
+    assert ppo_json.keys() == random_json.keys()
+    assert ppo_json["best"].keys() == random_json["best"].keys()
+    assert ppo_json["curve"][0].keys() == random_json["curve"][0].keys()
+    assert ppo_json["settings"]["ppo"] == {**PPO_DEFAULTS, **TINY_PPO}
+
+
+def test_ppo_progress_is_reported_after_every_rollout(ppo_run: dict[str, Any]) -> None:
+    result: SearchResult = ppo_run["result"]
+    reports: list[SearchProgress] = ppo_run["reports"]
+    assert [r.timesteps for r in reports] == [32, 64, 96]
+    assert [r.episodes for r in reports] == [16, 32, 48]  # 2-step episodes
+    assert [r.fraction for r in reports] == pytest.approx([1 / 3, 2 / 3, 1.0])
+    assert [r.point for r in reports] == result.curve
+    assert all(r.best is not None for r in reports)
+    assert reports[-1].best == result.best
+
+
+def test_ppo_saves_a_policy_stable_baselines3_can_load(
+    ppo_run: dict[str, Any], tiny: Scenario
+) -> None:
+    result: SearchResult = ppo_run["result"]
+    assert result.policy_path is not None and result.policy_path.endswith("policy.zip")
+    assert Path(result.policy_path).is_file()
+    model = PPO.load(result.policy_path, device="cpu")
+    env = SequenceSearchEnv(tiny, sequence_length=2, settings=SETTINGS, seed=0)
+    obs, _ = env.reset()
+    action, _ = model.predict(obs, deterministic=True)
+    assert env.action_space.contains(np.asarray(action))
+
+
+def test_ppo_same_seed_same_learning_curve(ppo_run: dict[str, Any], tiny: Scenario) -> None:
+    def run(seed: int) -> SearchResult:
+        return ppo_search(
+            tiny, sequence_length=2, total_timesteps=96, seed=seed, settings=SETTINGS,
+            ppo_params=TINY_PPO, n_fresh_draws=1,
+        )  # fmt: skip
+
+    first: SearchResult = ppo_run["result"]
+    again = run(0)
+    assert again.curve == first.curve
+    assert again.best == first.best
+    assert again.fresh == first.fresh
+    assert run(1).curve != first.curve
+
+
+def test_ppo_cancel_stops_at_the_next_step(tiny: Scenario) -> None:
+    calls = 0
+
+    def should_stop() -> bool:
+        nonlocal calls
+        calls += 1
+        return calls >= 40
+
+    result = ppo_search(
+        tiny, sequence_length=2, total_timesteps=320, settings=SETTINGS, ppo_params=TINY_PPO,
+        n_fresh_draws=1, should_stop=should_stop,
+    )  # fmt: skip
+    assert result.stopped == "cancelled"
+    assert result.timesteps <= 40 + 32  # within the rollout it was cancelled in
+    assert result.timesteps == 40  # in fact at the very step (polled every step)
+    assert result.curve[-1].timesteps == 40
+
+
+def test_ppo_curve_point_before_any_episode_is_null_in_json(tiny: Scenario) -> None:
+    # Two-step rollouts of three-step episodes: the first rollout ends mid-episode.
+    result = ppo_search(
+        tiny, sequence_length=3, total_timesteps=6, settings=SETTINGS,
+        ppo_params={"n_steps": 2, "batch_size": 2, "n_epochs": 1}, n_fresh_draws=1,
+    )  # fmt: skip
+    assert [p.timesteps for p in result.curve] == [2, 4, 6]
+    assert math.isnan(result.curve[0].mean_episode_reward)
+    data = assert_json_clean(result)
+    assert data["curve"][0]["mean_episode_reward"] is None
+    assert data["curve"][1]["mean_episode_reward"] == result.curve[1].mean_episode_reward
+
+
+# PPO parameters.
+
+
+def test_ppo_parameters_default_to_the_papers() -> None:
+    assert check_ppo_params(None) == {
+        "n_steps": 2048,
+        "learning_rate": 3e-4,
+        "batch_size": 64,
+        "n_epochs": 10,
+        "gamma": 0.99,
+        "gae_lambda": 0.95,
+        "clip_range": 0.2,
+        "ent_coef": 0.05,
+        "vf_coef": 0.5,
+        "max_grad_norm": 0.5,
+    }
+    merged = check_ppo_params({"n_steps": 64.0, "gamma": 0.9})
+    assert merged["n_steps"] == 64 and isinstance(merged["n_steps"], int)
+    assert merged["gamma"] == 0.9 and merged["batch_size"] == 64
+
+
+def test_unknown_ppo_parameters_are_refused_by_name() -> None:
+    with pytest.raises(ValueError, match=re.escape("['lr', 'seed']")):
+        check_ppo_params({"lr": 1e-3, "seed": 0, "gamma": 0.9})
+
+
+def test_ppo_parameters_that_pass_the_check_train(tiny: Scenario) -> None:
+    params = {"n_steps": 2, "batch_size": 2, "n_epochs": 1}
+    check_ppo_params(params)
+    ppo_search(
+        tiny, sequence_length=2, total_timesteps=2, settings=SETTINGS, ppo_params=params,
+        n_fresh_draws=1,
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("params", "named"),
+    [
+        ({"n_steps": 0}, "n_steps"),
+        ({"n_steps": 10.5}, "n_steps"),
+        ({"n_epochs": True}, "n_epochs"),
+        ({"batch_size": "64"}, "batch_size"),
+        ({"gamma": 1.5}, "gamma"),
+        ({"gae_lambda": -0.1}, "gae_lambda"),
+        ({"learning_rate": 0.0}, "learning_rate"),
+        ({"clip_range": -0.2}, "clip_range"),
+        ({"ent_coef": -0.01}, "ent_coef"),
+        ({"vf_coef": float("nan")}, "vf_coef"),
+        ({"n_steps": 32, "batch_size": 64}, "batch_size"),
+        ({"n_steps": 2, "batch_size": 1}, "batch_size must be at least 2"),
+    ],
+)
+def test_bad_ppo_parameters_are_refused_by_name(params: dict[str, Any], named: str) -> None:
+    with pytest.raises(ValueError, match=named):
+        check_ppo_params(params)
