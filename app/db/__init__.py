@@ -1,0 +1,15 @@
+"""The job store: SQLAlchemy 2 models, engine/session set-up and Alembic migrations."""
+
+from .models import ApiKey, Base, ClassifierRow, JobRow, MetricRow, ScenarioRow
+from .session import Database, upgrade
+
+__all__ = [
+    "ApiKey",
+    "Base",
+    "ClassifierRow",
+    "Database",
+    "JobRow",
+    "MetricRow",
+    "ScenarioRow",
+    "upgrade",
+]

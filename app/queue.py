@@ -1,0 +1,45 @@
+"""The one seam to the queue: a Celery app configured from the settings.
+
+The API only sends tasks by name (:data:`RUN_JOB_TASK`); the worker package registers
+the task under that name on an app made here, so both ends agree on the broker.
+"""
+
+from __future__ import annotations
+
+from celery import Celery
+
+from .config import Settings
+
+__all__ = ["RUN_JOB_TASK", "make_celery"]
+
+RUN_JOB_TASK = "inertia_id.run_job"
+
+
+def make_celery(settings: Settings) -> Celery:
+    """A Celery app on ``settings.broker_url`` (``filesystem://`` folders created)."""
+    celery = Celery("inertia_id", broker=settings.broker_url)
+    conf: dict[str, object] = {
+        "task_serializer": "json",
+        "accept_content": ["json"],
+        "task_acks_late": True,
+        "task_reject_on_worker_lost": True,
+        "worker_prefetch_multiplier": 1,
+        "broker_connection_retry_on_startup": True,
+        "task_ignore_result": True,
+    }
+    if settings.broker_url.startswith("filesystem://"):
+        folder = settings.broker_dir / "queue"
+        processed = settings.broker_dir / "processed"
+        folder.mkdir(parents=True, exist_ok=True)
+        processed.mkdir(parents=True, exist_ok=True)
+        conf["broker_transport_options"] = {
+            "data_folder_in": str(folder),
+            "data_folder_out": str(folder),
+            "processed_folder": str(processed),
+            "store_processed": False,
+        }
+    elif settings.broker_url.startswith(("redis://", "rediss://")):
+        # Longer than the longest job: an unacknowledged message is redelivered after it.
+        conf["broker_transport_options"] = {"visibility_timeout": 12 * 3600}
+    celery.conf.update(conf)
+    return celery
