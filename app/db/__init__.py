@@ -1,6 +1,6 @@
 """The job store: SQLAlchemy 2 models, engine/session set-up and Alembic migrations."""
 
-from .models import ApiKey, Base, ClassifierRow, JobRow, MetricRow, ScenarioRow
+from .models import ApiKey, Base, ClassifierRow, JobRow, MetricRow, ScenarioRow, WorkerRow
 from .session import Database, upgrade
 
 __all__ = [
@@ -11,5 +11,6 @@ __all__ = [
     "JobRow",
     "MetricRow",
     "ScenarioRow",
+    "WorkerRow",
     "upgrade",
 ]

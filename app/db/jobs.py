@@ -46,7 +46,7 @@ def config_hash(job_type: str, scenario_id: str, params: dict[str, Any], seed: i
 def claim(session: Session, job_id: str, worker: str) -> JobRow | None:
     """Mark a queued job running for ``worker``; None if it is not queued any more."""
     now = utcnow()
-    claimed = session.execute(
+    claimed = session.execute(  # type: ignore[attr-defined]
         update(JobRow)
         .where(JobRow.id == job_id, JobRow.status == "queued", JobRow.cancel_requested.is_(False))
         .values(

@@ -19,6 +19,7 @@ __all__ = [
     "JobRow",
     "MetricRow",
     "ScenarioRow",
+    "WorkerRow",
     "new_id",
     "utcnow",
 ]
@@ -104,6 +105,17 @@ class ClassifierRow(Base):
     document: Mapped[str] = mapped_column(Text)
     sha256: Mapped[str] = mapped_column(String(64))
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+
+
+class WorkerRow(Base):
+    """A worker process seen alive: it upserts its row every heartbeat interval."""
+
+    __tablename__ = "workers"
+
+    name: Mapped[str] = mapped_column(String(200), primary_key=True)
+    broker_url: Mapped[str] = mapped_column(String(500))
+    started_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+    last_seen_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
 
 
 class ApiKey(Base):

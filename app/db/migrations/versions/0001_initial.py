@@ -1,4 +1,4 @@
-"""Initial tables: scenarios, jobs, metrics, classifiers, api_keys.
+"""Initial tables: scenarios, jobs, metrics, classifiers, workers, api_keys.
 
 Revision ID: 0001
 Revises:
@@ -84,6 +84,13 @@ def upgrade() -> None:
         sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
     )
     op.create_table(
+        "workers",
+        sa.Column("name", sa.String(200), primary_key=True),
+        sa.Column("broker_url", sa.String(500), nullable=False),
+        sa.Column("started_at", sa.DateTime(timezone=True), nullable=False),
+        sa.Column("last_seen_at", sa.DateTime(timezone=True), nullable=False),
+    )
+    op.create_table(
         "api_keys",
         sa.Column("id", sa.Integer(), primary_key=True, autoincrement=True),
         sa.Column("key_hash", sa.String(64), nullable=False, unique=True),
@@ -92,5 +99,5 @@ def upgrade() -> None:
 
 
 def downgrade() -> None:
-    for table in ("api_keys", "classifiers", "metrics", "jobs", "scenarios"):
+    for table in ("api_keys", "workers", "classifiers", "metrics", "jobs", "scenarios"):
         op.drop_table(table)
