@@ -6,8 +6,8 @@ cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 . .venv/bin/activate
 echo "== ruff"
-ruff check inertia_id tests bench
-ruff format --check inertia_id tests bench
+ruff check inertia_id app worker tests bench
+ruff format --check inertia_id app worker tests bench
 echo "== mypy"
 mypy
 echo "== pytest"
