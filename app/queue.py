@@ -30,12 +30,14 @@ def make_celery(settings: Settings) -> Celery:
     if settings.broker_url.startswith("filesystem://"):
         folder = settings.broker_dir / "queue"
         processed = settings.broker_dir / "processed"
-        folder.mkdir(parents=True, exist_ok=True)
-        processed.mkdir(parents=True, exist_ok=True)
+        control = settings.broker_dir / "control"
+        for path in (folder, processed, control):
+            path.mkdir(parents=True, exist_ok=True)
         conf["broker_transport_options"] = {
             "data_folder_in": str(folder),
             "data_folder_out": str(folder),
             "processed_folder": str(processed),
+            "control_folder": str(control),
             "store_processed": False,
         }
     elif settings.broker_url.startswith(("redis://", "rediss://")):
