@@ -15,21 +15,24 @@ from collections.abc import Iterable
 from datetime import datetime, timedelta
 from typing import Any
 
-from sqlalchemy import func, select, update
+from sqlalchemy import delete, func, select, update
+from sqlalchemy.dialects import postgresql, sqlite
 from sqlalchemy.orm import Session
 
-from .models import TERMINAL_STATUSES, JobRow, MetricRow, utcnow
+from .models import TERMINAL_STATUSES, JobRow, MetricRow, WorkerRow, utcnow
 
 __all__ = [
     "add_metrics",
     "cancel",
     "claim",
+    "clear_metrics",
     "config_hash",
     "finish",
     "heartbeat",
     "is_cancel_requested",
     "reap_stale",
     "set_progress",
+    "touch_worker",
 ]
 
 
@@ -108,8 +111,16 @@ def finish(
     *,
     result: dict[str, Any] | None = None,
     error: str | None = None,
-) -> None:
-    """End a running job as succeeded, failed or cancelled."""
+    attempt: int | None = None,
+) -> bool:
+    """End a running job as succeeded, failed or cancelled.
+
+    :param attempt: the run (``attempts`` at claim) finishing it; when given, the job is
+        only finished if it is still that run's, not a later re-run's.
+
+    Returns False when the job was not running (as that run) any more: reaped, or
+    finished by another delivery; the caller's work no longer belongs to it.
+    """
     if status not in TERMINAL_STATUSES:
         raise ValueError(f"a job finishes as one of {TERMINAL_STATUSES}, not {status!r}")
     values: dict[str, Any] = {"status": status, "finished_at": utcnow(), "error": error}
@@ -117,9 +128,13 @@ def finish(
         values["progress"] = 1.0
     if result is not None:
         values["result"] = result
-    session.execute(
-        update(JobRow).where(JobRow.id == job_id, JobRow.status == "running").values(**values)
-    )
+    conditions = [JobRow.id == job_id, JobRow.status == "running"]
+    if attempt is not None:
+        conditions.append(JobRow.attempts == attempt)
+    finished = session.execute(  # type: ignore[attr-defined]
+        update(JobRow).where(*conditions).values(**values)
+    ).rowcount
+    return bool(finished)
 
 
 def cancel(session: Session, job: JobRow) -> None:
@@ -147,10 +162,15 @@ def reap_stale(
     now = now or utcnow()
     cutoff = now - timedelta(seconds=timeout_s)
     stale = session.scalars(
-        select(JobRow).where(
+        select(JobRow)
+        .where(
             JobRow.status == "running",
             func.coalesce(JobRow.heartbeat_at, JobRow.started_at) < cutoff,
         )
+        # Two workers' reapers may run at once: on PostgreSQL the second skips the rows the
+        # first holds (and re-checks the condition after), so a job re-queued and claimed
+        # again in between is not re-queued a second time. SQLite serialises writers anyway.
+        .with_for_update(skip_locked=True)
     ).all()
     requeued, failed = [], []
     for job in stale:
@@ -170,3 +190,32 @@ def reap_stale(
             job.status, job.worker, job.error = "queued", None, f"re-queued: {reason}"
             requeued.append(job.id)
     return requeued, failed
+
+
+def clear_metrics(session: Session, job_id: str) -> None:
+    """Drop a job's metrics: a re-run (after its worker died) starts a fresh curve."""
+    session.execute(delete(MetricRow).where(MetricRow.job_id == job_id))
+
+
+def touch_worker(session: Session, name: str, broker_url: str) -> None:
+    """Record that worker ``name`` is alive now (insert its row, or move last_seen_at)."""
+    now = utcnow()
+    values = {"name": name, "broker_url": broker_url, "started_at": now, "last_seen_at": now}
+    dialect = session.get_bind().dialect.name
+    if dialect in ("sqlite", "postgresql"):
+        # A worker's main process and its task process beat under one name: an atomic
+        # upsert, so neither trips over the other's insert.
+        insert = sqlite.insert if dialect == "sqlite" else postgresql.insert
+        statement = insert(WorkerRow).values(**values)
+        session.execute(
+            statement.on_conflict_do_update(
+                index_elements=[WorkerRow.name],
+                set_={"last_seen_at": now, "broker_url": broker_url},
+            )
+        )
+        return
+    row = session.get(WorkerRow, name)
+    if row is None:
+        session.add(WorkerRow(**values))
+    else:
+        row.last_seen_at, row.broker_url = now, broker_url

@@ -1,0 +1,321 @@
+"""``inertia-id serve``: the whole service on one machine, nothing to install.
+
+``python -m app.serve [--host 127.0.0.1] [--port 8000] [--data-dir DIR] [--workers 1]``
+
+1. points the settings at ``--data-dir`` (SQLite file and filesystem broker inside it,
+   unless ``DATABASE_URL`` / ``BROKER_URL`` say otherwise), creates it and migrates the
+   database;
+2. builds the API (:func:`app.main.create_app`), which makes sure an API key exists, and
+   prints the URL and the key when it was generated now (only then: it is stored hashed);
+3. starts ``--workers`` real ``celery worker`` processes (one job at a time each), logging
+   to ``DIR/logs/``, and restarts one that dies;
+4. serves the API with uvicorn until Ctrl-C or SIGTERM, then stops the workers: each
+   gets a grace period to finish its job; a job still running after it is killed, and
+   the reaper re-queues it when a worker next starts.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from types import FrameType
+from typing import IO
+
+from .config import Settings, get_settings
+
+__all__ = ["WorkerPool", "main"]
+
+logger = logging.getLogger("inertia_id.serve")
+
+#: Seconds a stopping worker gets to finish its job before it is killed.
+STOP_GRACE_S = 10.0
+#: A worker that dies is restarted, but not more often than this (s).
+RESTART_DELAY_S = 5.0
+
+PROJECT_ROOT = Path(__file__).resolve().parent.parent
+
+
+class WorkerPool:
+    """``count`` ``celery worker`` subprocesses named ``worker<i>@<host>``.
+
+    Each runs in its own session, so a Ctrl-C in the terminal reaches only this process,
+    which then stops the workers in order (warm shutdown first, then SIGKILL).
+
+    :param count: how many workers (each ``--concurrency=1``).
+    :param log_dir: where ``worker<i>.log`` files go.
+    :param log_level: Celery log level.
+    """
+
+    def __init__(self, count: int, log_dir: Path, *, log_level: str = "INFO") -> None:
+        self.count = count
+        self.log_dir = log_dir
+        self.log_level = log_level
+        self.processes: dict[int, subprocess.Popen[bytes]] = {}
+        self._logs: dict[int, IO[bytes]] = {}
+        self._stopping = threading.Event()
+        self._supervisor = threading.Thread(
+            target=self._supervise, name="inertia-id worker supervisor", daemon=True
+        )
+
+    def command(self, index: int) -> list[str]:
+        return [
+            sys.executable,
+            "-m",
+            "celery",
+            "-A",
+            "worker.celery_app",
+            "worker",
+            "--concurrency=1",
+            "-n",
+            f"worker{index}@%h",
+            f"--loglevel={self.log_level}",
+        ]
+
+    def log_path(self, index: int) -> Path:
+        return self.log_dir / f"worker{index}.log"
+
+    def start(self) -> None:
+        self.log_dir.mkdir(parents=True, exist_ok=True)
+        for index in range(1, self.count + 1):
+            self._spawn(index)
+        if self.count:
+            self._supervisor.start()
+
+    def _spawn(self, index: int) -> None:
+        env = dict(os.environ)
+        # The workers import app/ and worker/ from this checkout even when the project
+        # is not installed (python -m app.serve run from the repository).
+        if (PROJECT_ROOT / "worker").is_dir():
+            env["PYTHONPATH"] = os.pathsep.join(
+                filter(None, [str(PROJECT_ROOT), env.get("PYTHONPATH")])
+            )
+        old = self._logs.pop(index, None)
+        if old is not None:
+            old.close()
+        log = open(self.log_path(index), "ab")  # closed in stop()
+        self._logs[index] = log
+        self.processes[index] = subprocess.Popen(
+            self.command(index),
+            env=env,
+            stdin=subprocess.DEVNULL,
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            start_new_session=True,
+        )
+        logger.info("worker%d started (pid %d)", index, self.processes[index].pid)
+
+    def _supervise(self) -> None:
+        started = {index: time.monotonic() for index in self.processes}
+        while not self._stopping.wait(1.0):
+            for index, process in list(self.processes.items()):
+                code = process.poll()
+                if code is None or self._stopping.is_set():
+                    continue
+                if time.monotonic() - started[index] < RESTART_DELAY_S:
+                    continue
+                logger.warning(
+                    "worker%d exited with status %s; restarting it (log: %s)",
+                    index,
+                    code,
+                    self.log_path(index),
+                )
+                started[index] = time.monotonic()
+                try:
+                    self._spawn(index)
+                except OSError:
+                    logger.exception("could not restart worker%d", index)
+
+    def stop(self, grace_s: float = STOP_GRACE_S) -> None:
+        """Warm shutdown for every worker, then SIGKILL for those still there."""
+        self._stopping.set()
+        running = {i: p for i, p in self.processes.items() if p.poll() is None}
+        for process in running.values():
+            try:
+                process.send_signal(signal.SIGTERM)
+            except ProcessLookupError:
+                pass
+        deadline = time.monotonic() + grace_s
+        for process in running.values():
+            try:
+                process.wait(max(0.0, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                pass
+        for index, process in self.processes.items():
+            # The whole group: the worker and its task process, if either is left.
+            try:
+                os.killpg(process.pid, signal.SIGKILL)
+            except (ProcessLookupError, PermissionError):
+                pass
+            try:
+                process.wait(5)
+            except subprocess.TimeoutExpired:
+                logger.error("worker%d (pid %d) did not die", index, process.pid)
+        if self._supervisor.is_alive():
+            self._supervisor.join(5)
+        for log in self._logs.values():
+            log.close()
+        self._logs.clear()
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="inertia-id serve",
+        description="Run the inertia-id web service (API, dashboard) and its workers on "
+        "this machine. Data (SQLite database, broker folders, policies, logs) goes in "
+        "--data-dir; DATABASE_URL and BROKER_URL point at PostgreSQL and Redis instead.",
+    )
+    parser.add_argument(
+        "--host",
+        default=os.environ.get("INERTIA_ID_HOST", "127.0.0.1"),
+        help="Address to bind (default 127.0.0.1: this machine only; 0.0.0.0 opens it to "
+        "the network).",
+    )
+    parser.add_argument(
+        "--port",
+        type=int,
+        default=int(os.environ.get("INERTIA_ID_PORT", "8000")),
+        help="TCP port (default 8000).",
+    )
+    parser.add_argument(
+        "--data-dir",
+        default=os.environ.get("INERTIA_ID_DATA_DIR", "inertia-id-data"),
+        help="Folder for the database, broker, policies and logs (default ./inertia-id-data).",
+    )
+    parser.add_argument(
+        "--workers",
+        type=int,
+        default=1,
+        help="Worker processes to start, each running one job at a time (default 1; 0 "
+        "when workers run elsewhere).",
+    )
+    parser.add_argument(
+        "--log-level",
+        default="info",
+        choices=["critical", "error", "warning", "info", "debug"],
+        help="Log level of the server and workers (default info).",
+    )
+    return parser
+
+
+def _settings_for(data_dir: Path, host: str, port: int) -> Settings:
+    # Through the environment, so the worker subprocesses read the same settings.
+    os.environ["INERTIA_ID_DATA_DIR"] = str(data_dir)
+    os.environ["INERTIA_ID_HOST"] = host
+    os.environ["INERTIA_ID_PORT"] = str(port)
+    get_settings.cache_clear()
+    return get_settings()
+
+
+def _key_line(settings: Settings, generated: str | None) -> str:
+    if generated:
+        return (
+            f"API key:   {generated}\n"
+            "           (generated now and stored hashed: it is not shown again; send it as "
+            "the X-API-Key header)"
+        )
+    if settings.api_key:
+        return "API key:   the one in INERTIA_ID_API_KEY"
+    return (
+        "API key:   generated on an earlier run and shown then (stored hashed); to choose "
+        "one, set INERTIA_ID_API_KEY"
+    )
+
+
+def _configure_logging(level: str) -> None:
+    from uvicorn.logging import DefaultFormatter
+
+    # The same look as uvicorn's own lines ("INFO:     ..."), which follow ours.
+    handler = logging.StreamHandler()
+    handler.setFormatter(DefaultFormatter("%(levelprefix)s %(message)s"))
+    logging.basicConfig(level=level.upper(), handlers=[handler])
+    logging.getLogger("alembic").setLevel(logging.WARNING)
+
+
+def _port_problem(host: str, port: int) -> str | None:
+    """Why ``host:port`` cannot be bound, or None. Checked before anything is started or
+    a key generated, so a busy port costs nothing."""
+    try:
+        infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)
+    except OSError as exc:
+        return f"cannot resolve --host {host!r}: {exc}"
+    family, kind, proto, _name, address = infos[0]
+    with socket.socket(family, kind, proto) as sock:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            sock.bind(address)
+        except OSError as exc:
+            return f"cannot listen on {host}:{port}: {exc.strerror or exc}"
+    return None
+
+
+def _raise_on_sigterm(signum: int, _frame: FrameType | None) -> None:
+    raise SystemExit(128 + signum)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    if args.workers < 0:
+        _parser().error(f"--workers must be >= 0, got {args.workers}")
+    if not 0 < args.port < 65536:
+        _parser().error(f"--port must be 1..65535, got {args.port}")
+    problem = _port_problem(args.host, args.port)
+    if problem:
+        print(f"inertia-id serve: {problem}", file=sys.stderr)
+        return 1
+    _configure_logging(args.log_level)
+
+    data_dir = Path(args.data_dir).expanduser().resolve()
+    settings = _settings_for(data_dir, args.host, args.port)
+    data_dir.mkdir(parents=True, exist_ok=True)
+
+    # SIGTERM (systemd, docker stop) ends like Ctrl-C: through the finally below.
+    signal.signal(signal.SIGTERM, _raise_on_sigterm)
+
+    import uvicorn
+
+    from .db.session import upgrade
+    from .main import create_app
+
+    upgrade(settings.resolved_database_url)
+    app = create_app(settings)
+    generated = getattr(app.state, "generated_api_key", None)
+
+    shown_host = f"[{args.host}]" if ":" in args.host else args.host
+    url = f"http://{shown_host}:{args.port}"
+    pool = WorkerPool(args.workers, data_dir / "logs", log_level=args.log_level.upper())
+    print(
+        f"\ninertia-id service\n"
+        f"URL:       {url}   (API docs: {url}/docs)\n"
+        f"{_key_line(settings, generated)}\n"
+        f"Data:      {data_dir}\n"
+        f"Workers:   {args.workers} (logs in {pool.log_dir})\n",
+        flush=True,
+    )
+    if args.host not in ("127.0.0.1", "localhost", "::1"):
+        logger.warning("listening on %s: reachable from other machines", args.host)
+    try:
+        pool.start()
+        config = uvicorn.Config(app, host=args.host, port=args.port, log_level=args.log_level)
+        uvicorn.Server(config).run()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        if args.workers:
+            print(f"stopping workers (up to {STOP_GRACE_S:g} s for a running job) ...", flush=True)
+        pool.stop()
+        if args.workers:
+            print("workers stopped", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,344 @@
+"""Real workers for the worker tests: a ``celery worker`` subprocess on a real broker and
+database, jobs written as rows and sent by task name, exactly as the API does.
+
+Every test module runs against both deployments:
+
+- ``filesystem``: the embedded default, a SQLite file and Celery's ``filesystem://`` broker;
+- ``redis``: the scale-out shape, PostgreSQL and Redis on this machine (a database created
+  for the module and dropped after; Redis database 9, flushed before and after).
+
+Without Redis or PostgreSQL the ``redis`` cases skip, or fail when
+``INERTIA_ID_REQUIRE_SERVICES=1`` (CI sets it).
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+import uuid
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import pytest
+from celery import Celery
+from sqlalchemy import create_engine, select, text
+
+from app.config import Settings
+from app.db import Database, JobRow, MetricRow, ScenarioRow, WorkerRow, upgrade
+from app.db.jobs import config_hash
+from app.queue import RUN_JOB_TASK, make_celery
+from inertia_id import Scenario
+
+ROOT = Path(__file__).resolve().parents[2]
+REDIS_URL = os.environ.get("INERTIA_ID_TEST_REDIS_URL", "redis://127.0.0.1:6379/9")
+POSTGRES_ADMIN_URL = os.environ.get(
+    "INERTIA_ID_TEST_POSTGRES_URL", "postgresql+psycopg://postgres@127.0.0.1:5432/postgres"
+)
+TERMINAL = ("succeeded", "failed", "cancelled")
+WORKER_READY_TIMEOUT_S = 60.0
+
+
+def require_service(what: str, error: BaseException) -> None:
+    """Skip, or fail when the environment says the services must be there."""
+    message = f"{what} is not reachable: {type(error).__name__}: {error}"
+    if os.environ.get("INERTIA_ID_REQUIRE_SERVICES") == "1":
+        pytest.fail(message)
+    pytest.skip(message)
+
+
+def flush_redis() -> None:
+    import redis
+
+    client = redis.Redis.from_url(REDIS_URL, socket_connect_timeout=2)
+    try:
+        client.flushdb()
+    finally:
+        client.close()
+
+
+@dataclass
+class WorkerProcess:
+    """A ``celery worker`` subprocess, in its own process group (so it dies whole)."""
+
+    name: str
+    process: subprocess.Popen[bytes]
+    log_path: Path
+
+    def log_tail(self, chars: int = 4000) -> str:
+        try:
+            text_ = self.log_path.read_text(errors="replace")
+        except OSError:
+            return ""
+        return f"--- {self.name} log ({self.log_path}) ---\n{text_[-chars:]}"
+
+    def alive(self) -> bool:
+        return self.process.poll() is None
+
+    def kill(self) -> None:
+        """SIGKILL the worker and its task processes at once: a machine that died."""
+        try:
+            os.killpg(self.process.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        self.process.wait(10)
+
+    def stop(self, timeout_s: float = 15.0) -> None:
+        """Warm shutdown (SIGTERM to the main process, which waits for its task), then
+        SIGKILL whatever is left of the group."""
+        if self.alive():
+            self.process.send_signal(signal.SIGTERM)
+            try:
+                self.process.wait(timeout_s)
+            except subprocess.TimeoutExpired:
+                pass
+        self.kill()
+
+
+@dataclass
+class Service:
+    """One deployment (database + broker) and the workers started on it."""
+
+    kind: str
+    root: Path
+    settings: Settings
+    db: Database
+    celery: Celery
+    env: dict[str, str]
+    scenario_id: str = ""
+    workers: list[WorkerProcess] = field(default_factory=list)
+
+    def start_worker(self, **env: str) -> WorkerProcess:
+        """Start a worker (extra environment in ``env``) and wait until it is ready:
+        its monitor has written its ``workers`` row."""
+        prefix = f"w{len(self.workers) + 1}-{uuid.uuid4().hex[:6]}"
+        log_path = self.root / f"{prefix}.log"
+        with open(log_path, "wb") as log:
+            process = subprocess.Popen(
+                [
+                    sys.executable,
+                    "-m",
+                    "celery",
+                    "-A",
+                    "worker.celery_app",
+                    "worker",
+                    "--concurrency=1",
+                    "--pool=prefork",
+                    "--loglevel=INFO",
+                    "-n",
+                    f"{prefix}@%h",
+                ],
+                cwd=self.root,
+                env={**self.env, **env},
+                stdout=log,
+                stderr=subprocess.STDOUT,
+                start_new_session=True,
+            )
+        worker = WorkerProcess(name=prefix, process=process, log_path=log_path)
+        self.workers.append(worker)
+        deadline = time.monotonic() + WORKER_READY_TIMEOUT_S
+        while time.monotonic() < deadline:
+            with self.db.session() as session:
+                seen = session.scalars(
+                    select(WorkerRow.name).where(WorkerRow.name.like(f"{prefix}@%"))
+                ).first()
+            if seen:
+                worker.name = seen
+                return worker
+            if not worker.alive():
+                break
+            time.sleep(0.1)
+        raise AssertionError(f"worker {prefix} did not come up\n{worker.log_tail()}")
+
+    def kill_workers(self) -> None:
+        for worker in self.workers:
+            worker.kill()
+
+    def logs(self) -> str:
+        return "\n".join(w.log_tail() for w in self.workers)
+
+    def submit(self, job_type: str, params: dict[str, Any], *, seed: int = 0) -> str:
+        """Write a queued job row and send its message, as the API does."""
+        with self.db.session() as session:
+            job = JobRow(
+                type=job_type,
+                scenario_id=self.scenario_id,
+                params=params,
+                seed=seed,
+                config_hash=config_hash(job_type, self.scenario_id, params, seed),
+            )
+            session.add(job)
+            session.flush()
+            job_id = job.id
+        self.celery.send_task(RUN_JOB_TASK, args=[job_id])
+        return job_id
+
+    def job(self, job_id: str) -> JobRow:
+        with self.db.session() as session:
+            job = session.get(JobRow, job_id)
+            assert job is not None, f"no job {job_id}"
+            session.expunge(job)
+            return job
+
+    def wait_for(
+        self, job_id: str, statuses: tuple[str, ...] = TERMINAL, timeout_s: float = 90.0
+    ) -> JobRow:
+        deadline = time.monotonic() + timeout_s
+        while True:
+            job = self.job(job_id)
+            if job.status in statuses:
+                return job
+            if time.monotonic() > deadline:
+                raise AssertionError(
+                    f"job {job_id} ({job.type}) still {job.status!r} after {timeout_s:g} s, "
+                    f"waiting for {statuses}; error={job.error!r}\n{self.logs()}"
+                )
+            time.sleep(0.05)
+
+    def metrics(self, job_id: str) -> list[tuple[str, int, float]]:
+        with self.db.session() as session:
+            rows = session.execute(
+                select(MetricRow.key, MetricRow.step, MetricRow.value)
+                .where(MetricRow.job_id == job_id)
+                .order_by(MetricRow.key, MetricRow.step, MetricRow.id)
+            ).all()
+        return [(k, s, v) for k, s, v in rows]
+
+
+def _postgres_database() -> Iterator[str]:
+    admin = create_engine(POSTGRES_ADMIN_URL, isolation_level="AUTOCOMMIT")
+    name = f"inertia_id_worker_{uuid.uuid4().hex[:12]}"
+    try:
+        with admin.connect() as connection:
+            connection.execute(text(f'CREATE DATABASE "{name}"'))
+    except Exception as exc:
+        admin.dispose()
+        require_service(f"PostgreSQL at {POSTGRES_ADMIN_URL}", exc)
+    try:
+        yield admin.url.set(database=name).render_as_string(hide_password=False)
+    finally:
+        with admin.connect() as connection:
+            connection.execute(text(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)'))
+        admin.dispose()
+
+
+@pytest.fixture(scope="module", params=["filesystem", "redis"])
+def deployment(
+    request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
+) -> Iterator[Service]:
+    """A migrated database with the paper scenario, and a broker; no worker yet."""
+    kind = request.param
+    root = tmp_path_factory.mktemp(f"worker-{kind}")
+    databases: Iterator[str] | None = None
+    if kind == "filesystem":
+        database_url = f"sqlite:///{root / 'data' / 'inertia-id.db'}"
+        broker_url = "filesystem://"
+    else:
+        try:
+            flush_redis()
+        except Exception as exc:
+            require_service(f"Redis at {REDIS_URL}", exc)
+        databases = _postgres_database()
+        database_url = next(databases)
+        broker_url = REDIS_URL
+    env = {
+        **os.environ,
+        "INERTIA_ID_DATA_DIR": str(root / "data"),
+        "DATABASE_URL": database_url,
+        "BROKER_URL": broker_url,
+        "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])),
+    }
+    settings = Settings(
+        INERTIA_ID_DATA_DIR=root / "data", DATABASE_URL=database_url, BROKER_URL=broker_url
+    )
+    settings.data_dir.mkdir(parents=True, exist_ok=True)
+    upgrade(settings.resolved_database_url)
+    db = Database(settings.resolved_database_url)
+    service = Service(kind, root, settings, db, make_celery(settings), env)
+    with db.session() as session:
+        row = ScenarioRow(name="paper", document=Scenario.paper().model_dump(mode="json"))
+        session.add(row)
+        session.flush()
+        service.scenario_id = row.id
+    try:
+        yield service
+    finally:
+        service.kill_workers()
+        db.dispose()
+        if kind == "redis":
+            flush_redis()
+        if databases is not None:
+            for _ in databases:
+                pass
+
+
+@pytest.fixture(scope="module")
+def service(deployment: Service) -> Service:
+    """The deployment with one worker running."""
+    deployment.start_worker()
+    return deployment
+
+
+@dataclass
+class Store:
+    """A migrated database (with the paper scenario) and settings on a filesystem broker
+    in a temporary folder, for tests that run worker code in-process."""
+
+    settings: Settings
+    db: Database
+    scenario_id: str
+
+    def add_job(
+        self, job_type: str = "train", params: dict[str, Any] | None = None, **values: Any
+    ) -> str:
+        params = {} if params is None else params
+        with self.db.session() as session:
+            job = JobRow(
+                type=job_type,
+                scenario_id=self.scenario_id,
+                params=params,
+                config_hash=config_hash(job_type, self.scenario_id, params, values.get("seed", 0)),
+                **values,
+            )
+            session.add(job)
+            session.flush()
+            return job.id
+
+    def job(self, job_id: str) -> JobRow:
+        with self.db.session() as session:
+            job = session.get(JobRow, job_id)
+            assert job is not None, f"no job {job_id}"
+            session.expunge(job)
+            return job
+
+
+@pytest.fixture(params=["sqlite", "postgresql"])
+def store(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[Store]:
+    databases: Iterator[str] | None = None
+    if request.param == "sqlite":
+        database_url = f"sqlite:///{tmp_path / 'data' / 'inertia-id.db'}"
+    else:
+        databases = _postgres_database()
+        database_url = next(databases)
+    settings = Settings(
+        INERTIA_ID_DATA_DIR=tmp_path / "data", DATABASE_URL=database_url, BROKER_URL="filesystem://"
+    )
+    settings.data_dir.mkdir(parents=True, exist_ok=True)
+    upgrade(database_url)
+    db = Database(database_url)
+    with db.session() as session:
+        row = ScenarioRow(name="paper", document=Scenario.paper().model_dump(mode="json"))
+        session.add(row)
+        session.flush()
+        scenario_id = row.id
+    try:
+        yield Store(settings, db, scenario_id)
+    finally:
+        db.dispose()
+        if databases is not None:
+            for _ in databases:
+                pass

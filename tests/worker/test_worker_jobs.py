@@ -1,0 +1,135 @@
+"""Jobs through a real worker: train, sweep, identify, search (random and PPO), cancel."""
+
+from __future__ import annotations
+
+import hashlib
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from app.db import ClassifierRow, JobRow
+from app.db.jobs import cancel
+from inertia_id import InertiaClassifier, identify, simulate
+
+if TYPE_CHECKING:
+    from conftest import Service
+
+GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
+SEARCH_METRICS = {"mean_episode_reward", "mean_f1", "best_f1", "best_final_rate_rad_s"}
+SMALL_SEARCH = {
+    "sequence_length": 2,
+    "n_realisations": 5,
+    "metric": "euclidean",
+    "sakoe_chiba_radius": 2,
+    "fuel_weight": 0.0,
+    "patience_episodes": 500,
+    "max_sequences": 100_000,
+}
+
+
+def test_train_stores_a_classifier_that_identifies_telemetry_and_sweeps(service: Service) -> None:
+    params = {"sequence": GOOD_SEQUENCE, "metric": "euclidean", "n_realisations": 5}
+    job = service.wait_for(service.submit("train", params, seed=3))
+    assert job.status == "succeeded", job.error
+    assert job.progress == 1.0 and job.attempts == 1 and job.worker
+    assert job.started_at is not None and job.finished_at is not None
+    result = job.result or {}
+    assert 0.0 <= result["f1"] <= 1.0 and result["sequence"] == GOOD_SEQUENCE
+    metrics = {key: (step, value) for key, step, value in service.metrics(job.id)}
+    assert metrics == {"f1": (0, result["f1"]), "accuracy": (0, result["accuracy"])}
+
+    with service.db.session() as session:
+        row = session.get(ClassifierRow, result["classifier_id"])
+        assert row is not None
+        assert row.job_id == job.id and row.scenario_id == service.scenario_id
+        assert row.metric == "euclidean" and row.sha256 == result["sha256"]
+        document = row.document
+    # Stored as data: the document loads (checksum verified) and classifies telemetry.
+    classifier = InertiaClassifier.from_json(document)
+    scenario = classifier.scenario_
+    truth = 2
+    flight = simulate(scenario, GOOD_SEQUENCE, 1, np.random.default_rng(2024))
+    telemetry = {
+        "time_s": flight.time_s.tolist(),
+        "omega_rad_s": flight.omega_measured[truth, 0].tolist(),
+    }
+    verdict = identify(classifier, telemetry)
+    assert verdict.candidate == scenario.candidate_names[truth]
+    assert not verdict.matches_none
+
+    multiples = [1.0, 6.0]
+    sweep_params = {
+        "classifier_id": row.id,
+        "multiples": multiples,
+        "noises": ["process", "measurement"],
+        "n_test": 25,
+    }
+    sweep = service.wait_for(service.submit("sweep", sweep_params, seed=5))
+    assert sweep.status == "succeeded", sweep.error
+    points = (sweep.result or {})["points"]
+    assert [(p["noise"], p["multiple"]) for p in points] == [
+        ("process", 1.0),
+        ("process", 6.0),
+        ("measurement", 1.0),
+        ("measurement", 6.0),
+    ]
+    expected = {
+        (f"accuracy_{p['noise']}", multiples.index(p["multiple"]), p["accuracy"]) for p in points
+    }
+    assert set(service.metrics(sweep.id)) == expected
+
+
+def test_random_search_reports_its_curve_and_best_sequence(service: Service) -> None:
+    params = {**SMALL_SEARCH, "method": "random", "timesteps": 40}
+    job = service.wait_for(service.submit("search", params, seed=1))
+    assert job.status == "succeeded", job.error
+    result = job.result or {}
+    assert result["method"] == "random" and result["timesteps"] == 40
+    assert len(result["best"]["sequence"]) == 2 and result["stopped"] == "budget"
+    metrics = service.metrics(job.id)
+    assert {key for key, _, _ in metrics} == SEARCH_METRICS
+    assert {step for _, step, _ in metrics} == {40}
+    best_f1 = next(v for k, _, v in metrics if k == "best_f1")
+    assert best_f1 == result["best"]["f1"]
+
+
+def test_ppo_search_saves_its_policy_and_a_point_per_rollout(service: Service) -> None:
+    params = {
+        **SMALL_SEARCH,
+        "method": "ppo",
+        "timesteps": 32,
+        "ppo": {"n_steps": 16, "batch_size": 8, "n_epochs": 1},
+    }
+    job = service.wait_for(service.submit("search", params, seed=2))
+    assert job.status == "succeeded", job.error
+    result = job.result or {}
+    assert result["method"] == "ppo" and result["settings"]["ppo"]["n_steps"] == 16
+    policy = Path(result["policy_path"])
+    assert policy == service.settings.data_dir.resolve() / "policies" / f"{job.id}.zip"
+    assert hashlib.sha256(policy.read_bytes()).hexdigest() == result["policy_sha256"]
+    steps = sorted({step for key, step, _ in service.metrics(job.id) if key == "mean_f1"})
+    assert steps == [16, 32]
+
+
+def test_a_running_search_stops_soon_after_a_cancel(service: Service) -> None:
+    params = {
+        **SMALL_SEARCH,
+        "method": "random",
+        "sequence_length": 4,
+        "timesteps": 10_000_000,
+        "patience_episodes": None,
+    }
+    job_id = service.submit("search", params, seed=4)
+    service.wait_for(job_id, ("running",), timeout_s=60)
+    time.sleep(0.5)
+    with service.db.session() as session:
+        job = session.get(JobRow, job_id)
+        assert job is not None
+        cancel(session, job)
+    asked = time.monotonic()
+    job = service.wait_for(job_id, ("succeeded", "failed", "cancelled"), timeout_s=30)
+    assert job.status == "cancelled", (job.status, job.error)
+    assert time.monotonic() - asked < 10
+    assert job.progress < 0.01

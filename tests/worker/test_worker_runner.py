@@ -1,0 +1,216 @@
+"""The job runner in-process: every way a job can end, on a real database.
+
+The happy paths run through a real worker in test_worker_jobs.py; here the edges that
+need no broker: bad parameters, missing rows, jobs that are not queued, and the
+cancel-poll throttle.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import pytest
+from sqlalchemy import select
+
+from app.db import ClassifierRow, MetricRow
+from app.db.jobs import cancel
+from app.db.models import JobRow
+from worker.runner import (
+    CANCEL_POLL_S,
+    JobContext,
+    JobSpec,
+    Outcome,
+    execute_job,
+    json_safe,
+    one_line_error,
+)
+
+if TYPE_CHECKING:
+    from conftest import Store
+
+WORKER = "test@host"
+GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
+
+
+@pytest.mark.parametrize(
+    ("job_type", "params", "message"),
+    [
+        (
+            "search",
+            {"method": "genetic", "sequence_length": 2, "timesteps": 10, "n_realisations": 2},
+            "ValueError: search method must be one of ['ppo', 'exhaustive', 'random'], "
+            "got 'genetic'",
+        ),
+        (
+            "train",
+            {"sequence": [[9, 4, 4, 0, 0, 0]], "metric": "euclidean", "n_realisations": 2},
+            "ValueError: sequence step 0, thruster 0: level index 9 is outside 0..4",
+        ),
+        (
+            "sweep",
+            {"classifier_id": "nope", "multiples": [1.0], "n_test": 10},
+            "ValueError: classifier 'nope' does not exist",
+        ),
+        ("anneal", {}, "job type must be one of"),
+    ],
+)
+def test_a_job_that_raises_fails_with_a_one_line_reason(
+    store: Store, job_type: str, params: dict[str, Any], message: str
+) -> None:
+    job_id = store.add_job(job_type, params)
+
+    assert execute_job(job_id, settings=store.settings, worker_name=WORKER) == "failed"
+
+    job = store.job(job_id)
+    assert job.status == "failed" and job.finished_at is not None and job.worker == WORKER
+    assert job.error is not None and "\n" not in job.error and message in job.error
+
+
+def test_a_job_cancelled_while_queued_is_not_run(store: Store) -> None:
+    job_id = store.add_job("train", {"sequence": GOOD_SEQUENCE, "n_realisations": 2})
+    with store.db.session() as session:
+        job = session.get(JobRow, job_id)
+        assert job is not None
+        cancel(session, job)
+
+    assert execute_job(job_id, settings=store.settings, worker_name=WORKER) == "cancelled"
+    job = store.job(job_id)
+    assert job.status == "cancelled" and job.started_at is None and job.attempts == 0
+
+
+def test_a_second_delivery_of_a_finished_job_changes_nothing(store: Store) -> None:
+    job_id = store.add_job(
+        "train", {"sequence": GOOD_SEQUENCE}, status="succeeded", attempts=1, result={"f1": 1.0}
+    )
+    assert execute_job(job_id, settings=store.settings, worker_name=WORKER) == "succeeded"
+    job = store.job(job_id)
+    assert job.attempts == 1 and job.result == {"f1": 1.0} and job.worker is None
+    assert execute_job("0" * 32, settings=store.settings, worker_name=WORKER) == "missing"
+
+
+def test_a_train_job_stores_its_classifier_and_metrics_in_one_go(store: Store) -> None:
+    params = {"sequence": GOOD_SEQUENCE, "metric": "euclidean", "n_realisations": 3}
+    job_id = store.add_job("train", params, seed=9)
+
+    assert execute_job(job_id, settings=store.settings, worker_name=WORKER) == "succeeded"
+
+    job = store.job(job_id)
+    with store.db.session() as session:
+        classifiers = session.scalars(
+            select(ClassifierRow).where(ClassifierRow.job_id == job_id)
+        ).all()
+        metrics = session.execute(
+            select(MetricRow.key, MetricRow.step, MetricRow.value).where(MetricRow.job_id == job_id)
+        ).all()
+    assert [c.id for c in classifiers] == [(job.result or {})["classifier_id"]]
+    assert sorted(metrics) == [("accuracy", 0, job.result["accuracy"]), ("f1", 0, job.result["f1"])]
+
+
+def test_should_stop_reads_the_cancel_flag_at_most_once_a_second(store: Store) -> None:
+    job_id = store.add_job("search", status="running", attempts=1)
+    now = [0.0]
+    spec = JobSpec(job_id, "search", {}, 0, store.scenario_id, {}, attempt=1)
+    context = JobContext(spec, store.db, store.settings, WORKER, clock=lambda: now[0])
+    with store.db.session() as session:
+        job = session.get(JobRow, job_id)
+        assert job is not None
+        cancel(session, job)
+
+    now[0] = CANCEL_POLL_S / 2
+    assert not context.should_stop()  # too soon to ask the database
+    now[0] = CANCEL_POLL_S
+    assert context.should_stop() and context.cancelled and not context.lost
+
+
+def test_should_stop_notices_a_job_taken_from_this_run(store: Store) -> None:
+    # Reaped and claimed again (attempt 2) while this run (attempt 1) was stalled.
+    job_id = store.add_job("search", status="running", attempts=2)
+    spec = JobSpec(job_id, "search", {}, 0, store.scenario_id, {}, attempt=1)
+    context = JobContext(spec, store.db, store.settings, WORKER)
+    assert context.check_now() and context.lost and not context.cancelled
+
+
+def test_the_outcome_of_a_run_whose_job_was_taken_is_dropped_whole(
+    store: Store, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from worker import handlers
+
+    job_id = store.add_job("train", {"sequence": GOOD_SEQUENCE})
+
+    def reaped_meanwhile(context: JobContext) -> Outcome:
+        # While this run stalled, the reaper re-queued the job and another worker took it.
+        with store.db.session() as session:
+            job = session.get(JobRow, job_id)
+            assert job is not None
+            job.attempts, job.worker = 2, "other@host"
+        row = ClassifierRow(
+            job_id=job_id,
+            scenario_id=store.scenario_id,
+            metric="dtw",
+            f1=1.0,
+            accuracy=1.0,
+            sequence=GOOD_SEQUENCE,
+            candidate_names=[],
+            confusion=[],
+            document="{}",
+            sha256="0" * 64,
+        )
+        return Outcome("succeeded", {"f1": 1.0}, metrics=[("f1", 0, 1.0)], rows=[row])
+
+    monkeypatch.setitem(handlers.HANDLERS, "train", reaped_meanwhile)
+    assert execute_job(job_id, settings=store.settings, worker_name=WORKER) == "lost"
+
+    job = store.job(job_id)
+    assert job.status == "running" and job.worker == "other@host" and job.result is None
+    with store.db.session() as session:
+        assert session.scalars(select(ClassifierRow.id)).all() == []
+        assert session.scalars(select(MetricRow.id)).all() == []
+
+
+def test_a_result_that_cannot_be_stored_fails_the_job_with_the_reason(
+    store: Store, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from worker import handlers
+
+    job_id = store.add_job("train", {"sequence": GOOD_SEQUENCE})
+
+    def unstorable(context: JobContext) -> Outcome:
+        return Outcome("succeeded", {"model": object()}, metrics=[("f1", 0, 1.0)])
+
+    monkeypatch.setitem(handlers.HANDLERS, "train", unstorable)
+    assert execute_job(job_id, settings=store.settings, worker_name=WORKER) == "failed"
+
+    job = store.job(job_id)
+    assert job.status == "failed" and job.result is None
+    assert job.error is not None and job.error.startswith("could not store the result: TypeError")
+    with store.db.session() as session:
+        assert session.scalars(select(MetricRow.id)).all() == []
+
+
+def test_a_worker_that_cannot_import_the_core_fails_the_job_instead_of_dropping_it(
+    store: Store, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import worker.runner
+
+    def broken() -> dict[str, Any]:
+        raise ImportError("libtorch_cpu.so: cannot open shared object file")
+
+    monkeypatch.setattr(worker.runner, "_import_handlers", broken)
+    job_id = store.add_job("search", {"method": "random"})
+
+    assert execute_job(job_id, settings=store.settings, worker_name=WORKER) == "failed"
+    job = store.job(job_id)
+    assert job.status == "failed" and job.error is not None
+    assert "cannot load the science core (ImportError: libtorch_cpu.so" in job.error
+
+
+def test_one_line_error_names_the_type_and_flattens_the_message() -> None:
+    error = ValueError("first line\n  second line")
+    assert one_line_error(error) == "ValueError: first line second line"
+    assert one_line_error(KeyError()) == "KeyError"
+    assert len(one_line_error(RuntimeError("x" * 10_000))) == 2000
+
+
+def test_json_safe_turns_nan_and_infinity_into_null() -> None:
+    value = {"curve": [float("nan"), 1.5, float("-inf")], "n": 3, "name": "x"}
+    assert json_safe(value) == {"curve": [None, 1.5, None], "n": 3, "name": "x"}

@@ -1,0 +1,168 @@
+"""``inertia-id serve``: API and workers from one command, stopped together."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import signal
+import socket
+import subprocess
+import sys
+import time
+import urllib.request
+from pathlib import Path
+from typing import Any
+
+from app.config import Settings
+from app.db import Database, JobRow, ScenarioRow
+from app.db.jobs import config_hash
+from app.queue import RUN_JOB_TASK, make_celery
+from inertia_id import Scenario
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _env(**extra: str) -> dict[str, str]:
+    env = {k: v for k, v in os.environ.items() if not k.startswith("INERTIA_ID_")}
+    env.pop("DATABASE_URL", None)
+    env.pop("BROKER_URL", None)
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))
+    return {**env, **extra}
+
+
+def test_serve_help_lists_its_options_from_both_entry_points() -> None:
+    for command in (
+        [sys.executable, "-m", "app.serve", "--help"],
+        [sys.executable, "-m", "inertia_id.cli", "serve", "--help"],
+    ):
+        done = subprocess.run(command, capture_output=True, text=True, env=_env(), timeout=60)
+        assert done.returncode == 0, done.stderr
+        for option in ("--host", "--port", "--data-dir", "--workers"):
+            assert option in done.stdout
+        assert "127.0.0.1" in done.stdout
+
+
+def test_serve_refuses_a_negative_worker_count() -> None:
+    done = subprocess.run(
+        [sys.executable, "-m", "app.serve", "--workers", "-1"],
+        capture_output=True,
+        text=True,
+        env=_env(),
+        timeout=60,
+    )
+    assert done.returncode == 2 and "--workers must be >= 0, got -1" in done.stderr
+
+
+def test_serve_on_a_busy_port_says_so_before_starting_anything(tmp_path: Path) -> None:
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        done = subprocess.run(
+            [sys.executable, "-m", "app.serve", "--port", str(port), "--data-dir", "data"],
+            capture_output=True,
+            text=True,
+            env=_env(),
+            cwd=tmp_path,
+            timeout=60,
+        )
+    assert done.returncode == 1
+    assert f"cannot listen on 127.0.0.1:{port}: Address already in use" in done.stderr
+    assert not (tmp_path / "data").exists()
+
+
+def _free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+def _get(url: str) -> Any:
+    with urllib.request.urlopen(url, timeout=5) as response:
+        return json.loads(response.read())
+
+
+def _wait(predicate: Any, timeout_s: float, what: str, log: Path) -> Any:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        try:
+            value = predicate()
+        except OSError:
+            value = None
+        if value:
+            return value
+        time.sleep(0.2)
+    raise AssertionError(f"{what} within {timeout_s:g} s\n{log.read_text(errors='replace')}")
+
+
+def test_serve_runs_the_api_and_a_worker_that_does_jobs_then_stops_both(tmp_path: Path) -> None:
+    data_dir = tmp_path / "data"
+    port = _free_port()
+    log = tmp_path / "serve.log"
+    with open(log, "wb") as out:
+        server = subprocess.Popen(
+            [sys.executable, "-m", "app.serve", "--port", str(port), "--data-dir", str(data_dir)],
+            env=_env(),
+            cwd=tmp_path,
+            stdout=out,
+            stderr=subprocess.STDOUT,
+        )
+    try:
+        base = f"http://127.0.0.1:{port}"
+        health = _wait(
+            lambda: (h := _get(f"{base}/health"))["workers"]["count"] == 1 and h,
+            90,
+            "the API did not report one live worker",
+            log,
+        )
+        assert health["status"] == "ok" and health["workers"]["names"][0].startswith("worker1@")
+        banner = log.read_text()
+        assert f"URL:       {base}" in banner and f"{base}/docs" in banner
+        assert re.search(r"API key:   \S{20,}", banner), banner
+        worker_pid = int(re.search(r"worker1 started \(pid (\d+)\)", banner).group(1))  # type: ignore[union-attr]
+
+        # A job written the way the API writes it is run by serve's worker.
+        settings = Settings(INERTIA_ID_DATA_DIR=data_dir)
+        db = Database(settings.resolved_database_url)
+        params = {"sequence": [[4, 4, 4, 0, 0, 0]] * 4, "metric": "euclidean", "n_realisations": 3}
+        with db.session() as session:
+            scenario = ScenarioRow(name="paper", document=Scenario.paper().model_dump(mode="json"))
+            session.add(scenario)
+            session.flush()
+            job = JobRow(
+                type="train",
+                scenario_id=scenario.id,
+                params=params,
+                config_hash=config_hash("train", scenario.id, params, 0),
+            )
+            session.add(job)
+            session.flush()
+            job_id = job.id
+        make_celery(settings).send_task(RUN_JOB_TASK, args=[job_id])
+
+        def finished() -> str | None:
+            with db.session() as session:
+                status = session.get(JobRow, job_id).status  # type: ignore[union-attr]
+            return status if status in ("succeeded", "failed", "cancelled") else None
+
+        assert _wait(finished, 90, "the job did not finish", log) == "succeeded"
+        db.dispose()
+        # Nothing of the service lands in the working directory.
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["data", "serve.log"]
+    finally:
+        server.send_signal(signal.SIGTERM)
+        try:
+            code = server.wait(40)
+        except subprocess.TimeoutExpired:
+            server.kill()
+            raise
+    # SIGTERM ends serve through its cleanup, with the conventional 128 + 15.
+    assert code == 128 + signal.SIGTERM
+    assert "workers stopped" in log.read_text()
+    try:
+        os.kill(worker_pid, 0)
+    except ProcessLookupError:
+        pass
+    else:
+        raise AssertionError(f"worker pid {worker_pid} still alive after serve stopped")

@@ -1,0 +1,191 @@
+"""What each job type does: a thin layer from a job's params to an ``inertia_id`` call.
+
+Imported only inside the task process: it pulls in torch, numba and tslearn. Parameter
+names are the ones the API validates and stores in ``JobRow.params`` (with defaults
+filled); a name left out falls back to the core's default.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from app.db import ClassifierRow
+from app.db.models import new_id
+from inertia_id import InertiaClassifier, Scenario, run_sweep, train
+from inertia_id.search import ScorerSettings, SearchProgress, search
+
+from .runner import JobContext, Outcome
+
+__all__ = ["HANDLERS", "run_search_job", "run_sweep_job", "run_train_job"]
+
+#: The metric keys a search writes after every rollout (PPO) or report (random,
+#: exhaustive), at step = environment steps so far.
+SEARCH_METRICS = ("mean_episode_reward", "mean_f1", "best_f1", "best_final_rate_rad_s")
+
+
+def _present(params: dict[str, Any], names: dict[str, str]) -> dict[str, Any]:
+    """``{core_name: params[job_name]}`` for the job names present in ``params``."""
+    return {core: params[job] for job, core in names.items() if job in params}
+
+
+def run_search_job(context: JobContext) -> Outcome:
+    """Search for the actuation sequence (ppo, exhaustive or random).
+
+    Metrics: :data:`SEARCH_METRICS` at step = timesteps, after every curve point.
+    A PPO policy is saved to ``data_dir/policies/<job id>.zip`` and its path and
+    SHA-256 put in the result.
+    """
+    spec = context.spec
+    params = spec.params
+    method = params.get("method", "ppo")
+    scenario = Scenario.model_validate(spec.scenario)
+    scorer = ScorerSettings(
+        **_present(
+            params,
+            {
+                "n_realisations": "n_realisations",
+                "metric": "metric",
+                "sakoe_chiba_radius": "sakoe_chiba_radius",
+            },
+        )
+    )
+    options: dict[str, Any] = _present(
+        params, {"sequence_length": "sequence_length", "fuel_weight": "fuel_weight"}
+    )
+    if method == "exhaustive":
+        options.update(_present(params, {"max_sequences": "max_sequences"}))
+    else:
+        options.update(
+            _present(
+                params,
+                {"timesteps": "total_timesteps", "patience_episodes": "patience_episodes"},
+            )
+        )
+    policy_path = None
+    if method == "ppo":
+        options["ppo_params"] = params.get("ppo") or {}
+        policy_path = context.data_dir / "policies" / f"{spec.id}.zip"
+        policy_path.parent.mkdir(parents=True, exist_ok=True)
+        options["policy_path"] = str(policy_path)
+
+    def progress(report: SearchProgress) -> None:
+        point = report.point
+        context.report(
+            progress=report.fraction,
+            metrics=[(key, report.timesteps, getattr(point, key)) for key in SEARCH_METRICS],
+        )
+
+    found = search(
+        method,
+        scenario,
+        seed=spec.seed,
+        settings=scorer,
+        progress=progress,
+        should_stop=context.should_stop,
+        **options,
+    )
+    result = json.loads(found.to_json())
+    if found.policy_path is not None:
+        with open(found.policy_path, "rb") as fh:
+            result["policy_sha256"] = hashlib.sha256(fh.read()).hexdigest()
+    status = "cancelled" if found.stopped == "cancelled" else "succeeded"
+    return Outcome(status=status, result=result)
+
+
+def run_train_job(context: JobContext) -> Outcome:
+    """Train the classifier for a sequence and store it as a ``classifiers`` row.
+
+    The k-means seed and the training draws come from the job's seed. Metrics: "f1" and
+    "accuracy" at step 0.
+    """
+    spec = context.spec
+    params = spec.params
+    scenario = Scenario.model_validate(spec.scenario)
+    options = _present(params, {"metric": "metric"})
+    model = train(
+        scenario,
+        params["sequence"],
+        int(params.get("n_realisations", 20)),
+        np.random.default_rng(spec.seed),
+        **options,
+    )
+    if context.check_now():
+        return Outcome(status="cancelled", result=None)
+    document = model.to_json()
+    checksum = json.loads(document).get("sha256") or hashlib.sha256(document.encode()).hexdigest()
+    sequence = np.asarray(model.sequence_).tolist()
+    confusion = np.asarray(model.confusion_).tolist()
+    row = ClassifierRow(
+        id=new_id(),
+        job_id=spec.id,
+        scenario_id=spec.scenario_id,
+        metric=model.metric,
+        f1=float(model.f1_),
+        accuracy=float(model.accuracy_),
+        sequence=sequence,
+        candidate_names=list(model.candidate_names_),
+        confusion=confusion,
+        document=document,
+        sha256=checksum,
+    )
+    result = {
+        "classifier_id": row.id,
+        "metric": row.metric,
+        "f1": row.f1,
+        "accuracy": row.accuracy,
+        "confusion": confusion,
+        "candidate_names": row.candidate_names,
+        "sequence": sequence,
+        "n_realisations": int(params.get("n_realisations", 20)),
+        "sha256": checksum,
+    }
+    return Outcome(
+        status="succeeded",
+        result=result,
+        metrics=[("f1", 0, row.f1), ("accuracy", 0, row.accuracy)],
+        rows=[row],
+    )
+
+
+def run_sweep_job(context: JobContext) -> Outcome:
+    """Accuracy of a stored classifier as process and measurement noise grow.
+
+    Metrics: "accuracy_process" and "accuracy_measurement", one point per multiple, at
+    step = the multiple's index in the job's ``multiples`` list (0, 1, ...), value = the
+    accuracy there. A cancel stops between points; the points done are kept.
+    """
+    spec = context.spec
+    params = spec.params
+    classifier_id = params.get("classifier_id")
+    with context.db.session() as session:
+        row = session.get(ClassifierRow, classifier_id) if classifier_id else None
+        document = None if row is None else row.document
+    if document is None:
+        raise ValueError(f"classifier {classifier_id!r} does not exist")
+    classifier = InertiaClassifier.from_json(document)
+    sweep = run_sweep(
+        classifier,
+        seed=spec.seed,
+        progress=lambda fraction: context.report(progress=fraction),
+        should_stop=context.should_stop,
+        **_present(params, {"multiples": "multiples", "noises": "noises", "n_test": "n_test"}),
+    )
+    metrics = [
+        (f"accuracy_{noise}", step, point.accuracy)
+        for noise in dict.fromkeys(p.noise for p in sweep.points)
+        for step, point in enumerate(sweep.curve(noise))
+    ]
+    status = "cancelled" if context.cancelled else "succeeded"
+    return Outcome(status=status, result=sweep.model_dump(mode="json"), metrics=metrics)
+
+
+HANDLERS: dict[str, Callable[[JobContext], Outcome]] = {
+    "search": run_search_job,
+    "train": run_train_job,
+    "sweep": run_sweep_job,
+}

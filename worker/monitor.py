@@ -1,0 +1,109 @@
+"""The worker process's own beat: "I am alive" (a ``workers`` row) and the reaper.
+
+Runs in the worker's main process (not in the task process), on a thread started when
+the worker is ready: at once and then every ``heartbeat_interval_s`` it upserts this
+worker's row and runs :func:`worker.reaper.reap_once`. So stale jobs are dealt with as
+soon as any worker starts, and while any worker lives.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from typing import Any
+
+from celery.signals import worker_ready, worker_shutdown
+from kombu.utils.url import maybe_sanitize_url
+
+from app.config import Settings, get_settings
+from app.db import Database
+from app.db.jobs import touch_worker
+from app.queue import make_celery
+
+from .reaper import reap_once
+from .ticker import Ticker
+
+__all__ = ["WorkerMonitor", "broker_label"]
+
+logger = logging.getLogger(__name__)
+
+
+def broker_label(settings: Settings) -> str:
+    """The broker URL as shown to users: any password masked."""
+    return str(maybe_sanitize_url(settings.broker_url))
+
+
+class WorkerMonitor:
+    """Worker heartbeat and reaper for the worker named ``name``.
+
+    :param name: the Celery node name (``worker1@host``), the ``workers`` row's key.
+    :param settings: database, broker, interval and timeout.
+    """
+
+    def __init__(self, name: str, settings: Settings) -> None:
+        self.name = name
+        self.settings = settings
+        self.db = Database(settings.resolved_database_url)
+        # Its own app and connections: the reaper publishes from this thread, away from
+        # the consumer's event loop.
+        self.celery = make_celery(settings)
+        self._ticker = Ticker(
+            self.tick,
+            settings.heartbeat_interval_s,
+            name=f"inertia-id monitor {name}",
+            immediately=True,
+        )
+
+    def tick(self) -> None:
+        with self.db.session() as session:
+            touch_worker(session, self.name, broker_label(self.settings))
+        report = reap_once(self.settings, self.db, self.celery)
+        if report.requeued or report.failed:
+            logger.warning(
+                "reaper: re-queued %s, ended %s", report.requeued or "none", report.failed or "none"
+            )
+
+    def start(self) -> WorkerMonitor:
+        self._ticker.start()
+        return self
+
+    def stop(self) -> None:
+        self._ticker.stop()
+        self.db.dispose()
+
+    def forget_after_fork(self) -> None:
+        """In a forked task process: let go of the parent's connections without closing
+        them (closing would end the parent's sessions on PostgreSQL)."""
+        self.db.engine.dispose(close=False)
+
+
+_monitor: WorkerMonitor | None = None
+
+
+def _after_fork_in_child() -> None:
+    if _monitor is not None:
+        _monitor.forget_after_fork()
+
+
+os.register_at_fork(after_in_child=_after_fork_in_child)
+
+
+@worker_ready.connect
+def _start_monitor(sender: Any = None, **_kwargs: Any) -> None:
+    global _monitor
+    name = getattr(sender, "hostname", None) or f"celery@{os.uname().nodename}"
+    _monitor = WorkerMonitor(name, get_settings()).start()
+    logger.info(
+        "worker %s: heartbeat and reaper every %g s (stale after %g s)",
+        name,
+        _monitor.settings.heartbeat_interval_s,
+        _monitor.settings.heartbeat_timeout_s,
+    )
+
+
+@worker_shutdown.connect
+def _stop_monitor(**_kwargs: Any) -> None:
+    global _monitor
+    if _monitor is not None:
+        _monitor.stop()
+        _monitor = None
