@@ -1,0 +1,7 @@
+"""HTTP routers, one per resource."""
+
+from . import classifiers, health, identify, jobs, scenarios
+
+__all__ = ["ROUTERS"]
+
+ROUTERS = (scenarios.router, jobs.router, classifiers.router, identify.router, health.router)

@@ -1,0 +1,137 @@
+"""Dependencies shared by the routers: settings, database session, API key, paging."""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterator
+from dataclasses import dataclass
+from typing import Annotated, NoReturn, TypeVar
+
+from celery import Celery
+from fastapi import Depends, HTTPException, Query, Request, status
+from fastapi.exceptions import RequestValidationError
+from fastapi.security import APIKeyHeader
+from sqlalchemy.orm import Session
+
+from ..config import Settings
+from ..db.session import Database
+from ..security import API_KEY_HEADER, is_valid_key
+
+__all__ = [
+    "ApiKeyDep",
+    "CeleryDep",
+    "DatabaseDep",
+    "Paging",
+    "PagingDep",
+    "SessionDep",
+    "SettingsDep",
+    "get_or_404",
+    "plausible_id",
+    "unprocessable",
+]
+
+Row = TypeVar("Row")
+
+# Row ids are uuid4 hex strings; anything else cannot name a row. Checking before the
+# query keeps NUL bytes and lone surrogates (which SQLite and PostgreSQL refuse to bind)
+# away from the database.
+_ID = re.compile(r"[0-9A-Za-z_-]{1,64}")
+
+
+def plausible_id(value: str) -> bool:
+    return _ID.fullmatch(value) is not None
+
+
+def get_settings(request: Request) -> Settings:
+    settings: Settings = request.app.state.settings
+    return settings
+
+
+def get_database(request: Request) -> Database:
+    database: Database = request.app.state.db
+    return database
+
+
+def get_celery(request: Request) -> Celery:
+    celery: Celery = request.app.state.celery
+    return celery
+
+
+def get_session(database: Annotated[Database, Depends(get_database)]) -> Iterator[Session]:
+    """A session for one request: committed when the endpoint returns, else rolled back."""
+    with database.session() as session:
+        yield session
+
+
+SettingsDep = Annotated[Settings, Depends(get_settings)]
+DatabaseDep = Annotated[Database, Depends(get_database)]
+CeleryDep = Annotated[Celery, Depends(get_celery)]
+# scope="function": commit before the response is sent, so a client that reads right
+# after a write sees it.
+SessionDep = Annotated[Session, Depends(get_session, scope="function")]
+
+_api_key_header = APIKeyHeader(
+    name=API_KEY_HEADER,
+    auto_error=False,
+    description="Needed by every write endpoint (POST, DELETE). Printed by `inertia-id serve` "
+    "when generated on the first run, or set with INERTIA_ID_API_KEY.",
+)
+
+
+def require_api_key(
+    session: SessionDep,
+    settings: SettingsDep,
+    key: Annotated[str | None, Depends(_api_key_header)],
+) -> None:
+    """401 unless the request carries an accepted key (never echoed back)."""
+    if not key:
+        raise HTTPException(
+            status.HTTP_401_UNAUTHORIZED,
+            detail=f"missing API key: send it in the {API_KEY_HEADER} header",
+            headers={"WWW-Authenticate": API_KEY_HEADER},
+        )
+    if not is_valid_key(session, settings, key):
+        raise HTTPException(
+            status.HTTP_401_UNAUTHORIZED,
+            detail=f"invalid API key in the {API_KEY_HEADER} header",
+            headers={"WWW-Authenticate": API_KEY_HEADER},
+        )
+
+
+ApiKeyDep = Depends(require_api_key)
+
+
+@dataclass(frozen=True)
+class Paging:
+    limit: int
+    offset: int
+
+
+def paging(
+    settings: SettingsDep,
+    limit: Annotated[
+        int, Query(ge=1, description="page size, at most INERTIA_ID_MAX_PAGE_SIZE (200)")
+    ] = 50,
+    offset: Annotated[int, Query(ge=0, le=2**31 - 1)] = 0,
+) -> Paging:
+    if limit > settings.max_page_size:
+        unprocessable(
+            ("query", "limit"),
+            f"page size must be at most {settings.max_page_size}, got {limit}",
+        )
+    return Paging(limit=limit, offset=offset)
+
+
+PagingDep = Annotated[Paging, Depends(paging)]
+
+
+def unprocessable(loc: tuple[str | int, ...], message: str) -> NoReturn:
+    """Raise a 422 shaped like pydantic's, for rules checked outside the models."""
+    raise RequestValidationError([{"loc": loc, "msg": message, "type": "value_error"}])
+
+
+def get_or_404(session: Session, model: type[Row], row_id: str, what: str) -> Row:
+    row = session.get(model, row_id) if plausible_id(row_id) else None
+    if row is None:
+        raise HTTPException(status.HTTP_404_NOT_FOUND, detail=f"{what} {row_id[:80]!r} not found")
+    return row

@@ -1,0 +1,94 @@
+"""Is the service able to do work? Database, broker and workers, never a 5xx."""
+
+from __future__ import annotations
+
+import logging
+import os
+from datetime import timedelta
+from typing import Any
+
+from celery import Celery
+from fastapi import APIRouter
+from sqlalchemy import select
+
+import inertia_id
+
+from ..config import Settings
+from ..db.models import WorkerRow, utcnow
+from ..db.session import Database
+from ..schemas import ComponentHealth, HealthOut, WorkersHealth
+from .deps import CeleryDep, DatabaseDep, SettingsDep
+
+__all__ = ["router"]
+
+log = logging.getLogger(__name__)
+
+router = APIRouter(tags=["health"])
+
+# A worker is alive if it was seen within this many heartbeat intervals.
+_HEARTBEATS_OF_GRACE = 3.0
+_BROKER_TIMEOUT_S = 2.0
+
+
+def _database(database: Database) -> ComponentHealth:
+    dialect = database.engine.dialect.name
+    if database.ping():
+        return ComponentHealth(ok=True, detail=f"{dialect} reachable")
+    return ComponentHealth(ok=False, detail=f"{dialect} unreachable")
+
+
+def _broker(settings: Settings, celery: Celery) -> ComponentHealth:
+    scheme = settings.broker_url.split("://", 1)[0]
+    if scheme == "filesystem":
+        options: dict[str, Any] = celery.conf.broker_transport_options or {}
+        folder = options.get("data_folder_in") or str(settings.broker_dir)
+        if os.path.isdir(folder) and os.access(folder, os.W_OK | os.X_OK):
+            return ComponentHealth(ok=True, detail=f"filesystem broker folder {folder} writable")
+        return ComponentHealth(
+            ok=False, detail=f"filesystem broker folder {folder} is missing or not writable"
+        )
+    try:
+        with celery.connection_for_write(connect_timeout=_BROKER_TIMEOUT_S) as connection:
+            connection.ensure_connection(
+                max_retries=1, interval_start=0, interval_step=0, timeout=_BROKER_TIMEOUT_S
+            )
+    except Exception as exc:  # any transport error means unreachable, reported not raised
+        return ComponentHealth(ok=False, detail=f"{scheme} broker unreachable: {exc}")
+    return ComponentHealth(ok=True, detail=f"{scheme} broker reachable")
+
+
+def _workers(settings: Settings, database: Database, database_ok: bool) -> WorkersHealth:
+    window = _HEARTBEATS_OF_GRACE * settings.heartbeat_interval_s
+    names: list[str] = []
+    if database_ok:
+        cutoff = utcnow() - timedelta(seconds=window)
+        try:
+            with database.session() as session:
+                names = list(
+                    session.scalars(
+                        select(WorkerRow.name)
+                        .where(WorkerRow.last_seen_at >= cutoff)
+                        .order_by(WorkerRow.name)
+                    )
+                )
+        except Exception:  # the database went away between the ping and the query
+            log.exception("could not read the workers table")
+    return WorkersHealth(ok=bool(names), count=len(names), names=names, window_s=window)
+
+
+@router.get("/health")
+def health(settings: SettingsDep, database: DatabaseDep, celery: CeleryDep) -> HealthOut:
+    """Database reachable, broker reachable, workers seen recently: "ok", else "degraded".
+
+    Always 200: the body says what is wrong.
+    """
+    db = _database(database)
+    broker = _broker(settings, celery)
+    workers = _workers(settings, database, db.ok)
+    return HealthOut(
+        status="ok" if db.ok and broker.ok and workers.ok else "degraded",
+        version=inertia_id.__version__,
+        database=db,
+        broker=broker,
+        workers=workers,
+    )

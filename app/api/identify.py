@@ -1,0 +1,187 @@
+"""Identify a spacecraft's configuration from its gyro telemetry, in the API process.
+
+No queue: one series against K centroids takes milliseconds. Classifiers are loaded from
+their stored JSON documents (checksum verified, never unpickled) and kept in a small LRU
+cache by id.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import threading
+from collections import OrderedDict
+from collections.abc import Callable
+from typing import Any
+
+from fastapi import APIRouter, HTTPException, Request, status
+from fastapi.concurrency import run_in_threadpool
+from fastapi.exceptions import RequestValidationError
+from pydantic import ValidationError
+from starlette.datastructures import UploadFile
+
+from inertia_id.classify import InertiaClassifier
+from inertia_id.identify import Telemetry, identify, parse_telemetry
+
+from ..db.models import ClassifierRow
+from ..db.session import Database
+from ..schemas import IdentifyRequest, IdentifyResult, finite_or_none
+from .deps import ApiKeyDep, get_or_404, unprocessable
+from .errors import format_errors
+
+__all__ = ["ClassifierCache", "openapi_components", "router"]
+
+router = APIRouter(prefix="/identify", tags=["identify"])
+
+
+class ClassifierCache:
+    """Least-recently-used classifiers by (id, checksum), thread-safe.
+
+    :param size: how many classifiers to keep; 0 disables caching.
+    """
+
+    def __init__(self, size: int) -> None:
+        self.size = size
+        self._items: OrderedDict[tuple[str, str], InertiaClassifier] = OrderedDict()
+        self._lock = threading.Lock()
+
+    def get(self, key: tuple[str, str], load: Callable[[], InertiaClassifier]) -> InertiaClassifier:
+        with self._lock:
+            model = self._items.get(key)
+            if model is not None:
+                self._items.move_to_end(key)
+                return model
+        # Loading happens outside the lock: two threads may both load a cold entry, which
+        # costs a parse but never blocks the other classifiers.
+        model = load()
+        with self._lock:
+            if self.size > 0:
+                self._items[key] = model
+                self._items.move_to_end(key)
+                while len(self._items) > self.size:
+                    self._items.popitem(last=False)
+        return model
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def __contains__(self, key: object) -> bool:
+        return key in self._items
+
+
+def _identify(
+    database: Database, cache: ClassifierCache, classifier_id: str, telemetry: Telemetry
+) -> IdentifyResult:
+    with database.session() as session:
+        row = get_or_404(session, ClassifierRow, classifier_id, "classifier")
+        key, document = (row.id, row.sha256), row.document
+    classifier = cache.get(key, lambda: InertiaClassifier.from_json(document))
+    result = identify(classifier, telemetry).model_dump()
+    return IdentifyResult.model_validate({**finite_or_none(result), "classifier_id": key[0]})
+
+
+async def _from_json(request: Request) -> tuple[str, Telemetry]:
+    body = await request.body()
+    try:
+        data = json.loads(body)
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        unprocessable(("body",), f"request body is not valid JSON: {exc}")
+    try:
+        parsed = IdentifyRequest.model_validate(data)
+    except ValidationError as exc:
+        raise RequestValidationError(
+            format_errors(exc.errors(include_url=False), ("body",))
+        ) from None
+    return parsed.classifier_id, parsed.telemetry
+
+
+async def _from_form(request: Request) -> tuple[str, Telemetry]:
+    async with request.form(max_files=1, max_fields=10) as form:
+        classifier_id = form.get("classifier_id")
+        upload = form.get("file")
+        if not isinstance(classifier_id, str) or not classifier_id:
+            unprocessable(("body", "classifier_id"), "form field classifier_id is required")
+        if upload is None:
+            unprocessable(("body", "file"), "form field file (CSV telemetry) is required")
+        raw = await upload.read() if isinstance(upload, UploadFile) else upload.encode()
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        unprocessable(("body", "file"), f"telemetry file is not UTF-8 text: {exc}")
+    try:
+        return classifier_id, parse_telemetry(text)
+    except ValidationError as exc:
+        raise RequestValidationError(
+            format_errors(exc.errors(include_url=False), ("body", "file"))
+        ) from None
+    except ValueError as exc:
+        unprocessable(("body", "file"), str(exc))
+    except csv.Error as exc:
+        # The core's CSV reader lets this through, e.g. for a lone carriage return in a row.
+        unprocessable(("body", "file"), f"telemetry is not valid CSV: {exc}")
+
+
+_MULTIPART_SCHEMA = {
+    "type": "object",
+    "required": ["classifier_id", "file"],
+    "properties": {
+        "classifier_id": {"type": "string", "maxLength": 64},
+        "file": {
+            "type": "string",
+            "format": "binary",
+            "description": "CSV with columns time_s, wx, wy, wz (rad/s); a header row is allowed",
+        },
+    },
+}
+
+
+def openapi_components() -> dict[str, Any]:
+    """Schemas the identify request body refers to (it is parsed by hand, see below)."""
+    schema = IdentifyRequest.model_json_schema(ref_template="#/components/schemas/{model}")
+    components = schema.pop("$defs", {})
+    components["IdentifyRequest"] = schema
+    return components
+
+
+@router.post(
+    "",
+    dependencies=[ApiKeyDep],
+    responses={
+        401: {"description": "missing or wrong API key"},
+        404: {"description": "no such classifier"},
+        415: {"description": "neither JSON nor multipart/form-data"},
+        422: {"description": "bad telemetry: the rule and the value"},
+    },
+    openapi_extra={
+        "requestBody": {
+            "required": True,
+            "content": {
+                "application/json": {"schema": {"$ref": "#/components/schemas/IdentifyRequest"}},
+                "multipart/form-data": {"schema": _MULTIPART_SCHEMA},
+            },
+        }
+    },
+)
+async def identify_telemetry(request: Request) -> IdentifyResult:
+    """Which candidate is the spacecraft? Telemetry after the classifier's sequence.
+
+    Send JSON ``{"classifier_id": ..., "telemetry": {"time_s": [...], "omega_rad_s":
+    [[wx, wy, wz], ...]}}`` or a multipart form with ``classifier_id`` and a CSV ``file``.
+    The answer has the nearest candidate, its inertia, the distance to every candidate,
+    the margin to the runner-up and whether the series "matches none" of them.
+    """
+    # Both media types on one path: FastAPI declares one body per route, so the body is
+    # read here and validated with the same models.
+    content_type = request.headers.get("content-type", "").split(";")[0].strip().lower()
+    if content_type == "multipart/form-data":
+        classifier_id, telemetry = await _from_form(request)
+    elif content_type == "application/json" or content_type.endswith("+json"):
+        classifier_id, telemetry = await _from_json(request)
+    else:
+        raise HTTPException(
+            status.HTTP_415_UNSUPPORTED_MEDIA_TYPE,
+            detail=f"send application/json or multipart/form-data, not {content_type[:80]!r}",
+        )
+    database: Database = request.app.state.db
+    cache: ClassifierCache = request.app.state.classifier_cache
+    return await run_in_threadpool(_identify, database, cache, classifier_id, telemetry)

@@ -1,0 +1,306 @@
+"""Jobs: submit (search, train, sweep), list, inspect, follow metrics, cancel.
+
+The ``jobs`` table is the source of truth; the broker only delivers the job id to a
+worker (by task name, :data:`app.queue.RUN_JOB_TASK`). A job with the same type,
+scenario, parameters and seed as one that is queued, running or succeeded is not run
+twice: that job is returned (200, ``reused``) unless ``rerun`` is asked for.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Annotated, Any
+
+import numpy as np
+from fastapi import APIRouter, Body, HTTPException, Query, Response, status
+from sqlalchemy import func, select
+
+from inertia_id.scenario import Scenario
+from inertia_id.search import space_size
+
+from ..db import jobs as job_store
+from ..db.models import (
+    TERMINAL_STATUSES,
+    ClassifierRow,
+    JobRow,
+    MetricRow,
+    ScenarioRow,
+    utcnow,
+)
+from ..queue import RUN_JOB_TASK
+from ..schemas import (
+    JobCreate,
+    JobOut,
+    JobPage,
+    JobStatus,
+    JobSubmitted,
+    JobType,
+    MetricSeries,
+    MetricsOut,
+    SearchJobCreate,
+    SweepJobCreate,
+    TrainJobCreate,
+)
+from .deps import (
+    ApiKeyDep,
+    CeleryDep,
+    PagingDep,
+    SessionDep,
+    SettingsDep,
+    get_or_404,
+    plausible_id,
+    unprocessable,
+)
+
+__all__ = ["router"]
+
+log = logging.getLogger(__name__)
+
+router = APIRouter(prefix="/jobs", tags=["jobs"])
+
+_NOT_FOUND: dict[int | str, dict[str, Any]] = {404: {"description": "no such job"}}
+_UNAUTHORIZED: dict[int | str, dict[str, Any]] = {401: {"description": "missing or wrong API key"}}
+# Statuses whose job may stand in for an identical new submission.
+_REUSABLE = ("queued", "running", "succeeded")
+
+
+def _scenario(session: SessionDep, scenario_id: str) -> Scenario:
+    row = get_or_404(session, ScenarioRow, scenario_id, "scenario")
+    return Scenario.model_validate(row.document)
+
+
+def _check_search(body: SearchJobCreate, scenario: Scenario) -> None:
+    params = body.params
+    if params.method != "exhaustive":
+        return
+    size = space_size(scenario, params.sequence_length)
+    if size > params.max_sequences:
+        m, n, length = scenario.n_levels, scenario.n_thrusters, params.sequence_length
+        unprocessable(
+            ("body", "search", "params", "max_sequences"),
+            f"the space holds ({m}^{n})^{length} = {_approx(size)} sequences, more than the "
+            f"budget max_sequences = {params.max_sequences} for exhaustive search; shorten "
+            "the sequence, raise the budget, or use method random or ppo",
+        )
+
+
+def _approx(count: int) -> str:
+    """``count`` in 4 significant digits; beyond float range (101^1280), as a power of 10."""
+    try:
+        return f"{count:.4g}"
+    except OverflowError:
+        return f"about 10^{len(str(count)) - 1}"
+
+
+def _check_train(body: TrainJobCreate, scenario: Scenario) -> None:
+    try:
+        scenario.check_sequence(body.params.sequence)
+    except ValueError as exc:
+        unprocessable(("body", "train", "params", "sequence"), str(exc))
+
+
+def _check_sweep(session: SessionDep, body: SweepJobCreate, scenario: Scenario) -> None:
+    params = body.params
+    classifier = get_or_404(session, ClassifierRow, params.classifier_id, "classifier")
+    if list(classifier.candidate_names) != scenario.candidate_names:
+        unprocessable(
+            ("body", "sweep", "params", "classifier_id"),
+            f"classifier {classifier.id!r} was trained for candidates "
+            f"{classifier.candidate_names}, but the scenario has {scenario.candidate_names}",
+        )
+    try:
+        scenario.check_sequence(classifier.sequence)
+    except ValueError as exc:
+        unprocessable(
+            ("body", "sweep", "params", "classifier_id"),
+            f"the classifier's sequence does not fit the scenario: {exc}",
+        )
+    if params.n_test < scenario.n_candidates:
+        unprocessable(
+            ("body", "sweep", "params", "n_test"),
+            f"n_test = {params.n_test} is fewer than the {scenario.n_candidates} candidates",
+        )
+
+
+@router.post(
+    "",
+    status_code=status.HTTP_202_ACCEPTED,
+    dependencies=[ApiKeyDep],
+    responses={
+        200: {"model": JobSubmitted, "description": "an identical job exists; it is returned"},
+        404: {"description": "no such scenario or classifier"},
+        **_UNAUTHORIZED,
+        503: {"description": "the broker could not be reached; the job is marked failed"},
+    },
+)
+def submit_job(
+    body: Annotated[JobCreate, Body()],
+    session: SessionDep,
+    celery: CeleryDep,
+    response: Response,
+) -> JobSubmitted:
+    """Queue a search, train or sweep job (202), or return the identical existing one (200)."""
+    scenario = _scenario(session, body.scenario_id)
+    if isinstance(body, SearchJobCreate):
+        _check_search(body, scenario)
+    elif isinstance(body, TrainJobCreate):
+        _check_train(body, scenario)
+    else:
+        _check_sweep(session, body, scenario)
+    params = body.params.model_dump(mode="json")
+    digest = job_store.config_hash(body.type, body.scenario_id, params, body.seed)
+    if not body.rerun:
+        existing = session.scalars(
+            select(JobRow)
+            .where(JobRow.config_hash == digest, JobRow.status.in_(_REUSABLE))
+            .order_by(JobRow.created_at.desc())
+            .limit(1)
+        ).first()
+        if existing is not None:
+            response.status_code = status.HTTP_200_OK
+            return JobSubmitted.model_validate({**_as_dict(existing), "reused": True})
+    job = JobRow(
+        type=body.type,
+        status="queued",
+        scenario_id=body.scenario_id,
+        params=params,
+        seed=body.seed,
+        config_hash=digest,
+    )
+    session.add(job)
+    # The row must be committed before the message can reach a worker that claims it.
+    session.commit()
+    try:
+        celery.send_task(RUN_JOB_TASK, args=[job.id])
+    except Exception as exc:  # any broker failure: record it on the job, answer 503
+        log.exception("could not enqueue job %s", job.id)
+        job.status, job.finished_at = "failed", utcnow()
+        job.error = f"could not enqueue the job on the broker: {type(exc).__name__}: {exc}"
+        session.commit()
+        raise HTTPException(
+            status.HTTP_503_SERVICE_UNAVAILABLE,
+            detail=f"job {job.id} could not be queued: the broker is unreachable ({exc})",
+        ) from None
+    return JobSubmitted.model_validate({**_as_dict(job), "reused": False})
+
+
+def _as_dict(job: JobRow) -> dict[str, Any]:
+    return {name: getattr(job, name) for name in JobOut.model_fields}
+
+
+@router.get("")
+def list_jobs(
+    session: SessionDep,
+    page: PagingDep,
+    type: Annotated[JobType | None, Query(description="search, train or sweep")] = None,
+    status: Annotated[JobStatus | None, Query()] = None,
+    scenario_id: Annotated[str | None, Query(max_length=64)] = None,
+) -> JobPage:
+    """Jobs, newest first, filtered by type, status and scenario."""
+    conditions = []
+    if type is not None:
+        conditions.append(JobRow.type == type)
+    if status is not None:
+        conditions.append(JobRow.status == status)
+    if scenario_id is not None:
+        if not plausible_id(scenario_id):
+            return JobPage(items=[], total=0, limit=page.limit, offset=page.offset)
+        conditions.append(JobRow.scenario_id == scenario_id)
+    total = session.scalar(select(func.count()).select_from(JobRow).where(*conditions)) or 0
+    rows = session.scalars(
+        select(JobRow)
+        .where(*conditions)
+        .order_by(JobRow.created_at.desc(), JobRow.id)
+        .limit(page.limit)
+        .offset(page.offset)
+    ).all()
+    return JobPage(
+        items=[JobOut.model_validate(r) for r in rows],
+        total=total,
+        limit=page.limit,
+        offset=page.offset,
+    )
+
+
+@router.get("/{job_id}", responses=_NOT_FOUND)
+def get_job(job_id: str, session: SessionDep) -> JobOut:
+    """Status, progress (0 to 1), timestamps, error text and result summary."""
+    return JobOut.model_validate(get_or_404(session, JobRow, job_id, "job"))
+
+
+@router.get("/{job_id}/metrics", responses=_NOT_FOUND)
+def get_metrics(
+    job_id: str,
+    session: SessionDep,
+    settings: SettingsDep,
+    key: Annotated[
+        str | None, Query(max_length=64, pattern=r"^[^\x00]*$", description="one series only")
+    ] = None,
+    after: Annotated[
+        int | None,
+        Query(ge=-(2**31), le=2**31 - 1, description="only points with step > after"),
+    ] = None,
+) -> MetricsOut:
+    """Metric series of a job (reward curve, F1...), incremental with ``after``.
+
+    A series longer than the server's cap (INERTIA_ID_MAX_METRIC_POINTS) is thinned to
+    evenly spaced points, first and last kept; ``last_step`` is always the true last step.
+    """
+    job = get_or_404(session, JobRow, job_id, "job")
+    query = select(MetricRow.key, MetricRow.step, MetricRow.value).where(MetricRow.job_id == job.id)
+    if key is not None:
+        query = query.where(MetricRow.key == key)
+    if after is not None:
+        query = query.where(MetricRow.step > after)
+    rows = session.execute(query.order_by(MetricRow.key, MetricRow.step, MetricRow.id)).all()
+    by_key: dict[str, tuple[list[int], list[float]]] = {}
+    for name, step, value in rows:
+        steps, values = by_key.setdefault(name, ([], []))
+        steps.append(step)
+        values.append(value)
+    return MetricsOut(
+        job_id=job.id,
+        series=[
+            _series(name, steps, values, settings.max_metric_points)
+            for name, (steps, values) in by_key.items()
+        ],
+    )
+
+
+def _series(key: str, steps: list[int], values: list[float], cap: int) -> MetricSeries:
+    total = len(steps)
+    last_step = steps[-1] if steps else None
+    downsampled = total > cap
+    if downsampled:
+        keep = np.unique(np.round(np.linspace(0, total - 1, max(cap, 2))).astype(int))
+        steps = [steps[i] for i in keep]
+        values = [values[i] for i in keep]
+    return MetricSeries(
+        key=key,
+        steps=steps,
+        values=[v if np.isfinite(v) else None for v in values],
+        total_points=total,
+        downsampled=downsampled,
+        last_step=last_step,
+    )
+
+
+@router.post(
+    "/{job_id}/cancel",
+    dependencies=[ApiKeyDep],
+    responses={
+        **_NOT_FOUND,
+        **_UNAUTHORIZED,
+        409: {"description": "the job already succeeded or failed"},
+    },
+)
+def cancel_job(job_id: str, session: SessionDep) -> JobOut:
+    """Cancel a job: a queued one now, a running one at its next check (cooperative)."""
+    job = get_or_404(session, JobRow, job_id, "job")
+    if job.status in TERMINAL_STATUSES and job.status != "cancelled":
+        raise HTTPException(
+            status.HTTP_409_CONFLICT, detail=f"job {job.id} already {job.status}; nothing to cancel"
+        )
+    job_store.cancel(session, job)
+    session.flush()
+    return JobOut.model_validate(job)

@@ -1,0 +1,154 @@
+"""Scenarios: the spacecraft, its candidate configurations, thrusters, timing and noise."""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+import numpy as np
+from fastapi import APIRouter, HTTPException, Response, status
+from fastapi.exceptions import RequestValidationError
+from pydantic import ValidationError
+from sqlalchemy import func, select
+from sqlalchemy.exc import IntegrityError
+
+from inertia_id.scenario import Scenario, preset
+
+from ..db.models import ClassifierRow, JobRow, ScenarioRow
+from ..schemas import CandidateOut, ScenarioCreate, ScenarioOut, ScenarioPage
+from .deps import ApiKeyDep, PagingDep, SessionDep, get_or_404, unprocessable
+from .errors import format_errors
+
+__all__ = ["router", "scenario_out"]
+
+router = APIRouter(prefix="/scenarios", tags=["scenarios"])
+
+_NOT_FOUND: dict[int | str, dict[str, Any]] = {404: {"description": "no such scenario"}}
+_UNAUTHORIZED: dict[int | str, dict[str, Any]] = {401: {"description": "missing or wrong API key"}}
+
+
+def scenario_out(row: ScenarioRow) -> ScenarioOut:
+    """The stored document plus what the dashboard plots: names and principal moments."""
+    document = row.document
+    candidates = [
+        CandidateOut(
+            name=c["name"],
+            inertia_kg_m2=c["inertia_kg_m2"],
+            principal_moments_kg_m2=np.linalg.eigvalsh(
+                np.asarray(c["inertia_kg_m2"], dtype=float)
+            ).tolist(),
+        )
+        for c in document.get("inertia_candidates", [])
+    ]
+    thrusters = document.get("thrusters", {})
+    torque = thrusters.get("torque_matrix_nm") or [[]]
+    return ScenarioOut(
+        id=row.id,
+        name=row.name,
+        created_at=row.created_at,
+        n_thrusters=len(torque[0]),
+        n_levels=len(thrusters.get("levels", [])),
+        candidates=candidates,
+        document=document,
+    )
+
+
+def _build(body: ScenarioCreate) -> Scenario:
+    if body.scenario is not None:
+        return body.scenario
+    assert body.preset is not None  # checked by the model
+    try:
+        return preset(body.preset, **body.overrides)
+    except ValidationError as exc:
+        # Locate the errors in the request: the overrides are Scenario fields.
+        raise RequestValidationError(
+            format_errors(exc.errors(include_url=False), ("body", "overrides"))
+        ) from None
+    except (TypeError, ValueError) as exc:
+        unprocessable(("body", "overrides"), str(exc))
+
+
+def _check_storable(scenario: Scenario) -> dict[str, Any]:
+    document = scenario.model_dump(mode="json")
+    text = json.dumps(document)  # ASCII: non-ASCII text appears as \u escapes
+    # Neither database stores NUL in text, and a lone surrogate is not UTF-8.
+    if "\\u0000" in text:
+        unprocessable(("body",), "scenario text (names) must not contain NUL characters")
+    try:
+        json.dumps(document, ensure_ascii=False).encode("utf-8")
+    except UnicodeEncodeError as exc:
+        unprocessable(("body",), f"scenario text (names) is not valid UTF-8: {exc.reason}")
+    return document
+
+
+@router.post(
+    "",
+    status_code=status.HTTP_201_CREATED,
+    dependencies=[ApiKeyDep],
+    responses=_UNAUTHORIZED,
+)
+def create_scenario(body: ScenarioCreate, session: SessionDep) -> ScenarioOut:
+    """Store a scenario from a preset with overrides, or from a full document.
+
+    Every rule of the physics is checked, e.g. an inertia tensor whose principal moments
+    break the triangle inequality is refused (422) with the moments.
+    """
+    scenario = _build(body)
+    row = ScenarioRow(name=scenario.name, document=_check_storable(scenario))
+    session.add(row)
+    session.flush()
+    return scenario_out(row)
+
+
+@router.get("")
+def list_scenarios(session: SessionDep, page: PagingDep) -> ScenarioPage:
+    """Scenarios, newest first."""
+    total = session.scalar(select(func.count()).select_from(ScenarioRow)) or 0
+    rows = session.scalars(
+        select(ScenarioRow)
+        .order_by(ScenarioRow.created_at.desc(), ScenarioRow.id)
+        .limit(page.limit)
+        .offset(page.offset)
+    ).all()
+    return ScenarioPage(
+        items=[scenario_out(r) for r in rows], total=total, limit=page.limit, offset=page.offset
+    )
+
+
+@router.get("/{scenario_id}", responses=_NOT_FOUND)
+def get_scenario(scenario_id: str, session: SessionDep) -> ScenarioOut:
+    return scenario_out(get_or_404(session, ScenarioRow, scenario_id, "scenario"))
+
+
+@router.delete(
+    "/{scenario_id}",
+    status_code=status.HTTP_204_NO_CONTENT,
+    dependencies=[ApiKeyDep],
+    responses={
+        **_NOT_FOUND,
+        **_UNAUTHORIZED,
+        409: {"description": "jobs or classifiers use the scenario"},
+    },
+)
+def delete_scenario(scenario_id: str, session: SessionDep) -> Response:
+    """Delete a scenario that no job or classifier uses (409 otherwise)."""
+    row = get_or_404(session, ScenarioRow, scenario_id, "scenario")
+    jobs = session.scalar(select(func.count()).where(JobRow.scenario_id == row.id)) or 0
+    classifiers = (
+        session.scalar(select(func.count()).where(ClassifierRow.scenario_id == row.id)) or 0
+    )
+    if jobs or classifiers:
+        raise HTTPException(
+            status.HTTP_409_CONFLICT,
+            detail=f"scenario {row.id!r} is used by {jobs} job(s) and {classifiers} "
+            "classifier(s); it cannot be deleted",
+        )
+    session.delete(row)
+    try:
+        session.flush()
+    except IntegrityError:
+        # A job was submitted for it between the count and the delete.
+        raise HTTPException(
+            status.HTTP_409_CONFLICT, detail=f"scenario {row.id!r} is in use by a new job"
+        ) from None
+    return Response(status_code=status.HTTP_204_NO_CONTENT)

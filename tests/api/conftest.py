@@ -1,0 +1,118 @@
+"""Fixtures of the API tests: a real database (SQLite file and PostgreSQL) and broker.
+
+Every test that takes ``api`` runs twice: on a fresh SQLite file and on a PostgreSQL
+database created for this test session (tables emptied before each test). The broker is
+Celery's ``filesystem://`` in the test's folder, so a submitted job is a message file
+there and no worker is needed.
+
+PostgreSQL is expected at 127.0.0.1:5432 (user postgres, trust auth, database ``test``;
+``INERTIA_ID_TEST_POSTGRES_URL`` points elsewhere).
+If it is unreachable those tests skip, or fail when ``INERTIA_ID_REQUIRE_SERVICES=1``.
+"""
+
+from __future__ import annotations
+
+import os
+import secrets
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+from sqlalchemy import create_engine, text
+from sqlalchemy.exc import OperationalError
+
+from app.config import Settings
+from app.db import upgrade
+from app.main import create_app
+from inertia_id import InertiaClassifier, Scenario, train
+
+from .support import GOOD_SEQUENCE, Api, TestClient, make_settings
+
+# The server's maintenance database; each session creates (and drops) its own next to it.
+PG_ADMIN_URL = os.environ.get(
+    "INERTIA_ID_TEST_POSTGRES_URL", "postgresql+psycopg://postgres@127.0.0.1:5432/test"
+)
+REQUIRE_SERVICES = os.environ.get("INERTIA_ID_REQUIRE_SERVICES") == "1"
+TABLES = ("metrics", "classifiers", "jobs", "scenarios", "workers", "api_keys")
+
+
+@pytest.fixture(scope="session")
+def postgres_url() -> Iterator[str]:
+    """A fresh, uniquely named PostgreSQL database for this test session."""
+    admin = create_engine(
+        PG_ADMIN_URL, isolation_level="AUTOCOMMIT", connect_args={"connect_timeout": 5}
+    )
+    try:
+        with admin.connect() as connection:
+            connection.execute(text("SELECT 1"))
+    except OperationalError as exc:
+        admin.dispose()
+        message = f"PostgreSQL unreachable at {PG_ADMIN_URL}: {exc}"
+        if REQUIRE_SERVICES:
+            pytest.fail(message)
+        pytest.skip(message)
+    name = f"inertia_api_{secrets.token_hex(6)}"
+    with admin.connect() as connection:
+        connection.execute(text(f'CREATE DATABASE "{name}"'))
+    url = admin.url.set(database=name).render_as_string(hide_password=False)
+    upgrade(url)
+    try:
+        yield url
+    finally:
+        with admin.connect() as connection:
+            connection.execute(text(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)'))
+        admin.dispose()
+
+
+def _empty_tables(url: str) -> None:
+    engine = create_engine(url)
+    try:
+        with engine.begin() as connection:
+            connection.execute(text(f"TRUNCATE {', '.join(TABLES)} CASCADE"))
+    finally:
+        engine.dispose()
+
+
+@pytest.fixture(params=["sqlite", "postgresql"])
+def database_url(request: pytest.FixtureRequest, tmp_path: Path) -> str:
+    if request.param == "sqlite":
+        return f"sqlite:///{tmp_path / 'inertia-id.db'}"
+    url: str = request.getfixturevalue("postgres_url")
+    _empty_tables(url)
+    return url
+
+
+@pytest.fixture
+def settings(tmp_path: Path, database_url: str) -> Settings:
+    return make_settings(tmp_path, database_url)
+
+
+@pytest.fixture
+def make_api() -> Iterator[Callable[[Settings], Api]]:
+    """Build apps from settings; each is shut down at the end of the test."""
+    clients: list[TestClient] = []
+
+    def build(settings: Settings) -> Api:
+        app = create_app(settings)
+        client = TestClient(app)
+        client.__enter__()
+        clients.append(client)
+        key = settings.api_key or app.state.generated_api_key
+        assert key
+        return Api(client=client, app=app, key=key)
+
+    yield build
+    for client in clients:
+        client.__exit__(None, None, None)
+
+
+@pytest.fixture
+def api(make_api: Callable[[Settings], Api], settings: Settings) -> Api:
+    return make_api(settings)
+
+
+@pytest.fixture(scope="session")
+def classifier(paper: Scenario) -> InertiaClassifier:
+    """Euclidean classifier of the paper preset and the good sequence (trains in 0.1 s)."""
+    return train(paper, GOOD_SEQUENCE, 10, np.random.default_rng(1), metric="euclidean")

@@ -1,0 +1,209 @@
+"""Identification of simulated telemetry, as JSON and as a CSV upload; bad telemetry."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+
+from app.api.identify import ClassifierCache
+from inertia_id import InertiaClassifier, Scenario, SimulationResult, simulate
+
+from .support import GOOD_SEQUENCE, Api
+
+
+@pytest.fixture(scope="module")
+def flight(paper: Scenario) -> SimulationResult:
+    """One fresh noisy response per candidate, never seen in training."""
+    return simulate(paper, GOOD_SEQUENCE, 1, np.random.default_rng(7))
+
+
+def telemetry(flight: SimulationResult, k: int) -> dict[str, Any]:
+    return {
+        "time_s": flight.time_s.tolist(),
+        "omega_rad_s": flight.omega_measured[k, 0].tolist(),
+    }
+
+
+def csv_text(time_s: Any, omega: Any) -> str:
+    rows = ["time_s,wx,wy,wz"]
+    rows += [",".join(repr(float(v)) for v in (t, *w)) for t, w in zip(time_s, omega, strict=True)]
+    return "\n".join(rows) + "\n"
+
+
+@pytest.fixture
+def classifier_id(api: Api, classifier: InertiaClassifier) -> str:
+    return api.insert_classifier(api.create_scenario()["id"], classifier)
+
+
+@pytest.mark.parametrize("k", [0, 3])
+def test_json_identifies_the_candidate(
+    api: Api, classifier_id: str, flight: SimulationResult, paper: Scenario, k: int
+) -> None:
+    response = api.post(
+        "/identify", json={"classifier_id": classifier_id, "telemetry": telemetry(flight, k)}
+    )
+    assert response.status_code == 200, response.text
+    result = response.json()
+    assert result["classifier_id"] == classifier_id
+    assert result["candidate_index"] == k
+    assert result["candidate"] == paper.candidate_names[k]
+    assert result["inertia_kg_m2"] == paper.inertia_candidates[k].inertia_kg_m2
+    assert set(result["distances"]) == set(paper.candidate_names)
+    nearest = min(result["distances"].values())
+    assert result["distances"][paper.candidate_names[k]] == nearest
+    assert result["margin"] > 0
+    assert result["matches_none"] is False
+    assert result["verdict"] == paper.candidate_names[k]
+
+
+def test_csv_upload_identifies_the_candidate(
+    api: Api, classifier_id: str, flight: SimulationResult, paper: Scenario
+) -> None:
+    k = 2
+    text = csv_text(flight.time_s, flight.omega_measured[k, 0])
+    response = api.post(
+        "/identify",
+        data={"classifier_id": classifier_id},
+        files={"file": ("telemetry.csv", text.encode(), "text/csv")},
+    )
+    assert response.status_code == 200, response.text
+    result = response.json()
+    assert result["candidate"] == paper.candidate_names[k]
+    assert result["matches_none"] is False
+    as_json = api.post(
+        "/identify", json={"classifier_id": classifier_id, "telemetry": telemetry(flight, k)}
+    ).json()
+    assert result["distances"] == pytest.approx(as_json["distances"])
+
+
+def test_classifier_is_cached(api: Api, classifier_id: str, flight: SimulationResult) -> None:
+    cache: ClassifierCache = api.app.state.classifier_cache
+    assert len(cache) == 0
+    for k in (0, 1):
+        body = {"classifier_id": classifier_id, "telemetry": telemetry(flight, k)}
+        assert api.post("/identify", json=body).status_code == 200
+    assert len(cache) == 1
+
+
+def test_cache_evicts_the_least_recently_used() -> None:
+    cache = ClassifierCache(2)
+    loads: list[str] = []
+
+    def loader(name: str) -> Any:
+        def load() -> Any:
+            loads.append(name)
+            return name
+
+        return load
+
+    for name in ("a", "b", "a", "c", "a", "b"):
+        cache.get((name, ""), loader(name))
+    # a, b loaded; a hit; c evicts b; a hit; b reloaded (evicting c).
+    assert loads == ["a", "b", "c", "b"]
+    assert ("a", "") in cache and ("b", "") in cache and ("c", "") not in cache
+
+
+@pytest.mark.parametrize(
+    ("time_token", "omega_token", "fragment"),
+    [
+        ("NaN", "0.0", "time_s[1] = nan is not finite"),
+        ("0.1", "Infinity", "omega_rad_s[1][2] = inf is not finite"),
+        ("0.1", "-Infinity", "omega_rad_s[1][2] = -inf is not finite"),
+        ("0.1", "NaN", "omega_rad_s[1][2] = nan is not finite"),
+    ],
+)
+def test_non_finite_telemetry_is_422(
+    api: Api, classifier_id: str, time_token: str, omega_token: str, fragment: str
+) -> None:
+    body = (
+        f'{{"classifier_id": "{classifier_id}", "telemetry": {{"time_s": [0.05, {time_token}, '
+        f'0.15], "omega_rad_s": [[0, 0, 0], [0, 0, {omega_token}], [0, 0, 0]]}}}}'
+    )
+    response = api.client.post(
+        "/identify", content=body, headers={**api.auth, "content-type": "application/json"}
+    )
+    assert response.status_code == 422, response.text
+    assert fragment in " | ".join(e["msg"] for e in response.json()["detail"])
+
+
+def test_non_finite_csv_is_422(api: Api, classifier_id: str) -> None:
+    text = "time_s,wx,wy,wz\n0.05,0,0,0\n0.10,0,nan,0\n0.15,0,0,0\n"
+    response = api.post(
+        "/identify", data={"classifier_id": classifier_id}, files={"file": ("t.csv", text)}
+    )
+    assert response.status_code == 422
+    assert "omega_rad_s[1][1] = nan is not finite" in response.json()["detail"][0]["msg"]
+
+
+def test_malformed_csv_is_422(api: Api, classifier_id: str) -> None:
+    """A lone carriage return makes Python's csv module raise csv.Error (found by fuzzing)."""
+    text = "time_s,wx,wy,wz\n0.05,0,0\r,0\n0.10,0,0,0\n"
+    response = api.post(
+        "/identify", data={"classifier_id": classifier_id}, files={"file": ("t.csv", text)}
+    )
+    assert response.status_code == 422
+    assert "not valid CSV" in response.json()["detail"][0]["msg"]
+
+
+def test_wrong_column_count_is_422(api: Api, classifier_id: str) -> None:
+    body = {
+        "classifier_id": classifier_id,
+        "telemetry": {"time_s": [0.05, 0.1], "omega_rad_s": [[0, 0, 0], [0, 0]]},
+    }
+    response = api.post("/identify", json=body)
+    assert response.status_code == 422
+    assert "omega_rad_s row 1 has 2 columns, expected 3" in response.json()["detail"][0]["msg"]
+
+    csv = "time_s,wx,wy\n0.05,0,0\n0.10,0,0\n"
+    response = api.post(
+        "/identify", data={"classifier_id": classifier_id}, files={"file": ("t.csv", csv)}
+    )
+    assert response.status_code == 422
+    assert "has 3 columns, expected 4" in response.json()["detail"][0]["msg"]
+
+
+@pytest.mark.parametrize(
+    ("change", "fragment"),
+    [
+        ({"time_s": [0.1, 0.1, 0.2]}, "time stamps must increase strictly"),
+        ({"time_s": [0.1]}, "at least 2 samples"),
+        ({"time_s": [0.05, 0.1, 0.15, 0.2]}, "4 time stamps but 3 omega rows"),
+        ({"time_s": [0.05, 0.10, 0.15]}, "telemetry spans 0.05 s to 0.15 s"),
+    ],
+)
+def test_bad_telemetry_is_422(
+    api: Api, classifier_id: str, change: dict[str, Any], fragment: str
+) -> None:
+    series = {"time_s": [0.05, 0.10, 0.15], "omega_rad_s": [[0, 0, 0]] * 3, **change}
+    response = api.post("/identify", json={"classifier_id": classifier_id, "telemetry": series})
+    assert response.status_code == 422, response.text
+    assert fragment in " | ".join(e["msg"] for e in response.json()["detail"])
+
+
+def test_unknown_classifier_is_404(api: Api, flight: SimulationResult) -> None:
+    missing = "0123456789abcdef0123456789abcdef"
+    response = api.post(
+        "/identify", json={"classifier_id": missing, "telemetry": telemetry(flight, 0)}
+    )
+    assert response.status_code == 404
+    text = csv_text(flight.time_s, flight.omega_measured[0, 0])
+    response = api.post(
+        "/identify", data={"classifier_id": missing}, files={"file": ("t.csv", text)}
+    )
+    assert response.status_code == 404
+
+
+def test_malformed_requests(api: Api, classifier_id: str) -> None:
+    headers = {**api.auth, "content-type": "application/json"}
+    not_json = api.client.post("/identify", content=b"{not json", headers=headers)
+    assert not_json.status_code == 422
+    assert "not valid JSON" in not_json.json()["detail"][0]["msg"]
+    plain = api.client.post(
+        "/identify", content=b"hello", headers={**api.auth, "content-type": "text/plain"}
+    )
+    assert plain.status_code == 415
+    no_file = api.post("/identify", data={"classifier_id": classifier_id}, files={"x": ("a", "")})
+    assert no_file.status_code == 422
+    assert "file" in no_file.json()["detail"][0]["msg"]

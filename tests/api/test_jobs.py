@@ -1,0 +1,398 @@
+"""Jobs: submit, dedupe, list, get, cancel, metrics; parameters validated per type."""
+
+from __future__ import annotations
+
+import base64
+import json
+from collections.abc import Callable
+from datetime import datetime, timedelta
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from app.config import Settings
+from app.db.jobs import add_metrics, config_hash
+from app.db.models import JobRow
+from app.queue import RUN_JOB_TASK
+from app.schemas import SearchParams, SweepParams, TrainParams
+from inertia_id import METRICS, InertiaClassifier
+from inertia_id.search import SEARCH_METHODS
+from inertia_id.sweep import NOISE_KINDS
+
+from .support import GOOD_SEQUENCE, Api, make_settings
+
+
+def set_status(api: Api, job_id: str, status: str) -> None:
+    with api.db.session() as session:
+        job = session.get(JobRow, job_id)
+        assert job is not None
+        job.status = status
+
+
+def message_job_ids(api: Api) -> list[str]:
+    """Job ids in the filesystem broker's messages (kombu envelope, JSON body)."""
+    ids = []
+    for path in api.queued_messages():
+        envelope = json.loads(path.read_text())
+        assert envelope["headers"]["task"] == RUN_JOB_TASK
+        args, _kwargs, _embed = json.loads(base64.b64decode(envelope["body"]))
+        ids.append(args[0])
+    return ids
+
+
+# Submission.
+
+
+def test_submit_queues_a_job_and_a_message(api: Api) -> None:
+    scenario_id = api.create_scenario()["id"]
+    response = api.submit("search", scenario_id, seed=7)
+    assert response.status_code == 202, response.text
+    job = response.json()
+    assert job["reused"] is False
+    assert job["status"] == "queued"
+    assert job["progress"] == 0.0
+    assert job["seed"] == 7
+    # Defaults filled in: the worker reads exactly these names.
+    assert job["params"] == {
+        "method": "ppo",
+        "sequence_length": 4,
+        "timesteps": 20480,
+        "max_sequences": 100000,
+        "n_realisations": 20,
+        "metric": "dtw",
+        "sakoe_chiba_radius": 2,
+        "fuel_weight": 0.0,
+        "patience_episodes": 500,
+        "ppo": {},
+    }
+    assert job["config_hash"] == config_hash("search", scenario_id, job["params"], 7)
+    assert message_job_ids(api) == [job["id"]]
+    with api.db.session() as session:
+        row = session.get(JobRow, job["id"])
+        assert row is not None and row.params == job["params"]
+
+
+def test_identical_submission_returns_the_existing_job(api: Api) -> None:
+    scenario_id = api.create_scenario()["id"]
+    params = {"method": "random", "timesteps": 4096}
+    first = api.submit("search", scenario_id, params=params, seed=1)
+    assert first.status_code == 202
+    # Defaults spelled out or left out: the same work, the same job.
+    again = api.submit("search", scenario_id, params={**params, "metric": "dtw"}, seed=1)
+    assert again.status_code == 200
+    assert again.json()["id"] == first.json()["id"]
+    assert again.json()["reused"] is True
+    assert len(api.queued_messages()) == 1
+
+    other_seed = api.submit("search", scenario_id, params=params, seed=2)
+    assert other_seed.status_code == 202
+    assert other_seed.json()["id"] != first.json()["id"]
+
+    rerun = api.submit("search", scenario_id, params=params, seed=1, rerun=True)
+    assert rerun.status_code == 202
+    assert rerun.json()["id"] not in (first.json()["id"], other_seed.json()["id"])
+    assert len(api.queued_messages()) == 3
+
+
+@pytest.mark.parametrize("status", ["failed", "cancelled"])
+def test_failed_or_cancelled_job_is_not_reused(api: Api, status: str) -> None:
+    scenario_id = api.create_scenario()["id"]
+    first = api.submit("search", scenario_id).json()
+    set_status(api, first["id"], status)
+    again = api.submit("search", scenario_id)
+    assert again.status_code == 202
+    assert again.json()["id"] != first["id"]
+
+
+def test_succeeded_job_is_reused(api: Api) -> None:
+    scenario_id = api.create_scenario()["id"]
+    first = api.submit("train", scenario_id, params={"sequence": GOOD_SEQUENCE}).json()
+    set_status(api, first["id"], "succeeded")
+    again = api.submit("train", scenario_id, params={"sequence": GOOD_SEQUENCE})
+    assert again.status_code == 200
+    assert again.json()["id"] == first["id"]
+    assert again.json()["status"] == "succeeded"
+
+
+def test_exhaustive_search_within_budget_is_accepted(api: Api) -> None:
+    scenario_id = api.create_scenario()["id"]
+    # (5^6)^1 = 15625 sequences, within the default budget of 100000.
+    response = api.submit(
+        "search", scenario_id, params={"method": "exhaustive", "sequence_length": 1}
+    )
+    assert response.status_code == 202, response.text
+
+
+def test_exhaustive_search_too_large_is_refused_with_its_size(api: Api) -> None:
+    scenario_id = api.create_scenario()["id"]
+    response = api.submit("search", scenario_id, params={"method": "exhaustive"})
+    assert response.status_code == 422
+    (error,) = response.json()["detail"]
+    assert error["loc"][-1] == "max_sequences"
+    assert "(5^6)^4 = 5.96e+16 sequences" in error["msg"]
+    assert "max_sequences = 100000" in error["msg"]
+    assert api.queued_messages() == []
+
+
+def test_sweep_job_for_a_stored_classifier(api: Api, classifier: InertiaClassifier) -> None:
+    scenario_id = api.create_scenario()["id"]
+    classifier_id = api.insert_classifier(scenario_id, classifier)
+    response = api.submit(
+        "sweep", scenario_id, params={"classifier_id": classifier_id, "multiples": [1, 4]}
+    )
+    assert response.status_code == 202, response.text
+    assert response.json()["params"] == {
+        "classifier_id": classifier_id,
+        "multiples": [1.0, 4.0],
+        "noises": ["process", "measurement"],
+        "n_test": 200,
+    }
+
+
+def test_sweep_refuses_a_classifier_of_other_candidates(
+    api: Api, classifier: InertiaClassifier
+) -> None:
+    scenario_id = api.create_scenario()["id"]
+    classifier_id = api.insert_classifier(scenario_id, classifier)
+    other = api.create_scenario(
+        candidate_generator={
+            "base_inertia_kg_m2": [[50, 0, 0], [0, 40, 0], [0, 0, 45]],
+            "n_variations": 2,
+        }
+    )["id"]
+    response = api.submit("sweep", other, params={"classifier_id": classifier_id})
+    assert response.status_code == 422
+    assert "trained for candidates" in response.json()["detail"][0]["msg"]
+
+
+BAD_PARAMS: list[tuple[str, dict[str, Any], str]] = [
+    ("search", {"method": "genetic"}, "got 'genetic'"),
+    ("search", {"sequence_length": 21}, "less than or equal to 20, got 21"),
+    ("search", {"sequence_length": 0}, "greater than or equal to 1, got 0"),
+    ("search", {"timesteps": 2_000_001}, "got 2000001"),
+    ("search", {"timesteps": 3}, "timesteps = 3 must be at least one sequence"),
+    ("search", {"max_sequences": 0}, "got 0"),
+    ("search", {"n_realisations": 201}, "got 201"),
+    ("search", {"metric": "cosine"}, "got 'cosine'"),
+    ("search", {"sakoe_chiba_radius": -1}, "got -1"),
+    ("search", {"fuel_weight": -0.5}, "got -0.5"),
+    ("search", {"patience_episodes": 0}, "got 0"),
+    ("search", {"ppo": {"n_steps": 0}}, "n_steps must be a positive integer, got 0"),
+    ("search", {"ppo": {"batch_size": 4096}}, "batch_size (4096) must not exceed n_steps"),
+    ("search", {"ppo": {"warp_drive": 1}}, "unknown PPO parameters ['warp_drive']"),
+    ("search", {"population": 10}, "Extra inputs are not permitted, got 10"),
+    ("train", {"sequence": [[9, 0, 0, 0, 0, 0]]}, "level index 9 is outside 0..4"),
+    ("train", {"sequence": [[1, 2]]}, "got shape (1, 2)"),
+    ("train", {"sequence": []}, "at least 1 item"),
+    ("train", {"sequence": [[0.5, 0, 0, 0, 0, 0]]}, "got 0.5"),
+    ("train", {"sequence": GOOD_SEQUENCE, "metric": "cosine"}, "got 'cosine'"),
+    ("train", {"sequence": GOOD_SEQUENCE, "n_realisations": 0}, "got 0"),
+    ("train", {}, "Field required"),
+    ("sweep", {"multiples": [0]}, "noise multiples must be > 0, got [0.0]"),
+    ("sweep", {"multiples": [1, -2]}, "got [-2.0]"),
+    ("sweep", {"multiples": [1.0] * 21}, "at most 20 items"),
+    ("sweep", {"multiples": []}, "at least 1 item"),
+    ("sweep", {"noises": ["thermal"]}, "got 'thermal'"),
+    ("sweep", {"noises": ["process", "process"]}, "must not repeat"),
+    ("sweep", {"n_test": 4}, "got 4"),
+    ("sweep", {"n_test": 2001}, "got 2001"),
+]
+
+
+@pytest.mark.parametrize(("job_type", "params", "fragment"), BAD_PARAMS)
+def test_bad_params_are_422_naming_the_value(
+    api: Api, classifier: InertiaClassifier, job_type: str, params: dict[str, Any], fragment: str
+) -> None:
+    scenario_id = api.create_scenario()["id"]
+    if job_type == "sweep":
+        params = {"classifier_id": api.insert_classifier(scenario_id, classifier), **params}
+    response = api.submit(job_type, scenario_id, params=params)
+    assert response.status_code == 422, response.text
+    messages = " | ".join(e["msg"] for e in response.json()["detail"])
+    assert fragment in messages
+    assert api.queued_messages() == []
+
+
+@pytest.mark.parametrize(
+    ("fields", "fragment"),
+    [
+        ({"seed": -1}, "got -1"),
+        ({"seed": 2**31}, "got 2147483648"),
+        ({"rerun": "perhaps"}, "got 'perhaps'"),
+        ({"type": "dance"}, "Input tag 'dance'"),
+    ],
+)
+def test_bad_common_fields_are_422(api: Api, fields: dict[str, Any], fragment: str) -> None:
+    scenario_id = api.create_scenario()["id"]
+    response = api.post("/jobs", json={"type": "search", "scenario_id": scenario_id, **fields})
+    assert response.status_code == 422, response.text
+    assert fragment in " | ".join(e["msg"] for e in response.json()["detail"])
+
+
+def test_non_finite_json_numbers_are_422(api: Api) -> None:
+    scenario_id = api.create_scenario()["id"]
+    for token in ("NaN", "Infinity", "-Infinity"):
+        body = (
+            f'{{"type": "search", "scenario_id": "{scenario_id}", '
+            f'"params": {{"fuel_weight": {token}, "ppo": {{"learning_rate": {token}}}}}}}'
+        )
+        response = api.client.post(
+            "/jobs", content=body, headers={**api.auth, "content-type": "application/json"}
+        )
+        assert response.status_code == 422, response.text
+        locs = [e["loc"][-1] for e in response.json()["detail"]]
+        assert "fuel_weight" in locs
+        assert "ppo" in locs
+
+
+def test_unknown_ids_are_404(api: Api) -> None:
+    missing = "0123456789abcdef0123456789abcdef"
+    assert api.submit("search", missing).status_code == 404
+    scenario_id = api.create_scenario()["id"]
+    response = api.submit("sweep", scenario_id, params={"classifier_id": missing})
+    assert response.status_code == 404
+    assert "classifier" in response.json()["detail"]
+    assert api.get(f"/jobs/{missing}").status_code == 404
+    assert api.get(f"/jobs/{missing}/metrics").status_code == 404
+    assert api.post(f"/jobs/{missing}/cancel").status_code == 404
+
+
+# Reading.
+
+
+def test_get_job(api: Api) -> None:
+    scenario_id = api.create_scenario()["id"]
+    job_id = api.submit("train", scenario_id, params={"sequence": GOOD_SEQUENCE}).json()["id"]
+    job = api.get(f"/jobs/{job_id}").json()
+    assert job["id"] == job_id
+    assert job["type"] == "train"
+    assert job["params"] == {"sequence": GOOD_SEQUENCE, "metric": "dtw", "n_realisations": 20}
+    assert job["status"] == "queued"
+    assert job["error"] is None and job["result"] is None
+    assert job["started_at"] is None and job["finished_at"] is None
+    assert datetime.fromisoformat(job["created_at"]).utcoffset() == timedelta(0)
+
+
+def test_list_filters_and_paging(api: Api) -> None:
+    first = api.create_scenario(name="first")["id"]
+    second = api.create_scenario(name="second")["id"]
+    searches = [api.submit("search", first, seed=seed).json()["id"] for seed in range(4)]
+    train = api.submit("train", second, params={"sequence": GOOD_SEQUENCE}).json()["id"]
+    assert api.post(f"/jobs/{searches[0]}/cancel").status_code == 200
+
+    def ids(**params: Any) -> list[str]:
+        response = api.get("/jobs", params=params)
+        assert response.status_code == 200, response.text
+        return [j["id"] for j in response.json()["items"]]
+
+    assert ids() == [train, *reversed(searches)]  # newest first
+    assert ids(type="train") == [train]
+    assert ids(type="sweep") == []
+    assert ids(status="cancelled") == [searches[0]]
+    assert set(ids(status="queued")) == {*searches[1:], train}
+    assert ids(scenario_id=second) == [train]
+    assert ids(scenario_id=first, status="queued") == list(reversed(searches[1:]))
+    assert ids(scenario_id="no such scenario") == []
+
+    page = api.get("/jobs", params={"limit": 2, "offset": 1}).json()
+    assert page["total"] == 5
+    assert [j["id"] for j in page["items"]] == ids()[1:3]
+    assert api.get("/jobs", params={"status": "sleeping"}).status_code == 422
+    assert api.get("/jobs", params={"limit": 1000}).status_code == 422
+
+
+# Cancelling.
+
+
+def test_cancel_queued_job(api: Api) -> None:
+    scenario_id = api.create_scenario()["id"]
+    job_id = api.submit("search", scenario_id).json()["id"]
+    response = api.post(f"/jobs/{job_id}/cancel")
+    assert response.status_code == 200
+    job = response.json()
+    assert job["status"] == "cancelled"
+    assert job["cancel_requested"] is True
+    assert job["finished_at"] is not None
+    assert api.get(f"/jobs/{job_id}").json()["status"] == "cancelled"
+    # Idempotent.
+    assert api.post(f"/jobs/{job_id}/cancel").json()["status"] == "cancelled"
+
+
+def test_cancel_running_job_asks_the_worker(api: Api) -> None:
+    scenario_id = api.create_scenario()["id"]
+    job_id = api.submit("search", scenario_id).json()["id"]
+    set_status(api, job_id, "running")
+    job = api.post(f"/jobs/{job_id}/cancel").json()
+    assert job["status"] == "running"
+    assert job["cancel_requested"] is True
+
+
+def test_cancel_finished_job_is_409(api: Api) -> None:
+    scenario_id = api.create_scenario()["id"]
+    job_id = api.submit("search", scenario_id).json()["id"]
+    set_status(api, job_id, "succeeded")
+    response = api.post(f"/jobs/{job_id}/cancel")
+    assert response.status_code == 409
+    assert "succeeded" in response.json()["detail"]
+
+
+# Metrics.
+
+
+def test_metrics_incremental(api: Api) -> None:
+    scenario_id = api.create_scenario()["id"]
+    job_id = api.submit("search", scenario_id).json()["id"]
+    with api.db.session() as session:
+        add_metrics(session, job_id, [("reward", step, step / 10) for step in range(100)])
+        add_metrics(session, job_id, [("best_f1", step, 1.0) for step in range(10)])
+
+    series = {s["key"]: s for s in api.get(f"/jobs/{job_id}/metrics").json()["series"]}
+    assert set(series) == {"reward", "best_f1"}
+    assert series["reward"]["steps"] == list(range(100))
+    assert series["reward"]["values"][42] == pytest.approx(4.2)
+    assert series["reward"]["last_step"] == 99
+    assert series["reward"]["downsampled"] is False
+
+    newer = api.get(f"/jobs/{job_id}/metrics", params={"key": "reward", "after": 89}).json()
+    (reward,) = newer["series"]
+    assert reward["steps"] == list(range(90, 100))
+    assert reward["total_points"] == 10
+
+    with api.db.session() as session:
+        add_metrics(session, job_id, [("reward", 100, 10.0)])
+    latest = api.get(f"/jobs/{job_id}/metrics", params={"key": "reward", "after": 99}).json()
+    assert latest["series"][0]["steps"] == [100]
+    nothing = api.get(f"/jobs/{job_id}/metrics", params={"key": "reward", "after": 100}).json()
+    assert nothing["series"] == []
+    assert api.get(f"/jobs/{job_id}/metrics", params={"key": "loss"}).json()["series"] == []
+
+
+def test_metrics_downsampled_on_the_server(
+    make_api: Callable[[Settings], Api], tmp_path: Path, database_url: str
+) -> None:
+    api = make_api(make_settings(tmp_path, database_url, INERTIA_ID_MAX_METRIC_POINTS=50))
+    scenario_id = api.create_scenario()["id"]
+    job_id = api.submit("search", scenario_id).json()["id"]
+    with api.db.session() as session:
+        add_metrics(session, job_id, [("reward", step, float(step)) for step in range(1000)])
+    (series,) = api.get(f"/jobs/{job_id}/metrics").json()["series"]
+    assert series["downsampled"] is True
+    assert series["total_points"] == 1000
+    assert len(series["steps"]) == 50
+    assert series["steps"][0] == 0 and series["steps"][-1] == 999
+    assert series["last_step"] == 999
+    # Real points, evenly spread: each value is its own step.
+    assert series["values"] == [float(s) for s in series["steps"]]
+    gaps = {b - a for a, b in zip(series["steps"], series["steps"][1:], strict=False)}
+    assert gaps <= {20, 21}
+
+
+def test_the_api_accepts_every_method_metric_and_noise_of_the_core() -> None:
+    for method in SEARCH_METHODS:
+        assert SearchParams.model_validate({"method": method}).method == method
+    for metric in METRICS:
+        assert SearchParams.model_validate({"metric": metric}).metric == metric
+        train = TrainParams.model_validate({"sequence": GOOD_SEQUENCE, "metric": metric})
+        assert train.metric == metric
+    assert SweepParams(classifier_id="x").noises == list(NOISE_KINDS)

@@ -1,0 +1,129 @@
+"""API keys on every write endpoint, key storage, and the request size limit."""
+
+from __future__ import annotations
+
+import hashlib
+import re
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import pytest
+from sqlalchemy import select
+
+from app.config import Settings
+from app.db.models import ApiKey
+from app.main import create_app
+
+from .support import Api, make_settings
+
+WRONG_KEY = "not-the-key-0123456789"
+
+
+def write_routes(api: Api) -> list[tuple[str, str]]:
+    """Every documented operation that is not a read."""
+    routes = []
+    for path, operations in api.get("/openapi.json").json()["paths"].items():
+        for method in operations:
+            if method.upper() in {"POST", "PUT", "PATCH", "DELETE"}:
+                concrete = re.sub(r"\{[^}]+\}", "0123456789abcdef0123456789abcdef", path)
+                routes.append((method.upper(), concrete))
+    return sorted(routes)
+
+
+def test_every_write_endpoint_needs_the_key(api: Api) -> None:
+    routes = write_routes(api)
+    assert ("POST", "/scenarios") in routes
+    assert ("DELETE", "/scenarios/0123456789abcdef0123456789abcdef") in routes
+    assert ("POST", "/jobs") in routes
+    assert ("POST", "/jobs/0123456789abcdef0123456789abcdef/cancel") in routes
+    assert ("POST", "/identify") in routes
+    for method, path in routes:
+        missing = api.client.request(method, path, json={})
+        assert missing.status_code == 401, (method, path)
+        assert "missing API key" in missing.json()["detail"]
+        wrong = api.client.request(method, path, json={}, headers={"X-API-Key": WRONG_KEY})
+        assert wrong.status_code == 401, (method, path)
+        assert WRONG_KEY not in wrong.text
+        assert "invalid API key" in wrong.json()["detail"]
+
+
+def test_read_endpoints_are_open(api: Api) -> None:
+    for path in ("/scenarios", "/jobs", "/classifiers", "/health"):
+        assert api.client.get(path).status_code == 200
+
+
+def test_generated_key_is_stored_hashed_and_kept(
+    api: Api, settings: Settings, tmp_path: Path
+) -> None:
+    with api.db.session() as session:
+        hashes = session.scalars(select(ApiKey.key_hash)).all()
+    assert hashes == [hashlib.sha256(api.key.encode()).hexdigest()]
+    assert len(api.key) >= 40  # token_urlsafe(32): 256 bits
+    # A second start on the same database generates nothing; the first key still works.
+    again = create_app(settings)
+    try:
+        assert again.state.generated_api_key is None
+    finally:
+        again.state.db.dispose()
+    assert api.create_scenario()["name"] == "paper"
+
+
+@pytest.fixture
+def env_key_api(
+    make_api: Callable[[Settings], Api], tmp_path: Path, database_url: str
+) -> Iterator[Api]:
+    yield make_api(
+        make_settings(tmp_path, database_url, INERTIA_ID_API_KEY="key-from-the-environment")
+    )
+
+
+def test_key_from_the_environment_is_the_accepted_key(env_key_api: Api) -> None:
+    api = env_key_api
+    assert api.app.state.generated_api_key is None
+    assert api.key == "key-from-the-environment"
+    with api.db.session() as session:
+        hashes = session.scalars(select(ApiKey.key_hash)).all()
+    assert hashes == [hashlib.sha256(b"key-from-the-environment").hexdigest()]
+    assert api.post("/scenarios", json={"preset": "paper"}).status_code == 201
+    refused = api.client.post(
+        "/scenarios", json={"preset": "paper"}, headers={"X-API-Key": WRONG_KEY}
+    )
+    assert refused.status_code == 401
+
+
+@pytest.fixture
+def small_body_api(make_api: Callable[[Settings], Api], tmp_path: Path, database_url: str) -> Api:
+    return make_api(make_settings(tmp_path, database_url, INERTIA_ID_MAX_BODY_BYTES=2_000))
+
+
+def test_oversized_body_is_413(small_body_api: Api) -> None:
+    api = small_body_api
+    big = {"preset": "paper", "overrides": {"name": "x" * 5_000}}
+    response = api.post("/scenarios", json=big)
+    assert response.status_code == 413
+    detail = response.json()["detail"]
+    assert "exceeds the limit of 2000 bytes" in detail
+    assert "INERTIA_ID_MAX_BODY_BYTES" in detail
+    assert api.get("/scenarios").json()["total"] == 0
+
+
+def test_oversized_streamed_body_is_413(small_body_api: Api) -> None:
+    """Without Content-Length (chunked), the bytes are counted as they arrive."""
+    api = small_body_api
+
+    def chunks() -> Iterator[bytes]:
+        yield b'{"preset": "paper", "overrides": {"name": "'
+        for _ in range(10):
+            yield b"y" * 500
+        yield b'"}}'
+
+    for path in ("/scenarios", "/identify"):
+        response = api.client.post(
+            path, content=chunks(), headers={**api.auth, "content-type": "application/json"}
+        )
+        assert response.status_code == 413, (path, response.text)
+        assert "exceeds the limit of 2000 bytes" in response.json()["detail"]
+
+
+def test_small_body_passes_the_limit(small_body_api: Api) -> None:
+    assert small_body_api.create_scenario(name="fits")["name"] == "fits"
