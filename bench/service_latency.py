@@ -48,7 +48,7 @@ def _wait_healthy(base: str, timeout_s: float = 120.0) -> dict[str, Any]:
         try:
             response = httpx.get(f"{base}/health", timeout=2)
             body = response.json()
-            if response.status_code == 200 and body.get("workers"):
+            if response.status_code == 200 and body.get("status") == "ok":
                 return dict(body)
         except (httpx.HTTPError, ValueError):
             pass

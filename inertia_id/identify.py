@@ -118,7 +118,10 @@ def parse_telemetry(text: str, *, fmt: str = "auto") -> Telemetry:
         return Telemetry.model_validate(data)
     if fmt != "csv":
         raise ValueError(f"telemetry format must be json, csv or auto, got {fmt!r}")
-    rows = [r for r in csv.reader(io.StringIO(text)) if r and any(c.strip() for c in r)]
+    try:
+        rows = [r for r in csv.reader(io.StringIO(text)) if r and any(c.strip() for c in r)]
+    except csv.Error as exc:
+        raise ValueError(f"telemetry is not valid CSV: {exc}") from None
     if rows and not _numeric(rows[0][0]):
         rows = rows[1:]
     if len(rows) > MAX_TELEMETRY_SAMPLES:

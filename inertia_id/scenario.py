@@ -182,8 +182,13 @@ class Thrusters(_Model):
         if data.get("levels") is None:
             if n_levels is None:
                 raise ValueError("give levels (duty values in [0, 1]) or n_levels")
-            if not isinstance(n_levels, int) or isinstance(n_levels, bool) or n_levels < 2:
-                raise ValueError(f"n_levels must be an integer >= 2, got {n_levels!r}")
+            if (
+                not isinstance(n_levels, int)
+                or isinstance(n_levels, bool)
+                or not 2 <= n_levels <= 101
+            ):
+                # Checked before the levels are generated: a huge count would allocate them.
+                raise ValueError(f"n_levels must be an integer from 2 to 101, got {n_levels!r}")
             data["levels"] = np.linspace(0.0, 1.0, n_levels).tolist()
         elif n_levels is not None and len(data["levels"]) != n_levels:
             raise ValueError(

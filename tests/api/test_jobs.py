@@ -396,3 +396,19 @@ def test_the_api_accepts_every_method_metric_and_noise_of_the_core() -> None:
         train = TrainParams.model_validate({"sequence": GOOD_SEQUENCE, "metric": metric})
         assert train.metric == metric
     assert SweepParams(classifier_id="x").noises == list(NOISE_KINDS)
+
+
+def test_unreachable_broker_fails_the_job_with_503(
+    make_api: Callable[[Settings], Api], tmp_path: Path, database_url: str
+) -> None:
+    api = make_api(make_settings(tmp_path, database_url, BROKER_URL="redis://127.0.0.1:1/0"))
+    scenario_id = api.create_scenario()["id"]
+    response = api.submit("search", scenario_id)
+    assert response.status_code == 503
+    assert "broker is unreachable" in response.json()["detail"]
+    (job,) = api.get("/jobs").json()["items"]
+    assert job["status"] == "failed"
+    assert job["error"].startswith("could not enqueue the job on the broker")
+    # A failed job is not reused: submitting again tries again.
+    assert api.submit("search", scenario_id).status_code == 503
+    assert api.get("/jobs").json()["total"] == 2

@@ -220,7 +220,7 @@ def test_physical_edge_cases_are_accepted() -> None:
         ),
         ({"nominal_torque_nm": 2.0, "levels": [0.0, 0.5]}, r"include 0 and 1, got \[0\.0, 0\.5\]"),
         ({"nominal_torque_nm": 2.0, "levels": [1.0]}, r"2 to 101 duty values, got \[1\.0\]"),
-        ({"nominal_torque_nm": 2.0, "n_levels": 1}, r"n_levels must be an integer >= 2, got 1"),
+        ({"nominal_torque_nm": 2.0, "n_levels": 1}, r"n_levels must be an integer from 2 to 101"),
         (
             {"nominal_torque_nm": 2.0, "levels": [0, 1], "n_levels": 3},
             r"n_levels = 3 disagrees with 2",
