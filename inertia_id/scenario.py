@@ -171,7 +171,7 @@ class Thrusters(_Model):
                 raise ValueError("give torque_matrix_nm (3 x N, N m) or nominal_torque_nm")
             try:
                 torque = float(nominal)
-            except (TypeError, ValueError):
+            except (TypeError, ValueError, OverflowError):
                 raise ValueError(f"nominal_torque_nm must be a number, got {nominal!r}") from None
             if not (math.isfinite(torque) and torque > 0):
                 raise ValueError(f"nominal_torque_nm must be finite and > 0, got {nominal!r}")
@@ -241,6 +241,18 @@ class Timing(_Model):
 
     @model_validator(mode="after")
     def _commensurate(self) -> Self:
+        try:
+            self._check_commensurate()
+        except ArithmeticError:
+            # Ratios of extreme values overflow or divide by an underflowed zero.
+            raise ValueError(
+                f"timing out of range: step_duration_s = {self.step_duration_s}, "
+                f"integration_step_s = {self.integration_step_s}, "
+                f"sample_rate_hz = {self.sample_rate_hz}"
+            ) from None
+        return self
+
+    def _check_commensurate(self) -> None:
         _whole(
             self.step_duration_s / self.integration_step_s,
             f"step_duration_s = {self.step_duration_s} is not a whole number of "
@@ -260,7 +272,6 @@ class Timing(_Model):
             raise ValueError(
                 f"{self.substeps_per_step} integration steps per actuation step is too many"
             )
-        return self
 
     @property
     def substeps_per_step(self) -> int:

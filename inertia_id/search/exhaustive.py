@@ -16,6 +16,14 @@ from .scorer import ScorerSettings
 __all__ = ["exhaustive_search"]
 
 
+def _magnitude(size: int) -> str:
+    """``size`` as 5.96e+16, or as 10^N where a float cannot hold it."""
+    try:
+        return f"{size:.4g}"
+    except OverflowError:
+        return f"about 10^{len(str(size)) - 1}"
+
+
 def exhaustive_search(
     scenario: Scenario,
     *,
@@ -44,8 +52,8 @@ def exhaustive_search(
     m, n = scenario.n_levels, scenario.n_thrusters
     if size > max_sequences:
         raise ValueError(
-            f"the space holds ({m}^{n})^{sequence_length} = {size:.4g} sequences, more than "
-            f"the budget of {max_sequences} for exhaustive search; shorten the sequence, use "
+            f"the space holds ({m}^{n})^{sequence_length} = {_magnitude(size)} sequences, more "
+            f"than the budget of {max_sequences} for exhaustive search; shorten the sequence, use "
             f"fewer levels or thrusters, raise the budget, or use random or PPO search"
         )
     started = time.perf_counter()

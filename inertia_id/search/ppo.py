@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import os
 import time
 from collections.abc import Callable
@@ -34,9 +35,15 @@ PPO_DEFAULTS: dict[str, Any] = {
 }
 
 _POSITIVE_INT = ("n_steps", "batch_size", "n_epochs")
+# Beyond this a rollout buffer or an update loop would exhaust memory or time.
+_LARGEST = 1e7
 _UNIT_INTERVAL = ("gamma", "gae_lambda")
 _POSITIVE = ("learning_rate", "clip_range", "max_grad_norm")
 _NON_NEGATIVE = ("ent_coef", "vf_coef")
+
+
+def _is_whole(value: int | float) -> bool:
+    return isinstance(value, int) or (math.isfinite(value) and float(value).is_integer())
 
 
 def check_ppo_params(params: dict[str, Any] | None) -> dict[str, Any]:
@@ -49,7 +56,9 @@ def check_ppo_params(params: dict[str, Any] | None) -> dict[str, Any]:
     for name, value in merged.items():
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise ValueError(f"PPO parameter {name} must be a number, got {value!r}")
-        if name in _POSITIVE_INT and (not float(value).is_integer() or value < 1):
+        if abs(value) > _LARGEST:
+            raise ValueError(f"PPO parameter {name} must be at most {_LARGEST:g}, got {value!r}")
+        if name in _POSITIVE_INT and (not _is_whole(value) or value < 1):
             raise ValueError(f"PPO parameter {name} must be a positive integer, got {value!r}")
         if name in _UNIT_INTERVAL and not 0 <= value <= 1:
             raise ValueError(f"PPO parameter {name} must lie in [0, 1], got {value!r}")

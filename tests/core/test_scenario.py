@@ -482,3 +482,27 @@ def test_duties_and_sample_times(paper: Scenario) -> None:
     assert len(times) == 40
     assert times[0] == pytest.approx(0.05) and times[-1] == pytest.approx(2.0)
     np.testing.assert_allclose(np.diff(times), 0.05, rtol=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("overrides", "message"),
+    [
+        (
+            {
+                "timing": {
+                    "step_duration_s": 1.0,
+                    "integration_step_s": 0.05,
+                    "sample_rate_hz": 5e-324,
+                }
+            },
+            "timing out of range",
+        ),
+        ({"thrusters": {"nominal_torque_nm": 10**400}}, "nominal_torque_nm must be a number"),
+    ],
+)
+def test_extreme_numbers_are_refused_with_a_value_error(
+    overrides: dict[str, Any], message: str
+) -> None:
+    # Overflow and underflow must surface as validation errors, not arithmetic crashes.
+    with pytest.raises(ValueError, match=message):
+        preset("paper", **overrides)

@@ -390,3 +390,15 @@ def test_ppo_parameters_that_pass_the_check_train(tiny: Scenario) -> None:
 def test_bad_ppo_parameters_are_refused_by_name(params: dict[str, Any], named: str) -> None:
     with pytest.raises(ValueError, match=named):
         check_ppo_params(params)
+
+
+@pytest.mark.parametrize("value", [10**400, float("inf"), 10**8])
+def test_ppo_sizes_beyond_any_machine_are_refused(value: float) -> None:
+    with pytest.raises(ValueError, match="n_steps must be at most 1e"):
+        check_ppo_params({"n_steps": value})
+
+
+def test_exhaustive_refuses_a_space_beyond_float_range_by_its_magnitude() -> None:
+    huge = preset("paper", thrusters={"n_levels": 101, "nominal_torque_nm": 2.0})
+    with pytest.raises(ValueError, match=r"\(101\^6\)\^100 = about 10\^1202 sequences"):
+        exhaustive_search(huge, sequence_length=100)
