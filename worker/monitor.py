@@ -12,7 +12,7 @@ import logging
 import os
 from typing import Any
 
-from celery.signals import worker_init, worker_ready, worker_shutdown
+from celery.signals import worker_ready, worker_shutdown
 from kombu.utils.url import maybe_sanitize_url
 
 from app.config import Settings, get_settings
@@ -86,25 +86,6 @@ def _after_fork_in_child() -> None:
 
 
 os.register_at_fork(after_in_child=_after_fork_in_child)
-
-
-@worker_init.connect
-def _preload_science_core(**_kwargs: Any) -> None:
-    """Import torch and the core once in the main process, before the pool forks.
-
-    Each job runs in a fresh child (max_tasks_per_child = 1); forked from a parent that
-    already holds these modules, a child starts its job in milliseconds instead of
-    paying ~5 s of imports. Importing starts no torch threads, so forking stays safe;
-    the child still sets its own thread count.
-    """
-    try:
-        import torch
-
-        torch.set_num_threads(1)
-        import inertia_id.search
-        import inertia_id.sweep  # noqa: F401
-    except Exception:  # a broken install is reported by the job that needs it
-        logger.exception("could not preload the science core; jobs will import it")
 
 
 @worker_ready.connect

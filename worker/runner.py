@@ -203,9 +203,9 @@ class JobContext:
 
 
 def _import_handlers() -> dict[str, Callable[[JobContext], Outcome]]:
-    # torch, numba, tslearn: the worker's main process preloads them before forking
-    # (monitor._preload_science_core); if it could not, the seconds of imports are paid
-    # here, before the claim, so the job's heartbeat is not starved while it runs.
+    # torch, numba, tslearn: seconds of imports, paid in the task process (never in the
+    # worker's main process, which forks it) and before the claim, so the job's
+    # heartbeat is not starved by the import while it is marked running.
     import torch
 
     torch.set_num_threads(1)

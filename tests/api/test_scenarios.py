@@ -134,7 +134,7 @@ def test_triangle_inequality_names_rule_and_moments(api: Api, paper: Scenario, s
                 "preset": "paper",
                 "overrides": {"timing": {"integration_step_s": 0.5, "sample_rate_hz": 5e-324}},
             },
-            "out of range: float division by zero",
+            "timing out of range: step_duration_s = 1.0",
         ),
     ],
 )
