@@ -11,10 +11,11 @@ COPY pyproject.toml README.md ./
 COPY inertia_id ./inertia_id
 COPY app ./app
 COPY worker ./worker
+COPY frontend ./frontend
 RUN pip install . && useradd --create-home --uid 1000 inertia \
     && mkdir -p /data && chown inertia /data
 USER inertia
-ENV INERTIA_ID_DATA_DIR=/data
+ENV INERTIA_ID_DATA_DIR=/data INERTIA_ID_FRONTEND_DIR=/srv/inertia-id/frontend
 
 EXPOSE 8000
 # The API; migrations are applied when it starts. The worker overrides the command.

@@ -34,12 +34,20 @@ class Settings(BaseSettings):
     heartbeat_timeout_s: float = Field(default=60.0, alias="INERTIA_ID_HEARTBEAT_TIMEOUT_S")
     max_attempts: int = Field(default=2, alias="INERTIA_ID_MAX_ATTEMPTS")
     classifier_cache_size: int = Field(default=32, alias="INERTIA_ID_CLASSIFIER_CACHE")
+    frontend_dir: Path | None = Field(default=None, alias="INERTIA_ID_FRONTEND_DIR")
 
     @property
     def resolved_database_url(self) -> str:
         if self.database_url:
             return self.database_url
         return f"sqlite:///{(self.data_dir / 'inertia-id.db').resolve()}"
+
+    @property
+    def resolved_frontend_dir(self) -> Path:
+        """The dashboard's files: ``INERTIA_ID_FRONTEND_DIR``, else the checkout's ``frontend/``."""
+        if self.frontend_dir is not None:
+            return self.frontend_dir.resolve()
+        return Path(__file__).resolve().parent.parent / "frontend"
 
     @property
     def broker_dir(self) -> Path:

@@ -19,6 +19,7 @@ from .api import ROUTERS
 from .api.errors import install_error_handlers
 from .api.identify import ClassifierCache, openapi_components
 from .config import Settings, get_settings
+from .dashboard import mount_dashboard
 from .db.session import Database, upgrade
 from .queue import make_celery
 from .security import BodySizeLimit, ensure_api_key
@@ -72,6 +73,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     for router in ROUTERS:
         app.include_router(router)
     install_error_handlers(app)
+    mount_dashboard(app, settings)
     app.add_middleware(BodySizeLimit, max_bytes=settings.max_body_bytes)
     _extend_openapi(app, settings)
     return app

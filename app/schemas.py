@@ -29,6 +29,7 @@ from inertia_id.search import ScorerSettings, check_ppo_params
 __all__ = [
     "MAX_SEED",
     "CandidateOut",
+    "CandidateResponse",
     "ClassifierOut",
     "ClassifierPage",
     "ComponentHealth",
@@ -44,6 +45,7 @@ __all__ = [
     "ScenarioCreate",
     "ScenarioOut",
     "ScenarioPage",
+    "ScenarioResponse",
     "SearchJobCreate",
     "SearchParams",
     "SweepJobCreate",
@@ -190,6 +192,28 @@ class ScenarioPage(BaseModel):
     total: int
     limit: int
     offset: int
+
+
+class CandidateResponse(BaseModel):
+    name: str
+    mean_rad_s: list[list[float]] = Field(description="mean measured rate per sample, (T, 3)")
+    low_rad_s: list[list[float]] = Field(description="10th percentile over realisations, (T, 3)")
+    high_rad_s: list[list[float]] = Field(description="90th percentile over realisations, (T, 3)")
+    final_rate_rad_s: float = Field(description="mean |omega| at the end, true rate")
+
+
+class ScenarioResponse(BaseModel):
+    """Every candidate's simulated gyro response to one sequence (what the dashboard draws)."""
+
+    scenario_id: str
+    sequence: list[list[int]]
+    duties: list[list[float]] = Field(description="commanded duty per step and thruster, (L, N)")
+    step_duration_s: float
+    time_s: list[float] = Field(description="sample times from the sequence start, s")
+    n_realisations: int
+    seed: int
+    impulse_nms: float = Field(description="commanded angular impulse (fuel), N m s")
+    candidates: list[CandidateResponse]
 
 
 # Job parameters: the worker reads exactly these names from JobRow.params.

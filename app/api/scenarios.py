@@ -6,16 +6,25 @@ import json
 from typing import Any
 
 import numpy as np
-from fastapi import APIRouter, HTTPException, Response, status
+from fastapi import APIRouter, HTTPException, Query, Response, status
 from fastapi.exceptions import RequestValidationError
 from pydantic import ValidationError
 from sqlalchemy import func, select
 from sqlalchemy.exc import IntegrityError
 
-from inertia_id.scenario import Scenario, preset
+from inertia_id.scenario import PRESETS, Scenario, preset
+from inertia_id.simulate import simulate
 
 from ..db.models import ClassifierRow, JobRow, ScenarioRow
-from ..schemas import CandidateOut, ScenarioCreate, ScenarioOut, ScenarioPage
+from ..schemas import (
+    MAX_SEED,
+    CandidateOut,
+    CandidateResponse,
+    ScenarioCreate,
+    ScenarioOut,
+    ScenarioPage,
+    ScenarioResponse,
+)
 from .deps import ApiKeyDep, PagingDep, SessionDep, get_or_404, unprocessable
 from .errors import format_errors
 
@@ -115,6 +124,12 @@ def list_scenarios(session: SessionDep, page: PagingDep) -> ScenarioPage:
     )
 
 
+@router.get("/presets")
+def list_presets() -> dict[str, dict[str, Any]]:
+    """The built-in scenarios as documents, by name: a starting point for a new scenario."""
+    return {name: make().model_dump(mode="json") for name, make in sorted(PRESETS.items())}
+
+
 @router.get("/{scenario_id}", responses=_NOT_FOUND)
 def get_scenario(scenario_id: str, session: SessionDep) -> ScenarioOut:
     return scenario_out(get_or_404(session, ScenarioRow, scenario_id, "scenario"))
@@ -152,3 +167,84 @@ def delete_scenario(scenario_id: str, session: SessionDep) -> Response:
             status.HTTP_409_CONFLICT, detail=f"scenario {row.id!r} is in use by a new job"
         ) from None
     return Response(status_code=status.HTTP_204_NO_CONTENT)
+
+
+#: Most simulated responses one request may ask for (candidates x realisations x steps).
+MAX_RESPONSE_WORK = 200_000
+
+
+def _parse_sequence(text: str, scenario: Scenario) -> np.ndarray:
+    try:
+        rows = json.loads(text)
+    except (ValueError, RecursionError):  # not JSON, digits beyond the limit, deep nesting
+        unprocessable(
+            ("query", "sequence"),
+            f"sequence must be a JSON list of rows of level indices like "
+            f"[[4,4,4,0,0,0]], got {text[:120]!r}",
+        )
+    if not isinstance(rows, list) or not all(
+        isinstance(row, list) and all(isinstance(v, int) and not isinstance(v, bool) for v in row)
+        for row in rows
+    ):
+        unprocessable(
+            ("query", "sequence"),
+            f"sequence must be a JSON list of rows of integer level indices, got {text[:120]!r}",
+        )
+    try:
+        return scenario.check_sequence(rows)
+    except ValueError as exc:
+        unprocessable(("query", "sequence"), str(exc))
+
+
+@router.get("/{scenario_id}/response", responses=_NOT_FOUND)
+def scenario_response(
+    scenario_id: str,
+    session: SessionDep,
+    sequence: str = Query(
+        max_length=20_000,
+        description="JSON list of steps, each a level index per thruster: [[4,4,4,0,0,0]]",
+    ),
+    n_realisations: int = Query(default=20, ge=2, le=200),
+    seed: int = Query(default=0, ge=0, le=MAX_SEED),
+) -> ScenarioResponse:
+    """Simulate every candidate's measured rate response to a sequence.
+
+    Per candidate: the mean over ``n_realisations`` noisy realisations and the 10th and
+    90th percentiles (the band the dashboard draws), the final true rate, and the
+    sequence's commanded impulse. Same seed, same answer.
+    """
+    row = get_or_404(session, ScenarioRow, scenario_id, "scenario")
+    scenario = Scenario.model_validate(row.document)
+    steps = _parse_sequence(sequence, scenario)
+    work = scenario.n_candidates * n_realisations * len(steps)
+    if work > MAX_RESPONSE_WORK:
+        unprocessable(
+            ("query", "n_realisations"),
+            f"{scenario.n_candidates} candidates x {n_realisations} realisations x "
+            f"{len(steps)} steps = {work} responses; at most {MAX_RESPONSE_WORK}",
+        )
+    result = simulate(scenario, steps, n_realisations, np.random.default_rng(seed))
+    omega = result.omega_measured  # (K, n, T, 3)
+    low, high = np.percentile(omega, [10.0, 90.0], axis=1)
+    mean = omega.mean(axis=1)
+    final = result.final_rate_rad_s.mean(axis=1)
+    return ScenarioResponse(
+        scenario_id=row.id,
+        sequence=steps.tolist(),
+        duties=scenario.duties(steps).tolist(),
+        step_duration_s=scenario.timing.step_duration_s,
+        time_s=scenario.sample_times(len(steps)).tolist(),
+        n_realisations=n_realisations,
+        seed=seed,
+        impulse_nms=scenario.impulse_nms(steps),
+        candidates=[
+            CandidateResponse(
+                name=name,
+                mean_rad_s=mean[k].tolist(),
+                low_rad_s=low[k].tolist(),
+                high_rad_s=high[k].tolist(),
+                final_rate_rad_s=float(final[k]),
+            )
+            for k, name in enumerate(scenario.candidate_names)
+        ],
+    )

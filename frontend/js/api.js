@@ -1,0 +1,141 @@
+// The service's HTTP API, as the dashboard uses it. Every call goes through `request`,
+// which adds the API key (kept in the browser's localStorage) and turns an error answer
+// into an ApiError carrying the server's messages, so pages can show them next to fields.
+
+const KEY_STORAGE = "inertia-id-api-key";
+
+export function getApiKey() {
+  return localStorage.getItem(KEY_STORAGE) || "";
+}
+
+export function setApiKey(key) {
+  if (key) localStorage.setItem(KEY_STORAGE, key.trim());
+  else localStorage.removeItem(KEY_STORAGE);
+  window.dispatchEvent(new CustomEvent("api-key-changed"));
+}
+
+export class ApiError extends Error {
+  // status: the HTTP status (0 when the server could not be reached);
+  // errors: [{loc: [...], msg}] as the service's 422 answers carry them.
+  constructor(status, message, errors = []) {
+    super(message);
+    this.name = "ApiError";
+    this.status = status;
+    this.errors = errors;
+  }
+}
+
+function errorFrom(status, body) {
+  const detail = body && body.detail;
+  if (Array.isArray(detail)) {
+    const errors = detail.map((e) => ({ loc: e.loc || [], msg: String(e.msg || "") }));
+    return new ApiError(status, errors.map((e) => e.msg).join("; "), errors);
+  }
+  if (typeof detail === "string") return new ApiError(status, detail, [{ loc: [], msg: detail }]);
+  return new ApiError(status, `the service answered ${status}`);
+}
+
+export async function request(method, path, { json, form, query } = {}) {
+  const headers = { Accept: "application/json" };
+  const key = getApiKey();
+  if (key) headers["X-API-Key"] = key;
+  let body;
+  if (json !== undefined) {
+    headers["Content-Type"] = "application/json";
+    body = JSON.stringify(json);
+  } else if (form !== undefined) {
+    body = form;
+  }
+  let url = path;
+  if (query) {
+    const params = new URLSearchParams();
+    for (const [name, value] of Object.entries(query)) {
+      if (value !== undefined && value !== null && value !== "") params.set(name, value);
+    }
+    const text = params.toString();
+    if (text) url += `?${text}`;
+  }
+  let response;
+  try {
+    response = await fetch(url, { method, headers, body });
+  } catch (exc) {
+    throw new ApiError(0, `the service at ${location.origin} could not be reached (${exc.message})`);
+  }
+  if (response.status === 204) return null;
+  let data = null;
+  const type = response.headers.get("content-type") || "";
+  if (type.includes("json")) data = await response.json();
+  if (!response.ok) {
+    const error = errorFrom(response.status, data);
+    if (response.status === 401) {
+      error.message = `${error.message}: enter the API key (printed by "inertia-id serve" on its first run) at the top right`;
+    }
+    throw error;
+  }
+  return data;
+}
+
+export const api = {
+  health: () => request("GET", "/health"),
+  presets: () => request("GET", "/scenarios/presets"),
+  scenarios: (query) => request("GET", "/scenarios", { query: { limit: 200, ...query } }),
+  scenario: (id) => request("GET", `/scenarios/${encodeURIComponent(id)}`),
+  createScenario: (body) => request("POST", "/scenarios", { json: body }),
+  deleteScenario: (id) => request("DELETE", `/scenarios/${encodeURIComponent(id)}`),
+  response: (id, sequence, query = {}) =>
+    request("GET", `/scenarios/${encodeURIComponent(id)}/response`, {
+      query: { sequence: JSON.stringify(sequence), ...query },
+    }),
+  jobs: (query) => request("GET", "/jobs", { query: { limit: 100, ...query } }),
+  job: (id) => request("GET", `/jobs/${encodeURIComponent(id)}`),
+  submitJob: (body) => request("POST", "/jobs", { json: body }),
+  cancelJob: (id) => request("POST", `/jobs/${encodeURIComponent(id)}/cancel`),
+  metrics: (id, query) => request("GET", `/jobs/${encodeURIComponent(id)}/metrics`, { query }),
+  classifiers: (query) => request("GET", "/classifiers", { query: { limit: 200, ...query } }),
+  classifier: (id) => request("GET", `/classifiers/${encodeURIComponent(id)}`),
+  identify: (classifierId, file) => {
+    const form = new FormData();
+    form.set("classifier_id", classifierId);
+    form.set("file", file);
+    return request("POST", "/identify", { form });
+  },
+};
+
+// Follows a job's metric series incrementally: each poll asks only for points after the
+// last step it holds (`?after=`), so a long PPO curve is never fetched twice.
+export class MetricFollower {
+  constructor(jobId) {
+    this.jobId = jobId;
+    this.after = {};
+  }
+
+  // Returns {key: {steps, values}} holding only the new points since the last call.
+  async poll() {
+    const out = {};
+    const keys = Object.keys(this.after);
+    if (keys.length === 0) {
+      const data = await api.metrics(this.jobId);
+      for (const series of data.series) this.take(out, series);
+      return out;
+    }
+    const data = await api.metrics(this.jobId, { after: Math.min(...Object.values(this.after)) });
+    for (const series of data.series) this.take(out, series);
+    return out;
+  }
+
+  take(out, series) {
+    const after = this.after[series.key];
+    const steps = [];
+    const values = [];
+    series.steps.forEach((step, i) => {
+      if (after === undefined || step > after) {
+        steps.push(step);
+        values.push(series.values[i]);
+      }
+    });
+    if (series.last_step !== null && series.last_step !== undefined) {
+      this.after[series.key] = Math.max(after ?? -Infinity, series.last_step);
+    }
+    if (steps.length) out[series.key] = { steps, values };
+  }
+}

@@ -1,0 +1,119 @@
+// The dashboard's shell: hash routes to pages, the API key box and the health badge.
+//
+// A page is `render(root, context)`; `context.alive()` turns false once the user has
+// navigated away (pages stop polling then), `context.every(ms, fn)` polls while alive,
+// and `context.params` holds the route's parameters and query.
+
+import { api, getApiKey, setApiKey } from "./api.js";
+import { clear, messageBox } from "./ui.js";
+import * as classifiers from "./pages/classifiers.js";
+import * as compare from "./pages/compare.js";
+import * as identify from "./pages/identify.js";
+import * as jobPage from "./pages/job.js";
+import * as jobs from "./pages/jobs.js";
+import * as scenarios from "./pages/scenarios.js";
+
+const ROUTES = [
+  [/^\/scenarios\/new$/, scenarios.renderNew, "scenarios"],
+  [/^\/scenarios\/([^/]+)$/, scenarios.renderOne, "scenarios"],
+  [/^\/scenarios$/, scenarios.renderList, "scenarios"],
+  [/^\/jobs\/([^/]+)$/, jobPage.render, "jobs"],
+  [/^\/jobs$/, jobs.render, "jobs"],
+  [/^\/classifiers\/([^/]+)$/, classifiers.renderOne, "classifiers"],
+  [/^\/classifiers$/, classifiers.renderList, "classifiers"],
+  [/^\/compare$/, compare.render, "compare"],
+  [/^\/identify$/, identify.render, "identify"],
+];
+
+let generation = 0;
+
+function parseHash() {
+  const hash = location.hash.replace(/^#/, "") || "/jobs";
+  const [path, queryText = ""] = hash.split("?");
+  return { path, query: Object.fromEntries(new URLSearchParams(queryText)) };
+}
+
+async function route() {
+  const mine = ++generation;
+  const { path, query } = parseHash();
+  const root = document.getElementById("page");
+  clear(root);
+  const timers = [];
+  const context = {
+    query,
+    alive: () => mine === generation,
+    every(ms, fn) {
+      let running = false;
+      const tick = async () => {
+        if (!context.alive() || running) return;
+        running = true;
+        try {
+          await fn();
+        } catch (exc) {
+          console.warn("poll failed:", exc.message || exc);
+        } finally {
+          running = false;
+        }
+      };
+      timers.push(setInterval(tick, ms));
+      return tick;
+    },
+  };
+  window.addEventListener(
+    "hashchange",
+    () => timers.forEach((t) => clearInterval(t)),
+    { once: true },
+  );
+  for (const [pattern, render, nav] of ROUTES) {
+    const match = path.match(pattern);
+    if (!match) continue;
+    for (const a of document.querySelectorAll("nav a")) {
+      a.classList.toggle("active", a.dataset.nav === nav);
+    }
+    context.params = match.slice(1).map(decodeURIComponent);
+    try {
+      await render(root, context);
+    } catch (exc) {
+      if (context.alive()) root.append(messageBox("error", exc.message || String(exc)));
+    }
+    return;
+  }
+  root.append(messageBox("error", `no page at #${path}`));
+}
+
+function keyBox() {
+  const form = document.getElementById("api-key-form");
+  const input = document.getElementById("api-key");
+  const state = document.getElementById("api-key-state");
+  const show = () => {
+    input.value = "";
+    state.textContent = getApiKey() ? "saved" : "not set";
+  };
+  form.addEventListener("submit", (event) => {
+    event.preventDefault();
+    setApiKey(input.value);
+    show();
+  });
+  show();
+}
+
+async function health() {
+  const badge = document.getElementById("health");
+  try {
+    const data = await api.health();
+    const workers = data.workers.count;
+    badge.textContent = `${data.status} · ${workers} worker${workers === 1 ? "" : "s"}`;
+    badge.className = `health ${data.status}`;
+    badge.title = `database: ${data.database.detail}\nbroker: ${data.broker.detail}\nworkers: ${data.workers.names.join(", ") || "none seen"}`;
+  } catch (exc) {
+    badge.textContent = "unreachable";
+    badge.className = "health degraded";
+    badge.title = exc.message;
+  }
+}
+
+keyBox();
+health();
+setInterval(health, 10000);
+window.addEventListener("hashchange", route);
+route();

@@ -1,0 +1,372 @@
+// Scenarios: the list, one scenario (candidates with principal moments, thrusters, noise)
+// and the form that creates one from the paper preset or field by field.
+
+import { api } from "../api.js";
+import {
+  COLORS,
+  PLOT_CONFIG,
+  clear,
+  fmt,
+  h,
+  layout,
+  link,
+  messageBox,
+  showError,
+  showFieldErrors,
+  table,
+  when,
+} from "../ui.js";
+
+const UNCERTAINTY_FIELDS = [
+  ["duty_jitter_sigma", "duty jitter σ", "fraction of full duty, per firing thruster and step"],
+  ["lowpass_time_constant_s", "actuation low-pass τ", "s"],
+  ["thrust_scale_sigma", "thrust-scale error σ", "fraction, per thruster and realisation"],
+  ["disturbance_torque_sigma_nm", "disturbance torque σ (process noise)", "N m per axis"],
+  ["disturbance_interval_s", "disturbance interval", "s, how long one draw is held"],
+  ["gyro_noise_sigma_rad_s", "gyro noise σ (measurement noise)", "rad/s per axis"],
+  ["gyro_bias_rad_s", "gyro bias", "rad/s, three values x, y, z"],
+  ["gyro_bias_sigma_rad_s", "gyro bias σ", "rad/s per axis and realisation"],
+  ["initial_rate_sigma_rad_s", "initial rate σ", "rad/s per axis"],
+];
+
+const TIMING_FIELDS = [
+  ["step_duration_s", "actuation step", "s"],
+  ["integration_step_s", "RK4 step", "s"],
+  ["sample_rate_hz", "gyro sample rate", "Hz"],
+];
+
+export async function renderList(root) {
+  root.append(
+    h("h1", {}, "Scenarios"),
+    h("div", { class: "toolbar" }, link("#/scenarios/new", "New scenario", { class: "button", id: "new-scenario" })),
+  );
+  const page = await api.scenarios();
+  if (page.items.length === 0) {
+    root.append(messageBox("notice", "No scenarios yet. Create one from the paper preset to start."));
+    return;
+  }
+  root.append(
+    h(
+      "div",
+      { class: "card" },
+      table(
+        ["name", "candidates", "thrusters", "duty levels", "created", "id"],
+        page.items.map((s) => [
+          link(`#/scenarios/${s.id}`, s.name),
+          s.candidates.length,
+          s.n_thrusters,
+          s.n_levels,
+          when(s.created_at),
+          h("code", {}, s.id),
+        ]),
+        { id: "scenario-table" },
+      ),
+    ),
+  );
+}
+
+export async function renderOne(root, context) {
+  const [id] = context.params;
+  const scenario = await api.scenario(id);
+  const doc = scenario.document;
+  const momentsPlot = h("div", { class: "plot short", id: "moments-plot" });
+  const actions = h("div", { class: "toolbar" });
+  const notice = h("div");
+  actions.append(
+    link(`#/jobs?scenario=${scenario.id}&type=search`, "Search for a sequence", { class: "button" }),
+    link(`#/jobs?scenario=${scenario.id}&type=train`, "Train a classifier", { class: "button secondary" }),
+    h(
+      "button",
+      {
+        class: "danger",
+        onclick: async () => {
+          if (!confirm(`Delete scenario "${scenario.name}"?`)) return;
+          try {
+            await api.deleteScenario(scenario.id);
+            location.hash = "#/scenarios";
+          } catch (exc) {
+            showError(notice, exc);
+          }
+        },
+      },
+      "Delete",
+    ),
+  );
+  root.append(
+    h("h1", {}, `Scenario: ${scenario.name}`),
+    h("p", { class: "muted" }, `id `, h("code", {}, scenario.id), ` · created ${when(scenario.created_at)}`),
+    actions,
+    notice,
+    h(
+      "div",
+      { class: "row" },
+      h(
+        "div",
+        { class: "card grow" },
+        h("h2", {}, "Inertia candidates"),
+        table(
+          ["candidate", "inertia tensor (kg m²)", "principal moments (kg m², ascending)"],
+          scenario.candidates.map((c) => [
+            c.name,
+            h("span", { class: "mono" }, c.inertia_kg_m2.map((r) => `[${r.map((v) => v.toFixed(2)).join(", ")}]`).join(" ")),
+            h("span", { class: "mono" }, c.principal_moments_kg_m2.map((v) => v.toFixed(2)).join(", ")),
+          ]),
+          { id: "candidate-table" },
+        ),
+      ),
+      h("div", { class: "card grow" }, h("h2", {}, "Principal moments"), momentsPlot),
+    ),
+    h(
+      "div",
+      { class: "row" },
+      h(
+        "div",
+        { class: "card grow" },
+        h("h2", {}, "Thrusters"),
+        h("p", { class: "hint" }, "Torque at full duty (N m), one column per thruster."),
+        table(
+          ["axis", ...doc.thrusters.torque_matrix_nm[0].map((_, j) => `thruster ${j + 1}`)],
+          doc.thrusters.torque_matrix_nm.map((row, i) => [["x", "y", "z"][i], ...row.map((v) => fmt(v, 3))]),
+          { class: "matrix" },
+        ),
+        h("p", {}, "Duty levels: ", h("span", { class: "mono" }, doc.thrusters.levels.join(", "))),
+      ),
+      h(
+        "div",
+        { class: "card grow" },
+        h("h2", {}, "Timing and noise (1× level)"),
+        h(
+          "dl",
+          { class: "kv" },
+          TIMING_FIELDS.map(([key, label, unit]) => [h("dt", {}, label), h("dd", {}, `${fmt(doc.timing[key], 4)} ${unit}`)]),
+          UNCERTAINTY_FIELDS.map(([key, label, unit]) => [
+            h("dt", {}, label),
+            h("dd", {}, `${Array.isArray(doc.uncertainty[key]) ? doc.uncertainty[key].join(", ") : fmt(doc.uncertainty[key], 4)} (${unit})`),
+          ]),
+        ),
+      ),
+    ),
+  );
+  Plotly.newPlot(
+    momentsPlot,
+    [0, 1, 2].map((axis) => ({
+      type: "bar",
+      name: `principal moment ${axis + 1}`,
+      x: scenario.candidates.map((c) => c.name),
+      y: scenario.candidates.map((c) => c.principal_moments_kg_m2[axis]),
+      marker: { color: COLORS[axis] },
+      hovertemplate: "%{x}: %{y:.2f} kg m²<extra>%{fullData.name}</extra>",
+    })),
+    layout("candidate", "principal moment (kg m²)", { barmode: "group", height: 300 }),
+    PLOT_CONFIG,
+  );
+}
+
+// The form: a candidates table, the thruster matrix, levels, timing and noise, all
+// prefilled from a preset; the server validates and its messages appear by the fields.
+export async function renderNew(root) {
+  const presets = await api.presets();
+  const names = Object.keys(presets);
+  const general = h("div", { id: "form-errors" });
+  root.append(h("h1", {}, "New scenario"));
+
+  const presetName = h("input", { id: "preset-name", name: "preset-name", value: "paper preset", size: 30 });
+  const presetSelect = h("select", { id: "preset-select" }, names.map((n) => h("option", { value: n }, n)));
+  const presetErrors = h("div");
+  const presetForm = h(
+    "form",
+    {
+      class: "toolbar",
+      id: "preset-form",
+      onsubmit: async (event) => {
+        event.preventDefault();
+        clear(presetErrors);
+        try {
+          const created = await api.createScenario({ preset: presetSelect.value, overrides: { name: presetName.value } });
+          location.hash = `#/scenarios/${created.id}`;
+        } catch (exc) {
+          showError(presetErrors, exc);
+        }
+      },
+    },
+    h("label", { for: "preset-select" }, "Preset"),
+    presetSelect,
+    h("label", { for: "preset-name" }, "name"),
+    presetName,
+    h("button", { type: "submit", id: "create-preset" }, "Create from preset"),
+  );
+  root.append(h("div", { class: "card" }, h("h2", {}, "Quick start"), presetForm, presetErrors));
+
+  const formCard = h("div", { class: "card" });
+  root.append(formCard);
+  const fill = (doc) => {
+    clear(formCard);
+    formCard.append(h("h2", {}, "Or set every field"), buildForm(doc, general));
+  };
+  const loader = h(
+    "div",
+    { class: "toolbar" },
+    h("span", { class: "hint" }, "The form starts from a preset:"),
+    names.map((n) => h("button", { type: "button", class: "secondary", onclick: () => fill(presets[n]) }, `load ${n}`)),
+  );
+  root.insertBefore(loader, formCard);
+  fill(presets[names[0]]);
+}
+
+function numberOrText(text) {
+  const trimmed = String(text).trim();
+  if (trimmed !== "" && Number.isFinite(Number(trimmed))) return Number(trimmed);
+  return trimmed;
+}
+
+function listOf(text) {
+  return String(text)
+    .split(/[,\s]+/)
+    .filter((v) => v !== "")
+    .map(numberOrText);
+}
+
+function buildForm(preset, general) {
+  const fields = {};
+  const nameInput = h("input", { id: "scenario-name", name: "name", value: `${preset.name} (edited)`, size: 40 });
+  fields.name = nameInput;
+
+  // Candidates: name and the six inertia components.
+  const COMPONENTS = [
+    ["Ixx", 0, 0],
+    ["Iyy", 1, 1],
+    ["Izz", 2, 2],
+    ["Ixy", 0, 1],
+    ["Ixz", 0, 2],
+    ["Iyz", 1, 2],
+  ];
+  const candidateBody = h("tbody", { id: "candidate-rows" });
+  const candidateTable = h(
+    "table",
+    { class: "edit", id: "candidate-form" },
+    h("thead", {}, h("tr", {}, h("th", {}, "candidate"), COMPONENTS.map(([n]) => h("th", {}, `${n} (kg m²)`)), h("th", {}, ""))),
+    candidateBody,
+  );
+  fields.inertia_candidates = candidateTable;
+  const addCandidate = (candidate) => {
+    const row = h(
+      "tr",
+      {},
+      h("td", {}, h("input", { value: candidate.name, "aria-label": "candidate name", class: "cand-name" })),
+      COMPONENTS.map(([n, i, j]) =>
+        h("td", {}, h("input", { value: candidate.inertia_kg_m2[i][j], "aria-label": n, class: `cand-${n}`, inputmode: "decimal" })),
+      ),
+      h("td", {}, h("button", { type: "button", class: "secondary", onclick: () => row.remove() }, "remove")),
+    );
+    candidateBody.append(row);
+  };
+  preset.inertia_candidates.forEach(addCandidate);
+
+  // Thrusters: a 3 × N matrix.
+  const matrixHead = h("tr");
+  const matrixBody = h("tbody");
+  const matrixTable = h("table", { class: "edit matrix", id: "thruster-form" }, h("thead", {}, matrixHead), matrixBody);
+  fields["thrusters.torque_matrix_nm"] = matrixTable;
+  fields.thrusters = matrixTable;
+  let matrix = preset.thrusters.torque_matrix_nm.map((r) => [...r]);
+  const readMatrix = () =>
+    [...matrixBody.querySelectorAll("tr")].map((tr) => [...tr.querySelectorAll("input")].map((input) => numberOrText(input.value)));
+  const drawMatrix = () => {
+    clear(matrixHead);
+    clear(matrixBody);
+    matrixHead.append(h("th", {}, "axis (N m)"), ...matrix[0].map((_, j) => h("th", {}, `thruster ${j + 1}`)));
+    matrix.forEach((row, i) => {
+      matrixBody.append(
+        h("tr", {}, h("th", {}, ["x", "y", "z"][i]), row.map((v, j) => h("td", {}, h("input", { value: v, "aria-label": `torque ${"xyz"[i]} of thruster ${j + 1}`, inputmode: "decimal" })))),
+      );
+    });
+  };
+  drawMatrix();
+  const thrusterButtons = h(
+    "div",
+    { class: "toolbar" },
+    h("button", { type: "button", class: "secondary", onclick: () => { matrix = readMatrix().map((r) => [...r, 0]); drawMatrix(); } }, "add thruster"),
+    h("button", { type: "button", class: "secondary", onclick: () => { matrix = readMatrix().map((r) => r.slice(0, Math.max(1, r.length - 1))); drawMatrix(); } }, "remove last thruster"),
+  );
+
+  const levelsInput = h("input", { id: "levels", name: "levels", value: preset.thrusters.levels.join(", "), size: 40 });
+  fields["thrusters.levels"] = levelsInput;
+
+  const timingInputs = {};
+  for (const [key] of TIMING_FIELDS) {
+    timingInputs[key] = h("input", { id: `timing-${key}`, value: preset.timing[key], inputmode: "decimal" });
+    fields[`timing.${key}`] = timingInputs[key];
+  }
+  const noiseInputs = {};
+  for (const [key] of UNCERTAINTY_FIELDS) {
+    const value = preset.uncertainty[key];
+    noiseInputs[key] = h("input", { id: `noise-${key}`, value: Array.isArray(value) ? value.join(", ") : value, inputmode: "decimal" });
+    fields[`uncertainty.${key}`] = noiseInputs[key];
+  }
+
+  const labelled = (input, label, unit) => [h("label", { for: input.id }, label), h("div", {}, input, " ", h("span", { class: "hint" }, unit))];
+
+  const submit = h("button", { type: "submit", id: "create-scenario" }, "Create scenario");
+  const form = h(
+    "form",
+    {
+      id: "scenario-form",
+      novalidate: true,
+      onsubmit: async (event) => {
+        event.preventDefault();
+        const document_ = {
+          name: nameInput.value,
+          inertia_candidates: [...candidateBody.querySelectorAll("tr")].map((tr) => {
+            const inertia = [
+              [0, 0, 0],
+              [0, 0, 0],
+              [0, 0, 0],
+            ];
+            for (const [n, i, j] of COMPONENTS) {
+              const v = numberOrText(tr.querySelector(`.cand-${n}`).value);
+              inertia[i][j] = v;
+              inertia[j][i] = v;
+            }
+            return { name: tr.querySelector(".cand-name").value, inertia_kg_m2: inertia };
+          }),
+          candidate_generator: null,
+          thrusters: { torque_matrix_nm: readMatrix(), levels: listOf(levelsInput.value) },
+          timing: Object.fromEntries(Object.entries(timingInputs).map(([k, input]) => [k, numberOrText(input.value)])),
+          uncertainty: Object.fromEntries(
+            Object.entries(noiseInputs).map(([k, input]) => [k, k === "gyro_bias_rad_s" ? listOf(input.value) : numberOrText(input.value)]),
+          ),
+        };
+        // Rows are located by index: mark the candidate row the server names.
+        const rowFields = { ...fields };
+        [...candidateBody.querySelectorAll("tr")].forEach((tr, i) => {
+          rowFields[`inertia_candidates.${i}`] = tr;
+        });
+        submit.disabled = true;
+        try {
+          const created = await api.createScenario({ scenario: document_ });
+          location.hash = `#/scenarios/${created.id}`;
+        } catch (exc) {
+          showFieldErrors(exc, rowFields, general);
+          general.scrollIntoView({ block: "nearest" });
+        } finally {
+          submit.disabled = false;
+        }
+      },
+    },
+    h("div", { class: "stack" }, labelled(nameInput, "name", "")),
+    h("h3", {}, "Inertia candidates"),
+    candidateTable,
+    h("div", { class: "toolbar" }, h("button", { type: "button", class: "secondary", onclick: () => addCandidate({ name: `candidate ${candidateBody.children.length + 1}`, inertia_kg_m2: [[100, 0, 0], [0, 60, 0], [0, 0, 90]] }) }, "add candidate")),
+    h("h3", {}, "Thrusters"),
+    matrixTable,
+    thrusterButtons,
+    h("div", { class: "stack" }, labelled(levelsInput, "duty levels", "fractions of full duty, sorted, including 0 and 1")),
+    h("h3", {}, "Timing"),
+    h("div", { class: "stack" }, TIMING_FIELDS.map(([key, label, unit]) => labelled(timingInputs[key], label, unit))),
+    h("h3", {}, "Noise (the 1× level of the sweeps)"),
+    h("div", { class: "stack" }, UNCERTAINTY_FIELDS.map(([key, label, unit]) => labelled(noiseInputs[key], label, unit))),
+    general,
+    h("div", { class: "toolbar" }, submit),
+  );
+  return form;
+}

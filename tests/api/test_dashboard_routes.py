@@ -1,0 +1,113 @@
+"""What the dashboard needs from the API: its pages, plotly.js, presets and responses."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from app.config import Settings
+from inertia_id import Scenario, simulate
+
+from .support import GOOD_SEQUENCE, Api, make_settings
+
+
+def test_the_dashboard_and_plotly_are_served_without_a_cdn(api: Api) -> None:
+    page = api.client.get("/")
+    assert page.status_code == 200
+    assert page.headers["content-type"].startswith("text/html")
+    assert "/static/vendor/plotly.min.js" in page.text
+    assert "https://" not in page.text  # nothing fetched from elsewhere
+    script = api.client.get("/static/vendor/plotly.min.js")
+    assert script.status_code == 200
+    assert script.headers["content-type"].startswith("text/javascript")
+    assert len(script.content) > 1_000_000
+    module = api.client.get("/static/js/app.js")
+    assert module.status_code == 200
+    assert "javascript" in module.headers["content-type"]
+    assert module.headers["cache-control"] == "no-cache"
+    assert api.client.get("/static/js/nothing.js").status_code == 404
+    # The pages are not API operations.
+    assert "/" not in api.client.get("/openapi.json").json()["paths"]
+
+
+def test_without_the_frontend_folder_the_api_still_runs_and_says_where_it_looked(
+    make_api: object, tmp_path: Path, database_url: str
+) -> None:
+    settings: Settings = make_settings(
+        tmp_path, database_url, INERTIA_ID_FRONTEND_DIR=tmp_path / "no-such-folder"
+    )
+    built = make_api(settings)  # type: ignore[operator]
+    missing = built.client.get("/")
+    assert missing.status_code == 404
+    assert "no-such-folder" in missing.json()["detail"]
+    assert built.client.get("/health").status_code == 200
+
+
+def test_presets_are_scenario_documents(api: Api, paper: Scenario) -> None:
+    presets = api.get("/scenarios/presets").json()
+    assert Scenario.model_validate(presets["paper"]) == paper
+
+
+def test_response_gives_each_candidates_mean_and_band_as_simulated(
+    api: Api, paper: Scenario
+) -> None:
+    scenario_id = api.post("/scenarios", json={"preset": "paper"}).json()["id"]
+    response = api.get(
+        f"/scenarios/{scenario_id}/response",
+        params={"sequence": json.dumps(GOOD_SEQUENCE), "n_realisations": 8, "seed": 3},
+    )
+    assert response.status_code == 200, response.text
+    body = response.json()
+    expected = simulate(paper, GOOD_SEQUENCE, 8, np.random.default_rng(3))
+    omega = expected.omega_measured
+    assert body["time_s"] == pytest.approx(paper.sample_times(4).tolist())
+    assert body["impulse_nms"] == pytest.approx(24.0)  # 3 thrusters x 2 N m x 4 s
+    assert body["duties"] == [[1.0, 1.0, 1.0, 0.0, 0.0, 0.0]] * 4
+    assert [c["name"] for c in body["candidates"]] == paper.candidate_names
+    for k, candidate in enumerate(body["candidates"]):
+        assert np.allclose(candidate["mean_rad_s"], omega[k].mean(axis=0))
+        low = np.asarray(candidate["low_rad_s"])
+        high = np.asarray(candidate["high_rad_s"])
+        mean = np.asarray(candidate["mean_rad_s"])
+        assert np.all(low <= high) and np.all(low <= omega[k].max(axis=0))
+        assert np.allclose(low, np.percentile(omega[k], 10, axis=0))
+        assert mean.shape == (80, 3)
+        assert candidate["final_rate_rad_s"] == pytest.approx(
+            float(expected.final_rate_rad_s[k].mean())
+        )
+    # Same seed, same answer.
+    again = api.get(
+        f"/scenarios/{scenario_id}/response",
+        params={"sequence": json.dumps(GOOD_SEQUENCE), "n_realisations": 8, "seed": 3},
+    ).json()
+    assert again == body
+
+
+@pytest.mark.parametrize(
+    ("sequence", "n", "quoted"),
+    [
+        ("4,4,4,0,0,0", 20, "'4,4,4,0,0,0'"),
+        ("[[4, 4, 4, 0, 0]]", 20, "got shape (1, 5)"),
+        ("[[4, 4, 4, 0, 0, 9]]", 20, "level index 9"),
+        ('[["a", 4, 4, 0, 0, 0]]', 20, '\'[["a"'),
+        ("[[4, 4, 4, 0, 0, 0]]", 1, "greater than or equal to 2, got '1'"),
+        (json.dumps([[4, 4, 4, 0, 0, 0]] * 1000), 200, "1000 steps = 1000000 responses"),
+    ],
+)
+def test_a_bad_response_request_names_the_value(
+    api: Api, sequence: str, n: int, quoted: str
+) -> None:
+    scenario_id = api.post("/scenarios", json={"preset": "paper"}).json()["id"]
+    response = api.get(
+        f"/scenarios/{scenario_id}/response", params={"sequence": sequence, "n_realisations": n}
+    )
+    assert response.status_code == 422, response.text
+    assert quoted in response.json()["detail"][0]["msg"]
+
+
+def test_response_of_an_unknown_scenario_is_404(api: Api) -> None:
+    response = api.get("/scenarios/nope/response", params={"sequence": "[[4,4,4,0,0,0]]"})
+    assert response.status_code == 404

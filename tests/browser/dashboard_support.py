@@ -1,0 +1,73 @@
+"""What the browser tests share: the running service, a page's console, the dashboard."""
+
+from __future__ import annotations
+
+import os
+import re
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import httpx
+
+ROOT = Path(__file__).resolve().parents[2]
+API_KEY = "browser-" + "k" * 40
+ARTIFACTS = Path(os.environ.get("INERTIA_ID_ARTIFACTS_DIR", ROOT / "artifacts")) / "screenshots"
+
+
+@dataclass
+class Service:
+    base_url: str
+    client: httpx.Client
+    log: Path
+
+    def until(self, predicate: Callable[[], Any], timeout_s: float, what: str) -> Any:
+        """Poll ``predicate`` until it returns something truthy; fail with the log."""
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            try:
+                value = predicate()
+            except httpx.TransportError:
+                value = None
+            if value:
+                return value
+            time.sleep(0.25)
+        tail = self.log.read_text(errors="replace")[-6000:]
+        raise AssertionError(f"{what} within {timeout_s:g} s; service log:\n{tail}")
+
+    def job(self, job_id: str) -> dict[str, Any]:
+        return dict(self.client.get(f"/jobs/{job_id}").json())
+
+
+@dataclass
+class Console:
+    """What the page wrote to its console, and which errors a test expects."""
+
+    errors: list[str] = field(default_factory=list)
+    expected: list[re.Pattern[str]] = field(default_factory=list)
+
+    def expect(self, pattern: str) -> None:
+        self.expected.append(re.compile(pattern))
+
+    def unexpected(self) -> list[str]:
+        return [e for e in self.errors if not any(p.search(e) for p in self.expected)]
+
+
+@dataclass
+class Dashboard:
+    page: Any
+    console: Console
+    service: Service
+
+    def open(self, route: str) -> None:
+        """Go to a dashboard route (``#/jobs``) and wait for its page to be drawn."""
+        self.page.goto(f"{self.service.base_url}/{route}")
+        self.page.wait_for_selector("#page h1")
+
+    def screenshot(self, name: str) -> Path:
+        ARTIFACTS.mkdir(parents=True, exist_ok=True)
+        path = ARTIFACTS / f"{name}.png"
+        self.page.screenshot(path=str(path), full_page=True)
+        return path
