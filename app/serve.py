@@ -294,7 +294,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     pool = WorkerPool(args.workers, data_dir / "logs", log_level=args.log_level.upper())
     print(
         f"\ninertia-id service\n"
-        f"URL:       {url}   (API docs: {url}/docs)\n"
+        f"URL:       {url}   (dashboard; API docs: {url}/docs)\n"
         f"{_key_line(settings, generated)}\n"
         f"Data:      {data_dir}\n"
         f"Workers:   {args.workers} (logs in {pool.log_dir})\n",

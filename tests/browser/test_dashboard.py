@@ -8,6 +8,7 @@ compare searches, cancel a job. Each saves screenshots of its pages.
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Any
 
@@ -274,6 +275,17 @@ def test_identify_telemetry_files_verdict_distances_and_matches_none(
     page.wait_for_function("() => document.getElementById('overlay-plot')?.data?.length === 12")
     dashboard.screenshot("identify-matches-none")
 
+    # Pasted JSON works as a file does.
+    rows = [line.split(",") for line in matching.read_text(encoding="utf-8").split()[1:]]
+    document = {
+        "time_s": [float(r[0]) for r in rows],
+        "omega_rad_s": [[float(v) for v in r[1:]] for r in rows],
+    }
+    page.fill("#telemetry-text", json.dumps(document))
+    page.click("#identify-submit")
+    page.wait_for_selector("#verdict.match")
+    assert "payload 3 ejected" in page.inner_text("#verdict")
+
     dashboard.console.expect(r"status of 422")
     page.fill("#telemetry-text", "time_s,wx,wy,wz\n0.05,1,2\n")
     page.click("#identify-submit")
@@ -297,3 +309,14 @@ def test_compare_overlays_searches_and_a_job_can_be_cancelled(dashboard: Dashboa
     page.click("#cancel-job")
     page.wait_for_selector("#job-header .badge.status-cancelled", timeout=120_000)
     assert dashboard.service.job(job_id)["status"] == "cancelled"
+
+
+@pytest.mark.parametrize("route", ["#/scenarios", "#/jobs", "#/classifiers", "#/identify"])
+def test_pages_fit_a_laptop_screen(dashboard: Dashboard, route: str) -> None:
+    dashboard.page.set_viewport_size({"width": 1366, "height": 768})
+    dashboard.open(route)
+    dashboard.page.wait_for_load_state("networkidle")
+    overflow = dashboard.page.evaluate(
+        "() => document.documentElement.scrollWidth - window.innerWidth"
+    )
+    assert overflow <= 0, f"{route} is {overflow} px wider than a 1366 px screen"
