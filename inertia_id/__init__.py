@@ -13,6 +13,15 @@ The science core, usable from a notebook::
 
 from .classify import METRICS, InertiaClassifier, MatchScores, match_clusters, train
 from .identify import Identification, Telemetry, identify, load_telemetry, parse_telemetry
+from .leastsquares import InertiaEstimate, LeastSquaresClassifier, estimate_inertia
+from .likelihood import LikelihoodClassifier
+from .registry import (
+    CLASSIFIER_KINDS,
+    classifier_from_json,
+    load_classifier,
+    make_classifier,
+    train_classifier,
+)
 from .scenario import (
     PRESETS,
     CandidateGenerator,
@@ -25,18 +34,34 @@ from .scenario import (
     preset,
 )
 from .simulate import SimulationResult, Simulator, simulate
-from .sweep import SweepPoint, SweepResult, run_sweep, wilson_interval
+from .supervised import MiniRocketClassifier, NearestCentroidClassifier, NearestNeighbourClassifier
+from .sweep import (
+    InertiaSweepResult,
+    SweepPoint,
+    SweepResult,
+    run_inertia_sweep,
+    run_sweep,
+    wilson_interval,
+)
 
 __version__ = "0.1.0"
 
 __all__ = [
+    "CLASSIFIER_KINDS",
     "METRICS",
     "PRESETS",
     "CandidateGenerator",
     "Identification",
     "InertiaCandidate",
     "InertiaClassifier",
+    "InertiaEstimate",
+    "InertiaSweepResult",
+    "LeastSquaresClassifier",
+    "LikelihoodClassifier",
     "MatchScores",
+    "MiniRocketClassifier",
+    "NearestCentroidClassifier",
+    "NearestNeighbourClassifier",
     "Scenario",
     "SimulationResult",
     "Simulator",
@@ -47,13 +72,19 @@ __all__ = [
     "Timing",
     "Uncertainty",
     "check_inertia_tensor",
+    "classifier_from_json",
+    "estimate_inertia",
     "identify",
+    "load_classifier",
     "load_telemetry",
+    "make_classifier",
     "match_clusters",
     "parse_telemetry",
     "preset",
+    "run_inertia_sweep",
     "run_sweep",
     "simulate",
     "train",
+    "train_classifier",
     "wilson_interval",
 ]

@@ -22,8 +22,6 @@ A fitted classifier is stored as JSON with a SHA-256 checksum (:meth:`to_json`,
 
 from __future__ import annotations
 
-import hashlib
-import json
 import math
 import os
 import warnings
@@ -40,6 +38,7 @@ with warnings.catch_warnings():
     from tslearn.clustering import TimeSeriesKMeans
     from tslearn.metrics import cdist_dtw, cdist_soft_dtw_normalized
 
+from . import documents
 from .scenario import Scenario
 from .simulate import simulate
 
@@ -53,7 +52,6 @@ __all__ = [
 
 METRICS = ("dtw", "softdtw", "euclidean")
 FORMAT = "inertia-id/classifier"
-FORMAT_VERSION = 1
 
 
 @dataclass(frozen=True)
@@ -414,37 +412,12 @@ class InertiaClassifier(BaseEstimator):
 
     def to_json(self) -> str:
         """The fitted classifier as a checksummed JSON document."""
-        payload = self.to_dict()
-        return json.dumps(
-            {
-                "format": FORMAT,
-                "version": FORMAT_VERSION,
-                "sha256": _checksum(payload),
-                "classifier": payload,
-            }
-        )
+        return documents.write(FORMAT, self.to_dict())
 
     @classmethod
     def from_json(cls, text: str | bytes) -> InertiaClassifier:
         """Load a document written by :meth:`to_json`, verifying its checksum."""
-        try:
-            doc = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise ValueError(f"classifier document is not JSON: {exc}") from None
-        if not isinstance(doc, dict) or doc.get("format") != FORMAT:
-            raise ValueError(f"not an {FORMAT} document")
-        if doc.get("version") != FORMAT_VERSION:
-            raise ValueError(f"unsupported classifier format version {doc.get('version')!r}")
-        payload = doc.get("classifier")
-        if not isinstance(payload, dict):
-            raise ValueError("classifier document has no classifier payload")
-        actual = _checksum(payload)
-        if actual != doc.get("sha256"):
-            raise ValueError(
-                f"classifier checksum mismatch: document says {doc.get('sha256')!r}, "
-                f"content hashes to {actual!r}"
-            )
-        return cls.from_dict(payload)
+        return cls.from_dict(documents.read(text, FORMAT))
 
     def save(self, path: str | os.PathLike[str]) -> None:
         with open(path, "w", encoding="utf-8") as fh:
@@ -454,11 +427,6 @@ class InertiaClassifier(BaseEstimator):
     def load(cls, path: str | os.PathLike[str]) -> InertiaClassifier:
         with open(path, encoding="utf-8") as fh:
             return cls.from_json(fh.read())
-
-
-def _checksum(payload: dict[str, Any]) -> str:
-    canonical = json.dumps(payload, sort_keys=True, separators=(",", ":"))
-    return hashlib.sha256(canonical.encode()).hexdigest()
 
 
 def _macro_f1(confusion: np.ndarray) -> float:

@@ -14,12 +14,14 @@ import csv
 import io
 import json
 import os
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from pydantic import BaseModel, Field, field_validator, model_validator
 
-from .classify import InertiaClassifier
+if TYPE_CHECKING:
+    from .registry import CandidateClassifier
+
 
 __all__ = ["Identification", "Telemetry", "identify", "load_telemetry", "parse_telemetry"]
 
@@ -176,7 +178,7 @@ def resample(telemetry: Telemetry, grid_s: np.ndarray) -> np.ndarray:
 
 
 def identify(
-    classifier: InertiaClassifier, telemetry: Telemetry | dict[str, Any]
+    classifier: CandidateClassifier, telemetry: Telemetry | dict[str, Any]
 ) -> Identification:
     """Classify one telemetry series to a candidate, or say it matches none.
 

@@ -181,7 +181,8 @@ def test_bad_noises_are_rejected(
     shown = str(list(noises)).replace("[", r"\[").replace("]", r"\]")
     with pytest.raises(
         ValueError,
-        match=rf"noises must be among \['process', 'measurement'\], "
+        match=rf"noises must be among \['process', 'measurement', 'jitter', 'thrust_scale', "
+        rf"'gyro_bias'\], "
         rf"got {shown}",
     ):
         run_sweep(euclidean_classifier, noises=noises, n_test=10)
@@ -192,3 +193,112 @@ def test_bad_sizes_and_sequences_are_rejected(euclidean_classifier: InertiaClass
         run_sweep(euclidean_classifier, n_test=3)
     with pytest.raises(ValueError, match=r"level index 9 is outside 0\.\.4"):
         run_sweep(euclidean_classifier, sequence=[[9, 0, 0, 0, 0, 0]], n_test=10)
+
+
+# More sources of error, other classifiers on the same series, bodies off the candidates.
+
+
+def test_each_source_scales_its_own_level_and_a_zero_level_uses_the_reference(
+    euclidean_classifier: InertiaClassifier, paper: Scenario
+) -> None:
+    from inertia_id.sweep import REFERENCE_LEVELS, noise_level
+
+    assert paper.uncertainty.thrust_scale_sigma == 0.0
+    assert noise_level(paper, "thrust_scale") == REFERENCE_LEVELS["thrust_scale"]
+    assert noise_level(paper, "jitter") == paper.uncertainty.duty_jitter_sigma
+    result = run_sweep(
+        euclidean_classifier,
+        noises=["jitter", "thrust_scale", "gyro_bias"],
+        multiples=(0, 8),
+        n_test=250,
+        seed=4,
+    )
+    assert result.levels == {
+        "jitter": 0.02,
+        "thrust_scale": REFERENCE_LEVELS["thrust_scale"],
+        "gyro_bias": REFERENCE_LEVELS["gyro_bias"],
+    }
+    assert result.units["gyro_bias"] == "rad/s"
+    for noise in ("jitter", "thrust_scale", "gyro_bias"):
+        clean, noisy = result.curve(noise)
+        assert (clean.value, noisy.value) == (0.0, 8 * result.levels[noise])
+        # Eight times the 1x level of any of these confounds the candidates (5-15 %
+        # apart): accuracy falls by far more than its interval.
+        assert noisy.ci_high < clean.ci_low, noise
+
+
+def test_thrust_scale_error_is_drawn_into_the_simulation(paper: Scenario) -> None:
+    from inertia_id.sweep import noise_level
+
+    erred = paper.with_uncertainty(thrust_scale_sigma=4 * noise_level(paper, "thrust_scale"))
+    clean = simulate(paper, GOOD_SEQUENCE, 30, np.random.default_rng(0))
+    scaled = simulate(erred, GOOD_SEQUENCE, 30, np.random.default_rng(0))
+    # The final rates spread more across realisations of the same candidate.
+    assert (
+        scaled.final_rate_rad_s.std(axis=1).mean() > 2 * clean.final_rate_rad_s.std(axis=1).mean()
+    )
+
+
+def test_other_classifiers_are_scored_on_the_same_series(
+    euclidean_classifier: InertiaClassifier,
+) -> None:
+    result = run_sweep(
+        euclidean_classifier,
+        others={"copy": euclidean_classifier},
+        multiples=(1, 6),
+        n_test=100,
+        seed=5,
+    )
+    assert list(result.others) == ["copy"]
+    assert result.others["copy"] == result.points
+    assert result.curve("process", "copy") == result.curve("process")
+
+
+def test_a_body_off_the_candidates_is_flagged_and_a_candidate_is_not(
+    euclidean_classifier: InertiaClassifier, paper: Scenario
+) -> None:
+    from inertia_id.sweep import run_inertia_sweep
+
+    result = run_inertia_sweep(
+        euclidean_classifier, scales=(1.0, 1.4), between=(0.0, 1.0), n_test=40, seed=6
+    )
+    scaled_1, scaled_14, end_a, end_b = result.points
+    a, b = result.pair
+    # The default pair is the closest two candidates.
+    gaps = {
+        (i, j): np.linalg.norm(
+            np.subtract(
+                paper.inertia_candidates[i].inertia_kg_m2, paper.inertia_candidates[j].inertia_kg_m2
+            )
+        )
+        for i in range(5)
+        for j in range(i + 1, 5)
+    }
+    assert min(gaps, key=gaps.get) == (a, b)  # type: ignore[arg-type]
+    assert scaled_1.matches_none_rate <= 0.05 and scaled_1.predicted[0] == 40
+    assert end_a.predicted[a] == 40 and end_b.predicted[b] == 40
+    assert end_a.matches_none_rate <= 0.05 and end_b.matches_none_rate <= 0.05
+    # 40 % heavier than every candidate: flagged.
+    assert scaled_14.matches_none_rate == 1.0
+    assert np.allclose(
+        scaled_14.inertia_kg_m2, 1.4 * np.asarray(paper.inertia_candidates[0].inertia_kg_m2)
+    )
+
+
+@pytest.mark.parametrize(
+    ("options", "quoted"),
+    [
+        ({"scales": (0.0,)}, "scales must be finite and > 0, got [0.0]"),
+        ({"between": (1.5,)}, "between positions must be in [0, 1], got [1.5]"),
+        ({"pair": (0, 9)}, "pair[1] = 9 is not a candidate index 0..4"),
+        ({"n_test": 0}, "n_test must be at least 1, got 0"),
+    ],
+)
+def test_bad_inertia_sweep_options_are_named(
+    euclidean_classifier: InertiaClassifier, options: dict, quoted: str
+) -> None:
+    from inertia_id.sweep import run_inertia_sweep
+
+    with pytest.raises(ValueError) as info:
+        run_inertia_sweep(euclidean_classifier, **options)
+    assert quoted in str(info.value)

@@ -1,0 +1,65 @@
+"""Classifier documents: JSON data with a format name, a version and a SHA-256.
+
+Every classifier kind stores itself as ``{"format", "version", "sha256", "classifier"}``
+where ``sha256`` hashes the canonical JSON of the ``classifier`` payload. Models are data
+(arrays as lists), never pickles, so a document from anywhere can be loaded safely; the
+checksum catches a document edited or truncated in transit.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from typing import Any
+
+__all__ = ["VERSION", "checksum", "parse", "read", "write"]
+
+VERSION = 1
+
+
+def checksum(payload: dict[str, Any]) -> str:
+    """SHA-256 of the payload's canonical JSON (sorted keys, no spaces)."""
+    canonical = json.dumps(payload, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(canonical.encode()).hexdigest()
+
+
+def write(format_name: str, payload: dict[str, Any]) -> str:
+    """The document holding ``payload`` under ``format_name``."""
+    return json.dumps(
+        {
+            "format": format_name,
+            "version": VERSION,
+            "sha256": checksum(payload),
+            "classifier": payload,
+        }
+    )
+
+
+def parse(text: str | bytes) -> dict[str, Any]:
+    """The document as a JSON object (not yet verified)."""
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"classifier document is not JSON: {exc}") from None
+    if not isinstance(doc, dict):
+        raise ValueError(f"classifier document must be a JSON object, got {type(doc).__name__}")
+    return doc
+
+
+def read(text: str | bytes | dict[str, Any], format_name: str) -> dict[str, Any]:
+    """The verified payload of a ``format_name`` document."""
+    doc = text if isinstance(text, dict) else parse(text)
+    if doc.get("format") != format_name:
+        raise ValueError(f"not an {format_name} document (format {doc.get('format')!r})")
+    if doc.get("version") != VERSION:
+        raise ValueError(f"unsupported classifier format version {doc.get('version')!r}")
+    payload = doc.get("classifier")
+    if not isinstance(payload, dict):
+        raise ValueError("classifier document has no classifier payload")
+    actual = checksum(payload)
+    if actual != doc.get("sha256"):
+        raise ValueError(
+            f"classifier checksum mismatch: document says {doc.get('sha256')!r}, "
+            f"content hashes to {actual!r}"
+        )
+    return payload
