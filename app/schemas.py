@@ -23,6 +23,7 @@ from pydantic import (
 )
 
 from inertia_id.identify import MAX_TELEMETRY_SAMPLES, Telemetry
+from inertia_id.registry import make_classifier, parse_spec
 from inertia_id.scenario import PRESETS, Scenario
 from inertia_id.search import ScorerSettings, check_ppo_params
 
@@ -79,7 +80,10 @@ JobType = Literal["search", "train", "sweep"]
 JobStatus = Literal["queued", "running", "succeeded", "failed", "cancelled"]
 SearchMethod = Literal["ppo", "exhaustive", "random"]
 ClassifierMetric = Literal["dtw", "euclidean", "softdtw"]
-NoiseKind = Literal["process", "measurement"]
+NoiseKind = Literal["process", "measurement", "jitter", "thrust_scale", "gyro_bias"]
+ClassifierKind = Literal[
+    "clustering", "nearest-centroid", "1nn", "minirocket", "likelihood", "least-squares"
+]
 
 
 def as_utc(value: datetime) -> datetime:
@@ -275,7 +279,13 @@ class SearchParams(_Request):
 
 
 class TrainParams(_Request):
-    """Train a classifier for a given actuation sequence."""
+    """Train a classifier for a given actuation sequence.
+
+    ``kind`` chooses the classifier: the paper's clustering, a supervised one, the
+    likelihood limit or the least-squares physics baseline; ``metric`` applies to
+    clustering (dtw, softdtw, euclidean; default dtw), nearest-centroid and 1nn (dtw,
+    euclidean; default dtw) and must be left out for the others.
+    """
 
     sequence: list[Annotated[list[int], Field(min_length=1, max_length=64)]] = Field(
         min_length=1,
@@ -283,8 +293,33 @@ class TrainParams(_Request):
         description="L x N level indices, one row per step, one column per thruster",
         examples=[[[4, 4, 4, 0, 0, 0]] * 4],
     )
-    metric: ClassifierMetric = "dtw"
+    kind: ClassifierKind = "clustering"
+    metric: ClassifierMetric | None = None
     n_realisations: int = Field(default=20, ge=1, le=200)
+
+    @model_validator(mode="after")
+    def _metric_fits_kind(self) -> Self:
+        if self.metric is None and self.kind in _KINDS_WITH_METRIC:
+            self.metric = "dtw"
+        elif self.metric is not None:
+            if self.kind not in _KINDS_WITH_METRIC:
+                raise ValueError(
+                    f"the {self.kind!r} classifier takes no metric, got metric {self.metric!r}"
+                )
+            make_classifier(self.kind, metric=self.metric)
+        if self.kind in ("likelihood", "1nn", "nearest-centroid") and self.n_realisations < 3:
+            raise ValueError(
+                f"the {self.kind!r} classifier needs at least 3 realisations per candidate, "
+                f"got n_realisations = {self.n_realisations}"
+            )
+        return self
+
+
+_KINDS_WITH_METRIC = ("clustering", "nearest-centroid", "1nn")
+
+
+def _default_others() -> list[str]:
+    return ["likelihood", "least-squares"]
 
 
 def _default_multiples() -> list[float]:
@@ -300,7 +335,38 @@ class SweepParams(_Request):
 
     classifier_id: str = Field(max_length=64)
     multiples: list[float] = Field(default_factory=_default_multiples, min_length=1, max_length=20)
-    noises: list[NoiseKind] = Field(default_factory=_all_noises, min_length=1, max_length=2)
+    noises: list[NoiseKind] = Field(
+        default_factory=_all_noises,
+        min_length=1,
+        max_length=5,
+        description="process, measurement, jitter, thrust_scale, gyro_bias: each scaled in "
+        "turn, the others at 1x (a source the scenario leaves at 0 scales a reference level)",
+    )
+    others: list[Annotated[str, Field(max_length=40)]] = Field(
+        default_factory=_default_others,
+        max_length=8,
+        description="classifiers trained at 1x on the same sequence and scored on the same "
+        "test series, as specs: 'likelihood' (the limit), 'least-squares', '1nn:euclidean', "
+        "'nearest-centroid:dtw', 'minirocket', 'clustering:euclidean'",
+    )
+    n_train: int = Field(
+        default=20, ge=3, le=200, description="training realisations per candidate for others"
+    )
+    inertia: bool = Field(
+        default=True,
+        description="also test bodies off the candidates (scaled, and between the closest "
+        "two): how often identify says 'matches none'",
+    )
+
+    @field_validator("others")
+    @classmethod
+    def _specs(cls, value: list[str]) -> list[str]:
+        for spec in value:
+            parse_spec(spec)
+        if len(set(value)) != len(value):
+            raise ValueError(f"others names a classifier twice: {value}")
+        return value
+
     n_test: int = Field(default=200, ge=5, le=2000)
 
     @field_validator("multiples")
@@ -410,6 +476,9 @@ class ClassifierOut(BaseModel):
     id: str
     job_id: str | None
     scenario_id: str
+    kind: str = Field(
+        description="clustering, nearest-centroid, 1nn, minirocket, likelihood, least-squares"
+    )
     metric: str
     f1: float
     accuracy: float
@@ -451,6 +520,19 @@ class IdentifyResult(BaseModel):
     threshold: float | None
     matches_none: bool
     verdict: str
+    estimated_inertia_kg_m2: list[list[float]] | None = Field(
+        default=None,
+        description="the inertia tensor integral-form least squares estimates from the "
+        "telemetry and the commanded torques (kg m^2); null if not finite",
+    )
+    estimated_principal_moments_kg_m2: list[float] | None = None
+    estimate_condition_number: float | None = Field(
+        default=None, description="of the least-squares problem; large: poorly excited"
+    )
+    poorly_excited: list[str] = Field(
+        default_factory=list,
+        description="inertia parameters the sequence hardly excites (their estimate is unreliable)",
+    )
 
 
 # Health.

@@ -18,11 +18,12 @@ from typing import Any, TypeVar
 import click
 import numpy as np
 
-from .classify import METRICS, InertiaClassifier, train
+from .classify import METRICS, train
 from .identify import identify, load_telemetry
+from .registry import CLASSIFIER_KINDS, load_classifier, parse_spec, train_classifier
 from .scenario import PRESETS, Scenario, preset
 from .simulate import simulate
-from .sweep import NOISE_KINDS, run_sweep
+from .sweep import DEFAULT_NOISES, NOISE_KINDS, run_inertia_sweep, run_sweep
 
 # The hand-designed excitation: the three positive-axis thrusters at full duty for
 # every step. Used by `paper --search none`.
@@ -299,20 +300,35 @@ def _metric_option(func: F) -> F:
 @main.command("train")
 @_scenario_options
 @_sequence_option(DEFAULT_SEQUENCE_TEXT)
-@_metric_option
+@click.option(
+    "--kind",
+    default="clustering",
+    show_default=True,
+    type=click.Choice(CLASSIFIER_KINDS),
+    help="clustering (the paper's), nearest-centroid, 1nn, minirocket, likelihood (the "
+    "accuracy limit) or least-squares (the physics baseline).",
+)
+@click.option(
+    "--metric",
+    default=None,
+    type=click.Choice(METRICS),
+    help="clustering: dtw (default), softdtw or euclidean; nearest-centroid and 1nn: dtw "
+    "(default) or euclidean; the other kinds take none.",
+)
 @_realisations_option("Training realisations per candidate.")
 @click.option(
     "--n-init",
     default=5,
     show_default=True,
     type=click.IntRange(1),
-    help="k-means initialisations; the lowest-inertia one is kept.",
+    help="clustering: k-means initialisations; the lowest-inertia one is kept.",
 )
 @click.option(
     "--band",
     default=None,
     type=click.IntRange(0),
-    help="Sakoe-Chiba band half-width (samples) for dtw; default unconstrained.",
+    help="Sakoe-Chiba band half-width (samples) for dtw (clustering, nearest-centroid, "
+    "1nn); default unconstrained.",
 )
 @_seed_option
 @click.option(
@@ -327,30 +343,32 @@ def train_cmd(
     preset_name: str,
     scenario_path: str | None,
     sequence_text: str,
-    metric: str,
+    kind: str,
+    metric: str | None,
     realisations: int,
     n_init: int,
     band: int | None,
     seed: int,
     out: str,
 ) -> None:
-    """Train the clustering classifier for a sequence at 1x noise."""
+    """Train a classifier of any kind for a sequence at 1x noise."""
     scenario = _load_scenario(preset_name, scenario_path)
     sequence = parse_sequence(sequence_text)
+    options: dict[str, Any] = {}
+    if kind in ("clustering", "nearest-centroid", "1nn"):
+        options = {"metric": metric or "dtw", "sakoe_chiba_radius": band}
+        if kind == "clustering":
+            options["n_init"] = n_init
+    elif metric is not None or band is not None:
+        raise ValueError(f"--kind {kind} takes no --metric or --band")
     click.echo(
-        f"training {metric} classifier on {scenario.n_candidates} candidates x "
-        f"{realisations} realisations ...",
+        f"training {kind} {options.get('metric', '')} classifier on {scenario.n_candidates} "
+        f"candidates x {realisations} realisations ...",
         err=True,
     )
     started = time.perf_counter()
-    model = train(
-        scenario,
-        sequence,
-        realisations,
-        np.random.default_rng(seed),
-        metric=metric,
-        n_init=n_init,
-        sakoe_chiba_radius=band,
+    model = train_classifier(
+        scenario, sequence, realisations, np.random.default_rng(seed), kind=kind, **options
     )
     model.save(out)
     click.echo(f"wrote {out} in {time.perf_counter() - started:.1f} s", err=True)
@@ -373,13 +391,26 @@ def _parse_multiples(text: str) -> list[float]:
     return values
 
 
+def _train_others(model: Any, specs: str, n_train: int, seed: int) -> dict[str, Any]:
+    """The ``--others`` classifiers, trained at 1x on the model's scenario and sequence."""
+    labels = [s.strip() for s in specs.split(",") if s.strip() and s.strip() != "none"]
+    rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(1)[0])
+    others = {}
+    for label in labels:
+        kind, options = parse_spec(label)
+        others[label] = train_classifier(
+            model.scenario_, model.sequence_, n_train, rng, kind=kind, **options
+        )
+    return others
+
+
 @main.command("sweep")
 @click.option(
     "--classifier",
     "classifier_path",
     required=True,
     type=click.Path(exists=True, dir_okay=False),
-    help="Classifier JSON from `train`.",
+    help="Classifier JSON from `train` (any kind).",
 )
 @_multiples_option
 @click.option(
@@ -387,34 +418,81 @@ def _parse_multiples(text: str) -> list[float]:
     "noises",
     multiple=True,
     type=click.Choice(NOISE_KINDS),
-    help="Noise to sweep (repeatable); default both.",
+    help="Source of error to sweep (repeatable): process, measurement, jitter, thrust_scale, "
+    "gyro_bias; default process and measurement.",
+)
+@click.option(
+    "--others",
+    default="likelihood,least-squares",
+    show_default=True,
+    help="Classifiers scored on the same test series, comma-separated specs "
+    "(likelihood = the limit, least-squares, 1nn:euclidean, nearest-centroid:dtw, "
+    "minirocket, clustering:euclidean), or 'none'.",
+)
+@click.option(
+    "--n-train",
+    default=20,
+    show_default=True,
+    type=click.IntRange(3),
+    help="Training realisations per candidate for --others.",
+)
+@click.option(
+    "--inertia/--no-inertia",
+    default=False,
+    show_default=True,
+    help="Also test bodies off the candidates (scaled, between the closest two): how often "
+    "is 'matches none' the answer?",
 )
 @_n_test_option
 @_seed_option
 @click.option("--out", default="sweep.json", show_default=True, type=click.Path(dir_okay=False))
 @_friendly_errors
 def sweep_cmd(
-    classifier_path: str, multiples: str, noises: tuple[str, ...], n_test: int, seed: int, out: str
+    classifier_path: str,
+    multiples: str,
+    noises: tuple[str, ...],
+    others: str,
+    n_train: int,
+    inertia: bool,
+    n_test: int,
+    seed: int,
+    out: str,
 ) -> None:
-    """Accuracy of a trained classifier as process and measurement noise grow."""
-    model = InertiaClassifier.load(classifier_path)
-    noise_kinds = noises or NOISE_KINDS
+    """Accuracy of a trained classifier as each source of error grows, beside others."""
+    model = load_classifier(classifier_path)
+    noise_kinds = noises or DEFAULT_NOISES
     values = _parse_multiples(multiples)
+    references = _train_others(model, others, n_train, seed)
     with _progress_bar(len(values) * len(noise_kinds), "sweep") as bar:
         result = run_sweep(
             model,
+            others=references,
             multiples=values,
             noises=noise_kinds,
             n_test=n_test,
             seed=seed,
             progress=lambda _f: bar.update(1),
         )
-    _write_json(out, result.model_dump(mode="json"))
-    for p in result.points:
+    document = result.model_dump(mode="json")
+    if inertia:
+        document["inertia"] = run_inertia_sweep(model, seed=seed).model_dump(mode="json")
+    _write_json(out, document)
+    labels = list(references)
+    click.echo(
+        f"{'noise':12s} {'multiple':>8s} {'value':>9s}  accuracy [95 % interval]  "
+        + "  ".join(labels)
+    )
+    for i, p in enumerate(result.points):
+        rest = "  ".join(f"{result.others[label][i].accuracy:>{len(label)}.3f}" for label in labels)
         click.echo(
-            f"{p.noise:12s} x{p.multiple:<5g} accuracy {p.accuracy:.3f} "
-            f"[{p.ci_low:.3f}, {p.ci_high:.3f}]"
+            f"{p.noise:12s} {p.multiple:>8g} {p.value:>9.3g}  {p.accuracy:.3f} "
+            f"[{p.ci_low:.3f}, {p.ci_high:.3f}]    {rest}"
         )
+    if inertia:
+        for q in document["inertia"]["points"]:
+            click.echo(
+                f"{q['body']:8s} {q['parameter']:>5g}  matches none {q['matches_none_rate']:.2f}"
+            )
 
 
 @main.command("identify")
@@ -435,8 +513,12 @@ def sweep_cmd(
 )
 @_friendly_errors
 def identify_cmd(classifier_path: str, telemetry_path: str) -> None:
-    """Classify telemetry to a candidate inertia, or say it matches none."""
-    model = InertiaClassifier.load(classifier_path)
+    """Classify telemetry to a candidate inertia, or say it matches none.
+
+    The answer also holds the inertia tensor that integral-form least squares estimates
+    from the same telemetry, and which parameters the sequence hardly excites.
+    """
+    model = load_classifier(classifier_path)
     verdict = identify(model, load_telemetry(telemetry_path))
     _write_json(None, verdict.model_dump(mode="json"))
 
@@ -710,9 +792,11 @@ def paper_cmd(
     model.save(out / "classifier.json")
     click.echo(f"      training F1 {model.f1_:.3f}, accuracy {model.accuracy_:.3f}", err=True)
     click.echo("[2/3] accuracy vs noise", err=True)
+    references = _train_others(model, "likelihood,least-squares", realisations, seed)
     with _progress_bar(2 * len(values), "sweep") as bar:
         sweep = run_sweep(
             model,
+            others=references,
             multiples=values,
             n_test=n_test,
             seed=int(seeds[1].generate_state(1)[0]),
@@ -747,7 +831,14 @@ def paper_cmd(
         "mean_final_rate_rad_s": result.mean_final_rate_rad_s,
         "accuracy": {
             noise: {f"{p.multiple:g}": p.accuracy for p in sweep.curve(noise)}
-            for noise in NOISE_KINDS
+            for noise in DEFAULT_NOISES
+        },
+        "accuracy_others": {
+            label: {
+                noise: {f"{p.multiple:g}": p.accuracy for p in sweep.curve(noise, label)}
+                for noise in DEFAULT_NOISES
+            }
+            for label in sweep.others
         },
         "wall_time_s": time.perf_counter() - started,
     }

@@ -19,6 +19,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from pydantic import BaseModel, Field, field_validator, model_validator
 
+from .leastsquares import estimate_inertia
+
 if TYPE_CHECKING:
     from .registry import CandidateClassifier
 
@@ -99,6 +101,10 @@ class Identification(BaseModel):
     threshold: float
     matches_none: bool
     verdict: str
+    estimated_inertia_kg_m2: list[list[float]] | None = None
+    estimated_principal_moments_kg_m2: list[float] | None = None
+    estimate_condition_number: float | None = None
+    poorly_excited: list[str] = []
 
 
 def parse_telemetry(text: str, *, fmt: str = "auto") -> Telemetry:
@@ -207,6 +213,12 @@ def identify(
         if matches_none
         else f"{name}"
     )
+    # The physics baseline's view of the same telemetry: the inertia tensor the
+    # integral-form least squares estimates from it, whatever the classifier's kind.
+    estimate = estimate_inertia(scenario, sequence, series)
+    tensor = np.asarray(estimate.inertia_kg_m2)
+    finite = bool(np.all(np.isfinite(tensor)))
+    condition = float(estimate.condition_number)
     return Identification(
         candidate_index=best,
         candidate=name,
@@ -219,4 +231,8 @@ def identify(
         threshold=threshold,
         matches_none=matches_none,
         verdict=verdict,
+        estimated_inertia_kg_m2=tensor.tolist() if finite else None,
+        estimated_principal_moments_kg_m2=np.linalg.eigvalsh(tensor).tolist() if finite else None,
+        estimate_condition_number=condition if np.isfinite(condition) else None,
+        poorly_excited=estimate.poorly_excited(),
     )

@@ -100,7 +100,11 @@ def response_figure(result: SimulationResult) -> go.Figure:
 
 
 def accuracy_figure(sweep: SweepResult) -> go.Figure:
-    """Accuracy vs noise multiple with Wilson 95 % intervals, one line per noise."""
+    """Accuracy vs noise multiple with Wilson 95 % intervals, one line per noise.
+
+    Other classifiers of the sweep (the likelihood limit: dashed; the rest: dotted) are
+    drawn in the same colour as the noise they were scored under.
+    """
     fig = go.Figure()
     names = {
         "process": "process noise (disturbance torque)",
@@ -127,6 +131,20 @@ def accuracy_figure(sweep: SweepResult) -> go.Figure:
                 },
             )
         )
+    for label, others in sweep.others.items():
+        for i, noise in enumerate(("process", "measurement")):
+            points = [p for p in others if p.noise == noise]
+            if not points:
+                continue
+            fig.add_trace(
+                go.Scatter(
+                    x=[p.multiple for p in points],
+                    y=[p.accuracy for p in points],
+                    mode="lines",
+                    name=f"{label}, {names[noise].split(' (')[0]}",
+                    line={"color": _COLOURS[i], "dash": "dash" if label == "likelihood" else "dot"},
+                )
+            )
     fig.update_layout(
         title=f"Accuracy vs noise ({sweep.metric}, "
         f"{sweep.n_test_per_candidate} test series per candidate per point)",

@@ -16,7 +16,14 @@ import numpy as np
 
 from app.db import ClassifierRow
 from app.db.models import new_id
-from inertia_id import InertiaClassifier, Scenario, run_sweep, train
+from inertia_id import (
+    Scenario,
+    classifier_from_json,
+    run_inertia_sweep,
+    run_sweep,
+    train_classifier,
+)
+from inertia_id.registry import parse_spec
 from inertia_id.search import ScorerSettings, SearchProgress, search
 
 from .runner import JobContext, Outcome
@@ -106,12 +113,14 @@ def run_train_job(context: JobContext) -> Outcome:
     spec = context.spec
     params = spec.params
     scenario = Scenario.model_validate(spec.scenario)
-    options = _present(params, {"metric": "metric"})
-    model = train(
+    kind = params.get("kind", "clustering")
+    options = {"metric": params["metric"]} if params.get("metric") is not None else {}
+    model = train_classifier(
         scenario,
         params["sequence"],
         int(params.get("n_realisations", 20)),
         np.random.default_rng(spec.seed),
+        kind=kind,
         **options,
     )
     if context.check_now():
@@ -124,6 +133,7 @@ def run_train_job(context: JobContext) -> Outcome:
         id=new_id(),
         job_id=spec.id,
         scenario_id=spec.scenario_id,
+        kind=kind,
         metric=model.metric,
         f1=float(model.f1_),
         accuracy=float(model.accuracy_),
@@ -135,6 +145,7 @@ def run_train_job(context: JobContext) -> Outcome:
     )
     result = {
         "classifier_id": row.id,
+        "kind": kind,
         "metric": row.metric,
         "f1": row.f1,
         "accuracy": row.accuracy,
@@ -153,11 +164,15 @@ def run_train_job(context: JobContext) -> Outcome:
 
 
 def run_sweep_job(context: JobContext) -> Outcome:
-    """Accuracy of a stored classifier as process and measurement noise grow.
+    """Accuracy of a stored classifier as each source of error grows.
 
-    Metrics: "accuracy_process" and "accuracy_measurement", one point per multiple, at
-    step = the multiple's index in the job's ``multiples`` list (0, 1, ...), value = the
-    accuracy there. A cancel stops between points; the points done are kept.
+    ``others`` (default: the likelihood limit and least squares) are trained at 1x on
+    the classifier's scenario and sequence, from the job's seed, and scored on the same
+    test series; with ``inertia`` the result also says how often bodies off the
+    candidates are flagged "matches none". Metrics: "accuracy_<noise>" for each noise
+    swept, one point per multiple, at step = the multiple's index in the job's
+    ``multiples`` list (0, 1, ...), value = the accuracy there. A cancel stops between
+    points; the points done are kept.
     """
     spec = context.spec
     params = spec.params
@@ -167,21 +182,47 @@ def run_sweep_job(context: JobContext) -> Outcome:
         document = None if row is None else row.document
     if document is None:
         raise ValueError(f"classifier {classifier_id!r} does not exist")
-    classifier = InertiaClassifier.from_json(document)
+    classifier = classifier_from_json(document)
+    scenario = classifier.scenario_
+    seeds = np.random.SeedSequence(spec.seed).spawn(3)
+    train_rng = np.random.default_rng(seeds[0])
+    others = {}
+    for label in params.get("others", ["likelihood", "least-squares"]):
+        kind, options = parse_spec(label)
+        others[label] = train_classifier(
+            scenario,
+            classifier.sequence_,
+            int(params.get("n_train", 20)),
+            train_rng,
+            kind=kind,
+            **options,
+        )
+    with_inertia = bool(params.get("inertia", True))
+    share = 0.8 if with_inertia else 1.0
     sweep = run_sweep(
         classifier,
-        seed=spec.seed,
-        progress=lambda fraction: context.report(progress=fraction),
+        others=others,
+        seed=int(seeds[1].generate_state(1)[0]),
+        progress=lambda fraction: context.report(progress=share * fraction),
         should_stop=context.should_stop,
         **_present(params, {"multiples": "multiples", "noises": "noises", "n_test": "n_test"}),
     )
+    result = sweep.model_dump(mode="json")
+    if with_inertia and not context.cancelled:
+        inertia = run_inertia_sweep(
+            classifier,
+            seed=int(seeds[2].generate_state(1)[0]),
+            progress=lambda fraction: context.report(progress=share + (1 - share) * fraction),
+            should_stop=context.should_stop,
+        )
+        result["inertia"] = inertia.model_dump(mode="json")
     metrics = [
         (f"accuracy_{noise}", step, point.accuracy)
         for noise in dict.fromkeys(p.noise for p in sweep.points)
         for step, point in enumerate(sweep.curve(noise))
     ]
     status = "cancelled" if context.cancelled else "succeeded"
-    return Outcome(status=status, result=sweep.model_dump(mode="json"), metrics=metrics)
+    return Outcome(status=status, result=result, metrics=metrics)
 
 
 HANDLERS: dict[str, Callable[[JobContext], Outcome]] = {

@@ -51,7 +51,7 @@ def list_classifiers(
 
 @router.get("/{classifier_id}", responses=_NOT_FOUND)
 def get_classifier(classifier_id: str, session: SessionDep) -> ClassifierOut:
-    """Sequence, metric, F1, accuracy, confusion matrix, candidate names, provenance."""
+    """Kind, sequence, metric, F1, accuracy, confusion matrix, candidate names, provenance."""
     return ClassifierOut.model_validate(
         get_or_404(session, ClassifierRow, classifier_id, "classifier")
     )
@@ -69,7 +69,7 @@ def get_classifier(classifier_id: str, session: SessionDep) -> ClassifierOut:
     },
 )
 def download_classifier(classifier_id: str, session: SessionDep) -> Response:
-    """The stored checksummed JSON document, as written by ``InertiaClassifier.to_json``."""
+    """The stored checksummed JSON document, as written by the classifier's ``to_json``."""
     row = get_or_404(session, ClassifierRow, classifier_id, "classifier")
     return Response(
         content=row.document,

@@ -20,8 +20,8 @@ from fastapi.exceptions import RequestValidationError
 from pydantic import ValidationError
 from starlette.datastructures import UploadFile
 
-from inertia_id.classify import InertiaClassifier
 from inertia_id.identify import Telemetry, identify, parse_telemetry
+from inertia_id.registry import CandidateClassifier, classifier_from_json
 
 from ..db.models import ClassifierRow
 from ..db.session import Database
@@ -42,10 +42,12 @@ class ClassifierCache:
 
     def __init__(self, size: int) -> None:
         self.size = size
-        self._items: OrderedDict[tuple[str, str], InertiaClassifier] = OrderedDict()
+        self._items: OrderedDict[tuple[str, str], CandidateClassifier] = OrderedDict()
         self._lock = threading.Lock()
 
-    def get(self, key: tuple[str, str], load: Callable[[], InertiaClassifier]) -> InertiaClassifier:
+    def get(
+        self, key: tuple[str, str], load: Callable[[], CandidateClassifier]
+    ) -> CandidateClassifier:
         with self._lock:
             model = self._items.get(key)
             if model is not None:
@@ -75,7 +77,7 @@ def _identify(
     with database.session() as session:
         row = get_or_404(session, ClassifierRow, classifier_id, "classifier")
         key, document = (row.id, row.sha256), row.document
-    classifier = cache.get(key, lambda: InertiaClassifier.from_json(document))
+    classifier = cache.get(key, lambda: classifier_from_json(document))
     result = identify(classifier, telemetry).model_dump()
     return IdentifyResult.model_validate({**finite_or_none(result), "classifier_id": key[0]})
 

@@ -96,6 +96,7 @@ class ClassifierRow(Base):
         ForeignKey("jobs.id", ondelete="SET NULL"), default=None
     )
     scenario_id: Mapped[str] = mapped_column(ForeignKey("scenarios.id", ondelete="RESTRICT"))
+    kind: Mapped[str] = mapped_column(String(32), default="clustering", server_default="clustering")
     metric: Mapped[str] = mapped_column(String(16))
     f1: Mapped[float] = mapped_column(Float)
     accuracy: Mapped[float] = mapped_column(Float)

@@ -17,8 +17,9 @@ from app.db.models import JobRow
 from app.queue import RUN_JOB_TASK
 from app.schemas import SearchParams, SweepParams, TrainParams
 from inertia_id import METRICS, InertiaClassifier
+from inertia_id.registry import CLASSIFIER_KINDS
 from inertia_id.search import SEARCH_METHODS
-from inertia_id.sweep import NOISE_KINDS
+from inertia_id.sweep import DEFAULT_NOISES, NOISE_KINDS
 
 from .support import GOOD_SEQUENCE, Api, make_settings
 
@@ -147,6 +148,9 @@ def test_sweep_job_for_a_stored_classifier(api: Api, classifier: InertiaClassifi
         "multiples": [1.0, 4.0],
         "noises": ["process", "measurement"],
         "n_test": 200,
+        "others": ["likelihood", "least-squares"],
+        "n_train": 20,
+        "inertia": True,
     }
 
 
@@ -267,7 +271,12 @@ def test_get_job(api: Api) -> None:
     job = api.get(f"/jobs/{job_id}").json()
     assert job["id"] == job_id
     assert job["type"] == "train"
-    assert job["params"] == {"sequence": GOOD_SEQUENCE, "metric": "dtw", "n_realisations": 20}
+    assert job["params"] == {
+        "sequence": GOOD_SEQUENCE,
+        "kind": "clustering",
+        "metric": "dtw",
+        "n_realisations": 20,
+    }
     assert job["status"] == "queued"
     assert job["error"] is None and job["result"] is None
     assert job["started_at"] is None and job["finished_at"] is None
@@ -395,7 +404,12 @@ def test_the_api_accepts_every_method_metric_and_noise_of_the_core() -> None:
         assert SearchParams.model_validate({"metric": metric}).metric == metric
         train = TrainParams.model_validate({"sequence": GOOD_SEQUENCE, "metric": metric})
         assert train.metric == metric
-    assert SweepParams(classifier_id="x").noises == list(NOISE_KINDS)
+    assert SweepParams(classifier_id="x").noises == list(DEFAULT_NOISES)
+    for noise in NOISE_KINDS:
+        assert SweepParams(classifier_id="x", noises=[noise]).noises == [noise]
+    for kind in CLASSIFIER_KINDS:
+        assert TrainParams.model_validate({"sequence": GOOD_SEQUENCE, "kind": kind}).kind == kind
+        assert SweepParams(classifier_id="x", others=[kind]).others == [kind]
 
 
 def test_unreachable_broker_fails_the_job_with_503(
@@ -412,3 +426,32 @@ def test_unreachable_broker_fails_the_job_with_503(
     # A failed job is not reused: submitting again tries again.
     assert api.submit("search", scenario_id).status_code == 503
     assert api.get("/jobs").json()["total"] == 2
+
+
+@pytest.mark.parametrize(
+    ("params", "quoted"),
+    [
+        ({"kind": "likelihood", "metric": "dtw"}, "takes no metric, got metric 'dtw'"),
+        ({"kind": "1nn", "metric": "softdtw"}, "softdtw"),
+        ({"kind": "likelihood", "n_realisations": 2}, "n_realisations = 2"),
+        ({"kind": "forest"}, "'forest'"),
+    ],
+)
+def test_a_train_job_of_a_bad_kind_or_metric_is_refused_by_name(
+    api: Api, params: dict[str, Any], quoted: str
+) -> None:
+    scenario_id = api.create_scenario()["id"]
+    response = api.submit("train", scenario_id, params={"sequence": GOOD_SEQUENCE, **params})
+    assert response.status_code == 422, response.text
+    assert quoted in response.text
+
+
+def test_a_sweep_names_a_bad_other_classifier(api: Api, classifier: Any) -> None:
+    scenario_id = api.create_scenario()["id"]
+    classifier_id = api.insert_classifier(scenario_id, classifier)
+    for others, quoted in ((["knn"],), "got 'knn'"), ((["likelihood", "likelihood"],), "twice"):
+        response = api.submit(
+            "sweep", scenario_id, params={"classifier_id": classifier_id, "others": others[0]}
+        )
+        assert response.status_code == 422, response.text
+        assert quoted in response.text
