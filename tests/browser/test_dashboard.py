@@ -219,6 +219,18 @@ def test_a_sweep_draws_both_accuracy_curves_with_intervals_and_a_confusion_matri
         assert [y + e for y, e in zip(drawn["y"], drawn["plus"], strict=True)] == pytest.approx(
             [p["ci_high"] for p in points]
         )
+        # The limit and least squares, scored on the same series, drawn beside it.
+        limit = page.evaluate(
+            "id => document.getElementById(id).data.find(t => t.name.startsWith('limit')).y",
+            plot,
+        )
+        assert limit == pytest.approx(
+            [p["accuracy"] for p in result["others"]["likelihood"] if p["noise"] == noise]
+        )
+    page.wait_for_function("() => document.getElementById('inertia-plot')?.data?.length === 2")
+    flagged = page.evaluate("() => document.getElementById('inertia-plot').data[0].y")
+    scaled = [p for p in result["inertia"]["points"] if p["body"] == "scaled"]
+    assert flagged == pytest.approx([p["matches_none_rate"] for p in scaled])
     page.select_option("#confusion-noise", "process")
     page.select_option("#confusion-multiple", "8")
     eighth = next(p for p in result["points"] if p["noise"] == "process" and p["multiple"] == 8)
@@ -249,6 +261,10 @@ def test_identify_telemetry_files_verdict_distances_and_matches_none(
     verdict = page.wait_for_selector("#verdict")
     assert "payload 3 ejected" in verdict.inner_text()
     assert "match" in (verdict.get_attribute("class") or "")
+    # The physics baseline's estimate from the same telemetry, with its caveat: the
+    # hand-designed sequence fires one torque direction and excites little of the tensor.
+    estimate = page.inner_text("#ls-estimate")
+    assert "principal moments" in estimate and "hardly excites" in estimate
     assert _trace_points(dashboard, "distance-plot") == 5
     page.wait_for_function("() => document.getElementById('overlay-plot')?.data?.length === 12")
     dashboard.screenshot("identify")

@@ -24,8 +24,11 @@ import {
 } from "../ui.js";
 
 const NOISE_LABEL = {
-  process: "process-noise multiple (× 1× disturbance torque σ)",
-  measurement: "measurement-noise multiple (× 1× gyro noise σ)",
+  process: "process noise (disturbance torque σ)",
+  measurement: "measurement noise (gyro σ)",
+  jitter: "timing jitter (duty σ)",
+  thrust_scale: "thrust-scale error σ",
+  gyro_bias: "gyro bias σ",
 };
 
 export async function renderList(root) {
@@ -114,6 +117,7 @@ export async function renderClassifier(container, classifier, context, sweepId =
   const rows = [
     ["classifier", h("code", {}, classifier.id)],
     ["scenario", link(`#/scenarios/${classifier.scenario_id}`, scenario ? scenario.name : classifier.scenario_id)],
+    ["kind", h("span", { id: "classifier-kind" }, classifier.kind || "clustering")],
     ["metric", classifier.metric],
     ["training F1", h("span", { id: "classifier-f1" }, score(classifier.f1))],
     ["training accuracy", score(classifier.accuracy)],
@@ -175,43 +179,66 @@ async function sweepsOf(card, classifier, context, sweepId) {
   await show(chosen);
 }
 
-// Accuracy vs each noise multiple with 95 % intervals, and the confusion matrix at a
-// chosen point. While the sweep runs, its points come from the job's metrics (no
-// intervals yet); the finished result brings the intervals and the confusion matrices.
+// Accuracy vs each source of error's multiple with 95 % intervals, the other
+// classifiers scored on the same series (the likelihood limit dashed, least squares
+// dotted), the confusion matrix at a chosen point, and how often bodies off the
+// candidates get "matches none". While the sweep runs, the main classifier's points come
+// from the job's metrics; the finished result brings the rest.
+const OTHER_STYLE = {
+  likelihood: { dash: "dash", color: "#111", name: "limit: likelihood (matched filter)" },
+  "least-squares": { dash: "dot", color: "#8c564b", name: "least squares (physics)" },
+};
+
+const AXIS_LABEL = {
+  process: ["disturbance σ", "N m"],
+  measurement: ["gyro noise σ", "rad/s"],
+  jitter: ["duty jitter σ", "of full duty"],
+  thrust_scale: ["thrust-scale σ", "of torque"],
+  gyro_bias: ["gyro bias σ", "rad/s"],
+};
+
+function axisTitle(noise, result) {
+  const [label, unit] = AXIS_LABEL[noise] || [noise, ""];
+  const level = result && result.levels ? result.levels[noise] : null;
+  if (level === null || level === undefined) return `multiple of the 1× ${label}`;
+  return `multiple of the 1× ${label} (${fmt(level, 2)} ${unit})`;
+}
+
 export async function sweepPanel(holder, job, classifier, context) {
-  const plots = { process: plotDiv("accuracy-process"), measurement: plotDiv("accuracy-measurement") };
+  const noises = job.params.noises || ["process", "measurement"];
+  const plots = Object.fromEntries(noises.map((n) => [n, plotDiv(`accuracy-${n}`)]));
   const state = h("div", { id: "sweep-state" });
   const confusionHolder = h("div", { id: "sweep-confusion" });
-  holder.append(state, h("div", { class: "grid2" }, plots.process, plots.measurement), confusionHolder);
+  const inertiaHolder = h("div", { id: "sweep-inertia" });
+  holder.append(state, h("div", { class: "grid2" }, noises.map((n) => plots[n])), confusionHolder, inertiaHolder);
   const names = classifier ? classifier.candidate_names : [];
   const chance = names.length ? 1 / names.length : null;
   const multiples = job.params.multiples || [];
   const follower = new MetricFollower(job.id);
-  const live = { process: { x: [], y: [] }, measurement: { x: [], y: [] } };
+  const live = Object.fromEntries(noises.map((n) => [n, { x: [], y: [] }]));
+  const mainName = classifier ? `${classifier.kind || "clustering"} ${classifier.metric}` : "classifier";
 
-  const draw = (noise, x, y, low, high) => {
-    const trace = {
-      x,
-      y,
-      mode: "lines+markers",
-      name: `${classifier ? classifier.metric : ""} clustering`,
-      line: { color: COLORS[0] },
-      hovertemplate: "×%{x}: accuracy %{y:.3f}<extra></extra>",
-    };
+  const draw = (noise, x, y, low, high, others = {}, result = null) => {
+    const trace = { x, y, mode: "lines+markers", name: mainName, line: { color: COLORS[0], width: 2.5 }, hovertemplate: "×%{x}: accuracy %{y:.3f}<extra>%{fullData.name}</extra>" };
     if (low) {
       trace.error_y = { type: "data", symmetric: false, array: high.map((v, i) => v - y[i]), arrayminus: low.map((v, i) => y[i] - v), color: COLORS[0] };
-      trace.name += " (95 % Wilson interval)";
+      trace.name += " (95 % interval)";
     }
     const traces = [trace];
+    Object.entries(others).forEach(([label, points], i) => {
+      const style = OTHER_STYLE[label] || { dash: "solid", color: COLORS[(i + 2) % COLORS.length], name: label };
+      traces.push({ x: points.map((p) => p.multiple), y: points.map((p) => p.accuracy), mode: "lines+markers", marker: { size: 5 }, name: style.name, line: { color: style.color, dash: style.dash, width: 1.5 }, hovertemplate: "×%{x}: %{y:.3f}<extra>%{fullData.name}</extra>" });
+    });
     if (chance !== null && x.length) {
-      traces.push({ x: [Math.min(...x), Math.max(...x)], y: [chance, chance], mode: "lines", name: "chance", line: { color: "#7f7f7f", dash: "dash" }, hoverinfo: "skip" });
+      traces.push({ x: [Math.min(...x), Math.max(...x)], y: [chance, chance], mode: "lines", name: "chance", line: { color: "#9a9a9a", dash: "longdash", width: 1 }, hoverinfo: "skip" });
     }
     Plotly.react(
       plots[noise],
       traces,
-      layout(NOISE_LABEL[noise], "accuracy (fraction of test series)", {
-        title: { text: `Accuracy vs ${noise} noise`, font: { size: 14 } },
+      layout(axisTitle(noise, result), "accuracy (fraction of test series)", {
+        title: { text: `Accuracy vs ${NOISE_LABEL[noise] || noise}`, font: { size: 14 } },
         yaxis: { title: { text: "accuracy (fraction of test series)" }, range: [0, 1.03] },
+        height: 420,
       }),
       PLOT_CONFIG,
     );
@@ -219,18 +246,18 @@ export async function sweepPanel(holder, job, classifier, context) {
 
   const showResult = (result) => {
     clear(state);
-    state.append(h("p", { class: "muted" }, `${result.n_test_per_candidate} test series per candidate and point, seed ${result.seed}, metric ${result.metric}.`));
-    for (const noise of ["process", "measurement"]) {
+    const otherNames = Object.keys(result.others || {});
+    state.append(h("p", { class: "muted" }, `${result.n_test_per_candidate} test series per candidate and point, seed ${result.seed}. Beside ${mainName}: ${otherNames.join(", ") || "nothing"}, on the same series.`));
+    for (const noise of noises) {
       const points = result.points.filter((p) => p.noise === noise);
-      if (!points.length) {
-        plots[noise].replaceChildren(messageBox("notice", `this sweep did not vary ${noise} noise`));
-        continue;
-      }
-      draw(noise, points.map((p) => p.multiple), points.map((p) => p.accuracy), points.map((p) => p.ci_low), points.map((p) => p.ci_high));
+      if (!points.length) continue;
+      const others = Object.fromEntries(otherNames.map((label) => [label, result.others[label].filter((p) => p.noise === noise)]));
+      draw(noise, points.map((p) => p.multiple), points.map((p) => p.accuracy), points.map((p) => p.ci_low), points.map((p) => p.ci_high), others, result);
     }
     clear(confusionHolder);
     const noiseSelect = h("select", { id: "confusion-noise", "aria-label": "noise" }, [...new Set(result.points.map((p) => p.noise))].map((n) => h("option", { value: n }, n)));
     const multipleSelect = h("select", { id: "confusion-multiple", "aria-label": "noise multiple" });
+    const whoSelect = h("select", { id: "confusion-classifier", "aria-label": "classifier" }, h("option", { value: "" }, mainName), otherNames.map((n) => h("option", { value: n }, n)));
     const plot = plotDiv("confusion-plot");
     const fillMultiples = () => {
       const chosen = multipleSelect.value;
@@ -240,21 +267,25 @@ export async function sweepPanel(holder, job, classifier, context) {
       }
     };
     const drawConfusion = () => {
-      const point = result.points.find((p) => p.noise === noiseSelect.value && String(p.multiple) === multipleSelect.value);
-      if (point) confusionPlot(plot, point.confusion, result.candidate_names, `${point.noise} noise ×${point.multiple}: accuracy ${score(point.accuracy)} (95 % interval ${score(point.ci_low)}–${score(point.ci_high)})`);
+      const source = whoSelect.value ? result.others[whoSelect.value] : result.points;
+      const point = source.find((p) => p.noise === noiseSelect.value && String(p.multiple) === multipleSelect.value);
+      const who = whoSelect.value || mainName;
+      if (point) confusionPlot(plot, point.confusion, result.candidate_names, `${who}, ${point.noise} ×${point.multiple}: accuracy ${score(point.accuracy)} (95 % interval ${score(point.ci_low)}–${score(point.ci_high)})`);
     };
     noiseSelect.addEventListener("change", () => {
       fillMultiples();
       drawConfusion();
     });
     multipleSelect.addEventListener("change", drawConfusion);
+    whoSelect.addEventListener("change", drawConfusion);
     fillMultiples();
     confusionHolder.append(
       h("h3", {}, "Confusion matrix at a noise level"),
-      h("div", { class: "toolbar" }, h("label", { for: "confusion-noise" }, "noise"), noiseSelect, h("label", { for: "confusion-multiple" }, "multiple"), multipleSelect),
+      h("div", { class: "toolbar" }, h("label", { for: "confusion-classifier" }, "classifier"), whoSelect, h("label", { for: "confusion-noise" }, "noise"), noiseSelect, h("label", { for: "confusion-multiple" }, "multiple"), multipleSelect),
       plot,
     );
     drawConfusion();
+    if (result.inertia) inertiaPlots(inertiaHolder, result.inertia);
   };
 
   let finished = false;
@@ -266,10 +297,10 @@ export async function sweepPanel(holder, job, classifier, context) {
       return;
     }
     clear(state);
-    state.append(h("div", { class: "toolbar" }, statusBadge(current.status), h("span", { class: "muted" }, current.status === "failed" ? current.error || "" : "points appear as the sweep measures them; intervals and confusion matrices when it finishes")));
+    state.append(h("div", { class: "toolbar" }, statusBadge(current.status), h("span", { class: "muted" }, current.status === "failed" ? current.error || "" : "points appear as the sweep measures them; intervals, the other classifiers and confusion matrices when it finishes")));
     const fresh = await follower.poll();
     if (!context.alive()) return;
-    for (const noise of ["process", "measurement"]) {
+    for (const noise of noises) {
       const series = fresh[`accuracy_${noise}`];
       if (!series) continue;
       series.steps.forEach((step, i) => {
@@ -281,4 +312,43 @@ export async function sweepPanel(holder, job, classifier, context) {
   };
   await update(job);
   return { update };
+}
+
+// Bodies that are none of the candidates: how often the answer is "matches none".
+function inertiaPlots(holder, inertia) {
+  clear(holder);
+  const names = inertia.candidate_names;
+  const scaled = inertia.points.filter((p) => p.body === "scaled");
+  const between = inertia.points.filter((p) => p.body === "between");
+  const plot = plotDiv("inertia-plot");
+  holder.append(
+    h("h3", {}, "Bodies off the candidates: is the answer \"matches none\"?"),
+    h("p", { class: "hint" }, `Scaled: ${names[inertia.base]}'s inertia times a factor (1 is the candidate itself). Between: from ${names[inertia.pair[0]]} (0) to ${names[inertia.pair[1]]} (1), the two closest candidates. Ideal: 0 at the candidates, 1 away from them.`),
+    plot,
+  );
+  const trace = (points, axis, color, name) => ({
+    x: points.map((p) => p.parameter),
+    y: points.map((p) => p.matches_none_rate),
+    xaxis: axis === 1 ? "x" : "x2",
+    yaxis: axis === 1 ? "y" : "y2",
+    mode: "lines+markers",
+    name,
+    line: { color },
+    error_y: { type: "data", symmetric: false, array: points.map((p) => p.ci_high - p.matches_none_rate), arrayminus: points.map((p) => p.matches_none_rate - p.ci_low), color },
+    text: points.map((p) => `nearest: ${p.predicted.map((c, k) => (c ? `${names[k]} ${c}` : "")).filter((t) => t).join(", ")}`),
+    hovertemplate: "%{x}: matches none %{y:.2f}<br>%{text}<extra></extra>",
+  });
+  Plotly.newPlot(
+    plot,
+    [trace(scaled, 1, COLORS[4], "scaled body"), trace(between, 2, COLORS[5], "in-between body")],
+    {
+      ...layout("", ""),
+      height: 380,
+      xaxis: { title: { text: `scale of ${names[inertia.base]}'s inertia (×)` }, domain: [0, 0.46], anchor: "y" },
+      yaxis: { title: { text: "fraction flagged \"matches none\"" }, range: [0, 1.05], anchor: "x" },
+      xaxis2: { title: { text: "position between the closest two candidates" }, domain: [0.54, 1], anchor: "y2" },
+      yaxis2: { range: [0, 1.05], anchor: "x2" },
+    },
+    PLOT_CONFIG,
+  );
 }

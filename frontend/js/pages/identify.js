@@ -128,6 +128,21 @@ async function showVerdict(holder, verdict, classifier, content, context) {
         h("dd", { class: "mono" }, verdict.inertia_kg_m2 ? verdict.inertia_kg_m2.map((r) => `[${r.map((v) => fmt(v, 4)).join(", ")}]`).join(" ") : "–"),
         h("dt", {}, "classifier"),
         h("dd", {}, link(`#/classifiers/${verdict.classifier_id}`, verdict.classifier_id)),
+        h("dt", {}, "least-squares estimate from this telemetry (kg m²)"),
+        h(
+          "dd",
+          { id: "ls-estimate" },
+          verdict.estimated_inertia_kg_m2
+            ? [
+                h("span", { class: "mono" }, verdict.estimated_inertia_kg_m2.map((r) => `[${r.map((v) => v.toFixed(2)).join(", ")}]`).join(" ")),
+                h("br"),
+                `principal moments ${verdict.estimated_principal_moments_kg_m2.map((v) => v.toFixed(2)).join(", ")}; condition number ${fmt(verdict.estimate_condition_number, 3)}`,
+                verdict.poorly_excited.length
+                  ? h("div", { class: "field-error" }, `the sequence hardly excites ${verdict.poorly_excited.join(", ")}: those components are unreliable`)
+                  : null,
+              ]
+            : "–",
+        ),
       ),
     ),
     h("div", { class: "grid2" }, h("div", { class: "card" }, h("h2", {}, "Distance to each candidate"), distancePlot), h("div", { class: "card" }, h("h2", {}, `Telemetry over ${verdict.candidate}'s response`), overlayPlot)),

@@ -15,6 +15,32 @@ import {
 } from "../ui.js";
 
 const TERMINAL = new Set(["succeeded", "failed", "cancelled"]);
+
+export const CLASSIFIER_KINDS = [
+  ["clustering", "clustering (the paper's time-series k-means)"],
+  ["nearest-centroid", "nearest centroid (supervised)"],
+  ["1nn", "1-nearest neighbour (supervised)"],
+  ["minirocket", "MiniRocket + ridge (supervised)"],
+  ["likelihood", "likelihood (matched filter: the accuracy limit)"],
+  ["least-squares", "least squares (physics baseline)"],
+];
+
+export const NOISES = [
+  ["process", "process (disturbance torque)"],
+  ["measurement", "measurement (gyro noise)"],
+  ["jitter", "thruster timing jitter"],
+  ["thrust_scale", "thrust-scale error"],
+  ["gyro_bias", "gyro bias"],
+];
+
+const OTHERS = [
+  ["likelihood", "the limit (likelihood)"],
+  ["least-squares", "least squares"],
+  ["1nn:euclidean", "1-NN euclidean"],
+  ["nearest-centroid:dtw", "nearest centroid dtw"],
+  ["minirocket", "MiniRocket"],
+  ["clustering:euclidean", "clustering euclidean"],
+];
 const POLL_MS = 2000;
 
 export function isTerminal(status) {
@@ -102,7 +128,8 @@ function submitForm(scenarios, classifiers, query) {
   const train = {
     scenario: scenarioSelect(),
     sequence: h("input", { size: 60 }),
-    metric: h("select", {}, ["dtw", "euclidean", "softdtw"].map((m) => h("option", { value: m }, m))),
+    kind: h("select", {}, CLASSIFIER_KINDS.map(([k, label]) => h("option", { value: k }, label))),
+    metric: h("select", {}, [h("option", { value: "" }, "default (dtw)"), ...["dtw", "euclidean", "softdtw"].map((m) => h("option", { value: m }, m))]),
     n_realisations: h("input", { value: 20, size: 6 }),
     seed: h("input", { value: 0, size: 8 }),
   };
@@ -120,7 +147,12 @@ function submitForm(scenarios, classifiers, query) {
     type: "train",
     scenario_id: train.scenario.value,
     seed: intOrText(train.seed.value),
-    params: { sequence: jsonOrText(train.sequence.value), metric: train.metric.value, n_realisations: intOrText(train.n_realisations.value) },
+    params: {
+      sequence: jsonOrText(train.sequence.value),
+      kind: train.kind.value,
+      ...(train.metric.value ? { metric: train.metric.value } : {}),
+      n_realisations: intOrText(train.n_realisations.value),
+    },
   });
 
   // Sweep.
@@ -128,8 +160,10 @@ function submitForm(scenarios, classifiers, query) {
     scenario: scenarioSelect(),
     classifier: h("select", {}),
     multiples: h("input", { value: "1, 2, 3, 4, 5, 6, 7, 8", size: 30 }),
-    process: h("input", { type: "checkbox", checked: true }),
-    measurement: h("input", { type: "checkbox", checked: true }),
+    noises: Object.fromEntries(NOISES.map(([n], i) => [n, h("input", { type: "checkbox", id: `sweep-noise-${n}`, checked: i < 2 })])),
+    others: Object.fromEntries(OTHERS.map(([spec], i) => [spec, h("input", { type: "checkbox", id: `sweep-other-${spec.replace(":", "-")}`, checked: i < 2 })])),
+    inertia: h("input", { type: "checkbox", id: "sweep-inertia", checked: true }),
+    n_train: h("input", { value: 20, size: 6 }),
     n_test: h("input", { value: 200, size: 8 }),
     seed: h("input", { value: 0, size: 8 }),
   };
@@ -155,7 +189,10 @@ function submitForm(scenarios, classifiers, query) {
         .split(/[,\s]+/)
         .filter((v) => v)
         .map((v) => (Number.isFinite(Number(v)) ? Number(v) : v)),
-      noises: [sweep.process.checked ? "process" : null, sweep.measurement.checked ? "measurement" : null].filter((v) => v),
+      noises: NOISES.map(([n]) => n).filter((n) => sweep.noises[n].checked),
+      others: OTHERS.map(([spec]) => spec).filter((spec) => sweep.others[spec].checked),
+      n_train: intOrText(sweep.n_train.value),
+      inertia: sweep.inertia.checked,
       n_test: intOrText(sweep.n_test.value),
     },
   });
@@ -185,7 +222,8 @@ function submitForm(scenarios, classifiers, query) {
         { class: "stack" },
         field("train-scenario", "scenario", train.scenario),
         field("train-sequence", "sequence", train.sequence, "JSON rows of level indices, one per step"),
-        field("train-metric", "metric", train.metric),
+        field("train-kind", "classifier", train.kind),
+        field("train-metric", "metric", train.metric, "clustering, nearest-centroid and 1nn only"),
         field("train-n_realisations", "realisations", train.n_realisations, "per candidate"),
         field("train-seed", "seed", train.seed),
       ),
@@ -199,12 +237,15 @@ function submitForm(scenarios, classifiers, query) {
         field("sweep-scenario", "scenario", sweep.scenario),
         field("sweep-classifier", "classifier", sweep.classifier),
         field("sweep-multiples", "noise multiples", sweep.multiples, "× the scenario's 1× level"),
-        [h("span", {}, "noises"), h("div", {}, h("label", {}, sweep.process, " process (disturbance torque)"), " ", h("label", {}, sweep.measurement, " measurement (gyro)"))],
+        [h("span", {}, "sources of error"), h("div", {}, NOISES.map(([n, label]) => h("label", { class: "check" }, sweep.noises[n], ` ${label}`)))],
+        [h("span", {}, "beside it"), h("div", {}, OTHERS.map(([spec, label]) => h("label", { class: "check" }, sweep.others[spec], ` ${label}`)))],
+        field("sweep-n_train", "their training", sweep.n_train, "realisations per candidate"),
+        [h("span", {}, "off the candidates"), h("label", { class: "check" }, sweep.inertia, " also test scaled and in-between bodies: is the answer \"matches none\"?")],
         field("sweep-n_test", "test series", sweep.n_test, "per point, over all candidates"),
         field("sweep-seed", "seed", sweep.seed),
       ),
       sweepBody,
-      { ...sweep, classifier_id: sweep.classifier },
+      { ...sweep, ...sweep.noises, ...sweep.others, classifier_id: sweep.classifier },
     ],
   };
 
@@ -241,7 +282,7 @@ function submitForm(scenarios, classifiers, query) {
           const job = await api.submitJob(body());
           location.hash = `#/jobs/${job.id}`;
         } catch (exc) {
-          const fields = Object.fromEntries(Object.entries(inputs).map(([k, v]) => [k, v]));
+          const fields = Object.fromEntries(Object.entries(inputs).filter(([, v]) => v instanceof Element));
           showFieldErrors(exc, fields, general);
         } finally {
           submit.disabled = false;
@@ -316,7 +357,7 @@ export async function render(root, context) {
           { dataset: { jobId: job.id, status: job.status } },
           h("td", {}, check),
           h("td", {}, link(`#/jobs/${job.id}`, job.id.slice(0, 8), { title: job.id })),
-          h("td", {}, job.type, job.type === "search" ? h("span", { class: "hint" }, ` ${job.params.method}`) : ""),
+          h("td", {}, job.type, h("span", { class: "hint" }, ` ${job.type === "search" ? job.params.method : job.type === "train" ? job.params.kind || "" : ""}`)),
           h("td", {}, statusBadge(job.status)),
           h("td", {}, progressBar(job.progress, job.status)),
           h("td", {}, link(`#/scenarios/${job.scenario_id}`, names[job.scenario_id] || job.scenario_id.slice(0, 8))),
