@@ -319,7 +319,7 @@ _KINDS_WITH_METRIC = ("clustering", "nearest-centroid", "1nn")
 
 
 def _default_others() -> list[str]:
-    return ["likelihood", "least-squares"]
+    return ["least-squares"]
 
 
 def _default_multiples() -> list[float]:
@@ -346,8 +346,16 @@ class SweepParams(_Request):
         default_factory=_default_others,
         max_length=8,
         description="classifiers trained at 1x on the same sequence and scored on the same "
-        "test series, as specs: 'likelihood' (the limit), 'least-squares', '1nn:euclidean', "
-        "'nearest-centroid:dtw', 'minirocket', 'clustering:euclidean'",
+        "test series, as specs: 'least-squares' (the physics baseline), '1nn:euclidean', "
+        "'nearest-centroid:dtw', 'minirocket', 'likelihood', 'clustering:euclidean'",
+    )
+    limit_realisations: int = Field(
+        default=200,
+        ge=0,
+        le=1000,
+        description="the limit: at every point a likelihood classifier (matched filter) is "
+        "fitted on this many realisations per candidate simulated at that point's noise and "
+        "scored on the same series; 0 leaves it out",
     )
     n_train: int = Field(
         default=20, ge=3, le=200, description="training realisations per candidate for others"

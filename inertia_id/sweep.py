@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 from pydantic import BaseModel
 
+from .likelihood import LikelihoodClassifier
 from .registry import CandidateClassifier
 from .scenario import Scenario
 from .simulate import simulate
@@ -124,6 +125,8 @@ class SweepResult(BaseModel):
     levels: dict[str, float] = {}
     units: dict[str, str] = {}
     others: dict[str, list[SweepPoint]] = {}
+    limit: list[SweepPoint] = []
+    limit_realisations: int = 0
 
     def curve(self, noise: str, classifier: str | None = None) -> list[SweepPoint]:
         """The points of one noise, of the main classifier or of ``others[classifier]``."""
@@ -169,6 +172,7 @@ def run_sweep(
     multiples: Sequence[float] = (1, 2, 3, 4, 5, 6, 7, 8),
     noises: Sequence[str] = DEFAULT_NOISES,
     n_test: int = 200,
+    limit_realisations: int = 0,
     seed: int = 0,
     progress: Callable[[float], None] | None = None,
     should_stop: Callable[[], bool] | None = None,
@@ -183,7 +187,14 @@ def run_sweep(
     :param multiples: noise multiples to visit, >= 0.
     :param noises: which sources to sweep, among :data:`NOISE_KINDS`.
     :param n_test: test series per point, spread evenly over the candidates.
-    :param seed: seed of the test draws; every point gets its own independent stream.
+    :param limit_realisations: with a number > 0, also measure the limit at every point:
+        the likelihood classifier (the Gaussian matched filter) fitted on that many
+        realisations per candidate simulated *at that point's noise*, i.e. a classifier
+        that knows the simulator, noise level included, scored on the same test series.
+        A classifier trained at 1x cannot know the noise grew; this one does, which is
+        what makes it a ceiling rather than another contestant.
+    :param seed: seed of the test draws; every point gets its own independent stream
+        (the limit's training draws come from other streams of the same seed).
     :param progress: called with the fraction done after each point.
     :param should_stop: polled between points; when it returns True the sweep stops and
         returns the points done so far (cooperative cancellation).
@@ -201,7 +212,17 @@ def run_sweep(
     if n_test < scenario.n_candidates:
         raise ValueError(f"n_test = {n_test} is fewer than the {scenario.n_candidates} candidates")
     per_candidate = n_test // scenario.n_candidates
+    if isinstance(limit_realisations, bool) or not (
+        isinstance(limit_realisations, int) and limit_realisations >= 0
+    ):
+        raise ValueError(f"limit_realisations must be an integer >= 0, got {limit_realisations!r}")
+    if 0 < limit_realisations < 3:
+        raise ValueError(
+            f"limit_realisations must be 0 (no limit) or at least 3, got {limit_realisations}"
+        )
     streams = np.random.SeedSequence(seed).spawn(len(noises) * len(multiples))
+    limit_streams = np.random.SeedSequence([seed, 1]).spawn(len(streams))
+    limit_points: list[SweepPoint] = []
     points: list[SweepPoint] = []
     other_points: dict[str, list[SweepPoint]] = {label: [] for label in others}
     levels = {noise: noise_level(scenario, noise) for noise in noises}
@@ -225,6 +246,13 @@ def run_sweep(
         points.append(_point(classifier, X, y, **where))
         for label, other in others.items():
             other_points[label].append(_point(other, X, y, **where))
+        if limit_realisations:
+            rng = np.random.default_rng(limit_streams[i])
+            X_fit, y_fit = simulate(at_level, sequence, limit_realisations, rng, **extra).dataset()
+            limit = LikelihoodClassifier().fit(
+                X_fit, y_fit, candidate_names=scenario.candidate_names
+            )
+            limit_points.append(_point(limit, X, y, **where))
         if progress is not None:
             progress((i + 1) / total)
     return SweepResult(
@@ -237,6 +265,8 @@ def run_sweep(
         levels=levels,
         units={noise: NOISE_UNITS[noise] for noise in noises},
         others=other_points,
+        limit=limit_points,
+        limit_realisations=limit_realisations,
     )
 
 

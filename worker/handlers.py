@@ -166,9 +166,10 @@ def run_train_job(context: JobContext) -> Outcome:
 def run_sweep_job(context: JobContext) -> Outcome:
     """Accuracy of a stored classifier as each source of error grows.
 
-    ``others`` (default: the likelihood limit and least squares) are trained at 1x on
-    the classifier's scenario and sequence, from the job's seed, and scored on the same
-    test series; with ``inertia`` the result also says how often bodies off the
+    ``others`` (default: least squares) are trained at 1x on the classifier's scenario
+    and sequence, from the job's seed, and scored on the same test series, and so is the
+    limit (a likelihood classifier fitted at each point's noise, ``limit_realisations``
+    per candidate); with ``inertia`` the result also says how often bodies off the
     candidates are flagged "matches none". Metrics: "accuracy_<noise>" for each noise
     swept, one point per multiple, at step = the multiple's index in the job's
     ``multiples`` list (0, 1, ...), value = the accuracy there. A cancel stops between
@@ -187,7 +188,7 @@ def run_sweep_job(context: JobContext) -> Outcome:
     seeds = np.random.SeedSequence(spec.seed).spawn(3)
     train_rng = np.random.default_rng(seeds[0])
     others = {}
-    for label in params.get("others", ["likelihood", "least-squares"]):
+    for label in params.get("others", ["least-squares"]):
         kind, options = parse_spec(label)
         others[label] = train_classifier(
             scenario,
@@ -202,6 +203,7 @@ def run_sweep_job(context: JobContext) -> Outcome:
     sweep = run_sweep(
         classifier,
         others=others,
+        limit_realisations=int(params.get("limit_realisations", 200)),
         seed=int(seeds[1].generate_state(1)[0]),
         progress=lambda fraction: context.report(progress=share * fraction),
         should_stop=context.should_stop,

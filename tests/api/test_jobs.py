@@ -148,7 +148,8 @@ def test_sweep_job_for_a_stored_classifier(api: Api, classifier: InertiaClassifi
         "multiples": [1.0, 4.0],
         "noises": ["process", "measurement"],
         "n_test": 200,
-        "others": ["likelihood", "least-squares"],
+        "others": ["least-squares"],
+        "limit_realisations": 200,
         "n_train": 20,
         "inertia": True,
     }

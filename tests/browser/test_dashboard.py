@@ -225,7 +225,7 @@ def test_a_sweep_draws_both_accuracy_curves_with_intervals_and_a_confusion_matri
             plot,
         )
         assert limit == pytest.approx(
-            [p["accuracy"] for p in result["others"]["likelihood"] if p["noise"] == noise]
+            [p["accuracy"] for p in result["limit"] if p["noise"] == noise]
         )
     page.wait_for_function("() => document.getElementById('inertia-plot')?.data?.length === 2")
     flagged = page.evaluate("() => document.getElementById('inertia-plot').data[0].y")

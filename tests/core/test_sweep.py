@@ -302,3 +302,27 @@ def test_bad_inertia_sweep_options_are_named(
     with pytest.raises(ValueError) as info:
         run_inertia_sweep(euclidean_classifier, **options)
     assert quoted in str(info.value)
+
+
+def test_the_limit_is_fitted_at_each_noise_and_is_never_below_the_classifier(
+    euclidean_classifier: InertiaClassifier,
+) -> None:
+    result = run_sweep(
+        euclidean_classifier, multiples=(1, 6), n_test=500, limit_realisations=100, seed=8
+    )
+    assert result.limit_realisations == 100
+    assert [(p.noise, p.multiple) for p in result.limit] == [
+        (p.noise, p.multiple) for p in result.points
+    ]
+    for mine, limit in zip(result.points, result.limit, strict=True):
+        p = mine.accuracy
+        sampling_error = 2 * math.sqrt(2 * p * (1 - p) / mine.n_series) + 1 / mine.n_series
+        assert limit.accuracy >= mine.accuracy - sampling_error, (mine, limit)
+    # At 6x process noise a classifier trained at 1x is beaten by one that knows the noise.
+    assert result.limit[1].accuracy > result.points[1].accuracy
+
+
+@pytest.mark.parametrize("bad", [2, -1, 1.5, True])
+def test_a_bad_limit_size_is_quoted(euclidean_classifier: InertiaClassifier, bad: object) -> None:
+    with pytest.raises(ValueError, match=f"got {bad!r}"):
+        run_sweep(euclidean_classifier, multiples=(1,), n_test=10, limit_realisations=bad)  # type: ignore[arg-type]

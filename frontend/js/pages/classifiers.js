@@ -185,7 +185,7 @@ async function sweepsOf(card, classifier, context, sweepId) {
 // candidates get "matches none". While the sweep runs, the main classifier's points come
 // from the job's metrics; the finished result brings the rest.
 const OTHER_STYLE = {
-  likelihood: { dash: "dash", color: "#111", name: "limit: likelihood (matched filter)" },
+  likelihood: { dash: "dashdot", color: "#555", name: "likelihood trained at 1×" },
   "least-squares": { dash: "dot", color: "#8c564b", name: "least squares (physics)" },
 };
 
@@ -218,13 +218,16 @@ export async function sweepPanel(holder, job, classifier, context) {
   const live = Object.fromEntries(noises.map((n) => [n, { x: [], y: [] }]));
   const mainName = classifier ? `${classifier.kind || "clustering"} ${classifier.metric}` : "classifier";
 
-  const draw = (noise, x, y, low, high, others = {}, result = null) => {
+  const draw = (noise, x, y, low, high, others = {}, result = null, limit = null) => {
     const trace = { x, y, mode: "lines+markers", name: mainName, line: { color: COLORS[0], width: 2.5 }, hovertemplate: "×%{x}: accuracy %{y:.3f}<extra>%{fullData.name}</extra>" };
     if (low) {
       trace.error_y = { type: "data", symmetric: false, array: high.map((v, i) => v - y[i]), arrayminus: low.map((v, i) => y[i] - v), color: COLORS[0] };
       trace.name += " (95 % interval)";
     }
     const traces = [trace];
+    if (limit && limit.length) {
+      traces.push({ x: limit.map((p) => p.multiple), y: limit.map((p) => p.accuracy), mode: "lines+markers", marker: { size: 5 }, name: "limit: likelihood fitted at each noise", line: { color: "#111", dash: "dash", width: 1.5 }, hovertemplate: "×%{x}: %{y:.3f}<extra>the limit</extra>" });
+    }
     Object.entries(others).forEach(([label, points], i) => {
       const style = OTHER_STYLE[label] || { dash: "solid", color: COLORS[(i + 2) % COLORS.length], name: label };
       traces.push({ x: points.map((p) => p.multiple), y: points.map((p) => p.accuracy), mode: "lines+markers", marker: { size: 5 }, name: style.name, line: { color: style.color, dash: style.dash, width: 1.5 }, hovertemplate: "×%{x}: %{y:.3f}<extra>%{fullData.name}</extra>" });
@@ -247,12 +250,19 @@ export async function sweepPanel(holder, job, classifier, context) {
   const showResult = (result) => {
     clear(state);
     const otherNames = Object.keys(result.others || {});
-    state.append(h("p", { class: "muted" }, `${result.n_test_per_candidate} test series per candidate and point, seed ${result.seed}. Beside ${mainName}: ${otherNames.join(", ") || "nothing"}, on the same series.`));
+    state.append(
+      h(
+        "p",
+        { class: "muted" },
+        `${result.n_test_per_candidate} test series per candidate and point, seed ${result.seed}. Beside ${mainName}, on the same series: ${otherNames.join(", ") || "no other classifier"}${result.limit && result.limit.length ? `, and the limit (a likelihood classifier fitted on ${result.limit_realisations} realisations per candidate at each noise level)` : ""}.`,
+      ),
+    );
     for (const noise of noises) {
       const points = result.points.filter((p) => p.noise === noise);
       if (!points.length) continue;
       const others = Object.fromEntries(otherNames.map((label) => [label, result.others[label].filter((p) => p.noise === noise)]));
-      draw(noise, points.map((p) => p.multiple), points.map((p) => p.accuracy), points.map((p) => p.ci_low), points.map((p) => p.ci_high), others, result);
+      const limit = (result.limit || []).filter((p) => p.noise === noise);
+      draw(noise, points.map((p) => p.multiple), points.map((p) => p.accuracy), points.map((p) => p.ci_low), points.map((p) => p.ci_high), others, result, limit);
     }
     clear(confusionHolder);
     const noiseSelect = h("select", { id: "confusion-noise", "aria-label": "noise" }, [...new Set(result.points.map((p) => p.noise))].map((n) => h("option", { value: n }, n)));

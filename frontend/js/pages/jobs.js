@@ -34,12 +34,12 @@ export const NOISES = [
 ];
 
 const OTHERS = [
-  ["likelihood", "the limit (likelihood)"],
   ["least-squares", "least squares"],
   ["1nn:euclidean", "1-NN euclidean"],
   ["nearest-centroid:dtw", "nearest centroid dtw"],
   ["minirocket", "MiniRocket"],
   ["clustering:euclidean", "clustering euclidean"],
+  ["likelihood", "likelihood (trained at 1×)"],
 ];
 const POLL_MS = 2000;
 
@@ -161,7 +161,8 @@ function submitForm(scenarios, classifiers, query) {
     classifier: h("select", {}),
     multiples: h("input", { value: "1, 2, 3, 4, 5, 6, 7, 8", size: 30 }),
     noises: Object.fromEntries(NOISES.map(([n], i) => [n, h("input", { type: "checkbox", id: `sweep-noise-${n}`, checked: i < 2 })])),
-    others: Object.fromEntries(OTHERS.map(([spec], i) => [spec, h("input", { type: "checkbox", id: `sweep-other-${spec.replace(":", "-")}`, checked: i < 2 })])),
+    others: Object.fromEntries(OTHERS.map(([spec], i) => [spec, h("input", { type: "checkbox", id: `sweep-other-${spec.replace(":", "-")}`, checked: i < 1 })])),
+    limit: h("input", { type: "checkbox", id: "sweep-limit", checked: true }),
     inertia: h("input", { type: "checkbox", id: "sweep-inertia", checked: true }),
     n_train: h("input", { value: 20, size: 6 }),
     n_test: h("input", { value: 200, size: 8 }),
@@ -193,6 +194,7 @@ function submitForm(scenarios, classifiers, query) {
       others: OTHERS.map(([spec]) => spec).filter((spec) => sweep.others[spec].checked),
       n_train: intOrText(sweep.n_train.value),
       inertia: sweep.inertia.checked,
+      limit_realisations: sweep.limit.checked ? 200 : 0,
       n_test: intOrText(sweep.n_test.value),
     },
   });
@@ -240,6 +242,7 @@ function submitForm(scenarios, classifiers, query) {
         [h("span", {}, "sources of error"), h("div", {}, NOISES.map(([n, label]) => h("label", { class: "check" }, sweep.noises[n], ` ${label}`)))],
         [h("span", {}, "beside it"), h("div", {}, OTHERS.map(([spec, label]) => h("label", { class: "check" }, sweep.others[spec], ` ${label}`)))],
         field("sweep-n_train", "their training", sweep.n_train, "realisations per candidate"),
+        [h("span", {}, "the limit"), h("label", { class: "check" }, sweep.limit, " draw the limit: a likelihood classifier fitted at each noise level (200 realisations per candidate)")],
         [h("span", {}, "off the candidates"), h("label", { class: "check" }, sweep.inertia, " also test scaled and in-between bodies: is the answer \"matches none\"?")],
         field("sweep-n_test", "test series", sweep.n_test, "per point, over all candidates"),
         field("sweep-seed", "seed", sweep.seed),
