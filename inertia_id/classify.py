@@ -23,7 +23,6 @@ A fitted classifier is stored as JSON with a SHA-256 checksum (:meth:`to_json`,
 from __future__ import annotations
 
 import math
-import os
 import warnings
 from dataclasses import dataclass
 from typing import Any
@@ -38,7 +37,7 @@ with warnings.catch_warnings():
     from tslearn.clustering import TimeSeriesKMeans
     from tslearn.metrics import cdist_dtw, cdist_soft_dtw_normalized
 
-from . import documents
+from .base import StoredClassifier
 from .scenario import Scenario
 from .simulate import simulate
 
@@ -127,7 +126,7 @@ def _as_dataset(X: Any) -> np.ndarray:
     return arr
 
 
-class InertiaClassifier(BaseEstimator):
+class InertiaClassifier(StoredClassifier, BaseEstimator):
     """Time-series k-means classifier of rate responses (the paper's TSC).
 
     :param metric: "dtw" (the paper's), "softdtw" or "euclidean".
@@ -144,6 +143,8 @@ class InertiaClassifier(BaseEstimator):
     :param init: optional (K, length, 3) initial centroids in rad/s (warm start).
     :param random_state: seed of the k-means initialisations.
     """
+
+    FORMAT = FORMAT
 
     def __init__(
         self,
@@ -327,31 +328,6 @@ class InertiaClassifier(BaseEstimator):
         )
         return out
 
-    def evaluate(self, X: Any, y: Any) -> dict[str, Any]:
-        """F1 (macro), accuracy and confusion matrix of predictions against ``y``."""
-        predicted = self.predict(X)
-        y = np.asarray(y)
-        if y.shape != predicted.shape:
-            raise ValueError(f"y must hold one label per series ({len(predicted)}), got {y.shape}")
-        if y.size and (
-            not np.issubdtype(y.dtype, np.integer) or y.min() < 0 or y.max() >= self.n_candidates_
-        ):
-            raise ValueError(
-                f"labels must lie in 0..{self.n_candidates_ - 1} (candidate indices), got "
-                f"{sorted(set(y.tolist()))[:10]}"
-            )
-        confusion = np.zeros((self.n_candidates_, self.n_candidates_), dtype=int)
-        np.add.at(confusion, (y, predicted), 1)
-        return {
-            "f1": _macro_f1(confusion),
-            "accuracy": float(np.trace(confusion) / max(confusion.sum(), 1)),
-            "confusion": confusion,
-        }
-
-    def score(self, X: Any, y: Any) -> float:
-        """Macro F1 of the predictions (the paper's score)."""
-        return float(self.evaluate(X, y)["f1"])
-
     # Storage as data.
 
     def to_dict(self) -> dict[str, Any]:
@@ -409,32 +385,6 @@ class InertiaClassifier(BaseEstimator):
                 f"{model.cluster_to_candidate_.shape} cluster matches"
             )
         return model
-
-    def to_json(self) -> str:
-        """The fitted classifier as a checksummed JSON document."""
-        return documents.write(FORMAT, self.to_dict())
-
-    @classmethod
-    def from_json(cls, text: str | bytes) -> InertiaClassifier:
-        """Load a document written by :meth:`to_json`, verifying its checksum."""
-        return cls.from_dict(documents.read(text, FORMAT))
-
-    def save(self, path: str | os.PathLike[str]) -> None:
-        with open(path, "w", encoding="utf-8") as fh:
-            fh.write(self.to_json())
-
-    @classmethod
-    def load(cls, path: str | os.PathLike[str]) -> InertiaClassifier:
-        with open(path, encoding="utf-8") as fh:
-            return cls.from_json(fh.read())
-
-
-def _macro_f1(confusion: np.ndarray) -> float:
-    tp = np.diag(confusion).astype(float)
-    denom = confusion.sum(axis=0) + confusion.sum(axis=1)
-    present = confusion.sum(axis=1) > 0
-    f1 = np.divide(2.0 * tp, denom, out=np.zeros_like(tp), where=denom > 0)
-    return float(f1[present].mean()) if present.any() else 0.0
 
 
 def train(

@@ -29,19 +29,16 @@ case (see :class:`LeastSquaresClassifier`).
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from sklearn.base import BaseEstimator
 
-from . import documents
+from .base import StoredClassifier, check_labels, confusion_scores
 from .dynamics import cross
 from .likelihood import (
-    _check_labels,
     _check_series,
-    _confusion_scores,
 )
 from .scenario import Scenario
 from .simulate import simulate
@@ -306,7 +303,7 @@ def estimate_inertia(
     )
 
 
-class LeastSquaresClassifier(BaseEstimator):
+class LeastSquaresClassifier(StoredClassifier, BaseEstimator):
     """Nearest candidate to the least-squares inertia estimate.
 
     Distances (``distance``):
@@ -335,6 +332,8 @@ class LeastSquaresClassifier(BaseEstimator):
     :param novelty_factor: multiple of the largest training distance beyond which a
         series matches no candidate.
     """
+
+    FORMAT = FORMAT
 
     def __init__(
         self,
@@ -397,7 +396,7 @@ class LeastSquaresClassifier(BaseEstimator):
         sequence = scenario.check_sequence(sequence)
         n_candidates = scenario.n_candidates
         X = _check_series(X, len(sequence) * scenario.timing.samples_per_step)
-        labels = _check_labels(y, len(X), n_candidates)
+        labels = check_labels(y, len(X), n_candidates)
         missing = sorted(set(range(n_candidates)) - set(labels.tolist()))
         if missing:
             raise ValueError(f"y must label every candidate of the scenario; missing {missing}")
@@ -428,7 +427,7 @@ class LeastSquaresClassifier(BaseEstimator):
         predicted = distances.argmin(axis=1)
         confusion = np.zeros((n_candidates, n_candidates), dtype=int)
         np.add.at(confusion, (labels, predicted), 1)
-        scores = _confusion_scores(confusion)
+        scores = confusion_scores(confusion)
         self.f1_ = scores["f1"]
         self.accuracy_ = scores["accuracy"]
         self.confusion_ = scores["confusion"]
@@ -483,18 +482,6 @@ class LeastSquaresClassifier(BaseEstimator):
         self._check_fitted()
         return np.asarray(self.novelty_factor * self.max_training_distance_)
 
-    def evaluate(self, X: Any, y: Any) -> dict[str, Any]:
-        """F1 (macro), accuracy and confusion matrix of predictions against ``y``."""
-        predicted = self.predict(X)
-        labels = _check_labels(y, len(predicted), self.n_candidates_)
-        confusion = np.zeros((self.n_candidates_, self.n_candidates_), dtype=int)
-        np.add.at(confusion, (labels, predicted), 1)
-        return _confusion_scores(confusion)
-
-    def score(self, X: Any, y: Any) -> float:
-        """Macro F1 of the predictions (the paper's score)."""
-        return float(self.evaluate(X, y)["f1"])
-
     # Storage as data.
 
     def to_dict(self) -> dict[str, Any]:
@@ -536,24 +523,6 @@ class LeastSquaresClassifier(BaseEstimator):
                 f"{model.max_training_distance_.shape} thresholds"
             )
         return model
-
-    def to_json(self) -> str:
-        """The fitted classifier as a checksummed JSON document."""
-        return documents.write(FORMAT, self.to_dict())
-
-    @classmethod
-    def from_json(cls, text: str | bytes) -> LeastSquaresClassifier:
-        """Load a document written by :meth:`to_json`, verifying its checksum."""
-        return cls.from_dict(documents.read(text, FORMAT))
-
-    def save(self, path: str | os.PathLike[str]) -> None:
-        with open(path, "w", encoding="utf-8") as fh:
-            fh.write(self.to_json())
-
-    @classmethod
-    def load(cls, path: str | os.PathLike[str]) -> LeastSquaresClassifier:
-        with open(path, encoding="utf-8") as fh:
-            return cls.from_json(fh.read())
 
 
 def train_least_squares(

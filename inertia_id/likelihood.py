@@ -21,7 +21,6 @@ checksum; nothing is pickled.
 from __future__ import annotations
 
 import math
-import os
 from typing import Any
 
 import numpy as np
@@ -30,7 +29,7 @@ from scipy.special import log_softmax
 from sklearn.base import BaseEstimator
 from sklearn.covariance import ledoit_wolf_shrinkage
 
-from . import documents
+from .base import StoredClassifier, check_labels
 from .scenario import Scenario
 from .simulate import simulate
 
@@ -70,39 +69,6 @@ def _check_series(X: Any, length: int | None = None) -> np.ndarray:
         value = float(arr[i, t, axis])
         raise ValueError(f"series {i}, sample {t}, axis {axis} is {value!r}; rates must be finite")
     return arr
-
-
-def _check_labels(y: Any, n_series: int, n_candidates: int | None = None) -> np.ndarray:
-    """Candidate indices, one per series, each in 0..K-1 (K inferred when not given)."""
-    arr = np.asarray(y)
-    if arr.shape != (n_series,):
-        raise ValueError(f"y must hold one label per series ({n_series}), got shape {arr.shape}")
-    if arr.size and not np.issubdtype(arr.dtype, np.integer):
-        if (
-            not np.issubdtype(arr.dtype, np.number)
-            or not np.all(np.isfinite(arr))
-            or np.any(arr != np.round(arr))
-        ):
-            raise ValueError(f"labels must be candidate indices, got {arr.tolist()[:10]}")
-    arr = arr.astype(int)
-    upper = n_candidates if n_candidates is not None else (int(arr.max()) + 1 if arr.size else 0)
-    outside = sorted({int(v) for v in arr if v < 0 or v >= upper})
-    if outside:
-        raise ValueError(f"labels must lie in 0..{upper - 1} (candidate indices), got {outside}")
-    return arr
-
-
-def _confusion_scores(confusion: np.ndarray) -> dict[str, Any]:
-    """Macro F1 (over the candidates present) and accuracy of a confusion matrix."""
-    tp = np.diag(confusion).astype(float)
-    denom = confusion.sum(axis=0) + confusion.sum(axis=1)
-    present = confusion.sum(axis=1) > 0
-    f1 = np.divide(2.0 * tp, denom, out=np.zeros_like(tp), where=denom > 0)
-    return {
-        "f1": float(f1[present].mean()) if present.any() else 0.0,
-        "accuracy": float(np.trace(confusion) / max(confusion.sum(), 1)),
-        "confusion": confusion,
-    }
 
 
 def _stratified_folds(y: np.ndarray, n_folds: int) -> np.ndarray:
@@ -159,7 +125,7 @@ def _cholesky(covariance: np.ndarray) -> np.ndarray:
         ) from None
 
 
-class LikelihoodClassifier(BaseEstimator):
+class LikelihoodClassifier(StoredClassifier, BaseEstimator):
     """Nearest candidate mean response under a shared Gaussian noise model.
 
     Why shrinkage towards ``(tr S / p) I``: the pooled sample covariance S of the
@@ -198,6 +164,8 @@ class LikelihoodClassifier(BaseEstimator):
     :param novelty_factor: a series farther from its nearest candidate than this multiple
         of the candidate's largest out-of-fold training distance "matches none".
     """
+
+    FORMAT = FORMAT
 
     def __init__(self, shrinkage: str | float = "cv", *, novelty_factor: float = 1.5) -> None:
         self.shrinkage = shrinkage
@@ -256,7 +224,7 @@ class LikelihoodClassifier(BaseEstimator):
         """
         self._check_params()
         X = _check_series(X)
-        y = _check_labels(y, len(X))
+        y = check_labels(y, len(X))
         n_candidates = int(y.max()) + 1
         counts = np.bincount(y, minlength=n_candidates)
         if n_candidates < 2 or counts.min() < 3:
@@ -405,18 +373,6 @@ class LikelihoodClassifier(BaseEstimator):
         self._check_fitted()
         return np.asarray(self.novelty_factor * self.max_training_distance_)
 
-    def evaluate(self, X: Any, y: Any) -> dict[str, Any]:
-        """F1 (macro), accuracy and confusion matrix of predictions against ``y``."""
-        predicted = self.predict(X)
-        labels = _check_labels(y, len(predicted), self.n_candidates_)
-        confusion = np.zeros((self.n_candidates_, self.n_candidates_), dtype=int)
-        np.add.at(confusion, (labels, predicted), 1)
-        return _confusion_scores(confusion)
-
-    def score(self, X: Any, y: Any) -> float:
-        """Macro F1 of the predictions (the paper's score)."""
-        return float(self.evaluate(X, y)["f1"])
-
     # Storage as data.
 
     def to_dict(self) -> dict[str, Any]:
@@ -476,24 +432,6 @@ class LikelihoodClassifier(BaseEstimator):
                 f"{len(model.means_)} means, {model.max_training_distance_.shape} thresholds"
             )
         return model
-
-    def to_json(self) -> str:
-        """The fitted classifier as a checksummed JSON document."""
-        return documents.write(FORMAT, self.to_dict())
-
-    @classmethod
-    def from_json(cls, text: str | bytes) -> LikelihoodClassifier:
-        """Load a document written by :meth:`to_json`, verifying its checksum."""
-        return cls.from_dict(documents.read(text, FORMAT))
-
-    def save(self, path: str | os.PathLike[str]) -> None:
-        with open(path, "w", encoding="utf-8") as fh:
-            fh.write(self.to_json())
-
-    @classmethod
-    def load(cls, path: str | os.PathLike[str]) -> LikelihoodClassifier:
-        with open(path, encoding="utf-8") as fh:
-            return cls.from_json(fh.read())
 
 
 def train_likelihood(

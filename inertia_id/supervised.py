@@ -41,7 +41,6 @@ InertiaClassifier.
 from __future__ import annotations
 
 import math
-import os
 from collections.abc import Sequence
 from typing import Any, ClassVar
 
@@ -50,8 +49,7 @@ from scipy.spatial.distance import cdist
 from sklearn.base import BaseEstimator
 from sklearn.linear_model import RidgeClassifierCV
 
-from . import documents
-from .classify import _macro_f1
+from .base import StoredClassifier, confusion_scores
 from .dtw import cdist_dtw, dba
 from .minirocket import MiniRocketParameters, fit_minirocket, minirocket_transform
 from .scenario import Scenario
@@ -118,7 +116,7 @@ def _check_positive_int(name: str, value: Any, minimum: int = 1) -> None:
         raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
 
 
-class SupervisedClassifier(BaseEstimator):
+class SupervisedClassifier(StoredClassifier, BaseEstimator):
     """What the supervised classifiers share: validation, scoring, novelty and storage.
 
     A subclass sets :attr:`kind`, and implements ``_fit`` (learn from checked series
@@ -133,6 +131,8 @@ class SupervisedClassifier(BaseEstimator):
     leave-one-out for 1-NN and MiniRocket, where training on a series and scoring it
     would flatter them).
     """
+
+    FORMAT = FORMAT
 
     kind: ClassVar[str] = ""
     novelty_factor: float
@@ -197,8 +197,9 @@ class SupervisedClassifier(BaseEstimator):
         confusion = np.zeros((n_candidates, n_candidates), dtype=int)
         np.add.at(confusion, (y, training.argmin(axis=1)), 1)
         self.confusion_ = confusion
-        self.f1_ = _macro_f1(confusion)
-        self.accuracy_ = float(np.trace(confusion) / confusion.sum())
+        scores = confusion_scores(confusion)
+        self.f1_ = scores["f1"]
+        self.accuracy_ = scores["accuracy"]
         return self
 
     # Prediction.
@@ -233,31 +234,6 @@ class SupervisedClassifier(BaseEstimator):
         """
         self._check_fitted()
         return np.asarray(self.novelty_factor * self.max_training_distance_)
-
-    def evaluate(self, X: Any, y: Any) -> dict[str, Any]:
-        """F1 (macro), accuracy and confusion matrix of predictions against ``y``."""
-        predicted = self.predict(X)
-        y = np.asarray(y)
-        if y.shape != predicted.shape:
-            raise ValueError(f"y must hold one label per series ({len(predicted)}), got {y.shape}")
-        if y.size and (
-            not np.issubdtype(y.dtype, np.integer) or y.min() < 0 or y.max() >= self.n_candidates_
-        ):
-            raise ValueError(
-                f"labels must lie in 0..{self.n_candidates_ - 1} (candidate indices), got "
-                f"{sorted(set(y.tolist()))[:10]}"
-            )
-        confusion = np.zeros((self.n_candidates_, self.n_candidates_), dtype=int)
-        np.add.at(confusion, (y, predicted), 1)
-        return {
-            "f1": _macro_f1(confusion),
-            "accuracy": float(np.trace(confusion) / max(confusion.sum(), 1)),
-            "confusion": confusion,
-        }
-
-    def score(self, X: Any, y: Any) -> float:
-        """Macro F1 of the predictions (the paper's score)."""
-        return float(self.evaluate(X, y)["f1"])
 
     # Storage as data.
 
@@ -317,28 +293,6 @@ class SupervisedClassifier(BaseEstimator):
                 f"{model.max_training_distance_.shape}"
             )
         return model
-
-    def to_json(self) -> str:
-        """The fitted classifier as a checksummed JSON document."""
-        return documents.write(FORMAT, self.to_dict())
-
-    @classmethod
-    def from_json(cls, text: str | bytes) -> SupervisedClassifier:
-        """Load a document written by :meth:`to_json`, verifying its checksum.
-
-        Called on :class:`SupervisedClassifier` it loads any kind; called on a subclass
-        it refuses a document of another kind.
-        """
-        return cls.from_dict(documents.read(text, FORMAT))
-
-    def save(self, path: str | os.PathLike[str]) -> None:
-        with open(path, "w", encoding="utf-8") as fh:
-            fh.write(self.to_json())
-
-    @classmethod
-    def load(cls, path: str | os.PathLike[str]) -> SupervisedClassifier:
-        with open(path, encoding="utf-8") as fh:
-            return cls.from_json(fh.read())
 
 
 # Distance-based classifiers.

@@ -351,7 +351,7 @@ def test_bad_series_at_prediction_are_refused(
             model.predict(X[:, :60])
         with pytest.raises(ValueError, match=r"series\[0, 5, 0\] = inf"):
             model.transform(np.where(np.arange(80)[None, :, None] == 5, np.inf, X)[:1])
-        with pytest.raises(ValueError, match=r"labels must lie in 0\.\.4 .* got \[0, 1, 2, 3, 7\]"):
+        with pytest.raises(ValueError, match=r"labels must lie in 0\.\.4 .* got \[7\]"):
             model.evaluate(X, np.where(y == 4, 7, y))
     with pytest.raises(ValueError, match="not fitted yet"):
         NearestNeighbourClassifier().predict(X)
