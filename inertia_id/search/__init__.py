@@ -1,9 +1,12 @@
 """Search for the actuation sequence that makes the inertia candidates most distinguishable.
 
-Three methods, one result shape (:class:`SearchResult`): :func:`ppo_search` (the paper's
-reinforcement learning), :func:`exhaustive_search` (small spaces) and
-:func:`random_search` (the baseline). All drive :class:`SequenceSearchEnv`, registered
-with Gymnasium as ``InertiaId/SequenceSearch-v0``.
+Four methods, one result shape (:class:`SearchResult`): :func:`ppo_search` (the paper's
+reinforcement learning), :func:`cem_search` (the cross-entropy method),
+:func:`exhaustive_search` (small spaces) and :func:`random_search` (the baseline). All
+drive :class:`SequenceSearchEnv`, registered with Gymnasium as
+``InertiaId/SequenceSearch-v0``, and all score sequences by the objective of their
+:class:`ScorerSettings`: the clustering F1 ("f1") or the separability bound
+("separability").
 """
 
 from typing import Any
@@ -11,6 +14,7 @@ from typing import Any
 import gymnasium as gym
 
 from ..scenario import Scenario
+from .cem import CEM_DEFAULTS, cem_search, check_cem_params
 from .env import ENV_ID, SequenceSearchEnv
 from .exhaustive import exhaustive_search
 from .ppo import PPO_DEFAULTS, SearchCallback, check_ppo_params, ppo_search
@@ -25,18 +29,20 @@ from .result import (
     evaluate_sequence,
     space_size,
 )
-from .scorer import SCORER_METRICS, PrefixScore, PrefixScorer, ScorerSettings
+from .scorer import SCORER_METRICS, SCORER_OBJECTIVES, PrefixScore, PrefixScorer, ScorerSettings
 
 if ENV_ID not in gym.registry:
     gym.register(id=ENV_ID, entry_point="inertia_id.search.env:SequenceSearchEnv")
 
-SEARCH_METHODS = ("ppo", "exhaustive", "random")
+SEARCH_METHODS = ("ppo", "cem", "exhaustive", "random")
 
 
 def search(method: str, scenario: Scenario, **options: Any) -> SearchResult:
-    """Run the search ``method`` ("ppo", "exhaustive" or "random") with its options."""
+    """Run the search ``method`` ("ppo", "cem", "exhaustive" or "random") with its options."""
     if method == "ppo":
         return ppo_search(scenario, **options)
+    if method == "cem":
+        return cem_search(scenario, **options)
     if method == "exhaustive":
         return exhaustive_search(scenario, **options)
     if method == "random":
@@ -45,9 +51,11 @@ def search(method: str, scenario: Scenario, **options: Any) -> SearchResult:
 
 
 __all__ = [
+    "CEM_DEFAULTS",
     "ENV_ID",
     "PPO_DEFAULTS",
     "SCORER_METRICS",
+    "SCORER_OBJECTIVES",
     "SEARCH_METHODS",
     "CurvePoint",
     "EpisodeRecord",
@@ -60,6 +68,8 @@ __all__ = [
     "SearchResult",
     "SearchTracker",
     "SequenceSearchEnv",
+    "cem_search",
+    "check_cem_params",
     "check_ppo_params",
     "evaluate_sequence",
     "exhaustive_search",

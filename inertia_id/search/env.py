@@ -30,13 +30,16 @@ class SequenceSearchEnv(gym.Env[np.ndarray, np.ndarray]):
                   steps not taken yet.
     Action        ``MultiDiscrete([M] * N)``: one level index per thruster for the next step.
     Reward        Steps before the last: ``-1 + 3 F1``, with F1 the clustering score of the
-                  candidates' responses to the prefix so far. Last step: ``-|ω_final|``, the
+                  candidates' responses to the prefix so far (or, with the objective
+                  "separability", the separability score). Last step: ``-|ω_final|``, the
                   mean final rate over every candidate and realisation, rad/s (the paper's
                   detumbling term). Every step also subtracts ``fuel_weight`` times the
                   angular impulse it commands, N m s (the paper's multi-objective variant).
     Episode end   Terminated after L steps; never truncated.
-    Info          ``f1``, ``accuracy``, ``final_rate_rad_s``, ``fuel_nms`` (the prefix's
-                  impulse), ``step_fuel_nms``, ``step`` and ``sequence`` (the prefix).
+    Info          ``f1`` (the objective's score), ``accuracy``, ``final_rate_rad_s``,
+                  ``fuel_nms`` (the prefix's impulse), ``step_fuel_nms``, ``step``,
+                  ``sequence`` (the prefix), ``objective`` and ``error_bound``
+                  (separability only, else None).
     ============  ===========================================================================
 
     Every candidate and realisation is simulated at each step (extending the previous
@@ -49,9 +52,9 @@ class SequenceSearchEnv(gym.Env[np.ndarray, np.ndarray]):
     :param fuel_weight: reward cost per N m s of commanded impulse.
     :param noise: "fixed" or "fresh", see above.
     :param seed: noise seed; ``reset(seed=...)`` draws new noise from that seed.
-    :param settings: how prefixes are simulated and clustered (realisations, metric,
-        DTW band, k-means runs); keyword arguments of :class:`ScorerSettings` may be
-        given instead.
+    :param settings: how prefixes are simulated and scored (realisations, objective,
+        metric, DTW band, k-means runs); keyword arguments of :class:`ScorerSettings`
+        may be given instead.
     """
 
     metadata: dict[str, Any] = {"render_modes": []}  # noqa: RUF012 (Gymnasium's protocol)
@@ -137,5 +140,7 @@ class SequenceSearchEnv(gym.Env[np.ndarray, np.ndarray]):
             "step_fuel_nms": score.step_impulse_nms,
             "step": len(self._prefix),
             "sequence": [list(row) for row in self._prefix],
+            "objective": score.objective,
+            "error_bound": score.error_bound,
         }
         return self._observation(), float(reward), last, False, info

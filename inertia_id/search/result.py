@@ -1,10 +1,15 @@
 """What every search reports, how the best sequence is tracked, and its honest re-scoring.
 
-PPO, exhaustive and random search all drive :class:`~inertia_id.search.env.SequenceSearchEnv`
-and return a :class:`SearchResult` of the same shape: the best sequence with the score
-the search saw, the same sequence re-scored on fresh realisations with an independent
-seed (the search's own score comes from one noise draw and is optimistic), and the
-learning curve.
+PPO, CEM, exhaustive and random search all drive
+:class:`~inertia_id.search.env.SequenceSearchEnv` and return a :class:`SearchResult` of
+the same shape: the best sequence with the score the search saw, the same sequence
+re-scored on fresh realisations with an independent seed (the search's own score comes
+from one noise draw and is optimistic), and the learning curve.
+
+"F1" in a record or curve point is the search objective's score: the clustering F1, or
+the separability score of a search with ``objective="separability"``. The fresh
+re-scoring always reports the clustering F1 (what users compare), and the separability
+score too when the search used it.
 """
 
 from __future__ import annotations
@@ -12,7 +17,7 @@ from __future__ import annotations
 import json
 import time
 from collections.abc import Callable, Iterable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -50,7 +55,8 @@ class EpisodeRecord:
     """One complete sequence a search tried.
 
     :param sequence: (L, N) level indices.
-    :param f1: clustering F1 of the full sequence on the search's noise draw.
+    :param f1: the objective's score of the full sequence on the search's noise draw
+        (clustering F1, or the separability score).
     :param final_rate_rad_s: mean |ω| at the end, rad/s.
     :param fuel_nms: commanded angular impulse, N m s.
     :param episode_return: the environment's summed reward.
@@ -72,8 +78,8 @@ class CurvePoint:
     :param timesteps: environment steps so far.
     :param episodes: complete episodes so far.
     :param mean_episode_reward: mean return of the episodes finished since the last point.
-    :param mean_f1: mean full-sequence F1 of those episodes.
-    :param best_f1: best full-sequence F1 so far.
+    :param mean_f1: mean full-sequence F1 (objective's score) of those episodes.
+    :param best_f1: best full-sequence F1 (objective's score) so far.
     :param best_final_rate_rad_s: final rate of the best sequence so far.
     """
 
@@ -105,13 +111,16 @@ class FreshEvaluation:
     """The best sequence re-scored on fresh noise draws.
 
     :param seed: the independent seed the draws came from.
-    :param f1: F1 on each draw.
+    :param f1: clustering F1 on each draw, whatever the search's objective.
     :param final_rate_rad_s: mean final rate on each draw, rad/s.
+    :param separability: the separability score on each draw, when the search's
+        objective was "separability"; else None.
     """
 
     seed: int
     f1: list[float]
     final_rate_rad_s: list[float]
+    separability: list[float] | None = None
 
     @property
     def f1_mean(self) -> float:
@@ -130,16 +139,29 @@ def evaluate_sequence(
     seed: int,
     n_draws: int = 5,
 ) -> FreshEvaluation:
-    """Score ``sequence`` on ``n_draws`` independent noise draws derived from ``seed``."""
+    """Score ``sequence`` on ``n_draws`` independent noise draws derived from ``seed``.
+
+    The clustering F1 is always computed (with ``settings``' clustering options); with
+    the objective "separability" the separability score is computed on the same draws.
+    """
     rows = scenario.check_sequence(sequence)
     seeds = np.random.SeedSequence(seed).generate_state(n_draws, np.uint32)
-    f1, rate = [], []
+    clustering = settings if settings.objective == "f1" else replace(settings, objective="f1")
+    f1, rate, separability = [], [], []
     for draw_seed in seeds:
-        scorer = PrefixScorer(scenario, len(rows), settings, seed=int(draw_seed))
+        scorer = PrefixScorer(scenario, len(rows), clustering, seed=int(draw_seed))
         score = scorer.score(rows)
         f1.append(score.f1)
         rate.append(score.final_rate_rad_s)
-    return FreshEvaluation(seed=seed, f1=f1, final_rate_rad_s=rate)
+        if settings.objective != "f1":
+            other = PrefixScorer(scenario, len(rows), settings, seed=int(draw_seed))
+            separability.append(other.score(rows).f1)
+    return FreshEvaluation(
+        seed=seed,
+        f1=f1,
+        final_rate_rad_s=rate,
+        separability=separability if settings.objective != "f1" else None,
+    )
 
 
 class SearchTracker:
@@ -157,6 +179,8 @@ class SearchTracker:
         self.fuel_weight = fuel_weight
         self.patience_episodes = patience_episodes
         self.best: EpisodeRecord | None = None
+        #: The episode finished last.
+        self.last: EpisodeRecord | None = None
         self.best_episode = 0
         self.episodes = 0
         self.timesteps = 0
@@ -165,7 +189,8 @@ class SearchTracker:
         self._f1s: list[float] = []
         self._running_return = 0.0
 
-    def _key(self, record: EpisodeRecord) -> tuple[float, float]:
+    def rank(self, record: EpisodeRecord) -> tuple[float, float]:
+        """The order of sequences, larger is better: F1, then minus the cost."""
         cost = record.final_rate_rad_s + self.fuel_weight * record.fuel_nms
         return (round(record.f1, 12), -cost)
 
@@ -184,10 +209,11 @@ class SearchTracker:
             episode_return=self._running_return,
             episode=self.episodes,
         )
+        self.last = record
         self._returns.append(self._running_return)
         self._f1s.append(record.f1)
         self._running_return = 0.0
-        if self.best is None or self._key(record) > self._key(self.best):
+        if self.best is None or self.rank(record) > self.rank(self.best):
             self.best = record
             self.best_episode = self.episodes
             return True
@@ -226,7 +252,7 @@ class SearchTracker:
 class SearchResult:
     """The outcome of a search, the same shape for every method.
 
-    :param method: "ppo", "exhaustive" or "random".
+    :param method: "ppo", "cem", "exhaustive" or "random".
     :param best: the best sequence and the scores the search saw for it.
     :param fresh: the best sequence re-scored on fresh draws (independent seed).
     :param curve: the learning curve.
@@ -234,7 +260,8 @@ class SearchResult:
     :param episodes: sequences tried.
     :param wall_time_s: wall-clock time of the search, s.
     :param stopped: "budget", "target" (F1 = 1 and no improvement for the patience),
-        "cancelled" or "exhausted" (every sequence tried).
+        "cancelled", "exhausted" (every sequence tried) or "converged" (CEM's sampling
+        distribution collapsed onto one sequence).
     :param space_size: number of distinct sequences, (M^N)^L.
     :param settings: the search's parameters, as given.
     :param policy_path: where PPO saved its policy, if it did.
@@ -260,6 +287,11 @@ class SearchResult:
     def best_sequence(self) -> np.ndarray:
         return np.asarray(self.best.sequence, dtype=int)
 
+    @property
+    def objective(self) -> str:
+        """What ``best.f1`` and the curve's F1 measure: "f1" or "separability"."""
+        return str(self.settings.get("scorer", {}).get("objective", "f1"))
+
     def to_dict(self) -> dict[str, Any]:
         out = asdict(self)
         out["fresh"]["f1_mean"] = self.fresh.f1_mean
@@ -272,8 +304,13 @@ class SearchResult:
 
     def summary(self) -> str:
         b = self.best
+        seen = (
+            f"F1 {b.f1:.3f} on the search's draw, "
+            if self.objective == "f1"
+            else f"separability {b.f1:.3f} on the search's draw, F1 "
+        )
         return (
-            f"{self.method}: best sequence {b.sequence} | F1 {b.f1:.3f} on the search's draw, "
+            f"{self.method}: best sequence {b.sequence} | {seen}"
             f"{self.fresh.f1_mean:.3f} mean on {len(self.fresh.f1)} fresh draws "
             f"(min {self.fresh.f1_min:.3f}) | final rate {b.final_rate_rad_s:.4f} rad/s | "
             f"fuel {b.fuel_nms:.2f} N m s | {self.timesteps} env steps, {self.episodes} "

@@ -18,6 +18,12 @@ tslearn's ``TimeSeriesKMeans``) takes about two seconds on a laptop. The
 
 ``metric="softdtw"`` clusters with :class:`~inertia_id.classify.InertiaClassifier`
 (tslearn), which is correct but slow; it is there for comparison, not for PPO.
+
+``objective="separability"`` scores a prefix without clustering: the candidates'
+responses are modelled as Gaussians with a shared, shrunk covariance and scored by the
+Bhattacharyya bound on the Bayes error (:mod:`inertia_id.separability`), about a
+millisecond instead of tens. The simulation, the cache and the common random numbers
+are the same; only the score differs.
 """
 
 from __future__ import annotations
@@ -31,20 +37,32 @@ import numpy as np
 from ..classify import InertiaClassifier, match_clusters
 from ..dtw import kmeans_dtw
 from ..scenario import Scenario
+from ..separability import error_bound, score_from_bound
 from ..simulate import SequenceNoise, SimulationState, Simulator
 
-__all__ = ["SCORER_METRICS", "PrefixScore", "PrefixScorer", "ScorerSettings"]
+__all__ = [
+    "SCORER_METRICS",
+    "SCORER_OBJECTIVES",
+    "PrefixScore",
+    "PrefixScorer",
+    "ScorerSettings",
+]
 
 SCORER_METRICS = ("dtw", "euclidean", "softdtw")
+#: What a prefix's score measures: the clustering F1, or the Bhattacharyya separability.
+SCORER_OBJECTIVES = ("f1", "separability")
 
 Prefix = tuple[tuple[int, ...], ...]
 
 
 @dataclass(frozen=True)
 class ScorerSettings:
-    """How prefixes are simulated and clustered.
+    """How prefixes are simulated and scored.
 
     :param n_realisations: noisy realisations per candidate (the paper: 20).
+    :param objective: "f1", the macro F1 of a DTW k-means clustering (the paper's), or
+        "separability", the Bhattacharyya bound on the Bayes error (no clustering; the
+        clustering options below are then unused; needs 2 realisations or more).
     :param metric: "dtw" (the paper's), "euclidean" (DTW with a zero band) or "softdtw".
     :param sakoe_chiba_radius: DTW band half-width in samples; None = unconstrained.
     :param n_init: k-means++ runs per prefix, besides the warm start.
@@ -55,9 +73,22 @@ class ScorerSettings:
     :param process_noise_scale: multiple of the scenario's disturbance torque.
     :param measurement_noise_scale: multiple of the scenario's gyro noise.
     :param cache_mb: memory for scored prefixes (their states and series), MB.
+    :param separability_margin: the separability objective's noise margin m: the bound
+        is taken as if the noise were m times larger, because the bound is for
+        classifying against known means and an unsupervised clustering needs a wider
+        gap (at m = 1 the score of many random sequences of the paper preset is already
+        about 1, so it cannot lead a search further).
+    :param separability_shrinkage: the separability objective's covariance shrinkage
+        intensity in [0, 1]; None = Ledoit–Wolf's, estimated from the data. The default
+        1 measures distances as k-means does, Euclidean over the mean noise variance:
+        the Ledoit–Wolf covariance keeps the noise's low-variance directions, which a
+        classifier given the labels could use but k-means does not, and a search led by
+        it settles on sequences that separate there and cluster worse
+        (``bench/separability_rank.py`` and ``bench/search_objectives.py``).
     """
 
     n_realisations: int = 20
+    objective: str = "f1"
     metric: str = "dtw"
     sakoe_chiba_radius: int | None = 2
     n_init: int = 1
@@ -67,8 +98,14 @@ class ScorerSettings:
     process_noise_scale: float = 1.0
     measurement_noise_scale: float = 1.0
     cache_mb: float = 256.0
+    separability_margin: float = 4.0
+    separability_shrinkage: float | None = 1.0
 
     def check(self) -> None:
+        if self.objective not in SCORER_OBJECTIVES:
+            raise ValueError(
+                f"objective must be one of {list(SCORER_OBJECTIVES)}, got {self.objective!r}"
+            )
         if self.metric not in SCORER_METRICS:
             raise ValueError(f"metric must be one of {list(SCORER_METRICS)}, got {self.metric!r}")
         for name in ("n_realisations", "max_iter", "max_iter_barycenter"):
@@ -86,6 +123,17 @@ class ScorerSettings:
             raise ValueError(f"sakoe_chiba_radius must be None or an integer >= 0, got {radius!r}")
         if not (np.isfinite(self.cache_mb) and self.cache_mb >= 0):
             raise ValueError(f"cache_mb must be >= 0, got {self.cache_mb!r}")
+        margin = self.separability_margin
+        if isinstance(margin, bool) or not (np.isfinite(margin) and margin > 0):
+            raise ValueError(f"separability_margin must be finite and > 0, got {margin!r}")
+        shrinkage = self.separability_shrinkage
+        if shrinkage is not None and (isinstance(shrinkage, bool) or not 0 <= shrinkage <= 1):
+            raise ValueError(f"separability_shrinkage must be None or in [0, 1], got {shrinkage!r}")
+        if self.objective == "separability" and self.n_realisations < 2:
+            raise ValueError(
+                "the separability objective estimates a covariance: n_realisations must be "
+                f"at least 2, got {self.n_realisations}"
+            )
 
     def as_dict(self) -> dict[str, Any]:
         return dict(self.__dict__)
@@ -95,11 +143,21 @@ class ScorerSettings:
 class PrefixScore:
     """How well the candidates separate under one prefix.
 
-    :param f1: macro F1 of the clustering under the best cluster-candidate matching.
-    :param accuracy: fraction of series whose cluster maps to their candidate.
+    ``f1`` is the objective's score, whichever the objective: what the reward uses and
+    what searches rank by.
+
+    :param f1: objective "f1": macro F1 of the clustering under the best
+        cluster-candidate matching; objective "separability": the separability score
+        (:func:`~inertia_id.separability.separability_score`), both in [0, 1].
+    :param accuracy: objective "f1": fraction of series whose cluster maps to their
+        candidate; "separability": 1 − the error bound (at most 1), a lower bound on the
+        accuracy of the best classifier under the Gaussian model, at the noise margin.
     :param final_rate_rad_s: mean |ω| over all series at the end of the prefix, rad/s.
     :param impulse_nms: fuel of the whole prefix (commanded angular impulse), N m s.
     :param step_impulse_nms: fuel of its last step, N m s.
+    :param objective: which objective ``f1`` and ``accuracy`` come from.
+    :param error_bound: objective "separability": the Bhattacharyya bound on the Bayes
+        error at the noise margin (may exceed 1); None for "f1".
     """
 
     f1: float
@@ -107,6 +165,8 @@ class PrefixScore:
     final_rate_rad_s: float
     impulse_nms: float
     step_impulse_nms: float
+    objective: str = "f1"
+    error_bound: float | None = None
 
 
 @dataclass
@@ -128,7 +188,7 @@ class PrefixScorer:
 
     :param scenario: the spacecraft and its uncertainty.
     :param max_length: longest sequence that will be scored (noise is drawn for it).
-    :param settings: simulation and clustering settings.
+    :param settings: simulation and scoring settings.
     :param seed: seed of the noise draw and of the k-means initialisations.
     """
 
@@ -227,14 +287,31 @@ class PrefixScorer:
         series = np.concatenate(
             [parent.series, response.omega_measured.reshape(k * n, samples, 3)], axis=1
         )
-        labels, centers = self._cluster(series, parent, prefix)
-        scores = match_clusters(self.labels, labels, k)
         step_impulse = float(self.scenario.level_values[levels] @ self._thruster_impulse)
         impulse = step_impulse + (0.0 if parent.score is None else parent.score.impulse_nms)
+        final_rate = float(np.linalg.norm(state.omega, axis=-1).mean())
+        if self.settings.objective == "separability":
+            bound = error_bound(
+                series.reshape(k, n, -1, 3),
+                noise_margin=self.settings.separability_margin,
+                shrinkage=self.settings.separability_shrinkage,
+            )
+            score = PrefixScore(
+                f1=score_from_bound(bound, k),
+                accuracy=1.0 - min(1.0, bound),
+                final_rate_rad_s=final_rate,
+                impulse_nms=impulse,
+                step_impulse_nms=step_impulse,
+                objective="separability",
+                error_bound=bound,
+            )
+            return _Node(state, series, None, None, score)
+        labels, centers = self._cluster(series, parent, prefix)
+        scores = match_clusters(self.labels, labels, k)
         score = PrefixScore(
             f1=scores.f1,
             accuracy=scores.accuracy,
-            final_rate_rad_s=float(np.linalg.norm(state.omega, axis=-1).mean()),
+            final_rate_rad_s=final_rate,
             impulse_nms=impulse,
             step_impulse_nms=step_impulse,
         )

@@ -38,7 +38,7 @@ GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
         (
             "search",
             {"method": "genetic", "sequence_length": 2, "timesteps": 10, "n_realisations": 2},
-            "ValueError: search method must be one of ['ppo', 'exhaustive', 'random'], "
+            "ValueError: search method must be one of ['ppo', 'cem', 'exhaustive', 'random'], "
             "got 'genetic'",
         ),
         (

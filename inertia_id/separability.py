@@ -1,0 +1,321 @@
+"""How separable the candidates' responses are, without clustering them.
+
+The clustering F1 of :mod:`inertia_id.search.scorer` answers "would DTW k-means split
+these series by candidate?" by running k-means, tens of milliseconds a prefix. This
+module answers a related question in about a millisecond: model each candidate's
+measured response (a series of T samples x 3 axes, flattened to d = 3 T numbers) as a
+Gaussian, all candidates sharing one covariance Σ estimated from the realisations, and
+bound the error of the best possible classifier by the pairwise Bhattacharyya
+distances. With a common covariance the distance between candidates i and j is
+
+    B_ij = (1/8) Δμᵀ Σ⁻¹ Δμ,   Δμ = μ_i − μ_j,
+
+an eighth of their squared Mahalanobis distance, and with equal priors the Bayes error
+is at most the union of the pairwise Bhattacharyya bounds,
+
+    P_error ≤ (1/K) Σ_{i<j} exp(−B_ij).
+
+Three estimation details matter at the sizes a search scores (K x n ≈ 100 series of
+d = 240 to 600 numbers):
+
+- the sample covariance has rank below 100 and cannot be inverted. It is shrunk towards
+  a scaled identity by the Ledoit–Wolf rule (the intensity that minimises the expected
+  squared error of the estimate, computed from the data), which makes it positive
+  definite and well-conditioned. Neither Σ nor Σ⁻¹ is ever formed: a shrunk covariance
+  is ``a I + b RᵀR`` with R the (N, d) residuals, so every quantity the rule needs comes
+  from the N x N Gram matrix R Rᵀ and Σ⁻¹ is applied through the Woodbury identity,
+  O(N² d) work instead of the O(d³) of a dense inverse, and no d x d array;
+- the means are estimated from n realisations, so Δμ̂ carries noise whose squared
+  Mahalanobis length is on average (2/n) tr(Σ⁻¹ Σ_true): about 60 for d = 240, n = 20,
+  which alone would make identical candidates look separable. It is estimated out of
+  sample (each residual measured against the covariance estimated without it, by
+  Sherman–Morrison) and subtracted (``debias``);
+- the bound is for one series classified against known means; an unsupervised
+  clustering needs a wider margin. ``noise_margin`` m evaluates the bound as if the
+  noise were m times larger (B / m²), so that the score keeps rising until the
+  candidates are far enough apart to cluster, instead of reaching 1 long before.
+
+``shrinkage`` fixes the intensity instead of estimating it; at 1 the covariance is the
+mean noise variance times the identity, and the distances are Euclidean, as k-means
+sees them. The Ledoit–Wolf covariance measures what a classifier given the labels could
+do, which includes low-noise directions that k-means does not weight; the search's
+objective uses shrinkage 1 (see :class:`~inertia_id.search.ScorerSettings`).
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+from itertools import combinations
+from typing import Any
+
+import numpy as np
+from threadpoolctl import ThreadpoolController
+
+__all__ = [
+    "PooledCovariance",
+    "bhattacharyya_matrix",
+    "error_bound",
+    "mahalanobis_matrix",
+    "pooled_covariance",
+    "score_from_bound",
+    "separability_score",
+]
+
+# Added to the identity weight, relative to the data's mean square: keeps Σ invertible
+# when the responses hold no noise at all (distinct means are then infinitely far apart,
+# equal ones at distance 0) without changing any noisy estimate.
+_RELATIVE_VARIANCE_FLOOR = 1e-12
+
+
+@functools.cache
+def _threadpools() -> ThreadpoolController:
+    return ThreadpoolController()
+
+
+def _one_blas_thread() -> Any:
+    """Run BLAS on one thread (a context manager).
+
+    At these sizes (N ≈ 100) threads save nothing, and on a busy machine OpenBLAS's
+    threads wait for cores: one score measured 130 ms with them against 0.6 ms without
+    on a loaded 2-core machine. (threadpoolctl comes with scikit-learn.)
+    """
+    return _threadpools().limit(limits=1, user_api="blas")
+
+
+@dataclass(frozen=True)
+class PooledCovariance:
+    """The candidates' common covariance, shrunk, held as ``a I + b RᵀR`` (d x d).
+
+    :param residuals: (N, d) responses minus their candidate's mean, rad/s.
+    :param gram: (N, N) their Gram matrix R Rᵀ, (rad/s)².
+    :param identity_weight: a, (rad/s)²: the shrinkage target's share (plus a floor).
+    :param residual_weight: b: the sample covariance's share, per residual outer product.
+    :param shrinkage: the shrinkage intensity ρ in [0, 1] (0 = sample covariance,
+        1 = scaled identity).
+    """
+
+    residuals: np.ndarray
+    gram: np.ndarray
+    identity_weight: float
+    residual_weight: float
+    shrinkage: float
+
+    @property
+    def dim(self) -> int:
+        return int(self.residuals.shape[1])
+
+    def dense(self) -> np.ndarray:
+        """The d x d matrix, for checks on small problems, (rad/s)²."""
+        r = self.residuals
+        return self.identity_weight * np.eye(self.dim) + self.residual_weight * (r.T @ r)
+
+    def _solve(self, rhs: np.ndarray) -> np.ndarray:
+        """(a I_N + b R Rᵀ)⁻¹ rhs: the N x N system behind every use of Σ⁻¹."""
+        gram = self.gram
+        system = self.identity_weight * np.eye(len(gram)) + self.residual_weight * gram
+        return np.asarray(np.linalg.solve(system, rhs))
+
+    def mahalanobis_sq(self, differences: np.ndarray) -> np.ndarray:
+        """``vᵀ Σ⁻¹ v`` for each row v of ``differences`` (P, d), by Woodbury.
+
+        Σ⁻¹ = (1/a) [I − b Rᵀ (a I_N + b R Rᵀ)⁻¹ R], so only an N x N system is solved.
+        """
+        a, b = self.identity_weight, self.residual_weight
+        differences = np.atleast_2d(differences)
+        plain = np.einsum("pd,pd->p", differences, differences)
+        if b == 0.0:
+            return plain / a
+        projected = self.residuals @ differences.T  # (N, P)
+        correction = b * np.einsum("np,np->p", projected, self._solve(projected))
+        # The exact value is >= 0; rounding can leave a tiny negative.
+        return np.maximum(plain - correction, 0.0) / a
+
+    def left_out_mahalanobis_sq(self) -> np.ndarray:
+        """``r_iᵀ Σ_{−i}⁻¹ r_i`` for each residual, Σ_{−i} = Σ − b r_i r_iᵀ, (N,).
+
+        Each residual measured against the covariance estimated without it (the
+        shrinkage intensity held fixed): an out-of-sample Mahalanobis length. With
+        q_i = r_iᵀ Σ⁻¹ r_i, Sherman–Morrison gives q_i / (1 − b q_i), and the q_i are the
+        diagonal of R Σ⁻¹ Rᵀ = (a I + b G)⁻¹ G, G = R Rᵀ.
+        """
+        a, b, gram = self.identity_weight, self.residual_weight, self.gram
+        if b == 0.0:
+            return np.diag(gram) / a
+        inside = np.diag(self._solve(gram))
+        return np.asarray(inside / (1.0 - b * inside))
+
+
+def _flatten(omega: np.ndarray) -> np.ndarray:
+    omega = np.asarray(omega, dtype=float)
+    if omega.ndim != 4 or omega.shape[-1] != 3:
+        raise ValueError(f"omega must be shaped (K, n, T, 3), got {omega.shape}")
+    k, n, t, _ = omega.shape
+    if k < 2:
+        raise ValueError(f"separability needs at least 2 candidates, got K = {k}")
+    if n < 2:
+        raise ValueError(f"a covariance needs at least 2 realisations per candidate, got n = {n}")
+    if t < 1:
+        raise ValueError("omega holds no samples (T = 0)")
+    if not np.all(np.isfinite(omega)):
+        raise ValueError("omega holds non-finite values")
+    return omega.reshape(k, n, t * 3)
+
+
+def _check_shrinkage(shrinkage: float | None) -> None:
+    if shrinkage is not None and not 0.0 <= shrinkage <= 1.0:
+        raise ValueError(f"shrinkage must be None (Ledoit–Wolf) or in [0, 1], got {shrinkage!r}")
+
+
+def pooled_covariance(omega: np.ndarray, *, shrinkage: float | None = None) -> PooledCovariance:
+    """The shrunk covariance common to every candidate's response.
+
+    The pooled residuals (each realisation minus its candidate's mean) are shrunk as
+    scikit-learn's ``ledoit_wolf(residuals, assume_centered=True)`` would, then scaled
+    by N / (N − K): K means were estimated from the N residuals, so N − K degrees of
+    freedom remain. (The Ledoit–Wolf intensity does not depend on that scale.)
+
+    :param omega: (K, n, T, 3) measured rates, rad/s: n realisations of each of K candidates.
+    :param shrinkage: a fixed intensity in [0, 1] instead of the Ledoit–Wolf one (1 =
+        every direction gets the mean variance: Euclidean distances, as k-means sees them).
+    """
+    _check_shrinkage(shrinkage)
+    with _one_blas_thread():
+        return _pooled(_flatten(omega), shrinkage)
+
+
+def _pooled(x: np.ndarray, shrinkage: float | None) -> PooledCovariance:
+    k, n, d = x.shape
+    residuals = (x - x.mean(axis=1, keepdims=True)).reshape(k * n, d)
+    count = k * n
+    gram = residuals @ residuals.T  # (N, N)
+    # Every term of the Ledoit–Wolf rule through the Gram matrix, with S = RᵀR / N:
+    # tr S = tr G / N, ||S||²_F = ||G||²_F / N², sum_i ||r_i||⁴ = sum_i G_ii².
+    norms_sq = np.diag(gram)
+    mean_variance = float(norms_sq.sum()) / (count * d)  # tr S / d
+    if shrinkage is None:
+        frobenius_sq = float(np.sum(gram * gram)) / count**2
+        # ||S − μ I||²_F / d, and the estimate's variance, both per dimension.
+        dispersion = (frobenius_sq - d * mean_variance**2) / d
+        spread = (float(np.sum(norms_sq**2)) / count - frobenius_sq) / (d * count)
+        spread = min(spread, dispersion)
+        shrinkage = 0.0 if spread <= 0.0 else spread / dispersion
+    dof_scale = count / (count - k)
+    floor = _RELATIVE_VARIANCE_FLOOR * float(np.mean(x * x)) + np.finfo(float).tiny
+    return PooledCovariance(
+        residuals=residuals,
+        gram=gram,
+        identity_weight=dof_scale * shrinkage * mean_variance + floor,
+        residual_weight=dof_scale * (1.0 - shrinkage) / count,
+        shrinkage=float(shrinkage),
+    )
+
+
+def mahalanobis_matrix(
+    omega: np.ndarray, *, shrinkage: float | None = None, debias: bool = True
+) -> np.ndarray:
+    """Squared Mahalanobis distances between the candidates' mean responses, (K, K).
+
+    ``D²_ij = (μ_i − μ_j)ᵀ Σ⁻¹ (μ_i − μ_j)``, Σ the shrunk pooled covariance of
+    :func:`pooled_covariance`; dimensionless, symmetric, zero on the diagonal.
+
+    :param omega: (K, n, T, 3) measured rates, rad/s.
+    :param shrinkage: see :func:`pooled_covariance` (None = Ledoit–Wolf).
+    :param debias: subtract what the noise of the estimated means adds on average,
+        (2/n) tr(Σ⁻¹ Σ_true), with tr(Σ⁻¹ Σ_true) estimated by the mean left-out length
+        of the residuals over (1 − 1/n) (a residual's covariance is (1 − 1/n) Σ_true);
+        clipped at 0. Without it, identical candidates are about 2 d / n apart.
+    """
+    _check_shrinkage(shrinkage)
+    x = _flatten(omega)
+    k, n, _ = x.shape
+    pairs = list(combinations(range(k), 2))
+    first, second = (np.array(side) for side in zip(*pairs, strict=True))
+    with _one_blas_thread():
+        covariance = _pooled(x, shrinkage)
+        means = x.mean(axis=1)
+        # Differences of means, not a Gram matrix of the means: the means are large next
+        # to their differences, and μ_iᵀΣ⁻¹μ_i + μ_jᵀΣ⁻¹μ_j − 2μ_iᵀΣ⁻¹μ_j would cancel.
+        distances = covariance.mahalanobis_sq(means[first] - means[second])
+        if debias:
+            trace = float(np.mean(covariance.left_out_mahalanobis_sq())) / (1.0 - 1.0 / n)
+            distances = np.maximum(distances - 2.0 * trace / n, 0.0)
+    out = np.zeros((k, k))
+    out[first, second] = distances
+    out[second, first] = distances
+    return out
+
+
+def bhattacharyya_matrix(
+    omega: np.ndarray, *, shrinkage: float | None = None, debias: bool = True
+) -> np.ndarray:
+    """Pairwise Bhattacharyya distances between the candidates' responses, (K, K).
+
+    For Gaussians sharing one covariance, ``B_ij = D²_ij / 8`` (see
+    :func:`mahalanobis_matrix`, whose options these are).
+
+    :param omega: (K, n, T, 3) measured rates, rad/s.
+    """
+    return mahalanobis_matrix(omega, shrinkage=shrinkage, debias=debias) / 8.0
+
+
+def _bound(distances: np.ndarray, noise_margin: float) -> float:
+    if not (np.isfinite(noise_margin) and noise_margin > 0):
+        raise ValueError(f"noise_margin must be finite and > 0, got {noise_margin!r}")
+    k = len(distances)
+    upper = distances[np.triu_indices(k, 1)] / noise_margin**2
+    return float(np.sum(np.exp(-upper)) / k)
+
+
+def error_bound(
+    omega: np.ndarray,
+    *,
+    noise_margin: float = 1.0,
+    shrinkage: float | None = None,
+    debias: bool = True,
+) -> float:
+    """Upper bound on the Bayes error of telling the K candidates apart, equal priors.
+
+    ``(1/K) Σ_{i<j} exp(−B_ij / m²)``: the Bayes error is at most the sum over pairs of
+    the two-class errors ``∫ min(p_i, p_j) / K``, each at most ``exp(−B_ij) / K``. It
+    can exceed 1 (when it says nothing).
+
+    :param omega: (K, n, T, 3) measured rates, rad/s.
+    :param noise_margin: m, the bound as if every noise were m times larger (the
+        covariance m² times): 1 is the bound for the noise measured.
+    :param shrinkage: see :func:`pooled_covariance`.
+    :param debias: see :func:`mahalanobis_matrix`.
+    """
+    distances = bhattacharyya_matrix(omega, shrinkage=shrinkage, debias=debias)
+    return _bound(distances, noise_margin)
+
+
+def separability_score(
+    omega: np.ndarray,
+    *,
+    noise_margin: float = 1.0,
+    shrinkage: float | None = None,
+    debias: bool = True,
+) -> float:
+    """How separable the candidates are, in [0, 1]: 1 − the error bound over chance.
+
+    ``1 − min(1, bound / ((K − 1) / K))``, the bound of :func:`error_bound` measured
+    against the error of guessing, (K − 1) / K: identical candidates score 0 whatever K
+    (the plain ``1 − bound`` would give 1/2 to two identical candidates), candidates
+    many noise widths apart score 1. It stands where the clustering F1 stands in the
+    search's reward.
+
+    :param omega: (K, n, T, 3) measured rates, rad/s.
+    :param noise_margin: see :func:`error_bound`.
+    :param shrinkage: see :func:`pooled_covariance`.
+    :param debias: see :func:`mahalanobis_matrix`.
+    """
+    distances = bhattacharyya_matrix(omega, shrinkage=shrinkage, debias=debias)
+    k = len(distances)
+    return score_from_bound(_bound(distances, noise_margin), k)
+
+
+def score_from_bound(bound: float, n_candidates: int) -> float:
+    """The score of :func:`separability_score` from an error bound for K candidates."""
+    chance_error = (n_candidates - 1) / n_candidates
+    return float(1.0 - min(1.0, bound / chance_error))
