@@ -25,7 +25,8 @@ from pydantic import (
 from inertia_id.identify import MAX_TELEMETRY_SAMPLES, Telemetry
 from inertia_id.registry import make_classifier, parse_spec
 from inertia_id.scenario import PRESETS, Scenario
-from inertia_id.search import ScorerSettings, check_ppo_params
+from inertia_id.search import CEM_DEFAULTS, ScorerSettings, check_ppo_params
+from inertia_id.search.cem import check_cem_params
 
 __all__ = [
     "MAX_SEED",
@@ -78,7 +79,8 @@ def _clip(text: str, limit: int = 60) -> str:
 
 JobType = Literal["search", "train", "sweep"]
 JobStatus = Literal["queued", "running", "succeeded", "failed", "cancelled"]
-SearchMethod = Literal["ppo", "exhaustive", "random"]
+SearchMethod = Literal["ppo", "cem", "exhaustive", "random"]
+SearchObjective = Literal["f1", "separability"]
 ClassifierMetric = Literal["dtw", "euclidean", "softdtw"]
 NoiseKind = Literal["process", "measurement", "jitter", "thrust_scale", "gyro_bias"]
 ClassifierKind = Literal[
@@ -238,6 +240,11 @@ class SearchParams(_Request):
         description="exhaustive search budget: the largest space it will enumerate",
     )
     n_realisations: int = Field(default=20, ge=1, le=200)
+    objective: SearchObjective = Field(
+        default="f1",
+        description="what scores a sequence: f1 (clustering F1, the paper's) or separability "
+        "(the Bhattacharyya bound on the error, no clustering)",
+    )
     metric: ClassifierMetric = "dtw"
     sakoe_chiba_radius: int | None = Field(default=2, ge=0, le=10_000)
     fuel_weight: float = Field(default=0.0, ge=0.0, le=1e6)
@@ -247,6 +254,21 @@ class SearchParams(_Request):
         description="overrides of the paper's PPO hyperparameters (stable-baselines3 names)",
         examples=[{"learning_rate": 0.0003, "n_steps": 2048}],
     )
+    cem: dict[str, Any] = Field(
+        default_factory=dict,
+        description="overrides of the cross-entropy method's settings: population, "
+        "elite_fraction, smoothing",
+        examples=[{"population": 64, "elite_fraction": 0.125, "smoothing": 0.7}],
+    )
+
+    @field_validator("cem")
+    @classmethod
+    def _cem(cls, value: dict[str, Any]) -> dict[str, Any]:
+        unknown = sorted(set(value) - set(CEM_DEFAULTS))
+        if unknown:
+            raise ValueError(f"unknown CEM setting(s) {unknown}; known: {sorted(CEM_DEFAULTS)}")
+        check_cem_params(**{**CEM_DEFAULTS, **value})
+        return value
 
     @field_validator("ppo")
     @classmethod
@@ -269,7 +291,10 @@ class SearchParams(_Request):
             n_realisations=self.n_realisations,
             metric=self.metric,
             sakoe_chiba_radius=self.sakoe_chiba_radius,
+            objective=self.objective,
         ).check()
+        if self.cem and self.method != "cem":
+            raise ValueError(f"cem settings apply to method cem, not {self.method!r}")
         if self.timesteps < self.sequence_length:
             raise ValueError(
                 f"timesteps = {self.timesteps} must be at least one sequence "

@@ -12,11 +12,13 @@ a smaller final rate, or more accuracy at high noise.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from .scenario import Scenario
 
-__all__ = ["BASELINES", "axis_in_turn", "baseline", "hand_designed"]
+__all__ = ["BASELINES", "axis_in_turn", "baseline", "compare_with_baselines", "hand_designed"]
 
 
 def _axis_thrusters(scenario: Scenario) -> list[int]:
@@ -65,3 +67,36 @@ def baseline(name: str, scenario: Scenario, length: int) -> np.ndarray:
     if name not in BASELINES:
         raise ValueError(f"baseline must be one of {sorted(BASELINES)}, got {name!r}")
     return BASELINES[name](scenario, length)
+
+
+def compare_with_baselines(
+    scenario: Scenario,
+    sequence_length: int,
+    settings: Any,
+    *,
+    seed: int,
+    n_draws: int = 5,
+) -> dict[str, dict[str, Any]]:
+    """Each baseline of ``sequence_length`` steps scored on given fresh draws.
+
+    Pass a search result's ``fresh.seed`` and its number of draws: the baselines are then
+    scored on exactly the draws the search's best sequence was, so the comparison is
+    paired.
+
+    :param settings: the search's :class:`~inertia_id.search.ScorerSettings`.
+    :returns: by baseline name: the sequence, the clustering F1 and mean final rate
+        (rad/s) on each draw, and the fuel (commanded impulse, N m s).
+    """
+    from .search.result import evaluate_sequence
+
+    out: dict[str, dict[str, Any]] = {}
+    for name, make in BASELINES.items():
+        sequence = make(scenario, sequence_length)
+        fresh = evaluate_sequence(scenario, sequence, settings, seed=seed, n_draws=n_draws)
+        out[name] = {
+            "sequence": sequence.tolist(),
+            "fresh_f1": list(fresh.f1),
+            "fresh_final_rate_rad_s": list(fresh.final_rate_rad_s),
+            "fuel_nms": scenario.impulse_nms(sequence),
+        }
+    return out

@@ -18,6 +18,7 @@ from typing import Any, TypeVar
 import click
 import numpy as np
 
+from .baselines import compare_with_baselines
 from .classify import METRICS, train
 from .identify import identify, load_telemetry
 from .registry import CLASSIFIER_KINDS, load_classifier, parse_spec, train_classifier
@@ -549,16 +550,18 @@ def _parse_radius(text: str) -> int | None:
     return value
 
 
-def _parse_ppo_params(pairs: tuple[str, ...]) -> dict[str, Any]:
+def _parse_ppo_params(
+    pairs: tuple[str, ...], option: str = "--ppo", example: str = "ent_coef=0.01"
+) -> dict[str, Any]:
     params: dict[str, Any] = {}
     for pair in pairs:
         name, sep, value = pair.partition("=")
         if not sep or not name.strip():
-            raise ValueError(f"--ppo takes NAME=VALUE (e.g. ent_coef=0.01), got {pair!r}")
+            raise ValueError(f"{option} takes NAME=VALUE (e.g. {example}), got {pair!r}")
         try:
             number = float(value)
         except ValueError:
-            raise ValueError(f"--ppo {name.strip()} must be a number, got {value!r}") from None
+            raise ValueError(f"{option} {name.strip()} must be a number, got {value!r}") from None
         params[name.strip()] = int(number) if number.is_integer() and "." not in value else number
     return params
 
@@ -579,6 +582,14 @@ def _search_options(func: F) -> F:
             show_default=True,
             type=click.IntRange(1),
             help="Environment-step budget (ppo, random).",
+        ),
+        click.option(
+            "--objective",
+            default="f1",
+            show_default=True,
+            type=click.Choice(["f1", "separability"]),
+            help="What scores a sequence: the clustering F1 (the paper's) or the "
+            "Bhattacharyya separability bound (no clustering, much faster).",
         ),
         click.option(
             "--search-metric",
@@ -613,7 +624,15 @@ def _search_options(func: F) -> F:
             default=500,
             show_default=True,
             type=click.IntRange(1),
-            help="ppo/random: stop once F1 = 1 and no better sequence came for this many episodes.",
+            help="ppo/cem/random: stop once F1 = 1 and no better sequence came for this many "
+            "episodes.",
+        ),
+        click.option(
+            "--cem",
+            "cem_pairs",
+            multiple=True,
+            metavar="NAME=VALUE",
+            help="Override a CEM setting (repeatable): population, elite_fraction, smoothing.",
         ),
         click.option(
             "--ppo",
@@ -641,6 +660,8 @@ def _run_search(
     fuel_weight: float,
     patience: int,
     ppo_pairs: tuple[str, ...],
+    objective: str = "f1",
+    cem_pairs: tuple[str, ...] = (),
     max_sequences: int = 100_000,
     policy_path: str | None = None,
 ) -> Any:
@@ -650,6 +671,7 @@ def _run_search(
         n_realisations=search_realisations,
         metric=search_metric,
         sakoe_chiba_radius=_parse_radius(radius),
+        objective=objective,
     )
     size = space_size(scenario, sequence_length)
     click.echo(
@@ -675,6 +697,10 @@ def _run_search(
         options["policy_path"] = policy_path
     elif ppo_pairs:
         raise ValueError(f"--ppo applies to --method ppo only, not {method!r}")
+    if method == "cem":
+        options.update(_parse_ppo_params(cem_pairs, "--cem", "population=64"))
+    elif cem_pairs:
+        raise ValueError(f"--cem applies to --method cem only, not {method!r}")
     with _progress_bar(total, method) as bar:
         bar.unit = "step"
 
@@ -696,8 +722,9 @@ def _run_search(
     "--method",
     default="ppo",
     show_default=True,
-    type=click.Choice(["ppo", "exhaustive", "random"]),
-    help="PPO (the paper's), exhaustive (small spaces) or random (the baseline).",
+    type=click.Choice(["ppo", "cem", "exhaustive", "random"]),
+    help="PPO (the paper's), the cross-entropy method, exhaustive (small spaces) or random "
+    "(the baseline).",
 )
 @_search_options
 @click.option(
@@ -726,11 +753,38 @@ def search_cmd(
     """Find the actuation sequence that best separates the candidates.
 
     Writes the best sequence, its F1 on the search's noise draw and on fresh draws, its
-    fuel and final rate, and the learning curve, as JSON.
+    fuel and final rate, the learning curve, and the hand-designed baselines scored on
+    the same fresh draws, as JSON.
     """
+    from .search import ScorerSettings
+
     scenario = _load_scenario(preset_name, scenario_path)
     result = _run_search(method, scenario, **options)
-    Path(out).write_text(result.to_json(), encoding="utf-8")
+    document = json.loads(result.to_json())
+    settings = ScorerSettings(
+        n_realisations=options["search_realisations"],
+        metric=options["search_metric"],
+        sakoe_chiba_radius=_parse_radius(options["radius"]),
+    )
+    document["baselines"] = compare_with_baselines(
+        scenario,
+        len(result.best.sequence),
+        settings,
+        seed=result.fresh.seed,
+        n_draws=len(result.fresh.f1),
+    )
+    click.echo(
+        f"on the same fresh draws: found F1 {result.fresh.f1_mean:.3f}, "
+        f"{result.best.fuel_nms:.1f} N m s, final rate {result.best.final_rate_rad_s:.3f} rad/s",
+        err=True,
+    )
+    for name, base in document["baselines"].items():
+        f1, rate = np.mean(base["fresh_f1"]), np.mean(base["fresh_final_rate_rad_s"])
+        click.echo(
+            f"  {name:14s} F1 {f1:.3f}, {base['fuel_nms']:.1f} N m s, final rate {rate:.3f} rad/s",
+            err=True,
+        )
+    Path(out).write_text(json.dumps(document), encoding="utf-8")
     click.echo(f"wrote {out}", err=True)
     click.echo(json.dumps(result.best.sequence))
 
@@ -742,7 +796,7 @@ def search_cmd(
     "search_method",
     default="ppo",
     show_default=True,
-    type=click.Choice(["ppo", "random", "none"]),
+    type=click.Choice(["ppo", "cem", "random", "none"]),
     help="How to find the sequence when --sequence is not given ('none': the "
     "hand-designed excitation).",
 )

@@ -23,6 +23,7 @@ from inertia_id import (
     run_sweep,
     train_classifier,
 )
+from inertia_id.baselines import compare_with_baselines
 from inertia_id.registry import parse_spec
 from inertia_id.search import ScorerSettings, SearchProgress, search
 
@@ -56,6 +57,7 @@ def run_search_job(context: JobContext) -> Outcome:
             params,
             {
                 "n_realisations": "n_realisations",
+                "objective": "objective",
                 "metric": "metric",
                 "sakoe_chiba_radius": "sakoe_chiba_radius",
             },
@@ -73,6 +75,8 @@ def run_search_job(context: JobContext) -> Outcome:
                 {"timesteps": "total_timesteps", "patience_episodes": "patience_episodes"},
             )
         )
+    if method == "cem":
+        options.update(params.get("cem") or {})
     policy_path = None
     if method == "ppo":
         options["ppo_params"] = params.get("ppo") or {}
@@ -97,6 +101,15 @@ def run_search_job(context: JobContext) -> Outcome:
         **options,
     )
     result = json.loads(found.to_json())
+    # The baselines on the very draws the best sequence was re-scored on: what the
+    # search adds (or not) over a hand-designed excitation.
+    result["baselines"] = compare_with_baselines(
+        scenario,
+        len(found.best.sequence),
+        scorer,
+        seed=found.fresh.seed,
+        n_draws=len(found.fresh.f1),
+    )
     if found.policy_path is not None:
         with open(found.policy_path, "rb") as fh:
             result["policy_sha256"] = hashlib.sha256(fh.read()).hexdigest()

@@ -61,11 +61,13 @@ def test_submit_queues_a_job_and_a_message(api: Api) -> None:
         "timesteps": 20480,
         "max_sequences": 100000,
         "n_realisations": 20,
+        "objective": "f1",
         "metric": "dtw",
         "sakoe_chiba_radius": 2,
         "fuel_weight": 0.0,
         "patience_episodes": 500,
         "ppo": {},
+        "cem": {},
     }
     assert job["config_hash"] == config_hash("search", scenario_id, job["params"], 7)
     assert message_job_ids(api) == [job["id"]]
@@ -180,6 +182,10 @@ BAD_PARAMS: list[tuple[str, dict[str, Any], str]] = [
     ("search", {"max_sequences": 0}, "got 0"),
     ("search", {"n_realisations": 201}, "got 201"),
     ("search", {"metric": "cosine"}, "got 'cosine'"),
+    ("search", {"objective": "entropy"}, "got 'entropy'"),
+    ("search", {"method": "cem", "cem": {"population": 1}}, "got 1"),
+    ("search", {"method": "cem", "cem": {"elites": 3}}, "['elites']"),
+    ("search", {"method": "ppo", "cem": {"population": 8}}, "not 'ppo'"),
     ("search", {"sakoe_chiba_radius": -1}, "got -1"),
     ("search", {"fuel_weight": -0.5}, "got -0.5"),
     ("search", {"patience_episodes": 0}, "got 0"),

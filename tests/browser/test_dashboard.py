@@ -158,6 +158,11 @@ def test_a_search_curve_gains_points_while_ppo_runs(dashboard: Dashboard) -> Non
         "() => document.getElementById('response-plot')?.data?.length === 45"
     )  # 5 candidates x 3 axes x (mean + two band edges)
     assert _trace_points(dashboard, "sequence-plot") == 4
+    # The hand-designed baselines, scored on the same fresh draws as the best sequence.
+    rows = page.locator("#baseline-table tbody tr")
+    assert rows.count() == 3
+    assert "hand-designed" in rows.nth(1).inner_text()
+    assert job["result"]["baselines"]["hand-designed"]["fuel_nms"] == 24.0
     dashboard.screenshot("search")
 
 

@@ -21,6 +21,7 @@ import {
   sequencePlot,
   sequenceText,
   statusBadge,
+  table,
   when,
 } from "../ui.js";
 import { renderClassifier, sweepPanel } from "./classifiers.js";
@@ -107,13 +108,15 @@ async function searchView(body, job, context) {
     layout("environment steps", "mean episode reward", { title: { text: "Reward per episode: −1 + 3·F1 per step, −|ω| (rad/s) at the last", font: { size: 13 } }, showlegend: false }),
     PLOT_CONFIG,
   );
+  // A separability search scores sequences by the separability bound, not by F1.
+  const what = job.params.objective === "separability" ? "separability score" : "clustering F1";
   Plotly.newPlot(
     f1Plot,
     [
-      { x: [], y: [], mode: "lines+markers", name: "best F1 so far", line: { color: "#2ca02c" } },
-      { x: [], y: [], mode: "lines+markers", name: "mean F1 of the rollout's episodes", line: { color: "#ff7f0e", dash: "dot" } },
+      { x: [], y: [], mode: "lines+markers", name: `best ${what} so far`, line: { color: "#2ca02c" } },
+      { x: [], y: [], mode: "lines+markers", name: `mean ${what} of the episodes since the last point`, line: { color: "#ff7f0e", dash: "dot" } },
     ],
-    layout("environment steps", "clustering F1", { title: { text: "F1", font: { size: 14 } }, yaxis: { title: { text: "clustering F1" }, range: [0, 1.05] } }),
+    layout("environment steps", what, { title: { text: what, font: { size: 14 } }, yaxis: { title: { text: what }, range: [0, 1.05] } }),
     PLOT_CONFIG,
   );
   const follower = new MetricFollower(job.id);
@@ -167,9 +170,9 @@ async function searchResult(holder, job, context) {
         { class: "kv", id: "best-summary" },
         h("dt", {}, "sequence (level indices)"),
         h("dd", { class: "mono", id: "best-sequence" }, sequenceText(best.sequence)),
-        h("dt", {}, "F1 on the search's noise draw"),
+        h("dt", {}, job.params.objective === "separability" ? "separability score on the search's draw" : "F1 on the search's noise draw"),
         h("dd", {}, score(best.f1)),
-        h("dt", {}, `F1 on ${freshF1.length} fresh draws`),
+        h("dt", {}, `clustering F1 on ${freshF1.length} fresh draws`),
         h("dd", {}, `${score(mean)} mean (min ${score(Math.min(...freshF1))})`),
         h("dt", {}, "final rate"),
         h("dd", {}, `${fmt(best.final_rate_rad_s, 4)} rad/s`),
@@ -180,6 +183,7 @@ async function searchResult(holder, job, context) {
         h("dt", {}, "wall time, stopped by"),
         h("dd", {}, `${fmt(result.wall_time_s, 3)} s, ${result.stopped}`),
       ),
+      baselineTable(result, best, freshF1),
       h("div", { class: "toolbar" }, link(trainHref, "Train a classifier on this sequence", { class: "button", id: "train-best" })),
       h("h3", {}, "Thruster duty over time"),
       seqPlot,
@@ -195,6 +199,26 @@ async function searchResult(holder, job, context) {
   } catch (exc) {
     responsePlot.replaceWith(messageBox("error", exc.message));
   }
+}
+
+// The best sequence beside the hand-designed baselines, on the same fresh draws.
+function baselineTable(result, best, freshF1) {
+  if (!result.baselines) return null;
+  const mean = (values) => values.reduce((a, b) => a + b, 0) / Math.max(1, values.length);
+  const rows = [["found by the search", freshF1, result.fresh.final_rate_rad_s, best.fuel_nms, best.sequence]];
+  for (const [name, base] of Object.entries(result.baselines)) {
+    rows.push([name, base.fresh_f1, base.fresh_final_rate_rad_s, base.fuel_nms, base.sequence]);
+  }
+  return h(
+    "div",
+    {},
+    h("h3", {}, `Against the hand-designed baselines, on the same ${freshF1.length} fresh draws`),
+    table(
+      ["sequence", "F1 mean", "F1 min", "final rate (rad/s)", "fuel (N m s)", "levels"],
+      rows.map(([name, f1, rate, fuel, levels]) => [name, score(mean(f1)), score(Math.min(...f1)), fmt(mean(rate), 3), fuel.toFixed(1), h("span", { class: "mono" }, sequenceText(levels))]),
+      { id: "baseline-table" },
+    ),
+  );
 }
 
 async function trainView(body, job, context) {
