@@ -1,0 +1,162 @@
+"""How close is each classifier to the limit, on the searched and the hand-designed sequences?
+
+Data: the paper preset. For each sequence (one given with --searched, e.g. the best a
+search found, and the two baselines: the positive-axis thrusters at full duty every
+step, and one axis at a time), every classifier kind is trained at 1x noise on the same
+--n-train realisations per candidate, then scored on the same fresh test series (--n-test
+per point, spread over the 5 candidates) at process-noise and measurement-noise
+multiples 1, 2, 4, 6, 8 (the other noise at 1x):
+
+- clustering dtw: the paper's method (time-series k-means, DTW, InertiaClassifier);
+- clustering euclidean, nearest-centroid and 1-NN (dtw, euclidean), MiniRocket;
+- likelihood (1x): the Gaussian matched filter trained at 1x like the others;
+- least squares: integral-form inertia estimate, nearest candidate;
+- the limit: the likelihood classifier fitted at each point's own noise level on
+  --limit-realisations per candidate (it knows the simulator, noise included), the
+  ceiling the others are measured against.
+
+Each sequence's row also gives its fuel (commanded impulse), mean final rate, and the
+clustering F1 on 5 fresh draws (what a search reports as its fresh F1).
+
+Run: python bench/classifier_limit.py [--searched "[[...], ...]"] [--n-test 500]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from typing import Any
+
+import numpy as np
+from _common import base_parser, print_header, print_table, sequence_text, warm_up_numba, write_json
+
+from inertia_id import Scenario, run_sweep, simulate, train_classifier
+from inertia_id.baselines import axis_in_turn, hand_designed
+from inertia_id.registry import parse_spec
+from inertia_id.search import ScorerSettings, evaluate_sequence
+
+CLASSIFIERS = [
+    "clustering:dtw",
+    "clustering:euclidean",
+    "nearest-centroid:dtw",
+    "nearest-centroid:euclidean",
+    "1nn:dtw",
+    "1nn:euclidean",
+    "minirocket",
+    "likelihood",
+    "least-squares",
+]
+# "likelihood" above is trained at 1x like the rest; the limit is fitted at each point.
+MULTIPLES = (1, 2, 4, 6, 8)
+# The best sequence of the documented PPO run (README, "The search").
+PPO_SEQUENCE = [[2, 0, 0, 3, 4, 4], [0, 0, 0, 4, 4, 4], [4, 2, 2, 2, 3, 0], [0, 0, 0, 2, 1, 1]]
+
+
+def sequence_row(scenario: Scenario, name: str, sequence: np.ndarray, seed: int) -> list[Any]:
+    fresh = evaluate_sequence(scenario, sequence, ScorerSettings(), seed=seed + 1000, n_draws=5)
+    result = simulate(scenario, sequence, 20, np.random.default_rng(seed))
+    return [
+        name,
+        len(sequence),
+        f"{result.impulse_nms:.1f}",
+        f"{result.mean_final_rate_rad_s:.3f}",
+        f"{np.mean(fresh.f1):.3f}",
+        f"{np.min(fresh.f1):.3f}",
+        sequence_text(sequence),
+    ]
+
+
+def accuracy_tables(
+    scenario: Scenario, sequence: np.ndarray, args: argparse.Namespace
+) -> dict[str, Any]:
+    models = {}
+    fit_s = {}
+    for spec in CLASSIFIERS:
+        kind, options = parse_spec(spec)
+        started = time.perf_counter()
+        # Every kind sees the same training draw.
+        models[spec] = train_classifier(
+            scenario, sequence, args.n_train, np.random.default_rng(args.seed), kind=kind, **options
+        )
+        fit_s[spec] = time.perf_counter() - started
+    main, *rest = CLASSIFIERS
+    sweep = run_sweep(
+        models[main],
+        others={spec: models[spec] for spec in rest},
+        multiples=MULTIPLES,
+        n_test=args.n_test,
+        limit_realisations=args.limit_realisations,
+        seed=args.seed + 1,
+    )
+    tables: dict[str, Any] = {"fit_s": fit_s}
+    for noise in ("process", "measurement"):
+        rows = []
+        for spec in CLASSIFIERS:
+            points = sweep.curve(noise, None if spec == main else spec)
+            rows.append([spec, *(f"{p.accuracy:.3f}" for p in points), f"{fit_s[spec]:.2f}"])
+        limit = [p.accuracy for p in sweep.limit if p.noise == noise]
+        rows.append(["the limit", *(f"{a:.3f}" for a in limit), "-"])
+        gaps = {
+            spec: max(
+                (lim - p.accuracy)
+                for lim, p in zip(
+                    limit, sweep.curve(noise, None if spec == main else spec), strict=True
+                )
+            )
+            for spec in CLASSIFIERS
+        }
+        tables[noise] = {"rows": rows, "largest_gap_to_limit": gaps}
+    half = max((p.ci_high - p.ci_low) / 2 for p in sweep.points)
+    tables["largest_interval_half_width"] = half
+    return tables
+
+
+def main() -> None:
+    parser = base_parser(__doc__.splitlines()[0])
+    parser.add_argument("--searched", default=json.dumps(PPO_SEQUENCE), help="JSON sequence")
+    parser.add_argument("--searched-name", default="PPO (README run)")
+    parser.add_argument(
+        "--n-train", type=int, default=20, help="training realisations per candidate"
+    )
+    parser.add_argument("--n-test", type=int, default=500, help="test series per point")
+    parser.add_argument(
+        "--limit-realisations", type=int, default=400, help="the limit's training per candidate"
+    )
+    args = parser.parse_args()
+    print_header("Classifiers against the limit, paper preset", args)
+    warm_up_numba()
+    scenario = Scenario.paper()
+    sequences = {
+        args.searched_name: scenario.check_sequence(json.loads(args.searched)),
+        "hand-designed": hand_designed(scenario, 4),
+        "axis-in-turn": axis_in_turn(scenario, 4),
+    }
+    print_table(
+        ["sequence", "steps", "fuel N m s", "final rate rad/s", "fresh F1 mean", "min", "levels"],
+        [sequence_row(scenario, name, seq, args.seed) for name, seq in sequences.items()],
+        title="Sequences (fresh F1: clustering dtw on 5 fresh draws, independent seed)",
+    )
+    figures: dict[str, Any] = {}
+    for name, sequence in sequences.items():
+        tables = accuracy_tables(scenario, sequence, args)
+        figures[name] = tables
+        for noise in ("process", "measurement"):
+            print_table(
+                ["classifier", *(f"x{m}" for m in MULTIPLES), "fit s"],
+                tables[noise]["rows"],
+                title=f"{name}: accuracy vs {noise}-noise multiple "
+                f"({args.n_test} test series per point; 95 % half-width up to "
+                f"{tables['largest_interval_half_width']:.3f})",
+            )
+            gaps = tables[noise]["largest_gap_to_limit"]
+            print(
+                "largest shortfall from the limit: "
+                + ", ".join(f"{spec} {gap:+.3f}" for spec, gap in gaps.items())
+            )
+            print(flush=True)
+    write_json(args.json, args, figures)
+
+
+if __name__ == "__main__":
+    main()
