@@ -23,7 +23,7 @@ from pydantic import (
 )
 
 from inertia_id.identify import MAX_TELEMETRY_SAMPLES, Telemetry
-from inertia_id.registry import make_classifier, parse_spec
+from inertia_id.registry import default_realisations, make_classifier, parse_spec, resolve_kind
 from inertia_id.scenario import PRESETS, Scenario
 from inertia_id.search import CEM_DEFAULTS, ScorerSettings, check_ppo_params
 from inertia_id.search.cem import check_cem_params
@@ -84,7 +84,13 @@ SearchObjective = Literal["f1", "separability"]
 ClassifierMetric = Literal["dtw", "euclidean", "softdtw"]
 NoiseKind = Literal["process", "measurement", "jitter", "thrust_scale", "gyro_bias"]
 ClassifierKind = Literal[
-    "clustering", "nearest-centroid", "1nn", "minirocket", "likelihood", "least-squares"
+    "clustering",
+    "nearest-centroid",
+    "1nn",
+    "minirocket",
+    "likelihood",
+    "least-squares",
+    "marginal-likelihood",
 ]
 
 
@@ -307,9 +313,12 @@ class TrainParams(_Request):
     """Train a classifier for a given actuation sequence.
 
     ``kind`` chooses the classifier: the paper's clustering, a supervised one, the
-    likelihood limit or the least-squares physics baseline; ``metric`` applies to
-    clustering (dtw, softdtw, euclidean; default dtw), nearest-centroid and 1nn (dtw,
-    euclidean; default dtw) and must be left out for the others.
+    likelihood, the least-squares physics baseline, or the marginal likelihood (the
+    default when neither kind nor metric is given: closest to the limit); ``metric``
+    applies to clustering (dtw, softdtw, euclidean; default dtw), nearest-centroid and
+    1nn (dtw, euclidean; default dtw) and must be left out for the others. A metric
+    without a kind means the paper's clustering. ``n_realisations`` defaults to 100 for
+    the marginal likelihood, 20 for the others.
     """
 
     sequence: list[Annotated[list[int], Field(min_length=1, max_length=64)]] = Field(
@@ -318,12 +327,16 @@ class TrainParams(_Request):
         description="L x N level indices, one row per step, one column per thruster",
         examples=[[[4, 4, 4, 0, 0, 0]] * 4],
     )
-    kind: ClassifierKind = "clustering"
+    kind: ClassifierKind | None = None
     metric: ClassifierMetric | None = None
-    n_realisations: int = Field(default=20, ge=1, le=200)
+    n_realisations: int | None = Field(default=None, ge=1, le=400)
 
     @model_validator(mode="after")
     def _metric_fits_kind(self) -> Self:
+        kind = resolve_kind(self.kind, self.metric)
+        self.kind = kind  # type: ignore[assignment]
+        if self.n_realisations is None:
+            self.n_realisations = default_realisations(kind)
         if self.metric is None and self.kind in _KINDS_WITH_METRIC:
             self.metric = "dtw"
         elif self.metric is not None:
@@ -332,7 +345,8 @@ class TrainParams(_Request):
                     f"the {self.kind!r} classifier takes no metric, got metric {self.metric!r}"
                 )
             make_classifier(self.kind, metric=self.metric)
-        if self.kind in ("likelihood", "1nn", "nearest-centroid") and self.n_realisations < 3:
+        needs_three = ("likelihood", "1nn", "nearest-centroid", "marginal-likelihood")
+        if self.kind in needs_three and self.n_realisations < 3:
             raise ValueError(
                 f"the {self.kind!r} classifier needs at least 3 realisations per candidate, "
                 f"got n_realisations = {self.n_realisations}"

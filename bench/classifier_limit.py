@@ -8,6 +8,8 @@ per point, spread over the 5 candidates) at process-noise and measurement-noise
 multiples 1, 2, 4, 6, 8 (the other noise at 1x):
 
 - clustering dtw: the paper's method (time-series k-means, DTW, InertiaClassifier);
+- marginal likelihood: the shipped default, the likelihood marginalised over the
+  unknown noise level (trained on 100 realisations per candidate, its default);
 - clustering euclidean, nearest-centroid and 1-NN (dtw, euclidean), MiniRocket;
 - likelihood (1x): the Gaussian matched filter trained at 1x like the others;
 - least squares: integral-form inertia estimate, nearest candidate;
@@ -33,11 +35,12 @@ from _common import base_parser, print_header, print_table, sequence_text, warm_
 
 from inertia_id import Scenario, run_sweep, simulate, train_classifier
 from inertia_id.baselines import axis_in_turn, hand_designed
-from inertia_id.registry import parse_spec
+from inertia_id.registry import default_realisations, parse_spec
 from inertia_id.search import ScorerSettings, evaluate_sequence
 
 CLASSIFIERS = [
     "clustering:dtw",
+    "marginal-likelihood",
     "clustering:euclidean",
     "nearest-centroid:dtw",
     "nearest-centroid:euclidean",
@@ -75,9 +78,10 @@ def accuracy_tables(
     for spec in CLASSIFIERS:
         kind, options = parse_spec(spec)
         started = time.perf_counter()
-        # Every kind sees the same training draw.
+        # Every kind sees the same training draw (the marginal likelihood a larger one).
+        n_train = max(args.n_train, default_realisations(kind))
         models[spec] = train_classifier(
-            scenario, sequence, args.n_train, np.random.default_rng(args.seed), kind=kind, **options
+            scenario, sequence, n_train, np.random.default_rng(args.seed), kind=kind, **options
         )
         fit_s[spec] = time.perf_counter() - started
     main, *rest = CLASSIFIERS

@@ -15,6 +15,7 @@ from .classify import METRICS, InertiaClassifier, MatchScores, match_clusters, t
 from .identify import Identification, Telemetry, identify, load_telemetry, parse_telemetry
 from .leastsquares import InertiaEstimate, LeastSquaresClassifier, estimate_inertia
 from .likelihood import LikelihoodClassifier
+from .marginal import MarginalLikelihoodClassifier, train_marginal
 from .registry import (
     CLASSIFIER_KINDS,
     classifier_from_json,
@@ -58,6 +59,7 @@ __all__ = [
     "InertiaSweepResult",
     "LeastSquaresClassifier",
     "LikelihoodClassifier",
+    "MarginalLikelihoodClassifier",
     "MatchScores",
     "MiniRocketClassifier",
     "NearestCentroidClassifier",
@@ -86,5 +88,6 @@ __all__ = [
     "simulate",
     "train",
     "train_classifier",
+    "train_marginal",
     "wilson_interval",
 ]

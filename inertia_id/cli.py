@@ -21,7 +21,14 @@ import numpy as np
 from .baselines import compare_with_baselines
 from .classify import METRICS, train
 from .identify import identify, load_telemetry
-from .registry import CLASSIFIER_KINDS, load_classifier, parse_spec, train_classifier
+from .registry import (
+    CLASSIFIER_KINDS,
+    default_realisations,
+    load_classifier,
+    parse_spec,
+    resolve_kind,
+    train_classifier,
+)
 from .scenario import PRESETS, Scenario, preset
 from .simulate import simulate
 from .sweep import DEFAULT_NOISES, NOISE_KINDS, run_inertia_sweep, run_sweep
@@ -303,11 +310,11 @@ def _metric_option(func: F) -> F:
 @_sequence_option(DEFAULT_SEQUENCE_TEXT)
 @click.option(
     "--kind",
-    default="clustering",
-    show_default=True,
+    default=None,
     type=click.Choice(CLASSIFIER_KINDS),
-    help="clustering (the paper's), nearest-centroid, 1nn, minirocket, likelihood (the "
-    "accuracy limit) or least-squares (the physics baseline).",
+    help="marginal-likelihood (the default: closest to the limit), clustering (the paper's; "
+    "the default when only --metric is given), nearest-centroid, 1nn, minirocket, "
+    "likelihood or least-squares (the physics baseline).",
 )
 @click.option(
     "--metric",
@@ -316,7 +323,13 @@ def _metric_option(func: F) -> F:
     help="clustering: dtw (default), softdtw or euclidean; nearest-centroid and 1nn: dtw "
     "(default) or euclidean; the other kinds take none.",
 )
-@_realisations_option("Training realisations per candidate.")
+@click.option(
+    "-n",
+    "--realisations",
+    default=None,
+    type=click.IntRange(1),
+    help="Training realisations per candidate [default: 100 for marginal-likelihood, else 20].",
+)
 @click.option(
     "--n-init",
     default=5,
@@ -344,9 +357,9 @@ def train_cmd(
     preset_name: str,
     scenario_path: str | None,
     sequence_text: str,
-    kind: str,
+    kind: str | None,
     metric: str | None,
-    realisations: int,
+    realisations: int | None,
     n_init: int,
     band: int | None,
     seed: int,
@@ -355,6 +368,8 @@ def train_cmd(
     """Train a classifier of any kind for a sequence at 1x noise."""
     scenario = _load_scenario(preset_name, scenario_path)
     sequence = parse_sequence(sequence_text)
+    kind = resolve_kind(kind, metric)
+    realisations = realisations or default_realisations(kind)
     options: dict[str, Any] = {}
     if kind in ("clustering", "nearest-centroid", "1nn"):
         options = {"metric": metric or "dtw", "sakoe_chiba_radius": band}

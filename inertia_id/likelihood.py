@@ -114,6 +114,31 @@ def _whitened_distances(F: np.ndarray, means: np.ndarray, chol_lower: np.ndarray
     return np.sqrt(np.sum(white**2, axis=0)).reshape(n, k)
 
 
+def _cv_intensity(F: np.ndarray, y: np.ndarray, n_candidates: int, folds: np.ndarray) -> float:
+    """The grid intensity of highest held-out Gaussian log-likelihood.
+
+    Shrinking towards a multiple of the identity keeps the eigenvectors, so one
+    eigendecomposition per fold serves every intensity of the grid.
+    """
+    loglik = np.zeros(len(_CV_INTENSITIES))
+    for fold in np.unique(folds):
+        train, test = folds != fold, folds == fold
+        means, _, sample = _means_and_scatter(F[train], y[train], n_candidates)
+        eigenvalues, eigenvectors = np.linalg.eigh(sample)
+        eigenvalues = np.maximum(eigenvalues, 0.0)  # rounding makes null ones negative
+        target = float(np.mean(eigenvalues))
+        projected = (eigenvectors.T @ (F[test] - means[y[test]]).T) ** 2  # (p, n_test)
+        for i, intensity in enumerate(_CV_INTENSITIES):
+            shrunk = (1.0 - intensity) * eigenvalues + intensity * target
+            if shrunk.min() <= 0.0:
+                loglik[i] = -np.inf  # singular: never the optimum
+                continue
+            mahalanobis = float(np.sum(projected / shrunk[:, None]))
+            log_det = float(np.sum(np.log(shrunk)))
+            loglik[i] += -0.5 * mahalanobis - 0.5 * int(test.sum()) * log_det
+    return float(_CV_INTENSITIES[int(np.argmax(loglik))])
+
+
 def _cholesky(covariance: np.ndarray) -> np.ndarray:
     try:
         return np.asarray(cholesky(covariance, lower=True, check_finite=False))
@@ -285,28 +310,7 @@ class LikelihoodClassifier(StoredClassifier, BaseEstimator):
     def _cv_intensity(
         self, F: np.ndarray, y: np.ndarray, n_candidates: int, folds: np.ndarray
     ) -> float:
-        """The grid intensity of highest held-out Gaussian log-likelihood.
-
-        Shrinking towards a multiple of the identity keeps the eigenvectors, so one
-        eigendecomposition per fold serves every intensity of the grid.
-        """
-        loglik = np.zeros(len(_CV_INTENSITIES))
-        for fold in np.unique(folds):
-            train, test = folds != fold, folds == fold
-            means, _, sample = _means_and_scatter(F[train], y[train], n_candidates)
-            eigenvalues, eigenvectors = np.linalg.eigh(sample)
-            eigenvalues = np.maximum(eigenvalues, 0.0)  # rounding makes null ones negative
-            target = float(np.mean(eigenvalues))
-            projected = (eigenvectors.T @ (F[test] - means[y[test]]).T) ** 2  # (p, n_test)
-            for i, intensity in enumerate(_CV_INTENSITIES):
-                shrunk = (1.0 - intensity) * eigenvalues + intensity * target
-                if shrunk.min() <= 0.0:
-                    loglik[i] = -np.inf  # singular: never the optimum
-                    continue
-                mahalanobis = float(np.sum(projected / shrunk[:, None]))
-                log_det = float(np.sum(np.log(shrunk)))
-                loglik[i] += -0.5 * mahalanobis - 0.5 * int(test.sum()) * log_det
-        return float(_CV_INTENSITIES[int(np.argmax(loglik))])
+        return _cv_intensity(F, y, n_candidates, folds)
 
     def _out_of_fold_max(
         self, F: np.ndarray, y: np.ndarray, folds: np.ndarray, intensity: float

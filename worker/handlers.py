@@ -24,7 +24,7 @@ from inertia_id import (
     train_classifier,
 )
 from inertia_id.baselines import compare_with_baselines
-from inertia_id.registry import parse_spec
+from inertia_id.registry import default_realisations, parse_spec, resolve_kind
 from inertia_id.search import ScorerSettings, SearchProgress, search
 
 from .runner import JobContext, Outcome
@@ -126,12 +126,13 @@ def run_train_job(context: JobContext) -> Outcome:
     spec = context.spec
     params = spec.params
     scenario = Scenario.model_validate(spec.scenario)
-    kind = params.get("kind", "clustering")
+    kind = resolve_kind(params.get("kind"), params.get("metric"))
+    n_realisations = int(params.get("n_realisations") or default_realisations(kind))
     options = {"metric": params["metric"]} if params.get("metric") is not None else {}
     model = train_classifier(
         scenario,
         params["sequence"],
-        int(params.get("n_realisations", 20)),
+        n_realisations,
         np.random.default_rng(spec.seed),
         kind=kind,
         **options,
@@ -165,7 +166,7 @@ def run_train_job(context: JobContext) -> Outcome:
         "confusion": confusion,
         "candidate_names": row.candidate_names,
         "sequence": sequence,
-        "n_realisations": int(params.get("n_realisations", 20)),
+        "n_realisations": n_realisations,
         "sha256": checksum,
     }
     return Outcome(

@@ -280,9 +280,9 @@ def test_get_job(api: Api) -> None:
     assert job["type"] == "train"
     assert job["params"] == {
         "sequence": GOOD_SEQUENCE,
-        "kind": "clustering",
-        "metric": "dtw",
-        "n_realisations": 20,
+        "kind": "marginal-likelihood",
+        "metric": None,
+        "n_realisations": 100,
     }
     assert job["status"] == "queued"
     assert job["error"] is None and job["result"] is None

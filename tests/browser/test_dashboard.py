@@ -274,9 +274,9 @@ def test_identify_telemetry_files_verdict_distances_and_matches_none(
     page.wait_for_function("() => document.getElementById('overlay-plot')?.data?.length === 12")
     dashboard.screenshot("identify")
 
-    # A body 30 % heavier than every candidate: the answer is "matches none".
+    # A body 50 % heavier than every candidate: the answer is "matches none".
     base = paper.inertia_candidates[0]
-    heavier = (1.3 * np.asarray(base.inertia_kg_m2)).tolist()
+    heavier = (1.5 * np.asarray(base.inertia_kg_m2)).tolist()
     heavy = paper.model_copy(
         update={
             "inertia_candidates": [

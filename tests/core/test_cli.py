@@ -273,3 +273,18 @@ def test_any_kind_trains_and_a_sweep_scores_others_beside_it(
     # the same telemetry lands near the true tensor.
     estimated = verdict["estimated_inertia_kg_m2"]
     assert [estimated[i][i] for i in range(3)] == pytest.approx([94.83, 52.12, 77.29], rel=0.05)
+
+
+def test_train_without_a_kind_gives_the_marginal_likelihood_and_a_metric_the_clustering(
+    runner: CliRunner, tmp_path: Path
+) -> None:
+    from inertia_id import MarginalLikelihoodClassifier, load_classifier
+
+    default = tmp_path / "default.json"
+    trained = runner.invoke(main, ["train", "-n", "10", "--out", str(default)])
+    assert trained.exit_code == 0, trained.output
+    assert isinstance(load_classifier(default), MarginalLikelihoodClassifier)
+    assert "marginal-likelihood" in trained.stderr and "x 10 realisations" in trained.stderr
+    clustering = tmp_path / "clustering.json"
+    runner.invoke(main, ["train", "--metric", "euclidean", "-n", "5", "--out", str(clustering)])
+    assert isinstance(load_classifier(clustering), InertiaClassifier)

@@ -24,6 +24,7 @@ FAST_OPTIONS = {
     "minirocket": {"n_features": 840},
     "likelihood": {},
     "least-squares": {},
+    "marginal-likelihood": {},
 }
 
 

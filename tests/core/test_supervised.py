@@ -384,6 +384,7 @@ def test_make_classifier_lists_and_builds_every_kind() -> None:
         "minirocket",
         "likelihood",
         "least-squares",
+        "marginal-likelihood",
     )
     clustering = make_classifier("clustering", metric="euclidean", random_state=0)
     assert isinstance(clustering, InertiaClassifier) and clustering.metric == "euclidean"

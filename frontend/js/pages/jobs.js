@@ -17,6 +17,7 @@ import {
 const TERMINAL = new Set(["succeeded", "failed", "cancelled"]);
 
 export const CLASSIFIER_KINDS = [
+  ["marginal-likelihood", "marginal likelihood (default: within 0.5 points of the limit)"],
   ["clustering", "clustering (the paper's time-series k-means)"],
   ["nearest-centroid", "nearest centroid (supervised)"],
   ["1nn", "1-nearest neighbour (supervised)"],
@@ -40,6 +41,7 @@ const OTHERS = [
   ["minirocket", "MiniRocket"],
   ["clustering:euclidean", "clustering euclidean"],
   ["likelihood", "likelihood (trained at 1×)"],
+  ["marginal-likelihood", "marginal likelihood"],
 ];
 const POLL_MS = 2000;
 
@@ -131,8 +133,8 @@ function submitForm(scenarios, classifiers, query) {
     scenario: scenarioSelect(),
     sequence: h("input", { size: 60 }),
     kind: h("select", {}, CLASSIFIER_KINDS.map(([k, label]) => h("option", { value: k }, label))),
-    metric: h("select", {}, [h("option", { value: "" }, "default (dtw)"), ...["dtw", "euclidean", "softdtw"].map((m) => h("option", { value: m }, m))]),
-    n_realisations: h("input", { value: 20, size: 6 }),
+    metric: h("select", {}, [h("option", { value: "" }, "default (dtw where it applies)"), ...["dtw", "euclidean", "softdtw"].map((m) => h("option", { value: m }, m))]),
+    n_realisations: h("input", { value: "", size: 6, placeholder: "default" }),
     seed: h("input", { value: 0, size: 8 }),
   };
   const defaultSequence = () => {
@@ -153,7 +155,7 @@ function submitForm(scenarios, classifiers, query) {
       sequence: jsonOrText(train.sequence.value),
       kind: train.kind.value,
       ...(train.metric.value ? { metric: train.metric.value } : {}),
-      n_realisations: intOrText(train.n_realisations.value),
+      ...(train.n_realisations.value.trim() ? { n_realisations: intOrText(train.n_realisations.value) } : {}),
     },
   });
 
@@ -229,7 +231,7 @@ function submitForm(scenarios, classifiers, query) {
         field("train-sequence", "sequence", train.sequence, "JSON rows of level indices, one per step"),
         field("train-kind", "classifier", train.kind),
         field("train-metric", "metric", train.metric, "clustering, nearest-centroid and 1nn only"),
-        field("train-n_realisations", "realisations", train.n_realisations, "per candidate"),
+        field("train-n_realisations", "realisations", train.n_realisations, "per candidate (default 100 for the marginal likelihood, else 20)"),
         field("train-seed", "seed", train.seed),
       ),
       trainBody,
