@@ -207,9 +207,15 @@ def _import_handlers() -> dict[str, Callable[[JobContext], Outcome]]:
     # worker's main process, which forks it) and before the claim, so the job's
     # heartbeat is not starved by the import while it is marked running.
     import torch
+    from threadpoolctl import threadpool_limits
 
     torch.set_num_threads(1)
     from .handlers import HANDLERS
+
+    # One job is one process on one core: BLAS threads would only fight the other
+    # workers (measured: a covariance fit 60 times slower with another process busy).
+    # After the imports, so that every BLAS the handlers load is limited.
+    threadpool_limits(1)
 
     return HANDLERS
 
