@@ -201,7 +201,7 @@ function axisTitle(noise, result) {
   const [label, unit] = AXIS_LABEL[noise] || [noise, ""];
   const level = result && result.levels ? result.levels[noise] : null;
   if (level === null || level === undefined) return `multiple of the 1× ${label}`;
-  return `multiple of the 1× ${label} (${fmt(level, 2)} ${unit})`;
+  return `multiple of the 1× ${label} (${Number(level.toPrecision(2))} ${unit})`;
 }
 
 export async function sweepPanel(holder, job, classifier, context) {
@@ -216,7 +216,8 @@ export async function sweepPanel(holder, job, classifier, context) {
   const multiples = job.params.multiples || [];
   const follower = new MetricFollower(job.id);
   const live = Object.fromEntries(noises.map((n) => [n, { x: [], y: [] }]));
-  const mainName = classifier ? `${classifier.kind || "clustering"} ${classifier.metric}` : "classifier";
+  const kind = classifier ? classifier.kind || "clustering" : "classifier";
+  const mainName = ["clustering", "nearest-centroid", "1nn"].includes(kind) ? `${kind} ${classifier.metric}` : kind;
 
   const draw = (noise, x, y, low, high, others = {}, result = null, limit = null) => {
     const trace = { x, y, mode: "lines+markers", name: mainName, line: { color: COLORS[0], width: 2.5 }, hovertemplate: "×%{x}: accuracy %{y:.3f}<extra>%{fullData.name}</extra>" };
