@@ -71,6 +71,45 @@ def _check_series(X: Any, length: int | None = None) -> np.ndarray:
     return arr
 
 
+def _check_training(
+    X: np.ndarray,
+    y: Any,
+    candidate_names: list[str] | None,
+    scenario: Scenario | None,
+    sequence: Any,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """Labels, series per candidate and the checked sequence of a training set, or raise.
+
+    Every candidate needs three series, so that with a fold held out two remain to
+    estimate a spread from; the scenario and sequence come together or not at all.
+    """
+    y = check_labels(y, len(X))
+    n_candidates = int(y.max()) + 1
+    counts = np.bincount(y, minlength=n_candidates)
+    if n_candidates < 2 or counts.min() < 3:
+        raise ValueError(
+            "y must label every candidate 0..K-1 (K >= 2) at least 3 times; series per "
+            f"candidate: {counts.tolist()}"
+        )
+    if candidate_names is not None and len(candidate_names) != n_candidates:
+        raise ValueError(f"{len(candidate_names)} candidate names for {n_candidates} candidates")
+    if (scenario is None) != (sequence is None):
+        raise ValueError("give the scenario and the sequence together, or neither")
+    if scenario is None:
+        return y, counts, None
+    if scenario.n_candidates != n_candidates:
+        raise ValueError(
+            f"the scenario has {scenario.n_candidates} candidates, y labels {n_candidates}"
+        )
+    steps = scenario.check_sequence(sequence)
+    expected = len(steps) * scenario.timing.samples_per_step
+    if X.shape[1] != expected:
+        raise ValueError(
+            f"series have {X.shape[1]} samples; the {len(steps)}-step sequence gives {expected}"
+        )
+    return y, counts, steps
+
+
 def _stratified_folds(y: np.ndarray, n_folds: int) -> np.ndarray:
     """Fold of each series: within each candidate, series are dealt round-robin.
 
@@ -249,33 +288,8 @@ class LikelihoodClassifier(StoredClassifier, BaseEstimator):
         """
         self._check_params()
         X = _check_series(X)
-        y = check_labels(y, len(X))
-        n_candidates = int(y.max()) + 1
-        counts = np.bincount(y, minlength=n_candidates)
-        if n_candidates < 2 or counts.min() < 3:
-            # Three, so that with a fold held out two remain to estimate a spread from.
-            raise ValueError(
-                "y must label every candidate 0..K-1 (K >= 2) at least 3 times; series per "
-                f"candidate: {counts.tolist()}"
-            )
-        if candidate_names is not None and len(candidate_names) != n_candidates:
-            raise ValueError(
-                f"{len(candidate_names)} candidate names for {n_candidates} candidates"
-            )
-        if (scenario is None) != (sequence is None):
-            raise ValueError("give the scenario and the sequence together, or neither")
-        if scenario is not None:
-            if scenario.n_candidates != n_candidates:
-                raise ValueError(
-                    f"the scenario has {scenario.n_candidates} candidates, y labels {n_candidates}"
-                )
-            sequence = scenario.check_sequence(sequence)
-            expected = len(sequence) * scenario.timing.samples_per_step
-            if X.shape[1] != expected:
-                raise ValueError(
-                    f"series have {X.shape[1]} samples; the {len(sequence)}-step sequence "
-                    f"gives {expected}"
-                )
+        y, counts, sequence = _check_training(X, y, candidate_names, scenario, sequence)
+        n_candidates = len(counts)
         F = X.reshape(len(X), -1)
         n_folds = min(_MAX_FOLDS, int(counts.min()))
         folds = _stratified_folds(y, n_folds)

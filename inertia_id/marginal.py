@@ -86,9 +86,10 @@ from scipy.linalg import solve_triangular
 from scipy.special import log_softmax, logsumexp
 from sklearn.base import BaseEstimator
 
-from .base import StoredClassifier, check_labels
+from .base import StoredClassifier
 from .likelihood import (
     _check_series,
+    _check_training,
     _cholesky,
     _cv_intensity,
     _means_and_scatter,
@@ -303,32 +304,8 @@ class MarginalLikelihoodClassifier(StoredClassifier, BaseEstimator):
                 raise ValueError(
                     f"the {name} responses are shaped {arr.shape}, the quiet ones {X.shape}"
                 )
-        y = check_labels(y, len(X))
-        n_candidates = int(y.max()) + 1
-        counts = np.bincount(y, minlength=n_candidates)
-        if n_candidates < 2 or counts.min() < 3:
-            raise ValueError(
-                "y must label every candidate 0..K-1 (K >= 2) at least 3 times; series per "
-                f"candidate: {counts.tolist()}"
-            )
-        if candidate_names is not None and len(candidate_names) != n_candidates:
-            raise ValueError(
-                f"{len(candidate_names)} candidate names for {n_candidates} candidates"
-            )
-        if (scenario is None) != (sequence is None):
-            raise ValueError("give the scenario and the sequence together, or neither")
-        if scenario is not None:
-            if scenario.n_candidates != n_candidates:
-                raise ValueError(
-                    f"the scenario has {scenario.n_candidates} candidates, y labels {n_candidates}"
-                )
-            sequence = scenario.check_sequence(sequence)
-            expected = len(sequence) * scenario.timing.samples_per_step
-            if X.shape[1] != expected:
-                raise ValueError(
-                    f"series have {X.shape[1]} samples; the {len(sequence)}-step sequence "
-                    f"gives {expected}"
-                )
+        y, counts, sequence = _check_training(X, y, candidate_names, scenario, sequence)
+        n_candidates = len(counts)
         quiet = X.reshape(len(X), -1)
         # Each source alone: the differences of the same realisations.
         parts = [quiet] + [arr.reshape(len(X), -1) - quiet for arr in responses[1:]]
