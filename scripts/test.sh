@@ -1,9 +1,21 @@
 #!/usr/bin/env bash
-# The README's test command: installs everything the tests need, then lints,
+# The README's test command: installs everything the tests need (the project, its test
+# tools, docker-compose and Chromium), then lints,
 # type-checks and runs the test suite.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
+# System tools some tests drive, from Debian's packages where they are missing (as root):
+# docker-compose validates docker-compose.yml offline; the dashboard's browser tests use
+# Debian's Chromium through Playwright (Playwright's own browser download is never used).
+apt_install() {
+  local package=$1
+  (apt-get install -y -q "$package" >/dev/null 2>&1 \
+    || (apt-get update -q >/dev/null 2>&1 && apt-get install -y -q "$package" >/dev/null 2>&1)) \
+    || echo "could not install $package; the tests that need it will skip (or fail in CI)"
+}
+command -v docker-compose >/dev/null || apt_install docker-compose
+[ -x /usr/bin/chromium ] || apt_install chromium
 . .venv/bin/activate
 echo "== ruff"
 ruff check inertia_id app worker tests bench
