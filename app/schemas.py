@@ -22,9 +22,15 @@ from pydantic import (
     model_validator,
 )
 
-from inertia_id.identify import MAX_TELEMETRY_SAMPLES, Telemetry
-from inertia_id.registry import default_realisations, make_classifier, parse_spec, resolve_kind
-from inertia_id.scenario import PRESETS, Scenario
+from inertia_id.classifiers.registry import (
+    default_realisations,
+    make_classifier,
+    parse_spec,
+    resolve_kind,
+)
+from inertia_id.evaluation.telemetry import MAX_TELEMETRY_SAMPLES, Telemetry
+from inertia_id.physics.presets import PRESETS
+from inertia_id.physics.scenario import Scenario
 from inertia_id.search import CEM_DEFAULTS, ScorerSettings, check_ppo_params
 from inertia_id.search.cem import check_cem_params
 

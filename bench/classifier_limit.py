@@ -34,8 +34,8 @@ import numpy as np
 from _common import base_parser, print_header, print_table, sequence_text, warm_up_numba, write_json
 
 from inertia_id import Scenario, run_sweep, simulate, train_classifier
-from inertia_id.baselines import axis_in_turn, hand_designed
-from inertia_id.registry import default_realisations, parse_spec
+from inertia_id.classifiers.registry import default_realisations, parse_spec
+from inertia_id.physics.sequences import axis_in_turn, hand_designed
 from inertia_id.search import ScorerSettings, evaluate_sequence
 
 CLASSIFIERS = [

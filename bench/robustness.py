@@ -22,8 +22,8 @@ import numpy as np
 from _common import base_parser, print_header, print_table, warm_up_numba, write_json
 
 from inertia_id import Scenario, run_inertia_sweep, run_sweep, train_classifier
-from inertia_id.baselines import hand_designed
-from inertia_id.registry import parse_spec
+from inertia_id.classifiers.registry import parse_spec
+from inertia_id.physics.sequences import hand_designed
 
 SOURCES = ("jitter", "thrust_scale", "gyro_bias")
 MULTIPLES = (0, 1, 2, 4, 8)

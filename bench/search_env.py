@@ -51,8 +51,8 @@ from _common import (
 )
 
 from inertia_id import Scenario, Simulator, match_clusters
-from inertia_id.reference import plain_prefix_score
 from inertia_id.search.env import SequenceSearchEnv
+from inertia_id.search.reference import plain_prefix_score
 from inertia_id.search.scorer import PrefixScorer, ScorerSettings
 
 with warnings.catch_warnings():

@@ -38,8 +38,8 @@ from scipy.stats import spearmanr
 
 from inertia_id import Scenario
 from inertia_id.search import PrefixScorer, ScorerSettings, evaluate_sequence
-from inertia_id.search.result import fresh_seed
-from inertia_id.separability import separability_score
+from inertia_id.search.objectives import separability_score
+from inertia_id.search.records import fresh_seed
 
 BALANCED = [[1] * 6] * 4
 DEFAULTS = ScorerSettings()

@@ -26,7 +26,7 @@ from _common import (
 )
 
 from inertia_id import Scenario, Simulator
-from inertia_id.reference import simulate_per_series
+from inertia_id.physics.reference import simulate_per_series
 
 
 def throughput_record(

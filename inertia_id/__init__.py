@@ -11,32 +11,24 @@ The science core, usable from a notebook::
     classifier = train(scenario, sequence, 20, np.random.default_rng(1), metric="dtw")
 """
 
-from .classify import METRICS, InertiaClassifier, MatchScores, match_clusters, train
-from .identify import Identification, Telemetry, identify, load_telemetry, parse_telemetry
-from .leastsquares import InertiaEstimate, LeastSquaresClassifier, estimate_inertia
-from .likelihood import LikelihoodClassifier
-from .marginal import MarginalLikelihoodClassifier, train_marginal
-from .registry import (
+from .classifiers.clustering import METRICS, InertiaClassifier, MatchScores, match_clusters, train
+from .classifiers.leastsquares import LeastSquaresClassifier
+from .classifiers.likelihood import LikelihoodClassifier
+from .classifiers.marginal import MarginalLikelihoodClassifier, train_marginal
+from .classifiers.nearest import (
+    MiniRocketClassifier,
+    NearestCentroidClassifier,
+    NearestNeighbourClassifier,
+)
+from .classifiers.registry import (
     CLASSIFIER_KINDS,
     classifier_from_json,
     load_classifier,
     make_classifier,
     train_classifier,
 )
-from .scenario import (
-    PRESETS,
-    CandidateGenerator,
-    InertiaCandidate,
-    Scenario,
-    Thrusters,
-    Timing,
-    Uncertainty,
-    check_inertia_tensor,
-    preset,
-)
-from .simulate import SimulationResult, Simulator, simulate
-from .supervised import MiniRocketClassifier, NearestCentroidClassifier, NearestNeighbourClassifier
-from .sweep import (
+from .evaluation.identify import Identification, identify
+from .evaluation.sweep import (
     InertiaSweepResult,
     SweepPoint,
     SweepResult,
@@ -44,6 +36,19 @@ from .sweep import (
     run_sweep,
     wilson_interval,
 )
+from .evaluation.telemetry import Telemetry, load_telemetry, parse_telemetry
+from .physics.estimate import InertiaEstimate, estimate_inertia
+from .physics.presets import PRESETS, preset
+from .physics.scenario import (
+    CandidateGenerator,
+    InertiaCandidate,
+    Scenario,
+    Thrusters,
+    Timing,
+    Uncertainty,
+    check_inertia_tensor,
+)
+from .physics.simulate import SimulationResult, Simulator, simulate
 
 __version__ = "0.1.0"
 

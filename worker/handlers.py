@@ -23,9 +23,9 @@ from inertia_id import (
     run_sweep,
     train_classifier,
 )
-from inertia_id.baselines import compare_with_baselines
-from inertia_id.registry import default_realisations, parse_spec, resolve_kind
+from inertia_id.classifiers.registry import default_realisations, parse_spec, resolve_kind
 from inertia_id.search import ScorerSettings, SearchProgress, search
+from inertia_id.search.baselines import compare_with_baselines
 
 from .runner import JobContext, Outcome
 

@@ -20,8 +20,9 @@ from fastapi.exceptions import RequestValidationError
 from pydantic import ValidationError
 from starlette.datastructures import UploadFile
 
-from inertia_id.identify import Telemetry, identify, parse_telemetry
-from inertia_id.registry import CandidateClassifier, classifier_from_json
+from inertia_id.classifiers.registry import CandidateClassifier, classifier_from_json
+from inertia_id.evaluation.identify import identify
+from inertia_id.evaluation.telemetry import Telemetry, parse_telemetry
 
 from ..db.models import ClassifierRow
 from ..db.session import Database

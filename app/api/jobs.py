@@ -15,7 +15,7 @@ import numpy as np
 from fastapi import APIRouter, Body, HTTPException, Query, Response, status
 from sqlalchemy import func, select
 
-from inertia_id.scenario import Scenario
+from inertia_id.physics.scenario import Scenario
 from inertia_id.search import space_size
 
 from ..db import jobs as job_store

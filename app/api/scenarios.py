@@ -12,8 +12,9 @@ from pydantic import ValidationError
 from sqlalchemy import func, select
 from sqlalchemy.exc import IntegrityError
 
-from inertia_id.scenario import PRESETS, Scenario, preset
-from inertia_id.simulate import simulate
+from inertia_id.physics.presets import PRESETS, preset
+from inertia_id.physics.scenario import Scenario
+from inertia_id.physics.simulate import simulate
 
 from ..db.models import ClassifierRow, JobRow, ScenarioRow
 from ..schemas import (

@@ -13,13 +13,13 @@ from typing import Any
 
 import gymnasium as gym
 
-from ..scenario import Scenario
+from ..physics.scenario import Scenario
 from .cem import CEM_DEFAULTS, cem_search, check_cem_params
 from .env import ENV_ID, SequenceSearchEnv
 from .exhaustive import exhaustive_search
 from .ppo import PPO_DEFAULTS, SearchCallback, check_ppo_params, ppo_search
 from .random import random_search
-from .result import (
+from .records import (
     CurvePoint,
     EpisodeRecord,
     FreshEvaluation,

@@ -25,10 +25,11 @@ from typing import Any
 
 import numpy as np
 
-from ..scenario import Scenario
+from ..physics.scenario import Scenario
 from .env import SequenceSearchEnv
+from .loop import finish, report_point
 from .random import _check_budget
-from .result import EpisodeRecord, SearchProgress, SearchResult, SearchTracker, _report, finish
+from .records import EpisodeRecord, SearchProgress, SearchResult, SearchTracker
 from .scorer import ScorerSettings
 
 __all__ = ["CEM_DEFAULTS", "CONVERGED", "cem_search", "check_cem_params"]
@@ -140,7 +141,7 @@ def cem_search(
                 stopped = "target"
                 break
         if ranked:
-            _report(tracker, total_timesteps, progress)
+            report_point(tracker, total_timesteps, progress)
         if stopped is None:
             # A stable sort: among equals, the first drawn is the elite.
             ranked.sort(key=lambda pair: pair[0], reverse=True)

@@ -9,7 +9,7 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import seeding
 
-from ..scenario import Scenario
+from ..physics.scenario import Scenario
 from .scorer import PrefixScorer, ScorerSettings
 
 __all__ = ["ENV_ID", "SequenceSearchEnv"]

@@ -12,10 +12,11 @@ import torch
 from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback
 
-from ..scenario import Scenario
+from ..physics.scenario import Scenario
 from .env import SequenceSearchEnv
+from .loop import finish, report_point
 from .random import _check_budget
-from .result import SearchProgress, SearchResult, SearchTracker, _report, finish
+from .records import SearchProgress, SearchResult, SearchTracker
 from .scorer import ScorerSettings
 
 __all__ = ["PPO_DEFAULTS", "SearchCallback", "check_ppo_params", "ppo_search"]
@@ -120,7 +121,7 @@ class SearchCallback(BaseCallback):
         return True
 
     def _on_rollout_end(self) -> None:
-        _report(self.tracker, self.total, self.progress)
+        report_point(self.tracker, self.total, self.progress)
 
 
 def ppo_search(
@@ -175,7 +176,7 @@ def ppo_search(
     finally:
         torch.set_num_threads(threads)
     if not tracker.curve or tracker.curve[-1].timesteps != tracker.timesteps:
-        _report(tracker, total_timesteps, progress)
+        report_point(tracker, total_timesteps, progress)
     return finish(
         "ppo",
         env,

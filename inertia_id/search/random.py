@@ -7,9 +7,10 @@ from collections.abc import Callable, Iterator
 
 import numpy as np
 
-from ..scenario import Scenario
+from ..physics.scenario import Scenario
 from .env import SequenceSearchEnv
-from .result import SearchProgress, SearchResult, SearchTracker, finish, run_episodes
+from .loop import finish, run_episodes
+from .records import SearchProgress, SearchResult, SearchTracker
 from .scorer import ScorerSettings
 
 __all__ = ["random_search"]

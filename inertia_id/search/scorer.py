@@ -34,11 +34,11 @@ from typing import Any
 
 import numpy as np
 
-from ..classify import InertiaClassifier, match_clusters
-from ..dtw import kmeans_dtw
-from ..scenario import Scenario
-from ..separability import error_bound, score_from_bound
-from ..simulate import SequenceNoise, SimulationState, Simulator
+from ..classifiers.clustering import InertiaClassifier, match_clusters
+from ..classifiers.dtw import kmeans_dtw
+from ..physics.scenario import Scenario
+from ..physics.simulate import SequenceNoise, SimulationState, Simulator
+from .objectives import error_bound, score_from_bound
 
 __all__ = [
     "SCORER_METRICS",

@@ -17,9 +17,9 @@ from app.db.models import JobRow
 from app.queue import RUN_JOB_TASK
 from app.schemas import SearchParams, SweepParams, TrainParams
 from inertia_id import METRICS, InertiaClassifier
-from inertia_id.registry import CLASSIFIER_KINDS
+from inertia_id.classifiers.registry import CLASSIFIER_KINDS
+from inertia_id.evaluation.sweep import DEFAULT_NOISES, NOISE_KINDS
 from inertia_id.search import SEARCH_METHODS
-from inertia_id.sweep import DEFAULT_NOISES, NOISE_KINDS
 
 from .support import GOOD_SEQUENCE, Api, make_settings
 

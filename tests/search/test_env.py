@@ -13,8 +13,8 @@ from gymnasium import spaces
 from gymnasium.utils.env_checker import check_env
 
 from inertia_id import Scenario, preset
+from inertia_id.physics.simulate import Simulator
 from inertia_id.search import ENV_ID, PrefixScorer, ScorerSettings, SequenceSearchEnv
-from inertia_id.simulate import Simulator
 
 # Three steps of the paper's six thrusters, at varied levels (M = 5: duty 0, .25, .5, .75, 1).
 # Commanded impulse per step, |A_j| = 2 N m and 1 s steps: 2 * (sum of duties) N m s.

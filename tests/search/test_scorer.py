@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from inertia_id import Scenario
-from inertia_id.reference import plain_prefix_score
 from inertia_id.search import PrefixScorer, ScorerSettings, evaluate_sequence
-from inertia_id.search.result import fresh_seed
+from inertia_id.search.records import fresh_seed
+from inertia_id.search.reference import plain_prefix_score
 
 ROWS = [[4, 4, 4, 0, 0, 0], [0, 2, 0, 1, 0, 0], [1, 0, 3, 0, 0, 4]]
 # A tree of prefixes sharing parents, in the order a depth-first search would score them.

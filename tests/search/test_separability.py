@@ -14,20 +14,20 @@ from gymnasium.utils.env_checker import check_env
 from sklearn.covariance import ledoit_wolf
 
 from inertia_id import Scenario
+from inertia_id.physics.simulate import simulate
 from inertia_id.search import (
     PrefixScorer,
     ScorerSettings,
     SequenceSearchEnv,
     evaluate_sequence,
 )
-from inertia_id.separability import (
+from inertia_id.search.objectives import (
     bhattacharyya_matrix,
     error_bound,
     mahalanobis_matrix,
     pooled_covariance,
     separability_score,
 )
-from inertia_id.simulate import simulate
 
 GOOD = [[4, 4, 4, 0, 0, 0]] * 4
 # Every thruster at the same duty: opposite thrusters cancel, no torque, no signal.

@@ -1,0 +1,1 @@
+"""Trained classifiers at work: telemetry, identification, noise sweeps and the HTML report."""

@@ -1,0 +1,311 @@
+"""A self-contained HTML report of a pipeline run (Plotly charts, no network needed)."""
+
+from __future__ import annotations
+
+import html
+import os
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import plotly.graph_objects as go
+import plotly.io as pio
+from plotly.subplots import make_subplots
+
+from ..classifiers.clustering import InertiaClassifier
+from ..physics.scenario import Scenario
+from ..physics.simulate import SimulationResult
+from .sweep import SweepResult
+
+if TYPE_CHECKING:
+    from ..search import SearchResult
+
+__all__ = [
+    "accuracy_figure",
+    "learning_curve_figure",
+    "response_figure",
+    "sequence_figure",
+    "write_report",
+]
+
+_COLOURS = [
+    "#1f77b4",
+    "#d62728",
+    "#2ca02c",
+    "#9467bd",
+    "#ff7f0e",
+    "#8c564b",
+    "#e377c2",
+    "#7f7f7f",
+    "#bcbd22",
+    "#17becf",
+]
+
+
+def _rgba(hex_colour: str, alpha: float) -> str:
+    r, g, b = (int(hex_colour[i : i + 2], 16) for i in (1, 3, 5))
+    return f"rgba({r},{g},{b},{alpha})"
+
+
+def response_figure(result: SimulationResult) -> go.Figure:
+    """Measured ω per axis: each candidate's mean, with a band from the 5th to the
+    95th percentile of its realisations."""
+    fig = make_subplots(
+        rows=3,
+        cols=1,
+        shared_xaxes=True,
+        vertical_spacing=0.04,
+        subplot_titles=("ω_x", "ω_y", "ω_z"),
+    )
+    t = result.time_s
+    for k, name in enumerate(result.candidate_names):
+        colour = _COLOURS[k % len(_COLOURS)]
+        series = result.omega_measured[k]
+        low, mean, high = (
+            np.percentile(series, 5, axis=0),
+            series.mean(axis=0),
+            np.percentile(series, 95, axis=0),
+        )
+        for axis in range(3):
+            row = axis + 1
+            fig.add_trace(
+                go.Scatter(
+                    x=np.concatenate([t, t[::-1]]),
+                    y=np.concatenate([high[:, axis], low[::-1, axis]]),
+                    fill="toself",
+                    fillcolor=_rgba(colour, 0.15),
+                    line={"width": 0},
+                    hoverinfo="skip",
+                    showlegend=False,
+                    legendgroup=name,
+                ),
+                row=row,
+                col=1,
+            )
+            fig.add_trace(
+                go.Scatter(
+                    x=t,
+                    y=mean[:, axis],
+                    name=name,
+                    legendgroup=name,
+                    showlegend=axis == 0,
+                    line={"color": colour, "width": 1.5},
+                ),
+                row=row,
+                col=1,
+            )
+            fig.update_yaxes(title_text="rad/s", row=row, col=1)
+    fig.update_xaxes(title_text="time since sequence start (s)", row=3, col=1)
+    fig.update_layout(title="Gyro response per candidate (mean, 5–95 % band)", height=750)
+    return fig
+
+
+def accuracy_figure(sweep: SweepResult) -> go.Figure:
+    """Accuracy vs noise multiple with Wilson 95 % intervals, one line per noise.
+
+    The sweep's limit (a likelihood classifier fitted at each noise level: dashed) and
+    other classifiers (dotted) are drawn in the colour of the noise they were scored under.
+    """
+    fig = go.Figure()
+    names = {
+        "process": "process noise (disturbance torque)",
+        "measurement": "measurement noise (gyro)",
+    }
+    for i, noise in enumerate(("process", "measurement")):
+        points = sweep.curve(noise)
+        if not points:
+            continue
+        x = [p.multiple for p in points]
+        y = [p.accuracy for p in points]
+        fig.add_trace(
+            go.Scatter(
+                x=x,
+                y=y,
+                mode="lines+markers",
+                name=names[noise],
+                line={"color": _COLOURS[i]},
+                error_y={
+                    "type": "data",
+                    "symmetric": False,
+                    "array": [p.ci_high - p.accuracy for p in points],
+                    "arrayminus": [p.accuracy - p.ci_low for p in points],
+                },
+            )
+        )
+    lines = {**sweep.others, "limit": sweep.limit} if sweep.limit else dict(sweep.others)
+    for label, others in lines.items():
+        for i, noise in enumerate(("process", "measurement")):
+            points = [p for p in others if p.noise == noise]
+            if not points:
+                continue
+            fig.add_trace(
+                go.Scatter(
+                    x=[p.multiple for p in points],
+                    y=[p.accuracy for p in points],
+                    mode="lines",
+                    name=f"{label}, {names[noise].split(' (')[0]}",
+                    line={"color": _COLOURS[i], "dash": "dash" if label == "limit" else "dot"},
+                )
+            )
+    fig.update_layout(
+        title=f"Accuracy vs noise ({sweep.metric}, "
+        f"{sweep.n_test_per_candidate} test series per candidate per point)",
+        xaxis_title="noise multiple of the training level (×)",
+        yaxis_title="accuracy",
+        yaxis_range=[0, 1.02],
+        height=450,
+    )
+    return fig
+
+
+def sequence_figure(scenario: Scenario, sequence: np.ndarray) -> go.Figure:
+    """Commanded duty of each thruster over time, as steps."""
+    duties = scenario.duties(sequence)
+    step = scenario.timing.step_duration_s
+    t = np.arange(len(duties) + 1) * step
+    fig = go.Figure()
+    for j in range(duties.shape[1]):
+        fig.add_trace(
+            go.Scatter(
+                x=t,
+                y=np.append(duties[:, j], duties[-1, j]),
+                line={"shape": "hv", "color": _COLOURS[j % len(_COLOURS)]},
+                name=f"thruster {j}",
+            )
+        )
+    fig.update_layout(
+        title="Actuation sequence",
+        xaxis_title="time (s)",
+        yaxis_title="duty (fraction of full thrust)",
+        yaxis_range=[-0.05, 1.05],
+        height=350,
+    )
+    return fig
+
+
+def learning_curve_figure(search: SearchResult) -> go.Figure:
+    """Mean episode reward (left axis) and mean / best F1 (right axis) vs environment steps."""
+    fig = make_subplots(specs=[[{"secondary_y": True}]])
+    x = [p.timesteps for p in search.curve]
+    fig.add_trace(
+        go.Scatter(
+            x=x,
+            y=[p.mean_episode_reward for p in search.curve],
+            mode="lines+markers",
+            name="mean episode reward",
+            line={"color": _COLOURS[0]},
+        ),
+        secondary_y=False,
+    )
+    for i, (name, values) in enumerate(
+        (
+            ("mean F1 of the episodes' sequences", [p.mean_f1 for p in search.curve]),
+            ("best F1 so far", [p.best_f1 for p in search.curve]),
+        )
+    ):
+        fig.add_trace(
+            go.Scatter(
+                x=x,
+                y=values,
+                mode="lines",
+                name=name,
+                line={"color": _COLOURS[i + 1], "dash": "dot" if i == 0 else "solid"},
+            ),
+            secondary_y=True,
+        )
+    fig.update_layout(
+        title=f"Search ({search.method}): learning curve",
+        xaxis_title="environment steps",
+        height=400,
+    )
+    fig.update_yaxes(title_text="mean episode reward", secondary_y=False)
+    fig.update_yaxes(title_text="F1", range=[0, 1.02], secondary_y=True)
+    return fig
+
+
+def _table(rows: list[tuple[str, Any]]) -> str:
+    cells = "".join(
+        f"<tr><th>{html.escape(str(k))}</th><td>{html.escape(str(v))}</td></tr>" for k, v in rows
+    )
+    return f"<table>{cells}</table>"
+
+
+def _search_rows(search: SearchResult | None) -> list[tuple[str, Any]]:
+    if search is None:
+        return [("sequence from", "given (no search)")]
+    return [
+        (
+            "sequence from",
+            f"{search.method} search, {search.timesteps} environment steps, "
+            f"{search.wall_time_s:.0f} s, stopped: {search.stopped}",
+        ),
+        ("search F1 (its own noise draw)", f"{search.best.f1:.3f}"),
+        (
+            f"F1 on {len(search.fresh.f1)} fresh draws (mean, min)",
+            f"{search.fresh.f1_mean:.3f}, {search.fresh.f1_min:.3f}",
+        ),
+    ]
+
+
+def write_report(
+    path: str | os.PathLike[str],
+    *,
+    scenario: Scenario,
+    sequence: np.ndarray,
+    result: SimulationResult,
+    classifier: InertiaClassifier,
+    sweep: SweepResult | None = None,
+    search: SearchResult | None = None,
+) -> None:
+    """Write the HTML report: summary, candidates, search, sequence, responses, accuracy."""
+    candidates = "".join(
+        f"<tr><td>{html.escape(c.name)}</td><td>"
+        f"{', '.join(f'{m:.2f}' for m in c.principal_moments_kg_m2)}</td></tr>"
+        for c in scenario.inertia_candidates
+    )
+    confusion = "".join(
+        "<tr><th>" + html.escape(name) + "</th>" + "".join(f"<td>{v}</td>" for v in row) + "</tr>"
+        for name, row in zip(
+            classifier.candidate_names_, classifier.confusion_.tolist(), strict=True
+        )
+    )
+    summary = _table(
+        [
+            ("scenario", scenario.name),
+            ("sequence (level indices, one row per step)", np.asarray(sequence).tolist()),
+            ("metric", classifier.metric),
+            ("training F1 (best cluster matching)", f"{classifier.f1_:.3f}"),
+            ("training accuracy", f"{classifier.accuracy_:.3f}"),
+            ("fuel use (total angular impulse)", f"{result.impulse_nms:.3f} N m s"),
+            ("mean final rate |ω|", f"{result.mean_final_rate_rad_s:.4g} rad/s"),
+            *_search_rows(search),
+        ]
+    )
+    figures = [sequence_figure(scenario, sequence), response_figure(result)]
+    if search is not None:
+        figures.insert(0, learning_curve_figure(search))
+    if sweep is not None:
+        figures.append(accuracy_figure(sweep))
+    charts = "".join(
+        pio.to_html(fig, full_html=False, include_plotlyjs="inline" if i == 0 else False)
+        for i, fig in enumerate(figures)
+    )
+    names = "".join(f"<th>{html.escape(n)}</th>" for n in classifier.candidate_names_)
+    document = f"""<!doctype html>
+<html lang="en"><head><meta charset="utf-8">
+<title>inertia-id report: {html.escape(scenario.name)}</title>
+<style>
+body {{ font-family: system-ui, sans-serif; margin: 2em auto; max-width: 1100px; }}
+table {{ border-collapse: collapse; margin: 1em 0; }}
+th, td {{ border: 1px solid #ccc; padding: 4px 8px; text-align: left; }}
+</style></head><body>
+<h1>inertia-id report: {html.escape(scenario.name)}</h1>
+{summary}
+<h2>Candidates (principal moments, kg m²)</h2>
+<table><tr><th>candidate</th><th>principal moments</th></tr>{candidates}</table>
+<h2>Training confusion matrix (rows: true, columns: predicted)</h2>
+<table><tr><th></th>{names}</tr>{confusion}</table>
+{charts}
+</body></html>
+"""
+    with open(path, "w", encoding="utf-8") as fh:
+        fh.write(document)

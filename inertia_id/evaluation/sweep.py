@@ -1,0 +1,400 @@
+"""Classifier accuracy as the noise grows beyond what it was trained at.
+
+Train once at 1x noise, then classify fresh series simulated with one source of error
+at a multiple of its 1x level and every other source at 1x. The sources
+(:data:`NOISE_KINDS`):
+
+- ``process``: the disturbance torque sigma;
+- ``measurement``: the gyro noise sigma;
+- ``jitter``: the thruster timing (duty) jitter sigma;
+- ``thrust_scale``: each thruster's torque-scale error sigma. Torque and inertia enter
+  Euler's equations as their ratio, so this is the confounder that matters most;
+- ``gyro_bias``: the sigma of a constant gyro bias per realisation and axis.
+
+A multiple scales the scenario's own 1x level; where that level is zero (the paper
+preset has no thrust-scale error and no gyro bias) it scales :data:`REFERENCE_LEVELS`
+instead, and every point records the absolute ``value`` it used.
+
+Each point carries a Wilson 95 % interval, so a plot can show how much of a difference
+is sampling error. ``others`` classifiers (the likelihood limit, least squares, the
+supervised classifiers) are scored on exactly the same test series as the main one.
+
+:func:`run_inertia_sweep` asks the other question a GNC engineer has: if the true
+inertia is none of the candidates (between two of them, or all scaled), does the
+classifier say "matches none"?
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+from pydantic import BaseModel
+
+from ..classifiers.likelihood import LikelihoodClassifier
+from ..classifiers.registry import CandidateClassifier
+from ..physics.scenario import Scenario
+from ..physics.simulate import simulate
+
+__all__ = [
+    "DEFAULT_NOISES",
+    "NOISE_KINDS",
+    "REFERENCE_LEVELS",
+    "InertiaPoint",
+    "InertiaSweepResult",
+    "SweepPoint",
+    "SweepResult",
+    "noise_level",
+    "run_inertia_sweep",
+    "run_sweep",
+    "wilson_interval",
+]
+
+#: Each source of error a sweep can scale, with the Uncertainty field it scales.
+NOISE_FIELDS = {
+    "process": "disturbance_torque_sigma_nm",
+    "measurement": "gyro_noise_sigma_rad_s",
+    "jitter": "duty_jitter_sigma",
+    "thrust_scale": "thrust_scale_sigma",
+    "gyro_bias": "gyro_bias_sigma_rad_s",
+}
+NOISE_KINDS = tuple(NOISE_FIELDS)
+#: What a sweep visits unless told otherwise: the paper's two noises.
+DEFAULT_NOISES = ("process", "measurement")
+#: Units of each source's absolute level.
+NOISE_UNITS = {
+    "process": "N m",
+    "measurement": "rad/s",
+    "jitter": "fraction of full duty",
+    "thrust_scale": "fraction of nominal torque",
+    "gyro_bias": "rad/s",
+}
+#: The 1x level of a source the scenario leaves at zero: a 2 % thruster calibration
+#: error; a gyro bias as large as the paper's gyro noise sigma.
+REFERENCE_LEVELS = {"thrust_scale": 0.02, "gyro_bias": 1e-3}
+
+
+def noise_level(scenario: Scenario, noise: str) -> float:
+    """The 1x absolute level of ``noise``: the scenario's, else the reference level."""
+    if noise not in NOISE_FIELDS:
+        raise ValueError(f"noise must be one of {list(NOISE_KINDS)}, got {noise!r}")
+    own = float(getattr(scenario.uncertainty, NOISE_FIELDS[noise]))
+    return own if own > 0 else REFERENCE_LEVELS.get(noise, 0.0)
+
+
+def wilson_interval(successes: int, total: int, z: float = 1.959964) -> tuple[float, float]:
+    """Wilson score interval of a binomial proportion (95 % by default).
+
+    Unlike the normal approximation it stays inside [0, 1] and is honest at 100 %
+    accuracy, where a classifier usually sits at low noise.
+    """
+    if total <= 0:
+        return 0.0, 1.0
+    p = successes / total
+    denom = 1.0 + z**2 / total
+    centre = (p + z**2 / (2 * total)) / denom
+    half = z * math.sqrt(p * (1 - p) / total + z**2 / (4 * total**2)) / denom
+    return max(0.0, centre - half), min(1.0, centre + half)
+
+
+class SweepPoint(BaseModel):
+    """Accuracy at one noise multiple; ``value`` is the absolute level used."""
+
+    noise: str
+    multiple: float
+    value: float = 0.0
+    accuracy: float
+    ci_low: float
+    ci_high: float
+    f1: float
+    n_series: int
+    confusion: list[list[int]]
+
+
+class SweepResult(BaseModel):
+    """Accuracy vs noise multiple, for each kind of noise swept (JSON-ready)."""
+
+    candidate_names: list[str]
+    sequence: list[list[int]]
+    metric: str
+    seed: int
+    n_test_per_candidate: int
+    points: list[SweepPoint]
+    levels: dict[str, float] = {}
+    units: dict[str, str] = {}
+    others: dict[str, list[SweepPoint]] = {}
+    limit: list[SweepPoint] = []
+    limit_realisations: int = 0
+
+    def curve(self, noise: str, classifier: str | None = None) -> list[SweepPoint]:
+        """The points of one noise, of the main classifier or of ``others[classifier]``."""
+        points = self.points if classifier is None else self.others[classifier]
+        return [p for p in points if p.noise == noise]
+
+
+def _check_multiples(multiples: Sequence[float]) -> None:
+    bad = [
+        m
+        for m in multiples
+        if isinstance(m, bool)
+        or not isinstance(m, int | float | np.integer | np.floating)
+        or not (math.isfinite(m) and m >= 0)
+    ]
+    if bad or not multiples:
+        raise ValueError(f"noise multiples must be finite and >= 0, got {list(multiples)}")
+
+
+def _point(
+    classifier: CandidateClassifier, X: np.ndarray, y: np.ndarray, **where: Any
+) -> SweepPoint:
+    scores = classifier.evaluate(X, y)
+    correct = int(np.trace(scores["confusion"]))
+    low, high = wilson_interval(correct, len(y))
+    return SweepPoint(
+        **where,
+        accuracy=scores["accuracy"],
+        ci_low=low,
+        ci_high=high,
+        f1=scores["f1"],
+        n_series=len(y),
+        confusion=np.asarray(scores["confusion"]).tolist(),
+    )
+
+
+def run_sweep(
+    classifier: CandidateClassifier,
+    *,
+    others: dict[str, CandidateClassifier] | None = None,
+    scenario: Scenario | None = None,
+    sequence: Any = None,
+    multiples: Sequence[float] = (1, 2, 3, 4, 5, 6, 7, 8),
+    noises: Sequence[str] = DEFAULT_NOISES,
+    n_test: int = 200,
+    limit_realisations: int = 0,
+    seed: int = 0,
+    progress: Callable[[float], None] | None = None,
+    should_stop: Callable[[], bool] | None = None,
+) -> SweepResult:
+    """Accuracy of a trained classifier on fresh series at each noise multiple.
+
+    :param classifier: fitted classifier (trained at 1x noise).
+    :param others: more fitted classifiers by label, scored on the same test series
+        (e.g. the likelihood limit and least squares as reference lines).
+    :param scenario: the scenario to simulate; defaults to the one it was trained on.
+    :param sequence: the actuation sequence; defaults to the one it was trained on.
+    :param multiples: noise multiples to visit, >= 0.
+    :param noises: which sources to sweep, among :data:`NOISE_KINDS`.
+    :param n_test: test series per point, spread evenly over the candidates.
+    :param limit_realisations: with a number > 0, also measure the limit at every point:
+        the likelihood classifier (the Gaussian matched filter) fitted on that many
+        realisations per candidate simulated *at that point's noise*, i.e. a classifier
+        that knows the simulator, noise level included, scored on the same test series.
+        A classifier trained at 1x cannot know the noise grew; this one does, which is
+        what makes it a ceiling rather than another contestant.
+    :param seed: seed of the test draws; every point gets its own independent stream
+        (the limit's training draws come from other streams of the same seed).
+    :param progress: called with the fraction done after each point.
+    :param should_stop: polled between points; when it returns True the sweep stops and
+        returns the points done so far (cooperative cancellation).
+    """
+    scenario = scenario if scenario is not None else getattr(classifier, "scenario_", None)
+    sequence = sequence if sequence is not None else getattr(classifier, "sequence_", None)
+    if scenario is None or sequence is None:
+        raise ValueError("the classifier does not carry its scenario and sequence; pass them")
+    sequence = scenario.check_sequence(sequence)
+    unknown = [n for n in noises if n not in NOISE_KINDS]
+    if unknown or not noises:
+        raise ValueError(f"noises must be among {list(NOISE_KINDS)}, got {list(noises)}")
+    _check_multiples(multiples)
+    others = dict(others or {})
+    if n_test < scenario.n_candidates:
+        raise ValueError(f"n_test = {n_test} is fewer than the {scenario.n_candidates} candidates")
+    per_candidate = n_test // scenario.n_candidates
+    if isinstance(limit_realisations, bool) or not (
+        isinstance(limit_realisations, int) and limit_realisations >= 0
+    ):
+        raise ValueError(f"limit_realisations must be an integer >= 0, got {limit_realisations!r}")
+    if 0 < limit_realisations < 3:
+        raise ValueError(
+            f"limit_realisations must be 0 (no limit) or at least 3, got {limit_realisations}"
+        )
+    streams = np.random.SeedSequence(seed).spawn(len(noises) * len(multiples))
+    limit_streams = np.random.SeedSequence([seed, 1]).spawn(len(streams))
+    limit_points: list[SweepPoint] = []
+    points: list[SweepPoint] = []
+    other_points: dict[str, list[SweepPoint]] = {label: [] for label in others}
+    levels = {noise: noise_level(scenario, noise) for noise in noises}
+    total = len(streams)
+    for i, (noise, multiple) in enumerate((n, m) for n in noises for m in multiples):
+        if should_stop is not None and should_stop():
+            break
+        value = float(multiple) * levels[noise]
+        if noise in ("process", "measurement"):
+            # The simulator scales these itself (same draws as a plain simulate call).
+            scales = {"process_noise_scale": 1.0, "measurement_noise_scale": 1.0}
+            scales[f"{noise}_noise_scale"] = float(multiple)
+            at_level, extra = scenario, scales
+        else:
+            at_level, extra = scenario.with_uncertainty(**{NOISE_FIELDS[noise]: value}), {}
+        result = simulate(
+            at_level, sequence, per_candidate, np.random.default_rng(streams[i]), **extra
+        )
+        X, y = result.dataset()
+        where = {"noise": noise, "multiple": float(multiple), "value": value}
+        points.append(_point(classifier, X, y, **where))
+        for label, other in others.items():
+            other_points[label].append(_point(other, X, y, **where))
+        if limit_realisations:
+            rng = np.random.default_rng(limit_streams[i])
+            X_fit, y_fit = simulate(at_level, sequence, limit_realisations, rng, **extra).dataset()
+            limit = LikelihoodClassifier().fit(
+                X_fit, y_fit, candidate_names=scenario.candidate_names
+            )
+            limit_points.append(_point(limit, X, y, **where))
+        if progress is not None:
+            progress((i + 1) / total)
+    return SweepResult(
+        candidate_names=scenario.candidate_names,
+        sequence=sequence.tolist(),
+        metric=classifier.metric,
+        seed=seed,
+        n_test_per_candidate=per_candidate,
+        points=points,
+        levels=levels,
+        units={noise: NOISE_UNITS[noise] for noise in noises},
+        others=other_points,
+        limit=limit_points,
+        limit_realisations=limit_realisations,
+    )
+
+
+class InertiaPoint(BaseModel):
+    """How a classifier answers for a body that is not one of its candidates.
+
+    :param body: "scaled" (candidate ``base`` times ``parameter``) or "between"
+        (``(1 - parameter) I_a + parameter I_b`` for the pair ``a``, ``b``).
+    :param matches_none_rate: fraction of the series flagged "matches none".
+    :param predicted: how many series were nearest to each candidate (flagged or not).
+    """
+
+    body: str
+    parameter: float
+    inertia_kg_m2: list[list[float]]
+    n_series: int
+    matches_none_rate: float
+    ci_low: float
+    ci_high: float
+    predicted: list[int]
+
+
+class InertiaSweepResult(BaseModel):
+    """Answers for bodies scaled from a candidate and between two candidates (JSON-ready)."""
+
+    candidate_names: list[str]
+    base: int
+    pair: tuple[int, int]
+    seed: int
+    points: list[InertiaPoint]
+
+
+def _closest_pair(scenario: Scenario) -> tuple[int, int]:
+    tensors = [np.asarray(c.inertia_kg_m2, dtype=float) for c in scenario.inertia_candidates]
+    best = (np.inf, (0, 1))
+    for a in range(len(tensors)):
+        for b in range(a + 1, len(tensors)):
+            gap = np.linalg.norm(tensors[a] - tensors[b]) / np.linalg.norm(tensors[a])
+            best = min(best, (float(gap), (a, b)))
+    return best[1]
+
+
+def run_inertia_sweep(
+    classifier: CandidateClassifier,
+    *,
+    scales: Sequence[float] = (0.6, 0.7, 0.8, 0.9, 1.0, 1.1, 1.2, 1.3, 1.4),
+    between: Sequence[float] = (0.0, 0.25, 0.5, 0.75, 1.0),
+    base: int = 0,
+    pair: tuple[int, int] | None = None,
+    n_test: int = 50,
+    seed: int = 0,
+    progress: Callable[[float], None] | None = None,
+    should_stop: Callable[[], bool] | None = None,
+) -> InertiaSweepResult:
+    """Does the classifier say "matches none" when the true inertia is none of the candidates?
+
+    At 1x noise, simulate ``n_test`` series of each test body and record how often the
+    classifier flags them as matching none, and which candidate each was nearest to.
+    Scale 1 and the ends of the pair are candidates themselves: there the rate should
+    be near 0; far from every candidate it should be near 1.
+
+    :param scales: multiples of candidate ``base``'s inertia tensor.
+    :param between: positions along the segment from candidate ``pair[0]`` to
+        ``pair[1]`` (0 and 1 are the candidates).
+    :param pair: defaults to the two candidates closest to each other (relative
+        Frobenius distance), the pair hardest to tell apart.
+    :param seed: seed of the draws; every body gets its own stream.
+    """
+    scenario: Scenario | None = getattr(classifier, "scenario_", None)
+    sequence = getattr(classifier, "sequence_", None)
+    if scenario is None or sequence is None:
+        raise ValueError("the classifier does not carry its scenario and sequence")
+    k = scenario.n_candidates
+    pair = pair if pair is not None else _closest_pair(scenario)
+    for name, index in (("base", base), ("pair[0]", pair[0]), ("pair[1]", pair[1])):
+        if not 0 <= index < k:
+            raise ValueError(f"{name} = {index} is not a candidate index 0..{k - 1}")
+    bad = [s for s in scales if not (math.isfinite(s) and s > 0)]
+    if bad:
+        raise ValueError(f"scales must be finite and > 0, got {list(scales)}")
+    bad = [t for t in between if not (math.isfinite(t) and 0 <= t <= 1)]
+    if bad:
+        raise ValueError(f"between positions must be in [0, 1], got {list(between)}")
+    if n_test < 1:
+        raise ValueError(f"n_test must be at least 1, got {n_test}")
+    tensors = [np.asarray(c.inertia_kg_m2, dtype=float) for c in scenario.inertia_candidates]
+    bodies = [("scaled", float(s), float(s) * tensors[base]) for s in scales] + [
+        ("between", float(t), (1 - float(t)) * tensors[pair[0]] + float(t) * tensors[pair[1]])
+        for t in between
+    ]
+    thresholds = classifier.novelty_thresholds()
+    streams = np.random.SeedSequence(seed).spawn(len(bodies))
+    document = scenario.model_dump()
+    points: list[InertiaPoint] = []
+    for i, (body, parameter, tensor) in enumerate(bodies):
+        if should_stop is not None and should_stop():
+            break
+        # A scenario needs two candidates: simulate the body beside candidate 0 and
+        # keep only the body's series.
+        test = Scenario.model_validate(
+            {
+                **document,
+                "candidate_generator": None,
+                "inertia_candidates": [
+                    {"name": "test body", "inertia_kg_m2": tensor.tolist()},
+                    document["inertia_candidates"][0],
+                ],
+            }
+        )
+        X = simulate(test, sequence, n_test, np.random.default_rng(streams[i])).omega_measured[0]
+        distances = classifier.transform(X)
+        nearest = distances.argmin(axis=1)
+        flagged = int(np.sum(distances[np.arange(len(X)), nearest] > thresholds[nearest]))
+        low, high = wilson_interval(flagged, len(X))
+        points.append(
+            InertiaPoint(
+                body=body,
+                parameter=parameter,
+                inertia_kg_m2=tensor.tolist(),
+                n_series=len(X),
+                matches_none_rate=flagged / len(X),
+                ci_low=low,
+                ci_high=high,
+                predicted=np.bincount(nearest, minlength=k).tolist(),
+            )
+        )
+        if progress is not None:
+            progress((i + 1) / len(bodies))
+    return InertiaSweepResult(
+        candidate_names=scenario.candidate_names, base=base, pair=pair, seed=seed, points=points
+    )

@@ -1,0 +1,485 @@
+"""The spacecraft scenario: inertia candidates, thrusters, timing and uncertainty.
+
+A :class:`Scenario` is plain data (pydantic, JSON round-trip). Everything the simulator
+needs is in it, in physical units, and every field is validated with a message that
+quotes the value that broke the rule.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Self
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+__all__ = [
+    "CandidateGenerator",
+    "InertiaCandidate",
+    "Scenario",
+    "Thrusters",
+    "Timing",
+    "Uncertainty",
+    "check_inertia_tensor",
+]
+
+# Relative tolerance for symmetry and the triangle inequality: tensors typed by hand or
+# round-tripped through JSON carry rounding noise of a few ulps.
+_RTOL = 1e-9
+
+
+def _fmt(values: Any) -> str:
+    return np.array2string(np.asarray(values, dtype=float), precision=6, separator=", ")
+
+
+def check_inertia_tensor(tensor: Any) -> np.ndarray:
+    """Return ``tensor`` as a (3, 3) float array if it is a physical inertia tensor.
+
+    A physical tensor is finite, symmetric, positive definite, and its principal moments
+    satisfy the triangle inequality (sorted ``p0 + p1 >= p2``). Raises ``ValueError``
+    naming the rule that failed and the offending values.
+    """
+    try:
+        arr = np.asarray(tensor, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"inertia tensor {tensor!r} is not numeric: {exc}") from None
+    if arr.shape != (3, 3):
+        raise ValueError(f"inertia tensor must be 3x3 (kg m^2), got shape {arr.shape}: {_fmt(arr)}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"inertia tensor has non-finite entries: {_fmt(arr)}")
+    scale = float(np.max(np.abs(arr))) or 1.0
+    asym = float(np.max(np.abs(arr - arr.T)))
+    if asym > _RTOL * scale:
+        raise ValueError(
+            f"inertia tensor is not symmetric (largest |I - I^T| = {asym:.3g}): {_fmt(arr)}"
+        )
+    moments = np.linalg.eigvalsh(0.5 * (arr + arr.T))
+    if moments[0] <= 0.0:
+        raise ValueError(
+            f"inertia tensor is not positive definite: principal moments {_fmt(moments)} kg m^2"
+        )
+    if moments[0] + moments[1] < moments[2] * (1.0 - _RTOL):
+        raise ValueError(
+            "principal moments break the triangle inequality "
+            f"({moments[0]:.6g} + {moments[1]:.6g} < {moments[2]:.6g}): {_fmt(moments)} kg m^2"
+        )
+    return 0.5 * (arr + arr.T)
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class InertiaCandidate(_Model):
+    """One configuration the spacecraft may be in.
+
+    :param name: what an operator calls this state, e.g. "payload 2 ejected".
+    :param inertia_kg_m2: full 3x3 inertia tensor about the centre of mass, body frame;
+        products of inertia are allowed.
+    """
+
+    name: str = Field(min_length=1, max_length=200)
+    inertia_kg_m2: list[list[float]]
+
+    @field_validator("inertia_kg_m2")
+    @classmethod
+    def _physical(cls, value: list[list[float]]) -> list[list[float]]:
+        check_inertia_tensor(value)
+        return value
+
+    @property
+    def principal_moments_kg_m2(self) -> np.ndarray:
+        """Principal moments of inertia, ascending (kg m^2)."""
+        return np.linalg.eigvalsh(np.asarray(self.inertia_kg_m2))
+
+
+class CandidateGenerator(_Model):
+    """The paper's payload deployer: ``I_n = I0 - dI_n``.
+
+    Each variation removes, per body axis, a fraction of the base tensor's diagonal
+    moment drawn uniformly in ``reduction_range``. The base tensor itself is the first
+    candidate ("none ejected"). Seeded, so the same generator gives the same candidates.
+
+    :param base_inertia_kg_m2: I0, the tensor with every payload aboard.
+    :param n_variations: how many payload states besides the base one.
+    :param reduction_range: (low, high) fraction of each diagonal moment removed.
+    :param seed: seed of the draws, so that a scenario can be regenerated exactly.
+    """
+
+    base_inertia_kg_m2: list[list[float]]
+    n_variations: int = Field(ge=1, le=100)
+    reduction_range: tuple[float, float] = (0.05, 0.15)
+    seed: int = 0
+    base_name: str = "none ejected"
+    variation_name: str = "payload {n} ejected"
+
+    @field_validator("base_inertia_kg_m2")
+    @classmethod
+    def _physical(cls, value: list[list[float]]) -> list[list[float]]:
+        check_inertia_tensor(value)
+        return value
+
+    @field_validator("reduction_range")
+    @classmethod
+    def _range(cls, value: tuple[float, float]) -> tuple[float, float]:
+        low, high = value
+        if not (0.0 <= low <= high < 1.0):
+            raise ValueError(
+                f"reduction_range must satisfy 0 <= low <= high < 1, got {list(value)}"
+            )
+        return value
+
+    def generate(self) -> list[InertiaCandidate]:
+        base = np.asarray(self.base_inertia_kg_m2, dtype=float)
+        rng = np.random.default_rng(self.seed)
+        low, high = self.reduction_range
+        candidates = [InertiaCandidate(name=self.base_name, inertia_kg_m2=base.tolist())]
+        for n in range(1, self.n_variations + 1):
+            reduction = rng.uniform(low, high, size=3) * np.diag(base)
+            tensor = base - np.diag(reduction)
+            name = self.variation_name.format(n=n)
+            try:
+                candidates.append(InertiaCandidate(name=name, inertia_kg_m2=tensor.tolist()))
+            except ValueError as exc:
+                raise ValueError(f"generated candidate {name!r} is not physical: {exc}") from None
+        return candidates
+
+
+class Thrusters(_Model):
+    """Thruster torques and the duty levels a step may command.
+
+    Give either ``torque_matrix_nm`` (3 x N, the body torque of each thruster at full
+    duty, N m) or ``nominal_torque_nm`` for the paper's ``A = T [I3, -I3]``; and either
+    ``levels`` or ``n_levels`` (M evenly spaced duty values from 0 to 1). After
+    validation both the matrix and the levels are always filled in.
+    """
+
+    torque_matrix_nm: list[list[float]]
+    levels: list[float]
+
+    @model_validator(mode="before")
+    @classmethod
+    def _expand(cls, data: Any) -> Any:
+        if not isinstance(data, dict):
+            return data
+        data = dict(data)
+        nominal = data.pop("nominal_torque_nm", None)
+        if data.get("torque_matrix_nm") is None:
+            if nominal is None:
+                raise ValueError("give torque_matrix_nm (3 x N, N m) or nominal_torque_nm")
+            try:
+                torque = float(nominal)
+            except (TypeError, ValueError, OverflowError):
+                raise ValueError(f"nominal_torque_nm must be a number, got {nominal!r}") from None
+            if not (math.isfinite(torque) and torque > 0):
+                raise ValueError(f"nominal_torque_nm must be finite and > 0, got {nominal!r}")
+            data["torque_matrix_nm"] = (torque * np.hstack([np.eye(3), -np.eye(3)])).tolist()
+        elif nominal is not None:
+            raise ValueError("give torque_matrix_nm or nominal_torque_nm, not both")
+        n_levels = data.pop("n_levels", None)
+        if data.get("levels") is None:
+            if n_levels is None:
+                raise ValueError("give levels (duty values in [0, 1]) or n_levels")
+            if (
+                not isinstance(n_levels, int)
+                or isinstance(n_levels, bool)
+                or not 2 <= n_levels <= 101
+            ):
+                # Checked before the levels are generated: a huge count would allocate them.
+                raise ValueError(f"n_levels must be an integer from 2 to 101, got {n_levels!r}")
+            data["levels"] = np.linspace(0.0, 1.0, n_levels).tolist()
+        elif n_levels is not None and len(data["levels"]) != n_levels:
+            raise ValueError(
+                f"n_levels = {n_levels!r} disagrees with {len(data['levels'])} levels given"
+            )
+        return data
+
+    @field_validator("torque_matrix_nm")
+    @classmethod
+    def _matrix(cls, value: list[list[float]]) -> list[list[float]]:
+        lengths = [len(row) for row in value]
+        if len(value) != 3 or len(set(lengths)) != 1 or lengths[0] < 1:
+            raise ValueError(
+                f"torque_matrix_nm must be 3 x N with N >= 1, got rows of lengths {lengths}"
+            )
+        arr = np.asarray(value, dtype=float)
+        if not np.all(np.isfinite(arr)):
+            raise ValueError(f"torque_matrix_nm has non-finite entries: {_fmt(arr)}")
+        if arr.shape[1] > 64:
+            raise ValueError(f"torque_matrix_nm has {arr.shape[1]} thrusters; at most 64")
+        return value
+
+    @field_validator("levels")
+    @classmethod
+    def _levels(cls, value: list[float]) -> list[float]:
+        arr = np.asarray(value, dtype=float)
+        if arr.size < 2 or arr.size > 101:
+            raise ValueError(f"levels must hold 2 to 101 duty values, got {value}")
+        if not np.all(np.isfinite(arr)) or arr.min() < 0.0 or arr.max() > 1.0:
+            raise ValueError(f"levels must lie within [0, 1], got {value}")
+        if np.any(np.diff(arr) <= 0.0):
+            raise ValueError(f"levels must be strictly increasing, got {value}")
+        if arr[0] != 0.0 or arr[-1] != 1.0:
+            raise ValueError(f"levels must include 0 and 1, got {value}")
+        return value
+
+
+class Timing(_Model):
+    """When things happen.
+
+    :param step_duration_s: length of one actuation step (one row of a sequence), s.
+    :param integration_step_s: RK4 step, s; must divide the step duration.
+    :param sample_rate_hz: gyro telemetry rate; its period must be a whole number of
+        integration steps and divide the step duration.
+    """
+
+    step_duration_s: float = Field(default=1.0, gt=0, le=3600)
+    integration_step_s: float = Field(default=0.05, gt=0)
+    sample_rate_hz: float = Field(default=20.0, gt=0)
+
+    @model_validator(mode="after")
+    def _commensurate(self) -> Self:
+        try:
+            self._check_commensurate()
+        except ArithmeticError:
+            # Ratios of extreme values overflow or divide by an underflowed zero.
+            raise ValueError(
+                f"timing out of range: step_duration_s = {self.step_duration_s}, "
+                f"integration_step_s = {self.integration_step_s}, "
+                f"sample_rate_hz = {self.sample_rate_hz}"
+            ) from None
+        return self
+
+    def _check_commensurate(self) -> None:
+        _whole(
+            self.step_duration_s / self.integration_step_s,
+            f"step_duration_s = {self.step_duration_s} is not a whole number of "
+            f"integration_step_s = {self.integration_step_s}",
+        )
+        _whole(
+            1.0 / (self.sample_rate_hz * self.integration_step_s),
+            f"the sample period 1/sample_rate_hz = {1.0 / self.sample_rate_hz:.6g} s is "
+            f"not a whole number of integration_step_s = {self.integration_step_s}",
+        )
+        _whole(
+            self.step_duration_s * self.sample_rate_hz,
+            f"step_duration_s = {self.step_duration_s} is not a whole number of sample "
+            f"periods at sample_rate_hz = {self.sample_rate_hz}",
+        )
+        if self.substeps_per_step > 100_000:
+            raise ValueError(
+                f"{self.substeps_per_step} integration steps per actuation step is too many"
+            )
+
+    @property
+    def substeps_per_step(self) -> int:
+        return round(self.step_duration_s / self.integration_step_s)
+
+    @property
+    def samples_per_step(self) -> int:
+        return round(self.step_duration_s * self.sample_rate_hz)
+
+    @property
+    def substeps_per_sample(self) -> int:
+        return round(1.0 / (self.sample_rate_hz * self.integration_step_s))
+
+
+def _whole(ratio: float, message: str) -> None:
+    if not math.isfinite(ratio) or ratio < 1.0 - 1e-9 or abs(ratio - round(ratio)) > 1e-6:
+        raise ValueError(message)
+
+
+class Uncertainty(_Model):
+    """Every source of randomness, in physical units; each can be zero.
+
+    :param duty_jitter_sigma: standard deviation of the duty actually delivered by a
+        firing thruster around the commanded level (fraction of full duty), redrawn each
+        step; the paper's response-time variance. Delivered duty is clipped to [0, 1].
+    :param lowpass_time_constant_s: first-order lag between commanded and applied torque
+        (valve and chamber dynamics); 0 applies torque instantly.
+    :param thrust_scale_sigma: relative error of each thruster's torque, drawn once per
+        realisation (calibration error; torque and inertia enter Euler's equations as a
+        ratio, so this is the confounder that matters most).
+    :param disturbance_torque_sigma_nm: process noise, a random torque per body axis (N m),
+        piecewise constant, redrawn every ``disturbance_interval_s``.
+    :param gyro_noise_sigma_rad_s: white gyro noise per axis and sample (rad/s).
+    :param gyro_bias_rad_s: constant gyro bias vector (rad/s).
+    :param gyro_bias_sigma_rad_s: random constant bias per realisation and axis (rad/s).
+    :param initial_rate_sigma_rad_s: spread of the angular velocity at the start (rad/s);
+        0 starts every realisation at rest.
+    """
+
+    duty_jitter_sigma: float = Field(default=0.02, ge=0)
+    lowpass_time_constant_s: float = Field(default=0.1, ge=0)
+    thrust_scale_sigma: float = Field(default=0.0, ge=0)
+    disturbance_torque_sigma_nm: float = Field(default=0.05, ge=0)
+    disturbance_interval_s: float = Field(default=0.05, gt=0)
+    gyro_noise_sigma_rad_s: float = Field(default=1e-3, ge=0)
+    gyro_bias_rad_s: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    gyro_bias_sigma_rad_s: float = Field(default=0.0, ge=0)
+    initial_rate_sigma_rad_s: float = Field(default=0.0, ge=0)
+
+    @field_validator("*", mode="after")
+    @classmethod
+    def _finite(cls, value: Any, info: Any) -> Any:
+        values = value if isinstance(value, tuple) else (value,)
+        if not all(math.isfinite(float(v)) for v in values):
+            raise ValueError(f"{info.field_name} must be finite, got {value!r}")
+        return value
+
+
+class Scenario(_Model):
+    """A spacecraft, its possible configurations, and how it is driven and observed.
+
+    Give ``inertia_candidates`` explicitly, or a ``candidate_generator`` (the paper's
+    payload deployer) which is expanded into explicit candidates on validation and kept
+    for provenance.
+    """
+
+    name: str = Field(default="custom", min_length=1, max_length=200)
+    inertia_candidates: list[InertiaCandidate]
+    candidate_generator: CandidateGenerator | None = None
+    thrusters: Thrusters
+    timing: Timing = Timing()
+    uncertainty: Uncertainty = Uncertainty()
+
+    @model_validator(mode="before")
+    @classmethod
+    def _generate(cls, data: Any) -> Any:
+        if isinstance(data, dict) and not data.get("inertia_candidates"):
+            generator = data.get("candidate_generator")
+            if generator is None:
+                raise ValueError("give inertia_candidates or a candidate_generator")
+            if not isinstance(generator, CandidateGenerator):
+                generator = CandidateGenerator.model_validate(generator)
+            data = {**data, "inertia_candidates": generator.generate()}
+        return data
+
+    @field_validator("inertia_candidates")
+    @classmethod
+    def _candidates(cls, value: list[InertiaCandidate]) -> list[InertiaCandidate]:
+        if not 2 <= len(value) <= 100:
+            raise ValueError(f"need 2 to 100 inertia candidates, got {len(value)}")
+        names = [c.name for c in value]
+        duplicates = sorted({n for n in names if names.count(n) > 1})
+        if duplicates:
+            raise ValueError(f"candidate names must be unique; repeated: {duplicates}")
+        return value
+
+    @model_validator(mode="after")
+    def _disturbance_grid(self) -> Self:
+        dt = self.timing.integration_step_s
+        interval = self.uncertainty.disturbance_interval_s
+        _whole(
+            interval / dt,
+            f"disturbance_interval_s = {interval} is not a whole number of "
+            f"integration_step_s = {dt}",
+        )
+        _whole(
+            self.timing.step_duration_s / interval,
+            f"step_duration_s = {self.timing.step_duration_s} is not a whole number of "
+            f"disturbance_interval_s = {interval}",
+        )
+        return self
+
+    # Arrays the numerical code works with.
+
+    @property
+    def candidate_names(self) -> list[str]:
+        return [c.name for c in self.inertia_candidates]
+
+    @property
+    def inertia_array(self) -> np.ndarray:
+        """Inertia tensors, shape (K, 3, 3), kg m^2."""
+        return np.array([c.inertia_kg_m2 for c in self.inertia_candidates], dtype=float)
+
+    @property
+    def torque_matrix(self) -> np.ndarray:
+        """Thruster torque matrix A, shape (3, N), N m at full duty."""
+        return np.asarray(self.thrusters.torque_matrix_nm, dtype=float)
+
+    @property
+    def level_values(self) -> np.ndarray:
+        """Duty level of each level index, shape (M,)."""
+        return np.asarray(self.thrusters.levels, dtype=float)
+
+    @property
+    def n_candidates(self) -> int:
+        return len(self.inertia_candidates)
+
+    @property
+    def n_thrusters(self) -> int:
+        return len(self.thrusters.torque_matrix_nm[0])
+
+    @property
+    def n_levels(self) -> int:
+        return len(self.thrusters.levels)
+
+    def sample_times(self, n_steps: int) -> np.ndarray:
+        """Telemetry time stamps (s from the start of the sequence) for ``n_steps`` steps.
+
+        Samples are taken at the end of each sample period, so the first is at
+        ``1 / sample_rate_hz`` and the last at the end of the sequence.
+        """
+        n = n_steps * self.timing.samples_per_step
+        return np.arange(1, n + 1) / self.timing.sample_rate_hz
+
+    def check_sequence(self, sequence: Any) -> np.ndarray:
+        """Return ``sequence`` as an (L, N) integer array of level indices, or raise.
+
+        A sequence row gives, for each thruster, the index into ``thrusters.levels`` of
+        the duty it fires at during that step.
+        """
+        try:
+            arr = np.asarray(sequence)
+        except (TypeError, ValueError):
+            raise ValueError(f"sequence {sequence!r} is not an array of level indices") from None
+        if arr.ndim == 1 and arr.size == self.n_thrusters:
+            arr = arr[None, :]
+        if arr.ndim != 2 or arr.shape[1] != self.n_thrusters or arr.shape[0] < 1:
+            raise ValueError(
+                f"sequence must be L x {self.n_thrusters} level indices (one per thruster), "
+                f"got shape {arr.shape}"
+            )
+        if arr.shape[0] > 1000:
+            raise ValueError(f"sequence has {arr.shape[0]} steps; at most 1000")
+        if not np.issubdtype(arr.dtype, np.number) or not np.all(np.isfinite(arr)):
+            raise ValueError(f"sequence must hold integer level indices, got {arr.tolist()}")
+        as_int = arr.astype(int)
+        if np.any(as_int != arr):
+            raise ValueError(f"sequence must hold integer level indices, got {arr.tolist()}")
+        bad = (as_int < 0) | (as_int >= self.n_levels)
+        if np.any(bad):
+            step, thruster = (int(i) for i in np.argwhere(bad)[0])
+            raise ValueError(
+                f"sequence step {step}, thruster {thruster}: level index "
+                f"{as_int[step, thruster]} is outside 0..{self.n_levels - 1}"
+            )
+        return as_int
+
+    def duties(self, sequence: Any) -> np.ndarray:
+        """Commanded duty of each thruster at each step, shape (L, N), in [0, 1]."""
+        return self.level_values[self.check_sequence(sequence)]
+
+    def impulse_nms(self, sequence: Any) -> float:
+        """Fuel use of a sequence as total commanded angular impulse, N m s.
+
+        Each thruster contributes |A_j| * duty * step duration; with equal thrusters and
+        lever arms this is proportional to propellant mass.
+        """
+        per_thruster = np.linalg.norm(self.torque_matrix, axis=0)
+        return float(self.duties(sequence).sum(axis=0) @ per_thruster * self.timing.step_duration_s)
+
+    def with_uncertainty(self, **changes: Any) -> Scenario:
+        """A copy with some uncertainty fields changed (validated)."""
+        # Validate the whole scenario again: some rules (the disturbance interval on the
+        # integration grid) span the uncertainty and the timing.
+        uncertainty = {**self.uncertainty.model_dump(), **changes}
+        return type(self).model_validate({**self.model_dump(), "uncertainty": uncertainty})
+
+    @classmethod
+    def paper(cls) -> Scenario:
+        """The paper's payload-deployer spacecraft (the "paper" preset)."""
+        from .presets import preset
+
+        return preset("paper")

@@ -1,0 +1,48 @@
+"""The hand-designed sequences scored on the very draws a search's best sequence was.
+
+What a search adds over a hand-designed excitation (:mod:`inertia_id.physics.sequences`)
+is only visible on the same fresh noise draws: :func:`compare_with_baselines` scores each
+baseline there.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from ..physics.scenario import Scenario
+from ..physics.sequences import BASELINES
+from .records import evaluate_sequence
+from .scorer import ScorerSettings
+
+__all__ = ["compare_with_baselines"]
+
+
+def compare_with_baselines(
+    scenario: Scenario,
+    sequence_length: int,
+    settings: ScorerSettings,
+    *,
+    seed: int,
+    n_draws: int = 5,
+) -> dict[str, dict[str, Any]]:
+    """Each baseline of ``sequence_length`` steps scored on given fresh draws.
+
+    Pass a search result's ``fresh.seed`` and its number of draws: the baselines are then
+    scored on exactly the draws the search's best sequence was, so the comparison is
+    paired.
+
+    :param settings: the search's :class:`~inertia_id.search.ScorerSettings`.
+    :returns: by baseline name: the sequence, the clustering F1 and mean final rate
+        (rad/s) on each draw, and the fuel (commanded impulse, N m s).
+    """
+    out: dict[str, dict[str, Any]] = {}
+    for name, make in BASELINES.items():
+        sequence = make(scenario, sequence_length)
+        fresh = evaluate_sequence(scenario, sequence, settings, seed=seed, n_draws=n_draws)
+        out[name] = {
+            "sequence": sequence.tolist(),
+            "fresh_f1": list(fresh.f1),
+            "fresh_final_rate_rad_s": list(fresh.final_rate_rad_s),
+            "fuel_nms": scenario.impulse_nms(sequence),
+        }
+    return out

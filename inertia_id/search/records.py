@@ -1,0 +1,328 @@
+"""What every search reports, how the best sequence is tracked, and its honest re-scoring.
+
+PPO, CEM, exhaustive and random search all drive
+:class:`~inertia_id.search.env.SequenceSearchEnv` (the episode loop is
+:mod:`inertia_id.search.loop`) and return a :class:`SearchResult` of the same shape:
+the best sequence with the score the search saw, the same sequence re-scored on fresh
+realisations with an independent seed (the search's own score comes from one noise draw
+and is optimistic), and the learning curve.
+
+"F1" in a record or curve point is the search objective's score: the clustering F1, or
+the separability score of a search with ``objective="separability"``. The fresh
+re-scoring always reports the clustering F1 (what users compare), and the separability
+score too when the search used it.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from ..physics.scenario import Scenario
+from .scorer import PrefixScorer, ScorerSettings
+
+__all__ = [
+    "CurvePoint",
+    "EpisodeRecord",
+    "FreshEvaluation",
+    "SearchProgress",
+    "SearchResult",
+    "SearchTracker",
+    "evaluate_sequence",
+    "fresh_seed",
+    "space_size",
+]
+
+
+def space_size(scenario: Scenario, sequence_length: int) -> int:
+    """Number of distinct sequences, (M^N)^L."""
+    return int(scenario.n_levels ** (scenario.n_thrusters * sequence_length))
+
+
+def fresh_seed(seed: int) -> int:
+    """A seed independent of ``seed`` (a spawned child of its seed sequence)."""
+    child = np.random.SeedSequence(seed).spawn(1)[0]
+    return int(child.generate_state(1, np.uint64)[0] >> np.uint64(1))
+
+
+@dataclass(frozen=True)
+class EpisodeRecord:
+    """One complete sequence a search tried.
+
+    :param sequence: (L, N) level indices.
+    :param f1: the objective's score of the full sequence on the search's noise draw
+        (clustering F1, or the separability score).
+    :param final_rate_rad_s: mean |ω| at the end, rad/s.
+    :param fuel_nms: commanded angular impulse, N m s.
+    :param episode_return: the environment's summed reward.
+    :param episode: 1-based episode number in the search.
+    """
+
+    sequence: list[list[int]]
+    f1: float
+    final_rate_rad_s: float
+    fuel_nms: float
+    episode_return: float
+    episode: int
+
+
+@dataclass(frozen=True)
+class CurvePoint:
+    """The learning curve at one report (every rollout, or every ``report_every`` steps).
+
+    :param timesteps: environment steps so far.
+    :param episodes: complete episodes so far.
+    :param mean_episode_reward: mean return of the episodes finished since the last point.
+    :param mean_f1: mean full-sequence F1 (objective's score) of those episodes.
+    :param best_f1: best full-sequence F1 (objective's score) so far.
+    :param best_final_rate_rad_s: final rate of the best sequence so far.
+    """
+
+    timesteps: int
+    episodes: int
+    mean_episode_reward: float
+    mean_f1: float
+    best_f1: float
+    best_final_rate_rad_s: float
+
+
+@dataclass(frozen=True)
+class SearchProgress:
+    """Passed to a search's ``progress`` callback at every curve point."""
+
+    timesteps: int
+    total_timesteps: int
+    episodes: int
+    point: CurvePoint
+    best: EpisodeRecord | None
+
+    @property
+    def fraction(self) -> float:
+        return min(1.0, self.timesteps / max(self.total_timesteps, 1))
+
+
+@dataclass(frozen=True)
+class FreshEvaluation:
+    """The best sequence re-scored on fresh noise draws.
+
+    :param seed: the independent seed the draws came from.
+    :param f1: clustering F1 on each draw, whatever the search's objective.
+    :param final_rate_rad_s: mean final rate on each draw, rad/s.
+    :param separability: the separability score on each draw, when the search's
+        objective was "separability"; else None.
+    """
+
+    seed: int
+    f1: list[float]
+    final_rate_rad_s: list[float]
+    separability: list[float] | None = None
+
+    @property
+    def f1_mean(self) -> float:
+        return float(np.mean(self.f1))
+
+    @property
+    def f1_min(self) -> float:
+        return float(np.min(self.f1))
+
+
+def evaluate_sequence(
+    scenario: Scenario,
+    sequence: Any,
+    settings: ScorerSettings,
+    *,
+    seed: int,
+    n_draws: int = 5,
+) -> FreshEvaluation:
+    """Score ``sequence`` on ``n_draws`` independent noise draws derived from ``seed``.
+
+    The clustering F1 is always computed (with ``settings``' clustering options); with
+    the objective "separability" the separability score is computed on the same draws.
+    """
+    rows = scenario.check_sequence(sequence)
+    seeds = np.random.SeedSequence(seed).generate_state(n_draws, np.uint32)
+    clustering = settings if settings.objective == "f1" else replace(settings, objective="f1")
+    f1, rate, separability = [], [], []
+    for draw_seed in seeds:
+        scorer = PrefixScorer(scenario, len(rows), clustering, seed=int(draw_seed))
+        score = scorer.score(rows)
+        f1.append(score.f1)
+        rate.append(score.final_rate_rad_s)
+        if settings.objective != "f1":
+            other = PrefixScorer(scenario, len(rows), settings, seed=int(draw_seed))
+            separability.append(other.score(rows).f1)
+    return FreshEvaluation(
+        seed=seed,
+        f1=f1,
+        final_rate_rad_s=rate,
+        separability=separability if settings.objective != "f1" else None,
+    )
+
+
+class SearchTracker:
+    """Follows a search episode by episode: the best sequence and the learning curve.
+
+    The best sequence has the highest F1; among equals, the smallest final rate plus
+    ``fuel_weight`` times its fuel.
+
+    :param fuel_weight: the environment's fuel weight, for the tie-break.
+    :param patience_episodes: stop once the best F1 is 1 and no better sequence (smaller
+        final rate and fuel cost) has turned up for this many episodes; None = never.
+    """
+
+    def __init__(self, *, fuel_weight: float = 0.0, patience_episodes: int | None = None) -> None:
+        self.fuel_weight = fuel_weight
+        self.patience_episodes = patience_episodes
+        self.best: EpisodeRecord | None = None
+        #: The episode finished last.
+        self.last: EpisodeRecord | None = None
+        self.best_episode = 0
+        self.episodes = 0
+        self.timesteps = 0
+        self.curve: list[CurvePoint] = []
+        self._returns: list[float] = []
+        self._f1s: list[float] = []
+        self._running_return = 0.0
+
+    def rank(self, record: EpisodeRecord) -> tuple[float, float]:
+        """The order of sequences, larger is better: F1, then minus the cost."""
+        cost = record.final_rate_rad_s + self.fuel_weight * record.fuel_nms
+        return (round(record.f1, 12), -cost)
+
+    def on_step(self, reward: float, done: bool, info: dict[str, Any]) -> bool:
+        """Account for one environment step; True when this step found a new best."""
+        self.timesteps += 1
+        self._running_return += reward
+        if not done:
+            return False
+        self.episodes += 1
+        record = EpisodeRecord(
+            sequence=[list(row) for row in info["sequence"]],
+            f1=float(info["f1"]),
+            final_rate_rad_s=float(info["final_rate_rad_s"]),
+            fuel_nms=float(info["fuel_nms"]),
+            episode_return=self._running_return,
+            episode=self.episodes,
+        )
+        self.last = record
+        self._returns.append(self._running_return)
+        self._f1s.append(record.f1)
+        self._running_return = 0.0
+        if self.best is None or self.rank(record) > self.rank(self.best):
+            self.best = record
+            self.best_episode = self.episodes
+            return True
+        return False
+
+    def reached_target(self) -> bool:
+        """Best F1 is 1 and it has not improved for ``patience_episodes`` episodes."""
+        return (
+            self.patience_episodes is not None
+            and self.best is not None
+            and self.best.f1 >= 1.0
+            and self.episodes - self.best_episode >= self.patience_episodes
+        )
+
+    def add_point(self) -> CurvePoint:
+        """Close a curve point over the episodes finished since the last one."""
+        previous = self.curve[-1] if self.curve else None
+        point = CurvePoint(
+            timesteps=self.timesteps,
+            episodes=self.episodes,
+            mean_episode_reward=float(np.mean(self._returns))
+            if self._returns
+            else (previous.mean_episode_reward if previous else float("nan")),
+            mean_f1=float(np.mean(self._f1s))
+            if self._f1s
+            else (previous.mean_f1 if previous else float("nan")),
+            best_f1=self.best.f1 if self.best else float("nan"),
+            best_final_rate_rad_s=self.best.final_rate_rad_s if self.best else float("nan"),
+        )
+        self.curve.append(point)
+        self._returns, self._f1s = [], []
+        return point
+
+
+@dataclass
+class SearchResult:
+    """The outcome of a search, the same shape for every method.
+
+    :param method: "ppo", "cem", "exhaustive" or "random".
+    :param best: the best sequence and the scores the search saw for it.
+    :param fresh: the best sequence re-scored on fresh draws (independent seed).
+    :param curve: the learning curve.
+    :param timesteps: environment steps taken.
+    :param episodes: sequences tried.
+    :param wall_time_s: wall-clock time of the search, s.
+    :param stopped: "budget", "target" (F1 = 1 and no improvement for the patience),
+        "cancelled", "exhausted" (every sequence tried) or "converged" (CEM's sampling
+        distribution collapsed onto one sequence).
+    :param space_size: number of distinct sequences, (M^N)^L.
+    :param settings: the search's parameters, as given.
+    :param policy_path: where PPO saved its policy, if it did.
+    :param cache_hits: environment steps whose prefix score came from the cache.
+    :param cache_misses: environment steps that simulated and clustered a new prefix.
+    """
+
+    method: str
+    best: EpisodeRecord
+    fresh: FreshEvaluation
+    curve: list[CurvePoint]
+    timesteps: int
+    episodes: int
+    wall_time_s: float
+    stopped: str
+    space_size: int
+    settings: dict[str, Any] = field(default_factory=dict)
+    policy_path: str | None = None
+    cache_hits: int = 0
+    cache_misses: int = 0
+
+    @property
+    def best_sequence(self) -> np.ndarray:
+        return np.asarray(self.best.sequence, dtype=int)
+
+    @property
+    def objective(self) -> str:
+        """What ``best.f1`` and the curve's F1 measure: "f1" or "separability"."""
+        return str(self.settings.get("scorer", {}).get("objective", "f1"))
+
+    def to_dict(self) -> dict[str, Any]:
+        out = asdict(self)
+        out["fresh"]["f1_mean"] = self.fresh.f1_mean
+        out["fresh"]["f1_min"] = self.fresh.f1_min
+        return out
+
+    def to_json(self) -> str:
+        """The result as JSON (NaN, e.g. a curve point before any episode, as null)."""
+        return json.dumps(_json_safe(self.to_dict()), allow_nan=False)
+
+    def summary(self) -> str:
+        b = self.best
+        seen = (
+            f"F1 {b.f1:.3f} on the search's draw, "
+            if self.objective == "f1"
+            else f"separability {b.f1:.3f} on the search's draw, F1 "
+        )
+        return (
+            f"{self.method}: best sequence {b.sequence} | {seen}"
+            f"{self.fresh.f1_mean:.3f} mean on {len(self.fresh.f1)} fresh draws "
+            f"(min {self.fresh.f1_min:.3f}) | final rate {b.final_rate_rad_s:.4f} rad/s | "
+            f"fuel {b.fuel_nms:.2f} N m s | {self.timesteps} env steps, {self.episodes} "
+            f"episodes, {self.wall_time_s:.1f} s, stopped: {self.stopped}"
+        )
+
+
+def _json_safe(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_json_safe(v) for v in value]
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and not np.isfinite(value):
+        return None
+    return value

@@ -1,0 +1,319 @@
+"""The marginal-likelihood classifier: the Bayes rule when the noise level is unknown."""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.special import logsumexp
+
+from inertia_id import Scenario, identify, simulate
+from inertia_id.classifiers.likelihood import LikelihoodClassifier
+from inertia_id.classifiers.marginal import AXES_GRID, MarginalLikelihoodClassifier, train_marginal
+
+# One axis at a time: separates the paper's candidates at 1x (98 %) but not at 8x noise,
+# where a likelihood classifier fitted at 1x falls about 10 points short of one fitted
+# at 8x.
+AXIS_IN_TURN = [[4, 0, 0, 0, 0, 0], [0, 4, 0, 0, 0, 0], [0, 0, 4, 0, 0, 0], [4, 0, 0, 0, 0, 0]]
+N_TRAIN = 40
+I0 = np.diag([100.0, 60.0, 90.0])  # candidate 0 of the paper preset, kg m²
+
+
+@pytest.fixture(scope="module")
+def marginal(paper: Scenario) -> MarginalLikelihoodClassifier:
+    return train_marginal(paper, AXIS_IN_TURN, N_TRAIN, np.random.default_rng(1))
+
+
+@pytest.fixture(scope="module")
+def likelihood_1x(paper: Scenario) -> LikelihoodClassifier:
+    """The likelihood classifier on the very 1x series the marginal was trained on.
+
+    train_marginal replays the first child stream of its rng for each noise source;
+    simulated at 1x, that stream gives what the three runs add up to.
+    """
+    stream = np.random.default_rng(1).spawn(1)[0]
+    X, y = simulate(paper, AXIS_IN_TURN, N_TRAIN, stream).dataset()
+    return LikelihoodClassifier().fit(X, y, scenario=paper, sequence=AXIS_IN_TURN)
+
+
+def noisy(
+    paper: Scenario, per_candidate: int, seed: int, process: float = 1.0, measurement: float = 1.0
+) -> tuple[np.ndarray, np.ndarray]:
+    return simulate(
+        paper,
+        AXIS_IN_TURN,
+        per_candidate,
+        np.random.default_rng(seed),
+        process_noise_scale=process,
+        measurement_noise_scale=measurement,
+    ).dataset()
+
+
+def covariance(
+    model: MarginalLikelihoodClassifier, process: float, measurement: float
+) -> np.ndarray:
+    quiet, process_part, measurement_part = model.components_
+    return np.asarray(quiet + process**2 * process_part + measurement**2 * measurement_part)
+
+
+def mcnemar(ours: np.ndarray, theirs: np.ndarray, y: np.ndarray) -> tuple[int, int]:
+    """Series only ours got right, and series only theirs got right (paired counts)."""
+    return int(np.sum((ours == y) & (theirs != y))), int(np.sum((ours != y) & (theirs == y)))
+
+
+# The noise model, against the simulator's physics.
+
+
+def test_measurement_component_is_the_white_gyro_noise(
+    marginal: MarginalLikelihoodClassifier, paper: Scenario
+) -> None:
+    """White gyro noise: the cross-validated rule shrinks its sample covariance to σ² I."""
+    measurement = marginal.components_[2]
+    assert marginal.shrinkage_[2] == 1.0
+    assert not np.any(measurement - np.diag(np.diag(measurement)))
+    sigma = paper.uncertainty.gyro_noise_sigma_rad_s
+    np.testing.assert_allclose(np.diag(measurement), sigma**2, rtol=0.02)
+    # The smooth quiet and process responses keep their sample structure.
+    assert max(marginal.shrinkage_[:2]) < 0.1
+
+
+@pytest.mark.parametrize(("process", "measurement"), [(8.0, 1.0), (1.0, 8.0), (3.0, 5.0)])
+def test_components_add_up_to_the_covariance_at_any_noise_level(
+    marginal: MarginalLikelihoodClassifier, paper: Scenario, process: float, measurement: float
+) -> None:
+    """Responses are linear in each noise: Σ(p, q) = Σ_quiet + p² Σ_process + q² Σ_meas.
+
+    The process component comes from 200 training series and is dominated by a few
+    smooth directions, so its trace is known to about 5 %; a model scaling a noise by p
+    instead of p², or leaving a source out, is off by a factor of 2 or more.
+    """
+    X, y = noisy(paper, 200, 2, process, measurement)
+    residuals = X.reshape(len(X), -1) - marginal.means_.reshape(5, -1)[y]
+    model = covariance(marginal, process, measurement)
+    assert np.sum(residuals**2) / len(X) == pytest.approx(np.trace(model), rel=0.15)
+    # Also along the model's leading direction, which the process noise dominates.
+    top = np.linalg.eigh(model)[1][:, -1]
+    assert np.mean((residuals @ top) ** 2) == pytest.approx(float(top @ model @ top), rel=0.3)
+
+
+def test_log_likelihood_is_the_equally_weighted_gaussian_mixture(
+    marginal: MarginalLikelihoodClassifier, paper: Scenario
+) -> None:
+    """Against densities computed directly (solve and slogdet), not by the whitening."""
+    grid = [[1.0, 1.0], [8.0, 1.0], [2.0, 4.0]]
+    doc = marginal.to_dict()
+    small = MarginalLikelihoodClassifier.from_dict(
+        {**doc, "params": {**doc["params"], "grid": grid}}
+    )
+    X, _ = noisy(paper, 2, 3, process=4.0)
+    F = X.reshape(len(X), -1)
+    diffs = F[:, None, :] - marginal.means_.reshape(5, -1)[None]  # (n, K, dim)
+    squared, log_density = [], []
+    for process, measurement in grid:
+        cov = covariance(marginal, process, measurement)
+        mahalanobis = np.einsum(
+            "nkp,nkp->nk", diffs, np.linalg.solve(cov, diffs[..., None])[..., 0]
+        )
+        squared.append(mahalanobis)
+        log_density.append(
+            -0.5 * (mahalanobis + np.linalg.slogdet(cov)[1] + F.shape[1] * math.log(2 * math.pi))
+        )
+    expected = logsumexp(np.stack(log_density), axis=0) - math.log(len(grid))
+    np.testing.assert_allclose(small.log_likelihood(X), expected, rtol=1e-9)
+    proba = small.predict_proba(X)
+    np.testing.assert_allclose(proba.sum(axis=1), 1.0)
+    np.testing.assert_array_equal(proba.argmax(axis=1), small.predict(X))
+    # The distances rank as the likelihood does, and with one condition are Mahalanobis.
+    np.testing.assert_array_equal(small.transform(X).argmin(axis=1), small.predict(X))
+    one = MarginalLikelihoodClassifier.from_dict(
+        {**doc, "params": {**doc["params"], "grid": [[8.0, 1.0]]}}
+    )
+    np.testing.assert_allclose(one.transform(X), np.sqrt(squared[1]), rtol=1e-9)
+
+
+def test_condition_posterior_finds_the_noise_level(
+    marginal: MarginalLikelihoodClassifier, paper: Scenario
+) -> None:
+    """240 white samples fix the gyro noise level sharply; the process noise, which acts
+    in a few smooth directions, only roughly (and not at all under 8x gyro noise)."""
+    log_grid = np.log2(marginal.grid_)
+    for process, measurement in [(1.0, 1.0), (2.0, 1.0), (8.0, 1.0), (1.0, 8.0), (8.0, 8.0)]:
+        X, _ = noisy(paper, 4, 4, process, measurement)
+        posterior = marginal.condition_posterior(X)
+        np.testing.assert_allclose(posterior.sum(axis=1), 1.0)
+        # Posterior mean of log2 of each multiple, over 20 series.
+        log_process, log_measurement = log_grid.T @ posterior.mean(axis=0)
+        assert log_measurement == pytest.approx(math.log2(measurement), abs=0.1)
+        if measurement == 1.0:
+            assert log_process == pytest.approx(math.log2(process), abs=0.75)
+
+
+# Accuracy: the limit at every noise level, without knowing the level.
+
+
+def test_as_accurate_as_the_likelihood_at_1x(
+    marginal: MarginalLikelihoodClassifier, likelihood_1x: LikelihoodClassifier, paper: Scenario
+) -> None:
+    X, y = noisy(paper, 60, 5)
+    only_ours, only_theirs = mcnemar(marginal.predict(X), likelihood_1x.predict(X), y)
+    assert only_theirs - only_ours <= 2.0 * math.sqrt(only_ours + only_theirs) + 1
+    assert marginal.evaluate(X, y)["accuracy"] >= 0.95
+
+
+def test_at_8x_process_noise_beats_1x_training(
+    marginal: MarginalLikelihoodClassifier, likelihood_1x: LikelihoodClassifier, paper: Scenario
+) -> None:
+    """Paired on the same test series, ahead of the 1x likelihood beyond sampling error."""
+    X, y = noisy(paper, 60, 6, process=8.0)
+    only_ours, only_1x = mcnemar(marginal.predict(X), likelihood_1x.predict(X), y)
+    assert only_ours - only_1x > 2.0 * math.sqrt(only_ours + only_1x)
+
+
+@pytest.mark.parametrize(("process", "measurement"), [(8.0, 1.0), (1.0, 8.0)])
+def test_at_8x_noise_matches_the_limit(
+    marginal: MarginalLikelihoodClassifier, paper: Scenario, process: float, measurement: float
+) -> None:
+    """No worse, to sampling error, than a likelihood fitted at the test's own noise level."""
+    X, y = noisy(paper, 60, 6, process, measurement)
+    X_fit, y_fit = noisy(paper, 100, 7, process, measurement)
+    limit = LikelihoodClassifier().fit(X_fit, y_fit)
+    only_ours, only_limit = mcnemar(marginal.predict(X), limit.predict(X), y)
+    assert only_limit - only_ours <= 2.0 * math.sqrt(only_ours + only_limit) + 1
+
+
+# Novelty and identify.
+
+
+def test_genuine_series_are_named_at_every_noise_level_and_strangers_refused(
+    marginal: MarginalLikelihoodClassifier,
+    likelihood_1x: LikelihoodClassifier,
+    paper: Scenario,
+    scenario_like: Callable[..., Scenario],
+) -> None:
+    times = paper.sample_times(len(AXIS_IN_TURN)).tolist()
+    thresholds = marginal.novelty_thresholds()
+    for process, measurement in [(1.0, 1.0), (8.0, 1.0), (1.0, 8.0), (8.0, 8.0)]:
+        X, y = noisy(paper, 20, 8, process, measurement)
+        distances = marginal.transform(X)
+        nearest = distances.argmin(axis=1)
+        assert np.all(distances[np.arange(len(y)), nearest] <= thresholds[nearest])
+        verdict = identify(marginal, {"time_s": times, "omega_rad_s": X[0].tolist()})
+        assert not verdict.matches_none
+    # Where the 1x likelihood calls every genuine series a stranger.
+    distances = likelihood_1x.transform(X)
+    nearest = distances.argmin(axis=1)
+    assert np.all(
+        distances[np.arange(len(y)), nearest] > likelihood_1x.novelty_thresholds()[nearest]
+    )
+
+    odd = simulate(
+        scenario_like({"light": 0.6 * I0, "heavy": 2.0 * I0}),
+        AXIS_IN_TURN,
+        3,
+        np.random.default_rng(9),
+    )
+    for k in range(2):
+        for i in range(3):
+            verdict = identify(
+                marginal, {"time_s": times, "omega_rad_s": odd.omega_measured[k, i].tolist()}
+            )
+            assert verdict.matches_none
+            assert verdict.distances[verdict.candidate] > verdict.threshold
+
+
+def test_identify_names_the_candidate(
+    marginal: MarginalLikelihoodClassifier, paper: Scenario
+) -> None:
+    X, y = noisy(paper, 2, 10)
+    times = paper.sample_times(len(AXIS_IN_TURN)).tolist()
+    named = sum(
+        identify(marginal, {"time_s": times, "omega_rad_s": series.tolist()}).candidate_index
+        == label
+        for series, label in zip(X, y, strict=True)
+    )
+    assert named >= 9
+
+
+# Storage.
+
+
+def test_json_round_trip_gives_identical_predictions(
+    marginal: MarginalLikelihoodClassifier, paper: Scenario, tmp_path: Path
+) -> None:
+    X, _ = noisy(paper, 4, 11, 4.0, 2.0)
+    path = tmp_path / "marginal.json"
+    marginal.save(path)
+    loaded = MarginalLikelihoodClassifier.load(path)
+    np.testing.assert_array_equal(loaded.transform(X), marginal.transform(X))
+    np.testing.assert_array_equal(loaded.predict(X), marginal.predict(X))
+    np.testing.assert_array_equal(loaded.log_likelihood(X), marginal.log_likelihood(X))
+    np.testing.assert_array_equal(loaded.novelty_thresholds(), marginal.novelty_thresholds())
+    np.testing.assert_array_equal(loaded.grid_, marginal.grid_)
+    assert loaded.scenario_ == marginal.scenario_
+    np.testing.assert_array_equal(loaded.sequence_, marginal.sequence_)
+    assert loaded.metric == "marginal-mahalanobis"
+    # White gyro noise is stored as one number; the two smooth components as triangles.
+    doc = json.loads(path.read_text())
+    components = doc["classifier"]["components"]
+    assert set(components["measurement"]) == {"isotropic_rad2_s2"}
+    assert len(components["process"]["lower_rad2_s2"]) == 240 * 241 // 2
+    assert path.stat().st_size < 2_000_000
+    doc["classifier"]["means_rad_s"][0][0][0] += 1e-3
+    with pytest.raises(ValueError, match="checksum mismatch"):
+        MarginalLikelihoodClassifier.from_json(json.dumps(doc))
+    with pytest.raises(ValueError, match="not an inertia-id/marginal-likelihood-classifier"):
+        MarginalLikelihoodClassifier.from_json(json.dumps({**doc, "format": "inertia-id/x"}))
+
+
+def test_same_rng_same_model(paper: Scenario) -> None:
+    def fit(seed: int) -> str:
+        rng = np.random.default_rng(seed)
+        return train_marginal(paper, AXIS_IN_TURN, 4, rng, grid=AXES_GRID).to_json()
+
+    assert fit(3) == fit(3)
+    assert fit(3) != fit(4)
+
+
+# Refusals quote what they got.
+
+
+def test_refuses_bad_parameters(paper: Scenario) -> None:
+    with pytest.raises(ValueError, match=r"got \[\[1, 2, 3\]\]"):
+        train_marginal(paper, AXIS_IN_TURN, 3, np.random.default_rng(0), grid=[[1, 2, 3]])
+    with pytest.raises(ValueError, match=r"got \[\(1, -2\)\]"):
+        MarginalLikelihoodClassifier(grid=[(1, -2)])._check_params()
+    with pytest.raises(ValueError, match=r"distinct, got \[\[1, 1\], \[1, 1\]\]"):
+        MarginalLikelihoodClassifier(grid=[[1, 1], [1, 1]])._check_params()
+    with pytest.raises(ValueError, match=r"novelty_factor must be >= 1, got 0.5"):
+        train_marginal(paper, AXIS_IN_TURN, 3, np.random.default_rng(0), novelty_factor=0.5)
+    with pytest.raises(ValueError, match=r"series per candidate: \[2, 2, 2, 2, 2\]"):
+        train_marginal(paper, AXIS_IN_TURN, 2, np.random.default_rng(0))
+
+
+def test_refuses_a_scenario_without_noise(quiet_paper: Scenario) -> None:
+    with pytest.raises(ValueError, match=r"do not vary \(variance .* at 1x\)"):
+        train_marginal(quiet_paper, AXIS_IN_TURN, 3, np.random.default_rng(0), grid=AXES_GRID)
+
+
+def test_refuses_bad_series(marginal: MarginalLikelihoodClassifier, paper: Scenario) -> None:
+    with pytest.raises(
+        ValueError, match=r"series have 79 samples; the classifier was trained on 80"
+    ):
+        marginal.predict(np.zeros((2, 79, 3)))
+    X = np.zeros((3, 80, 3))
+    X[2, 5, 1] = np.nan
+    with pytest.raises(ValueError, match=r"series 2, sample 5, axis 1 is nan"):
+        marginal.transform(X)
+    with pytest.raises(ValueError, match="not fitted yet"):
+        MarginalLikelihoodClassifier().predict(np.zeros((1, 80, 3)))
+    X, y = noisy(paper, 3, 12)
+    with pytest.raises(ValueError, match=r"the process responses are shaped \(14, 80, 3\)"):
+        MarginalLikelihoodClassifier().fit_components(X, X[:-1], X, y)
+    with pytest.raises(ValueError, match=r"got \[5\]"):
+        marginal.evaluate(X, np.where(y == 4, 5, y))
+    with pytest.raises(ValueError, match="not a valid marginal-likelihood classifier document"):
+        MarginalLikelihoodClassifier.from_dict({**marginal.to_dict(), "components": {}})
