@@ -17,6 +17,7 @@ import numpy as np
 from app.db import ClassifierRow
 from app.db.models import new_id
 from inertia_id import (
+    InputError,
     Scenario,
     classifier_from_json,
     run_inertia_sweep,
@@ -196,9 +197,11 @@ def run_sweep_job(context: JobContext) -> Outcome:
         row = session.get(ClassifierRow, classifier_id) if classifier_id else None
         document = None if row is None else row.document
     if document is None:
-        raise ValueError(f"classifier {classifier_id!r} does not exist")
+        raise InputError(f"classifier {classifier_id!r} does not exist")
     classifier = classifier_from_json(document)
     scenario = classifier.scenario_
+    if scenario is None:
+        raise InputError(f"classifier {classifier_id!r} does not carry its scenario")
     seeds = np.random.SeedSequence(spec.seed).spawn(3)
     train_rng = np.random.default_rng(seeds[0])
     others = {}

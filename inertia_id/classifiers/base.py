@@ -1,40 +1,100 @@
-"""What every classifier kind shares: its scores, and storage as a checksummed document.
+"""What every classifier kind shares: checks, names, training scores, the novelty rule,
+storage as a checksummed document.
 
-A kind subclasses :class:`StoredClassifier` (before scikit-learn's ``BaseEstimator``),
-names its document ``FORMAT``, and implements ``predict``, ``to_dict`` and ``from_dict``;
-fitted, it has ``n_candidates_``.
+A kind subclasses :class:`BaseClassifier`, declares what it is in class attributes
+(:attr:`~BaseClassifier.kind`, the document :attr:`~BaseClassifier.FORMAT`, the
+:attr:`~BaseClassifier.METRICS` it takes, its minimum and default training realisations)
+and implements four hooks, the way stable-baselines3's callbacks implement ``_on_step``:
+
+- ``_fit(X, y)``: learn from checked series and labels; return the training distances
+  (n_series, K) behind the novelty rule and the training scores (out-of-sample where the
+  kind would otherwise flatter itself, e.g. leave-one-out for 1-NN);
+- ``_candidate_distances(X)``: the (n_series, K) distances of checked series;
+- ``_state()`` / ``_load_state(data)``: its fitted arrays as document fields and back.
+
+Defining the class registers the kind (:mod:`inertia_id.classifiers.registry` lists every
+kind of the package), so adding a kind touches one file: its own module.
+
+The base does the rest, the same for every kind: parameter and input checks that quote
+the value, candidate names and their defaults, the scenario and sequence a classifier
+remembers for identify, ``predict`` (the nearest candidate of ``transform``),
+``fit_predict``, ``evaluate`` and ``score`` (macro F1), the "matches none" thresholds,
+the common document fields and JSON storage (never a pickle).
 """
 
 from __future__ import annotations
 
+import math
 import os
 from typing import Any, ClassVar, Self
 
 import numpy as np
+from sklearn.base import BaseEstimator
 
+from ..errors import InputError
+from ..physics.scenario import Scenario
+from ..physics.series import check_series
+from ..physics.simulate import simulate
 from . import documents
 
-__all__ = ["StoredClassifier", "check_labels", "confusion_scores"]
+__all__ = [
+    "KINDS",
+    "BaseClassifier",
+    "SupervisedClassifier",
+    "check_int",
+    "check_labels",
+    "check_training_labels",
+    "confusion_scores",
+    "document_class",
+]
+
+#: Every kind defined so far, by name: filled as the kind classes are defined.
+KINDS: dict[str, type[BaseClassifier]] = {}
 
 
-def check_labels(y: Any, n_series: int, n_candidates: int | None = None) -> np.ndarray:
-    """Candidate indices, one per series, each in 0..K-1 (K inferred when not given)."""
+def check_int(name: str, value: Any, minimum: int = 1) -> None:
+    """Refuse anything but an integer >= ``minimum`` (a bool is not one), quoting it."""
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
+        raise InputError(f"{name} must be an integer >= {minimum}, got {value!r}")
+
+
+def _integer_labels(y: Any, n_series: int) -> np.ndarray:
     arr = np.asarray(y)
     if arr.shape != (n_series,):
-        raise ValueError(f"y must hold one label per series ({n_series}), got shape {arr.shape}")
+        raise InputError(f"y must hold one label per series ({n_series}), got shape {arr.shape}")
     if arr.size and not np.issubdtype(arr.dtype, np.integer):
         if (
             not np.issubdtype(arr.dtype, np.number)
             or not np.all(np.isfinite(arr))
             or np.any(arr != np.round(arr))
         ):
-            raise ValueError(f"labels must be candidate indices, got {arr.tolist()[:10]}")
-    arr = arr.astype(int)
-    upper = n_candidates if n_candidates is not None else (int(arr.max()) + 1 if arr.size else 0)
-    outside = sorted({int(v) for v in arr if v < 0 or v >= upper})
+            raise InputError(f"labels must be candidate indices, got {arr.tolist()[:10]}")
+    return arr.astype(int)
+
+
+def check_labels(y: Any, n_series: int, n_candidates: int) -> np.ndarray:
+    """Candidate indices, one per series, each in 0..K-1."""
+    labels = _integer_labels(y, n_series)
+    outside = sorted({int(v) for v in labels if v < 0 or v >= n_candidates})
     if outside:
-        raise ValueError(f"labels must lie in 0..{upper - 1} (candidate indices), got {outside}")
-    return arr
+        raise InputError(
+            f"labels must lie in 0..{n_candidates - 1} (candidate indices), got {outside}"
+        )
+    return labels
+
+
+def check_training_labels(y: Any, n_series: int, minimum: int) -> np.ndarray:
+    """Labels of a training set: every candidate 0..K-1 (K >= 2) at least ``minimum`` times."""
+    labels = _integer_labels(y, n_series)
+    if labels.size and labels.min() < 0:
+        raise InputError(f"candidate indices must be >= 0, got {int(labels.min())}")
+    counts = np.bincount(labels) if labels.size else np.zeros(0, dtype=int)
+    if len(counts) < 2 or counts.min() < minimum:
+        raise InputError(
+            f"y must label every candidate 0..K-1 (K >= 2) at least {minimum} time(s); "
+            f"series per candidate: {counts.tolist()}"
+        )
+    return labels
 
 
 def confusion_scores(confusion: np.ndarray) -> dict[str, Any]:
@@ -50,21 +110,277 @@ def confusion_scores(confusion: np.ndarray) -> dict[str, Any]:
     }
 
 
-class StoredClassifier:
-    """Scores and storage, the same for every kind."""
+def document_class(format_name: str, data: dict[str, Any]) -> type[BaseClassifier]:
+    """The kind a payload of ``format_name`` holds: the format's one kind, or, where
+    several kinds share the format, the one the payload's "kind" names."""
+    sharing = {kind: cls for kind, cls in KINDS.items() if cls.FORMAT == format_name}
+    if len(sharing) == 1:
+        return next(iter(sharing.values()))
+    kind = data.get("kind")
+    if not isinstance(kind, str) or kind not in sharing:
+        raise InputError(
+            f"not a valid classifier document: kind {kind!r} is not one of {sorted(sharing)}"
+        )
+    return sharing[kind]
 
+
+def _plain(value: Any) -> Any:
+    """A parameter value as JSON data: arrays and tuples as lists, numpy scalars as numbers."""
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, list | tuple):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+class BaseClassifier(BaseEstimator):
+    """The bookkeeping every kind shares; see the module docstring for the hooks.
+
+    Fitted, every classifier carries ``candidate_names_``, ``n_candidates_``, ``length_``
+    (samples per series), ``training_distances_`` (n_series, K) and
+    ``max_training_distance_`` (K,) behind the novelty thresholds, the training
+    ``f1_``, ``accuracy_`` and ``confusion_``, and ``scenario_`` and ``sequence_`` when
+    it was fitted with them (identify needs them).
+    """
+
+    #: The name the registry, the CLI and the API know the kind by.
+    kind: ClassVar[str] = ""
+    #: The document format name (several kinds may share one; the document then names
+    #: its kind).
     FORMAT: ClassVar[str] = ""
+    #: The metrics the kind takes as its ``metric`` parameter, the first the default;
+    #: empty for a kind that takes none (its ``metric`` is then a fixed label).
+    METRICS: ClassVar[tuple[str, ...]] = ()
+    #: Training series per candidate the fit needs at the least.
+    MIN_REALISATIONS: ClassVar[int] = 1
+    #: Training realisations per candidate when none are asked for.
+    DEFAULT_REALISATIONS: ClassVar[int] = 20
+    #: The scenario and sequence are the model itself (least squares), not just context.
+    NEEDS_SCENARIO: ClassVar[bool] = False
+    #: Whether the labels teach the classifier. An unsupervised kind (the clustering) sets
+    #: its novelty threshold from the series it assigns to a candidate, which it knows
+    #: without the labels, rather than from the candidate's own series.
+    SUPERVISED: ClassVar[bool] = True
+    #: Whether the training scores count the in-sample predictions rather than the
+    #: nearest candidate of the training distances: the likelihood kinds, whose
+    #: out-of-fold distances calibrate the novelty threshold only.
+    IN_SAMPLE_SCORES: ClassVar[bool] = False
+    #: Where the kind stands in lists of kinds (CLI choices, API enums).
+    LISTING_ORDER: ClassVar[int] = 100
+
+    #: What the distances are, for reports and sweeps: the ``metric`` parameter of a kind
+    #: that takes one, a fixed label (a class attribute) for the others.
+    metric: str
+    novelty_factor: float
+    # Set by a fit given them, or by a loaded document; identify needs them.
+    scenario_: Scenario | None = None
+    sequence_: np.ndarray | None = None
+    candidate_names_: list[str]
     n_candidates_: int
+    length_: int
+    training_distances_: np.ndarray
+    max_training_distance_: np.ndarray
+    f1_: float
+    accuracy_: float
+    confusion_: np.ndarray
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        kind = cls.__dict__.get("kind")
+        if kind:
+            if kind in KINDS and KINDS[kind].__qualname__ != cls.__qualname__:
+                raise TypeError(f"two classifier classes claim the kind {kind!r}")
+            KINDS[kind] = cls
+
+    # Hooks.
+
+    def _fit(self, X: np.ndarray, y: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def _candidate_distances(self, X: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def _state(self) -> dict[str, Any]:
+        raise NotImplementedError
+
+    def _load_state(self, data: dict[str, Any]) -> None:
+        raise NotImplementedError
+
+    def _check_params(self) -> None:
+        """Refuse parameters the kind cannot use, quoting them; kinds extend it."""
+        factor = self.novelty_factor
+        if (
+            isinstance(factor, bool)
+            or not isinstance(factor, int | float)
+            or not (math.isfinite(factor) and factor >= 1.0)
+        ):
+            raise InputError(f"novelty_factor must be a number >= 1, got {factor!r}")
+        if self.METRICS and self.metric not in self.METRICS:
+            raise InputError(f"metric must be one of {list(self.METRICS)}, got {self.metric!r}")
+
+    def _draw_seed(self, rng: np.random.Generator) -> None:
+        """Take a ``random_state`` left unset from ``rng``, so the same rng state gives the
+        same model."""
+        params = self.get_params(deep=False)
+        if "random_state" in params and params["random_state"] is None:
+            self.set_params(random_state=int(rng.integers(2**31 - 1)))
+
+    # Fitting.
+
+    def fit(
+        self,
+        X: Any,
+        y: Any,
+        *,
+        candidate_names: list[str] | None = None,
+        scenario: Scenario | None = None,
+        sequence: Any = None,
+    ) -> Self:
+        """Learn each candidate's responses from labelled series.
+
+        :param X: (n_series, length, 3) rates, rad/s.
+        :param y: candidate index of each series, 0..K-1, every candidate at least
+            :attr:`MIN_REALISATIONS` times.
+        :param candidate_names: names of the K candidates, for reports and verdicts;
+            default the scenario's, if given.
+        :param scenario: the scenario the series were simulated in; kept, with
+            ``sequence``, so that :func:`~inertia_id.evaluation.identify.identify` can
+            resample telemetry onto the training grid.
+        :param sequence: the (L, N) level indices the series respond to.
+        """
+        X, y = self._prepare(X, y, candidate_names, scenario, sequence)
+        self._record_training(X, y, self._fit(X, y))
+        return self
+
+    def fit_scenario(
+        self,
+        scenario: Scenario,
+        sequence: Any,
+        n_realisations: int,
+        rng: np.random.Generator,
+    ) -> Self:
+        """Simulate every candidate's response to ``sequence`` at 1x noise and fit on it.
+
+        :param n_realisations: training series per candidate.
+        :param rng: source of the simulated noise (and of a seed the kind needs); the same
+            state gives the same model.
+        """
+        steps = scenario.check_sequence(sequence)
+        X, y = simulate(scenario, steps, n_realisations, rng).dataset()
+        self._draw_seed(rng)
+        return self.fit(
+            X, y, candidate_names=scenario.candidate_names, scenario=scenario, sequence=steps
+        )
+
+    def _prepare(
+        self,
+        X: Any,
+        y: Any,
+        candidate_names: list[str] | None,
+        scenario: Scenario | None,
+        sequence: Any,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Check a training set and its context, and set what every fitted kind carries."""
+        self._check_params()
+        X = check_series(X)
+        y = check_training_labels(y, len(X), self.MIN_REALISATIONS)
+        n_candidates = int(y.max()) + 1
+        if (scenario is None) != (sequence is None):
+            raise InputError("give the scenario and the sequence together, or neither")
+        steps = None
+        if scenario is None:
+            if self.NEEDS_SCENARIO:
+                raise InputError(
+                    f"the {self.kind!r} classifier needs the scenario and the sequence: "
+                    "they are its model"
+                )
+        else:
+            if scenario.n_candidates != n_candidates:
+                raise InputError(
+                    f"the scenario has {scenario.n_candidates} candidates, y labels {n_candidates}"
+                )
+            steps = scenario.check_sequence(sequence)
+            expected = len(steps) * scenario.timing.samples_per_step
+            if X.shape[1] != expected:
+                raise InputError(
+                    f"series have {X.shape[1]} samples; the {len(steps)}-step sequence gives "
+                    f"{expected}"
+                )
+        if candidate_names is not None and len(candidate_names) != n_candidates:
+            raise InputError(
+                f"{len(candidate_names)} candidate names for {n_candidates} candidates"
+            )
+        if candidate_names is not None:
+            names = [str(n) for n in candidate_names]
+        elif scenario is not None:
+            names = list(scenario.candidate_names)
+        else:
+            names = [f"candidate {i}" for i in range(n_candidates)]
+        self.n_candidates_ = n_candidates
+        self.candidate_names_ = names
+        self.length_ = int(X.shape[1])
+        self.scenario_ = scenario
+        self.sequence_ = steps
+        return X, y
+
+    def _record_training(self, X: np.ndarray, y: np.ndarray, training: np.ndarray) -> None:
+        """The novelty thresholds' training maxima, and the training scores."""
+        k = self.n_candidates_
+        owner = y if self.SUPERVISED else training.argmin(axis=1)
+        own = training[np.arange(len(owner)), owner]
+        self.training_distances_ = training
+        self.max_training_distance_ = np.array(
+            [own[owner == c].max() if np.any(owner == c) else np.inf for c in range(k)]
+        )
+        predicted = self.predict(X) if self.IN_SAMPLE_SCORES else training.argmin(axis=1)
+        confusion = np.zeros((k, k), dtype=int)
+        np.add.at(confusion, (y, predicted), 1)
+        scores = confusion_scores(confusion)
+        self.f1_ = scores["f1"]
+        self.accuracy_ = scores["accuracy"]
+        self.confusion_ = confusion
+
+    # Prediction.
+
+    def _check_fitted(self) -> None:
+        if not hasattr(self, "max_training_distance_"):
+            raise InputError(f"this {type(self).__name__} is not fitted yet; call fit first")
+
+    def _check_input(self, X: Any) -> np.ndarray:
+        """Series to classify, checked against what the classifier was trained on."""
+        self._check_fitted()
+        X = check_series(X)
+        if X.shape[1] != self.length_:
+            raise InputError(
+                f"series have {X.shape[1]} samples; the classifier was trained on {self.length_}"
+            )
+        return X
+
+    def transform(self, X: Any) -> np.ndarray:
+        """Distance of each series to each candidate, (n_series, K); the nearest is predicted.
+
+        What the distance is depends on the kind (its :attr:`metric`).
+        """
+        return np.asarray(self._candidate_distances(self._check_input(X)))
 
     def predict(self, X: Any) -> np.ndarray:
-        raise NotImplementedError
+        """Candidate index of each series: the nearest candidate."""
+        return np.asarray(self.transform(X).argmin(axis=1))
 
-    def to_dict(self) -> dict[str, Any]:
-        raise NotImplementedError
+    def fit_predict(self, X: Any, y: Any, **kwargs: Any) -> np.ndarray:
+        """Fit on the series, then predict them."""
+        return self.fit(X, y, **kwargs).predict(X)
 
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> Self:
-        raise NotImplementedError
+    def novelty_thresholds(self) -> np.ndarray:
+        """Per-candidate distance beyond which a series "matches none", (K,).
+
+        ``novelty_factor`` times the largest distance a training series had to the
+        candidate (out-of-sample where the kind's training distances are, see ``_fit``).
+        """
+        self._check_fitted()
+        return np.asarray(self.novelty_factor * self.max_training_distance_)
 
     def evaluate(self, X: Any, y: Any) -> dict[str, Any]:
         """F1 (macro), accuracy and confusion matrix (row = true) of predictions against ``y``."""
@@ -77,6 +393,64 @@ class StoredClassifier:
     def score(self, X: Any, y: Any) -> float:
         """Macro F1 of the predictions (the paper's score)."""
         return float(self.evaluate(X, y)["f1"])
+
+    # Storage as data.
+
+    def _document_params(self) -> dict[str, Any]:
+        return {name: _plain(value) for name, value in self.get_params(deep=False).items()}
+
+    def to_dict(self) -> dict[str, Any]:
+        """The fitted classifier as JSON data: the common fields and the kind's state."""
+        self._check_fitted()
+        return {
+            "params": self._document_params(),
+            "candidate_names": list(self.candidate_names_),
+            "max_training_distance": self.max_training_distance_.tolist(),
+            "f1": float(self.f1_),
+            "accuracy": float(self.accuracy_),
+            "confusion": np.asarray(self.confusion_).tolist(),
+            "scenario": None if self.scenario_ is None else self.scenario_.model_dump(mode="json"),
+            "sequence": None if self.sequence_ is None else np.asarray(self.sequence_).tolist(),
+            **self._state(),
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> Self:
+        """The classifier a :meth:`to_dict` payload describes, checked."""
+        if not isinstance(data, dict):
+            raise InputError(f"a classifier payload is a JSON object, got {type(data).__name__}")
+        target = document_class(cls.FORMAT, data)
+        if cls.kind and target is not cls:
+            raise InputError(
+                f"the document holds a {target.kind!r} classifier, not a {cls.kind!r} one"
+            )
+        invalid = f"not a valid {target.kind} classifier document"
+        try:
+            model = target(**data["params"])
+            model._check_params()
+            model.candidate_names_ = [str(n) for n in data["candidate_names"]]
+            model.n_candidates_ = len(model.candidate_names_)
+            model.max_training_distance_ = np.asarray(data["max_training_distance"], dtype=float)
+            model.f1_ = float(data["f1"])
+            model.accuracy_ = float(data["accuracy"])
+            model.confusion_ = np.asarray(data["confusion"], dtype=int)
+            model.scenario_ = (
+                None if data.get("scenario") is None else Scenario.model_validate(data["scenario"])
+            )
+            model.sequence_ = (
+                None if data.get("sequence") is None else np.asarray(data["sequence"], dtype=int)
+            )
+            model._load_state(data)
+        except (KeyError, TypeError, ValueError, AttributeError) as exc:
+            raise InputError(f"{invalid}: {exc}") from None
+        k = model.n_candidates_
+        if model.max_training_distance_.shape != (k,) or model.confusion_.shape != (k, k):
+            raise InputError(
+                f"{invalid}: {k} candidate names, thresholds of shape "
+                f"{model.max_training_distance_.shape} and a confusion matrix of shape "
+                f"{model.confusion_.shape}"
+            )
+        return model
 
     def to_json(self) -> str:
         """The fitted classifier as a checksummed JSON document."""
@@ -95,3 +469,29 @@ class StoredClassifier:
     def load(cls, path: str | os.PathLike[str]) -> Self:
         with open(path, encoding="utf-8") as fh:
             return cls.from_json(fh.read())
+
+
+class SupervisedClassifier(BaseClassifier):
+    """The kinds stored in one shared document format, the nearest centroid, 1-NN and
+    MiniRocket: their state sits under ``"model"`` beside ``"kind"`` and ``"length"``.
+
+    A kind of this format implements ``_model_state`` / ``_load_model_state`` instead of
+    ``_state`` / ``_load_state``. Every candidate needs two training series, so that the
+    novelty threshold has a spread within each.
+    """
+
+    FORMAT = "inertia-id/supervised-classifier"
+    MIN_REALISATIONS = 2
+
+    def _model_state(self) -> dict[str, Any]:
+        raise NotImplementedError
+
+    def _load_model_state(self, state: dict[str, Any]) -> None:
+        raise NotImplementedError
+
+    def _state(self) -> dict[str, Any]:
+        return {"kind": self.kind, "length": self.length_, "model": self._model_state()}
+
+    def _load_state(self, data: dict[str, Any]) -> None:
+        self.length_ = int(data["length"])
+        self._load_model_state(data["model"])

@@ -2,10 +2,12 @@
 
 :class:`InertiaClassifier` follows scikit-learn conventions (``fit``, ``predict``,
 ``fit_predict``, ``transform``, ``score``; arrays shaped (n_series, length, 3)) and wraps
-tslearn's ``TimeSeriesKMeans``. Clustering is unsupervised; the labels given to ``fit``
-are used only afterwards, to match clusters to candidates (Hungarian assignment on the
-cluster-by-candidate F1 table) and to score the result. New series are predicted to the
-candidate whose matched centroid is nearest.
+tslearn's ``TimeSeriesKMeans`` to fit; distances to the centroids are this package's own
+numba DTW and soft-DTW (:mod:`inertia_id.classifiers.dtw`), equal to tslearn's to
+rounding, so classifying new series needs no tslearn. Clustering is unsupervised; the
+labels given to ``fit`` are used only afterwards, to match clusters to candidates
+(Hungarian assignment on the cluster-by-candidate F1 table) and to score the result. New
+series are predicted to the candidate whose matched centroid is nearest.
 
 Two traps of tslearn's defaults are avoided here:
 
@@ -25,32 +27,21 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 from scipy.spatial.distance import cdist
-from sklearn.base import BaseEstimator
 
-with warnings.catch_warnings():
-    warnings.simplefilter("ignore")  # tslearn warns at import that h5py is missing
-    from tslearn.clustering import TimeSeriesKMeans
-    from tslearn.metrics import cdist_dtw, cdist_soft_dtw_normalized
+from ..errors import InputError
+from ..physics.series import check_series
+from .base import BaseClassifier, check_int
+from .dtw import cdist_dtw, cdist_soft_dtw_normalized
 
-from ..physics.scenario import Scenario
-from ..physics.simulate import simulate
-from .base import StoredClassifier
+__all__ = ["METRICS", "InertiaClassifier", "MatchScores", "match_clusters"]
 
-__all__ = [
-    "METRICS",
-    "InertiaClassifier",
-    "MatchScores",
-    "match_clusters",
-    "train",
-]
-
+#: The clustering's metrics: the paper's DTW first.
 METRICS = ("dtw", "softdtw", "euclidean")
-FORMAT = "inertia-id/classifier"
 
 
 @dataclass(frozen=True)
@@ -88,14 +79,14 @@ def match_clusters(
     clusters = np.asarray(clusters, dtype=int)
     n_clusters = n_candidates if n_clusters is None else n_clusters
     if y_true.shape != clusters.shape or y_true.ndim != 1:
-        raise ValueError(
+        raise InputError(
             f"labels and clusters must be 1-d of equal length, got {y_true.shape} and "
             f"{clusters.shape}"
         )
     if y_true.size and (y_true.min() < 0 or y_true.max() >= n_candidates):
-        raise ValueError(f"candidate labels must lie in 0..{n_candidates - 1}")
+        raise InputError(f"candidate labels must lie in 0..{n_candidates - 1}")
     if clusters.size and (clusters.min() < 0 or clusters.max() >= n_clusters):
-        raise ValueError(f"cluster labels must lie in 0..{n_clusters - 1}")
+        raise InputError(f"cluster labels must lie in 0..{n_clusters - 1}")
     contingency = np.zeros((n_clusters, n_candidates))
     np.add.at(contingency, (clusters, y_true), 1.0)
     sizes = contingency.sum(axis=1)[:, None] + contingency.sum(axis=0)[None, :]
@@ -115,18 +106,7 @@ def match_clusters(
     return MatchScores(mapping, f1, accuracy, confusion)
 
 
-def _as_dataset(X: Any) -> np.ndarray:
-    arr = np.asarray(X, dtype=float)
-    if arr.ndim == 2:
-        arr = arr[None]
-    if arr.ndim != 3 or arr.shape[2] != 3 or arr.shape[0] < 1 or arr.shape[1] < 1:
-        raise ValueError(f"series must be shaped (n_series, length, 3), got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError("series contain NaN or infinite values")
-    return arr
-
-
-class InertiaClassifier(StoredClassifier, BaseEstimator):
+class InertiaClassifier(BaseClassifier):
     """Time-series k-means classifier of rate responses (the paper's TSC).
 
     :param metric: "dtw" (the paper's), "softdtw" or "euclidean".
@@ -144,7 +124,11 @@ class InertiaClassifier(StoredClassifier, BaseEstimator):
     :param random_state: seed of the k-means initialisations.
     """
 
-    FORMAT = FORMAT
+    kind: ClassVar[str] = "clustering"
+    FORMAT = "inertia-id/classifier"
+    METRICS = METRICS
+    SUPERVISED = False
+    LISTING_ORDER = 10
 
     def __init__(
         self,
@@ -172,23 +156,17 @@ class InertiaClassifier(StoredClassifier, BaseEstimator):
     # Fitting.
 
     def _check_params(self) -> None:
-        if self.metric not in METRICS:
-            raise ValueError(f"metric must be one of {list(METRICS)}, got {self.metric!r}")
-        if not isinstance(self.n_init, int) or self.n_init < 1:
-            raise ValueError(f"n_init must be a positive integer, got {self.n_init!r}")
-        if self.sakoe_chiba_radius is not None and (
-            not isinstance(self.sakoe_chiba_radius, int) or self.sakoe_chiba_radius < 0
-        ):
-            raise ValueError(
-                f"sakoe_chiba_radius must be None or an integer >= 0, got "
-                f"{self.sakoe_chiba_radius!r}"
-            )
+        super()._check_params()
+        check_int("n_init", self.n_init)
+        if self.sakoe_chiba_radius is not None:
+            check_int("sakoe_chiba_radius", self.sakoe_chiba_radius, minimum=0)
         if self.gamma != "auto" and not (
-            isinstance(self.gamma, int | float) and math.isfinite(self.gamma) and self.gamma > 0
+            isinstance(self.gamma, int | float)
+            and not isinstance(self.gamma, bool)
+            and math.isfinite(self.gamma)
+            and self.gamma > 0
         ):
-            raise ValueError(f"gamma must be 'auto' or a number > 0, got {self.gamma!r}")
-        if not (math.isfinite(self.novelty_factor) and self.novelty_factor >= 1.0):
-            raise ValueError(f"novelty_factor must be >= 1, got {self.novelty_factor!r}")
+            raise InputError(f"gamma must be 'auto' or a number > 0, got {self.gamma!r}")
 
     def _metric_params(self) -> dict[str, Any] | None:
         if self.metric == "dtw" and self.sakoe_chiba_radius is not None:
@@ -200,26 +178,16 @@ class InertiaClassifier(StoredClassifier, BaseEstimator):
             return {"gamma": self.gamma_}
         return None
 
-    def fit(self, X: Any, y: Any, *, candidate_names: list[str] | None = None) -> InertiaClassifier:
-        """Cluster the series into K = number of candidates, then match and score.
+    def _fit(self, X: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Cluster the series into K = number of candidates, then match clusters to
+        candidates; the training distances are each series' distance to each candidate's
+        centroid."""
+        # tslearn fits; it is imported here so that classifying (transform) never needs it.
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # tslearn warns at import that h5py is missing
+            from tslearn.clustering import TimeSeriesKMeans
 
-        :param X: (n_series, length, 3) rates, rad/s.
-        :param y: true candidate index of each series (0..K-1; every candidate present).
-        :param candidate_names: names of the K candidates, kept for reports.
-        """
-        self._check_params()
-        X = _as_dataset(X)
-        y = np.asarray(y, dtype=int)
-        if y.shape != (X.shape[0],):
-            raise ValueError(f"y must hold one label per series ({X.shape[0]}), got {y.shape}")
-        n_candidates = int(y.max()) + 1 if y.size else 0
-        missing = sorted(set(range(n_candidates)) - set(y.tolist()))
-        if n_candidates < 2 or missing or y.min() < 0:
-            raise ValueError(f"y must label every candidate 0..K-1 with K >= 2; missing {missing}")
-        if candidate_names is not None and len(candidate_names) != n_candidates:
-            raise ValueError(
-                f"{len(candidate_names)} candidate names for {n_candidates} candidates"
-            )
+        n_candidates = self.n_candidates_
         rms = float(np.sqrt(np.mean(X**2)))
         self.scale_ = rms if rms > 0 else 1.0
         Xs = X / self.scale_
@@ -240,26 +208,12 @@ class InertiaClassifier(StoredClassifier, BaseEstimator):
             warnings.simplefilter("ignore")
             kmeans.fit(Xs)
         self.cluster_centers_ = np.asarray(kmeans.cluster_centers_) * self.scale_
-        self.n_candidates_ = n_candidates
-        self.candidate_names_ = list(
-            candidate_names or [f"candidate {i}" for i in range(n_candidates)]
-        )
         self.inertia_ = float(kmeans.inertia_)
-        distances = self._cluster_distances(X)
-        self.labels_ = distances.argmin(axis=1)
-        scores = match_clusters(y, self.labels_, n_candidates)
-        self.cluster_to_candidate_ = scores.cluster_to_candidate
-        self.f1_ = scores.f1
-        self.accuracy_ = scores.accuracy
-        self.confusion_ = scores.confusion
-        own = distances[np.arange(len(X)), self.labels_]
-        self.max_training_distance_ = np.array(
-            [
-                own[self.labels_ == c].max() if np.any(self.labels_ == c) else np.inf
-                for c in range(n_candidates)
-            ]
-        )
-        return self
+        by_cluster = self._cluster_distances(X)
+        self.labels_ = by_cluster.argmin(axis=1)
+        matched = match_clusters(y, self.labels_, n_candidates)
+        self.cluster_to_candidate_ = matched.cluster_to_candidate
+        return self._by_candidate(by_cluster)
 
     @staticmethod
     def _auto_gamma(Xs: np.ndarray) -> float:
@@ -280,133 +234,64 @@ class InertiaClassifier(StoredClassifier, BaseEstimator):
         if self.metric == "euclidean":
             return np.asarray(cdist(Xs.reshape(len(Xs), -1), centers.reshape(len(centers), -1)))
         if self.metric == "dtw":
-            return np.asarray(cdist_dtw(Xs, centers, **(self._metric_params() or {})))
+            return cdist_dtw(Xs, centers, self.sakoe_chiba_radius)
         # Soft-DTW divergence: >= 0, zero for identical series, unlike raw soft-DTW.
-        return np.asarray(cdist_soft_dtw_normalized(Xs, centers, gamma=self.gamma_))
+        return cdist_soft_dtw_normalized(Xs, centers, self.gamma_)
 
-    def _check_fitted(self) -> None:
-        if not hasattr(self, "cluster_centers_"):
-            raise ValueError("this classifier is not fitted yet; call fit first")
-
-    def _check_length(self, X: np.ndarray) -> None:
-        if X.shape[1] != self.cluster_centers_.shape[1]:
-            raise ValueError(
-                f"series have {X.shape[1]} samples; the classifier was trained on "
-                f"{self.cluster_centers_.shape[1]}"
-            )
-
-    def transform(self, X: Any) -> np.ndarray:
-        """Distance of each series to each candidate's centroid, (n_series, K).
-
-        Distances are in units of the training RMS rate; candidates without a matched
-        cluster get +inf.
-        """
-        self._check_fitted()
-        X = _as_dataset(X)
-        self._check_length(X)
-        by_cluster = self._cluster_distances(X)
-        out = np.full((len(X), self.n_candidates_), np.inf)
+    def _by_candidate(self, by_cluster: np.ndarray) -> np.ndarray:
+        """Cluster distances as candidate distances; a candidate without a cluster: +inf."""
+        out = np.full((len(by_cluster), self.n_candidates_), np.inf)
         matched = self.cluster_to_candidate_ >= 0
         out[:, self.cluster_to_candidate_[matched]] = by_cluster[:, matched]
         return out
 
-    def predict(self, X: Any) -> np.ndarray:
-        """Candidate index of each series: the nearest matched centroid."""
-        return np.asarray(self.transform(X).argmin(axis=1))
+    def _candidate_distances(self, X: np.ndarray) -> np.ndarray:
+        """Distance of each series to each candidate's centroid, (n_series, K), in units of
+        the training RMS rate; candidates without a matched cluster get +inf."""
+        return self._by_candidate(self._cluster_distances(X))
 
-    def fit_predict(self, X: Any, y: Any, **kwargs: Any) -> np.ndarray:
-        self.fit(X, y, **kwargs)
-        return np.asarray(self.cluster_to_candidate_[self.labels_])
+    # Storage as data: documents keep the thresholds per cluster, as they always have.
 
-    def novelty_thresholds(self) -> np.ndarray:
-        """Per-candidate distance beyond which a series "matches none", (K,)."""
-        self._check_fitted()
-        out = np.full(self.n_candidates_, np.inf)
-        matched = self.cluster_to_candidate_ >= 0
-        out[self.cluster_to_candidate_[matched]] = (
-            self.novelty_factor * self.max_training_distance_[matched]
-        )
-        return out
+    def _document_params(self) -> dict[str, Any]:
+        # The warm-start centroids are training input, not a setting of the model.
+        return {**super()._document_params(), "init": None}
 
-    # Storage as data.
-
-    def to_dict(self) -> dict[str, Any]:
-        self._check_fitted()
-        params = self.get_params()
-        params["init"] = None
+    def _state(self) -> dict[str, Any]:
         return {
-            "params": params,
             "scale": self.scale_,
             "gamma": self.gamma_,
             "cluster_centers_rad_s": self.cluster_centers_.tolist(),
             "cluster_to_candidate": self.cluster_to_candidate_.tolist(),
-            "candidate_names": self.candidate_names_,
-            "max_training_distance": self.max_training_distance_.tolist(),
+            "max_training_distance": self._per_cluster(self.max_training_distance_).tolist(),
             "inertia": self.inertia_,
-            "f1": self.f1_,
-            "accuracy": self.accuracy_,
-            "confusion": self.confusion_.tolist(),
-            "scenario": None
-            if getattr(self, "scenario_", None) is None
-            else self.scenario_.model_dump(mode="json"),
-            "sequence": None
-            if getattr(self, "sequence_", None) is None
-            else np.asarray(self.sequence_).tolist(),
         }
 
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> InertiaClassifier:
-        try:
-            model = cls(**data["params"])
-            model._check_params()
-            model.scale_ = float(data["scale"])
-            model.gamma_ = float(data["gamma"])
-            model.cluster_centers_ = _as_dataset(data["cluster_centers_rad_s"])
-            model.cluster_to_candidate_ = np.asarray(data["cluster_to_candidate"], dtype=int)
-            model.candidate_names_ = [str(n) for n in data["candidate_names"]]
-            model.n_candidates_ = len(model.candidate_names_)
-            model.max_training_distance_ = np.asarray(data["max_training_distance"], float)
-            model.inertia_ = float(data["inertia"])
-            model.f1_ = float(data["f1"])
-            model.accuracy_ = float(data["accuracy"])
-            model.confusion_ = np.asarray(data["confusion"], dtype=int)
-            model.scenario_ = (
-                None if data.get("scenario") is None else Scenario.model_validate(data["scenario"])
-            )
-            model.sequence_ = (
-                None if data.get("sequence") is None else np.asarray(data["sequence"], dtype=int)
-            )
-        except (KeyError, TypeError, ValueError) as exc:
-            raise ValueError(f"not a valid classifier document: {exc}") from None
-        k = len(model.cluster_centers_)
-        if model.cluster_to_candidate_.shape != (k,) or model.max_training_distance_.shape != (k,):
-            raise ValueError(
-                f"not a valid classifier document: {k} centroids but "
-                f"{model.cluster_to_candidate_.shape} cluster matches"
-            )
-        return model
+    def _per_cluster(self, per_candidate: np.ndarray) -> np.ndarray:
+        matched = self.cluster_to_candidate_ >= 0
+        out = np.full(len(self.cluster_to_candidate_), np.inf)
+        out[matched] = per_candidate[self.cluster_to_candidate_[matched]]
+        return out
 
-
-def train(
-    scenario: Scenario,
-    sequence: Any,
-    n_realisations: int,
-    rng: np.random.Generator,
-    *,
-    metric: str = "dtw",
-    **classifier_params: Any,
-) -> InertiaClassifier:
-    """Simulate every candidate under ``sequence`` at 1x noise and fit a classifier.
-
-    The k-means seed is drawn from ``rng``, so the same rng state gives the same model.
-    The returned classifier remembers the scenario and sequence (needed by identify).
-    """
-    sequence = scenario.check_sequence(sequence)
-    result = simulate(scenario, sequence, n_realisations, rng)
-    X, y = result.dataset()
-    classifier_params.setdefault("random_state", int(rng.integers(2**31 - 1)))
-    model = InertiaClassifier(metric, **classifier_params)
-    model.fit(X, y, candidate_names=scenario.candidate_names)
-    model.scenario_ = scenario
-    model.sequence_ = sequence
-    return model
+    def _load_state(self, data: dict[str, Any]) -> None:
+        self.scale_ = float(data["scale"])
+        self.gamma_ = float(data["gamma"])
+        self.cluster_centers_ = check_series(data["cluster_centers_rad_s"])
+        self.cluster_to_candidate_ = np.asarray(data["cluster_to_candidate"], dtype=int)
+        self.inertia_ = float(data["inertia"])
+        k = len(self.cluster_centers_)
+        per_cluster = self.max_training_distance_
+        if self.cluster_to_candidate_.shape != (k,) or per_cluster.shape != (k,):
+            raise InputError(
+                f"{k} centroids but {self.cluster_to_candidate_.shape} cluster matches and "
+                f"{per_cluster.shape} thresholds"
+            )
+        matched = self.cluster_to_candidate_ >= 0
+        if np.any(self.cluster_to_candidate_ >= self.n_candidates_):
+            raise InputError(
+                f"cluster matches {self.cluster_to_candidate_.tolist()} name candidates "
+                f"beyond the {self.n_candidates_} named"
+            )
+        per_candidate = np.full(self.n_candidates_, np.inf)
+        per_candidate[self.cluster_to_candidate_[matched]] = per_cluster[matched]
+        self.max_training_distance_ = per_candidate
+        self.length_ = int(self.cluster_centers_.shape[1])

@@ -12,6 +12,8 @@ import hashlib
 import json
 from typing import Any
 
+from ..errors import InputError
+
 __all__ = ["VERSION", "checksum", "parse", "read", "write"]
 
 VERSION = 1
@@ -40,9 +42,9 @@ def parse(text: str | bytes) -> dict[str, Any]:
     try:
         doc = json.loads(text)
     except json.JSONDecodeError as exc:
-        raise ValueError(f"classifier document is not JSON: {exc}") from None
+        raise InputError(f"classifier document is not JSON: {exc}") from None
     if not isinstance(doc, dict):
-        raise ValueError(f"classifier document must be a JSON object, got {type(doc).__name__}")
+        raise InputError(f"classifier document must be a JSON object, got {type(doc).__name__}")
     return doc
 
 
@@ -50,15 +52,15 @@ def read(text: str | bytes | dict[str, Any], format_name: str) -> dict[str, Any]
     """The verified payload of a ``format_name`` document."""
     doc = text if isinstance(text, dict) else parse(text)
     if doc.get("format") != format_name:
-        raise ValueError(f"not an {format_name} document (format {doc.get('format')!r})")
+        raise InputError(f"not an {format_name} document (format {doc.get('format')!r})")
     if doc.get("version") != VERSION:
-        raise ValueError(f"unsupported classifier format version {doc.get('version')!r}")
+        raise InputError(f"unsupported classifier format version {doc.get('version')!r}")
     payload = doc.get("classifier")
     if not isinstance(payload, dict):
-        raise ValueError("classifier document has no classifier payload")
+        raise InputError("classifier document has no classifier payload")
     actual = checksum(payload)
     if actual != doc.get("sha256"):
-        raise ValueError(
+        raise InputError(
             f"classifier checksum mismatch: document says {doc.get('sha256')!r}, "
             f"content hashes to {actual!r}"
         )

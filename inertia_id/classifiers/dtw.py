@@ -10,12 +10,19 @@ so the clustering must take milliseconds, not the ~1 s of tslearn's ``TimeSeries
 - DBA barycentres (Petitjean et al. 2011) by the same majorise-minimise iteration as
   ``tslearn.barycenters.dtw_barycenter_averaging``;
 - k-means with DTW k-means++ seeding, DBA centroid updates, and the lowest-inertia run
-  kept over several initialisations.
+  kept over several initialisations;
+- the normalised soft-DTW divergence (Cuturi and Blondel 2017, squared-Euclidean cost),
+  ``sdtw(x, y) - (sdtw(x, x) + sdtw(y, y)) / 2``, as
+  ``tslearn.metrics.cdist_soft_dtw_normalized`` computes it.
 
 The cumulative cost is stored as a band (T x (2 radius + 1)) rather than T x T, so a
 band-constrained distance costs O(T radius). ``radius=0`` is exactly the Euclidean
 distance (and the DBA update the plain mean), which gives the fast Euclidean metric for
 free. Series must all have the same length.
+
+Every kernel is compiled with ``cache=True``, so a fresh process loads the machine code
+numba wrote to disk instead of compiling again; :func:`warm_up` compiles (or loads) them
+all on tiny inputs, for a service to call at start rather than inside a request.
 """
 
 from __future__ import annotations
@@ -25,7 +32,17 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-__all__ = ["KMeansResult", "cdist_dtw", "dba", "dtw", "kmeans_dtw"]
+from ..errors import InputError
+
+__all__ = [
+    "KMeansResult",
+    "cdist_dtw",
+    "cdist_soft_dtw_normalized",
+    "dba",
+    "dtw",
+    "kmeans_dtw",
+    "warm_up",
+]
 
 _INF = np.inf
 
@@ -34,7 +51,7 @@ def _band(radius: int | None, length: int) -> int:
     if radius is None:
         return length - 1
     if isinstance(radius, bool) or not isinstance(radius, int | np.integer) or radius < 0:
-        raise ValueError(f"radius must be None or an integer >= 0, got {radius!r}")
+        raise InputError(f"radius must be None or an integer >= 0, got {radius!r}")
     return int(min(radius, length - 1))
 
 
@@ -77,6 +94,54 @@ def _cdist(x: np.ndarray, y: np.ndarray, r: int) -> np.ndarray:
     for i in range(n):
         for j in range(m):
             out[i, j] = np.sqrt(_accumulate(x[i], y[j], r, acc))
+    return out
+
+
+@njit(cache=True)
+def _soft_dtw(a: np.ndarray, b: np.ndarray, gamma: float, acc: np.ndarray) -> float:
+    """Soft-DTW of a and b with a squared-Euclidean local cost (tslearn's recursion).
+
+    ``acc[i + 1, j + 1]`` holds the soft-minimal cost of aligning a[:i+1] with b[:j+1];
+    row and column 0 are the boundary, the largest float but at the start (tslearn's).
+    """
+    t = a.shape[0]
+    u = b.shape[0]
+    d = a.shape[1]
+    big = np.finfo(np.float64).max
+    acc[:, :] = big
+    acc[0, 0] = 0.0
+    for i in range(t):
+        for j in range(u):
+            cost = 0.0
+            for c in range(d):
+                diff = a[i, c] - b[j, c]
+                cost += diff * diff
+            # softmin(x, y, z) = -gamma log(exp(-x/gamma) + exp(-y/gamma) + exp(-z/gamma)),
+            # shifted by the largest exponent so that nothing overflows.
+            x = -acc[i, j + 1] / gamma
+            y = -acc[i, j] / gamma
+            z = -acc[i + 1, j] / gamma
+            top = max(max(x, y), z)
+            total = np.exp(x - top) + np.exp(y - top) + np.exp(z - top)
+            acc[i + 1, j + 1] = cost - gamma * (np.log(total) + top)
+    return float(acc[t, u])
+
+
+@njit(cache=True)
+def _cdist_soft_dtw_normalized(x: np.ndarray, y: np.ndarray, gamma: float) -> np.ndarray:
+    n = x.shape[0]
+    m = y.shape[0]
+    acc = np.empty((x.shape[1] + 1, y.shape[1] + 1))
+    self_x = np.empty(n)
+    self_y = np.empty(m)
+    for i in range(n):
+        self_x[i] = _soft_dtw(x[i], x[i], gamma, acc)
+    for j in range(m):
+        self_y[j] = _soft_dtw(y[j], y[j], gamma, acc)
+    out = np.empty((n, m))
+    for i in range(n):
+        for j in range(m):
+            out[i, j] = _soft_dtw(x[i], y[j], gamma, acc) - 0.5 * (self_x[i] + self_y[j])
     return out
 
 
@@ -193,7 +258,7 @@ def dtw(a: np.ndarray, b: np.ndarray, radius: int | None = None) -> float:
     a = np.ascontiguousarray(a, dtype=float)
     b = np.ascontiguousarray(b, dtype=float)
     if a.shape != b.shape or a.ndim != 2:
-        raise ValueError(f"series must be (T, d) of equal shape, got {a.shape} and {b.shape}")
+        raise InputError(f"series must be (T, d) of equal shape, got {a.shape} and {b.shape}")
     return float(cdist_dtw(a[None], b[None], radius)[0, 0])
 
 
@@ -202,8 +267,24 @@ def cdist_dtw(x: np.ndarray, y: np.ndarray, radius: int | None = None) -> np.nda
     x = np.ascontiguousarray(x, dtype=float)
     y = np.ascontiguousarray(y, dtype=float)
     if x.ndim != 3 or y.ndim != 3 or x.shape[1:] != y.shape[1:]:
-        raise ValueError(f"series must be (n, T, d) of equal T and d, got {x.shape}, {y.shape}")
+        raise InputError(f"series must be (n, T, d) of equal T and d, got {x.shape}, {y.shape}")
     return np.asarray(_cdist(x, y, _band(radius, x.shape[1])))
+
+
+def cdist_soft_dtw_normalized(x: np.ndarray, y: np.ndarray, gamma: float) -> np.ndarray:
+    """Normalised soft-DTW divergence of every series of x (n, T, d) to every series of y
+    (m, T', d): ``sdtw(x, y) - (sdtw(x, x) + sdtw(y, y)) / 2``, >= 0 and 0 for identical
+    series (``tslearn.metrics.cdist_soft_dtw_normalized``).
+
+    :param gamma: the soft-min's smoothing, > 0.
+    """
+    x = np.ascontiguousarray(x, dtype=float)
+    y = np.ascontiguousarray(y, dtype=float)
+    if x.ndim != 3 or y.ndim != 3 or x.shape[2] != y.shape[2]:
+        raise InputError(f"series must be (n, T, d) of equal d, got {x.shape}, {y.shape}")
+    if not (np.isfinite(gamma) and gamma > 0):
+        raise InputError(f"gamma must be a number > 0, got {gamma!r}")
+    return np.asarray(_cdist_soft_dtw_normalized(x, y, float(gamma)))
 
 
 def dba(
@@ -217,7 +298,7 @@ def dba(
     """DBA barycentre of x (n, T, d), starting from ``init`` (default: the plain mean)."""
     x = np.ascontiguousarray(x, dtype=float)
     if x.ndim != 3 or len(x) == 0:
-        raise ValueError(f"series must be (n, T, d) with n >= 1, got {x.shape}")
+        raise InputError(f"series must be (n, T, d) with n >= 1, got {x.shape}")
     start = x.mean(axis=0) if init is None else np.array(init, dtype=float)
     barycenter, _ = _dba_iterations(x, start, _band(radius, x.shape[1]), max_iter, tol)
     return np.asarray(barycenter)
@@ -278,16 +359,16 @@ def kmeans_dtw(
     """
     x = np.ascontiguousarray(x, dtype=float)
     if x.ndim != 3 or len(x) < n_clusters or n_clusters < 1:
-        raise ValueError(f"need (n, T, d) series with n >= {n_clusters}, got {x.shape}")
+        raise InputError(f"need (n, T, d) series with n >= {n_clusters}, got {x.shape}")
     r = _band(radius, x.shape[1])
     starts = [_kmeans_plusplus(x, n_clusters, r, rng) for _ in range(n_init)]
     if init is not None:
         init = np.ascontiguousarray(init, dtype=float)
         if init.shape != (n_clusters, *x.shape[1:]):
-            raise ValueError(f"init must be {(n_clusters, *x.shape[1:])}, got {init.shape}")
+            raise InputError(f"init must be {(n_clusters, *x.shape[1:])}, got {init.shape}")
         starts.insert(0, init)
     if not starts:
-        raise ValueError("need n_init >= 1 or an init")
+        raise InputError("need n_init >= 1 or an init")
     best: KMeansResult | None = None
     for start in starts:
         labels, centers, inertia, n_iter = _lloyd(x, start, r, max_iter, max_iter_barycenter, tol)
@@ -295,3 +376,18 @@ def kmeans_dtw(
             best = KMeansResult(np.asarray(labels), np.asarray(centers), float(inertia), n_iter)
     assert best is not None
     return best
+
+
+def warm_up() -> None:
+    """Compile, or load from numba's cache, every kernel of this module on tiny inputs.
+
+    The first call of a numba kernel in a process compiles it (seconds) or loads it from
+    the on-disk cache; a service calls this at start so that no request pays for it.
+    """
+    rng = np.random.default_rng(0)
+    x = rng.standard_normal((4, 6, 3))
+    cdist_dtw(x, x, None)
+    cdist_dtw(x, x, 1)
+    cdist_soft_dtw_normalized(x, x[:2], 0.1)
+    dba(x, radius=1, max_iter=2)
+    kmeans_dtw(x, 2, rng, radius=1, n_init=1, max_iter=2, max_iter_barycenter=2)

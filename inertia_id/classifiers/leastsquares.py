@@ -10,29 +10,25 @@ the candidates this way (see the class docstring).
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
-from sklearn.base import BaseEstimator
 
+from ..errors import InputError
 from ..physics.estimate import (
     InertiaEstimate,
     estimate_inertia,
     parameters_from_tensor,
     tensor_from_parameters,
 )
-from ..physics.scenario import Scenario
-from ..physics.simulate import simulate
-from .base import StoredClassifier, check_labels, confusion_scores
-from .likelihood import _check_series
+from .base import BaseClassifier
 
-__all__ = ["DISTANCES", "LeastSquaresClassifier", "train_least_squares"]
+__all__ = ["DISTANCES", "LeastSquaresClassifier"]
 
 DISTANCES = ("equation-error", "frobenius")
-FORMAT = "inertia-id/least-squares-classifier"
 
 
-class LeastSquaresClassifier(StoredClassifier, BaseEstimator):
+class LeastSquaresClassifier(BaseClassifier):
     """Nearest candidate to the least-squares inertia estimate.
 
     Distances (``distance``):
@@ -54,15 +50,20 @@ class LeastSquaresClassifier(StoredClassifier, BaseEstimator):
     distances are unbiased here (nothing was fitted to them), so no hold-out is needed.
 
     :param distance: "equation-error" or "frobenius".
-    :param window_s: window length passed to :func:`estimate_inertia`; None: cumulative
-        windows from the sequence start.
+    :param window_s: window length passed to
+        :func:`~inertia_id.physics.estimate.estimate_inertia`; None: cumulative windows
+        from the sequence start.
     :param lowpass: apply the scenario's known low-pass to the commanded torque.
     :param start_at_rest: rate known to be zero at t = 0; None: from the scenario.
     :param novelty_factor: multiple of the largest training distance beyond which a
         series matches no candidate.
     """
 
-    FORMAT = FORMAT
+    kind: ClassVar[str] = "least-squares"
+    FORMAT = "inertia-id/least-squares-classifier"
+    NEEDS_SCENARIO = True
+    LISTING_ORDER = 60
+    metric = "least-squares"
 
     def __init__(
         self,
@@ -79,102 +80,41 @@ class LeastSquaresClassifier(StoredClassifier, BaseEstimator):
         self.start_at_rest = start_at_rest
         self.novelty_factor = novelty_factor
 
-    @property
-    def metric(self) -> str:
-        """What the distances are, for reports and sweeps (``SweepResult.metric``)."""
-        return "least-squares"
-
     def _check_params(self) -> None:
+        super()._check_params()
         if self.distance not in DISTANCES:
-            raise ValueError(f"distance must be one of {list(DISTANCES)}, got {self.distance!r}")
+            raise InputError(f"distance must be one of {list(DISTANCES)}, got {self.distance!r}")
         if self.window_s is not None and not (
             isinstance(self.window_s, int | float)
             and not isinstance(self.window_s, bool)
             and math.isfinite(self.window_s)
             and self.window_s > 0
         ):
-            raise ValueError(f"window_s must be None or a time > 0 s, got {self.window_s!r}")
-        if not (
-            isinstance(self.novelty_factor, int | float)
-            and math.isfinite(self.novelty_factor)
-            and self.novelty_factor >= 1.0
-        ):
-            raise ValueError(f"novelty_factor must be >= 1, got {self.novelty_factor!r}")
+            raise InputError(f"window_s must be None or a time > 0 s, got {self.window_s!r}")
 
     # Fitting.
 
-    def fit(
-        self,
-        X: Any,
-        y: Any,
-        *,
-        scenario: Scenario,
-        sequence: Any,
-        candidate_names: list[str] | None = None,
-    ) -> LeastSquaresClassifier:
-        """Take the candidates from ``scenario`` and calibrate the novelty thresholds.
-
-        :param X: (n_series, length, 3) responses to ``sequence``, rad/s.
-        :param y: candidate index of each series in ``scenario`` (every candidate once
-            at least, to set its threshold).
-        :param scenario: the candidates, thrusters and timing: the model itself.
-        :param sequence: (L, N) level indices the series respond to.
-        :param candidate_names: names for reports; default the scenario's.
-        """
-        self._check_params()
-        sequence = scenario.check_sequence(sequence)
-        n_candidates = scenario.n_candidates
-        X = _check_series(X, len(sequence) * scenario.timing.samples_per_step)
-        labels = check_labels(y, len(X), n_candidates)
-        missing = sorted(set(range(n_candidates)) - set(labels.tolist()))
-        if missing:
-            raise ValueError(f"y must label every candidate of the scenario; missing {missing}")
-        if candidate_names is not None and len(candidate_names) != n_candidates:
-            raise ValueError(
-                f"{len(candidate_names)} candidate names for {n_candidates} candidates"
-            )
-        # Estimate first: a window that does not suit the scenario fails before any
-        # fitted attribute is set.
-        estimate = estimate_inertia(
-            scenario,
-            sequence,
-            X,
-            window_s=self.window_s,
-            lowpass=self.lowpass,
-            start_at_rest=self.start_at_rest,
-        )
-        self.scenario_ = scenario
-        self.sequence_ = sequence
-        self.n_candidates_ = n_candidates
-        self.candidate_names_ = list(candidate_names or scenario.candidate_names)
-        self.candidate_parameters_kg_m2_ = parameters_from_tensor(scenario.inertia_array)
-        distances = self._distances(estimate)
-        own = distances[np.arange(len(X)), labels]
-        self.max_training_distance_ = np.array(
-            [own[labels == k].max() for k in range(n_candidates)]
-        )
-        predicted = distances.argmin(axis=1)
-        confusion = np.zeros((n_candidates, n_candidates), dtype=int)
-        np.add.at(confusion, (labels, predicted), 1)
-        scores = confusion_scores(confusion)
-        self.f1_ = scores["f1"]
-        self.accuracy_ = scores["accuracy"]
-        self.confusion_ = scores["confusion"]
-        return self
+    def _fit(self, X: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Take the candidates from the scenario; the training distances (unbiased here:
+        nothing was fitted to them) calibrate the novelty thresholds."""
+        assert self.scenario_ is not None  # NEEDS_SCENARIO: _prepare refused a fit without
+        self.candidate_parameters_kg_m2_ = parameters_from_tensor(self.scenario_.inertia_array)
+        return self._distances(self._estimate(X))
 
     # Prediction.
 
-    def _check_fitted(self) -> None:
-        if not hasattr(self, "candidate_parameters_kg_m2_"):
-            raise ValueError("this classifier is not fitted yet; call fit first")
-
     def estimate(self, X: Any) -> InertiaEstimate:
-        """The least-squares inertia of each series (batched, see :func:`estimate_inertia`)."""
-        self._check_fitted()
+        """The least-squares inertia of each series (batched, see
+        :func:`~inertia_id.physics.estimate.estimate_inertia`)."""
+        return self._estimate(self._check_input(X))
+
+    def _estimate(self, X: np.ndarray) -> InertiaEstimate:
+        """The estimates of checked series."""
+        assert self.scenario_ is not None and self.sequence_ is not None
         return estimate_inertia(
             self.scenario_,
             self.sequence_,
-            _check_series(X),
+            X,
             window_s=self.window_s,
             lowpass=self.lowpass,
             start_at_rest=self.start_at_rest,
@@ -192,84 +132,27 @@ class LeastSquaresClassifier(StoredClassifier, BaseEstimator):
         quadratic = np.einsum("nki,nij,nkj->nk", gap, estimate.normal_matrix, gap)
         return np.asarray(np.sqrt(np.maximum(quadratic, 0.0) / estimate.n_equations))
 
-    def transform(self, X: Any) -> np.ndarray:
+    def _candidate_distances(self, X: np.ndarray) -> np.ndarray:
         """Distance of each series' estimate to each candidate, (n_series, K).
 
         N m s for "equation-error", dimensionless for "frobenius".
         """
-        return self._distances(self.estimate(X))
+        return self._distances(self._estimate(X))
 
-    def predict(self, X: Any) -> np.ndarray:
-        """Candidate index of each series: the nearest candidate tensor."""
-        return np.asarray(self.transform(X).argmin(axis=1))
+    # Storage as data: the common fields hold the whole model (scenario and sequence).
 
-    def fit_predict(self, X: Any, y: Any, **kwargs: Any) -> np.ndarray:
-        return self.fit(X, y, **kwargs).predict(X)
+    def _state(self) -> dict[str, Any]:
+        return {}
 
-    def novelty_thresholds(self) -> np.ndarray:
-        """Per-candidate distance beyond which a series "matches none", (K,)."""
-        self._check_fitted()
-        return np.asarray(self.novelty_factor * self.max_training_distance_)
-
-    # Storage as data.
-
-    def to_dict(self) -> dict[str, Any]:
-        self._check_fitted()
-        return {
-            "params": self.get_params(),
-            "candidate_names": self.candidate_names_,
-            "max_training_distance": self.max_training_distance_.tolist(),
-            "f1": self.f1_,
-            "accuracy": self.accuracy_,
-            "confusion": self.confusion_.tolist(),
-            "scenario": self.scenario_.model_dump(mode="json"),
-            "sequence": np.asarray(self.sequence_).tolist(),
-        }
-
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> LeastSquaresClassifier:
-        try:
-            model = cls(**data["params"])
-            model._check_params()
-            model.scenario_ = Scenario.model_validate(data["scenario"])
-            model.sequence_ = model.scenario_.check_sequence(data["sequence"])
-            model.n_candidates_ = model.scenario_.n_candidates
-            model.candidate_names_ = [str(n) for n in data["candidate_names"]]
-            model.candidate_parameters_kg_m2_ = parameters_from_tensor(
-                model.scenario_.inertia_array
+    def _load_state(self, data: dict[str, Any]) -> None:
+        if self.scenario_ is None or self.sequence_ is None:
+            raise InputError("the document holds no scenario and sequence, the model itself")
+        scenario = self.scenario_
+        self.sequence_ = scenario.check_sequence(self.sequence_)
+        if self.n_candidates_ != scenario.n_candidates:
+            raise InputError(
+                f"{self.n_candidates_} candidate names for the scenario's "
+                f"{scenario.n_candidates} candidates"
             )
-            model.max_training_distance_ = np.asarray(data["max_training_distance"], float)
-            model.f1_ = float(data["f1"])
-            model.accuracy_ = float(data["accuracy"])
-            model.confusion_ = np.asarray(data["confusion"], dtype=int)
-        except (KeyError, TypeError, ValueError) as exc:
-            raise ValueError(f"not a valid least-squares classifier document: {exc}") from None
-        k = model.n_candidates_
-        if len(model.candidate_names_) != k or model.max_training_distance_.shape != (k,):
-            raise ValueError(
-                f"not a valid least-squares classifier document: {k} candidates, "
-                f"{len(model.candidate_names_)} names, "
-                f"{model.max_training_distance_.shape} thresholds"
-            )
-        return model
-
-
-def train_least_squares(
-    scenario: Scenario,
-    sequence: Any,
-    n_realisations: int,
-    rng: np.random.Generator,
-    **classifier_params: Any,
-) -> LeastSquaresClassifier:
-    """Simulate every candidate under ``sequence`` at 1x noise and fit the classifier.
-
-    Like :func:`~inertia_id.classify.train`; only the novelty thresholds depend on the
-    simulated series.
-
-    :param n_realisations: series per candidate for the novelty thresholds.
-    :param rng: source of the simulated noise; the same state gives the same model.
-    """
-    sequence = scenario.check_sequence(sequence)
-    X, y = simulate(scenario, sequence, n_realisations, rng).dataset()
-    model = LeastSquaresClassifier(**classifier_params)
-    return model.fit(X, y, scenario=scenario, sequence=sequence)
+        self.length_ = len(self.sequence_) * scenario.timing.samples_per_step
+        self.candidate_parameters_kg_m2_ = parameters_from_tensor(scenario.inertia_array)

@@ -1,19 +1,25 @@
 """Every classifier kind behind one door: choose, train and load any of them by name.
 
-Kinds (:data:`CLASSIFIER_KINDS`):
+The registry is built from the classes: every module of :mod:`inertia_id.classifiers`
+is imported, and each class that declares a ``kind`` registers itself
+(:class:`~inertia_id.classifiers.base.BaseClassifier`), with what it is (document
+format, metrics, minimum and default realisations) in its class attributes. Kinds
+(:data:`CLASSIFIER_KINDS`):
 
-- ``clustering``: :class:`~inertia_id.classify.InertiaClassifier`, the paper's
-  time-series k-means (metric dtw, softdtw or euclidean);
+- ``clustering``: :class:`~inertia_id.classifiers.clustering.InertiaClassifier`, the
+  paper's time-series k-means (metric dtw, softdtw or euclidean);
 - ``nearest-centroid`` and ``1nn``: supervised, dtw or euclidean
-  (:mod:`inertia_id.supervised`);
-- ``minirocket``: MiniRocket features and a ridge classifier;
+  (:mod:`inertia_id.classifiers.nearest`);
+- ``minirocket``: MiniRocket features and a ridge classifier
+  (:mod:`inertia_id.classifiers.minirocket`);
 - ``likelihood``: the Gaussian matched filter that knows the simulator, the accuracy
-  limit (:mod:`inertia_id.likelihood`);
+  limit (:mod:`inertia_id.classifiers.likelihood`);
 - ``least-squares``: the physics baseline, an integral-form least-squares inertia
-  estimate and the nearest candidate (:mod:`inertia_id.leastsquares`);
+  estimate and the nearest candidate (:mod:`inertia_id.classifiers.leastsquares`);
 - ``marginal-likelihood``: the likelihood classifier marginalised over the unknown noise
-  level (:mod:`inertia_id.marginal`), the shipped default: within half a percentage
-  point of the limit up to 8x noise (``bench/classifier_limit.py``).
+  level (:mod:`inertia_id.classifiers.marginal`), the shipped default
+  (:data:`DEFAULT_KIND`): within half a percentage point of the limit up to 8x noise
+  (``bench/classifier_limit.py``).
 
 A *spec* names a kind and, optionally, its metric: ``"1nn:euclidean"``,
 ``"clustering:dtw"``, ``"likelihood"``.
@@ -21,25 +27,19 @@ A *spec* names a kind and, optionally, its metric: ``"1nn:euclidean"``,
 
 from __future__ import annotations
 
+import importlib
 import inspect
 import os
-from typing import Any, Protocol
+import pkgutil
+from types import ModuleType
+from typing import Any, ClassVar, Protocol
 
 import numpy as np
 
+from ..errors import InputError
 from ..physics.scenario import Scenario
-from ..physics.simulate import simulate
 from . import documents
-from .clustering import FORMAT as CLUSTERING_FORMAT
-from .clustering import InertiaClassifier, train
-from .leastsquares import FORMAT as LEAST_SQUARES_FORMAT
-from .leastsquares import LeastSquaresClassifier
-from .likelihood import FORMAT as LIKELIHOOD_FORMAT
-from .likelihood import LikelihoodClassifier
-from .marginal import FORMAT as MARGINAL_FORMAT
-from .marginal import MarginalLikelihoodClassifier, train_marginal
-from .nearest import FORMAT as SUPERVISED_FORMAT
-from .nearest import SUPERVISED_CLASSES, MiniRocketClassifier, SupervisedClassifier
+from .base import KINDS, BaseClassifier, document_class
 
 __all__ = [
     "CLASSIFIER_KINDS",
@@ -48,18 +48,30 @@ __all__ = [
     "classifier_from_json",
     "default_realisations",
     "describe",
+    "kind_class",
+    "kind_metrics",
     "load_classifier",
     "make_classifier",
     "parse_spec",
     "resolve_kind",
+    "train",
     "train_classifier",
+    "warm_up",
 ]
 
 
 class CandidateClassifier(Protocol):
-    """What identify and the noise sweep need of a classifier; every kind fits it."""
+    """What identify, the sweeps, the CLI and the service need of a fitted classifier;
+    every kind fits it."""
 
+    kind: ClassVar[str]
     candidate_names_: list[str]
+    n_candidates_: int
+    f1_: float
+    accuracy_: float
+    confusion_: np.ndarray
+    scenario_: Scenario | None
+    sequence_: np.ndarray | None
 
     @property
     def metric(self) -> str: ...
@@ -74,25 +86,46 @@ class CandidateClassifier(Protocol):
 
     def to_json(self) -> str: ...
 
+    def save(self, path: str | os.PathLike[str]) -> None: ...
 
-_CLASSES: dict[str, type[Any]] = {
-    "clustering": InertiaClassifier,
-    **SUPERVISED_CLASSES,
-    "likelihood": LikelihoodClassifier,
-    "least-squares": LeastSquaresClassifier,
-    "marginal-likelihood": MarginalLikelihoodClassifier,
-}
+
+def _import_package() -> list[ModuleType]:
+    """Every module of the package: importing a kind's module registers the kind."""
+    package = importlib.import_module(__package__ or "inertia_id.classifiers")
+    return [
+        importlib.import_module(f"{package.__name__}.{info.name}")
+        for info in pkgutil.iter_modules(package.__path__)
+    ]
+
+
+_MODULES = _import_package()
+_CLASSES: dict[str, type[BaseClassifier]] = dict(
+    sorted(KINDS.items(), key=lambda item: item[1].LISTING_ORDER)
+)
 CLASSIFIER_KINDS = tuple(_CLASSES)
-#: What ``train`` gives when no kind is asked for.
+#: What a training gives when neither a kind nor a metric is asked for; the one place
+#: the default is named.
 DEFAULT_KIND = "marginal-likelihood"
-#: The marginal likelihood estimates three noise covariances of 240+ dimensions: it
-#: reaches the limit from 100 realisations per candidate (2.4 points short from 20).
-_DEFAULT_REALISATIONS = {"marginal-likelihood": 100}
+
+
+def kind_class(kind: str) -> type[BaseClassifier]:
+    """The class of a kind, or an input error listing the kinds."""
+    if not isinstance(kind, str) or kind not in _CLASSES:
+        raise InputError(f"classifier kind must be one of {list(CLASSIFIER_KINDS)}, got {kind!r}")
+    return _CLASSES[kind]
+
+
+def kind_metrics(kind: str) -> tuple[str, ...]:
+    """The metrics a kind takes (its default first); empty for a kind that takes none."""
+    return kind_class(kind).METRICS
 
 
 def resolve_kind(kind: str | None, metric: str | None) -> str:
     """The kind meant: as given; else the paper's clustering when only a metric is given
-    (the metric names a clustering), else :data:`DEFAULT_KIND`."""
+    (the metric names a clustering), else :data:`DEFAULT_KIND`.
+
+    The CLI, the worker and :func:`train_classifier` all ask this function.
+    """
     if kind is not None:
         return kind
     return "clustering" if metric is not None else DEFAULT_KIND
@@ -100,22 +133,24 @@ def resolve_kind(kind: str | None, metric: str | None) -> str:
 
 def default_realisations(kind: str) -> int:
     """Training realisations per candidate when none are asked for."""
-    return _DEFAULT_REALISATIONS.get(kind, 20)
+    return kind_class(kind).DEFAULT_REALISATIONS
 
 
-def make_classifier(kind: str, **options: Any) -> Any:
+def make_classifier(kind: str, **options: Any) -> CandidateClassifier:
     """An unfitted classifier of the given kind, its options checked.
 
     :param kind: one of :data:`CLASSIFIER_KINDS`.
     :param options: the class's constructor arguments, e.g. ``metric="euclidean"``.
     """
-    if not isinstance(kind, str) or kind not in _CLASSES:
-        raise ValueError(f"classifier kind must be one of {list(CLASSIFIER_KINDS)}, got {kind!r}")
-    cls = _CLASSES[kind]
+    return _make(kind, options)
+
+
+def _make(kind: str, options: dict[str, Any]) -> BaseClassifier:
+    cls = kind_class(kind)
     accepted = set(inspect.signature(cls.__init__).parameters) - {"self"}
     unknown = sorted(set(options) - accepted)
     if unknown:
-        raise ValueError(
+        raise InputError(
             f"the {kind!r} classifier does not take option(s) {unknown}; it takes "
             f"{sorted(accepted)}"
         )
@@ -127,7 +162,7 @@ def make_classifier(kind: str, **options: Any) -> Any:
 def parse_spec(spec: str) -> tuple[str, dict[str, Any]]:
     """``"1nn:euclidean"`` -> ``("1nn", {"metric": "euclidean"})``, checked."""
     if not isinstance(spec, str):
-        raise ValueError(f"a classifier spec is a string like '1nn:euclidean', got {spec!r}")
+        raise InputError(f"a classifier spec is a string like '1nn:euclidean', got {spec!r}")
     kind, _, metric = spec.partition(":")
     options = {"metric": metric} if metric else {}
     make_classifier(kind, **options)
@@ -136,11 +171,10 @@ def parse_spec(spec: str) -> tuple[str, dict[str, Any]]:
 
 def describe(model: Any) -> str:
     """A short label: kind and metric, e.g. "1nn euclidean", "likelihood"."""
-    for kind, cls in _CLASSES.items():
-        if type(model) is cls:
-            metric = getattr(model, "metric", "")
-            return f"{kind} {metric}" if kind in ("clustering", "nearest-centroid", "1nn") else kind
-    return type(model).__name__
+    cls = type(model)
+    if isinstance(model, BaseClassifier) and _CLASSES.get(cls.kind) is cls:
+        return f"{cls.kind} {model.metric}" if cls.METRICS else cls.kind
+    return cls.__name__
 
 
 def train_classifier(
@@ -149,58 +183,46 @@ def train_classifier(
     n_realisations: int,
     rng: np.random.Generator,
     *,
-    kind: str = "clustering",
+    kind: str | None = None,
     **options: Any,
-) -> Any:
+) -> CandidateClassifier:
     """Simulate every candidate under ``sequence`` at 1x noise and fit a classifier.
 
-    Like :func:`~inertia_id.classify.train` (which it calls for "clustering"), for any
-    kind; a MiniRocket seed not given is drawn from ``rng``, so the same rng state gives
-    the same model. The classifier remembers the scenario and sequence (identify needs
-    them).
+    The kind is :func:`resolve_kind`'s: as given, else the paper's clustering when a
+    metric is given, else :data:`DEFAULT_KIND`. A seed the kind needs (k-means,
+    MiniRocket) and not given is drawn from ``rng``, so the same rng state gives the same
+    model. The classifier remembers the scenario and sequence (identify needs them).
 
     :param kind: see :func:`make_classifier`.
     :param options: constructor arguments of that kind.
     """
-    if kind == "clustering":
-        return train(scenario, sequence, n_realisations, rng, **options)
-    model = make_classifier(kind, **options)
-    if isinstance(model, MarginalLikelihoodClassifier):
-        return train_marginal(scenario, sequence, n_realisations, rng, **options)
-    sequence = scenario.check_sequence(sequence)
-    X, y = simulate(scenario, sequence, n_realisations, rng).dataset()
-    if isinstance(model, MiniRocketClassifier) and model.random_state is None:
-        model.random_state = int(rng.integers(2**31 - 1))
-    if isinstance(model, LikelihoodClassifier | LeastSquaresClassifier):
-        return model.fit(
-            X, y, candidate_names=scenario.candidate_names, scenario=scenario, sequence=sequence
-        )
-    model.fit(X, y, candidate_names=scenario.candidate_names)
-    model.scenario_ = scenario
-    model.sequence_ = sequence
-    return model
+    model = _make(resolve_kind(kind, options.get("metric")), options)
+    return model.fit_scenario(scenario, sequence, n_realisations, rng)
 
 
-_LOADERS: dict[str, Any] = {
-    CLUSTERING_FORMAT: InertiaClassifier.from_json,
-    SUPERVISED_FORMAT: SupervisedClassifier.from_json,
-    LIKELIHOOD_FORMAT: LikelihoodClassifier.from_json,
-    LEAST_SQUARES_FORMAT: LeastSquaresClassifier.from_json,
-    MARGINAL_FORMAT: MarginalLikelihoodClassifier.from_json,
-}
+#: The name the paper's pipeline has always used for :func:`train_classifier`.
+train = train_classifier
 
 
-def classifier_from_json(text: str | bytes) -> Any:
+def classifier_from_json(text: str | bytes) -> CandidateClassifier:
     """Load any classifier document, whatever its kind (the checksum is verified)."""
     fmt = documents.parse(text).get("format")
-    if fmt not in _LOADERS:
-        raise ValueError(
-            f"not a classifier document: format {fmt!r} is not one of {sorted(_LOADERS)}"
-        )
-    return _LOADERS[fmt](text)
+    formats = sorted({cls.FORMAT for cls in _CLASSES.values()})
+    if fmt not in formats:
+        raise InputError(f"not a classifier document: format {fmt!r} is not one of {formats}")
+    payload = documents.read(text, fmt)
+    return document_class(fmt, payload).from_dict(payload)
 
 
-def load_classifier(path: str | os.PathLike[str]) -> Any:
+def load_classifier(path: str | os.PathLike[str]) -> CandidateClassifier:
     """Read any classifier document from a file (see :func:`classifier_from_json`)."""
     with open(path, encoding="utf-8") as fh:
         return classifier_from_json(fh.read())
+
+
+def warm_up() -> None:
+    """Compile, or load from numba's cache, every numba kernel that a kind's ``transform``
+    uses: each module of the package that has a ``warm_up`` runs it."""
+    for module in _MODULES:
+        if module.__name__ != __name__ and callable(getattr(module, "warm_up", None)):
+            module.warm_up()

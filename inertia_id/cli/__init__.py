@@ -18,15 +18,17 @@ from typing import Any, TypeVar
 import click
 import numpy as np
 
-from ..classifiers.clustering import METRICS, train
+from ..classifiers.clustering import METRICS
 from ..classifiers.registry import (
     CLASSIFIER_KINDS,
     default_realisations,
     load_classifier,
     parse_spec,
     resolve_kind,
+    train,
     train_classifier,
 )
+from ..errors import InputError
 from ..evaluation.identify import identify
 from ..evaluation.sweep import DEFAULT_NOISES, NOISE_KINDS, run_inertia_sweep, run_sweep
 from ..evaluation.telemetry import load_telemetry
@@ -94,12 +96,12 @@ def parse_sequence(text: str) -> list[list[int]]:
         else:
             rows = [[int(v) for v in row.split(",")] for row in source.split(";") if row.strip()]
     except (ValueError, json.JSONDecodeError):
-        raise ValueError(
+        raise InputError(
             f"sequence {text!r} is not rows of level indices like '4,4,4,0,0,0;0,0,0,4,4,4' "
             "or a JSON list of rows"
         ) from None
     if not isinstance(rows, list) or not rows:
-        raise ValueError(f"sequence {text!r} holds no steps")
+        raise InputError(f"sequence {text!r} holds no steps")
     return rows
 
 
@@ -269,7 +271,7 @@ def simulate_cmd(
     if telemetry:
         k = _candidate_index(scenario, candidate)
         if realisation >= realisations:
-            raise ValueError(f"--realisation {realisation} but only {realisations} simulated")
+            raise InputError(f"--realisation {realisation} but only {realisations} simulated")
         rows = np.column_stack([result.time_s, result.omega_measured[k, realisation]])
         np.savetxt(
             telemetry,
@@ -292,7 +294,7 @@ def _candidate_index(scenario: Scenario, candidate: str) -> int:
         return names.index(candidate)
     if candidate.isdigit() and int(candidate) < len(names):
         return int(candidate)
-    raise ValueError(
+    raise InputError(
         f"candidate {candidate!r} is neither an index 0..{len(names) - 1} nor one of {names}"
     )
 
@@ -378,7 +380,7 @@ def train_cmd(
         if kind == "clustering":
             options["n_init"] = n_init
     elif metric is not None or band is not None:
-        raise ValueError(f"--kind {kind} takes no --metric or --band")
+        raise InputError(f"--kind {kind} takes no --metric or --band")
     click.echo(
         f"training {kind} {options.get('metric', '')} classifier on {scenario.n_candidates} "
         f"candidates x {realisations} realisations ...",
@@ -405,7 +407,7 @@ def _parse_multiples(text: str) -> list[float]:
     try:
         values = [float(v) for v in text.split(",") if v.strip()]
     except ValueError:
-        raise ValueError(f"--multiples {text!r} is not a comma-separated list of numbers") from None
+        raise InputError(f"--multiples {text!r} is not a comma-separated list of numbers") from None
     return values
 
 
@@ -563,7 +565,7 @@ def _parse_radius(text: str) -> int | None:
     except ValueError:
         value = -1
     if value < 0:
-        raise ValueError(f"--radius must be an integer >= 0 or 'none', got {text!r}")
+        raise InputError(f"--radius must be an integer >= 0 or 'none', got {text!r}")
     return value
 
 
@@ -574,11 +576,11 @@ def _parse_ppo_params(
     for pair in pairs:
         name, sep, value = pair.partition("=")
         if not sep or not name.strip():
-            raise ValueError(f"{option} takes NAME=VALUE (e.g. {example}), got {pair!r}")
+            raise InputError(f"{option} takes NAME=VALUE (e.g. {example}), got {pair!r}")
         try:
             number = float(value)
         except ValueError:
-            raise ValueError(f"{option} {name.strip()} must be a number, got {value!r}") from None
+            raise InputError(f"{option} {name.strip()} must be a number, got {value!r}") from None
         params[name.strip()] = int(number) if number.is_integer() and "." not in value else number
     return params
 
@@ -713,11 +715,11 @@ def _run_search(
         options["ppo_params"] = _parse_ppo_params(ppo_pairs)
         options["policy_path"] = policy_path
     elif ppo_pairs:
-        raise ValueError(f"--ppo applies to --method ppo only, not {method!r}")
+        raise InputError(f"--ppo applies to --method ppo only, not {method!r}")
     if method == "cem":
         options.update(_parse_ppo_params(cem_pairs, "--cem", "population=64"))
     elif cem_pairs:
-        raise ValueError(f"--cem applies to --method cem only, not {method!r}")
+        raise InputError(f"--cem applies to --method cem only, not {method!r}")
     with _progress_bar(total, method) as bar:
         bar.unit = "step"
 

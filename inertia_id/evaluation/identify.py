@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from pydantic import BaseModel
 
+from ..errors import InputError
 from ..physics.estimate import estimate_inertia
 from .telemetry import Telemetry, resample
 
@@ -61,7 +62,7 @@ def identify(
     scenario = getattr(classifier, "scenario_", None)
     sequence = getattr(classifier, "sequence_", None)
     if scenario is None or sequence is None:
-        raise ValueError("the classifier does not carry its scenario and sequence")
+        raise InputError("the classifier does not carry its scenario and sequence")
     grid = scenario.sample_times(len(sequence))
     series = resample(telemetry, grid)
     distances = classifier.transform(series[None])[0]

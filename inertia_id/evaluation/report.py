@@ -11,12 +11,12 @@ import plotly.graph_objects as go
 import plotly.io as pio
 from plotly.subplots import make_subplots
 
-from ..classifiers.clustering import InertiaClassifier
 from ..physics.scenario import Scenario
 from ..physics.simulate import SimulationResult
 from .sweep import SweepResult
 
 if TYPE_CHECKING:
+    from ..classifiers.registry import CandidateClassifier
     from ..search import SearchResult
 
 __all__ = [
@@ -252,7 +252,7 @@ def write_report(
     scenario: Scenario,
     sequence: np.ndarray,
     result: SimulationResult,
-    classifier: InertiaClassifier,
+    classifier: CandidateClassifier,
     sweep: SweepResult | None = None,
     search: SearchResult | None = None,
 ) -> None:

@@ -35,6 +35,7 @@ from pydantic import BaseModel
 
 from ..classifiers.likelihood import LikelihoodClassifier
 from ..classifiers.registry import CandidateClassifier
+from ..errors import InputError
 from ..physics.scenario import Scenario
 from ..physics.simulate import simulate
 
@@ -79,7 +80,7 @@ REFERENCE_LEVELS = {"thrust_scale": 0.02, "gyro_bias": 1e-3}
 def noise_level(scenario: Scenario, noise: str) -> float:
     """The 1x absolute level of ``noise``: the scenario's, else the reference level."""
     if noise not in NOISE_FIELDS:
-        raise ValueError(f"noise must be one of {list(NOISE_KINDS)}, got {noise!r}")
+        raise InputError(f"noise must be one of {list(NOISE_KINDS)}, got {noise!r}")
     own = float(getattr(scenario.uncertainty, NOISE_FIELDS[noise]))
     return own if own > 0 else REFERENCE_LEVELS.get(noise, 0.0)
 
@@ -143,7 +144,7 @@ def _check_multiples(multiples: Sequence[float]) -> None:
         or not (math.isfinite(m) and m >= 0)
     ]
     if bad or not multiples:
-        raise ValueError(f"noise multiples must be finite and >= 0, got {list(multiples)}")
+        raise InputError(f"noise multiples must be finite and >= 0, got {list(multiples)}")
 
 
 def _point(
@@ -202,22 +203,22 @@ def run_sweep(
     scenario = scenario if scenario is not None else getattr(classifier, "scenario_", None)
     sequence = sequence if sequence is not None else getattr(classifier, "sequence_", None)
     if scenario is None or sequence is None:
-        raise ValueError("the classifier does not carry its scenario and sequence; pass them")
+        raise InputError("the classifier does not carry its scenario and sequence; pass them")
     sequence = scenario.check_sequence(sequence)
     unknown = [n for n in noises if n not in NOISE_KINDS]
     if unknown or not noises:
-        raise ValueError(f"noises must be among {list(NOISE_KINDS)}, got {list(noises)}")
+        raise InputError(f"noises must be among {list(NOISE_KINDS)}, got {list(noises)}")
     _check_multiples(multiples)
     others = dict(others or {})
     if n_test < scenario.n_candidates:
-        raise ValueError(f"n_test = {n_test} is fewer than the {scenario.n_candidates} candidates")
+        raise InputError(f"n_test = {n_test} is fewer than the {scenario.n_candidates} candidates")
     per_candidate = n_test // scenario.n_candidates
     if isinstance(limit_realisations, bool) or not (
         isinstance(limit_realisations, int) and limit_realisations >= 0
     ):
-        raise ValueError(f"limit_realisations must be an integer >= 0, got {limit_realisations!r}")
+        raise InputError(f"limit_realisations must be an integer >= 0, got {limit_realisations!r}")
     if 0 < limit_realisations < 3:
-        raise ValueError(
+        raise InputError(
             f"limit_realisations must be 0 (no limit) or at least 3, got {limit_realisations}"
         )
     streams = np.random.SeedSequence(seed).spawn(len(noises) * len(multiples))
@@ -338,20 +339,20 @@ def run_inertia_sweep(
     scenario: Scenario | None = getattr(classifier, "scenario_", None)
     sequence = getattr(classifier, "sequence_", None)
     if scenario is None or sequence is None:
-        raise ValueError("the classifier does not carry its scenario and sequence")
+        raise InputError("the classifier does not carry its scenario and sequence")
     k = scenario.n_candidates
     pair = pair if pair is not None else _closest_pair(scenario)
     for name, index in (("base", base), ("pair[0]", pair[0]), ("pair[1]", pair[1])):
         if not 0 <= index < k:
-            raise ValueError(f"{name} = {index} is not a candidate index 0..{k - 1}")
+            raise InputError(f"{name} = {index} is not a candidate index 0..{k - 1}")
     bad = [s for s in scales if not (math.isfinite(s) and s > 0)]
     if bad:
-        raise ValueError(f"scales must be finite and > 0, got {list(scales)}")
+        raise InputError(f"scales must be finite and > 0, got {list(scales)}")
     bad = [t for t in between if not (math.isfinite(t) and 0 <= t <= 1)]
     if bad:
-        raise ValueError(f"between positions must be in [0, 1], got {list(between)}")
+        raise InputError(f"between positions must be in [0, 1], got {list(between)}")
     if n_test < 1:
-        raise ValueError(f"n_test must be at least 1, got {n_test}")
+        raise InputError(f"n_test must be at least 1, got {n_test}")
     tensors = [np.asarray(c.inertia_kg_m2, dtype=float) for c in scenario.inertia_candidates]
     bodies = [("scaled", float(s), float(s) * tensors[base]) for s in scales] + [
         ("between", float(t), (1 - float(t)) * tensors[pair[0]] + float(t) * tensors[pair[1]])

@@ -15,6 +15,8 @@ import os
 import numpy as np
 from pydantic import BaseModel, Field, field_validator, model_validator
 
+from ..errors import InputError
+
 __all__ = [
     "MAX_TELEMETRY_SAMPLES",
     "Telemetry",
@@ -37,14 +39,14 @@ class Telemetry(BaseModel):
     def _times(cls, value: list[float]) -> list[float]:
         arr = np.asarray(value, dtype=float)
         if arr.size < 2:
-            raise ValueError(f"telemetry needs at least 2 samples, got {arr.size}")
+            raise InputError(f"telemetry needs at least 2 samples, got {arr.size}")
         bad = np.flatnonzero(~np.isfinite(arr))
         if bad.size:
-            raise ValueError(f"time_s[{bad[0]}] = {value[bad[0]]!r} is not finite")
+            raise InputError(f"time_s[{bad[0]}] = {value[bad[0]]!r} is not finite")
         steps = np.diff(arr)
         if np.any(steps <= 0):
             i = int(np.flatnonzero(steps <= 0)[0])
-            raise ValueError(
+            raise InputError(
                 f"time stamps must increase strictly: time_s[{i}] = {value[i]!r}, "
                 f"time_s[{i + 1}] = {value[i + 1]!r}"
             )
@@ -55,18 +57,18 @@ class Telemetry(BaseModel):
     def _rates(cls, value: list[list[float]]) -> list[list[float]]:
         for i, row in enumerate(value):
             if len(row) != 3:
-                raise ValueError(f"omega_rad_s row {i} has {len(row)} columns, expected 3: {row}")
+                raise InputError(f"omega_rad_s row {i} has {len(row)} columns, expected 3: {row}")
         arr = np.asarray(value, dtype=float).reshape(-1, 3)
         bad = np.argwhere(~np.isfinite(arr))
         if bad.size:
             i, j = (int(v) for v in bad[0])
-            raise ValueError(f"omega_rad_s[{i}][{j}] = {value[i][j]!r} is not finite")
+            raise InputError(f"omega_rad_s[{i}][{j}] = {value[i][j]!r} is not finite")
         return value
 
     @model_validator(mode="after")
     def _lengths(self) -> Telemetry:
         if len(self.time_s) != len(self.omega_rad_s):
-            raise ValueError(
+            raise InputError(
                 f"{len(self.time_s)} time stamps but {len(self.omega_rad_s)} omega rows"
             )
         return self
@@ -93,31 +95,31 @@ def parse_telemetry(text: str, *, fmt: str = "auto") -> Telemetry:
         try:
             data = json.loads(text)
         except json.JSONDecodeError as exc:
-            raise ValueError(f"telemetry is not valid JSON: {exc}") from None
+            raise InputError(f"telemetry is not valid JSON: {exc}") from None
         if not isinstance(data, dict):
-            raise ValueError("telemetry JSON must be an object with time_s and omega_rad_s")
+            raise InputError("telemetry JSON must be an object with time_s and omega_rad_s")
         return Telemetry.model_validate(data)
     if fmt != "csv":
-        raise ValueError(f"telemetry format must be json, csv or auto, got {fmt!r}")
+        raise InputError(f"telemetry format must be json, csv or auto, got {fmt!r}")
     try:
         rows = [r for r in csv.reader(io.StringIO(text)) if r and any(c.strip() for c in r)]
     except csv.Error as exc:
-        raise ValueError(f"telemetry is not valid CSV: {exc}") from None
+        raise InputError(f"telemetry is not valid CSV: {exc}") from None
     if rows and not _numeric(rows[0][0]):
         rows = rows[1:]
     if len(rows) > MAX_TELEMETRY_SAMPLES:
-        raise ValueError(f"telemetry has {len(rows)} rows; at most {MAX_TELEMETRY_SAMPLES}")
+        raise InputError(f"telemetry has {len(rows)} rows; at most {MAX_TELEMETRY_SAMPLES}")
     times: list[float] = []
     omegas: list[list[float]] = []
     for n, row in enumerate(rows, start=1):
         if len(row) != 4:
-            raise ValueError(
+            raise InputError(
                 f"CSV data row {n} has {len(row)} columns, expected 4 (time_s, wx, wy, wz): {row}"
             )
         try:
             values = [float(c) for c in row]
         except ValueError:
-            raise ValueError(f"CSV data row {n} is not numeric: {row}") from None
+            raise InputError(f"CSV data row {n} is not numeric: {row}") from None
         times.append(values[0])
         omegas.append(values[1:])
     return Telemetry(time_s=times, omega_rad_s=omegas)
@@ -148,7 +150,7 @@ def resample(telemetry: Telemetry, grid_s: np.ndarray) -> np.ndarray:
     t = telemetry.time_array
     slack = 0.5 * float(grid_s[1] - grid_s[0]) if len(grid_s) > 1 else 0.0
     if t[0] > grid_s[0] + slack or t[-1] < grid_s[-1] - slack:
-        raise ValueError(
+        raise InputError(
             f"telemetry spans {t[0]:.6g} s to {t[-1]:.6g} s but the sequence needs "
             f"{grid_s[0]:.6g} s to {grid_s[-1]:.6g} s (time from the sequence start)"
         )

@@ -34,6 +34,7 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import InputError
 from .dynamics import cross
 from .scenario import Scenario
 from .series import check_series
@@ -181,12 +182,12 @@ def _windows(
     width = window_s * sample_rate_hz
     samples = round(width)
     if not (math.isfinite(width) and abs(width - samples) < 1e-6 and samples >= 1):
-        raise ValueError(
+        raise InputError(
             f"window_s = {window_s!r} is not a whole number of sample periods "
             f"(1/{sample_rate_hz:g} s)"
         )
     if samples >= n_grid:
-        raise ValueError(
+        raise InputError(
             f"window_s = {window_s!r} is {samples} samples; the telemetry grid has only "
             f"{n_grid} points"
         )
@@ -232,7 +233,7 @@ def estimate_inertia(
     n_samples = len(sequence) * timing.samples_per_step
     rates = check_series(omega)
     if rates.shape[1] != n_samples:
-        raise ValueError(
+        raise InputError(
             f"omega has {rates.shape[1]} samples; the {len(sequence)}-step sequence gives "
             f"{n_samples} at {timing.sample_rate_hz:g} Hz"
         )
@@ -247,7 +248,7 @@ def estimate_inertia(
         times = times[1:]
     starts, ends = _windows(len(times), timing.sample_rate_hz, window_s)
     if 3 * len(starts) < len(PARAMETER_NAMES):
-        raise ValueError(f"{len(starts)} windows give fewer equations than the 6 parameters")
+        raise InputError(f"{len(starts)} windows give fewer equations than the 6 parameters")
 
     momentum = _momentum_regressor(rates)  # (n, G, 3, 6)
     # ω × Φ(ω) column by column: the gyroscopic term ω × (I ω) is linear in θ too.

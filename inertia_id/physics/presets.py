@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import InputError
 from .scenario import CandidateGenerator, Scenario, Thrusters, Timing, Uncertainty
 
 __all__ = ["PRESETS", "preset"]
@@ -54,7 +55,7 @@ def preset(name: str, /, **overrides: Any) -> Scenario:
     try:
         base = PRESETS[name]()
     except KeyError:
-        raise ValueError(f"unknown preset {name!r}; known: {sorted(PRESETS)}") from None
+        raise InputError(f"unknown preset {name!r}; known: {sorted(PRESETS)}") from None
     if not overrides:
         return base
     data = base.model_dump()

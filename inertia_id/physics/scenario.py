@@ -13,6 +13,8 @@ from typing import Any, Self
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from ..errors import InputError
+
 __all__ = [
     "CandidateGenerator",
     "InertiaCandidate",
@@ -36,30 +38,31 @@ def check_inertia_tensor(tensor: Any) -> np.ndarray:
     """Return ``tensor`` as a (3, 3) float array if it is a physical inertia tensor.
 
     A physical tensor is finite, symmetric, positive definite, and its principal moments
-    satisfy the triangle inequality (sorted ``p0 + p1 >= p2``). Raises ``ValueError``
-    naming the rule that failed and the offending values.
+    satisfy the triangle inequality (sorted ``p0 + p1 >= p2``). Raises
+    :class:`~inertia_id.errors.InputError` naming the rule that failed and the offending
+    values.
     """
     try:
         arr = np.asarray(tensor, dtype=float)
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"inertia tensor {tensor!r} is not numeric: {exc}") from None
+        raise InputError(f"inertia tensor {tensor!r} is not numeric: {exc}") from None
     if arr.shape != (3, 3):
-        raise ValueError(f"inertia tensor must be 3x3 (kg m^2), got shape {arr.shape}: {_fmt(arr)}")
+        raise InputError(f"inertia tensor must be 3x3 (kg m^2), got shape {arr.shape}: {_fmt(arr)}")
     if not np.all(np.isfinite(arr)):
-        raise ValueError(f"inertia tensor has non-finite entries: {_fmt(arr)}")
+        raise InputError(f"inertia tensor has non-finite entries: {_fmt(arr)}")
     scale = float(np.max(np.abs(arr))) or 1.0
     asym = float(np.max(np.abs(arr - arr.T)))
     if asym > _RTOL * scale:
-        raise ValueError(
+        raise InputError(
             f"inertia tensor is not symmetric (largest |I - I^T| = {asym:.3g}): {_fmt(arr)}"
         )
     moments = np.linalg.eigvalsh(0.5 * (arr + arr.T))
     if moments[0] <= 0.0:
-        raise ValueError(
+        raise InputError(
             f"inertia tensor is not positive definite: principal moments {_fmt(moments)} kg m^2"
         )
     if moments[0] + moments[1] < moments[2] * (1.0 - _RTOL):
-        raise ValueError(
+        raise InputError(
             "principal moments break the triangle inequality "
             f"({moments[0]:.6g} + {moments[1]:.6g} < {moments[2]:.6g}): {_fmt(moments)} kg m^2"
         )
@@ -124,7 +127,7 @@ class CandidateGenerator(_Model):
     def _range(cls, value: tuple[float, float]) -> tuple[float, float]:
         low, high = value
         if not (0.0 <= low <= high < 1.0):
-            raise ValueError(
+            raise InputError(
                 f"reduction_range must satisfy 0 <= low <= high < 1, got {list(value)}"
             )
         return value
@@ -141,7 +144,7 @@ class CandidateGenerator(_Model):
             try:
                 candidates.append(InertiaCandidate(name=name, inertia_kg_m2=tensor.tolist()))
             except ValueError as exc:
-                raise ValueError(f"generated candidate {name!r} is not physical: {exc}") from None
+                raise InputError(f"generated candidate {name!r} is not physical: {exc}") from None
         return candidates
 
 
@@ -166,30 +169,30 @@ class Thrusters(_Model):
         nominal = data.pop("nominal_torque_nm", None)
         if data.get("torque_matrix_nm") is None:
             if nominal is None:
-                raise ValueError("give torque_matrix_nm (3 x N, N m) or nominal_torque_nm")
+                raise InputError("give torque_matrix_nm (3 x N, N m) or nominal_torque_nm")
             try:
                 torque = float(nominal)
             except (TypeError, ValueError, OverflowError):
-                raise ValueError(f"nominal_torque_nm must be a number, got {nominal!r}") from None
+                raise InputError(f"nominal_torque_nm must be a number, got {nominal!r}") from None
             if not (math.isfinite(torque) and torque > 0):
-                raise ValueError(f"nominal_torque_nm must be finite and > 0, got {nominal!r}")
+                raise InputError(f"nominal_torque_nm must be finite and > 0, got {nominal!r}")
             data["torque_matrix_nm"] = (torque * np.hstack([np.eye(3), -np.eye(3)])).tolist()
         elif nominal is not None:
-            raise ValueError("give torque_matrix_nm or nominal_torque_nm, not both")
+            raise InputError("give torque_matrix_nm or nominal_torque_nm, not both")
         n_levels = data.pop("n_levels", None)
         if data.get("levels") is None:
             if n_levels is None:
-                raise ValueError("give levels (duty values in [0, 1]) or n_levels")
+                raise InputError("give levels (duty values in [0, 1]) or n_levels")
             if (
                 not isinstance(n_levels, int)
                 or isinstance(n_levels, bool)
                 or not 2 <= n_levels <= 101
             ):
                 # Checked before the levels are generated: a huge count would allocate them.
-                raise ValueError(f"n_levels must be an integer from 2 to 101, got {n_levels!r}")
+                raise InputError(f"n_levels must be an integer from 2 to 101, got {n_levels!r}")
             data["levels"] = np.linspace(0.0, 1.0, n_levels).tolist()
         elif n_levels is not None and len(data["levels"]) != n_levels:
-            raise ValueError(
+            raise InputError(
                 f"n_levels = {n_levels!r} disagrees with {len(data['levels'])} levels given"
             )
         return data
@@ -199,14 +202,14 @@ class Thrusters(_Model):
     def _matrix(cls, value: list[list[float]]) -> list[list[float]]:
         lengths = [len(row) for row in value]
         if len(value) != 3 or len(set(lengths)) != 1 or lengths[0] < 1:
-            raise ValueError(
+            raise InputError(
                 f"torque_matrix_nm must be 3 x N with N >= 1, got rows of lengths {lengths}"
             )
         arr = np.asarray(value, dtype=float)
         if not np.all(np.isfinite(arr)):
-            raise ValueError(f"torque_matrix_nm has non-finite entries: {_fmt(arr)}")
+            raise InputError(f"torque_matrix_nm has non-finite entries: {_fmt(arr)}")
         if arr.shape[1] > 64:
-            raise ValueError(f"torque_matrix_nm has {arr.shape[1]} thrusters; at most 64")
+            raise InputError(f"torque_matrix_nm has {arr.shape[1]} thrusters; at most 64")
         return value
 
     @field_validator("levels")
@@ -214,13 +217,13 @@ class Thrusters(_Model):
     def _levels(cls, value: list[float]) -> list[float]:
         arr = np.asarray(value, dtype=float)
         if arr.size < 2 or arr.size > 101:
-            raise ValueError(f"levels must hold 2 to 101 duty values, got {value}")
+            raise InputError(f"levels must hold 2 to 101 duty values, got {value}")
         if not np.all(np.isfinite(arr)) or arr.min() < 0.0 or arr.max() > 1.0:
-            raise ValueError(f"levels must lie within [0, 1], got {value}")
+            raise InputError(f"levels must lie within [0, 1], got {value}")
         if np.any(np.diff(arr) <= 0.0):
-            raise ValueError(f"levels must be strictly increasing, got {value}")
+            raise InputError(f"levels must be strictly increasing, got {value}")
         if arr[0] != 0.0 or arr[-1] != 1.0:
-            raise ValueError(f"levels must include 0 and 1, got {value}")
+            raise InputError(f"levels must include 0 and 1, got {value}")
         return value
 
 
@@ -243,7 +246,7 @@ class Timing(_Model):
             self._check_commensurate()
         except ArithmeticError:
             # Ratios of extreme values overflow or divide by an underflowed zero.
-            raise ValueError(
+            raise InputError(
                 f"timing out of range: step_duration_s = {self.step_duration_s}, "
                 f"integration_step_s = {self.integration_step_s}, "
                 f"sample_rate_hz = {self.sample_rate_hz}"
@@ -267,7 +270,7 @@ class Timing(_Model):
             f"periods at sample_rate_hz = {self.sample_rate_hz}",
         )
         if self.substeps_per_step > 100_000:
-            raise ValueError(
+            raise InputError(
                 f"{self.substeps_per_step} integration steps per actuation step is too many"
             )
 
@@ -286,7 +289,7 @@ class Timing(_Model):
 
 def _whole(ratio: float, message: str) -> None:
     if not math.isfinite(ratio) or ratio < 1.0 - 1e-9 or abs(ratio - round(ratio)) > 1e-6:
-        raise ValueError(message)
+        raise InputError(message)
 
 
 class Uncertainty(_Model):
@@ -324,7 +327,7 @@ class Uncertainty(_Model):
     def _finite(cls, value: Any, info: Any) -> Any:
         values = value if isinstance(value, tuple) else (value,)
         if not all(math.isfinite(float(v)) for v in values):
-            raise ValueError(f"{info.field_name} must be finite, got {value!r}")
+            raise InputError(f"{info.field_name} must be finite, got {value!r}")
         return value
 
 
@@ -349,7 +352,7 @@ class Scenario(_Model):
         if isinstance(data, dict) and not data.get("inertia_candidates"):
             generator = data.get("candidate_generator")
             if generator is None:
-                raise ValueError("give inertia_candidates or a candidate_generator")
+                raise InputError("give inertia_candidates or a candidate_generator")
             if not isinstance(generator, CandidateGenerator):
                 generator = CandidateGenerator.model_validate(generator)
             data = {**data, "inertia_candidates": generator.generate()}
@@ -359,11 +362,11 @@ class Scenario(_Model):
     @classmethod
     def _candidates(cls, value: list[InertiaCandidate]) -> list[InertiaCandidate]:
         if not 2 <= len(value) <= 100:
-            raise ValueError(f"need 2 to 100 inertia candidates, got {len(value)}")
+            raise InputError(f"need 2 to 100 inertia candidates, got {len(value)}")
         names = [c.name for c in value]
         duplicates = sorted({n for n in names if names.count(n) > 1})
         if duplicates:
-            raise ValueError(f"candidate names must be unique; repeated: {duplicates}")
+            raise InputError(f"candidate names must be unique; repeated: {duplicates}")
         return value
 
     @model_validator(mode="after")
@@ -433,25 +436,25 @@ class Scenario(_Model):
         try:
             arr = np.asarray(sequence)
         except (TypeError, ValueError):
-            raise ValueError(f"sequence {sequence!r} is not an array of level indices") from None
+            raise InputError(f"sequence {sequence!r} is not an array of level indices") from None
         if arr.ndim == 1 and arr.size == self.n_thrusters:
             arr = arr[None, :]
         if arr.ndim != 2 or arr.shape[1] != self.n_thrusters or arr.shape[0] < 1:
-            raise ValueError(
+            raise InputError(
                 f"sequence must be L x {self.n_thrusters} level indices (one per thruster), "
                 f"got shape {arr.shape}"
             )
         if arr.shape[0] > 1000:
-            raise ValueError(f"sequence has {arr.shape[0]} steps; at most 1000")
+            raise InputError(f"sequence has {arr.shape[0]} steps; at most 1000")
         if not np.issubdtype(arr.dtype, np.number) or not np.all(np.isfinite(arr)):
-            raise ValueError(f"sequence must hold integer level indices, got {arr.tolist()}")
+            raise InputError(f"sequence must hold integer level indices, got {arr.tolist()}")
         as_int = arr.astype(int)
         if np.any(as_int != arr):
-            raise ValueError(f"sequence must hold integer level indices, got {arr.tolist()}")
+            raise InputError(f"sequence must hold integer level indices, got {arr.tolist()}")
         bad = (as_int < 0) | (as_int >= self.n_levels)
         if np.any(bad):
             step, thruster = (int(i) for i in np.argwhere(bad)[0])
-            raise ValueError(
+            raise InputError(
                 f"sequence step {step}, thruster {thruster}: level index "
                 f"{as_int[step, thruster]} is outside 0..{self.n_levels - 1}"
             )

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import InputError
 from .scenario import Scenario
 
 __all__ = ["BASELINES", "axis_in_turn", "baseline", "hand_designed"]
@@ -27,7 +28,7 @@ def _axis_thrusters(scenario: Scenario) -> list[int]:
     for axis in range(3):
         column = int(np.argmax(torque[axis]))
         if torque[axis, column] <= 0:
-            raise ValueError(
+            raise InputError(
                 f"no thruster gives a positive torque about body axis {'xyz'[axis]}; "
                 "the hand-designed sequences need one per axis"
             )
@@ -37,7 +38,7 @@ def _axis_thrusters(scenario: Scenario) -> list[int]:
 
 def _check_length(length: int) -> None:
     if isinstance(length, bool) or not isinstance(length, int | np.integer) or length < 1:
-        raise ValueError(f"sequence length must be a positive integer, got {length!r}")
+        raise InputError(f"sequence length must be a positive integer, got {length!r}")
 
 
 def hand_designed(scenario: Scenario, length: int) -> np.ndarray:
@@ -64,5 +65,5 @@ BASELINES = {"hand-designed": hand_designed, "axis-in-turn": axis_in_turn}
 def baseline(name: str, scenario: Scenario, length: int) -> np.ndarray:
     """A baseline sequence by name (:data:`BASELINES`)."""
     if name not in BASELINES:
-        raise ValueError(f"baseline must be one of {sorted(BASELINES)}, got {name!r}")
+        raise InputError(f"baseline must be one of {sorted(BASELINES)}, got {name!r}")
     return BASELINES[name](scenario, length)

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import InputError
 from .actuation import commanded_torque, delivered_duty
 from .dynamics import RigidBodies
 from .scenario import Scenario
@@ -163,13 +164,13 @@ class Simulator:
             or not isinstance(n_realisations, int | np.integer)
             or n_realisations < 1
         ):
-            raise ValueError(f"n_realisations must be a positive integer, got {n_realisations!r}")
+            raise InputError(f"n_realisations must be a positive integer, got {n_realisations!r}")
         for name, value in (
             ("process_noise_scale", process_noise_scale),
             ("measurement_noise_scale", measurement_noise_scale),
         ):
             if not np.isfinite(value) or value < 0:
-                raise ValueError(f"{name} must be finite and >= 0, got {value!r}")
+                raise InputError(f"{name} must be finite and >= 0, got {value!r}")
         self.scenario = scenario
         self.n_realisations = int(n_realisations)
         self.process_noise_scale = float(process_noise_scale)
@@ -258,7 +259,7 @@ class Simulator:
         """Simulate a whole sequence with the given randomness."""
         sequence = self.scenario.check_sequence(sequence)
         if len(noise.steps) < len(sequence):
-            raise ValueError(f"noise holds {len(noise.steps)} steps, the sequence {len(sequence)}")
+            raise InputError(f"noise holds {len(noise.steps)} steps, the sequence {len(sequence)}")
         state = self.start(noise.initial)
         responses = []
         for levels, draw in zip(sequence, noise.steps, strict=False):

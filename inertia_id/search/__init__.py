@@ -9,15 +9,16 @@ drive :class:`SequenceSearchEnv`, registered with Gymnasium as
 ("separability").
 """
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import gymnasium as gym
 
+from ..errors import InputError
 from ..physics.scenario import Scenario
 from .cem import CEM_DEFAULTS, cem_search, check_cem_params
 from .env import ENV_ID, SequenceSearchEnv
 from .exhaustive import exhaustive_search
-from .ppo import PPO_DEFAULTS, SearchCallback, check_ppo_params, ppo_search
+from .ppo import PPO_DEFAULTS, check_ppo_params, ppo_search
 from .random import random_search
 from .records import (
     CurvePoint,
@@ -30,6 +31,9 @@ from .records import (
     space_size,
 )
 from .scorer import SCORER_METRICS, SCORER_OBJECTIVES, PrefixScore, PrefixScorer, ScorerSettings
+
+if TYPE_CHECKING:
+    from .callback import SearchCallback
 
 if ENV_ID not in gym.registry:
     gym.register(id=ENV_ID, entry_point="inertia_id.search.env:SequenceSearchEnv")
@@ -47,7 +51,17 @@ def search(method: str, scenario: Scenario, **options: Any) -> SearchResult:
         return exhaustive_search(scenario, **options)
     if method == "random":
         return random_search(scenario, **options)
-    raise ValueError(f"search method must be one of {list(SEARCH_METHODS)}, got {method!r}")
+    raise InputError(f"search method must be one of {list(SEARCH_METHODS)}, got {method!r}")
+
+
+def __getattr__(name: str) -> Any:
+    # SearchCallback subclasses stable-baselines3's: importing it imports torch, which
+    # only a PPO search needs.
+    if name == "SearchCallback":
+        from .callback import SearchCallback
+
+        return SearchCallback
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 __all__ = [

@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import InputError
 from ..physics.scenario import Scenario
 from .env import SequenceSearchEnv
 from .loop import finish, report_point
@@ -47,14 +48,14 @@ def check_cem_params(population: Any, elite_fraction: Any, smoothing: Any) -> in
         or not isinstance(population, int | np.integer)
         or not 2 <= population <= 1_000_000
     ):
-        raise ValueError(f"population must be an integer in 2..1000000, got {population!r}")
+        raise InputError(f"population must be an integer in 2..1000000, got {population!r}")
     for name, value in (("elite_fraction", elite_fraction), ("smoothing", smoothing)):
         if (
             isinstance(value, bool)
             or not isinstance(value, int | float)
             or not (math.isfinite(value) and 0 < value <= 1)
         ):
-            raise ValueError(f"{name} must be a number in (0, 1], got {value!r}")
+            raise InputError(f"{name} must be a number in (0, 1], got {value!r}")
     return max(1, math.ceil(elite_fraction * population))
 
 

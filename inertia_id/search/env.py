@@ -9,6 +9,7 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import seeding
 
+from ..errors import InputError
 from ..physics.scenario import Scenario
 from .scorer import PrefixScorer, ScorerSettings
 
@@ -72,12 +73,12 @@ class SequenceSearchEnv(gym.Env[np.ndarray, np.ndarray]):
     ) -> None:
         super().__init__()
         if settings is not None and settings_kwargs:
-            raise ValueError("give either settings or its keyword arguments, not both")
+            raise InputError("give either settings or its keyword arguments, not both")
         settings = settings or ScorerSettings(**settings_kwargs)
         if not (np.isfinite(fuel_weight) and fuel_weight >= 0):
-            raise ValueError(f"fuel_weight must be finite and >= 0, got {fuel_weight!r}")
+            raise InputError(f"fuel_weight must be finite and >= 0, got {fuel_weight!r}")
         if noise not in ("fixed", "fresh"):
-            raise ValueError(f"noise must be 'fixed' or 'fresh', got {noise!r}")
+            raise InputError(f"noise must be 'fixed' or 'fresh', got {noise!r}")
         self.scenario = scenario or Scenario.paper()
         self.sequence_length = sequence_length
         self.fuel_weight = float(fuel_weight)
@@ -123,7 +124,7 @@ class SequenceSearchEnv(gym.Env[np.ndarray, np.ndarray]):
         if not self.action_space.contains(levels.astype(np.int64)) or np.any(
             levels != np.round(levels)
         ):
-            raise ValueError(
+            raise InputError(
                 f"action must be {self.scenario.n_thrusters} level indices in "
                 f"0..{self.scenario.n_levels - 1}, got {np.asarray(action).tolist()}"
             )

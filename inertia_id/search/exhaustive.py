@@ -8,6 +8,7 @@ from collections.abc import Callable, Iterator
 
 import numpy as np
 
+from ..errors import InputError
 from ..physics.scenario import Scenario
 from .env import SequenceSearchEnv
 from .loop import finish, run_episodes
@@ -49,10 +50,10 @@ def exhaustive_search(
     """
     size = space_size(scenario, sequence_length)
     if isinstance(max_sequences, bool) or not isinstance(max_sequences, int) or max_sequences < 1:
-        raise ValueError(f"max_sequences must be a positive integer, got {max_sequences!r}")
+        raise InputError(f"max_sequences must be a positive integer, got {max_sequences!r}")
     m, n = scenario.n_levels, scenario.n_thrusters
     if size > max_sequences:
-        raise ValueError(
+        raise InputError(
             f"the space holds ({m}^{n})^{sequence_length} = {_magnitude(size)} sequences, more "
             f"than the budget of {max_sequences} for exhaustive search; shorten the sequence, use "
             f"fewer levels or thrusters, raise the budget, or use random or PPO search"

@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import InputError
 from .env import SequenceSearchEnv
 from .records import (
     SearchProgress,
@@ -98,7 +99,7 @@ def finish(
 ) -> SearchResult:
     """Re-score the best sequence on fresh draws and assemble the result."""
     if tracker.best is None:
-        raise ValueError(
+        raise InputError(
             f"the search ended before one complete sequence (budget {settings.get('timesteps')} "
             f"steps, sequences of {env.sequence_length})"
         )

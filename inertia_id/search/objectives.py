@@ -52,6 +52,8 @@ from typing import Any
 import numpy as np
 from threadpoolctl import ThreadpoolController
 
+from ..errors import InputError
+
 __all__ = [
     "PooledCovariance",
     "bhattacharyya_matrix",
@@ -149,22 +151,22 @@ class PooledCovariance:
 def _flatten(omega: np.ndarray) -> np.ndarray:
     omega = np.asarray(omega, dtype=float)
     if omega.ndim != 4 or omega.shape[-1] != 3:
-        raise ValueError(f"omega must be shaped (K, n, T, 3), got {omega.shape}")
+        raise InputError(f"omega must be shaped (K, n, T, 3), got {omega.shape}")
     k, n, t, _ = omega.shape
     if k < 2:
-        raise ValueError(f"separability needs at least 2 candidates, got K = {k}")
+        raise InputError(f"separability needs at least 2 candidates, got K = {k}")
     if n < 2:
-        raise ValueError(f"a covariance needs at least 2 realisations per candidate, got n = {n}")
+        raise InputError(f"a covariance needs at least 2 realisations per candidate, got n = {n}")
     if t < 1:
-        raise ValueError("omega holds no samples (T = 0)")
+        raise InputError("omega holds no samples (T = 0)")
     if not np.all(np.isfinite(omega)):
-        raise ValueError("omega holds non-finite values")
+        raise InputError("omega holds non-finite values")
     return omega.reshape(k, n, t * 3)
 
 
 def _check_shrinkage(shrinkage: float | None) -> None:
     if shrinkage is not None and not 0.0 <= shrinkage <= 1.0:
-        raise ValueError(f"shrinkage must be None (Ledoit–Wolf) or in [0, 1], got {shrinkage!r}")
+        raise InputError(f"shrinkage must be None (Ledoit–Wolf) or in [0, 1], got {shrinkage!r}")
 
 
 def pooled_covariance(omega: np.ndarray, *, shrinkage: float | None = None) -> PooledCovariance:
@@ -261,7 +263,7 @@ def bhattacharyya_matrix(
 
 def _bound(distances: np.ndarray, noise_margin: float) -> float:
     if not (np.isfinite(noise_margin) and noise_margin > 0):
-        raise ValueError(f"noise_margin must be finite and > 0, got {noise_margin!r}")
+        raise InputError(f"noise_margin must be finite and > 0, got {noise_margin!r}")
     k = len(distances)
     upper = distances[np.triu_indices(k, 1)] / noise_margin**2
     return float(np.sum(np.exp(-upper)) / k)

@@ -1,4 +1,9 @@
-"""PPO search (stable-baselines3) over the sequence-search environment."""
+"""PPO search (stable-baselines3) over the sequence-search environment.
+
+torch and stable-baselines3 take seconds to import: they are imported by
+:func:`ppo_search` when it runs, never with the package (the progress callback, which
+subclasses stable-baselines3's, is :mod:`inertia_id.search.callback`).
+"""
 
 from __future__ import annotations
 
@@ -8,10 +13,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-import torch
-from stable_baselines3 import PPO
-from stable_baselines3.common.callbacks import BaseCallback
-
+from ..errors import InputError
 from ..physics.scenario import Scenario
 from .env import SequenceSearchEnv
 from .loop import finish, report_point
@@ -19,7 +21,7 @@ from .random import _check_budget
 from .records import SearchProgress, SearchResult, SearchTracker
 from .scorer import ScorerSettings
 
-__all__ = ["PPO_DEFAULTS", "SearchCallback", "check_ppo_params", "ppo_search"]
+__all__ = ["PPO_DEFAULTS", "check_ppo_params", "ppo_search"]
 
 #: The paper's PPO hyperparameters (stable-baselines3 names).
 PPO_DEFAULTS: dict[str, Any] = {
@@ -52,76 +54,31 @@ def check_ppo_params(params: dict[str, Any] | None) -> dict[str, Any]:
     params = dict(params or {})
     unknown = sorted(set(params) - set(PPO_DEFAULTS))
     if unknown:
-        raise ValueError(f"unknown PPO parameters {unknown}; allowed: {sorted(PPO_DEFAULTS)}")
+        raise InputError(f"unknown PPO parameters {unknown}; allowed: {sorted(PPO_DEFAULTS)}")
     merged = {**PPO_DEFAULTS, **params}
     for name, value in merged.items():
         if isinstance(value, bool) or not isinstance(value, int | float):
-            raise ValueError(f"PPO parameter {name} must be a number, got {value!r}")
+            raise InputError(f"PPO parameter {name} must be a number, got {value!r}")
         if abs(value) > _LARGEST:
-            raise ValueError(f"PPO parameter {name} must be at most {_LARGEST:g}, got {value!r}")
+            raise InputError(f"PPO parameter {name} must be at most {_LARGEST:g}, got {value!r}")
         if name in _POSITIVE_INT and (not _is_whole(value) or value < 1):
-            raise ValueError(f"PPO parameter {name} must be a positive integer, got {value!r}")
+            raise InputError(f"PPO parameter {name} must be a positive integer, got {value!r}")
         if name in _UNIT_INTERVAL and not 0 <= value <= 1:
-            raise ValueError(f"PPO parameter {name} must lie in [0, 1], got {value!r}")
+            raise InputError(f"PPO parameter {name} must lie in [0, 1], got {value!r}")
         if name in _POSITIVE and not value > 0:
-            raise ValueError(f"PPO parameter {name} must be > 0, got {value!r}")
+            raise InputError(f"PPO parameter {name} must be > 0, got {value!r}")
         if name in _NON_NEGATIVE and not value >= 0:
-            raise ValueError(f"PPO parameter {name} must be >= 0, got {value!r}")
+            raise InputError(f"PPO parameter {name} must be >= 0, got {value!r}")
     for name in _POSITIVE_INT:
         merged[name] = int(merged[name])
     if merged["batch_size"] < 2:
         # stable-baselines3 normalises advantages over a minibatch: one sample is refused.
-        raise ValueError(f"PPO parameter batch_size must be at least 2, got {merged['batch_size']}")
+        raise InputError(f"PPO parameter batch_size must be at least 2, got {merged['batch_size']}")
     if merged["batch_size"] > merged["n_steps"]:
-        raise ValueError(
+        raise InputError(
             f"PPO batch_size ({merged['batch_size']}) must not exceed n_steps ({merged['n_steps']})"
         )
     return merged
-
-
-class SearchCallback(BaseCallback):
-    """Follows PPO's episodes: best sequence, learning curve, cancel and early stop.
-
-    At the end of every rollout a curve point (mean episode reward, mean and best F1)
-    is added and ``progress`` called with it: this is what feeds a reward curve while
-    training runs. Training stops at the next environment step when ``should_stop()``
-    says so (a cancel) or when the tracker reached its target (F1 = 1 and no better
-    sequence for ``patience_episodes`` episodes).
-
-    :param tracker: collects episodes and the curve.
-    :param total_timesteps: the training budget, for progress fractions.
-    :param progress: called with a :class:`SearchProgress` after every rollout.
-    :param should_stop: polled every environment step; True cancels training.
-    """
-
-    def __init__(
-        self,
-        tracker: SearchTracker,
-        total_timesteps: int,
-        progress: Callable[[SearchProgress], None] | None = None,
-        should_stop: Callable[[], bool] | None = None,
-    ) -> None:
-        super().__init__()
-        self.tracker = tracker
-        self.total = total_timesteps
-        self.progress = progress
-        self.should_stop = should_stop
-        self.stopped = "budget"
-
-    def _on_step(self) -> bool:
-        rewards, dones, infos = self.locals["rewards"], self.locals["dones"], self.locals["infos"]
-        for reward, done, info in zip(rewards, dones, infos, strict=True):
-            self.tracker.on_step(float(reward), bool(done), info)
-        if self.should_stop is not None and self.should_stop():
-            self.stopped = "cancelled"
-            return False
-        if self.tracker.reached_target():
-            self.stopped = "target"
-            return False
-        return True
-
-    def _on_rollout_end(self) -> None:
-        report_point(self.tracker, self.total, self.progress)
 
 
 def ppo_search(
@@ -152,6 +109,11 @@ def ppo_search(
     started = time.perf_counter()
     _check_budget("total_timesteps", total_timesteps, sequence_length)
     params = check_ppo_params(ppo_params)
+    import torch
+    from stable_baselines3 import PPO
+
+    from .callback import SearchCallback
+
     env = SequenceSearchEnv(
         scenario,
         sequence_length=sequence_length,

@@ -7,6 +7,7 @@ from collections.abc import Callable, Iterator
 
 import numpy as np
 
+from ..errors import InputError
 from ..physics.scenario import Scenario
 from .env import SequenceSearchEnv
 from .loop import finish, run_episodes
@@ -89,7 +90,7 @@ def _check_budget(name: str, value: int, sequence_length: int) -> None:
         or not isinstance(value, int | np.integer)
         or value < sequence_length
     ):
-        raise ValueError(
+        raise InputError(
             f"{name} must be an integer of at least one sequence ({sequence_length} steps), "
             f"got {value!r}"
         )

@@ -36,6 +36,7 @@ import numpy as np
 
 from ..classifiers.clustering import InertiaClassifier, match_clusters
 from ..classifiers.dtw import kmeans_dtw
+from ..errors import InputError
 from ..physics.scenario import Scenario
 from ..physics.simulate import SequenceNoise, SimulationState, Simulator
 from .objectives import error_bound, score_from_bound
@@ -103,34 +104,34 @@ class ScorerSettings:
 
     def check(self) -> None:
         if self.objective not in SCORER_OBJECTIVES:
-            raise ValueError(
+            raise InputError(
                 f"objective must be one of {list(SCORER_OBJECTIVES)}, got {self.objective!r}"
             )
         if self.metric not in SCORER_METRICS:
-            raise ValueError(f"metric must be one of {list(SCORER_METRICS)}, got {self.metric!r}")
+            raise InputError(f"metric must be one of {list(SCORER_METRICS)}, got {self.metric!r}")
         for name in ("n_realisations", "max_iter", "max_iter_barycenter"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                raise ValueError(f"{name} must be a positive integer, got {value!r}")
+                raise InputError(f"{name} must be a positive integer, got {value!r}")
         if isinstance(self.n_init, bool) or not isinstance(self.n_init, int) or self.n_init < 0:
-            raise ValueError(f"n_init must be an integer >= 0, got {self.n_init!r}")
+            raise InputError(f"n_init must be an integer >= 0, got {self.n_init!r}")
         if self.n_init == 0 and not self.warm_start:
-            raise ValueError("n_init = 0 needs warm_start (something must start k-means)")
+            raise InputError("n_init = 0 needs warm_start (something must start k-means)")
         radius = self.sakoe_chiba_radius
         if radius is not None and (
             isinstance(radius, bool) or not isinstance(radius, int) or radius < 0
         ):
-            raise ValueError(f"sakoe_chiba_radius must be None or an integer >= 0, got {radius!r}")
+            raise InputError(f"sakoe_chiba_radius must be None or an integer >= 0, got {radius!r}")
         if not (np.isfinite(self.cache_mb) and self.cache_mb >= 0):
-            raise ValueError(f"cache_mb must be >= 0, got {self.cache_mb!r}")
+            raise InputError(f"cache_mb must be >= 0, got {self.cache_mb!r}")
         margin = self.separability_margin
         if isinstance(margin, bool) or not (np.isfinite(margin) and margin > 0):
-            raise ValueError(f"separability_margin must be finite and > 0, got {margin!r}")
+            raise InputError(f"separability_margin must be finite and > 0, got {margin!r}")
         shrinkage = self.separability_shrinkage
         if shrinkage is not None and (isinstance(shrinkage, bool) or not 0 <= shrinkage <= 1):
-            raise ValueError(f"separability_shrinkage must be None or in [0, 1], got {shrinkage!r}")
+            raise InputError(f"separability_shrinkage must be None or in [0, 1], got {shrinkage!r}")
         if self.objective == "separability" and self.n_realisations < 2:
-            raise ValueError(
+            raise InputError(
                 "the separability objective estimates a covariance: n_realisations must be "
                 f"at least 2, got {self.n_realisations}"
             )
@@ -203,7 +204,7 @@ class PrefixScorer:
         self.settings = settings or ScorerSettings()
         self.settings.check()
         if isinstance(max_length, bool) or not isinstance(max_length, int) or max_length < 1:
-            raise ValueError(f"max_length must be a positive integer, got {max_length!r}")
+            raise InputError(f"max_length must be a positive integer, got {max_length!r}")
         self.scenario = scenario
         self.max_length = max_length
         self.simulator = Simulator(
@@ -246,7 +247,7 @@ class PrefixScorer:
     def check_prefix(self, prefix: Any) -> Prefix:
         rows = self.scenario.check_sequence(prefix)
         if len(rows) > self.max_length:
-            raise ValueError(f"prefix has {len(rows)} steps; this scorer holds {self.max_length}")
+            raise InputError(f"prefix has {len(rows)} steps; this scorer holds {self.max_length}")
         return tuple(tuple(int(v) for v in row) for row in rows)
 
     def score(self, prefix: Any) -> PrefixScore:

@@ -2,17 +2,15 @@
 
 from __future__ import annotations
 
-import json
 import math
-from collections.abc import Callable
-from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.stats import multivariate_normal
 
-from inertia_id import InertiaClassifier, Scenario, identify, simulate, train
-from inertia_id.classifiers.likelihood import LikelihoodClassifier, train_likelihood
+from inertia_id import InertiaClassifier, InputError, Scenario, simulate, train
+from inertia_id.classifiers.likelihood import LikelihoodClassifier
+from inertia_id.classifiers.registry import train_classifier
 
 # A random 4-step sequence (numpy seed 3) that separates the paper's candidates only
 # partly: at 1x noise euclidean k-means gets about 77 %, DTW 90 %, the likelihood 97 %.
@@ -23,7 +21,9 @@ I0 = np.diag([100.0, 60.0, 90.0])
 
 @pytest.fixture(scope="module")
 def likelihood(paper: Scenario) -> LikelihoodClassifier:
-    return train_likelihood(paper, MIXED_SEQUENCE, 20, np.random.default_rng(1))
+    model = train_classifier(paper, MIXED_SEQUENCE, 20, np.random.default_rng(1), kind="likelihood")
+    assert isinstance(model, LikelihoodClassifier)
+    return model
 
 
 @pytest.fixture(scope="module")
@@ -107,8 +107,13 @@ def test_shrinkage_makes_the_singular_covariance_invertible(
     assert likelihood.covariance_.shape == (240, 240)
     assert 0.0 < likelihood.shrinkage_ < 1.0
     assert np.linalg.eigvalsh(likelihood.covariance_).min() > 0.0
-    lw = train_likelihood(
-        Scenario.paper(), MIXED_SEQUENCE, 20, np.random.default_rng(1), shrinkage="ledoit-wolf"
+    lw = train_classifier(
+        Scenario.paper(),
+        MIXED_SEQUENCE,
+        20,
+        np.random.default_rng(1),
+        kind="likelihood",
+        shrinkage="ledoit-wolf",
     )
     assert 0.0 < lw.shrinkage_ < 1.0 and lw.shrinkage_ != likelihood.shrinkage_
 
@@ -139,16 +144,6 @@ def test_never_worse_than_the_kmeans_classifier(
     assert ours >= baseline - 2.0 * standard_error
 
 
-def test_evaluate_has_the_inertia_classifier_keys(
-    likelihood: LikelihoodClassifier, kmeans: dict[str, InertiaClassifier], paper: Scenario
-) -> None:
-    X, y = simulate(paper, MIXED_SEQUENCE, 4, np.random.default_rng(3)).dataset()
-    ours, theirs = likelihood.evaluate(X, y), kmeans["euclidean"].evaluate(X, y)
-    assert set(ours) == set(theirs)
-    assert ours["confusion"].shape == theirs["confusion"].shape
-    assert likelihood.score(X, y) == ours["f1"]
-
-
 # Novelty and identify.
 
 
@@ -166,94 +161,17 @@ def test_out_of_fold_thresholds_hold_fresh_responses(
     assert np.mean(own > in_sample_max[y]) > 0.9
 
 
-def test_identify_names_each_candidate_and_refuses_strangers(
-    likelihood: LikelihoodClassifier,
-    paper: Scenario,
-    scenario_like: Callable[..., Scenario],
-) -> None:
-    fresh = simulate(paper, MIXED_SEQUENCE, 2, np.random.default_rng(5))
-    named = 0
-    for k in range(paper.n_candidates):
-        for i in range(2):
-            verdict = identify(
-                likelihood,
-                {
-                    "time_s": fresh.time_s.tolist(),
-                    "omega_rad_s": fresh.omega_measured[k, i].tolist(),
-                },
-            )
-            assert not verdict.matches_none
-            named += verdict.candidate_index == k
-    assert named >= 9  # 97 % accuracy on this sequence
-    odd = simulate(
-        scenario_like({"heavy": 1.3 * I0, "light": 0.6 * I0}),
-        MIXED_SEQUENCE,
-        2,
-        np.random.default_rng(6),
-    )
-    for k in range(2):
-        for i in range(2):
-            verdict = identify(
-                likelihood,
-                {"time_s": odd.time_s.tolist(), "omega_rad_s": odd.omega_measured[k, i].tolist()},
-            )
-            assert verdict.matches_none
-            assert verdict.distances[verdict.candidate] > verdict.threshold
-
-
-# Storage.
-
-
-def test_json_round_trip_gives_identical_predictions(
-    likelihood: LikelihoodClassifier, paper: Scenario, tmp_path: Path
-) -> None:
-    X, _ = simulate(paper, MIXED_SEQUENCE, 4, np.random.default_rng(4)).dataset()
-    path = tmp_path / "likelihood.json"
-    likelihood.save(path)
-    loaded = LikelihoodClassifier.load(path)
-    np.testing.assert_array_equal(loaded.transform(X), likelihood.transform(X))
-    np.testing.assert_array_equal(loaded.predict(X), likelihood.predict(X))
-    np.testing.assert_array_equal(loaded.novelty_thresholds(), likelihood.novelty_thresholds())
-    assert loaded.scenario_ == likelihood.scenario_
-    np.testing.assert_array_equal(loaded.sequence_, likelihood.sequence_)
-    doc = json.loads(path.read_text())
-    doc["classifier"]["means_rad_s"][0][0][0] += 1e-3
-    with pytest.raises(ValueError, match="checksum mismatch"):
-        LikelihoodClassifier.from_json(json.dumps(doc))
-    with pytest.raises(ValueError, match="not an inertia-id/likelihood-classifier document"):
-        LikelihoodClassifier.from_json(json.dumps({**doc, "format": "inertia-id/classifier"}))
-
-
 # Refusals quote what they got.
 
 
-def test_refuses_series_of_the_wrong_shape(likelihood: LikelihoodClassifier) -> None:
-    with pytest.raises(
-        ValueError, match=r"series have 79 samples; the classifier was trained on 80"
-    ):
-        likelihood.predict(np.zeros((2, 79, 3)))
-    with pytest.raises(ValueError, match=r"got \(2, 80, 4\)"):
-        likelihood.predict(np.zeros((2, 80, 4)))
-
-
-def test_refuses_nan_rates(likelihood: LikelihoodClassifier) -> None:
-    X = np.zeros((3, 80, 3))
-    X[2, 5, 1] = np.nan
-    with pytest.raises(ValueError, match=r"series 2, sample 5, axis 1 is nan"):
-        likelihood.transform(X)
-    with pytest.raises(ValueError, match=r"series 0, sample 0, axis 0 is inf"):
-        LikelihoodClassifier().fit(np.full((6, 80, 3), np.inf), [0, 0, 0, 1, 1, 1])
-
-
-def test_refuses_bad_labels_and_parameters(paper: Scenario) -> None:
+@pytest.mark.parametrize("shrinkage", ["oracle", 1.5, 0.0, True])
+def test_refuses_a_shrinkage_it_cannot_use(paper: Scenario, shrinkage: object) -> None:
     X, y = simulate(paper, GOOD_SEQUENCE, 3, np.random.default_rng(0)).dataset()
-    with pytest.raises(ValueError, match=r"one label per series \(15\), got shape \(9,\)"):
-        LikelihoodClassifier().fit(X, y[:9])
-    with pytest.raises(ValueError, match=r"series per candidate: \[3, 3, 3, 3, 2\]"):
-        LikelihoodClassifier().fit(X[:-1], y[:-1])
-    with pytest.raises(ValueError, match=r"got 'oracle'"):
-        LikelihoodClassifier("oracle").fit(X, y)
-    with pytest.raises(ValueError, match=r"got 1.5"):
-        LikelihoodClassifier(1.5).fit(X, y)
-    with pytest.raises(ValueError, match=r"got \[5\]"):
-        LikelihoodClassifier().fit(X, y).evaluate(X, np.where(y == 4, 5, y))
+    with pytest.raises(InputError, match=rf"shrinkage must be one of .* got {shrinkage!r}"):
+        LikelihoodClassifier(shrinkage).fit(X, y)
+
+
+def test_refuses_training_series_that_do_not_vary(quiet_paper: Scenario) -> None:
+    X, y = simulate(quiet_paper, GOOD_SEQUENCE, 3, np.random.default_rng(0)).dataset()
+    with pytest.raises(InputError, match="covariance is not positive definite"):
+        LikelihoodClassifier(0.5).fit(X, y)

@@ -1,61 +1,110 @@
-"""Every classifier kind trains, identifies and reloads through the registry."""
+"""The registry: kinds built from the classes, one default, specs, and refusals by name."""
 
 from __future__ import annotations
+
+from typing import Any
 
 import numpy as np
 import pytest
 
 from inertia_id import (
     CLASSIFIER_KINDS,
+    InertiaClassifier,
+    InputError,
+    MarginalLikelihoodClassifier,
     Scenario,
     classifier_from_json,
-    identify,
     make_classifier,
-    simulate,
+    train,
     train_classifier,
 )
-from inertia_id.classifiers.registry import describe, parse_spec
+from inertia_id.classifiers.base import KINDS
+from inertia_id.classifiers.registry import (
+    DEFAULT_KIND,
+    default_realisations,
+    kind_class,
+    kind_metrics,
+    parse_spec,
+    resolve_kind,
+)
 
 GOOD = [[4, 4, 4, 0, 0, 0]] * 4
-FAST_OPTIONS = {
-    "clustering": {"metric": "euclidean"},
-    "nearest-centroid": {"metric": "euclidean"},
-    "1nn": {"metric": "euclidean"},
-    "minirocket": {"n_features": 840},
-    "likelihood": {},
-    "least-squares": {},
-    "marginal-likelihood": {},
-}
 
 
-@pytest.mark.parametrize("kind", CLASSIFIER_KINDS)
-def test_every_kind_trains_identifies_and_round_trips(paper: Scenario, kind: str) -> None:
-    model = train_classifier(
-        paper, GOOD, 10, np.random.default_rng(0), kind=kind, **FAST_OPTIONS[kind]
+def test_every_kind_class_of_the_package_is_listed_in_a_fixed_order() -> None:
+    assert CLASSIFIER_KINDS == (
+        "clustering",
+        "nearest-centroid",
+        "1nn",
+        "minirocket",
+        "likelihood",
+        "least-squares",
+        "marginal-likelihood",
     )
-    X, y = simulate(paper, GOOD, 6, np.random.default_rng(1)).dataset()
-    assert model.evaluate(X, y)["accuracy"] >= 0.9, kind
-    again = classifier_from_json(model.to_json())
-    assert type(again) is type(model)
-    assert np.array_equal(again.predict(X), model.predict(X))
-    verdict = identify(
-        again, {"time_s": paper.sample_times(4).tolist(), "omega_rad_s": X[7].tolist()}
-    )
-    assert verdict.candidate == paper.candidate_names[y[7]]
-    assert describe(model).split()[0] == kind
+    assert set(CLASSIFIER_KINDS) == set(KINDS)
+    assert all(kind_class(kind).kind == kind for kind in CLASSIFIER_KINDS)
+
+
+def test_the_metrics_and_realisations_come_from_the_classes() -> None:
+    assert kind_metrics("clustering") == ("dtw", "softdtw", "euclidean")
+    assert kind_metrics("1nn") == kind_metrics("nearest-centroid") == ("dtw", "euclidean")
+    assert [k for k in CLASSIFIER_KINDS if kind_metrics(k)] == [
+        "clustering",
+        "nearest-centroid",
+        "1nn",
+    ]
+    assert default_realisations("marginal-likelihood") == 100
+    assert {default_realisations(k) for k in CLASSIFIER_KINDS if k != DEFAULT_KIND} == {20}
+
+
+def test_one_rule_resolves_the_kind_meant() -> None:
+    assert DEFAULT_KIND == "marginal-likelihood"
+    assert resolve_kind(None, None) == DEFAULT_KIND
+    assert resolve_kind(None, "euclidean") == "clustering"
+    assert resolve_kind("1nn", "euclidean") == "1nn"
+    assert resolve_kind("likelihood", None) == "likelihood"
+
+
+def test_train_without_a_kind_follows_the_rule(paper: Scenario) -> None:
+    """``train`` and ``train_classifier`` are one function: a metric alone means the
+    paper's clustering, nothing at all the default."""
+    assert train is train_classifier
+    clustering = train(paper, GOOD, 3, np.random.default_rng(0), metric="euclidean")
+    assert isinstance(clustering, InertiaClassifier) and clustering.metric == "euclidean"
+    default = train_classifier(paper, GOOD, 3, np.random.default_rng(0))
+    assert isinstance(default, MarginalLikelihoodClassifier)
 
 
 def test_specs_name_a_kind_and_its_metric() -> None:
     assert parse_spec("1nn:euclidean") == ("1nn", {"metric": "euclidean"})
     assert parse_spec("likelihood") == ("likelihood", {})
-    with pytest.raises(ValueError, match=r"kind must be one of .* got 'knn'"):
+    with pytest.raises(InputError, match=r"kind must be one of .* got 'knn'"):
         parse_spec("knn:dtw")
-    with pytest.raises(ValueError, match="metric"):
+    with pytest.raises(InputError, match="metric"):
         parse_spec("1nn:softdtw")
+    with pytest.raises(InputError, match=r"a string like '1nn:euclidean', got 3"):
+        parse_spec(3)  # type: ignore[arg-type]
 
 
-def test_unknown_options_and_documents_are_refused_by_name() -> None:
-    with pytest.raises(ValueError, match=r"does not take option\(s\) \['depth'\]"):
-        make_classifier("likelihood", depth=3)
-    with pytest.raises(ValueError, match="format 'someone/else' is not one of"):
+@pytest.mark.parametrize(
+    ("kind", "options", "match"),
+    [
+        ("svm", {}, r"kind must be one of \['clustering', 'nearest-centroid', '1nn', "),
+        ("nearest-centroid", {"metric": "manhattan"}, r"one of \['dtw', 'euclidean'\], got 'manh"),
+        ("1nn", {"metric": "softdtw"}, r"got 'softdtw'"),
+        ("clustering", {"metric": "cosine"}, r"got 'cosine'"),
+        ("1nn", {"sakoe_chiba_radius": -1}, r"sakoe_chiba_radius must be an integer >= 0, got -1"),
+        ("minirocket", {"n_features": 50}, r"n_features must be an integer >= 84, got 50"),
+        ("minirocket", {"alphas": [1.0, -2.0]}, r"alphas must be numbers > 0, got \[1\.0, -2\.0\]"),
+        ("minirocket", {"metric": "dtw"}, r"does not take option\(s\) \['metric'\]"),
+        ("likelihood", {"depth": 3}, r"does not take option\(s\) \['depth'\]"),
+    ],
+)
+def test_bad_kinds_and_options_are_refused(kind: str, options: dict[str, Any], match: str) -> None:
+    with pytest.raises(InputError, match=match):
+        make_classifier(kind, **options)
+
+
+def test_unknown_documents_are_refused_by_name() -> None:
+    with pytest.raises(InputError, match="format 'someone/else' is not one of"):
         classifier_from_json('{"format": "someone/else"}')

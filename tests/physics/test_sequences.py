@@ -37,16 +37,3 @@ def test_bad_names_and_lengths_are_quoted(paper: Scenario) -> None:
         baseline("spiral", paper, 4)
     with pytest.raises(ValueError, match="got 0"):
         hand_designed(paper, 0)
-
-
-def test_baselines_are_scored_on_the_given_fresh_draws(paper: Scenario) -> None:
-    from inertia_id.search import ScorerSettings, evaluate_sequence
-    from inertia_id.search.baselines import compare_with_baselines
-
-    settings = ScorerSettings(n_realisations=8, metric="euclidean")
-    compared = compare_with_baselines(paper, 3, settings, seed=11, n_draws=2)
-    assert list(compared) == ["hand-designed", "axis-in-turn"]
-    same = evaluate_sequence(paper, hand_designed(paper, 3), settings, seed=11, n_draws=2)
-    assert compared["hand-designed"]["fresh_f1"] == same.f1
-    assert compared["hand-designed"]["fuel_nms"] == 18.0  # 3 thrusters x 2 N m x 3 s
-    assert compared["axis-in-turn"]["fuel_nms"] == 6.0

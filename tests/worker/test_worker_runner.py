@@ -38,18 +38,18 @@ GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
         (
             "search",
             {"method": "genetic", "sequence_length": 2, "timesteps": 10, "n_realisations": 2},
-            "ValueError: search method must be one of ['ppo', 'cem', 'exhaustive', 'random'], "
+            "InputError: search method must be one of ['ppo', 'cem', 'exhaustive', 'random'], "
             "got 'genetic'",
         ),
         (
             "train",
             {"sequence": [[9, 4, 4, 0, 0, 0]], "metric": "euclidean", "n_realisations": 2},
-            "ValueError: sequence step 0, thruster 0: level index 9 is outside 0..4",
+            "InputError: sequence step 0, thruster 0: level index 9 is outside 0..4",
         ),
         (
             "sweep",
             {"classifier_id": "nope", "multiples": [1.0], "n_test": 10},
-            "ValueError: classifier 'nope' does not exist",
+            "InputError: classifier 'nope' does not exist",
         ),
         ("anneal", {}, "job type must be one of"),
     ],

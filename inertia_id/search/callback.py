@@ -1,0 +1,61 @@
+"""The PPO search's progress callback, in stable-baselines3's callback style.
+
+Imported by :func:`~inertia_id.search.ppo.ppo_search` when it runs: subclassing
+stable-baselines3's ``BaseCallback`` imports torch.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from stable_baselines3.common.callbacks import BaseCallback
+
+from .loop import report_point
+from .records import SearchProgress, SearchTracker
+
+__all__ = ["SearchCallback"]
+
+
+class SearchCallback(BaseCallback):
+    """Follows PPO's episodes: best sequence, learning curve, cancel and early stop.
+
+    At the end of every rollout a curve point (mean episode reward, mean and best F1)
+    is added and ``progress`` called with it: this is what feeds a reward curve while
+    training runs. Training stops at the next environment step when ``should_stop()``
+    says so (a cancel) or when the tracker reached its target (F1 = 1 and no better
+    sequence for ``patience_episodes`` episodes).
+
+    :param tracker: collects episodes and the curve.
+    :param total_timesteps: the training budget, for progress fractions.
+    :param progress: called with a :class:`SearchProgress` after every rollout.
+    :param should_stop: polled every environment step; True cancels training.
+    """
+
+    def __init__(
+        self,
+        tracker: SearchTracker,
+        total_timesteps: int,
+        progress: Callable[[SearchProgress], None] | None = None,
+        should_stop: Callable[[], bool] | None = None,
+    ) -> None:
+        super().__init__()
+        self.tracker = tracker
+        self.total = total_timesteps
+        self.progress = progress
+        self.should_stop = should_stop
+        self.stopped = "budget"
+
+    def _on_step(self) -> bool:
+        rewards, dones, infos = self.locals["rewards"], self.locals["dones"], self.locals["infos"]
+        for reward, done, info in zip(rewards, dones, infos, strict=True):
+            self.tracker.on_step(float(reward), bool(done), info)
+        if self.should_stop is not None and self.should_stop():
+            self.stopped = "cancelled"
+            return False
+        if self.tracker.reached_target():
+            self.stopped = "target"
+            return False
+        return True
+
+    def _on_rollout_end(self) -> None:
+        report_point(self.tracker, self.total, self.progress)

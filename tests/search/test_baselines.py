@@ -1,0 +1,19 @@
+"""The hand-designed baselines scored on the draws a search's best sequence was."""
+
+from __future__ import annotations
+
+from inertia_id import Scenario
+from inertia_id.physics.sequences import hand_designed
+from inertia_id.search import ScorerSettings, evaluate_sequence
+from inertia_id.search.baselines import compare_with_baselines
+
+
+def test_baselines_are_scored_on_the_given_fresh_draws(paper: Scenario) -> None:
+
+    settings = ScorerSettings(n_realisations=8, metric="euclidean")
+    compared = compare_with_baselines(paper, 3, settings, seed=11, n_draws=2)
+    assert list(compared) == ["hand-designed", "axis-in-turn"]
+    same = evaluate_sequence(paper, hand_designed(paper, 3), settings, seed=11, n_draws=2)
+    assert compared["hand-designed"]["fresh_f1"] == same.f1
+    assert compared["hand-designed"]["fuel_nms"] == 18.0  # 3 thrusters x 2 N m x 3 s
+    assert compared["axis-in-turn"]["fuel_nms"] == 6.0
