@@ -1,8 +1,10 @@
-"""What each job type does: a thin layer from a job's params to an ``inertia_id`` call.
+"""What each job type does: typed params -> a pipeline of the core -> an :class:`Outcome`.
 
-Imported only inside the task process: it pulls in torch, numba and tslearn. Parameter
-names are the ones the API validates and stores in ``JobRow.params`` (with defaults
-filled); a name left out falls back to the core's default.
+Imported only inside the task process: it pulls in numba and the core. A job's params
+(``JobRow.params``) become the pipeline's request (:mod:`inertia_id.pipelines`), whose
+defaults are the core's, and the pipeline runs with the job's seed: the command line
+calls the same pipelines with the same seeding, so a job and the CLI give the same
+numbers.
 """
 
 from __future__ import annotations
@@ -12,21 +14,19 @@ import json
 from collections.abc import Callable
 from typing import Any
 
-import numpy as np
-
 from app.db import ClassifierRow
 from app.db.models import new_id
-from inertia_id import (
-    InputError,
-    Scenario,
-    classifier_from_json,
-    run_inertia_sweep,
-    run_sweep,
-    train_classifier,
+from inertia_id import InputError, Scenario, classifier_from_json
+from inertia_id.classifiers.registry import CandidateClassifier
+from inertia_id.pipelines import (
+    SearchRequest,
+    SweepRequest,
+    TrainRequest,
+    search_with_baselines,
+    sweep_with_limit,
+    train_for_sequence,
 )
-from inertia_id.classifiers.registry import default_realisations, parse_spec, resolve_kind
-from inertia_id.search import ScorerSettings, SearchProgress, search
-from inertia_id.search.baselines import compare_with_baselines
+from inertia_id.search import SearchProgress
 
 from .runner import JobContext, Outcome
 
@@ -37,53 +37,24 @@ __all__ = ["HANDLERS", "run_search_job", "run_sweep_job", "run_train_job"]
 SEARCH_METRICS = ("mean_episode_reward", "mean_f1", "best_f1", "best_final_rate_rad_s")
 
 
-def _present(params: dict[str, Any], names: dict[str, str]) -> dict[str, Any]:
-    """``{core_name: params[job_name]}`` for the job names present in ``params``."""
-    return {core: params[job] for job, core in names.items() if job in params}
+def _scenario(context: JobContext) -> Scenario:
+    return Scenario.model_validate(context.spec.scenario)
 
 
 def run_search_job(context: JobContext) -> Outcome:
-    """Search for the actuation sequence (ppo, exhaustive or random).
+    """Search for the actuation sequence, then score the baselines on its fresh draws.
 
     Metrics: :data:`SEARCH_METRICS` at step = timesteps, after every curve point.
     A PPO policy is saved to ``data_dir/policies/<job id>.zip`` and its path and
     SHA-256 put in the result.
     """
     spec = context.spec
-    params = spec.params
-    method = params.get("method", "ppo")
-    scenario = Scenario.model_validate(spec.scenario)
-    scorer = ScorerSettings(
-        **_present(
-            params,
-            {
-                "n_realisations": "n_realisations",
-                "objective": "objective",
-                "metric": "metric",
-                "sakoe_chiba_radius": "sakoe_chiba_radius",
-            },
-        )
-    )
-    options: dict[str, Any] = _present(
-        params, {"sequence_length": "sequence_length", "fuel_weight": "fuel_weight"}
-    )
-    if method == "exhaustive":
-        options.update(_present(params, {"max_sequences": "max_sequences"}))
-    else:
-        options.update(
-            _present(
-                params,
-                {"timesteps": "total_timesteps", "patience_episodes": "patience_episodes"},
-            )
-        )
-    if method == "cem":
-        options.update(params.get("cem") or {})
+    request = SearchRequest.from_params(spec.params)
     policy_path = None
-    if method == "ppo":
-        options["ppo_params"] = params.get("ppo") or {}
-        policy_path = context.data_dir / "policies" / f"{spec.id}.zip"
-        policy_path.parent.mkdir(parents=True, exist_ok=True)
-        options["policy_path"] = str(policy_path)
+    if request.method == "ppo":
+        policy = context.data_dir / "policies" / f"{spec.id}.zip"
+        policy.parent.mkdir(parents=True, exist_ok=True)
+        policy_path = str(policy)
 
     def progress(report: SearchProgress) -> None:
         point = report.point
@@ -92,156 +63,98 @@ def run_search_job(context: JobContext) -> Outcome:
             metrics=[(key, report.timesteps, getattr(point, key)) for key in SEARCH_METRICS],
         )
 
-    found = search(
-        method,
-        scenario,
+    outcome = search_with_baselines(
+        _scenario(context),
+        request,
         seed=spec.seed,
-        settings=scorer,
+        policy_path=policy_path,
         progress=progress,
         should_stop=context.should_stop,
-        **options,
     )
-    result = json.loads(found.to_json())
-    # The baselines on the very draws the best sequence was re-scored on: what the
-    # search adds (or not) over a hand-designed excitation.
-    result["baselines"] = compare_with_baselines(
-        scenario,
-        len(found.best.sequence),
-        scorer,
-        seed=found.fresh.seed,
-        n_draws=len(found.fresh.f1),
-    )
-    if found.policy_path is not None:
-        with open(found.policy_path, "rb") as fh:
+    result = outcome.to_dict()
+    if outcome.result.policy_path is not None:
+        with open(outcome.result.policy_path, "rb") as fh:
             result["policy_sha256"] = hashlib.sha256(fh.read()).hexdigest()
-    status = "cancelled" if found.stopped == "cancelled" else "succeeded"
+    status = "cancelled" if outcome.result.stopped == "cancelled" else "succeeded"
     return Outcome(status=status, result=result)
 
 
 def run_train_job(context: JobContext) -> Outcome:
     """Train the classifier for a sequence and store it as a ``classifiers`` row.
 
-    The k-means seed and the training draws come from the job's seed. Metrics: "f1" and
-    "accuracy" at step 0.
+    The training draws (and a seed the kind needs) come from the job's seed. Metrics:
+    "f1" and "accuracy" at step 0.
     """
     spec = context.spec
-    params = spec.params
-    scenario = Scenario.model_validate(spec.scenario)
-    kind = resolve_kind(params.get("kind"), params.get("metric"))
-    n_realisations = int(params.get("n_realisations") or default_realisations(kind))
-    options = {"metric": params["metric"]} if params.get("metric") is not None else {}
-    model = train_classifier(
-        scenario,
-        params["sequence"],
-        n_realisations,
-        np.random.default_rng(spec.seed),
-        kind=kind,
-        **options,
+    trained = train_for_sequence(
+        _scenario(context), TrainRequest.from_params(spec.params), seed=spec.seed
     )
     if context.check_now():
         return Outcome(status="cancelled", result=None)
-    document = model.to_json()
+    document = trained.model.to_json()
     checksum = json.loads(document).get("sha256") or hashlib.sha256(document.encode()).hexdigest()
-    sequence = np.asarray(model.sequence_).tolist()
-    confusion = np.asarray(model.confusion_).tolist()
+    summary = trained.summary()
     row = ClassifierRow(
         id=new_id(),
         job_id=spec.id,
         scenario_id=spec.scenario_id,
-        kind=kind,
-        metric=model.metric,
-        f1=float(model.f1_),
-        accuracy=float(model.accuracy_),
-        sequence=sequence,
-        candidate_names=list(model.candidate_names_),
-        confusion=confusion,
+        kind=summary["kind"],
+        metric=summary["metric"],
+        f1=summary["f1"],
+        accuracy=summary["accuracy"],
+        sequence=summary["sequence"],
+        candidate_names=summary["candidate_names"],
+        confusion=summary["confusion"],
         document=document,
         sha256=checksum,
     )
-    result = {
-        "classifier_id": row.id,
-        "kind": kind,
-        "metric": row.metric,
-        "f1": row.f1,
-        "accuracy": row.accuracy,
-        "confusion": confusion,
-        "candidate_names": row.candidate_names,
-        "sequence": sequence,
-        "n_realisations": n_realisations,
-        "sha256": checksum,
-    }
     return Outcome(
         status="succeeded",
-        result=result,
+        result={"classifier_id": row.id, **summary, "sha256": checksum},
         metrics=[("f1", 0, row.f1), ("accuracy", 0, row.accuracy)],
         rows=[row],
     )
 
 
-def run_sweep_job(context: JobContext) -> Outcome:
-    """Accuracy of a stored classifier as each source of error grows.
-
-    ``others`` (default: least squares) are trained at 1x on the classifier's scenario
-    and sequence, from the job's seed, and scored on the same test series, and so is the
-    limit (a likelihood classifier fitted at each point's noise, ``limit_realisations``
-    per candidate); with ``inertia`` the result also says how often bodies off the
-    candidates are flagged "matches none". Metrics: "accuracy_<noise>" for each noise
-    swept, one point per multiple, at step = the multiple's index in the job's
-    ``multiples`` list (0, 1, ...), value = the accuracy there. A cancel stops between
-    points; the points done are kept.
-    """
-    spec = context.spec
-    params = spec.params
-    classifier_id = params.get("classifier_id")
+def _stored_classifier(context: JobContext, classifier_id: Any) -> CandidateClassifier:
+    """The classifier a job names, from the store (the runner does not resolve inputs)."""
     with context.db.session() as session:
         row = session.get(ClassifierRow, classifier_id) if classifier_id else None
         document = None if row is None else row.document
     if document is None:
         raise InputError(f"classifier {classifier_id!r} does not exist")
-    classifier = classifier_from_json(document)
-    scenario = classifier.scenario_
-    if scenario is None:
-        raise InputError(f"classifier {classifier_id!r} does not carry its scenario")
-    seeds = np.random.SeedSequence(spec.seed).spawn(3)
-    train_rng = np.random.default_rng(seeds[0])
-    others = {}
-    for label in params.get("others", ["least-squares"]):
-        kind, options = parse_spec(label)
-        others[label] = train_classifier(
-            scenario,
-            classifier.sequence_,
-            int(params.get("n_train", 20)),
-            train_rng,
-            kind=kind,
-            **options,
-        )
-    with_inertia = bool(params.get("inertia", True))
-    share = 0.8 if with_inertia else 1.0
-    sweep = run_sweep(
-        classifier,
-        others=others,
-        limit_realisations=int(params.get("limit_realisations", 200)),
-        seed=int(seeds[1].generate_state(1)[0]),
-        progress=lambda fraction: context.report(progress=share * fraction),
+    return classifier_from_json(document)
+
+
+def run_sweep_job(context: JobContext) -> Outcome:
+    """Accuracy of a stored classifier as each source of error grows, on the job's
+    scenario (one with other candidates than the classifier's is refused).
+
+    ``others`` (default: least squares) are trained at 1x on the classifier's sequence
+    and scored on the same test series, and so is the limit (a likelihood classifier
+    fitted at each point's noise, ``limit_realisations`` per candidate); with
+    ``inertia`` the result also says how often bodies off the candidates are flagged
+    "matches none". Metrics: "accuracy_<noise>" for each noise swept, one point per
+    multiple, at step = the multiple's index in the job's ``multiples`` list (0, 1, ...),
+    value = the accuracy there. A cancel stops between points; the points done are kept.
+    """
+    spec = context.spec
+    outcome = sweep_with_limit(
+        _stored_classifier(context, spec.params.get("classifier_id")),
+        SweepRequest.from_params(spec.params),
+        seed=spec.seed,
+        scenario=_scenario(context),
+        progress=lambda fraction: context.report(progress=fraction),
         should_stop=context.should_stop,
-        **_present(params, {"multiples": "multiples", "noises": "noises", "n_test": "n_test"}),
     )
-    result = sweep.model_dump(mode="json")
-    if with_inertia and not context.cancelled:
-        inertia = run_inertia_sweep(
-            classifier,
-            seed=int(seeds[2].generate_state(1)[0]),
-            progress=lambda fraction: context.report(progress=share + (1 - share) * fraction),
-            should_stop=context.should_stop,
-        )
-        result["inertia"] = inertia.model_dump(mode="json")
+    sweep = outcome.sweep
     metrics = [
         (f"accuracy_{noise}", step, point.accuracy)
         for noise in dict.fromkeys(p.noise for p in sweep.points)
         for step, point in enumerate(sweep.curve(noise))
     ]
     status = "cancelled" if context.cancelled else "succeeded"
-    return Outcome(status=status, result=result, metrics=metrics)
+    return Outcome(status=status, result=outcome.to_dict(), metrics=metrics)
 
 
 HANDLERS: dict[str, Callable[[JobContext], Outcome]] = {

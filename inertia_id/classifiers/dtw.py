@@ -131,7 +131,9 @@ def _soft_dtw(a: np.ndarray, b: np.ndarray, gamma: float, acc: np.ndarray) -> fl
 def _cdist_soft_dtw_normalized(x: np.ndarray, y: np.ndarray, gamma: float) -> np.ndarray:
     n = x.shape[0]
     m = y.shape[0]
-    acc = np.empty((x.shape[1] + 1, y.shape[1] + 1))
+    # One buffer for every pair, self-pairs included: as large as the longer series.
+    longest = max(x.shape[1], y.shape[1])
+    acc = np.empty((longest + 1, longest + 1))
     self_x = np.empty(n)
     self_y = np.empty(m)
     for i in range(n):

@@ -59,8 +59,7 @@ def identify(
     """
     if not isinstance(telemetry, Telemetry):
         telemetry = Telemetry.model_validate(telemetry)
-    scenario = getattr(classifier, "scenario_", None)
-    sequence = getattr(classifier, "sequence_", None)
+    scenario, sequence = classifier.scenario_, classifier.sequence_
     if scenario is None or sequence is None:
         raise InputError("the classifier does not carry its scenario and sequence")
     grid = scenario.sample_times(len(sequence))

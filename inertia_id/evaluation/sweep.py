@@ -28,16 +28,17 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from pydantic import BaseModel
 
-from ..classifiers.likelihood import LikelihoodClassifier
-from ..classifiers.registry import CandidateClassifier
 from ..errors import InputError
 from ..physics.scenario import Scenario
 from ..physics.simulate import simulate
+
+if TYPE_CHECKING:
+    from ..classifiers.registry import CandidateClassifier
 
 __all__ = [
     "DEFAULT_NOISES",
@@ -200,8 +201,8 @@ def run_sweep(
     :param should_stop: polled between points; when it returns True the sweep stops and
         returns the points done so far (cooperative cancellation).
     """
-    scenario = scenario if scenario is not None else getattr(classifier, "scenario_", None)
-    sequence = sequence if sequence is not None else getattr(classifier, "sequence_", None)
+    scenario = scenario if scenario is not None else classifier.scenario_
+    sequence = sequence if sequence is not None else classifier.sequence_
     if scenario is None or sequence is None:
         raise InputError("the classifier does not carry its scenario and sequence; pass them")
     sequence = scenario.check_sequence(sequence)
@@ -248,6 +249,8 @@ def run_sweep(
         for label, other in others.items():
             other_points[label].append(_point(other, X, y, **where))
         if limit_realisations:
+            from ..classifiers.likelihood import LikelihoodClassifier
+
             rng = np.random.default_rng(limit_streams[i])
             X_fit, y_fit = simulate(at_level, sequence, limit_realisations, rng, **extra).dataset()
             limit = LikelihoodClassifier().fit(
@@ -313,6 +316,7 @@ def _closest_pair(scenario: Scenario) -> tuple[int, int]:
 def run_inertia_sweep(
     classifier: CandidateClassifier,
     *,
+    scenario: Scenario | None = None,
     scales: Sequence[float] = (0.6, 0.7, 0.8, 0.9, 1.0, 1.1, 1.2, 1.3, 1.4),
     between: Sequence[float] = (0.0, 0.25, 0.5, 0.75, 1.0),
     base: int = 0,
@@ -332,12 +336,14 @@ def run_inertia_sweep(
     :param scales: multiples of candidate ``base``'s inertia tensor.
     :param between: positions along the segment from candidate ``pair[0]`` to
         ``pair[1]`` (0 and 1 are the candidates).
+    :param scenario: the scenario whose noise the bodies are simulated with; defaults to
+        the one the classifier was trained on (its candidates must be the classifier's).
     :param pair: defaults to the two candidates closest to each other (relative
         Frobenius distance), the pair hardest to tell apart.
     :param seed: seed of the draws; every body gets its own stream.
     """
-    scenario: Scenario | None = getattr(classifier, "scenario_", None)
-    sequence = getattr(classifier, "sequence_", None)
+    scenario = scenario if scenario is not None else classifier.scenario_
+    sequence = classifier.sequence_
     if scenario is None or sequence is None:
         raise InputError("the classifier does not carry its scenario and sequence")
     k = scenario.n_candidates

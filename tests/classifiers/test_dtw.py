@@ -10,13 +10,21 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
-from inertia_id import Scenario, match_clusters, simulate
-from inertia_id.classifiers.dtw import cdist_dtw, dba, dtw, kmeans_dtw
+from inertia_id import InputError, Scenario, match_clusters, simulate
+from inertia_id.classifiers import dtw as dtw_module
+from inertia_id.classifiers.dtw import (
+    cdist_dtw,
+    cdist_soft_dtw_normalized,
+    dba,
+    dtw,
+    kmeans_dtw,
+)
 
 with warnings.catch_warnings():
     warnings.simplefilter("ignore")  # tslearn warns about optional h5py at import
     from tslearn.barycenters import dtw_barycenter_averaging
     from tslearn.metrics import cdist_dtw as tslearn_cdist_dtw
+    from tslearn.metrics import cdist_soft_dtw_normalized as tslearn_soft_dtw
 
 
 def random_series(seed: int, n: int, length: int = 15, dims: int = 3) -> np.ndarray:
@@ -63,6 +71,31 @@ def test_cdist_matches_tslearn_in_a_sakoe_chiba_band(radius: int) -> None:
     x, y = random_series(radius, 6), random_series(radius + 100, 5)
     expected = tslearn_cdist_dtw(x, y, global_constraint="sakoe_chiba", sakoe_chiba_radius=radius)
     np.testing.assert_allclose(cdist_dtw(x, y, radius), expected, rtol=0, atol=1e-10)
+
+
+@pytest.mark.parametrize("gamma", [0.01, 0.3, 2.0])
+def test_normalised_soft_dtw_matches_tslearn(gamma: float) -> None:
+    x, y = random_series(7, 5), random_series(8, 3, length=11)
+    expected = tslearn_soft_dtw(x, y, gamma=gamma)
+    np.testing.assert_allclose(
+        cdist_soft_dtw_normalized(x, y, gamma), expected, rtol=1e-12, atol=1e-12
+    )
+    # A divergence: zero for a series against itself, never negative.
+    np.testing.assert_allclose(np.diag(cdist_soft_dtw_normalized(x, x, gamma)), 0.0, atol=1e-12)
+
+
+@pytest.mark.parametrize("gamma", [0.0, -1.0, float("nan")])
+def test_soft_dtw_refuses_a_gamma_it_cannot_use(gamma: float) -> None:
+    x = random_series(0, 2)
+    with pytest.raises(InputError, match=rf"gamma must be a number > 0, got {gamma!r}"):
+        cdist_soft_dtw_normalized(x, x, gamma)
+
+
+def test_every_kernel_is_cached_on_disk() -> None:
+    """A fresh process loads compiled code numba wrote to disk rather than compiling."""
+    kernels = [v for v in vars(dtw_module).values() if hasattr(v, "signatures")]
+    assert {k.__name__ for k in kernels} >= {"_cdist", "_cdist_soft_dtw_normalized", "_lloyd"}
+    assert all(kernel._cache.__class__.__name__ != "NullCache" for kernel in kernels)
 
 
 def test_narrower_band_never_gives_a_shorter_distance() -> None:

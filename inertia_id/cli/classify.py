@@ -1,0 +1,276 @@
+"""``inertia-id train``, ``sweep`` and ``identify``: classifiers, their accuracy against
+noise, and verdicts on telemetry."""
+
+from __future__ import annotations
+
+import time
+
+import click
+
+from ..pipelines import SweepRequest
+from .options import (
+    DEFAULT_SEQUENCE_TEXT,
+    LazyChoice,
+    friendly_errors,
+    load_scenario,
+    multiples_option,
+    n_test_option,
+    parse_multiples,
+    parse_sequence,
+    progress_bar,
+    realisations_option,
+    scenario_options,
+    seed_option,
+    sequence_option,
+    write_json,
+)
+
+__all__ = ["identify_cmd", "sweep_cmd", "train_cmd"]
+
+
+def _kinds() -> tuple[str, ...]:
+    from ..classifiers.registry import CLASSIFIER_KINDS
+
+    return CLASSIFIER_KINDS
+
+
+def _metrics() -> list[str]:
+    from ..classifiers.registry import CLASSIFIER_KINDS, kind_metrics
+
+    return list(dict.fromkeys(m for kind in CLASSIFIER_KINDS for m in kind_metrics(kind)))
+
+
+def _noises() -> tuple[str, ...]:
+    from ..evaluation.sweep import NOISE_KINDS
+
+    return NOISE_KINDS
+
+
+@click.command("train")
+@scenario_options
+@sequence_option(DEFAULT_SEQUENCE_TEXT)
+@click.option(
+    "--kind",
+    default=None,
+    type=LazyChoice(_kinds),
+    help="marginal-likelihood (the default: closest to the limit), clustering (the paper's; "
+    "the default when only --metric is given), nearest-centroid, 1nn, minirocket, "
+    "likelihood or least-squares (the physics baseline).",
+)
+@click.option(
+    "--metric",
+    default=None,
+    type=LazyChoice(_metrics),
+    help="clustering: dtw (default), softdtw or euclidean; nearest-centroid and 1nn: dtw "
+    "(default) or euclidean; the other kinds take none.",
+)
+@realisations_option(
+    "Training realisations per candidate [default: 100 for marginal-likelihood, else 20].",
+    default=None,
+)
+@click.option(
+    "--n-init",
+    default=None,
+    type=click.IntRange(1),
+    help="clustering: k-means initialisations; the lowest-inertia one is kept [default: 5].",
+)
+@click.option(
+    "--band",
+    default=None,
+    type=click.IntRange(0),
+    help="Sakoe-Chiba band half-width (samples) for dtw (clustering, nearest-centroid, "
+    "1nn); default unconstrained.",
+)
+@seed_option
+@click.option(
+    "--out",
+    default="classifier.json",
+    show_default=True,
+    type=click.Path(dir_okay=False),
+    help="Where to write the classifier JSON.",
+)
+@friendly_errors
+def train_cmd(
+    preset_name: str,
+    scenario_path: str | None,
+    sequence_text: str,
+    kind: str | None,
+    metric: str | None,
+    realisations: int | None,
+    n_init: int | None,
+    band: int | None,
+    seed: int,
+    out: str,
+) -> None:
+    """Train a classifier of any kind for a sequence at 1x noise."""
+    from ..classifiers.registry import kind_metrics, resolve_kind
+    from ..errors import InputError
+    from ..pipelines import TrainRequest, train_for_sequence
+
+    scenario = load_scenario(preset_name, scenario_path)
+    resolved = resolve_kind(kind, metric)
+    if not kind_metrics(resolved) and (metric is not None or band is not None):
+        raise InputError(f"--kind {resolved} takes no --metric or --band")
+    request = TrainRequest(
+        parse_sequence(sequence_text),
+        kind=resolved,
+        metric=metric,
+        n_realisations=realisations,
+        sakoe_chiba_radius=band,
+        n_init=n_init,
+    )
+    kind, n_realisations, options = request.resolved()
+    click.echo(
+        f"training {kind} {options.get('metric', '')} classifier on {scenario.n_candidates} "
+        f"candidates x {n_realisations} realisations ...",
+        err=True,
+    )
+    started = time.perf_counter()
+    trained = train_for_sequence(scenario, request, seed=seed)
+    trained.model.save(out)
+    click.echo(f"wrote {out} in {time.perf_counter() - started:.1f} s", err=True)
+    summary = trained.summary()
+    write_json(
+        None,
+        {
+            "f1": summary["f1"],
+            "accuracy": summary["accuracy"],
+            "confusion": summary["confusion"],
+            "candidates": summary["candidate_names"],
+        },
+    )
+
+
+@click.command("sweep")
+@click.option(
+    "--classifier",
+    "classifier_path",
+    required=True,
+    type=click.Path(exists=True, dir_okay=False),
+    help="Classifier JSON from `train` (any kind).",
+)
+@multiples_option
+@click.option(
+    "--noise",
+    "noises",
+    multiple=True,
+    type=LazyChoice(_noises),
+    help="Source of error to sweep (repeatable): process, measurement, jitter, thrust_scale, "
+    "gyro_bias; default process and measurement.",
+)
+@click.option(
+    "--others",
+    default=",".join(SweepRequest.default("others")),
+    show_default=True,
+    help="Classifiers trained at 1x and scored on the same test series, comma-separated "
+    "specs (least-squares, 1nn:euclidean, nearest-centroid:dtw, minirocket, likelihood, "
+    "clustering:euclidean), or 'none'.",
+)
+@click.option(
+    "--limit-realisations",
+    default=SweepRequest.default("limit_realisations"),
+    show_default=True,
+    type=click.IntRange(0),
+    help="The limit: a likelihood classifier fitted at each point's noise on this many "
+    "realisations per candidate, scored on the same series (0: leave it out).",
+)
+@click.option(
+    "--n-train",
+    default=SweepRequest.default("n_train"),
+    show_default=True,
+    type=click.IntRange(3),
+    help="Training realisations per candidate for --others.",
+)
+@click.option(
+    "--inertia/--no-inertia",
+    default=SweepRequest.default("inertia"),
+    show_default=True,
+    help="Also test bodies off the candidates (scaled, between the closest two): how often "
+    "is 'matches none' the answer?",
+)
+@n_test_option(SweepRequest.default("n_test"))
+@seed_option
+@click.option("--out", default="sweep.json", show_default=True, type=click.Path(dir_okay=False))
+@friendly_errors
+def sweep_cmd(
+    classifier_path: str,
+    multiples: str | None,
+    noises: tuple[str, ...],
+    others: str,
+    limit_realisations: int,
+    n_train: int,
+    inertia: bool,
+    n_test: int,
+    seed: int,
+    out: str,
+) -> None:
+    """Accuracy of a trained classifier as each source of error grows, beside others."""
+    from ..classifiers.registry import load_classifier
+    from ..pipelines import sweep_with_limit
+
+    model = load_classifier(classifier_path)
+    request = SweepRequest(
+        multiples=parse_multiples(multiples),
+        noises=noises or None,
+        others=tuple(s.strip() for s in others.split(",") if s.strip() and s.strip() != "none"),
+        limit_realisations=limit_realisations,
+        n_train=n_train,
+        inertia=inertia,
+        n_test=n_test,
+    )
+    with progress_bar(100, "sweep", unit="%") as bar:
+        outcome = sweep_with_limit(
+            model, request, seed=seed, progress=lambda f: bar.update(round(100 * f) - bar.n)
+        )
+    document = outcome.to_dict()
+    write_json(out, document)
+    result = outcome.sweep
+    columns = {label: result.others[label] for label in outcome.others}
+    if result.limit:
+        columns["limit"] = result.limit
+    click.echo(
+        f"{'noise':12s} {'multiple':>8s} {'value':>9s}  accuracy [95 % interval]  "
+        + "  ".join(columns)
+    )
+    for i, p in enumerate(result.points):
+        rest = "  ".join(
+            f"{points[i].accuracy:>{len(label)}.3f}" for label, points in columns.items()
+        )
+        click.echo(
+            f"{p.noise:12s} {p.multiple:>8g} {p.value:>9.3g}  {p.accuracy:.3f} "
+            f"[{p.ci_low:.3f}, {p.ci_high:.3f}]    {rest}"
+        )
+    if outcome.inertia is not None:
+        for q in outcome.inertia.points:
+            click.echo(f"{q.body:8s} {q.parameter:>5g}  matches none {q.matches_none_rate:.2f}")
+
+
+@click.command("identify")
+@click.option(
+    "--classifier",
+    "classifier_path",
+    required=True,
+    type=click.Path(exists=True, dir_okay=False),
+    help="Classifier JSON from `train`.",
+)
+@click.option(
+    "--telemetry",
+    "telemetry_path",
+    required=True,
+    type=click.Path(exists=True, dir_okay=False),
+    help="CSV (time_s,wx,wy,wz; header optional) or JSON "
+    "({time_s: [...], omega_rad_s: [[...], ...]}), time from the sequence start.",
+)
+@friendly_errors
+def identify_cmd(classifier_path: str, telemetry_path: str) -> None:
+    """Classify telemetry to a candidate inertia, or say it matches none.
+
+    The answer also holds the inertia tensor that integral-form least squares estimates
+    from the same telemetry, and which parameters the sequence hardly excites.
+    """
+    from ..classifiers.registry import load_classifier
+    from ..evaluation.identify import identify
+    from ..evaluation.telemetry import load_telemetry
+
+    verdict = identify(load_classifier(classifier_path), load_telemetry(telemetry_path))
+    write_json(None, verdict.model_dump(mode="json"))

@@ -1,0 +1,236 @@
+"""What the ``inertia-id`` commands share: options, parsing, output and error handling.
+
+Importing this module (and every command module) loads click and nothing of the core:
+``inertia-id --help`` lists the commands without importing numpy, pydantic or numba.
+Choices that the core defines (presets, kinds, metrics, noises) are read the first time
+click needs them (:class:`LazyChoice`); the core itself is imported inside the commands.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import os
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, TypeVar
+
+import click
+
+from ..errors import InputError
+from ..pipelines import PAPER_SEQUENCE
+
+if TYPE_CHECKING:
+    from ..physics.scenario import Scenario
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+class LazyChoice(click.Choice[str]):
+    """A :class:`click.Choice` whose choices come from the core when first needed.
+
+    :param load: returns the choices; called once, when click validates a value or
+        writes a command's help.
+    """
+
+    def __init__(self, load: Callable[[], Sequence[str]], case_sensitive: bool = True) -> None:
+        self._load = load
+        self._loaded: tuple[str, ...] | None = None
+        self.case_sensitive = case_sensitive
+
+    @property
+    def choices(self) -> tuple[str, ...]:
+        if self._loaded is None:
+            self._loaded = tuple(self._load())
+        return self._loaded
+
+    @choices.setter
+    def choices(self, value: Sequence[str]) -> None:
+        self._loaded = tuple(value)
+
+
+def friendly_errors(func: F) -> F:
+    """Turn the caller's faults (the core's InputError, pydantic's validation errors, a
+    file that cannot be read) into one-line CLI errors; anything else is a defect and
+    keeps its traceback."""
+
+    @functools.wraps(func)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return func(*args, **kwargs)
+        except OSError as exc:
+            raise click.ClickException(str(exc)) from None
+        except ValueError as exc:
+            from pydantic import ValidationError
+
+            if isinstance(exc, InputError | ValidationError):
+                raise click.ClickException(str(exc)) from None
+            raise
+
+    return wrapper  # type: ignore[return-value]
+
+
+def _presets() -> list[str]:
+    from ..physics.presets import PRESETS
+
+    return sorted(PRESETS)
+
+
+def scenario_options(func: F) -> F:
+    """``--preset`` / ``--scenario FILE``."""
+    func = click.option(
+        "--scenario",
+        "scenario_path",
+        type=click.Path(dir_okay=False),
+        help="Scenario JSON file (overrides --preset).",
+    )(func)
+    func = click.option(
+        "--preset",
+        "preset_name",
+        default="paper",
+        show_default=True,
+        type=LazyChoice(_presets),
+        help="Built-in scenario.",
+    )(func)
+    return func
+
+
+def load_scenario(preset_name: str, scenario_path: str | None) -> Scenario:
+    """The scenario the options name."""
+    if scenario_path is None:
+        from ..physics.presets import preset
+
+        return preset(preset_name)
+    from ..physics.scenario import Scenario
+
+    text = Path(scenario_path).read_text(encoding="utf-8")
+    return Scenario.model_validate_json(text)
+
+
+def parse_sequence(text: str) -> list[list[int]]:
+    """A sequence from ``"4,4,4,0,0,0;0,0,0,4,4,4"`` (rows separated by ';'), a JSON
+    list of rows, or a path to a JSON file holding one."""
+    source = text
+    if os.path.isfile(text):
+        source = Path(text).read_text(encoding="utf-8")
+    source = source.strip()
+    try:
+        if source.startswith("["):
+            rows = json.loads(source)
+        else:
+            rows = [[int(v) for v in row.split(",")] for row in source.split(";") if row.strip()]
+    except (ValueError, json.JSONDecodeError):
+        raise InputError(
+            f"sequence {text!r} is not rows of level indices like '4,4,4,0,0,0;0,0,0,4,4,4' "
+            "or a JSON list of rows"
+        ) from None
+    if not isinstance(rows, list) or not rows:
+        raise InputError(f"sequence {text!r} holds no steps")
+    return rows
+
+
+#: The hand-designed sequence as the command line writes it.
+DEFAULT_SEQUENCE_TEXT = ";".join(",".join(map(str, row)) for row in PAPER_SEQUENCE)
+
+
+def sequence_option(default: str | None = None) -> Callable[[F], F]:
+    return click.option(
+        "--sequence",
+        "sequence_text",
+        default=default,
+        required=default is None,
+        show_default=default is not None,
+        help="Level indices per thruster, steps separated by ';' (e.g. '4,4,4,0,0,0;"
+        "4,4,4,0,0,0'), a JSON list of rows, or a JSON file.",
+    )
+
+
+def realisations_option(help_text: str, default: int | None = 20) -> Callable[[F], F]:
+    return click.option(
+        "-n",
+        "--realisations",
+        default=default,
+        show_default=default is not None,
+        type=click.IntRange(1),
+        help=help_text,
+    )
+
+
+def multiples_option(func: F) -> F:
+    return click.option(
+        "--multiples",
+        default=None,
+        help="Noise multiples of the training level, comma-separated [default: 1,2,...,8].",
+    )(func)
+
+
+def n_test_option(default: int) -> Callable[[F], F]:
+    return click.option(
+        "--n-test",
+        default=default,
+        show_default=True,
+        type=click.IntRange(1),
+        help="Test series per sweep point, spread over the candidates.",
+    )
+
+
+def seed_option(func: F) -> F:
+    return click.option(
+        "--seed", default=0, show_default=True, type=int, help="Seed of every random draw."
+    )(func)
+
+
+def parse_multiples(text: str | None) -> list[float] | None:
+    """``"1,2,4"`` -> ``[1.0, 2.0, 4.0]``; None stays None (the sweep's default)."""
+    if text is None:
+        return None
+    try:
+        return [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise InputError(f"--multiples {text!r} is not a comma-separated list of numbers") from None
+
+
+def parse_radius(text: str) -> int | None:
+    """A DTW band half-width, or None for 'none' (unconstrained)."""
+    if text.strip().lower() in ("none", "full", "unconstrained"):
+        return None
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise InputError(f"--radius must be an integer >= 0 or 'none', got {text!r}")
+    return value
+
+
+def parse_pairs(pairs: Sequence[str], option: str, example: str) -> dict[str, Any]:
+    """``("n_steps=1024", "gamma=0.9")`` -> ``{"n_steps": 1024, "gamma": 0.9}``."""
+    params: dict[str, Any] = {}
+    for pair in pairs:
+        name, sep, value = pair.partition("=")
+        if not sep or not name.strip():
+            raise InputError(f"{option} takes NAME=VALUE (e.g. {example}), got {pair!r}")
+        try:
+            number = float(value)
+        except ValueError:
+            raise InputError(f"{option} {name.strip()} must be a number, got {value!r}") from None
+        params[name.strip()] = int(number) if number.is_integer() and "." not in value else number
+    return params
+
+
+def write_json(path: str | os.PathLike[str] | None, data: Any) -> None:
+    """``data`` as indented JSON to ``path``, or to stdout for None or "-"."""
+    text = json.dumps(data, indent=2)
+    if path is None or str(path) == "-":
+        click.echo(text)
+    else:
+        Path(path).write_text(text + "\n", encoding="utf-8")
+        click.echo(f"wrote {path}", err=True)
+
+
+def progress_bar(total: int, desc: str, unit: str = "pt") -> Any:
+    """A progress bar on stderr that disappears when done."""
+    from tqdm import tqdm
+
+    return tqdm(total=total, desc=desc, unit=unit, file=sys.stderr, leave=False)

@@ -1,0 +1,584 @@
+"""The use cases the command line and the service share, with their defaults and one
+seeding scheme.
+
+Each use case takes a request (a frozen dataclass whose field names are the job
+parameters the service stores, and whose defaults are *the* defaults, for the CLI's
+options and the service's jobs alike) and a seed:
+
+- :func:`search_with_baselines`: search for a sequence, then score the hand-designed
+  baselines on the very fresh draws the best sequence was re-scored on;
+- :func:`train_for_sequence`: train a classifier of any kind (the kind is
+  :func:`~inertia_id.classifiers.registry.resolve_kind`'s);
+- :func:`train_others`: the classifiers a sweep draws beside the main one;
+- :func:`sweep_with_limit`: the noise sweep with the others, the limit and the bodies off
+  the candidates;
+- :func:`run_paper`: the paper's pipeline (search, train, sweep, report).
+
+Seeding, the same whoever calls:
+
+- training: every draw (and a seed the kind needs) from ``np.random.default_rng(seed)``;
+- sweep: ``SeedSequence(seed).spawn(3)``: the first trains the others, the second seeds
+  the test draws (and, through them, the limit's), the third the bodies off the
+  candidates;
+- search: ``seed`` seeds the search; its fresh re-scoring, and so the baselines, use a
+  seed spawned from it;
+- paper: the search takes ``seed``; of ``SeedSequence(seed).spawn(3)`` the first trains
+  the classifier, the sweep takes ``seed`` itself (so the classifier and the others it is
+  compared with train on the same draws), the third draws the report's responses.
+
+Importing this module is quick: the core is imported by the use cases when they run.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Self
+
+import numpy as np
+
+from .errors import InputError
+
+if TYPE_CHECKING:
+    from .classifiers.registry import CandidateClassifier
+    from .evaluation.sweep import InertiaSweepResult, SweepResult
+    from .physics.scenario import Scenario
+    from .search import ScorerSettings, SearchProgress, SearchResult
+
+__all__ = [
+    "PAPER_SEQUENCE",
+    "PaperOutcome",
+    "SearchOutcome",
+    "SearchRequest",
+    "SweepOutcome",
+    "SweepRequest",
+    "TrainRequest",
+    "Trained",
+    "check_sweep_scenario",
+    "run_paper",
+    "search_with_baselines",
+    "sweep_with_limit",
+    "train_for_sequence",
+    "train_others",
+]
+
+#: The hand-designed excitation of the paper preset (the positive-axis thrusters at full
+#: duty every step): what the paper pipeline uses without a search.
+PAPER_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
+
+
+class _Request:
+    """A request built from stored job parameters: names it knows, defaults for the rest."""
+
+    @classmethod
+    def from_params(cls, params: Mapping[str, Any]) -> Self:
+        fields = dataclasses.fields(cls)  # type: ignore[arg-type]
+        required = [
+            f.name
+            for f in fields
+            if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING
+        ]
+        missing = [name for name in required if name not in params]
+        if missing:
+            raise InputError(f"the job's params lack {missing}")
+        names = {f.name for f in fields}
+        return cls(**{name: value for name, value in params.items() if name in names})
+
+    @classmethod
+    def default(cls, name: str) -> Any:
+        """The default of one field: what a CLI option shows and falls back to."""
+        for f in dataclasses.fields(cls):  # type: ignore[arg-type]
+            if f.name == name:
+                if f.default_factory is not dataclasses.MISSING:
+                    return f.default_factory()
+                return f.default
+        raise KeyError(name)
+
+
+# Search, then the baselines on the same fresh draws.
+
+
+@dataclass(frozen=True)
+class SearchRequest(_Request):
+    """What to search for and how (the job's ``params``).
+
+    :param method: "ppo", "cem", "exhaustive" or "random".
+    :param sequence_length: steps L of the sequence.
+    :param timesteps: environment-step budget (ppo, cem, random).
+    :param max_sequences: exhaustive search refuses larger spaces.
+    :param n_realisations: realisations per candidate in each environment step.
+    :param objective: "f1" (the clustering F1, the paper's) or "separability".
+    :param metric: clustering metric that scores sequences.
+    :param sakoe_chiba_radius: DTW band half-width in samples; None: unconstrained.
+    :param fuel_weight: reward cost per N m s of commanded impulse.
+    :param patience_episodes: stop once F1 = 1 and nothing better came for this many
+        episodes (ppo, cem, random); None: never.
+    :param ppo: overrides of the paper's PPO hyperparameters (method ppo only).
+    :param cem: overrides of the cross-entropy method's settings (method cem only).
+    """
+
+    method: str = "ppo"
+    sequence_length: int = 4
+    timesteps: int = 20_480
+    max_sequences: int = 100_000
+    n_realisations: int = 20
+    objective: str = "f1"
+    metric: str = "dtw"
+    sakoe_chiba_radius: int | None = 2
+    fuel_weight: float = 0.0
+    patience_episodes: int | None = 500
+    ppo: Mapping[str, Any] = field(default_factory=dict)
+    cem: Mapping[str, Any] = field(default_factory=dict)
+
+    def scorer(self) -> ScorerSettings:
+        """How the search scores sequences."""
+        from .search import ScorerSettings
+
+        return ScorerSettings(
+            n_realisations=self.n_realisations,
+            metric=self.metric,
+            sakoe_chiba_radius=self.sakoe_chiba_radius,
+            objective=self.objective,
+        )
+
+    def options(self) -> dict[str, Any]:
+        """The method's own keyword arguments (besides the scenario, seed and scorer)."""
+        if self.ppo and self.method != "ppo":
+            raise InputError(f"ppo settings apply to method ppo only, not {self.method!r}")
+        if self.cem and self.method != "cem":
+            raise InputError(f"cem settings apply to method cem only, not {self.method!r}")
+        options: dict[str, Any] = {
+            "sequence_length": self.sequence_length,
+            "fuel_weight": self.fuel_weight,
+        }
+        if self.method == "exhaustive":
+            options["max_sequences"] = self.max_sequences
+        else:
+            options["total_timesteps"] = self.timesteps
+            options["patience_episodes"] = self.patience_episodes
+        if self.method == "ppo":
+            options["ppo_params"] = dict(self.ppo)
+        if self.method == "cem":
+            options.update(self.cem)
+        return options
+
+
+@dataclass(frozen=True)
+class SearchOutcome:
+    """A search's result and the baselines scored on its fresh draws."""
+
+    result: SearchResult
+    baselines: dict[str, dict[str, Any]]
+
+    def to_dict(self) -> dict[str, Any]:
+        """The result as JSON data (NaN as null), with ``"baselines"``."""
+        return {**json.loads(self.result.to_json()), "baselines": self.baselines}
+
+
+def search_with_baselines(
+    scenario: Scenario,
+    request: SearchRequest,
+    *,
+    seed: int,
+    policy_path: str | None = None,
+    progress: Callable[[SearchProgress], None] | None = None,
+    should_stop: Callable[[], bool] | None = None,
+) -> SearchOutcome:
+    """Search for the sequence that best separates the candidates, then score the
+    hand-designed baselines on the same fresh draws as the best sequence.
+
+    :param policy_path: where a PPO search saves its policy (ignored by the others).
+    :param progress: called at every learning-curve point.
+    :param should_stop: polled every environment step; True cancels the search.
+    """
+    from .search import search
+    from .search.baselines import compare_with_baselines
+
+    settings = request.scorer()
+    options = request.options()
+    if request.method == "ppo":
+        options["policy_path"] = policy_path
+    found = search(
+        request.method,
+        scenario,
+        seed=seed,
+        settings=settings,
+        progress=progress,
+        should_stop=should_stop,
+        **options,
+    )
+    baselines = compare_with_baselines(
+        scenario,
+        len(found.best.sequence),
+        settings,
+        seed=found.fresh.seed,
+        n_draws=len(found.fresh.f1),
+    )
+    return SearchOutcome(found, baselines)
+
+
+# Training.
+
+
+@dataclass(frozen=True)
+class TrainRequest(_Request):
+    """A classifier to train for a sequence (the job's ``params``).
+
+    :param sequence: (L, N) level indices.
+    :param kind: the classifier kind; None: :data:`~inertia_id.classifiers.registry.
+        DEFAULT_KIND`, or the paper's clustering when a metric is given.
+    :param metric: for the kinds that take one; None: the kind's first.
+    :param n_realisations: training realisations per candidate; None: the kind's default.
+    :param sakoe_chiba_radius: DTW band half-width for the kinds with a metric; None:
+        unconstrained.
+    :param n_init: the clustering's k-means initialisations; None: its default.
+    """
+
+    sequence: Any
+    kind: str | None = None
+    metric: str | None = None
+    n_realisations: int | None = None
+    sakoe_chiba_radius: int | None = None
+    n_init: int | None = None
+
+    def resolved(self) -> tuple[str, int, dict[str, Any]]:
+        """The kind, the realisations and the classifier options meant, checked."""
+        from .classifiers.registry import kind_class, resolve_kind
+
+        kind = resolve_kind(self.kind, self.metric)
+        cls = kind_class(kind)
+        options: dict[str, Any] = {}
+        if cls.METRICS:
+            options["metric"] = self.metric or cls.METRICS[0]
+            if self.sakoe_chiba_radius is not None:
+                options["sakoe_chiba_radius"] = self.sakoe_chiba_radius
+        elif self.metric is not None:
+            raise InputError(f"the {kind!r} classifier takes no metric, got {self.metric!r}")
+        elif self.sakoe_chiba_radius is not None:
+            raise InputError(
+                f"the {kind!r} classifier takes no DTW band, got {self.sakoe_chiba_radius!r}"
+            )
+        if self.n_init is not None:
+            options["n_init"] = self.n_init
+        n = cls.DEFAULT_REALISATIONS if self.n_realisations is None else self.n_realisations
+        return kind, n, options
+
+
+@dataclass(frozen=True)
+class Trained:
+    """A trained classifier, with the kind and realisations it was trained as."""
+
+    model: CandidateClassifier
+    kind: str
+    n_realisations: int
+
+    def summary(self) -> dict[str, Any]:
+        """What a training reports: scores, confusion, candidates, sequence, kind."""
+        return {
+            "kind": self.kind,
+            "metric": self.model.metric,
+            "f1": float(self.model.f1_),
+            "accuracy": float(self.model.accuracy_),
+            "confusion": np.asarray(self.model.confusion_).tolist(),
+            "candidate_names": list(self.model.candidate_names_),
+            "sequence": np.asarray(self.model.sequence_).tolist(),
+            "n_realisations": self.n_realisations,
+        }
+
+
+def train_for_sequence(
+    scenario: Scenario, request: TrainRequest, *, seed: int | np.random.SeedSequence
+) -> Trained:
+    """Train the classifier a request names, on draws from ``default_rng(seed)``."""
+    from .classifiers.registry import train_classifier
+
+    kind, n_realisations, options = request.resolved()
+    rng = np.random.default_rng(seed)
+    model = train_classifier(scenario, request.sequence, n_realisations, rng, kind=kind, **options)
+    return Trained(model, kind, n_realisations)
+
+
+def train_others(
+    scenario: Scenario,
+    sequence: Any,
+    specs: Sequence[str],
+    n_train: int,
+    rng: np.random.Generator,
+) -> dict[str, CandidateClassifier]:
+    """Classifiers by spec (``"least-squares"``, ``"1nn:euclidean"``), trained at 1x on
+    ``n_train`` realisations per candidate, one after another from ``rng``."""
+    from .classifiers.registry import parse_spec, train_classifier
+
+    others = {}
+    for spec in specs:
+        kind, options = parse_spec(spec)
+        others[spec] = train_classifier(scenario, sequence, n_train, rng, kind=kind, **options)
+    return others
+
+
+# The noise sweep.
+
+
+@dataclass(frozen=True)
+class SweepRequest(_Request):
+    """A sweep of a trained classifier (the job's ``params``).
+
+    :param multiples: noise multiples to visit; None: 1 to 8.
+    :param noises: sources of error to scale in turn; None: process and measurement.
+    :param others: classifiers trained at 1x and scored on the same test series, as
+        specs.
+    :param limit_realisations: the limit (a likelihood classifier fitted at each point's
+        noise) on this many realisations per candidate; 0 leaves it out.
+    :param n_train: training realisations per candidate for ``others``.
+    :param inertia: also ask how often bodies off the candidates "match none".
+    :param n_test: test series per point.
+    """
+
+    multiples: Sequence[float] | None = None
+    noises: Sequence[str] | None = None
+    others: Sequence[str] = ("least-squares",)
+    limit_realisations: int = 200
+    n_train: int = 20
+    inertia: bool = True
+    n_test: int = 200
+
+
+@dataclass(frozen=True)
+class SweepOutcome:
+    """A sweep, and the bodies off the candidates when they were asked for."""
+
+    sweep: SweepResult
+    inertia: InertiaSweepResult | None
+    others: tuple[str, ...]
+
+    def to_dict(self) -> dict[str, Any]:
+        """The sweep as JSON data, with ``"inertia"`` when it was run."""
+        document = self.sweep.model_dump(mode="json")
+        if self.inertia is not None:
+            document["inertia"] = self.inertia.model_dump(mode="json")
+        return document
+
+
+def check_sweep_scenario(named: Scenario, trained: Scenario | None, sequence: Any) -> Scenario:
+    """The scenario a sweep simulates: the one named, if the classifier can classify it.
+
+    Its candidates (names and tensors) must be the classifier's, and the classifier's
+    sequence must drive it on the same sample grid; its noise, thrust and everything else
+    may differ: that is what the sweep then measures.
+    """
+    if trained is not None:
+        mine = [(c.name, np.asarray(c.inertia_kg_m2).tolist()) for c in named.inertia_candidates]
+        theirs = [
+            (c.name, np.asarray(c.inertia_kg_m2).tolist()) for c in trained.inertia_candidates
+        ]
+        if mine != theirs:
+            raise InputError(
+                f"scenario {named.name!r} has candidates {named.candidate_names}, not the "
+                f"ones the classifier was trained on ({trained.candidate_names} of scenario "
+                f"{trained.name!r}, with their tensors)"
+            )
+        grid = (named.timing.samples_per_step, named.timing.sample_rate_hz)
+        if grid != (trained.timing.samples_per_step, trained.timing.sample_rate_hz):
+            raise InputError(
+                f"scenario {named.name!r} samples {grid[0]} times per step at {grid[1]:g} Hz; "
+                f"the classifier was trained on {trained.timing.samples_per_step} at "
+                f"{trained.timing.sample_rate_hz:g} Hz"
+            )
+    try:
+        named.check_sequence(sequence)
+    except InputError as exc:
+        raise InputError(
+            f"the classifier's sequence does not drive scenario {named.name!r}: {exc}"
+        ) from None
+    return named
+
+
+def sweep_with_limit(
+    classifier: CandidateClassifier,
+    request: SweepRequest,
+    *,
+    seed: int,
+    scenario: Scenario | None = None,
+    progress: Callable[[float], None] | None = None,
+    should_stop: Callable[[], bool] | None = None,
+) -> SweepOutcome:
+    """Accuracy of ``classifier`` as each source of error grows, with the others, the
+    limit and (``request.inertia``) the bodies off the candidates.
+
+    :param scenario: the scenario to sweep; default the classifier's. One with other
+        candidates or another sample grid is refused (:func:`check_sweep_scenario`).
+    :param progress: called with the fraction done (the bodies take the last fifth).
+    :param should_stop: polled between points; True stops with the points done (and
+        skips the bodies).
+    """
+    from .evaluation.sweep import run_inertia_sweep, run_sweep
+
+    sequence = classifier.sequence_
+    if classifier.scenario_ is None or sequence is None:
+        raise InputError("the classifier does not carry its scenario and sequence")
+    scenario = check_sweep_scenario(
+        classifier.scenario_ if scenario is None else scenario, classifier.scenario_, sequence
+    )
+    streams = np.random.SeedSequence(seed).spawn(3)
+    others = train_others(
+        scenario, sequence, request.others, request.n_train, np.random.default_rng(streams[0])
+    )
+    share = 0.8 if request.inertia else 1.0
+    options: dict[str, Any] = {}
+    if request.multiples is not None:
+        options["multiples"] = request.multiples
+    if request.noises is not None:
+        options["noises"] = request.noises
+    sweep = run_sweep(
+        classifier,
+        others=others,
+        scenario=scenario,
+        sequence=sequence,
+        limit_realisations=request.limit_realisations,
+        n_test=request.n_test,
+        seed=int(streams[1].generate_state(1)[0]),
+        progress=None if progress is None else (lambda fraction: progress(share * fraction)),
+        should_stop=should_stop,
+        **options,
+    )
+    inertia = None
+    if request.inertia and not (should_stop is not None and should_stop()):
+        inertia = run_inertia_sweep(
+            classifier,
+            scenario=scenario,
+            seed=int(streams[2].generate_state(1)[0]),
+            progress=None
+            if progress is None
+            else (lambda fraction: progress(share + (1 - share) * fraction)),
+            should_stop=should_stop,
+        )
+    return SweepOutcome(sweep, inertia, tuple(others))
+
+
+# The paper.
+
+
+@dataclass(frozen=True)
+class PaperOutcome:
+    """What the paper pipeline wrote, and its summary."""
+
+    out_dir: Path
+    summary: dict[str, Any]
+    sweep: SweepResult
+
+
+def run_paper(
+    out_dir: str | Path,
+    *,
+    sequence: Any = None,
+    search: SearchRequest | None = None,
+    metric: str = "dtw",
+    n_realisations: int = 20,
+    multiples: Sequence[float] | None = None,
+    n_test: int = 200,
+    seed: int = 0,
+    log: Callable[[str], None] | None = None,
+    search_progress: Callable[[SearchProgress], None] | None = None,
+    sweep_progress: Callable[[float], None] | None = None,
+) -> PaperOutcome:
+    """The paper's pipeline on its preset: search, train, sweep, report.
+
+    Writes ``search.json`` (with the baselines) and ``policy.zip`` when it searched,
+    ``classifier.json``, ``sweep.json``, ``report.html``, ``scenario.json`` and
+    ``summary.json`` to ``out_dir``.
+
+    :param sequence: the sequence to use; None: search for one with ``search``, or, when
+        that is None too, the hand-designed :data:`PAPER_SEQUENCE`.
+    :param search: the search to run when no sequence is given.
+    :param metric: the paper's clustering metric.
+    :param n_realisations: training realisations per candidate (the paper's 20); the
+        least-squares reference trains on as many.
+    :param log: told each stage as it starts.
+    """
+    from .evaluation.report import write_report
+    from .evaluation.sweep import DEFAULT_NOISES
+    from .physics.scenario import Scenario
+    from .physics.simulate import simulate
+
+    say = log or (lambda _message: None)
+    scenario = Scenario.paper()
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    seeds = np.random.SeedSequence(seed).spawn(3)
+    started = time.perf_counter()
+    searched = None
+    if sequence is not None:
+        steps = scenario.check_sequence(sequence)
+    elif search is None:
+        steps = scenario.check_sequence(PAPER_SEQUENCE)
+    else:
+        say("[0/3] searching for the sequence")
+        policy = str(out / "policy.zip") if search.method == "ppo" else None
+        found = search_with_baselines(
+            scenario, search, seed=seed, policy_path=policy, progress=search_progress
+        )
+        (out / "search.json").write_text(json.dumps(found.to_dict()), encoding="utf-8")
+        searched = found.result
+        steps = searched.best_sequence
+    say(
+        f"[1/3] training {metric} classifier ({scenario.n_candidates} candidates x "
+        f"{n_realisations} realisations, {len(steps)} steps)"
+    )
+    trained = train_for_sequence(
+        scenario,
+        TrainRequest(steps, metric=metric, n_realisations=n_realisations),
+        seed=seeds[0],
+    )
+    model = trained.model
+    model.save(out / "classifier.json")
+    say(f"      training F1 {model.f1_:.3f}, accuracy {model.accuracy_:.3f}")
+    say("[2/3] accuracy vs noise")
+    swept = sweep_with_limit(
+        model,
+        SweepRequest(multiples=multiples, n_train=n_realisations, inertia=False, n_test=n_test),
+        seed=seed,
+        progress=sweep_progress,
+    )
+    sweep = swept.sweep
+    (out / "sweep.json").write_text(sweep.model_dump_json(indent=2), encoding="utf-8")
+    say("[3/3] report")
+    result = simulate(scenario, steps, n_realisations, np.random.default_rng(seeds[2]))
+    write_report(
+        out / "report.html",
+        scenario=scenario,
+        sequence=steps,
+        result=result,
+        classifier=model,
+        sweep=sweep,
+        search=searched,
+    )
+    (out / "scenario.json").write_text(scenario.model_dump_json(indent=2), encoding="utf-8")
+
+    def by_multiple(points: Any, noise: str) -> dict[str, float]:
+        return {f"{p.multiple:g}": p.accuracy for p in points if p.noise == noise}
+
+    summary = {
+        "sequence": np.asarray(steps).tolist(),
+        "sequence_from": "given" if searched is None else f"{searched.method} search",
+        "search_f1": None if searched is None else searched.best.f1,
+        "search_fresh_f1_mean": None if searched is None else searched.fresh.f1_mean,
+        "search_timesteps": None if searched is None else searched.timesteps,
+        "metric": metric,
+        "seed": seed,
+        "training_f1": model.f1_,
+        "training_accuracy": model.accuracy_,
+        "impulse_nms": result.impulse_nms,
+        "mean_final_rate_rad_s": result.mean_final_rate_rad_s,
+        "accuracy": {noise: by_multiple(sweep.points, noise) for noise in DEFAULT_NOISES},
+        "accuracy_others": {
+            label: {noise: by_multiple(points, noise) for noise in DEFAULT_NOISES}
+            for label, points in {**sweep.others, "limit": sweep.limit}.items()
+        },
+        "wall_time_s": time.perf_counter() - started,
+    }
+    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
+    return PaperOutcome(out, summary, sweep)

@@ -1,0 +1,81 @@
+"""What importing the core costs: no torch, tslearn or stable-baselines3 until used.
+
+Each check runs in a fresh interpreter, since this test session has imported them all.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+from inertia_id import InertiaClassifier
+
+HEAVY = ("torch", "tslearn", "stable_baselines3", "sklearn", "numba", "scipy", "pydantic")
+
+
+def loaded_after(code: str) -> set[str]:
+    """The HEAVY packages in sys.modules after running ``code`` in a fresh interpreter."""
+    probe = (
+        f"{code}\nimport sys, json\nprint(json.dumps([m for m in {HEAVY!r} if m in sys.modules]))"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", probe], capture_output=True, text=True, check=True, timeout=120
+    )
+    return set(json.loads(done.stdout.strip().splitlines()[-1]))
+
+
+def test_import_inertia_id_loads_none_of_the_heavy_packages() -> None:
+    assert loaded_after("import inertia_id; inertia_id.__all__") == set()
+
+
+def test_a_name_is_imported_when_first_used() -> None:
+    loaded = loaded_after("from inertia_id import Scenario, simulate; Scenario.paper()")
+    assert loaded == {"pydantic"}
+
+
+def test_the_command_line_help_loads_no_science() -> None:
+    code = (
+        "from inertia_id.cli import main\ntry:\n    main(['--help'])\nexcept SystemExit:\n    pass"
+    )
+    assert loaded_after(code) == set()
+
+
+def test_the_search_package_loads_no_torch() -> None:
+    loaded = loaded_after("import inertia_id.search; from inertia_id.search import ppo_search")
+    assert not loaded & {"torch", "stable_baselines3", "tslearn"}
+    assert "torch" in loaded_after("from inertia_id.search import SearchCallback")
+
+
+def test_a_loaded_clustering_classifies_without_tslearn(
+    euclidean_classifier: InertiaClassifier, tmp_path: Path
+) -> None:
+    for metric in ("euclidean", "dtw"):
+        model = InertiaClassifier.from_json(euclidean_classifier.to_json())
+        model.set_params(metric=metric)
+        path = tmp_path / f"{metric}.json"
+        model.save(path)
+        code = (
+            "import numpy as np\n"
+            "from inertia_id import load_classifier\n"
+            f"model = load_classifier({str(path)!r})\n"
+            "print(model.predict(np.zeros((2, 80, 3))).tolist())"
+        )
+        loaded = loaded_after(code)
+        assert "tslearn" not in loaded and "torch" not in loaded, metric
+
+
+def test_warm_up_compiles_the_kernels_every_transform_calls() -> None:
+    """In a fresh process: after ``inertia_id.warm_up()`` no transform compiles anything."""
+    code = (
+        "import json, inertia_id\n"
+        "inertia_id.warm_up()\n"
+        "from inertia_id.classifiers import dtw, minirocket\n"
+        "kernels = [dtw._cdist, dtw._cdist_soft_dtw_normalized, minirocket._transform]\n"
+        "print(json.dumps([bool(k.signatures) for k in kernels]))"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=300
+    )
+    assert json.loads(done.stdout.strip().splitlines()[-1]) == [True, True, True]

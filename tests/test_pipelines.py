@@ -1,0 +1,168 @@
+"""The use cases the CLI and the worker share: requests, defaults, seeding, refusals."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from inertia_id import (
+    InertiaClassifier,
+    InputError,
+    LikelihoodClassifier,
+    MarginalLikelihoodClassifier,
+    Scenario,
+    preset,
+    run_inertia_sweep,
+    run_sweep,
+)
+from inertia_id.classifiers.registry import train_classifier
+from inertia_id.pipelines import (
+    SearchRequest,
+    SweepRequest,
+    TrainRequest,
+    check_sweep_scenario,
+    run_paper,
+    sweep_with_limit,
+    train_for_sequence,
+    train_others,
+)
+
+GOOD = [[4, 4, 4, 0, 0, 0]] * 4
+
+
+# Requests from job params.
+
+
+def test_a_request_takes_the_names_it_knows_and_defaults_the_rest() -> None:
+    request = SweepRequest.from_params({"classifier_id": "c1", "n_test": 50, "inertia": False})
+    assert (request.n_test, request.inertia) == (50, False)
+    assert request.limit_realisations == 200 == SweepRequest.default("limit_realisations")
+    assert request.others == ("least-squares",)
+    with pytest.raises(InputError, match=r"the job's params lack \['sequence'\]"):
+        TrainRequest.from_params({"kind": "1nn"})
+
+
+def test_a_train_request_resolves_kind_realisations_and_options() -> None:
+    assert TrainRequest(GOOD).resolved() == ("marginal-likelihood", 100, {})
+    assert TrainRequest(GOOD, metric="euclidean").resolved() == (
+        "clustering",
+        20,
+        {"metric": "euclidean"},
+    )
+    assert TrainRequest(GOOD, kind="1nn", sakoe_chiba_radius=3, n_realisations=7).resolved() == (
+        "1nn",
+        7,
+        {"metric": "dtw", "sakoe_chiba_radius": 3},
+    )
+    with pytest.raises(InputError, match=r"the 'likelihood' classifier takes no metric, got 'dtw'"):
+        TrainRequest(GOOD, kind="likelihood", metric="dtw").resolved()
+    with pytest.raises(InputError, match=r"takes no DTW band, got 2"):
+        TrainRequest(GOOD, kind="least-squares", sakoe_chiba_radius=2).resolved()
+
+
+def test_a_search_request_gives_each_method_its_own_options() -> None:
+    ppo = SearchRequest(method="ppo", ppo={"n_steps": 64}).options()
+    assert ppo["ppo_params"] == {"n_steps": 64} and ppo["total_timesteps"] == 20_480
+    exhaustive = SearchRequest(method="exhaustive", sequence_length=1).options()
+    assert exhaustive == {"sequence_length": 1, "fuel_weight": 0.0, "max_sequences": 100_000}
+    assert SearchRequest(method="cem", cem={"population": 8}).options()["population"] == 8
+    with pytest.raises(InputError, match="ppo settings apply to method ppo only, not 'random'"):
+        SearchRequest(method="random", ppo={"gamma": 0.9}).options()
+    assert SearchRequest().scorer().sakoe_chiba_radius == 2
+
+
+# Training.
+
+
+def test_training_draws_from_the_seed(paper: Scenario) -> None:
+    request = TrainRequest(GOOD, metric="euclidean", n_realisations=5)
+    trained = train_for_sequence(paper, request, seed=3)
+    assert isinstance(trained.model, InertiaClassifier)
+    same = train_classifier(paper, GOOD, 5, np.random.default_rng(3), metric="euclidean")
+    assert trained.model.to_json() == same.to_json()
+    assert trained.summary()["n_realisations"] == 5 and trained.summary()["kind"] == "clustering"
+    default = train_for_sequence(paper, TrainRequest(GOOD, n_realisations=4), seed=3)
+    assert isinstance(default.model, MarginalLikelihoodClassifier)
+
+
+def test_others_train_one_after_another_from_one_generator(paper: Scenario) -> None:
+    others = train_others(paper, GOOD, ["likelihood", "1nn:euclidean"], 4, np.random.default_rng(2))
+    assert list(others) == ["likelihood", "1nn:euclidean"]
+    assert isinstance(others["likelihood"], LikelihoodClassifier)
+    assert others["1nn:euclidean"].metric == "euclidean"
+
+
+# The sweep: one seeding scheme, and the scenario it names.
+
+
+def test_the_sweep_seeds_its_streams_from_one_seed(
+    euclidean_classifier: InertiaClassifier,
+) -> None:
+    request = SweepRequest(multiples=(1, 6), others=("likelihood",), n_train=4, n_test=20)
+    outcome = sweep_with_limit(euclidean_classifier, request, seed=9)
+    streams = np.random.SeedSequence(9).spawn(3)
+    test_seed = int(streams[1].generate_state(1)[0])
+    assert outcome.sweep.seed == test_seed
+    others = train_others(
+        euclidean_classifier.scenario_, GOOD, ["likelihood"], 4, np.random.default_rng(streams[0])
+    )
+    by_hand = run_sweep(
+        euclidean_classifier,
+        others=others,
+        multiples=(1, 6),
+        n_test=20,
+        limit_realisations=200,
+        seed=test_seed,
+    )
+    assert outcome.sweep == by_hand
+    inertia = run_inertia_sweep(euclidean_classifier, seed=int(streams[2].generate_state(1)[0]))
+    assert outcome.inertia == inertia
+    assert outcome.to_dict()["inertia"] == inertia.model_dump(mode="json")
+
+
+def test_a_sweep_runs_on_the_scenario_it_names(
+    euclidean_classifier: InertiaClassifier, paper: Scenario
+) -> None:
+    noisier = paper.with_uncertainty(gyro_noise_sigma_rad_s=3e-3)
+    request = SweepRequest(multiples=(1,), others=(), limit_realisations=0, inertia=False)
+    own = sweep_with_limit(euclidean_classifier, request, seed=1, scenario=paper)
+    named = sweep_with_limit(euclidean_classifier, request, seed=1, scenario=noisier)
+    assert named.sweep.levels["measurement"] == 3e-3 != own.sweep.levels["measurement"]
+
+
+def test_a_sweep_refuses_a_scenario_with_other_candidates(
+    euclidean_classifier: InertiaClassifier, paper: Scenario, scenario_like: type
+) -> None:
+    other = scenario_like({"a": np.diag([10.0, 11.0, 12.0]), "b": np.diag([20.0, 21.0, 22.0])})
+    request = SweepRequest(multiples=(1,), inertia=False)
+    with pytest.raises(InputError, match=r"has candidates \['a', 'b'\], not the ones"):
+        sweep_with_limit(euclidean_classifier, request, seed=1, scenario=other)
+    slower = preset("paper", timing={"sample_rate_hz": 10.0})
+    with pytest.raises(InputError, match=r"samples 10 times per step at 10 Hz; the classifier"):
+        check_sweep_scenario(slower, paper, GOOD)
+    fewer = preset("paper", thrusters={"n_levels": 3})
+    with pytest.raises(InputError, match=r"does not drive scenario 'paper': .* level index 4"):
+        check_sweep_scenario(fewer, paper, GOOD)
+
+
+# The paper.
+
+
+def test_the_paper_pipeline_keeps_its_seeds(tmp_path: Path) -> None:
+    """Training from the first spawned stream, the sweep's test draws from the seed's
+    own sweep streams: the figures the README quotes."""
+    outcome = run_paper(
+        tmp_path, metric="euclidean", n_realisations=5, multiples=(1, 8), n_test=20, seed=2
+    )
+    streams = np.random.SeedSequence(2).spawn(3)
+    assert outcome.sweep.seed == int(streams[1].generate_state(1)[0])
+    classifier = InertiaClassifier.load(tmp_path / "classifier.json")
+    again = train_classifier(
+        Scenario.paper(), GOOD, 5, np.random.default_rng(streams[0]), metric="euclidean"
+    )
+    assert classifier.to_json() == again.to_json()
+    assert outcome.summary["sequence_from"] == "given" and outcome.summary["seed"] == 2
+    assert set(outcome.sweep.others) == {"least-squares"} and outcome.sweep.limit
+    assert not (tmp_path / "search.json").exists()

@@ -1,0 +1,181 @@
+"""The command line and the worker give the same numbers for the same inputs and seed.
+
+Both call the same pipelines (:mod:`inertia_id.pipelines`) with the same seeding; here
+the worker runs its real handler through the job runner on a real database, and the
+CLI runs in-process, from the same scenario, params and seed.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import pytest
+from click.testing import CliRunner
+
+from app.db import ClassifierRow
+from inertia_id.cli import main
+from worker.runner import execute_job
+
+if TYPE_CHECKING:
+    from conftest import Store
+
+WORKER = "parity@host"
+GOOD = [[4, 4, 4, 0, 0, 0]] * 4
+GOOD_TEXT = ";".join(",".join(map(str, row)) for row in GOOD)
+
+
+def run_job(store: Store, job_type: str, params: dict[str, Any], seed: int) -> dict[str, Any]:
+    job_id = store.add_job(job_type, params, seed=seed)
+    assert execute_job(job_id, settings=store.settings, worker_name=WORKER) == "succeeded", (
+        store.job(job_id).error
+    )
+    result = store.job(job_id).result
+    assert result is not None
+    return result
+
+
+def run_cli(args: list[str]) -> None:
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == 0, result.output
+
+
+@pytest.mark.parametrize(
+    ("cli", "params"),
+    [
+        (["--metric", "euclidean"], {"metric": "euclidean"}),
+        ([], {}),  # no kind, no metric: the default kind, on both sides
+    ],
+)
+def test_train_gives_the_same_classifier(
+    store: Store,
+    tmp_path: Path,
+    cli: list[str],
+    params: dict[str, Any],
+    request: pytest.FixtureRequest,
+) -> None:
+    if not params and request.node.callspec.params.get("store") == "postgresql":
+        request.applymarker(
+            pytest.mark.xfail(
+                strict=True,
+                raises=AssertionError,
+                reason="the service's classifiers.metric column is VARCHAR(16), and the "
+                "default kind's metric, 'marginal-mahalanobis', has 20 characters: "
+                "PostgreSQL refuses the row (app/db, the service layer's to fix)",
+            )
+        )
+    out = tmp_path / "classifier.json"
+    run_cli(["train", "--sequence", GOOD_TEXT, "-n", "6", "--seed", "4", "--out", str(out), *cli])
+    result = run_job(store, "train", {"sequence": GOOD, "n_realisations": 6, **params}, seed=4)
+    with store.db.session() as session:
+        row = session.get(ClassifierRow, result["classifier_id"])
+        assert row is not None
+        document = row.document
+    assert json.loads(document) == json.loads(out.read_text())
+
+
+def test_sweep_gives_the_same_points(store: Store, tmp_path: Path) -> None:
+    classifier = tmp_path / "classifier.json"
+    run_cli(
+        [
+            "train",
+            "--metric",
+            "euclidean",
+            "--sequence",
+            GOOD_TEXT,
+            "-n",
+            "6",
+            "--seed",
+            "1",
+            "--out",
+            str(classifier),
+        ]
+    )
+    trained = run_job(
+        store, "train", {"sequence": GOOD, "metric": "euclidean", "n_realisations": 6}, seed=1
+    )
+    out = tmp_path / "sweep.json"
+    run_cli(
+        [
+            "sweep",
+            "--classifier",
+            str(classifier),
+            "--multiples",
+            "1,6",
+            "--noise",
+            "process",
+            "--noise",
+            "thrust_scale",
+            "--others",
+            "least-squares,1nn:euclidean",
+            "--limit-realisations",
+            "3",
+            "--n-train",
+            "4",
+            "--n-test",
+            "20",
+            "--seed",
+            "7",
+            "--out",
+            str(out),
+        ]
+    )
+    params = {
+        "classifier_id": trained["classifier_id"],
+        "multiples": [1.0, 6.0],
+        "noises": ["process", "thrust_scale"],
+        "others": ["least-squares", "1nn:euclidean"],
+        "limit_realisations": 3,
+        "n_train": 4,
+        "n_test": 20,
+    }
+    swept = run_job(store, "sweep", params, seed=7)
+    cli = json.loads(out.read_text())
+    assert swept == cli
+    # Both swept the bodies off the candidates too: one default, the pipeline's.
+    assert (
+        cli["inertia"]["points"]
+        and cli["limit"]
+        and set(cli["others"])
+        == {
+            "least-squares",
+            "1nn:euclidean",
+        }
+    )
+
+
+def test_a_small_search_finds_the_same_sequence(store: Store, tmp_path: Path) -> None:
+    out = tmp_path / "search.json"
+    run_cli(
+        [
+            "search",
+            "--method",
+            "random",
+            "--length",
+            "2",
+            "--timesteps",
+            "8",
+            "--search-realisations",
+            "3",
+            "--search-metric",
+            "euclidean",
+            "--seed",
+            "5",
+            "--out",
+            str(out),
+        ]
+    )
+    params = {
+        "method": "random",
+        "sequence_length": 2,
+        "timesteps": 8,
+        "n_realisations": 3,
+        "metric": "euclidean",
+    }
+    found = run_job(store, "search", params, seed=5)
+    cli = json.loads(out.read_text())
+    for side in (found, cli):
+        side.pop("wall_time_s")
+    assert found == cli
+    assert set(cli["baselines"]) == {"hand-designed", "axis-in-turn"}
