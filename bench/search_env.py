@@ -4,7 +4,7 @@ For each sequence length L, on Scenario.paper() with --realisations (20) realisa
 candidate and metric dtw, --sequences (50) seeded random (L, 6) sequences of level indices
 0..4 are drawn, and every step of an episode scores the prefix played so far:
 
-- plain: inertia_id.reference.plain_prefix_score, which re-simulates the whole prefix one
+- plain: inertia_id.search.reference.plain_prefix_score, which re-simulates the whole prefix one
   series at a time (Python RK4) and clusters it with tslearn's
   TimeSeriesKMeans(n_clusters=5, metric="dtw", random_state=0) with its defaults;
 - fast: SequenceSearchEnv(scenario, sequence_length=L, seed=SEED, n_realisations=R),

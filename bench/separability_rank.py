@@ -4,7 +4,7 @@ Draws ``--sequences`` (200) random 4-step sequences of the paper preset (every l
 index uniform, per thruster and step) and scores each on the same noise draw (seed
 ``--seed``, ``--realisations`` per candidate) twice: the clustering F1 of the search's
 scorer (``ScorerSettings`` defaults: DTW k-means, band 2, objective "f1") and the
-separability score (:mod:`inertia_id.separability`) of the very same simulated series,
+separability score (:mod:`inertia_id.search.objectives`) of the very same simulated series,
 in several variants: the search's default (shrinkage 1, noise margin 4) and the
 Ledoit–Wolf covariance at margins 1 and 3, with and without the correction for the
 noise of the estimated means. Printed: Spearman's rank correlation of each variant with

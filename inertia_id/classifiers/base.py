@@ -267,12 +267,17 @@ class BaseClassifier(BaseEstimator):
         :param rng: source of the simulated noise (and of a seed the kind needs); the same
             state gives the same model.
         """
-        steps = scenario.check_sequence(sequence)
+        self._check_params()
+        self._fit_simulated(scenario, scenario.check_sequence(sequence), n_realisations, rng)
+        return self
+
+    def _fit_simulated(
+        self, scenario: Scenario, steps: np.ndarray, n_realisations: int, rng: np.random.Generator
+    ) -> None:
+        """Simulate the training set and fit; a kind that needs other runs overrides it."""
         X, y = simulate(scenario, steps, n_realisations, rng).dataset()
         self._draw_seed(rng)
-        return self.fit(
-            X, y, candidate_names=scenario.candidate_names, scenario=scenario, sequence=steps
-        )
+        self.fit(X, y, candidate_names=scenario.candidate_names, scenario=scenario, sequence=steps)
 
     def _prepare(
         self,

@@ -89,15 +89,8 @@ from ..errors import InputError
 from ..physics.scenario import Scenario
 from ..physics.series import check_series
 from ..physics.simulate import simulate
+from . import gaussian
 from .base import BaseClassifier
-from .gaussian import (
-    MAX_FOLDS,
-    cholesky,
-    cv_intensity,
-    means_and_scatter,
-    shrink,
-    stratified_folds,
-)
 
 __all__ = [
     "AXES_GRID",
@@ -167,7 +160,7 @@ class _Mixture:
         for c, (process, measurement) in enumerate(grid):
             covariance = components[0] + process**2 * components[1] + measurement**2 * components[2]
             try:
-                chol = cholesky(covariance)
+                chol = gaussian.cholesky(covariance)
             except InputError as exc:
                 raise InputError(
                     f"at process x{process:g}, measurement x{measurement:g}: {exc}"
@@ -263,44 +256,26 @@ class MarginalLikelihoodClassifier(BaseClassifier):
 
     # Fitting.
 
-    def fit(
-        self,
-        X: Any,
-        y: Any,
-        *,
-        candidate_names: list[str] | None = None,
-        scenario: Scenario | None = None,
-        sequence: Any = None,
-    ) -> Self:
-        """Not from one set of series: the noise components need three runs of the same
-        realisations (:meth:`fit_components`, :meth:`fit_scenario`)."""
+    def _fit(self, X: np.ndarray, y: np.ndarray) -> np.ndarray:
+        # Not from one set of series: the noise components need three runs of the same
+        # realisations.
         raise InputError(
             "the marginal-likelihood classifier is fitted from each noise source's part of "
             "the same realisations: use fit_components, or fit_scenario / train_marginal / "
             "train_classifier, which simulate them"
         )
 
-    def fit_scenario(
-        self,
-        scenario: Scenario,
-        sequence: Any,
-        n_realisations: int,
-        rng: np.random.Generator,
-    ) -> Self:
-        """Simulate every candidate's noise components under ``sequence`` and fit.
-
-        The same ``n_realisations`` per candidate are simulated three times from one
+    def _fit_simulated(
+        self, scenario: Scenario, steps: np.ndarray, n_realisations: int, rng: np.random.Generator
+    ) -> None:
+        """The same ``n_realisations`` per candidate simulated three times from one
         generator state: process and measurement noise off, process noise only at 1x,
         measurement noise only at 1x (see :meth:`fit_components`).
 
-        :param n_realisations: realisations per candidate; at least 3, and 100 or more to
-            be at the limit: on the paper preset 100 come within 0.4 points of a
-            likelihood fitted at each noise level on 400 (20 within 2.4). Simulation is
-            cheap; fitting takes about a second either way.
-        :param rng: source of the simulated noise; the same state gives the same model.
+        100 realisations or more put it at the limit: on the paper preset 100 come within
+        0.4 points of a likelihood fitted at each noise level on 400 (20 within 2.4).
+        Simulation is cheap; fitting takes about a second either way.
         """
-        self._check_params()
-        steps = scenario.check_sequence(sequence)
         # One child stream, replayed for each run: the same standard-normal draws, scaled.
         stream = rng.spawn(1)[0]
         runs = [
@@ -315,7 +290,7 @@ class MarginalLikelihoodClassifier(BaseClassifier):
             for process, measurement in ((0.0, 0.0), (1.0, 0.0), (0.0, 1.0))
         ]
         (X_quiet, y), (X_process, _), (X_measurement, _) = runs
-        return self.fit_components(
+        self.fit_components(
             X_quiet,
             X_process,
             X_measurement,
@@ -339,7 +314,7 @@ class MarginalLikelihoodClassifier(BaseClassifier):
         """Estimate the mean responses and the three noise components.
 
         The three arrays hold the *same* realisations (simulated from the same
-        generator state, as :meth:`fit_scenario` does), so that their differences
+        generator state, as :meth:`fit_scenario` does them), so that their differences
         are each noise source's contribution alone.
 
         :param X_quiet: (n_series, length, 3) responses with process and measurement
@@ -364,8 +339,8 @@ class MarginalLikelihoodClassifier(BaseClassifier):
         quiet = X.reshape(len(X), -1)
         # Each source alone: the differences of the same realisations.
         parts = [quiet] + [arr.reshape(len(X), -1) - quiet for arr in responses[1:]]
-        folds = stratified_folds(y, min(MAX_FOLDS, int(np.bincount(y).min())))
-        intensities = np.array([cv_intensity(F, y, n_candidates, folds) for F in parts])
+        folds = gaussian.stratified_folds(y, min(gaussian.MAX_FOLDS, int(np.bincount(y).min())))
+        intensities = np.array([gaussian.cv_intensity(F, y, n_candidates, folds) for F in parts])
         means, components = self._estimate(parts, y, n_candidates, intensities)
         spread = float(np.trace(components.sum(axis=0))) / means.shape[1]
         if not spread > 1e-20 * float(np.mean(means**2)):
@@ -390,10 +365,12 @@ class MarginalLikelihoodClassifier(BaseClassifier):
         parts: list[np.ndarray], y: np.ndarray, n_candidates: int, intensities: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
         """Means from the quiet part, and each part's shrunk pooled covariance."""
-        means = means_and_scatter(parts[0], y, n_candidates)[0]
+        means = gaussian.means_and_scatter(parts[0], y, n_candidates)[0]
         components = np.stack(
             [
-                _symmetric(shrink(means_and_scatter(F, y, n_candidates)[2], intensity))
+                _symmetric(
+                    gaussian.shrink(gaussian.means_and_scatter(F, y, n_candidates)[2], intensity)
+                )
                 for F, intensity in zip(parts, intensities, strict=True)
             ]
         )

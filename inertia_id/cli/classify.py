@@ -11,10 +11,12 @@ from ..pipelines import SweepRequest
 from .options import (
     DEFAULT_SEQUENCE_TEXT,
     LazyChoice,
+    classifier_option,
     friendly_errors,
     load_scenario,
     multiples_option,
     n_test_option,
+    out_option,
     parse_multiples,
     parse_sequence,
     progress_bar,
@@ -82,13 +84,7 @@ def _noises() -> tuple[str, ...]:
     "1nn); default unconstrained.",
 )
 @seed_option
-@click.option(
-    "--out",
-    default="classifier.json",
-    show_default=True,
-    type=click.Path(dir_okay=False),
-    help="Where to write the classifier JSON.",
-)
+@out_option("classifier.json", "Where to write the classifier JSON.")
 @friendly_errors
 def train_cmd(
     preset_name: str,
@@ -142,13 +138,7 @@ def train_cmd(
 
 
 @click.command("sweep")
-@click.option(
-    "--classifier",
-    "classifier_path",
-    required=True,
-    type=click.Path(exists=True, dir_okay=False),
-    help="Classifier JSON from `train` (any kind).",
-)
+@classifier_option("Classifier JSON from `train` (any kind).")
 @multiples_option
 @click.option(
     "--noise",
@@ -190,7 +180,7 @@ def train_cmd(
 )
 @n_test_option(SweepRequest.default("n_test"))
 @seed_option
-@click.option("--out", default="sweep.json", show_default=True, type=click.Path(dir_okay=False))
+@out_option("sweep.json", "Where to write the sweep JSON.")
 @friendly_errors
 def sweep_cmd(
     classifier_path: str,
@@ -246,13 +236,7 @@ def sweep_cmd(
 
 
 @click.command("identify")
-@click.option(
-    "--classifier",
-    "classifier_path",
-    required=True,
-    type=click.Path(exists=True, dir_okay=False),
-    help="Classifier JSON from `train`.",
-)
+@classifier_option("Classifier JSON from `train`.")
 @click.option(
     "--telemetry",
     "telemetry_path",

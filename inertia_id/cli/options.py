@@ -181,6 +181,28 @@ def seed_option(func: F) -> F:
     )(func)
 
 
+def out_option(default: str | None, help_text: str, *, folder: bool = False) -> Callable[[F], F]:
+    """``--out`` (or ``--out-dir``): where a command writes."""
+    return click.option(
+        "--out-dir" if folder else "--out",
+        default=default,
+        show_default=default is not None,
+        type=click.Path(dir_okay=folder, file_okay=not folder),
+        help=help_text,
+    )
+
+
+def classifier_option(help_text: str) -> Callable[[F], F]:
+    """``--classifier FILE``: a classifier document from ``train``."""
+    return click.option(
+        "--classifier",
+        "classifier_path",
+        required=True,
+        type=click.Path(exists=True, dir_okay=False),
+        help=help_text,
+    )
+
+
 def parse_multiples(text: str | None) -> list[float] | None:
     """``"1,2,4"`` -> ``[1.0, 2.0, 4.0]``; None stays None (the sweep's default)."""
     if text is None:

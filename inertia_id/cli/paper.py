@@ -12,6 +12,7 @@ from .options import (
     friendly_errors,
     multiples_option,
     n_test_option,
+    out_option,
     parse_multiples,
     parse_sequence,
     progress_bar,
@@ -60,13 +61,7 @@ def _metrics() -> tuple[str, ...]:
 @multiples_option
 @n_test_option(SweepRequest.default("n_test"))
 @seed_option
-@click.option(
-    "--out-dir",
-    default="results/paper",
-    show_default=True,
-    type=click.Path(file_okay=False),
-    help="Where results and report.html go.",
-)
+@out_option("results/paper", "Where results and report.html go.", folder=True)
 @friendly_errors
 def paper_cmd(
     sequence_text: str | None,

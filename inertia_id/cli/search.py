@@ -14,6 +14,7 @@ from .options import (
     LazyChoice,
     friendly_errors,
     load_scenario,
+    out_option,
     parse_pairs,
     parse_radius,
     progress_bar,
@@ -48,83 +49,77 @@ def _metrics() -> tuple[str, ...]:
     return SCORER_METRICS
 
 
+def _option(flags: str, field: str, help_text: str, **kwargs: Any) -> Callable[[F], F]:
+    """An option whose default is the search request's: ``flags`` is "--flag" or
+    "--flag name" (the parameter name the command gets)."""
+    default = kwargs.pop("default", SearchRequest.default(field))
+    return click.option(
+        *flags.split(), default=default, show_default=True, help=help_text, **kwargs
+    )
+
+
+def _pairs(flag: str, help_text: str) -> Callable[[F], F]:
+    name = f"{flag.removeprefix('--')}_pairs"
+    return click.option(flag, name, multiple=True, metavar="NAME=VALUE", help=help_text)
+
+
 def search_options(func: F) -> F:
     """How a search scores and spends its budget (``search`` and ``paper``)."""
     radius = SearchRequest.default("sakoe_chiba_radius")
     options = [
-        click.option(
-            "--length",
+        _option(
+            "--length sequence_length",
             "sequence_length",
-            default=SearchRequest.default("sequence_length"),
-            show_default=True,
+            "Actuation steps L of the sequence.",
             type=click.IntRange(1, 50),
-            help="Actuation steps L of the sequence.",
         ),
-        click.option(
+        _option(
             "--timesteps",
-            default=SearchRequest.default("timesteps"),
-            show_default=True,
+            "timesteps",
+            "Environment-step budget (ppo, cem, random).",
             type=click.IntRange(1),
-            help="Environment-step budget (ppo, cem, random).",
         ),
-        click.option(
+        _option(
             "--objective",
-            default=SearchRequest.default("objective"),
-            show_default=True,
+            "objective",
+            "What scores a sequence: the clustering F1 (the paper's) or the Bhattacharyya "
+            "separability bound (no clustering, much faster).",
             type=LazyChoice(_objectives),
-            help="What scores a sequence: the clustering F1 (the paper's) or the "
-            "Bhattacharyya separability bound (no clustering, much faster).",
         ),
-        click.option(
-            "--search-metric",
-            "search_metric",
-            default=SearchRequest.default("metric"),
-            show_default=True,
+        _option(
+            "--search-metric search_metric",
+            "metric",
+            "Clustering metric that scores sequences (dtw is the paper's).",
             type=LazyChoice(_metrics),
-            help="Clustering metric that scores sequences (dtw is the paper's).",
         ),
-        click.option(
+        _option(
             "--radius",
+            "sakoe_chiba_radius",
+            "DTW Sakoe-Chiba band half-width in samples, or 'none'.",
             default="none" if radius is None else str(radius),
-            show_default=True,
-            help="DTW Sakoe-Chiba band half-width in samples, or 'none'.",
         ),
-        click.option(
-            "--search-realisations",
-            default=SearchRequest.default("n_realisations"),
-            show_default=True,
+        _option(
+            "--search-realisations search_realisations",
+            "n_realisations",
+            "Realisations per candidate in each environment step.",
             type=click.IntRange(1),
-            help="Realisations per candidate in each environment step.",
         ),
-        click.option(
+        _option(
             "--fuel-weight",
-            default=SearchRequest.default("fuel_weight"),
-            show_default=True,
+            "fuel_weight",
+            "Reward cost per N m s of commanded impulse.",
             type=click.FloatRange(0),
-            help="Reward cost per N m s of commanded impulse.",
         ),
-        click.option(
+        _option(
             "--patience",
-            default=SearchRequest.default("patience_episodes"),
-            show_default=True,
+            "patience_episodes",
+            "ppo/cem/random: stop once F1 = 1 and no better sequence came for this many episodes.",
             type=click.IntRange(1),
-            help="ppo/cem/random: stop once F1 = 1 and no better sequence came for this many "
-            "episodes.",
         ),
-        click.option(
-            "--cem",
-            "cem_pairs",
-            multiple=True,
-            metavar="NAME=VALUE",
-            help="Override a CEM setting (repeatable): population, elite_fraction, smoothing.",
+        _pairs(
+            "--cem", "Override a CEM setting (repeatable): population, elite_fraction, smoothing."
         ),
-        click.option(
-            "--ppo",
-            "ppo_pairs",
-            multiple=True,
-            metavar="NAME=VALUE",
-            help="Override a PPO hyperparameter (repeatable), e.g. --ppo n_steps=1024.",
-        ),
+        _pairs("--ppo", "Override a PPO hyperparameter (repeatable), e.g. --ppo n_steps=1024."),
     ]
     for option in reversed(options):
         func = option(func)
@@ -207,21 +202,19 @@ def search_with_progress(
 
 @click.command("search")
 @scenario_options
-@click.option(
+@_option(
     "--method",
-    default=SearchRequest.default("method"),
-    show_default=True,
-    type=LazyChoice(_methods),
-    help="PPO (the paper's), the cross-entropy method, exhaustive (small spaces) or random "
+    "method",
+    "PPO (the paper's), the cross-entropy method, exhaustive (small spaces) or random "
     "(the baseline).",
+    type=LazyChoice(_methods),
 )
 @search_options
-@click.option(
+@_option(
     "--max-sequences",
-    default=SearchRequest.default("max_sequences"),
-    show_default=True,
+    "max_sequences",
+    "exhaustive: refuse spaces larger than this.",
     type=click.IntRange(1),
-    help="exhaustive: refuse spaces larger than this.",
 )
 @click.option(
     "--policy",
@@ -230,7 +223,7 @@ def search_with_progress(
     help="ppo: save the trained policy here (stable-baselines3 zip).",
 )
 @seed_option
-@click.option("--out", default="search.json", show_default=True, type=click.Path(dir_okay=False))
+@out_option("search.json", "Where to write the search JSON.")
 @friendly_errors
 def search_cmd(
     preset_name: str,

@@ -19,7 +19,6 @@ collapsed onto one sequence (a draw differs from it with probability below
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Callable
 from typing import Any
 
@@ -27,10 +26,8 @@ import numpy as np
 
 from ..errors import InputError
 from ..physics.scenario import Scenario
-from .env import SequenceSearchEnv
-from .loop import finish, report_point
-from .random import _check_budget
-from .records import EpisodeRecord, SearchProgress, SearchResult, SearchTracker
+from .loop import SearchRun, check_budget, report_point
+from .records import SearchProgress, SearchResult
 from .scorer import ScorerSettings
 
 __all__ = ["CEM_DEFAULTS", "CONVERGED", "cem_search", "check_cem_params"]
@@ -68,15 +65,6 @@ def _sample(rng: np.random.Generator, probabilities: np.ndarray, count: int) -> 
     return np.minimum(levels, probabilities.shape[-1] - 1)
 
 
-def _play(env: SequenceSearchEnv, tracker: SearchTracker, sequence: np.ndarray) -> EpisodeRecord:
-    env.reset()
-    for row in sequence:
-        _, reward, terminated, _, info = env.step(row)
-        tracker.on_step(reward, terminated, info)
-    assert tracker.last is not None
-    return tracker.last
-
-
 def cem_search(
     scenario: Scenario,
     *,
@@ -112,17 +100,10 @@ def cem_search(
     :param seed: seeds the environment's noise and the sampling: the same seed gives the
         same learning curve.
     """
-    started = time.perf_counter()
-    _check_budget("total_timesteps", total_timesteps, sequence_length)
+    check_budget("total_timesteps", total_timesteps, sequence_length)
     n_elite = check_cem_params(population, elite_fraction, smoothing)
-    env = SequenceSearchEnv(
-        scenario,
-        sequence_length=sequence_length,
-        fuel_weight=fuel_weight,
-        seed=seed,
-        settings=settings,
-    )
-    tracker = SearchTracker(fuel_weight=fuel_weight, patience_episodes=patience_episodes)
+    run = SearchRun(scenario, sequence_length, fuel_weight, seed, settings, patience_episodes)
+    tracker = run.tracker
     # A stream of its own: random search draws from child 1 of the same seed sequence.
     rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(3)[2])
     m = scenario.n_levels
@@ -137,7 +118,7 @@ def cem_search(
             if should_stop is not None and should_stop():
                 stopped = "cancelled"
                 break
-            ranked.append((tracker.rank(_play(env, tracker, sequence)), sequence))
+            ranked.append((tracker.rank(run.play(sequence)), sequence))
             if tracker.reached_target():
                 stopped = "target"
                 break
@@ -151,25 +132,17 @@ def cem_search(
             probabilities = (1.0 - smoothing) * probabilities + smoothing * frequencies
             if 1.0 - np.prod(probabilities.max(axis=-1)) < CONVERGED:
                 stopped = "converged"
-    return finish(
+    return run.finish(
         "cem",
-        env,
-        tracker,
-        seed=seed,
-        started=started,
         stopped=stopped,
         settings={
-            "sequence_length": sequence_length,
             "timesteps": total_timesteps,
-            "fuel_weight": fuel_weight,
-            "seed": seed,
             "patience_episodes": patience_episodes,
             "cem": {
                 "population": population,
                 "elite_fraction": elite_fraction,
                 "smoothing": smoothing,
             },
-            "scorer": env.settings.as_dict(),
         },
         n_fresh_draws=n_fresh_draws,
     )

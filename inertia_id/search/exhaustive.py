@@ -3,16 +3,14 @@
 from __future__ import annotations
 
 import itertools
-import time
 from collections.abc import Callable, Iterator
 
 import numpy as np
 
 from ..errors import InputError
 from ..physics.scenario import Scenario
-from .env import SequenceSearchEnv
-from .loop import finish, run_episodes
-from .records import SearchProgress, SearchResult, SearchTracker, space_size
+from .loop import SearchRun
+from .records import SearchProgress, SearchResult, space_size
 from .scorer import ScorerSettings
 
 __all__ = ["exhaustive_search"]
@@ -58,44 +56,23 @@ def exhaustive_search(
             f"than the budget of {max_sequences} for exhaustive search; shorten the sequence, use "
             f"fewer levels or thrusters, raise the budget, or use random or PPO search"
         )
-    started = time.perf_counter()
-    env = SequenceSearchEnv(
-        scenario,
-        sequence_length=sequence_length,
-        fuel_weight=fuel_weight,
-        seed=seed,
-        settings=settings,
-    )
-    tracker = SearchTracker(fuel_weight=fuel_weight)
+    run = SearchRun(scenario, sequence_length, fuel_weight, seed, settings)
     rows = [np.asarray(r) for r in itertools.product(range(m), repeat=n)]
 
     def sequences() -> Iterator[np.ndarray]:
         for combo in itertools.product(range(len(rows)), repeat=sequence_length):
             yield np.stack([rows[i] for i in combo])
 
-    stopped = run_episodes(
-        env,
+    stopped = run.run_episodes(
         sequences(),
-        tracker,
         total_timesteps=size * sequence_length,
         report_every=report_every,
         progress=progress,
         should_stop=should_stop,
     )
-    params = {
-        "sequence_length": sequence_length,
-        "max_sequences": max_sequences,
-        "fuel_weight": fuel_weight,
-        "seed": seed,
-        "scorer": env.settings.as_dict(),
-    }
-    return finish(
+    return run.finish(
         "exhaustive",
-        env,
-        tracker,
-        seed=seed,
-        started=started,
         stopped=stopped,
-        settings=params,
+        settings={"max_sequences": max_sequences},
         n_fresh_draws=n_fresh_draws,
     )

@@ -1,9 +1,10 @@
-"""The episode loop every search shares, and how a search's result is assembled.
+"""What every search method shares: the environment and tracker, the episode loop, the
+learning curve, and the result.
 
-:func:`run_episodes` plays whole sequences in the environment until the budget, the
-target or a cancel; :func:`report_point` closes a learning-curve point and tells the
-caller; :func:`finish` re-scores the best sequence on fresh draws and builds the
-:class:`~inertia_id.search.records.SearchResult`.
+A method creates a :class:`SearchRun`, plays sequences in it (its own way: random
+draws, an enumeration, a sampling distribution, a policy), and calls
+:meth:`SearchRun.finish`, which re-scores the best sequence on fresh draws and builds
+the :class:`~inertia_id.search.records.SearchResult`.
 """
 
 from __future__ import annotations
@@ -15,8 +16,10 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
+from ..physics.scenario import Scenario
 from .env import SequenceSearchEnv
 from .records import (
+    EpisodeRecord,
     SearchProgress,
     SearchResult,
     SearchTracker,
@@ -24,47 +27,22 @@ from .records import (
     fresh_seed,
     space_size,
 )
+from .scorer import ScorerSettings
 
-__all__ = ["finish", "report_point", "run_episodes"]
+__all__ = ["SearchRun", "check_budget", "report_point"]
 
 
-def run_episodes(
-    env: SequenceSearchEnv,
-    sequences: Iterable[np.ndarray],
-    tracker: SearchTracker,
-    *,
-    total_timesteps: int,
-    report_every: int,
-    progress: Callable[[SearchProgress], None] | None = None,
-    should_stop: Callable[[], bool] | None = None,
-) -> str:
-    """Play whole sequences in ``env`` until the budget, the target or a cancel.
-
-    Returns why it stopped: "budget", "target", "cancelled" or "exhausted".
-    """
-    length = env.sequence_length
-    next_report = report_every
-    stopped = "exhausted"
-    for sequence in sequences:
-        if tracker.timesteps + length > total_timesteps:
-            stopped = "budget"
-            break
-        if should_stop is not None and should_stop():
-            stopped = "cancelled"
-            break
-        env.reset()
-        for row in sequence:
-            _, reward, terminated, _, info = env.step(row)
-            tracker.on_step(reward, terminated, info)
-        if tracker.timesteps >= next_report:
-            next_report += report_every
-            report_point(tracker, total_timesteps, progress)
-        if tracker.reached_target():
-            stopped = "target"
-            break
-    if not tracker.curve or tracker.curve[-1].timesteps != tracker.timesteps:
-        report_point(tracker, total_timesteps, progress)
-    return stopped
+def check_budget(name: str, value: int, sequence_length: int) -> None:
+    """A step budget must hold one whole sequence at least."""
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, int | np.integer)
+        or value < sequence_length
+    ):
+        raise InputError(
+            f"{name} must be an integer of at least one sequence ({sequence_length} steps), "
+            f"got {value!r}"
+        )
 
 
 def report_point(
@@ -72,6 +50,7 @@ def report_point(
     total_timesteps: int,
     progress: Callable[[SearchProgress], None] | None,
 ) -> None:
+    """Close a learning-curve point and tell ``progress``."""
     point = tracker.add_point()
     if progress is not None:
         progress(
@@ -85,43 +64,130 @@ def report_point(
         )
 
 
-def finish(
-    method: str,
-    env: SequenceSearchEnv,
-    tracker: SearchTracker,
-    *,
-    seed: int,
-    started: float,
-    stopped: str,
-    settings: dict[str, Any],
-    n_fresh_draws: int = 5,
-    policy_path: str | None = None,
-) -> SearchResult:
-    """Re-score the best sequence on fresh draws and assemble the result."""
-    if tracker.best is None:
-        raise InputError(
-            f"the search ended before one complete sequence (budget {settings.get('timesteps')} "
-            f"steps, sequences of {env.sequence_length})"
+class SearchRun:
+    """One search from start to result: its environment, tracker and clock.
+
+    :param patience_episodes: stop once the best F1 is 1 and nothing better came for
+        this many episodes; None = never.
+    """
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        sequence_length: int,
+        fuel_weight: float,
+        seed: int,
+        settings: ScorerSettings | None,
+        patience_episodes: int | None = None,
+    ) -> None:
+        self.started = time.perf_counter()
+        self.seed = seed
+        self.env = SequenceSearchEnv(
+            scenario,
+            sequence_length=sequence_length,
+            fuel_weight=fuel_weight,
+            seed=seed,
+            settings=settings,
         )
-    fresh = evaluate_sequence(
-        env.scenario,
-        tracker.best.sequence,
-        env.settings,
-        seed=fresh_seed(seed),
-        n_draws=n_fresh_draws,
-    )
-    return SearchResult(
-        method=method,
-        best=tracker.best,
-        fresh=fresh,
-        curve=list(tracker.curve),
-        timesteps=tracker.timesteps,
-        episodes=tracker.episodes,
-        wall_time_s=time.perf_counter() - started,
-        stopped=stopped,
-        space_size=space_size(env.scenario, env.sequence_length),
-        settings=settings,
-        policy_path=policy_path,
-        cache_hits=env.scorer.hits,
-        cache_misses=env.scorer.misses,
-    )
+        self.tracker = SearchTracker(fuel_weight=fuel_weight, patience_episodes=patience_episodes)
+
+    def play(self, sequence: np.ndarray) -> EpisodeRecord:
+        """One whole sequence as one episode; its record."""
+        self.env.reset()
+        for row in sequence:
+            _, reward, terminated, _, info = self.env.step(row)
+            self.tracker.on_step(reward, terminated, info)
+        assert self.tracker.last is not None  # the last step of an episode terminates it
+        return self.tracker.last
+
+    def run_episodes(
+        self,
+        sequences: Iterable[np.ndarray],
+        *,
+        total_timesteps: int,
+        report_every: int,
+        progress: Callable[[SearchProgress], None] | None = None,
+        should_stop: Callable[[], bool] | None = None,
+    ) -> str:
+        """Play sequences until the budget, the target or a cancel; a curve point every
+        ``report_every`` steps and at the end.
+
+        Returns why it stopped: "budget", "target", "cancelled" or "exhausted".
+        """
+        tracker = self.tracker
+        length = self.env.sequence_length
+        next_report = report_every
+        stopped = "exhausted"
+        for sequence in sequences:
+            if tracker.timesteps + length > total_timesteps:
+                stopped = "budget"
+                break
+            if should_stop is not None and should_stop():
+                stopped = "cancelled"
+                break
+            self.play(sequence)
+            if tracker.timesteps >= next_report:
+                next_report += report_every
+                report_point(tracker, total_timesteps, progress)
+            if tracker.reached_target():
+                stopped = "target"
+                break
+        self.close_curve(total_timesteps, progress)
+        return stopped
+
+    def close_curve(
+        self, total_timesteps: int, progress: Callable[[SearchProgress], None] | None
+    ) -> None:
+        """A last curve point, unless the last one already holds every step."""
+        curve = self.tracker.curve
+        if not curve or curve[-1].timesteps != self.tracker.timesteps:
+            report_point(self.tracker, total_timesteps, progress)
+
+    def finish(
+        self,
+        method: str,
+        *,
+        stopped: str,
+        settings: dict[str, Any],
+        n_fresh_draws: int = 5,
+        policy_path: str | None = None,
+    ) -> SearchResult:
+        """Re-score the best sequence on fresh draws and assemble the result.
+
+        :param settings: the method's own parameters; the length, fuel weight, seed and
+            scorer are added.
+        """
+        env, tracker = self.env, self.tracker
+        if tracker.best is None:
+            raise InputError(
+                f"the search ended before one complete sequence (budget "
+                f"{settings.get('timesteps')} steps, sequences of {env.sequence_length})"
+            )
+        fresh = evaluate_sequence(
+            env.scenario,
+            tracker.best.sequence,
+            env.settings,
+            seed=fresh_seed(self.seed),
+            n_draws=n_fresh_draws,
+        )
+        return SearchResult(
+            method=method,
+            best=tracker.best,
+            fresh=fresh,
+            curve=list(tracker.curve),
+            timesteps=tracker.timesteps,
+            episodes=tracker.episodes,
+            wall_time_s=time.perf_counter() - self.started,
+            stopped=stopped,
+            space_size=space_size(env.scenario, env.sequence_length),
+            settings={
+                "sequence_length": env.sequence_length,
+                "fuel_weight": env.fuel_weight,
+                "seed": self.seed,
+                **settings,
+                "scorer": env.settings.as_dict(),
+            },
+            policy_path=policy_path,
+            cache_hits=env.scorer.hits,
+            cache_misses=env.scorer.misses,
+        )

@@ -9,16 +9,13 @@ from __future__ import annotations
 
 import math
 import os
-import time
 from collections.abc import Callable
 from typing import Any
 
 from ..errors import InputError
 from ..physics.scenario import Scenario
-from .env import SequenceSearchEnv
-from .loop import finish, report_point
-from .random import _check_budget
-from .records import SearchProgress, SearchResult, SearchTracker
+from .loop import SearchRun, check_budget
+from .records import SearchProgress, SearchResult
 from .scorer import ScorerSettings
 
 __all__ = ["PPO_DEFAULTS", "check_ppo_params", "ppo_search"]
@@ -106,28 +103,20 @@ def ppo_search(
     :param seed: seeds the environment's noise, the policy and PPO's sampling: the same
         seed gives the same learning curve.
     """
-    started = time.perf_counter()
-    _check_budget("total_timesteps", total_timesteps, sequence_length)
+    check_budget("total_timesteps", total_timesteps, sequence_length)
     params = check_ppo_params(ppo_params)
     import torch
     from stable_baselines3 import PPO
 
     from .callback import SearchCallback
 
-    env = SequenceSearchEnv(
-        scenario,
-        sequence_length=sequence_length,
-        fuel_weight=fuel_weight,
-        seed=seed,
-        settings=settings,
-    )
-    tracker = SearchTracker(fuel_weight=fuel_weight, patience_episodes=patience_episodes)
-    callback = SearchCallback(tracker, total_timesteps, progress, should_stop)
+    run = SearchRun(scenario, sequence_length, fuel_weight, seed, settings, patience_episodes)
+    callback = SearchCallback(run.tracker, total_timesteps, progress, should_stop)
     threads = torch.get_num_threads()
     # A small MLP: one thread is as fast, and keeps the learning curve reproducible.
     torch.set_num_threads(1)
     try:
-        model = PPO("MlpPolicy", env, seed=seed, device="cpu", verbose=0, **params)
+        model = PPO("MlpPolicy", run.env, seed=seed, device="cpu", verbose=0, **params)
         model.learn(total_timesteps=total_timesteps, callback=callback)
         saved = None
         if policy_path is not None:
@@ -137,23 +126,14 @@ def ppo_search(
                 saved += ".zip"
     finally:
         torch.set_num_threads(threads)
-    if not tracker.curve or tracker.curve[-1].timesteps != tracker.timesteps:
-        report_point(tracker, total_timesteps, progress)
-    return finish(
+    run.close_curve(total_timesteps, progress)
+    return run.finish(
         "ppo",
-        env,
-        tracker,
-        seed=seed,
-        started=started,
         stopped=callback.stopped,
         settings={
-            "sequence_length": sequence_length,
             "timesteps": total_timesteps,
-            "fuel_weight": fuel_weight,
-            "seed": seed,
             "patience_episodes": patience_episodes,
             "ppo": params,
-            "scorer": env.settings.as_dict(),
         },
         n_fresh_draws=n_fresh_draws,
         policy_path=saved,

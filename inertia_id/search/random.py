@@ -2,16 +2,13 @@
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable, Iterator
 
 import numpy as np
 
-from ..errors import InputError
 from ..physics.scenario import Scenario
-from .env import SequenceSearchEnv
-from .loop import finish, run_episodes
-from .records import SearchProgress, SearchResult, SearchTracker
+from .loop import SearchRun, check_budget
+from .records import SearchProgress, SearchResult
 from .scorer import ScorerSettings
 
 __all__ = ["random_search"]
@@ -40,57 +37,24 @@ def random_search(
     :param report_every: environment steps between learning-curve points (2048 = one
         PPO rollout at the paper's n_steps).
     """
-    started = time.perf_counter()
-    _check_budget("total_timesteps", total_timesteps, sequence_length)
-    env = SequenceSearchEnv(
-        scenario,
-        sequence_length=sequence_length,
-        fuel_weight=fuel_weight,
-        seed=seed,
-        settings=settings,
-    )
-    tracker = SearchTracker(fuel_weight=fuel_weight, patience_episodes=patience_episodes)
+    check_budget("total_timesteps", total_timesteps, sequence_length)
+    run = SearchRun(scenario, sequence_length, fuel_weight, seed, settings, patience_episodes)
     rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(2)[1])
 
     def sequences() -> Iterator[np.ndarray]:
         while True:
             yield rng.integers(0, scenario.n_levels, (sequence_length, scenario.n_thrusters))
 
-    stopped = run_episodes(
-        env,
+    stopped = run.run_episodes(
         sequences(),
-        tracker,
         total_timesteps=total_timesteps,
         report_every=report_every,
         progress=progress,
         should_stop=should_stop,
     )
-    params = {
-        "sequence_length": sequence_length,
-        "timesteps": total_timesteps,
-        "fuel_weight": fuel_weight,
-        "seed": seed,
-        "scorer": env.settings.as_dict(),
-    }
-    return finish(
+    return run.finish(
         "random",
-        env,
-        tracker,
-        seed=seed,
-        started=started,
         stopped=stopped,
-        settings=params,
+        settings={"timesteps": total_timesteps},
         n_fresh_draws=n_fresh_draws,
     )
-
-
-def _check_budget(name: str, value: int, sequence_length: int) -> None:
-    if (
-        isinstance(value, bool)
-        or not isinstance(value, int | np.integer)
-        or value < sequence_length
-    ):
-        raise InputError(
-            f"{name} must be an integer of at least one sequence ({sequence_length} steps), "
-            f"got {value!r}"
-        )

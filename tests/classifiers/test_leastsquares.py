@@ -16,31 +16,8 @@ from inertia_id.physics.estimate import (
 )
 
 GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
-# Every axis torqued in both senses and at two levels, one step at a time, so that the
-# rates turn and all six inertia parameters are excited (condition number about 5).
+# Every axis torqued in both senses and at two levels: all six parameters excited.
 MIXED_SEQUENCE = [[4, 0, 0, 0, 2, 0], [0, 4, 0, 0, 0, 2], [0, 0, 4, 2, 0, 0], [2, 2, 0, 0, 0, 4]]
-# A full tensor: products of inertia of a few kg m², principal axes off the body axes.
-TILTED = np.array([[50.0, 3.0, -2.0], [3.0, 30.0, 1.0], [-2.0, 1.0, 45.0]])
-I0 = np.diag([100.0, 60.0, 90.0])
-
-
-def relative_error(estimate: np.ndarray, truth: np.ndarray) -> float:
-    return float(np.linalg.norm(estimate - truth) / np.linalg.norm(truth))
-
-
-@pytest.fixture(scope="module")
-def quiet_tilted(
-    scenario_like: Callable[..., Scenario], zero_uncertainty: dict[str, Any]
-) -> Callable[[float], Scenario]:
-    """The tilted body (and a heavier twin) with no noise, at a given low-pass constant."""
-
-    def build(tau_s: float) -> Scenario:
-        return scenario_like(
-            {"tilted": TILTED, "heavier": 1.1 * TILTED},
-            uncertainty={**zero_uncertainty, "lowpass_time_constant_s": tau_s},
-        )
-
-    return build
 
 
 @pytest.fixture(scope="module")
@@ -86,10 +63,14 @@ def test_finite_differences_collapse_where_the_integral_form_holds(
 
 
 def test_distances_without_noise_are_the_tensor_gaps(
-    quiet_tilted: Callable[[float], Scenario],
+    scenario_like: Callable[..., Scenario], zero_uncertainty: dict[str, Any]
 ) -> None:
     """Noise-free: zero to the true tensor; |I - 1.1 I|_F / |1.1 I|_F = 0.1/1.1 to its twin."""
-    scenario = quiet_tilted(0.1)
+    tilted = np.array([[50.0, 3.0, -2.0], [3.0, 30.0, 1.0], [-2.0, 1.0, 45.0]])
+    scenario = scenario_like(
+        {"tilted": tilted, "heavier": 1.1 * tilted},
+        uncertainty={**zero_uncertainty, "lowpass_time_constant_s": 0.1},
+    )
     X, y = simulate(scenario, MIXED_SEQUENCE, 1, np.random.default_rng(0)).dataset()
     frobenius = LeastSquaresClassifier("frobenius").fit(
         X, y, scenario=scenario, sequence=MIXED_SEQUENCE

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from sklearn.linear_model import Ridge, RidgeClassifierCV
 
-from inertia_id import Scenario, simulate
+from inertia_id import Scenario
 from inertia_id.classifiers.minirocket import (
     MiniRocketClassifier,
     fit_minirocket,
@@ -22,18 +22,6 @@ N_FRESH = 6
 
 
 @pytest.fixture(scope="module")
-def training(paper: Scenario) -> tuple[np.ndarray, np.ndarray]:
-    """What train_classifier(..., np.random.default_rng(0)) simulates."""
-    return simulate(paper, GOOD_SEQUENCE, N_TRAIN, np.random.default_rng(0)).dataset()
-
-
-@pytest.fixture(scope="module")
-def fresh(paper: Scenario) -> Any:
-    """Responses never seen in training."""
-    return simulate(paper, GOOD_SEQUENCE, N_FRESH, np.random.default_rng(1))
-
-
-@pytest.fixture(scope="module")
 def model(paper: Scenario) -> MiniRocketClassifier:
     trained = train_classifier(
         paper, GOOD_SEQUENCE, N_TRAIN, np.random.default_rng(0), kind="minirocket"
@@ -43,9 +31,9 @@ def model(paper: Scenario) -> MiniRocketClassifier:
 
 
 def test_minirocket_features_are_dilated_convolutions_ppv(
-    training: tuple[np.ndarray, np.ndarray], fresh: Any
+    good_training: tuple[np.ndarray, np.ndarray], good_fresh: Any
 ) -> None:
-    X_train, _ = training
+    X_train, _ = good_training
     params = fit_minirocket(X_train, np.random.default_rng(4))
     length = X_train.shape[1]
     # The paper's layout: 84 kernels x 119 features for a budget of 10 000, kernels that
@@ -53,7 +41,7 @@ def test_minirocket_features_are_dilated_convolutions_ppv(
     assert params.n_features == 9996
     assert params.dilations[0] == 1 and 8 * params.dilations[-1] <= length - 1
     assert set(params.channels_per_combination.tolist()) <= {1, 2, 3}
-    X = fresh.dataset()[0][:3]
+    X = good_fresh.dataset()[0][:3]
     features = minirocket_transform(X, params)
     assert features.shape == (3, 9996)
     assert np.all((features >= 0.0) & (features <= 1.0))
@@ -77,8 +65,10 @@ def test_minirocket_features_are_dilated_convolutions_ppv(
             assert features[s, f] == pytest.approx(np.mean(output > kernel.bias), abs=1e-12)
 
 
-def test_minirocket_is_seeded_by_its_generator(training: tuple[np.ndarray, np.ndarray]) -> None:
-    X_train, _ = training
+def test_minirocket_is_seeded_by_its_generator(
+    good_training: tuple[np.ndarray, np.ndarray],
+) -> None:
+    X_train, _ = good_training
     a = fit_minirocket(X_train, np.random.default_rng(7), n_features=500)
     b = fit_minirocket(X_train, np.random.default_rng(7), n_features=500)
     c = fit_minirocket(X_train, np.random.default_rng(8), n_features=500)
@@ -89,17 +79,17 @@ def test_minirocket_is_seeded_by_its_generator(training: tuple[np.ndarray, np.nd
 
 def test_minirocket_is_ridge_on_scaled_features_with_exact_leave_one_out(
     model: MiniRocketClassifier,
-    training: tuple[np.ndarray, np.ndarray],
-    fresh: Any,
+    good_training: tuple[np.ndarray, np.ndarray],
+    good_fresh: Any,
 ) -> None:
-    X_train, y_train = training
+    X_train, y_train = good_training
     features = minirocket_transform(X_train, model.parameters_)
     scale = features.std(axis=0)
     scale[scale < 1e-12] = 1.0
     scaled = features / scale
     ridge = RidgeClassifierCV(alphas=np.logspace(-3, 3, 10)).fit(scaled, y_train)
     assert model.alpha_ == ridge.alpha_
-    X, _ = fresh.dataset()
+    X, _ = good_fresh.dataset()
     fresh_scaled = minirocket_transform(X, model.parameters_) / scale
     np.testing.assert_array_equal(model.predict(X), ridge.predict(fresh_scaled))
     codes = 2.0 * np.eye(5) - 1.0
@@ -119,10 +109,10 @@ def test_minirocket_is_ridge_on_scaled_features_with_exact_leave_one_out(
 
 
 def test_minirocket_handles_two_candidates(
-    training: tuple[np.ndarray, np.ndarray], fresh: Any
+    good_training: tuple[np.ndarray, np.ndarray], good_fresh: Any
 ) -> None:
-    X_train, y_train = training
-    X, y = fresh.dataset()
+    X_train, y_train = good_training
+    X, y = good_fresh.dataset()
     model = MiniRocketClassifier(n_features=1000, random_state=0)
     model.fit(X_train[y_train < 2], y_train[y_train < 2])
     distances = model.transform(X[y < 2])

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from inertia_id import InputError, Scenario, simulate
+from inertia_id import InputError, Scenario
 from inertia_id.classifiers.base import SupervisedClassifier
 from inertia_id.classifiers.documents import checksum
 from inertia_id.classifiers.dtw import cdist_dtw
@@ -29,18 +29,6 @@ CONFIGS: dict[str, tuple[str, dict[str, Any]]] = {
 
 
 @pytest.fixture(scope="module")
-def training(paper: Scenario) -> tuple[np.ndarray, np.ndarray]:
-    """What train_classifier(..., np.random.default_rng(0)) simulates."""
-    return simulate(paper, GOOD_SEQUENCE, N_TRAIN, np.random.default_rng(0)).dataset()
-
-
-@pytest.fixture(scope="module")
-def fresh(paper: Scenario) -> Any:
-    """Responses never seen in training."""
-    return simulate(paper, GOOD_SEQUENCE, N_FRESH, np.random.default_rng(1))
-
-
-@pytest.fixture(scope="module")
 def trained(paper: Scenario) -> dict[str, SupervisedClassifier]:
     """Every configuration, trained once per module. Tests must not mutate them."""
     models = {}
@@ -55,21 +43,21 @@ def trained(paper: Scenario) -> dict[str, SupervisedClassifier]:
 
 @pytest.mark.parametrize("name", ["centroid-dtw", "1nn-dtw-band"])
 def test_dtw_configurations_are_accurate_on_fresh_draws(
-    name: str, trained: dict[str, SupervisedClassifier], fresh: Any
+    name: str, trained: dict[str, SupervisedClassifier], good_fresh: Any
 ) -> None:
-    X, y = fresh.dataset()
+    X, y = good_fresh.dataset()
     scores = trained[name].evaluate(X, y)
     assert scores["accuracy"] >= 0.9, scores["confusion"]
 
 
 def test_1nn_euclidean_matches_brute_force(
     trained: dict[str, SupervisedClassifier],
-    training: tuple[np.ndarray, np.ndarray],
-    fresh: Any,
+    good_training: tuple[np.ndarray, np.ndarray],
+    good_fresh: Any,
 ) -> None:
     model = trained["1nn-euclidean"]
-    X_train, y_train = training
-    X, _ = fresh.dataset()
+    X_train, y_train = good_training
+    X, _ = good_fresh.dataset()
     pairwise = np.sqrt(((X[:, None] - X_train[None]) ** 2).sum(axis=(2, 3)))
     per_candidate = np.stack([pairwise[:, y_train == k].min(axis=1) for k in range(5)], axis=1)
     np.testing.assert_allclose(model.transform(X), per_candidate, rtol=1e-12)
@@ -87,25 +75,25 @@ def test_1nn_euclidean_matches_brute_force(
 
 def test_nearest_centroid_euclidean_centroid_is_the_class_mean(
     trained: dict[str, SupervisedClassifier],
-    training: tuple[np.ndarray, np.ndarray],
-    fresh: Any,
+    good_training: tuple[np.ndarray, np.ndarray],
+    good_fresh: Any,
 ) -> None:
     model = trained["centroid-euclidean"]
     assert isinstance(model, NearestCentroidClassifier)
-    X_train, y_train = training
+    X_train, y_train = good_training
     means = np.stack([X_train[y_train == k].mean(axis=0) for k in range(5)])
     np.testing.assert_allclose(model.centroids_, means, rtol=1e-13, atol=1e-18)
-    X, _ = fresh.dataset()
+    X, _ = good_fresh.dataset()
     expected = np.sqrt(((X[:, None] - means[None]) ** 2).sum(axis=(2, 3)))
     np.testing.assert_allclose(model.transform(X), expected, rtol=1e-12)
 
 
 def test_dba_centroid_fits_its_candidate_better_than_the_mean(
-    trained: dict[str, SupervisedClassifier], training: tuple[np.ndarray, np.ndarray]
+    trained: dict[str, SupervisedClassifier], good_training: tuple[np.ndarray, np.ndarray]
 ) -> None:
     model = trained["centroid-dtw"]
     assert isinstance(model, NearestCentroidClassifier)
-    X_train, y_train = training
+    X_train, y_train = good_training
     for k in range(5):
         members = X_train[y_train == k]
         to_dba = np.mean(cdist_dtw(members, model.centroids_[k][None]) ** 2)
@@ -114,10 +102,10 @@ def test_dba_centroid_fits_its_candidate_better_than_the_mean(
 
 
 def test_dtw_in_a_zero_band_is_euclidean(
-    training: tuple[np.ndarray, np.ndarray], fresh: Any
+    good_training: tuple[np.ndarray, np.ndarray], good_fresh: Any
 ) -> None:
-    X_train, y_train = training
-    X, _ = fresh.dataset()
+    X_train, y_train = good_training
+    X, _ = good_fresh.dataset()
     for cls in (NearestNeighbourClassifier, NearestCentroidClassifier):
         banded = cls("dtw", sakoe_chiba_radius=0).fit(X_train, y_train)
         euclidean = cls("euclidean").fit(X_train, y_train)

@@ -136,7 +136,7 @@ def test_exhaustive_search_refuses_a_large_space_before_any_work(
     def no_env(*args: Any, **kwargs: Any) -> None:
         raise AssertionError("an environment was built for a refused space")
 
-    monkeypatch.setattr(module, "SequenceSearchEnv", no_env)
+    monkeypatch.setattr(module, "SearchRun", no_env)
     with pytest.raises(ValueError, match=re.escape("(5^6)^2")):
         exhaustive_search(paper, sequence_length=2)
 
