@@ -177,8 +177,10 @@ def simulate_basilisk(
     :param rng: source of the randomness (see the module docstring: the same draws as
         ``simulate(scenario, sequence, 1, rng)`` for this candidate, then the IMU seed).
     :param sample_rate_hz: gyro rate, Hz (default the scenario's); its period must be a
-        whole number of nanoseconds (any rate that divides 1e9 Hz: 1, 2, 4, 5, 8, 10, 16,
-        20, 25, 40, 50, 80, 100, 125, 200, 250, 400, 500, 1000, ...).
+        whole number of nanoseconds, Basilisk's clock (1e9 / rate an integer: 1, 2, 4, 5,
+        8, 10, 16, 20, 25, 40, 50, 80, 100, 125, 200, 250, 400, 500, 1000 Hz, ...; not
+        3 Hz), and share a hub step of at least 0.1 ms with the actuation step and the
+        disturbance interval. The white noise std is per sample whatever the rate.
     :param initial_rate_rad_s: body rate at the sequence start, (3,) rad/s; default: the
         scenario's (its ``initial_rate_sigma_rad_s`` draw, zero when that is 0).
     :param gyro_bias_rad_s: constant gyro bias, (3,) rad/s; default: the scenario's
