@@ -30,6 +30,9 @@ __all__ = ["WorkerMonitor", "broker_label"]
 
 logger = logging.getLogger(__name__)
 
+#: Seconds between two hand-back passes of a stopping worker.
+STOPPING_TICK_S = 1.0
+
 
 def broker_label(settings: Settings) -> str:
     """The broker URL as shown to users: any password masked."""
@@ -68,9 +71,22 @@ class WorkerMonitor:
         resend_once(self.settings, self.db, self.celery)
 
     def hand_back(self) -> list[str]:
-        """Give this worker's running job back to the queue (it is stopping)."""
+        """Give this worker's running job back to the queue (it is stopping).
+
+        Then, every second until the worker is gone, again: a message fetched just as
+        the stop began can still start a job (see :func:`worker.runner._execute`).
+        """
         self._ticker.stop()
-        return hand_back_jobs(self.settings, self.db, self.celery, self.name)
+        handed = hand_back_jobs(self.settings, self.db, self.celery, self.name)
+        self._ticker = Ticker(
+            self._hand_back_again,
+            STOPPING_TICK_S,
+            name=f"inertia-id hand-back {self.name}",
+        ).start()
+        return handed
+
+    def _hand_back_again(self) -> None:
+        hand_back_jobs(self.settings, self.db, self.celery, self.name)
 
     def start(self) -> WorkerMonitor:
         self._ticker.start()

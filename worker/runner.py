@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from sqlalchemy import select
+from sqlalchemy import select, update
 from sqlalchemy.exc import StatementError
 
 from app.config import Settings
@@ -29,6 +29,7 @@ from app.db.jobs import (
     owns,
     set_progress,
     touch_worker,
+    worker_stopping,
 )
 from app.db.models import JOB_TYPES
 
@@ -280,6 +281,22 @@ def execute_job(job_id: str, *, settings: Settings, worker_name: str) -> str:
         db.dispose()
 
 
+def _stopping(db: Database, worker_name: str) -> bool:
+    with db.session() as session:
+        return worker_stopping(session, worker_name)
+
+
+def _leave_unsent(db: Database, job_id: str) -> None:
+    # No new message from here: a stopping worker's consumer may still fetch it, and
+    # bounce it again. The re-sender of a live (or the next) worker sends it.
+    with db.session() as session:
+        session.execute(
+            update(JobRow)
+            .where(JobRow.id == job_id, JobRow.status == "queued")
+            .values(sent_at=None)
+        )
+
+
 def _status(db: Database, job_id: str) -> str | None:
     with db.session() as session:
         return session.scalar(select(JobRow.status).where(JobRow.id == job_id))
@@ -293,6 +310,12 @@ def _execute(job_id: str, db: Database, settings: Settings, worker_name: str) ->
     if status != "queued":
         logger.info("job %s is %s, not queued; nothing to do", job_id, status)
         return status
+    if _stopping(db, worker_name):
+        # This worker was told to stop after it fetched the message: leave the job to
+        # another worker.
+        _leave_unsent(db, job_id)
+        logger.info("job %s left for another worker: %s is stopping", job_id, worker_name)
+        return "queued"
     try:
         handlers = _import_handlers()
     except Exception as exc:

@@ -57,6 +57,7 @@ __all__ = [
     "reap_stale",
     "set_progress",
     "touch_worker",
+    "worker_stopping",
 ]
 
 
@@ -313,6 +314,12 @@ def cancel(session: Session, job: JobRow) -> None:
         job.finished_at = utcnow()
 
 
+def worker_stopping(session: Session, worker: str) -> bool:
+    """Whether ``worker`` was told to stop (then it claims nothing more)."""
+    since = session.scalar(select(WorkerRow.stopping_since).where(WorkerRow.name == worker))
+    return since is not None
+
+
 def hand_back(session: Session, worker: str, reason: str) -> list[str]:
     """Re-queue every job that ``worker`` is running, at no cost of an attempt.
 
@@ -320,8 +327,14 @@ def hand_back(session: Session, worker: str, reason: str) -> list[str]:
     to the queue at once instead of waiting for the heartbeat timeout, and the run it
     had, cut short through no fault of the job, does not count against ``max_attempts``.
     The run notices (it no longer owns the job) and drops whatever it was doing. The
-    caller sends the returned jobs' messages.
+    caller sends the returned jobs' messages. The worker is marked stopping, so that
+    it claims nothing more (a message it already fetched included).
     """
+    session.execute(
+        update(WorkerRow)
+        .where(WorkerRow.name == worker, WorkerRow.stopping_since.is_(None))
+        .values(stopping_since=utcnow())
+    )
     jobs = session.scalars(
         select(JobRow).where(JobRow.worker == worker, JobRow.status == "running").with_for_update()
     ).all()

@@ -156,6 +156,8 @@ class WorkerRow(Base):
     broker_url: Mapped[str] = mapped_column(String(500))
     started_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
     last_seen_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+    #: Set when the worker was told to stop: it claims no more jobs, and hands back any.
+    stopping_since: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
 
 
 class ApiKey(Base):

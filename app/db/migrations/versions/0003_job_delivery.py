@@ -9,6 +9,7 @@
 - ``jobs.sent_at``: when the job's message last went to the broker (a queued job whose
   message was lost is sent again). Existing rows count as sent when they were created.
 - ``jobs.handbacks``: runs handed back by a stopping worker; they cost no attempt.
+- ``workers.stopping_since``: a worker told to stop claims no more jobs.
 
 Revision ID: 0003
 Revises: 0002
@@ -43,6 +44,8 @@ def upgrade() -> None:
         )
         batch.add_column(sa.Column("sent_at", sa.DateTime(timezone=True), nullable=True))
         batch.add_column(sa.Column("handbacks", sa.Integer(), nullable=False, server_default="0"))
+    with op.batch_alter_table("workers") as batch:
+        batch.add_column(sa.Column("stopping_since", sa.DateTime(timezone=True), nullable=True))
     jobs = sa.table(
         "jobs",
         sa.column("id", sa.String),
@@ -76,6 +79,8 @@ def upgrade() -> None:
 
 def downgrade() -> None:
     op.drop_index("ux_jobs_reusable_config", table_name="jobs")
+    with op.batch_alter_table("workers") as batch:
+        batch.drop_column("stopping_since")
     with op.batch_alter_table("jobs") as batch:
         batch.drop_column("handbacks")
         batch.drop_column("sent_at")
