@@ -33,7 +33,23 @@ class Settings(BaseSettings):
     heartbeat_interval_s: float = Field(default=5.0, alias="INERTIA_ID_HEARTBEAT_INTERVAL_S")
     heartbeat_timeout_s: float = Field(default=60.0, alias="INERTIA_ID_HEARTBEAT_TIMEOUT_S")
     max_attempts: int = Field(default=2, alias="INERTIA_ID_MAX_ATTEMPTS")
+    #: A queued job never sent this long after its creation is sent by a worker.
+    unsent_grace_s: float = Field(default=10.0, alias="INERTIA_ID_UNSENT_GRACE_S")
+    #: A queued job whose message went out this long ago while a worker sat idle lost
+    #: its message (a live idle worker takes a message within a poll): it is sent again.
+    resend_after_s: float = Field(default=30.0, alias="INERTIA_ID_RESEND_AFTER_S")
+    worker_max_jobs_per_process: int = Field(default=100, alias="INERTIA_ID_WORKER_MAX_JOBS")
+    worker_max_memory_mb: int = Field(default=4096, alias="INERTIA_ID_WORKER_MAX_MEMORY_MB")
     classifier_cache_size: int = Field(default=32, alias="INERTIA_ID_CLASSIFIER_CACHE")
+    #: CPU work in the API process (identify, response simulation): threads of its own,
+    #: and how many requests may wait for one, and for how long, before a 503.
+    compute_threads: int = Field(default=2, ge=1, alias="INERTIA_ID_COMPUTE_THREADS")
+    compute_queue: int = Field(default=200, ge=0, alias="INERTIA_ID_COMPUTE_QUEUE")
+    compute_wait_s: float = Field(default=10.0, gt=0, alias="INERTIA_ID_COMPUTE_WAIT_S")
+    #: Host header values accepted (comma-separated); empty: the loopback names, plus
+    #: INERTIA_ID_HOST when it names one address. "*" accepts any (behind a proxy that
+    #: checks it).
+    allowed_hosts: str = Field(default="", alias="INERTIA_ID_ALLOWED_HOSTS")
     frontend_dir: Path | None = Field(default=None, alias="INERTIA_ID_FRONTEND_DIR")
 
     @property
@@ -48,6 +64,20 @@ class Settings(BaseSettings):
         if self.frontend_dir is not None:
             return self.frontend_dir.resolve()
         return Path(__file__).resolve().parent.parent / "frontend"
+
+    @property
+    def resolved_allowed_hosts(self) -> list[str]:
+        """Host header values the API accepts (the port is not part of them)."""
+        if self.allowed_hosts.strip():
+            return [h.strip() for h in self.allowed_hosts.split(",") if h.strip()]
+        hosts = ["127.0.0.1", "localhost", "::1", "[::1]"]
+        if self.host in ("0.0.0.0", "::", ""):
+            # Bound to every address with no names configured: the names it will be
+            # reached by are unknown here (serve warns about it).
+            return ["*"]
+        if self.host not in hosts:
+            hosts.append(self.host)
+        return hosts
 
     @property
     def broker_dir(self) -> Path:

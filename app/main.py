@@ -18,11 +18,12 @@ import inertia_id
 from .api import ROUTERS
 from .api.errors import install_error_handlers
 from .api.identify import ClassifierCache, openapi_components
+from .capacity import ComputeGate
 from .config import Settings, get_settings
 from .dashboard import mount_dashboard
 from .db.session import Database, upgrade
 from .queue import make_celery
-from .security import BodySizeLimit, ensure_api_key
+from .security import AllowedHosts, BodySizeLimit, KeyVerifier, ensure_api_key
 
 __all__ = ["create_app"]
 
@@ -68,13 +69,20 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.db = database
     app.state.celery = celery
     app.state.classifier_cache = ClassifierCache(settings.classifier_cache_size)
+    app.state.compute_gate = ComputeGate(
+        threads=settings.compute_threads,
+        queue=settings.compute_queue,
+        wait_s=settings.compute_wait_s,
+    )
     app.state.generated_api_key = generated_key
+    app.state.verify_key = KeyVerifier.for_store(database, settings)
 
     for router in ROUTERS:
         app.include_router(router)
     install_error_handlers(app)
     mount_dashboard(app, settings)
     app.add_middleware(BodySizeLimit, max_bytes=settings.max_body_bytes)
+    app.add_middleware(AllowedHosts, hosts=settings.resolved_allowed_hosts)
     _extend_openapi(app, settings)
     return app
 

@@ -480,12 +480,20 @@ class JobOut(BaseModel):
     error: str | None
     result: dict[str, Any] | None = Field(description="summary written by the worker")
     cancel_requested: bool
-    attempts: int
+    attempts: int = Field(description="runs started, hand-backs included")
+    handbacks: int = Field(
+        default=0, description="runs handed back by a stopping worker (not counted as attempts)"
+    )
     worker: str | None
     created_at: UtcDatetime
     started_at: UtcDatetime | None
     finished_at: UtcDatetime | None
     heartbeat_at: UtcDatetime | None
+    sent_at: UtcDatetime | None = Field(
+        default=None,
+        description="when the job's message last went to the broker; null while it waits "
+        "to be sent (the broker was unreachable)",
+    )
 
     @field_validator("params", "result", mode="after")
     @classmethod
@@ -603,9 +611,21 @@ class WorkersHealth(BaseModel):
     window_s: float = Field(description="a worker counts if seen within this many seconds")
 
 
+class QueueHealth(BaseModel):
+    ok: bool = Field(description="false when a queued job has waited long for its message")
+    queued: int
+    running: int
+    unsent: int = Field(
+        description="queued jobs whose message has not reached the broker for a while "
+        "(the broker is down, or no worker is there to send it)"
+    )
+    oldest_queued_s: float | None = Field(description="age of the oldest queued job, s")
+
+
 class HealthOut(BaseModel):
     status: Literal["ok", "degraded"]
     version: str
     database: ComponentHealth
     broker: ComponentHealth
     workers: WorkersHealth
+    queue: QueueHealth

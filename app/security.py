@@ -11,9 +11,12 @@ import hashlib
 import hmac
 import json
 import secrets
+import threading
+import time
+from collections import OrderedDict
+from collections.abc import Callable
 
 from sqlalchemy import select
-from sqlalchemy.orm import Session
 from starlette.exceptions import HTTPException
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
@@ -23,11 +26,12 @@ from .db.session import Database
 
 __all__ = [
     "API_KEY_HEADER",
+    "AllowedHosts",
     "BodySizeLimit",
     "BodyTooLarge",
+    "KeyVerifier",
     "ensure_api_key",
     "hash_key",
-    "is_valid_key",
 ]
 
 API_KEY_HEADER = "X-API-Key"
@@ -56,13 +60,69 @@ def ensure_api_key(db: Database, settings: Settings) -> str | None:
         return key
 
 
-def is_valid_key(session: Session, settings: Settings, key: str) -> bool:
-    """Whether ``key`` is accepted: the environment's key if set, else any stored key."""
-    digest = hash_key(key)
-    if settings.api_key:
-        return hmac.compare_digest(digest, hash_key(settings.api_key))
-    # Comparing hashes: the lookup's timing says nothing useful about the key.
-    return session.scalar(select(ApiKey.id).where(ApiKey.key_hash == digest)) is not None
+class KeyVerifier:
+    """Checks API keys against the store without holding a connection per request.
+
+    A request's key check used to keep a pooled connection for the whole request; under
+    load (20+ clients of ``/identify``) the pool ran dry and every request waited 30 s.
+    Here the lookup takes a connection for one query, and its answer is remembered for
+    ``ttl_s`` (accepted keys) or ``negative_ttl_s`` (refused keys, so a wrong key sent
+    in a loop does not hammer the database either). Keys are only ever added, never
+    revoked through the API, so a remembered "accepted" cannot go stale before its TTL
+    in any way the service offers.
+
+    :param lookup: ``digest -> accepted?``, one short database query.
+    :param clock: monotonic seconds (tests pass their own).
+    """
+
+    def __init__(
+        self,
+        lookup: Callable[[str], bool],
+        *,
+        ttl_s: float = 60.0,
+        negative_ttl_s: float = 5.0,
+        size: int = 1024,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        self._lookup = lookup
+        self.ttl_s = ttl_s
+        self.negative_ttl_s = negative_ttl_s
+        self.size = size
+        self._clock = clock
+        self._answers: OrderedDict[str, tuple[bool, float]] = OrderedDict()
+        self._lock = threading.Lock()
+
+    @classmethod
+    def for_store(cls, db: Database, settings: Settings) -> KeyVerifier:
+        if settings.api_key:
+            expected = hash_key(settings.api_key)
+            return cls(lambda digest: hmac.compare_digest(digest, expected))
+
+        def lookup(digest: str) -> bool:
+            with db.session() as session:
+                return (
+                    session.scalar(select(ApiKey.id).where(ApiKey.key_hash == digest)) is not None
+                )
+
+        return cls(lookup)
+
+    def __call__(self, key: str) -> bool:
+        digest = hash_key(key)
+        now = self._clock()
+        with self._lock:
+            remembered = self._answers.get(digest)
+            if remembered is not None and remembered[1] > now:
+                return remembered[0]
+        accepted = self._lookup(digest)
+        with self._lock:
+            self._answers[digest] = (
+                accepted,
+                now + (self.ttl_s if accepted else self.negative_ttl_s),
+            )
+            self._answers.move_to_end(digest)
+            while len(self._answers) > self.size:
+                self._answers.popitem(last=False)
+        return accepted
 
 
 class BodyTooLarge(HTTPException):
@@ -153,3 +213,58 @@ async def _send_413(send: Send, limit: int, declared: int | None) -> None:
         }
     )
     await send({"type": "http.response.body", "body": body})
+
+
+def host_name(header: str) -> str:
+    """The host of a ``Host`` header, lower-cased, without its port."""
+    header = header.strip().lower()
+    if header.startswith("["):
+        end = header.find("]")
+        return header[: end + 1] if end > 0 else header
+    name, _, _port = header.partition(":") if header.count(":") == 1 else (header, "", "")
+    return name
+
+
+class AllowedHosts:
+    """Refuse requests whose ``Host`` header names a host the service does not answer to.
+
+    A service bound to loopback is still reachable from a browser through DNS
+    rebinding (a hostile page whose name resolves to 127.0.0.1); checking the Host
+    header closes that. 400 with the value and the setting that allows it.
+
+    :param hosts: accepted host names; ``"*"`` accepts any.
+    """
+
+    def __init__(self, app: ASGIApp, *, hosts: list[str]) -> None:
+        self.app = app
+        self.hosts = {h.lower() for h in hosts}
+        self.any = "*" in self.hosts
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if self.any or scope["type"] not in ("http", "websocket"):
+            await self.app(scope, receive, send)
+            return
+        header = ""
+        for name, value in scope.get("headers", []):
+            if name == b"host":
+                header = value.decode("latin-1")
+                break
+        if host_name(header) in self.hosts:
+            await self.app(scope, receive, send)
+            return
+        detail = (
+            f"Host header {header[:100]!r} is not a name this service answers to "
+            f"({', '.join(sorted(self.hosts))}); set INERTIA_ID_ALLOWED_HOSTS to add one"
+        )
+        body = json.dumps({"detail": detail}).encode()
+        await send(
+            {
+                "type": "http.response.start",
+                "status": 400,
+                "headers": [
+                    (b"content-type", b"application/json"),
+                    (b"content-length", str(len(body)).encode()),
+                ],
+            }
+        )
+        await send({"type": "http.response.body", "body": body})

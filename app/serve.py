@@ -7,11 +7,14 @@
    database;
 2. builds the API (:func:`app.main.create_app`), which makes sure an API key exists, and
    prints the URL and the key when it was generated now (only then: it is stored hashed);
-3. starts ``--workers`` real ``celery worker`` processes (one job at a time each), logging
-   to ``DIR/logs/``, and restarts one that dies;
-4. serves the API with uvicorn until Ctrl-C or SIGTERM, then stops the workers: each
-   gets a grace period to finish its job; a job still running after it is killed, and
-   the reaper re-queues it when a worker next starts.
+3. starts ``--workers`` real ``celery worker`` processes (one job at a time each, each
+   named uniquely), logging to ``DIR/logs/``, and restarts one that dies;
+4. serves the API with uvicorn (``--api-workers`` processes) until Ctrl-C or SIGTERM,
+   then stops the workers: each hands its running job back to the queue at once (it
+   costs the job no attempt) and exits; one still there after a grace period is killed.
+
+If serve itself dies (``kill -9``), its workers are told to stop by the kernel
+(``PR_SET_PDEATHSIG``): they hand their jobs back and exit, and nothing is orphaned.
 """
 
 from __future__ import annotations
@@ -19,13 +22,14 @@ from __future__ import annotations
 import argparse
 import logging
 import os
+import secrets
 import signal
 import socket
 import subprocess
 import sys
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from types import FrameType
 from typing import IO
@@ -33,6 +37,12 @@ from typing import IO
 from .config import Settings, get_settings
 
 __all__ = ["WorkerPool", "main"]
+
+#: The worker package's name for serve's pid in its workers' environment
+#: (``worker.process.PARENT_PID_ENV``; not imported, the API does not import the worker).
+PARENT_PID_ENV = "INERTIA_ID_PARENT_PID"
+#: Seconds uvicorn waits for requests in flight when asked to stop.
+API_GRACE_S = 5.0
 
 logger = logging.getLogger("inertia_id.serve")
 
@@ -45,10 +55,14 @@ PROJECT_ROOT = Path(__file__).resolve().parent.parent
 
 
 class WorkerPool:
-    """``count`` ``celery worker`` subprocesses named ``worker<i>@<host>``.
+    """``count`` ``celery worker`` subprocesses named ``worker<i>-<token>@<host>``.
 
-    Each runs in its own session, so a Ctrl-C in the terminal reaches only this process,
-    which then stops the workers in order (warm shutdown first, then SIGKILL).
+    The token is new at every start, so a worker restarted after a crash, or started by
+    a later serve while an old one lingers, never shares a name with another: the
+    ``workers`` table counts each once, and a dead worker's job is reaped as soon as its
+    own name goes quiet. Each runs in its own session, so a Ctrl-C in the terminal
+    reaches only this process, which then stops the workers in order (warm shutdown
+    first, then SIGKILL); each also stops when this process dies.
 
     :param count: how many workers (each ``--concurrency=1``).
     :param log_dir: where ``worker<i>.log`` files go.
@@ -60,6 +74,7 @@ class WorkerPool:
         self.log_dir = log_dir
         self.log_level = log_level
         self.processes: dict[int, subprocess.Popen[bytes]] = {}
+        self.names: dict[int, str] = {}
         self._logs: dict[int, IO[bytes]] = {}
         self._stopping = threading.Event()
         self._supervisor = threading.Thread(
@@ -76,7 +91,7 @@ class WorkerPool:
             "worker",
             "--concurrency=1",
             "-n",
-            f"worker{index}@%h",
+            f"{self.names.get(index, f'worker{index}')}@%h",
             f"--loglevel={self.log_level}",
         ]
 
@@ -91,7 +106,9 @@ class WorkerPool:
             self._supervisor.start()
 
     def _spawn(self, index: int) -> None:
+        self.names[index] = f"worker{index}-{secrets.token_hex(3)}"
         env = dict(os.environ)
+        env[PARENT_PID_ENV] = str(os.getpid())
         # The workers import app/ and worker/ from this checkout even when the project
         # is not installed (python -m app.serve run from the repository).
         if (PROJECT_ROOT / "worker").is_dir():
@@ -111,7 +128,12 @@ class WorkerPool:
             stderr=subprocess.STDOUT,
             start_new_session=True,
         )
-        logger.info("worker%d started (pid %d)", index, self.processes[index].pid)
+        logger.info(
+            "worker%d started (pid %d, name %s)",
+            index,
+            self.processes[index].pid,
+            self.names[index],
+        )
 
     def _supervise(self) -> None:
         started = {index: time.monotonic() for index in self.processes}
@@ -134,8 +156,19 @@ class WorkerPool:
                 except OSError:
                     logger.exception("could not restart worker%d", index)
 
-    def stop(self, grace_s: float = STOP_GRACE_S) -> None:
-        """Warm shutdown for every worker, then SIGKILL for those still there."""
+    def stop(
+        self,
+        grace_s: float = STOP_GRACE_S,
+        *,
+        settled: Callable[[list[str]], bool] | None = None,
+    ) -> None:
+        """Warm shutdown for every worker, then SIGKILL for those still there.
+
+        :param settled: ``names -> bool``: whether those workers have handed their jobs
+            back (marked stopping, running nothing). A Celery worker takes 7 to 8 s to
+            wind down its pool even when idle; once its job is back in the queue there is
+            nothing left to wait for, and the rest of the grace is skipped.
+        """
         self._stopping.set()
         running = {i: p for i, p in self.processes.items() if p.poll() is None}
         for process in running.values():
@@ -144,11 +177,16 @@ class WorkerPool:
             except ProcessLookupError:
                 pass
         deadline = time.monotonic() + grace_s
-        for process in running.values():
-            try:
-                process.wait(max(0.0, deadline - time.monotonic()))
-            except subprocess.TimeoutExpired:
-                pass
+        names = [f"{self.names[i]}@{socket.gethostname()}" for i in running]
+        while time.monotonic() < deadline and any(p.poll() is None for p in running.values()):
+            time.sleep(0.2)
+            if settled is not None and names:
+                try:
+                    if settled(names):
+                        break
+                except Exception:  # the database is away: wait out the grace instead
+                    logger.warning("could not check the workers' hand-back", exc_info=True)
+                    settled = None
         for index, process in self.processes.items():
             # The whole group: the worker and its task process, if either is left.
             try:
@@ -196,6 +234,13 @@ def _parser() -> argparse.ArgumentParser:
         default=1,
         help="Worker processes to start, each running one job at a time (default 1; 0 "
         "when workers run elsewhere).",
+    )
+    parser.add_argument(
+        "--api-workers",
+        type=int,
+        default=int(os.environ.get("INERTIA_ID_API_WORKERS", "1")),
+        help="API processes (default 1). Identify is computed in the API process: on a "
+        "machine with more cores, more processes serve more requests at once.",
     )
     parser.add_argument(
         "--log-level",
@@ -257,6 +302,35 @@ def _port_problem(host: str, port: int) -> str | None:
     return None
 
 
+def _handed_back(settings: Settings) -> Callable[[list[str]], bool]:
+    """``names -> bool``: each worker is marked stopping and runs no job any more."""
+
+    def settled(names: list[str]) -> bool:
+        from sqlalchemy import func, select
+
+        from .db.models import JobRow, WorkerRow
+        from .db.session import Database
+
+        database = Database(settings.resolved_database_url)
+        try:
+            with database.session() as session:
+                stopping = session.scalar(
+                    select(func.count())
+                    .select_from(WorkerRow)
+                    .where(WorkerRow.name.in_(names), WorkerRow.stopping_since.is_not(None))
+                )
+                running = session.scalar(
+                    select(func.count())
+                    .select_from(JobRow)
+                    .where(JobRow.worker.in_(names), JobRow.status == "running")
+                )
+        finally:
+            database.dispose()
+        return stopping == len(names) and running == 0
+
+    return settled
+
+
 def _raise_on_sigterm(signum: int, _frame: FrameType | None) -> None:
     raise SystemExit(128 + signum)
 
@@ -265,6 +339,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     if args.workers < 0:
         _parser().error(f"--workers must be >= 0, got {args.workers}")
+    if args.api_workers < 1:
+        _parser().error(f"--api-workers must be >= 1, got {args.api_workers}")
     if not 0 < args.port < 65536:
         _parser().error(f"--port must be 1..65535, got {args.port}")
     problem = _port_problem(args.host, args.port)
@@ -282,12 +358,17 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     import uvicorn
 
-    from .db.session import upgrade
+    from .db.session import Database, upgrade
     from .main import create_app
+    from .security import ensure_api_key
 
+    # Once, here, before any API process starts: several would race to generate a key.
     upgrade(settings.resolved_database_url)
-    app = create_app(settings)
-    generated = getattr(app.state, "generated_api_key", None)
+    database = Database(settings.resolved_database_url)
+    try:
+        generated = ensure_api_key(database, settings)
+    finally:
+        database.dispose()
 
     shown_host = f"[{args.host}]" if ":" in args.host else args.host
     url = f"http://{shown_host}:{args.port}"
@@ -297,21 +378,31 @@ def main(argv: Sequence[str] | None = None) -> int:
         f"URL:       {url}   (dashboard; API docs: {url}/docs)\n"
         f"{_key_line(settings, generated)}\n"
         f"Data:      {data_dir}\n"
-        f"Workers:   {args.workers} (logs in {pool.log_dir})\n",
+        f"Workers:   {args.workers} (logs in {pool.log_dir}); API processes: "
+        f"{args.api_workers}\n",
         flush=True,
     )
     if args.host not in ("127.0.0.1", "localhost", "::1"):
         logger.warning("listening on %s: reachable from other machines", args.host)
     try:
         pool.start()
-        config = uvicorn.Config(app, host=args.host, port=args.port, log_level=args.log_level)
-        uvicorn.Server(config).run()
+        options = {
+            "host": args.host,
+            "port": args.port,
+            "log_level": args.log_level,
+            "timeout_graceful_shutdown": API_GRACE_S,
+        }
+        if args.api_workers == 1:
+            uvicorn.Server(uvicorn.Config(create_app(settings), **options)).run()
+        else:
+            # Each process builds its app from the environment _settings_for wrote.
+            uvicorn.run("app.main:create_app", factory=True, workers=args.api_workers, **options)
     except KeyboardInterrupt:
         pass
     finally:
         if args.workers:
-            print(f"stopping workers (up to {STOP_GRACE_S:g} s for a running job) ...", flush=True)
-        pool.stop()
+            print("stopping workers (a running job goes back to the queue) ...", flush=True)
+        pool.stop(settled=_handed_back(settings))
         if args.workers:
             print("workers stopped", flush=True)
     return 0

@@ -21,5 +21,7 @@ quiet_pip() {
 }
 quiet_pip --upgrade pip
 quiet_pip "torch==2.13.0"
-quiet_pip -e ".[test]"
+# Extras: run.sh needs none beyond the tests' tools; test.sh adds basilisk (the
+# independent simulator the tests check against).
+quiet_pip -e ".[${INERTIA_ID_EXTRAS:-test}]"
 python -c "import inertia_id, tslearn, torch; print('installed inertia-id', inertia_id.__version__, '| torch', torch.__version__)"

@@ -4,7 +4,7 @@
 # type-checks and runs the test suite.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash scripts/setup.sh
+INERTIA_ID_EXTRAS=test,basilisk bash scripts/setup.sh
 # System tools some tests drive, from Debian's packages where they are missing (as root):
 # docker-compose validates docker-compose.yml offline; the dashboard's browser tests use
 # Debian's Chromium through Playwright (Playwright's own browser download is never used).

@@ -25,9 +25,11 @@ celery = make_celery(settings)
 _worker_conf: dict[str, Any] = {
     # One job at a time per process, nothing reserved that a busy worker would sit on.
     "worker_prefetch_multiplier": 1,
-    # Each job gets a fresh process: torch and numba never carry state (threads, memory)
-    # from one job into the next, and a leak dies with its job.
-    "worker_max_tasks_per_child": 1,
+    # The task process is warm (the core imported once, see worker.process) and runs job
+    # after job; it is replaced after many jobs, or after a job that left it large, so
+    # that a leak cannot grow without bound.
+    "worker_max_tasks_per_child": settings.worker_max_jobs_per_process,
+    "worker_max_memory_per_child": settings.worker_max_memory_mb * 1024,
     "task_acks_late": True,
     "task_reject_on_worker_lost": True,
     "include": ["worker.tasks"],
@@ -40,5 +42,8 @@ if settings.broker_url.startswith("filesystem://"):
     _worker_conf["broker_transport_options"] = options
 celery.conf.update(_worker_conf)
 
-# The worker's own heartbeat and reaper hang on the worker's signals.
-from . import monitor  # noqa: E402, F401
+# The worker's own heartbeat, reaper, re-sender and hand-back hang on the worker's
+# signals; its task processes start warm and die with it.
+from . import monitor, process  # noqa: E402, F401
+
+process.stop_with_launcher()

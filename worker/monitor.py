@@ -1,9 +1,12 @@
-"""The worker process's own beat: "I am alive" (a ``workers`` row) and the reaper.
+"""The worker process's own beat: "I am alive" (a ``workers`` row), the reaper and the
+re-sender, and the hand-back when the worker is told to stop.
 
 Runs in the worker's main process (not in the task process), on a thread started when
 the worker is ready: at once and then every ``heartbeat_interval_s`` it upserts this
-worker's row and runs :func:`worker.reaper.reap_once`. So stale jobs are dealt with as
-soon as any worker starts, and while any worker lives.
+worker's row and runs :func:`worker.reaper.reap_once` and
+:func:`worker.reaper.resend_once`. So dead runs and lost messages are dealt with as soon
+as any worker starts, and while any worker lives. On a warm shutdown (SIGTERM) the job
+this worker runs goes back to the queue at once (:func:`worker.reaper.hand_back_jobs`).
 """
 
 from __future__ import annotations
@@ -12,7 +15,7 @@ import logging
 import os
 from typing import Any
 
-from celery.signals import worker_ready, worker_shutdown
+from celery.signals import worker_ready, worker_shutdown, worker_shutting_down
 from kombu.utils.url import maybe_sanitize_url
 
 from app.config import Settings, get_settings
@@ -20,12 +23,15 @@ from app.db import Database
 from app.db.jobs import touch_worker
 from app.queue import make_celery
 
-from .reaper import reap_once
+from .reaper import hand_back_jobs, reap_once, resend_once
 from .ticker import Ticker
 
 __all__ = ["WorkerMonitor", "broker_label"]
 
 logger = logging.getLogger(__name__)
+
+#: Seconds between two hand-back passes of a stopping worker.
+STOPPING_TICK_S = 1.0
 
 
 def broker_label(settings: Settings) -> str:
@@ -62,6 +68,25 @@ class WorkerMonitor:
             logger.warning(
                 "reaper: re-queued %s, ended %s", report.requeued or "none", report.failed or "none"
             )
+        resend_once(self.settings, self.db, self.celery)
+
+    def hand_back(self) -> list[str]:
+        """Give this worker's running job back to the queue (it is stopping).
+
+        Then, every second until the worker is gone, again: a message fetched just as
+        the stop began can still start a job (see :func:`worker.runner._execute`).
+        """
+        self._ticker.stop()
+        handed = hand_back_jobs(self.settings, self.db, self.celery, self.name)
+        self._ticker = Ticker(
+            self._hand_back_again,
+            STOPPING_TICK_S,
+            name=f"inertia-id hand-back {self.name}",
+        ).start()
+        return handed
+
+    def _hand_back_again(self) -> None:
+        hand_back_jobs(self.settings, self.db, self.celery, self.name)
 
     def start(self) -> WorkerMonitor:
         self._ticker.start()
@@ -99,6 +124,20 @@ def _start_monitor(sender: Any = None, **_kwargs: Any) -> None:
         _monitor.settings.heartbeat_interval_s,
         _monitor.settings.heartbeat_timeout_s,
     )
+
+
+@worker_shutting_down.connect
+def _hand_back(**_kwargs: Any) -> None:
+    # Sent in the main process when a warm shutdown starts (SIGTERM, Ctrl-C): Celery
+    # would wait for the running job to end, the supervisor would then kill it, and the
+    # job would wait a heartbeat timeout and lose an attempt. Instead it is re-queued now;
+    # the task process sees that it no longer owns the job and drops it.
+    if _monitor is None:
+        return
+    try:
+        _monitor.hand_back()
+    except Exception:
+        logger.exception("could not hand the running job back; the reaper will")
 
 
 @worker_shutdown.connect

@@ -1,29 +1,50 @@
-"""The reaper: a running job whose heartbeat went stale belonged to a worker that died.
+"""Nothing lost, nothing stuck: the reaper, the re-sender and the hand-back.
 
-Every worker runs :func:`reap_once` at start and then every heartbeat interval. A stale
-job is re-queued and its message sent again (its first message died with the worker, or
-sits unacknowledged until Redis' visibility timeout), or failed with the reason once it
-has had ``max_attempts`` runs. Two reapers at once are harmless: a job is claimed by one
-atomic UPDATE, so an extra message for it finds it taken and does nothing.
+Every worker's main process runs :func:`reap_once` and :func:`resend_once` at start and
+then every heartbeat interval (see :mod:`worker.monitor`), and :func:`hand_back_jobs`
+when it is told to stop.
+
+- **Reaper**: a running job whose run died (its heartbeat went stale, or its whole worker
+  went quiet) is re-queued and its message sent again, or failed with the reason once it
+  has had ``max_attempts`` runs.
+- **Re-sender**: a queued job whose message never reached the broker (the API died
+  between commit and send, the broker was down) or was lost there (a deleted queue, a
+  broker restarted empty) is sent again.
+- **Hand-back**: a stopping worker puts its running job back in the queue at once,
+  without spending one of the job's attempts.
+
+Two monitors at once are harmless: a job is claimed by one atomic UPDATE, so an extra
+message for it finds it taken and does nothing, and each send is claimed the same way.
 """
 
 from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
+from datetime import timedelta
 
 from celery import Celery
-from sqlalchemy import update
+from sqlalchemy import func, select, update
 
 from app.config import Settings
-from app.db import Database, JobRow
-from app.db.jobs import reap_stale
+from app.db import Database, JobRow, WorkerRow
+from app.db.jobs import due_for_sending, hand_back, mark_sent, reap_stale
 from app.db.models import utcnow
 from app.queue import RUN_JOB_TASK
 
-__all__ = ["ReapReport", "reap_once"]
+__all__ = [
+    "WORKER_SILENCE_BEATS",
+    "ReapReport",
+    "hand_back_jobs",
+    "idle_workers",
+    "reap_once",
+    "resend_once",
+]
 
 logger = logging.getLogger(__name__)
+
+#: A worker is gone when its row has not been beaten for this many heartbeat intervals.
+WORKER_SILENCE_BEATS = 3.0
 
 
 @dataclass(frozen=True)
@@ -39,41 +60,103 @@ class ReapReport:
     failed: list[str] = field(default_factory=list)
 
 
-def reap_once(settings: Settings, db: Database, celery: Celery) -> ReapReport:
-    """Re-queue (and re-send) or fail every running job with a stale heartbeat.
-
-    The database commit comes first: a job is only sent once it is queued again, so the
-    message can never find it still marked running.
-    """
-    with db.session() as session:
-        requeued, failed = reap_stale(
-            session,
-            timeout_s=settings.heartbeat_timeout_s,
-            max_attempts=settings.max_attempts,
-        )
+def _send(celery: Celery, job_ids: list[str]) -> tuple[list[str], list[tuple[str, str]]]:
     sent, unsent = [], []
-    for job_id in requeued:
+    for job_id in job_ids:
         try:
             celery.send_task(RUN_JOB_TASK, args=[job_id])
         except Exception as exc:
             unsent.append((job_id, f"{type(exc).__name__}: {exc}"))
         else:
             sent.append(job_id)
-            logger.warning("re-queued job %s: its worker stopped sending heartbeats", job_id)
-    if unsent:
-        # A queued job without a message would wait forever: say so on the job instead.
+    return sent, unsent
+
+
+def _unmark(db: Database, unsent: list[tuple[str, str]]) -> None:
+    """Jobs whose send failed: back to "not sent", so a later pass tries again."""
+    with db.session() as session:
+        for job_id, _reason in unsent:
+            session.execute(
+                update(JobRow)
+                .where(JobRow.id == job_id, JobRow.status == "queued")
+                .values(sent_at=None)
+            )
+    logger.error(
+        "could not send jobs to the broker (will try again): %s",
+        "; ".join(f"{job_id}: {reason}" for job_id, reason in unsent),
+    )
+
+
+def reap_once(settings: Settings, db: Database, celery: Celery) -> ReapReport:
+    """Re-queue (and re-send) or fail every running job whose run died.
+
+    The database commit comes first: a job is only sent once it is queued again, so the
+    message can never find it still marked running. A job whose send fails stays
+    queued and unsent; :func:`resend_once` sends it when the broker is back.
+    """
+    with db.session() as session:
+        requeued, failed = reap_stale(
+            session,
+            timeout_s=settings.heartbeat_timeout_s,
+            max_attempts=settings.max_attempts,
+            worker_silence_s=WORKER_SILENCE_BEATS * settings.heartbeat_interval_s,
+        )
+    sent, unsent = _send(celery, requeued)
+    if sent:
         with db.session() as session:
-            for job_id, reason in unsent:
-                session.execute(
-                    update(JobRow)
-                    .where(JobRow.id == job_id, JobRow.status == "queued")
-                    .values(
-                        status="failed",
-                        finished_at=utcnow(),
-                        error=f"its worker died and re-sending it to the broker failed: {reason}",
-                    )
-                )
-        logger.error("could not re-send jobs %s to the broker", [j for j, _ in unsent])
+            for job_id in sent:
+                mark_sent(session, job_id)
+    for job_id in sent:
+        logger.warning("re-queued job %s: its worker stopped sending heartbeats", job_id)
+    if unsent:
+        _unmark(db, unsent)
     for job_id in failed:
         logger.warning("ended job %s: its worker stopped sending heartbeats", job_id)
-    return ReapReport(requeued=sent, failed=[*failed, *(j for j, _ in unsent)])
+    return ReapReport(requeued=requeued, failed=failed)
+
+
+def idle_workers(settings: Settings, db: Database) -> int:
+    """Live workers (seen within the silence window) minus running jobs, at least 0."""
+    cutoff = utcnow() - timedelta(seconds=WORKER_SILENCE_BEATS * settings.heartbeat_interval_s)
+    with db.session() as session:
+        live = session.scalar(
+            select(func.count()).select_from(WorkerRow).where(WorkerRow.last_seen_at >= cutoff)
+        )
+        running = session.scalar(
+            select(func.count()).select_from(JobRow).where(JobRow.status == "running")
+        )
+    return max(0, int(live or 0) - int(running or 0))
+
+
+def resend_once(settings: Settings, db: Database, celery: Celery) -> list[str]:
+    """Send the messages of queued jobs that never had one or lost theirs; their ids."""
+    idle = idle_workers(settings, db)
+    with db.session() as session:
+        due = due_for_sending(
+            session,
+            unsent_grace_s=settings.unsent_grace_s,
+            resend_after_s=settings.resend_after_s,
+            idle_workers=idle,
+        )
+    sent, unsent = _send(celery, due)
+    for job_id in sent:
+        logger.warning("sent job %s (again): it was queued without a message", job_id)
+    if unsent:
+        _unmark(db, unsent)
+    return sent
+
+
+def hand_back_jobs(settings: Settings, db: Database, celery: Celery, worker: str) -> list[str]:
+    """Re-queue and re-send the jobs ``worker`` runs, at no cost of an attempt."""
+    with db.session() as session:
+        job_ids = hand_back(session, worker, f"worker {worker} was asked to stop")
+    sent, unsent = _send(celery, job_ids)
+    if sent:
+        with db.session() as session:
+            for job_id in sent:
+                mark_sent(session, job_id)
+    for job_id in job_ids:
+        logger.warning("handed job %s back to the queue: this worker is stopping", job_id)
+    if unsent:
+        _unmark(db, unsent)
+    return job_ids

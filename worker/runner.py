@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from sqlalchemy import select
+from sqlalchemy import select, update
 from sqlalchemy.exc import StatementError
 
 from app.config import Settings
@@ -26,15 +26,25 @@ from app.db.jobs import (
     clear_metrics,
     finish,
     heartbeat,
+    owns,
     set_progress,
     touch_worker,
+    worker_stopping,
 )
 from app.db.models import JOB_TYPES
 
 from .monitor import broker_label
 from .ticker import Ticker
 
-__all__ = ["CANCEL_POLL_S", "JobContext", "JobSpec", "Outcome", "execute_job", "one_line_error"]
+__all__ = [
+    "CANCEL_POLL_S",
+    "JobContext",
+    "JobSpec",
+    "Outcome",
+    "execute_job",
+    "one_line_error",
+    "warm_up",
+]
 
 logger = logging.getLogger(__name__)
 
@@ -93,15 +103,24 @@ def one_line_error(exc: BaseException) -> str:
     return text if len(text) <= MAX_ERROR_CHARS else text[: MAX_ERROR_CHARS - 1] + "…"
 
 
-def json_safe(value: Any) -> Any:
-    """``value`` with NaN and infinities as None, so it is valid JSON for every reader."""
+def json_safe(value: Any, data_dir: Path | None = None) -> Any:
+    """``value`` with NaN and infinities as None, so it is valid JSON for every reader,
+    and paths inside ``data_dir`` relative to it: a response names no server path."""
     if isinstance(value, dict):
-        return {str(k): json_safe(v) for k, v in value.items()}
+        return {str(k): json_safe(v, data_dir) for k, v in value.items()}
     if isinstance(value, list | tuple):
-        return [json_safe(v) for v in value]
+        return [json_safe(v, data_dir) for v in value]
     if isinstance(value, float) and not math.isfinite(value):
         return None
+    if isinstance(value, str) and data_dir is not None:
+        return without_server_paths(value, data_dir)
     return value
+
+
+def without_server_paths(text: str, data_dir: Path) -> str:
+    """``text`` with the data dir's absolute path taken out (``<data>/x`` -> ``x``)."""
+    root = str(data_dir.resolve())
+    return text.replace(root + "/", "").replace(root, ".")
 
 
 def _finite(rows: Iterable[tuple[str, int, float]]) -> list[tuple[str, int, float]]:
@@ -149,16 +168,21 @@ class JobContext:
     ) -> None:
         """Store progress (0..1) and metric points now, so the API can show them live.
 
+        Only while this run owns the job: a run that was handed back or reaped (and may
+        be running again elsewhere) must not add points to the new run's curve.
         A failed write is logged, not raised: a live curve is not worth the job, and the
         result is written at the end anyway.
         """
         rows = _finite(metrics)
         try:
             with self.db.session() as session:
+                if not owns(session, self.spec.id, self.spec.attempt):
+                    self.lost = True
+                    return
                 if rows:
                     add_metrics(session, self.spec.id, rows)
                 if progress is not None:
-                    set_progress(session, self.spec.id, progress)
+                    set_progress(session, self.spec.id, progress, self.spec.attempt)
         except Exception:
             logger.exception("job %s: could not store progress; going on", self.spec.id)
 
@@ -198,26 +222,40 @@ class JobContext:
     def beat(self) -> None:
         """One heartbeat: the job's and this worker's."""
         with self.db.session() as session:
-            heartbeat(session, self.spec.id)
+            heartbeat(session, self.spec.id, self.spec.attempt)
             touch_worker(session, self.worker_name, broker_label(self.settings))
 
 
+_handlers: dict[str, Callable[[JobContext], Outcome]] | None = None
+
+
 def _import_handlers() -> dict[str, Callable[[JobContext], Outcome]]:
-    # torch, numba, tslearn: seconds of imports, paid in the task process (never in the
-    # worker's main process, which forks it) and before the claim, so the job's
-    # heartbeat is not starved by the import while it is marked running.
-    import torch
-    from threadpoolctl import threadpool_limits
+    """The job handlers, imported once per process.
 
-    torch.set_num_threads(1)
-    from .handlers import HANDLERS
+    torch, numba, tslearn: seconds of imports. A worker's task process pays them once,
+    when it starts (:func:`warm_up`, on Celery's ``worker_process_init``), never per job
+    and never in the worker's main process: torch's OpenMP threads do not survive a fork,
+    so the main process, which forks task processes, must not start them.
+    """
+    global _handlers
+    if _handlers is None:
+        import torch
+        from threadpoolctl import threadpool_limits
 
-    # One job is one process on one core: BLAS threads would only fight the other
-    # workers (measured: a covariance fit 60 times slower with another process busy).
-    # After the imports, so that every BLAS the handlers load is limited.
-    threadpool_limits(1)
+        torch.set_num_threads(1)
+        from .handlers import HANDLERS
 
-    return HANDLERS
+        # One job is one process on one core: BLAS threads would only fight the other
+        # workers (measured: a covariance fit 60 times slower with another process
+        # busy). After the imports, so that every BLAS the handlers load is limited.
+        threadpool_limits(1)
+        _handlers = HANDLERS
+    return _handlers
+
+
+def warm_up() -> None:
+    """Import the handlers now, before any job arrives."""
+    _import_handlers()
 
 
 def _broken_handlers(error: Exception) -> dict[str, Callable[[JobContext], Outcome]]:
@@ -243,6 +281,22 @@ def execute_job(job_id: str, *, settings: Settings, worker_name: str) -> str:
         db.dispose()
 
 
+def _stopping(db: Database, worker_name: str) -> bool:
+    with db.session() as session:
+        return worker_stopping(session, worker_name)
+
+
+def _leave_unsent(db: Database, job_id: str) -> None:
+    # No new message from here: a stopping worker's consumer may still fetch it, and
+    # bounce it again. The re-sender of a live (or the next) worker sends it.
+    with db.session() as session:
+        session.execute(
+            update(JobRow)
+            .where(JobRow.id == job_id, JobRow.status == "queued")
+            .values(sent_at=None)
+        )
+
+
 def _status(db: Database, job_id: str) -> str | None:
     with db.session() as session:
         return session.scalar(select(JobRow.status).where(JobRow.id == job_id))
@@ -256,6 +310,12 @@ def _execute(job_id: str, db: Database, settings: Settings, worker_name: str) ->
     if status != "queued":
         logger.info("job %s is %s, not queued; nothing to do", job_id, status)
         return status
+    if _stopping(db, worker_name):
+        # This worker was told to stop after it fetched the message: leave the job to
+        # another worker.
+        _leave_unsent(db, job_id)
+        logger.info("job %s left for another worker: %s is stopping", job_id, worker_name)
+        return "queued"
     try:
         handlers = _import_handlers()
     except Exception as exc:
@@ -311,7 +371,9 @@ def _run(context: JobContext, handlers: dict[str, Callable[[JobContext], Outcome
         if context.cancelled:
             return _end(context, "cancelled", error=None)
         logger.exception("job %s failed", spec.id)
-        return _end(context, "failed", error=one_line_error(exc))
+        return _end(
+            context, "failed", error=without_server_paths(one_line_error(exc), context.data_dir)
+        )
     if context.lost:
         logger.warning("job %s was taken from this run; dropping its result", spec.id)
         return "lost"
@@ -320,7 +382,7 @@ def _run(context: JobContext, handlers: dict[str, Callable[[JobContext], Outcome
             session.add_all(outcome.rows)
             session.flush()
             add_metrics(session, spec.id, _finite(outcome.metrics))
-            result = None if outcome.result is None else json_safe(outcome.result)
+            result = None if outcome.result is None else json_safe(outcome.result, context.data_dir)
             if not finish(session, spec.id, outcome.status, result=result, attempt=spec.attempt):
                 session.rollback()
                 logger.warning("job %s was taken from this run; dropping its result", spec.id)

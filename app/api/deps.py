@@ -15,7 +15,7 @@ from sqlalchemy.orm import Session
 
 from ..config import Settings
 from ..db.session import Database
-from ..security import API_KEY_HEADER, is_valid_key
+from ..security import API_KEY_HEADER, KeyVerifier
 
 __all__ = [
     "ApiKeyDep",
@@ -79,18 +79,21 @@ _api_key_header = APIKeyHeader(
 
 
 def require_api_key(
-    session: SessionDep,
-    settings: SettingsDep,
+    request: Request,
     key: Annotated[str | None, Depends(_api_key_header)],
 ) -> None:
-    """401 unless the request carries an accepted key (never echoed back)."""
+    """401 unless the request carries an accepted key (never echoed back).
+
+    Holds no database connection for the request (see :class:`app.security.KeyVerifier`).
+    """
     if not key:
         raise HTTPException(
             status.HTTP_401_UNAUTHORIZED,
             detail=f"missing API key: send it in the {API_KEY_HEADER} header",
             headers={"WWW-Authenticate": API_KEY_HEADER},
         )
-    if not is_valid_key(session, settings, key):
+    verify: KeyVerifier = request.app.state.verify_key
+    if not verify(key):
         raise HTTPException(
             status.HTTP_401_UNAUTHORIZED,
             detail=f"invalid API key in the {API_KEY_HEADER} header",

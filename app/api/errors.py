@@ -8,15 +8,19 @@ cannot carry); a scalar input is quoted in the message instead.
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
+import sqlalchemy.exc
 from fastapi import FastAPI, Request, status
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from pydantic import ValidationError
 
 __all__ = ["format_errors", "install_error_handlers"]
+
+log = logging.getLogger(__name__)
 
 _MAX_QUOTE = 120
 # Built-in pydantic messages say the rule but not the value.
@@ -91,6 +95,25 @@ async def _arithmetic(_request: Request, exc: Exception) -> JSONResponse:
     )
 
 
+async def _database_busy(_request: Request, exc: Exception) -> JSONResponse:
+    # Every pooled connection in use for pool_timeout: the service is past capacity.
+    log.warning("database connection pool exhausted: %s", exc)
+    return JSONResponse(
+        status_code=status.HTTP_503_SERVICE_UNAVAILABLE,
+        content={"detail": "the service is past its capacity (no database connection free)"},
+        headers={"Retry-After": "2"},
+    )
+
+
+async def _database_down(_request: Request, exc: Exception) -> JSONResponse:
+    log.error("database unreachable: %s", exc)
+    return JSONResponse(
+        status_code=status.HTTP_503_SERVICE_UNAVAILABLE,
+        content={"detail": "the database cannot be reached; try again shortly"},
+        headers={"Retry-After": "5"},
+    )
+
+
 def install_error_handlers(app: FastAPI) -> None:
     app.add_exception_handler(RequestValidationError, _request_validation)
     # The core's rules (scenario physics, sequences, telemetry) raise ValueError.
@@ -100,3 +123,6 @@ def install_error_handlers(app: FastAPI) -> None:
     # underflows to a division by zero); the schemas refuse the cases known to the API
     # with a message naming the field.
     app.add_exception_handler(ArithmeticError, _arithmetic)
+    app.add_exception_handler(sqlalchemy.exc.TimeoutError, _database_busy)
+    app.add_exception_handler(sqlalchemy.exc.OperationalError, _database_down)
+    app.add_exception_handler(sqlalchemy.exc.InterfaceError, _database_down)

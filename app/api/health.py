@@ -4,19 +4,19 @@ from __future__ import annotations
 
 import logging
 import os
-from datetime import timedelta
+from datetime import UTC, timedelta
 from typing import Any
 
 from celery import Celery
 from fastapi import APIRouter
-from sqlalchemy import select
+from sqlalchemy import func, select
 
 import inertia_id
 
 from ..config import Settings
-from ..db.models import WorkerRow, utcnow
+from ..db.models import JobRow, WorkerRow, utcnow
 from ..db.session import Database
-from ..schemas import ComponentHealth, HealthOut, WorkersHealth
+from ..schemas import ComponentHealth, HealthOut, QueueHealth, WorkersHealth
 from .deps import CeleryDep, DatabaseDep, SettingsDep
 
 __all__ = ["router"]
@@ -42,10 +42,13 @@ def _broker(settings: Settings, celery: Celery) -> ComponentHealth:
     if scheme == "filesystem":
         options: dict[str, Any] = celery.conf.broker_transport_options or {}
         folder = options.get("data_folder_in") or str(settings.broker_dir)
+        # The folder is named relative to the data dir: no server path in a response.
         if os.path.isdir(folder) and os.access(folder, os.W_OK | os.X_OK):
-            return ComponentHealth(ok=True, detail=f"filesystem broker folder {folder} writable")
+            return ComponentHealth(ok=True, detail="filesystem broker folder writable")
         return ComponentHealth(
-            ok=False, detail=f"filesystem broker folder {folder} is missing or not writable"
+            ok=False,
+            detail="filesystem broker folder (broker/queue in the data dir) is missing or "
+            "not writable",
         )
     try:
         with celery.connection_for_write(connect_timeout=_BROKER_TIMEOUT_S) as connection:
@@ -55,6 +58,47 @@ def _broker(settings: Settings, celery: Celery) -> ComponentHealth:
     except Exception as exc:  # any transport error means unreachable, reported not raised
         return ComponentHealth(ok=False, detail=f"{scheme} broker unreachable: {exc}")
     return ComponentHealth(ok=True, detail=f"{scheme} broker reachable")
+
+
+def _queue(settings: Settings, database: Database, database_ok: bool) -> QueueHealth:
+    """Queued jobs, and whether any waits for a message that is not coming."""
+    if not database_ok:
+        return QueueHealth(ok=False, queued=0, running=0, unsent=0, oldest_queued_s=None)
+    now = utcnow()
+    overdue = now - timedelta(seconds=max(30.0, 3 * settings.unsent_grace_s))
+    try:
+        with database.session() as session:
+            queued = session.scalar(
+                select(func.count()).select_from(JobRow).where(JobRow.status == "queued")
+            )
+            running = session.scalar(
+                select(func.count()).select_from(JobRow).where(JobRow.status == "running")
+            )
+            unsent = session.scalar(
+                select(func.count())
+                .select_from(JobRow)
+                .where(
+                    JobRow.status == "queued",
+                    JobRow.sent_at.is_(None),
+                    JobRow.created_at < overdue,
+                )
+            )
+            oldest = session.scalar(
+                select(func.min(JobRow.created_at)).where(JobRow.status == "queued")
+            )
+    except Exception:  # the database went away between the ping and the query
+        log.exception("could not read the jobs table")
+        return QueueHealth(ok=False, queued=0, running=0, unsent=0, oldest_queued_s=None)
+    if oldest is not None and oldest.tzinfo is None:
+        oldest = oldest.replace(tzinfo=UTC)
+    age = None if oldest is None else max(0.0, (now - oldest).total_seconds())
+    return QueueHealth(
+        ok=not unsent,
+        queued=int(queued or 0),
+        running=int(running or 0),
+        unsent=int(unsent or 0),
+        oldest_queued_s=age,
+    )
 
 
 def _workers(settings: Settings, database: Database, database_ok: bool) -> WorkersHealth:
@@ -78,17 +122,20 @@ def _workers(settings: Settings, database: Database, database_ok: bool) -> Worke
 
 @router.get("/health")
 def health(settings: SettingsDep, database: DatabaseDep, celery: CeleryDep) -> HealthOut:
-    """Database reachable, broker reachable, workers seen recently: "ok", else "degraded".
+    """Database reachable, broker reachable, workers seen recently, no queued job
+    left without a message: "ok", else "degraded".
 
     Always 200: the body says what is wrong.
     """
     db = _database(database)
     broker = _broker(settings, celery)
     workers = _workers(settings, database, db.ok)
+    queue = _queue(settings, database, db.ok)
     return HealthOut(
-        status="ok" if db.ok and broker.ok and workers.ok else "degraded",
+        status="ok" if db.ok and broker.ok and workers.ok and queue.ok else "degraded",
         version=inertia_id.__version__,
         database=db,
         broker=broker,
         workers=workers,
+        queue=queue,
     )

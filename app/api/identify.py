@@ -1,8 +1,10 @@
 """Identify a spacecraft's configuration from its gyro telemetry, in the API process.
 
-No queue: one series against K centroids takes milliseconds. Classifiers are loaded from
-their stored JSON documents (checksum verified, never unpickled) and kept in a small LRU
-cache by id.
+No queue: one series against K candidates takes milliseconds. Classifiers are loaded
+from their stored JSON documents (checksum verified, never unpickled) once, and kept in
+a small LRU cache by (id, checksum); a request reads only those two columns. The
+computation runs behind the API's compute gate (:class:`app.capacity.ComputeGate`): past
+capacity a request is answered 503 with Retry-After, never left to hang.
 """
 
 from __future__ import annotations
@@ -15,19 +17,20 @@ from collections.abc import Callable
 from typing import Any
 
 from fastapi import APIRouter, HTTPException, Request, status
-from fastapi.concurrency import run_in_threadpool
 from fastapi.exceptions import RequestValidationError
 from pydantic import ValidationError
+from sqlalchemy import select
 from starlette.datastructures import UploadFile
 
 from inertia_id.classifiers.registry import CandidateClassifier, classifier_from_json
 from inertia_id.evaluation.identify import identify
 from inertia_id.evaluation.telemetry import Telemetry, parse_telemetry
 
+from ..capacity import ComputeGate
 from ..db.models import ClassifierRow
 from ..db.session import Database
 from ..schemas import IdentifyRequest, IdentifyResult, finite_or_none
-from .deps import ApiKeyDep, get_or_404, unprocessable
+from .deps import ApiKeyDep, plausible_id, unprocessable
 from .errors import format_errors
 
 __all__ = ["ClassifierCache", "openapi_components", "router"]
@@ -36,7 +39,11 @@ router = APIRouter(prefix="/identify", tags=["identify"])
 
 
 class ClassifierCache:
-    """Least-recently-used classifiers by (id, checksum), thread-safe.
+    """Least-recently-used classifiers by (id, checksum), thread-safe, one load per entry.
+
+    A cold classifier is loaded by one thread while the others asking for it wait for
+    that load (a 2 MB document parsed once, not once per concurrent request); other
+    classifiers are served meanwhile.
 
     :param size: how many classifiers to keep; 0 disables caching.
     """
@@ -45,6 +52,8 @@ class ClassifierCache:
         self.size = size
         self._items: OrderedDict[tuple[str, str], CandidateClassifier] = OrderedDict()
         self._lock = threading.Lock()
+        self._loading: dict[tuple[str, str], threading.Lock] = {}
+        self.loads = 0
 
     def get(
         self, key: tuple[str, str], load: Callable[[], CandidateClassifier]
@@ -54,15 +63,24 @@ class ClassifierCache:
             if model is not None:
                 self._items.move_to_end(key)
                 return model
-        # Loading happens outside the lock: two threads may both load a cold entry, which
-        # costs a parse but never blocks the other classifiers.
-        model = load()
-        with self._lock:
-            if self.size > 0:
-                self._items[key] = model
-                self._items.move_to_end(key)
-                while len(self._items) > self.size:
-                    self._items.popitem(last=False)
+            gate = self._loading.setdefault(key, threading.Lock())
+        with gate:
+            with self._lock:
+                model = self._items.get(key)
+                if model is not None:
+                    return model
+            try:
+                model = load()
+                self.loads += 1
+                with self._lock:
+                    if self.size > 0:
+                        self._items[key] = model
+                        self._items.move_to_end(key)
+                        while len(self._items) > self.size:
+                            self._items.popitem(last=False)
+            finally:
+                with self._lock:
+                    self._loading.pop(key, None)
         return model
 
     def __len__(self) -> int:
@@ -72,13 +90,36 @@ class ClassifierCache:
         return key in self._items
 
 
+def _document(database: Database, classifier_id: str) -> str:
+    with database.session() as session:
+        document = session.scalar(
+            select(ClassifierRow.document).where(ClassifierRow.id == classifier_id)
+        )
+    if document is None:
+        raise HTTPException(
+            status.HTTP_404_NOT_FOUND, detail=f"classifier {classifier_id[:80]!r} not found"
+        )
+    return document
+
+
 def _identify(
     database: Database, cache: ClassifierCache, classifier_id: str, telemetry: Telemetry
 ) -> IdentifyResult:
-    with database.session() as session:
-        row = get_or_404(session, ClassifierRow, classifier_id, "classifier")
-        key, document = (row.id, row.sha256), row.document
-    classifier = cache.get(key, lambda: classifier_from_json(document))
+    row = None
+    if plausible_id(classifier_id):
+        # The id and checksum only: the document (up to megabytes) is read on a cache miss.
+        with database.session() as session:
+            row = session.execute(
+                select(ClassifierRow.id, ClassifierRow.sha256).where(
+                    ClassifierRow.id == classifier_id
+                )
+            ).first()
+    if row is None:
+        raise HTTPException(
+            status.HTTP_404_NOT_FOUND, detail=f"classifier {classifier_id[:80]!r} not found"
+        )
+    key = (row.id, row.sha256)
+    classifier = cache.get(key, lambda: classifier_from_json(_document(database, row.id)))
     result = identify(classifier, telemetry).model_dump()
     return IdentifyResult.model_validate({**finite_or_none(result), "classifier_id": key[0]})
 
@@ -154,6 +195,7 @@ def openapi_components() -> dict[str, Any]:
         404: {"description": "no such classifier"},
         415: {"description": "neither JSON nor multipart/form-data"},
         422: {"description": "bad telemetry: the rule and the value"},
+        503: {"description": "past capacity: try again after Retry-After seconds"},
     },
     openapi_extra={
         "requestBody": {
@@ -187,4 +229,5 @@ async def identify_telemetry(request: Request) -> IdentifyResult:
         )
     database: Database = request.app.state.db
     cache: ClassifierCache = request.app.state.classifier_cache
-    return await run_in_threadpool(_identify, database, cache, classifier_id, telemetry)
+    gate: ComputeGate = request.app.state.compute_gate
+    return await gate.run(_identify, database, cache, classifier_id, telemetry)

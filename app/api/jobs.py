@@ -3,7 +3,8 @@
 The ``jobs`` table is the source of truth; the broker only delivers the job id to a
 worker (by task name, :data:`app.queue.RUN_JOB_TASK`). A job with the same type,
 scenario, parameters and seed as one that is queued, running or succeeded is not run
-twice: that job is returned (200, ``reused``) unless ``rerun`` is asked for.
+twice: that job is returned (200, ``reused``) unless ``rerun`` is asked for; a unique
+key in the database makes this hold for submissions that race each other too.
 """
 
 from __future__ import annotations
@@ -25,7 +26,6 @@ from ..db.models import (
     JobRow,
     MetricRow,
     ScenarioRow,
-    utcnow,
 )
 from ..queue import RUN_JOB_TASK
 from ..schemas import (
@@ -60,12 +60,15 @@ router = APIRouter(prefix="/jobs", tags=["jobs"])
 
 _NOT_FOUND: dict[int | str, dict[str, Any]] = {404: {"description": "no such job"}}
 _UNAUTHORIZED: dict[int | str, dict[str, Any]] = {401: {"description": "missing or wrong API key"}}
-# Statuses whose job may stand in for an identical new submission.
-_REUSABLE = ("queued", "running", "succeeded")
 
 
 def _scenario(session: SessionDep, scenario_id: str) -> Scenario:
     row = get_or_404(session, ScenarioRow, scenario_id, "scenario")
+    # Held until the job is committed: a concurrent delete of the scenario (FOR UPDATE on
+    # PostgreSQL) waits, then sees the job and refuses.
+    session.execute(
+        select(ScenarioRow.id).where(ScenarioRow.id == row.id).with_for_update(read=True)
+    )
     return Scenario.model_validate(row.document)
 
 
@@ -130,7 +133,6 @@ def _check_sweep(session: SessionDep, body: SweepJobCreate, scenario: Scenario) 
         200: {"model": JobSubmitted, "description": "an identical job exists; it is returned"},
         404: {"description": "no such scenario or classifier"},
         **_UNAUTHORIZED,
-        503: {"description": "the broker could not be reached; the job is marked failed"},
     },
 )
 def submit_job(
@@ -139,7 +141,12 @@ def submit_job(
     celery: CeleryDep,
     response: Response,
 ) -> JobSubmitted:
-    """Queue a search, train or sweep job (202), or return the identical existing one (200)."""
+    """Queue a search, train or sweep job (202), or return the identical existing one (200).
+
+    The job is stored before its message goes to the broker. If the broker cannot be
+    reached the job stays queued (``sent_at`` null) and the workers' monitor sends it
+    once the broker is back; ``GET /health`` says how many jobs wait to be sent.
+    """
     scenario = _scenario(session, body.scenario_id)
     if isinstance(body, SearchJobCreate):
         _check_search(body, scenario)
@@ -147,40 +154,31 @@ def submit_job(
         _check_train(body, scenario)
     else:
         _check_sweep(session, body, scenario)
-    params = body.params.model_dump(mode="json")
-    digest = job_store.config_hash(body.type, body.scenario_id, params, body.seed)
-    if not body.rerun:
-        existing = session.scalars(
-            select(JobRow)
-            .where(JobRow.config_hash == digest, JobRow.status.in_(_REUSABLE))
-            .order_by(JobRow.created_at.desc())
-            .limit(1)
-        ).first()
-        if existing is not None:
-            response.status_code = status.HTTP_200_OK
-            return JobSubmitted.model_validate({**_as_dict(existing), "reused": True})
-    job = JobRow(
-        type=body.type,
-        status="queued",
-        scenario_id=body.scenario_id,
-        params=params,
-        seed=body.seed,
-        config_hash=digest,
-    )
-    session.add(job)
-    # The row must be committed before the message can reach a worker that claims it.
-    session.commit()
+    try:
+        job, reused = job_store.create_job(
+            session,
+            job_type=body.type,
+            scenario_id=body.scenario_id,
+            params=body.params.model_dump(mode="json"),
+            seed=body.seed,
+            rerun=body.rerun,
+        )
+    except job_store.ScenarioGone:
+        raise HTTPException(
+            status.HTTP_404_NOT_FOUND,
+            detail=f"scenario {body.scenario_id!r} was deleted while the job was submitted",
+        ) from None
+    if reused:
+        response.status_code = status.HTTP_200_OK
+        return JobSubmitted.model_validate({**_as_dict(job), "reused": True})
     try:
         celery.send_task(RUN_JOB_TASK, args=[job.id])
-    except Exception as exc:  # any broker failure: record it on the job, answer 503
-        log.exception("could not enqueue job %s", job.id)
-        job.status, job.finished_at = "failed", utcnow()
-        job.error = f"could not enqueue the job on the broker: {type(exc).__name__}: {exc}"
+    except Exception:  # any broker failure: the job waits, queued, for the monitor's send
+        log.warning("could not send job %s to the broker; it stays queued", job.id, exc_info=True)
+    else:
+        job_store.mark_sent(session, job.id)
         session.commit()
-        raise HTTPException(
-            status.HTTP_503_SERVICE_UNAVAILABLE,
-            detail=f"job {job.id} could not be queued: the broker is unreachable ({exc})",
-        ) from None
+        session.refresh(job)
     return JobSubmitted.model_validate({**_as_dict(job), "reused": False})
 
 

@@ -6,7 +6,7 @@ import json
 from typing import Any
 
 import numpy as np
-from fastapi import APIRouter, HTTPException, Query, Response, status
+from fastapi import APIRouter, HTTPException, Query, Request, Response, status
 from fastapi.exceptions import RequestValidationError
 from pydantic import ValidationError
 from sqlalchemy import func, select
@@ -16,7 +16,9 @@ from inertia_id.physics.presets import PRESETS, preset
 from inertia_id.physics.scenario import Scenario
 from inertia_id.physics.simulate import simulate
 
+from ..capacity import ComputeGate
 from ..db.models import ClassifierRow, JobRow, ScenarioRow
+from ..db.session import Database
 from ..schemas import (
     MAX_SEED,
     CandidateOut,
@@ -149,6 +151,9 @@ def get_scenario(scenario_id: str, session: SessionDep) -> ScenarioOut:
 def delete_scenario(scenario_id: str, session: SessionDep) -> Response:
     """Delete a scenario that no job or classifier uses (409 otherwise)."""
     row = get_or_404(session, ScenarioRow, scenario_id, "scenario")
+    # On PostgreSQL, wait for submissions holding the row (FOR SHARE) to commit, so the
+    # counts below see their jobs; SQLite serialises writers and the foreign key decides.
+    session.execute(select(ScenarioRow.id).where(ScenarioRow.id == row.id).with_for_update())
     jobs = session.scalar(select(func.count()).where(JobRow.scenario_id == row.id)) or 0
     classifiers = (
         session.scalar(select(func.count()).where(ClassifierRow.scenario_id == row.id)) or 0
@@ -164,14 +169,20 @@ def delete_scenario(scenario_id: str, session: SessionDep) -> Response:
         session.flush()
     except IntegrityError:
         # A job was submitted for it between the count and the delete.
+        session.rollback()
         raise HTTPException(
             status.HTTP_409_CONFLICT, detail=f"scenario {row.id!r} is in use by a new job"
         ) from None
     return Response(status_code=status.HTTP_204_NO_CONTENT)
 
 
-#: Most simulated responses one request may ask for (candidates x realisations x steps).
-MAX_RESPONSE_WORK = 200_000
+#: Work caps of one response simulation, measured on the paper preset (2-core machine):
+#: the integrator loops over time in Python (about 4 ms per sequence step of 20 RK4
+#: steps), and each loop works on candidates x realisations at once. 1,280 RK4 steps (64
+#: paper steps) and 400,000 candidate-realisation-RK4-steps keep one request under about
+#: 0.4 s of CPU (the cap on both was 13.7 s before).
+MAX_RESPONSE_INTEGRATION_STEPS = 1_280
+MAX_RESPONSE_WORK = 400_000
 
 
 def _parse_sequence(text: str, scenario: Scenario) -> np.ndarray:
@@ -197,10 +208,18 @@ def _parse_sequence(text: str, scenario: Scenario) -> np.ndarray:
         unprocessable(("query", "sequence"), str(exc))
 
 
-@router.get("/{scenario_id}/response", responses=_NOT_FOUND)
-def scenario_response(
+@router.get(
+    "/{scenario_id}/response",
+    dependencies=[ApiKeyDep],
+    responses={
+        **_NOT_FOUND,
+        **_UNAUTHORIZED,
+        503: {"description": "past capacity: try again after Retry-After seconds"},
+    },
+)
+async def scenario_response(
     scenario_id: str,
-    session: SessionDep,
+    request: Request,
     sequence: str = Query(
         max_length=20_000,
         description="JSON list of steps, each a level index per thruster: [[4,4,4,0,0,0]]",
@@ -212,17 +231,39 @@ def scenario_response(
 
     Per candidate: the mean over ``n_realisations`` noisy realisations and the 10th and
     90th percentiles (the band the dashboard draws), the final true rate, and the
-    sequence's commanded impulse. Same seed, same answer.
+    sequence's commanded impulse. Same seed, same answer. It costs CPU, so it needs the
+    API key, is capped in size, and runs behind the compute gate (503 past capacity).
     """
-    row = get_or_404(session, ScenarioRow, scenario_id, "scenario")
-    scenario = Scenario.model_validate(row.document)
+    gate: ComputeGate = request.app.state.compute_gate
+    return await gate.run(
+        _response, request.app.state.db, scenario_id, sequence, n_realisations, seed
+    )
+
+
+def _response(
+    database: Database, scenario_id: str, sequence: str, n_realisations: int, seed: int
+) -> ScenarioResponse:
+    with database.session() as session:
+        row = get_or_404(session, ScenarioRow, scenario_id, "scenario")
+        scenario_id, document = row.id, row.document
+    scenario = Scenario.model_validate(document)
     steps = _parse_sequence(sequence, scenario)
-    work = scenario.n_candidates * n_realisations * len(steps)
+    timing = scenario.timing
+    integration = len(steps) * round(timing.step_duration_s / timing.integration_step_s)
+    work = scenario.n_candidates * n_realisations * integration
+    if integration > MAX_RESPONSE_INTEGRATION_STEPS:
+        unprocessable(
+            ("query", "sequence"),
+            f"{len(steps)} steps of {timing.step_duration_s:g} s at an integration step of "
+            f"{timing.integration_step_s:g} s = {integration} RK4 steps; at most "
+            f"{MAX_RESPONSE_INTEGRATION_STEPS}",
+        )
     if work > MAX_RESPONSE_WORK:
         unprocessable(
             ("query", "n_realisations"),
             f"{scenario.n_candidates} candidates x {n_realisations} realisations x "
-            f"{len(steps)} steps = {work} responses; at most {MAX_RESPONSE_WORK}",
+            f"{integration} RK4 steps = {work}; at most {MAX_RESPONSE_WORK}: ask for fewer "
+            "realisations",
         )
     result = simulate(scenario, steps, n_realisations, np.random.default_rng(seed))
     omega = result.omega_measured  # (K, n, T, 3)
@@ -230,7 +271,7 @@ def scenario_response(
     mean = omega.mean(axis=1)
     final = result.final_rate_rad_s.mean(axis=1)
     return ScenarioResponse(
-        scenario_id=row.id,
+        scenario_id=scenario_id,
         sequence=steps.tolist(),
         duties=scenario.duties(steps).tolist(),
         step_duration_s=scenario.timing.step_duration_s,

@@ -1,10 +1,19 @@
 """Job lifecycle on the ``jobs`` table, shared by the API and the workers.
 
-queued -> running -> succeeded | failed | cancelled. A worker *claims* a queued job
-(an atomic conditional UPDATE, so two deliveries of one message never run it twice),
-beats its heart while it runs, and finishes it. A running job whose heartbeat is older
-than the timeout belonged to a worker that died: :func:`reap_stale` re-queues it (up to
-``max_attempts`` runs) or fails it with the reason.
+queued -> running -> succeeded | failed | cancelled. :func:`create_job` inserts a job,
+or hands back the identical one that exists (a unique index settles races). A
+worker *claims* a queued job (an atomic conditional UPDATE, so two deliveries of one
+message never run it twice), beats its heart while it runs, and finishes it. Every write
+of a run is conditional on the run still owning the job (``attempts`` is the run's token).
+
+Nothing is lost or stuck:
+
+- a running job whose worker died (its heartbeat and its worker's both went quiet) is
+  re-queued by :func:`reap_stale` (up to ``max_attempts`` runs) or failed with the reason;
+- a worker asked to stop hands its running job back at once (:func:`hand_back`), which
+  costs no attempt;
+- a queued job whose message never reached the broker, or was lost there, is picked by
+  :func:`due_for_sending` and sent again; a duplicate message is harmless (the claim).
 """
 
 from __future__ import annotations
@@ -15,25 +24,45 @@ from collections.abc import Iterable
 from datetime import datetime, timedelta
 from typing import Any
 
-from sqlalchemy import delete, func, select, update
+from sqlalchemy import and_, delete, func, or_, select, update
 from sqlalchemy.dialects import postgresql, sqlite
+from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
-from .models import TERMINAL_STATUSES, JobRow, MetricRow, WorkerRow, utcnow
+from .models import (
+    REUSABLE_STATUSES,
+    TERMINAL_STATUSES,
+    JobRow,
+    MetricRow,
+    ScenarioRow,
+    WorkerRow,
+    utcnow,
+)
 
 __all__ = [
+    "ScenarioGone",
     "add_metrics",
     "cancel",
     "claim",
     "clear_metrics",
     "config_hash",
+    "create_job",
+    "due_for_sending",
     "finish",
+    "hand_back",
     "heartbeat",
     "is_cancel_requested",
+    "mark_sent",
+    "owns",
     "reap_stale",
     "set_progress",
     "touch_worker",
+    "worker_stopping",
 ]
+
+
+class ScenarioGone(LookupError):
+    """The job's scenario was deleted while the job was being submitted."""
 
 
 def config_hash(job_type: str, scenario_id: str, params: dict[str, Any], seed: int) -> str:
@@ -44,6 +73,130 @@ def config_hash(job_type: str, scenario_id: str, params: dict[str, Any], seed: i
         separators=(",", ":"),
     )
     return hashlib.sha256(canonical.encode()).hexdigest()
+
+
+def _reusable(session: Session, digest: str) -> JobRow | None:
+    return session.scalars(
+        select(JobRow).where(
+            JobRow.config_hash == digest,
+            JobRow.status.in_(REUSABLE_STATUSES),
+            JobRow.superseded.is_(False),
+        )
+    ).first()
+
+
+def create_job(
+    session: Session,
+    *,
+    job_type: str,
+    scenario_id: str,
+    params: dict[str, Any],
+    seed: int,
+    rerun: bool = False,
+) -> tuple[JobRow, bool]:
+    """Insert a queued job and commit it; or return the identical job that stands.
+
+    Returns ``(job, reused)``. Without ``rerun`` an identical queued, running or
+    succeeded job is returned (``reused``); with it, the new job takes that job's place
+    for later submissions. Concurrent identical submissions make one job: the unique
+    index on reusable configurations refuses all inserts but one, and the others return
+    that one.
+
+    :raises ScenarioGone: the scenario was deleted meanwhile (its foreign key failed).
+    """
+    digest = config_hash(job_type, scenario_id, params, seed)
+    for _ in range(3):
+        if not rerun:
+            existing = _reusable(session, digest)
+            if existing is not None:
+                return existing, True
+        else:
+            session.execute(
+                update(JobRow)
+                .where(JobRow.config_hash == digest, JobRow.superseded.is_(False))
+                .values(superseded=True)
+            )
+        job = JobRow(
+            type=job_type,
+            status="queued",
+            scenario_id=scenario_id,
+            params=params,
+            seed=seed,
+            config_hash=digest,
+        )
+        session.add(job)
+        try:
+            # The row must be committed before a message can reach a worker that claims it.
+            session.commit()
+        except IntegrityError:
+            session.rollback()
+            existing = _reusable(session, digest)
+            if existing is not None:
+                # Another submission of the same configuration won the race.
+                return existing, True
+            if session.get(ScenarioRow, scenario_id) is None:
+                raise ScenarioGone(scenario_id) from None
+            # The winner ended (failed, cancelled) between our insert and our look-up.
+            continue
+        return job, False
+    raise RuntimeError(f"could not insert job {digest[:12]} after 3 tries")
+
+
+def mark_sent(session: Session, job_id: str) -> None:
+    """Record that the job's message went to the broker now."""
+    session.execute(update(JobRow).where(JobRow.id == job_id).values(sent_at=utcnow()))
+
+
+def due_for_sending(
+    session: Session,
+    *,
+    unsent_grace_s: float,
+    resend_after_s: float,
+    idle_workers: int,
+    now: datetime | None = None,
+) -> list[str]:
+    """Queued jobs whose message must be sent (again), marked as sent now.
+
+    - never sent (``sent_at`` NULL) for ``unsent_grace_s``: the API died between its
+      commit and its send, the broker was down then, or a hand-back is waiting;
+    - sent more than ``resend_after_s`` ago while ``idle_workers`` > 0: a live worker
+      with nothing to do would have taken the message long since, so it was lost (a
+      deleted queue, a broker restarted without persistence). At most ``idle_workers``
+      of these, oldest first, per call: a queue that is merely long is left alone.
+
+    Each job is marked by a conditional UPDATE before it is returned, so two monitors
+    never both send it.
+    """
+    now = now or utcnow()
+    never = and_(
+        JobRow.sent_at.is_(None),
+        JobRow.created_at < now - timedelta(seconds=unsent_grace_s),
+    )
+    stale = JobRow.sent_at < now - timedelta(seconds=resend_after_s)
+    due = list(
+        session.scalars(
+            select(JobRow.id).where(JobRow.status == "queued", never).order_by(JobRow.created_at)
+        )
+    )
+    if idle_workers > 0:
+        due += list(
+            session.scalars(
+                select(JobRow.id)
+                .where(JobRow.status == "queued", stale)
+                .order_by(JobRow.sent_at)
+                .limit(idle_workers)
+            )
+        )
+    taken = []
+    for job_id in due:
+        marked = session.execute(  # type: ignore[attr-defined]
+            update(JobRow)
+            .where(JobRow.id == job_id, JobRow.status == "queued", or_(never, stale))
+            .values(sent_at=now)
+        ).rowcount
+        if marked:
+            taken.append(job_id)
+    return taken
 
 
 def claim(session: Session, job_id: str, worker: str) -> JobRow | None:
@@ -73,18 +226,35 @@ def claim(session: Session, job_id: str, worker: str) -> JobRow | None:
     return session.get(JobRow, job_id)
 
 
-def heartbeat(session: Session, job_id: str) -> None:
-    session.execute(
-        update(JobRow)
-        .where(JobRow.id == job_id, JobRow.status == "running")
-        .values(heartbeat_at=utcnow())
-    )
+def _run_of(job_id: str, attempt: int | None) -> list[Any]:
+    conditions = [JobRow.id == job_id, JobRow.status == "running"]
+    if attempt is not None:
+        conditions.append(JobRow.attempts == attempt)
+    return conditions
 
 
-def set_progress(session: Session, job_id: str, progress: float) -> None:
+def owns(session: Session, job_id: str, attempt: int) -> bool:
+    """Whether run ``attempt`` still owns the job (it is running as that run).
+
+    Locks the row on PostgreSQL until the transaction ends, so a hand-back or a reap
+    cannot slip between this check and the run's next write in the same transaction.
+    """
+    row = session.execute(
+        select(JobRow.id).where(*_run_of(job_id, attempt)).with_for_update()
+    ).first()
+    return row is not None
+
+
+def heartbeat(session: Session, job_id: str, attempt: int | None = None) -> None:
+    session.execute(update(JobRow).where(*_run_of(job_id, attempt)).values(heartbeat_at=utcnow()))
+
+
+def set_progress(
+    session: Session, job_id: str, progress: float, attempt: int | None = None
+) -> None:
     session.execute(
         update(JobRow)
-        .where(JobRow.id == job_id, JobRow.status == "running")
+        .where(*_run_of(job_id, attempt))
         .values(progress=min(max(float(progress), 0.0), 1.0), heartbeat_at=utcnow())
     )
 
@@ -128,11 +298,8 @@ def finish(
         values["progress"] = 1.0
     if result is not None:
         values["result"] = result
-    conditions = [JobRow.id == job_id, JobRow.status == "running"]
-    if attempt is not None:
-        conditions.append(JobRow.attempts == attempt)
     finished = session.execute(  # type: ignore[attr-defined]
-        update(JobRow).where(*conditions).values(**values)
+        update(JobRow).where(*_run_of(job_id, attempt)).values(**values)
     ).rowcount
     return bool(finished)
 
@@ -147,26 +314,69 @@ def cancel(session: Session, job: JobRow) -> None:
         job.finished_at = utcnow()
 
 
+def worker_stopping(session: Session, worker: str) -> bool:
+    """Whether ``worker`` was told to stop (then it claims nothing more)."""
+    since = session.scalar(select(WorkerRow.stopping_since).where(WorkerRow.name == worker))
+    return since is not None
+
+
+def hand_back(session: Session, worker: str, reason: str) -> list[str]:
+    """Re-queue every job that ``worker`` is running, at no cost of an attempt.
+
+    For a worker told to stop (SIGTERM: a restart, ``docker stop``): its job goes back
+    to the queue at once instead of waiting for the heartbeat timeout, and the run it
+    had, cut short through no fault of the job, does not count against ``max_attempts``.
+    The run notices (it no longer owns the job) and drops whatever it was doing. The
+    caller sends the returned jobs' messages. The worker is marked stopping, so that
+    it claims nothing more (a message it already fetched included).
+    """
+    session.execute(
+        update(WorkerRow)
+        .where(WorkerRow.name == worker, WorkerRow.stopping_since.is_(None))
+        .values(stopping_since=utcnow())
+    )
+    jobs = session.scalars(
+        select(JobRow).where(JobRow.worker == worker, JobRow.status == "running").with_for_update()
+    ).all()
+    for job in jobs:
+        job.status, job.worker, job.sent_at = "queued", None, None
+        job.handbacks = (job.handbacks or 0) + 1
+        job.error = f"handed back: {reason}"
+    return [job.id for job in jobs]
+
+
 def reap_stale(
     session: Session,
     *,
     timeout_s: float,
     max_attempts: int,
+    worker_silence_s: float | None = None,
     now: datetime | None = None,
 ) -> tuple[list[str], list[str]]:
-    """Deal with running jobs whose heartbeat is older than ``timeout_s``.
+    """Deal with running jobs whose run died.
+
+    A run is dead when its heartbeat is older than ``timeout_s``; or, sooner, when both
+    its heartbeat and its worker's (the ``workers`` row, beaten by the worker's main
+    process, which a busy job cannot starve) are older than ``worker_silence_s``: the
+    whole worker is gone (``kill -9``, a lost machine).
 
     Returns (re-queued job ids, failed job ids). A job that has had ``max_attempts``
-    runs, or whose cancel was requested, is not re-queued.
+    runs (hand-backs not counted), or whose cancel was requested, is not re-queued.
     """
     now = now or utcnow()
-    cutoff = now - timedelta(seconds=timeout_s)
+    beat = func.coalesce(JobRow.heartbeat_at, JobRow.started_at)
+    dead = beat < now - timedelta(seconds=timeout_s)
+    if worker_silence_s is not None:
+        silent = now - timedelta(seconds=worker_silence_s)
+        worker_alive = (
+            select(WorkerRow.name)
+            .where(WorkerRow.name == JobRow.worker, WorkerRow.last_seen_at >= silent)
+            .exists()
+        )
+        dead = or_(dead, and_(beat < silent, ~worker_alive))
     stale = session.scalars(
         select(JobRow)
-        .where(
-            JobRow.status == "running",
-            func.coalesce(JobRow.heartbeat_at, JobRow.started_at) < cutoff,
-        )
+        .where(JobRow.status == "running", dead)
         # Two workers' reapers may run at once: on PostgreSQL the second skips the rows the
         # first holds (and re-checks the condition after), so a job re-queued and claimed
         # again in between is not re-queued a second time. SQLite serialises writers anyway.
@@ -174,20 +384,22 @@ def reap_stale(
     ).all()
     requeued, failed = [], []
     for job in stale:
-        beat = job.heartbeat_at or job.started_at
+        last = job.heartbeat_at or job.started_at
         reason = (
             f"worker {job.worker or '?'} stopped sending heartbeats (last at "
-            f"{beat.isoformat() if beat else 'never'}, timeout {timeout_s:g} s)"
+            f"{last.isoformat() if last else 'never'})"
         )
+        counted = job.attempts - (job.handbacks or 0)
         if job.cancel_requested:
             job.status, job.finished_at, job.error = "cancelled", now, reason
             failed.append(job.id)
-        elif job.attempts >= max_attempts:
+        elif counted >= max_attempts:
             job.status, job.finished_at = "failed", now
-            job.error = f"{reason}; gave up after {job.attempts} attempts"
+            job.error = f"{reason}; gave up after {counted} attempts"
             failed.append(job.id)
         else:
             job.status, job.worker, job.error = "queued", None, f"re-queued: {reason}"
+            job.sent_at = None
             requeued.append(job.id)
     return requeued, failed
 

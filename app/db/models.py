@@ -6,12 +6,26 @@ import uuid
 from datetime import UTC, datetime
 from typing import Any
 
-from sqlalchemy import JSON, Boolean, DateTime, Float, ForeignKey, Index, Integer, String, Text
+from sqlalchemy import (
+    JSON,
+    Boolean,
+    DateTime,
+    Float,
+    ForeignKey,
+    Index,
+    Integer,
+    String,
+    Text,
+    false,
+    text,
+)
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
 
 __all__ = [
     "JOB_STATUSES",
     "JOB_TYPES",
+    "REUSABLE_STATUSES",
+    "REUSABLE_WHERE",
     "TERMINAL_STATUSES",
     "ApiKey",
     "Base",
@@ -27,6 +41,10 @@ __all__ = [
 JOB_TYPES = ("search", "train", "sweep")
 JOB_STATUSES = ("queued", "running", "succeeded", "failed", "cancelled")
 TERMINAL_STATUSES = ("succeeded", "failed", "cancelled")
+#: Statuses whose job may stand in for an identical new submission.
+REUSABLE_STATUSES = ("queued", "running", "succeeded")
+#: The rows of the unique index on reusable configurations.
+REUSABLE_WHERE = "status IN ('queued', 'running', 'succeeded') AND NOT superseded"
 
 
 def new_id() -> str:
@@ -56,6 +74,17 @@ class JobRow(Base):
         Index("ix_jobs_status", "status"),
         Index("ix_jobs_config_hash", "config_hash"),
         Index("ix_jobs_scenario", "scenario_id"),
+        # One reusable job per configuration: identical submissions racing each other
+        # meet here, in the database, and all but one get the existing job back. A job
+        # leaves the index by itself when it fails or is cancelled, or is superseded by
+        # a rerun.
+        Index(
+            "ux_jobs_reusable_config",
+            "config_hash",
+            unique=True,
+            sqlite_where=text(REUSABLE_WHERE),
+            postgresql_where=text(REUSABLE_WHERE),
+        ),
     )
 
     id: Mapped[str] = mapped_column(String(32), primary_key=True, default=new_id)
@@ -65,16 +94,26 @@ class JobRow(Base):
     params: Mapped[dict[str, Any]] = mapped_column(JSON, default=dict)
     seed: Mapped[int] = mapped_column(Integer, default=0)
     config_hash: Mapped[str] = mapped_column(String(64))
+    #: A later rerun of the same configuration stands in for it now.
+    superseded: Mapped[bool] = mapped_column(Boolean, default=False, server_default=false())
     progress: Mapped[float] = mapped_column(Float, default=0.0)
     error: Mapped[str | None] = mapped_column(Text, default=None)
     result: Mapped[dict[str, Any] | None] = mapped_column(JSON, default=None)
     cancel_requested: Mapped[bool] = mapped_column(Boolean, default=False)
+    #: Runs started (each claim adds one; also the run's token, see ``finish``).
     attempts: Mapped[int] = mapped_column(Integer, default=0)
+    #: Runs handed back by a worker that was asked to stop (SIGTERM): they do not count
+    #: against ``max_attempts``.
+    handbacks: Mapped[int] = mapped_column(Integer, default=0, server_default="0")
     worker: Mapped[str | None] = mapped_column(String(200), default=None)
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
     started_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
     finished_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
     heartbeat_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
+    #: When the job's message was last handed to the broker; NULL while it never was
+    #: (the broker was down, or the API died between commit and send). Queued jobs whose
+    #: message is missing are sent again by the workers' monitor (see ``worker.monitor``).
+    sent_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
 
 
 class MetricRow(Base):
@@ -96,8 +135,8 @@ class ClassifierRow(Base):
         ForeignKey("jobs.id", ondelete="SET NULL"), default=None
     )
     scenario_id: Mapped[str] = mapped_column(ForeignKey("scenarios.id", ondelete="RESTRICT"))
-    kind: Mapped[str] = mapped_column(String(32), default="clustering", server_default="clustering")
-    metric: Mapped[str] = mapped_column(String(16))
+    kind: Mapped[str] = mapped_column(String(64), default="clustering", server_default="clustering")
+    metric: Mapped[str] = mapped_column(String(64))
     f1: Mapped[float] = mapped_column(Float)
     accuracy: Mapped[float] = mapped_column(Float)
     sequence: Mapped[list[Any]] = mapped_column(JSON)
@@ -117,6 +156,8 @@ class WorkerRow(Base):
     broker_url: Mapped[str] = mapped_column(String(500))
     started_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
     last_seen_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+    #: Set when the worker was told to stop: it claims no more jobs, and hands back any.
+    stopping_since: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
 
 
 class ApiKey(Base):

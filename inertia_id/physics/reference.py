@@ -2,7 +2,7 @@
 
 This is what a straightforward implementation looks like: one series at a time, one
 RK4 step at a time, 3-vectors and ``np.cross`` / ``np.linalg.solve``. It consumes the
-same :class:`~inertia_id.simulate.SequenceNoise` as the batched simulator, so the two
+same :class:`~inertia_id.physics.simulate.SequenceNoise` as the batched simulator, so the two
 must agree to rounding error (tests check 1e-12), and it is the baseline the
 simulation benchmark measures the batched simulator against
 (:func:`~inertia_id.search.reference.plain_prefix_score` builds the plain search step on

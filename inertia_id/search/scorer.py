@@ -9,19 +9,19 @@ tslearn's ``TimeSeriesKMeans``) takes about two seconds on a laptop. The
   gets the same score, sequences are compared on the same noise, and a result can be
   reused: scored prefixes live in a cache bounded by memory;
 - a prefix is simulated by extending its parent's state by one step
-  (:meth:`~inertia_id.simulate.Simulator.advance`), all candidates and realisations at
+  (:meth:`~inertia_id.physics.simulate.Simulator.advance`), all candidates and realisations at
   once;
-- clustering is the numba DTW k-means of :mod:`inertia_id.dtw`, band-constrained by
+- clustering is the numba DTW k-means of :mod:`inertia_id.classifiers.dtw`, band-constrained by
   default (thruster timing jitter and the actuator lag shift responses by about two
   samples at 20 Hz, so a wider warping only blurs candidates), warm-started from the
   parent's centroids plus ``n_init`` k-means++ runs, the lowest inertia kept.
 
-``metric="softdtw"`` clusters with :class:`~inertia_id.classify.InertiaClassifier`
+``metric="softdtw"`` clusters with :class:`~inertia_id.classifiers.clustering.InertiaClassifier`
 (tslearn), which is correct but slow; it is there for comparison, not for PPO.
 
 ``objective="separability"`` scores a prefix without clustering: the candidates'
 responses are modelled as Gaussians with a shared, shrunk covariance and scored by the
-Bhattacharyya bound on the Bayes error (:mod:`inertia_id.separability`), about a
+Bhattacharyya bound on the Bayes error (:mod:`inertia_id.search.objectives`), about a
 millisecond instead of tens. The simulation, the cache and the common random numbers
 are the same; only the score differs.
 """
@@ -149,7 +149,7 @@ class PrefixScore:
 
     :param f1: objective "f1": macro F1 of the clustering under the best
         cluster-candidate matching; objective "separability": the separability score
-        (:func:`~inertia_id.separability.separability_score`), both in [0, 1].
+        (:func:`~inertia_id.search.objectives.separability_score`), both in [0, 1].
     :param accuracy: objective "f1": fraction of series whose cluster maps to their
         candidate; "separability": 1 − the error bound (at most 1), a lower bound on the
         accuracy of the best classifier under the Gaussian model, at the noise margin.

@@ -37,6 +37,8 @@ def make_settings(data_dir: Path, database_url: str, **overrides: Any) -> Settin
         "INERTIA_ID_MAX_METRIC_POINTS": 2000,
         "INERTIA_ID_HEARTBEAT_INTERVAL_S": 5.0,
         "INERTIA_ID_CLASSIFIER_CACHE": 32,
+        # The test client's Host header, besides the loopback names.
+        "INERTIA_ID_ALLOWED_HOSTS": "testserver,127.0.0.1,localhost",
     }
     values.update(overrides)
     return Settings(**values)
@@ -72,6 +74,10 @@ class Api:
 
     def get(self, url: str, **kwargs: Any) -> Any:
         return self.client.get(url, **kwargs)
+
+    def get_with_key(self, url: str, **kwargs: Any) -> Any:
+        """A read that costs CPU, and so needs the key."""
+        return self.client.get(url, headers=self.auth, **kwargs)
 
     def queued_messages(self) -> list[Path]:
         return sorted((self.settings.broker_dir / "queue").glob("*.msg"))

@@ -1,4 +1,4 @@
-"""Physics of inertia_id.dynamics: Euler's equations with RK4, and the actuation low-pass.
+"""Physics of inertia_id.physics.dynamics: Euler's equations with RK4, and the actuation low-pass.
 
 All checks are against physics (conservation laws, closed-form solutions) or an
 independent high-accuracy integrator, never against numbers the code itself produced.

@@ -13,6 +13,7 @@ Without Redis or PostgreSQL the ``redis`` cases skip, or fail when
 
 from __future__ import annotations
 
+import itertools
 import os
 import signal
 import subprocess
@@ -30,7 +31,7 @@ from sqlalchemy import create_engine, select, text
 
 from app.config import Settings
 from app.db import Database, JobRow, MetricRow, ScenarioRow, WorkerRow, upgrade
-from app.db.jobs import config_hash
+from app.db.jobs import config_hash, create_job, mark_sent
 from app.queue import RUN_JOB_TASK, make_celery
 from inertia_id import Scenario
 
@@ -162,19 +163,21 @@ class Service:
         return "\n".join(w.log_tail() for w in self.workers)
 
     def submit(self, job_type: str, params: dict[str, Any], *, seed: int = 0) -> str:
-        """Write a queued job row and send its message, as the API does."""
+        """Store a queued job and send its message, as the API does (a new job even when
+        an identical one exists: a rerun)."""
         with self.db.session() as session:
-            job = JobRow(
-                type=job_type,
+            job, _reused = create_job(
+                session,
+                job_type=job_type,
                 scenario_id=self.scenario_id,
                 params=params,
                 seed=seed,
-                config_hash=config_hash(job_type, self.scenario_id, params, seed),
+                rerun=True,
             )
-            session.add(job)
-            session.flush()
             job_id = job.id
         self.celery.send_task(RUN_JOB_TASK, args=[job_id])
+        with self.db.session() as session:
+            mark_sent(session, job_id)
         return job_id
 
     def job(self, job_id: str) -> JobRow:
@@ -283,6 +286,9 @@ def service(deployment: Service) -> Service:
     return deployment
 
 
+_SEEDS = itertools.count(10_000)
+
+
 @dataclass
 class Store:
     """A migrated database (with the paper scenario) and settings on a filesystem broker
@@ -295,13 +301,16 @@ class Store:
     def add_job(
         self, job_type: str = "train", params: dict[str, Any] | None = None, **values: Any
     ) -> str:
+        """A job row as given; each its own configuration (a seed of its own unless given),
+        as identical reusable jobs cannot both exist."""
         params = {} if params is None else params
+        values.setdefault("seed", next(_SEEDS))
         with self.db.session() as session:
             job = JobRow(
                 type=job_type,
                 scenario_id=self.scenario_id,
                 params=params,
-                config_hash=config_hash(job_type, self.scenario_id, params, values.get("seed", 0)),
+                config_hash=config_hash(job_type, self.scenario_id, params, values["seed"]),
                 **values,
             )
             session.add(job)

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import hashlib
+import json
 import time
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -106,8 +106,10 @@ def test_ppo_search_saves_its_policy_and_a_point_per_rollout(service: Service) -
     assert job.status == "succeeded", job.error
     result = job.result or {}
     assert result["method"] == "ppo" and result["settings"]["ppo"]["n_steps"] == 16
-    policy = Path(result["policy_path"])
-    assert policy == service.settings.data_dir.resolve() / "policies" / f"{job.id}.zip"
+    # Named relative to the data dir: a result shows no server path.
+    assert result["policy_path"] == f"policies/{job.id}.zip"
+    assert str(service.settings.data_dir.resolve()) not in json.dumps(result)
+    policy = service.settings.data_dir.resolve() / result["policy_path"]
     assert hashlib.sha256(policy.read_bytes()).hexdigest() == result["policy_sha256"]
     steps = sorted({step for key, step, _ in service.metrics(job.id) if key == "mean_f1"})
     assert steps == [16, 32]

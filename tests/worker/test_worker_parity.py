@@ -49,22 +49,8 @@ def run_cli(args: list[str]) -> None:
     ],
 )
 def test_train_gives_the_same_classifier(
-    store: Store,
-    tmp_path: Path,
-    cli: list[str],
-    params: dict[str, Any],
-    request: pytest.FixtureRequest,
+    store: Store, tmp_path: Path, cli: list[str], params: dict[str, Any]
 ) -> None:
-    if not params and request.node.callspec.params.get("store") == "postgresql":
-        request.applymarker(
-            pytest.mark.xfail(
-                strict=True,
-                raises=AssertionError,
-                reason="the service's classifiers.metric column is VARCHAR(16), and the "
-                "default kind's metric, 'marginal-mahalanobis', has 20 characters: "
-                "PostgreSQL refuses the row (app/db, the service layer's to fix)",
-            )
-        )
     out = tmp_path / "classifier.json"
     run_cli(["train", "--sequence", GOOD_TEXT, "-n", "6", "--seed", "4", "--out", str(out), *cli])
     result = run_job(store, "train", {"sequence": GOOD, "n_realisations": 6, **params}, seed=4)

@@ -7,10 +7,21 @@ import json
 from datetime import timedelta
 from typing import TYPE_CHECKING
 
-from app.db.jobs import reap_stale, touch_worker
-from app.db.models import WorkerRow, utcnow
+from celery import Celery
+
+from app.db.jobs import (
+    claim,
+    finish,
+    hand_back,
+    heartbeat,
+    owns,
+    reap_stale,
+    set_progress,
+    touch_worker,
+)
+from app.db.models import JobRow, WorkerRow, utcnow
 from app.queue import RUN_JOB_TASK, make_celery
-from worker.reaper import reap_once
+from worker.reaper import hand_back_jobs, idle_workers, reap_once, resend_once
 
 if TYPE_CHECKING:
     from conftest import Store
@@ -82,19 +93,135 @@ def test_reap_once_sends_the_requeued_job_again(store: Store) -> None:
     assert _sent_job_ids(store) == [retry]
 
 
-def test_a_requeued_job_the_broker_refuses_is_failed_not_left_waiting(store: Store) -> None:
-    retry = _running(store, beat_age_s=600)
+def _unreachable_celery(store: Store) -> Celery:
     unreachable = store.settings.model_copy(update={"broker_url": "redis://127.0.0.1:1/0"})
     celery = make_celery(unreachable)
     celery.conf.broker_connection_timeout = 0.5
     celery.conf.task_publish_retry_policy = {"max_retries": 0}
+    return celery
 
-    report = reap_once(store.settings, store.db, celery)
 
-    assert report.requeued == [] and report.failed == [retry]
+def test_a_requeued_job_the_broker_refuses_waits_queued_and_is_sent_when_it_is_back(
+    store: Store,
+) -> None:
+    retry = _running(store, beat_age_s=600)
+
+    report = reap_once(store.settings, store.db, _unreachable_celery(store))
+
+    assert report.requeued == [retry] and report.failed == []
     job = store.job(retry)
-    assert job.status == "failed"
-    assert job.error is not None and "re-sending it to the broker failed" in job.error
+    assert job.status == "queued" and job.sent_at is None
+    assert _sent_job_ids(store) == []
+    # The broker is back: the re-sender sends it, once.
+    settings = store.settings.model_copy(update={"unsent_grace_s": 0.0})
+    celery = make_celery(settings)
+    assert resend_once(settings, store.db, celery) == [retry]
+    assert resend_once(settings, store.db, celery) == []
+    assert _sent_job_ids(store) == [retry]
+    assert store.job(retry).sent_at is not None
+
+
+def test_a_job_never_sent_is_sent_after_the_grace_and_not_before(store: Store) -> None:
+    fresh = store.add_job(status="queued")
+    old = store.add_job(status="queued", created_at=utcnow() - timedelta(seconds=60))
+    sent = store.add_job(
+        status="queued",
+        created_at=utcnow() - timedelta(seconds=60),
+        sent_at=utcnow() - timedelta(seconds=1),
+    )
+    settings = store.settings.model_copy(update={"unsent_grace_s": 10.0})
+    assert resend_once(settings, store.db, make_celery(settings)) == [old]
+    assert _sent_job_ids(store) == [old]
+    assert store.job(fresh).sent_at is None and store.job(sent).status == "queued"
+
+
+def test_a_lost_message_is_sent_again_only_while_a_worker_is_idle(store: Store) -> None:
+    long_ago = utcnow() - timedelta(seconds=600)
+    lost = store.add_job(status="queued", created_at=long_ago, sent_at=long_ago)
+    settings = store.settings.model_copy(update={"resend_after_s": 30.0})
+    celery = make_celery(settings)
+    # No live worker: nobody would take it; a message now would only pile up.
+    assert idle_workers(settings, store.db) == 0
+    assert resend_once(settings, store.db, celery) == []
+    # One live worker, busy with another job: the queue is merely long.
+    with store.db.session() as session:
+        touch_worker(session, "w1@host", "filesystem://")
+    busy = store.add_job(status="running", worker="w1@host", heartbeat_at=utcnow())
+    assert idle_workers(settings, store.db) == 0
+    assert resend_once(settings, store.db, celery) == []
+    # The worker is idle and the message went out long ago: it was lost.
+    with store.db.session() as session:
+        session.get(JobRow, busy).status = "succeeded"  # type: ignore[union-attr]
+    assert idle_workers(settings, store.db) == 1
+    assert resend_once(settings, store.db, celery) == [lost]
+    assert _sent_job_ids(store) == [lost]
+    # Just sent: not again until resend_after_s has passed once more.
+    assert resend_once(settings, store.db, celery) == []
+
+
+def test_a_dead_workers_job_is_reaped_as_soon_as_the_worker_goes_quiet(store: Store) -> None:
+    quiet = utcnow() - timedelta(seconds=30)
+    with store.db.session() as session:
+        touch_worker(session, "dead@host", "filesystem://")
+        touch_worker(session, "alive@host", "filesystem://")
+        session.get(WorkerRow, "dead@host").last_seen_at = quiet  # type: ignore[union-attr]
+    dead = store.add_job(
+        status="running", worker="dead@host", attempts=1, started_at=quiet, heartbeat_at=quiet
+    )
+    # Its heartbeat is as old, but its worker's main process beats: a busy job, not a death.
+    starved = store.add_job(
+        status="running", worker="alive@host", attempts=1, started_at=quiet, heartbeat_at=quiet
+    )
+    with store.db.session() as session:
+        requeued, ended = reap_stale(
+            session, timeout_s=TIMEOUT_S, max_attempts=2, worker_silence_s=15.0
+        )
+    assert requeued == [dead] and ended == []
+    assert store.job(starved).status == "running"
+
+
+def test_a_handed_back_job_is_queued_at_once_and_costs_no_attempt(store: Store) -> None:
+    job_id = store.add_job(status="running", worker="w1@host", attempts=2, heartbeat_at=utcnow())
+    other = store.add_job(status="running", worker="w2@host", attempts=1, heartbeat_at=utcnow())
+    report = hand_back_jobs(store.settings, store.db, make_celery(store.settings), "w1@host")
+    assert report == [job_id]
+    job = store.job(job_id)
+    assert job.status == "queued" and job.worker is None and job.handbacks == 1
+    assert job.error is not None and "handed back" in job.error and job.sent_at is not None
+    assert _sent_job_ids(store) == [job_id]
+    assert store.job(other).status == "running"
+    # Two runs started, one handed back: one attempt spent, so a dead run is re-queued.
+    with store.db.session() as session:
+        claimed = claim(session, job_id, "w3@host")
+        assert claimed is not None and claimed.attempts == 3
+        claimed.heartbeat_at = utcnow() - timedelta(seconds=600)
+    with store.db.session() as session:
+        requeued, _ended = reap_stale(session, timeout_s=TIMEOUT_S, max_attempts=2)
+    # attempts 3 - handbacks 1 = 2 spent: the second real failure ends it.
+    assert requeued == []
+    assert store.job(job_id).status == "failed"
+
+
+def test_a_run_that_lost_its_job_writes_nothing_more(store: Store) -> None:
+    job_id = store.add_job(status="queued")
+    with store.db.session() as session:
+        job = claim(session, job_id, "w1@host")
+        assert job is not None
+    with store.db.session() as session:
+        assert owns(session, job_id, 1)
+        hand_back(session, "w1@host", "stopping")
+    with store.db.session() as session:
+        assert not owns(session, job_id, 1)
+        job = claim(session, job_id, "w2@host")
+        assert job is not None and job.attempts == 2
+    with store.db.session() as session:
+        # The first run's late heartbeat, progress and finish touch the second run's row
+        # not at all.
+        heartbeat(session, job_id, 1)
+        set_progress(session, job_id, 0.9, 1)
+        assert not finish(session, job_id, "succeeded", result={"late": True}, attempt=1)
+    job = store.job(job_id)
+    assert job.status == "running" and job.progress == 0.0 and job.result is None
 
 
 def test_touch_worker_inserts_then_moves_last_seen(store: Store) -> None:

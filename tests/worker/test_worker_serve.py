@@ -116,11 +116,13 @@ def test_serve_runs_the_api_and_a_worker_that_does_jobs_then_stops_both(tmp_path
             "the API did not report one live worker",
             log,
         )
-        assert health["status"] == "ok" and health["workers"]["names"][0].startswith("worker1@")
+        assert health["status"] == "ok" and re.fullmatch(
+            r"worker1-[0-9a-f]{6}@.+", health["workers"]["names"][0]
+        )
         banner = log.read_text()
         assert f"URL:       {base}" in banner and f"{base}/docs" in banner
         assert re.search(r"API key:   \S{20,}", banner), banner
-        worker_pid = int(re.search(r"worker1 started \(pid (\d+)\)", banner).group(1))  # type: ignore[union-attr]
+        worker_pid = int(re.search(r"worker1 started \(pid (\d+),", banner).group(1))  # type: ignore[union-attr]
 
         # A job written the way the API writes it is run by serve's worker.
         settings = Settings(INERTIA_ID_DATA_DIR=data_dir)

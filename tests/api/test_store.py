@@ -1,0 +1,120 @@
+"""The job store under concurrency: the database, not luck, keeps submissions apart."""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable
+from typing import Any
+
+import pytest
+from sqlalchemy import func, select
+from sqlalchemy.exc import IntegrityError
+
+from app.db import Database, JobRow, ScenarioRow, upgrade
+from app.db.jobs import ScenarioGone, cancel, create_job, finish
+from inertia_id import Scenario
+
+PARAMS: dict[str, Any] = {"sequence": [[4, 4, 4, 0, 0, 0]] * 4, "metric": "euclidean"}
+
+
+@pytest.fixture
+def db(database_url: str) -> Database:
+    upgrade(database_url)
+    database = Database(database_url)
+    yield database  # type: ignore[misc]
+    database.dispose()
+
+
+def _scenario(db: Database) -> str:
+    with db.session() as session:
+        row = ScenarioRow(name="paper", document=Scenario.paper().model_dump(mode="json"))
+        session.add(row)
+        session.flush()
+        return row.id
+
+
+def _at_once(count: int, work: Callable[[], Any]) -> list[Any]:
+    """Run ``work`` on ``count`` threads released together; results or exceptions."""
+    barrier = threading.Barrier(count)
+    results: list[Any] = [None] * count
+
+    def run(index: int) -> None:
+        barrier.wait()
+        try:
+            results[index] = work()
+        except Exception as exc:
+            results[index] = exc
+
+    threads = [threading.Thread(target=run, args=(i,)) for i in range(count)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join(60)
+    return results
+
+
+def _submit(db: Database, scenario_id: str, **options: Any) -> tuple[str, bool]:
+    with db.session() as session:
+        job, reused = create_job(
+            session, job_type="train", scenario_id=scenario_id, params=PARAMS, seed=0, **options
+        )
+        return job.id, reused
+
+
+def test_identical_submissions_at_once_make_one_job(db: Database) -> None:
+    scenario_id = _scenario(db)
+    results = _at_once(10, lambda: _submit(db, scenario_id))
+    assert not [r for r in results if isinstance(r, Exception)], results
+    assert len({job_id for job_id, _ in results}) == 1
+    assert sorted(reused for _, reused in results) == [False] + [True] * 9
+    with db.session() as session:
+        assert session.scalar(select(func.count()).select_from(JobRow)) == 1
+
+
+def test_reruns_at_once_leave_one_job_standing_for_later_submissions(db: Database) -> None:
+    scenario_id = _scenario(db)
+    first, _ = _submit(db, scenario_id)
+    results = _at_once(5, lambda: _submit(db, scenario_id, rerun=True))
+    assert not [r for r in results if isinstance(r, Exception)], results
+    standing, reused = _submit(db, scenario_id)
+    assert reused and standing != first
+    assert standing in {job_id for job_id, _ in results}
+
+
+def test_a_failed_or_cancelled_job_no_longer_stands_in(db: Database) -> None:
+    scenario_id = _scenario(db)
+    first, _ = _submit(db, scenario_id)
+    with db.session() as session:
+        job = session.get(JobRow, first)
+        assert job is not None
+        cancel(session, job)
+    second, reused = _submit(db, scenario_id)
+    assert not reused and second != first
+    with db.session() as session:
+        session.get(JobRow, second).status = "running"  # type: ignore[union-attr]
+        assert finish(session, second, "failed", error="boom")
+    third, reused = _submit(db, scenario_id)
+    assert not reused and third not in (first, second)
+
+
+def test_the_database_refuses_a_second_reusable_row_whoever_writes_it(db: Database) -> None:
+    scenario_id = _scenario(db)
+    job_id, _ = _submit(db, scenario_id)
+    with db.session() as session:
+        original = session.get(JobRow, job_id)
+        assert original is not None
+        digest = original.config_hash
+    with pytest.raises(IntegrityError), db.session() as session:
+        session.add(
+            JobRow(type="train", scenario_id=scenario_id, params=PARAMS, config_hash=digest)
+        )
+
+
+def test_a_submission_for_a_deleted_scenario_says_so(db: Database) -> None:
+    scenario_id = _scenario(db)
+    with db.session() as session:
+        session.delete(session.get(ScenarioRow, scenario_id))
+    with pytest.raises(ScenarioGone):
+        _submit(db, scenario_id)
+    with db.session() as session:
+        assert session.scalar(select(func.count()).select_from(JobRow)) == 0

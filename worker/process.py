@@ -1,0 +1,69 @@
+"""Worker processes that start warm and never outlive their parents.
+
+- **Warm task processes**: a Celery worker's task process imports the science core
+  (torch, numba, tslearn: seconds) once, when it starts, and then runs job after job;
+  a job pays no import (:func:`worker.runner.warm_up` on ``worker_process_init``).
+- **No orphans**: a task process is killed when its worker dies (``PR_SET_PDEATHSIG``),
+  and a worker started by ``inertia-id serve`` is told to stop (SIGTERM: it hands its
+  job back) when serve dies, even by ``kill -9``. serve names itself in
+  :data:`PARENT_PID_ENV`; a worker whose parent is already gone at start stops at once.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import logging
+import os
+import signal
+import sys
+from typing import Any
+
+from celery.signals import worker_process_init
+
+__all__ = ["PARENT_PID_ENV", "die_with_parent", "stop_with_launcher"]
+
+logger = logging.getLogger(__name__)
+
+#: Set by ``inertia-id serve`` to its pid in the environment of the workers it starts.
+PARENT_PID_ENV = "INERTIA_ID_PARENT_PID"
+
+_PR_SET_PDEATHSIG = 1
+
+
+def die_with_parent(sig: int) -> bool:
+    """Have the kernel send ``sig`` to this process when its parent dies (Linux only).
+
+    Returns whether that could be arranged.
+    """
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        return bool(libc.prctl(_PR_SET_PDEATHSIG, int(sig), 0, 0, 0) == 0)
+    except (OSError, AttributeError):
+        return False
+
+
+def stop_with_launcher() -> None:
+    """In a worker's main process started by serve: SIGTERM ourselves when serve dies."""
+    expected = os.environ.get(PARENT_PID_ENV)
+    if not expected:
+        return
+    die_with_parent(signal.SIGTERM)
+    # serve may have died between starting us and the prctl above.
+    if str(os.getppid()) != expected:
+        logger.warning("the serve process %s is gone; stopping", expected)
+        os.kill(os.getpid(), signal.SIGTERM)
+
+
+@worker_process_init.connect
+def _task_process_started(**_kwargs: Any) -> None:
+    # A task process left behind by a worker that was killed would run on unsupervised.
+    die_with_parent(signal.SIGKILL)
+    from .runner import warm_up
+
+    try:
+        warm_up()
+    except Exception:
+        # The job itself then fails with the reason (see runner._broken_handlers).
+        logger.exception("could not warm up the task process")
