@@ -9,6 +9,7 @@ RUN pip install "torch==2.13.0" --index-url https://download.pytorch.org/whl/cpu
 
 COPY pyproject.toml README.md ./
 COPY inertia_id ./inertia_id
+COPY service ./service
 COPY app ./app
 COPY worker ./worker
 COPY frontend ./frontend

@@ -16,7 +16,7 @@ from starlette.responses import Response
 from starlette.staticfiles import StaticFiles
 from starlette.types import Scope
 
-from .config import Settings
+from service.config import Settings
 
 __all__ = ["mount_dashboard", "plotly_js_path"]
 

@@ -6,6 +6,9 @@ serve`` does). Nothing is created at import time.
 
 from __future__ import annotations
 
+import logging
+import threading
+import time
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from typing import Any
@@ -14,18 +17,20 @@ from fastapi import FastAPI
 from fastapi.openapi.utils import get_openapi
 
 import inertia_id
+from service.config import Settings, get_settings
+from service.queue import make_celery
+from service.store.session import Database, upgrade
 
 from .api import ROUTERS
 from .api.errors import install_error_handlers
 from .api.identify import ClassifierCache, openapi_components
 from .capacity import ComputeGate
-from .config import Settings, get_settings
 from .dashboard import mount_dashboard
-from .db.session import Database, upgrade
-from .queue import make_celery
 from .security import AllowedHosts, BodySizeLimit, KeyVerifier, ensure_api_key
 
 __all__ = ["create_app"]
+
+log = logging.getLogger("inertia_id.api")
 
 DESCRIPTION = """\
 Identify which known inertia configuration a spacecraft is in from its response to a
@@ -35,6 +40,26 @@ Store **scenarios**, run **jobs** on workers (search for a sequence, train a cla
 sweep its accuracy against noise), download **classifiers**, and **identify** telemetry.
 Write endpoints (POST, DELETE) need the API key in the `X-API-Key` header.
 """
+
+
+def _warm_up_core() -> None:
+    """Import what requests will need and compile the numba kernels, off the request path.
+
+    The API answers ``/health`` before this is done (the classifier registry alone pulls
+    in scikit-learn: a second or two); a request that needs a module still loading waits
+    for that import, and the kernels are compiled (or loaded from numba's cache) here,
+    never inside a request.
+    """
+    started = time.perf_counter()
+    try:
+        import inertia_id.search  # noqa: F401  (search job validation)
+        from inertia_id import warm_up
+
+        warm_up()
+    except Exception:
+        log.exception("could not warm up the science core; requests will load it")
+        return
+    log.info("science core loaded and kernels compiled in %.1f s", time.perf_counter() - started)
 
 
 def create_app(settings: Settings | None = None) -> FastAPI:
@@ -55,6 +80,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @asynccontextmanager
     async def lifespan(_app: FastAPI) -> AsyncIterator[None]:
+        threading.Thread(target=_warm_up_core, name="inertia-id warm-up", daemon=True).start()
         yield
         celery.close()
         database.dispose()

@@ -20,9 +20,9 @@ from sqlalchemy import select
 from starlette.exceptions import HTTPException
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from .config import Settings
-from .db.models import ApiKey
-from .db.session import Database
+from service.config import Settings
+from service.store.models import ApiKey
+from service.store.session import Database
 
 __all__ = [
     "API_KEY_HEADER",

@@ -34,7 +34,7 @@ from pathlib import Path
 from types import FrameType
 from typing import IO
 
-from .config import Settings, get_settings
+from service.config import Settings, get_settings
 
 __all__ = ["WorkerPool", "main"]
 
@@ -308,8 +308,8 @@ def _handed_back(settings: Settings) -> Callable[[list[str]], bool]:
     def settled(names: list[str]) -> bool:
         from sqlalchemy import func, select
 
-        from .db.models import JobRow, WorkerRow
-        from .db.session import Database
+        from service.store.models import JobRow, WorkerRow
+        from service.store.session import Database
 
         database = Database(settings.resolved_database_url)
         try:
@@ -358,7 +358,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     import uvicorn
 
-    from .db.session import Database, upgrade
+    from service.store.session import Database, upgrade
+
     from .main import create_app
     from .security import ensure_api_key
 

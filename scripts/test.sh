@@ -18,8 +18,8 @@ command -v docker-compose >/dev/null || apt_install docker-compose
 [ -x /usr/bin/chromium ] || apt_install chromium
 . .venv/bin/activate
 echo "== ruff"
-ruff check inertia_id app worker tests bench
-ruff format --check inertia_id app worker tests bench
+ruff check inertia_id service app worker tests bench
+ruff format --check inertia_id service app worker tests bench
 echo "== mypy"
 mypy
 echo "== pytest"

@@ -1,4 +1,4 @@
-"""The worker's Celery app: the queue seam of :mod:`app.queue` plus the worker-side settings.
+"""The worker's Celery app: the queue seam of :mod:`service.queue` plus the worker-side settings.
 
 Start a worker with::
 
@@ -14,8 +14,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from app.config import get_settings
-from app.queue import make_celery
+from service.config import get_settings
+from service.queue import make_celery
 
 __all__ = ["celery"]
 

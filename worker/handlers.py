@@ -1,23 +1,20 @@
 """What each job type does: typed params -> a pipeline of the core -> an :class:`Outcome`.
 
-Imported only inside the task process: it pulls in numba and the core. A job's params
-(``JobRow.params``) become the pipeline's request (:mod:`inertia_id.pipelines`), whose
-defaults are the core's, and the pipeline runs with the job's seed: the command line
-calls the same pipelines with the same seeding, so a job and the CLI give the same
-numbers.
+Pure: a handler reads its typed parameters and resolved inputs from the context, calls
+the pipeline and returns what it got; it never reads or writes the store (the runner
+resolves and persists, :mod:`worker.runner`). Imported only inside the task process: it
+pulls in numba and the core. A job's params become the pipeline's request
+(:mod:`inertia_id.pipelines`), whose defaults are the core's, and the pipeline runs with
+the job's seed: the command line calls the same pipelines with the same seeding, so a
+job and the CLI give the same numbers.
 """
 
 from __future__ import annotations
 
 import hashlib
-import json
 from collections.abc import Callable
 from typing import Any
 
-from app.db import ClassifierRow
-from app.db.models import new_id
-from inertia_id import InputError, Scenario, classifier_from_json
-from inertia_id.classifiers.registry import CandidateClassifier
 from inertia_id.pipelines import (
     SearchRequest,
     SweepRequest,
@@ -28,7 +25,7 @@ from inertia_id.pipelines import (
 )
 from inertia_id.search import SearchProgress
 
-from .runner import JobContext, Outcome
+from .context import JobContext, Outcome
 
 __all__ = ["HANDLERS", "run_search_job", "run_sweep_job", "run_train_job"]
 
@@ -37,8 +34,8 @@ __all__ = ["HANDLERS", "run_search_job", "run_sweep_job", "run_train_job"]
 SEARCH_METRICS = ("mean_episode_reward", "mean_f1", "best_f1", "best_final_rate_rad_s")
 
 
-def _scenario(context: JobContext) -> Scenario:
-    return Scenario.model_validate(context.spec.scenario)
+def _params(context: JobContext) -> dict[str, Any]:
+    return context.spec.params.model_dump(mode="json")
 
 
 def run_search_job(context: JobContext) -> Outcome:
@@ -49,7 +46,7 @@ def run_search_job(context: JobContext) -> Outcome:
     SHA-256 put in the result.
     """
     spec = context.spec
-    request = SearchRequest.from_params(spec.params)
+    request = SearchRequest.from_params(_params(context))
     policy_path = None
     if request.method == "ppo":
         policy = context.data_dir / "policies" / f"{spec.id}.zip"
@@ -64,7 +61,7 @@ def run_search_job(context: JobContext) -> Outcome:
         )
 
     outcome = search_with_baselines(
-        _scenario(context),
+        spec.scenario,
         request,
         seed=spec.seed,
         policy_path=policy_path,
@@ -80,50 +77,24 @@ def run_search_job(context: JobContext) -> Outcome:
 
 
 def run_train_job(context: JobContext) -> Outcome:
-    """Train the classifier for a sequence and store it as a ``classifiers`` row.
+    """Train the classifier for a sequence; the runner stores it as a ``classifiers`` row.
 
     The training draws (and a seed the kind needs) come from the job's seed. Metrics:
     "f1" and "accuracy" at step 0.
     """
     spec = context.spec
     trained = train_for_sequence(
-        _scenario(context), TrainRequest.from_params(spec.params), seed=spec.seed
+        spec.scenario, TrainRequest.from_params(_params(context)), seed=spec.seed
     )
     if context.check_now():
         return Outcome(status="cancelled", result=None)
-    document = trained.model.to_json()
-    checksum = json.loads(document).get("sha256") or hashlib.sha256(document.encode()).hexdigest()
     summary = trained.summary()
-    row = ClassifierRow(
-        id=new_id(),
-        job_id=spec.id,
-        scenario_id=spec.scenario_id,
-        kind=summary["kind"],
-        metric=summary["metric"],
-        f1=summary["f1"],
-        accuracy=summary["accuracy"],
-        sequence=summary["sequence"],
-        candidate_names=summary["candidate_names"],
-        confusion=summary["confusion"],
-        document=document,
-        sha256=checksum,
-    )
     return Outcome(
         status="succeeded",
-        result={"classifier_id": row.id, **summary, "sha256": checksum},
-        metrics=[("f1", 0, row.f1), ("accuracy", 0, row.accuracy)],
-        rows=[row],
+        result=summary,
+        metrics=[("f1", 0, summary["f1"]), ("accuracy", 0, summary["accuracy"])],
+        classifier=trained,
     )
-
-
-def _stored_classifier(context: JobContext, classifier_id: Any) -> CandidateClassifier:
-    """The classifier a job names, from the store (the runner does not resolve inputs)."""
-    with context.db.session() as session:
-        row = session.get(ClassifierRow, classifier_id) if classifier_id else None
-        document = None if row is None else row.document
-    if document is None:
-        raise InputError(f"classifier {classifier_id!r} does not exist")
-    return classifier_from_json(document)
 
 
 def run_sweep_job(context: JobContext) -> Outcome:
@@ -139,11 +110,13 @@ def run_sweep_job(context: JobContext) -> Outcome:
     value = the accuracy there. A cancel stops between points; the points done are kept.
     """
     spec = context.spec
+    if spec.classifier is None:
+        raise ValueError("a sweep job runs with the classifier it names, resolved by the runner")
     outcome = sweep_with_limit(
-        _stored_classifier(context, spec.params.get("classifier_id")),
-        SweepRequest.from_params(spec.params),
+        spec.classifier,
+        SweepRequest.from_params(_params(context)),
         seed=spec.seed,
-        scenario=_scenario(context),
+        scenario=spec.scenario,
         progress=lambda fraction: context.report(progress=fraction),
         should_stop=context.should_stop,
     )

@@ -16,27 +16,22 @@ import os
 from typing import Any
 
 from celery.signals import worker_ready, worker_shutdown, worker_shutting_down
-from kombu.utils.url import maybe_sanitize_url
 
-from app.config import Settings, get_settings
-from app.db import Database
-from app.db.jobs import touch_worker
-from app.queue import make_celery
+from service.config import Settings, get_settings
+from service.queue import make_celery
+from service.store import Database
+from service.store.jobs import touch_worker
 
+from .context import broker_label
 from .reaper import hand_back_jobs, reap_once, resend_once
 from .ticker import Ticker
 
-__all__ = ["WorkerMonitor", "broker_label"]
+__all__ = ["WorkerMonitor"]
 
 logger = logging.getLogger(__name__)
 
 #: Seconds between two hand-back passes of a stopping worker.
 STOPPING_TICK_S = 1.0
-
-
-def broker_label(settings: Settings) -> str:
-    """The broker URL as shown to users: any password masked."""
-    return str(maybe_sanitize_url(settings.broker_url))
 
 
 class WorkerMonitor:

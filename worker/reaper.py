@@ -26,11 +26,11 @@ from datetime import timedelta
 from celery import Celery
 from sqlalchemy import func, select, update
 
-from app.config import Settings
-from app.db import Database, JobRow, WorkerRow
-from app.db.jobs import due_for_sending, hand_back, mark_sent, reap_stale
-from app.db.models import utcnow
-from app.queue import RUN_JOB_TASK
+from service.config import Settings
+from service.queue import RUN_JOB_TASK
+from service.store import Database, JobRow, WorkerRow
+from service.store.jobs import due_for_sending, hand_back, mark_sent, reap_stale
+from service.store.models import utcnow
 
 __all__ = [
     "WORKER_SILENCE_BEATS",

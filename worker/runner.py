@@ -1,4 +1,11 @@
-"""One job, start to end: claim the row, beat its heart, run its handler, store the outcome.
+"""One job, start to end: claim the row, resolve its inputs, beat its heart, run its
+handler, store the outcome.
+
+The runner is the only part of the worker that reads and writes the store for a job:
+it parses the job's parameters with their typed model, resolves what they name (the
+scenario, the classifier a sweep uses) and stores what the handler returns (result,
+metrics, a trained classifier) with the job's finish, in one transaction. Handlers stay
+pure functions of their typed parameters (:mod:`worker.handlers`).
 
 Whatever happens the job leaves ``running``: a handler's exception fails it with a
 one-line reason, a cancel ends it ``cancelled``, and a process that dies outright stops
@@ -7,33 +14,31 @@ the heartbeat, so the reaper (:mod:`worker.reaper`) re-queues or fails it.
 
 from __future__ import annotations
 
+import hashlib
+import json
 import logging
 import math
-import time
-from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from sqlalchemy import select, update
 from sqlalchemy.exc import StatementError
 
-from app.config import Settings
-from app.db import Database, JobRow, ScenarioRow
-from app.db.jobs import (
+from service.config import Settings
+from service.params import parse_params
+from service.store import ClassifierRow, Database, JobRow, ScenarioRow
+from service.store.jobs import (
     add_metrics,
     claim,
     clear_metrics,
     finish,
-    heartbeat,
-    owns,
-    set_progress,
-    touch_worker,
     worker_stopping,
 )
-from app.db.models import JOB_TYPES
+from service.store.models import JOB_TYPES, new_id
 
-from .monitor import broker_label
+from .context import CANCEL_POLL_S, JobContext, JobSpec, Outcome, finite_metrics
 from .ticker import Ticker
 
 __all__ = [
@@ -48,46 +53,8 @@ __all__ = [
 
 logger = logging.getLogger(__name__)
 
-#: Seconds between two reads of a running job's cancel flag. The search polls
-#: ``should_stop`` every environment step; the database is asked at most this often.
-CANCEL_POLL_S = 1.0
-
 #: Longest error text stored on a job.
 MAX_ERROR_CHARS = 2000
-
-
-@dataclass(frozen=True)
-class JobSpec:
-    """A claimed job as its handler needs it, read once at claim time.
-
-    :param attempt: which run of the job this is (1 = first; more after a worker died).
-    :param scenario: the scenario document (``ScenarioRow.document``), or None if the row
-        is gone.
-    """
-
-    id: str
-    type: str
-    params: dict[str, Any]
-    seed: int
-    scenario_id: str
-    scenario: dict[str, Any] | None
-    attempt: int
-
-
-@dataclass
-class Outcome:
-    """What a handler hands back; stored with the job's finish, in one transaction.
-
-    :param status: "succeeded" or "cancelled" (a failure is an exception).
-    :param result: the job's JSON result.
-    :param metrics: (key, step, value) points written with the finish.
-    :param rows: ORM rows to store with the finish (e.g. the trained classifier).
-    """
-
-    status: str
-    result: dict[str, Any] | None
-    metrics: list[tuple[str, int, float]] = field(default_factory=list)
-    rows: list[Any] = field(default_factory=list)
 
 
 def one_line_error(exc: BaseException) -> str:
@@ -123,109 +90,6 @@ def without_server_paths(text: str, data_dir: Path) -> str:
     return text.replace(root + "/", "").replace(root, ".")
 
 
-def _finite(rows: Iterable[tuple[str, int, float]]) -> list[tuple[str, int, float]]:
-    # A curve point before any finished episode has NaN means; a metric row holds numbers.
-    return [(k, int(s), float(v)) for k, s, v in rows if v is not None and math.isfinite(v)]
-
-
-class JobContext:
-    """What a handler sees of the service: its job, a place for files, and reporting.
-
-    :param spec: the claimed job.
-    :param db: the job store.
-    :param settings: the service settings (data_dir for files).
-    :param worker_name: the Celery node name that claimed the job.
-    :param clock: monotonic seconds, for the cancel-poll throttle.
-    """
-
-    def __init__(
-        self,
-        spec: JobSpec,
-        db: Database,
-        settings: Settings,
-        worker_name: str,
-        *,
-        clock: Callable[[], float] = time.monotonic,
-    ) -> None:
-        self.spec = spec
-        self.db = db
-        self.settings = settings
-        self.worker_name = worker_name
-        self.cancelled = False
-        self.lost = False
-        self._clock = clock
-        self._last_poll = clock()
-
-    @property
-    def data_dir(self) -> Path:
-        return self.settings.data_dir.resolve()
-
-    def report(
-        self,
-        *,
-        progress: float | None = None,
-        metrics: Iterable[tuple[str, int, float]] = (),
-    ) -> None:
-        """Store progress (0..1) and metric points now, so the API can show them live.
-
-        Only while this run owns the job: a run that was handed back or reaped (and may
-        be running again elsewhere) must not add points to the new run's curve.
-        A failed write is logged, not raised: a live curve is not worth the job, and the
-        result is written at the end anyway.
-        """
-        rows = _finite(metrics)
-        try:
-            with self.db.session() as session:
-                if not owns(session, self.spec.id, self.spec.attempt):
-                    self.lost = True
-                    return
-                if rows:
-                    add_metrics(session, self.spec.id, rows)
-                if progress is not None:
-                    set_progress(session, self.spec.id, progress, self.spec.attempt)
-        except Exception:
-            logger.exception("job %s: could not store progress; going on", self.spec.id)
-
-    def should_stop(self) -> bool:
-        """True once a cancel was asked for, or the job stopped being this run's.
-
-        Cheap enough for every environment step: the row is read at most every
-        :data:`CANCEL_POLL_S` seconds.
-        """
-        if self.cancelled or self.lost:
-            return True
-        now = self._clock()
-        if now - self._last_poll < CANCEL_POLL_S:
-            return False
-        self._last_poll = now
-        return self.check_now()
-
-    def check_now(self) -> bool:
-        """Read the job's cancel flag and ownership now (unthrottled)."""
-        try:
-            with self.db.session() as session:
-                row = session.execute(
-                    select(JobRow.status, JobRow.cancel_requested, JobRow.attempts).where(
-                        JobRow.id == self.spec.id
-                    )
-                ).one_or_none()
-        except Exception:
-            logger.exception("job %s: could not read its cancel flag; going on", self.spec.id)
-            return False
-        if row is None or row.status != "running" or row.attempts != self.spec.attempt:
-            # Reaped while we were stalled (and perhaps re-run elsewhere), or deleted.
-            self.lost = True
-        elif row.cancel_requested:
-            self.cancelled = True
-        return self.cancelled or self.lost
-
-    def beat(self) -> None:
-        """One heartbeat: the job's and this worker's."""
-        with self.db.session() as session:
-            heartbeat(session, self.spec.id, self.spec.attempt)
-            touch_worker(session, self.worker_name, broker_label(self.settings))
-
-
 _handlers: dict[str, Callable[[JobContext], Outcome]] | None = None
 
 
@@ -254,8 +118,11 @@ def _import_handlers() -> dict[str, Callable[[JobContext], Outcome]]:
 
 
 def warm_up() -> None:
-    """Import the handlers now, before any job arrives."""
+    """Import the handlers and compile the numba kernels now, before any job arrives."""
     _import_handlers()
+    from inertia_id import warm_up as compile_kernels
+
+    compile_kernels()
 
 
 def _broken_handlers(error: Exception) -> dict[str, Callable[[JobContext], Outcome]]:
@@ -325,63 +192,146 @@ def _execute(job_id: str, db: Database, settings: Settings, worker_name: str) ->
     with db.session() as session:
         job = claim(session, job_id, worker_name)
         if job is None:
-            spec = None
+            claimed = None
         else:
-            scenario = session.get(ScenarioRow, job.scenario_id)
-            spec = JobSpec(
+            claimed = _Claimed(
                 id=job.id,
                 type=job.type,
                 params=dict(job.params or {}),
                 seed=int(job.seed),
                 scenario_id=job.scenario_id,
-                scenario=None if scenario is None else dict(scenario.document),
                 attempt=int(job.attempts),
             )
             if job.attempts > 1:
                 clear_metrics(session, job_id)
-    if spec is None:
+    if claimed is None:
         status = _status(db, job_id) or "missing"
         logger.info("job %s was not claimed (now %s)", job_id, status)
         return status
     logger.info(
-        "job %s (%s, attempt %d) claimed by %s", job_id, spec.type, spec.attempt, worker_name
+        "job %s (%s, attempt %d) claimed by %s",
+        job_id,
+        claimed.type,
+        claimed.attempt,
+        worker_name,
     )
+    try:
+        spec = _resolve(db, claimed)
+    except Exception as exc:
+        logger.exception("job %s: its inputs cannot be resolved", job_id)
+        return _end(db, claimed.id, claimed.attempt, "failed", error=_error_text(exc, settings))
     context = JobContext(spec, db, settings, worker_name)
     beat = Ticker(context.beat, settings.heartbeat_interval_s, name=f"heartbeat {job_id}")
     beat.start()
     try:
-        return _run(context, handlers)
+        return _run(context, db, handlers)
     finally:
         beat.stop()
 
 
-def _run(context: JobContext, handlers: dict[str, Callable[[JobContext], Outcome]]) -> str:
-    spec, db = context.spec, context.db
+@dataclass(frozen=True)
+class _Claimed:
+    """The job row as claimed, before its inputs are resolved."""
+
+    id: str
+    type: str
+    params: dict[str, Any]
+    seed: int
+    scenario_id: str
+    attempt: int
+
+
+def _resolve(db: Database, claimed: _Claimed) -> JobSpec:
+    """Typed parameters, and what they name read from the store (a missing scenario or
+    classifier, or parameters that no longer parse, fail the job with the reason)."""
+    from inertia_id import InputError, classifier_from_json
+    from inertia_id.physics.scenario import Scenario
+
+    params = parse_params(claimed.type, claimed.params)
+    with db.session() as session:
+        scenario_row = session.get(ScenarioRow, claimed.scenario_id)
+        scenario_document = None if scenario_row is None else dict(scenario_row.document)
+        classifier_id = getattr(params, "classifier_id", None)
+        classifier_document = None
+        if classifier_id is not None:
+            classifier_document = session.scalar(
+                select(ClassifierRow.document).where(ClassifierRow.id == classifier_id)
+            )
+    if scenario_document is None:
+        raise InputError(f"scenario {claimed.scenario_id!r} of the job does not exist")
+    if classifier_id is not None and classifier_document is None:
+        raise InputError(f"classifier {classifier_id!r} does not exist")
+    return JobSpec(
+        id=claimed.id,
+        type=claimed.type,
+        params=params,
+        seed=claimed.seed,
+        scenario_id=claimed.scenario_id,
+        scenario=Scenario.model_validate(scenario_document),
+        attempt=claimed.attempt,
+        classifier=None
+        if classifier_document is None
+        else classifier_from_json(classifier_document),
+    )
+
+
+def _error_text(exc: BaseException, settings: Settings) -> str:
+    return without_server_paths(one_line_error(exc), settings.data_dir)
+
+
+def _classifier_row(spec: JobSpec, outcome: Outcome) -> ClassifierRow | None:
+    """The row of a trained classifier the outcome carries; its id and checksum go into
+    the result."""
+    if outcome.classifier is None:
+        return None
+    document = outcome.classifier.model.to_json()
+    checksum = json.loads(document).get("sha256") or hashlib.sha256(document.encode()).hexdigest()
+    summary = outcome.classifier.summary()
+    row = ClassifierRow(
+        id=new_id(),
+        job_id=spec.id,
+        scenario_id=spec.scenario_id,
+        kind=summary["kind"],
+        metric=summary["metric"],
+        f1=summary["f1"],
+        accuracy=summary["accuracy"],
+        sequence=summary["sequence"],
+        candidate_names=summary["candidate_names"],
+        confusion=summary["confusion"],
+        document=document,
+        sha256=checksum,
+    )
+    outcome.result = {**(outcome.result or {}), "classifier_id": row.id, "sha256": checksum}
+    return row
+
+
+def _run(
+    context: JobContext, db: Database, handlers: dict[str, Callable[[JobContext], Outcome]]
+) -> str:
+    spec = context.spec
     try:
         handler = handlers.get(spec.type)
         if handler is None:
             raise ValueError(f"job type must be one of {sorted(handlers)}, got {spec.type!r}")
-        if spec.scenario is None:
-            raise ValueError(f"scenario {spec.scenario_id!r} of the job does not exist")
         outcome = handler(context)
     except Exception as exc:
         if context.lost:
             logger.warning("job %s was taken from this run; dropping its error", spec.id)
             return "lost"
         if context.cancelled:
-            return _end(context, "cancelled", error=None)
+            return _end(db, spec.id, spec.attempt, "cancelled", error=None)
         logger.exception("job %s failed", spec.id)
-        return _end(
-            context, "failed", error=without_server_paths(one_line_error(exc), context.data_dir)
-        )
+        return _end(db, spec.id, spec.attempt, "failed", error=_error_text(exc, context.settings))
     if context.lost:
         logger.warning("job %s was taken from this run; dropping its result", spec.id)
         return "lost"
     try:
         with db.session() as session:
-            session.add_all(outcome.rows)
-            session.flush()
-            add_metrics(session, spec.id, _finite(outcome.metrics))
+            row = _classifier_row(spec, outcome)
+            if row is not None:
+                session.add(row)
+                session.flush()
+            add_metrics(session, spec.id, finite_metrics(outcome.metrics))
             result = None if outcome.result is None else json_safe(outcome.result, context.data_dir)
             if not finish(session, spec.id, outcome.status, result=result, attempt=spec.attempt):
                 session.rollback()
@@ -389,15 +339,20 @@ def _run(context: JobContext, handlers: dict[str, Callable[[JobContext], Outcome
                 return "lost"
     except Exception as exc:
         logger.exception("job %s: could not store its outcome", spec.id)
-        return _end(context, "failed", error=f"could not store the result: {one_line_error(exc)}")
+        return _end(
+            db,
+            spec.id,
+            spec.attempt,
+            "failed",
+            error=f"could not store the result: {one_line_error(exc)}",
+        )
     logger.info("job %s %s", spec.id, outcome.status)
     return outcome.status
 
 
-def _end(context: JobContext, status: str, *, error: str | None) -> str:
-    spec = context.spec
-    with context.db.session() as session:
-        if not finish(session, spec.id, status, error=error, attempt=spec.attempt):
-            logger.warning("job %s was taken from this run; not marking it %s", spec.id, status)
+def _end(db: Database, job_id: str, attempt: int, status: str, *, error: str | None) -> str:
+    with db.session() as session:
+        if not finish(session, job_id, status, error=error, attempt=attempt):
+            logger.warning("job %s was taken from this run; not marking it %s", job_id, status)
             return "lost"
     return status

@@ -9,8 +9,8 @@ from __future__ import annotations
 import os
 from typing import Any
 
-from app.config import get_settings
-from app.queue import RUN_JOB_TASK
+from service.config import get_settings
+from service.queue import RUN_JOB_TASK
 
 from .celery_app import celery
 from .runner import execute_job

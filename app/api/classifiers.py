@@ -7,7 +7,8 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Query, Response
 from sqlalchemy import func, select
 
-from ..db.models import ClassifierRow
+from service.store.models import ClassifierRow
+
 from ..schemas import ClassifierOut, ClassifierPage
 from .deps import PagingDep, SessionDep, get_or_404, plausible_id
 

@@ -13,8 +13,9 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.security import APIKeyHeader
 from sqlalchemy.orm import Session
 
-from ..config import Settings
-from ..db.session import Database
+from service.config import Settings
+from service.store.session import Database
+
 from ..security import API_KEY_HEADER, KeyVerifier
 
 __all__ = [

@@ -1,14 +1,21 @@
-"""Every bad input becomes a 422 whose message names the rule and quotes the value.
+"""Bad input is a 422 whose message names the rule and quotes the value; a bug is a 500.
 
-The core raises ``ValueError`` with such messages; pydantic's ``ValidationError`` is one
-too. All 422 bodies have one shape, ``{"detail": [{"loc", "msg", "type"}, ...]}``. The
-input itself is not echoed (it may be 200 000 telemetry rows, or hold NaN, which JSON
-cannot carry); a scalar input is quoted in the message instead.
+The caller's faults are the core's :class:`inertia_id.InputError` and pydantic's
+``ValidationError`` (the request models, the scenario's rules): 422, all with one shape,
+``{"detail": [{"loc", "msg", "type"}, ...]}``. The input itself is not echoed (it may be
+200 000 telemetry rows, or hold NaN, which JSON cannot carry); a scalar input is quoted
+in the message instead.
+
+Anything else raised while serving a request is our fault: a 500 whose body says only
+that, with the request's id (``X-Request-ID``), and a traceback in the log under the same
+id. Internals (messages, paths, SQL) never reach the client.
 """
 
 from __future__ import annotations
 
 import logging
+import re
+import uuid
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
@@ -17,6 +24,9 @@ from fastapi import FastAPI, Request, status
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from pydantic import ValidationError
+from starlette.types import ASGIApp, Message, Receive, Scope, Send
+
+from inertia_id.errors import InputError
 
 __all__ = ["format_errors", "install_error_handlers"]
 
@@ -77,21 +87,32 @@ async def _request_validation(_request: Request, exc: Exception) -> JSONResponse
     return _unprocessable(format_errors(exc.errors()))
 
 
-async def _value_error(_request: Request, exc: Exception) -> JSONResponse:
-    if isinstance(exc, ValidationError):
-        return _unprocessable(format_errors(exc.errors(include_url=False)))
+async def _validation_error(_request: Request, exc: Exception) -> JSONResponse:
+    assert isinstance(exc, ValidationError)
+    return _unprocessable(format_errors(exc.errors(include_url=False)))
+
+
+async def _input_error(_request: Request, exc: Exception) -> JSONResponse:
     return _unprocessable([{"loc": [], "msg": _text(str(exc)), "type": "value_error"}])
 
 
-async def _arithmetic(_request: Request, exc: Exception) -> JSONResponse:
-    return _unprocessable(
-        [
-            {
-                "loc": [],
-                "msg": _text(f"a number in the request is out of range: {exc}"),
-                "type": "arithmetic_error",
-            }
-        ]
+async def _internal_error(request: Request, exc: Exception) -> JSONResponse:
+    request_id = request_id_of(request)
+    log.error(
+        "request %s (%s %s) failed: %s",
+        request_id,
+        request.method,
+        request.url.path,
+        type(exc).__name__,
+        exc_info=exc,
+    )
+    return JSONResponse(
+        status_code=status.HTTP_500_INTERNAL_SERVER_ERROR,
+        content={
+            "detail": f"internal error: a defect of the service, not of the request "
+            f"(request id {request_id}; the server's log has the details)"
+        },
+        headers={REQUEST_ID_HEADER: request_id},
     )
 
 
@@ -116,13 +137,50 @@ async def _database_down(_request: Request, exc: Exception) -> JSONResponse:
 
 def install_error_handlers(app: FastAPI) -> None:
     app.add_exception_handler(RequestValidationError, _request_validation)
-    # The core's rules (scenario physics, sequences, telemetry) raise ValueError.
-    app.add_exception_handler(ValueError, _value_error)
-    # A last resort for extreme numbers the core's validators do arithmetic on before
-    # checking them (a huge JSON integer passed to float(), a subnormal rate whose product
-    # underflows to a division by zero); the schemas refuse the cases known to the API
-    # with a message naming the field.
-    app.add_exception_handler(ArithmeticError, _arithmetic)
+    # The core's rules (scenario physics, sequences, telemetry) raise InputError; the
+    # models' rules, pydantic's ValidationError.
+    app.add_exception_handler(InputError, _input_error)
+    app.add_exception_handler(ValidationError, _validation_error)
     app.add_exception_handler(sqlalchemy.exc.TimeoutError, _database_busy)
     app.add_exception_handler(sqlalchemy.exc.OperationalError, _database_down)
     app.add_exception_handler(sqlalchemy.exc.InterfaceError, _database_down)
+    app.add_exception_handler(Exception, _internal_error)
+    app.add_middleware(RequestId)
+
+
+REQUEST_ID_HEADER = "X-Request-ID"
+_REQUEST_ID = re.compile(r"[A-Za-z0-9._-]{8,64}")
+
+
+def request_id_of(request: Request) -> str:
+    """The id the :class:`RequestId` middleware gave the request."""
+    return str(request.scope.get("state", {}).get("request_id") or "unknown")
+
+
+class RequestId:
+    """Give every request an id (the client's ``X-Request-ID`` when it is a plausible
+    one), echo it in the response, and let logs and error bodies name it."""
+
+    def __init__(self, app: ASGIApp) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        given = ""
+        for name, value in scope.get("headers", []):
+            if name == b"x-request-id":
+                given = value.decode("latin-1")
+                break
+        request_id = given if _REQUEST_ID.fullmatch(given) else uuid.uuid4().hex
+        scope.setdefault("state", {})["request_id"] = request_id
+
+        async def with_id(message: Message) -> None:
+            if message["type"] == "http.response.start":
+                headers = [(k, v) for k, v in message.get("headers", []) if k != b"x-request-id"]
+                headers.append((b"x-request-id", request_id.encode()))
+                message = {**message, "headers": headers}
+            await send(message)
+
+        await self.app(scope, receive, with_id)

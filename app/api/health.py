@@ -12,10 +12,10 @@ from fastapi import APIRouter
 from sqlalchemy import func, select
 
 import inertia_id
+from service.config import Settings
+from service.store.models import JobRow, WorkerRow, utcnow
+from service.store.session import Database
 
-from ..config import Settings
-from ..db.models import JobRow, WorkerRow, utcnow
-from ..db.session import Database
 from ..schemas import ComponentHealth, HealthOut, QueueHealth, WorkersHealth
 from .deps import CeleryDep, DatabaseDep, SettingsDep
 

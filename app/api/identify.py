@@ -14,7 +14,7 @@ import json
 import threading
 from collections import OrderedDict
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from fastapi import APIRouter, HTTPException, Request, status
 from fastapi.exceptions import RequestValidationError
@@ -22,16 +22,19 @@ from pydantic import ValidationError
 from sqlalchemy import select
 from starlette.datastructures import UploadFile
 
-from inertia_id.classifiers.registry import CandidateClassifier, classifier_from_json
+from inertia_id.errors import InputError
 from inertia_id.evaluation.identify import identify
 from inertia_id.evaluation.telemetry import Telemetry, parse_telemetry
+from service.store.models import ClassifierRow
+from service.store.session import Database
 
 from ..capacity import ComputeGate
-from ..db.models import ClassifierRow
-from ..db.session import Database
 from ..schemas import IdentifyRequest, IdentifyResult, finite_or_none
 from .deps import ApiKeyDep, plausible_id, unprocessable
 from .errors import format_errors
+
+if TYPE_CHECKING:
+    from inertia_id.classifiers.registry import CandidateClassifier
 
 __all__ = ["ClassifierCache", "openapi_components", "router"]
 
@@ -90,6 +93,14 @@ class ClassifierCache:
         return key in self._items
 
 
+def _load(document: str) -> CandidateClassifier:
+    # The registry (every kind, scikit-learn) is imported here, not with the API: the
+    # API answers /health before it is loaded (app.main imports it in the background).
+    from inertia_id.classifiers.registry import classifier_from_json
+
+    return classifier_from_json(document)
+
+
 def _document(database: Database, classifier_id: str) -> str:
     with database.session() as session:
         document = session.scalar(
@@ -119,7 +130,7 @@ def _identify(
             status.HTTP_404_NOT_FOUND, detail=f"classifier {classifier_id[:80]!r} not found"
         )
     key = (row.id, row.sha256)
-    classifier = cache.get(key, lambda: classifier_from_json(_document(database, row.id)))
+    classifier = cache.get(key, lambda: _load(_document(database, row.id)))
     result = identify(classifier, telemetry).model_dump()
     return IdentifyResult.model_validate({**finite_or_none(result), "classifier_id": key[0]})
 
@@ -158,7 +169,7 @@ async def _from_form(request: Request) -> tuple[str, Telemetry]:
         raise RequestValidationError(
             format_errors(exc.errors(include_url=False), ("body", "file"))
         ) from None
-    except ValueError as exc:
+    except InputError as exc:
         unprocessable(("body", "file"), str(exc))
     except csv.Error as exc:
         # The core's CSV reader lets this through, e.g. for a lone carriage return in a row.

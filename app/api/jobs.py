@@ -1,7 +1,7 @@
 """Jobs: submit (search, train, sweep), list, inspect, follow metrics, cancel.
 
 The ``jobs`` table is the source of truth; the broker only delivers the job id to a
-worker (by task name, :data:`app.queue.RUN_JOB_TASK`). A job with the same type,
+worker (by task name, :data:`service.queue.RUN_JOB_TASK`). A job with the same type,
 scenario, parameters and seed as one that is queued, running or succeeded is not run
 twice: that job is returned (200, ``reused``) unless ``rerun`` is asked for; a unique
 key in the database makes this hold for submissions that race each other too.
@@ -16,18 +16,18 @@ import numpy as np
 from fastapi import APIRouter, Body, HTTPException, Query, Response, status
 from sqlalchemy import func, select
 
+from inertia_id.errors import InputError
 from inertia_id.physics.scenario import Scenario
-from inertia_id.search import space_size
-
-from ..db import jobs as job_store
-from ..db.models import (
+from service.queue import RUN_JOB_TASK
+from service.store import jobs as job_store
+from service.store.models import (
     TERMINAL_STATUSES,
     ClassifierRow,
     JobRow,
     MetricRow,
     ScenarioRow,
 )
-from ..queue import RUN_JOB_TASK
+
 from ..schemas import (
     JobCreate,
     JobOut,
@@ -76,6 +76,8 @@ def _check_search(body: SearchJobCreate, scenario: Scenario) -> None:
     params = body.params
     if params.method != "exhaustive":
         return
+    from inertia_id.search import space_size
+
     size = space_size(scenario, params.sequence_length)
     if size > params.max_sequences:
         m, n, length = scenario.n_levels, scenario.n_thrusters, params.sequence_length
@@ -98,7 +100,7 @@ def _approx(count: int) -> str:
 def _check_train(body: TrainJobCreate, scenario: Scenario) -> None:
     try:
         scenario.check_sequence(body.params.sequence)
-    except ValueError as exc:
+    except InputError as exc:
         unprocessable(("body", "train", "params", "sequence"), str(exc))
 
 
@@ -113,7 +115,7 @@ def _check_sweep(session: SessionDep, body: SweepJobCreate, scenario: Scenario) 
         )
     try:
         scenario.check_sequence(classifier.sequence)
-    except ValueError as exc:
+    except InputError as exc:
         unprocessable(
             ("body", "sweep", "params", "classifier_id"),
             f"the classifier's sequence does not fit the scenario: {exc}",

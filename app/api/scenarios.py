@@ -12,13 +12,14 @@ from pydantic import ValidationError
 from sqlalchemy import func, select
 from sqlalchemy.exc import IntegrityError
 
+from inertia_id.errors import InputError
 from inertia_id.physics.presets import PRESETS, preset
 from inertia_id.physics.scenario import Scenario
 from inertia_id.physics.simulate import simulate
+from service.store.models import ClassifierRow, JobRow, ScenarioRow
+from service.store.session import Database
 
 from ..capacity import ComputeGate
-from ..db.models import ClassifierRow, JobRow, ScenarioRow
-from ..db.session import Database
 from ..schemas import (
     MAX_SEED,
     CandidateOut,
@@ -76,7 +77,7 @@ def _build(body: ScenarioCreate) -> Scenario:
         raise RequestValidationError(
             format_errors(exc.errors(include_url=False), ("body", "overrides"))
         ) from None
-    except (TypeError, ValueError) as exc:
+    except InputError as exc:
         unprocessable(("body", "overrides"), str(exc))
 
 
@@ -204,7 +205,7 @@ def _parse_sequence(text: str, scenario: Scenario) -> np.ndarray:
         )
     try:
         return scenario.check_sequence(rows)
-    except ValueError as exc:
+    except InputError as exc:
         unprocessable(("query", "sequence"), str(exc))
 
 

@@ -41,6 +41,7 @@ if TYPE_CHECKING:
     from ..classifiers.registry import CandidateClassifier
 
 __all__ = [
+    "DEFAULT_MULTIPLES",
     "DEFAULT_NOISES",
     "NOISE_KINDS",
     "REFERENCE_LEVELS",
@@ -65,6 +66,8 @@ NOISE_FIELDS = {
 NOISE_KINDS = tuple(NOISE_FIELDS)
 #: What a sweep visits unless told otherwise: the paper's two noises.
 DEFAULT_NOISES = ("process", "measurement")
+#: The noise multiples a sweep visits unless told otherwise.
+DEFAULT_MULTIPLES: tuple[float, ...] = (1, 2, 3, 4, 5, 6, 7, 8)
 #: Units of each source's absolute level.
 NOISE_UNITS = {
     "process": "N m",
@@ -171,7 +174,7 @@ def run_sweep(
     others: dict[str, CandidateClassifier] | None = None,
     scenario: Scenario | None = None,
     sequence: Any = None,
-    multiples: Sequence[float] = (1, 2, 3, 4, 5, 6, 7, 8),
+    multiples: Sequence[float] = DEFAULT_MULTIPLES,
     noises: Sequence[str] = DEFAULT_NOISES,
     n_test: int = 200,
     limit_realisations: int = 0,

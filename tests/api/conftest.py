@@ -22,10 +22,10 @@ import pytest
 from sqlalchemy import create_engine, text
 from sqlalchemy.exc import OperationalError
 
-from app.config import Settings
-from app.db import upgrade
 from app.main import create_app
 from inertia_id import InertiaClassifier, Scenario, train
+from service.config import Settings
+from service.store import upgrade
 
 from .support import GOOD_SEQUENCE, Api, TestClient, make_settings
 

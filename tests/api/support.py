@@ -11,9 +11,9 @@ from typing import Any
 import numpy as np
 from fastapi import FastAPI
 
-from app.config import Settings
-from app.db import ClassifierRow, Database
 from inertia_id import InertiaClassifier
+from service.config import Settings
+from service.store import ClassifierRow, Database
 
 with warnings.catch_warnings():
     # Starlette nudges towards httpx2; the TestClient works the same with httpx.

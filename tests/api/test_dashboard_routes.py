@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from app.config import Settings
 from inertia_id import Scenario, simulate
+from service.config import Settings
 
 from .support import GOOD_SEQUENCE, Api, make_settings
 

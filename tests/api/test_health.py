@@ -6,9 +6,9 @@ from collections.abc import Callable
 from datetime import timedelta
 from pathlib import Path
 
-from app.config import Settings
-from app.db.models import WorkerRow, utcnow
-from app.db.session import Database
+from service.config import Settings
+from service.store.models import WorkerRow, utcnow
+from service.store.session import Database
 
 from .support import Api, make_settings
 

@@ -11,15 +11,15 @@ from typing import Any
 
 import pytest
 
-from app.config import Settings
-from app.db.jobs import add_metrics, config_hash
-from app.db.models import JobRow
-from app.queue import RUN_JOB_TASK
-from app.schemas import SearchParams, SweepParams, TrainParams
 from inertia_id import METRICS, InertiaClassifier
 from inertia_id.classifiers.registry import CLASSIFIER_KINDS
 from inertia_id.evaluation.sweep import DEFAULT_NOISES, NOISE_KINDS
 from inertia_id.search import SEARCH_METHODS
+from service.config import Settings
+from service.params import SearchParams, SweepParams, TrainParams
+from service.queue import RUN_JOB_TASK
+from service.store.jobs import add_metrics, config_hash
+from service.store.models import JobRow
 
 from .support import GOOD_SEQUENCE, Api, make_settings
 

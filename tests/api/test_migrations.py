@@ -6,8 +6,8 @@ from alembic.autogenerate import compare_metadata
 from alembic.migration import MigrationContext
 from sqlalchemy import create_engine
 
-from app.db.models import Base
-from app.db.session import upgrade
+from service.store.models import Base
+from service.store.session import upgrade
 
 
 def test_migrating_to_head_gives_the_models_schema(database_url: str) -> None:

@@ -10,9 +10,9 @@ from pathlib import Path
 import pytest
 from sqlalchemy import select
 
-from app.config import Settings
-from app.db.models import ApiKey
 from app.main import create_app
+from service.config import Settings
+from service.store.models import ApiKey
 
 from .support import Api, make_settings
 

@@ -10,9 +10,9 @@ import pytest
 from sqlalchemy import func, select
 from sqlalchemy.exc import IntegrityError
 
-from app.db import Database, JobRow, ScenarioRow, upgrade
-from app.db.jobs import ScenarioGone, cancel, create_job, finish
 from inertia_id import Scenario
+from service.store import Database, JobRow, ScenarioRow, upgrade
+from service.store.jobs import ScenarioGone, cancel, create_job, finish
 
 PARAMS: dict[str, Any] = {"sequence": [[4, 4, 4, 0, 0, 0]] * 4, "metric": "euclidean"}
 

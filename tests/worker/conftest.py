@@ -29,11 +29,11 @@ import pytest
 from celery import Celery
 from sqlalchemy import create_engine, select, text
 
-from app.config import Settings
-from app.db import Database, JobRow, MetricRow, ScenarioRow, WorkerRow, upgrade
-from app.db.jobs import config_hash, create_job, mark_sent
-from app.queue import RUN_JOB_TASK, make_celery
 from inertia_id import Scenario
+from service.config import Settings
+from service.queue import RUN_JOB_TASK, make_celery
+from service.store import Database, JobRow, MetricRow, ScenarioRow, WorkerRow, upgrade
+from service.store.jobs import config_hash, create_job, mark_sent
 
 ROOT = Path(__file__).resolve().parents[2]
 REDIS_URL = os.environ.get("INERTIA_ID_TEST_REDIS_URL", "redis://127.0.0.1:6379/9")

@@ -7,9 +7,9 @@ from typing import TYPE_CHECKING, Any
 
 from sqlalchemy import select
 
-from app.db import ClassifierRow, JobRow
-from app.db.jobs import add_metrics, config_hash
-from app.db.models import utcnow
+from service.store import ClassifierRow, JobRow
+from service.store.jobs import add_metrics, config_hash
+from service.store.models import utcnow
 
 if TYPE_CHECKING:
     from conftest import Service

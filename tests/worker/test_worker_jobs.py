@@ -9,9 +9,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from app.db import ClassifierRow, JobRow
-from app.db.jobs import cancel
 from inertia_id import InertiaClassifier, identify, simulate
+from service.store import ClassifierRow, JobRow
+from service.store.jobs import cancel
 
 if TYPE_CHECKING:
     from conftest import Service
@@ -120,7 +120,7 @@ def test_a_running_search_stops_soon_after_a_cancel(service: Service) -> None:
         **SMALL_SEARCH,
         "method": "random",
         "sequence_length": 4,
-        "timesteps": 10_000_000,
+        "timesteps": 2_000_000,
         "patience_episodes": None,
     }
     job_id = service.submit("search", params, seed=4)

@@ -14,8 +14,8 @@ from typing import TYPE_CHECKING, Any
 import pytest
 from click.testing import CliRunner
 
-from app.db import ClassifierRow
 from inertia_id.cli import main
+from service.store import ClassifierRow
 from worker.runner import execute_job
 
 if TYPE_CHECKING:

@@ -9,7 +9,8 @@ from typing import TYPE_CHECKING
 
 from celery import Celery
 
-from app.db.jobs import (
+from service.queue import RUN_JOB_TASK, make_celery
+from service.store.jobs import (
     claim,
     finish,
     hand_back,
@@ -19,8 +20,7 @@ from app.db.jobs import (
     set_progress,
     touch_worker,
 )
-from app.db.models import JobRow, WorkerRow, utcnow
-from app.queue import RUN_JOB_TASK, make_celery
+from service.store.models import JobRow, WorkerRow, utcnow
 from worker.reaper import hand_back_jobs, idle_workers, reap_once, resend_once
 
 if TYPE_CHECKING:

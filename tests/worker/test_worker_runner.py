@@ -12,9 +12,12 @@ from typing import TYPE_CHECKING, Any
 import pytest
 from sqlalchemy import select
 
-from app.db import ClassifierRow, MetricRow
-from app.db.jobs import cancel
-from app.db.models import JobRow
+from inertia_id import Scenario
+from inertia_id.pipelines import TrainRequest, train_for_sequence
+from service.params import SearchParams
+from service.store import ClassifierRow, MetricRow
+from service.store.jobs import cancel
+from service.store.models import JobRow
 from worker.runner import (
     CANCEL_POLL_S,
     JobContext,
@@ -38,8 +41,8 @@ GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
         (
             "search",
             {"method": "genetic", "sequence_length": 2, "timesteps": 10, "n_realisations": 2},
-            "InputError: search method must be one of ['ppo', 'cem', 'exhaustive', 'random'], "
-            "got 'genetic'",
+            "InputError: the search job's parameters: params.method: Input should be 'ppo', "
+            "'cem', 'exhaustive' or 'random', got 'genetic'",
         ),
         (
             "train",
@@ -106,10 +109,16 @@ def test_a_train_job_stores_its_classifier_and_metrics_in_one_go(store: Store) -
     assert sorted(metrics) == [("accuracy", 0, job.result["accuracy"]), ("f1", 0, job.result["f1"])]
 
 
+def _spec(store: Store, job_id: str, *, attempt: int) -> JobSpec:
+    return JobSpec(
+        job_id, "search", SearchParams(), 0, store.scenario_id, Scenario.paper(), attempt=attempt
+    )
+
+
 def test_should_stop_reads_the_cancel_flag_at_most_once_a_second(store: Store) -> None:
     job_id = store.add_job("search", status="running", attempts=1)
     now = [0.0]
-    spec = JobSpec(job_id, "search", {}, 0, store.scenario_id, {}, attempt=1)
+    spec = _spec(store, job_id, attempt=1)
     context = JobContext(spec, store.db, store.settings, WORKER, clock=lambda: now[0])
     with store.db.session() as session:
         job = session.get(JobRow, job_id)
@@ -125,7 +134,7 @@ def test_should_stop_reads_the_cancel_flag_at_most_once_a_second(store: Store) -
 def test_should_stop_notices_a_job_taken_from_this_run(store: Store) -> None:
     # Reaped and claimed again (attempt 2) while this run (attempt 1) was stalled.
     job_id = store.add_job("search", status="running", attempts=2)
-    spec = JobSpec(job_id, "search", {}, 0, store.scenario_id, {}, attempt=1)
+    spec = _spec(store, job_id, attempt=1)
     context = JobContext(spec, store.db, store.settings, WORKER)
     assert context.check_now() and context.lost and not context.cancelled
 
@@ -143,19 +152,12 @@ def test_the_outcome_of_a_run_whose_job_was_taken_is_dropped_whole(
             job = session.get(JobRow, job_id)
             assert job is not None
             job.attempts, job.worker = 2, "other@host"
-        row = ClassifierRow(
-            job_id=job_id,
-            scenario_id=store.scenario_id,
-            metric="dtw",
-            f1=1.0,
-            accuracy=1.0,
-            sequence=GOOD_SEQUENCE,
-            candidate_names=[],
-            confusion=[],
-            document="{}",
-            sha256="0" * 64,
+        trained = train_for_sequence(
+            Scenario.paper(),
+            TrainRequest(sequence=GOOD_SEQUENCE, metric="euclidean", n_realisations=3),
+            seed=0,
         )
-        return Outcome("succeeded", {"f1": 1.0}, metrics=[("f1", 0, 1.0)], rows=[row])
+        return Outcome("succeeded", {"f1": 1.0}, metrics=[("f1", 0, 1.0)], classifier=trained)
 
     monkeypatch.setitem(handlers.HANDLERS, "train", reaped_meanwhile)
     assert execute_job(job_id, settings=store.settings, worker_name=WORKER) == "lost"

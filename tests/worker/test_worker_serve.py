@@ -14,11 +14,11 @@ import urllib.request
 from pathlib import Path
 from typing import Any
 
-from app.config import Settings
-from app.db import Database, JobRow, ScenarioRow
-from app.db.jobs import config_hash
-from app.queue import RUN_JOB_TASK, make_celery
 from inertia_id import Scenario
+from service.config import Settings
+from service.queue import RUN_JOB_TASK, make_celery
+from service.store import Database, JobRow, ScenarioRow
+from service.store.jobs import config_hash
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -1,11 +1,11 @@
-"""Alembic environment: runs on the connection given by app.db.session.upgrade."""
+"""Alembic environment: runs on the connection given by service.store.session.upgrade."""
 
 from __future__ import annotations
 
 from alembic import context
 from sqlalchemy import create_engine
 
-from app.db.models import Base
+from service.store.models import Base
 
 config = context.config
 target_metadata = Base.metadata

@@ -25,7 +25,7 @@ branch_labels = None
 depends_on = None
 
 _REUSABLE = ("queued", "running", "succeeded")
-# As in app.db.models at this revision (a migration does not import the models it outlives).
+# As in service.store.models at this revision (a migration does not import the models it outlives).
 REUSABLE_WHERE = "status IN ('queued', 'running', 'succeeded') AND NOT superseded"
 
 

@@ -1,0 +1,366 @@
+"""Typed job parameters: what the API accepts for a job and what the worker runs.
+
+The API validates a submission with these models and stores
+``params.model_dump(mode="json")`` (every default filled in) on the job row; the worker
+parses the row's params with the same model before it runs the job. The defaults are the
+core's (the request classes of :mod:`inertia_id.pipelines`), so a job and the command
+line mean the same thing by an option left out.
+
+Rules needing only the request are checked here, by the core's own checks; rules that need
+the scenario or the database (sequence levels, the exhaustive budget, a classifier's
+candidates) are checked by the jobs router. The classifier registry and the search
+package are imported by the checks that need them, not with this module, so the API
+process starts without them (they are imported in the background at start).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Annotated, Any, Literal, Self
+
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
+
+from inertia_id.errors import InputError
+from inertia_id.pipelines import SearchRequest, SweepRequest, TrainRequest
+
+__all__ = [
+    "JOB_PARAMS",
+    "MAX_SEED",
+    "ClassifierMetric",
+    "JobParams",
+    "NoiseKind",
+    "SearchMethod",
+    "SearchObjective",
+    "SearchParams",
+    "StrictModel",
+    "SweepParams",
+    "TrainParams",
+    "classifier_kinds",
+    "parse_params",
+]
+
+#: Seeds are stored in a 32-bit INTEGER column (PostgreSQL ``integer``).
+MAX_SEED = 2**31 - 1
+#: Longest search sequence the API accepts (steps).
+MAX_SEARCH_SEQUENCE_LENGTH = 20
+#: Largest search budget in environment steps.
+MAX_TIMESTEPS = 2_000_000
+#: Largest exhaustive-search budget (sequences).
+MAX_EXHAUSTIVE_SEQUENCES = 1_000_000_000
+
+# Larger integers are no sensible parameter (and overflow the core's float conversions).
+_MAX_INT = 2**53
+
+SearchMethod = Literal["ppo", "cem", "exhaustive", "random"]
+SearchObjective = Literal["f1", "separability"]
+ClassifierMetric = Literal["dtw", "euclidean", "softdtw"]
+NoiseKind = Literal["process", "measurement", "jitter", "thrust_scale", "gyro_bias"]
+
+
+def _clip(text: str, limit: int = 60) -> str:
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def _default(request: type, name: str) -> Any:
+    """The core request class's default for ``name`` (a factory is called)."""
+    for spec in dataclasses.fields(request):
+        if spec.name == name:
+            if spec.default is not dataclasses.MISSING:
+                return spec.default
+            if spec.default_factory is not dataclasses.MISSING:
+                return spec.default_factory()
+    raise LookupError(f"{request.__name__} has no default for {name!r}")
+
+
+def classifier_kinds() -> tuple[str, ...]:
+    """Every classifier kind, from the registry (imported now if it was not yet)."""
+    from inertia_id.classifiers.registry import CLASSIFIER_KINDS
+
+    return CLASSIFIER_KINDS
+
+
+def _kinds_schema(schema: dict[str, Any]) -> None:
+    # Filled when the OpenAPI document is built, from the registry: no list restated here.
+    schema["enum"] = list(classifier_kinds())
+
+
+def _search_defaults() -> Any:
+    from inertia_id.search import CEM_DEFAULTS
+
+    return CEM_DEFAULTS
+
+
+class StrictModel(BaseModel):
+    # Strict: a request means what its JSON types say ("rerun": 0 is not false, 4.0 is
+    # not a level index), as the OpenAPI document promises. Unknown fields are refused.
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, strict=True)
+
+
+class SearchParams(StrictModel):
+    """Search for the actuation sequence that best separates the candidates."""
+
+    method: SearchMethod = _default(SearchRequest, "method")
+    sequence_length: int = Field(
+        default=_default(SearchRequest, "sequence_length"), ge=1, le=MAX_SEARCH_SEQUENCE_LENGTH
+    )
+    timesteps: int = Field(
+        default=_default(SearchRequest, "timesteps"),
+        ge=1,
+        le=MAX_TIMESTEPS,
+        description="environment steps (ppo, random)",
+    )
+    max_sequences: int = Field(
+        default=_default(SearchRequest, "max_sequences"),
+        ge=1,
+        le=MAX_EXHAUSTIVE_SEQUENCES,
+        description="exhaustive search budget: the largest space it will enumerate",
+    )
+    n_realisations: int = Field(default=_default(SearchRequest, "n_realisations"), ge=1, le=200)
+    objective: SearchObjective = Field(
+        default=_default(SearchRequest, "objective"),
+        description="what scores a sequence: f1 (clustering F1, the paper's) or separability "
+        "(the Bhattacharyya bound on the error, no clustering)",
+    )
+    metric: ClassifierMetric = _default(SearchRequest, "metric")
+    sakoe_chiba_radius: int | None = Field(
+        default=_default(SearchRequest, "sakoe_chiba_radius"), ge=0, le=10_000
+    )
+    fuel_weight: float = Field(default=_default(SearchRequest, "fuel_weight"), ge=0.0, le=1e6)
+    patience_episodes: int | None = Field(
+        default=_default(SearchRequest, "patience_episodes"), ge=1, le=10_000_000
+    )
+    ppo: dict[str, Any] = Field(
+        default_factory=dict,
+        description="overrides of the paper's PPO hyperparameters (stable-baselines3 names)",
+        examples=[{"learning_rate": 0.0003, "n_steps": 2048}],
+    )
+    cem: dict[str, Any] = Field(
+        default_factory=dict,
+        description="overrides of the cross-entropy method's settings: population, "
+        "elite_fraction, smoothing",
+        examples=[{"population": 64, "elite_fraction": 0.125, "smoothing": 0.7}],
+    )
+
+    @field_validator("cem")
+    @classmethod
+    def _cem(cls, value: dict[str, Any]) -> dict[str, Any]:
+        from inertia_id.search.cem import check_cem_params
+
+        defaults = _search_defaults()
+        unknown = sorted(set(value) - set(defaults))
+        if unknown:
+            raise ValueError(f"unknown CEM setting(s) {unknown}; known: {sorted(defaults)}")
+        check_cem_params(**{**defaults, **value})
+        return value
+
+    @field_validator("ppo")
+    @classmethod
+    def _ppo(cls, value: dict[str, Any]) -> dict[str, Any]:
+        from inertia_id.search.ppo import check_ppo_params
+
+        for name, given in value.items():
+            if isinstance(given, float) and not math.isfinite(given):
+                raise ValueError(f"PPO parameter {name} must be finite, got {given!r}")
+            if isinstance(given, int) and not isinstance(given, bool) and abs(given) > _MAX_INT:
+                raise ValueError(
+                    f"PPO parameter {name} must be at most {_MAX_INT}, got {_clip(repr(given))}"
+                )
+        checked = check_ppo_params(value)
+        # Keep only the overrides (normalised), so the job records what was asked for.
+        return {name: checked[name] for name in value}
+
+    @model_validator(mode="after")
+    def _budget(self) -> Self:
+        from inertia_id.search import ScorerSettings
+
+        # The core's own rules for the scorer, so that a job the API accepts can start.
+        ScorerSettings(
+            n_realisations=self.n_realisations,
+            metric=self.metric,
+            sakoe_chiba_radius=self.sakoe_chiba_radius,
+            objective=self.objective,
+        ).check()
+        if self.cem and self.method != "cem":
+            raise ValueError(f"cem settings apply to method cem, not {self.method!r}")
+        if self.timesteps < self.sequence_length:
+            raise ValueError(
+                f"timesteps = {self.timesteps} must be at least one sequence "
+                f"(sequence_length = {self.sequence_length})"
+            )
+        return self
+
+
+class TrainParams(StrictModel):
+    """Train a classifier for a given actuation sequence.
+
+    ``kind`` chooses the classifier (the registry's kinds); with neither kind nor metric
+    it is the default kind, and a metric alone means the paper's clustering. ``metric``
+    applies to the kinds that take one and must be left out for the others.
+    ``n_realisations`` defaults to the kind's own default.
+    """
+
+    sequence: list[Annotated[list[int], Field(min_length=1, max_length=64)]] = Field(
+        min_length=1,
+        max_length=1000,
+        description="L x N level indices, one row per step, one column per thruster",
+        examples=[[[4, 4, 4, 0, 0, 0]] * 4],
+    )
+    kind: str | None = Field(
+        default=_default(TrainRequest, "kind"), max_length=40, json_schema_extra=_kinds_schema
+    )
+    metric: ClassifierMetric | None = _default(TrainRequest, "metric")
+    n_realisations: int | None = Field(
+        default=_default(TrainRequest, "n_realisations"), ge=1, le=400
+    )
+
+    @model_validator(mode="after")
+    def _metric_fits_kind(self) -> Self:
+        from inertia_id.classifiers.registry import (
+            default_realisations,
+            kind_class,
+            kind_metrics,
+            make_classifier,
+            resolve_kind,
+        )
+
+        if self.kind is not None and self.kind not in classifier_kinds():
+            raise ValueError(
+                f"classifier kind must be one of {list(classifier_kinds())}, got {self.kind!r}"
+            )
+        kind = resolve_kind(self.kind, self.metric)
+        self.kind = kind
+        if self.n_realisations is None:
+            self.n_realisations = default_realisations(kind)
+        metrics = kind_metrics(kind)
+        if self.metric is None and metrics:
+            self.metric = metrics[0]  # type: ignore[assignment]
+        elif self.metric is not None:
+            if not metrics:
+                raise ValueError(
+                    f"the {kind!r} classifier takes no metric, got metric {self.metric!r}"
+                )
+            make_classifier(kind, metric=self.metric)
+        least = kind_class(kind).MIN_REALISATIONS
+        if self.n_realisations < least:
+            raise ValueError(
+                f"the {kind!r} classifier needs at least {least} realisations per candidate, "
+                f"got n_realisations = {self.n_realisations}"
+            )
+        return self
+
+
+def _sweep_multiples() -> list[float]:
+    from inertia_id.evaluation.sweep import DEFAULT_MULTIPLES
+
+    return [float(m) for m in DEFAULT_MULTIPLES]
+
+
+def _sweep_noises() -> list[NoiseKind]:
+    from inertia_id.evaluation.sweep import DEFAULT_NOISES
+
+    return list(DEFAULT_NOISES)  # type: ignore[arg-type]
+
+
+class SweepParams(StrictModel):
+    """Classifier accuracy against noise multiples."""
+
+    classifier_id: str = Field(max_length=64)
+    multiples: list[float] = Field(default_factory=_sweep_multiples, min_length=1, max_length=20)
+    noises: list[NoiseKind] = Field(
+        default_factory=_sweep_noises,
+        min_length=1,
+        max_length=5,
+        description="process, measurement, jitter, thrust_scale, gyro_bias: each scaled in "
+        "turn, the others at 1x (a source the scenario leaves at 0 scales a reference level)",
+    )
+    others: list[Annotated[str, Field(max_length=40)]] = Field(
+        default_factory=lambda: list(_default(SweepRequest, "others")),
+        max_length=8,
+        description="classifiers trained at 1x on the same sequence and scored on the same "
+        "test series, as specs: 'least-squares' (the physics baseline), '1nn:euclidean', "
+        "'nearest-centroid:dtw', 'minirocket', 'likelihood', 'clustering:euclidean'",
+    )
+    limit_realisations: int = Field(
+        default=_default(SweepRequest, "limit_realisations"),
+        ge=0,
+        le=1000,
+        description="the limit: at every point a likelihood classifier (matched filter) is "
+        "fitted on this many realisations per candidate simulated at that point's noise and "
+        "scored on the same series; 0 leaves it out",
+    )
+    n_train: int = Field(
+        default=_default(SweepRequest, "n_train"),
+        ge=3,
+        le=200,
+        description="training realisations per candidate for others",
+    )
+    inertia: bool = Field(
+        default=_default(SweepRequest, "inertia"),
+        description="also test bodies off the candidates (scaled, and between the closest "
+        "two): how often identify says 'matches none'",
+    )
+    n_test: int = Field(default=_default(SweepRequest, "n_test"), ge=5, le=2000)
+
+    @field_validator("others")
+    @classmethod
+    def _specs(cls, value: list[str]) -> list[str]:
+        from inertia_id.classifiers.registry import parse_spec
+
+        for spec in value:
+            parse_spec(spec)
+        if len(set(value)) != len(value):
+            raise ValueError(f"others names a classifier twice: {value}")
+        return value
+
+    @field_validator("multiples")
+    @classmethod
+    def _positive(cls, value: list[float]) -> list[float]:
+        bad = [m for m in value if not m > 0]
+        if bad:
+            raise ValueError(f"noise multiples must be > 0, got {bad} in {value}")
+        return value
+
+    @field_validator("noises")
+    @classmethod
+    def _unique(cls, value: list[str]) -> list[str]:
+        if len(set(value)) != len(value):
+            raise ValueError(f"noises must not repeat, got {value}")
+        return value
+
+
+JobParams = SearchParams | TrainParams | SweepParams
+#: The parameter model of each job type.
+JOB_PARAMS: dict[str, type[StrictModel]] = {
+    "search": SearchParams,
+    "train": TrainParams,
+    "sweep": SweepParams,
+}
+
+
+def parse_params(job_type: str, params: dict[str, Any]) -> StrictModel:
+    """A stored job's params as its typed model (stored JSON is lax: lists for tuples).
+
+    :raises InputError: one line naming each parameter that does not parse and its value.
+    """
+    model = JOB_PARAMS.get(job_type)
+    if model is None:
+        raise InputError(f"job type must be one of {sorted(JOB_PARAMS)}, got {job_type!r}")
+    try:
+        return model.model_validate(params, strict=False)
+    except ValidationError as exc:
+        problems = []
+        for error in exc.errors(include_url=False):
+            where = ".".join(str(part) for part in ("params", *error["loc"]))
+            message = str(error["msg"]).removeprefix("Value error, ")
+            if "input" in error and isinstance(error["input"], str | int | float | bool):
+                message = f"{message}, got {_clip(repr(error['input']))}"
+            problems.append(f"{where}: {message}")
+        raise InputError(f"the {job_type} job's parameters: {'; '.join(problems)}") from None

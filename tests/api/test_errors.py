@@ -1,0 +1,77 @@
+"""The caller's fault is a 422 naming the value; our fault is a 500 with a request id."""
+
+from __future__ import annotations
+
+import logging
+
+import pytest
+
+import app.api.identify
+from inertia_id import InputError
+
+from .support import GOOD_SEQUENCE, Api, TestClient
+
+
+def _identify(api: Api, classifier_id: str) -> object:
+    telemetry = {"time_s": [0.05 * (i + 1) for i in range(80)], "omega_rad_s": [[0, 0, 0]] * 80}
+    # As a real server answers: an unhandled error becomes the 500 response, not a raise.
+    client = TestClient(api.app, raise_server_exceptions=False)
+    return client.post(
+        "/identify",
+        json={"classifier_id": classifier_id, "telemetry": telemetry},
+        headers=api.auth,
+    )
+
+
+def test_a_bug_in_the_core_is_a_500_with_a_request_id_not_a_422(
+    api: Api, classifier: object, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    scenario_id = api.create_scenario()["id"]
+    classifier_id = api.insert_classifier(scenario_id, classifier)  # type: ignore[arg-type]
+
+    def buggy(*_args: object, **_kwargs: object) -> None:
+        raise ValueError("operands could not be broadcast together with shapes (80,3) (79,3)")
+
+    monkeypatch.setattr(app.api.identify, "identify", buggy)
+    with caplog.at_level(logging.ERROR):
+        response = _identify(api, classifier_id)
+    assert response.status_code == 500  # type: ignore[attr-defined]
+    request_id = response.headers["X-Request-ID"]  # type: ignore[attr-defined]
+    detail = response.json()["detail"]  # type: ignore[attr-defined]
+    assert request_id in detail and "defect of the service" in detail
+    # No internals in the answer; all of them in the log, under the same id.
+    assert "broadcast" not in response.text  # type: ignore[attr-defined]
+    logged = [r for r in caplog.records if request_id in r.getMessage()]
+    assert logged and logged[0].exc_info is not None
+    assert "broadcast" in str(logged[0].exc_info[1])
+
+
+def test_the_cores_input_error_is_a_422_quoting_the_value(
+    api: Api, classifier: object, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    scenario_id = api.create_scenario()["id"]
+    classifier_id = api.insert_classifier(scenario_id, classifier)  # type: ignore[arg-type]
+
+    def refuses(*_args: object, **_kwargs: object) -> None:
+        raise InputError("telemetry spans 0 s to 1 s but the sequence needs 4 s, got 1.0")
+
+    monkeypatch.setattr(app.api.identify, "identify", refuses)
+    response = _identify(api, classifier_id)
+    assert response.status_code == 422  # type: ignore[attr-defined]
+    assert "got 1.0" in response.json()["detail"][0]["msg"]  # type: ignore[attr-defined]
+
+
+def test_every_answer_carries_a_request_id_and_a_plausible_one_is_kept(api: Api) -> None:
+    assert len(api.get("/health").headers["X-Request-ID"]) >= 8
+    kept = api.client.get("/health", headers={"X-Request-ID": "client-trace-0001"})
+    assert kept.headers["X-Request-ID"] == "client-trace-0001"
+    replaced = api.client.get("/health", headers={"X-Request-ID": "<script>"})
+    assert replaced.headers["X-Request-ID"] != "<script>"
+
+
+def test_a_bad_train_sequence_is_a_422_naming_the_level(api: Api) -> None:
+    scenario_id = api.create_scenario()["id"]
+    bad = [[9, *GOOD_SEQUENCE[0][1:]]]
+    response = api.submit("train", scenario_id, params={"sequence": bad})
+    assert response.status_code == 422
+    assert "level index 9" in response.text

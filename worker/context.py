@@ -1,0 +1,197 @@
+"""What a job handler sees, and what it hands back.
+
+A handler is a pure function of its job: ``handler(context) -> Outcome``. The context
+carries the typed parameters (:mod:`service.params`) and the inputs the runner resolved
+(the scenario, the classifier a sweep names); the outcome carries the result, the metric
+points and any trained classifier, which the runner stores with the job's finish.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from sqlalchemy import select
+
+from service.config import Settings
+from service.params import StrictModel
+from service.store import Database, JobRow
+from service.store.jobs import add_metrics, heartbeat, owns, set_progress, touch_worker
+
+if TYPE_CHECKING:
+    # Types only: the worker's main process imports this module and must stay light.
+    from inertia_id.classifiers.registry import CandidateClassifier
+    from inertia_id.physics.scenario import Scenario
+    from inertia_id.pipelines import Trained
+
+__all__ = [
+    "CANCEL_POLL_S",
+    "JobContext",
+    "JobSpec",
+    "Outcome",
+    "broker_label",
+    "finite_metrics",
+]
+
+logger = logging.getLogger(__name__)
+
+#: Seconds between two reads of a running job's cancel flag. The search polls
+#: ``should_stop`` every environment step; the database is asked at most this often.
+CANCEL_POLL_S = 1.0
+
+
+def broker_label(settings: Settings) -> str:
+    """The broker URL as shown to users: any password masked."""
+    from kombu.utils.url import maybe_sanitize_url
+
+    return str(maybe_sanitize_url(settings.broker_url))
+
+
+@dataclass(frozen=True)
+class JobSpec:
+    """A claimed job, as its handler needs it.
+
+    :param params: the job's parameters, parsed with its type's model.
+    :param attempt: which run of the job this is (1 = first; more after a worker died).
+    :param scenario: the job's scenario.
+    :param classifier: the stored classifier the job names (a sweep's), loaded.
+    """
+
+    id: str
+    type: str
+    params: StrictModel
+    seed: int
+    scenario_id: str
+    scenario: Scenario
+    attempt: int
+    classifier: CandidateClassifier | None = None
+
+
+@dataclass
+class Outcome:
+    """What a handler hands back; stored with the job's finish, in one transaction.
+
+    :param status: "succeeded" or "cancelled" (a failure is an exception).
+    :param result: the job's JSON result.
+    :param metrics: (key, step, value) points written with the finish.
+    :param classifier: a trained classifier to store (its id and checksum are added to
+        the result).
+    """
+
+    status: str
+    result: dict[str, Any] | None
+    metrics: list[tuple[str, int, float]] = field(default_factory=list)
+    classifier: Trained | None = None
+
+
+def finite_metrics(rows: Iterable[tuple[str, int, float]]) -> list[tuple[str, int, float]]:
+    # A curve point before any finished episode has NaN means; a metric row holds numbers.
+    return [(k, int(s), float(v)) for k, s, v in rows if v is not None and math.isfinite(v)]
+
+
+class JobContext:
+    """What a handler sees of the service: its job, a place for files, and reporting.
+
+    A handler reads its typed parameters and its resolved inputs from :attr:`spec`,
+    reports progress and metrics, asks whether to stop, and may write files under
+    :attr:`data_dir`. It has no handle on the store: the runner resolves what a job names
+    and persists what it returns.
+
+    :param spec: the claimed job, its parameters typed and its inputs resolved.
+    :param db: the job store (the context's own: progress, metrics, cancel flag).
+    :param settings: the service settings (data_dir for files).
+    :param worker_name: the Celery node name that claimed the job.
+    :param clock: monotonic seconds, for the cancel-poll throttle.
+    """
+
+    def __init__(
+        self,
+        spec: JobSpec,
+        db: Database,
+        settings: Settings,
+        worker_name: str,
+        *,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        self.spec = spec
+        self._db = db
+        self.settings = settings
+        self.worker_name = worker_name
+        self.cancelled = False
+        self.lost = False
+        self._clock = clock
+        self._last_poll = clock()
+
+    @property
+    def data_dir(self) -> Path:
+        return self.settings.data_dir.resolve()
+
+    def report(
+        self,
+        *,
+        progress: float | None = None,
+        metrics: Iterable[tuple[str, int, float]] = (),
+    ) -> None:
+        """Store progress (0..1) and metric points now, so the API can show them live.
+
+        Only while this run owns the job: a run that was handed back or reaped (and may
+        be running again elsewhere) must not add points to the new run's curve.
+        A failed write is logged, not raised: a live curve is not worth the job, and the
+        result is written at the end anyway.
+        """
+        rows = finite_metrics(metrics)
+        try:
+            with self._db.session() as session:
+                if not owns(session, self.spec.id, self.spec.attempt):
+                    self.lost = True
+                    return
+                if rows:
+                    add_metrics(session, self.spec.id, rows)
+                if progress is not None:
+                    set_progress(session, self.spec.id, progress, self.spec.attempt)
+        except Exception:
+            logger.exception("job %s: could not store progress; going on", self.spec.id)
+
+    def should_stop(self) -> bool:
+        """True once a cancel was asked for, or the job stopped being this run's.
+
+        Cheap enough for every environment step: the row is read at most every
+        :data:`CANCEL_POLL_S` seconds.
+        """
+        if self.cancelled or self.lost:
+            return True
+        now = self._clock()
+        if now - self._last_poll < CANCEL_POLL_S:
+            return False
+        self._last_poll = now
+        return self.check_now()
+
+    def check_now(self) -> bool:
+        """Read the job's cancel flag and ownership now (unthrottled)."""
+        try:
+            with self._db.session() as session:
+                row = session.execute(
+                    select(JobRow.status, JobRow.cancel_requested, JobRow.attempts).where(
+                        JobRow.id == self.spec.id
+                    )
+                ).one_or_none()
+        except Exception:
+            logger.exception("job %s: could not read its cancel flag; going on", self.spec.id)
+            return False
+        if row is None or row.status != "running" or row.attempts != self.spec.attempt:
+            # Reaped while we were stalled (and perhaps re-run elsewhere), or deleted.
+            self.lost = True
+        elif row.cancel_requested:
+            self.cancelled = True
+        return self.cancelled or self.lost
+
+    def beat(self) -> None:
+        """One heartbeat: the job's and this worker's."""
+        with self._db.session() as session:
+            heartbeat(session, self.spec.id, self.spec.attempt)
+            touch_worker(session, self.worker_name, broker_label(self.settings))
