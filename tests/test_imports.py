@@ -79,3 +79,23 @@ def test_warm_up_compiles_the_kernels_every_transform_calls() -> None:
         [sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=300
     )
     assert json.loads(done.stdout.strip().splitlines()[-1]) == [True, True, True]
+
+
+def test_the_api_process_starts_without_the_heavy_packages_and_warms_up_without_torch(
+    tmp_path: Path,
+) -> None:
+    settings = (
+        "from service.config import Settings\n"
+        f"settings = Settings(INERTIA_ID_DATA_DIR={str(tmp_path)!r}, INERTIA_ID_API_KEY='k' * 32)\n"
+    )
+    # Serving /health needs none of the science: the app answers before the core loads.
+    started = loaded_after(settings + "from app.main import create_app\ncreate_app(settings)")
+    assert not started & {"torch", "tslearn", "stable_baselines3", "sklearn", "numba"}
+    # The background warm-up loads every classifier kind and compiles the kernels, and
+    # still no torch: that is the workers' business (PPO).
+    warmed = loaded_after(
+        settings + "from app.main import create_app, _warm_up_core\n"
+        "create_app(settings)\n_warm_up_core()"
+    )
+    assert {"sklearn", "numba"} <= warmed
+    assert not warmed & {"torch", "stable_baselines3", "tslearn"}

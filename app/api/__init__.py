@@ -1,7 +1,14 @@
 """HTTP routers, one per resource."""
 
-from . import classifiers, health, identify, jobs, scenarios
+from . import classifiers, health, identify, jobs, scenarios, vocabulary
 
 __all__ = ["ROUTERS"]
 
-ROUTERS = (scenarios.router, jobs.router, classifiers.router, identify.router, health.router)
+ROUTERS = (
+    scenarios.router,
+    jobs.router,
+    classifiers.router,
+    identify.router,
+    health.router,
+    vocabulary.router,
+)

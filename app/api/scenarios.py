@@ -139,6 +139,22 @@ def get_scenario(scenario_id: str, session: SessionDep) -> ScenarioOut:
     return scenario_out(get_or_404(session, ScenarioRow, scenario_id, "scenario"))
 
 
+@router.get("/{scenario_id}/baselines", responses=_NOT_FOUND)
+def scenario_baselines(
+    scenario_id: str,
+    session: SessionDep,
+    length: int = Query(default=4, ge=1, le=64, description="steps"),
+) -> dict[str, list[list[int]]]:
+    """The baseline sequences of ``length`` steps for this scenario's thrusters, as the
+    core defines them (level indices, one row per step): what searches are compared with,
+    and what the dashboard proposes to train on."""
+    from inertia_id.physics.sequences import BASELINES
+
+    row = get_or_404(session, ScenarioRow, scenario_id, "scenario")
+    scenario = Scenario.model_validate(row.document)
+    return {name: make(scenario, length).tolist() for name, make in BASELINES.items()}
+
+
 @router.delete(
     "/{scenario_id}",
     status_code=status.HTTP_204_NO_CONTENT,

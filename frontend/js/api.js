@@ -77,7 +77,10 @@ export async function request(method, path, { json, form, query } = {}) {
 
 export const api = {
   health: () => request("GET", "/health"),
+  vocabulary: () => request("GET", "/vocabulary"),
   presets: () => request("GET", "/scenarios/presets"),
+  baselines: (id, length) =>
+    request("GET", `/scenarios/${encodeURIComponent(id)}/baselines`, { query: { length } }),
   scenarios: (query) => request("GET", "/scenarios", { query: { limit: 200, ...query } }),
   scenario: (id) => request("GET", `/scenarios/${encodeURIComponent(id)}`),
   createScenario: (body) => request("POST", "/scenarios", { json: body }),

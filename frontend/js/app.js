@@ -6,6 +6,7 @@
 
 import { api, getApiKey, setApiKey } from "./api.js";
 import { clear, messageBox } from "./ui.js";
+import { loadVocabulary } from "./vocabulary.js";
 import * as classifiers from "./pages/classifiers.js";
 import * as compare from "./pages/compare.js";
 import * as identify from "./pages/identify.js";
@@ -112,8 +113,18 @@ async function health() {
   }
 }
 
-keyBox();
-health();
-setInterval(health, 10000);
-window.addEventListener("hashchange", route);
-route();
+async function start() {
+  keyBox();
+  health();
+  setInterval(health, 10000);
+  try {
+    await loadVocabulary();
+  } catch (exc) {
+    document.getElementById("page").append(messageBox("error", `the service's vocabulary could not be read: ${exc.message}`));
+    return;
+  }
+  window.addEventListener("hashchange", route);
+  route();
+}
+
+start();

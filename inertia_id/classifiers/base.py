@@ -169,6 +169,8 @@ class BaseClassifier(BaseEstimator):
     IN_SAMPLE_SCORES: ClassVar[bool] = False
     #: Where the kind stands in lists of kinds (CLI choices, API enums).
     LISTING_ORDER: ClassVar[int] = 100
+    #: What the kind is, in a few words, for lists a person reads (the dashboard's).
+    LABEL: ClassVar[str] = ""
 
     #: What the distances are, for reports and sweeps: the ``metric`` parameter of a kind
     #: that takes one, a fixed label (a class attribute) for the others.

@@ -129,6 +129,7 @@ class InertiaClassifier(BaseClassifier):
     METRICS = METRICS
     SUPERVISED = False
     LISTING_ORDER = 10
+    LABEL = "clustering (the paper's time-series k-means)"
 
     def __init__(
         self,

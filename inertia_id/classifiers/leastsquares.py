@@ -63,6 +63,7 @@ class LeastSquaresClassifier(BaseClassifier):
     FORMAT = "inertia-id/least-squares-classifier"
     NEEDS_SCENARIO = True
     LISTING_ORDER = 60
+    LABEL = "least squares (physics baseline: the inertia estimated, nearest candidate)"
     metric = "least-squares"
 
     def __init__(

@@ -89,6 +89,7 @@ class LikelihoodClassifier(BaseClassifier):
     MIN_REALISATIONS = 3
     IN_SAMPLE_SCORES = True
     LISTING_ORDER = 50
+    LABEL = "likelihood (Gaussian matched filter at 1x noise)"
     metric = "mahalanobis"
 
     def __init__(self, shrinkage: str | float = "cv", *, novelty_factor: float = 1.5) -> None:

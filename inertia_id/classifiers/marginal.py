@@ -219,6 +219,7 @@ class MarginalLikelihoodClassifier(BaseClassifier):
     DEFAULT_REALISATIONS = 100
     IN_SAMPLE_SCORES = True
     LISTING_ORDER = 70
+    LABEL = "marginal likelihood (default: the noise level marginalised)"
     metric = "marginal-mahalanobis"
 
     def __init__(

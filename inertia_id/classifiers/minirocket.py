@@ -466,6 +466,7 @@ class MiniRocketClassifier(SupervisedClassifier):
 
     kind: ClassVar[str] = "minirocket"
     LISTING_ORDER = 40
+    LABEL = "MiniRocket + ridge (supervised)"
     #: What the sweep and the report print as the metric.
     metric = "minirocket"
 

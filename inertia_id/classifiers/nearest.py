@@ -80,6 +80,7 @@ class NearestCentroidClassifier(_DistanceClassifier):
 
     kind: ClassVar[str] = "nearest-centroid"
     LISTING_ORDER = 20
+    LABEL = "nearest centroid (supervised)"
 
     def __init__(
         self,
@@ -149,6 +150,7 @@ class NearestNeighbourClassifier(_DistanceClassifier):
 
     kind: ClassVar[str] = "1nn"
     LISTING_ORDER = 30
+    LABEL = "1-nearest neighbour (supervised)"
 
     def __init__(
         self,

@@ -44,6 +44,8 @@ __all__ = [
     "DEFAULT_MULTIPLES",
     "DEFAULT_NOISES",
     "NOISE_KINDS",
+    "NOISE_LABELS",
+    "NOISE_UNITS",
     "REFERENCE_LEVELS",
     "InertiaPoint",
     "InertiaSweepResult",
@@ -69,6 +71,14 @@ DEFAULT_NOISES = ("process", "measurement")
 #: The noise multiples a sweep visits unless told otherwise.
 DEFAULT_MULTIPLES: tuple[float, ...] = (1, 2, 3, 4, 5, 6, 7, 8)
 #: Units of each source's absolute level.
+#: What each source is, for a person reading a plot or a form.
+NOISE_LABELS = {
+    "process": "process noise (disturbance torque σ)",
+    "measurement": "measurement noise (gyro noise σ)",
+    "jitter": "duty jitter σ",
+    "thrust_scale": "thrust-scale error σ",
+    "gyro_bias": "gyro bias σ",
+}
 NOISE_UNITS = {
     "process": "N m",
     "measurement": "rad/s",

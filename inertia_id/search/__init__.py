@@ -39,6 +39,13 @@ if ENV_ID not in gym.registry:
     gym.register(id=ENV_ID, entry_point="inertia_id.search.env:SequenceSearchEnv")
 
 SEARCH_METHODS = ("ppo", "cem", "exhaustive", "random")
+#: What each method is, for a person choosing one.
+SEARCH_METHOD_LABELS = {
+    "ppo": "PPO (the paper's reinforcement learning)",
+    "cem": "cross-entropy method (fast with the separability objective)",
+    "exhaustive": "exhaustive (every sequence of a small space)",
+    "random": "random sequences (the baseline)",
+}
 
 
 def search(method: str, scenario: Scenario, **options: Any) -> SearchResult:
@@ -71,6 +78,7 @@ __all__ = [
     "SCORER_METRICS",
     "SCORER_OBJECTIVES",
     "SEARCH_METHODS",
+    "SEARCH_METHOD_LABELS",
     "CurvePoint",
     "EpisodeRecord",
     "FreshEvaluation",

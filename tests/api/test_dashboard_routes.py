@@ -124,3 +124,34 @@ def test_the_response_simulation_costs_cpu_and_so_needs_the_key(api: Api) -> Non
     )
     assert response.status_code == 401
     assert api.get_with_key(f"/scenarios/{scenario_id}/response", params=params).status_code == 200
+
+
+def test_the_vocabulary_is_the_cores(api: Api) -> None:
+    from inertia_id.classifiers.registry import CLASSIFIER_KINDS, DEFAULT_KIND, kind_metrics
+    from inertia_id.evaluation.sweep import DEFAULT_NOISES, NOISE_KINDS, NOISE_UNITS
+    from inertia_id.search import SEARCH_METHODS
+    from service.store.models import TERMINAL_STATUSES
+
+    words = api.get("/vocabulary").json()
+    assert [k["kind"] for k in words["classifier_kinds"]] == list(CLASSIFIER_KINDS)
+    for k in words["classifier_kinds"]:
+        assert k["metrics"] == list(kind_metrics(k["kind"])) and k["label"]
+    assert words["default_kind"] == DEFAULT_KIND
+    assert words["kind_for_metric_only"] == "clustering"
+    assert [n["noise"] for n in words["noises"]] == list(NOISE_KINDS)
+    assert {n["noise"]: n["unit"] for n in words["noises"]} == NOISE_UNITS
+    assert words["default_noises"] == list(DEFAULT_NOISES)
+    assert [m["name"] for m in words["search_methods"]] == list(SEARCH_METHODS)
+    assert words["terminal_statuses"] == list(TERMINAL_STATUSES)
+
+
+def test_baselines_are_the_cores_for_the_scenarios_thrusters(api: Api, paper: Scenario) -> None:
+    from inertia_id.physics.sequences import BASELINES
+
+    scenario_id = api.post("/scenarios", json={"preset": "paper"}).json()["id"]
+    got = api.get(f"/scenarios/{scenario_id}/baselines", params={"length": 3}).json()
+    assert got == {name: make(paper, 3).tolist() for name, make in BASELINES.items()}
+    assert got["hand-designed"] == [[4, 4, 4, 0, 0, 0]] * 3
+    bad = api.get(f"/scenarios/{scenario_id}/baselines", params={"length": 0})
+    assert bad.status_code == 422 and "0" in bad.text
+    assert api.get("/scenarios/nope/baselines").status_code == 404

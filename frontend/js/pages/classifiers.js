@@ -2,6 +2,7 @@
 // confusion matrix, and accuracy against process and measurement noise with intervals.
 
 import { MetricFollower, api } from "../api.js";
+import { classifierName, isTerminal, noiseInfo, vocabulary } from "../vocabulary.js";
 import {
   COLORS,
   HEAT_SCALE,
@@ -23,13 +24,6 @@ import {
   when,
 } from "../ui.js";
 
-const NOISE_LABEL = {
-  process: "process noise (disturbance torque σ)",
-  measurement: "measurement noise (gyro σ)",
-  jitter: "timing jitter (duty σ)",
-  thrust_scale: "thrust-scale error σ",
-  gyro_bias: "gyro bias σ",
-};
 
 export async function renderList(root) {
   root.append(h("h1", {}, "Classifiers"));
@@ -117,7 +111,7 @@ export async function renderClassifier(container, classifier, context, sweepId =
   const rows = [
     ["classifier", h("code", {}, classifier.id)],
     ["scenario", link(`#/scenarios/${classifier.scenario_id}`, scenario ? scenario.name : classifier.scenario_id)],
-    ["kind", h("span", { id: "classifier-kind" }, classifier.kind || "clustering")],
+    ["kind", h("span", { id: "classifier-kind" }, classifier.kind)],
     ["metric", classifier.metric],
     ["training F1", h("span", { id: "classifier-f1" }, score(classifier.f1))],
     ["training accuracy", score(classifier.accuracy)],
@@ -165,13 +159,13 @@ async function sweepsOf(card, classifier, context, sweepId) {
   const show = async (job) => {
     clear(holder);
     const panel = await sweepPanel(holder, job, classifier, context);
-    if (job.status !== "succeeded" && job.status !== "failed") {
+    if (!isTerminal(job.status)) {
       const timer = setInterval(async () => {
         if (!context.alive()) return clearInterval(timer);
         const fresh = await api.job(job.id).catch(() => null);
         if (!fresh) return;
         await panel.update(fresh);
-        if (["succeeded", "failed", "cancelled"].includes(fresh.status)) clearInterval(timer);
+        if (isTerminal(fresh.status)) clearInterval(timer);
       }, 2000);
     }
   };
@@ -189,23 +183,15 @@ const OTHER_STYLE = {
   "least-squares": { dash: "dot", color: "#8c564b", name: "least squares (physics)" },
 };
 
-const AXIS_LABEL = {
-  process: ["disturbance σ", "N m"],
-  measurement: ["gyro noise σ", "rad/s"],
-  jitter: ["duty jitter σ", "of full duty"],
-  thrust_scale: ["thrust-scale σ", "of torque"],
-  gyro_bias: ["gyro bias σ", "rad/s"],
-};
-
 function axisTitle(noise, result) {
-  const [label, unit] = AXIS_LABEL[noise] || [noise, ""];
+  const { label, unit } = noiseInfo(noise);
   const level = result && result.levels ? result.levels[noise] : null;
   if (level === null || level === undefined) return `multiple of the 1× ${label}`;
   return `multiple of the 1× ${label} (${Number(level.toPrecision(2))} ${unit})`;
 }
 
 export async function sweepPanel(holder, job, classifier, context) {
-  const noises = job.params.noises || ["process", "measurement"];
+  const noises = job.params.noises || vocabulary().default_noises;
   const plots = Object.fromEntries(noises.map((n) => [n, plotDiv(`accuracy-${n}`)]));
   const state = h("div", { id: "sweep-state" });
   const confusionHolder = h("div", { id: "sweep-confusion" });
@@ -216,8 +202,7 @@ export async function sweepPanel(holder, job, classifier, context) {
   const multiples = job.params.multiples || [];
   const follower = new MetricFollower(job.id);
   const live = Object.fromEntries(noises.map((n) => [n, { x: [], y: [] }]));
-  const kind = classifier ? classifier.kind || "clustering" : "classifier";
-  const mainName = ["clustering", "nearest-centroid", "1nn"].includes(kind) ? `${kind} ${classifier.metric}` : kind;
+  const mainName = classifier ? classifierName(classifier) : "classifier";
 
   const draw = (noise, x, y, low, high, others = {}, result = null, limit = null) => {
     const trace = { x, y, mode: "lines+markers", name: mainName, line: { color: COLORS[0], width: 2.5 }, hovertemplate: "×%{x}: accuracy %{y:.3f}<extra>%{fullData.name}</extra>" };
@@ -240,7 +225,7 @@ export async function sweepPanel(holder, job, classifier, context) {
       plots[noise],
       traces,
       layout(axisTitle(noise, result), "accuracy (fraction of test series)", {
-        title: { text: `Accuracy vs ${NOISE_LABEL[noise] || noise}`, font: { size: 14 } },
+        title: { text: `Accuracy vs ${noiseInfo(noise).label}`, font: { size: 14 } },
         yaxis: { title: { text: "accuracy (fraction of test series)" }, range: [0, 1.03] },
         height: 420,
       }),

@@ -2,6 +2,7 @@
 // best-F1 curves overlaid (running ones keep gaining points).
 
 import { MetricFollower, api } from "../api.js";
+import { isTerminal } from "../vocabulary.js";
 import { COLORS, PLOT_CONFIG, h, layout, link, messageBox, plotDiv, statusBadge, when } from "../ui.js";
 
 function label(job) {
@@ -61,5 +62,5 @@ export async function render(root, context) {
     }
   };
   await poll();
-  if (jobs.some((j) => !["succeeded", "failed", "cancelled"].includes(j.status))) context.every(3000, poll);
+  if (jobs.some((j) => !isTerminal(j.status))) context.every(3000, poll);
 }

@@ -25,7 +25,8 @@ import {
   when,
 } from "../ui.js";
 import { renderClassifier, sweepPanel } from "./classifiers.js";
-import { cancelJob, isTerminal } from "./jobs.js";
+import { isTerminal } from "../vocabulary.js";
+import { cancelJob } from "./jobs.js";
 
 const POLL_MS = 2000;
 

@@ -2,6 +2,7 @@
 // duration) refreshed every two seconds without reloading the page.
 
 import { api } from "../api.js";
+import { isTerminal, otherSpecs, vocabulary } from "../vocabulary.js";
 import {
   clear,
   duration,
@@ -14,40 +15,7 @@ import {
   when,
 } from "../ui.js";
 
-const TERMINAL = new Set(["succeeded", "failed", "cancelled"]);
-
-export const CLASSIFIER_KINDS = [
-  ["marginal-likelihood", "marginal likelihood (default: within 0.5 points of the limit)"],
-  ["clustering", "clustering (the paper's time-series k-means)"],
-  ["nearest-centroid", "nearest centroid (supervised)"],
-  ["1nn", "1-nearest neighbour (supervised)"],
-  ["minirocket", "MiniRocket + ridge (supervised)"],
-  ["likelihood", "likelihood (matched filter: the accuracy limit)"],
-  ["least-squares", "least squares (physics baseline)"],
-];
-
-export const NOISES = [
-  ["process", "process (disturbance torque)"],
-  ["measurement", "measurement (gyro noise)"],
-  ["jitter", "thruster timing jitter"],
-  ["thrust_scale", "thrust-scale error"],
-  ["gyro_bias", "gyro bias"],
-];
-
-const OTHERS = [
-  ["least-squares", "least squares"],
-  ["1nn:euclidean", "1-NN euclidean"],
-  ["nearest-centroid:dtw", "nearest centroid dtw"],
-  ["minirocket", "MiniRocket"],
-  ["clustering:euclidean", "clustering euclidean"],
-  ["likelihood", "likelihood (trained at 1×)"],
-  ["marginal-likelihood", "marginal likelihood"],
-];
 const POLL_MS = 2000;
-
-export function isTerminal(status) {
-  return TERMINAL.has(status);
-}
 
 // The value as the service should see it: an integer or number when it parses as one,
 // else the text itself, so that the service's message quotes what was typed.
@@ -62,13 +30,6 @@ function jsonOrText(text) {
   } catch {
     return text;
   }
-}
-
-// The classic excitation: the positive-axis thrusters (the first three) at full duty.
-export function handDesigned(scenario, steps = 4) {
-  const top = scenario.n_levels - 1;
-  const row = Array.from({ length: scenario.n_thrusters }, (_, j) => (j < 3 ? top : 0));
-  return Array.from({ length: steps }, () => [...row]);
 }
 
 export async function cancelJob(job, notice) {
@@ -86,6 +47,7 @@ function field(id, label, input, hint = "") {
 }
 
 function submitForm(scenarios, classifiers, query) {
+  const OTHERS = otherSpecs();
   const general = h("div");
   const scenarioSelect = () => {
     const select = h(
@@ -100,8 +62,8 @@ function submitForm(scenarios, classifiers, query) {
   // Search.
   const search = {
     scenario: scenarioSelect(),
-    method: h("select", {}, ["ppo", "cem", "random", "exhaustive"].map((m) => h("option", { value: m }, m))),
-    objective: h("select", {}, [h("option", { value: "f1" }, "clustering F1 (the paper's)"), h("option", { value: "separability" }, "separability bound (fast, no clustering)")]),
+    method: h("select", {}, vocabulary().search_methods.map((m) => h("option", { value: m.name, title: m.label }, m.name))),
+    objective: h("select", {}, vocabulary().search_objectives.map((o) => h("option", { value: o.name }, o.label))),
     sequence_length: h("input", { value: 4, size: 6 }),
     timesteps: h("input", { value: 20480, size: 10 }),
     n_realisations: h("input", { value: 20, size: 6 }),
@@ -132,14 +94,23 @@ function submitForm(scenarios, classifiers, query) {
   const train = {
     scenario: scenarioSelect(),
     sequence: h("input", { size: 60 }),
-    kind: h("select", {}, CLASSIFIER_KINDS.map(([k, label]) => h("option", { value: k }, label))),
+    kind: h(
+      "select",
+      {},
+      [...vocabulary().classifier_kinds]
+        .sort((a, b) => (b.kind === vocabulary().default_kind) - (a.kind === vocabulary().default_kind))
+        .map((k) => h("option", { value: k.kind }, k.kind === vocabulary().default_kind ? `${k.label} (default)` : k.label)),
+    ),
     metric: h("select", {}, [h("option", { value: "" }, "default (dtw where it applies)"), ...["dtw", "euclidean", "softdtw"].map((m) => h("option", { value: m }, m))]),
     n_realisations: h("input", { value: "", size: 6, placeholder: "default" }),
     seed: h("input", { value: 0, size: 8 }),
   };
-  const defaultSequence = () => {
+  // The core's hand-designed baseline for the chosen scenario's thrusters.
+  const defaultSequence = async () => {
     const scenario = byId[train.scenario.value];
-    if (scenario && !query.sequence) train.sequence.value = JSON.stringify(handDesigned(scenario));
+    if (!scenario || query.sequence) return;
+    const baselines = await api.baselines(scenario.id, 4).catch(() => null);
+    if (baselines && !query.sequence) train.sequence.value = JSON.stringify(baselines["hand-designed"]);
   };
   train.sequence.value = query.sequence || "";
   train.scenario.addEventListener("change", () => {
@@ -163,9 +134,9 @@ function submitForm(scenarios, classifiers, query) {
   const sweep = {
     scenario: scenarioSelect(),
     classifier: h("select", {}),
-    multiples: h("input", { value: "1, 2, 3, 4, 5, 6, 7, 8", size: 30 }),
-    noises: Object.fromEntries(NOISES.map(([n], i) => [n, h("input", { type: "checkbox", id: `sweep-noise-${n}`, checked: i < 2 })])),
-    others: Object.fromEntries(OTHERS.map(([spec], i) => [spec, h("input", { type: "checkbox", id: `sweep-other-${spec.replace(":", "-")}`, checked: i < 1 })])),
+    multiples: h("input", { value: vocabulary().default_multiples.join(", "), size: 30 }),
+    noises: Object.fromEntries(vocabulary().noises.map(({ noise }) => [noise, h("input", { type: "checkbox", id: `sweep-noise-${noise}`, checked: vocabulary().default_noises.includes(noise) })])),
+    others: Object.fromEntries(OTHERS.map(([spec]) => [spec, h("input", { type: "checkbox", id: `sweep-other-${spec.replace(":", "-")}`, checked: spec === "least-squares" })])),
     limit: h("input", { type: "checkbox", id: "sweep-limit", checked: true }),
     inertia: h("input", { type: "checkbox", id: "sweep-inertia", checked: true }),
     n_train: h("input", { value: 20, size: 6 }),
@@ -194,7 +165,7 @@ function submitForm(scenarios, classifiers, query) {
         .split(/[,\s]+/)
         .filter((v) => v)
         .map((v) => (Number.isFinite(Number(v)) ? Number(v) : v)),
-      noises: NOISES.map(([n]) => n).filter((n) => sweep.noises[n].checked),
+      noises: vocabulary().noises.map(({ noise }) => noise).filter((n) => sweep.noises[n].checked),
       others: OTHERS.map(([spec]) => spec).filter((spec) => sweep.others[spec].checked),
       n_train: intOrText(sweep.n_train.value),
       inertia: sweep.inertia.checked,
@@ -230,8 +201,8 @@ function submitForm(scenarios, classifiers, query) {
         field("train-scenario", "scenario", train.scenario),
         field("train-sequence", "sequence", train.sequence, "JSON rows of level indices, one per step"),
         field("train-kind", "classifier", train.kind),
-        field("train-metric", "metric", train.metric, "clustering, nearest-centroid and 1nn only"),
-        field("train-n_realisations", "realisations", train.n_realisations, "per candidate (default 100 for the marginal likelihood, else 20)"),
+        field("train-metric", "metric", train.metric, `${vocabulary().classifier_kinds.filter((k) => k.metrics.length).map((k) => k.kind).join(", ")} only`),
+        field("train-n_realisations", "realisations", train.n_realisations, `per candidate (default: ${vocabulary().classifier_kinds.map((k) => `${k.kind} ${k.default_realisations}`).join(", ")})`),
         field("train-seed", "seed", train.seed),
       ),
       trainBody,
@@ -244,7 +215,7 @@ function submitForm(scenarios, classifiers, query) {
         field("sweep-scenario", "scenario", sweep.scenario),
         field("sweep-classifier", "classifier", sweep.classifier),
         field("sweep-multiples", "noise multiples", sweep.multiples, "× the scenario's 1× level"),
-        [h("span", {}, "sources of error"), h("div", {}, NOISES.map(([n, label]) => h("label", { class: "check" }, sweep.noises[n], ` ${label}`)))],
+        [h("span", {}, "sources of error"), h("div", {}, vocabulary().noises.map(({ noise, label }) => h("label", { class: "check" }, sweep.noises[noise], ` ${label}`)))],
         [h("span", {}, "beside it"), h("div", {}, OTHERS.map(([spec, label]) => h("label", { class: "check" }, sweep.others[spec], ` ${label}`)))],
         field("sweep-n_train", "their training", sweep.n_train, "realisations per candidate"),
         [h("span", {}, "the limit"), h("label", { class: "check" }, sweep.limit, " draw the limit: a likelihood classifier fitted at each noise level (200 realisations per candidate)")],

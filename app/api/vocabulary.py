@@ -1,0 +1,120 @@
+"""The domain's words, as the core defines them, for clients that show or ask for them.
+
+The dashboard reads this instead of restating the core: which classifier kinds exist and
+what each takes, which sources of error a sweep can scale and in what units, the search
+methods and objectives, the job types and statuses. One request at start, cached by the
+client.
+"""
+
+from __future__ import annotations
+
+from fastapi import APIRouter
+from pydantic import BaseModel, Field
+
+from service.store.models import JOB_STATUSES, JOB_TYPES, TERMINAL_STATUSES
+
+__all__ = ["router"]
+
+router = APIRouter(tags=["vocabulary"])
+
+
+class KindOut(BaseModel):
+    kind: str
+    label: str
+    metrics: list[str] = Field(description="the metrics it takes, its default first; empty: none")
+    default_realisations: int
+    min_realisations: int
+
+
+class NoiseOut(BaseModel):
+    noise: str
+    label: str
+    unit: str
+    reference_level: float | None = Field(
+        description="the 1x level used where a scenario leaves this source at 0"
+    )
+
+
+class NamedOut(BaseModel):
+    name: str
+    label: str
+
+
+class VocabularyOut(BaseModel):
+    classifier_kinds: list[KindOut]
+    default_kind: str
+    kind_for_metric_only: str = Field(description="the kind a metric alone asks for")
+    noises: list[NoiseOut]
+    default_noises: list[str]
+    default_multiples: list[float]
+    search_methods: list[NamedOut]
+    search_objectives: list[NamedOut]
+    baselines: list[str] = Field(description="baseline sequences: GET /scenarios/{id}/baselines")
+    job_types: list[str]
+    job_statuses: list[str]
+    terminal_statuses: list[str]
+
+
+_OBJECTIVE_LABELS = {
+    "f1": "clustering F1 (the paper's)",
+    "separability": "separability bound (fast, no clustering)",
+}
+
+
+@router.get("/vocabulary")
+def vocabulary() -> VocabularyOut:
+    """Classifier kinds, noise sources, search methods and objectives, job types and
+    statuses: the words the core and the service use, with labels for people."""
+    from inertia_id.classifiers.registry import (
+        CLASSIFIER_KINDS,
+        DEFAULT_KIND,
+        kind_class,
+        resolve_kind,
+    )
+    from inertia_id.evaluation.sweep import (
+        DEFAULT_MULTIPLES,
+        DEFAULT_NOISES,
+        NOISE_KINDS,
+        NOISE_LABELS,
+        NOISE_UNITS,
+        REFERENCE_LEVELS,
+    )
+    from inertia_id.physics.sequences import BASELINES
+    from inertia_id.search import SCORER_OBJECTIVES, SEARCH_METHOD_LABELS, SEARCH_METHODS
+
+    kinds = []
+    for kind in CLASSIFIER_KINDS:
+        cls = kind_class(kind)
+        kinds.append(
+            KindOut(
+                kind=kind,
+                label=cls.LABEL or kind,
+                metrics=list(cls.METRICS),
+                default_realisations=int(cls.DEFAULT_REALISATIONS),
+                min_realisations=int(cls.MIN_REALISATIONS),
+            )
+        )
+    return VocabularyOut(
+        classifier_kinds=kinds,
+        default_kind=DEFAULT_KIND,
+        kind_for_metric_only=resolve_kind(None, "dtw"),
+        noises=[
+            NoiseOut(
+                noise=noise,
+                label=NOISE_LABELS[noise],
+                unit=NOISE_UNITS[noise],
+                reference_level=REFERENCE_LEVELS.get(noise),
+            )
+            for noise in NOISE_KINDS
+        ],
+        default_noises=list(DEFAULT_NOISES),
+        default_multiples=[float(m) for m in DEFAULT_MULTIPLES],
+        search_methods=[NamedOut(name=m, label=SEARCH_METHOD_LABELS[m]) for m in SEARCH_METHODS],
+        search_objectives=[
+            NamedOut(name=o, label=_OBJECTIVE_LABELS.get(o, o)) for o in SCORER_OBJECTIVES
+        ],
+        baselines=list(BASELINES),
+        job_types=list(JOB_TYPES),
+        job_statuses=list(JOB_STATUSES),
+        terminal_statuses=list(TERMINAL_STATUSES),
+    )
