@@ -7,12 +7,18 @@
   and a worker started by ``inertia-id serve`` is told to stop (SIGTERM: it hands its
   job back) when serve dies, even by ``kill -9``. serve names itself in
   :data:`PARENT_PID_ENV`; a worker whose parent is already gone at start stops at once.
+- **A stopping worker starts nothing**: once told to stop, a worker's consumer may still
+  hand its task process a message (Celery leaves its loop only after the current poll;
+  the job it just handed back, re-sent, is the likeliest). :func:`stopping`, a flag the
+  main process raises and its task processes read, makes them leave such a job to
+  another worker instead of running it until they are killed.
 """
 
 from __future__ import annotations
 
 import ctypes
 import logging
+import mmap
 import os
 import signal
 import sys
@@ -20,7 +26,13 @@ from typing import Any
 
 from celery.signals import worker_process_init
 
-__all__ = ["PARENT_PID_ENV", "die_with_parent", "stop_with_launcher"]
+__all__ = [
+    "PARENT_PID_ENV",
+    "die_with_parent",
+    "mark_stopping",
+    "stop_with_launcher",
+    "stopping",
+]
 
 logger = logging.getLogger(__name__)
 
@@ -28,6 +40,22 @@ logger = logging.getLogger(__name__)
 PARENT_PID_ENV = "INERTIA_ID_PARENT_PID"
 
 _PR_SET_PDEATHSIG = 1
+
+# One shared byte, mapped when the worker's main process imports this module: the task
+# processes it forks later share the page, so a flag raised by the main process is seen
+# by them at once.
+_STOPPING = mmap.mmap(-1, 1)
+
+
+def mark_stopping() -> None:
+    """In the worker's main process: this worker was told to stop."""
+    _STOPPING[0] = 1
+
+
+def stopping() -> bool:
+    """Whether this worker (the main process, or the one that forked this task process)
+    was told to stop."""
+    return _STOPPING[0] == 1
 
 
 def die_with_parent(sig: int) -> bool:

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from sqlalchemy import select
+from sqlalchemy import select, update
 from sqlalchemy.exc import StatementError
 
 from app.config import Settings
@@ -25,6 +25,7 @@ from app.db.jobs import (
     claim,
     clear_metrics,
     finish,
+    hand_back,
     heartbeat,
     owns,
     set_progress,
@@ -266,18 +267,41 @@ def _broken_handlers(error: Exception) -> dict[str, Callable[[JobContext], Outco
     return {job_type: fail for job_type in JOB_TYPES}
 
 
-def execute_job(job_id: str, *, settings: Settings, worker_name: str) -> str:
+def execute_job(
+    job_id: str,
+    *,
+    settings: Settings,
+    worker_name: str,
+    stopping: Callable[[], bool] = lambda: False,
+) -> str:
     """Run job ``job_id`` if it is still queued; returns the status it ends in.
 
     "missing" when there is no such job; the current status when it was not queued
     (already run, cancelled, or claimed by another delivery); "lost" when the job was
-    taken from this run (reaped after a stall) before it finished.
+    taken from this run (reaped after a stall) before it finished; "passed on" when
+    ``stopping()`` says this worker is stopping: the job is left queued, unsent, for
+    another worker's monitor to send again (a claim made as the stop came is handed
+    back, at no cost of an attempt).
     """
     db = Database(settings.resolved_database_url)
     try:
-        return _execute(job_id, db, settings, worker_name)
+        return _execute(job_id, db, settings, worker_name, stopping)
     finally:
         db.dispose()
+
+
+def _pass_on(db: Database, job_id: str, worker_name: str) -> str:
+    with db.session() as session:
+        # Claimed just as the stop came (the main process's hand-back may have missed
+        # it): back to the queue, uncounted. Else still queued: marked unsent.
+        hand_back(session, worker_name, f"worker {worker_name} was asked to stop")
+        session.execute(
+            update(JobRow)
+            .where(JobRow.id == job_id, JobRow.status == "queued")
+            .values(sent_at=None)
+        )
+    logger.warning("job %s left to another worker: this worker is stopping", job_id)
+    return "passed on"
 
 
 def _status(db: Database, job_id: str) -> str | None:
@@ -285,7 +309,13 @@ def _status(db: Database, job_id: str) -> str | None:
         return session.scalar(select(JobRow.status).where(JobRow.id == job_id))
 
 
-def _execute(job_id: str, db: Database, settings: Settings, worker_name: str) -> str:
+def _execute(
+    job_id: str,
+    db: Database,
+    settings: Settings,
+    worker_name: str,
+    stopping: Callable[[], bool],
+) -> str:
     status = _status(db, job_id)
     if status is None:
         logger.warning("job %s does not exist; message dropped", job_id)
@@ -293,6 +323,8 @@ def _execute(job_id: str, db: Database, settings: Settings, worker_name: str) ->
     if status != "queued":
         logger.info("job %s is %s, not queued; nothing to do", job_id, status)
         return status
+    if stopping():
+        return _pass_on(db, job_id, worker_name)
     try:
         handlers = _import_handlers()
     except Exception as exc:
@@ -320,6 +352,9 @@ def _execute(job_id: str, db: Database, settings: Settings, worker_name: str) ->
         status = _status(db, job_id) or "missing"
         logger.info("job %s was not claimed (now %s)", job_id, status)
         return status
+    if stopping():
+        # The stop came between the check above and the claim.
+        return _pass_on(db, job_id, worker_name)
     logger.info(
         "job %s (%s, attempt %d) claimed by %s", job_id, spec.type, spec.attempt, worker_name
     )
