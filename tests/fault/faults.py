@@ -16,6 +16,7 @@ Timing is never asserted: deadlines here are "it did not happen at all" guards.
 
 from __future__ import annotations
 
+import asyncio
 import glob
 import os
 import re
@@ -27,7 +28,8 @@ import sys
 import tempfile
 import time
 import uuid
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Coroutine, Iterable, Iterator
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TypeVar
@@ -109,6 +111,13 @@ def wait_for(
         if time.monotonic() > deadline:
             raise AssertionError(f"{what} within {timeout_s:g} s\n{logs()}")
         time.sleep(0.2)
+
+
+def run_async(coroutine: Coroutine[Any, Any, T]) -> T:
+    """``asyncio.run`` on a thread of its own: the browser tests' Playwright keeps an
+    event loop running on the main thread for the whole session."""
+    with ThreadPoolExecutor(1) as pool:
+        return pool.submit(asyncio.run, coroutine).result()
 
 
 def service_env(data_dir: Path, **extra: str) -> dict[str, str]:

@@ -22,9 +22,9 @@ from faults import (
     wait_for,
 )
 
-# A PPO search that writes a curve point every 16 steps, 10 points in all.
+# A PPO search that writes a curve point every 16 steps, 6 points in all.
 PPO_SEARCH: dict[str, Any] = {
-    **random_search(160),
+    **random_search(96),
     "method": "ppo",
     "ppo": {"n_steps": 16, "batch_size": 8, "n_epochs": 1},
 }
@@ -65,7 +65,7 @@ def test_a_worker_killed_mid_job_has_its_job_rerun_by_another(deployment: Deploy
     points = deployment.metrics(job_id)
     assert len(points) == len(set(points)), points
     steps = sorted(step for key, step in points if key == "mean_f1")
-    assert steps == list(range(16, 160 + 1, 16)), steps
+    assert steps == list(range(16, 96 + 1, 16)), steps
     assert_settled(deployment)
 
 

@@ -23,6 +23,7 @@ from faults import (
     Serve,
     assert_settled,
     random_search,
+    run_async,
 )
 from sqlalchemy import func, select
 
@@ -244,7 +245,7 @@ def test_identify_at_50_clients_answers_every_request_and_the_api_stays_responsi
     thread = threading.Thread(target=others)
     thread.start()
     try:
-        answers = asyncio.run(
+        answers = run_async(
             _identify_load(running.serve.base, running.serve.key, classifier, 50, 4)
         )
     finally:
@@ -268,7 +269,7 @@ def test_identify_past_capacity_answers_503_with_retry_after(
         workers=0, INERTIA_ID_COMPUTE_QUEUE="2", INERTIA_ID_COMPUTE_THREADS="1"
     )
     try:
-        answers = asyncio.run(_identify_load(small.base, small.key, classifier, 50, 4))
+        answers = run_async(_identify_load(small.base, small.key, classifier, 50, 4))
     finally:
         small.terminate()
     codes = {a[0] for a in answers}

@@ -174,6 +174,7 @@ def test_the_socket_shared_by_several_api_processes_accepts_connections_without_
     # uvicorn's own listening socket has protocol 0, so asyncio left TCP_NODELAY off the
     # connections it accepted: each response then waited ~40 ms for a delayed ACK.
     import asyncio
+    from concurrent.futures import ThreadPoolExecutor
 
     import uvicorn
 
@@ -204,4 +205,7 @@ def test_the_socket_shared_by_several_api_processes_accepts_connections_without_
             writer.close()
             server.close()
 
-    assert asyncio.run(nodelay_of_an_accepted_connection()) != 0
+    # On a thread of its own: Playwright (tests/browser) keeps the main thread's loop.
+    with ThreadPoolExecutor(1) as pool:
+        nodelay = pool.submit(asyncio.run, nodelay_of_an_accepted_connection()).result()
+    assert nodelay != 0
