@@ -12,6 +12,7 @@ Without PostgreSQL or redis-server the ``postgres`` cases skip, or fail when
 
 from __future__ import annotations
 
+import shutil
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -36,6 +37,7 @@ def redis_server() -> Iterator[RedisServer]:
         yield server
     finally:
         server.stop()
+        shutil.rmtree(root, ignore_errors=True)
 
 
 def _deployment(kind: str, root: Path, request: pytest.FixtureRequest) -> Iterator[Deployment]:
