@@ -1,39 +1,72 @@
-"""The service under load: POST /identify latency and throughput, and job pick-up time.
+"""The service as shipped, under load: /identify, job pick-up and fixed cost, start-up.
 
-Starts the real service (``python -m app.serve``: uvicorn and one Celery worker, the
-embedded default: SQLite and the filesystem broker) in a temporary folder on loopback,
-creates the paper scenario, trains a DTW classifier on the hand-designed sequence through
-a job, then:
+Runs the default configuration, ``python -m app.serve`` with one worker and the API key
+it GENERATES (read from its banner, as a user would), on both deployments:
 
-- sends ``POST /identify`` (JSON telemetry of one simulated series, 80 samples) from
-  ``--clients`` (20) concurrent clients for ``--duration`` (20) s, and prints the p50 and
-  p99 latency, the throughput and the share of correct verdicts;
-- submits ``--pickups`` (5) small train jobs one at a time to the idle worker and prints
-  the time from ``POST /jobs`` to the job being running (server time stamps
-  ``started_at - created_at``, and what a client polling every 10 ms saw).
+- ``sqlite``: the embedded default (SQLite file, filesystem broker), no configuration;
+- ``postgres``: PostgreSQL (a fresh database, dropped after) and Redis (``--redis-url``,
+  a database number of its own: it is flushed before and after).
 
-    python bench/service_latency.py [--clients 20] [--duration 20] [--json out.json]
+For each, and for 1 and 2 API processes (``--api-workers``):
+
+- **start-up**: process spawn to the first 200 from ``/health``, and to ``/health``
+  counting the worker;
+- **classifiers**, trained through jobs: the default one (no kind: the marginal
+  likelihood) and a DTW one (kind clustering, metric dtw);
+- **/identify**: ``--clients`` concurrent clients (1, 20, 50) for ``--duration`` s each,
+  one simulated 80-sample flight (JSON): requests/s, p50/p95/p99/max latency, errors
+  (any non-200; 503s counted apart), the share of correct verdicts, and the CPU the API
+  processes and this load generator spent per request. Beside it the computation alone:
+  the same classifier (downloaded) and telemetry through ``inertia_id.identify`` in a
+  loop in this process, ms per call and the implied requests/s per core. The first
+  request to each API process (a cold classifier) is reported apart;
+- **jobs** (first API setting only): ``--jobs`` tiny train jobs (nearest-centroid,
+  euclidean, 3 realisations) one after another on the idle worker: submit-to-running
+  (server stamps ``started_at - created_at``), running-to-done, the end-to-end wall a
+  client sees, and the same training timed in-process; the fixed cost per job is the
+  end-to-end time less that computation.
+
+    python bench/service_latency.py [--deployments sqlite,postgres] [--duration 10]
+        [--clients 1,20,50] [--api-workers 1,2] [--jobs 10] [--json out.json]
+
+The load generator runs on the same machine: its own CPU per request is printed so the
+figures can be read against it.
 """
 
 from __future__ import annotations
 
 import asyncio
 import os
+import re
+import resource
 import signal
 import socket
 import subprocess
 import sys
 import tempfile
 import time
+import uuid
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
 from typing import Any
 
 import httpx
 import numpy as np
-from _common import GOOD_SEQUENCE, base_parser, positive_int, print_header, print_table, write_json
+from _common import GOOD_SEQUENCE, base_parser, int_list, positive_int, print_header, print_table
+from _common import write_json as _write_json
 
-API_KEY = "bench-" + "k" * 32
+ROOT = Path(__file__).resolve().parents[1]
+TERMINAL = ("succeeded", "failed", "cancelled")
+_KEY = re.compile(r"^API key:   (\S+)\n\s+\(generated now", re.MULTILINE)
+TINY = {"sequence": GOOD_SEQUENCE, "kind": "nearest-centroid", "metric": "euclidean"}
+CLASSIFIERS = {
+    "default (marginal likelihood)": {"sequence": GOOD_SEQUENCE},
+    "dtw (clustering)": {"sequence": GOOD_SEQUENCE, "kind": "clustering", "metric": "dtw"},
+}
+TICKS = os.sysconf("SC_CLK_TCK")
 
 
 def _free_port() -> int:
@@ -42,201 +75,585 @@ def _free_port() -> int:
         return int(sock.getsockname()[1])
 
 
-def _wait_healthy(base: str, timeout_s: float = 120.0) -> dict[str, Any]:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        try:
-            response = httpx.get(f"{base}/health", timeout=2)
-            body = response.json()
-            if response.status_code == 200 and body.get("status") == "ok":
-                return dict(body)
-        except (httpx.HTTPError, ValueError):
-            pass
-        time.sleep(0.5)
-    raise RuntimeError(f"the service at {base} did not report a live worker in {timeout_s} s")
+def _read(path: str) -> bytes:
+    try:
+        with open(path, "rb") as fh:
+            return fh.read()
+    except OSError:
+        return b""
 
 
-def _wait_job(client: httpx.Client, job_id: str, timeout_s: float = 600.0) -> dict[str, Any]:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        job = dict(client.get(f"/jobs/{job_id}").json())
-        if job["status"] in ("succeeded", "failed", "cancelled"):
-            return job
-        time.sleep(0.2)
-    raise RuntimeError(f"job {job_id} did not finish in {timeout_s} s")
+def _api_cpu_s(data_dir: Path) -> float:
+    """CPU seconds used so far by the live processes of ``data_dir`` that are not
+    workers (serve and its API processes)."""
+    marker = f"INERTIA_ID_DATA_DIR={data_dir}".encode()
+    total = 0
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
+        if marker not in _read(f"/proc/{entry}/environ").split(b"\0"):
+            continue
+        if b"celery" in _read(f"/proc/{entry}/cmdline"):
+            continue
+        fields = _read(f"/proc/{entry}/stat").decode(errors="replace").rpartition(")")[2].split()
+        if len(fields) > 12:
+            total += int(fields[11]) + int(fields[12])  # utime, stime
+    return total / TICKS
 
 
-def _percentile(values: list[float], q: float) -> float:
-    return float(np.percentile(np.asarray(values), q))
+def _own_cpu_s() -> float:
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    return usage.ru_utime + usage.ru_stime
 
 
-async def _load(
-    base: str, body: dict[str, Any], expected: str, clients: int, duration_s: float
-) -> dict[str, Any]:
-    latencies: list[float] = []
-    correct = 0
-    errors = 0
-    stop_at = time.perf_counter() + duration_s
+# --------------------------------------------------------------------------- deployments
 
-    async def client_loop(client: httpx.AsyncClient) -> None:
-        nonlocal correct, errors
-        while time.perf_counter() < stop_at:
-            start = time.perf_counter()
-            response = await client.post("/identify", json=body)
-            latencies.append(time.perf_counter() - start)
-            if response.status_code != 200:
-                errors += 1
-            elif response.json().get("candidate") == expected:
-                correct += 1
 
-    limits = httpx.Limits(max_connections=clients, max_keepalive_connections=clients)
-    async with httpx.AsyncClient(
-        base_url=base, headers={"X-API-Key": API_KEY}, limits=limits, timeout=30
-    ) as client:
-        started = time.perf_counter()
-        await asyncio.gather(*(client_loop(client) for _ in range(clients)))
-        elapsed = time.perf_counter() - started
-    return {
-        "requests": len(latencies),
-        "elapsed_s": elapsed,
-        "throughput_rps": len(latencies) / elapsed,
-        "p50_ms": 1000 * _percentile(latencies, 50),
-        "p99_ms": 1000 * _percentile(latencies, 99),
-        "max_ms": 1000 * max(latencies),
-        "errors": errors,
-        "correct_share": correct / max(len(latencies), 1),
+@dataclass
+class Backend:
+    name: str
+    env: dict[str, str]
+    cleanup: list[Callable[[], None]] = field(default_factory=list)
+
+
+@contextmanager
+def _backend(name: str, data_dir: Path, args: Any) -> Iterator[Backend]:
+    env = {
+        k: v
+        for k, v in os.environ.items()
+        if not k.startswith("INERTIA_ID_") and k not in ("DATABASE_URL", "BROKER_URL")
     }
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH")]))
+    env["PYTHONUNBUFFERED"] = "1"
+    env["INERTIA_ID_DATA_DIR"] = str(data_dir)
+    if name == "sqlite":
+        yield Backend(name, env)
+        return
+    import redis
+    from sqlalchemy import create_engine, text
+
+    admin = create_engine(args.postgres_url, isolation_level="AUTOCOMMIT")
+    database = f"inertia_id_bench_{uuid.uuid4().hex[:10]}"
+    with admin.connect() as connection:
+        connection.execute(text(f'CREATE DATABASE "{database}"'))
+    broker = redis.Redis.from_url(args.redis_url)
+    broker.flushdb()
+    env["DATABASE_URL"] = admin.url.set(database=database).render_as_string(hide_password=False)
+    env["BROKER_URL"] = args.redis_url
+    try:
+        yield Backend(name, env)
+    finally:
+        broker.flushdb()
+        broker.close()
+        with admin.connect() as connection:
+            connection.execute(text(f'DROP DATABASE IF EXISTS "{database}" WITH (FORCE)'))
+        admin.dispose()
 
 
-def _pickups(client: httpx.Client, scenario_id: str, count: int, seed: int) -> list[dict[str, Any]]:
-    out = []
-    for i in range(count):
-        body = {
-            "type": "train",
-            "scenario_id": scenario_id,
-            "seed": seed + 1000 + i,
-            "params": {"sequence": GOOD_SEQUENCE, "metric": "euclidean", "n_realisations": 5},
-        }
-        sent = time.perf_counter()
-        job = client.post("/jobs", json=body).json()
-        seen = None
-        while time.perf_counter() - sent < 120:
-            state = client.get(f"/jobs/{job['id']}").json()
-            if state["status"] != "queued":
-                seen = time.perf_counter() - sent
-                break
-            time.sleep(0.01)
-        done = _wait_job(client, job["id"])
-        created = datetime.fromisoformat(done["created_at"])
-        started = datetime.fromisoformat(done["started_at"])
-        out.append({"server_s": (started - created).total_seconds(), "client_seen_s": seen, **done})
-    return out
+@dataclass
+class Service:
+    process: subprocess.Popen[bytes]
+    base: str
+    key: str
+    start_to_health_s: float
+    start_to_worker_s: float
+    log_path: Path
 
 
-def main() -> None:
-    parser = base_parser(__doc__.splitlines()[0])
-    parser.add_argument("--clients", type=positive_int, default=20)
-    parser.add_argument("--duration", type=positive_int, default=20, help="seconds of load")
-    parser.add_argument("--pickups", type=positive_int, default=5)
-    args = parser.parse_args()
-    print_header("inertia-id service: /identify under load, job pick-up", args)
-    from inertia_id import Scenario, simulate
-
-    root = Path(__file__).resolve().parents[1]
+def _start(backend: Backend, data_dir: Path, api_workers: int, key: str | None) -> Service:
     port = _free_port()
+    log_path = data_dir.parent / f"serve-{api_workers}.log"
+    argv = [sys.executable, "-m", "app.serve", "--port", str(port), "--data-dir", str(data_dir)]
+    argv += ["--workers", "1", "--api-workers", str(api_workers), "--log-level", "warning"]
     base = f"http://127.0.0.1:{port}"
-    with tempfile.TemporaryDirectory(prefix="inertia-bench-") as data_dir:
-        env = {**os.environ, "INERTIA_ID_API_KEY": API_KEY, "PYTHONUNBUFFERED": "1"}
-        log = open(Path(data_dir) / "serve.log", "w")
-        service = subprocess.Popen(
-            [sys.executable, "-m", "app.serve", "--data-dir", data_dir, "--port", str(port)],
-            cwd=root,
-            env=env,
+    with open(log_path, "wb") as log:
+        spawned = time.perf_counter()
+        process = subprocess.Popen(
+            argv,
+            cwd=data_dir.parent,
+            env=backend.env,
             stdout=log,
             stderr=subprocess.STDOUT,
             start_new_session=True,
         )
-        try:
-            health = _wait_healthy(base)
-            print(f"service up at {base}; health: {health.get('status')}", flush=True)
-            client = httpx.Client(base_url=base, headers={"X-API-Key": API_KEY}, timeout=30)
-            scenario = client.post("/scenarios", json={"preset": "paper"}).json()
-            train = client.post(
-                "/jobs",
-                json={
-                    "type": "train",
-                    "scenario_id": scenario["id"],
-                    "seed": args.seed,
-                    "params": {"sequence": GOOD_SEQUENCE, "metric": "dtw", "n_realisations": 20},
-                },
-            ).json()
-            job = _wait_job(client, train["id"])
-            if job["status"] != "succeeded":
-                raise RuntimeError(f"training job ended {job['status']}: {job['error']}")
-            classifier_id = job["result"]["classifier_id"]
-            sim = simulate(Scenario.paper(), GOOD_SEQUENCE, 1, np.random.default_rng(args.seed))
-            candidate = 3
-            body = {
-                "classifier_id": classifier_id,
-                "telemetry": {
-                    "time_s": sim.time_s.tolist(),
-                    "omega_rad_s": sim.omega_measured[candidate, 0].tolist(),
-                },
-            }
-            expected = sim.candidate_names[candidate]
-            first = client.post("/identify", json=body)
-            print(f"warm-up identify: {first.status_code} {first.json().get('candidate')}")
-            load = asyncio.run(_load(base, body, expected, args.clients, args.duration))
-            print_table(
-                [
-                    "clients",
-                    "requests",
-                    "seconds",
-                    "throughput req/s",
-                    "p50 ms",
-                    "p99 ms",
-                    "max ms",
-                    "errors",
-                    "correct",
-                ],
-                [
-                    [
-                        args.clients,
-                        load["requests"],
-                        load["elapsed_s"],
-                        load["throughput_rps"],
-                        load["p50_ms"],
-                        load["p99_ms"],
-                        load["max_ms"],
-                        load["errors"],
-                        f"{100 * load['correct_share']:.1f}%",
-                    ]
-                ],
-                title="POST /identify (DTW classifier, 80-sample telemetry, JSON)",
-            )
-            pickups = _pickups(client, scenario["id"], args.pickups, args.seed)
-            print_table(
-                ["job", "server: started - created (s)", "client saw running after (s)"],
-                [[p["id"][:8], p["server_s"], p["client_seen_s"]] for p in pickups],
-                title="POST /jobs to running, idle worker (filesystem broker)",
-            )
-            server = [p["server_s"] for p in pickups]
-            print(
-                f"pick-up: median {np.median(server):.3f} s, max {max(server):.3f} s "
-                f"(server time stamps)"
-            )
-            write_json(
-                args.json,
-                args,
-                {"identify": load, "pickup_s": server, "classifier_id": classifier_id},
-            )
-        finally:
-            os.killpg(service.pid, signal.SIGTERM)
+    first = worker = None
+    deadline = spawned + 300
+    with httpx.Client(timeout=5) as client:
+        while time.perf_counter() < deadline and worker is None:
+            if process.poll() is not None:
+                raise RuntimeError(f"serve exited:\n{log_path.read_text(errors='replace')}")
             try:
-                service.wait(timeout=30)
-            except subprocess.TimeoutExpired:
-                os.killpg(service.pid, signal.SIGKILL)
-            log.close()
+                health = client.get(f"{base}/health")
+            except httpx.TransportError:
+                time.sleep(0.02)
+                continue
+            now = time.perf_counter()
+            if health.status_code == 200:
+                first = first if first is not None else now - spawned
+                if health.json()["workers"]["count"] >= 1:
+                    worker = now - spawned
+            time.sleep(0.02)
+    if first is None or worker is None:
+        raise RuntimeError(f"serve did not come up:\n{log_path.read_text(errors='replace')}")
+    found = _KEY.search(log_path.read_text(errors="replace"))
+    key = found.group(1) if found else key
+    if not key:
+        raise RuntimeError("serve printed no generated API key")
+    return Service(process, base, key, first, worker, log_path)
+
+
+def _stop(service: Service) -> None:
+    service.process.send_signal(signal.SIGTERM)
+    try:
+        service.process.wait(60)
+    except subprocess.TimeoutExpired:
+        os.killpg(service.process.pid, signal.SIGKILL)
+        service.process.wait(10)
+
+
+# --------------------------------------------------------------------------- jobs
+
+
+def _wait_job(client: httpx.Client, job_id: str, timeout_s: float = 900.0) -> dict[str, Any]:
+    deadline = time.perf_counter() + timeout_s
+    while time.perf_counter() < deadline:
+        job = dict(client.get(f"/jobs/{job_id}").json())
+        if job["status"] in TERMINAL:
+            return job
+        time.sleep(0.01)
+    raise RuntimeError(f"job {job_id} did not finish in {timeout_s} s")
+
+
+def _submit(client: httpx.Client, scenario: str, params: dict[str, Any], seed: int) -> str:
+    answer = client.post(
+        "/jobs", json={"type": "train", "scenario_id": scenario, "seed": seed, "params": params}
+    )
+    if answer.status_code != 202:
+        raise RuntimeError(f"POST /jobs answered {answer.status_code}: {answer.text}")
+    return str(answer.json()["id"])
+
+
+def _stamp(text: str) -> datetime:
+    return datetime.fromisoformat(text)
+
+
+def _tiny_compute_s(repeats: int) -> list[float]:
+    """The tiny job's training, as the worker's handler does it, timed in-process."""
+    from inertia_id import Scenario
+    from inertia_id.classifiers.registry import train_classifier
+
+    scenario = Scenario.paper()
+    times = []
+    for seed in range(repeats + 1):
+        start = time.perf_counter()
+        model = train_classifier(
+            scenario,
+            GOOD_SEQUENCE,
+            3,
+            np.random.default_rng(seed),
+            kind="nearest-centroid",
+            metric="euclidean",
+        )
+        model.to_json()
+        times.append(time.perf_counter() - start)
+    return times[1:]  # the first pays one-off imports and caches
+
+
+_SEEDS = iter(range(5000, 10**9))
+
+
+def _jobs(client: httpx.Client, scenario: str, count: int) -> list[dict[str, float]]:
+    out = []
+    for _ in range(count):
+        sent = time.perf_counter()
+        job_id = _submit(client, scenario, {**TINY, "n_realisations": 3}, seed=next(_SEEDS))
+        job = _wait_job(client, job_id)
+        wall = time.perf_counter() - sent
+        if job["status"] != "succeeded":
+            raise RuntimeError(f"tiny job ended {job['status']}: {job['error']}")
+        created, started = _stamp(job["created_at"]), _stamp(job["started_at"])
+        finished = _stamp(job["finished_at"])
+        out.append(
+            {
+                "pickup_s": (started - created).total_seconds(),
+                "run_s": (finished - started).total_seconds(),
+                "server_total_s": (finished - created).total_seconds(),
+                "client_wall_s": wall,
+            }
+        )
+    return out
+
+
+# --------------------------------------------------------------------------- identify
+
+
+def _body(classifier: str, seed: int) -> tuple[dict[str, Any], str]:
+    from inertia_id import Scenario, simulate
+
+    flight = simulate(Scenario.paper(), GOOD_SEQUENCE, 1, np.random.default_rng(seed))
+    candidate = 3
+    telemetry = {
+        "time_s": flight.time_s.tolist(),
+        "omega_rad_s": flight.omega_measured[candidate, 0].tolist(),
+    }
+    return {"classifier_id": classifier, "telemetry": telemetry}, flight.candidate_names[candidate]
+
+
+def _computation(client: httpx.Client, body: dict[str, Any], seconds: float) -> dict[str, float]:
+    """ms per ``identify`` call in this process, the same classifier and telemetry."""
+    from inertia_id import identify
+    from inertia_id.classifiers.registry import classifier_from_json
+
+    document = client.get(f"/classifiers/{body['classifier_id']}/download")
+    document.raise_for_status()
+    start = time.perf_counter()
+    model = classifier_from_json(document.content)
+    load_s = time.perf_counter() - start
+    start = time.perf_counter()
+    identify(model, body["telemetry"])  # the first call may compile (numba)
+    first_s = time.perf_counter() - start
+    calls = 0
+    start = time.perf_counter()
+    while time.perf_counter() - start < seconds:
+        identify(model, body["telemetry"])
+        calls += 1
+    per_call = (time.perf_counter() - start) / calls
+    return {
+        "load_ms": 1000 * load_s,
+        "first_call_ms": 1000 * first_s,
+        "ms_per_call": 1000 * per_call,
+        "bound_rps_per_core": 1 / per_call,
+    }
+
+
+async def _load(
+    base: str, key: str, body: dict[str, Any], expected: str, clients: int, seconds: float
+) -> dict[str, Any]:
+    latencies: list[float] = []
+    codes: dict[int, int] = {}
+    correct = 0
+    limits = httpx.Limits(max_connections=clients, max_keepalive_connections=clients)
+    async with httpx.AsyncClient(
+        base_url=base, headers={"X-API-Key": key}, limits=limits, timeout=60
+    ) as client:
+        stop_at = time.perf_counter() + seconds
+
+        async def one() -> None:
+            nonlocal correct
+            while time.perf_counter() < stop_at:
+                start = time.perf_counter()
+                try:
+                    answer = await client.post("/identify", json=body)
+                    status = answer.status_code
+                except httpx.TransportError:
+                    status = 0
+                latencies.append(time.perf_counter() - start)
+                codes[status] = codes.get(status, 0) + 1
+                if status == 200 and answer.json().get("candidate") == expected:
+                    correct += 1
+
+        started = time.perf_counter()
+        await asyncio.gather(*(one() for _ in range(clients)))
+        elapsed = time.perf_counter() - started
+    values = np.asarray(latencies) * 1000
+    return {
+        "clients": clients,
+        "requests": len(latencies),
+        "seconds": elapsed,
+        "rps": len(latencies) / elapsed,
+        "p50_ms": float(np.percentile(values, 50)),
+        "p95_ms": float(np.percentile(values, 95)),
+        "p99_ms": float(np.percentile(values, 99)),
+        "max_ms": float(values.max()),
+        "errors": sum(n for code, n in codes.items() if code != 200),
+        "refused_503": codes.get(503, 0),
+        "codes": {str(k): v for k, v in sorted(codes.items())},
+        "correct_share": correct / max(1, len(latencies)),
+    }
+
+
+async def _cold(
+    base: str, key: str, body: dict[str, Any], requests: int
+) -> list[tuple[int, float]]:
+    """(status, seconds) of the first requests after start, two at a time, each on a
+    connection of its own so that every API process gets some: a cold classifier (and,
+    for DTW, a numba compile) per process."""
+    out: list[tuple[int, float]] = []
+
+    async def one() -> None:
+        async with httpx.AsyncClient(
+            base_url=base, headers={"X-API-Key": key}, timeout=120
+        ) as client:
+            start = time.perf_counter()
+            answer = await client.post("/identify", json=body)
+            out.append((answer.status_code, time.perf_counter() - start))
+
+    for _ in range(0, requests, 2):
+        await asyncio.gather(one(), one())
+    return out
+
+
+# --------------------------------------------------------------------------- main
+
+
+def _run_deployment(name: str, args: Any) -> dict[str, Any]:
+    figures: dict[str, Any] = {"deployment": name, "startups": [], "identify": [], "jobs": None}
+    with tempfile.TemporaryDirectory(prefix="inertia-bench-") as tmp:
+        data_dir = Path(tmp) / "data"
+        with _backend(name, data_dir, args) as backend:
+            key: str | None = None
+            ids: dict[str, str] = {}
+            scenario = ""
+            for api_workers in args.api_workers:
+                service = _start(backend, data_dir, api_workers, key)
+                key = service.key
+                figures["startups"].append(
+                    {
+                        "api_workers": api_workers,
+                        "first_health_s": service.start_to_health_s,
+                        "worker_seen_s": service.start_to_worker_s,
+                    }
+                )
+                print(
+                    f"[{name}] serve up ({api_workers} API processes): /health after "
+                    f"{service.start_to_health_s:.2f} s, worker after "
+                    f"{service.start_to_worker_s:.2f} s",
+                    flush=True,
+                )
+                try:
+                    client = httpx.Client(base_url=service.base, headers={"X-API-Key": key})
+                    client.timeout = httpx.Timeout(60)
+                    if not ids:
+                        created = client.post("/scenarios", json={"preset": "paper"})
+                        created.raise_for_status()
+                        scenario = created.json()["id"]
+                        figures["jobs"] = _jobs_figures(client, scenario, args)
+                        for label, params in CLASSIFIERS.items():
+                            started = time.perf_counter()
+                            job = _wait_job(client, _submit(client, scenario, params, args.seed))
+                            if job["status"] != "succeeded":
+                                raise RuntimeError(f"{label}: {job['status']}: {job['error']}")
+                            ids[label] = job["result"]["classifier_id"]
+                            print(
+                                f"[{name}] trained {label} in "
+                                f"{time.perf_counter() - started:.1f} s",
+                                flush=True,
+                            )
+                    for label, classifier in ids.items():
+                        body, expected = _body(classifier, args.seed)
+                        cold = asyncio.run(_cold(service.base, key, body, 6 * api_workers))
+                        computation = _computation(client, body, args.compute_seconds)
+                        for clients in args.clients:
+                            before_api, before_own = _api_cpu_s(data_dir), _own_cpu_s()
+                            load = asyncio.run(
+                                _load(service.base, key, body, expected, clients, args.duration)
+                            )
+                            requests = max(1, load["requests"])
+                            load["api_cpu_ms_per_request"] = (
+                                1000 * (_api_cpu_s(data_dir) - before_api) / requests
+                            )
+                            load["client_cpu_ms_per_request"] = (
+                                1000 * (_own_cpu_s() - before_own) / requests
+                            )
+                            figures["identify"].append(
+                                {
+                                    "classifier": label,
+                                    "api_workers": api_workers,
+                                    "cold_first": [
+                                        {"status": code, "ms": 1000 * t} for code, t in cold
+                                    ],
+                                    "computation": computation,
+                                    **load,
+                                }
+                            )
+                            print(
+                                f"[{name}] {label}, {api_workers} API, {clients} clients: "
+                                f"{load['rps']:.1f} req/s, p99 {load['p99_ms']:.1f} ms, "
+                                f"{load['errors']} errors",
+                                flush=True,
+                            )
+                    client.close()
+                finally:
+                    _stop(service)
+    return figures
+
+
+def _jobs_figures(client: httpx.Client, scenario: str, args: Any) -> dict[str, Any]:
+    # One job first: the worker's first job may pay one-off costs (caches, compiles).
+    first = _jobs(client, scenario, 1)[0]
+    runs = _jobs(client, scenario, args.jobs)
+    compute = float(np.median(_tiny_compute_s(5)))
+    med = {k: float(np.median([r[k] for r in runs])) for k in runs[0]}
+    return {
+        "first_job": first,
+        "runs": runs,
+        "median": med,
+        "compute_in_process_s": compute,
+        "fixed_cost_s": med["client_wall_s"] - compute,
+        "fixed_cost_server_s": med["server_total_s"] - compute,
+    }
+
+
+def _print(results: list[dict[str, Any]]) -> None:
+    rows = []
+    for figures in results:
+        for s in figures["startups"]:
+            rows.append(
+                [figures["deployment"], s["api_workers"], s["first_health_s"], s["worker_seen_s"]]
+            )
+    print_table(
+        ["deployment", "API processes", "spawn to /health 200 (s)", "to worker seen (s)"],
+        rows,
+        title="Start-up: python -m app.serve --workers 1",
+    )
+    rows = []
+    for figures in results:
+        for r in figures["identify"]:
+            rows.append(
+                [
+                    figures["deployment"],
+                    r["classifier"],
+                    r["api_workers"],
+                    r["clients"],
+                    r["requests"],
+                    r["rps"],
+                    r["p50_ms"],
+                    r["p95_ms"],
+                    r["p99_ms"],
+                    r["max_ms"],
+                    r["errors"],
+                    f"{100 * r['correct_share']:.0f}%",
+                    r["computation"]["ms_per_call"],
+                    r["computation"]["bound_rps_per_core"],
+                    r["api_cpu_ms_per_request"],
+                    r["client_cpu_ms_per_request"],
+                ]
+            )
+    print_table(
+        [
+            "deployment",
+            "classifier",
+            "API",
+            "clients",
+            "requests",
+            "req/s",
+            "p50 ms",
+            "p95 ms",
+            "p99 ms",
+            "max ms",
+            "errors",
+            "correct",
+            "compute ms",
+            "bound req/s/core",
+            "API CPU ms/req",
+            "client CPU ms/req",
+        ],
+        rows,
+        title="POST /identify (generated key, 80-sample JSON telemetry); compute = "
+        "inertia_id.identify in-process",
+    )
+    rows = []
+    for figures in results:
+        for r in figures["identify"]:
+            if r["clients"] == min(x["clients"] for x in figures["identify"]):
+                rows.append(
+                    [
+                        figures["deployment"],
+                        r["classifier"],
+                        r["api_workers"],
+                        max(c["ms"] for c in r["cold_first"]),
+                        sum(c["status"] != 200 for c in r["cold_first"]),
+                        r["computation"]["load_ms"],
+                        r["computation"]["first_call_ms"],
+                    ]
+                )
+    print_table(
+        [
+            "deployment",
+            "classifier",
+            "API",
+            "first requests: max ms",
+            "not 200",
+            "in-process load ms",
+            "in-process first call ms",
+        ],
+        rows,
+        title="Cold classifier: the first requests after start (two at a time, new "
+        "connections), and the same document loaded and first called in-process",
+    )
+    rows = []
+    for figures in results:
+        jobs = figures["jobs"]
+        if jobs is None:
+            continue
+        med = jobs["median"]
+        rows.append(
+            [
+                figures["deployment"],
+                len(jobs["runs"]),
+                jobs["first_job"]["pickup_s"],
+                med["pickup_s"],
+                max(r["pickup_s"] for r in jobs["runs"]),
+                med["run_s"],
+                med["client_wall_s"],
+                jobs["compute_in_process_s"],
+                jobs["fixed_cost_s"],
+            ]
+        )
+    print_table(
+        [
+            "deployment",
+            "jobs",
+            "first job pick-up s",
+            "pick-up s (median)",
+            "pick-up s (max)",
+            "running to done s",
+            "submit to succeeded s",
+            "compute in-process s",
+            "fixed cost per job s",
+        ],
+        rows,
+        title="Tiny train jobs (nearest-centroid, euclidean, 3 realisations), one at a time on "
+        "an idle worker; pick-up = started_at - created_at",
+    )
+
+
+def main() -> None:
+    parser = base_parser(__doc__.splitlines()[0])
+    parser.add_argument(
+        "--deployments",
+        default="sqlite,postgres",
+        help="comma-separated: sqlite (embedded default), postgres (PostgreSQL + Redis)",
+    )
+    parser.add_argument("--clients", type=int_list, default=[1, 20, 50])
+    parser.add_argument("--api-workers", type=int_list, default=[1, 2])
+    parser.add_argument("--duration", type=positive_int, default=10, help="seconds per load")
+    parser.add_argument(
+        "--compute-seconds", type=float, default=2.0, help="seconds of in-process identify"
+    )
+    parser.add_argument("--jobs", type=positive_int, default=10, help="tiny jobs to time")
+    parser.add_argument(
+        "--postgres-url",
+        default=os.environ.get(
+            "INERTIA_ID_BENCH_POSTGRES_URL", "postgresql+psycopg://postgres@127.0.0.1:5432/postgres"
+        ),
+        help="an admin connection: a database is created there and dropped after",
+    )
+    parser.add_argument(
+        "--redis-url",
+        default=os.environ.get("INERTIA_ID_BENCH_REDIS_URL", "redis://127.0.0.1:6379/14"),
+        help="a Redis database for the broker: FLUSHED before and after",
+    )
+    args = parser.parse_args()
+    deployments = [d.strip() for d in args.deployments.split(",") if d.strip()]
+    unknown = sorted(set(deployments) - {"sqlite", "postgres"})
+    if unknown:
+        parser.error(f"--deployments: unknown {unknown}; known: sqlite, postgres")
+    print_header("inertia-id service: start-up, /identify under load, job pick-up", args)
+    results = [_run_deployment(name, args) for name in deployments]
+    print()
+    _print(results)
+    _write_json(args.json, args, {"deployments": results})
 
 
 if __name__ == "__main__":

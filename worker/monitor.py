@@ -23,6 +23,7 @@ from service.store import Database
 from service.store.jobs import touch_worker
 
 from .context import broker_label
+from .process import mark_stopping
 from .reaper import hand_back_jobs, reap_once, resend_once
 from .ticker import Ticker
 
@@ -126,7 +127,10 @@ def _hand_back(**_kwargs: Any) -> None:
     # Sent in the main process when a warm shutdown starts (SIGTERM, Ctrl-C): Celery
     # would wait for the running job to end, the supervisor would then kill it, and the
     # job would wait a heartbeat timeout and lose an attempt. Instead it is re-queued now;
-    # the task process sees that it no longer owns the job and drops it.
+    # the task process sees that it no longer owns the job and drops it. Raised first:
+    # from now on the task process claims no job (one it claimed meanwhile, it hands
+    # back itself).
+    mark_stopping()
     if _monitor is None:
         return
     try:

@@ -7,20 +7,39 @@
   and a worker started by ``inertia-id serve`` is told to stop (SIGTERM: it hands its
   job back) when serve dies, even by ``kill -9``. serve names itself in
   :data:`PARENT_PID_ENV`; a worker whose parent is already gone at start stops at once.
+- **Unique names**: a worker left with Celery's default name, ``celery@<host>`` (the
+  docker-compose command gives none), gets a token in it, like serve's workers: two
+  workers on one host, or a container restarted in place, never share a ``workers`` row,
+  so each is counted, and a dead one's job is reaped as soon as its own name goes quiet.
+- **A stopping worker starts nothing**: once told to stop, a worker's consumer may still
+  hand its task process a message (Celery leaves its loop only after the current poll;
+  the job it just handed back, re-sent, is the likeliest). :func:`stopping`, a flag the
+  main process raises and its task processes read, makes them leave such a job to
+  another worker instead of running it until they are killed.
 """
 
 from __future__ import annotations
 
 import ctypes
 import logging
+import mmap
 import os
+import secrets
 import signal
 import sys
 from typing import Any
 
-from celery.signals import worker_process_init
+from celery.signals import celeryd_init, worker_process_init
+from celery.utils.nodenames import default_nodename
 
-__all__ = ["PARENT_PID_ENV", "die_with_parent", "stop_with_launcher"]
+__all__ = [
+    "PARENT_PID_ENV",
+    "die_with_parent",
+    "mark_stopping",
+    "stop_with_launcher",
+    "stopping",
+    "unique_name",
+]
 
 logger = logging.getLogger(__name__)
 
@@ -28,6 +47,22 @@ logger = logging.getLogger(__name__)
 PARENT_PID_ENV = "INERTIA_ID_PARENT_PID"
 
 _PR_SET_PDEATHSIG = 1
+
+# One shared byte, mapped when the worker's main process imports this module: the task
+# processes it forks later share the page, so a flag raised by the main process is seen
+# by them at once.
+_STOPPING = mmap.mmap(-1, 1)
+
+
+def mark_stopping() -> None:
+    """In the worker's main process: this worker was told to stop."""
+    _STOPPING[0] = 1
+
+
+def stopping() -> bool:
+    """Whether this worker (the main process, or the one that forked this task process)
+    was told to stop."""
+    return _STOPPING[0] == 1
 
 
 def die_with_parent(sig: int) -> bool:
@@ -54,6 +89,21 @@ def stop_with_launcher() -> None:
     if str(os.getppid()) != expected:
         logger.warning("the serve process %s is gone; stopping", expected)
         os.kill(os.getpid(), signal.SIGTERM)
+
+
+def unique_name(name: str) -> str:
+    """``name``, or Celery's default ``celery@<host>`` made unique: ``celery-3fa2c1@<host>``."""
+    if name != default_nodename(None):
+        return name
+    prefix, _, host = name.partition("@")
+    return f"{prefix}-{secrets.token_hex(3)}@{host}"
+
+
+@celeryd_init.connect
+def _unique_default_name(instance: Any = None, **_kwargs: Any) -> None:
+    # Sent before the worker sets up its consumer and pool, which take the name from it.
+    if instance is not None and getattr(instance, "hostname", None):
+        instance.hostname = unique_name(instance.hostname)
 
 
 @worker_process_init.connect

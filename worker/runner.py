@@ -34,7 +34,7 @@ from service.store.jobs import (
     claim,
     clear_metrics,
     finish,
-    worker_stopping,
+    hand_back,
 )
 from service.store.models import JOB_TYPES, new_id
 
@@ -134,34 +134,41 @@ def _broken_handlers(error: Exception) -> dict[str, Callable[[JobContext], Outco
     return {job_type: fail for job_type in JOB_TYPES}
 
 
-def execute_job(job_id: str, *, settings: Settings, worker_name: str) -> str:
+def execute_job(
+    job_id: str,
+    *,
+    settings: Settings,
+    worker_name: str,
+    stopping: Callable[[], bool] = lambda: False,
+) -> str:
     """Run job ``job_id`` if it is still queued; returns the status it ends in.
 
     "missing" when there is no such job; the current status when it was not queued
     (already run, cancelled, or claimed by another delivery); "lost" when the job was
-    taken from this run (reaped after a stall) before it finished.
+    taken from this run (reaped after a stall) before it finished; "passed on" when
+    ``stopping()`` says this worker is stopping: the job is left queued, unsent, for
+    another worker's monitor to send again (a claim made as the stop came is handed
+    back, at no cost of an attempt).
     """
     db = Database(settings.resolved_database_url)
     try:
-        return _execute(job_id, db, settings, worker_name)
+        return _execute(job_id, db, settings, worker_name, stopping)
     finally:
         db.dispose()
 
 
-def _stopping(db: Database, worker_name: str) -> bool:
+def _pass_on(db: Database, job_id: str, worker_name: str) -> str:
     with db.session() as session:
-        return worker_stopping(session, worker_name)
-
-
-def _leave_unsent(db: Database, job_id: str) -> None:
-    # No new message from here: a stopping worker's consumer may still fetch it, and
-    # bounce it again. The re-sender of a live (or the next) worker sends it.
-    with db.session() as session:
+        # Claimed just as the stop came (the main process's hand-back may have missed
+        # it): back to the queue, uncounted. Else still queued: marked unsent.
+        hand_back(session, worker_name, f"worker {worker_name} was asked to stop")
         session.execute(
             update(JobRow)
             .where(JobRow.id == job_id, JobRow.status == "queued")
             .values(sent_at=None)
         )
+    logger.warning("job %s left to another worker: this worker is stopping", job_id)
+    return "passed on"
 
 
 def _status(db: Database, job_id: str) -> str | None:
@@ -169,7 +176,13 @@ def _status(db: Database, job_id: str) -> str | None:
         return session.scalar(select(JobRow.status).where(JobRow.id == job_id))
 
 
-def _execute(job_id: str, db: Database, settings: Settings, worker_name: str) -> str:
+def _execute(
+    job_id: str,
+    db: Database,
+    settings: Settings,
+    worker_name: str,
+    stopping: Callable[[], bool],
+) -> str:
     status = _status(db, job_id)
     if status is None:
         logger.warning("job %s does not exist; message dropped", job_id)
@@ -177,12 +190,8 @@ def _execute(job_id: str, db: Database, settings: Settings, worker_name: str) ->
     if status != "queued":
         logger.info("job %s is %s, not queued; nothing to do", job_id, status)
         return status
-    if _stopping(db, worker_name):
-        # This worker was told to stop after it fetched the message: leave the job to
-        # another worker.
-        _leave_unsent(db, job_id)
-        logger.info("job %s left for another worker: %s is stopping", job_id, worker_name)
-        return "queued"
+    if stopping():
+        return _pass_on(db, job_id, worker_name)
     try:
         handlers = _import_handlers()
     except Exception as exc:
@@ -208,6 +217,9 @@ def _execute(job_id: str, db: Database, settings: Settings, worker_name: str) ->
         status = _status(db, job_id) or "missing"
         logger.info("job %s was not claimed (now %s)", job_id, status)
         return status
+    if stopping():
+        # The stop came between the check above and the claim.
+        return _pass_on(db, job_id, worker_name)
     logger.info(
         "job %s (%s, attempt %d) claimed by %s",
         job_id,

@@ -65,7 +65,7 @@ def _queue(settings: Settings, database: Database, database_ok: bool) -> QueueHe
     if not database_ok:
         return QueueHealth(ok=False, queued=0, running=0, unsent=0, oldest_queued_s=None)
     now = utcnow()
-    overdue = now - timedelta(seconds=max(30.0, 3 * settings.unsent_grace_s))
+    overdue = now - timedelta(seconds=3 * settings.unsent_grace_s)
     try:
         with database.session() as session:
             queued = session.scalar(

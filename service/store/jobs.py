@@ -57,7 +57,6 @@ __all__ = [
     "reap_stale",
     "set_progress",
     "touch_worker",
-    "worker_stopping",
 ]
 
 
@@ -312,12 +311,6 @@ def cancel(session: Session, job: JobRow) -> None:
     if job.status == "queued":
         job.status = "cancelled"
         job.finished_at = utcnow()
-
-
-def worker_stopping(session: Session, worker: str) -> bool:
-    """Whether ``worker`` was told to stop (then it claims nothing more)."""
-    since = session.scalar(select(WorkerRow.stopping_since).where(WorkerRow.name == worker))
-    return since is not None
 
 
 def hand_back(session: Session, worker: str, reason: str) -> list[str]:

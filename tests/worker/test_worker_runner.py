@@ -7,6 +7,7 @@ cancel-poll throttle.
 
 from __future__ import annotations
 
+import os
 from typing import TYPE_CHECKING, Any
 
 import pytest
@@ -17,7 +18,7 @@ from inertia_id.pipelines import TrainRequest, train_for_sequence
 from service.params import SearchParams
 from service.store import ClassifierRow, MetricRow
 from service.store.jobs import cancel
-from service.store.models import JobRow
+from service.store.models import JobRow, utcnow
 from worker.runner import (
     CANCEL_POLL_S,
     JobContext,
@@ -89,6 +90,29 @@ def test_a_second_delivery_of_a_finished_job_changes_nothing(store: Store) -> No
     job = store.job(job_id)
     assert job.attempts == 1 and job.result == {"f1": 1.0} and job.worker is None
     assert execute_job("0" * 32, settings=store.settings, worker_name=WORKER) == "missing"
+
+
+def test_a_stopping_worker_leaves_a_queued_job_to_another_unsent(store: Store) -> None:
+    # Told to stop, its consumer still handed it a message (the job it just handed back,
+    # re-sent): it must not run the job until it is killed.
+    job_id = store.add_job("train", {"sequence": GOOD_SEQUENCE}, sent_at=utcnow())
+    status = execute_job(job_id, settings=store.settings, worker_name=WORKER, stopping=lambda: True)
+    assert status == "passed on"
+    job = store.job(job_id)
+    assert job.status == "queued" and job.attempts == 0 and job.worker is None
+    assert job.sent_at is None  # another worker's monitor sends it again
+
+
+def test_a_job_claimed_as_the_stop_came_is_handed_back_at_no_cost(store: Store) -> None:
+    job_id = store.add_job("train", {"sequence": GOOD_SEQUENCE}, sent_at=utcnow())
+    asked = iter([False, True])  # the stop arrives between the check and the claim
+    status = execute_job(
+        job_id, settings=store.settings, worker_name=WORKER, stopping=lambda: next(asked)
+    )
+    assert status == "passed on"
+    job = store.job(job_id)
+    assert job.status == "queued" and job.worker is None and job.sent_at is None
+    assert job.attempts == 1 and job.handbacks == 1
 
 
 def test_a_train_job_stores_its_classifier_and_metrics_in_one_go(store: Store) -> None:
@@ -216,3 +240,23 @@ def test_one_line_error_names_the_type_and_flattens_the_message() -> None:
 def test_json_safe_turns_nan_and_infinity_into_null() -> None:
     value = {"curve": [float("nan"), 1.5, float("-inf")], "n": 3, "name": "x"}
     assert json_safe(value) == {"curve": [None, 1.5, None], "n": 3, "name": "x"}
+
+
+def test_the_stop_raised_in_the_worker_is_seen_by_task_processes_it_forked() -> None:
+    from worker import process
+
+    read, write = os.pipe()
+    child = os.fork()
+    if child == 0:  # a task process: forked before the stop, it reads the flag after
+        os.read(read, 1)
+        os._exit(7 if process.stopping() else 3)
+    try:
+        assert not process.stopping()
+        process.mark_stopping()
+        os.write(write, b"x")
+        _, code = os.waitpid(child, 0)
+        assert os.waitstatus_to_exitcode(code) == 7
+    finally:
+        process._STOPPING[0] = 0
+        os.close(read)
+        os.close(write)

@@ -168,3 +168,44 @@ def test_serve_runs_the_api_and_a_worker_that_does_jobs_then_stops_both(tmp_path
         pass
     else:
         raise AssertionError(f"worker pid {worker_pid} still alive after serve stopped")
+
+
+def test_the_socket_shared_by_several_api_processes_accepts_connections_without_nagle() -> None:
+    # uvicorn's own listening socket has protocol 0, so asyncio left TCP_NODELAY off the
+    # connections it accepted: each response then waited ~40 ms for a delayed ACK.
+    import asyncio
+    from concurrent.futures import ThreadPoolExecutor
+
+    import uvicorn
+
+    from app.serve import tcp_socket
+
+    config = uvicorn.Config("app.main:create_app", factory=True, host="127.0.0.1", port=0)
+    listening = tcp_socket(config.bind_socket())
+    assert listening.proto == socket.IPPROTO_TCP
+    # As an API process receives it (multiprocessing rebuilds it with the same protocol).
+    shared = socket.socket(
+        listening.family, listening.type, listening.proto, fileno=os.dup(listening.fileno())
+    )
+    listening.close()
+
+    async def nodelay_of_an_accepted_connection() -> int:
+        seen: asyncio.Future[int] = asyncio.get_running_loop().create_future()
+
+        class Probe(asyncio.Protocol):
+            def connection_made(self, transport: asyncio.BaseTransport) -> None:
+                sock = transport.get_extra_info("socket")
+                seen.set_result(sock.getsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY))
+
+        server = await asyncio.get_running_loop().create_server(Probe, sock=shared)
+        _reader, writer = await asyncio.open_connection(*shared.getsockname()[:2])
+        try:
+            return await asyncio.wait_for(seen, 10)
+        finally:
+            writer.close()
+            server.close()
+
+    # On a thread of its own: Playwright (tests/browser) keeps the main thread's loop.
+    with ThreadPoolExecutor(1) as pool:
+        nodelay = pool.submit(asyncio.run, nodelay_of_an_accepted_connection()).result()
+    assert nodelay != 0

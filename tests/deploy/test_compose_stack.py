@@ -1,0 +1,363 @@
+"""The docker-compose stack as it ships, run on this machine without Docker.
+
+``docker-compose config`` says what the stack runs; this test runs exactly that: the
+``api`` service's command and two of the ``worker`` service's (its ``replicas``), with
+the services' environment. Only what cannot be the same outside Docker is changed:
+
+- the hostnames ``postgres`` and ``redis`` become 127.0.0.1 (a fresh database on the
+  machine's PostgreSQL, as the compose user, and Redis database 13, flushed before and
+  after: the machine's other users keep theirs);
+- ``/data`` (the shared volume) becomes a temporary folder;
+- the API listens on loopback at a free port instead of 0.0.0.0:8000 (a shared machine);
+- each container's own hostname is missing: both workers run on this one.
+
+Then, over HTTP with the compose's ``INERTIA_ID_API_KEY``: the paper scenario, the
+default classifier trained (the marginal likelihood, which PostgreSQL once refused to
+store), telemetry identified, and one worker killed mid-job (``kill -9`` of its whole
+process group, as a container dies) while the other finishes the job.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import time
+import uuid
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, TypeVar
+
+import httpx
+import numpy as np
+import pytest
+import yaml
+from sqlalchemy import create_engine, make_url, text
+
+from inertia_id import Scenario, simulate
+
+ROOT = Path(__file__).resolve().parents[2]
+API_KEY = "compose-" + "k" * 32
+REDIS_ADMIN_URL = os.environ.get("INERTIA_ID_TEST_COMPOSE_REDIS_URL", "redis://127.0.0.1:6379/13")
+POSTGRES_ADMIN_URL = os.environ.get(
+    "INERTIA_ID_TEST_POSTGRES_URL", "postgresql+psycopg://postgres@127.0.0.1:5432/postgres"
+)
+GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
+TERMINAL = ("succeeded", "failed", "cancelled")
+
+T = TypeVar("T")
+
+
+def _require(what: str, error: object) -> None:
+    message = f"{what} is not available: {error}"
+    if os.environ.get("INERTIA_ID_REQUIRE_SERVICES") == "1":
+        pytest.fail(message)
+    pytest.skip(message)
+
+
+def _compose_config() -> dict[str, Any]:
+    if not shutil.which("docker-compose"):
+        _require("docker-compose", "not installed (apt-get install docker-compose)")
+    done = subprocess.run(
+        ["docker-compose", "-f", str(ROOT / "docker-compose.yml"), "config"],
+        capture_output=True,
+        text=True,
+        env={**os.environ, "INERTIA_ID_API_KEY": API_KEY},
+        cwd=ROOT,
+        timeout=60,
+    )
+    assert done.returncode == 0, done.stderr
+    config = yaml.safe_load(done.stdout)
+    assert isinstance(config, dict)
+    return config
+
+
+def _dockerfile_cmd() -> list[str]:
+    lines = [ln for ln in (ROOT / "Dockerfile").read_text().splitlines() if ln.startswith("CMD ")]
+    return list(json.loads(lines[-1][4:]))
+
+
+def _wait(predicate: Callable[[], T | None], timeout_s: float, what: str, logs: Any) -> T:
+    deadline = time.monotonic() + timeout_s
+    while True:
+        try:
+            value = predicate()
+        except httpx.TransportError:
+            value = None
+        if value:
+            return value
+        if time.monotonic() > deadline:
+            raise AssertionError(f"{what} within {timeout_s:g} s\n{logs()}")
+        time.sleep(0.25)
+
+
+@dataclass
+class Container:
+    """One service's command, run as a process group of its own (a container)."""
+
+    name: str
+    process: subprocess.Popen[bytes]
+    log_path: Path
+
+    def log(self, chars: int = 5000) -> str:
+        text_ = self.log_path.read_text(errors="replace") if self.log_path.exists() else ""
+        return f"--- {self.name} ({self.log_path}) ---\n{text_[-chars:]}"
+
+    def kill(self) -> None:
+        try:
+            os.killpg(self.process.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        self.process.wait(10)
+
+    def stop(self) -> None:
+        """``docker stop``: SIGTERM, a grace period, then SIGKILL."""
+        if self.process.poll() is None:
+            try:
+                os.killpg(self.process.pid, signal.SIGTERM)
+            except ProcessLookupError:
+                pass
+            try:
+                self.process.wait(15)
+            except subprocess.TimeoutExpired:
+                pass
+        self.kill()
+
+
+def _service_env(environment: dict[str, str], database: str, data_dir: Path) -> dict[str, str]:
+    """The compose service's environment with only the hosts (and what they hold) moved."""
+    moved = {}
+    for name, value in environment.items():
+        value = str(value)
+        if name == "DATABASE_URL":
+            url = make_url(value)
+            assert url.host == "postgres", value
+            value = url.set(host="127.0.0.1", database=database).render_as_string(
+                hide_password=False
+            )
+        elif name == "BROKER_URL":
+            assert value.startswith("redis://redis:6379/"), value
+            value = REDIS_ADMIN_URL
+        elif value == "/data":
+            value = str(data_dir)
+        assert "postgres:" not in value and "redis:6379" not in value, (name, value)
+        moved[name] = value
+    base = {
+        k: v
+        for k, v in os.environ.items()
+        if not k.startswith("INERTIA_ID_") and k not in ("DATABASE_URL", "BROKER_URL")
+    }
+    # The image has the project installed with its commands on PATH: so has this venv.
+    base["PATH"] = os.pathsep.join([str(Path(sys.executable).parent), base.get("PATH", "")])
+    base["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), base.get("PYTHONPATH")]))
+    base["PYTHONUNBUFFERED"] = "1"
+    return {**base, **moved}
+
+
+@pytest.fixture
+def compose_database() -> Iterator[str]:
+    """A fresh database owned by the compose file's user (created if missing)."""
+    admin = create_engine(POSTGRES_ADMIN_URL, isolation_level="AUTOCOMMIT")
+    name = f"inertia_id_compose_{uuid.uuid4().hex[:10]}"
+    created_role = False
+    try:
+        with admin.connect() as connection:
+            exists = connection.execute(
+                text("SELECT 1 FROM pg_roles WHERE rolname = 'inertia'")
+            ).first()
+            if not exists:
+                connection.execute(text("CREATE ROLE inertia LOGIN PASSWORD 'inertia'"))
+                created_role = True
+            connection.execute(text(f'CREATE DATABASE "{name}" OWNER inertia'))
+    except Exception as exc:
+        admin.dispose()
+        _require(f"PostgreSQL at {POSTGRES_ADMIN_URL}", f"{type(exc).__name__}: {exc}")
+    try:
+        yield name
+    finally:
+        with admin.connect() as connection:
+            connection.execute(text(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)'))
+            if created_role:
+                owned = connection.execute(
+                    text(
+                        "SELECT count(*) FROM pg_database d JOIN pg_roles r "
+                        "ON d.datdba = r.oid WHERE r.rolname = 'inertia'"
+                    )
+                ).scalar()
+                if not owned:
+                    connection.execute(text("DROP ROLE IF EXISTS inertia"))
+        admin.dispose()
+
+
+@pytest.fixture
+def compose_redis() -> Iterator[None]:
+    import redis
+
+    client = redis.Redis.from_url(REDIS_ADMIN_URL, socket_connect_timeout=2)
+    try:
+        client.flushdb()
+    except Exception as exc:
+        client.close()
+        _require(f"Redis at {REDIS_ADMIN_URL}", f"{type(exc).__name__}: {exc}")
+    try:
+        yield
+    finally:
+        client.flushdb()
+        client.close()
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+def test_the_compose_stack_trains_the_default_classifier_identifies_and_survives_a_killed_worker(
+    tmp_path: Path, compose_database: str, compose_redis: None
+) -> None:
+    config = _compose_config()
+    services = config["services"]
+    api, worker = services["api"], services["worker"]
+    assert api["command"] == _dockerfile_cmd(), "the api command differs from the image's CMD"
+    replicas = int(worker.get("deploy", {}).get("replicas", 1))
+    assert replicas == 2, worker.get("deploy")
+    assert api["environment"]["INERTIA_ID_API_KEY"] == API_KEY
+
+    data_dir = tmp_path / "data"
+    port = _free_port()
+    command = [str(part) for part in api["command"]]
+    assert command[command.index("--host") + 1] == "0.0.0.0"
+    assert command[command.index("--port") + 1] == "8000"
+    command[command.index("--host") + 1] = "127.0.0.1"
+    command[command.index("--port") + 1] = str(port)
+
+    containers: list[Container] = []
+
+    def start(name: str, argv: list[str], environment: dict[str, str]) -> Container:
+        log_path = tmp_path / f"{name}.log"
+        with open(log_path, "wb") as log:
+            process = subprocess.Popen(
+                argv,
+                env=_service_env(environment, compose_database, data_dir),
+                cwd=tmp_path,
+                stdout=log,
+                stderr=subprocess.STDOUT,
+                start_new_session=True,
+            )
+        container = Container(name, process, log_path)
+        containers.append(container)
+        return container
+
+    def logs() -> str:
+        return "\n".join(c.log() for c in containers)
+
+    base = f"http://127.0.0.1:{port}"
+    try:
+        start("api", command, api["environment"])
+        # depends_on api: service_started; the workers wait for nothing else.
+        workers = [
+            start(f"worker-{i + 1}", [str(p) for p in worker["command"]], worker["environment"])
+            for i in range(replicas)
+        ]
+        with httpx.Client(base_url=base, headers={"X-API-Key": API_KEY}, timeout=60) as client:
+
+            def all_workers() -> dict[str, Any] | None:
+                health = client.get("/health").json()
+                return health if health["workers"]["count"] == replicas else None
+
+            health = _wait(all_workers, 180, f"/health did not count {replicas} workers", logs)
+            assert health["status"] == "ok", health
+
+            scenario = client.post("/scenarios", json={"preset": "paper"})
+            assert scenario.status_code == 201, scenario.text
+            scenario_id = scenario.json()["id"]
+
+            def finish(job_id: str, timeout_s: float = 300) -> dict[str, Any]:
+                def done() -> dict[str, Any] | None:
+                    job = client.get(f"/jobs/{job_id}").json()
+                    return job if job["status"] in TERMINAL else None
+
+                return _wait(done, timeout_s, f"job {job_id} did not finish", logs)
+
+            # The default classifier: no kind, no metric.
+            train = client.post(
+                "/jobs",
+                json={
+                    "type": "train",
+                    "scenario_id": scenario_id,
+                    "params": {"sequence": GOOD_SEQUENCE, "n_realisations": 20},
+                },
+            )
+            assert train.status_code == 202, train.text
+            job = finish(train.json()["id"])
+            assert job["status"] == "succeeded", (job["error"], logs())
+            classifier = client.get(f"/classifiers/{job['result']['classifier_id']}").json()
+            assert classifier["kind"] == "marginal-likelihood"
+            assert classifier["metric"] == "marginal-mahalanobis"
+
+            flight = simulate(Scenario.paper(), GOOD_SEQUENCE, 1, np.random.default_rng(7))
+            for truth in (1, 3):
+                verdict = client.post(
+                    "/identify",
+                    json={
+                        "classifier_id": classifier["id"],
+                        "telemetry": {
+                            "time_s": flight.time_s.tolist(),
+                            "omega_rad_s": flight.omega_measured[truth, 0].tolist(),
+                        },
+                    },
+                )
+                assert verdict.status_code == 200, verdict.text
+                assert verdict.json()["candidate"] == flight.candidate_names[truth]
+
+            # A worker dies mid-job, container and all; the other one finishes the job.
+            search = client.post(
+                "/jobs",
+                json={
+                    "type": "search",
+                    "scenario_id": scenario_id,
+                    "params": {
+                        "method": "random",
+                        "sequence_length": 2,
+                        "timesteps": 1200,
+                        "n_realisations": 5,
+                        "metric": "euclidean",
+                        "patience_episodes": None,
+                    },
+                },
+            )
+            assert search.status_code == 202, search.text
+            search_id = search.json()["id"]
+            running = _wait(
+                lambda: (j := client.get(f"/jobs/{search_id}").json())["status"] == "running" and j,
+                120,
+                "the search did not start",
+                logs,
+            )
+            names = {w.name: _node_name(w) for w in workers}
+            assert len(set(names.values())) == replicas, names
+            victim = next(w for w in workers if names[w.name] == running["worker"])
+            victim.kill()
+            job = finish(search_id)
+            assert job["status"] == "succeeded", (job["error"], logs())
+            assert job["worker"] != running["worker"] and job["attempts"] == 2
+
+            jobs = client.get("/jobs").json()["items"]
+            assert jobs and all(j["status"] in TERMINAL for j in jobs), jobs
+            assert all(j["status"] == "succeeded" or j["error"] for j in jobs), jobs
+    finally:
+        for container in containers:
+            container.stop()
+
+
+def _node_name(container: Container) -> str | None:
+    """The worker's node name, as its log says when it is ready."""
+    found = re.search(r"worker (\S+@\S+): heartbeat and reaper", container.log(10**6))
+    return found.group(1) if found else None

@@ -1,0 +1,42 @@
+"""A graceful restart (SIGTERM of ``serve``, as systemd or ``docker stop`` sends it) while
+a job runs: the job goes back to the queue at once, without spending an attempt, and
+the next ``serve`` runs it; two restarts in a row do not fail it."""
+
+from __future__ import annotations
+
+import signal
+
+from faults import Deployment, assert_settled, processes_of, random_search
+
+
+def test_graceful_restarts_hand_the_running_job_back_without_spending_attempts(
+    deployment: Deployment,
+) -> None:
+    job_id = ""
+    for restart in (1, 2):
+        serve = deployment.serve(workers=1)
+        if not job_id:
+            with serve.client() as client:
+                scenario = deployment.scenario(client)
+                job_id = deployment.submit(client, scenario, "search", random_search(1200))
+        job = deployment.wait_job(job_id, ("running",), timeout_s=120)
+        assert job.attempts == restart, (job.attempts, job.handbacks)
+
+        code = serve.terminate()
+        assert code == 128 + signal.SIGTERM, serve.log()
+        assert not processes_of(deployment.data_dir), processes_of(deployment.data_dir)
+        # Back in the queue the moment serve is gone, not a heartbeat timeout later, and
+        # the interrupted run is not counted against the job's attempts.
+        job = deployment.job(job_id)
+        assert job.status == "queued", (job.status, job.error, serve.log())
+        assert job.handbacks == restart and job.attempts - job.handbacks == 0, (
+            job.attempts,
+            job.handbacks,
+            serve.log(),
+        )
+
+    deployment.serve(workers=1)
+    job = deployment.wait_job(job_id, timeout_s=180)
+    assert job.status == "succeeded", (job.status, job.error, deployment.logs())
+    assert job.attempts == 3 and job.handbacks == 2 and job.error is None
+    assert_settled(deployment)
