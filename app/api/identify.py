@@ -12,6 +12,7 @@ from __future__ import annotations
 import csv
 import json
 import threading
+import time
 from collections import OrderedDict
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
@@ -48,15 +49,45 @@ class ClassifierCache:
     that load (a 2 MB document parsed once, not once per concurrent request); other
     classifiers are served meanwhile.
 
+    The checksum of a classifier id is remembered for ``checksum_ttl_s``: most requests
+    then reach the database not at all (the look-up was 2 of a request's 8 ms on SQLite).
+
     :param size: how many classifiers to keep; 0 disables caching.
+    :param checksum_ttl_s: how long an id's checksum is taken as known.
+    :param clock: monotonic seconds (tests pass their own).
     """
 
-    def __init__(self, size: int) -> None:
+    def __init__(
+        self,
+        size: int,
+        *,
+        checksum_ttl_s: float = 30.0,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
         self.size = size
+        self.checksum_ttl_s = checksum_ttl_s
+        self._clock = clock
         self._items: OrderedDict[tuple[str, str], CandidateClassifier] = OrderedDict()
+        self._checksums: OrderedDict[str, tuple[str, float]] = OrderedDict()
         self._lock = threading.Lock()
         self._loading: dict[tuple[str, str], threading.Lock] = {}
         self.loads = 0
+
+    def checksum_of(self, classifier_id: str) -> str | None:
+        with self._lock:
+            known = self._checksums.get(classifier_id)
+        if known is None or known[1] <= self._clock():
+            return None
+        return known[0]
+
+    def remember_checksum(self, classifier_id: str, checksum: str) -> None:
+        if self.size <= 0:
+            return
+        with self._lock:
+            self._checksums[classifier_id] = (checksum, self._clock() + self.checksum_ttl_s)
+            self._checksums.move_to_end(classifier_id)
+            while len(self._checksums) > 4 * self.size:
+                self._checksums.popitem(last=False)
 
     def get(
         self, key: tuple[str, str], load: Callable[[], CandidateClassifier]
@@ -113,12 +144,15 @@ def _document(database: Database, classifier_id: str) -> str:
     return document
 
 
-def _identify(
-    database: Database, cache: ClassifierCache, classifier_id: str, telemetry: Telemetry
-) -> IdentifyResult:
+def _checksum(database: Database, cache: ClassifierCache, classifier_id: str) -> str:
+    """The stored classifier's checksum: its id and checksum only are read (the document,
+    up to megabytes, on a cache miss), and remembered for a while (a classifier row is
+    never changed: a new training is a new row)."""
+    remembered = cache.checksum_of(classifier_id)
+    if remembered is not None:
+        return remembered
     row = None
     if plausible_id(classifier_id):
-        # The id and checksum only: the document (up to megabytes) is read on a cache miss.
         with database.session() as session:
             row = session.execute(
                 select(ClassifierRow.id, ClassifierRow.sha256).where(
@@ -129,8 +163,15 @@ def _identify(
         raise HTTPException(
             status.HTTP_404_NOT_FOUND, detail=f"classifier {classifier_id[:80]!r} not found"
         )
-    key = (row.id, row.sha256)
-    classifier = cache.get(key, lambda: _load(_document(database, row.id)))
+    cache.remember_checksum(row.id, row.sha256)
+    return str(row.sha256)
+
+
+def _identify(
+    database: Database, cache: ClassifierCache, classifier_id: str, telemetry: Telemetry
+) -> IdentifyResult:
+    key = (classifier_id, _checksum(database, cache, classifier_id))
+    classifier = cache.get(key, lambda: _load(_document(database, classifier_id)))
     result = identify(classifier, telemetry).model_dump()
     return IdentifyResult.model_validate({**finite_or_none(result), "classifier_id": key[0]})
 
