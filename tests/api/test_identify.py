@@ -207,3 +207,46 @@ def test_malformed_requests(api: Api, classifier_id: str) -> None:
     no_file = api.post("/identify", data={"classifier_id": classifier_id}, files={"x": ("a", "")})
     assert no_file.status_code == 422
     assert "file" in no_file.json()["detail"][0]["msg"]
+
+
+def test_a_cold_classifier_is_loaded_once_however_many_ask_at_once() -> None:
+    import threading
+    import time as clock
+
+    from app.api.identify import ClassifierCache
+
+    cache = ClassifierCache(4)
+    loads: list[int] = []
+
+    def slow_load() -> Any:
+        loads.append(1)
+        clock.sleep(0.2)  # a 2 MB document being parsed while the others ask
+        return object()
+
+    barrier = threading.Barrier(8)
+    got: list[Any] = []
+
+    def ask() -> None:
+        barrier.wait()
+        got.append(cache.get(("c1", "sha"), slow_load))
+
+    threads = [threading.Thread(target=ask) for _ in range(8)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert len(loads) == 1 and cache.loads == 1
+    assert len({id(model) for model in got}) == 1
+
+
+def test_a_classifiers_checksum_is_remembered_for_a_while_only() -> None:
+    from app.api.identify import ClassifierCache
+
+    now = [0.0]
+    cache = ClassifierCache(4, checksum_ttl_s=30.0, clock=lambda: now[0])
+    assert cache.checksum_of("c1") is None
+    cache.remember_checksum("c1", "abc")
+    now[0] = 29.0
+    assert cache.checksum_of("c1") == "abc"
+    now[0] = 31.0
+    assert cache.checksum_of("c1") is None
