@@ -23,7 +23,7 @@ from service.store import Database
 from service.store.jobs import touch_worker
 
 from .context import broker_label
-from .process import mark_stopping
+from .process import mark_stopping, warm
 from .reaper import hand_back_jobs, reap_once, resend_once
 from .ticker import Ticker
 
@@ -57,8 +57,10 @@ class WorkerMonitor:
         )
 
     def tick(self) -> None:
-        with self.db.session() as session:
-            touch_worker(session, self.name, broker_label(self.settings))
+        if warm():
+            # Seen only once a task process can run a job at once (see worker.process).
+            with self.db.session() as session:
+                touch_worker(session, self.name, broker_label(self.settings))
         report = reap_once(self.settings, self.db, self.celery)
         if report.requeued or report.failed:
             logger.warning(

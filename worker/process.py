@@ -36,9 +36,11 @@ __all__ = [
     "PARENT_PID_ENV",
     "die_with_parent",
     "mark_stopping",
+    "mark_warm",
     "stop_with_launcher",
     "stopping",
     "unique_name",
+    "warm",
 ]
 
 logger = logging.getLogger(__name__)
@@ -52,6 +54,20 @@ _PR_SET_PDEATHSIG = 1
 # processes it forks later share the page, so a flag raised by the main process is seen
 # by them at once.
 _STOPPING = mmap.mmap(-1, 1)
+# Raised by a task process once it has imported the core: the worker is then seen (its
+# workers row) and counted idle by the re-sender. Before, a job sent to it would wait for
+# the imports, and the re-sender would take it for a worker that lost a message.
+_WARM = mmap.mmap(-1, 1)
+
+
+def mark_warm() -> None:
+    """In a task process: the core is imported and the kernels compiled."""
+    _WARM[0] = 1
+
+
+def warm() -> bool:
+    """Whether a task process of this worker has warmed up."""
+    return _WARM[0] == 1
 
 
 def mark_stopping() -> None:
@@ -117,3 +133,5 @@ def _task_process_started(**_kwargs: Any) -> None:
     except Exception:
         # The job itself then fails with the reason (see runner._broken_handlers).
         logger.exception("could not warm up the task process")
+    finally:
+        mark_warm()
