@@ -10,15 +10,15 @@ options and the service's jobs alike) and a seed:
 - :func:`train_for_sequence`: train a classifier of any kind (the kind is
   :func:`~inertia_id.classifiers.registry.resolve_kind`'s);
 - :func:`train_others`: the classifiers a sweep draws beside the main one;
-- :func:`sweep_with_limit`: the noise sweep with the others, the limit and the bodies off
-  the candidates;
+- :func:`sweep_with_limit`: the noise sweep with the others, the ceiling and the bodies
+  off the candidates;
 - :func:`run_paper`: the paper's pipeline (search, train, sweep, report).
 
 Seeding, the same whoever calls:
 
 - training: every draw (and a seed the kind needs) from ``np.random.default_rng(seed)``;
 - sweep: ``SeedSequence(seed).spawn(3)``: the first trains the others, the second seeds
-  the test draws (and, through them, the limit's), the third the bodies off the
+  the test draws (and, through them, the ceiling's), the third the bodies off the
   candidates;
 - search: ``seed`` seeds the search; its fresh re-scoring, and so the baselines, use a
   seed spawned from it;
@@ -331,8 +331,11 @@ class SweepRequest(_Request):
     :param noises: sources of error to scale in turn; None: process and measurement.
     :param others: classifiers trained at 1x and scored on the same test series, as
         specs.
-    :param limit_realisations: the limit (a likelihood classifier fitted at each point's
-        noise) on this many realisations per candidate; 0 leaves it out.
+    :param ceiling_realisations: the ceiling (per-candidate Gaussians fitted at each
+        point's noise, :mod:`inertia_id.evaluation.ceiling`) on this many realisations per
+        candidate; 0 leaves it out.
+    :param limit_realisations: deprecated name of ``ceiling_realisations``; when given
+        it wins.
     :param n_train: training realisations per candidate for ``others``.
     :param inertia: also ask how often bodies off the candidates "match none".
     :param n_test: test series per point.
@@ -341,7 +344,8 @@ class SweepRequest(_Request):
     multiples: Sequence[float] | None = None
     noises: Sequence[str] | None = None
     others: Sequence[str] = ("least-squares",)
-    limit_realisations: int = 200
+    ceiling_realisations: int = 2000
+    limit_realisations: int | None = None
     n_train: int = 20
     inertia: bool = True
     n_test: int = 200
@@ -407,7 +411,7 @@ def sweep_with_limit(
     should_stop: Callable[[], bool] | None = None,
 ) -> SweepOutcome:
     """Accuracy of ``classifier`` as each source of error grows, with the others, the
-    limit and (``request.inertia``) the bodies off the candidates.
+    ceiling and (``request.inertia``) the bodies off the candidates.
 
     :param scenario: the scenario to sweep; default the classifier's. One with other
         candidates or another sample grid is refused (:func:`check_sweep_scenario`).
@@ -438,7 +442,9 @@ def sweep_with_limit(
         others=others,
         scenario=scenario,
         sequence=sequence,
-        limit_realisations=request.limit_realisations,
+        ceiling_realisations=request.limit_realisations
+        if request.limit_realisations is not None
+        else request.ceiling_realisations,
         n_test=request.n_test,
         seed=int(streams[1].generate_state(1)[0]),
         progress=None if progress is None else (lambda fraction: progress(share * fraction)),
@@ -576,7 +582,7 @@ def run_paper(
         "accuracy": {noise: by_multiple(sweep.points, noise) for noise in DEFAULT_NOISES},
         "accuracy_others": {
             label: {noise: by_multiple(points, noise) for noise in DEFAULT_NOISES}
-            for label, points in {**sweep.others, "limit": sweep.limit}.items()
+            for label, points in {**sweep.others, "ceiling": sweep.ceiling}.items()
         },
         "wall_time_s": time.perf_counter() - started,
     }

@@ -288,13 +288,21 @@ class SweepParams(StrictModel):
         "test series, as specs: 'least-squares' (the physics baseline), '1nn:euclidean', "
         "'nearest-centroid:dtw', 'minirocket', 'likelihood', 'clustering:euclidean'",
     )
-    limit_realisations: int = Field(
+    ceiling_realisations: int = Field(
+        default=_default(SweepRequest, "ceiling_realisations"),
+        ge=0,
+        le=8000,
+        description="the ceiling: at every point per-candidate Gaussians (a quadratic "
+        "discriminant that knows the simulator) are fitted on this many realisations per "
+        "candidate simulated at that point's noise and scored on the same series; 0 leaves "
+        "it out. The default is where its accuracy stops moving as the count grows",
+    )
+    limit_realisations: int | None = Field(
         default=_default(SweepRequest, "limit_realisations"),
         ge=0,
-        le=1000,
-        description="the limit: at every point a likelihood classifier (matched filter) is "
-        "fitted on this many realisations per candidate simulated at that point's noise and "
-        "scored on the same series; 0 leaves it out",
+        le=8000,
+        description="deprecated name of ceiling_realisations (wins when given)",
+        json_schema_extra={"deprecated": True},
     )
     n_train: int = Field(
         default=_default(SweepRequest, "n_train"),

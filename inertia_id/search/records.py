@@ -250,7 +250,7 @@ class SearchTracker:
 class SearchResult:
     """The outcome of a search, the same shape for every method.
 
-    :param method: "ppo", "cem", "exhaustive" or "random".
+    :param method: "ppo", "cem", "exhaustive", "random" or "nsga2".
     :param best: the best sequence and the scores the search saw for it.
     :param fresh: the best sequence re-scored on fresh draws (independent seed).
     :param curve: the learning curve.
@@ -280,6 +280,10 @@ class SearchResult:
     policy_path: str | None = None
     cache_hits: int = 0
     cache_misses: int = 0
+    #: The front on fresh draws with the baselines beside it (:class:`~inertia_id.
+    #: search.pareto.Front` as a dict): a Pareto search's front, or for the other
+    #: methods a front of their best sequence alone (added by the pipeline).
+    front: dict[str, Any] | None = None
 
     @property
     def best_sequence(self) -> np.ndarray:
