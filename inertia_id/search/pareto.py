@@ -211,9 +211,12 @@ def build_front(
     if eligible.any():
         keep[np.flatnonzero(eligible)[non_dominated(vectors[eligible])]] = True
     # One member per distinct sequence; the most accurate first.
-    order = sorted(np.flatnonzero(keep), key=lambda i: (-fresh[i].accuracy, fresh[i].impulse_nms))
+    order = sorted(
+        (int(i) for i in np.flatnonzero(keep)),
+        key=lambda i: (-fresh[i].accuracy, fresh[i].impulse_nms),
+    )
     seen: set[bytes] = set()
-    chosen = []
+    chosen: list[int] = []
     for i in order:
         key = rows[i].tobytes()
         if key not in seen:
@@ -307,8 +310,8 @@ def pareto_search(
     :param should_stop: polled after every generation; True ends the search there.
     :param seed: seeds the noise draw and NSGA-II: the same seed, the same front.
     """
-    from pymoo.core.problem import Problem
     from pymoo.algorithms.moo.nsga2 import NSGA2
+    from pymoo.core.problem import Problem
     from pymoo.operators.crossover.sbx import SBX
     from pymoo.operators.mutation.pm import PM
     from pymoo.operators.repair.rounding import RoundingRepair
@@ -321,18 +324,18 @@ def pareto_search(
     ):
         raise InputError(f"sequence_length must be an integer in 1..50, got {sequence_length!r}")
     params = check_nsga2_params(nsga2_params)
-    operator = (operator or OperatorSettings()).check(scenario)
-    scorer = OperatorScorer(scenario, sequence_length, operator, seed=seed)
-    constraints = dict(operator.constraints)
+    checked = (operator or OperatorSettings()).check(scenario)
+    scorer = OperatorScorer(scenario, sequence_length, checked, seed=seed)
+    constraints = dict(checked.constraints)
     n, m = scenario.n_thrusters, scenario.n_levels
     n_var = sequence_length * n
     archive = _Archive()
 
-    class _Sequences(Problem):  # type: ignore[misc]
+    class _Sequences(Problem):
         def __init__(self) -> None:
             super().__init__(
                 n_var=n_var,
-                n_obj=len(operator.objectives),
+                n_obj=len(checked.objectives),
                 n_ieq_constr=len(constraints),
                 xl=0,
                 xu=m - 1,
@@ -343,7 +346,7 @@ def pareto_search(
             rows = np.rint(x).astype(int).clip(0, m - 1).reshape(len(x), sequence_length, n)
             scores = scorer.score(rows)
             archive.add(rows, scores)
-            out["F"] = np.stack([s.objective_vector(operator.objectives) for s in scores])
+            out["F"] = np.stack([s.objective_vector(checked.objectives) for s in scores])
             if constraints:
                 out["G"] = np.stack([s.violations(constraints) for s in scores])
 
@@ -394,14 +397,14 @@ def pareto_search(
             stopped = "cancelled"
             break
     entries = list(archive.scores.values())
-    vectors = np.stack([s.objective_vector(operator.objectives) for _, s in entries])
-    feasible = np.array([s.feasible(constraints) for _, s in entries])
-    if not feasible.any():
+    vectors = np.stack([s.objective_vector(checked.objectives) for _, s in entries])
+    allowed = np.array([s.feasible(constraints) for _, s in entries])
+    if not allowed.any():
         raise InputError(
             f"no sequence met the constraints {constraints} in {scorer.evaluations} evaluations; "
             "loosen them or search longer"
         )
-    candidates = np.flatnonzero(feasible)[non_dominated(vectors[feasible])]
+    candidates = np.flatnonzero(allowed)[non_dominated(vectors[allowed])]
     candidates = candidates[
         np.argsort([-entries[i][1].accuracy for i in candidates], kind="stable")
     ]
@@ -412,7 +415,7 @@ def pareto_search(
     front = build_front(
         scenario,
         [entries[i][0] for i in candidates],
-        operator,
+        checked,
         seed=fresh_seed(seed),
         fresh_realisations=fresh_realisations,
         search_scores=[entries[i][1] for i in candidates],
@@ -451,7 +454,7 @@ def pareto_search(
             "sequence_length": sequence_length,
             "seed": seed,
             "nsga2": params,
-            "operator": operator.as_dict(),
+            "operator": checked.as_dict(),
             "fresh_realisations": fresh_realisations,
             "scorer": clustering.as_dict(),
         },
