@@ -122,7 +122,7 @@ def test_the_sweep_seeds_its_streams_from_one_seed(
         others=others,
         multiples=(1, 6),
         n_test=20,
-        limit_realisations=200,
+        ceiling_realisations=200,
         seed=test_seed,
     )
     assert outcome.sweep == by_hand
