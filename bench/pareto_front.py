@@ -25,6 +25,10 @@ from inertia_id.search import pareto_search
 FIRE, BRAKE, OFF = [4, 4, 4, 0, 0, 0], [0, 0, 0, 4, 4, 4], [0] * 6
 
 
+def _flag(names: list[str]) -> str:
+    return f"  dominated by {','.join(names)}" if names else ""
+
+
 def main() -> None:
     scenario = preset("paper")
     candidates = []
@@ -46,7 +50,7 @@ def main() -> None:
                 f"  {member['index']:<3d} {s['accuracy_by_noise'][0]:.3f} / "
                 f"{s['accuracy_by_noise'][1]:.3f}        {s['final_rate_rad_s']:.4f} "
                 f"({s['final_rate_deg_s']:.2f})    {s['impulse_nms']:5.1f}    "
-                f"{member['sequence']}{'  dominated by ' + ','.join(member['dominated_by']) if member['dominated_by'] else ''}"
+                f"{member['sequence']}{_flag(member['dominated_by'])}"
             )
             if s["final_rate_rad_s"] <= 0.01 and s["impulse_nms"] <= 24.0:
                 candidates.append((s["accuracy"], length, member["sequence"]))
@@ -70,7 +74,8 @@ def main() -> None:
     else:
         print("no front member has final rate <= 0.01 rad/s and impulse <= 24 N m s")
     print(
-        "\nsequence | final rate rad/s (deg/s) | impulse | acc 6x process | acc 6x gyro | ceiling 6x process / gyro"
+        "\nsequence | final rate rad/s (deg/s) | impulse | acc 6x process | acc 6x gyro | "
+        "ceiling 6x process / gyro"
     )
     for label, sequence in rows.items():
         model = train_classifier(scenario, sequence, 100, np.random.default_rng(1))
