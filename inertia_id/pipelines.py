@@ -10,15 +10,15 @@ options and the service's jobs alike) and a seed:
 - :func:`train_for_sequence`: train a classifier of any kind (the kind is
   :func:`~inertia_id.classifiers.registry.resolve_kind`'s);
 - :func:`train_others`: the classifiers a sweep draws beside the main one;
-- :func:`sweep_with_limit`: the noise sweep with the others, the limit and the bodies off
-  the candidates;
+- :func:`sweep_with_limit`: the noise sweep with the others, the ceiling and the bodies
+  off the candidates;
 - :func:`run_paper`: the paper's pipeline (search, train, sweep, report).
 
 Seeding, the same whoever calls:
 
 - training: every draw (and a seed the kind needs) from ``np.random.default_rng(seed)``;
 - sweep: ``SeedSequence(seed).spawn(3)``: the first trains the others, the second seeds
-  the test draws (and, through them, the limit's), the third the bodies off the
+  the test draws (and, through them, the ceiling's), the third the bodies off the
   candidates;
 - search: ``seed`` seeds the search; its fresh re-scoring, and so the baselines, use a
   seed spawned from it;
@@ -47,7 +47,7 @@ if TYPE_CHECKING:
     from .classifiers.registry import CandidateClassifier
     from .evaluation.sweep import InertiaSweepResult, SweepResult
     from .physics.scenario import Scenario
-    from .search import ScorerSettings, SearchProgress, SearchResult
+    from .search import OperatorSettings, ScorerSettings, SearchProgress, SearchResult
 
 __all__ = [
     "PAPER_SEQUENCE",
@@ -119,6 +119,17 @@ class SearchRequest(_Request):
         episodes (ppo, cem, random); None: never.
     :param ppo: overrides of the paper's PPO hyperparameters (method ppo only).
     :param cem: overrides of the cross-entropy method's settings (method cem only).
+    :param nsga2: overrides of NSGA-II's settings (method nsga2 only).
+    :param objectives: what the front trades off (method nsga2), and what every
+        search's front (its best sequence beside the baselines) is judged on.
+    :param design_noise: (process multiple, measurement multiple) conditions at which
+        the accuracy objective is predicted.
+    :param constraints: bounds by name (``max_final_rate_deg_s``, ``max_impulse_nms``,
+        ...): NSGA-II's constraints; the other methods rank and (ppo) penalise by them.
+    :param constraint_penalty: reward cost per unit of summed relative violation (the
+        constrained variant of the paper's reward; ppo, cem, random, exhaustive).
+    :param lagrangian_lr: ppo: update the penalty by dual ascent after every rollout.
+    :param fresh_realisations: realisations per candidate when the front is re-scored.
     """
 
     method: str = "ppo"
@@ -133,6 +144,24 @@ class SearchRequest(_Request):
     patience_episodes: int | None = 500
     ppo: Mapping[str, Any] = field(default_factory=dict)
     cem: Mapping[str, Any] = field(default_factory=dict)
+    nsga2: Mapping[str, Any] = field(default_factory=dict)
+    objectives: Sequence[str] = ("accuracy", "final_rate", "impulse")
+    design_noise: Sequence[Sequence[float]] = ((6.0, 1.0), (1.0, 6.0))
+    constraints: Mapping[str, float] = field(default_factory=dict)
+    constraint_penalty: float = 0.0
+    lagrangian_lr: float = 0.0
+    fresh_realisations: int = 40
+
+    def operator(self) -> OperatorSettings:
+        """What the front is judged on: objectives, design noise, constraints."""
+        from .search import OperatorSettings
+
+        return OperatorSettings(
+            objectives=tuple(self.objectives),
+            design_noise=tuple((float(p), float(q)) for p, q in self.design_noise),
+            constraints=dict(self.constraints),
+            n_realisations=max(self.n_realisations, 2),
+        )
 
     def scorer(self) -> ScorerSettings:
         """How the search scores sequences."""
@@ -151,9 +180,22 @@ class SearchRequest(_Request):
             raise InputError(f"ppo settings apply to method ppo only, not {self.method!r}")
         if self.cem and self.method != "cem":
             raise InputError(f"cem settings apply to method cem only, not {self.method!r}")
+        if self.nsga2 and self.method != "nsga2":
+            raise InputError(f"nsga2 settings apply to method nsga2 only, not {self.method!r}")
+        if self.lagrangian_lr and self.method != "ppo":
+            raise InputError(f"lagrangian_lr applies to method ppo only, not {self.method!r}")
+        if self.method == "nsga2":
+            return {
+                "sequence_length": self.sequence_length,
+                "operator": self.operator(),
+                "nsga2_params": dict(self.nsga2),
+                "fresh_realisations": self.fresh_realisations,
+            }
         options: dict[str, Any] = {
             "sequence_length": self.sequence_length,
             "fuel_weight": self.fuel_weight,
+            "constraints": dict(self.constraints) or None,
+            "constraint_penalty": self.constraint_penalty,
         }
         if self.method == "exhaustive":
             options["max_sequences"] = self.max_sequences
@@ -162,6 +204,7 @@ class SearchRequest(_Request):
             options["patience_episodes"] = self.patience_episodes
         if self.method == "ppo":
             options["ppo_params"] = dict(self.ppo)
+            options["lagrangian_lr"] = self.lagrangian_lr
         if self.method == "cem":
             options.update(self.cem)
         return options
@@ -191,6 +234,10 @@ def search_with_baselines(
     """Search for the sequence that best separates the candidates, then score the
     hand-designed baselines on the same fresh draws as the best sequence.
 
+    Every result carries a front (``result.front``): NSGA-II's, or for the other
+    methods the best sequence alone, re-scored on the operator's objectives beside the
+    baselines on the same fresh draw, so that a baseline that dominates it is flagged.
+
     :param policy_path: where a PPO search saves its policy (ignored by the others).
     :param progress: called at every learning-curve point.
     :param should_stop: polled every environment step; True cancels the search.
@@ -211,6 +258,17 @@ def search_with_baselines(
         should_stop=should_stop,
         **options,
     )
+    if found.front is None:
+        from .search import build_front
+
+        found.front = build_front(
+            scenario,
+            [found.best.sequence],
+            request.operator(),
+            seed=found.fresh.seed,
+            fresh_realisations=request.fresh_realisations,
+            keep_infeasible=True,
+        ).to_dict()
     baselines = compare_with_baselines(
         scenario,
         len(found.best.sequence),
@@ -331,8 +389,11 @@ class SweepRequest(_Request):
     :param noises: sources of error to scale in turn; None: process and measurement.
     :param others: classifiers trained at 1x and scored on the same test series, as
         specs.
-    :param limit_realisations: the limit (a likelihood classifier fitted at each point's
-        noise) on this many realisations per candidate; 0 leaves it out.
+    :param ceiling_realisations: the ceiling (per-candidate Gaussians fitted at each
+        point's noise, :mod:`inertia_id.evaluation.ceiling`) on this many realisations per
+        candidate; 0 leaves it out.
+    :param limit_realisations: deprecated name of ``ceiling_realisations``; when given
+        it wins.
     :param n_train: training realisations per candidate for ``others``.
     :param inertia: also ask how often bodies off the candidates "match none".
     :param n_test: test series per point.
@@ -341,7 +402,8 @@ class SweepRequest(_Request):
     multiples: Sequence[float] | None = None
     noises: Sequence[str] | None = None
     others: Sequence[str] = ("least-squares",)
-    limit_realisations: int = 200
+    ceiling_realisations: int = 2000
+    limit_realisations: int | None = None
     n_train: int = 20
     inertia: bool = True
     n_test: int = 200
@@ -407,7 +469,7 @@ def sweep_with_limit(
     should_stop: Callable[[], bool] | None = None,
 ) -> SweepOutcome:
     """Accuracy of ``classifier`` as each source of error grows, with the others, the
-    limit and (``request.inertia``) the bodies off the candidates.
+    ceiling and (``request.inertia``) the bodies off the candidates.
 
     :param scenario: the scenario to sweep; default the classifier's. One with other
         candidates or another sample grid is refused (:func:`check_sweep_scenario`).
@@ -438,7 +500,9 @@ def sweep_with_limit(
         others=others,
         scenario=scenario,
         sequence=sequence,
-        limit_realisations=request.limit_realisations,
+        ceiling_realisations=request.limit_realisations
+        if request.limit_realisations is not None
+        else request.ceiling_realisations,
         n_test=request.n_test,
         seed=int(streams[1].generate_state(1)[0]),
         progress=None if progress is None else (lambda fraction: progress(share * fraction)),
@@ -576,7 +640,7 @@ def run_paper(
         "accuracy": {noise: by_multiple(sweep.points, noise) for noise in DEFAULT_NOISES},
         "accuracy_others": {
             label: {noise: by_multiple(points, noise) for noise in DEFAULT_NOISES}
-            for label, points in {**sweep.others, "limit": sweep.limit}.items()
+            for label, points in {**sweep.others, "ceiling": sweep.ceiling}.items()
         },
         "wall_time_s": time.perf_counter() - started,
     }

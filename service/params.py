@@ -59,7 +59,10 @@ MAX_EXHAUSTIVE_SEQUENCES = 1_000_000_000
 # Larger integers are no sensible parameter (and overflow the core's float conversions).
 _MAX_INT = 2**53
 
-SearchMethod = Literal["ppo", "cem", "exhaustive", "random"]
+SearchMethod = Literal["ppo", "cem", "exhaustive", "random", "nsga2"]
+SearchGoal = Literal[
+    "accuracy", "final_rate", "peak_rate", "impulse", "on_time", "propellant", "duration"
+]
 SearchObjective = Literal["f1", "separability"]
 ClassifierMetric = Literal["dtw", "euclidean", "softdtw"]
 NoiseKind = Literal["process", "measurement", "jitter", "thrust_scale", "gyro_bias"]
@@ -149,6 +152,62 @@ class SearchParams(StrictModel):
         examples=[{"population": 64, "elite_fraction": 0.125, "smoothing": 0.7}],
     )
 
+    nsga2: dict[str, Any] = Field(
+        default_factory=dict,
+        description="overrides of NSGA-II's settings (method nsga2): population, generations, "
+        "crossover_eta, mutation_eta, crossover_prob",
+        examples=[{"population": 64, "generations": 30}],
+    )
+    objectives: list[SearchGoal] = Field(
+        default_factory=lambda: list(_default(SearchRequest, "objectives")),
+        min_length=2,
+        max_length=7,
+        description="what the Pareto front trades off (method nsga2), and what every "
+        "search's best sequence is judged on beside the baselines",
+    )
+    design_noise: list[Annotated[list[float], Field(min_length=2, max_length=2)]] = Field(
+        default_factory=lambda: [list(p) for p in _default(SearchRequest, "design_noise")],
+        min_length=1,
+        max_length=8,
+        description="[process multiple, measurement multiple] conditions at which the "
+        "accuracy objective is predicted (their mean)",
+    )
+    constraints: dict[str, float] = Field(
+        default_factory=dict,
+        description="bounds by name: max_final_rate_rad_s, max_final_rate_deg_s, "
+        "max_peak_rate_rad_s, max_peak_rate_deg_s, max_impulse_nms, max_on_time_s, "
+        "max_propellant_kg, max_duration_s, min_accuracy (nsga2 only)",
+        examples=[{"max_final_rate_deg_s": 0.2, "max_impulse_nms": 20}],
+    )
+    constraint_penalty: float = Field(
+        default=_default(SearchRequest, "constraint_penalty"),
+        ge=0.0,
+        le=1e6,
+        description="ppo, cem, random, exhaustive: reward cost per unit of summed relative "
+        "constraint violation (the constrained variant of the paper's reward)",
+    )
+    lagrangian_lr: float = Field(
+        default=_default(SearchRequest, "lagrangian_lr"),
+        ge=0.0,
+        le=1e5,
+        description="ppo: raise the penalty after every rollout by this times the mean "
+        "violation (PPO-Lagrangian); 0 keeps it fixed",
+    )
+    fresh_realisations: int = Field(
+        default=_default(SearchRequest, "fresh_realisations"),
+        ge=2,
+        le=400,
+        description="realisations per candidate when the front is re-scored on fresh draws",
+    )
+
+    @field_validator("nsga2")
+    @classmethod
+    def _nsga2(cls, value: dict[str, Any]) -> dict[str, Any]:
+        from inertia_id.search.pareto import check_nsga2_params
+
+        check_nsga2_params(value)
+        return value
+
     @field_validator("cem")
     @classmethod
     def _cem(cls, value: dict[str, Any]) -> dict[str, Any]:
@@ -190,6 +249,23 @@ class SearchParams(StrictModel):
         ).check()
         if self.cem and self.method != "cem":
             raise ValueError(f"cem settings apply to method cem, not {self.method!r}")
+        if self.nsga2 and self.method != "nsga2":
+            raise ValueError(f"nsga2 settings apply to method nsga2, not {self.method!r}")
+        if self.lagrangian_lr and self.method != "ppo":
+            raise ValueError(f"lagrangian_lr applies to method ppo, not {self.method!r}")
+        from inertia_id.search.objectives import (
+            check_constraints,
+            check_design_noise,
+            check_objectives,
+        )
+
+        check_objectives(self.objectives)
+        check_design_noise(self.design_noise)
+        check_constraints(self.constraints)
+        if "min_accuracy" in self.constraints and self.method != "nsga2":
+            raise ValueError(
+                f"constraint min_accuracy applies to method nsga2 only, not {self.method!r}"
+            )
         if self.timesteps < self.sequence_length:
             raise ValueError(
                 f"timesteps = {self.timesteps} must be at least one sequence "
@@ -207,11 +283,25 @@ class TrainParams(StrictModel):
     ``n_realisations`` defaults to the kind's own default.
     """
 
-    sequence: list[Annotated[list[int], Field(min_length=1, max_length=64)]] = Field(
+    sequence: list[Annotated[list[int], Field(min_length=1, max_length=64)]] | None = Field(
+        default=None,
         min_length=1,
         max_length=1000,
-        description="L x N level indices, one row per step, one column per thruster",
+        description="L x N level indices, one row per step, one column per thruster; or "
+        "leave it out and name search_job_id (and front_member)",
         examples=[[[4, 4, 4, 0, 0, 0]] * 4],
+    )
+    search_job_id: str | None = Field(
+        default=None,
+        max_length=64,
+        description="train on a succeeded search job's sequence: its front member "
+        "front_member, or its best sequence; the API fills in sequence from it",
+    )
+    front_member: int | None = Field(
+        default=None,
+        ge=0,
+        le=10_000,
+        description="with search_job_id: the index of the front member (0 = the most accurate)",
     )
     kind: str | None = Field(
         default=_default(TrainRequest, "kind"), max_length=40, json_schema_extra=_kinds_schema
@@ -231,6 +321,10 @@ class TrainParams(StrictModel):
             resolve_kind,
         )
 
+        if self.sequence is None and self.search_job_id is None:
+            raise ValueError("give sequence, or search_job_id (and front_member)")
+        if self.front_member is not None and self.search_job_id is None:
+            raise ValueError("front_member applies with search_job_id")
         if self.kind is not None and self.kind not in classifier_kinds():
             raise ValueError(
                 f"classifier kind must be one of {list(classifier_kinds())}, got {self.kind!r}"
@@ -288,13 +382,21 @@ class SweepParams(StrictModel):
         "test series, as specs: 'least-squares' (the physics baseline), '1nn:euclidean', "
         "'nearest-centroid:dtw', 'minirocket', 'likelihood', 'clustering:euclidean'",
     )
-    limit_realisations: int = Field(
+    ceiling_realisations: int = Field(
+        default=_default(SweepRequest, "ceiling_realisations"),
+        ge=0,
+        le=8000,
+        description="the ceiling: at every point per-candidate Gaussians (a quadratic "
+        "discriminant that knows the simulator) are fitted on this many realisations per "
+        "candidate simulated at that point's noise and scored on the same series; 0 leaves "
+        "it out. The default is where its accuracy stops moving as the count grows",
+    )
+    limit_realisations: int | None = Field(
         default=_default(SweepRequest, "limit_realisations"),
         ge=0,
-        le=1000,
-        description="the limit: at every point a likelihood classifier (matched filter) is "
-        "fitted on this many realisations per candidate simulated at that point's noise and "
-        "scored on the same series; 0 leaves it out",
+        le=8000,
+        description="deprecated name of ceiling_realisations (wins when given)",
+        json_schema_extra={"deprecated": True},
     )
     n_train: int = Field(
         default=_default(SweepRequest, "n_train"),

@@ -38,7 +38,8 @@ GOOD = [[4, 4, 4, 0, 0, 0]] * 4
 def test_a_request_takes_the_names_it_knows_and_defaults_the_rest() -> None:
     request = SweepRequest.from_params({"classifier_id": "c1", "n_test": 50, "inertia": False})
     assert (request.n_test, request.inertia) == (50, False)
-    assert request.limit_realisations == 200 == SweepRequest.default("limit_realisations")
+    assert request.ceiling_realisations == 2000 == SweepRequest.default("ceiling_realisations")
+    assert request.limit_realisations is None  # the deprecated name: unset
     assert request.others == ("least-squares",)
     with pytest.raises(InputError, match=r"the job's params lack \['sequence'\]"):
         TrainRequest.from_params({"kind": "1nn"})
@@ -66,7 +67,13 @@ def test_a_search_request_gives_each_method_its_own_options() -> None:
     ppo = SearchRequest(method="ppo", ppo={"n_steps": 64}).options()
     assert ppo["ppo_params"] == {"n_steps": 64} and ppo["total_timesteps"] == 20_480
     exhaustive = SearchRequest(method="exhaustive", sequence_length=1).options()
-    assert exhaustive == {"sequence_length": 1, "fuel_weight": 0.0, "max_sequences": 100_000}
+    assert exhaustive == {
+        "sequence_length": 1,
+        "fuel_weight": 0.0,
+        "max_sequences": 100_000,
+        "constraints": None,
+        "constraint_penalty": 0.0,
+    }
     assert SearchRequest(method="cem", cem={"population": 8}).options()["population"] == 8
     with pytest.raises(InputError, match="ppo settings apply to method ppo only, not 'random'"):
         SearchRequest(method="random", ppo={"gamma": 0.9}).options()
@@ -100,7 +107,9 @@ def test_others_train_one_after_another_from_one_generator(paper: Scenario) -> N
 def test_the_sweep_seeds_its_streams_from_one_seed(
     euclidean_classifier: InertiaClassifier,
 ) -> None:
-    request = SweepRequest(multiples=(1, 6), others=("likelihood",), n_train=4, n_test=20)
+    request = SweepRequest(
+        multiples=(1, 6), others=("likelihood",), n_train=4, n_test=20, ceiling_realisations=200
+    )
     outcome = sweep_with_limit(euclidean_classifier, request, seed=9)
     streams = np.random.SeedSequence(9).spawn(3)
     test_seed = int(streams[1].generate_state(1)[0])
@@ -113,7 +122,7 @@ def test_the_sweep_seeds_its_streams_from_one_seed(
         others=others,
         multiples=(1, 6),
         n_test=20,
-        limit_realisations=200,
+        ceiling_realisations=200,
         seed=test_seed,
     )
     assert outcome.sweep == by_hand

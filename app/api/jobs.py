@@ -13,7 +13,7 @@ import logging
 from typing import Annotated, Any
 
 import numpy as np
-from fastapi import APIRouter, Body, HTTPException, Query, Response, status
+from fastapi import APIRouter, Body, HTTPException, Query, Request, Response, status
 from sqlalchemy import func, select
 
 from inertia_id.errors import InputError
@@ -97,6 +97,41 @@ def _approx(count: int) -> str:
         return f"about 10^{len(str(count)) - 1}"
 
 
+def _resolve_front_member(session: SessionDep, body: TrainJobCreate) -> None:
+    """Fill in a train job's sequence from the search job (and front member) it names."""
+    params = body.params
+    if params.search_job_id is None:
+        return
+    where = ("body", "train", "params", "search_job_id")
+    search = get_or_404(session, JobRow, params.search_job_id, "job")
+    if search.type != "search" or search.status != "succeeded" or not search.result:
+        unprocessable(
+            where,
+            f"job {search.id!r} is a {search.type} job, {search.status}: name a succeeded "
+            "search job",
+        )
+    result = search.result
+    if params.front_member is None:
+        sequence = (result.get("best") or {}).get("sequence")
+    else:
+        members = (result.get("front") or {}).get("members") or []
+        found = [m for m in members if m.get("index") == params.front_member]
+        if not found:
+            unprocessable(
+                ("body", "train", "params", "front_member"),
+                f"search job {search.id!r} has no front member {params.front_member} "
+                f"(it holds {len(members)})",
+            )
+        sequence = found[0]["sequence"]
+    if params.sequence is not None and params.sequence != sequence:
+        unprocessable(
+            ("body", "train", "params", "sequence"),
+            f"sequence {params.sequence} is not the one search job {search.id!r} names "
+            f"({sequence}); give one or the other",
+        )
+    params.sequence = sequence
+
+
 def _check_train(body: TrainJobCreate, scenario: Scenario) -> None:
     try:
         scenario.check_sequence(body.params.sequence)
@@ -153,6 +188,7 @@ def submit_job(
     if isinstance(body, SearchJobCreate):
         _check_search(body, scenario)
     elif isinstance(body, TrainJobCreate):
+        _resolve_front_member(session, body)
         _check_train(body, scenario)
     else:
         _check_sweep(session, body, scenario)
@@ -304,3 +340,49 @@ def cancel_job(job_id: str, session: SessionDep) -> JobOut:
     job_store.cancel(session, job)
     session.flush()
     return JobOut.model_validate(job)
+
+
+@router.get(
+    "/{job_id}/plan",
+    dependencies=[ApiKeyDep],
+    responses={
+        **_NOT_FOUND,
+        **_UNAUTHORIZED,
+        200: {"content": {"application/json": {}, "text/csv": {}}},
+        422: {"description": "not a succeeded search job, or no such front member"},
+        503: {"description": "past capacity: try again after Retry-After seconds"},
+    },
+    response_class=Response,
+)
+async def job_plan(
+    job_id: str,
+    request: Request,
+    member: Annotated[
+        int | None,
+        Query(ge=0, le=10_000, description="front member index; default the best sequence"),
+    ] = None,
+    format: Annotated[str, Query(pattern="^(json|csv)$", description="json or csv")] = "json",
+) -> Response:
+    """The command plan (as ``GET /scenarios/{id}/plan``) of a search job's best sequence
+    or of one member of its front, for the job's scenario."""
+    from .scenarios import plan_for
+
+    database = request.app.state.db
+    with database.session() as session:
+        job = get_or_404(session, JobRow, job_id, "job")
+        kind, state, result, scenario_id = job.type, job.status, job.result, job.scenario_id
+    if kind != "search" or state != "succeeded" or not result:
+        unprocessable(("path", "job_id"), f"job {job_id!r} is a {kind} job, {state}: no plan")
+    if member is None:
+        sequence = (result.get("best") or {}).get("sequence")
+    else:
+        members = (result.get("front") or {}).get("members") or []
+        found = [m for m in members if m.get("index") == member]
+        if not found:
+            unprocessable(
+                ("query", "member"),
+                f"search job {job_id!r} has no front member {member} (it holds {len(members)})",
+            )
+        sequence = found[0]["sequence"]
+    gate = request.app.state.compute_gate
+    return await gate.run(plan_for, database, scenario_id, sequence, format, parsed=True)

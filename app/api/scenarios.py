@@ -307,3 +307,79 @@ def _response(
             for k, name in enumerate(scenario.candidate_names)
         ],
     )
+
+
+def _plan_response(scenario: Scenario, steps: np.ndarray, fmt: str) -> Response:
+    from inertia_id.search.plan import command_plan
+
+    timing = scenario.timing
+    integration = len(steps) * round(timing.step_duration_s / timing.integration_step_s)
+    if integration > MAX_RESPONSE_INTEGRATION_STEPS:
+        unprocessable(
+            ("query", "sequence"),
+            f"{len(steps)} steps = {integration} RK4 steps; at most "
+            f"{MAX_RESPONSE_INTEGRATION_STEPS}",
+        )
+    plan = command_plan(scenario, steps)
+    if fmt == "csv":
+        return Response(
+            plan.to_csv(),
+            media_type="text/csv",
+            headers={"Content-Disposition": 'attachment; filename="plan.csv"'},
+        )
+    return Response(json.dumps(plan.to_dict()), media_type="application/json")
+
+
+def plan_for(
+    database: Database, scenario_id: str, sequence: Any, fmt: str, *, parsed: bool = False
+) -> Response:
+    """The command plan of a sequence for a stored scenario (JSON or CSV)."""
+    with database.session() as session:
+        row = get_or_404(session, ScenarioRow, scenario_id, "scenario")
+        document = row.document
+    scenario = Scenario.model_validate(document)
+    if parsed:
+        try:
+            steps = scenario.check_sequence(sequence)
+        except InputError as exc:
+            unprocessable(("query", "member"), str(exc))
+    else:
+        steps = _parse_sequence(sequence, scenario)
+    return _plan_response(scenario, steps, fmt)
+
+
+_PLAN_RESPONSES: dict[int | str, dict[str, Any]] = {
+    **_NOT_FOUND,
+    **_UNAUTHORIZED,
+    200: {
+        "description": "the plan as JSON (steps with on-times and torque, candidates with "
+        "predicted rates in rad/s and deg/s, residual rates, attitude change, propellant) "
+        "or as CSV (one row per step, totals as '#' lines)",
+        "content": {"application/json": {}, "text/csv": {}},
+    },
+    503: {"description": "past capacity: try again after Retry-After seconds"},
+}
+
+
+@router.get(
+    "/{scenario_id}/plan",
+    dependencies=[ApiKeyDep],
+    responses=_PLAN_RESPONSES,
+    response_class=Response,
+)
+async def scenario_plan(
+    scenario_id: str,
+    request: Request,
+    sequence: str = Query(
+        max_length=20_000,
+        description="JSON list of steps, each a level index per thruster: [[4,4,4,0,0,0]]",
+    ),
+    format: str = Query(default="json", pattern="^(json|csv)$", description="json or csv"),
+) -> Response:
+    """The command plan of a sequence: per step and thruster the PWM on-time (s) and
+    duty, the commanded torque (N m), each candidate's predicted rates (rad/s, deg/s) at
+    every step's end with every noise off, its residual rate and attitude change
+    (quaternion and angle), and the propellant figures (on-time, commanded impulse
+    summed over thrusters, propellant mass when the scenario gives thrust and Isp)."""
+    gate: ComputeGate = request.app.state.compute_gate
+    return await gate.run(plan_for, request.app.state.db, scenario_id, sequence, format)

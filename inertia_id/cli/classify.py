@@ -157,12 +157,18 @@ def train_cmd(
     "clustering:euclidean), or 'none'.",
 )
 @click.option(
-    "--limit-realisations",
-    default=SweepRequest.default("limit_realisations"),
+    "--ceiling-realisations",
+    default=SweepRequest.default("ceiling_realisations"),
     show_default=True,
     type=click.IntRange(0),
-    help="The limit: a likelihood classifier fitted at each point's noise on this many "
+    help="The ceiling: per-candidate Gaussians fitted at each point's noise on this many "
     "realisations per candidate, scored on the same series (0: leave it out).",
+)
+@click.option(
+    "--limit-realisations",
+    default=None,
+    type=click.IntRange(0),
+    help="Deprecated name of --ceiling-realisations.",
 )
 @click.option(
     "--n-train",
@@ -187,7 +193,8 @@ def sweep_cmd(
     multiples: str | None,
     noises: tuple[str, ...],
     others: str,
-    limit_realisations: int,
+    ceiling_realisations: int,
+    limit_realisations: int | None,
     n_train: int,
     inertia: bool,
     n_test: int,
@@ -203,6 +210,7 @@ def sweep_cmd(
         multiples=parse_multiples(multiples),
         noises=noises or None,
         others=tuple(s.strip() for s in others.split(",") if s.strip() and s.strip() != "none"),
+        ceiling_realisations=ceiling_realisations,
         limit_realisations=limit_realisations,
         n_train=n_train,
         inertia=inertia,
@@ -216,8 +224,8 @@ def sweep_cmd(
     write_json(out, document)
     result = outcome.sweep
     columns = {label: result.others[label] for label in outcome.others}
-    if result.limit:
-        columns["limit"] = result.limit
+    if result.ceiling:
+        columns["ceiling"] = result.ceiling
     click.echo(
         f"{'noise':12s} {'multiple':>8s} {'value':>9s}  accuracy [95 % interval]  "
         + "  ".join(columns)

@@ -120,6 +120,49 @@ def search_options(func: F) -> F:
             "--cem", "Override a CEM setting (repeatable): population, elite_fraction, smoothing."
         ),
         _pairs("--ppo", "Override a PPO hyperparameter (repeatable), e.g. --ppo n_steps=1024."),
+        _pairs(
+            "--nsga2",
+            "Override an NSGA-II setting (repeatable): population, generations, "
+            "crossover_eta, mutation_eta, crossover_prob.",
+        ),
+        click.option(
+            "--objectives",
+            default=",".join(SearchRequest.default("objectives")),
+            show_default=True,
+            help="What the front trades off, comma-separated: accuracy, final_rate, "
+            "peak_rate, impulse, on_time, propellant, duration.",
+        ),
+        click.option(
+            "--design-noise",
+            default=";".join(f"{p:g},{q:g}" for p, q in SearchRequest.default("design_noise")),
+            show_default=True,
+            help="Where the accuracy is predicted: 'process,measurement' multiples, "
+            "conditions separated by ';' (the objective is their mean).",
+        ),
+        _pairs(
+            "--constraint",
+            "A bound (repeatable): max_final_rate_deg_s, max_final_rate_rad_s, "
+            "max_peak_rate_deg_s, max_impulse_nms, max_on_time_s, max_propellant_kg, "
+            "max_duration_s, min_accuracy; e.g. --constraint max_final_rate_deg_s=0.2.",
+        ),
+        _option(
+            "--constraint-penalty",
+            "constraint_penalty",
+            "ppo/cem/random/exhaustive: reward cost per unit of relative constraint violation.",
+            type=click.FloatRange(0),
+        ),
+        _option(
+            "--lagrangian-lr",
+            "lagrangian_lr",
+            "ppo: raise the penalty after every rollout by this times the mean violation.",
+            type=click.FloatRange(0),
+        ),
+        _option(
+            "--fresh-realisations",
+            "fresh_realisations",
+            "Realisations per candidate when the front is re-scored on fresh draws.",
+            type=click.IntRange(2),
+        ),
     ]
     for option in reversed(options):
         func = option(func)
@@ -139,6 +182,13 @@ def search_request(
     patience: int,
     ppo_pairs: tuple[str, ...],
     cem_pairs: tuple[str, ...],
+    nsga2_pairs: tuple[str, ...] = (),
+    objectives: str | None = None,
+    design_noise: str | None = None,
+    constraint_pairs: tuple[str, ...] = (),
+    constraint_penalty: float = 0.0,
+    lagrangian_lr: float = 0.0,
+    fresh_realisations: int | None = None,
     max_sequences: int | None = None,
 ) -> SearchRequest:
     """The options of :func:`search_options` as a request."""
@@ -148,7 +198,37 @@ def search_request(
         raise InputError(f"--ppo applies to --method ppo only, not {method!r}")
     if cem_pairs and method != "cem":
         raise InputError(f"--cem applies to --method cem only, not {method!r}")
+    if nsga2_pairs and method != "nsga2":
+        raise InputError(f"--nsga2 applies to --method nsga2 only, not {method!r}")
+    pairs = SearchRequest.default("design_noise")
+    if design_noise:
+        try:
+            pairs = tuple(
+                tuple(float(v) for v in part.split(","))
+                for part in design_noise.split(";")
+                if part.strip()
+            )
+        except ValueError:
+            raise InputError(
+                f"--design-noise takes 'process,measurement' pairs separated by ';', "
+                f"got {design_noise!r}"
+            ) from None
+        if not all(len(pair) == 2 for pair in pairs):
+            raise InputError(
+                f"--design-noise takes 'process,measurement' pairs, got {design_noise!r}"
+            )
     return SearchRequest(
+        nsga2=parse_pairs(nsga2_pairs, "--nsga2", "generations=30"),
+        objectives=tuple(s.strip() for s in objectives.split(",") if s.strip())
+        if objectives
+        else SearchRequest.default("objectives"),
+        design_noise=pairs,
+        constraints=parse_pairs(constraint_pairs, "--constraint", "max_final_rate_deg_s=0.2"),
+        constraint_penalty=constraint_penalty,
+        lagrangian_lr=lagrangian_lr,
+        fresh_realisations=SearchRequest.default("fresh_realisations")
+        if fresh_realisations is None
+        else fresh_realisations,
         method=method,
         sequence_length=sequence_length,
         timesteps=timesteps,
@@ -253,9 +333,28 @@ def search_cmd(
         err=True,
     )
     for name, base in outcome.baselines.items():
+        if "unavailable" in base:
+            click.echo(f"  {name:14s} unavailable: {base['unavailable']}", err=True)
+            continue
         f1, rate = np.mean(base["fresh_f1"]), np.mean(base["fresh_final_rate_rad_s"])
         click.echo(
             f"  {name:14s} F1 {f1:.3f}, {base['fuel_nms']:.1f} N m s, final rate {rate:.3f} rad/s",
+            err=True,
+        )
+    front = result.front or {}
+    click.echo(
+        "front on fresh draws (accuracy at each design noise | final rate | impulse):", err=True
+    )
+    for member in front.get("members", []):
+        scores = member["scores"]
+        flags = (
+            f"  dominated by {', '.join(member['dominated_by'])}" if member["dominated_by"] else ""
+        )
+        click.echo(
+            f"  #{member['index']:<3d} {json.dumps(member['sequence'])}  acc "
+            + "/".join(f"{a:.3f}" for a in scores["accuracy_by_noise"])
+            + f" | {scores['final_rate_rad_s']:.4f} rad/s ({scores['final_rate_deg_s']:.2f} deg/s)"
+            + f" | {scores['impulse_nms']:.1f} N m s{flags}",
             err=True,
         )
     Path(out).write_text(json.dumps(outcome.to_dict()), encoding="utf-8")

@@ -102,7 +102,7 @@ def response_figure(result: SimulationResult) -> go.Figure:
 def accuracy_figure(sweep: SweepResult) -> go.Figure:
     """Accuracy vs noise multiple with Wilson 95 % intervals, one line per noise.
 
-    The sweep's limit (a likelihood classifier fitted at each noise level: dashed) and
+    The sweep's ceiling (per-candidate Gaussians fitted at each noise level: dashed) and
     other classifiers (dotted) are drawn in the colour of the noise they were scored under.
     """
     fig = go.Figure()
@@ -131,7 +131,7 @@ def accuracy_figure(sweep: SweepResult) -> go.Figure:
                 },
             )
         )
-    lines = {**sweep.others, "limit": sweep.limit} if sweep.limit else dict(sweep.others)
+    lines = {**sweep.others, "ceiling": sweep.ceiling} if sweep.ceiling else dict(sweep.others)
     for label, others in lines.items():
         for i, noise in enumerate(("process", "measurement")):
             points = [p for p in others if p.noise == noise]
@@ -143,7 +143,7 @@ def accuracy_figure(sweep: SweepResult) -> go.Figure:
                     y=[p.accuracy for p in points],
                     mode="lines",
                     name=f"{label}, {names[noise].split(' (')[0]}",
-                    line={"color": _COLOURS[i], "dash": "dash" if label == "limit" else "dot"},
+                    line={"color": _COLOURS[i], "dash": "dash" if label == "ceiling" else "dot"},
                 )
             )
     fig.update_layout(

@@ -16,8 +16,9 @@ preset has no thrust-scale error and no gyro bias) it scales :data:`REFERENCE_LE
 instead, and every point records the absolute ``value`` it used.
 
 Each point carries a Wilson 95 % interval, so a plot can show how much of a difference
-is sampling error. ``others`` classifiers (the likelihood limit, least squares, the
-supervised classifiers) are scored on exactly the same test series as the main one.
+is sampling error. ``others`` classifiers (least squares, the supervised classifiers)
+and the ceiling (:mod:`inertia_id.evaluation.ceiling`) are scored on exactly the same
+test series as the main one.
 
 :func:`run_inertia_sweep` asks the other question a GNC engineer has: if the true
 inertia is none of the candidates (between two of them, or all scaled), does the
@@ -140,6 +141,13 @@ class SweepResult(BaseModel):
     levels: dict[str, float] = {}
     units: dict[str, str] = {}
     others: dict[str, list[SweepPoint]] = {}
+    #: The ceiling at every point (:mod:`inertia_id.evaluation.ceiling`), on the same
+    #: test series; empty when it was not asked for.
+    ceiling: list[SweepPoint] = []
+    ceiling_realisations: int = 0
+    #: Deprecated: the name of the reference line before it was a ceiling. New results
+    #: repeat the ceiling here; results stored before hold the old pooled-covariance
+    #: reference, which a classifier could beat (read ``ceiling`` instead).
     limit: list[SweepPoint] = []
     limit_realisations: int = 0
 
@@ -178,6 +186,30 @@ def _point(
     )
 
 
+def _point_from_predictions(
+    predicted: np.ndarray, y: np.ndarray, n_candidates: int, **where: Any
+) -> SweepPoint:
+    """A point from labels predicted by a supervised rule (no cluster matching)."""
+    confusion = np.zeros((n_candidates, n_candidates), dtype=int)
+    np.add.at(confusion, (y, predicted), 1)
+    correct = int(np.trace(confusion))
+    low, high = wilson_interval(correct, len(y))
+    precision = np.diag(confusion) / np.maximum(confusion.sum(axis=0), 1)
+    recall = np.diag(confusion) / np.maximum(confusion.sum(axis=1), 1)
+    f1 = np.where(
+        precision + recall > 0, 2 * precision * recall / np.maximum(precision + recall, 1e-300), 0.0
+    )
+    return SweepPoint(
+        **where,
+        accuracy=correct / len(y),
+        ci_low=low,
+        ci_high=high,
+        f1=float(f1.mean()),
+        n_series=len(y),
+        confusion=confusion.tolist(),
+    )
+
+
 def run_sweep(
     classifier: CandidateClassifier,
     *,
@@ -187,6 +219,7 @@ def run_sweep(
     multiples: Sequence[float] = DEFAULT_MULTIPLES,
     noises: Sequence[str] = DEFAULT_NOISES,
     n_test: int = 200,
+    ceiling_realisations: int | None = None,
     limit_realisations: int = 0,
     seed: int = 0,
     progress: Callable[[float], None] | None = None,
@@ -196,20 +229,22 @@ def run_sweep(
 
     :param classifier: fitted classifier (trained at 1x noise).
     :param others: more fitted classifiers by label, scored on the same test series
-        (e.g. the likelihood limit and least squares as reference lines).
+        (e.g. least squares as a reference line).
     :param scenario: the scenario to simulate; defaults to the one it was trained on.
     :param sequence: the actuation sequence; defaults to the one it was trained on.
     :param multiples: noise multiples to visit, >= 0.
     :param noises: which sources to sweep, among :data:`NOISE_KINDS`.
     :param n_test: test series per point, spread evenly over the candidates.
-    :param limit_realisations: with a number > 0, also measure the limit at every point:
-        the likelihood classifier (the Gaussian matched filter) fitted on that many
-        realisations per candidate simulated *at that point's noise*, i.e. a classifier
-        that knows the simulator, noise level included, scored on the same test series.
-        A classifier trained at 1x cannot know the noise grew; this one does, which is
-        what makes it a ceiling rather than another contestant.
+    :param ceiling_realisations: with a number > 0, also measure the ceiling at every
+        point (:mod:`inertia_id.evaluation.ceiling`): per-candidate Gaussians fitted on
+        that many realisations per candidate simulated *at that point's noise*, i.e. a
+        classifier that knows the simulator, noise level included, scored on the same
+        test series. :data:`~inertia_id.evaluation.ceiling.DEFAULT_CEILING_REALISATIONS`
+        is where its accuracy has stopped moving on the paper preset; with far fewer it
+        is an estimate, not a ceiling. None: ``limit_realisations``.
+    :param limit_realisations: deprecated name of ``ceiling_realisations``.
     :param seed: seed of the test draws; every point gets its own independent stream
-        (the limit's training draws come from other streams of the same seed).
+        (the ceiling's training draws come from other streams of the same seed).
     :param progress: called with the fraction done after each point.
     :param should_stop: polled between points; when it returns True the sweep stops and
         returns the points done so far (cooperative cancellation).
@@ -227,13 +262,17 @@ def run_sweep(
     if n_test < scenario.n_candidates:
         raise InputError(f"n_test = {n_test} is fewer than the {scenario.n_candidates} candidates")
     per_candidate = n_test // scenario.n_candidates
-    if isinstance(limit_realisations, bool) or not (
-        isinstance(limit_realisations, int) and limit_realisations >= 0
+    if ceiling_realisations is None:
+        ceiling_realisations = limit_realisations
+    if isinstance(ceiling_realisations, bool) or not (
+        isinstance(ceiling_realisations, int) and ceiling_realisations >= 0
     ):
-        raise InputError(f"limit_realisations must be an integer >= 0, got {limit_realisations!r}")
-    if 0 < limit_realisations < 3:
         raise InputError(
-            f"limit_realisations must be 0 (no limit) or at least 3, got {limit_realisations}"
+            f"ceiling_realisations must be an integer >= 0, got {ceiling_realisations!r}"
+        )
+    if 0 < ceiling_realisations < 3:
+        raise InputError(
+            f"ceiling_realisations must be 0 (no ceiling) or at least 3, got {ceiling_realisations}"
         )
     streams = np.random.SeedSequence(seed).spawn(len(noises) * len(multiples))
     limit_streams = np.random.SeedSequence([seed, 1]).spawn(len(streams))
@@ -261,15 +300,14 @@ def run_sweep(
         points.append(_point(classifier, X, y, **where))
         for label, other in others.items():
             other_points[label].append(_point(other, X, y, **where))
-        if limit_realisations:
-            from ..classifiers.likelihood import LikelihoodClassifier
+        if ceiling_realisations:
+            from .ceiling import fit_ceiling
 
             rng = np.random.default_rng(limit_streams[i])
-            X_fit, y_fit = simulate(at_level, sequence, limit_realisations, rng, **extra).dataset()
-            limit = LikelihoodClassifier().fit(
-                X_fit, y_fit, candidate_names=scenario.candidate_names
+            ceiling = fit_ceiling(at_level, sequence, ceiling_realisations, rng, **extra)
+            limit_points.append(
+                _point_from_predictions(ceiling.predict(X), y, scenario.n_candidates, **where)
             )
-            limit_points.append(_point(limit, X, y, **where))
         if progress is not None:
             progress((i + 1) / total)
     return SweepResult(
@@ -282,8 +320,10 @@ def run_sweep(
         levels=levels,
         units={noise: NOISE_UNITS[noise] for noise in noises},
         others=other_points,
+        ceiling=limit_points,
+        ceiling_realisations=ceiling_realisations,
         limit=limit_points,
-        limit_realisations=limit_realisations,
+        limit_realisations=ceiling_realisations,
     )
 
 

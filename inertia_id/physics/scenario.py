@@ -148,17 +148,39 @@ class CandidateGenerator(_Model):
         return candidates
 
 
+def _expand_per_thruster(data: dict[str, Any]) -> dict[str, Any]:
+    """A single number for ``thrust_n`` or ``lever_arm_m`` means the same for every thruster."""
+    matrix = data.get("torque_matrix_nm")
+    for name in ("thrust_n", "lever_arm_m"):
+        value = data.get(name)
+        if isinstance(value, int | float) and not isinstance(value, bool):
+            if isinstance(matrix, list) and matrix and isinstance(matrix[0], list):
+                data[name] = [float(value)] * len(matrix[0])
+    return data
+
+
 class Thrusters(_Model):
-    """Thruster torques and the duty levels a step may command.
+    """Thruster torques, the duty levels a step may command, and what firing costs.
 
     Give either ``torque_matrix_nm`` (3 x N, the body torque of each thruster at full
     duty, N m) or ``nominal_torque_nm`` for the paper's ``A = T [I3, -I3]``; and either
     ``levels`` or ``n_levels`` (M evenly spaced duty values from 0 to 1). After
     validation both the matrix and the levels are always filled in.
+
+    Propellant (all optional): the thrust of each thruster at full duty, ``thrust_n``
+    (N), or its effective lever arm ``lever_arm_m`` (m; the thrust is then
+    ``|A_j| / lever_arm``), not both; and the specific impulse ``specific_impulse_s`` (s).
+    With a thrust and a specific impulse the propellant of a sequence is
+    ``Σ_j thrust_j · on_time_j / (Isp · g0)`` kg (:meth:`Scenario.propellant_kg`). A single
+    number for ``thrust_n`` or ``lever_arm_m`` applies to every thruster.
     """
 
     torque_matrix_nm: list[list[float]]
     levels: list[float]
+    thrust_n: list[float] | None = None
+    lever_arm_m: list[float] | None = None
+    specific_impulse_s: float | None = None
+    standard_gravity_m_s2: float = 9.80665
 
     @model_validator(mode="before")
     @classmethod
@@ -195,7 +217,7 @@ class Thrusters(_Model):
             raise InputError(
                 f"n_levels = {n_levels!r} disagrees with {len(data['levels'])} levels given"
             )
-        return data
+        return _expand_per_thruster(data)
 
     @field_validator("torque_matrix_nm")
     @classmethod
@@ -211,6 +233,29 @@ class Thrusters(_Model):
         if arr.shape[1] > 64:
             raise InputError(f"torque_matrix_nm has {arr.shape[1]} thrusters; at most 64")
         return value
+
+    @model_validator(mode="after")
+    def _propulsion(self) -> Self:
+        n = len(self.torque_matrix_nm[0])
+        if self.thrust_n is not None and self.lever_arm_m is not None:
+            raise InputError(
+                "give thrust_n or lever_arm_m (the thrust is then |A_j| / lever_arm), not both"
+            )
+        for name in ("thrust_n", "lever_arm_m"):
+            values = getattr(self, name)
+            if values is None:
+                continue
+            if len(values) != n:
+                raise InputError(f"{name} must hold one value per thruster ({n}), got {values}")
+            if not all(math.isfinite(v) and v > 0 for v in values):
+                raise InputError(f"{name} must be finite and > 0 for every thruster, got {values}")
+        isp = self.specific_impulse_s
+        if isp is not None and not (math.isfinite(isp) and 0 < isp <= 1e6):
+            raise InputError(f"specific_impulse_s must be finite and in (0, 1e6], got {isp!r}")
+        g0 = self.standard_gravity_m_s2
+        if not (math.isfinite(g0) and g0 > 0):
+            raise InputError(f"standard_gravity_m_s2 must be finite and > 0, got {g0!r}")
+        return self
 
     @field_validator("levels")
     @classmethod
@@ -465,13 +510,48 @@ class Scenario(_Model):
         return self.level_values[self.check_sequence(sequence)]
 
     def impulse_nms(self, sequence: Any) -> float:
-        """Fuel use of a sequence as total commanded angular impulse, N m s.
+        """Commanded angular impulse of a sequence, summed over thrusters, N m s.
 
-        Each thruster contributes |A_j| * duty * step duration; with equal thrusters and
-        lever arms this is proportional to propellant mass.
+        Each thruster contributes ``|A_j| · duty · step duration`` on every step it fires,
+        whatever the others do: two opposing thrusters fired together cost both their
+        impulses although their torques cancel. It is a propellant proxy (proportional to
+        propellant mass when every thruster has the same thrust, lever arm and specific
+        impulse), not the net angular impulse the body receives.
         """
         per_thruster = np.linalg.norm(self.torque_matrix, axis=0)
-        return float(self.duties(sequence).sum(axis=0) @ per_thruster * self.timing.step_duration_s)
+        return float(self.on_time_s(sequence) @ per_thruster)
+
+    def on_time_s(self, sequence: Any) -> np.ndarray:
+        """Total on-time of each thruster over a sequence, (N,) s: duty x step duration,
+        summed over the steps (the PWM on-time a flight team commands)."""
+        return np.asarray(self.duties(sequence).sum(axis=0) * self.timing.step_duration_s)
+
+    @property
+    def thrust_per_thruster_n(self) -> np.ndarray | None:
+        """Thrust of each thruster at full duty, (N,) N, when the scenario says it:
+        ``thrust_n``, or ``|A_j| / lever_arm_m``; else None."""
+        thrusters = self.thrusters
+        if thrusters.thrust_n is not None:
+            return np.asarray(thrusters.thrust_n, dtype=float)
+        if thrusters.lever_arm_m is not None:
+            torque = np.linalg.norm(self.torque_matrix, axis=0)
+            return np.asarray(torque / np.asarray(thrusters.lever_arm_m, dtype=float))
+        return None
+
+    def propellant_kg(self, sequence: Any) -> float | None:
+        """Propellant mass a sequence burns, kg: ``Σ_j F_j t_j / (Isp g0)``, counting every
+        thruster's on-time (opposing thrusters both burn); None unless the scenario gives
+        a thrust (or lever arms) and a specific impulse."""
+        thrust = self.thrust_per_thruster_n
+        isp = self.thrusters.specific_impulse_s
+        if thrust is None or isp is None:
+            return None
+        exhaust_velocity = isp * self.thrusters.standard_gravity_m_s2
+        return float(self.on_time_s(sequence) @ thrust / exhaust_velocity)
+
+    def duration_s(self, sequence: Any) -> float:
+        """How long a sequence lasts, s."""
+        return float(len(self.check_sequence(sequence)) * self.timing.step_duration_s)
 
     def with_uncertainty(self, **changes: Any) -> Scenario:
         """A copy with some uncertainty fields changed (validated)."""

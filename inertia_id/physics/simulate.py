@@ -229,29 +229,42 @@ class Simulator:
             n_steps=0,
         )
 
+    def start_population(self, initial: InitialDraw, size: int) -> SimulationState:
+        """The start of ``size`` sequences simulated side by side on the same draws:
+        arrays of shape (size, K, n, 3)."""
+        omega = np.broadcast_to(initial.omega0, (size, *self.shape, 3)).copy()
+        return SimulationState(omega=omega, torque=np.zeros_like(omega), initial=initial, n_steps=0)
+
     def advance(
         self, state: SimulationState, levels: np.ndarray, draw: StepDraw
     ) -> tuple[SimulationState, StepResponse]:
         """Simulate one more actuation step.
 
+        A population of P sequences advances at once on the same draws (common random
+        numbers): give ``levels`` of shape (P, N) and a state from
+        :meth:`start_population`; every array then carries a leading P axis.
+
         :param state: where the batch stands.
-        :param levels: (N,) level indices of this step.
+        :param levels: (N,) level indices of this step, or (P, N) for a population.
         :param draw: this step's randomness.
         """
-        duty = delivered_duty(self.level_values[levels], draw.duty_jitter)
+        commanded_duty = self.level_values[np.asarray(levels)]
+        if commanded_duty.ndim == 2:
+            commanded_duty = commanded_duty[:, None, None, :]  # (P, 1, 1, N)
+        duty = delivered_duty(commanded_duty, draw.duty_jitter)
         commanded = commanded_torque(self.torque_matrix, duty, state.initial.thrust_scale)
         omega, torque = state.omega, state.torque
-        k, n = self.shape
-        omega_true = np.empty((k, n, self.samples, 3))
-        applied = np.empty((k, n, self.samples, 3))
+        batch = omega.shape[:-1]
+        omega_true = np.empty((*batch, self.samples, 3))
+        applied = np.empty((*batch, self.samples, 3))
         for sub in range(self.substeps):
             disturbance = draw.disturbance[:, :, sub // self.substeps_per_interval, :]
             omega, torque = self.bodies.step(omega, torque, commanded, disturbance)
             if (sub + 1) % self.substeps_per_sample == 0:
                 sample = (sub + 1) // self.substeps_per_sample - 1
-                omega_true[:, :, sample, :] = omega
-                applied[:, :, sample, :] = torque
-        measured = omega_true + state.initial.gyro_bias[:, :, None, :] + draw.gyro_noise
+                omega_true[..., sample, :] = omega
+                applied[..., sample, :] = torque
+        measured = omega_true + state.initial.gyro_bias[..., None, :] + draw.gyro_noise
         response = StepResponse(omega_true, measured, applied, commanded)
         return SimulationState(omega, torque, state.initial, state.n_steps + 1), response
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from ..errors import InputError
 from ..physics.scenario import Scenario
 from ..physics.sequences import BASELINES
 from .records import evaluate_sequence
@@ -33,11 +34,16 @@ def compare_with_baselines(
 
     :param settings: the search's :class:`~inertia_id.search.ScorerSettings`.
     :returns: by baseline name: the sequence, the clustering F1 and mean final rate
-        (rad/s) on each draw, and the fuel (commanded impulse, N m s).
+        (rad/s) on each draw, and the fuel (commanded impulse, N m s); for a baseline the
+        length or the thruster geometry does not allow, ``unavailable`` (why).
     """
     out: dict[str, dict[str, Any]] = {}
     for name, make in BASELINES.items():
-        sequence = make(scenario, sequence_length)
+        try:
+            sequence = make(scenario, sequence_length)
+        except InputError as exc:
+            out[name] = {"unavailable": str(exc)}
+            continue
         fresh = evaluate_sequence(scenario, sequence, settings, seed=seed, n_draws=n_draws)
         out[name] = {
             "sequence": sequence.tolist(),

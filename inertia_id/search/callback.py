@@ -7,6 +7,7 @@ stable-baselines3's ``BaseCallback`` imports torch.
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 from stable_baselines3.common.callbacks import BaseCallback
 
@@ -29,6 +30,10 @@ class SearchCallback(BaseCallback):
     :param total_timesteps: the training budget, for progress fractions.
     :param progress: called with a :class:`SearchProgress` after every rollout.
     :param should_stop: polled every environment step; True cancels training.
+    :param env: the environment whose ``constraint_penalty`` (the Lagrange multiplier)
+        is updated after every rollout; None keeps it fixed.
+    :param lagrangian_lr: the dual-ascent step: ``λ ← max(0, λ + lr · mean violation)``
+        over the rollout's episodes.
     """
 
     def __init__(
@@ -37,8 +42,13 @@ class SearchCallback(BaseCallback):
         total_timesteps: int,
         progress: Callable[[SearchProgress], None] | None = None,
         should_stop: Callable[[], bool] | None = None,
+        *,
+        env: Any = None,
+        lagrangian_lr: float = 0.0,
     ) -> None:
         super().__init__()
+        self.constrained_env = env
+        self.lagrangian_lr = lagrangian_lr
         self.tracker = tracker
         self.total = total_timesteps
         self.progress = progress
@@ -58,4 +68,8 @@ class SearchCallback(BaseCallback):
         return True
 
     def _on_rollout_end(self) -> None:
+        if self.constrained_env is not None:
+            multiplier = self.constrained_env.constraint_penalty
+            step = self.lagrangian_lr * self.tracker.mean_violation()
+            self.constrained_env.constraint_penalty = max(0.0, multiplier + step)
         report_point(self.tracker, self.total, self.progress)

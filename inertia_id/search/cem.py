@@ -76,6 +76,8 @@ def cem_search(
     fuel_weight: float = 0.0,
     seed: int = 0,
     settings: ScorerSettings | None = None,
+    constraints: dict[str, float] | None = None,
+    constraint_penalty: float = 0.0,
     patience_episodes: int | None = 500,
     n_fresh_draws: int = 5,
     progress: Callable[[SearchProgress], None] | None = None,
@@ -102,7 +104,16 @@ def cem_search(
     """
     check_budget("total_timesteps", total_timesteps, sequence_length)
     n_elite = check_cem_params(population, elite_fraction, smoothing)
-    run = SearchRun(scenario, sequence_length, fuel_weight, seed, settings, patience_episodes)
+    run = SearchRun(
+        scenario,
+        sequence_length,
+        fuel_weight,
+        seed,
+        settings,
+        patience_episodes,
+        constraints=constraints,
+        constraint_penalty=constraint_penalty,
+    )
     tracker = run.tracker
     # A stream of its own: random search draws from child 1 of the same seed sequence.
     rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(3)[2])
@@ -110,7 +121,7 @@ def cem_search(
     probabilities = np.full((sequence_length, scenario.n_thrusters, m), 1.0 / m)
     stopped: str | None = None
     while stopped is None:
-        ranked: list[tuple[tuple[float, float], np.ndarray]] = []
+        ranked: list[tuple[tuple[float, float, float], np.ndarray]] = []
         for sequence in _sample(rng, probabilities, population):
             if tracker.timesteps + sequence_length > total_timesteps:
                 stopped = "budget"

@@ -36,11 +36,16 @@ class SequenceSearchEnv(gym.Env[np.ndarray, np.ndarray]):
                   mean final rate over every candidate and realisation, rad/s (the paper's
                   detumbling term). Every step also subtracts ``fuel_weight`` times the
                   angular impulse it commands, N m s (the paper's multi-objective variant).
+                  The constrained variant (``constraints`` given): the last step also
+                  subtracts ``constraint_penalty`` times the summed relative violation
+                  of the constraints (``Σ max(0, value / bound − 1)``), a penalty whose
+                  multiplier a Lagrangian PPO raises while episodes violate them.
     Episode end   Terminated after L steps; never truncated.
     Info          ``f1`` (the objective's score), ``accuracy``, ``final_rate_rad_s``,
                   ``fuel_nms`` (the prefix's impulse), ``step_fuel_nms``, ``step``,
-                  ``sequence`` (the prefix), ``objective`` and ``error_bound``
-                  (separability only, else None).
+                  ``sequence`` (the prefix), ``objective``, ``error_bound``
+                  (separability only, else None), ``peak_rate_rad_s`` and
+                  ``constraint_violation`` (the summed relative violation).
     ============  ===========================================================================
 
     Every candidate and realisation is simulated at each step (extending the previous
@@ -53,6 +58,10 @@ class SequenceSearchEnv(gym.Env[np.ndarray, np.ndarray]):
     :param fuel_weight: reward cost per N m s of commanded impulse.
     :param noise: "fixed" or "fresh", see above.
     :param seed: noise seed; ``reset(seed=...)`` draws new noise from that seed.
+    :param constraints: bounds on the physical figures of the whole sequence, by the
+        names of :data:`~inertia_id.search.objectives.CONSTRAINTS` (all but
+        ``min_accuracy``, which the prefix score does not measure).
+    :param constraint_penalty: reward cost per unit of summed relative violation.
     :param settings: how prefixes are simulated and scored (realisations, objective,
         metric, DTW band, k-means runs); keyword arguments of :class:`ScorerSettings`
         may be given instead.
@@ -69,6 +78,8 @@ class SequenceSearchEnv(gym.Env[np.ndarray, np.ndarray]):
         noise: str = "fixed",
         seed: int | None = None,
         settings: ScorerSettings | None = None,
+        constraints: dict[str, float] | None = None,
+        constraint_penalty: float = 0.0,
         **settings_kwargs: Any,
     ) -> None:
         super().__init__()
@@ -80,6 +91,20 @@ class SequenceSearchEnv(gym.Env[np.ndarray, np.ndarray]):
         if noise not in ("fixed", "fresh"):
             raise InputError(f"noise must be 'fixed' or 'fresh', got {noise!r}")
         self.scenario = scenario or Scenario.paper()
+        from .objectives import check_constraints
+
+        self.constraints = check_constraints(constraints, self.scenario)
+        if "min_accuracy" in self.constraints:
+            raise InputError(
+                "the sequence-search environment cannot constrain min_accuracy; use the "
+                "Pareto search (method nsga2) for an accuracy bound"
+            )
+        if not (np.isfinite(constraint_penalty) and constraint_penalty >= 0):
+            raise InputError(
+                f"constraint_penalty must be finite and >= 0, got {constraint_penalty!r}"
+            )
+        #: The penalty multiplier (a Lagrangian PPO updates it between rollouts).
+        self.constraint_penalty = float(constraint_penalty)
         self.sequence_length = sequence_length
         self.fuel_weight = float(fuel_weight)
         self.noise = noise
@@ -133,6 +158,8 @@ class SequenceSearchEnv(gym.Env[np.ndarray, np.ndarray]):
         last = len(self._prefix) == self.sequence_length
         reward = -score.final_rate_rad_s if last else -1.0 + 3.0 * score.f1
         reward -= self.fuel_weight * score.step_impulse_nms
+        violation = self._violation(score) if last else 0.0
+        reward -= self.constraint_penalty * violation
         info = {
             "f1": score.f1,
             "accuracy": score.accuracy,
@@ -143,5 +170,30 @@ class SequenceSearchEnv(gym.Env[np.ndarray, np.ndarray]):
             "sequence": [list(row) for row in self._prefix],
             "objective": score.objective,
             "error_bound": score.error_bound,
+            "peak_rate_rad_s": score.peak_rate_rad_s,
+            "constraint_violation": violation,
         }
         return self._observation(), float(reward), last, False, info
+
+    def _violation(self, score: Any) -> float:
+        """Summed relative violation of the constraints by the whole sequence (0: all hold)."""
+        if not self.constraints:
+            return 0.0
+        from .objectives import CONSTRAINTS
+
+        prefix = self._prefix
+        figures = {
+            "final_rate_rad_s": score.final_rate_rad_s,
+            "peak_rate_rad_s": score.peak_rate_rad_s,
+            "impulse_nms": score.impulse_nms,
+            "on_time_s": float(self.scenario.on_time_s(prefix).sum()),
+            "propellant_kg": self.scenario.propellant_kg(prefix),
+            "duration_s": self.scenario.duration_s(prefix),
+        }
+        total = 0.0
+        for name, bound in self.constraints.items():
+            figure, _, factor = CONSTRAINTS[name]
+            value, limit = figures[figure], bound * factor
+            assert value is not None  # checked against the scenario at construction
+            total += max(0.0, value / limit - 1.0) if limit > 0 else max(0.0, value)
+        return float(total)

@@ -32,6 +32,8 @@ def exhaustive_search(
     fuel_weight: float = 0.0,
     seed: int = 0,
     settings: ScorerSettings | None = None,
+    constraints: dict[str, float] | None = None,
+    constraint_penalty: float = 0.0,
     report_every: int = 2048,
     n_fresh_draws: int = 5,
     progress: Callable[[SearchProgress], None] | None = None,
@@ -56,7 +58,15 @@ def exhaustive_search(
             f"than the budget of {max_sequences} for exhaustive search; shorten the sequence, use "
             f"fewer levels or thrusters, raise the budget, or use random or PPO search"
         )
-    run = SearchRun(scenario, sequence_length, fuel_weight, seed, settings)
+    run = SearchRun(
+        scenario,
+        sequence_length,
+        fuel_weight,
+        seed,
+        settings,
+        constraints=constraints,
+        constraint_penalty=constraint_penalty,
+    )
     rows = [np.asarray(r) for r in itertools.product(range(m), repeat=n)]
 
     def sequences() -> Iterator[np.ndarray]:

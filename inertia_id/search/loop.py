@@ -79,6 +79,9 @@ class SearchRun:
         seed: int,
         settings: ScorerSettings | None,
         patience_episodes: int | None = None,
+        *,
+        constraints: dict[str, float] | None = None,
+        constraint_penalty: float = 0.0,
     ) -> None:
         self.started = time.perf_counter()
         self.seed = seed
@@ -88,6 +91,8 @@ class SearchRun:
             fuel_weight=fuel_weight,
             seed=seed,
             settings=settings,
+            constraints=constraints,
+            constraint_penalty=constraint_penalty,
         )
         self.tracker = SearchTracker(fuel_weight=fuel_weight, patience_episodes=patience_episodes)
 
@@ -184,6 +189,8 @@ class SearchRun:
                 "sequence_length": env.sequence_length,
                 "fuel_weight": env.fuel_weight,
                 "seed": self.seed,
+                "constraints": dict(env.constraints),
+                "constraint_penalty": env.constraint_penalty,
                 **settings,
                 "scorer": env.settings.as_dict(),
             },

@@ -321,3 +321,253 @@ def score_from_bound(bound: float, n_candidates: int) -> float:
     """The score of :func:`separability_score` from an error bound for K candidates."""
     chance_error = (n_candidates - 1) / n_candidates
     return float(1.0 - min(1.0, bound / chance_error))
+
+
+# What an operator states: accuracy at a design noise, residual rate, propellant, ...
+#
+# The separability score above leads a search towards sequences that cluster; an
+# operator also asks what a sequence leaves behind (the residual rate), what it burns
+# and how hard it spins the spacecraft, and how well the candidates are told apart at the
+# noise the mission must survive, not at 1x, where most sequences already score 1.
+
+#: The objectives a Pareto search may trade off: what each is, its sense, its unit.
+OPERATOR_OBJECTIVES: dict[str, tuple[str, str, str]] = {
+    "accuracy": (
+        "predicted accuracy of the Bayes classifier at the design noise (Gaussian model)",
+        "max",
+        "",
+    ),
+    "final_rate": ("residual body rate at the end, mean over candidates", "min", "rad/s"),
+    "peak_rate": ("largest body rate during the sequence, worst candidate", "min", "rad/s"),
+    "impulse": ("commanded angular impulse summed over thrusters", "min", "N m s"),
+    "on_time": ("thruster on-time summed over thrusters", "min", "s"),
+    "propellant": ("propellant mass (needs thrust and specific impulse)", "min", "kg"),
+    "duration": ("length of the sequence", "min", "s"),
+}
+#: The figure each objective reads from :class:`SequenceScores`.
+OBJECTIVE_FIELDS = {
+    "accuracy": "accuracy",
+    "final_rate": "final_rate_rad_s",
+    "peak_rate": "peak_rate_rad_s",
+    "impulse": "impulse_nms",
+    "on_time": "on_time_s",
+    "propellant": "propellant_kg",
+    "duration": "duration_s",
+}
+_DEG = 180.0 / np.pi
+#: Constraint name -> (figure of :class:`SequenceScores`, sense, factor from the
+#: constraint's unit to the figure's). A "max_" bound holds when figure <= bound.
+CONSTRAINTS: dict[str, tuple[str, str, float]] = {
+    "min_accuracy": ("accuracy", "min", 1.0),
+    "max_final_rate_rad_s": ("final_rate_rad_s", "max", 1.0),
+    "max_final_rate_deg_s": ("final_rate_rad_s", "max", 1.0 / _DEG),
+    "max_peak_rate_rad_s": ("peak_rate_rad_s", "max", 1.0),
+    "max_peak_rate_deg_s": ("peak_rate_rad_s", "max", 1.0 / _DEG),
+    "max_impulse_nms": ("impulse_nms", "max", 1.0),
+    "max_on_time_s": ("on_time_s", "max", 1.0),
+    "max_propellant_kg": ("propellant_kg", "max", 1.0),
+    "max_duration_s": ("duration_s", "max", 1.0),
+}
+#: Default design noise: 6x process noise (gyro at 1x), and 6x gyro noise (process at 1x).
+DEFAULT_DESIGN_NOISE: tuple[tuple[float, float], ...] = ((6.0, 1.0), (1.0, 6.0))
+
+
+def check_objectives(objectives: Any) -> tuple[str, ...]:
+    """The objective names, checked: known, distinct, at least two (a front needs two)."""
+    names = tuple(objectives)
+    unknown = [n for n in names if n not in OPERATOR_OBJECTIVES]
+    if unknown or len(set(names)) != len(names) or len(names) < 2:
+        raise InputError(
+            f"objectives must be at least two distinct names among "
+            f"{list(OPERATOR_OBJECTIVES)}, got {list(names)}"
+        )
+    return names
+
+
+def check_design_noise(design_noise: Any) -> tuple[tuple[float, float], ...]:
+    """(process multiple, measurement multiple) pairs, each finite and >= 0, 1 to 8 pairs."""
+    try:
+        pairs = tuple((float(p), float(q)) for p, q in design_noise)
+    except (TypeError, ValueError):
+        raise InputError(
+            f"design_noise must be a list of [process multiple, measurement multiple] pairs, "
+            f"got {design_noise!r}"
+        ) from None
+    if not 1 <= len(pairs) <= 8 or not all(
+        np.isfinite(v) and 0 <= v <= 1000 for pair in pairs for v in pair
+    ):
+        raise InputError(
+            f"design_noise must hold 1 to 8 pairs of multiples in [0, 1000], got {design_noise!r}"
+        )
+    return pairs
+
+
+def check_constraints(constraints: Any, scenario: Any = None) -> dict[str, float]:
+    """Constraint bounds by name (:data:`CONSTRAINTS`), finite and >= 0; a propellant bound
+    needs a scenario that states thrust and specific impulse."""
+    if constraints is None:
+        return {}
+    if not isinstance(constraints, dict):
+        raise InputError(f"constraints must be a mapping of name to bound, got {constraints!r}")
+    out = {}
+    for name, bound in constraints.items():
+        if name not in CONSTRAINTS:
+            raise InputError(f"unknown constraint {name!r}; known: {sorted(CONSTRAINTS)}")
+        if (
+            isinstance(bound, bool)
+            or not isinstance(bound, int | float)
+            or not (np.isfinite(bound) and bound >= 0)
+        ):
+            raise InputError(f"constraint {name} must be a finite number >= 0, got {bound!r}")
+        out[name] = float(bound)
+    if "max_propellant_kg" in out and scenario is not None:
+        if scenario.thrust_per_thruster_n is None or scenario.thrusters.specific_impulse_s is None:
+            raise InputError(
+                "constraint max_propellant_kg needs the scenario's thrusters to state thrust_n "
+                "(or lever_arm_m) and specific_impulse_s"
+            )
+    return out
+
+
+@dataclass(frozen=True)
+class SequenceScores:
+    """What an operator asks of one sequence, on one noise draw.
+
+    :param accuracy: predicted accuracy of the Bayes classifier, the mean over the
+        design-noise conditions (:func:`predicted_error`), in [0, 1].
+    :param accuracy_by_noise: the same at each design condition, in their order.
+    :param final_rate_rad_s: |ω| at the end, mean over candidates and realisations at
+        the scenario's own noise (the paper's terminal term).
+    :param final_rate_max_rad_s: the same, for the candidate that ends fastest.
+    :param peak_rate_rad_s: the largest |ω| during the sequence (mean over realisations,
+        the candidate that spins fastest).
+    :param impulse_nms: commanded angular impulse summed over thrusters (every firing
+        counts, opposed or not): a propellant proxy.
+    :param on_time_s: thruster on-time summed over thrusters.
+    :param propellant_kg: propellant mass, when the scenario gives thrust and Isp.
+    :param duration_s: length of the sequence.
+    :param attitude_change_deg: the rotation the body makes over the sequence (angle of
+        the final attitude quaternion from the nominal rates, the candidate that turns
+        most), degrees.
+    """
+
+    accuracy: float
+    accuracy_by_noise: list[float]
+    final_rate_rad_s: float
+    final_rate_max_rad_s: float
+    peak_rate_rad_s: float
+    impulse_nms: float
+    on_time_s: float
+    propellant_kg: float | None
+    duration_s: float
+    attitude_change_deg: float
+
+    @property
+    def final_rate_deg_s(self) -> float:
+        return self.final_rate_rad_s * _DEG
+
+    @property
+    def peak_rate_deg_s(self) -> float:
+        return self.peak_rate_rad_s * _DEG
+
+    def figure(self, name: str) -> float:
+        value = getattr(self, name)
+        return float("nan") if value is None else float(value)
+
+    def objective_vector(self, objectives: tuple[str, ...]) -> np.ndarray:
+        """The objectives as a vector to minimise (accuracy negated)."""
+        out = []
+        for name in objectives:
+            value = self.figure(OBJECTIVE_FIELDS[name])
+            out.append(-value if OPERATOR_OBJECTIVES[name][1] == "max" else value)
+        return np.asarray(out)
+
+    def violations(self, constraints: dict[str, float]) -> np.ndarray:
+        """Each constraint's violation, relative to its bound (<= 0 holds), in order."""
+        out = []
+        for name, bound in constraints.items():
+            figure, sense, factor = CONSTRAINTS[name]
+            value, limit = self.figure(figure), bound * factor
+            scale = limit if limit > 0 else 1.0
+            excess = value - limit if sense == "max" else limit - value
+            out.append(excess / scale if np.isfinite(value) else np.inf)
+        return np.asarray(out)
+
+    def feasible(self, constraints: dict[str, float]) -> bool:
+        return bool(np.all(self.violations(constraints) <= 0.0))
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "accuracy": self.accuracy,
+            "accuracy_by_noise": list(self.accuracy_by_noise),
+            "final_rate_rad_s": self.final_rate_rad_s,
+            "final_rate_deg_s": self.final_rate_deg_s,
+            "final_rate_max_rad_s": self.final_rate_max_rad_s,
+            "final_rate_max_deg_s": self.final_rate_max_rad_s * _DEG,
+            "peak_rate_rad_s": self.peak_rate_rad_s,
+            "peak_rate_deg_s": self.peak_rate_deg_s,
+            "impulse_nms": self.impulse_nms,
+            "on_time_s": self.on_time_s,
+            "propellant_kg": self.propellant_kg,
+            "duration_s": self.duration_s,
+            "attitude_change_deg": self.attitude_change_deg,
+        }
+
+
+def predicted_error(
+    true_rates: np.ndarray, white_variance: float, *, debias: bool = True
+) -> np.ndarray:
+    """Predicted error of the Bayes classifier for each sequence of a population.
+
+    Each candidate's measured response (d = 3 T numbers) is modelled as a Gaussian with
+    the candidates' common covariance ``Σ = a I + b RᵀR``: ``a`` the gyro's white-noise
+    variance, known exactly (it is the scenario's sigma at the design multiple), and
+    ``RᵀR / (N − K)`` the pooled sample covariance of the *true* rates' residuals (what
+    the disturbance torque, jitter and gyro bias do), whose rank is small. No shrinkage
+    rule is needed: the low-rank part is estimated, the white part is known. With the
+    squared Mahalanobis distances ``D²_ij`` between the candidates' means (debiased for
+    the means' own estimation noise, see :func:`mahalanobis_matrix`), the two-class
+    error of the pair is exactly ``Φ(−D_ij/2)``, and the union bound over pairs gives
+
+        P_error ≤ (2/K) Σ_{i<j} Φ(−D_ij / 2),
+
+    tight when the error is small, which is where a design is chosen. It is a
+    prediction under the Gaussian model, not a measurement: the front's members are
+    re-scored on fresh draws, and a benchmark trains the real classifier.
+
+    :param true_rates: (P, K, n, T, 3) true body rates plus gyro bias, rad/s, of P
+        sequences (n >= 2 realisations of each of K candidates).
+    :param white_variance: the gyro's white-noise variance per sample and axis, (rad/s)².
+    :returns: (P,) the bound (may exceed 1 for hopeless sequences: it still ranks them).
+    """
+    from scipy.special import ndtr
+
+    rates = np.asarray(true_rates, dtype=float)
+    p, k, n = rates.shape[:3]
+    if k < 2 or n < 2:
+        raise InputError(f"need 2 candidates and 2 realisations at least, got K = {k}, n = {n}")
+    x = rates.reshape(p, k, n, -1)
+    d = x.shape[-1]
+    count = k * n
+    means = x.mean(axis=2)  # (P, K, d)
+    residuals = (x - means[:, :, None, :]).reshape(p, count, d)
+    floor = _RELATIVE_VARIANCE_FLOOR * float(np.mean(x * x)) + np.finfo(float).tiny
+    a = float(white_variance) + floor
+    b = 1.0 / (count - k)
+    first, second = np.triu_indices(k, 1)
+    with _one_blas_thread():
+        gram = residuals @ residuals.transpose(0, 2, 1)  # (P, N, N)
+        system = a * np.eye(count) + b * gram
+        differences = means[:, first] - means[:, second]  # (P, pairs, d)
+        plain = np.einsum("ped,ped->pe", differences, differences)
+        projected = residuals @ differences.transpose(0, 2, 1)  # (P, N, pairs)
+        solved = np.linalg.solve(system, projected)
+        distances = np.maximum(plain - b * np.einsum("pne,pne->pe", projected, solved), 0.0) / a
+        if debias:
+            # r_iᵀ Σ⁻¹ r_i is the diagonal of R Σ⁻¹ Rᵀ = S⁻¹ G (S = a I + b G), and
+            # each residual left out of its own covariance by Sherman–Morrison.
+            inside = np.einsum("pnn->pn", np.linalg.solve(system, gram))
+            left_out = inside / np.maximum(1.0 - b * inside, 1e-12)
+            trace = left_out.mean(axis=1) / (1.0 - 1.0 / n)
+            distances = np.maximum(distances - 2.0 * trace[:, None] / n, 0.0)
+    return np.asarray((2.0 / k) * ndtr(-0.5 * np.sqrt(distances)).sum(axis=1))

@@ -86,6 +86,9 @@ def ppo_search(
     fuel_weight: float = 0.0,
     seed: int = 0,
     settings: ScorerSettings | None = None,
+    constraints: dict[str, float] | None = None,
+    constraint_penalty: float = 0.0,
+    lagrangian_lr: float = 0.0,
     ppo_params: dict[str, Any] | None = None,
     patience_episodes: int | None = 500,
     policy_path: str | os.PathLike[str] | None = None,
@@ -102,7 +105,17 @@ def ppo_search(
     :param policy_path: where to save the trained policy (stable-baselines3 zip).
     :param seed: seeds the environment's noise, the policy and PPO's sampling: the same
         seed gives the same learning curve.
+    :param constraints: bounds on the sequence's physical figures (the constrained
+        variant; the paper's reward is unchanged without them).
+    :param constraint_penalty: the reward's cost per unit of summed relative violation
+        (the starting Lagrange multiplier).
+    :param lagrangian_lr: with a value > 0, the multiplier is updated after every
+        rollout by dual ascent, ``λ ← max(0, λ + lr · mean violation)`` (PPO-Lagrangian):
+        it grows while the policy's sequences break the constraints and stays once they
+        hold; 0 keeps a fixed penalty.
     """
+    if not (isinstance(lagrangian_lr, int | float) and 0 <= lagrangian_lr < 1e6):
+        raise InputError(f"lagrangian_lr must be a number in [0, 1e6), got {lagrangian_lr!r}")
     check_budget("total_timesteps", total_timesteps, sequence_length)
     params = check_ppo_params(ppo_params)
     import torch
@@ -110,8 +123,24 @@ def ppo_search(
 
     from .callback import SearchCallback
 
-    run = SearchRun(scenario, sequence_length, fuel_weight, seed, settings, patience_episodes)
-    callback = SearchCallback(run.tracker, total_timesteps, progress, should_stop)
+    run = SearchRun(
+        scenario,
+        sequence_length,
+        fuel_weight,
+        seed,
+        settings,
+        patience_episodes,
+        constraints=constraints,
+        constraint_penalty=constraint_penalty,
+    )
+    callback = SearchCallback(
+        run.tracker,
+        total_timesteps,
+        progress,
+        should_stop,
+        env=run.env if lagrangian_lr > 0 and run.env.constraints else None,
+        lagrangian_lr=float(lagrangian_lr),
+    )
     threads = torch.get_num_threads()
     # A small MLP: one thread is as fast, and keeps the learning curve reproducible.
     torch.set_num_threads(1)
@@ -134,6 +163,8 @@ def ppo_search(
             "timesteps": total_timesteps,
             "patience_episodes": patience_episodes,
             "ppo": params,
+            "lagrangian_lr": lagrangian_lr,
+            "final_constraint_penalty": run.env.constraint_penalty,
         },
         n_fresh_draws=n_fresh_draws,
         policy_path=saved,

@@ -22,6 +22,8 @@ def random_search(
     fuel_weight: float = 0.0,
     seed: int = 0,
     settings: ScorerSettings | None = None,
+    constraints: dict[str, float] | None = None,
+    constraint_penalty: float = 0.0,
     patience_episodes: int | None = None,
     report_every: int = 2048,
     n_fresh_draws: int = 5,
@@ -38,7 +40,16 @@ def random_search(
         PPO rollout at the paper's n_steps).
     """
     check_budget("total_timesteps", total_timesteps, sequence_length)
-    run = SearchRun(scenario, sequence_length, fuel_weight, seed, settings, patience_episodes)
+    run = SearchRun(
+        scenario,
+        sequence_length,
+        fuel_weight,
+        seed,
+        settings,
+        patience_episodes,
+        constraints=constraints,
+        constraint_penalty=constraint_penalty,
+    )
     rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(2)[1])
 
     def sequences() -> Iterator[np.ndarray]:

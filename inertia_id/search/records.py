@@ -59,6 +59,8 @@ class EpisodeRecord:
     :param fuel_nms: commanded angular impulse, N m s.
     :param episode_return: the environment's summed reward.
     :param episode: 1-based episode number in the search.
+    :param constraint_violation: summed relative violation of the search's constraints
+        (0 when they hold or there are none).
     """
 
     sequence: list[list[int]]
@@ -67,6 +69,7 @@ class EpisodeRecord:
     fuel_nms: float
     episode_return: float
     episode: int
+    constraint_violation: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -185,12 +188,14 @@ class SearchTracker:
         self.curve: list[CurvePoint] = []
         self._returns: list[float] = []
         self._f1s: list[float] = []
+        self._violations: list[float] = []
         self._running_return = 0.0
 
-    def rank(self, record: EpisodeRecord) -> tuple[float, float]:
-        """The order of sequences, larger is better: F1, then minus the cost."""
+    def rank(self, record: EpisodeRecord) -> tuple[float, float, float]:
+        """The order of sequences, larger is better: meeting the constraints (the smaller
+        violation), then F1, then minus the cost."""
         cost = record.final_rate_rad_s + self.fuel_weight * record.fuel_nms
-        return (round(record.f1, 12), -cost)
+        return (-round(record.constraint_violation, 12), round(record.f1, 12), -cost)
 
     def on_step(self, reward: float, done: bool, info: dict[str, Any]) -> bool:
         """Account for one environment step; True when this step found a new best."""
@@ -206,7 +211,9 @@ class SearchTracker:
             fuel_nms=float(info["fuel_nms"]),
             episode_return=self._running_return,
             episode=self.episodes,
+            constraint_violation=float(info.get("constraint_violation", 0.0)),
         )
+        self._violations.append(record.constraint_violation)
         self.last = record
         self._returns.append(self._running_return)
         self._f1s.append(record.f1)
@@ -217,12 +224,17 @@ class SearchTracker:
             return True
         return False
 
+    def mean_violation(self) -> float:
+        """Mean constraint violation of the episodes finished since the last curve point."""
+        return float(np.mean(self._violations)) if self._violations else 0.0
+
     def reached_target(self) -> bool:
         """Best F1 is 1 and it has not improved for ``patience_episodes`` episodes."""
         return (
             self.patience_episodes is not None
             and self.best is not None
             and self.best.f1 >= 1.0
+            and self.best.constraint_violation <= 0.0
             and self.episodes - self.best_episode >= self.patience_episodes
         )
 
@@ -242,7 +254,7 @@ class SearchTracker:
             best_final_rate_rad_s=self.best.final_rate_rad_s if self.best else float("nan"),
         )
         self.curve.append(point)
-        self._returns, self._f1s = [], []
+        self._returns, self._f1s, self._violations = [], [], []
         return point
 
 
@@ -250,7 +262,7 @@ class SearchTracker:
 class SearchResult:
     """The outcome of a search, the same shape for every method.
 
-    :param method: "ppo", "cem", "exhaustive" or "random".
+    :param method: "ppo", "cem", "exhaustive", "random" or "nsga2".
     :param best: the best sequence and the scores the search saw for it.
     :param fresh: the best sequence re-scored on fresh draws (independent seed).
     :param curve: the learning curve.
@@ -280,6 +292,10 @@ class SearchResult:
     policy_path: str | None = None
     cache_hits: int = 0
     cache_misses: int = 0
+    #: The front on fresh draws with the baselines beside it (:class:`~inertia_id.
+    #: search.pareto.Front` as a dict): a Pareto search's front, or for the other
+    #: methods a front of their best sequence alone (added by the pipeline).
+    front: dict[str, Any] | None = None
 
     @property
     def best_sequence(self) -> np.ndarray:

@@ -159,6 +159,7 @@ class PrefixScore:
     :param objective: which objective ``f1`` and ``accuracy`` come from.
     :param error_bound: objective "separability": the Bhattacharyya bound on the Bayes
         error at the noise margin (may exceed 1); None for "f1".
+    :param peak_rate_rad_s: the largest mean |ω| (over all series) at any sample so far.
     """
 
     f1: float
@@ -168,6 +169,7 @@ class PrefixScore:
     step_impulse_nms: float
     objective: str = "f1"
     error_bound: float | None = None
+    peak_rate_rad_s: float = 0.0
 
 
 @dataclass
@@ -291,6 +293,9 @@ class PrefixScorer:
         step_impulse = float(self.scenario.level_values[levels] @ self._thruster_impulse)
         impulse = step_impulse + (0.0 if parent.score is None else parent.score.impulse_nms)
         final_rate = float(np.linalg.norm(state.omega, axis=-1).mean())
+        peak = float(np.linalg.norm(response.omega_true, axis=-1).mean(axis=(0, 1)).max())
+        if parent.score is not None:
+            peak = max(peak, parent.score.peak_rate_rad_s)
         if self.settings.objective == "separability":
             bound = error_bound(
                 series.reshape(k, n, -1, 3),
@@ -305,6 +310,7 @@ class PrefixScorer:
                 step_impulse_nms=step_impulse,
                 objective="separability",
                 error_bound=bound,
+                peak_rate_rad_s=peak,
             )
             return _Node(state, series, None, None, score)
         labels, centers = self._cluster(series, parent, prefix)
@@ -315,6 +321,7 @@ class PrefixScorer:
             final_rate_rad_s=final_rate,
             impulse_nms=impulse,
             step_impulse_nms=step_impulse,
+            peak_rate_rad_s=peak,
         )
         return _Node(state, series, centers, labels, score)
 

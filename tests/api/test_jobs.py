@@ -68,6 +68,13 @@ def test_submit_queues_a_job_and_a_message(api: Api) -> None:
         "patience_episodes": 500,
         "ppo": {},
         "cem": {},
+        "nsga2": {},
+        "objectives": ["accuracy", "final_rate", "impulse"],
+        "design_noise": [[6.0, 1.0], [1.0, 6.0]],
+        "constraints": {},
+        "constraint_penalty": 0.0,
+        "lagrangian_lr": 0.0,
+        "fresh_realisations": 40,
     }
     assert job["config_hash"] == config_hash("search", scenario_id, job["params"], 7)
     assert message_job_ids(api) == [job["id"]]
@@ -151,7 +158,8 @@ def test_sweep_job_for_a_stored_classifier(api: Api, classifier: InertiaClassifi
         "noises": ["process", "measurement"],
         "n_test": 200,
         "others": ["least-squares"],
-        "limit_realisations": 200,
+        "ceiling_realisations": 2000,
+        "limit_realisations": None,
         "n_train": 20,
         "inertia": True,
     }
@@ -199,7 +207,7 @@ BAD_PARAMS: list[tuple[str, dict[str, Any], str]] = [
     ("train", {"sequence": [[0.5, 0, 0, 0, 0, 0]]}, "got 0.5"),
     ("train", {"sequence": GOOD_SEQUENCE, "metric": "cosine"}, "got 'cosine'"),
     ("train", {"sequence": GOOD_SEQUENCE, "n_realisations": 0}, "got 0"),
-    ("train", {}, "Field required"),
+    ("train", {}, "give sequence, or search_job_id"),
     ("sweep", {"multiples": [0]}, "noise multiples must be > 0, got [0.0]"),
     ("sweep", {"multiples": [1, -2]}, "got [-2.0]"),
     ("sweep", {"multiples": [1.0] * 21}, "at most 20 items"),
@@ -280,6 +288,8 @@ def test_get_job(api: Api) -> None:
     assert job["type"] == "train"
     assert job["params"] == {
         "sequence": GOOD_SEQUENCE,
+        "search_job_id": None,
+        "front_member": None,
         "kind": "marginal-likelihood",
         "metric": None,
         "n_realisations": 100,

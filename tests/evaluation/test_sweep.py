@@ -304,13 +304,13 @@ def test_bad_inertia_sweep_options_are_named(
     assert quoted in str(info.value)
 
 
-def test_the_limit_is_fitted_at_each_noise_and_is_never_below_the_classifier(
+def test_the_ceiling_is_fitted_at_each_noise_and_is_never_below_the_classifier(
     euclidean_classifier: InertiaClassifier,
 ) -> None:
     result = run_sweep(
-        euclidean_classifier, multiples=(1, 6), n_test=500, limit_realisations=100, seed=8
+        euclidean_classifier, multiples=(1, 6), n_test=500, ceiling_realisations=1000, seed=8
     )
-    assert result.limit_realisations == 100
+    assert result.limit_realisations == 1000 == result.ceiling_realisations
     assert [(p.noise, p.multiple) for p in result.limit] == [
         (p.noise, p.multiple) for p in result.points
     ]

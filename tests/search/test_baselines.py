@@ -12,7 +12,12 @@ def test_baselines_are_scored_on_the_given_fresh_draws(paper: Scenario) -> None:
 
     settings = ScorerSettings(n_realisations=8, metric="euclidean")
     compared = compare_with_baselines(paper, 3, settings, seed=11, n_draws=2)
-    assert list(compared) == ["hand-designed", "axis-in-turn"]
+    assert list(compared) == [
+        "hand-designed",
+        "axis-in-turn",
+        "fire-then-brake",
+        "fire-coast-brake",
+    ]
     same = evaluate_sequence(paper, hand_designed(paper, 3), settings, seed=11, n_draws=2)
     assert compared["hand-designed"]["fresh_f1"] == same.f1
     assert compared["hand-designed"]["fuel_nms"] == 18.0  # 3 thrusters x 2 N m x 3 s

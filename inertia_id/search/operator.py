@@ -1,0 +1,208 @@
+"""Score whole populations of sequences on what an operator states.
+
+:class:`OperatorScorer` simulates P sequences side by side on one noise draw (common
+random numbers: every sequence meets the same disturbances, jitter and gyro noise), at
+the scenario's own noise and at each design process-noise multiple, and returns each
+sequence's :class:`~inertia_id.search.objectives.SequenceScores`: the predicted accuracy
+at the design noise (:func:`~inertia_id.search.objectives.predicted_error`), residual and
+peak rate, impulse, on-time, propellant, duration and attitude change.
+
+A design condition ``(p, q)`` scales the disturbance torque by p (one simulation per
+distinct p, all on the same draws) and the gyro's white noise by q (added to the model
+analytically: its variance is known, so no simulation is needed for it).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..errors import InputError
+from ..physics.attitude import propagate_attitude, rotation_angle_deg
+from ..physics.scenario import Scenario
+from ..physics.simulate import Simulator
+from .objectives import (
+    DEFAULT_DESIGN_NOISE,
+    SequenceScores,
+    check_constraints,
+    check_design_noise,
+    check_objectives,
+    predicted_error,
+)
+
+__all__ = ["OperatorScorer", "OperatorSettings", "nominal_rates"]
+
+#: Sequences simulated in one batch: bounds the memory of a population's responses
+#: (P x K x n x T x 3 doubles; 64 x 5 x 20 x 160 x 3 is 49 MB).
+_CHUNK = 64
+
+
+@dataclass(frozen=True)
+class OperatorSettings:
+    """What a Pareto search optimises and respects.
+
+    :param objectives: the objectives traded off (:data:`~inertia_id.search.objectives.
+        OPERATOR_OBJECTIVES`), at least two.
+    :param design_noise: (process multiple, measurement multiple) conditions at which the
+        accuracy is predicted; the accuracy objective is their mean.
+    :param constraints: bounds by name (:data:`~inertia_id.search.objectives.CONSTRAINTS`),
+        e.g. ``{"max_final_rate_deg_s": 0.2, "max_impulse_nms": 20}``.
+    :param n_realisations: realisations per candidate in each score.
+    """
+
+    objectives: tuple[str, ...] = ("accuracy", "final_rate", "impulse")
+    design_noise: tuple[tuple[float, float], ...] = DEFAULT_DESIGN_NOISE
+    constraints: Mapping[str, float] = field(default_factory=dict)
+    n_realisations: int = 20
+
+    def check(self, scenario: Scenario | None = None) -> OperatorSettings:
+        """The settings with every value checked (and normalised to tuples and floats)."""
+        n = self.n_realisations
+        if isinstance(n, bool) or not isinstance(n, int | np.integer) or not 2 <= n <= 1000:
+            raise InputError(f"n_realisations must be an integer in 2..1000, got {n!r}")
+        objectives = check_objectives(self.objectives)
+        if "propellant" in objectives and scenario is not None:
+            if scenario.propellant_kg([[0] * scenario.n_thrusters]) is None:
+                raise InputError(
+                    "the propellant objective needs the scenario's thrusters to state "
+                    "thrust_n (or lever_arm_m) and specific_impulse_s"
+                )
+        return OperatorSettings(
+            objectives=objectives,
+            design_noise=check_design_noise(self.design_noise),
+            constraints=check_constraints(dict(self.constraints), scenario),
+            n_realisations=int(n),
+        )
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "objectives": list(self.objectives),
+            "design_noise": [list(pair) for pair in self.design_noise],
+            "constraints": dict(self.constraints),
+            "n_realisations": self.n_realisations,
+        }
+
+
+class OperatorScorer:
+    """Scores sequences of one length on one noise draw, a population at a time.
+
+    :param scenario: the spacecraft and its 1x noise.
+    :param sequence_length: L, steps of every sequence scored.
+    :param settings: objectives, design noise, constraints, realisations.
+    :param seed: seed of the noise draw: the same seed, the same scores.
+    """
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        sequence_length: int,
+        settings: OperatorSettings | None = None,
+        *,
+        seed: int,
+    ) -> None:
+        self.settings = (settings or OperatorSettings()).check(scenario)
+        if (
+            isinstance(sequence_length, bool)
+            or not isinstance(sequence_length, int | np.integer)
+            or sequence_length < 1
+        ):
+            raise InputError(f"sequence_length must be a positive integer, got {sequence_length!r}")
+        self.scenario = scenario
+        self.sequence_length = int(sequence_length)
+        self.seed = int(seed)
+        n = self.settings.n_realisations
+        # The scenario's own noise (p = 1) is always simulated: the rates an operator
+        # will see come from it.
+        self.process_multiples = sorted({1.0, *(p for p, _ in self.settings.design_noise)})
+        self.simulators = {
+            p: Simulator(scenario, n, process_noise_scale=p) for p in self.process_multiples
+        }
+        # One draw of standard normals, scaled by each simulator: the same disturbances
+        # at every multiple (the draws do not depend on the scales).
+        self.noise = {
+            p: sim.draw_noise(np.random.default_rng(self.seed), self.sequence_length)
+            for p, sim in self.simulators.items()
+        }
+        self.evaluations = 0
+
+    def _rates(self, sequences: np.ndarray, process: float) -> np.ndarray:
+        """True rates plus gyro bias, (P, K, n, T, 3), rad/s."""
+        simulator, noise = self.simulators[process], self.noise[process]
+        state = simulator.start_population(noise.initial, len(sequences))
+        parts = []
+        for step in range(self.sequence_length):
+            state, response = simulator.advance(state, sequences[:, step], noise.steps[step])
+            parts.append(response.omega_true)
+        return np.concatenate(parts, axis=-2) + noise.initial.gyro_bias[:, :, None, :]
+
+    def score(self, sequences: Any) -> list[SequenceScores]:
+        """Scores of each sequence, (P, L, N) level indices (or one (L, N) sequence)."""
+        arr = np.asarray(sequences)
+        if arr.ndim == 2:
+            arr = arr[None]
+        if arr.ndim != 3 or arr.shape[1] != self.sequence_length:
+            raise InputError(
+                f"sequences must be shaped (P, {self.sequence_length}, N), got {arr.shape}"
+            )
+        checked = np.stack([self.scenario.check_sequence(s) for s in arr])
+        out: list[SequenceScores] = []
+        for start in range(0, len(checked), _CHUNK):
+            out.extend(self._score_chunk(checked[start : start + _CHUNK]))
+        self.evaluations += len(checked)
+        return out
+
+    def _score_chunk(self, sequences: np.ndarray) -> list[SequenceScores]:
+        scenario, settings = self.scenario, self.settings
+        gyro_sigma = scenario.uncertainty.gyro_noise_sigma_rad_s
+        rates = {p: self._rates(sequences, p) for p in self.process_multiples}
+        errors = np.stack(
+            [predicted_error(rates[p], (q * gyro_sigma) ** 2) for p, q in settings.design_noise],
+            axis=1,
+        )  # (P, conditions)
+        accuracy = np.clip(1.0 - errors, 0.0, 1.0)
+        # Rates an operator sees: the scenario's own noise, bias taken off again.
+        own = rates[1.0] - self.noise[1.0].initial.gyro_bias[:, :, None, :]
+        speed = np.linalg.norm(own, axis=-1)  # (P, K, n, T)
+        final_by_candidate = speed[..., -1].mean(axis=2)  # (P, K)
+        peak = speed.mean(axis=2).max(axis=(1, 2))  # (P,)
+        mean_rates = own.mean(axis=2)  # (P, K, T, 3)
+        attitude = propagate_attitude(mean_rates, 1.0 / scenario.timing.sample_rate_hz)
+        turned = rotation_angle_deg(attitude[..., -1, :]).max(axis=1)  # (P,)
+        out = []
+        for i, sequence in enumerate(sequences):
+            out.append(
+                SequenceScores(
+                    accuracy=float(accuracy[i].mean()),
+                    accuracy_by_noise=[float(v) for v in accuracy[i]],
+                    final_rate_rad_s=float(final_by_candidate[i].mean()),
+                    final_rate_max_rad_s=float(final_by_candidate[i].max()),
+                    peak_rate_rad_s=float(peak[i]),
+                    impulse_nms=scenario.impulse_nms(sequence),
+                    on_time_s=float(scenario.on_time_s(sequence).sum()),
+                    propellant_kg=scenario.propellant_kg(sequence),
+                    duration_s=scenario.duration_s(sequence),
+                    attitude_change_deg=float(turned[i]),
+                )
+            )
+        return out
+
+
+def nominal_rates(scenario: Scenario, sequence: Any) -> np.ndarray:
+    """Each candidate's body rates with every source of noise off (the actuation lag
+    kept): what a flight team predicts, (K, T, 3) rad/s at the gyro's sample times."""
+    quiet = scenario.with_uncertainty(
+        duty_jitter_sigma=0.0,
+        thrust_scale_sigma=0.0,
+        disturbance_torque_sigma_nm=0.0,
+        gyro_noise_sigma_rad_s=0.0,
+        gyro_bias_rad_s=(0.0, 0.0, 0.0),
+        gyro_bias_sigma_rad_s=0.0,
+        initial_rate_sigma_rad_s=0.0,
+    )
+    rows = quiet.check_sequence(sequence)
+    simulator = Simulator(quiet, 1)
+    result = simulator.run(rows, simulator.draw_noise(np.random.default_rng(0), len(rows)))
+    return np.asarray(result.omega_true[:, 0])

@@ -1,0 +1,462 @@
+"""A Pareto front of sequences an operator can fly: NSGA-II (pymoo) on the operator's
+objectives, every member re-scored on fresh draws, the baselines beside it.
+
+:func:`pareto_search` runs pymoo's NSGA-II over the L x N level indices (integer
+variables: simulated binary crossover and polynomial mutation on the real line, rounded
+back to levels, pymoo's recipe for integer problems; duplicates eliminated). Each
+generation's population is scored at once by an
+:class:`~inertia_id.search.operator.OperatorScorer` on one noise draw (common random
+numbers), on the objectives and constraints of its
+:class:`~inertia_id.search.operator.OperatorSettings`; the constraints are pymoo's
+inequality constraints (feasible first, then by violation). The first population holds
+the baselines (:mod:`inertia_id.physics.sequences`) and the all-off sequence beside
+random ones, so the search starts from what an engineer would try.
+
+Every sequence evaluated is kept; the non-dominated, feasible ones on the search's draw
+are re-scored on a fresh draw with an independent seed and more realisations
+(:func:`build_front`), and the stored front is what is feasible and non-dominated *on
+those fresh scores*, each member with a stable index (0 = the most accurate). The
+baselines are scored on the same fresh draw, and a baseline that dominates a member is
+flagged, on the member and on the baseline.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..errors import InputError
+from ..physics.scenario import Scenario
+from ..physics.sequences import BASELINES
+from .objectives import SequenceScores
+from .operator import OperatorScorer, OperatorSettings
+from .records import (
+    CurvePoint,
+    EpisodeRecord,
+    SearchProgress,
+    SearchResult,
+    evaluate_sequence,
+    fresh_seed,
+    space_size,
+)
+from .scorer import ScorerSettings
+
+__all__ = [
+    "NSGA2_DEFAULTS",
+    "Front",
+    "build_front",
+    "check_nsga2_params",
+    "dominates",
+    "non_dominated",
+    "pareto_search",
+    "scored_baselines",
+]
+
+#: NSGA-II's defaults: population size, generations, SBX and polynomial-mutation
+#: distribution indices (larger: children nearer their parents) and the crossover
+#: probability; the mutation probability per variable is 1 / (L N).
+NSGA2_DEFAULTS: dict[str, Any] = {
+    "population": 64,
+    "generations": 30,
+    "crossover_eta": 15.0,
+    "mutation_eta": 20.0,
+    "crossover_prob": 0.9,
+}
+#: Members re-scored on fresh draws at most (the non-dominated set on the search's draw
+#: is thinned evenly along the accuracy beyond this).
+MAX_FRONT_CANDIDATES = 60
+
+
+def check_nsga2_params(params: dict[str, Any] | None) -> dict[str, Any]:
+    """NSGA-II's defaults updated with ``params``, each checked; unknown names refused."""
+    params = dict(params or {})
+    unknown = sorted(set(params) - set(NSGA2_DEFAULTS))
+    if unknown:
+        raise InputError(f"unknown NSGA-II settings {unknown}; known: {sorted(NSGA2_DEFAULTS)}")
+    merged = {**NSGA2_DEFAULTS, **params}
+    for name in ("population", "generations"):
+        value = merged[name]
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, int | np.integer)
+            or not (4 if name == "population" else 1) <= value <= 10_000
+        ):
+            raise InputError(f"NSGA-II {name} must be an integer in its range, got {value!r}")
+    for name in ("crossover_eta", "mutation_eta"):
+        value = merged[name]
+        if isinstance(value, bool) or not isinstance(value, int | float) or not 0 < value <= 1000:
+            raise InputError(f"NSGA-II {name} must be a number in (0, 1000], got {value!r}")
+    prob = merged["crossover_prob"]
+    if isinstance(prob, bool) or not isinstance(prob, int | float) or not 0 <= prob <= 1:
+        raise InputError(f"NSGA-II crossover_prob must be in [0, 1], got {prob!r}")
+    return merged
+
+
+def dominates(a: np.ndarray, b: np.ndarray) -> bool:
+    """``a`` dominates ``b`` (both minimised): no worse in every objective, better in one."""
+    return bool(np.all(a <= b) and np.any(a < b))
+
+
+def non_dominated(objectives: np.ndarray) -> np.ndarray:
+    """Mask of the rows no other row dominates, (P,) for (P, M) objectives to minimise.
+
+    Identical rows do not dominate each other: both stay.
+    """
+    f = np.asarray(objectives, dtype=float)
+    no_worse = np.all(f[:, None, :] <= f[None, :, :], axis=-1)  # [i, j]: i <= j everywhere
+    better = np.any(f[:, None, :] < f[None, :, :], axis=-1)
+    dominated = np.any(no_worse & better, axis=0)
+    return np.asarray(~dominated)
+
+
+@dataclass
+class Front:
+    """The front as stored with a search: members on fresh scores, the baselines beside.
+
+    :param members: each a dict with ``index`` (stable, 0 = most accurate), ``sequence``,
+        ``scores`` (fresh), ``search_scores`` (on the search's draw, when known),
+        ``feasible`` and ``dominated_by`` (the baselines that dominate it).
+    :param baselines: by name: ``sequence``, ``scores`` (same fresh draw), ``feasible``,
+        ``dominates`` (indices of the members it dominates); or ``unavailable`` (why).
+    """
+
+    settings: OperatorSettings
+    fresh_seed: int
+    fresh_realisations: int
+    members: list[dict[str, Any]] = field(default_factory=list)
+    baselines: dict[str, dict[str, Any]] = field(default_factory=dict)
+    candidates: int = 0
+
+    @property
+    def dominated_by_baseline(self) -> bool:
+        return any(member["dominated_by"] for member in self.members)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            **self.settings.as_dict(),
+            "fresh_seed": self.fresh_seed,
+            "fresh_realisations": self.fresh_realisations,
+            "candidates_rescored": self.candidates,
+            "members": self.members,
+            "baselines": self.baselines,
+            "dominated_by_baseline": self.dominated_by_baseline,
+        }
+
+
+def scored_baselines(
+    scenario: Scenario, length: int, scorer: OperatorScorer
+) -> dict[str, tuple[np.ndarray, SequenceScores] | str]:
+    """Every baseline of ``length`` steps scored by ``scorer``; a baseline the geometry
+    or the length does not allow is the reason it is missing."""
+    made: dict[str, np.ndarray] = {}
+    out: dict[str, tuple[np.ndarray, SequenceScores] | str] = {}
+    for name, make in BASELINES.items():
+        try:
+            made[name] = make(scenario, length)
+        except InputError as exc:
+            out[name] = str(exc)
+    if made:
+        scores = scorer.score(np.stack(list(made.values())))
+        for (name, sequence), score in zip(made.items(), scores, strict=True):
+            out[name] = (sequence, score)
+    return {name: out[name] for name in BASELINES}
+
+
+def build_front(
+    scenario: Scenario,
+    sequences: Sequence[Any],
+    settings: OperatorSettings,
+    *,
+    seed: int,
+    fresh_realisations: int = 40,
+    search_scores: Sequence[SequenceScores] | None = None,
+    keep_infeasible: bool = False,
+) -> Front:
+    """Re-score ``sequences`` on a fresh draw and keep the non-dominated (and, unless
+    ``keep_infeasible``, feasible) ones; score the baselines on the same draw and flag
+    those that dominate a member.
+
+    :param seed: the fresh draw's seed (pass one independent of the search's).
+    :param search_scores: each sequence's scores on the search's draw, stored beside.
+    :param keep_infeasible: keep members that break a constraint (marked
+        ``feasible: false``): for the single best sequence of a search that did not
+        optimise the constraints.
+    """
+    settings = settings.check(scenario)
+    rows = [scenario.check_sequence(s) for s in sequences]
+    if not rows:
+        raise InputError("a front needs at least one sequence")
+    length = len(rows[0])
+    scorer = OperatorScorer(
+        scenario,
+        length,
+        OperatorSettings(
+            objectives=settings.objectives,
+            design_noise=settings.design_noise,
+            constraints=settings.constraints,
+            n_realisations=fresh_realisations,
+        ),
+        seed=seed,
+    )
+    fresh = scorer.score(np.stack(rows))
+    constraints = dict(settings.constraints)
+    vectors = np.stack([s.objective_vector(settings.objectives) for s in fresh])
+    feasible = np.array([s.feasible(constraints) for s in fresh])
+    eligible = np.ones(len(rows), bool) if keep_infeasible else feasible
+    keep = np.zeros(len(rows), bool)
+    if eligible.any():
+        keep[np.flatnonzero(eligible)[non_dominated(vectors[eligible])]] = True
+    # One member per distinct sequence; the most accurate first.
+    order = sorted(
+        (int(i) for i in np.flatnonzero(keep)),
+        key=lambda i: (-fresh[i].accuracy, fresh[i].impulse_nms),
+    )
+    seen: set[bytes] = set()
+    chosen: list[int] = []
+    for i in order:
+        key = rows[i].tobytes()
+        if key not in seen:
+            seen.add(key)
+            chosen.append(int(i))
+    front = Front(settings, int(seed), int(fresh_realisations), candidates=len(rows))
+    for index, i in enumerate(chosen):
+        front.members.append(
+            {
+                "index": index,
+                "sequence": rows[i].tolist(),
+                "scores": fresh[i].as_dict(),
+                "search_scores": None if search_scores is None else search_scores[i].as_dict(),
+                "feasible": bool(feasible[i]),
+                "dominated_by": [],
+            }
+        )
+    for name, scored in scored_baselines(scenario, length, scorer).items():
+        if isinstance(scored, str):
+            front.baselines[name] = {"unavailable": scored}
+            continue
+        sequence, score = scored
+        vector = score.objective_vector(settings.objectives)
+        beaten = [
+            member["index"]
+            for member, i in zip(front.members, chosen, strict=True)
+            if dominates(vector, vectors[i])
+        ]
+        for index in beaten:
+            front.members[index]["dominated_by"].append(name)
+        front.baselines[name] = {
+            "sequence": sequence.tolist(),
+            "scores": score.as_dict(),
+            "feasible": score.feasible(constraints),
+            "dominates": beaten,
+        }
+    return front
+
+
+class _Archive:
+    """Every sequence evaluated, with its scores on the search's draw."""
+
+    def __init__(self) -> None:
+        self.scores: dict[bytes, tuple[np.ndarray, SequenceScores]] = {}
+
+    def add(self, rows: np.ndarray, scores: list[SequenceScores]) -> None:
+        for row, score in zip(rows, scores, strict=True):
+            self.scores.setdefault(row.tobytes(), (row, score))
+
+
+def _initial_population(
+    scenario: Scenario, length: int, size: int, rng: np.random.Generator
+) -> np.ndarray:
+    seeded = []
+    for make in BASELINES.values():
+        try:
+            seeded.append(make(scenario, length))
+        except InputError:
+            continue
+    seeded.append(np.zeros((length, scenario.n_thrusters), dtype=int))
+    # Random sequences, most entries off: a uniformly random level on every thruster
+    # fires opposing thrusters almost always.
+    count = max(size - len(seeded), 0)
+    levels = rng.integers(1, scenario.n_levels, (count, length, scenario.n_thrusters))
+    on = rng.random((count, length, scenario.n_thrusters)) < 0.3
+    population = np.concatenate([np.stack(seeded)[:size], levels * on])
+    return population.reshape(len(population), -1)
+
+
+def pareto_search(
+    scenario: Scenario,
+    *,
+    sequence_length: int = 4,
+    seed: int = 0,
+    operator: OperatorSettings | None = None,
+    nsga2_params: dict[str, Any] | None = None,
+    fresh_realisations: int = 40,
+    settings: ScorerSettings | None = None,
+    n_fresh_draws: int = 5,
+    progress: Callable[[SearchProgress], None] | None = None,
+    should_stop: Callable[[], bool] | None = None,
+) -> SearchResult:
+    """NSGA-II over the operator's objectives; the front re-scored on fresh draws.
+
+    :param operator: objectives, design noise, constraints and realisations per score.
+    :param nsga2_params: overrides of :data:`NSGA2_DEFAULTS`.
+    :param fresh_realisations: realisations per candidate of the fresh re-scoring.
+    :param settings: how the best member's clustering F1 is measured on
+        ``n_fresh_draws`` fresh draws (the figure every search reports).
+    :param progress: called after every generation.
+    :param should_stop: polled after every generation; True ends the search there.
+    :param seed: seeds the noise draw and NSGA-II: the same seed, the same front.
+    """
+    from pymoo.algorithms.moo.nsga2 import NSGA2
+    from pymoo.core.problem import Problem
+    from pymoo.operators.crossover.sbx import SBX
+    from pymoo.operators.mutation.pm import PM
+    from pymoo.operators.repair.rounding import RoundingRepair
+
+    started = time.perf_counter()
+    if (
+        isinstance(sequence_length, bool)
+        or not isinstance(sequence_length, int | np.integer)
+        or not 1 <= sequence_length <= 50
+    ):
+        raise InputError(f"sequence_length must be an integer in 1..50, got {sequence_length!r}")
+    params = check_nsga2_params(nsga2_params)
+    checked = (operator or OperatorSettings()).check(scenario)
+    scorer = OperatorScorer(scenario, sequence_length, checked, seed=seed)
+    constraints = dict(checked.constraints)
+    n, m = scenario.n_thrusters, scenario.n_levels
+    n_var = sequence_length * n
+    archive = _Archive()
+
+    class _Sequences(Problem):
+        def __init__(self) -> None:
+            super().__init__(
+                n_var=n_var,
+                n_obj=len(checked.objectives),
+                n_ieq_constr=len(constraints),
+                xl=0,
+                xu=m - 1,
+                vtype=int,
+            )
+
+        def _evaluate(self, x: np.ndarray, out: dict[str, Any], *args: Any, **kwargs: Any) -> None:
+            rows = np.rint(x).astype(int).clip(0, m - 1).reshape(len(x), sequence_length, n)
+            scores = scorer.score(rows)
+            archive.add(rows, scores)
+            out["F"] = np.stack([s.objective_vector(checked.objectives) for s in scores])
+            if constraints:
+                out["G"] = np.stack([s.violations(constraints) for s in scores])
+
+    rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(4)[3])
+    algorithm = NSGA2(
+        pop_size=params["population"],
+        sampling=_initial_population(scenario, sequence_length, params["population"], rng),
+        crossover=SBX(
+            prob=params["crossover_prob"],
+            eta=params["crossover_eta"],
+            vtype=float,
+            repair=RoundingRepair(),
+        ),
+        mutation=PM(prob=1.0, eta=params["mutation_eta"], vtype=float, repair=RoundingRepair()),
+        eliminate_duplicates=True,
+    )
+    algorithm.setup(_Sequences(), termination=("n_gen", params["generations"]), seed=seed)
+    curve: list[CurvePoint] = []
+    stopped = "budget"
+    while algorithm.has_next():
+        algorithm.next()
+        population = [
+            archive.scores[np.rint(x).astype(int).reshape(sequence_length, n).tobytes()][1]
+            for x in algorithm.pop.get("X")
+        ]
+        feasible = [s for s in population if s.feasible(constraints)] or population
+        top = max(feasible, key=lambda s: s.accuracy)
+        point = CurvePoint(
+            timesteps=scorer.evaluations * sequence_length,
+            episodes=scorer.evaluations,
+            mean_episode_reward=float("nan"),
+            mean_f1=float(np.mean([s.accuracy for s in population])),
+            best_f1=top.accuracy,
+            best_final_rate_rad_s=top.final_rate_rad_s,
+        )
+        curve.append(point)
+        if progress is not None:
+            progress(
+                SearchProgress(
+                    timesteps=point.timesteps,
+                    total_timesteps=params["population"] * params["generations"] * sequence_length,
+                    episodes=point.episodes,
+                    point=point,
+                    best=None,
+                )
+            )
+        if should_stop is not None and should_stop():
+            stopped = "cancelled"
+            break
+    entries = list(archive.scores.values())
+    vectors = np.stack([s.objective_vector(checked.objectives) for _, s in entries])
+    allowed = np.array([s.feasible(constraints) for _, s in entries])
+    if not allowed.any():
+        raise InputError(
+            f"no sequence met the constraints {constraints} in {scorer.evaluations} evaluations; "
+            "loosen them or search longer"
+        )
+    candidates = np.flatnonzero(allowed)[non_dominated(vectors[allowed])]
+    candidates = candidates[
+        np.argsort([-entries[i][1].accuracy for i in candidates], kind="stable")
+    ]
+    if len(candidates) > MAX_FRONT_CANDIDATES:
+        candidates = candidates[
+            np.unique(np.linspace(0, len(candidates) - 1, MAX_FRONT_CANDIDATES).round().astype(int))
+        ]
+    front = build_front(
+        scenario,
+        [entries[i][0] for i in candidates],
+        checked,
+        seed=fresh_seed(seed),
+        fresh_realisations=fresh_realisations,
+        search_scores=[entries[i][1] for i in candidates],
+    )
+    if not front.members:
+        raise InputError(
+            f"no sequence of the front met the constraints {constraints} on the fresh draw; "
+            "loosen them or search longer"
+        )
+    best_member = front.members[0]
+    best_sequence = np.asarray(best_member["sequence"])
+    seen = archive.scores[best_sequence.tobytes()][1]
+    best = EpisodeRecord(
+        sequence=best_member["sequence"],
+        f1=seen.accuracy,
+        final_rate_rad_s=seen.final_rate_rad_s,
+        fuel_nms=seen.impulse_nms,
+        episode_return=float("nan"),
+        episode=0,
+    )
+    clustering = settings or ScorerSettings()
+    fresh = evaluate_sequence(
+        scenario, best_sequence, clustering, seed=fresh_seed(seed), n_draws=n_fresh_draws
+    )
+    return SearchResult(
+        method="nsga2",
+        best=best,
+        fresh=fresh,
+        curve=curve,
+        timesteps=scorer.evaluations * sequence_length,
+        episodes=scorer.evaluations,
+        wall_time_s=time.perf_counter() - started,
+        stopped=stopped,
+        space_size=space_size(scenario, sequence_length),
+        settings={
+            "sequence_length": sequence_length,
+            "seed": seed,
+            "nsga2": params,
+            "operator": checked.as_dict(),
+            "fresh_realisations": fresh_realisations,
+            "scorer": clustering.as_dict(),
+        },
+        front=front.to_dict(),
+    )

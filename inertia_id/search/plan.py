@@ -1,0 +1,159 @@
+"""A command plan: what a flight team uploads for a sequence, and what it predicts.
+
+Per step and thruster the commanded duty and its PWM on-time (duty x step duration, s);
+per step the commanded body torque (N m, per axis); each candidate's predicted rates at
+the end of every step (nominal: every source of noise off, the actuation lag kept), in
+rad/s and deg/s, its residual rate and its attitude change (quaternion propagation of
+the predicted rates, :mod:`inertia_id.physics.attitude`); and the propellant figures
+(on-time per thruster, the commanded impulse summed over thrusters, the propellant mass
+when the scenario gives thrust and specific impulse). As JSON (:meth:`CommandPlan.to_dict`)
+or CSV (:meth:`CommandPlan.to_csv`: one row per step, the summary as ``#`` lines first).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..physics.attitude import propagate_attitude, rotation_angle_deg
+from ..physics.scenario import Scenario
+from .operator import nominal_rates
+
+__all__ = ["CommandPlan", "command_plan"]
+
+_DEG = 180.0 / np.pi
+
+
+@dataclass(frozen=True)
+class CommandPlan:
+    """A sequence as commands, with the predicted response (see the module docstring)."""
+
+    scenario_name: str
+    sequence: list[list[int]]
+    step_duration_s: float
+    duty: list[list[float]]  # (L, N)
+    on_time_s: list[list[float]]  # (L, N)
+    torque_nm: list[list[float]]  # (L, 3)
+    candidate_names: list[str]
+    rates_rad_s: list[list[list[float]]]  # (K, L, 3) at the end of each step
+    residual_rate_rad_s: list[float]  # (K,)
+    attitude_quaternion: list[list[float]]  # (K, 4) final, (w, x, y, z)
+    attitude_change_deg: list[float]  # (K,)
+    on_time_per_thruster_s: list[float]  # (N,)
+    impulse_nms: float
+    propellant_kg: float | None
+
+    def to_dict(self) -> dict[str, Any]:
+        rates = np.asarray(self.rates_rad_s)
+        residual = np.asarray(self.residual_rate_rad_s)
+        steps = []
+        for i, row in enumerate(self.sequence):
+            steps.append(
+                {
+                    "step": i,
+                    "start_s": i * self.step_duration_s,
+                    "end_s": (i + 1) * self.step_duration_s,
+                    "levels": row,
+                    "duty": self.duty[i],
+                    "on_time_s": self.on_time_s[i],
+                    "torque_nm": self.torque_nm[i],
+                }
+            )
+        return {
+            "scenario": self.scenario_name,
+            "sequence": self.sequence,
+            "step_duration_s": self.step_duration_s,
+            "duration_s": len(self.sequence) * self.step_duration_s,
+            "steps": steps,
+            "candidates": [
+                {
+                    "name": name,
+                    "rates_rad_s": rates[k].tolist(),
+                    "rates_deg_s": (rates[k] * _DEG).tolist(),
+                    "residual_rate_rad_s": float(residual[k]),
+                    "residual_rate_deg_s": float(residual[k] * _DEG),
+                    "attitude_quaternion": self.attitude_quaternion[k],
+                    "attitude_change_deg": self.attitude_change_deg[k],
+                }
+                for k, name in enumerate(self.candidate_names)
+            ],
+            "residual_rate_max_rad_s": float(residual.max()),
+            "residual_rate_max_deg_s": float(residual.max() * _DEG),
+            "propellant": {
+                "on_time_per_thruster_s": self.on_time_per_thruster_s,
+                "on_time_s": float(np.sum(self.on_time_per_thruster_s)),
+                "impulse_nms": self.impulse_nms,
+                "impulse_note": "commanded angular impulse summed over thrusters (every "
+                "firing counts, opposed or not): a propellant proxy",
+                "propellant_kg": self.propellant_kg,
+            },
+        }
+
+    def to_csv(self) -> str:
+        """One row per step (on-times, duties, torque, each candidate's predicted rates at
+        the step's end); the totals as ``# name: value`` lines before the header."""
+        document = self.to_dict()
+        out = io.StringIO()
+        propellant = document["propellant"]
+        out.write(f"# scenario: {self.scenario_name}\n")
+        out.write(f"# step_duration_s: {self.step_duration_s:g}\n")
+        out.write(f"# impulse_nms: {self.impulse_nms:.6g}\n")
+        out.write(f"# on_time_s: {propellant['on_time_s']:.6g}\n")
+        kg = self.propellant_kg
+        out.write(f"# propellant_kg: {'' if kg is None else f'{kg:.6g}'}\n")
+        for candidate in document["candidates"]:
+            out.write(
+                f"# {candidate['name']}: residual_rate_rad_s {candidate['residual_rate_rad_s']:.6g}"
+                f", residual_rate_deg_s {candidate['residual_rate_deg_s']:.6g}"
+                f", attitude_change_deg {candidate['attitude_change_deg']:.6g}\n"
+            )
+        n = len(self.sequence[0])
+        header = ["step", "start_s", "end_s"]
+        header += [f"on_time_s_t{j}" for j in range(n)] + [f"duty_t{j}" for j in range(n)]
+        header += ["torque_x_nm", "torque_y_nm", "torque_z_nm"]
+        for k in range(len(self.candidate_names)):
+            header += [f"c{k}_w{axis}_rad_s" for axis in "xyz"]
+            header += [f"c{k}_w{axis}_deg_s" for axis in "xyz"]
+        writer = csv.writer(out, lineterminator="\n")
+        writer.writerow(header)
+        rates = np.asarray(self.rates_rad_s)
+        for i, step in enumerate(document["steps"]):
+            row: list[Any] = [i, step["start_s"], step["end_s"]]
+            row += [f"{v:.6g}" for v in step["on_time_s"]] + [f"{v:.6g}" for v in step["duty"]]
+            row += [f"{v:.6g}" for v in step["torque_nm"]]
+            for k in range(len(self.candidate_names)):
+                row += [f"{v:.6g}" for v in rates[k, i]]
+                row += [f"{v:.6g}" for v in rates[k, i] * _DEG]
+            writer.writerow(row)
+        return out.getvalue()
+
+
+def command_plan(scenario: Scenario, sequence: Any) -> CommandPlan:
+    """The command plan of ``sequence`` ((L, N) level indices) for ``scenario``."""
+    rows = scenario.check_sequence(sequence)
+    duty = scenario.duties(rows)  # (L, N)
+    step = scenario.timing.step_duration_s
+    rates = nominal_rates(scenario, rows)  # (K, T, 3)
+    per_step = scenario.timing.samples_per_step
+    quaternions = propagate_attitude(rates, 1.0 / scenario.timing.sample_rate_hz)[:, -1]
+    end = rates[:, per_step - 1 :: per_step]  # (K, L, 3)
+    return CommandPlan(
+        scenario_name=scenario.name,
+        sequence=rows.tolist(),
+        step_duration_s=step,
+        duty=duty.tolist(),
+        on_time_s=(duty * step).tolist(),
+        torque_nm=(duty @ scenario.torque_matrix.T).tolist(),
+        candidate_names=scenario.candidate_names,
+        rates_rad_s=end.tolist(),
+        residual_rate_rad_s=np.linalg.norm(rates[:, -1], axis=-1).tolist(),
+        attitude_quaternion=quaternions.tolist(),
+        attitude_change_deg=rotation_angle_deg(quaternions).tolist(),
+        on_time_per_thruster_s=scenario.on_time_s(rows).tolist(),
+        impulse_nms=scenario.impulse_nms(rows),
+        propellant_kg=scenario.propellant_kg(rows),
+    )

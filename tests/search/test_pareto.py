@@ -1,0 +1,219 @@
+"""The operator's objectives, the Pareto front, the baselines for any geometry, the
+command plan and the attitude change."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from inertia_id import InputError, Scenario, preset
+from inertia_id.physics.attitude import propagate_attitude, rotation_angle_deg
+from inertia_id.physics.sequences import BASELINES, axis_in_turn, hand_designed, principal_axes
+from inertia_id.physics.simulate import Simulator
+from inertia_id.search import OperatorScorer, OperatorSettings, pareto_search
+from inertia_id.search.pareto import dominates, non_dominated
+from inertia_id.search.plan import command_plan
+
+
+@pytest.fixture(scope="module")
+def small_front(paper: Scenario) -> dict:
+    result = pareto_search(
+        paper,
+        sequence_length=2,
+        seed=4,
+        operator=OperatorSettings(
+            objectives=("accuracy", "final_rate", "impulse"),
+            constraints={"max_impulse_nms": 12.0, "max_peak_rate_deg_s": 3.0},
+            n_realisations=6,
+        ),
+        nsga2_params={"population": 12, "generations": 3},
+        fresh_realisations=10,
+    )
+    assert result.front is not None
+    return result.front
+
+
+def test_the_front_is_non_dominated_on_its_own_fresh_scores(small_front: dict) -> None:
+    members = small_front["members"]
+    assert members and [m["index"] for m in members] == list(range(len(members)))
+    vectors = np.array(
+        [
+            [-m["scores"]["accuracy"], m["scores"]["final_rate_rad_s"], m["scores"]["impulse_nms"]]
+            for m in members
+        ]
+    )
+    assert non_dominated(vectors).all()
+    accuracies = [m["scores"]["accuracy"] for m in members]
+    assert accuracies == sorted(accuracies, reverse=True)
+
+
+def test_every_member_meets_the_constraints(small_front: dict) -> None:
+    for member in small_front["members"]:
+        assert member["feasible"]
+        assert member["scores"]["impulse_nms"] <= 12.0
+        assert member["scores"]["peak_rate_deg_s"] <= 3.0
+
+
+def test_a_baseline_that_dominates_a_member_is_flagged(small_front: dict) -> None:
+    objectives = ("accuracy", "final_rate_rad_s", "impulse_nms")
+
+    def vector(scores: dict) -> np.ndarray:
+        return np.array([-scores["accuracy"], scores[objectives[1]], scores[objectives[2]]])
+
+    for name, base in small_front["baselines"].items():
+        if "unavailable" in base:
+            continue
+        for member in small_front["members"]:
+            expected = dominates(vector(base["scores"]), vector(member["scores"]))
+            assert (member["index"] in base["dominates"]) == expected
+            assert (name in member["dominated_by"]) == expected
+    assert small_front["dominated_by_baseline"] == any(
+        m["dominated_by"] for m in small_front["members"]
+    )
+
+
+def test_the_same_seed_gives_the_same_front(paper: Scenario, small_front: dict) -> None:
+    again = pareto_search(
+        paper,
+        sequence_length=2,
+        seed=4,
+        operator=OperatorSettings(
+            constraints={"max_impulse_nms": 12.0, "max_peak_rate_deg_s": 3.0}, n_realisations=6
+        ),
+        nsga2_params={"population": 12, "generations": 3},
+        fresh_realisations=10,
+    )
+    assert again.front == small_front
+
+
+def test_non_dominated_keeps_exactly_the_undominated_rows() -> None:
+    points = np.array([[0.0, 1.0], [1.0, 0.0], [1.0, 1.0], [0.5, 0.5], [0.5, 0.5]])
+    assert non_dominated(points).tolist() == [True, True, False, True, True]
+
+
+def test_opposing_thrusters_cost_propellant() -> None:
+    scenario = preset(
+        "paper",
+        thrusters={
+            "nominal_torque_nm": 2.0,
+            "n_levels": 5,
+            "thrust_n": 4.0,
+            "specific_impulse_s": 220.0,
+        },
+    )
+    opposed = [[4, 0, 0, 4, 0, 0]]  # +x and -x at full duty: no net torque
+    assert np.allclose(scenario.torque_matrix @ scenario.duties(opposed)[0], 0.0)
+    assert scenario.impulse_nms(opposed) == pytest.approx(4.0)  # 2 N m s each
+    assert scenario.on_time_s(opposed).sum() == pytest.approx(2.0)
+    expected_kg = 4.0 * 2.0 / (220.0 * 9.80665)
+    assert scenario.propellant_kg(opposed) == pytest.approx(expected_kg)
+    scores = OperatorScorer(scenario, 1, OperatorSettings(n_realisations=4), seed=0).score(
+        [opposed, [[0] * 6]]
+    )
+    assert scores[0].impulse_nms == pytest.approx(4.0) and scores[1].impulse_nms == 0.0
+    assert scores[0].propellant_kg == pytest.approx(expected_kg)
+    # The lever-arm form gives the same thrust: |A_j| / arm = 2 N m / 0.5 m = 4 N.
+    by_arm = preset(
+        "paper",
+        thrusters={
+            "nominal_torque_nm": 2.0,
+            "n_levels": 5,
+            "lever_arm_m": 0.5,
+            "specific_impulse_s": 220.0,
+        },
+    )
+    assert by_arm.propellant_kg(opposed) == pytest.approx(expected_kg)
+
+
+def test_propulsion_fields_are_validated() -> None:
+    with pytest.raises(ValueError, match="not both"):
+        preset(
+            "paper",
+            thrusters={
+                "nominal_torque_nm": 2.0,
+                "n_levels": 5,
+                "thrust_n": 4.0,
+                "lever_arm_m": 0.5,
+            },
+        )
+    with pytest.raises(ValueError, match="one value per thruster"):
+        preset("paper", thrusters={"nominal_torque_nm": 2.0, "n_levels": 5, "thrust_n": [4.0]})
+    with pytest.raises(ValueError, match="specific_impulse_s"):
+        preset(
+            "paper", thrusters={"nominal_torque_nm": 2.0, "n_levels": 5, "specific_impulse_s": -1.0}
+        )
+
+
+def _canted() -> Scenario:
+    angles = np.radians([35.0, 25.0, 40.0])
+    cx, cy, cz = np.cos(angles)
+    sx, sy, sz = np.sin(angles)
+    rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+    ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+    rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+    matrix = rz @ ry @ rx @ (2.0 * np.hstack([np.eye(3), -np.eye(3)]))
+    return preset("paper", thrusters={"torque_matrix_nm": matrix.tolist(), "n_levels": 5})
+
+
+def test_baselines_for_canted_thrusters_differ_and_make_sense() -> None:
+    scenario = _canted()
+    torque = scenario.torque_matrix
+    hand, turn = hand_designed(scenario, 3), axis_in_turn(scenario, 3)
+    assert not np.array_equal(hand, turn)
+    axes = principal_axes(scenario)
+    hand_torque = torque @ scenario.level_values[hand[0]]
+    assert np.all(axes @ hand_torque > 0)  # drives every principal axis positively
+    for step in range(3):
+        applied = torque @ scenario.level_values[turn[step]]
+        cosine = axes[step] @ applied / np.linalg.norm(applied)
+        single = max(axes[step] @ torque[:, j] / np.linalg.norm(torque[:, j]) for j in range(6))
+        assert cosine >= single - 1e-12  # at least as well aligned as any one thruster
+        assert cosine > 0.9
+        fired = np.flatnonzero(turn[step])
+        assert np.all(torque[:, fired].T @ torque[:, fired] >= -1e-9)  # none opposed
+    for name in ("fire-then-brake", "fire-coast-brake"):
+        sequence = BASELINES[name](scenario, 4)
+        net = (torque @ scenario.level_values[sequence].T).sum(axis=1)
+        assert np.linalg.norm(net) < 0.05 * np.linalg.norm(hand_torque)  # ends near rest
+
+
+def test_paper_baselines_are_the_issues_sequences(paper: Scenario) -> None:
+    fire, brake, off = [4, 4, 4, 0, 0, 0], [0, 0, 0, 4, 4, 4], [0] * 6
+    assert BASELINES["fire-then-brake"](paper, 4).tolist() == [fire, fire, brake, brake]
+    assert BASELINES["fire-coast-brake"](paper, 8).tolist() == [fire] * 2 + [off] * 4 + [brake] * 2
+    with pytest.raises(InputError, match="at least 2 steps"):
+        BASELINES["fire-then-brake"](paper, 1)
+
+
+def test_quaternion_propagation_matches_a_constant_rate_about_one_axis() -> None:
+    rate, period, samples = 0.3, 0.05, 200
+    omega = np.zeros((samples, 3))
+    omega[:, 2] = rate
+    q = propagate_attitude(omega, period, omega0_rad_s=[0.0, 0.0, rate])
+    angle = rate * period * np.arange(1, samples + 1)
+    expected = np.stack([np.cos(angle / 2), 0 * angle, 0 * angle, np.sin(angle / 2)], axis=-1)
+    assert np.allclose(q, expected, atol=1e-12)
+    assert rotation_angle_deg(q[-1]) == pytest.approx(np.degrees(rate * period * samples))
+
+
+def test_the_plans_on_times_reproduce_the_simulated_impulse(paper: Scenario) -> None:
+    sequence = [[4, 2, 0, 0, 1, 3], [0, 0, 4, 4, 0, 0], [1, 1, 1, 0, 0, 0]]
+    quiet = paper.with_uncertainty(
+        duty_jitter_sigma=0.0, disturbance_torque_sigma_nm=0.0, gyro_noise_sigma_rad_s=0.0
+    )
+    plan = command_plan(quiet, sequence)
+    document = plan.to_dict()
+    per_thruster = np.linalg.norm(quiet.torque_matrix, axis=0)
+    on_time = np.array([step["on_time_s"] for step in document["steps"]])
+    assert on_time.sum(axis=0) @ per_thruster == pytest.approx(plan.impulse_nms)
+    simulator = Simulator(quiet, 1)
+    result = simulator.run(np.asarray(sequence), simulator.draw_noise(np.random.default_rng(0), 3))
+    assert plan.impulse_nms == pytest.approx(result.impulse_nms)
+    # On-times times each thruster's torque: the angular impulse the simulator commands.
+    commanded = result.commanded_torque_nm[0, 0] * quiet.timing.step_duration_s  # (L, 3)
+    assert np.allclose(on_time @ quiet.torque_matrix.T, commanded)
+    csv_text = plan.to_csv()
+    assert "on_time_s_t0" in csv_text and csv_text.count("\n") == 5 + 5 + 1 + 3
+    rates = np.array(document["candidates"][0]["rates_rad_s"])
+    degrees = np.array(document["candidates"][0]["rates_deg_s"])
+    assert np.allclose(degrees, np.degrees(rates))
