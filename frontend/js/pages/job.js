@@ -208,6 +208,8 @@ function baselineTable(result, best, freshF1) {
   const mean = (values) => values.reduce((a, b) => a + b, 0) / Math.max(1, values.length);
   const rows = [["found by the search", freshF1, result.fresh.final_rate_rad_s, best.fuel_nms, best.sequence]];
   for (const [name, base] of Object.entries(result.baselines)) {
+    // A baseline the sequence length or the thrusters do not allow says why instead.
+    if (base.unavailable) continue;
     rows.push([name, base.fresh_f1, base.fresh_final_rate_rad_s, base.fuel_nms, base.sequence]);
   }
   return h(
