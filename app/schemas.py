@@ -15,6 +15,7 @@ from pydantic import (
     BaseModel,
     ConfigDict,
     Field,
+    computed_field,
     field_validator,
     model_validator,
 )
@@ -29,6 +30,7 @@ from service.params import (
     SweepParams,
     TrainParams,
 )
+from service.store.models import MAX_NAME_LENGTH, MAX_TAG_LENGTH, MAX_TAGS, utcnow
 
 __all__ = [
     "MAX_SEED",
@@ -44,6 +46,7 @@ __all__ = [
     "JobOut",
     "JobPage",
     "JobSubmitted",
+    "JobUpdate",
     "MetricSeries",
     "MetricsOut",
     "ScenarioCreate",
@@ -72,6 +75,7 @@ def _clip(text: str, limit: int = 60) -> str:
 
 JobType = Literal["search", "train", "sweep"]
 JobStatus = Literal["queued", "running", "succeeded", "failed", "cancelled"]
+_TERMINAL = ("succeeded", "failed", "cancelled")
 
 
 def as_utc(value: datetime) -> datetime:
@@ -205,12 +209,84 @@ class ScenarioResponse(BaseModel):
     candidates: list[CandidateResponse]
 
 
-class _JobCreate(_Request):
+def _has_control(text: str) -> bool:
+    return any(ord(c) < 32 or ord(c) == 127 for c in text)
+
+
+def _check_name(value: str | None) -> str | None:
+    if value is None:
+        return None
+    value = value.strip()
+    if _has_control(value):
+        raise ValueError(f"a job name must not contain control characters, got {_clip(value)!r}")
+    if len(value) > MAX_NAME_LENGTH:
+        raise ValueError(
+            f"a job name is at most {MAX_NAME_LENGTH} characters, got {len(value)}: "
+            f"{_clip(value)!r}"
+        )
+    return value or None
+
+
+def _check_tags(values: list[str] | None) -> list[str] | None:
+    if values is None:
+        return None
+    tags = []
+    for raw in values:
+        tag = raw.strip()
+        if not tag or len(tag) > MAX_TAG_LENGTH or _has_control(tag) or "," in tag:
+            raise ValueError(
+                f"a tag is 1 to {MAX_TAG_LENGTH} characters without commas or control "
+                f"characters, got {_clip(raw)!r}"
+            )
+        tags.append(tag)
+    tags = list(dict.fromkeys(tags))
+    if len(tags) > MAX_TAGS:
+        raise ValueError(f"at most {MAX_TAGS} tags per job, got {len(tags)}")
+    return tags
+
+
+class _Labels(_Request):
+    name: Annotated[
+        str | None,
+        Field(
+            default=None,
+            description=f"a name for people (at most {MAX_NAME_LENGTH} characters); not part "
+            "of the job's identity",
+            examples=["PPO, paper preset, fuel-weighted"],
+        ),
+    ]
+    tags: Annotated[
+        list[str] | None,
+        Field(
+            default=None,
+            description=f"labels to filter by (at most {MAX_TAGS}, each 1 to "
+            f"{MAX_TAG_LENGTH} characters, no commas); not part of the job's identity",
+            examples=[["baseline", "flight-2"]],
+        ),
+    ]
+
+    @field_validator("name", mode="after")
+    @classmethod
+    def _name(cls, value: str | None) -> str | None:
+        return _check_name(value)
+
+    @field_validator("tags", mode="after")
+    @classmethod
+    def _tags(cls, value: list[str] | None) -> list[str] | None:
+        return _check_tags(value)
+
+
+class _JobCreate(_Labels):
     scenario_id: str = Field(max_length=64)
     seed: int = Field(default=0, ge=0, le=MAX_SEED)
     rerun: bool = Field(
         default=False, description="run again even if the same job exists (not failed/cancelled)"
     )
+
+
+class JobUpdate(_Labels):
+    """New labels for a job: a field given replaces the old value (``"name": null``
+    clears the name, ``"tags": []`` removes every tag); a field left out is kept."""
 
 
 class SearchJobCreate(_JobCreate):
@@ -261,11 +337,29 @@ class JobOut(BaseModel):
         description="when the job's message last went to the broker; null while it waits "
         "to be sent (the broker was unreachable)",
     )
+    name: str | None = Field(default=None, description="a person's name for the run")
+    tags: list[str] = Field(default_factory=list)
+    summary: dict[str, float | None] | None = Field(
+        default=None,
+        description="the result's headline figures (keys: GET /vocabulary job_summaries)",
+    )
 
-    @field_validator("params", "result", mode="after")
+    @field_validator("params", "result", "summary", mode="after")
     @classmethod
     def _finite(cls, value: Any) -> Any:
         return finite_or_none(value)
+
+    @computed_field(description="s from submission to the start of its last run (or to now)")
+    def queue_time_s(self) -> float:
+        end = self.started_at or (self.finished_at if self.status in _TERMINAL else None)
+        return max(0.0, ((end or utcnow()) - self.created_at).total_seconds())
+
+    @computed_field(description="s the last run took (so far, while it runs); null before")
+    def run_time_s(self) -> float | None:
+        if self.started_at is None:
+            return None
+        end = self.finished_at or utcnow()
+        return max(0.0, (end - self.started_at).total_seconds())
 
 
 class JobSubmitted(JobOut):
@@ -315,6 +409,8 @@ class ClassifierOut(BaseModel):
     confusion: list[list[int]] = Field(description="row = true candidate, column = predicted")
     sha256: str
     created_at: UtcDatetime
+    job_name: str | None = Field(default=None, description="the training job's name")
+    tags: list[str] = Field(default_factory=list, description="the training job's tags")
 
 
 class ClassifierPage(BaseModel):

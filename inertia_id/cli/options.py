@@ -134,15 +134,22 @@ def parse_sequence(text: str) -> list[list[int]]:
 DEFAULT_SEQUENCE_TEXT = ";".join(",".join(map(str, row)) for row in PAPER_SEQUENCE)
 
 
-def sequence_option(default: str | None = None) -> Callable[[F], F]:
+def sequence_option(
+    default: str | None = None, *, required: bool = False, when_omitted: str = ""
+) -> Callable[[F], F]:
+    """``--sequence``; optional unless ``required`` (``when_omitted`` says what happens
+    without it, in the help)."""
+    help_text = (
+        "Level indices per thruster, steps separated by ';' (e.g. '4,4,4,0,0,0;"
+        "4,4,4,0,0,0'), a JSON list of rows, or a JSON file."
+    )
     return click.option(
         "--sequence",
         "sequence_text",
         default=default,
-        required=default is None,
+        required=required,
         show_default=default is not None,
-        help="Level indices per thruster, steps separated by ';' (e.g. '4,4,4,0,0,0;"
-        "4,4,4,0,0,0'), a JSON list of rows, or a JSON file.",
+        help=f"{help_text} {when_omitted}".strip(),
     )
 
 

@@ -39,7 +39,7 @@ def _metrics() -> tuple[str, ...]:
 
 
 @click.command("paper")
-@sequence_option(None)
+@sequence_option(None, when_omitted="Optional: without it, one is searched for (--search).")
 @click.option(
     "--search",
     "search_method",
