@@ -11,7 +11,15 @@ from sqlalchemy.orm import Session
 from service.store.models import ClassifierRow, JobRow, JobTagRow
 
 from ..schemas import ClassifierOut, ClassifierPage
-from .deps import PagingDep, SessionDep, checked_tags, get_or_404, plausible_id, unprocessable
+from .deps import (
+    PagingDep,
+    SessionDep,
+    TagText,
+    checked_tags,
+    get_or_404,
+    plausible_id,
+    unprocessable,
+)
 
 __all__ = ["router"]
 
@@ -58,7 +66,7 @@ def list_classifiers(
         ),
     ] = None,
     tag: Annotated[
-        list[str] | None,
+        list[TagText] | None,
         Query(description="classifiers whose training job carries this tag"),
     ] = None,
     sort: Annotated[

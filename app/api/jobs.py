@@ -52,6 +52,7 @@ from .deps import (
     PagingDep,
     SessionDep,
     SettingsDep,
+    TagText,
     checked_tags,
     get_or_404,
     plausible_id,
@@ -264,7 +265,7 @@ def list_jobs(
         ),
     ] = None,
     tag: Annotated[
-        list[str] | None,
+        list[TagText] | None,
         Query(description="jobs carrying this tag (repeat for all of several)"),
     ] = None,
     classifier_id: Annotated[

@@ -190,8 +190,9 @@ def test_lists_sort_by_a_summary_figure_and_filter_by_text_tag_and_status(api: A
     [
         ({"sort": "colour"}, "'colour'"),
         ({"order": "up"}, "asc"),
-        ({"tag": "x" * 65}, "1 to 64 characters"),
-        ({"tag": ""}, "''"),
+        ({"tag": "x" * 65}, "at most 64 characters"),
+        ({"tag": ""}, "at least 1 character"),
+        ({"tag": "a,b"}, "'a,b'"),
         ({"q": "a\x00b"}, "q"),
     ],
 )
