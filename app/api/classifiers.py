@@ -70,7 +70,12 @@ def list_classifiers(
         Query(description="classifiers whose training job carries this tag"),
     ] = None,
     sort: Annotated[
-        str, Query(max_length=64, description="created, f1, accuracy, kind, metric or name")
+        str,
+        Query(
+            max_length=64,
+            description="created, f1, accuracy, kind, metric or name",
+            json_schema_extra={"enum": list(_SORT_COLUMNS)},
+        ),
     ] = "created",
     order: Annotated[Literal["asc", "desc"], Query()] = "desc",
 ) -> ClassifierPage:

@@ -19,7 +19,7 @@ from sqlalchemy import ColumnElement, func, or_, select
 
 from inertia_id.errors import InputError
 from inertia_id.physics.scenario import Scenario
-from service.exports import metrics_table, result_table, to_csv
+from service.exports import RESULT_TABLES, metrics_table, result_table, to_csv
 from service.queue import RUN_JOB_TASK
 from service.store import jobs as job_store
 from service.store.models import (
@@ -277,6 +277,7 @@ def list_jobs(
             max_length=64,
             description="created, started, finished, name, status, type, seed, progress, or a "
             "summary figure (GET /vocabulary job_summaries), e.g. fresh_f1",
+            json_schema_extra={"enum": list(JOB_SORT_KEYS)},
         ),
     ] = "created",
     order: Annotated[SortOrder, Query(description="asc or desc")] = "desc",
@@ -341,6 +342,7 @@ def update_job(job_id: str, body: JobUpdate, session: SessionDep) -> JobOut:
 
 
 ExportFormat = Literal["json", "csv"]
+_TABLE_NAMES = list(dict.fromkeys(name for tables in RESULT_TABLES.values() for name in tables))
 
 
 def _download(content: str, media_type: str, filename: str) -> Response:
@@ -374,8 +376,9 @@ def download_result(
         str | None,
         Query(
             max_length=64,
-            pattern=r"^[a-z_]*$",
-            description="with csv: which table (GET /vocabulary result_tables); default the first",
+            description="with csv: which table of the job type's (GET /vocabulary "
+            "result_tables); default the first",
+            json_schema_extra={"enum": _TABLE_NAMES},
         ),
     ] = None,
 ) -> Response:

@@ -52,10 +52,12 @@ export function fmt(value, digits = 3) {
 }
 
 // A value as a person types it: at most `significant` significant digits, trailing zeros
-// and the sign of zero dropped (2, 0.25, 1.41421, never -0 or 0.30000000000000004).
+// and the sign of zero dropped (2, 0.25, 1.41421, never -0 or 0.30000000000000004);
+// `significant` null keeps every digit (the shortest text that reads back as the value),
+// for a form that must give back what it was filled with.
 export function plain(value, significant = 6) {
   if (typeof value !== "number" || !Number.isFinite(value)) return String(value);
-  const rounded = Number(value.toPrecision(significant));
+  const rounded = significant === null ? value : Number(value.toPrecision(significant));
   return Object.is(rounded, -0) || rounded === 0 ? "0" : String(rounded);
 }
 

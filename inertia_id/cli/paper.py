@@ -46,8 +46,8 @@ def _metrics() -> tuple[str, ...]:
     default="ppo",
     show_default=True,
     type=LazyChoice(_searches),
-    help="How to find the sequence when --sequence is not given ('none': the "
-    "hand-designed excitation).",
+    help="How to find the sequence when --sequence is not given: ppo (the paper's), cem, "
+    "random, or none (the hand-designed excitation).",
 )
 @search_options
 @click.option(
@@ -55,7 +55,7 @@ def _metrics() -> tuple[str, ...]:
     default="dtw",
     show_default=True,
     type=LazyChoice(_metrics),
-    help="Clustering metric (dtw is the paper's; softdtw is slow).",
+    help="Clustering metric: dtw (the paper's), euclidean, or softdtw (slow).",
 )
 @realisations_option("Training realisations per candidate (the paper's 20).")
 @multiples_option

@@ -37,7 +37,9 @@ def _needs(*names: str) -> None:
 
 def _hash_id(dashboard: Dashboard, prefix: str) -> str:
     """The id in the page's ``#/<prefix>/<id>`` route, once the page has navigated there."""
-    dashboard.page.wait_for_url(f"**/#/{prefix}/*")
+    dashboard.page.wait_for_function(
+        "prefix => new RegExp(`^#/${prefix}/[0-9a-f]{32}`).test(location.hash)", arg=prefix
+    )
     return str(dashboard.page.url.split(f"#/{prefix}/")[1].split("?")[0])
 
 
@@ -518,48 +520,6 @@ def test_the_api_docs_render_their_operations_offline(dashboard: Dashboard) -> N
     assert outside == []
 
 
-LAYOUT_ROUTES = {
-    "scenarios": lambda: "#/scenarios",
-    "scenario": lambda: f"#/scenarios/{made['scenario']}",
-    "new-scenario": lambda: "#/scenarios/new",
-    "jobs": lambda: "#/jobs",
-    "search": lambda: f"#/jobs/{made['search']}",
-    "sweep": lambda: f"#/jobs/{made['sweep']}",
-    "classifiers": lambda: "#/classifiers",
-    "classifier": lambda: f"#/classifiers/{made['classifier']}",
-    "compare-searches": lambda: f"#/compare?type=search&ids={made['search']},{made['cem']}",
-    "compare-sweeps": lambda: f"#/compare?type=sweep&ids={made['sweep']}",
-    "identify": lambda: f"#/identify?classifier={made['classifier']}",
-}
-# What each page draws last, so the check runs on the finished page.
-LAYOUT_READY = {
-    "scenario": "#moments-plot .legend",
-    "search": "#response-plot .legend",
-    "sweep": "#inertia-plot .legend",
-    "classifier": "#classifier-response .legend",
-    "compare-searches": "#compare-tradeoff .main-svg",
-    "compare-sweeps": "#compare-accuracy-process .legend",
-}
-
-
-@pytest.mark.parametrize("width", [1366, 1920])
-def test_every_page_type_fits_with_no_legend_over_the_plot(
-    dashboard: Dashboard, width: int
-) -> None:
-    _needs("scenario", "search", "cem", "classifier", "sweep")
-    page = dashboard.page
-    page.set_viewport_size({"width": width, "height": 900})
-    for name, route in LAYOUT_ROUTES.items():
-        dashboard.open(route())
-        page.wait_for_load_state("networkidle")
-        if name in LAYOUT_READY:
-            page.wait_for_selector(LAYOUT_READY[name], timeout=60_000)
-        problems = page.evaluate(LAYOUT_PROBLEMS_JS)
-        assert problems == [], f"{name} at {width} px: {problems}"
-        if width == 1366:
-            dashboard.screenshot(f"page-{name}")
-
-
 def test_an_identical_resubmission_says_it_reused_the_result_and_can_run_again(
     dashboard: Dashboard,
 ) -> None:
@@ -639,3 +599,45 @@ def test_a_cancel_asks_first_then_cancels(dashboard: Dashboard) -> None:
     page.click("#confirm-yes")
     page.wait_for_selector("#job-header .badge.status-cancelled", timeout=120_000)
     assert dashboard.service.job(job_id)["status"] == "cancelled"
+
+
+LAYOUT_ROUTES = {
+    "scenarios": lambda: "#/scenarios",
+    "scenario": lambda: f"#/scenarios/{made['scenario']}",
+    "new-scenario": lambda: "#/scenarios/new",
+    "jobs": lambda: "#/jobs",
+    "search": lambda: f"#/jobs/{made['search']}",
+    "sweep": lambda: f"#/jobs/{made['sweep']}",
+    "classifiers": lambda: "#/classifiers",
+    "classifier": lambda: f"#/classifiers/{made['classifier']}",
+    "compare-searches": lambda: f"#/compare?type=search&ids={made['search']},{made['cem']}",
+    "compare-sweeps": lambda: f"#/compare?type=sweep&ids={made['sweep']}",
+    "identify": lambda: f"#/identify?classifier={made['classifier']}",
+}
+# What each page draws last, so the check runs on the finished page.
+LAYOUT_READY = {
+    "scenario": "#moments-plot .legend",
+    "search": "#response-plot .legend",
+    "sweep": "#inertia-plot .legend",
+    "classifier": "#classifier-response .legend",
+    "compare-searches": "#compare-tradeoff .main-svg",
+    "compare-sweeps": "#compare-accuracy-process .legend",
+}
+
+
+@pytest.mark.parametrize("width", [1366, 1920])
+def test_every_page_type_fits_with_no_legend_over_the_plot(
+    dashboard: Dashboard, width: int
+) -> None:
+    _needs("scenario", "search", "cem", "classifier", "sweep")
+    page = dashboard.page
+    page.set_viewport_size({"width": width, "height": 900})
+    for name, route in LAYOUT_ROUTES.items():
+        dashboard.open(route())
+        page.wait_for_load_state("networkidle")
+        if name in LAYOUT_READY:
+            page.wait_for_selector(LAYOUT_READY[name], timeout=60_000)
+        problems = page.evaluate(LAYOUT_PROBLEMS_JS)
+        assert problems == [], f"{name} at {width} px: {problems}"
+        if width == 1366:
+            dashboard.screenshot(f"page-{name}")

@@ -311,7 +311,7 @@ function buildForm(preset, general, suffix = " (edited)") {
       {},
       h("td", {}, h("input", { value: candidate.name, "aria-label": "candidate name", class: "cand-name" })),
       COMPONENTS.map(([n, i, j]) =>
-        h("td", {}, h("input", { value: plain(candidate.inertia_kg_m2[i][j], 12), "aria-label": n, class: `cand-${n}`, inputmode: "decimal" })),
+        h("td", {}, h("input", { value: plain(candidate.inertia_kg_m2[i][j], null), "aria-label": n, class: `cand-${n}`, inputmode: "decimal" })),
       ),
       h("td", {}, h("button", { type: "button", class: "secondary", onclick: () => { clearRowError(row); row.remove(); } }, "remove")),
     );
@@ -334,7 +334,7 @@ function buildForm(preset, general, suffix = " (edited)") {
     matrixHead.append(h("th", {}, "axis (N m)"), ...matrix[0].map((_, j) => h("th", {}, `thruster ${j + 1}`)));
     matrix.forEach((row, i) => {
       matrixBody.append(
-        h("tr", {}, h("th", {}, ["x", "y", "z"][i]), row.map((v, j) => h("td", {}, h("input", { value: plain(v, 12), "aria-label": `torque ${"xyz"[i]} of thruster ${j + 1}`, inputmode: "decimal" })))),
+        h("tr", {}, h("th", {}, ["x", "y", "z"][i]), row.map((v, j) => h("td", {}, h("input", { value: plain(v, null), "aria-label": `torque ${"xyz"[i]} of thruster ${j + 1}`, inputmode: "decimal" })))),
       );
     });
   };
@@ -346,18 +346,18 @@ function buildForm(preset, general, suffix = " (edited)") {
     h("button", { type: "button", class: "secondary", onclick: () => { matrix = readMatrix().map((r) => r.slice(0, Math.max(1, r.length - 1))); drawMatrix(); } }, "remove last thruster"),
   );
 
-  const levelsInput = h("input", { id: "levels", name: "levels", value: preset.thrusters.levels.map((v) => plain(v, 12)).join(", "), size: 40 });
+  const levelsInput = h("input", { id: "levels", name: "levels", value: preset.thrusters.levels.map((v) => plain(v, null)).join(", "), size: 40 });
   fields["thrusters.levels"] = levelsInput;
 
   const timingInputs = {};
   for (const [key] of TIMING_FIELDS) {
-    timingInputs[key] = h("input", { id: `timing-${key}`, value: plain(preset.timing[key], 12), inputmode: "decimal" });
+    timingInputs[key] = h("input", { id: `timing-${key}`, value: plain(preset.timing[key], null), inputmode: "decimal" });
     fields[`timing.${key}`] = timingInputs[key];
   }
   const noiseInputs = {};
   for (const [key] of UNCERTAINTY_FIELDS) {
     const value = preset.uncertainty[key];
-    noiseInputs[key] = h("input", { id: `noise-${key}`, value: Array.isArray(value) ? value.map((v) => plain(v, 12)).join(", ") : plain(value, 12), inputmode: "decimal" });
+    noiseInputs[key] = h("input", { id: `noise-${key}`, value: Array.isArray(value) ? value.map((v) => plain(v, null)).join(", ") : plain(value, null), inputmode: "decimal" });
     fields[`uncertainty.${key}`] = noiseInputs[key];
   }
 
