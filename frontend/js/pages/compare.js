@@ -178,12 +178,13 @@ async function searchGroup(section, jobs, suffix, context) {
   const tradeoff = plotDiv(`compare-tradeoff${suffix}`, "short");
   section.append(h("div", { class: "grid2" }, reward, best), tradeoff);
   const traces = () => jobs.map((job, i) => ({ x: [], y: [], mode: "lines+markers", name: searchLabel(job), line: { color: COLORS[i % COLORS.length] } }));
-  Plotly.newPlot(reward, traces(), layout("environment steps", "mean episode reward", { title: title("Mean episode reward (each search's own reward)") }), PLOT_CONFIG);
+  Plotly.newPlot(reward, traces(), layout("environment steps", "mean episode reward", { title: title("Mean episode reward (each search's own reward)"), showlegend: true }), PLOT_CONFIG);
   Plotly.newPlot(
     best,
     traces(),
     layout("environment steps", "best score so far", {
       title: title("Best score on the search's draw: F1, or separability"),
+      showlegend: true,
       yaxis: { title: { text: "best score so far" }, range: [0, 1.05] },
     }),
     PLOT_CONFIG,
@@ -282,7 +283,7 @@ async function sweepGroup(section, members, suffix, type) {
     Plotly.newPlot(
       plot,
       traces,
-      layout(`multiple of the 1× ${label}`, "accuracy", { title: title(`Accuracy vs ${label} (95 % intervals)`), yaxis: { title: { text: "accuracy" }, range: [0, 1.03] }, height: 400 }),
+      layout("multiple of the 1× level", "accuracy", { title: title(`Accuracy vs ${label} (95 % intervals)`), yaxis: { title: { text: "accuracy" }, range: [0, 1.03] }, height: 400, showlegend: true }),
       PLOT_CONFIG,
     );
   }

@@ -18,11 +18,12 @@ const OTHER_STYLE = {
   "least-squares": { dash: "dot", color: "#8c564b", name: "least squares (physics)" },
 };
 
+// The source of error is in the plot's title; the axis says what 1× is.
 function axisTitle(noise, result) {
-  const { label, unit } = noiseInfo(noise);
+  const { unit } = noiseInfo(noise);
   const level = result && result.levels ? result.levels[noise] : null;
-  if (level === null || level === undefined) return `multiple of the 1× ${label}`;
-  return `multiple of the 1× ${label} (${Number(level.toPrecision(2))} ${unit})`;
+  if (level === null || level === undefined) return "multiple of the 1× level";
+  return `multiple of the 1× level (1× = ${Number(level.toPrecision(2))} ${unit})`;
 }
 
 export async function sweepPanel(holder, job, classifier, context) {
