@@ -30,6 +30,13 @@
       }
       if (lb.right > figure.right + 1 || lb.left < figure.left - 1) problems.push(`${name}: legend outside the figure`);
     }
+    // Axis titles must not run into each other (stacked subplots) or into tick labels.
+    const titles = [...plot.querySelectorAll('[class^="g-"][class$="title"] text')].filter((el) => el.textContent && !el.closest('.g-gtitle'));
+    const ticks = [...plot.querySelectorAll('.xtick text, .ytick text')].filter((el) => el.textContent);
+    titles.forEach((a, i) => {
+      for (const b of titles.slice(i + 1)) if (overlap(box(a), box(b))) problems.push(`${name}: axis titles "${a.textContent}" and "${b.textContent}" overlap`);
+      for (const t of ticks) if (overlap(box(a), box(t))) problems.push(`${name}: axis title "${a.textContent}" overlaps tick label ${t.textContent}`);
+    });
     for (const el of plot.querySelectorAll('.g-xtitle text, .g-ytitle text, .g-y2title text, .g-y3title text, .xtick text, .ytick text, .g-gtitle text')) {
       if (!el.textContent) continue;
       const b = box(el);

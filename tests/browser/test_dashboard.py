@@ -616,7 +616,7 @@ LAYOUT_ROUTES = {
 }
 # What each page draws last, so the check runs on the finished page.
 LAYOUT_READY = {
-    "scenario": "#moments-plot .legend",
+    "scenario": "#moments-plot .main-svg",
     "search": "#response-plot .legend",
     "sweep": "#inertia-plot .legend",
     "classifier": "#classifier-response .legend",
@@ -627,14 +627,23 @@ LAYOUT_READY = {
 
 @pytest.mark.parametrize("width", [1366, 1920])
 def test_every_page_type_fits_with_no_legend_over_the_plot(
-    dashboard: Dashboard, width: int
+    dashboard: Dashboard, width: int, tmp_path: Path
 ) -> None:
     _needs("scenario", "search", "cem", "classifier", "sweep")
     page = dashboard.page
     page.set_viewport_size({"width": width, "height": 900})
+    telemetry = _telemetry_csv(tmp_path / "t.csv", Scenario.paper(), candidate=2, seed=21)
     for name, route in LAYOUT_ROUTES.items():
         dashboard.open(route())
         page.wait_for_load_state("networkidle")
+        if name == "identify":
+            # The verdict's page: distances and the telemetry over the candidate's band.
+            page.set_input_files("#telemetry-file", str(telemetry))
+            page.wait_for_function(
+                "() => document.getElementById('telemetry-text').value.length > 100"
+            )
+            page.click("#identify-submit")
+            page.wait_for_selector("#overlay-plot .legend", timeout=60_000)
         if name in LAYOUT_READY:
             page.wait_for_selector(LAYOUT_READY[name], timeout=60_000)
         problems = page.evaluate(LAYOUT_PROBLEMS_JS)

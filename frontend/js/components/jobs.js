@@ -67,7 +67,10 @@ export function summaryTableColumns(type) {
 
 export function summaryValue(job, column) {
   const value = job.summary ? job.summary[column.key] : null;
-  return value === null || value === undefined ? "–" : fmt(value, column.digits);
+  if (value === null || value === undefined || !Number.isFinite(value)) return "–";
+  if (column.digits === 0) return fmt(value);
+  const abs = Math.abs(value);
+  return abs !== 0 && abs < 10 ** -column.digits ? value.toExponential(2) : value.toFixed(column.digits);
 }
 
 // The first two figures with their labels, for lists mixing job types.

@@ -7,7 +7,7 @@
 
 import { MetricFollower, api } from "../api.js";
 import { jobCell, jobDetail, summaryColumns, summaryValue } from "../components/jobs.js";
-import { COLORS, PLOT_CONFIG, extendWith, layout, plotDiv, title } from "../components/plots.js";
+import { COLORS, PLOT_CONFIG, extendWith, layout, plotDiv, tightRange, title } from "../components/plots.js";
 import { dataTable } from "../components/table.js";
 import { classifierName, isTerminal, noiseInfo } from "../vocabulary.js";
 import { fmt, h, link, messageBox, score, statusBadge, tagChips, when } from "../ui.js";
@@ -202,7 +202,13 @@ async function searchGroup(section, jobs, suffix, context) {
       name: searchLabel(job),
       hovertemplate: `%{text}: fresh F1 %{y:.3f}, %{x:.1f} N m s, residual ${fmt(job.summary.residual_rate_rad_s, 4)} rad/s<extra></extra>`,
     })),
-    layout("propellant: commanded impulse (N m s)", "fresh F1 (mean)", { title: title("Separation against propellant"), height: 340, showlegend: false }),
+    layout("propellant: commanded impulse (N m s)", "fresh F1 (mean)", {
+      title: title("Separation against propellant"),
+      height: 340,
+      showlegend: false,
+      xaxis: { title: { text: "propellant: commanded impulse (N m s)" }, range: tightRange(done.map((j) => j.summary.fuel_nms), 0.2) },
+      yaxis: { title: { text: "fresh F1 (mean)" }, range: tightRange(done.map((j) => j.summary.fresh_f1), 0.35) },
+    }),
     PLOT_CONFIG,
   );
   const followers = jobs.map((job) => new MetricFollower(job.id));

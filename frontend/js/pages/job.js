@@ -75,7 +75,7 @@ export async function render(root, context) {
   };
   const redraw = () => drawHeader(header, job, scenario && scenario.name, onLabels);
   named();
-  root.append(heading, reused(job, context), header, body);
+  put(root, heading, reused(job, context), header, body);
   redraw();
   const views = { search: searchView, train: trainView, sweep: sweepView };
   const view = await views[job.type](body, job, context);

@@ -109,7 +109,7 @@ export async function renderOne(root, context) {
           { id: "candidate-table" },
         ),
       ),
-      h("div", { class: "card grow" }, h("h2", {}, "Principal moments"), momentsPlot),
+      h("div", { class: "card grow" }, h("h2", {}, "Principal moments (kg m²)"), h("p", { class: "hint" }, "Each moment on its own scale: the candidates differ by 5–15 %."), momentsPlot),
     ),
     h(
       "div",
@@ -160,12 +160,12 @@ export async function renderOne(root, context) {
       hovertemplate: "%{x}: %{y:.2f} kg m²<extra>%{fullData.name} moment</extra>",
     })),
     layout("candidate", "", {
-      height: 420,
+      height: 460,
+      showlegend: false,
       xaxis: { title: { text: "candidate" }, anchor: "y" },
-      yaxis: { title: { text: "smallest (kg m²)" }, domain: [0, 0.3], range: tightRange(scenario.candidates.map((c) => c.principal_moments_kg_m2[0])) },
-      yaxis2: { title: { text: "middle (kg m²)" }, domain: [0.35, 0.65], range: tightRange(scenario.candidates.map((c) => c.principal_moments_kg_m2[1])) },
-      yaxis3: { title: { text: "largest (kg m²)" }, domain: [0.7, 1], range: tightRange(scenario.candidates.map((c) => c.principal_moments_kg_m2[2])) },
-      legend: { title: { text: "principal moment" } },
+      yaxis: { title: { text: "smallest" }, domain: [0, 0.29], range: tightRange(scenario.candidates.map((c) => c.principal_moments_kg_m2[0])) },
+      yaxis2: { title: { text: "middle" }, domain: [0.355, 0.645], range: tightRange(scenario.candidates.map((c) => c.principal_moments_kg_m2[1])) },
+      yaxis3: { title: { text: "largest" }, domain: [0.71, 1], range: tightRange(scenario.candidates.map((c) => c.principal_moments_kg_m2[2])) },
     }),
     PLOT_CONFIG,
   );
