@@ -15,6 +15,7 @@ from pydantic import (
     BaseModel,
     ConfigDict,
     Field,
+    StringConstraints,
     computed_field,
     field_validator,
     model_validator,
@@ -57,6 +58,7 @@ __all__ = [
     "SearchParams",
     "SweepJobCreate",
     "SweepParams",
+    "TagText",
     "TrainJobCreate",
     "TrainParams",
     "WorkersHealth",
@@ -209,45 +211,34 @@ class ScenarioResponse(BaseModel):
     candidates: list[CandidateResponse]
 
 
-def _has_control(text: str) -> bool:
-    return any(ord(c) < 32 or ord(c) == 127 for c in text)
-
-
 def _check_name(value: str | None) -> str | None:
-    if value is None:
-        return None
-    value = value.strip()
-    if _has_control(value):
-        raise ValueError(f"a job name must not contain control characters, got {_clip(value)!r}")
-    if len(value) > MAX_NAME_LENGTH:
-        raise ValueError(
-            f"a job name is at most {MAX_NAME_LENGTH} characters, got {len(value)}: "
-            f"{_clip(value)!r}"
-        )
-    return value or None
+    """The name without surrounding spaces; an empty one is no name."""
+    return (value.strip() or None) if value is not None else None
 
 
 def _check_tags(values: list[str] | None) -> list[str] | None:
-    if values is None:
-        return None
-    tags = []
-    for raw in values:
-        tag = raw.strip()
-        if not tag or len(tag) > MAX_TAG_LENGTH or _has_control(tag) or "," in tag:
-            raise ValueError(
-                f"a tag is 1 to {MAX_TAG_LENGTH} characters without commas or control "
-                f"characters, got {_clip(raw)!r}"
-            )
-        tags.append(tag)
-    tags = list(dict.fromkeys(tags))
-    if len(tags) > MAX_TAGS:
-        raise ValueError(f"at most {MAX_TAGS} tags per job, got {len(tags)}")
-    return tags
+    """The tags without surrounding spaces, each once, in the order given."""
+    return None if values is None else list(dict.fromkeys(tag.strip() for tag in values))
+
+
+#: A tag as a request carries it: 1 to 64 characters with at least one that is not a space,
+#: no commas or control characters (surrounding spaces are dropped).
+TagText = Annotated[
+    str,
+    StringConstraints(
+        min_length=1,
+        max_length=MAX_TAG_LENGTH,
+        pattern=r"^\s*[^\s,\x00-\x1f\x7f][^,\x00-\x1f\x7f]*$",
+    ),
+]
+NameText = Annotated[
+    str, StringConstraints(max_length=MAX_NAME_LENGTH, pattern=r"^[^\x00-\x1f\x7f]*$")
+]
 
 
 class _Labels(_Request):
     name: Annotated[
-        str | None,
+        NameText | None,
         Field(
             default=None,
             description=f"a name for people (at most {MAX_NAME_LENGTH} characters); not part "
@@ -256,9 +247,10 @@ class _Labels(_Request):
         ),
     ]
     tags: Annotated[
-        list[str] | None,
+        list[TagText] | None,
         Field(
             default=None,
+            max_length=MAX_TAGS,
             description=f"labels to filter by (at most {MAX_TAGS}, each 1 to "
             f"{MAX_TAG_LENGTH} characters, no commas); not part of the job's identity",
             examples=[["baseline", "flight-2"]],

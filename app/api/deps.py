@@ -11,13 +11,13 @@ from celery import Celery
 from fastapi import Depends, HTTPException, Query, Request, status
 from fastapi.exceptions import RequestValidationError
 from fastapi.security import APIKeyHeader
-from pydantic import StringConstraints
 from sqlalchemy.orm import Session
 
 from service.config import Settings
 from service.store.models import MAX_TAG_LENGTH
 from service.store.session import Database
 
+from ..schemas import TagText
 from ..security import API_KEY_HEADER, KeyVerifier
 
 __all__ = [
@@ -131,16 +131,6 @@ def paging(
 
 
 PagingDep = Annotated[Paging, Depends(paging)]
-
-
-#: A tag in a query: what a job can carry (service.store.models: 1 to 64 characters, no
-#: control characters; surrounding spaces are dropped).
-TagText = Annotated[
-    str,
-    StringConstraints(
-        min_length=1, max_length=MAX_TAG_LENGTH, pattern=r"^\s*[^\s,\x00-\x1f][^,\x00-\x1f]*$"
-    ),
-]
 
 
 def checked_tags(tags: list[str] | None) -> list[str]:

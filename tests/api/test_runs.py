@@ -119,11 +119,11 @@ def test_editing_labels_needs_the_key(api: Api) -> None:
     ("labels", "fragment"),
     [
         ({"name": "x" * 201}, "at most 200 characters"),
-        ({"name": "bad\x07name"}, "control characters"),
+        ({"name": "bad\x07name"}, "pattern"),
         ({"tags": ["a,b"]}, "'a,b'"),
         ({"tags": [" "]}, "' '"),
-        ({"tags": ["t" * 65]}, "1 to 64 characters"),
-        ({"tags": [f"t{i}" for i in range(17)]}, "at most 16 tags"),
+        ({"tags": ["t" * 65]}, "at most 64 characters"),
+        ({"tags": [f"t{i}" for i in range(17)]}, "at most 16 items"),
         ({"tags": "paper"}, "list"),
     ],
 )
