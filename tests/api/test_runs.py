@@ -394,3 +394,16 @@ def test_the_vocabulary_names_every_summary_column_and_result_table(api: Api) ->
         "baselines",
     ]
     assert {t["name"] for t in words["result_tables"]["sweep"]} >= {"points", "confusion"}
+
+
+def test_the_sweeps_of_a_classifier_are_listed_by_its_id(
+    api: Api, classifier: InertiaClassifier
+) -> None:
+    scenario_id = api.create_scenario()["id"]
+    mine = api.insert_classifier(scenario_id, classifier)
+    other = api.insert_classifier(scenario_id, classifier)
+    first = api.submit("sweep", scenario_id, params={"classifier_id": mine, "n_test": 10}).json()
+    api.submit("sweep", scenario_id, params={"classifier_id": other, "n_test": 10})
+    listed = api.get("/jobs", params={"classifier_id": mine}).json()
+    assert [j["id"] for j in listed["items"]] == [first["id"]] and listed["total"] == 1
+    assert api.get("/jobs", params={"classifier_id": "nope"}).json()["items"] == []
