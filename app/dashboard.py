@@ -1,8 +1,9 @@
-"""The dashboard: the static pages in ``frontend/`` and plotly.js, served by the API.
+"""The dashboard and the API documentation: static files served by the API, offline.
 
 No Node build: ``frontend/`` holds plain HTML, CSS and JavaScript modules, and plotly.js
-comes from the installed ``plotly`` Python package, so the dashboard works offline and
-its plotting library's version is the one the project pins.
+comes from the installed ``plotly`` Python package; the API documentation at ``/docs``
+is Swagger UI from the installed ``swagger-ui-bundle-v2`` package. Nothing is fetched
+from a CDN, so both work on a machine without internet.
 """
 
 from __future__ import annotations
@@ -11,14 +12,15 @@ import importlib.util
 from pathlib import Path
 
 from fastapi import FastAPI, HTTPException, status
-from fastapi.responses import FileResponse
+from fastapi.openapi.docs import get_swagger_ui_html
+from fastapi.responses import FileResponse, HTMLResponse
 from starlette.responses import Response
 from starlette.staticfiles import StaticFiles
 from starlette.types import Scope
 
 from service.config import Settings
 
-__all__ = ["mount_dashboard", "plotly_js_path"]
+__all__ = ["mount_dashboard", "mount_docs", "plotly_js_path", "swagger_ui_dir"]
 
 # The pages change with the code: revalidate every time (ETag) rather than cache.
 _REVALIDATE = {"Cache-Control": "no-cache"}
@@ -32,6 +34,41 @@ def plotly_js_path() -> Path | None:
         if path.is_file():
             return path
     return None
+
+
+def swagger_ui_dir() -> Path | None:
+    """The Swagger UI distribution inside the installed ``swagger_ui_bundle`` package."""
+    spec = importlib.util.find_spec("swagger_ui_bundle")
+    for folder in (spec.submodule_search_locations or []) if spec else []:
+        for candidate in sorted((Path(folder) / "vendor").glob("swagger-ui-*")):
+            if (candidate / "swagger-ui-bundle.js").is_file():
+                return candidate
+    return None
+
+
+def mount_docs(app: FastAPI) -> None:
+    """Serve Swagger UI at ``/docs`` from the installed package (FastAPI's own ``/docs``
+    loads it from a CDN, and is switched off in :func:`app.main.create_app`)."""
+    assets = swagger_ui_dir()
+
+    @app.get("/docs", include_in_schema=False)
+    def docs() -> HTMLResponse:
+        if assets is None:
+            raise HTTPException(
+                status.HTTP_404_NOT_FOUND,
+                detail="the API documentation needs the swagger-ui-bundle-v2 package; "
+                "the OpenAPI document itself is at /openapi.json",
+            )
+        return get_swagger_ui_html(
+            openapi_url=app.openapi_url or "/openapi.json",
+            title=f"{app.title}: API documentation",
+            swagger_js_url="/docs-assets/swagger-ui-bundle.js",
+            swagger_css_url="/docs-assets/swagger-ui.css",
+            swagger_favicon_url="/docs-assets/favicon-32x32.png",
+        )
+
+    if assets is not None:
+        app.mount("/docs-assets", StaticFiles(directory=assets), name="docs-assets")
 
 
 class _Pages(StaticFiles):

@@ -25,7 +25,7 @@ from .api import ROUTERS
 from .api.errors import install_error_handlers
 from .api.identify import ClassifierCache, openapi_components
 from .capacity import ComputeGate
-from .dashboard import mount_dashboard
+from .dashboard import mount_dashboard, mount_docs
 from .security import AllowedHosts, BodySizeLimit, KeyVerifier, ensure_api_key
 
 __all__ = ["create_app"]
@@ -90,6 +90,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         version=inertia_id.__version__,
         description=DESCRIPTION,
         lifespan=lifespan,
+        # /docs is served from the installed Swagger UI package (app.dashboard), not a CDN.
+        docs_url=None,
+        redoc_url=None,
     )
     app.state.settings = settings
     app.state.db = database
@@ -106,6 +109,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     for router in ROUTERS:
         app.include_router(router)
     install_error_handlers(app)
+    mount_docs(app)
     mount_dashboard(app, settings)
     app.add_middleware(BodySizeLimit, max_bytes=settings.max_body_bytes)
     app.add_middleware(AllowedHosts, hosts=settings.resolved_allowed_hosts)

@@ -15,6 +15,8 @@ from pydantic import (
     BaseModel,
     ConfigDict,
     Field,
+    StringConstraints,
+    computed_field,
     field_validator,
     model_validator,
 )
@@ -29,6 +31,7 @@ from service.params import (
     SweepParams,
     TrainParams,
 )
+from service.store.models import MAX_NAME_LENGTH, MAX_TAG_LENGTH, MAX_TAGS, utcnow
 
 __all__ = [
     "MAX_SEED",
@@ -44,6 +47,7 @@ __all__ = [
     "JobOut",
     "JobPage",
     "JobSubmitted",
+    "JobUpdate",
     "MetricSeries",
     "MetricsOut",
     "ScenarioCreate",
@@ -54,6 +58,7 @@ __all__ = [
     "SearchParams",
     "SweepJobCreate",
     "SweepParams",
+    "TagText",
     "TrainJobCreate",
     "TrainParams",
     "WorkersHealth",
@@ -72,6 +77,7 @@ def _clip(text: str, limit: int = 60) -> str:
 
 JobType = Literal["search", "train", "sweep"]
 JobStatus = Literal["queued", "running", "succeeded", "failed", "cancelled"]
+_TERMINAL = ("succeeded", "failed", "cancelled")
 
 
 def as_utc(value: datetime) -> datetime:
@@ -205,12 +211,74 @@ class ScenarioResponse(BaseModel):
     candidates: list[CandidateResponse]
 
 
-class _JobCreate(_Request):
+def _check_name(value: str | None) -> str | None:
+    """The name without surrounding spaces; an empty one is no name."""
+    return (value.strip() or None) if value is not None else None
+
+
+def _check_tags(values: list[str] | None) -> list[str] | None:
+    """The tags without surrounding spaces, each once, in the order given."""
+    return None if values is None else list(dict.fromkeys(tag.strip() for tag in values))
+
+
+#: A tag as a request carries it: 1 to 64 characters with at least one that is not a space,
+#: no commas or control characters (surrounding spaces are dropped).
+TagText = Annotated[
+    str,
+    StringConstraints(
+        min_length=1,
+        max_length=MAX_TAG_LENGTH,
+        pattern=r"^\s*[^\s,\x00-\x1f\x7f][^,\x00-\x1f\x7f]*$",
+    ),
+]
+NameText = Annotated[
+    str, StringConstraints(max_length=MAX_NAME_LENGTH, pattern=r"^[^\x00-\x1f\x7f]*$")
+]
+
+
+class _Labels(_Request):
+    name: Annotated[
+        NameText | None,
+        Field(
+            default=None,
+            description=f"a name for people (at most {MAX_NAME_LENGTH} characters); not part "
+            "of the job's identity",
+            examples=["PPO, paper preset, fuel-weighted"],
+        ),
+    ]
+    tags: Annotated[
+        list[TagText] | None,
+        Field(
+            default=None,
+            max_length=MAX_TAGS,
+            description=f"labels to filter by (at most {MAX_TAGS}, each 1 to "
+            f"{MAX_TAG_LENGTH} characters, no commas); not part of the job's identity",
+            examples=[["baseline", "flight-2"]],
+        ),
+    ]
+
+    @field_validator("name", mode="after")
+    @classmethod
+    def _name(cls, value: str | None) -> str | None:
+        return _check_name(value)
+
+    @field_validator("tags", mode="after")
+    @classmethod
+    def _tags(cls, value: list[str] | None) -> list[str] | None:
+        return _check_tags(value)
+
+
+class _JobCreate(_Labels):
     scenario_id: str = Field(max_length=64)
     seed: int = Field(default=0, ge=0, le=MAX_SEED)
     rerun: bool = Field(
         default=False, description="run again even if the same job exists (not failed/cancelled)"
     )
+
+
+class JobUpdate(_Labels):
+    """New labels for a job: a field given replaces the old value (``"name": null``
+    clears the name, ``"tags": []`` removes every tag); a field left out is kept."""
 
 
 class SearchJobCreate(_JobCreate):
@@ -261,11 +329,29 @@ class JobOut(BaseModel):
         description="when the job's message last went to the broker; null while it waits "
         "to be sent (the broker was unreachable)",
     )
+    name: str | None = Field(default=None, description="a person's name for the run")
+    tags: list[str] = Field(default_factory=list)
+    summary: dict[str, float | None] | None = Field(
+        default=None,
+        description="the result's headline figures (keys: GET /vocabulary job_summaries)",
+    )
 
-    @field_validator("params", "result", mode="after")
+    @field_validator("params", "result", "summary", mode="after")
     @classmethod
     def _finite(cls, value: Any) -> Any:
         return finite_or_none(value)
+
+    @computed_field(description="s from submission to the start of its last run (or to now)")
+    def queue_time_s(self) -> float:
+        end = self.started_at or (self.finished_at if self.status in _TERMINAL else None)
+        return max(0.0, ((end or utcnow()) - self.created_at).total_seconds())
+
+    @computed_field(description="s the last run took (so far, while it runs); null before")
+    def run_time_s(self) -> float | None:
+        if self.started_at is None:
+            return None
+        end = self.finished_at or utcnow()
+        return max(0.0, (end - self.started_at).total_seconds())
 
 
 class JobSubmitted(JobOut):
@@ -315,6 +401,8 @@ class ClassifierOut(BaseModel):
     confusion: list[list[int]] = Field(description="row = true candidate, column = predicted")
     sha256: str
     created_at: UtcDatetime
+    job_name: str | None = Field(default=None, description="the training job's name")
+    tags: list[str] = Field(default_factory=list, description="the training job's tags")
 
 
 class ClassifierPage(BaseModel):

@@ -10,6 +10,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from inertia_id import InertiaClassifier
 
 HEAVY = ("torch", "tslearn", "stable_baselines3", "sklearn", "numba", "scipy", "pydantic")
@@ -40,6 +42,32 @@ def test_the_command_line_help_loads_no_science() -> None:
         "from inertia_id.cli import main\ntry:\n    main(['--help'])\nexcept SystemExit:\n    pass"
     )
     assert loaded_after(code) == set()
+
+
+# (serve hands its arguments, --help included, to the server's own parser in app.serve.)
+@pytest.mark.parametrize(
+    "command", ["identify", "paper", "scenario", "search", "simulate", "sweep", "train"]
+)
+def test_every_commands_help_loads_no_science(command: str) -> None:
+    # The choices of --kind, --method or --metric come from the core: the help names them
+    # in words and never loads the registry or the search package for them.
+    code = (
+        "from inertia_id.cli import main\ntry:\n"
+        f"    main([{command!r}, '--help'])\nexcept SystemExit:\n    pass"
+    )
+    assert not loaded_after(code) & {"torch", "tslearn", "stable_baselines3", "sklearn", "numba"}
+
+
+def test_paper_help_does_not_mark_the_sequence_required() -> None:
+    done = subprocess.run(
+        [sys.executable, "-m", "inertia_id.cli", "paper", "--help"],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=120,
+    )
+    sequence = done.stdout.split("\n  --sequence", 1)[1].split("\n  --", 1)[0]
+    assert "required" not in sequence and "Optional" in sequence
 
 
 def test_the_search_package_loads_no_torch() -> None:

@@ -1,6 +1,6 @@
 """HTTP routers, one per resource."""
 
-from . import classifiers, health, identify, jobs, scenarios, vocabulary
+from . import auth, classifiers, health, identify, jobs, scenarios, vocabulary
 
 __all__ = ["ROUTERS"]
 
@@ -11,4 +11,5 @@ ROUTERS = (
     identify.router,
     health.router,
     vocabulary.router,
+    auth.router,
 )

@@ -2,15 +2,24 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Query, Response
-from sqlalchemy import func, select
+from sqlalchemy import ColumnElement, func, or_, select
+from sqlalchemy.orm import Session
 
-from service.store.models import ClassifierRow
+from service.store.models import ClassifierRow, JobRow, JobTagRow
 
 from ..schemas import ClassifierOut, ClassifierPage
-from .deps import PagingDep, SessionDep, get_or_404, plausible_id
+from .deps import (
+    PagingDep,
+    SessionDep,
+    TagText,
+    checked_tags,
+    get_or_404,
+    plausible_id,
+    unprocessable,
+)
 
 __all__ = ["router"]
 
@@ -19,31 +28,115 @@ router = APIRouter(prefix="/classifiers", tags=["classifiers"])
 _NOT_FOUND: dict[int | str, dict[str, Any]] = {404: {"description": "no such classifier"}}
 
 
+_SORT_COLUMNS: dict[str, Any] = {
+    "created": ClassifierRow.created_at,
+    "f1": ClassifierRow.f1,
+    "accuracy": ClassifierRow.accuracy,
+    "kind": ClassifierRow.kind,
+    "metric": ClassifierRow.metric,
+    "name": func.lower(JobRow.name),
+}
+
+
+def classifier_out(
+    session: Session, row: ClassifierRow, job: JobRow | None = None
+) -> ClassifierOut:
+    """The row with its training job's name and tags."""
+    if job is None and row.job_id is not None:
+        job = session.get(JobRow, row.job_id)
+    out = ClassifierOut.model_validate(row)
+    if job is not None:
+        out.job_name, out.tags = job.name, job.tags
+    return out
+
+
 @router.get("")
 def list_classifiers(
     session: SessionDep,
     page: PagingDep,
     scenario_id: Annotated[str | None, Query(max_length=64)] = None,
     job_id: Annotated[str | None, Query(max_length=64)] = None,
+    kind: Annotated[str | None, Query(max_length=64, pattern=r"^[a-z0-9-]*$")] = None,
+    q: Annotated[
+        str | None,
+        Query(
+            max_length=200,
+            pattern=r"^[^\x00]*$",
+            description="text in the kind, metric or training job's name or tags, or an id prefix",
+        ),
+    ] = None,
+    tag: Annotated[
+        list[TagText] | None,
+        Query(description="classifiers whose training job carries this tag"),
+    ] = None,
+    sort: Annotated[
+        str,
+        Query(
+            max_length=64,
+            description="created, f1, accuracy, kind, metric or name",
+            json_schema_extra={"enum": list(_SORT_COLUMNS)},
+        ),
+    ] = "created",
+    order: Annotated[Literal["asc", "desc"], Query()] = "desc",
 ) -> ClassifierPage:
-    """Classifiers, newest first, optionally of one scenario or one job."""
-    conditions = []
+    """Classifiers, newest first by default, filtered by scenario, job, kind, text and the
+    training job's tags, sorted, one page at a time."""
+    conditions: list[ColumnElement[bool]] = []
     for column, value in ((ClassifierRow.scenario_id, scenario_id), (ClassifierRow.job_id, job_id)):
         if value is None:
             continue
         if not plausible_id(value):
             return ClassifierPage(items=[], total=0, limit=page.limit, offset=page.offset)
         conditions.append(column == value)
-    total = session.scalar(select(func.count()).select_from(ClassifierRow).where(*conditions))
-    rows = session.scalars(
-        select(ClassifierRow)
+    if kind:
+        conditions.append(ClassifierRow.kind == kind)
+    if q is not None and q.strip():
+        needle = q.strip().lower()
+        tagged = (
+            select(JobTagRow.job_id)
+            .where(
+                JobTagRow.job_id == ClassifierRow.job_id,
+                func.lower(JobTagRow.tag).contains(needle, autoescape=True),
+            )
+            .exists()
+        )
+        conditions.append(
+            or_(
+                ClassifierRow.id.startswith(needle, autoescape=True),
+                ClassifierRow.kind.contains(needle, autoescape=True),
+                ClassifierRow.metric.contains(needle, autoescape=True),
+                func.lower(JobRow.name).contains(needle, autoescape=True),
+                tagged,
+            )
+        )
+    for one in checked_tags(tag):
+        conditions.append(
+            select(JobTagRow.job_id)
+            .where(JobTagRow.job_id == ClassifierRow.job_id, JobTagRow.tag == one.strip())
+            .exists()
+        )
+    if sort not in _SORT_COLUMNS:
+        unprocessable(
+            ("query", "sort"),
+            f"cannot sort classifiers by {sort[:80]!r}; by one of {', '.join(_SORT_COLUMNS)}",
+        )
+    key = _SORT_COLUMNS[sort]
+    ordered = (key.asc() if order == "asc" else key.desc()).nulls_last()
+    joined = select(ClassifierRow, JobRow).outerjoin(JobRow, JobRow.id == ClassifierRow.job_id)
+    total = session.scalar(
+        select(func.count())
+        .select_from(ClassifierRow)
+        .outerjoin(JobRow, JobRow.id == ClassifierRow.job_id)
         .where(*conditions)
-        .order_by(ClassifierRow.created_at.desc(), ClassifierRow.id)
+    )
+    rows = session.execute(
+        joined.where(*conditions)
+        .order_by(ordered, ClassifierRow.created_at.desc(), ClassifierRow.id)
         .limit(page.limit)
         .offset(page.offset)
     ).all()
     return ClassifierPage(
-        items=[ClassifierOut.model_validate(r) for r in rows],
+        items=[classifier_out(session, row, job) for row, job in rows],
         total=total or 0,
         limit=page.limit,
         offset=page.offset,
@@ -52,10 +145,9 @@ def list_classifiers(
 
 @router.get("/{classifier_id}", responses=_NOT_FOUND)
 def get_classifier(classifier_id: str, session: SessionDep) -> ClassifierOut:
-    """Kind, sequence, metric, F1, accuracy, confusion matrix, candidate names, provenance."""
-    return ClassifierOut.model_validate(
-        get_or_404(session, ClassifierRow, classifier_id, "classifier")
-    )
+    """Kind, sequence, metric, F1, accuracy, confusion matrix, candidate names, provenance,
+    and the training job's name and tags."""
+    return classifier_out(session, get_or_404(session, ClassifierRow, classifier_id, "classifier"))
 
 
 @router.get(

@@ -14,8 +14,10 @@ from fastapi.security import APIKeyHeader
 from sqlalchemy.orm import Session
 
 from service.config import Settings
+from service.store.models import MAX_TAG_LENGTH
 from service.store.session import Database
 
+from ..schemas import TagText
 from ..security import API_KEY_HEADER, KeyVerifier
 
 __all__ = [
@@ -26,6 +28,8 @@ __all__ = [
     "PagingDep",
     "SessionDep",
     "SettingsDep",
+    "TagText",
+    "checked_tags",
     "get_or_404",
     "plausible_id",
     "unprocessable",
@@ -127,6 +131,21 @@ def paging(
 
 
 PagingDep = Annotated[Paging, Depends(paging)]
+
+
+def checked_tags(tags: list[str] | None) -> list[str]:
+    """Tags from a query (``?tag=a&tag=b``), stripped; 422 for one no job could carry."""
+    out = []
+    for raw in tags or []:
+        tag = raw.strip()
+        if not tag or len(tag) > MAX_TAG_LENGTH or any(ord(c) < 32 for c in tag):
+            unprocessable(
+                ("query", "tag"),
+                f"a tag is 1 to {MAX_TAG_LENGTH} characters without control characters, "
+                f"got {raw[:80]!r}",
+            )
+        out.append(tag)
+    return out
 
 
 def unprocessable(loc: tuple[str | int, ...], message: str) -> NoReturn:

@@ -15,9 +15,9 @@ import threading
 import time
 from collections import OrderedDict
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Annotated, Any, Literal
 
-from fastapi import APIRouter, HTTPException, Request, status
+from fastapi import APIRouter, HTTPException, Query, Request, Response, status
 from fastapi.exceptions import RequestValidationError
 from pydantic import ValidationError
 from sqlalchemy import select
@@ -26,6 +26,7 @@ from starlette.datastructures import UploadFile
 from inertia_id.errors import InputError
 from inertia_id.evaluation.identify import identify
 from inertia_id.evaluation.telemetry import Telemetry, parse_telemetry
+from service.exports import identify_table, to_csv
 from service.store.models import ClassifierRow
 from service.store.session import Database
 
@@ -242,7 +243,12 @@ def openapi_components() -> dict[str, Any]:
 @router.post(
     "",
     dependencies=[ApiKeyDep],
+    response_model=IdentifyResult,
     responses={
+        200: {
+            "content": {"text/csv": {"schema": {"type": "string"}}},
+            "description": "the verdict (JSON), or with format=csv one row per candidate",
+        },
         401: {"description": "missing or wrong API key"},
         404: {"description": "no such classifier"},
         415: {"description": "neither JSON nor multipart/form-data"},
@@ -259,7 +265,13 @@ def openapi_components() -> dict[str, Any]:
         }
     },
 )
-async def identify_telemetry(request: Request) -> IdentifyResult:
+async def identify_telemetry(
+    request: Request,
+    format: Annotated[
+        Literal["json", "csv"],
+        Query(description="json, or csv: the verdict as a file, one row per candidate"),
+    ] = "json",
+) -> Any:
     """Which candidate is the spacecraft? Telemetry after the classifier's sequence.
 
     Send JSON ``{"classifier_id": ..., "telemetry": {"time_s": [...], "omega_rad_s":
@@ -282,4 +294,12 @@ async def identify_telemetry(request: Request) -> IdentifyResult:
     database: Database = request.app.state.db
     cache: ClassifierCache = request.app.state.classifier_cache
     gate: ComputeGate = request.app.state.compute_gate
-    return await gate.run(_identify, database, cache, classifier_id, telemetry)
+    verdict = await gate.run(_identify, database, cache, classifier_id, telemetry)
+    if format == "csv":
+        stem = f"identify-{verdict.classifier_id[:8]}"
+        return Response(
+            content=to_csv(identify_table(verdict.model_dump(mode="json"))),
+            media_type="text/csv; charset=utf-8",
+            headers={"Content-Disposition": f'attachment; filename="{stem}.csv"'},
+        )
+    return verdict

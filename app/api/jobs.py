@@ -9,24 +9,28 @@ key in the database makes this hold for submissions that race each other too.
 
 from __future__ import annotations
 
+import json
 import logging
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 import numpy as np
 from fastapi import APIRouter, Body, HTTPException, Query, Request, Response, status
-from sqlalchemy import func, select
+from sqlalchemy import ColumnElement, func, or_, select
 
 from inertia_id.errors import InputError
 from inertia_id.physics.scenario import Scenario
+from service.exports import RESULT_TABLES, metrics_table, result_table, to_csv
 from service.queue import RUN_JOB_TASK
 from service.store import jobs as job_store
 from service.store.models import (
     TERMINAL_STATUSES,
     ClassifierRow,
     JobRow,
+    JobTagRow,
     MetricRow,
     ScenarioRow,
 )
+from service.summaries import summary_keys
 
 from ..schemas import (
     JobCreate,
@@ -35,6 +39,7 @@ from ..schemas import (
     JobStatus,
     JobSubmitted,
     JobType,
+    JobUpdate,
     MetricSeries,
     MetricsOut,
     SearchJobCreate,
@@ -47,6 +52,8 @@ from .deps import (
     PagingDep,
     SessionDep,
     SettingsDep,
+    TagText,
+    checked_tags,
     get_or_404,
     plausible_id,
     unprocessable,
@@ -200,6 +207,8 @@ def submit_job(
             params=body.params.model_dump(mode="json"),
             seed=body.seed,
             rerun=body.rerun,
+            name=body.name,
+            tags=body.tags or (),
         )
     except job_store.ScenarioGone:
         raise HTTPException(
@@ -224,6 +233,58 @@ def _as_dict(job: JobRow) -> dict[str, Any]:
     return {name: getattr(job, name) for name in JobOut.model_fields}
 
 
+#: What a job list sorts by: the row's own columns, and every summary figure.
+_SORT_COLUMNS: dict[str, Any] = {
+    "created": JobRow.created_at,
+    "started": JobRow.started_at,
+    "finished": JobRow.finished_at,
+    "name": func.lower(JobRow.name),
+    "status": JobRow.status,
+    "type": JobRow.type,
+    "seed": JobRow.seed,
+    "progress": JobRow.progress,
+}
+JOB_SORT_KEYS = (*_SORT_COLUMNS, *summary_keys())
+
+
+def _sort_expression(sort: str) -> Any:
+    if sort in _SORT_COLUMNS:
+        return _SORT_COLUMNS[sort]
+    if sort in summary_keys():
+        return JobRow.summary[sort].as_float()
+    unprocessable(
+        ("query", "sort"),
+        f"cannot sort jobs by {sort[:80]!r}; by one of {', '.join(JOB_SORT_KEYS)}",
+    )
+
+
+def _text_match(q: str) -> ColumnElement[bool]:
+    """Name contains ``q`` (any case), the id starts with it, or a tag contains it."""
+    needle = q.strip().lower()
+    tagged = (
+        select(JobTagRow.job_id)
+        .where(
+            JobTagRow.job_id == JobRow.id,
+            func.lower(JobTagRow.tag).contains(needle, autoescape=True),
+        )
+        .exists()
+    )
+    return or_(
+        func.lower(JobRow.name).contains(needle, autoescape=True),
+        JobRow.id.startswith(needle, autoescape=True),
+        tagged,
+    )
+
+
+def _has_tag(tag: str) -> ColumnElement[bool]:
+    return (
+        select(JobTagRow.job_id).where(JobTagRow.job_id == JobRow.id, JobTagRow.tag == tag).exists()
+    )
+
+
+SortOrder = Literal["asc", "desc"]
+
+
 @router.get("")
 def list_jobs(
     session: SessionDep,
@@ -231,22 +292,60 @@ def list_jobs(
     type: Annotated[JobType | None, Query(description="search, train or sweep")] = None,
     status: Annotated[JobStatus | None, Query()] = None,
     scenario_id: Annotated[str | None, Query(max_length=64)] = None,
+    q: Annotated[
+        str | None,
+        Query(
+            max_length=200,
+            pattern=r"^[^\x00]*$",
+            description="text in the name (any case), an id prefix, or text in a tag",
+        ),
+    ] = None,
+    tag: Annotated[
+        list[TagText] | None,
+        Query(description="jobs carrying this tag (repeat for all of several)"),
+    ] = None,
+    classifier_id: Annotated[
+        str | None, Query(max_length=64, description="sweeps of this classifier")
+    ] = None,
+    sort: Annotated[
+        str,
+        Query(
+            max_length=64,
+            description="created, started, finished, name, status, type, seed, progress, or a "
+            "summary figure (GET /vocabulary job_summaries), e.g. fresh_f1",
+            json_schema_extra={"enum": list(JOB_SORT_KEYS)},
+        ),
+    ] = "created",
+    order: Annotated[SortOrder, Query(description="asc or desc")] = "desc",
 ) -> JobPage:
-    """Jobs, newest first, filtered by type, status and scenario."""
-    conditions = []
+    """Jobs, filtered by type, status, scenario, text, tags and classifier, sorted (newest
+    first by default; jobs without the figure sorted by come last), one page at a time."""
+    conditions: list[ColumnElement[bool]] = []
     if type is not None:
         conditions.append(JobRow.type == type)
     if status is not None:
         conditions.append(JobRow.status == status)
-    if scenario_id is not None:
-        if not plausible_id(scenario_id):
+    for value, column in ((scenario_id, JobRow.scenario_id),):
+        if value is not None:
+            if not plausible_id(value):
+                return JobPage(items=[], total=0, limit=page.limit, offset=page.offset)
+            conditions.append(column == value)
+    if classifier_id is not None:
+        if not plausible_id(classifier_id):
             return JobPage(items=[], total=0, limit=page.limit, offset=page.offset)
-        conditions.append(JobRow.scenario_id == scenario_id)
+        conditions.append(JobRow.type == "sweep")
+        conditions.append(JobRow.params["classifier_id"].as_string() == classifier_id)
+    if q is not None and q.strip():
+        conditions.append(_text_match(q))
+    for one in checked_tags(tag):
+        conditions.append(_has_tag(one.strip()))
+    key = _sort_expression(sort)
+    ordered = key.asc() if order == "asc" else key.desc()
     total = session.scalar(select(func.count()).select_from(JobRow).where(*conditions)) or 0
     rows = session.scalars(
         select(JobRow)
         .where(*conditions)
-        .order_by(JobRow.created_at.desc(), JobRow.id)
+        .order_by(ordered.nulls_last(), JobRow.created_at.desc(), JobRow.id)
         .limit(page.limit)
         .offset(page.offset)
     ).all()
@@ -258,13 +357,109 @@ def list_jobs(
     )
 
 
+@router.patch(
+    "/{job_id}",
+    dependencies=[ApiKeyDep],
+    responses={**_NOT_FOUND, **_UNAUTHORIZED},
+)
+def update_job(job_id: str, body: JobUpdate, session: SessionDep) -> JobOut:
+    """Rename or retag a job. Labels only: its parameters, seed, identity and result stay."""
+    job = get_or_404(session, JobRow, job_id, "job")
+    job_store.set_labels(
+        session,
+        job,
+        name=body.name,
+        tags=body.tags if "tags" in body.model_fields_set else None,
+        rename="name" in body.model_fields_set,
+    )
+    session.flush()
+    session.refresh(job)
+    return JobOut.model_validate(job)
+
+
+ExportFormat = Literal["json", "csv"]
+_TABLE_NAMES = list(dict.fromkeys(name for tables in RESULT_TABLES.values() for name in tables))
+
+
+def _download(content: str, media_type: str, filename: str) -> Response:
+    return Response(
+        content=content,
+        media_type=media_type,
+        headers={"Content-Disposition": f'attachment; filename="{filename}"'},
+    )
+
+
+@router.get(
+    "/{job_id}/result",
+    response_class=Response,
+    responses={
+        200: {
+            "content": {
+                "application/json": {"schema": {"type": "object"}},
+                "text/csv": {"schema": {"type": "string"}},
+            },
+            "description": "the result as a file (Content-Disposition: attachment)",
+        },
+        **_NOT_FOUND,
+        409: {"description": "the job has no result (yet)"},
+    },
+)
+def download_result(
+    job_id: str,
+    session: SessionDep,
+    format: Annotated[ExportFormat, Query(description="json or csv")] = "json",
+    table: Annotated[
+        str | None,
+        Query(
+            max_length=64,
+            description="with csv: which table of the job type's (GET /vocabulary "
+            "result_tables); default the first",
+            json_schema_extra={"enum": _TABLE_NAMES},
+        ),
+    ] = None,
+) -> Response:
+    """A job's result as a file: JSON (the job's labels and parameters with the whole
+    result) or one of its tables as CSV (a search's summary, curve, sequence and
+    baselines; a training's summary, confusion matrix and sequence; a sweep's points,
+    confusion matrices and bodies off the candidates)."""
+    job = get_or_404(session, JobRow, job_id, "job")
+    if job.result is None:
+        raise HTTPException(
+            status.HTTP_409_CONFLICT,
+            detail=f"job {job.id} has no result ({job.status}); nothing to download yet",
+        )
+    out = JobOut.model_validate(job)
+    stem = f"{job.type}-{job.id[:8]}"
+    if format == "json":
+        document = out.model_dump(mode="json", exclude={"config_hash"})
+        return _download(
+            json.dumps(document, indent=1, allow_nan=False), "application/json", f"{stem}.json"
+        )
+    try:
+        rendered = result_table(job.type, out.result or {}, table)
+    except InputError as exc:
+        unprocessable(("query", "table"), str(exc))
+    name = table or "table"
+    return _download(to_csv(rendered), "text/csv; charset=utf-8", f"{stem}-{name}.csv")
+
+
 @router.get("/{job_id}", responses=_NOT_FOUND)
 def get_job(job_id: str, session: SessionDep) -> JobOut:
     """Status, progress (0 to 1), timestamps, error text and result summary."""
     return JobOut.model_validate(get_or_404(session, JobRow, job_id, "job"))
 
 
-@router.get("/{job_id}/metrics", responses=_NOT_FOUND)
+@router.get(
+    "/{job_id}/metrics",
+    response_model=MetricsOut,
+    responses={
+        200: {
+            "content": {"text/csv": {"schema": {"type": "string"}}},
+            "description": "the series (JSON), or with format=csv every point as key,step,value",
+        },
+        **_NOT_FOUND,
+    },
+)
 def get_metrics(
     job_id: str,
     session: SessionDep,
@@ -276,11 +471,15 @@ def get_metrics(
         int | None,
         Query(ge=-(2**31), le=2**31 - 1, description="only points with step > after"),
     ] = None,
-) -> MetricsOut:
+    format: Annotated[
+        ExportFormat, Query(description="json (series, downsampled) or csv (every point)")
+    ] = "json",
+) -> Any:
     """Metric series of a job (reward curve, F1...), incremental with ``after``.
 
     A series longer than the server's cap (INERTIA_ID_MAX_METRIC_POINTS) is thinned to
     evenly spaced points, first and last kept; ``last_step`` is always the true last step.
+    ``format=csv`` downloads every point, never thinned.
     """
     job = get_or_404(session, JobRow, job_id, "job")
     query = select(MetricRow.key, MetricRow.step, MetricRow.value).where(MetricRow.job_id == job.id)
@@ -289,6 +488,13 @@ def get_metrics(
     if after is not None:
         query = query.where(MetricRow.step > after)
     rows = session.execute(query.order_by(MetricRow.key, MetricRow.step, MetricRow.id)).all()
+    if format == "csv":
+        points = [(k, s, v if np.isfinite(v) else None) for k, s, v in rows]
+        return _download(
+            to_csv(metrics_table(points)),
+            "text/csv; charset=utf-8",
+            f"{job.type}-{job.id[:8]}-metrics.csv",
+        )
     by_key: dict[str, tuple[list[int], list[float]]] = {}
     for name, step, value in rows:
         steps, values = by_key.setdefault(name, ([], []))

@@ -11,7 +11,9 @@ from __future__ import annotations
 from fastapi import APIRouter
 from pydantic import BaseModel, Field
 
+from service.exports import RESULT_TABLES
 from service.store.models import JOB_STATUSES, JOB_TYPES, TERMINAL_STATUSES
+from service.summaries import SUMMARY_COLUMNS
 
 __all__ = ["router"]
 
@@ -40,6 +42,19 @@ class NamedOut(BaseModel):
     label: str
 
 
+class SummaryColumnOut(BaseModel):
+    key: str = Field(description="in a job's summary, and a GET /jobs sort key")
+    label: str
+    unit: str = Field(description='SI unit; "" for a fraction or a count')
+    better: str = Field(description="high or low")
+    digits: int = Field(description="decimals to show")
+
+
+class ResultTableOut(BaseModel):
+    name: str = Field(description="GET /jobs/{id}/result?format=csv&table=NAME")
+    label: str
+
+
 class VocabularyOut(BaseModel):
     classifier_kinds: list[KindOut]
     default_kind: str
@@ -53,6 +68,12 @@ class VocabularyOut(BaseModel):
     job_types: list[str]
     job_statuses: list[str]
     terminal_statuses: list[str]
+    job_summaries: dict[str, list[SummaryColumnOut]] = Field(
+        description="each job type's headline figures: list columns and sort keys"
+    )
+    result_tables: dict[str, list[ResultTableOut]] = Field(
+        description="each job type's result tables, as CSV downloads"
+    )
 
 
 _OBJECTIVE_LABELS = {
@@ -117,4 +138,12 @@ def vocabulary() -> VocabularyOut:
         job_types=list(JOB_TYPES),
         job_statuses=list(JOB_STATUSES),
         terminal_statuses=list(TERMINAL_STATUSES),
+        job_summaries={
+            job_type: [SummaryColumnOut(**c.as_dict()) for c in columns]
+            for job_type, columns in SUMMARY_COLUMNS.items()
+        },
+        result_tables={
+            job_type: [ResultTableOut(name=n, label=label) for n, (label, _) in tables.items()]
+            for job_type, tables in RESULT_TABLES.items()
+        },
     )

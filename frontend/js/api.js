@@ -35,10 +35,10 @@ function errorFrom(status, body) {
   return new ApiError(status, `the service answered ${status}`);
 }
 
-export async function request(method, path, { json, form, query } = {}) {
-  const headers = { Accept: "application/json" };
-  const key = getApiKey();
-  if (key) headers["X-API-Key"] = key;
+export async function request(method, path, { json, form, query, key = null, raw = false } = {}) {
+  const headers = { Accept: raw ? "*/*" : "application/json" };
+  const sent = key ?? getApiKey();
+  if (sent) headers["X-API-Key"] = sent;
   let body;
   if (json !== undefined) {
     headers["Content-Type"] = "application/json";
@@ -64,10 +64,11 @@ export async function request(method, path, { json, form, query } = {}) {
   if (response.status === 204) return null;
   let data = null;
   const type = response.headers.get("content-type") || "";
+  if (raw && response.ok) return response.blob();
   if (type.includes("json")) data = await response.json();
   if (!response.ok) {
     const error = errorFrom(response.status, data);
-    if (response.status === 401) {
+    if (response.status === 401 && key === null) {
       error.message = `${error.message}: enter the API key (printed by "inertia-id serve" on its first run) at the top right`;
     }
     throw error;
@@ -77,6 +78,8 @@ export async function request(method, path, { json, form, query } = {}) {
 
 export const api = {
   health: () => request("GET", "/health"),
+  // 204 (null) when the service accepts `key`; an ApiError 401 when it does not.
+  checkKey: (key) => request("GET", "/auth/check", { key }),
   vocabulary: () => request("GET", "/vocabulary"),
   presets: () => request("GET", "/scenarios/presets"),
   baselines: (id, length) =>
@@ -92,15 +95,16 @@ export const api = {
   jobs: (query) => request("GET", "/jobs", { query: { limit: 100, ...query } }),
   job: (id) => request("GET", `/jobs/${encodeURIComponent(id)}`),
   submitJob: (body) => request("POST", "/jobs", { json: body }),
+  updateJob: (id, labels) => request("PATCH", `/jobs/${encodeURIComponent(id)}`, { json: labels }),
   cancelJob: (id) => request("POST", `/jobs/${encodeURIComponent(id)}/cancel`),
   metrics: (id, query) => request("GET", `/jobs/${encodeURIComponent(id)}/metrics`, { query }),
   classifiers: (query) => request("GET", "/classifiers", { query: { limit: 200, ...query } }),
   classifier: (id) => request("GET", `/classifiers/${encodeURIComponent(id)}`),
-  identify: (classifierId, file) => {
+  identify: (classifierId, file, format = "json") => {
     const form = new FormData();
     form.set("classifier_id", classifierId);
     form.set("file", file);
-    return request("POST", "/identify", { form });
+    return request("POST", "/identify", { form, query: { format: format === "json" ? undefined : format }, raw: format !== "json" });
   },
 };
 

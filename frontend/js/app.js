@@ -7,6 +7,7 @@
 import { api, getApiKey, setApiKey } from "./api.js";
 import { clear, messageBox } from "./ui.js";
 import { loadVocabulary } from "./vocabulary.js";
+// Pages never import each other: what two pages share lives in components/ and views/.
 import * as classifiers from "./pages/classifiers.js";
 import * as compare from "./pages/compare.js";
 import * as identify from "./pages/identify.js";
@@ -82,17 +83,34 @@ async function route() {
   root.append(messageBox("error", `no page at #${path}`));
 }
 
+// The key is checked against the service (GET /auth/check) when it is entered, and kept
+// only if it is accepted: a wrong key is refused there and then, never "saved".
 function keyBox() {
   const form = document.getElementById("api-key-form");
   const input = document.getElementById("api-key");
   const state = document.getElementById("api-key-state");
-  const show = () => {
-    input.value = "";
-    state.textContent = getApiKey() ? "saved" : "not set";
+  const show = (text = null, bad = false) => {
+    state.textContent = text ?? (getApiKey() ? "saved" : "not set");
+    state.classList.toggle("bad", bad);
   };
-  form.addEventListener("submit", (event) => {
+  form.addEventListener("submit", async (event) => {
     event.preventDefault();
-    setApiKey(input.value);
+    const key = input.value.trim();
+    if (!key) {
+      setApiKey("");
+      show();
+      return;
+    }
+    show("checking…");
+    try {
+      await api.checkKey(key);
+    } catch (exc) {
+      show(exc.status === 401 ? "wrong key: not saved" : `not checked: ${exc.message}`, true);
+      input.select();
+      return;
+    }
+    setApiKey(key);
+    input.value = "";
     show();
   });
   show();

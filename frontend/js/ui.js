@@ -1,4 +1,7 @@
-// Small DOM, formatting and plotting helpers shared by the pages.
+// Small DOM and formatting helpers shared by every page and component: building
+// elements, numbers, times (always with their time zone), status badges, messages and
+// the service's field errors. Plots live in components/plots.js, tables in
+// components/table.js.
 
 // h("div", {class: "card", onclick: fn}, child, "text", [more children])
 export function h(tag, attrs = {}, ...children) {
@@ -41,10 +44,21 @@ export function clear(node) {
 export function fmt(value, digits = 3) {
   if (value === null || value === undefined || Number.isNaN(value)) return "–";
   if (typeof value !== "number") return String(value);
+  if (Object.is(value, -0)) value = 0;
   if (Number.isInteger(value) && Math.abs(value) < 1e6) return value.toLocaleString("en");
   const abs = Math.abs(value);
   if (abs !== 0 && (abs < 1e-3 || abs >= 1e6)) return value.toExponential(digits - 1);
   return value.toFixed(digits);
+}
+
+// A value as a person types it: at most `significant` significant digits, trailing zeros
+// and the sign of zero dropped (2, 0.25, 1.41421, never -0 or 0.30000000000000004);
+// `significant` null keeps every digit (the shortest text that reads back as the value),
+// for a form that must give back what it was filled with.
+export function plain(value, significant = 6) {
+  if (typeof value !== "number" || !Number.isFinite(value)) return String(value);
+  const rounded = significant === null ? value : Number(value.toPrecision(significant));
+  return Object.is(rounded, -0) || rounded === 0 ? "0" : String(rounded);
 }
 
 // A score in [0, 1] (F1, accuracy) always with three decimals.
@@ -52,19 +66,48 @@ export function score(value) {
   return typeof value === "number" && Number.isFinite(value) ? value.toFixed(3) : "–";
 }
 
-export function duration(startIso, endIso) {
-  if (!startIso) return "–";
-  const end = endIso ? new Date(endIso) : new Date();
-  let seconds = Math.max(0, (end - new Date(startIso)) / 1000);
-  if (seconds < 60) return `${seconds.toFixed(seconds < 10 ? 1 : 0)} s`;
-  const minutes = Math.floor(seconds / 60);
-  seconds = Math.round(seconds - 60 * minutes);
-  if (minutes < 60) return `${minutes} min ${seconds} s`;
+export function seconds(value) {
+  if (value === null || value === undefined || !Number.isFinite(value)) return "–";
+  let s = Math.max(0, value);
+  if (s < 60) return `${s.toFixed(s < 10 ? 1 : 0)} s`;
+  const minutes = Math.floor(s / 60);
+  s = Math.round(s - 60 * minutes);
+  if (minutes < 60) return `${minutes} min ${s} s`;
   return `${Math.floor(minutes / 60)} h ${minutes % 60} min`;
 }
 
+export function duration(startIso, endIso) {
+  if (!startIso) return "–";
+  const end = endIso ? new Date(endIso) : new Date();
+  return seconds((end - new Date(startIso)) / 1000);
+}
+
+const pad = (n) => String(n).padStart(2, "0");
+
+// "2026-12-01 19:54:03 UTC": the service stores every time in UTC.
+export function utcText(iso) {
+  if (!iso) return "–";
+  const d = new Date(iso);
+  return `${d.getUTCFullYear()}-${pad(d.getUTCMonth() + 1)}-${pad(d.getUTCDate())} ${pad(d.getUTCHours())}:${pad(d.getUTCMinutes())}:${pad(d.getUTCSeconds())} UTC`;
+}
+
+// "2026-12-01 20:54:03 CET": the browser's own time zone, named.
+export function localText(iso) {
+  if (!iso) return "–";
+  const d = new Date(iso);
+  const zone = new Intl.DateTimeFormat("en", { timeZoneName: "short" }).formatToParts(d).find((p) => p.type === "timeZoneName");
+  return `${d.getFullYear()}-${pad(d.getMonth() + 1)}-${pad(d.getDate())} ${pad(d.getHours())}:${pad(d.getMinutes())}:${pad(d.getSeconds())} ${zone ? zone.value : "local"}`;
+}
+
+// A time stamp as an element: UTC, and the local time with its zone beneath.
 export function when(iso) {
-  return iso ? new Date(iso).toLocaleString() : "–";
+  if (!iso) return h("span", { class: "muted" }, "–");
+  return h("span", { class: "stamp", title: iso }, h("span", { class: "utc" }, utcText(iso)), h("span", { class: "local" }, localText(iso)));
+}
+
+// The same on one line, for running text: "… UTC (… CET)".
+export function whenText(iso) {
+  return iso ? `${utcText(iso)} (${localText(iso)})` : "–";
 }
 
 export function statusBadge(status) {
@@ -91,13 +134,21 @@ export function showError(container, error) {
   container.append(messageBox("error", error.message || String(error)));
 }
 
+// Removes what showFieldErrors put inside `scope` (a form): messages and marks.
+export function clearFieldErrors(scope, general = null) {
+  for (const old of scope.querySelectorAll(".field-error")) old.remove();
+  for (const old of scope.querySelectorAll(".invalid")) old.classList.remove("invalid");
+  if (general) clear(general);
+}
+
 // Puts each of the service's 422 messages next to the form field its `loc` names, and
 // the rest (or all, when no field matches) into `general`. `fields` maps a dotted path
 // suffix (e.g. "thrusters.levels" or "inertia_candidates.1") to the element to mark.
-export function showFieldErrors(error, fields, general) {
-  for (const old of document.querySelectorAll(".field-error")) old.remove();
-  for (const old of document.querySelectorAll(".invalid")) old.classList.remove("invalid");
-  clear(general);
+// Old messages inside `scope` (default: the document) go first. A table row's message
+// goes in a row of its own, marked `.field-error`: a form that reads its rows back skips
+// them (`tr:not(.field-error)`).
+export function showFieldErrors(error, fields, general, scope = document) {
+  clearFieldErrors(scope, general);
   const unplaced = [];
   for (const item of error.errors && error.errors.length ? error.errors : [{ loc: [], msg: error.message }]) {
     const path = item.loc.filter((p) => p !== "body" && p !== "scenario" && p !== "overrides").join(".");
@@ -120,37 +171,14 @@ export function showFieldErrors(error, fields, general) {
   if (unplaced.length) general.append(messageBox("error", unplaced.join("\n")));
 }
 
-// Plotly: one look for every chart.
-export const COLORS = ["#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#17becf", "#7f7f7f", "#bcbd22"];
-
-// Light for 0, dark blue for 1 (plotly's "Blues" runs the other way).
-export const HEAT_SCALE = [
-  [0, "#f4f7fb"],
-  [1, "#1f4e8c"],
-];
-
-export const PLOT_CONFIG = { responsive: true, displaylogo: false, modeBarButtonsToRemove: ["lasso2d", "select2d"] };
-
-export function layout(xTitle, yTitle, extra = {}) {
-  return {
-    margin: { l: 70, r: 20, t: 30, b: 90 },
-    font: { family: "system-ui, sans-serif", size: 13 },
-    xaxis: { title: { text: xTitle }, automargin: true, zeroline: false },
-    yaxis: { title: { text: yTitle }, automargin: true, zeroline: false },
-    legend: { orientation: "h", x: 0, y: -0.32, yanchor: "top" },
-    hovermode: "closest",
-    height: 380,
-    ...extra,
-  };
+// A row of tag chips.
+export function tagChips(tags) {
+  return (tags || []).map((tag) => h("span", { class: "tag" }, tag));
 }
 
-export function plotDiv(id, extraClass = "") {
-  return h("div", { class: `plot ${extraClass}`, id });
-}
-
-export function withAlpha(hex, alpha) {
-  const n = parseInt(hex.slice(1), 16);
-  return `rgba(${(n >> 16) & 255}, ${(n >> 8) & 255}, ${n & 255}, ${alpha})`;
+// "Copy" of an object for a download or a form: a Blob of pretty JSON.
+export function jsonBlob(value) {
+  return new Blob([JSON.stringify(value, null, 2)], { type: "application/json" });
 }
 
 export function sequenceText(sequence) {
@@ -169,79 +197,4 @@ export function table(headers, rows, attrs = {}) {
 
 export function link(href, text, attrs = {}) {
   return h("a", { href, ...attrs }, text);
-}
-
-// Plotly traces drawing each candidate's ω response per axis: a mean line and a
-// 10–90 % band, one colour per candidate, one subplot per axis.
-export function responseTraces(response, { only = null } = {}) {
-  const traces = [];
-  const axes = ["x", "y", "z"];
-  response.candidates.forEach((candidate, k) => {
-    if (only !== null && k !== only) return;
-    const color = COLORS[k % COLORS.length];
-    axes.forEach((axis, a) => {
-      const yaxis = a === 0 ? "y" : `y${a + 1}`;
-      const common = { x: response.time_s, xaxis: "x", yaxis, legendgroup: candidate.name, hoverinfo: "skip" };
-      traces.push({ ...common, y: candidate.low_rad_s.map((row) => row[a]), mode: "lines", line: { width: 0 }, showlegend: false, name: `${candidate.name} 10 %` });
-      traces.push({ ...common, y: candidate.high_rad_s.map((row) => row[a]), mode: "lines", line: { width: 0 }, fill: "tonexty", fillcolor: withAlpha(color, 0.2), showlegend: false, name: `${candidate.name} 90 %` });
-      traces.push({
-        ...common,
-        y: candidate.mean_rad_s.map((row) => row[a]),
-        mode: "lines",
-        line: { color, width: 2 },
-        name: candidate.name,
-        showlegend: a === 0,
-        hoverinfo: "x+y+name",
-      });
-    });
-  });
-  return traces;
-}
-
-export function responseLayout(title) {
-  return {
-    ...layout("time from sequence start (s)", ""),
-    title: { text: title, font: { size: 14 } },
-    xaxis: { title: { text: "time from sequence start (s)" }, anchor: "y3" },
-    yaxis: { title: { text: "ω_x (rad/s)" }, domain: [0.7, 1], anchor: "x" },
-    yaxis2: { title: { text: "ω_y (rad/s)" }, domain: [0.36, 0.64], anchor: "x" },
-    yaxis3: { title: { text: "ω_z (rad/s)" }, domain: [0, 0.3], anchor: "x" },
-    height: 560,
-    legend: { orientation: "h", y: -0.12 },
-  };
-}
-
-// The sequence as duty per thruster over time: a heat map, one row per thruster.
-export function sequencePlot(element, response) {
-  const stepS = response.step_duration_s;
-  const nThrusters = response.duties[0].length;
-  const x = response.duties.map((_, i) => (i + 0.5) * stepS);
-  const z = Array.from({ length: nThrusters }, (_, j) => response.duties.map((row) => row[j]));
-  const text = z.map((row) => row.map((d) => `${Math.round(100 * d)} %`));
-  Plotly.newPlot(
-    element,
-    [
-      {
-        type: "heatmap",
-        x,
-        y: Array.from({ length: nThrusters }, (_, j) => `thruster ${j + 1}`),
-        z,
-        zmin: 0,
-        zmax: 1,
-        text,
-        texttemplate: "%{text}",
-        colorscale: HEAT_SCALE,
-        colorbar: { title: { text: "duty" }, tickformat: ".0%" },
-        hovertemplate: "%{y}, t = %{x} s: duty %{z:.0%}<extra></extra>",
-        xgap: 2,
-        ygap: 2,
-      },
-    ],
-    layout("time from sequence start (s)", "", {
-      height: 130 + 32 * nThrusters,
-      xaxis: { title: { text: "time from sequence start (s)" }, range: [0, response.duties.length * stepS], dtick: stepS },
-      yaxis: { autorange: "reversed", automargin: true },
-    }),
-    PLOT_CONFIG,
-  );
 }

@@ -30,12 +30,22 @@ F = TypeVar("F", bound=Callable[..., Any])
 class LazyChoice(click.Choice[str]):
     """A :class:`click.Choice` whose choices come from the core when first needed.
 
-    :param load: returns the choices; called once, when click validates a value or
-        writes a command's help.
+    :param load: returns the choices; called once, when click validates a value. A
+        command's help does not call it (loading the core's lists imports the classifier
+        registry or the search package: seconds); the option's help text says the choices
+        in words, and its metavar is the option's name.
+    :param in_help: list the choices in the help all the same (a cheap ``load``).
     """
 
-    def __init__(self, load: Callable[[], Sequence[str]], case_sensitive: bool = True) -> None:
+    def __init__(
+        self,
+        load: Callable[[], Sequence[str]],
+        case_sensitive: bool = True,
+        *,
+        in_help: bool = False,
+    ) -> None:
         self._load = load
+        self._in_help = in_help
         self._loaded: tuple[str, ...] | None = None
         self.case_sensitive = case_sensitive
 
@@ -48,6 +58,11 @@ class LazyChoice(click.Choice[str]):
     @choices.setter
     def choices(self, value: Sequence[str]) -> None:
         self._loaded = tuple(value)
+
+    def get_metavar(self, param: click.Parameter, ctx: click.Context) -> str | None:
+        if self._loaded is None and not self._in_help:
+            return (param.name or "choice").upper()
+        return super().get_metavar(param, ctx)
 
 
 def friendly_errors(func: F) -> F:
@@ -90,7 +105,7 @@ def scenario_options(func: F) -> F:
         "preset_name",
         default="paper",
         show_default=True,
-        type=LazyChoice(_presets),
+        type=LazyChoice(_presets, in_help=True),
         help="Built-in scenario.",
     )(func)
     return func
@@ -134,15 +149,22 @@ def parse_sequence(text: str) -> list[list[int]]:
 DEFAULT_SEQUENCE_TEXT = ";".join(",".join(map(str, row)) for row in PAPER_SEQUENCE)
 
 
-def sequence_option(default: str | None = None) -> Callable[[F], F]:
+def sequence_option(
+    default: str | None = None, *, required: bool = False, when_omitted: str = ""
+) -> Callable[[F], F]:
+    """``--sequence``; optional unless ``required`` (``when_omitted`` says what happens
+    without it, in the help)."""
+    help_text = (
+        "Level indices per thruster, steps separated by ';' (e.g. '4,4,4,0,0,0;"
+        "4,4,4,0,0,0'), a JSON list of rows, or a JSON file."
+    )
     return click.option(
         "--sequence",
         "sequence_text",
         default=default,
-        required=default is None,
+        required=required,
         show_default=default is not None,
-        help="Level indices per thruster, steps separated by ';' (e.g. '4,4,4,0,0,0;"
-        "4,4,4,0,0,0'), a JSON list of rows, or a JSON file.",
+        help=f"{help_text} {when_omitted}".strip(),
     )
 
 

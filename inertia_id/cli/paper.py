@@ -39,15 +39,15 @@ def _metrics() -> tuple[str, ...]:
 
 
 @click.command("paper")
-@sequence_option(None)
+@sequence_option(None, when_omitted="Optional: without it, one is searched for (--search).")
 @click.option(
     "--search",
     "search_method",
     default="ppo",
     show_default=True,
     type=LazyChoice(_searches),
-    help="How to find the sequence when --sequence is not given ('none': the "
-    "hand-designed excitation).",
+    help="How to find the sequence when --sequence is not given: ppo (the paper's), cem, "
+    "random, or none (the hand-designed excitation).",
 )
 @search_options
 @click.option(
@@ -55,7 +55,7 @@ def _metrics() -> tuple[str, ...]:
     default="dtw",
     show_default=True,
     type=LazyChoice(_metrics),
-    help="Clustering metric (dtw is the paper's; softdtw is slow).",
+    help="Clustering metric: dtw (the paper's), euclidean, or softdtw (slow).",
 )
 @realisations_option("Training realisations per candidate (the paper's 20).")
 @multiples_option

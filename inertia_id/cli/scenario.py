@@ -57,7 +57,7 @@ def scenario_cmd(preset_name: str, scenario_path: str | None, out: str | None) -
 @click.option(
     "--telemetry",
     type=click.Path(dir_okay=False),
-    help="Write one series as telemetry CSV (time_s,wx,wy,wz) for `identify`.",
+    help="Write one series as telemetry CSV (time_s,wx_rad_s,wy_rad_s,wz_rad_s) for `identify`.",
 )
 @click.option(
     "--candidate",

@@ -82,14 +82,15 @@ def search_options(func: F) -> F:
         _option(
             "--objective",
             "objective",
-            "What scores a sequence: the clustering F1 (the paper's) or the Bhattacharyya "
-            "separability bound (no clustering, much faster).",
+            "What scores a sequence: f1, the clustering F1 (the paper's), or separability, "
+            "the Bhattacharyya separability bound (no clustering, much faster).",
             type=LazyChoice(_objectives),
         ),
         _option(
             "--search-metric search_metric",
             "metric",
-            "Clustering metric that scores sequences (dtw is the paper's).",
+            "Clustering metric that scores sequences: dtw (the paper's), euclidean or "
+            "softdtw (slow).",
             type=LazyChoice(_metrics),
         ),
         _option(
@@ -285,8 +286,8 @@ def search_with_progress(
 @_option(
     "--method",
     "method",
-    "PPO (the paper's), the cross-entropy method, exhaustive (small spaces) or random "
-    "(the baseline).",
+    "ppo (the paper's reinforcement learning), cem (the cross-entropy method), exhaustive "
+    "(small spaces) or random (the baseline).",
     type=LazyChoice(_methods),
 )
 @search_options

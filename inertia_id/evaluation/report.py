@@ -1,4 +1,8 @@
-"""A self-contained HTML report of a pipeline run (Plotly charts, no network needed)."""
+"""A self-contained HTML report of a pipeline run (Plotly charts, no network needed).
+
+Its conventions are the dashboard's: thrusters are numbered from 1, and a response band
+runs from the 10th to the 90th percentile of the realisations (:data:`BAND_PERCENTILES`).
+"""
 
 from __future__ import annotations
 
@@ -20,6 +24,7 @@ if TYPE_CHECKING:
     from ..search import SearchResult
 
 __all__ = [
+    "BAND_PERCENTILES",
     "accuracy_figure",
     "learning_curve_figure",
     "response_figure",
@@ -41,14 +46,19 @@ _COLOURS = [
 ]
 
 
+#: The band drawn around each candidate's mean response (percentiles of the
+#: realisations), the same as the dashboard's (``GET /scenarios/{id}/response``).
+BAND_PERCENTILES = (10.0, 90.0)
+
+
 def _rgba(hex_colour: str, alpha: float) -> str:
     r, g, b = (int(hex_colour[i : i + 2], 16) for i in (1, 3, 5))
     return f"rgba({r},{g},{b},{alpha})"
 
 
 def response_figure(result: SimulationResult) -> go.Figure:
-    """Measured ω per axis: each candidate's mean, with a band from the 5th to the
-    95th percentile of its realisations."""
+    """Measured ω per axis: each candidate's mean, with a band from the 10th to the
+    90th percentile of its realisations (:data:`BAND_PERCENTILES`)."""
     fig = make_subplots(
         rows=3,
         cols=1,
@@ -61,9 +71,9 @@ def response_figure(result: SimulationResult) -> go.Figure:
         colour = _COLOURS[k % len(_COLOURS)]
         series = result.omega_measured[k]
         low, mean, high = (
-            np.percentile(series, 5, axis=0),
+            np.percentile(series, BAND_PERCENTILES[0], axis=0),
             series.mean(axis=0),
-            np.percentile(series, 95, axis=0),
+            np.percentile(series, BAND_PERCENTILES[1], axis=0),
         )
         for axis in range(3):
             row = axis + 1
@@ -95,7 +105,8 @@ def response_figure(result: SimulationResult) -> go.Figure:
             )
             fig.update_yaxes(title_text="rad/s", row=row, col=1)
     fig.update_xaxes(title_text="time since sequence start (s)", row=3, col=1)
-    fig.update_layout(title="Gyro response per candidate (mean, 5–95 % band)", height=750)
+    low, high = (f"{p:g}" for p in BAND_PERCENTILES)
+    fig.update_layout(title=f"Gyro response per candidate (mean, {low}–{high} % band)", height=750)
     return fig
 
 
@@ -158,7 +169,7 @@ def accuracy_figure(sweep: SweepResult) -> go.Figure:
 
 
 def sequence_figure(scenario: Scenario, sequence: np.ndarray) -> go.Figure:
-    """Commanded duty of each thruster over time, as steps."""
+    """Commanded duty of each thruster over time, as steps; thrusters numbered from 1."""
     duties = scenario.duties(sequence)
     step = scenario.timing.step_duration_s
     t = np.arange(len(duties) + 1) * step
@@ -169,7 +180,7 @@ def sequence_figure(scenario: Scenario, sequence: np.ndarray) -> go.Figure:
                 x=t,
                 y=np.append(duties[:, j], duties[-1, j]),
                 line={"shape": "hv", "color": _COLOURS[j % len(_COLOURS)]},
-                name=f"thruster {j}",
+                name=f"thruster {j + 1}",
             )
         )
     fig.update_layout(
@@ -218,7 +229,17 @@ def learning_curve_figure(search: SearchResult) -> go.Figure:
         height=400,
     )
     fig.update_yaxes(title_text="mean episode reward", secondary_y=False)
-    fig.update_yaxes(title_text="F1", range=[0, 1.02], secondary_y=True)
+    # Round ticks of its own (0, 0.2, ..., 1): Plotly would otherwise align them with
+    # the reward axis's ticks, at values such as 0.078 and 0.245.
+    fig.update_yaxes(
+        title_text="F1",
+        range=[0, 1.02],
+        tickmode="linear",
+        tick0=0,
+        dtick=0.2,
+        showgrid=False,
+        secondary_y=True,
+    )
     return fig
 
 

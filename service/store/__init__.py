@@ -1,6 +1,15 @@
 """The job store: SQLAlchemy 2 models, engine/session set-up and Alembic migrations."""
 
-from .models import ApiKey, Base, ClassifierRow, JobRow, MetricRow, ScenarioRow, WorkerRow
+from .models import (
+    ApiKey,
+    Base,
+    ClassifierRow,
+    JobRow,
+    JobTagRow,
+    MetricRow,
+    ScenarioRow,
+    WorkerRow,
+)
 from .session import Database, upgrade
 
 __all__ = [
@@ -9,6 +18,7 @@ __all__ = [
     "ClassifierRow",
     "Database",
     "JobRow",
+    "JobTagRow",
     "MetricRow",
     "ScenarioRow",
     "WorkerRow",

@@ -29,10 +29,12 @@ from sqlalchemy.dialects import postgresql, sqlite
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
+from ..summaries import summarise
 from .models import (
     REUSABLE_STATUSES,
     TERMINAL_STATUSES,
     JobRow,
+    JobTagRow,
     MetricRow,
     ScenarioRow,
     WorkerRow,
@@ -55,6 +57,7 @@ __all__ = [
     "mark_sent",
     "owns",
     "reap_stale",
+    "set_labels",
     "set_progress",
     "touch_worker",
 ]
@@ -92,14 +95,17 @@ def create_job(
     params: dict[str, Any],
     seed: int,
     rerun: bool = False,
+    name: str | None = None,
+    tags: Iterable[str] = (),
 ) -> tuple[JobRow, bool]:
     """Insert a queued job and commit it; or return the identical job that stands.
 
     Returns ``(job, reused)``. Without ``rerun`` an identical queued, running or
-    succeeded job is returned (``reused``); with it, the new job takes that job's place
-    for later submissions. Concurrent identical submissions make one job: the unique
-    index on reusable configurations refuses all inserts but one, and the others return
-    that one.
+    succeeded job is returned (``reused``), its name and tags as they were; with it, the
+    new job takes that job's place for later submissions. Concurrent identical
+    submissions make one job: the unique index on reusable configurations refuses all
+    inserts but one, and the others return that one. ``name`` and ``tags`` label the new
+    job; they are not part of its identity (:func:`config_hash`).
 
     :raises ScenarioGone: the scenario was deleted meanwhile (its foreign key failed).
     """
@@ -122,6 +128,8 @@ def create_job(
             params=params,
             seed=seed,
             config_hash=digest,
+            name=name,
+            tag_rows=[JobTagRow(tag=tag) for tag in dict.fromkeys(tags)],
         )
         session.add(job)
         try:
@@ -139,6 +147,25 @@ def create_job(
             continue
         return job, False
     raise RuntimeError(f"could not insert job {digest[:12]} after 3 tries")
+
+
+def set_labels(
+    session: Session,
+    job: JobRow,
+    *,
+    name: str | None = None,
+    tags: Iterable[str] | None = None,
+    rename: bool = False,
+) -> None:
+    """Rename (``rename``: set ``name``, None clears it) and retag (``tags`` not None:
+    replace them) a job. Labels only: its parameters, seed and identity stay."""
+    if rename:
+        job.name = name
+    if tags is not None:
+        wanted = list(dict.fromkeys(tags))
+        kept = [row for row in job.tag_rows if row.tag in wanted]
+        have = {row.tag for row in kept}
+        job.tag_rows = kept + [JobTagRow(tag=tag) for tag in wanted if tag not in have]
 
 
 def mark_sent(session: Session, job_id: str) -> None:
@@ -297,6 +324,8 @@ def finish(
         values["progress"] = 1.0
     if result is not None:
         values["result"] = result
+        job_type = session.scalar(select(JobRow.type).where(JobRow.id == job_id))
+        values["summary"] = summarise(job_type or "", result)
     finished = session.execute(  # type: ignore[attr-defined]
         update(JobRow).where(*_run_of(job_id, attempt)).values(**values)
     ).rowcount

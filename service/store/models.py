@@ -19,11 +19,14 @@ from sqlalchemy import (
     false,
     text,
 )
-from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
+from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
 __all__ = [
     "JOB_STATUSES",
     "JOB_TYPES",
+    "MAX_NAME_LENGTH",
+    "MAX_TAGS",
+    "MAX_TAG_LENGTH",
     "REUSABLE_STATUSES",
     "REUSABLE_WHERE",
     "TERMINAL_STATUSES",
@@ -31,6 +34,7 @@ __all__ = [
     "Base",
     "ClassifierRow",
     "JobRow",
+    "JobTagRow",
     "MetricRow",
     "ScenarioRow",
     "WorkerRow",
@@ -45,6 +49,11 @@ TERMINAL_STATUSES = ("succeeded", "failed", "cancelled")
 REUSABLE_STATUSES = ("queued", "running", "succeeded")
 #: The rows of the unique index on reusable configurations.
 REUSABLE_WHERE = "status IN ('queued', 'running', 'succeeded') AND NOT superseded"
+#: Labels a person puts on a job: how many, how long.
+MAX_TAGS = 16
+MAX_TAG_LENGTH = 64
+#: A job's name, for people; not part of its identity.
+MAX_NAME_LENGTH = 200
 
 
 def new_id() -> str:
@@ -114,6 +123,34 @@ class JobRow(Base):
     #: (the broker was down, or the API died between commit and send). Queued jobs whose
     #: message is missing are sent again by the workers' monitor (see ``worker.monitor``).
     sent_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
+    #: A person's name for the run and its tags (``job_tags``): labels only, never part
+    #: of ``config_hash`` (an identical job under another name is the same work).
+    name: Mapped[str | None] = mapped_column(String(MAX_NAME_LENGTH), default=None)
+    #: The result's headline figures (``service.summaries``), written when the job
+    #: finishes: what lists show and sort by.
+    summary: Mapped[dict[str, Any] | None] = mapped_column(JSON, default=None)
+    tag_rows: Mapped[list[JobTagRow]] = relationship(
+        back_populates="job",
+        cascade="all, delete-orphan",
+        passive_deletes=True,
+        lazy="selectin",
+        order_by="JobTagRow.tag",
+    )
+
+    @property
+    def tags(self) -> list[str]:
+        return [row.tag for row in self.tag_rows]
+
+
+class JobTagRow(Base):
+    """One tag on one job; a job has each tag at most once."""
+
+    __tablename__ = "job_tags"
+    __table_args__ = (Index("ix_job_tags_tag", "tag"),)
+
+    job_id: Mapped[str] = mapped_column(ForeignKey("jobs.id", ondelete="CASCADE"), primary_key=True)
+    tag: Mapped[str] = mapped_column(String(MAX_TAG_LENGTH), primary_key=True)
+    job: Mapped[JobRow] = relationship(back_populates="tag_rows")
 
 
 class MetricRow(Base):

@@ -1,20 +1,26 @@
 """The dashboard's whole workflow in headless Chromium against a running service + worker.
 
-The tests run in file order and share what they made (scenario, search, classifier) in
-``made``: create a scenario from the preset, see a bad one refused field by field, run
-a small PPO search and watch its curve grow, train and sweep, identify telemetry,
-compare searches, cancel a job. Each saves screenshots of its pages.
+The tests run in file order and share what they made (scenario, searches, classifier,
+sweep) in ``made``: a wrong API key refused when entered; create a scenario from the
+preset, see a bad one refused field by field and then fixed, clone one and upload the
+file ``inertia-id scenario --out`` writes; run a small PPO search with a name and tags
+and watch its curve grow, download its result; train and sweep; identify telemetry and
+download the verdict; resubmit an identical job (reused, then rerun); compare searches
+and classifiers; cancel a job after confirming; the API docs offline; every page type at
+1366 and 1920 px with no legend over a plot. Each saves screenshots of its pages.
 """
 
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
-from dashboard_support import API_KEY, Dashboard
+from dashboard_support import API_KEY, LAYOUT_PROBLEMS_JS, Dashboard
 
 from inertia_id import Scenario, simulate
 
@@ -31,7 +37,9 @@ def _needs(*names: str) -> None:
 
 def _hash_id(dashboard: Dashboard, prefix: str) -> str:
     """The id in the page's ``#/<prefix>/<id>`` route, once the page has navigated there."""
-    dashboard.page.wait_for_url(f"**/#/{prefix}/*")
+    dashboard.page.wait_for_function(
+        "prefix => new RegExp(`^#/${prefix}/[0-9a-f]{32}`).test(location.hash)", arg=prefix
+    )
     return str(dashboard.page.url.split(f"#/{prefix}/")[1].split("?")[0])
 
 
@@ -56,20 +64,28 @@ def _telemetry_csv(path: Path, scenario: Scenario, candidate: int, seed: int) ->
     return path
 
 
-def test_without_the_key_a_write_says_to_enter_it_then_the_key_is_kept(
+def test_without_the_key_a_write_says_to_enter_it_a_wrong_key_is_refused_then_it_is_kept(
     dashboard: Dashboard,
 ) -> None:
+    page = dashboard.page
     dashboard.open("#/scenarios/new")
     dashboard.console.expect(r"status of 401")
-    dashboard.page.click("#create-preset")
-    error = dashboard.page.wait_for_selector("#preset-form + div .message.error")
+    page.click("#create-preset")
+    error = page.wait_for_selector("#preset-form + div .message.error")
     assert "API key" in error.inner_text()
-    dashboard.page.fill("#api-key", API_KEY)
-    dashboard.page.click("#api-key-form button")
-    assert dashboard.page.inner_text("#api-key-state") == "saved"
-    dashboard.page.reload()
-    dashboard.page.wait_for_selector("#page h1")
-    assert dashboard.page.inner_text("#api-key-state") == "saved"
+    # A wrong key is checked against the service when it is entered, and never kept.
+    page.fill("#api-key", "not-the-key")
+    page.click("#api-key-form button")
+    page.wait_for_function(
+        "() => document.getElementById('api-key-state').textContent.includes('wrong key')"
+    )
+    assert page.evaluate("() => localStorage.getItem('inertia-id-api-key')") is None
+    page.fill("#api-key", API_KEY)
+    page.click("#api-key-form button")
+    page.wait_for_function("() => document.getElementById('api-key-state').textContent === 'saved'")
+    page.reload()
+    page.wait_for_selector("#page h1")
+    assert page.inner_text("#api-key-state") == "saved"
 
 
 def test_create_a_scenario_from_the_preset_shows_its_principal_moments(
@@ -117,6 +133,79 @@ def test_a_bad_scenario_shows_the_servers_message_next_to_the_field(
     assert page.url.endswith("#/scenarios/new")
     dashboard.screenshot("scenario-validation")
 
+    # The form recovers: fix one field, the other messages stay until the next try...
+    page.fill("#candidate-rows tr:nth-child(2) .cand-Izz", "90")
+    page.click("#create-scenario")
+    page.wait_for_function("() => !document.querySelector('#candidate-rows tr.field-error')")
+    assert "0 and 1" in page.inner_text("#levels + .field-error")
+    # ...then fix the rest: the scenario is created with the corrected values.
+    page.fill("#levels", "0, 0.5, 1")
+    page.fill("#noise-gyro_noise_sigma_rad_s", "0.001")
+    page.fill("#scenario-name", "paper, fixed by hand")
+    page.click("#create-scenario")
+    scenario_id = _hash_id(dashboard, "scenarios")
+    stored = dashboard.service.client.get(f"/scenarios/{scenario_id}").json()
+    assert stored["name"] == "paper, fixed by hand"
+    assert stored["document"]["thrusters"]["levels"] == [0, 0.5, 1]
+    page.wait_for_selector("#candidate-table")
+    assert "-0" not in page.inner_text("#thruster-table")
+
+
+def test_a_scenario_is_cloned_edited_and_uploaded_from_the_cli_file(
+    dashboard: Dashboard, tmp_path: Path
+) -> None:
+    _needs("scenario")
+    page = dashboard.page
+    dashboard.open(f"#/scenarios/{made['scenario']}")
+    page.click("#clone-scenario")
+    page.wait_for_selector("#scenario-form")
+    assert page.input_value("#scenario-name") == "paper, from the browser (copy)"
+    page.fill("#scenario-name", "paper, noisier gyro")
+    page.fill("#noise-gyro_noise_sigma_rad_s", "0.002")
+    page.click("#create-scenario")
+    clone = _hash_id(dashboard, "scenarios")
+    document = dashboard.service.client.get(f"/scenarios/{clone}").json()["document"]
+    assert document["uncertainty"]["gyro_noise_sigma_rad_s"] == 0.002
+    original = dashboard.service.client.get(f"/scenarios/{made['scenario']}").json()["document"]
+    assert document["inertia_candidates"] == original["inertia_candidates"]
+
+    # The file `inertia-id scenario --out` writes fills the form as it is.
+    written = tmp_path / "mine.json"
+    subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "inertia_id.cli",
+            "scenario",
+            "--preset",
+            "paper",
+            "--out",
+            str(written),
+        ],
+        check=True,
+        capture_output=True,
+    )
+    expected = json.loads(written.read_text(encoding="utf-8"))
+    dashboard.open("#/scenarios/new")
+    page.set_input_files("#scenario-file", str(written))
+    page.wait_for_function(
+        "name => document.getElementById('scenario-name').value === name", arg=expected["name"]
+    )
+    page.fill("#scenario-name", "uploaded from the command line")
+    page.click("#create-scenario")
+    uploaded = _hash_id(dashboard, "scenarios")
+    document = dashboard.service.client.get(f"/scenarios/{uploaded}").json()["document"]
+    assert document["inertia_candidates"] == expected["inertia_candidates"]
+    assert document["thrusters"]["torque_matrix_nm"] == expected["thrusters"]["torque_matrix_nm"]
+
+    # Anything else is refused with the reason, and the form stays as it was.
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"name": "x"}', encoding="utf-8")
+    dashboard.open("#/scenarios/new")
+    page.set_input_files("#scenario-file", str(bad))
+    error = page.wait_for_selector("#upload-errors .message.error")
+    assert "bad.json is not a scenario document" in error.inner_text()
+
 
 def test_a_search_curve_gains_points_while_ppo_runs(dashboard: Dashboard) -> None:
     _needs("scenario")
@@ -127,8 +216,15 @@ def test_a_search_curve_gains_points_while_ppo_runs(dashboard: Dashboard) -> Non
     page.fill("#search-timesteps", "1280")
     page.fill("#search-n_realisations", "10")
     page.fill("#search-ppo", '{"n_steps": 128, "batch_size": 64}')
+    page.fill("#job-name-new", "small PPO")
+    page.fill("#job-tags-new", "browser, ppo")
     page.click("#submit-job")
     made["search"] = job_id = _hash_id(dashboard, "jobs")
+    assert dashboard.service.job(job_id)["tags"] == ["browser", "ppo"]
+    assert "small PPO" in page.inner_text("h1")
+    # The paper's objective: the reward is built from the F1.
+    page.wait_for_function("() => document.getElementById('reward-plot')?.layout")
+    assert "3·F1" in page.evaluate("() => document.getElementById('reward-plot').layout.title.text")
     page.evaluate("() => { window.__notReloaded = true }")
 
     page.wait_for_function(
@@ -157,7 +253,38 @@ def test_a_search_curve_gains_points_while_ppo_runs(dashboard: Dashboard) -> Non
     page.wait_for_function(
         "() => document.getElementById('response-plot')?.data?.length === 45"
     )  # 5 candidates x 3 axes x (mean + two band edges)
+    # Drawn as differences from the mean over candidates, the absolute rates a click away.
+    assert page.get_attribute("#response-plot", "data-view") == "difference"
+    means = page.evaluate(
+        "() => document.getElementById('response-plot').data.filter((t) => t.showlegend !== false"
+        " || t.mode === 'lines' && t.line.width === 2).filter((t) => t.yaxis === 'y')"
+        ".map((t) => t.y)"
+    )
+    sums = [sum(values) for values in zip(*means, strict=True)]
+    assert max(abs(v) for v in sums) < 1e-9
+    page.click("#response-holder button[data-view='absolute']")
+    page.wait_for_function(
+        "() => document.getElementById('response-plot').dataset.view === 'absolute'"
+    )
     assert _trace_points(dashboard, "sequence-plot") == 4
+    # Every result downloads from its page: JSON, each CSV table, the metrics.
+    links = page.eval_on_selector_all(
+        "#job-downloads a", "els => els.map((a) => [a.dataset.download, a.getAttribute('href')])"
+    )
+    labels = [label for label, _ in links]
+    assert labels == [
+        "JSON",
+        "CSV: summary",
+        "CSV: curve",
+        "CSV: sequence",
+        "CSV: baselines",
+        "CSV: metrics",
+    ]
+    with page.expect_download() as download:
+        page.click("#job-downloads a[data-download='CSV: curve']")
+    saved = Path(download.value.path()).read_text(encoding="utf-8").splitlines()
+    assert saved[0].startswith("timesteps,episodes,mean_episode_reward")
+    assert len(saved) == 1 + len(curve)
     # The hand-designed baselines, scored on the same fresh draws as the best sequence.
     rows = page.locator("#baseline-table tbody tr")
     available = [n for n, b in job["result"]["baselines"].items() if "unavailable" not in b]
@@ -178,11 +305,28 @@ def test_the_job_list_updates_without_reload_and_training_shows_the_classifier(
     job_id = _hash_id(dashboard, "jobs")
     page.evaluate("() => { window.__notReloaded = true }")
     page.evaluate("() => { location.hash = '#/jobs' }")
-    row = f"#job-rows tr[data-job-id='{job_id}']"
+    row = f"#jobs-rows tr[data-job-id='{job_id}']"
     page.wait_for_selector(row)
     page.wait_for_selector(f"{row}[data-status='succeeded']", timeout=180_000)
     assert page.evaluate("() => window.__notReloaded") is True
     assert "100 %" in page.inner_text(f"{row} .progress")
+    # Queue time beside run time; times in UTC and local.
+    timing = page.inner_text(f"{row} .timing")
+    assert "queued" in timing and "ran" in timing
+    assert "UTC" in page.inner_text(f"{row} .stamp")
+    # Filter by text, by type (the type's figures become sortable columns) and sort.
+    page.fill("#jobs-filter-q", "small ppo")
+    page.wait_for_function(
+        "() => document.querySelectorAll('#jobs-rows tr[data-job-id]').length === 1"
+    )
+    assert page.get_attribute("#jobs-rows tr[data-job-id]", "data-job-id") == made["search"]
+    page.fill("#jobs-filter-q", "")
+    page.select_option("#jobs-filter-type", "search")
+    page.wait_for_selector("#jobs th button[data-sort='fresh_f1']")
+    page.click("#jobs th button[data-sort='fresh_f1']")
+    page.wait_for_selector("#jobs th[aria-sort='descending'] button[data-sort='fresh_f1']")
+    page.select_option("#jobs-filter-type", "")
+    page.wait_for_selector(row)
     dashboard.screenshot("jobs")
 
     page.click(f"{row} a[href='#/jobs/{job_id}']")
@@ -212,6 +356,10 @@ def test_a_sweep_draws_both_accuracy_curves_with_intervals_and_a_confusion_matri
     sweep_id = _hash_id(dashboard, "jobs")
     page.wait_for_selector("#confusion-plot", timeout=180_000)
     result = dashboard.service.job(sweep_id)["result"]
+    made["sweep"] = sweep_id
+    # The job's own seed, and the derived stream its test series came from, each named.
+    seeds = page.inner_text("#sweep-seeds")
+    assert "the job's 0" in seeds and f"come from {result['seed']}" in seeds
     for noise in ("process", "measurement"):
         plot = f"accuracy-{noise}"
         assert _trace_points(dashboard, plot) == 3
@@ -315,13 +463,128 @@ def test_identify_telemetry_files_verdict_distances_and_matches_none(
     assert "3 columns" in error.inner_text() and "expected 4" in error.inner_text()
 
 
-def test_compare_overlays_searches_and_a_job_can_be_cancelled(dashboard: Dashboard) -> None:
+def test_an_identify_verdict_downloads_as_json_and_csv(
+    dashboard: Dashboard, tmp_path: Path
+) -> None:
+    _needs("classifier")
+    page = dashboard.page
+    matching = _telemetry_csv(tmp_path / "payload1.csv", Scenario.paper(), candidate=1, seed=5)
+    dashboard.open(f"#/identify?classifier={made['classifier']}")
+    page.set_input_files("#telemetry-file", str(matching))
+    page.wait_for_function("() => document.getElementById('telemetry-text').value.length > 100")
+    page.click("#identify-submit")
+    page.wait_for_selector("#verdict")
+    with page.expect_download() as download:
+        page.click("#identify-downloads button[data-download='verdict (CSV)']")
+    rows = Path(download.value.path()).read_text(encoding="utf-8").splitlines()
+    assert rows[0].startswith("candidate,distance,nearest")
+    nearest = [r.split(",")[0] for r in rows[1:] if r.split(",")[2] == "True"]
+    assert nearest == ["payload 1 ejected"]
+    with page.expect_download() as download:
+        page.click("#identify-downloads button[data-download='verdict (JSON)']")
+    verdict = json.loads(Path(download.value.path()).read_text(encoding="utf-8"))
+    assert verdict["candidate"] == "payload 1 ejected"
+
+
+def test_compare_classifiers_draws_their_accuracy_curves_on_one_plot(
+    dashboard: Dashboard,
+) -> None:
+    _needs("classifier", "sweep")
+    page = dashboard.page
+    dashboard.open("#/classifiers")
+    page.wait_for_selector(f"#classifier-list-rows tr[data-id='{made['classifier']}']")
+    page.check(f"#classifier-list-rows tr[data-id='{made['classifier']}'] input[type=checkbox]")
+    page.click("#compare-classifiers")
+    page.wait_for_selector("#compare-accuracy-process")
+    drawn = page.evaluate("() => document.getElementById('compare-accuracy-process').data[0].y")
+    result = dashboard.service.job(made["sweep"])["result"]
+    assert drawn == pytest.approx(
+        [p["accuracy"] for p in result["points"] if p["noise"] == "process"]
+    )
+    dashboard.screenshot("compare-classifiers")
+
+
+def test_the_api_docs_render_their_operations_offline(dashboard: Dashboard) -> None:
+    page = dashboard.page
+    outside: list[str] = []
+    page.on(
+        "request",
+        lambda r: (
+            outside.append(r.url) if not r.url.startswith(dashboard.service.base_url) else None
+        ),
+    )
+    dashboard.open("#/jobs")
+    page.click("#docs-link")
+    page.wait_for_selector(".opblock", timeout=30_000)
+    assert page.locator(".opblock").count() >= 20
+    assert "/jobs/{job_id}/result" in page.inner_text(".swagger-ui")
+    assert outside == []
+
+
+def test_an_identical_resubmission_says_it_reused_the_result_and_can_run_again(
+    dashboard: Dashboard,
+) -> None:
     _needs("scenario", "search")
     page = dashboard.page
-    dashboard.open(f"#/compare?jobs={made['search']}")
+    separability = _submit_cem(dashboard, "fast CEM")
+    made["cem"] = separability
+    page.wait_for_selector("#best-sequence", timeout=180_000)
+    # A separability search's reward is built from the separability score, not the F1.
+    title = page.evaluate("() => document.getElementById('reward-plot').layout.title.text")
+    assert "separability" in title and "F1" not in title
+    again = _submit_cem(dashboard, "the same again")
+    assert again == separability
+    notice = page.wait_for_selector("#reused-notice")
+    assert "Reused an earlier result" in notice.inner_text()
+    page.click("#rerun-job")
+    page.wait_for_function(f"() => !location.hash.includes('{separability}')")
+    rerun = _hash_id(dashboard, "jobs")
+    assert rerun != separability
+    job = dashboard.service.job(rerun)
+    assert job["config_hash"] == dashboard.service.job(separability)["config_hash"]
+    dashboard.service.until(
+        lambda: dashboard.service.job(rerun)["status"] in TERMINAL, 180, "the rerun ends"
+    )
+
+
+def _submit_cem(dashboard: Dashboard, name: str) -> str:
+    page = dashboard.page
+    dashboard.open(f"#/jobs?scenario={made['scenario']}&type=search")
+    page.select_option("#search-method", "cem")
+    page.select_option("#search-objective", "separability")
+    page.fill("#search-n_realisations", "10")
+    page.fill("#search-seed", "3")
+    page.fill("#job-name-new", name)
+    page.click("#submit-job")
+    return _hash_id(dashboard, "jobs")
+
+
+def test_compare_searches_on_one_table_and_on_the_curves(dashboard: Dashboard) -> None:
+    _needs("scenario", "search", "cem")
+    page = dashboard.page
+    dashboard.open(f"#/compare?type=search&ids={made['search']},{made['cem']}")
+    page.wait_for_function("() => document.getElementById('compare-reward')?.data?.length === 2")
     page.wait_for_function("() => document.getElementById('compare-reward').data[0].x.length > 1")
+    header = page.inner_text("#compare-table thead")
+    for label in ("fresh F1 (mean)", "residual rate", "propellant", "search time"):
+        assert label in header
+    rows = page.locator("#compare-table tbody tr")
+    assert rows.count() == 2
+    ppo = dashboard.service.job(made["search"])
+    assert f"{ppo['summary']['fresh_f1']:.3f}" in rows.nth(0).inner_text()
+    title = page.evaluate("() => document.getElementById('compare-best').layout.title.text")
+    assert "F1, or separability" in title
+    # Restricted to another scenario, the two searches are not drawn.
+    other = dashboard.service.client.get("/scenarios").json()["items"][0]["id"]
+    assert other != made["scenario"]
+    page.select_option("#compare-scenario", other)
+    page.wait_for_selector("#compare-results .message.notice")
     dashboard.screenshot("compare")
 
+
+def test_a_cancel_asks_first_then_cancels(dashboard: Dashboard) -> None:
+    _needs("scenario")
+    page = dashboard.page
     dashboard.open(f"#/jobs?scenario={made['scenario']}&type=search")
     page.fill("#search-timesteps", "200000")
     page.fill("#search-seed", "1")
@@ -329,16 +592,62 @@ def test_compare_overlays_searches_and_a_job_can_be_cancelled(dashboard: Dashboa
     job_id = _hash_id(dashboard, "jobs")
     page.wait_for_selector("#job-header .badge.status-running", timeout=120_000)
     page.click("#cancel-job")
+    page.wait_for_selector("dialog.confirm[open]")
+    page.click("#confirm-no")
+    page.wait_for_selector("dialog.confirm", state="detached")
+    assert dashboard.service.job(job_id)["cancel_requested"] is False
+    page.click("#cancel-job")
+    page.click("#confirm-yes")
     page.wait_for_selector("#job-header .badge.status-cancelled", timeout=120_000)
     assert dashboard.service.job(job_id)["status"] == "cancelled"
 
 
-@pytest.mark.parametrize("route", ["#/scenarios", "#/jobs", "#/classifiers", "#/identify"])
-def test_pages_fit_a_laptop_screen(dashboard: Dashboard, route: str) -> None:
-    dashboard.page.set_viewport_size({"width": 1366, "height": 768})
-    dashboard.open(route)
-    dashboard.page.wait_for_load_state("networkidle")
-    overflow = dashboard.page.evaluate(
-        "() => document.documentElement.scrollWidth - window.innerWidth"
-    )
-    assert overflow <= 0, f"{route} is {overflow} px wider than a 1366 px screen"
+LAYOUT_ROUTES = {
+    "scenarios": lambda: "#/scenarios",
+    "scenario": lambda: f"#/scenarios/{made['scenario']}",
+    "new-scenario": lambda: "#/scenarios/new",
+    "jobs": lambda: "#/jobs",
+    "search": lambda: f"#/jobs/{made['search']}",
+    "sweep": lambda: f"#/jobs/{made['sweep']}",
+    "classifiers": lambda: "#/classifiers",
+    "classifier": lambda: f"#/classifiers/{made['classifier']}",
+    "compare-searches": lambda: f"#/compare?type=search&ids={made['search']},{made['cem']}",
+    "compare-sweeps": lambda: f"#/compare?type=sweep&ids={made['sweep']}",
+    "identify": lambda: f"#/identify?classifier={made['classifier']}",
+}
+# What each page draws last, so the check runs on the finished page.
+LAYOUT_READY = {
+    "scenario": "#moments-plot .main-svg",
+    "search": "#response-plot .legend",
+    "sweep": "#inertia-plot .legend",
+    "classifier": "#classifier-response .legend",
+    "compare-searches": "#compare-tradeoff .main-svg",
+    "compare-sweeps": "#compare-accuracy-process .legend",
+}
+
+
+@pytest.mark.parametrize("width", [1366, 1920])
+def test_every_page_type_fits_with_no_legend_over_the_plot(
+    dashboard: Dashboard, width: int, tmp_path: Path
+) -> None:
+    _needs("scenario", "search", "cem", "classifier", "sweep")
+    page = dashboard.page
+    page.set_viewport_size({"width": width, "height": 900})
+    telemetry = _telemetry_csv(tmp_path / "t.csv", Scenario.paper(), candidate=2, seed=21)
+    for name, route in LAYOUT_ROUTES.items():
+        dashboard.open(route())
+        page.wait_for_load_state("networkidle")
+        if name == "identify":
+            # The verdict's page: distances and the telemetry over the candidate's band.
+            page.set_input_files("#telemetry-file", str(telemetry))
+            page.wait_for_function(
+                "() => document.getElementById('telemetry-text').value.length > 100"
+            )
+            page.click("#identify-submit")
+            page.wait_for_selector("#overlay-plot .legend", timeout=60_000)
+        if name in LAYOUT_READY:
+            page.wait_for_selector(LAYOUT_READY[name], timeout=60_000)
+        problems = page.evaluate(LAYOUT_PROBLEMS_JS)
+        assert problems == [], f"{name} at {width} px: {problems}"
+        if width == 1366:
+            dashboard.screenshot(f"page-{name}")

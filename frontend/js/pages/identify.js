@@ -2,23 +2,11 @@
 // distance to every candidate, and the telemetry over the matched candidate's response.
 
 import { api } from "../api.js";
-import {
-  COLORS,
-  PLOT_CONFIG,
-  clear,
-  fmt,
-  h,
-  layout,
-  link,
-  messageBox,
-  plotDiv,
-  responseLayout,
-  sequenceText,
-  showFieldErrors,
-  withAlpha,
-} from "../ui.js";
+import { downloads } from "../components/downloads.js";
+import { BAND, COLORS, PLOT_CONFIG, layout, plotDiv, responseLayout, title, withAlpha } from "../components/plots.js";
+import { clear, fmt, h, jsonBlob, link, messageBox, sequenceText, showFieldErrors } from "../ui.js";
 
-const EXAMPLE = "time_s,wx,wy,wz\n0.05,0.0001,0.0009,-0.0004\n0.10,0.0012,0.0031,0.0015\n...";
+const EXAMPLE = "time_s,wx_rad_s,wy_rad_s,wz_rad_s\n0.05,0.0001,0.0009,-0.0004\n0.10,0.0012,0.0031,0.0015\n...";
 
 // For drawing only: the service parses the same text authoritatively.
 export function parseTelemetry(text) {
@@ -49,10 +37,10 @@ export async function render(root, context) {
     "select",
     { id: "identify-classifier" },
     page.items.map((c) =>
-      h("option", { value: c.id, selected: c.id === context.query.classifier }, `${c.id.slice(0, 8)} · ${c.metric} · F1 ${c.f1.toFixed(3)} · ${sequenceText(c.sequence)}`),
+      h("option", { value: c.id, selected: c.id === context.query.classifier }, `${c.job_name || c.id.slice(0, 8)} · ${c.kind} ${c.metric} · F1 ${c.f1.toFixed(3)} · ${sequenceText(c.sequence)}`),
     ),
   );
-  const text = h("textarea", { id: "telemetry-text", rows: 8, placeholder: `CSV (time_s, wx, wy, wz in rad/s) or JSON {"time_s": [...], "omega_rad_s": [[...], ...]}\n${EXAMPLE}` });
+  const text = h("textarea", { id: "telemetry-text", rows: 8, placeholder: `CSV (time_s, wx_rad_s, wy_rad_s, wz_rad_s) or JSON {"time_s": [...], "omega_rad_s": [[...], ...]}\n${EXAMPLE}` });
   const file = h("input", { type: "file", id: "telemetry-file", accept: ".csv,.json,text/csv,application/json" });
   file.addEventListener("change", async () => {
     if (file.files.length) text.value = await file.files[0].text();
@@ -76,9 +64,10 @@ export async function render(root, context) {
         const name = content.trim().startsWith("{") ? "telemetry.json" : "telemetry.csv";
         submit.disabled = true;
         try {
-          const verdict = await api.identify(select.value, new File([content], name, { type: "text/plain" }));
+          const file = new File([content], name, { type: "text/plain" });
+          const verdict = await api.identify(select.value, file);
           const classifier = page.items.find((c) => c.id === select.value);
-          await showVerdict(result, verdict, classifier, content, context);
+          await showVerdict(result, verdict, classifier, content, context, file);
         } catch (exc) {
           showFieldErrors(exc, { file: text, classifier_id: select }, general);
         } finally {
@@ -102,7 +91,7 @@ export async function render(root, context) {
   root.append(h("div", { class: "card" }, form), result);
 }
 
-async function showVerdict(holder, verdict, classifier, content, context) {
+async function showVerdict(holder, verdict, classifier, content, context, file) {
   const names = Object.keys(verdict.distances);
   const box = verdict.matches_none
     ? h(
@@ -119,6 +108,10 @@ async function showVerdict(holder, verdict, classifier, content, context) {
       { class: "card" },
       box,
       verdict.verdict !== verdict.candidate ? h("p", {}, verdict.verdict) : null,
+      downloads("identify-downloads", [
+        { label: "verdict (JSON)", filename: `identify-${verdict.classifier_id.slice(0, 8)}.json`, make: async () => jsonBlob(verdict) },
+        { label: "verdict (CSV)", filename: `identify-${verdict.classifier_id.slice(0, 8)}.csv`, make: () => api.identify(verdict.classifier_id, file, "csv") },
+      ]),
       h(
         "dl",
         { class: "kv" },
@@ -160,14 +153,13 @@ async function showVerdict(holder, verdict, classifier, content, context) {
         name: "distance",
       },
       ...(verdict.threshold !== null
-        ? [{ x: names, y: names.map(() => verdict.threshold), mode: "lines", line: { color: "#b3261e", dash: "dash" }, name: `"matches none" threshold of ${verdict.candidate}` }]
+        ? [{ x: names, y: names.map(() => verdict.threshold), mode: "lines", line: { color: "#b3261e", dash: "dash" }, name: `"matches none"<br>threshold` }]
         : []),
     ],
     layout("candidate", "distance (training-RMS units)", {
       height: 420,
-      title: { text: `${classifier ? classifier.metric : ""} distance to each candidate's centroid`, font: { size: 13 } },
-      legend: { orientation: "h", x: 0, y: 1.0, yanchor: "bottom" },
-      margin: { l: 70, r: 20, t: 60, b: 110 },
+      title: title(`${classifier ? classifier.metric : ""} distance to each candidate's centroid`, 13),
+      showlegend: verdict.threshold !== null,
     }),
     PLOT_CONFIG,
   );
@@ -185,9 +177,9 @@ async function showVerdict(holder, verdict, classifier, content, context) {
     traces.push(
       { x: response.time_s, y: candidate.low_rad_s.map((r) => r[a]), yaxis, mode: "lines", line: { width: 0 }, showlegend: false, hoverinfo: "skip" },
       { x: response.time_s, y: candidate.high_rad_s.map((r) => r[a]), yaxis, mode: "lines", line: { width: 0 }, fill: "tonexty", fillcolor: withAlpha(color, 0.2), showlegend: false, hoverinfo: "skip" },
-      { x: response.time_s, y: candidate.mean_rad_s.map((r) => r[a]), yaxis, mode: "lines", line: { color, width: 2 }, name: `${candidate.name}: mean response`, showlegend: a === 0 },
+      { x: response.time_s, y: candidate.mean_rad_s.map((r) => r[a]), yaxis, mode: "lines", line: { color, width: 2 }, name: "mean response", showlegend: a === 0 },
       { x: telemetry.time, y: telemetry.omega.map((r) => r[a]), yaxis, mode: "markers", marker: { color: "#222", size: 4 }, name: "telemetry", showlegend: a === 0 },
     );
   });
-  Plotly.newPlot(overlayPlot, traces, responseLayout(`telemetry (dots) over ${candidate.name}'s mean response and 10–90 % band`), PLOT_CONFIG);
+  Plotly.newPlot(overlayPlot, traces, responseLayout(`telemetry (dots) over ${candidate.name}'s mean and ${BAND.label} band`), PLOT_CONFIG);
 }

@@ -1,48 +1,25 @@
-// One job: its status header, and what its type shows — a search's learning curves
-// (fetched incrementally while it runs), best sequence and responses; a training's
-// classifier; a sweep's accuracy against noise.
+// One job: its header (status, name and tags, timing, downloads, cancel), and what its
+// type shows: a search's learning curves (fetched incrementally while it runs), best
+// sequence and responses; a training's classifier; a sweep's accuracy against noise.
 
 import { MetricFollower, api } from "../api.js";
-import {
-  PLOT_CONFIG,
-  clear,
-  duration,
-  fmt,
-  h,
-  layout,
-  link,
-  messageBox,
-  plotDiv,
-  progressBar,
-  put,
-  responseLayout,
-  responseTraces,
-  score,
-  sequencePlot,
-  sequenceText,
-  statusBadge,
-  table,
-  when,
-} from "../ui.js";
-import { renderClassifier, sweepPanel } from "./classifiers.js";
+import { downloads, jobDownloads } from "../components/downloads.js";
+import { REUSED_KEY, cancelButton, labelEditor, reusedNotice, timingCell } from "../components/jobs.js";
+import { BAND, PLOT_CONFIG, extendWith, layout, plotDiv, responseView, sequencePlot, title } from "../components/plots.js";
 import { isTerminal } from "../vocabulary.js";
-import { cancelJob } from "./jobs.js";
+import { clear, fmt, h, link, messageBox, progressBar, put, score, sequenceText, statusBadge, table, tagChips, whenText } from "../ui.js";
+import { renderClassifier } from "../views/classifier.js";
+import { sweepPanel } from "../views/sweep.js";
 
 const POLL_MS = 2000;
 
-function drawHeader(header, job, scenarioName) {
+function drawHeader(header, job, scenarioName, onLabels) {
   clear(header);
   const notice = h("div");
-  const cancel = isTerminal(job.status)
-    ? null
-    : h(
-        "button",
-        { type: "button", class: "danger", id: "cancel-job", disabled: job.cancel_requested, onclick: () => cancelJob(job, notice) },
-        job.cancel_requested ? "cancel requested" : "Cancel job",
-      );
+  const cancel = cancelButton(job, notice, () => {}, { id: "cancel-job", text: "Cancel job" });
   put(
     header,
-    h("div", { class: "toolbar" }, statusBadge(job.status), progressBar(job.progress, job.status), h("span", { id: "job-duration" }, duration(job.started_at, job.finished_at)), cancel),
+    h("div", { class: "toolbar" }, statusBadge(job.status), progressBar(job.progress, job.status), h("span", { id: "job-duration" }, timingCell(job)), tagChips(job.tags), cancel),
     notice,
     job.error ? messageBox("error", job.error) : null,
     h(
@@ -53,14 +30,32 @@ function drawHeader(header, job, scenarioName) {
       h("dt", {}, "scenario"),
       h("dd", {}, link(`#/scenarios/${job.scenario_id}`, scenarioName || job.scenario_id)),
       h("dt", {}, "seed"),
-      h("dd", {}, job.seed),
-      h("dt", {}, "created / started / finished"),
-      h("dd", {}, `${when(job.created_at)} / ${when(job.started_at)} / ${when(job.finished_at)}`),
+      h("dd", { id: "job-seed" }, job.seed),
+      h("dt", {}, "created"),
+      h("dd", {}, whenText(job.created_at)),
+      h("dt", {}, "started"),
+      h("dd", {}, whenText(job.started_at)),
+      h("dt", {}, "finished"),
+      h("dd", {}, whenText(job.finished_at)),
       h("dt", {}, "worker, attempts"),
       h("dd", {}, `${job.worker || "–"}, ${job.attempts}`),
     ),
+    h("details", {}, h("summary", {}, "name and tags"), labelEditor(job, onLabels)),
     h("details", {}, h("summary", {}, "parameters"), h("pre", { class: "mono" }, JSON.stringify(job.params, null, 2))),
+    job.result ? downloads("job-downloads", jobDownloads(job), { label: "Download the result" }) : null,
   );
+}
+
+function reused(job, context) {
+  if (!context.query.reused) return null;
+  let saved = null;
+  try {
+    saved = JSON.parse(sessionStorage.getItem(REUSED_KEY) || "null");
+  } catch {
+    saved = null;
+  }
+  const body = saved && saved.id === job.id ? saved.body : { type: job.type, scenario_id: job.scenario_id, seed: job.seed, params: job.params };
+  return reusedNotice(body, job);
 }
 
 export async function render(root, context) {
@@ -69,21 +64,32 @@ export async function render(root, context) {
   const scenario = await api.scenario(job.scenario_id).catch(() => null);
   const header = h("div", { class: "card", id: "job-header" });
   const body = h("div", { id: "job-body" });
-  root.append(h("h1", {}, `${job.type[0].toUpperCase()}${job.type.slice(1)} job `, h("code", {}, job.id.slice(0, 8))), header, body);
-  drawHeader(header, job, scenario && scenario.name);
+  const heading = h("h1", {}, `${job.type[0].toUpperCase()}${job.type.slice(1)} job `, h("code", {}, job.id.slice(0, 8)));
+  const named = () => {
+    heading.replaceChildren(`${job.name ? `${job.name} · ` : ""}${job.type[0].toUpperCase()}${job.type.slice(1)} job `, h("code", {}, job.id.slice(0, 8)));
+  };
+  const onLabels = (saved) => {
+    job = saved;
+    named();
+    redraw();
+  };
+  const redraw = () => drawHeader(header, job, scenario && scenario.name, onLabels);
+  named();
+  put(root, heading, reused(job, context), header, body);
+  redraw();
   const views = { search: searchView, train: trainView, sweep: sweepView };
   const view = await views[job.type](body, job, context);
   let done = isTerminal(job.status);
   const tick = async () => {
-    if (done) {
-      // Keep the duration honest while nothing else changes.
-      return;
-    }
-    job = await api.job(id);
+    if (done) return;
+    const fresh = await api.job(id);
     if (!context.alive()) return;
-    drawHeader(header, job, scenario && scenario.name);
-    await view.update(job);
+    const labelsOpen = header.querySelector("details[open] #labels-form");
+    job = fresh;
     done = isTerminal(job.status);
+    // Leave an open labels editor alone while the user types; redraw once the job ends.
+    if (!labelsOpen || done) redraw();
+    await view.update(job);
   };
   context.every(POLL_MS, tick);
 }
@@ -93,31 +99,34 @@ async function searchView(body, job, context) {
   const rewardPlot = plotDiv("reward-plot");
   const f1Plot = plotDiv("f1-plot");
   const pointCount = h("span", { id: "curve-points", class: "muted" }, "0 points");
+  const separability = job.params.objective === "separability";
   const resultHolder = h("div", { id: "search-result" });
   body.append(
     h(
       "div",
       { class: "card" },
-      h("div", { class: "toolbar" }, h("h2", { style: "margin: 0" }, "Learning curve"), pointCount, link(`#/compare?jobs=${job.id}`, "compare with other searches")),
+      h("div", { class: "toolbar" }, h("h2", { style: "margin: 0" }, "Learning curve"), pointCount, link(`#/compare?ids=${job.id}`, "compare with other searches")),
       h("div", { class: "grid2" }, rewardPlot, f1Plot),
     ),
     resultHolder,
   );
+  // The reward is built from what the search scored: the clustering F1 (the paper's
+  // objective) or the separability score.
+  const what = separability ? "separability score" : "clustering F1";
+  const rewardText = separability ? "Reward per episode: −1 + 3·separability per step, −|ω| (rad/s) at the last" : "Reward per episode: −1 + 3·F1 per step, −|ω| (rad/s) at the last";
   Plotly.newPlot(
     rewardPlot,
     [{ x: [], y: [], mode: "lines+markers", name: "mean episode reward", line: { color: "#1f77b4" } }],
-    layout("environment steps", "mean episode reward", { title: { text: "Reward per episode: −1 + 3·F1 per step, −|ω| (rad/s) at the last", font: { size: 13 } }, showlegend: false }),
+    layout("environment steps", "mean episode reward", { title: title(rewardText, 13), showlegend: false }),
     PLOT_CONFIG,
   );
-  // A separability search scores sequences by the separability bound, not by F1.
-  const what = job.params.objective === "separability" ? "separability score" : "clustering F1";
   Plotly.newPlot(
     f1Plot,
     [
-      { x: [], y: [], mode: "lines+markers", name: `best ${what} so far`, line: { color: "#2ca02c" } },
-      { x: [], y: [], mode: "lines+markers", name: `mean ${what} of the episodes since the last point`, line: { color: "#ff7f0e", dash: "dot" } },
+      { x: [], y: [], mode: "lines+markers", name: "best so far", line: { color: "#2ca02c" } },
+      { x: [], y: [], mode: "lines+markers", name: "mean since last point", line: { color: "#ff7f0e", dash: "dot" } },
     ],
-    layout("environment steps", what, { title: { text: what, font: { size: 14 } }, yaxis: { title: { text: what }, range: [0, 1.05] } }),
+    layout("environment steps", what, { title: title(`${separability ? "Separability score" : "Clustering F1"} of the episodes' sequences`), yaxis: { title: { text: what }, range: [0, 1.05] } }),
     PLOT_CONFIG,
   );
   const follower = new MetricFollower(job.id);
@@ -126,21 +135,8 @@ async function searchView(body, job, context) {
   const update = async (current) => {
     const fresh = await follower.poll();
     if (!context.alive()) return;
-    const extend = (plot, keys) => {
-      const indices = [];
-      const xs = [];
-      const ys = [];
-      keys.forEach((key, i) => {
-        if (fresh[key]) {
-          indices.push(i);
-          xs.push(fresh[key].steps);
-          ys.push(fresh[key].values);
-        }
-      });
-      if (indices.length) Plotly.extendTraces(plot, { x: xs, y: ys }, indices);
-    };
-    extend(rewardPlot, ["mean_episode_reward"]);
-    extend(f1Plot, ["best_f1", "mean_f1"]);
+    extendWith(rewardPlot, fresh, ["mean_episode_reward"]);
+    extendWith(f1Plot, fresh, ["best_f1", "mean_f1"]);
     if (fresh.mean_episode_reward) points += fresh.mean_episode_reward.steps.length;
     pointCount.textContent = `${points} point${points === 1 ? "" : "s"}${isTerminal(current.status) ? "" : " · updating live"}`;
     pointCount.dataset.points = String(points);
@@ -159,7 +155,7 @@ async function searchResult(holder, job, context) {
   const freshF1 = result.fresh.f1;
   const mean = freshF1.reduce((a, b) => a + b, 0) / Math.max(1, freshF1.length);
   const seqPlot = plotDiv("sequence-plot", "short");
-  const responsePlot = plotDiv("response-plot");
+  const responseHolder = h("div", { id: "response-holder" });
   const trainHref = `#/jobs?type=train&scenario=${job.scenario_id}&sequence=${encodeURIComponent(sequenceText(best.sequence))}`;
   holder.append(
     h(
@@ -187,18 +183,21 @@ async function searchResult(holder, job, context) {
       baselineTable(result, best, freshF1),
       h("div", { class: "toolbar" }, link(trainHref, "Train a classifier on this sequence", { class: "button", id: "train-best" })),
       h("h3", {}, "Thruster duty over time"),
+      h("p", { class: "hint" }, "Thrusters numbered from 1, as in the report."),
       seqPlot,
-      h("h3", {}, "Each candidate's response (mean and 10–90 % band over 20 noisy realisations)"),
-      responsePlot,
+      h("h3", {}, `Each candidate's response (mean and ${BAND.label} band over 20 noisy realisations)`),
+      responseHolder,
     ),
   );
   try {
     const response = await api.response(job.scenario_id, best.sequence, { n_realisations: 20, seed: job.seed });
     if (!context.alive()) return;
     sequencePlot(seqPlot, response);
-    Plotly.newPlot(responsePlot, responseTraces(response), responseLayout("ω response to the best sequence"), PLOT_CONFIG);
+    const view = responseView(response, { id: "response-plot", titleText: "ω response to the best sequence" });
+    responseHolder.append(view.node);
+    view.draw();
   } catch (exc) {
-    responsePlot.replaceWith(messageBox("error", exc.message));
+    responseHolder.replaceWith(messageBox("error", exc.message));
   }
 }
 

@@ -1,19 +1,12 @@
-// Jobs: submit a search, a training or a sweep, and a live list (status, progress,
-// duration) refreshed every two seconds without reloading the page.
+// Jobs: submit a search, a training or a sweep (with a name and tags), and the runs: a
+// sorted, filtered, paged list with their headline figures, queue and run time, refreshed
+// every two seconds without reloading the page.
 
 import { api } from "../api.js";
-import { isTerminal, otherSpecs, vocabulary } from "../vocabulary.js";
-import {
-  clear,
-  duration,
-  h,
-  link,
-  messageBox,
-  progressBar,
-  showFieldErrors,
-  statusBadge,
-  when,
-} from "../ui.js";
+import { REUSED_KEY, cancelButton, headline, jobCell, parseTags, summaryTableColumns, timingCell } from "../components/jobs.js";
+import { dataTable } from "../components/table.js";
+import { otherSpecs, vocabulary } from "../vocabulary.js";
+import { clear, h, link, messageBox, progressBar, showFieldErrors, statusBadge, when } from "../ui.js";
 
 const POLL_MS = 2000;
 
@@ -29,15 +22,6 @@ function jsonOrText(text) {
     return JSON.parse(text);
   } catch {
     return text;
-  }
-}
-
-export async function cancelJob(job, notice) {
-  try {
-    await api.cancelJob(job.id);
-  } catch (exc) {
-    clear(notice);
-    notice.append(messageBox("error", exc.message));
   }
 }
 
@@ -147,7 +131,7 @@ function submitForm(scenarios, classifiers, query) {
     clear(sweep.classifier);
     const mine = classifiers.filter((c) => c.scenario_id === sweep.scenario.value);
     for (const c of mine) {
-      sweep.classifier.append(h("option", { value: c.id, selected: c.id === query.classifier }, `${c.metric}, F1 ${c.f1.toFixed(3)} (${c.id.slice(0, 8)})`));
+      sweep.classifier.append(h("option", { value: c.id, selected: c.id === query.classifier }, `${c.job_name ? `${c.job_name}: ` : ""}${c.kind} ${c.metric}, F1 ${c.f1.toFixed(3)} (${c.id.slice(0, 8)})`));
     }
     if (!mine.length) sweep.classifier.append(h("option", { value: "" }, "no classifier for this scenario: train one first"));
   };
@@ -169,7 +153,7 @@ function submitForm(scenarios, classifiers, query) {
       others: OTHERS.map(([spec]) => spec).filter((spec) => sweep.others[spec].checked),
       n_train: intOrText(sweep.n_train.value),
       inertia: sweep.inertia.checked,
-      limit_realisations: sweep.limit.checked ? 200 : 0,
+      ...(sweep.limit.checked ? {} : { ceiling_realisations: 0 }),
       n_test: intOrText(sweep.n_test.value),
     },
   });
@@ -218,7 +202,7 @@ function submitForm(scenarios, classifiers, query) {
         [h("span", {}, "sources of error"), h("div", {}, vocabulary().noises.map(({ noise, label }) => h("label", { class: "check" }, sweep.noises[noise], ` ${label}`)))],
         [h("span", {}, "beside it"), h("div", {}, OTHERS.map(([spec, label]) => h("label", { class: "check" }, sweep.others[spec], ` ${label}`)))],
         field("sweep-n_train", "their training", sweep.n_train, "realisations per candidate"),
-        [h("span", {}, "the limit"), h("label", { class: "check" }, sweep.limit, " draw the limit: a likelihood classifier fitted at each noise level (200 realisations per candidate)")],
+        [h("span", {}, "the ceiling"), h("label", { class: "check" }, sweep.limit, " draw the ceiling: per-candidate Gaussians fitted at each noise level (2,000 realisations per candidate; a few seconds a point)")],
         [h("span", {}, "off the candidates"), h("label", { class: "check" }, sweep.inertia, " also test scaled and in-between bodies: is the answer \"matches none\"?")],
         field("sweep-n_test", "test series", sweep.n_test, "per point, over all candidates"),
         field("sweep-seed", "seed", sweep.seed),
@@ -226,6 +210,17 @@ function submitForm(scenarios, classifiers, query) {
       sweepBody,
       { ...sweep, ...sweep.noises, ...sweep.others, classifier_id: sweep.classifier },
     ],
+  };
+
+  const labels = {
+    name: h("input", { id: "job-name-new", size: 40, placeholder: "optional: a name for this run" }),
+    tags: h("input", { id: "job-tags-new", size: 30, placeholder: "optional: tags, comma separated" }),
+  };
+  const labelFields = h("div", { class: "stack" }, field("job-name-new", "name", labels.name, "for you; not part of the job's identity"), field("job-tags-new", "tags", labels.tags, "to filter and compare runs"));
+  const withLabels = (body) => {
+    const name = labels.name.value.trim();
+    const tags = parseTags(labels.tags.value);
+    return { ...body, ...(name ? { name } : {}), ...(tags.length ? { tags } : {}) };
   };
 
   let current = ["search", "train", "sweep"].includes(query.type) ? query.type : "search";
@@ -257,12 +252,18 @@ function submitForm(scenarios, classifiers, query) {
         event.preventDefault();
         const [, body, inputs] = panels[current];
         submit.disabled = true;
+        const sent = withLabels(body());
         try {
-          const job = await api.submitJob(body());
-          location.hash = `#/jobs/${job.id}`;
+          const job = await api.submitJob(sent);
+          if (job.reused) {
+            sessionStorage.setItem(REUSED_KEY, JSON.stringify({ id: job.id, body: sent }));
+            location.hash = `#/jobs/${job.id}?reused=1`;
+          } else {
+            location.hash = `#/jobs/${job.id}`;
+          }
         } catch (exc) {
           const fields = Object.fromEntries(Object.entries(inputs).filter(([, v]) => v instanceof Element));
-          showFieldErrors(exc, fields, general);
+          showFieldErrors(exc, { ...fields, name: labels.name, tags: labels.tags }, general, event.target);
         } finally {
           submit.disabled = false;
         }
@@ -270,6 +271,7 @@ function submitForm(scenarios, classifiers, query) {
     },
     tabs,
     holder,
+    labelFields,
     general,
     h("div", { class: "toolbar" }, submit),
   );
@@ -287,68 +289,47 @@ export async function render(root, context) {
     root.append(h("details", { class: "card", open: true, id: "submit-card" }, h("summary", {}, "Submit a job"), submitForm(scenarios.items, classifiers.items, query)));
   }
 
-  const selected = new Set();
-  const compareButton = h("button", { type: "button", class: "secondary", id: "compare-selected", disabled: true, onclick: () => { location.hash = `#/compare?jobs=${[...selected].join(",")}`; } }, "Compare selected searches");
-  const filter = h("select", { id: "job-filter", "aria-label": "show jobs of type" }, ["all", "search", "train", "sweep"].map((t) => h("option", { value: t }, t)));
   const notice = h("div");
-  const body = h("tbody", { id: "job-rows" });
-  const count = h("span", { class: "muted", id: "job-count" });
+  const compareButton = h("a", { class: "button secondary", id: "compare-selected", href: "#/compare" }, "Compare selected");
+  const typeFilter = ["search", "train", "sweep"].includes(query.list) ? query.list : "";
+  const runs = dataTable({
+    id: "jobs",
+    load: (q) => api.jobs(q),
+    initial: { sort: "created", order: "desc", type: typeFilter },
+    filters: [
+      { name: "q", label: "search", type: "text", placeholder: "name, tag or id" },
+      { name: "type", label: "type", options: [["", "all"], ...vocabulary().job_types.map((t) => [t, t])] },
+      { name: "status", label: "status", options: [["", "any"], ...vocabulary().job_statuses.map((t) => [t, t])] },
+      { name: "scenario_id", label: "scenario", options: [["", "any"], ...scenarios.items.map((s) => [s.id, s.name])] },
+      { name: "tag", label: "tag", type: "text", size: 10 },
+    ],
+    select: {
+      label: (job) => `select ${job.id} for comparison`,
+      enabled: (job) => job.type !== "train",
+      onChange: (ids) => compareButton.setAttribute("href", `#/compare?ids=${ids.join(",")}`),
+    },
+    empty: "no jobs match",
+    rowAttrs: (job) => ({ dataset: { id: job.id, jobId: job.id, status: job.status } }),
+    columns: (state) => [
+      { key: "run", label: "run", sort: "name", cell: jobCell },
+      { key: "type", label: "type", sort: "type", cell: (job) => job.type },
+      { key: "status", label: "status", sort: "status", cell: (job) => [statusBadge(job.status), progressBar(job.progress, job.status)] },
+      { key: "scenario", label: "scenario", cell: (job) => link(`#/scenarios/${job.scenario_id}`, names[job.scenario_id] || job.scenario_id.slice(0, 8)) },
+      ...(state.type ? summaryTableColumns(state.type) : [{ key: "headline", label: "result", cell: headline }]),
+      { key: "created", label: "created", sort: "created", cell: (job) => when(job.created_at) },
+      { key: "timing", label: "queue · run", cell: timingCell },
+      { key: "actions", label: "", cell: (job) => cancelButton(job, notice, () => runs.refresh()) },
+    ],
+  });
   root.append(
     h(
       "div",
       { class: "card" },
-      h("div", { class: "toolbar" }, h("h2", { style: "margin: 0" }, "All jobs"), h("label", { for: "job-filter" }, "type"), filter, compareButton, count),
+      h("div", { class: "toolbar" }, h("h2", { style: "margin: 0" }, "Runs"), compareButton, h("span", { class: "hint" }, "tick searches or sweeps to compare them; choose a type to see and sort by its figures")),
       notice,
-      h(
-        "table",
-        { id: "job-table" },
-        h("thead", {}, h("tr", {}, ["", "job", "type", "status", "progress", "scenario", "created", "duration", ""].map((n) => h("th", {}, n)))),
-        body,
-      ),
+      runs.node,
     ),
   );
-
-  const refresh = async () => {
-    const page = await api.jobs(filter.value === "all" ? {} : { type: filter.value });
-    if (!context.alive()) return;
-    clear(body);
-    count.textContent = `${page.items.length} of ${page.total}`;
-    for (const job of page.items) {
-      const check =
-        job.type === "search"
-          ? h("input", {
-              type: "checkbox",
-              "aria-label": `select ${job.id} for comparison`,
-              checked: selected.has(job.id),
-              onchange: (event) => {
-                if (event.target.checked) selected.add(job.id);
-                else selected.delete(job.id);
-                compareButton.disabled = selected.size < 1;
-              },
-            })
-          : "";
-      const cancel = isTerminal(job.status)
-        ? ""
-        : h("button", { type: "button", class: "danger", disabled: job.cancel_requested, onclick: () => cancelJob(job, notice).then(refresh) }, job.cancel_requested ? "cancelling" : "cancel");
-      body.append(
-        h(
-          "tr",
-          { dataset: { jobId: job.id, status: job.status } },
-          h("td", {}, check),
-          h("td", {}, link(`#/jobs/${job.id}`, job.id.slice(0, 8), { title: job.id })),
-          h("td", {}, job.type, h("span", { class: "hint" }, ` ${job.type === "search" ? job.params.method : job.type === "train" ? job.params.kind || "" : ""}`)),
-          h("td", {}, statusBadge(job.status)),
-          h("td", {}, progressBar(job.progress, job.status)),
-          h("td", {}, link(`#/scenarios/${job.scenario_id}`, names[job.scenario_id] || job.scenario_id.slice(0, 8))),
-          h("td", {}, when(job.created_at)),
-          h("td", {}, duration(job.started_at, job.finished_at)),
-          h("td", {}, cancel),
-        ),
-      );
-    }
-    if (!page.items.length) body.append(h("tr", {}, h("td", { colspan: 9, class: "muted" }, "no jobs yet")));
-  };
-  filter.addEventListener("change", refresh);
-  await refresh();
-  context.every(POLL_MS, refresh);
+  await runs.refresh();
+  context.every(POLL_MS, runs.refresh);
 }

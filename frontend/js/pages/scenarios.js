@@ -1,21 +1,12 @@
 // Scenarios: the list, one scenario (candidates with principal moments, thrusters, noise)
-// and the form that creates one from the paper preset or field by field.
+// and the form that creates one from a preset, from a stored scenario (clone and edit) or
+// from a JSON file (what `inertia-id scenario --out` writes), field by field.
 
 import { api } from "../api.js";
-import {
-  COLORS,
-  PLOT_CONFIG,
-  clear,
-  fmt,
-  h,
-  layout,
-  link,
-  messageBox,
-  showError,
-  showFieldErrors,
-  table,
-  when,
-} from "../ui.js";
+import { confirmAction } from "../components/dialog.js";
+import { downloads } from "../components/downloads.js";
+import { COLORS, PLOT_CONFIG, layout, tightRange } from "../components/plots.js";
+import { clear, h, jsonBlob, link, messageBox, plain, showError, showFieldErrors, table, when } from "../ui.js";
 
 const UNCERTAINTY_FIELDS = [
   ["duty_jitter_sigma", "duty jitter σ", "fraction of full duty, per firing thruster and step"],
@@ -50,14 +41,15 @@ export async function renderList(root) {
       "div",
       { class: "card" },
       table(
-        ["name", "candidates", "thrusters", "duty levels", "created", "id"],
+        ["name", "candidates", "thrusters", "duty levels", "created", "id", ""],
         page.items.map((s) => [
           link(`#/scenarios/${s.id}`, s.name),
           s.candidates.length,
           s.n_thrusters,
           s.n_levels,
           when(s.created_at),
-          h("code", {}, s.id),
+          h("code", {}, s.id.slice(0, 8)),
+          link(`#/scenarios/new?from=${s.id}`, "clone and edit"),
         ]),
         { id: "scenario-table" },
       ),
@@ -75,12 +67,15 @@ export async function renderOne(root, context) {
   actions.append(
     link(`#/jobs?scenario=${scenario.id}&type=search`, "Search for a sequence", { class: "button" }),
     link(`#/jobs?scenario=${scenario.id}&type=train`, "Train a classifier", { class: "button secondary" }),
+    link(`#/scenarios/new?from=${scenario.id}`, "Clone and edit", { class: "button secondary", id: "clone-scenario" }),
+    downloads("scenario-downloads", [{ label: "scenario (JSON)", filename: `scenario-${scenario.id.slice(0, 8)}.json`, make: async () => jsonBlob(doc) }]),
     h(
       "button",
       {
         class: "danger",
         onclick: async () => {
-          if (!confirm(`Delete scenario "${scenario.name}"?`)) return;
+          const ok = await confirmAction({ title: `Delete scenario "${scenario.name}"?`, text: "A scenario that jobs or classifiers use is kept.", confirm: "Delete" });
+          if (!ok) return;
           try {
             await api.deleteScenario(scenario.id);
             location.hash = "#/scenarios";
@@ -94,7 +89,7 @@ export async function renderOne(root, context) {
   );
   root.append(
     h("h1", {}, `Scenario: ${scenario.name}`),
-    h("p", { class: "muted" }, `id `, h("code", {}, scenario.id), ` · created ${when(scenario.created_at)}`),
+    h("p", { class: "muted" }, `id `, h("code", {}, scenario.id), " · created ", when(scenario.created_at)),
     actions,
     notice,
     h(
@@ -114,7 +109,7 @@ export async function renderOne(root, context) {
           { id: "candidate-table" },
         ),
       ),
-      h("div", { class: "card grow" }, h("h2", {}, "Principal moments"), momentsPlot),
+      h("div", { class: "card grow" }, h("h2", {}, "Principal moments (kg m²)"), h("p", { class: "hint" }, "Each moment on its own scale: the candidates differ by 5–15 %."), momentsPlot),
     ),
     h(
       "div",
@@ -123,13 +118,13 @@ export async function renderOne(root, context) {
         "div",
         { class: "card grow" },
         h("h2", {}, "Thrusters"),
-        h("p", { class: "hint" }, "Torque at full duty (N m), one column per thruster."),
+        h("p", { class: "hint" }, "Torque at full duty (N m), one column per thruster, numbered from 1."),
         table(
           ["axis", ...doc.thrusters.torque_matrix_nm[0].map((_, j) => `thruster ${j + 1}`)],
-          doc.thrusters.torque_matrix_nm.map((row, i) => [["x", "y", "z"][i], ...row.map((v) => fmt(v, 3))]),
-          { class: "matrix" },
+          doc.thrusters.torque_matrix_nm.map((row, i) => [["x", "y", "z"][i], ...row.map((v) => plain(v, 4))]),
+          { class: "matrix", id: "thruster-table" },
         ),
-        h("p", {}, "Duty levels: ", h("span", { class: "mono" }, doc.thrusters.levels.join(", "))),
+        h("p", {}, "Duty levels: ", h("span", { class: "mono" }, doc.thrusters.levels.map((v) => plain(v)).join(", "))),
       ),
       h(
         "div",
@@ -138,37 +133,52 @@ export async function renderOne(root, context) {
         h(
           "dl",
           { class: "kv" },
-          TIMING_FIELDS.map(([key, label, unit]) => [h("dt", {}, label), h("dd", {}, `${fmt(doc.timing[key], 4)} ${unit}`)]),
+          TIMING_FIELDS.map(([key, label, unit]) => [h("dt", {}, label), h("dd", {}, `${plain(doc.timing[key])} ${unit}`)]),
           UNCERTAINTY_FIELDS.map(([key, label, unit]) => [
             h("dt", {}, label),
-            h("dd", {}, `${Array.isArray(doc.uncertainty[key]) ? doc.uncertainty[key].join(", ") : fmt(doc.uncertainty[key], 4)} (${unit})`),
+            h("dd", {}, `${Array.isArray(doc.uncertainty[key]) ? doc.uncertainty[key].map((v) => plain(v)).join(", ") : plain(doc.uncertainty[key])} (${unit})`),
           ]),
         ),
       ),
     ),
   );
+  // Markers, not bars: the candidates differ by 5–15 %, which a bar from 0 hides. Each
+  // moment gets its own panel with its own (never zero-based) range.
+  const moments = [0, 1, 2];
   Plotly.newPlot(
     momentsPlot,
-    [0, 1, 2].map((axis) => ({
-      type: "bar",
-      name: `principal moment ${axis + 1}`,
+    moments.map((axis) => ({
+      type: "scatter",
+      mode: "markers+lines",
+      name: ["smallest", "middle", "largest"][axis],
       x: scenario.candidates.map((c) => c.name),
       y: scenario.candidates.map((c) => c.principal_moments_kg_m2[axis]),
-      marker: { color: COLORS[axis] },
-      hovertemplate: "%{x}: %{y:.2f} kg m²<extra>%{fullData.name}</extra>",
+      xaxis: "x",
+      yaxis: axis === 0 ? "y" : `y${axis + 1}`,
+      marker: { color: COLORS[axis], size: 9 },
+      line: { color: COLORS[axis], width: 1, dash: "dot" },
+      hovertemplate: "%{x}: %{y:.2f} kg m²<extra>%{fullData.name} moment</extra>",
     })),
-    layout("candidate", "principal moment (kg m²)", { barmode: "group", height: 300 }),
+    layout("candidate", "", {
+      height: 460,
+      showlegend: false,
+      xaxis: { title: { text: "candidate" }, anchor: "y" },
+      yaxis: { title: { text: "smallest" }, domain: [0, 0.29], range: tightRange(scenario.candidates.map((c) => c.principal_moments_kg_m2[0])) },
+      yaxis2: { title: { text: "middle" }, domain: [0.355, 0.645], range: tightRange(scenario.candidates.map((c) => c.principal_moments_kg_m2[1])) },
+      yaxis3: { title: { text: "largest" }, domain: [0.71, 1], range: tightRange(scenario.candidates.map((c) => c.principal_moments_kg_m2[2])) },
+    }),
     PLOT_CONFIG,
   );
 }
 
 // The form: a candidates table, the thruster matrix, levels, timing and noise, all
 // prefilled from a preset; the server validates and its messages appear by the fields.
-export async function renderNew(root) {
+export async function renderNew(root, context) {
   const presets = await api.presets();
   const names = Object.keys(presets);
   const general = h("div", { id: "form-errors" });
-  root.append(h("h1", {}, "New scenario"));
+  const source = context.query.from ? await api.scenario(context.query.from) : null;
+  root.append(h("h1", {}, source ? `New scenario from "${source.name}"` : "New scenario"));
 
   const presetName = h("input", { id: "preset-name", name: "preset-name", value: "paper preset", size: 30 });
   const presetSelect = h("select", { id: "preset-select" }, names.map((n) => h("option", { value: n }, n)));
@@ -199,18 +209,65 @@ export async function renderNew(root) {
 
   const formCard = h("div", { class: "card" });
   root.append(formCard);
-  const fill = (doc) => {
+  const fill = (doc, suffix = " (edited)") => {
     clear(formCard);
-    formCard.append(h("h2", {}, "Or set every field"), buildForm(doc, general));
+    formCard.append(h("h2", {}, "Or set every field"), buildForm(doc, general, suffix));
   };
+  const uploadErrors = h("div", { id: "upload-errors" });
+  const upload = h("input", { type: "file", id: "scenario-file", accept: ".json,application/json" });
+  upload.addEventListener("change", async () => {
+    clear(uploadErrors);
+    if (!upload.files.length) return;
+    const file = upload.files[0];
+    let doc;
+    try {
+      doc = JSON.parse(await file.text());
+    } catch (exc) {
+      uploadErrors.append(messageBox("error", `${file.name} is not JSON: ${exc.message}`));
+      return;
+    }
+    // A document as `inertia-id scenario --out` writes it, or as GET /scenarios/{id} serves it.
+    if (doc && doc.document && doc.document.inertia_candidates) doc = doc.document;
+    const problem = documentProblem(doc);
+    if (problem) {
+      uploadErrors.append(messageBox("error", `${file.name} is not a scenario document: ${problem}`));
+      return;
+    }
+    fill(doc, "");
+  });
   const loader = h(
     "div",
     { class: "toolbar" },
     h("span", { class: "hint" }, "The form starts from a preset:"),
     names.map((n) => h("button", { type: "button", class: "secondary", onclick: () => fill(presets[n]) }, `load ${n}`)),
+    h("label", { for: "scenario-file" }, "or a scenario file (JSON, as inertia-id scenario --out writes):"),
+    upload,
   );
   root.insertBefore(loader, formCard);
-  fill(presets[names[0]]);
+  root.insertBefore(uploadErrors, formCard);
+  if (source) fill(source.document, " (copy)");
+  else fill(presets[names[0]]);
+}
+
+// Why `doc` cannot fill the form (null if it can): the fields the form reads.
+function documentProblem(doc) {
+  if (!doc || typeof doc !== "object") return "expected a JSON object";
+  if (!Array.isArray(doc.inertia_candidates) || !doc.inertia_candidates.length) {
+    return doc.candidate_generator ? "its candidates are generated (candidate_generator): write them out with inertia-id scenario --out first" : "no inertia_candidates list";
+  }
+  for (const c of doc.inertia_candidates) {
+    if (!c || !Array.isArray(c.inertia_kg_m2) || c.inertia_kg_m2.length !== 3) return `candidate ${JSON.stringify(c && c.name)} has no 3 × 3 inertia_kg_m2`;
+  }
+  const t = doc.thrusters;
+  if (!t || !Array.isArray(t.torque_matrix_nm) || !Array.isArray(t.levels)) return "no thrusters.torque_matrix_nm and thrusters.levels";
+  if (!doc.timing || !doc.uncertainty) return "no timing or uncertainty section";
+  return null;
+}
+
+// A candidate row leaves with its message row, if it has one.
+function clearRowError(row) {
+  const next = row.nextElementSibling;
+  if (next && next.classList.contains("field-error")) next.remove();
 }
 
 function numberOrText(text) {
@@ -226,9 +283,9 @@ function listOf(text) {
     .map(numberOrText);
 }
 
-function buildForm(preset, general) {
+function buildForm(preset, general, suffix = " (edited)") {
   const fields = {};
-  const nameInput = h("input", { id: "scenario-name", name: "name", value: `${preset.name} (edited)`, size: 40 });
+  const nameInput = h("input", { id: "scenario-name", name: "name", value: `${preset.name}${suffix}`, size: 40 });
   fields.name = nameInput;
 
   // Candidates: name and the six inertia components.
@@ -254,9 +311,9 @@ function buildForm(preset, general) {
       {},
       h("td", {}, h("input", { value: candidate.name, "aria-label": "candidate name", class: "cand-name" })),
       COMPONENTS.map(([n, i, j]) =>
-        h("td", {}, h("input", { value: candidate.inertia_kg_m2[i][j], "aria-label": n, class: `cand-${n}`, inputmode: "decimal" })),
+        h("td", {}, h("input", { value: plain(candidate.inertia_kg_m2[i][j], null), "aria-label": n, class: `cand-${n}`, inputmode: "decimal" })),
       ),
-      h("td", {}, h("button", { type: "button", class: "secondary", onclick: () => row.remove() }, "remove")),
+      h("td", {}, h("button", { type: "button", class: "secondary", onclick: () => { clearRowError(row); row.remove(); } }, "remove")),
     );
     candidateBody.append(row);
   };
@@ -270,14 +327,14 @@ function buildForm(preset, general) {
   fields.thrusters = matrixTable;
   let matrix = preset.thrusters.torque_matrix_nm.map((r) => [...r]);
   const readMatrix = () =>
-    [...matrixBody.querySelectorAll("tr")].map((tr) => [...tr.querySelectorAll("input")].map((input) => numberOrText(input.value)));
+    [...matrixBody.querySelectorAll("tr:not(.field-error)")].map((tr) => [...tr.querySelectorAll("input")].map((input) => numberOrText(input.value)));
   const drawMatrix = () => {
     clear(matrixHead);
     clear(matrixBody);
     matrixHead.append(h("th", {}, "axis (N m)"), ...matrix[0].map((_, j) => h("th", {}, `thruster ${j + 1}`)));
     matrix.forEach((row, i) => {
       matrixBody.append(
-        h("tr", {}, h("th", {}, ["x", "y", "z"][i]), row.map((v, j) => h("td", {}, h("input", { value: v, "aria-label": `torque ${"xyz"[i]} of thruster ${j + 1}`, inputmode: "decimal" })))),
+        h("tr", {}, h("th", {}, ["x", "y", "z"][i]), row.map((v, j) => h("td", {}, h("input", { value: plain(v, null), "aria-label": `torque ${"xyz"[i]} of thruster ${j + 1}`, inputmode: "decimal" })))),
       );
     });
   };
@@ -289,24 +346,25 @@ function buildForm(preset, general) {
     h("button", { type: "button", class: "secondary", onclick: () => { matrix = readMatrix().map((r) => r.slice(0, Math.max(1, r.length - 1))); drawMatrix(); } }, "remove last thruster"),
   );
 
-  const levelsInput = h("input", { id: "levels", name: "levels", value: preset.thrusters.levels.join(", "), size: 40 });
+  const levelsInput = h("input", { id: "levels", name: "levels", value: preset.thrusters.levels.map((v) => plain(v, null)).join(", "), size: 40 });
   fields["thrusters.levels"] = levelsInput;
 
   const timingInputs = {};
   for (const [key] of TIMING_FIELDS) {
-    timingInputs[key] = h("input", { id: `timing-${key}`, value: preset.timing[key], inputmode: "decimal" });
+    timingInputs[key] = h("input", { id: `timing-${key}`, value: plain(preset.timing[key], null), inputmode: "decimal" });
     fields[`timing.${key}`] = timingInputs[key];
   }
   const noiseInputs = {};
   for (const [key] of UNCERTAINTY_FIELDS) {
     const value = preset.uncertainty[key];
-    noiseInputs[key] = h("input", { id: `noise-${key}`, value: Array.isArray(value) ? value.join(", ") : value, inputmode: "decimal" });
+    noiseInputs[key] = h("input", { id: `noise-${key}`, value: Array.isArray(value) ? value.map((v) => plain(v, null)).join(", ") : plain(value, null), inputmode: "decimal" });
     fields[`uncertainty.${key}`] = noiseInputs[key];
   }
 
   const labelled = (input, label, unit) => [h("label", { for: input.id }, label), h("div", {}, input, " ", h("span", { class: "hint" }, unit))];
 
   const submit = h("button", { type: "submit", id: "create-scenario" }, "Create scenario");
+  const candidateRows = () => [...candidateBody.querySelectorAll("tr:not(.field-error)")];
   const form = h(
     "form",
     {
@@ -316,7 +374,8 @@ function buildForm(preset, general) {
         event.preventDefault();
         const document_ = {
           name: nameInput.value,
-          inertia_candidates: [...candidateBody.querySelectorAll("tr")].map((tr) => {
+          // Candidate rows only: a message row (tr.field-error) under a candidate is not one.
+          inertia_candidates: candidateRows().map((tr) => {
             const inertia = [
               [0, 0, 0],
               [0, 0, 0],
@@ -338,7 +397,7 @@ function buildForm(preset, general) {
         };
         // Rows are located by index: mark the candidate row the server names.
         const rowFields = { ...fields };
-        [...candidateBody.querySelectorAll("tr")].forEach((tr, i) => {
+        candidateRows().forEach((tr, i) => {
           rowFields[`inertia_candidates.${i}`] = tr;
         });
         submit.disabled = true;
@@ -346,7 +405,7 @@ function buildForm(preset, general) {
           const created = await api.createScenario({ scenario: document_ });
           location.hash = `#/scenarios/${created.id}`;
         } catch (exc) {
-          showFieldErrors(exc, rowFields, general);
+          showFieldErrors(exc, rowFields, general, form);
           general.scrollIntoView({ block: "nearest" });
         } finally {
           submit.disabled = false;
@@ -356,7 +415,7 @@ function buildForm(preset, general) {
     h("div", { class: "stack" }, labelled(nameInput, "name", "")),
     h("h3", {}, "Inertia candidates"),
     candidateTable,
-    h("div", { class: "toolbar" }, h("button", { type: "button", class: "secondary", onclick: () => addCandidate({ name: `candidate ${candidateBody.children.length + 1}`, inertia_kg_m2: [[100, 0, 0], [0, 60, 0], [0, 0, 90]] }) }, "add candidate")),
+    h("div", { class: "toolbar" }, h("button", { type: "button", class: "secondary", onclick: () => addCandidate({ name: `candidate ${candidateRows().length + 1}`, inertia_kg_m2: [[100, 0, 0], [0, 60, 0], [0, 0, 90]] }) }, "add candidate")),
     h("h3", {}, "Thrusters"),
     matrixTable,
     thrusterButtons,

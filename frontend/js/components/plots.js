@@ -1,0 +1,210 @@
+// Plotly with one look for every chart, and the charts more than one page draws.
+//
+// Legends sit to the right of the plot area (Plotly moves the right margin to fit them)
+// and every axis has `automargin`, so a legend never covers tick labels and an axis
+// title is never cut, at any width. Conventions shared with the HTML report
+// (inertia_id/evaluation/report.py): thrusters are numbered from 1, bands run from the
+// 10th to the 90th percentile of the realisations.
+
+import { h } from "../ui.js";
+
+export const COLORS = ["#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#17becf", "#7f7f7f", "#bcbd22"];
+
+// Light for 0, dark blue for 1 (plotly's "Blues" runs the other way).
+export const HEAT_SCALE = [
+  [0, "#f4f7fb"],
+  [1, "#1f4e8c"],
+];
+
+export const BAND = { low: 10, high: 90, label: "10–90 %" };
+
+export const PLOT_CONFIG = { responsive: true, displaylogo: false, modeBarButtonsToRemove: ["lasso2d", "select2d"] };
+
+const LEGEND_RIGHT = { orientation: "v", x: 1.02, xanchor: "left", y: 1, yanchor: "top", font: { size: 12 } };
+
+// A layout: titled axes with automargin, the legend at the right, `extra` merged on top
+// (an axis given in `extra` keeps automargin unless it says otherwise).
+export function layout(xTitle, yTitle, extra = {}) {
+  const base = {
+    margin: { l: 60, r: 10, t: extra.title ? 40 : 16, b: 50 },
+    font: { family: "system-ui, sans-serif", size: 13 },
+    xaxis: { title: { text: xTitle }, automargin: true, zeroline: false },
+    yaxis: { title: { text: yTitle }, automargin: true, zeroline: false },
+    legend: LEGEND_RIGHT,
+    hovermode: "closest",
+    height: 380,
+  };
+  const out = { ...base, ...extra };
+  for (const [name, value] of Object.entries(extra)) {
+    if (/^[xy]axis\d*$/.test(name)) out[name] = { automargin: true, zeroline: false, ...value };
+  }
+  if (extra.legend) out.legend = { ...LEGEND_RIGHT, ...extra.legend };
+  return out;
+}
+
+export function title(text, size = 14) {
+  return { text, font: { size }, x: 0, xanchor: "left", xref: "paper" };
+}
+
+export function plotDiv(id, extraClass = "") {
+  return h("div", { class: `plot ${extraClass}`, id });
+}
+
+export function withAlpha(hex, alpha) {
+  const n = parseInt(hex.slice(1), 16);
+  return `rgba(${(n >> 16) & 255}, ${(n >> 8) & 255}, ${n & 255}, ${alpha})`;
+}
+
+// Traces that extend a plot with new points of several series: `fresh` maps a key to
+// {steps, values} (MetricFollower.poll), `keys[i]` is the series of trace i.
+export function extendWith(plot, fresh, keys) {
+  const indices = [];
+  const xs = [];
+  const ys = [];
+  keys.forEach((key, i) => {
+    if (key && fresh[key]) {
+      indices.push(i);
+      xs.push(fresh[key].steps);
+      ys.push(fresh[key].values);
+    }
+  });
+  if (indices.length) Plotly.extendTraces(plot, { x: xs, y: ys }, indices);
+  return indices.length;
+}
+
+const AXES = ["x", "y", "z"];
+
+// What a response view subtracts at each sample and axis: nothing ("absolute"), or the
+// mean of the candidates' mean responses ("difference"): what separates them is then
+// what is drawn.
+function reference(response, view) {
+  if (view !== "difference") return null;
+  const k = response.candidates.length;
+  return response.time_s.map((_, t) => [0, 1, 2].map((a) => response.candidates.reduce((sum, c) => sum + c.mean_rad_s[t][a], 0) / k));
+}
+
+// Plotly traces drawing each candidate's ω response per axis: a mean line and a
+// 10–90 % band, one colour per candidate, one subplot per axis; `view` "difference"
+// draws each minus the mean over candidates.
+export function responseTraces(response, { only = null, view = "absolute" } = {}) {
+  const ref = reference(response, view);
+  const minus = (rows, a) => rows.map((row, t) => row[a] - (ref ? ref[t][a] : 0));
+  const traces = [];
+  response.candidates.forEach((candidate, k) => {
+    if (only !== null && k !== only) return;
+    const color = COLORS[k % COLORS.length];
+    AXES.forEach((axis, a) => {
+      const yaxis = a === 0 ? "y" : `y${a + 1}`;
+      const common = { x: response.time_s, xaxis: "x", yaxis, legendgroup: candidate.name, hoverinfo: "skip" };
+      traces.push({ ...common, y: minus(candidate.low_rad_s, a), mode: "lines", line: { width: 0 }, showlegend: false, name: `${candidate.name} ${BAND.low} %` });
+      traces.push({ ...common, y: minus(candidate.high_rad_s, a), mode: "lines", line: { width: 0 }, fill: "tonexty", fillcolor: withAlpha(color, 0.2), showlegend: false, name: `${candidate.name} ${BAND.high} %` });
+      traces.push({ ...common, y: minus(candidate.mean_rad_s, a), mode: "lines", line: { color, width: 2 }, name: candidate.name, showlegend: a === 0, hoverinfo: "x+y+name" });
+    });
+  });
+  return traces;
+}
+
+export function responseLayout(text, view = "absolute") {
+  const unit = view === "difference" ? "− mean (rad/s)" : "(rad/s)";
+  return layout("time from sequence start (s)", "", {
+    title: title(text),
+    xaxis: { title: { text: "time from sequence start (s)" }, anchor: "y3" },
+    yaxis: { title: { text: `ω_x ${unit}` }, domain: [0.7, 1], anchor: "x" },
+    yaxis2: { title: { text: `ω_y ${unit}` }, domain: [0.36, 0.64], anchor: "x" },
+    yaxis3: { title: { text: `ω_z ${unit}` }, domain: [0, 0.3], anchor: "x" },
+    height: 560,
+  });
+}
+
+// Every candidate's response in a plot with a switch between the differences from the
+// mean over candidates (what separates them; the default) and the absolute rates.
+export function responseView(response, { id, titleText, view = "difference" } = {}) {
+  const plot = plotDiv(id);
+  const buttons = {};
+  const draw = (which) => {
+    view = which;
+    for (const [name, button] of Object.entries(buttons)) button.setAttribute("aria-pressed", String(name === which));
+    const what = which === "difference" ? `${titleText}: each candidate minus the mean over candidates` : titleText;
+    Plotly.react(plot, responseTraces(response, { view: which }), responseLayout(what, which), PLOT_CONFIG);
+    plot.dataset.view = which;
+  };
+  buttons.difference = h("button", { type: "button", class: "secondary toggle", "data-view": "difference", onclick: () => draw("difference") }, "differences from the mean");
+  buttons.absolute = h("button", { type: "button", class: "secondary toggle", "data-view": "absolute", onclick: () => draw("absolute") }, "absolute rates");
+  const node = h("div", {}, h("div", { class: "toolbar", role: "group", "aria-label": "response view" }, h("span", { class: "hint" }, "show"), buttons.difference, buttons.absolute), plot);
+  return { node, plot, draw: () => draw(view) };
+}
+
+// The sequence as duty per thruster over time: a heat map, one row per thruster
+// (numbered from 1).
+export function sequencePlot(element, response) {
+  const stepS = response.step_duration_s;
+  const nThrusters = response.duties[0].length;
+  const x = response.duties.map((_, i) => (i + 0.5) * stepS);
+  const z = Array.from({ length: nThrusters }, (_, j) => response.duties.map((row) => row[j]));
+  const text = z.map((row) => row.map((d) => `${Math.round(100 * d)} %`));
+  Plotly.newPlot(
+    element,
+    [
+      {
+        type: "heatmap",
+        x,
+        y: Array.from({ length: nThrusters }, (_, j) => `thruster ${j + 1}`),
+        z,
+        zmin: 0,
+        zmax: 1,
+        text,
+        texttemplate: "%{text}",
+        colorscale: HEAT_SCALE,
+        colorbar: { title: { text: "duty" }, tickformat: ".0%" },
+        hovertemplate: "%{y}, t = %{x} s: duty %{z:.0%}<extra></extra>",
+        xgap: 2,
+        ygap: 2,
+      },
+    ],
+    layout("time from sequence start (s)", "", {
+      height: 130 + 32 * nThrusters,
+      xaxis: { title: { text: "time from sequence start (s)" }, range: [0, response.duties.length * stepS], dtick: stepS },
+      yaxis: { autorange: "reversed" },
+    }),
+    PLOT_CONFIG,
+  );
+}
+
+// A confusion matrix: counts as text, colour the fraction of the true candidate's row.
+export function confusionPlot(element, confusion, names, text) {
+  const totals = confusion.map((row) => row.reduce((a, b) => a + b, 0) || 1);
+  Plotly.newPlot(
+    element,
+    [
+      {
+        type: "heatmap",
+        z: confusion.map((row, i) => row.map((v) => v / totals[i])),
+        x: names,
+        y: names,
+        text: confusion.map((row) => row.map((v) => String(v))),
+        texttemplate: "%{text}",
+        colorscale: HEAT_SCALE,
+        zmin: 0,
+        zmax: 1,
+        colorbar: { title: { text: "fraction of row" }, tickformat: ".0%" },
+        hovertemplate: "true %{y}, predicted %{x}: %{text} series<extra></extra>",
+      },
+    ],
+    layout("predicted candidate", "true candidate", {
+      title: title(text),
+      yaxis: { title: { text: "true candidate" }, autorange: "reversed" },
+      height: 400,
+    }),
+    PLOT_CONFIG,
+  );
+}
+
+// The y range of values that differ by a few per cent: padded around them, never from 0.
+export function tightRange(values, pad = 0.15) {
+  const finite = values.filter((v) => Number.isFinite(v));
+  if (!finite.length) return undefined;
+  const low = Math.min(...finite);
+  const high = Math.max(...finite);
+  const span = high - low || Math.abs(high) * 0.05 || 1;
+  return [low - pad * span, high + pad * span];
+}

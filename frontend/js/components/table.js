@@ -1,0 +1,152 @@
+// A data table over a paged, sorted, filtered API list (GET /jobs, GET /classifiers):
+// the server sorts, filters and pages; the table draws one page, its header buttons sort,
+// its toolbar filters, its pager pages, and an optional first column selects rows
+// (kept across pages and refreshes).
+//
+//   const runs = dataTable({
+//     id: "job-table",
+//     columns: [{ key: "name", label: "run", sort: "name", cell: (job) => ... }, ...],
+//     filters: [{ name: "q", label: "search", type: "text" },
+//               { name: "status", label: "status", options: [["", "any"], ["running", "running"]] }],
+//     load: (query) => api.jobs(query),          // query: {sort, order, limit, offset, ...filters}
+//     initial: { sort: "created", order: "desc" },
+//     select: { label: (row) => `select ${row.id}`, onChange: (ids) => ... },   // optional
+//   });
+//   card.append(runs.node); await runs.refresh(); context.every(2000, runs.refresh);
+//
+// `columns` may be a function of the current filters (columns that depend on a type).
+
+import { clear, h, messageBox } from "../ui.js";
+
+export function dataTable({ id, columns, filters = [], load, initial = {}, pageSize = 25, select = null, empty = "nothing here yet", rowAttrs = () => ({}) }) {
+  const state = { sort: "created", order: "desc", limit: pageSize, offset: 0, ...initial };
+  const selected = new Set(select && select.initial ? select.initial : []);
+  const head = h("thead");
+  const body = h("tbody", { id: `${id}-rows` });
+  const count = h("span", { class: "muted", id: `${id}-count` });
+  const notice = h("div");
+  const prev = h("button", { type: "button", class: "secondary", id: `${id}-prev`, onclick: () => page(-1) }, "‹ previous");
+  const next = h("button", { type: "button", class: "secondary", id: `${id}-next`, onclick: () => page(1) }, "next ›");
+  let last = { items: [], total: 0 };
+  let generation = 0;
+
+  const currentColumns = () => (typeof columns === "function" ? columns(state) : columns);
+
+  const controls = filters.map((filter) => {
+    const inputId = `${id}-filter-${filter.name}`;
+    let input;
+    if (filter.options) {
+      input = h("select", { id: inputId }, filter.options.map(([value, label]) => h("option", { value, selected: String(state[filter.name] ?? "") === value }, label)));
+      input.addEventListener("change", () => set(filter.name, input.value));
+    } else {
+      input = h("input", { id: inputId, type: "search", size: filter.size || 16, placeholder: filter.placeholder || "", value: state[filter.name] || "" });
+      let timer = null;
+      input.addEventListener("input", () => {
+        clearTimeout(timer);
+        timer = setTimeout(() => set(filter.name, input.value.trim()), 300);
+      });
+    }
+    return h("label", { class: "filter", for: inputId }, h("span", {}, filter.label), input);
+  });
+
+  function set(name, value) {
+    state[name] = value;
+    state.offset = 0;
+    refresh();
+  }
+
+  function page(direction) {
+    const offset = state.offset + direction * state.limit;
+    if (offset < 0 || offset >= last.total) return;
+    state.offset = offset;
+    refresh();
+  }
+
+  function sortBy(key) {
+    if (state.sort === key) state.order = state.order === "desc" ? "asc" : "desc";
+    else {
+      state.sort = key;
+      state.order = key === "name" ? "asc" : "desc";
+    }
+    state.offset = 0;
+    refresh();
+  }
+
+  function drawHead(cols) {
+    clear(head);
+    const cells = [];
+    if (select) cells.push(h("th", { class: "select" }, ""));
+    for (const col of cols) {
+      const attrs = { scope: "col", class: col.num ? "num" : "" };
+      if (col.sort) {
+        const active = state.sort === col.sort;
+        attrs["aria-sort"] = active ? (state.order === "asc" ? "ascending" : "descending") : "none";
+        const arrow = active ? (state.order === "asc" ? " ▲" : " ▼") : "";
+        cells.push(h("th", attrs, h("button", { type: "button", class: "sort", "data-sort": col.sort, title: `sort by ${col.label}`, onclick: () => sortBy(col.sort) }, col.label, col.unit ? h("span", { class: "unit" }, ` (${col.unit})`) : null, arrow)));
+      } else {
+        cells.push(h("th", attrs, col.label, col.unit ? h("span", { class: "unit" }, ` (${col.unit})`) : null));
+      }
+    }
+    head.append(h("tr", {}, cells));
+  }
+
+  async function refresh() {
+    const mine = ++generation;
+    const query = {};
+    for (const [name, value] of Object.entries(state)) if (value !== "" && value !== null && value !== undefined) query[name] = value;
+    let data;
+    try {
+      data = await load(query);
+    } catch (exc) {
+      if (mine !== generation) return;
+      clear(notice);
+      notice.append(messageBox("error", exc.message || String(exc)));
+      return;
+    }
+    if (mine !== generation) return;
+    clear(notice);
+    last = data;
+    const cols = currentColumns();
+    drawHead(cols);
+    clear(body);
+    for (const row of data.items) {
+      const cells = [];
+      if (select) {
+        cells.push(
+          h(
+            "td",
+            { class: "select" },
+            h("input", {
+              type: "checkbox",
+              "aria-label": select.label(row),
+              checked: selected.has(row.id),
+              disabled: select.enabled ? !select.enabled(row) : false,
+              onchange: (event) => {
+                if (event.target.checked) selected.add(row.id);
+                else selected.delete(row.id);
+                select.onChange([...selected]);
+              },
+            }),
+          ),
+        );
+      }
+      for (const col of cols) cells.push(h("td", { class: col.num ? "num" : "" }, col.cell(row)));
+      body.append(h("tr", { dataset: { id: row.id }, ...rowAttrs(row) }, cells));
+    }
+    if (!data.items.length) body.append(h("tr", {}, h("td", { colspan: cols.length + (select ? 1 : 0), class: "muted" }, empty)));
+    const first = data.total ? state.offset + 1 : 0;
+    count.textContent = `${first}–${state.offset + data.items.length} of ${data.total}`;
+    prev.disabled = state.offset === 0;
+    next.disabled = state.offset + state.limit >= data.total;
+  }
+
+  const node = h(
+    "div",
+    { class: "data-table", id },
+    filters.length ? h("div", { class: "toolbar filters" }, controls) : null,
+    notice,
+    h("div", { class: "table-scroll" }, h("table", { id: `${id}-table` }, head, body)),
+    h("div", { class: "toolbar pager" }, prev, next, count),
+  );
+  return { node, refresh, state, selected };
+}

@@ -1,0 +1,103 @@
+// One classifier: its summary, training confusion, downloads, its sweeps (accuracy
+// against noise) and its sequence with every candidate's response. Used by the
+// classifier page and by the job page of a training.
+
+import { api } from "../api.js";
+import { BAND, confusionPlot, plotDiv, responseView, sequencePlot } from "../components/plots.js";
+import { downloads, jobDownloads } from "../components/downloads.js";
+import { isTerminal } from "../vocabulary.js";
+import { clear, fmt, h, link, messageBox, score, sequenceText, tagChips, utcText, when } from "../ui.js";
+import { sweepPanel } from "./sweep.js";
+
+export async function renderClassifier(container, classifier, context, sweepId = null) {
+  const scenario = await api.scenario(classifier.scenario_id).catch(() => null);
+  const summary = h("dl", { class: "kv", id: "classifier-summary" });
+  const confusion = plotDiv("training-confusion");
+  const seqPlot = plotDiv("classifier-sequence", "short");
+  const responseHolder = h("div", { id: "classifier-response-holder" });
+  const sweepCard = h("div", { class: "card", id: "sweep-card" });
+  container.append(
+    h(
+      "div",
+      { class: "toolbar" },
+      link(`#/jobs?type=sweep&classifier=${classifier.id}`, "Run a noise sweep", { class: "button", id: "run-sweep" }),
+      link(`#/identify?classifier=${classifier.id}`, "Identify telemetry", { class: "button secondary" }),
+    ),
+    downloads("classifier-downloads", [
+      { label: "classifier document (JSON)", href: `/classifiers/${classifier.id}/download` },
+      ...(classifier.job_id ? jobDownloads({ id: classifier.job_id, type: "train" }) : []),
+    ]),
+    h("div", { class: "row" }, h("div", { class: "card grow" }, h("h2", {}, "Classifier"), summary), h("div", { class: "card grow" }, h("h2", {}, "Training confusion"), confusion)),
+    sweepCard,
+    h("div", { class: "card" }, h("h2", {}, "The sequence"), h("p", { class: "hint" }, "Thrusters numbered from 1."), seqPlot, h("h3", {}, `Each candidate's response (mean and ${BAND.label} band over 20 realisations)`), responseHolder),
+  );
+  const rows = [
+    ["classifier", h("code", {}, classifier.id)],
+    ["scenario", link(`#/scenarios/${classifier.scenario_id}`, scenario ? scenario.name : classifier.scenario_id)],
+    ["kind", h("span", { id: "classifier-kind" }, classifier.kind)],
+    ["metric", classifier.metric],
+    ["training F1", h("span", { id: "classifier-f1" }, score(classifier.f1))],
+    ["training accuracy", score(classifier.accuracy)],
+    ["sequence (level indices)", h("span", { class: "mono" }, sequenceText(classifier.sequence))],
+    ["created", when(classifier.created_at)],
+    ["training job's name, tags", [classifier.job_name || "–", " ", tagChips(classifier.tags)]],
+    ["trained by job", classifier.job_id ? link(`#/jobs/${classifier.job_id}`, classifier.job_id.slice(0, 8)) : "–"],
+  ];
+  const fuel = h("span", { id: "classifier-fuel" }, "…");
+  const finalRate = h("span", {}, "…");
+  rows.push(["fuel (commanded impulse)", fuel], ["mean final rate", finalRate]);
+  for (const [name, value] of rows) summary.append(h("dt", {}, name), h("dd", {}, value));
+  confusionPlot(confusion, classifier.confusion, classifier.candidate_names, "training series");
+  if (context.alive && !context.alive()) return;
+
+  await sweepsOf(sweepCard, classifier, context, sweepId);
+
+  try {
+    const response = await api.response(classifier.scenario_id, classifier.sequence, { n_realisations: 20 });
+    if (!context.alive()) return;
+    fuel.textContent = `${response.impulse_nms.toFixed(1)} N m s`;
+    const rates = response.candidates.map((c) => c.final_rate_rad_s);
+    finalRate.textContent = `${fmt(rates.reduce((a, b) => a + b, 0) / rates.length, 4)} rad/s`;
+    sequencePlot(seqPlot, response);
+    const view = responseView(response, { id: "classifier-response", titleText: "ω response to the classifier's sequence" });
+    responseHolder.append(view.node);
+    view.draw();
+  } catch (exc) {
+    fuel.textContent = exc.message;
+  }
+}
+
+async function sweepsOf(card, classifier, context, sweepId) {
+  const page = await api.jobs({ type: "sweep", classifier_id: classifier.id, limit: 200 });
+  const sweeps = page.items;
+  card.append(h("h2", {}, "Accuracy against noise"));
+  if (!sweeps.length) {
+    card.append(messageBox("notice", "No sweep of this classifier yet: run one to see its accuracy as noise grows."));
+    return;
+  }
+  const chosen = sweeps.find((j) => j.id === sweepId) || sweeps.find((j) => j.status === "succeeded") || sweeps[0];
+  const select = h(
+    "select",
+    { id: "sweep-select", "aria-label": "sweep" },
+    sweeps.map((j) => h("option", { value: j.id, selected: j.id === chosen.id }, `${j.name || j.id.slice(0, 8)} · ${j.status} · ${utcText(j.created_at)}`)),
+  );
+  const holder = h("div");
+  const compareLink = link(`#/compare?type=classifier&ids=${classifier.id}`, "compare with other classifiers");
+  card.append(h("div", { class: "toolbar" }, h("label", { for: "sweep-select" }, "sweep"), select, link(`#/jobs/${chosen.id}`, "job page"), compareLink), holder);
+  const show = async (job) => {
+    clear(holder);
+    const panel = await sweepPanel(holder, job, classifier, context);
+    if (!isTerminal(job.status)) {
+      const timer = setInterval(async () => {
+        if (!context.alive()) return clearInterval(timer);
+        const fresh = await api.job(job.id).catch(() => null);
+        if (!fresh) return;
+        await panel.update(fresh);
+        if (isTerminal(fresh.status)) clearInterval(timer);
+      }, 2000);
+    }
+  };
+  select.addEventListener("change", async () => show(await api.job(select.value)));
+  await show(chosen);
+}
+

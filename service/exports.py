@@ -1,0 +1,279 @@
+"""Results as tables: what a CSV download of a job's result (or a verdict) holds.
+
+Each job type names its tables once, here (:data:`RESULT_TABLES`, served in ``GET
+/vocabulary``); ``GET /jobs/{id}/result?format=csv&table=NAME`` writes one of them and
+the dashboard's download buttons list them. A new table is one function and one entry.
+
+Pure: result dictionaries (as the worker stores them) in, :class:`Table` out. Thrusters
+and steps are numbered from 1, as on the dashboard and in the report.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from inertia_id.errors import InputError
+
+__all__ = ["RESULT_TABLES", "Table", "identify_table", "metrics_table", "result_table", "to_csv"]
+
+
+@dataclass(frozen=True)
+class Table:
+    """A header and rows of cells (numbers, text, or None for an empty cell)."""
+
+    header: Sequence[str]
+    rows: Sequence[Sequence[Any]]
+
+
+def _cell(value: Any) -> Any:
+    if value is None:
+        return ""
+    if isinstance(value, list | dict):
+        return json.dumps(value, separators=(",", ":"))
+    if isinstance(value, float):
+        return repr(value)  # shortest text that reads back as the same float
+    return value
+
+
+def to_csv(table: Table) -> str:
+    """The table as CSV text (RFC 4180 quoting, ``\\n`` line ends)."""
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(table.header)
+    for row in table.rows:
+        writer.writerow([_cell(v) for v in row])
+    return out.getvalue()
+
+
+def _mean(values: Any) -> float | None:
+    numbers = [v for v in values or [] if isinstance(v, int | float)]
+    return sum(numbers) / len(numbers) if numbers else None
+
+
+# Search.
+
+
+def _search_summary(result: Mapping[str, Any]) -> Table:
+    best = result.get("best") or {}
+    fresh = result.get("fresh") or {}
+    objective = (result.get("settings") or {}).get("scorer", {}).get("objective", "f1")
+    pairs = [
+        ("method", result.get("method")),
+        ("objective", objective),
+        ("best_sequence", best.get("sequence")),
+        (f"best_{'f1' if objective == 'f1' else 'separability'}_search_draw", best.get("f1")),
+        ("best_final_rate_rad_s_search_draw", best.get("final_rate_rad_s")),
+        ("fuel_nms", best.get("fuel_nms")),
+        ("fresh_f1_mean", fresh.get("f1_mean")),
+        ("fresh_f1_min", fresh.get("f1_min")),
+        ("fresh_draws", len(fresh.get("f1") or [])),
+        ("fresh_final_rate_rad_s_mean", _mean(fresh.get("final_rate_rad_s"))),
+        ("timesteps", result.get("timesteps")),
+        ("episodes", result.get("episodes")),
+        ("wall_time_s", result.get("wall_time_s")),
+        ("stopped", result.get("stopped")),
+        ("space_size", result.get("space_size")),
+    ]
+    return Table(["quantity", "value"], [list(p) for p in pairs])
+
+
+_CURVE = ("timesteps", "episodes", "mean_episode_reward", "mean_f1", "best_f1")
+
+
+def _search_curve(result: Mapping[str, Any]) -> Table:
+    curve = [p for p in result.get("curve") or [] if isinstance(p, Mapping)]
+    header = [*_CURVE, "best_final_rate_rad_s"]
+    return Table(header, [[p.get(k) for k in header] for p in curve])
+
+
+def _sequence_rows(sequence: Any) -> Table:
+    steps = [list(row) for row in sequence or []]
+    n = max((len(r) for r in steps), default=0)
+    header = ["step", *(f"thruster_{j + 1}_level" for j in range(n))]
+    return Table(header, [[i + 1, *row] for i, row in enumerate(steps)])
+
+
+def _search_sequence(result: Mapping[str, Any]) -> Table:
+    return _sequence_rows((result.get("best") or {}).get("sequence"))
+
+
+def _search_baselines(result: Mapping[str, Any]) -> Table:
+    best = result.get("best") or {}
+    fresh = result.get("fresh") or {}
+    rows = [
+        [
+            "found by the search",
+            fresh.get("f1_mean"),
+            fresh.get("f1_min"),
+            _mean(fresh.get("final_rate_rad_s")),
+            best.get("fuel_nms"),
+            best.get("sequence"),
+        ]
+    ]
+    for name, base in (result.get("baselines") or {}).items():
+        f1 = base.get("fresh_f1") or []
+        rows.append(
+            [
+                name,
+                _mean(f1),
+                min(f1) if f1 else None,
+                _mean(base.get("fresh_final_rate_rad_s")),
+                base.get("fuel_nms"),
+                base.get("sequence"),
+            ]
+        )
+    header = [
+        "sequence",
+        "fresh_f1_mean",
+        "fresh_f1_min",
+        "fresh_final_rate_rad_s_mean",
+        "fuel_nms",
+        "levels",
+    ]
+    return Table(header, rows)
+
+
+# Train.
+
+
+def _confusion(names: Sequence[str], confusion: Any) -> Table:
+    header = ["true \\ predicted", *names]
+    return Table(header, [[names[i], *row] for i, row in enumerate(confusion or [])])
+
+
+def _train_summary(result: Mapping[str, Any]) -> Table:
+    keys = ("classifier_id", "kind", "metric", "f1", "accuracy", "n_realisations", "sequence")
+    return Table(["quantity", "value"], [[k, result.get(k)] for k in keys])
+
+
+def _train_confusion(result: Mapping[str, Any]) -> Table:
+    return _confusion(result.get("candidate_names") or [], result.get("confusion"))
+
+
+def _train_sequence(result: Mapping[str, Any]) -> Table:
+    return _sequence_rows(result.get("sequence"))
+
+
+# Sweep.
+
+_POINT = ("noise", "multiple", "value", "accuracy", "ci_low", "ci_high", "f1", "n_series")
+
+
+def _sweep_lines(result: Mapping[str, Any]) -> list[tuple[str, list[Mapping[str, Any]]]]:
+    lines = [("classifier", list(result.get("points") or []))]
+    lines += [
+        (f"other:{name}", list(points)) for name, points in (result.get("others") or {}).items()
+    ]
+    if result.get("ceiling"):
+        lines.append(("ceiling", list(result["ceiling"])))
+    elif result.get("limit"):
+        # A result from before the ceiling: its reference line, which is no ceiling.
+        lines.append(("reference (not a ceiling)", list(result["limit"])))
+    return lines
+
+
+def _sweep_points(result: Mapping[str, Any]) -> Table:
+    units = result.get("units") or {}
+    rows = [
+        [who, *(p.get(k) for k in _POINT), units.get(p.get("noise"), "")]
+        for who, points in _sweep_lines(result)
+        for p in points
+    ]
+    return Table(["who", *_POINT, "value_unit"], rows)
+
+
+def _sweep_confusion(result: Mapping[str, Any]) -> Table:
+    names = result.get("candidate_names") or []
+    rows = []
+    for who, points in _sweep_lines(result):
+        for p in points:
+            for i, row in enumerate(p.get("confusion") or []):
+                for j, count in enumerate(row):
+                    rows.append([who, p.get("noise"), p.get("multiple"), names[i], names[j], count])
+    return Table(["who", "noise", "multiple", "true", "predicted", "count"], rows)
+
+
+def _sweep_inertia(result: Mapping[str, Any]) -> Table:
+    inertia = result.get("inertia") or {}
+    points = [p for p in inertia.get("points") or [] if isinstance(p, Mapping)]
+    keys = list(dict.fromkeys(k for p in points for k in p if not isinstance(p[k], list | dict)))
+    return Table(keys, [[p.get(k) for k in keys] for p in points])
+
+
+#: Every job type's tables, first the default: name -> (what it holds, how it is made).
+RESULT_TABLES: dict[str, dict[str, tuple[str, Callable[[Mapping[str, Any]], Table]]]] = {
+    "search": {
+        "summary": ("best sequence, its scores, fuel and the search's cost", _search_summary),
+        "curve": ("the learning curve, one row per point", _search_curve),
+        "sequence": ("the best sequence, one row per step, a level per thruster", _search_sequence),
+        "baselines": (
+            "the best sequence beside the baselines, same fresh draws",
+            _search_baselines,
+        ),
+    },
+    "train": {
+        "summary": ("kind, metric, training F1 and accuracy", _train_summary),
+        "confusion": ("training confusion matrix (rows true, columns predicted)", _train_confusion),
+        "sequence": ("the sequence, one row per step", _train_sequence),
+    },
+    "sweep": {
+        "points": (
+            "accuracy per noise and multiple, of every classifier and the ceiling",
+            _sweep_points,
+        ),
+        "confusion": ("confusion matrices, long form: one row per cell", _sweep_confusion),
+        "inertia": ('"matches none" rate of bodies off the candidates', _sweep_inertia),
+    },
+}
+
+
+def result_table(job_type: str, result: Mapping[str, Any], table: str | None) -> Table:
+    """One table of a job's result; ``table`` None: the type's first.
+
+    :raises InputError: the type has no table of that name (the message lists them).
+    """
+    tables = RESULT_TABLES.get(job_type, {})
+    name = table or next(iter(tables), None)
+    if name not in tables:
+        raise InputError(
+            f"a {job_type} result has no table {table!r}; tables: {', '.join(tables) or 'none'}"
+        )
+    return tables[name][1](result)
+
+
+def metrics_table(series: Sequence[tuple[str, int, float | None]]) -> Table:
+    """Metric points in long form: key, step, value."""
+    return Table(["key", "step", "value"], [list(point) for point in series])
+
+
+def identify_table(verdict: Mapping[str, Any]) -> Table:
+    """A verdict, one row per candidate: its distance, whether it is the nearest, and the
+    verdict's threshold and "matches none" on every row."""
+    distances = verdict.get("distances") or {}
+    rows = [
+        [
+            name,
+            distance,
+            name == verdict.get("candidate"),
+            verdict.get("threshold"),
+            verdict.get("matches_none"),
+            verdict.get("verdict"),
+            verdict.get("classifier_id"),
+        ]
+        for name, distance in distances.items()
+    ]
+    header = [
+        "candidate",
+        "distance",
+        "nearest",
+        "threshold",
+        "matches_none",
+        "verdict",
+        "classifier_id",
+    ]
+    return Table(header, rows)

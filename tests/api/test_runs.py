@@ -1,0 +1,409 @@
+"""Runs a flight team compares: names and tags, summaries, sorted and filtered pages,
+results downloaded as JSON and CSV, and a cheap check of the API key."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+from typing import Any
+
+import numpy as np
+import pytest
+
+from inertia_id import InertiaClassifier, Scenario, simulate
+from service.store.jobs import add_metrics, claim, finish
+from service.summaries import SUMMARY_COLUMNS
+
+from .support import GOOD_SEQUENCE, Api
+
+
+def _search_result(fresh_f1: list[float], fuel: float, wall: float) -> dict[str, Any]:
+    """A search result shaped like the worker's (SearchOutcome.to_dict)."""
+    return {
+        "method": "cem",
+        "best": {
+            "sequence": [[4, 4, 4, 0, 0, 0], [0, 0, 0, 4, 4, 4]],
+            "f1": 1.0,
+            "final_rate_rad_s": 0.12,
+            "fuel_nms": fuel,
+            "episode_return": 2.0,
+            "episode": 3,
+        },
+        "fresh": {
+            "seed": 9,
+            "f1": fresh_f1,
+            "final_rate_rad_s": [0.1, 0.2],
+            "separability": None,
+            "f1_mean": sum(fresh_f1) / len(fresh_f1),
+            "f1_min": min(fresh_f1),
+        },
+        "curve": [
+            {
+                "timesteps": 64 * (i + 1),
+                "episodes": 16 * (i + 1),
+                "mean_episode_reward": 0.5 + i,
+                "mean_f1": 0.4 + 0.1 * i,
+                "best_f1": 0.6 + 0.2 * i,
+                "best_final_rate_rad_s": 0.2,
+            }
+            for i in range(3)
+        ],
+        "timesteps": 192,
+        "episodes": 48,
+        "wall_time_s": wall,
+        "stopped": "target",
+        "space_size": 15625,
+        "settings": {"scorer": {"objective": "separability"}},
+        "baselines": {
+            "hand-designed": {
+                "sequence": [[4, 4, 4, 0, 0, 0]] * 2,
+                "fresh_f1": [1.0, 0.9],
+                "fresh_final_rate_rad_s": [0.19, 0.2],
+                "fuel_nms": 12.0,
+            }
+        },
+    }
+
+
+def _finished(api: Api, scenario_id: str, seed: int, result: dict[str, Any], **labels: Any) -> str:
+    job = api.submit("search", scenario_id, seed=seed, params={"method": "cem"}, **labels).json()
+    with api.db.session() as session:
+        claim(session, job["id"], "tests")
+    with api.db.session() as session:
+        assert finish(session, job["id"], "succeeded", result=result)
+    return str(job["id"])
+
+
+def test_names_and_tags_are_labels_not_identity(api: Api) -> None:
+    scenario_id = api.create_scenario()["id"]
+    first = api.submit(
+        "search", scenario_id, name="  CEM on paper  ", tags=["paper", "cem", "paper"]
+    )
+    assert first.status_code == 202, first.text
+    job = first.json()
+    assert job["name"] == "CEM on paper"
+    assert job["tags"] == ["cem", "paper"]
+    # The same work under another name is the same job, labels as they were.
+    again = api.submit("search", scenario_id, name="another name", tags=["x"])
+    assert again.status_code == 200 and again.json()["reused"] is True
+    assert again.json()["id"] == job["id"] and again.json()["name"] == "CEM on paper"
+    assert again.json()["config_hash"] == job["config_hash"]
+
+    renamed = api.client.patch(
+        f"/jobs/{job['id']}",
+        json={"name": "baseline run", "tags": ["flight-2", "cem"]},
+        headers=api.auth,
+    )
+    assert renamed.status_code == 200, renamed.text
+    assert renamed.json()["name"] == "baseline run"
+    assert renamed.json()["tags"] == ["cem", "flight-2"]
+    assert renamed.json()["config_hash"] == job["config_hash"]
+    assert renamed.json()["params"] == job["params"]
+    # A field left out is kept; null clears the name.
+    cleared = api.client.patch(f"/jobs/{job['id']}", json={"name": None}, headers=api.auth)
+    assert cleared.json()["name"] is None and cleared.json()["tags"] == ["cem", "flight-2"]
+    assert api.get(f"/jobs/{job['id']}").json()["tags"] == ["cem", "flight-2"]
+
+
+def test_editing_labels_needs_the_key(api: Api) -> None:
+    job = api.submit("search", api.create_scenario()["id"]).json()
+    response = api.client.patch(f"/jobs/{job['id']}", json={"name": "x"})
+    assert response.status_code == 401
+    wrong = api.client.patch(f"/jobs/{job['id']}", json={"name": "x"}, headers={"X-API-Key": "no"})
+    assert wrong.status_code == 401
+    assert api.client.patch("/jobs/nope", json={"name": "x"}, headers=api.auth).status_code == 404
+
+
+@pytest.mark.parametrize(
+    ("labels", "fragment"),
+    [
+        ({"name": "x" * 201}, "at most 200 characters"),
+        ({"name": "bad\x07name"}, "pattern"),
+        ({"tags": ["a,b"]}, "'a,b'"),
+        ({"tags": [" "]}, "' '"),
+        ({"tags": ["t" * 65]}, "at most 64 characters"),
+        ({"tags": [f"t{i}" for i in range(17)]}, "at most 16 items"),
+        ({"tags": "paper"}, "list"),
+    ],
+)
+def test_bad_labels_are_422_naming_the_value(
+    api: Api, labels: dict[str, Any], fragment: str
+) -> None:
+    scenario_id = api.create_scenario()["id"]
+    response = api.submit("search", scenario_id, **labels)
+    assert response.status_code == 422, response.text
+    assert fragment in response.text
+    job = api.submit("search", scenario_id).json()
+    patched = api.client.patch(f"/jobs/{job['id']}", json=labels, headers=api.auth)
+    assert patched.status_code == 422 and fragment in patched.text
+
+
+def test_a_finished_job_has_its_summary_and_queue_and_run_times(api: Api) -> None:
+    scenario_id = api.create_scenario()["id"]
+    job_id = _finished(api, scenario_id, 0, _search_result([1.0, 0.8], 20.0, 3.5))
+    job = api.get(f"/jobs/{job_id}").json()
+    keys = [c.key for c in SUMMARY_COLUMNS["search"]]
+    assert list(job["summary"]) == keys
+    assert job["summary"]["fresh_f1"] == pytest.approx(0.9)
+    assert job["summary"]["fresh_f1_min"] == pytest.approx(0.8)
+    assert job["summary"]["residual_rate_rad_s"] == pytest.approx(0.15)
+    assert job["summary"]["fuel_nms"] == 20.0 and job["summary"]["wall_time_s"] == 3.5
+    assert job["queue_time_s"] >= 0 and job["run_time_s"] >= 0
+    queued = api.submit("search", scenario_id, seed=5).json()
+    assert queued["run_time_s"] is None and queued["summary"] is None
+
+
+def test_lists_sort_by_a_summary_figure_and_filter_by_text_tag_and_status(api: Api) -> None:
+    scenario_id = api.create_scenario()["id"]
+    low = _finished(api, scenario_id, 1, _search_result([0.6, 0.6], 30.0, 1.0), name="low")
+    high = _finished(api, scenario_id, 2, _search_result([1.0, 1.0], 10.0, 9.0), name="high")
+    mid = _finished(
+        api, scenario_id, 3, _search_result([0.8, 0.8], 20.0, 5.0), name="Mid run", tags=["keep"]
+    )
+    queued = api.submit("search", scenario_id, seed=4, name="waiting").json()["id"]
+
+    def ids(**query: Any) -> list[str]:
+        response = api.get("/jobs", params=query)
+        assert response.status_code == 200, response.text
+        return [j["id"] for j in response.json()["items"]]
+
+    # Jobs without the figure come last whichever way.
+    assert ids(sort="fresh_f1", order="desc") == [high, mid, low, queued]
+    assert ids(sort="fresh_f1", order="asc") == [low, mid, high, queued]
+    assert ids(sort="fuel_nms", order="asc")[:3] == [high, mid, low]
+    assert ids(sort="name", order="asc") == [high, low, mid, queued]
+    assert ids(q="mid") == [mid]
+    assert ids(q=mid[:6]) == [mid]
+    assert ids(q="kee") == [mid]
+    assert ids(tag="keep") == [mid]
+    assert ids(tag="nothing") == []
+    assert ids(status="queued") == [queued]
+    page = api.get("/jobs", params={"sort": "fresh_f1", "limit": 2, "offset": 1}).json()
+    assert page["total"] == 4 and [j["id"] for j in page["items"]] == [mid, low]
+    # LIKE wildcards in the text are plain characters.
+    assert ids(q="%") == [] and ids(q="_") == []
+
+
+@pytest.mark.parametrize(
+    ("query", "fragment"),
+    [
+        ({"sort": "colour"}, "'colour'"),
+        ({"order": "up"}, "asc"),
+        ({"tag": "x" * 65}, "at most 64 characters"),
+        ({"tag": ""}, "at least 1 character"),
+        ({"tag": "a,b"}, "'a,b'"),
+        ({"q": "a\x00b"}, "q"),
+    ],
+)
+def test_bad_list_queries_are_422(api: Api, query: dict[str, str], fragment: str) -> None:
+    for path in ("/jobs", "/classifiers"):
+        if path == "/classifiers" and query.get("sort") == "colour":
+            query = {"sort": "fresh_f1"}
+            fragment = "'fresh_f1'"
+        response = api.get(path, params=query)
+        assert response.status_code == 422, (path, response.text)
+        assert fragment in response.text
+
+
+def test_classifier_lists_sort_filter_and_carry_the_training_jobs_labels(
+    api: Api, classifier: InertiaClassifier
+) -> None:
+    scenario_id = api.create_scenario()["id"]
+    job = api.submit(
+        "train", scenario_id, params={"sequence": GOOD_SEQUENCE}, name="Flight A", tags=["t1"]
+    ).json()
+    first = api.insert_classifier(scenario_id, classifier)
+    second = api.insert_classifier(scenario_id, classifier)
+    with api.db.session() as session:
+        from service.store.models import ClassifierRow
+
+        row = session.get(ClassifierRow, second)
+        assert row is not None
+        row.job_id, row.f1, row.kind = job["id"], 0.5, "1nn"
+    listed = api.get("/classifiers", params={"sort": "f1", "order": "asc"}).json()["items"]
+    assert [c["id"] for c in listed] == [second, first]
+    assert listed[0]["job_name"] == "Flight A" and listed[0]["tags"] == ["t1"]
+    assert listed[1]["job_name"] is None and listed[1]["tags"] == []
+    assert [c["id"] for c in api.get("/classifiers", params={"tag": "t1"}).json()["items"]] == [
+        second
+    ]
+    assert [c["id"] for c in api.get("/classifiers", params={"q": "flight a"}).json()["items"]] == [
+        second
+    ]
+    assert [c["id"] for c in api.get("/classifiers", params={"kind": "1nn"}).json()["items"]] == [
+        second
+    ]
+    assert api.get(f"/classifiers/{second}").json()["job_name"] == "Flight A"
+
+
+def _csv(text: str) -> list[list[str]]:
+    return list(csv.reader(io.StringIO(text)))
+
+
+def test_a_search_result_downloads_as_json_and_as_each_csv_table(api: Api) -> None:
+    scenario_id = api.create_scenario()["id"]
+    result = _search_result([1.0, 0.8], 20.0, 3.5)
+    job_id = _finished(api, scenario_id, 0, result, name="run")
+    whole = api.get(f"/jobs/{job_id}/result")
+    assert whole.status_code == 200
+    assert whole.headers["content-type"].startswith("application/json")
+    assert f'filename="search-{job_id[:8]}.json"' in whole.headers["content-disposition"]
+    document = json.loads(whole.text)
+    assert document["result"]["curve"] == result["curve"] and document["name"] == "run"
+
+    curve = api.get(f"/jobs/{job_id}/result", params={"format": "csv", "table": "curve"})
+    assert curve.headers["content-type"].startswith("text/csv")
+    assert f'filename="search-{job_id[:8]}-curve.csv"' in curve.headers["content-disposition"]
+    rows = _csv(curve.text)
+    assert rows[0][:3] == ["timesteps", "episodes", "mean_episode_reward"]
+    assert [float(r[2]) for r in rows[1:]] == [p["mean_episode_reward"] for p in result["curve"]]
+
+    sequence = _csv(api.get(f"/jobs/{job_id}/result?format=csv&table=sequence").text)
+    assert sequence[0] == ["step", *(f"thruster_{j}_level" for j in range(1, 7))]
+    assert sequence[1] == ["1", "4", "4", "4", "0", "0", "0"]
+    summary = dict(_csv(api.get(f"/jobs/{job_id}/result?format=csv").text)[1:])
+    # The separability search's score is labelled as such, not as an F1.
+    assert summary["best_separability_search_draw"] == "1.0"
+    assert summary["fresh_f1_mean"] == "0.9"
+    baselines = _csv(api.get(f"/jobs/{job_id}/result?format=csv&table=baselines").text)
+    assert [r[0] for r in baselines[1:]] == ["found by the search", "hand-designed"]
+
+    bad = api.get(f"/jobs/{job_id}/result", params={"format": "csv", "table": "front"})
+    assert bad.status_code == 422 and "'front'" in bad.text and "curve" in bad.text
+    assert api.get(f"/jobs/{job_id}/result", params={"format": "xml"}).status_code == 422
+    queued = api.submit("search", scenario_id, seed=7).json()["id"]
+    assert api.get(f"/jobs/{queued}/result").status_code == 409
+
+
+def test_a_sweep_result_downloads_its_points_and_confusion_matrices(api: Api) -> None:
+    scenario_id = api.create_scenario()["id"]
+    names = ["a", "b"]
+
+    def point(noise: str, multiple: float, accuracy: float) -> dict[str, Any]:
+        return {
+            "noise": noise,
+            "multiple": multiple,
+            "value": 0.001 * multiple,
+            "accuracy": accuracy,
+            "ci_low": accuracy - 0.1,
+            "ci_high": min(1.0, accuracy + 0.1),
+            "f1": accuracy,
+            "n_series": 10,
+            "confusion": [[5, 0], [1, 4]],
+        }
+
+    result = {
+        "candidate_names": names,
+        "points": [point("process", 1, 0.9), point("process", 8, 0.6)],
+        "ceiling": [point("process", 1, 0.95), point("process", 8, 0.75)],
+        "others": {"least-squares": [point("process", 1, 0.85), point("process", 8, 0.5)]},
+        "units": {"process": "N m"},
+        "seed": 123,
+    }
+    job = api.submit("train", scenario_id, params={"sequence": GOOD_SEQUENCE}).json()
+    with api.db.session() as session:
+        claim(session, job["id"], "tests")
+    with api.db.session() as session:
+        # Stored as a sweep's result on a job row of type sweep.
+        from service.store.models import JobRow
+
+        row = session.get(JobRow, job["id"])
+        assert row is not None
+        row.type = "sweep"
+    with api.db.session() as session:
+        finish(session, job["id"], "succeeded", result=result)
+    stored = api.get(f"/jobs/{job['id']}").json()
+    assert stored["summary"] == {
+        "accuracy_min": 0.6,
+        "accuracy_mean": pytest.approx(0.75),
+        "ceiling_shortfall": pytest.approx(0.15),
+    }
+    points = _csv(api.get(f"/jobs/{job['id']}/result?format=csv&table=points").text)
+    assert [r[0] for r in points[1:]] == ["classifier"] * 2 + ["other:least-squares"] * 2 + [
+        "ceiling"
+    ] * 2
+    confusion = _csv(api.get(f"/jobs/{job['id']}/result?format=csv&table=confusion").text)
+    assert confusion[0] == ["who", "noise", "multiple", "true", "predicted", "count"]
+    assert confusion[1:5] == [
+        ["classifier", "process", "1", "a", "a", "5"],
+        ["classifier", "process", "1", "a", "b", "0"],
+        ["classifier", "process", "1", "b", "a", "1"],
+        ["classifier", "process", "1", "b", "b", "4"],
+    ]
+
+
+def test_metrics_download_every_point_as_csv(api: Api) -> None:
+    job_id = api.submit("search", api.create_scenario()["id"]).json()["id"]
+    with api.db.session() as session:
+        add_metrics(session, job_id, [("reward", step, step / 4) for step in range(5000)])
+    response = api.get(f"/jobs/{job_id}/metrics", params={"format": "csv"})
+    assert response.status_code == 200
+    assert "metrics.csv" in response.headers["content-disposition"]
+    rows = _csv(response.text)
+    assert rows[0] == ["key", "step", "value"] and len(rows) == 5001
+    assert rows[4001] == ["reward", "4000", "1000.0"]
+
+
+def test_an_identify_verdict_downloads_as_csv(
+    api: Api, classifier: InertiaClassifier, paper: Scenario
+) -> None:
+    classifier_id = api.insert_classifier(api.create_scenario()["id"], classifier)
+    flight = simulate(paper, GOOD_SEQUENCE, 1, np.random.default_rng(7))
+    body = {
+        "classifier_id": classifier_id,
+        "telemetry": {
+            "time_s": flight.time_s.tolist(),
+            "omega_rad_s": flight.omega_measured[3, 0].tolist(),
+        },
+    }
+    verdict = api.post("/identify", json=body).json()
+    response = api.post("/identify?format=csv", json=body)
+    assert response.status_code == 200, response.text
+    assert response.headers["content-type"].startswith("text/csv")
+    rows = _csv(response.text)
+    assert rows[0][:3] == ["candidate", "distance", "nearest"]
+    assert [r[0] for r in rows[1:]] == list(verdict["distances"])
+    nearest = [r[0] for r in rows[1:] if r[2] == "True"]
+    assert nearest == [verdict["candidate"]] == ["payload 3 ejected"]
+
+
+def test_the_key_check_is_204_for_the_key_and_401_otherwise(api: Api) -> None:
+    assert api.get("/auth/check", headers=api.auth).status_code == 204
+    assert api.get("/auth/check").status_code == 401
+    assert api.get("/auth/check", headers={"X-API-Key": "wrong"}).status_code == 401
+
+
+def test_the_docs_are_served_from_the_package_with_no_outside_address(api: Api) -> None:
+    page = api.get("/docs")
+    assert page.status_code == 200
+    assert "/docs-assets/swagger-ui-bundle.js" in page.text
+    assert "http://" not in page.text and "https://" not in page.text
+    script = api.get("/docs-assets/swagger-ui-bundle.js")
+    assert script.status_code == 200 and len(script.content) > 100_000
+    assert api.get("/docs-assets/swagger-ui.css").status_code == 200
+
+
+def test_the_vocabulary_names_every_summary_column_and_result_table(api: Api) -> None:
+    words = api.get("/vocabulary").json()
+    assert [c["key"] for c in words["job_summaries"]["search"]][:2] == ["fresh_f1", "fresh_f1_min"]
+    assert [t["name"] for t in words["result_tables"]["search"]] == [
+        "summary",
+        "curve",
+        "sequence",
+        "baselines",
+    ]
+    assert {t["name"] for t in words["result_tables"]["sweep"]} >= {"points", "confusion"}
+
+
+def test_the_sweeps_of_a_classifier_are_listed_by_its_id(
+    api: Api, classifier: InertiaClassifier
+) -> None:
+    scenario_id = api.create_scenario()["id"]
+    mine = api.insert_classifier(scenario_id, classifier)
+    other = api.insert_classifier(scenario_id, classifier)
+    first = api.submit("sweep", scenario_id, params={"classifier_id": mine, "n_test": 10}).json()
+    api.submit("sweep", scenario_id, params={"classifier_id": other, "n_test": 10})
+    listed = api.get("/jobs", params={"classifier_id": mine}).json()
+    assert [j["id"] for j in listed["items"]] == [first["id"]] and listed["total"] == 1
+    assert api.get("/jobs", params={"classifier_id": "nope"}).json()["items"] == []

@@ -1,0 +1,51 @@
+// Evaluated in the page by the browser tests: every layout problem of the visible
+// Plotly charts, as text; [] when there is none. Boxes are page pixels.
+() => {
+  const box = (el) => el.getBoundingClientRect();
+  const overlap = (a, b) => {
+    const w = Math.min(a.right, b.right) - Math.max(a.left, b.left);
+    const h = Math.min(a.bottom, b.bottom) - Math.max(a.top, b.top);
+    return w > 1 && h > 1;
+  };
+  const problems = [];
+  for (const plot of document.querySelectorAll('.js-plotly-plot')) {
+    if (!plot.offsetParent) continue;  // hidden (a closed <details>)
+    const name = plot.id || '(plot)';
+    const svg = plot.querySelector('svg.main-svg');
+    if (!svg) continue;
+    const figure = box(svg);
+    const legend = plot.querySelector('g.legend');
+    const others = [
+      ...[...plot.querySelectorAll('.nsewdrag')].map((el) => ['plot area', el]),
+      ...[...plot.querySelectorAll('.xtick text, .ytick text')].map((el) => ['tick label ' + el.textContent, el]),
+      ...[...plot.querySelectorAll('.g-xtitle text, .g-ytitle text, .g-x2title text, .g-y2title text, .g-y3title text')].map((el) => ['axis title ' + el.textContent, el]),
+      ...[...plot.querySelectorAll('.g-gtitle text')].map((el) => ['title', el]),
+      ...[...plot.querySelectorAll('.colorbar')].map((el) => ['colour bar', el]),
+    ];
+    if (legend && legend.getBBox().width > 0) {
+      const lb = box(legend.querySelector('.bg') || legend);
+      for (const [what, el] of others) {
+        if (el.getBBox && el.getBBox().width === 0) continue;
+        if (overlap(lb, box(el))) problems.push(`${name}: legend overlaps ${what}`);
+      }
+      if (lb.right > figure.right + 1 || lb.left < figure.left - 1) problems.push(`${name}: legend outside the figure`);
+    }
+    // Axis titles must not run into each other (stacked subplots) or into tick labels.
+    const titles = [...plot.querySelectorAll('[class^="g-"][class$="title"] text')].filter((el) => el.textContent && !el.closest('.g-gtitle'));
+    const ticks = [...plot.querySelectorAll('.xtick text, .ytick text')].filter((el) => el.textContent);
+    titles.forEach((a, i) => {
+      for (const b of titles.slice(i + 1)) if (overlap(box(a), box(b))) problems.push(`${name}: axis titles "${a.textContent}" and "${b.textContent}" overlap`);
+      for (const t of ticks) if (overlap(box(a), box(t))) problems.push(`${name}: axis title "${a.textContent}" overlaps tick label ${t.textContent}`);
+    });
+    for (const el of plot.querySelectorAll('.g-xtitle text, .g-ytitle text, .g-y2title text, .g-y3title text, .xtick text, .ytick text, .g-gtitle text')) {
+      if (!el.textContent) continue;
+      const b = box(el);
+      if (b.left < figure.left - 1 || b.right > figure.right + 1 || b.top < figure.top - 1 || b.bottom > figure.bottom + 1) {
+        problems.push(`${name}: "${el.textContent}" is cut at the figure's edge`);
+      }
+    }
+  }
+  const wider = document.documentElement.scrollWidth - window.innerWidth;
+  if (wider > 0) problems.push(`the page is ${wider} px wider than the window`);
+  return problems;
+}
