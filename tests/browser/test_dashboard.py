@@ -373,13 +373,13 @@ def test_a_sweep_draws_both_accuracy_curves_with_intervals_and_a_confusion_matri
         assert [y + e for y, e in zip(drawn["y"], drawn["plus"], strict=True)] == pytest.approx(
             [p["ci_high"] for p in points]
         )
-        # The limit and least squares, scored on the same series, drawn beside it.
-        limit = page.evaluate(
-            "id => document.getElementById(id).data.find(t => t.name.startsWith('limit')).y",
+        # The ceiling and least squares, scored on the same series, drawn beside it.
+        ceiling = page.evaluate(
+            "id => document.getElementById(id).data.find(t => t.name.startsWith('ceiling')).y",
             plot,
         )
-        assert limit == pytest.approx(
-            [p["accuracy"] for p in result["limit"] if p["noise"] == noise]
+        assert ceiling == pytest.approx(
+            [p["accuracy"] for p in result["ceiling"] if p["noise"] == noise]
         )
     page.wait_for_function("() => document.getElementById('inertia-plot')?.data?.length === 2")
     flagged = page.evaluate("() => document.getElementById('inertia-plot').data[0].y")

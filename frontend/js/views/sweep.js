@@ -50,7 +50,7 @@ export async function sweepPanel(holder, job, classifier, context) {
     if (limit && limit.length) {
       // A result from before the ceiling holds only its old reference line: drawn, but not
       // called a ceiling (classifiers beat it).
-      const name = result && result.ceiling && result.ceiling.length ? "ceiling: per-candidate Gaussians fitted at each noise" : "reference (pooled Gaussian; not a ceiling)";
+      const name = result && result.ceiling && result.ceiling.length ? "ceiling" : "reference (not a ceiling)";
       traces.push({ x: limit.map((p) => p.multiple), y: limit.map((p) => p.accuracy), mode: "lines+markers", marker: { size: 5 }, name, line: { color: "#111", dash: "dash", width: 1.5 }, hovertemplate: `×%{x}: %{y:.3f}<extra>${name.split(":")[0]}</extra>` });
     }
     Object.entries(others).forEach(([label, points], i) => {
