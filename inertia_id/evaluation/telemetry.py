@@ -243,6 +243,16 @@ class Telemetry(BaseModel):
         before = t < 0.0
         return t[before], self.omega_array[before]
 
+    def shifted(self, shift_s: float) -> Telemetry:
+        """The same telemetry with the sequence start ``shift_s`` seconds later."""
+        start = parse_sequence_start(self.sequence_start)
+        if isinstance(start, str):
+            moment = _parse_utc(start, "sequence_start") + timedelta(seconds=shift_s)
+            moved: float | str = moment.isoformat().replace("+00:00", "Z")
+        else:
+            moved = (start or 0.0) + shift_s
+        return Telemetry.model_validate({**self.model_dump(), "sequence_start": moved})
+
     def describe_time(self, offset_s: float) -> str:
         """``offset_s`` (s from the sequence start) in words, with the telemetry's own clock
         when that is not already time from the start."""
@@ -314,6 +324,10 @@ def parse_telemetry(
                 f"stamp: {row}"
             )
         omegas.append(values)
+    if times and all(isinstance(v, str) for v in times):
+        return Telemetry(
+            time_utc=[str(v) for v in times], omega_rad_s=omegas, sequence_start=sequence_start
+        )
     return Telemetry(time_s=times, omega_rad_s=omegas, sequence_start=sequence_start)
 
 
