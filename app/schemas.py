@@ -417,10 +417,25 @@ class ClassifierPage(BaseModel):
 
 class IdentifyRequest(_Request):
     classifier_id: str = Field(max_length=64)
-    telemetry: Telemetry = Field(
-        description=f"time stamps (s from the sequence start) and omega rows (rad/s), at most "
-        f"{MAX_TELEMETRY_SAMPLES} samples"
+    sequence_start: float | str | None = Field(
+        default=None,
+        description="start of the actuation sequence in the stamps' clock (seconds, or an "
+        "ISO-8601 UTC time such as 2025-03-01T12:00:00Z); overrides telemetry.sequence_start",
     )
+    telemetry: Telemetry = Field(
+        description=f"time stamps (seconds in any clock, or ISO-8601 UTC strings), omega rows "
+        f"(rad/s) and the sequence start, at most {MAX_TELEMETRY_SAMPLES} samples"
+    )
+
+    @model_validator(mode="before")
+    @classmethod
+    def _start_into_telemetry(cls, data: Any) -> Any:
+        # The telemetry is validated against its start, so the start goes in first.
+        if isinstance(data, dict) and data.get("sequence_start") is not None:
+            inner = data.get("telemetry")
+            if isinstance(inner, dict):
+                data = {**data, "telemetry": {**inner, "sequence_start": data["sequence_start"]}}
+        return data
 
 
 class IdentifyResult(BaseModel):

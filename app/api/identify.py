@@ -25,7 +25,7 @@ from starlette.datastructures import UploadFile
 
 from inertia_id.errors import InputError
 from inertia_id.evaluation.identify import identify
-from inertia_id.evaluation.telemetry import Telemetry, parse_telemetry
+from inertia_id.evaluation.telemetry import Telemetry, parse_sequence_start, parse_telemetry
 from service.exports import identify_table, to_csv
 from service.store.models import ClassifierRow
 from service.store.session import Database
@@ -177,12 +177,15 @@ def _identify(
     return IdentifyResult.model_validate({**finite_or_none(result), "classifier_id": key[0]})
 
 
-async def _from_json(request: Request) -> tuple[str, Telemetry]:
+async def _from_json(request: Request, sequence_start: str | None) -> tuple[str, Telemetry]:
     body = await request.body()
     try:
         data = json.loads(body)
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         unprocessable(("body",), f"request body is not valid JSON: {exc}")
+    start = _query_start(sequence_start)
+    if start is not None and isinstance(data, dict):
+        data = {**data, "sequence_start": start}
     try:
         parsed = IdentifyRequest.model_validate(data)
     except ValidationError as exc:
@@ -192,7 +195,15 @@ async def _from_json(request: Request) -> tuple[str, Telemetry]:
     return parsed.classifier_id, parsed.telemetry
 
 
-async def _from_form(request: Request) -> tuple[str, Telemetry]:
+def _query_start(text: str | None) -> float | str | None:
+    try:
+        return parse_sequence_start(text)
+    except InputError as exc:
+        unprocessable(("query", "sequence_start"), str(exc))
+
+
+async def _from_form(request: Request, sequence_start: str | None) -> tuple[str, Telemetry]:
+    start = _query_start(sequence_start)
     async with request.form(max_files=1, max_fields=10) as form:
         classifier_id = form.get("classifier_id")
         upload = form.get("file")
@@ -206,7 +217,7 @@ async def _from_form(request: Request) -> tuple[str, Telemetry]:
     except UnicodeDecodeError as exc:
         unprocessable(("body", "file"), f"telemetry file is not UTF-8 text: {exc}")
     try:
-        return classifier_id, parse_telemetry(text)
+        return classifier_id, parse_telemetry(text, sequence_start=start)
     except ValidationError as exc:
         raise RequestValidationError(
             format_errors(exc.errors(include_url=False), ("body", "file"))
@@ -226,7 +237,8 @@ _MULTIPART_SCHEMA = {
         "file": {
             "type": "string",
             "format": "binary",
-            "description": "CSV with columns time_s, wx, wy, wz (rad/s); a header row is allowed",
+            "description": "CSV with columns time_s (seconds) or time_utc (ISO-8601 UTC), wx, "
+            "wy, wz (rad/s); a header row is allowed; the sequence start as ?sequence_start=",
         },
     },
 }
@@ -271,11 +283,23 @@ async def identify_telemetry(
         Literal["json", "csv"],
         Query(description="json, or csv: the verdict as a file, one row per candidate"),
     ] = "json",
+    sequence_start: Annotated[
+        str | None,
+        Query(
+            max_length=64,
+            description="start of the actuation sequence in the telemetry's clock: seconds "
+            "(e.g. 810000000.0) or ISO-8601 UTC (2025-03-01T12:00:00Z); needed for a CSV "
+            "whose stamps are not seconds from the start; overrides one in the JSON body",
+        ),
+    ] = None,
 ) -> Any:
     """Which candidate is the spacecraft? Telemetry after the classifier's sequence.
 
     Send JSON ``{"classifier_id": ..., "telemetry": {"time_s": [...], "omega_rad_s":
     [[wx, wy, wz], ...]}}`` or a multipart form with ``classifier_id`` and a CSV ``file``.
+    Stamps are seconds in any clock or ISO-8601 UTC strings (``time_utc``); the sequence
+    start (``sequence_start``: in the body, the telemetry or the query) is needed unless
+    they are seconds from the start.
     The answer has the nearest candidate, its inertia, the distance to every candidate,
     the margin to the runner-up and whether the series "matches none" of them.
     """
@@ -283,9 +307,9 @@ async def identify_telemetry(
     # read here and validated with the same models.
     content_type = request.headers.get("content-type", "").split(";")[0].strip().lower()
     if content_type == "multipart/form-data":
-        classifier_id, telemetry = await _from_form(request)
+        classifier_id, telemetry = await _from_form(request, sequence_start)
     elif content_type == "application/json" or content_type.endswith("+json"):
-        classifier_id, telemetry = await _from_json(request)
+        classifier_id, telemetry = await _from_json(request, sequence_start)
     else:
         raise HTTPException(
             status.HTTP_415_UNSUPPORTED_MEDIA_TYPE,

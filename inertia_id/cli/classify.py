@@ -3,7 +3,11 @@ noise, and verdicts on telemetry."""
 
 from __future__ import annotations
 
+import json
+import os
 import time
+from pathlib import Path
+from typing import Any
 
 import click
 
@@ -245,24 +249,121 @@ def sweep_cmd(
 
 @click.command("identify")
 @classifier_option("Classifier JSON from `train`.")
+@click.argument("inputs", nargs=-1, type=click.Path(exists=True, file_okay=True, dir_okay=True))
 @click.option(
     "--telemetry",
-    "telemetry_path",
-    required=True,
-    type=click.Path(exists=True, dir_okay=False),
-    help="CSV (time_s,wx,wy,wz; header optional) or JSON "
-    "({time_s: [...], omega_rad_s: [[...], ...]}), time from the sequence start.",
+    "telemetry_paths",
+    multiple=True,
+    type=click.Path(exists=True, dir_okay=True),
+    help="Telemetry file or folder (repeatable; paths may also follow the options). CSV "
+    "(time_s or time_utc, wx, wy, wz; header optional) or JSON ({time_s or time_utc: [...], "
+    "omega_rad_s: [[...], ...], sequence_start: ...}). A folder gives its *.csv and *.json.",
+)
+@click.option(
+    "--sequence-start",
+    default=None,
+    help="Start of the actuation sequence in the telemetry's clock: seconds (e.g. mission "
+    "time) or ISO-8601 UTC (2025-03-01T12:00:00Z); overrides a JSON file's. Needed unless "
+    "the stamps are seconds from the sequence start.",
+)
+@click.option(
+    "--estimate-start-within",
+    "start_window_s",
+    default=None,
+    type=click.FloatRange(0),
+    help="Search start times within this many seconds of the given start, one grid period "
+    "apart, for the one whose series is closest to a candidate; the shift is reported.",
 )
 @friendly_errors
-def identify_cmd(classifier_path: str, telemetry_path: str) -> None:
+def identify_cmd(
+    classifier_path: str,
+    inputs: tuple[str, ...],
+    telemetry_paths: tuple[str, ...],
+    sequence_start: str | None,
+    start_window_s: float | None,
+) -> None:
     """Classify telemetry to a candidate inertia, or say it matches none.
 
     The answer also holds the inertia tensor that integral-form least squares estimates
     from the same telemetry, and which parameters the sequence hardly excites.
-    """
-    from ..classifiers.registry import load_classifier
-    from ..evaluation.identify import identify
-    from ..evaluation.telemetry import load_telemetry
 
-    verdict = identify(load_classifier(classifier_path), load_telemetry(telemetry_path))
-    write_json(None, verdict.model_dump(mode="json"))
+    One file: its verdict as indented JSON, and a bad file is an error. Several files or a
+    folder: one JSON line per file, {"path": ..., verdict...} or {"path": ..., "error":
+    ...}; every file is tried, and the exit code is 1 if any failed.
+    """
+    from pydantic import ValidationError
+
+    from ..classifiers.registry import load_classifier
+    from ..errors import InputError
+    from ..evaluation.telemetry import parse_sequence_start
+
+    paths = _telemetry_files((*telemetry_paths, *inputs))
+    start = parse_sequence_start(sequence_start)
+    classifier = load_classifier(classifier_path)
+    if len(paths) == 1 and not any(os.path.isdir(p) for p in (*telemetry_paths, *inputs)):
+        write_json(None, _identify_file(classifier, paths[0], start, start_window_s))
+        return
+    failed = 0
+    for path in paths:
+        try:
+            line = {"path": path, **_identify_file(classifier, path, start, start_window_s)}
+        except (InputError, ValidationError, OSError, UnicodeDecodeError) as exc:
+            failed += 1
+            line = {"path": path, "error": _one_line(exc)}
+        click.echo(json.dumps(line))
+    if failed:
+        click.echo(f"{failed} of {len(paths)} telemetry files failed", err=True)
+        raise SystemExit(1)
+
+
+def _telemetry_files(given: tuple[str, ...]) -> list[str]:
+    from ..errors import InputError
+
+    if not given:
+        raise InputError("give telemetry: --telemetry PATH or paths after the options")
+    paths: list[str] = []
+    for entry in given:
+        if os.path.isdir(entry):
+            found = sorted(
+                str(p) for p in Path(entry).iterdir() if p.suffix.lower() in (".csv", ".json")
+            )
+            if not found:
+                raise InputError(f"folder {entry!r} holds no .csv or .json telemetry")
+            paths += found
+        else:
+            paths.append(entry)
+    return list(dict.fromkeys(paths))
+
+
+def _identify_file(
+    classifier: Any, path: str, start: float | str | None, window_s: float | None
+) -> dict[str, Any]:
+    from ..evaluation.identify import identify
+    from ..evaluation.telemetry import estimate_sequence_start, load_telemetry
+
+    telemetry = load_telemetry(path, sequence_start=start)
+    if window_s is None:
+        return identify(classifier, telemetry).model_dump(mode="json")
+    grid = classifier.scenario_.sample_times(len(classifier.sequence_))
+    shift, _ = estimate_sequence_start(
+        telemetry,
+        grid,
+        lambda series: float(classifier.transform(series[None])[0].min()),
+        window_s=window_s,
+    )
+    verdict = identify(classifier, telemetry.shifted(shift)).model_dump(mode="json")
+    return {**verdict, "sequence_start_shift_s": shift}
+
+
+def _one_line(exc: BaseException) -> str:
+    from pydantic import ValidationError
+
+    if isinstance(exc, ValidationError):
+        # The rule and the value, without pydantic's type codes and links.
+        return "; ".join(_error_text(e["loc"], str(e["msg"])) for e in exc.errors())
+    return " ".join(str(exc).split())
+
+
+def _error_text(loc: tuple[Any, ...], msg: str) -> str:
+    msg = msg.removeprefix("Value error, ")
+    return f"{'.'.join(str(part) for part in loc)}: {msg}" if loc else msg

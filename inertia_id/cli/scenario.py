@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
+from typing import Any
 
 import click
 
@@ -72,6 +74,28 @@ def scenario_cmd(preset_name: str, scenario_path: str | None, out: str | None) -
     type=click.IntRange(0),
     help="Which realisation --telemetry writes.",
 )
+@click.option(
+    "--engine",
+    default="numpy",
+    show_default=True,
+    type=click.Choice(["numpy", "basilisk"]),
+    help="numpy: our RK4, every candidate and realisation. basilisk: Basilisk (pip install "
+    "'inertia-id[basilisk]') flies the one series --telemetry writes (needs --telemetry).",
+)
+@click.option(
+    "--sample-rate",
+    "sample_rate_hz",
+    default=None,
+    type=click.FloatRange(0, 10_000, min_open=True),
+    help="Gyro rate, Hz [default: the scenario's]; the gyro noise sigma stays per sample.",
+)
+@click.option(
+    "--time-offset",
+    default=None,
+    help="Write --telemetry stamps in another clock: seconds added to every stamp (e.g. "
+    "mission time), or an ISO-8601 UTC sequence start (a time_utc column). Pass the same "
+    "value to `identify --sequence-start`.",
+)
 @friendly_errors
 def simulate_cmd(
     preset_name: str,
@@ -85,14 +109,35 @@ def simulate_cmd(
     telemetry: str | None,
     candidate: str,
     realisation: int,
+    engine: str,
+    sample_rate_hz: float | None,
+    time_offset: str | None,
 ) -> None:
     """Simulate every candidate's gyro response to a sequence."""
     import numpy as np
 
     from ..errors import InputError
+    from ..evaluation.telemetry import parse_sequence_start
     from ..physics.simulate import simulate
 
     scenario = load_scenario(preset_name, scenario_path)
+    offset = parse_sequence_start(time_offset)
+    if engine == "basilisk":
+        _fly_basilisk(
+            scenario,
+            parse_sequence(sequence_text),
+            candidate=candidate,
+            seed=seed,
+            process_noise=process_noise,
+            measurement_noise=measurement_noise,
+            sample_rate_hz=sample_rate_hz,
+            out=out,
+            telemetry=telemetry,
+            offset=offset,
+        )
+        return
+    if sample_rate_hz is not None:
+        scenario = _at_rate(scenario, sample_rate_hz)
     result = simulate(
         scenario,
         parse_sequence(sequence_text),
@@ -126,25 +171,128 @@ def simulate_cmd(
         click.echo(f"wrote {out}", err=True)
     if telemetry:
         names = scenario.candidate_names
-        if candidate in names:
-            k = names.index(candidate)
-        elif candidate.isdigit() and int(candidate) < len(names):
-            k = int(candidate)
-        else:
-            raise InputError(
-                f"candidate {candidate!r} is neither an index 0..{len(names) - 1} nor one of "
-                f"{names}"
-            )
+        k = _candidate_index(names, candidate)
         if realisation >= realisations:
             raise InputError(f"--realisation {realisation} but only {realisations} simulated")
-        rows = np.column_stack([result.time_s, result.omega_measured[k, realisation]])
-        np.savetxt(
-            telemetry,
-            rows,
-            delimiter=",",
-            header="time_s,wx_rad_s,wy_rad_s,wz_rad_s",
-            comments="",
-            fmt="%.10g",
-        )
+        _write_telemetry(telemetry, result.time_s, result.omega_measured[k, realisation], offset)
         click.echo(f"wrote {telemetry} ({names[k]}, realisation {realisation})", err=True)
     write_json(None, summary)
+
+
+def _candidate_index(names: list[str], candidate: str) -> int:
+    from ..errors import InputError
+
+    if candidate in names:
+        return names.index(candidate)
+    if candidate.isdigit() and int(candidate) < len(names):
+        return int(candidate)
+    raise InputError(
+        f"candidate {candidate!r} is neither an index 0..{len(names) - 1} nor one of {names}"
+    )
+
+
+def _at_rate(scenario: Any, rate_hz: float) -> Any:
+    """``scenario`` with its gyro at ``rate_hz``: the integration step becomes the longest
+    no longer than the scenario's that divides the sample period, the actuation step and
+    the disturbance interval (whole nanoseconds)."""
+    from ..errors import InputError
+
+    timing, unc = scenario.timing, scenario.uncertainty
+    ns = [round(1e9 * v) for v in (1 / rate_hz, timing.step_duration_s, unc.disturbance_interval_s)]
+    if abs(ns[0] - 1e9 / rate_hz) > 1e-3:
+        raise InputError(f"--sample-rate {rate_hz:g} Hz: its period is not whole nanoseconds")
+    common = math.gcd(*ns)
+    h = round(1e9 * timing.integration_step_s)
+    divisor = max(1, -(-common // h))
+    while common % divisor:
+        divisor += 1
+    step = common // divisor
+    if step < 10_000:  # 10 µs: the sample period shares no practical step with the rest
+        raise InputError(
+            f"--sample-rate {rate_hz:g} Hz shares no integration step of at least 10 µs with "
+            f"the actuation step {timing.step_duration_s:g} s and the disturbance interval "
+            f"{unc.disturbance_interval_s:g} s"
+        )
+    data = scenario.model_dump()
+    data["timing"] = {
+        **data["timing"],
+        "sample_rate_hz": rate_hz,
+        "integration_step_s": step * 1e-9,
+    }
+    return type(scenario).model_validate(data)
+
+
+def _write_telemetry(path: str, time_s: Any, omega: Any, offset: float | str | None) -> None:
+    """Telemetry CSV: time_s (plus a numeric offset) or time_utc (from an ISO start)."""
+    from datetime import datetime, timedelta
+
+    if isinstance(offset, str):
+        origin = datetime.fromisoformat(offset)
+        stamps = [
+            (origin + timedelta(microseconds=round(1e6 * t))).isoformat().replace("+00:00", "Z")
+            for t in time_s
+        ]
+        header = "time_utc"
+    else:
+        # The offset is added here, once; %.15g keeps 1 µs at mission times of ~1e9 s.
+        stamps = [f"{(offset or 0.0) + t:.15g}" for t in time_s]
+        header = "time_s"
+    lines = [f"{header},wx_rad_s,wy_rad_s,wz_rad_s"]
+    lines += [
+        f"{s},{w[0]:.10g},{w[1]:.10g},{w[2]:.10g}" for s, w in zip(stamps, omega, strict=True)
+    ]
+    Path(path).write_text("\n".join(lines) + "\n", encoding="utf-8")
+
+
+def _fly_basilisk(
+    scenario: Any,
+    sequence: Any,
+    *,
+    candidate: str,
+    seed: int,
+    process_noise: float,
+    measurement_noise: float,
+    sample_rate_hz: float | None,
+    out: str | None,
+    telemetry: str | None,
+    offset: float | str | None,
+) -> None:
+    """One series flown by Basilisk: the --telemetry one (realisation 0 of --seed)."""
+    import numpy as np
+
+    from ..errors import InputError
+
+    if telemetry is None or out is not None:
+        raise InputError("--engine basilisk flies one series: give --telemetry (and not --out)")
+    try:
+        from ..physics.engines.basilisk import BasiliskUnavailableError, simulate_basilisk
+    except ImportError as exc:  # pragma: no cover - the module imports Basilisk lazily
+        raise click.ClickException(f"Basilisk is not available: {exc}") from None
+    k = _candidate_index(scenario.candidate_names, candidate)
+    try:
+        flown = simulate_basilisk(
+            scenario,
+            sequence,
+            k,
+            np.random.default_rng(seed),
+            sample_rate_hz=sample_rate_hz,
+            process_noise_scale=process_noise,
+            measurement_noise_scale=measurement_noise,
+        )
+    except BasiliskUnavailableError as exc:
+        raise click.ClickException(str(exc)) from None
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
+    _write_telemetry(telemetry, flown.time_s, flown.omega_measured, offset)
+    click.echo(f"wrote {telemetry} ({flown.candidate}, Basilisk)", err=True)
+    write_json(
+        None,
+        {
+            "engine": "basilisk",
+            "candidate": flown.candidate,
+            "series_shape": list(flown.omega_measured.shape),
+            "sample_rate_hz": flown.sample_rate_hz,
+            "hub_step_s": flown.hub_step_s,
+            "final_rate_rad_s": flown.omega_true[-1].tolist(),
+        },
+    )

@@ -1,8 +1,30 @@
-"""Gyro telemetry: time stamps from the sequence start and body rates, validated.
+"""Gyro telemetry: time stamps in any clock, a sequence start, and body rates, validated.
 
 :class:`Telemetry` is what :func:`~inertia_id.evaluation.identify.identify` reads;
-:func:`parse_telemetry` and :func:`load_telemetry` read it from JSON or CSV text, and
-:func:`resample` puts it on a classifier's sample grid.
+:func:`parse_telemetry` and :func:`load_telemetry` read it from JSON or CSV text,
+:func:`resample` puts it on a classifier's sample grid, and
+:func:`estimate_sequence_start` searches a window of start times for the best fit.
+
+**Time base.** Stamps are seconds in any clock (``time_s``: from the sequence start,
+a mission clock, ...) or ISO-8601 UTC strings (``time_utc``, or strings in ``time_s``:
+``2025-03-01T12:00:00.050Z``, a ``Z`` or explicit offset required, resolution 1 µs).
+``sequence_start`` is the start of the actuation sequence in the same clock: seconds, or
+an ISO-8601 UTC string. It may be left out only when the stamps are seconds whose first
+lies within :data:`DEFAULT_START_WINDOW_S` of 0: they are then seconds from the start,
+as before. The start is subtracted from every stamp before any other arithmetic, so
+mission-clock stamps (~1e9 s) keep their sub-millisecond resolution. Samples before the
+start are kept (:meth:`Telemetry.before_start`); samples after the sequence are ignored.
+
+**Resampling rules** (:func:`resample`). The simulator's gyro sample ``k`` is the
+instantaneous rate at ``t_k = k Δ`` (plus white noise), so telemetry faster than the
+grid is averaged over cells of width ``Δ`` centred on the grid times, and the cell means
+(at their mean time stamps) are interpolated linearly onto the grid; slower telemetry
+is interpolated linearly between its samples. At the ends the two nearest cells are
+extrapolated linearly. Coverage, with ``p`` the larger of the grid period and the
+telemetry's median sample period: the first sample may come up to ``1.5 p`` after the
+sequence start and the last up to ``1.5 p`` before the grid's last time; inside the
+sequence no gap between samples may exceed ``4 p``. Otherwise the telemetry is too thin
+for a verdict and is refused with the largest offending gap named.
 """
 
 from __future__ import annotations
@@ -10,36 +32,105 @@ from __future__ import annotations
 import csv
 import io
 import json
+import math
 import os
+from collections.abc import Callable
+from datetime import UTC, datetime, timedelta
 
 import numpy as np
-from pydantic import BaseModel, Field, field_validator, model_validator
+from pydantic import BaseModel, Field, PrivateAttr, field_validator, model_validator
 
 from ..errors import InputError
 
 __all__ = [
+    "DEFAULT_START_WINDOW_S",
+    "EDGE_GAP_PERIODS",
+    "INTERIOR_GAP_PERIODS",
     "MAX_TELEMETRY_SAMPLES",
     "Telemetry",
+    "estimate_sequence_start",
     "load_telemetry",
+    "parse_sequence_start",
     "parse_telemetry",
     "resample",
 ]
 
 MAX_TELEMETRY_SAMPLES = 200_000
+# Seconds stamps whose first value lies within this of 0 are taken as from the sequence
+# start when no sequence_start is given (telemetry written before the time base existed).
+DEFAULT_START_WINDOW_S = 3600.0
+# Coverage rules, in periods p = max(grid period, median telemetry period).
+EDGE_GAP_PERIODS = 1.5
+INTERIOR_GAP_PERIODS = 4.0
+
+_MICROSECOND = timedelta(microseconds=1)
+_ISO_EXAMPLE = "2025-03-01T12:00:00.050Z"
+
+
+def _parse_utc(text: str, where: str) -> datetime:
+    try:
+        stamp = datetime.fromisoformat(text.strip())
+    except ValueError:
+        raise InputError(
+            f"{where} = {text!r} is not an ISO-8601 UTC time stamp (e.g. {_ISO_EXAMPLE!r})"
+        ) from None
+    if stamp.tzinfo is None:
+        raise InputError(
+            f"{where} = {text!r} has no time zone: end it with Z (UTC), e.g. {_ISO_EXAMPLE!r}"
+        )
+    return stamp.astimezone(UTC)
+
+
+def parse_sequence_start(text: str | float | None) -> float | str | None:
+    """A sequence start as given on a command line or in a query: seconds (a number) or
+    an ISO-8601 UTC string (checked here, so a typo is named at once)."""
+    if text is None or isinstance(text, float | int):
+        return None if text is None else float(text)
+    text = text.strip()
+    try:
+        value = float(text)
+    except ValueError:
+        _parse_utc(text, "sequence_start")
+        return text
+    if not math.isfinite(value):
+        raise InputError(f"sequence_start = {text!r} is not finite")
+    return value
 
 
 class Telemetry(BaseModel):
-    """Gyro telemetry: time stamps (s from the sequence start) and body rates (rad/s)."""
+    """Gyro telemetry: time stamps, body rates (rad/s) and the sequence start.
 
-    time_s: list[float] = Field(max_length=MAX_TELEMETRY_SAMPLES)
+    Give the stamps as ``time_s`` (seconds in any clock, or ISO-8601 UTC strings) or as
+    ``time_utc`` (ISO-8601 UTC strings). ``sequence_start`` is the actuation sequence's
+    start in the stamps' clock; see the module docstring for when it may be left out.
+    """
+
+    time_s: list[float | str] | None = Field(
+        default=None,
+        max_length=MAX_TELEMETRY_SAMPLES,
+        description="time stamps: seconds in the telemetry's clock, or ISO-8601 UTC strings",
+    )
+    time_utc: list[str] | None = Field(
+        default=None,
+        max_length=MAX_TELEMETRY_SAMPLES,
+        description=f"time stamps as ISO-8601 UTC strings, e.g. {_ISO_EXAMPLE!r}",
+    )
     omega_rad_s: list[list[float]] = Field(max_length=MAX_TELEMETRY_SAMPLES)
+    sequence_start: float | str | None = Field(
+        default=None,
+        description="start of the actuation sequence in the stamps' clock: seconds, or an "
+        "ISO-8601 UTC string; may be left out for seconds stamps that start near 0",
+    )
+    # Seconds from the sequence start, computed once by the validator (a tuple, so that
+    # two telemetries compare equal by value).
+    _offsets_s: tuple[float, ...] = PrivateAttr(default=())
 
     @field_validator("time_s")
     @classmethod
-    def _times(cls, value: list[float]) -> list[float]:
+    def _times(cls, value: list[float | str] | None) -> list[float | str] | None:
+        if value is None or any(isinstance(v, str) for v in value):
+            return value  # ISO stamps: checked with the sequence start below
         arr = np.asarray(value, dtype=float)
-        if arr.size < 2:
-            raise InputError(f"telemetry needs at least 2 samples, got {arr.size}")
         bad = np.flatnonzero(~np.isfinite(arr))
         if bad.size:
             raise InputError(f"time_s[{bad[0]}] = {value[bad[0]]!r} is not finite")
@@ -66,27 +157,126 @@ class Telemetry(BaseModel):
         return value
 
     @model_validator(mode="after")
-    def _lengths(self) -> Telemetry:
-        if len(self.time_s) != len(self.omega_rad_s):
-            raise InputError(
-                f"{len(self.time_s)} time stamps but {len(self.omega_rad_s)} omega rows"
-            )
+    def _time_base(self) -> Telemetry:
+        if self.time_s is not None and self.time_utc is not None:
+            raise InputError("give the time stamps as time_s or as time_utc, not both")
+        stamps = self.time_s if self.time_s is not None else self.time_utc
+        name = "time_s" if self.time_s is not None else "time_utc"
+        if stamps is None:
+            raise InputError("telemetry needs time stamps: time_s (seconds) or time_utc (ISO)")
+        if len(stamps) < 2:
+            raise InputError(f"telemetry needs at least 2 samples, got {len(stamps)}")
+        if len(stamps) != len(self.omega_rad_s):
+            raise InputError(f"{len(stamps)} time stamps but {len(self.omega_rad_s)} omega rows")
+        start = self.sequence_start
+        if isinstance(start, str):
+            start = parse_sequence_start(start)
+        elif start is not None and not math.isfinite(start):
+            raise InputError(f"sequence_start = {start!r} is not finite")
+        iso = [isinstance(v, str) for v in stamps]
+        if any(iso):
+            if not all(iso):
+                i = iso.index(False)
+                raise InputError(
+                    f"{name}[{i}] = {stamps[i]!r} is a number but {name}[{iso.index(True)}] "
+                    "is a string: give every stamp in one form"
+                )
+            offsets = self._iso_offsets([str(v) for v in stamps], name, start)
+        else:
+            times = np.asarray(stamps, dtype=float)
+            if start is None:
+                if abs(times[0]) > DEFAULT_START_WINDOW_S:
+                    raise InputError(
+                        f"sequence_start is required: the first time stamp {name}[0] = "
+                        f"{stamps[0]!r} s is not within {DEFAULT_START_WINDOW_S:g} s of 0, "
+                        "so it is not time from the sequence start; give the sequence start "
+                        "in the same clock"
+                    )
+                start = 0.0
+            if isinstance(start, str):
+                raise InputError(
+                    f"sequence_start = {start!r} is an ISO-8601 time but the stamps are "
+                    f"seconds ({name}[0] = {stamps[0]!r}): give it in seconds of their clock"
+                )
+            # The start is subtracted first: stamps of ~1e9 s keep their resolution.
+            offsets = times - float(start)
+        self._offsets_s = tuple(offsets.tolist())
         return self
+
+    @staticmethod
+    def _iso_offsets(stamps: list[str], name: str, start: float | str | None) -> np.ndarray:
+        parsed = [_parse_utc(s, f"{name}[{i}]") for i, s in enumerate(stamps)]
+        for i in range(len(parsed) - 1):
+            if parsed[i + 1] <= parsed[i]:
+                raise InputError(
+                    f"time stamps must increase strictly: {name}[{i}] = {stamps[i]!r}, "
+                    f"{name}[{i + 1}] = {stamps[i + 1]!r}"
+                )
+        if start is None:
+            raise InputError(
+                f"sequence_start is required with ISO-8601 stamps ({name}[0] = {stamps[0]!r}): "
+                "give the sequence start as an ISO-8601 UTC time"
+            )
+        if not isinstance(start, str):
+            raise InputError(
+                f"sequence_start = {start!r} is seconds but the stamps are ISO-8601 UTC "
+                f"({name}[0] = {stamps[0]!r}): give it as an ISO-8601 UTC time"
+            )
+        origin = _parse_utc(start, "sequence_start")
+        # Whole microseconds from the start, exact in int64, then seconds.
+        micros = np.array([(p - origin) // _MICROSECOND for p in parsed], dtype=np.int64)
+        return micros * 1e-6
 
     @property
     def time_array(self) -> np.ndarray:
-        return np.asarray(self.time_s, dtype=float)
+        """Seconds from the sequence start (negative before it), float64."""
+        return np.asarray(self._offsets_s, dtype=float)
 
     @property
     def omega_array(self) -> np.ndarray:
         return np.asarray(self.omega_rad_s, dtype=float).reshape(-1, 3)
 
+    def before_start(self) -> tuple[np.ndarray, np.ndarray]:
+        """The samples before the sequence start: (times, s from the start, all < 0;
+        ω rows, rad/s), e.g. to estimate the initial rate. Empty arrays when none."""
+        t = self.time_array
+        before = t < 0.0
+        return t[before], self.omega_array[before]
 
-def parse_telemetry(text: str, *, fmt: str = "auto") -> Telemetry:
+    def shifted(self, shift_s: float) -> Telemetry:
+        """The same telemetry with the sequence start ``shift_s`` seconds later."""
+        start = parse_sequence_start(self.sequence_start)
+        if isinstance(start, str):
+            moment = _parse_utc(start, "sequence_start") + timedelta(seconds=shift_s)
+            moved: float | str = moment.isoformat().replace("+00:00", "Z")
+        else:
+            moved = (start or 0.0) + shift_s
+        return Telemetry.model_validate({**self.model_dump(), "sequence_start": moved})
+
+    def describe_time(self, offset_s: float) -> str:
+        """``offset_s`` (s from the sequence start) in words, with the telemetry's own clock
+        when that is not already time from the start."""
+        text = f"{offset_s:.6g} s"
+        start = parse_sequence_start(self.sequence_start)
+        if isinstance(start, str):
+            moment = _parse_utc(start, "sequence_start") + timedelta(seconds=offset_s)
+            text += f" ({moment.isoformat().replace('+00:00', 'Z')})"
+        elif start:
+            text += f" (clock {start + offset_s:.15g} s)"
+        return text
+
+
+def parse_telemetry(
+    text: str, *, fmt: str = "auto", sequence_start: float | str | None = None
+) -> Telemetry:
     """Parse telemetry from JSON or CSV text.
 
-    JSON: ``{"time_s": [...], "omega_rad_s": [[wx, wy, wz], ...]}``.
-    CSV: four columns ``time_s, wx, wy, wz``; a header row is allowed.
+    JSON: ``{"time_s": [...], "omega_rad_s": [[wx, wy, wz], ...]}`` (or ``time_utc``,
+    optionally ``sequence_start``). CSV: four columns ``time_s, wx, wy, wz`` (seconds) or
+    ``time_utc, wx, wy, wz`` (ISO-8601 UTC stamps); a header row is allowed.
+
+    :param sequence_start: the sequence start (seconds or ISO-8601 UTC); overrides one
+        in a JSON document.
     """
     text = text.strip()
     if fmt == "auto":
@@ -98,6 +288,8 @@ def parse_telemetry(text: str, *, fmt: str = "auto") -> Telemetry:
             raise InputError(f"telemetry is not valid JSON: {exc}") from None
         if not isinstance(data, dict):
             raise InputError("telemetry JSON must be an object with time_s and omega_rad_s")
+        if sequence_start is not None:
+            data["sequence_start"] = sequence_start
         return Telemetry.model_validate(data)
     if fmt != "csv":
         raise InputError(f"telemetry format must be json, csv or auto, got {fmt!r}")
@@ -105,24 +297,38 @@ def parse_telemetry(text: str, *, fmt: str = "auto") -> Telemetry:
         rows = [r for r in csv.reader(io.StringIO(text)) if r and any(c.strip() for c in r)]
     except csv.Error as exc:
         raise InputError(f"telemetry is not valid CSV: {exc}") from None
-    if rows and not _numeric(rows[0][0]):
+    if rows and not _numeric(rows[0][0]) and not _iso(rows[0][0]):
         rows = rows[1:]
     if len(rows) > MAX_TELEMETRY_SAMPLES:
         raise InputError(f"telemetry has {len(rows)} rows; at most {MAX_TELEMETRY_SAMPLES}")
-    times: list[float] = []
+    times: list[float | str] = []
     omegas: list[list[float]] = []
     for n, row in enumerate(rows, start=1):
         if len(row) != 4:
             raise InputError(
-                f"CSV data row {n} has {len(row)} columns, expected 4 (time_s, wx, wy, wz): {row}"
+                f"CSV data row {n} has {len(row)} columns, expected 4 (time_s or time_utc, "
+                f"wx, wy, wz): {row}"
             )
         try:
-            values = [float(c) for c in row]
+            values = [float(c) for c in row[1:]]
         except ValueError:
             raise InputError(f"CSV data row {n} is not numeric: {row}") from None
-        times.append(values[0])
-        omegas.append(values[1:])
-    return Telemetry(time_s=times, omega_rad_s=omegas)
+        cell = row[0].strip()
+        if _numeric(cell):
+            times.append(float(cell))
+        elif _iso(cell):
+            times.append(cell)
+        else:
+            raise InputError(
+                f"CSV data row {n}: time {cell!r} is neither seconds nor an ISO-8601 UTC "
+                f"stamp: {row}"
+            )
+        omegas.append(values)
+    if times and all(isinstance(v, str) for v in times):
+        return Telemetry(
+            time_utc=[str(v) for v in times], omega_rad_s=omegas, sequence_start=sequence_start
+        )
+    return Telemetry(time_s=times, omega_rad_s=omegas, sequence_start=sequence_start)
 
 
 def _numeric(cell: str) -> bool:
@@ -133,26 +339,152 @@ def _numeric(cell: str) -> bool:
     return True
 
 
-def load_telemetry(path: str | os.PathLike[str]) -> Telemetry:
-    """Read telemetry from a .json or .csv file."""
+def _iso(cell: str) -> bool:
+    try:
+        datetime.fromisoformat(cell.strip())
+    except ValueError:
+        return False
+    return True
+
+
+def load_telemetry(
+    path: str | os.PathLike[str], *, sequence_start: float | str | None = None
+) -> Telemetry:
+    """Read telemetry from a .json or .csv file (see :func:`parse_telemetry`)."""
     with open(path, encoding="utf-8") as fh:
         text = fh.read()
     suffix = os.fspath(path).lower().rsplit(".", 1)[-1]
-    return parse_telemetry(text, fmt=suffix if suffix in ("json", "csv") else "auto")
+    return parse_telemetry(
+        text, fmt=suffix if suffix in ("json", "csv") else "auto", sequence_start=sequence_start
+    )
 
 
 def resample(telemetry: Telemetry, grid_s: np.ndarray) -> np.ndarray:
-    """ω interpolated linearly onto ``grid_s``; the telemetry must cover the grid.
+    """ω on the classifier's grid ``grid_s`` (s from the sequence start), (len(grid), 3).
 
-    Half a sample period of slack is allowed at either end, where the nearest sample
-    is held.
+    Averages telemetry faster than the grid over cells centred on the grid times,
+    interpolates slower telemetry linearly, and refuses telemetry too thin for a verdict
+    (rules in the module docstring), naming the largest gap.
     """
-    t = telemetry.time_array
-    slack = 0.5 * float(grid_s[1] - grid_s[0]) if len(grid_s) > 1 else 0.0
-    if t[0] > grid_s[0] + slack or t[-1] < grid_s[-1] - slack:
+    return _resample(telemetry.time_array, telemetry.omega_array, grid_s, telemetry.describe_time)
+
+
+def _grid_period(grid_s: np.ndarray) -> float:
+    if len(grid_s) < 2:
+        raise InputError(f"the classifier's grid has {len(grid_s)} time(s); at least 2 needed")
+    step = float(grid_s[1] - grid_s[0])
+    if step <= 0 or not np.allclose(np.diff(grid_s), step, rtol=1e-9, atol=1e-12):
+        raise InputError("the classifier's grid is not evenly spaced")
+    return step
+
+
+def _resample(
+    t: np.ndarray,
+    omega: np.ndarray,
+    grid_s: np.ndarray,
+    describe: Callable[[float], str] = lambda s: f"{s:.6g} s",
+) -> np.ndarray:
+    grid_s = np.asarray(grid_s, dtype=float)
+    step = _grid_period(grid_s)
+    period = max(step, float(np.median(np.diff(t))))
+    _check_coverage(t, grid_s, period, describe)
+    # Samples near the grid only; each goes to the cell of width `step` centred on the
+    # nearest grid time (a gyro sample is the instantaneous rate at its stamp, as in the
+    # simulator, so a centred window averages the noise without shifting the signal).
+    margin = 2.0 * period
+    near = (t >= grid_s[0] - margin) & (t <= grid_s[-1] + margin)
+    t, omega = t[near], omega[near]
+    cell = np.rint((t - grid_s[0]) / step).astype(np.int64)
+    cell -= cell[0]
+    counts = np.bincount(cell)
+    used = counts > 0
+    mean_t = np.bincount(cell, weights=t)[used] / counts[used]
+    mean_w = np.stack(
+        [np.bincount(cell, weights=omega[:, a])[used] / counts[used] for a in range(3)], axis=-1
+    )
+    if len(mean_t) == 1:
+        return np.repeat(mean_w, len(grid_s), axis=0)
+    # The cell means lie at their mean stamps: interpolate them onto the grid times, and
+    # extrapolate the two nearest linearly past the ends (at most 1.5 periods, see above).
+    out = np.stack([np.interp(grid_s, mean_t, mean_w[:, a]) for a in range(3)], axis=-1)
+    for ends, (i, j) in ((grid_s < mean_t[0], (0, 1)), (grid_s > mean_t[-1], (-1, -2))):
+        if np.any(ends):
+            slope = (mean_w[j] - mean_w[i]) / (mean_t[j] - mean_t[i])
+            out[ends] = mean_w[i] + (grid_s[ends, None] - mean_t[i]) * slope
+    return out
+
+
+def _check_coverage(
+    t: np.ndarray, grid_s: np.ndarray, period: float, describe: Callable[[float], str]
+) -> None:
+    """Refuse telemetry too thin for a verdict, naming the largest offending gap."""
+    start, end = 0.0, float(grid_s[-1])
+    edge, interior = EDGE_GAP_PERIODS * period, INTERIOR_GAP_PERIODS * period
+    # Every stretch of the sequence [start, end] with no sample, and its limit.
+    gaps: list[tuple[float, float, float, str]] = []
+    if t[0] > start:
+        gaps.append((start, float(min(t[0], end)), edge, "after the sequence start"))
+    if t[-1] < end:
+        gaps.append((float(max(t[-1], start)), end, edge, "before the end of the sequence"))
+    inside = np.flatnonzero((t[1:] > start) & (t[:-1] < end))
+    if inside.size:
+        lengths = t[inside + 1] - t[inside]
+        worst = int(inside[np.argmax(lengths)])
+        gaps.append((float(t[worst]), float(t[worst + 1]), interior, "between samples"))
+    # A tolerance of a microsecond for stamps rounded to it (ISO stamps).
+    bad = [g for g in gaps if g[1] - g[0] > g[2] + 1e-6]
+    if not bad:
+        return
+    a, b, limit, where = max(bad, key=lambda g: g[1] - g[0])
+    raise InputError(
+        f"telemetry too thin for a verdict: no sample from {describe(a)} to {describe(b)} "
+        f"(times from the sequence start), a gap of {b - a:.6g} s {where}; at most "
+        f"{limit:.6g} s is allowed ({limit / period:g} x the period {period:.6g} s). The "
+        f"sequence needs 0 s to {end:.6g} s; the telemetry spans {describe(float(t[0]))} to "
+        f"{describe(float(t[-1]))}"
+    )
+
+
+def estimate_sequence_start(
+    telemetry: Telemetry,
+    grid_s: np.ndarray,
+    score: Callable[[np.ndarray], float],
+    *,
+    window_s: float,
+    step_s: float | None = None,
+) -> tuple[float, np.ndarray]:
+    """The shift of the sequence start, within ``±window_s``, whose resampled series
+    scores lowest, and that series.
+
+    :param telemetry: telemetry with its nominal sequence start.
+    :param grid_s: the classifier's grid, s from the sequence start.
+    :param score: cost of a resampled (len(grid), 3) series, lower is better (e.g. the
+        distance to the nearest candidate).
+    :param window_s: the true start lies within this of the nominal one, s.
+    :param step_s: the search step, s (default the grid period).
+    :returns: (shift, s: the estimated start is the nominal one plus this; the series).
+    """
+    if not (math.isfinite(window_s) and window_s >= 0):
         raise InputError(
-            f"telemetry spans {t[0]:.6g} s to {t[-1]:.6g} s but the sequence needs "
-            f"{grid_s[0]:.6g} s to {grid_s[-1]:.6g} s (time from the sequence start)"
+            f"the start window must be a finite number of seconds >= 0, got {window_s!r}"
         )
-    omega = telemetry.omega_array
-    return np.stack([np.interp(grid_s, t, omega[:, axis]) for axis in range(3)], axis=-1)
+    step = _grid_period(np.asarray(grid_s, dtype=float)) if step_s is None else step_s
+    if not (math.isfinite(step) and step > 0):
+        raise InputError(f"the start search step must be > 0 s, got {step_s!r}")
+    n = math.floor(window_s / step + 1e-9)
+    t, omega = telemetry.time_array, telemetry.omega_array
+    best: tuple[float, float, np.ndarray] | None = None
+    refusal: InputError | None = None
+    for shift in np.arange(-n, n + 1) * step:
+        try:
+            series = _resample(t - shift, omega, grid_s)
+        except InputError as exc:
+            refusal = refusal or exc
+            continue
+        cost = float(score(series))
+        if best is None or cost < best[0]:
+            best = (cost, float(shift), series)
+    if best is None:
+        assert refusal is not None
+        raise InputError(f"no start within ±{window_s:g} s fits the telemetry: {refusal}")
+    return best[1], best[2]

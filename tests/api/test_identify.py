@@ -250,3 +250,68 @@ def test_a_classifiers_checksum_is_remembered_for_a_while_only() -> None:
     assert cache.checksum_of("c1") == "abc"
     now[0] = 31.0
     assert cache.checksum_of("c1") is None
+
+
+MISSION_START_S = 810_000_000.0
+
+
+def test_mission_clock_and_iso_stamps_with_a_sequence_start(
+    api: Api, classifier_id: str, flight: SimulationResult, paper: Scenario
+) -> None:
+    k = 1
+    mission = {
+        "time_s": (flight.time_s + MISSION_START_S).tolist(),
+        "omega_rad_s": flight.omega_measured[k, 0].tolist(),
+    }
+    plain = api.post(
+        "/identify", json={"classifier_id": classifier_id, "telemetry": telemetry(flight, k)}
+    ).json()
+    for body, query in (
+        ({"telemetry": {**mission, "sequence_start": MISSION_START_S}}, ""),
+        ({"telemetry": mission, "sequence_start": MISSION_START_S}, ""),
+        ({"telemetry": mission, "sequence_start": 5.0}, "?sequence_start=810000000"),
+    ):
+        response = api.post(f"/identify{query}", json={"classifier_id": classifier_id, **body})
+        assert response.status_code == 200, response.text
+        assert response.json()["distances"] == pytest.approx(plain["distances"], rel=1e-6)
+    stamps = [f"2025-03-01T12:00:{t:09.6f}Z" for t in flight.time_s]
+    rows = ["time_utc,wx,wy,wz"] + [
+        f"{s},{w[0]!r},{w[1]!r},{w[2]!r}"
+        for s, w in zip(stamps, flight.omega_measured[k, 0].tolist(), strict=True)
+    ]
+    response = api.post(
+        "/identify?sequence_start=2025-03-01T12:00:00Z",
+        data={"classifier_id": classifier_id},
+        files={"file": ("t.csv", "\n".join(rows))},
+    )
+    assert response.status_code == 200, response.text
+    assert response.json()["candidate"] == paper.candidate_names[k]
+
+
+def test_a_missing_or_bad_sequence_start_is_422(
+    api: Api, classifier_id: str, flight: SimulationResult
+) -> None:
+    mission = {
+        "time_s": (flight.time_s + MISSION_START_S).tolist(),
+        "omega_rad_s": flight.omega_measured[0, 0].tolist(),
+    }
+    missing = api.post("/identify", json={"classifier_id": classifier_id, "telemetry": mission})
+    assert missing.status_code == 422
+    assert (
+        "sequence_start is required: the first time stamp time_s[0] = 810000000.05"
+        in (missing.json()["detail"][0]["msg"])
+    )
+    bad = api.post(
+        "/identify?sequence_start=tomorrow",
+        json={"classifier_id": classifier_id, "telemetry": mission},
+    )
+    assert bad.status_code == 422
+    detail = bad.json()["detail"][0]
+    assert detail["loc"] == ["query", "sequence_start"]
+    assert "sequence_start = 'tomorrow' is not an ISO-8601 UTC time stamp" in detail["msg"]
+    late = api.post(
+        "/identify",
+        json={"classifier_id": classifier_id, "telemetry": mission, "sequence_start": 8.1e8 + 1},
+    )
+    assert late.status_code == 422
+    assert "a gap of 1 s before the end of the sequence" in late.json()["detail"][0]["msg"]

@@ -288,3 +288,137 @@ def test_train_without_a_kind_gives_the_marginal_likelihood_and_a_metric_the_clu
     clustering = tmp_path / "clustering.json"
     runner.invoke(main, ["train", "--metric", "euclidean", "-n", "5", "--out", str(clustering)])
     assert isinstance(load_classifier(clustering), InertiaClassifier)
+
+
+@pytest.fixture(scope="module")
+def small_classifier(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("classifier") / "c.json"
+    trained = CliRunner().invoke(
+        main, ["train", "--metric", "euclidean", "-n", "10", "--out", str(path)]
+    )
+    assert trained.exit_code == 0, trained.output
+    return path
+
+
+def _simulate_telemetry(runner: CliRunner, path: Path, candidate: str, *extra: str) -> None:
+    args = ["simulate", "-n", "1", "--seed", "11", "--candidate", candidate]
+    result = runner.invoke(main, [*args, "--telemetry", str(path), *extra])
+    assert result.exit_code == 0, result.output
+
+
+def test_identify_many_files_with_a_mission_clock(
+    runner: CliRunner, tmp_path: Path, small_classifier: Path
+) -> None:
+    """A folder and a file in one call: a JSON line each, a bad file named, exit code 1."""
+    folder = tmp_path / "downlink"
+    folder.mkdir()
+    start = "810000000"
+    _simulate_telemetry(
+        runner, folder / "a.csv", "1", "--sample-rate", "200", "--time-offset", start
+    )
+    _simulate_telemetry(
+        runner, folder / "b.csv", "3", "--sample-rate", "10", "--time-offset", start
+    )
+    assert (folder / "a.csv").read_text().splitlines()[1].startswith("810000000.005,")
+    (folder / "notes.txt").write_text("not telemetry")  # not .csv or .json: skipped
+    bad = tmp_path / "bad.csv"
+    bad.write_text("time_s,wx,wy,wz\n810000000.1,0,0,0\n810000000.1,0,0,0\n")
+    result = runner.invoke(
+        main,
+        [
+            "identify",
+            "--classifier",
+            str(small_classifier),
+            "--sequence-start",
+            start,
+            str(folder),
+            "--telemetry",
+            str(bad),
+        ],
+    )
+    assert result.exit_code == 1
+    lines = [json.loads(line) for line in result.stdout.splitlines()]
+    assert [line["path"] for line in lines] == [
+        str(bad),
+        str(folder / "a.csv"),
+        str(folder / "b.csv"),
+    ]
+    assert "time stamps must increase strictly: time_s[0] = 810000000.1" in lines[0]["error"]
+    assert (lines[1]["candidate"], lines[1]["matches_none"]) == ("payload 1 ejected", False)
+    assert (lines[2]["candidate"], lines[2]["matches_none"]) == ("payload 3 ejected", False)
+    assert "1 of 3 telemetry files failed" in result.stderr
+    # All good: exit code 0. Without the start the mission clock is refused, by name.
+    good = runner.invoke(
+        main,
+        ["identify", "--classifier", str(small_classifier), "--sequence-start", start, str(folder)],
+    )
+    assert good.exit_code == 0, good.output
+    alone = runner.invoke(
+        main,
+        ["identify", "--classifier", str(small_classifier), "--telemetry", str(folder / "a.csv")],
+    )
+    assert alone.exit_code == 1
+    assert (
+        "sequence_start is required: the first time stamp time_s[0] = 810000000.005" in alone.output
+    )
+
+
+def test_identify_iso_stamps_and_an_estimated_start(
+    runner: CliRunner, tmp_path: Path, small_classifier: Path
+) -> None:
+    telemetry = tmp_path / "t.csv"
+    _simulate_telemetry(runner, telemetry, "2", "--time-offset", "2025-03-01T12:00:00Z")
+    assert telemetry.read_text().startswith(
+        "time_utc,wx_rad_s,wy_rad_s,wz_rad_s\n2025-03-01T12:00:00.050000Z,"
+    )
+    base = ["identify", "--classifier", str(small_classifier), str(telemetry)]
+    result = runner.invoke(main, [*base, "--sequence-start", "2025-03-01T12:00:00Z"])
+    assert result.exit_code == 0, result.output
+    assert json.loads(result.stdout)["candidate"] == "payload 2 ejected"
+    # The operator's start is 0.2 s early; searching ±0.3 s finds the true one.
+    early = runner.invoke(
+        main,
+        [*base, "--sequence-start", "2025-03-01T11:59:59.8Z", "--estimate-start-within", "0.3"],
+    )
+    assert early.exit_code == 0, early.output
+    verdict = json.loads(early.stdout)
+    assert verdict["sequence_start_shift_s"] == pytest.approx(0.2, abs=0.051)
+    assert verdict["candidate"] == "payload 2 ejected"
+    wrong = runner.invoke(main, [*base, "--sequence-start", "noon"])
+    assert wrong.exit_code != 0
+    assert "sequence_start = 'noon' is not an ISO-8601 UTC time stamp" in wrong.output
+
+
+def test_simulate_with_basilisk_writes_telemetry_identify_reads(
+    runner: CliRunner, tmp_path: Path, small_classifier: Path
+) -> None:
+    from inertia_id.physics.engines import basilisk_available
+
+    telemetry = tmp_path / "k.csv"
+    args = [
+        "simulate",
+        "--engine",
+        "basilisk",
+        "--seed",
+        "3",
+        "--candidate",
+        "4",
+        "--sample-rate",
+        "50",
+        "--telemetry",
+        str(telemetry),
+    ]
+    result = runner.invoke(main, args)
+    if not basilisk_available():
+        assert result.exit_code == 1
+        assert "Basilisk is not available" in result.output
+        return
+    assert result.exit_code == 0, result.output
+    assert json.loads(result.stdout)["series_shape"] == [200, 3]
+    verdict = runner.invoke(
+        main, ["identify", "--classifier", str(small_classifier), str(telemetry)]
+    )
+    assert verdict.exit_code == 0, verdict.output
+    assert json.loads(verdict.stdout)["candidate"] == "payload 4 ejected"
+    refused = runner.invoke(main, ["simulate", "--engine", "basilisk"])
+    assert refused.exit_code == 1 and "give --telemetry" in refused.output

@@ -160,15 +160,18 @@ def test_resample_is_exact_on_linear_data() -> None:
     )
 
 
-def test_resample_allows_half_a_sample_of_slack() -> None:
+def test_resample_allows_one_and_a_half_periods_at_the_ends() -> None:
+    """The ends are extrapolated linearly from the two nearest samples, up to 1.5 periods
+    (of the grid or the telemetry, whichever is longer)."""
     grid = np.arange(1, 11) * 0.1  # 0.1 ... 1.0 s
-    ok = telemetry_of([0.149, 0.5, 0.951], [[1, 0, 0], [2, 0, 0], [3, 0, 0]])
-    out = resample(ok, grid)
-    assert out[0, 0] == 1.0 and out[-1, 0] == 3.0  # nearest sample held at the ends
-    with pytest.raises(ValueError, match=r"telemetry spans 0\.151 s to 1 s"):
-        resample(telemetry_of([0.151, 1.0], [[0, 0, 0], [0, 0, 0]]), grid)
-    with pytest.raises(ValueError, match=r"telemetry spans 0\.1 s to 0\.949 s"):
-        resample(telemetry_of([0.1, 0.949], [[0, 0, 0], [0, 0, 0]]), grid)
+    t = np.array([0.149, 0.5, 0.851])
+    ok = telemetry_of(t, t[:, None] * [1.0, 0.0, -2.0])
+    np.testing.assert_allclose(resample(ok, grid), grid[:, None] * [1.0, 0.0, -2.0], atol=1e-12)
+    # The median period here is 0.351 s: the first sample may come 0.5265 s after the start.
+    with pytest.raises(ValueError, match=r"no sample from 0 s to 0\.6 s .* a gap of 0\.6 s after "):
+        resample(telemetry_of([0.6, 0.9, 1.0], [[0, 0, 0]] * 3), grid)
+    with pytest.raises(ValueError, match=r"no sample from 0\.1 s to 1 s .* before the end"):
+        resample(telemetry_of([0.0, 0.05, 0.1], [[0, 0, 0]] * 3), grid)
 
 
 def test_too_short_telemetry_is_rejected(
@@ -178,8 +181,8 @@ def test_too_short_telemetry_is_rejected(
     telemetry = telemetry_of(fresh.time_s[half], fresh.omega_measured[0, 0, half])
     with pytest.raises(
         ValueError,
-        match=r"telemetry spans 0\.05 s to 2 s but the sequence "
-        r"needs 0\.05 s to 4 s",
+        match=r"no sample from 2 s to 4 s \(times from the sequence start\), a gap of 2 s "
+        r"before the end of the sequence; at most 0\.075 s is allowed",
     ):
         identify(euclidean_classifier, telemetry)
 

@@ -1,0 +1,328 @@
+"""Telemetry's time base and resampling: real clocks, real rates, real gaps.
+
+Each series is simulated at its own rate and identified by a classifier trained at the
+paper's 20 Hz; the time base (mission clock, ISO stamps, a start inside the series) and
+the coverage rules are exercised through :func:`identify`, as a user meets them.
+"""
+
+from __future__ import annotations
+
+from datetime import UTC, datetime, timedelta
+from typing import Any
+
+import numpy as np
+import pydantic
+import pytest
+
+from inertia_id import InertiaClassifier, Scenario, Telemetry, identify, parse_telemetry, simulate
+from inertia_id.evaluation.telemetry import estimate_sequence_start, resample
+
+GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
+MISSION_START_S = 810_000_123.0  # a spacecraft clock ~26 years after its epoch
+UTC_START = datetime(2025, 3, 1, 12, 0, 0, tzinfo=UTC)
+
+
+def at_rate(paper: Scenario, hz: float) -> Scenario:
+    """The paper scenario with its gyro sampled at ``hz`` (integration step dividing it)."""
+    data = paper.model_dump()
+    step = 0.05 if hz <= 20 else 1.0 / hz if hz > 100 else 0.01
+    data["timing"] = {"step_duration_s": 1.0, "integration_step_s": step, "sample_rate_hz": hz}
+    return Scenario.model_validate(data)
+
+
+def iso(offsets_s: np.ndarray, origin: datetime = UTC_START) -> list[str]:
+    return [
+        (origin + timedelta(microseconds=round(1e6 * s))).isoformat().replace("+00:00", "Z")
+        for s in offsets_s
+    ]
+
+
+def assert_all_identified(
+    classifier: InertiaClassifier, make: Any, result: Any, n: int = 1
+) -> None:
+    """``make(time_s, omega)`` builds the telemetry of each simulated series."""
+    for k in range(result.omega_measured.shape[0]):
+        for i in range(n):
+            verdict = identify(classifier, make(result.time_s, result.omega_measured[k, i]))
+            assert (verdict.candidate_index, verdict.matches_none) == (k, False), (k, i)
+
+
+def plain(t: np.ndarray, w: np.ndarray, **extra: Any) -> Telemetry:
+    return Telemetry(time_s=np.asarray(t).tolist(), omega_rad_s=np.asarray(w).tolist(), **extra)
+
+
+# Time base.
+
+
+def test_mission_clock_stamps_need_and_use_the_sequence_start(
+    euclidean_classifier: InertiaClassifier, paper: Scenario
+) -> None:
+    result = simulate(paper, GOOD_SEQUENCE, 2, np.random.default_rng(21))
+    assert_all_identified(
+        euclidean_classifier,
+        lambda t, w: plain(t + MISSION_START_S, w, sequence_start=MISSION_START_S),
+        result,
+        n=2,
+    )
+    # The same verdict as with stamps from the start: the subtraction loses nothing.
+    t, w = result.time_s, result.omega_measured[3, 0]
+    mission = plain(t + MISSION_START_S, w, sequence_start=str(MISSION_START_S))
+    np.testing.assert_allclose(mission.time_array, t, atol=2e-7)
+    assert identify(euclidean_classifier, mission).distances == pytest.approx(
+        identify(euclidean_classifier, plain(t, w)).distances, rel=1e-6
+    )
+    with pytest.raises(
+        ValueError, match=r"sequence_start is required: .* time_s\[0\] = 810000123\.05"
+    ):
+        plain(t + MISSION_START_S, w)
+
+
+def test_iso_stamps_in_json_and_csv(
+    euclidean_classifier: InertiaClassifier, paper: Scenario
+) -> None:
+    result = simulate(paper, GOOD_SEQUENCE, 1, np.random.default_rng(22))
+    start = UTC_START.isoformat().replace("+00:00", "Z")
+    assert_all_identified(
+        euclidean_classifier,
+        lambda t, w: Telemetry(time_utc=iso(t), omega_rad_s=w.tolist(), sequence_start=start),
+        result,
+    )
+    t, w = result.time_s, result.omega_measured[2, 0]
+    rows = [f"{s},{a!r},{b!r},{c!r}" for s, (a, b, c) in zip(iso(t), w.tolist(), strict=True)]
+    for header in (["time_utc,wx,wy,wz"], []):
+        parsed = parse_telemetry("\n".join(header + rows), sequence_start=start)
+        np.testing.assert_allclose(parsed.time_array, t, atol=1e-9)
+        assert identify(euclidean_classifier, parsed).candidate_index == 2
+    # Strings in time_s are ISO stamps too; an offset other than Z is converted to UTC.
+    later = UTC_START + timedelta(hours=2)
+    shifted = Telemetry(
+        time_s=[s.replace("Z", "+02:00") for s in iso(t, later)],
+        omega_rad_s=w.tolist(),
+        sequence_start=start,
+    )
+    np.testing.assert_allclose(shifted.time_array, t, atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("data", "match"),
+    [
+        (
+            {"time_utc": ["2025-03-01T12:00:00Z", "2025-03-01T12:00:01Z"]},
+            r"sequence_start is required with ISO-8601 stamps "
+            r"\(time_utc\[0\] = '2025-03-01T12:00:00Z'\)",
+        ),
+        (
+            {
+                "time_utc": ["2025-03-01T12:00:00", "2025-03-01T12:00:01"],
+                "sequence_start": "2025-03-01T12:00:00Z",
+            },
+            r"time_utc\[0\] = '2025-03-01T12:00:00' has no time zone",
+        ),
+        (
+            {
+                "time_utc": ["2025-03-01T12:00:00Z", "noon"],
+                "sequence_start": "2025-03-01T12:00:00Z",
+            },
+            r"time_utc\[1\] = 'noon' is not an ISO-8601 UTC time stamp",
+        ),
+        (
+            {
+                "time_utc": ["2025-03-01T12:00:01Z", "2025-03-01T12:00:01Z"],
+                "sequence_start": "2025-03-01T12:00:00Z",
+            },
+            r"increase strictly: time_utc\[0\] = '2025-03-01T12:00:01Z', time_utc\[1\]",
+        ),
+        (
+            {"time_utc": ["2025-03-01T12:00:00Z", "2025-03-01T12:00:01Z"], "sequence_start": 5.0},
+            r"sequence_start = 5\.0 is seconds but the stamps are ISO-8601",
+        ),
+        (
+            {"time_s": [0.0, 0.1], "sequence_start": "2025-03-01T12:00:00Z"},
+            r"sequence_start = '2025-03-01T12:00:00Z' is an ISO-8601 time but the stamps "
+            r"are seconds",
+        ),
+        (
+            {"time_s": [0.0, 0.1], "sequence_start": "soon"},
+            r"sequence_start = 'soon' is not an ISO-8601",
+        ),
+        (
+            {"time_s": [0.0, "2025-03-01T12:00:01Z"]},
+            r"time_s\[0\] = 0\.0 is a number but time_s\[1\] is a string",
+        ),
+        (
+            {"time_s": [0.0, 0.1], "time_utc": ["2025-03-01T12:00:00Z"] * 2},
+            r"as time_s or as time_utc, not both",
+        ),
+        ({}, r"needs time stamps: time_s \(seconds\) or time_utc"),
+    ],
+)
+def test_bad_time_base_is_refused_naming_the_value(data: dict[str, Any], match: str) -> None:
+    with pytest.raises(pydantic.ValidationError, match=match):
+        Telemetry.model_validate({"omega_rad_s": [[0.0, 0.0, 0.0]] * 2, **data})
+
+
+def test_telemetry_from_ten_seconds_before_the_sequence(
+    euclidean_classifier: InertiaClassifier, paper: Scenario
+) -> None:
+    """Quiescent samples before the start are kept for the caller, not classified."""
+    result = simulate(paper, GOOD_SEQUENCE, 1, np.random.default_rng(23))
+    rng = np.random.default_rng(24)
+    before = np.arange(-200, 1) / 20  # -10 s ... 0 s at 20 Hz
+
+    def make(t: np.ndarray, w: np.ndarray) -> Telemetry:
+        quiet = 1e-3 * rng.standard_normal((len(before), 3))
+        stamps = np.concatenate([before, t, t[-1] + np.arange(1, 41) / 20]) + MISSION_START_S
+        omega = np.concatenate([quiet, w, np.repeat(w[-1:], 40, axis=0)])  # a 2 s tail
+        return plain(stamps, omega, sequence_start=MISSION_START_S)
+
+    assert_all_identified(euclidean_classifier, make, result)
+    t_before, w_before = make(result.time_s, result.omega_measured[0, 0]).before_start()
+    assert len(t_before) == len(w_before) == 200
+    assert t_before[0] == pytest.approx(-10.0) and t_before[-1] < 0.0
+    # Stamps from the start, negative before it, need no sequence_start either.
+    series = plain(np.concatenate([before, result.time_s]), np.zeros((201 + 80, 3)))
+    assert len(series.before_start()[0]) == 200
+
+
+# Rates, irregular stamps, drops and gaps.
+
+
+@pytest.mark.parametrize("hz", [1.0, 10.0, 50.0, 200.0])
+def test_any_rate_is_identified(
+    euclidean_classifier: InertiaClassifier, paper: Scenario, hz: float
+) -> None:
+    result = simulate(at_rate(paper, hz), GOOD_SEQUENCE, 2, np.random.default_rng(int(hz)))
+    assert result.time_s[0] == pytest.approx(1.0 / hz)  # the first sample one period in
+    if hz >= 10:
+        assert_all_identified(euclidean_classifier, plain, result, n=2)
+        return
+    # At 1 Hz (4 samples for a 4 s sequence) the nearest candidate is still right, but the
+    # interpolated series is farther from it than the 20 Hz training noise went: the
+    # novelty threshold may call one in ten "matches none".
+    verdicts = [
+        identify(euclidean_classifier, plain(result.time_s, result.omega_measured[k, i]))
+        for k in range(5)
+        for i in range(2)
+    ]
+    assert [v.candidate_index for v in verdicts] == [k for k in range(5) for _ in range(2)]
+    assert sum(v.matches_none for v in verdicts) <= 1
+
+
+def test_irregular_stamps_are_identified(
+    euclidean_classifier: InertiaClassifier, paper: Scenario
+) -> None:
+    """A random ~30 % of 200 Hz samples: spacings of 5 ms to tens of ms, never regular."""
+    result = simulate(at_rate(paper, 200.0), GOOD_SEQUENCE, 2, np.random.default_rng(25))
+    rng = np.random.default_rng(26)
+
+    def make(t: np.ndarray, w: np.ndarray) -> Telemetry:
+        keep = rng.random(len(t)) < 0.3
+        keep[[0, -1]] = True
+        return plain(t[keep], w[keep])
+
+    assert_all_identified(euclidean_classifier, make, result, n=2)
+
+
+def test_ten_percent_dropped_at_ten_hz_including_the_last(
+    euclidean_classifier: InertiaClassifier, paper: Scenario
+) -> None:
+    result = simulate(at_rate(paper, 10.0), GOOD_SEQUENCE, 3, np.random.default_rng(27))
+    rng = np.random.default_rng(28)
+
+    def make(t: np.ndarray, w: np.ndarray) -> Telemetry:
+        keep = np.ones(len(t), dtype=bool)
+        keep[rng.choice(len(t) - 1, size=len(t) // 10 - 1, replace=False)] = False
+        keep[-1] = False  # the last sample (at the end of the sequence) is lost too
+        return plain(t[keep], w[keep])
+
+    assert_all_identified(euclidean_classifier, make, result, n=3)
+
+
+def test_a_gap_too_large_is_refused_naming_it(
+    euclidean_classifier: InertiaClassifier, paper: Scenario
+) -> None:
+    result = simulate(paper, GOOD_SEQUENCE, 1, np.random.default_rng(29))
+    t, w = result.time_s, result.omega_measured[0, 0]
+    keep = (t < 1.5) | (t > 2.25)  # samples 1.5 s ... 2.25 s lost: no sample from 1.45 to 2.3
+    with pytest.raises(
+        ValueError,
+        match=r"too thin for a verdict: no sample from 1\.45 s \(clock 810000124\.45 s\) to "
+        r"2\.3 s \(clock 810000125\.3 s\) \(times from the sequence start\), a gap of "
+        r"0\.85 s between samples; at most 0\.2 s is allowed \(4 x the period 0\.05 s\)",
+    ):
+        identify(
+            euclidean_classifier,
+            plain(t[keep] + MISSION_START_S, w[keep], sequence_start=MISSION_START_S),
+        )
+    # A gap of 4 periods is used as it is.
+    keep = (t < 1.5) | (t > 1.6)
+    assert identify(euclidean_classifier, plain(t[keep], w[keep])).candidate_index == 0
+
+
+def test_first_sample_one_period_after_the_start_is_accepted() -> None:
+    """1.5 periods after the start at most; the ends are extrapolated linearly."""
+    grid = np.arange(1, 81) / 20
+    slope = np.array([0.01, -0.02, 0.005])
+    for first, ok in ((0.1, True), (0.15, True), (0.16, False)):
+        t = np.arange(first, 4.0 + 1e-9, 0.1)  # 10 Hz
+        telemetry = plain(t, t[:, None] * slope)
+        if ok:
+            np.testing.assert_allclose(resample(telemetry, grid), grid[:, None] * slope, atol=1e-12)
+        else:
+            with pytest.raises(ValueError, match=r"no sample from 0 s to 0\.16 s"):
+                resample(telemetry, grid)
+
+
+# Averaging.
+
+
+def test_averaging_beats_picking_at_200_hz(quiet_paper: Scenario) -> None:
+    """White gyro noise σ at 200 Hz on a 20 Hz grid: the cell averages have σ/√10."""
+    result = simulate(at_rate(quiet_paper, 200.0), GOOD_SEQUENCE, 1, np.random.default_rng(0))
+    truth = result.omega_measured[0, 0]
+    grid = quiet_paper.sample_times(len(GOOD_SEQUENCE))
+    sigma = 1e-3
+    clean = resample(plain(result.time_s, truth), grid)
+    np.testing.assert_allclose(clean, truth[9::10], atol=2e-4)  # the signal is not smeared
+    rng = np.random.default_rng(1)
+    averaged, picked = [], []
+    for _ in range(20):
+        noisy = truth + sigma * rng.standard_normal(truth.shape)
+        averaged.append(resample(plain(result.time_s, noisy), grid) - clean)
+        picked.append(noisy[9::10] - truth[9::10])
+    noise_averaged, noise_picked = np.std(averaged), np.std(picked)
+    assert noise_picked == pytest.approx(sigma, rel=0.1)
+    assert noise_averaged == pytest.approx(sigma / np.sqrt(10), rel=0.15)
+
+
+def test_one_kilohertz_at_mission_time_keeps_its_resolution() -> None:
+    t = np.arange(1, 4001) / 1000
+    omega = np.column_stack([np.sin(t), np.cos(t), t])
+    telemetry = plain(t + MISSION_START_S, omega, sequence_start=MISSION_START_S)
+    np.testing.assert_allclose(telemetry.time_array, t, atol=2e-7)
+    grid = np.arange(1, 81) / 20
+    expected = np.column_stack([np.sin(grid), np.cos(grid), grid])
+    # Averaging over 50 ms smooths a curved signal by Δ² ω''/24 (here 1e-4 rad/s).
+    np.testing.assert_allclose(resample(telemetry, grid), expected, atol=3e-4)
+
+
+# Estimating the start.
+
+
+def test_estimate_sequence_start_finds_a_shifted_start(
+    euclidean_classifier: InertiaClassifier, paper: Scenario
+) -> None:
+    result = simulate(paper, GOOD_SEQUENCE, 1, np.random.default_rng(30))
+    grid = paper.sample_times(len(GOOD_SEQUENCE))
+    score = lambda series: float(euclidean_classifier.transform(series[None])[0].min())  # noqa: E731
+    pre = np.arange(-40, 1) / 20
+    for k in range(5):
+        # The sequence really started 0.3 s after the nominal start the operator gave.
+        t = np.concatenate([pre, result.time_s]) + 0.3
+        w = np.concatenate([np.zeros((41, 3)), result.omega_measured[k, 0]])
+        telemetry = plain(t, w)
+        shift, series = estimate_sequence_start(telemetry, grid, score, window_s=0.5)
+        assert shift == pytest.approx(0.3, abs=0.05)
+        assert int(np.argmin(euclidean_classifier.transform(series[None])[0])) == k
+    with pytest.raises(ValueError, match=r"no start within ±0\.5 s fits the telemetry: .*too thin"):
+        estimate_sequence_start(plain([0.0, 0.1], [[0, 0, 0]] * 2), grid, score, window_s=0.5)
