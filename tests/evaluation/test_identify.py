@@ -95,9 +95,13 @@ def test_far_off_inertia_matches_none(
             )
             assert verdict.matches_none
             assert verdict.distances[verdict.candidate] > verdict.threshold
-            assert verdict.verdict.startswith(
-                f"matches none of the candidates: nearest is {verdict.candidate!r}"
-            )
+            # 40 % lighter lies more than 5 times beyond every threshold of the Euclidean
+            # clustering: so far off that it reads as no response to this sequence.
+            assert verdict.status in ("matches-none", "not-this-sequence")
+            if verdict.status == "matches-none":
+                assert verdict.verdict.startswith(
+                    f"matches none of the candidates: nearest is {verdict.candidate!r}"
+                )
             # Physically: the heavy body spins up slowest, like the heaviest candidate I0.
             if k == 0:
                 assert verdict.candidate == "none ejected"
