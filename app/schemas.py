@@ -50,6 +50,7 @@ __all__ = [
     "JobUpdate",
     "MetricSeries",
     "MetricsOut",
+    "PartialIdentifyResult",
     "ScenarioCreate",
     "ScenarioOut",
     "ScenarioPage",
@@ -437,6 +438,15 @@ class IdentifyRequest(_Request):
                 data = {**data, "telemetry": {**inner, "sequence_start": data["sequence_start"]}}
         return data
 
+    confidence: float | None = Field(
+        default=None,
+        gt=0,
+        lt=1,
+        description="posterior the top candidate needs to be named (default 0.99); for "
+        "/identify/partial, the online stop rule decides at 1 - alpha with alpha = "
+        "1 - confidence (default alpha 0.001)",
+    )
+
 
 class IdentifyResult(BaseModel):
     classifier_id: str
@@ -464,6 +474,44 @@ class IdentifyResult(BaseModel):
         default_factory=list,
         description="inertia parameters the sequence hardly excites (their estimate is unreliable)",
     )
+    status: Literal["identified", "ambiguous", "matches-none", "not-this-sequence"] = Field(
+        default="identified",
+        description="identified: the top posterior reaches the confidence; ambiguous: none "
+        "does (the verdict names the top two); matches-none: 'none of these' is the most "
+        "probable or the series is beyond the novelty threshold; not-this-sequence: far "
+        "beyond every candidate's threshold",
+    )
+    posterior: dict[str, float] = Field(
+        default_factory=dict, description="posterior probability of each candidate"
+    )
+    p_none: float = Field(default=0.0, description="probability of 'none of these'")
+    confidence: float = Field(default=0.0, description="the top candidate's posterior")
+    required_confidence: float = Field(default=0.99, description="what naming one takes")
+    not_this_sequence: bool = False
+    estimated_inertia_std_kg_m2: dict[str, float] | None = Field(
+        default=None, description="standard error of each estimated parameter (kg m^2)"
+    )
+    estimate_rejected: str | None = Field(
+        default=None,
+        description="why the estimated tensor is withheld: not positive definite, the "
+        "triangle inequality broken, or poorly excited",
+    )
+
+
+class PartialIdentifyResult(BaseModel):
+    classifier_id: str
+    time_s: list[float] = Field(description="grid times covered, s from the sequence start")
+    posterior: dict[str, list[float]] = Field(description="each candidate's posterior over time")
+    p_none: list[float]
+    alpha: float
+    decided: bool = Field(description="the top posterior reached 1 - alpha")
+    decision_time_s: float | None
+    candidate_index: int | None
+    candidate: str | None
+    current: dict[str, float] = Field(description="the posterior at the last covered sample")
+    current_p_none: float
+    covers_s: float
+    sequence_s: float
 
 
 # Health.

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from fastapi import APIRouter, Query, Response
+from fastapi import APIRouter, HTTPException, Query, Response, status
 from sqlalchemy import ColumnElement, func, or_, select
 from sqlalchemy.orm import Session
 
@@ -172,3 +172,28 @@ def download_classifier(classifier_id: str, session: SessionDep) -> Response:
             "ETag": f'"{row.sha256}"',
         },
     )
+
+
+@router.get(
+    "/{classifier_id}/calibration",
+    responses={
+        200: {"description": "the calibration report stored in the classifier's document"},
+        **_NOT_FOUND,
+    },
+)
+def get_calibration(classifier_id: str, session: SessionDep) -> dict[str, Any]:
+    """The posterior's calibration, measured on fresh draws when the classifier was
+    trained: temperature, novelty tail, none prior, held-out accuracy, expected
+    calibration error (ECE) and the reliability bins (mean confidence, accuracy, count).
+    404 for a classifier stored before calibration existed."""
+    import json
+
+    row = get_or_404(session, ClassifierRow, classifier_id, "classifier")
+    document = json.loads(row.document)
+    calibration = (document.get("classifier") or {}).get("calibration")
+    if not isinstance(calibration, dict):
+        raise HTTPException(
+            status.HTTP_404_NOT_FOUND,
+            detail=f"classifier {classifier_id[:80]!r} stores no calibration (trained before it)",
+        )
+    return calibration

@@ -24,14 +24,19 @@ from sqlalchemy import select
 from starlette.datastructures import UploadFile
 
 from inertia_id.errors import InputError
-from inertia_id.evaluation.identify import identify
+from inertia_id.evaluation.identify import (
+    DEFAULT_ALPHA,
+    DEFAULT_CONFIDENCE,
+    identify,
+    identify_online,
+)
 from inertia_id.evaluation.telemetry import Telemetry, parse_sequence_start, parse_telemetry
 from service.exports import identify_table, to_csv
 from service.store.models import ClassifierRow
 from service.store.session import Database
 
 from ..capacity import ComputeGate
-from ..schemas import IdentifyRequest, IdentifyResult, finite_or_none
+from ..schemas import IdentifyRequest, IdentifyResult, PartialIdentifyResult, finite_or_none
 from .deps import ApiKeyDep, plausible_id, unprocessable
 from .errors import format_errors
 
@@ -168,16 +173,45 @@ def _checksum(database: Database, cache: ClassifierCache, classifier_id: str) ->
     return str(row.sha256)
 
 
-def _identify(
-    database: Database, cache: ClassifierCache, classifier_id: str, telemetry: Telemetry
-) -> IdentifyResult:
+def _classifier(
+    database: Database, cache: ClassifierCache, classifier_id: str
+) -> tuple[str, CandidateClassifier]:
     key = (classifier_id, _checksum(database, cache, classifier_id))
-    classifier = cache.get(key, lambda: _load(_document(database, classifier_id)))
-    result = identify(classifier, telemetry).model_dump()
-    return IdentifyResult.model_validate({**finite_or_none(result), "classifier_id": key[0]})
+    return key[0], cache.get(key, lambda: _load(_document(database, classifier_id)))
 
 
-async def _from_json(request: Request, sequence_start: str | None) -> tuple[str, Telemetry]:
+def _identify(
+    database: Database,
+    cache: ClassifierCache,
+    classifier_id: str,
+    telemetry: Telemetry,
+    confidence: float | None,
+) -> IdentifyResult:
+    found, classifier = _classifier(database, cache, classifier_id)
+    result = identify(
+        classifier,
+        telemetry,
+        confidence=DEFAULT_CONFIDENCE if confidence is None else confidence,
+    ).model_dump()
+    return IdentifyResult.model_validate({**finite_or_none(result), "classifier_id": found})
+
+
+def _identify_partial(
+    database: Database,
+    cache: ClassifierCache,
+    classifier_id: str,
+    telemetry: Telemetry,
+    confidence: float | None,
+) -> PartialIdentifyResult:
+    found, classifier = _classifier(database, cache, classifier_id)
+    alpha = DEFAULT_ALPHA if confidence is None else 1.0 - confidence
+    result = identify_online(classifier, telemetry, alpha=alpha).model_dump()
+    return PartialIdentifyResult.model_validate({**finite_or_none(result), "classifier_id": found})
+
+
+async def _from_json(
+    request: Request, sequence_start: str | None
+) -> tuple[str, Telemetry, float | None]:
     body = await request.body()
     try:
         data = json.loads(body)
@@ -192,7 +226,7 @@ async def _from_json(request: Request, sequence_start: str | None) -> tuple[str,
         raise RequestValidationError(
             format_errors(exc.errors(include_url=False), ("body",))
         ) from None
-    return parsed.classifier_id, parsed.telemetry
+    return parsed.classifier_id, parsed.telemetry, parsed.confidence
 
 
 def _query_start(text: str | None) -> float | str | None:
@@ -202,11 +236,28 @@ def _query_start(text: str | None) -> float | str | None:
         unprocessable(("query", "sequence_start"), str(exc))
 
 
-async def _from_form(request: Request, sequence_start: str | None) -> tuple[str, Telemetry]:
+def _form_confidence(value: Any) -> float | None:
+    if value is None or value == "":
+        return None
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        number = float("nan")
+    if not 0.0 < number < 1.0:
+        unprocessable(
+            ("body", "confidence"), f"confidence must be a number in (0, 1), got {value!r}"
+        )
+    return number
+
+
+async def _from_form(
+    request: Request, sequence_start: str | None
+) -> tuple[str, Telemetry, float | None]:
     start = _query_start(sequence_start)
     async with request.form(max_files=1, max_fields=10) as form:
         classifier_id = form.get("classifier_id")
         upload = form.get("file")
+        confidence = _form_confidence(form.get("confidence"))
         if not isinstance(classifier_id, str) or not classifier_id:
             unprocessable(("body", "classifier_id"), "form field classifier_id is required")
         if upload is None:
@@ -217,7 +268,7 @@ async def _from_form(request: Request, sequence_start: str | None) -> tuple[str,
     except UnicodeDecodeError as exc:
         unprocessable(("body", "file"), f"telemetry file is not UTF-8 text: {exc}")
     try:
-        return classifier_id, parse_telemetry(text, sequence_start=start)
+        return classifier_id, parse_telemetry(text, sequence_start=start), confidence
     except ValidationError as exc:
         raise RequestValidationError(
             format_errors(exc.errors(include_url=False), ("body", "file"))
@@ -234,6 +285,7 @@ _MULTIPART_SCHEMA = {
     "required": ["classifier_id", "file"],
     "properties": {
         "classifier_id": {"type": "string", "maxLength": 64},
+        "confidence": {"type": "number", "exclusiveMinimum": 0, "exclusiveMaximum": 1},
         "file": {
             "type": "string",
             "format": "binary",
@@ -252,6 +304,41 @@ def openapi_components() -> dict[str, Any]:
     return components
 
 
+async def _read_body(
+    request: Request, sequence_start: str | None
+) -> tuple[str, Telemetry, float | None]:
+    # Both media types on one path: FastAPI declares one body per route, so the body is
+    # read here and validated with the same models.
+    content_type = request.headers.get("content-type", "").split(";")[0].strip().lower()
+    if content_type == "multipart/form-data":
+        return await _from_form(request, sequence_start)
+    if content_type == "application/json" or content_type.endswith("+json"):
+        return await _from_json(request, sequence_start)
+    raise HTTPException(
+        status.HTTP_415_UNSUPPORTED_MEDIA_TYPE,
+        detail=f"send application/json or multipart/form-data, not {content_type[:80]!r}",
+    )
+
+
+_SEQUENCE_START = Query(
+    max_length=64,
+    description="start of the actuation sequence in the telemetry's clock: seconds "
+    "(e.g. 810000000.0) or ISO-8601 UTC (2025-03-01T12:00:00Z); needed for a CSV "
+    "whose stamps are not seconds from the start; overrides one in the JSON body",
+)
+
+
+_BODY = {
+    "requestBody": {
+        "required": True,
+        "content": {
+            "application/json": {"schema": {"$ref": "#/components/schemas/IdentifyRequest"}},
+            "multipart/form-data": {"schema": _MULTIPART_SCHEMA},
+        },
+    }
+}
+
+
 @router.post(
     "",
     dependencies=[ApiKeyDep],
@@ -267,15 +354,7 @@ def openapi_components() -> dict[str, Any]:
         422: {"description": "bad telemetry: the rule and the value"},
         503: {"description": "past capacity: try again after Retry-After seconds"},
     },
-    openapi_extra={
-        "requestBody": {
-            "required": True,
-            "content": {
-                "application/json": {"schema": {"$ref": "#/components/schemas/IdentifyRequest"}},
-                "multipart/form-data": {"schema": _MULTIPART_SCHEMA},
-            },
-        }
-    },
+    openapi_extra=_BODY,
 )
 async def identify_telemetry(
     request: Request,
@@ -283,15 +362,7 @@ async def identify_telemetry(
         Literal["json", "csv"],
         Query(description="json, or csv: the verdict as a file, one row per candidate"),
     ] = "json",
-    sequence_start: Annotated[
-        str | None,
-        Query(
-            max_length=64,
-            description="start of the actuation sequence in the telemetry's clock: seconds "
-            "(e.g. 810000000.0) or ISO-8601 UTC (2025-03-01T12:00:00Z); needed for a CSV "
-            "whose stamps are not seconds from the start; overrides one in the JSON body",
-        ),
-    ] = None,
+    sequence_start: Annotated[str | None, _SEQUENCE_START] = None,
 ) -> Any:
     """Which candidate is the spacecraft? Telemetry after the classifier's sequence.
 
@@ -300,25 +371,17 @@ async def identify_telemetry(
     Stamps are seconds in any clock or ISO-8601 UTC strings (``time_utc``); the sequence
     start (``sequence_start``: in the body, the telemetry or the query) is needed unless
     they are seconds from the start.
-    The answer has the nearest candidate, its inertia, the distance to every candidate,
-    the margin to the runner-up and whether the series "matches none" of them.
+    The answer has the posterior of every candidate and of "none of these", the status
+    (identified at ``confidence``, default 0.99; ambiguous; matches-none;
+    not-this-sequence), the most probable candidate and its inertia, the distance to
+    every candidate and the margin to the runner-up, and the least-squares tensor when
+    it is physically valid and well excited.
     """
-    # Both media types on one path: FastAPI declares one body per route, so the body is
-    # read here and validated with the same models.
-    content_type = request.headers.get("content-type", "").split(";")[0].strip().lower()
-    if content_type == "multipart/form-data":
-        classifier_id, telemetry = await _from_form(request, sequence_start)
-    elif content_type == "application/json" or content_type.endswith("+json"):
-        classifier_id, telemetry = await _from_json(request, sequence_start)
-    else:
-        raise HTTPException(
-            status.HTTP_415_UNSUPPORTED_MEDIA_TYPE,
-            detail=f"send application/json or multipart/form-data, not {content_type[:80]!r}",
-        )
+    classifier_id, telemetry, confidence = await _read_body(request, sequence_start)
     database: Database = request.app.state.db
     cache: ClassifierCache = request.app.state.classifier_cache
     gate: ComputeGate = request.app.state.compute_gate
-    verdict = await gate.run(_identify, database, cache, classifier_id, telemetry)
+    verdict = await gate.run(_identify, database, cache, classifier_id, telemetry, confidence)
     if format == "csv":
         stem = f"identify-{verdict.classifier_id[:8]}"
         return Response(
@@ -327,3 +390,33 @@ async def identify_telemetry(
             headers={"Content-Disposition": f'attachment; filename="{stem}.csv"'},
         )
     return verdict
+
+
+@router.post(
+    "/partial",
+    dependencies=[ApiKeyDep],
+    response_model=PartialIdentifyResult,
+    responses={
+        401: {"description": "missing or wrong API key"},
+        404: {"description": "no such classifier"},
+        415: {"description": "neither JSON nor multipart/form-data"},
+        422: {"description": "bad telemetry, or a kind without a posterior for part of a series"},
+        503: {"description": "past capacity: try again after Retry-After seconds"},
+    },
+    openapi_extra=_BODY,
+)
+async def identify_partial(
+    request: Request, sequence_start: Annotated[str | None, _SEQUENCE_START] = None
+) -> Any:
+    """The posterior so far, from telemetry covering the sequence's start up to now.
+
+    The same body as ``POST /identify``. The answer has each candidate's posterior after
+    every covered grid sample, the current one, and whether the stop rule has decided
+    (top posterior >= 1 - alpha, alpha = 1 - confidence, default 0.001) and when. The
+    likelihood kinds answer (their Gaussian's leading block is exact); others get 422.
+    """
+    classifier_id, telemetry, confidence = await _read_body(request, sequence_start)
+    database: Database = request.app.state.db
+    cache: ClassifierCache = request.app.state.classifier_cache
+    gate: ComputeGate = request.app.state.compute_gate
+    return await gate.run(_identify_partial, database, cache, classifier_id, telemetry, confidence)

@@ -29,6 +29,8 @@ import os
 from typing import Any, ClassVar, Self
 
 import numpy as np
+from scipy.special import log_softmax
+from scipy.stats import chi2
 from sklearn.base import BaseEstimator
 
 from ..errors import InputError
@@ -39,7 +41,9 @@ from . import documents
 
 __all__ = [
     "KINDS",
+    "NONE_PRIOR",
     "BaseClassifier",
+    "NoveltyTail",
     "SupervisedClassifier",
     "check_int",
     "check_labels",
@@ -50,6 +54,69 @@ __all__ = [
 
 #: Every kind defined so far, by name: filled as the kind classes are defined.
 KINDS: dict[str, type[BaseClassifier]] = {}
+
+#: Prior probability that a series comes from none of the candidates. The Bayes factor
+#: of "none" is never below 1 (see :func:`none_log_odds`), so the prior is the floor of
+#: P(none): 1e-4 leaves a genuine series room to pass the online stop rule's 1 - 1e-3.
+NONE_PRIOR = 1e-4
+
+
+class NoveltyTail:
+    """How far a genuine series lies from its own candidate: a scaled chi-square.
+
+    A squared distance is matched by ``scale · χ²(dof)`` with the mean and variance of
+    the own-candidate squared distances it is fitted on (Satterthwaite's moment match):
+    exact for Mahalanobis distances (scale 1, dof = 3 length), the usual approximation
+    for a Euclidean distance under correlated Gaussian noise (scale = the noise variance
+    per effective dimension), a description for the others. ``scale`` also puts a kind's
+    distances on the log-likelihood scale of its posterior: ``-d² / (2 scale)``.
+
+    :param scale: the chi-square's scale, in the distance's units squared.
+    :param dof: its degrees of freedom, over the whole series.
+    """
+
+    def __init__(self, scale: float, dof: float) -> None:
+        self.scale = float(scale)
+        self.dof = float(dof)
+
+    @classmethod
+    def fit(cls, own_distances: np.ndarray) -> NoveltyTail | None:
+        squared = np.asarray(own_distances, dtype=float) ** 2
+        squared = squared[np.isfinite(squared)]
+        if squared.size < 3:
+            return None
+        mean, var = float(squared.mean()), float(squared.var(ddof=1))
+        if not (mean > 0.0 and var > 0.0):
+            return None
+        return cls(scale=var / (2.0 * mean), dof=2.0 * mean**2 / var)
+
+    def log_sf(self, distance: np.ndarray, fraction: float | np.ndarray = 1.0) -> np.ndarray:
+        """log P(D >= distance) for a genuine series; over a ``fraction`` of the series,
+        the degrees of freedom shrink in proportion."""
+        dof = np.maximum(self.dof * np.asarray(fraction, dtype=float), 1.0)
+        return np.asarray(chi2.logsf(np.asarray(distance) ** 2 / self.scale, dof))
+
+    def to_dict(self) -> dict[str, float]:
+        return {"scale": self.scale, "dof": self.dof}
+
+    @classmethod
+    def from_dict(cls, data: Any) -> NoveltyTail | None:
+        if data is None:
+            return None
+        return cls(scale=float(data["scale"]), dof=float(data["dof"]))
+
+
+def none_log_odds(log_p_value: np.ndarray, prior: float) -> np.ndarray:
+    """log odds of "none of these" given the novelty p-value of the nearest candidate.
+
+    The p-value is turned into a Bayes factor for "none" by the Sellke, Bayarri and
+    Berger (2001) bound ``1 / (-e p log p)`` (for p < 1/e; 1 above): the largest
+    evidence a p-value can carry against the null, so "none" is never believed more
+    than the data allow, whatever the alternative.
+    """
+    log_p = np.clip(np.asarray(log_p_value, dtype=float), -1e300, -1.0)
+    log_bayes = -1.0 - log_p - np.log(-log_p)
+    return np.asarray(math.log(prior) - math.log1p(-prior) + log_bayes)
 
 
 def check_int(name: str, value: Any, minimum: int = 1) -> None:
@@ -155,6 +222,8 @@ class BaseClassifier(BaseEstimator):
     METRICS: ClassVar[tuple[str, ...]] = ()
     #: Training series per candidate the fit needs at the least.
     MIN_REALISATIONS: ClassVar[int] = 1
+    #: Fresh draws per candidate :meth:`fit_scenario` calibrates the posterior on.
+    CALIBRATION_DRAWS: ClassVar[int] = 50
     #: Training realisations per candidate when none are asked for.
     DEFAULT_REALISATIONS: ClassVar[int] = 20
     #: The scenario and sequence are the model itself (least squares), not just context.
@@ -167,6 +236,15 @@ class BaseClassifier(BaseEstimator):
     #: nearest candidate of the training distances: the likelihood kinds, whose
     #: out-of-fold distances calibrate the novelty threshold only.
     IN_SAMPLE_SCORES: ClassVar[bool] = False
+    #: Whether the kind compares series with each axis' mean removed. A constant gyro
+    #: bias and (for small rates) an initial body rate shift a response by a constant per
+    #: axis; a distance kind that compared raw series would weigh that offset, which says
+    #: nothing about the inertia, like a misfit (the paper's Euclidean clustering falls
+    #: from F1 1.0 to 0.49 on the paper preset with 5e-3 rad/s initial rates and 2e-3
+    #: rad/s biases). Removing the per-axis mean is the orthogonal projection off those
+    #: offsets. The likelihood kinds model them in their covariance instead, and the least
+    #: squares uses absolute rates in its gyroscopic term, so they keep the raw series.
+    REMOVES_OFFSET: ClassVar[bool] = True
     #: Where the kind stands in lists of kinds (CLI choices, API enums).
     LISTING_ORDER: ClassVar[int] = 100
     #: What the kind is, in a few words, for lists a person reads (the dashboard's).
@@ -176,6 +254,13 @@ class BaseClassifier(BaseEstimator):
     #: that takes one, a fixed label (a class attribute) for the others.
     metric: str
     novelty_factor: float
+    # The novelty tail of the own-candidate training distances, and the calibration
+    # report of calibrate() (its temperature among it); None in an older document.
+    novelty_tail_: NoveltyTail | None = None
+    calibration_: dict[str, Any] | None = None
+    # Whether fitted series had each axis' mean removed (REMOVES_OFFSET at fit time; a
+    # document written before the rule existed loads as False, its centroids raw).
+    offset_removed_: bool = False
     # Set by a fit given them, or by a loaded document; identify needs them.
     scenario_: Scenario | None = None
     sequence_: np.ndarray | None = None
@@ -271,6 +356,12 @@ class BaseClassifier(BaseEstimator):
         """
         self._check_params()
         self._fit_simulated(scenario, scenario.check_sequence(sequence), n_realisations, rng)
+        # The posterior's novelty tail and temperature from fresh draws of a fixed seed
+        # (the caller's rng untouched): training distances are in-sample, or, for the
+        # marginal likelihood, taken at the grid's extremes, both wider than 1x.
+        from ..evaluation.calibration import calibrate
+
+        calibrate(self, self.CALIBRATION_DRAWS)
         return self
 
     def _fit_simulated(
@@ -291,7 +382,8 @@ class BaseClassifier(BaseEstimator):
     ) -> tuple[np.ndarray, np.ndarray]:
         """Check a training set and its context, and set what every fitted kind carries."""
         self._check_params()
-        X = check_series(X)
+        self.offset_removed_ = self.REMOVES_OFFSET
+        X = self._without_offset(check_series(X))
         y = check_training_labels(y, len(X), self.MIN_REALISATIONS)
         n_candidates = int(y.max()) + 1
         if (scenario is None) != (sequence is None):
@@ -338,6 +430,8 @@ class BaseClassifier(BaseEstimator):
         owner = y if self.SUPERVISED else training.argmin(axis=1)
         own = training[np.arange(len(owner)), owner]
         self.training_distances_ = training
+        self.novelty_tail_ = NoveltyTail.fit(own)
+        self.calibration_ = None
         self.max_training_distance_ = np.array(
             [own[owner == c].max() if np.any(owner == c) else np.inf for c in range(k)]
         )
@@ -355,10 +449,17 @@ class BaseClassifier(BaseEstimator):
         if not hasattr(self, "max_training_distance_"):
             raise InputError(f"this {type(self).__name__} is not fitted yet; call fit first")
 
+    def _without_offset(self, X: np.ndarray) -> np.ndarray:
+        """The series with each axis' mean removed, where the kind compares them so."""
+        if not self.offset_removed_:
+            return X
+        return np.asarray(X - X.mean(axis=1, keepdims=True))
+
     def _check_input(self, X: Any) -> np.ndarray:
-        """Series to classify, checked against what the classifier was trained on."""
+        """Series to classify, checked against what the classifier was trained on (each
+        axis' mean removed where the kind was fitted so)."""
         self._check_fitted()
-        X = check_series(X)
+        X = self._without_offset(check_series(X))
         if X.shape[1] != self.length_:
             raise InputError(
                 f"series have {X.shape[1]} samples; the classifier was trained on {self.length_}"
@@ -401,6 +502,75 @@ class BaseClassifier(BaseEstimator):
         """Macro F1 of the predictions (the paper's score)."""
         return float(self.evaluate(X, y)["f1"])
 
+    # Posterior probabilities.
+
+    #: Whether the kind's distances are (marginal) Mahalanobis distances of a Gaussian
+    #: model, so that ``-d² / 2`` is its log-likelihood up to a shared constant.
+    GAUSSIAN_DISTANCES: ClassVar[bool] = False
+
+    @property
+    def temperature_(self) -> float:
+        """The softmax temperature fitted by :func:`~inertia_id.evaluation.calibration.calibrate`;
+        1 before (or in an older document)."""
+        if self.calibration_ is None:
+            return 1.0
+        return float(self.calibration_.get("temperature", 1.0))
+
+    def _evidence_scale(self) -> float:
+        """What divides ``-d² / 2`` into a log-likelihood: 1 for Gaussian distances, the
+        novelty tail's scale for the others."""
+        if self.GAUSSIAN_DISTANCES or self.novelty_tail_ is None:
+            return 1.0
+        return self.novelty_tail_.scale
+
+    def _prefix_distances(self, X: np.ndarray) -> np.ndarray:
+        """Distances of every leading part of checked series, (n, length, K): after the
+        first sample, the first two, ... The kinds with a Gaussian model give the exact
+        marginal of the leading block; the others have none."""
+        raise InputError(
+            f"the {self.kind!r} classifier has no posterior for a partial series; the "
+            "likelihood kinds have (their Gaussian's leading block)"
+        )
+
+    def posterior_from_distances(
+        self, distances: np.ndarray, fraction: float | np.ndarray = 1.0
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Posterior of each candidate and of "none of these" from distances (..., K).
+
+        The candidates' part is the softmax of ``-d² / (2 s T)`` (s the evidence scale,
+        T the fitted temperature) with equal priors; "none" has the prior
+        :data:`NONE_PRIOR` and the Bayes factor its novelty p-value bounds (see
+        :func:`none_log_odds`). Without a novelty tail (an older document) "none" is
+        its prior within the novelty thresholds and 1 - prior beyond them.
+
+        :param fraction: the part of the series the distances cover (online decisions).
+        :returns: (..., K) candidate probabilities and (...) the probability of none;
+            together they sum to 1.
+        """
+        d = np.asarray(distances, dtype=float)
+        logits = -0.5 * d**2 / (self._evidence_scale() * self.temperature_)
+        candidates = np.exp(log_softmax(logits, axis=-1))
+        nearest = d.min(axis=-1)
+        if self.novelty_tail_ is not None:
+            log_odds = none_log_odds(self.novelty_tail_.log_sf(nearest, fraction), NONE_PRIOR)
+        else:
+            beyond = np.all(d > self.novelty_thresholds(), axis=-1)
+            log_odds = np.where(beyond, 1.0, -1.0) * math.log((1 - NONE_PRIOR) / NONE_PRIOR)
+        p_none = 1.0 / (1.0 + np.exp(-np.clip(log_odds, -700.0, 700.0)))
+        return candidates * (1.0 - p_none)[..., None], p_none
+
+    def predict_posterior(self, X: Any) -> tuple[np.ndarray, np.ndarray]:
+        """Posterior of each candidate (n, K) and of "none of these" (n,); they sum to 1."""
+        return self.posterior_from_distances(self.transform(X))
+
+    def posterior_over_time(self, X: Any) -> tuple[np.ndarray, np.ndarray]:
+        """The posterior after each sample of the series: (n, length, K) candidates and
+        (n, length) none, from the leading part of the series up to that sample."""
+        series = self._check_input(X)
+        distances = self._prefix_distances(series)
+        fraction = np.arange(1, self.length_ + 1) / self.length_
+        return self.posterior_from_distances(distances, fraction[None, :])
+
     # Storage as data.
 
     def _document_params(self) -> dict[str, Any]:
@@ -418,6 +588,9 @@ class BaseClassifier(BaseEstimator):
             "confusion": np.asarray(self.confusion_).tolist(),
             "scenario": None if self.scenario_ is None else self.scenario_.model_dump(mode="json"),
             "sequence": None if self.sequence_ is None else np.asarray(self.sequence_).tolist(),
+            "offset_removed": bool(self.offset_removed_),
+            "novelty_tail": None if self.novelty_tail_ is None else self.novelty_tail_.to_dict(),
+            "calibration": self.calibration_,
             **self._state(),
         }
 
@@ -447,6 +620,12 @@ class BaseClassifier(BaseEstimator):
             model.sequence_ = (
                 None if data.get("sequence") is None else np.asarray(data["sequence"], dtype=int)
             )
+            model.offset_removed_ = bool(data.get("offset_removed", False))
+            model.novelty_tail_ = NoveltyTail.from_dict(data.get("novelty_tail"))
+            calibration = data.get("calibration")
+            if calibration is not None and not isinstance(calibration, dict):
+                raise TypeError(f"calibration must be an object, got {type(calibration).__name__}")
+            model.calibration_ = calibration
             model._load_state(data)
         except (KeyError, TypeError, ValueError, AttributeError) as exc:
             raise InputError(f"{invalid}: {exc}") from None

@@ -60,6 +60,7 @@ class LeastSquaresClassifier(BaseClassifier):
     """
 
     kind: ClassVar[str] = "least-squares"
+    REMOVES_OFFSET = False
     FORMAT = "inertia-id/least-squares-classifier"
     NEEDS_SCENARIO = True
     LISTING_ORDER = 60

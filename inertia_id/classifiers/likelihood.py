@@ -24,6 +24,7 @@ import math
 from typing import Any, ClassVar
 
 import numpy as np
+from scipy.linalg import solve_triangular
 from scipy.special import log_softmax
 
 from ..errors import InputError
@@ -84,6 +85,8 @@ class LikelihoodClassifier(BaseClassifier):
     """
 
     kind: ClassVar[str] = "likelihood"
+    REMOVES_OFFSET = False
+    GAUSSIAN_DISTANCES = True
     FORMAT = "inertia-id/likelihood-classifier"
     # Three series per candidate: with a fold held out, two remain to estimate a spread.
     MIN_REALISATIONS = 3
@@ -154,6 +157,18 @@ class LikelihoodClassifier(BaseClassifier):
         """
         means = self.means_.reshape(self.n_candidates_, -1)
         return whitened_distances(X.reshape(len(X), -1), means, self.chol_lower_)
+
+    def _prefix_distances(self, X: np.ndarray) -> np.ndarray:
+        """Mahalanobis distance after each sample, (n, length, K): the leading block of
+        the mean and covariance (exact for a Gaussian), a cumulative sum of the whitened
+        squares since the Cholesky factor is lower triangular."""
+        F = X.reshape(len(X), -1)
+        means = self.means_.reshape(self.n_candidates_, -1)
+        n, p = F.shape
+        diffs = (F[:, None, :] - means[None, :, :]).reshape(n * self.n_candidates_, p)
+        white = solve_triangular(self.chol_lower_, diffs.T, lower=True, check_finite=False)
+        squared = np.cumsum(white**2, axis=0)[2::3]  # (length, n K)
+        return np.sqrt(squared.T.reshape(n, self.n_candidates_, -1)).swapaxes(1, 2)
 
     def log_likelihood(self, X: Any) -> np.ndarray:
         """Gaussian log-density of each series under each candidate, (n, K).

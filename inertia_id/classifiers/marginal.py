@@ -157,6 +157,9 @@ class _Mixture:
         self.whiteners = np.empty((len(grid), dim, dim))
         self.white_means = np.empty((len(grid), len(means), dim))
         self.log_norm = np.empty(len(grid))
+        # log of the Cholesky factor's diagonal: the leading block of a Cholesky factor
+        # is the factor of the leading block, so these give every prefix's determinant.
+        self.log_diagonal = np.empty((len(grid), dim))
         for c, (process, measurement) in enumerate(grid):
             covariance = components[0] + process**2 * components[1] + measurement**2 * components[2]
             try:
@@ -167,7 +170,8 @@ class _Mixture:
                 ) from None
             self.whiteners[c] = solve_triangular(chol, np.eye(dim), lower=True)
             self.white_means[c] = means @ self.whiteners[c].T
-            log_det = 2.0 * float(np.sum(np.log(np.diag(chol))))
+            self.log_diagonal[c] = np.log(np.diag(chol))
+            log_det = 2.0 * float(np.sum(self.log_diagonal[c]))
             # log w_m - log det(2π Σ_m) / 2, with equal weights w_m = 1 / M.
             self.log_norm[c] = -math.log(len(grid)) - 0.5 * (log_det + dim * _LOG_2PI)
 
@@ -179,6 +183,32 @@ class _Mixture:
             squared = np.sum((white[:, None, :] - self.white_means[c][None]) ** 2, axis=2)
             out[c] = self.log_norm[c] - 0.5 * squared
         return out
+
+    def prefix_distances(self, F: np.ndarray, every: int = 3) -> np.ndarray:
+        """The marginal Mahalanobis distance of every leading part of the series that
+        ends on a whole sample (``every`` numbers), (n, dim // every, K).
+
+        Exact for the Gaussians of each condition: the whitener is lower triangular, so
+        the leading numbers of a whitened series are the leading block's whitening, and
+        a prefix's squared distance is a cumulative sum.
+        """
+        dim = F.shape[1]
+        ends = np.arange(every, dim + 1, every) - 1
+        n_conditions = len(self.log_norm)
+        log_norm = (
+            -math.log(n_conditions)
+            - np.cumsum(self.log_diagonal, axis=1)[:, ends]
+            - 0.5 * (ends + 1) * _LOG_2PI
+        )  # (M, T)
+        joint = np.empty((n_conditions, len(F), len(ends), self.white_means.shape[1]))
+        for c, whitener in enumerate(self.whiteners):
+            white = F @ whitener.T
+            squared = np.cumsum((white[:, None, :] - self.white_means[c][None]) ** 2, axis=2)
+            joint[c] = log_norm[c][None, :, None] - 0.5 * np.swapaxes(squared[:, :, ends], 1, 2)
+        log_likelihood = logsumexp(joint, axis=0)
+        likeliest = np.argmax(logsumexp(joint, axis=3), axis=0)  # (n, T)
+        peak = log_norm[likeliest, np.arange(len(ends))[None, :]]
+        return np.sqrt(2.0 * np.maximum(peak[..., None] - log_likelihood, 0.0))
 
     def log_likelihood(self, F: np.ndarray) -> np.ndarray:
         """log p(x | k), the mixture over conditions, (n, K)."""
@@ -212,6 +242,8 @@ class MarginalLikelihoodClassifier(BaseClassifier):
     """
 
     kind: ClassVar[str] = "marginal-likelihood"
+    REMOVES_OFFSET = False
+    GAUSSIAN_DISTANCES = True
     FORMAT = "inertia-id/marginal-likelihood-classifier"
     MIN_REALISATIONS = 3
     #: Three noise covariances of 240+ dimensions: it reaches the limit from 100
@@ -441,6 +473,11 @@ class MarginalLikelihoodClassifier(BaseClassifier):
         mean, far closer than noise ever puts one.)
         """
         return self._mixture.distances(X.reshape(len(X), -1))
+
+    def _prefix_distances(self, X: np.ndarray) -> np.ndarray:
+        """Marginal Mahalanobis distance after each sample, from the leading block of every
+        condition's mean and covariance (exact for Gaussians), (n, length, K)."""
+        return self._mixture.prefix_distances(X.reshape(len(X), -1))
 
     def log_likelihood(self, X: Any) -> np.ndarray:
         """Marginal log-density log Σ_m w_m N(x; μ_k, Σ_m) of each series, (n, K)."""

@@ -1,11 +1,27 @@
 """Which candidate is this spacecraft? Classify measured telemetry.
 
-Telemetry is the gyro's ω samples, with time stamps measured from the start of the
-actuation sequence the classifier was trained for. It is resampled (linear
-interpolation) onto the classifier's sample grid and compared with every candidate's
-centroid. A series farther from its nearest centroid than any training response was
-(times the classifier's novelty factor) "matches none": a spacecraft in an unexpected
-state is not forced into a class.
+Telemetry is the gyro's ω samples, with time stamps in any clock and the start of the
+actuation sequence the classifier was trained for in that clock
+(:class:`~inertia_id.evaluation.telemetry.Telemetry`). It is resampled onto the
+classifier's sample grid (averaged when faster, interpolated when slower:
+:func:`~inertia_id.evaluation.telemetry.resample`) and compared with every candidate.
+
+The verdict is a posterior: a probability for each candidate and one for "none of
+these" (:meth:`~inertia_id.classifiers.base.BaseClassifier.posterior_from_distances`),
+and a status:
+
+- ``"identified"``: the top candidate's posterior reaches ``confidence`` (default 0.99);
+- ``"ambiguous"``: no candidate does (the verdict names the top two, with their
+  probabilities): a coin toss is said to be one;
+- ``"matches-none"``: "none of these" is the most probable hypothesis, or the series is
+  beyond its nearest candidate's novelty threshold (the classifier's own rule);
+- ``"not-this-sequence"``: beyond :data:`NOT_THIS_SEQUENCE_FACTOR` times every
+  candidate's novelty threshold: telemetry that is no response to this sequence at
+  all (another sequence, a wrong time base, a tumbling spacecraft).
+
+:func:`identify_online` gives the posterior after every sample, for the kinds with a
+Gaussian model (exact: the leading block of mean and covariance), and the first time
+the top candidate reaches ``1 - alpha``.
 """
 
 from __future__ import annotations
@@ -16,22 +32,48 @@ import numpy as np
 from pydantic import BaseModel
 
 from ..errors import InputError
-from ..physics.estimate import estimate_inertia
+from ..physics.estimate import PARAMETER_NAMES, estimate_inertia, tensor_from_parameters
+from ..physics.scenario import Scenario
 from .telemetry import Telemetry, resample
 
 if TYPE_CHECKING:
     from ..classifiers.registry import CandidateClassifier
 
 
-__all__ = ["Identification", "identify"]
+__all__ = [
+    "DEFAULT_ALPHA",
+    "DEFAULT_CONFIDENCE",
+    "NOT_THIS_SEQUENCE_FACTOR",
+    "STATUSES",
+    "Identification",
+    "OnlineIdentification",
+    "identify",
+    "identify_online",
+    "posterior_over_time",
+]
+
+#: The verdict's statuses, in the order of increasing doubt about the telemetry.
+STATUSES = ("identified", "ambiguous", "matches-none", "not-this-sequence")
+#: Posterior a candidate needs to be named by default.
+DEFAULT_CONFIDENCE = 0.99
+#: Error rate the online stop rule accepts by default: it stops at posterior 1 - alpha.
+DEFAULT_ALPHA = 1e-3
+#: A series this many times beyond every candidate's novelty threshold is no response
+#: to the sequence at all (on the paper preset: a body 30 % off a candidate lies 4 times
+#: beyond for the Euclidean clustering; a response to the opposite thrusters 6 times
+#: beyond for the marginal likelihood, whose noise grid absorbs much of any misfit).
+NOT_THIS_SEQUENCE_FACTOR = 5.0
+#: An estimated parameter is shown when its standard error is below this fraction of
+#: the mean principal moment (the rule of ``InertiaEstimate.poorly_excited``).
+_WELL_EXCITED_RTOL = 0.01
 
 
 class Identification(BaseModel):
     """The verdict on one telemetry series.
 
-    ``candidate`` is the nearest candidate even when ``matches_none`` is true, so an
-    operator can see what it was closest to; ``matches_none`` says it should not be
-    believed.
+    ``candidate`` is the most probable candidate whatever the status, so an operator can
+    see what it was closest to; ``status`` says whether to believe it. ``posterior``
+    and ``p_none`` sum to 1; ``confidence`` is the top candidate's posterior.
     """
 
     candidate_index: int
@@ -43,61 +85,254 @@ class Identification(BaseModel):
     threshold: float
     matches_none: bool
     verdict: str
+    status: str = "identified"
+    posterior: dict[str, float] = {}
+    p_none: float = 0.0
+    confidence: float = 0.0
+    required_confidence: float = DEFAULT_CONFIDENCE
+    not_this_sequence: bool = False
     estimated_inertia_kg_m2: list[list[float]] | None = None
     estimated_principal_moments_kg_m2: list[float] | None = None
+    estimated_inertia_std_kg_m2: dict[str, float] | None = None
     estimate_condition_number: float | None = None
+    estimate_rejected: str | None = None
     poorly_excited: list[str] = []
 
 
-def identify(
-    classifier: CandidateClassifier, telemetry: Telemetry | dict[str, Any]
-) -> Identification:
-    """Classify one telemetry series to a candidate, or say it matches none.
+class OnlineIdentification(BaseModel):
+    """The posterior after every sample of (part of) the sequence, and the stop rule's
+    decision: the first time the top candidate's posterior reaches ``1 - alpha``.
 
-    :param classifier: fitted classifier that carries its scenario and sequence.
-    :param telemetry: the response to the classifier's sequence.
+    ``posterior`` holds one list per candidate, one value per time of ``time_s``.
     """
-    if not isinstance(telemetry, Telemetry):
-        telemetry = Telemetry.model_validate(telemetry)
+
+    time_s: list[float]
+    posterior: dict[str, list[float]]
+    p_none: list[float]
+    alpha: float
+    decided: bool
+    decision_time_s: float | None
+    candidate_index: int | None
+    candidate: str | None
+    current: dict[str, float]
+    current_p_none: float
+    covers_s: float
+    sequence_s: float
+
+
+def _check_probability(name: str, value: Any) -> float:
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, int | float)
+        or not (0.0 < float(value) < 1.0)
+    ):
+        raise InputError(f"{name} must be a number strictly between 0 and 1, got {value!r}")
+    return float(value)
+
+
+def _context(classifier: CandidateClassifier) -> tuple[Scenario, np.ndarray]:
     scenario, sequence = classifier.scenario_, classifier.sequence_
     if scenario is None or sequence is None:
         raise InputError("the classifier does not carry its scenario and sequence")
+    return scenario, np.asarray(sequence)
+
+
+def _estimate(scenario: Scenario, sequence: np.ndarray, series: np.ndarray) -> dict[str, Any]:
+    """The least-squares tensor, shown only when physically valid and well excited.
+
+    Valid: finite, positive definite, principal moments satisfying the triangle
+    inequality. Well excited: every parameter's standard error within 1 % of the mean
+    principal moment. Otherwise the tensor is withheld (None) and the reason given,
+    with the parameters this sequence cannot see.
+    """
+    estimate = estimate_inertia(scenario, sequence, series)
+    tensor = np.asarray(tensor_from_parameters(estimate.parameters_kg_m2))
+    std = np.asarray(estimate.parameter_std_kg_m2)
+    condition = float(estimate.condition_number)
+    poorly = estimate.poorly_excited(_WELL_EXCITED_RTOL)
+    rejected = None
+    moments = None
+    if not np.all(np.isfinite(tensor)):
+        rejected = "the estimate is not finite"
+    else:
+        moments = np.linalg.eigvalsh(tensor)
+        if moments[0] <= 0.0:
+            rejected = f"not positive definite: principal moments {moments.round(6).tolist()}"
+        elif moments[0] + moments[1] < moments[2]:
+            rejected = (
+                f"principal moments {moments.round(6).tolist()} break the triangle "
+                "inequality (the two smaller must add up to the largest)"
+            )
+        elif poorly:
+            rejected = f"poorly excited by this sequence: {poorly}"
+    shown = rejected is None
+    return {
+        "estimated_inertia_kg_m2": tensor.tolist() if shown else None,
+        "estimated_principal_moments_kg_m2": moments.tolist()
+        if shown and moments is not None
+        else None,
+        "estimated_inertia_std_kg_m2": (
+            {n: float(v) for n, v in zip(PARAMETER_NAMES, std, strict=True)} if shown else None
+        ),
+        "estimate_condition_number": condition if np.isfinite(condition) else None,
+        "estimate_rejected": rejected,
+        "poorly_excited": poorly,
+    }
+
+
+def identify(
+    classifier: CandidateClassifier,
+    telemetry: Telemetry | dict[str, Any],
+    *,
+    confidence: float = DEFAULT_CONFIDENCE,
+) -> Identification:
+    """Classify one telemetry series: a candidate, "ambiguous", "matches none" or "not a
+    response to this sequence", with the posterior behind it.
+
+    :param classifier: fitted classifier that carries its scenario and sequence.
+    :param telemetry: the response to the classifier's sequence.
+    :param confidence: posterior the top candidate needs to be named, in (0, 1).
+    """
+    confidence = _check_probability("confidence", confidence)
+    if not isinstance(telemetry, Telemetry):
+        telemetry = Telemetry.model_validate(telemetry)
+    scenario, sequence = _context(classifier)
     grid = scenario.sample_times(len(sequence))
     series = resample(telemetry, grid)
     distances = classifier.transform(series[None])[0]
-    order = np.argsort(distances)
+    model: Any = classifier
+    candidates, p_none_array = model.posterior_from_distances(distances)
+    p_none = float(p_none_array)
+    order = np.argsort(-candidates, kind="stable")
     best = int(order[0])
-    runner_up = float(distances[order[1]])
+    second = int(order[1])
+    names = classifier.candidate_names_
+    by_distance = np.sort(distances)
+    runner_up = float(by_distance[1])
     margin = runner_up - float(distances[best])
-    threshold = float(classifier.novelty_thresholds()[best])
-    matches_none = bool(distances[best] > threshold)
-    name = classifier.candidate_names_[best]
-    verdict = (
-        f"matches none of the candidates: nearest is {name!r} at distance "
-        f"{distances[best]:.4g}, beyond {threshold:.4g} seen in training"
-        if matches_none
-        else f"{name}"
-    )
-    # The physics baseline's view of the same telemetry: the inertia tensor the
-    # integral-form least squares estimates from it, whatever the classifier's kind.
-    estimate = estimate_inertia(scenario, sequence, series)
-    tensor = np.asarray(estimate.inertia_kg_m2)
-    finite = bool(np.all(np.isfinite(tensor)))
-    condition = float(estimate.condition_number)
+    thresholds = np.asarray(classifier.novelty_thresholds())
+    threshold = float(thresholds[best])
+    beyond_threshold = bool(distances[best] > threshold)
+    not_this_sequence = bool(np.all(distances > NOT_THIS_SEQUENCE_FACTOR * thresholds))
+    top = float(candidates[best])
+    if not_this_sequence:
+        status = "not-this-sequence"
+        verdict = (
+            f"not a response to this sequence: every candidate is more than "
+            f"{NOT_THIS_SEQUENCE_FACTOR:g} times beyond its novelty threshold (nearest "
+            f"{names[int(distances.argmin())]!r} at {distances.min():.4g})"
+        )
+    elif p_none >= top or beyond_threshold:
+        status = "matches-none"
+        verdict = (
+            f"matches none of the candidates: nearest is {names[best]!r} at distance "
+            f"{distances[best]:.4g}, threshold {threshold:.4g} seen in training; "
+            f"P(none) = {p_none:.3g}"
+        )
+    elif top >= confidence:
+        status = "identified"
+        verdict = names[best]
+    else:
+        status = "ambiguous"
+        verdict = (
+            f"ambiguous: {names[best]!r} ({top:.3g}) or {names[second]!r} "
+            f"({float(candidates[second]):.3g}); {confidence:g} needed"
+        )
     return Identification(
         candidate_index=best,
-        candidate=name,
+        candidate=names[best],
         inertia_kg_m2=scenario.inertia_candidates[best].inertia_kg_m2,
-        distances={
-            n: float(d) for n, d in zip(classifier.candidate_names_, distances, strict=True)
-        },
+        distances={n: float(d) for n, d in zip(names, distances, strict=True)},
         margin=margin,
         relative_margin=margin / runner_up if runner_up > 0 else 0.0,
         threshold=threshold,
-        matches_none=matches_none,
+        matches_none=status in ("matches-none", "not-this-sequence"),
         verdict=verdict,
-        estimated_inertia_kg_m2=tensor.tolist() if finite else None,
-        estimated_principal_moments_kg_m2=np.linalg.eigvalsh(tensor).tolist() if finite else None,
-        estimate_condition_number=condition if np.isfinite(condition) else None,
-        poorly_excited=estimate.poorly_excited(),
+        status=status,
+        posterior={n: float(p) for n, p in zip(names, candidates, strict=True)},
+        p_none=p_none,
+        confidence=top,
+        required_confidence=confidence,
+        not_this_sequence=not_this_sequence,
+        **_estimate(scenario, sequence, series),
+    )
+
+
+def posterior_over_time(
+    classifier: CandidateClassifier, series: Any
+) -> tuple[np.ndarray, np.ndarray]:
+    """The posterior after every grid sample of whole series on the classifier's grid:
+    (n, length, K) candidates and (n, length) none (see
+    :meth:`~inertia_id.classifiers.base.BaseClassifier.posterior_over_time`)."""
+    model: Any = classifier
+    return model.posterior_over_time(series)  # type: ignore[no-any-return]
+
+
+def decide(candidates: np.ndarray, alpha: float = DEFAULT_ALPHA) -> tuple[np.ndarray, np.ndarray]:
+    """The stop rule on posterior traces (..., T, K): the first sample at which the top
+    candidate's posterior reaches ``1 - alpha``, -1 if none, and the candidate then.
+
+    If the posteriors are calibrated, a decision taken at posterior >= 1 - alpha is
+    wrong at most alpha of the time, whenever it is taken.
+    """
+    alpha = _check_probability("alpha", alpha)
+    top = candidates.max(axis=-1)
+    reached = top >= 1.0 - alpha
+    first = np.where(reached.any(axis=-1), reached.argmax(axis=-1), -1)
+    at = np.take_along_axis(candidates.argmax(axis=-1), np.maximum(first, 0)[..., None], -1)
+    return first, np.where(first >= 0, at[..., 0], -1)
+
+
+def identify_online(
+    classifier: CandidateClassifier,
+    telemetry: Telemetry | dict[str, Any],
+    *,
+    alpha: float = DEFAULT_ALPHA,
+) -> OnlineIdentification:
+    """The posterior after every sample the telemetry covers, and the decision.
+
+    Telemetry may stop before the sequence ends (a partial downlink, a decision taken
+    on board): it is resampled onto the grid points it covers, and the posterior of
+    each prefix is the exact marginal of the leading block of each candidate's Gaussian.
+
+    :param classifier: a likelihood kind (``marginal-likelihood``, ``likelihood``) that
+        carries its scenario and sequence.
+    :param telemetry: the response to the classifier's sequence, from its start.
+    :param alpha: the error rate accepted: decide when the top posterior >= 1 - alpha.
+    """
+    alpha = _check_probability("alpha", alpha)
+    if not isinstance(telemetry, Telemetry):
+        telemetry = Telemetry.model_validate(telemetry)
+    scenario, sequence = _context(classifier)
+    grid = scenario.sample_times(len(sequence))
+    slack = 0.5 / scenario.timing.sample_rate_hz
+    covered = int(np.sum(grid <= telemetry.time_array[-1] + slack))
+    if covered < 1:
+        raise InputError(
+            f"telemetry ends at {telemetry.time_array[-1]:.6g} s, before the first sample of "
+            f"the sequence at {grid[0]:.6g} s"
+        )
+    partial = resample(telemetry, grid[:covered])
+    # The rest of the series is never looked at (each prefix's posterior is its own
+    # leading block's), so any finite filler serves to make it whole.
+    series = np.zeros((len(grid), 3))
+    series[:covered] = partial
+    candidates, p_none = posterior_over_time(classifier, series[None])
+    candidates, p_none = candidates[0, :covered], p_none[0, :covered]
+    first, chosen = decide(candidates[None], alpha)
+    names = classifier.candidate_names_
+    decided = bool(first[0] >= 0)
+    return OnlineIdentification(
+        time_s=grid[:covered].tolist(),
+        posterior={n: candidates[:, k].tolist() for k, n in enumerate(names)},
+        p_none=p_none.tolist(),
+        alpha=alpha,
+        decided=decided,
+        decision_time_s=float(grid[first[0]]) if decided else None,
+        candidate_index=int(chosen[0]) if decided else None,
+        candidate=names[int(chosen[0])] if decided else None,
+        current={n: float(candidates[-1, k]) for k, n in enumerate(names)},
+        current_p_none=float(p_none[-1]),
+        covers_s=float(grid[covered - 1]),
+        sequence_s=float(grid[-1]),
     )

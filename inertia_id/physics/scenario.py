@@ -352,9 +352,11 @@ class Uncertainty(_Model):
         piecewise constant, redrawn every ``disturbance_interval_s``.
     :param gyro_noise_sigma_rad_s: white gyro noise per axis and sample (rad/s).
     :param gyro_bias_rad_s: constant gyro bias vector (rad/s).
-    :param gyro_bias_sigma_rad_s: random constant bias per realisation and axis (rad/s).
+    :param gyro_bias_sigma_rad_s: random constant bias per realisation and axis (rad/s);
+        default 2e-3, what an uncalibrated MEMS gyro carries between calibrations.
     :param initial_rate_sigma_rad_s: spread of the angular velocity at the start (rad/s);
-        0 starts every realisation at rest.
+        default 5e-3, a spacecraft left drifting after detumbling; 0 starts every
+        realisation at rest.
     """
 
     duty_jitter_sigma: float = Field(default=0.02, ge=0)
@@ -364,8 +366,8 @@ class Uncertainty(_Model):
     disturbance_interval_s: float = Field(default=0.05, gt=0)
     gyro_noise_sigma_rad_s: float = Field(default=1e-3, ge=0)
     gyro_bias_rad_s: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    gyro_bias_sigma_rad_s: float = Field(default=0.0, ge=0)
-    initial_rate_sigma_rad_s: float = Field(default=0.0, ge=0)
+    gyro_bias_sigma_rad_s: float = Field(default=2e-3, ge=0)
+    initial_rate_sigma_rad_s: float = Field(default=5e-3, ge=0)
 
     @field_validator("*", mode="after")
     @classmethod

@@ -315,3 +315,55 @@ def test_a_missing_or_bad_sequence_start_is_422(
     )
     assert late.status_code == 422
     assert "a gap of 1 s before the end of the sequence" in late.json()["detail"][0]["msg"]
+
+
+def test_the_verdict_carries_its_posterior_and_confidence(
+    api: Api, classifier_id: str, flight: SimulationResult
+) -> None:
+    body = {"classifier_id": classifier_id, "telemetry": telemetry(flight, 1), "confidence": 0.9}
+    response = api.post("/identify", json=body)
+    assert response.status_code == 200, response.text
+    result = response.json()
+    assert result["status"] == "identified" and result["required_confidence"] == 0.9
+    assert sum(result["posterior"].values()) + result["p_none"] == pytest.approx(1.0)
+    assert result["confidence"] == max(result["posterior"].values()) >= 0.9
+    bad = api.post("/identify", json={**body, "confidence": 1.5})
+    assert bad.status_code == 422 and "confidence" in bad.text
+
+
+def test_partial_telemetry_and_the_calibration_report(
+    api: Api, classifier_id: str, flight: SimulationResult
+) -> None:
+    partial = {
+        "time_s": flight.time_s[:30].tolist(),
+        "omega_rad_s": flight.omega_measured[0, 0][:30].tolist(),
+    }
+    # The clustering has no Gaussian model of a leading block: the caller is told so.
+    response = api.post(
+        "/identify/partial", json={"classifier_id": classifier_id, "telemetry": partial}
+    )
+    assert response.status_code == 422 and "partial series" in response.text
+    report = api.get(f"/classifiers/{classifier_id}/calibration")
+    assert report.status_code == 200, report.text
+    assert report.json()["temperature"] >= 1.0 and "ece" in report.json()
+    assert api.get("/classifiers/nope/calibration").status_code == 404
+
+
+def test_partial_telemetry_of_a_likelihood_classifier(
+    api: Api, flight: SimulationResult, paper: Scenario
+) -> None:
+    from inertia_id.classifiers.marginal import AXES_GRID, train_marginal
+
+    model = train_marginal(paper, GOOD_SEQUENCE, 10, np.random.default_rng(3), grid=AXES_GRID)
+    found = api.insert_classifier(api.create_scenario()["id"], model)
+    partial = {
+        "time_s": flight.time_s[:60].tolist(),
+        "omega_rad_s": flight.omega_measured[2, 0][:60].tolist(),
+    }
+    response = api.post("/identify/partial", json={"classifier_id": found, "telemetry": partial})
+    assert response.status_code == 200, response.text
+    result = response.json()
+    assert len(result["time_s"]) == 60 and result["covers_s"] == pytest.approx(3.0)
+    assert sum(result["current"].values()) + result["current_p_none"] == pytest.approx(1.0)
+    if result["decided"]:
+        assert result["candidate"] == paper.candidate_names[2]

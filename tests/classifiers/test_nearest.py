@@ -28,6 +28,12 @@ CONFIGS: dict[str, tuple[str, dict[str, Any]]] = {
 }
 
 
+def offsetless(X: np.ndarray) -> np.ndarray:
+    """Series with each axis' mean removed: what a distance kind compares
+    (``BaseClassifier.REMOVES_OFFSET``)."""
+    return np.asarray(X - X.mean(axis=-2, keepdims=True))
+
+
 @pytest.fixture(scope="module")
 def trained(paper: Scenario) -> dict[str, SupervisedClassifier]:
     """Every configuration, trained once per module. Tests must not mutate them."""
@@ -57,7 +63,8 @@ def test_1nn_euclidean_matches_brute_force(
 ) -> None:
     model = trained["1nn-euclidean"]
     X_train, y_train = good_training
-    X, _ = good_fresh.dataset()
+    X_train = offsetless(X_train)
+    X = offsetless(good_fresh.dataset()[0])
     pairwise = np.sqrt(((X[:, None] - X_train[None]) ** 2).sum(axis=(2, 3)))
     per_candidate = np.stack([pairwise[:, y_train == k].min(axis=1) for k in range(5)], axis=1)
     np.testing.assert_allclose(model.transform(X), per_candidate, rtol=1e-12)
@@ -81,9 +88,10 @@ def test_nearest_centroid_euclidean_centroid_is_the_class_mean(
     model = trained["centroid-euclidean"]
     assert isinstance(model, NearestCentroidClassifier)
     X_train, y_train = good_training
+    X_train = offsetless(X_train)
     means = np.stack([X_train[y_train == k].mean(axis=0) for k in range(5)])
     np.testing.assert_allclose(model.centroids_, means, rtol=1e-13, atol=1e-18)
-    X, _ = good_fresh.dataset()
+    X = offsetless(good_fresh.dataset()[0])
     expected = np.sqrt(((X[:, None] - means[None]) ** 2).sum(axis=(2, 3)))
     np.testing.assert_allclose(model.transform(X), expected, rtol=1e-12)
 
@@ -95,7 +103,7 @@ def test_dba_centroid_fits_its_candidate_better_than_the_mean(
     assert isinstance(model, NearestCentroidClassifier)
     X_train, y_train = good_training
     for k in range(5):
-        members = X_train[y_train == k]
+        members = offsetless(X_train[y_train == k])
         to_dba = np.mean(cdist_dtw(members, model.centroids_[k][None]) ** 2)
         to_mean = np.mean(cdist_dtw(members, members.mean(axis=0)[None]) ** 2)
         assert to_dba < to_mean

@@ -219,12 +219,18 @@ def test_each_source_scales_its_own_level_and_a_zero_level_uses_the_reference(
         "gyro_bias": REFERENCE_LEVELS["gyro_bias"],
     }
     assert result.units["gyro_bias"] == "rad/s"
-    for noise in ("jitter", "thrust_scale", "gyro_bias"):
+    for noise in ("jitter", "thrust_scale"):
         clean, noisy = result.curve(noise)
         assert (clean.value, noisy.value) == (0.0, 8 * result.levels[noise])
-        # Eight times the 1x level of any of these confounds the candidates (5-15 %
-        # apart): accuracy falls by far more than its interval.
+        # Eight times the 1x level of either confounds the candidates (5-15 % apart):
+        # accuracy falls by far more than its interval.
         assert noisy.ci_high < clean.ci_low, noise
+    # A constant gyro bias is an offset per axis, which the Euclidean clustering removes
+    # before comparing (BaseClassifier.REMOVES_OFFSET): eight times its reference level
+    # costs it nothing beyond the interval.
+    clean, noisy = result.curve("gyro_bias")
+    assert (clean.value, noisy.value) == (0.0, 8 * result.levels["gyro_bias"])
+    assert noisy.ci_high >= clean.ci_low
 
 
 def test_thrust_scale_error_is_drawn_into_the_simulation(paper: Scenario) -> None:

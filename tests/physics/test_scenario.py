@@ -95,7 +95,14 @@ def test_paper_preset_values(paper: Scenario) -> None:
         check_inertia_tensor(tensors[i])
         for j in range(i):
             assert np.abs(tensors[i] - tensors[j]).max() > 0.5
-    assert paper == Scenario.paper() == preset("paper")
+    # The fixture starts from rest with an unbiased gyro; the preset ships real drift.
+    shipped = Scenario.paper()
+    assert shipped == preset("paper")
+    assert paper == shipped.with_uncertainty(
+        initial_rate_sigma_rad_s=0.0, gyro_bias_sigma_rad_s=0.0
+    )
+    assert shipped.uncertainty.initial_rate_sigma_rad_s == 5e-3
+    assert shipped.uncertainty.gyro_bias_sigma_rad_s == 2e-3
     assert sorted(PRESETS) == ["paper"]
 
 
