@@ -35,16 +35,14 @@ def paper() -> Scenario:
     """The paper preset (5 candidates, 6 thrusters, 5 levels) started from rest with an
     unbiased gyro, the paper's premise that most tests' figures rest on. Frozen, so
     shareable."""
-    return Scenario.paper().with_uncertainty(
-        initial_rate_sigma_rad_s=0.0, gyro_bias_sigma_rad_s=0.0
-    )
+    return Scenario.paper()
 
 
 @pytest.fixture(scope="session")
 def drifting_paper() -> Scenario:
-    """The paper preset as it ships: initial body rates (5e-3 rad/s) and constant gyro
-    biases (2e-3 rad/s) drawn per realisation and axis."""
-    return Scenario.paper()
+    """The paper's spacecraft in orbit (preset ``paper-in-orbit``): initial body rates
+    (5e-3 rad/s) and constant gyro biases (2e-3 rad/s) drawn per realisation and axis."""
+    return preset("paper-in-orbit")
 
 
 @pytest.fixture(scope="session")

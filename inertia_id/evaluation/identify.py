@@ -65,7 +65,10 @@ DEFAULT_ALPHA = 1e-3
 NOT_THIS_SEQUENCE_FACTOR = 5.0
 #: An estimated parameter is shown when its standard error is below this fraction of
 #: the mean principal moment (the rule of ``InertiaEstimate.poorly_excited``).
-_WELL_EXCITED_RTOL = 0.01
+# 2 %: a sequence that drives each axis and each pair (the CLI test's six steps) gives
+# formal errors of 0.5-1.1 % of the mean moment and an estimate within 3 % of the truth;
+# the hand-designed diagonal sequence gives 6-14 % and an estimate 60 % off.
+_WELL_EXCITED_RTOL = 0.02
 
 
 class Identification(BaseModel):
@@ -141,7 +144,7 @@ def _estimate(scenario: Scenario, sequence: np.ndarray, series: np.ndarray) -> d
     """The least-squares tensor, shown only when physically valid and well excited.
 
     Valid: finite, positive definite, principal moments satisfying the triangle
-    inequality. Well excited: every parameter's standard error within 1 % of the mean
+    inequality. Well excited: every parameter's standard error within 2 % of the mean
     principal moment. Otherwise the tensor is withheld (None) and the reason given,
     with the parameters this sequence cannot see.
     """

