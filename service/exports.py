@@ -138,6 +138,65 @@ def _search_baselines(result: Mapping[str, Any]) -> Table:
     return Table(header, rows)
 
 
+_FRONT_FIGURES = (
+    "accuracy",
+    "final_rate_rad_s",
+    "final_rate_deg_s",
+    "peak_rate_rad_s",
+    "peak_rate_deg_s",
+    "impulse_nms",
+    "on_time_s",
+    "propellant_kg",
+    "duration_s",
+    "attitude_change_deg",
+)
+
+
+def _search_front(result: Mapping[str, Any]) -> Table:
+    """The front's members, then the baselines, on the same fresh draw: one row each."""
+    front = result.get("front") or {}
+    rows: list[list[Any]] = []
+    for member in front.get("members") or []:
+        scores = member.get("scores") or {}
+        rows.append(
+            [
+                "member",
+                member.get("index"),
+                *(scores.get(k) for k in _FRONT_FIGURES),
+                member.get("feasible"),
+                ";".join(member.get("dominated_by") or []),
+                "",
+                member.get("sequence"),
+            ]
+        )
+    for name, base in (front.get("baselines") or {}).items():
+        if "unavailable" in base:
+            continue
+        scores = base.get("scores") or {}
+        dominates = ";".join(str(i) for i in base.get("dominates") or [])
+        rows.append(
+            [
+                "baseline",
+                name,
+                *(scores.get(k) for k in _FRONT_FIGURES),
+                base.get("feasible"),
+                "",
+                dominates,
+                base.get("sequence"),
+            ]
+        )
+    header = [
+        "kind",
+        "member",
+        *_FRONT_FIGURES,
+        "feasible",
+        "dominated_by",
+        "dominates_members",
+        "sequence",
+    ]
+    return Table(header, rows)
+
+
 # Train.
 
 
@@ -214,6 +273,11 @@ RESULT_TABLES: dict[str, dict[str, tuple[str, Callable[[Mapping[str, Any]], Tabl
         "baselines": (
             "the best sequence beside the baselines, same fresh draws",
             _search_baselines,
+        ),
+        "front": (
+            "the front's members (index, fresh scores, rates in rad/s and deg/s, attitude "
+            "change) and the baselines on the same fresh draw",
+            _search_front,
         ),
     },
     "train": {

@@ -9,6 +9,7 @@ key in the database makes this hold for submissions that race each other too.
 
 from __future__ import annotations
 
+import functools
 import json
 import logging
 from typing import Annotated, Any, Literal
@@ -591,4 +592,6 @@ async def job_plan(
             )
         sequence = found[0]["sequence"]
     gate = request.app.state.compute_gate
-    return await gate.run(plan_for, database, scenario_id, sequence, format, parsed=True)
+    # The gate passes positional arguments only.
+    planned = functools.partial(plan_for, parsed=True)
+    return await gate.run(planned, database, scenario_id, sequence, format)
