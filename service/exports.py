@@ -1,8 +1,9 @@
 """Results as tables: what a CSV download of a job's result (or a verdict) holds.
 
 Each job type names its tables once, here (:data:`RESULT_TABLES`, served in ``GET
-/vocabulary``); ``GET /jobs/{id}/result?format=csv&table=NAME`` writes one of them and
-the dashboard's download buttons list them. A new table is one function and one entry.
+/vocabulary``); ``GET /jobs/{id}/result?format=csv&table=NAME`` writes one of them
+(``format=json``: its rows as objects, :func:`to_records`) and the dashboard's download
+buttons list them. A new table is one function and one entry.
 
 Pure: result dictionaries (as the worker stores them) in, :class:`Table` out. Thrusters
 and steps are numbered from 1, as on the dashboard and in the report.
@@ -19,7 +20,15 @@ from typing import Any
 
 from inertia_id.errors import InputError
 
-__all__ = ["RESULT_TABLES", "Table", "identify_table", "metrics_table", "result_table", "to_csv"]
+__all__ = [
+    "RESULT_TABLES",
+    "Table",
+    "identify_table",
+    "metrics_table",
+    "result_table",
+    "to_csv",
+    "to_records",
+]
 
 
 @dataclass(frozen=True)
@@ -48,6 +57,11 @@ def to_csv(table: Table) -> str:
     for row in table.rows:
         writer.writerow([_cell(v) for v in row])
     return out.getvalue()
+
+
+def to_records(table: Table) -> list[dict[str, Any]]:
+    """The table as JSON data: one object per row, keyed by the header (lists kept)."""
+    return [dict(zip(table.header, row, strict=True)) for row in table.rows]
 
 
 def _mean(values: Any) -> float | None:
@@ -164,8 +178,8 @@ def _search_front(result: Mapping[str, Any]) -> Table:
                 member.get("index"),
                 *(scores.get(k) for k in _FRONT_FIGURES),
                 member.get("feasible"),
-                ";".join(member.get("dominated_by") or []),
-                "",
+                list(member.get("dominated_by") or []),
+                [],
                 member.get("sequence"),
             ]
         )
@@ -173,15 +187,14 @@ def _search_front(result: Mapping[str, Any]) -> Table:
         if "unavailable" in base:
             continue
         scores = base.get("scores") or {}
-        dominates = ";".join(str(i) for i in base.get("dominates") or [])
         rows.append(
             [
                 "baseline",
                 name,
                 *(scores.get(k) for k in _FRONT_FIGURES),
                 base.get("feasible"),
-                "",
-                dominates,
+                [],
+                list(base.get("dominates") or []),
                 base.get("sequence"),
             ]
         )

@@ -316,6 +316,20 @@ def test_a_front_downloads_as_csv_its_members_plan_by_index_and_a_member_trains(
     )
     available = [n for n, b in result["front"]["baselines"].items() if "unavailable" not in b]
     assert [r[column["member"]] for r in body if r[column["kind"]] == "baseline"] == available
+    # The same table as JSON: one object per row, lists kept as lists.
+    records = api.get(f"/jobs/{job_id}/result?format=json&table=front")
+    assert records.status_code == 200
+    assert f'filename="search-{job_id[:8]}-front.json"' in records.headers["content-disposition"]
+    objects = records.json()
+    assert [o["member"] for o in objects if o["kind"] == "member"] == [m["index"] for m in members]
+    for row, member in zip(objects[: len(members)], members, strict=True):
+        assert row["sequence"] == member["sequence"]
+        assert row["dominated_by"] == member["dominated_by"]
+        assert row["attitude_change_deg"] == member["scores"]["attitude_change_deg"]
+    bases = [o for o in objects if o["kind"] == "baseline"]
+    assert [o["dominates_members"] for o in bases] == [
+        result["front"]["baselines"][o["member"]]["dominates"] for o in bases
+    ]
 
     # The plan of one member: its sequence, attitude change per candidate, as JSON and CSV.
     chosen = members[-1]
