@@ -396,10 +396,18 @@ def _download(content: str, media_type: str, filename: str) -> Response:
     responses={
         200: {
             "content": {
-                "application/json": {"schema": {"type": "object"}},
+                "application/json": {
+                    "schema": {
+                        "anyOf": [
+                            {"type": "object"},
+                            {"type": "array", "items": {"type": "object"}},
+                        ]
+                    }
+                },
                 "text/csv": {"schema": {"type": "string"}},
             },
-            "description": "the result as a file (Content-Disposition: attachment)",
+            "description": "the result as a file (Content-Disposition: attachment): the "
+            "job with its whole result, or a named table's rows",
         },
         **_NOT_FOUND,
         409: {"description": "the job has no result (yet)"},

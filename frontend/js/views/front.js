@@ -220,6 +220,15 @@ async function planBlob(job, index, format) {
 // candidate: residual rate and attitude change) and the plan's downloads.
 async function showMember(holder, job, member, context) {
   clear(holder);
+  if (job.status !== "succeeded") {
+    // The service plans and trains on a finished search only.
+    holder.append(
+      h("h3", {}, `Member ${member.index}`),
+      h("p", {}, "Sequence (level indices): ", h("span", { class: "mono", id: "front-member-sequence" }, sequenceText(member.sequence))),
+      messageBox("notice", `This search is ${job.status}: its command plans and training on a member are offered once a search succeeds.`),
+    );
+    return;
+  }
   const notice = h("div", { id: "front-train-notice" });
   const train = h(
     "button",
