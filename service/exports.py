@@ -1,8 +1,9 @@
 """Results as tables: what a CSV download of a job's result (or a verdict) holds.
 
 Each job type names its tables once, here (:data:`RESULT_TABLES`, served in ``GET
-/vocabulary``); ``GET /jobs/{id}/result?format=csv&table=NAME`` writes one of them and
-the dashboard's download buttons list them. A new table is one function and one entry.
+/vocabulary``); ``GET /jobs/{id}/result?format=csv&table=NAME`` writes one of them
+(``format=json``: its rows as objects, :func:`to_records`) and the dashboard's download
+buttons list them. A new table is one function and one entry.
 
 Pure: result dictionaries (as the worker stores them) in, :class:`Table` out. Thrusters
 and steps are numbered from 1, as on the dashboard and in the report.
@@ -19,7 +20,15 @@ from typing import Any
 
 from inertia_id.errors import InputError
 
-__all__ = ["RESULT_TABLES", "Table", "identify_table", "metrics_table", "result_table", "to_csv"]
+__all__ = [
+    "RESULT_TABLES",
+    "Table",
+    "identify_table",
+    "metrics_table",
+    "result_table",
+    "to_csv",
+    "to_records",
+]
 
 
 @dataclass(frozen=True)
@@ -48,6 +57,11 @@ def to_csv(table: Table) -> str:
     for row in table.rows:
         writer.writerow([_cell(v) for v in row])
     return out.getvalue()
+
+
+def to_records(table: Table) -> list[dict[str, Any]]:
+    """The table as JSON data: one object per row, keyed by the header (lists kept)."""
+    return [dict(zip(table.header, row, strict=True)) for row in table.rows]
 
 
 def _mean(values: Any) -> float | None:
@@ -138,6 +152,64 @@ def _search_baselines(result: Mapping[str, Any]) -> Table:
     return Table(header, rows)
 
 
+_FRONT_FIGURES = (
+    "accuracy",
+    "final_rate_rad_s",
+    "final_rate_deg_s",
+    "peak_rate_rad_s",
+    "peak_rate_deg_s",
+    "impulse_nms",
+    "on_time_s",
+    "propellant_kg",
+    "duration_s",
+    "attitude_change_deg",
+)
+
+
+def _search_front(result: Mapping[str, Any]) -> Table:
+    """The front's members, then the baselines, on the same fresh draw: one row each."""
+    front = result.get("front") or {}
+    rows: list[list[Any]] = []
+    for member in front.get("members") or []:
+        scores = member.get("scores") or {}
+        rows.append(
+            [
+                "member",
+                member.get("index"),
+                *(scores.get(k) for k in _FRONT_FIGURES),
+                member.get("feasible"),
+                list(member.get("dominated_by") or []),
+                [],
+                member.get("sequence"),
+            ]
+        )
+    for name, base in (front.get("baselines") or {}).items():
+        if "unavailable" in base:
+            continue
+        scores = base.get("scores") or {}
+        rows.append(
+            [
+                "baseline",
+                name,
+                *(scores.get(k) for k in _FRONT_FIGURES),
+                base.get("feasible"),
+                [],
+                list(base.get("dominates") or []),
+                base.get("sequence"),
+            ]
+        )
+    header = [
+        "kind",
+        "member",
+        *_FRONT_FIGURES,
+        "feasible",
+        "dominated_by",
+        "dominates_members",
+        "sequence",
+    ]
+    return Table(header, rows)
+
+
 # Train.
 
 
@@ -214,6 +286,11 @@ RESULT_TABLES: dict[str, dict[str, tuple[str, Callable[[Mapping[str, Any]], Tabl
         "baselines": (
             "the best sequence beside the baselines, same fresh draws",
             _search_baselines,
+        ),
+        "front": (
+            "the front's members (index, fresh scores, rates in rad/s and deg/s, attitude "
+            "change) and the baselines on the same fresh draw",
+            _search_front,
         ),
     },
     "train": {

@@ -9,6 +9,7 @@ key in the database makes this hold for submissions that race each other too.
 
 from __future__ import annotations
 
+import functools
 import json
 import logging
 from typing import Annotated, Any, Literal
@@ -19,7 +20,7 @@ from sqlalchemy import ColumnElement, func, or_, select
 
 from inertia_id.errors import InputError
 from inertia_id.physics.scenario import Scenario
-from service.exports import RESULT_TABLES, metrics_table, result_table, to_csv
+from service.exports import RESULT_TABLES, metrics_table, result_table, to_csv, to_records
 from service.queue import RUN_JOB_TASK
 from service.store import jobs as job_store
 from service.store.models import (
@@ -395,10 +396,18 @@ def _download(content: str, media_type: str, filename: str) -> Response:
     responses={
         200: {
             "content": {
-                "application/json": {"schema": {"type": "object"}},
+                "application/json": {
+                    "schema": {
+                        "anyOf": [
+                            {"type": "object"},
+                            {"type": "array", "items": {"type": "object"}},
+                        ]
+                    }
+                },
                 "text/csv": {"schema": {"type": "string"}},
             },
-            "description": "the result as a file (Content-Disposition: attachment)",
+            "description": "the result as a file (Content-Disposition: attachment): the "
+            "job with its whole result, or a named table's rows",
         },
         **_NOT_FOUND,
         409: {"description": "the job has no result (yet)"},
@@ -412,16 +421,18 @@ def download_result(
         str | None,
         Query(
             max_length=64,
-            description="with csv: which table of the job type's (GET /vocabulary "
-            "result_tables); default the first",
+            description="which table of the job type's (GET /vocabulary result_tables): "
+            "with csv, default the first; with json, that table's rows as objects instead "
+            "of the whole result",
             json_schema_extra={"enum": _TABLE_NAMES},
         ),
     ] = None,
 ) -> Response:
     """A job's result as a file: JSON (the job's labels and parameters with the whole
-    result) or one of its tables as CSV (a search's summary, curve, sequence and
-    baselines; a training's summary, confusion matrix and sequence; a sweep's points,
-    confusion matrices and bodies off the candidates)."""
+    result) or one of its tables as CSV, or as JSON (one object per row) when ``table`` is
+    named with ``format=json`` (a search's summary, curve, sequence, baselines and front;
+    a training's summary, confusion matrix and sequence; a sweep's points, confusion
+    matrices and bodies off the candidates)."""
     job = get_or_404(session, JobRow, job_id, "job")
     if job.result is None:
         raise HTTPException(
@@ -430,7 +441,7 @@ def download_result(
         )
     out = JobOut.model_validate(job)
     stem = f"{job.type}-{job.id[:8]}"
-    if format == "json":
+    if format == "json" and table is None:
         document = out.model_dump(mode="json", exclude={"config_hash"})
         return _download(
             json.dumps(document, indent=1, allow_nan=False), "application/json", f"{stem}.json"
@@ -440,6 +451,9 @@ def download_result(
     except InputError as exc:
         unprocessable(("query", "table"), str(exc))
     name = table or "table"
+    if format == "json":
+        records = json.dumps(to_records(rendered), indent=1, allow_nan=False)
+        return _download(records, "application/json", f"{stem}-{name}.json")
     return _download(to_csv(rendered), "text/csv; charset=utf-8", f"{stem}-{name}.csv")
 
 
@@ -591,4 +605,6 @@ async def job_plan(
             )
         sequence = found[0]["sequence"]
     gate = request.app.state.compute_gate
-    return await gate.run(plan_for, database, scenario_id, sequence, format, parsed=True)
+    # The gate passes positional arguments only.
+    planned = functools.partial(plan_for, parsed=True)
+    return await gate.run(planned, database, scenario_id, sequence, format)

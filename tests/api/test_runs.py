@@ -269,11 +269,97 @@ def test_a_search_result_downloads_as_json_and_as_each_csv_table(api: Api) -> No
     baselines = _csv(api.get(f"/jobs/{job_id}/result?format=csv&table=baselines").text)
     assert [r[0] for r in baselines[1:]] == ["found by the search", "hand-designed"]
 
-    bad = api.get(f"/jobs/{job_id}/result", params={"format": "csv", "table": "front"})
-    assert bad.status_code == 422 and "'front'" in bad.text and "curve" in bad.text
+    bad = api.get(f"/jobs/{job_id}/result", params={"format": "csv", "table": "ranking"})
+    assert bad.status_code == 422 and "'ranking'" in bad.text and "front" in bad.text
     assert api.get(f"/jobs/{job_id}/result", params={"format": "xml"}).status_code == 422
     queued = api.submit("search", scenario_id, seed=7).json()["id"]
     assert api.get(f"/jobs/{queued}/result").status_code == 409
+
+
+def _with_front(sequences: list[Any]) -> dict[str, Any]:
+    """A search result holding a real front of ``sequences`` (paper scenario, small draw)."""
+    from inertia_id.search import OperatorSettings, build_front
+
+    front = build_front(
+        Scenario.paper(),
+        sequences,
+        OperatorSettings(n_realisations=3),
+        seed=4,
+        fresh_realisations=3,
+        keep_infeasible=True,
+    )
+    return {**_search_result([1.0, 0.8], 20.0, 3.5), "front": front.to_dict()}
+
+
+def test_a_front_downloads_as_csv_its_members_plan_by_index_and_a_member_trains(
+    api: Api,
+) -> None:
+    scenario_id = api.create_scenario()["id"]
+    brake = [[4, 4, 4, 0, 0, 0], [0, 0, 0, 4, 4, 4]]
+    result = _with_front([[[4, 4, 4, 0, 0, 0]] * 2, brake, [[4, 0, 0, 0, 0, 0]] * 2])
+    members = result["front"]["members"]
+    assert len(members) >= 2
+    job_id = _finished(api, scenario_id, 0, result)
+
+    rows = _csv(api.get(f"/jobs/{job_id}/result?format=csv&table=front").text)
+    header, body = rows[0], rows[1:]
+    column = {name: i for i, name in enumerate(header)}
+    listed = [r for r in body if r[column["kind"]] == "member"]
+    assert [int(r[column["member"]]) for r in listed] == [m["index"] for m in members]
+    for row, member in zip(listed, members, strict=True):
+        for figure in ("accuracy", "final_rate_rad_s", "final_rate_deg_s", "attitude_change_deg"):
+            assert float(row[column[figure]]) == member["scores"][figure]
+        assert json.loads(row[column["sequence"]]) == member["sequence"]
+    # Rates in deg/s are the rad/s ones converted.
+    assert float(listed[0][column["final_rate_deg_s"]]) == pytest.approx(
+        np.degrees(float(listed[0][column["final_rate_rad_s"]]))
+    )
+    available = [n for n, b in result["front"]["baselines"].items() if "unavailable" not in b]
+    assert [r[column["member"]] for r in body if r[column["kind"]] == "baseline"] == available
+    # The same table as JSON: one object per row, lists kept as lists.
+    records = api.get(f"/jobs/{job_id}/result?format=json&table=front")
+    assert records.status_code == 200
+    assert f'filename="search-{job_id[:8]}-front.json"' in records.headers["content-disposition"]
+    objects = records.json()
+    assert [o["member"] for o in objects if o["kind"] == "member"] == [m["index"] for m in members]
+    for row, member in zip(objects[: len(members)], members, strict=True):
+        assert row["sequence"] == member["sequence"]
+        assert row["dominated_by"] == member["dominated_by"]
+        assert row["attitude_change_deg"] == member["scores"]["attitude_change_deg"]
+    bases = [o for o in objects if o["kind"] == "baseline"]
+    assert [o["dominates_members"] for o in bases] == [
+        result["front"]["baselines"][o["member"]]["dominates"] for o in bases
+    ]
+
+    # The plan of one member: its sequence, attitude change per candidate, as JSON and CSV.
+    chosen = members[-1]
+    plan = api.get_with_key(f"/jobs/{job_id}/plan", params={"member": chosen["index"]})
+    assert plan.status_code == 200, plan.text
+    document = plan.json()
+    assert document["sequence"] == chosen["sequence"]
+    assert len(document["candidates"]) == 5
+    assert max(c["attitude_change_deg"] for c in document["candidates"]) > 0
+    as_csv = api.get_with_key(
+        f"/jobs/{job_id}/plan", params={"member": chosen["index"], "format": "csv"}
+    )
+    assert as_csv.status_code == 200 and as_csv.headers["content-type"].startswith("text/csv")
+    assert "# scenario:" in as_csv.text
+    missing = api.get_with_key(f"/jobs/{job_id}/plan", params={"member": len(members)})
+    assert missing.status_code == 422 and f"no front member {len(members)}" in missing.text
+    assert api.get(f"/jobs/{job_id}/plan", params={"member": 0}).status_code == 401
+
+    # Training on a member: the API fills in its sequence.
+    train = api.submit(
+        "train",
+        scenario_id,
+        params={"search_job_id": job_id, "front_member": chosen["index"]},
+    )
+    assert train.status_code == 202, train.text
+    assert train.json()["params"]["sequence"] == chosen["sequence"]
+    wrong = api.submit(
+        "train", scenario_id, params={"search_job_id": job_id, "front_member": len(members)}
+    )
+    assert wrong.status_code == 422 and "front_member" in wrong.text
 
 
 def test_a_sweep_result_downloads_its_points_and_confusion_matrices(api: Api) -> None:
@@ -392,6 +478,7 @@ def test_the_vocabulary_names_every_summary_column_and_result_table(api: Api) ->
         "curve",
         "sequence",
         "baselines",
+        "front",
     ]
     assert {t["name"] for t in words["result_tables"]["sweep"]} >= {"points", "confusion"}
 

@@ -278,6 +278,7 @@ def test_a_search_curve_gains_points_while_ppo_runs(dashboard: Dashboard) -> Non
         "CSV: curve",
         "CSV: sequence",
         "CSV: baselines",
+        "CSV: front",
         "CSV: metrics",
     ]
     with page.expect_download() as download:
@@ -602,12 +603,212 @@ def test_a_cancel_asks_first_then_cancels(dashboard: Dashboard) -> None:
     assert dashboard.service.job(job_id)["status"] == "cancelled"
 
 
+FRONT_FIGURES = (
+    "accuracy",
+    "final_rate_deg_s",
+    "final_rate_rad_s",
+    "peak_rate_deg_s",
+    "impulse_nms",
+    "on_time_s",
+    "duration_s",
+    "attitude_change_deg",
+)
+
+
+def _finished_search(dashboard: Dashboard, params: dict[str, Any], name: str) -> dict[str, Any]:
+    """A search submitted through the API (the scenario of the earlier tests, or a new
+    one from the preset when this test runs alone), once it has succeeded."""
+    service = dashboard.service
+    # The plan needs the key (the first test saves it; this one may run alone).
+    dashboard.open("#/jobs")
+    dashboard.page.evaluate("key => localStorage.setItem('inertia-id-api-key', key)", API_KEY)
+    if "scenario" not in made:
+        created = service.client.post("/scenarios", json={"preset": "paper"})
+        assert created.status_code == 201, created.text
+        made["scenario"] = created.json()["id"]
+    answer = service.client.post(
+        "/jobs",
+        json={
+            "type": "search",
+            "scenario_id": made["scenario"],
+            "seed": 0,
+            "name": name,
+            "params": params,
+        },
+    )
+    assert answer.status_code in (200, 202), answer.text
+    job_id = answer.json()["id"]
+    service.until(lambda: service.job(job_id)["status"] in TERMINAL, 240, f"{name} ends")
+    job = service.job(job_id)
+    assert job["status"] == "succeeded", job
+    return job
+
+
+def _cells(dashboard: Dashboard, selector: str) -> list[dict[str, str]]:
+    """Each row's number cells (data-key -> data-value, the value as stored)."""
+    return list(
+        dashboard.page.eval_on_selector_all(
+            f"{selector} tbody tr",
+            "rows => rows.map((r) => Object.fromEntries([...r.querySelectorAll('td[data-key]')]"
+            ".map((td) => [td.dataset.key, td.dataset.value ?? td.textContent])))",
+        )
+    )
+
+
+def test_a_pareto_front_is_drawn_beside_the_baselines_and_a_member_plans_and_trains(
+    dashboard: Dashboard,
+) -> None:
+    page = dashboard.page
+    service = dashboard.service
+    job = _finished_search(
+        dashboard,
+        {
+            "method": "nsga2",
+            "n_realisations": 10,
+            "nsga2": {"population": 16, "generations": 4},
+            "fresh_realisations": 10,
+        },
+        "small NSGA-II",
+    )
+    made["nsga2"] = job_id = job["id"]
+    front = job["result"]["front"]
+    members = front["members"]
+    assert len(members) >= 3
+    dashboard.open(f"#/jobs/{job_id}")
+    page.wait_for_selector("#front-plan-table", timeout=60_000)
+    assert "Pareto front" in page.inner_text("#front-card h2")
+
+    # The chart: every member at (residual rate in deg/s, predicted accuracy), each
+    # available baseline its own trace with its own symbol, under its name.
+    traces = page.evaluate(
+        "() => document.getElementById('front-plot').data.map((t) => "
+        "({name: t.name, x: t.x, y: t.y, symbol: t.marker.symbol, index: t.customdata}))"
+    )
+    drawn = dict(
+        zip(traces[0]["index"], zip(traces[0]["x"], traces[0]["y"], strict=True), strict=True)
+    )
+    assert drawn == {
+        m["index"]: (m["scores"]["final_rate_deg_s"], m["scores"]["accuracy"]) for m in members
+    }
+    available = {n: b for n, b in front["baselines"].items() if "unavailable" not in b}
+    assert "fire-then-brake" in available
+    baseline_traces = traces[1 : 1 + len(available)]
+    assert [t["name"].split(":")[0] for t in baseline_traces] == list(available)
+    assert len({t["symbol"] for t in baseline_traces}) == len(available)
+    for trace, base in zip(baseline_traces, available.values(), strict=True):
+        assert trace["x"] == [base["scores"]["final_rate_deg_s"]]
+        assert trace["y"] == [base["scores"]["accuracy"]]
+
+    # The table holds the job's own figures, rates in deg/s and rad/s.
+    rows = _cells(dashboard, "#front-table")
+    assert [int(r["index"]) for r in rows] == [m["index"] for m in members]
+    for row, member in zip(rows, members, strict=True):
+        for key in FRONT_FIGURES:
+            assert float(row[key]) == member["scores"][key], (key, row, member)
+    baselines = _cells(dashboard, "#front-baselines")
+    assert len(baselines) == len(available)
+    for row, base in zip(baselines, available.values(), strict=True):
+        assert float(row["accuracy"]) == base["scores"]["accuracy"]
+        assert float(row["final_rate_rad_s"]) == base["scores"]["final_rate_rad_s"]
+    assert (page.query_selector("#front-dominated") is not None) == front["dominated_by_baseline"]
+
+    # Choose the last member: its plan (per candidate: residual rate, attitude change),
+    # downloaded as CSV and JSON.
+    chosen = members[-1]
+    page.click(f"#front-table tr[data-member='{chosen['index']}'] td[data-key='accuracy']")
+    page.wait_for_function(
+        "(seq) => document.getElementById('front-member-sequence')?.textContent === seq",
+        arg=json.dumps(chosen["sequence"], separators=(",", ":")),
+    )
+    page.wait_for_selector("#front-plan-table")
+    assert page.is_checked(f"#front-table input[value='{chosen['index']}']")
+    plan = service.client.get(f"/jobs/{job_id}/plan", params={"member": chosen["index"]}).json()
+    shown = _cells(dashboard, "#front-plan-table")
+    assert [float(r["attitude_change_deg"]) for r in shown] == [
+        c["attitude_change_deg"] for c in plan["candidates"]
+    ]
+    assert (
+        page.evaluate(
+            "() => { const d = document.getElementById('front-plot').data; "
+            "return d[d.length - 1].x[0] }"
+        )
+        == chosen["scores"]["final_rate_deg_s"]
+    )
+    with page.expect_download() as download:
+        page.click("#front-plan-downloads button[data-download='JSON']")
+    assert download.value.suggested_filename.endswith(f"member-{chosen['index']}.json")
+    saved = json.loads(Path(download.value.path()).read_text(encoding="utf-8"))
+    assert saved["sequence"] == chosen["sequence"]
+    with page.expect_download() as download:
+        page.click("#front-plan-downloads button[data-download='CSV']")
+    lines = Path(download.value.path()).read_text(encoding="utf-8").splitlines()
+    assert lines[0].startswith("# scenario:")
+    assert sum(1 for line in lines if not line.startswith("#")) == 1 + len(chosen["sequence"])
+    # The front itself: its members and the baselines, one object (or CSV row) each.
+    with page.expect_download() as download:
+        page.click("#front-downloads a[data-download='JSON']")
+    saved = json.loads(Path(download.value.path()).read_text(encoding="utf-8"))
+    assert [r["sequence"] for r in saved if r["kind"] == "member"] == [
+        m["sequence"] for m in members
+    ]
+    assert [r["member"] for r in saved if r["kind"] == "baseline"] == list(available)
+    with page.expect_download() as download:
+        page.click("#front-downloads a[data-download='CSV']")
+    lines = Path(download.value.path()).read_text(encoding="utf-8").splitlines()
+    assert lines[0].startswith("kind,member,accuracy,final_rate_rad_s,final_rate_deg_s")
+    assert len(lines) == 1 + len(members) + len(available)
+    dashboard.screenshot("search-front")
+
+    # Train on it: a train job on the same scenario with the member's sequence.
+    page.click("#front-train")
+    page.wait_for_function(f"() => !location.hash.includes('{job_id}')")
+    train_id = _hash_id(dashboard, "jobs")
+    train = service.job(train_id)
+    assert train["type"] == "train" and train["scenario_id"] == job["scenario_id"]
+    assert train["params"]["sequence"] == chosen["sequence"]
+    assert train["params"]["front_member"] == chosen["index"]
+    # The worker is shared with the later tests: this training is not needed to finish.
+    service.client.post(f"/jobs/{train_id}/cancel")
+    service.until(lambda: service.job(train_id)["status"] in TERMINAL, 120, "the training ends")
+
+
+def test_a_baseline_that_dominates_the_best_sequence_is_flagged(dashboard: Dashboard) -> None:
+    page = dashboard.page
+    # Two random sequences: the hand-designed fire-then-brake and fire-coast-brake do
+    # better on every objective (accuracy, residual rate, impulse) on the fresh draw.
+    job = _finished_search(
+        dashboard,
+        {"method": "random", "timesteps": 8, "n_realisations": 10, "fresh_realisations": 10},
+        "two random sequences",
+    )
+    front = job["result"]["front"]
+    assert front["dominated_by_baseline"] is True
+    winners = [n for n, b in front["baselines"].items() if b.get("dominates")]
+    assert winners
+    dashboard.open(f"#/jobs/{job['id']}")
+    flag = page.wait_for_selector("#front-dominated", timeout=60_000)
+    for name in winners:
+        assert f"Baseline {name} dominates member 0" in flag.inner_text()
+    assert "best sequence" in page.inner_text("#front-card h2")
+    traces = page.evaluate(
+        "() => document.getElementById('front-plot').data.map((t) => "
+        "({name: t.name, line: t.marker.line && t.marker.line.color}))"
+    )
+    flagged = {t["name"] for t in traces if t["name"].endswith(": dominates")}
+    assert flagged == {f"{name}: dominates" for name in winners}
+    assert all(t["line"] == "#d62728" for t in traces if t["name"] in flagged)
+    member = _cells(dashboard, "#front-table")[0]
+    assert member["dominated_by"] == ", ".join(front["members"][0]["dominated_by"])
+    page.wait_for_selector("#front-plan-table")
+
+
 LAYOUT_ROUTES = {
     "scenarios": lambda: "#/scenarios",
     "scenario": lambda: f"#/scenarios/{made['scenario']}",
     "new-scenario": lambda: "#/scenarios/new",
     "jobs": lambda: "#/jobs",
     "search": lambda: f"#/jobs/{made['search']}",
+    "search-front": lambda: f"#/jobs/{made['nsga2']}",
     "sweep": lambda: f"#/jobs/{made['sweep']}",
     "classifiers": lambda: "#/classifiers",
     "classifier": lambda: f"#/classifiers/{made['classifier']}",
@@ -619,6 +820,7 @@ LAYOUT_ROUTES = {
 LAYOUT_READY = {
     "scenario": "#moments-plot .main-svg",
     "search": "#response-plot .legend",
+    "search-front": "#front-plan-table",
     "sweep": "#inertia-plot .legend",
     "classifier": "#classifier-response .legend",
     "compare-searches": "#compare-tradeoff .main-svg",
@@ -630,7 +832,7 @@ LAYOUT_READY = {
 def test_every_page_type_fits_with_no_legend_over_the_plot(
     dashboard: Dashboard, width: int, tmp_path: Path
 ) -> None:
-    _needs("scenario", "search", "cem", "classifier", "sweep")
+    _needs("scenario", "search", "cem", "classifier", "sweep", "nsga2")
     page = dashboard.page
     page.set_viewport_size({"width": width, "height": 900})
     telemetry = _telemetry_csv(tmp_path / "t.csv", Scenario.paper(), candidate=2, seed=21)

@@ -9,9 +9,11 @@ import { BAND, PLOT_CONFIG, extendWith, layout, plotDiv, responseView, sequenceP
 import { isTerminal } from "../vocabulary.js";
 import { clear, fmt, h, link, messageBox, progressBar, put, score, sequenceText, statusBadge, table, tagChips, whenText } from "../ui.js";
 import { renderClassifier } from "../views/classifier.js";
+import { frontPanel } from "../views/front.js";
 import { sweepPanel } from "../views/sweep.js";
 
 const POLL_MS = 2000;
+const RAD_TO_DEG = 180 / Math.PI;
 
 function drawHeader(header, job, scenarioName, onLabels) {
   clear(header);
@@ -172,7 +174,7 @@ async function searchResult(holder, job, context) {
         h("dt", {}, `clustering F1 on ${freshF1.length} fresh draws`),
         h("dd", {}, `${score(mean)} mean (min ${score(Math.min(...freshF1))})`),
         h("dt", {}, "final rate"),
-        h("dd", {}, `${fmt(best.final_rate_rad_s, 4)} rad/s`),
+        h("dd", { id: "best-final-rate" }, `${fmt(best.final_rate_rad_s * RAD_TO_DEG, 3)} deg/s (${fmt(best.final_rate_rad_s, 4)} rad/s)`),
         h("dt", {}, "fuel (commanded impulse)"),
         h("dd", {}, `${best.fuel_nms.toFixed(1)} N m s`),
         h("dt", {}, "environment steps, episodes"),
@@ -189,6 +191,11 @@ async function searchResult(holder, job, context) {
       responseHolder,
     ),
   );
+  const front = frontPanel(job, context);
+  if (front) {
+    holder.append(front.node);
+    await front.draw();
+  }
   try {
     const response = await api.response(job.scenario_id, best.sequence, { n_realisations: 20, seed: job.seed });
     if (!context.alive()) return;
@@ -216,8 +223,8 @@ function baselineTable(result, best, freshF1) {
     {},
     h("h3", {}, `Against the hand-designed baselines, on the same ${freshF1.length} fresh draws`),
     table(
-      ["sequence", "F1 mean", "F1 min", "final rate (rad/s)", "fuel (N m s)", "levels"],
-      rows.map(([name, f1, rate, fuel, levels]) => [name, score(mean(f1)), score(Math.min(...f1)), fmt(mean(rate), 3), fuel.toFixed(1), h("span", { class: "mono" }, sequenceText(levels))]),
+      ["sequence", "F1 mean", "F1 min", "final rate (deg/s)", "final rate (rad/s)", "fuel (N m s)", "levels"],
+      rows.map(([name, f1, rate, fuel, levels]) => [name, score(mean(f1)), score(Math.min(...f1)), fmt(mean(rate) * RAD_TO_DEG, 3), fmt(mean(rate), 4), fuel.toFixed(1), h("span", { class: "mono" }, sequenceText(levels))]),
       { id: "baseline-table" },
     ),
   );

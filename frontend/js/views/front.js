@@ -1,0 +1,363 @@
+// A search's front on the operator's objectives (result.front): every member re-scored
+// on a fresh draw, the hand-designed baselines scored on the same draw beside it. A chart
+// of predicted accuracy at the design noise against the residual rate (deg/s), coloured
+// by impulse (or propellant), the baselines each with its own symbol and a baseline that
+// dominates a member flagged; a table of the members (rates in deg/s and rad/s, attitude
+// change); a chosen member's command plan (per candidate: residual rate and attitude
+// change, from GET /jobs/{id}/plan?member=) as CSV or JSON, and a button that trains a
+// classifier on it (POST /jobs with search_job_id and front_member).
+//
+// A Pareto search (nsga2) holds many members; the other methods hold their best sequence
+// alone, so the page compares it with the baselines in the same terms.
+
+import { request, api } from "../api.js";
+import { downloads } from "../components/downloads.js";
+import { REUSED_KEY } from "../components/jobs.js";
+import { PLOT_CONFIG, layout, plotDiv } from "../components/plots.js";
+import { clear, fmt, h, messageBox, sequenceText } from "../ui.js";
+
+const RAD_TO_DEG = 180 / Math.PI;
+const SYMBOLS = ["diamond", "square", "triangle-up", "cross", "star", "hexagon", "pentagon", "triangle-down"];
+const DOMINATES = "#d62728";
+
+// A number cell: the value as shown, and exactly as stored (data-value) for tests and
+// for copying.
+function num(key, value, digits) {
+  const shown = value === null || value === undefined ? "–" : typeof value === "number" ? value.toFixed(digits) : String(value);
+  return h("td", { class: "num", "data-key": key, "data-value": value === null || value === undefined ? "" : String(value) }, shown);
+}
+
+// The figures every row shows, in order: [key in scores, header, digits].
+function figures(hasPropellant) {
+  return [
+    ["accuracy", "accuracy", 3],
+    ["final_rate_deg_s", "residual rate (deg/s)", 3],
+    ["final_rate_rad_s", "residual rate (rad/s)", 5],
+    ["peak_rate_deg_s", "peak rate (deg/s)", 2],
+    ["impulse_nms", "impulse (N m s)", 2],
+    ["on_time_s", "on-time (s)", 2],
+    ...(hasPropellant ? [["propellant_kg", "propellant (kg)", 4]] : []),
+    ["duration_s", "duration (s)", 1],
+    ["attitude_change_deg", "attitude change (deg)", 1],
+  ];
+}
+
+const OBJECTIVE_WORDS = { final_rate: "residual rate", peak_rate: "peak rate", on_time: "on-time" };
+
+function available(front) {
+  return Object.entries(front.baselines || {}).filter(([, base]) => !base.unavailable);
+}
+
+function designNoiseText(front) {
+  return (front.design_noise || []).map(([p, q]) => `${p}× process, ${q}× gyro noise`).join("; ");
+}
+
+// What colours the markers: propellant when every member states it, else impulse.
+function colourBy(front) {
+  const members = front.members || [];
+  const propellant = members.length > 0 && members.every((m) => typeof m.scores.propellant_kg === "number");
+  return propellant ? ["propellant_kg", "propellant (kg)"] : ["impulse_nms", "impulse (N m s)"];
+}
+
+function hover(label, scores, sequence) {
+  return (
+    `${label}<br>accuracy ${scores.accuracy.toFixed(3)}` +
+    `<br>residual rate ${fmt(scores.final_rate_deg_s, 3)} deg/s (${fmt(scores.final_rate_rad_s, 4)} rad/s)` +
+    `<br>impulse ${fmt(scores.impulse_nms, 2)} N m s` +
+    `<br>attitude change ${fmt(scores.attitude_change_deg, 1)} deg` +
+    `<br>${sequenceText(sequence)}`
+  );
+}
+
+async function drawPlot(node, front, selected) {
+  const members = front.members;
+  const [colourKey, colourLabel] = colourBy(front);
+  const bases = available(front);
+  const values = [...members.map((m) => m.scores[colourKey]), ...bases.map(([, b]) => b.scores[colourKey])].filter((v) => typeof v === "number");
+  const cmin = Math.min(...values);
+  const cmax = Math.max(...values) > cmin ? Math.max(...values) : cmin + 1;
+  const order = [...members].sort((a, b) => a.scores.final_rate_deg_s - b.scores.final_rate_deg_s);
+  const traces = [
+    {
+      x: order.map((m) => m.scores.final_rate_deg_s),
+      y: order.map((m) => m.scores.accuracy),
+      customdata: order.map((m) => m.index),
+      text: order.map((m) => hover(`member ${m.index}`, m.scores, m.sequence)),
+      hovertemplate: "%{text}<extra></extra>",
+      // Markers only: the front is non-dominated in every objective at once, so in this
+      // plane of two of them its members need not lie on a line.
+      mode: "markers",
+      name: members.length > 1 ? "front members" : "best sequence",
+      marker: {
+        size: 11,
+        symbol: "circle",
+        color: order.map((m) => m.scores[colourKey]),
+        colorscale: "Viridis",
+        cmin,
+        cmax,
+        line: { color: order.map((m) => (m.dominated_by.length ? DOMINATES : "#333")), width: order.map((m) => (m.dominated_by.length ? 2.5 : 0.5)) },
+        colorbar: {
+          orientation: "h",
+          title: { text: colourLabel, side: "right" },
+          x: 0,
+          xanchor: "left",
+          len: 0.45,
+          thickness: 12,
+          yref: "container",
+          y: 0.02,
+          yanchor: "bottom",
+        },
+      },
+    },
+  ];
+  bases.forEach(([name, base], i) => {
+    const dominates = (base.dominates || []).length > 0;
+    traces.push({
+      x: [base.scores.final_rate_deg_s],
+      y: [base.scores.accuracy],
+      text: [hover(`baseline ${name}${dominates ? ` — dominates member${base.dominates.length > 1 ? "s" : ""} ${base.dominates.join(", ")}` : ""}`, base.scores, base.sequence)],
+      hovertemplate: "%{text}<extra></extra>",
+      mode: "markers",
+      name: dominates ? `${name}: dominates` : name,
+      marker: {
+        size: 14,
+        symbol: SYMBOLS[i % SYMBOLS.length],
+        color: [base.scores[colourKey]],
+        colorscale: "Viridis",
+        cmin,
+        cmax,
+        showscale: false,
+        line: { color: dominates ? DOMINATES : "#222", width: dominates ? 3 : 1 },
+      },
+    });
+  });
+  const chosen = members.find((m) => m.index === selected);
+  traces.push({
+    x: chosen ? [chosen.scores.final_rate_deg_s] : [],
+    y: chosen ? [chosen.scores.accuracy] : [],
+    mode: "markers",
+    name: "chosen member",
+    hoverinfo: "skip",
+    marker: { size: 22, symbol: "circle-open", color: "#1d2330", line: { width: 2 } },
+  });
+  await Plotly.newPlot(
+    node,
+    traces,
+    layout("residual rate at the end (deg/s, mean over candidates)", "predicted accuracy", {
+      height: 440,
+      margin: { l: 60, r: 10, t: 16, b: 96 },
+    }),
+    PLOT_CONFIG,
+  );
+  node.on("plotly_click", (event) => {
+    const point = event.points && event.points[0];
+    if (point && point.curveNumber === 0) node.dispatchEvent(new CustomEvent("member", { detail: point.customdata }));
+  });
+}
+
+function markChosen(node, front, index) {
+  const chosen = front.members.find((m) => m.index === index);
+  Plotly.restyle(node, { x: [[chosen.scores.final_rate_deg_s]], y: [[chosen.scores.accuracy]] }, [node.data.length - 1]);
+}
+
+function memberTable(front, onPick) {
+  const hasPropellant = front.members.some((m) => typeof m.scores.propellant_kg === "number");
+  const columns = figures(hasPropellant);
+  const rows = front.members.map((member) => {
+    const radio = h("input", { type: "radio", name: "front-member", value: member.index, "aria-label": `choose member ${member.index}` });
+    const dominated = member.dominated_by.length ? h("span", { class: "dominated" }, member.dominated_by.join(", ")) : "–";
+    return h(
+      "tr",
+      { "data-member": member.index, class: member.dominated_by.length ? "dominated-row" : null, onclick: () => onPick(member.index) },
+      h("td", { class: "select" }, radio),
+      h("td", { class: "num", "data-key": "index" }, String(member.index)),
+      columns.map(([key, , digits]) => num(key, member.scores[key], digits)),
+      h("td", { "data-key": "dominated_by" }, dominated),
+    );
+  });
+  return h(
+    "div",
+    { class: "table-scroll" },
+    h(
+      "table",
+      { id: "front-table" },
+      h("thead", {}, h("tr", {}, h("th", { class: "select" }, ""), h("th", { class: "num" }, "member"), columns.map(([, label]) => h("th", { class: "num" }, label)), h("th", {}, "dominated by"))),
+      h("tbody", {}, rows),
+    ),
+  );
+}
+
+function baselineTable(front) {
+  const hasPropellant = front.members.some((m) => typeof m.scores.propellant_kg === "number");
+  const columns = figures(hasPropellant).filter(([key]) => !["on_time_s", "duration_s"].includes(key));
+  const rows = available(front).map(([name, base]) =>
+    h(
+      "tr",
+      { "data-baseline": name, class: (base.dominates || []).length ? "dominated-row" : null },
+      h("td", {}, name),
+      columns.map(([key, , digits]) => num(key, base.scores[key], digits)),
+      h("td", { "data-key": "dominates" }, (base.dominates || []).length ? h("strong", { class: "dominated" }, `members ${base.dominates.join(", ")}`) : "–"),
+      h("td", { class: "mono" }, sequenceText(base.sequence)),
+    ),
+  );
+  return h(
+    "div",
+    { class: "table-scroll" },
+    h(
+      "table",
+      { id: "front-baselines" },
+      h("thead", {}, h("tr", {}, h("th", {}, "baseline"), columns.map(([, label]) => h("th", { class: "num" }, label)), h("th", {}, "dominates"), h("th", {}, "levels"))),
+      h("tbody", {}, rows),
+    ),
+  );
+}
+
+async function planBlob(job, index, format) {
+  return request("GET", `/jobs/${encodeURIComponent(job.id)}/plan`, { query: { member: index, format }, raw: true });
+}
+
+// The chosen member: its sequence, a button that trains on it, its command plan (per
+// candidate: residual rate and attitude change) and the plan's downloads.
+async function showMember(holder, job, member, context) {
+  clear(holder);
+  if (job.status !== "succeeded") {
+    // The service plans and trains on a finished search only.
+    holder.append(
+      h("h3", {}, `Member ${member.index}`),
+      h("p", {}, "Sequence (level indices): ", h("span", { class: "mono", id: "front-member-sequence" }, sequenceText(member.sequence))),
+      messageBox("notice", `This search is ${job.status}: its command plans and training on a member are offered once a search succeeds.`),
+    );
+    return;
+  }
+  const notice = h("div", { id: "front-train-notice" });
+  const train = h(
+    "button",
+    {
+      type: "button",
+      id: "front-train",
+      onclick: async () => {
+        train.disabled = true;
+        clear(notice);
+        const body = {
+          type: "train",
+          scenario_id: job.scenario_id,
+          seed: job.seed,
+          params: { sequence: member.sequence, search_job_id: job.id, front_member: member.index },
+        };
+        try {
+          const made = await api.submitJob(body);
+          if (made.reused) {
+            sessionStorage.setItem(REUSED_KEY, JSON.stringify({ id: made.id, body }));
+            location.hash = `#/jobs/${made.id}?reused=1`;
+          } else {
+            location.hash = `#/jobs/${made.id}`;
+          }
+        } catch (exc) {
+          notice.append(messageBox("error", exc.message || String(exc)));
+        } finally {
+          train.disabled = false;
+        }
+      },
+    },
+    "Train on this sequence",
+  );
+  const stem = `plan-${job.id.slice(0, 8)}-member-${member.index}`;
+  const plan = h("div", { id: "front-plan" }, h("p", { class: "muted" }, "Computing the command plan…"));
+  holder.append(
+    h("h3", {}, `Member ${member.index}`),
+    h("p", {}, "Sequence (level indices): ", h("span", { class: "mono", id: "front-member-sequence" }, sequenceText(member.sequence))),
+    h("div", { class: "toolbar" }, train),
+    notice,
+    downloads(
+      "front-plan-downloads",
+      [
+        { label: "CSV", filename: `${stem}.csv`, make: () => planBlob(job, member.index, "csv") },
+        { label: "JSON", filename: `${stem}.json`, make: () => planBlob(job, member.index, "json") },
+      ],
+      { label: "Command plan" },
+    ),
+    plan,
+  );
+  try {
+    const document = await request("GET", `/jobs/${encodeURIComponent(job.id)}/plan`, { query: { member: member.index } });
+    if (!context.alive() || !plan.isConnected) return;
+    clear(plan);
+    plan.append(
+      h("p", { class: "hint" }, `Predicted with every noise off: the rates at the sequence's end and the rotation the body makes over its ${document.duration_s} s (quaternion kinematics of the predicted rates). Impulse ${fmt(document.propellant.impulse_nms, 2)} N m s, on-time ${fmt(document.propellant.on_time_s, 2)} s${document.propellant.propellant_kg === null ? "" : `, propellant ${fmt(document.propellant.propellant_kg, 4)} kg`}.`),
+      h(
+        "table",
+        { id: "front-plan-table" },
+        h("thead", {}, h("tr", {}, h("th", {}, "candidate"), h("th", { class: "num" }, "residual rate (deg/s)"), h("th", { class: "num" }, "residual rate (rad/s)"), h("th", { class: "num" }, "attitude change (deg)"))),
+        h(
+          "tbody",
+          {},
+          document.candidates.map((c) =>
+            h("tr", { "data-candidate": c.name }, h("td", {}, c.name), num("residual_rate_deg_s", c.residual_rate_deg_s, 3), num("residual_rate_rad_s", c.residual_rate_rad_s, 5), num("attitude_change_deg", c.attitude_change_deg, 2)),
+          ),
+        ),
+      ),
+    );
+  } catch (exc) {
+    if (!plan.isConnected) return;
+    clear(plan);
+    plan.append(messageBox("error", `The command plan: ${exc.message || String(exc)}`));
+  }
+}
+
+export function frontPanel(job, context) {
+  const front = job.result && job.result.front;
+  if (!front || !(front.members || []).length) return null;
+  const members = front.members;
+  const pareto = job.result.method === "nsga2";
+  const dominating = available(front).filter(([, base]) => (base.dominates || []).length);
+  const plot = plotDiv("front-plot");
+  const memberHolder = h("div", { id: "front-member" });
+  let chosen = members[0].index;
+  const pick = (index) => {
+    chosen = index;
+    for (const input of card.querySelectorAll("input[name='front-member']")) input.checked = Number(input.value) === index;
+    for (const row of card.querySelectorAll("#front-table tbody tr")) row.classList.toggle("chosen", Number(row.dataset.member) === index);
+    markChosen(plot, front, index);
+    showMember(memberHolder, job, members.find((m) => m.index === index), context);
+  };
+  const [, colourLabel] = colourBy(front);
+  const card = h(
+    "div",
+    { class: "card", id: "front-card" },
+    h("h2", {}, pareto ? `Pareto front: ${members.length} sequence${members.length === 1 ? "" : "s"}` : "The best sequence on the operator's objectives"),
+    h(
+      "p",
+      { class: "hint" },
+      `${pareto ? "Non-dominated" : "Judged"} on ${(front.objectives || []).map((o) => OBJECTIVE_WORDS[o] || o).join(", ")}; every figure on a fresh draw (${front.fresh_realisations} realisations per candidate), the baselines on the same draw. Accuracy: the Bayes classifier's predicted accuracy at the design noise (${designNoiseText(front)}). Colour: ${colourLabel}; a red outline marks a member a baseline dominates.`,
+    ),
+    dominating.length
+      ? h(
+          "div",
+          { class: "message error", id: "front-dominated", role: "alert" },
+          dominating.map(([name, base]) => `Baseline ${name} dominates member${base.dominates.length > 1 ? "s" : ""} ${base.dominates.join(", ")} of the front (no worse on every objective, better on one).`).join("\n"),
+        )
+      : null,
+    plot,
+    h("h3", {}, "Members"),
+    memberTable(front, (index) => pick(index)),
+    h("h3", {}, "Baselines on the same draw"),
+    baselineTable(front),
+    downloads(
+      "front-downloads",
+      [
+        { label: "CSV", href: `/jobs/${encodeURIComponent(job.id)}/result?format=csv&table=front` },
+        { label: "JSON", href: `/jobs/${encodeURIComponent(job.id)}/result?format=json&table=front` },
+      ],
+      { label: "Download the front" },
+    ),
+    memberHolder,
+  );
+  plot.addEventListener("member", (event) => pick(event.detail));
+  return {
+    node: card,
+    async draw() {
+      await drawPlot(plot, front, chosen);
+      pick(chosen);
+    },
+  };
+}
