@@ -331,7 +331,7 @@ async function showOnline(holder, verdict, file, options, context) {
       "p",
       { class: "note", id: "online-summary" },
       decided
-        ? `decided on ${online.candidate} at ${fmt(online.decision_time_s)} s (posterior ≥ ${plain(100 * (1 - online.alpha), 8)} %)`
+        ? `decided on ${online.candidate} at ${online.decision_time_s.toFixed(2)} s (posterior ≥ ${plain(100 * (1 - online.alpha), 8)} %)`
         : `not decided within ${fmt(online.covers_s)} s of the ${fmt(online.sequence_s)} s sequence (posterior ≥ ${plain(100 * (1 - online.alpha), 8)} % needed)`,
     ),
     plot,
@@ -354,7 +354,7 @@ async function showOnline(holder, verdict, file, options, context) {
     layout("time from sequence start (s)", "posterior", {
       height: 560,
       yaxis: { title: { text: "posterior" }, range: [0, 1.05], tickformat: ".0%" },
-      title: title(decided ? `decided at ${fmt(online.decision_time_s)} s (dashed line)` : "not decided yet", 13),
+      title: title(decided ? `decided at ${online.decision_time_s.toFixed(2)} s (dashed line)` : "not decided yet", 13),
       shapes,
     }),
     PLOT_CONFIG,
