@@ -72,7 +72,11 @@ def _telemetry_csv(
 
 def _classifier(dashboard: Dashboard) -> str:
     """The classifier the training test made; trained here through the API (the paper
-    preset, GOOD, the dashboard's defaults) when the identify tests run on their own."""
+    preset, GOOD, the dashboard's defaults) when the identify tests run on their own, and
+    the API key saved as the first test saves it."""
+    dashboard.page.add_init_script(
+        f"localStorage.setItem('inertia-id-api-key', {json.dumps(API_KEY)})"
+    )
     if "classifier" not in made:
         client = dashboard.service.client
         scenario = client.post("/scenarios", json={"preset": "paper"})
@@ -565,8 +569,8 @@ def test_identify_shows_the_apis_posterior_and_is_green_only_when_identified(
     assert bars["x"] == [*expected["posterior"], "none of these"]
     assert bars["y"] == pytest.approx([*expected["posterior"].values(), expected["p_none"]])
     # The posterior over time, one line per candidate and one for "none of these", and
-    # the decision the service took marked where it took it.
-    online = _api_verdict(dashboard, text, path="/identify/partial")
+    # the decision the service took at the same confidence marked where it took it.
+    online = _api_verdict(dashboard, text, path="/identify/partial", confidence="0.99")
     page.wait_for_selector("#online-plot .main-svg")
     drawn = page.evaluate(
         "() => { const d = document.getElementById('online-plot'); "
