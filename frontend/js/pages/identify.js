@@ -79,7 +79,7 @@ export async function render(root, context) {
   file.addEventListener("change", async () => {
     if (file.files.length) text.value = await file.files[0].text();
   });
-  const start = h("input", { type: "text", id: "identify-sequence-start", placeholder: "e.g. 810000000.0 or 2025-03-01T12:00:00Z", value: context.query.sequence_start || "" });
+  const start = h("input", { type: "text", id: "identify-sequence-start", size: 34, placeholder: "e.g. 810000000.0 or 2025-03-01T12:00:00Z", value: context.query.sequence_start || "" });
   const confidence = h("input", { type: "number", id: "identify-confidence", min: "0", max: "1", step: "any", value: context.query.confidence || String(DEFAULT_CONFIDENCE) });
   const general = h("div", { id: "identify-errors" });
   const submit = h("button", { type: "submit", id: "identify-submit" }, "Identify");

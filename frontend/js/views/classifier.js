@@ -115,8 +115,8 @@ async function calibrationOf(card, classifier, context) {
     layout("mean confidence (top posterior)", "accuracy", {
       height: 360,
       title: title(`reliability diagram, ECE ${report.ece.toFixed(4)}`, 13),
-      xaxis: { title: { text: "mean confidence (top posterior)" }, range: [0, 1.02] },
-      yaxis: { title: { text: "accuracy" }, range: [0, 1.02] },
+      xaxis: { title: { text: "mean confidence (top posterior)" }, range: [0, 1.05] },
+      yaxis: { title: { text: "accuracy" }, range: [0, 1.05] },
     }),
     PLOT_CONFIG,
   );
