@@ -76,6 +76,14 @@ export async function request(method, path, { json, form, query, key = null, raw
   return data;
 }
 
+function identifyForm(classifierId, file, { confidence } = {}) {
+  const form = new FormData();
+  form.set("classifier_id", classifierId);
+  if (confidence !== undefined && confidence !== null && confidence !== "") form.set("confidence", String(confidence));
+  form.set("file", file);
+  return form;
+}
+
 export const api = {
   health: () => request("GET", "/health"),
   // 204 (null) when the service accepts `key`; an ApiError 401 when it does not.
@@ -100,12 +108,18 @@ export const api = {
   metrics: (id, query) => request("GET", `/jobs/${encodeURIComponent(id)}/metrics`, { query }),
   classifiers: (query) => request("GET", "/classifiers", { query: { limit: 200, ...query } }),
   classifier: (id) => request("GET", `/classifiers/${encodeURIComponent(id)}`),
-  identify: (classifierId, file, format = "json") => {
-    const form = new FormData();
-    form.set("classifier_id", classifierId);
-    form.set("file", file);
-    return request("POST", "/identify", { form, query: { format: format === "json" ? undefined : format }, raw: format !== "json" });
-  },
+  calibration: (id) => request("GET", `/classifiers/${encodeURIComponent(id)}/calibration`),
+  // `options`: confidence (what naming a candidate takes, default the service's 0.99) and
+  // sequenceStart (seconds in the telemetry's clock or ISO-8601 UTC), both optional.
+  identify: (classifierId, file, format = "json", options = {}) =>
+    request("POST", "/identify", {
+      form: identifyForm(classifierId, file, options),
+      query: { format: format === "json" ? undefined : format, sequence_start: options.sequenceStart },
+      raw: format !== "json",
+    }),
+  // The posterior over time from the same body; 422 for a kind without a Gaussian model.
+  identifyPartial: (classifierId, file, options = {}) =>
+    request("POST", "/identify/partial", { form: identifyForm(classifierId, file, options), query: { sequence_start: options.sequenceStart } }),
 };
 
 // Follows a job's metric series incrementally: each poll asks only for points after the

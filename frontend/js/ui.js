@@ -61,6 +61,16 @@ export function plain(value, significant = 6) {
   return Object.is(rounded, -0) || rounded === 0 ? "0" : String(rounded);
 }
 
+// A probability as a percentage with two decimals; a tiny or near-certain one says so
+// ("< 0.01 %", "> 99.99 %") rather than rounding to 0 or 100 %, which it is not.
+export function probability(p) {
+  if (typeof p !== "number" || !Number.isFinite(p)) return "–";
+  const v = 100 * p;
+  if (p > 0 && v < 0.01) return "< 0.01 %";
+  if (p < 1 && v > 99.99) return "> 99.99 %";
+  return `${v.toFixed(2)} %`;
+}
+
 // A score in [0, 1] (F1, accuracy) always with three decimals.
 export function score(value) {
   return typeof value === "number" && Number.isFinite(value) ? value.toFixed(3) : "–";

@@ -1,28 +1,62 @@
-// Identify: paste or upload telemetry, pick a classifier, and see the verdict, the
-// distance to every candidate, and the telemetry over the matched candidate's response.
+// Identify: paste or upload telemetry (with the sequence start when its clock is not from
+// the start), pick a classifier and the confidence naming one takes, and see the verdict
+// coloured by its status (green only when identified), the posterior of every candidate
+// and of "none of these", the estimate when it is valid, the posterior over time, and
+// the telemetry over the most probable candidate's response.
 
 import { api } from "../api.js";
 import { downloads } from "../components/downloads.js";
 import { BAND, COLORS, PLOT_CONFIG, layout, plotDiv, responseLayout, title, withAlpha } from "../components/plots.js";
-import { clear, fmt, h, jsonBlob, link, messageBox, sequenceText, showFieldErrors } from "../ui.js";
+import { clear, fmt, h, jsonBlob, link, messageBox, plain, probability, sequenceText, showFieldErrors } from "../ui.js";
+
+const DEFAULT_CONFIDENCE = 0.99;
+
+// The estimate's standard errors are per parameter; the tensor entry each belongs to.
+const TENSOR_NAMES = [
+  ["Ixx", "Ixy", "Ixz"],
+  ["Ixy", "Iyy", "Iyz"],
+  ["Ixz", "Iyz", "Izz"],
+];
+
+const STATUS_COLOR = { identified: "#1e7b34", ambiguous: "#c98a00", "matches-none": "#b3261e", "not-this-sequence": "#b3261e" };
 
 const EXAMPLE = "time_s,wx_rad_s,wy_rad_s,wz_rad_s\n0.05,0.0001,0.0009,-0.0004\n0.10,0.0012,0.0031,0.0015\n...";
 
-// For drawing only: the service parses the same text authoritatively.
-export function parseTelemetry(text) {
+// A stamp in seconds: a number, or an ISO-8601 UTC time (to the millisecond: for drawing).
+function stampSeconds(value) {
+  if (typeof value === "number") return value;
+  const text = String(value ?? "").trim();
+  const number = Number(text);
+  if (text !== "" && Number.isFinite(number)) return number;
+  const ms = Date.parse(text);
+  return Number.isFinite(ms) ? ms / 1000 : NaN;
+}
+
+// For drawing only: the service parses the same text authoritatively. Times come back
+// from the sequence start: `sequenceStart` (seconds in the stamps' clock or ISO-8601
+// UTC), else the JSON's own sequence_start, else the stamps are taken as from the start.
+export function parseTelemetry(text, sequenceStart = "") {
   const trimmed = text.trim();
+  let time = [];
+  let omega = [];
+  let start = sequenceStart;
   if (trimmed.startsWith("{")) {
     const data = JSON.parse(trimmed);
-    return { time: data.time_s, omega: data.omega_rad_s };
+    time = (data.time_s ?? data.time_utc ?? []).map(stampSeconds);
+    omega = data.omega_rad_s;
+    if (start === "" || start === null || start === undefined) start = data.sequence_start;
+  } else {
+    for (const line of trimmed.split(/\r?\n/)) {
+      const cells = line.split(",").map((c) => c.trim());
+      const stamp = stampSeconds(cells[0]);
+      const rates = cells.slice(1).map(Number);
+      if (cells.length !== 4 || !Number.isFinite(stamp) || rates.some((v) => !Number.isFinite(v))) continue;
+      time.push(stamp);
+      omega.push(rates);
+    }
   }
-  const time = [];
-  const omega = [];
-  for (const line of trimmed.split(/\r?\n/)) {
-    const cells = line.split(",").map((c) => Number(c.trim()));
-    if (cells.length !== 4 || cells.some((v) => !Number.isFinite(v))) continue;
-    time.push(cells[0]);
-    omega.push(cells.slice(1));
-  }
+  const offset = start === "" || start === null || start === undefined ? 0 : stampSeconds(start);
+  if (Number.isFinite(offset) && offset !== 0) time = time.map((t) => t - offset);
   return { time, omega };
 }
 
@@ -40,11 +74,13 @@ export async function render(root, context) {
       h("option", { value: c.id, selected: c.id === context.query.classifier }, `${c.job_name || c.id.slice(0, 8)} · ${c.kind} ${c.metric} · F1 ${c.f1.toFixed(3)} · ${sequenceText(c.sequence)}`),
     ),
   );
-  const text = h("textarea", { id: "telemetry-text", rows: 8, placeholder: `CSV (time_s, wx_rad_s, wy_rad_s, wz_rad_s) or JSON {"time_s": [...], "omega_rad_s": [[...], ...]}\n${EXAMPLE}` });
+  const text = h("textarea", { id: "telemetry-text", rows: 8, placeholder: `CSV (time_s or time_utc, wx_rad_s, wy_rad_s, wz_rad_s) or JSON {"time_s": [...], "omega_rad_s": [[...], ...]}\n${EXAMPLE}` });
   const file = h("input", { type: "file", id: "telemetry-file", accept: ".csv,.json,text/csv,application/json" });
   file.addEventListener("change", async () => {
     if (file.files.length) text.value = await file.files[0].text();
   });
+  const start = h("input", { type: "text", id: "identify-sequence-start", size: 34, placeholder: "e.g. 810000000.0 or 2025-03-01T12:00:00Z", value: context.query.sequence_start || "" });
+  const confidence = h("input", { type: "number", id: "identify-confidence", min: "0", max: "1", step: "any", value: context.query.confidence || String(DEFAULT_CONFIDENCE) });
   const general = h("div", { id: "identify-errors" });
   const submit = h("button", { type: "submit", id: "identify-submit" }, "Identify");
   const result = h("div", { id: "identify-result" });
@@ -62,14 +98,15 @@ export async function render(root, context) {
           return;
         }
         const name = content.trim().startsWith("{") ? "telemetry.json" : "telemetry.csv";
+        const options = { sequenceStart: start.value.trim(), confidence: confidence.value.trim() };
         submit.disabled = true;
         try {
-          const file = new File([content], name, { type: "text/plain" });
-          const verdict = await api.identify(select.value, file);
+          const upload = new File([content], name, { type: "text/plain" });
+          const verdict = await api.identify(select.value, upload, "json", options);
           const classifier = page.items.find((c) => c.id === select.value);
-          await showVerdict(result, verdict, classifier, content, context, file);
+          await showVerdict(result, verdict, classifier, { content, context, file: upload, options });
         } catch (exc) {
-          showFieldErrors(exc, { file: text, classifier_id: select }, general);
+          showFieldErrors(exc, { file: text, classifier_id: select, sequence_start: start, confidence }, general);
         } finally {
           submit.disabled = false;
         }
@@ -81,7 +118,16 @@ export async function render(root, context) {
       h("label", { for: "identify-classifier" }, "classifier"),
       select,
       h("label", { for: "telemetry-file" }, "upload a file"),
-      h("div", {}, file, h("span", { class: "hint" }, " .csv or .json; time in s from the sequence start, ω in rad/s")),
+      h("div", {}, file, h("span", { class: "hint" }, " .csv or .json; time_s in seconds (any clock) or time_utc in ISO-8601 UTC, ω in rad/s")),
+      h("label", { for: "identify-sequence-start" }, "sequence start"),
+      h(
+        "div",
+        {},
+        start,
+        h("div", { class: "hint" }, "when the actuation sequence began, in the telemetry's clock: seconds (e.g. mission time 810000000.0) or ISO-8601 UTC (2025-03-01T12:00:00Z). Leave empty when time_s counts from the sequence start."),
+      ),
+      h("label", { for: "identify-confidence" }, "confidence"),
+      h("div", {}, confidence, h("div", { class: "hint" }, "the posterior the most probable candidate needs before it is named (0 to 1, exclusive); below it the verdict is ambiguous")),
       h("label", { for: "telemetry-text", class: "full" }, "or paste telemetry"),
       h("div", { class: "full" }, text),
     ),
@@ -91,56 +137,101 @@ export async function render(root, context) {
   root.append(h("div", { class: "card" }, form), result);
 }
 
-async function showVerdict(holder, verdict, classifier, content, context, file) {
+// The box's class and headline for each status: green only for "identified".
+function verdictBox(verdict, ranked) {
+  const [first, second] = ranked;
+  const named = (entry) => `${entry[0]} (${probability(entry[1])})`;
+  const headline = {
+    identified: ["match", `Candidate: ${verdict.candidate} (${probability(verdict.confidence)})`],
+    ambiguous: ["ambiguous", `Ambiguous: ${named(first)} or ${second ? named(second) : "none of these"}`],
+    "matches-none": ["none", `Matches none of the candidates (none of these: ${probability(verdict.p_none)})`],
+    "not-this-sequence": ["none", "Matches none of the candidates: not a response to this sequence"],
+  }[verdict.status] || ["none", verdict.verdict];
+  return h("div", { class: `verdict ${headline[0]}`, id: "verdict", role: "status", "data-status": verdict.status }, headline[1]);
+}
+
+// The tensor with each entry's standard error, or why it is withheld and what this
+// sequence cannot see.
+function estimateOf(verdict) {
+  const poorly = verdict.poorly_excited || [];
+  const blind = poorly.length ? h("div", { class: "field-error", id: "ls-blind" }, `this sequence hardly excites ${poorly.join(", ")}: it cannot see them`) : null;
+  if (verdict.estimated_inertia_kg_m2) {
+    const std = verdict.estimated_inertia_std_kg_m2 || {};
+    const rows = verdict.estimated_inertia_kg_m2.map((row, i) =>
+      h("tr", {}, row.map((v, j) => h("td", {}, `${v.toFixed(2)}${std[TENSOR_NAMES[i][j]] !== undefined ? ` ± ${fmt(std[TENSOR_NAMES[i][j]], 2)}` : ""}`))),
+    );
+    return [
+      h("table", { class: "tensor mono" }, h("tbody", {}, rows)),
+      `principal moments ${verdict.estimated_principal_moments_kg_m2.map((v) => v.toFixed(2)).join(", ")}; condition number ${fmt(verdict.estimate_condition_number, 3)}`,
+      blind,
+    ];
+  }
+  if (verdict.estimate_rejected) return [h("span", { id: "ls-rejected" }, `withheld: ${verdict.estimate_rejected}`), blind];
+  return "–";
+}
+
+async function showVerdict(holder, verdict, classifier, { content, context, file, options }) {
   const names = Object.keys(verdict.distances);
-  const box = verdict.matches_none
-    ? h(
-        "div",
-        { class: "verdict none", id: "verdict", role: "status" },
-        "Matches none of the candidates",
-      )
-    : h("div", { class: "verdict match", id: "verdict", role: "status" }, `Candidate: ${verdict.candidate}`);
+  const ranked = Object.entries(verdict.posterior || {}).sort((a, b) => b[1] - a[1]);
+  const met = verdict.confidence >= verdict.required_confidence;
+  const posteriorPlot = plotDiv("posterior-plot", "short");
   const distancePlot = plotDiv("distance-plot", "short");
   const overlayPlot = plotDiv("overlay-plot");
+  const onlineHolder = h("div", { id: "online-holder" });
+  const posteriorRows = [...ranked, ["none of these", verdict.p_none]].map(([name, p]) =>
+    h(
+      "tr",
+      { class: name === verdict.candidate && verdict.status === "identified" ? "top" : null, "data-hypothesis": name },
+      h("td", {}, name),
+      h("td", { class: "num posterior" }, probability(p)),
+      h("td", { class: "num" }, name in verdict.distances ? fmt(verdict.distances[name]) : "–"),
+    ),
+  );
   holder.append(
     h(
       "div",
       { class: "card" },
-      box,
-      verdict.verdict !== verdict.candidate ? h("p", {}, verdict.verdict) : null,
+      verdictBox(verdict, ranked),
+      h(
+        "p",
+        { class: "verdict-confidence", id: "verdict-confidence" },
+        `confidence ${probability(verdict.confidence)} ${met ? "≥" : "<"} required ${plain(100 * verdict.required_confidence, 8)} %`,
+      ),
+      verdict.verdict !== verdict.candidate ? h("p", { id: "verdict-text" }, verdict.verdict) : null,
       downloads("identify-downloads", [
         { label: "verdict (JSON)", filename: `identify-${verdict.classifier_id.slice(0, 8)}.json`, make: async () => jsonBlob(verdict) },
-        { label: "verdict (CSV)", filename: `identify-${verdict.classifier_id.slice(0, 8)}.csv`, make: () => api.identify(verdict.classifier_id, file, "csv") },
+        { label: "verdict (CSV)", filename: `identify-${verdict.classifier_id.slice(0, 8)}.csv`, make: () => api.identify(verdict.classifier_id, file, "csv", options) },
       ]),
       h(
         "dl",
         { class: "kv" },
         h("dt", {}, "margin to the runner-up"),
         h("dd", {}, `${fmt(verdict.margin)} (relative ${fmt(verdict.relative_margin)})`),
-        h("dt", {}, "inertia of the nearest candidate (kg m²)"),
+        h("dt", {}, `inertia of ${verdict.status === "identified" ? "the candidate" : "the most probable candidate"} (kg m²)`),
         h("dd", { class: "mono" }, verdict.inertia_kg_m2 ? verdict.inertia_kg_m2.map((r) => `[${r.map((v) => fmt(v, 4)).join(", ")}]`).join(" ") : "–"),
         h("dt", {}, "classifier"),
         h("dd", {}, link(`#/classifiers/${verdict.classifier_id}`, verdict.classifier_id)),
-        h("dt", {}, "least-squares estimate from this telemetry (kg m²)"),
-        h(
-          "dd",
-          { id: "ls-estimate" },
-          verdict.estimated_inertia_kg_m2
-            ? [
-                h("span", { class: "mono" }, verdict.estimated_inertia_kg_m2.map((r) => `[${r.map((v) => v.toFixed(2)).join(", ")}]`).join(" ")),
-                h("br"),
-                `principal moments ${verdict.estimated_principal_moments_kg_m2.map((v) => v.toFixed(2)).join(", ")}; condition number ${fmt(verdict.estimate_condition_number, 3)}`,
-                verdict.poorly_excited.length
-                  ? h("div", { class: "field-error" }, `the sequence hardly excites ${verdict.poorly_excited.join(", ")}: those components are unreliable`)
-                  : null,
-              ]
-            : "–",
-        ),
+        h("dt", {}, "least-squares estimate from this telemetry (kg m², ± standard error)"),
+        h("dd", { id: "ls-estimate" }, estimateOf(verdict)),
       ),
     ),
-    h("div", { class: "grid2" }, h("div", { class: "card" }, h("h2", {}, "Distance to each candidate"), distancePlot), h("div", { class: "card" }, h("h2", {}, `Telemetry over ${verdict.candidate}'s response`), overlayPlot)),
+    h(
+      "div",
+      { class: "grid2" },
+      h(
+        "div",
+        { class: "card" },
+        h("h2", {}, "Posterior of each candidate"),
+        posteriorPlot,
+        h("table", { class: "posterior-table", id: "posterior-table" }, h("thead", {}, h("tr", {}, h("th", { scope: "col" }, "hypothesis"), h("th", { scope: "col", class: "num" }, "posterior"), h("th", { scope: "col", class: "num" }, "distance"))), h("tbody", {}, posteriorRows)),
+      ),
+      h("div", { class: "card" }, h("h2", {}, "Distance to each candidate"), distancePlot),
+    ),
+    h("div", { class: "grid2" }, h("div", { class: "card" }, h("h2", {}, "Posterior over time"), onlineHolder), h("div", { class: "card" }, h("h2", {}, `Telemetry over ${verdict.candidate}'s response`), overlayPlot)),
   );
+  drawPosterior(posteriorPlot, verdict, ranked);
   const values = names.map((n) => verdict.distances[n]);
+  const none = verdict.status === "matches-none" || verdict.status === "not-this-sequence";
   Plotly.newPlot(
     distancePlot,
     [
@@ -148,7 +239,7 @@ async function showVerdict(holder, verdict, classifier, content, context, file) 
         type: "bar",
         x: names,
         y: values,
-        marker: { color: names.map((n) => (n === verdict.candidate ? (verdict.matches_none ? "#b3261e" : "#1e7b34") : "#8da9c4")) },
+        marker: { color: names.map((n) => (n === verdict.candidate ? STATUS_COLOR[verdict.status] || (none ? "#b3261e" : "#1e7b34") : "#8da9c4")) },
         hovertemplate: "%{x}: %{y:.4g}<extra></extra>",
         name: "distance",
       },
@@ -164,12 +255,13 @@ async function showVerdict(holder, verdict, classifier, content, context, file) 
     PLOT_CONFIG,
   );
 
-  if (!classifier) return;
+  await showOnline(onlineHolder, verdict, file, options, context);
+  if (!classifier || !context.alive()) return;
   const response = await api.response(classifier.scenario_id, classifier.sequence, { n_realisations: 20 });
   if (!context.alive()) return;
   const k = response.candidates.findIndex((c) => c.name === verdict.candidate);
   const candidate = response.candidates[k];
-  const telemetry = parseTelemetry(content);
+  const telemetry = parseTelemetry(content, options.sequenceStart);
   const color = COLORS[k % COLORS.length];
   const traces = [];
   ["x", "y", "z"].forEach((axis, a) => {
@@ -182,4 +274,89 @@ async function showVerdict(holder, verdict, classifier, content, context, file) 
     );
   });
   Plotly.newPlot(overlayPlot, traces, responseLayout(`telemetry (dots) over ${candidate.name}'s mean and ${BAND.label} band`), PLOT_CONFIG);
+}
+
+// A bar per hypothesis, its percentage on it, the required confidence as a dashed line.
+function drawPosterior(element, verdict, ranked) {
+  const names = Object.keys(verdict.posterior || {});
+  const x = [...names, "none of these"];
+  const y = [...names.map((n) => verdict.posterior[n]), verdict.p_none];
+  const top = ranked.length ? ranked[0][0] : null;
+  const none = verdict.status === "matches-none" || verdict.status === "not-this-sequence";
+  const colors = x.map((n) => {
+    if (n === "none of these") return none ? STATUS_COLOR[verdict.status] : "#9aa5b1";
+    return n === top && !none ? STATUS_COLOR[verdict.status] : "#8da9c4";
+  });
+  Plotly.newPlot(
+    element,
+    [
+      {
+        type: "bar",
+        x,
+        y,
+        text: y.map(probability),
+        textposition: "auto",
+        marker: { color: colors },
+        hovertemplate: "%{x}: %{text}<extra></extra>",
+        name: "posterior",
+      },
+    ],
+    layout("hypothesis", "posterior", {
+      height: 380,
+      showlegend: false,
+      yaxis: { title: { text: "posterior" }, range: [0, 1.05], tickformat: ".0%" },
+      title: title(`posterior; naming one requires ${plain(100 * verdict.required_confidence, 8)} %`, 13),
+      shapes: [{ type: "line", xref: "paper", x0: 0, x1: 1, y0: verdict.required_confidence, y1: verdict.required_confidence, line: { color: "#5f6b7a", dash: "dash", width: 1 } }],
+    }),
+    PLOT_CONFIG,
+  );
+}
+
+// The posterior after every covered sample (likelihood kinds), the decision marked; a
+// kind without a Gaussian model gets the service's message instead.
+async function showOnline(holder, verdict, file, options, context) {
+  let online;
+  try {
+    online = await api.identifyPartial(verdict.classifier_id, file, options);
+  } catch (exc) {
+    if (!context.alive()) return;
+    holder.append(h("p", { class: "note", id: "online-note" }, exc.status === 422 ? `No posterior over time for this classifier: ${exc.message}` : exc.message));
+    return;
+  }
+  if (!context.alive()) return;
+  const plot = plotDiv("online-plot");
+  const decided = online.decided && online.decision_time_s !== null;
+  holder.append(
+    h(
+      "p",
+      { class: "note", id: "online-summary" },
+      decided
+        ? `decided on ${online.candidate} at ${online.decision_time_s.toFixed(2)} s (posterior ≥ ${plain(100 * (1 - online.alpha), 8)} %)`
+        : `not decided within ${fmt(online.covers_s)} s of the ${fmt(online.sequence_s)} s sequence (posterior ≥ ${plain(100 * (1 - online.alpha), 8)} % needed)`,
+    ),
+    plot,
+  );
+  const names = Object.keys(online.posterior);
+  const traces = names.map((name, k) => ({
+    x: online.time_s,
+    y: online.posterior[name],
+    mode: "lines",
+    line: { color: COLORS[k % COLORS.length], width: 2 },
+    name,
+    hovertemplate: `${name}, t = %{x:.2f} s: %{y:.2%}<extra></extra>`,
+  }));
+  traces.push({ x: online.time_s, y: online.p_none, mode: "lines", line: { color: "#5f6b7a", width: 2, dash: "dash" }, name: "none of these", hovertemplate: "none of these, t = %{x:.2f} s: %{y:.2%}<extra></extra>" });
+  const shapes = [{ type: "line", xref: "paper", x0: 0, x1: 1, y0: 1 - online.alpha, y1: 1 - online.alpha, line: { color: "#9aa5b1", dash: "dot", width: 1 } }];
+  if (decided) shapes.push({ type: "line", yref: "paper", x0: online.decision_time_s, x1: online.decision_time_s, y0: 0, y1: 1, line: { color: "#1e7b34", dash: "dash", width: 2 } });
+  Plotly.newPlot(
+    plot,
+    traces,
+    layout("time from sequence start (s)", "posterior", {
+      height: 560,
+      yaxis: { title: { text: "posterior" }, range: [0, 1.05], tickformat: ".0%" },
+      title: title(decided ? `decided at ${online.decision_time_s.toFixed(2)} s (dashed line)` : "not decided yet", 13),
+      shapes,
+    }),
+    PLOT_CONFIG,
+  );
 }

@@ -1,9 +1,10 @@
-// One classifier: its summary, training confusion, downloads, its sweeps (accuracy
+// One classifier: its summary, training confusion, its posterior's calibration (ECE and
+// reliability diagram), downloads, its sweeps (accuracy
 // against noise) and its sequence with every candidate's response. Used by the
 // classifier page and by the job page of a training.
 
 import { api } from "../api.js";
-import { BAND, confusionPlot, plotDiv, responseView, sequencePlot } from "../components/plots.js";
+import { BAND, PLOT_CONFIG, confusionPlot, layout, plotDiv, responseView, sequencePlot, title } from "../components/plots.js";
 import { downloads, jobDownloads } from "../components/downloads.js";
 import { isTerminal } from "../vocabulary.js";
 import { clear, fmt, h, link, messageBox, score, sequenceText, tagChips, utcText, when } from "../ui.js";
@@ -16,6 +17,7 @@ export async function renderClassifier(container, classifier, context, sweepId =
   const seqPlot = plotDiv("classifier-sequence", "short");
   const responseHolder = h("div", { id: "classifier-response-holder" });
   const sweepCard = h("div", { class: "card", id: "sweep-card" });
+  const calibrationCard = h("div", { class: "card", id: "calibration-card" }, h("h2", {}, "Calibration of the posterior"));
   container.append(
     h(
       "div",
@@ -28,6 +30,7 @@ export async function renderClassifier(container, classifier, context, sweepId =
       ...(classifier.job_id ? jobDownloads({ id: classifier.job_id, type: "train" }) : []),
     ]),
     h("div", { class: "row" }, h("div", { class: "card grow" }, h("h2", {}, "Classifier"), summary), h("div", { class: "card grow" }, h("h2", {}, "Training confusion"), confusion)),
+    calibrationCard,
     sweepCard,
     h("div", { class: "card" }, h("h2", {}, "The sequence"), h("p", { class: "hint" }, "Thrusters numbered from 1."), seqPlot, h("h3", {}, `Each candidate's response (mean and ${BAND.label} band over 20 realisations)`), responseHolder),
   );
@@ -50,6 +53,7 @@ export async function renderClassifier(container, classifier, context, sweepId =
   confusionPlot(confusion, classifier.confusion, classifier.candidate_names, "training series");
   if (context.alive && !context.alive()) return;
 
+  await calibrationOf(calibrationCard, classifier, context);
   await sweepsOf(sweepCard, classifier, context, sweepId);
 
   try {
@@ -65,6 +69,57 @@ export async function renderClassifier(container, classifier, context, sweepId =
   } catch (exc) {
     fuel.textContent = exc.message;
   }
+}
+
+// The calibration report measured on fresh draws at training: the ECE and a reliability
+// diagram (mean confidence against accuracy per bin; on the diagonal it is calibrated).
+async function calibrationOf(card, classifier, context) {
+  let report;
+  try {
+    report = await api.calibration(classifier.id);
+  } catch (exc) {
+    card.append(h("p", { class: "note", id: "calibration-note" }, exc.status === 404 ? "This classifier stores no calibration report (trained before calibration existed)." : exc.message));
+    return;
+  }
+  if (context.alive && !context.alive()) return;
+  const summary = h(
+    "dl",
+    { class: "kv", id: "calibration-summary" },
+    h("dt", {}, "expected calibration error (ECE)"),
+    h("dd", { id: "calibration-ece" }, report.ece.toFixed(4)),
+    h("dt", {}, "held-out accuracy"),
+    h("dd", {}, `${score(report.accuracy)} on ${report.n_held_out} fresh series`),
+    h("dt", {}, "softmax temperature"),
+    h("dd", {}, fmt(report.temperature)),
+    h("dt", {}, "mean P(none of these) on genuine series"),
+    h("dd", {}, fmt(report.mean_p_none)),
+  );
+  const plot = plotDiv("reliability-plot");
+  card.append(h("div", { class: "grid2" }, h("div", {}, summary, h("p", { class: "hint" }, "Bins of the top posterior over fresh draws: a calibrated posterior's accuracy equals its confidence (the diagonal).")), plot));
+  const bins = (report.bins || []).filter((b) => b.count > 0);
+  Plotly.newPlot(
+    plot,
+    [
+      { x: [0, 1], y: [0, 1], mode: "lines", line: { color: "#9aa5b1", dash: "dash", width: 1 }, name: "calibrated", hoverinfo: "skip" },
+      {
+        x: bins.map((b) => b.mean_confidence),
+        y: bins.map((b) => b.accuracy),
+        customdata: bins.map((b) => [b.count, b.low, b.high]),
+        mode: "lines+markers",
+        marker: { size: bins.map((b) => 6 + 10 * Math.sqrt(b.count / Math.max(...bins.map((c) => c.count)))), color: "#1f5fae" },
+        line: { color: "#1f5fae" },
+        name: "classifier",
+        hovertemplate: "confidence %{customdata[1]:.2f}–%{customdata[2]:.2f}: mean %{x:.3f}, accuracy %{y:.3f}, %{customdata[0]} series<extra></extra>",
+      },
+    ],
+    layout("mean confidence (top posterior)", "accuracy", {
+      height: 360,
+      title: title(`reliability diagram, ECE ${report.ece.toFixed(4)}`, 13),
+      xaxis: { title: { text: "mean confidence (top posterior)" }, range: [0, 1.05] },
+      yaxis: { title: { text: "accuracy" }, range: [0, 1.05] },
+    }),
+    PLOT_CONFIG,
+  );
 }
 
 async function sweepsOf(card, classifier, context, sweepId) {
