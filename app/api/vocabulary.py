@@ -26,6 +26,10 @@ class KindOut(BaseModel):
     metrics: list[str] = Field(description="the metrics it takes, its default first; empty: none")
     default_realisations: int
     min_realisations: int
+    online: bool = Field(
+        description="a posterior for part of a series (POST /identify/partial): the "
+        "likelihood kinds"
+    )
 
 
 class NoiseOut(BaseModel):
@@ -113,6 +117,7 @@ def vocabulary() -> VocabularyOut:
                 metrics=list(cls.METRICS),
                 default_realisations=int(cls.DEFAULT_REALISATIONS),
                 min_realisations=int(cls.MIN_REALISATIONS),
+                online=cls.has_partial_posterior(),
             )
         )
     return VocabularyOut(

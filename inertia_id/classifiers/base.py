@@ -523,6 +523,12 @@ class BaseClassifier(BaseEstimator):
             return 1.0
         return self.novelty_tail_.scale
 
+    @classmethod
+    def has_partial_posterior(cls) -> bool:
+        """Whether the kind gives a posterior for a leading part of a series (it overrides
+        :meth:`_prefix_distances`)."""
+        return cls._prefix_distances is not BaseClassifier._prefix_distances
+
     def _prefix_distances(self, X: np.ndarray) -> np.ndarray:
         """Distances of every leading part of checked series, (n, length, K): after the
         first sample, the first two, ... The kinds with a Gaussian model give the exact

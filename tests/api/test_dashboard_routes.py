@@ -137,6 +137,10 @@ def test_the_vocabulary_is_the_cores(api: Api) -> None:
     for k in words["classifier_kinds"]:
         assert k["metrics"] == list(kind_metrics(k["kind"])) and k["label"]
     assert words["default_kind"] == DEFAULT_KIND
+    # The kinds that answer POST /identify/partial: the dashboard calls it only for them.
+    online = {k["kind"] for k in words["classifier_kinds"] if k["online"]}
+    assert online == {"likelihood", "marginal-likelihood"}
+    assert DEFAULT_KIND in online
     assert words["kind_for_metric_only"] == "clustering"
     assert [n["noise"] for n in words["noises"]] == list(NOISE_KINDS)
     assert {n["noise"]: n["unit"] for n in words["noises"]} == NOISE_UNITS

@@ -7,6 +7,7 @@
 import { api } from "../api.js";
 import { downloads } from "../components/downloads.js";
 import { BAND, COLORS, PLOT_CONFIG, layout, plotDiv, responseLayout, title, withAlpha } from "../components/plots.js";
+import { kindInfo } from "../vocabulary.js";
 import { clear, fmt, h, jsonBlob, link, messageBox, plain, probability, sequenceText, showFieldErrors } from "../ui.js";
 
 const DEFAULT_CONFIDENCE = 0.99;
@@ -255,7 +256,12 @@ async function showVerdict(holder, verdict, classifier, { content, context, file
     PLOT_CONFIG,
   );
 
-  await showOnline(onlineHolder, verdict, file, options, context);
+  const info = classifier ? kindInfo(classifier.kind) : null;
+  if (info && !info.online) {
+    onlineHolder.append(h("p", { class: "note", id: "online-note" }, `No posterior over time for the ${info.label} kind: only the likelihood kinds have one (their Gaussian's leading block).`));
+  } else {
+    await showOnline(onlineHolder, verdict, file, options, context);
+  }
   if (!classifier || !context.alive()) return;
   const response = await api.response(classifier.scenario_id, classifier.sequence, { n_realisations: 20 });
   if (!context.alive()) return;
