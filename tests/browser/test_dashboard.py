@@ -381,6 +381,9 @@ def test_the_job_list_updates_without_reload_and_training_shows_the_classifier(
     _needs("scenario")
     page = dashboard.page
     dashboard.open(f"#/jobs?scenario={made['scenario']}&type=train")
+    # The form fills the core's hand-designed baseline once GET /scenarios/{id}/baselines
+    # answers, after the page is drawn.
+    page.wait_for_function("document.querySelector('#train-sequence').value !== ''")
     assert page.input_value("#train-sequence") == str(GOOD).replace(" ", "")
     page.click("#submit-job")
     job_id = _hash_id(dashboard, "jobs")
