@@ -268,7 +268,7 @@ def posterior_over_time(
     (n, length, K) candidates and (n, length) none (see
     :meth:`~inertia_id.classifiers.base.BaseClassifier.posterior_over_time`)."""
     model: Any = classifier
-    return model.posterior_over_time(series)  # type: ignore[no-any-return]
+    return model.posterior_over_time(series)
 
 
 def decide(candidates: np.ndarray, alpha: float = DEFAULT_ALPHA) -> tuple[np.ndarray, np.ndarray]:
