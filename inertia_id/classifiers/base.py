@@ -533,7 +533,10 @@ class BaseClassifier(BaseEstimator):
         )
 
     def posterior_from_distances(
-        self, distances: np.ndarray, fraction: float | np.ndarray = 1.0
+        self,
+        distances: np.ndarray,
+        fraction: float | np.ndarray = 1.0,
+        near_log_bayes: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Posterior of each candidate and of "none of these" from distances (..., K).
 
@@ -544,6 +547,11 @@ class BaseClassifier(BaseEstimator):
         its prior within the novelty thresholds and 1 - prior beyond them.
 
         :param fraction: the part of the series the distances cover (online decisions).
+        :param near_log_bayes: (...) log Bayes factor of a proper model of other bodies
+            near the candidates, where the kind has one (the marginal likelihood's
+            ``near_none_log_bayes``): "none" is then that model or something else
+            entirely (the novelty bound), with equal weight, so its Bayes factor is the
+            mean of the two.
         :returns: (..., K) candidate probabilities and (...) the probability of none;
             together they sum to 1.
         """
@@ -553,6 +561,13 @@ class BaseClassifier(BaseEstimator):
         nearest = d.min(axis=-1)
         if self.novelty_tail_ is not None:
             log_odds = none_log_odds(self.novelty_tail_.log_sf(nearest, fraction), NONE_PRIOR)
+            if near_log_bayes is not None:
+                prior_odds = math.log(NONE_PRIOR) - math.log1p(-NONE_PRIOR)
+                log_odds = (
+                    prior_odds
+                    + np.logaddexp(log_odds - prior_odds, np.asarray(near_log_bayes, dtype=float))
+                    - math.log(2.0)
+                )
         else:
             beyond = np.all(d > self.novelty_thresholds(), axis=-1)
             log_odds = np.where(beyond, 1.0, -1.0) * math.log((1 - NONE_PRIOR) / NONE_PRIOR)

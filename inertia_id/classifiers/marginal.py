@@ -86,6 +86,7 @@ from scipy.linalg import solve_triangular
 from scipy.special import log_softmax, logsumexp
 
 from ..errors import InputError
+from ..physics.estimate import parameters_from_tensor, tensor_from_parameters
 from ..physics.scenario import Scenario
 from ..physics.series import check_series
 from ..physics.simulate import simulate
@@ -95,10 +96,12 @@ from .base import BaseClassifier
 __all__ = [
     "AXES_GRID",
     "COMPONENTS",
+    "DEFAULT_NONE_SPREAD",
     "JOINT_GRID",
     "MEASUREMENT_MULTIPLES",
     "PROCESS_MULTIPLES",
     "MarginalLikelihoodClassifier",
+    "inertia_sensitivity",
     "train_marginal",
 ]
 
@@ -114,6 +117,9 @@ JOINT_GRID = tuple((p, q) for p in PROCESS_MULTIPLES for q in MEASUREMENT_MULTIP
 #: One noise at a time, the other at 1x, in octaves, as a noise sweep visits them.
 AXES_GRID = ((1.0, 1.0), *((m, 1.0) for m in _OCTAVES[1:]), *((1.0, m) for m in _OCTAVES[1:]))
 _LOG_2PI = math.log(2.0 * math.pi)
+#: Prior spread of another body's inertia parameters around a candidate's, as a fraction
+#: of its mean principal moment (the "none of these" model, ``none_spread``).
+DEFAULT_NONE_SPREAD = 0.2
 
 
 def _symmetric(matrix: np.ndarray) -> np.ndarray:
@@ -210,6 +216,35 @@ class _Mixture:
         peak = log_norm[likeliest, np.arange(len(ends))[None, :]]
         return np.sqrt(2.0 * np.maximum(peak[..., None] - log_likelihood, 0.0))
 
+    def near_none_log_likelihood(
+        self, F: np.ndarray, sensitivity: np.ndarray, prior_sd: np.ndarray
+    ) -> np.ndarray:
+        """log p(x | another body near a candidate), (n,): the mean over candidates k
+        and the mixture over conditions m of ``N(x; μ_k, Σ_m + S_k P_k S_kᵀ)``.
+
+        The body's six inertia parameters are drawn around candidate k's with standard
+        deviation ``prior_sd[k]`` each (``P_k``), and the response is linear in them
+        (``S_k``, (dim, 6)): marginalised exactly, by Woodbury and the determinant lemma
+        in each condition's whitened coordinates.
+        """
+        n_candidates = sensitivity.shape[0]
+        out = np.empty((len(self.log_norm), len(F), n_candidates))
+        for c, whitener in enumerate(self.whiteners):
+            white = F @ whitener.T
+            for k in range(n_candidates):
+                residual = white - self.white_means[c][k]
+                A = whitener @ sensitivity[k]  # (dim, 6)
+                gram = A.T @ A
+                sd = np.full(A.shape[1], float(prior_sd[k]))
+                # M = P^-1 + AᵀA; det(I + P^½ G P^½) = det(P) det(M).
+                inner = np.diag(1.0 / sd**2) + gram
+                chol = np.linalg.cholesky(inner)
+                log_det = 2.0 * float(np.sum(np.log(np.diag(chol)) + np.log(sd)))
+                projected = solve_triangular(chol, (residual @ A).T, lower=True)
+                quad = np.sum(residual**2, axis=1) - np.sum(projected**2, axis=0)
+                out[c, :, k] = self.log_norm[c] - 0.5 * log_det - 0.5 * quad
+        return np.asarray(logsumexp(out, axis=(0, 2)) - math.log(n_candidates))
+
     def log_likelihood(self, F: np.ndarray) -> np.ndarray:
         """log p(x | k), the mixture over conditions, (n, K)."""
         return np.asarray(logsumexp(self.joint(F), axis=0))
@@ -239,6 +274,11 @@ class MarginalLikelihoodClassifier(BaseClassifier):
     :param novelty_factor: a series farther from its nearest candidate than this
         multiple of the candidate's largest out-of-fold training distance "matches
         none"; >= 1.
+    :param none_spread: the "none of these" hypothesis includes other bodies near the
+        candidates: each inertia parameter drawn around a candidate's with this standard
+        deviation, as a fraction of the candidate's mean principal moment (see
+        :meth:`near_none_log_bayes`); 0 leaves only the novelty tail. Needs the scenario
+        at fit time (the response's sensitivity to the inertia is simulated).
     """
 
     kind: ClassVar[str] = "marginal-likelihood"
@@ -253,15 +293,21 @@ class MarginalLikelihoodClassifier(BaseClassifier):
     LISTING_ORDER = 70
     LABEL = "marginal likelihood (default: the noise level marginalised)"
     metric = "marginal-mahalanobis"
+    # The response's sensitivity to the inertia (K, length, 3, 6) and the "none" model's
+    # prior spread per candidate (K,), kg m²; None without them (see none_spread).
+    sensitivity_: np.ndarray | None = None
+    none_prior_sd_: np.ndarray | None = None
 
     def __init__(
         self,
         *,
         grid: Sequence[Sequence[float]] = JOINT_GRID,
         novelty_factor: float = 1.1,
+        none_spread: float = DEFAULT_NONE_SPREAD,
     ) -> None:
         self.grid = grid
         self.novelty_factor = novelty_factor
+        self.none_spread = none_spread
 
     def _checked_grid(self) -> np.ndarray:
         try:
@@ -286,6 +332,13 @@ class MarginalLikelihoodClassifier(BaseClassifier):
     def _check_params(self) -> None:
         super()._check_params()
         self._checked_grid()
+        spread = self.none_spread
+        if (
+            isinstance(spread, bool)
+            or not isinstance(spread, int | float)
+            or not (math.isfinite(spread) and spread >= 0.0)
+        ):
+            raise InputError(f"none_spread must be a finite number >= 0, got {spread!r}")
 
     # Fitting.
 
@@ -387,6 +440,12 @@ class MarginalLikelihoodClassifier(BaseClassifier):
         self.means_ = means.reshape(n_candidates, *X.shape[1:])
         self.grid_ = grid
         self._mixture = _Mixture(means, components, grid)
+        self.sensitivity_, self.none_prior_sd_ = None, None
+        if scenario is not None and self.none_spread > 0:
+            self.sensitivity_ = inertia_sensitivity(scenario, self.sequence_)
+            self.none_prior_sd_ = self.none_spread * np.array(
+                [float(np.trace(t)) / 3.0 for t in scenario.inertia_array]
+            )
         training = self._out_of_fold(parts, y, folds, intensities)
         # Training scores, like the other kinds': the training series at 1x, which is
         # what the three parts add up to (the process noise acts linearly).
@@ -483,6 +542,42 @@ class MarginalLikelihoodClassifier(BaseClassifier):
         """Marginal log-density log Σ_m w_m N(x; μ_k, Σ_m) of each series, (n, K)."""
         return self._mixture.log_likelihood(self._flat(X))
 
+    def near_none_log_bayes(self, X: Any) -> np.ndarray | None:
+        """log Bayes factor of "another body near a candidate" against the candidates,
+        (n,); None when the classifier has no sensitivity (``none_spread`` 0, fitted
+        without a scenario, or an older document).
+
+        The alternative is a proper model, not a p-value: the inertia parameters of a
+        body not on the list are drawn around each candidate's (standard deviation
+        ``none_spread`` of its mean principal moment each), the response is linearised
+        in them (:func:`inertia_sensitivity`), and both hypotheses marginalise the same
+        noise grid. A genuine series pays the alternative's Occam factor (on the paper
+        preset log Bayes factors of -10 to -4 at 1x, at most +4 at 8x process noise);
+        a body 10 % off every candidate gains far more than it pays (+14 to +42), where
+        the distance to the nearest candidate alone never told it from a known body at
+        high process noise.
+        """
+        if self.sensitivity_ is None or self.none_prior_sd_ is None:
+            return None
+        F = self._flat(X)
+        candidates = logsumexp(self._mixture.log_likelihood(F), axis=1) - math.log(
+            self.n_candidates_
+        )
+        near = self._mixture.near_none_log_likelihood(
+            F, self.sensitivity_.reshape(self.n_candidates_, -1, 6), self.none_prior_sd_
+        )
+        return np.asarray(near - candidates)
+
+    def predict_posterior(self, X: Any) -> tuple[np.ndarray, np.ndarray]:
+        """Posterior of each candidate (n, K) and of "none of these" (n,).
+
+        "None" is a body near the candidates (:meth:`near_none_log_bayes`) or something
+        else entirely (the novelty tail's bound), with equal weight.
+        """
+        return self.posterior_from_distances(
+            self.transform(X), near_log_bayes=self.near_none_log_bayes(X)
+        )
+
     def predict_proba(self, X: Any) -> np.ndarray:
         """Posterior probability of each candidate with equal priors, (n, K)."""
         return np.exp(log_softmax(self.log_likelihood(X), axis=1))
@@ -503,7 +598,14 @@ class MarginalLikelihoodClassifier(BaseClassifier):
         return params
 
     def _state(self) -> dict[str, Any]:
+        near: dict[str, Any] = {}
+        if self.sensitivity_ is not None and self.none_prior_sd_ is not None:
+            near = {
+                "inertia_sensitivity": self.sensitivity_.tolist(),
+                "none_prior_sd_kg_m2": self.none_prior_sd_.tolist(),
+            }
         return {
+            **near,
             "shrinkage_intensities": dict(zip(COMPONENTS, self.shrinkage_.tolist(), strict=True)),
             "means_rad_s": self.means_.tolist(),
             # Each symmetric component as its lower triangle, row by row, or as one
@@ -529,6 +631,64 @@ class MarginalLikelihoodClassifier(BaseClassifier):
         self.means_ = means
         self.length_ = int(means.shape[1])
         self._mixture = _Mixture(means.reshape(k, -1), self.components_, self.grid_)
+        self.sensitivity_, self.none_prior_sd_ = None, None
+        if data.get("inertia_sensitivity") is not None:
+            sensitivity = np.asarray(data["inertia_sensitivity"], dtype=float)
+            prior_sd = np.asarray(data["none_prior_sd_kg_m2"], dtype=float)
+            if sensitivity.shape != (k, self.length_, 3, 6) or prior_sd.shape != (k,):
+                raise InputError(
+                    f"inertia sensitivity shaped {sensitivity.shape} and none prior "
+                    f"{prior_sd.shape}; expected {(k, self.length_, 3, 6)} and {(k,)}"
+                )
+            self.sensitivity_, self.none_prior_sd_ = sensitivity, prior_sd
+
+
+def inertia_sensitivity(scenario: Scenario, sequence: Any) -> np.ndarray:
+    """How each candidate's noise-free response moves with its six inertia parameters
+    (Ixx, Iyy, Izz, Ixy, Ixz, Iyz), by central differences: (K, length, 3, 6) rad/s
+    per kg m².
+
+    Noise-free: no jitter, disturbance, gyro noise or bias, at rest at the start (the
+    lag of the thrusters kept); the step is 1e-4 of the candidate's mean principal
+    moment, small enough to keep every perturbed tensor physical.
+    """
+    steps = scenario.check_sequence(sequence)
+    tensors = scenario.inertia_array
+    perturbed = []
+    for tensor in tensors:
+        base = parameters_from_tensor(tensor)
+        h = 1e-4 * float(np.trace(tensor)) / 3.0
+        for i in range(6):
+            for sign in (1.0, -1.0):
+                p = base.copy()
+                p[i] += sign * h
+                perturbed.append(tensor_from_parameters(p))
+    data = scenario.model_dump()
+    data["candidate_generator"] = None
+    data["inertia_candidates"] = [
+        {"name": f"perturbed {i}", "inertia_kg_m2": t.tolist()} for i, t in enumerate(perturbed)
+    ]
+    data["uncertainty"] = {
+        "lowpass_time_constant_s": scenario.uncertainty.lowpass_time_constant_s,
+        "disturbance_interval_s": scenario.uncertainty.disturbance_interval_s,
+        **dict.fromkeys(
+            (
+                "duty_jitter_sigma",
+                "thrust_scale_sigma",
+                "disturbance_torque_sigma_nm",
+                "gyro_noise_sigma_rad_s",
+                "gyro_bias_sigma_rad_s",
+                "initial_rate_sigma_rad_s",
+            ),
+            0.0,
+        ),
+    }
+    quiet = Scenario.model_validate(data)
+    omega = simulate(quiet, steps, 1, np.random.default_rng(0)).omega_measured[:, 0]
+    omega = omega.reshape(len(tensors), 6, 2, *omega.shape[1:])
+    h = 1e-4 * np.trace(tensors, axis1=1, axis2=2) / 3.0
+    derivative = (omega[:, :, 0] - omega[:, :, 1]) / (2.0 * h[:, None, None, None])
+    return np.moveaxis(derivative, 1, -1)
 
 
 def train_marginal(
@@ -539,8 +699,11 @@ def train_marginal(
     *,
     grid: Sequence[Sequence[float]] = JOINT_GRID,
     novelty_factor: float = 1.1,
+    none_spread: float = DEFAULT_NONE_SPREAD,
 ) -> MarginalLikelihoodClassifier:
     """Simulate every candidate's noise components under ``sequence`` and fit
     (:meth:`MarginalLikelihoodClassifier.fit_scenario`)."""
-    model = MarginalLikelihoodClassifier(grid=grid, novelty_factor=novelty_factor)
+    model = MarginalLikelihoodClassifier(
+        grid=grid, novelty_factor=novelty_factor, none_spread=none_spread
+    )
     return model.fit_scenario(scenario, sequence, n_realisations, rng)
