@@ -584,7 +584,14 @@ class BaseClassifier(BaseEstimator):
         series = self._check_input(X)
         distances = self._prefix_distances(series)
         fraction = np.arange(1, self.length_ + 1) / self.length_
-        return self.posterior_from_distances(distances, fraction[None, :])
+        return self.posterior_from_distances(
+            distances, fraction[None, :], near_log_bayes=self._prefix_near_log_bayes(series)
+        )
+
+    def _prefix_near_log_bayes(self, X: np.ndarray) -> np.ndarray | None:
+        """(n, length) log Bayes factor of a proper "other bodies" model after each
+        sample, for a kind that has one; None for the others."""
+        return None
 
     # Storage as data.
 

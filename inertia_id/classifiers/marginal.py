@@ -216,6 +216,46 @@ class _Mixture:
         peak = log_norm[likeliest, np.arange(len(ends))[None, :]]
         return np.sqrt(2.0 * np.maximum(peak[..., None] - log_likelihood, 0.0))
 
+    def prefix_near_none_log_bayes(
+        self, F: np.ndarray, sensitivity: np.ndarray, prior_sd: np.ndarray, every: int = 3
+    ) -> np.ndarray:
+        """:meth:`near_none_log_likelihood` against the candidates' mixture, as a log
+        Bayes factor, for every leading part of the series that ends on a whole sample,
+        (n, dim // every): exact, like :meth:`prefix_distances` (the whitener is lower
+        triangular, so a prefix's whitened residual and sensitivity are the leading rows,
+        and their inner products cumulative sums)."""
+        dim = F.shape[1]
+        ends = np.arange(every, dim + 1, every) - 1
+        n_conditions, n_candidates = len(self.log_norm), sensitivity.shape[0]
+        log_norm = (
+            -math.log(n_conditions)
+            - np.cumsum(self.log_diagonal, axis=1)[:, ends]
+            - 0.5 * (ends + 1) * _LOG_2PI
+        )  # (M, T)
+        known = np.empty((n_conditions, len(F), len(ends), n_candidates))
+        near = np.empty_like(known)
+        for c, whitener in enumerate(self.whiteners):
+            white = F @ whitener.T
+            for k in range(n_candidates):
+                residual = white - self.white_means[c][k]  # (n, dim)
+                quad = np.cumsum(residual**2, axis=1)[:, ends]  # (n, T)
+                known[c, :, :, k] = log_norm[c][None] - 0.5 * quad
+                A = whitener @ sensitivity[k]  # (dim, 6)
+                sd = np.full(A.shape[1], float(prior_sd[k]))
+                gram = np.cumsum(A[:, :, None] * A[:, None, :], axis=0)[ends]  # (T, 6, 6)
+                inner = np.diag(1.0 / sd**2)[None] + gram
+                chol = np.linalg.cholesky(inner)
+                log_det = 2.0 * (
+                    np.sum(np.log(np.diagonal(chol, axis1=1, axis2=2)), axis=1) + np.sum(np.log(sd))
+                )  # (T,)
+                inner_product = np.cumsum(residual[:, :, None] * A[None], axis=1)[:, ends]
+                solved = np.linalg.solve(inner[None], inner_product[..., None])[..., 0]
+                explained = np.sum(inner_product * solved, axis=2)  # (n, T)
+                near[c, :, :, k] = (
+                    log_norm[c][None] - 0.5 * log_det[None] - 0.5 * (quad - explained)
+                )
+        return np.asarray(logsumexp(near, axis=(0, 3)) - logsumexp(known, axis=(0, 3)))
+
     def near_none_log_likelihood(
         self, F: np.ndarray, sensitivity: np.ndarray, prior_sd: np.ndarray
     ) -> np.ndarray:
@@ -576,6 +616,15 @@ class MarginalLikelihoodClassifier(BaseClassifier):
         """
         return self.posterior_from_distances(
             self.transform(X), near_log_bayes=self.near_none_log_bayes(X)
+        )
+
+    def _prefix_near_log_bayes(self, X: np.ndarray) -> np.ndarray | None:
+        if self.sensitivity_ is None or self.none_prior_sd_ is None:
+            return None
+        return self._mixture.prefix_near_none_log_bayes(
+            X.reshape(len(X), -1),
+            self.sensitivity_.reshape(self.n_candidates_, -1, 6),
+            self.none_prior_sd_,
         )
 
     def predict_proba(self, X: Any) -> np.ndarray:
