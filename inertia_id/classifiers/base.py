@@ -55,9 +55,11 @@ __all__ = [
 #: Every kind defined so far, by name: filled as the kind classes are defined.
 KINDS: dict[str, type[BaseClassifier]] = {}
 
-#: Prior probability that a series comes from none of the candidates. The Bayes factor
-#: of "none" is never below 1 (see :func:`none_log_odds`), so the prior is the floor of
-#: P(none): 1e-4 leaves a genuine series room to pass the online stop rule's 1 - 1e-3.
+#: Prior probability that a series comes from none of the candidates. The novelty
+#: bound's Bayes factor of "none" is never below 1 (see :func:`none_log_odds`), so the
+#: prior is the floor of P(none) (half of it where "none" also has a proper model of
+#: other bodies, whose factor goes to 0 on a genuine series): 1e-4 leaves a genuine
+#: series room to pass the online stop rule's 1 - 1e-3.
 NONE_PRIOR = 1e-4
 
 
