@@ -26,26 +26,27 @@ series at 3x measurement noise exceed the novelty threshold 3 % of the time with
 octaves, never with thirds), whereas the process noise acts in a few smooth directions
 and octaves suffice.
 
-Noise components, not one covariance per condition. The simulator draws standard
-normal numbers and scales them (:mod:`inertia_id.physics.simulate`), so simulating the same
+Noise components, not one covariance per condition. The simulator draws standard normal
+numbers and scales them (:mod:`inertia_id.physics.simulate`), so simulating the same
 realisations three times from the same generator state, with process and measurement
 noise off, with only process noise at 1x, and with only measurement noise at 1x,
-isolates each source's contribution to every series exactly. The responses are linear
-in both (on the paper preset 8x the process noise gives 8x its 1x response to 0.08 %),
-and the sources are independent, so the pooled covariance at any condition is
+isolates each source's contribution to every series exactly. The responses are linear in
+both (on the paper preset 8x the process noise gives 8x its 1x response to 0.08 %), and
+the sources are independent, so the pooled covariance at any condition is
 
     Σ(p, q) = Σ_quiet + p² Σ_process + q² Σ_measurement,
 
 where Σ_quiet holds what neither multiple scales (duty jitter, thrust scale errors,
 initial rates). Each component is the pooled sample covariance of its isolated
-residuals, shrunk towards ``(tr S / dim) I`` by the likelihood classifier's
-cross-validated rule. For white gyro noise that rule chooses full shrinkage, i.e. σ² I
-estimated from every number at once; the smooth quiet and process components get
-almost none (0.001 to 0.02). Three matrices then serve any grid, and the white
-measurement noise, which a per-condition sample covariance must estimate (badly, in
-240 dimensions), is known almost exactly. The candidates' mean responses, shared by
-every condition (the mean does not move with the noise level, to sampling error), are
-estimated from the quiet run, whose series vary least.
+residuals, shrunk towards ``(tr S / dim) I`` by the likelihood classifier's cross-
+validated rule. For white gyro noise that rule chooses full shrinkage, i.e. σ² I
+estimated from every number at once (a random gyro bias, which the simulator scales with
+the gyro noise, is kept apart as a constant per axis: :func:`_white_and_bias`); the
+smooth quiet and process components get almost none (0.001 to 0.02). Three matrices then
+serve any grid, and the white measurement noise, which a per-condition sample covariance
+must estimate (badly, in 240 dimensions), is known almost exactly. The candidates' mean
+responses, shared by every condition (the mean does not move with the noise level, to
+sampling error), are estimated from the quiet run, whose series vary least.
 
 Distances and novelty: :meth:`MarginalLikelihoodClassifier.transform` gives the
 *marginal Mahalanobis distance* ``sqrt(2 (log ν_m̂ - log p(x | k)))``, where m̂ is the
@@ -163,6 +164,45 @@ def _component_from_document(data: dict[str, Any], dim: int) -> np.ndarray:
     matrix = np.zeros((dim, dim))
     matrix[np.tril_indices(dim)] = lower
     return _symmetric(matrix)
+
+
+#: A per-axis constant (gyro bias) in the measurement part is modelled apart from the white
+#: noise when its coefficients' variance exceeds the white noise's by this many standard
+#: errors of a variance estimate.
+_BIAS_SIGNIFICANCE = 4.0
+
+
+def _white_and_bias(residuals: np.ndarray, n_candidates: int) -> np.ndarray | None:
+    """The measurement part's covariance as white noise plus a constant per-axis bias,
+    ``σ² (I - P) + U C Uᵀ``, or None when no bias stands out of the white noise.
+
+    The simulator scales the random gyro bias with the gyro noise, so the measurement
+    part holds both: a shrinkage towards ``(tr S / dim) I`` would spread the bias's
+    variance over every direction (with the paper preset's 2e-3 rad/s bias it took the
+    white variance 1.6 times too high, so genuine series at 1x lay nearer their candidate
+    than at any other noise level). ``U`` holds the unit per-axis constants
+    ``1 / sqrt(length)`` (``P = U Uᵀ``), ``C`` the pooled covariance of the residuals'
+    coefficients on them (3 x 3), ``σ²`` the residual variance off them.
+
+    :param residuals: (n, dim) measurement parts less their candidate's mean, flattened
+        as (length, 3) series.
+    """
+    n, dim = residuals.shape
+    length = dim // 3
+    dof = max(n - n_candidates, 1)
+    series = residuals.reshape(n, length, 3)
+    coefficients = series.sum(axis=1) / math.sqrt(length)  # (n, 3): on U
+    off = series - series.mean(axis=1, keepdims=True)
+    white = float(np.sum(off**2)) / (dof * 3 * (length - 1))
+    bias = coefficients.T @ coefficients / dof
+    if not np.all(np.diag(bias) > white * (1.0 + _BIAS_SIGNIFICANCE * math.sqrt(2.0 / dof))):
+        return None
+    constants = np.zeros((dim, 3))
+    for axis in range(3):
+        constants[axis::3, axis] = 1.0 / math.sqrt(length)
+    return np.asarray(
+        white * (np.eye(dim) - constants @ constants.T) + constants @ bias @ constants.T
+    )
 
 
 class _Mixture:
@@ -511,17 +551,18 @@ class MarginalLikelihoodClassifier(BaseClassifier):
     def _estimate(
         parts: list[np.ndarray], y: np.ndarray, n_candidates: int, intensities: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Means from the quiet part, and each part's shrunk pooled covariance."""
+        """Means from the quiet part, and each part's shrunk pooled covariance (the
+        measurement part's white noise and constant bias apart, where it has a bias:
+        :func:`_white_and_bias`)."""
         means = gaussian.means_and_scatter(parts[0], y, n_candidates)[0]
-        components = np.stack(
-            [
-                _symmetric(
-                    gaussian.shrink(gaussian.means_and_scatter(F, y, n_candidates)[2], intensity)
-                )
-                for F, intensity in zip(parts, intensities, strict=True)
-            ]
-        )
-        return means, components
+        components = []
+        for index, (F, intensity) in enumerate(zip(parts, intensities, strict=True)):
+            _, residuals, sample = gaussian.means_and_scatter(F, y, n_candidates)
+            structured = _white_and_bias(residuals, n_candidates) if index == 2 else None
+            components.append(
+                _symmetric(gaussian.shrink(sample, intensity)) if structured is None else structured
+            )
+        return means, np.stack(components)
 
     @staticmethod
     def _extremes(grid: np.ndarray) -> np.ndarray:
