@@ -55,9 +55,11 @@ __all__ = [
 #: Every kind defined so far, by name: filled as the kind classes are defined.
 KINDS: dict[str, type[BaseClassifier]] = {}
 
-#: Prior probability that a series comes from none of the candidates. The Bayes factor
-#: of "none" is never below 1 (see :func:`none_log_odds`), so the prior is the floor of
-#: P(none): 1e-4 leaves a genuine series room to pass the online stop rule's 1 - 1e-3.
+#: Prior probability that a series comes from none of the candidates. The novelty
+#: bound's Bayes factor of "none" is never below 1 (see :func:`none_log_odds`), so the
+#: prior is the floor of P(none) (half of it where "none" also has a proper model of
+#: other bodies, whose factor goes to 0 on a genuine series): 1e-4 leaves a genuine
+#: series room to pass the online stop rule's 1 - 1e-3.
 NONE_PRIOR = 1e-4
 
 
@@ -539,7 +541,10 @@ class BaseClassifier(BaseEstimator):
         )
 
     def posterior_from_distances(
-        self, distances: np.ndarray, fraction: float | np.ndarray = 1.0
+        self,
+        distances: np.ndarray,
+        fraction: float | np.ndarray = 1.0,
+        near_log_bayes: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Posterior of each candidate and of "none of these" from distances (..., K).
 
@@ -550,6 +555,11 @@ class BaseClassifier(BaseEstimator):
         its prior within the novelty thresholds and 1 - prior beyond them.
 
         :param fraction: the part of the series the distances cover (online decisions).
+        :param near_log_bayes: (...) log Bayes factor of a proper model of other bodies
+            near the candidates, where the kind has one (the marginal likelihood's
+            ``near_none_log_bayes``): "none" is then that model or something else
+            entirely (the novelty bound), with equal weight, so its Bayes factor is the
+            mean of the two.
         :returns: (..., K) candidate probabilities and (...) the probability of none;
             together they sum to 1.
         """
@@ -559,6 +569,13 @@ class BaseClassifier(BaseEstimator):
         nearest = d.min(axis=-1)
         if self.novelty_tail_ is not None:
             log_odds = none_log_odds(self.novelty_tail_.log_sf(nearest, fraction), NONE_PRIOR)
+            if near_log_bayes is not None:
+                prior_odds = math.log(NONE_PRIOR) - math.log1p(-NONE_PRIOR)
+                log_odds = (
+                    prior_odds
+                    + np.logaddexp(log_odds - prior_odds, np.asarray(near_log_bayes, dtype=float))
+                    - math.log(2.0)
+                )
         else:
             beyond = np.all(d > self.novelty_thresholds(), axis=-1)
             log_odds = np.where(beyond, 1.0, -1.0) * math.log((1 - NONE_PRIOR) / NONE_PRIOR)
@@ -575,7 +592,14 @@ class BaseClassifier(BaseEstimator):
         series = self._check_input(X)
         distances = self._prefix_distances(series)
         fraction = np.arange(1, self.length_ + 1) / self.length_
-        return self.posterior_from_distances(distances, fraction[None, :])
+        return self.posterior_from_distances(
+            distances, fraction[None, :], near_log_bayes=self._prefix_near_log_bayes(series)
+        )
+
+    def _prefix_near_log_bayes(self, X: np.ndarray) -> np.ndarray | None:
+        """(n, length) log Bayes factor of a proper "other bodies" model after each
+        sample, for a kind that has one; None for the others."""
+        return None
 
     # Storage as data.
 

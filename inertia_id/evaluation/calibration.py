@@ -117,7 +117,7 @@ def calibrate(
     # The bounded search never evaluates the bound itself: keep T = 1 when it is as good.
     log_temperature = float(found.x) if found.fun < held_out_loss(0.0) else 0.0
     model.calibration_ = {"temperature": math.exp(log_temperature)}
-    candidates, p_none = model.posterior_from_distances(distances[held])
+    candidates, p_none = model.predict_posterior(X[held])
     hypotheses = np.concatenate([candidates, p_none[:, None]], axis=1)
     predicted = hypotheses.argmax(axis=1)
     correct = predicted == y[held]

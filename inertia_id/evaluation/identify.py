@@ -204,8 +204,8 @@ def identify(
     series = resample(telemetry, grid)
     distances = classifier.transform(series[None])[0]
     model: Any = classifier
-    candidates, p_none_array = model.posterior_from_distances(distances)
-    p_none = float(p_none_array)
+    candidates, p_none_array = model.predict_posterior(series[None])
+    candidates, p_none = candidates[0], float(p_none_array[0])
     order = np.argsort(-candidates, kind="stable")
     best = int(order[0])
     second = int(order[1])
