@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any
 
 from fastapi import APIRouter, HTTPException, Query, Response, status
 from sqlalchemy import ColumnElement, func, or_, select
@@ -12,13 +12,16 @@ from service.store.models import ClassifierRow, JobRow, JobTagRow
 
 from ..schemas import ClassifierOut, ClassifierPage
 from .deps import (
+    OrderQuery,
     PagingDep,
     SessionDep,
     TagText,
     checked_tags,
     get_or_404,
     plausible_id,
-    unprocessable,
+    sort_query,
+    text_query,
+    unknown_sort,
 )
 
 __all__ = ["router"]
@@ -59,25 +62,16 @@ def list_classifiers(
     kind: Annotated[str | None, Query(max_length=64, pattern=r"^[a-z0-9-]*$")] = None,
     q: Annotated[
         str | None,
-        Query(
-            max_length=200,
-            pattern=r"^[^\x00]*$",
-            description="text in the kind, metric or training job's name or tags, or an id prefix",
-        ),
+        text_query("text in the kind, metric or training job's name or tags, or an id prefix"),
     ] = None,
     tag: Annotated[
         list[TagText] | None,
         Query(description="classifiers whose training job carries this tag"),
     ] = None,
     sort: Annotated[
-        str,
-        Query(
-            max_length=64,
-            description="created, f1, accuracy, kind, metric or name",
-            json_schema_extra={"enum": list(_SORT_COLUMNS)},
-        ),
+        str, sort_query(_SORT_COLUMNS, "created, f1, accuracy, kind, metric or name")
     ] = "created",
-    order: Annotated[Literal["asc", "desc"], Query()] = "desc",
+    order: OrderQuery = "desc",
 ) -> ClassifierPage:
     """Classifiers, newest first by default, filtered by scenario, job, kind, text and the
     training job's tags, sorted, one page at a time."""
@@ -116,10 +110,7 @@ def list_classifiers(
             .exists()
         )
     if sort not in _SORT_COLUMNS:
-        unprocessable(
-            ("query", "sort"),
-            f"cannot sort classifiers by {sort[:80]!r}; by one of {', '.join(_SORT_COLUMNS)}",
-        )
+        unknown_sort("classifiers", sort, _SORT_COLUMNS)
     key = _SORT_COLUMNS[sort]
     ordered = (key.asc() if order == "asc" else key.desc()).nulls_last()
     joined = select(ClassifierRow, JobRow).outerjoin(JobRow, JobRow.id == ClassifierRow.job_id)

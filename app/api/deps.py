@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import re
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
-from typing import Annotated, NoReturn, TypeVar
+from typing import Annotated, Any, Literal, NoReturn, TypeVar
 
 from celery import Celery
 from fastapi import Depends, HTTPException, Query, Request, status
@@ -24,6 +24,7 @@ __all__ = [
     "ApiKeyDep",
     "CeleryDep",
     "DatabaseDep",
+    "OrderQuery",
     "Paging",
     "PagingDep",
     "SessionDep",
@@ -32,6 +33,9 @@ __all__ = [
     "checked_tags",
     "get_or_404",
     "plausible_id",
+    "sort_query",
+    "text_query",
+    "unknown_sort",
     "unprocessable",
 ]
 
@@ -131,6 +135,28 @@ def paging(
 
 
 PagingDep = Annotated[Paging, Depends(paging)]
+
+#: ``?order=``: the direction of a list's ``?sort=``.
+OrderQuery = Annotated[Literal["asc", "desc"], Query(description="asc or desc")]
+
+
+def text_query(description: str) -> Any:
+    """A list's ``?q=``: free text of at most 200 characters without NUL (which the
+    databases refuse to bind); ``description`` says what it matches."""
+    return Query(max_length=200, pattern=r"^[^\x00]*$", description=description)
+
+
+def sort_query(keys: Iterable[str], description: str) -> Any:
+    """A list's ``?sort=``: one of ``keys``, which the schema lists as its enum (checked
+    by the endpoint, with :func:`unknown_sort`, since some keys are read at run time)."""
+    return Query(max_length=64, description=description, json_schema_extra={"enum": list(keys)})
+
+
+def unknown_sort(what: str, sort: str, keys: Iterable[str]) -> NoReturn:
+    """422 for a ``?sort=`` that is none of ``keys``."""
+    unprocessable(
+        ("query", "sort"), f"cannot sort {what} by {sort[:80]!r}; by one of {', '.join(keys)}"
+    )
 
 
 def checked_tags(tags: list[str] | None) -> list[str]:

@@ -50,6 +50,7 @@ from ..schemas import (
 from .deps import (
     ApiKeyDep,
     CeleryDep,
+    OrderQuery,
     PagingDep,
     SessionDep,
     SettingsDep,
@@ -57,6 +58,9 @@ from .deps import (
     checked_tags,
     get_or_404,
     plausible_id,
+    sort_query,
+    text_query,
+    unknown_sort,
     unprocessable,
 )
 
@@ -253,10 +257,7 @@ def _sort_expression(sort: str) -> Any:
         return _SORT_COLUMNS[sort]
     if sort in summary_keys():
         return JobRow.summary[sort].as_float()
-    unprocessable(
-        ("query", "sort"),
-        f"cannot sort jobs by {sort[:80]!r}; by one of {', '.join(JOB_SORT_KEYS)}",
-    )
+    unknown_sort("jobs", sort, JOB_SORT_KEYS)
 
 
 def _text_match(q: str) -> ColumnElement[bool]:
@@ -283,9 +284,6 @@ def _has_tag(tag: str) -> ColumnElement[bool]:
     )
 
 
-SortOrder = Literal["asc", "desc"]
-
-
 @router.get("")
 def list_jobs(
     session: SessionDep,
@@ -294,12 +292,7 @@ def list_jobs(
     status: Annotated[JobStatus | None, Query()] = None,
     scenario_id: Annotated[str | None, Query(max_length=64)] = None,
     q: Annotated[
-        str | None,
-        Query(
-            max_length=200,
-            pattern=r"^[^\x00]*$",
-            description="text in the name (any case), an id prefix, or text in a tag",
-        ),
+        str | None, text_query("text in the name (any case), an id prefix, or text in a tag")
     ] = None,
     tag: Annotated[
         list[TagText] | None,
@@ -310,14 +303,13 @@ def list_jobs(
     ] = None,
     sort: Annotated[
         str,
-        Query(
-            max_length=64,
-            description="created, started, finished, name, status, type, seed, progress, or a "
+        sort_query(
+            JOB_SORT_KEYS,
+            "created, started, finished, name, status, type, seed, progress, or a "
             "summary figure (GET /vocabulary job_summaries), e.g. fresh_f1",
-            json_schema_extra={"enum": list(JOB_SORT_KEYS)},
         ),
     ] = "created",
-    order: Annotated[SortOrder, Query(description="asc or desc")] = "desc",
+    order: OrderQuery = "desc",
 ) -> JobPage:
     """Jobs, filtered by type, status, scenario, text, tags and classifier, sorted (newest
     first by default; jobs without the figure sorted by come last), one page at a time."""
