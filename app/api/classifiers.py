@@ -8,7 +8,7 @@ from fastapi import APIRouter, HTTPException, Query, Response, status
 from sqlalchemy import ColumnElement, func, or_, select
 from sqlalchemy.orm import Session
 
-from service.store.models import ClassifierRow, JobRow, JobTagRow
+from service.store.models import ClassifierRow, JobRow
 
 from ..schemas import ClassifierOut, ClassifierPage
 from .deps import (
@@ -18,6 +18,7 @@ from .deps import (
     TagText,
     checked_tags,
     get_or_404,
+    job_tagged,
     plausible_id,
     sort_query,
     text_query,
@@ -86,29 +87,17 @@ def list_classifiers(
         conditions.append(ClassifierRow.kind == kind)
     if q is not None and q.strip():
         needle = q.strip().lower()
-        tagged = (
-            select(JobTagRow.job_id)
-            .where(
-                JobTagRow.job_id == ClassifierRow.job_id,
-                func.lower(JobTagRow.tag).contains(needle, autoescape=True),
-            )
-            .exists()
-        )
         conditions.append(
             or_(
                 ClassifierRow.id.startswith(needle, autoescape=True),
                 ClassifierRow.kind.contains(needle, autoescape=True),
                 ClassifierRow.metric.contains(needle, autoescape=True),
                 func.lower(JobRow.name).contains(needle, autoescape=True),
-                tagged,
+                job_tagged(ClassifierRow.job_id, containing=needle),
             )
         )
     for one in checked_tags(tag):
-        conditions.append(
-            select(JobTagRow.job_id)
-            .where(JobTagRow.job_id == ClassifierRow.job_id, JobTagRow.tag == one.strip())
-            .exists()
-        )
+        conditions.append(job_tagged(ClassifierRow.job_id, tag=one.strip()))
     if sort not in _SORT_COLUMNS:
         unknown_sort("classifiers", sort, _SORT_COLUMNS)
     key = _SORT_COLUMNS[sort]

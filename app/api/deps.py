@@ -11,10 +11,11 @@ from celery import Celery
 from fastapi import Depends, HTTPException, Query, Request, status
 from fastapi.exceptions import RequestValidationError
 from fastapi.security import APIKeyHeader
+from sqlalchemy import ColumnElement, func, select
 from sqlalchemy.orm import Session
 
 from service.config import Settings
-from service.store.models import MAX_TAG_LENGTH
+from service.store.models import MAX_TAG_LENGTH, JobTagRow
 from service.store.session import Database
 
 from ..schemas import TagText
@@ -32,6 +33,7 @@ __all__ = [
     "TagText",
     "checked_tags",
     "get_or_404",
+    "job_tagged",
     "plausible_id",
     "sort_query",
     "text_query",
@@ -172,6 +174,19 @@ def checked_tags(tags: list[str] | None) -> list[str]:
             )
         out.append(tag)
     return out
+
+
+def job_tagged(
+    job_id: Any, *, tag: str | None = None, containing: str | None = None
+) -> ColumnElement[bool]:
+    """The job ``job_id`` (a column) carries ``tag``, or a tag whose lower case contains
+    ``containing`` (already lower case)."""
+    condition = (
+        JobTagRow.tag == tag
+        if containing is None
+        else func.lower(JobTagRow.tag).contains(containing, autoescape=True)
+    )
+    return select(JobTagRow.job_id).where(JobTagRow.job_id == job_id, condition).exists()
 
 
 def unprocessable(loc: tuple[str | int, ...], message: str) -> NoReturn:

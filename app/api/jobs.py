@@ -27,7 +27,6 @@ from service.store.models import (
     TERMINAL_STATUSES,
     ClassifierRow,
     JobRow,
-    JobTagRow,
     MetricRow,
     ScenarioRow,
 )
@@ -57,6 +56,7 @@ from .deps import (
     TagText,
     checked_tags,
     get_or_404,
+    job_tagged,
     plausible_id,
     sort_query,
     text_query,
@@ -263,24 +263,10 @@ def _sort_expression(sort: str) -> Any:
 def _text_match(q: str) -> ColumnElement[bool]:
     """Name contains ``q`` (any case), the id starts with it, or a tag contains it."""
     needle = q.strip().lower()
-    tagged = (
-        select(JobTagRow.job_id)
-        .where(
-            JobTagRow.job_id == JobRow.id,
-            func.lower(JobTagRow.tag).contains(needle, autoescape=True),
-        )
-        .exists()
-    )
     return or_(
         func.lower(JobRow.name).contains(needle, autoescape=True),
         JobRow.id.startswith(needle, autoescape=True),
-        tagged,
-    )
-
-
-def _has_tag(tag: str) -> ColumnElement[bool]:
-    return (
-        select(JobTagRow.job_id).where(JobTagRow.job_id == JobRow.id, JobTagRow.tag == tag).exists()
+        job_tagged(JobRow.id, containing=needle),
     )
 
 
@@ -331,7 +317,7 @@ def list_jobs(
     if q is not None and q.strip():
         conditions.append(_text_match(q))
     for one in checked_tags(tag):
-        conditions.append(_has_tag(one.strip()))
+        conditions.append(job_tagged(JobRow.id, tag=one.strip()))
     key = _sort_expression(sort)
     ordered = key.asc() if order == "asc" else key.desc()
     total = session.scalar(select(func.count()).select_from(JobRow).where(*conditions)) or 0
