@@ -118,23 +118,24 @@ async def _internal_error(request: Request, exc: Exception) -> JSONResponse:
     )
 
 
+def _unavailable(detail: str, retry_after_s: int) -> JSONResponse:
+    """503: try again after ``retry_after_s`` seconds."""
+    return JSONResponse(
+        status_code=status.HTTP_503_SERVICE_UNAVAILABLE,
+        content={"detail": detail},
+        headers={"Retry-After": str(retry_after_s)},
+    )
+
+
 async def _database_busy(_request: Request, exc: Exception) -> JSONResponse:
     # Every pooled connection in use for pool_timeout: the service is past capacity.
     log.warning("database connection pool exhausted: %s", exc)
-    return JSONResponse(
-        status_code=status.HTTP_503_SERVICE_UNAVAILABLE,
-        content={"detail": "the service is past its capacity (no database connection free)"},
-        headers={"Retry-After": "2"},
-    )
+    return _unavailable("the service is past its capacity (no database connection free)", 2)
 
 
 async def _database_down(_request: Request, exc: Exception) -> JSONResponse:
     log.error("database unreachable: %s", exc)
-    return JSONResponse(
-        status_code=status.HTTP_503_SERVICE_UNAVAILABLE,
-        content={"detail": "the database cannot be reached; try again shortly"},
-        headers={"Retry-After": "5"},
-    )
+    return _unavailable("the database cannot be reached; try again shortly", 5)
 
 
 def install_error_handlers(app: FastAPI) -> None:
