@@ -32,6 +32,8 @@ __all__ = [
     "KeyVerifier",
     "ensure_api_key",
     "hash_key",
+    "scope_header",
+    "send_detail",
 ]
 
 API_KEY_HEADER = "X-API-Key"
@@ -187,32 +189,36 @@ class BodySizeLimit:
             await _send_413(send, self.max_bytes, None)
 
 
-def _content_length(scope: Scope) -> int | None:
-    for name, value in scope.get("headers", []):
-        if name == b"content-length":
-            try:
-                return int(value)
-            except ValueError:
-                return None
+def scope_header(scope: Scope, name: bytes) -> str | None:
+    """The first ``name`` header (lower-case) of an ASGI request, as latin-1 text; None
+    without one."""
+    for key, value in scope.get("headers", []):
+        if key == name:
+            return str(value.decode("latin-1"))
     return None
 
 
-async def _send_413(send: Send, limit: int, declared: int | None) -> None:
-    body = json.dumps(
-        {"detail": BodyTooLarge(limit, declared).detail}, separators=(",", ":")
-    ).encode()
-    await send(
-        {
-            "type": "http.response.start",
-            "status": 413,
-            "headers": [
-                (b"content-type", b"application/json"),
-                (b"content-length", str(len(body)).encode()),
-                (b"connection", b"close"),
-            ],
-        }
-    )
+async def send_detail(send: Send, status_code: int, detail: str, *, close: bool = False) -> None:
+    """Answer from a middleware, before the app: ``{"detail": detail}`` as JSON, the
+    connection closed after it with ``close``."""
+    body = json.dumps({"detail": detail}, separators=(",", ":")).encode()
+    headers = [(b"content-type", b"application/json"), (b"content-length", str(len(body)).encode())]
+    if close:
+        headers.append((b"connection", b"close"))
+    await send({"type": "http.response.start", "status": status_code, "headers": headers})
     await send({"type": "http.response.body", "body": body})
+
+
+def _content_length(scope: Scope) -> int | None:
+    text = scope_header(scope, b"content-length")
+    try:
+        return None if text is None else int(text)
+    except ValueError:
+        return None
+
+
+async def _send_413(send: Send, limit: int, declared: int | None) -> None:
+    await send_detail(send, 413, BodyTooLarge(limit, declared).detail, close=True)
 
 
 def host_name(header: str) -> str:
@@ -244,11 +250,7 @@ class AllowedHosts:
         if self.any or scope["type"] not in ("http", "websocket"):
             await self.app(scope, receive, send)
             return
-        header = ""
-        for name, value in scope.get("headers", []):
-            if name == b"host":
-                header = value.decode("latin-1")
-                break
+        header = scope_header(scope, b"host") or ""
         if host_name(header) in self.hosts:
             await self.app(scope, receive, send)
             return
@@ -256,15 +258,4 @@ class AllowedHosts:
             f"Host header {header[:100]!r} is not a name this service answers to "
             f"({', '.join(sorted(self.hosts))}); set INERTIA_ID_ALLOWED_HOSTS to add one"
         )
-        body = json.dumps({"detail": detail}).encode()
-        await send(
-            {
-                "type": "http.response.start",
-                "status": 400,
-                "headers": [
-                    (b"content-type", b"application/json"),
-                    (b"content-length", str(len(body)).encode()),
-                ],
-            }
-        )
-        await send({"type": "http.response.body", "body": body})
+        await send_detail(send, 400, detail)

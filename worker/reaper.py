@@ -87,6 +87,20 @@ def _unmark(db: Database, unsent: list[tuple[str, str]]) -> None:
     )
 
 
+def _dispatch(db: Database, celery: Celery, job_ids: list[str], *, mark: bool) -> list[str]:
+    """Send the jobs' messages; those sent marked sent now with ``mark`` (false where
+    :func:`due_for_sending` marked them already), those not sent back to "not sent".
+    The ids sent."""
+    sent, unsent = _send(celery, job_ids)
+    if mark and sent:
+        with db.session() as session:
+            for job_id in sent:
+                mark_sent(session, job_id)
+    if unsent:
+        _unmark(db, unsent)
+    return sent
+
+
 def reap_once(settings: Settings, db: Database, celery: Celery) -> ReapReport:
     """Re-queue (and re-send) or fail every running job whose run died.
 
@@ -101,15 +115,8 @@ def reap_once(settings: Settings, db: Database, celery: Celery) -> ReapReport:
             max_attempts=settings.max_attempts,
             worker_silence_s=WORKER_SILENCE_BEATS * settings.heartbeat_interval_s,
         )
-    sent, unsent = _send(celery, requeued)
-    if sent:
-        with db.session() as session:
-            for job_id in sent:
-                mark_sent(session, job_id)
-    for job_id in sent:
+    for job_id in _dispatch(db, celery, requeued, mark=True):
         logger.warning("re-queued job %s: its worker stopped sending heartbeats", job_id)
-    if unsent:
-        _unmark(db, unsent)
     for job_id in failed:
         logger.warning("ended job %s: its worker stopped sending heartbeats", job_id)
     return ReapReport(requeued=requeued, failed=failed)
@@ -138,11 +145,9 @@ def resend_once(settings: Settings, db: Database, celery: Celery) -> list[str]:
             resend_after_s=settings.resend_after_s,
             idle_workers=idle,
         )
-    sent, unsent = _send(celery, due)
+    sent = _dispatch(db, celery, due, mark=False)
     for job_id in sent:
         logger.warning("sent job %s (again): it was queued without a message", job_id)
-    if unsent:
-        _unmark(db, unsent)
     return sent
 
 
@@ -150,13 +155,7 @@ def hand_back_jobs(settings: Settings, db: Database, celery: Celery, worker: str
     """Re-queue and re-send the jobs ``worker`` runs, at no cost of an attempt."""
     with db.session() as session:
         job_ids = hand_back(session, worker, f"worker {worker} was asked to stop")
-    sent, unsent = _send(celery, job_ids)
-    if sent:
-        with db.session() as session:
-            for job_id in sent:
-                mark_sent(session, job_id)
+    _dispatch(db, celery, job_ids, mark=True)
     for job_id in job_ids:
         logger.warning("handed job %s back to the queue: this worker is stopping", job_id)
-    if unsent:
-        _unmark(db, unsent)
     return job_ids

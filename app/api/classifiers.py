@@ -2,23 +2,27 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any
 
 from fastapi import APIRouter, HTTPException, Query, Response, status
 from sqlalchemy import ColumnElement, func, or_, select
 from sqlalchemy.orm import Session
 
-from service.store.models import ClassifierRow, JobRow, JobTagRow
+from service.store.models import ClassifierRow, JobRow
 
 from ..schemas import ClassifierOut, ClassifierPage
 from .deps import (
+    OrderQuery,
     PagingDep,
     SessionDep,
     TagText,
     checked_tags,
     get_or_404,
+    job_tagged,
     plausible_id,
-    unprocessable,
+    sort_query,
+    text_query,
+    unknown_sort,
 )
 
 __all__ = ["router"]
@@ -59,25 +63,16 @@ def list_classifiers(
     kind: Annotated[str | None, Query(max_length=64, pattern=r"^[a-z0-9-]*$")] = None,
     q: Annotated[
         str | None,
-        Query(
-            max_length=200,
-            pattern=r"^[^\x00]*$",
-            description="text in the kind, metric or training job's name or tags, or an id prefix",
-        ),
+        text_query("text in the kind, metric or training job's name or tags, or an id prefix"),
     ] = None,
     tag: Annotated[
         list[TagText] | None,
         Query(description="classifiers whose training job carries this tag"),
     ] = None,
     sort: Annotated[
-        str,
-        Query(
-            max_length=64,
-            description="created, f1, accuracy, kind, metric or name",
-            json_schema_extra={"enum": list(_SORT_COLUMNS)},
-        ),
+        str, sort_query(_SORT_COLUMNS, "created, f1, accuracy, kind, metric or name")
     ] = "created",
-    order: Annotated[Literal["asc", "desc"], Query()] = "desc",
+    order: OrderQuery = "desc",
 ) -> ClassifierPage:
     """Classifiers, newest first by default, filtered by scenario, job, kind, text and the
     training job's tags, sorted, one page at a time."""
@@ -92,34 +87,19 @@ def list_classifiers(
         conditions.append(ClassifierRow.kind == kind)
     if q is not None and q.strip():
         needle = q.strip().lower()
-        tagged = (
-            select(JobTagRow.job_id)
-            .where(
-                JobTagRow.job_id == ClassifierRow.job_id,
-                func.lower(JobTagRow.tag).contains(needle, autoescape=True),
-            )
-            .exists()
-        )
         conditions.append(
             or_(
                 ClassifierRow.id.startswith(needle, autoescape=True),
                 ClassifierRow.kind.contains(needle, autoescape=True),
                 ClassifierRow.metric.contains(needle, autoescape=True),
                 func.lower(JobRow.name).contains(needle, autoescape=True),
-                tagged,
+                job_tagged(ClassifierRow.job_id, containing=needle),
             )
         )
     for one in checked_tags(tag):
-        conditions.append(
-            select(JobTagRow.job_id)
-            .where(JobTagRow.job_id == ClassifierRow.job_id, JobTagRow.tag == one.strip())
-            .exists()
-        )
+        conditions.append(job_tagged(ClassifierRow.job_id, tag=one.strip()))
     if sort not in _SORT_COLUMNS:
-        unprocessable(
-            ("query", "sort"),
-            f"cannot sort classifiers by {sort[:80]!r}; by one of {', '.join(_SORT_COLUMNS)}",
-        )
+        unknown_sort("classifiers", sort, _SORT_COLUMNS)
     key = _SORT_COLUMNS[sort]
     ordered = (key.asc() if order == "asc" else key.desc()).nulls_last()
     joined = select(ClassifierRow, JobRow).outerjoin(JobRow, JobRow.id == ClassifierRow.job_id)

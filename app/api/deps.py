@@ -3,18 +3,19 @@
 from __future__ import annotations
 
 import re
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
-from typing import Annotated, NoReturn, TypeVar
+from typing import Annotated, Any, Literal, NoReturn, TypeVar
 
 from celery import Celery
 from fastapi import Depends, HTTPException, Query, Request, status
 from fastapi.exceptions import RequestValidationError
 from fastapi.security import APIKeyHeader
+from sqlalchemy import ColumnElement, func, select
 from sqlalchemy.orm import Session
 
 from service.config import Settings
-from service.store.models import MAX_TAG_LENGTH
+from service.store.models import MAX_TAG_LENGTH, JobTagRow
 from service.store.session import Database
 
 from ..schemas import TagText
@@ -24,6 +25,7 @@ __all__ = [
     "ApiKeyDep",
     "CeleryDep",
     "DatabaseDep",
+    "OrderQuery",
     "Paging",
     "PagingDep",
     "SessionDep",
@@ -31,7 +33,11 @@ __all__ = [
     "TagText",
     "checked_tags",
     "get_or_404",
+    "job_tagged",
     "plausible_id",
+    "sort_query",
+    "text_query",
+    "unknown_sort",
     "unprocessable",
 ]
 
@@ -132,6 +138,28 @@ def paging(
 
 PagingDep = Annotated[Paging, Depends(paging)]
 
+#: ``?order=``: the direction of a list's ``?sort=``.
+OrderQuery = Annotated[Literal["asc", "desc"], Query(description="asc or desc")]
+
+
+def text_query(description: str) -> Any:
+    """A list's ``?q=``: free text of at most 200 characters without NUL (which the
+    databases refuse to bind); ``description`` says what it matches."""
+    return Query(max_length=200, pattern=r"^[^\x00]*$", description=description)
+
+
+def sort_query(keys: Iterable[str], description: str) -> Any:
+    """A list's ``?sort=``: one of ``keys``, which the schema lists as its enum (checked
+    by the endpoint, with :func:`unknown_sort`, since some keys are read at run time)."""
+    return Query(max_length=64, description=description, json_schema_extra={"enum": list(keys)})
+
+
+def unknown_sort(what: str, sort: str, keys: Iterable[str]) -> NoReturn:
+    """422 for a ``?sort=`` that is none of ``keys``."""
+    unprocessable(
+        ("query", "sort"), f"cannot sort {what} by {sort[:80]!r}; by one of {', '.join(keys)}"
+    )
+
 
 def checked_tags(tags: list[str] | None) -> list[str]:
     """Tags from a query (``?tag=a&tag=b``), stripped; 422 for one no job could carry."""
@@ -146,6 +174,19 @@ def checked_tags(tags: list[str] | None) -> list[str]:
             )
         out.append(tag)
     return out
+
+
+def job_tagged(
+    job_id: Any, *, tag: str | None = None, containing: str | None = None
+) -> ColumnElement[bool]:
+    """The job ``job_id`` (a column) carries ``tag``, or a tag whose lower case contains
+    ``containing`` (already lower case)."""
+    condition = (
+        JobTagRow.tag == tag
+        if containing is None
+        else func.lower(JobTagRow.tag).contains(containing, autoescape=True)
+    )
+    return select(JobTagRow.job_id).where(JobTagRow.job_id == job_id, condition).exists()
 
 
 def unprocessable(loc: tuple[str | int, ...], message: str) -> NoReturn:

@@ -28,6 +28,8 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from inertia_id.errors import InputError
 
+from ..security import scope_header
+
 __all__ = ["format_errors", "install_error_handlers"]
 
 log = logging.getLogger(__name__)
@@ -116,23 +118,24 @@ async def _internal_error(request: Request, exc: Exception) -> JSONResponse:
     )
 
 
+def _unavailable(detail: str, retry_after_s: int) -> JSONResponse:
+    """503: try again after ``retry_after_s`` seconds."""
+    return JSONResponse(
+        status_code=status.HTTP_503_SERVICE_UNAVAILABLE,
+        content={"detail": detail},
+        headers={"Retry-After": str(retry_after_s)},
+    )
+
+
 async def _database_busy(_request: Request, exc: Exception) -> JSONResponse:
     # Every pooled connection in use for pool_timeout: the service is past capacity.
     log.warning("database connection pool exhausted: %s", exc)
-    return JSONResponse(
-        status_code=status.HTTP_503_SERVICE_UNAVAILABLE,
-        content={"detail": "the service is past its capacity (no database connection free)"},
-        headers={"Retry-After": "2"},
-    )
+    return _unavailable("the service is past its capacity (no database connection free)", 2)
 
 
 async def _database_down(_request: Request, exc: Exception) -> JSONResponse:
     log.error("database unreachable: %s", exc)
-    return JSONResponse(
-        status_code=status.HTTP_503_SERVICE_UNAVAILABLE,
-        content={"detail": "the database cannot be reached; try again shortly"},
-        headers={"Retry-After": "5"},
-    )
+    return _unavailable("the database cannot be reached; try again shortly", 5)
 
 
 def install_error_handlers(app: FastAPI) -> None:
@@ -168,11 +171,7 @@ class RequestId:
         if scope["type"] != "http":
             await self.app(scope, receive, send)
             return
-        given = ""
-        for name, value in scope.get("headers", []):
-            if name == b"x-request-id":
-                given = value.decode("latin-1")
-                break
+        given = scope_header(scope, b"x-request-id") or ""
         request_id = given if _REQUEST_ID.fullmatch(given) else uuid.uuid4().hex
         scope.setdefault("state", {})["request_id"] = request_id
 

@@ -27,7 +27,6 @@ from service.store.models import (
     TERMINAL_STATUSES,
     ClassifierRow,
     JobRow,
-    JobTagRow,
     MetricRow,
     ScenarioRow,
 )
@@ -50,13 +49,18 @@ from ..schemas import (
 from .deps import (
     ApiKeyDep,
     CeleryDep,
+    OrderQuery,
     PagingDep,
     SessionDep,
     SettingsDep,
     TagText,
     checked_tags,
     get_or_404,
+    job_tagged,
     plausible_id,
+    sort_query,
+    text_query,
+    unknown_sort,
     unprocessable,
 )
 
@@ -253,37 +257,17 @@ def _sort_expression(sort: str) -> Any:
         return _SORT_COLUMNS[sort]
     if sort in summary_keys():
         return JobRow.summary[sort].as_float()
-    unprocessable(
-        ("query", "sort"),
-        f"cannot sort jobs by {sort[:80]!r}; by one of {', '.join(JOB_SORT_KEYS)}",
-    )
+    unknown_sort("jobs", sort, JOB_SORT_KEYS)
 
 
 def _text_match(q: str) -> ColumnElement[bool]:
     """Name contains ``q`` (any case), the id starts with it, or a tag contains it."""
     needle = q.strip().lower()
-    tagged = (
-        select(JobTagRow.job_id)
-        .where(
-            JobTagRow.job_id == JobRow.id,
-            func.lower(JobTagRow.tag).contains(needle, autoescape=True),
-        )
-        .exists()
-    )
     return or_(
         func.lower(JobRow.name).contains(needle, autoescape=True),
         JobRow.id.startswith(needle, autoescape=True),
-        tagged,
+        job_tagged(JobRow.id, containing=needle),
     )
-
-
-def _has_tag(tag: str) -> ColumnElement[bool]:
-    return (
-        select(JobTagRow.job_id).where(JobTagRow.job_id == JobRow.id, JobTagRow.tag == tag).exists()
-    )
-
-
-SortOrder = Literal["asc", "desc"]
 
 
 @router.get("")
@@ -294,12 +278,7 @@ def list_jobs(
     status: Annotated[JobStatus | None, Query()] = None,
     scenario_id: Annotated[str | None, Query(max_length=64)] = None,
     q: Annotated[
-        str | None,
-        Query(
-            max_length=200,
-            pattern=r"^[^\x00]*$",
-            description="text in the name (any case), an id prefix, or text in a tag",
-        ),
+        str | None, text_query("text in the name (any case), an id prefix, or text in a tag")
     ] = None,
     tag: Annotated[
         list[TagText] | None,
@@ -310,14 +289,13 @@ def list_jobs(
     ] = None,
     sort: Annotated[
         str,
-        Query(
-            max_length=64,
-            description="created, started, finished, name, status, type, seed, progress, or a "
+        sort_query(
+            JOB_SORT_KEYS,
+            "created, started, finished, name, status, type, seed, progress, or a "
             "summary figure (GET /vocabulary job_summaries), e.g. fresh_f1",
-            json_schema_extra={"enum": list(JOB_SORT_KEYS)},
         ),
     ] = "created",
-    order: Annotated[SortOrder, Query(description="asc or desc")] = "desc",
+    order: OrderQuery = "desc",
 ) -> JobPage:
     """Jobs, filtered by type, status, scenario, text, tags and classifier, sorted (newest
     first by default; jobs without the figure sorted by come last), one page at a time."""
@@ -339,7 +317,7 @@ def list_jobs(
     if q is not None and q.strip():
         conditions.append(_text_match(q))
     for one in checked_tags(tag):
-        conditions.append(_has_tag(one.strip()))
+        conditions.append(job_tagged(JobRow.id, tag=one.strip()))
     key = _sort_expression(sort)
     ordered = key.asc() if order == "asc" else key.desc()
     total = session.scalar(select(func.count()).select_from(JobRow).where(*conditions)) or 0

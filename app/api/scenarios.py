@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import json
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
 from fastapi import APIRouter, HTTPException, Query, Request, Response, status
@@ -38,6 +38,15 @@ router = APIRouter(prefix="/scenarios", tags=["scenarios"])
 
 _NOT_FOUND: dict[int | str, dict[str, Any]] = {404: {"description": "no such scenario"}}
 _UNAUTHORIZED: dict[int | str, dict[str, Any]] = {401: {"description": "missing or wrong API key"}}
+
+#: A sequence in the query string: its steps as JSON.
+_SequenceQuery = Annotated[
+    str,
+    Query(
+        max_length=20_000,
+        description="JSON list of steps, each a level index per thruster: [[4,4,4,0,0,0]]",
+    ),
+]
 
 
 def scenario_out(row: ScenarioRow) -> ScenarioOut:
@@ -237,10 +246,7 @@ def _parse_sequence(text: str, scenario: Scenario) -> np.ndarray:
 async def scenario_response(
     scenario_id: str,
     request: Request,
-    sequence: str = Query(
-        max_length=20_000,
-        description="JSON list of steps, each a level index per thruster: [[4,4,4,0,0,0]]",
-    ),
+    sequence: _SequenceQuery,
     n_realisations: int = Query(default=20, ge=2, le=200),
     seed: int = Query(default=0, ge=0, le=MAX_SEED),
 ) -> ScenarioResponse:
@@ -370,10 +376,7 @@ _PLAN_RESPONSES: dict[int | str, dict[str, Any]] = {
 async def scenario_plan(
     scenario_id: str,
     request: Request,
-    sequence: str = Query(
-        max_length=20_000,
-        description="JSON list of steps, each a level index per thruster: [[4,4,4,0,0,0]]",
-    ),
+    sequence: _SequenceQuery,
     format: str = Query(default="json", pattern="^(json|csv)$", description="json or csv"),
 ) -> Response:
     """The command plan of a sequence: per step and thruster the PWM on-time (s) and

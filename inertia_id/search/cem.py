@@ -121,18 +121,14 @@ def cem_search(
     probabilities = np.full((sequence_length, scenario.n_thrusters, m), 1.0 / m)
     stopped: str | None = None
     while stopped is None:
-        ranked: list[tuple[tuple[float, float, float], np.ndarray]] = []
-        for sequence in _sample(rng, probabilities, population):
-            if tracker.timesteps + sequence_length > total_timesteps:
-                stopped = "budget"
-                break
-            if should_stop is not None and should_stop():
-                stopped = "cancelled"
-                break
-            ranked.append((tracker.rank(run.play(sequence)), sequence))
-            if tracker.reached_target():
-                stopped = "target"
-                break
+        draws = _sample(rng, probabilities, population)
+        ranked = [
+            (tracker.rank(record), sequence)
+            for sequence, record in run.play_each(
+                draws, total_timesteps=total_timesteps, should_stop=should_stop
+            )
+        ]
+        stopped = run.stopped
         if ranked:
             report_point(tracker, total_timesteps, progress)
         if stopped is None:

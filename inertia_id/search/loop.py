@@ -10,7 +10,7 @@ the :class:`~inertia_id.search.records.SearchResult`.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from typing import Any
 
 import numpy as np
@@ -95,6 +95,8 @@ class SearchRun:
             constraint_penalty=constraint_penalty,
         )
         self.tracker = SearchTracker(fuel_weight=fuel_weight, patience_episodes=patience_episodes)
+        #: Why :meth:`play_each` last stopped; None while sequences remain.
+        self.stopped: str | None = None
 
     def play(self, sequence: np.ndarray) -> EpisodeRecord:
         """One whole sequence as one episode; its record."""
@@ -104,6 +106,33 @@ class SearchRun:
             self.tracker.on_step(reward, terminated, info)
         assert self.tracker.last is not None  # the last step of an episode terminates it
         return self.tracker.last
+
+    def play_each(
+        self,
+        sequences: Iterable[np.ndarray],
+        *,
+        total_timesteps: int,
+        should_stop: Callable[[], bool] | None = None,
+    ) -> Iterator[tuple[np.ndarray, EpisodeRecord]]:
+        """Play sequences until the budget, the target or a cancel, yielding each
+        sequence played with its record.
+
+        Afterwards :attr:`stopped` says why it stopped: "budget", "cancelled",
+        "target", or None when ``sequences`` ran out.
+        """
+        self.stopped = None
+        length = self.env.sequence_length
+        for sequence in sequences:
+            if self.tracker.timesteps + length > total_timesteps:
+                self.stopped = "budget"
+                return
+            if should_stop is not None and should_stop():
+                self.stopped = "cancelled"
+                return
+            yield sequence, self.play(sequence)
+            if self.tracker.reached_target():
+                self.stopped = "target"
+                return
 
     def run_episodes(
         self,
@@ -119,26 +148,15 @@ class SearchRun:
 
         Returns why it stopped: "budget", "target", "cancelled" or "exhausted".
         """
-        tracker = self.tracker
-        length = self.env.sequence_length
         next_report = report_every
-        stopped = "exhausted"
-        for sequence in sequences:
-            if tracker.timesteps + length > total_timesteps:
-                stopped = "budget"
-                break
-            if should_stop is not None and should_stop():
-                stopped = "cancelled"
-                break
-            self.play(sequence)
-            if tracker.timesteps >= next_report:
+        for _ in self.play_each(
+            sequences, total_timesteps=total_timesteps, should_stop=should_stop
+        ):
+            if self.tracker.timesteps >= next_report:
                 next_report += report_every
-                report_point(tracker, total_timesteps, progress)
-            if tracker.reached_target():
-                stopped = "target"
-                break
+                report_point(self.tracker, total_timesteps, progress)
         self.close_curve(total_timesteps, progress)
-        return stopped
+        return self.stopped or "exhausted"
 
     def close_curve(
         self, total_timesteps: int, progress: Callable[[SearchProgress], None] | None
