@@ -88,7 +88,7 @@ def canted_paper() -> Scenario:
         }
     )
     return preset(
-        "paper",
+        "paper-in-orbit",
         name="canted full tensor (paper timing)",
         inertia_candidates=candidates,
         thrusters={"torque_matrix_nm": canted.torque_matrix.tolist(), "n_levels": 5},
@@ -97,7 +97,7 @@ def canted_paper() -> Scenario:
 
 def _scenarios() -> dict[str, tuple[Scenario, Any]]:
     return {
-        "paper": (preset("paper"), GOOD_SEQUENCE),
+        "paper": (preset("paper-in-orbit"), GOOD_SEQUENCE),
         "canted": (canted_paper(), CANTED_SEQUENCE),
     }
 
