@@ -4,7 +4,10 @@ Telemetry is the gyro's ω samples, with time stamps in any clock and the start 
 actuation sequence the classifier was trained for in that clock
 (:class:`~inertia_id.evaluation.telemetry.Telemetry`). It is resampled onto the
 classifier's sample grid (averaged when faster, interpolated when slower:
-:func:`~inertia_id.evaluation.telemetry.resample`) and compared with every candidate.
+:func:`~inertia_id.evaluation.telemetry.resample`) and compared with every candidate;
+telemetry slower than the grid whose samples fall on it is compared on its measured grid
+points only by the likelihood kinds (the exact Gaussian marginal of those values:
+:func:`~inertia_id.evaluation.telemetry.resample_observed`).
 
 The verdict is a posterior: a probability for each candidate and one for "none of
 these" (:meth:`~inertia_id.classifiers.base.BaseClassifier.posterior_from_distances`),
