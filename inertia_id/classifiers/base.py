@@ -483,14 +483,28 @@ class BaseClassifier(BaseEstimator):
         """Fit on the series, then predict them."""
         return self.fit(X, y, **kwargs).predict(X)
 
-    def novelty_thresholds(self) -> np.ndarray:
+    def novelty_thresholds(self, fraction: float = 1.0) -> np.ndarray:
         """Per-candidate distance beyond which a series "matches none", (K,).
 
         ``novelty_factor`` times the largest distance a training series had to the
         candidate (out-of-sample where the kind's training distances are, see ``_fit``).
+
+        :param fraction: the part of the series' values the distances cover (the
+            measured grid points of slow telemetry, :meth:`observed_fraction`): the
+            threshold is then the novelty tail's quantile of the same tail probability
+            with the degrees of freedom in proportion (``sqrt(fraction)`` times the
+            whole series' without a tail).
         """
         self._check_fitted()
-        return np.asarray(self.novelty_factor * self.max_training_distance_)
+        full = np.asarray(self.novelty_factor * self.max_training_distance_)
+        if fraction >= 1.0:
+            return full
+        tail = self.novelty_tail_
+        if tail is None:
+            return np.asarray(full * math.sqrt(fraction))
+        log_p = tail.log_sf(full)
+        dof = max(tail.dof * fraction, 1.0)
+        return np.asarray(np.sqrt(tail.scale * chi2.isf(np.exp(log_p), dof)))
 
     def evaluate(self, X: Any, y: Any) -> dict[str, Any]:
         """F1 (macro), accuracy and confusion matrix (row = true) of predictions against ``y``."""
@@ -530,6 +544,71 @@ class BaseClassifier(BaseEstimator):
         """Whether the kind gives a posterior for a leading part of a series (it overrides
         :meth:`_prefix_distances`)."""
         return cls._prefix_distances is not BaseClassifier._prefix_distances
+
+    # Slow telemetry: the measured grid points only.
+
+    @classmethod
+    def supports_observed(cls) -> bool:
+        """Whether the kind evaluates a series on its measured grid points only (it
+        overrides :meth:`_observed_distances`: the likelihood kinds, the exact Gaussian
+        marginal of the measured values); the others use every grid point."""
+        return cls._observed_distances is not BaseClassifier._observed_distances
+
+    def _observed_values(self, observed: Any) -> np.ndarray | None:
+        """The flattened indices of the measured values, or None when every grid point
+        was measured (or the kind uses every one)."""
+        if observed is None:
+            return None
+        self._check_fitted()
+        mask = np.asarray(observed)
+        if mask.dtype != bool or mask.shape != (self.length_,):
+            raise InputError(
+                f"observed must be {self.length_} booleans (one per grid point), got "
+                f"{mask.dtype} shaped {mask.shape}"
+            )
+        if not mask.any():
+            raise InputError("observed marks no grid point as measured")
+        if mask.all() or not self.supports_observed():
+            return None
+        return np.asarray((np.flatnonzero(mask)[:, None] * 3 + np.arange(3)).ravel())
+
+    def observed_fraction(self, observed: Any = None) -> float:
+        """The part of the series' values the distances use: the measured grid points'
+        (:meth:`transform_observed`), 1 for a whole series."""
+        values = self._observed_values(observed)
+        return 1.0 if values is None else values.size / (3.0 * self.length_)
+
+    def transform_observed(self, X: Any, observed: Any = None) -> np.ndarray:
+        """:meth:`transform` on the grid points ``observed`` marks as measured, (n, K):
+        for a likelihood kind the distance of the exact Gaussian marginal of those
+        values; the whole series (today's distances, bit for bit) when every point is
+        marked, when ``observed`` is None, or for a kind without the hook."""
+        values = self._observed_values(observed)
+        if values is None:
+            return self.transform(X)
+        return np.asarray(self._observed_distances(self._check_input(X), values))
+
+    def _observed_distances(self, X: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """Distances of checked series on the flattened values ``values`` only, (n, K);
+        by default (a kind without a Gaussian model) the whole series'."""
+        return self._candidate_distances(X)
+
+    def _observed_near_log_bayes(self, X: np.ndarray, values: np.ndarray) -> np.ndarray | None:
+        """(n,) log Bayes factor of a proper "other bodies" model on ``values``; None
+        for a kind without one."""
+        return None
+
+    def _observed_prefix_distances(self, X: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """Distances after each measured sample, (n, len(values) // 3, K): the leading
+        blocks of the measured values' marginal."""
+        raise InputError(
+            f"the {self.kind!r} classifier has no posterior for a partly measured series"
+        )
+
+    def _observed_prefix_near_log_bayes(
+        self, X: np.ndarray, values: np.ndarray
+    ) -> np.ndarray | None:
+        return None
 
     def _prefix_distances(self, X: np.ndarray) -> np.ndarray:
         """Distances of every leading part of checked series, (n, length, K): after the
@@ -582,19 +661,65 @@ class BaseClassifier(BaseEstimator):
         p_none = 1.0 / (1.0 + np.exp(-np.clip(log_odds, -700.0, 700.0)))
         return candidates * (1.0 - p_none)[..., None], p_none
 
-    def predict_posterior(self, X: Any) -> tuple[np.ndarray, np.ndarray]:
-        """Posterior of each candidate (n, K) and of "none of these" (n,); they sum to 1."""
+    def predict_posterior(self, X: Any, observed: Any = None) -> tuple[np.ndarray, np.ndarray]:
+        """Posterior of each candidate (n, K) and of "none of these" (n,); they sum to 1.
+
+        :param observed: (length,) booleans, the grid points that hold a measurement
+            (slow telemetry, :func:`~inertia_id.evaluation.telemetry.resample_observed`);
+            a likelihood kind then uses those values only. None: every point.
+        """
+        values = self._observed_values(observed)
+        if values is not None:
+            return self._observed_posterior(X, values)
         return self.posterior_from_distances(self.transform(X))
 
-    def posterior_over_time(self, X: Any) -> tuple[np.ndarray, np.ndarray]:
+    def _observed_posterior(self, X: Any, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        series = self._check_input(X)
+        return self.posterior_from_distances(
+            self._observed_distances(series, values),
+            values.size / (3.0 * self.length_),
+            near_log_bayes=self._observed_near_log_bayes(series, values),
+        )
+
+    def posterior_over_time(self, X: Any, observed: Any = None) -> tuple[np.ndarray, np.ndarray]:
         """The posterior after each sample of the series: (n, length, K) candidates and
-        (n, length) none, from the leading part of the series up to that sample."""
+        (n, length) none, from the leading part of the series up to that sample.
+
+        :param observed: (length,) booleans, the grid points that hold a measurement: the
+            posterior then moves at those only (the leading blocks of the measured
+            values' marginal), and is the prior before the first. None: every point.
+        """
+        values = self._observed_values(observed)
+        if values is not None:
+            return self._observed_posterior_over_time(X, values)
         series = self._check_input(X)
         distances = self._prefix_distances(series)
         fraction = np.arange(1, self.length_ + 1) / self.length_
         return self.posterior_from_distances(
             distances, fraction[None, :], near_log_bayes=self._prefix_near_log_bayes(series)
         )
+
+    def _observed_posterior_over_time(
+        self, X: Any, values: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        series = self._check_input(X)
+        distances = self._observed_prefix_distances(series, values)  # (n, m, K)
+        measured = values.size // 3
+        fraction = np.arange(1, measured + 1) / self.length_
+        candidates, none = self.posterior_from_distances(
+            distances,
+            fraction[None, :],
+            near_log_bayes=self._observed_prefix_near_log_bayes(series, values),
+        )
+        # Row 0 the prior (before the first measurement), row j after the j-th.
+        n, k = len(series), self.n_candidates_
+        prior_candidates = np.full((n, 1, k), (1.0 - NONE_PRIOR) / k)
+        candidates = np.concatenate([prior_candidates, candidates], axis=1)
+        none = np.concatenate([np.full((n, 1), NONE_PRIOR), none], axis=1)
+        mask = np.zeros(self.length_, dtype=bool)
+        mask[values[::3] // 3] = True
+        seen = np.cumsum(mask)
+        return candidates[:, seen], none[:, seen]
 
     def _prefix_near_log_bayes(self, X: np.ndarray) -> np.ndarray | None:
         """(n, length) log Bayes factor of a proper "other bodies" model after each

@@ -133,6 +133,7 @@ class LikelihoodClassifier(BaseClassifier):
             intensity = float(self.shrinkage)
         self.covariance_ = shrink(sample, intensity)
         self.chol_lower_ = cholesky(self.covariance_)
+        self.__dict__.pop("_observed_blocks", None)
         self.shrinkage_ = intensity
         self.means_ = means.reshape(self.n_candidates_, *X.shape[1:])
         return self._out_of_fold(F, y, folds, intensity)
@@ -168,6 +169,33 @@ class LikelihoodClassifier(BaseClassifier):
         diffs = (F[:, None, :] - means[None, :, :]).reshape(n * self.n_candidates_, p)
         white = solve_triangular(self.chol_lower_, diffs.T, lower=True, check_finite=False)
         squared = np.cumsum(white**2, axis=0)[2::3]  # (length, n K)
+        return np.sqrt(squared.T.reshape(n, self.n_candidates_, -1)).swapaxes(1, 2)
+
+    def _observed_block(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The measured values' means (K, m) and the Cholesky factor of their covariance
+        block: the exact Gaussian marginal, cached per set of values."""
+        cache: dict[bytes, tuple[np.ndarray, np.ndarray]] = self.__dict__.setdefault(
+            "_observed_blocks", {}
+        )
+        key = values.tobytes()
+        if key not in cache:
+            if len(cache) >= 16:
+                cache.clear()
+            means = self.means_.reshape(self.n_candidates_, -1)[:, values]
+            cache[key] = (means, cholesky(self.covariance_[np.ix_(values, values)]))
+        return cache[key]
+
+    def _observed_distances(self, X: np.ndarray, values: np.ndarray) -> np.ndarray:
+        means, chol = self._observed_block(values)
+        return whitened_distances(X.reshape(len(X), -1)[:, values], means, chol)
+
+    def _observed_prefix_distances(self, X: np.ndarray, values: np.ndarray) -> np.ndarray:
+        means, chol = self._observed_block(values)
+        F = X.reshape(len(X), -1)[:, values]
+        n, p = F.shape
+        diffs = (F[:, None, :] - means[None, :, :]).reshape(n * self.n_candidates_, p)
+        white = solve_triangular(chol, diffs.T, lower=True, check_finite=False)
+        squared = np.cumsum(white**2, axis=0)[2::3]
         return np.sqrt(squared.T.reshape(n, self.n_candidates_, -1)).swapaxes(1, 2)
 
     def log_likelihood(self, X: Any) -> np.ndarray:
@@ -216,5 +244,6 @@ class LikelihoodClassifier(BaseClassifier):
         covariance[np.tril_indices(p)] = lower
         self.covariance_ = covariance + np.tril(covariance, -1).T
         self.chol_lower_ = cholesky(self.covariance_)
+        self.__dict__.pop("_observed_blocks", None)
         self.means_ = means
         self.length_ = int(means.shape[1])

@@ -535,6 +535,7 @@ class MarginalLikelihoodClassifier(BaseClassifier):
         self.means_ = means.reshape(n_candidates, *X.shape[1:])
         self.grid_ = grid
         self._mixture = _Mixture(means, components, grid)
+        self.__dict__.pop("_observed_mixtures", None)
         self.sensitivity_, self.none_prior_sd_ = None, None
         if scenario is not None and self.none_spread > 0:
             self.sensitivity_ = inertia_sensitivity(scenario, self.sequence_)
@@ -634,6 +635,53 @@ class MarginalLikelihoodClassifier(BaseClassifier):
         condition's mean and covariance (exact for Gaussians), (n, length, K)."""
         return self._mixture.prefix_distances(X.reshape(len(X), -1))
 
+    # Slow telemetry: the exact marginal of the measured values.
+
+    def _mixture_on(self, values: np.ndarray) -> _Mixture:
+        """The mixture of the measured values' block: every condition's mean and
+        covariance components restricted to ``values`` (the exact Gaussian marginal),
+        cached per set of values."""
+        cache: dict[bytes, _Mixture] = self.__dict__.setdefault("_observed_mixtures", {})
+        key = values.tobytes()
+        if key not in cache:
+            if len(cache) >= 16:
+                cache.clear()
+            means = self.means_.reshape(self.n_candidates_, -1)[:, values]
+            components = self.components_[:, values][:, :, values]
+            cache[key] = _Mixture(means, components, self.grid_)
+        return cache[key]
+
+    def _observed_sensitivity(self, values: np.ndarray) -> np.ndarray | None:
+        if self.sensitivity_ is None or self.none_prior_sd_ is None:
+            return None
+        return self.sensitivity_.reshape(self.n_candidates_, -1, 6)[:, values]
+
+    def _observed_distances(self, X: np.ndarray, values: np.ndarray) -> np.ndarray:
+        return self._mixture_on(values).distances(X.reshape(len(X), -1)[:, values])
+
+    def _observed_near_log_bayes(self, X: np.ndarray, values: np.ndarray) -> np.ndarray | None:
+        sensitivity = self._observed_sensitivity(values)
+        if sensitivity is None or self.none_prior_sd_ is None:
+            return None
+        mixture = self._mixture_on(values)
+        F = X.reshape(len(X), -1)[:, values]
+        candidates = logsumexp(mixture.log_likelihood(F), axis=1) - math.log(self.n_candidates_)
+        near = mixture.near_none_log_likelihood(F, sensitivity, self.none_prior_sd_)
+        return np.asarray(near - candidates)
+
+    def _observed_prefix_distances(self, X: np.ndarray, values: np.ndarray) -> np.ndarray:
+        return self._mixture_on(values).prefix_distances(X.reshape(len(X), -1)[:, values])
+
+    def _observed_prefix_near_log_bayes(
+        self, X: np.ndarray, values: np.ndarray
+    ) -> np.ndarray | None:
+        sensitivity = self._observed_sensitivity(values)
+        if sensitivity is None or self.none_prior_sd_ is None:
+            return None
+        return self._mixture_on(values).prefix_near_none_log_bayes(
+            X.reshape(len(X), -1)[:, values], sensitivity, self.none_prior_sd_
+        )
+
     def log_likelihood(self, X: Any) -> np.ndarray:
         """Marginal log-density log Σ_m w_m N(x; μ_k, Σ_m) of each series, (n, K)."""
         return self._mixture.log_likelihood(self._flat(X))
@@ -664,12 +712,17 @@ class MarginalLikelihoodClassifier(BaseClassifier):
         )
         return np.asarray(near - candidates)
 
-    def predict_posterior(self, X: Any) -> tuple[np.ndarray, np.ndarray]:
+    def predict_posterior(self, X: Any, observed: Any = None) -> tuple[np.ndarray, np.ndarray]:
         """Posterior of each candidate (n, K) and of "none of these" (n,).
 
         "None" is a body near the candidates (:meth:`near_none_log_bayes`) or something
-        else entirely (the novelty tail's bound), with equal weight.
+        else entirely (the novelty tail's bound), with equal weight. ``observed``: the
+        grid points that hold a measurement (see the base class); both hypotheses are
+        then evaluated on those values only.
         """
+        values = self._observed_values(observed)
+        if values is not None:
+            return self._observed_posterior(X, values)
         return self.posterior_from_distances(
             self.transform(X), near_log_bayes=self.near_none_log_bayes(X)
         )
@@ -736,6 +789,7 @@ class MarginalLikelihoodClassifier(BaseClassifier):
         self.means_ = means
         self.length_ = int(means.shape[1])
         self._mixture = _Mixture(means.reshape(k, -1), self.components_, self.grid_)
+        self.__dict__.pop("_observed_mixtures", None)
         self.sensitivity_, self.none_prior_sd_ = None, None
         if data.get("inertia_sensitivity") is not None:
             sensitivity = np.asarray(data["inertia_sensitivity"], dtype=float)

@@ -4,7 +4,10 @@ Telemetry is the gyro's ω samples, with time stamps in any clock and the start 
 actuation sequence the classifier was trained for in that clock
 (:class:`~inertia_id.evaluation.telemetry.Telemetry`). It is resampled onto the
 classifier's sample grid (averaged when faster, interpolated when slower:
-:func:`~inertia_id.evaluation.telemetry.resample`) and compared with every candidate.
+:func:`~inertia_id.evaluation.telemetry.resample`) and compared with every candidate;
+telemetry slower than the grid whose samples fall on it is compared on its measured grid
+points only by the likelihood kinds (the exact Gaussian marginal of those values:
+:func:`~inertia_id.evaluation.telemetry.resample_observed`).
 
 The verdict is a posterior: a probability for each candidate and one for "none of
 these" (:meth:`~inertia_id.classifiers.base.BaseClassifier.posterior_from_distances`),
@@ -34,7 +37,7 @@ from pydantic import BaseModel
 from ..errors import InputError
 from ..physics.estimate import PARAMETER_NAMES, estimate_inertia, tensor_from_parameters
 from ..physics.scenario import Scenario
-from .telemetry import Telemetry, resample
+from .telemetry import Telemetry, resample_observed
 
 if TYPE_CHECKING:
     from ..classifiers.registry import CandidateClassifier
@@ -201,10 +204,12 @@ def identify(
         telemetry = Telemetry.model_validate(telemetry)
     scenario, sequence = _context(classifier)
     grid = scenario.sample_times(len(sequence))
-    series = resample(telemetry, grid)
-    distances = classifier.transform(series[None])[0]
+    # Slow telemetry on the grid: the likelihood kinds use the measured points only.
+    series, observed = resample_observed(telemetry, grid)
+    fraction = classifier.observed_fraction(observed)
+    distances = classifier.transform_observed(series[None], observed)[0]
     model: Any = classifier
-    candidates, p_none_array = model.predict_posterior(series[None])
+    candidates, p_none_array = model.predict_posterior(series[None], observed=observed)
     candidates, p_none = candidates[0], float(p_none_array[0])
     order = np.argsort(-candidates, kind="stable")
     best = int(order[0])
@@ -213,7 +218,7 @@ def identify(
     by_distance = np.sort(distances)
     runner_up = float(by_distance[1])
     margin = runner_up - float(distances[best])
-    thresholds = np.asarray(classifier.novelty_thresholds())
+    thresholds = np.asarray(classifier.novelty_thresholds(fraction))
     threshold = float(thresholds[best])
     beyond_threshold = bool(distances[best] > threshold)
     not_this_sequence = bool(np.all(distances > NOT_THIS_SEQUENCE_FACTOR * thresholds))
@@ -262,13 +267,16 @@ def identify(
 
 
 def posterior_over_time(
-    classifier: CandidateClassifier, series: Any
+    classifier: CandidateClassifier, series: Any, observed: Any = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """The posterior after every grid sample of whole series on the classifier's grid:
     (n, length, K) candidates and (n, length) none (see
-    :meth:`~inertia_id.classifiers.base.BaseClassifier.posterior_over_time`)."""
+    :meth:`~inertia_id.classifiers.base.BaseClassifier.posterior_over_time`); with
+    ``observed`` (length,) booleans, from the measured grid points only."""
     model: Any = classifier
-    return model.posterior_over_time(series)
+    if observed is None:
+        return model.posterior_over_time(series)
+    return model.posterior_over_time(series, observed=observed)
 
 
 def decide(candidates: np.ndarray, alpha: float = DEFAULT_ALPHA) -> tuple[np.ndarray, np.ndarray]:
@@ -315,12 +323,17 @@ def identify_online(
             f"telemetry ends at {telemetry.time_array[-1]:.6g} s, before the first sample of "
             f"the sequence at {grid[0]:.6g} s"
         )
-    partial = resample(telemetry, grid[:covered])
+    partial, measured = resample_observed(telemetry, grid[:covered])
     # The rest of the series is never looked at (each prefix's posterior is its own
     # leading block's), so any finite filler serves to make it whole.
     series = np.zeros((len(grid), 3))
     series[:covered] = partial
-    candidates, p_none = posterior_over_time(classifier, series[None])
+    # Slow telemetry on the grid: the posterior moves at the measured points only.
+    observed = None
+    if not measured.all():
+        observed = np.zeros(len(grid), dtype=bool)
+        observed[:covered] = measured
+    candidates, p_none = posterior_over_time(classifier, series[None], observed)
     candidates, p_none = candidates[0, :covered], p_none[0, :covered]
     first, chosen = decide(candidates[None], alpha)
     names = classifier.candidate_names_

@@ -53,6 +53,7 @@ __all__ = [
     "parse_sequence_start",
     "parse_telemetry",
     "resample",
+    "resample_observed",
 ]
 
 MAX_TELEMETRY_SAMPLES = 200_000
@@ -62,6 +63,9 @@ DEFAULT_START_WINDOW_S = 3600.0
 # Coverage rules, in periods p = max(grid period, median telemetry period).
 EDGE_GAP_PERIODS = 1.5
 INTERIOR_GAP_PERIODS = 4.0
+#: A sample within this fraction of the grid period of a grid time was taken at it
+#: (:func:`resample_observed`); 50 µs at 20 Hz, far above ISO stamps' 1 µs rounding.
+ON_GRID_TOLERANCE = 1e-3
 
 _MICROSECOND = timedelta(microseconds=1)
 _ISO_EXAMPLE = "2025-03-01T12:00:00.050Z"
@@ -367,6 +371,36 @@ def resample(telemetry: Telemetry, grid_s: np.ndarray) -> np.ndarray:
     (rules in the module docstring), naming the largest gap.
     """
     return _resample(telemetry.time_array, telemetry.omega_array, grid_s, telemetry.describe_time)
+
+
+def resample_observed(telemetry: Telemetry, grid_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`resample`'s series and which grid times hold a real measurement, (len(grid),)
+    booleans.
+
+    Telemetry slower than the grid whose every sample within the sequence falls on a
+    grid time (within :data:`ON_GRID_TOLERANCE` of the grid period: 10 Hz or 1 Hz on a
+    20 Hz grid) marks those grid times only: the others are interpolated, not measured,
+    and their noise is not the classifier's, so a likelihood kind evaluates the exact
+    Gaussian marginal of the measured ones. Otherwise (telemetry as fast as the grid or
+    faster, averaged; or samples off the grid) every grid time counts, as before.
+    """
+    series = resample(telemetry, grid_s)
+    return series, _observed(telemetry.time_array, np.asarray(grid_s, dtype=float))
+
+
+def _observed(t: np.ndarray, grid_s: np.ndarray) -> np.ndarray:
+    step = _grid_period(grid_s)
+    everything = np.ones(len(grid_s), dtype=bool)
+    if float(np.median(np.diff(t))) <= step * (1.0 + ON_GRID_TOLERANCE):
+        return everything
+    tolerance = ON_GRID_TOLERANCE * step
+    inside = t[(t >= grid_s[0] - tolerance) & (t <= grid_s[-1] + tolerance)]
+    index = np.rint((inside - grid_s[0]) / step).astype(np.int64)
+    if inside.size == 0 or np.any(np.abs(inside - grid_s[index]) > tolerance):
+        return everything
+    observed = np.zeros(len(grid_s), dtype=bool)
+    observed[index] = True
+    return observed
 
 
 def _grid_period(grid_s: np.ndarray) -> float:

@@ -1,0 +1,147 @@
+"""Slow telemetry on the grid (GitHub issue 13): the likelihood kinds evaluate the exact
+Gaussian marginal of the measured grid points only, not the interpolated ones."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+
+from inertia_id import Scenario, simulate
+from inertia_id.classifiers.likelihood import LikelihoodClassifier
+from inertia_id.classifiers.marginal import AXES_GRID, MarginalLikelihoodClassifier, train_marginal
+from inertia_id.errors import InputError
+from inertia_id.evaluation.identify import identify, identify_online
+from inertia_id.evaluation.telemetry import Telemetry, resample, resample_observed
+
+GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
+
+
+@pytest.fixture(scope="module")
+def marginal(drifting_paper: Scenario) -> MarginalLikelihoodClassifier:
+    return train_marginal(
+        drifting_paper, GOOD_SEQUENCE, 30, np.random.default_rng(21), grid=AXES_GRID
+    )
+
+
+@pytest.fixture(scope="module")
+def likelihood(drifting_paper: Scenario) -> LikelihoodClassifier:
+    return LikelihoodClassifier().fit_scenario(
+        drifting_paper, GOOD_SEQUENCE, 30, np.random.default_rng(22)
+    )
+
+
+@pytest.fixture(scope="module")
+def fresh(drifting_paper: Scenario) -> Any:
+    """Simulated at the scenario's 20 Hz: every 2nd / 20th sample is 10 Hz / 1 Hz
+    telemetry exactly on the grid."""
+    return simulate(drifting_paper, GOOD_SEQUENCE, 4, np.random.default_rng(23))
+
+
+def _telemetry(fresh: Any, k: int, i: int, every: int) -> Telemetry:
+    # Samples at the end of each period (k / 20 s): every `every`-th from the last back.
+    pick = slice(every - 1, None, every)
+    return Telemetry(
+        time_s=fresh.time_s[pick].tolist(),
+        omega_rad_s=fresh.omega_measured[k, i][pick].tolist(),
+    )
+
+
+def test_observed_mask_marks_the_measured_grid_points(fresh: Any) -> None:
+    grid = np.asarray(fresh.time_s)
+    for every, count in ((1, 80), (2, 40), (20, 4)):
+        series, observed = resample_observed(_telemetry(fresh, 0, 0, every), grid)
+        np.testing.assert_array_equal(series, resample(_telemetry(fresh, 0, 0, every), grid))
+        assert observed.sum() == count
+        np.testing.assert_array_equal(np.flatnonzero(observed), np.arange(every - 1, 80, every))
+    # Off the grid (10 Hz shifted by a quarter period): every point counts, as before.
+    off = Telemetry(time_s=(grid[1::2] - 0.0125).tolist(), omega_rad_s=[[0.0] * 3] * 40)
+    assert resample_observed(off, grid)[1].all()
+
+
+@pytest.mark.parametrize("kind", ["marginal", "likelihood"])
+def test_all_true_mask_is_bit_identical(kind: str, request: Any, fresh: Any) -> None:
+    model = request.getfixturevalue(kind)
+    X = fresh.dataset()[0]
+    everything = np.ones(model.length_, dtype=bool)
+    np.testing.assert_array_equal(model.transform_observed(X, everything), model.transform(X))
+    for a, b in zip(
+        model.predict_posterior(X, observed=everything), model.predict_posterior(X), strict=True
+    ):
+        np.testing.assert_array_equal(a, b)
+    for a, b in zip(
+        model.posterior_over_time(X, observed=everything),
+        model.posterior_over_time(X),
+        strict=True,
+    ):
+        np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(model.novelty_thresholds(1.0), model.novelty_thresholds())
+    assert model.observed_fraction(everything) == 1.0
+
+
+@pytest.mark.parametrize("kind", ["marginal", "likelihood"])
+def test_sub_block_is_the_exact_marginal(kind: str, request: Any, fresh: Any) -> None:
+    """The sub-block's distances equal a classifier of the measured values alone, and
+    its prefixes the leading blocks."""
+    model = request.getfixturevalue(kind)
+    X = fresh.dataset()[0]
+    observed = np.zeros(model.length_, dtype=bool)
+    observed[1::2] = True
+    values = (np.flatnonzero(observed)[:, None] * 3 + np.arange(3)).ravel()
+    distances = model.transform_observed(X, observed)
+    prefix = model._observed_prefix_distances(model._check_input(X), values)
+    assert prefix.shape == (len(X), 40, model.n_candidates_)
+    np.testing.assert_allclose(prefix[:, -1], distances, rtol=1e-9)
+    if kind == "likelihood":
+        means = model.means_.reshape(model.n_candidates_, -1)[:, values]
+        covariance = model.covariance_[np.ix_(values, values)]
+        F = X.reshape(len(X), -1)[:, values]
+        diff = F[:, None] - means[None]
+        direct = np.sqrt(np.einsum("nki,ij,nkj->nk", diff, np.linalg.inv(covariance), diff))
+        np.testing.assert_allclose(distances, direct, rtol=1e-7)
+    # The posterior over time moves at measured points only.
+    candidates, _ = model.posterior_over_time(X, observed=observed)
+    np.testing.assert_array_equal(candidates[:, 0::2][:, 1:], candidates[:, 1:-1:2])
+
+
+@pytest.mark.parametrize(("every", "named", "stopped"), [(2, 15, 15), (20, 8, 4)])
+def test_slow_telemetry_is_identified_on_the_measured_points(
+    every: int, named: int, stopped: int, marginal: MarginalLikelihoodClassifier, fresh: Any
+) -> None:
+    identified = decided = 0
+    for k in range(marginal.n_candidates_):
+        for i in range(4):
+            telemetry = _telemetry(fresh, k, i, every)
+            verdict = identify(marginal, telemetry)
+            assert verdict.candidate_index == k
+            assert verdict.status in ("identified", "ambiguous"), verdict.verdict
+            identified += verdict.status == "identified"
+            online = identify_online(marginal, telemetry)
+            if online.decided:
+                decided += 1
+                assert online.candidate_index == k
+                # Decided at a measured sample (the posterior moves only there).
+                assert round(online.decision_time_s * 20) % every == 0
+    # 4 measurements at 1 Hz say less than 40 at 10 Hz; never a wrong candidate.
+    assert identified >= named and decided >= stopped
+
+
+def test_slow_novelty_threshold_follows_the_tail(marginal: MarginalLikelihoodClassifier) -> None:
+    tail = marginal.novelty_tail_
+    assert tail is not None
+    full = marginal.novelty_thresholds()
+    for fraction in (0.5, 0.05):
+        part = marginal.novelty_thresholds(fraction)
+        np.testing.assert_allclose(
+            tail.log_sf(part, fraction), tail.log_sf(full), rtol=1e-6, atol=1e-9
+        )
+        assert np.all(part < full)
+
+
+def test_observed_mask_is_checked(marginal: MarginalLikelihoodClassifier, fresh: Any) -> None:
+    X = fresh.dataset()[0]
+    with pytest.raises(InputError, match="booleans"):
+        marginal.transform_observed(X, np.ones(3, dtype=bool))
+    with pytest.raises(InputError, match="no grid point"):
+        marginal.transform_observed(X, np.zeros(marginal.length_, dtype=bool))
