@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import logging
 import os
+import threading
 from typing import Any
 
 from celery.signals import worker_ready, worker_shutdown, worker_shutting_down
@@ -124,6 +125,16 @@ def _start_monitor(sender: Any = None, **_kwargs: Any) -> None:
     )
 
 
+_hand_back_thread: threading.Thread | None = None
+
+
+def _hand_back_now(monitor: WorkerMonitor) -> None:
+    try:
+        monitor.hand_back()
+    except Exception:
+        logger.exception("could not hand the running job back; the reaper will")
+
+
 @worker_shutting_down.connect
 def _hand_back(**_kwargs: Any) -> None:
     # Sent in the main process when a warm shutdown starts (SIGTERM, Ctrl-C): Celery
@@ -132,18 +143,25 @@ def _hand_back(**_kwargs: Any) -> None:
     # the task process sees that it no longer owns the job and drops it. Raised first:
     # from now on the task process claims no job (one it claimed meanwhile, it hands
     # back itself).
+    # Celery sends this from inside its signal handler, on the main thread interrupted
+    # wherever it was: database and broker I/O there could wait on a lock the
+    # interrupted code holds, so the hand-back runs on a thread of its own.
+    global _hand_back_thread
     mark_stopping()
-    if _monitor is None:
+    monitor = _monitor
+    if monitor is None or _hand_back_thread is not None:
         return
-    try:
-        _monitor.hand_back()
-    except Exception:
-        logger.exception("could not hand the running job back; the reaper will")
+    _hand_back_thread = threading.Thread(
+        target=_hand_back_now, args=(monitor,), name="inertia-id hand-back", daemon=True
+    )
+    _hand_back_thread.start()
 
 
 @worker_shutdown.connect
 def _stop_monitor(**_kwargs: Any) -> None:
     global _monitor
+    if _hand_back_thread is not None:
+        _hand_back_thread.join(10.0)
     if _monitor is not None:
         _monitor.stop()
         _monitor = None
