@@ -29,7 +29,7 @@ import os
 from typing import Any, ClassVar, Self
 
 import numpy as np
-from scipy.special import log_softmax
+from scipy import special
 from scipy.stats import chi2
 from sklearn.base import BaseEstimator
 
@@ -38,6 +38,7 @@ from ..physics.scenario import Scenario
 from ..physics.series import check_series
 from ..physics.simulate import simulate
 from . import documents
+from .gaussian import log_softmax
 
 __all__ = [
     "KINDS",
@@ -96,7 +97,15 @@ class NoveltyTail:
         """log P(D >= distance) for a genuine series; over a ``fraction`` of the series,
         the degrees of freedom shrink in proportion."""
         dof = np.maximum(self.dof * np.asarray(fraction, dtype=float), 1.0)
-        return np.asarray(chi2.logsf(np.asarray(distance) ** 2 / self.scale, dof))
+        # scipy.special's chi-squared functions, not scipy.stats.chi2.logsf: the same
+        # numbers (log1p of the CDF where the tail is near 1) for a hundredth of the cost
+        # (0.25 ms of a verdict's 2 ms went to the distribution machinery).
+        x = np.asarray(distance, dtype=float) ** 2 / self.scale
+        tail = special.chdtrc(dof, x)
+        with np.errstate(divide="ignore"):
+            return np.asarray(
+                np.where(tail > 0.5, np.log1p(-special.chdtr(dof, x)), np.log(tail)), dtype=float
+            )
 
     def to_dict(self) -> dict[str, float]:
         return {"scale": self.scale, "dof": self.dof}

@@ -20,6 +20,8 @@ __all__ = [
     "MAX_FOLDS",
     "cholesky",
     "cv_intensity",
+    "log_softmax",
+    "logsumexp",
     "means_and_scatter",
     "shrink",
     "stratified_folds",
@@ -32,6 +34,27 @@ __all__ = [
 CV_INTENSITIES = np.array([0.001, 0.003, 0.01, 0.02, *np.linspace(0.05, 0.95, 19), 0.98, 1.0])
 #: At most this many folds: out-of-fold distances and the cross-validation.
 MAX_FOLDS = 5
+
+
+def logsumexp(a: np.ndarray, axis: int | tuple[int, ...]) -> np.ndarray:
+    """log Σ exp(a) over ``axis``, stable; -inf where every term is -inf.
+
+    scipy.special.logsumexp gives the same numbers, but its array-API dispatch costs
+    about 0.25 ms a call on the small arrays of one verdict, which calls it seven times:
+    a third of a request's computation.
+    """
+    a = np.asarray(a, dtype=float)
+    peak = np.max(a, axis=axis, keepdims=True)
+    peak = np.where(np.isfinite(peak), peak, 0.0)
+    with np.errstate(divide="ignore"):
+        out = np.log(np.sum(np.exp(a - peak), axis=axis, keepdims=True)) + peak
+    return np.squeeze(out, axis=axis)
+
+
+def log_softmax(a: np.ndarray, axis: int) -> np.ndarray:
+    """a - logsumexp(a) along ``axis`` (scipy's, without its dispatch cost)."""
+    a = np.asarray(a, dtype=float)
+    return a - np.expand_dims(logsumexp(a, axis=axis), axis)
 
 
 def stratified_folds(y: np.ndarray, n_folds: int) -> np.ndarray:

@@ -25,7 +25,6 @@ from typing import Any, ClassVar
 
 import numpy as np
 from scipy.linalg import solve_triangular
-from scipy.special import log_softmax
 
 from ..errors import InputError
 from .base import BaseClassifier
@@ -33,6 +32,7 @@ from .gaussian import (
     MAX_FOLDS,
     cholesky,
     cv_intensity,
+    log_softmax,
     means_and_scatter,
     shrink,
     stratified_folds,

@@ -23,9 +23,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from scipy.optimize import minimize_scalar
-from scipy.special import log_softmax
 
 from ..classifiers.base import NONE_PRIOR, NoveltyTail, check_int
+from ..classifiers.gaussian import log_softmax
 from ..errors import InputError
 from ..physics.simulate import simulate
 
