@@ -43,7 +43,11 @@ class Settings(BaseSettings):
     classifier_cache_size: int = Field(default=32, alias="INERTIA_ID_CLASSIFIER_CACHE")
     #: CPU work in the API process (identify, response simulation): threads of its own,
     #: and how many requests may wait for one, and for how long, before a 503.
-    compute_threads: int = Field(default=2, ge=1, alias="INERTIA_ID_COMPUTE_THREADS")
+    #: One thread by default: a verdict is small numpy work that holds the GIL most of
+    #: the time, so a second thread in the same process only adds GIL hand-offs (20
+    #: clients on one API process: 160 req/s with two threads, 215 with one). Scale with
+    #: --api-workers instead.
+    compute_threads: int = Field(default=1, ge=1, alias="INERTIA_ID_COMPUTE_THREADS")
     compute_queue: int = Field(default=200, ge=0, alias="INERTIA_ID_COMPUTE_QUEUE")
     compute_wait_s: float = Field(default=10.0, gt=0, alias="INERTIA_ID_COMPUTE_WAIT_S")
     #: Host header values accepted (comma-separated); empty: the loopback names, plus

@@ -389,7 +389,9 @@ async def identify_telemetry(
             media_type="text/csv; charset=utf-8",
             headers={"Content-Disposition": f'attachment; filename="{stem}.csv"'},
         )
-    return verdict
+    # Already validated as IdentifyResult: serialised once here, not validated again by
+    # FastAPI's response_model (which still documents it).
+    return Response(content=verdict.model_dump_json(), media_type="application/json")
 
 
 @router.post(

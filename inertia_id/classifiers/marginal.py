@@ -255,10 +255,17 @@ class _Mixture:
         whites = self.whitened(F)
         if len(F) <= 16:
             # A verdict's few series: every condition and candidate in one pass (the
-            # loop below costs 40 round trips through numpy for a few thousand numbers).
+            # loop below costs 40 round trips through numpy for a few thousand numbers),
+            # kept for the series' next question (distances, then the posterior).
+            cached = getattr(self, "_joint_cache", None)
+            if cached is not None and cached[0] is whites:
+                return cached[1]
             residual = whites[:, :, None, :] - self.white_means[:, None, :, :]
             squared = np.einsum("mnkd,mnkd->mnk", residual, residual)
-            return self.log_norm[:, None, None] - 0.5 * squared
+            joint = self.log_norm[:, None, None] - 0.5 * squared
+            joint.flags.writeable = False
+            self._joint_cache = (whites, joint)
+            return joint
         out = np.empty((len(self.log_norm), len(F), self.white_means.shape[1]))
         for c in range(len(self.whiteners)):
             white = whites[c]

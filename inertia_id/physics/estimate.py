@@ -29,6 +29,8 @@ case (see :class:`LeastSquaresClassifier`).
 from __future__ import annotations
 
 import math
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Any
 
@@ -89,6 +91,16 @@ def _momentum_regressor(omega: np.ndarray) -> np.ndarray:
     return np.stack([np.stack(c, axis=-1) for c in columns], axis=-1)
 
 
+# The last few commanded impulses, by the scenario object itself (held, so its id is not
+# reused; scenarios are frozen) and the sequence: a service identifies series after
+# series against the same classifier, and this loop is a tenth of each verdict.
+_MOMENTUM_CACHE: OrderedDict[tuple[int, bytes, bool, bool], tuple[Scenario, np.ndarray]] = (
+    OrderedDict()
+)
+_MOMENTUM_CACHE_SIZE = 16
+_MOMENTUM_LOCK = threading.Lock()
+
+
 def commanded_momentum(
     scenario: Scenario, sequence: Any, *, lowpass: bool = True, at_start: bool = True
 ) -> np.ndarray:
@@ -99,9 +111,28 @@ def commanded_momentum(
     :param lowpass: apply the scenario's actuation low-pass (exact for piecewise-constant
         commands); False integrates the commanded steps as if applied instantly.
     :param at_start: prepend t = 0 (impulse 0) to the sample times.
-    :returns: (T, 3) or, with ``at_start``, (T + 1, 3) impulse at the sample times.
+    :returns: (T, 3) or, with ``at_start``, (T + 1, 3) impulse at the sample times
+        (read-only: it may be shared with later calls).
     """
     sequence = scenario.check_sequence(sequence)
+    key = (id(scenario), np.ascontiguousarray(sequence).tobytes(), lowpass, at_start)
+    with _MOMENTUM_LOCK:
+        hit = _MOMENTUM_CACHE.get(key)
+        if hit is not None and hit[0] is scenario:
+            _MOMENTUM_CACHE.move_to_end(key)
+            return hit[1]
+    impulse = _commanded_momentum(scenario, sequence, lowpass=lowpass, at_start=at_start)
+    impulse.flags.writeable = False
+    with _MOMENTUM_LOCK:
+        _MOMENTUM_CACHE[key] = (scenario, impulse)
+        while len(_MOMENTUM_CACHE) > _MOMENTUM_CACHE_SIZE:
+            _MOMENTUM_CACHE.popitem(last=False)
+    return impulse
+
+
+def _commanded_momentum(
+    scenario: Scenario, sequence: np.ndarray, *, lowpass: bool, at_start: bool
+) -> np.ndarray:
     command = scenario.duties(sequence) @ scenario.torque_matrix.T  # (L, 3), nominal thrust
     timing = scenario.timing
     tau = scenario.uncertainty.lowpass_time_constant_s if lowpass else 0.0
