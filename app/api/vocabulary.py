@@ -59,6 +59,19 @@ class ResultTableOut(BaseModel):
     label: str
 
 
+class OperatorObjectiveOut(BaseModel):
+    name: str
+    label: str
+    sense: str = Field(description="min or max")
+    unit: str
+
+
+class ConstraintOut(BaseModel):
+    name: str
+    bounds: str = Field(description="the figure it bounds (an objective's name)")
+    sense: str = Field(description="max: the figure <= the bound; min: >=")
+
+
 class VocabularyOut(BaseModel):
     classifier_kinds: list[KindOut]
     default_kind: str
@@ -68,6 +81,16 @@ class VocabularyOut(BaseModel):
     default_multiples: list[float]
     search_methods: list[NamedOut]
     search_objectives: list[NamedOut]
+    operator_objectives: list[OperatorObjectiveOut] = Field(
+        description="what a Pareto search (method nsga2) may trade off, and what every "
+        "search's best sequence is judged on"
+    )
+    default_operator_objectives: list[str]
+    default_design_noise: list[list[float]] = Field(
+        description="[process multiple, measurement multiple] conditions of the accuracy objective"
+    )
+    constraints: list[ConstraintOut] = Field(description="bounds a search may be given")
+    nsga2_defaults: dict[str, int | float] = Field(description="NSGA-II's settings by default")
     baselines: list[str] = Field(description="baseline sequences: GET /scenarios/{id}/baselines")
     job_types: list[str]
     job_statuses: list[str]
@@ -105,7 +128,13 @@ def vocabulary() -> VocabularyOut:
         REFERENCE_LEVELS,
     )
     from inertia_id.physics.sequences import BASELINES
+    from inertia_id.pipelines import SearchRequest
     from inertia_id.search import SCORER_OBJECTIVES, SEARCH_METHOD_LABELS, SEARCH_METHODS
+    from inertia_id.search.objectives import CONSTRAINTS, OBJECTIVE_FIELDS, OPERATOR_OBJECTIVES
+    from inertia_id.search.pareto import NSGA2_DEFAULTS
+
+    by_field = {figure: name for name, figure in OBJECTIVE_FIELDS.items()}
+    defaults = SearchRequest(method="nsga2")
 
     kinds = []
     for kind in CLASSIFIER_KINDS:
@@ -139,6 +168,17 @@ def vocabulary() -> VocabularyOut:
         search_objectives=[
             NamedOut(name=o, label=_OBJECTIVE_LABELS.get(o, o)) for o in SCORER_OBJECTIVES
         ],
+        operator_objectives=[
+            OperatorObjectiveOut(name=name, label=label, sense=sense, unit=unit)
+            for name, (label, sense, unit) in OPERATOR_OBJECTIVES.items()
+        ],
+        default_operator_objectives=list(defaults.objectives),
+        default_design_noise=[[float(p), float(q)] for p, q in defaults.design_noise],
+        constraints=[
+            ConstraintOut(name=name, bounds=by_field[figure], sense=sense)
+            for name, (figure, sense, _) in CONSTRAINTS.items()
+        ],
+        nsga2_defaults=dict(NSGA2_DEFAULTS),
         baselines=list(BASELINES),
         job_types=list(JOB_TYPES),
         job_statuses=list(JOB_STATUSES),

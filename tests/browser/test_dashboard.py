@@ -998,6 +998,60 @@ def test_a_pareto_front_is_drawn_beside_the_baselines_and_a_member_plans_and_tra
     service.until(lambda: service.job(train_id)["status"] in TERMINAL, 120, "the training ends")
 
 
+def test_an_nsga2_search_draws_its_generations_not_an_empty_reward(dashboard: Dashboard) -> None:
+    _needs("nsga2")
+    page = dashboard.page
+    job = dashboard.service.job(made["nsga2"])
+    dashboard.open(f"#/jobs/{made['nsga2']}")
+    page.wait_for_function("() => document.getElementById('reward-plot')?.layout")
+    title = page.evaluate("() => document.getElementById('reward-plot').layout.title.text")
+    assert "Residual rate" in title and "reward" not in title.lower()
+    generations = job["params"]["nsga2"]["generations"]
+    page.wait_for_function(
+        f"() => Number(document.querySelector('#curve-points')?.dataset.points) >= {generations}"
+    )
+    assert _trace_points(dashboard, "reward-plot") == generations
+    assert _trace_points(dashboard, "f1-plot") == generations
+    drawn = page.evaluate("() => document.getElementById('reward-plot').data[0].y")
+    assert drawn == [p["best_final_rate_rad_s"] for p in job["result"]["curve"]]
+    accuracy = page.evaluate("() => document.getElementById('f1-plot').layout.yaxis.title.text")
+    assert "predicted accuracy" in accuracy
+
+
+def test_the_search_form_submits_nsga2_objectives_design_noise_and_constraints(
+    dashboard: Dashboard,
+) -> None:
+    _needs("scenario")
+    page = dashboard.page
+    dashboard.open(f"#/jobs?scenario={made['scenario']}&type=search")
+    page.select_option("#search-method", "nsga2")
+    # A constraint the service does not know: refused, its name quoted.
+    dashboard.console.expect(r"status of 422")
+    page.fill("#search-constraints", "max_speed_deg_s=3")
+    page.click("#submit-job")
+    page.wait_for_selector(".message.error, .field-error")
+    shown = " ".join(page.locator(".message.error, .field-error").all_inner_texts())
+    assert "max_speed_deg_s" in shown
+    page.fill("#search-constraints", "max_final_rate_deg_s=5, max_impulse_nms=30")
+    page.fill("#search-nsga2", '{"population": 8, "generations": 2}')
+    page.check("#search-objective-peak_rate")
+    page.fill("#search-design_noise", "[[4, 1]]")
+    page.fill("#search-n_realisations", "10")
+    page.fill("#job-name-new", "NSGA-II from the form")
+    page.click("#submit-job")
+    job_id = _hash_id(dashboard, "jobs")
+    service = dashboard.service
+    params = service.job(job_id)["params"]
+    assert params["method"] == "nsga2"
+    assert params["nsga2"] == {"population": 8, "generations": 2}
+    assert params["objectives"] == ["accuracy", "final_rate", "peak_rate", "impulse"]
+    assert params["design_noise"] == [[4.0, 1.0]]
+    assert params["constraints"] == {"max_final_rate_deg_s": 5.0, "max_impulse_nms": 30.0}
+    # The worker is shared with the later tests: this search is not needed to finish.
+    service.client.post(f"/jobs/{job_id}/cancel")
+    service.until(lambda: service.job(job_id)["status"] in TERMINAL, 120, "the search ends")
+
+
 def test_a_baseline_that_dominates_the_best_sequence_is_flagged(dashboard: Dashboard) -> None:
     page = dashboard.page
     # Two random sequences: the hand-designed fire-then-brake and fire-coast-brake do

@@ -102,6 +102,9 @@ async function searchView(body, job, context) {
   const f1Plot = plotDiv("f1-plot");
   const pointCount = h("span", { id: "curve-points", class: "muted" }, "0 points");
   const separability = job.params.objective === "separability";
+  // NSGA-II has no episode reward: its curve is the most accurate feasible sequence of
+  // each generation (its predicted accuracy at the design noise, and its residual rate).
+  const pareto = job.params.method === "nsga2";
   const resultHolder = h("div", { id: "search-result" });
   body.append(
     h(
@@ -116,19 +119,28 @@ async function searchView(body, job, context) {
   // objective) or the separability score.
   const what = separability ? "separability score" : "clustering F1";
   const rewardText = separability ? "Reward per episode: −1 + 3·separability per step, −|ω| (rad/s) at the last" : "Reward per episode: −1 + 3·F1 per step, −|ω| (rad/s) at the last";
+  const steps = pareto ? "sequences evaluated × steps" : "environment steps";
   Plotly.newPlot(
     rewardPlot,
-    [{ x: [], y: [], mode: "lines+markers", name: "mean episode reward", line: { color: "#1f77b4" } }],
-    layout("environment steps", "mean episode reward", { title: title(rewardText, 13), showlegend: false }),
+    pareto
+      ? [{ x: [], y: [], mode: "lines+markers", name: "residual rate", line: { color: "#1f77b4" } }]
+      : [{ x: [], y: [], mode: "lines+markers", name: "mean episode reward", line: { color: "#1f77b4" } }],
+    pareto
+      ? layout(steps, "residual rate (rad/s)", { title: title("Residual rate of each generation's most accurate feasible sequence", 13), showlegend: false })
+      : layout(steps, "mean episode reward", { title: title(rewardText, 13), showlegend: false }),
     PLOT_CONFIG,
   );
+  const accuracyText = "predicted accuracy at the design noise";
   Plotly.newPlot(
     f1Plot,
     [
-      { x: [], y: [], mode: "lines+markers", name: "best so far", line: { color: "#2ca02c" } },
-      { x: [], y: [], mode: "lines+markers", name: "mean since last point", line: { color: "#ff7f0e", dash: "dot" } },
+      { x: [], y: [], mode: "lines+markers", name: pareto ? "most accurate feasible" : "best so far", line: { color: "#2ca02c" } },
+      { x: [], y: [], mode: "lines+markers", name: pareto ? "population mean" : "mean since last point", line: { color: "#ff7f0e", dash: "dot" } },
     ],
-    layout("environment steps", what, { title: title(`${separability ? "Separability score" : "Clustering F1"} of the episodes' sequences`), yaxis: { title: { text: what }, range: [0, 1.05] } }),
+    layout(steps, pareto ? accuracyText : what, {
+      title: title(pareto ? "Predicted accuracy, per NSGA-II generation" : `${separability ? "Separability score" : "Clustering F1"} of the episodes' sequences`),
+      yaxis: { title: { text: pareto ? accuracyText : what }, range: [0, 1.05] },
+    }),
     PLOT_CONFIG,
   );
   const follower = new MetricFollower(job.id);
@@ -137,9 +149,9 @@ async function searchView(body, job, context) {
   const update = async (current) => {
     const fresh = await follower.poll();
     if (!context.alive()) return;
-    extendWith(rewardPlot, fresh, ["mean_episode_reward"]);
+    extendWith(rewardPlot, fresh, [pareto ? "best_final_rate_rad_s" : "mean_episode_reward"]);
     extendWith(f1Plot, fresh, ["best_f1", "mean_f1"]);
-    if (fresh.mean_episode_reward) points += fresh.mean_episode_reward.steps.length;
+    if (fresh.best_f1) points += fresh.best_f1.steps.length;
     pointCount.textContent = `${points} point${points === 1 ? "" : "s"}${isTerminal(current.status) ? "" : " · updating live"}`;
     pointCount.dataset.points = String(points);
     if (!resultShown && isTerminal(current.status) && current.result) {

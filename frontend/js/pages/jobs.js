@@ -25,6 +25,21 @@ function jsonOrText(text) {
   }
 }
 
+// "max_final_rate_deg_s=0.2, max_impulse_nms=20" as an object of numbers; anything that
+// does not parse is sent as typed, so the service's 422 names it.
+function constraintsOrText(text) {
+  const trimmed = String(text).trim();
+  if (!trimmed) return {};
+  if (trimmed.startsWith("{")) return jsonOrText(trimmed);
+  const out = {};
+  for (const part of trimmed.split(/[,;\n]+/)) {
+    const match = part.trim().match(/^([A-Za-z_]+)\s*(?:=|<=|>=|:)\s*([-+0-9.eE]+)$/);
+    if (!match || !Number.isFinite(Number(match[2]))) return trimmed;
+    out[match[1]] = Number(match[2]);
+  }
+  return out;
+}
+
 function field(id, label, input, hint = "") {
   input.id = id;
   return [h("label", { for: id }, label), h("div", {}, input, hint ? h("span", { class: "hint" }, ` ${hint}`) : null)];
@@ -55,8 +70,19 @@ function submitForm(scenarios, classifiers, query) {
     patience_episodes: h("input", { value: 500, size: 8 }),
     fuel_weight: h("input", { value: 0, size: 8 }),
     ppo: h("input", { value: "{}", size: 40 }),
+    nsga2: h("input", { value: "{}", size: 40 }),
+    objectives: h(
+      "span",
+      { class: "checks" },
+      vocabulary().operator_objectives.map((o) =>
+        h("label", { class: "check", title: o.label }, h("input", { type: "checkbox", value: o.name, id: `search-objective-${o.name}`, checked: vocabulary().default_operator_objectives.includes(o.name) }), ` ${o.name} `),
+      ),
+    ),
+    design_noise: h("input", { value: JSON.stringify(vocabulary().default_design_noise), size: 24 }),
+    constraints: h("input", { value: "", size: 48, placeholder: "max_final_rate_deg_s=0.2, max_impulse_nms=20" }),
     seed: h("input", { value: 0, size: 8 }),
   };
+  const chosenObjectives = () => [...search.objectives.querySelectorAll("input:checked")].map((i) => i.value);
   const searchBody = () => ({
     type: "search",
     scenario_id: search.scenario.value,
@@ -71,6 +97,10 @@ function submitForm(scenarios, classifiers, query) {
       patience_episodes: intOrText(search.patience_episodes.value),
       fuel_weight: Number.isFinite(Number(search.fuel_weight.value)) ? Number(search.fuel_weight.value) : search.fuel_weight.value,
       ...(search.method.value === "ppo" ? { ppo: jsonOrText(search.ppo.value) } : {}),
+      ...(search.method.value === "nsga2" ? { nsga2: jsonOrText(search.nsga2.value) } : {}),
+      objectives: chosenObjectives(),
+      design_noise: jsonOrText(search.design_noise.value),
+      constraints: constraintsOrText(search.constraints.value),
     },
   });
 
@@ -164,7 +194,7 @@ function submitForm(scenarios, classifiers, query) {
         "div",
         { class: "stack" },
         field("search-scenario", "scenario", search.scenario),
-        field("search-method", "method", search.method, "PPO learns (the paper's); CEM refines a distribution over levels; random is the baseline; exhaustive enumerates short sequences"),
+        field("search-method", "method", search.method, "PPO learns (the paper's); CEM refines a distribution over levels; random is the baseline; exhaustive enumerates short sequences; nsga2 finds a Pareto front of the operator objectives"),
         field("search-objective", "objective", search.objective, "what scores a sequence"),
         field("search-sequence_length", "sequence length", search.sequence_length, "steps"),
         field("search-timesteps", "budget", search.timesteps, "environment steps (ppo, random)"),
@@ -173,6 +203,10 @@ function submitForm(scenarios, classifiers, query) {
         field("search-patience_episodes", "patience", search.patience_episodes, "episodes without improvement after F1 = 1 before stopping"),
         field("search-fuel_weight", "fuel weight", search.fuel_weight, "reward per N m s of impulse"),
         field("search-ppo", "PPO overrides", search.ppo, 'JSON, e.g. {"n_steps": 256, "batch_size": 64} (method ppo)'),
+        field("search-nsga2", "NSGA-II settings", search.nsga2, `JSON overrides (method nsga2); defaults ${JSON.stringify(vocabulary().nsga2_defaults)}`),
+        field("search-objectives", "operator objectives", search.objectives, "what the Pareto front trades off (nsga2), and what every best sequence is judged on"),
+        field("search-design_noise", "design noise", search.design_noise, "[process multiple, gyro multiple] pairs at which accuracy is predicted (their mean)"),
+        field("search-constraints", "constraints", search.constraints, `name=bound, comma-separated: ${vocabulary().constraints.map((c) => c.name).join(", ")}`),
         field("search-seed", "seed", search.seed),
       ),
       searchBody,
