@@ -108,6 +108,16 @@ class KeyVerifier:
 
         return cls(lookup)
 
+    def remembered(self, key: str) -> bool | None:
+        """The remembered answer for ``key``, or None when it must be looked up (no
+        database, no blocking: the API asks this on its event loop first)."""
+        digest = hash_key(key)
+        with self._lock:
+            remembered = self._answers.get(digest)
+        if remembered is not None and remembered[1] > self._clock():
+            return remembered[0]
+        return None
+
     def __call__(self, key: str) -> bool:
         digest = hash_key(key)
         now = self._clock()

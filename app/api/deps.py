@@ -13,6 +13,7 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.security import APIKeyHeader
 from sqlalchemy import ColumnElement, func, select
 from sqlalchemy.orm import Session
+from starlette.concurrency import run_in_threadpool
 
 from service.config import Settings
 from service.store.models import MAX_TAG_LENGTH, JobTagRow
@@ -89,13 +90,15 @@ _api_key_header = APIKeyHeader(
 )
 
 
-def require_api_key(
+async def require_api_key(
     request: Request,
     key: Annotated[str | None, Depends(_api_key_header)],
 ) -> None:
     """401 unless the request carries an accepted key (never echoed back).
 
     Holds no database connection for the request (see :class:`app.security.KeyVerifier`).
+    A remembered key is answered on the event loop; only a lookup goes to a thread (a
+    sync dependency cost every request a thread hand-off, 0.2 ms of /identify's 4).
     """
     if not key:
         raise HTTPException(
@@ -104,7 +107,10 @@ def require_api_key(
             headers={"WWW-Authenticate": API_KEY_HEADER},
         )
     verify: KeyVerifier = request.app.state.verify_key
-    if not verify(key):
+    accepted = verify.remembered(key)
+    if accepted is None:
+        accepted = await run_in_threadpool(verify, key)
+    if not accepted:
         raise HTTPException(
             status.HTTP_401_UNAUTHORIZED,
             detail=f"invalid API key in the {API_KEY_HEADER} header",
