@@ -12,7 +12,7 @@ at once, so a client past the service's capacity learns it instead of hanging.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Awaitable, Callable
 from typing import Any, TypeVar
 
 import anyio
@@ -70,6 +70,22 @@ class ComputeGate:
 
     async def run(self, function: Callable[..., T], *args: Any) -> T:
         """``function(*args)`` on one of the gate's threads, or 503 past capacity."""
+        await self._enter()
+        try:
+            return await to_thread.run_sync(function, *args, limiter=self._unbounded)
+        finally:
+            self.limiter.release()
+
+    async def run_async(self, function: Callable[..., Awaitable[T]], *args: Any) -> T:
+        """``await function(*args)`` holding one of the gate's tokens (work done in
+        another process: the gate still bounds how much of it is in flight)."""
+        await self._enter()
+        try:
+            return await function(*args)
+        finally:
+            self.limiter.release()
+
+    async def _enter(self) -> None:
         limiter = self.limiter
         if self.waiting >= self.queue and limiter.available_tokens == 0:
             self.refused += 1
@@ -83,7 +99,3 @@ class ComputeGate:
             raise Overloaded(f"no CPU within {self.wait_s:g} s", self.wait_s) from None
         finally:
             self.waiting -= 1
-        try:
-            return await to_thread.run_sync(function, *args, limiter=self._unbounded)
-        finally:
-            limiter.release()

@@ -27,6 +27,7 @@ from .api.identify import ClassifierCache, openapi_components
 from .capacity import ComputeGate
 from .dashboard import mount_dashboard, mount_docs
 from .security import AllowedHosts, BodySizeLimit, KeyVerifier, ensure_api_key
+from .verdicts import VerdictProcess
 
 __all__ = ["create_app"]
 
@@ -77,11 +78,20 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     generated_key = ensure_api_key(database, settings)
 
     celery = make_celery(settings)
+    verdicts = (
+        None
+        if settings.verdict_process == "off"
+        else VerdictProcess(url, settings.classifier_cache_size)
+    )
 
     @asynccontextmanager
     async def lifespan(_app: FastAPI) -> AsyncIterator[None]:
         threading.Thread(target=_warm_up_core, name="inertia-id warm-up", daemon=True).start()
+        if verdicts is not None and settings.verdict_process == "eager":
+            verdicts.start()
         yield
+        if verdicts is not None:
+            verdicts.close()
         celery.close()
         database.dispose()
 
@@ -102,6 +112,12 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         threads=settings.compute_threads,
         queue=settings.compute_queue,
         wait_s=settings.compute_wait_s,
+    )
+    # Verdicts in flight to the verdict process: two, so that the next is on its way
+    # while one computes; past them requests queue, and past the queue get a 503.
+    app.state.verdicts = verdicts
+    app.state.verdict_gate = ComputeGate(
+        threads=2, queue=settings.compute_queue, wait_s=settings.compute_wait_s
     )
     app.state.generated_api_key = generated_key
     app.state.verify_key = KeyVerifier.for_store(database, settings)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from functools import lru_cache
 from pathlib import Path
+from typing import Literal
 
 from pydantic import Field
 from pydantic_settings import BaseSettings, SettingsConfigDict
@@ -49,6 +50,11 @@ class Settings(BaseSettings):
     #: --api-workers instead.
     compute_threads: int = Field(default=1, ge=1, alias="INERTIA_ID_COMPUTE_THREADS")
     compute_queue: int = Field(default=200, ge=0, alias="INERTIA_ID_COMPUTE_QUEUE")
+    #: Where /identify computes: "eager" (a process of its own, started with the API),
+    #: "lazy" (the same, started by the first identify), "off" (the compute threads).
+    verdict_process: Literal["eager", "lazy", "off"] = Field(
+        default="eager", alias="INERTIA_ID_VERDICT_PROCESS"
+    )
     compute_wait_s: float = Field(default=10.0, gt=0, alias="INERTIA_ID_COMPUTE_WAIT_S")
     #: Host header values accepted (comma-separated); empty: the loopback names, plus
     #: INERTIA_ID_HOST when it names one address. "*" accepts any (behind a proxy that

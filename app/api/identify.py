@@ -21,6 +21,7 @@ from fastapi import APIRouter, HTTPException, Query, Request, Response, status
 from fastapi.exceptions import RequestValidationError
 from pydantic import ValidationError
 from sqlalchemy import select
+from starlette.concurrency import run_in_threadpool
 from starlette.datastructures import UploadFile
 
 from inertia_id.errors import InputError
@@ -37,6 +38,7 @@ from service.store.session import Database
 
 from ..capacity import ComputeGate
 from ..schemas import IdentifyRequest, IdentifyResult, PartialIdentifyResult, finite_or_none
+from ..verdicts import NotFound, VerdictProcess
 from .deps import ApiKeyDep, plausible_id, unprocessable
 from .errors import format_errors
 
@@ -209,6 +211,40 @@ def _identify_partial(
     return PartialIdentifyResult.model_validate({**finite_or_none(result), "classifier_id": found})
 
 
+async def _verdict(
+    request: Request,
+    classifier_id: str,
+    telemetry: Telemetry,
+    confidence: float | None,
+    *,
+    partial: bool,
+) -> IdentifyResult | PartialIdentifyResult:
+    """The verdict from the verdict process (:mod:`app.verdicts`), or, with it off, from
+    the compute threads."""
+    state = request.app.state
+    database: Database = state.db
+    cache: ClassifierCache = state.classifier_cache
+    process: VerdictProcess | None = state.verdicts
+    if process is None:
+        work = _identify_partial if partial else _identify
+        gate: ComputeGate = state.compute_gate
+        return await gate.run(work, database, cache, classifier_id, telemetry, confidence)
+    checksum = cache.checksum_of(classifier_id)
+    if checksum is None:
+        checksum = await run_in_threadpool(_checksum, database, cache, classifier_id)
+    verdict_gate: ComputeGate = state.verdict_gate
+    try:
+        result = await verdict_gate.run_async(
+            process.verdict, classifier_id, checksum, telemetry, confidence, partial
+        )
+    except NotFound:
+        raise HTTPException(
+            status.HTTP_404_NOT_FOUND, detail=f"classifier {classifier_id[:80]!r} not found"
+        ) from None
+    model = PartialIdentifyResult if partial else IdentifyResult
+    return model.model_validate({**finite_or_none(result), "classifier_id": classifier_id})
+
+
 async def _from_json(
     request: Request, sequence_start: str | None
 ) -> tuple[str, Telemetry, float | None]:
@@ -378,10 +414,7 @@ async def identify_telemetry(
     it is physically valid and well excited.
     """
     classifier_id, telemetry, confidence = await _read_body(request, sequence_start)
-    database: Database = request.app.state.db
-    cache: ClassifierCache = request.app.state.classifier_cache
-    gate: ComputeGate = request.app.state.compute_gate
-    verdict = await gate.run(_identify, database, cache, classifier_id, telemetry, confidence)
+    verdict = await _verdict(request, classifier_id, telemetry, confidence, partial=False)
     if format == "csv":
         stem = f"identify-{verdict.classifier_id[:8]}"
         return Response(
@@ -418,7 +451,4 @@ async def identify_partial(
     likelihood kinds answer (their Gaussian's leading block is exact); others get 422.
     """
     classifier_id, telemetry, confidence = await _read_body(request, sequence_start)
-    database: Database = request.app.state.db
-    cache: ClassifierCache = request.app.state.classifier_cache
-    gate: ComputeGate = request.app.state.compute_gate
-    return await gate.run(_identify_partial, database, cache, classifier_id, telemetry, confidence)
+    return await _verdict(request, classifier_id, telemetry, confidence, partial=True)

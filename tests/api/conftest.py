@@ -89,16 +89,18 @@ def settings(tmp_path: Path, database_url: str) -> Settings:
 
 
 @pytest.fixture
-def make_api() -> Iterator[Callable[[Settings], Api]]:
+def make_api() -> Iterator[Callable[..., Api]]:
     """Build apps from settings; each is shut down at the end of the test."""
     clients: list[TestClient] = []
 
-    def build(settings: Settings) -> Api:
+    def build(settings: Settings, key: str | None = None) -> Api:
+        """``key``: the key of an app already built on the same database (a second app
+        finds a key stored and generates none)."""
         app = create_app(settings)
         client = TestClient(app)
         client.__enter__()
         clients.append(client)
-        key = settings.api_key or app.state.generated_api_key
+        key = key or settings.api_key or app.state.generated_api_key
         assert key
         return Api(client=client, app=app, key=key)
 

@@ -37,6 +37,9 @@ def make_settings(data_dir: Path, database_url: str, **overrides: Any) -> Settin
         "INERTIA_ID_MAX_METRIC_POINTS": 2000,
         "INERTIA_ID_HEARTBEAT_INTERVAL_S": 5.0,
         "INERTIA_ID_CLASSIFIER_CACHE": 32,
+        # The verdict process as shipped, started by the first identify (not by every
+        # app a test builds).
+        "INERTIA_ID_VERDICT_PROCESS": "lazy",
         # The test client's Host header, besides the loopback names.
         "INERTIA_ID_ALLOWED_HOSTS": "testserver,127.0.0.1,localhost",
     }

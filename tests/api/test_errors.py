@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 
 import pytest
 
 import app.api.identify
+from app.verdicts import VerdictProcess
 from inertia_id import InputError
 
 from .support import GOOD_SEQUENCE, Api, TestClient
@@ -23,16 +25,37 @@ def _identify(api: Api, classifier_id: str) -> object:
     )
 
 
+@pytest.fixture
+def threads(api: Api, make_api: Callable[..., Api]) -> Api:
+    """An app that identifies on its compute threads (verdict process off), so that the
+    core's ``identify`` can be replaced here; the verdict process raises what the core
+    raises in the API process the same way (see the last test)."""
+    return make_api(api.settings.model_copy(update={"verdict_process": "off"}), api.key)
+
+
+@pytest.mark.parametrize("through", ["threads", "verdict process"])
 def test_a_bug_in_the_core_is_a_500_with_a_request_id_not_a_422(
-    api: Api, classifier: object, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+    api: Api,
+    threads: Api,
+    through: str,
+    classifier: object,
+    monkeypatch: pytest.MonkeyPatch,
+    caplog: pytest.LogCaptureFixture,
 ) -> None:
+    if through == "threads":
+        api = threads
     scenario_id = api.create_scenario()["id"]
     classifier_id = api.insert_classifier(scenario_id, classifier)  # type: ignore[arg-type]
 
     def buggy(*_args: object, **_kwargs: object) -> None:
         raise ValueError("operands could not be broadcast together with shapes (80,3) (79,3)")
 
+    async def buggy_process(*_args: object, **_kwargs: object) -> None:
+        # What run_in_executor re-raises when the child's verdict raised.
+        buggy()
+
     monkeypatch.setattr(app.api.identify, "identify", buggy)
+    monkeypatch.setattr(VerdictProcess, "verdict", buggy_process)
     with caplog.at_level(logging.ERROR):
         response = _identify(api, classifier_id)
     assert response.status_code == 500  # type: ignore[attr-defined]
@@ -47,8 +70,9 @@ def test_a_bug_in_the_core_is_a_500_with_a_request_id_not_a_422(
 
 
 def test_the_cores_input_error_is_a_422_quoting_the_value(
-    api: Api, classifier: object, monkeypatch: pytest.MonkeyPatch
+    threads: Api, classifier: object, monkeypatch: pytest.MonkeyPatch
 ) -> None:
+    api = threads
     scenario_id = api.create_scenario()["id"]
     classifier_id = api.insert_classifier(scenario_id, classifier)  # type: ignore[arg-type]
 

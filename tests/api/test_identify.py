@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import os
+import signal
+import time
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -79,12 +83,63 @@ def test_csv_upload_identifies_the_candidate(
 
 
 def test_classifier_is_cached(api: Api, classifier_id: str, flight: SimulationResult) -> None:
-    cache: ClassifierCache = api.app.state.classifier_cache
-    assert len(cache) == 0
+    # The verdict process keeps the classifier; the API remembers only its checksum.
+    verdicts = api.app.state.verdicts
+    assert verdicts is not None
     for k in (0, 1):
         body = {"classifier_id": classifier_id, "telemetry": telemetry(flight, k)}
         assert api.post("/identify", json=body).status_code == 200
-    assert len(cache) == 1
+    assert verdicts.loads() == 1
+    cache: ClassifierCache = api.app.state.classifier_cache
+    assert cache.checksum_of(classifier_id) is not None and len(cache) == 0
+
+
+def test_the_verdict_process_answers_as_the_compute_threads(
+    api: Api,
+    make_api: Callable[..., Api],
+    classifier_id: str,
+    flight: SimulationResult,
+) -> None:
+    """Identify and the partial posterior computed in the verdict process (as shipped)
+    and, with it off, on the API's compute threads: the same answers."""
+    threads = make_api(api.settings.model_copy(update={"verdict_process": "off"}), api.key)
+    assert api.app.state.verdicts is not None and threads.app.state.verdicts is None
+    for k in (1, 4):
+        body = {"classifier_id": classifier_id, "telemetry": telemetry(flight, k)}
+        for path in ("/identify", "/identify/partial"):
+            there = api.post(path, json=body)
+            here = threads.post(path, json=body)
+            # (This classifier kind has no partial posterior: the same 422 from both.)
+            expected = 200 if path == "/identify" else 422
+            assert there.status_code == here.status_code == expected, (there.text, here.text)
+            assert there.json() == here.json()
+    unknown = {"classifier_id": "0" * 32, "telemetry": telemetry(flight, 0)}
+    assert api.post("/identify", json=unknown).status_code == 404
+    assert threads.post("/identify", json=unknown).status_code == 404
+
+
+def test_a_killed_verdict_process_costs_one_503_and_is_replaced(
+    api: Api, classifier_id: str, flight: SimulationResult
+) -> None:
+    body = {"classifier_id": classifier_id, "telemetry": telemetry(flight, 2)}
+    assert api.post("/identify", json=body).status_code == 200
+    verdicts = api.app.state.verdicts
+    first = verdicts.pid()
+    os.kill(first, signal.SIGKILL)
+    deadline = time.monotonic() + 60
+    codes = []
+    while time.monotonic() < deadline:
+        answer = api.post("/identify", json=body)
+        codes.append(answer.status_code)
+        if answer.status_code == 200:
+            break
+        assert answer.status_code == 503, answer.text
+        assert int(answer.headers["Retry-After"]) >= 1
+        assert "restarting" in answer.json()["detail"]
+        time.sleep(0.2)
+    assert codes[0] == 503 and codes[-1] == 200 and codes.count(503) <= 2, codes
+    assert verdicts.restarts == 1 and verdicts.pid() != first
+    assert answer.json()["candidate_index"] == 2
 
 
 def test_cache_evicts_the_least_recently_used() -> None:

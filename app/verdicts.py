@@ -1,0 +1,214 @@
+"""Identify in a process of its own, beside the API's event loop.
+
+A verdict is about 1.6 ms of small numpy work that holds the GIL; the HTTP side of the
+same request (parsing, validation, the key check, the response) is about 2 ms more. In
+one process the two take turns on one core: with the event loop and the computation
+sharing the GIL, one API process served about 200 requests a second at 20 clients
+(queued 100 ms deep). Here the computation runs in a child process, so the API's two
+halves use two cores.
+
+The child is a :class:`concurrent.futures.ProcessPoolExecutor` of one process (spawned,
+not forked: the API process has threads). It keeps its own classifier cache by
+(id, checksum) and reads a classifier's document from the database itself on a miss;
+the API sends it the id, the checksum it looked up, the validated telemetry and the
+confidence, and gets back the verdict as a dict. If the child dies, the next request
+starts another (that request is answered 503 with Retry-After). It ends with its parent:
+a watchdog thread exits it when the API process is gone, however it ended (``kill -9``
+included).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import multiprocessing
+import os
+import signal
+import threading
+import time
+from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from inertia_id.evaluation.telemetry import Telemetry
+
+    from .api.identify import ClassifierCache
+
+__all__ = ["NotFound", "VerdictProcess"]
+
+log = logging.getLogger("inertia_id.api")
+
+#: How often the child checks that its parent is still there.
+_WATCH_S = 0.5
+
+
+class NotFound(LookupError):
+    """The classifier id names no stored classifier (the child's answer; the API says 404)."""
+
+
+# --------------------------------------------------------------------------- the child
+
+_cache: ClassifierCache | None = None
+_database_url: str | None = None
+
+
+def _watch_parent(parent: int) -> None:
+    while True:
+        time.sleep(_WATCH_S)
+        if os.getppid() != parent:
+            os._exit(0)
+
+
+def _initialise(database_url: str, cache_size: int, parent: int) -> None:
+    global _cache, _database_url
+    # Ctrl-C reaches the whole process group: the API shuts this process down itself.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    threading.Thread(target=_watch_parent, args=(parent,), daemon=True).start()
+    # One BLAS thread: the process computes one verdict at a time, on one core.
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(1)
+    from .api.identify import ClassifierCache
+
+    _cache = ClassifierCache(cache_size)
+    _database_url = database_url
+    # The classifier kinds (scikit-learn) and numba's kernels, before the first request.
+    from inertia_id import warm_up
+    from inertia_id.classifiers import registry  # noqa: F401
+
+    warm_up()
+
+
+def _document(classifier_id: str) -> str:
+    from sqlalchemy import select
+
+    from service.store.models import ClassifierRow
+    from service.store.session import Database
+
+    database = _databases.get(_database_url or "")
+    if database is None:
+        database = _databases[_database_url or ""] = Database(_database_url or "")
+    with database.session() as session:
+        document = session.scalar(
+            select(ClassifierRow.document).where(ClassifierRow.id == classifier_id)
+        )
+    if document is None:
+        raise NotFound(classifier_id)
+    return str(document)
+
+
+_databases: dict[str, Any] = {}
+
+
+def _verdict(
+    classifier_id: str,
+    checksum: str,
+    telemetry: Telemetry,
+    confidence: float | None,
+    partial: bool,
+) -> dict[str, Any]:
+    from inertia_id.classifiers.registry import classifier_from_json
+    from inertia_id.evaluation.identify import (
+        DEFAULT_ALPHA,
+        DEFAULT_CONFIDENCE,
+        identify,
+        identify_online,
+    )
+
+    assert _cache is not None, "the verdict process was not initialised"
+    classifier = _cache.get(
+        (classifier_id, checksum), lambda: classifier_from_json(_document(classifier_id))
+    )
+    if partial:
+        alpha = DEFAULT_ALPHA if confidence is None else 1.0 - confidence
+        return identify_online(classifier, telemetry, alpha=alpha).model_dump()
+    if confidence is None:
+        confidence = DEFAULT_CONFIDENCE
+    return identify(classifier, telemetry, confidence=confidence).model_dump()
+
+
+def _ready() -> bool:
+    return _cache is not None
+
+
+def _loads() -> int:
+    return _cache.loads if _cache is not None else 0
+
+
+# --------------------------------------------------------------------------- the API side
+
+
+class VerdictProcess:
+    """The child process that computes verdicts, started on first use or by :meth:`start`.
+
+    :param database_url: where the child reads classifier documents.
+    :param cache_size: classifiers the child keeps.
+    """
+
+    def __init__(self, database_url: str, cache_size: int) -> None:
+        self.database_url = database_url
+        self.cache_size = cache_size
+        self._pool: ProcessPoolExecutor | None = None
+        self._lock = threading.Lock()
+        self.restarts = 0
+
+    def _executor(self) -> ProcessPoolExecutor:
+        with self._lock:
+            if self._pool is None:
+                self._pool = ProcessPoolExecutor(
+                    max_workers=1,
+                    mp_context=multiprocessing.get_context("spawn"),
+                    initializer=_initialise,
+                    initargs=(self.database_url, self.cache_size, os.getpid()),
+                )
+            return self._pool
+
+    def start(self) -> None:
+        """Spawn the child and warm it (imports, kernels) in the background."""
+        self._executor().submit(_ready)
+
+    async def verdict(
+        self,
+        classifier_id: str,
+        checksum: str,
+        telemetry: Telemetry,
+        confidence: float | None,
+        partial: bool = False,
+    ) -> dict[str, Any]:
+        """The verdict as :func:`~inertia_id.evaluation.identify.identify` (or
+        ``identify_online``) dumps it; :class:`NotFound` for an unknown id; a child that
+        died is replaced and the request answered 503."""
+        from .capacity import Overloaded
+
+        pool = self._executor()
+        loop = asyncio.get_running_loop()
+        try:
+            return await loop.run_in_executor(
+                pool, _verdict, classifier_id, checksum, telemetry, confidence, partial
+            )
+        except BrokenProcessPool:
+            with self._lock:
+                if self._pool is pool:
+                    self._pool = None
+                    self.restarts += 1
+            log.error("the verdict process died; a new one is starting")
+            pool.shutdown(wait=False, cancel_futures=True)
+            self.start()
+            raise Overloaded("the verdict process is restarting", 2.0) from None
+
+    def pid(self) -> int:
+        """The child's process id (starting it if need be)."""
+        return int(self._executor().submit(os.getpid).result())
+
+    def loads(self) -> int:
+        """Classifier documents the child has loaded (one per cold classifier)."""
+        return self._executor().submit(_loads).result()
+
+    def close(self) -> None:
+        with self._lock:
+            pool, self._pool = self._pool, None
+        if pool is not None:
+            # Joined, so that no verdict process outlives the API's shutdown (a verdict
+            # takes milliseconds; a child still warming up finishes that first).
+            pool.shutdown(wait=True, cancel_futures=True)
