@@ -86,9 +86,14 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @asynccontextmanager
     async def lifespan(_app: FastAPI) -> AsyncIterator[None]:
-        threading.Thread(target=_warm_up_core, name="inertia-id warm-up", daemon=True).start()
-        if verdicts is not None and settings.verdict_process == "eager":
-            verdicts.start()
+        def warm_up() -> None:
+            _warm_up_core()
+            # The verdict process after the API's own imports: both at once on a small
+            # machine pushed the first /health answer towards 3 s.
+            if verdicts is not None and settings.verdict_process == "eager":
+                verdicts.start()
+
+        threading.Thread(target=warm_up, name="inertia-id warm-up", daemon=True).start()
         yield
         if verdicts is not None:
             verdicts.close()

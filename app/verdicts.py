@@ -151,10 +151,13 @@ class VerdictProcess:
         self.cache_size = cache_size
         self._pool: ProcessPoolExecutor | None = None
         self._lock = threading.Lock()
+        self._closed = False
         self.restarts = 0
 
     def _executor(self) -> ProcessPoolExecutor:
         with self._lock:
+            if self._closed:
+                raise RuntimeError("the verdict process was closed with the API")
             if self._pool is None:
                 self._pool = ProcessPoolExecutor(
                     max_workers=1,
@@ -165,8 +168,12 @@ class VerdictProcess:
             return self._pool
 
     def start(self) -> None:
-        """Spawn the child and warm it (imports, kernels) in the background."""
-        self._executor().submit(_ready)
+        """Spawn the child and warm it (imports, kernels) in the background; nothing once
+        the API has closed it (a warm-up thread may come late)."""
+        try:
+            self._executor().submit(_ready)
+        except RuntimeError:
+            pass
 
     async def verdict(
         self,
@@ -181,7 +188,10 @@ class VerdictProcess:
         died is replaced and the request answered 503."""
         from .capacity import Overloaded
 
-        pool = self._executor()
+        try:
+            pool = self._executor()
+        except RuntimeError:
+            raise Overloaded("the service is stopping", 1.0) from None
         loop = asyncio.get_running_loop()
         try:
             return await loop.run_in_executor(
@@ -208,6 +218,7 @@ class VerdictProcess:
     def close(self) -> None:
         with self._lock:
             pool, self._pool = self._pool, None
+            self._closed = True
         if pool is not None:
             # Joined, so that no verdict process outlives the API's shutdown (a verdict
             # takes milliseconds; a child still warming up finishes that first).
