@@ -81,7 +81,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     verdicts = (
         None
         if settings.verdict_process == "off"
-        else VerdictProcess(url, settings.classifier_cache_size)
+        else VerdictProcess(
+            url, settings.classifier_cache_size, timeout_s=settings.verdict_timeout_s
+        )
     )
 
     @asynccontextmanager

@@ -144,11 +144,14 @@ class VerdictProcess:
 
     :param database_url: where the child reads classifier documents.
     :param cache_size: classifiers the child keeps.
+    :param timeout_s: longest wait for one verdict; past it the child is killed (a hung
+        child would otherwise hold its requests, and every later one, for good).
     """
 
-    def __init__(self, database_url: str, cache_size: int) -> None:
+    def __init__(self, database_url: str, cache_size: int, *, timeout_s: float = 30.0) -> None:
         self.database_url = database_url
         self.cache_size = cache_size
+        self.timeout_s = timeout_s
         self._pool: ProcessPoolExecutor | None = None
         self._lock = threading.Lock()
         self._closed = False
@@ -194,9 +197,19 @@ class VerdictProcess:
             raise Overloaded("the service is stopping", 1.0) from None
         loop = asyncio.get_running_loop()
         try:
-            return await loop.run_in_executor(
-                pool, _verdict, classifier_id, checksum, telemetry, confidence, partial
+            return await asyncio.wait_for(
+                loop.run_in_executor(
+                    pool, _verdict, classifier_id, checksum, telemetry, confidence, partial
+                ),
+                self.timeout_s,
             )
+        except TimeoutError:
+            log.error("a verdict took over %g s: the verdict process is killed", self.timeout_s)
+            self._kill(pool)
+            raise Overloaded(
+                f"the verdict took over {self.timeout_s:g} s; the verdict process is restarting",
+                2.0,
+            ) from None
         except BrokenProcessPool:
             with self._lock:
                 if self._pool is pool:
@@ -206,6 +219,16 @@ class VerdictProcess:
             pool.shutdown(wait=False, cancel_futures=True)
             self.start()
             raise Overloaded("the verdict process is restarting", 2.0) from None
+
+    @staticmethod
+    def _kill(pool: ProcessPoolExecutor) -> None:
+        # The executor offers no way to stop a running call: its processes are killed,
+        # the executor then finds itself broken and the next request replaces it.
+        for process in list(getattr(pool, "_processes", {}).values()):
+            try:
+                os.kill(process.pid, signal.SIGKILL)
+            except (ProcessLookupError, TypeError):
+                pass
 
     def pid(self) -> int:
         """The child's process id (starting it if need be)."""

@@ -56,6 +56,9 @@ class Settings(BaseSettings):
         default="eager", alias="INERTIA_ID_VERDICT_PROCESS"
     )
     compute_wait_s: float = Field(default=10.0, gt=0, alias="INERTIA_ID_COMPUTE_WAIT_S")
+    #: Longest a verdict may take in the verdict process (a cold classifier's load
+    #: included) before the process is killed, replaced and the request answered 503.
+    verdict_timeout_s: float = Field(default=30.0, gt=0, alias="INERTIA_ID_VERDICT_TIMEOUT_S")
     #: Host header values accepted (comma-separated); empty: the loopback names, plus
     #: INERTIA_ID_HOST when it names one address. "*" accepts any (behind a proxy that
     #: checks it).

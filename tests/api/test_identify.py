@@ -142,6 +142,31 @@ def test_a_killed_verdict_process_costs_one_503_and_is_replaced(
     assert answer.json()["candidate_index"] == 2
 
 
+def test_a_verdict_past_its_time_kills_the_verdict_process_with_a_503(
+    api: Api, make_api: Callable[..., Api], classifier_id: str, flight: SimulationResult
+) -> None:
+    """A hung verdict process would hold its requests for good: past the timeout it is
+    killed and the request answered 503 (here the timeout is shorter than any verdict)."""
+    hasty = make_api(api.settings.model_copy(update={"verdict_timeout_s": 0.001}), api.key)
+    verdicts = hasty.app.state.verdicts
+    first = verdicts.pid()
+    body = {"classifier_id": classifier_id, "telemetry": telemetry(flight, 0)}
+    answer = hasty.post("/identify", json=body)
+    assert answer.status_code == 503, answer.text
+    assert "took over 0.001 s" in answer.json()["detail"]
+    assert int(answer.headers["Retry-After"]) >= 1
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline and os.path.exists(f"/proc/{first}/stat"):
+        with open(f"/proc/{first}/stat") as stat:
+            if stat.read().rpartition(")")[2].split()[0] == "Z":
+                break
+        time.sleep(0.1)
+    else:
+        assert not os.path.exists(f"/proc/{first}/stat"), "the hung child is still running"
+    # The service's own timeout still answers verdicts.
+    assert api.post("/identify", json=body).status_code == 200
+
+
 def test_cache_evicts_the_least_recently_used() -> None:
     cache = ClassifierCache(2)
     loads: list[str] = []
