@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from inertia_id.evaluation.telemetry import Telemetry
+    from service.store.session import Database
 
     from .api.identify import ClassifierCache
 
@@ -50,7 +51,7 @@ class NotFound(LookupError):
 # --------------------------------------------------------------------------- the child
 
 _cache: ClassifierCache | None = None
-_database_url: str | None = None
+_database: Database | None = None
 
 
 def _watch_parent(parent: int) -> None:
@@ -61,7 +62,7 @@ def _watch_parent(parent: int) -> None:
 
 
 def _initialise(database_url: str, cache_size: int, parent: int) -> None:
-    global _cache, _database_url
+    global _cache, _database
     # Ctrl-C reaches the whole process group: the API shuts this process down itself.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     threading.Thread(target=_watch_parent, args=(parent,), daemon=True).start()
@@ -69,10 +70,12 @@ def _initialise(database_url: str, cache_size: int, parent: int) -> None:
     from threadpoolctl import threadpool_limits
 
     threadpool_limits(1)
+    from service.store.session import Database
+
     from .api.identify import ClassifierCache
 
     _cache = ClassifierCache(cache_size)
-    _database_url = database_url
+    _database = Database(database_url)  # connects on the first cold classifier
     # The classifier kinds (scikit-learn) and numba's kernels, before the first request.
     from inertia_id import warm_up
     from inertia_id.classifiers import registry  # noqa: F401
@@ -84,21 +87,15 @@ def _document(classifier_id: str) -> str:
     from sqlalchemy import select
 
     from service.store.models import ClassifierRow
-    from service.store.session import Database
 
-    database = _databases.get(_database_url or "")
-    if database is None:
-        database = _databases[_database_url or ""] = Database(_database_url or "")
-    with database.session() as session:
+    assert _database is not None, "the verdict process was not initialised"
+    with _database.session() as session:
         document = session.scalar(
             select(ClassifierRow.document).where(ClassifierRow.id == classifier_id)
         )
     if document is None:
         raise NotFound(classifier_id)
     return str(document)
-
-
-_databases: dict[str, Any] = {}
 
 
 def _verdict(

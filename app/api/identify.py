@@ -1,10 +1,13 @@
 """Identify a spacecraft's configuration from its gyro telemetry, in the API process.
 
-No queue: one series against K candidates takes milliseconds. Classifiers are loaded
-from their stored JSON documents (checksum verified, never unpickled) once, and kept in
-a small LRU cache by (id, checksum); a request reads only those two columns. The
-computation runs behind the API's compute gate (:class:`app.capacity.ComputeGate`): past
-capacity a request is answered 503 with Retry-After, never left to hang.
+No queue: one series against K candidates takes milliseconds. A request reads only the
+classifier's id and checksum (remembered for a while); the verdict is computed in the
+API's verdict process (:mod:`app.verdicts`), which loads classifiers from their stored
+JSON documents (checksum verified, never unpickled) once and keeps them in a small LRU
+cache by (id, checksum) — or, with ``INERTIA_ID_VERDICT_PROCESS=off``, on the API's own
+compute thread with the same cache. Either way it runs behind a compute gate
+(:class:`app.capacity.ComputeGate`): past capacity a request is answered 503 with
+Retry-After, never left to hang.
 """
 
 from __future__ import annotations
