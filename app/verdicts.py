@@ -20,6 +20,7 @@ included).
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import logging
 import multiprocessing
 import os
@@ -170,10 +171,9 @@ class VerdictProcess:
     def start(self) -> None:
         """Spawn the child and warm it (imports, kernels) in the background; nothing once
         the API has closed it (a warm-up thread may come late)."""
-        try:
+        # RuntimeError: closed (or the interpreter is exiting); nothing to start then.
+        with contextlib.suppress(RuntimeError):
             self._executor().submit(_ready)
-        except RuntimeError:
-            pass
 
     async def verdict(
         self,
@@ -202,30 +202,30 @@ class VerdictProcess:
             )
         except TimeoutError:
             log.error("a verdict took over %g s: the verdict process is killed", self.timeout_s)
-            self._kill(pool)
+            self._replace(pool, kill=True)
             raise Overloaded(
                 f"the verdict took over {self.timeout_s:g} s; the verdict process is restarting",
                 2.0,
             ) from None
         except BrokenProcessPool:
-            with self._lock:
-                if self._pool is pool:
-                    self._pool = None
-                    self.restarts += 1
             log.error("the verdict process died; a new one is starting")
-            pool.shutdown(wait=False, cancel_futures=True)
-            self.start()
+            self._replace(pool)
             raise Overloaded("the verdict process is restarting", 2.0) from None
 
-    @staticmethod
-    def _kill(pool: ProcessPoolExecutor) -> None:
-        # The executor offers no way to stop a running call: its processes are killed,
-        # the executor then finds itself broken and the next request replaces it.
-        for process in list(getattr(pool, "_processes", {}).values()):
-            try:
-                os.kill(process.pid, signal.SIGKILL)
-            except (ProcessLookupError, TypeError):
-                pass
+    def _replace(self, pool: ProcessPoolExecutor, *, kill: bool = False) -> None:
+        """Drop ``pool`` (killing its process first if asked: the executor cannot stop a
+        running call) and start the next one, once however many requests saw it fail."""
+        with self._lock:
+            if self._pool is not pool:
+                return
+            self._pool = None
+            self.restarts += 1
+        if kill:
+            for process in list(getattr(pool, "_processes", {}).values()):
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(process.pid, signal.SIGKILL)
+        pool.shutdown(wait=False, cancel_futures=True)
+        self.start()
 
     def pid(self) -> int:
         """The child's process id (starting it if need be)."""

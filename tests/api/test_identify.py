@@ -155,6 +155,7 @@ def test_a_verdict_past_its_time_kills_the_verdict_process_with_a_503(
     assert answer.status_code == 503, answer.text
     assert "took over 0.001 s" in answer.json()["detail"]
     assert int(answer.headers["Retry-After"]) >= 1
+    assert verdicts.restarts == 1  # replaced at once, not on the next request
     deadline = time.monotonic() + 30
     while time.monotonic() < deadline and os.path.exists(f"/proc/{first}/stat"):
         with open(f"/proc/{first}/stat") as stat:
