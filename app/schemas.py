@@ -496,6 +496,18 @@ class IdentifyResult(BaseModel):
         description="why the estimated tensor is withheld: not positive definite, the "
         "triangle inequality broken, or poorly excited",
     )
+    initial_offset_rad_s: list[float] | None = Field(
+        default=None,
+        description="the body's rate plus the gyro bias at the sequence start (rad/s), "
+        "measured by the samples in the 10 s before it; the default classifier conditions "
+        "on it; null when the telemetry starts at the sequence start",
+    )
+    initial_offset_std_rad_s: list[float] | None = Field(
+        default=None, description="that offset's standard error per axis at 1x noise (rad/s)"
+    )
+    pre_start_samples: int = Field(
+        default=0, description="telemetry samples before the start that measured it"
+    )
 
 
 class PartialIdentifyResult(BaseModel):

@@ -4,13 +4,17 @@
 Per scenario (the paper preset with the hand-designed sequence ``[[4,4,4,0,0,0]]*4``,
 then our own: the paper preset's timing and noise with the eight canted thrusters and
 full-tensor candidates of ``inertia_id.physics.engines.basilisk``'s
-``canted_full_tensor_scenario`` plus a fifth candidate, flown with its
-``CANTED_SEQUENCE``; see :func:`canted_paper`): the default classifier (marginal
-likelihood, its default realisations) is trained at 1x noise on our own simulator. Test
-telemetry is flown by Basilisk (our native simulator only when Basilisk does not import,
-said so in the output) with the scenario's initial rates N(0, 5e-3 rad/s) and gyro
-biases N(0, 2e-3 rad/s) per axis, at 1x noise, at each ``--rates`` gyro rate, and handed
-to ``identify`` (which resamples it onto the classifier's grid) and ``identify_online``.
+``canted_full_tensor_scenario`` plus a fifth candidate, flown with the hand-designed
+baseline for its geometry, or with ``--canted-sequence engine-test`` the engine tests'
+mixed-duty ``CANTED_SEQUENCE``; see :func:`canted_paper`): the default classifier
+(marginal likelihood, its default realisations) is trained at 1x noise on our own
+simulator. Test telemetry is flown by Basilisk (our native simulator only when Basilisk
+does not import, said so in the output) with the scenario's initial rates N(0, 5e-3
+rad/s) and gyro biases N(0, 2e-3 rad/s) per axis, at 1x noise, at each ``--rates`` gyro
+rate, beginning ``--pre-start-s`` (10) seconds before the sequence start as a
+spacecraft's continuous telemetry does (the body coasting under the disturbance from its
+drawn rate; identify measures its rate plus the bias there), and handed to ``identify``
+(which resamples it onto the classifier's grid) and ``identify_online``.
 
 Figures per rate: accuracy of the most probable candidate, fraction "identified" at the
 default confidence (0.99) and the error rate among them, false alarms (a genuine series
@@ -54,6 +58,7 @@ from inertia_id.physics.engines.basilisk import (
     simulate_basilisk,
 )
 from inertia_id.physics.presets import preset
+from inertia_id.physics.sequences import hand_designed
 from inertia_id.physics.simulate import simulate
 
 TARGETS = {
@@ -95,11 +100,16 @@ def canted_paper() -> Scenario:
     )
 
 
-def _scenarios() -> dict[str, tuple[Scenario, Any]]:
-    return {
-        "paper": (preset("paper-in-orbit"), GOOD_SEQUENCE),
-        "canted": (canted_paper(), CANTED_SEQUENCE),
-    }
+def _scenarios(canted_sequence: str) -> dict[str, tuple[Scenario, Any]]:
+    """Each scenario with the sequence it is flown with: the paper's hand-designed one,
+    and for the canted scenario that baseline for its geometry (its principal-diagonal
+    thrusters at full duty, 4 steps) or, with ``engine-test``, the engine-agreement
+    tests' mixed-duty ``CANTED_SEQUENCE``."""
+    canted = canted_paper()
+    flown = (
+        CANTED_SEQUENCE if canted_sequence == "engine-test" else hand_designed(canted, 4).tolist()
+    )
+    return {"paper": (preset("paper-in-orbit"), GOOD_SEQUENCE), "canted": (canted, flown)}
 
 
 def _at_rate(scenario: Scenario, rate_hz: float) -> Scenario:
@@ -109,16 +119,30 @@ def _at_rate(scenario: Scenario, rate_hz: float) -> Scenario:
 
 
 def _fly(
-    scenario: Scenario, sequence: Any, k: int, rng: np.random.Generator, rate: float, engine: str
+    scenario: Scenario,
+    sequence: Any,
+    k: int,
+    rng: np.random.Generator,
+    rate: float,
+    engine: str,
+    pre_start_s: float = 0.0,
 ) -> Telemetry:
-    """One series of candidate ``k`` at ``rate`` Hz, as telemetry."""
+    """One series of candidate ``k`` at ``rate`` Hz, as telemetry; with ``pre_start_s``
+    it begins that long before the sequence start, the body coasting under the
+    disturbance torque from its drawn initial rate (flown as that many whole steps of
+    no thrust before the sequence, the stamps then shifted so that 0 is the start)."""
+    step_s = scenario.timing.step_duration_s
+    coast = round(pre_start_s / step_s)
+    flown_sequence = [[0] * scenario.n_thrusters] * coast + [list(row) for row in sequence]
     if engine == "basilisk":
-        flown = simulate_basilisk(scenario, sequence, k, rng, sample_rate_hz=rate)
+        flown = simulate_basilisk(scenario, flown_sequence, k, rng, sample_rate_hz=rate)
         time_s, omega = flown.time_s, flown.omega_measured
     else:
-        result = simulate(_at_rate(scenario, rate), sequence, 1, rng)
+        result = simulate(_at_rate(scenario, rate), flown_sequence, 1, rng)
         time_s, omega = result.time_s, result.omega_measured[k, 0]
-    return Telemetry(time_s=time_s.tolist(), omega_rad_s=omega.tolist(), sequence_start=0.0)
+    return Telemetry(
+        time_s=(time_s - coast * step_s).tolist(), omega_rad_s=omega.tolist(), sequence_start=0.0
+    )
 
 
 def _relative_distance(tensor: np.ndarray, candidates: np.ndarray) -> float:
@@ -155,7 +179,7 @@ def off_bodies(scenario: Scenario) -> tuple[Scenario, list[str], np.ndarray, np.
 
 
 def run_scenario(label: str, args: Any, engine: str) -> dict[str, Any]:
-    scenario, sequence = _scenarios()[label]
+    scenario, sequence = _scenarios(args.canted_sequence)[label]
     rng = np.random.default_rng(args.seed)
     start = time.perf_counter()
     from inertia_id.classifiers.registry import DEFAULT_KIND, kind_class
@@ -171,7 +195,7 @@ def run_scenario(label: str, args: Any, engine: str) -> dict[str, Any]:
         f"[{label}] {scenario.name}: {k_count} candidates, sequence {np.asarray(sequence).tolist()}"
         f", classifier {model.kind} on {scenario.timing.sample_rate_hz:g} Hz "
         f"({len(grid_s)} samples, {grid_s[-1]:g} s), trained in {train_s:.1f} s; test "
-        f"telemetry by {engine}"
+        f"telemetry by {engine}, from {args.pre_start_s:g} s before the sequence start"
     )
     others, other_names, other_distance, scaled = off_bodies(scenario)
     far = scaled & (other_distance >= 0.095)
@@ -192,7 +216,7 @@ def run_scenario(label: str, args: Any, engine: str) -> dict[str, Any]:
         decided, decided_ok, decision_t = [], [], []
         for k in range(k_count):
             for _ in range(args.n):
-                telemetry = _fly(scenario, sequence, k, rng, rate, engine)
+                telemetry = _fly(scenario, sequence, k, rng, rate, engine, args.pre_start_s)
                 verdict = identify(model, telemetry)
                 truth.append(k)
                 predicted.append(verdict.candidate_index)
@@ -230,7 +254,9 @@ def run_scenario(label: str, args: Any, engine: str) -> dict[str, Any]:
         flagged = np.zeros(len(other_names))
         for j in range(len(other_names)):
             for _ in range(args.n_off):
-                verdict = identify(model, _fly(others, sequence, j, rng, rate, engine))
+                verdict = identify(
+                    model, _fly(others, sequence, j, rng, rate, engine, args.pre_start_s)
+                )
                 flagged[j] += verdict.status in FLAGGED
         flagged /= args.n_off
         far_rate = float(flagged[far].mean()) if far.any() else float("nan")
@@ -361,6 +387,21 @@ def main() -> None:
         "as before the other-bodies model)",
     )
     parser.add_argument("--alpha", type=float, default=DEFAULT_ALPHA, help="online error rate")
+    parser.add_argument(
+        "--pre-start-s",
+        type=float,
+        default=10.0,
+        help="telemetry begins this long before the sequence start (a spacecraft's gyro "
+        "telemetry is continuous; identify measures the body's rate plus bias from it); 0: "
+        "telemetry from the start only",
+    )
+    parser.add_argument(
+        "--canted-sequence",
+        choices=("hand-designed", "engine-test"),
+        default="hand-designed",
+        help="the canted scenario's sequence: the hand-designed baseline for its geometry, "
+        "or the engine-agreement tests' mixed-duty CANTED_SEQUENCE",
+    )
     args = parser.parse_args()
     if args.quick:
         args.n, args.n_off, args.n_calibrate = 6, 4, 40

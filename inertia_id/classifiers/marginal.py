@@ -104,7 +104,7 @@ from ..errors import InputError
 from ..physics.estimate import parameters_from_tensor, tensor_from_parameters
 from ..physics.scenario import Scenario
 from ..physics.series import check_series
-from ..physics.simulate import simulate
+from ..physics.simulate import Simulator, simulate
 from . import gaussian
 from .base import BaseClassifier
 from .gaussian import log_softmax, logsumexp
@@ -440,6 +440,12 @@ class MarginalLikelihoodClassifier(BaseClassifier):
     # prior spread per candidate (K,), kg m²; None without them (see none_spread).
     sensitivity_: np.ndarray | None = None
     none_prior_sd_: np.ndarray | None = None
+    # The means (K, length, 3) and quiet part (dim, dim) of the series less their own
+    # offset ω(0) + b, and the white gyro variance at 1x (rad²/s²): None without them
+    # (fitted from components, or an older document; see conditioned_on_offset).
+    offset_free_means_: np.ndarray | None = None
+    offset_free_quiet_: np.ndarray | None = None
+    white_variance_: float = 0.0
 
     def __init__(
         self,
@@ -519,6 +525,9 @@ class MarginalLikelihoodClassifier(BaseClassifier):
             for process, measurement in ((0.0, 0.0), (1.0, 0.0), (0.0, 1.0))
         ]
         (X_quiet, y), (X_process, _), (X_measurement, _) = runs
+        # The same standard-normal draws again: each series' rate at the sequence start
+        # and its gyro bias at 1x, for the offset-free parts (see conditioned_on_offset).
+        initial = Simulator(scenario, n_realisations).draw_initial(copy.deepcopy(stream))
         self.fit_components(
             X_quiet,
             X_process,
@@ -528,6 +537,116 @@ class MarginalLikelihoodClassifier(BaseClassifier):
             scenario=scenario,
             sequence=steps,
         )
+        self._fit_offset_free(
+            X_quiet,
+            X_measurement,
+            y,
+            initial_rate=initial.omega0.reshape(-1, 3),
+            bias=initial.gyro_bias.reshape(-1, 3),
+            constant_bias=np.asarray(scenario.uncertainty.gyro_bias_rad_s, dtype=float),
+        )
+
+    def _fit_offset_free(
+        self,
+        X_quiet: np.ndarray,
+        X_measurement: np.ndarray,
+        y: np.ndarray,
+        *,
+        initial_rate: np.ndarray,
+        bias: np.ndarray,
+        constant_bias: np.ndarray,
+    ) -> None:
+        """The means and the quiet and white-noise parts of the series less their own
+        offset ``ω(0) + b`` (each series' rate at the sequence start plus its gyro bias):
+        what :meth:`conditioned_on_offset` needs when telemetry before the start measures
+        that offset.
+
+        :param initial_rate: (n_series, 3) rate at the sequence start of each series, rad/s.
+        :param bias: (n_series, 3) gyro bias of each series at 1x measurement noise, rad/s.
+        :param constant_bias: (3,) the scenario's constant bias (in the quiet run too).
+        """
+        n_candidates = self.n_candidates_
+        quiet = X_quiet - initial_rate[:, None, :] - constant_bias
+        white = (X_measurement - X_quiet) - (bias - constant_bias)[:, None, :]
+        flat_quiet = quiet.reshape(len(quiet), -1)
+        means, _, sample = gaussian.means_and_scatter(flat_quiet, y, n_candidates)
+        _, white_residuals, _ = gaussian.means_and_scatter(
+            white.reshape(len(white), -1), y, n_candidates
+        )
+        dof = max(len(white) - n_candidates, 1)
+        self.offset_free_means_ = means.reshape(n_candidates, *X_quiet.shape[1:])
+        self.offset_free_quiet_ = _symmetric(gaussian.shrink(sample, float(self.shrinkage_[0])))
+        self.white_variance_ = float(np.sum(white_residuals**2)) / (dof * white.shape[1] * 3)
+        self.__dict__.pop("_offset_models", None)
+
+    @property
+    def supports_offset(self) -> bool:
+        """Whether telemetry before the sequence start can pin the series' offset
+        (fitted by simulation; documents from before this have no offset-free parts)."""
+        return self.offset_free_means_ is not None
+
+    def conditioned_on_offset(
+        self, process_variance: np.ndarray, measurement_variance: np.ndarray
+    ) -> MarginalLikelihoodClassifier:
+        """This classifier for series less a measured offset ``ĉ`` of ``ω(0) + b``.
+
+        Telemetry before the start measures the body's rate plus the gyro bias, which
+        together shift every sample of the response (to first order). Without it the
+        classifier integrates over their whole prior spread (5e-3 and 2e-3 rad/s per
+        axis in orbit): at 1 Hz, four samples in the paper's 4 s sequence, that offset
+        eats three of twelve numbers. With ``ĉ``, ``x - ĉ`` is Gaussian with the
+        offset-free mean and quiet part, the white gyro noise, the in-sequence process
+        noise, and the estimate's own error ``e = ĉ - (ω(0) + b)`` on every sample:
+
+            Σ(p, q) = Σ_quiet⁰ + p² (Σ_process + 1 ⊗ V_p) + q² (σ² I + 1 ⊗ V_q),
+
+        ``V_p`` from the disturbance between the pre-start samples and the start, ``V_q``
+        from their gyro noise, both 3 x 3 at 1x (:func:`~inertia_id.evaluation.identify
+        .initial_offset`). Every question a classifier answers (distances, posterior, the
+        near-none model, measured-points blocks, prefixes) is then asked of the returned
+        copy, on ``x - ĉ``. Copies are cached per pair of variances.
+
+        :param process_variance: (3, 3) ``V_p`` at 1x process noise, rad²/s².
+        :param measurement_variance: (3, 3) ``V_q`` at 1x measurement noise, rad²/s².
+        """
+        self._check_fitted()
+        if not self.supports_offset:
+            raise InputError(
+                "this classifier has no offset-free parts (fitted from components, or an "
+                "older document): retrain it to use telemetry before the start"
+            )
+        V_p = np.asarray(process_variance, dtype=float).reshape(3, 3)
+        V_q = np.asarray(measurement_variance, dtype=float).reshape(3, 3)
+        cache: dict[bytes, MarginalLikelihoodClassifier] = self.__dict__.setdefault(
+            "_offset_models", {}
+        )
+        key = np.concatenate([V_p.ravel(), V_q.ravel()]).round(15).tobytes()
+        if key not in cache:
+            if len(cache) >= 8:
+                cache.clear()
+            every = np.ones((self.length_, self.length_))
+            assert self.offset_free_quiet_ is not None and self.offset_free_means_ is not None
+            dim = 3 * self.length_
+            components = np.stack(
+                [
+                    self.offset_free_quiet_,
+                    self.components_[1] + np.kron(every, V_p),
+                    self.white_variance_ * np.eye(dim) + np.kron(every, V_q),
+                ]
+            )
+            model = copy.copy(self)
+            model.__dict__ = {
+                k: v
+                for k, v in self.__dict__.items()
+                if k not in ("_observed_mixtures", "_offset_models")
+            }
+            model.means_ = self.offset_free_means_
+            model.components_ = components
+            model._mixture = _Mixture(
+                self.offset_free_means_.reshape(self.n_candidates_, -1), components, self.grid_
+            )
+            cache[key] = model
+        return cache[key]
 
     def fit_components(
         self,
@@ -585,6 +704,8 @@ class MarginalLikelihoodClassifier(BaseClassifier):
         self._mixture = _Mixture(means, components, grid)
         self.__dict__.pop("_observed_mixtures", None)
         self.sensitivity_, self.none_prior_sd_ = None, None
+        self.offset_free_means_, self.offset_free_quiet_ = None, None
+        self.__dict__.pop("_offset_models", None)
         if scenario is not None and self.none_spread > 0:
             self.sensitivity_ = inertia_sensitivity(scenario, self.sequence_)
             self.none_prior_sd_ = self.none_spread * np.array(
@@ -810,8 +931,18 @@ class MarginalLikelihoodClassifier(BaseClassifier):
                 "inertia_sensitivity": self.sensitivity_.tolist(),
                 "none_prior_sd_kg_m2": self.none_prior_sd_.tolist(),
             }
+        offset_free: dict[str, Any] = {}
+        if self.offset_free_means_ is not None and self.offset_free_quiet_ is not None:
+            offset_free = {
+                "offset_free": {
+                    "means_rad_s": self.offset_free_means_.tolist(),
+                    "quiet": _component_document(self.offset_free_quiet_),
+                    "white_variance": self.white_variance_,
+                }
+            }
         return {
             **near,
+            **offset_free,
             "shrinkage_intensities": dict(zip(COMPONENTS, self.shrinkage_.tolist(), strict=True)),
             "means_rad_s": self.means_.tolist(),
             # Each symmetric component as its lower triangle, row by row, or as one
@@ -848,6 +979,18 @@ class MarginalLikelihoodClassifier(BaseClassifier):
                     f"{prior_sd.shape}; expected {(k, self.length_, 3, 6)} and {(k,)}"
                 )
             self.sensitivity_, self.none_prior_sd_ = sensitivity, prior_sd
+        self.offset_free_means_, self.offset_free_quiet_ = None, None
+        self.__dict__.pop("_offset_models", None)
+        offset_free = data.get("offset_free")
+        if offset_free is not None:
+            free_means = check_series(offset_free["means_rad_s"])
+            if free_means.shape != means.shape:
+                raise InputError(
+                    f"offset-free means shaped {free_means.shape}, the means {means.shape}"
+                )
+            self.offset_free_means_ = free_means
+            self.offset_free_quiet_ = _component_from_document(offset_free["quiet"], dim)
+            self.white_variance_ = float(offset_free["white_variance"])
 
 
 def inertia_sensitivity(scenario: Scenario, sequence: Any) -> np.ndarray:
