@@ -31,7 +31,7 @@ from .records import (
 )
 from .scorer import ScorerSettings
 
-__all__ = ["RunOptions", "SearchRun", "check_budget", "report_point"]
+__all__ = ["RunOptions", "SearchRun", "check_budget", "overrides", "report_point"]
 
 
 def check_budget(name: str, value: int, sequence_length: int) -> None:
@@ -45,6 +45,19 @@ def check_budget(name: str, value: int, sequence_length: int) -> None:
             f"{name} must be an integer of at least one sequence ({sequence_length} steps), "
             f"got {value!r}"
         )
+
+
+def overrides(
+    params: dict[str, Any] | None, defaults: dict[str, Any], refusal: str
+) -> dict[str, Any]:
+    """``defaults`` updated with ``params``, a method's settings; a name the defaults do
+    not hold is refused with ``refusal``, formatted with the ``unknown`` names and the
+    ``known`` ones."""
+    params = dict(params or {})
+    unknown = sorted(set(params) - set(defaults))
+    if unknown:
+        raise InputError(refusal.format(unknown=unknown, known=sorted(defaults)))
+    return {**defaults, **params}
 
 
 def report_point(

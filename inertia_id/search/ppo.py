@@ -13,7 +13,7 @@ from typing import Any, Unpack
 
 from ..errors import InputError
 from ..physics.scenario import Scenario
-from .loop import RunOptions, SearchRun, check_budget
+from .loop import RunOptions, SearchRun, check_budget, overrides
 from .records import SearchResult
 
 __all__ = ["PPO_DEFAULTS", "check_ppo_params", "ppo_search"]
@@ -46,11 +46,7 @@ def _is_whole(value: int | float) -> bool:
 
 def check_ppo_params(params: dict[str, Any] | None) -> dict[str, Any]:
     """The paper's defaults updated with ``params``, each checked; unknown names refused."""
-    params = dict(params or {})
-    unknown = sorted(set(params) - set(PPO_DEFAULTS))
-    if unknown:
-        raise InputError(f"unknown PPO parameters {unknown}; allowed: {sorted(PPO_DEFAULTS)}")
-    merged = {**PPO_DEFAULTS, **params}
+    merged = overrides(params, PPO_DEFAULTS, "unknown PPO parameters {unknown}; allowed: {known}")
     for name, value in merged.items():
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise InputError(f"PPO parameter {name} must be a number, got {value!r}")
