@@ -176,12 +176,12 @@ class SearchRequest(_Request):
 
     def options(self) -> dict[str, Any]:
         """The method's own keyword arguments (besides the scenario, seed and scorer)."""
-        if self.ppo and self.method != "ppo":
-            raise InputError(f"ppo settings apply to method ppo only, not {self.method!r}")
-        if self.cem and self.method != "cem":
-            raise InputError(f"cem settings apply to method cem only, not {self.method!r}")
-        if self.nsga2 and self.method != "nsga2":
-            raise InputError(f"nsga2 settings apply to method nsga2 only, not {self.method!r}")
+        # Each method's own settings are named after it.
+        for method, own in (("ppo", self.ppo), ("cem", self.cem), ("nsga2", self.nsga2)):
+            if own and self.method != method:
+                raise InputError(
+                    f"{method} settings apply to method {method} only, not {self.method!r}"
+                )
         if self.lagrangian_lr and self.method != "ppo":
             raise InputError(f"lagrangian_lr applies to method ppo only, not {self.method!r}")
         if self.method == "nsga2":

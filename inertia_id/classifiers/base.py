@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 import os
-from typing import Any, ClassVar, Self
+from typing import Any, ClassVar, Self, TypeGuard
 
 import numpy as np
 from scipy import special
@@ -51,6 +51,7 @@ __all__ = [
     "check_training_labels",
     "confusion_scores",
     "document_class",
+    "is_number",
 ]
 
 #: Every kind defined so far, by name: filled as the kind classes are defined.
@@ -134,6 +135,15 @@ def check_int(name: str, value: Any, minimum: int = 1) -> None:
     """Refuse anything but an integer >= ``minimum`` (a bool is not one), quoting it."""
     if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
         raise InputError(f"{name} must be an integer >= {minimum}, got {value!r}")
+
+
+def is_number(value: Any, *, minimum: float, exclusive: bool = False) -> TypeGuard[int | float]:
+    """``value`` is a finite real number (a bool is not one) >= ``minimum``, or >
+    ``minimum`` when ``exclusive``: the test behind the kinds' checks of a number
+    parameter, each with its own message."""
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        return False
+    return value > minimum if exclusive else value >= minimum
 
 
 def _integer_labels(y: Any, n_series: int) -> np.ndarray:
@@ -309,11 +319,7 @@ class BaseClassifier(BaseEstimator):
     def _check_params(self) -> None:
         """Refuse parameters the kind cannot use, quoting them; kinds extend it."""
         factor = self.novelty_factor
-        if (
-            isinstance(factor, bool)
-            or not isinstance(factor, int | float)
-            or not (math.isfinite(factor) and factor >= 1.0)
-        ):
+        if not is_number(factor, minimum=1.0):
             raise InputError(f"novelty_factor must be a number >= 1, got {factor!r}")
         if self.METRICS and self.metric not in self.METRICS:
             raise InputError(f"metric must be one of {list(self.METRICS)}, got {self.metric!r}")

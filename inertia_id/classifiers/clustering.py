@@ -24,7 +24,6 @@ A fitted classifier is stored as JSON with a SHA-256 checksum (:meth:`to_json`,
 
 from __future__ import annotations
 
-import math
 import warnings
 from dataclasses import dataclass
 from typing import Any, ClassVar
@@ -35,7 +34,7 @@ from scipy.spatial.distance import cdist
 
 from ..errors import InputError
 from ..physics.series import check_series
-from .base import BaseClassifier, check_int
+from .base import BaseClassifier, check_int, is_number
 from .dtw import cdist_dtw, cdist_soft_dtw_normalized
 
 __all__ = ["METRICS", "InertiaClassifier", "MatchScores", "match_clusters"]
@@ -161,12 +160,7 @@ class InertiaClassifier(BaseClassifier):
         check_int("n_init", self.n_init)
         if self.sakoe_chiba_radius is not None:
             check_int("sakoe_chiba_radius", self.sakoe_chiba_radius, minimum=0)
-        if self.gamma != "auto" and not (
-            isinstance(self.gamma, int | float)
-            and not isinstance(self.gamma, bool)
-            and math.isfinite(self.gamma)
-            and self.gamma > 0
-        ):
+        if self.gamma != "auto" and not is_number(self.gamma, minimum=0, exclusive=True):
             raise InputError(f"gamma must be 'auto' or a number > 0, got {self.gamma!r}")
 
     def _metric_params(self) -> dict[str, Any] | None:

@@ -9,7 +9,6 @@ the candidates this way (see the class docstring).
 
 from __future__ import annotations
 
-import math
 from typing import Any, ClassVar
 
 import numpy as np
@@ -21,7 +20,7 @@ from ..physics.estimate import (
     parameters_from_tensor,
     tensor_from_parameters,
 )
-from .base import BaseClassifier
+from .base import BaseClassifier, is_number
 
 __all__ = ["DISTANCES", "LeastSquaresClassifier"]
 
@@ -86,12 +85,7 @@ class LeastSquaresClassifier(BaseClassifier):
         super()._check_params()
         if self.distance not in DISTANCES:
             raise InputError(f"distance must be one of {list(DISTANCES)}, got {self.distance!r}")
-        if self.window_s is not None and not (
-            isinstance(self.window_s, int | float)
-            and not isinstance(self.window_s, bool)
-            and math.isfinite(self.window_s)
-            and self.window_s > 0
-        ):
+        if self.window_s is not None and not is_number(self.window_s, minimum=0, exclusive=True):
             raise InputError(f"window_s must be None or a time > 0 s, got {self.window_s!r}")
 
     # Fitting.

@@ -27,7 +27,7 @@ import numpy as np
 from scipy.linalg import solve_triangular
 
 from ..errors import InputError
-from .base import BaseClassifier
+from .base import BaseClassifier, is_number
 from .gaussian import (
     MAX_FOLDS,
     cholesky,
@@ -104,12 +104,7 @@ class LikelihoodClassifier(BaseClassifier):
         rule = self.shrinkage
         if isinstance(rule, str) and rule in SHRINKAGE_RULES:
             return
-        if (
-            isinstance(rule, str)
-            or isinstance(rule, bool)
-            or not isinstance(rule, int | float)
-            or not (0.0 < rule <= 1.0)
-        ):
+        if not (is_number(rule, minimum=0.0, exclusive=True) and rule <= 1.0):
             raise InputError(
                 f"shrinkage must be one of {list(SHRINKAGE_RULES)} or a number in (0, 1], "
                 f"got {rule!r}"

@@ -106,7 +106,7 @@ from ..physics.scenario import Scenario
 from ..physics.series import check_series
 from ..physics.simulate import Simulator, simulate
 from . import gaussian
-from .base import BaseClassifier
+from .base import BaseClassifier, is_number
 from .gaussian import log_softmax, logsumexp
 
 __all__ = [
@@ -482,11 +482,7 @@ class MarginalLikelihoodClassifier(BaseClassifier):
         super()._check_params()
         self._checked_grid()
         spread = self.none_spread
-        if (
-            isinstance(spread, bool)
-            or not isinstance(spread, int | float)
-            or not (math.isfinite(spread) and spread >= 0.0)
-        ):
+        if not is_number(spread, minimum=0.0):
             raise InputError(f"none_spread must be a finite number >= 0, got {spread!r}")
 
     # Fitting.

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import click
 
@@ -23,6 +24,19 @@ from .options import (
 
 __all__ = ["scenario_cmd", "simulate_cmd"]
 
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def _noise_option(flag: str, source: str) -> Callable[[F], F]:
+    """A noise source's scale: a multiple (>= 0, 1 by default) of the scenario's own."""
+    return click.option(
+        flag,
+        default=1.0,
+        show_default=True,
+        type=click.FloatRange(0),
+        help=f"Multiple of the scenario's {source}.",
+    )
+
 
 @click.command("scenario")
 @scenario_options
@@ -38,20 +52,8 @@ def scenario_cmd(preset_name: str, scenario_path: str | None, out: str | None) -
 @scenario_options
 @sequence_option(DEFAULT_SEQUENCE_TEXT)
 @realisations_option("Noisy realisations per candidate.")
-@click.option(
-    "--process-noise",
-    default=1.0,
-    show_default=True,
-    type=click.FloatRange(0),
-    help="Multiple of the scenario's disturbance torque.",
-)
-@click.option(
-    "--measurement-noise",
-    default=1.0,
-    show_default=True,
-    type=click.FloatRange(0),
-    help="Multiple of the scenario's gyro noise.",
-)
+@_noise_option("--process-noise", "disturbance torque")
+@_noise_option("--measurement-noise", "gyro noise")
 @seed_option
 @click.option(
     "--out", type=click.Path(dir_okay=False), help="Write every series: .npz (arrays) or .json."

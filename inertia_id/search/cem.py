@@ -19,16 +19,14 @@ collapsed onto one sequence (a draw differs from it with probability below
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from typing import Any
+from typing import Any, Unpack
 
 import numpy as np
 
 from ..errors import InputError
 from ..physics.scenario import Scenario
-from .loop import SearchRun, check_budget, report_point
-from .records import SearchProgress, SearchResult
-from .scorer import ScorerSettings
+from .loop import RunOptions, SearchRun, check_budget
+from .records import SearchResult
 
 __all__ = ["CEM_DEFAULTS", "CONVERGED", "cem_search", "check_cem_params"]
 
@@ -73,20 +71,14 @@ def cem_search(
     population: int = CEM_DEFAULTS["population"],
     elite_fraction: float = CEM_DEFAULTS["elite_fraction"],
     smoothing: float = CEM_DEFAULTS["smoothing"],
-    fuel_weight: float = 0.0,
-    seed: int = 0,
-    settings: ScorerSettings | None = None,
-    constraints: dict[str, float] | None = None,
-    constraint_penalty: float = 0.0,
     patience_episodes: int | None = 500,
-    n_fresh_draws: int = 5,
-    progress: Callable[[SearchProgress], None] | None = None,
-    should_stop: Callable[[], bool] | None = None,
+    **options: Unpack[RunOptions],
 ) -> SearchResult:
     """Search with the cross-entropy method and return the best sequence it met.
 
     A curve point (mean episode reward, mean and best F1 of the iteration's sequences)
-    is added after every iteration and ``progress`` called with it.
+    is added after every iteration and ``progress`` called with it; ``should_stop`` is
+    polled before every sequence.
 
     :param total_timesteps: environment steps (sequence_length per sequence played,
         replayed ones included); an iteration the budget cuts short is not learnt from.
@@ -98,25 +90,16 @@ def cem_search(
         again), smaller keeps some of the previous iteration's spread.
     :param patience_episodes: stop once the best F1 is 1 and nothing better (smaller
         final rate plus fuel cost) came for this many sequences; None = no such stop.
-    :param should_stop: polled before every sequence; True cancels the search.
-    :param seed: seeds the environment's noise and the sampling: the same seed gives the
-        same learning curve.
+    :param options: fuel weight, seed (of the noise and of the sampling), scorer
+        settings, constraints, fresh draws and the progress and cancel hooks: see
+        :class:`~inertia_id.search.loop.SearchRun`.
     """
     check_budget("total_timesteps", total_timesteps, sequence_length)
     n_elite = check_cem_params(population, elite_fraction, smoothing)
-    run = SearchRun(
-        scenario,
-        sequence_length,
-        fuel_weight,
-        seed,
-        settings,
-        patience_episodes,
-        constraints=constraints,
-        constraint_penalty=constraint_penalty,
-    )
+    run = SearchRun(scenario, sequence_length, patience_episodes, **options)
     tracker = run.tracker
     # A stream of its own: random search draws from child 1 of the same seed sequence.
-    rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(3)[2])
+    rng = np.random.default_rng(np.random.SeedSequence(run.seed).spawn(3)[2])
     m = scenario.n_levels
     probabilities = np.full((sequence_length, scenario.n_thrusters, m), 1.0 / m)
     stopped: str | None = None
@@ -124,13 +107,11 @@ def cem_search(
         draws = _sample(rng, probabilities, population)
         ranked = [
             (tracker.rank(record), sequence)
-            for sequence, record in run.play_each(
-                draws, total_timesteps=total_timesteps, should_stop=should_stop
-            )
+            for sequence, record in run.play_each(draws, total_timesteps=total_timesteps)
         ]
         stopped = run.stopped
         if ranked:
-            report_point(tracker, total_timesteps, progress)
+            run.report(total_timesteps)
         if stopped is None:
             # A stable sort: among equals, the first drawn is the elite.
             ranked.sort(key=lambda pair: pair[0], reverse=True)
@@ -151,5 +132,4 @@ def cem_search(
                 "smoothing": smoothing,
             },
         },
-        n_fresh_draws=n_fresh_draws,
     )

@@ -3,15 +3,15 @@
 from __future__ import annotations
 
 import itertools
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
+from typing import Unpack
 
 import numpy as np
 
 from ..errors import InputError
 from ..physics.scenario import Scenario
-from .loop import SearchRun
-from .records import SearchProgress, SearchResult, space_size
-from .scorer import ScorerSettings
+from .loop import RunOptions, SearchRun
+from .records import SearchResult, space_size
 
 __all__ = ["exhaustive_search"]
 
@@ -29,15 +29,8 @@ def exhaustive_search(
     *,
     sequence_length: int = 2,
     max_sequences: int = 100_000,
-    fuel_weight: float = 0.0,
-    seed: int = 0,
-    settings: ScorerSettings | None = None,
-    constraints: dict[str, float] | None = None,
-    constraint_penalty: float = 0.0,
     report_every: int = 2048,
-    n_fresh_draws: int = 5,
-    progress: Callable[[SearchProgress], None] | None = None,
-    should_stop: Callable[[], bool] | None = None,
+    **options: Unpack[RunOptions],
 ) -> SearchResult:
     """Score every sequence of length L and return the best.
 
@@ -47,6 +40,8 @@ def exhaustive_search(
     environment caches it).
 
     :param max_sequences: the budget: the largest space this call will enumerate.
+    :param options: fuel weight, seed, scorer settings, constraints, fresh draws and
+        the progress and cancel hooks: see :class:`~inertia_id.search.loop.SearchRun`.
     """
     size = space_size(scenario, sequence_length)
     if isinstance(max_sequences, bool) or not isinstance(max_sequences, int) or max_sequences < 1:
@@ -58,15 +53,7 @@ def exhaustive_search(
             f"than the budget of {max_sequences} for exhaustive search; shorten the sequence, use "
             f"fewer levels or thrusters, raise the budget, or use random or PPO search"
         )
-    run = SearchRun(
-        scenario,
-        sequence_length,
-        fuel_weight,
-        seed,
-        settings,
-        constraints=constraints,
-        constraint_penalty=constraint_penalty,
-    )
+    run = SearchRun(scenario, sequence_length, **options)
     rows = [np.asarray(r) for r in itertools.product(range(m), repeat=n)]
 
     def sequences() -> Iterator[np.ndarray]:
@@ -74,15 +61,6 @@ def exhaustive_search(
             yield np.stack([rows[i] for i in combo])
 
     stopped = run.run_episodes(
-        sequences(),
-        total_timesteps=size * sequence_length,
-        report_every=report_every,
-        progress=progress,
-        should_stop=should_stop,
+        sequences(), total_timesteps=size * sequence_length, report_every=report_every
     )
-    return run.finish(
-        "exhaustive",
-        stopped=stopped,
-        settings={"max_sequences": max_sequences},
-        n_fresh_draws=n_fresh_draws,
-    )
+    return run.finish("exhaustive", stopped=stopped, settings={"max_sequences": max_sequences})

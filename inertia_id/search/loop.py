@@ -4,14 +4,16 @@ learning curve, and the result.
 A method creates a :class:`SearchRun`, plays sequences in it (its own way: random
 draws, an enumeration, a sampling distribution, a policy), and calls
 :meth:`SearchRun.finish`, which re-scores the best sequence on fresh draws and builds
-the :class:`~inertia_id.search.records.SearchResult`.
+the :class:`~inertia_id.search.records.SearchResult`. The options every method takes
+beside its own (:class:`RunOptions`) go to the run unread, so each is declared, given
+its default and documented once, on :class:`SearchRun`.
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable, Iterable, Iterator
-from typing import Any
+from typing import Any, TypedDict
 
 import numpy as np
 
@@ -29,7 +31,7 @@ from .records import (
 )
 from .scorer import ScorerSettings
 
-__all__ = ["SearchRun", "check_budget", "report_point"]
+__all__ = ["RunOptions", "SearchRun", "check_budget", "overrides", "report_point"]
 
 
 def check_budget(name: str, value: int, sequence_length: int) -> None:
@@ -43,6 +45,19 @@ def check_budget(name: str, value: int, sequence_length: int) -> None:
             f"{name} must be an integer of at least one sequence ({sequence_length} steps), "
             f"got {value!r}"
         )
+
+
+def overrides(
+    params: dict[str, Any] | None, defaults: dict[str, Any], refusal: str
+) -> dict[str, Any]:
+    """``defaults`` updated with ``params``, a method's settings; a name the defaults do
+    not hold is refused with ``refusal``, formatted with the ``unknown`` names and the
+    ``known`` ones."""
+    params = dict(params or {})
+    unknown = sorted(set(params) - set(defaults))
+    if unknown:
+        raise InputError(refusal.format(unknown=unknown, known=sorted(defaults)))
+    return {**defaults, **params}
 
 
 def report_point(
@@ -64,27 +79,58 @@ def report_point(
         )
 
 
+class RunOptions(TypedDict, total=False):
+    """The keyword options every environment search (ppo, cem, exhaustive, random) takes
+    beside its own budget and settings; see :class:`SearchRun` for each and its default."""
+
+    fuel_weight: float
+    seed: int
+    settings: ScorerSettings | None
+    constraints: dict[str, float] | None
+    constraint_penalty: float
+    n_fresh_draws: int
+    progress: Callable[[SearchProgress], None] | None
+    should_stop: Callable[[], bool] | None
+
+
 class SearchRun:
     """One search from start to result: its environment, tracker and clock.
 
     :param patience_episodes: stop once the best F1 is 1 and nothing better came for
         this many episodes; None = never.
+    :param fuel_weight: reward cost per N m s of commanded impulse.
+    :param seed: seeds the environment's noise (and the method's own draws): the same
+        seed gives the same learning curve.
+    :param settings: how sequences are scored; None: the defaults.
+    :param constraints: bounds on the sequence's physical figures (the constrained
+        variant; the paper's reward is unchanged without them).
+    :param constraint_penalty: the reward's cost per unit of summed relative violation.
+    :param n_fresh_draws: fresh noise draws the best sequence is re-scored on.
+    :param progress: called with every learning-curve point.
+    :param should_stop: polled before every sequence (by PPO, every step); True cancels
+        the search.
     """
 
     def __init__(
         self,
         scenario: Scenario,
         sequence_length: int,
-        fuel_weight: float,
-        seed: int,
-        settings: ScorerSettings | None,
         patience_episodes: int | None = None,
         *,
+        fuel_weight: float = 0.0,
+        seed: int = 0,
+        settings: ScorerSettings | None = None,
         constraints: dict[str, float] | None = None,
         constraint_penalty: float = 0.0,
+        n_fresh_draws: int = 5,
+        progress: Callable[[SearchProgress], None] | None = None,
+        should_stop: Callable[[], bool] | None = None,
     ) -> None:
         self.started = time.perf_counter()
         self.seed = seed
+        self.n_fresh_draws = n_fresh_draws
+        self.progress = progress
+        self.should_stop = should_stop
         self.env = SequenceSearchEnv(
             scenario,
             sequence_length=sequence_length,
@@ -108,11 +154,7 @@ class SearchRun:
         return self.tracker.last
 
     def play_each(
-        self,
-        sequences: Iterable[np.ndarray],
-        *,
-        total_timesteps: int,
-        should_stop: Callable[[], bool] | None = None,
+        self, sequences: Iterable[np.ndarray], *, total_timesteps: int
     ) -> Iterator[tuple[np.ndarray, EpisodeRecord]]:
         """Play sequences until the budget, the target or a cancel, yielding each
         sequence played with its record.
@@ -126,7 +168,7 @@ class SearchRun:
             if self.tracker.timesteps + length > total_timesteps:
                 self.stopped = "budget"
                 return
-            if should_stop is not None and should_stop():
+            if self.should_stop is not None and self.should_stop():
                 self.stopped = "cancelled"
                 return
             yield sequence, self.play(sequence)
@@ -135,13 +177,7 @@ class SearchRun:
                 return
 
     def run_episodes(
-        self,
-        sequences: Iterable[np.ndarray],
-        *,
-        total_timesteps: int,
-        report_every: int,
-        progress: Callable[[SearchProgress], None] | None = None,
-        should_stop: Callable[[], bool] | None = None,
+        self, sequences: Iterable[np.ndarray], *, total_timesteps: int, report_every: int
     ) -> str:
         """Play sequences until the budget, the target or a cancel; a curve point every
         ``report_every`` steps and at the end.
@@ -149,22 +185,22 @@ class SearchRun:
         Returns why it stopped: "budget", "target", "cancelled" or "exhausted".
         """
         next_report = report_every
-        for _ in self.play_each(
-            sequences, total_timesteps=total_timesteps, should_stop=should_stop
-        ):
+        for _ in self.play_each(sequences, total_timesteps=total_timesteps):
             if self.tracker.timesteps >= next_report:
                 next_report += report_every
-                report_point(self.tracker, total_timesteps, progress)
-        self.close_curve(total_timesteps, progress)
+                self.report(total_timesteps)
+        self.close_curve(total_timesteps)
         return self.stopped or "exhausted"
 
-    def close_curve(
-        self, total_timesteps: int, progress: Callable[[SearchProgress], None] | None
-    ) -> None:
+    def report(self, total_timesteps: int) -> None:
+        """Close a learning-curve point and tell :attr:`progress`."""
+        report_point(self.tracker, total_timesteps, self.progress)
+
+    def close_curve(self, total_timesteps: int) -> None:
         """A last curve point, unless the last one already holds every step."""
         curve = self.tracker.curve
         if not curve or curve[-1].timesteps != self.tracker.timesteps:
-            report_point(self.tracker, total_timesteps, progress)
+            self.report(total_timesteps)
 
     def finish(
         self,
@@ -172,7 +208,6 @@ class SearchRun:
         *,
         stopped: str,
         settings: dict[str, Any],
-        n_fresh_draws: int = 5,
         policy_path: str | None = None,
     ) -> SearchResult:
         """Re-score the best sequence on fresh draws and assemble the result.
@@ -191,7 +226,7 @@ class SearchRun:
             tracker.best.sequence,
             env.settings,
             seed=fresh_seed(self.seed),
-            n_draws=n_fresh_draws,
+            n_draws=self.n_fresh_draws,
         )
         return SearchResult(
             method=method,

@@ -32,6 +32,7 @@ import numpy as np
 from ..errors import InputError
 from ..physics.scenario import Scenario
 from ..physics.sequences import BASELINES
+from .loop import overrides
 from .objectives import SequenceScores
 from .operator import OperatorScorer, OperatorSettings
 from .records import (
@@ -73,11 +74,7 @@ MAX_FRONT_CANDIDATES = 60
 
 def check_nsga2_params(params: dict[str, Any] | None) -> dict[str, Any]:
     """NSGA-II's defaults updated with ``params``, each checked; unknown names refused."""
-    params = dict(params or {})
-    unknown = sorted(set(params) - set(NSGA2_DEFAULTS))
-    if unknown:
-        raise InputError(f"unknown NSGA-II settings {unknown}; known: {sorted(NSGA2_DEFAULTS)}")
-    merged = {**NSGA2_DEFAULTS, **params}
+    merged = overrides(params, NSGA2_DEFAULTS, "unknown NSGA-II settings {unknown}; known: {known}")
     for name in ("population", "generations"):
         value = merged[name]
         if (

@@ -9,14 +9,12 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Callable
-from typing import Any
+from typing import Any, Unpack
 
 from ..errors import InputError
 from ..physics.scenario import Scenario
-from .loop import SearchRun, check_budget
-from .records import SearchProgress, SearchResult
-from .scorer import ScorerSettings
+from .loop import RunOptions, SearchRun, check_budget, overrides
+from .records import SearchResult
 
 __all__ = ["PPO_DEFAULTS", "check_ppo_params", "ppo_search"]
 
@@ -48,11 +46,7 @@ def _is_whole(value: int | float) -> bool:
 
 def check_ppo_params(params: dict[str, Any] | None) -> dict[str, Any]:
     """The paper's defaults updated with ``params``, each checked; unknown names refused."""
-    params = dict(params or {})
-    unknown = sorted(set(params) - set(PPO_DEFAULTS))
-    if unknown:
-        raise InputError(f"unknown PPO parameters {unknown}; allowed: {sorted(PPO_DEFAULTS)}")
-    merged = {**PPO_DEFAULTS, **params}
+    merged = overrides(params, PPO_DEFAULTS, "unknown PPO parameters {unknown}; allowed: {known}")
     for name, value in merged.items():
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise InputError(f"PPO parameter {name} must be a number, got {value!r}")
@@ -83,18 +77,11 @@ def ppo_search(
     *,
     sequence_length: int = 4,
     total_timesteps: int = 20_480,
-    fuel_weight: float = 0.0,
-    seed: int = 0,
-    settings: ScorerSettings | None = None,
-    constraints: dict[str, float] | None = None,
-    constraint_penalty: float = 0.0,
     lagrangian_lr: float = 0.0,
     ppo_params: dict[str, Any] | None = None,
     patience_episodes: int | None = 500,
     policy_path: str | os.PathLike[str] | None = None,
-    n_fresh_draws: int = 5,
-    progress: Callable[[SearchProgress], None] | None = None,
-    should_stop: Callable[[], bool] | None = None,
+    **options: Unpack[RunOptions],
 ) -> SearchResult:
     """Train PPO on the sequence-search environment and return the best sequence it met.
 
@@ -103,12 +90,10 @@ def ppo_search(
     :param patience_episodes: stop once the best F1 is 1 and nothing better came for
         this many episodes; None trains for the whole budget.
     :param policy_path: where to save the trained policy (stable-baselines3 zip).
-    :param seed: seeds the environment's noise, the policy and PPO's sampling: the same
-        seed gives the same learning curve.
-    :param constraints: bounds on the sequence's physical figures (the constrained
-        variant; the paper's reward is unchanged without them).
-    :param constraint_penalty: the reward's cost per unit of summed relative violation
-        (the starting Lagrange multiplier).
+    :param options: fuel weight, seed (of the noise, the policy and PPO's sampling),
+        scorer settings, constraints, constraint penalty (the starting Lagrange
+        multiplier), fresh draws and the progress and cancel hooks (polled every step):
+        see :class:`~inertia_id.search.loop.SearchRun`.
     :param lagrangian_lr: with a value > 0, the multiplier is updated after every
         rollout by dual ascent, ``λ ← max(0, λ + lr · mean violation)`` (PPO-Lagrangian):
         it grows while the policy's sequences break the constraints and stays once they
@@ -123,21 +108,12 @@ def ppo_search(
 
     from .callback import SearchCallback
 
-    run = SearchRun(
-        scenario,
-        sequence_length,
-        fuel_weight,
-        seed,
-        settings,
-        patience_episodes,
-        constraints=constraints,
-        constraint_penalty=constraint_penalty,
-    )
+    run = SearchRun(scenario, sequence_length, patience_episodes, **options)
     callback = SearchCallback(
         run.tracker,
         total_timesteps,
-        progress,
-        should_stop,
+        run.progress,
+        run.should_stop,
         env=run.env if lagrangian_lr > 0 and run.env.constraints else None,
         lagrangian_lr=float(lagrangian_lr),
     )
@@ -145,7 +121,7 @@ def ppo_search(
     # A small MLP: one thread is as fast, and keeps the learning curve reproducible.
     torch.set_num_threads(1)
     try:
-        model = PPO("MlpPolicy", run.env, seed=seed, device="cpu", verbose=0, **params)
+        model = PPO("MlpPolicy", run.env, seed=run.seed, device="cpu", verbose=0, **params)
         model.learn(total_timesteps=total_timesteps, callback=callback)
         saved = None
         if policy_path is not None:
@@ -155,7 +131,7 @@ def ppo_search(
                 saved += ".zip"
     finally:
         torch.set_num_threads(threads)
-    run.close_curve(total_timesteps, progress)
+    run.close_curve(total_timesteps)
     return run.finish(
         "ppo",
         stopped=callback.stopped,
@@ -166,6 +142,5 @@ def ppo_search(
             "lagrangian_lr": lagrangian_lr,
             "final_constraint_penalty": run.env.constraint_penalty,
         },
-        n_fresh_draws=n_fresh_draws,
         policy_path=saved,
     )

@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
+from typing import Unpack
 
 import numpy as np
 
 from ..physics.scenario import Scenario
-from .loop import SearchRun, check_budget
-from .records import SearchProgress, SearchResult
-from .scorer import ScorerSettings
+from .loop import RunOptions, SearchRun, check_budget
+from .records import SearchResult
 
 __all__ = ["random_search"]
 
@@ -19,16 +19,9 @@ def random_search(
     *,
     sequence_length: int = 4,
     total_timesteps: int = 20_480,
-    fuel_weight: float = 0.0,
-    seed: int = 0,
-    settings: ScorerSettings | None = None,
-    constraints: dict[str, float] | None = None,
-    constraint_penalty: float = 0.0,
     patience_episodes: int | None = None,
     report_every: int = 2048,
-    n_fresh_draws: int = 5,
-    progress: Callable[[SearchProgress], None] | None = None,
-    should_stop: Callable[[], bool] | None = None,
+    **options: Unpack[RunOptions],
 ) -> SearchResult:
     """Try uniformly random sequences in the environment until the step budget.
 
@@ -38,34 +31,18 @@ def random_search(
     :param total_timesteps: environment steps (sequence_length per sequence).
     :param report_every: environment steps between learning-curve points (2048 = one
         PPO rollout at the paper's n_steps).
+    :param options: fuel weight, seed, scorer settings, constraints, fresh draws and
+        the progress and cancel hooks: see :class:`~inertia_id.search.loop.SearchRun`.
     """
     check_budget("total_timesteps", total_timesteps, sequence_length)
-    run = SearchRun(
-        scenario,
-        sequence_length,
-        fuel_weight,
-        seed,
-        settings,
-        patience_episodes,
-        constraints=constraints,
-        constraint_penalty=constraint_penalty,
-    )
-    rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(2)[1])
+    run = SearchRun(scenario, sequence_length, patience_episodes, **options)
+    rng = np.random.default_rng(np.random.SeedSequence(run.seed).spawn(2)[1])
 
     def sequences() -> Iterator[np.ndarray]:
         while True:
             yield rng.integers(0, scenario.n_levels, (sequence_length, scenario.n_thrusters))
 
     stopped = run.run_episodes(
-        sequences(),
-        total_timesteps=total_timesteps,
-        report_every=report_every,
-        progress=progress,
-        should_stop=should_stop,
+        sequences(), total_timesteps=total_timesteps, report_every=report_every
     )
-    return run.finish(
-        "random",
-        stopped=stopped,
-        settings={"timesteps": total_timesteps},
-        n_fresh_draws=n_fresh_draws,
-    )
+    return run.finish("random", stopped=stopped, settings={"timesteps": total_timesteps})
