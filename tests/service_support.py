@@ -161,6 +161,28 @@ def wait_for_job(
     )
 
 
+def start_in_group(
+    argv: list[str],
+    *,
+    log_path: Path,
+    cwd: Path | None = None,
+    env: dict[str, str] | None = None,
+    append: bool = False,
+) -> subprocess.Popen[bytes]:
+    """Start ``argv`` in a process group of its own (so that it can be killed whole, as
+    a machine or a container dies), its output and errors to ``log_path`` (added to the
+    end with ``append``: a restarted server keeps its earlier log)."""
+    with open(log_path, "ab" if append else "wb") as log:
+        return subprocess.Popen(
+            argv,
+            cwd=cwd,
+            env=env,
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            start_new_session=True,
+        )
+
+
 @dataclass
 class GroupProcess:
     """A subprocess started with ``start_new_session=True`` (a process group of its own,

@@ -34,6 +34,7 @@ from service_support import (
     load_job,
     postgres_database,
     require_service,
+    start_in_group,
     wait_for_job,
 )
 from sqlalchemy import select
@@ -93,27 +94,24 @@ class Service:
         its monitor has written its ``workers`` row."""
         prefix = f"w{len(self.workers) + 1}-{uuid.uuid4().hex[:6]}"
         log_path = self.root / f"{prefix}.log"
-        with open(log_path, "wb") as log:
-            process = subprocess.Popen(
-                [
-                    sys.executable,
-                    "-m",
-                    "celery",
-                    "-A",
-                    "worker.celery_app",
-                    "worker",
-                    "--concurrency=1",
-                    "--pool=prefork",
-                    "--loglevel=INFO",
-                    "-n",
-                    f"{prefix}@%h",
-                ],
-                cwd=self.root,
-                env={**self.env, **env},
-                stdout=log,
-                stderr=subprocess.STDOUT,
-                start_new_session=True,
-            )
+        process = start_in_group(
+            [
+                sys.executable,
+                "-m",
+                "celery",
+                "-A",
+                "worker.celery_app",
+                "worker",
+                "--concurrency=1",
+                "--pool=prefork",
+                "--loglevel=INFO",
+                "-n",
+                f"{prefix}@%h",
+            ],
+            log_path=log_path,
+            cwd=self.root,
+            env={**self.env, **env},
+        )
         worker = WorkerProcess(name=prefix, process=process, log_path=log_path)
         self.workers.append(worker)
         deadline = time.monotonic() + WORKER_READY_TIMEOUT_S
