@@ -44,6 +44,21 @@ def base_parser(description: str) -> argparse.ArgumentParser:
     return parser
 
 
+def add_realisations(parser: argparse.ArgumentParser, *, default: int = 20) -> None:
+    """--realisations: the series simulated per candidate (one option, one meaning, in
+    every benchmark that trains or scores)."""
+    parser.add_argument(
+        "--realisations", type=positive_int, default=default, help="realisations per candidate"
+    )
+
+
+def add_steps(parser: argparse.ArgumentParser) -> None:
+    """--steps: the length L of the benchmark's seeded random sequence."""
+    parser.add_argument(
+        "--steps", type=positive_int, default=4, help="actuation steps L of the random sequence"
+    )
+
+
 def int_list(text: str) -> list[int]:
     """argparse type: a comma-separated list of positive integers."""
     try:

@@ -17,6 +17,8 @@ from typing import Any
 import numpy as np
 from _common import (
     GOOD_SEQUENCE,
+    add_realisations,
+    add_steps,
     base_parser,
     positive_int,
     print_header,
@@ -72,6 +74,50 @@ def show(record: dict[str, Any], label: str) -> None:
     )
 
 
+def run_random(scenario: Scenario, sequences: list[np.ndarray], args: Any) -> list[dict[str, Any]]:
+    """Random sequence i trained on seed (seed, 0, i): the same seed with jitter on and
+    off, so that every other noise draw is identical."""
+    records = []
+    for i, seq in enumerate(sequences):
+        records.append(run_one(scenario, seq, (args.seed, 0, i), args))
+        show(records[-1], f"random #{i}")
+    return records
+
+
+def run_good(scenario: Scenario, good: np.ndarray, args: Any) -> list[dict[str, Any]]:
+    """The hand-designed sequence on --good-seeds seeds (seed, 1, j)."""
+    records = []
+    for j in range(args.good_seeds):
+        records.append(run_one(scenario, good, (args.seed, 1, j), args))
+        show(records[-1], f"good, seed #{j}")
+    return records
+
+
+# The columns of a table of training runs, after the run's own label.
+RUN_COLUMNS = ["sequence", "impulse N m s", "F1", "accuracy", "train s"]
+
+
+def run_cells(record: dict[str, Any]) -> list[Any]:
+    return [
+        sequence_text(record["sequence"]),
+        record["impulse_nms"],
+        record["f1"],
+        record["accuracy"],
+        record["train_s"],
+    ]
+
+
+def jitter_cells(label: str, on: dict[str, Any], off: dict[str, Any]) -> list[Any]:
+    """One case with duty jitter on and off, and the change in F1."""
+    return [
+        label,
+        sequence_text(on["sequence"]),
+        on["f1"],
+        off["f1"],
+        f"{off['f1'] - on['f1']:+.3f}",
+    ]
+
+
 def main() -> None:
     parser = base_parser(__doc__.splitlines()[0])
     parser.add_argument(
@@ -95,12 +141,8 @@ def main() -> None:
         default=5,
         help="random sequences repeated with duty jitter off (0 skips the jitter-off part)",
     )
-    parser.add_argument(
-        "--realisations", type=positive_int, default=20, help="realisations per candidate"
-    )
-    parser.add_argument(
-        "--steps", type=positive_int, default=4, help="actuation steps per random sequence"
-    )
+    add_realisations(parser)
+    add_steps(parser)
     args = parser.parse_args()
     print_header("Noise calibration of the paper preset at 1x noise", args)
 
@@ -137,78 +179,37 @@ def main() -> None:
     good = np.asarray(GOOD_SEQUENCE, dtype=int)
 
     print("jitter on (1x):")
-    random_on = []
-    for i, seq in enumerate(sequences):
-        random_on.append(run_one(scenario, seq, (args.seed, 0, i), args))
-        show(random_on[-1], f"random #{i}")
-    good_on = []
-    for j in range(args.good_seeds):
-        good_on.append(run_one(scenario, good, (args.seed, 1, j), args))
-        show(good_on[-1], f"good, seed #{j}")
+    random_on = run_random(scenario, sequences, args)
+    good_on = run_good(scenario, good, args)
 
-    random_off, good_off = [], []
+    random_off: list[dict[str, Any]] = []
+    good_off: list[dict[str, Any]] = []
     n_off = min(max(args.n_jitter_off, 0), args.n_random)
     if n_off:
         print("duty jitter off (duty_jitter_sigma = 0, all other noise identical):")
-        for i in range(n_off):
-            random_off.append(run_one(no_jitter, sequences[i], (args.seed, 0, i), args))
-            show(random_off[-1], f"random #{i}")
-        for j in range(args.good_seeds):
-            good_off.append(run_one(no_jitter, good, (args.seed, 1, j), args))
-            show(good_off[-1], f"good, seed #{j}")
+        random_off = run_random(no_jitter, sequences[:n_off], args)
+        good_off = run_good(no_jitter, good, args)
     print()
 
     print_table(
-        ["#", "sequence", "impulse N m s", "F1", "accuracy", "train s"],
-        [
-            [
-                i,
-                sequence_text(r["sequence"]),
-                r["impulse_nms"],
-                r["f1"],
-                r["accuracy"],
-                r["train_s"],
-            ]
-            for i, r in enumerate(random_on)
-        ],
+        ["#", *RUN_COLUMNS],
+        [[i, *run_cells(r)] for i, r in enumerate(random_on)],
         title=f"Random {args.steps}-step sequences, 1x noise (jitter on), metric {args.metric}",
     )
     print_table(
-        ["seed #", "sequence", "impulse N m s", "F1", "accuracy", "train s"],
-        [
-            [
-                j,
-                sequence_text(r["sequence"]),
-                r["impulse_nms"],
-                r["f1"],
-                r["accuracy"],
-                r["train_s"],
-            ]
-            for j, r in enumerate(good_on)
-        ],
+        ["seed #", *RUN_COLUMNS],
+        [[j, *run_cells(r)] for j, r in enumerate(good_on)],
         title="Hand-designed sequence [[4,4,4,0,0,0]]*4, 1x noise (jitter on)",
     )
     if n_off:
         print_table(
             ["case", "sequence", "F1 jitter on", "F1 jitter off", "change"],
             [
-                [
-                    f"random #{i}",
-                    sequence_text(on["sequence"]),
-                    on["f1"],
-                    off["f1"],
-                    f"{off['f1'] - on['f1']:+.3f}",
-                ]
+                jitter_cells(f"random #{i}", on, off)
                 for i, (on, off) in enumerate(zip(random_on, random_off, strict=False))
             ]
             + [
-                [
-                    f"good, seed #{j}",
-                    sequence_text(on["sequence"]),
-                    on["f1"],
-                    off["f1"],
-                    f"{off['f1'] - on['f1']:+.3f}",
-                ]
+                jitter_cells(f"good, seed #{j}", on, off)
                 for j, (on, off) in enumerate(zip(good_on, good_off, strict=False))
             ],
             title="Duty jitter on vs off (same sequences, same seeds)",

@@ -25,6 +25,8 @@ from typing import Any
 import numpy as np
 from _common import (
     GOOD_SEQUENCE,
+    add_realisations,
+    add_steps,
     base_parser,
     print_header,
     print_table,
@@ -95,10 +97,8 @@ def main() -> None:
         default=list(METRICS),
         help="comma-separated subset of " + ",".join(METRICS),
     )
-    parser.add_argument("--realisations", type=int, default=20, help="realisations per candidate")
-    parser.add_argument(
-        "--steps", type=int, default=4, help="actuation steps of the random sequence"
-    )
+    add_realisations(parser)
+    add_steps(parser)
     parser.add_argument(
         "--restarts",
         type=int,

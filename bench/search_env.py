@@ -38,6 +38,7 @@ from typing import Any
 import numpy as np
 from _common import (
     GOOD_SEQUENCE,
+    add_realisations,
     base_parser,
     int_list,
     positive_int,
@@ -411,9 +412,7 @@ def main() -> None:
     parser.add_argument(
         "--sequences", type=positive_int, default=50, help="random sequences per length"
     )
-    parser.add_argument(
-        "--realisations", type=positive_int, default=20, help="realisations per candidate"
-    )
+    add_realisations(parser)
     parser.add_argument(
         "--plain-episodes",
         type=int_list,

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 from _common import (
     GOOD_SEQUENCE,
+    add_realisations,
     base_parser,
     positive_int,
     print_header,
@@ -72,9 +73,7 @@ def main() -> None:
     parser = base_parser(__doc__.splitlines()[0])
     parser.add_argument("--sequences", type=positive_int, default=200, help="random sequences")
     parser.add_argument("--length", type=positive_int, default=4, help="sequence steps L")
-    parser.add_argument(
-        "--realisations", type=positive_int, default=20, help="realisations per candidate"
-    )
+    add_realisations(parser)
     parser.add_argument(
         "--fresh-draws",
         type=int,

@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 from _common import (
+    add_steps,
     base_parser,
     best_of,
     int_list,
@@ -66,9 +67,7 @@ def main() -> None:
         help="realisations per candidate for the per-series loop (and the "
         "size at which the speed-up and agreement are measured)",
     )
-    parser.add_argument(
-        "--steps", type=positive_int, default=4, help="actuation steps L of the random sequence"
-    )
+    add_steps(parser)
     parser.add_argument(
         "--repeats",
         type=positive_int,

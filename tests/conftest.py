@@ -17,10 +17,9 @@ from inertia_id import InertiaClassifier, Scenario, preset, train
 # The paper's "good" sequence: the three positive-axis thrusters at full duty, 4 steps.
 GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
 
-# Every source of randomness switched off, and the actuation low-pass too.
-ZERO_UNCERTAINTY: dict[str, Any] = {
+# Every source of randomness switched off; the actuation low-pass stays on (it is physics).
+NOISE_OFF: dict[str, Any] = {
     "duty_jitter_sigma": 0.0,
-    "lowpass_time_constant_s": 0.0,
     "thrust_scale_sigma": 0.0,
     "disturbance_torque_sigma_nm": 0.0,
     "gyro_noise_sigma_rad_s": 0.0,
@@ -28,6 +27,9 @@ ZERO_UNCERTAINTY: dict[str, Any] = {
     "gyro_bias_sigma_rad_s": 0.0,
     "initial_rate_sigma_rad_s": 0.0,
 }
+
+# Every source of randomness switched off, and the actuation low-pass too.
+ZERO_UNCERTAINTY: dict[str, Any] = {**NOISE_OFF, "lowpass_time_constant_s": 0.0}
 
 
 @pytest.fixture(scope="session")
@@ -53,6 +55,12 @@ def good_sequence() -> np.ndarray:
 @pytest.fixture(scope="session")
 def zero_uncertainty() -> dict[str, Any]:
     return dict(ZERO_UNCERTAINTY)
+
+
+@pytest.fixture(scope="session")
+def noise_off() -> dict[str, Any]:
+    """Every source of randomness off, the actuation low-pass on."""
+    return dict(NOISE_OFF)
 
 
 @pytest.fixture(scope="session")

@@ -13,62 +13,25 @@ from __future__ import annotations
 
 import os
 import shutil
-import signal
-import socket
-import subprocess
-import sys
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-import httpx
 import pytest
-from dashboard_support import API_KEY, ROOT, Console, Dashboard, Service
+from dashboard_support import API_KEY, Console, Dashboard, Service
+from service_support import serve_app, skip_or_fail
 
 CHROMIUM = os.environ.get("INERTIA_ID_CHROMIUM", "/usr/bin/chromium")
 
 
 def _missing(what: str) -> None:
-    if os.environ.get("INERTIA_ID_REQUIRE_SERVICES") == "1":
-        pytest.fail(f"{what}; the browser tests need it")
-    pytest.skip(f"{what}; the browser tests need it")
+    skip_or_fail(f"{what}; the browser tests need it")
 
 
 @pytest.fixture(scope="session")
 def service(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Service]:
-    root = tmp_path_factory.mktemp("dashboard")
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        port = int(sock.getsockname()[1])
-    env = {k: v for k, v in os.environ.items() if not k.startswith("INERTIA_ID_")}
-    env.pop("DATABASE_URL", None)
-    env.pop("BROKER_URL", None)
-    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))
-    env["INERTIA_ID_API_KEY"] = API_KEY
-    log = root / "serve.log"
-    with open(log, "wb") as out:
-        server = subprocess.Popen(
-            [sys.executable, "-m", "app.serve", "--port", str(port), "--data-dir", "data"],
-            env=env,
-            cwd=root,
-            stdout=out,
-            stderr=subprocess.STDOUT,
-        )
-    base_url = f"http://127.0.0.1:{port}"
-    client = httpx.Client(base_url=base_url, headers={"X-API-Key": API_KEY}, timeout=30)
-    running = Service(base_url, client, log)
-    try:
-        running.until(
-            lambda: client.get("/health").json()["status"] == "ok", 120, "service healthy"
-        )
-        yield running
-    finally:
-        client.close()
-        server.send_signal(signal.SIGTERM)
-        try:
-            server.wait(40)
-        except subprocess.TimeoutExpired:
-            server.kill()
+    with serve_app(tmp_path_factory.mktemp("dashboard"), api_key=API_KEY) as running:
+        yield Service(running.base_url, running.client, running.log_path)
 
 
 @pytest.fixture(scope="session")

@@ -4,15 +4,14 @@ from __future__ import annotations
 
 import os
 import re
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import httpx
+from service_support import ROOT, tail, wait_for
 
-ROOT = Path(__file__).resolve().parents[2]
 API_KEY = "browser-" + "k" * 40
 ARTIFACTS = Path(os.environ.get("INERTIA_ID_ARTIFACTS_DIR", ROOT / "artifacts")) / "screenshots"
 
@@ -25,17 +24,7 @@ class Service:
 
     def until(self, predicate: Callable[[], Any], timeout_s: float, what: str) -> Any:
         """Poll ``predicate`` until it returns something truthy; fail with the log."""
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
-            try:
-                value = predicate()
-            except httpx.TransportError:
-                value = None
-            if value:
-                return value
-            time.sleep(0.25)
-        tail = self.log.read_text(errors="replace")[-6000:]
-        raise AssertionError(f"{what} within {timeout_s:g} s; service log:\n{tail}")
+        return wait_for(predicate, timeout_s, what, lambda: f"service log:\n{tail(self.log)}")
 
     def job(self, job_id: str) -> dict[str, Any]:
         return dict(self.client.get(f"/jobs/{job_id}").json())

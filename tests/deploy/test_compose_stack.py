@@ -26,43 +26,39 @@ import shutil
 import signal
 import subprocess
 import sys
-import time
 import uuid
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any
 
 import httpx
 import numpy as np
 import pytest
 import yaml
+from service_support import (
+    POSTGRES_ADMIN_URL,
+    ROOT,
+    TERMINAL,
+    GroupProcess,
+    clean_env,
+    free_port,
+    require_service,
+    start_in_group,
+    wait_for,
+)
 from sqlalchemy import create_engine, make_url, text
 
 from inertia_id import Scenario, simulate
 
-ROOT = Path(__file__).resolve().parents[2]
 API_KEY = "compose-" + "k" * 32
 REDIS_ADMIN_URL = os.environ.get("INERTIA_ID_TEST_COMPOSE_REDIS_URL", "redis://127.0.0.1:6379/13")
-POSTGRES_ADMIN_URL = os.environ.get(
-    "INERTIA_ID_TEST_POSTGRES_URL", "postgresql+psycopg://postgres@127.0.0.1:5432/postgres"
-)
 GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
-TERMINAL = ("succeeded", "failed", "cancelled")
-
-T = TypeVar("T")
-
-
-def _require(what: str, error: object) -> None:
-    message = f"{what} is not available: {error}"
-    if os.environ.get("INERTIA_ID_REQUIRE_SERVICES") == "1":
-        pytest.fail(message)
-    pytest.skip(message)
 
 
 def _compose_config() -> dict[str, Any]:
     if not shutil.which("docker-compose"):
-        _require("docker-compose", "not installed (apt-get install docker-compose)")
+        require_service("docker-compose", "not installed (apt-get install docker-compose)")
     done = subprocess.run(
         ["docker-compose", "-f", str(ROOT / "docker-compose.yml"), "config"],
         capture_output=True,
@@ -82,38 +78,9 @@ def _dockerfile_cmd() -> list[str]:
     return list(json.loads(lines[-1][4:]))
 
 
-def _wait(predicate: Callable[[], T | None], timeout_s: float, what: str, logs: Any) -> T:
-    deadline = time.monotonic() + timeout_s
-    while True:
-        try:
-            value = predicate()
-        except httpx.TransportError:
-            value = None
-        if value:
-            return value
-        if time.monotonic() > deadline:
-            raise AssertionError(f"{what} within {timeout_s:g} s\n{logs()}")
-        time.sleep(0.25)
-
-
 @dataclass
-class Container:
+class Container(GroupProcess):
     """One service's command, run as a process group of its own (a container)."""
-
-    name: str
-    process: subprocess.Popen[bytes]
-    log_path: Path
-
-    def log(self, chars: int = 5000) -> str:
-        text_ = self.log_path.read_text(errors="replace") if self.log_path.exists() else ""
-        return f"--- {self.name} ({self.log_path}) ---\n{text_[-chars:]}"
-
-    def kill(self) -> None:
-        try:
-            os.killpg(self.process.pid, signal.SIGKILL)
-        except ProcessLookupError:
-            pass
-        self.process.wait(10)
 
     def stop(self) -> None:
         """``docker stop``: SIGTERM, a grace period, then SIGKILL."""
@@ -147,16 +114,9 @@ def _service_env(environment: dict[str, str], database: str, data_dir: Path) -> 
             value = str(data_dir)
         assert "postgres:" not in value and "redis:6379" not in value, (name, value)
         moved[name] = value
-    base = {
-        k: v
-        for k, v in os.environ.items()
-        if not k.startswith("INERTIA_ID_") and k not in ("DATABASE_URL", "BROKER_URL")
-    }
     # The image has the project installed with its commands on PATH: so has this venv.
-    base["PATH"] = os.pathsep.join([str(Path(sys.executable).parent), base.get("PATH", "")])
-    base["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), base.get("PYTHONPATH")]))
-    base["PYTHONUNBUFFERED"] = "1"
-    return {**base, **moved}
+    path = os.pathsep.join([str(Path(sys.executable).parent), os.environ.get("PATH", "")])
+    return clean_env(PATH=path, PYTHONUNBUFFERED="1", **moved)
 
 
 @pytest.fixture
@@ -176,7 +136,7 @@ def compose_database() -> Iterator[str]:
             connection.execute(text(f'CREATE DATABASE "{name}" OWNER inertia'))
     except Exception as exc:
         admin.dispose()
-        _require(f"PostgreSQL at {POSTGRES_ADMIN_URL}", f"{type(exc).__name__}: {exc}")
+        require_service(f"PostgreSQL at {POSTGRES_ADMIN_URL}", exc)
     try:
         yield name
     finally:
@@ -203,20 +163,12 @@ def compose_redis() -> Iterator[None]:
         client.flushdb()
     except Exception as exc:
         client.close()
-        _require(f"Redis at {REDIS_ADMIN_URL}", f"{type(exc).__name__}: {exc}")
+        require_service(f"Redis at {REDIS_ADMIN_URL}", exc)
     try:
         yield
     finally:
         client.flushdb()
         client.close()
-
-
-def _free_port() -> int:
-    import socket
-
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return int(sock.getsockname()[1])
 
 
 def test_the_compose_stack_trains_the_default_classifier_identifies_and_survives_a_killed_worker(
@@ -231,7 +183,7 @@ def test_the_compose_stack_trains_the_default_classifier_identifies_and_survives
     assert api["environment"]["INERTIA_ID_API_KEY"] == API_KEY
 
     data_dir = tmp_path / "data"
-    port = _free_port()
+    port = free_port()
     command = [str(part) for part in api["command"]]
     assert command[command.index("--host") + 1] == "0.0.0.0"
     assert command[command.index("--port") + 1] == "8000"
@@ -242,15 +194,12 @@ def test_the_compose_stack_trains_the_default_classifier_identifies_and_survives
 
     def start(name: str, argv: list[str], environment: dict[str, str]) -> Container:
         log_path = tmp_path / f"{name}.log"
-        with open(log_path, "wb") as log:
-            process = subprocess.Popen(
-                argv,
-                env=_service_env(environment, compose_database, data_dir),
-                cwd=tmp_path,
-                stdout=log,
-                stderr=subprocess.STDOUT,
-                start_new_session=True,
-            )
+        process = start_in_group(
+            argv,
+            log_path=log_path,
+            cwd=tmp_path,
+            env=_service_env(environment, compose_database, data_dir),
+        )
         container = Container(name, process, log_path)
         containers.append(container)
         return container
@@ -272,7 +221,7 @@ def test_the_compose_stack_trains_the_default_classifier_identifies_and_survives
                 health = client.get("/health").json()
                 return health if health["workers"]["count"] == replicas else None
 
-            health = _wait(all_workers, 180, f"/health did not count {replicas} workers", logs)
+            health = wait_for(all_workers, 180, f"/health did not count {replicas} workers", logs)
             assert health["status"] == "ok", health
 
             scenario = client.post("/scenarios", json={"preset": "paper"})
@@ -284,7 +233,7 @@ def test_the_compose_stack_trains_the_default_classifier_identifies_and_survives
                     job = client.get(f"/jobs/{job_id}").json()
                     return job if job["status"] in TERMINAL else None
 
-                return _wait(done, timeout_s, f"job {job_id} did not finish", logs)
+                return wait_for(done, timeout_s, f"job {job_id} did not finish", logs)
 
             # The default classifier: no kind, no metric.
             train = client.post(
@@ -335,7 +284,7 @@ def test_the_compose_stack_trains_the_default_classifier_identifies_and_survives
             )
             assert search.status_code == 202, search.text
             search_id = search.json()["id"]
-            running = _wait(
+            running = wait_for(
                 lambda: (j := client.get(f"/jobs/{search_id}").json())["status"] == "running" and j,
                 120,
                 "the search did not start",

@@ -41,21 +41,17 @@ def redis_server() -> Iterator[RedisServer]:
 
 
 def _deployment(kind: str, root: Path, request: pytest.FixtureRequest) -> Iterator[Deployment]:
-    data_dir = (root / "data").resolve()
     databases: Iterator[str] | None = None
-    redis: RedisServer | None = None
     if kind == "sqlite":
+        data_dir = (root / "data").resolve()
         env = service_env(data_dir, **FAST_TIMINGS)
         database_url = f"sqlite:///{data_dir / 'inertia-id.db'}"
+        deployment = Deployment(kind, root, database_url, env)
     else:
-        redis = request.getfixturevalue("redis_server")
+        redis: RedisServer = request.getfixturevalue("redis_server")
         redis.flush()
         databases = postgres_database()
-        database_url = next(databases)
-        env = service_env(
-            data_dir, DATABASE_URL=database_url, BROKER_URL=redis.url(0), **FAST_TIMINGS
-        )
-    deployment = Deployment(kind, root, database_url, env, redis=redis)
+        deployment = Deployment.on_postgres(root, next(databases), redis)
     try:
         yield deployment
     finally:

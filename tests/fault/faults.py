@@ -22,26 +22,32 @@ import os
 import re
 import shutil
 import signal
-import socket
 import subprocess
 import sys
 import tempfile
-import time
-import uuid
-from collections.abc import Callable, Coroutine, Iterable, Iterator
+from collections.abc import Coroutine, Iterable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TypeVar
 
 import httpx
-import pytest
-from sqlalchemy import create_engine, select, text
+from service_support import (
+    POSTGRES_ADMIN_URL,
+    TERMINAL,
+    clean_env,
+    free_port,
+    load_job,
+    require_service,
+    start_in_group,
+    wait_for,
+    wait_for_job,
+)
+from service_support import postgres_database as shared_postgres_database
+from sqlalchemy import select
 
 from service.store import Database, JobRow, MetricRow, ScenarioRow
 
-ROOT = Path(__file__).resolve().parents[2]
-TERMINAL = ("succeeded", "failed", "cancelled")
 GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
 
 #: Short beats, so that dead workers and lost messages are noticed in seconds (the
@@ -81,38 +87,6 @@ def random_search(timesteps: int) -> dict[str, Any]:
 T = TypeVar("T")
 
 
-def require_service(what: str, error: BaseException | str) -> None:
-    """Skip, or fail when the environment says the services must be there (CI)."""
-    message = f"{what} is not available: {error}"
-    if os.environ.get("INERTIA_ID_REQUIRE_SERVICES") == "1":
-        pytest.fail(message)
-    pytest.skip(message)
-
-
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return int(sock.getsockname()[1])
-
-
-def wait_for(
-    predicate: Callable[[], T | None], timeout_s: float, what: str, logs: Callable[[], str]
-) -> T:
-    """Poll ``predicate`` until it returns something truthy; fail with ``what`` and the
-    logs after ``timeout_s`` (a "did not happen at all" guard, not a timing check)."""
-    deadline = time.monotonic() + timeout_s
-    while True:
-        try:
-            value = predicate()
-        except (httpx.TransportError, OSError):
-            value = None
-        if value:
-            return value
-        if time.monotonic() > deadline:
-            raise AssertionError(f"{what} within {timeout_s:g} s\n{logs()}")
-        time.sleep(0.2)
-
-
 def run_async(coroutine: Coroutine[Any, Any, T]) -> T:
     """``asyncio.run`` on a thread of its own: the browser tests' Playwright keeps an
     event loop running on the main thread for the whole session."""
@@ -121,16 +95,9 @@ def run_async(coroutine: Coroutine[Any, Any, T]) -> T:
 
 
 def service_env(data_dir: Path, **extra: str) -> dict[str, str]:
-    """This process's environment without any inertia-id setting, plus ``extra``."""
-    env = {
-        k: v
-        for k, v in os.environ.items()
-        if not k.startswith("INERTIA_ID_") and k not in ("DATABASE_URL", "BROKER_URL")
-    }
-    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))
-    env["PYTHONUNBUFFERED"] = "1"
-    env["INERTIA_ID_DATA_DIR"] = str(data_dir)
-    return {**env, **extra}
+    """This process's environment without any inertia-id setting, on ``data_dir``, plus
+    ``extra``."""
+    return clean_env(PYTHONUNBUFFERED="1", INERTIA_ID_DATA_DIR=str(data_dir), **extra)
 
 
 # --------------------------------------------------------------------------- processes
@@ -254,29 +221,10 @@ class Serve:
 
 # --------------------------------------------------------------------------- backends
 
-POSTGRES_ADMIN_URL = os.environ.get(
-    "INERTIA_ID_TEST_POSTGRES_URL", "postgresql+psycopg://postgres@127.0.0.1:5432/postgres"
-)
-
 
 def postgres_database(admin_url: str = POSTGRES_ADMIN_URL) -> Iterator[str]:
     """A fresh database on the server at ``admin_url``; dropped when exhausted."""
-    admin = create_engine(admin_url, isolation_level="AUTOCOMMIT")
-    name = f"inertia_id_fault_{uuid.uuid4().hex[:12]}"
-    try:
-        with admin.connect() as connection:
-            connection.execute(text(f'CREATE DATABASE "{name}"'))
-    except Exception as exc:
-        admin.dispose()
-        require_service(f"PostgreSQL at {admin_url}", f"{type(exc).__name__}: {exc}")
-    try:
-        yield admin.url.set(database=name).render_as_string(hide_password=False)
-    finally:
-        try:
-            with admin.connect() as connection:
-                connection.execute(text(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)'))
-        finally:
-            admin.dispose()
+    return shared_postgres_database(admin_url, prefix="inertia_id_fault")
 
 
 class RedisServer:
@@ -297,25 +245,23 @@ class RedisServer:
         return f"redis://127.0.0.1:{self.port}/{db}"
 
     def start(self) -> RedisServer:
-        with open(self.root / "redis.log", "ab") as log:
-            self.process = subprocess.Popen(
-                [
-                    self.binary,
-                    "--port",
-                    str(self.port),
-                    "--bind",
-                    "127.0.0.1",
-                    "--save",
-                    "",
-                    "--appendonly",
-                    "no",
-                    "--dir",
-                    str(self.root),
-                ],
-                stdout=log,
-                stderr=subprocess.STDOUT,
-                start_new_session=True,
-            )
+        self.process = start_in_group(
+            [
+                self.binary,
+                "--port",
+                str(self.port),
+                "--bind",
+                "127.0.0.1",
+                "--save",
+                "",
+                "--appendonly",
+                "no",
+                "--dir",
+                str(self.root),
+            ],
+            log_path=self.root / "redis.log",
+            append=True,
+        )
         import redis
 
         client = redis.Redis.from_url(self.url(), socket_connect_timeout=1)
@@ -448,9 +394,31 @@ class Deployment:
     jobs: set[str] = field(default_factory=set)
     _db: Database | None = None
 
+    @classmethod
+    def on_postgres(cls, root: Path, database_url: str, redis: RedisServer) -> Deployment:
+        """The ``postgres`` shape on ``root``: the database at ``database_url``, Redis
+        database 0 of ``redis`` as the broker, with the fast timings."""
+        env = service_env(
+            (root / "data").resolve(),
+            DATABASE_URL=database_url,
+            BROKER_URL=redis.url(0),
+            **FAST_TIMINGS,
+        )
+        return cls("postgres", root, database_url, env, redis=redis)
+
     @property
     def data_dir(self) -> Path:
         return (self.root / "data").resolve()
+
+    def wait_gone(self, timeout_s: float, what: str) -> None:
+        """Wait until no process of the data dir is left (serve, its API and verdict
+        processes, its workers and their task processes)."""
+        wait_for(
+            lambda: not processes_of(self.data_dir),
+            timeout_s,
+            what,
+            lambda: f"{processes_of(self.data_dir)}\n{self.logs()}",
+        )
 
     @property
     def db(self) -> Database:
@@ -473,27 +441,24 @@ class Deployment:
         workers have reported in."""
         port = free_port()
         log_path = self.root / f"serve-{len(self.serves) + 1}.log"
-        with open(log_path, "wb") as log:
-            process = subprocess.Popen(
-                [
-                    sys.executable,
-                    "-m",
-                    "app.serve",
-                    "--port",
-                    str(port),
-                    "--data-dir",
-                    str(self.data_dir),
-                    "--workers",
-                    str(workers),
-                    "--api-workers",
-                    str(api_workers),
-                ],
-                cwd=self.root,
-                env={**self.env, **extra_env},
-                stdout=log,
-                stderr=subprocess.STDOUT,
-                start_new_session=True,
-            )
+        process = start_in_group(
+            [
+                sys.executable,
+                "-m",
+                "app.serve",
+                "--port",
+                str(port),
+                "--data-dir",
+                str(self.data_dir),
+                "--workers",
+                str(workers),
+                "--api-workers",
+                str(api_workers),
+            ],
+            log_path=log_path,
+            cwd=self.root,
+            env={**self.env, **extra_env},
+        )
         serve = Serve(process, log_path, port, self.data_dir, workers)
         self.serves.append(serve)
 
@@ -541,25 +506,12 @@ class Deployment:
         return job_id
 
     def job(self, job_id: str) -> JobRow:
-        with self.db.session() as session:
-            job = session.get(JobRow, job_id)
-            assert job is not None, f"job {job_id} is gone"
-            session.expunge(job)
-            return job
+        return load_job(self.db, job_id)
 
     def wait_job(
         self, job_id: str, statuses: tuple[str, ...] = TERMINAL, timeout_s: float = 180.0
     ) -> JobRow:
-        def reached() -> JobRow | None:
-            job = self.job(job_id)
-            return job if job.status in statuses else None
-
-        return wait_for(
-            reached,
-            timeout_s,
-            f"job {job_id} did not reach {statuses} (now {self.job(job_id).status!r})",
-            self.logs,
-        )
+        return wait_for_job(self.db, job_id, statuses=statuses, timeout_s=timeout_s, logs=self.logs)
 
     def metrics(self, job_id: str) -> list[tuple[str, int]]:
         with self.db.session() as session:

@@ -83,12 +83,7 @@ def test_a_killed_serve_leaves_no_process_and_the_next_serve_finishes_its_job(
 
     first.kill()
     # The workers are told (PR_SET_PDEATHSIG) and stop, and their task processes with them.
-    wait_for(
-        lambda: not processes_of(deployment.data_dir),
-        90,
-        "processes of the killed serve are still running",
-        lambda: f"{processes_of(deployment.data_dir)}\n{deployment.logs()}",
-    )
+    deployment.wait_gone(90, "processes of the killed serve are still running")
     # Stopping, the worker handed its job back: queued again, and no attempt spent.
     job = deployment.job(job_id)
     assert job.status == "queued", (job.status, job.error, deployment.logs())

@@ -13,7 +13,6 @@ from pathlib import Path
 import httpx
 import pytest
 from faults import (
-    FAST_TIMINGS,
     TINY_TRAIN,
     Deployment,
     PostgresCluster,
@@ -21,7 +20,6 @@ from faults import (
     assert_settled,
     postgres_database,
     random_search,
-    service_env,
     wait_for,
 )
 from sqlalchemy import create_engine, text
@@ -41,11 +39,7 @@ def test_a_job_submitted_while_the_broker_is_down_is_sent_when_it_is_back(
 ) -> None:
     databases = postgres_database()
     database_url = next(databases)
-    data_dir = (tmp_path / "data").resolve()
-    env = service_env(
-        data_dir, DATABASE_URL=database_url, BROKER_URL=private_redis.url(0), **FAST_TIMINGS
-    )
-    deployment = Deployment("postgres", tmp_path, database_url, env, redis=private_redis)
+    deployment = Deployment.on_postgres(tmp_path, database_url, private_redis)
     try:
         serve = deployment.serve(workers=1)
         with serve.client() as client:
@@ -93,11 +87,7 @@ def test_a_database_restart_mid_job_ends_the_job_and_the_api_answers_503_meanwhi
     admin.dispose()
     database_url = private_postgres.url("inertia")
     redis_server.flush()
-    data_dir = (tmp_path / "data").resolve()
-    env = service_env(
-        data_dir, DATABASE_URL=database_url, BROKER_URL=redis_server.url(0), **FAST_TIMINGS
-    )
-    deployment = Deployment("postgres", tmp_path, database_url, env, redis=redis_server)
+    deployment = Deployment.on_postgres(tmp_path, database_url, redis_server)
     try:
         serve = deployment.serve(workers=1)
         with serve.client(timeout_s=30) as client:

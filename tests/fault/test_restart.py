@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import signal
 
-from faults import Deployment, assert_settled, processes_of, random_search, wait_for
+from faults import Deployment, assert_settled, random_search
 
 
 def test_graceful_restarts_hand_the_running_job_back_without_spending_attempts(
@@ -26,12 +26,7 @@ def test_graceful_restarts_hand_the_running_job_back_without_spending_attempts(
         assert code == 128 + signal.SIGTERM, serve.log()
         # Serve has ended its workers and joined its verdict process; multiprocessing's
         # resource tracker ends as soon as serve's end closes its pipe.
-        wait_for(
-            lambda: not processes_of(deployment.data_dir),
-            10,
-            "processes of the stopped serve are still running",
-            lambda: f"{processes_of(deployment.data_dir)}\n{deployment.logs()}",
-        )
+        deployment.wait_gone(10, "processes of the stopped serve are still running")
         # Back in the queue the moment serve is gone, not a heartbeat timeout later, and
         # the interrupted run is not counted against the job's attempts.
         job = deployment.job(job_id)

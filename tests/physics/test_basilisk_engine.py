@@ -7,11 +7,11 @@ The tests that fly Basilisk skip when it is not installed (``pip install
 from __future__ import annotations
 
 import math
-import os
 from typing import Any
 
 import numpy as np
 import pytest
+from service_support import skip_or_fail
 
 from inertia_id import Scenario, Telemetry, identify, simulate, train_classifier
 from inertia_id.physics.engines import (
@@ -26,17 +26,6 @@ from inertia_id.physics.engines.basilisk import _lagged_torque
 GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
 QUIET_SEQUENCE = [[0, 0, 0, 0, 0, 0]]
 
-# Every source of randomness off; the actuation low-pass stays on (it is physics).
-NOISE_OFF: dict[str, Any] = {
-    "duty_jitter_sigma": 0.0,
-    "thrust_scale_sigma": 0.0,
-    "disturbance_torque_sigma_nm": 0.0,
-    "gyro_noise_sigma_rad_s": 0.0,
-    "gyro_bias_rad_s": (0.0, 0.0, 0.0),
-    "gyro_bias_sigma_rad_s": 0.0,
-    "initial_rate_sigma_rad_s": 0.0,
-}
-
 # Basilisk against our RK4, noise off. Measured: 1.1e-6 rad/s on the paper preset (our
 # RK4 step on the lag, h / tau = 0.5), 1.3e-7 on the canted scenario.
 AGREEMENT_RAD_S = 1e-5
@@ -47,10 +36,7 @@ def bsk() -> None:
     """Skip (or, in CI, fail) the tests that need Basilisk when it does not import."""
     if basilisk_available():
         return
-    message = 'Basilisk is not installed: pip install "inertia-id[basilisk]" (PyPI bsk)'
-    if os.environ.get("INERTIA_ID_REQUIRE_SERVICES") == "1":
-        pytest.fail(message)
-    pytest.skip(message)
+    skip_or_fail('Basilisk is not installed: pip install "inertia-id[basilisk]" (PyPI bsk)')
 
 
 # Without Basilisk: the closed-form lag and the cross-check scenario.
@@ -93,12 +79,12 @@ def test_canted_scenario_has_products_of_inertia_and_canted_thrusters() -> None:
 
 
 @pytest.mark.parametrize("which", ["paper", "canted"])
-def test_engines_agree_with_noise_off(bsk: None, which: str) -> None:
+def test_engines_agree_with_noise_off(bsk: None, which: str, noise_off: dict[str, Any]) -> None:
     if which == "paper":
         scenario, sequence = Scenario.paper(), GOOD_SEQUENCE
     else:
         scenario, sequence = canted_full_tensor_scenario(), CANTED_SEQUENCE
-    scenario = scenario.with_uncertainty(**NOISE_OFF)
+    scenario = scenario.with_uncertainty(**noise_off)
     ours = simulate(scenario, sequence, 1, np.random.default_rng(0))
     for k in range(scenario.n_candidates):
         flown = simulate_basilisk(scenario, sequence, k, np.random.default_rng(0))
@@ -127,8 +113,8 @@ def test_same_draws_as_our_simulator_with_process_noise_on(bsk: None) -> None:
         assert 0.8e-3 < rms < 2.5e-3
 
 
-def test_initial_rate_is_respected(bsk: None) -> None:
-    quiet = Scenario.paper().with_uncertainty(**NOISE_OFF)
+def test_initial_rate_is_respected(bsk: None, noise_off: dict[str, Any]) -> None:
+    quiet = Scenario.paper().with_uncertainty(**noise_off)
     # About a principal axis of a diagonal body, torque-free: the rate stays.
     spin = (0.0, 0.02, 0.0)
     flown = simulate_basilisk(
@@ -138,7 +124,7 @@ def test_initial_rate_is_respected(bsk: None) -> None:
     np.testing.assert_array_equal(flown.initial_rate_rad_s, spin)
     # A tumbling full tensor: momentum magnitude and kinetic energy are conserved while
     # the rate itself moves.
-    canted = canted_full_tensor_scenario().with_uncertainty(**NOISE_OFF)
+    canted = canted_full_tensor_scenario().with_uncertainty(**noise_off)
     omega0 = np.array([0.03, -0.02, 0.05])
     flown = simulate_basilisk(
         canted, [[0] * 8] * 2, 3, np.random.default_rng(0), initial_rate_rad_s=omega0
@@ -153,8 +139,8 @@ def test_initial_rate_is_respected(bsk: None) -> None:
 
 
 @pytest.mark.parametrize("rate", [1, 10, 50, 200])
-def test_sample_rates(bsk: None, rate: int) -> None:
-    scenario = Scenario.paper().with_uncertainty(**NOISE_OFF)
+def test_sample_rates(bsk: None, rate: int, noise_off: dict[str, Any]) -> None:
+    scenario = Scenario.paper().with_uncertainty(**noise_off)
     flown = simulate_basilisk(
         scenario,
         GOOD_SEQUENCE,
@@ -180,10 +166,10 @@ def test_sample_rates(bsk: None, rate: int) -> None:
     assert np.abs(flown.omega_true[theirs] - ours.omega_true[2, 0, mine]).max() < AGREEMENT_RAD_S
 
 
-def test_noise_statistics(bsk: None) -> None:
+def test_noise_statistics(bsk: None, noise_off: dict[str, Any]) -> None:
     """A long quiet run: the IMU's white noise and bias are what was asked for."""
     sigma, bias = 2e-3, np.array([5e-3, -3e-3, 2e-3])
-    scenario = Scenario.paper().with_uncertainty(**NOISE_OFF)
+    scenario = Scenario.paper().with_uncertainty(**noise_off)
     flown = simulate_basilisk(
         scenario,
         QUIET_SEQUENCE * 40,
@@ -207,9 +193,9 @@ def test_noise_statistics(bsk: None) -> None:
     np.testing.assert_array_equal(flown.gyro_bias_rad_s, bias)
 
 
-def test_noise_defaults_come_from_the_scenario(bsk: None) -> None:
+def test_noise_defaults_come_from_the_scenario(bsk: None, noise_off: dict[str, Any]) -> None:
     scenario = Scenario.paper().with_uncertainty(
-        **{**NOISE_OFF, "gyro_noise_sigma_rad_s": 1e-3, "gyro_bias_rad_s": (1e-3, 0.0, 0.0)}
+        **{**noise_off, "gyro_noise_sigma_rad_s": 1e-3, "gyro_bias_rad_s": (1e-3, 0.0, 0.0)}
     )
     flown = simulate_basilisk(
         scenario, GOOD_SEQUENCE, 0, np.random.default_rng(0), measurement_noise_scale=2.0

@@ -6,10 +6,9 @@ import json
 import re
 from typing import Any
 
-import numpy as np
 import pytest
 
-from inertia_id import Scenario, preset
+from inertia_id import Scenario
 from inertia_id.search import (
     SEARCH_METHODS,
     ScorerSettings,
@@ -21,23 +20,8 @@ from inertia_id.search import (
     search,
 )
 
-# Three thrusters, one per body axis, each off or on: (2^3)^2 = 64 sequences of 2 steps
-# (the space of test_search.py's exhaustive test).
-TINY_THRUSTERS = {"torque_matrix_nm": np.diag([2.0, 2.0, 2.0]).tolist(), "levels": [0.0, 1.0]}
 SETTINGS = ScorerSettings(n_realisations=4)
 SEPARABILITY = ScorerSettings(n_realisations=4, objective="separability")
-
-
-@pytest.fixture(scope="module")
-def tiny() -> Scenario:
-    return preset("paper", name="tiny", thrusters=TINY_THRUSTERS)
-
-
-@pytest.fixture(scope="module")
-def tiny_quiet(zero_uncertainty: dict[str, Any]) -> Scenario:
-    """Almost noise-free (a trace of gyro noise, so that k-means has something to split)."""
-    uncertainty = {**zero_uncertainty, "gyro_noise_sigma_rad_s": 1e-6}
-    return preset("paper", name="tiny quiet", thrusters=TINY_THRUSTERS, uncertainty=uncertainty)
 
 
 def run(tiny: Scenario, **options: Any) -> SearchResult:

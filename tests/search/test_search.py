@@ -28,26 +28,8 @@ from inertia_id.search import (
     search,
 )
 
-# Three thrusters, one per body axis, each off or on: (2^3)^2 = 64 sequences of 2 steps.
-TINY_THRUSTERS = {"torque_matrix_nm": np.diag([2.0, 2.0, 2.0]).tolist(), "levels": [0.0, 1.0]}
 SETTINGS = ScorerSettings(n_realisations=4)
 TINY_PPO = {"n_steps": 32, "batch_size": 16, "n_epochs": 2}
-
-
-@pytest.fixture(scope="module")
-def tiny() -> Scenario:
-    return preset("paper", name="tiny", thrusters=TINY_THRUSTERS)
-
-
-@pytest.fixture(scope="module")
-def tiny_quiet(zero_uncertainty: dict[str, Any]) -> Scenario:
-    """The tiny scenario almost noise-free: F1 = 1 is easy to reach.
-
-    A trace of gyro noise is kept so that sequences starting with every thruster off do
-    not give identical series (which k-means cannot split; see test_env.py).
-    """
-    uncertainty = {**zero_uncertainty, "gyro_noise_sigma_rad_s": 1e-6}
-    return preset("paper", name="tiny quiet", thrusters=TINY_THRUSTERS, uncertainty=uncertainty)
 
 
 @pytest.fixture(scope="module")

@@ -27,7 +27,17 @@ from typing import Any
 
 import pytest
 from celery import Celery
-from sqlalchemy import create_engine, select, text
+from service_support import (
+    ROOT,
+    TERMINAL,
+    GroupProcess,
+    load_job,
+    postgres_database,
+    require_service,
+    start_in_group,
+    wait_for_job,
+)
+from sqlalchemy import select
 
 from inertia_id import Scenario
 from service.config import Settings
@@ -35,21 +45,8 @@ from service.queue import RUN_JOB_TASK, make_celery
 from service.store import Database, JobRow, MetricRow, ScenarioRow, WorkerRow, upgrade
 from service.store.jobs import config_hash, create_job, mark_sent
 
-ROOT = Path(__file__).resolve().parents[2]
 REDIS_URL = os.environ.get("INERTIA_ID_TEST_REDIS_URL", "redis://127.0.0.1:6379/9")
-POSTGRES_ADMIN_URL = os.environ.get(
-    "INERTIA_ID_TEST_POSTGRES_URL", "postgresql+psycopg://postgres@127.0.0.1:5432/postgres"
-)
-TERMINAL = ("succeeded", "failed", "cancelled")
 WORKER_READY_TIMEOUT_S = 60.0
-
-
-def require_service(what: str, error: BaseException) -> None:
-    """Skip, or fail when the environment says the services must be there."""
-    message = f"{what} is not reachable: {type(error).__name__}: {error}"
-    if os.environ.get("INERTIA_ID_REQUIRE_SERVICES") == "1":
-        pytest.fail(message)
-    pytest.skip(message)
 
 
 def flush_redis() -> None:
@@ -63,30 +60,9 @@ def flush_redis() -> None:
 
 
 @dataclass
-class WorkerProcess:
-    """A ``celery worker`` subprocess, in its own process group (so it dies whole)."""
-
-    name: str
-    process: subprocess.Popen[bytes]
-    log_path: Path
-
-    def log_tail(self, chars: int = 4000) -> str:
-        try:
-            text_ = self.log_path.read_text(errors="replace")
-        except OSError:
-            return ""
-        return f"--- {self.name} log ({self.log_path}) ---\n{text_[-chars:]}"
-
-    def alive(self) -> bool:
-        return self.process.poll() is None
-
-    def kill(self) -> None:
-        """SIGKILL the worker and its task processes at once: a machine that died."""
-        try:
-            os.killpg(self.process.pid, signal.SIGKILL)
-        except ProcessLookupError:
-            pass
-        self.process.wait(10)
+class WorkerProcess(GroupProcess):
+    """A ``celery worker`` subprocess, in its own process group (so that :meth:`kill`
+    ends it and its task processes at once, as a machine that died)."""
 
     def stop(self, timeout_s: float = 15.0) -> None:
         """Warm shutdown (SIGTERM to the main process, which waits for its task), then
@@ -118,27 +94,24 @@ class Service:
         its monitor has written its ``workers`` row."""
         prefix = f"w{len(self.workers) + 1}-{uuid.uuid4().hex[:6]}"
         log_path = self.root / f"{prefix}.log"
-        with open(log_path, "wb") as log:
-            process = subprocess.Popen(
-                [
-                    sys.executable,
-                    "-m",
-                    "celery",
-                    "-A",
-                    "worker.celery_app",
-                    "worker",
-                    "--concurrency=1",
-                    "--pool=prefork",
-                    "--loglevel=INFO",
-                    "-n",
-                    f"{prefix}@%h",
-                ],
-                cwd=self.root,
-                env={**self.env, **env},
-                stdout=log,
-                stderr=subprocess.STDOUT,
-                start_new_session=True,
-            )
+        process = start_in_group(
+            [
+                sys.executable,
+                "-m",
+                "celery",
+                "-A",
+                "worker.celery_app",
+                "worker",
+                "--concurrency=1",
+                "--pool=prefork",
+                "--loglevel=INFO",
+                "-n",
+                f"{prefix}@%h",
+            ],
+            log_path=log_path,
+            cwd=self.root,
+            env={**self.env, **env},
+        )
         worker = WorkerProcess(name=prefix, process=process, log_path=log_path)
         self.workers.append(worker)
         deadline = time.monotonic() + WORKER_READY_TIMEOUT_S
@@ -153,14 +126,14 @@ class Service:
             if not worker.alive():
                 break
             time.sleep(0.1)
-        raise AssertionError(f"worker {prefix} did not come up\n{worker.log_tail()}")
+        raise AssertionError(f"worker {prefix} did not come up\n{worker.log(4000)}")
 
     def kill_workers(self) -> None:
         for worker in self.workers:
             worker.kill()
 
     def logs(self) -> str:
-        return "\n".join(w.log_tail() for w in self.workers)
+        return "\n".join(w.log(4000) for w in self.workers)
 
     def submit(self, job_type: str, params: dict[str, Any], *, seed: int = 0) -> str:
         """Store a queued job and send its message, as the API does (a new job even when
@@ -181,26 +154,19 @@ class Service:
         return job_id
 
     def job(self, job_id: str) -> JobRow:
-        with self.db.session() as session:
-            job = session.get(JobRow, job_id)
-            assert job is not None, f"no job {job_id}"
-            session.expunge(job)
-            return job
+        return load_job(self.db, job_id)
 
     def wait_for(
         self, job_id: str, statuses: tuple[str, ...] = TERMINAL, timeout_s: float = 90.0
     ) -> JobRow:
-        deadline = time.monotonic() + timeout_s
-        while True:
-            job = self.job(job_id)
-            if job.status in statuses:
-                return job
-            if time.monotonic() > deadline:
-                raise AssertionError(
-                    f"job {job_id} ({job.type}) still {job.status!r} after {timeout_s:g} s, "
-                    f"waiting for {statuses}; error={job.error!r}\n{self.logs()}"
-                )
-            time.sleep(0.05)
+        return wait_for_job(
+            self.db,
+            job_id,
+            statuses=statuses,
+            timeout_s=timeout_s,
+            logs=self.logs,
+            interval_s=0.05,
+        )
 
     def metrics(self, job_id: str) -> list[tuple[str, int, float]]:
         with self.db.session() as session:
@@ -210,23 +176,6 @@ class Service:
                 .order_by(MetricRow.key, MetricRow.step, MetricRow.id)
             ).all()
         return [(k, s, v) for k, s, v in rows]
-
-
-def _postgres_database() -> Iterator[str]:
-    admin = create_engine(POSTGRES_ADMIN_URL, isolation_level="AUTOCOMMIT")
-    name = f"inertia_id_worker_{uuid.uuid4().hex[:12]}"
-    try:
-        with admin.connect() as connection:
-            connection.execute(text(f'CREATE DATABASE "{name}"'))
-    except Exception as exc:
-        admin.dispose()
-        require_service(f"PostgreSQL at {POSTGRES_ADMIN_URL}", exc)
-    try:
-        yield admin.url.set(database=name).render_as_string(hide_password=False)
-    finally:
-        with admin.connect() as connection:
-            connection.execute(text(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)'))
-        admin.dispose()
 
 
 @pytest.fixture(scope="module", params=["filesystem", "redis"])
@@ -245,7 +194,7 @@ def deployment(
             flush_redis()
         except Exception as exc:
             require_service(f"Redis at {REDIS_URL}", exc)
-        databases = _postgres_database()
+        databases = postgres_database(prefix="inertia_id_worker")
         database_url = next(databases)
         broker_url = REDIS_URL
     env = {
@@ -318,11 +267,7 @@ class Store:
             return job.id
 
     def job(self, job_id: str) -> JobRow:
-        with self.db.session() as session:
-            job = session.get(JobRow, job_id)
-            assert job is not None, f"no job {job_id}"
-            session.expunge(job)
-            return job
+        return load_job(self.db, job_id)
 
 
 @pytest.fixture(params=["sqlite", "postgresql"])
@@ -331,7 +276,7 @@ def store(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[Store]:
     if request.param == "sqlite":
         database_url = f"sqlite:///{tmp_path / 'data' / 'inertia-id.db'}"
     else:
-        databases = _postgres_database()
+        databases = postgres_database(prefix="inertia_id_worker")
         database_url = next(databases)
     settings = Settings(
         INERTIA_ID_DATA_DIR=tmp_path / "data", DATABASE_URL=database_url, BROKER_URL="filesystem://"

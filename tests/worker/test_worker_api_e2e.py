@@ -6,9 +6,6 @@ metrics and the classifier, identify simulated telemetry, run a search, cancel o
 
 from __future__ import annotations
 
-import signal
-import subprocess
-import sys
 import time
 from collections.abc import Iterator
 from typing import Any
@@ -16,7 +13,7 @@ from typing import Any
 import httpx
 import numpy as np
 import pytest
-from test_worker_serve import _env, _free_port, _wait
+from service_support import TERMINAL, ServeProcess, serve_app, wait_for
 
 from inertia_id import Scenario, simulate
 
@@ -25,68 +22,39 @@ GOOD = [[4, 4, 4, 0, 0, 0]] * 4
 
 
 @pytest.fixture(scope="module")
-def service(tmp_path_factory: pytest.TempPathFactory) -> Iterator[httpx.Client]:
-    root = tmp_path_factory.mktemp("e2e")
-    port = _free_port()
-    log = root / "serve.log"
-    with open(log, "wb") as out:
-        server = subprocess.Popen(
-            [sys.executable, "-m", "app.serve", "--port", str(port), "--data-dir", "data"],
-            env=_env(INERTIA_ID_API_KEY=API_KEY),
-            cwd=root,
-            stdout=out,
-            stderr=subprocess.STDOUT,
-        )
-    base = f"http://127.0.0.1:{port}"
-    client = httpx.Client(base_url=base, headers={"X-API-Key": API_KEY}, timeout=30)
-    try:
-
-        def healthy() -> bool:
-            try:
-                return bool(client.get("/health").json()["status"] == "ok")
-            except httpx.TransportError:  # not listening yet
-                return False
-
-        _wait(
-            healthy,
-            120,
-            "the service did not become healthy",
-            log,
-        )
-        client.log = log  # type: ignore[attr-defined]
-        yield client
-    finally:
-        client.close()
-        server.send_signal(signal.SIGTERM)
-        try:
-            server.wait(40)
-        except subprocess.TimeoutExpired:
-            server.kill()
+def serve(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServeProcess]:
+    with serve_app(tmp_path_factory.mktemp("e2e"), api_key=API_KEY) as running:
+        yield running
 
 
-def _finish(client: httpx.Client, job_id: str, timeout_s: float = 180) -> dict[str, Any]:
+@pytest.fixture(scope="module")
+def service(serve: ServeProcess) -> httpx.Client:
+    return serve.client
+
+
+def _finish(serve: ServeProcess, job_id: str, timeout_s: float = 180) -> dict[str, Any]:
     def done() -> dict[str, Any] | None:
-        job = client.get(f"/jobs/{job_id}").json()
-        return job if job["status"] in ("succeeded", "failed", "cancelled") else None
+        job = serve.client.get(f"/jobs/{job_id}").json()
+        return job if job["status"] in TERMINAL else None
 
-    return dict(_wait(done, timeout_s, f"job {job_id} did not finish", client.log))  # type: ignore[attr-defined]
+    return dict(wait_for(done, timeout_s, f"job {job_id} did not finish", serve.logs))
 
 
-def test_train_metrics_classifier_and_identify_over_http(service: httpx.Client) -> None:
+def test_train_metrics_classifier_and_identify_over_http(
+    serve: ServeProcess, service: httpx.Client
+) -> None:
     scenario = service.post("/scenarios", json={"preset": "paper"})
     assert scenario.status_code == 201, scenario.text
     scenario_id = scenario.json()["id"]
-    submitted = service.post(
-        "/jobs",
-        json={
-            "type": "train",
-            "scenario_id": scenario_id,
-            "seed": 1,
-            "params": {"sequence": GOOD, "metric": "euclidean", "n_realisations": 10},
-        },
-    )
+    train = {
+        "type": "train",
+        "scenario_id": scenario_id,
+        "seed": 1,
+        "params": {"sequence": GOOD, "metric": "euclidean", "n_realisations": 10},
+    }
+    submitted = service.post("/jobs", json=train)
     assert submitted.status_code == 202, submitted.text
-    job = _finish(service, submitted.json()["id"])
+    job = _finish(serve, submitted.json()["id"])
     assert job["status"] == "succeeded", job["error"]
     assert job["progress"] == 1.0
     metrics = service.get(f"/jobs/{job['id']}/metrics", params={"key": "f1"}).json()
@@ -114,19 +82,13 @@ def test_train_metrics_classifier_and_identify_over_http(service: httpx.Client) 
         assert verdict.json()["matches_none"] is False
 
     # The same submission again is the same job, not a duplicate.
-    again = service.post(
-        "/jobs",
-        json={
-            "type": "train",
-            "scenario_id": scenario_id,
-            "seed": 1,
-            "params": {"sequence": GOOD, "metric": "euclidean", "n_realisations": 10},
-        },
-    )
+    again = service.post("/jobs", json=train)
     assert again.status_code == 200 and again.json()["id"] == job["id"]
 
 
-def test_search_runs_and_a_running_search_can_be_cancelled(service: httpx.Client) -> None:
+def test_search_runs_and_a_running_search_can_be_cancelled(
+    serve: ServeProcess, service: httpx.Client
+) -> None:
     scenario_id = service.post("/scenarios", json={"preset": "paper"}).json()["id"]
     small = service.post(
         "/jobs",
@@ -141,7 +103,7 @@ def test_search_runs_and_a_running_search_can_be_cancelled(service: httpx.Client
             },
         },
     ).json()
-    job = _finish(service, small["id"])
+    job = _finish(serve, small["id"])
     assert job["status"] == "succeeded", job["error"]
     assert len(job["result"]["best"]["sequence"]) == 2
     curve = service.get(f"/jobs/{job['id']}/metrics", params={"key": "mean_episode_reward"})
@@ -156,14 +118,14 @@ def test_search_runs_and_a_running_search_can_be_cancelled(service: httpx.Client
             "params": {"method": "random", "timesteps": 400_000, "n_realisations": 5},
         },
     ).json()
-    _wait(
+    wait_for(
         lambda: service.get(f"/jobs/{long['id']}").json()["status"] == "running",
         60,
         "the long search did not start",
-        service.log,  # type: ignore[attr-defined]
+        serve.logs,
     )
     asked = time.monotonic()
     assert service.post(f"/jobs/{long['id']}/cancel").status_code == 200
-    job = _finish(service, long["id"], 60)
+    job = _finish(serve, long["id"], 60)
     assert job["status"] == "cancelled"
     assert time.monotonic() - asked < 30

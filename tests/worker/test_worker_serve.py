@@ -9,10 +9,11 @@ import signal
 import socket
 import subprocess
 import sys
-import time
 import urllib.request
 from pathlib import Path
 from typing import Any
+
+from service_support import clean_env, free_port, tail, wait_for
 
 from inertia_id import Scenario
 from service.config import Settings
@@ -20,23 +21,13 @@ from service.queue import RUN_JOB_TASK, make_celery
 from service.store import Database, JobRow, ScenarioRow
 from service.store.jobs import config_hash
 
-ROOT = Path(__file__).resolve().parents[2]
-
-
-def _env(**extra: str) -> dict[str, str]:
-    env = {k: v for k, v in os.environ.items() if not k.startswith("INERTIA_ID_")}
-    env.pop("DATABASE_URL", None)
-    env.pop("BROKER_URL", None)
-    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))
-    return {**env, **extra}
-
 
 def test_serve_help_lists_its_options_from_both_entry_points() -> None:
     for command in (
         [sys.executable, "-m", "app.serve", "--help"],
         [sys.executable, "-m", "inertia_id.cli", "serve", "--help"],
     ):
-        done = subprocess.run(command, capture_output=True, text=True, env=_env(), timeout=60)
+        done = subprocess.run(command, capture_output=True, text=True, env=clean_env(), timeout=60)
         assert done.returncode == 0, done.stderr
         for option in ("--host", "--port", "--data-dir", "--workers"):
             assert option in done.stdout
@@ -48,7 +39,7 @@ def test_serve_refuses_a_negative_worker_count() -> None:
         [sys.executable, "-m", "app.serve", "--workers", "-1"],
         capture_output=True,
         text=True,
-        env=_env(),
+        env=clean_env(),
         timeout=60,
     )
     assert done.returncode == 2 and "--workers must be >= 0, got -1" in done.stderr
@@ -63,7 +54,7 @@ def test_serve_on_a_busy_port_says_so_before_starting_anything(tmp_path: Path) -
             [sys.executable, "-m", "app.serve", "--port", str(port), "--data-dir", "data"],
             capture_output=True,
             text=True,
-            env=_env(),
+            env=clean_env(),
             cwd=tmp_path,
             timeout=60,
         )
@@ -72,49 +63,30 @@ def test_serve_on_a_busy_port_says_so_before_starting_anything(tmp_path: Path) -
     assert not (tmp_path / "data").exists()
 
 
-def _free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return int(sock.getsockname()[1])
-
-
 def _get(url: str) -> Any:
     with urllib.request.urlopen(url, timeout=5) as response:
         return json.loads(response.read())
 
 
-def _wait(predicate: Any, timeout_s: float, what: str, log: Path) -> Any:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        try:
-            value = predicate()
-        except OSError:
-            value = None
-        if value:
-            return value
-        time.sleep(0.2)
-    raise AssertionError(f"{what} within {timeout_s:g} s\n{log.read_text(errors='replace')}")
-
-
 def test_serve_runs_the_api_and_a_worker_that_does_jobs_then_stops_both(tmp_path: Path) -> None:
     data_dir = tmp_path / "data"
-    port = _free_port()
+    port = free_port()
     log = tmp_path / "serve.log"
     with open(log, "wb") as out:
         server = subprocess.Popen(
             [sys.executable, "-m", "app.serve", "--port", str(port), "--data-dir", str(data_dir)],
-            env=_env(),
+            env=clean_env(),
             cwd=tmp_path,
             stdout=out,
             stderr=subprocess.STDOUT,
         )
     try:
         base = f"http://127.0.0.1:{port}"
-        health = _wait(
+        health = wait_for(
             lambda: (h := _get(f"{base}/health"))["workers"]["count"] == 1 and h,
             90,
             "the API did not report one live worker",
-            log,
+            lambda: tail(log),
         )
         assert health["status"] == "ok" and re.fullmatch(
             r"worker1-[0-9a-f]{6}@.+", health["workers"]["names"][0]
@@ -148,7 +120,7 @@ def test_serve_runs_the_api_and_a_worker_that_does_jobs_then_stops_both(tmp_path
                 status = session.get(JobRow, job_id).status  # type: ignore[union-attr]
             return status if status in ("succeeded", "failed", "cancelled") else None
 
-        assert _wait(finished, 90, "the job did not finish", log) == "succeeded"
+        assert wait_for(finished, 90, "the job did not finish", lambda: tail(log)) == "succeeded"
         db.dispose()
         # Nothing of the service lands in the working directory.
         assert sorted(p.name for p in tmp_path.iterdir()) == ["data", "serve.log"]
