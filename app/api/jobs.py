@@ -54,15 +54,14 @@ from .deps import (
     SessionDep,
     SettingsDep,
     TagText,
-    checked_tags,
     get_or_404,
     job_tagged,
-    plausible_id,
     sort_query,
     text_query,
     unknown_sort,
     unprocessable,
 )
+from .listing import id_filters, one_page, search_text, sort_order, tag_filters
 
 __all__ = ["router"]
 
@@ -260,9 +259,9 @@ def _sort_expression(sort: str) -> Any:
     unknown_sort("jobs", sort, JOB_SORT_KEYS)
 
 
-def _text_match(q: str) -> ColumnElement[bool]:
-    """Name contains ``q`` (any case), the id starts with it, or a tag contains it."""
-    needle = q.strip().lower()
+def _text_match(needle: str) -> ColumnElement[bool]:
+    """Name contains ``needle`` (lower case; any case in the name), the id starts with it,
+    or a tag contains it."""
     return or_(
         func.lower(JobRow.name).contains(needle, autoescape=True),
         JobRow.id.startswith(needle, autoescape=True),
@@ -299,37 +298,35 @@ def list_jobs(
 ) -> JobPage:
     """Jobs, filtered by type, status, scenario, text, tags and classifier, sorted (newest
     first by default; jobs without the figure sorted by come last), one page at a time."""
-    conditions: list[ColumnElement[bool]] = []
+    # A sweep names its classifier in its parameters.
+    conditions = id_filters(
+        (
+            (JobRow.scenario_id, scenario_id),
+            (JobRow.params["classifier_id"].as_string(), classifier_id),
+        )
+    )
+    if conditions is None:
+        return JobPage(items=[], total=0, limit=page.limit, offset=page.offset)
+    if classifier_id is not None:
+        conditions.append(JobRow.type == "sweep")
     if type is not None:
         conditions.append(JobRow.type == type)
     if status is not None:
         conditions.append(JobRow.status == status)
-    for value, column in ((scenario_id, JobRow.scenario_id),):
-        if value is not None:
-            if not plausible_id(value):
-                return JobPage(items=[], total=0, limit=page.limit, offset=page.offset)
-            conditions.append(column == value)
-    if classifier_id is not None:
-        if not plausible_id(classifier_id):
-            return JobPage(items=[], total=0, limit=page.limit, offset=page.offset)
-        conditions.append(JobRow.type == "sweep")
-        conditions.append(JobRow.params["classifier_id"].as_string() == classifier_id)
-    if q is not None and q.strip():
-        conditions.append(_text_match(q))
-    for one in checked_tags(tag):
-        conditions.append(job_tagged(JobRow.id, tag=one.strip()))
-    key = _sort_expression(sort)
-    ordered = key.asc() if order == "asc" else key.desc()
-    total = session.scalar(select(func.count()).select_from(JobRow).where(*conditions)) or 0
-    rows = session.scalars(
+    needle = search_text(q)
+    if needle is not None:
+        conditions.append(_text_match(needle))
+    conditions.extend(tag_filters(JobRow.id, tag))
+    rows, total = one_page(
+        session,
         select(JobRow)
         .where(*conditions)
-        .order_by(ordered.nulls_last(), JobRow.created_at.desc(), JobRow.id)
-        .limit(page.limit)
-        .offset(page.offset)
-    ).all()
+        .order_by(sort_order(_sort_expression(sort), order), JobRow.created_at.desc(), JobRow.id),
+        count=select(func.count()).select_from(JobRow).where(*conditions),
+        page=page,
+    )
     return JobPage(
-        items=[JobOut.model_validate(r) for r in rows],
+        items=[JobOut.model_validate(job) for (job,) in rows],
         total=total,
         limit=page.limit,
         offset=page.offset,

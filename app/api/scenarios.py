@@ -31,6 +31,7 @@ from ..schemas import (
 )
 from .deps import ApiKeyDep, PagingDep, SessionDep, get_or_404, unprocessable
 from .errors import format_errors
+from .listing import one_page
 
 __all__ = ["router", "scenario_out"]
 
@@ -125,15 +126,14 @@ def create_scenario(body: ScenarioCreate, session: SessionDep) -> ScenarioOut:
 @router.get("")
 def list_scenarios(session: SessionDep, page: PagingDep) -> ScenarioPage:
     """Scenarios, newest first."""
-    total = session.scalar(select(func.count()).select_from(ScenarioRow)) or 0
-    rows = session.scalars(
-        select(ScenarioRow)
-        .order_by(ScenarioRow.created_at.desc(), ScenarioRow.id)
-        .limit(page.limit)
-        .offset(page.offset)
-    ).all()
+    rows, total = one_page(
+        session,
+        select(ScenarioRow).order_by(ScenarioRow.created_at.desc(), ScenarioRow.id),
+        count=select(func.count()).select_from(ScenarioRow),
+        page=page,
+    )
     return ScenarioPage(
-        items=[scenario_out(r) for r in rows], total=total, limit=page.limit, offset=page.offset
+        items=[scenario_out(r) for (r,) in rows], total=total, limit=page.limit, offset=page.offset
     )
 
 
