@@ -18,6 +18,7 @@ from .deps import (
     TagText,
     get_or_404,
     job_tagged,
+    no_such,
     sort_query,
     text_query,
     unknown_sort,
@@ -28,7 +29,7 @@ __all__ = ["router"]
 
 router = APIRouter(prefix="/classifiers", tags=["classifiers"])
 
-_NOT_FOUND: dict[int | str, dict[str, Any]] = {404: {"description": "no such classifier"}}
+_NOT_FOUND = no_such("classifier")
 
 
 _SORT_COLUMNS: dict[str, Any] = {

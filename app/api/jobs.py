@@ -47,6 +47,7 @@ from ..schemas import (
     TrainJobCreate,
 )
 from .deps import (
+    UNAUTHORIZED,
     ApiKeyDep,
     CeleryDep,
     OrderQuery,
@@ -56,6 +57,7 @@ from .deps import (
     TagText,
     get_or_404,
     job_tagged,
+    no_such,
     sort_query,
     text_query,
     unknown_sort,
@@ -69,8 +71,7 @@ log = logging.getLogger(__name__)
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
 
-_NOT_FOUND: dict[int | str, dict[str, Any]] = {404: {"description": "no such job"}}
-_UNAUTHORIZED: dict[int | str, dict[str, Any]] = {401: {"description": "missing or wrong API key"}}
+_NOT_FOUND = no_such("job")
 
 
 def _scenario(session: SessionDep, scenario_id: str) -> Scenario:
@@ -179,8 +180,8 @@ def _check_sweep(session: SessionDep, body: SweepJobCreate, scenario: Scenario) 
     dependencies=[ApiKeyDep],
     responses={
         200: {"model": JobSubmitted, "description": "an identical job exists; it is returned"},
-        404: {"description": "no such scenario or classifier"},
-        **_UNAUTHORIZED,
+        **no_such("scenario or classifier"),
+        **UNAUTHORIZED,
     },
 )
 def submit_job(
@@ -336,7 +337,7 @@ def list_jobs(
 @router.patch(
     "/{job_id}",
     dependencies=[ApiKeyDep],
-    responses={**_NOT_FOUND, **_UNAUTHORIZED},
+    responses={**_NOT_FOUND, **UNAUTHORIZED},
 )
 def update_job(job_id: str, body: JobUpdate, session: SessionDep) -> JobOut:
     """Rename or retag a job. Labels only: its parameters, seed, identity and result stay."""
@@ -521,7 +522,7 @@ def _series(key: str, steps: list[int], values: list[float], cap: int) -> Metric
     dependencies=[ApiKeyDep],
     responses={
         **_NOT_FOUND,
-        **_UNAUTHORIZED,
+        **UNAUTHORIZED,
         409: {"description": "the job already succeeded or failed"},
     },
 )
@@ -542,7 +543,7 @@ def cancel_job(job_id: str, session: SessionDep) -> JobOut:
     dependencies=[ApiKeyDep],
     responses={
         **_NOT_FOUND,
-        **_UNAUTHORIZED,
+        **UNAUTHORIZED,
         200: {"content": {"application/json": {}, "text/csv": {}}},
         422: {"description": "not a succeeded search job, or no such front member"},
         503: {"description": "past capacity: try again after Retry-After seconds"},
