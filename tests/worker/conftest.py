@@ -17,7 +17,6 @@ import itertools
 import os
 import signal
 import subprocess
-import sys
 import time
 import uuid
 from collections.abc import Iterator
@@ -31,7 +30,7 @@ from sqlalchemy import create_engine, select, text
 
 from inertia_id import Scenario
 from service.config import Settings
-from service.queue import RUN_JOB_TASK, make_celery
+from service.queue import RUN_JOB_TASK, make_celery, worker_command
 from service.store import Database, JobRow, MetricRow, ScenarioRow, WorkerRow, upgrade
 from service.store.jobs import config_hash, create_job, mark_sent
 
@@ -120,19 +119,7 @@ class Service:
         log_path = self.root / f"{prefix}.log"
         with open(log_path, "wb") as log:
             process = subprocess.Popen(
-                [
-                    sys.executable,
-                    "-m",
-                    "celery",
-                    "-A",
-                    "worker.celery_app",
-                    "worker",
-                    "--concurrency=1",
-                    "--pool=prefork",
-                    "--loglevel=INFO",
-                    "-n",
-                    f"{prefix}@%h",
-                ],
+                worker_command(prefix, pool="prefork"),
                 cwd=self.root,
                 env={**self.env, **env},
                 stdout=log,
