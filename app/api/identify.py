@@ -38,6 +38,7 @@ from service.store.models import ClassifierRow
 from service.store.session import Database
 
 from ..capacity import ComputeGate
+from ..expiring import Expiring
 from ..schemas import IdentifyRequest, IdentifyResult, PartialIdentifyResult, finite_or_none
 from ..verdicts import NotFound, VerdictProcess
 from .deps import UNAUTHORIZED, ApiKeyDep, no_such, not_found, plausible_id, unprocessable
@@ -75,28 +76,18 @@ class ClassifierCache:
     ) -> None:
         self.size = size
         self.checksum_ttl_s = checksum_ttl_s
-        self._clock = clock
         self._items: OrderedDict[tuple[str, str], CandidateClassifier] = OrderedDict()
-        self._checksums: OrderedDict[str, tuple[str, float]] = OrderedDict()
+        # More ids than classifiers: an id costs a few bytes, a classifier megabytes.
+        self._checksums: Expiring[str, str] = Expiring(4 * size, clock=clock)
         self._lock = threading.Lock()
         self._loading: dict[tuple[str, str], threading.Lock] = {}
         self.loads = 0
 
     def checksum_of(self, classifier_id: str) -> str | None:
-        with self._lock:
-            known = self._checksums.get(classifier_id)
-        if known is None or known[1] <= self._clock():
-            return None
-        return known[0]
+        return self._checksums.get(classifier_id)
 
     def remember_checksum(self, classifier_id: str, checksum: str) -> None:
-        if self.size <= 0:
-            return
-        with self._lock:
-            self._checksums[classifier_id] = (checksum, self._clock() + self.checksum_ttl_s)
-            self._checksums.move_to_end(classifier_id)
-            while len(self._checksums) > 4 * self.size:
-                self._checksums.popitem(last=False)
+        self._checksums.put(classifier_id, checksum, ttl_s=self.checksum_ttl_s)
 
     def get(
         self, key: tuple[str, str], load: Callable[[], CandidateClassifier]
