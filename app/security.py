@@ -11,9 +11,7 @@ import hashlib
 import hmac
 import json
 import secrets
-import threading
 import time
-from collections import OrderedDict
 from collections.abc import Callable
 
 from sqlalchemy import select
@@ -23,6 +21,8 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 from service.config import Settings
 from service.store.models import ApiKey
 from service.store.session import Database
+
+from .expiring import Expiring
 
 __all__ = [
     "API_KEY_HEADER",
@@ -90,9 +90,7 @@ class KeyVerifier:
         self.ttl_s = ttl_s
         self.negative_ttl_s = negative_ttl_s
         self.size = size
-        self._clock = clock
-        self._answers: OrderedDict[str, tuple[bool, float]] = OrderedDict()
-        self._lock = threading.Lock()
+        self._answers: Expiring[str, bool] = Expiring(size, clock=clock)
 
     @classmethod
     def for_store(cls, db: Database, settings: Settings) -> KeyVerifier:
@@ -111,29 +109,15 @@ class KeyVerifier:
     def remembered(self, key: str) -> bool | None:
         """The remembered answer for ``key``, or None when it must be looked up (no
         database, no blocking: the API asks this on its event loop first)."""
-        digest = hash_key(key)
-        with self._lock:
-            remembered = self._answers.get(digest)
-        if remembered is not None and remembered[1] > self._clock():
-            return remembered[0]
-        return None
+        return self._answers.get(hash_key(key))
 
     def __call__(self, key: str) -> bool:
         digest = hash_key(key)
-        now = self._clock()
-        with self._lock:
-            remembered = self._answers.get(digest)
-            if remembered is not None and remembered[1] > now:
-                return remembered[0]
+        remembered = self._answers.get(digest)
+        if remembered is not None:
+            return remembered
         accepted = self._lookup(digest)
-        with self._lock:
-            self._answers[digest] = (
-                accepted,
-                now + (self.ttl_s if accepted else self.negative_ttl_s),
-            )
-            self._answers.move_to_end(digest)
-            while len(self._answers) > self.size:
-                self._answers.popitem(last=False)
+        self._answers.put(digest, accepted, ttl_s=self.ttl_s if accepted else self.negative_ttl_s)
         return accepted
 
 

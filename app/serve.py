@@ -35,6 +35,7 @@ from types import FrameType
 from typing import IO, Any
 
 from service.config import Settings, get_settings
+from service.queue import worker_command
 
 __all__ = ["WorkerPool", "main", "tcp_socket"]
 
@@ -82,18 +83,7 @@ class WorkerPool:
         )
 
     def command(self, index: int) -> list[str]:
-        return [
-            sys.executable,
-            "-m",
-            "celery",
-            "-A",
-            "worker.celery_app",
-            "worker",
-            "--concurrency=1",
-            "-n",
-            f"{self.names.get(index, f'worker{index}')}@%h",
-            f"--loglevel={self.log_level}",
-        ]
+        return worker_command(self.names.get(index, f"worker{index}"), log_level=self.log_level)
 
     def log_path(self, index: int) -> Path:
         return self.log_dir / f"worker{index}.log"

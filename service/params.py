@@ -15,7 +15,6 @@ process starts without them (they are imported in the background at start).
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from typing import Annotated, Any, Literal, Self
 
@@ -72,17 +71,6 @@ def _clip(text: str, limit: int = 60) -> str:
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
-def _default(request: type, name: str) -> Any:
-    """The core request class's default for ``name`` (a factory is called)."""
-    for spec in dataclasses.fields(request):
-        if spec.name == name:
-            if spec.default is not dataclasses.MISSING:
-                return spec.default
-            if spec.default_factory is not dataclasses.MISSING:
-                return spec.default_factory()
-    raise LookupError(f"{request.__name__} has no default for {name!r}")
-
-
 def classifier_kinds() -> tuple[str, ...]:
     """Every classifier kind, from the registry (imported now if it was not yet)."""
     from inertia_id.classifiers.registry import CLASSIFIER_KINDS
@@ -110,35 +98,35 @@ class StrictModel(BaseModel):
 class SearchParams(StrictModel):
     """Search for the actuation sequence that best separates the candidates."""
 
-    method: SearchMethod = _default(SearchRequest, "method")
+    method: SearchMethod = SearchRequest.default("method")
     sequence_length: int = Field(
-        default=_default(SearchRequest, "sequence_length"), ge=1, le=MAX_SEARCH_SEQUENCE_LENGTH
+        default=SearchRequest.default("sequence_length"), ge=1, le=MAX_SEARCH_SEQUENCE_LENGTH
     )
     timesteps: int = Field(
-        default=_default(SearchRequest, "timesteps"),
+        default=SearchRequest.default("timesteps"),
         ge=1,
         le=MAX_TIMESTEPS,
         description="environment steps (ppo, random)",
     )
     max_sequences: int = Field(
-        default=_default(SearchRequest, "max_sequences"),
+        default=SearchRequest.default("max_sequences"),
         ge=1,
         le=MAX_EXHAUSTIVE_SEQUENCES,
         description="exhaustive search budget: the largest space it will enumerate",
     )
-    n_realisations: int = Field(default=_default(SearchRequest, "n_realisations"), ge=1, le=200)
+    n_realisations: int = Field(default=SearchRequest.default("n_realisations"), ge=1, le=200)
     objective: SearchObjective = Field(
-        default=_default(SearchRequest, "objective"),
+        default=SearchRequest.default("objective"),
         description="what scores a sequence: f1 (clustering F1, the paper's) or separability "
         "(the Bhattacharyya bound on the error, no clustering)",
     )
-    metric: ClassifierMetric = _default(SearchRequest, "metric")
+    metric: ClassifierMetric = SearchRequest.default("metric")
     sakoe_chiba_radius: int | None = Field(
-        default=_default(SearchRequest, "sakoe_chiba_radius"), ge=0, le=10_000
+        default=SearchRequest.default("sakoe_chiba_radius"), ge=0, le=10_000
     )
-    fuel_weight: float = Field(default=_default(SearchRequest, "fuel_weight"), ge=0.0, le=1e6)
+    fuel_weight: float = Field(default=SearchRequest.default("fuel_weight"), ge=0.0, le=1e6)
     patience_episodes: int | None = Field(
-        default=_default(SearchRequest, "patience_episodes"), ge=1, le=10_000_000
+        default=SearchRequest.default("patience_episodes"), ge=1, le=10_000_000
     )
     ppo: dict[str, Any] = Field(
         default_factory=dict,
@@ -159,14 +147,14 @@ class SearchParams(StrictModel):
         examples=[{"population": 64, "generations": 30}],
     )
     objectives: list[SearchGoal] = Field(
-        default_factory=lambda: list(_default(SearchRequest, "objectives")),
+        default_factory=lambda: list(SearchRequest.default("objectives")),
         min_length=2,
         max_length=7,
         description="what the Pareto front trades off (method nsga2), and what every "
         "search's best sequence is judged on beside the baselines",
     )
     design_noise: list[Annotated[list[float], Field(min_length=2, max_length=2)]] = Field(
-        default_factory=lambda: [list(p) for p in _default(SearchRequest, "design_noise")],
+        default_factory=lambda: [list(p) for p in SearchRequest.default("design_noise")],
         min_length=1,
         max_length=8,
         description="[process multiple, measurement multiple] conditions at which the "
@@ -180,21 +168,21 @@ class SearchParams(StrictModel):
         examples=[{"max_final_rate_deg_s": 0.2, "max_impulse_nms": 20}],
     )
     constraint_penalty: float = Field(
-        default=_default(SearchRequest, "constraint_penalty"),
+        default=SearchRequest.default("constraint_penalty"),
         ge=0.0,
         le=1e6,
         description="ppo, cem, random, exhaustive: reward cost per unit of summed relative "
         "constraint violation (the constrained variant of the paper's reward)",
     )
     lagrangian_lr: float = Field(
-        default=_default(SearchRequest, "lagrangian_lr"),
+        default=SearchRequest.default("lagrangian_lr"),
         ge=0.0,
         le=1e5,
         description="ppo: raise the penalty after every rollout by this times the mean "
         "violation (PPO-Lagrangian); 0 keeps it fixed",
     )
     fresh_realisations: int = Field(
-        default=_default(SearchRequest, "fresh_realisations"),
+        default=SearchRequest.default("fresh_realisations"),
         ge=2,
         le=400,
         description="realisations per candidate when the front is re-scored on fresh draws",
@@ -238,15 +226,9 @@ class SearchParams(StrictModel):
 
     @model_validator(mode="after")
     def _budget(self) -> Self:
-        from inertia_id.search import ScorerSettings
-
-        # The core's own rules for the scorer, so that a job the API accepts can start.
-        ScorerSettings(
-            n_realisations=self.n_realisations,
-            metric=self.metric,
-            sakoe_chiba_radius=self.sakoe_chiba_radius,
-            objective=self.objective,
-        ).check()
+        # The core's own rules for the scorer, so that a job the API accepts can start:
+        # the worker builds its request from these parameters the same way.
+        SearchRequest.from_params(self.model_dump(mode="json")).scorer().check()
         if self.cem and self.method != "cem":
             raise ValueError(f"cem settings apply to method cem, not {self.method!r}")
         if self.nsga2 and self.method != "nsga2":
@@ -304,12 +286,10 @@ class TrainParams(StrictModel):
         description="with search_job_id: the index of the front member (0 = the most accurate)",
     )
     kind: str | None = Field(
-        default=_default(TrainRequest, "kind"), max_length=40, json_schema_extra=_kinds_schema
+        default=TrainRequest.default("kind"), max_length=40, json_schema_extra=_kinds_schema
     )
-    metric: ClassifierMetric | None = _default(TrainRequest, "metric")
-    n_realisations: int | None = Field(
-        default=_default(TrainRequest, "n_realisations"), ge=1, le=400
-    )
+    metric: ClassifierMetric | None = TrainRequest.default("metric")
+    n_realisations: int | None = Field(default=TrainRequest.default("n_realisations"), ge=1, le=400)
 
     @model_validator(mode="after")
     def _metric_fits_kind(self) -> Self:
@@ -376,14 +356,14 @@ class SweepParams(StrictModel):
         "turn, the others at 1x (a source the scenario leaves at 0 scales a reference level)",
     )
     others: list[Annotated[str, Field(max_length=40)]] = Field(
-        default_factory=lambda: list(_default(SweepRequest, "others")),
+        default_factory=lambda: list(SweepRequest.default("others")),
         max_length=8,
         description="classifiers trained at 1x on the same sequence and scored on the same "
         "test series, as specs: 'least-squares' (the physics baseline), '1nn:euclidean', "
         "'nearest-centroid:dtw', 'minirocket', 'likelihood', 'clustering:euclidean'",
     )
     ceiling_realisations: int = Field(
-        default=_default(SweepRequest, "ceiling_realisations"),
+        default=SweepRequest.default("ceiling_realisations"),
         ge=0,
         le=8000,
         description="the ceiling: at every point per-candidate Gaussians (a quadratic "
@@ -392,24 +372,24 @@ class SweepParams(StrictModel):
         "it out. The default is where its accuracy stops moving as the count grows",
     )
     limit_realisations: int | None = Field(
-        default=_default(SweepRequest, "limit_realisations"),
+        default=SweepRequest.default("limit_realisations"),
         ge=0,
         le=8000,
         description="deprecated name of ceiling_realisations (wins when given)",
         json_schema_extra={"deprecated": True},
     )
     n_train: int = Field(
-        default=_default(SweepRequest, "n_train"),
+        default=SweepRequest.default("n_train"),
         ge=3,
         le=200,
         description="training realisations per candidate for others",
     )
     inertia: bool = Field(
-        default=_default(SweepRequest, "inertia"),
+        default=SweepRequest.default("inertia"),
         description="also test bodies off the candidates (scaled, and between the closest "
         "two): how often identify says 'matches none'",
     )
-    n_test: int = Field(default=_default(SweepRequest, "n_test"), ge=5, le=2000)
+    n_test: int = Field(default=SweepRequest.default("n_test"), ge=5, le=2000)
 
     @field_validator("others")
     @classmethod

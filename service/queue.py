@@ -6,11 +6,13 @@ the task under that name on an app made here, so both ends agree on the broker.
 
 from __future__ import annotations
 
+import sys
+
 from celery import Celery
 
 from .config import Settings
 
-__all__ = ["RUN_JOB_TASK", "make_celery"]
+__all__ = ["RUN_JOB_TASK", "make_celery", "worker_command"]
 
 RUN_JOB_TASK = "inertia_id.run_job"
 
@@ -48,3 +50,12 @@ def make_celery(settings: Settings) -> Celery:
         conf["broker_transport_options"] = {"visibility_timeout": 12 * 3600}
     celery.conf.update(conf)
     return celery
+
+
+def worker_command(name: str, *, log_level: str = "INFO", pool: str | None = None) -> list[str]:
+    """The command line of one worker process: a ``celery worker`` on the app of
+    :mod:`worker.celery_app`, in this interpreter, running one job at a time, named
+    ``name@<host>``; ``pool`` is Celery's ``--pool`` (its own default when None)."""
+    command = [sys.executable, "-m", "celery", "-A", "worker.celery_app", "worker"]
+    command += ["--concurrency=1", "-n", f"{name}@%h", f"--loglevel={log_level}"]
+    return command if pool is None else [*command, f"--pool={pool}"]

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Response, status
 
-from .deps import ApiKeyDep
+from .deps import UNAUTHORIZED, ApiKeyDep
 
 __all__ = ["router"]
 
@@ -15,7 +15,7 @@ router = APIRouter(prefix="/auth", tags=["auth"])
     "/check",
     status_code=status.HTTP_204_NO_CONTENT,
     dependencies=[ApiKeyDep],
-    responses={401: {"description": "missing or wrong API key"}},
+    responses=UNAUTHORIZED,
 )
 def check_key() -> Response:
     """204 when the ``X-API-Key`` header holds an accepted key, 401 otherwise. Touches

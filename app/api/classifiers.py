@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Annotated, Any
 
 from fastapi import APIRouter, HTTPException, Query, Response, status
-from sqlalchemy import ColumnElement, func, or_, select
+from sqlalchemy import func, or_, select
 from sqlalchemy.orm import Session
 
 from service.store.models import ClassifierRow, JobRow
@@ -16,20 +16,20 @@ from .deps import (
     PagingDep,
     SessionDep,
     TagText,
-    checked_tags,
     get_or_404,
     job_tagged,
-    plausible_id,
+    no_such,
     sort_query,
     text_query,
     unknown_sort,
 )
+from .listing import id_filters, one_page, search_text, sort_order, tag_filters
 
 __all__ = ["router"]
 
 router = APIRouter(prefix="/classifiers", tags=["classifiers"])
 
-_NOT_FOUND: dict[int | str, dict[str, Any]] = {404: {"description": "no such classifier"}}
+_NOT_FOUND = no_such("classifier")
 
 
 _SORT_COLUMNS: dict[str, Any] = {
@@ -76,17 +76,15 @@ def list_classifiers(
 ) -> ClassifierPage:
     """Classifiers, newest first by default, filtered by scenario, job, kind, text and the
     training job's tags, sorted, one page at a time."""
-    conditions: list[ColumnElement[bool]] = []
-    for column, value in ((ClassifierRow.scenario_id, scenario_id), (ClassifierRow.job_id, job_id)):
-        if value is None:
-            continue
-        if not plausible_id(value):
-            return ClassifierPage(items=[], total=0, limit=page.limit, offset=page.offset)
-        conditions.append(column == value)
+    conditions = id_filters(
+        ((ClassifierRow.scenario_id, scenario_id), (ClassifierRow.job_id, job_id))
+    )
+    if conditions is None:
+        return ClassifierPage(items=[], total=0, limit=page.limit, offset=page.offset)
     if kind:
         conditions.append(ClassifierRow.kind == kind)
-    if q is not None and q.strip():
-        needle = q.strip().lower()
+    needle = search_text(q)
+    if needle is not None:
         conditions.append(
             or_(
                 ClassifierRow.id.startswith(needle, autoescape=True),
@@ -96,28 +94,29 @@ def list_classifiers(
                 job_tagged(ClassifierRow.job_id, containing=needle),
             )
         )
-    for one in checked_tags(tag):
-        conditions.append(job_tagged(ClassifierRow.job_id, tag=one.strip()))
+    conditions.extend(tag_filters(ClassifierRow.job_id, tag))
     if sort not in _SORT_COLUMNS:
         unknown_sort("classifiers", sort, _SORT_COLUMNS)
-    key = _SORT_COLUMNS[sort]
-    ordered = (key.asc() if order == "asc" else key.desc()).nulls_last()
-    joined = select(ClassifierRow, JobRow).outerjoin(JobRow, JobRow.id == ClassifierRow.job_id)
-    total = session.scalar(
-        select(func.count())
-        .select_from(ClassifierRow)
-        .outerjoin(JobRow, JobRow.id == ClassifierRow.job_id)
+    with_job = JobRow.id == ClassifierRow.job_id
+    rows, total = one_page(
+        session,
+        select(ClassifierRow, JobRow)
+        .outerjoin(JobRow, with_job)
         .where(*conditions)
+        .order_by(
+            sort_order(_SORT_COLUMNS[sort], order),
+            ClassifierRow.created_at.desc(),
+            ClassifierRow.id,
+        ),
+        count=select(func.count())
+        .select_from(ClassifierRow)
+        .outerjoin(JobRow, with_job)
+        .where(*conditions),
+        page=page,
     )
-    rows = session.execute(
-        joined.where(*conditions)
-        .order_by(ordered, ClassifierRow.created_at.desc(), ClassifierRow.id)
-        .limit(page.limit)
-        .offset(page.offset)
-    ).all()
     return ClassifierPage(
         items=[classifier_out(session, row, job) for row, job in rows],
-        total=total or 0,
+        total=total,
         limit=page.limit,
         offset=page.offset,
     )

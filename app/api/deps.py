@@ -23,6 +23,7 @@ from ..schemas import TagText
 from ..security import API_KEY_HEADER, KeyVerifier
 
 __all__ = [
+    "UNAUTHORIZED",
     "ApiKeyDep",
     "CeleryDep",
     "DatabaseDep",
@@ -35,6 +36,8 @@ __all__ = [
     "checked_tags",
     "get_or_404",
     "job_tagged",
+    "no_such",
+    "not_found",
     "plausible_id",
     "sort_query",
     "text_query",
@@ -120,6 +123,14 @@ async def require_api_key(
 
 ApiKeyDep = Depends(require_api_key)
 
+#: What the schema says of a write endpoint's 401 (see :func:`require_api_key`).
+UNAUTHORIZED: dict[int | str, dict[str, Any]] = {401: {"description": "missing or wrong API key"}}
+
+
+def no_such(what: str) -> dict[int | str, dict[str, Any]]:
+    """What the schema says of the 404 (:func:`not_found`) of an endpoint naming a ``what``."""
+    return {404: {"description": f"no such {what}"}}
+
 
 @dataclass(frozen=True)
 class Paging:
@@ -200,8 +211,13 @@ def unprocessable(loc: tuple[str | int, ...], message: str) -> NoReturn:
     raise RequestValidationError([{"loc": loc, "msg": message, "type": "value_error"}])
 
 
+def not_found(what: str, row_id: str) -> HTTPException:
+    """The 404 for a ``what`` (job, classifier, ...) that no row ``row_id`` is."""
+    return HTTPException(status.HTTP_404_NOT_FOUND, detail=f"{what} {row_id[:80]!r} not found")
+
+
 def get_or_404(session: Session, model: type[Row], row_id: str, what: str) -> Row:
     row = session.get(model, row_id) if plausible_id(row_id) else None
     if row is None:
-        raise HTTPException(status.HTTP_404_NOT_FOUND, detail=f"{what} {row_id[:80]!r} not found")
+        raise not_found(what, row_id)
     return row

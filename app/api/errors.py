@@ -16,7 +16,8 @@ from __future__ import annotations
 import logging
 import re
 import uuid
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from typing import Any
 
 import sqlalchemy.exc
@@ -29,8 +30,9 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 from inertia_id.errors import InputError
 
 from ..security import scope_header
+from .deps import unprocessable
 
-__all__ = ["format_errors", "install_error_handlers"]
+__all__ = ["format_errors", "install_error_handlers", "refused_at"]
 
 log = logging.getLogger(__name__)
 
@@ -76,6 +78,19 @@ def format_errors(
     errors: Iterable[Mapping[str, Any]], prefix: Sequence[str | int] = ()
 ) -> list[dict[str, Any]]:
     return [_format_error(error, prefix) for error in errors]
+
+
+@contextmanager
+def refused_at(loc: tuple[str | int, ...]) -> Iterator[None]:
+    """What the models or the core refuse inside the block, as a 422 located at ``loc`` of
+    the request (the handlers below can only say ``[]``: they do not know where the value
+    came from)."""
+    try:
+        yield
+    except ValidationError as exc:
+        raise RequestValidationError(format_errors(exc.errors(include_url=False), loc)) from None
+    except InputError as exc:
+        unprocessable(loc, str(exc))
 
 
 def _unprocessable(detail: list[dict[str, Any]]) -> JSONResponse:

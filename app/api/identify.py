@@ -21,8 +21,6 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 from fastapi import APIRouter, HTTPException, Query, Request, Response, status
-from fastapi.exceptions import RequestValidationError
-from pydantic import ValidationError
 from sqlalchemy import select
 from starlette.concurrency import run_in_threadpool
 from starlette.datastructures import UploadFile
@@ -40,10 +38,11 @@ from service.store.models import ClassifierRow
 from service.store.session import Database
 
 from ..capacity import ComputeGate
+from ..expiring import Expiring
 from ..schemas import IdentifyRequest, IdentifyResult, PartialIdentifyResult, finite_or_none
 from ..verdicts import NotFound, VerdictProcess
-from .deps import ApiKeyDep, plausible_id, unprocessable
-from .errors import format_errors
+from .deps import UNAUTHORIZED, ApiKeyDep, no_such, not_found, plausible_id, unprocessable
+from .errors import refused_at
 
 if TYPE_CHECKING:
     from inertia_id.classifiers.registry import CandidateClassifier
@@ -77,28 +76,18 @@ class ClassifierCache:
     ) -> None:
         self.size = size
         self.checksum_ttl_s = checksum_ttl_s
-        self._clock = clock
         self._items: OrderedDict[tuple[str, str], CandidateClassifier] = OrderedDict()
-        self._checksums: OrderedDict[str, tuple[str, float]] = OrderedDict()
+        # More ids than classifiers: an id costs a few bytes, a classifier megabytes.
+        self._checksums: Expiring[str, str] = Expiring(4 * size, clock=clock)
         self._lock = threading.Lock()
         self._loading: dict[tuple[str, str], threading.Lock] = {}
         self.loads = 0
 
     def checksum_of(self, classifier_id: str) -> str | None:
-        with self._lock:
-            known = self._checksums.get(classifier_id)
-        if known is None or known[1] <= self._clock():
-            return None
-        return known[0]
+        return self._checksums.get(classifier_id)
 
     def remember_checksum(self, classifier_id: str, checksum: str) -> None:
-        if self.size <= 0:
-            return
-        with self._lock:
-            self._checksums[classifier_id] = (checksum, self._clock() + self.checksum_ttl_s)
-            self._checksums.move_to_end(classifier_id)
-            while len(self._checksums) > 4 * self.size:
-                self._checksums.popitem(last=False)
+        self._checksums.put(classifier_id, checksum, ttl_s=self.checksum_ttl_s)
 
     def get(
         self, key: tuple[str, str], load: Callable[[], CandidateClassifier]
@@ -149,9 +138,7 @@ def _document(database: Database, classifier_id: str) -> str:
             select(ClassifierRow.document).where(ClassifierRow.id == classifier_id)
         )
     if document is None:
-        raise HTTPException(
-            status.HTTP_404_NOT_FOUND, detail=f"classifier {classifier_id[:80]!r} not found"
-        )
+        raise not_found("classifier", classifier_id)
     return document
 
 
@@ -171,9 +158,7 @@ def _checksum(database: Database, cache: ClassifierCache, classifier_id: str) ->
                 )
             ).first()
     if row is None:
-        raise HTTPException(
-            status.HTTP_404_NOT_FOUND, detail=f"classifier {classifier_id[:80]!r} not found"
-        )
+        raise not_found("classifier", classifier_id)
     cache.remember_checksum(row.id, row.sha256)
     return str(row.sha256)
 
@@ -241,9 +226,7 @@ async def _verdict(
             process.verdict, classifier_id, checksum, telemetry, confidence, partial
         )
     except NotFound:
-        raise HTTPException(
-            status.HTTP_404_NOT_FOUND, detail=f"classifier {classifier_id[:80]!r} not found"
-        ) from None
+        raise not_found("classifier", classifier_id) from None
     model = PartialIdentifyResult if partial else IdentifyResult
     return model.model_validate({**finite_or_none(result), "classifier_id": classifier_id})
 
@@ -259,12 +242,8 @@ async def _from_json(
     start = _query_start(sequence_start)
     if start is not None and isinstance(data, dict):
         data = {**data, "sequence_start": start}
-    try:
+    with refused_at(("body",)):
         parsed = IdentifyRequest.model_validate(data)
-    except ValidationError as exc:
-        raise RequestValidationError(
-            format_errors(exc.errors(include_url=False), ("body",))
-        ) from None
     return parsed.classifier_id, parsed.telemetry, parsed.confidence
 
 
@@ -307,13 +286,8 @@ async def _from_form(
     except UnicodeDecodeError as exc:
         unprocessable(("body", "file"), f"telemetry file is not UTF-8 text: {exc}")
     try:
-        return classifier_id, parse_telemetry(text, sequence_start=start), confidence
-    except ValidationError as exc:
-        raise RequestValidationError(
-            format_errors(exc.errors(include_url=False), ("body", "file"))
-        ) from None
-    except InputError as exc:
-        unprocessable(("body", "file"), str(exc))
+        with refused_at(("body", "file")):
+            return classifier_id, parse_telemetry(text, sequence_start=start), confidence
     except csv.Error as exc:
         # The core's CSV reader lets this through, e.g. for a lone carriage return in a row.
         unprocessable(("body", "file"), f"telemetry is not valid CSV: {exc}")
@@ -378,6 +352,18 @@ _BODY = {
 }
 
 
+def _refusals(bad_telemetry: str) -> dict[int | str, dict[str, Any]]:
+    """What the schema says of both identify endpoints' answers other than a verdict;
+    ``bad_telemetry`` says what their 422 refuses."""
+    return {
+        **UNAUTHORIZED,
+        **no_such("classifier"),
+        415: {"description": "neither JSON nor multipart/form-data"},
+        422: {"description": bad_telemetry},
+        503: {"description": "past capacity: try again after Retry-After seconds"},
+    }
+
+
 @router.post(
     "",
     dependencies=[ApiKeyDep],
@@ -387,11 +373,7 @@ _BODY = {
             "content": {"text/csv": {"schema": {"type": "string"}}},
             "description": "the verdict (JSON), or with format=csv one row per candidate",
         },
-        401: {"description": "missing or wrong API key"},
-        404: {"description": "no such classifier"},
-        415: {"description": "neither JSON nor multipart/form-data"},
-        422: {"description": "bad telemetry: the rule and the value"},
-        503: {"description": "past capacity: try again after Retry-After seconds"},
+        **_refusals("bad telemetry: the rule and the value"),
     },
     openapi_extra=_BODY,
 )
@@ -434,13 +416,7 @@ async def identify_telemetry(
     "/partial",
     dependencies=[ApiKeyDep],
     response_model=PartialIdentifyResult,
-    responses={
-        401: {"description": "missing or wrong API key"},
-        404: {"description": "no such classifier"},
-        415: {"description": "neither JSON nor multipart/form-data"},
-        422: {"description": "bad telemetry, or a kind without a posterior for part of a series"},
-        503: {"description": "past capacity: try again after Retry-After seconds"},
-    },
+    responses=_refusals("bad telemetry, or a kind without a posterior for part of a series"),
     openapi_extra=_BODY,
 )
 async def identify_partial(

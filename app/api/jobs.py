@@ -47,6 +47,7 @@ from ..schemas import (
     TrainJobCreate,
 )
 from .deps import (
+    UNAUTHORIZED,
     ApiKeyDep,
     CeleryDep,
     OrderQuery,
@@ -54,15 +55,15 @@ from .deps import (
     SessionDep,
     SettingsDep,
     TagText,
-    checked_tags,
     get_or_404,
     job_tagged,
-    plausible_id,
+    no_such,
     sort_query,
     text_query,
     unknown_sort,
     unprocessable,
 )
+from .listing import id_filters, one_page, search_text, sort_order, tag_filters
 
 __all__ = ["router"]
 
@@ -70,8 +71,7 @@ log = logging.getLogger(__name__)
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
 
-_NOT_FOUND: dict[int | str, dict[str, Any]] = {404: {"description": "no such job"}}
-_UNAUTHORIZED: dict[int | str, dict[str, Any]] = {401: {"description": "missing or wrong API key"}}
+_NOT_FOUND = no_such("job")
 
 
 def _scenario(session: SessionDep, scenario_id: str) -> Scenario:
@@ -180,8 +180,8 @@ def _check_sweep(session: SessionDep, body: SweepJobCreate, scenario: Scenario) 
     dependencies=[ApiKeyDep],
     responses={
         200: {"model": JobSubmitted, "description": "an identical job exists; it is returned"},
-        404: {"description": "no such scenario or classifier"},
-        **_UNAUTHORIZED,
+        **no_such("scenario or classifier"),
+        **UNAUTHORIZED,
     },
 )
 def submit_job(
@@ -260,9 +260,9 @@ def _sort_expression(sort: str) -> Any:
     unknown_sort("jobs", sort, JOB_SORT_KEYS)
 
 
-def _text_match(q: str) -> ColumnElement[bool]:
-    """Name contains ``q`` (any case), the id starts with it, or a tag contains it."""
-    needle = q.strip().lower()
+def _text_match(needle: str) -> ColumnElement[bool]:
+    """Name contains ``needle`` (lower case; any case in the name), the id starts with it,
+    or a tag contains it."""
     return or_(
         func.lower(JobRow.name).contains(needle, autoescape=True),
         JobRow.id.startswith(needle, autoescape=True),
@@ -299,37 +299,35 @@ def list_jobs(
 ) -> JobPage:
     """Jobs, filtered by type, status, scenario, text, tags and classifier, sorted (newest
     first by default; jobs without the figure sorted by come last), one page at a time."""
-    conditions: list[ColumnElement[bool]] = []
+    # A sweep names its classifier in its parameters.
+    conditions = id_filters(
+        (
+            (JobRow.scenario_id, scenario_id),
+            (JobRow.params["classifier_id"].as_string(), classifier_id),
+        )
+    )
+    if conditions is None:
+        return JobPage(items=[], total=0, limit=page.limit, offset=page.offset)
+    if classifier_id is not None:
+        conditions.append(JobRow.type == "sweep")
     if type is not None:
         conditions.append(JobRow.type == type)
     if status is not None:
         conditions.append(JobRow.status == status)
-    for value, column in ((scenario_id, JobRow.scenario_id),):
-        if value is not None:
-            if not plausible_id(value):
-                return JobPage(items=[], total=0, limit=page.limit, offset=page.offset)
-            conditions.append(column == value)
-    if classifier_id is not None:
-        if not plausible_id(classifier_id):
-            return JobPage(items=[], total=0, limit=page.limit, offset=page.offset)
-        conditions.append(JobRow.type == "sweep")
-        conditions.append(JobRow.params["classifier_id"].as_string() == classifier_id)
-    if q is not None and q.strip():
-        conditions.append(_text_match(q))
-    for one in checked_tags(tag):
-        conditions.append(job_tagged(JobRow.id, tag=one.strip()))
-    key = _sort_expression(sort)
-    ordered = key.asc() if order == "asc" else key.desc()
-    total = session.scalar(select(func.count()).select_from(JobRow).where(*conditions)) or 0
-    rows = session.scalars(
+    needle = search_text(q)
+    if needle is not None:
+        conditions.append(_text_match(needle))
+    conditions.extend(tag_filters(JobRow.id, tag))
+    rows, total = one_page(
+        session,
         select(JobRow)
         .where(*conditions)
-        .order_by(ordered.nulls_last(), JobRow.created_at.desc(), JobRow.id)
-        .limit(page.limit)
-        .offset(page.offset)
-    ).all()
+        .order_by(sort_order(_sort_expression(sort), order), JobRow.created_at.desc(), JobRow.id),
+        count=select(func.count()).select_from(JobRow).where(*conditions),
+        page=page,
+    )
     return JobPage(
-        items=[JobOut.model_validate(r) for r in rows],
+        items=[JobOut.model_validate(job) for (job,) in rows],
         total=total,
         limit=page.limit,
         offset=page.offset,
@@ -339,7 +337,7 @@ def list_jobs(
 @router.patch(
     "/{job_id}",
     dependencies=[ApiKeyDep],
-    responses={**_NOT_FOUND, **_UNAUTHORIZED},
+    responses={**_NOT_FOUND, **UNAUTHORIZED},
 )
 def update_job(job_id: str, body: JobUpdate, session: SessionDep) -> JobOut:
     """Rename or retag a job. Labels only: its parameters, seed, identity and result stay."""
@@ -524,7 +522,7 @@ def _series(key: str, steps: list[int], values: list[float], cap: int) -> Metric
     dependencies=[ApiKeyDep],
     responses={
         **_NOT_FOUND,
-        **_UNAUTHORIZED,
+        **UNAUTHORIZED,
         409: {"description": "the job already succeeded or failed"},
     },
 )
@@ -545,7 +543,7 @@ def cancel_job(job_id: str, session: SessionDep) -> JobOut:
     dependencies=[ApiKeyDep],
     responses={
         **_NOT_FOUND,
-        **_UNAUTHORIZED,
+        **UNAUTHORIZED,
         200: {"content": {"application/json": {}, "text/csv": {}}},
         422: {"description": "not a succeeded search job, or no such front member"},
         503: {"description": "past capacity: try again after Retry-After seconds"},

@@ -7,8 +7,6 @@ from typing import Annotated, Any
 
 import numpy as np
 from fastapi import APIRouter, HTTPException, Query, Request, Response, status
-from fastapi.exceptions import RequestValidationError
-from pydantic import ValidationError
 from sqlalchemy import func, select
 from sqlalchemy.exc import IntegrityError
 
@@ -29,15 +27,23 @@ from ..schemas import (
     ScenarioPage,
     ScenarioResponse,
 )
-from .deps import ApiKeyDep, PagingDep, SessionDep, get_or_404, unprocessable
-from .errors import format_errors
+from .deps import (
+    UNAUTHORIZED,
+    ApiKeyDep,
+    PagingDep,
+    SessionDep,
+    get_or_404,
+    no_such,
+    unprocessable,
+)
+from .errors import refused_at
+from .listing import one_page
 
 __all__ = ["router", "scenario_out"]
 
 router = APIRouter(prefix="/scenarios", tags=["scenarios"])
 
-_NOT_FOUND: dict[int | str, dict[str, Any]] = {404: {"description": "no such scenario"}}
-_UNAUTHORIZED: dict[int | str, dict[str, Any]] = {401: {"description": "missing or wrong API key"}}
+_NOT_FOUND = no_such("scenario")
 
 #: A sequence in the query string: its steps as JSON.
 _SequenceQuery = Annotated[
@@ -79,15 +85,9 @@ def _build(body: ScenarioCreate) -> Scenario:
     if body.scenario is not None:
         return body.scenario
     assert body.preset is not None  # checked by the model
-    try:
+    # Located in the request: the overrides are Scenario fields.
+    with refused_at(("body", "overrides")):
         return preset(body.preset, **body.overrides)
-    except ValidationError as exc:
-        # Locate the errors in the request: the overrides are Scenario fields.
-        raise RequestValidationError(
-            format_errors(exc.errors(include_url=False), ("body", "overrides"))
-        ) from None
-    except InputError as exc:
-        unprocessable(("body", "overrides"), str(exc))
 
 
 def _check_storable(scenario: Scenario) -> dict[str, Any]:
@@ -107,7 +107,7 @@ def _check_storable(scenario: Scenario) -> dict[str, Any]:
     "",
     status_code=status.HTTP_201_CREATED,
     dependencies=[ApiKeyDep],
-    responses=_UNAUTHORIZED,
+    responses=UNAUTHORIZED,
 )
 def create_scenario(body: ScenarioCreate, session: SessionDep) -> ScenarioOut:
     """Store a scenario from a preset with overrides, or from a full document.
@@ -125,15 +125,14 @@ def create_scenario(body: ScenarioCreate, session: SessionDep) -> ScenarioOut:
 @router.get("")
 def list_scenarios(session: SessionDep, page: PagingDep) -> ScenarioPage:
     """Scenarios, newest first."""
-    total = session.scalar(select(func.count()).select_from(ScenarioRow)) or 0
-    rows = session.scalars(
-        select(ScenarioRow)
-        .order_by(ScenarioRow.created_at.desc(), ScenarioRow.id)
-        .limit(page.limit)
-        .offset(page.offset)
-    ).all()
+    rows, total = one_page(
+        session,
+        select(ScenarioRow).order_by(ScenarioRow.created_at.desc(), ScenarioRow.id),
+        count=select(func.count()).select_from(ScenarioRow),
+        page=page,
+    )
     return ScenarioPage(
-        items=[scenario_out(r) for r in rows], total=total, limit=page.limit, offset=page.offset
+        items=[scenario_out(r) for (r,) in rows], total=total, limit=page.limit, offset=page.offset
     )
 
 
@@ -170,7 +169,7 @@ def scenario_baselines(
     dependencies=[ApiKeyDep],
     responses={
         **_NOT_FOUND,
-        **_UNAUTHORIZED,
+        **UNAUTHORIZED,
         409: {"description": "jobs or classifiers use the scenario"},
     },
 )
@@ -239,7 +238,7 @@ def _parse_sequence(text: str, scenario: Scenario) -> np.ndarray:
     dependencies=[ApiKeyDep],
     responses={
         **_NOT_FOUND,
-        **_UNAUTHORIZED,
+        **UNAUTHORIZED,
         503: {"description": "past capacity: try again after Retry-After seconds"},
     },
 )
@@ -356,7 +355,7 @@ def plan_for(
 
 _PLAN_RESPONSES: dict[int | str, dict[str, Any]] = {
     **_NOT_FOUND,
-    **_UNAUTHORIZED,
+    **UNAUTHORIZED,
     200: {
         "description": "the plan as JSON (steps with on-times and torque, candidates with "
         "predicted rates in rad/s and deg/s, residual rates, attitude change, propellant) "

@@ -17,7 +17,6 @@ import itertools
 import os
 import signal
 import subprocess
-import sys
 import time
 import uuid
 from collections.abc import Iterator
@@ -41,7 +40,7 @@ from sqlalchemy import select
 
 from inertia_id import Scenario
 from service.config import Settings
-from service.queue import RUN_JOB_TASK, make_celery
+from service.queue import RUN_JOB_TASK, make_celery, worker_command
 from service.store import Database, JobRow, MetricRow, ScenarioRow, WorkerRow, upgrade
 from service.store.jobs import config_hash, create_job, mark_sent
 
@@ -95,19 +94,7 @@ class Service:
         prefix = f"w{len(self.workers) + 1}-{uuid.uuid4().hex[:6]}"
         log_path = self.root / f"{prefix}.log"
         process = start_in_group(
-            [
-                sys.executable,
-                "-m",
-                "celery",
-                "-A",
-                "worker.celery_app",
-                "worker",
-                "--concurrency=1",
-                "--pool=prefork",
-                "--loglevel=INFO",
-                "-n",
-                f"{prefix}@%h",
-            ],
+            worker_command(prefix, pool="prefork"),
             log_path=log_path,
             cwd=self.root,
             env={**self.env, **env},
