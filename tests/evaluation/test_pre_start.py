@@ -156,3 +156,57 @@ def test_a_classifier_without_offset_free_parts_ignores_the_part_before_the_star
     assert verdict.posterior == identify(older, telemetry, pre_start_window_s=0.0).posterior
     with pytest.raises(InputError, match="retrain"):
         older.conditioned_on_offset(np.zeros((3, 3)), np.zeros((3, 3)))
+
+
+@pytest.mark.parametrize(("process", "measurement"), [(1.0, 1.0), (1.0, 4.0), (8.0, 1.0)])
+def test_the_samples_before_the_start_say_how_noisy_the_spacecraft_is(
+    drifting_paper: Scenario,
+    marginal: MarginalLikelihoodClassifier,
+    process: float,
+    measurement: float,
+) -> None:
+    # Their scatter about their mean is gyro noise plus the disturbance's random walk:
+    # the noise conditions' posterior given 10 s at 10 Hz sits at the true multiples
+    # (octaves for the process noise, thirds of an octave for the gyro).
+    sequence = [[0] * drifting_paper.n_thrusters] * COAST + GOOD_SEQUENCE
+    result = simulate(
+        drifting_paper,
+        sequence,
+        4,
+        np.random.default_rng(34),
+        process_noise_scale=process,
+        measurement_noise_scale=measurement,
+    )
+    grid = marginal.grid_
+    for k in range(drifting_paper.n_candidates):
+        for r in range(4):
+            offset = initial_offset(drifting_paper, _telemetry(result, k, r, 2))
+            assert offset is not None
+            weights = np.exp(offset.condition_log_weights(grid))
+            assert weights.sum() == pytest.approx(1.0)
+            log_multiples = np.log2(grid)
+            mean_log = weights @ log_multiples
+            assert abs(mean_log[1] - np.log2(measurement)) < 0.4
+            if measurement == 1.0:
+                # Under 4x gyro noise the 1x random walk (3.4e-4 rad/s over 10 s) is
+                # lost in the white noise, so the process multiple stays open there.
+                assert abs(mean_log[0] - np.log2(process)) < 1.0
+
+
+def test_equal_weights_leave_the_classifier_as_it_was(
+    marginal: MarginalLikelihoodClassifier, flown: Any
+) -> None:
+    telemetry = _telemetry(flown, 1, 0, 20)
+    offset = initial_offset(marginal.scenario_, telemetry)
+    assert offset is not None
+    plain = marginal.conditioned_on_offset(offset.process_variance, offset.measurement_variance)
+    equal = np.full(len(marginal.grid_), -np.log(len(marginal.grid_)))
+    weighted = marginal.conditioned_on_offset(
+        offset.process_variance, offset.measurement_variance, equal
+    )
+    series = np.asarray(flown.omega_measured[1, 0, 10 * 20 :])[None] - offset.offset_rad_s
+    np.testing.assert_allclose(weighted.transform(series), plain.transform(series), rtol=1e-12)
+    with pytest.raises(InputError, match="log probabilities"):
+        marginal.conditioned_on_offset(
+            offset.process_variance, offset.measurement_variance, equal + 1.0
+        )
