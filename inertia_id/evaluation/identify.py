@@ -279,11 +279,17 @@ def _check_probability(name: str, value: Any) -> float:
     return float(value)
 
 
-def _context(classifier: CandidateClassifier) -> tuple[Scenario, np.ndarray]:
+def _context(
+    classifier: CandidateClassifier, telemetry: Telemetry | dict[str, Any]
+) -> tuple[Telemetry, Scenario, np.ndarray, np.ndarray]:
+    """The telemetry checked, and the classifier's scenario, sequence and sample grid."""
+    if not isinstance(telemetry, Telemetry):
+        telemetry = Telemetry.model_validate(telemetry)
     scenario, sequence = classifier.scenario_, classifier.sequence_
     if scenario is None or sequence is None:
         raise InputError("the classifier does not carry its scenario and sequence")
-    return scenario, np.asarray(sequence)
+    sequence = np.asarray(sequence)
+    return telemetry, scenario, sequence, scenario.sample_times(len(sequence))
 
 
 def _estimate(scenario: Scenario, sequence: np.ndarray, series: np.ndarray) -> dict[str, Any]:
@@ -347,10 +353,7 @@ def identify(
         marginal likelihood then conditions on; 0 ignores them.
     """
     confidence = _check_probability("confidence", confidence)
-    if not isinstance(telemetry, Telemetry):
-        telemetry = Telemetry.model_validate(telemetry)
-    scenario, sequence = _context(classifier)
-    grid = scenario.sample_times(len(sequence))
+    telemetry, scenario, sequence, grid = _context(classifier, telemetry)
     # Slow telemetry on the grid: the likelihood kinds use the measured points only.
     series, observed = resample_observed(telemetry, grid)
     model, offset = _offset_model(classifier, scenario, telemetry, pre_start_window_s)
@@ -465,10 +468,7 @@ def identify_online(
     :param pre_start_window_s: as for :func:`identify`.
     """
     alpha = _check_probability("alpha", alpha)
-    if not isinstance(telemetry, Telemetry):
-        telemetry = Telemetry.model_validate(telemetry)
-    scenario, sequence = _context(classifier)
-    grid = scenario.sample_times(len(sequence))
+    telemetry, scenario, _, grid = _context(classifier, telemetry)
     slack = 0.5 / scenario.timing.sample_rate_hz
     covered = int(np.sum(grid <= telemetry.time_array[-1] + slack))
     if covered < 1:
