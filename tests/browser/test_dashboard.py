@@ -673,6 +673,30 @@ def test_identify_mission_time_telemetry_with_its_sequence_start(
     assert first == pytest.approx(Scenario.paper().sample_times(len(GOOD))[0], abs=1e-6)
 
 
+def test_identify_shows_the_rate_and_bias_measured_before_the_start(
+    dashboard: Dashboard,
+) -> None:
+    # Telemetry from 10 s before the sequence start (the body coasting): the page shows
+    # the offset the service measured there, in rad/s and deg/s, and how many samples.
+    _classifier(dashboard)
+    paper = Scenario.paper()
+    flown = [[0] * paper.n_thrusters] * 10 + GOOD
+    result = simulate(paper, flown, 1, np.random.default_rng(43))
+    text = _csv_text(paper.sample_times(len(flown)) - 10.0, result.omega_measured[3, 0])
+    dashboard.open(f"#/identify?classifier={made['classifier']}")
+    verdict = _identify(dashboard, text, start="0")
+    assert verdict.get_attribute("data-status") == "identified"
+    expected = _api_verdict(dashboard, text, sequence_start="0")
+    assert expected["pre_start_samples"] == 199  # -9.95 s to -0.05 s at 20 Hz
+    shown = dashboard.page.inner_text("#initial-offset")
+    assert "from 199 samples" in shown and "rad/s" in shown and "deg/s" in shown
+    degrees = [float(v) for v in shown.split("=")[1].split("]")[0].strip(" [").split(",")]
+    assert degrees == pytest.approx(
+        [v * 180 / np.pi for v in expected["initial_offset_rad_s"]], rel=0.01, abs=1e-4
+    )
+    assert _shown_posterior(dashboard) == _expected_posterior(expected)
+
+
 def test_the_classifier_page_shows_the_calibration_the_api_reports(
     dashboard: Dashboard,
 ) -> None:

@@ -171,6 +171,18 @@ function estimateOf(verdict) {
   return "–";
 }
 
+const DEG = 180 / Math.PI;
+
+// The body's rate plus the gyro bias at the sequence start, measured by the samples before
+// it (the classifier conditions on it), in rad/s and deg/s with its standard error.
+function offsetOf(verdict) {
+  if (!verdict.initial_offset_rad_s) return "– (the telemetry starts at the sequence start)";
+  const std = verdict.initial_offset_std_rad_s || [];
+  const axes = verdict.initial_offset_rad_s.map((v, i) => `${fmt(v, 3)} ± ${fmt(std[i], 2)}`);
+  const deg = verdict.initial_offset_rad_s.map((v) => (v * DEG).toPrecision(3));
+  return `[${axes.join(", ")}] rad/s = [${deg.join(", ")}] deg/s, from ${verdict.pre_start_samples} samples`;
+}
+
 async function showVerdict(holder, verdict, classifier, { content, context, file, options }) {
   const names = Object.keys(verdict.distances);
   const ranked = Object.entries(verdict.posterior || {}).sort((a, b) => b[1] - a[1]);
@@ -214,6 +226,8 @@ async function showVerdict(holder, verdict, classifier, { content, context, file
         h("dd", {}, link(`#/classifiers/${verdict.classifier_id}`, verdict.classifier_id)),
         h("dt", {}, "least-squares estimate from this telemetry (kg m², ± standard error)"),
         h("dd", { id: "ls-estimate" }, estimateOf(verdict)),
+        h("dt", {}, "rate + gyro bias at the start, from the telemetry before it"),
+        h("dd", { id: "initial-offset", class: "mono" }, offsetOf(verdict)),
       ),
     ),
     h(
