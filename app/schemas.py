@@ -416,6 +416,10 @@ class ClassifierPage(BaseModel):
 # Identification.
 
 
+#: The longest window of telemetry before the start a request may ask to be used, s.
+MAX_PRE_START_WINDOW_S = 3600.0
+
+
 class IdentifyRequest(_Request):
     classifier_id: str = Field(max_length=64)
     sequence_start: float | str | None = Field(
@@ -445,6 +449,14 @@ class IdentifyRequest(_Request):
         description="posterior the top candidate needs to be named (default 0.99); for "
         "/identify/partial, the online stop rule decides at 1 - alpha with alpha = "
         "1 - confidence (default alpha 0.001)",
+    )
+    pre_start_window_s: float | None = Field(
+        default=None,
+        ge=0,
+        le=MAX_PRE_START_WINDOW_S,
+        description="seconds of telemetry before the sequence start that measure the body's "
+        "rate plus the gyro bias there and the noise level, which the default classifier "
+        "conditions on (default 10; 0 ignores them)",
     )
 
 

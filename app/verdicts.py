@@ -11,7 +11,7 @@ The child is a :class:`concurrent.futures.ProcessPoolExecutor` of one process (s
 not forked: the API process has threads). It keeps its own classifier cache by
 (id, checksum) and reads a classifier's document from the database itself on a miss;
 the API sends it the id, the checksum it looked up, the validated telemetry and the
-confidence, and gets back the verdict as a dict. If the child dies, the next request
+:class:`VerdictOptions`, and gets back the verdict as a dict. If the child dies, the next request
 starts another (that request is answered 503 with Retry-After). It ends with its parent:
 a watchdog thread exits it when the API process is gone, however it ended (``kill -9``
 included).
@@ -29,6 +29,7 @@ import threading
 import time
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
@@ -37,7 +38,7 @@ if TYPE_CHECKING:
 
     from .api.identify import ClassifierCache
 
-__all__ = ["NotFound", "VerdictProcess"]
+__all__ = ["NotFound", "VerdictOptions", "VerdictProcess"]
 
 log = logging.getLogger("inertia_id.api")
 
@@ -47,6 +48,35 @@ _WATCH_S = 0.5
 
 class NotFound(LookupError):
     """The classifier id names no stored classifier (the child's answer; the API says 404)."""
+
+
+@dataclass(frozen=True)
+class VerdictOptions:
+    """What a request asks of its verdict, as ``identify`` and ``identify_online`` take it.
+
+    :param confidence: posterior the top candidate needs (default 0.99); for a partial
+        verdict the stop rule's ``alpha`` is ``1 - confidence`` (default 0.001).
+    :param pre_start_window_s: seconds of telemetry before the start that measure the
+        rate plus gyro bias there (default 10; 0 ignores them).
+    """
+
+    confidence: float | None = None
+    pre_start_window_s: float | None = None
+
+    def keywords(self, *, partial: bool) -> dict[str, float]:
+        from inertia_id.evaluation.identify import (
+            DEFAULT_ALPHA,
+            DEFAULT_CONFIDENCE,
+            DEFAULT_PRE_START_WINDOW_S,
+        )
+
+        window = self.pre_start_window_s
+        out = {"pre_start_window_s": DEFAULT_PRE_START_WINDOW_S if window is None else window}
+        if partial:
+            out["alpha"] = DEFAULT_ALPHA if self.confidence is None else 1.0 - self.confidence
+        else:
+            out["confidence"] = DEFAULT_CONFIDENCE if self.confidence is None else self.confidence
+        return out
 
 
 # --------------------------------------------------------------------------- the child
@@ -103,27 +133,18 @@ def _verdict(
     classifier_id: str,
     checksum: str,
     telemetry: Telemetry,
-    confidence: float | None,
+    options: VerdictOptions,
     partial: bool,
 ) -> dict[str, Any]:
     from inertia_id.classifiers.registry import classifier_from_json
-    from inertia_id.evaluation.identify import (
-        DEFAULT_ALPHA,
-        DEFAULT_CONFIDENCE,
-        identify,
-        identify_online,
-    )
+    from inertia_id.evaluation.identify import identify, identify_online
 
     assert _cache is not None, "the verdict process was not initialised"
     classifier = _cache.get(
         (classifier_id, checksum), lambda: classifier_from_json(_document(classifier_id))
     )
-    if partial:
-        alpha = DEFAULT_ALPHA if confidence is None else 1.0 - confidence
-        return identify_online(classifier, telemetry, alpha=alpha).model_dump()
-    if confidence is None:
-        confidence = DEFAULT_CONFIDENCE
-    return identify(classifier, telemetry, confidence=confidence).model_dump()
+    judge = identify_online if partial else identify
+    return judge(classifier, telemetry, **options.keywords(partial=partial)).model_dump()
 
 
 def _ready() -> bool:
@@ -180,7 +201,7 @@ class VerdictProcess:
         classifier_id: str,
         checksum: str,
         telemetry: Telemetry,
-        confidence: float | None,
+        options: VerdictOptions,
         partial: bool = False,
     ) -> dict[str, Any]:
         """The verdict as :func:`~inertia_id.evaluation.identify.identify` (or
@@ -196,7 +217,7 @@ class VerdictProcess:
         try:
             return await asyncio.wait_for(
                 loop.run_in_executor(
-                    pool, _verdict, classifier_id, checksum, telemetry, confidence, partial
+                    pool, _verdict, classifier_id, checksum, telemetry, options, partial
                 ),
                 self.timeout_s,
             )

@@ -27,8 +27,6 @@ from starlette.datastructures import UploadFile
 
 from inertia_id.errors import InputError
 from inertia_id.evaluation.identify import (
-    DEFAULT_ALPHA,
-    DEFAULT_CONFIDENCE,
     identify,
     identify_online,
 )
@@ -39,8 +37,14 @@ from service.store.session import Database
 
 from ..capacity import ComputeGate
 from ..expiring import Expiring
-from ..schemas import IdentifyRequest, IdentifyResult, PartialIdentifyResult, finite_or_none
-from ..verdicts import NotFound, VerdictProcess
+from ..schemas import (
+    MAX_PRE_START_WINDOW_S,
+    IdentifyRequest,
+    IdentifyResult,
+    PartialIdentifyResult,
+    finite_or_none,
+)
+from ..verdicts import NotFound, VerdictOptions, VerdictProcess
 from .deps import UNAUTHORIZED, ApiKeyDep, no_such, not_found, plausible_id, unprocessable
 from .errors import refused_at
 
@@ -175,14 +179,10 @@ def _identify(
     cache: ClassifierCache,
     classifier_id: str,
     telemetry: Telemetry,
-    confidence: float | None,
+    options: VerdictOptions,
 ) -> IdentifyResult:
     found, classifier = _classifier(database, cache, classifier_id)
-    result = identify(
-        classifier,
-        telemetry,
-        confidence=DEFAULT_CONFIDENCE if confidence is None else confidence,
-    ).model_dump()
+    result = identify(classifier, telemetry, **options.keywords(partial=False)).model_dump()
     return IdentifyResult.model_validate({**finite_or_none(result), "classifier_id": found})
 
 
@@ -191,11 +191,10 @@ def _identify_partial(
     cache: ClassifierCache,
     classifier_id: str,
     telemetry: Telemetry,
-    confidence: float | None,
+    options: VerdictOptions,
 ) -> PartialIdentifyResult:
     found, classifier = _classifier(database, cache, classifier_id)
-    alpha = DEFAULT_ALPHA if confidence is None else 1.0 - confidence
-    result = identify_online(classifier, telemetry, alpha=alpha).model_dump()
+    result = identify_online(classifier, telemetry, **options.keywords(partial=True)).model_dump()
     return PartialIdentifyResult.model_validate({**finite_or_none(result), "classifier_id": found})
 
 
@@ -203,7 +202,7 @@ async def _verdict(
     request: Request,
     classifier_id: str,
     telemetry: Telemetry,
-    confidence: float | None,
+    options: VerdictOptions,
     *,
     partial: bool,
 ) -> IdentifyResult | PartialIdentifyResult:
@@ -216,14 +215,14 @@ async def _verdict(
     if process is None:
         work = _identify_partial if partial else _identify
         gate: ComputeGate = state.compute_gate
-        return await gate.run(work, database, cache, classifier_id, telemetry, confidence)
+        return await gate.run(work, database, cache, classifier_id, telemetry, options)
     checksum = cache.checksum_of(classifier_id)
     if checksum is None:
         checksum = await run_in_threadpool(_checksum, database, cache, classifier_id)
     verdict_gate: ComputeGate = state.verdict_gate
     try:
         result = await verdict_gate.run_async(
-            process.verdict, classifier_id, checksum, telemetry, confidence, partial
+            process.verdict, classifier_id, checksum, telemetry, options, partial
         )
     except NotFound:
         raise not_found("classifier", classifier_id) from None
@@ -233,7 +232,7 @@ async def _verdict(
 
 async def _from_json(
     request: Request, sequence_start: str | None
-) -> tuple[str, Telemetry, float | None]:
+) -> tuple[str, Telemetry, VerdictOptions]:
     body = await request.body()
     try:
         data = json.loads(body)
@@ -244,7 +243,8 @@ async def _from_json(
         data = {**data, "sequence_start": start}
     with refused_at(("body",)):
         parsed = IdentifyRequest.model_validate(data)
-    return parsed.classifier_id, parsed.telemetry, parsed.confidence
+    options = VerdictOptions(parsed.confidence, parsed.pre_start_window_s)
+    return parsed.classifier_id, parsed.telemetry, options
 
 
 def _query_start(text: str | None) -> float | str | None:
@@ -254,28 +254,39 @@ def _query_start(text: str | None) -> float | str | None:
         unprocessable(("query", "sequence_start"), str(exc))
 
 
-def _form_confidence(value: Any) -> float | None:
+def _form_number(name: str, value: Any, rule: str, ok: Callable[[float], bool]) -> float | None:
     if value is None or value == "":
         return None
     try:
         number = float(value)
     except (TypeError, ValueError):
         number = float("nan")
-    if not 0.0 < number < 1.0:
-        unprocessable(
-            ("body", "confidence"), f"confidence must be a number in (0, 1), got {value!r}"
-        )
+    if not ok(number):
+        unprocessable(("body", name), f"{name} must be {rule}, got {value!r}")
     return number
+
+
+def _form_options(form: Any) -> VerdictOptions:
+    confidence = _form_number(
+        "confidence", form.get("confidence"), "a number in (0, 1)", lambda x: 0.0 < x < 1.0
+    )
+    window = _form_number(
+        "pre_start_window_s",
+        form.get("pre_start_window_s"),
+        f"a number of seconds in [0, {MAX_PRE_START_WINDOW_S:g}]",
+        lambda x: 0.0 <= x <= MAX_PRE_START_WINDOW_S,
+    )
+    return VerdictOptions(confidence, window)
 
 
 async def _from_form(
     request: Request, sequence_start: str | None
-) -> tuple[str, Telemetry, float | None]:
+) -> tuple[str, Telemetry, VerdictOptions]:
     start = _query_start(sequence_start)
     async with request.form(max_files=1, max_fields=10) as form:
         classifier_id = form.get("classifier_id")
         upload = form.get("file")
-        confidence = _form_confidence(form.get("confidence"))
+        options = _form_options(form)
         if not isinstance(classifier_id, str) or not classifier_id:
             unprocessable(("body", "classifier_id"), "form field classifier_id is required")
         if upload is None:
@@ -287,7 +298,7 @@ async def _from_form(
         unprocessable(("body", "file"), f"telemetry file is not UTF-8 text: {exc}")
     try:
         with refused_at(("body", "file")):
-            return classifier_id, parse_telemetry(text, sequence_start=start), confidence
+            return classifier_id, parse_telemetry(text, sequence_start=start), options
     except csv.Error as exc:
         # The core's CSV reader lets this through, e.g. for a lone carriage return in a row.
         unprocessable(("body", "file"), f"telemetry is not valid CSV: {exc}")
@@ -299,6 +310,7 @@ _MULTIPART_SCHEMA = {
     "properties": {
         "classifier_id": {"type": "string", "maxLength": 64},
         "confidence": {"type": "number", "exclusiveMinimum": 0, "exclusiveMaximum": 1},
+        "pre_start_window_s": {"type": "number", "minimum": 0, "maximum": MAX_PRE_START_WINDOW_S},
         "file": {
             "type": "string",
             "format": "binary",
@@ -319,7 +331,7 @@ def openapi_components() -> dict[str, Any]:
 
 async def _read_body(
     request: Request, sequence_start: str | None
-) -> tuple[str, Telemetry, float | None]:
+) -> tuple[str, Telemetry, VerdictOptions]:
     # Both media types on one path: FastAPI declares one body per route, so the body is
     # read here and validated with the same models.
     content_type = request.headers.get("content-type", "").split(";")[0].strip().lower()
@@ -398,8 +410,8 @@ async def identify_telemetry(
     every candidate and the margin to the runner-up, and the least-squares tensor when
     it is physically valid and well excited.
     """
-    classifier_id, telemetry, confidence = await _read_body(request, sequence_start)
-    verdict = await _verdict(request, classifier_id, telemetry, confidence, partial=False)
+    classifier_id, telemetry, options = await _read_body(request, sequence_start)
+    verdict = await _verdict(request, classifier_id, telemetry, options, partial=False)
     if format == "csv":
         stem = f"identify-{verdict.classifier_id[:8]}"
         return Response(
@@ -429,5 +441,5 @@ async def identify_partial(
     (top posterior >= 1 - alpha, alpha = 1 - confidence, default 0.001) and when. The
     likelihood kinds answer (their Gaussian's leading block is exact); others get 422.
     """
-    classifier_id, telemetry, confidence = await _read_body(request, sequence_start)
-    return await _verdict(request, classifier_id, telemetry, confidence, partial=True)
+    classifier_id, telemetry, options = await _read_body(request, sequence_start)
+    return await _verdict(request, classifier_id, telemetry, options, partial=True)

@@ -448,3 +448,47 @@ def test_partial_telemetry_of_a_likelihood_classifier(
     assert sum(result["current"].values()) + result["current_p_none"] == pytest.approx(1.0)
     if result["decided"]:
         assert result["candidate"] == paper.candidate_names[2]
+
+
+def test_telemetry_before_the_start_is_used_unless_asked_not_to(api: Api, paper: Scenario) -> None:
+    # The default classifier measures the rate plus bias before the start (JSON body and
+    # form field pre_start_window_s; 0 ignores that part); a bad window is a 422 that
+    # quotes it, through the verdict process as through the compute threads.
+    from inertia_id.classifiers.marginal import AXES_GRID, train_marginal
+
+    model = train_marginal(paper, GOOD_SEQUENCE, 10, np.random.default_rng(4), grid=AXES_GRID)
+    found = api.insert_classifier(api.create_scenario()["id"], model)
+    flown = [[0] * paper.n_thrusters] * 4 + GOOD_SEQUENCE
+    result = simulate(paper, flown, 1, np.random.default_rng(5))
+    series = {
+        "time_s": (result.time_s - 4.0).tolist(),
+        "omega_rad_s": result.omega_measured[1, 0].tolist(),
+    }
+    body = {"classifier_id": found, "telemetry": series}
+    used = api.post("/identify", json=body)
+    assert used.status_code == 200, used.text
+    assert used.json()["pre_start_samples"] == 79  # -3.95 s to -0.05 s at 20 Hz
+    offset = used.json()["initial_offset_rad_s"]
+    assert np.allclose(offset, result.omega_measured[1, 0, :79].mean(axis=0))
+    ignored = api.post("/identify", json={**body, "pre_start_window_s": 0})
+    assert ignored.status_code == 200, ignored.text
+    assert ignored.json()["pre_start_samples"] == 0
+    assert ignored.json()["initial_offset_rad_s"] is None
+    partial = api.post("/identify/partial", json={**body, "pre_start_window_s": 2})
+    assert partial.status_code == 200, partial.text
+    form = api.post(
+        "/identify",
+        data={"classifier_id": found, "pre_start_window_s": "2"},
+        files={"file": ("t.csv", csv_text(series["time_s"], series["omega_rad_s"]))},
+    )
+    assert form.status_code == 200, form.text
+    assert form.json()["pre_start_samples"] == 40  # -2.00 s to -0.05 s
+    for bad in (-1, 1e9):
+        refused = api.post("/identify", json={**body, "pre_start_window_s": bad})
+        assert refused.status_code == 422 and "pre_start_window_s" in refused.text
+    refused = api.post(
+        "/identify",
+        data={"classifier_id": found, "pre_start_window_s": "soon"},
+        files={"file": ("t.csv", csv_text(series["time_s"], series["omega_rad_s"]))},
+    )
+    assert refused.status_code == 422 and "'soon'" in refused.text
