@@ -274,6 +274,15 @@ def sweep_cmd(
     help="Search start times within this many seconds of the given start, one grid period "
     "apart, for the one whose series is closest to a candidate; the shift is reported.",
 )
+@click.option(
+    "--pre-start-window",
+    "pre_start_window_s",
+    default=None,
+    type=click.FloatRange(0),
+    help="Seconds of telemetry before the sequence start that measure the body's rate plus "
+    "the gyro bias there and the noise level; the default classifier conditions on them "
+    "[default: 10; 0 ignores them].",
+)
 @friendly_errors
 def identify_cmd(
     classifier_path: str,
@@ -281,6 +290,7 @@ def identify_cmd(
     telemetry_paths: tuple[str, ...],
     sequence_start: str | None,
     start_window_s: float | None,
+    pre_start_window_s: float | None,
 ) -> None:
     """Classify telemetry to a candidate inertia, or say it matches none.
 
@@ -300,13 +310,17 @@ def identify_cmd(
     paths = _telemetry_files((*telemetry_paths, *inputs))
     start = parse_sequence_start(sequence_start)
     classifier = load_classifier(classifier_path)
+    options: dict[str, Any] = {}
+    if pre_start_window_s is not None:
+        options["pre_start_window_s"] = pre_start_window_s
     if len(paths) == 1 and not any(os.path.isdir(p) for p in (*telemetry_paths, *inputs)):
-        write_json(None, _identify_file(classifier, paths[0], start, start_window_s))
+        write_json(None, _identify_file(classifier, paths[0], start, start_window_s, options))
         return
     failed = 0
     for path in paths:
         try:
-            line = {"path": path, **_identify_file(classifier, path, start, start_window_s)}
+            verdict = _identify_file(classifier, path, start, start_window_s, options)
+            line = {"path": path, **verdict}
         except (InputError, ValidationError, OSError, UnicodeDecodeError) as exc:
             failed += 1
             line = {"path": path, "error": _one_line(exc)}
@@ -336,14 +350,18 @@ def _telemetry_files(given: tuple[str, ...]) -> list[str]:
 
 
 def _identify_file(
-    classifier: Any, path: str, start: float | str | None, window_s: float | None
+    classifier: Any,
+    path: str,
+    start: float | str | None,
+    window_s: float | None,
+    options: dict[str, Any],
 ) -> dict[str, Any]:
     from ..evaluation.identify import identify
     from ..evaluation.telemetry import estimate_sequence_start, load_telemetry
 
     telemetry = load_telemetry(path, sequence_start=start)
     if window_s is None:
-        return identify(classifier, telemetry).model_dump(mode="json")
+        return identify(classifier, telemetry, **options).model_dump(mode="json")
     grid = classifier.scenario_.sample_times(len(classifier.sequence_))
     shift, _ = estimate_sequence_start(
         telemetry,
@@ -351,7 +369,7 @@ def _identify_file(
         lambda series: float(classifier.transform(series[None])[0].min()),
         window_s=window_s,
     )
-    verdict = identify(classifier, telemetry.shifted(shift)).model_dump(mode="json")
+    verdict = identify(classifier, telemetry.shifted(shift), **options).model_dump(mode="json")
     return {**verdict, "sequence_start_shift_s": shift}
 
 

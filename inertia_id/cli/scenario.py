@@ -98,6 +98,17 @@ def scenario_cmd(preset_name: str, scenario_path: str | None, out: str | None) -
     "mission time), or an ISO-8601 UTC sequence start (a time_utc column). Pass the same "
     "value to `identify --sequence-start`.",
 )
+@click.option(
+    "--pre-start",
+    "pre_start_s",
+    default=0.0,
+    show_default=True,
+    type=click.FloatRange(0),
+    help="Begin the telemetry this many seconds before the sequence start (whole actuation "
+    "steps, no thruster firing: the body drifts under the disturbance from its drawn "
+    "initial rate), as a spacecraft's continuous telemetry does; `identify` measures the "
+    "rate plus gyro bias there.",
+)
 @friendly_errors
 def simulate_cmd(
     preset_name: str,
@@ -114,6 +125,7 @@ def simulate_cmd(
     engine: str,
     sample_rate_hz: float | None,
     time_offset: str | None,
+    pre_start_s: float,
 ) -> None:
     """Simulate every candidate's gyro response to a sequence."""
     import numpy as np
@@ -124,10 +136,12 @@ def simulate_cmd(
 
     scenario = load_scenario(preset_name, scenario_path)
     offset = parse_sequence_start(time_offset)
+    sequence, coast_s = _with_coast(scenario, parse_sequence(sequence_text), pre_start_s)
     if engine == "basilisk":
         _fly_basilisk(
             scenario,
-            parse_sequence(sequence_text),
+            sequence,
+            coast_s=coast_s,
             candidate=candidate,
             seed=seed,
             process_noise=process_noise,
@@ -142,7 +156,7 @@ def simulate_cmd(
         scenario = _at_rate(scenario, sample_rate_hz)
     result = simulate(
         scenario,
-        parse_sequence(sequence_text),
+        sequence,
         realisations,
         np.random.default_rng(seed),
         process_noise_scale=process_noise,
@@ -157,7 +171,7 @@ def simulate_cmd(
     }
     if out:
         arrays = {
-            "time_s": result.time_s,
+            "time_s": result.time_s - coast_s,
             "omega_measured_rad_s": result.omega_measured,
             "omega_true_rad_s": result.omega_true,
             "applied_torque_nm": result.applied_torque_nm,
@@ -176,9 +190,30 @@ def simulate_cmd(
         k = _candidate_index(names, candidate)
         if realisation >= realisations:
             raise InputError(f"--realisation {realisation} but only {realisations} simulated")
-        _write_telemetry(telemetry, result.time_s, result.omega_measured[k, realisation], offset)
+        _write_telemetry(
+            telemetry, result.time_s - coast_s, result.omega_measured[k, realisation], offset
+        )
         click.echo(f"wrote {telemetry} ({names[k]}, realisation {realisation})", err=True)
     write_json(None, summary)
+
+
+def _with_coast(scenario: Any, sequence: Any, pre_start_s: float) -> tuple[Any, float]:
+    """The sequence with ``pre_start_s`` seconds of no firing before it (whole steps), and
+    that span in seconds (the stamps' shift, so that 0 is the sequence start)."""
+    import numpy as np
+
+    from ..errors import InputError
+
+    step_s = scenario.timing.step_duration_s
+    coast = round(pre_start_s / step_s)
+    if abs(coast * step_s - pre_start_s) > 1e-9 * max(step_s, pre_start_s):
+        raise InputError(
+            f"--pre-start {pre_start_s:g} s is not a whole number of the scenario's "
+            f"{step_s:g} s steps"
+        )
+    rows = np.asarray(sequence)
+    coasting = np.zeros((coast, rows.shape[1]), dtype=rows.dtype)
+    return np.concatenate([coasting, rows]), coast * step_s
 
 
 def _candidate_index(names: list[str], candidate: str) -> int:
@@ -250,6 +285,7 @@ def _fly_basilisk(
     scenario: Any,
     sequence: Any,
     *,
+    coast_s: float,
     candidate: str,
     seed: int,
     process_noise: float,
@@ -285,7 +321,7 @@ def _fly_basilisk(
         raise click.ClickException(str(exc)) from None
     except ValueError as exc:
         raise InputError(str(exc)) from None
-    _write_telemetry(telemetry, flown.time_s, flown.omega_measured, offset)
+    _write_telemetry(telemetry, flown.time_s - coast_s, flown.omega_measured, offset)
     click.echo(f"wrote {telemetry} ({flown.candidate}, Basilisk)", err=True)
     write_json(
         None,

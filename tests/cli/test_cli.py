@@ -422,3 +422,32 @@ def test_simulate_with_basilisk_writes_telemetry_identify_reads(
     assert json.loads(verdict.stdout)["candidate"] == "payload 4 ejected"
     refused = runner.invoke(main, ["simulate", "--engine", "basilisk"])
     assert refused.exit_code == 1 and "give --telemetry" in refused.output
+
+
+def test_telemetry_from_before_the_start_is_written_and_used(
+    runner: CliRunner, tmp_path: Path
+) -> None:
+    # simulate --pre-start writes 10 s of drift before the sequence; identify measures the
+    # rate plus bias there unless --pre-start-window 0; a span that is no whole number of
+    # steps is refused by value.
+    classifier = tmp_path / "orbit.json"
+    trained = runner.invoke(
+        main, ["train", "--preset", "paper-in-orbit", "-n", "20", "--out", str(classifier)]
+    )
+    assert trained.exit_code == 0, trained.output
+    telemetry = tmp_path / "t.csv"
+    args = ["--preset", "paper-in-orbit", "--sample-rate", "1", "--pre-start", "10"]
+    _simulate_telemetry(runner, telemetry, "2", *args, "--time-offset", "810000000")
+    stamps = [line.split(",")[0] for line in telemetry.read_text().splitlines()[1:]]
+    assert stamps[0] == "809999991" and "810000000" in stamps and stamps[-1] == "810000004"
+    base = ["identify", "--classifier", str(classifier), "--sequence-start", "810000000"]
+    used = runner.invoke(main, [*base, str(telemetry)])
+    assert used.exit_code == 0, used.output
+    verdict = json.loads(used.stdout)
+    assert verdict["pre_start_samples"] == 9 and len(verdict["initial_offset_rad_s"]) == 3
+    ignored = runner.invoke(main, [*base, "--pre-start-window", "0", str(telemetry)])
+    assert ignored.exit_code == 0, ignored.output
+    assert json.loads(ignored.stdout)["pre_start_samples"] == 0
+    refused = runner.invoke(main, ["simulate", "--pre-start", "2.5", "--telemetry", "x.csv"])
+    assert refused.exit_code == 1
+    assert "--pre-start 2.5 s is not a whole number of the scenario's 1 s steps" in refused.output
