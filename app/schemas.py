@@ -456,7 +456,7 @@ class IdentifyRequest(_Request):
         le=MAX_PRE_START_WINDOW_S,
         description="seconds of telemetry before the sequence start that measure the body's "
         "rate plus the gyro bias there and the noise level, which the default classifier "
-        "conditions on (default 10; 0 ignores them)",
+        "conditions on (default 30; 0 ignores them)",
     )
 
 
@@ -511,7 +511,7 @@ class IdentifyResult(BaseModel):
     initial_offset_rad_s: list[float] | None = Field(
         default=None,
         description="the body's rate plus the gyro bias at the sequence start (rad/s), "
-        "measured by the samples in the 10 s before it; the default classifier conditions "
+        "measured by the samples in the 30 s before it; the default classifier conditions "
         "on it; null when the telemetry starts at the sequence start",
     )
     initial_offset_std_rad_s: list[float] | None = Field(

@@ -57,7 +57,7 @@ class VerdictOptions:
     :param confidence: posterior the top candidate needs (default 0.99); for a partial
         verdict the stop rule's ``alpha`` is ``1 - confidence`` (default 0.001).
     :param pre_start_window_s: seconds of telemetry before the start that measure the
-        rate plus gyro bias there (default 10; 0 ignores them).
+        rate plus gyro bias there (default 30; 0 ignores them).
     """
 
     confidence: float | None = None

@@ -11,7 +11,7 @@ mixed-duty ``CANTED_SEQUENCE``; see :func:`canted_paper`): the default classifie
 simulator. Test telemetry is flown by Basilisk (our native simulator only when Basilisk
 does not import, said so in the output) with the scenario's initial rates N(0, 5e-3
 rad/s) and gyro biases N(0, 2e-3 rad/s) per axis, at 1x noise, at each ``--rates`` gyro
-rate, beginning ``--pre-start-s`` (10) seconds before the sequence start as a
+rate, beginning ``--pre-start-s`` (30) seconds before the sequence start as a
 spacecraft's continuous telemetry does (the body coasting under the disturbance from its
 drawn rate; identify measures its rate plus the bias there), and handed to ``identify``
 (which resamples it onto the classifier's grid) and ``identify_online``.
@@ -208,8 +208,8 @@ def run_scenario(label: str, args: Any, engine: str) -> dict[str, Any]:
         f"  the 10 %-off target counts the {int(far.sum())} scaled bodies at >= 9.5 % "
         "from every candidate"
     )
-    # identify uses all the telemetry flown before the start (its default window is
-    # 10 s; a longer one pins the noise level better at 1 Hz).
+    # identify uses all the telemetry flown before the start (at least its default
+    # window, so that --pre-start-s 0 is the default call on telemetry without it).
     window = max(args.pre_start_s, DEFAULT_PRE_START_WINDOW_S)
     rows, figures = [], {}
     pooled_conf: list[float] = []
@@ -398,7 +398,7 @@ def main() -> None:
     parser.add_argument(
         "--pre-start-s",
         type=float,
-        default=10.0,
+        default=30.0,
         help="telemetry begins this long before the sequence start (a spacecraft's gyro "
         "telemetry is continuous; identify measures the body's rate plus bias and the noise "
         "level from all of it); 0: telemetry from the start only",

@@ -281,7 +281,7 @@ def sweep_cmd(
     type=click.FloatRange(0),
     help="Seconds of telemetry before the sequence start that measure the body's rate plus "
     "the gyro bias there and the noise level; the default classifier conditions on them "
-    "[default: 10; 0 ignores them].",
+    "[default: 30; 0 ignores them].",
 )
 @friendly_errors
 def identify_cmd(

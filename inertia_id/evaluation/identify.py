@@ -72,11 +72,12 @@ DEFAULT_ALPHA = 1e-3
 #: beyond for the marginal likelihood, whose noise grid absorbs much of any misfit).
 NOT_THIS_SEQUENCE_FACTOR = 5.0
 #: Telemetry this many seconds before the sequence start measures the body's rate plus
-#: the gyro bias there (:func:`initial_offset`). 10 s: at 1 Hz ten samples, whose gyro
-#: noise (3.2e-4 rad/s on the mean) and the disturbance since (3.4e-4 rad/s on the paper
-#: preset) pin the offset ten times tighter than its in-orbit prior (5.4e-3 rad/s), while
-#: the torque-free drift of a 5e-3 rad/s body over the window stays near 1e-4 rad/s.
-DEFAULT_PRE_START_WINDOW_S = 10.0
+#: the gyro bias there, and the noise level (:func:`initial_offset`). 30 s: on the paper
+#: preset at 1 Hz (four samples in the sequence) the online rule then decides 94 % of
+#: series within the sequence, against 77 % with 10 s and 19 % with none (native
+#: telemetry, 300 series): the longer window pins the noise level, while the offset's
+#: weights favour the last samples (the disturbance's random walk makes old ones stale).
+DEFAULT_PRE_START_WINDOW_S = 30.0
 #: An estimated parameter is shown when its standard error is below this fraction of
 #: the mean principal moment (the rule of ``InertiaEstimate.poorly_excited``).
 # 2 %: a sequence that drives each axis and each pair (the CLI test's six steps) gives
@@ -119,6 +120,9 @@ class Identification(BaseModel):
     pre_start_samples: int = 0
 
 
+#: The last this many samples before the start give the offset (a dense n x n solve):
+#: 400 is 2 s at 200 Hz, whose offset's gyro error is then 5e-5 rad/s.
+_OFFSET_SAMPLES = 400
 #: The last this many samples before the start weigh the noise conditions (an n x n
 #: eigendecomposition each verdict): at 12 Hz and above the sequence's own samples pin
 #: the noise level, and 120 already fix the gyro noise to about 5 %.
@@ -183,13 +187,16 @@ def initial_offset(
     """``ω(0) + b`` from the samples in the ``window_s`` seconds before the start, or
     None when there are none (or ``window_s`` is 0).
 
-    The estimate is their mean. Before the start no thruster fires, so a sample at
-    ``t < 0`` is ``ω(0) - R(t) + b + n``, with ``R(t) = ∫_t^0 I⁻¹ M_d`` the rate the
-    disturbance torque added since (the torque-free drift of a slow body is left out:
-    about 1e-4 rad/s over 10 s at 5e-3 rad/s). Its error therefore has two parts, which
-    scale with the noise multiples as the classifier's components do: the gyro noise's,
-    ``σ² / n`` per axis, and the disturbance's, ``σ_M² δ (1/n²) Σ_ij min(|t_i|, |t_j|)
-    I⁻¹ I⁻ᵀ`` (a random walk held over intervals δ; the candidates' mean ``I⁻¹ I⁻ᵀ``).
+    Before the start no thruster fires, so a sample at ``t < 0`` is ``ω(0) - R(t) + b +
+    n``, with ``R(t) = ∫_t^0 I⁻¹ M_d`` the rate the disturbance torque added since (a
+    random walk held over intervals δ: covariance ``σ_M² δ min(|s|, |t|) I⁻¹I⁻ᵀ``, the
+    candidates' mean ``I⁻¹I⁻ᵀ``; the torque-free drift of a slow body is left out, about
+    1e-4 rad/s over 10 s at 5e-3 rad/s) plus white gyro noise. The estimate weighs the
+    last :data:`_OFFSET_SAMPLES` samples by generalised least squares under that
+    covariance at 1x noise, so recent samples count most (the walk makes old ones
+    stale). At any noise level its error is then ``p² wᵀ W w I⁻¹I⁻ᵀ + q² σ² wᵀw``,
+    ``w`` the weights and ``W`` the walk: the two parts the classifier's components
+    scale by the same multiples.
     """
     if not (isinstance(window_s, int | float) and not isinstance(window_s, bool)) or not (
         window_s >= 0.0 and np.isfinite(window_s)
@@ -197,7 +204,7 @@ def initial_offset(
         raise InputError(f"pre_start_window_s must be a finite number >= 0, got {window_s!r}")
     times, omega = telemetry.before_start()
     keep = times >= -float(window_s)
-    times, omega = times[keep], omega[keep]
+    times, omega = times[keep][-_OFFSET_SAMPLES:], omega[keep][-_OFFSET_SAMPLES:]
     if times.size == 0:
         return None
     from scipy.linalg import null_space
@@ -209,6 +216,9 @@ def initial_offset(
     inverse = np.linalg.inv(scenario.inertia_array)  # (K, 3, 3)
     spread = np.mean(inverse @ np.swapaxes(inverse, 1, 2), axis=0)
     gyro_variance = unc.gyro_noise_sigma_rad_s**2
+    nominal = walk * (np.trace(spread) / 3.0) + gyro_variance * np.eye(times.size)
+    weights = np.linalg.solve(nominal, np.ones(times.size))
+    weights /= weights.sum()
     # The deviations of the last samples from their mean, in the basis where their
     # covariance p² walk ⊗ spread + q² σ² I is diagonal.
     last = slice(max(0, times.size - _EVIDENCE_SAMPLES), None)
@@ -218,9 +228,9 @@ def initial_offset(
     spread_values, spread_vectors = np.linalg.eigh(spread)
     projected = walk_vectors.T @ complement.T @ recent @ spread_vectors
     return InitialOffset(
-        offset_rad_s=omega.mean(axis=0),
-        process_variance=float(walk.sum()) / times.size**2 * spread,
-        measurement_variance=np.eye(3) * gyro_variance / times.size,
+        offset_rad_s=weights @ omega,
+        process_variance=float(weights @ walk @ weights) * spread,
+        measurement_variance=np.eye(3) * gyro_variance * float(weights @ weights),
         samples=int(times.size),
         projected=projected,
         walk_eigenvalues=np.maximum(walk_values, 0.0)[:, None],
@@ -349,8 +359,8 @@ def identify(
     :param telemetry: the response to the classifier's sequence.
     :param confidence: posterior the top candidate needs to be named, in (0, 1).
     :param pre_start_window_s: samples this many seconds before the start measure the
-        body's rate plus the gyro bias there (:func:`initial_offset`), which the
-        marginal likelihood then conditions on; 0 ignores them.
+        body's rate plus the gyro bias there and the noise level (:func:`initial_offset`),
+        which the marginal likelihood then conditions on; 0 ignores them.
     """
     confidence = _check_probability("confidence", confidence)
     telemetry, scenario, sequence, grid = _context(classifier, telemetry)
