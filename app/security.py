@@ -13,6 +13,7 @@ import json
 import secrets
 import time
 from collections.abc import Callable
+from dataclasses import KW_ONLY, InitVar, dataclass
 
 from sqlalchemy import select
 from starlette.exceptions import HTTPException
@@ -62,6 +63,8 @@ def ensure_api_key(db: Database, settings: Settings) -> str | None:
         return key
 
 
+# Compared and shown as an object: its answers are not part of its value.
+@dataclass(eq=False, repr=False)
 class KeyVerifier:
     """Checks API keys against the store without holding a connection per request.
 
@@ -77,20 +80,16 @@ class KeyVerifier:
     :param clock: monotonic seconds (tests pass their own).
     """
 
-    def __init__(
-        self,
-        lookup: Callable[[str], bool],
-        *,
-        ttl_s: float = 60.0,
-        negative_ttl_s: float = 5.0,
-        size: int = 1024,
-        clock: Callable[[], float] = time.monotonic,
-    ) -> None:
+    lookup: InitVar[Callable[[str], bool]]
+    _: KW_ONLY
+    ttl_s: float = 60.0
+    negative_ttl_s: float = 5.0
+    size: int = 1024
+    clock: InitVar[Callable[[], float]] = time.monotonic
+
+    def __post_init__(self, lookup: Callable[[str], bool], clock: Callable[[], float]) -> None:
         self._lookup = lookup
-        self.ttl_s = ttl_s
-        self.negative_ttl_s = negative_ttl_s
-        self.size = size
-        self._answers: Expiring[str, bool] = Expiring(size, clock=clock)
+        self._answers: Expiring[str, bool] = Expiring(self.size, clock=clock)
 
     @classmethod
     def for_store(cls, db: Database, settings: Settings) -> KeyVerifier:

@@ -12,7 +12,7 @@ import logging
 import math
 import time
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
+from dataclasses import KW_ONLY, InitVar, dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -94,6 +94,9 @@ def finite_metrics(rows: Iterable[tuple[str, int, float]]) -> list[tuple[str, in
     return [(k, int(s), float(v)) for k, s, v in rows if v is not None and math.isfinite(v)]
 
 
+# Compared and shown as an object (not by value): a context is one run's, and its
+# settings hold the service's secrets.
+@dataclass(eq=False, repr=False)
 class JobContext:
     """What a handler sees of the service: its job, a place for files, and reporting.
 
@@ -109,21 +112,18 @@ class JobContext:
     :param clock: monotonic seconds, for the cancel-poll throttle.
     """
 
-    def __init__(
-        self,
-        spec: JobSpec,
-        db: Database,
-        settings: Settings,
-        worker_name: str,
-        *,
-        clock: Callable[[], float] = time.monotonic,
-    ) -> None:
-        self.spec = spec
+    spec: JobSpec
+    db: InitVar[Database]
+    settings: Settings
+    worker_name: str
+    _: KW_ONLY
+    clock: InitVar[Callable[[], float]] = time.monotonic
+    cancelled: bool = field(default=False, init=False)
+    lost: bool = field(default=False, init=False)
+
+    def __post_init__(self, db: Database, clock: Callable[[], float]) -> None:
+        # Kept private: a handler reports through the context, it does not use the store.
         self._db = db
-        self.settings = settings
-        self.worker_name = worker_name
-        self.cancelled = False
-        self.lost = False
         self._clock = clock
         self._last_poll = clock()
 

@@ -26,13 +26,14 @@ from __future__ import annotations
 
 import math
 import os
-from typing import Any, ClassVar, Self, TypeGuard
+from typing import Any, ClassVar, Self
 
 import numpy as np
 from scipy import special
 from scipy.stats import chi2
 from sklearn.base import BaseEstimator
 
+from ..checks import is_integer, is_number
 from ..errors import InputError
 from ..physics.scenario import Scenario
 from ..physics.series import check_series
@@ -133,17 +134,8 @@ def none_log_odds(log_p_value: np.ndarray, prior: float) -> np.ndarray:
 
 def check_int(name: str, value: Any, minimum: int = 1) -> None:
     """Refuse anything but an integer >= ``minimum`` (a bool is not one), quoting it."""
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
+    if not is_integer(value, minimum=minimum):
         raise InputError(f"{name} must be an integer >= {minimum}, got {value!r}")
-
-
-def is_number(value: Any, *, minimum: float, exclusive: bool = False) -> TypeGuard[int | float]:
-    """``value`` is a finite real number (a bool is not one) >= ``minimum``, or >
-    ``minimum`` when ``exclusive``: the test behind the kinds' checks of a number
-    parameter, each with its own message."""
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        return False
-    return value > minimum if exclusive else value >= minimum
 
 
 def _integer_labels(y: Any, n_series: int) -> np.ndarray:

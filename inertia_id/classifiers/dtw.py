@@ -32,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from ..checks import is_integer
 from ..errors import InputError
 
 __all__ = [
@@ -50,7 +51,7 @@ _INF = np.inf
 def _band(radius: int | None, length: int) -> int:
     if radius is None:
         return length - 1
-    if isinstance(radius, bool) or not isinstance(radius, int | np.integer) or radius < 0:
+    if not is_integer(radius, minimum=0):
         raise InputError(f"radius must be None or an integer >= 0, got {radius!r}")
     return int(min(radius, length - 1))
 

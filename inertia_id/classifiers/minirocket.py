@@ -45,6 +45,7 @@ import numpy as np
 from numba import njit
 from scipy.spatial.distance import cdist
 
+from ..checks import is_integer
 from ..errors import InputError
 from .base import SupervisedClassifier, check_int
 
@@ -355,13 +356,9 @@ def fit_minirocket(
         10 000 gives 9 996 features).
     :param max_dilations_per_kernel: at most this many dilations (the paper's 32).
     """
-    if isinstance(n_features, bool) or not isinstance(n_features, int) or n_features < _N_KERNELS:
+    if not is_integer(n_features, minimum=_N_KERNELS, numpy=False):
         raise InputError(f"n_features must be an integer >= {_N_KERNELS}, got {n_features!r}")
-    if (
-        isinstance(max_dilations_per_kernel, bool)
-        or not isinstance(max_dilations_per_kernel, int)
-        or max_dilations_per_kernel < 1
-    ):
+    if not is_integer(max_dilations_per_kernel, minimum=1, numpy=False):
         raise InputError(
             f"max_dilations_per_kernel must be a positive integer, got {max_dilations_per_kernel!r}"
         )

@@ -33,6 +33,7 @@ import math
 import numpy as np
 from scipy.linalg import cho_factor, solve_triangular
 
+from ..checks import is_integer
 from ..errors import InputError
 from ..physics.scenario import Scenario
 from ..physics.simulate import Simulator
@@ -107,11 +108,7 @@ def fit_ceiling(
     :param scenario: the scenario at the point's noise (its uncertainty already scaled
         for the sources the simulator does not scale itself).
     """
-    if (
-        isinstance(n_realisations, bool)
-        or not isinstance(n_realisations, int)
-        or n_realisations < 3
-    ):
+    if not is_integer(n_realisations, minimum=3, numpy=False):
         raise InputError(
             f"the ceiling needs at least 3 realisations per candidate, got {n_realisations!r}"
         )

@@ -34,6 +34,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from pydantic import BaseModel
 
+from ..checks import is_integer
 from ..errors import InputError
 from ..physics.scenario import Scenario
 from ..physics.simulate import simulate
@@ -264,9 +265,7 @@ def run_sweep(
     per_candidate = n_test // scenario.n_candidates
     if ceiling_realisations is None:
         ceiling_realisations = limit_realisations
-    if isinstance(ceiling_realisations, bool) or not (
-        isinstance(ceiling_realisations, int) and ceiling_realisations >= 0
-    ):
+    if not is_integer(ceiling_realisations, minimum=0, numpy=False):
         raise InputError(
             f"ceiling_realisations must be an integer >= 0, got {ceiling_realisations!r}"
         )

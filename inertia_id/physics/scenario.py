@@ -13,6 +13,7 @@ from typing import Any, Self
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from ..checks import is_integer
 from ..errors import InputError
 
 __all__ = [
@@ -205,11 +206,7 @@ class Thrusters(_Model):
         if data.get("levels") is None:
             if n_levels is None:
                 raise InputError("give levels (duty values in [0, 1]) or n_levels")
-            if (
-                not isinstance(n_levels, int)
-                or isinstance(n_levels, bool)
-                or not 2 <= n_levels <= 101
-            ):
+            if not is_integer(n_levels, minimum=2, maximum=101, numpy=False):
                 # Checked before the levels are generated: a huge count would allocate them.
                 raise InputError(f"n_levels must be an integer from 2 to 101, got {n_levels!r}")
             data["levels"] = np.linspace(0.0, 1.0, n_levels).tolist()

@@ -31,6 +31,7 @@ from itertools import combinations
 
 import numpy as np
 
+from ..checks import is_integer
 from ..errors import InputError
 from .scenario import Scenario
 
@@ -53,7 +54,7 @@ _COSINE_TIE = 1e-9
 
 
 def _check_length(length: int) -> None:
-    if isinstance(length, bool) or not isinstance(length, int | np.integer) or length < 1:
+    if not is_integer(length, minimum=1):
         raise InputError(f"sequence length must be a positive integer, got {length!r}")
 
 

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..checks import is_integer
 from ..errors import InputError
 from .actuation import commanded_torque, delivered_duty
 from .dynamics import RigidBodies
@@ -159,11 +160,7 @@ class Simulator:
         process_noise_scale: float = 1.0,
         measurement_noise_scale: float = 1.0,
     ) -> None:
-        if (
-            isinstance(n_realisations, bool)
-            or not isinstance(n_realisations, int | np.integer)
-            or n_realisations < 1
-        ):
+        if not is_integer(n_realisations, minimum=1):
             raise InputError(f"n_realisations must be a positive integer, got {n_realisations!r}")
         for name, value in (
             ("process_noise_scale", process_noise_scale),

@@ -7,6 +7,7 @@ stable-baselines3's ``BaseCallback`` imports torch.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import KW_ONLY, InitVar, dataclass, field
 from typing import Any
 
 from stable_baselines3.common.callbacks import BaseCallback
@@ -17,6 +18,8 @@ from .records import SearchProgress, SearchTracker
 __all__ = ["SearchCallback"]
 
 
+# Compared and shown as an object, as stable-baselines3's callbacks are.
+@dataclass(eq=False, repr=False)
 class SearchCallback(BaseCallback):
     """Follows PPO's episodes: best sequence, learning curve, cancel and early stop.
 
@@ -36,24 +39,19 @@ class SearchCallback(BaseCallback):
         over the rollout's episodes.
     """
 
-    def __init__(
-        self,
-        tracker: SearchTracker,
-        total_timesteps: int,
-        progress: Callable[[SearchProgress], None] | None = None,
-        should_stop: Callable[[], bool] | None = None,
-        *,
-        env: Any = None,
-        lagrangian_lr: float = 0.0,
-    ) -> None:
+    tracker: SearchTracker
+    total_timesteps: int
+    progress: Callable[[SearchProgress], None] | None = None
+    should_stop: Callable[[], bool] | None = None
+    _: KW_ONLY
+    env: InitVar[Any] = None
+    lagrangian_lr: float = 0.0
+    stopped: str = field(default="budget", init=False)
+
+    def __post_init__(self, env: Any) -> None:
         super().__init__()
+        # Not ``env``: stable-baselines3 names the env it trains in ``training_env``.
         self.constrained_env = env
-        self.lagrangian_lr = lagrangian_lr
-        self.tracker = tracker
-        self.total = total_timesteps
-        self.progress = progress
-        self.should_stop = should_stop
-        self.stopped = "budget"
 
     def _on_step(self) -> bool:
         rewards, dones, infos = self.locals["rewards"], self.locals["dones"], self.locals["infos"]
@@ -72,4 +70,4 @@ class SearchCallback(BaseCallback):
             multiplier = self.constrained_env.constraint_penalty
             step = self.lagrangian_lr * self.tracker.mean_violation()
             self.constrained_env.constraint_penalty = max(0.0, multiplier + step)
-        report_point(self.tracker, self.total, self.progress)
+        report_point(self.tracker, self.total_timesteps, self.progress)

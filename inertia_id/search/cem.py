@@ -23,6 +23,7 @@ from typing import Any, Unpack
 
 import numpy as np
 
+from ..checks import is_integer
 from ..errors import InputError
 from ..physics.scenario import Scenario
 from .loop import RunOptions, SearchRun, check_budget
@@ -38,11 +39,7 @@ CONVERGED = 1e-3
 
 def check_cem_params(population: Any, elite_fraction: Any, smoothing: Any) -> int:
     """Refuse parameters the method cannot use, quoting them; return the elite count."""
-    if (
-        isinstance(population, bool)
-        or not isinstance(population, int | np.integer)
-        or not 2 <= population <= 1_000_000
-    ):
+    if not is_integer(population, minimum=2, maximum=1_000_000):
         raise InputError(f"population must be an integer in 2..1000000, got {population!r}")
     for name, value in (("elite_fraction", elite_fraction), ("smoothing", smoothing)):
         if (

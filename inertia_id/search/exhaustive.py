@@ -8,6 +8,7 @@ from typing import Unpack
 
 import numpy as np
 
+from ..checks import is_integer
 from ..errors import InputError
 from ..physics.scenario import Scenario
 from .loop import RunOptions, SearchRun
@@ -44,7 +45,7 @@ def exhaustive_search(
         the progress and cancel hooks: see :class:`~inertia_id.search.loop.SearchRun`.
     """
     size = space_size(scenario, sequence_length)
-    if isinstance(max_sequences, bool) or not isinstance(max_sequences, int) or max_sequences < 1:
+    if not is_integer(max_sequences, minimum=1, numpy=False):
         raise InputError(f"max_sequences must be a positive integer, got {max_sequences!r}")
     m, n = scenario.n_levels, scenario.n_thrusters
     if size > max_sequences:

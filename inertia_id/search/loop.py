@@ -17,6 +17,7 @@ from typing import Any, TypedDict
 
 import numpy as np
 
+from ..checks import is_integer
 from ..errors import InputError
 from ..physics.scenario import Scenario
 from .env import SequenceSearchEnv
@@ -36,11 +37,7 @@ __all__ = ["RunOptions", "SearchRun", "check_budget", "overrides", "report_point
 
 def check_budget(name: str, value: int, sequence_length: int) -> None:
     """A step budget must hold one whole sequence at least."""
-    if (
-        isinstance(value, bool)
-        or not isinstance(value, int | np.integer)
-        or value < sequence_length
-    ):
+    if not is_integer(value, minimum=sequence_length):
         raise InputError(
             f"{name} must be an integer of at least one sequence ({sequence_length} steps), "
             f"got {value!r}"

@@ -312,9 +312,9 @@ def separability_score(
     :param shrinkage: see :func:`pooled_covariance`.
     :param debias: see :func:`mahalanobis_matrix`.
     """
-    distances = bhattacharyya_matrix(omega, shrinkage=shrinkage, debias=debias)
-    k = len(distances)
-    return score_from_bound(_bound(distances, noise_margin), k)
+    bound = error_bound(omega, noise_margin=noise_margin, shrinkage=shrinkage, debias=debias)
+    # error_bound checked omega's shape, so its first axis is K.
+    return score_from_bound(bound, np.shape(omega)[0])
 
 
 def score_from_bound(bound: float, n_candidates: int) -> float:

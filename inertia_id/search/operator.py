@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from ..checks import is_integer
 from ..errors import InputError
 from ..physics.attitude import propagate_attitude, rotation_angle_deg
 from ..physics.scenario import Scenario
@@ -61,7 +62,7 @@ class OperatorSettings:
     def check(self, scenario: Scenario | None = None) -> OperatorSettings:
         """The settings with every value checked (and normalised to tuples and floats)."""
         n = self.n_realisations
-        if isinstance(n, bool) or not isinstance(n, int | np.integer) or not 2 <= n <= 1000:
+        if not is_integer(n, minimum=2, maximum=1000):
             raise InputError(f"n_realisations must be an integer in 2..1000, got {n!r}")
         objectives = check_objectives(self.objectives)
         if "propellant" in objectives and scenario is not None:
@@ -104,11 +105,7 @@ class OperatorScorer:
         seed: int,
     ) -> None:
         self.settings = (settings or OperatorSettings()).check(scenario)
-        if (
-            isinstance(sequence_length, bool)
-            or not isinstance(sequence_length, int | np.integer)
-            or sequence_length < 1
-        ):
+        if not is_integer(sequence_length, minimum=1):
             raise InputError(f"sequence_length must be a positive integer, got {sequence_length!r}")
         self.scenario = scenario
         self.sequence_length = int(sequence_length)

@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from ..checks import is_integer
 from ..errors import InputError
 from ..physics.scenario import Scenario
 from ..physics.sequences import BASELINES
@@ -77,11 +78,7 @@ def check_nsga2_params(params: dict[str, Any] | None) -> dict[str, Any]:
     merged = overrides(params, NSGA2_DEFAULTS, "unknown NSGA-II settings {unknown}; known: {known}")
     for name in ("population", "generations"):
         value = merged[name]
-        if (
-            isinstance(value, bool)
-            or not isinstance(value, int | np.integer)
-            or not (4 if name == "population" else 1) <= value <= 10_000
-        ):
+        if not is_integer(value, minimum=4 if name == "population" else 1, maximum=10_000):
             raise InputError(f"NSGA-II {name} must be an integer in its range, got {value!r}")
     for name in ("crossover_eta", "mutation_eta"):
         value = merged[name]
@@ -314,11 +311,7 @@ def pareto_search(
     from pymoo.operators.repair.rounding import RoundingRepair
 
     started = time.perf_counter()
-    if (
-        isinstance(sequence_length, bool)
-        or not isinstance(sequence_length, int | np.integer)
-        or not 1 <= sequence_length <= 50
-    ):
+    if not is_integer(sequence_length, minimum=1, maximum=50):
         raise InputError(f"sequence_length must be an integer in 1..50, got {sequence_length!r}")
     params = check_nsga2_params(nsga2_params)
     checked = (operator or OperatorSettings()).check(scenario)

@@ -34,6 +34,7 @@ from typing import Any
 
 import numpy as np
 
+from ..checks import is_integer
 from ..classifiers.clustering import InertiaClassifier, match_clusters
 from ..classifiers.dtw import kmeans_dtw
 from ..errors import InputError
@@ -111,9 +112,9 @@ class ScorerSettings:
             raise InputError(f"metric must be one of {list(SCORER_METRICS)}, got {self.metric!r}")
         for name in ("n_realisations", "max_iter", "max_iter_barycenter"):
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            if not is_integer(value, minimum=1, numpy=False):
                 raise InputError(f"{name} must be a positive integer, got {value!r}")
-        if isinstance(self.n_init, bool) or not isinstance(self.n_init, int) or self.n_init < 0:
+        if not is_integer(self.n_init, minimum=0, numpy=False):
             raise InputError(f"n_init must be an integer >= 0, got {self.n_init!r}")
         if self.n_init == 0 and not self.warm_start:
             raise InputError("n_init = 0 needs warm_start (something must start k-means)")
@@ -205,7 +206,7 @@ class PrefixScorer:
     ) -> None:
         self.settings = settings or ScorerSettings()
         self.settings.check()
-        if isinstance(max_length, bool) or not isinstance(max_length, int) or max_length < 1:
+        if not is_integer(max_length, minimum=1, numpy=False):
             raise InputError(f"max_length must be a positive integer, got {max_length!r}")
         self.scenario = scenario
         self.max_length = max_length

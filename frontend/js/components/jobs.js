@@ -154,6 +154,19 @@ export function parseTags(text) {
     .filter((t) => t);
 }
 
+// Submits a job and opens its page. A job an identical submission handed back opens
+// with the notice that offers to run it again: the body is kept for that rerun.
+export async function submitAndOpen(body) {
+  const job = await api.submitJob(body);
+  if (job.reused) {
+    sessionStorage.setItem(REUSED_KEY, JSON.stringify({ id: job.id, body }));
+    location.hash = `#/jobs/${job.id}?reused=1`;
+  } else {
+    location.hash = `#/jobs/${job.id}`;
+  }
+  return job;
+}
+
 // Shown on the page of a job an identical submission handed back: say so, and offer to
 // run it again anyway (`rerun: true`).
 export function reusedNotice(body, job) {

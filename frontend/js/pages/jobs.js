@@ -3,7 +3,7 @@
 // every two seconds without reloading the page.
 
 import { api } from "../api.js";
-import { REUSED_KEY, cancelButton, headline, jobCell, parseTags, summaryTableColumns, timingCell } from "../components/jobs.js";
+import { cancelButton, headline, jobCell, parseTags, submitAndOpen, summaryTableColumns, timingCell } from "../components/jobs.js";
 import { dataTable } from "../components/table.js";
 import { otherSpecs, vocabulary } from "../vocabulary.js";
 import { clear, h, link, messageBox, progressBar, showFieldErrors, statusBadge, when } from "../ui.js";
@@ -288,13 +288,7 @@ function submitForm(scenarios, classifiers, query) {
         submit.disabled = true;
         const sent = withLabels(body());
         try {
-          const job = await api.submitJob(sent);
-          if (job.reused) {
-            sessionStorage.setItem(REUSED_KEY, JSON.stringify({ id: job.id, body: sent }));
-            location.hash = `#/jobs/${job.id}?reused=1`;
-          } else {
-            location.hash = `#/jobs/${job.id}`;
-          }
+          await submitAndOpen(sent);
         } catch (exc) {
           const fields = Object.fromEntries(Object.entries(inputs).filter(([, v]) => v instanceof Element));
           showFieldErrors(exc, { ...fields, name: labels.name, tags: labels.tags }, general, event.target);

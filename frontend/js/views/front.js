@@ -10,9 +10,9 @@
 // A Pareto search (nsga2) holds many members; the other methods hold their best sequence
 // alone, so the page compares it with the baselines in the same terms.
 
-import { request, api } from "../api.js";
+import { request } from "../api.js";
 import { downloads } from "../components/downloads.js";
-import { REUSED_KEY } from "../components/jobs.js";
+import { submitAndOpen } from "../components/jobs.js";
 import { PLOT_CONFIG, layout, plotDiv } from "../components/plots.js";
 import { clear, fmt, h, messageBox, sequenceText } from "../ui.js";
 
@@ -245,13 +245,7 @@ async function showMember(holder, job, member, context) {
           params: { sequence: member.sequence, search_job_id: job.id, front_member: member.index },
         };
         try {
-          const made = await api.submitJob(body);
-          if (made.reused) {
-            sessionStorage.setItem(REUSED_KEY, JSON.stringify({ id: made.id, body }));
-            location.hash = `#/jobs/${made.id}?reused=1`;
-          } else {
-            location.hash = `#/jobs/${made.id}`;
-          }
+          await submitAndOpen(body);
         } catch (exc) {
           notice.append(messageBox("error", exc.message || String(exc)));
         } finally {

@@ -52,6 +52,7 @@ from typing import Any
 import numpy as np
 
 from inertia_id import Scenario, Simulator
+from inertia_id.checks import is_integer
 
 __all__ = [
     "CANTED_SEQUENCE",
@@ -451,7 +452,7 @@ def _candidate_index(scenario: Scenario, candidate: int | str) -> int:
         if candidate not in names:
             raise ValueError(f"unknown candidate {candidate!r}; known: {names}")
         return names.index(candidate)
-    if isinstance(candidate, bool) or not isinstance(candidate, int | np.integer):
+    if not is_integer(candidate):
         raise ValueError(f"candidate must be an index or a name, got {candidate!r}")
     if not 0 <= candidate < len(names):
         raise ValueError(f"candidate index {candidate} is outside 0..{len(names) - 1}")
