@@ -72,6 +72,13 @@ class Api:
     def post(self, url: str, **kwargs: Any) -> Any:
         return self.client.post(url, headers=self.auth, **kwargs)
 
+    def post_raw_json(self, url: str, content: Any) -> Any:
+        """POST ``content`` as a JSON body exactly as written: ``json=`` would encode it
+        itself and cannot carry NaN/Infinity tokens, malformed text or a streamed body."""
+        return self.client.post(
+            url, content=content, headers={**self.auth, "content-type": "application/json"}
+        )
+
     def delete(self, url: str, **kwargs: Any) -> Any:
         return self.client.delete(url, headers=self.auth, **kwargs)
 

@@ -202,9 +202,7 @@ def test_non_finite_telemetry_is_422(
         f'{{"classifier_id": "{classifier_id}", "telemetry": {{"time_s": [0.05, {time_token}, '
         f'0.15], "omega_rad_s": [[0, 0, 0], [0, 0, {omega_token}], [0, 0, 0]]}}}}'
     )
-    response = api.client.post(
-        "/identify", content=body, headers={**api.auth, "content-type": "application/json"}
-    )
+    response = api.post_raw_json("/identify", body)
     assert response.status_code == 422, response.text
     assert fragment in " | ".join(e["msg"] for e in response.json()["detail"])
 
@@ -277,8 +275,7 @@ def test_unknown_classifier_is_404(api: Api, flight: SimulationResult) -> None:
 
 
 def test_malformed_requests(api: Api, classifier_id: str) -> None:
-    headers = {**api.auth, "content-type": "application/json"}
-    not_json = api.client.post("/identify", content=b"{not json", headers=headers)
+    not_json = api.post_raw_json("/identify", b"{not json")
     assert not_json.status_code == 422
     assert "not valid JSON" in not_json.json()["detail"][0]["msg"]
     plain = api.client.post(
