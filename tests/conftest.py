@@ -11,12 +11,10 @@ from typing import Any
 
 import numpy as np
 import pytest
+from scenario_support import GOOD_SEQUENCE
 
 from inertia_id import InertiaClassifier, Scenario, preset, train
 from inertia_id.physics.presets import NOISE_OFF
-
-# The paper's "good" sequence: the three positive-axis thrusters at full duty, 4 steps.
-GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
 
 # Every source of randomness switched off, and the actuation low-pass too.
 ZERO_UNCERTAINTY: dict[str, Any] = {**NOISE_OFF, "lowpass_time_constant_s": 0.0}

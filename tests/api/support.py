@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 from fastapi import FastAPI
+from scenario_support import GOOD_SEQUENCE
 
 from inertia_id import InertiaClassifier
 from service.config import Settings
@@ -21,8 +22,6 @@ with warnings.catch_warnings():
     from fastapi.testclient import TestClient
 
 __all__ = ["GOOD_SEQUENCE", "Api", "TestClient", "make_settings"]
-
-GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
 
 
 def make_settings(data_dir: Path, database_url: str, **overrides: Any) -> Settings:

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scenario_support import I0
 from scipy.special import logsumexp
 
 from inertia_id import Scenario, identify, simulate
@@ -20,7 +21,6 @@ from inertia_id.classifiers.marginal import AXES_GRID, MarginalLikelihoodClassif
 # at 8x.
 AXIS_IN_TURN = [[4, 0, 0, 0, 0, 0], [0, 4, 0, 0, 0, 0], [0, 0, 4, 0, 0, 0], [4, 0, 0, 0, 0, 0]]
 N_TRAIN = 40
-I0 = np.diag([100.0, 60.0, 90.0])  # candidate 0 of the paper preset, kg m²
 
 
 @pytest.fixture(scope="module")

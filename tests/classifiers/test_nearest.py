@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from scenario_support import GOOD_SEQUENCE
 
 from inertia_id import InputError, Scenario
 from inertia_id.classifiers.base import SupervisedClassifier
@@ -15,7 +16,6 @@ from inertia_id.classifiers.dtw import cdist_dtw
 from inertia_id.classifiers.nearest import NearestCentroidClassifier, NearestNeighbourClassifier
 from inertia_id.classifiers.registry import classifier_from_json, train_classifier
 
-GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
 N_TRAIN = 8  # realisations per candidate
 N_FRESH = 6
 

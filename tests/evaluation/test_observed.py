@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from scenario_support import GOOD_SEQUENCE
 
 from inertia_id import Scenario, simulate
 from inertia_id.classifiers.likelihood import LikelihoodClassifier
@@ -14,8 +15,6 @@ from inertia_id.classifiers.marginal import AXES_GRID, MarginalLikelihoodClassif
 from inertia_id.errors import InputError
 from inertia_id.evaluation.identify import identify, identify_online
 from inertia_id.evaluation.telemetry import Telemetry, resample, resample_observed
-
-GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
 
 
 @pytest.fixture(scope="module")

@@ -13,11 +13,11 @@ from typing import Any
 import numpy as np
 import pydantic
 import pytest
+from scenario_support import GOOD_SEQUENCE
 
 from inertia_id import InertiaClassifier, Scenario, Telemetry, identify, parse_telemetry, simulate
 from inertia_id.evaluation.telemetry import estimate_sequence_start, resample
 
-GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
 MISSION_START_S = 810_000_123.0  # a spacecraft clock ~26 years after its epoch
 UTC_START = datetime(2025, 3, 1, 12, 0, 0, tzinfo=UTC)
 

@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from scenario_support import GOOD_SEQUENCE
 
 from inertia_id import InertiaClassifier, Scenario, simulate, train
 from inertia_id.classifiers.base import BaseClassifier
@@ -16,8 +17,6 @@ from inertia_id.errors import InputError
 from inertia_id.evaluation.calibration import calibrate
 from inertia_id.evaluation.identify import decide, identify, identify_online
 from inertia_id.physics.simulate import InitialDraw, Simulator
-
-GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
 
 
 def telemetry_of(time_s: np.ndarray, omega: np.ndarray) -> dict[str, Any]:

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any
 
 import pytest
 from click.testing import CliRunner
+from scenario_support import GOOD_SEQUENCE
 
 from inertia_id.cli import main
 from service.store import ClassifierRow
@@ -22,8 +23,7 @@ if TYPE_CHECKING:
     from conftest import Store
 
 WORKER = "parity@host"
-GOOD = [[4, 4, 4, 0, 0, 0]] * 4
-GOOD_TEXT = ";".join(",".join(map(str, row)) for row in GOOD)
+GOOD_TEXT = ";".join(",".join(map(str, row)) for row in GOOD_SEQUENCE)
 
 
 def run_job(store: Store, job_type: str, params: dict[str, Any], seed: int) -> dict[str, Any]:
@@ -53,7 +53,9 @@ def test_train_gives_the_same_classifier(
 ) -> None:
     out = tmp_path / "classifier.json"
     run_cli(["train", "--sequence", GOOD_TEXT, "-n", "6", "--seed", "4", "--out", str(out), *cli])
-    result = run_job(store, "train", {"sequence": GOOD, "n_realisations": 6, **params}, seed=4)
+    result = run_job(
+        store, "train", {"sequence": GOOD_SEQUENCE, "n_realisations": 6, **params}, seed=4
+    )
     with store.db.session() as session:
         row = session.get(ClassifierRow, result["classifier_id"])
         assert row is not None
@@ -79,7 +81,10 @@ def test_sweep_gives_the_same_points(store: Store, tmp_path: Path) -> None:
         ]
     )
     trained = run_job(
-        store, "train", {"sequence": GOOD, "metric": "euclidean", "n_realisations": 6}, seed=1
+        store,
+        "train",
+        {"sequence": GOOD_SEQUENCE, "metric": "euclidean", "n_realisations": 6},
+        seed=1,
     )
     out = tmp_path / "sweep.json"
     run_cli(
