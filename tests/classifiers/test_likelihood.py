@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from scenario_support import GOOD_SEQUENCE
+from scenario_support import GOOD_SEQUENCE, noisy
 from scipy.stats import multivariate_normal
 
 from inertia_id import InertiaClassifier, InputError, Scenario, simulate, train
@@ -130,13 +130,7 @@ def test_never_worse_than_the_kmeans_classifier(
     metric: str,
     process_noise_scale: float,
 ) -> None:
-    X, y = simulate(
-        paper,
-        MIXED_SEQUENCE,
-        40,
-        np.random.default_rng(11),
-        process_noise_scale=process_noise_scale,
-    ).dataset()
+    X, y = noisy(paper, MIXED_SEQUENCE, 40, 11, process=process_noise_scale)
     baseline = kmeans[metric].evaluate(X, y)["accuracy"]
     ours = likelihood.evaluate(X, y)["accuracy"]
     standard_error = math.sqrt(baseline * (1.0 - baseline) / len(y))
