@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 import pytest
 from cli_support import run_cli, run_cli_json
@@ -46,28 +47,18 @@ def test_train_simulate_identify_round_trip(tmp_path: Path) -> None:
     assert verdict["matches_none"] is False
 
 
+def run_paper(out: Path, *options: str) -> dict[str, Any]:
+    """``inertia-id paper`` with a small euclidean training into ``out``; its summary."""
+    run_cli(["paper", "--metric", "euclidean", "-n", "10", *options, "--out-dir", str(out)])
+    summary: dict[str, Any] = json.loads((out / "summary.json").read_text())
+    return summary
+
+
 def test_paper_writes_results_and_report(tmp_path: Path) -> None:
     out = tmp_path / "paper"
-    run_cli(
-        [
-            "paper",
-            "--search",
-            "none",
-            "--metric",
-            "euclidean",
-            "-n",
-            "10",
-            "--multiples",
-            "1,8",
-            "--n-test",
-            "50",
-            "--out-dir",
-            str(out),
-        ]
-    )
+    summary = run_paper(out, "--search", "none", "--multiples", "1,8", "--n-test", "50")
     for name in ("classifier.json", "sweep.json", "scenario.json", "summary.json", "report.html"):
         assert (out / name).is_file(), name
-    summary = json.loads((out / "summary.json").read_text())
     assert summary["training_f1"] == 1.0
     assert set(summary["accuracy"]["process"]) == {"1", "8"}
     assert "Accuracy vs noise" in (out / "report.html").read_text()
@@ -77,31 +68,10 @@ def test_paper_writes_results_and_report(tmp_path: Path) -> None:
 
 def test_paper_uses_the_searched_sequence(tmp_path: Path) -> None:
     out = tmp_path / "paper"
-    run_cli(
-        [
-            "paper",
-            "--search",
-            "random",
-            "--length",
-            "2",
-            "--timesteps",
-            "40",
-            "--search-realisations",
-            "5",
-            "--metric",
-            "euclidean",
-            "-n",
-            "10",
-            "--multiples",
-            "1",
-            "--n-test",
-            "20",
-            "--out-dir",
-            str(out),
-        ]
-    )
+    searching = ["--search", "random", "--length", "2", "--timesteps", "40"]
+    searching += ["--search-realisations", "5"]
+    summary = run_paper(out, *searching, "--multiples", "1", "--n-test", "20")
     search = json.loads((out / "search.json").read_text())
-    summary = json.loads((out / "summary.json").read_text())
     assert summary["sequence"] == search["best"]["sequence"]
     assert len(summary["sequence"]) == 2
     assert summary["sequence_from"] == "random search"
