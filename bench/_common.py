@@ -59,6 +59,11 @@ def add_steps(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def add_length(parser: argparse.ArgumentParser) -> None:
+    """--length: the steps L of the sequences a search benchmark looks for."""
+    parser.add_argument("--length", type=positive_int, default=4, help="sequence steps L")
+
+
 def int_list(text: str) -> list[int]:
     """argparse type: a comma-separated list of positive integers."""
     try:
@@ -215,6 +220,14 @@ def print_header(title: str, args: argparse.Namespace) -> None:
     options = ", ".join(f"{k}={v}" for k, v in vars(args).items() if k != "json")
     print(f"options: {options}")
     print(flush=True)
+
+
+def begin(parser: argparse.ArgumentParser, title: str) -> argparse.Namespace:
+    """Parse the command line and print the run's header (``title``, the environment and
+    the options), which is how every benchmark that needs no check in between begins."""
+    args = parser.parse_args()
+    print_header(title, args)
+    return args
 
 
 def write_json(path: str | None, args: argparse.Namespace, figures: dict[str, Any]) -> None:

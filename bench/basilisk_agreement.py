@@ -47,16 +47,7 @@ from inertia_id.physics.engines import (
     canted_full_tensor_scenario,
     simulate_basilisk,
 )
-
-NOISE_OFF: dict[str, Any] = {
-    "duty_jitter_sigma": 0.0,
-    "thrust_scale_sigma": 0.0,
-    "disturbance_torque_sigma_nm": 0.0,
-    "gyro_noise_sigma_rad_s": 0.0,
-    "gyro_bias_rad_s": (0.0, 0.0, 0.0),
-    "gyro_bias_sigma_rad_s": 0.0,
-    "initial_rate_sigma_rad_s": 0.0,
-}
+from inertia_id.physics.presets import NOISE_OFF
 
 
 def scenarios() -> list[tuple[str, Scenario, list[list[int]]]]:

@@ -20,8 +20,8 @@ from _common import (
     add_realisations,
     add_steps,
     base_parser,
+    begin,
     positive_int,
-    print_header,
     print_table,
     random_sequence,
     sequence_text,
@@ -143,8 +143,7 @@ def main() -> None:
     )
     add_realisations(parser)
     add_steps(parser)
-    args = parser.parse_args()
-    print_header("Noise calibration of the paper preset at 1x noise", args)
+    args = begin(parser, "Noise calibration of the paper preset at 1x noise")
 
     scenario = Scenario.paper()
     no_jitter = scenario.with_uncertainty(duty_jitter_sigma=0.0)

@@ -28,7 +28,7 @@ from _common import (
     add_realisations,
     add_steps,
     base_parser,
-    print_header,
+    begin,
     print_table,
     random_sequence,
     sequence_text,
@@ -106,8 +106,7 @@ def main() -> None:
         help="random_state values (seed, seed+1, ...) each estimator is fitted "
         "with on the good sequence; 0 skips this part",
     )
-    args = parser.parse_args()
-    print_header("Classifier fit: InertiaClassifier vs tslearn TimeSeriesKMeans defaults", args)
+    args = begin(parser, "Classifier fit: InertiaClassifier vs tslearn TimeSeriesKMeans defaults")
 
     scenario = Scenario.paper()
     rng = np.random.default_rng(args.seed)

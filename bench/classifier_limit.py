@@ -31,7 +31,7 @@ import time
 from typing import Any
 
 import numpy as np
-from _common import base_parser, print_header, print_table, sequence_text, warm_up_numba, write_json
+from _common import base_parser, begin, print_table, sequence_text, warm_up_numba, write_json
 
 from inertia_id import Scenario, run_sweep, simulate, train_classifier
 from inertia_id.classifiers.registry import default_realisations, parse_spec
@@ -127,8 +127,7 @@ def main() -> None:
     parser.add_argument(
         "--limit-realisations", type=int, default=400, help="the limit's training per candidate"
     )
-    args = parser.parse_args()
-    print_header("Classifiers against the limit, paper preset", args)
+    args = begin(parser, "Classifiers against the limit, paper preset")
     warm_up_numba()
     scenario = Scenario.paper()
     sequences = {

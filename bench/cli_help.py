@@ -17,7 +17,7 @@ import sys
 import time
 from pathlib import Path
 
-from _common import base_parser, positive_int, print_header, print_table, write_json
+from _common import base_parser, begin, positive_int, print_table, write_json
 
 #: The commands of ``inertia_id.cli.COMMANDS``, read here without importing the CLI.
 COMMANDS = ("identify", "paper", "scenario", "search", "serve", "simulate", "sweep", "train")
@@ -49,8 +49,7 @@ def main() -> None:
     parser = base_parser(__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=positive_int, default=5, help="measured runs each")
     parser.add_argument("--command", default=None, help="the inertia-id executable to run")
-    args = parser.parse_args()
-    print_header("inertia-id --help: wall time in a fresh process", args)
+    args = begin(parser, "inertia-id --help: wall time in a fresh process")
     script = _script(args.command)
     rows, figures = [], {}
     for command in (None, *COMMANDS):

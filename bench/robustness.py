@@ -19,7 +19,7 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from _common import base_parser, print_header, print_table, warm_up_numba, write_json
+from _common import base_parser, begin, print_table, warm_up_numba, write_json
 
 from inertia_id import Scenario, run_inertia_sweep, run_sweep, train_classifier
 from inertia_id.classifiers.registry import parse_spec
@@ -33,8 +33,7 @@ def main() -> None:
     parser = base_parser(__doc__.splitlines()[0])
     parser.add_argument("--kinds", default="clustering:dtw,nearest-centroid:euclidean")
     parser.add_argument("--n-test", type=int, default=500, help="test series per point")
-    args = parser.parse_args()
-    print_header("Robustness to confounders, paper preset, hand-designed sequence", args)
+    args = begin(parser, "Robustness to confounders, paper preset, hand-designed sequence")
     warm_up_numba()
     scenario = Scenario.paper()
     sequence = hand_designed(scenario, 4)

@@ -18,7 +18,7 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 
-from _common import base_parser, positive_int, print_header, print_table, write_json
+from _common import add_length, base_parser, begin, positive_int, print_table, write_json
 
 
 def _run(method: str, timesteps: int, seed: int, length: int) -> dict[str, Any]:
@@ -51,9 +51,8 @@ def _run(method: str, timesteps: int, seed: int, length: int) -> dict[str, Any]:
 def main() -> None:
     parser = base_parser(__doc__.splitlines()[0])
     parser.add_argument("--rollouts", type=positive_int, default=10, help="PPO rollouts")
-    parser.add_argument("--length", type=positive_int, default=4, help="sequence steps L")
-    args = parser.parse_args()
-    print_header("PPO vs random search at equal environment steps (paper preset)", args)
+    add_length(parser)
+    args = begin(parser, "PPO vs random search at equal environment steps (paper preset)")
     timesteps = args.rollouts * 2048
     with ProcessPoolExecutor(max_workers=2) as pool:
         futures = {

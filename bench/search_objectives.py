@@ -25,7 +25,15 @@ import time
 from dataclasses import replace
 from typing import Any
 
-from _common import GOOD_SEQUENCE, base_parser, positive_int, print_header, print_table, write_json
+from _common import (
+    GOOD_SEQUENCE,
+    add_length,
+    base_parser,
+    begin,
+    positive_int,
+    print_table,
+    write_json,
+)
 
 from inertia_id import Scenario
 from inertia_id.search import (
@@ -140,13 +148,12 @@ def main() -> None:
     parser = base_parser(__doc__.splitlines()[0])
     parser.add_argument("--runs", type=runs_list, default=runs_list(DEFAULT_RUNS),
                         help="method:objective pairs, comma-separated")  # fmt: skip
-    parser.add_argument("--length", type=positive_int, default=4, help="sequence steps L")
+    add_length(parser)
     parser.add_argument("--cap", type=float, default=300.0, help="seconds per run at most")
     parser.add_argument(
         "--timesteps", type=positive_int, default=2_000_000, help="step budget per run"
     )
-    args = parser.parse_args()
-    print_header("Time to a perfectly clustering sequence, by search method and objective", args)
+    args = begin(parser, "Time to a perfectly clustering sequence, by search method and objective")
     scenario = Scenario.paper()
     # numba's JIT compile of the DTW k-means, on other noise, before anything is timed.
     PrefixScorer(scenario, 1, ScorerSettings(), seed=args.seed + 1).score(GOOD_SEQUENCE[:1])

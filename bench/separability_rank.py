@@ -27,10 +27,11 @@ from typing import Any
 import numpy as np
 from _common import (
     GOOD_SEQUENCE,
+    add_length,
     add_realisations,
     base_parser,
+    begin,
     positive_int,
-    print_header,
     print_table,
     random_sequence,
     write_json,
@@ -72,7 +73,7 @@ def spearman(x: list[float], y: list[float]) -> tuple[float, float, float]:
 def main() -> None:
     parser = base_parser(__doc__.splitlines()[0])
     parser.add_argument("--sequences", type=positive_int, default=200, help="random sequences")
-    parser.add_argument("--length", type=positive_int, default=4, help="sequence steps L")
+    add_length(parser)
     add_realisations(parser)
     parser.add_argument(
         "--fresh-draws",
@@ -80,8 +81,7 @@ def main() -> None:
         default=2,
         help="independent draws for the fresh clustering F1 (0 = skip it)",
     )
-    args = parser.parse_args()
-    print_header("Separability score against the clustering F1 (paper preset)", args)
+    args = begin(parser, "Separability score against the clustering F1 (paper preset)")
     print(f"load average (1, 5, 15 min) at the start: {os.getloadavg()}")
     scenario = Scenario.paper()
     settings = ScorerSettings(n_realisations=args.realisations)

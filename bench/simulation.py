@@ -16,10 +16,10 @@ import numpy as np
 from _common import (
     add_steps,
     base_parser,
+    begin,
     best_of,
     int_list,
     positive_int,
-    print_header,
     print_table,
     random_sequence,
     sequence_text,
@@ -80,8 +80,7 @@ def main() -> None:
         default=2,
         help="timed repeats of the per-series loop (best is kept)",
     )
-    args = parser.parse_args()
-    print_header("Simulation throughput: batched simulator vs per-series RK4 loop", args)
+    args = begin(parser, "Simulation throughput: batched simulator vs per-series RK4 loop")
 
     scenario = Scenario.paper()
     timing = scenario.timing

@@ -11,22 +11,10 @@ from typing import Any
 
 import numpy as np
 import pytest
+from scenario_support import GOOD_SEQUENCE
 
 from inertia_id import InertiaClassifier, Scenario, preset, train
-
-# The paper's "good" sequence: the three positive-axis thrusters at full duty, 4 steps.
-GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
-
-# Every source of randomness switched off; the actuation low-pass stays on (it is physics).
-NOISE_OFF: dict[str, Any] = {
-    "duty_jitter_sigma": 0.0,
-    "thrust_scale_sigma": 0.0,
-    "disturbance_torque_sigma_nm": 0.0,
-    "gyro_noise_sigma_rad_s": 0.0,
-    "gyro_bias_rad_s": (0.0, 0.0, 0.0),
-    "gyro_bias_sigma_rad_s": 0.0,
-    "initial_rate_sigma_rad_s": 0.0,
-}
+from inertia_id.physics.presets import NOISE_OFF
 
 # Every source of randomness switched off, and the actuation low-pass too.
 ZERO_UNCERTAINTY: dict[str, Any] = {**NOISE_OFF, "lowpass_time_constant_s": 0.0}

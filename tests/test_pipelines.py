@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scenario_support import GOOD_SEQUENCE
 
 from inertia_id import (
     InertiaClassifier,
@@ -29,9 +30,6 @@ from inertia_id.pipelines import (
     train_others,
 )
 
-GOOD = [[4, 4, 4, 0, 0, 0]] * 4
-
-
 # Requests from job params.
 
 
@@ -46,21 +44,23 @@ def test_a_request_takes_the_names_it_knows_and_defaults_the_rest() -> None:
 
 
 def test_a_train_request_resolves_kind_realisations_and_options() -> None:
-    assert TrainRequest(GOOD).resolved() == ("marginal-likelihood", 100, {})
-    assert TrainRequest(GOOD, metric="euclidean").resolved() == (
+    assert TrainRequest(GOOD_SEQUENCE).resolved() == ("marginal-likelihood", 100, {})
+    assert TrainRequest(GOOD_SEQUENCE, metric="euclidean").resolved() == (
         "clustering",
         20,
         {"metric": "euclidean"},
     )
-    assert TrainRequest(GOOD, kind="1nn", sakoe_chiba_radius=3, n_realisations=7).resolved() == (
+    assert TrainRequest(
+        GOOD_SEQUENCE, kind="1nn", sakoe_chiba_radius=3, n_realisations=7
+    ).resolved() == (
         "1nn",
         7,
         {"metric": "dtw", "sakoe_chiba_radius": 3},
     )
     with pytest.raises(InputError, match=r"the 'likelihood' classifier takes no metric, got 'dtw'"):
-        TrainRequest(GOOD, kind="likelihood", metric="dtw").resolved()
+        TrainRequest(GOOD_SEQUENCE, kind="likelihood", metric="dtw").resolved()
     with pytest.raises(InputError, match=r"takes no DTW band, got 2"):
-        TrainRequest(GOOD, kind="least-squares", sakoe_chiba_radius=2).resolved()
+        TrainRequest(GOOD_SEQUENCE, kind="least-squares", sakoe_chiba_radius=2).resolved()
 
 
 def test_a_search_request_gives_each_method_its_own_options() -> None:
@@ -84,18 +84,20 @@ def test_a_search_request_gives_each_method_its_own_options() -> None:
 
 
 def test_training_draws_from_the_seed(paper: Scenario) -> None:
-    request = TrainRequest(GOOD, metric="euclidean", n_realisations=5)
+    request = TrainRequest(GOOD_SEQUENCE, metric="euclidean", n_realisations=5)
     trained = train_for_sequence(paper, request, seed=3)
     assert isinstance(trained.model, InertiaClassifier)
-    same = train_classifier(paper, GOOD, 5, np.random.default_rng(3), metric="euclidean")
+    same = train_classifier(paper, GOOD_SEQUENCE, 5, np.random.default_rng(3), metric="euclidean")
     assert trained.model.to_json() == same.to_json()
     assert trained.summary()["n_realisations"] == 5 and trained.summary()["kind"] == "clustering"
-    default = train_for_sequence(paper, TrainRequest(GOOD, n_realisations=4), seed=3)
+    default = train_for_sequence(paper, TrainRequest(GOOD_SEQUENCE, n_realisations=4), seed=3)
     assert isinstance(default.model, MarginalLikelihoodClassifier)
 
 
 def test_others_train_one_after_another_from_one_generator(paper: Scenario) -> None:
-    others = train_others(paper, GOOD, ["likelihood", "1nn:euclidean"], 4, np.random.default_rng(2))
+    others = train_others(
+        paper, GOOD_SEQUENCE, ["likelihood", "1nn:euclidean"], 4, np.random.default_rng(2)
+    )
     assert list(others) == ["likelihood", "1nn:euclidean"]
     assert isinstance(others["likelihood"], LikelihoodClassifier)
     assert others["1nn:euclidean"].metric == "euclidean"
@@ -115,7 +117,11 @@ def test_the_sweep_seeds_its_streams_from_one_seed(
     test_seed = int(streams[1].generate_state(1)[0])
     assert outcome.sweep.seed == test_seed
     others = train_others(
-        euclidean_classifier.scenario_, GOOD, ["likelihood"], 4, np.random.default_rng(streams[0])
+        euclidean_classifier.scenario_,
+        GOOD_SEQUENCE,
+        ["likelihood"],
+        4,
+        np.random.default_rng(streams[0]),
     )
     by_hand = run_sweep(
         euclidean_classifier,
@@ -150,10 +156,10 @@ def test_a_sweep_refuses_a_scenario_with_other_candidates(
         sweep_with_limit(euclidean_classifier, request, seed=1, scenario=other)
     slower = preset("paper", timing={"sample_rate_hz": 10.0})
     with pytest.raises(InputError, match=r"samples 10 times per step at 10 Hz; the classifier"):
-        check_sweep_scenario(slower, paper, GOOD)
+        check_sweep_scenario(slower, paper, GOOD_SEQUENCE)
     fewer = preset("paper", thrusters={"n_levels": 3})
     with pytest.raises(InputError, match=r"does not drive scenario 'paper': .* level index 4"):
-        check_sweep_scenario(fewer, paper, GOOD)
+        check_sweep_scenario(fewer, paper, GOOD_SEQUENCE)
 
 
 # The paper.
@@ -169,7 +175,7 @@ def test_the_paper_pipeline_keeps_its_seeds(tmp_path: Path) -> None:
     assert outcome.sweep.seed == int(streams[1].generate_state(1)[0])
     classifier = InertiaClassifier.load(tmp_path / "classifier.json")
     again = train_classifier(
-        Scenario.paper(), GOOD, 5, np.random.default_rng(streams[0]), metric="euclidean"
+        Scenario.paper(), GOOD_SEQUENCE, 5, np.random.default_rng(streams[0]), metric="euclidean"
     )
     assert classifier.to_json() == again.to_json()
     assert outcome.summary["sequence_from"] == "given" and outcome.summary["seed"] == 2

@@ -12,6 +12,8 @@ one and merges overrides into its sections.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from types import MappingProxyType
 from typing import Any
 
 import numpy as np
@@ -19,7 +21,23 @@ import numpy as np
 from ..errors import InputError
 from .scenario import CandidateGenerator, Scenario, Thrusters, Timing, Uncertainty
 
-__all__ = ["PRESETS", "preset"]
+__all__ = ["NOISE_OFF", "PRESETS", "preset"]
+
+#: :class:`Uncertainty` overrides switching every source of randomness off (duty jitter,
+#: thrust scale, disturbance torque, gyro noise and bias, initial rate) while keeping the
+#: actuation low-pass, which is physics: ``scenario.with_uncertainty(**NOISE_OFF)`` gives
+#: the nominal response a flight team predicts. Read-only, as every caller shares it.
+NOISE_OFF: Mapping[str, Any] = MappingProxyType(
+    {
+        "duty_jitter_sigma": 0.0,
+        "thrust_scale_sigma": 0.0,
+        "disturbance_torque_sigma_nm": 0.0,
+        "gyro_noise_sigma_rad_s": 0.0,
+        "gyro_bias_rad_s": (0.0, 0.0, 0.0),
+        "gyro_bias_sigma_rad_s": 0.0,
+        "initial_rate_sigma_rad_s": 0.0,
+    }
+)
 
 
 def _paper() -> Scenario:

@@ -23,6 +23,7 @@ import numpy as np
 from ..checks import is_integer
 from ..errors import InputError
 from ..physics.attitude import propagate_attitude, rotation_angle_deg
+from ..physics.presets import NOISE_OFF
 from ..physics.scenario import Scenario
 from ..physics.simulate import Simulator
 from .objectives import (
@@ -190,15 +191,7 @@ class OperatorScorer:
 def nominal_rates(scenario: Scenario, sequence: Any) -> np.ndarray:
     """Each candidate's body rates with every source of noise off (the actuation lag
     kept): what a flight team predicts, (K, T, 3) rad/s at the gyro's sample times."""
-    quiet = scenario.with_uncertainty(
-        duty_jitter_sigma=0.0,
-        thrust_scale_sigma=0.0,
-        disturbance_torque_sigma_nm=0.0,
-        gyro_noise_sigma_rad_s=0.0,
-        gyro_bias_rad_s=(0.0, 0.0, 0.0),
-        gyro_bias_sigma_rad_s=0.0,
-        initial_rate_sigma_rad_s=0.0,
-    )
+    quiet = scenario.with_uncertainty(**NOISE_OFF)
     rows = quiet.check_sequence(sequence)
     simulator = Simulator(quiet, 1)
     result = simulator.run(rows, simulator.draw_noise(np.random.default_rng(0), len(rows)))

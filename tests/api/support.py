@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 from fastapi import FastAPI
+from scenario_support import GOOD_SEQUENCE
 
 from inertia_id import InertiaClassifier
 from service.config import Settings
@@ -21,8 +22,6 @@ with warnings.catch_warnings():
     from fastapi.testclient import TestClient
 
 __all__ = ["GOOD_SEQUENCE", "Api", "TestClient", "make_settings"]
-
-GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
 
 
 def make_settings(data_dir: Path, database_url: str, **overrides: Any) -> Settings:
@@ -71,6 +70,13 @@ class Api:
 
     def post(self, url: str, **kwargs: Any) -> Any:
         return self.client.post(url, headers=self.auth, **kwargs)
+
+    def post_raw_json(self, url: str, content: Any) -> Any:
+        """POST ``content`` as a JSON body exactly as written: ``json=`` would encode it
+        itself and cannot carry NaN/Infinity tokens, malformed text or a streamed body."""
+        return self.client.post(
+            url, content=content, headers={**self.auth, "content-type": "application/json"}
+        )
 
     def delete(self, url: str, **kwargs: Any) -> Any:
         return self.client.delete(url, headers=self.auth, **kwargs)

@@ -202,33 +202,38 @@ def test_non_finite_telemetry_is_422(
         f'{{"classifier_id": "{classifier_id}", "telemetry": {{"time_s": [0.05, {time_token}, '
         f'0.15], "omega_rad_s": [[0, 0, 0], [0, 0, {omega_token}], [0, 0, 0]]}}}}'
     )
-    response = api.client.post(
-        "/identify", content=body, headers={**api.auth, "content-type": "application/json"}
-    )
+    response = api.post_raw_json("/identify", body)
     assert response.status_code == 422, response.text
     assert fragment in " | ".join(e["msg"] for e in response.json()["detail"])
 
 
-def test_non_finite_csv_is_422(api: Api, classifier_id: str) -> None:
-    text = "time_s,wx,wy,wz\n0.05,0,0,0\n0.10,0,nan,0\n0.15,0,0,0\n"
+@pytest.mark.parametrize(
+    ("text", "fragment"),
+    [
+        pytest.param(
+            "time_s,wx,wy,wz\n0.05,0,0,0\n0.10,0,nan,0\n0.15,0,0,0\n",
+            "omega_rad_s[1][1] = nan is not finite",
+            id="non-finite",
+        ),
+        # A lone carriage return makes Python's csv module raise csv.Error (found by fuzzing).
+        pytest.param(
+            "time_s,wx,wy,wz\n0.05,0,0\r,0\n0.10,0,0,0\n", "not valid CSV", id="malformed"
+        ),
+        pytest.param(
+            "time_s,wx,wy\n0.05,0,0\n0.10,0,0\n", "has 3 columns, expected 4", id="3-columns"
+        ),
+    ],
+)
+def test_bad_csv_is_422(api: Api, classifier_id: str, text: str, fragment: str) -> None:
     response = api.post(
         "/identify", data={"classifier_id": classifier_id}, files={"file": ("t.csv", text)}
     )
     assert response.status_code == 422
-    assert "omega_rad_s[1][1] = nan is not finite" in response.json()["detail"][0]["msg"]
-
-
-def test_malformed_csv_is_422(api: Api, classifier_id: str) -> None:
-    """A lone carriage return makes Python's csv module raise csv.Error (found by fuzzing)."""
-    text = "time_s,wx,wy,wz\n0.05,0,0\r,0\n0.10,0,0,0\n"
-    response = api.post(
-        "/identify", data={"classifier_id": classifier_id}, files={"file": ("t.csv", text)}
-    )
-    assert response.status_code == 422
-    assert "not valid CSV" in response.json()["detail"][0]["msg"]
+    assert fragment in response.json()["detail"][0]["msg"]
 
 
 def test_wrong_column_count_is_422(api: Api, classifier_id: str) -> None:
+    """The JSON form; the CSV form is test_bad_csv_is_422[3-columns]."""
     body = {
         "classifier_id": classifier_id,
         "telemetry": {"time_s": [0.05, 0.1], "omega_rad_s": [[0, 0, 0], [0, 0]]},
@@ -236,13 +241,6 @@ def test_wrong_column_count_is_422(api: Api, classifier_id: str) -> None:
     response = api.post("/identify", json=body)
     assert response.status_code == 422
     assert "omega_rad_s row 1 has 2 columns, expected 3" in response.json()["detail"][0]["msg"]
-
-    csv = "time_s,wx,wy\n0.05,0,0\n0.10,0,0\n"
-    response = api.post(
-        "/identify", data={"classifier_id": classifier_id}, files={"file": ("t.csv", csv)}
-    )
-    assert response.status_code == 422
-    assert "has 3 columns, expected 4" in response.json()["detail"][0]["msg"]
 
 
 @pytest.mark.parametrize(
@@ -277,8 +275,7 @@ def test_unknown_classifier_is_404(api: Api, flight: SimulationResult) -> None:
 
 
 def test_malformed_requests(api: Api, classifier_id: str) -> None:
-    headers = {**api.auth, "content-type": "application/json"}
-    not_json = api.client.post("/identify", content=b"{not json", headers=headers)
+    not_json = api.post_raw_json("/identify", b"{not json")
     assert not_json.status_code == 422
     assert "not valid JSON" in not_json.json()["detail"][0]["msg"]
     plain = api.client.post(

@@ -256,9 +256,7 @@ def test_non_finite_json_numbers_are_422(api: Api) -> None:
             f'{{"type": "search", "scenario_id": "{scenario_id}", '
             f'"params": {{"fuel_weight": {token}, "ppo": {{"learning_rate": {token}}}}}}}'
         )
-        response = api.client.post(
-            "/jobs", content=body, headers={**api.auth, "content-type": "application/json"}
-        )
+        response = api.post_raw_json("/jobs", body)
         assert response.status_code == 422, response.text
         locs = [e["loc"][-1] for e in response.json()["detail"]]
         assert "fuel_weight" in locs

@@ -118,9 +118,7 @@ def test_oversized_streamed_body_is_413(small_body_api: Api) -> None:
         yield b'"}}'
 
     for path in ("/scenarios", "/identify"):
-        response = api.client.post(
-            path, content=chunks(), headers={**api.auth, "content-type": "application/json"}
-        )
+        response = api.post_raw_json(path, chunks())
         assert response.status_code == 413, (path, response.text)
         assert "exceeds the limit of 2000 bytes" in response.json()["detail"]
 

@@ -9,6 +9,7 @@ from typing import Any
 import pytest
 from sqlalchemy import func, select
 from sqlalchemy.exc import IntegrityError
+from sqlalchemy.orm import Session
 
 from inertia_id import Scenario
 from service.store import Database, JobRow, ScenarioRow, upgrade
@@ -25,7 +26,9 @@ def db(database_url: str) -> Database:
     database.dispose()
 
 
-def _scenario(db: Database) -> str:
+@pytest.fixture
+def scenario_id(db: Database) -> str:
+    """A stored paper scenario, which every submission below refers to."""
     with db.session() as session:
         row = ScenarioRow(name="paper", document=Scenario.paper().model_dump(mode="json"))
         session.add(row)
@@ -53,6 +56,13 @@ def _at_once(count: int, work: Callable[[], Any]) -> list[Any]:
     return results
 
 
+def _job(session: Session, job_id: str) -> JobRow:
+    """The job's row, which must exist."""
+    job = session.get(JobRow, job_id)
+    assert job is not None
+    return job
+
+
 def _submit(db: Database, scenario_id: str, **options: Any) -> tuple[str, bool]:
     with db.session() as session:
         job, reused = create_job(
@@ -61,8 +71,7 @@ def _submit(db: Database, scenario_id: str, **options: Any) -> tuple[str, bool]:
         return job.id, reused
 
 
-def test_identical_submissions_at_once_make_one_job(db: Database) -> None:
-    scenario_id = _scenario(db)
+def test_identical_submissions_at_once_make_one_job(db: Database, scenario_id: str) -> None:
     results = _at_once(10, lambda: _submit(db, scenario_id))
     assert not [r for r in results if isinstance(r, Exception)], results
     assert len({job_id for job_id, _ in results}) == 1
@@ -71,8 +80,9 @@ def test_identical_submissions_at_once_make_one_job(db: Database) -> None:
         assert session.scalar(select(func.count()).select_from(JobRow)) == 1
 
 
-def test_reruns_at_once_leave_one_job_standing_for_later_submissions(db: Database) -> None:
-    scenario_id = _scenario(db)
+def test_reruns_at_once_leave_one_job_standing_for_later_submissions(
+    db: Database, scenario_id: str
+) -> None:
     first, _ = _submit(db, scenario_id)
     results = _at_once(5, lambda: _submit(db, scenario_id, rerun=True))
     assert not [r for r in results if isinstance(r, Exception)], results
@@ -81,37 +91,32 @@ def test_reruns_at_once_leave_one_job_standing_for_later_submissions(db: Databas
     assert standing in {job_id for job_id, _ in results}
 
 
-def test_a_failed_or_cancelled_job_no_longer_stands_in(db: Database) -> None:
-    scenario_id = _scenario(db)
+def test_a_failed_or_cancelled_job_no_longer_stands_in(db: Database, scenario_id: str) -> None:
     first, _ = _submit(db, scenario_id)
     with db.session() as session:
-        job = session.get(JobRow, first)
-        assert job is not None
-        cancel(session, job)
+        cancel(session, _job(session, first))
     second, reused = _submit(db, scenario_id)
     assert not reused and second != first
     with db.session() as session:
-        session.get(JobRow, second).status = "running"  # type: ignore[union-attr]
+        _job(session, second).status = "running"
         assert finish(session, second, "failed", error="boom")
     third, reused = _submit(db, scenario_id)
     assert not reused and third not in (first, second)
 
 
-def test_the_database_refuses_a_second_reusable_row_whoever_writes_it(db: Database) -> None:
-    scenario_id = _scenario(db)
+def test_the_database_refuses_a_second_reusable_row_whoever_writes_it(
+    db: Database, scenario_id: str
+) -> None:
     job_id, _ = _submit(db, scenario_id)
     with db.session() as session:
-        original = session.get(JobRow, job_id)
-        assert original is not None
-        digest = original.config_hash
+        digest = _job(session, job_id).config_hash
     with pytest.raises(IntegrityError), db.session() as session:
         session.add(
             JobRow(type="train", scenario_id=scenario_id, params=PARAMS, config_hash=digest)
         )
 
 
-def test_a_submission_for_a_deleted_scenario_says_so(db: Database) -> None:
-    scenario_id = _scenario(db)
+def test_a_submission_for_a_deleted_scenario_says_so(db: Database, scenario_id: str) -> None:
     with db.session() as session:
         session.delete(session.get(ScenarioRow, scenario_id))
     with pytest.raises(ScenarioGone):

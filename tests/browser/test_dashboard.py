@@ -60,13 +60,19 @@ def _csv_text(times: Any, omega: Any) -> str:
     return "\n".join(rows) + "\n"
 
 
+def _flight(scenario: Scenario, seed: int, clock_s: float = 0.0) -> tuple[Any, Any]:
+    """One realisation of every candidate's response to GOOD: the sample times,
+    ``clock_s`` later, and the measured rates, (K, T, 3)."""
+    result = simulate(scenario, GOOD, 1, np.random.default_rng(seed))
+    return scenario.sample_times(len(GOOD)) + clock_s, result.omega_measured[:, 0]
+
+
 def _telemetry_csv(
     path: Path, scenario: Scenario, candidate: int, seed: int, clock_s: float = 0.0
 ) -> Path:
     """One realisation of a candidate's response to GOOD, its stamps ``clock_s`` later."""
-    result = simulate(scenario, GOOD, 1, np.random.default_rng(seed))
-    times = scenario.sample_times(len(GOOD)) + clock_s
-    path.write_text(_csv_text(times, result.omega_measured[candidate, 0]), encoding="utf-8")
+    times, omega = _flight(scenario, seed, clock_s)
+    path.write_text(_csv_text(times, omega[candidate]), encoding="utf-8")
     return path
 
 
@@ -553,10 +559,8 @@ def test_identify_shows_the_apis_posterior_and_is_green_only_when_identified(
 ) -> None:
     _classifier(dashboard)
     page = dashboard.page
-    paper = Scenario.paper()
-    result = simulate(paper, GOOD, 1, np.random.default_rng(11))
-    times = paper.sample_times(len(GOOD))
-    text = _csv_text(times, result.omega_measured[3, 0])
+    times, omega = _flight(Scenario.paper(), 11)
+    text = _csv_text(times, omega[3])
     dashboard.open(f"#/identify?classifier={made['classifier']}")
     assert page.input_value("#identify-confidence") == "0.99"
     verdict = _identify(dashboard, text)
@@ -595,8 +599,7 @@ def test_identify_a_coin_toss_is_amber_naming_the_top_two_never_green(
     _classifier(dashboard)
     page = dashboard.page
     paper = Scenario.paper()
-    result = simulate(paper, GOOD, 1, np.random.default_rng(31))
-    times = paper.sample_times(len(GOOD))
+    times, omega = _flight(paper, 31)
     a, b = (
         paper.candidate_names.index("payload 3 ejected"),
         paper.candidate_names.index("payload 4 ejected"),
@@ -605,8 +608,7 @@ def test_identify_a_coin_toss_is_amber_naming_the_top_two_never_green(
     # of among those it calls ambiguous (a genuine noisy series, half-way between).
     tosses = []
     for weight in np.linspace(0.2, 0.8, 25):
-        omega = (1 - weight) * result.omega_measured[a, 0] + weight * result.omega_measured[b, 0]
-        text = _csv_text(times, omega)
+        text = _csv_text(times, (1 - weight) * omega[a] + weight * omega[b])
         answer = _api_verdict(dashboard, text)
         if answer["status"] == "ambiguous":
             tosses.append((answer["confidence"], text, answer))
@@ -632,7 +634,7 @@ def test_identify_a_coin_toss_is_amber_naming_the_top_two_never_green(
 
     # A genuine series asked for more confidence than any posterior here can reach ("none
     # of these" keeps its prior's share) is not named either: amber, with both numbers.
-    matching = _csv_text(times, result.omega_measured[a, 0])
+    matching = _csv_text(times, omega[a])
     strict = _api_verdict(dashboard, matching, confidence="0.999999")
     assert strict["status"] == "ambiguous" and strict["confidence"] < 0.999999
     verdict = _identify(dashboard, matching, confidence="0.999999")

@@ -8,12 +8,10 @@ import json
 
 import numpy as np
 import pytest
+from scenario_support import GOOD_SEQUENCE
 from sklearn.metrics import f1_score
 
 from inertia_id import InertiaClassifier, Scenario, match_clusters, simulate, train
-
-GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
-
 
 # match_clusters: the Hungarian matching of clusters to candidates.
 

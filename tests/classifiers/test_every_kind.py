@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from scenario_support import GOOD_SEQUENCE, I0
 from sklearn.metrics import f1_score
 
 from inertia_id import InputError, Scenario, identify, simulate
@@ -28,8 +29,6 @@ from inertia_id.classifiers.registry import (
     train_classifier,
 )
 
-GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
-I0 = np.diag([100.0, 60.0, 90.0])
 N_TRAIN = 8  # realisations per candidate
 N_FRESH = 6
 #: Options that keep every fit to a fraction of a second.

@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from scenario_support import GOOD_SEQUENCE
 
 from inertia_id import Scenario, simulate
 from inertia_id.classifiers.leastsquares import LeastSquaresClassifier
@@ -15,7 +16,6 @@ from inertia_id.physics.estimate import (
     estimate_inertia,
 )
 
-GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
 # Every axis torqued in both senses and at two levels: all six parameters excited.
 MIXED_SEQUENCE = [[4, 0, 0, 0, 2, 0], [0, 4, 0, 0, 0, 2], [0, 0, 4, 2, 0, 0], [2, 2, 0, 0, 0, 4]]
 

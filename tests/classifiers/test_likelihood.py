@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from scenario_support import GOOD_SEQUENCE, noisy
 from scipy.stats import multivariate_normal
 
 from inertia_id import InertiaClassifier, InputError, Scenario, simulate, train
@@ -15,8 +16,6 @@ from inertia_id.classifiers.registry import train_classifier
 # A random 4-step sequence (numpy seed 3) that separates the paper's candidates only
 # partly: at 1x noise euclidean k-means gets about 77 %, DTW 90 %, the likelihood 97 %.
 MIXED_SEQUENCE = [[4, 0, 0, 1, 0, 4], [4, 2, 0, 0, 1, 2], [3, 2, 1, 0, 3, 3], [0, 0, 2, 1, 4, 2]]
-GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
-I0 = np.diag([100.0, 60.0, 90.0])
 
 
 @pytest.fixture(scope="module")
@@ -131,13 +130,7 @@ def test_never_worse_than_the_kmeans_classifier(
     metric: str,
     process_noise_scale: float,
 ) -> None:
-    X, y = simulate(
-        paper,
-        MIXED_SEQUENCE,
-        40,
-        np.random.default_rng(11),
-        process_noise_scale=process_noise_scale,
-    ).dataset()
+    X, y = noisy(paper, MIXED_SEQUENCE, 40, 11, process=process_noise_scale)
     baseline = kmeans[metric].evaluate(X, y)["accuracy"]
     ours = likelihood.evaluate(X, y)["accuracy"]
     standard_error = math.sqrt(baseline * (1.0 - baseline) / len(y))

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scenario_support import I0, noisy
 from scipy.special import logsumexp
 
 from inertia_id import Scenario, identify, simulate
@@ -20,7 +21,6 @@ from inertia_id.classifiers.marginal import AXES_GRID, MarginalLikelihoodClassif
 # at 8x.
 AXIS_IN_TURN = [[4, 0, 0, 0, 0, 0], [0, 4, 0, 0, 0, 0], [0, 0, 4, 0, 0, 0], [4, 0, 0, 0, 0, 0]]
 N_TRAIN = 40
-I0 = np.diag([100.0, 60.0, 90.0])  # candidate 0 of the paper preset, kg m²
 
 
 @pytest.fixture(scope="module")
@@ -38,19 +38,6 @@ def likelihood_1x(paper: Scenario) -> LikelihoodClassifier:
     stream = np.random.default_rng(1).spawn(1)[0]
     X, y = simulate(paper, AXIS_IN_TURN, N_TRAIN, stream).dataset()
     return LikelihoodClassifier().fit(X, y, scenario=paper, sequence=AXIS_IN_TURN)
-
-
-def noisy(
-    paper: Scenario, per_candidate: int, seed: int, process: float = 1.0, measurement: float = 1.0
-) -> tuple[np.ndarray, np.ndarray]:
-    return simulate(
-        paper,
-        AXIS_IN_TURN,
-        per_candidate,
-        np.random.default_rng(seed),
-        process_noise_scale=process,
-        measurement_noise_scale=measurement,
-    ).dataset()
 
 
 def covariance(
@@ -91,7 +78,7 @@ def test_components_add_up_to_the_covariance_at_any_noise_level(
     smooth directions, so its trace is known to about 5 %; a model scaling a noise by p
     instead of p², or leaving a source out, is off by a factor of 2 or more.
     """
-    X, y = noisy(paper, 200, 2, process, measurement)
+    X, y = noisy(paper, AXIS_IN_TURN, 200, 2, process, measurement)
     residuals = X.reshape(len(X), -1) - marginal.means_.reshape(5, -1)[y]
     model = covariance(marginal, process, measurement)
     assert np.sum(residuals**2) / len(X) == pytest.approx(np.trace(model), rel=0.15)
@@ -109,7 +96,7 @@ def test_log_likelihood_is_the_equally_weighted_gaussian_mixture(
     small = MarginalLikelihoodClassifier.from_dict(
         {**doc, "params": {**doc["params"], "grid": grid}}
     )
-    X, _ = noisy(paper, 2, 3, process=4.0)
+    X, _ = noisy(paper, AXIS_IN_TURN, 2, 3, process=4.0)
     F = X.reshape(len(X), -1)
     diffs = F[:, None, :] - marginal.means_.reshape(5, -1)[None]  # (n, K, dim)
     squared, log_density = [], []
@@ -142,7 +129,7 @@ def test_condition_posterior_finds_the_noise_level(
     in a few smooth directions, only roughly (and not at all under 8x gyro noise)."""
     log_grid = np.log2(marginal.grid_)
     for process, measurement in [(1.0, 1.0), (2.0, 1.0), (8.0, 1.0), (1.0, 8.0), (8.0, 8.0)]:
-        X, _ = noisy(paper, 4, 4, process, measurement)
+        X, _ = noisy(paper, AXIS_IN_TURN, 4, 4, process, measurement)
         posterior = marginal.condition_posterior(X)
         np.testing.assert_allclose(posterior.sum(axis=1), 1.0)
         # Posterior mean of log2 of each multiple, over 20 series.
@@ -158,7 +145,7 @@ def test_condition_posterior_finds_the_noise_level(
 def test_as_accurate_as_the_likelihood_at_1x(
     marginal: MarginalLikelihoodClassifier, likelihood_1x: LikelihoodClassifier, paper: Scenario
 ) -> None:
-    X, y = noisy(paper, 60, 5)
+    X, y = noisy(paper, AXIS_IN_TURN, 60, 5)
     only_ours, only_theirs = mcnemar(marginal.predict(X), likelihood_1x.predict(X), y)
     assert only_theirs - only_ours <= 2.0 * math.sqrt(only_ours + only_theirs) + 1
     assert marginal.evaluate(X, y)["accuracy"] >= 0.95
@@ -168,7 +155,7 @@ def test_at_8x_process_noise_beats_1x_training(
     marginal: MarginalLikelihoodClassifier, likelihood_1x: LikelihoodClassifier, paper: Scenario
 ) -> None:
     """Paired on the same test series, ahead of the 1x likelihood beyond sampling error."""
-    X, y = noisy(paper, 60, 6, process=8.0)
+    X, y = noisy(paper, AXIS_IN_TURN, 60, 6, process=8.0)
     only_ours, only_1x = mcnemar(marginal.predict(X), likelihood_1x.predict(X), y)
     assert only_ours - only_1x > 2.0 * math.sqrt(only_ours + only_1x)
 
@@ -178,8 +165,8 @@ def test_at_8x_noise_matches_the_limit(
     marginal: MarginalLikelihoodClassifier, paper: Scenario, process: float, measurement: float
 ) -> None:
     """No worse, to sampling error, than a likelihood fitted at the test's own noise level."""
-    X, y = noisy(paper, 60, 6, process, measurement)
-    X_fit, y_fit = noisy(paper, 100, 7, process, measurement)
+    X, y = noisy(paper, AXIS_IN_TURN, 60, 6, process, measurement)
+    X_fit, y_fit = noisy(paper, AXIS_IN_TURN, 100, 7, process, measurement)
     limit = LikelihoodClassifier().fit(X_fit, y_fit)
     only_ours, only_limit = mcnemar(marginal.predict(X), limit.predict(X), y)
     assert only_limit - only_ours <= 2.0 * math.sqrt(only_ours + only_limit) + 1
@@ -197,7 +184,7 @@ def test_genuine_series_are_named_at_every_noise_level_and_strangers_refused(
     times = paper.sample_times(len(AXIS_IN_TURN)).tolist()
     thresholds = marginal.novelty_thresholds()
     for process, measurement in [(1.0, 1.0), (8.0, 1.0), (1.0, 8.0), (8.0, 8.0)]:
-        X, y = noisy(paper, 20, 8, process, measurement)
+        X, y = noisy(paper, AXIS_IN_TURN, 20, 8, process, measurement)
         distances = marginal.transform(X)
         nearest = distances.argmin(axis=1)
         assert np.all(distances[np.arange(len(y)), nearest] <= thresholds[nearest])
@@ -280,13 +267,7 @@ def test_a_gyro_bias_is_modelled_apart_from_the_white_noise(
     # and none is called "none".
     own = []
     for measurement_scale in (1.0, 2.0, 4.0):
-        X, y = simulate(
-            drifting_paper,
-            good_sequence,
-            10,
-            np.random.default_rng(25),
-            measurement_noise_scale=measurement_scale,
-        ).dataset()
+        X, y = noisy(drifting_paper, good_sequence, 10, 25, measurement=measurement_scale)
         own.append(marginal_good.transform(X)[np.arange(len(y)), y].mean())
         candidates, p_none = marginal_good.predict_posterior(X)
         assert np.all(p_none < candidates.max(axis=1))
@@ -311,14 +292,7 @@ def test_bodies_ten_percent_off_are_none_and_genuine_series_are_not(
     assert np.all(distances.min(axis=1) <= model.novelty_thresholds()[distances.argmin(axis=1)])
     # Genuine series: the other-bodies model pays its Occam factor at every noise level.
     for process, measurement in [(1.0, 1.0), (8.0, 1.0), (1.0, 8.0), (8.0, 8.0)]:
-        X, _ = simulate(
-            drifting_paper,
-            good_sequence,
-            10,
-            np.random.default_rng(22),
-            process_noise_scale=process,
-            measurement_noise_scale=measurement,
-        ).dataset()
+        X, _ = noisy(drifting_paper, good_sequence, 10, 22, process, measurement)
         bound = 0.0 if process == 1.0 else 6.0
         assert np.all(model.near_none_log_bayes(X) < bound)
     X, y = simulate(drifting_paper, good_sequence, 10, np.random.default_rng(23)).dataset()
@@ -330,7 +304,7 @@ def test_without_a_none_spread_only_the_novelty_bound_remains(paper: Scenario) -
     model = train_marginal(
         paper, AXIS_IN_TURN, 5, np.random.default_rng(3), grid=AXES_GRID, none_spread=0.0
     )
-    X, _ = noisy(paper, 2, 24)
+    X, _ = noisy(paper, AXIS_IN_TURN, 2, 24)
     assert model.sensitivity_ is None and model.near_none_log_bayes(X) is None
     np.testing.assert_array_equal(
         model.predict_posterior(X)[1], model.posterior_from_distances(model.transform(X))[1]
@@ -345,7 +319,7 @@ def test_without_a_none_spread_only_the_novelty_bound_remains(paper: Scenario) -
 def test_stored_components_give_the_same_mixture(
     marginal: MarginalLikelihoodClassifier, paper: Scenario, tmp_path: Path
 ) -> None:
-    X, _ = noisy(paper, 4, 11, 4.0, 2.0)
+    X, _ = noisy(paper, AXIS_IN_TURN, 4, 11, 4.0, 2.0)
     path = tmp_path / "marginal.json"
     marginal.save(path)
     loaded = MarginalLikelihoodClassifier.load(path)
@@ -381,7 +355,7 @@ def test_refuses_a_scenario_without_noise(quiet_paper: Scenario) -> None:
 def test_refuses_components_of_other_realisations(
     marginal: MarginalLikelihoodClassifier, paper: Scenario
 ) -> None:
-    X, y = noisy(paper, 3, 12)
+    X, y = noisy(paper, AXIS_IN_TURN, 3, 12)
     with pytest.raises(ValueError, match=r"the process responses are shaped \(14, 80, 3\)"):
         MarginalLikelihoodClassifier().fit_components(X, X[:-1], X, y)
     with pytest.raises(ValueError, match="not a valid marginal-likelihood classifier document"):

@@ -6,6 +6,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from scenario_support import GOOD_SEQUENCE
 from sklearn.linear_model import Ridge, RidgeClassifierCV
 
 from inertia_id import Scenario
@@ -16,7 +17,6 @@ from inertia_id.classifiers.minirocket import (
 )
 from inertia_id.classifiers.registry import classifier_from_json, train_classifier
 
-GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
 N_TRAIN = 8  # realisations per candidate
 N_FRESH = 6
 

@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from scenario_support import GOOD_SEQUENCE
 
 from inertia_id import InputError, Scenario
 from inertia_id.classifiers.base import SupervisedClassifier
@@ -15,7 +16,6 @@ from inertia_id.classifiers.dtw import cdist_dtw
 from inertia_id.classifiers.nearest import NearestCentroidClassifier, NearestNeighbourClassifier
 from inertia_id.classifiers.registry import classifier_from_json, train_classifier
 
-GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
 N_TRAIN = 8  # realisations per candidate
 N_FRESH = 6
 
@@ -56,21 +56,32 @@ def test_dtw_configurations_are_accurate_on_fresh_draws(
     assert scores["accuracy"] >= 0.9, scores["confusion"]
 
 
+@pytest.fixture(scope="module")
+def offsetless_data(
+    good_training: tuple[np.ndarray, np.ndarray], good_fresh: Any
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(X_train, y_train, X_fresh) as the euclidean kinds see them: offsets removed."""
+    X_train, y_train = good_training
+    return offsetless(X_train), y_train, offsetless(good_fresh.dataset()[0])
+
+
+def euclidean(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Brute-force distances between every series of ``a`` and every series of ``b``."""
+    return np.sqrt(((a[:, None] - b[None]) ** 2).sum(axis=(2, 3)))
+
+
 def test_1nn_euclidean_matches_brute_force(
     trained: dict[str, SupervisedClassifier],
-    good_training: tuple[np.ndarray, np.ndarray],
-    good_fresh: Any,
+    offsetless_data: tuple[np.ndarray, np.ndarray, np.ndarray],
 ) -> None:
     model = trained["1nn-euclidean"]
-    X_train, y_train = good_training
-    X_train = offsetless(X_train)
-    X = offsetless(good_fresh.dataset()[0])
-    pairwise = np.sqrt(((X[:, None] - X_train[None]) ** 2).sum(axis=(2, 3)))
+    X_train, y_train, X = offsetless_data
+    pairwise = euclidean(X, X_train)
     per_candidate = np.stack([pairwise[:, y_train == k].min(axis=1) for k in range(5)], axis=1)
     np.testing.assert_allclose(model.transform(X), per_candidate, rtol=1e-12)
     np.testing.assert_array_equal(model.predict(X), y_train[pairwise.argmin(axis=1)])
     # The novelty rule's training distances leave each series out of its own candidate.
-    self_pairs = np.sqrt(((X_train[:, None] - X_train[None]) ** 2).sum(axis=(2, 3)))
+    self_pairs = euclidean(X_train, X_train)
     np.fill_diagonal(self_pairs, np.inf)
     own = [self_pairs[i, (y_train == y_train[i])].min() for i in range(len(y_train))]
     np.testing.assert_allclose(
@@ -82,17 +93,14 @@ def test_1nn_euclidean_matches_brute_force(
 
 def test_nearest_centroid_euclidean_centroid_is_the_class_mean(
     trained: dict[str, SupervisedClassifier],
-    good_training: tuple[np.ndarray, np.ndarray],
-    good_fresh: Any,
+    offsetless_data: tuple[np.ndarray, np.ndarray, np.ndarray],
 ) -> None:
     model = trained["centroid-euclidean"]
     assert isinstance(model, NearestCentroidClassifier)
-    X_train, y_train = good_training
-    X_train = offsetless(X_train)
+    X_train, y_train, X = offsetless_data
     means = np.stack([X_train[y_train == k].mean(axis=0) for k in range(5)])
     np.testing.assert_allclose(model.centroids_, means, rtol=1e-13, atol=1e-18)
-    X = offsetless(good_fresh.dataset()[0])
-    expected = np.sqrt(((X[:, None] - means[None]) ** 2).sum(axis=(2, 3)))
+    expected = euclidean(X, means)
     np.testing.assert_allclose(model.transform(X), expected, rtol=1e-12)
 
 

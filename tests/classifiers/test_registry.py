@@ -6,6 +6,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from scenario_support import GOOD_SEQUENCE
 
 from inertia_id import (
     CLASSIFIER_KINDS,
@@ -27,8 +28,6 @@ from inertia_id.classifiers.registry import (
     parse_spec,
     resolve_kind,
 )
-
-GOOD = [[4, 4, 4, 0, 0, 0]] * 4
 
 
 def test_every_kind_class_of_the_package_is_listed_in_a_fixed_order() -> None:
@@ -69,9 +68,9 @@ def test_train_without_a_kind_follows_the_rule(paper: Scenario) -> None:
     """``train`` and ``train_classifier`` are one function: a metric alone means the
     paper's clustering, nothing at all the default."""
     assert train is train_classifier
-    clustering = train(paper, GOOD, 3, np.random.default_rng(0), metric="euclidean")
+    clustering = train(paper, GOOD_SEQUENCE, 3, np.random.default_rng(0), metric="euclidean")
     assert isinstance(clustering, InertiaClassifier) and clustering.metric == "euclidean"
-    default = train_classifier(paper, GOOD, 3, np.random.default_rng(0))
+    default = train_classifier(paper, GOOD_SEQUENCE, 3, np.random.default_rng(0))
     assert isinstance(default, MarginalLikelihoodClassifier)
 
 

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 import pytest
+from cli_support import run_cli, run_cli_json
 from click.testing import CliRunner
 
 from inertia_id import InertiaClassifier
@@ -17,17 +19,13 @@ def runner() -> CliRunner:
     return CliRunner()
 
 
-def test_train_simulate_identify_round_trip(runner: CliRunner, tmp_path: Path) -> None:
+def test_train_simulate_identify_round_trip(tmp_path: Path) -> None:
     classifier = tmp_path / "c.json"
     telemetry = tmp_path / "t.csv"
-    trained = runner.invoke(
-        main, ["train", "--metric", "euclidean", "-n", "10", "--out", str(classifier)]
-    )
-    assert trained.exit_code == 0, trained.output
+    trained = run_cli(["train", "--metric", "euclidean", "-n", "10", "--out", str(classifier)])
     assert json.loads(trained.stdout)["f1"] == 1.0
     assert InertiaClassifier.load(classifier).metric == "euclidean"
-    simulated = runner.invoke(
-        main,
+    run_cli(
         [
             "simulate",
             "-n",
@@ -38,43 +36,29 @@ def test_train_simulate_identify_round_trip(runner: CliRunner, tmp_path: Path) -
             "payload 3 ejected",
             "--telemetry",
             str(telemetry),
-        ],
+        ]
     )
-    assert simulated.exit_code == 0, simulated.output
     assert telemetry.read_text().startswith("time_s,")
-    identified = runner.invoke(
-        main, ["identify", "--classifier", str(classifier), "--telemetry", str(telemetry)]
+    identified = run_cli(
+        ["identify", "--classifier", str(classifier), "--telemetry", str(telemetry)]
     )
-    assert identified.exit_code == 0, identified.output
     verdict = json.loads(identified.stdout)
     assert verdict["candidate"] == "payload 3 ejected"
     assert verdict["matches_none"] is False
 
 
-def test_paper_writes_results_and_report(runner: CliRunner, tmp_path: Path) -> None:
+def run_paper(out: Path, *options: str) -> dict[str, Any]:
+    """``inertia-id paper`` with a small euclidean training into ``out``; its summary."""
+    run_cli(["paper", "--metric", "euclidean", "-n", "10", *options, "--out-dir", str(out)])
+    summary: dict[str, Any] = json.loads((out / "summary.json").read_text())
+    return summary
+
+
+def test_paper_writes_results_and_report(tmp_path: Path) -> None:
     out = tmp_path / "paper"
-    result = runner.invoke(
-        main,
-        [
-            "paper",
-            "--search",
-            "none",
-            "--metric",
-            "euclidean",
-            "-n",
-            "10",
-            "--multiples",
-            "1,8",
-            "--n-test",
-            "50",
-            "--out-dir",
-            str(out),
-        ],
-    )
-    assert result.exit_code == 0, result.output
+    summary = run_paper(out, "--search", "none", "--multiples", "1,8", "--n-test", "50")
     for name in ("classifier.json", "sweep.json", "scenario.json", "summary.json", "report.html"):
         assert (out / name).is_file(), name
-    summary = json.loads((out / "summary.json").read_text())
     assert summary["training_f1"] == 1.0
     assert set(summary["accuracy"]["process"]) == {"1", "8"}
     assert "Accuracy vs noise" in (out / "report.html").read_text()
@@ -82,35 +66,12 @@ def test_paper_writes_results_and_report(runner: CliRunner, tmp_path: Path) -> N
     assert summary["sequence_from"] == "given"
 
 
-def test_paper_uses_the_searched_sequence(runner: CliRunner, tmp_path: Path) -> None:
+def test_paper_uses_the_searched_sequence(tmp_path: Path) -> None:
     out = tmp_path / "paper"
-    result = runner.invoke(
-        main,
-        [
-            "paper",
-            "--search",
-            "random",
-            "--length",
-            "2",
-            "--timesteps",
-            "40",
-            "--search-realisations",
-            "5",
-            "--metric",
-            "euclidean",
-            "-n",
-            "10",
-            "--multiples",
-            "1",
-            "--n-test",
-            "20",
-            "--out-dir",
-            str(out),
-        ],
-    )
-    assert result.exit_code == 0, result.output
+    searching = ["--search", "random", "--length", "2", "--timesteps", "40"]
+    searching += ["--search-realisations", "5"]
+    summary = run_paper(out, *searching, "--multiples", "1", "--n-test", "20")
     search = json.loads((out / "search.json").read_text())
-    summary = json.loads((out / "summary.json").read_text())
     assert summary["sequence"] == search["best"]["sequence"]
     assert len(summary["sequence"]) == 2
     assert summary["sequence_from"] == "random search"
@@ -118,10 +79,9 @@ def test_paper_uses_the_searched_sequence(runner: CliRunner, tmp_path: Path) -> 
     assert "learning curve" in (out / "report.html").read_text()
 
 
-def test_search_writes_the_best_sequence(runner: CliRunner, tmp_path: Path) -> None:
+def test_search_writes_the_best_sequence(tmp_path: Path) -> None:
     out = tmp_path / "search.json"
-    result = runner.invoke(
-        main,
+    doc, result = run_cli_json(
         [
             "search",
             "--method",
@@ -134,12 +94,9 @@ def test_search_writes_the_best_sequence(runner: CliRunner, tmp_path: Path) -> N
             "4",
             "--seed",
             "3",
-            "--out",
-            str(out),
         ],
+        out,
     )
-    assert result.exit_code == 0, result.output
-    doc = json.loads(out.read_text())
     assert doc["method"] == "random"
     assert doc["timesteps"] == 24 and doc["episodes"] == 12
     assert len(doc["fresh"]["f1"]) == 5
@@ -207,8 +164,7 @@ def test_any_kind_trains_and_a_sweep_scores_others_beside_it(
 ) -> None:
     classifier = tmp_path / "lik.json"
     sequence = "4,0,0,0,0,0;0,4,0,0,0,0;0,0,4,0,0,0;4,4,0,0,0,0;0,4,4,0,0,0;4,0,4,0,0,0"
-    trained = runner.invoke(
-        main,
+    run_cli(
         [
             "train",
             "--kind",
@@ -219,14 +175,11 @@ def test_any_kind_trains_and_a_sweep_scores_others_beside_it(
             "10",
             "--out",
             str(classifier),
-        ],
+        ]
     )
-    assert trained.exit_code == 0, trained.output
     refused = runner.invoke(main, ["train", "--kind", "likelihood", "--metric", "dtw"])
     assert refused.exit_code != 0 and "takes no --metric" in refused.output
-    out = tmp_path / "sweep.json"
-    swept = runner.invoke(
-        main,
+    document, _ = run_cli_json(
         [
             "sweep",
             "--classifier",
@@ -240,12 +193,9 @@ def test_any_kind_trains_and_a_sweep_scores_others_beside_it(
             "--n-test",
             "50",
             "--inertia",
-            "--out",
-            str(out),
         ],
+        tmp_path / "sweep.json",
     )
-    assert swept.exit_code == 0, swept.output
-    document = json.loads(out.read_text())
     assert [p["value"] for p in document["points"]] == [0.02, 0.16]
     assert set(document["others"]) == {"least-squares", "1nn:euclidean"}
     assert document["inertia"]["points"][0]["body"] == "scaled"
@@ -281,8 +231,7 @@ def test_train_without_a_kind_gives_the_marginal_likelihood_and_a_metric_the_clu
     from inertia_id import MarginalLikelihoodClassifier, load_classifier
 
     default = tmp_path / "default.json"
-    trained = runner.invoke(main, ["train", "-n", "10", "--out", str(default)])
-    assert trained.exit_code == 0, trained.output
+    trained = run_cli(["train", "-n", "10", "--out", str(default)])
     assert isinstance(load_classifier(default), MarginalLikelihoodClassifier)
     assert "marginal-likelihood" in trained.stderr and "x 10 realisations" in trained.stderr
     clustering = tmp_path / "clustering.json"
@@ -293,17 +242,13 @@ def test_train_without_a_kind_gives_the_marginal_likelihood_and_a_metric_the_clu
 @pytest.fixture(scope="module")
 def small_classifier(tmp_path_factory: pytest.TempPathFactory) -> Path:
     path = tmp_path_factory.mktemp("classifier") / "c.json"
-    trained = CliRunner().invoke(
-        main, ["train", "--metric", "euclidean", "-n", "10", "--out", str(path)]
-    )
-    assert trained.exit_code == 0, trained.output
+    run_cli(["train", "--metric", "euclidean", "-n", "10", "--out", str(path)])
     return path
 
 
-def _simulate_telemetry(runner: CliRunner, path: Path, candidate: str, *extra: str) -> None:
+def _simulate_telemetry(path: Path, candidate: str, *extra: str) -> None:
     args = ["simulate", "-n", "1", "--seed", "11", "--candidate", candidate]
-    result = runner.invoke(main, [*args, "--telemetry", str(path), *extra])
-    assert result.exit_code == 0, result.output
+    run_cli([*args, "--telemetry", str(path), *extra])
 
 
 def test_identify_many_files_with_a_mission_clock(
@@ -313,12 +258,8 @@ def test_identify_many_files_with_a_mission_clock(
     folder = tmp_path / "downlink"
     folder.mkdir()
     start = "810000000"
-    _simulate_telemetry(
-        runner, folder / "a.csv", "1", "--sample-rate", "200", "--time-offset", start
-    )
-    _simulate_telemetry(
-        runner, folder / "b.csv", "3", "--sample-rate", "10", "--time-offset", start
-    )
+    _simulate_telemetry(folder / "a.csv", "1", "--sample-rate", "200", "--time-offset", start)
+    _simulate_telemetry(folder / "b.csv", "3", "--sample-rate", "10", "--time-offset", start)
     assert (folder / "a.csv").read_text().splitlines()[1].startswith("810000000.005,")
     (folder / "notes.txt").write_text("not telemetry")  # not .csv or .json: skipped
     bad = tmp_path / "bad.csv"
@@ -348,11 +289,9 @@ def test_identify_many_files_with_a_mission_clock(
     assert (lines[2]["candidate"], lines[2]["matches_none"]) == ("payload 3 ejected", False)
     assert "1 of 3 telemetry files failed" in result.stderr
     # All good: exit code 0. Without the start the mission clock is refused, by name.
-    good = runner.invoke(
-        main,
-        ["identify", "--classifier", str(small_classifier), "--sequence-start", start, str(folder)],
+    run_cli(
+        ["identify", "--classifier", str(small_classifier), "--sequence-start", start, str(folder)]
     )
-    assert good.exit_code == 0, good.output
     alone = runner.invoke(
         main,
         ["identify", "--classifier", str(small_classifier), "--telemetry", str(folder / "a.csv")],
@@ -367,20 +306,17 @@ def test_identify_iso_stamps_and_an_estimated_start(
     runner: CliRunner, tmp_path: Path, small_classifier: Path
 ) -> None:
     telemetry = tmp_path / "t.csv"
-    _simulate_telemetry(runner, telemetry, "2", "--time-offset", "2025-03-01T12:00:00Z")
+    _simulate_telemetry(telemetry, "2", "--time-offset", "2025-03-01T12:00:00Z")
     assert telemetry.read_text().startswith(
         "time_utc,wx_rad_s,wy_rad_s,wz_rad_s\n2025-03-01T12:00:00.050000Z,"
     )
     base = ["identify", "--classifier", str(small_classifier), str(telemetry)]
-    result = runner.invoke(main, [*base, "--sequence-start", "2025-03-01T12:00:00Z"])
-    assert result.exit_code == 0, result.output
+    result = run_cli([*base, "--sequence-start", "2025-03-01T12:00:00Z"])
     assert json.loads(result.stdout)["candidate"] == "payload 2 ejected"
     # The operator's start is 0.2 s early; searching ±0.3 s finds the true one.
-    early = runner.invoke(
-        main,
-        [*base, "--sequence-start", "2025-03-01T11:59:59.8Z", "--estimate-start-within", "0.3"],
+    early = run_cli(
+        [*base, "--sequence-start", "2025-03-01T11:59:59.8Z", "--estimate-start-within", "0.3"]
     )
-    assert early.exit_code == 0, early.output
     verdict = json.loads(early.stdout)
     assert verdict["sequence_start_shift_s"] == pytest.approx(0.2, abs=0.051)
     assert verdict["candidate"] == "payload 2 ejected"
@@ -415,10 +351,7 @@ def test_simulate_with_basilisk_writes_telemetry_identify_reads(
         return
     assert result.exit_code == 0, result.output
     assert json.loads(result.stdout)["series_shape"] == [200, 3]
-    verdict = runner.invoke(
-        main, ["identify", "--classifier", str(small_classifier), str(telemetry)]
-    )
-    assert verdict.exit_code == 0, verdict.output
+    verdict = run_cli(["identify", "--classifier", str(small_classifier), str(telemetry)])
     assert json.loads(verdict.stdout)["candidate"] == "payload 4 ejected"
     refused = runner.invoke(main, ["simulate", "--engine", "basilisk"])
     assert refused.exit_code == 1 and "give --telemetry" in refused.output

@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 import pydantic
 import pytest
+from scenario_support import GOOD_SEQUENCE, I0
 
 from inertia_id import (
     InertiaClassifier,
@@ -22,8 +23,6 @@ from inertia_id import (
 )
 from inertia_id.evaluation.telemetry import resample
 
-GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
-I0 = np.diag([100.0, 60.0, 90.0])
 # Time stamps in the non-monotonic message are numpy scalars; with numpy >= 2 their repr is
 # "np.float64(0.2)" (see test_bug_non_monotonic_message_leaks_numpy_repr). Accept both here.
 F = r"(?:np\.float64\()?"

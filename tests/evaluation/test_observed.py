@@ -7,22 +7,14 @@ from typing import Any
 
 import numpy as np
 import pytest
+from scenario_support import GOOD_SEQUENCE
 
 from inertia_id import Scenario, simulate
 from inertia_id.classifiers.likelihood import LikelihoodClassifier
-from inertia_id.classifiers.marginal import AXES_GRID, MarginalLikelihoodClassifier, train_marginal
+from inertia_id.classifiers.marginal import MarginalLikelihoodClassifier
 from inertia_id.errors import InputError
 from inertia_id.evaluation.identify import identify, identify_online
 from inertia_id.evaluation.telemetry import Telemetry, resample, resample_observed
-
-GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
-
-
-@pytest.fixture(scope="module")
-def marginal(drifting_paper: Scenario) -> MarginalLikelihoodClassifier:
-    return train_marginal(
-        drifting_paper, GOOD_SEQUENCE, 30, np.random.default_rng(21), grid=AXES_GRID
-    )
 
 
 @pytest.fixture(scope="module")

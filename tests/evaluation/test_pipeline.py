@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import numpy as np
+from scenario_support import GOOD_SEQUENCE
 
 from inertia_id import InertiaClassifier, Scenario, identify, run_sweep, simulate, train
-
-GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
 
 
 def test_train_is_deterministic_per_seed(paper: Scenario) -> None:

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from scenario_support import GOOD_SEQUENCE
 
 from inertia_id import (
     InertiaClassifier,
@@ -16,7 +17,6 @@ from inertia_id import (
     wilson_interval,
 )
 
-GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
 Z = 1.959964
 
 

@@ -7,17 +7,18 @@ the coverage rules are exercised through :func:`identify`, as a user meets them.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from datetime import UTC, datetime, timedelta
 from typing import Any
 
 import numpy as np
 import pydantic
 import pytest
+from scenario_support import GOOD_SEQUENCE
 
 from inertia_id import InertiaClassifier, Scenario, Telemetry, identify, parse_telemetry, simulate
 from inertia_id.evaluation.telemetry import estimate_sequence_start, resample
 
-GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
 MISSION_START_S = 810_000_123.0  # a spacecraft clock ~26 years after its epoch
 UTC_START = datetime(2025, 3, 1, 12, 0, 0, tzinfo=UTC)
 
@@ -216,34 +217,47 @@ def test_any_rate_is_identified(
     assert sum(v.matches_none for v in verdicts) <= 1
 
 
-def test_irregular_stamps_are_identified(
-    euclidean_classifier: InertiaClassifier, paper: Scenario
+def _random_thirty_percent(rng: np.random.Generator, count: int) -> np.ndarray:
+    """A random ~30 % of the samples, the first and last kept: at 200 Hz, spacings of 5 ms
+    to tens of ms, never regular."""
+    keep = rng.random(count) < 0.3
+    keep[[0, -1]] = True
+    return keep
+
+
+def _ten_percent_dropped_with_the_last(rng: np.random.Generator, count: int) -> np.ndarray:
+    keep = np.ones(count, dtype=bool)
+    keep[rng.choice(count - 1, size=count // 10 - 1, replace=False)] = False
+    keep[-1] = False  # the last sample (at the end of the sequence) is lost too
+    return keep
+
+
+@pytest.mark.parametrize(
+    ("hz", "n", "seed", "pick"),
+    [
+        pytest.param(200.0, 2, 25, _random_thirty_percent, id="irregular-stamps"),
+        pytest.param(
+            10.0, 3, 27, _ten_percent_dropped_with_the_last, id="ten-percent-dropped-at-10-hz"
+        ),
+    ],
+)
+def test_irregular_or_dropped_samples_are_identified(
+    euclidean_classifier: InertiaClassifier,
+    paper: Scenario,
+    hz: float,
+    n: int,
+    seed: int,
+    pick: Callable[[np.random.Generator, int], np.ndarray],
 ) -> None:
-    """A random ~30 % of 200 Hz samples: spacings of 5 ms to tens of ms, never regular."""
-    result = simulate(at_rate(paper, 200.0), GOOD_SEQUENCE, 2, np.random.default_rng(25))
-    rng = np.random.default_rng(26)
+    """``pick`` chooses the samples kept, from the generator seeded ``seed + 1``."""
+    result = simulate(at_rate(paper, hz), GOOD_SEQUENCE, n, np.random.default_rng(seed))
+    rng = np.random.default_rng(seed + 1)
 
     def make(t: np.ndarray, w: np.ndarray) -> Telemetry:
-        keep = rng.random(len(t)) < 0.3
-        keep[[0, -1]] = True
+        keep = pick(rng, len(t))
         return plain(t[keep], w[keep])
 
-    assert_all_identified(euclidean_classifier, make, result, n=2)
-
-
-def test_ten_percent_dropped_at_ten_hz_including_the_last(
-    euclidean_classifier: InertiaClassifier, paper: Scenario
-) -> None:
-    result = simulate(at_rate(paper, 10.0), GOOD_SEQUENCE, 3, np.random.default_rng(27))
-    rng = np.random.default_rng(28)
-
-    def make(t: np.ndarray, w: np.ndarray) -> Telemetry:
-        keep = np.ones(len(t), dtype=bool)
-        keep[rng.choice(len(t) - 1, size=len(t) // 10 - 1, replace=False)] = False
-        keep[-1] = False  # the last sample (at the end of the sequence) is lost too
-        return plain(t[keep], w[keep])
-
-    assert_all_identified(euclidean_classifier, make, result, n=3)
+    assert_all_identified(euclidean_classifier, make, result, n=n)
 
 
 def test_a_gap_too_large_is_refused_naming_it(

@@ -8,28 +8,19 @@ from typing import Any
 
 import numpy as np
 import pytest
+from scenario_support import GOOD_SEQUENCE
 
 from inertia_id import InertiaClassifier, Scenario, simulate, train
 from inertia_id.classifiers.base import BaseClassifier
-from inertia_id.classifiers.marginal import AXES_GRID, MarginalLikelihoodClassifier, train_marginal
+from inertia_id.classifiers.marginal import MarginalLikelihoodClassifier
 from inertia_id.errors import InputError
 from inertia_id.evaluation.calibration import calibrate
 from inertia_id.evaluation.identify import decide, identify, identify_online
 from inertia_id.physics.simulate import InitialDraw, Simulator
 
-GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
-
 
 def telemetry_of(time_s: np.ndarray, omega: np.ndarray) -> dict[str, Any]:
     return {"time_s": np.asarray(time_s).tolist(), "omega_rad_s": np.asarray(omega).tolist()}
-
-
-@pytest.fixture(scope="module")
-def marginal(drifting_paper: Scenario) -> MarginalLikelihoodClassifier:
-    """The default kind on the shipped preset (initial rates and gyro biases drawn)."""
-    return train_marginal(
-        drifting_paper, GOOD_SEQUENCE, 40, np.random.default_rng(11), grid=AXES_GRID
-    )
 
 
 @pytest.fixture(scope="module")

@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from scenario_support import GOOD_SEQUENCE
 from service_support import skip_or_fail
 
 from inertia_id import Scenario, Telemetry, identify, simulate, train_classifier
@@ -23,7 +24,6 @@ from inertia_id.physics.engines import (
 )
 from inertia_id.physics.engines.basilisk import _lagged_torque
 
-GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
 QUIET_SEQUENCE = [[0, 0, 0, 0, 0, 0]]
 
 # Basilisk against our RK4, noise off. Measured: 1.1e-6 rad/s on the paper preset (our

@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from scenario_support import GOOD_SEQUENCE
 
 from inertia_id import InputError, Scenario, simulate
 from inertia_id.physics.estimate import (
@@ -16,13 +17,11 @@ from inertia_id.physics.estimate import (
     tensor_from_parameters,
 )
 
-GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
 # Every axis torqued in both senses and at two levels, one step at a time, so that the
 # rates turn and all six inertia parameters are excited (condition number about 5).
 MIXED_SEQUENCE = [[4, 0, 0, 0, 2, 0], [0, 4, 0, 0, 0, 2], [0, 0, 4, 2, 0, 0], [2, 2, 0, 0, 0, 4]]
 # A full tensor: products of inertia of a few kg m², principal axes off the body axes.
 TILTED = np.array([[50.0, 3.0, -2.0], [3.0, 30.0, 1.0], [-2.0, 1.0, 45.0]])
-I0 = np.diag([100.0, 60.0, 90.0])
 
 
 def relative_error(estimate: np.ndarray, truth: np.ndarray) -> float:

@@ -7,6 +7,7 @@ from typing import Any
 import numpy as np
 import pydantic
 import pytest
+from scenario_support import I0
 
 from inertia_id import (
     PRESETS,
@@ -20,7 +21,6 @@ from inertia_id import (
     preset,
 )
 
-I0 = np.diag([100.0, 60.0, 90.0])
 WITH_PRODUCTS = [[50.0, 3.0, -2.0], [3.0, 30.0, 1.0], [-2.0, 1.0, 45.0]]
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -28,3 +29,21 @@ def tiny_quiet(zero_uncertainty: dict[str, Any]) -> Scenario:
     """
     uncertainty = {**zero_uncertainty, "gyro_noise_sigma_rad_s": 1e-6}
     return preset("paper", name="tiny quiet", thrusters=TINY_THRUSTERS, uncertainty=uncertainty)
+
+
+@pytest.fixture
+def stop_after() -> Callable[[int], Callable[[], bool]]:
+    """``stop_after(n)``: a ``should_stop`` that answers False ``n`` times, then True, so a
+    test sees exactly when a search checks for cancellation."""
+
+    def make(n: int) -> Callable[[], bool]:
+        calls = 0
+
+        def should_stop() -> bool:
+            nonlocal calls
+            calls += 1
+            return calls > n
+
+        return should_stop
+
+    return make

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import re
+from collections.abc import Callable
 from typing import Any
 
 import pytest
@@ -75,14 +76,10 @@ def test_one_curve_point_and_progress_report_per_iteration(tiny: Scenario) -> No
     assert (result.timesteps, result.episodes) == (100, 50)
 
 
-def test_cancel_is_checked_before_each_sequence(tiny: Scenario) -> None:
-    calls = 0
-
-    def should_stop() -> bool:
-        nonlocal calls
-        calls += 1
-        return calls > 5
-
+def test_cancel_is_checked_before_each_sequence(
+    tiny: Scenario, stop_after: Callable[[int], Any]
+) -> None:
+    should_stop = stop_after(5)
     result = run(tiny, should_stop=should_stop)
     assert result.stopped == "cancelled"
     assert (result.episodes, result.timesteps) == (5, 10)

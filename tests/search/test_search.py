@@ -7,6 +7,7 @@ import itertools
 import json
 import math
 import re
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -202,14 +203,10 @@ def test_random_search_stops_at_the_target(tiny_quiet: Scenario) -> None:
     assert result.episodes == result.best.episode + 5
 
 
-def test_random_search_cancel_is_checked_before_each_sequence(tiny: Scenario) -> None:
-    calls = 0
-
-    def should_stop() -> bool:
-        nonlocal calls
-        calls += 1
-        return calls > 3
-
+def test_random_search_cancel_is_checked_before_each_sequence(
+    tiny: Scenario, stop_after: Callable[[int], Any]
+) -> None:
+    should_stop = stop_after(3)
     result = random_search(
         tiny, sequence_length=2, total_timesteps=100, settings=SETTINGS, n_fresh_draws=1,
         should_stop=should_stop,
@@ -286,14 +283,11 @@ def test_ppo_same_seed_same_learning_curve(ppo_run: dict[str, Any], tiny: Scenar
     assert run(1).curve != first.curve
 
 
-def test_ppo_cancel_stops_at_the_next_step(tiny: Scenario) -> None:
-    calls = 0
-
-    def should_stop() -> bool:
-        nonlocal calls
-        calls += 1
-        return calls >= 40
-
+def test_ppo_cancel_stops_at_the_next_step(
+    tiny: Scenario, stop_after: Callable[[int], Any]
+) -> None:
+    # PPO checks before every step: the 40th check cancels it.
+    should_stop = stop_after(39)
     result = ppo_search(
         tiny, sequence_length=2, total_timesteps=320, settings=SETTINGS, ppo_params=TINY_PPO,
         n_fresh_draws=1, should_stop=should_stop,

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
+from scenario_support import GOOD_SEQUENCE
 from sklearn.covariance import ledoit_wolf
 
 from inertia_id import Scenario
@@ -29,7 +30,6 @@ from inertia_id.search.objectives import (
     separability_score,
 )
 
-GOOD = [[4, 4, 4, 0, 0, 0]] * 4
 # Every thruster at the same duty: opposite thrusters cancel, no torque, no signal.
 BALANCED = [[1, 1, 1, 1, 1, 1]] * 4
 # One weak thruster at a quarter duty for one step, then nothing.
@@ -168,19 +168,25 @@ def test_noise_free_distinct_candidates_are_perfectly_separable(
 
 def test_a_good_sequence_scores_above_a_balanced_or_weak_one(paper: Scenario) -> None:
     scorer = PrefixScorer(paper, 4, SEPARABILITY, seed=0)
-    good, balanced, weak = (scorer.score(s) for s in (GOOD, BALANCED, WEAK))
+    good, balanced, weak = (scorer.score(s) for s in (GOOD_SEQUENCE, BALANCED, WEAK))
     assert good.f1 > 0.9
     assert balanced.f1 < 0.1 and weak.f1 < 0.1
     assert good.error_bound is not None and balanced.error_bound is not None
     assert good.error_bound < 0.1 < 1.0 < balanced.error_bound
     # The clustering agrees on the order (on the same noise draw).
     clustering = PrefixScorer(paper, 4, ScorerSettings(), seed=0)
-    assert clustering.score(GOOD).f1 > clustering.score(BALANCED).f1 + 0.3
+    assert clustering.score(GOOD_SEQUENCE).f1 > clustering.score(BALANCED).f1 + 0.3
 
 
 def test_separability_scorer_is_deterministic_and_order_free(paper: Scenario) -> None:
     settings = replace(SEPARABILITY, n_realisations=6)
-    prefixes = [GOOD[:1], GOOD[:3], WEAK[:2], [GOOD[0], WEAK[0]], BALANCED]
+    prefixes = [
+        GOOD_SEQUENCE[:1],
+        GOOD_SEQUENCE[:3],
+        WEAK[:2],
+        [GOOD_SEQUENCE[0], WEAK[0]],
+        BALANCED,
+    ]
     forward = PrefixScorer(paper, 4, settings, seed=3)
     backward = PrefixScorer(paper, 4, settings, seed=3)
     uncached = PrefixScorer(paper, 4, replace(settings, cache_mb=0.0), seed=3)
@@ -197,7 +203,9 @@ def test_separability_scorer_is_deterministic_and_order_free(paper: Scenario) ->
 
 
 def test_f1_objective_scores_carry_no_bound(paper: Scenario) -> None:
-    score = PrefixScorer(paper, 1, ScorerSettings(n_realisations=3), seed=0).score(GOOD[:1])
+    score = PrefixScorer(paper, 1, ScorerSettings(n_realisations=3), seed=0).score(
+        GOOD_SEQUENCE[:1]
+    )
     assert score.objective == "f1" and score.error_bound is None
 
 
@@ -210,21 +218,21 @@ def test_environment_with_the_separability_objective_passes_the_checker(
         check_env(env, skip_render_check=True)
     assert [w for w in caught if issubclass(w.category, UserWarning)] == []
     env.reset(seed=1)
-    _, reward, _, _, info = env.step(np.asarray(GOOD[0]))
+    _, reward, _, _, info = env.step(np.asarray(GOOD_SEQUENCE[0]))
     assert info["objective"] == "separability"
     assert reward == pytest.approx(-1.0 + 3.0 * info["f1"], abs=1e-12)
     scorer = PrefixScorer(paper, 3, SEPARABILITY, seed=1)
-    assert info["f1"] == scorer.score(GOOD[:1]).f1
-    assert info["error_bound"] == scorer.score(GOOD[:1]).error_bound
+    assert info["f1"] == scorer.score(GOOD_SEQUENCE[:1]).f1
+    assert info["error_bound"] == scorer.score(GOOD_SEQUENCE[:1]).error_bound
 
 
 def test_fresh_evaluation_of_a_separability_search_reports_the_clustering_f1(
     paper: Scenario,
 ) -> None:
     settings = replace(SEPARABILITY, n_realisations=5)
-    fresh = evaluate_sequence(paper, GOOD[:2], settings, seed=11, n_draws=2)
+    fresh = evaluate_sequence(paper, GOOD_SEQUENCE[:2], settings, seed=11, n_draws=2)
     clustering = evaluate_sequence(
-        paper, GOOD[:2], replace(settings, objective="f1"), seed=11, n_draws=2
+        paper, GOOD_SEQUENCE[:2], replace(settings, objective="f1"), seed=11, n_draws=2
     )
     assert fresh.f1 == clustering.f1
     assert fresh.final_rate_rad_s == clustering.final_rate_rad_s
@@ -232,7 +240,7 @@ def test_fresh_evaluation_of_a_separability_search_reports_the_clustering_f1(
     assert fresh.separability is not None and len(fresh.separability) == 2
     seeds = np.random.SeedSequence(11).generate_state(2, np.uint32)
     assert fresh.separability == [
-        PrefixScorer(paper, 2, settings, seed=int(s)).score(GOOD[:2]).f1 for s in seeds
+        PrefixScorer(paper, 2, settings, seed=int(s)).score(GOOD_SEQUENCE[:2]).f1 for s in seeds
     ]
 
 

@@ -13,12 +13,12 @@ from typing import Any
 import httpx
 import numpy as np
 import pytest
+from scenario_support import GOOD_SEQUENCE
 from service_support import TERMINAL, ServeProcess, serve_app, wait_for
 
 from inertia_id import Scenario, simulate
 
 API_KEY = "e2e-" + "x" * 40
-GOOD = [[4, 4, 4, 0, 0, 0]] * 4
 
 
 @pytest.fixture(scope="module")
@@ -50,7 +50,7 @@ def test_train_metrics_classifier_and_identify_over_http(
         "type": "train",
         "scenario_id": scenario_id,
         "seed": 1,
-        "params": {"sequence": GOOD, "metric": "euclidean", "n_realisations": 10},
+        "params": {"sequence": GOOD_SEQUENCE, "metric": "euclidean", "n_realisations": 10},
     }
     submitted = service.post("/jobs", json=train)
     assert submitted.status_code == 202, submitted.text
@@ -63,9 +63,9 @@ def test_train_metrics_classifier_and_identify_over_http(
     assert f1["values"][0] == pytest.approx(1.0)
     classifier_id = job["result"]["classifier_id"]
     classifier = service.get(f"/classifiers/{classifier_id}").json()
-    assert classifier["sequence"] == GOOD and classifier["metric"] == "euclidean"
+    assert classifier["sequence"] == GOOD_SEQUENCE and classifier["metric"] == "euclidean"
 
-    sim = simulate(Scenario.paper(), GOOD, 1, np.random.default_rng(7))
+    sim = simulate(Scenario.paper(), GOOD_SEQUENCE, 1, np.random.default_rng(7))
     for candidate in (0, 3):
         verdict = service.post(
             "/identify",

@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 import pytest
+from scenario_support import GOOD_SEQUENCE
 
 from inertia_id import InertiaClassifier, identify, simulate
 from inertia_id.classifiers.registry import CLASSIFIER_KINDS, classifier_from_json
@@ -19,7 +20,6 @@ from service.store.jobs import cancel
 if TYPE_CHECKING:
     from conftest import Service
 
-GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
 SEARCH_METRICS = {"mean_episode_reward", "mean_f1", "best_f1", "best_final_rate_rad_s"}
 SMALL_SEARCH = {
     "sequence_length": 2,

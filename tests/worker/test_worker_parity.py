@@ -12,9 +12,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import pytest
-from click.testing import CliRunner
+from cli_support import run_cli, run_cli_json
+from scenario_support import GOOD_SEQUENCE
 
-from inertia_id.cli import main
 from service.store import ClassifierRow
 from worker.runner import execute_job
 
@@ -22,8 +22,7 @@ if TYPE_CHECKING:
     from conftest import Store
 
 WORKER = "parity@host"
-GOOD = [[4, 4, 4, 0, 0, 0]] * 4
-GOOD_TEXT = ";".join(",".join(map(str, row)) for row in GOOD)
+GOOD_TEXT = ";".join(",".join(map(str, row)) for row in GOOD_SEQUENCE)
 
 
 def run_job(store: Store, job_type: str, params: dict[str, Any], seed: int) -> dict[str, Any]:
@@ -36,11 +35,6 @@ def run_job(store: Store, job_type: str, params: dict[str, Any], seed: int) -> d
     return result
 
 
-def run_cli(args: list[str]) -> None:
-    result = CliRunner().invoke(main, args)
-    assert result.exit_code == 0, result.output
-
-
 @pytest.mark.parametrize(
     ("cli", "params"),
     [
@@ -51,14 +45,18 @@ def run_cli(args: list[str]) -> None:
 def test_train_gives_the_same_classifier(
     store: Store, tmp_path: Path, cli: list[str], params: dict[str, Any]
 ) -> None:
-    out = tmp_path / "classifier.json"
-    run_cli(["train", "--sequence", GOOD_TEXT, "-n", "6", "--seed", "4", "--out", str(out), *cli])
-    result = run_job(store, "train", {"sequence": GOOD, "n_realisations": 6, **params}, seed=4)
+    cli_document, _ = run_cli_json(
+        ["train", "--sequence", GOOD_TEXT, "-n", "6", "--seed", "4", *cli],
+        tmp_path / "classifier.json",
+    )
+    result = run_job(
+        store, "train", {"sequence": GOOD_SEQUENCE, "n_realisations": 6, **params}, seed=4
+    )
     with store.db.session() as session:
         row = session.get(ClassifierRow, result["classifier_id"])
         assert row is not None
         document = row.document
-    assert json.loads(document) == json.loads(out.read_text())
+    assert json.loads(document) == cli_document
 
 
 def test_sweep_gives_the_same_points(store: Store, tmp_path: Path) -> None:
@@ -79,10 +77,12 @@ def test_sweep_gives_the_same_points(store: Store, tmp_path: Path) -> None:
         ]
     )
     trained = run_job(
-        store, "train", {"sequence": GOOD, "metric": "euclidean", "n_realisations": 6}, seed=1
+        store,
+        "train",
+        {"sequence": GOOD_SEQUENCE, "metric": "euclidean", "n_realisations": 6},
+        seed=1,
     )
-    out = tmp_path / "sweep.json"
-    run_cli(
+    cli, _ = run_cli_json(
         [
             "sweep",
             "--classifier",
@@ -103,9 +103,8 @@ def test_sweep_gives_the_same_points(store: Store, tmp_path: Path) -> None:
             "20",
             "--seed",
             "7",
-            "--out",
-            str(out),
-        ]
+        ],
+        tmp_path / "sweep.json",
     )
     params = {
         "classifier_id": trained["classifier_id"],
@@ -117,7 +116,6 @@ def test_sweep_gives_the_same_points(store: Store, tmp_path: Path) -> None:
         "n_test": 20,
     }
     swept = run_job(store, "sweep", params, seed=7)
-    cli = json.loads(out.read_text())
     assert swept == cli
     # Both swept the bodies off the candidates too: one default, the pipeline's.
     assert (
@@ -132,8 +130,7 @@ def test_sweep_gives_the_same_points(store: Store, tmp_path: Path) -> None:
 
 
 def test_a_small_search_finds_the_same_sequence(store: Store, tmp_path: Path) -> None:
-    out = tmp_path / "search.json"
-    run_cli(
+    cli, _ = run_cli_json(
         [
             "search",
             "--method",
@@ -148,9 +145,8 @@ def test_a_small_search_finds_the_same_sequence(store: Store, tmp_path: Path) ->
             "euclidean",
             "--seed",
             "5",
-            "--out",
-            str(out),
-        ]
+        ],
+        tmp_path / "search.json",
     )
     params = {
         "method": "random",
@@ -160,7 +156,6 @@ def test_a_small_search_finds_the_same_sequence(store: Store, tmp_path: Path) ->
         "metric": "euclidean",
     }
     found = run_job(store, "search", params, seed=5)
-    cli = json.loads(out.read_text())
     for side in (found, cli):
         side.pop("wall_time_s")
     assert found == cli

@@ -11,6 +11,7 @@ import os
 from typing import TYPE_CHECKING, Any
 
 import pytest
+from scenario_support import GOOD_SEQUENCE
 from sqlalchemy import select
 
 from inertia_id import Scenario
@@ -33,7 +34,6 @@ if TYPE_CHECKING:
     from conftest import Store
 
 WORKER = "test@host"
-GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
 
 
 @pytest.mark.parametrize(
