@@ -174,28 +174,21 @@ def _classifier(
     return key[0], cache.get(key, lambda: _load(_document(database, classifier_id)))
 
 
-def _identify(
+def _judge(
     database: Database,
     cache: ClassifierCache,
     classifier_id: str,
     telemetry: Telemetry,
     options: VerdictOptions,
-) -> IdentifyResult:
+    partial: bool,
+) -> IdentifyResult | PartialIdentifyResult:
+    """The verdict on a compute thread (the verdict process off): ``identify``, or
+    ``identify_online`` for a partial one."""
     found, classifier = _classifier(database, cache, classifier_id)
-    result = identify(classifier, telemetry, **options.keywords(partial=False)).model_dump()
-    return IdentifyResult.model_validate({**finite_or_none(result), "classifier_id": found})
-
-
-def _identify_partial(
-    database: Database,
-    cache: ClassifierCache,
-    classifier_id: str,
-    telemetry: Telemetry,
-    options: VerdictOptions,
-) -> PartialIdentifyResult:
-    found, classifier = _classifier(database, cache, classifier_id)
-    result = identify_online(classifier, telemetry, **options.keywords(partial=True)).model_dump()
-    return PartialIdentifyResult.model_validate({**finite_or_none(result), "classifier_id": found})
+    judge = identify_online if partial else identify
+    result = judge(classifier, telemetry, **options.keywords(partial=partial)).model_dump()
+    model = PartialIdentifyResult if partial else IdentifyResult
+    return model.model_validate({**finite_or_none(result), "classifier_id": found})
 
 
 async def _verdict(
@@ -213,9 +206,8 @@ async def _verdict(
     cache: ClassifierCache = state.classifier_cache
     process: VerdictProcess | None = state.verdicts
     if process is None:
-        work = _identify_partial if partial else _identify
         gate: ComputeGate = state.compute_gate
-        return await gate.run(work, database, cache, classifier_id, telemetry, options)
+        return await gate.run(_judge, database, cache, classifier_id, telemetry, options, partial)
     checksum = cache.checksum_of(classifier_id)
     if checksum is None:
         checksum = await run_in_threadpool(_checksum, database, cache, classifier_id)
