@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from scenario_support import GOOD_SEQUENCE
 
 from inertia_id import Scenario, simulate
 from inertia_id.classifiers.marginal import MarginalLikelihoodClassifier, train_marginal
@@ -16,7 +17,6 @@ from inertia_id.evaluation.identify import identify, identify_online, initial_of
 from inertia_id.evaluation.telemetry import Telemetry
 from inertia_id.physics.simulate import Simulator
 
-GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
 #: Coast steps flown before the sequence: 10 s of telemetry before the start.
 COAST = 10
 #: Its 1 Hz samples strictly before the start (-9 s to -1 s; the one at 0 is the start).
