@@ -364,22 +364,16 @@ def test_telemetry_from_before_the_start_is_written_and_used(
     # rate plus bias there unless --pre-start-window 0; a span that is no whole number of
     # steps is refused by value.
     classifier = tmp_path / "orbit.json"
-    trained = runner.invoke(
-        main, ["train", "--preset", "paper-in-orbit", "-n", "20", "--out", str(classifier)]
-    )
-    assert trained.exit_code == 0, trained.output
+    run_cli(["train", "--preset", "paper-in-orbit", "-n", "20", "--out", str(classifier)])
     telemetry = tmp_path / "t.csv"
     args = ["--preset", "paper-in-orbit", "--sample-rate", "1", "--pre-start", "10"]
-    _simulate_telemetry(runner, telemetry, "2", *args, "--time-offset", "810000000")
+    _simulate_telemetry(telemetry, "2", *args, "--time-offset", "810000000")
     stamps = [line.split(",")[0] for line in telemetry.read_text().splitlines()[1:]]
     assert stamps[0] == "809999991" and "810000000" in stamps and stamps[-1] == "810000004"
     base = ["identify", "--classifier", str(classifier), "--sequence-start", "810000000"]
-    used = runner.invoke(main, [*base, str(telemetry)])
-    assert used.exit_code == 0, used.output
-    verdict = json.loads(used.stdout)
+    verdict = json.loads(run_cli([*base, str(telemetry)]).stdout)
     assert verdict["pre_start_samples"] == 9 and len(verdict["initial_offset_rad_s"]) == 3
-    ignored = runner.invoke(main, [*base, "--pre-start-window", "0", str(telemetry)])
-    assert ignored.exit_code == 0, ignored.output
+    ignored = run_cli([*base, "--pre-start-window", "0", str(telemetry)])
     assert json.loads(ignored.stdout)["pre_start_samples"] == 0
     refused = runner.invoke(main, ["simulate", "--pre-start", "2.5", "--telemetry", "x.csv"])
     assert refused.exit_code == 1
