@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from pydantic import BaseModel
 
+from ..checks import is_number
 from ..classifiers.gaussian import log_softmax
 from ..errors import InputError
 from ..physics.estimate import PARAMETER_NAMES, estimate_inertia, tensor_from_parameters
@@ -198,10 +199,7 @@ def initial_offset(
     ``w`` the weights and ``W`` the walk: the two parts the classifier's components
     scale by the same multiples.
     """
-    if not (isinstance(window_s, int | float) and not isinstance(window_s, bool)) or not (
-        window_s >= 0.0 and np.isfinite(window_s)
-    ):
-        raise InputError(f"pre_start_window_s must be a finite number >= 0, got {window_s!r}")
+    _check_window(window_s)
     times, omega = telemetry.before_start()
     keep = times >= -float(window_s)
     times, omega = times[keep][-_OFFSET_SAMPLES:], omega[keep][-_OFFSET_SAMPLES:]
@@ -239,6 +237,11 @@ def initial_offset(
     )
 
 
+def _check_window(window_s: Any) -> None:
+    if not is_number(window_s, minimum=0.0):
+        raise InputError(f"pre_start_window_s must be a finite number >= 0, got {window_s!r}")
+
+
 def _offset_model(
     classifier: CandidateClassifier, scenario: Scenario, telemetry: Telemetry, window_s: float
 ) -> tuple[Any, InitialOffset | None]:
@@ -246,8 +249,12 @@ def _offset_model(
     the pre-start offset, with the noise conditions weighed by the pre-start samples'
     scatter, when the telemetry has them and the kind models them; else the classifier
     itself (the distance kinds remove each axis' mean anyway)."""
+    if not getattr(classifier, "supports_offset", False):
+        # Nothing to condition: the window is checked, the offset not estimated.
+        _check_window(window_s)
+        return classifier, None
     offset = initial_offset(scenario, telemetry, window_s)
-    if offset is None or not getattr(classifier, "supports_offset", False):
+    if offset is None:
         return classifier, None
     model: Any = classifier
     conditioned = model.conditioned_on_offset(
