@@ -228,13 +228,11 @@ class SearchParams(StrictModel):
     def _budget(self) -> Self:
         # The core's own rules for the scorer, so that a job the API accepts can start:
         # the worker builds its request from these parameters the same way.
-        SearchRequest.from_params(self.model_dump(mode="json")).scorer().check()
-        if self.cem and self.method != "cem":
-            raise ValueError(f"cem settings apply to method cem, not {self.method!r}")
-        if self.nsga2 and self.method != "nsga2":
-            raise ValueError(f"nsga2 settings apply to method nsga2, not {self.method!r}")
-        if self.lagrangian_lr and self.method != "ppo":
-            raise ValueError(f"lagrangian_lr applies to method ppo, not {self.method!r}")
+        # options() holds the rule that each method's own settings (ppo, cem, nsga2,
+        # lagrangian_lr) go with that method only, so the API refuses what the worker would.
+        request = SearchRequest.from_params(self.model_dump(mode="json"))
+        request.scorer().check()
+        request.options()
         from inertia_id.search.objectives import (
             check_constraints,
             check_design_noise,

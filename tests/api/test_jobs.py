@@ -145,6 +145,28 @@ def test_exhaustive_search_too_large_is_refused_with_its_size(api: Api) -> None:
     assert api.queued_messages() == []
 
 
+@pytest.mark.parametrize(
+    ("method", "own", "message"),
+    [
+        ("cem", {"ppo": {"gamma": 0.9}}, "ppo settings apply to method ppo only, not 'cem'"),
+        ("random", {"ppo": {"n_steps": 64}}, "ppo settings apply to method ppo only, not 'random'"),
+        ("ppo", {"cem": {"population": 16}}, "cem settings apply to method cem only, not 'ppo'"),
+        ("cem", {"nsga2": {"generations": 2}}, "nsga2 settings apply to method nsga2 only"),
+        ("random", {"lagrangian_lr": 0.5}, "lagrangian_lr applies to method ppo only"),
+    ],
+)
+def test_another_methods_settings_are_refused_before_the_job_is_queued(
+    api: Api, method: str, own: dict[str, object], message: str
+) -> None:
+    # The worker would fail such a job; the API refuses it with the rule and stores nothing.
+    scenario_id = api.create_scenario()["id"]
+    response = api.submit("search", scenario_id, params={"method": method, **own})
+    assert response.status_code == 422, response.text
+    assert message in response.text
+    assert api.queued_messages() == []
+    assert api.get_with_key("/jobs").json()["items"] == []
+
+
 def test_sweep_job_for_a_stored_classifier(api: Api, classifier: InertiaClassifier) -> None:
     scenario_id = api.create_scenario()["id"]
     classifier_id = api.insert_classifier(scenario_id, classifier)
