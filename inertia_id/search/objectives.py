@@ -333,7 +333,8 @@ def score_from_bound(bound: float, n_candidates: int) -> float:
 #: The objectives a Pareto search may trade off: what each is, its sense, its unit.
 OPERATOR_OBJECTIVES: dict[str, tuple[str, str, str]] = {
     "accuracy": (
-        "predicted accuracy of the Bayes classifier at the design noise (Gaussian model)",
+        "predicted accuracy of the Bayes classifier at the design noise (the scenario's "
+        "noise model)",
         "max",
         "",
     ),
@@ -434,7 +435,8 @@ class SequenceScores:
     """What an operator asks of one sequence, on one noise draw.
 
     :param accuracy: predicted accuracy of the Bayes classifier, the mean over the
-        design-noise conditions (:func:`predicted_error`), in [0, 1].
+        design-noise conditions (:class:`~inertia_id.search.noise_model.LinearNoiseModel`),
+        in [0, 1].
     :param accuracy_by_noise: the same at each design condition, in their order.
     :param final_rate_rad_s: |ω| at the end, mean over candidates and realisations at
         the scenario's own noise (the paper's terminal term).
@@ -512,62 +514,3 @@ class SequenceScores:
             "duration_s": self.duration_s,
             "attitude_change_deg": self.attitude_change_deg,
         }
-
-
-def predicted_error(
-    true_rates: np.ndarray, white_variance: float, *, debias: bool = True
-) -> np.ndarray:
-    """Predicted error of the Bayes classifier for each sequence of a population.
-
-    Each candidate's measured response (d = 3 T numbers) is modelled as a Gaussian with
-    the candidates' common covariance ``Σ = a I + b RᵀR``: ``a`` the gyro's white-noise
-    variance, known exactly (it is the scenario's sigma at the design multiple), and
-    ``RᵀR / (N − K)`` the pooled sample covariance of the *true* rates' residuals (what
-    the disturbance torque, jitter and gyro bias do), whose rank is small. No shrinkage
-    rule is needed: the low-rank part is estimated, the white part is known. With the
-    squared Mahalanobis distances ``D²_ij`` between the candidates' means (debiased for
-    the means' own estimation noise, see :func:`mahalanobis_matrix`), the two-class
-    error of the pair is exactly ``Φ(−D_ij/2)``, and the union bound over pairs gives
-
-        P_error ≤ (2/K) Σ_{i<j} Φ(−D_ij / 2),
-
-    tight when the error is small, which is where a design is chosen. It is a
-    prediction under the Gaussian model, not a measurement: the front's members are
-    re-scored on fresh draws, and a benchmark trains the real classifier.
-
-    :param true_rates: (P, K, n, T, 3) true body rates plus gyro bias, rad/s, of P
-        sequences (n >= 2 realisations of each of K candidates).
-    :param white_variance: the gyro's white-noise variance per sample and axis, (rad/s)².
-    :returns: (P,) the bound (may exceed 1 for hopeless sequences: it still ranks them).
-    """
-    from scipy.special import ndtr
-
-    rates = np.asarray(true_rates, dtype=float)
-    p, k, n = rates.shape[:3]
-    if k < 2 or n < 2:
-        raise InputError(f"need 2 candidates and 2 realisations at least, got K = {k}, n = {n}")
-    x = rates.reshape(p, k, n, -1)
-    d = x.shape[-1]
-    count = k * n
-    means = x.mean(axis=2)  # (P, K, d)
-    residuals = (x - means[:, :, None, :]).reshape(p, count, d)
-    floor = _RELATIVE_VARIANCE_FLOOR * float(np.mean(x * x)) + np.finfo(float).tiny
-    a = float(white_variance) + floor
-    b = 1.0 / (count - k)
-    first, second = np.triu_indices(k, 1)
-    with _one_blas_thread():
-        gram = residuals @ residuals.transpose(0, 2, 1)  # (P, N, N)
-        system = a * np.eye(count) + b * gram
-        differences = means[:, first] - means[:, second]  # (P, pairs, d)
-        plain = np.einsum("ped,ped->pe", differences, differences)
-        projected = residuals @ differences.transpose(0, 2, 1)  # (P, N, pairs)
-        solved = np.linalg.solve(system, projected)
-        distances = np.maximum(plain - b * np.einsum("pne,pne->pe", projected, solved), 0.0) / a
-        if debias:
-            # r_iᵀ Σ⁻¹ r_i is the diagonal of R Σ⁻¹ Rᵀ = S⁻¹ G (S = a I + b G), and
-            # each residual left out of its own covariance by Sherman–Morrison.
-            inside = np.einsum("pnn->pn", np.linalg.solve(system, gram))
-            left_out = inside / np.maximum(1.0 - b * inside, 1e-12)
-            trace = left_out.mean(axis=1) / (1.0 - 1.0 / n)
-            distances = np.maximum(distances - 2.0 * trace[:, None] / n, 0.0)
-    return np.asarray((2.0 / k) * ndtr(-0.5 * np.sqrt(distances)).sum(axis=1))

@@ -26,13 +26,13 @@ from ..physics.attitude import propagate_attitude, rotation_angle_deg
 from ..physics.presets import NOISE_OFF
 from ..physics.scenario import Scenario
 from ..physics.simulate import Simulator
+from .noise_model import LinearNoiseModel
 from .objectives import (
     DEFAULT_DESIGN_NOISE,
     SequenceScores,
     check_constraints,
     check_design_noise,
     check_objectives,
-    predicted_error,
 )
 
 __all__ = ["OperatorScorer", "OperatorSettings", "nominal_rates"]
@@ -52,7 +52,8 @@ class OperatorSettings:
         accuracy is predicted; the accuracy objective is their mean.
     :param constraints: bounds by name (:data:`~inertia_id.search.objectives.CONSTRAINTS`),
         e.g. ``{"max_final_rate_deg_s": 0.2, "max_impulse_nms": 20}``.
-    :param n_realisations: realisations per candidate in each score.
+    :param n_realisations: realisations per candidate of the rates an operator sees
+        (residual and peak rate); the accuracy needs none.
     """
 
     objectives: tuple[str, ...] = ("accuracy", "final_rate", "impulse")
@@ -111,30 +112,23 @@ class OperatorScorer:
         self.scenario = scenario
         self.sequence_length = int(sequence_length)
         self.seed = int(seed)
-        n = self.settings.n_realisations
-        # The scenario's own noise (p = 1) is always simulated: the rates an operator
-        # will see come from it.
-        self.process_multiples = sorted({1.0, *(p for p, _ in self.settings.design_noise)})
-        self.simulators = {
-            p: Simulator(scenario, n, process_noise_scale=p) for p in self.process_multiples
-        }
-        # One draw of standard normals, scaled by each simulator: the same disturbances
-        # at every multiple (the draws do not depend on the scales).
-        self.noise = {
-            p: sim.draw_noise(np.random.default_rng(self.seed), self.sequence_length)
-            for p, sim in self.simulators.items()
-        }
+        self.simulator = Simulator(scenario, self.settings.n_realisations)
+        self.noise = self.simulator.draw_noise(
+            np.random.default_rng(self.seed), self.sequence_length
+        )
+        self.model = LinearNoiseModel(scenario, self.sequence_length)
         self.evaluations = 0
 
-    def _rates(self, sequences: np.ndarray, process: float) -> np.ndarray:
-        """True rates plus gyro bias, (P, K, n, T, 3), rad/s."""
-        simulator, noise = self.simulators[process], self.noise[process]
-        state = simulator.start_population(noise.initial, len(sequences))
+    def _rates(self, sequences: np.ndarray) -> np.ndarray:
+        """True rates at the scenario's own noise, (P, K, n, T, 3), rad/s."""
+        state = self.simulator.start_population(self.noise.initial, len(sequences))
         parts = []
         for step in range(self.sequence_length):
-            state, response = simulator.advance(state, sequences[:, step], noise.steps[step])
+            state, response = self.simulator.advance(
+                state, sequences[:, step], self.noise.steps[step]
+            )
             parts.append(response.omega_true)
-        return np.concatenate(parts, axis=-2) + noise.initial.gyro_bias[:, :, None, :]
+        return np.concatenate(parts, axis=-2)
 
     def score(self, sequences: Any) -> list[SequenceScores]:
         """Scores of each sequence, (P, L, N) level indices (or one (L, N) sequence)."""
@@ -154,15 +148,9 @@ class OperatorScorer:
 
     def _score_chunk(self, sequences: np.ndarray) -> list[SequenceScores]:
         scenario, settings = self.scenario, self.settings
-        gyro_sigma = scenario.uncertainty.gyro_noise_sigma_rad_s
-        rates = {p: self._rates(sequences, p) for p in self.process_multiples}
-        errors = np.stack(
-            [predicted_error(rates[p], (q * gyro_sigma) ** 2) for p, q in settings.design_noise],
-            axis=1,
-        )  # (P, conditions)
-        accuracy = np.clip(1.0 - errors, 0.0, 1.0)
-        # Rates an operator sees: the scenario's own noise, bias taken off again.
-        own = rates[1.0] - self.noise[1.0].initial.gyro_bias[:, :, None, :]
+        errors = self.model.predicted_error(sequences, settings.design_noise)
+        accuracy = np.clip(1.0 - errors, 0.0, 1.0)  # (P, conditions)
+        own = self._rates(sequences)
         speed = np.linalg.norm(own, axis=-1)  # (P, K, n, T)
         final_by_candidate = speed[..., -1].mean(axis=2)  # (P, K)
         peak = speed.mean(axis=2).max(axis=(1, 2))  # (P,)

@@ -1,0 +1,151 @@
+"""The accuracy a search predicts from the scenario's noise model: its algebra against
+the covariance written out, its covariance against the simulator's, its accuracy
+against what the ceiling measures on simulated series."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.special import ndtr
+
+from inertia_id import Scenario, preset, simulate
+from inertia_id.evaluation.ceiling import fit_ceiling
+from inertia_id.search.noise_model import LinearNoiseModel, clipped_duty_variance
+
+FIRE, BRAKE, OFF = [4, 4, 4, 0, 0, 0], [0, 0, 0, 4, 4, 4], [0] * 6
+
+
+@pytest.fixture(scope="module")
+def every_noise() -> Scenario:
+    """Full tensors, canted thrusters and every noise source on, so that no term of the
+    covariance is zero and no axis decouples."""
+    tensors = [
+        [[100.0, 4.0, -2.0], [4.0, 60.0, 3.0], [-2.0, 3.0, 90.0]],
+        [[90.0, 3.0, -1.0], [3.0, 55.0, 2.0], [-1.0, 2.0, 84.0]],
+        [[95.0, 5.0, -3.0], [5.0, 52.0, 1.0], [-3.0, 1.0, 78.0]],
+    ]
+    torque = [[2.0, 0.5, 0.0, -1.8], [0.3, 1.9, 0.4, 0.2], [0.0, -0.4, 2.1, 1.0]]
+    return preset(
+        "paper",
+        inertia_candidates=[
+            {"name": f"c{i}", "inertia_kg_m2": tensor} for i, tensor in enumerate(tensors)
+        ],
+        thrusters={"torque_matrix_nm": torque, "levels": [0.0, 0.3, 0.7, 1.0]},
+        timing={"step_duration_s": 0.5, "integration_step_s": 0.025, "sample_rate_hz": 10.0},
+        uncertainty={
+            "duty_jitter_sigma": 0.05,
+            "thrust_scale_sigma": 0.03,
+            "disturbance_torque_sigma_nm": 0.2,
+            "disturbance_interval_s": 0.125,
+            "gyro_noise_sigma_rad_s": 2e-3,
+            "gyro_bias_sigma_rad_s": 1e-3,
+            "initial_rate_sigma_rad_s": 2e-3,
+            "lowpass_time_constant_s": 0.1,
+        },
+    )
+
+
+@pytest.mark.parametrize(
+    ("duty", "sigma", "expected"),
+    [
+        (1.0, 0.02, (0.5 - 0.5 / np.pi) * 0.02**2),  # half the jitter clipped at full duty
+        (0.5, 0.02, 0.02**2),  # far from both bounds: the jitter's own variance
+        (0.0, 0.02, 0.0),  # a thruster commanded off does not fire
+        (0.5, 0.0, 0.0),
+    ],
+)
+def test_the_delivered_duty_variance_in_closed_form(
+    duty: float, sigma: float, expected: float
+) -> None:
+    assert clipped_duty_variance(np.array(duty), sigma) == pytest.approx(expected, rel=1e-6)
+
+
+@pytest.mark.parametrize("duty", [0.05, 0.3, 0.95])
+def test_the_delivered_duty_variance_near_a_bound_matches_sampling(duty: float) -> None:
+    draws = np.clip(duty + 0.1 * np.random.default_rng(0).standard_normal(400_000), 0.0, 1.0)
+    assert clipped_duty_variance(np.array(duty), 0.1) == pytest.approx(draws.var(), rel=0.01)
+
+
+def test_the_fast_distances_equal_the_covariance_written_out(every_noise: Scenario) -> None:
+    model = LinearNoiseModel(every_noise, 3)
+    sequences = np.array([[[3, 0, 2, 1], [0, 3, 0, 0], [1, 1, 3, 2]], [[0, 0, 0, 0]] * 3])
+    means = model.mean_responses(sequences)
+    for process, measurement in [(1.0, 1.0), (6.0, 1.0), (1.0, 6.0), (0.0, 2.0)]:
+        fast = model.mahalanobis_sq(sequences, process, measurement)
+        for p, sequence in enumerate(sequences):
+            for column, (i, j) in enumerate(model.pairs):
+                sigma = model.dense_covariance(sequence, (i, j), process, measurement)
+                delta = (means[p, i] - means[p, j]).reshape(-1)
+                dense = delta @ np.linalg.solve(sigma, delta)
+                assert fast[p, column] == pytest.approx(dense, rel=1e-6, abs=1e-9)
+
+
+def test_the_covariance_is_the_simulators_at_low_rates(every_noise: Scenario) -> None:
+    """With the body slow, what the model neglects (the gyroscopic coupling of the noise)
+    is negligible, so its covariance must be the sample covariance of the simulated
+    series, every term at once."""
+    sequence = np.array([[1, 0, 1, 0], [0, 1, 0, 1], [1, 1, 1, 0]])
+    model = LinearNoiseModel(every_noise, len(sequence))
+    measured = simulate(every_noise, sequence, 20_000, np.random.default_rng(3)).omega_measured
+    for k in range(every_noise.n_candidates):
+        series = measured[k].reshape(len(measured[k]), -1)
+        sample = np.cov(series, rowvar=False)
+        modelled = model.dense_covariance(sequence, (k,))
+        error = np.linalg.norm(sample - modelled) / np.linalg.norm(modelled)
+        assert error < 0.03, f"candidate {k}: relative error {error:.3f}"
+
+
+@pytest.mark.parametrize(
+    ("sequence", "process", "measurement"),
+    [
+        ([FIRE] * 4, 6.0, 1.0),
+        ([FIRE] * 4, 1.0, 6.0),
+        ([FIRE] * 2 + [BRAKE] * 2, 1.0, 6.0),
+        ([FIRE, OFF, OFF, BRAKE], 6.0, 1.0),
+    ],
+)
+def test_the_predicted_accuracy_is_what_the_ceiling_measures(
+    paper: Scenario, sequence: list, process: float, measurement: float
+) -> None:
+    """The prediction against the ceiling (per-candidate Gaussians fitted on 3,000
+    realisations) on 1,000 simulated series per candidate, where a design is chosen
+    (accuracies of 0.85 to 0.995): within sampling error plus a point and a half (the
+    union bound, the neglected coupling of the noise). At lower accuracies the union
+    bound counts errors twice and the prediction is pessimistic (it still ranks)."""
+    sequence = np.array(sequence)
+    model = LinearNoiseModel(paper, len(sequence))
+    predicted = 1.0 - model.predicted_error(sequence[None], ((process, measurement),))[0, 0]
+    scales = {"process_noise_scale": process, "measurement_noise_scale": measurement}
+    ceiling = fit_ceiling(paper, sequence, 3000, np.random.default_rng(1), **scales)
+    test = simulate(paper, sequence, 1000, np.random.default_rng(2), **scales)
+    x, y = test.dataset()
+    measured = float(np.mean(ceiling.predict(x) == y))
+    spread = 2.0 * np.sqrt(measured * (1.0 - measured) / len(y))
+    assert abs(predicted - measured) < spread + 0.015, (predicted, measured)
+    assert 0.8 < measured < 0.999  # a case where the noise matters, not a saturated one
+
+
+def test_the_prediction_is_exact_for_two_gaussians_without_a_low_rank_part() -> None:
+    """Only white gyro noise and the random walk: two candidates, one pair, and the
+    union bound is the exact two-class error Φ(−D/2)."""
+    scenario = preset(
+        "paper",
+        inertia_candidates=[
+            {"name": "a", "inertia_kg_m2": np.diag([100.0, 60.0, 90.0]).tolist()},
+            {"name": "b", "inertia_kg_m2": np.diag([97.0, 58.0, 88.0]).tolist()},
+        ],
+        uncertainty={"duty_jitter_sigma": 0.0},
+    )
+    model = LinearNoiseModel(scenario, 2)
+    sequence = np.array([[FIRE, FIRE]])
+    d2 = model.mahalanobis_sq(sequence, 6.0, 1.0)[0, 0]
+    error = model.predicted_error(sequence, ((6.0, 1.0),))[0, 0]
+    assert error == pytest.approx(ndtr(-0.5 * np.sqrt(d2)))
+    assert 0.0 < error < 0.5
+
+
+def test_the_same_sequence_gets_the_same_prediction(paper: Scenario) -> None:
+    model = LinearNoiseModel(paper, 2)
+    one = model.predicted_error(np.array([[FIRE, BRAKE]]), ((6.0, 1.0),))
+    many = model.predicted_error(np.array([[FIRE, FIRE], [FIRE, BRAKE]]), ((6.0, 1.0),))
+    assert one[0, 0] == pytest.approx(many[1, 0], rel=1e-9)
