@@ -60,13 +60,17 @@ __all__ = [
 
 #: NSGA-II's defaults: population size, generations, SBX and polynomial-mutation
 #: distribution indices (larger: children nearer their parents) and the crossover
-#: probability; the mutation probability per variable is 1 / (L N).
+#: probability (the mutation probability per variable is 1 / (L N)); then the polish:
+#: rounds of local moves (a population of neighbours a round) from each of
+#: ``polish_starts`` sequences (0 rounds: none).
 NSGA2_DEFAULTS: dict[str, Any] = {
     "population": 64,
     "generations": 30,
     "crossover_eta": 15.0,
     "mutation_eta": 20.0,
     "crossover_prob": 0.9,
+    "polish_iterations": 30,
+    "polish_starts": 4,
 }
 #: Members re-scored on fresh draws at most (the non-dominated set on the search's draw
 #: is thinned evenly along the accuracy beyond this).
@@ -76,9 +80,10 @@ MAX_FRONT_CANDIDATES = 60
 def check_nsga2_params(params: dict[str, Any] | None) -> dict[str, Any]:
     """NSGA-II's defaults updated with ``params``, each checked; unknown names refused."""
     merged = overrides(params, NSGA2_DEFAULTS, "unknown NSGA-II settings {unknown}; known: {known}")
-    for name in ("population", "generations"):
+    minimum = {"population": 4, "generations": 1, "polish_iterations": 0, "polish_starts": 1}
+    for name in ("population", "generations", "polish_iterations", "polish_starts"):
         value = merged[name]
-        if not is_integer(value, minimum=4 if name == "population" else 1, maximum=10_000):
+        if not is_integer(value, minimum=minimum[name], maximum=10_000):
             raise InputError(f"NSGA-II {name} must be an integer in its range, got {value!r}")
     for name in ("crossover_eta", "mutation_eta"):
         value = merged[name]
@@ -261,15 +266,21 @@ class _Archive:
             self.scores.setdefault(row.tobytes(), (row, score))
 
 
+def _baseline_rows(scenario: Scenario, length: int) -> list[np.ndarray]:
+    """The baselines the geometry and the length allow."""
+    rows = []
+    for make in BASELINES.values():
+        try:
+            rows.append(make(scenario, length))
+        except InputError:
+            continue
+    return rows
+
+
 def _initial_population(
     scenario: Scenario, length: int, size: int, rng: np.random.Generator
 ) -> np.ndarray:
-    seeded = []
-    for make in BASELINES.values():
-        try:
-            seeded.append(make(scenario, length))
-        except InputError:
-            continue
+    seeded = _baseline_rows(scenario, length)
     seeded.append(np.zeros((length, scenario.n_thrusters), dtype=int))
     # Random sequences, most entries off: a uniformly random level on every thruster
     # fires opposing thrusters almost always.
@@ -278,6 +289,81 @@ def _initial_population(
     on = rng.random((count, length, scenario.n_thrusters)) < 0.3
     population = np.concatenate([np.stack(seeded)[:size], levels * on])
     return population.reshape(len(population), -1)
+
+
+def _neighbours(
+    current: np.ndarray, count: int, n_levels: int, rng: np.random.Generator
+) -> np.ndarray:
+    """``count`` sequences one local move away from ``current`` (L, N): a firing moved to
+    the step before or after (or to any step), a level one up or down, two steps
+    swapped. Moves in time keep each thruster's impulse, so a sequence that ends at rest
+    stays near rest while its timing changes, which the crossover and mutation of
+    NSGA-II, acting on one level at a time, rarely achieve."""
+    length, n_thr = current.shape
+    firing = np.argwhere(current > 0)
+    out = np.repeat(current[None], count, axis=0)
+    for child in out:
+        move = rng.integers(4)
+        step, thruster = int(rng.integers(length)), int(rng.integers(n_thr))
+        if move < 2 and len(firing):
+            step, thruster = (int(i) for i in firing[rng.integers(len(firing))])
+        if move == 0 and length > 1:
+            other = step + 1 if step == 0 else step - 1 if step == length - 1 else step
+            other = other if other != step else step + int(rng.choice((-1, 1)))
+            child[[step, other], thruster] = child[[other, step], thruster]
+        elif move == 1 and length > 1:
+            other = int((step + rng.integers(1, length)) % length)
+            child[[step, other], thruster] = child[[other, step], thruster]
+        elif move == 2 or length == 1:
+            level = child[step, thruster] + rng.choice((-1, 1))
+            child[step, thruster] = np.clip(level, 0, n_levels - 1)
+        else:
+            other = int((step + rng.integers(1, length)) % length)
+            child[[step, other]] = child[[other, step]]
+    return out
+
+
+def _rank_key(score: SequenceScores, constraints: dict[str, float]) -> tuple[float, float]:
+    """Feasible first (the summed relative violation), then the most accurate."""
+    violation = float(np.sum(np.maximum(score.violations(constraints), 0.0)))
+    return violation, -score.accuracy
+
+
+def _polish(
+    scorer: OperatorScorer,
+    archive: _Archive,
+    starts: list[np.ndarray],
+    constraints: dict[str, float],
+    *,
+    iterations: int,
+    batch: int,
+    rng: np.random.Generator,
+    should_stop: Callable[[], bool] | None,
+) -> bool:
+    """Steepest-ascent local search (a memetic step after NSGA-II) from each start:
+    each round scores ``batch`` neighbours and moves to the best if it ranks above the
+    current sequence (:func:`_rank_key`), else stops there. Every sequence scored goes
+    into the archive, so the front gains whatever non-dominated ones it met. Returns
+    False when ``should_stop`` ended it."""
+    n_levels = scorer.scenario.n_levels
+    for start in starts:
+        current = np.asarray(start)
+        best = _rank_key(scorer.score(current[None])[0], constraints)
+        for _ in range(iterations):
+            if should_stop is not None and should_stop():
+                return False
+            rows = np.unique(_neighbours(current, batch, n_levels, rng), axis=0)
+            rows = rows[(rows != current).any(axis=(1, 2))]
+            if not len(rows):
+                break
+            scores = scorer.score(rows)
+            archive.add(rows, scores)
+            keys = [_rank_key(score, constraints) for score in scores]
+            chosen = min(range(len(rows)), key=keys.__getitem__)
+            if keys[chosen] >= best:
+                break
+            current, best = rows[chosen], keys[chosen]
+    return True
 
 
 def pareto_search(
@@ -386,6 +472,21 @@ def pareto_search(
         if should_stop is not None and should_stop():
             stopped = "cancelled"
             break
+    if stopped == "budget" and params["polish_iterations"] > 0:
+        ranked = sorted(archive.scores.values(), key=lambda e: _rank_key(e[1], constraints))
+        starts = [row for row, _ in ranked[: params["polish_starts"]]]
+        starts += [row for row in _baseline_rows(scenario, sequence_length)]
+        if not _polish(
+            scorer,
+            archive,
+            starts,
+            constraints,
+            iterations=params["polish_iterations"],
+            batch=params["population"],
+            rng=rng,
+            should_stop=should_stop,
+        ):
+            stopped = "cancelled"
     entries = list(archive.scores.values())
     vectors = np.stack([s.objective_vector(checked.objectives) for _, s in entries])
     allowed = np.array([s.feasible(constraints) for _, s in entries])
