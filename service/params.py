@@ -143,7 +143,8 @@ class SearchParams(StrictModel):
     nsga2: dict[str, Any] = Field(
         default_factory=dict,
         description="overrides of NSGA-II's settings (method nsga2): population, generations, "
-        "crossover_eta, mutation_eta, crossover_prob",
+        "crossover_eta, mutation_eta, crossover_prob, polish_iterations (local-search rounds "
+        "after the generations, 0: none), polish_starts",
         examples=[{"population": 64, "generations": 30}],
     )
     objectives: list[SearchGoal] = Field(

@@ -124,7 +124,7 @@ def search_options(func: F) -> F:
         _pairs(
             "--nsga2",
             "Override an NSGA-II setting (repeatable): population, generations, "
-            "crossover_eta, mutation_eta, crossover_prob.",
+            "crossover_eta, mutation_eta, crossover_prob, polish_iterations, polish_starts.",
         ),
         click.option(
             "--objectives",
