@@ -10,10 +10,15 @@ numbers), on the objectives and constraints of its
 :class:`~inertia_id.search.operator.OperatorSettings`; the constraints are pymoo's
 inequality constraints (feasible first, then by violation). The first population holds
 the baselines (:mod:`inertia_id.physics.sequences`) and the all-off sequence beside
-random ones, so the search starts from what an engineer would try.
+random ones, so the search starts from what an engineer would try. After the
+generations a polish (:func:`_polish`) walks from the best sequences and the baselines
+by local moves that NSGA-II's per-level operators rarely make: a firing moved in time
+keeps its impulse, so a sequence that ends at rest stays near rest while its timing
+changes.
 
 Every sequence evaluated is kept; the non-dominated, feasible ones on the search's draw
-are re-scored on a fresh draw with an independent seed and more realisations
+are re-scored on a fresh draw with an independent seed and more realisations (the
+residual and peak rates; the predicted accuracy comes from the noise model, not a draw)
 (:func:`build_front`), and the stored front is what is feasible and non-dominated *on
 those fresh scores*, each member with a stable index (0 = the most accurate). The
 baselines are scored on the same fresh draw, and a baseline that dominates a member is

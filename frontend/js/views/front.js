@@ -322,7 +322,7 @@ export function frontPanel(job, context) {
     h(
       "p",
       { class: "hint" },
-      `${pareto ? "Non-dominated" : "Judged"} on ${(front.objectives || []).map((o) => OBJECTIVE_WORDS[o] || o).join(", ")}; every figure on a fresh draw (${front.fresh_realisations} realisations per candidate), the baselines on the same draw. Accuracy: the Bayes classifier's predicted accuracy at the design noise (${designNoiseText(front)}). Colour: ${colourLabel}; a red outline marks a member a baseline dominates.`,
+      `${pareto ? "Non-dominated" : "Judged"} on ${(front.objectives || []).map((o) => OBJECTIVE_WORDS[o] || o).join(", ")}; the rates on a fresh draw (${front.fresh_realisations} realisations per candidate), the baselines on the same draw. Accuracy: the Bayes classifier's predicted accuracy at the design noise (${designNoiseText(front)}), from the scenario's own noise model (no draw: the same sequence, the same figure). Colour: ${colourLabel}; a red outline marks a member a baseline dominates.`,
     ),
     dominating.length
       ? h(
