@@ -296,19 +296,39 @@ def _initial_population(
     return population.reshape(len(population), -1)
 
 
+def opposing_thrusters(torque_matrix: np.ndarray) -> np.ndarray:
+    """For each thruster, the one whose torque is most nearly opposite (cosine below
+    -0.5), or -1: what brakes what it fires, for any geometry."""
+    directions = torque_matrix / np.maximum(np.linalg.norm(torque_matrix, axis=0), 1e-300)
+    cosines = directions.T @ directions
+    best = cosines.argmin(axis=1)
+    return np.where(cosines[np.arange(len(best)), best] < -0.5, best, -1)
+
+
 def _neighbours(
-    current: np.ndarray, count: int, n_levels: int, rng: np.random.Generator
+    current: np.ndarray,
+    count: int,
+    n_levels: int,
+    opposing: np.ndarray,
+    rng: np.random.Generator,
 ) -> np.ndarray:
     """``count`` sequences one local move away from ``current`` (L, N): a firing moved to
     the step before or after (or to any step), a level one up or down, two steps
-    swapped. Moves in time keep each thruster's impulse, so a sequence that ends at rest
-    stays near rest while its timing changes, which the crossover and mutation of
-    NSGA-II, acting on one level at a time, rarely achieve."""
+    swapped, or a firing and its brake added or taken away together (the same level
+    change on a thruster at one step and on its opposing thruster at a later one).
+    Moves in time keep each thruster's impulse and paired changes keep the momentum
+    balance, so a sequence that ends at rest stays near rest while its timing and its
+    impulse change, which the crossover and mutation of NSGA-II, acting on one level at
+    a time, rarely achieve.
+
+    :param opposing: each thruster's opposing one, or -1 (:func:`opposing_thrusters`).
+    """
     length, n_thr = current.shape
     firing = np.argwhere(current > 0)
+    paired = np.flatnonzero(opposing >= 0)
     out = np.repeat(current[None], count, axis=0)
     for child in out:
-        move = rng.integers(4)
+        move = rng.integers(5)
         step, thruster = int(rng.integers(length)), int(rng.integers(n_thr))
         if move < 2 and len(firing):
             step, thruster = (int(i) for i in firing[rng.integers(len(firing))])
@@ -319,12 +339,23 @@ def _neighbours(
         elif move == 1 and length > 1:
             other = int((step + rng.integers(1, length)) % length)
             child[[step, other], thruster] = child[[other, step], thruster]
-        elif move == 2 or length == 1:
-            level = child[step, thruster] + rng.choice((-1, 1))
-            child[step, thruster] = np.clip(level, 0, n_levels - 1)
-        else:
+        elif move == 3 and length > 1:
             other = int((step + rng.integers(1, length)) % length)
             child[[step, other]] = child[[other, step]]
+        elif move == 4 and length > 1 and len(paired):
+            fire = int(paired[rng.integers(len(paired))])
+            first, later = sorted(rng.choice(length, 2, replace=False))
+            brake = opposing[fire]
+            low, high = child[first, fire], child[later, brake]
+            if rng.random() < 0.5:  # add: as much as both have room for
+                change = min(int(rng.integers(1, n_levels)), n_levels - 1 - max(low, high))
+            else:  # take away: as much as both have
+                change = -min(int(rng.integers(1, n_levels)), min(low, high))
+            child[first, fire] += change
+            child[later, brake] += change
+        else:
+            level = child[step, thruster] + rng.choice((-1, 1))
+            child[step, thruster] = np.clip(level, 0, n_levels - 1)
     return out
 
 
@@ -351,13 +382,14 @@ def _polish(
     into the archive, so the front gains whatever non-dominated ones it met. Returns
     False when ``should_stop`` ended it."""
     n_levels = scorer.scenario.n_levels
+    opposing = opposing_thrusters(scorer.scenario.torque_matrix)
     for start in starts:
         current = np.asarray(start)
         best = _rank_key(scorer.score(current[None])[0], constraints)
         for _ in range(iterations):
             if should_stop is not None and should_stop():
                 return False
-            rows = np.unique(_neighbours(current, batch, n_levels, rng), axis=0)
+            rows = np.unique(_neighbours(current, batch, n_levels, opposing, rng), axis=0)
             rows = rows[(rows != current).any(axis=(1, 2))]
             if not len(rows):
                 break
