@@ -34,7 +34,7 @@ judged under their average covariance, ``D²_ij = Δμᵀ Σ̄_ij⁻¹ Δμ``, a
 How it is computed, and why it is fast: the first two terms are a Kronecker product,
 diagonal in the basis ``W ⊗ V`` (W the eigenvectors of O Oᵀ, once per length; V those
 of the pair's 3 x 3 ``J Jᵀ``), so Σ̄'s base part is whitened by two small matrix
-products; the low-rank rest (2 + L N + N columns, pulses ⊗ directions) goes through the
+products; the low-rank rest (L N + N + 3 columns: pulses ⊗ directions, offsets) goes through the
 Woodbury identity, its columns whitened once per pair and weighted per sequence. No
 d x d matrix is formed or factored per sequence, and nothing is random: the same
 sequence always gets the same prediction.
@@ -58,37 +58,43 @@ from ..physics.presets import NOISE_OFF
 from ..physics.scenario import Scenario
 from ..physics.simulate import Simulator
 
-__all__ = ["LinearNoiseModel", "clipped_duty_variance"]
+__all__ = ["LinearNoiseModel", "clipped_duty_moments"]
 
-#: Pairs whitened at once (bounds the memory of P x pairs x d arrays).
-_PAIR_BLOCK = 16
+#: Bytes the arrays of one block of pairs may take (P x pairs x R x R Gram matrices).
+_BLOCK_BYTES = 64 * 2**20
 
 
-def clipped_duty_variance(duty: np.ndarray, sigma: float) -> np.ndarray:
-    """Variance of the delivered duty ``clip(d + ε, 0, 1)``, ε ~ N(0, σ²), for each
-    commanded duty d (0 where the thruster is off: it does not fire, no jitter).
+def clipped_duty_moments(duty: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and variance of the delivered duty ``clip(d + ε, 0, 1)``, ε ~ N(0, σ²), for
+    each commanded duty d (0 and 0 where the thruster is off: it does not fire).
 
-    The censored normal's moments: at full duty half the jitter is clipped away and the
-    variance is (1/2 − 1/(2π)) σ², about a third of σ².
+    The censored normal's moments, computed in units of σ (stable for any σ): at full
+    duty the mean is 1 − σ/√(2π) and half the jitter is clipped away, the variance
+    (1/2 − 1/(2π)) σ², about a third of σ².
     """
     from scipy.special import ndtr
 
     d = np.asarray(duty, dtype=float)
     if sigma <= 0.0:
-        return np.zeros_like(d)
-    a, b = -d / sigma, (1.0 - d) / sigma
-    pdf_a, pdf_b = np.exp(-0.5 * a * a), np.exp(-0.5 * b * b)
-    pdf_a, pdf_b = pdf_a / math.sqrt(2 * math.pi), pdf_b / math.sqrt(2 * math.pi)
-    inside = ndtr(b) - ndtr(a)
-    above = 1.0 - ndtr(b)
-    first = above + d * inside + sigma * (pdf_a - pdf_b)
-    second = (
-        above
-        + (d * d + sigma * sigma) * inside
-        + 2.0 * d * sigma * (pdf_a - pdf_b)
-        + sigma * sigma * (a * pdf_a - b * pdf_b)
-    )
-    return np.where(d > 0.0, np.maximum(second - first * first, 0.0), 0.0)
+        return d.copy(), np.zeros_like(d)
+    a, b = -d / sigma, (1.0 - d) / sigma  # the bounds of Z = (Y − d) / σ
+    pdf_a = np.exp(-0.5 * a * a) / math.sqrt(2 * math.pi)
+    pdf_b = np.exp(-0.5 * b * b) / math.sqrt(2 * math.pi)
+    below, above = ndtr(a), 1.0 - ndtr(b)
+    with np.errstate(invalid="ignore"):
+        # a²Φ(a) and a φ(a) are 0 where a is far out (0 · inf): nan_to_num.
+        first = np.nan_to_num(a * below) + np.nan_to_num(b * above) + pdf_a - pdf_b
+        second = (
+            np.nan_to_num(a * a * below)
+            + np.nan_to_num(b * b * above)
+            + (1.0 - below - above)
+            + np.nan_to_num(a * pdf_a)
+            - np.nan_to_num(b * pdf_b)
+        )
+    firing = d > 0.0
+    mean = np.where(firing, d + sigma * first, 0.0)
+    variance = np.where(firing, sigma * sigma * np.maximum(second - first * first, 0.0), 0.0)
+    return mean, variance
 
 
 def _integrated_pulses(scenario: Scenario, length: int, times: np.ndarray) -> np.ndarray:
@@ -148,8 +154,22 @@ class LinearNoiseModel:
         self._initial = unc.initial_rate_sigma_rad_s
         self._bias = unc.gyro_bias_sigma_rad_s
         self._white = unc.gyro_noise_sigma_rad_s**2
+        # The mean response fires each thruster at its expected delivered duty (clipping
+        # at full duty shortens it by σ/√(2π)), as the classifier's training means do.
         self._quiet = Simulator(scenario.with_uncertainty(**NOISE_OFF), 1)
+        self._quiet.level_values = clipped_duty_moments(
+            scenario.level_values, unc.duty_jitter_sigma
+        )[0]
         self._quiet_noise = self._quiet.draw_noise(np.random.default_rng(0), self.sequence_length)
+        # A variance floor keeps Σ invertible with every noise off: 1e-12 of the squared
+        # rate one full-duty step gives the lightest axis, a property of the scenario
+        # (never of the batch scored, so a sequence's prediction is its own).
+        step_rate = (
+            float(np.linalg.norm(torque, axis=0).max())
+            * scenario.timing.step_duration_s
+            / float(np.linalg.eigvalsh(scenario.inertia_array).min())
+        )
+        self._floor = 1e-12 * step_rate**2 + np.finfo(float).tiny
 
     def mean_responses(self, sequences: np.ndarray) -> np.ndarray:
         """Noise-free rates of every candidate, (P, K, T, 3), rad/s."""
@@ -207,22 +227,25 @@ class LinearNoiseModel:
         sequences = np.asarray(sequences)
         if means is None:
             means = self.mean_responses(sequences)
-        duties = self.scenario.level_values[sequences]  # (P, L, N)
-        floor = 1e-12 * float(np.mean(means**2)) + np.finfo(float).tiny
-        jitter_sd = np.sqrt(clipped_duty_variance(duties, self._jitter))  # (P, L, N)
-        white = measurement**2 * self._white + floor
+        # The thrust scale multiplies the delivered duty: its expected value.
+        duties, variance = clipped_duty_moments(self.scenario.level_values[sequences], self._jitter)
+        jitter_sd = np.sqrt(variance)  # (P, L, N)
+        white = measurement**2 * self._white + self._floor
         offset_sd = math.sqrt(self._initial**2 + (measurement * self._bias) ** 2)
+        rank = self.sequence_length * self.scenario.n_thrusters + self.scenario.n_thrusters + 3
+        per_pair = 8 * len(sequences) * (4 * rank * rank + 4 * self.n_samples * (rank + 3))
+        size = max(1, min(len(self._pairs), _BLOCK_BYTES // per_pair))
         blocks = [
             self._pair_distances(
                 means,
                 jitter_sd,
                 duties,
-                slice(start, start + _PAIR_BLOCK),
+                slice(start, start + size),
                 process**2,
                 white,
                 offset_sd,
             )
-            for start in range(0, len(self._pairs), _PAIR_BLOCK)
+            for start in range(0, len(self._pairs), size)
         ]
         return np.concatenate(blocks, axis=1)
 
@@ -249,8 +272,9 @@ class LinearNoiseModel:
         offset = self._initial**2 + (measurement * self._bias) ** 2
         sigma += offset * np.kron(np.ones((t, t)), np.eye(3))
         pulses = self._w @ self._pulses_w  # (T, L)
-        duties = self.scenario.level_values[sequence]
-        variance = clipped_duty_variance(duties, unc.duty_jitter_sigma)
+        duties, variance = clipped_duty_moments(
+            self.scenario.level_values[sequence], unc.duty_jitter_sigma
+        )
         directions = mean_inverse @ self.scenario.torque_matrix  # (3, N)
         scale_columns = np.zeros((3 * t, duties.shape[1]))
         for step in range(len(sequence)):

@@ -89,7 +89,9 @@ def check_nsga2_params(params: dict[str, Any] | None) -> dict[str, Any]:
     for name in ("population", "generations", "polish_iterations", "polish_starts"):
         value = merged[name]
         if not is_integer(value, minimum=minimum[name], maximum=10_000):
-            raise InputError(f"NSGA-II {name} must be an integer in its range, got {value!r}")
+            raise InputError(
+                f"NSGA-II {name} must be an integer in {minimum[name]}..10000, got {value!r}"
+            )
     for name in ("crossover_eta", "mutation_eta"):
         value = merged[name]
         if isinstance(value, bool) or not isinstance(value, int | float) or not 0 < value <= 1000:
@@ -316,10 +318,11 @@ def _neighbours(
     the step before or after (or to any step), a level one up or down, two steps
     swapped, or a firing and its brake added or taken away together (the same level
     change on a thruster at one step and on its opposing thruster at a later one).
-    Moves in time keep each thruster's impulse and paired changes keep the momentum
-    balance, so a sequence that ends at rest stays near rest while its timing and its
-    impulse change, which the crossover and mutation of NSGA-II, acting on one level at
-    a time, rarely achieve.
+    Moves in time keep each thruster's impulse, and a paired change keeps the momentum
+    balance where the two thrusters' torques are equal and opposite and the levels
+    evenly spaced (as usual; elsewhere it comes near), so a sequence that ends at rest
+    stays near rest while its timing and its impulse change, which the crossover and
+    mutation of NSGA-II, acting on one level at a time, rarely achieve.
 
     :param opposing: each thruster's opposing one, or -1 (:func:`opposing_thrusters`).
     """
@@ -374,27 +377,29 @@ def _polish(
     iterations: int,
     batch: int,
     rng: np.random.Generator,
-    should_stop: Callable[[], bool] | None,
+    after_round: Callable[[], bool] | None = None,
 ) -> bool:
     """Steepest-ascent local search (a memetic step after NSGA-II) from each start:
     each round scores ``batch`` neighbours and moves to the best if it ranks above the
     current sequence (:func:`_rank_key`), else stops there. Every sequence scored goes
-    into the archive, so the front gains whatever non-dominated ones it met. Returns
-    False when ``should_stop`` ended it."""
+    into the archive, so the front gains whatever non-dominated ones it met.
+
+    :param after_round: called after every round (to report progress); True ends the
+        polish there, and the function returns False."""
     n_levels = scorer.scenario.n_levels
     opposing = opposing_thrusters(scorer.scenario.torque_matrix)
     for start in starts:
         current = np.asarray(start)
         best = _rank_key(scorer.score(current[None])[0], constraints)
         for _ in range(iterations):
-            if should_stop is not None and should_stop():
-                return False
             rows = np.unique(_neighbours(current, batch, n_levels, opposing, rng), axis=0)
             rows = rows[(rows != current).any(axis=(1, 2))]
             if not len(rows):
                 break
             scores = scorer.score(rows)
             archive.add(rows, scores)
+            if after_round is not None and after_round():
+                return False
             keys = [_rank_key(score, constraints) for score in scores]
             chosen = min(range(len(rows)), key=keys.__getitem__)
             if keys[chosen] >= best:
@@ -424,7 +429,8 @@ def pareto_search(
     :param settings: how the best member's clustering F1 is measured on
         ``n_fresh_draws`` fresh draws (the figure every search reports).
     :param progress: called after every generation.
-    :param should_stop: polled after every generation; True ends the search there.
+    :param should_stop: polled after every generation and every polish round; True ends
+        the search there.
     :param seed: seeds the noise draw and NSGA-II: the same seed, the same front.
     """
     from pymoo.algorithms.moo.nsga2 import NSGA2
@@ -477,7 +483,30 @@ def pareto_search(
         eliminate_duplicates=True,
     )
     algorithm.setup(_Sequences(), termination=("n_gen", params["generations"]), seed=seed)
+    # The polish climbs the accuracy: only worth its evaluations when accuracy is asked.
+    polish_starts: list[np.ndarray] = []
+    if params["polish_iterations"] > 0 and "accuracy" in checked.objectives:
+        polish_starts = _baseline_rows(scenario, sequence_length)
+    rounds = params["polish_iterations"] * (params["polish_starts"] + len(polish_starts))
+    # At most: the polish stops early where no neighbour ranks higher.
+    budget = (
+        params["population"] * (params["generations"] + rounds) + params["polish_starts"]
+    ) * sequence_length
     curve: list[CurvePoint] = []
+
+    def report(point: CurvePoint) -> bool:
+        if progress is not None:
+            progress(
+                SearchProgress(
+                    timesteps=scorer.evaluations * sequence_length,
+                    total_timesteps=max(budget, scorer.evaluations * sequence_length),
+                    episodes=scorer.evaluations,
+                    point=point,
+                    best=None,
+                )
+            )
+        return should_stop is not None and should_stop()
+
     stopped = "budget"
     while algorithm.has_next():
         algorithm.next()
@@ -496,23 +525,12 @@ def pareto_search(
             best_final_rate_rad_s=top.final_rate_rad_s,
         )
         curve.append(point)
-        if progress is not None:
-            progress(
-                SearchProgress(
-                    timesteps=point.timesteps,
-                    total_timesteps=params["population"] * params["generations"] * sequence_length,
-                    episodes=point.episodes,
-                    point=point,
-                    best=None,
-                )
-            )
-        if should_stop is not None and should_stop():
+        if report(point):
             stopped = "cancelled"
             break
-    if stopped == "budget" and params["polish_iterations"] > 0:
+    if stopped == "budget" and polish_starts:
         ranked = sorted(archive.scores.values(), key=lambda e: _rank_key(e[1], constraints))
-        starts = [row for row, _ in ranked[: params["polish_starts"]]]
-        starts += [row for row in _baseline_rows(scenario, sequence_length)]
+        starts = [row for row, _ in ranked[: params["polish_starts"]]] + polish_starts
         if not _polish(
             scorer,
             archive,
@@ -521,7 +539,7 @@ def pareto_search(
             iterations=params["polish_iterations"],
             batch=params["population"],
             rng=rng,
-            should_stop=should_stop,
+            after_round=lambda: report(curve[-1]),
         ):
             stopped = "cancelled"
     entries = list(archive.scores.values())

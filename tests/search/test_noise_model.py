@@ -10,7 +10,8 @@ from scipy.special import ndtr
 
 from inertia_id import Scenario, preset, simulate
 from inertia_id.evaluation.ceiling import fit_ceiling
-from inertia_id.search.noise_model import LinearNoiseModel, clipped_duty_variance
+from inertia_id.physics.presets import NOISE_OFF
+from inertia_id.search.noise_model import LinearNoiseModel, clipped_duty_moments
 
 FIRE, BRAKE, OFF = [4, 4, 4, 0, 0, 0], [0, 0, 0, 4, 4, 4], [0] * 6
 
@@ -46,24 +47,46 @@ def every_noise() -> Scenario:
 
 
 @pytest.mark.parametrize(
-    ("duty", "sigma", "expected"),
+    ("duty", "sigma", "mean", "variance"),
     [
-        (1.0, 0.02, (0.5 - 0.5 / np.pi) * 0.02**2),  # half the jitter clipped at full duty
-        (0.5, 0.02, 0.02**2),  # far from both bounds: the jitter's own variance
-        (0.0, 0.02, 0.0),  # a thruster commanded off does not fire
-        (0.5, 0.0, 0.0),
+        # Half the jitter clipped at full duty: the mean shortened, a third of the variance.
+        (1.0, 0.02, 1.0 - 0.02 / np.sqrt(2 * np.pi), (0.5 - 0.5 / np.pi) * 0.02**2),
+        (1.0, 1e-9, 1.0 - 1e-9 / np.sqrt(2 * np.pi), (0.5 - 0.5 / np.pi) * 1e-18),
+        (0.5, 0.02, 0.5, 0.02**2),  # far from both bounds: the jitter's own
+        (0.0, 0.02, 0.0, 0.0),  # a thruster commanded off does not fire
+        (0.5, 0.0, 0.5, 0.0),
     ],
 )
-def test_the_delivered_duty_variance_in_closed_form(
-    duty: float, sigma: float, expected: float
+def test_the_delivered_duty_moments_in_closed_form(
+    duty: float, sigma: float, mean: float, variance: float
 ) -> None:
-    assert clipped_duty_variance(np.array(duty), sigma) == pytest.approx(expected, rel=1e-6)
+    got_mean, got_variance = clipped_duty_moments(np.array(duty), sigma)
+    assert got_mean == pytest.approx(mean, rel=1e-9)
+    assert got_variance == pytest.approx(variance, rel=1e-6, abs=1e-300)
 
 
-@pytest.mark.parametrize("duty", [0.05, 0.3, 0.95])
-def test_the_delivered_duty_variance_near_a_bound_matches_sampling(duty: float) -> None:
+@pytest.mark.parametrize("duty", [0.05, 0.3, 0.95, 1.0])
+def test_the_delivered_duty_moments_near_a_bound_match_sampling(duty: float) -> None:
     draws = np.clip(duty + 0.1 * np.random.default_rng(0).standard_normal(400_000), 0.0, 1.0)
-    assert clipped_duty_variance(np.array(duty), 0.1) == pytest.approx(draws.var(), rel=0.01)
+    mean, variance = clipped_duty_moments(np.array(duty), 0.1)
+    assert mean == pytest.approx(draws.mean(), abs=4 * draws.std() / np.sqrt(len(draws)))
+    assert variance == pytest.approx(draws.var(), rel=0.01)
+
+
+def test_the_mean_response_is_the_simulators_with_clipped_jitter(every_noise: Scenario) -> None:
+    """At full duty the clipped jitter shortens every firing on average: the model's
+    means must be the simulated mean, not the commanded response."""
+    clipped = every_noise.with_uncertainty(duty_jitter_sigma=0.1)
+    sequence = np.array([[3, 0, 3, 3], [3, 3, 0, 3]])  # full duty
+    model = LinearNoiseModel(clipped, len(sequence))
+    rates = simulate(clipped, sequence, 20_000, np.random.default_rng(5)).omega_true
+    sampled = rates.mean(axis=1)
+    error = rates.std(axis=1) / np.sqrt(rates.shape[1])
+    difference = np.abs(model.mean_responses(sequence[None])[0] - sampled)
+    assert (difference < 5 * error + 1e-12).all()
+    quiet = clipped.with_uncertainty(**NOISE_OFF)
+    commanded = simulate(quiet, sequence, 1, np.random.default_rng(0))
+    assert (np.abs(commanded.omega_true[:, 0] - sampled) > 5 * error).any()
 
 
 def test_the_fast_distances_equal_the_covariance_written_out(every_noise: Scenario) -> None:
@@ -101,7 +124,7 @@ def test_the_covariance_is_the_simulators_at_low_rates(every_noise: Scenario) ->
         ([FIRE] * 4, 6.0, 1.0),
         ([FIRE] * 4, 1.0, 6.0),
         ([FIRE] * 2 + [BRAKE] * 2, 1.0, 6.0),
-        ([FIRE, OFF, OFF, BRAKE], 6.0, 1.0),
+        ([FIRE] * 2 + [BRAKE] * 2, 6.0, 1.0),
     ],
 )
 def test_the_predicted_accuracy_is_what_the_ceiling_measures(
@@ -149,3 +172,17 @@ def test_the_same_sequence_gets_the_same_prediction(paper: Scenario) -> None:
     one = model.predicted_error(np.array([[FIRE, BRAKE]]), ((6.0, 1.0),))
     many = model.predicted_error(np.array([[FIRE, FIRE], [FIRE, BRAKE]]), ((6.0, 1.0),))
     assert one[0, 0] == pytest.approx(many[1, 0], rel=1e-9)
+
+
+def test_a_prediction_does_not_depend_on_the_batch_or_need_white_noise(paper: Scenario) -> None:
+    """With no gyro noise the variance floor is all that keeps Σ invertible: it must be
+    the scenario's, so an all-off sequence is scored (finite) and a sequence scores the
+    same alone or beside others."""
+    quiet = paper.with_uncertainty(**{**NOISE_OFF, "thrust_scale_sigma": 0.02})
+    model = LinearNoiseModel(quiet, 2)
+    off, fire = [OFF, OFF], [FIRE, BRAKE]
+    alone = model.mahalanobis_sq(np.array([fire]))
+    for batch in ([fire, off], [fire, [FIRE, FIRE]]):
+        assert model.mahalanobis_sq(np.array(batch))[0] == pytest.approx(alone[0], rel=1e-9)
+    error = model.predicted_error(np.array([off]), ((1.0, 0.0), (0.0, 0.0)))
+    assert np.isfinite(error).all()

@@ -269,9 +269,60 @@ def test_the_polish_walks_from_an_infeasible_start_to_a_feasible_one(paper: Scen
         iterations=40,
         batch=32,
         rng=np.random.default_rng(0),
-        should_stop=None,
     )
     assert finished
     best = min(archive.scores.values(), key=lambda entry: _rank_key(entry[1], constraints))
     assert best[1].feasible(constraints)
     assert best[1].accuracy > 0.5
+
+
+def test_the_polish_reports_progress_and_stops_when_told(paper: Scenario) -> None:
+    seen: list[tuple[int, int]] = []
+    calls = {"n": 0}
+
+    def stop() -> bool:
+        calls["n"] += 1
+        return calls["n"] > 5  # three generations, then two polish rounds
+
+    result = pareto_search(
+        paper,
+        sequence_length=2,
+        seed=1,
+        operator=OperatorSettings(n_realisations=4),
+        nsga2_params={"population": 8, "generations": 3, "polish_iterations": 10},
+        fresh_realisations=6,
+        progress=lambda p: seen.append((p.timesteps, p.total_timesteps)),
+        should_stop=stop,
+    )
+    assert result.stopped == "cancelled"
+    assert len(seen) == 6 and len(result.curve) == 3  # polish rounds report, not plot
+    assert all(done <= total for done, total in seen)
+    assert seen[-1][0] > seen[2][0]  # the polish scored more sequences
+
+
+def test_no_polish_without_the_accuracy_objective(paper: Scenario) -> None:
+    """The polish climbs the accuracy; asked for rates and impulse only, it would spend
+    its evaluations on a figure nobody asked for."""
+    result = pareto_search(
+        paper,
+        sequence_length=2,
+        seed=1,
+        operator=OperatorSettings(objectives=("final_rate", "impulse"), n_realisations=4),
+        nsga2_params={"population": 8, "generations": 3},
+        fresh_realisations=6,
+    )
+    assert result.episodes <= 8 * 3
+
+
+@pytest.mark.parametrize(
+    ("settings", "quoted"),
+    [
+        ({"polish_starts": 0}, "polish_starts must be an integer in 1..10000, got 0"),
+        ({"polish_iterations": -1}, "polish_iterations must be an integer in 0..10000, got -1"),
+    ],
+)
+def test_polish_settings_out_of_range_are_refused(
+    paper: Scenario, settings: dict, quoted: str
+) -> None:
+    with pytest.raises(InputError, match=quoted.replace(".", r"\.")):
+        pareto_search(paper, sequence_length=2, nsga2_params=settings)
