@@ -265,6 +265,16 @@ class Simulator:
         response = StepResponse(omega_true, measured, applied, commanded)
         return SimulationState(omega, torque, state.initial, state.n_steps + 1), response
 
+    def population_rates(self, sequences: np.ndarray, noise: SequenceNoise) -> np.ndarray:
+        """True body rates of P sequences (P, L, N) simulated side by side on the same
+        draws, (P, K, n, T, 3) rad/s: how a search scores a whole population at once."""
+        state = self.start_population(noise.initial, len(sequences))
+        parts = []
+        for step in range(sequences.shape[1]):
+            state, response = self.advance(state, sequences[:, step], noise.steps[step])
+            parts.append(response.omega_true)
+        return np.concatenate(parts, axis=-2)
+
     def run(self, sequence: np.ndarray, noise: SequenceNoise) -> SimulationResult:
         """Simulate a whole sequence with the given randomness."""
         sequence = self.scenario.check_sequence(sequence)

@@ -173,14 +173,7 @@ class LinearNoiseModel:
 
     def mean_responses(self, sequences: np.ndarray) -> np.ndarray:
         """Noise-free rates of every candidate, (P, K, T, 3), rad/s."""
-        state = self._quiet.start_population(self._quiet_noise.initial, len(sequences))
-        parts = []
-        for step in range(self.sequence_length):
-            state, response = self._quiet.advance(
-                state, sequences[:, step], self._quiet_noise.steps[step]
-            )
-            parts.append(response.omega_true[:, :, 0])
-        return np.concatenate(parts, axis=-2)
+        return self._quiet.population_rates(np.asarray(sequences), self._quiet_noise)[:, :, 0]
 
     @property
     def pairs(self) -> list[tuple[int, int]]:

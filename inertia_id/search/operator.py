@@ -119,17 +119,6 @@ class OperatorScorer:
         self.model = LinearNoiseModel(scenario, self.sequence_length)
         self.evaluations = 0
 
-    def _rates(self, sequences: np.ndarray) -> np.ndarray:
-        """True rates at the scenario's own noise, (P, K, n, T, 3), rad/s."""
-        state = self.simulator.start_population(self.noise.initial, len(sequences))
-        parts = []
-        for step in range(self.sequence_length):
-            state, response = self.simulator.advance(
-                state, sequences[:, step], self.noise.steps[step]
-            )
-            parts.append(response.omega_true)
-        return np.concatenate(parts, axis=-2)
-
     def score(self, sequences: Any) -> list[SequenceScores]:
         """Scores of each sequence, (P, L, N) level indices (or one (L, N) sequence)."""
         arr = np.asarray(sequences)
@@ -150,7 +139,7 @@ class OperatorScorer:
         scenario, settings = self.scenario, self.settings
         errors = self.model.predicted_error(sequences, settings.design_noise)
         accuracy = np.clip(1.0 - errors, 0.0, 1.0)  # (P, conditions)
-        own = self._rates(sequences)
+        own = self.simulator.population_rates(sequences, self.noise)
         speed = np.linalg.norm(own, axis=-1)  # (P, K, n, T)
         final_by_candidate = speed[..., -1].mean(axis=2)  # (P, K)
         peak = speed.mean(axis=2).max(axis=(1, 2))  # (P,)

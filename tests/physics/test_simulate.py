@@ -352,3 +352,20 @@ def test_simulator_parameter_validation(paper: Scenario) -> None:
     noise = simulator.draw_noise(np.random.default_rng(0), 1)
     with pytest.raises(ValueError, match="noise holds 1 steps, the sequence 2"):
         simulator.run(np.array([[4, 0, 0, 0, 0, 0]] * 2), noise)
+
+
+def test_a_population_is_each_sequence_on_the_same_draws(paper: Scenario) -> None:
+    """Scoring P sequences side by side must give each one what simulating it alone on
+    the same noise gives (common random numbers, no cross-talk between sequences)."""
+    simulator = Simulator(paper, 3)
+    noise = simulator.draw_noise(np.random.default_rng(4), 3)
+    sequences = np.array(
+        [
+            [[4, 4, 4, 0, 0, 0], [0, 2, 0, 0, 0, 1], [0, 0, 0, 4, 4, 4]],
+            [[0] * 6, [1, 0, 3, 0, 4, 0], [2, 2, 2, 2, 2, 2]],
+        ]
+    )
+    together = simulator.population_rates(sequences, noise)
+    assert together.shape == (2, paper.n_candidates, 3, 3 * 20, 3)
+    for p, sequence in enumerate(sequences):
+        assert np.array_equal(together[p], simulator.run(sequence, noise).omega_true)
