@@ -55,10 +55,10 @@ def run_search_job(context: JobContext) -> Outcome:
 
     def progress(report: SearchProgress) -> None:
         point = report.point
-        context.report(
-            progress=report.fraction,
-            metrics=[(key, report.timesteps, getattr(point, key)) for key in SEARCH_METRICS],
-        )
+        # Between curve points (NSGA-II's polish) only the progress moves: the curve
+        # the dashboard draws is the stored result's, one point per generation.
+        metrics = [(key, report.timesteps, getattr(point, key)) for key in SEARCH_METRICS]
+        context.report(progress=report.fraction, metrics=metrics if report.new_point else [])
 
     outcome = search_with_baselines(
         spec.scenario,

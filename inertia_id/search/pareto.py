@@ -494,7 +494,7 @@ def pareto_search(
     ) * sequence_length
     curve: list[CurvePoint] = []
 
-    def report(point: CurvePoint) -> bool:
+    def report(point: CurvePoint, *, new_point: bool = True) -> bool:
         if progress is not None:
             progress(
                 SearchProgress(
@@ -503,6 +503,7 @@ def pareto_search(
                     episodes=scorer.evaluations,
                     point=point,
                     best=None,
+                    new_point=new_point,
                 )
             )
         return should_stop is not None and should_stop()
@@ -539,7 +540,7 @@ def pareto_search(
             iterations=params["polish_iterations"],
             batch=params["population"],
             rng=rng,
-            after_round=lambda: report(curve[-1]),
+            after_round=lambda: report(curve[-1], new_point=False),
         ):
             stopped = "cancelled"
     entries = list(archive.scores.values())

@@ -94,13 +94,17 @@ class CurvePoint:
 
 @dataclass(frozen=True)
 class SearchProgress:
-    """Passed to a search's ``progress`` callback at every curve point."""
+    """Passed to a search's ``progress`` callback at every curve point, and while a
+    search works between points (NSGA-II's polish): then ``new_point`` is False and
+    ``point`` repeats the last curve point.
+    """
 
     timesteps: int
     total_timesteps: int
     episodes: int
     point: CurvePoint
     best: EpisodeRecord | None
+    new_point: bool = True
 
     @property
     def fraction(self) -> float:

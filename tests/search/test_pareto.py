@@ -277,7 +277,7 @@ def test_the_polish_walks_from_an_infeasible_start_to_a_feasible_one(paper: Scen
 
 
 def test_the_polish_reports_progress_and_stops_when_told(paper: Scenario) -> None:
-    seen: list[tuple[int, int]] = []
+    seen: list[tuple[int, int, bool]] = []
     calls = {"n": 0}
 
     def stop() -> bool:
@@ -291,12 +291,13 @@ def test_the_polish_reports_progress_and_stops_when_told(paper: Scenario) -> Non
         operator=OperatorSettings(n_realisations=4),
         nsga2_params={"population": 8, "generations": 3, "polish_iterations": 10},
         fresh_realisations=6,
-        progress=lambda p: seen.append((p.timesteps, p.total_timesteps)),
+        progress=lambda p: seen.append((p.timesteps, p.total_timesteps, p.new_point)),
         should_stop=stop,
     )
     assert result.stopped == "cancelled"
     assert len(seen) == 6 and len(result.curve) == 3  # polish rounds report, not plot
-    assert all(done <= total for done, total in seen)
+    assert [new for *_, new in seen] == [True] * 3 + [False] * 3
+    assert all(done <= total for done, total, _ in seen)
     assert seen[-1][0] > seen[2][0]  # the polish scored more sequences
 
 
