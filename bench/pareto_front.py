@@ -22,7 +22,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from _common import base_parser, begin, int_list
+from _common import base_parser, begin, int_list, write_json
 
 from inertia_id import preset, run_sweep, simulate, train_classifier
 from inertia_id.search import OperatorSettings, pareto_search
@@ -49,6 +49,8 @@ def main() -> None:
         "fire then brake L=6": [FIRE] * 3 + [BRAKE] * 3,
         "fire, coast, brake L=8": [FIRE] * 2 + [OFF] * 4 + [BRAKE] * 2,
     }
+    fronts: list[dict] = []
+    measured: list[dict] = []
     for length in args.lengths:
         for label, given in (("constrained", constraints), ("unconstrained", {})):
             started = time.perf_counter()
@@ -61,6 +63,16 @@ def main() -> None:
             elapsed = time.perf_counter() - started
             front = result.front or {}
             members = front.get("members", [])
+            fronts.append(
+                {
+                    "length": length,
+                    "constraints": given,
+                    "seconds": elapsed,
+                    "sequences_evaluated": result.episodes,
+                    "members": members,
+                    "dominated_by_baseline": front.get("dominated_by_baseline"),
+                }
+            )
             print(
                 f"L = {length} {label}: {len(members)} members, {result.episodes} sequences "
                 f"evaluated, {elapsed:.1f} s (search + fresh re-scoring); a baseline "
@@ -103,6 +115,18 @@ def main() -> None:
         rate = simulate(scenario, sequence_array, 100, np.random.default_rng(3))
         final = rate.mean_final_rate_rad_s
         process, gyro = points["process"], points["measurement"]
+        measured.append(
+            {
+                "label": label,
+                "sequence": np.asarray(sequence).tolist(),
+                "final_rate_rad_s": final,
+                "impulse_nms": scenario.impulse_nms(sequence_array),
+                "accuracy_6x_process": process.accuracy,
+                "accuracy_6x_gyro": gyro.accuracy,
+                "predicted": predicted.tolist(),
+                "ceiling": [ceiling["process"].accuracy, ceiling["measurement"].accuracy],
+            }
+        )
         print(
             f"{label} {sequence} | {final:.4f} ({np.degrees(final):.2f}) | "
             f"{scenario.impulse_nms(sequence_array):.1f} | {process.accuracy:.4f} "
@@ -111,6 +135,8 @@ def main() -> None:
             f"{ceiling['process'].accuracy:.4f} / {ceiling['measurement'].accuracy:.4f}",
             flush=True,
         )
+
+    write_json(args.json, args, {"fronts": fronts, "measured": measured})
 
 
 if __name__ == "__main__":

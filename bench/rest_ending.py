@@ -24,7 +24,7 @@ import itertools
 import time
 
 import numpy as np
-from _common import base_parser, begin, int_list
+from _common import base_parser, begin, int_list, write_json
 
 from inertia_id import preset, run_sweep, train_classifier
 from inertia_id.search.noise_model import LinearNoiseModel
@@ -108,16 +108,32 @@ def main() -> None:
             f"{label}: predicted {table[i, 0]:.4f} / {table[i, 1]:.4f}, final "
             f"{table[i, 2]:.4f} rad/s, (wait, up, coast) per axis {tags[i]}"
         )
+    figures: dict = {
+        "sequences": len(sequences),
+        "below_final_rate": len(keep),
+        "hand_designed_predicted": hand.tolist(),
+        "picks": {
+            label: {
+                "sequence": sequences[i].tolist(),
+                "predicted": table[i, :2].tolist(),
+                "final_rate_rad_s": table[i, 2],
+            }
+            for label, i in picks.items()
+        },
+        "measured": {},
+    }
     best = sequences[picks["best smaller margin over hand-designed"]]
     print(f"\nDefault classifier, {args.n_test} test series a point, same seed for both:")
     for label, sequence in (("hand-designed (L=4)", HAND), ("best smaller margin", best)):
         process, gyro = measured(scenario, sequence, args.n_test)
+        figures["measured"][label] = [process.accuracy, gyro.accuracy]
         print(
             f"{label} {sequence.tolist()}: 6x process {process.accuracy:.4f} "
             f"[{process.ci_low:.4f}, {process.ci_high:.4f}], 6x gyro {gyro.accuracy:.4f} "
             f"[{gyro.ci_low:.4f}, {gyro.ci_high:.4f}]",
             flush=True,
         )
+    write_json(args.json, args, figures)
 
 
 if __name__ == "__main__":
