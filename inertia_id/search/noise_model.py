@@ -250,9 +250,9 @@ class LinearNoiseModel:
         measurement: float = 1.0,
     ) -> np.ndarray:
         """The covariance of the flattened series (d x d, time-major, (rad/s)²) written
-        out term by term, for checks on small problems: one candidate's own, or for a
-        pair the average :meth:`mahalanobis_sq` uses (the random walk's ``J Jᵀ``
-        averaged, the low-rank terms through the mean ``J``)."""
+        out term by term: one candidate's own, or for a pair the average
+        :meth:`mahalanobis_sq` uses (the random walk's ``J Jᵀ`` averaged, the low-rank
+        terms through the mean ``J``)."""
         sequence = np.asarray(sequence)
         unc = self.scenario.uncertainty
         inverse = np.linalg.inv(self.scenario.inertia_array[list(candidates)])
@@ -269,14 +269,30 @@ class LinearNoiseModel:
             self.scenario.level_values[sequence], unc.duty_jitter_sigma
         )
         directions = mean_inverse @ self.scenario.torque_matrix  # (3, N)
-        scale_columns = np.zeros((3 * t, duties.shape[1]))
-        for step in range(len(sequence)):
-            for j in range(duties.shape[1]):
-                column = np.kron(pulses[:, step], directions[:, j])
-                sigma += variance[step, j] * np.outer(column, column)
-                scale_columns[:, j] += duties[step, j] * column
+        # Column (s, j) is u_sj = g_s ⊗ J A_j, time-major like the series: (3 T, L N).
+        columns = np.einsum("ts,aj->tasj", pulses, directions).reshape(3 * t, -1)
+        sigma += (columns * variance.reshape(-1)) @ columns.T
+        scale_columns = (columns.reshape(3 * t, *duties.shape) * duties[None]).sum(axis=1)
         sigma += unc.thrust_scale_sigma**2 * scale_columns @ scale_columns.T
         return np.asarray(sigma)
+
+    def candidate_gaussians(
+        self, sequence: np.ndarray, process: float = 1.0, measurement: float = 1.0
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Each candidate's mean (K, d) and covariance (K, d, d) of the flattened measured
+        series (time-major, rad/s): the Gaussians of a classifier that knows the noise
+        model rather than estimating it (the ceiling's other half, and how a front's
+        members are tested on fresh draws). The means carry the scenario's fixed gyro
+        bias; the covariances every noise term (no variance floor).
+        """
+        sequence = np.asarray(sequence)
+        k = self.scenario.n_candidates
+        bias = np.asarray(self.scenario.uncertainty.gyro_bias_rad_s, dtype=float)
+        means = self.mean_responses(sequence[None])[0] + bias  # (K, T, 3)
+        covariances = np.stack(
+            [self.dense_covariance(sequence, (i,), process, measurement) for i in range(k)]
+        )
+        return means.reshape(k, -1), covariances
 
     def _pair_distances(
         self,

@@ -186,3 +186,22 @@ def test_a_prediction_does_not_depend_on_the_batch_or_need_white_noise(paper: Sc
         assert model.mahalanobis_sq(np.array(batch))[0] == pytest.approx(alone[0], rel=1e-9)
     error = model.predicted_error(np.array([off]), ((1.0, 0.0), (0.0, 0.0)))
     assert np.isfinite(error).all()
+
+
+def test_the_candidate_gaussians_carry_the_fixed_bias_and_each_candidates_covariance(
+    paper: Scenario,
+) -> None:
+    biased = paper.with_uncertainty(gyro_bias_rad_s=(0.01, -0.02, 0.0))
+    sequence = np.array([[4, 0, 4, 0, 0, 0], [0, 0, 0, 4, 0, 4]])
+    plain_means, plain_covariances = LinearNoiseModel(paper, 2).candidate_gaussians(sequence)
+    model = LinearNoiseModel(biased, 2)
+    means, covariances = model.candidate_gaussians(sequence, 2.0, 3.0)
+    shift = (means - plain_means).reshape(paper.n_candidates, -1, 3)
+    assert np.allclose(shift, [0.01, -0.02, 0.0])
+    for k in range(paper.n_candidates):
+        assert np.allclose(covariances[k], model.dense_covariance(sequence, (k,), 2.0, 3.0))
+    # Different inertias, different covariances.
+    assert not np.allclose(covariances[0], covariances[1])
+    assert np.allclose(
+        plain_covariances[0], LinearNoiseModel(paper, 2).dense_covariance(sequence, (0,))
+    )
