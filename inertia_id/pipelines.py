@@ -130,6 +130,8 @@ class SearchRequest(_Request):
         constrained variant of the paper's reward; ppo, cem, random, exhaustive).
     :param lagrangian_lr: ppo: update the penalty by dual ascent after every rollout.
     :param fresh_realisations: realisations per candidate when the front is re-scored.
+    :param fresh_test_series: test series per candidate and design condition on which
+        each front member's accuracy is measured; 0 keeps the prediction.
     """
 
     method: str = "ppo"
@@ -151,6 +153,7 @@ class SearchRequest(_Request):
     constraint_penalty: float = 0.0
     lagrangian_lr: float = 0.0
     fresh_realisations: int = 40
+    fresh_test_series: int = 200
 
     def operator(self) -> OperatorSettings:
         """What the front is judged on: objectives, design noise, constraints."""
@@ -190,6 +193,7 @@ class SearchRequest(_Request):
                 "operator": self.operator(),
                 "nsga2_params": dict(self.nsga2),
                 "fresh_realisations": self.fresh_realisations,
+                "fresh_test_series": self.fresh_test_series,
             }
         options: dict[str, Any] = {
             "sequence_length": self.sequence_length,
@@ -267,6 +271,7 @@ def search_with_baselines(
             request.operator(),
             seed=found.fresh.seed,
             fresh_realisations=request.fresh_realisations,
+            test_series=request.fresh_test_series,
             keep_infeasible=True,
         ).to_dict()
     baselines = compare_with_baselines(

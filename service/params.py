@@ -188,6 +188,14 @@ class SearchParams(StrictModel):
         le=400,
         description="realisations per candidate when the front is re-scored on fresh draws",
     )
+    fresh_test_series: int = Field(
+        default=SearchRequest.default("fresh_test_series"),
+        ge=0,
+        le=5000,
+        description="test series per candidate and design condition on which each front "
+        "member's accuracy is measured (the noise model's Bayes classifier on fresh "
+        "series); 0 keeps the predicted accuracy",
+    )
 
     @field_validator("nsga2")
     @classmethod

@@ -164,6 +164,13 @@ def search_options(func: F) -> F:
             "Realisations per candidate when the front is re-scored on fresh draws.",
             type=click.IntRange(2),
         ),
+        _option(
+            "--fresh-test-series",
+            "fresh_test_series",
+            "Test series per candidate and design condition on which each front member's "
+            "accuracy is measured; 0 keeps the prediction.",
+            type=click.IntRange(0, 5000),
+        ),
     ]
     for option in reversed(options):
         func = option(func)
@@ -191,6 +198,7 @@ def search_request(
     lagrangian_lr: float = 0.0,
     fresh_realisations: int | None = None,
     max_sequences: int | None = None,
+    fresh_test_series: int | None = None,
 ) -> SearchRequest:
     """The options of :func:`search_options` as a request."""
     from ..errors import InputError
@@ -230,6 +238,9 @@ def search_request(
         fresh_realisations=SearchRequest.default("fresh_realisations")
         if fresh_realisations is None
         else fresh_realisations,
+        fresh_test_series=SearchRequest.default("fresh_test_series")
+        if fresh_test_series is None
+        else fresh_test_series,
         method=method,
         sequence_length=sequence_length,
         timesteps=timesteps,

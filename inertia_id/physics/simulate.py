@@ -265,14 +265,19 @@ class Simulator:
         response = StepResponse(omega_true, measured, applied, commanded)
         return SimulationState(omega, torque, state.initial, state.n_steps + 1), response
 
-    def population_rates(self, sequences: np.ndarray, noise: SequenceNoise) -> np.ndarray:
+    def population_rates(
+        self, sequences: np.ndarray, noise: SequenceNoise, *, measured: bool = False
+    ) -> np.ndarray:
         """True body rates of P sequences (P, L, N) simulated side by side on the same
-        draws, (P, K, n, T, 3) rad/s: how a search scores a whole population at once."""
+        draws, (P, K, n, T, 3) rad/s: how a search scores a whole population at once.
+
+        :param measured: the gyro's readings instead (bias and white noise added).
+        """
         state = self.start_population(noise.initial, len(sequences))
         parts = []
         for step in range(sequences.shape[1]):
             state, response = self.advance(state, sequences[:, step], noise.steps[step])
-            parts.append(response.omega_true)
+            parts.append(response.omega_measured if measured else response.omega_true)
         return np.concatenate(parts, axis=-2)
 
     def run(self, sequence: np.ndarray, noise: SequenceNoise) -> SimulationResult:

@@ -294,6 +294,70 @@ class LinearNoiseModel:
         )
         return means.reshape(k, -1), covariances
 
+    def log_likelihoods(
+        self,
+        sequence: np.ndarray,
+        series: np.ndarray,
+        process: float = 1.0,
+        measurement: float = 1.0,
+        means: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """Gaussian log-density of each measured series (n, T, 3) under each candidate's
+        Gaussian of :meth:`candidate_gaussians` (plus the variance floor), (n, K).
+
+        The same density as factoring the d x d covariance, without forming it: the
+        random walk and the white noise are diagonal in ``W ⊗ V_k`` and the rest is a
+        rank ``L N + N + 3`` Woodbury update, as in :meth:`mahalanobis_sq` but with each
+        candidate's own ``J_k`` (about 5x faster than a Cholesky factor per candidate at
+        L = 8, and the memory is n x d, not d x d).
+
+        :param means: the noise-free responses (K, T, 3) of ``sequence``, if simulated.
+        """
+        sequence = np.asarray(sequence)
+        x = np.asarray(series, dtype=float).reshape(len(series), self.n_samples, 3)
+        k_count = self.scenario.n_candidates
+        if means is None:
+            means = self.mean_responses(sequence[None])[0]
+        means = means + np.asarray(self.scenario.uncertainty.gyro_bias_rad_s, dtype=float)
+        duties, variance = clipped_duty_moments(self.scenario.level_values[sequence], self._jitter)
+        white = measurement**2 * self._white + self._floor
+        offset = self._initial**2 + (measurement * self._bias) ** 2
+        inverse = np.linalg.inv(self.scenario.inertia_array)
+        torque = self.scenario.torque_matrix
+        x_w = _time_basis(self._w, x)  # Wᵀ X, once for every candidate
+        means_w = _time_basis(self._w, means)
+        length, n_thr = duties.shape
+        d = 3 * self.n_samples
+        out = np.empty((len(x), k_count))
+        for k in range(k_count):
+            lam, v = np.linalg.eigh(inverse[k] @ inverse[k].T)
+            eig = white + process**2 * self._gamma[:, None] * np.maximum(lam, 0.0)[None, :]
+            scale = 1.0 / np.sqrt(eig)  # (T, 3)
+            centred = (x_w - means_w[k]).reshape(-1, 3) @ v
+            z = (centred.reshape(len(x), self.n_samples, 3) * scale).reshape(len(x), d)
+            # The low-rank columns, whitened, as (d, R): jitter of each firing, the thrust
+            # scale of each thruster, the constant offset on each axis.
+            directions_v = (inverse[k] @ torque).T @ v  # (N, 3): (J_k A_j)ᵀ V
+            unit = np.einsum("ts,ja->tasj", self._pulses_w, directions_v) * scale[:, :, None, None]
+            jitter = unit * np.sqrt(variance)[None, None]
+            thrust = (unit * duties[None, None]).sum(axis=2) * self._scale  # (T, 3, N)
+            constant = self._ones_w[:, None, None] * v[None] * scale[:, :, None] * math.sqrt(offset)
+            columns = np.concatenate(
+                [
+                    jitter.reshape(d, length * n_thr),
+                    thrust.reshape(d, n_thr),
+                    constant.reshape(d, 3),
+                ],
+                axis=1,
+            )
+            system = np.eye(columns.shape[1]) + columns.T @ columns
+            lower = np.linalg.cholesky(system)
+            projected = np.linalg.solve(lower, (z @ columns).T)  # (R, n)
+            quadratic = np.einsum("nd,nd->n", z, z) - np.einsum("rn,rn->n", projected, projected)
+            log_det = float(np.sum(np.log(eig)) + 2.0 * np.sum(np.log(np.diag(lower))))
+            out[:, k] = -0.5 * (quadratic + log_det + d * math.log(2.0 * math.pi))
+        return out
+
     def _pair_distances(
         self,
         means: np.ndarray,
@@ -347,6 +411,13 @@ class LinearNoiseModel:
         system = gram + np.eye(gram.shape[-1])
         solved = np.linalg.solve(system, projected[..., None])[..., 0]
         return np.maximum(d2 - np.einsum("pbr,pbr->pb", projected, solved), 0.0)
+
+
+def _time_basis(w: np.ndarray, series: np.ndarray) -> np.ndarray:
+    """``Wᵀ X`` for each series X (T, 3) of a stack (n, T, 3), as one matrix product."""
+    n, t, _ = series.shape
+    stacked = series.transpose(1, 0, 2).reshape(t, n * 3)
+    return np.asarray((w.T @ stacked).reshape(t, n, 3).transpose(1, 0, 2))
 
 
 def _diagonal(values: np.ndarray, extra_rows: int) -> np.ndarray:

@@ -434,9 +434,10 @@ def check_constraints(constraints: Any, scenario: Any = None) -> dict[str, float
 class SequenceScores:
     """What an operator asks of one sequence, on one noise draw.
 
-    :param accuracy: predicted accuracy of the Bayes classifier, the mean over the
-        design-noise conditions (:class:`~inertia_id.search.noise_model.LinearNoiseModel`),
-        in [0, 1].
+    :param accuracy: accuracy of the Bayes classifier, the mean over the design-noise
+        conditions, in [0, 1]: predicted (:class:`~inertia_id.search.noise_model.
+        LinearNoiseModel`) while searching, measured on fresh test series for a front's
+        members and baselines.
     :param accuracy_by_noise: the same at each design condition, in their order.
     :param final_rate_rad_s: |ω| at the end, mean over candidates and realisations at
         the scenario's own noise (the paper's terminal term).
@@ -451,6 +452,8 @@ class SequenceScores:
     :param attitude_change_deg: the rotation the body makes over the sequence (angle of
         the final attitude quaternion from the nominal rates, the candidate that turns
         most), degrees.
+    :param predicted_accuracy_by_noise: when ``accuracy`` was measured on fresh test
+        series (a front's members), the prediction it replaced; None otherwise.
     """
 
     accuracy: float
@@ -463,6 +466,7 @@ class SequenceScores:
     propellant_kg: float | None
     duration_s: float
     attitude_change_deg: float
+    predicted_accuracy_by_noise: list[float] | None = None
 
     @property
     def final_rate_deg_s(self) -> float:
@@ -513,4 +517,7 @@ class SequenceScores:
             "propellant_kg": self.propellant_kg,
             "duration_s": self.duration_s,
             "attitude_change_deg": self.attitude_change_deg,
+            "predicted_accuracy_by_noise": None
+            if self.predicted_accuracy_by_noise is None
+            else list(self.predicted_accuracy_by_noise),
         }

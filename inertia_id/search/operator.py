@@ -1,15 +1,14 @@
 """Score whole populations of sequences on what an operator states.
 
-:class:`OperatorScorer` simulates P sequences side by side on one noise draw (common
-random numbers: every sequence meets the same disturbances, jitter and gyro noise), at
-the scenario's own noise and at each design process-noise multiple, and returns each
-sequence's :class:`~inertia_id.search.objectives.SequenceScores`: the predicted accuracy
-at the design noise (:func:`~inertia_id.search.objectives.predicted_error`), residual and
-peak rate, impulse, on-time, propellant, duration and attitude change.
-
-A design condition ``(p, q)`` scales the disturbance torque by p (one simulation per
-distinct p, all on the same draws) and the gyro's white noise by q (added to the model
-analytically: its variance is known, so no simulation is needed for it).
+:class:`OperatorScorer` scores P sequences at once and returns each sequence's
+:class:`~inertia_id.search.objectives.SequenceScores`: the predicted accuracy at each
+design condition ``(p, q)`` (disturbance torque times p, gyro noise and bias times q)
+from the scenario's noise model (:class:`~inertia_id.search.noise_model.LinearNoiseModel`,
+nothing random), and residual and peak rate, impulse, on-time, propellant, duration and
+attitude change from one noise draw at the scenario's own noise, every sequence on the
+same draws (common random numbers). :meth:`OperatorScorer.measured_accuracy` tests the
+Bayes classifier of the noise model on fresh simulated series instead of predicting it:
+what a front's members are re-scored with.
 """
 
 from __future__ import annotations
@@ -40,6 +39,9 @@ __all__ = ["OperatorScorer", "OperatorSettings", "nominal_rates"]
 #: Sequences simulated in one batch: bounds the memory of a population's responses
 #: (P x K x n x T x 3 doubles; 64 x 5 x 20 x 160 x 3 is 49 MB).
 _CHUNK = 64
+#: Sequences whose test series are simulated in one batch (P x K x n x T x 3 doubles:
+#: 8 x 5 x 200 x 160 x 3 is 31 MB).
+_TEST_CHUNK = 8
 
 
 @dataclass(frozen=True)
@@ -134,6 +136,52 @@ class OperatorScorer:
             out.extend(self._score_chunk(checked[start : start + _CHUNK]))
         self.evaluations += len(checked)
         return out
+
+    def measured_accuracy(
+        self, sequences: Any, test_series: int, *, seed: int
+    ) -> tuple[np.ndarray, int]:
+        """Each sequence's accuracy at each design condition, measured: the noise model's
+        Gaussians (:meth:`~inertia_id.search.noise_model.LinearNoiseModel.
+        log_likelihoods`, a classifier that needs no training draw) classify
+        ``test_series`` fresh series per candidate simulated at that condition. Every
+        sequence meets the same draws (one per condition, from ``seed``), so differences
+        between sequences are not sampling noise between draws.
+
+        :returns: accuracies (P, conditions) and the series tested per condition.
+        """
+        if not is_integer(test_series, minimum=1, maximum=100_000):
+            raise InputError(f"test_series must be an integer in 1..100000, got {test_series!r}")
+        arr = np.asarray(sequences)
+        if arr.ndim == 2:
+            arr = arr[None]
+        checked = np.stack([self.scenario.check_sequence(s) for s in arr])
+        conditions = self.settings.design_noise
+        streams = np.random.SeedSequence([int(seed), 2]).spawn(len(conditions))
+        k = self.scenario.n_candidates
+        truth = np.repeat(np.arange(k), test_series)
+        means = self.model.mean_responses(checked)  # (P, K, T, 3), every condition's
+        out = np.zeros((len(checked), len(conditions)))
+        for c, ((process, measurement), stream) in enumerate(zip(conditions, streams, strict=True)):
+            simulator = Simulator(
+                self.scenario,
+                int(test_series),
+                process_noise_scale=process,
+                measurement_noise_scale=measurement,
+            )
+            noise = simulator.draw_noise(np.random.default_rng(stream), self.sequence_length)
+            for start in range(0, len(checked), _TEST_CHUNK):
+                chunk = checked[start : start + _TEST_CHUNK]
+                readings = simulator.population_rates(chunk, noise, measured=True)
+                for i, sequence in enumerate(chunk):
+                    likelihood = self.model.log_likelihoods(
+                        sequence,
+                        readings[i].reshape(len(truth), -1, 3),
+                        process,
+                        measurement,
+                        means=means[start + i],
+                    )
+                    out[start + i, c] = float(np.mean(likelihood.argmax(axis=1) == truth))
+        return out, k * int(test_series)
 
     def _score_chunk(self, sequences: np.ndarray) -> list[SequenceScores]:
         scenario, settings = self.scenario, self.settings

@@ -75,6 +75,7 @@ def test_submit_queues_a_job_and_a_message(api: Api) -> None:
         "constraint_penalty": 0.0,
         "lagrangian_lr": 0.0,
         "fresh_realisations": 40,
+        "fresh_test_series": 200,
     }
     assert job["config_hash"] == config_hash("search", scenario_id, job["params"], 7)
     assert message_job_ids(api) == [job["id"]]

@@ -205,3 +205,29 @@ def test_the_candidate_gaussians_carry_the_fixed_bias_and_each_candidates_covari
     assert np.allclose(
         plain_covariances[0], LinearNoiseModel(paper, 2).dense_covariance(sequence, (0,))
     )
+
+
+def test_the_fast_log_likelihoods_are_the_dense_gaussians(every_noise: Scenario) -> None:
+    """The Woodbury path against the d x d covariance factored: full tensors, canted
+    thrusters, every noise source and a fixed gyro bias on."""
+    scenario = every_noise.with_uncertainty(gyro_bias_rad_s=(0.01, 0.0, -0.01))
+    model = LinearNoiseModel(scenario, 3)
+    sequence = np.array([[3, 0, 2, 1], [0, 3, 0, 3], [1, 1, 1, 0]])
+    X, _ = simulate(
+        scenario,
+        sequence,
+        20,
+        np.random.default_rng(1),
+        process_noise_scale=3.0,
+        measurement_noise_scale=2.0,
+    ).dataset()
+    means, covariances = model.candidate_gaussians(sequence, 3.0, 2.0)
+    d = means.shape[1]
+    expected = np.empty((len(X), len(means)))
+    for k in range(len(means)):
+        sigma = covariances[k] + model._floor * np.eye(d)
+        residual = X.reshape(len(X), -1) - means[k]
+        quadratic = np.einsum("nd,nd->n", residual, np.linalg.solve(sigma, residual.T).T)
+        expected[:, k] = -0.5 * (quadratic + np.linalg.slogdet(sigma)[1] + d * np.log(2 * np.pi))
+    got = model.log_likelihoods(sequence, X, 3.0, 2.0)
+    assert np.allclose(got, expected, rtol=1e-9, atol=1e-8)

@@ -327,3 +327,54 @@ def test_polish_settings_out_of_range_are_refused(
 ) -> None:
     with pytest.raises(InputError, match=quoted.replace(".", r"\.")):
         pareto_search(paper, sequence_length=2, nsga2_params=settings)
+
+
+def test_the_fronts_accuracy_is_measured_on_fresh_series(small_front: dict) -> None:
+    assert small_front["accuracy_source"] == "measured"
+    assert small_front["fresh_test_series"] == 200
+    n = 200 * 5
+    for member in small_front["members"]:
+        scores = member["scores"]
+        measured, predicted = scores["accuracy_by_noise"], scores["predicted_accuracy_by_noise"]
+        assert len(measured) == len(predicted) == 2
+        # A count of right answers among the 1,000 series of each condition.
+        assert all(abs(v * n - round(v * n)) < 1e-9 for v in measured)
+        assert scores["accuracy"] == pytest.approx(np.mean(measured))
+        # What the search saw was the prediction.
+        assert member["search_scores"]["accuracy_by_noise"] == pytest.approx(predicted)
+    for base in small_front["baselines"].values():
+        if "unavailable" not in base:
+            assert base["scores"]["predicted_accuracy_by_noise"] is not None
+
+
+def test_the_measured_accuracy_follows_the_noise_and_ignores_the_batch(paper: Scenario) -> None:
+    """Every sequence meets the same series, so a sequence's figure does not depend on
+    what else is measured with it; more noise, fewer right; the prediction is a union
+    bound on the error, so it is below what is measured (beyond sampling error only where
+    the bound is loose) and close to it where the accuracy is high."""
+    sequences = np.array(
+        [[[4, 4, 4, 0, 0, 0]] * 3, [[4, 0, 0, 0, 0, 0], [0, 4, 0, 0, 0, 0], [0, 0, 4, 0, 0, 0]]]
+    )
+    settings = OperatorSettings(design_noise=((6.0, 1.0), (20.0, 1.0)))
+    scorer = OperatorScorer(paper, 3, settings, seed=0)
+    both, n = scorer.measured_accuracy(sequences, 200, seed=9)
+    alone, _ = scorer.measured_accuracy(sequences[1:], 200, seed=9)
+    assert n == 1000 and np.array_equal(both[1:], alone)
+    assert np.all(both[:, 0] > both[:, 1])
+    predicted = np.array([s.accuracy_by_noise for s in scorer.score(sequences)])
+    assert np.all(both >= predicted - 0.02), (both, predicted)
+    assert abs(both[0, 0] - predicted[0, 0]) < 0.03, (both, predicted)
+    assert not np.array_equal(both, scorer.measured_accuracy(sequences, 200, seed=10)[0])
+
+
+def test_a_front_without_test_series_keeps_the_prediction(paper: Scenario) -> None:
+    from inertia_id.search import build_front
+
+    sequence = [[4, 4, 4, 0, 0, 0], [0, 0, 0, 4, 4, 4]]
+    front = build_front(paper, [sequence], OperatorSettings(), seed=1, test_series=0).to_dict()
+    scores = front["members"][0]["scores"]
+    assert front["accuracy_source"] == "predicted" and scores["predicted_accuracy_by_noise"] is None
+    expected = OperatorScorer(paper, 2, OperatorSettings(), seed=1).score(np.array(sequence))[0]
+    assert scores["accuracy_by_noise"] == pytest.approx(expected.accuracy_by_noise)
+    with pytest.raises(InputError, match=r"test_series must be an integer in 0\.\.100000, got -1"):
+        build_front(paper, [sequence], OperatorSettings(), seed=1, test_series=-1)

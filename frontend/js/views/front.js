@@ -1,6 +1,7 @@
 // A search's front on the operator's objectives (result.front): every member re-scored
-// on a fresh draw, the hand-designed baselines scored on the same draw beside it. A chart
-// of predicted accuracy at the design noise against the residual rate (deg/s), coloured
+// on fresh draws (the rates, and the accuracy measured on fresh test series), the
+// hand-designed baselines scored on the same draws beside it. A chart of the accuracy at
+// the design noise against the residual rate (deg/s), coloured
 // by impulse (or propellant), the baselines each with its own symbol and a baseline that
 // dominates a member flagged; a table of the members (rates in deg/s and rad/s, attitude
 // change); a chosen member's command plan (per candidate: residual rate and attitude
@@ -59,9 +60,17 @@ function colourBy(front) {
   return propellant ? ["propellant_kg", "propellant (kg)"] : ["impulse_nms", "impulse (N m s)"];
 }
 
+// "measured" or "predicted": where a front's accuracy comes from (older results: predicted).
+function accuracyWord(front) {
+  return front.accuracy_source === "measured" ? "measured" : "predicted";
+}
+
 function hover(label, scores, sequence) {
+  const predicted = scores.predicted_accuracy_by_noise;
+  const mean = predicted ? predicted.reduce((a, b) => a + b, 0) / predicted.length : null;
   return (
     `${label}<br>accuracy ${scores.accuracy.toFixed(3)}` +
+    (mean === null ? "" : ` (predicted ${mean.toFixed(3)})`) +
     `<br>residual rate ${fmt(scores.final_rate_deg_s, 3)} deg/s (${fmt(scores.final_rate_rad_s, 4)} rad/s)` +
     `<br>impulse ${fmt(scores.impulse_nms, 2)} N m s` +
     `<br>attitude change ${fmt(scores.attitude_change_deg, 1)} deg` +
@@ -143,7 +152,7 @@ async function drawPlot(node, front, selected) {
   await Plotly.newPlot(
     node,
     traces,
-    layout("residual rate at the end (deg/s, mean over candidates)", "predicted accuracy", {
+    layout("residual rate at the end (deg/s, mean over candidates)", `${accuracyWord(front)} accuracy`, {
       height: 440,
       margin: { l: 60, r: 10, t: 16, b: 96 },
     }),
@@ -322,7 +331,7 @@ export function frontPanel(job, context) {
     h(
       "p",
       { class: "hint" },
-      `${pareto ? "Non-dominated" : "Judged"} on ${(front.objectives || []).map((o) => OBJECTIVE_WORDS[o] || o).join(", ")}; the rates on a fresh draw (${front.fresh_realisations} realisations per candidate), the baselines on the same draw. Accuracy: the Bayes classifier's predicted accuracy at the design noise (${designNoiseText(front)}), from the scenario's own noise model (no draw: the same sequence, the same figure). Colour: ${colourLabel}; a red outline marks a member a baseline dominates.`,
+      `${pareto ? "Non-dominated" : "Judged"} on ${(front.objectives || []).map((o) => OBJECTIVE_WORDS[o] || o).join(", ")}; the rates on a fresh draw (${front.fresh_realisations} realisations per candidate), the baselines on the same draws. Accuracy at the design noise (${designNoiseText(front)}): ${front.accuracy_source === "measured" ? `measured: the scenario's noise model as a Bayes classifier, tested on ${front.fresh_test_series} fresh series per candidate at each condition, every sequence on the same series (the search ranked by a prediction from the same model, kept beside it)` : "predicted from the scenario's own noise model (no draw: the same sequence, the same figure)"}. Colour: ${colourLabel}; a red outline marks a member a baseline dominates.`,
     ),
     dominating.length
       ? h(
