@@ -123,7 +123,7 @@ class SearchRequest(_Request):
     :param objectives: what the front trades off (method nsga2), and what every
         search's front (its best sequence beside the baselines) is judged on.
     :param design_noise: (process multiple, measurement multiple) conditions at which
-        the accuracy objective is predicted.
+        the accuracy objective is predicted (and the front's accuracy measured).
     :param constraints: bounds by name (``max_final_rate_deg_s``, ``max_impulse_nms``,
         ...): NSGA-II's constraints; the other methods rank and (ppo) penalise by them.
     :param constraint_penalty: reward cost per unit of summed relative violation (the

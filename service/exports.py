@@ -166,9 +166,17 @@ _FRONT_FIGURES = (
 )
 
 
+def _predicted(scores: Mapping[str, Any]) -> float | None:
+    """The mean predicted accuracy beside a measured one (None when it was predicted)."""
+    values = scores.get("predicted_accuracy_by_noise")
+    return None if not values else float(sum(values) / len(values))
+
+
 def _search_front(result: Mapping[str, Any]) -> Table:
-    """The front's members, then the baselines, on the same fresh draw: one row each."""
+    """The front's members, then the baselines, on the same fresh draws: one row each;
+    ``accuracy_source`` says whether ``accuracy`` was measured or predicted."""
     front = result.get("front") or {}
+    source = front.get("accuracy_source", "predicted")
     rows: list[list[Any]] = []
     for member in front.get("members") or []:
         scores = member.get("scores") or {}
@@ -177,6 +185,8 @@ def _search_front(result: Mapping[str, Any]) -> Table:
                 "member",
                 member.get("index"),
                 *(scores.get(k) for k in _FRONT_FIGURES),
+                source,
+                _predicted(scores),
                 member.get("feasible"),
                 list(member.get("dominated_by") or []),
                 [],
@@ -192,6 +202,8 @@ def _search_front(result: Mapping[str, Any]) -> Table:
                 "baseline",
                 name,
                 *(scores.get(k) for k in _FRONT_FIGURES),
+                source,
+                _predicted(scores),
                 base.get("feasible"),
                 [],
                 list(base.get("dominates") or []),
@@ -202,6 +214,8 @@ def _search_front(result: Mapping[str, Any]) -> Table:
         "kind",
         "member",
         *_FRONT_FIGURES,
+        "accuracy_source",
+        "predicted_accuracy",
         "feasible",
         "dominated_by",
         "dominates_members",

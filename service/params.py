@@ -159,7 +159,8 @@ class SearchParams(StrictModel):
         min_length=1,
         max_length=8,
         description="[process multiple, measurement multiple] conditions at which the "
-        "accuracy objective is predicted (their mean)",
+        "accuracy objective is predicted while searching and measured for the front "
+        "(their mean)",
     )
     constraints: dict[str, float] = Field(
         default_factory=dict,

@@ -354,8 +354,14 @@ def search_cmd(
             err=True,
         )
     front = result.front or {}
+    how = (
+        f"measured on {front.get('fresh_test_series')} fresh series per candidate"
+        if front.get("accuracy_source") == "measured"
+        else "predicted"
+    )
     click.echo(
-        "front on fresh draws (accuracy at each design noise | final rate | impulse):", err=True
+        f"front on fresh draws (accuracy at each design noise, {how} | final rate | impulse):",
+        err=True,
     )
     for member in front.get("members", []):
         scores = member["scores"]

@@ -113,17 +113,23 @@ def fit_ceiling(
     *,
     process_noise_scale: float = 1.0,
     measurement_noise_scale: float = 1.0,
+    covariance: str = "best",
 ) -> GaussianCeiling:
     """The ceiling for ``sequence`` at one noise level, fitted on ``n_realisations`` per
     candidate simulated from ``rng``.
 
     :param scenario: the scenario at the point's noise (its uncertainty already scaled
         for the sources the simulator does not scale itself).
-    :returns: the Gaussians with the sample covariances or those the noise model writes
-        out (:meth:`~inertia_id.search.noise_model.LinearNoiseModel.candidate_gaussians`),
-        whichever classifies more of a validation draw from ``rng`` (``source`` says
-        which).
+    :param covariance: "best" (the default): the Gaussians with the sample covariances
+        or those the noise model writes out (:meth:`~inertia_id.search.noise_model.
+        LinearNoiseModel.candidate_gaussians`), whichever classifies more of a
+        validation draw from ``rng`` (``source`` says which); "sample" or "noise model":
+        that one alone (for checks of one against the other).
     """
+    if covariance not in ("best", "sample", "noise model"):
+        raise InputError(
+            f"covariance must be 'best', 'sample' or 'noise model', got {covariance!r}"
+        )
     if not is_integer(n_realisations, minimum=3, numpy=False):
         raise InputError(
             f"the ceiling needs at least 3 realisations per candidate, got {n_realisations!r}"
@@ -155,12 +161,14 @@ def fit_ceiling(
     )
     white = (scenario.uncertainty.gyro_noise_sigma_rad_s * measurement_noise_scale) ** 2
     sampled = GaussianCeiling(means, covariances, white)
+    if covariance == "sample":
+        return sampled
     # The sample covariance of a long series is estimated with an error that costs
     # accuracy (d = 480 values at L = 8 from 2,000 realisations: on the paper preset at 6x
     # process the noise model's written-out covariance classified 0.7 point more of the
     # same 5,000 series). The noise model's is exact to first order but neglects what is
     # not linear. Neither is the better everywhere, so a validation draw (not the test
-    # series, not the fitting draw) picks, and the ceiling is never below either.
+    # series, not the fitting draw) picks: on that draw the ceiling is below neither.
     from ..search.noise_model import LinearNoiseModel
 
     model_means, model_covariances = LinearNoiseModel(scenario, len(rows)).candidate_gaussians(
@@ -168,6 +176,8 @@ def fit_ceiling(
     )
     modelled = GaussianCeiling(model_means, model_covariances, 0.0)
     modelled.source = "noise model"
+    if covariance == "noise model":
+        return modelled
     count = min(n_realisations, _VALIDATION)
     simulator = Simulator(
         scenario,

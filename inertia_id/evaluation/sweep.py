@@ -146,6 +146,10 @@ class SweepResult(BaseModel):
     #: test series; empty when it was not asked for.
     ceiling: list[SweepPoint] = []
     ceiling_realisations: int = 0
+    #: Where each ceiling point's covariances came from ("sample" or "noise model",
+    #: whichever classified the ceiling's validation draw better); empty in results
+    #: stored before the choice existed.
+    ceiling_covariance: list[str] = []
     #: Deprecated: the name of the reference line before it was a ceiling. New results
     #: repeat the ceiling here; results stored before hold the old pooled-covariance
     #: reference, which a classifier could beat (read ``ceiling`` instead).
@@ -276,6 +280,7 @@ def run_sweep(
     streams = np.random.SeedSequence(seed).spawn(len(noises) * len(multiples))
     limit_streams = np.random.SeedSequence([seed, 1]).spawn(len(streams))
     limit_points: list[SweepPoint] = []
+    sources: list[str] = []
     points: list[SweepPoint] = []
     other_points: dict[str, list[SweepPoint]] = {label: [] for label in others}
     levels = {noise: noise_level(scenario, noise) for noise in noises}
@@ -286,7 +291,7 @@ def run_sweep(
         value = float(multiple) * levels[noise]
         if noise in ("process", "measurement"):
             # The simulator scales these itself (same draws as a plain simulate call).
-            scales = {"process_noise_scale": 1.0, "measurement_noise_scale": 1.0}
+            scales: dict[str, Any] = {"process_noise_scale": 1.0, "measurement_noise_scale": 1.0}
             scales[f"{noise}_noise_scale"] = float(multiple)
             at_level, extra = scenario, scales
         else:
@@ -304,6 +309,7 @@ def run_sweep(
 
             rng = np.random.default_rng(limit_streams[i])
             ceiling = fit_ceiling(at_level, sequence, ceiling_realisations, rng, **extra)
+            sources.append(ceiling.source)
             limit_points.append(
                 _point_from_predictions(ceiling.predict(X), y, scenario.n_candidates, **where)
             )
@@ -321,6 +327,7 @@ def run_sweep(
         others=other_points,
         ceiling=limit_points,
         ceiling_realisations=ceiling_realisations,
+        ceiling_covariance=sources,
         limit=limit_points,
         limit_realisations=ceiling_realisations,
     )

@@ -268,10 +268,9 @@ class Simulator:
     def population_rates(
         self, sequences: np.ndarray, noise: SequenceNoise, *, measured: bool = False
     ) -> np.ndarray:
-        """True body rates of P sequences (P, L, N) simulated side by side on the same
-        draws, (P, K, n, T, 3) rad/s: how a search scores a whole population at once.
-
-        :param measured: the gyro's readings instead (bias and white noise added).
+        """Body rates of P sequences (P, L, N) simulated side by side on the same draws,
+        (P, K, n, T, 3) rad/s: how a search scores a whole population at once. The true
+        rates, or with ``measured`` the gyro's readings (bias and white noise added).
         """
         state = self.start_population(noise.initial, len(sequences))
         parts = []

@@ -39,12 +39,21 @@ Woodbury identity, its columns whitened once per pair and weighted per sequence.
 d x d matrix is formed or factored per sequence, and nothing is random: the same
 sequence always gets the same prediction.
 
-On the paper preset its predictions sit within half a point of what the ceiling
-measures for sequences that brake, and 0.9 point below it for the hand-designed
-sequence at 6x process noise (0.964 against 0.973); it neglects how the noise couples
-between axes, which is largest on a body turning at 0.1 rad/s. ``bench/pareto_front.py``
-prints the prediction beside the default classifier and the ceiling for every row, and
-``tests/search/test_noise_model.py`` checks it against the ceiling.
+On the paper preset, where the accuracy is above 0.95, its predictions sit up to about a
+point below what the ceiling measures (6x process: 0.964 against 0.973 for the
+hand-designed sequence, 0.963 against 0.969 for the L = 8 front's best; one braking
+sequence 0.4 above); lower down the union bound is looser and the prediction further
+below. The union bound over-counts errors where several candidates are close, and the
+first-order covariance neglects how the noise couples between axes (which of the two
+weighs more is not measured). ``bench/pareto_front.py`` prints the prediction beside the
+default classifier and the ceiling for every row, and ``tests/search/test_noise_model.py``
+checks it against the ceiling.
+
+The same Gaussians classify: :meth:`LinearNoiseModel.log_likelihoods` is the density of
+a measured series under each candidate's mean and covariance, by the same Woodbury
+algebra per candidate, with no d x d matrix formed. A front's members are tested with it
+on fresh series, and the ceiling takes its covariance where it classifies better than
+the sample covariance.
 """
 
 from __future__ import annotations

@@ -333,8 +333,8 @@ def score_from_bound(bound: float, n_candidates: int) -> float:
 #: The objectives a Pareto search may trade off: what each is, its sense, its unit.
 OPERATOR_OBJECTIVES: dict[str, tuple[str, str, str]] = {
     "accuracy": (
-        "predicted accuracy of the Bayes classifier at the design noise (the scenario's "
-        "noise model)",
+        "accuracy of the Bayes classifier at the design noise (the scenario's noise model): "
+        "predicted while searching, measured on fresh series for the front",
         "max",
         "",
     ),

@@ -13,7 +13,7 @@ what a front's members are re-scored with.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -39,9 +39,11 @@ __all__ = ["OperatorScorer", "OperatorSettings", "nominal_rates"]
 #: Sequences simulated in one batch: bounds the memory of a population's responses
 #: (P x K x n x T x 3 doubles; 64 x 5 x 20 x 160 x 3 is 49 MB).
 _CHUNK = 64
-#: Sequences whose test series are simulated in one batch (P x K x n x T x 3 doubles:
-#: 8 x 5 x 200 x 160 x 3 is 31 MB).
-_TEST_CHUNK = 8
+#: Bytes the gyro readings of one batch of measured sequences may take (P x K x n x T x 3
+#: doubles, twice while the steps are joined): 8 sequences of 5 x 200 series at L = 8.
+_TEST_BYTES = 64 * 2**20
+#: Test series per candidate and condition a front's accuracy is measured on at most.
+MAX_TEST_SERIES = 5000
 
 
 @dataclass(frozen=True)
@@ -138,8 +140,13 @@ class OperatorScorer:
         return out
 
     def measured_accuracy(
-        self, sequences: Any, test_series: int, *, seed: int
-    ) -> tuple[np.ndarray, int]:
+        self,
+        sequences: Any,
+        test_series: int,
+        *,
+        seed: int,
+        should_stop: Callable[[], bool] | None = None,
+    ) -> tuple[np.ndarray, int] | None:
         """Each sequence's accuracy at each design condition, measured: the noise model's
         Gaussians (:meth:`~inertia_id.search.noise_model.LinearNoiseModel.
         log_likelihoods`, a classifier that needs no training draw) classify
@@ -147,19 +154,32 @@ class OperatorScorer:
         sequence meets the same draws (one per condition, from ``seed``), so differences
         between sequences are not sampling noise between draws.
 
-        :returns: accuracies (P, conditions) and the series tested per condition.
+        :param should_stop: polled between batches; True abandons the measurement.
+        :returns: accuracies (P, conditions) and the series tested per condition; None
+            when stopped.
         """
-        if not is_integer(test_series, minimum=1, maximum=100_000):
-            raise InputError(f"test_series must be an integer in 1..100000, got {test_series!r}")
+        if not is_integer(test_series, minimum=1, maximum=MAX_TEST_SERIES):
+            raise InputError(
+                f"test_series must be an integer in 1..{MAX_TEST_SERIES}, got {test_series!r}"
+            )
+        if not is_integer(seed, minimum=0):
+            raise InputError(f"seed must be a non-negative integer, got {seed!r}")
         arr = np.asarray(sequences)
         if arr.ndim == 2:
             arr = arr[None]
+        if arr.ndim != 3 or arr.shape[1] != self.sequence_length:
+            raise InputError(
+                f"sequences must be shaped (P, {self.sequence_length}, N), got {arr.shape}"
+            )
         checked = np.stack([self.scenario.check_sequence(s) for s in arr])
         conditions = self.settings.design_noise
         streams = np.random.SeedSequence([int(seed), 2]).spawn(len(conditions))
         k = self.scenario.n_candidates
         truth = np.repeat(np.arange(k), test_series)
         means = self.model.mean_responses(checked)  # (P, K, T, 3), every condition's
+        # A batch of readings (and its per-step parts) within a memory budget.
+        one = k * int(test_series) * self.model.n_samples * 3 * 8 * 2
+        batch = max(1, _TEST_BYTES // one)
         out = np.zeros((len(checked), len(conditions)))
         for c, ((process, measurement), stream) in enumerate(zip(conditions, streams, strict=True)):
             simulator = Simulator(
@@ -169,8 +189,10 @@ class OperatorScorer:
                 measurement_noise_scale=measurement,
             )
             noise = simulator.draw_noise(np.random.default_rng(stream), self.sequence_length)
-            for start in range(0, len(checked), _TEST_CHUNK):
-                chunk = checked[start : start + _TEST_CHUNK]
+            for start in range(0, len(checked), batch):
+                if should_stop is not None and should_stop():
+                    return None
+                chunk = checked[start : start + batch]
                 readings = simulator.population_rates(chunk, noise, measured=True)
                 for i, sequence in enumerate(chunk):
                     likelihood = self.model.log_likelihoods(

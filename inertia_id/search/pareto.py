@@ -20,8 +20,9 @@ Every sequence evaluated is kept; the non-dominated, feasible ones on the search
 are re-scored with an independent seed (:func:`build_front`): the residual and peak
 rates on a fresh draw with more realisations, and the accuracy *measured*, not
 predicted: the noise model's Bayes classifier tested on fresh series at each design
-condition (the search ranks by a prediction that is off by up to a point, and picks the
-sequences it flatters; the measurement is what catches them). The stored front is what
+condition (the search ranks by a prediction that is off by up to a point near
+saturation and by more lower down, and picks the sequences it flatters; the measurement
+is what catches them). The stored front is what
 is feasible and non-dominated *on those fresh scores*, each member with a stable index
 (0 = the most accurate). The baselines are scored on the same draws, and a baseline that
 dominates a member is flagged, on the member and on the baseline.
@@ -42,7 +43,7 @@ from ..physics.scenario import Scenario
 from ..physics.sequences import BASELINES
 from .loop import overrides
 from .objectives import SequenceScores
-from .operator import OperatorScorer, OperatorSettings
+from .operator import MAX_TEST_SERIES, OperatorScorer, OperatorSettings
 from .records import (
     CurvePoint,
     EpisodeRecord,
@@ -59,6 +60,7 @@ __all__ = [
     "Front",
     "build_front",
     "check_nsga2_params",
+    "check_test_series",
     "dominates",
     "non_dominated",
     "pareto_search",
@@ -102,6 +104,14 @@ def check_nsga2_params(params: dict[str, Any] | None) -> dict[str, Any]:
     if isinstance(prob, bool) or not isinstance(prob, int | float) or not 0 <= prob <= 1:
         raise InputError(f"NSGA-II crossover_prob must be in [0, 1], got {prob!r}")
     return merged
+
+
+def check_test_series(value: Any) -> int:
+    """A front's test series per candidate and condition: 0 (keep the prediction) to
+    :data:`~inertia_id.search.operator.MAX_TEST_SERIES`."""
+    if not is_integer(value, minimum=0, maximum=MAX_TEST_SERIES):
+        raise InputError(f"test_series must be an integer in 0..{MAX_TEST_SERIES}, got {value!r}")
+    return int(value)
 
 
 def dominates(a: np.ndarray, b: np.ndarray) -> bool:
@@ -185,12 +195,16 @@ def _measured(
     scores: list[SequenceScores],
     test_series: int,
     seed: int,
-) -> list[SequenceScores]:
+    should_stop: Callable[[], bool] | None,
+) -> list[SequenceScores] | None:
     """``scores`` with the accuracy measured on ``test_series`` fresh series per
-    candidate and condition (the prediction kept beside); as they are for 0."""
+    candidate and condition (the prediction kept beside); as they are for 0; None when
+    stopped."""
     if not test_series:
         return scores
-    measured, _ = scorer.measured_accuracy(sequences, test_series, seed=seed)
+    measured = scorer.measured_accuracy(sequences, test_series, seed=seed, should_stop=should_stop)
+    if measured is None:
+        return None
     return [
         replace(
             score,
@@ -198,8 +212,20 @@ def _measured(
             accuracy_by_noise=[float(v) for v in row],
             predicted_accuracy_by_noise=list(score.accuracy_by_noise),
         )
-        for score, row in zip(scores, measured, strict=True)
+        for score, row in zip(scores, measured[0], strict=True)
     ]
+
+
+def _feasible(score: SequenceScores, constraints: dict[str, float], series: int) -> bool:
+    """The constraints on fresh scores; a measured accuracy meets ``min_accuracy`` unless
+    its Wilson interval lies wholly below it (a measurement on ``series`` series carries
+    sampling error the prediction the search constrained did not)."""
+    if score.predicted_accuracy_by_noise is None or "min_accuracy" not in constraints:
+        return score.feasible(constraints)
+    from ..evaluation.sweep import wilson_interval
+
+    _, upper = wilson_interval(round(score.accuracy * series), series)
+    return replace(score, accuracy=upper).feasible(constraints)
 
 
 def build_front(
@@ -212,6 +238,7 @@ def build_front(
     search_scores: Sequence[SequenceScores] | None = None,
     keep_infeasible: bool = False,
     test_series: int = 200,
+    should_stop: Callable[[], bool] | None = None,
 ) -> Front:
     """Re-score ``sequences`` on a fresh draw and keep the non-dominated (and, unless
     ``keep_infeasible``, feasible) ones; score the baselines on the same draw and flag
@@ -225,10 +252,11 @@ def build_front(
     :param test_series: fresh test series per candidate and design condition on which
         each sequence's accuracy is measured (:meth:`OperatorScorer.measured_accuracy`,
         every sequence and baseline on the same series); 0 keeps the prediction.
+    :param should_stop: polled while the accuracy is measured; True keeps the predictions
+        (the front then says its accuracy is predicted).
     """
     settings = settings.check(scenario)
-    if not is_integer(test_series, minimum=0, maximum=100_000):
-        raise InputError(f"test_series must be an integer in 0..100000, got {test_series!r}")
+    check_test_series(test_series)
     rows = [scenario.check_sequence(s) for s in sequences]
     if not rows:
         raise InputError("a front needs at least one sequence")
@@ -244,10 +272,22 @@ def build_front(
         ),
         seed=seed,
     )
-    fresh = _measured(scorer, np.stack(rows), scorer.score(np.stack(rows)), test_series, seed)
+    baselines = scored_baselines(scenario, length, scorer)
+    available = {name: scored for name, scored in baselines.items() if not isinstance(scored, str)}
+    # The members and the baselines measured on the same series, in one pass.
+    everything = [*rows, *(sequence for sequence, _ in available.values())]
+    predicted = scorer.score(np.stack(rows)) + [score for _, score in available.values()]
+    measured = _measured(scorer, np.stack(everything), predicted, test_series, seed, should_stop)
+    if measured is None:
+        test_series = 0  # stopped: the predictions stand, and the front says so
+    scored = predicted if measured is None else measured
+    fresh = scored[: len(rows)]
+    for (name, (sequence, _)), score in zip(available.items(), scored[len(rows) :], strict=True):
+        baselines[name] = (sequence, score)
+    series = len(settings.design_noise) * scenario.n_candidates * test_series
     constraints = dict(settings.constraints)
     vectors = np.stack([s.objective_vector(settings.objectives) for s in fresh])
-    feasible = np.array([s.feasible(constraints) for s in fresh])
+    feasible = np.array([_feasible(s, constraints, series) for s in fresh])
     eligible = np.ones(len(rows), bool) if keep_infeasible else feasible
     keep = np.zeros(len(rows), bool)
     if eligible.any():
@@ -282,20 +322,11 @@ def build_front(
                 "dominated_by": [],
             }
         )
-    baselines = scored_baselines(scenario, length, scorer)
-    available = {name: scored for name, scored in baselines.items() if not isinstance(scored, str)}
-    if available:
-        made = np.stack([sequence for sequence, _ in available.values()])
-        measured = _measured(
-            scorer, made, [score for _, score in available.values()], test_series, seed
-        )
-        for (name, (sequence, _)), score in zip(available.items(), measured, strict=True):
-            baselines[name] = (sequence, score)
-    for name, scored in baselines.items():
-        if isinstance(scored, str):
-            front.baselines[name] = {"unavailable": scored}
+    for name, entry in baselines.items():
+        if isinstance(entry, str):
+            front.baselines[name] = {"unavailable": entry}
             continue
-        sequence, score = scored
+        sequence, score = entry
         vector = score.objective_vector(settings.objectives)
         beaten = [
             member["index"]
@@ -307,7 +338,7 @@ def build_front(
         front.baselines[name] = {
             "sequence": sequence.tolist(),
             "scores": score.as_dict(),
-            "feasible": score.feasible(constraints),
+            "feasible": _feasible(score, constraints, series),
             "dominates": beaten,
         }
     return front
@@ -497,6 +528,7 @@ def pareto_search(
     if not is_integer(sequence_length, minimum=1, maximum=50):
         raise InputError(f"sequence_length must be an integer in 1..50, got {sequence_length!r}")
     params = check_nsga2_params(nsga2_params)
+    check_test_series(fresh_test_series)
     checked = (operator or OperatorSettings()).check(scenario)
     scorer = OperatorScorer(scenario, sequence_length, checked, seed=seed)
     constraints = dict(checked.constraints)
@@ -621,6 +653,7 @@ def pareto_search(
         fresh_realisations=fresh_realisations,
         search_scores=[entries[i][1] for i in candidates],
         test_series=fresh_test_series,
+        should_stop=should_stop,
     )
     if not front.members:
         raise InputError(
@@ -658,7 +691,7 @@ def pareto_search(
             "nsga2": params,
             "operator": checked.as_dict(),
             "fresh_realisations": fresh_realisations,
-            "fresh_test_series": fresh_test_series,
+            "fresh_test_series": int(fresh_test_series),
             "scorer": clustering.as_dict(),
         },
         front=front.to_dict(),

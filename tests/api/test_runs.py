@@ -310,6 +310,10 @@ def test_a_front_downloads_as_csv_its_members_plan_by_index_and_a_member_trains(
         for figure in ("accuracy", "final_rate_rad_s", "final_rate_deg_s", "attitude_change_deg"):
             assert float(row[column[figure]]) == member["scores"][figure]
         assert json.loads(row[column["sequence"]]) == member["sequence"]
+        # Measured on fresh series, the prediction beside it.
+        assert row[column["accuracy_source"]] == "measured"
+        predicted = member["scores"]["predicted_accuracy_by_noise"]
+        assert float(row[column["predicted_accuracy"]]) == pytest.approx(np.mean(predicted))
     # Rates in deg/s are the rad/s ones converted.
     assert float(listed[0][column["final_rate_deg_s"]]) == pytest.approx(
         np.degrees(float(listed[0][column["final_rate_rad_s"]]))

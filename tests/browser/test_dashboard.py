@@ -930,7 +930,7 @@ def test_a_pareto_front_is_drawn_beside_the_baselines_and_a_member_plans_and_tra
     page.wait_for_selector("#front-plan-table", timeout=60_000)
     assert "Pareto front" in page.inner_text("#front-card h2")
 
-    # The chart: every member at (residual rate in deg/s, predicted accuracy), each
+    # The chart: every member at (residual rate in deg/s, measured accuracy), each
     # available baseline its own trace with its own symbol, under its name.
     traces = page.evaluate(
         "() => document.getElementById('front-plot').data.map((t) => "

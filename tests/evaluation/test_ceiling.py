@@ -41,6 +41,8 @@ def test_no_kind_beats_the_ceiling_beyond_the_sampling_error(paper: Scenario) ->
         seed=5,
     )
     assert len(sweep.ceiling) == 9 and sweep.ceiling == sweep.limit
+    assert len(sweep.ceiling_covariance) == 9
+    assert set(sweep.ceiling_covariance) <= {"sample", "noise model"}
     beaten = []
     for label, points in {"marginal-likelihood": sweep.points, **sweep.others}.items():
         for point, ceiling in zip(points, sweep.ceiling, strict=True):
@@ -65,19 +67,17 @@ def test_the_ceiling_rises_above_a_one_x_classifier_at_high_noise(paper: Scenari
     assert sweep.ceiling_realisations == 500 == sweep.limit_realisations
 
 
-def test_a_classifier_that_knows_the_noise_model_does_not_beat_the_ceiling(
+def test_at_l8_the_sample_covariance_loses_and_the_ceiling_takes_the_noise_models(
     paper: Scenario,
 ) -> None:
     """At L = 8 the sample covariance of a 480-value series from 2,000 realisations costs
-    accuracy: the Gaussians with the noise model's written-out covariance classified
-    more of the same series than the sample-covariance ceiling did (71 against 36 of the
-    series on which they disagree, 5,000 series at 6x process). The ceiling now takes
-    whichever covariance classifies its own validation draw better."""
+    accuracy: the Gaussians with the noise model's written-out covariance classify more
+    of the same series (McNemar's exact test on the series the two disagree on). The
+    ceiling picks the noise model's there, so nothing known beats it."""
     from scipy.stats import binomtest
 
     from inertia_id import simulate
-    from inertia_id.evaluation.ceiling import GaussianCeiling, fit_ceiling
-    from inertia_id.search.noise_model import LinearNoiseModel
+    from inertia_id.evaluation.ceiling import fit_ceiling
 
     sequence = np.array(
         [[4, 4, 4, 0, 0, 0]] * 2
@@ -87,16 +87,25 @@ def test_a_classifier_that_knows_the_noise_model_does_not_beat_the_ceiling(
     )
     scales = {"process_noise_scale": 6.0, "measurement_noise_scale": 1.0}
     X, y = simulate(paper, sequence, 1000, np.random.default_rng(21), **scales).dataset()
-    ceiling = fit_ceiling(paper, sequence, 2000, np.random.default_rng(22), **scales)
-    means, covariances = LinearNoiseModel(paper, len(sequence)).candidate_gaussians(
-        sequence, 6.0, 1.0
-    )
-    known = GaussianCeiling(means, covariances, 0.0).predict(X) == y
-    reached = ceiling.predict(X) == y
-    only_known, only_ceiling = int(np.sum(known & ~reached)), int(np.sum(reached & ~known))
-    # McNemar's exact test on the discordant series: the known-noise classifier is not
-    # better beyond chance.
-    if only_known + only_ceiling:
-        p = binomtest(only_known, only_known + only_ceiling, 0.5, alternative="greater").pvalue
-        assert p > 0.01, (only_known, only_ceiling, ceiling.source)
-    assert ceiling.source in ("sample", "noise model")
+    right = {}
+    for covariance in ("sample", "noise model", "best"):
+        fitted = fit_ceiling(
+            paper, sequence, 2000, np.random.default_rng(22), covariance=covariance, **scales
+        )
+        right[covariance] = fitted.predict(X) == y
+        assert fitted.source == ("noise model" if covariance == "best" else covariance)
+    only_model = int(np.sum(right["noise model"] & ~right["sample"]))
+    only_sample = int(np.sum(right["sample"] & ~right["noise model"]))
+    p = binomtest(only_model, only_model + only_sample, 0.5, alternative="greater").pvalue
+    assert p < 0.01, (only_model, only_sample)
+    assert np.array_equal(right["best"], right["noise model"])
+
+
+def test_the_ceiling_refuses_an_unknown_covariance(paper: Scenario) -> None:
+    import pytest
+
+    from inertia_id import InputError
+    from inertia_id.evaluation.ceiling import fit_ceiling
+
+    with pytest.raises(InputError, match="covariance must be 'best', 'sample' or 'noise model'"):
+        fit_ceiling(paper, SEQUENCE, 10, np.random.default_rng(0), covariance="pooled")

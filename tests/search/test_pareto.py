@@ -376,5 +376,41 @@ def test_a_front_without_test_series_keeps_the_prediction(paper: Scenario) -> No
     assert front["accuracy_source"] == "predicted" and scores["predicted_accuracy_by_noise"] is None
     expected = OperatorScorer(paper, 2, OperatorSettings(), seed=1).score(np.array(sequence))[0]
     assert scores["accuracy_by_noise"] == pytest.approx(expected.accuracy_by_noise)
-    with pytest.raises(InputError, match=r"test_series must be an integer in 0\.\.100000, got -1"):
+    with pytest.raises(InputError, match=r"test_series must be an integer in 0\.\.5000, got -1"):
         build_front(paper, [sequence], OperatorSettings(), seed=1, test_series=-1)
+
+
+def test_min_accuracy_on_a_measured_front_allows_for_the_sampling_error(paper: Scenario) -> None:
+    """A member whose prediction meets min_accuracy is not dropped because its 1,000-series
+    measurement came out a hair below; one whose measurement is far below is."""
+    from inertia_id.search import build_front
+
+    sequence = [[4, 4, 4, 0, 0, 0]] * 2 + [[0] * 6] * 4 + [[0, 0, 0, 4, 4, 4]] * 2
+    predicted = OperatorScorer(paper, 8, OperatorSettings(), seed=1).score(np.array(sequence))[0]
+    near = OperatorSettings(constraints={"min_accuracy": predicted.accuracy - 1e-4})
+    front = build_front(paper, [sequence], near, seed=1).to_dict()
+    assert len(front["members"]) == 1 and front["members"][0]["feasible"]
+    measured = front["members"][0]["scores"]["accuracy"]
+    far = OperatorSettings(constraints={"min_accuracy": min(measured + 0.02, 1.0)})
+    assert build_front(paper, [sequence], far, seed=1).to_dict()["members"] == []
+
+
+def test_a_stopped_measurement_keeps_the_predictions(paper: Scenario) -> None:
+    from inertia_id.search import build_front
+
+    sequence = [[4, 4, 4, 0, 0, 0], [0, 0, 0, 4, 4, 4]]
+    front = build_front(
+        paper, [sequence], OperatorSettings(), seed=1, should_stop=lambda: True
+    ).to_dict()
+    assert front["accuracy_source"] == "predicted" and front["fresh_test_series"] == 0
+    assert front["members"][0]["scores"]["predicted_accuracy_by_noise"] is None
+    for base in front["baselines"].values():
+        assert "unavailable" in base or base["scores"]["predicted_accuracy_by_noise"] is None
+
+
+def test_measured_accuracy_refuses_a_sequence_of_another_length(paper: Scenario) -> None:
+    scorer = OperatorScorer(paper, 2, OperatorSettings(), seed=0)
+    with pytest.raises(InputError, match=r"sequences must be shaped \(P, 2, N\)"):
+        scorer.measured_accuracy(np.zeros((3, 6), int), 10, seed=0)
+    with pytest.raises(InputError, match=r"seed must be a non-negative integer, got 1\.5"):
+        scorer.measured_accuracy(np.zeros((2, 6), int), 10, seed=1.5)

@@ -79,7 +79,7 @@ export async function sweepPanel(holder, job, classifier, context) {
       h(
         "p",
         { class: "muted", id: "sweep-seeds" },
-        `${result.n_test_per_candidate} test series per candidate and point. Seeds: the job's ${job.seed}; its test series come from ${result.seed}, a stream derived from it (the others' training and the bodies off the candidates use two more). Beside ${mainName}, on the same series: ${otherNames.join(", ") || "no other classifier"}${result.ceiling && result.ceiling.length ? `, and the ceiling (per-candidate Gaussians fitted on ${result.ceiling_realisations} realisations per candidate at each noise level: no classifier beats it beyond sampling error)` : ""}.`,
+        `${result.n_test_per_candidate} test series per candidate and point. Seeds: the job's ${job.seed}; its test series come from ${result.seed}, a stream derived from it (the others' training and the bodies off the candidates use two more). Beside ${mainName}, on the same series: ${otherNames.join(", ") || "no other classifier"}${result.ceiling && result.ceiling.length ? `, and the ceiling (per-candidate Gaussians at each noise level, their covariance sampled from ${result.ceiling_realisations} realisations per candidate or written out by the scenario's noise model, whichever classified a validation draw better${result.ceiling_covariance && result.ceiling_covariance.length ? `: ${result.ceiling_covariance.filter((c) => c === "noise model").length} of ${result.ceiling_covariance.length} points took the noise model's` : ""}; no classifier beats it beyond sampling error)` : ""}.`,
       ),
     );
     for (const noise of noises) {
