@@ -44,7 +44,7 @@ from scipy.linalg import cho_factor, solve_triangular
 from ..checks import is_integer
 from ..errors import InputError
 from ..physics.scenario import Scenario
-from ..physics.simulate import Simulator
+from ..physics.simulate import SequenceNoise, SimulationResult, Simulator
 
 __all__ = ["DEFAULT_CEILING_REALISATIONS", "GaussianCeiling", "fit_ceiling"]
 
@@ -140,8 +140,8 @@ def fit_ceiling(
     sums = np.zeros((k, d))
     products = np.zeros((k, d, d))
     done = 0
-    while done < n_realisations:
-        count = min(_BATCH, n_realisations - done)
+
+    def simulated(count: int) -> tuple[SimulationResult, SequenceNoise]:
         simulator = Simulator(
             scenario,
             count,
@@ -149,7 +149,11 @@ def fit_ceiling(
             measurement_noise_scale=measurement_noise_scale,
         )
         noise = simulator.draw_noise(rng, len(rows))
-        result = simulator.run(rows, noise)
+        return simulator.run(rows, noise), noise
+
+    while done < n_realisations:
+        count = min(_BATCH, n_realisations - done)
+        result, noise = simulated(count)
         rates = result.omega_true + noise.initial.gyro_bias[:, :, None, :]
         flat = rates.reshape(k, count, d)
         sums += flat.sum(axis=1)
@@ -179,14 +183,7 @@ def fit_ceiling(
     if covariance == "noise model":
         return modelled
     count = min(n_realisations, _VALIDATION)
-    simulator = Simulator(
-        scenario,
-        count,
-        process_noise_scale=process_noise_scale,
-        measurement_noise_scale=measurement_noise_scale,
-    )
-    noise = simulator.draw_noise(rng, len(rows))
-    series = simulator.run(rows, noise).omega_measured.reshape(k * count, -1)
+    series = simulated(count)[0].omega_measured.reshape(k * count, -1)
     truth = np.repeat(np.arange(k), count)
     right = [int(np.sum(c.predict(series) == truth)) for c in (sampled, modelled)]
     return modelled if right[1] > right[0] else sampled

@@ -123,8 +123,8 @@ class OperatorScorer:
         self.model = LinearNoiseModel(scenario, self.sequence_length)
         self.evaluations = 0
 
-    def score(self, sequences: Any) -> list[SequenceScores]:
-        """Scores of each sequence, (P, L, N) level indices (or one (L, N) sequence)."""
+    def _checked(self, sequences: Any) -> np.ndarray:
+        """(P, L, N) level indices, checked (one (L, N) sequence becomes P = 1)."""
         arr = np.asarray(sequences)
         if arr.ndim == 2:
             arr = arr[None]
@@ -132,7 +132,11 @@ class OperatorScorer:
             raise InputError(
                 f"sequences must be shaped (P, {self.sequence_length}, N), got {arr.shape}"
             )
-        checked = np.stack([self.scenario.check_sequence(s) for s in arr])
+        return np.stack([self.scenario.check_sequence(s) for s in arr])
+
+    def score(self, sequences: Any) -> list[SequenceScores]:
+        """Scores of each sequence, (P, L, N) level indices (or one (L, N) sequence)."""
+        checked = self._checked(sequences)
         out: list[SequenceScores] = []
         for start in range(0, len(checked), _CHUNK):
             out.extend(self._score_chunk(checked[start : start + _CHUNK]))
@@ -164,14 +168,7 @@ class OperatorScorer:
             )
         if not is_integer(seed, minimum=0):
             raise InputError(f"seed must be a non-negative integer, got {seed!r}")
-        arr = np.asarray(sequences)
-        if arr.ndim == 2:
-            arr = arr[None]
-        if arr.ndim != 3 or arr.shape[1] != self.sequence_length:
-            raise InputError(
-                f"sequences must be shaped (P, {self.sequence_length}, N), got {arr.shape}"
-            )
-        checked = np.stack([self.scenario.check_sequence(s) for s in arr])
+        checked = self._checked(sequences)
         conditions = self.settings.design_noise
         streams = np.random.SeedSequence([int(seed), 2]).spawn(len(conditions))
         k = self.scenario.n_candidates
