@@ -26,12 +26,11 @@ sequence at 6x process and at 6x gyro noise:
 
 from __future__ import annotations
 
-import argparse
 import time
 from unittest import mock
 
 import numpy as np
-from _common import GOOD_SEQUENCE, base_parser, begin, write_json
+from _common import GOOD_SEQUENCE, base_parser, begin, float_list, write_json
 
 import inertia_id.physics.dynamics as dynamics
 from inertia_id import preset, run_sweep, simulate, train_classifier
@@ -39,18 +38,6 @@ from inertia_id.search import OperatorSettings, pareto_search
 from inertia_id.search.noise_model import LinearNoiseModel
 
 DESIGN = ((6.0, 1.0), (1.0, 6.0))
-
-
-def float_list(text: str) -> list[float]:
-    try:
-        values = [float(part) for part in text.split(",") if part.strip()]
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"expected numbers separated by commas, got {text!r}"
-        ) from None
-    if not values or any(v <= 0 for v in values):
-        raise argparse.ArgumentTypeError(f"expected positive numbers, got {text!r}")
-    return values
 
 
 def predicted(scenario, sequence: np.ndarray) -> np.ndarray:
