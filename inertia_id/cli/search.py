@@ -280,6 +280,9 @@ def search_with_progress(
 
         def progress(report: SearchProgress) -> None:
             bar.update(report.timesteps - bar.n)
+            if report.phase != "search":  # the steps are done; say what runs now
+                bar.set_postfix_str(f"{report.phase}, {report.fraction:.0%} of the job")
+                return
             bar.set_postfix(
                 reward=f"{report.point.mean_episode_reward:.3f}",
                 best_f1=f"{report.point.best_f1:.3f}",

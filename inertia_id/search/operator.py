@@ -150,6 +150,7 @@ class OperatorScorer:
         *,
         seed: int,
         should_stop: Callable[[], bool] | None = None,
+        progress: Callable[[float], None] | None = None,
     ) -> tuple[np.ndarray, int] | None:
         """Each sequence's accuracy at each design condition, measured: the noise model's
         Gaussians (:meth:`~inertia_id.search.noise_model.LinearNoiseModel.
@@ -159,6 +160,7 @@ class OperatorScorer:
         between sequences are not sampling noise between draws.
 
         :param should_stop: polled between batches; True abandons the measurement.
+        :param progress: called after every batch with the fraction of the batches done.
         :returns: accuracies (P, conditions) and the series tested per condition; None
             when stopped.
         """
@@ -178,6 +180,7 @@ class OperatorScorer:
         one = k * int(test_series) * self.model.n_samples * 3 * 8 * 2
         batch = max(1, _TEST_BYTES // one)
         out = np.zeros((len(checked), len(conditions)))
+        batches, done = len(conditions) * -(-len(checked) // batch), 0
         for c, ((process, measurement), stream) in enumerate(zip(conditions, streams, strict=True)):
             simulator = Simulator(
                 self.scenario,
@@ -200,6 +203,9 @@ class OperatorScorer:
                         means=means[start + i],
                     )
                     out[start + i, c] = float(np.mean(likelihood.argmax(axis=1) == truth))
+                done += 1
+                if progress is not None:
+                    progress(done / batches)
         return out, k * int(test_series)
 
     def _score_chunk(self, sequences: np.ndarray) -> list[SequenceScores]:

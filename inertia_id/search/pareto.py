@@ -84,6 +84,12 @@ NSGA2_DEFAULTS: dict[str, Any] = {
 #: Members re-scored on fresh draws at most (the non-dominated set on the search's draw
 #: is thinned evenly along the accuracy beyond this).
 MAX_FRONT_CANDIDATES = 60
+#: One NSGA-II evaluation (a sequence predicted by the noise model and its rates
+#: simulated) costs about as much as measuring this many test series of the same length
+#: (the 2-core machine, paper preset: 64 at L = 4, 84 at L = 8, 101 at L = 16). It
+#: sizes the front's measurement in the progress a search reports, so the bar does not
+#: sit at 100 % while the front is measured.
+SERIES_PER_EVALUATION = 80
 
 
 def check_nsga2_params(params: dict[str, Any] | None) -> dict[str, Any]:
@@ -196,13 +202,16 @@ def _measured(
     test_series: int,
     seed: int,
     should_stop: Callable[[], bool] | None,
+    progress: Callable[[float], None] | None = None,
 ) -> list[SequenceScores] | None:
     """``scores`` with the accuracy measured on ``test_series`` fresh series per
     candidate and condition (the prediction kept beside); as they are for 0; None when
     stopped."""
     if not test_series:
         return scores
-    measured = scorer.measured_accuracy(sequences, test_series, seed=seed, should_stop=should_stop)
+    measured = scorer.measured_accuracy(
+        sequences, test_series, seed=seed, should_stop=should_stop, progress=progress
+    )
     if measured is None:
         return None
     return [
@@ -239,6 +248,7 @@ def build_front(
     keep_infeasible: bool = False,
     test_series: int = 200,
     should_stop: Callable[[], bool] | None = None,
+    progress: Callable[[float], None] | None = None,
 ) -> Front:
     """Re-score ``sequences`` on a fresh draw and keep the non-dominated (and, unless
     ``keep_infeasible``, feasible) ones; score the baselines on the same draw and flag
@@ -254,6 +264,7 @@ def build_front(
         every sequence and baseline on the same series); 0 keeps the prediction.
     :param should_stop: polled while the accuracy is measured; True keeps the predictions
         (the front then says its accuracy is predicted).
+    :param progress: called while the accuracy is measured, with the fraction done.
     """
     settings = settings.check(scenario)
     check_test_series(test_series)
@@ -277,7 +288,9 @@ def build_front(
     # The members and the baselines measured on the same series, in one pass.
     everything = [*rows, *(sequence for sequence, _ in available.values())]
     predicted = scorer.score(np.stack(rows)) + [score for _, score in available.values()]
-    measured = _measured(scorer, np.stack(everything), predicted, test_series, seed, should_stop)
+    measured = _measured(
+        scorer, np.stack(everything), predicted, test_series, seed, should_stop, progress
+    )
     if measured is None:
         test_series = 0  # stopped: the predictions stand, and the front says so
     scored = predicted if measured is None else measured
@@ -580,6 +593,14 @@ def pareto_search(
     ) * sequence_length
     curve: list[CurvePoint] = []
 
+    def measurement(rows: int) -> float:
+        """The front's measurement of ``rows`` sequences, in evaluations."""
+        series = len(checked.design_noise) * scenario.n_candidates * fresh_test_series
+        return rows * series / SERIES_PER_EVALUATION
+
+    # The bar's whole: the search's budget and the largest front's measurement.
+    reserve = measurement(MAX_FRONT_CANDIDATES + len(BASELINES))
+
     def report(point: CurvePoint, *, new_point: bool = True) -> bool:
         if progress is not None:
             progress(
@@ -590,9 +611,30 @@ def pareto_search(
                     point=point,
                     best=None,
                     new_point=new_point,
+                    fraction_done=scorer.evaluations
+                    / (max(budget / sequence_length, scorer.evaluations) + reserve),
                 )
             )
         return should_stop is not None and should_stop()
+
+    def measuring(done: float) -> None:
+        # The measured front is known now: its share replaces the reserve, so the bar
+        # only moves forward (evaluations <= budget, this share <= the reserve).
+        if progress is None:
+            return
+        searched, share = scorer.evaluations, measurement(len(candidates) + len(BASELINES))
+        progress(
+            SearchProgress(
+                timesteps=searched * sequence_length,
+                total_timesteps=max(budget, searched * sequence_length),
+                episodes=searched,
+                point=curve[-1],
+                best=None,
+                new_point=False,
+                phase="measuring the front",
+                fraction_done=(searched + done * share) / (searched + share),
+            )
+        )
 
     stopped = "budget"
     while algorithm.has_next():
@@ -654,6 +696,7 @@ def pareto_search(
         search_scores=[entries[i][1] for i in candidates],
         test_series=fresh_test_series,
         should_stop=should_stop,
+        progress=measuring if curve else None,
     )
     if not front.members:
         raise InputError(

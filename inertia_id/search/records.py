@@ -95,8 +95,13 @@ class CurvePoint:
 @dataclass(frozen=True)
 class SearchProgress:
     """Passed to a search's ``progress`` callback at every curve point, and while a
-    search works between points (NSGA-II's polish): then ``new_point`` is False and
-    ``point`` repeats the last curve point.
+    search works between points (NSGA-II's polish, the front's measurement): then
+    ``new_point`` is False and ``point`` repeats the last curve point.
+
+    :param phase: what the search is doing: ``"search"``, or ``"measuring the front"``
+        (the fresh measurement of the front's accuracy after the last curve point).
+    :param fraction_done: the fraction of the whole job done, where the steps alone
+        do not tell it (NSGA-II counts the front's measurement in); None: the steps'.
     """
 
     timesteps: int
@@ -105,9 +110,13 @@ class SearchProgress:
     point: CurvePoint
     best: EpisodeRecord | None
     new_point: bool = True
+    phase: str = "search"
+    fraction_done: float | None = None
 
     @property
     def fraction(self) -> float:
+        if self.fraction_done is not None:
+            return min(1.0, max(0.0, self.fraction_done))
         return min(1.0, self.timesteps / max(self.total_timesteps, 1))
 
 

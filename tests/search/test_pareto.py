@@ -301,6 +301,43 @@ def test_the_polish_reports_progress_and_stops_when_told(paper: Scenario) -> Non
     assert seen[-1][0] > seen[2][0]  # the polish scored more sequences
 
 
+def test_the_fronts_measurement_reports_progress_and_the_bar_only_moves_forward(
+    paper: Scenario,
+) -> None:
+    """The measurement runs after the last generation; it reports its own phase, and the
+    job's fraction done never goes back and ends at 1 (it counted the measurement in
+    from the start, instead of sitting at 100 % while the front is measured)."""
+    seen: list = []
+    pareto_search(
+        paper,
+        sequence_length=2,
+        seed=1,
+        operator=OperatorSettings(n_realisations=4),
+        nsga2_params={"population": 8, "generations": 3, "polish_iterations": 2},
+        fresh_realisations=6,
+        fresh_test_series=20,
+        progress=seen.append,
+    )
+    phases = [report.phase for report in seen]
+    first = phases.index("measuring the front")
+    assert set(phases[:first]) == {"search"} and set(phases[first:]) == {"measuring the front"}
+    fractions = [report.fraction for report in seen]
+    assert fractions == sorted(fractions)
+    assert fractions[first - 1] < 1.0 and fractions[-1] == pytest.approx(1.0)
+    assert not any(report.new_point for report in seen[first:])  # no curve points
+
+
+def test_the_measurement_reports_each_batch(paper: Scenario, monkeypatch) -> None:
+    from inertia_id.search import operator
+
+    monkeypatch.setattr(operator, "_TEST_BYTES", 1)  # one sequence a batch
+    scorer = OperatorScorer(paper, 2, OperatorSettings(n_realisations=4), seed=0)
+    done: list[float] = []
+    sequences = np.array([[[4, 4, 4, 0, 0, 0]] * 2, [[4, 0, 0, 0, 0, 0]] * 2, [[0] * 6] * 2])
+    scorer.measured_accuracy(sequences, 5, seed=1, progress=done.append)
+    assert done == pytest.approx([1 / 6, 2 / 6, 3 / 6, 4 / 6, 5 / 6, 1.0])
+
+
 def test_no_polish_without_the_accuracy_objective(paper: Scenario) -> None:
     """The polish climbs the accuracy; asked for rates and impulse only, it would spend
     its evaluations on a figure nobody asked for."""
