@@ -272,21 +272,29 @@ def search_with_progress(
         f"{size:.4g} sequences",
         err=True,
     )
-    if request.method == "exhaustive":
+    # NSGA-II's budget is generations, a polish that may stop early and the front's
+    # measurement, not --timesteps: its bar shows the fraction of the job done.
+    by_fraction = request.method == "nsga2"
+    if by_fraction:
+        total, unit = 1000, "‰"
+    elif request.method == "exhaustive":
         total = size * request.sequence_length if size <= request.max_sequences else 1
+        unit = "step"
     else:
-        total = request.timesteps
-    with progress_bar(total, request.method, unit="step") as bar:
+        total, unit = request.timesteps, "step"
+    with progress_bar(total, request.method, unit=unit) as bar:
 
         def progress(report: SearchProgress) -> None:
-            bar.update(report.timesteps - bar.n)
-            if report.phase != "search":  # the steps are done; say what runs now
-                bar.set_postfix_str(f"{report.phase}, {report.fraction:.0%} of the job")
-                return
-            bar.set_postfix(
-                reward=f"{report.point.mean_episode_reward:.3f}",
-                best_f1=f"{report.point.best_f1:.3f}",
-            )
+            bar.update((round(1000 * report.fraction) if by_fraction else report.timesteps) - bar.n)
+            if report.phase != "search":  # the search is done; say what runs now
+                bar.set_postfix_str(report.phase)
+            elif by_fraction:
+                bar.set_postfix(best_accuracy=f"{report.point.best_f1:.3f}")
+            else:
+                bar.set_postfix(
+                    reward=f"{report.point.mean_episode_reward:.3f}",
+                    best_f1=f"{report.point.best_f1:.3f}",
+                )
 
         outcome = search_with_baselines(
             scenario, request, seed=seed, policy_path=policy_path, progress=progress

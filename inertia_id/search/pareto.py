@@ -473,6 +473,7 @@ def _polish(
     batch: int,
     rng: np.random.Generator,
     after_round: Callable[[], bool] | None = None,
+    after_start: Callable[[], None] | None = None,
 ) -> bool:
     """Steepest-ascent local search (a memetic step after NSGA-II) from each start:
     each round scores ``batch`` neighbours and moves to the best if it ranks above the
@@ -480,7 +481,8 @@ def _polish(
     into the archive, so the front gains whatever non-dominated ones it met.
 
     :param after_round: called after every round (to report progress); True ends the
-        polish there, and the function returns False."""
+        polish there, and the function returns False; ``after_start`` after each start's
+        climb."""
     n_levels = scorer.scenario.n_levels
     opposing = opposing_thrusters(scorer.scenario.torque_matrix)
     for start in starts:
@@ -500,7 +502,57 @@ def _polish(
             if keys[chosen] >= best:
                 break
             current, best = rows[chosen], keys[chosen]
+        if after_start is not None:
+            after_start()
     return True
+
+
+@dataclass
+class _Bar:
+    """The fraction of an NSGA-II job done, for its progress bar.
+
+    The job is the generations, the polish and the front's measurement, in evaluations.
+    The polish stops a start where no neighbour ranks higher, usually after a few
+    rounds (on the paper preset about 3 of the 30 allowed), so its remaining work is
+    estimated from the starts climbed so far rather than counted at its maximum; the
+    measurement is counted from the start (at the largest front until the front is
+    known). The fraction reported never goes back.
+    """
+
+    population: int
+    generations: int
+    polish_starts: int
+    measured_series: int
+    generations_done: int = 0
+    starts_done: int = 0
+    front_rows: int = MAX_FRONT_CANDIDATES + len(BASELINES)
+    _polish_evaluations: int = 0
+    _evaluations_at_polish: int | None = None
+    _last: float = 0.0
+
+    #: Rounds a polish start is expected to climb before any start has finished.
+    PRIOR_ROUNDS = 3
+
+    def start_done(self) -> None:
+        self.starts_done += 1
+
+    def fraction(self, evaluations: int, measured: float) -> float:
+        if self.generations_done >= self.generations and self._evaluations_at_polish is None:
+            self._evaluations_at_polish = evaluations
+        polished = evaluations - (self._evaluations_at_polish or evaluations)
+        per_start = (
+            polished / self.starts_done if self.starts_done else self.PRIOR_ROUNDS * self.population
+        )
+        if measured:
+            polish_left = 0.0
+        else:
+            polish_left = max(0.0, per_start * self.polish_starts - polished)
+        generations_left = max(0, self.generations - self.generations_done) * self.population
+        measurement = self.front_rows * self.measured_series / SERIES_PER_EVALUATION
+        done = evaluations + measured * measurement
+        whole = evaluations + generations_left + polish_left + measurement
+        self._last = max(self._last, done / whole if whole else 1.0)
+        return self._last
 
 
 def pareto_search(
@@ -593,15 +645,16 @@ def pareto_search(
     ) * sequence_length
     curve: list[CurvePoint] = []
 
-    def measurement(rows: int) -> float:
-        """The front's measurement of ``rows`` sequences, in evaluations."""
-        series = len(checked.design_noise) * scenario.n_candidates * fresh_test_series
-        return rows * series / SERIES_PER_EVALUATION
+    bar = _Bar(
+        population=params["population"],
+        generations=params["generations"],
+        polish_starts=params["polish_starts"] + len(polish_starts) if polish_starts else 0,
+        measured_series=len(checked.design_noise) * scenario.n_candidates * fresh_test_series,
+    )
 
-    # The bar's whole: the search's budget and the largest front's measurement.
-    reserve = measurement(MAX_FRONT_CANDIDATES + len(BASELINES))
-
-    def report(point: CurvePoint, *, new_point: bool = True) -> bool:
+    def report(
+        point: CurvePoint, *, new_point: bool = True, phase: str = "search", measured: float = 0.0
+    ) -> bool:
         if progress is not None:
             progress(
                 SearchProgress(
@@ -611,30 +664,15 @@ def pareto_search(
                     point=point,
                     best=None,
                     new_point=new_point,
-                    fraction_done=scorer.evaluations
-                    / (max(budget / sequence_length, scorer.evaluations) + reserve),
+                    phase=phase,
+                    fraction_done=bar.fraction(scorer.evaluations, measured),
                 )
             )
         return should_stop is not None and should_stop()
 
     def measuring(done: float) -> None:
-        # The measured front is known now: its share replaces the reserve, so the bar
-        # only moves forward (evaluations <= budget, this share <= the reserve).
-        if progress is None:
-            return
-        searched, share = scorer.evaluations, measurement(len(candidates) + len(BASELINES))
-        progress(
-            SearchProgress(
-                timesteps=searched * sequence_length,
-                total_timesteps=max(budget, searched * sequence_length),
-                episodes=searched,
-                point=curve[-1],
-                best=None,
-                new_point=False,
-                phase="measuring the front",
-                fraction_done=(searched + done * share) / (searched + share),
-            )
-        )
+        bar.front_rows = len(candidates) + len(BASELINES)
+        report(curve[-1], new_point=False, phase="measuring the front", measured=done)
 
     stopped = "budget"
     while algorithm.has_next():
@@ -654,6 +692,7 @@ def pareto_search(
             best_final_rate_rad_s=top.final_rate_rad_s,
         )
         curve.append(point)
+        bar.generations_done += 1
         if report(point):
             stopped = "cancelled"
             break
@@ -669,6 +708,7 @@ def pareto_search(
             batch=params["population"],
             rng=rng,
             after_round=lambda: report(curve[-1], new_point=False),
+            after_start=bar.start_done,
         ):
             stopped = "cancelled"
     entries = list(archive.scores.values())
