@@ -273,6 +273,7 @@ def search_with_baselines(
             fresh_realisations=request.fresh_realisations,
             test_series=request.fresh_test_series,
             keep_infeasible=True,
+            should_stop=should_stop,
         ).to_dict()
     baselines = compare_with_baselines(
         scenario,

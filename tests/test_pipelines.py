@@ -181,3 +181,27 @@ def test_the_paper_pipeline_keeps_its_seeds(tmp_path: Path) -> None:
     assert outcome.summary["sequence_from"] == "given" and outcome.summary["seed"] == 2
     assert set(outcome.sweep.others) == {"least-squares"} and outcome.sweep.limit
     assert not (tmp_path / "search.json").exists()
+
+
+def test_a_cancel_during_the_front_measurement_of_another_method_keeps_the_prediction(
+    paper: Scenario,
+) -> None:
+    """After a CEM, PPO, random or exhaustive search, its one-sequence front is measured
+    too; a cancel that arrives then is heard, and the front says its accuracy is
+    predicted (as NSGA-II's does)."""
+    from inertia_id.pipelines import search_with_baselines
+
+    request = SearchRequest(
+        method="random", sequence_length=2, timesteps=8, n_realisations=4, fresh_test_series=20
+    )
+    finished = {"search": False}
+
+    def progress(report) -> None:
+        finished["search"] = report.timesteps >= request.timesteps
+
+    kept = search_with_baselines(paper, request, seed=0)
+    stopped = search_with_baselines(
+        paper, request, seed=0, progress=progress, should_stop=lambda: finished["search"]
+    )
+    assert kept.result.front["accuracy_source"] == "measured"
+    assert stopped.result.front["accuracy_source"] == "predicted"

@@ -276,6 +276,19 @@ def test_the_polish_walks_from_an_infeasible_start_to_a_feasible_one(paper: Scen
     assert best[1].accuracy > 0.5
 
 
+def _tiny_search(paper: Scenario, *, polish_iterations: int, **options):
+    """A 2-step NSGA-II search of 8 sequences for 3 generations."""
+    return pareto_search(
+        paper,
+        sequence_length=2,
+        seed=1,
+        operator=OperatorSettings(n_realisations=4),
+        nsga2_params={"population": 8, "generations": 3, "polish_iterations": polish_iterations},
+        fresh_realisations=6,
+        **options,
+    )
+
+
 def test_the_polish_reports_progress_and_stops_when_told(paper: Scenario) -> None:
     seen: list[tuple[int, int, bool]] = []
     calls = {"n": 0}
@@ -284,13 +297,9 @@ def test_the_polish_reports_progress_and_stops_when_told(paper: Scenario) -> Non
         calls["n"] += 1
         return calls["n"] > 5  # three generations, then two polish rounds
 
-    result = pareto_search(
+    result = _tiny_search(
         paper,
-        sequence_length=2,
-        seed=1,
-        operator=OperatorSettings(n_realisations=4),
-        nsga2_params={"population": 8, "generations": 3, "polish_iterations": 10},
-        fresh_realisations=6,
+        polish_iterations=10,
         progress=lambda p: seen.append((p.timesteps, p.total_timesteps, p.new_point)),
         should_stop=stop,
     )
@@ -308,16 +317,7 @@ def test_the_fronts_measurement_reports_progress_and_the_bar_only_moves_forward(
     job's fraction done never goes back and ends at 1 (it counted the measurement in
     from the start, instead of sitting at 100 % while the front is measured)."""
     seen: list = []
-    pareto_search(
-        paper,
-        sequence_length=2,
-        seed=1,
-        operator=OperatorSettings(n_realisations=4),
-        nsga2_params={"population": 8, "generations": 3, "polish_iterations": 2},
-        fresh_realisations=6,
-        fresh_test_series=20,
-        progress=seen.append,
-    )
+    _tiny_search(paper, polish_iterations=2, fresh_test_series=20, progress=seen.append)
     phases = [report.phase for report in seen]
     first = phases.index("measuring the front")
     assert set(phases[:first]) == {"search"} and set(phases[first:]) == {"measuring the front"}
