@@ -290,3 +290,9 @@ def warm_up_numba() -> float:
                 n_clusters=2, metric=metric, max_iter=2, max_iter_barycenter=2, random_state=0
             ).fit(X)
     return time.perf_counter() - start
+
+
+def torque_only(omega, torque, inertia, inertia_inv):
+    """Euler's equations without the gyroscopic term ω × Iω: patched over
+    ``inertia_id.physics.dynamics.euler_rates`` for the linear-response ablations."""
+    return torque @ inertia_inv

@@ -42,7 +42,7 @@ import time
 from unittest import mock
 
 import numpy as np
-from _common import base_parser, begin, write_json
+from _common import base_parser, begin, torque_only, write_json
 from scipy.special import ndtr
 
 from inertia_id import preset
@@ -54,11 +54,6 @@ DESIGN = ((6.0, 1.0), (1.0, 6.0))
 DUTIES = (-1.0, -0.75, 0.0, 0.75, 1.0)
 QUARTERS = 4  # cost and residual are counted in quarter full-duty thruster-steps
 _CHUNK = 4096
-
-
-def torque_only(omega, torque, inertia, inertia_inv):
-    """Euler's equations without the gyroscopic term ω × Iω."""
-    return torque @ inertia_inv
 
 
 def axis_sequences(profiles: np.ndarray, axis: int) -> np.ndarray:

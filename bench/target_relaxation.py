@@ -30,7 +30,7 @@ import time
 from unittest import mock
 
 import numpy as np
-from _common import GOOD_SEQUENCE, base_parser, begin, float_list, write_json
+from _common import GOOD_SEQUENCE, base_parser, begin, float_list, torque_only, write_json
 
 import inertia_id.physics.dynamics as dynamics
 from inertia_id import preset, run_sweep, simulate, train_classifier
@@ -49,11 +49,6 @@ def measured(scenario, sequence: np.ndarray, n_test: int) -> dict:
     model = train_classifier(scenario, sequence, 100, np.random.default_rng(1))
     sweep = run_sweep(model, multiples=(6,), n_test=n_test, ceiling_realisations=0, seed=7)
     return {p.noise: p for p in sweep.points}
-
-
-def torque_only(omega, torque, inertia, inertia_inv):
-    """Euler's equations without the gyroscopic term ω × Iω (the ablation of part 3)."""
-    return torque @ inertia_inv
 
 
 def main() -> None:

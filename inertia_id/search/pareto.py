@@ -526,7 +526,6 @@ class _Bar:
     generations_done: int = 0
     starts_done: int = 0
     front_rows: int = MAX_FRONT_CANDIDATES + len(BASELINES)
-    _polish_evaluations: int = 0
     _evaluations_at_polish: int | None = None
     _last: float = 0.0
 
