@@ -130,11 +130,20 @@ def parse_sequence(text: str) -> list[list[int]]:
     if os.path.isfile(text):
         source = Path(text).read_text(encoding="utf-8")
     source = source.strip()
+    parts = source.removesuffix(";").split(";")
+    empty = [i + 1 for i, row in enumerate(parts) if not row.strip()]
+    if not source.startswith("[") and empty and len(parts) > 1:
+        # An empty step is a typo or a coast meant: refuse it rather than drop it, which
+        # would shift every later step's time.
+        raise InputError(
+            f"sequence {text!r}: step {empty[0]} is empty (a coasting step is written as "
+            "zeros, e.g. '0,0,0,0,0,0')"
+        )
     try:
         if source.startswith("["):
             rows = json.loads(source)
         else:
-            rows = [[int(v) for v in row.split(",")] for row in source.split(";") if row.strip()]
+            rows = [[int(v) for v in row.split(",")] for row in parts if row.strip()]
     except (ValueError, json.JSONDecodeError):
         raise InputError(
             f"sequence {text!r} is not rows of level indices like '4,4,4,0,0,0;0,0,0,4,4,4' "
@@ -259,6 +268,8 @@ def parse_pairs(pairs: Sequence[str], option: str, example: str) -> dict[str, An
             number = float(value)
         except ValueError:
             raise InputError(f"{option} {name.strip()} must be a number, got {value!r}") from None
+        if name.strip() in params:
+            raise InputError(f"{option} {name.strip()} is given twice; give it once")
         params[name.strip()] = int(number) if number.is_integer() and "." not in value else number
     return params
 

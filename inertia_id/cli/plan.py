@@ -4,10 +4,14 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
 from .options import friendly_errors, load_scenario, scenario_options
+
+if TYPE_CHECKING:
+    from ..physics.scenario import Scenario
 
 __all__ = ["plan_cmd"]
 
@@ -26,7 +30,8 @@ __all__ = ["plan_cmd"]
     "search_path",
     type=click.Path(dir_okay=False, exists=True),
     default=None,
-    help="A search JSON (from `search`): plan its front member --member (default its best).",
+    help="A search JSON (from `search`): plan its front member --member (default its best) "
+    "on the scenario the search ran on (recorded in the JSON).",
 )
 @click.option(
     "--member",
@@ -41,8 +46,10 @@ __all__ = ["plan_cmd"]
     type=click.Path(dir_okay=False),
     help="Where to write the plan: a .csv name writes CSV, anything else JSON; '-' prints JSON.",
 )
+@click.pass_context
 @friendly_errors
 def plan_cmd(
+    context: click.Context,
     preset_name: str,
     scenario_path: str | None,
     sequence_text: str | None,
@@ -61,13 +68,17 @@ def plan_cmd(
         raise InputError("give --sequence or --search (and --member), one of them")
     if member is not None and search_path is None:
         raise InputError("--member applies to --search")
+    named = scenario_path is not None or (
+        context.get_parameter_source("preset_name") is not click.core.ParameterSource.DEFAULT
+    )
+    scenario = load_scenario(preset_name, scenario_path)
     if search_path is not None:
-        document = json.loads(Path(search_path).read_text(encoding="utf-8"))
+        document = _search_document(search_path)
         sequence = _member_sequence(document, member)
+        scenario = _search_scenario(document, scenario, named_explicitly=named, path=search_path)
     else:
         assert sequence_text is not None
         sequence = parse_sequence(sequence_text)
-    scenario = load_scenario(preset_name, scenario_path)
     plan = command_plan(scenario, sequence)
     if out == "-":
         click.echo(json.dumps(plan.to_dict(), indent=2))
@@ -84,6 +95,50 @@ def plan_cmd(
         f"({summary['residual_rate_max_deg_s']:.3f} deg/s)",
         err=True,
     )
+
+
+def _search_document(path: str) -> dict:
+    from ..errors import InputError
+
+    try:
+        document = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise InputError(f"{path} is not a search JSON: {error}") from None
+    if not isinstance(document, dict):
+        raise InputError(f"{path} is not a search JSON: it holds a {type(document).__name__}")
+    return document
+
+
+def _search_scenario(
+    document: dict, named: Scenario, *, named_explicitly: bool, path: str
+) -> Scenario:
+    """The scenario to plan a searched sequence on: the one the search recorded. A
+    scenario named on the command line must be that one; a search JSON that records none
+    (written before it did, or by the API) is planned on the named one, with a warning."""
+    from pydantic import ValidationError
+
+    from ..errors import InputError
+    from ..physics.scenario import Scenario
+
+    recorded = document.get("scenario")
+    if recorded is None:
+        click.echo(
+            f"warning: {path} does not record the scenario it was searched on; planning on "
+            f"'{named.name}' (give --scenario or --preset to choose)",
+            err=True,
+        )
+        return named
+    try:
+        searched = Scenario.model_validate(recorded)
+    except ValidationError as error:
+        raise InputError(f"{path}: its recorded scenario is not valid: {error}") from None
+    if named_explicitly and named.model_dump(mode="json") != searched.model_dump(mode="json"):
+        raise InputError(
+            f"{path} was searched on scenario '{searched.name}', which differs from the "
+            f"scenario named ('{named.name}'); drop --scenario/--preset to plan on the "
+            "searched one"
+        )
+    return searched
 
 
 def _member_sequence(document: dict, member: int | None) -> list[list[int]]:

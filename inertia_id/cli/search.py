@@ -142,9 +142,10 @@ def search_options(func: F) -> F:
         ),
         _pairs(
             "--constraint",
-            "A bound (repeatable): max_final_rate_deg_s, max_final_rate_rad_s, "
-            "max_peak_rate_deg_s, max_impulse_nms, max_on_time_s, max_propellant_kg, "
-            "max_duration_s, min_accuracy; e.g. --constraint max_final_rate_deg_s=0.2.",
+            "A bound (repeatable): max_final_rate_deg_s, max_final_rate_rad_s (every "
+            "candidate's residual rate), max_peak_rate_deg_s, max_peak_rate_rad_s, "
+            "max_impulse_nms, max_on_time_s, max_propellant_kg, max_duration_s, "
+            "min_accuracy; e.g. --constraint max_final_rate_deg_s=0.2.",
         ),
         _option(
             "--constraint-penalty",
@@ -309,7 +310,8 @@ def search_with_progress(
     "--method",
     "method",
     "ppo (the paper's reinforcement learning), cem (the cross-entropy method), exhaustive "
-    "(small spaces) or random (the baseline).",
+    "(small spaces), random (the baseline) or nsga2 (a Pareto front of the operator's "
+    "objectives).",
     type=LazyChoice(_methods),
 )
 @search_options
@@ -386,6 +388,9 @@ def search_cmd(
             + f" | {scores['impulse_nms']:.1f} N m s{flags}",
             err=True,
         )
-    Path(out).write_text(json.dumps(outcome.to_dict()), encoding="utf-8")
+    # The scenario goes with the result, so that `inertia-id plan --search` plans the
+    # spacecraft the search ran on, not whatever --preset defaults to.
+    document = {**outcome.to_dict(), "scenario": scenario.model_dump(mode="json")}
+    Path(out).write_text(json.dumps(document), encoding="utf-8")
     click.echo(f"wrote {out}", err=True)
     click.echo(json.dumps(result.best.sequence))

@@ -102,6 +102,48 @@ def test_search_writes_the_best_sequence(tmp_path: Path) -> None:
     assert len(doc["fresh"]["f1"]) == 5
     assert doc["settings"]["scorer"]["n_realisations"] == 4
     assert json.loads(result.stdout.strip().splitlines()[-1]) == doc["best"]["sequence"]
+    assert doc["scenario"]["name"] == "paper"  # what `plan --search` plans on
+
+
+def _search_document(sequence: list[list[int]], scenario: dict[str, Any]) -> dict[str, Any]:
+    """The parts of a search JSON that ``plan --search`` reads."""
+    member = {"index": 0, "sequence": sequence}
+    return {"best": {"sequence": sequence}, "front": {"members": [member]}, "scenario": scenario}
+
+
+def test_plan_of_a_search_uses_the_scenario_searched(runner: CliRunner, tmp_path: Path) -> None:
+    from inertia_id import preset
+
+    paper = preset("paper")
+    weak = preset("paper", name="weak", thrusters={"nominal_torque_nm": 1.0})
+    search = tmp_path / "search.json"
+    search.write_text(json.dumps(_search_document([[4, 0, 0, 0, 0, 0]], weak.model_dump())))
+    plan, _ = run_cli_json(["plan", "--search", str(search), "--member", "0"], tmp_path / "p.json")
+    assert plan["scenario"] == "weak"
+    assert plan["steps"][0]["torque_nm"][0] == pytest.approx(paper.torque_matrix[0, 0] / 2)
+    # A scenario named beside it must be the searched one.
+    refused = runner.invoke(main, ["plan", "--search", str(search), "--preset", "paper"])
+    assert refused.exit_code != 0 and "searched on scenario 'weak'" in refused.output
+    # A search JSON that records none is planned on the named scenario, with a warning.
+    old = _search_document([[4, 0, 0, 0, 0, 0]], weak.model_dump())
+    del old["scenario"]
+    search.write_text(json.dumps(old))
+    plan, result = run_cli_json(["plan", "--search", str(search)], tmp_path / "p.json")
+    assert plan["scenario"] == "paper" and "does not record the scenario" in result.output
+
+
+@pytest.mark.parametrize(
+    ("content", "message"),
+    [("{bad", "is not a search JSON"), ("[1, 2]", "it holds a list")],
+)
+def test_plan_refuses_a_file_that_is_no_search(
+    runner: CliRunner, tmp_path: Path, content: str, message: str
+) -> None:
+    search = tmp_path / "search.json"
+    search.write_text(content)
+    result = runner.invoke(main, ["plan", "--search", str(search)])
+    assert result.exit_code != 0 and message in result.output
+    assert "Traceback" not in result.output
 
 
 @pytest.mark.parametrize(
@@ -109,6 +151,11 @@ def test_search_writes_the_best_sequence(tmp_path: Path) -> None:
     [
         (["simulate", "--sequence", "9,0,0,0,0,0"], "level index 9 is outside 0..4"),
         (["simulate", "--sequence", "4,4"], "got shape (1, 2)"),
+        (["plan", "--sequence", "4,4,4,0,0,0;;0,0,0,4,4,4"], "step 2 is empty"),
+        (
+            ["search", "--constraint", "max_impulse_nms=9", "--constraint", "max_impulse_nms=90"],
+            "--constraint max_impulse_nms is given twice",
+        ),
         (["train", "--sequence", "a,b"], "sequence 'a,b' is not rows of level indices"),
         (["simulate", "--candidate", "nobody", "--telemetry", "x.csv"], "'nobody'"),
         (["sweep", "--classifier", "missing.json"], "does not exist"),
@@ -153,6 +200,7 @@ def test_tampered_classifier_is_refused(runner: CliRunner, tmp_path: Path) -> No
 def test_parse_sequence_forms(tmp_path: Path) -> None:
     rows = [[4, 4, 4, 0, 0, 0], [0, 0, 0, 1, 2, 3]]
     assert parse_sequence("4,4,4,0,0,0;0,0,0,1,2,3") == rows
+    assert parse_sequence("4,4,4,0,0,0;0,0,0,1,2,3;") == rows
     assert parse_sequence(json.dumps(rows)) == rows
     path = tmp_path / "seq.json"
     path.write_text(json.dumps(rows))
