@@ -70,6 +70,11 @@ class ConstraintOut(BaseModel):
     name: str
     bounds: str = Field(description="the figure it bounds (an objective's name)")
     sense: str = Field(description="max: the figure <= the bound; min: >=")
+    worst_candidate: bool = Field(
+        default=False,
+        description="the bound holds for the candidate with the largest figure (the "
+        "objective itself is the mean over candidates)",
+    )
 
 
 class VocabularyOut(BaseModel):
@@ -134,6 +139,7 @@ def vocabulary() -> VocabularyOut:
     from inertia_id.search.pareto import NSGA2_DEFAULTS
 
     by_field = {figure: name for name, figure in OBJECTIVE_FIELDS.items()}
+    worst = {"final_rate_max_rad_s": "final_rate"}  # figures of the worst candidate
     defaults = SearchRequest(method="nsga2")
 
     kinds = []
@@ -175,7 +181,12 @@ def vocabulary() -> VocabularyOut:
         default_operator_objectives=list(defaults.objectives),
         default_design_noise=[[float(p), float(q)] for p, q in defaults.design_noise],
         constraints=[
-            ConstraintOut(name=name, bounds=by_field[figure], sense=sense)
+            ConstraintOut(
+                name=name,
+                bounds=worst.get(figure) or by_field[figure],
+                sense=sense,
+                worst_candidate=figure in worst,
+            )
             for name, (figure, sense, _) in CONSTRAINTS.items()
         ],
         nsga2_defaults=dict(NSGA2_DEFAULTS),

@@ -30,6 +30,7 @@ __all__ = [
     "Simulator",
     "StepDraw",
     "StepResponse",
+    "settled_rates",
     "simulate",
 ]
 
@@ -130,6 +131,14 @@ class SimulationResult:
     def final_rate_rad_s(self) -> np.ndarray:
         """|ω| at the end of the sequence for each candidate and realisation, (K, n)."""
         return np.linalg.norm(self.omega_true[:, :, -1, :], axis=-1)
+
+    def settled_rate_rad_s(self, scenario: Scenario) -> np.ndarray:
+        """|ω| once the torque still in the actuation lag at the end has been delivered,
+        for each candidate and realisation, (K, n) (:func:`settled_rates`)."""
+        omega = settled_rates(
+            scenario, self.omega_true[:, :, -1, :], self.applied_torque_nm[:, :, -1, :]
+        )
+        return np.linalg.norm(omega, axis=-1)
 
     @property
     def mean_final_rate_rad_s(self) -> float:
@@ -272,12 +281,19 @@ class Simulator:
         (P, K, n, T, 3) rad/s: how a search scores a whole population at once. The true
         rates, or with ``measured`` the gyro's readings (bias and white noise added).
         """
+        return self.population_run(sequences, noise, measured=measured)[0]
+
+    def population_run(
+        self, sequences: np.ndarray, noise: SequenceNoise, *, measured: bool = False
+    ) -> tuple[np.ndarray, SimulationState]:
+        """:meth:`population_rates`, and where the population stands at the end (the
+        applied torque still in the actuation lag included: :func:`settled_rates`)."""
         state = self.start_population(noise.initial, len(sequences))
         parts = []
         for step in range(sequences.shape[1]):
             state, response = self.advance(state, sequences[:, step], noise.steps[step])
             parts.append(response.omega_measured if measured else response.omega_true)
-        return np.concatenate(parts, axis=-2)
+        return np.concatenate(parts, axis=-2), state
 
     def run(self, sequence: np.ndarray, noise: SequenceNoise) -> SimulationResult:
         """Simulate a whole sequence with the given randomness."""
@@ -299,6 +315,28 @@ class Simulator:
             impulse_nms=self.scenario.impulse_nms(sequence),
             candidate_names=self.scenario.candidate_names,
         )
+
+
+def settled_rates(scenario: Scenario, omega: np.ndarray, torque: np.ndarray) -> np.ndarray:
+    """The body rates once the actuation lag has delivered the torque still in it.
+
+    When the last command ends, the applied torque ``m`` does not stop at once: the lag
+    ``dm/dt = -m / tau`` still delivers ``∫ m dt = tau m`` (a first-order lag delivers
+    every commanded impulse in full, late). So the rate the spacecraft is left with is
+    ``ω + I⁻¹ tau m``, not the rate when the command ends: on the paper preset a sequence
+    that brakes in its last step ends that step at about 0.005 rad/s and settles below
+    0.0004. The gyroscopic term over the few ``tau`` the lag takes to empty is left out
+    (it turns the rate vector; it does not brake it).
+
+    :param omega: (..., K, n, 3) body rates when the last command ends, rad/s.
+    :param torque: (..., K, n, 3) applied thruster torque then (the lag's state), N m.
+    :returns: (..., K, n, 3) settled body rates, rad/s.
+    """
+    tau = scenario.uncertainty.lowpass_time_constant_s
+    if tau == 0.0:
+        return np.asarray(omega, dtype=float)
+    inverse = np.linalg.inv(scenario.inertia_array)  # (K, 3, 3)
+    return omega + tau * np.einsum("kij,...knj->...kni", inverse, torque)
 
 
 def simulate(

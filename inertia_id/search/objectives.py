@@ -338,7 +338,11 @@ OPERATOR_OBJECTIVES: dict[str, tuple[str, str, str]] = {
         "max",
         "",
     ),
-    "final_rate": ("residual body rate at the end, mean over candidates", "min", "rad/s"),
+    "final_rate": (
+        "residual body rate once the last command's torque is delivered, mean over candidates",
+        "min",
+        "rad/s",
+    ),
     "peak_rate": ("largest body rate during the sequence, worst candidate", "min", "rad/s"),
     "impulse": ("commanded angular impulse summed over thrusters", "min", "N m s"),
     "on_time": ("thruster on-time summed over thrusters", "min", "s"),
@@ -360,8 +364,10 @@ _DEG = 180.0 / np.pi
 #: constraint's unit to the figure's). A "max_" bound holds when figure <= bound.
 CONSTRAINTS: dict[str, tuple[str, str, float]] = {
     "min_accuracy": ("accuracy", "min", 1.0),
-    "max_final_rate_rad_s": ("final_rate_rad_s", "max", 1.0),
-    "max_final_rate_deg_s": ("final_rate_rad_s", "max", 1.0 / _DEG),
+    # A bound on the residual rate holds for every candidate: the operator does not know
+    # which configuration the spacecraft is in (the objective is the mean over them).
+    "max_final_rate_rad_s": ("final_rate_max_rad_s", "max", 1.0),
+    "max_final_rate_deg_s": ("final_rate_max_rad_s", "max", 1.0 / _DEG),
     "max_peak_rate_rad_s": ("peak_rate_rad_s", "max", 1.0),
     "max_peak_rate_deg_s": ("peak_rate_rad_s", "max", 1.0 / _DEG),
     "max_impulse_nms": ("impulse_nms", "max", 1.0),
@@ -420,6 +426,8 @@ def check_constraints(constraints: Any, scenario: Any = None) -> dict[str, float
             or not (np.isfinite(bound) and bound >= 0)
         ):
             raise InputError(f"constraint {name} must be a finite number >= 0, got {bound!r}")
+        if name == "min_accuracy" and bound > 1:
+            raise InputError(f"constraint min_accuracy is a fraction in [0, 1], got {bound!r}")
         out[name] = float(bound)
     if "max_propellant_kg" in out and scenario is not None:
         if scenario.thrust_per_thruster_n is None or scenario.thrusters.specific_impulse_s is None:
@@ -439,9 +447,12 @@ class SequenceScores:
         LinearNoiseModel`) while searching, measured on fresh test series for a front's
         members and baselines.
     :param accuracy_by_noise: the same at each design condition, in their order.
-    :param final_rate_rad_s: |ω| at the end, mean over candidates and realisations at
-        the scenario's own noise (the paper's terminal term).
-    :param final_rate_max_rad_s: the same, for the candidate that ends fastest.
+    :param final_rate_rad_s: the residual |ω|, once the actuation lag has delivered the
+        torque still in it when the last command ends
+        (:func:`~inertia_id.physics.simulate.settled_rates`), mean over candidates and
+        realisations at the scenario's own noise.
+    :param final_rate_max_rad_s: the same, for the candidate that ends fastest (mean over
+        its realisations): what the ``max_final_rate`` constraints bound.
     :param peak_rate_rad_s: the largest |ω| during the sequence (mean over realisations,
         the candidate that spins fastest).
     :param impulse_nms: commanded angular impulse summed over thrusters (every firing

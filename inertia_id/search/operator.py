@@ -24,7 +24,7 @@ from ..errors import InputError
 from ..physics.attitude import propagate_attitude, rotation_angle_deg
 from ..physics.presets import NOISE_OFF
 from ..physics.scenario import Scenario
-from ..physics.simulate import Simulator
+from ..physics.simulate import SimulationResult, Simulator, settled_rates
 from .noise_model import LinearNoiseModel
 from .objectives import (
     DEFAULT_DESIGN_NOISE,
@@ -34,7 +34,7 @@ from .objectives import (
     check_objectives,
 )
 
-__all__ = ["OperatorScorer", "OperatorSettings", "nominal_rates"]
+__all__ = ["OperatorScorer", "OperatorSettings", "nominal_rates", "nominal_run"]
 
 #: Sequences simulated in one batch: bounds the memory of a population's responses
 #: (P x K x n x T x 3 doubles; 64 x 5 x 20 x 160 x 3 is 49 MB).
@@ -211,10 +211,16 @@ class OperatorScorer:
     def _score_chunk(self, sequences: np.ndarray) -> list[SequenceScores]:
         scenario, settings = self.scenario, self.settings
         errors = self.model.predicted_error(sequences, settings.design_noise)
-        accuracy = np.clip(1.0 - errors, 0.0, 1.0)  # (P, conditions)
-        own = self.simulator.population_rates(sequences, self.noise)
+        # The union bound's 1 - error is a lower bound on the Bayes accuracy, and so is
+        # chance (1/K, equal priors): the prediction is the larger.
+        accuracy = np.clip(1.0 - errors, 1.0 / scenario.n_candidates, 1.0)  # (P, conditions)
+        own, end = self.simulator.population_run(sequences, self.noise)
         speed = np.linalg.norm(own, axis=-1)  # (P, K, n, T)
-        final_by_candidate = speed[..., -1].mean(axis=2)  # (P, K)
+        # The residual rate is the one the spacecraft keeps: once the lag has delivered the
+        # torque still in it when the last command ends (else braking in the last step
+        # would look 0.005 rad/s worse than braking a step earlier and coasting).
+        settled = np.linalg.norm(settled_rates(scenario, end.omega, end.torque), axis=-1)
+        final_by_candidate = settled.mean(axis=2)  # (P, K)
         peak = speed.mean(axis=2).max(axis=(1, 2))  # (P,)
         mean_rates = own.mean(axis=2)  # (P, K, T, 3)
         attitude = propagate_attitude(mean_rates, 1.0 / scenario.timing.sample_rate_hz)
@@ -238,11 +244,15 @@ class OperatorScorer:
         return out
 
 
-def nominal_rates(scenario: Scenario, sequence: Any) -> np.ndarray:
-    """Each candidate's body rates with every source of noise off (the actuation lag
-    kept): what a flight team predicts, (K, T, 3) rad/s at the gyro's sample times."""
+def nominal_run(scenario: Scenario, sequence: Any) -> SimulationResult:
+    """Each candidate's response with every source of noise off (the actuation lag kept):
+    what a flight team predicts, one realisation a candidate."""
     quiet = scenario.with_uncertainty(**NOISE_OFF)
     rows = quiet.check_sequence(sequence)
     simulator = Simulator(quiet, 1)
-    result = simulator.run(rows, simulator.draw_noise(np.random.default_rng(0), len(rows)))
-    return np.asarray(result.omega_true[:, 0])
+    return simulator.run(rows, simulator.draw_noise(np.random.default_rng(0), len(rows)))
+
+
+def nominal_rates(scenario: Scenario, sequence: Any) -> np.ndarray:
+    """:func:`nominal_run`'s body rates, (K, T, 3) rad/s at the gyro's sample times."""
+    return np.asarray(nominal_run(scenario, sequence).omega_true[:, 0])

@@ -3,7 +3,9 @@
 Per step and thruster the commanded duty and its PWM on-time (duty x step duration, s);
 per step the commanded body torque (N m, per axis); each candidate's predicted rates at
 the end of every step (nominal: every source of noise off, the actuation lag kept), in
-rad/s and deg/s, its residual rate and its attitude change (quaternion propagation of
+rad/s and deg/s, its residual rate (once the actuation lag has delivered the torque
+still in it when the last command ends: :func:`~inertia_id.physics.simulate.settled_rates`;
+the rate at that moment beside it) and its attitude change (quaternion propagation of
 the predicted rates, :mod:`inertia_id.physics.attitude`); and the propellant figures
 (on-time per thruster, the commanded impulse summed over thrusters, the propellant mass
 when the scenario gives thrust and specific impulse). As JSON (:meth:`CommandPlan.to_dict`)
@@ -21,7 +23,7 @@ import numpy as np
 
 from ..physics.attitude import propagate_attitude, rotation_angle_deg
 from ..physics.scenario import Scenario
-from .operator import nominal_rates
+from .operator import nominal_run
 
 __all__ = ["CommandPlan", "command_plan"]
 
@@ -40,7 +42,8 @@ class CommandPlan:
     torque_nm: list[list[float]]  # (L, 3)
     candidate_names: list[str]
     rates_rad_s: list[list[list[float]]]  # (K, L, 3) at the end of each step
-    residual_rate_rad_s: list[float]  # (K,)
+    residual_rate_rad_s: list[float]  # (K,) once the lag has delivered its torque
+    end_rate_rad_s: list[float]  # (K,) |ω| when the last command ends
     attitude_quaternion: list[list[float]]  # (K, 4) final, (w, x, y, z)
     attitude_change_deg: list[float]  # (K,)
     on_time_per_thruster_s: list[float]  # (N,)
@@ -76,6 +79,8 @@ class CommandPlan:
                     "rates_deg_s": (rates[k] * _DEG).tolist(),
                     "residual_rate_rad_s": float(residual[k]),
                     "residual_rate_deg_s": float(residual[k] * _DEG),
+                    "end_rate_rad_s": self.end_rate_rad_s[k],
+                    "end_rate_deg_s": self.end_rate_rad_s[k] * _DEG,
                     "attitude_quaternion": self.attitude_quaternion[k],
                     "attitude_change_deg": self.attitude_change_deg[k],
                 }
@@ -83,6 +88,9 @@ class CommandPlan:
             ],
             "residual_rate_max_rad_s": float(residual.max()),
             "residual_rate_max_deg_s": float(residual.max() * _DEG),
+            "residual_rate_note": "|ω| once the actuation lag has delivered the torque "
+            "still in it when the last command ends (what the spacecraft keeps); "
+            "end_rate is |ω| at that moment",
             "propellant": {
                 "on_time_per_thruster_s": self.on_time_per_thruster_s,
                 "on_time_s": float(np.sum(self.on_time_per_thruster_s)),
@@ -109,6 +117,7 @@ class CommandPlan:
             out.write(
                 f"# {candidate['name']}: residual_rate_rad_s {candidate['residual_rate_rad_s']:.6g}"
                 f", residual_rate_deg_s {candidate['residual_rate_deg_s']:.6g}"
+                f", end_rate_rad_s {candidate['end_rate_rad_s']:.6g}"
                 f", attitude_change_deg {candidate['attitude_change_deg']:.6g}\n"
             )
         n = len(self.sequence[0])
@@ -137,7 +146,8 @@ def command_plan(scenario: Scenario, sequence: Any) -> CommandPlan:
     rows = scenario.check_sequence(sequence)
     duty = scenario.duties(rows)  # (L, N)
     step = scenario.timing.step_duration_s
-    rates = nominal_rates(scenario, rows)  # (K, T, 3)
+    run = nominal_run(scenario, rows)
+    rates = run.omega_true[:, 0]  # (K, T, 3)
     per_step = scenario.timing.samples_per_step
     quaternions = propagate_attitude(rates, 1.0 / scenario.timing.sample_rate_hz)[:, -1]
     end = rates[:, per_step - 1 :: per_step]  # (K, L, 3)
@@ -150,7 +160,8 @@ def command_plan(scenario: Scenario, sequence: Any) -> CommandPlan:
         torque_nm=(duty @ scenario.torque_matrix.T).tolist(),
         candidate_names=scenario.candidate_names,
         rates_rad_s=end.tolist(),
-        residual_rate_rad_s=np.linalg.norm(rates[:, -1], axis=-1).tolist(),
+        residual_rate_rad_s=run.settled_rate_rad_s(scenario)[:, 0].tolist(),
+        end_rate_rad_s=np.linalg.norm(rates[:, -1], axis=-1).tolist(),
         attitude_quaternion=quaternions.tolist(),
         attitude_change_deg=rotation_angle_deg(quaternions).tolist(),
         on_time_per_thruster_s=scenario.on_time_s(rows).tolist(),

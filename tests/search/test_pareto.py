@@ -3,6 +3,8 @@ command plan and the attitude change."""
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -227,6 +229,43 @@ def test_the_plans_on_times_reproduce_the_simulated_impulse(paper: Scenario) -> 
     assert np.allclose(degrees, np.degrees(rates))
 
 
+def test_the_residual_rate_is_the_rate_once_the_lag_has_delivered_its_torque(
+    paper: Scenario,
+) -> None:
+    """Braking in the last step leaves torque in the actuation lag when the command ends;
+    the spacecraft keeps the rate it has once that torque is delivered. Checked against
+    the simulator itself: the same sequence with a coasting step after it ends at the
+    rate the closed form gives (the lag empties in a few tenths of the 1 s step)."""
+    brake = [[4, 4, 4, 0, 0, 0], [0, 0, 0, 4, 4, 4]]
+    plan = command_plan(paper, brake).to_dict()
+    coasted = command_plan(paper, [*brake, [0] * 6]).to_dict()
+    residual = [c["residual_rate_rad_s"] for c in plan["candidates"]]
+    ended = [c["end_rate_rad_s"] for c in plan["candidates"]]
+    after_coast = [c["end_rate_rad_s"] for c in coasted["candidates"]]
+    assert residual == pytest.approx(after_coast, rel=0.02)
+    assert min(ended) > 10 * max(residual)  # 0.0045 against below 0.0004 rad/s
+    # The search's figure is the same quantity, on its own noisy draw.
+    scorer = OperatorScorer(paper, 2, OperatorSettings(n_realisations=8), seed=0)
+    scores = scorer.score(np.array([brake]))[0]
+    assert scores.final_rate_max_rad_s < 0.5 * min(ended)
+    # With no lag there is nothing left to deliver.
+    no_lag = paper.with_uncertainty(lowpass_time_constant_s=0.0)
+    flat = command_plan(no_lag, brake).to_dict()["candidates"]
+    assert [c["residual_rate_rad_s"] for c in flat] == [c["end_rate_rad_s"] for c in flat]
+
+
+def test_a_final_rate_bound_holds_for_every_candidate(paper: Scenario) -> None:
+    """The constraint bounds the candidate that ends fastest, not the mean: a sequence
+    whose mean meets the bound and whose worst candidate does not is infeasible."""
+    scorer = OperatorScorer(paper, 4, OperatorSettings(n_realisations=4), seed=0)
+    scores = scorer.score(np.array([[[4, 4, 4, 0, 0, 0]] * 4]))[0]
+    assert scores.final_rate_rad_s < scores.final_rate_max_rad_s
+    between = (scores.final_rate_rad_s + scores.final_rate_max_rad_s) / 2
+    assert not scores.feasible({"max_final_rate_rad_s": between})
+    assert not scores.feasible({"max_final_rate_deg_s": np.degrees(between)})
+    assert scores.feasible({"max_final_rate_rad_s": scores.final_rate_max_rad_s * 1.0001})
+
+
 def test_the_polish_moves_keep_impulse_or_momentum_balance(paper: Scenario) -> None:
     opposing = opposing_thrusters(paper.torque_matrix)
     assert opposing.tolist() == [3, 4, 5, 0, 1, 2]  # +x brakes with -x, and so on
@@ -325,6 +364,18 @@ def test_the_fronts_measurement_reports_progress_and_the_bar_only_moves_forward(
     assert fractions == sorted(fractions)
     assert fractions[first - 1] < 1.0 and fractions[-1] == pytest.approx(1.0)
     assert not any(report.new_point for report in seen[first:])  # no curve points
+
+
+def test_nsga2s_best_score_is_called_a_predicted_accuracy(paper: Scenario) -> None:
+    """NSGA-II's best ``f1`` is the noise model's prediction, not an F1 on a draw: the
+    summary and the result's CSV summary say so."""
+    from service.exports import result_table
+
+    result = _tiny_search(paper, polish_iterations=0)
+    assert "predicted accuracy" in result.summary() and "search's draw" not in result.summary()
+    summary = dict(result_table("search", json.loads(result.to_json()), "summary").rows)
+    assert summary["best_predicted_accuracy_design_noise"] == result.best.f1
+    assert not any(str(name).endswith("_search_draw") and "f1" in str(name) for name in summary)
 
 
 def test_the_measurement_reports_each_batch(paper: Scenario, monkeypatch) -> None:
