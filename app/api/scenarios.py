@@ -320,10 +320,12 @@ def _plan_response(scenario: Scenario, steps: np.ndarray, fmt: str) -> Response:
     timing = scenario.timing
     integration = len(steps) * round(timing.step_duration_s / timing.integration_step_s)
     if integration > MAX_RESPONSE_INTEGRATION_STEPS:
+        per_step = round(timing.step_duration_s / timing.integration_step_s)
         unprocessable(
             ("query", "sequence"),
-            f"{len(steps)} steps = {integration} RK4 steps; at most "
-            f"{MAX_RESPONSE_INTEGRATION_STEPS}",
+            f"{len(steps)} steps: at most {MAX_RESPONSE_INTEGRATION_STEPS // per_step} steps "
+            f"on this scenario ({per_step} RK4 steps each, at most "
+            f"{MAX_RESPONSE_INTEGRATION_STEPS} in all)",
         )
     plan = command_plan(scenario, steps)
     if fmt == "csv":

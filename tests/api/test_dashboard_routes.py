@@ -109,6 +109,15 @@ def test_a_bad_response_request_names_the_value(
     assert quoted in response.json()["detail"][0]["msg"]
 
 
+def test_a_plan_too_long_says_how_many_steps_it_may_have(api: Api) -> None:
+    scenario_id = api.post("/scenarios", json={"preset": "paper"}).json()["id"]
+    response = api.get_with_key(
+        f"/scenarios/{scenario_id}/plan", params={"sequence": json.dumps([[0] * 6] * 1000)}
+    )
+    assert response.status_code == 422, response.text
+    assert "1000 steps: at most 64 steps" in response.json()["detail"][0]["msg"]
+
+
 def test_response_of_an_unknown_scenario_is_404(api: Api) -> None:
     response = api.get_with_key("/scenarios/nope/response", params={"sequence": "[[4,4,4,0,0,0]]"})
     assert response.status_code == 404

@@ -224,6 +224,11 @@ BAD_PARAMS: list[tuple[str, dict[str, Any], str]] = [
     ("search", {"ppo": {"batch_size": 4096}}, "batch_size (4096) must not exceed n_steps"),
     ("search", {"ppo": {"warp_drive": 1}}, "unknown PPO parameters ['warp_drive']"),
     ("search", {"population": 10}, "Extra inputs are not permitted, got 10"),
+    (
+        "search",
+        {"method": "nsga2", "constraints": {"min_accuracy": 2}},
+        "min_accuracy is a fraction in [0, 1], got 2",
+    ),
     ("train", {"sequence": [[9, 0, 0, 0, 0, 0]]}, "level index 9 is outside 0..4"),
     ("train", {"sequence": [[1, 2]]}, "got shape (1, 2)"),
     ("train", {"sequence": []}, "at least 1 item"),
