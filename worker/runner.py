@@ -332,7 +332,14 @@ def _run(
             return "lost"
         if context.cancelled:
             return _end(db, spec.id, spec.attempt, "cancelled", error=None)
-        logger.exception("job %s failed", spec.id)
+        from inertia_id import InputError
+
+        if isinstance(exc, InputError):
+            # The job's own inputs cannot give a result (e.g. no sequence meets its
+            # constraints): the job says why; not a fault of the worker's to trace.
+            logger.warning("job %s failed: %s", spec.id, exc)
+        else:
+            logger.exception("job %s failed", spec.id)
         return _end(db, spec.id, spec.attempt, "failed", error=_error_text(exc, context.settings))
     if context.lost:
         logger.warning("job %s was taken from this run; dropping its result", spec.id)
