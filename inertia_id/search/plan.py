@@ -88,6 +88,8 @@ class CommandPlan:
             ],
             "residual_rate_max_rad_s": float(residual.max()),
             "residual_rate_max_deg_s": float(residual.max() * _DEG),
+            "attitude_quaternion_convention": "(w, x, y, z), scalar first: rotates "
+            "body-frame vectors into the frame the body had at the sequence's start",
             "residual_rate_note": "|ω| once the actuation lag has delivered the torque "
             "still in it when the last command ends (what the spacecraft keeps); "
             "end_rate is |ω| at that moment",
