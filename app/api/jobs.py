@@ -545,7 +545,8 @@ def cancel_job(job_id: str, session: SessionDep) -> JobOut:
         **_NOT_FOUND,
         **UNAUTHORIZED,
         200: {"content": {"application/json": {}, "text/csv": {}}},
-        422: {"description": "not a succeeded search job, or no such front member"},
+        409: {"description": "the search has not succeeded (yet): no sequence to plan"},
+        422: {"description": "not a search job, or no such front member"},
         503: {"description": "past capacity: try again after Retry-After seconds"},
     },
     response_class=Response,
@@ -567,8 +568,14 @@ async def job_plan(
     with database.session() as session:
         job = get_or_404(session, JobRow, job_id, "job")
         kind, state, result, scenario_id = job.type, job.status, job.result, job.scenario_id
-    if kind != "search" or state != "succeeded" or not result:
-        unprocessable(("path", "job_id"), f"job {job_id!r} is a {kind} job, {state}: no plan")
+    if kind != "search":
+        unprocessable(("path", "job_id"), f"job {job_id!r} is a {kind} job: no plan")
+    if state != "succeeded" or not result:
+        # As GET /jobs/{id}/result: the search is the right kind, it has no result (yet).
+        raise HTTPException(
+            status.HTTP_409_CONFLICT,
+            detail=f"search job {job_id} is {state}: it has no sequence to plan",
+        )
     if member is None:
         sequence = (result.get("best") or {}).get("sequence")
     else:

@@ -291,6 +291,16 @@ def _with_front(sequences: list[Any]) -> dict[str, Any]:
     return {**_search_result([1.0, 0.8], 20.0, 3.5), "front": front.to_dict()}
 
 
+def test_a_plan_of_a_search_without_a_result_is_409_and_of_another_job_422(api: Api) -> None:
+    scenario_id = api.create_scenario()["id"]
+    queued = api.submit("search", scenario_id, params={"method": "cem"}).json()["id"]
+    waiting = api.get_with_key(f"/jobs/{queued}/plan")
+    assert waiting.status_code == 409 and "is queued" in waiting.text
+    training = api.submit("train", scenario_id, params={"sequence": GOOD_SEQUENCE}).json()["id"]
+    other = api.get_with_key(f"/jobs/{training}/plan")
+    assert other.status_code == 422 and "is a train job" in other.text
+
+
 def test_a_front_downloads_as_csv_its_members_plan_by_index_and_a_member_trains(
     api: Api,
 ) -> None:
