@@ -214,15 +214,20 @@ def _measured(
     )
     if measured is None:
         return None
-    return [
-        replace(
-            score,
-            accuracy=float(row.mean()),
-            accuracy_by_noise=[float(v) for v in row],
-            predicted_accuracy_by_noise=list(score.accuracy_by_noise),
+    fractions, per_condition = measured
+    out = []
+    for score, row in zip(scores, fractions, strict=True):
+        # From the counts, so that an export reads 0.695, not 0.6950000000000001.
+        correct = np.rint(row * per_condition)
+        out.append(
+            replace(
+                score,
+                accuracy=float(correct.sum() / (per_condition * len(row))),
+                accuracy_by_noise=[float(c / per_condition) for c in correct],
+                predicted_accuracy_by_noise=list(score.accuracy_by_noise),
+            )
         )
-        for score, row in zip(scores, measured[0], strict=True)
-    ]
+    return out
 
 
 def _feasible(score: SequenceScores, constraints: dict[str, float], series: int) -> bool:

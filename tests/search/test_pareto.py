@@ -428,6 +428,10 @@ def test_the_fronts_accuracy_is_measured_on_fresh_series(small_front: dict) -> N
         # A count of right answers among the 1,000 series of each condition.
         assert all(abs(v * n - round(v * n)) < 1e-9 for v in measured)
         assert scores["accuracy"] == pytest.approx(np.mean(measured))
+        # Stored as the fraction of the counts, so it reads as one (no 0.6950000000000001).
+        right = round(sum(v * n for v in measured))
+        assert scores["accuracy"] == right / (2 * n)
+        assert all(v == round(v * n) / n for v in measured)
         # What the search saw was the prediction.
         assert member["search_scores"]["accuracy_by_noise"] == pytest.approx(predicted)
     for base in small_front["baselines"].values():
