@@ -106,6 +106,17 @@ def _search_document(path: str) -> dict:
         raise InputError(f"{path} is not a search JSON: {error}") from None
     if not isinstance(document, dict):
         raise InputError(f"{path} is not a search JSON: it holds a {type(document).__name__}")
+    if isinstance(document.get("result"), dict) and "type" in document:
+        # A job as the service downloads it (GET /jobs/{id}/result): the search is its result.
+        if document["type"] != "search":
+            raise InputError(f"{path} is a {document['type']} job, not a search")
+        job = document
+        document = {**document["result"]}
+        document.setdefault(
+            "_job",
+            f"it is job {job.get('id')} of scenario {job.get('scenario_id')}, whose "
+            "document it does not hold (`GET /jobs/{id}/plan` plans on it)",
+        )
     return document
 
 
@@ -122,17 +133,27 @@ def _search_scenario(
 
     recorded = document.get("scenario")
     if recorded is None:
+        why = document.get("_job", "it does not record the scenario it was searched on")
         click.echo(
-            f"warning: {path} does not record the scenario it was searched on; planning on "
-            f"'{named.name}' (give --scenario or --preset to choose)",
+            f"warning: {path}: {why}; planning on '{named.name}' (give --scenario or "
+            "--preset to choose)",
             err=True,
         )
         return named
+    if not isinstance(recorded, dict):
+        raise InputError(f"{path}: its recorded scenario is not a scenario document")
     try:
         searched = Scenario.model_validate(recorded)
     except ValidationError as error:
-        raise InputError(f"{path}: its recorded scenario is not valid: {error}") from None
-    if named_explicitly and named.model_dump(mode="json") != searched.model_dump(mode="json"):
+        problems = "; ".join(
+            f"{'.'.join(map(str, e['loc'])) or 'scenario'}: {e['msg']}" for e in error.errors()
+        )
+        raise InputError(f"{path}: its recorded scenario is not valid: {problems}") from None
+
+    def physics(scenario: Scenario) -> dict:
+        return {k: v for k, v in scenario.model_dump(mode="json").items() if k != "name"}
+
+    if named_explicitly and physics(named) != physics(searched):
         raise InputError(
             f"{path} was searched on scenario '{searched.name}', which differs from the "
             f"scenario named ('{named.name}'); drop --scenario/--preset to plan on the "

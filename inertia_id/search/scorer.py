@@ -39,7 +39,7 @@ from ..classifiers.clustering import InertiaClassifier, match_clusters
 from ..classifiers.dtw import kmeans_dtw
 from ..errors import InputError
 from ..physics.scenario import Scenario
-from ..physics.simulate import SequenceNoise, SimulationState, Simulator
+from ..physics.simulate import SequenceNoise, SimulationState, Simulator, settled_rates
 from .objectives import error_bound, score_from_bound
 
 __all__ = [
@@ -161,6 +161,10 @@ class PrefixScore:
     :param error_bound: objective "separability": the Bhattacharyya bound on the Bayes
         error at the noise margin (may exceed 1); None for "f1".
     :param peak_rate_rad_s: the largest mean |ω| (over all series) at any sample so far.
+    :param final_rate_max_rad_s: the residual rate once the actuation lag has delivered
+        the torque still in it (:func:`~inertia_id.physics.simulate.settled_rates`), of
+        the candidate that ends fastest (mean over its series): what a
+        ``max_final_rate`` constraint bounds.
     """
 
     f1: float
@@ -171,6 +175,7 @@ class PrefixScore:
     objective: str = "f1"
     error_bound: float | None = None
     peak_rate_rad_s: float = 0.0
+    final_rate_max_rad_s: float = 0.0
 
 
 @dataclass
@@ -294,6 +299,8 @@ class PrefixScorer:
         step_impulse = float(self.scenario.level_values[levels] @ self._thruster_impulse)
         impulse = step_impulse + (0.0 if parent.score is None else parent.score.impulse_nms)
         final_rate = float(np.linalg.norm(state.omega, axis=-1).mean())
+        settled = np.linalg.norm(settled_rates(self.scenario, state.omega, state.torque), axis=-1)
+        worst = float(settled.mean(axis=1).max())  # (K, n) -> the candidate ending fastest
         peak = float(np.linalg.norm(response.omega_true, axis=-1).mean(axis=(0, 1)).max())
         if parent.score is not None:
             peak = max(peak, parent.score.peak_rate_rad_s)
@@ -312,6 +319,7 @@ class PrefixScorer:
                 objective="separability",
                 error_bound=bound,
                 peak_rate_rad_s=peak,
+                final_rate_max_rad_s=worst,
             )
             return _Node(state, series, None, None, score)
         labels, centers = self._cluster(series, parent, prefix)
@@ -323,6 +331,7 @@ class PrefixScorer:
             impulse_nms=impulse,
             step_impulse_nms=step_impulse,
             peak_rate_rad_s=peak,
+            final_rate_max_rad_s=worst,
         )
         return _Node(state, series, centers, labels, score)
 

@@ -130,6 +130,26 @@ def test_plan_of_a_search_uses_the_scenario_searched(runner: CliRunner, tmp_path
     search.write_text(json.dumps(old))
     plan, result = run_cli_json(["plan", "--search", str(search)], tmp_path / "p.json")
     assert plan["scenario"] == "paper" and "does not record the scenario" in result.output
+    # The same scenario under another name is the same spacecraft.
+    renamed = tmp_path / "renamed.json"
+    renamed.write_text(weak.model_copy(update={"name": "weak, renamed"}).model_dump_json())
+    search.write_text(json.dumps(_search_document([[4, 0, 0, 0, 0, 0]], weak.model_dump())))
+    run_cli(["plan", "--search", str(search), "--scenario", str(renamed), "--out", "-"])
+    # A job as the service downloads it: the search is its result; the scenario is the job's.
+    job = {"id": "j1", "type": "search", "scenario_id": "s1", "result": old}
+    search.write_text(json.dumps(job))
+    plan, result = run_cli_json(["plan", "--search", str(search)], tmp_path / "p.json")
+    assert plan["sequence"] == [[4, 0, 0, 0, 0, 0]]
+    assert "job j1 of scenario s1" in result.output and "GET /jobs/{id}/plan" in result.output
+    search.write_text(json.dumps({**job, "type": "train"}))
+    refused = runner.invoke(main, ["plan", "--search", str(search)])
+    assert refused.exit_code != 0 and "is a train job, not a search" in refused.output
+    # A recorded scenario that is no scenario: one line naming what is wrong.
+    broken = _search_document([[4, 0, 0, 0, 0, 0]], {**weak.model_dump(), "timing": 3})
+    search.write_text(json.dumps(broken))
+    refused = runner.invoke(main, ["plan", "--search", str(search)])
+    assert refused.exit_code != 0 and "recorded scenario is not valid: timing" in refused.output
+    assert len(refused.output.strip().splitlines()) == 1
 
 
 @pytest.mark.parametrize(

@@ -306,3 +306,32 @@ def test_bad_constructor_arguments_are_refused(
 def test_settings_and_their_keywords_together_are_refused(paper: Scenario) -> None:
     with pytest.raises(ValueError, match="not both"):
         SequenceSearchEnv(paper, settings=ScorerSettings(n_realisations=2), n_realisations=3)
+
+
+@pytest.mark.parametrize("name", ["max_final_rate_rad_s", "max_final_rate_deg_s"])
+def test_a_residual_rate_bound_is_checked_on_the_worst_candidates_settled_rate(
+    paper: Scenario, name: str
+) -> None:
+    """Every constraint an environment accepts is scored at the last step (none may be
+    missing from its figures); the residual-rate bound reads the settled rate of the
+    candidate that ends fastest, as the Pareto search does."""
+    from inertia_id.search.objectives import CONSTRAINTS
+
+    brake = [[4, 4, 4, 0, 0, 0], [0, 0, 0, 4, 4, 4]]
+    probe = SequenceSearchEnv(paper, sequence_length=2, n_realisations=5, seed=0)
+    _, infos = play(probe, brake)
+    worst = probe.scorer.score(tuple(map(tuple, brake))).final_rate_max_rad_s
+    assert 0 < worst < infos[-1]["final_rate_rad_s"]  # settles below the end-of-step rate
+    factor = CONSTRAINTS[name][2]
+    bound = 0.5 * worst / factor  # half the worst candidate's rate: violated by 1
+    env = SequenceSearchEnv(
+        paper, sequence_length=2, n_realisations=5, seed=0, constraints={name: bound}
+    )
+    _, infos = play(env, brake)
+    assert infos[-1]["constraint_violation"] == pytest.approx(1.0)
+    others = {n: 1.0 for n in CONSTRAINTS if n not in ("min_accuracy", "max_propellant_kg")}
+    every = SequenceSearchEnv(
+        paper, sequence_length=2, n_realisations=5, seed=0, constraints=others
+    )
+    _, infos = play(every, brake)
+    assert np.isfinite(infos[-1]["constraint_violation"])
