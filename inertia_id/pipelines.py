@@ -220,10 +220,16 @@ class SearchOutcome:
 
     result: SearchResult
     baselines: dict[str, dict[str, Any]]
+    scenario: Scenario | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        """The result as JSON data (NaN as null), with ``"baselines"``."""
-        return {**json.loads(self.result.to_json()), "baselines": self.baselines}
+        """The result as JSON data (NaN as null), with ``"baselines"`` and the
+        ``"scenario"`` searched, so that a plan of the result (``inertia-id plan
+        --search``) is of the same spacecraft, wherever the result is read."""
+        document = {**json.loads(self.result.to_json()), "baselines": self.baselines}
+        if self.scenario is not None:
+            document["scenario"] = self.scenario.model_dump(mode="json")
+        return document
 
 
 def search_with_baselines(
@@ -282,7 +288,7 @@ def search_with_baselines(
         seed=found.fresh.seed,
         n_draws=len(found.fresh.f1),
     )
-    return SearchOutcome(found, baselines)
+    return SearchOutcome(found, baselines, scenario)
 
 
 # Training.

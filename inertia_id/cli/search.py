@@ -393,9 +393,8 @@ def search_cmd(
             + f" | {scores['impulse_nms']:.1f} N m s{flags}",
             err=True,
         )
-    # The scenario goes with the result, so that `inertia-id plan --search` plans the
+    # The document records the scenario, so that `inertia-id plan --search` plans the
     # spacecraft the search ran on, not whatever --preset defaults to.
-    document = {**outcome.to_dict(), "scenario": scenario.model_dump(mode="json")}
-    Path(out).write_text(json.dumps(document), encoding="utf-8")
+    Path(out).write_text(json.dumps(outcome.to_dict()), encoding="utf-8")
     click.echo(f"wrote {out}", err=True)
     click.echo(json.dumps(result.best.sequence))

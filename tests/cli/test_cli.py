@@ -141,6 +141,12 @@ def test_plan_of_a_search_uses_the_scenario_searched(runner: CliRunner, tmp_path
     plan, result = run_cli_json(["plan", "--search", str(search)], tmp_path / "p.json")
     assert plan["sequence"] == [[4, 0, 0, 0, 0, 0]]
     assert "job j1 of scenario s1" in result.output and "GET /jobs/{id}/plan" in result.output
+    # The service's searches record their scenario in the result, as the CLI's do.
+    search.write_text(
+        json.dumps({**job, "result": _search_document([[4, 0, 0, 0, 0, 0]], weak.model_dump())})
+    )
+    plan, result = run_cli_json(["plan", "--search", str(search)], tmp_path / "p.json")
+    assert plan["scenario"] == "weak" and "warning" not in result.output
     search.write_text(json.dumps({**job, "type": "train"}))
     refused = runner.invoke(main, ["plan", "--search", str(search)])
     assert refused.exit_code != 0 and "is a train job, not a search" in refused.output
