@@ -57,7 +57,7 @@ class CommandPlan:
         for i, row in enumerate(self.sequence):
             steps.append(
                 {
-                    "step": i,
+                    "step": i + 1,  # numbered from 1, as the service's sequence tables
                     "start_s": i * self.step_duration_s,
                     "end_s": (i + 1) * self.step_duration_s,
                     "levels": row,
@@ -115,25 +115,29 @@ class CommandPlan:
         out.write(f"# on_time_s: {propellant['on_time_s']:.6g}\n")
         kg = self.propellant_kg
         out.write(f"# propellant_kg: {'' if kg is None else f'{kg:.6g}'}\n")
-        for candidate in document["candidates"]:
+        for k, candidate in enumerate(document["candidates"], start=1):
             out.write(
-                f"# {candidate['name']}: residual_rate_rad_s {candidate['residual_rate_rad_s']:.6g}"
+                f"# candidate_{k} {candidate['name']}: residual_rate_rad_s "
+                f"{candidate['residual_rate_rad_s']:.6g}"
                 f", residual_rate_deg_s {candidate['residual_rate_deg_s']:.6g}"
                 f", end_rate_rad_s {candidate['end_rate_rad_s']:.6g}"
                 f", attitude_change_deg {candidate['attitude_change_deg']:.6g}\n"
             )
         n = len(self.sequence[0])
         header = ["step", "start_s", "end_s"]
-        header += [f"on_time_s_t{j}" for j in range(n)] + [f"duty_t{j}" for j in range(n)]
+        # Thrusters, steps and candidates numbered from 1, as the service's other tables
+        # and the report number them (an upload must not be off by one).
+        header += [f"on_time_s_thruster_{j}" for j in range(1, n + 1)]
+        header += [f"duty_thruster_{j}" for j in range(1, n + 1)]
         header += ["torque_x_nm", "torque_y_nm", "torque_z_nm"]
         for k in range(len(self.candidate_names)):
-            header += [f"c{k}_w{axis}_rad_s" for axis in "xyz"]
-            header += [f"c{k}_w{axis}_deg_s" for axis in "xyz"]
+            header += [f"candidate_{k + 1}_w{axis}_rad_s" for axis in "xyz"]
+            header += [f"candidate_{k + 1}_w{axis}_deg_s" for axis in "xyz"]
         writer = csv.writer(out, lineterminator="\n")
         writer.writerow(header)
         rates = np.asarray(self.rates_rad_s)
         for i, step in enumerate(document["steps"]):
-            row: list[Any] = [i, step["start_s"], step["end_s"]]
+            row: list[Any] = [step["step"], step["start_s"], step["end_s"]]
             row += [f"{v:.6g}" for v in step["on_time_s"]] + [f"{v:.6g}" for v in step["duty"]]
             row += [f"{v:.6g}" for v in step["torque_nm"]]
             for k in range(len(self.candidate_names)):

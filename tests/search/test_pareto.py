@@ -223,7 +223,15 @@ def test_the_plans_on_times_reproduce_the_simulated_impulse(paper: Scenario) -> 
     commanded = result.commanded_torque_nm[0, 0] * quiet.timing.step_duration_s  # (L, 3)
     assert np.allclose(on_time @ quiet.torque_matrix.T, commanded)
     csv_text = plan.to_csv()
-    assert "on_time_s_t0" in csv_text and csv_text.count("\n") == 5 + 5 + 1 + 3
+    assert csv_text.count("\n") == 5 + 5 + 1 + 3
+    table = [line.split(",") for line in csv_text.splitlines() if not line.startswith("#")]
+    header, first = table[0], dict(zip(table[0], table[1], strict=True))
+    # Numbered from 1 like every other table of the service: step 1, thruster 1.
+    assert header[:4] == ["step", "start_s", "end_s", "on_time_s_thruster_1"]
+    assert first["step"] == "1" and float(first["on_time_s_thruster_1"]) == 1.0
+    assert float(first["on_time_s_thruster_2"]) == pytest.approx(0.5)
+    assert "# candidate_1 " in csv_text and "candidate_5_wz_deg_s" in header
+    assert [step["step"] for step in document["steps"]] == [1, 2, 3]
     rates = np.array(document["candidates"][0]["rates_rad_s"])
     degrees = np.array(document["candidates"][0]["rates_deg_s"])
     assert np.allclose(degrees, np.degrees(rates))
