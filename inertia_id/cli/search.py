@@ -350,6 +350,9 @@ def search_cmd(
 
     scenario = load_scenario(preset_name, scenario_path)
     request = search_request(method, max_sequences=max_sequences, **options)
+    from ..search.objectives import check_constraints
+
+    check_constraints(dict(request.constraints), scenario)  # before the progress bar starts
     outcome = search_with_progress(scenario, request, seed=seed, policy_path=policy_path)
     result = outcome.result
     # Found and baselines alike on the same fresh draws: the clustering F1 and |ω| at the

@@ -182,6 +182,10 @@ def test_plan_refuses_a_file_that_is_no_search(
             ["search", "--constraint", "max_impulse_nms=9", "--constraint", "max_impulse_nms=90"],
             "--constraint max_impulse_nms is given twice",
         ),
+        (
+            ["search", "--method", "nsga2", "--constraint", "min_accuracy=1.5"],
+            "min_accuracy is a fraction in [0, 1], got 1.5",
+        ),
         (["train", "--sequence", "a,b"], "sequence 'a,b' is not rows of level indices"),
         (["simulate", "--candidate", "nobody", "--telemetry", "x.csv"], "'nobody'"),
         (["sweep", "--classifier", "missing.json"], "does not exist"),
