@@ -112,6 +112,7 @@ def _search_document(path: str) -> dict:
             raise InputError(f"{path} is a {document['type']} job, not a search")
         job = document
         document = {**document["result"]}
+        # A job stored before results recorded their scenario: say whose it was.
         document.setdefault(
             "_job",
             f"it is job {job.get('id')} of scenario {job.get('scenario_id')}, whose "
@@ -124,8 +125,9 @@ def _search_scenario(
     document: dict, named: Scenario, *, named_explicitly: bool, path: str
 ) -> Scenario:
     """The scenario to plan a searched sequence on: the one the search recorded. A
-    scenario named on the command line must be that one; a search JSON that records none
-    (written before it did, or by the API) is planned on the named one, with a warning."""
+    scenario named on the command line must be that one (its name aside); a result that
+    records none (written before results did) is planned on the named one, with a
+    warning."""
     from pydantic import ValidationError
 
     from ..errors import InputError

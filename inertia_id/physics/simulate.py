@@ -283,6 +283,14 @@ class Simulator:
         """
         return self.population_run(sequences, noise, measured=measured)[0]
 
+    def settled(self, state: SimulationState) -> np.ndarray:
+        """|ω| once the lag has delivered the torque still in it at ``state``: (..., K, n)
+        (:func:`settled_rates`, with the inverse inertia this simulator already holds)."""
+        omega = settled_rates(
+            self.scenario, state.omega, state.torque, inertia_inv=self.bodies.inertia_inv
+        )
+        return np.linalg.norm(omega, axis=-1)
+
     def population_run(
         self, sequences: np.ndarray, noise: SequenceNoise, *, measured: bool = False
     ) -> tuple[np.ndarray, SimulationState]:
@@ -317,7 +325,13 @@ class Simulator:
         )
 
 
-def settled_rates(scenario: Scenario, omega: np.ndarray, torque: np.ndarray) -> np.ndarray:
+def settled_rates(
+    scenario: Scenario,
+    omega: np.ndarray,
+    torque: np.ndarray,
+    *,
+    inertia_inv: np.ndarray | None = None,
+) -> np.ndarray:
     """The body rates once the actuation lag has delivered the torque still in it.
 
     When the last command ends, the applied torque ``m`` does not stop at once: the lag
@@ -330,12 +344,14 @@ def settled_rates(scenario: Scenario, omega: np.ndarray, torque: np.ndarray) -> 
 
     :param omega: (..., K, n, 3) body rates when the last command ends, rad/s.
     :param torque: (..., K, n, 3) applied thruster torque then (the lag's state), N m.
+    :param inertia_inv: (K, 3, 3) the inverse inertia tensors when the caller holds them
+        (a simulator does: :meth:`Simulator.settled`); inverted here otherwise.
     :returns: (..., K, n, 3) settled body rates, rad/s.
     """
     tau = scenario.uncertainty.lowpass_time_constant_s
     if tau == 0.0:
         return np.asarray(omega, dtype=float)
-    inverse = np.linalg.inv(scenario.inertia_array)  # (K, 3, 3)
+    inverse = np.linalg.inv(scenario.inertia_array) if inertia_inv is None else inertia_inv
     return omega + tau * np.einsum("kij,...knj->...kni", inverse, torque)
 
 

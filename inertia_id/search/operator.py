@@ -24,7 +24,7 @@ from ..errors import InputError
 from ..physics.attitude import propagate_attitude, rotation_angle_deg
 from ..physics.presets import NOISE_OFF
 from ..physics.scenario import Scenario
-from ..physics.simulate import SimulationResult, Simulator, settled_rates
+from ..physics.simulate import SimulationResult, Simulator
 from .noise_model import LinearNoiseModel
 from .objectives import (
     DEFAULT_DESIGN_NOISE,
@@ -219,8 +219,7 @@ class OperatorScorer:
         # The residual rate is the one the spacecraft keeps: once the lag has delivered the
         # torque still in it when the last command ends (else braking in the last step
         # would look 0.005 rad/s worse than braking a step earlier and coasting).
-        settled = np.linalg.norm(settled_rates(scenario, end.omega, end.torque), axis=-1)
-        final_by_candidate = settled.mean(axis=2)  # (P, K)
+        final_by_candidate = self.simulator.settled(end).mean(axis=2)  # (P, K)
         peak = speed.mean(axis=2).max(axis=(1, 2))  # (P,)
         mean_rates = own.mean(axis=2)  # (P, K, T, 3)
         attitude = propagate_attitude(mean_rates, 1.0 / scenario.timing.sample_rate_hz)

@@ -39,7 +39,7 @@ from ..classifiers.clustering import InertiaClassifier, match_clusters
 from ..classifiers.dtw import kmeans_dtw
 from ..errors import InputError
 from ..physics.scenario import Scenario
-from ..physics.simulate import SequenceNoise, SimulationState, Simulator, settled_rates
+from ..physics.simulate import SequenceNoise, SimulationState, Simulator
 from .objectives import error_bound, score_from_bound
 
 __all__ = [
@@ -299,8 +299,8 @@ class PrefixScorer:
         step_impulse = float(self.scenario.level_values[levels] @ self._thruster_impulse)
         impulse = step_impulse + (0.0 if parent.score is None else parent.score.impulse_nms)
         final_rate = float(np.linalg.norm(state.omega, axis=-1).mean())
-        settled = np.linalg.norm(settled_rates(self.scenario, state.omega, state.torque), axis=-1)
-        worst = float(settled.mean(axis=1).max())  # (K, n) -> the candidate ending fastest
+        # (K, n) -> the candidate ending fastest
+        worst = float(self.simulator.settled(state).mean(axis=1).max())
         peak = float(np.linalg.norm(response.omega_true, axis=-1).mean(axis=(0, 1)).max())
         if parent.score is not None:
             peak = max(peak, parent.score.peak_rate_rad_s)
