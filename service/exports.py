@@ -80,6 +80,20 @@ def _best_label(method: Any, objective: str) -> str:
     return f"best_{'f1' if objective == 'f1' else 'separability'}_search_draw"
 
 
+def _confirmation_rows(result: Mapping[str, Any]) -> list[tuple[str, Any]]:
+    """The front's member 0 measured again on series that did not rank it first (its own
+    figure is the best of the front's, so flattered); none when the front holds none."""
+    confirmation = (result.get("front") or {}).get("confirmation")
+    if not confirmation:
+        return []
+    return [
+        ("front_member_0_confirmed_accuracy", confirmation.get("accuracy")),
+        ("front_member_0_confirmed_accuracy_by_noise", confirmation.get("accuracy_by_noise")),
+        ("front_member_0_confirmed_interval_by_noise", confirmation.get("interval_by_noise")),
+        ("front_member_0_confirmation_series_per_candidate", confirmation.get("test_series")),
+    ]
+
+
 def _search_summary(result: Mapping[str, Any]) -> Table:
     best = result.get("best") or {}
     fresh = result.get("fresh") or {}
@@ -98,6 +112,7 @@ def _search_summary(result: Mapping[str, Any]) -> Table:
             best.get("final_rate_rad_s"),
         ),
         ("fuel_nms", best.get("fuel_nms")),
+        *_confirmation_rows(result),
         ("fresh_f1_mean", fresh.get("f1_mean")),
         ("fresh_f1_min", fresh.get("f1_min")),
         ("fresh_draws", len(fresh.get("f1") or [])),

@@ -396,6 +396,22 @@ def search_cmd(
             + f" | {scores['impulse_nms']:.1f} N m s{flags}",
             err=True,
         )
+    confirmation = front.get("confirmation")
+    if confirmation:
+        # Member 0 leads because its series flattered it most; this is the figure to quote.
+        click.echo(
+            f"  #0 again on {confirmation['test_series']} other series per candidate (its "
+            "figure above is the best of the front's, so flattered): acc "
+            + "/".join(
+                f"{a:.3f} [{low:.3f}, {high:.3f}]"
+                for a, (low, high) in zip(
+                    confirmation["accuracy_by_noise"],
+                    confirmation["interval_by_noise"],
+                    strict=True,
+                )
+            ),
+            err=True,
+        )
     # The document records the scenario, so that `inertia-id plan --search` plans the
     # spacecraft the search ran on, not whatever --preset defaults to.
     Path(out).write_text(json.dumps(outcome.to_dict()), encoding="utf-8")

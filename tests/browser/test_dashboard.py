@@ -963,6 +963,14 @@ def test_a_pareto_front_is_drawn_beside_the_baselines_and_a_member_plans_and_tra
         assert float(row["accuracy"]) == base["scores"]["accuracy"]
         assert float(row["final_rate_rad_s"]) == base["scores"]["final_rate_rad_s"]
     assert (page.query_selector("#front-dominated") is not None) == front["dominated_by_baseline"]
+    # Member 0 again on series that did not rank it first, with its intervals.
+    confirmation = front["confirmation"]
+    note = page.inner_text("#front-confirmation")
+    assert f"On {confirmation['test_series']} other series per candidate" in note
+    for value, (low, high) in zip(
+        confirmation["accuracy_by_noise"], confirmation["interval_by_noise"], strict=True
+    ):
+        assert f"{value:.3f} [{low:.3f}, {high:.3f}]" in note
 
     # Choose the last member: its plan (per candidate: residual rate, attitude change),
     # downloaded as CSV and JSON.

@@ -515,3 +515,66 @@ def test_measured_accuracy_refuses_a_sequence_of_another_length(paper: Scenario)
         scorer.measured_accuracy(np.zeros((3, 6), int), 10, seed=0)
     with pytest.raises(InputError, match=r"seed must be a non-negative integer, got 1\.5"):
         scorer.measured_accuracy(np.zeros((2, 6), int), 10, seed=1.5)
+
+
+def test_the_first_member_is_measured_again_on_series_that_did_not_rank_it(
+    paper: Scenario, small_front: dict
+) -> None:
+    """Member 0 is first because its series flattered it most; its confirmation is the
+    noise model's classifier on five times as many series from another seed."""
+    from inertia_id.search.records import fresh_seed
+
+    assert len(small_front["members"]) > 1
+    confirmation = small_front["confirmation"]
+    assert confirmation["member"] == 0 and confirmation["test_series"] == 1000
+    assert confirmation["seed"] == fresh_seed(small_front["fresh_seed"])
+    assert confirmation["seed"] != small_front["fresh_seed"]
+    sequence = np.array(small_front["members"][0]["sequence"])
+    scorer = OperatorScorer(paper, 2, OperatorSettings(), seed=0)
+    again, n = scorer.measured_accuracy(sequence[None], 1000, seed=confirmation["seed"])
+    assert confirmation["series_per_condition"] == n == 5000
+    assert confirmation["accuracy_by_noise"] == pytest.approx(list(again[0]), abs=1e-12)
+    assert confirmation["accuracy"] == pytest.approx(float(again[0].mean()), abs=1e-12)
+    on_its_own, _ = scorer.measured_accuracy(sequence[None], 200, seed=small_front["fresh_seed"])
+    assert small_front["members"][0]["scores"]["accuracy_by_noise"] == pytest.approx(
+        list(on_its_own[0]), abs=1e-12
+    )
+    for value, (low, high) in zip(
+        confirmation["accuracy_by_noise"], confirmation["interval_by_noise"], strict=True
+    ):
+        assert low <= value <= high
+    # The result's CSV summary carries it.
+    from service.exports import result_table
+
+    summary = dict(result_table("search", {"front": small_front}, "summary").rows)
+    assert summary["front_member_0_confirmed_accuracy"] == confirmation["accuracy"]
+    assert (
+        summary["front_member_0_confirmed_accuracy_by_noise"] == (confirmation["accuracy_by_noise"])
+    )
+    assert summary["front_member_0_confirmation_series_per_candidate"] == 1000
+
+
+def test_no_confirmation_without_a_choice_or_a_measurement(paper: Scenario) -> None:
+    from inertia_id.search import build_front
+
+    sequence = [[4, 4, 4, 0, 0, 0], [0, 0, 0, 4, 4, 4]]
+    alone = build_front(paper, [sequence], OperatorSettings(), seed=1, test_series=20)
+    assert len(alone.members) == 1 and alone.to_dict()["confirmation"] is None
+    two = [sequence, [[4, 0, 0, 0, 0, 0], [0, 4, 0, 0, 0, 0]]]
+    settings = OperatorSettings(objectives=("accuracy", "impulse"))
+    predicted = build_front(paper, two, settings, seed=1, test_series=0)
+    assert len(predicted.members) == 2 and predicted.confirmation is None
+    measured = build_front(paper, two, settings, seed=1, test_series=20)
+    assert len(measured.members) == 2 and measured.confirmation is not None
+    calls = iter(range(10_000))
+    # Stopped during the confirmation (the front's own measurement has two batches):
+    # the front stands, without a confirmation.
+    stopped = build_front(
+        paper, two, settings, seed=1, test_series=20, should_stop=lambda: next(calls) >= 2
+    )
+    assert stopped.test_series == 20 and stopped.confirmation is None
+    # Five times the front's series, at most the measurement's bound.
+    from inertia_id.search.pareto import confirmation_series
+
+    assert measured.confirmation["test_series"] == confirmation_series(20) == 100
+    assert confirmation_series(4000) == 5000

@@ -65,6 +65,24 @@ function accuracyWord(front) {
   return front.accuracy_source === "measured" ? "measured" : "predicted";
 }
 
+// Member 0 measured again on series that did not rank it first (a front from before the
+// confirmation, or of one member, has none).
+function confirmationNote(front) {
+  const c = front.confirmation;
+  if (!c) return null;
+  const conditions = (front.design_noise || []).map(([p, q]) => `${p}× process, ${q}× gyro`);
+  const figures = c.accuracy_by_noise.map((a, i) => {
+    const [low, high] = c.interval_by_noise[i] || [null, null];
+    const where = conditions[i] ? ` at ${conditions[i]}` : "";
+    return `${a.toFixed(3)} [${low === null ? "–" : low.toFixed(3)}, ${high === null ? "–" : high.toFixed(3)}]${where}`;
+  });
+  return h(
+    "p",
+    { class: "hint", id: "front-confirmation" },
+    `Member 0 leads on the series that ranked the members, so its figure there is flattered (the best of ${(front.members || []).length}). On ${c.test_series} other series per candidate at each condition it measured ${figures.join("; ")} (95 % Wilson intervals): the figure to quote.`,
+  );
+}
+
 function hover(label, scores, sequence) {
   const predicted = scores.predicted_accuracy_by_noise;
   const mean = predicted ? predicted.reduce((a, b) => a + b, 0) / predicted.length : null;
@@ -333,6 +351,7 @@ export function frontPanel(job, context) {
       { class: "hint" },
       `${pareto ? "Non-dominated" : "Judged"} on ${(front.objectives || []).map((o) => OBJECTIVE_WORDS[o] || o).join(", ")}; the rates on a fresh draw (${front.fresh_realisations} realisations per candidate), the baselines on the same draws. Accuracy at the design noise (${designNoiseText(front)}): ${front.accuracy_source === "measured" ? `measured: the scenario's noise model as a Bayes classifier, tested on ${front.fresh_test_series} fresh series per candidate at each condition, every sequence on the same series (the search ranked by a prediction from the same model, kept beside it)` : "predicted from the scenario's own noise model (no draw: the same sequence, the same figure)"}. Colour: ${colourLabel}; a red outline marks a member a baseline dominates.`,
     ),
+    confirmationNote(front),
     dominating.length
       ? h(
           "div",
