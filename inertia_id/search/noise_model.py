@@ -184,6 +184,13 @@ class LinearNoiseModel:
         """Noise-free rates of every candidate, (P, K, T, 3), rad/s."""
         return self._quiet.population_rates(np.asarray(sequences), self._quiet_noise)[:, :, 0]
 
+    def mean_run(self, sequences: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`mean_responses`, and each candidate's noise-free residual rate once the
+        actuation lag has delivered the torque still in it (:meth:`Simulator.settled`),
+        (P, K) rad/s, from the same simulation."""
+        rates, end = self._quiet.population_run(np.asarray(sequences), self._quiet_noise)
+        return rates[:, :, 0], self._quiet.settled(end)[:, :, 0]
+
     @property
     def pairs(self) -> list[tuple[int, int]]:
         """The candidate pairs (i < j), in the order of :meth:`mahalanobis_sq`'s columns."""

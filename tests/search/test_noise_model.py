@@ -89,6 +89,24 @@ def test_the_mean_response_is_the_simulators_with_clipped_jitter(every_noise: Sc
     assert (np.abs(commanded.omega_true[:, 0] - sampled) > 5 * error).any()
 
 
+def test_the_mean_run_gives_the_mean_and_each_candidates_settled_rate(paper: Scenario) -> None:
+    """Fire then brake in the last step: the lag still holds braking torque when the
+    command ends, so each candidate settles below its rate at the end; with no jitter
+    the settled rate is the simulator's own."""
+    quiet = paper.with_uncertainty(**NOISE_OFF)
+    sequences = np.array([[[4, 4, 4, 0, 0, 0], [0, 0, 0, 4, 4, 4]], [[4, 0, 0, 0, 0, 0]] * 2])
+    model = LinearNoiseModel(quiet, 2)
+    means, settled = model.mean_run(sequences)
+    assert means.shape == (2, paper.n_candidates, model.n_samples, 3)
+    assert settled.shape == (2, paper.n_candidates)
+    np.testing.assert_array_equal(means, model.mean_responses(sequences))
+    for sequence, rates in zip(sequences, settled, strict=True):
+        run = simulate(quiet, sequence, 1, np.random.default_rng(0))
+        np.testing.assert_allclose(rates, run.settled_rate_rad_s(quiet)[:, 0], rtol=1e-12)
+    end = np.linalg.norm(means[0, :, -1], axis=-1)
+    assert (settled[0] < 0.5 * end).all(), (settled[0], end)
+
+
 def test_the_fast_distances_equal_the_covariance_written_out(every_noise: Scenario) -> None:
     model = LinearNoiseModel(every_noise, 3)
     sequences = np.array([[[3, 0, 2, 1], [0, 3, 0, 0], [1, 1, 3, 2]], [[0, 0, 0, 0]] * 3])
