@@ -17,7 +17,7 @@ on no more impulse than the hand-designed sequence matches that sequence's accur
    interval, the prediction the search used, and the ceiling (2,000 realisations)
    beside it.
 
-    python bench/pareto_front.py            # about 10 minutes on the 2-core machine
+    python bench/pareto_front.py            # about 5 minutes on the 2-core machine
 """
 
 from __future__ import annotations
