@@ -7,7 +7,8 @@ on no more impulse than the hand-designed sequence matches that sequence's accur
    the wall time of each (search and fresh re-scoring: the rates on a fresh draw, the
    accuracy measured with the noise model's Bayes classifier on 200 fresh series per
    candidate and condition, the prediction beside it; the first member measured again
-   on 200 other series, since it is first by its own series' luck in part).
+   on 1,000 other series per candidate, since it is first by its own series' luck in
+   part).
 2. The constrained front's best member at each L (the most accurate on the front's own
    measurement) and the baselines of the issue (hand-designed L = 4, fire then brake,
    fire-coast-brake L = 8): the default classifier (marginal likelihood, 100
@@ -74,6 +75,7 @@ def main() -> None:
                     "sequences_evaluated": result.episodes,
                     "members": members,
                     "dominated_by_baseline": front.get("dominated_by_baseline"),
+                    "confirmation": front.get("confirmation"),
                 }
             )
             print(
@@ -112,7 +114,6 @@ def main() -> None:
                     f"  #0 again on {confirmation['test_series']} other series per candidate "
                     f"(not those that ranked it first): {shown}"
                 )
-            fronts[-1]["confirmation"] = confirmation
             rows[f"front's best, L={length}"] = members[0]["sequence"]
     print(
         f"\nDefault classifier, {args.n_test} test series a point "

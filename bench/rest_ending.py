@@ -8,8 +8,9 @@ each body axis x, y, z independently, wait ``s`` steps, fire the positive thrust
 (``s + 2n + c <= L``, ``n`` in --up-steps), with at most --max-impulse N m s in all
 (2 N m s a thruster-step). Each is scored by
 :class:`~inertia_id.search.noise_model.LinearNoiseModel` at 6x process and at 6x gyro
-noise; those whose every candidate settles below --max-final-rate rad/s (noise-free,
-once the actuation lag has delivered the torque still in it) are kept. Printed: the most accurate
+noise; those whose every candidate settles below --max-final-rate rad/s (on the mean
+response, once the actuation lag has delivered the torque still in it; the operator's
+constraint averages the settled rate over noisy realisations) are kept. Printed: the most accurate
 at each condition, and the best by the smaller margin over the hand-designed sequence's
 prediction; then that sequence and the hand-designed one trained with the default
 classifier (100 realisations per candidate) and tested on the same --n-test series a

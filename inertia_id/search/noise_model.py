@@ -185,9 +185,12 @@ class LinearNoiseModel:
         return self._quiet.population_rates(np.asarray(sequences), self._quiet_noise)[:, :, 0]
 
     def mean_run(self, sequences: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`mean_responses`, and each candidate's noise-free residual rate once the
-        actuation lag has delivered the torque still in it (:meth:`Simulator.settled`),
-        (P, K) rad/s, from the same simulation."""
+        """:meth:`mean_responses`, and each candidate's residual rate on that mean
+        response once the actuation lag has delivered the torque still in it
+        (:meth:`Simulator.settled`), (P, K) rad/s, from the same simulation. Like the
+        means, it fires each thruster at the clipped jitter's mean duty and has no other
+        noise: the settled rate of the mean, not the mean settled rate an
+        :class:`~inertia_id.search.operator.OperatorScorer` averages over realisations."""
         rates, end = self._quiet.population_run(np.asarray(sequences), self._quiet_noise)
         return rates[:, :, 0], self._quiet.settled(end)[:, :, 0]
 

@@ -174,38 +174,46 @@ class OperatorScorer:
         conditions = self.settings.design_noise
         streams = np.random.SeedSequence([int(seed), 2]).spawn(len(conditions))
         k = self.scenario.n_candidates
-        truth = np.repeat(np.arange(k), test_series)
         means = self.model.mean_responses(checked)  # (P, K, T, 3), every condition's
-        # A batch of readings (and its per-step parts) within a memory budget.
+        # A batch of readings (and its per-step parts) within a memory budget: whole
+        # sequences while one fits; past that, one sequence at a time on blocks of the
+        # series, each block drawn from its own child of the condition's stream (so the
+        # figures where one sequence fits are those of a single draw, as before).
         one = k * int(test_series) * self.model.n_samples * 3 * 8 * 2
         batch = max(1, _TEST_BYTES // one)
-        out = np.zeros((len(checked), len(conditions)))
-        batches, done = len(conditions) * -(-len(checked) // batch), 0
+        blocks = min(int(test_series), -(-one // _TEST_BYTES))
+        sizes = [len(part) for part in np.array_split(np.arange(int(test_series)), blocks)]
+        right = np.zeros((len(checked), len(conditions)))
+        batches, done = len(conditions) * blocks * -(-len(checked) // batch), 0
         for c, ((process, measurement), stream) in enumerate(zip(conditions, streams, strict=True)):
-            simulator = Simulator(
-                self.scenario,
-                int(test_series),
-                process_noise_scale=process,
-                measurement_noise_scale=measurement,
-            )
-            noise = simulator.draw_noise(np.random.default_rng(stream), self.sequence_length)
-            for start in range(0, len(checked), batch):
-                if should_stop is not None and should_stop():
-                    return None
-                chunk = checked[start : start + batch]
-                readings = simulator.population_rates(chunk, noise, measured=True)
-                for i, sequence in enumerate(chunk):
-                    likelihood = self.model.log_likelihoods(
-                        sequence,
-                        readings[i].reshape(len(truth), -1, 3),
-                        process,
-                        measurement,
-                        means=means[start + i],
-                    )
-                    out[start + i, c] = float(np.mean(likelihood.argmax(axis=1) == truth))
-                done += 1
-                if progress is not None:
-                    progress(done / batches)
+            parts = [stream] if blocks == 1 else stream.spawn(blocks)
+            for size, part in zip(sizes, parts, strict=True):
+                simulator = Simulator(
+                    self.scenario,
+                    size,
+                    process_noise_scale=process,
+                    measurement_noise_scale=measurement,
+                )
+                noise = simulator.draw_noise(np.random.default_rng(part), self.sequence_length)
+                truth = np.repeat(np.arange(k), size)
+                for start in range(0, len(checked), batch):
+                    if should_stop is not None and should_stop():
+                        return None
+                    chunk = checked[start : start + batch]
+                    readings = simulator.population_rates(chunk, noise, measured=True)
+                    for i, sequence in enumerate(chunk):
+                        likelihood = self.model.log_likelihoods(
+                            sequence,
+                            readings[i].reshape(len(truth), -1, 3),
+                            process,
+                            measurement,
+                            means=means[start + i],
+                        )
+                        right[start + i, c] += np.count_nonzero(likelihood.argmax(axis=1) == truth)
+                    done += 1
+                    if progress is not None:
+                        progress(done / batches)
+        out = right / (k * int(test_series))
         return out, k * int(test_series)
 
     def _score_chunk(self, sequences: np.ndarray) -> list[SequenceScores]:

@@ -158,10 +158,11 @@ class Front:
         ``dominates`` (indices of the members it dominates); or ``unavailable`` (why).
     :param confirmation: member 0's accuracy measured again on
         :func:`confirmation_series` series per candidate and condition, independent of
-        those that ranked it first
-        (:func:`_confirmed`); None when the front holds one member (nothing was chosen
-        among members), when the accuracy is predicted, or when the measurement was
-        stopped.
+        those that ranked it first (:func:`_confirmed`); None when only one sequence was
+        measured (nothing was chosen), when the accuracy is predicted, or when the
+        measurement was stopped.
+    :param stopped: ``should_stop`` ended the measurement or the confirmation (the front
+        then says what it holds; a search reports itself cancelled).
     """
 
     settings: OperatorSettings
@@ -172,6 +173,7 @@ class Front:
     candidates: int = 0
     test_series: int = 0
     confirmation: dict[str, Any] | None = None
+    stopped: bool = False
 
     @property
     def dominated_by_baseline(self) -> bool:
@@ -189,6 +191,7 @@ class Front:
             "baselines": self.baselines,
             "dominated_by_baseline": self.dominated_by_baseline,
             "confirmation": self.confirmation,
+            "measurement_stopped": self.stopped,
         }
 
 
@@ -253,6 +256,11 @@ def confirmation_series(test_series: int) -> int:
     return min(MAX_TEST_SERIES, CONFIRMATION_FACTOR * int(test_series))
 
 
+def confirmation_rows(test_series: int) -> float:
+    """What the confirmation costs, in rows of the front's measurement (for progress)."""
+    return confirmation_series(test_series) / test_series if test_series else 0.0
+
+
 def _confirmed(
     scorer: OperatorScorer,
     sequence: np.ndarray,
@@ -264,10 +272,11 @@ def _confirmed(
     """Member 0's accuracy on ``test_series`` series per candidate and condition drawn
     from ``seed``, independent of the series that ranked it first; None when stopped.
 
-    The front orders its members by their measured accuracy, so the first is the one
-    its series flattered most; its own figure is biased up (by about a point at L = 8 on
-    the paper preset, 43 members a point or two apart). These series played no part in
-    the choice, so their figure is not.
+    The front orders its members by their measured accuracy, so the first is the best
+    of every sequence measured on those series, and its figure there is biased up on
+    average (by about a point at L = 8 on the paper preset, 43 members a point or two
+    apart; any one draw can go either way). These series played no part in the choice,
+    so their figure is not biased.
     """
     from ..evaluation.sweep import wilson_interval
 
@@ -330,9 +339,9 @@ def build_front(
         (the front then says its accuracy is predicted).
     :param progress: called while the accuracy is measured, with the fraction done.
 
-    When more than one member is kept and the accuracy was measured, member 0 is measured
-    again on :func:`confirmation_series` series from a seed independent of ``seed``
-    (``confirmation``).
+    When more than one sequence was measured and the front keeps a member, member 0 is
+    measured again on :func:`confirmation_series` series from a seed independent of
+    ``seed`` (``confirmation``): it was chosen as the best of them.
     """
     settings = settings.check(scenario)
     check_test_series(test_series)
@@ -356,7 +365,9 @@ def build_front(
     # The members and the baselines measured on the same series, in one pass; then,
     # maybe, member 0 again (one row more).
     everything = [*rows, *(sequence for sequence, _ in available.values())]
-    share = len(everything) / (len(everything) + CONFIRMATION_FACTOR)
+    confirming = bool(test_series) and len(rows) > 1
+    extra = confirmation_rows(test_series) if confirming else 0.0
+    share = len(everything) / (len(everything) + extra)
     predicted = scorer.score(np.stack(rows)) + [score for _, score in available.values()]
     measured = _measured(
         scorer,
@@ -367,7 +378,8 @@ def build_front(
         should_stop,
         None if progress is None else (lambda done: progress(done * share)),
     )
-    if measured is None:
+    stopped = measured is None
+    if stopped:
         test_series = 0  # stopped: the predictions stand, and the front says so
     scored = predicted if measured is None else measured
     fresh = scored[: len(rows)]
@@ -399,6 +411,7 @@ def build_front(
         int(fresh_realisations),
         candidates=len(rows),
         test_series=int(test_series),
+        stopped=stopped,
     )
     for index, i in enumerate(chosen):
         front.members.append(
@@ -430,7 +443,7 @@ def build_front(
             "feasible": _feasible(score, constraints, series),
             "dominates": beaten,
         }
-    if test_series and len(chosen) > 1:
+    if test_series and len(rows) > 1 and chosen:
         front.confirmation = _confirmed(
             scorer,
             rows[chosen[0]],
@@ -439,6 +452,9 @@ def build_front(
             should_stop,
             None if progress is None else (lambda done: progress(share + done * (1 - share))),
         )
+        front.stopped = front.confirmation is None
+    elif progress is not None and test_series:
+        progress(1.0)  # no confirmation to make: the measurement is done
     return front
 
 
@@ -611,7 +627,7 @@ class _Bar:
     generations_done: int = 0
     starts_done: int = 0
     #: Rows measured: the front's candidates, the baselines and member 0's confirmation.
-    front_rows: int = MAX_FRONT_CANDIDATES + len(BASELINES) + CONFIRMATION_FACTOR
+    front_rows: float = MAX_FRONT_CANDIDATES + len(BASELINES) + CONFIRMATION_FACTOR
     _evaluations_at_polish: int | None = None
     _last: float = 0.0
 
@@ -756,7 +772,11 @@ def pareto_search(
         return should_stop is not None and should_stop()
 
     def measuring(done: float) -> None:
-        bar.front_rows = len(candidates) + len(BASELINES) + CONFIRMATION_FACTOR
+        bar.front_rows = (
+            len(candidates) + len(BASELINES) + confirmation_rows(fresh_test_series)
+            if len(candidates) > 1
+            else 1 + len(BASELINES)
+        )
         report(curve[-1], new_point=False, phase="measuring the front", measured=done)
 
     stopped = "budget"
@@ -823,6 +843,8 @@ def pareto_search(
         should_stop=should_stop,
         progress=measuring if curve else None,
     )
+    if front.stopped:
+        stopped = "cancelled"  # told to stop while the front was measured
     if not front.members:
         raise InputError(
             f"no sequence of the front met the constraints {constraints} on the fresh draw; "

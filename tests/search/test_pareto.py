@@ -390,8 +390,9 @@ def test_nsga2s_best_score_is_called_a_predicted_accuracy(paper: Scenario) -> No
 def test_the_measurement_reports_each_batch(paper: Scenario, monkeypatch) -> None:
     from inertia_id.search import operator
 
-    monkeypatch.setattr(operator, "_TEST_BYTES", 1)  # one sequence a batch
     scorer = OperatorScorer(paper, 2, OperatorSettings(n_realisations=4), seed=0)
+    one = paper.n_candidates * 5 * scorer.model.n_samples * 3 * 8 * 2  # one sequence's readings
+    monkeypatch.setattr(operator, "_TEST_BYTES", one)  # one sequence a batch
     done: list[float] = []
     sequences = np.array([[[4, 4, 4, 0, 0, 0]] * 2, [[4, 0, 0, 0, 0, 0]] * 2, [[0] * 6] * 2])
     scorer.measured_accuracy(sequences, 5, seed=1, progress=done.append)
@@ -578,3 +579,68 @@ def test_no_confirmation_without_a_choice_or_a_measurement(paper: Scenario) -> N
 
     assert measured.confirmation["test_series"] == confirmation_series(20) == 100
     assert confirmation_series(4000) == 5000
+
+
+def test_a_sequence_too_large_for_the_memory_budget_is_measured_in_blocks_of_series(
+    paper: Scenario, monkeypatch
+) -> None:
+    """Past the budget one sequence's series are split into blocks, each drawn from its
+    own stream: the same count of series, integer counts, the same figure each time,
+    close to the single draw's, and a progress report per block."""
+    from inertia_id.search import operator
+
+    scorer = OperatorScorer(paper, 2, OperatorSettings(), seed=0)
+    sequences = np.array([[[4, 4, 4, 0, 0, 0]] * 2, [[4, 0, 0, 0, 0, 0], [0, 4, 0, 0, 0, 0]]])
+    whole, n = scorer.measured_accuracy(sequences, 400, seed=3)
+    one = paper.n_candidates * 400 * scorer.model.n_samples * 3 * 8 * 2
+    monkeypatch.setattr(operator, "_TEST_BYTES", one // 4)  # 4 blocks of 100 series
+    done: list[float] = []
+    split, m = scorer.measured_accuracy(sequences, 400, seed=3, progress=done.append)
+    assert m == n == 2000
+    assert np.all(np.abs(split * n - np.rint(split * n)) < 1e-9)
+    assert not np.array_equal(split, whole)  # other draws ...
+    assert np.all(np.abs(split - whole) < 0.05), (split, whole)  # ... of the same thing
+    assert np.array_equal(split, scorer.measured_accuracy(sequences, 400, seed=3)[0])
+    assert len(done) == 2 * 4 * 2 and done[-1] == pytest.approx(1.0)
+
+
+def test_a_front_of_one_member_chosen_among_several_is_confirmed(paper: Scenario) -> None:
+    """Three sequences of the same impulse and nearly the same prediction: the front
+    keeps the one its series favoured, and that choice is confirmed too."""
+    from inertia_id.search import build_front
+
+    three = [
+        [[4, 4, 4, 0, 0, 0], [0, 0, 0, 4, 4, 4]],
+        [[0, 0, 0, 4, 4, 4], [4, 4, 4, 0, 0, 0]],
+        [[4, 0, 4, 0, 4, 0], [0, 4, 0, 4, 0, 4]],
+    ]
+    settings = OperatorSettings(objectives=("accuracy", "impulse"))
+    reports: list[float] = []
+    front = build_front(paper, three, settings, seed=1, test_series=50, progress=reports.append)
+    assert front.candidates == 3 and len(front.members) == 1
+    assert front.confirmation is not None and front.confirmation["test_series"] == 250
+    assert reports == sorted(reports) and reports[-1] == pytest.approx(1.0)
+    # One sequence alone: nothing to confirm, and the measurement still reports its end.
+    reports.clear()
+    alone = build_front(paper, three[:1], settings, seed=1, test_series=50, progress=reports.append)
+    assert alone.confirmation is None and reports[-1] == pytest.approx(1.0)
+
+
+def test_a_search_told_to_stop_while_its_front_is_confirmed_says_it_was_cancelled(
+    paper: Scenario, monkeypatch
+) -> None:
+    from inertia_id.search import pareto
+
+    def stop_at_once(scorer, sequence, test_series, seed, should_stop, progress=None):
+        return real(scorer, sequence, test_series, seed, lambda: True, progress)
+
+    real = pareto._confirmed
+    monkeypatch.setattr(pareto, "_confirmed", stop_at_once)
+    result = _tiny_search(paper, polish_iterations=0, fresh_test_series=20)
+    assert result.front is not None and len(result.front["members"]) >= 1
+    assert result.front["confirmation"] is None and result.front["measurement_stopped"]
+    assert result.front["accuracy_source"] == "measured"
+    assert result.stopped == "cancelled"
+    monkeypatch.setattr(pareto, "_confirmed", real)
+    finished = _tiny_search(paper, polish_iterations=0, fresh_test_series=20)
+    assert finished.stopped == "budget" and not finished.front["measurement_stopped"]

@@ -79,7 +79,7 @@ function confirmationNote(front) {
   return h(
     "p",
     { class: "hint", id: "front-confirmation" },
-    `Member 0 leads on the series that ranked the members, so its figure there is flattered (the best of ${(front.members || []).length}). On ${c.test_series} other series per candidate at each condition it measured ${figures.join("; ")} (95 % Wilson intervals): the figure to quote.`,
+    `Member 0 is the most accurate of the ${front.candidates_rescored || (front.members || []).length} sequences measured on the front's series, so its figure there is biased up on average. On ${c.test_series} other series per candidate at each condition it measured ${figures.join("; ")} (95 % Wilson intervals): the figure to quote. The baselines were not measured again.`,
   );
 }
 
