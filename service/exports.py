@@ -186,6 +186,9 @@ _FRONT_FIGURES = (
     "accuracy",
     "final_rate_rad_s",
     "final_rate_deg_s",
+    # What a residual-rate bound is held to: the candidate that ends fastest.
+    "final_rate_max_rad_s",
+    "final_rate_max_deg_s",
     "peak_rate_rad_s",
     "peak_rate_deg_s",
     "impulse_nms",
@@ -202,11 +205,36 @@ def _predicted(scores: Mapping[str, Any]) -> float | None:
     return None if not values else float(sum(values) / len(values))
 
 
+def _condition_names(front: Mapping[str, Any]) -> list[str]:
+    """A column suffix per design condition, e.g. ``6x_process_1x_gyro``."""
+    out = []
+    for pair in front.get("design_noise") or []:
+        try:
+            process, gyro = (float(v) for v in pair)
+        except (TypeError, ValueError):
+            return []
+        out.append(f"{process:g}x_process_{gyro:g}x_gyro")
+    return out
+
+
+def _by_condition(scores: Mapping[str, Any], conditions: list[str]) -> list[Any]:
+    """The accuracy at each design condition, then the prediction at each (blank where
+    the accuracy was predicted, as the mean column)."""
+    out: list[Any] = []
+    for key in ("accuracy_by_noise", "predicted_accuracy_by_noise"):
+        values = scores.get(key)
+        values = values if isinstance(values, list) and len(values) == len(conditions) else []
+        out += values or [None] * len(conditions)
+    return out
+
+
 def _search_front(result: Mapping[str, Any]) -> Table:
     """The front's members, then the baselines, on the same fresh draws: one row each;
-    ``accuracy_source`` says whether ``accuracy`` was measured or predicted."""
+    ``accuracy_source`` says whether ``accuracy`` was measured or predicted; the accuracy
+    (and the prediction) at each design condition beside the mean."""
     front = result.get("front") or {}
     source = front.get("accuracy_source", "predicted")
+    conditions = _condition_names(front)
     rows: list[list[Any]] = []
     for member in front.get("members") or []:
         scores = member.get("scores") or {}
@@ -217,6 +245,7 @@ def _search_front(result: Mapping[str, Any]) -> Table:
                 *(scores.get(k) for k in _FRONT_FIGURES),
                 source,
                 _predicted(scores),
+                *_by_condition(scores, conditions),
                 member.get("feasible"),
                 list(member.get("dominated_by") or []),
                 [],
@@ -234,6 +263,7 @@ def _search_front(result: Mapping[str, Any]) -> Table:
                 *(scores.get(k) for k in _FRONT_FIGURES),
                 source,
                 _predicted(scores),
+                *_by_condition(scores, conditions),
                 base.get("feasible"),
                 [],
                 list(base.get("dominates") or []),
@@ -246,6 +276,8 @@ def _search_front(result: Mapping[str, Any]) -> Table:
         *_FRONT_FIGURES,
         "accuracy_source",
         "predicted_accuracy",
+        *(f"accuracy_{c}" for c in conditions),
+        *(f"predicted_accuracy_{c}" for c in conditions),
         "feasible",
         "dominated_by",
         "dominates_members",

@@ -45,8 +45,9 @@ SUMMARY_COLUMNS: dict[str, tuple[SummaryColumn, ...]] = {
     "search": (
         SummaryColumn("fresh_f1", "fresh F1 (mean)", "", "high"),
         SummaryColumn("fresh_f1_min", "fresh F1 (min)", "", "high"),
+        SummaryColumn("design_accuracy", "accuracy at the design noise", "", "high"),
         SummaryColumn("search_score", "score on the search's draw", "", "high"),
-        SummaryColumn("residual_rate_rad_s", "residual rate", "rad/s", "low", 4),
+        SummaryColumn("residual_rate_rad_s", "residual rate (settled)", "rad/s", "low", 4),
         SummaryColumn("fuel_nms", "propellant (impulse)", "N m s", "low", 1),
         SummaryColumn("wall_time_s", "search time", "s", "low", 1),
         SummaryColumn("timesteps", "environment steps", "", "low", 0),
@@ -86,22 +87,33 @@ def _get(data: Any, *path: str) -> Any:
     return data
 
 
-def _mean(values: Any) -> float | None:
-    numbers = [_number(v) for v in values] if isinstance(values, list) else []
-    finite = [v for v in numbers if v is not None]
-    return sum(finite) / len(finite) if finite else None
+def _design_accuracy(front: Mapping[str, Any]) -> float | None:
+    """The best sequence's measured accuracy at the design noise, where no choice biased
+    it: the confirmation of a front chosen among several sequences, or the measurement of
+    the one sequence another method found; None otherwise (predicted, or cancelled before
+    the confirmation)."""
+    if front.get("accuracy_source") != "measured":
+        return None
+    confirmed = _number(_get(front, "confirmation", "accuracy"))
+    if confirmed is not None or front.get("candidates_rescored") != 1:
+        return confirmed
+    members = front.get("members") or []
+    return _number(_get(members[0], "scores", "accuracy")) if members else None
 
 
 def _search(result: Mapping[str, Any]) -> dict[str, float | None]:
-    fresh = result.get("fresh") or {}
-    # The residual rate on the fresh draws, like the fresh F1; the search's own draw if
-    # the fresh draws did not record it.
-    residual = _mean(fresh.get("final_rate_rad_s")) if isinstance(fresh, Mapping) else None
-    if residual is None:
-        residual = _number(_get(result, "best", "final_rate_rad_s"))
+    front = result.get("front")
+    front = front if isinstance(front, Mapping) else {}
+    members = front.get("members")
+    best = members[0] if isinstance(members, list) and members else {}
+    # The residual rate the front and the plans give, the best sequence's once the
+    # actuation lag has delivered its torque (mean over candidates, on a fresh draw), not
+    # the rate when its last command ends; None for a result without a front.
+    residual = _number(_get(best, "scores", "final_rate_rad_s"))
     return {
         "fresh_f1": _number(_get(result, "fresh", "f1_mean")),
         "fresh_f1_min": _number(_get(result, "fresh", "f1_min")),
+        "design_accuracy": _design_accuracy(front),
         "search_score": _number(_get(result, "best", "f1")),
         "residual_rate_rad_s": residual,
         "fuel_nms": _number(_get(result, "best", "fuel_nms")),

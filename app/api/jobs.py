@@ -86,6 +86,16 @@ def _scenario(session: SessionDep, scenario_id: str) -> Scenario:
 
 def _check_search(body: SearchJobCreate, scenario: Scenario) -> None:
     params = body.params
+    # What needs the scenario (a propellant objective or bound needs thrust and specific
+    # impulse): refused here, not after the job has waited in the queue.
+    from inertia_id.pipelines import SearchRequest
+
+    operator = SearchRequest.from_params(params.model_dump(mode="json")).operator()
+    try:
+        operator.check(scenario)
+    except InputError as exc:
+        field = "objectives" if "objective" in str(exc) else "constraints"
+        unprocessable(("body", "search", "params", field), str(exc))
     if params.method != "exhaustive":
         return
     from inertia_id.search import space_size
@@ -109,7 +119,7 @@ def _approx(count: int) -> str:
         return f"about 10^{len(str(count)) - 1}"
 
 
-def _resolve_front_member(session: SessionDep, body: TrainJobCreate) -> None:
+def _resolve_front_member(session: SessionDep, body: TrainJobCreate, scenario: Scenario) -> None:
     """Fill in a train job's sequence from the search job (and front member) it names."""
     params = body.params
     if params.search_job_id is None:
@@ -123,6 +133,7 @@ def _resolve_front_member(session: SessionDep, body: TrainJobCreate) -> None:
             "search job",
         )
     result = search.result
+    _same_spacecraft(search, body.scenario_id, scenario)
     if params.front_member is None:
         sequence = (result.get("best") or {}).get("sequence")
     else:
@@ -142,6 +153,32 @@ def _resolve_front_member(session: SessionDep, body: TrainJobCreate) -> None:
             f"({sequence}); give one or the other",
         )
     params.sequence = sequence
+
+
+def _same_spacecraft(search: JobRow, scenario_id: str, scenario: Scenario) -> None:
+    """A sequence found on one scenario is level indices of that scenario's thrusters: on
+    another (other levels, thrusters or candidates) the same indices fly something else.
+    So a training on a search's sequence runs on the search's scenario, or on one that
+    differs from it in name only."""
+    if search.scenario_id == scenario_id:
+        return
+    searched = (search.result or {}).get("scenario")
+    if isinstance(searched, dict):
+        try:
+            ran_on = Scenario.model_validate(searched)
+        except ValueError:  # a result stored by older code: judged by its id alone
+            ran_on = None
+        if ran_on is not None and ran_on.model_copy(update={"name": ""}) == (
+            scenario.model_copy(update={"name": ""})
+        ):
+            return
+    unprocessable(
+        ("body", "train", "scenario_id"),
+        f"search job {search.id!r} ran on scenario {search.scenario_id!r}, not "
+        f"{scenario_id!r}, which is not the same spacecraft (level indices mean duties of "
+        "one scenario's thrusters); train on the search's scenario, or give the sequence "
+        "itself",
+    )
 
 
 def _check_train(body: TrainJobCreate, scenario: Scenario) -> None:
@@ -200,7 +237,7 @@ def submit_job(
     if isinstance(body, SearchJobCreate):
         _check_search(body, scenario)
     elif isinstance(body, TrainJobCreate):
-        _resolve_front_member(session, body)
+        _resolve_front_member(session, body, scenario)
         _check_train(body, scenario)
     else:
         _check_sweep(session, body, scenario)
@@ -568,6 +605,12 @@ async def job_plan(
     with database.session() as session:
         job = get_or_404(session, JobRow, job_id, "job")
         kind, state, result, scenario_id = job.type, job.status, job.result, job.scenario_id
+    for name in ("member", "format"):
+        given = request.query_params.getlist(name)
+        if len(given) > 1:
+            unprocessable(
+                ("query", name), f"{name} is given {len(given)} times ({given}); give one"
+            )
     if kind != "search":
         unprocessable(("path", "job_id"), f"job {job_id!r} is a {kind} job: no plan")
     if state != "succeeded" or not result:
@@ -589,5 +632,6 @@ async def job_plan(
         sequence = found[0]["sequence"]
     gate = request.app.state.compute_gate
     # The gate passes positional arguments only.
-    planned = functools.partial(plan_for, parsed=True)
+    source = {"job_id": job_id, "member": "best" if member is None else member}
+    planned = functools.partial(plan_for, parsed=True, source=source)
     return await gate.run(planned, database, scenario_id, sequence, format)

@@ -314,7 +314,12 @@ def _response(
     )
 
 
-def _plan_response(scenario: Scenario, steps: np.ndarray, fmt: str) -> Response:
+def _plan_response(
+    scenario: Scenario, steps: np.ndarray, fmt: str, source: dict[str, Any]
+) -> Response:
+    """The plan, with where it comes from (``source``: the scenario's id, and the search
+    job and front member when it is one) in the JSON, in the CSV's ``#`` lines and in the
+    file's name, so that plans downloaded side by side can be told apart and traced."""
     from inertia_id.search.plan import command_plan
 
     timing = scenario.timing
@@ -328,19 +333,34 @@ def _plan_response(scenario: Scenario, steps: np.ndarray, fmt: str) -> Response:
             f"{MAX_RESPONSE_INTEGRATION_STEPS} in all)",
         )
     plan = command_plan(scenario, steps)
+    stem = "plan-" + "-".join(
+        f"{key.removesuffix('_id')}-{str(value)[:8]}" for key, value in source.items()
+    )
     if fmt == "csv":
+        lines = "".join(f"# {key}: {value}\n" for key, value in source.items())
         return Response(
-            plan.to_csv(),
+            lines + plan.to_csv(),
             media_type="text/csv",
-            headers={"Content-Disposition": 'attachment; filename="plan.csv"'},
+            headers={"Content-Disposition": f'attachment; filename="{stem}.csv"'},
         )
-    return Response(json.dumps(plan.to_dict()), media_type="application/json")
+    return Response(
+        json.dumps({"source": source, **plan.to_dict()}),
+        media_type="application/json",
+        headers={"Content-Disposition": f'attachment; filename="{stem}.json"'},
+    )
 
 
 def plan_for(
-    database: Database, scenario_id: str, sequence: Any, fmt: str, *, parsed: bool = False
+    database: Database,
+    scenario_id: str,
+    sequence: Any,
+    fmt: str,
+    *,
+    parsed: bool = False,
+    source: dict[str, Any] | None = None,
 ) -> Response:
-    """The command plan of a sequence for a stored scenario (JSON or CSV)."""
+    """The command plan of a sequence for a stored scenario (JSON or CSV); ``source``
+    names the search job and member it comes from, beside the scenario's id."""
     with database.session() as session:
         row = get_or_404(session, ScenarioRow, scenario_id, "scenario")
         document = row.document
@@ -352,7 +372,7 @@ def plan_for(
             unprocessable(("query", "member"), str(exc))
     else:
         steps = _parse_sequence(sequence, scenario)
-    return _plan_response(scenario, steps, fmt)
+    return _plan_response(scenario, steps, fmt, {"scenario_id": scenario_id, **(source or {})})
 
 
 _PLAN_RESPONSES: dict[int | str, dict[str, Any]] = {

@@ -498,8 +498,9 @@ class Scenario(_Model):
         bad = (as_int < 0) | (as_int >= self.n_levels)
         if np.any(bad):
             step, thruster = (int(i) for i in np.argwhere(bad)[0])
+            # Numbered from 1, as every table, plan and report numbers steps and thrusters.
             raise InputError(
-                f"sequence step {step}, thruster {thruster}: level index "
+                f"sequence step {step + 1}, thruster {thruster + 1}: level index "
                 f"{as_int[step, thruster]} is outside 0..{self.n_levels - 1}"
             )
         return as_int

@@ -429,6 +429,13 @@ def check_constraints(constraints: Any, scenario: Any = None) -> dict[str, float
         if name == "min_accuracy" and bound > 1:
             raise InputError(f"constraint min_accuracy is a fraction in [0, 1], got {bound!r}")
         out[name] = float(bound)
+    for figure in ("final_rate", "peak_rate"):
+        both = [f"max_{figure}_rad_s", f"max_{figure}_deg_s"]
+        if all(name in out for name in both):
+            raise InputError(
+                f"constraints {both[0]} = {out[both[0]]:g} and {both[1]} = {out[both[1]]:g} "
+                "bound the same rate; give one"
+            )
     if "max_propellant_kg" in out and scenario is not None:
         if scenario.thrust_per_thruster_n is None or scenario.thrusters.specific_impulse_s is None:
             raise InputError(

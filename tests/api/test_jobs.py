@@ -244,6 +244,23 @@ BAD_PARAMS: list[tuple[str, dict[str, Any], str]] = [
     ("sweep", {"noises": ["process", "process"]}, "must not repeat"),
     ("sweep", {"n_test": 4}, "got 4"),
     ("sweep", {"n_test": 2001}, "got 2001"),
+    # Refused at submission, not after the job has waited in the queue: the paper
+    # preset's thrusters state no thrust or specific impulse.
+    (
+        "search",
+        {"method": "nsga2", "constraints": {"max_propellant_kg": 0.1}},
+        "constraint max_propellant_kg needs the scenario's thrusters to state thrust_n",
+    ),
+    (
+        "search",
+        {"method": "nsga2", "objectives": ["accuracy", "propellant"]},
+        "the propellant objective needs the scenario's thrusters",
+    ),
+    (
+        "search",
+        {"constraints": {"max_final_rate_rad_s": 0.5, "max_final_rate_deg_s": 1}},
+        "max_final_rate_rad_s = 0.5 and max_final_rate_deg_s = 1 bound the same rate",
+    ),
 ]
 
 

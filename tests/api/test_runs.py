@@ -38,6 +38,18 @@ def _search_result(fresh_f1: list[float], fuel: float, wall: float) -> dict[str,
             "f1_mean": sum(fresh_f1) / len(fresh_f1),
             "f1_min": min(fresh_f1),
         },
+        "front": {
+            "accuracy_source": "measured",
+            "candidates_rescored": 1,
+            "confirmation": None,
+            "members": [
+                {
+                    "index": 0,
+                    "sequence": [[4, 4, 4, 0, 0, 0], [0, 0, 0, 4, 4, 4]],
+                    "scores": {"accuracy": 0.93, "final_rate_rad_s": 0.05},
+                }
+            ],
+        },
         "curve": [
             {
                 "timesteps": 64 * (i + 1),
@@ -147,7 +159,10 @@ def test_a_finished_job_has_its_summary_and_queue_and_run_times(api: Api) -> Non
     assert list(job["summary"]) == keys
     assert job["summary"]["fresh_f1"] == pytest.approx(0.9)
     assert job["summary"]["fresh_f1_min"] == pytest.approx(0.8)
-    assert job["summary"]["residual_rate_rad_s"] == pytest.approx(0.15)
+    # The settled residual rate of the front's best (0.05), not the rate at the last
+    # step's end on the fresh draws (0.15) nor on the search's draw (0.12).
+    assert job["summary"]["residual_rate_rad_s"] == 0.05
+    assert job["summary"]["design_accuracy"] == 0.93
     assert job["summary"]["fuel_nms"] == 20.0 and job["summary"]["wall_time_s"] == 3.5
     assert job["queue_time_s"] >= 0 and job["run_time_s"] >= 0
     queued = api.submit("search", scenario_id, seed=5).json()
@@ -307,6 +322,7 @@ def test_a_front_downloads_as_csv_its_members_plan_by_index_and_a_member_trains(
     scenario_id = api.create_scenario()["id"]
     brake = [[4, 4, 4, 0, 0, 0], [0, 0, 0, 4, 4, 4]]
     result = _with_front([[[4, 4, 4, 0, 0, 0]] * 2, brake, [[4, 0, 0, 0, 0, 0]] * 2])
+    result["scenario"] = Scenario.paper().model_dump(mode="json")  # what it ran on
     members = result["front"]["members"]
     assert len(members) >= 2
     job_id = _finished(api, scenario_id, 0, result)
@@ -324,6 +340,16 @@ def test_a_front_downloads_as_csv_its_members_plan_by_index_and_a_member_trains(
         assert row[column["accuracy_source"]] == "measured"
         predicted = member["scores"]["predicted_accuracy_by_noise"]
         assert float(row[column["predicted_accuracy"]]) == pytest.approx(np.mean(predicted))
+        # Each design condition's figures, and the worst candidate's residual rate (what
+        # a residual-rate bound is held to).
+        for c, (process, gyro) in enumerate(result["front"]["design_noise"]):
+            suffix = f"{process:g}x_process_{gyro:g}x_gyro"
+            assert (
+                float(row[column[f"accuracy_{suffix}"]]) == member["scores"]["accuracy_by_noise"][c]
+            )
+            assert float(row[column[f"predicted_accuracy_{suffix}"]]) == predicted[c]
+        for figure in ("final_rate_max_rad_s", "final_rate_max_deg_s"):
+            assert float(row[column[figure]]) == member["scores"][figure]
     # Rates in deg/s are the rad/s ones converted.
     assert float(listed[0][column["final_rate_deg_s"]]) == pytest.approx(
         np.degrees(float(listed[0][column["final_rate_rad_s"]]))
@@ -358,6 +384,17 @@ def test_a_front_downloads_as_csv_its_members_plan_by_index_and_a_member_trains(
     )
     assert as_csv.status_code == 200 and as_csv.headers["content-type"].startswith("text/csv")
     assert "# scenario:" in as_csv.text
+    # Where a plan comes from, so that plans downloaded side by side can be told apart.
+    source = {"scenario_id": scenario_id, "job_id": job_id, "member": chosen["index"]}
+    assert document["source"] == source
+    assert as_csv.text.splitlines()[:3] == [f"# {key}: {value}" for key, value in source.items()]
+    name = f"plan-scenario-{scenario_id[:8]}-job-{job_id[:8]}-member-{chosen['index']}"
+    assert f'filename="{name}.csv"' in as_csv.headers["content-disposition"]
+    assert f'filename="{name}.json"' in plan.headers["content-disposition"]
+    best = api.get_with_key(f"/jobs/{job_id}/plan").json()
+    assert best["source"]["member"] == "best"
+    twice = api.get_with_key(f"/jobs/{job_id}/plan?member=0&member=1")
+    assert twice.status_code == 422 and "member is given 2 times" in twice.text
     missing = api.get_with_key(f"/jobs/{job_id}/plan", params={"member": len(members)})
     assert missing.status_code == 422 and f"no front member {len(members)}" in missing.text
     assert api.get(f"/jobs/{job_id}/plan", params={"member": 0}).status_code == 401
@@ -374,6 +411,24 @@ def test_a_front_downloads_as_csv_its_members_plan_by_index_and_a_member_trains(
         "train", scenario_id, params={"search_job_id": job_id, "front_member": len(members)}
     )
     assert wrong.status_code == 422 and "front_member" in wrong.text
+    # On another spacecraft the member's level indices would fly other duties: refused,
+    # unless the scenario differs from the one searched in name only.
+    other = api.create_scenario(
+        candidate_generator={
+            "base_inertia_kg_m2": [[50, 0, 0], [0, 40, 0], [0, 0, 45]],
+            "n_variations": 2,
+        }
+    )["id"]
+    elsewhere = api.submit(
+        "train", other, params={"search_job_id": job_id, "front_member": chosen["index"]}
+    )
+    assert elsewhere.status_code == 422, elsewhere.text
+    assert f"ran on scenario {scenario_id!r}, not {other!r}" in elsewhere.text
+    renamed = api.create_scenario(name="the same spacecraft")["id"]
+    same = api.submit(
+        "train", renamed, params={"search_job_id": job_id, "front_member": chosen["index"]}
+    )
+    assert same.status_code == 202, same.text
 
 
 def test_a_sweep_result_downloads_its_points_and_confusion_matrices(api: Api) -> None:

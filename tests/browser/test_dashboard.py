@@ -1002,7 +1002,13 @@ def test_a_pareto_front_is_drawn_beside_the_baselines_and_a_member_plans_and_tra
     with page.expect_download() as download:
         page.click("#front-plan-downloads button[data-download='CSV']")
     lines = Path(download.value.path()).read_text(encoding="utf-8").splitlines()
-    assert lines[0].startswith("# scenario:")
+    # Where it comes from first: the scenario's id, the job and the member.
+    assert lines[:3] == [
+        f"# scenario_id: {job['scenario_id']}",
+        f"# job_id: {job_id}",
+        f"# member: {chosen['index']}",
+    ]
+    assert lines[3].startswith("# scenario:")
     assert sum(1 for line in lines if not line.startswith("#")) == 1 + len(chosen["sequence"])
     # The front itself: its members and the baselines, one object (or CSV row) each.
     with page.expect_download() as download:

@@ -315,8 +315,8 @@ def test_process_noise_spread_grows_with_its_scale(
 @pytest.mark.parametrize(
     ("sequence", "match"),
     [
-        ([[5, 0, 0, 0, 0, 0]], r"step 0, thruster 0: level index 5 is outside 0\.\.4"),
-        ([[0, 0, 0, 0, 0, 0], [0, 0, -1, 0, 0, 0]], r"step 1, thruster 2: level index -1"),
+        ([[5, 0, 0, 0, 0, 0]], r"step 1, thruster 1: level index 5 is outside 0\.\.4"),
+        ([[0, 0, 0, 0, 0, 0], [0, 0, -1, 0, 0, 0]], r"step 2, thruster 3: level index -1"),
         ([[4, 4, 4]], r"L x 6 .*got shape \(1, 3\)"),
         ([[[4] * 6]], r"got shape \(1, 1, 6\)"),
         ([[1.5, 0, 0, 0, 0, 0]], r"integer level indices, got \[\[1\.5"),

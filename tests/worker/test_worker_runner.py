@@ -47,7 +47,7 @@ WORKER = "test@host"
         (
             "train",
             {"sequence": [[9, 4, 4, 0, 0, 0]], "metric": "euclidean", "n_realisations": 2},
-            "InputError: sequence step 0, thruster 0: level index 9 is outside 0..4",
+            "InputError: sequence step 1, thruster 1: level index 9 is outside 0..4",
         ),
         (
             "sweep",
