@@ -329,9 +329,17 @@ def test_a_residual_rate_bound_is_checked_on_the_worst_candidates_settled_rate(
     )
     _, infos = play(env, brake)
     assert infos[-1]["constraint_violation"] == pytest.approx(1.0)
-    others = {n: 1.0 for n in CONSTRAINTS if n not in ("min_accuracy", "max_propellant_kg")}
-    every = SequenceSearchEnv(
-        paper, sequence_length=2, n_realisations=5, seed=0, constraints=others
-    )
-    _, infos = play(every, brake)
-    assert np.isfinite(infos[-1]["constraint_violation"])
+    # Every constraint at once, each rate bounded in one unit (both at once is refused).
+    for unit in ("rad_s", "deg_s"):
+        others = {
+            n: 1.0
+            for n in CONSTRAINTS
+            if n not in ("min_accuracy", "max_propellant_kg")
+            and not (n.endswith(("_rad_s", "_deg_s")) and not n.endswith(unit))
+        }
+        assert len(others) == 5, others
+        every = SequenceSearchEnv(
+            paper, sequence_length=2, n_realisations=5, seed=0, constraints=others
+        )
+        _, infos = play(every, brake)
+        assert np.isfinite(infos[-1]["constraint_violation"])
