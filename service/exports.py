@@ -82,7 +82,7 @@ def _best_label(method: Any, objective: str) -> str:
 
 def _confirmation_rows(result: Mapping[str, Any]) -> list[tuple[str, Any]]:
     """The front's member 0 measured again on series that did not rank it first (its own
-    figure is the best of the front's, so flattered); none when the front holds none."""
+    figure there is biased up on average); none when the front holds none."""
     confirmation = (result.get("front") or {}).get("confirmation")
     if not confirmation:
         return []
@@ -100,7 +100,9 @@ def _search_summary(result: Mapping[str, Any]) -> Table:
     objective = (result.get("settings") or {}).get("scorer", {}).get("objective", "f1")
     pairs = [
         ("method", result.get("method")),
-        ("objective", objective),
+        # NSGA-II ranks by the operator's objectives, not the scorer's: its F1 setting
+        # only scores the best sequence's fresh draws (the fresh_f1 rows).
+        ("objective", "operator objectives" if result.get("method") == "nsga2" else objective),
         ("best_sequence", best.get("sequence")),
         (_best_label(result.get("method"), objective), best.get("f1")),
         (
@@ -157,6 +159,7 @@ def _search_baselines(result: Mapping[str, Any]) -> Table:
             _mean(fresh.get("final_rate_rad_s")),
             best.get("fuel_nms"),
             best.get("sequence"),
+            None,
         ]
     ]
     for name, base in (result.get("baselines") or {}).items():
@@ -169,6 +172,7 @@ def _search_baselines(result: Mapping[str, Any]) -> Table:
                 _mean(base.get("fresh_final_rate_rad_s")),
                 base.get("fuel_nms"),
                 base.get("sequence"),
+                base.get("unavailable"),  # why a baseline has no figures (e.g. too short)
             ]
         )
     header = [
@@ -178,6 +182,7 @@ def _search_baselines(result: Mapping[str, Any]) -> Table:
         "fresh_final_rate_rad_s_mean",
         "fuel_nms",
         "levels",
+        "unavailable",
     ]
     return Table(header, rows)
 

@@ -73,7 +73,10 @@ def _search_result(fresh_f1: list[float], fuel: float, wall: float) -> dict[str,
                 "fresh_f1": [1.0, 0.9],
                 "fresh_final_rate_rad_s": [0.19, 0.2],
                 "fuel_nms": 12.0,
-            }
+            },
+            "fire-coast-brake": {
+                "unavailable": "fire, coast, brake needs at least 3 steps, got 2",
+            },
         },
     }
 
@@ -282,7 +285,14 @@ def test_a_search_result_downloads_as_json_and_as_each_csv_table(api: Api) -> No
     assert summary["best_separability_search_draw"] == "1.0"
     assert summary["fresh_f1_mean"] == "0.9"
     baselines = _csv(api.get(f"/jobs/{job_id}/result?format=csv&table=baselines").text)
-    assert [r[0] for r in baselines[1:]] == ["found by the search", "hand-designed"]
+    assert [r[0] for r in baselines[1:]] == [
+        "found by the search",
+        "hand-designed",
+        "fire-coast-brake",
+    ]
+    # A baseline the length does not allow says why it has no figures.
+    assert baselines[0][-1] == "unavailable" and baselines[1][-1] == baselines[2][-1] == ""
+    assert baselines[3][-1] == "fire, coast, brake needs at least 3 steps, got 2"
 
     bad = api.get(f"/jobs/{job_id}/result", params={"format": "csv", "table": "ranking"})
     assert bad.status_code == 422 and "'ranking'" in bad.text and "front" in bad.text

@@ -383,6 +383,7 @@ def test_nsga2s_best_score_is_called_a_predicted_accuracy(paper: Scenario) -> No
     assert "predicted accuracy" in result.summary() and "search's draw" not in result.summary()
     summary = dict(result_table("search", json.loads(result.to_json()), "summary").rows)
     assert summary["best_predicted_accuracy_design_noise"] == result.best.f1
+    assert summary["objective"] == "operator objectives"
     assert summary["best_residual_rate_rad_s_search_draw"] == result.best.final_rate_rad_s
     assert not any(str(name).endswith("_search_draw") and "f1" in str(name) for name in summary)
 
