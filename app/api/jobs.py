@@ -90,9 +90,8 @@ def _check_search(body: SearchJobCreate, scenario: Scenario) -> None:
     # impulse): refused here, not after the job has waited in the queue.
     from inertia_id.pipelines import SearchRequest
 
-    operator = SearchRequest.from_params(params.model_dump(mode="json")).operator()
     try:
-        operator.check(scenario)
+        SearchRequest.from_params(params.model_dump(mode="json")).operator().check(scenario)
     except InputError as exc:
         field = "objectives" if "objective" in str(exc) else "constraints"
         unprocessable(("body", "search", "params", field), str(exc))
