@@ -28,7 +28,7 @@ is feasible and non-dominated *on those fresh scores*, each member with a stable
 dominates a member is flagged, on the member and on the baseline.
 
 Member 0 is the most accurate *on those series*: among dozens of members a point or two
-apart, the one whose series flattered it most (a selection effect of about a point at
+apart, its figure there is biased up on average (a selection effect of about a point at
 L = 8 on the paper preset). So it is measured once more, on five times as many series
 independent of that choice (``confirmation`` in the stored front): the figure to quote
 for the front's best.
