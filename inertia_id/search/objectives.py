@@ -343,7 +343,12 @@ OPERATOR_OBJECTIVES: dict[str, tuple[str, str, str]] = {
         "min",
         "rad/s",
     ),
-    "peak_rate": ("largest body rate during the sequence, worst candidate", "min", "rad/s"),
+    "peak_rate": (
+        "largest body rate during the sequence or while the last command's torque is "
+        "delivered, worst candidate",
+        "min",
+        "rad/s",
+    ),
     "impulse": ("commanded angular impulse summed over thrusters", "min", "N m s"),
     "on_time": ("thruster on-time summed over thrusters", "min", "s"),
     "propellant": ("propellant mass (needs thrust and specific impulse)", "min", "kg"),
@@ -460,8 +465,9 @@ class SequenceScores:
         realisations at the scenario's own noise.
     :param final_rate_max_rad_s: the same, for the candidate that ends fastest (mean over
         its realisations): what the ``max_final_rate`` constraints bound.
-    :param peak_rate_rad_s: the largest |ω| during the sequence (mean over realisations,
-        the candidate that spins fastest).
+    :param peak_rate_rad_s: the largest |ω| during the sequence or after it, while the
+        lag delivers the torque still in it (mean over realisations, the candidate that
+        spins fastest).
     :param impulse_nms: commanded angular impulse summed over thrusters (every firing
         counts, opposed or not): a propellant proxy.
     :param on_time_s: thruster on-time summed over thrusters.

@@ -228,7 +228,12 @@ class OperatorScorer:
         # torque still in it when the last command ends (else braking in the last step
         # would look 0.005 rad/s worse than braking a step earlier and coasting).
         final_by_candidate = self.simulator.settled(end).mean(axis=2)  # (P, K)
-        peak = speed.mean(axis=2).max(axis=(1, 2))  # (P,)
+        # The largest rate of the manoeuvre: during the commands, or after the last one,
+        # while the lag delivers the torque still in it. Without ω × Iω the rate then
+        # moves on a straight line from where the commands leave it to the settled rate,
+        # and |ω| is convex along it, so its largest is at one end (a sequence firing
+        # to its last step is fastest once settled, not when the command ends).
+        peak = np.maximum(speed.mean(axis=2).max(axis=(1, 2)), final_by_candidate.max(axis=1))
         mean_rates = own.mean(axis=2)  # (P, K, T, 3)
         attitude = propagate_attitude(mean_rates, 1.0 / scenario.timing.sample_rate_hz)
         turned = rotation_angle_deg(attitude[..., -1, :]).max(axis=1)  # (P,)

@@ -160,7 +160,10 @@ class PrefixScore:
     :param objective: which objective ``f1`` and ``accuracy`` come from.
     :param error_bound: objective "separability": the Bhattacharyya bound on the Bayes
         error at the noise margin (may exceed 1); None for "f1".
-    :param peak_rate_rad_s: the largest mean |ω| (over all series) at any sample so far.
+    :param peak_rate_rad_s: the largest |ω| of a manoeuvre that ends with this prefix, the
+        candidate that spins fastest (mean over its series): at any sample so far, or
+        after the last command while the lag delivers the torque still in it (the
+        settled rate), as the operator's ``peak_rate`` reads it.
     :param final_rate_max_rad_s: the residual rate once the actuation lag has delivered
         the torque still in it (:func:`~inertia_id.physics.simulate.settled_rates`), of
         the candidate that ends fastest (mean over its series): what a
@@ -185,6 +188,9 @@ class _Node:
     centers: np.ndarray | None  # (K, T, 3) centroids, rad/s
     labels: np.ndarray | None
     score: PrefixScore | None
+    #: The largest |ω| at any sample so far (the candidate that spins fastest); the
+    #: settling after the last command is added only to the score, not handed on.
+    peak_during: float = 0.0
 
     @property
     def nbytes(self) -> int:
@@ -301,9 +307,10 @@ class PrefixScorer:
         final_rate = float(np.linalg.norm(state.omega, axis=-1).mean())
         # (K, n) -> the candidate ending fastest
         worst = float(self.simulator.settled(state).mean(axis=1).max())
-        peak = float(np.linalg.norm(response.omega_true, axis=-1).mean(axis=(0, 1)).max())
-        if parent.score is not None:
-            peak = max(peak, parent.score.peak_rate_rad_s)
+        # (K, n, samples) -> the candidate spinning fastest at its fastest
+        during = float(np.linalg.norm(response.omega_true, axis=-1).mean(axis=1).max())
+        during = max(during, parent.peak_during)
+        peak = max(during, worst)
         if self.settings.objective == "separability":
             bound = error_bound(
                 series.reshape(k, n, -1, 3),
@@ -321,7 +328,7 @@ class PrefixScorer:
                 peak_rate_rad_s=peak,
                 final_rate_max_rad_s=worst,
             )
-            return _Node(state, series, None, None, score)
+            return _Node(state, series, None, None, score, during)
         labels, centers = self._cluster(series, parent, prefix)
         scores = match_clusters(self.labels, labels, k)
         score = PrefixScore(
@@ -333,7 +340,7 @@ class PrefixScorer:
             peak_rate_rad_s=peak,
             final_rate_max_rad_s=worst,
         )
-        return _Node(state, series, centers, labels, score)
+        return _Node(state, series, centers, labels, score, during)
 
     def _cluster(
         self, series: np.ndarray, parent: _Node, prefix: Prefix

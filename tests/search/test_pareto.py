@@ -274,6 +274,34 @@ def test_a_final_rate_bound_holds_for_every_candidate(paper: Scenario) -> None:
     assert scores.feasible({"max_final_rate_rad_s": scores.final_rate_max_rad_s * 1.0001})
 
 
+def test_the_peak_rate_counts_the_torque_the_lag_delivers_after_the_last_command(
+    paper: Scenario,
+) -> None:
+    """A sequence that fires in its last step speeds up after its last command ends,
+    while the lag delivers the torque still in it: the peak rate of the manoeuvre is the
+    settled one. Checked against the simulator itself, noise-free: the same sequence with
+    a coasting step after it peaks where the score says."""
+    fire = [[4, 4, 4, 0, 0, 0]] * 4
+    scorer = OperatorScorer(paper, 4, OperatorSettings(n_realisations=8), seed=0)
+    scores = scorer.score(np.array([fire]))[0]
+    coasted = command_plan(paper, [*fire, [0] * 6]).to_dict()["candidates"]
+    ended = command_plan(paper, fire).to_dict()["candidates"]
+
+    def fastest(candidates: list[dict]) -> float:
+        return max(np.linalg.norm(c["rates_rad_s"], axis=-1).max() for c in candidates)
+
+    assert scores.peak_rate_rad_s == scores.final_rate_max_rad_s  # fastest once settled
+    assert scores.peak_rate_rad_s == pytest.approx(fastest(coasted), rel=0.02)
+    assert fastest(ended) < fastest(coasted) * 0.985  # 0.198 against 0.203 rad/s
+    assert scores.peak_rate_rad_s > fastest(ended)
+    # So a peak-rate bound between the two is broken.
+    between = (fastest(ended) + scores.peak_rate_rad_s) / 2
+    assert not scores.feasible({"max_peak_rate_rad_s": between})
+    # A sequence that brakes is fastest during its commands, far above its settled rate.
+    brake = scorer.score(np.array([[*fire[:2], [0, 0, 0, 4, 4, 4], [0, 0, 0, 4, 4, 4]]]))[0]
+    assert brake.peak_rate_rad_s > 20 * brake.final_rate_max_rad_s
+
+
 def test_the_polish_moves_keep_impulse_or_momentum_balance(paper: Scenario) -> None:
     opposing = opposing_thrusters(paper.torque_matrix)
     assert opposing.tolist() == [3, 4, 5, 0, 1, 2]  # +x brakes with -x, and so on

@@ -91,6 +91,36 @@ def test_final_rate_matches_the_plain_simulation_on_the_same_noise(
     assert scorer.score(prefix).final_rate_rad_s == pytest.approx(plain_rate, rel=1e-12, abs=0)
 
 
+@pytest.mark.parametrize(
+    "sequence",
+    [
+        [[4, 4, 4, 0, 0, 0]] * 4,  # fastest once settled
+        [[4, 4, 4, 0, 0, 0], [0] * 6, [0] * 6, [0, 0, 0, 4, 4, 4]],  # fastest while coasting
+        [[4, 0, 0, 0, 0, 0], [0, 4, 0, 0, 0, 0], [0, 0, 4, 0, 0, 0]],
+    ],
+)
+def test_the_peak_rate_reads_as_the_operators_worst_candidate_settling_included(
+    paper: Scenario, sequence: list[list[int]]
+) -> None:
+    """PPO's, CEM's, random and exhaustive searches' peak-rate constraint reads the figure
+    NSGA-II's does (the candidate that spins fastest, the settling after the last command
+    included); on the same seed the two scorers draw the same noise and agree exactly."""
+    from inertia_id.search import OperatorScorer, OperatorSettings
+
+    length = len(sequence)
+    prefix = PrefixScorer(paper, length, ScorerSettings(n_realisations=6), seed=3)
+    operator = OperatorScorer(paper, length, OperatorSettings(n_realisations=6), seed=3)
+    expected = operator.score(np.array([sequence]))[0]
+    got = prefix.score(sequence)
+    assert got.peak_rate_rad_s == pytest.approx(expected.peak_rate_rad_s, rel=1e-12)
+    assert got.final_rate_max_rad_s == pytest.approx(expected.final_rate_max_rad_s, rel=1e-12)
+    # Not the mean over candidates: the fastest candidate's peak is above it.
+    rates = np.linalg.norm(
+        prefix.simulator.population_rates(np.array([sequence]), prefix.noise)[0], axis=-1
+    )  # (K, n, T)
+    assert got.peak_rate_rad_s >= rates.mean(axis=1).max() > rates.mean(axis=(0, 1)).max()
+
+
 # Metrics.
 
 
