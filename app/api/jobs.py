@@ -581,7 +581,7 @@ def cancel_job(job_id: str, session: SessionDep) -> JobOut:
         **_NOT_FOUND,
         **UNAUTHORIZED,
         200: {"content": {"application/json": {}, "text/csv": {}}},
-        409: {"description": "the search has not succeeded (yet): no sequence to plan"},
+        409: {"description": "the search has no sequence to plan (yet)"},
         422: {"description": "not a search job, or no such front member"},
         503: {"description": "past capacity: try again after Retry-After seconds"},
     },
@@ -597,7 +597,9 @@ async def job_plan(
     format: Annotated[str, Query(pattern="^(json|csv)$", description="json or csv")] = "json",
 ) -> Response:
     """The command plan (as ``GET /scenarios/{id}/plan``) of a search job's best sequence
-    or of one member of its front, for the job's scenario."""
+    or of one member of its front, for the job's scenario. A cancelled search that kept
+    a partial result plans the best sequence it had found (the plan's source says
+    ``job_status: cancelled``)."""
     from .scenarios import plan_for
 
     database = request.app.state.db
@@ -612,14 +614,15 @@ async def job_plan(
             )
     if kind != "search":
         unprocessable(("path", "job_id"), f"job {job_id!r} is a {kind} job: no plan")
-    if state != "succeeded" or not result:
+    best = ((result or {}).get("best") or {}).get("sequence")
+    if state not in ("succeeded", "cancelled") or not result or (member is None and not best):
         # As GET /jobs/{id}/result: the search is the right kind, it has no result (yet).
         raise HTTPException(
             status.HTTP_409_CONFLICT,
             detail=f"search job {job_id} is {state}: it has no sequence to plan",
         )
     if member is None:
-        sequence = (result.get("best") or {}).get("sequence")
+        sequence = best
     else:
         members = (result.get("front") or {}).get("members") or []
         found = [m for m in members if m.get("index") == member]
@@ -632,5 +635,7 @@ async def job_plan(
     gate = request.app.state.compute_gate
     # The gate passes positional arguments only.
     source = {"job_id": job_id, "member": "best" if member is None else member}
+    if state == "cancelled":
+        source["job_status"] = "cancelled"  # the best it had found when it stopped
     planned = functools.partial(plan_for, parsed=True, source=source)
     return await gate.run(planned, database, scenario_id, sequence, format)

@@ -81,12 +81,19 @@ def _search_result(fresh_f1: list[float], fuel: float, wall: float) -> dict[str,
     }
 
 
-def _finished(api: Api, scenario_id: str, seed: int, result: dict[str, Any], **labels: Any) -> str:
+def _finished(
+    api: Api,
+    scenario_id: str,
+    seed: int,
+    result: dict[str, Any] | None,
+    status: str = "succeeded",
+    **labels: Any,
+) -> str:
     job = api.submit("search", scenario_id, seed=seed, params={"method": "cem"}, **labels).json()
     with api.db.session() as session:
         claim(session, job["id"], "tests")
     with api.db.session() as session:
-        assert finish(session, job["id"], "succeeded", result=result)
+        assert finish(session, job["id"], status, result=result)
     return str(job["id"])
 
 
@@ -324,6 +331,27 @@ def test_a_plan_of_a_search_without_a_result_is_409_and_of_another_job_422(api: 
     training = api.submit("train", scenario_id, params={"sequence": GOOD_SEQUENCE}).json()["id"]
     other = api.get_with_key(f"/jobs/{training}/plan")
     assert other.status_code == 422 and "is a train job" in other.text
+
+
+def test_a_cancelled_search_plans_the_best_sequence_it_had_found(api: Api) -> None:
+    """A search cancelled after it found something keeps a partial result (its download
+    works); its plan is that sequence's, and says the job was cancelled."""
+    scenario_id = api.create_scenario()["id"]
+    partial = _finished(api, scenario_id, 1, _search_result([0.9], 12.0, 2.0), "cancelled")
+    plan = api.get_with_key(f"/jobs/{partial}/plan")
+    assert plan.status_code == 200, plan.text
+    document = plan.json()
+    assert document["source"]["job_status"] == "cancelled"
+    assert document["sequence"] == _search_result([0.9], 12.0, 2.0)["best"]["sequence"]
+    csv_text = api.get_with_key(f"/jobs/{partial}/plan", params={"format": "csv"}).text
+    assert "# job_status: cancelled" in csv_text.splitlines()[:6]
+    # Cancelled before it found anything: nothing to plan.
+    empty = _finished(api, scenario_id, 2, None, "cancelled")
+    nothing = api.get_with_key(f"/jobs/{empty}/plan")
+    assert nothing.status_code == 409 and "is cancelled" in nothing.text
+    # A succeeded search's plan does not carry the status.
+    done = _finished(api, scenario_id, 3, _search_result([0.9], 12.0, 2.0))
+    assert "job_status" not in api.get_with_key(f"/jobs/{done}/plan").json()["source"]
 
 
 def test_a_front_downloads_as_csv_its_members_plan_by_index_and_a_member_trains(
