@@ -114,6 +114,12 @@ def main() -> None:
                     f"  #0 again on {confirmation['test_series']} other series per candidate "
                     f"(not those that ranked it first): {shown}"
                 )
+                for name, figures in (confirmation.get("baselines") or {}).items():
+                    print(
+                        f"     {name} on the same series: "
+                        + " / ".join(f"{a:.4f}" for a in figures["accuracy_by_noise"])
+                        + (" (dominates #0)" if figures["dominates_member_0"] else "")
+                    )
             rows[f"front's best, L={length}"] = members[0]["sequence"]
     print(
         f"\nDefault classifier, {args.n_test} test series a point "

@@ -91,6 +91,22 @@ def _confirmation_rows(result: Mapping[str, Any]) -> list[tuple[str, Any]]:
         ("front_member_0_confirmed_accuracy_by_noise", confirmation.get("accuracy_by_noise")),
         ("front_member_0_confirmed_interval_by_noise", confirmation.get("interval_by_noise")),
         ("front_member_0_confirmation_series_per_candidate", confirmation.get("test_series")),
+        # The baselines that could dominate member 0, measured on the same series (whether
+        # one does is judged there).
+        *(
+            row
+            for name, figures in (confirmation.get("baselines") or {}).items()
+            for row in (
+                (
+                    f"front_member_0_confirmation_{name}_accuracy_by_noise",
+                    figures.get("accuracy_by_noise"),
+                ),
+                (
+                    f"front_member_0_confirmation_{name}_dominates_member_0",
+                    figures.get("dominates_member_0"),
+                ),
+            )
+        ),
     ]
 
 

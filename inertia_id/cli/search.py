@@ -413,6 +413,15 @@ def search_cmd(
                 ),
                 err=True,
             )
+            # The baselines that could dominate it, on the same series (its flags above
+            # are judged there).
+            for name, figures in (confirmation.get("baselines") or {}).items():
+                click.echo(
+                    f"       {name} on the same series: acc "
+                    + "/".join(f"{a:.3f}" for a in figures["accuracy_by_noise"])
+                    + (" (dominates #0)" if figures.get("dominates_member_0") else ""),
+                    err=True,
+                )
     # The document records the scenario, so that `inertia-id plan --search` plans the
     # spacecraft the search ran on, not whatever --preset defaults to.
     Path(out).write_text(json.dumps(outcome.to_dict()), encoding="utf-8")

@@ -45,7 +45,7 @@ objective uses shrinkage 1 (see :class:`~inertia_id.search.ScorerSettings`).
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from itertools import combinations
 from typing import Any
 
@@ -525,6 +525,11 @@ class SequenceScores:
 
     def feasible(self, constraints: dict[str, float]) -> bool:
         return bool(np.all(self.violations(constraints) <= 0.0))
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> SequenceScores:
+        """The scores :meth:`as_dict` wrote (its derived deg/s figures dropped)."""
+        return cls(**{f.name: data[f.name] for f in fields(cls) if f.name in data})
 
     def as_dict(self) -> dict[str, Any]:
         return {

@@ -31,7 +31,9 @@ Member 0 is the most accurate *on those series*: among dozens of members a point
 apart, its figure there is biased up on average (a selection effect of about a point at
 L = 8 on the paper preset). So it is measured once more, on five times as many series
 independent of that choice (``confirmation`` in the stored front): the figure to quote
-for the front's best.
+for the front's best. The baselines that could dominate it (no worse on every other
+objective) are measured on the same series, and whether one dominates member 0 is judged
+there, pair by pair, rather than against its flattered figure.
 """
 
 from __future__ import annotations
@@ -158,9 +160,11 @@ class Front:
         ``dominates`` (indices of the members it dominates); or ``unavailable`` (why).
     :param confirmation: member 0's accuracy measured again on
         :func:`confirmation_series` series per candidate and condition, independent of
-        those that ranked it first (:func:`_confirmed`); None when only one sequence was
-        measured (nothing was chosen), when the accuracy is predicted, or when the
-        measurement was stopped.
+        those that ranked it first (:func:`_confirmed`), with the baselines that could
+        dominate it (no worse on every other objective) on the same series
+        (``baselines``, each with ``dominates_member_0``: member 0's ``dominated_by`` is
+        judged there); None when only one sequence was measured (nothing was chosen),
+        when the accuracy is predicted, or when the measurement was stopped.
     :param stopped: ``should_stop`` ended the measurement or the confirmation (the front
         then says what it holds; a search reports itself cancelled).
     """
@@ -268,34 +272,92 @@ def _confirmed(
     seed: int,
     should_stop: Callable[[], bool] | None,
     progress: Callable[[float], None] | None = None,
+    rivals: dict[str, np.ndarray] | None = None,
 ) -> dict[str, Any] | None:
     """Member 0's accuracy on ``test_series`` series per candidate and condition drawn
-    from ``seed``, independent of the series that ranked it first; None when stopped.
+    from ``seed``, independent of the series that ranked it first, and each of
+    ``rivals`` (baselines by name) on the same series; None when stopped.
 
     The front orders its members by their measured accuracy, so the first is the best
     of every sequence measured on those series, and its figure there is biased up on
     average (by about a point at L = 8 on the paper preset, 43 members a point or two
     apart; any one draw can go either way). These series played no part in the choice,
-    so their figure is not biased.
+    so their figure is not biased, and a baseline measured on them is compared with it
+    pair by pair. (Measured together or alone, member 0's figure is the same: every
+    sequence of one call is tested on the same series.)
     """
     from ..evaluation.sweep import wilson_interval
 
+    rivals = rivals or {}
     measured = scorer.measured_accuracy(
-        sequence[None], test_series, seed=seed, should_stop=should_stop, progress=progress
+        np.stack([sequence, *rivals.values()]),
+        test_series,
+        seed=seed,
+        should_stop=should_stop,
+        progress=progress,
     )
     if measured is None:
         return None
     fractions, per_condition = measured
-    correct = np.rint(fractions[0] * per_condition).astype(int)
+
+    def figures(row: np.ndarray) -> dict[str, Any]:
+        correct = np.rint(row * per_condition).astype(int)
+        return {
+            "accuracy": float(correct.sum() / (per_condition * len(correct))),
+            "accuracy_by_noise": [float(c / per_condition) for c in correct],
+            "interval_by_noise": [list(wilson_interval(int(c), per_condition)) for c in correct],
+        }
+
     return {
         "member": 0,
         "seed": int(seed),
         "test_series": int(test_series),
         "series_per_condition": int(per_condition),
-        "accuracy": float(correct.sum() / (per_condition * len(correct))),
-        "accuracy_by_noise": [float(c / per_condition) for c in correct],
-        "interval_by_noise": [list(wilson_interval(int(c), per_condition)) for c in correct],
+        **figures(fractions[0]),
+        "baselines": {name: figures(row) for name, row in zip(rivals, fractions[1:], strict=True)},
     }
+
+
+def _rivals(
+    sequence: np.ndarray,
+    member: SequenceScores,
+    baselines: dict[str, Any],
+    objectives: tuple[str, ...],
+) -> dict[str, np.ndarray]:
+    """The baselines that could dominate member 0 (``sequence``, ``member``) once its
+    accuracy is measured again: no worse on every other objective (on those, the front's
+    fresh draw decides; a baseline worse on one of them dominates it on no series), and
+    not the same sequence."""
+    if "accuracy" not in objectives:
+        return {}
+    others = [i for i, name in enumerate(objectives) if name != "accuracy"]
+    mine = member.objective_vector(objectives)[others]
+    return {
+        name: entry[0]
+        for name, entry in baselines.items()
+        if not isinstance(entry, str)
+        and not np.array_equal(entry[0], sequence)
+        and np.all(entry[1].objective_vector(objectives)[others] <= mine)
+    }
+
+
+def _rejudge_member_0(front: Front) -> None:
+    """Member 0's ``dominated_by`` (and each baseline's ``dominates``) on the
+    confirmation's series, where neither was chosen: on the front's own series member 0
+    is flattered, and a baseline that dominates it could pass unflagged."""
+    confirmation, objectives = front.confirmation, front.settings.objectives
+    assert confirmation is not None
+    member = SequenceScores.from_dict(front.members[0]["scores"])
+    mine = replace(member, accuracy=confirmation["accuracy"]).objective_vector(objectives)
+    for name, figures in confirmation["baselines"].items():
+        stored = SequenceScores.from_dict(front.baselines[name]["scores"])
+        score = replace(stored, accuracy=figures["accuracy"])
+        figures["dominates_member_0"] = dominates(score.objective_vector(objectives), mine)
+        flagged = [i for i in front.baselines[name]["dominates"] if i != 0]
+        front.baselines[name]["dominates"] = [0] * figures["dominates_member_0"] + flagged
+    front.members[0]["dominated_by"] = [
+        name for name, entry in front.baselines.items() if 0 in entry.get("dominates", ())
+    ]
 
 
 def _feasible(score: SequenceScores, constraints: dict[str, float], series: int) -> bool:
@@ -444,15 +506,19 @@ def build_front(
             "dominates": beaten,
         }
     if test_series and len(rows) > 1 and chosen:
+        best = chosen[0]
         front.confirmation = _confirmed(
             scorer,
-            rows[chosen[0]],
+            rows[best],
             confirmation_series(test_series),
             fresh_seed(seed),
             should_stop,
             None if progress is None else (lambda done: progress(share + done * (1 - share))),
+            rivals=_rivals(rows[best], fresh[best], baselines, settings.objectives),
         )
         front.stopped = front.confirmation is None
+        if front.confirmation is not None:
+            _rejudge_member_0(front)
     elif progress is not None and test_series:
         progress(1.0)  # no confirmation to make: the measurement is done
     return front

@@ -971,6 +971,13 @@ def test_a_pareto_front_is_drawn_beside_the_baselines_and_a_member_plans_and_tra
         confirmation["accuracy_by_noise"], confirmation["interval_by_noise"], strict=True
     ):
         assert f"{value:.3f} [{low:.3f}, {high:.3f}]" in note
+    # The baselines that could dominate it, on the same series, or why none was.
+    rivals = confirmation["baselines"]
+    for name, figures in rivals.items():
+        text = " / ".join(f"{a:.3f}" for a in figures["accuracy_by_noise"])
+        assert f"{name} {text}" in note
+        assert (f"{name} {text} (dominates member 0)" in note) == figures["dominates_member_0"]
+    assert ("none was measured beside it" in note) == (not rivals)
 
     # Choose the last member: its plan (per candidate: residual rate, attitude change),
     # downloaded as CSV and JSON.

@@ -584,6 +584,64 @@ def test_the_first_member_is_measured_again_on_series_that_did_not_rank_it(
     assert summary["front_member_0_confirmation_series_per_candidate"] == 1000
 
 
+def test_a_baseline_is_judged_against_member_0_on_the_confirmations_series(
+    paper: Scenario,
+) -> None:
+    """Member 0's figure on the front's series is flattered, so a baseline that dominates
+    it could pass unflagged there. The baselines that could dominate it (no worse on
+    every other objective, not the same sequence) are measured on the confirmation's
+    series, and member 0's flags are judged there, pair by pair."""
+    from inertia_id.search import build_front
+    from inertia_id.search.pareto import _rejudge_member_0
+
+    sequences = [
+        [[4, 4, 4, 0, 0, 0], [0, 0, 0, 4, 4, 4]],  # fire-then-brake, 12 N m s
+        [[4, 4, 0, 0, 0, 0], [0, 0, 4, 4, 4, 0]],  # 10 N m s
+    ]
+    settings = OperatorSettings(objectives=("accuracy", "impulse"))
+    front = build_front(paper, sequences, settings, seed=1, test_series=40)
+    assert front.members[0]["sequence"] == sequences[0]
+    confirmation = front.confirmation
+    assert confirmation is not None
+    # hand-designed (12 N m s) and axis-in-turn (4) are no costlier than member 0's 12;
+    # fire-then-brake is member 0 itself.
+    assert sorted(confirmation["baselines"]) == ["axis-in-turn", "hand-designed"]
+    scorer = OperatorScorer(paper, 2, OperatorSettings(), seed=0)
+    for name, figures in confirmation["baselines"].items():
+        sequence = np.array(front.baselines[name]["sequence"])
+        alone, n = scorer.measured_accuracy(sequence[None], 200, seed=confirmation["seed"])
+        assert n == confirmation["series_per_condition"] == 1000
+        assert figures["accuracy_by_noise"] == pytest.approx(list(alone[0]), abs=1e-12)
+        assert figures["dominates_member_0"] == (
+            figures["accuracy"] > confirmation["accuracy"]
+            and front.baselines[name]["scores"]["impulse_nms"]
+            <= front.members[0]["scores"]["impulse_nms"]
+        )
+    assert front.members[0]["dominated_by"] == ["hand-designed"]  # 0.82 against 0.68
+    from service.exports import result_table
+
+    summary = dict(result_table("search", {"front": front.to_dict()}, "summary").rows)
+    key = "front_member_0_confirmation_hand-designed"
+    assert (
+        summary[f"{key}_accuracy_by_noise"]
+        == (confirmation["baselines"]["hand-designed"]["accuracy_by_noise"])
+    )
+    assert summary[f"{key}_dominates_member_0"] is True
+    # The judgement follows the confirmation's figures, whichever way they fall.
+    confirmation["baselines"]["hand-designed"]["accuracy"] = confirmation["accuracy"] - 0.01
+    confirmation["baselines"]["axis-in-turn"]["accuracy"] = confirmation["accuracy"] + 0.01
+    _rejudge_member_0(front)
+    assert front.members[0]["dominated_by"] == ["axis-in-turn"]
+    assert 0 not in front.baselines["hand-designed"]["dominates"]
+    assert front.baselines["axis-in-turn"]["dominates"][0] == 0
+    assert not confirmation["baselines"]["hand-designed"]["dominates_member_0"]
+    # A tie on accuracy and impulse is not domination.
+    confirmation["baselines"]["axis-in-turn"]["accuracy"] = confirmation["accuracy"]
+    front.baselines["axis-in-turn"]["scores"]["impulse_nms"] = 12.0
+    _rejudge_member_0(front)
+    assert front.members[0]["dominated_by"] == [] and not front.dominated_by_baseline
+
+
 def test_no_confirmation_without_a_choice_or_a_measurement(paper: Scenario) -> None:
     from inertia_id.search import build_front
 
@@ -660,8 +718,8 @@ def test_a_search_told_to_stop_while_its_front_is_confirmed_says_it_was_cancelle
 ) -> None:
     from inertia_id.search import pareto
 
-    def stop_at_once(scorer, sequence, test_series, seed, should_stop, progress=None):
-        return real(scorer, sequence, test_series, seed, lambda: True, progress)
+    def stop_at_once(scorer, sequence, test_series, seed, should_stop, progress=None, **kw):
+        return real(scorer, sequence, test_series, seed, lambda: True, progress, **kw)
 
     real = pareto._confirmed
     monkeypatch.setattr(pareto, "_confirmed", stop_at_once)

@@ -76,10 +76,20 @@ function confirmationNote(front) {
     const where = conditions[i] ? ` at ${conditions[i]}` : "";
     return `${a.toFixed(3)} [${low === null ? "–" : low.toFixed(3)}, ${high === null ? "–" : high.toFixed(3)}]${where}`;
   });
+  // The baselines that could dominate member 0, on the same series (older results: none).
+  const rivals = Object.entries(c.baselines || {}).map(
+    ([name, b]) =>
+      `${name} ${b.accuracy_by_noise.map((a) => a.toFixed(3)).join(" / ")}${b.dominates_member_0 ? " (dominates member 0)" : ""}`,
+  );
+  const beside = c.baselines
+    ? rivals.length
+      ? ` Beside it on the same series, the baselines no costlier on the other objectives: ${rivals.join("; ")}; member 0's flags are judged there.`
+      : " No baseline is as cheap on every other objective, so none was measured beside it."
+    : " The baselines were not measured again.";
   return h(
     "p",
     { class: "hint", id: "front-confirmation" },
-    `Member 0 is the most accurate of the ${front.candidates_rescored || (front.members || []).length} sequences measured on the front's series, so its figure there is biased up on average. On ${c.test_series} other series per candidate at each condition it measured ${figures.join("; ")} (95 % Wilson intervals): the figure to quote. The baselines were not measured again.`,
+    `Member 0 is the most accurate of the ${front.candidates_rescored || (front.members || []).length} sequences measured on the front's series, so its figure there is biased up on average. On ${c.test_series} other series per candidate at each condition it measured ${figures.join("; ")} (95 % Wilson intervals): the figure to quote.${beside}`,
   );
 }
 
