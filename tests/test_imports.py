@@ -100,13 +100,15 @@ def test_warm_up_compiles_the_kernels_every_transform_calls() -> None:
         "import json, inertia_id\n"
         "inertia_id.warm_up()\n"
         "from inertia_id.classifiers import dtw, minirocket\n"
-        "kernels = [dtw._cdist, dtw._cdist_soft_dtw_normalized, minirocket._transform]\n"
+        "from inertia_id.physics import _rk4\n"
+        "kernels = [dtw._cdist, dtw._cdist_soft_dtw_normalized, minirocket._transform,\n"
+        "           _rk4.integrate]\n"
         "print(json.dumps([bool(k.signatures) for k in kernels]))"
     )
     done = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=300
     )
-    assert json.loads(done.stdout.strip().splitlines()[-1]) == [True, True, True]
+    assert json.loads(done.stdout.strip().splitlines()[-1]) == [True, True, True, True]
 
 
 def test_the_api_process_starts_without_the_heavy_packages_and_warms_up_without_torch(

@@ -226,7 +226,12 @@ def load_classifier(path: str | os.PathLike[str]) -> CandidateClassifier:
 
 def warm_up() -> None:
     """Compile, or load from numba's cache, every numba kernel that a kind's ``transform``
-    uses: each module of the package that has a ``warm_up`` runs it."""
+    uses (each module of the package that has a ``warm_up`` runs it) and the simulator's
+    RK4 kernel (:mod:`inertia_id.physics._rk4`), which every training, sweep and search
+    runs."""
+    from ..physics import _rk4
+
     for module in _MODULES:
         if module.__name__ != __name__ and callable(getattr(module, "warm_up", None)):
             module.warm_up()
+    _rk4.warm_up()

@@ -102,3 +102,58 @@ class RigidBodies:
         new_omega = omega + dt / 6.0 * (k1 + 2.0 * (k2 + k3) + k4)
         new_torque = torque + dt / 6.0 * (j1 + 2.0 * (j2 + j3) + j4)
         return new_omega, new_torque
+
+    def run(
+        self,
+        omega: np.ndarray,
+        torque: np.ndarray,
+        commanded: np.ndarray,
+        disturbance: np.ndarray,
+        *,
+        substeps: int,
+        per_interval: int,
+        per_sample: int,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`step` ``substeps`` times under one command, compiled (numba: see
+        :mod:`inertia_id.physics._rk4`), recording every ``per_sample`` substeps.
+
+        :param omega: (..., K, n, 3) rates at the start, rad/s (one leading population
+            axis at most).
+        :param torque: the applied torque then, same shape, N m.
+        :param commanded: commanded torque over the step, broadcastable to ``omega``.
+        :param disturbance: (K, n, intervals, 3) disturbance torque, each held for
+            ``per_interval`` substeps, N m.
+        :returns: rates and applied torque at the end, and at every sample, (..., K, n,
+            S, 3).
+        """
+        from . import _rk4
+
+        shape = omega.shape
+        flat = (-1, *shape[-3:])  # one population axis, 1 when there is none
+        omega_end = np.array(omega, dtype=float).reshape(flat)
+        torque_end = np.array(np.broadcast_to(torque, shape), dtype=float).reshape(flat)
+        held = np.ascontiguousarray(np.broadcast_to(commanded, shape), dtype=float).reshape(flat)
+        samples = substeps // per_sample
+        omega_out = np.empty((*omega_end.shape[:-1], samples, 3))
+        torque_out = np.empty_like(omega_out)
+        _rk4.integrate(
+            omega_end,
+            torque_end,
+            held,
+            np.ascontiguousarray(disturbance, dtype=float),
+            np.ascontiguousarray(self.inertia, dtype=float),
+            np.ascontiguousarray(self.inertia_inv, dtype=float),
+            float(self.dt),
+            0.0 if self.tau == 0.0 else 1.0 / self.tau,
+            int(substeps),
+            int(per_interval),
+            int(per_sample),
+            omega_out,
+            torque_out,
+        )
+        return (
+            omega_end.reshape(shape),
+            torque_end.reshape(shape),
+            omega_out.reshape(*shape[:-1], samples, 3),
+            torque_out.reshape(*shape[:-1], samples, 3),
+        )

@@ -259,17 +259,15 @@ class Simulator:
             commanded_duty = commanded_duty[:, None, None, :]  # (P, 1, 1, N)
         duty = delivered_duty(commanded_duty, draw.duty_jitter)
         commanded = commanded_torque(self.torque_matrix, duty, state.initial.thrust_scale)
-        omega, torque = state.omega, state.torque
-        batch = omega.shape[:-1]
-        omega_true = np.empty((*batch, self.samples, 3))
-        applied = np.empty((*batch, self.samples, 3))
-        for sub in range(self.substeps):
-            disturbance = draw.disturbance[:, :, sub // self.substeps_per_interval, :]
-            omega, torque = self.bodies.step(omega, torque, commanded, disturbance)
-            if (sub + 1) % self.substeps_per_sample == 0:
-                sample = (sub + 1) // self.substeps_per_sample - 1
-                omega_true[..., sample, :] = omega
-                applied[..., sample, :] = torque
+        omega, torque, omega_true, applied = self.bodies.run(
+            state.omega,
+            state.torque,
+            commanded,
+            draw.disturbance,
+            substeps=self.substeps,
+            per_interval=self.substeps_per_interval,
+            per_sample=self.substeps_per_sample,
+        )
         measured = omega_true + state.initial.gyro_bias[..., None, :] + draw.gyro_noise
         response = StepResponse(omega_true, measured, applied, commanded)
         return SimulationState(omega, torque, state.initial, state.n_steps + 1), response

@@ -194,3 +194,50 @@ def test_lowpass_off_applies_torque_at_once() -> None:
     w2, _ = bodies.step(omega, np.zeros_like(omega), commanded, np.zeros_like(omega))
     np.testing.assert_array_equal(m1, commanded)
     np.testing.assert_array_equal(w1, w2)
+
+
+@pytest.mark.parametrize("tau", [0.0, 0.1])
+@pytest.mark.parametrize("population", [False, True])
+def test_the_compiled_run_is_the_step_loop(tau: float, population: bool) -> None:
+    """``RigidBodies.run`` (the numba kernel the simulator uses) integrates as ``step``
+    looped in numpy does: tumbling bodies with products of inertia, a lag or none, the
+    disturbance held per interval, a leading population axis or none."""
+    rng = np.random.default_rng(5)
+    inertia = np.stack([TUMBLER, DIAG])
+    bodies = RigidBodies(inertia=inertia, dt=0.01, tau=tau)
+    shape = (4, 2, 3, 3) if population else (2, 3, 3)
+    omega0 = 0.3 * rng.standard_normal(shape)
+    torque0 = rng.standard_normal(shape)
+    commanded = rng.standard_normal(shape)
+    substeps, per_interval, per_sample = 20, 5, 4
+    disturbance = 0.1 * rng.standard_normal((2, 3, substeps // per_interval, 3))
+    omega, torque = omega0, torque0
+    omegas, torques = [], []
+    for sub in range(substeps):
+        omega, torque = bodies.step(
+            omega, torque, commanded, disturbance[:, :, sub // per_interval]
+        )
+        if (sub + 1) % per_sample == 0:
+            omegas.append(omega)
+            torques.append(torque)
+    end, applied, sampled, sampled_torque = bodies.run(
+        omega0,
+        torque0,
+        commanded,
+        disturbance,
+        substeps=substeps,
+        per_interval=per_interval,
+        per_sample=per_sample,
+    )
+    assert np.allclose(end, omega, rtol=1e-12, atol=1e-15)
+    assert np.allclose(applied, np.broadcast_to(torque, shape), rtol=1e-12, atol=1e-15)
+    assert np.allclose(sampled, np.stack(omegas, axis=-2), rtol=1e-12, atol=1e-15)
+    assert np.allclose(
+        sampled_torque,
+        np.broadcast_to(np.stack(torques, axis=-2), sampled.shape),
+        rtol=1e-12,
+        atol=1e-15,
+    )
+    assert np.abs(end - omega0).max() > 0.01  # it moved: the comparison can fail
+    # The inputs are left as they were.
+    assert np.array_equal(omega0, 0.3 * np.random.default_rng(5).standard_normal(shape))
