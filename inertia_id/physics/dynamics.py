@@ -128,21 +128,44 @@ class RigidBodies:
         """
         from . import _rk4
 
-        shape = omega.shape
+        shape = np.shape(omega)
+        if len(shape) not in (3, 4) or shape[-1] != 3:
+            raise ValueError(f"omega must be (K, n, 3) or (P, K, n, 3), got {shape}")
+        k, n = shape[-3:-1]
+        if self.inertia.shape != (k, 3, 3):
+            raise ValueError(f"{k} bodies a batch, but inertia is {self.inertia.shape}")
+        if substeps % per_interval or substeps % per_sample:
+            raise ValueError(
+                f"{substeps} substeps are not whole intervals of {per_interval} and samples "
+                f"of {per_sample}"
+            )
+        if np.shape(disturbance) != (k, n, substeps // per_interval, 3):
+            raise ValueError(
+                f"disturbance must be {(k, n, substeps // per_interval, 3)}, "
+                f"got {np.shape(disturbance)}"
+            )
         flat = (-1, *shape[-3:])  # one population axis, 1 when there is none
-        omega_end = np.array(omega, dtype=float).reshape(flat)
-        torque_end = np.array(np.broadcast_to(torque, shape), dtype=float).reshape(flat)
-        held = np.ascontiguousarray(np.broadcast_to(commanded, shape), dtype=float).reshape(flat)
+
+        def fresh(array: np.ndarray) -> np.ndarray:
+            # A writable C-contiguous float64 copy: the one layout the kernel is compiled
+            # (and warmed up) for, and the kernel writes into the state.
+            return np.array(np.broadcast_to(array, shape), dtype=float, order="C").reshape(flat)
+
+        omega_end, torque_end, held = fresh(omega), fresh(torque), fresh(commanded)
         samples = substeps // per_sample
         omega_out = np.empty((*omega_end.shape[:-1], samples, 3))
         torque_out = np.empty_like(omega_out)
+
+        def layout(array: np.ndarray) -> np.ndarray:
+            return np.require(array, dtype=float, requirements=["C", "W"])
+
         _rk4.integrate(
             omega_end,
             torque_end,
             held,
-            np.ascontiguousarray(disturbance, dtype=float),
-            np.ascontiguousarray(self.inertia, dtype=float),
-            np.ascontiguousarray(self.inertia_inv, dtype=float),
+            layout(disturbance),
+            layout(self.inertia),
+            layout(self.inertia_inv),
             float(self.dt),
             0.0 if self.tau == 0.0 else 1.0 / self.tau,
             int(substeps),

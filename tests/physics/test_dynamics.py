@@ -241,3 +241,21 @@ def test_the_compiled_run_is_the_step_loop(tau: float, population: bool) -> None
     assert np.abs(end - omega0).max() > 0.01  # it moved: the comparison can fail
     # The inputs are left as they were.
     assert np.array_equal(omega0, 0.3 * np.random.default_rng(5).standard_normal(shape))
+
+
+def test_the_compiled_run_refuses_what_it_would_read_out_of_bounds() -> None:
+    """The kernel checks no bounds, so ``run`` checks the shapes first (the numpy loop
+    raised or broadcast where the kernel would read past an array)."""
+    bodies = RigidBodies(inertia=np.stack([TUMBLER, DIAG]), dt=0.01, tau=0.1)
+    omega = np.zeros((2, 3, 3))
+    good = {"substeps": 20, "per_interval": 5, "per_sample": 4}
+    disturbance = np.zeros((2, 3, 4, 3))
+    cases = [
+        (RigidBodies(inertia=TUMBLER[None], dt=0.01), omega, disturbance, good, "inertia is"),
+        (bodies, omega, disturbance, {**good, "per_interval": 3}, "not whole intervals"),
+        (bodies, omega, np.zeros((2, 3, 2, 3)), good, "disturbance must be"),
+        (bodies, np.zeros((3, 3)), disturbance, good, "omega must be"),
+    ]
+    for which, rates, torque_noise, counts, match in cases:
+        with pytest.raises(ValueError, match=match):
+            which.run(rates, rates, rates, torque_noise, **counts)
