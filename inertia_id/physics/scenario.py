@@ -329,6 +329,11 @@ class Timing(_Model):
         return round(1.0 / (self.sample_rate_hz * self.integration_step_s))
 
 
+#: The shortest actuation lag a scenario may have, in integration steps: RK4 on the lag
+#: diverges past 2.78 steps a time constant (:meth:`Scenario._lag_resolved`).
+LAG_STEPS_PER_TAU = 2.0
+
+
 def _whole(ratio: float, message: str) -> None:
     if not math.isfinite(ratio) or ratio < 1.0 - 1e-9 or abs(ratio - round(ratio)) > 1e-6:
         raise InputError(message)
@@ -427,6 +432,22 @@ class Scenario(_Model):
             f"step_duration_s = {self.timing.step_duration_s} is not a whole number of "
             f"disturbance_interval_s = {interval}",
         )
+        return self
+
+    @model_validator(mode="after")
+    def _lag_resolved(self) -> Self:
+        # RK4 on the lag dm/dt = (c - m) / tau is stable only while dt <= 2.78 tau;
+        # beyond it the applied torque, and every rate, grows without bound (NaN).
+        # Refused at dt > 2 tau, a margin short of that edge.
+        dt = self.timing.integration_step_s
+        tau = self.uncertainty.lowpass_time_constant_s
+        if 0.0 < tau < dt / LAG_STEPS_PER_TAU:
+            raise InputError(
+                f"lowpass_time_constant_s = {tau} is too short for integration_step_s = "
+                f"{dt}: RK4 on the actuation lag diverges once a step exceeds 2.78 lag "
+                f"time constants; give lowpass_time_constant_s >= {dt / LAG_STEPS_PER_TAU:g}"
+                " (0 for no lag) or a smaller integration_step_s"
+            )
         return self
 
     # Arrays the numerical code works with.

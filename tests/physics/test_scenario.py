@@ -376,6 +376,47 @@ def test_disturbance_interval_must_fit_the_grid(interval: float, match: str) -> 
         Scenario.model_validate(data)
 
 
+def test_an_actuation_lag_shorter_than_rk4_resolves_is_refused() -> None:
+    """RK4 on the lag diverges once a step exceeds 2.78 time constants: every rate turns
+    NaN (silently, in the compiled simulator). Such a lag is refused, naming both values
+    and the shortest one allowed; at the limit, or with no lag, the simulation is finite."""
+    from inertia_id import Simulator
+
+    data = paper_data()  # integration_step_s 0.05
+    data["uncertainty"]["lowpass_time_constant_s"] = 0.01
+    with pytest.raises(
+        pydantic.ValidationError,
+        match=r"lowpass_time_constant_s = 0\.01 is too short for integration_step_s = 0\.05"
+        r".*lowpass_time_constant_s >= 0\.025",
+    ):
+        Scenario.model_validate(data)
+    for tau in (0.025, 0.0):
+        data["uncertainty"]["lowpass_time_constant_s"] = tau
+        scenario = Scenario.model_validate(data)
+        simulator = Simulator(scenario, 2)
+        run = simulator.run(
+            np.array([[4, 4, 4, 0, 0, 0]] * 2),
+            simulator.draw_noise(np.random.default_rng(0), 2),
+        )
+        assert np.isfinite(run.omega_true).all()
+    # Just past the limit the old behaviour shows: the rates blow up.
+    from inertia_id.physics.dynamics import RigidBodies
+
+    bodies = RigidBodies(inertia=np.eye(3)[None] * 100.0, dt=0.05, tau=0.05 / 2.9)
+    omega, torque = np.zeros((1, 1, 3)), np.zeros((1, 1, 3))
+    _, applied, _, _ = bodies.run(
+        omega,
+        torque,
+        np.ones((1, 1, 3)),
+        np.zeros((1, 1, 1, 3)),
+        substeps=200,
+        per_interval=200,
+        per_sample=200,
+    )
+    assert not np.isfinite(applied).all() or np.abs(applied).max() > 1e6
+
+
+# Scenario-level rules.
 # Scenario-level rules.
 
 
