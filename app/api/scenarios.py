@@ -334,8 +334,12 @@ def _plan_response(
         )
     plan = command_plan(scenario, steps)
     stem = "plan-" + "-".join(
-        f"{key.removesuffix('_id')}-{str(value)[:8]}" for key, value in source.items()
+        f"{key.removesuffix('_id')}-{str(source[key])[:8]}"
+        for key in ("scenario_id", "job_id", "member")
+        if key in source
     )
+    if source.get("job_status") == "cancelled":
+        stem += "-cancelled"  # the best sequence a cancelled search had found
     if fmt == "csv":
         lines = "".join(f"# {key}: {value}\n" for key, value in source.items())
         return Response(

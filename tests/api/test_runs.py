@@ -343,8 +343,12 @@ def test_a_cancelled_search_plans_the_best_sequence_it_had_found(api: Api) -> No
     document = plan.json()
     assert document["source"]["job_status"] == "cancelled"
     assert document["sequence"] == _search_result([0.9], 12.0, 2.0)["best"]["sequence"]
-    csv_text = api.get_with_key(f"/jobs/{partial}/plan", params={"format": "csv"}).text
-    assert "# job_status: cancelled" in csv_text.splitlines()[:6]
+    as_csv = api.get_with_key(f"/jobs/{partial}/plan", params={"format": "csv"})
+    assert "# job_status: cancelled" in as_csv.text.splitlines()[:6]
+    assert as_csv.headers["content-disposition"] == (
+        f'attachment; filename="plan-scenario-{scenario_id[:8]}-job-{partial[:8]}'
+        '-member-best-cancelled.csv"'
+    )
     # Cancelled before it found anything: nothing to plan.
     empty = _finished(api, scenario_id, 2, None, "cancelled")
     nothing = api.get_with_key(f"/jobs/{empty}/plan")
