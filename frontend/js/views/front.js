@@ -81,11 +81,14 @@ function confirmationNote(front) {
     ([name, b]) =>
       `${name} ${b.accuracy_by_noise.map((a) => a.toFixed(3)).join(" / ")}${b.dominates_member_0 ? " (dominates member 0)" : ""}`,
   );
-  const beside = c.baselines
-    ? rivals.length
-      ? ` Beside it on the same series, the baselines no costlier on the other objectives: ${rivals.join("; ")}; member 0's flags are judged there.`
-      : " No baseline is as cheap on every other objective, so none was measured beside it."
-    : " The baselines were not measured again.";
+  let beside = " The baselines were not measured again.";
+  if (c.baselines && !(front.objectives || []).includes("accuracy")) {
+    beside = " Accuracy is not one of the front's objectives, so no baseline's flag depends on it and none was measured beside it.";
+  } else if (c.baselines && rivals.length) {
+    beside = ` Beside it on the same series, the baselines no costlier on the other objectives: ${rivals.join("; ")}; member 0's flags are judged there.`;
+  } else if (c.baselines) {
+    beside = " No baseline is as cheap on every other objective, so none was measured beside it.";
+  }
   return h(
     "p",
     { class: "hint", id: "front-confirmation" },
