@@ -86,7 +86,7 @@ def integrate(
                     d2 = disturbance[k, i, interval, 2]
                     if lag:
                         # Stage by stage as RigidBodies.step: the lag's torque at each
-                        # stage, then the rates under it.
+                        # stage (m, a, b, e), and the lag's own RK4 update.
                         j10, j11, j12 = (c0 - m0) * rate, (c1 - m1) * rate, (c2 - m2) * rate
                         a0, a1, a2 = m0 + half * j10, m1 + half * j11, m2 + half * j12
                         j20, j21, j22 = (c0 - a0) * rate, (c1 - a1) * rate, (c2 - a2) * rate
@@ -94,75 +94,49 @@ def integrate(
                         j30, j31, j32 = (c0 - b0) * rate, (c1 - b1) * rate, (c2 - b2) * rate
                         e0, e1, e2 = m0 + dt * j30, m1 + dt * j31, m2 + dt * j32
                         j40, j41, j42 = (c0 - e0) * rate, (c1 - e1) * rate, (c2 - e2) * rate
-                        k10, k11, k12 = _rates(
-                            w0, w1, w2, m0 + d0, m1 + d1, m2 + d2, inertia_k, inverse_k
-                        )
-                        k20, k21, k22 = _rates(
-                            w0 + half * k10,
-                            w1 + half * k11,
-                            w2 + half * k12,
-                            a0 + d0,
-                            a1 + d1,
-                            a2 + d2,
-                            inertia_k,
-                            inverse_k,
-                        )
-                        k30, k31, k32 = _rates(
-                            w0 + half * k20,
-                            w1 + half * k21,
-                            w2 + half * k22,
-                            b0 + d0,
-                            b1 + d1,
-                            b2 + d2,
-                            inertia_k,
-                            inverse_k,
-                        )
-                        k40, k41, k42 = _rates(
-                            w0 + dt * k30,
-                            w1 + dt * k31,
-                            w2 + dt * k32,
-                            e0 + d0,
-                            e1 + d1,
-                            e2 + d2,
-                            inertia_k,
-                            inverse_k,
-                        )
+                        s10, s11, s12 = m0 + d0, m1 + d1, m2 + d2
+                        s20, s21, s22 = a0 + d0, a1 + d1, a2 + d2
+                        s30, s31, s32 = b0 + d0, b1 + d1, b2 + d2
+                        s40, s41, s42 = e0 + d0, e1 + d1, e2 + d2
                         m0 = m0 + sixth * (j10 + 2.0 * (j20 + j30) + j40)
                         m1 = m1 + sixth * (j11 + 2.0 * (j21 + j31) + j41)
                         m2 = m2 + sixth * (j12 + 2.0 * (j22 + j32) + j42)
-                    else:
-                        t0, t1, t2 = c0 + d0, c1 + d1, c2 + d2
-                        k10, k11, k12 = _rates(w0, w1, w2, t0, t1, t2, inertia_k, inverse_k)
-                        k20, k21, k22 = _rates(
-                            w0 + half * k10,
-                            w1 + half * k11,
-                            w2 + half * k12,
-                            t0,
-                            t1,
-                            t2,
-                            inertia_k,
-                            inverse_k,
-                        )
-                        k30, k31, k32 = _rates(
-                            w0 + half * k20,
-                            w1 + half * k21,
-                            w2 + half * k22,
-                            t0,
-                            t1,
-                            t2,
-                            inertia_k,
-                            inverse_k,
-                        )
-                        k40, k41, k42 = _rates(
-                            w0 + dt * k30,
-                            w1 + dt * k31,
-                            w2 + dt * k32,
-                            t0,
-                            t1,
-                            t2,
-                            inertia_k,
-                            inverse_k,
-                        )
+                    else:  # the commanded torque, at every stage
+                        s10, s11, s12 = c0 + d0, c1 + d1, c2 + d2
+                        s20, s21, s22 = s10, s11, s12
+                        s30, s31, s32 = s10, s11, s12
+                        s40, s41, s42 = s10, s11, s12
+                    k10, k11, k12 = _rates(w0, w1, w2, s10, s11, s12, inertia_k, inverse_k)
+                    k20, k21, k22 = _rates(
+                        w0 + half * k10,
+                        w1 + half * k11,
+                        w2 + half * k12,
+                        s20,
+                        s21,
+                        s22,
+                        inertia_k,
+                        inverse_k,
+                    )
+                    k30, k31, k32 = _rates(
+                        w0 + half * k20,
+                        w1 + half * k21,
+                        w2 + half * k22,
+                        s30,
+                        s31,
+                        s32,
+                        inertia_k,
+                        inverse_k,
+                    )
+                    k40, k41, k42 = _rates(
+                        w0 + dt * k30,
+                        w1 + dt * k31,
+                        w2 + dt * k32,
+                        s40,
+                        s41,
+                        s42,
+                        inertia_k,
+                        inverse_k,
+                    )
                     w0 = w0 + sixth * (k10 + 2.0 * (k20 + k30) + k40)
                     w1 = w1 + sixth * (k11 + 2.0 * (k21 + k31) + k41)
                     w2 = w2 + sixth * (k12 + 2.0 * (k22 + k32) + k42)
