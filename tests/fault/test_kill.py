@@ -75,7 +75,7 @@ def test_a_killed_serve_leaves_no_process_and_the_next_serve_finishes_its_job(
     first = deployment.serve(workers=1)
     with first.client() as client:
         scenario = deployment.scenario(client)
-        job_id = deployment.submit(client, scenario, "search", random_search(1200), seed=3)
+        job_id = deployment.submit(client, scenario, "search", random_search(6000), seed=3)
     deployment.wait_job(job_id, ("running",), timeout_s=120)
     workers = first.worker_pids()
     left = set(processes_of(deployment.data_dir)) - {first.process.pid}

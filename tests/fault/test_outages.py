@@ -92,7 +92,7 @@ def test_a_database_restart_mid_job_ends_the_job_and_the_api_answers_503_meanwhi
         serve = deployment.serve(workers=1)
         with serve.client(timeout_s=30) as client:
             scenario = deployment.scenario(client)
-            job_id = deployment.submit(client, scenario, "search", random_search(1200), seed=51)
+            job_id = deployment.submit(client, scenario, "search", random_search(6000), seed=51)
             deployment.wait_job(job_id, ("running",), timeout_s=120)
             deployment.db.dispose()
 

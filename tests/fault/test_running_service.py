@@ -54,7 +54,7 @@ def running(module_deployment: Deployment) -> Iterator[Running]:
 def test_lost_and_never_sent_messages_are_sent_again(running: Running) -> None:
     deployment, client = running.deployment, running.client
     # The only worker busy: the next job's message waits in the broker, and is lost there.
-    busy = deployment.submit(client, running.scenario, "search", random_search(1500), seed=11)
+    busy = deployment.submit(client, running.scenario, "search", random_search(7500), seed=11)
     deployment.wait_job(busy, ("running",), timeout_s=120)
     lost = deployment.submit(client, running.scenario, "train", TINY_TRAIN, seed=12)
     assert deployment.job(lost).sent_at is not None
