@@ -8,6 +8,8 @@ Needs the optional extra: pip install "inertia-id[basilisk]" (PyPI bsk).
    |omega_basilisk - omega_ours| over the series, and each engine against an independent
    reference (scipy's DOP853 at rtol 1e-12 with the lag solved in closed form), which
    says whose error the residual is. For scale, Basilisk without the lag against ours.
+   The command plan's attitude change at the end (quaternion propagation of our 20 Hz
+   rates) against Basilisk's own attitude (its hub's sigma_BN), the angle between them.
 2. Process noise on, the same draws in both engines (duty jitter, thrust scale,
    disturbance, initial rate, random bias): the same comparison of the true rates.
 3. The residual against the step: Basilisk's hub step and our RK4 step shortened.
@@ -40,6 +42,7 @@ from scipy import stats
 from scipy.integrate import solve_ivp
 
 from inertia_id import Scenario, simulate, train_classifier
+from inertia_id.physics.attitude import quaternion_multiply, rotation_angle_deg
 from inertia_id.physics.engines import (
     CANTED_SEQUENCE,
     basilisk_available,
@@ -48,6 +51,7 @@ from inertia_id.physics.engines import (
     simulate_basilisk,
 )
 from inertia_id.physics.presets import NOISE_OFF
+from inertia_id.search.plan import command_plan
 
 
 def scenarios() -> list[tuple[str, Scenario, list[list[int]]]]:
@@ -95,12 +99,21 @@ def reference(scenario: Scenario, sequence: Any, k: int, times: np.ndarray) -> n
     return np.concatenate(out)
 
 
+def _attitude_apart_deg(quaternion: list[float], mrp: np.ndarray) -> float:
+    """The angle of the rotation between a (w, x, y, z) quaternion and an MRP attitude."""
+    squared = float(mrp @ mrp)
+    theirs = np.concatenate([[(1.0 - squared) / (1.0 + squared)], 2.0 * mrp / (1.0 + squared)])
+    inverse = np.asarray(quaternion) * np.array([1.0, -1.0, -1.0, -1.0])
+    return float(rotation_angle_deg(quaternion_multiply(inverse, theirs)))
+
+
 def agreement_noise_off() -> list[dict[str, Any]]:
     rows = []
     for label, scenario, sequence in scenarios():
         quiet = scenario.with_uncertainty(**NOISE_OFF)
         no_lag = quiet.with_uncertainty(lowpass_time_constant_s=0.0)
         ours = simulate(quiet, sequence, 1, np.random.default_rng(0))
+        plan = command_plan(quiet, sequence)
         for k, name in enumerate(quiet.candidate_names):
             flown = simulate_basilisk(quiet, sequence, k, np.random.default_rng(0))
             flown_no_lag = simulate_basilisk(no_lag, sequence, k, np.random.default_rng(0))
@@ -115,6 +128,10 @@ def agreement_noise_off() -> list[dict[str, Any]]:
                     "ours_vs_reference": float(np.abs(mine - truth).max()),
                     "basilisk_vs_reference": float(np.abs(flown.omega_true - truth).max()),
                     "basilisk_no_lag_vs_ours": float(np.abs(flown_no_lag.omega_true - mine).max()),
+                    "attitude_change_deg": plan.attitude_change_deg[k],
+                    "attitude_plan_vs_basilisk_deg": _attitude_apart_deg(
+                        plan.attitude_quaternion[k], flown.attitude_mrp[-1]
+                    ),
                 }
             )
     return rows
@@ -326,7 +343,17 @@ def main() -> None:
     figures: dict[str, Any] = {"bsk": basilisk_version(), "import_s": seconds}
     rows = figures["noise_off"] = agreement_noise_off()
     print_table(
-        ["scenario", "candidate", "peak |w|", "bsk-ours", "ours-ref", "bsk-ref", "bsk no lag-ours"],
+        [
+            "scenario",
+            "candidate",
+            "peak |w|",
+            "bsk-ours",
+            "ours-ref",
+            "bsk-ref",
+            "bsk no lag-ours",
+            "turn deg",
+            "plan-bsk deg",
+        ],
         [
             [
                 r["scenario"],
@@ -336,10 +363,13 @@ def main() -> None:
                 r["ours_vs_reference"],
                 r["basilisk_vs_reference"],
                 f"{r['basilisk_no_lag_vs_ours']:.2e}",
+                f"{r['attitude_change_deg']:.3f}",
+                f"{r['attitude_plan_vs_basilisk_deg']:.1e}",
             ]
             for r in rows
         ],
-        "1. Noise off: max |delta omega| over the series, rad/s (ref: DOP853, exact lag)",
+        "1. Noise off: max |delta omega| over the series, rad/s (ref: DOP853, exact lag);"
+        " the plan's attitude change at the end, and its angle from Basilisk's sigma_BN",
     )
     rows = figures["same_draws"] = agreement_same_draws(args.seeds)
     print_table(

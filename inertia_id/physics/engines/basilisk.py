@@ -122,6 +122,10 @@ class BasiliskTelemetry:
         ``start_time_s`` (so ``k / sample_rate_hz`` from the sequence start by default).
     :param omega_measured: (T, 3) gyro readings (IMU ``AngVelPlatform``), rad/s.
     :param omega_true: (T, 3) true body rates (hub ``omega_BN_B``) at the same ticks, rad/s.
+    :param attitude_mrp: (T, 3) the hub's attitude ``sigma_BN`` at the same ticks:
+        modified Rodrigues parameters of the body frame relative to the frame it started
+        in (Basilisk integrates them with the rates; it may switch to the shadow set past
+        180 degrees).
     :param applied_torque_nm: (T, 3) thruster torque after the low-pass at the same
         ticks (without the disturbance), N m.
     :param commanded_torque_nm: (L, 3) torque commanded per step (after jitter and
@@ -139,6 +143,7 @@ class BasiliskTelemetry:
     time_s: np.ndarray
     omega_measured: np.ndarray
     omega_true: np.ndarray
+    attitude_mrp: np.ndarray
     applied_torque_nm: np.ndarray
     commanded_torque_nm: np.ndarray
     candidate: str
@@ -305,11 +310,13 @@ def simulate_basilisk(
     # Tick 0 is the IMU's zeroed first message: drop it.
     measured = np.asarray(imu_log.AngVelPlatform, dtype=float)[1:]
     true = np.asarray(state_log.omega_BN_B, dtype=float)[1:]
+    attitude = np.asarray(state_log.sigma_BN, dtype=float)[1:]
     applied = hub_state[(expected[1:] // hub_ns)]
     return BasiliskTelemetry(
         time_s=times_ns[1:] * 1e-9 + float(start_time_s),
         omega_measured=measured,
         omega_true=true,
+        attitude_mrp=attitude,
         applied_torque_nm=applied,
         commanded_torque_nm=commanded,
         candidate=scenario.candidate_names[index],
