@@ -211,7 +211,7 @@ def search_request(
     if nsga2_pairs and method != "nsga2":
         raise InputError(f"--nsga2 applies to --method nsga2 only, not {method!r}")
     pairs = SearchRequest.default("design_noise")
-    if design_noise:
+    if design_noise is not None:
         try:
             pairs = tuple(
                 tuple(float(v) for v in part.split(","))
@@ -223,7 +223,7 @@ def search_request(
                 f"--design-noise takes 'process,measurement' pairs separated by ';', "
                 f"got {design_noise!r}"
             ) from None
-        if not all(len(pair) == 2 for pair in pairs):
+        if not pairs or not all(len(pair) == 2 for pair in pairs):
             raise InputError(
                 f"--design-noise takes 'process,measurement' pairs, got {design_noise!r}"
             )

@@ -334,6 +334,15 @@ class Timing(_Model):
 LAG_STEPS_PER_TAU = 2.0
 
 
+def _holds_a_bool(value: Any) -> bool:
+    """Whether a (nested) list or tuple holds a bool anywhere."""
+    if isinstance(value, (bool, np.bool_)):
+        return True
+    if isinstance(value, (list, tuple)):
+        return any(_holds_a_bool(item) for item in value)
+    return False
+
+
 def _whole(ratio: float, message: str) -> None:
     if not math.isfinite(ratio) or ratio < 1.0 - 1e-9 or abs(ratio - round(ratio)) > 1e-6:
         raise InputError(message)
@@ -502,6 +511,9 @@ class Scenario(_Model):
             arr = np.asarray(sequence)
         except (TypeError, ValueError):
             raise InputError(f"sequence {sequence!r} is not an array of level indices") from None
+        if _holds_a_bool(sequence):
+            # numpy reads [4, true] as [4, 1]: a JSON true must not fire level 1.
+            raise InputError(f"sequence must hold integer level indices, got {sequence!r}")
         if arr.ndim == 1 and arr.size == self.n_thrusters:
             arr = arr[None, :]
         if arr.ndim != 2 or arr.shape[1] != self.n_thrusters or arr.shape[0] < 1:

@@ -93,6 +93,7 @@ def test_response_gives_each_candidates_mean_and_band_as_simulated(
         ("[[4, 4, 4, 0, 0]]", 20, "got shape (1, 5)"),
         ("[[4, 4, 4, 0, 0, 9]]", 20, "level index 9"),
         ('[["a", 4, 4, 0, 0, 0]]', 20, '\'[["a"'),
+        ("[[4, 4, 4, 0, 0, true]]", 20, "integer level indices, got '[[4, 4, 4, 0, 0, true]]'"),
         ("[[4, 4, 4, 0, 0, 0]]", 1, "greater than or equal to 2, got '1'"),
         (json.dumps([[4, 4, 4, 0, 0, 0]] * 1000), 20, "= 20000 RK4 steps; at most 1280"),
         (json.dumps([[4, 4, 4, 0, 0, 0]] * 64), 200, "= 1280000; at most 400000"),

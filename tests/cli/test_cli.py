@@ -195,6 +195,12 @@ def test_plan_refuses_a_file_that_is_no_search(
         (["search", "--ppo", "gamma"], "--ppo takes NAME=VALUE"),
         (["search", "--radius", "-2"], "--radius must be an integer >= 0 or 'none', got '-2'"),
         (["search", "--method", "random", "--ppo", "gamma=0.9"], "--ppo applies to --method"),
+        (
+            ["plan", "--sequence", "[[4,4,4,0,0,true]]"],
+            "integer level indices, got [[4, 4, 4, 0, 0, True",
+        ),
+        (["search", "--method", "nsga2", "--design-noise", ""], "pairs, got ''"),
+        (["search", "--method", "nsga2", "--design-noise", " ; "], "pairs, got ' ; '"),
     ],
 )
 def test_bad_input_is_one_line_error(

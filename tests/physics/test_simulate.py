@@ -323,6 +323,10 @@ def test_process_noise_spread_grows_with_its_scale(
         ([[float("nan"), 0, 0, 0, 0, 0]], r"integer level indices, got \[\[nan"),
         ([["a", "0", "0", "0", "0", "0"]], r"integer level indices.*'a'"),
         ([[4, 4, 4, 0, 0], [4, 4, 4, 0, 0, 0]], r"not an array of level indices"),
+        # numpy reads [4, True] as [4, 1]: a JSON true is not level 1.
+        ([[4, 4, 4, 0, 0, True]], r"integer level indices, got \[\[4, 4, 4, 0, 0, True"),
+        ([[4, 4, 4, 0, 0, np.bool_(False)]], r"integer level indices"),
+        ([[True] * 6], r"integer level indices"),
     ],
 )
 def test_bad_sequences_are_rejected_naming_the_value(
