@@ -20,6 +20,7 @@ from ..checks import is_integer
 from ..errors import InputError
 from .actuation import commanded_torque, delivered_duty
 from .dynamics import RigidBodies
+from .presets import NOISE_OFF
 from .scenario import Scenario
 
 __all__ = [
@@ -30,6 +31,7 @@ __all__ = [
     "Simulator",
     "StepDraw",
     "StepResponse",
+    "nominal_simulator",
     "settled_rates",
     "simulate",
 ]
@@ -321,6 +323,14 @@ class Simulator:
             impulse_nms=self.scenario.impulse_nms(sequence),
             candidate_names=self.scenario.candidate_names,
         )
+
+
+def nominal_simulator(scenario: Scenario, n_steps: int) -> tuple[Simulator, SequenceNoise]:
+    """A simulator of one realisation a candidate with every source of noise off (the
+    actuation lag kept), and its draw for ``n_steps`` steps (nothing random in it): the
+    response a flight team predicts, the one a command plan shows."""
+    simulator = Simulator(scenario.with_uncertainty(**NOISE_OFF), 1)
+    return simulator, simulator.draw_noise(np.random.default_rng(0), n_steps)
 
 
 def settled_rates(

@@ -63,9 +63,8 @@ from itertools import combinations
 
 import numpy as np
 
-from ..physics.presets import NOISE_OFF
 from ..physics.scenario import Scenario
-from ..physics.simulate import Simulator
+from ..physics.simulate import nominal_simulator
 
 __all__ = ["LinearNoiseModel", "clipped_duty_moments"]
 
@@ -165,11 +164,10 @@ class LinearNoiseModel:
         self._white = unc.gyro_noise_sigma_rad_s**2
         # The mean response fires each thruster at its expected delivered duty (clipping
         # at full duty shortens it by σ/√(2π)), as the classifier's training means do.
-        self._quiet = Simulator(scenario.with_uncertainty(**NOISE_OFF), 1)
+        self._quiet, self._quiet_noise = nominal_simulator(scenario, self.sequence_length)
         self._quiet.level_values = clipped_duty_moments(
             scenario.level_values, unc.duty_jitter_sigma
         )[0]
-        self._quiet_noise = self._quiet.draw_noise(np.random.default_rng(0), self.sequence_length)
         # A variance floor keeps Σ invertible with every noise off: 1e-12 of the squared
         # rate one full-duty step gives the lightest axis, a property of the scenario
         # (never of the batch scored, so a sequence's prediction is its own).

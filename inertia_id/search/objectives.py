@@ -461,13 +461,15 @@ class SequenceScores:
     :param accuracy_by_noise: the same at each design condition, in their order.
     :param final_rate_rad_s: the residual |ω|, once the actuation lag has delivered the
         torque still in it when the last command ends
-        (:func:`~inertia_id.physics.simulate.settled_rates`), mean over candidates and
-        realisations at the scenario's own noise.
-    :param final_rate_max_rad_s: the same, for the candidate that ends fastest (mean over
-        its realisations): what the ``max_final_rate`` constraints bound.
+        (:func:`~inertia_id.physics.simulate.settled_rates`), mean over candidates of
+        each candidate's rate: the larger of its mean over realisations at the
+        scenario's own noise and the command plan's noise-free prediction.
+    :param final_rate_max_rad_s: the same, for the candidate that ends fastest: what the
+        ``max_final_rate`` constraints bound (so a bound holds on the plan and on average
+        over the noise; single realisations spread around that mean).
     :param peak_rate_rad_s: the largest |ω| during the sequence or after it, while the
-        lag delivers the torque still in it (mean over realisations, the candidate that
-        spins fastest).
+        lag delivers the torque still in it, of the candidate that spins fastest: the
+        larger of the mean over realisations and the plan's prediction.
     :param impulse_nms: commanded angular impulse summed over thrusters (every firing
         counts, opposed or not): a propellant proxy.
     :param on_time_s: thruster on-time summed over thrusters.

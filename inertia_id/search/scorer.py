@@ -39,7 +39,7 @@ from ..classifiers.clustering import InertiaClassifier, match_clusters
 from ..classifiers.dtw import kmeans_dtw
 from ..errors import InputError
 from ..physics.scenario import Scenario
-from ..physics.simulate import SequenceNoise, SimulationState, Simulator
+from ..physics.simulate import SequenceNoise, SimulationState, Simulator, nominal_simulator
 from .objectives import error_bound, score_from_bound
 
 __all__ = [
@@ -161,13 +161,14 @@ class PrefixScore:
     :param error_bound: objective "separability": the Bhattacharyya bound on the Bayes
         error at the noise margin (may exceed 1); None for "f1".
     :param peak_rate_rad_s: the largest |ω| of a manoeuvre that ends with this prefix, the
-        candidate that spins fastest (mean over its series): at any sample so far, or
-        after the last command while the lag delivers the torque still in it (the
-        settled rate), as the operator's ``peak_rate`` reads it.
+        candidate that spins fastest (the larger of the mean over its series and the
+        command plan's noise-free prediction): at any sample so far, or after the last
+        command while the lag delivers the torque still in it (the settled rate), as the
+        operator's ``peak_rate`` reads it.
     :param final_rate_max_rad_s: the residual rate once the actuation lag has delivered
         the torque still in it (:func:`~inertia_id.physics.simulate.settled_rates`), of
-        the candidate that ends fastest (mean over its series): what a
-        ``max_final_rate`` constraint bounds.
+        the candidate that ends fastest (the larger of the mean over its series and the
+        plan's prediction): what a ``max_final_rate`` constraint bounds.
     """
 
     f1: float
@@ -184,6 +185,8 @@ class PrefixScore:
 @dataclass
 class _Node:
     state: SimulationState
+    #: The same prefix with every noise off: the command plan's prediction.
+    planned: SimulationState
     series: np.ndarray  # (K*n, T, 3) measured rates, rad/s
     centers: np.ndarray | None  # (K, T, 3) centroids, rad/s
     labels: np.ndarray | None
@@ -195,7 +198,8 @@ class _Node:
     @property
     def nbytes(self) -> int:
         centers = 0 if self.centers is None else self.centers.nbytes
-        return int(self.series.nbytes + centers + 2 * self.state.omega.nbytes)
+        states = self.state.omega.nbytes + self.planned.omega.nbytes
+        return int(self.series.nbytes + centers + 2 * states)
 
 
 class PrefixScorer:
@@ -227,6 +231,8 @@ class PrefixScorer:
             process_noise_scale=self.settings.process_noise_scale,
             measurement_noise_scale=self.settings.measurement_noise_scale,
         )
+        # The noise-free prediction a command plan shows: the rate bounds hold on it too.
+        self._planner, self._planner_noise = nominal_simulator(scenario, max_length)
         self.labels = np.repeat(np.arange(scenario.n_candidates), self.settings.n_realisations)
         self._thruster_impulse = (
             np.linalg.norm(scenario.torque_matrix, axis=0) * scenario.timing.step_duration_s
@@ -249,6 +255,7 @@ class PrefixScorer:
         k, n = self.simulator.shape
         root = _Node(
             state=self.simulator.start(self.noise.initial),
+            planned=self._planner.start(self._planner_noise.initial),
             series=np.empty((k * n, 0, 3)),
             centers=None,
             labels=None,
@@ -304,12 +311,24 @@ class PrefixScorer:
         )
         step_impulse = float(self.scenario.level_values[levels] @ self._thruster_impulse)
         impulse = step_impulse + (0.0 if parent.score is None else parent.score.impulse_nms)
+        planned, prediction = self._planner.advance(
+            parent.planned, levels, self._planner_noise.steps[step]
+        )
         final_rate = float(np.linalg.norm(state.omega, axis=-1).mean())
+        # Each rate as the operator's scorer reads it: the larger of the mean over the
+        # series and the plan's noise-free prediction.
         # (K, n) -> the candidate ending fastest
-        worst = float(self.simulator.settled(state).mean(axis=1).max())
+        worst = float(
+            np.maximum(
+                self.simulator.settled(state).mean(axis=1), self._planner.settled(planned)[:, 0]
+            ).max()
+        )
         # (K, n, samples) -> the candidate spinning fastest at its fastest
-        during = float(np.linalg.norm(response.omega_true, axis=-1).mean(axis=1).max())
-        during = max(during, parent.peak_during)
+        during = max(
+            float(np.linalg.norm(response.omega_true, axis=-1).mean(axis=1).max()),
+            float(np.linalg.norm(prediction.omega_true, axis=-1).max()),
+            parent.peak_during,
+        )
         peak = max(during, worst)
         if self.settings.objective == "separability":
             bound = error_bound(
@@ -328,7 +347,7 @@ class PrefixScorer:
                 peak_rate_rad_s=peak,
                 final_rate_max_rad_s=worst,
             )
-            return _Node(state, series, None, None, score, during)
+            return _Node(state, planned, series, None, None, score, during)
         labels, centers = self._cluster(series, parent, prefix)
         scores = match_clusters(self.labels, labels, k)
         score = PrefixScore(
@@ -340,7 +359,7 @@ class PrefixScorer:
             peak_rate_rad_s=peak,
             final_rate_max_rad_s=worst,
         )
-        return _Node(state, series, centers, labels, score, during)
+        return _Node(state, planned, series, centers, labels, score, during)
 
     def _cluster(
         self, series: np.ndarray, parent: _Node, prefix: Prefix

@@ -10,6 +10,7 @@ import pytest
 
 from inertia_id import Scenario
 from inertia_id.search import PrefixScorer, ScorerSettings, evaluate_sequence
+from inertia_id.search.operator import nominal_rates
 from inertia_id.search.records import fresh_seed
 from inertia_id.search.reference import plain_prefix_score
 
@@ -119,6 +120,43 @@ def test_the_peak_rate_reads_as_the_operators_worst_candidate_settling_included(
         prefix.simulator.population_rates(np.array([sequence]), prefix.noise)[0], axis=-1
     )  # (K, n, T)
     assert got.peak_rate_rad_s >= rates.mean(axis=1).max() > rates.mean(axis=(0, 1)).max()
+
+
+@pytest.mark.parametrize(
+    "sequence",
+    [
+        [[4, 4, 4, 0, 0, 0]] * 4,
+        # The reviewer's front member: marked within a 0.0505 rad/s peak bound while
+        # its plan peaked at 0.0507 rad/s.
+        [[4, 0, 4, 0, 0, 0], [0, 4, 0, 0, 0, 0], [0] * 6, [0, 0, 0, 4, 4, 4]],
+        [[4, 4, 4, 0, 0, 0]] * 2 + [[0, 0, 0, 4, 4, 4]] * 2,
+    ],
+)
+def test_a_rate_bound_holds_on_the_command_plan_the_team_uploads(
+    paper: Scenario, sequence: list[list[int]]
+) -> None:
+    """The peak and residual rates a constraint bounds are never below the command plan's
+    noise-free prediction: averaged over realisations alone, the duty jitter clipped at
+    full duty (1 - σ/√(2π) of a full firing delivered on average) put them about 0.8 %
+    below it. The attitude change is the plan's."""
+    from inertia_id.search import OperatorScorer, OperatorSettings
+    from inertia_id.search.plan import command_plan
+
+    plan = command_plan(paper, sequence)
+    predicted = np.linalg.norm(nominal_rates(paper, sequence), axis=-1)  # (K, T)
+    planned_peak = max(float(predicted.max()), max(plan.residual_rate_rad_s))
+    length = len(sequence)
+    operator = OperatorScorer(paper, length, OperatorSettings(n_realisations=6), seed=3)
+    scores = operator.score(np.array([sequence]))[0]
+    prefix = PrefixScorer(paper, length, ScorerSettings(n_realisations=6), seed=3).score(sequence)
+    for got in (scores, prefix):
+        assert got.peak_rate_rad_s >= planned_peak
+        assert got.final_rate_max_rad_s >= max(plan.residual_rate_rad_s)
+    assert prefix.peak_rate_rad_s == pytest.approx(scores.peak_rate_rad_s, rel=1e-12)
+    assert scores.attitude_change_deg == pytest.approx(max(plan.attitude_change_deg), rel=1e-12)
+    # Teeth: the mean over the realisations alone is below the plan's peak.
+    own = operator.simulator.population_rates(np.array([sequence]), operator.noise)[0]
+    assert np.linalg.norm(own, axis=-1).mean(axis=1).max() < float(predicted.max())
 
 
 # Metrics.
