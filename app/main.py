@@ -13,7 +13,7 @@ from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from typing import Any
 
-from fastapi import FastAPI
+from fastapi import Depends, FastAPI
 from fastapi.openapi.utils import get_openapi
 
 import inertia_id
@@ -22,6 +22,7 @@ from service.queue import make_celery
 from service.store.session import Database, upgrade
 
 from .api import ROUTERS
+from .api.deps import one_value_each
 from .api.errors import install_error_handlers
 from .api.identify import ClassifierCache, openapi_components
 from .capacity import ComputeGate
@@ -110,6 +111,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         # /docs is served from the installed Swagger UI package (app.dashboard), not a CDN.
         docs_url=None,
         redoc_url=None,
+        dependencies=[Depends(one_value_each)],
     )
     app.state.settings = settings
     app.state.db = database

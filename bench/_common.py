@@ -7,6 +7,7 @@ The scripts are run as ``python bench/<name>.py``, which puts this folder on
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import platform
@@ -15,7 +16,7 @@ import statistics
 import sys
 import time
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from typing import Any, TypeVar
 
 import numpy as np
@@ -296,3 +297,21 @@ def torque_only(omega, torque, inertia, inertia_inv):
     """Euler's equations without the gyroscopic term ω × Iω: patched over
     ``inertia_id.physics.dynamics.euler_rates`` for the linear-response ablations."""
     return torque @ inertia_inv
+
+
+@contextlib.contextmanager
+def without_gyroscopic_term() -> Iterator[None]:
+    """Simulate without ω × Iω (the linear response) inside the block.
+
+    The simulator's compiled RK4 (``RigidBodies.run``) has its own arithmetic, so the
+    block runs the numpy step loop (``RigidBodies.run_reference``) with ``euler_rates``
+    replaced by :func:`torque_only`; patching ``euler_rates`` alone changes nothing."""
+    from unittest import mock
+
+    from inertia_id.physics import dynamics
+
+    with (
+        mock.patch.object(dynamics, "euler_rates", torque_only),
+        mock.patch.object(dynamics.RigidBodies, "run", dynamics.RigidBodies.run_reference),
+    ):
+        yield

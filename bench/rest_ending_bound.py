@@ -39,14 +39,12 @@ from __future__ import annotations
 
 import itertools
 import time
-from unittest import mock
 
 import numpy as np
-from _common import base_parser, begin, torque_only, write_json
+from _common import base_parser, begin, without_gyroscopic_term, write_json
 from scipy.special import ndtr
 
 from inertia_id import preset
-from inertia_id.physics import dynamics
 from inertia_id.search.noise_model import LinearNoiseModel
 
 HAND = np.array([[4, 4, 4, 0, 0, 0]] * 4)
@@ -136,7 +134,7 @@ def main() -> None:
     step_impulse = float(np.abs(scenario.torque_matrix).max()) * scenario.timing.step_duration_s
     max_cost = int(np.floor(args.max_impulse / step_impulse * QUARTERS + 1e-9))
     started = time.perf_counter()
-    with mock.patch.object(dynamics, "euler_rates", torque_only):
+    with without_gyroscopic_term():
         model = LinearNoiseModel(scenario, args.length)
         hand_model = LinearNoiseModel(scenario, len(HAND))
         best, argbest, n_profiles = per_axis_maxima(model, args.length, max_cost)

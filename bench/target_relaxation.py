@@ -27,12 +27,17 @@ sequence at 6x process and at 6x gyro noise:
 from __future__ import annotations
 
 import time
-from unittest import mock
 
 import numpy as np
-from _common import GOOD_SEQUENCE, base_parser, begin, float_list, torque_only, write_json
+from _common import (
+    GOOD_SEQUENCE,
+    base_parser,
+    begin,
+    float_list,
+    without_gyroscopic_term,
+    write_json,
+)
 
-import inertia_id.physics.dynamics as dynamics
 from inertia_id import preset, run_sweep, simulate, train_classifier
 from inertia_id.search import OperatorSettings, pareto_search
 from inertia_id.search.noise_model import LinearNoiseModel
@@ -167,9 +172,11 @@ def main() -> None:
         pair = {"hand-designed": hand, "first row": first}
         for label, sequence in pair.items():
             coupling[label] = {"as simulated": predicted(scenario, sequence).tolist()}
-        with mock.patch.object(dynamics, "euler_rates", torque_only):
+        with without_gyroscopic_term():
             for label, sequence in pair.items():
                 coupling[label]["without"] = predicted(scenario, sequence).tolist()
+        if all(f["without"] == f["as simulated"] for f in coupling.values()):
+            raise SystemExit("the ablation of ω × Iω changed no prediction: it did not apply")
         for label, figures in coupling.items():
             a, b = figures["as simulated"], figures["without"]
             print(

@@ -123,10 +123,12 @@ def _search_summary(result: Mapping[str, Any]) -> Table:
         (_best_label(result.get("method"), objective), best.get("f1")),
         (
             # NSGA-II's is the operator scorer's settled residual rate; the others' is |ω|
-            # at the last step's end, as the fresh figure below is for every method.
+            # when the last command ends (the plan's end_rate), as the fresh figure below
+            # is for every method: named so, not "final" (the settled rate the job
+            # summary's residual_rate gives).
             "best_residual_rate_rad_s_search_draw"
             if result.get("method") == "nsga2"
-            else "best_final_rate_rad_s_search_draw",
+            else "best_end_rate_rad_s_search_draw",
             best.get("final_rate_rad_s"),
         ),
         ("fuel_nms", best.get("fuel_nms")),
@@ -134,7 +136,7 @@ def _search_summary(result: Mapping[str, Any]) -> Table:
         ("fresh_f1_mean", fresh.get("f1_mean")),
         ("fresh_f1_min", fresh.get("f1_min")),
         ("fresh_draws", len(fresh.get("f1") or [])),
-        ("fresh_final_rate_rad_s_mean", _mean(fresh.get("final_rate_rad_s"))),
+        ("fresh_end_rate_rad_s_mean", _mean(fresh.get("final_rate_rad_s"))),
         ("timesteps", result.get("timesteps")),
         ("episodes", result.get("episodes")),
         ("wall_time_s", result.get("wall_time_s")),
@@ -195,7 +197,7 @@ def _search_baselines(result: Mapping[str, Any]) -> Table:
         "sequence",
         "fresh_f1_mean",
         "fresh_f1_min",
-        "fresh_final_rate_rad_s_mean",
+        "fresh_end_rate_rad_s_mean",
         "fuel_nms",
         "levels",
         "unavailable",

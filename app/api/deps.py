@@ -211,6 +211,27 @@ def unprocessable(loc: tuple[str | int, ...], message: str) -> NoReturn:
     raise RequestValidationError([{"loc": loc, "msg": message, "type": "value_error"}])
 
 
+#: Query parameters a request may repeat (list-valued: every value counts).
+REPEATABLE_QUERY = frozenset({"tag"})
+
+
+def one_value_each(request: Request) -> None:
+    """Refuse a query parameter given more than once, unless it is a list.
+
+    FastAPI (Starlette) keeps the last of repeated values, so
+    ``?sequence=A&sequence=B`` would plan B alone and ``?format=csv&format=json`` answer
+    JSON: a request must mean one thing. Applied to every route (``app.main``)."""
+    for name in request.query_params:
+        if name in REPEATABLE_QUERY:
+            continue
+        given = request.query_params.getlist(name)
+        if len(given) > 1:
+            shown = [value[:40] for value in given[:5]]
+            unprocessable(
+                ("query", name), f"{name} is given {len(given)} times ({shown}); give one"
+            )
+
+
 def not_found(what: str, row_id: str) -> HTTPException:
     """The 404 for a ``what`` (job, classifier, ...) that no row ``row_id`` is."""
     return HTTPException(status.HTTP_404_NOT_FOUND, detail=f"{what} {row_id[:80]!r} not found")

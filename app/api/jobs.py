@@ -606,12 +606,6 @@ async def job_plan(
     with database.session() as session:
         job = get_or_404(session, JobRow, job_id, "job")
         kind, state, result, scenario_id = job.type, job.status, job.result, job.scenario_id
-    for name in ("member", "format"):
-        given = request.query_params.getlist(name)
-        if len(given) > 1:
-            unprocessable(
-                ("query", name), f"{name} is given {len(given)} times ({given}); give one"
-            )
     if kind != "search":
         unprocessable(("path", "job_id"), f"job {job_id!r} is a {kind} job: no plan")
     best = ((result or {}).get("best") or {}).get("sequence")

@@ -103,6 +103,36 @@ class RigidBodies:
         new_torque = torque + dt / 6.0 * (j1 + 2.0 * (j2 + j3) + j4)
         return new_omega, new_torque
 
+    def run_reference(
+        self,
+        omega: np.ndarray,
+        torque: np.ndarray,
+        commanded: np.ndarray,
+        disturbance: np.ndarray,
+        *,
+        substeps: int,
+        per_interval: int,
+        per_sample: int,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`run` as :meth:`step` looped in numpy: the reference the compiled kernel
+        is tested against, and the one to call where :func:`euler_rates` is replaced
+        (an ablation of the gyroscopic term: the kernel has its own arithmetic)."""
+        shape = np.shape(omega)
+        omegas, torques = [], []
+        for sub in range(substeps):
+            omega, torque = self.step(
+                omega, torque, commanded, disturbance[..., sub // per_interval, :]
+            )
+            if (sub + 1) % per_sample == 0:
+                omegas.append(omega)
+                torques.append(np.broadcast_to(torque, shape))
+        return (
+            omega,
+            np.broadcast_to(torque, shape),
+            np.stack(omegas, axis=-2),
+            np.stack(torques, axis=-2),
+        )
+
     def run(
         self,
         omega: np.ndarray,

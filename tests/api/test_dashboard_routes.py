@@ -110,6 +110,31 @@ def test_a_bad_response_request_names_the_value(
     assert quoted in response.json()["detail"][0]["msg"]
 
 
+@pytest.mark.parametrize(
+    ("path", "query", "name"),
+    [
+        ("plan", "sequence=[[4,4,4,0,0,0]]&sequence=[[0,0,0,4,4,4]]", "sequence"),
+        ("plan", "sequence=[[4,4,4,0,0,0]]&format=csv&format=json", "format"),
+        ("response", "sequence=[[4,4,4,0,0,0]]&sequence=[[0,0,0,4,4,4]]", "sequence"),
+        ("response", "sequence=[[4,4,4,0,0,0]]&seed=1&seed=2", "seed"),
+    ],
+)
+def test_a_parameter_given_twice_is_422_not_the_last_one(
+    api: Api, path: str, query: str, name: str
+) -> None:
+    """Starlette keeps the last of repeated values: a plan of a sequence the operator did
+    not mean to send. Every route refuses a repeated parameter that is not a list."""
+    scenario_id = api.post("/scenarios", json={"preset": "paper"}).json()["id"]
+    response = api.get_with_key(f"/scenarios/{scenario_id}/{path}?{query}")
+    assert response.status_code == 422, response.text
+    detail = response.json()["detail"][0]
+    assert detail["loc"] == ["query", name]
+    assert f"{name} is given 2 times" in detail["msg"]
+    # A list parameter repeats: jobs carrying both tags.
+    assert api.get("/jobs?tag=a&tag=b").status_code == 200
+    assert api.get("/jobs?limit=1&limit=2").status_code == 422
+
+
 def test_a_plan_too_long_says_how_many_steps_it_may_have(api: Api) -> None:
     scenario_id = api.post("/scenarios", json={"preset": "paper"}).json()["id"]
     response = api.get_with_key(

@@ -291,6 +291,10 @@ def test_a_search_result_downloads_as_json_and_as_each_csv_table(api: Api) -> No
     # The separability search's score is labelled as such, not as an F1.
     assert summary["best_separability_search_draw"] == "1.0"
     assert summary["fresh_f1_mean"] == "0.9"
+    # |ω| when the last command ends, named so: not the settled residual rate.
+    assert float(summary["fresh_end_rate_rad_s_mean"]) == pytest.approx(0.15)
+    assert summary["best_end_rate_rad_s_search_draw"] == "0.12"
+    assert not any("final_rate" in key for key in summary)
     baselines = _csv(api.get(f"/jobs/{job_id}/result?format=csv&table=baselines").text)
     assert [r[0] for r in baselines[1:]] == [
         "found by the search",

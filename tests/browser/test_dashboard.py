@@ -13,6 +13,7 @@ and classifiers; cancel a job after confirming; the API docs offline; every page
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -859,6 +860,8 @@ FRONT_FIGURES = (
     "accuracy",
     "final_rate_deg_s",
     "final_rate_rad_s",
+    "final_rate_max_deg_s",
+    "final_rate_max_rad_s",
     "peak_rate_deg_s",
     "impulse_nms",
     "on_time_s",
@@ -919,6 +922,8 @@ def test_a_pareto_front_is_drawn_beside_the_baselines_and_a_member_plans_and_tra
             "n_realisations": 10,
             "nsga2": {"population": 16, "generations": 4},
             "fresh_realisations": 10,
+            # The hand-designed baseline ends at 11 deg/s: it breaks this bound.
+            "constraints": {"max_final_rate_deg_s": 8.0},
         },
         "small NSGA-II",
     )
@@ -959,9 +964,12 @@ def test_a_pareto_front_is_drawn_beside_the_baselines_and_a_member_plans_and_tra
             assert float(row[key]) == member["scores"][key], (key, row, member)
     baselines = _cells(dashboard, "#front-baselines")
     assert len(baselines) == len(available)
+    assert available["hand-designed"]["feasible"] is False
     for row, base in zip(baselines, available.values(), strict=True):
         assert float(row["accuracy"]) == base["scores"]["accuracy"]
         assert float(row["final_rate_rad_s"]) == base["scores"]["final_rate_rad_s"]
+        # A baseline that breaks a constraint says so (the CSV's feasible column).
+        assert (row["feasible"] == "breaks a constraint") == (base["feasible"] is False)
     assert (page.query_selector("#front-dominated") is not None) == front["dominated_by_baseline"]
     # Member 0 again on series that did not rank it first, with its intervals.
     confirmation = front["confirmation"]
@@ -1045,6 +1053,57 @@ def test_a_pareto_front_is_drawn_beside_the_baselines_and_a_member_plans_and_tra
     service.until(lambda: service.job(train_id)["status"] in TERMINAL, 120, "the training ends")
 
 
+def test_a_cancelled_searchs_front_plans_and_trains_on_the_sequence_itself(
+    dashboard: Dashboard,
+) -> None:
+    """The API plans a cancelled search's partial front; the page offers the plan too,
+    and trains on the member's sequence itself (the service trains on a member by
+    reference only for a search that succeeded). The job is served as cancelled by
+    rewriting its status on the way to the page."""
+    _needs("nsga2")
+    page = dashboard.page
+    job_id = made["nsga2"]
+    members = dashboard.service.job(job_id)["result"]["front"]["members"]
+    own = re.compile(rf"/jobs/{job_id}(\?.*)?$")
+
+    def as_cancelled(route: Any) -> None:
+        answer = route.fetch()
+        body = answer.json()
+        body["status"] = "cancelled"
+        route.fulfill(response=answer, json=body)
+
+    posted: list[Any] = []
+
+    def capture(route: Any) -> None:
+        if route.request.method != "POST":
+            route.continue_()
+            return
+        posted.append(route.request.post_data_json)
+        route.fulfill(status=503, json={"detail": "captured by the test"})
+
+    # The captured submission is answered 503: the page reports it, as the test expects.
+    dashboard.console.expect(r"status of 503")
+    page.route(own, as_cancelled)
+    page.route(re.compile(r"/jobs(\?.*)?$"), capture)
+    try:
+        dashboard.open(f"#/jobs/{job_id}")
+        page.wait_for_selector("#front-plan-table", timeout=60_000)
+        assert "was cancelled" in page.inner_text("#front-member")
+        plan = dashboard.service.client.get(
+            f"/jobs/{job_id}/plan", params={"member": members[0]["index"]}
+        ).json()
+        shown = _cells(dashboard, "#front-plan-table")
+        assert [float(r["residual_rate_rad_s"]) for r in shown] == [
+            c["residual_rate_rad_s"] for c in plan["candidates"]
+        ]
+        page.click("#front-train")
+        page.wait_for_selector("#front-train-notice .message.error")
+        assert posted and posted[0]["params"] == {"sequence": members[0]["sequence"]}
+    finally:
+        page.unroute(own)
+        page.unroute(re.compile(r"/jobs(\?.*)?$"))
+
+
 def test_an_nsga2_search_draws_its_generations_not_an_empty_reward(dashboard: Dashboard) -> None:
     _needs("nsga2")
     page = dashboard.page
@@ -1061,6 +1120,13 @@ def test_an_nsga2_search_draws_its_generations_not_an_empty_reward(dashboard: Da
     assert _trace_points(dashboard, "f1-plot") == generations
     drawn = page.evaluate("() => document.getElementById('reward-plot').data[0].y")
     assert drawn == [p["best_final_rate_rad_s"] for p in job["result"]["curve"]]
+    # The axis shows the rates at their height, also when they never change (Plotly's
+    # own range for a flat series is v - 1 .. v + 1, where 0.0015 rad/s reads as 0).
+    low, high = page.evaluate(
+        "() => document.getElementById('reward-plot')._fullLayout.yaxis.range"
+    )
+    assert low <= min(drawn) and max(drawn) <= high
+    assert high - low <= 4 * max(abs(v) for v in drawn) + (max(drawn) - min(drawn))
     accuracy = page.evaluate("() => document.getElementById('f1-plot').layout.yaxis.title.text")
     assert "predicted accuracy" in accuracy
 

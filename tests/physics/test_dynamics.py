@@ -211,15 +211,16 @@ def test_the_compiled_run_is_the_step_loop(tau: float, population: bool) -> None
     commanded = rng.standard_normal(shape)
     substeps, per_interval, per_sample = 20, 5, 4
     disturbance = 0.1 * rng.standard_normal((2, 3, substeps // per_interval, 3))
-    omega, torque = omega0, torque0
-    omegas, torques = [], []
-    for sub in range(substeps):
-        omega, torque = bodies.step(
-            omega, torque, commanded, disturbance[:, :, sub // per_interval]
-        )
-        if (sub + 1) % per_sample == 0:
-            omegas.append(omega)
-            torques.append(torque)
+    # The reference: step looped in numpy.
+    omega, torque, looped, looped_torque = bodies.run_reference(
+        omega0,
+        torque0,
+        commanded,
+        disturbance,
+        substeps=substeps,
+        per_interval=per_interval,
+        per_sample=per_sample,
+    )
     end, applied, sampled, sampled_torque = bodies.run(
         omega0,
         torque0,
@@ -231,13 +232,15 @@ def test_the_compiled_run_is_the_step_loop(tau: float, population: bool) -> None
     )
     assert np.allclose(end, omega, rtol=1e-12, atol=1e-15)
     assert np.allclose(applied, np.broadcast_to(torque, shape), rtol=1e-12, atol=1e-15)
-    assert np.allclose(sampled, np.stack(omegas, axis=-2), rtol=1e-12, atol=1e-15)
-    assert np.allclose(
-        sampled_torque,
-        np.broadcast_to(np.stack(torques, axis=-2), sampled.shape),
-        rtol=1e-12,
-        atol=1e-15,
-    )
+    assert np.allclose(sampled, looped, rtol=1e-12, atol=1e-15)
+    assert np.allclose(sampled_torque, looped_torque, rtol=1e-12, atol=1e-15)
+    # The loop is the step: its first sample is per_sample steps of it.
+    first, first_torque = omega0, torque0
+    for sub in range(per_sample):
+        first, first_torque = bodies.step(
+            first, first_torque, commanded, disturbance[:, :, sub // per_interval]
+        )
+    assert np.array_equal(looped[..., 0, :], first)
     assert np.abs(end - omega0).max() > 0.01  # it moved: the comparison can fail
     # The inputs are left as they were.
     assert np.array_equal(omega0, 0.3 * np.random.default_rng(5).standard_normal(shape))

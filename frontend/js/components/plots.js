@@ -72,6 +72,23 @@ export function extendWith(plot, fresh, keys) {
   return indices.length;
 }
 
+// Plotly autoscales a series that never changes to v - 1 .. v + 1, where a residual rate
+// of 0.0015 rad/s reads as 0: such a series gets the axis 0 .. 2v instead, and the axis
+// autoscales again once the series varies.
+export function fitFlatSeries(plot) {
+  const values = (plot.data || []).flatMap((trace) => Array.from(trace.y || [])).filter((v) => typeof v === "number" && Number.isFinite(v));
+  if (!values.length) return;
+  const low = Math.min(...values);
+  const high = Math.max(...values);
+  if (high === low && high !== 0) {
+    plot.dataset.flat = "1";
+    Plotly.relayout(plot, { "yaxis.range": high > 0 ? [0, 2 * high] : [2 * high, 0] });
+  } else if (plot.dataset.flat) {
+    delete plot.dataset.flat;
+    Plotly.relayout(plot, { "yaxis.autorange": true });
+  }
+}
+
 const AXES = ["x", "y", "z"];
 
 // What a response view subtracts at each sample and axis: nothing ("absolute"), or the

@@ -5,7 +5,7 @@
 import { MetricFollower, api } from "../api.js";
 import { downloads, jobDownloads } from "../components/downloads.js";
 import { REUSED_KEY, cancelButton, labelEditor, reusedNotice, timingCell } from "../components/jobs.js";
-import { BAND, PLOT_CONFIG, extendWith, layout, plotDiv, responseView, sequencePlot, title } from "../components/plots.js";
+import { BAND, PLOT_CONFIG, extendWith, fitFlatSeries, layout, plotDiv, responseView, sequencePlot, title } from "../components/plots.js";
 import { isTerminal } from "../vocabulary.js";
 import { clear, fmt, h, link, messageBox, progressBar, put, score, sequenceText, statusBadge, table, tagChips, whenText } from "../ui.js";
 import { renderClassifier } from "../views/classifier.js";
@@ -149,7 +149,7 @@ async function searchView(body, job, context) {
   const update = async (current) => {
     const fresh = await follower.poll();
     if (!context.alive()) return;
-    extendWith(rewardPlot, fresh, [pareto ? "best_final_rate_rad_s" : "mean_episode_reward"]);
+    if (extendWith(rewardPlot, fresh, [pareto ? "best_final_rate_rad_s" : "mean_episode_reward"])) fitFlatSeries(rewardPlot);
     extendWith(f1Plot, fresh, ["best_f1", "mean_f1"]);
     if (fresh.best_f1) points += fresh.best_f1.steps.length;
     pointCount.textContent = `${points} point${points === 1 ? "" : "s"}${isTerminal(current.status) ? "" : " · updating live"}`;

@@ -34,6 +34,9 @@ function figures(hasPropellant) {
     ["accuracy", "accuracy", 3],
     ["final_rate_deg_s", "residual rate (deg/s)", 3],
     ["final_rate_rad_s", "residual rate (rad/s)", 5],
+    // What a residual-rate bound acts on: the candidate that ends fastest.
+    ["final_rate_max_deg_s", "worst candidate's residual (deg/s)", 3],
+    ["final_rate_max_rad_s", "worst candidate's residual (rad/s)", 5],
     ["peak_rate_deg_s", "peak rate (deg/s)", 2],
     ["impulse_nms", "impulse (N m s)", 2],
     ["on_time_s", "on-time (s)", 2],
@@ -237,6 +240,8 @@ function baselineTable(front) {
       h("td", {}, name),
       columns.map(([key, , digits]) => num(key, base.scores[key], digits)),
       h("td", { "data-key": "dominates" }, (base.dominates || []).length ? h("strong", { class: "dominated" }, `members ${base.dominates.join(", ")}`) : "–"),
+      // A baseline that breaks a constraint is shown for comparison only (it dominates nothing).
+      h("td", { "data-key": "feasible" }, base.feasible === false ? h("strong", { class: "dominated" }, "breaks a constraint") : base.feasible ? "yes" : "–"),
       h("td", { class: "mono" }, sequenceText(base.sequence)),
     ),
   );
@@ -246,7 +251,7 @@ function baselineTable(front) {
     h(
       "table",
       { id: "front-baselines" },
-      h("thead", {}, h("tr", {}, h("th", {}, "baseline"), columns.map(([, label]) => h("th", { class: "num" }, label)), h("th", {}, "dominates"), h("th", {}, "levels"))),
+      h("thead", {}, h("tr", {}, h("th", {}, "baseline"), columns.map(([, label]) => h("th", { class: "num" }, label)), h("th", {}, "dominates"), h("th", {}, "within the constraints"), h("th", {}, "levels"))),
       h("tbody", {}, rows),
     ),
   );
@@ -260,12 +265,13 @@ async function planBlob(job, index, format) {
 // candidate: residual rate and attitude change) and the plan's downloads.
 async function showMember(holder, job, member, context) {
   clear(holder);
-  if (job.status !== "succeeded") {
-    // The service plans and trains on a finished search only.
+  const cancelled = job.status === "cancelled";
+  if (job.status !== "succeeded" && !cancelled) {
+    // The service plans a finished search's members, or a cancelled one's partial front.
     holder.append(
       h("h3", {}, `Member ${member.index}`),
       h("p", {}, "Sequence (level indices): ", h("span", { class: "mono", id: "front-member-sequence" }, sequenceText(member.sequence))),
-      messageBox("notice", `This search is ${job.status}: its command plans and training on a member are offered once a search succeeds.`),
+      messageBox("notice", `This search is ${job.status}: its command plans and training on a member are offered once a search succeeds (or is cancelled with a partial front).`),
     );
     return;
   }
@@ -278,12 +284,10 @@ async function showMember(holder, job, member, context) {
       onclick: async () => {
         train.disabled = true;
         clear(notice);
-        const body = {
-          type: "train",
-          scenario_id: job.scenario_id,
-          seed: job.seed,
-          params: { sequence: member.sequence, search_job_id: job.id, front_member: member.index },
-        };
+        // A cancelled search's member is trained as the sequence itself: the service
+        // trains on a member by reference only for a search that succeeded.
+        const params = cancelled ? { sequence: member.sequence } : { sequence: member.sequence, search_job_id: job.id, front_member: member.index };
+        const body = { type: "train", scenario_id: job.scenario_id, seed: job.seed, params };
         try {
           await submitAndOpen(body);
         } catch (exc) {
@@ -300,6 +304,7 @@ async function showMember(holder, job, member, context) {
   holder.append(
     h("h3", {}, `Member ${member.index}`),
     h("p", {}, "Sequence (level indices): ", h("span", { class: "mono", id: "front-member-sequence" }, sequenceText(member.sequence))),
+    cancelled ? messageBox("notice", "This search was cancelled: the member is from the partial front it had measured, and its plan says so.") : null,
     h("div", { class: "toolbar" }, train),
     notice,
     downloads(
