@@ -44,6 +44,7 @@ class CommandPlan:
     rates_rad_s: list[list[list[float]]]  # (K, L, 3) at the end of each step
     residual_rate_rad_s: list[float]  # (K,) once the lag has delivered its torque
     end_rate_rad_s: list[float]  # (K,) |ω| when the last command ends
+    peak_rate_rad_s: list[float]  # (K,) largest |ω| at a gyro sample or once settled
     attitude_quaternion: list[list[float]]  # (K, 4) final, (w, x, y, z)
     attitude_change_deg: list[float]  # (K,)
     on_time_per_thruster_s: list[float]  # (N,)
@@ -81,6 +82,8 @@ class CommandPlan:
                     "residual_rate_deg_s": float(residual[k] * _DEG),
                     "end_rate_rad_s": self.end_rate_rad_s[k],
                     "end_rate_deg_s": self.end_rate_rad_s[k] * _DEG,
+                    "peak_rate_rad_s": self.peak_rate_rad_s[k],
+                    "peak_rate_deg_s": self.peak_rate_rad_s[k] * _DEG,
                     "attitude_quaternion": self.attitude_quaternion[k],
                     "attitude_change_deg": self.attitude_change_deg[k],
                 }
@@ -88,11 +91,15 @@ class CommandPlan:
             ],
             "residual_rate_max_rad_s": float(residual.max()),
             "residual_rate_max_deg_s": float(residual.max() * _DEG),
+            "peak_rate_max_rad_s": float(max(self.peak_rate_rad_s)),
+            "peak_rate_max_deg_s": float(max(self.peak_rate_rad_s) * _DEG),
             "attitude_quaternion_convention": "(w, x, y, z), scalar first: rotates "
             "body-frame vectors into the frame the body had at the sequence's start",
             "residual_rate_note": "|ω| once the actuation lag has delivered the torque "
             "still in it when the last command ends (what the spacecraft keeps); "
-            "end_rate is |ω| at that moment",
+            "end_rate is |ω| at that moment; peak_rate is the largest |ω| at the gyro's "
+            "samples or once settled (between samples it can be a few tenths of a percent "
+            "higher)",
             "propellant": {
                 "on_time_per_thruster_s": self.on_time_per_thruster_s,
                 "on_time_s": float(np.sum(self.on_time_per_thruster_s)),
@@ -121,6 +128,8 @@ class CommandPlan:
                 f"{candidate['residual_rate_rad_s']:.6g}"
                 f", residual_rate_deg_s {candidate['residual_rate_deg_s']:.6g}"
                 f", end_rate_rad_s {candidate['end_rate_rad_s']:.6g}"
+                f", peak_rate_rad_s {candidate['peak_rate_rad_s']:.6g}"
+                f", peak_rate_deg_s {candidate['peak_rate_deg_s']:.6g}"
                 f", attitude_change_deg {candidate['attitude_change_deg']:.6g}\n"
             )
         n = len(self.sequence[0])
@@ -157,6 +166,11 @@ def command_plan(scenario: Scenario, sequence: Any) -> CommandPlan:
     per_step = scenario.timing.samples_per_step
     quaternions = propagate_attitude(rates, 1.0 / scenario.timing.sample_rate_hz)[:, -1]
     end = rates[:, per_step - 1 :: per_step]  # (K, L, 3)
+    residual = run.settled_rate_rad_s(scenario)[:, 0]
+    # As the operator's scorer reads it: at every sample, or once the lag has delivered
+    # the torque still in it (|ω| moves on a line to the settled rate, convex: see
+    # OperatorScorer).
+    peak = np.maximum(np.linalg.norm(rates, axis=-1).max(axis=1), residual)
     return CommandPlan(
         scenario_name=scenario.name,
         sequence=rows.tolist(),
@@ -166,8 +180,9 @@ def command_plan(scenario: Scenario, sequence: Any) -> CommandPlan:
         torque_nm=(duty @ scenario.torque_matrix.T).tolist(),
         candidate_names=scenario.candidate_names,
         rates_rad_s=end.tolist(),
-        residual_rate_rad_s=run.settled_rate_rad_s(scenario)[:, 0].tolist(),
+        residual_rate_rad_s=residual.tolist(),
         end_rate_rad_s=np.linalg.norm(rates[:, -1], axis=-1).tolist(),
+        peak_rate_rad_s=peak.tolist(),
         attitude_quaternion=quaternions.tolist(),
         attitude_change_deg=rotation_angle_deg(quaternions).tolist(),
         on_time_per_thruster_s=scenario.on_time_s(rows).tolist(),

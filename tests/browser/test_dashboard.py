@@ -1002,6 +1002,9 @@ def test_a_pareto_front_is_drawn_beside_the_baselines_and_a_member_plans_and_tra
     assert [float(r["attitude_change_deg"]) for r in shown] == [
         c["attitude_change_deg"] for c in plan["candidates"]
     ]
+    assert [float(r["peak_rate_deg_s"]) for r in shown] == [
+        c["peak_rate_deg_s"] for c in plan["candidates"]
+    ]
     assert (
         page.evaluate(
             "() => { const d = document.getElementById('front-plot').data; "

@@ -145,12 +145,15 @@ def test_a_rate_bound_holds_on_the_command_plan_the_team_uploads(
     plan = command_plan(paper, sequence)
     predicted = np.linalg.norm(nominal_rates(paper, sequence), axis=-1)  # (K, T)
     planned_peak = max(float(predicted.max()), max(plan.residual_rate_rad_s))
+    # The plan states that peak per candidate, so the team can check a bound on it.
+    assert max(plan.peak_rate_rad_s) == pytest.approx(planned_peak, rel=1e-12)
+    assert plan.to_dict()["peak_rate_max_deg_s"] == pytest.approx(np.degrees(planned_peak))
     length = len(sequence)
     operator = OperatorScorer(paper, length, OperatorSettings(n_realisations=6), seed=3)
     scores = operator.score(np.array([sequence]))[0]
     prefix = PrefixScorer(paper, length, ScorerSettings(n_realisations=6), seed=3).score(sequence)
     for got in (scores, prefix):
-        assert got.peak_rate_rad_s >= planned_peak
+        assert got.peak_rate_rad_s >= max(plan.peak_rate_rad_s)
         assert got.final_rate_max_rad_s >= max(plan.residual_rate_rad_s)
     assert prefix.peak_rate_rad_s == pytest.approx(scores.peak_rate_rad_s, rel=1e-12)
     assert scores.attitude_change_deg == pytest.approx(max(plan.attitude_change_deg), rel=1e-12)

@@ -322,16 +322,16 @@ async function showMember(holder, job, member, context) {
     if (!context.alive() || !plan.isConnected) return;
     clear(plan);
     plan.append(
-      h("p", { class: "hint" }, `Predicted with every noise off: the residual rate once the actuation lag has delivered the torque still in it when the last command ends (the rate at that moment beside it), and the rotation the body makes over its ${document.duration_s} s (quaternion kinematics of the predicted rates). Impulse ${fmt(document.propellant.impulse_nms, 2)} N m s, on-time ${fmt(document.propellant.on_time_s, 2)} s${document.propellant.propellant_kg === null ? "" : `, propellant ${fmt(document.propellant.propellant_kg, 4)} kg`}.`),
+      h("p", { class: "hint" }, `Predicted with every noise off: the residual rate once the actuation lag has delivered the torque still in it when the last command ends (the rate at that moment beside it), the peak rate (the largest at a gyro sample or once settled), and the rotation the body makes over its ${document.duration_s} s (quaternion kinematics of the predicted rates). Impulse ${fmt(document.propellant.impulse_nms, 2)} N m s, on-time ${fmt(document.propellant.on_time_s, 2)} s${document.propellant.propellant_kg === null ? "" : `, propellant ${fmt(document.propellant.propellant_kg, 4)} kg`}.`),
       h(
         "table",
         { id: "front-plan-table" },
-        h("thead", {}, h("tr", {}, h("th", {}, "candidate"), h("th", { class: "num" }, "residual rate (deg/s)"), h("th", { class: "num" }, "residual rate (rad/s)"), h("th", { class: "num" }, "at the last command's end (deg/s)"), h("th", { class: "num" }, "attitude change (deg)"))),
+        h("thead", {}, h("tr", {}, h("th", {}, "candidate"), h("th", { class: "num" }, "residual rate (deg/s)"), h("th", { class: "num" }, "residual rate (rad/s)"), h("th", { class: "num" }, "at the last command's end (deg/s)"), h("th", { class: "num" }, "peak rate (deg/s)"), h("th", { class: "num" }, "attitude change (deg)"))),
         h(
           "tbody",
           {},
           document.candidates.map((c) =>
-            h("tr", { "data-candidate": c.name }, h("td", {}, c.name), num("residual_rate_deg_s", c.residual_rate_deg_s, 3), num("residual_rate_rad_s", c.residual_rate_rad_s, 5), num("end_rate_deg_s", c.end_rate_deg_s, 3), num("attitude_change_deg", c.attitude_change_deg, 2)),
+            h("tr", { "data-candidate": c.name }, h("td", {}, c.name), num("residual_rate_deg_s", c.residual_rate_deg_s, 3), num("residual_rate_rad_s", c.residual_rate_rad_s, 5), num("end_rate_deg_s", c.end_rate_deg_s, 3), num("peak_rate_deg_s", c.peak_rate_deg_s, 3), num("attitude_change_deg", c.attitude_change_deg, 2)),
           ),
         ),
       ),
