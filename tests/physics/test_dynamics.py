@@ -211,25 +211,11 @@ def test_the_compiled_run_is_the_step_loop(tau: float, population: bool) -> None
     commanded = rng.standard_normal(shape)
     substeps, per_interval, per_sample = 20, 5, 4
     disturbance = 0.1 * rng.standard_normal((2, 3, substeps // per_interval, 3))
+    given = (omega0, torque0, commanded, disturbance)
+    counts = {"substeps": substeps, "per_interval": per_interval, "per_sample": per_sample}
     # The reference: step looped in numpy.
-    omega, torque, looped, looped_torque = bodies.run_reference(
-        omega0,
-        torque0,
-        commanded,
-        disturbance,
-        substeps=substeps,
-        per_interval=per_interval,
-        per_sample=per_sample,
-    )
-    end, applied, sampled, sampled_torque = bodies.run(
-        omega0,
-        torque0,
-        commanded,
-        disturbance,
-        substeps=substeps,
-        per_interval=per_interval,
-        per_sample=per_sample,
-    )
+    omega, torque, looped, looped_torque = bodies.run_reference(*given, **counts)
+    end, applied, sampled, sampled_torque = bodies.run(*given, **counts)
     assert np.allclose(end, omega, rtol=1e-12, atol=1e-15)
     assert np.allclose(applied, np.broadcast_to(torque, shape), rtol=1e-12, atol=1e-15)
     assert np.allclose(sampled, looped, rtol=1e-12, atol=1e-15)
