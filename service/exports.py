@@ -212,6 +212,10 @@ _FRONT_FIGURES = (
     # What a residual-rate bound is held to: the candidate that ends fastest.
     "final_rate_max_rad_s",
     "final_rate_max_deg_s",
+    # What a per-flight bound is held to: the rate 95 % of that candidate's flights stay
+    # under (empty for a front stored before it).
+    "final_rate_p95_rad_s",
+    "final_rate_p95_deg_s",
     "peak_rate_rad_s",
     "peak_rate_deg_s",
     "impulse_nms",

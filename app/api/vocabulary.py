@@ -75,6 +75,11 @@ class ConstraintOut(BaseModel):
         description="the bound holds for the candidate with the largest figure (the "
         "objective itself is the mean over candidates)",
     )
+    flight_quantile: float | None = Field(
+        default=None,
+        description="the bound holds on this fraction of the candidate's flights (the "
+        "percentile of its realisations); null: on their mean",
+    )
 
 
 class VocabularyOut(BaseModel):
@@ -135,11 +140,17 @@ def vocabulary() -> VocabularyOut:
     from inertia_id.physics.sequences import BASELINES
     from inertia_id.pipelines import SearchRequest
     from inertia_id.search import SCORER_OBJECTIVES, SEARCH_METHOD_LABELS, SEARCH_METHODS
-    from inertia_id.search.objectives import CONSTRAINTS, OBJECTIVE_FIELDS, OPERATOR_OBJECTIVES
+    from inertia_id.search.objectives import (
+        CONSTRAINTS,
+        FLIGHT_QUANTILE,
+        OBJECTIVE_FIELDS,
+        OPERATOR_OBJECTIVES,
+    )
     from inertia_id.search.pareto import NSGA2_DEFAULTS
 
     by_field = {figure: name for name, figure in OBJECTIVE_FIELDS.items()}
-    worst = {"final_rate_max_rad_s": "final_rate"}  # figures of the worst candidate
+    # Figures of the worst candidate (its mean, or the rate 95 % of its flights stay under)
+    worst = {"final_rate_max_rad_s": "final_rate", "final_rate_p95_rad_s": "final_rate"}
     defaults = SearchRequest(method="nsga2")
 
     kinds = []
@@ -186,6 +197,7 @@ def vocabulary() -> VocabularyOut:
                 bounds=worst.get(figure) or by_field[figure],
                 sense=sense,
                 worst_candidate=figure in worst,
+                flight_quantile=FLIGHT_QUANTILE if figure == "final_rate_p95_rad_s" else None,
             )
             for name, (figure, sense, _) in CONSTRAINTS.items()
         ],

@@ -143,7 +143,9 @@ def search_options(func: F) -> F:
         _pairs(
             "--constraint",
             "A bound (repeatable): max_final_rate_deg_s, max_final_rate_rad_s (every "
-            "candidate's residual rate), max_peak_rate_deg_s, max_peak_rate_rad_s, "
+            "candidate's residual rate, mean over flights), max_final_rate_p95_deg_s, "
+            "max_final_rate_p95_rad_s (the rate 95 % of every candidate's flights stay "
+            "under), max_peak_rate_deg_s, max_peak_rate_rad_s, "
             "max_impulse_nms, max_on_time_s, max_propellant_kg, max_duration_s, "
             "min_accuracy; e.g. --constraint max_final_rate_deg_s=0.2.",
         ),
@@ -393,6 +395,11 @@ def search_cmd(
             + "/".join(f"{a:.3f}" for a in scores["accuracy_by_noise"])
             + f" | {scores['final_rate_rad_s']:.4f} rad/s ({scores['final_rate_deg_s']:.2f} deg/s)"
             + f", worst {scores['final_rate_max_rad_s']:.4f}"
+            + (
+                f" (95 % of flights < {scores['final_rate_p95_rad_s']:.4f})"
+                if scores.get("final_rate_p95_rad_s") is not None
+                else ""
+            )
             + f" | {scores['impulse_nms']:.1f} N m s{flags}",
             err=True,
         )

@@ -31,6 +31,7 @@ from .objectives import (
     check_constraints,
     check_design_noise,
     check_objectives,
+    flight_quantile,
 )
 
 __all__ = ["OperatorScorer", "OperatorSettings", "nominal_rates", "nominal_run"]
@@ -234,9 +235,12 @@ class OperatorScorer:
         # The residual rate is the one the spacecraft keeps: once the lag has delivered the
         # torque still in it when the last command ends (else braking in the last step
         # would look 0.005 rad/s worse than braking a step earlier and coasting).
+        settled = self.simulator.settled(end)  # (P, K, n): each realisation's residual
         final_by_candidate = np.maximum(  # (P, K)
-            self.simulator.settled(end).mean(axis=2), self.nominal.settled(planned_end)[:, :, 0]
+            settled.mean(axis=2), self.nominal.settled(planned_end)[:, :, 0]
         )
+        # Single flights spread around that mean: the rate 95 % of them stay under.
+        p95_by_candidate = np.maximum(flight_quantile(settled, axis=2), final_by_candidate)
         # The largest rate of the manoeuvre: during the commands, or after the last one,
         # while the lag delivers the torque still in it. Without ω × Iω the rate then
         # moves on a straight line from where the commands leave it to the settled rate,
@@ -260,6 +264,7 @@ class OperatorScorer:
                     accuracy_by_noise=[float(v) for v in accuracy[i]],
                     final_rate_rad_s=float(final_by_candidate[i].mean()),
                     final_rate_max_rad_s=float(final_by_candidate[i].max()),
+                    final_rate_p95_rad_s=float(p95_by_candidate[i].max()),
                     peak_rate_rad_s=float(peak[i]),
                     impulse_nms=scenario.impulse_nms(sequence),
                     on_time_s=float(scenario.on_time_s(sequence).sum()),

@@ -40,7 +40,7 @@ from ..classifiers.dtw import kmeans_dtw
 from ..errors import InputError
 from ..physics.scenario import Scenario
 from ..physics.simulate import SequenceNoise, SimulationState, Simulator, nominal_simulator
-from .objectives import error_bound, score_from_bound
+from .objectives import error_bound, flight_quantile, score_from_bound
 
 __all__ = [
     "SCORER_METRICS",
@@ -169,6 +169,10 @@ class PrefixScore:
         the torque still in it (:func:`~inertia_id.physics.simulate.settled_rates`), of
         the candidate that ends fastest (the larger of the mean over its series and the
         plan's prediction): what a ``max_final_rate`` constraint bounds.
+    :param final_rate_p95_rad_s: the residual rate 95 % of that candidate's series stay
+        under (the larger of its 95th percentile, :func:`~inertia_id.search.objectives.
+        flight_quantile`, and ``final_rate_max_rad_s``'s figure for it), the candidate
+        whose series end fastest: what a ``max_final_rate_p95`` constraint bounds.
     """
 
     f1: float
@@ -180,6 +184,7 @@ class PrefixScore:
     error_bound: float | None = None
     peak_rate_rad_s: float = 0.0
     final_rate_max_rad_s: float = 0.0
+    final_rate_p95_rad_s: float = 0.0
 
 
 @dataclass
@@ -318,11 +323,10 @@ class PrefixScorer:
         # Each rate as the operator's scorer reads it: the larger of the mean over the
         # series and the plan's noise-free prediction.
         # (K, n) -> the candidate ending fastest
-        worst = float(
-            np.maximum(
-                self.simulator.settled(state).mean(axis=1), self._planner.settled(planned)[:, 0]
-            ).max()
-        )
+        settled = self.simulator.settled(state)  # (K, n): each series' residual
+        by_candidate = np.maximum(settled.mean(axis=1), self._planner.settled(planned)[:, 0])
+        worst = float(by_candidate.max())
+        p95 = float(np.maximum(flight_quantile(settled, axis=1), by_candidate).max())
         # (K, n, samples) -> the candidate spinning fastest at its fastest
         during = max(
             float(np.linalg.norm(response.omega_true, axis=-1).mean(axis=1).max()),
@@ -346,6 +350,7 @@ class PrefixScorer:
                 error_bound=bound,
                 peak_rate_rad_s=peak,
                 final_rate_max_rad_s=worst,
+                final_rate_p95_rad_s=p95,
             )
             return _Node(state, planned, series, None, None, score, during)
         labels, centers = self._cluster(series, parent, prefix)
@@ -358,6 +363,7 @@ class PrefixScorer:
             step_impulse_nms=step_impulse,
             peak_rate_rad_s=peak,
             final_rate_max_rad_s=worst,
+            final_rate_p95_rad_s=p95,
         )
         return _Node(state, planned, series, centers, labels, score, during)
 

@@ -862,6 +862,7 @@ FRONT_FIGURES = (
     "final_rate_rad_s",
     "final_rate_max_deg_s",
     "final_rate_max_rad_s",
+    "final_rate_p95_deg_s",
     "peak_rate_deg_s",
     "impulse_nms",
     "on_time_s",

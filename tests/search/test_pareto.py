@@ -274,6 +274,70 @@ def test_a_final_rate_bound_holds_for_every_candidate(paper: Scenario) -> None:
     assert scores.feasible({"max_final_rate_rad_s": scores.final_rate_max_rad_s * 1.0001})
 
 
+def test_a_per_flight_bound_holds_on_95_percent_of_a_large_independent_draw(
+    paper: Scenario,
+) -> None:
+    """A bound on the mean residual leaves many single flights above it (measured: 40 %
+    for a member reported at 0.0098 rad/s under 0.01). The p95 figure, estimated from the
+    scorer's 40 realisations a candidate, is checked against 4,000 flights a candidate of
+    another draw: at the figure at least about 95 % of the worst candidate's flights end
+    slower, and at the mean far fewer do."""
+    sequence = np.array([[[4, 4, 4, 0, 0, 0]] * 2 + [[0] * 6] * 4 + [[0, 0, 0, 4, 4, 4]] * 2])
+    scorer = OperatorScorer(paper, 8, OperatorSettings(n_realisations=40), seed=5)
+    scores = scorer.score(sequence)[0]
+    assert scores.final_rate_p95_rad_s > scores.final_rate_max_rad_s
+    assert scores.as_dict()["final_rate_p95_deg_s"] == pytest.approx(
+        np.degrees(scores.final_rate_p95_rad_s)
+    )
+    big = Simulator(paper, 4000)
+    _, end = big.population_run(sequence, big.draw_noise(np.random.default_rng(99), 8))
+    settled = big.settled(end)[0]  # (K, n)
+    within_p95 = (settled <= scores.final_rate_p95_rad_s).mean(axis=1)
+    within_mean = (settled <= scores.final_rate_max_rad_s).mean(axis=1)
+    # 40 draws estimate the 95th percentile to a few percent of the rate (measured: sd
+    # 0.00017 on 0.0102 rad/s), that is to a few points of the fraction of flights.
+    assert within_p95.min() >= 0.90
+    assert within_mean.min() <= 0.70
+    assert scores.feasible({"max_final_rate_p95_rad_s": scores.final_rate_p95_rad_s * 1.0001})
+    assert not scores.feasible({"max_final_rate_p95_rad_s": scores.final_rate_max_rad_s * 1.0001})
+    assert not scores.feasible(
+        {"max_final_rate_p95_deg_s": np.degrees(scores.final_rate_max_rad_s) * 1.0001}
+    )
+
+
+def test_a_per_flight_bound_is_given_once(paper: Scenario) -> None:
+    from inertia_id.search.objectives import check_constraints
+
+    both = {"max_final_rate_p95_rad_s": 0.01, "max_final_rate_p95_deg_s": 0.5}
+    with pytest.raises(InputError, match=r"max_final_rate_p95_rad_s = 0\.01 and"):
+        check_constraints(both)
+    # With the mean's bound it is two bounds, both held.
+    assert check_constraints({"max_final_rate_rad_s": 0.01, "max_final_rate_p95_rad_s": 0.012})
+
+
+def test_the_front_holds_a_per_flight_bound_on_its_fresh_draw(paper: Scenario) -> None:
+    result = pareto_search(
+        paper,
+        sequence_length=2,
+        seed=4,
+        operator=OperatorSettings(
+            objectives=("accuracy", "final_rate", "impulse"),
+            constraints={"max_final_rate_p95_deg_s": 3.0},
+            n_realisations=6,
+        ),
+        nsga2_params={"population": 12, "generations": 3},
+        fresh_realisations=10,
+    )
+    assert result.front is not None
+    members = result.front["members"]
+    assert members
+    for member in members:
+        assert member["feasible"]
+        assert member["scores"]["final_rate_p95_deg_s"] <= 3.0
+    # The hand-designed baseline of two steps ends near 5.8 deg/s: it breaks the bound.
+    assert not result.front["baselines"]["hand-designed"]["feasible"]
+
+
 def test_the_peak_rate_counts_the_torque_the_lag_delivers_after_the_last_command(
     paper: Scenario,
 ) -> None:

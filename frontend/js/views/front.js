@@ -37,6 +37,8 @@ function figures(hasPropellant) {
     // What a residual-rate bound acts on: the candidate that ends fastest.
     ["final_rate_max_deg_s", "worst candidate's residual (deg/s)", 3],
     ["final_rate_max_rad_s", "worst candidate's residual (rad/s)", 5],
+    // What a per-flight bound acts on: the rate 95 % of that candidate's flights stay under.
+    ["final_rate_p95_deg_s", "95 % of flights under (deg/s)", 3],
     ["peak_rate_deg_s", "peak rate (deg/s)", 2],
     ["impulse_nms", "impulse (N m s)", 2],
     ["on_time_s", "on-time (s)", 2],
