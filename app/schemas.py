@@ -167,6 +167,16 @@ class ScenarioCreate(_Request):
         return self
 
 
+class PlanRequest(_Request):
+    """A sequence to plan, in the body (``POST /scenarios/{id}/plan``): the same plan as
+    the GET with ``?sequence=``, for a sequence too long for a URL."""
+
+    sequence: list[list[int]] = Field(
+        min_length=1,
+        description="steps, each a level index per thruster: [[4,4,4,0,0,0], ...]",
+    )
+
+
 class CandidateOut(BaseModel):
     name: str
     inertia_kg_m2: list[list[float]]

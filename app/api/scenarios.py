@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import json
 from typing import Annotated, Any
 
@@ -22,6 +23,7 @@ from ..schemas import (
     MAX_SEED,
     CandidateOut,
     CandidateResponse,
+    PlanRequest,
     ScenarioCreate,
     ScenarioOut,
     ScenarioPage,
@@ -315,7 +317,11 @@ def _response(
 
 
 def _plan_response(
-    scenario: Scenario, steps: np.ndarray, fmt: str, source: dict[str, Any]
+    scenario: Scenario,
+    steps: np.ndarray,
+    fmt: str,
+    source: dict[str, Any],
+    where: tuple[str, ...] = ("query", "sequence"),
 ) -> Response:
     """The plan, with where it comes from (``source``: the scenario's id, and the search
     job and front member when it is one) in the JSON, in the CSV's ``#`` lines and in the
@@ -327,7 +333,7 @@ def _plan_response(
     if integration > MAX_RESPONSE_INTEGRATION_STEPS:
         per_step = round(timing.step_duration_s / timing.integration_step_s)
         unprocessable(
-            ("query", "sequence"),
+            where,
             f"{len(steps)} steps: at most {MAX_RESPONSE_INTEGRATION_STEPS // per_step} steps "
             f"on this scenario ({per_step} RK4 steps each, at most "
             f"{MAX_RESPONSE_INTEGRATION_STEPS} in all)",
@@ -362,9 +368,12 @@ def plan_for(
     *,
     parsed: bool = False,
     source: dict[str, Any] | None = None,
+    where: tuple[str, ...] = ("query", "member"),
 ) -> Response:
     """The command plan of a sequence for a stored scenario (JSON or CSV); ``source``
-    names the search job and member it comes from, beside the scenario's id."""
+    names the search job and member it comes from, beside the scenario's id. A
+    ``parsed`` sequence (a list of rows) that the scenario refuses is named at
+    ``where``."""
     with database.session() as session:
         row = get_or_404(session, ScenarioRow, scenario_id, "scenario")
         document = row.document
@@ -373,10 +382,16 @@ def plan_for(
         try:
             steps = scenario.check_sequence(sequence)
         except InputError as exc:
-            unprocessable(("query", "member"), str(exc))
+            unprocessable(where, str(exc))
     else:
         steps = _parse_sequence(sequence, scenario)
-    return _plan_response(scenario, steps, fmt, {"scenario_id": scenario_id, **(source or {})})
+    return _plan_response(
+        scenario,
+        steps,
+        fmt,
+        {"scenario_id": scenario_id, **(source or {})},
+        where if parsed else ("query", "sequence"),
+    )
 
 
 _PLAN_RESPONSES: dict[int | str, dict[str, Any]] = {
@@ -411,3 +426,30 @@ async def scenario_plan(
     summed over thrusters, propellant mass when the scenario gives thrust and Isp)."""
     gate: ComputeGate = request.app.state.compute_gate
     return await gate.run(plan_for, request.app.state.db, scenario_id, sequence, format)
+
+
+@router.post(
+    "/{scenario_id}/plan",
+    dependencies=[ApiKeyDep],
+    responses=_PLAN_RESPONSES,
+    response_class=Response,
+)
+async def scenario_plan_from_body(
+    scenario_id: str,
+    request: Request,
+    body: PlanRequest,
+    format: str = Query(default="json", pattern="^(json|csv)$", description="json or csv"),
+) -> Response:
+    """The command plan of the sequence in the body (``{"sequence": [[4,4,4,0,0,0], ...]}``):
+    the same plan as ``GET /scenarios/{id}/plan?sequence=``, for a sequence too long for
+    a URL: a long sequence (1,000 steps are 30 kB URL-encoded) passes no proxy that keeps
+    its default request-line limit (nginx: 8 kB, some 280 steps), and the query takes at
+    most 20,000 characters."""
+    gate: ComputeGate = request.app.state.compute_gate
+    return await gate.run(
+        functools.partial(plan_for, parsed=True, where=("body", "sequence")),
+        request.app.state.db,
+        scenario_id,
+        body.sequence,
+        format,
+    )

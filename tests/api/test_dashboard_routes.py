@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import json
+import urllib.parse
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -142,6 +144,70 @@ def test_a_plan_too_long_says_how_many_steps_it_may_have(api: Api) -> None:
     )
     assert response.status_code == 422, response.text
     assert "1000 steps: at most 64 steps" in response.json()["detail"][0]["msg"]
+
+
+def test_a_plan_posted_in_the_body_is_the_plan_of_the_query(api: Api) -> None:
+    scenario_id = api.post("/scenarios", json={"preset": "paper"}).json()["id"]
+    sequence = [[4, 4, 4, 0, 0, 0]] * 2 + [[0, 0, 0, 4, 4, 4]] * 2
+    for fmt in ("json", "csv"):
+        by_query = api.get_with_key(
+            f"/scenarios/{scenario_id}/plan",
+            params={"sequence": json.dumps(sequence), "format": fmt},
+        )
+        by_body = api.post(
+            f"/scenarios/{scenario_id}/plan?format={fmt}", json={"sequence": sequence}
+        )
+        assert by_body.status_code == 200, by_body.text
+        assert by_body.content == by_query.content
+        assert by_body.headers["content-disposition"] == by_query.headers["content-disposition"]
+    # It computes, so it needs the key.
+    anonymous = api.client.post(f"/scenarios/{scenario_id}/plan", json={"sequence": sequence})
+    assert anonymous.status_code == 401
+
+
+def test_a_sequence_too_long_for_a_url_is_planned_from_the_body(api: Api) -> None:
+    """1,000 steps (the most a sequence may have; a scenario on 1 s integration steps may
+    plan them) are 14 kB of compact JSON, 30 kB in a URL: past what proxies pass in a
+    request line by default (nginx: 8 kB). In the body they are planned, and the plan is
+    the query's."""
+    scenario_id = api.create_scenario(
+        timing={"integration_step_s": 1.0, "sample_rate_hz": 1.0},
+        uncertainty={"disturbance_interval_s": 1.0, "lowpass_time_constant_s": 0.0},
+    )["id"]
+    sequence = ([[4, 4, 4, 0, 0, 0]] * 2 + [[0, 0, 0, 4, 4, 4]] * 2) * 250  # 1,000 steps
+    compact = json.dumps(sequence, separators=(",", ":"))
+    assert len(urllib.parse.quote(compact)) > 30_000
+    response = api.post(f"/scenarios/{scenario_id}/plan", json={"sequence": sequence})
+    assert response.status_code == 200, response.text
+    plan = response.json()
+    assert len(plan["steps"]) == 1000
+    assert plan["propellant"]["impulse_nms"] == pytest.approx(1000 * 6.0)
+    by_query = api.get_with_key(f"/scenarios/{scenario_id}/plan", params={"sequence": compact})
+    assert response.content == by_query.content
+
+
+@pytest.mark.parametrize(
+    ("body", "loc", "quoted"),
+    [
+        ({"sequence": [[4, 4, 4, 0, 0, True]]}, ["body", "sequence", 0, 5], "valid integer"),
+        ({"sequence": [[4, 4, 4, 0, 0, 4.0]]}, ["body", "sequence", 0, 5], "valid integer"),
+        ({"sequence": []}, ["body", "sequence"], "at least 1 item"),
+        ({"sequence": [[4, 4, 4, 0, 0]]}, ["body", "sequence"], "got shape (1, 5)"),
+        ({"sequence": [[4, 4, 4, 0, 0, 9]]}, ["body", "sequence"], "level index 9"),
+        ({"sequence": [[0] * 6] * 1000}, ["body", "sequence"], "1000 steps: at most 64 steps"),
+        ({"sequence": [[0] * 6], "format": "csv"}, ["body", "format"], "Extra inputs"),
+        ({}, ["body", "sequence"], "Field required"),
+    ],
+)
+def test_a_bad_plan_body_names_the_value(
+    api: Api, body: dict[str, Any], loc: list[Any], quoted: str
+) -> None:
+    scenario_id = api.post("/scenarios", json={"preset": "paper"}).json()["id"]
+    response = api.post(f"/scenarios/{scenario_id}/plan", json=body)
+    assert response.status_code == 422, response.text
+    detail = response.json()["detail"][0]
+    assert detail["loc"] == loc
+    assert quoted in detail["msg"]
 
 
 def test_response_of_an_unknown_scenario_is_404(api: Api) -> None:
