@@ -32,7 +32,7 @@ cover the quarter-step residual the final-rate allowance permits. (The duty jitt
 variance, clipped at full duty, depends on the duty too; that is the one departure from
 a quadratic, and the enumeration covers its duties 0.75 and 1.)
 
-    python bench/rest_ending_bound.py            # 6 to 9 minutes on the 2-core machine
+    python bench/rest_ending_bound.py            # about 3 minutes on the 2-core machine
 """
 
 from __future__ import annotations

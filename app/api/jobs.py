@@ -64,6 +64,7 @@ from .deps import (
     unprocessable,
 )
 from .listing import id_filters, one_page, search_text, sort_order, tag_filters
+from .scenarios import FlightsQuery, SeedQuery, plan_for
 
 __all__ = ["router"]
 
@@ -595,12 +596,13 @@ async def job_plan(
         Query(ge=0, le=10_000, description="front member index; default the best sequence"),
     ] = None,
     format: Annotated[str, Query(pattern="^(json|csv)$", description="json or csv")] = "json",
+    flights: FlightsQuery = 0,
+    seed: SeedQuery = 0,
 ) -> Response:
     """The command plan (as ``GET /scenarios/{id}/plan``) of a search job's best sequence
     or of one member of its front, for the job's scenario. A cancelled search that kept
     a partial result plans the best sequence it had found (the plan's source says
     ``job_status: cancelled``)."""
-    from .scenarios import plan_for
 
     database = request.app.state.db
     with database.session() as session:
@@ -631,5 +633,5 @@ async def job_plan(
     source = {"job_id": job_id, "member": "best" if member is None else member}
     if state == "cancelled":
         source["job_status"] = "cancelled"  # the best it had found when it stopped
-    planned = functools.partial(plan_for, parsed=True, source=source)
+    planned = functools.partial(plan_for, parsed=True, source=source, flights=flights, seed=seed)
     return await gate.run(planned, database, scenario_id, sequence, format)

@@ -40,6 +40,18 @@ __all__ = ["plan_cmd"]
     help="With --search: the front member's index (0 = the most accurate).",
 )
 @click.option(
+    "--flights",
+    type=click.IntRange(0),
+    default=0,
+    show_default=True,
+    help="Also fly the sequence this many times a candidate at the scenario's noise and "
+    "state how the residual and peak rates spread over single flights (mean, 95th "
+    "percentile, largest); 0: the nominal prediction alone.",
+)
+@click.option(
+    "--seed", type=click.IntRange(0), default=0, show_default=True, help="Seed of --flights."
+)
+@click.option(
     "--out",
     default="plan.json",
     show_default=True,
@@ -55,6 +67,8 @@ def plan_cmd(
     sequence_text: str | None,
     search_path: str | None,
     member: int | None,
+    flights: int,
+    seed: int,
     out: str,
 ) -> None:
     """Write the command plan of a sequence: per step and thruster the on-time (PWM, s),
@@ -79,7 +93,7 @@ def plan_cmd(
     else:
         assert sequence_text is not None
         sequence = parse_sequence(sequence_text)
-    plan = command_plan(scenario, sequence)
+    plan = command_plan(scenario, sequence, flights=flights, seed=seed)
     if out == "-":
         click.echo(json.dumps(plan.to_dict(), indent=2))
         return
@@ -92,7 +106,15 @@ def plan_cmd(
         f"wrote {out}: {len(plan.sequence)} steps, impulse {plan.impulse_nms:.2f} N m s, "
         f"on-time {summary['propellant']['on_time_s']:.2f} s, largest residual rate "
         f"{summary['residual_rate_max_rad_s']:.4f} rad/s "
-        f"({summary['residual_rate_max_deg_s']:.3f} deg/s)",
+        f"({summary['residual_rate_max_deg_s']:.3f} deg/s)"
+        + (
+            f"; over {flights} flights a candidate, 95 % end under "
+            f"{summary['flights']['residual_rate_p95_max_rad_s']:.4f} rad/s "
+            f"({summary['flights']['residual_rate_p95_max_deg_s']:.3f} deg/s), the fastest at "
+            f"{summary['flights']['residual_rate_max_rad_s']:.4f}"
+            if summary["flights"]
+            else ""
+        ),
         err=True,
     )
 

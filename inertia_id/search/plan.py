@@ -10,6 +10,12 @@ the predicted rates, :mod:`inertia_id.physics.attitude`); and the propellant fig
 (on-time per thruster, the commanded impulse summed over thrusters, the propellant mass
 when the scenario gives thrust and specific impulse). As JSON (:meth:`CommandPlan.to_dict`)
 or CSV (:meth:`CommandPlan.to_csv`: one row per step, the summary as ``#`` lines first).
+
+The prediction is the nominal flight. With ``flights`` the plan also flies the sequence
+that many times a candidate at the scenario's own noise (duty jitter, disturbance torque,
+any initial rate) and states how the residual and peak rates spread over single flights
+(:class:`FlightDispersion`): the mean, the rate 95 % of flights stay under and the
+largest.
 """
 
 from __future__ import annotations
@@ -21,13 +27,65 @@ from typing import Any
 
 import numpy as np
 
+from ..checks import is_integer
+from ..errors import InputError
 from ..physics.attitude import propagate_attitude, rotation_angle_deg
 from ..physics.scenario import Scenario
+from ..physics.simulate import simulate
+from .objectives import FLIGHT_QUANTILE, QUANTILE_METHOD, flight_quantile
 from .operator import nominal_run
 
-__all__ = ["CommandPlan", "command_plan"]
+__all__ = ["CommandPlan", "FlightDispersion", "command_plan"]
+
+#: Most flights a plan may fly per candidate (memory: K x flights x samples x 3 doubles).
+MAX_FLIGHTS = 100_000
 
 _DEG = 180.0 / np.pi
+
+
+@dataclass(frozen=True)
+class FlightDispersion:
+    """How single flights spread around the nominal prediction: each candidate flown
+    ``flights`` times at the scenario's own noise, drawn from ``seed``.
+
+    Per candidate (K,): the residual rate (settled, as the plan's) over the flights, its
+    mean, the rate :data:`~inertia_id.search.objectives.FLIGHT_QUANTILE` of them stay
+    under (median-unbiased percentile) and the largest; the same percentile of each
+    flight's peak rate.
+    """
+
+    flights: int
+    seed: int
+    residual_mean_rad_s: list[float]
+    residual_p95_rad_s: list[float]
+    residual_max_rad_s: list[float]
+    peak_p95_rad_s: list[float]
+
+    def candidate(self, k: int) -> dict[str, float]:
+        figures = {
+            "residual_rate_mean_rad_s": self.residual_mean_rad_s[k],
+            "residual_rate_p95_rad_s": self.residual_p95_rad_s[k],
+            "residual_rate_max_rad_s": self.residual_max_rad_s[k],
+            "peak_rate_p95_rad_s": self.peak_p95_rad_s[k],
+        }
+        return {
+            **figures,
+            **{key.replace("_rad_s", "_deg_s"): v * _DEG for key, v in figures.items()},
+        }
+
+    def summary(self) -> dict[str, Any]:
+        return {
+            "flights_per_candidate": self.flights,
+            "seed": self.seed,
+            "percentile": FLIGHT_QUANTILE * 100,
+            "percentile_method": QUANTILE_METHOD,
+            "noise": "the scenario's own noise model: duty jitter, disturbance torque and "
+            "any initial rate it draws (the gyro's noise does not move the body)",
+            "residual_rate_p95_max_rad_s": float(max(self.residual_p95_rad_s)),
+            "residual_rate_p95_max_deg_s": float(max(self.residual_p95_rad_s) * _DEG),
+            "residual_rate_max_rad_s": float(max(self.residual_max_rad_s)),
+            "peak_rate_p95_max_rad_s": float(max(self.peak_p95_rad_s)),
+        }
 
 
 @dataclass(frozen=True)
@@ -50,6 +108,8 @@ class CommandPlan:
     on_time_per_thruster_s: list[float]  # (N,)
     impulse_nms: float
     propellant_kg: float | None
+    #: Single flights' spread, when the plan was asked to fly the sequence.
+    dispersion: FlightDispersion | None = None
 
     def to_dict(self) -> dict[str, Any]:
         rates = np.asarray(self.rates_rad_s)
@@ -86,9 +146,13 @@ class CommandPlan:
                     "peak_rate_deg_s": self.peak_rate_rad_s[k] * _DEG,
                     "attitude_quaternion": self.attitude_quaternion[k],
                     "attitude_change_deg": self.attitude_change_deg[k],
+                    **(
+                        {} if self.dispersion is None else {"flights": self.dispersion.candidate(k)}
+                    ),
                 }
                 for k, name in enumerate(self.candidate_names)
             ],
+            "flights": None if self.dispersion is None else self.dispersion.summary(),
             "residual_rate_max_rad_s": float(residual.max()),
             "residual_rate_max_deg_s": float(residual.max() * _DEG),
             "peak_rate_max_rad_s": float(max(self.peak_rate_rad_s)),
@@ -122,6 +186,13 @@ class CommandPlan:
         out.write(f"# on_time_s: {propellant['on_time_s']:.6g}\n")
         kg = self.propellant_kg
         out.write(f"# propellant_kg: {'' if kg is None else f'{kg:.6g}'}\n")
+        if self.dispersion is not None:
+            summary = document["flights"]
+            out.write(
+                f"# flights: {self.dispersion.flights} per candidate at the scenario's noise, "
+                f"seed {self.dispersion.seed}; residual_rate_p95_max_rad_s "
+                f"{summary['residual_rate_p95_max_rad_s']:.6g}\n"
+            )
         for k, candidate in enumerate(document["candidates"], start=1):
             out.write(
                 f"# candidate_{k} {candidate['name']}: residual_rate_rad_s "
@@ -130,7 +201,17 @@ class CommandPlan:
                 f", end_rate_rad_s {candidate['end_rate_rad_s']:.6g}"
                 f", peak_rate_rad_s {candidate['peak_rate_rad_s']:.6g}"
                 f", peak_rate_deg_s {candidate['peak_rate_deg_s']:.6g}"
-                f", attitude_change_deg {candidate['attitude_change_deg']:.6g}\n"
+                f", attitude_change_deg {candidate['attitude_change_deg']:.6g}"
+                + (
+                    ""
+                    if self.dispersion is None
+                    else "".join(
+                        f", flights_{key} {value:.6g}"
+                        for key, value in candidate["flights"].items()
+                        if key.endswith("_rad_s")
+                    )
+                )
+                + "\n"
             )
         n = len(self.sequence[0])
         header = ["step", "start_s", "end_s"]
@@ -156,9 +237,36 @@ class CommandPlan:
         return out.getvalue()
 
 
-def command_plan(scenario: Scenario, sequence: Any) -> CommandPlan:
-    """The command plan of ``sequence`` ((L, N) level indices) for ``scenario``."""
+def flight_dispersion(
+    scenario: Scenario, rows: np.ndarray, flights: int, seed: int
+) -> FlightDispersion:
+    """Each candidate flown ``flights`` times at the scenario's own noise (see
+    :class:`FlightDispersion`)."""
+    result = simulate(scenario, rows, flights, np.random.default_rng(seed))
+    residual = result.settled_rate_rad_s(scenario)  # (K, n)
+    peak = np.maximum(np.linalg.norm(result.omega_true, axis=-1).max(axis=2), residual)
+    return FlightDispersion(
+        flights=flights,
+        seed=seed,
+        residual_mean_rad_s=residual.mean(axis=1).tolist(),
+        residual_p95_rad_s=flight_quantile(residual, axis=1).tolist(),
+        residual_max_rad_s=residual.max(axis=1).tolist(),
+        peak_p95_rad_s=flight_quantile(peak, axis=1).tolist(),
+    )
+
+
+def command_plan(
+    scenario: Scenario, sequence: Any, *, flights: int = 0, seed: int = 0
+) -> CommandPlan:
+    """The command plan of ``sequence`` ((L, N) level indices) for ``scenario``; with
+    ``flights`` > 0 (at least 2), how single flights spread, drawn from ``seed``."""
     rows = scenario.check_sequence(sequence)
+    if not is_integer(flights, minimum=0, maximum=MAX_FLIGHTS) or flights == 1:
+        raise InputError(
+            f"flights must be 0 (none) or an integer in 2..{MAX_FLIGHTS}, got {flights!r}"
+        )
+    if not is_integer(seed, minimum=0):
+        raise InputError(f"seed must be a non-negative integer, got {seed!r}")
     duty = scenario.duties(rows)  # (L, N)
     step = scenario.timing.step_duration_s
     run = nominal_run(scenario, rows)
@@ -188,4 +296,5 @@ def command_plan(scenario: Scenario, sequence: Any) -> CommandPlan:
         on_time_per_thruster_s=scenario.on_time_s(rows).tolist(),
         impulse_nms=scenario.impulse_nms(rows),
         propellant_kg=scenario.propellant_kg(rows),
+        dispersion=flight_dispersion(scenario, rows, int(flights), int(seed)) if flights else None,
     )

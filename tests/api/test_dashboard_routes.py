@@ -186,6 +186,52 @@ def test_a_sequence_too_long_for_a_url_is_planned_from_the_body(api: Api) -> Non
     assert response.content == by_query.content
 
 
+def test_a_plan_flies_the_sequence_when_asked(api: Api, paper: Scenario) -> None:
+    """``flights``: how single flights spread around the nominal prediction, the same
+    figures as the core's for the same seed, from the query, the body and a search's
+    member alike; past the service's budget a 422 names the product."""
+    from inertia_id.search.plan import command_plan
+
+    scenario_id = api.post("/scenarios", json={"preset": "paper"}).json()["id"]
+    sequence = [[4, 4, 4, 0, 0, 0]] * 2 + [[0, 0, 0, 4, 4, 4]] * 2
+    expected = command_plan(paper, sequence, flights=300, seed=5).to_dict()
+    by_query = api.get_with_key(
+        f"/scenarios/{scenario_id}/plan",
+        params={"sequence": json.dumps(sequence), "flights": 300, "seed": 5},
+    )
+    assert by_query.status_code == 200, by_query.text
+    assert by_query.json()["flights"] == expected["flights"]
+    assert [c["flights"] for c in by_query.json()["candidates"]] == [
+        c["flights"] for c in expected["candidates"]
+    ]
+    by_body = api.post(
+        f"/scenarios/{scenario_id}/plan?flights=300&seed=5&format=csv", json={"sequence": sequence}
+    )
+    assert by_body.status_code == 200, by_body.text
+    assert "# flights: 300 per candidate at the scenario's noise, seed 5" in by_body.text
+    # 5 candidates x 3,000 flights x 80 RK4 steps is past the budget of one request.
+    too_many = api.get_with_key(
+        f"/scenarios/{scenario_id}/plan",
+        params={"sequence": json.dumps(sequence), "flights": 3000},
+    )
+    assert too_many.status_code == 422, too_many.text
+    detail = too_many.json()["detail"][0]
+    assert detail["loc"] == ["query", "flights"]
+    assert (
+        "5 candidates x 3000 flights x 80 RK4 steps = 1200000; at most 1000000" in (detail["msg"])
+    )
+    for bad, quoted in (
+        (1, "flights must be 0 (none) or an integer in 2..100000, got 1"),
+        (-1, "greater than or equal to 0"),
+    ):
+        refused = api.post(
+            f"/scenarios/{scenario_id}/plan?flights={bad}", json={"sequence": sequence}
+        )
+        assert refused.status_code == 422, refused.text
+        assert refused.json()["detail"][0]["loc"] == ["query", "flights"]
+        assert quoted in refused.json()["detail"][0]["msg"]
+
+
 @pytest.mark.parametrize(
     ("body", "loc", "quoted"),
     [

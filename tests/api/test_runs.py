@@ -446,6 +446,16 @@ def test_a_front_downloads_as_csv_its_members_plan_by_index_and_a_member_trains(
     assert f'filename="{name}.json"' in plan.headers["content-disposition"]
     best = api.get_with_key(f"/jobs/{job_id}/plan").json()
     assert best["source"]["member"] == "best"
+    # The member flown 100 times a candidate: how single flights spread, on every candidate.
+    flown = api.get_with_key(
+        f"/jobs/{job_id}/plan", params={"member": chosen["index"], "flights": 100, "seed": 1}
+    ).json()
+    assert flown["flights"]["flights_per_candidate"] == 100 and flown["flights"]["seed"] == 1
+    assert flown["candidates"][0]["rates_rad_s"] == document["candidates"][0]["rates_rad_s"]
+    assert all(
+        c["flights"]["residual_rate_max_rad_s"] >= c["flights"]["residual_rate_p95_rad_s"]
+        for c in flown["candidates"]
+    )
     twice = api.get_with_key(f"/jobs/{job_id}/plan?member=0&member=1")
     assert twice.status_code == 422 and "member is given 2 times" in twice.text
     missing = api.get_with_key(f"/jobs/{job_id}/plan", params={"member": len(members)})

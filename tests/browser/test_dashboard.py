@@ -998,7 +998,9 @@ def test_a_pareto_front_is_drawn_beside_the_baselines_and_a_member_plans_and_tra
     )
     page.wait_for_selector("#front-plan-table")
     assert page.is_checked(f"#front-table input[value='{chosen['index']}']")
-    plan = service.client.get(f"/jobs/{job_id}/plan", params={"member": chosen["index"]}).json()
+    plan = service.client.get(
+        f"/jobs/{job_id}/plan", params={"member": chosen["index"], "flights": 200}
+    ).json()
     shown = _cells(dashboard, "#front-plan-table")
     assert [float(r["attitude_change_deg"]) for r in shown] == [
         c["attitude_change_deg"] for c in plan["candidates"]
@@ -1006,6 +1008,12 @@ def test_a_pareto_front_is_drawn_beside_the_baselines_and_a_member_plans_and_tra
     assert [float(r["peak_rate_deg_s"]) for r in shown] == [
         c["peak_rate_deg_s"] for c in plan["candidates"]
     ]
+    # How 200 single flights a candidate spread around the nominal prediction.
+    for key in ("residual_rate_p95_deg_s", "residual_rate_max_deg_s"):
+        assert [float(r[f"flights_{key}"]) for r in shown] == [
+            c["flights"][key] for c in plan["candidates"]
+        ]
+    assert "flown 200 times a candidate" in page.inner_text("#front-plan")
     assert (
         page.evaluate(
             "() => { const d = document.getElementById('front-plot').data; "
@@ -1018,6 +1026,7 @@ def test_a_pareto_front_is_drawn_beside_the_baselines_and_a_member_plans_and_tra
     assert download.value.suggested_filename.endswith(f"member-{chosen['index']}.json")
     saved = json.loads(Path(download.value.path()).read_text(encoding="utf-8"))
     assert saved["sequence"] == chosen["sequence"]
+    assert saved["flights"] == plan["flights"]
     with page.expect_download() as download:
         page.click("#front-plan-downloads button[data-download='CSV']")
     lines = Path(download.value.path()).read_text(encoding="utf-8").splitlines()
@@ -1028,6 +1037,7 @@ def test_a_pareto_front_is_drawn_beside_the_baselines_and_a_member_plans_and_tra
         f"# member: {chosen['index']}",
     ]
     assert lines[3].startswith("# scenario:")
+    assert any(line.startswith("# flights: 200 per candidate") for line in lines)
     assert sum(1 for line in lines if not line.startswith("#")) == 1 + len(chosen["sequence"])
     # The front itself: its members and the baselines, one object (or CSV row) each.
     with page.expect_download() as download:

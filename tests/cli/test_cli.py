@@ -158,6 +158,19 @@ def test_plan_of_a_search_uses_the_scenario_searched(runner: CliRunner, tmp_path
     assert len(refused.output.strip().splitlines()) == 1
 
 
+def test_plan_flies_the_sequence_when_asked(runner: CliRunner, tmp_path: Path) -> None:
+    sequence = "4,4,4,0,0,0;4,4,4,0,0,0;0,0,0,4,4,4;0,0,0,4,4,4"
+    plan, result = run_cli_json(
+        ["plan", "--sequence", sequence, "--flights", "50", "--seed", "2"], tmp_path / "p.json"
+    )
+    assert plan["flights"]["flights_per_candidate"] == 50 and plan["flights"]["seed"] == 2
+    p95 = plan["flights"]["residual_rate_p95_max_rad_s"]
+    assert f"over 50 flights a candidate, 95 % end under {p95:.4f} rad/s" in result.output
+    refused = runner.invoke(main, ["plan", "--sequence", sequence, "--flights", "1"])
+    assert refused.exit_code != 0
+    assert "flights must be 0 (none) or an integer in 2..100000, got 1" in refused.output
+
+
 @pytest.mark.parametrize(
     ("content", "message"),
     [("{bad", "is not a search JSON"), ("[1, 2]", "it holds a list")],

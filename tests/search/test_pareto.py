@@ -237,6 +237,53 @@ def test_the_plans_on_times_reproduce_the_simulated_impulse(paper: Scenario) -> 
     assert np.allclose(degrees, np.degrees(rates))
 
 
+def test_a_plan_flies_the_sequence_and_states_how_single_flights_spread(paper: Scenario) -> None:
+    """``flights``: the sequence flown at the scenario's noise; the residual rate's mean,
+    the rate 95 % of flights stay under and the largest, per candidate. The percentile
+    means what it says on 4,000 other flights a candidate."""
+    from inertia_id import simulate
+    from inertia_id.search.plan import MAX_FLIGHTS
+
+    sequence = [[4, 4, 4, 0, 0, 0]] * 2 + [[0] * 6] * 4 + [[0, 0, 0, 4, 4, 4]] * 2
+    nominal = command_plan(paper, sequence)
+    assert nominal.to_dict()["flights"] is None
+    assert "flights" not in nominal.to_dict()["candidates"][0]
+    assert "# flights" not in nominal.to_csv()
+    plan = command_plan(paper, sequence, flights=400, seed=4)
+    document = plan.to_dict()
+    # The nominal part is unchanged.
+    assert (
+        document["candidates"][0]["rates_rad_s"]
+        == nominal.to_dict()["candidates"][0]["rates_rad_s"]
+    )
+    flown = simulate(paper, sequence, 400, np.random.default_rng(4)).settled_rate_rad_s(paper)
+    expected_p95 = np.quantile(flown, 0.95, axis=1, method="median_unbiased")
+    for k, candidate in enumerate(document["candidates"]):
+        figures = candidate["flights"]
+        assert figures["residual_rate_mean_rad_s"] == pytest.approx(flown[k].mean())
+        assert figures["residual_rate_p95_rad_s"] == pytest.approx(expected_p95[k])
+        assert figures["residual_rate_max_rad_s"] == pytest.approx(flown[k].max())
+        assert figures["residual_rate_p95_deg_s"] == pytest.approx(np.degrees(expected_p95[k]))
+        assert figures["peak_rate_p95_rad_s"] >= candidate["residual_rate_rad_s"]
+        # The nominal flight lies among the single flights.
+        assert flown[k].min() < candidate["residual_rate_rad_s"] < flown[k].max()
+    assert document["flights"]["flights_per_candidate"] == 400
+    assert document["flights"]["residual_rate_p95_max_rad_s"] == pytest.approx(expected_p95.max())
+    other = simulate(paper, sequence, 4000, np.random.default_rng(99)).settled_rate_rad_s(paper)
+    above = (other > expected_p95[:, None]).mean(axis=1)
+    assert np.all((above > 0.02) & (above < 0.09)), above
+    csv_text = plan.to_csv()
+    assert "# flights: 400 per candidate at the scenario's noise, seed 4" in csv_text
+    assert "flights_residual_rate_p95_rad_s" in csv_text.splitlines()[6]
+    # Same seed, same figures.
+    assert command_plan(paper, sequence, flights=400, seed=4).to_dict() == document
+    for bad in (1, -1, 2.5, True, MAX_FLIGHTS + 1):
+        with pytest.raises(InputError, match="flights must be 0"):
+            command_plan(paper, sequence, flights=bad)
+    with pytest.raises(InputError, match="seed must be"):
+        command_plan(paper, sequence, flights=2, seed=-1)
+
+
 def test_the_residual_rate_is_the_rate_once_the_lag_has_delivered_its_torque(
     paper: Scenario,
 ) -> None:

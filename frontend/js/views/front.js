@@ -259,8 +259,25 @@ function baselineTable(front) {
   );
 }
 
-async function planBlob(job, index, format) {
-  return request("GET", `/jobs/${encodeURIComponent(job.id)}/plan`, { query: { member: index, format }, raw: true });
+// Flights the page asks a plan to fly a candidate (how single flights spread around the
+// nominal prediction); a sequence too long for the service's budget is planned without.
+const PLAN_FLIGHTS = 200;
+
+async function planBlob(job, index, format, flights) {
+  const query = flights ? { member: index, format, flights } : { member: index, format };
+  return request("GET", `/jobs/${encodeURIComponent(job.id)}/plan`, { query, raw: true });
+}
+
+// The member's plan with PLAN_FLIGHTS flights, or without when the service says that is
+// more than it computes for one request (a 422 on `flights`): [document, flights].
+async function memberPlan(job, index) {
+  const path = `/jobs/${encodeURIComponent(job.id)}/plan`;
+  try {
+    return [await request("GET", path, { query: { member: index, flights: PLAN_FLIGHTS } }), PLAN_FLIGHTS];
+  } catch (exc) {
+    if (!(exc.status === 422 && (exc.errors || []).some((e) => e.loc.join(".") === "query.flights"))) throw exc;
+    return [await request("GET", path, { query: { member: index } }), 0];
+  }
 }
 
 // The chosen member: its sequence, a button that trains on it, its command plan (per
@@ -302,6 +319,8 @@ async function showMember(holder, job, member, context) {
     "Train on this sequence",
   );
   const stem = `plan-${job.id.slice(0, 8)}-member-${member.index}`;
+  // The downloads fly as many times as the page's plan did (known once it is computed).
+  let flown = PLAN_FLIGHTS;
   const plan = h("div", { id: "front-plan" }, h("p", { class: "muted" }, "Computing the command plan…"));
   holder.append(
     h("h3", {}, `Member ${member.index}`),
@@ -312,28 +331,34 @@ async function showMember(holder, job, member, context) {
     downloads(
       "front-plan-downloads",
       [
-        { label: "CSV", filename: `${stem}.csv`, make: () => planBlob(job, member.index, "csv") },
-        { label: "JSON", filename: `${stem}.json`, make: () => planBlob(job, member.index, "json") },
+        { label: "CSV", filename: `${stem}.csv`, make: () => planBlob(job, member.index, "csv", flown) },
+        { label: "JSON", filename: `${stem}.json`, make: () => planBlob(job, member.index, "json", flown) },
       ],
       { label: "Command plan" },
     ),
     plan,
   );
   try {
-    const document = await request("GET", `/jobs/${encodeURIComponent(job.id)}/plan`, { query: { member: member.index } });
+    const [document, flights] = await memberPlan(job, member.index);
+    flown = flights;
     if (!context.alive() || !plan.isConnected) return;
     clear(plan);
+    const spread = document.flights;
+    const flightHeads = spread
+      ? [h("th", { class: "num" }, `95 % of ${spread.flights_per_candidate} flights under (deg/s)`), h("th", { class: "num" }, "fastest flight (deg/s)")]
+      : [];
+    const flightCells = (c) => (spread ? [num("flights_residual_rate_p95_deg_s", c.flights.residual_rate_p95_deg_s, 3), num("flights_residual_rate_max_deg_s", c.flights.residual_rate_max_deg_s, 3)] : []);
     plan.append(
-      h("p", { class: "hint" }, `Predicted with every noise off: the residual rate once the actuation lag has delivered the torque still in it when the last command ends (the rate at that moment beside it), the peak rate (the largest at a gyro sample or once settled), and the rotation the body makes over its ${document.duration_s} s (quaternion kinematics of the predicted rates). Impulse ${fmt(document.propellant.impulse_nms, 2)} N m s, on-time ${fmt(document.propellant.on_time_s, 2)} s${document.propellant.propellant_kg === null ? "" : `, propellant ${fmt(document.propellant.propellant_kg, 4)} kg`}.`),
+      h("p", { class: "hint" }, `Predicted with every noise off: the residual rate once the actuation lag has delivered the torque still in it when the last command ends (the rate at that moment beside it), the peak rate (the largest at a gyro sample or once settled), and the rotation the body makes over its ${document.duration_s} s (quaternion kinematics of the predicted rates).${spread ? ` Single flights spread around that: the sequence flown ${spread.flights_per_candidate} times a candidate at the scenario's noise (seed ${spread.seed}); the residual rate 95 % of them stay under, and the fastest.` : " Too long to fly many times within one request: the nominal prediction alone."} Impulse ${fmt(document.propellant.impulse_nms, 2)} N m s, on-time ${fmt(document.propellant.on_time_s, 2)} s${document.propellant.propellant_kg === null ? "" : `, propellant ${fmt(document.propellant.propellant_kg, 4)} kg`}.`),
       h(
         "table",
         { id: "front-plan-table" },
-        h("thead", {}, h("tr", {}, h("th", {}, "candidate"), h("th", { class: "num" }, "residual rate (deg/s)"), h("th", { class: "num" }, "residual rate (rad/s)"), h("th", { class: "num" }, "at the last command's end (deg/s)"), h("th", { class: "num" }, "peak rate (deg/s)"), h("th", { class: "num" }, "attitude change (deg)"))),
+        h("thead", {}, h("tr", {}, h("th", {}, "candidate"), h("th", { class: "num" }, "residual rate (deg/s)"), h("th", { class: "num" }, "residual rate (rad/s)"), ...flightHeads, h("th", { class: "num" }, "at the last command's end (deg/s)"), h("th", { class: "num" }, "peak rate (deg/s)"), h("th", { class: "num" }, "attitude change (deg)"))),
         h(
           "tbody",
           {},
           document.candidates.map((c) =>
-            h("tr", { "data-candidate": c.name }, h("td", {}, c.name), num("residual_rate_deg_s", c.residual_rate_deg_s, 3), num("residual_rate_rad_s", c.residual_rate_rad_s, 5), num("end_rate_deg_s", c.end_rate_deg_s, 3), num("peak_rate_deg_s", c.peak_rate_deg_s, 3), num("attitude_change_deg", c.attitude_change_deg, 2)),
+            h("tr", { "data-candidate": c.name }, h("td", {}, c.name), num("residual_rate_deg_s", c.residual_rate_deg_s, 3), num("residual_rate_rad_s", c.residual_rate_rad_s, 5), ...flightCells(c), num("end_rate_deg_s", c.end_rate_deg_s, 3), num("peak_rate_deg_s", c.peak_rate_deg_s, 3), num("attitude_change_deg", c.attitude_change_deg, 2)),
           ),
         ),
       ),
