@@ -1067,6 +1067,43 @@ def test_a_pareto_front_is_drawn_beside_the_baselines_and_a_member_plans_and_tra
     service.until(lambda: service.job(train_id)["status"] in TERMINAL, 120, "the training ends")
 
 
+def test_a_plan_past_the_flight_budget_shows_the_nominal_prediction(dashboard: Dashboard) -> None:
+    """A member too long to fly 200 times within one request (the service's 422 on
+    ``flights``, served here by rewriting the answer) is planned without flights, and the
+    page says so; its downloads ask for none."""
+    _needs("nsga2")
+    page = dashboard.page
+    job_id = made["nsga2"]
+    asked: list[str] = []
+
+    def over_budget(route: Any) -> None:
+        asked.append(route.request.url)
+        if "flights=" in route.request.url:
+            route.fulfill(
+                status=422,
+                json={"detail": [{"loc": ["query", "flights"], "msg": "past the budget"}]},
+            )
+        else:
+            route.continue_()
+
+    dashboard.console.expect(r"status of 422")
+    plans = re.compile(rf"/jobs/{job_id}/plan\?.*")
+    page.route(plans, over_budget)
+    try:
+        dashboard.open(f"#/jobs/{job_id}")
+        page.wait_for_selector("#front-plan-table", timeout=60_000)
+        assert "Too long to fly many times" in page.inner_text("#front-plan")
+        shown = _cells(dashboard, "#front-plan-table")
+        assert shown and all("flights_residual_rate_p95_deg_s" not in row for row in shown)
+        with page.expect_download() as download:
+            page.click("#front-plan-downloads button[data-download='JSON']")
+        saved = json.loads(Path(download.value.path()).read_text(encoding="utf-8"))
+        assert saved["flights"] is None
+        assert "flights=" not in asked[-1]
+    finally:
+        page.unroute(plans)
+
+
 def test_a_cancelled_searchs_front_plans_and_trains_on_the_sequence_itself(
     dashboard: Dashboard,
 ) -> None:
