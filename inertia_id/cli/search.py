@@ -144,8 +144,8 @@ def search_options(func: F) -> F:
             "--constraint",
             "A bound (repeatable): max_final_rate_deg_s, max_final_rate_rad_s (every "
             "candidate's residual rate, mean over flights), max_final_rate_p95_deg_s, "
-            "max_final_rate_p95_rad_s (the rate 95 % of every candidate's flights stay "
-            "under), max_peak_rate_deg_s, max_peak_rate_rad_s, "
+            "max_final_rate_p95_rad_s (a rate at least 95 % of every candidate's flights "
+            "stay under, with 95 % confidence), max_peak_rate_deg_s, max_peak_rate_rad_s, "
             "max_impulse_nms, max_on_time_s, max_propellant_kg, max_duration_s, "
             "min_accuracy; e.g. --constraint max_final_rate_deg_s=0.2.",
         ),
@@ -390,13 +390,17 @@ def search_cmd(
         flags = (
             f"  dominated by {', '.join(member['dominated_by'])}" if member["dominated_by"] else ""
         )
+        if member.get("feasible") is False:
+            # A searcher other than NSGA-II keeps its best sequence even when it breaks one.
+            flags += "  BREAKS A CONSTRAINT"
         click.echo(
             f"  #{member['index']:<3d} {json.dumps(member['sequence'])}  acc "
             + "/".join(f"{a:.3f}" for a in scores["accuracy_by_noise"])
             + f" | {scores['final_rate_rad_s']:.4f} rad/s ({scores['final_rate_deg_s']:.2f} deg/s)"
             + f", worst {scores['final_rate_max_rad_s']:.4f}"
             + (
-                f" (95 % of flights < {scores['final_rate_p95_rad_s']:.4f})"
+                f"; >= 95 % of flights under {scores['final_rate_p95_rad_s']:.4f} rad/s "
+                f"({scores['final_rate_p95_deg_s']:.3f} deg/s), 95 % conf."
                 if scores.get("final_rate_p95_rad_s") is not None
                 else ""
             )

@@ -99,6 +99,12 @@ class SequenceSearchEnv(gym.Env[np.ndarray, np.ndarray]):
                 "the sequence-search environment cannot constrain min_accuracy; use the "
                 "Pareto search (method nsga2) for an accuracy bound"
             )
+        per_flight = [name for name in self.constraints if "_p95_" in name]
+        if per_flight and settings.n_realisations < 2:
+            raise InputError(
+                f"constraint {per_flight[0]} bounds a spread over flights: n_realisations "
+                f"must be at least 2, got {settings.n_realisations}"
+            )
         if not (np.isfinite(constraint_penalty) and constraint_penalty >= 0):
             raise InputError(
                 f"constraint_penalty must be finite and >= 0, got {constraint_penalty!r}"

@@ -31,7 +31,7 @@ from .objectives import (
     check_constraints,
     check_design_noise,
     check_objectives,
-    flight_quantile,
+    flight_bound,
 )
 
 __all__ = ["OperatorScorer", "OperatorSettings", "nominal_rates", "nominal_run"]
@@ -239,8 +239,9 @@ class OperatorScorer:
         final_by_candidate = np.maximum(  # (P, K)
             settled.mean(axis=2), self.nominal.settled(planned_end)[:, :, 0]
         )
-        # Single flights spread around that mean: the rate 95 % of them stay under.
-        p95_by_candidate = np.maximum(flight_quantile(settled, axis=2), final_by_candidate)
+        # Single flights spread around that mean: a rate at least 95 % of them stay
+        # under, with 95 % confidence.
+        p95_by_candidate = np.maximum(flight_bound(settled, axis=2), final_by_candidate)
         # The largest rate of the manoeuvre: during the commands, or after the last one,
         # while the lag delivers the torque still in it. Without ω × Iω the rate then
         # moves on a straight line from where the commands leave it to the settled rate,

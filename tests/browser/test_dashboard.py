@@ -863,6 +863,7 @@ FRONT_FIGURES = (
     "final_rate_max_deg_s",
     "final_rate_max_rad_s",
     "final_rate_p95_deg_s",
+    "final_rate_p95_rad_s",
     "peak_rate_deg_s",
     "impulse_nms",
     "on_time_s",
@@ -1196,7 +1197,10 @@ def test_the_search_form_submits_nsga2_objectives_design_noise_and_constraints(
     page.wait_for_selector(".message.error, .field-error")
     shown = " ".join(page.locator(".message.error, .field-error").all_inner_texts())
     assert "max_speed_deg_s" in shown
-    page.fill("#search-constraints", "max_final_rate_deg_s=5, max_impulse_nms=30")
+    page.fill(
+        "#search-constraints",
+        "max_final_rate_deg_s=5, max_final_rate_p95_deg_s=6, max_impulse_nms=30",
+    )
     page.fill("#search-nsga2", '{"population": 8, "generations": 2}')
     page.check("#search-objective-peak_rate")
     page.fill("#search-design_noise", "[[4, 1]]")
@@ -1210,7 +1214,11 @@ def test_the_search_form_submits_nsga2_objectives_design_noise_and_constraints(
     assert params["nsga2"] == {"population": 8, "generations": 2}
     assert params["objectives"] == ["accuracy", "final_rate", "peak_rate", "impulse"]
     assert params["design_noise"] == [[4.0, 1.0]]
-    assert params["constraints"] == {"max_final_rate_deg_s": 5.0, "max_impulse_nms": 30.0}
+    assert params["constraints"] == {
+        "max_final_rate_deg_s": 5.0,
+        "max_final_rate_p95_deg_s": 6.0,
+        "max_impulse_nms": 30.0,
+    }
     # The worker is shared with the later tests: this search is not needed to finish.
     service.client.post(f"/jobs/{job_id}/cancel")
     service.until(lambda: service.job(job_id)["status"] in TERMINAL, 120, "the search ends")

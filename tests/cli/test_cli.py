@@ -105,6 +105,36 @@ def test_search_writes_the_best_sequence(tmp_path: Path) -> None:
     assert doc["scenario"]["name"] == "paper"  # what `plan --search` plans on
 
 
+def test_a_best_sequence_that_breaks_a_bound_is_flagged_in_the_listing(tmp_path: Path) -> None:
+    """A searcher other than NSGA-II keeps its best sequence even when it breaks a
+    constraint; the listing says so beside the figure it breaks."""
+    doc, result = run_cli_json(
+        [
+            "search",
+            "--method",
+            "random",
+            "--length",
+            "2",
+            "--timesteps",
+            "8",
+            "--search-realisations",
+            "3",
+            "--fresh-test-series",
+            "0",
+            "--constraint",
+            "max_final_rate_p95_rad_s=0.0001",
+            "--constraint-penalty",
+            "1",
+        ],
+        tmp_path / "s.json",
+    )
+    member = doc["front"]["members"][0]
+    assert member["feasible"] is False
+    assert member["scores"]["final_rate_p95_rad_s"] > 0.0001
+    line = next(x for x in result.output.splitlines() if x.strip().startswith("#0 "))
+    assert "BREAKS A CONSTRAINT" in line and ">= 95 % of flights under" in line
+
+
 def _search_document(sequence: list[list[int]], scenario: dict[str, Any]) -> dict[str, Any]:
     """The parts of a search JSON that ``plan --search`` reads."""
     member = {"index": 0, "sequence": sequence}

@@ -12,7 +12,7 @@ import pytest
 from gymnasium import spaces
 from gymnasium.utils.env_checker import check_env
 
-from inertia_id import Scenario, preset
+from inertia_id import InputError, Scenario, preset
 from inertia_id.physics.simulate import Simulator
 from inertia_id.search import ENV_ID, PrefixScorer, ScorerSettings, SequenceSearchEnv
 
@@ -301,6 +301,13 @@ def test_bad_constructor_arguments_are_refused(
     options = {**SMALL, **kwargs}
     with pytest.raises(ValueError, match=re.escape(quoted)):
         SequenceSearchEnv(paper, seed=0, **options)
+
+
+def test_a_per_flight_bound_on_one_flight_a_candidate_is_refused(paper: Scenario) -> None:
+    with pytest.raises(InputError, match="bounds a spread over flights: n_realisations"):
+        SequenceSearchEnv(
+            paper, n_realisations=1, seed=0, constraints={"max_final_rate_p95_rad_s": 0.01}
+        )
 
 
 def test_settings_and_their_keywords_together_are_refused(paper: Scenario) -> None:

@@ -33,7 +33,8 @@ function constraintsOrText(text) {
   if (trimmed.startsWith("{")) return jsonOrText(trimmed);
   const out = {};
   for (const part of trimmed.split(/[,;\n]+/)) {
-    const match = part.trim().match(/^([A-Za-z_]+)\s*(?:=|<=|>=|:)\s*([-+0-9.eE]+)$/);
+    // Names carry digits too (max_final_rate_p95_deg_s).
+    const match = part.trim().match(/^([A-Za-z_][A-Za-z0-9_]*)\s*(?:=|<=|>=|:)\s*([-+0-9.eE]+)$/);
     if (!match || !Number.isFinite(Number(match[2]))) return trimmed;
     out[match[1]] = Number(match[2]);
   }
