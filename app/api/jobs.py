@@ -64,7 +64,7 @@ from .deps import (
     unprocessable,
 )
 from .listing import id_filters, one_page, search_text, sort_order, tag_filters
-from .scenarios import FlightsQuery, SeedQuery, plan_for
+from .scenarios import PlanOptionsDep, plan_for
 
 __all__ = ["router"]
 
@@ -591,13 +591,11 @@ def cancel_job(job_id: str, session: SessionDep) -> JobOut:
 async def job_plan(
     job_id: str,
     request: Request,
+    options: PlanOptionsDep,
     member: Annotated[
         int | None,
         Query(ge=0, le=10_000, description="front member index; default the best sequence"),
     ] = None,
-    format: Annotated[str, Query(pattern="^(json|csv)$", description="json or csv")] = "json",
-    flights: FlightsQuery = 0,
-    seed: SeedQuery = 0,
 ) -> Response:
     """The command plan (as ``GET /scenarios/{id}/plan``) of a search job's best sequence
     or of one member of its front, for the job's scenario. A cancelled search that kept
@@ -633,5 +631,5 @@ async def job_plan(
     source = {"job_id": job_id, "member": "best" if member is None else member}
     if state == "cancelled":
         source["job_status"] = "cancelled"  # the best it had found when it stopped
-    planned = functools.partial(plan_for, parsed=True, source=source, flights=flights, seed=seed)
-    return await gate.run(planned, database, scenario_id, sequence, format)
+    planned = functools.partial(plan_for, parsed=True, source=source)
+    return await gate.run(planned, database, scenario_id, sequence, options)

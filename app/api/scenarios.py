@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import functools
 import json
+from dataclasses import dataclass
 from typing import Annotated, Any
 
 import numpy as np
-from fastapi import APIRouter, HTTPException, Query, Request, Response, status
+from fastapi import APIRouter, Depends, HTTPException, Query, Request, Response, status
 from sqlalchemy import func, select
 from sqlalchemy.exc import IntegrityError
 
@@ -41,7 +42,7 @@ from .deps import (
 from .errors import refused_at
 from .listing import one_page
 
-__all__ = ["FlightsQuery", "SeedQuery", "plan_for", "router", "scenario_out"]
+__all__ = ["PlanOptions", "PlanOptionsDep", "plan_for", "router", "scenario_out"]
 
 router = APIRouter(prefix="/scenarios", tags=["scenarios"])
 
@@ -320,14 +321,42 @@ def _response(
     )
 
 
+@dataclass(frozen=True)
+class PlanOptions:
+    """What every plan route takes beside the sequence: the file's format and the single
+    flights to fly (0: the nominal prediction alone) from ``seed``."""
+
+    format: str
+    flights: int
+    seed: int
+
+
+def plan_options(
+    format: Annotated[str, Query(pattern="^(json|csv)$", description="json or csv")] = "json",
+    flights: Annotated[
+        int,
+        Query(
+            ge=0,
+            le=100_000,
+            description="fly the sequence this many times a candidate at the scenario's "
+            "noise (0: none; at least 2) and state how the residual and peak rates spread "
+            "over single flights: mean, 95th percentile, a 95 %-confidence bound, largest",
+        ),
+    ] = 0,
+    seed: Annotated[int, Query(ge=0, le=MAX_SEED, description="seed of the flights")] = 0,
+) -> PlanOptions:
+    return PlanOptions(format, flights, seed)
+
+
+PlanOptionsDep = Annotated[PlanOptions, Depends(plan_options)]
+
+
 def _plan_response(
     scenario: Scenario,
     steps: np.ndarray,
-    fmt: str,
+    options: PlanOptions,
     source: dict[str, Any],
     where: tuple[str, ...] = ("query", "sequence"),
-    flights: int = 0,
-    seed: int = 0,
 ) -> Response:
     """The plan, with where it comes from (``source``: the scenario's id, and the search
     job and front member when it is one) in the JSON, in the CSV's ``#`` lines and in the
@@ -344,6 +373,7 @@ def _plan_response(
             f"on this scenario ({per_step} RK4 steps each, at most "
             f"{MAX_RESPONSE_INTEGRATION_STEPS} in all)",
         )
+    fmt, flights = options.format, options.flights
     work = scenario.n_candidates * flights * integration
     if work > MAX_PLAN_FLIGHT_WORK:
         unprocessable(
@@ -352,7 +382,7 @@ def _plan_response(
             f"steps = {work}; at most {MAX_PLAN_FLIGHT_WORK}: ask for fewer flights",
         )
     try:
-        plan = command_plan(scenario, steps, flights=flights, seed=seed)
+        plan = command_plan(scenario, steps, flights=flights, seed=options.seed)
     except InputError as exc:
         unprocessable(("query", "flights"), str(exc))
     stem = "plan-" + "-".join(
@@ -380,13 +410,11 @@ def plan_for(
     database: Database,
     scenario_id: str,
     sequence: Any,
-    fmt: str,
+    options: PlanOptions,
     *,
     parsed: bool = False,
     source: dict[str, Any] | None = None,
     where: tuple[str, ...] = ("query", "member"),
-    flights: int = 0,
-    seed: int = 0,
 ) -> Response:
     """The command plan of a sequence for a stored scenario (JSON or CSV); ``source``
     names the search job and member it comes from, beside the scenario's id. A
@@ -406,25 +434,11 @@ def plan_for(
     return _plan_response(
         scenario,
         steps,
-        fmt,
+        options,
         {"scenario_id": scenario_id, **(source or {})},
         where if parsed else ("query", "sequence"),
-        flights,
-        seed,
     )
 
-
-FlightsQuery = Annotated[
-    int,
-    Query(
-        ge=0,
-        le=100_000,
-        description="fly the sequence this many times a candidate at the scenario's noise "
-        "(0: none; at least 2) and state how the residual and peak rates spread over single "
-        "flights: mean, 95th percentile, largest",
-    ),
-]
-SeedQuery = Annotated[int, Query(ge=0, le=MAX_SEED, description="seed of the flights")]
 
 _PLAN_RESPONSES: dict[int | str, dict[str, Any]] = {
     **_NOT_FOUND,
@@ -449,9 +463,7 @@ async def scenario_plan(
     scenario_id: str,
     request: Request,
     sequence: _SequenceQuery,
-    format: str = Query(default="json", pattern="^(json|csv)$", description="json or csv"),
-    flights: FlightsQuery = 0,
-    seed: SeedQuery = 0,
+    options: PlanOptionsDep,
 ) -> Response:
     """The command plan of a sequence: per step and thruster the PWM on-time (s) and
     duty, the commanded torque (N m), each candidate's predicted rates (rad/s, deg/s) at
@@ -460,13 +472,7 @@ async def scenario_plan(
     summed over thrusters, propellant mass when the scenario gives thrust and Isp).
     With ``flights``, how single flights spread around that nominal prediction."""
     gate: ComputeGate = request.app.state.compute_gate
-    return await gate.run(
-        functools.partial(plan_for, flights=flights, seed=seed),
-        request.app.state.db,
-        scenario_id,
-        sequence,
-        format,
-    )
+    return await gate.run(plan_for, request.app.state.db, scenario_id, sequence, options)
 
 
 @router.post(
@@ -479,9 +485,7 @@ async def scenario_plan_from_body(
     scenario_id: str,
     request: Request,
     body: PlanRequest,
-    format: str = Query(default="json", pattern="^(json|csv)$", description="json or csv"),
-    flights: FlightsQuery = 0,
-    seed: SeedQuery = 0,
+    options: PlanOptionsDep,
 ) -> Response:
     """The command plan of the sequence in the body (``{"sequence": [[4,4,4,0,0,0], ...]}``):
     the same plan as ``GET /scenarios/{id}/plan?sequence=``, for a sequence too long for
@@ -489,12 +493,5 @@ async def scenario_plan_from_body(
     its default request-line limit (nginx: 8 kB, some 280 steps), and the query takes at
     most 20,000 characters."""
     gate: ComputeGate = request.app.state.compute_gate
-    return await gate.run(
-        functools.partial(
-            plan_for, parsed=True, where=("body", "sequence"), flights=flights, seed=seed
-        ),
-        request.app.state.db,
-        scenario_id,
-        body.sequence,
-        format,
-    )
+    planned = functools.partial(plan_for, parsed=True, where=("body", "sequence"))
+    return await gate.run(planned, request.app.state.db, scenario_id, body.sequence, options)

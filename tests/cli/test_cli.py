@@ -79,9 +79,9 @@ def test_paper_uses_the_searched_sequence(tmp_path: Path) -> None:
     assert "learning curve" in (out / "report.html").read_text()
 
 
-def test_search_writes_the_best_sequence(tmp_path: Path) -> None:
-    out = tmp_path / "search.json"
-    doc, result = run_cli_json(
+def _random_search(out: Path, timesteps: int, realisations: int, *extra: str) -> tuple[Any, Any]:
+    """``inertia-id search --method random --length 2`` with ``extra`` options."""
+    return run_cli_json(
         [
             "search",
             "--method",
@@ -89,14 +89,17 @@ def test_search_writes_the_best_sequence(tmp_path: Path) -> None:
             "--length",
             "2",
             "--timesteps",
-            "24",
+            str(timesteps),
             "--search-realisations",
-            "4",
-            "--seed",
-            "3",
+            str(realisations),
+            *extra,
         ],
         out,
     )
+
+
+def test_search_writes_the_best_sequence(tmp_path: Path) -> None:
+    doc, result = _random_search(tmp_path / "search.json", 24, 4, "--seed", "3")
     assert doc["method"] == "random"
     assert doc["timesteps"] == 24 and doc["episodes"] == 12
     assert len(doc["fresh"]["f1"]) == 5
@@ -108,26 +111,8 @@ def test_search_writes_the_best_sequence(tmp_path: Path) -> None:
 def test_a_best_sequence_that_breaks_a_bound_is_flagged_in_the_listing(tmp_path: Path) -> None:
     """A searcher other than NSGA-II keeps its best sequence even when it breaks a
     constraint; the listing says so beside the figure it breaks."""
-    doc, result = run_cli_json(
-        [
-            "search",
-            "--method",
-            "random",
-            "--length",
-            "2",
-            "--timesteps",
-            "8",
-            "--search-realisations",
-            "3",
-            "--fresh-test-series",
-            "0",
-            "--constraint",
-            "max_final_rate_p95_rad_s=0.0001",
-            "--constraint-penalty",
-            "1",
-        ],
-        tmp_path / "s.json",
-    )
+    bound = ["--constraint", "max_final_rate_p95_rad_s=0.0001", "--constraint-penalty", "1"]
+    doc, result = _random_search(tmp_path / "s.json", 8, 3, "--fresh-test-series", "0", *bound)
     member = doc["front"]["members"][0]
     assert member["feasible"] is False
     assert member["scores"]["final_rate_p95_rad_s"] > 0.0001
