@@ -77,8 +77,12 @@ class ConstraintOut(BaseModel):
     )
     flight_quantile: float | None = Field(
         default=None,
-        description="the bound holds on this fraction of the candidate's flights (the "
-        "percentile of its realisations); null: on their mean",
+        description="the bound holds on at least this fraction of the candidate's "
+        "flights, with flight_confidence (a front reads it from flights of its own, "
+        "distribution-free); null: on their mean",
+    )
+    flight_confidence: float | None = Field(
+        default=None, description="the confidence with which the per-flight bound holds"
     )
 
 
@@ -142,6 +146,7 @@ def vocabulary() -> VocabularyOut:
     from inertia_id.search import SCORER_OBJECTIVES, SEARCH_METHOD_LABELS, SEARCH_METHODS
     from inertia_id.search.objectives import (
         CONSTRAINTS,
+        FLIGHT_CONFIDENCE,
         FLIGHT_QUANTILE,
         OBJECTIVE_FIELDS,
         OPERATOR_OBJECTIVES,
@@ -198,6 +203,7 @@ def vocabulary() -> VocabularyOut:
                 sense=sense,
                 worst_candidate=figure in worst,
                 flight_quantile=FLIGHT_QUANTILE if figure == "final_rate_p95_rad_s" else None,
+                flight_confidence=FLIGHT_CONFIDENCE if figure == "final_rate_p95_rad_s" else None,
             )
             for name, (figure, sense, _) in CONSTRAINTS.items()
         ],

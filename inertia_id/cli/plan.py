@@ -108,9 +108,11 @@ def plan_cmd(
         f"{summary['residual_rate_max_rad_s']:.4f} rad/s "
         f"({summary['residual_rate_max_deg_s']:.3f} deg/s)"
         + (
-            f"; over {flights} flights a candidate, 95 % end under "
-            f"{summary['flights']['residual_rate_p95_max_rad_s']:.4f} rad/s "
-            f"({summary['flights']['residual_rate_p95_max_deg_s']:.3f} deg/s), the fastest at "
+            f"; over {flights} flights a candidate: at least 95 % of flights end under "
+            f"{summary['flights']['residual_rate_p95_bound_max_rad_s']:.4f} rad/s "
+            f"({summary['flights']['residual_rate_p95_bound_max_deg_s']:.3f} deg/s) with 95 % "
+            f"confidence; the 95th percentile of these flights "
+            f"{summary['flights']['residual_rate_p95_max_rad_s']:.4f}, the fastest "
             f"{summary['flights']['residual_rate_max_rad_s']:.4f}"
             if summary["flights"]
             else ""

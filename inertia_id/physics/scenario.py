@@ -334,6 +334,13 @@ class Timing(_Model):
 LAG_STEPS_PER_TAU = 2.0
 
 
+def _shown(value: Any, limit: int = 200) -> str:
+    """``repr(value)``, cut at ``limit`` characters: an error names a bad sequence without
+    echoing megabytes of it back."""
+    text = repr(value)
+    return text if len(text) <= limit else f"{text[:limit]}... ({len(text)} characters)"
+
+
 def _holds_a_bool(value: Any) -> bool:
     """Whether a (nested) list or tuple holds a bool anywhere."""
     if isinstance(value, (bool, np.bool_)):
@@ -510,10 +517,12 @@ class Scenario(_Model):
         try:
             arr = np.asarray(sequence)
         except (TypeError, ValueError):
-            raise InputError(f"sequence {sequence!r} is not an array of level indices") from None
+            raise InputError(
+                f"sequence {_shown(sequence)} is not an array of level indices"
+            ) from None
         if _holds_a_bool(sequence):
             # numpy reads [4, true] as [4, 1]: a JSON true must not fire level 1.
-            raise InputError(f"sequence must hold integer level indices, got {sequence!r}")
+            raise InputError(f"sequence must hold integer level indices, got {_shown(sequence)}")
         if arr.ndim == 1 and arr.size == self.n_thrusters:
             arr = arr[None, :]
         if arr.ndim != 2 or arr.shape[1] != self.n_thrusters or arr.shape[0] < 1:
@@ -524,10 +533,14 @@ class Scenario(_Model):
         if arr.shape[0] > 1000:
             raise InputError(f"sequence has {arr.shape[0]} steps; at most 1000")
         if not np.issubdtype(arr.dtype, np.number) or not np.all(np.isfinite(arr)):
-            raise InputError(f"sequence must hold integer level indices, got {arr.tolist()}")
+            raise InputError(
+                f"sequence must hold integer level indices, got {_shown(arr.tolist())}"
+            )
         as_int = arr.astype(int)
         if np.any(as_int != arr):
-            raise InputError(f"sequence must hold integer level indices, got {arr.tolist()}")
+            raise InputError(
+                f"sequence must hold integer level indices, got {_shown(arr.tolist())}"
+            )
         bad = (as_int < 0) | (as_int >= self.n_levels)
         if np.any(bad):
             step, thruster = (int(i) for i in np.argwhere(bad)[0])

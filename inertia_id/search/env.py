@@ -91,7 +91,7 @@ class SequenceSearchEnv(gym.Env[np.ndarray, np.ndarray]):
         if noise not in ("fixed", "fresh"):
             raise InputError(f"noise must be 'fixed' or 'fresh', got {noise!r}")
         self.scenario = scenario or Scenario.paper()
-        from .objectives import check_constraints
+        from .objectives import check_constraints, check_per_flight_realisations
 
         self.constraints = check_constraints(constraints, self.scenario)
         if "min_accuracy" in self.constraints:
@@ -99,12 +99,7 @@ class SequenceSearchEnv(gym.Env[np.ndarray, np.ndarray]):
                 "the sequence-search environment cannot constrain min_accuracy; use the "
                 "Pareto search (method nsga2) for an accuracy bound"
             )
-        per_flight = [name for name in self.constraints if "_p95_" in name]
-        if per_flight and settings.n_realisations < 2:
-            raise InputError(
-                f"constraint {per_flight[0]} bounds a spread over flights: n_realisations "
-                f"must be at least 2, got {settings.n_realisations}"
-            )
+        check_per_flight_realisations(self.constraints, settings.n_realisations)
         if not (np.isfinite(constraint_penalty) and constraint_penalty >= 0):
             raise InputError(
                 f"constraint_penalty must be finite and >= 0, got {constraint_penalty!r}"

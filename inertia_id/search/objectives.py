@@ -374,7 +374,7 @@ CONSTRAINTS: dict[str, tuple[str, str, float]] = {
     "max_final_rate_rad_s": ("final_rate_max_rad_s", "max", 1.0),
     "max_final_rate_deg_s": ("final_rate_max_rad_s", "max", 1.0 / _DEG),
     # The same bound on a rate at least 95 % of flights stay under, with 95 % confidence
-    # (of the candidate whose flights end fastest; :func:`flight_bound`): a bound on the
+    # (of the candidate whose flights end fastest; :func:`per_flight_bound`): a bound on the
     # mean leaves up to half the flights of a member near it above it.
     "max_final_rate_p95_rad_s": ("final_rate_p95_rad_s", "max", 1.0),
     "max_final_rate_p95_deg_s": ("final_rate_p95_rad_s", "max", 1.0 / _DEG),
@@ -390,7 +390,7 @@ CONSTRAINTS: dict[str, tuple[str, str, float]] = {
 #: draws at about the 90th.
 QUANTILE_METHOD: Final = "median_unbiased"
 FLIGHT_QUANTILE: Final = 0.95
-#: A per-flight bound is held with this confidence (:func:`flight_bound`).
+#: A per-flight bound is held with this confidence (:func:`per_flight_bound`).
 FLIGHT_CONFIDENCE: Final = 0.95
 
 
@@ -412,26 +412,70 @@ def tolerance_factor(n: int) -> float:
     return float(nct.ppf(FLIGHT_CONFIDENCE, df=n - 1, nc=norm.ppf(FLIGHT_QUANTILE) * root) / root)
 
 
-def flight_bound(rates: np.ndarray, axis: int) -> np.ndarray:
-    """A rate at least :data:`FLIGHT_QUANTILE` of all flights stay under, with
-    :data:`FLIGHT_CONFIDENCE`, from the realisations along ``axis``: the normal tolerance
-    bound ``mean + k sd`` of ``sqrt(|ω|)``, squared.
+def order_statistic_rank(n: int) -> int:
+    """The largest ``r`` for which the ``r``-th largest of ``n`` flights is a
+    distribution-free upper bound on the :data:`FLIGHT_QUANTILE` percentile with
+    :data:`FLIGHT_CONFIDENCE` (at least ``r`` of ``n`` flights land above the percentile
+    with that probability: a binomial tail); 0 below 59 flights (where even the largest
+    falls short). 1 for 59 to 92, 2 for 100, 5 for 200, 39 for 1,000."""
+    from scipy.stats import binom
 
-    Why not their percentile: a search has 20 realisations a candidate, the front 40,
-    and their percentile is an estimate as often below the true one as above (measured
-    on fire-coast-brake at L = 8: with 40, the flights above it exceeded 5 % on 46 % of
-    seeds; with 13 or fewer it is the sample maximum). Why the square root: the residual
-    rate is the norm of a near-Gaussian vector, so its square is a (noncentral)
-    chi-square, whose fourth root is near normal even for few degrees of freedom (Hawkins
-    and Wixley, 1986; the cube root of Wilson and Hilferty is not, for one or two). Far
-    from rest the rate itself is near normal and the root changes little; near rest the
-    rate skews right (Maxwell: its 95th percentile is the mean plus 1.78 sd, not 1.645),
-    and the bound of the rate itself ran under the target: on an L = 4 front, 4 of 43
-    members' figures were exceeded by more than 5 % of 4,000 flights (at most 7.4 %), and
-    on Maxwell draws it held on 85 % of 40-draw samples (this one: 97 %; half-normal, the
-    worst case, 67 % and 95.5 %; a vector far from rest 95 % and 96 %).
-    ``bench/per_flight_bound.py``."""
+    tail = 1.0 - FLIGHT_QUANTILE
+    rank = 0
+    while rank < n and binom.sf(rank, n, tail) >= FLIGHT_CONFIDENCE:
+        rank += 1
+    return rank
+
+
+#: Flights a candidate from which a rate at least 95 % of flights stay under is read
+#: without assuming a distribution (:func:`per_flight_bound`).
+MIN_ORDER_FLIGHTS: Final = 59
+#: Flights a candidate a front flies, on a draw of its own, for each member's and
+#: baseline's per-flight figure: the 5th largest of 200 holds distribution-free.
+FRONT_FLIGHTS: Final = 200
+
+
+#: Realisations a candidate a search needs to rank by a per-flight bound (its proxy's
+#: tolerance factor is 26 for 2, 4.2 for 5, 2.9 for 10: with fewer, every sequence
+#: near the bound reads as breaking it).
+MIN_PER_FLIGHT_REALISATIONS: Final = 10
+
+
+def check_per_flight_realisations(constraints: dict[str, float], n_realisations: int) -> None:
+    """A per-flight constraint needs :data:`MIN_PER_FLIGHT_REALISATIONS` realisations a
+    candidate in the search."""
+    per_flight = [name for name in constraints if "_p95_" in name]
+    if per_flight and n_realisations < MIN_PER_FLIGHT_REALISATIONS:
+        raise InputError(
+            f"constraint {per_flight[0]} bounds a spread over flights: the search needs "
+            f"n_realisations >= {MIN_PER_FLIGHT_REALISATIONS} to estimate it, got "
+            f"{n_realisations} (the tolerance factor for {n_realisations} draws is "
+            f"{tolerance_factor(n_realisations) if n_realisations > 1 else float('inf'):.1f})"
+        )
+
+
+def per_flight_bound(rates: np.ndarray, axis: int) -> np.ndarray:
+    """A rate at least :data:`FLIGHT_QUANTILE` of all flights stay under, with
+    :data:`FLIGHT_CONFIDENCE`, from the flights along ``axis``.
+
+    From :data:`MIN_ORDER_FLIGHTS` flights on, an order statistic
+    (:func:`order_statistic_rank`): it holds whatever the distribution of the residual
+    rate. Fewer flights (a search's 20 realisations) bound nothing without a model, and
+    the figure is then the normal tolerance bound ``mean + k sd`` of ``sqrt(|ω|)``,
+    squared (:func:`tolerance_factor`). That is a proxy the searches rank by: the square
+    of a residual rate is a noncentral chi-square, whose fourth root is near normal
+    (Hawkins and Wixley, 1986), and it covered isotropic noise near rest and far from it
+    (Maxwell: 97 % of 40-draw samples, against 85 % for the bound of the rate itself),
+    but not noise lopsided across axes beside a residual on another axis (a reviewer's
+    case: 35 to 46 % of 20- and 40-draw samples fell short, 88 % of 200-draw ones). So a
+    front reads each member's figure from :data:`FRONT_FLIGHTS` flights of its own
+    (:func:`~inertia_id.search.pareto.build_front`), and a command plan of 59 flights or
+    more from its flights; one flight bounds nothing (inf).
+    """
     n = rates.shape[axis]
+    if n >= MIN_ORDER_FLIGHTS:
+        rank = order_statistic_rank(n)
+        return np.take(np.sort(rates, axis=axis), n - rank, axis=axis)
     if n < 2:  # one flight bounds no spread (a constraint on it is refused: env.py)
         return np.full(np.delete(rates.shape, axis), np.inf)
     root = np.sqrt(rates)
@@ -529,7 +573,7 @@ class SequenceScores:
     :param final_rate_p95_rad_s: a residual rate at least 95 % of flights stay under,
         with 95 % confidence, of the candidate whose flights end fastest: per candidate
         a normal tolerance bound from its realisations' residual rates
-        (:func:`flight_bound`), at least its ``final_rate`` figure; what the
+        (:func:`per_flight_bound`), at least its ``final_rate`` figure; what the
         ``max_final_rate_p95`` constraints bound. None in scores stored before it.
     :param peak_rate_rad_s: the largest |ω| during the sequence or after it, while the
         lag delivers the torque still in it, of the candidate that spins fastest: the

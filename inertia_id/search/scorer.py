@@ -40,7 +40,7 @@ from ..classifiers.dtw import kmeans_dtw
 from ..errors import InputError
 from ..physics.scenario import Scenario
 from ..physics.simulate import SequenceNoise, SimulationState, Simulator, nominal_simulator
-from .objectives import error_bound, flight_bound, score_from_bound
+from .objectives import error_bound, per_flight_bound, score_from_bound
 
 __all__ = [
     "SCORER_METRICS",
@@ -171,7 +171,7 @@ class PrefixScore:
         plan's prediction): what a ``max_final_rate`` constraint bounds.
     :param final_rate_p95_rad_s: a residual rate at least 95 % of that candidate's
         flights stay under, with 95 % confidence (the larger of the tolerance bound of its
-        series, :func:`~inertia_id.search.objectives.flight_bound`, and
+        series, :func:`~inertia_id.search.objectives.per_flight_bound`, and
         ``final_rate_max_rad_s``'s figure for it), the candidate whose series end
         fastest: what a ``max_final_rate_p95`` constraint bounds.
     """
@@ -327,7 +327,7 @@ class PrefixScorer:
         settled = self.simulator.settled(state)  # (K, n): each series' residual
         by_candidate = np.maximum(settled.mean(axis=1), self._planner.settled(planned)[:, 0])
         worst = float(by_candidate.max())
-        p95 = float(np.maximum(flight_bound(settled, axis=1), by_candidate).max())
+        p95 = float(np.maximum(per_flight_bound(settled, axis=1), by_candidate).max())
         # (K, n, samples) -> the candidate spinning fastest at its fastest
         during = max(
             float(np.linalg.norm(response.omega_true, axis=-1).mean(axis=1).max()),

@@ -186,6 +186,16 @@ def test_a_sequence_too_long_for_a_url_is_planned_from_the_body(api: Api) -> Non
     assert response.content == by_query.content
 
 
+def test_a_huge_bad_plan_body_is_named_not_echoed(api: Api) -> None:
+    scenario_id = api.post("/scenarios", json={"preset": "paper"}).json()["id"]
+    ragged = [[4, 4, 4, 0, 0, 0]] * 100_000 + [[1]]  # 2 MB, one short row at the end
+    response = api.post(f"/scenarios/{scenario_id}/plan", json={"sequence": ragged})
+    assert response.status_code == 422
+    assert len(response.content) < 2_000
+    assert "is not an array of level indices" in response.text
+    assert "characters)" in response.text
+
+
 def test_a_plan_flies_the_sequence_when_asked(api: Api, paper: Scenario) -> None:
     """``flights``: how single flights spread around the nominal prediction, the same
     figures as the core's for the same seed, from the query, the body and a search's

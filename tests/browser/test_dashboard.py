@@ -1010,7 +1010,11 @@ def test_a_pareto_front_is_drawn_beside_the_baselines_and_a_member_plans_and_tra
         c["peak_rate_deg_s"] for c in plan["candidates"]
     ]
     # How 200 single flights a candidate spread around the nominal prediction.
-    for key in ("residual_rate_p95_deg_s", "residual_rate_max_deg_s"):
+    for key in (
+        "residual_rate_p95_deg_s",
+        "residual_rate_p95_bound_deg_s",
+        "residual_rate_max_deg_s",
+    ):
         assert [float(r[f"flights_{key}"]) for r in shown] == [
             c["flights"][key] for c in plan["candidates"]
         ]
