@@ -571,9 +571,10 @@ class SequenceScores:
         ``max_final_rate`` constraints bound (so a bound holds on the plan and on average
         over the noise; single realisations spread around that mean).
     :param final_rate_p95_rad_s: a residual rate at least 95 % of flights stay under,
-        with 95 % confidence, of the candidate whose flights end fastest: per candidate
-        a normal tolerance bound from its realisations' residual rates
-        (:func:`per_flight_bound`), at least its ``final_rate`` figure; what the
+        with 95 % confidence, of the candidate whose flights end fastest, at least its
+        ``final_rate`` figure (:func:`per_flight_bound`): on a front, the order statistic
+        of :data:`FRONT_FLIGHTS` flights of its own, whatever the distribution; on a
+        search's draw, the normal proxy from its realisations. What the
         ``max_final_rate_p95`` constraints bound. None in scores stored before it.
     :param peak_rate_rad_s: the largest |ω| during the sequence or after it, while the
         lag delivers the torque still in it, of the candidate that spins fastest: the

@@ -170,10 +170,11 @@ class PrefixScore:
         the candidate that ends fastest (the larger of the mean over its series and the
         plan's prediction): what a ``max_final_rate`` constraint bounds.
     :param final_rate_p95_rad_s: a residual rate at least 95 % of that candidate's
-        flights stay under, with 95 % confidence (the larger of the tolerance bound of its
-        series, :func:`~inertia_id.search.objectives.per_flight_bound`, and
-        ``final_rate_max_rad_s``'s figure for it), the candidate whose series end
-        fastest: what a ``max_final_rate_p95`` constraint bounds.
+        flights stay under, with 95 % confidence, as its series estimate it (the larger of
+        :func:`~inertia_id.search.objectives.per_flight_bound` of its series, the normal
+        proxy below 59, and ``final_rate_max_rad_s``'s figure for it), the candidate
+        whose series end fastest: what a ``max_final_rate_p95`` constraint penalises. The
+        search's best is judged again on flights of its own (its front).
     """
 
     f1: float
