@@ -121,16 +121,7 @@ def _search_summary(result: Mapping[str, Any]) -> Table:
         ("objective", "operator objectives" if result.get("method") == "nsga2" else objective),
         ("best_sequence", best.get("sequence")),
         (_best_label(result.get("method"), objective), best.get("f1")),
-        (
-            # NSGA-II's is the operator scorer's settled residual rate; the others' is |ω|
-            # when the last command ends (the plan's end_rate), as the fresh figure below
-            # is for every method: named so, not "final" (the settled rate the job
-            # summary's residual_rate gives).
-            "best_residual_rate_rad_s_search_draw"
-            if result.get("method") == "nsga2"
-            else "best_end_rate_rad_s_search_draw",
-            best.get("final_rate_rad_s"),
-        ),
+        *_best_rate_rows(result.get("method"), best),
         ("fuel_nms", best.get("fuel_nms")),
         *_confirmation_rows(result),
         ("fresh_f1_mean", fresh.get("f1_mean")),
@@ -146,12 +137,34 @@ def _search_summary(result: Mapping[str, Any]) -> Table:
     return Table(["quantity", "value"], [list(p) for p in pairs])
 
 
+def _best_rate_rows(method: Any, best: Mapping[str, Any]) -> list[tuple[str, Any]]:
+    """The best sequence's rates on the search's draw, each named for what it is: the
+    residual rate once the lag is empty (the job summary's residual_rate, every method),
+    and, for the searches that measure it, |ω| when the last command ends (the plan's
+    end_rate, the paper's reward; the fresh figure below is that one too)."""
+    if method == "nsga2":
+        # NSGA-II's final_rate_rad_s has always been the operator scorer's settled rate.
+        residual = best.get("residual_rate_rad_s", best.get("final_rate_rad_s"))
+        return [("best_residual_rate_rad_s_search_draw", residual)]
+    return [
+        ("best_end_rate_rad_s_search_draw", best.get("final_rate_rad_s")),
+        # None in results stored before the searches recorded it.
+        ("best_residual_rate_rad_s_search_draw", best.get("residual_rate_rad_s")),
+    ]
+
+
 _CURVE = ("timesteps", "episodes", "mean_episode_reward", "mean_f1", "best_f1")
 
 
 def _search_curve(result: Mapping[str, Any]) -> Table:
     curve = [p for p in result.get("curve") or [] if isinstance(p, Mapping)]
-    header = [*_CURVE, "best_final_rate_rad_s"]
+    key, old = "best_residual_rate_rad_s", "best_final_rate_rad_s"
+    if curve and all(key not in p for p in curve) and any(old in p for p in curve):
+        # Stored before the key was named for what it is: NSGA-II's was its residual
+        # rate already; the other searches' was |ω| when the last command ends.
+        name = key if result.get("method") == "nsga2" else "best_end_rate_rad_s"
+        return Table([*_CURVE, name], [[*(p.get(k) for k in _CURVE), p.get(old)] for p in curve])
+    header = [*_CURVE, key]
     return Table(header, [[p.get(k) for k in header] for p in curve])
 
 

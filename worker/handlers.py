@@ -31,7 +31,7 @@ __all__ = ["HANDLERS", "run_search_job", "run_sweep_job", "run_train_job"]
 
 #: The metric keys a search writes after every rollout (PPO) or report (random,
 #: exhaustive), at step = environment steps so far.
-SEARCH_METRICS = ("mean_episode_reward", "mean_f1", "best_f1", "best_final_rate_rad_s")
+SEARCH_METRICS = ("mean_episode_reward", "mean_f1", "best_f1", "best_residual_rate_rad_s")
 
 
 def _params(context: JobContext) -> dict[str, Any]:

@@ -41,7 +41,10 @@ class SequenceSearchEnv(gym.Env[np.ndarray, np.ndarray]):
                   of the constraints (``Σ max(0, value / bound − 1)``), a penalty whose
                   multiplier a Lagrangian PPO raises while episodes violate them.
     Episode end   Terminated after L steps; never truncated.
-    Info          ``f1`` (the objective's score), ``accuracy``, ``final_rate_rad_s``,
+    Info          ``f1`` (the objective's score), ``accuracy``, ``final_rate_rad_s``
+                  (mean |ω| when the prefix's last command ends, the reward's),
+                  ``residual_rate_rad_s`` (once the lag has delivered the torque still
+                  in it, mean over candidates: the operator's residual rate),
                   ``fuel_nms`` (the prefix's impulse), ``step_fuel_nms``, ``step``,
                   ``sequence`` (the prefix), ``objective``, ``error_bound``
                   (separability only, else None), ``peak_rate_rad_s`` and
@@ -165,6 +168,7 @@ class SequenceSearchEnv(gym.Env[np.ndarray, np.ndarray]):
             "f1": score.f1,
             "accuracy": score.accuracy,
             "final_rate_rad_s": score.final_rate_rad_s,
+            "residual_rate_rad_s": score.residual_rate_rad_s,
             "fuel_nms": score.impulse_nms,
             "step_fuel_nms": score.step_impulse_nms,
             "step": len(self._prefix),

@@ -877,7 +877,7 @@ def pareto_search(
             mean_episode_reward=float("nan"),
             mean_f1=float(np.mean([s.accuracy for s in population])),
             best_f1=top.accuracy,
-            best_final_rate_rad_s=top.final_rate_rad_s,
+            best_residual_rate_rad_s=top.final_rate_rad_s,
         )
         curve.append(point)
         bar.generations_done += 1
@@ -940,6 +940,7 @@ def pareto_search(
         sequence=best_member["sequence"],
         f1=seen.accuracy,
         final_rate_rad_s=seen.final_rate_rad_s,
+        residual_rate_rad_s=seen.final_rate_rad_s,
         fuel_nms=seen.impulse_nms,
         episode_return=float("nan"),
         episode=0,

@@ -55,12 +55,17 @@ class EpisodeRecord:
     :param sequence: (L, N) level indices.
     :param f1: the objective's score of the full sequence on the search's noise draw
         (clustering F1, or the separability score).
-    :param final_rate_rad_s: mean |ω| at the end, rad/s.
+    :param final_rate_rad_s: mean |ω| when the last command ends, rad/s, the paper's
+        reward (NSGA-II, which does not measure it: the residual rate below).
     :param fuel_nms: commanded angular impulse, N m s.
     :param episode_return: the environment's summed reward.
     :param episode: 1-based episode number in the search.
     :param constraint_violation: summed relative violation of the search's constraints
         (0 when they hold or there are none).
+    :param residual_rate_rad_s: the residual rate once the actuation lag has delivered
+        the torque still in it, mean over candidates (each the larger of its mean and
+        the plan's prediction), rad/s: the same figure for every method, as a front's
+        ``final_rate_rad_s``. NaN in records stored before it.
     """
 
     sequence: list[list[int]]
@@ -70,6 +75,7 @@ class EpisodeRecord:
     episode_return: float
     episode: int
     constraint_violation: float = 0.0
+    residual_rate_rad_s: float = float("nan")
 
 
 @dataclass(frozen=True)
@@ -81,7 +87,9 @@ class CurvePoint:
     :param mean_episode_reward: mean return of the episodes finished since the last point.
     :param mean_f1: mean full-sequence F1 (objective's score) of those episodes.
     :param best_f1: best full-sequence F1 (objective's score) so far.
-    :param best_final_rate_rad_s: final rate of the best sequence so far.
+    :param best_residual_rate_rad_s: the residual rate of the best sequence so far on
+        the search's draw (:attr:`EpisodeRecord.residual_rate_rad_s`), rad/s: once the
+        lag has delivered the torque still in it, mean over candidates, for every method.
     """
 
     timesteps: int
@@ -89,7 +97,7 @@ class CurvePoint:
     mean_episode_reward: float
     mean_f1: float
     best_f1: float
-    best_final_rate_rad_s: float
+    best_residual_rate_rad_s: float
 
 
 @dataclass(frozen=True)
@@ -225,6 +233,7 @@ class SearchTracker:
             episode_return=self._running_return,
             episode=self.episodes,
             constraint_violation=float(info.get("constraint_violation", 0.0)),
+            residual_rate_rad_s=float(info["residual_rate_rad_s"]),
         )
         self._violations.append(record.constraint_violation)
         self.last = record
@@ -264,7 +273,7 @@ class SearchTracker:
             if self._f1s
             else (previous.mean_f1 if previous else float("nan")),
             best_f1=self.best.f1 if self.best else float("nan"),
-            best_final_rate_rad_s=self.best.final_rate_rad_s if self.best else float("nan"),
+            best_residual_rate_rad_s=self.best.residual_rate_rad_s if self.best else float("nan"),
         )
         self.curve.append(point)
         self._returns, self._f1s, self._violations = [], [], []

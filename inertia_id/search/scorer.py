@@ -169,6 +169,10 @@ class PrefixScore:
         the torque still in it (:func:`~inertia_id.physics.simulate.settled_rates`), of
         the candidate that ends fastest (the larger of the mean over its series and the
         plan's prediction): what a ``max_final_rate`` constraint bounds.
+    :param residual_rate_rad_s: the same residual rate, mean over candidates of each
+        candidate's figure (the larger of its mean over its series and the plan's
+        prediction): the operator's ``final_rate`` objective, as a front reads it, while
+        ``final_rate_rad_s`` is the rate when the last command ends, the paper's reward.
     :param final_rate_p95_rad_s: a residual rate at least 95 % of that candidate's
         flights stay under, with 95 % confidence, as its series estimate it (the larger of
         :func:`~inertia_id.search.objectives.per_flight_bound` of its series, the normal
@@ -187,6 +191,7 @@ class PrefixScore:
     peak_rate_rad_s: float = 0.0
     final_rate_max_rad_s: float = 0.0
     final_rate_p95_rad_s: float = 0.0
+    residual_rate_rad_s: float = 0.0
 
 
 @dataclass
@@ -353,6 +358,7 @@ class PrefixScorer:
                 peak_rate_rad_s=peak,
                 final_rate_max_rad_s=worst,
                 final_rate_p95_rad_s=p95,
+                residual_rate_rad_s=float(by_candidate.mean()),
             )
             return _Node(state, planned, series, None, None, score, during)
         labels, centers = self._cluster(series, parent, prefix)
@@ -366,6 +372,7 @@ class PrefixScorer:
             peak_rate_rad_s=peak,
             final_rate_max_rad_s=worst,
             final_rate_p95_rad_s=p95,
+            residual_rate_rad_s=float(by_candidate.mean()),
         )
         return _Node(state, planned, series, centers, labels, score, during)
 

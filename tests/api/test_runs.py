@@ -29,6 +29,7 @@ def _search_result(fresh_f1: list[float], fuel: float, wall: float) -> dict[str,
             "fuel_nms": fuel,
             "episode_return": 2.0,
             "episode": 3,
+            "residual_rate_rad_s": 0.11,
         },
         "fresh": {
             "seed": 9,
@@ -57,7 +58,7 @@ def _search_result(fresh_f1: list[float], fuel: float, wall: float) -> dict[str,
                 "mean_episode_reward": 0.5 + i,
                 "mean_f1": 0.4 + 0.1 * i,
                 "best_f1": 0.6 + 0.2 * i,
-                "best_final_rate_rad_s": 0.2,
+                "best_residual_rate_rad_s": 0.2,
             }
             for i in range(3)
         ],
@@ -283,6 +284,7 @@ def test_a_search_result_downloads_as_json_and_as_each_csv_table(api: Api) -> No
     rows = _csv(curve.text)
     assert rows[0][:3] == ["timesteps", "episodes", "mean_episode_reward"]
     assert [float(r[2]) for r in rows[1:]] == [p["mean_episode_reward"] for p in result["curve"]]
+    assert rows[0][-1] == "best_residual_rate_rad_s" and rows[1][-1] == "0.2"
 
     sequence = _csv(api.get(f"/jobs/{job_id}/result?format=csv&table=sequence").text)
     assert sequence[0] == ["step", *(f"thruster_{j}_level" for j in range(1, 7))]
@@ -294,6 +296,7 @@ def test_a_search_result_downloads_as_json_and_as_each_csv_table(api: Api) -> No
     # |ω| when the last command ends, named so: not the settled residual rate.
     assert float(summary["fresh_end_rate_rad_s_mean"]) == pytest.approx(0.15)
     assert summary["best_end_rate_rad_s_search_draw"] == "0.12"
+    assert summary["best_residual_rate_rad_s_search_draw"] == "0.11"
     assert not any("final_rate" in key for key in summary)
     baselines = _csv(api.get(f"/jobs/{job_id}/result?format=csv&table=baselines").text)
     assert [r[0] for r in baselines[1:]] == [
@@ -626,3 +629,30 @@ def test_the_sweeps_of_a_classifier_are_listed_by_its_id(
     listed = api.get("/jobs", params={"classifier_id": mine}).json()
     assert [j["id"] for j in listed["items"]] == [first["id"]] and listed["total"] == 1
     assert api.get("/jobs", params={"classifier_id": "nope"}).json()["items"] == []
+
+
+@pytest.mark.parametrize(
+    ("method", "column"), [("cem", "best_end_rate_rad_s"), ("nsga2", "best_residual_rate_rad_s")]
+)
+def test_a_curve_stored_before_its_rate_was_named_is_exported_for_what_it_was(
+    api: Api, method: str, column: str
+) -> None:
+    """Results stored before the curve's rate had one meaning wrote it as
+    best_final_rate_rad_s: |ω| when the last command ends for the reinforcement-learning
+    searches, the settled residual for NSGA-II. The CSV names each for what it was."""
+    scenario_id = api.create_scenario()["id"]
+    result = _search_result([1.0, 0.8], 20.0, 3.5)
+    result["method"] = method
+    del result["best"]["residual_rate_rad_s"]
+    for point in result["curve"]:
+        point["best_final_rate_rad_s"] = point.pop("best_residual_rate_rad_s")
+    job_id = _finished(api, scenario_id, 0, result, name="old")
+    rows = _csv(api.get(f"/jobs/{job_id}/result", params={"format": "csv", "table": "curve"}).text)
+    assert rows[0][-1] == column and [r[-1] for r in rows[1:]] == ["0.2"] * 3
+    summary = dict(_csv(api.get(f"/jobs/{job_id}/result?format=csv").text)[1:])
+    if method == "nsga2":
+        assert summary["best_residual_rate_rad_s_search_draw"] == "0.12"
+        assert "best_end_rate_rad_s_search_draw" not in summary
+    else:
+        assert summary["best_end_rate_rad_s_search_draw"] == "0.12"
+        assert summary["best_residual_rate_rad_s_search_draw"] == ""

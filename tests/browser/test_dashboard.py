@@ -1175,7 +1175,7 @@ def test_an_nsga2_search_draws_its_generations_not_an_empty_reward(dashboard: Da
     assert _trace_points(dashboard, "reward-plot") == generations
     assert _trace_points(dashboard, "f1-plot") == generations
     drawn = page.evaluate("() => document.getElementById('reward-plot').data[0].y")
-    assert drawn == [p["best_final_rate_rad_s"] for p in job["result"]["curve"]]
+    assert drawn == [p["best_residual_rate_rad_s"] for p in job["result"]["curve"]]
     # The axis shows the rates at their height, also when they never change (Plotly's
     # own range for a flat series is v - 1 .. v + 1, where 0.0015 rad/s reads as 0).
     low, high = page.evaluate(

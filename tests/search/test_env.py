@@ -340,6 +340,10 @@ def test_a_residual_rate_bound_is_checked_on_the_worst_candidates_settled_rate(
     # The mean or the rate 95 % of the flights stay under, of the candidate ending fastest
     worst = getattr(probe.scorer.score(tuple(map(tuple, brake))), figure)
     assert 0 < worst < infos[-1]["final_rate_rad_s"]  # settles below the end-of-step rate
+    # The info's residual rate is the same settled figure, mean over the candidates.
+    settled = probe.scorer.score(tuple(map(tuple, brake)))
+    assert infos[-1]["residual_rate_rad_s"] == settled.residual_rate_rad_s
+    assert 0 < settled.residual_rate_rad_s <= settled.final_rate_max_rad_s
     bound = 0.5 * worst / factor  # half the worst candidate's rate: violated by 1
     env = SequenceSearchEnv(
         paper, sequence_length=2, n_realisations=10, seed=0, constraints={name: bound}

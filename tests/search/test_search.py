@@ -164,6 +164,12 @@ def test_random_search_reports_what_it_played(
     assert [p.timesteps for p in result.curve] == [8, 16, 24, 32, 40]
     assert [p.best_f1 for p in result.curve] == sorted(p.best_f1 for p in result.curve)
     assert result.curve[-1].best_f1 == result.best.f1
+    # The curve's rate is the residual once the lag is empty, the front's figure, not
+    # the end-of-command rate the reward reads (which it settles below).
+    best_info = next(i for i in episodes if i["sequence"] == result.best.sequence)
+    assert result.best.residual_rate_rad_s == best_info["residual_rate_rad_s"]
+    assert result.curve[-1].best_residual_rate_rad_s == result.best.residual_rate_rad_s
+    assert 0 < result.best.residual_rate_rad_s != result.best.final_rate_rad_s
     assert [r.point for r in reports] == result.curve
     assert [r.fraction for r in reports] == pytest.approx(
         [8 / 41, 16 / 41, 24 / 41, 32 / 41, 40 / 41]

@@ -20,7 +20,7 @@ from service.store.jobs import cancel
 if TYPE_CHECKING:
     from conftest import Service
 
-SEARCH_METRICS = {"mean_episode_reward", "mean_f1", "best_f1", "best_final_rate_rad_s"}
+SEARCH_METRICS = {"mean_episode_reward", "mean_f1", "best_f1", "best_residual_rate_rad_s"}
 SMALL_SEARCH = {
     "sequence_length": 2,
     "n_realisations": 5,
