@@ -1,23 +1,26 @@
-"""A peak-rate bound on the mean flight, checked on flights the search never saw.
+"""A peak-rate bound on the mean flight, and on 95 % of flights, checked on flights the
+search never saw.
 
-``max_peak_rate_rad_s`` / ``_deg_s`` bound, for the candidate that spins fastest, the
-larger of its mean peak |ω| over the scorer's realisations and the command plan's
-noise-free peak. A single flight's peak spreads around that mean (the disturbance and
-the duty jitter), so a member at the bound leaves some flights above it. This measures
-by how much, to tell whether a per-flight peak bound (as ``max_final_rate_p95`` is for
-the residual rate) is worth its cost.
+``max_peak_rate_deg_s`` bounds, for the candidate that spins fastest, the larger of its
+mean speed's fastest instant over the scorer's realisations and the command plan's
+noise-free peak. A single flight's peak is its own fastest instant, and it spreads
+around that (the disturbance and the duty jitter), so a member at the bound leaves some
+flights above it. ``max_peak_rate_p95_deg_s`` bounds a peak rate at least 95 % of the
+flights stay under with 95 % confidence (the residual's ``max_final_rate_p95``, read the
+same way: a proxy from the realisations while searching, the order statistic of 200
+flights of its own on the front).
 
 For each --lengths L, NSGA-II (defaults: accuracy at 6x process and 6x gyro noise, final
-rate, impulse) runs with the peak rate at most --peak deg/s, the residual rate at most
---bound rad/s and the impulse at most --max-impulse N m s. Every member is flown
---flights times per candidate on an independent draw at the scenario's own noise, and a
+rate, impulse) runs once with each peak bound at --peak deg/s, beside the residual rate
+at most --bound rad/s and the impulse at most --max-impulse N m s. Every member is flown
+--flights times per candidate on an independent draw at the scenario's own noise; a
 flight's peak is its largest true |ω| at any sample or once the lag has delivered the
-torque still in it. Printed: for the member nearest the bound, its figure and its
-fastest candidate's share of flights above the bound; over the front, the largest share
-of flights above the bound, and the largest ratio of a member's 95th-percentile flight
-peak (and its fastest flight) to its own figure.
+torque still in it. Printed: for the member nearest the bound, its figures and its
+fastest candidate's share of flights above the bound; over the front, the largest such
+share, the members whose own p95 figure more than 5 % of flights exceed, and member 0's
+confirmed accuracy (what the tighter bound costs).
 
-    python bench/per_flight_peak.py            # about 2 minutes on the 2-core machine
+    python bench/per_flight_peak.py            # about 2.5 minutes on the 2-core machine
 """
 
 from __future__ import annotations
@@ -60,53 +63,61 @@ def main() -> None:
     bound = args.peak / _DEG
     rows = []
     print(
-        "L | members | s | nearest member: figure deg/s | its flights above the bound | "
-        "most flights above, any member | largest p95 flight peak / own figure | "
-        "largest fastest flight / own figure"
+        "L | bound | members | s | nearest member: mean figure, p95 figure deg/s | its "
+        "flights above the bound | most flights above, any member | members whose own p95 "
+        "figure > 5 % of flights exceed | #0 confirmed 6x process / 6x gyro"
     )
     for length in args.lengths:
-        started = time.perf_counter()
-        result = pareto_search(
-            scenario,
-            sequence_length=length,
-            seed=args.seed,
-            operator=OperatorSettings(
-                constraints={
-                    "max_peak_rate_deg_s": args.peak,
-                    "max_final_rate_rad_s": args.bound,
-                    "max_impulse_nms": args.max_impulse,
+        for name in ("max_peak_rate_deg_s", "max_peak_rate_p95_deg_s"):
+            started = time.perf_counter()
+            result = pareto_search(
+                scenario,
+                sequence_length=length,
+                seed=args.seed,
+                operator=OperatorSettings(
+                    constraints={
+                        name: args.peak,
+                        "max_final_rate_rad_s": args.bound,
+                        "max_impulse_nms": args.max_impulse,
+                    }
+                ),
+            )
+            elapsed = time.perf_counter() - started
+            front = result.front or {}
+            members = front.get("members", [])
+            if not members:
+                print(f"{length} | {name} | 0 | {elapsed:.1f} | no member")
+                continue
+            sequences = np.array([m["sequence"] for m in members])
+            mean = np.array([m["scores"]["peak_rate_rad_s"] for m in members])
+            p95 = np.array([m["scores"]["peak_rate_p95_rad_s"] for m in members])
+            peaks = flight_peaks(scenario, sequences, args.flights, args.seed + 99)
+            above = (peaks > bound).mean(axis=2).max(axis=1)  # (P,): fastest candidate's
+            own = (peaks > p95[:, None, None]).mean(axis=2).max(axis=1)
+            nearest = int(np.argmax(p95 if "p95" in name else mean))
+            confirmation = front.get("confirmation") or {}
+            confirmed = " / ".join(f"{a:.4f}" for a in confirmation.get("accuracy_by_noise", []))
+            print(
+                f"{length} | {name} <= {args.peak:g} | {len(members)} | {elapsed:.1f} | "
+                f"#{nearest}: {mean[nearest] * _DEG:.3f}, {p95[nearest] * _DEG:.3f} | "
+                f"{above[nearest]:.1%} | {above.max():.1%} (#{int(np.argmax(above))}) | "
+                f"{int((own > 0.05).sum())} of {len(members)} (most {own.max():.1%}) | "
+                f"{confirmed}"
+            )
+            rows.append(
+                {
+                    "length": length,
+                    "constraint": name,
+                    "members": len(members),
+                    "seconds": elapsed,
+                    "nearest": nearest,
+                    "peak_rate_rad_s_by_member": mean.tolist(),
+                    "peak_rate_p95_rad_s_by_member": p95.tolist(),
+                    "share_above_by_member": above.tolist(),
+                    "share_above_own_p95_by_member": own.tolist(),
+                    "confirmation": confirmation,
                 }
-            ),
-        )
-        elapsed = time.perf_counter() - started
-        members = (result.front or {}).get("members", [])
-        if not members:
-            print(f"{length} | 0 | {elapsed:.1f} | no member")
-            continue
-        sequences = np.array([m["sequence"] for m in members])
-        figures = np.array([m["scores"]["peak_rate_rad_s"] for m in members])
-        peaks = flight_peaks(scenario, sequences, args.flights, args.seed + 99)
-        above = (peaks > bound).mean(axis=2).max(axis=1)  # (P,): fastest candidate's share
-        p95 = np.quantile(peaks, 0.95, axis=2).max(axis=1) / figures
-        fastest = peaks.max(axis=(1, 2)) / figures
-        nearest = int(np.argmax(figures))
-        print(
-            f"{length} | {len(members)} | {elapsed:.1f} | #{nearest}: "
-            f"{figures[nearest] * _DEG:.4f} | {above[nearest]:.1%} | "
-            f"{above.max():.1%} (#{int(np.argmax(above))}) | {p95.max():.4f} | "
-            f"{fastest.max():.4f}"
-        )
-        rows.append(
-            {
-                "length": length,
-                "members": len(members),
-                "seconds": elapsed,
-                "figures_rad_s": figures.tolist(),
-                "share_above_by_member": above.tolist(),
-                "p95_over_figure_by_member": p95.tolist(),
-                "fastest_over_figure_by_member": fastest.tolist(),
-            }
-        )
+            )
     write_json(
         args.json, args, {"flights": args.flights, "peak_bound_deg_s": args.peak, "rows": rows}
     )

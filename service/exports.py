@@ -231,6 +231,9 @@ _FRONT_FIGURES = (
     "final_rate_p95_deg_s",
     "peak_rate_rad_s",
     "peak_rate_deg_s",
+    # The same per-flight bound on each flight's own peak (empty before it was stored).
+    "peak_rate_p95_rad_s",
+    "peak_rate_p95_deg_s",
     "impulse_nms",
     "on_time_s",
     "propellant_kg",

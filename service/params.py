@@ -168,7 +168,10 @@ class SearchParams(StrictModel):
         "residual rate of every candidate, mean over flights), max_final_rate_p95_rad_s, "
         "max_final_rate_p95_deg_s (a rate at least 95 % of every candidate's flights stay "
         "under, with 95 % confidence), "
-        "max_peak_rate_rad_s, max_peak_rate_deg_s, max_impulse_nms, max_on_time_s, "
+        "max_peak_rate_rad_s, max_peak_rate_deg_s (the fastest candidate's peak rate, mean "
+        "over flights), max_peak_rate_p95_rad_s, max_peak_rate_p95_deg_s (a peak rate at "
+        "least 95 % of its flights stay under, with 95 % confidence), "
+        "max_impulse_nms, max_on_time_s, "
         "max_propellant_kg, max_duration_s, min_accuracy (nsga2 only)",
         examples=[{"max_final_rate_deg_s": 0.2, "max_impulse_nms": 20}],
     )

@@ -156,6 +156,9 @@ def vocabulary() -> VocabularyOut:
     by_field = {figure: name for name, figure in OBJECTIVE_FIELDS.items()}
     # Figures of the worst candidate (its mean, or the rate 95 % of its flights stay under)
     worst = {"final_rate_max_rad_s": "final_rate", "final_rate_p95_rad_s": "final_rate"}
+    # Figures bounded on 95 % of flights (the peak's objective is the fastest candidate's
+    # already), and the objective each one bounds.
+    per_flight = {"final_rate_p95_rad_s": "final_rate", "peak_rate_p95_rad_s": "peak_rate"}
     defaults = SearchRequest(method="nsga2")
 
     kinds = []
@@ -199,11 +202,11 @@ def vocabulary() -> VocabularyOut:
         constraints=[
             ConstraintOut(
                 name=name,
-                bounds=worst.get(figure) or by_field[figure],
+                bounds=worst.get(figure) or per_flight.get(figure) or by_field[figure],
                 sense=sense,
                 worst_candidate=figure in worst,
-                flight_quantile=FLIGHT_QUANTILE if figure == "final_rate_p95_rad_s" else None,
-                flight_confidence=FLIGHT_CONFIDENCE if figure == "final_rate_p95_rad_s" else None,
+                flight_quantile=FLIGHT_QUANTILE if figure in per_flight else None,
+                flight_confidence=FLIGHT_CONFIDENCE if figure in per_flight else None,
             )
             for name, (figure, sense, _) in CONSTRAINTS.items()
         ],

@@ -145,7 +145,9 @@ def search_options(func: F) -> F:
             "A bound (repeatable): max_final_rate_deg_s, max_final_rate_rad_s (every "
             "candidate's residual rate, mean over flights), max_final_rate_p95_deg_s, "
             "max_final_rate_p95_rad_s (a rate at least 95 % of every candidate's flights "
-            "stay under, with 95 % confidence), max_peak_rate_deg_s, max_peak_rate_rad_s, "
+            "stay under, with 95 % confidence), max_peak_rate_deg_s, max_peak_rate_rad_s "
+            "(the fastest candidate's peak rate, mean over flights), max_peak_rate_p95_deg_s, "
+            "max_peak_rate_p95_rad_s (a peak rate at least 95 % of its flights stay under), "
             "max_impulse_nms, max_on_time_s, max_propellant_kg, max_duration_s, "
             "min_accuracy; e.g. --constraint max_final_rate_deg_s=0.2.",
         ),
@@ -402,6 +404,12 @@ def search_cmd(
                 f"; >= 95 % of flights under {scores['final_rate_p95_rad_s']:.4f} rad/s "
                 f"({scores['final_rate_p95_deg_s']:.3f} deg/s), 95 % conf."
                 if scores.get("final_rate_p95_rad_s") is not None
+                else ""
+            )
+            + f" | peak {scores['peak_rate_deg_s']:.2f} deg/s"
+            + (
+                f" (>= 95 % of flights under {scores['peak_rate_p95_deg_s']:.2f})"
+                if scores.get("peak_rate_p95_deg_s") is not None
                 else ""
             )
             + f" | {scores['impulse_nms']:.1f} N m s{flags}",

@@ -31,6 +31,7 @@ from .objectives import (
     check_constraints,
     check_design_noise,
     check_objectives,
+    flight_peaks,
     per_flight_bound,
 )
 
@@ -221,8 +222,9 @@ class OperatorScorer:
     def per_flight_figures(self, sequences: Any, flights: int, *, seed: int) -> np.ndarray:
         """Each sequence flown ``flights`` times a candidate at the scenario's noise, on a
         draw from ``seed``: the candidate with the largest :func:`~inertia_id.search.
-        objectives.per_flight_bound` of its residual rates, (P,) rad/s. With 59 flights
-        or more it holds whatever the distribution of the residual rate."""
+        objectives.per_flight_bound` of its residual rates, and the one with the largest
+        of its flights' peak rates (:func:`flight_peaks`), (P, 2) rad/s. With 59 flights
+        or more each holds whatever the distribution."""
         checked = self._checked(sequences)
         simulator = Simulator(self.scenario, int(flights))
         noise = simulator.draw_noise(np.random.default_rng(seed), self.sequence_length)
@@ -230,8 +232,18 @@ class OperatorScorer:
         # Batches bound memory: P x K x flights x T x 3 doubles of rates per batch.
         batch = max(1, _CHUNK * self.settings.n_realisations // int(flights))
         for start in range(0, len(checked), batch):
-            _, end = simulator.population_run(checked[start : start + batch], noise)
-            out.append(per_flight_bound(simulator.settled(end), axis=2).max(axis=1))
+            rates, end = simulator.population_run(checked[start : start + batch], noise)
+            settled = simulator.settled(end)  # (P, K, flights)
+            peaks = flight_peaks(rates, settled)
+            out.append(
+                np.stack(
+                    [
+                        per_flight_bound(settled, axis=2).max(axis=1),
+                        per_flight_bound(peaks, axis=2).max(axis=1),
+                    ],
+                    axis=1,
+                )
+            )
         return np.concatenate(out)
 
     def _score_chunk(self, sequences: np.ndarray) -> list[SequenceScores]:
@@ -258,6 +270,9 @@ class OperatorScorer:
         # Single flights spread around that mean: a rate at least 95 % of them stay
         # under, with 95 % confidence.
         p95_by_candidate = np.maximum(per_flight_bound(settled, axis=2), final_by_candidate)
+        # The same for each flight's own peak (its fastest instant, which the mean speed
+        # at each instant below understates).
+        peak_p95 = per_flight_bound(flight_peaks(own, settled), axis=2).max(axis=1)  # (P,)
         # The largest rate of the manoeuvre: during the commands, or after the last one,
         # while the lag delivers the torque still in it. Without ω × Iω the rate then
         # moves on a straight line from where the commands leave it to the settled rate,
@@ -283,6 +298,7 @@ class OperatorScorer:
                     final_rate_max_rad_s=float(final_by_candidate[i].max()),
                     final_rate_p95_rad_s=float(p95_by_candidate[i].max()),
                     peak_rate_rad_s=float(peak[i]),
+                    peak_rate_p95_rad_s=max(float(peak_p95[i]), float(peak[i])),
                     impulse_nms=scenario.impulse_nms(sequence),
                     on_time_s=float(scenario.on_time_s(sequence).sum()),
                     propellant_kg=scenario.propellant_kg(sequence),

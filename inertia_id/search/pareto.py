@@ -457,8 +457,12 @@ def build_front(
         np.stack(everything), FRONT_FLIGHTS, seed=flights_seed(seed)
     )
     scored = [
-        replace(score, final_rate_p95_rad_s=max(float(figure), score.final_rate_max_rad_s))
-        for score, figure in zip(scored, figures, strict=True)
+        replace(
+            score,
+            final_rate_p95_rad_s=max(float(residual), score.final_rate_max_rad_s),
+            peak_rate_p95_rad_s=max(float(peak), score.peak_rate_rad_s),
+        )
+        for score, (residual, peak) in zip(scored, figures, strict=True)
     ]
     fresh = scored[: len(rows)]
     for (name, (sequence, _)), score in zip(available.items(), scored[len(rows) :], strict=True):

@@ -32,7 +32,13 @@ from ..errors import InputError
 from ..physics.attitude import propagate_attitude, rotation_angle_deg
 from ..physics.scenario import Scenario
 from ..physics.simulate import simulate
-from .objectives import FLIGHT_QUANTILE, QUANTILE_METHOD, flight_quantile, per_flight_bound
+from .objectives import (
+    FLIGHT_QUANTILE,
+    QUANTILE_METHOD,
+    flight_peaks,
+    flight_quantile,
+    per_flight_bound,
+)
 from .operator import nominal_run
 
 __all__ = ["CommandPlan", "FlightDispersion", "command_plan"]
@@ -53,8 +59,9 @@ class FlightDispersion:
     mean, the rate :data:`~inertia_id.search.objectives.FLIGHT_QUANTILE` of them stay
     under (median-unbiased percentile), the rate at least that share of all flights stay
     under with 95 % confidence (:func:`~inertia_id.search.objectives.per_flight_bound`, the
-    figure a front's ``final_rate_p95`` gives) and the largest; the percentile of each
-    flight's peak rate.
+    figure a front's ``final_rate_p95`` gives) and the largest; each flight's peak rate
+    (its fastest instant, or once settled): their percentile and the same 95 %-confidence
+    bound (a front's ``peak_rate_p95``).
     """
 
     flights: int
@@ -64,6 +71,7 @@ class FlightDispersion:
     residual_p95_bound_rad_s: list[float]
     residual_max_rad_s: list[float]
     peak_p95_rad_s: list[float]
+    peak_p95_bound_rad_s: list[float]
 
     def candidate(self, k: int) -> dict[str, float]:
         figures = {
@@ -72,6 +80,7 @@ class FlightDispersion:
             "residual_rate_p95_bound_rad_s": self.residual_p95_bound_rad_s[k],
             "residual_rate_max_rad_s": self.residual_max_rad_s[k],
             "peak_rate_p95_rad_s": self.peak_p95_rad_s[k],
+            "peak_rate_p95_bound_rad_s": self.peak_p95_bound_rad_s[k],
         }
         return {
             **figures,
@@ -88,7 +97,9 @@ class FlightDispersion:
             "stay under with 95 % confidence, never below the mean or the nominal residual "
             "(from 59 flights an order statistic, whatever the distribution; below, a "
             "normal tolerance bound of the rate's root), the figure a front's "
-            "final_rate_p95 gives; residual_rate_p95: the 95th percentile of these flights",
+            "final_rate_p95 gives; residual_rate_p95: the 95th percentile of these flights; "
+            "peak_rate_p95 and peak_rate_p95_bound: the same of each flight's own peak rate "
+            "(the bound a front's peak_rate_p95 gives)",
             "noise": "the scenario's own noise model: duty jitter, thrust-scale error, "
             "disturbance torque and any initial rate it draws (the gyro's noise and bias "
             "do not move the body)",
@@ -100,6 +111,8 @@ class FlightDispersion:
             "residual_rate_max_deg_s": float(max(self.residual_max_rad_s) * _DEG),
             "peak_rate_p95_max_rad_s": float(max(self.peak_p95_rad_s)),
             "peak_rate_p95_max_deg_s": float(max(self.peak_p95_rad_s) * _DEG),
+            "peak_rate_p95_bound_max_rad_s": float(max(self.peak_p95_bound_rad_s)),
+            "peak_rate_p95_bound_max_deg_s": float(max(self.peak_p95_bound_rad_s) * _DEG),
         }
 
 
@@ -261,12 +274,18 @@ _FLIGHT_BLOCK_VALUES = 4_000_000
 
 
 def flight_dispersion(
-    scenario: Scenario, rows: np.ndarray, flights: int, seed: int, nominal: np.ndarray
+    scenario: Scenario,
+    rows: np.ndarray,
+    flights: int,
+    seed: int,
+    nominal: np.ndarray,
+    nominal_peak: np.ndarray,
 ) -> FlightDispersion:
     """Each candidate flown ``flights`` times at the scenario's own noise (see
     :class:`FlightDispersion`), in blocks drawn one after the other from ``seed`` (one
     block, up to 1,666 flights of 8 paper steps, draws what one call would).
-    ``nominal`` (K,): the plan's residual rates, below which no bound is stated."""
+    ``nominal`` and ``nominal_peak`` (K,): the plan's residual and peak rates, below
+    which no bound is stated."""
     rng = np.random.default_rng(seed)
     samples = scenario.timing.samples_per_step * len(rows)
     block = max(1, _FLIGHT_BLOCK_VALUES // (scenario.n_candidates * samples * 3))
@@ -275,9 +294,7 @@ def flight_dispersion(
         result = simulate(scenario, rows, min(block, flights - start), rng)
         residual = result.settled_rate_rad_s(scenario)  # (K, n)
         residual_parts.append(residual)
-        peak_parts.append(
-            np.maximum(np.linalg.norm(result.omega_true, axis=-1).max(axis=2), residual)
-        )
+        peak_parts.append(flight_peaks(result.omega_true, residual))
     residual = np.concatenate(residual_parts, axis=1)
     peak = np.concatenate(peak_parts, axis=1)
     floor = np.maximum(residual.mean(axis=1), nominal)  # as a front's figure
@@ -289,6 +306,9 @@ def flight_dispersion(
         residual_p95_bound_rad_s=np.maximum(per_flight_bound(residual, axis=1), floor).tolist(),
         residual_max_rad_s=residual.max(axis=1).tolist(),
         peak_p95_rad_s=flight_quantile(peak, axis=1).tolist(),
+        peak_p95_bound_rad_s=np.maximum(
+            per_flight_bound(peak, axis=1), np.maximum(peak.mean(axis=1), nominal_peak)
+        ).tolist(),
     )
 
 
@@ -334,7 +354,7 @@ def command_plan(
         impulse_nms=scenario.impulse_nms(rows),
         propellant_kg=scenario.propellant_kg(rows),
         dispersion=(
-            flight_dispersion(scenario, rows, int(flights), int(seed), residual)
+            flight_dispersion(scenario, rows, int(flights), int(seed), residual, peak)
             if flights
             else None
         ),

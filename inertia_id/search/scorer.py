@@ -179,6 +179,9 @@ class PrefixScore:
         proxy below 59, and ``final_rate_max_rad_s``'s figure for it), the candidate
         whose series end fastest: what a ``max_final_rate_p95`` constraint penalises. The
         search's best is judged again on flights of its own (its front).
+    :param peak_rate_p95_rad_s: the same for each series' own peak rate (its fastest
+        instant, or once settled), at least ``peak_rate_rad_s``: what a
+        ``max_peak_rate_p95`` constraint penalises.
     """
 
     f1: float
@@ -192,6 +195,7 @@ class PrefixScore:
     final_rate_max_rad_s: float = 0.0
     final_rate_p95_rad_s: float = 0.0
     residual_rate_rad_s: float = 0.0
+    peak_rate_p95_rad_s: float = 0.0
 
 
 @dataclass
@@ -206,6 +210,8 @@ class _Node:
     #: The largest |ω| at any sample so far (the candidate that spins fastest); the
     #: settling after the last command is added only to the score, not handed on.
     peak_during: float = 0.0
+    #: (K, n) each series' own largest true |ω| at any sample so far (None at the root).
+    series_peak: np.ndarray | None = None
 
     @property
     def nbytes(self) -> int:
@@ -341,6 +347,13 @@ class PrefixScorer:
             parent.peak_during,
         )
         peak = max(during, worst)
+        # Each series' own peak (its fastest instant, or once settled), and a peak rate
+        # at least 95 % of flights stay under, read as the residual's p95 is.
+        own = np.linalg.norm(response.omega_true, axis=-1).max(axis=-1)  # (K, n)
+        series_peak = own if parent.series_peak is None else np.maximum(parent.series_peak, own)
+        peak_p95 = max(
+            float(per_flight_bound(np.maximum(series_peak, settled), axis=1).max()), peak
+        )
         if self.settings.objective == "separability":
             bound = error_bound(
                 series.reshape(k, n, -1, 3),
@@ -359,8 +372,9 @@ class PrefixScorer:
                 final_rate_max_rad_s=worst,
                 final_rate_p95_rad_s=p95,
                 residual_rate_rad_s=float(by_candidate.mean()),
+                peak_rate_p95_rad_s=peak_p95,
             )
-            return _Node(state, planned, series, None, None, score, during)
+            return _Node(state, planned, series, None, None, score, during, series_peak)
         labels, centers = self._cluster(series, parent, prefix)
         scores = match_clusters(self.labels, labels, k)
         score = PrefixScore(
@@ -373,8 +387,9 @@ class PrefixScorer:
             final_rate_max_rad_s=worst,
             final_rate_p95_rad_s=p95,
             residual_rate_rad_s=float(by_candidate.mean()),
+            peak_rate_p95_rad_s=peak_p95,
         )
-        return _Node(state, planned, series, centers, labels, score, during)
+        return _Node(state, planned, series, centers, labels, score, during, series_peak)
 
     def _cluster(
         self, series: np.ndarray, parent: _Node, prefix: Prefix

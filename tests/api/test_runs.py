@@ -403,9 +403,12 @@ def test_a_front_downloads_as_csv_its_members_plan_by_index_and_a_member_trains(
             "final_rate_max_deg_s",
             "final_rate_p95_rad_s",
             "final_rate_p95_deg_s",
+            "peak_rate_p95_rad_s",
+            "peak_rate_p95_deg_s",
         ):
             assert float(row[column[figure]]) == member["scores"][figure]
         assert member["scores"]["final_rate_p95_rad_s"] >= member["scores"]["final_rate_max_rad_s"]
+        assert member["scores"]["peak_rate_p95_rad_s"] >= member["scores"]["peak_rate_rad_s"]
     # Rates in deg/s are the rad/s ones converted.
     assert float(listed[0][column["final_rate_deg_s"]]) == pytest.approx(
         np.degrees(float(listed[0][column["final_rate_rad_s"]]))

@@ -865,6 +865,7 @@ FRONT_FIGURES = (
     "final_rate_p95_deg_s",
     "final_rate_p95_rad_s",
     "peak_rate_deg_s",
+    "peak_rate_p95_deg_s",
     "impulse_nms",
     "on_time_s",
     "duration_s",

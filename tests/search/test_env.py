@@ -358,7 +358,7 @@ def test_a_residual_rate_bound_is_checked_on_the_worst_candidates_settled_rate(
             if n not in ("min_accuracy", "max_propellant_kg")
             and not (n.endswith(("_rad_s", "_deg_s")) and not n.endswith(unit))
         }
-        assert len(others) == 6, others
+        assert len(others) == 7, others
         every = SequenceSearchEnv(
             paper, sequence_length=2, n_realisations=10, seed=0, constraints=others
         )

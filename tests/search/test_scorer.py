@@ -117,6 +117,8 @@ def test_the_peak_rate_reads_as_the_operators_worst_candidate_settling_included(
     assert got.final_rate_max_rad_s == pytest.approx(expected.final_rate_max_rad_s, rel=1e-12)
     assert got.final_rate_p95_rad_s == pytest.approx(expected.final_rate_p95_rad_s, rel=1e-12)
     assert got.final_rate_p95_rad_s >= got.final_rate_max_rad_s
+    assert got.peak_rate_p95_rad_s == pytest.approx(expected.peak_rate_p95_rad_s, rel=1e-12)
+    assert got.peak_rate_p95_rad_s > got.peak_rate_rad_s
     # Not the mean over candidates: the fastest candidate's peak is above it.
     rates = np.linalg.norm(
         prefix.simulator.population_rates(np.array([sequence]), prefix.noise)[0], axis=-1
