@@ -168,9 +168,10 @@ class SearchParams(StrictModel):
         "residual rate of every candidate, mean over flights), max_final_rate_p95_rad_s, "
         "max_final_rate_p95_deg_s (a rate at least 95 % of every candidate's flights stay "
         "under, with 95 % confidence), "
-        "max_peak_rate_rad_s, max_peak_rate_deg_s (the fastest candidate's peak rate, mean "
-        "over flights), max_peak_rate_p95_rad_s, max_peak_rate_p95_deg_s (a peak rate at "
-        "least 95 % of its flights stay under, with 95 % confidence), "
+        "max_peak_rate_rad_s, max_peak_rate_deg_s (the fastest candidate's largest mean "
+        "speed over the flights, at any instant, or the plan's peak), "
+        "max_peak_rate_p95_rad_s, max_peak_rate_p95_deg_s (a peak rate at least 95 % of "
+        "its flights stay under, with 95 % confidence), "
         "max_impulse_nms, max_on_time_s, "
         "max_propellant_kg, max_duration_s, min_accuracy (nsga2 only)",
         examples=[{"max_final_rate_deg_s": 0.2, "max_impulse_nms": 20}],
@@ -253,11 +254,14 @@ class SearchParams(StrictModel):
             check_constraints,
             check_design_noise,
             check_objectives,
+            check_per_flight_realisations,
         )
 
         check_objectives(self.objectives)
         check_design_noise(self.design_noise)
         check_constraints(self.constraints)
+        # A per-flight bound needs enough realisations to estimate a spread (every method).
+        check_per_flight_realisations(self.constraints, self.n_realisations)
         if "min_accuracy" in self.constraints and self.method != "nsga2":
             raise ValueError(
                 f"constraint min_accuracy applies to method nsga2 only, not {self.method!r}"

@@ -146,7 +146,8 @@ def search_options(func: F) -> F:
             "candidate's residual rate, mean over flights), max_final_rate_p95_deg_s, "
             "max_final_rate_p95_rad_s (a rate at least 95 % of every candidate's flights "
             "stay under, with 95 % confidence), max_peak_rate_deg_s, max_peak_rate_rad_s "
-            "(the fastest candidate's peak rate, mean over flights), max_peak_rate_p95_deg_s, "
+            "(the fastest candidate's largest mean speed over the flights, or the plan's "
+            "peak), max_peak_rate_p95_deg_s, "
             "max_peak_rate_p95_rad_s (a peak rate at least 95 % of its flights stay under), "
             "max_impulse_nms, max_on_time_s, max_propellant_kg, max_duration_s, "
             "min_accuracy; e.g. --constraint max_final_rate_deg_s=0.2.",
@@ -408,7 +409,7 @@ def search_cmd(
             )
             + f" | peak {scores['peak_rate_deg_s']:.2f} deg/s"
             + (
-                f" (>= 95 % of flights under {scores['peak_rate_p95_deg_s']:.2f})"
+                f" (>= 95 % of flights under {scores['peak_rate_p95_deg_s']:.2f} deg/s, 95 % conf.)"
                 if scores.get("peak_rate_p95_deg_s") is not None
                 else ""
             )

@@ -350,9 +350,10 @@ def settled_rates(
     0.0004. The gyroscopic term over the few ``tau`` the lag takes to empty is left out:
     it turns the rate vector and barely changes its size. Against scipy's DOP853 flying
     the lag out with it (compared at the same instant, since |ω| is not conserved
-    torque-free either), |ω| agrees to under 1e-6 rad/s on the paper preset's
-    hand-designed and braking sequences, and to 2e-4 of the rate on a smaller body
-    spinning at 0.15 rad/s (``tests/physics/test_simulate.py``).
+    torque-free either), |ω| agrees to about 1e-6 rad/s (1.01e-6 measured) on the paper
+    preset's hand-designed and braking sequences, and to 2e-5 to 2.1e-4 of the rate on
+    a smaller body with products of inertia and a 0.2 s lag spinning at 0.11 to 0.39
+    rad/s (``tests/physics/test_simulate.py`` holds it to 5e-4).
 
     :param omega: (..., K, n, 3) body rates when the last command ends, rad/s.
     :param torque: (..., K, n, 3) applied thruster torque then (the lag's state), N m.

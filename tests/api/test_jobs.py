@@ -229,6 +229,18 @@ BAD_PARAMS: list[tuple[str, dict[str, Any], str]] = [
         {"method": "nsga2", "constraints": {"min_accuracy": 2}},
         "min_accuracy is a fraction in [0, 1], got 2",
     ),
+    # Refused at submission, as the worker would refuse it: a per-flight bound needs
+    # enough realisations to estimate a spread, for every method.
+    (
+        "search",
+        {"method": "nsga2", "n_realisations": 5, "constraints": {"max_peak_rate_p95_deg_s": 4}},
+        "the search needs n_realisations >= 10",
+    ),
+    (
+        "search",
+        {"method": "cem", "n_realisations": 9, "constraints": {"max_final_rate_p95_rad_s": 0.01}},
+        "the search needs n_realisations >= 10",
+    ),
     ("train", {"sequence": [[9, 0, 0, 0, 0, 0]]}, "level index 9 is outside 0..4"),
     ("train", {"sequence": [[1, 2]]}, "got shape (1, 2)"),
     ("train", {"sequence": []}, "at least 1 item"),
