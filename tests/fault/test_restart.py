@@ -18,7 +18,7 @@ def test_graceful_restarts_hand_the_running_job_back_without_spending_attempts(
         if not job_id:
             with serve.client() as client:
                 scenario = deployment.scenario(client)
-                job_id = deployment.submit(client, scenario, "search", random_search(6000))
+                job_id = deployment.submit(client, scenario, "search", random_search(30000))
         job = deployment.wait_job(job_id, ("running",), timeout_s=120)
         assert job.attempts == restart, (job.attempts, job.handbacks)
 
