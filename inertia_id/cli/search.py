@@ -364,8 +364,9 @@ def search_cmd(
     # last step's end (the front below gives the settled residual rate).
     click.echo(
         f"on the same fresh draws (F1; |ω| at the last step's end): found F1 "
-        f"{result.fresh.f1_mean:.3f}, {result.best.fuel_nms:.1f} N m s, final rate "
-        f"{np.mean(result.fresh.final_rate_rad_s):.3f} rad/s",
+        f"{result.fresh.f1_mean:.3f}, impulse {result.best.fuel_nms:.1f} N m s, end rate "
+        f"{np.mean(result.fresh.final_rate_rad_s):.3f} rad/s "
+        f"({np.degrees(np.mean(result.fresh.final_rate_rad_s)):.2f} deg/s)",
         err=True,
     )
     for name, base in outcome.baselines.items():
@@ -374,7 +375,8 @@ def search_cmd(
             continue
         f1, rate = np.mean(base["fresh_f1"]), np.mean(base["fresh_final_rate_rad_s"])
         click.echo(
-            f"  {name:14s} F1 {f1:.3f}, {base['fuel_nms']:.1f} N m s, final rate {rate:.3f} rad/s",
+            f"  {name:14s} F1 {f1:.3f}, impulse {base['fuel_nms']:.1f} N m s, end rate "
+            f"{rate:.3f} rad/s ({np.degrees(rate):.2f} deg/s)",
             err=True,
         )
     front = result.front or {}

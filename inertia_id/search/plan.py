@@ -221,7 +221,10 @@ class CommandPlan:
                 f"seed {self.dispersion.seed}; residual_rate_p95_max_rad_s "
                 f"{summary['residual_rate_p95_max_rad_s']:.6g}; "
                 f"residual_rate_p95_bound_max_rad_s "
-                f"{summary['residual_rate_p95_bound_max_rad_s']:.6g}\n"
+                f"{summary['residual_rate_p95_bound_max_rad_s']:.6g}; "
+                f"peak_rate_p95_max_rad_s {summary['peak_rate_p95_max_rad_s']:.6g}; "
+                f"peak_rate_p95_bound_max_rad_s "
+                f"{summary['peak_rate_p95_bound_max_rad_s']:.6g}\n"
             )
         for k, candidate in enumerate(document["candidates"], start=1):
             out.write(

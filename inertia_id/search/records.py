@@ -16,6 +16,7 @@ score too when the search used it.
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
@@ -348,11 +349,23 @@ class SearchResult:
             seen = f"F1 {b.f1:.3f} on the search's draw, "
         else:
             seen = f"separability {b.f1:.3f} on the search's draw, F1 "
+        # Two rates, each named for what it is: the residual once the lag is empty (the
+        # same figure for every method, as the front's) and |ω| when the last command
+        # ends, on the fresh draws (what the paper's last-step term reads).
+        residual = b.residual_rate_rad_s
+        settled = (
+            f"residual rate {residual:.4f} rad/s ({math.degrees(residual):.3f} deg/s) once the "
+            "lag is empty | "
+            if math.isfinite(residual)
+            else ""
+        )
+        end = float(np.mean(self.fresh.final_rate_rad_s))
         return (
             f"{self.method}: best sequence {b.sequence} | {seen}"
             f"{self.fresh.f1_mean:.3f} mean on {len(self.fresh.f1)} fresh draws "
-            f"(min {self.fresh.f1_min:.3f}) | final rate {b.final_rate_rad_s:.4f} rad/s | "
-            f"fuel {b.fuel_nms:.2f} N m s | {self.timesteps} env steps, {self.episodes} "
+            f"(min {self.fresh.f1_min:.3f}) | {settled}|ω| at the last step's end "
+            f"{end:.4f} rad/s ({math.degrees(end):.3f} deg/s), fresh mean | "
+            f"impulse {b.fuel_nms:.2f} N m s | {self.timesteps} env steps, {self.episodes} "
             f"episodes, {self.wall_time_s:.1f} s, stopped: {self.stopped}"
         )
 

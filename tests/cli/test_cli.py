@@ -183,6 +183,8 @@ def test_plan_flies_the_sequence_when_asked(runner: CliRunner, tmp_path: Path) -
     assert f"at least 95 % of flights end under {bound:.4f} rad/s" in result.output
     p95 = plan["flights"]["residual_rate_p95_max_rad_s"]
     assert f"the 95th percentile of these flights {p95:.4f}" in result.output
+    peak = plan["flights"]["peak_rate_p95_bound_max_rad_s"]
+    assert f"peak rate: at least 95 % of flights under {peak:.4f} rad/s" in result.output
     refused = runner.invoke(main, ["plan", "--sequence", sequence, "--flights", "1"])
     assert refused.exit_code != 0
     assert "flights must be 0 (none) or an integer in 2..100000, got 1" in refused.output

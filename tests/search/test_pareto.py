@@ -290,6 +290,9 @@ def test_a_plan_flies_the_sequence_and_states_how_single_flights_spread(paper: S
     assert np.all((above > 0.02) & (above < 0.09)), above
     csv_text = plan.to_csv()
     assert "# flights: 400 per candidate at the scenario's noise, seed 4" in csv_text
+    flights_line = next(line for line in csv_text.splitlines() if line.startswith("# flights"))
+    peak = document["flights"]["peak_rate_p95_bound_max_rad_s"]
+    assert flights_line.endswith(f"peak_rate_p95_bound_max_rad_s {peak:.6g}")
     assert "flights_residual_rate_p95_rad_s" in csv_text.splitlines()[6]
     # Same seed, same figures.
     assert command_plan(paper, sequence, flights=400, seed=4).to_dict() == document
@@ -681,6 +684,9 @@ def test_nsga2s_best_score_is_called_a_predicted_accuracy(paper: Scenario) -> No
 
     result = _tiny_search(paper, polish_iterations=0)
     assert "predicted accuracy" in result.summary() and "search's draw" not in result.summary()
+    residual = result.best.residual_rate_rad_s
+    assert f"residual rate {residual:.4f} rad/s" in result.summary()
+    assert residual == result.front["members"][0]["search_scores"]["final_rate_rad_s"]
     summary = dict(result_table("search", json.loads(result.to_json()), "summary").rows)
     assert summary["best_predicted_accuracy_design_noise"] == result.best.f1
     assert summary["objective"] == "operator objectives"

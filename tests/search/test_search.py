@@ -174,6 +174,12 @@ def test_random_search_reports_what_it_played(
     assert [r.fraction for r in reports] == pytest.approx(
         [8 / 41, 16 / 41, 24 / 41, 32 / 41, 40 / 41]
     )
+    # The summary names each rate for what it is, in rad/s and deg/s.
+    summary = result.summary()
+    residual, end = result.best.residual_rate_rad_s, np.mean(result.fresh.final_rate_rad_s)
+    assert f"residual rate {residual:.4f} rad/s ({math.degrees(residual):.3f} deg/s)" in summary
+    assert f"|ω| at the last step's end {end:.4f} rad/s ({math.degrees(end):.3f}" in summary
+    assert "final rate" not in summary and "fuel" not in summary
 
     assert result.fresh.seed != 1 and len(result.fresh.f1) == 3
     assert all(0.0 <= f1 <= 1.0 for f1 in result.fresh.f1)
