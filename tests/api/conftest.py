@@ -15,6 +15,7 @@ from __future__ import annotations
 import os
 import secrets
 from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -37,9 +38,9 @@ REQUIRE_SERVICES = os.environ.get("INERTIA_ID_REQUIRE_SERVICES") == "1"
 TABLES = ("metrics", "job_tags", "classifiers", "jobs", "scenarios", "workers", "api_keys")
 
 
-@pytest.fixture(scope="session")
-def postgres_url() -> Iterator[str]:
-    """A fresh, uniquely named PostgreSQL database for this test session."""
+@contextmanager
+def _new_postgres_database(prefix: str) -> Iterator[str]:
+    """A fresh, uniquely named PostgreSQL database with no tables, dropped afterwards."""
     admin = create_engine(
         PG_ADMIN_URL, isolation_level="AUTOCOMMIT", connect_args={"connect_timeout": 5}
     )
@@ -52,17 +53,34 @@ def postgres_url() -> Iterator[str]:
         if REQUIRE_SERVICES:
             pytest.fail(message)
         pytest.skip(message)
-    name = f"inertia_api_{secrets.token_hex(6)}"
+    name = f"{prefix}_{secrets.token_hex(6)}"
     with admin.connect() as connection:
         connection.execute(text(f'CREATE DATABASE "{name}"'))
-    url = admin.url.set(database=name).render_as_string(hide_password=False)
-    upgrade(url)
     try:
-        yield url
+        yield admin.url.set(database=name).render_as_string(hide_password=False)
     finally:
         with admin.connect() as connection:
             connection.execute(text(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)'))
         admin.dispose()
+
+
+@pytest.fixture(scope="session")
+def postgres_url() -> Iterator[str]:
+    """A fresh, uniquely named PostgreSQL database for this test session."""
+    with _new_postgres_database("inertia_api") as url:
+        upgrade(url)
+        yield url
+
+
+@pytest.fixture(params=["sqlite", "postgresql"])
+def empty_database_url(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[str]:
+    """A database with no tables yet, to migrate step by step (the session's PostgreSQL
+    database is at head already)."""
+    if request.param == "sqlite":
+        yield f"sqlite:///{tmp_path / 'migrating.db'}"
+        return
+    with _new_postgres_database("inertia_migrating") as url:
+        yield url
 
 
 def _empty_tables(url: str) -> None:

@@ -2,12 +2,17 @@
 
 from __future__ import annotations
 
+import json
+from datetime import UTC, datetime
+
+from alembic import command
 from alembic.autogenerate import compare_metadata
+from alembic.config import Config
 from alembic.migration import MigrationContext
-from sqlalchemy import create_engine
+from sqlalchemy import create_engine, text
 
 from service.store.models import Base
-from service.store.session import upgrade
+from service.store.session import MIGRATIONS, upgrade
 
 
 def test_migrating_to_head_gives_the_models_schema(database_url: str) -> None:
@@ -20,3 +25,74 @@ def test_migrating_to_head_gives_the_models_schema(database_url: str) -> None:
     finally:
         engine.dispose()
     assert differences == []
+
+
+def _migrate(url: str, revision: str, *, down: bool = False) -> None:
+    config = Config()
+    config.set_main_option("script_location", str(MIGRATIONS))
+    config.set_main_option("sqlalchemy.url", url.replace("%", "%%"))
+    engine = create_engine(url)
+    try:
+        with engine.begin() as connection:
+            config.attributes["connection"] = connection
+            (command.downgrade if down else command.upgrade)(config, revision)
+    finally:
+        engine.dispose()
+
+
+def test_stored_curve_rates_are_renamed_for_what_they_hold(empty_database_url: str) -> None:
+    """Metrics stored as best_final_rate_rad_s meant NSGA-II's settled residual and the
+    other searches' end-of-command rate: 0005 names each for what it held, and nothing
+    else moves; the downgrade gives the old code back its names."""
+    url = empty_database_url
+    _migrate(url, "0004")
+    now = datetime.now(UTC)
+    engine = create_engine(url)
+    jobs = {"pareto": "nsga2", "learner": "ppo", "cem": "cem", "fit": None}
+    metric = text("INSERT INTO metrics (job_id, key, step, value) VALUES (:j, :k, :s, 0.5)")
+    try:
+        with engine.begin() as connection:
+            connection.execute(
+                text("INSERT INTO scenarios VALUES ('s', 'x', '{}', :t)"), {"t": now}
+            )
+            for job_id, method in jobs.items():
+                connection.execute(
+                    text(
+                        "INSERT INTO jobs (id, type, status, scenario_id, params, seed, "
+                        "config_hash, progress, cancel_requested, attempts, created_at) VALUES "
+                        "(:id, :type, 'succeeded', 's', :params, 0, :id, 1.0, false, 1, :t)"
+                    ),
+                    {
+                        "id": job_id,
+                        "type": "search" if method else "train",
+                        "params": json.dumps({} if method is None else {"method": method}),
+                        "t": now,
+                    },
+                )
+                for step, key in enumerate(["best_final_rate_rad_s", "best_f1"]):
+                    connection.execute(metric, {"j": job_id, "k": key, "s": step})
+            # A job recorded by today's code keeps its names.
+            connection.execute(metric, {"j": "learner", "k": "best_residual_rate_rad_s", "s": 9})
+
+        def keys() -> dict[str, list[str]]:
+            with engine.connect() as connection:
+                rows = connection.execute(
+                    text("SELECT job_id, key FROM metrics ORDER BY job_id, step")
+                ).all()
+            found: dict[str, list[str]] = {}
+            for job_id, key in rows:
+                found.setdefault(job_id, []).append(key)
+            return found
+
+        before = keys()
+        _migrate(url, "head")
+        assert keys() == {
+            "pareto": ["best_residual_rate_rad_s", "best_f1"],
+            "learner": ["best_end_rate_rad_s", "best_f1", "best_residual_rate_rad_s"],
+            "cem": ["best_end_rate_rad_s", "best_f1"],
+            "fit": ["best_end_rate_rad_s", "best_f1"],
+        }
+        _migrate(url, "0004", down=True)
+        assert keys() == before
+    finally:
+        engine.dispose()

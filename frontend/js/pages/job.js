@@ -149,10 +149,9 @@ async function searchView(body, job, context) {
   const update = async (current) => {
     const fresh = await follower.poll();
     if (!context.alive()) return;
-    // Jobs stored before the key was named for what it is wrote NSGA-II's residual rate
-    // as best_final_rate_rad_s.
-    const rateKey = fresh.best_final_rate_rad_s && !fresh.best_residual_rate_rad_s ? "best_final_rate_rad_s" : "best_residual_rate_rad_s";
-    if (extendWith(rewardPlot, fresh, [pareto ? rateKey : "mean_episode_reward"])) fitFlatSeries(rewardPlot);
+    // Metrics stored before the rate was named for what it is were renamed by the
+    // database migration 0005 (NSGA-II's to best_residual_rate_rad_s).
+    if (extendWith(rewardPlot, fresh, [pareto ? "best_residual_rate_rad_s" : "mean_episode_reward"])) fitFlatSeries(rewardPlot);
     extendWith(f1Plot, fresh, ["best_f1", "mean_f1"]);
     if (fresh.best_f1) points += fresh.best_f1.steps.length;
     pointCount.textContent = `${points} point${points === 1 ? "" : "s"}${isTerminal(current.status) ? "" : " · updating live"}`;
