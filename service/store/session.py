@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -76,8 +76,17 @@ class Database:
         self.engine.dispose()
 
 
-def upgrade(url: str) -> None:
-    """Apply every Alembic migration to the database at ``url``."""
+def upgrade(url: str, revision: str = "head") -> None:
+    """Apply the Alembic migrations to the database at ``url``, up to ``revision``."""
+    _migrate(url, command.upgrade, revision)
+
+
+def downgrade(url: str, revision: str) -> None:
+    """Undo the Alembic migrations after ``revision`` on the database at ``url``."""
+    _migrate(url, command.downgrade, revision)
+
+
+def _migrate(url: str, action: Callable[[Config, str], None], revision: str) -> None:
     config = Config()
     config.set_main_option("script_location", str(MIGRATIONS))
     config.set_main_option("sqlalchemy.url", url.replace("%", "%%"))
@@ -85,6 +94,6 @@ def upgrade(url: str) -> None:
     try:
         with engine.begin() as connection:
             config.attributes["connection"] = connection
-            command.upgrade(config, "head")
+            action(config, revision)
     finally:
         engine.dispose()

@@ -5,14 +5,12 @@ from __future__ import annotations
 import json
 from datetime import UTC, datetime
 
-from alembic import command
 from alembic.autogenerate import compare_metadata
-from alembic.config import Config
 from alembic.migration import MigrationContext
 from sqlalchemy import create_engine, text
 
 from service.store.models import Base
-from service.store.session import MIGRATIONS, upgrade
+from service.store.session import downgrade, upgrade
 
 
 def test_migrating_to_head_gives_the_models_schema(database_url: str) -> None:
@@ -27,25 +25,12 @@ def test_migrating_to_head_gives_the_models_schema(database_url: str) -> None:
     assert differences == []
 
 
-def _migrate(url: str, revision: str, *, down: bool = False) -> None:
-    config = Config()
-    config.set_main_option("script_location", str(MIGRATIONS))
-    config.set_main_option("sqlalchemy.url", url.replace("%", "%%"))
-    engine = create_engine(url)
-    try:
-        with engine.begin() as connection:
-            config.attributes["connection"] = connection
-            (command.downgrade if down else command.upgrade)(config, revision)
-    finally:
-        engine.dispose()
-
-
 def test_stored_curve_rates_are_renamed_for_what_they_hold(empty_database_url: str) -> None:
     """Metrics stored as best_final_rate_rad_s meant NSGA-II's settled residual and the
     other searches' end-of-command rate: 0005 names each for what it held, and nothing
     else moves; the downgrade gives the old code back its names."""
     url = empty_database_url
-    _migrate(url, "0004")
+    upgrade(url, "0004")
     now = datetime.now(UTC)
     engine = create_engine(url)
     jobs = {"pareto": "nsga2", "learner": "ppo", "cem": "cem", "fit": None}
@@ -85,14 +70,14 @@ def test_stored_curve_rates_are_renamed_for_what_they_hold(empty_database_url: s
             return found
 
         before = keys()
-        _migrate(url, "head")
+        upgrade(url)
         assert keys() == {
             "pareto": ["best_residual_rate_rad_s", "best_f1"],
             "learner": ["best_end_rate_rad_s", "best_f1", "best_residual_rate_rad_s"],
             "cem": ["best_end_rate_rad_s", "best_f1"],
             "fit": ["best_end_rate_rad_s", "best_f1"],
         }
-        _migrate(url, "0004", down=True)
+        downgrade(url, "0004")
         assert keys() == before
     finally:
         engine.dispose()

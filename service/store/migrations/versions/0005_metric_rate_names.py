@@ -29,40 +29,39 @@ _jobs = sa.table("jobs", sa.column("id", sa.String), sa.column("params", sa.JSON
 _metrics = sa.table("metrics", sa.column("job_id", sa.String), sa.column("key", sa.String))
 
 
+def _method(connection: sa.Connection, job_id: str) -> object:
+    """The search method in the job's parameters (JSON; read in Python, the same on
+    SQLite and PostgreSQL), or None."""
+    params = connection.execute(
+        sa.select(_jobs.c.params).where(_jobs.c.id == job_id)
+    ).scalar_one_or_none()
+    return params.get("method") if isinstance(params, dict) else None
+
+
+def _rename(connection: sa.Connection, job_id: str, old: str, new: str) -> None:
+    connection.execute(
+        _metrics.update().where(_metrics.c.job_id == job_id, _metrics.c.key == old).values(key=new)
+    )
+
+
+def _jobs_with(connection: sa.Connection, key: str) -> list[str]:
+    query = sa.select(_metrics.c.job_id).where(_metrics.c.key == key).distinct()
+    return list(connection.execute(query).scalars())
+
+
 def upgrade() -> None:
     connection = op.get_bind()
-    job_ids = connection.execute(
-        sa.select(_metrics.c.job_id).where(_metrics.c.key == OLD).distinct()
-    ).scalars()
-    # The method is in each job's parameters (JSON); read in Python, the same on SQLite
-    # and PostgreSQL.
-    for job_id in list(job_ids):
-        params = connection.execute(
-            sa.select(_jobs.c.params).where(_jobs.c.id == job_id)
-        ).scalar_one_or_none()
-        method = params.get("method") if isinstance(params, dict) else None
-        connection.execute(
-            _metrics.update()
-            .where(_metrics.c.job_id == job_id, _metrics.c.key == OLD)
-            .values(key=RESIDUAL if method == "nsga2" else END)
-        )
+    for job_id in _jobs_with(connection, OLD):
+        new = RESIDUAL if _method(connection, job_id) == "nsga2" else END
+        _rename(connection, job_id, OLD, new)
 
 
 def downgrade() -> None:
-    # The code before this revision read NSGA-II's residual rate under the old name; the
-    # end-of-command rates went back to it as well.
+    # The code before this revision read NSGA-II's residual rate under the old name, and
+    # the other searches' end-of-command rate.
     connection = op.get_bind()
-    connection.execute(_metrics.update().where(_metrics.c.key == END).values(key=OLD))
-    rows = connection.execute(
-        sa.select(_metrics.c.job_id).where(_metrics.c.key == RESIDUAL).distinct()
-    ).scalars()
-    for job_id in list(rows):
-        params = connection.execute(
-            sa.select(_jobs.c.params).where(_jobs.c.id == job_id)
-        ).scalar_one_or_none()
-        if isinstance(params, dict) and params.get("method") == "nsga2":
-            connection.execute(
-                _metrics.update()
-                .where(_metrics.c.job_id == job_id, _metrics.c.key == RESIDUAL)
-                .values(key=OLD)
-            )
+    for job_id in _jobs_with(connection, END):
+        _rename(connection, job_id, END, OLD)
+    for job_id in _jobs_with(connection, RESIDUAL):
+        if _method(connection, job_id) == "nsga2":
+            _rename(connection, job_id, RESIDUAL, OLD)
