@@ -134,6 +134,37 @@ def timed(fn: Callable[[], T]) -> tuple[float, T]:
     return time.perf_counter() - start, result
 
 
+def add_flight_bounds(parser: argparse.ArgumentParser) -> None:
+    """The per-flight benches' options: lengths, residual bound, impulse, flights."""
+    parser.add_argument("--lengths", type=int_list, default=[4, 8], help="sequence lengths")
+    parser.add_argument("--bound", type=float, default=0.01, help="residual rate, rad/s")
+    parser.add_argument("--max-impulse", type=float, default=24.0, help="N m s")
+    parser.add_argument(
+        "--flights", type=positive_int, default=4000, help="independent flights per candidate"
+    )
+
+
+def constrained_front(
+    scenario: Any, length: int, seed: int, constraints: dict[str, float]
+) -> tuple[dict[str, Any], list[dict[str, Any]], float, str]:
+    """An NSGA-II front under ``constraints``: (front, its members, seconds, the first
+    member's confirmed accuracy at each design noise as text)."""
+    from inertia_id.search import OperatorSettings, pareto_search
+
+    seconds, result = timed(
+        lambda: pareto_search(
+            scenario,
+            sequence_length=length,
+            seed=seed,
+            operator=OperatorSettings(constraints=constraints),
+        )
+    )
+    front = result.front or {}
+    confirmation = front.get("confirmation") or {}
+    confirmed = " / ".join(f"{a:.4f}" for a in confirmation.get("accuracy_by_noise", []))
+    return front, front.get("members", []), seconds, confirmed
+
+
 def summary(values: Sequence[float]) -> dict[str, float]:
     """min / median / max / mean of some figures."""
     vals = [float(v) for v in values]

@@ -29,14 +29,19 @@ the order statistic of 200 flights of the member's own, whatever the distributio
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
-from _common import base_parser, begin, int_list, positive_int, write_json
+from _common import (
+    add_flight_bounds,
+    base_parser,
+    begin,
+    constrained_front,
+    positive_int,
+    write_json,
+)
 
 from inertia_id import preset
 from inertia_id.physics.simulate import Simulator
-from inertia_id.search import OperatorScorer, OperatorSettings, pareto_search
+from inertia_id.search import OperatorScorer, OperatorSettings
 
 
 def flights_above(scenario, sequences: np.ndarray, bound: float, flights: int, seed: int):
@@ -52,12 +57,7 @@ def flights_above(scenario, sequences: np.ndarray, bound: float, flights: int, s
 
 def main() -> None:
     parser = base_parser(__doc__.splitlines()[0])
-    parser.add_argument("--lengths", type=int_list, default=[4, 8], help="sequence lengths")
-    parser.add_argument("--bound", type=float, default=0.01, help="residual rate, rad/s")
-    parser.add_argument("--max-impulse", type=float, default=24.0, help="N m s")
-    parser.add_argument(
-        "--flights", type=positive_int, default=4000, help="independent flights per candidate"
-    )
+    add_flight_bounds(parser)
     parser.add_argument("--seeds", type=positive_int, default=200, help="part 2: scorer seeds")
     parser.add_argument(
         "--truth-flights", type=positive_int, default=20000, help="part 2: flights per candidate"
@@ -72,18 +72,9 @@ def main() -> None:
     )
     for length in args.lengths:
         for name in ("max_final_rate_rad_s", "max_final_rate_p95_rad_s"):
-            started = time.perf_counter()
-            result = pareto_search(
-                scenario,
-                sequence_length=length,
-                seed=args.seed,
-                operator=OperatorSettings(
-                    constraints={name: args.bound, "max_impulse_nms": args.max_impulse}
-                ),
+            front, members, elapsed, confirmed = constrained_front(
+                scenario, length, args.seed, {name: args.bound, "max_impulse_nms": args.max_impulse}
             )
-            elapsed = time.perf_counter() - started
-            front = result.front or {}
-            members = front.get("members", [])
             if not members:
                 print(f"{length} | {name} | 0 | {elapsed:.1f} | no member")
                 continue
@@ -100,8 +91,6 @@ def main() -> None:
             key = "final_rate_p95_rad_s" if "p95" in name else "final_rate_max_rad_s"
             nearest = int(np.argmax([m["scores"][key] for m in members]))
             scores = members[nearest]["scores"]
-            confirmation = front.get("confirmation") or {}
-            confirmed = " / ".join(f"{a:.4f}" for a in confirmation.get("accuracy_by_noise", []))
             print(
                 f"{length} | {name} <= {args.bound:g} | {len(members)} | {elapsed:.1f} | "
                 f"#{nearest}: {scores['final_rate_max_rad_s']:.4f}, "
@@ -122,7 +111,7 @@ def main() -> None:
                     "nearest_sequence": members[nearest]["sequence"],
                     "share_above_by_member": worst.tolist(),
                     "share_above_own_p95_by_member": own.tolist(),
-                    "confirmation": confirmation,
+                    "confirmation": front.get("confirmation"),
                 }
             )
     coverage = check_coverage(scenario, args)

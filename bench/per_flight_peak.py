@@ -25,14 +25,11 @@ confirmed accuracy (what the tighter bound costs).
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
-from _common import base_parser, begin, int_list, positive_int, write_json
+from _common import add_flight_bounds, base_parser, begin, constrained_front, write_json
 
 from inertia_id import preset
 from inertia_id.physics.simulate import Simulator
-from inertia_id.search import OperatorSettings, pareto_search
 
 _DEG = 180.0 / np.pi
 
@@ -51,13 +48,8 @@ def flight_peaks(scenario, sequences: np.ndarray, flights: int, seed: int) -> np
 
 def main() -> None:
     parser = base_parser(__doc__.splitlines()[0])
-    parser.add_argument("--lengths", type=int_list, default=[4, 8], help="sequence lengths")
+    add_flight_bounds(parser)
     parser.add_argument("--peak", type=float, default=4.0, help="peak rate bound, deg/s")
-    parser.add_argument("--bound", type=float, default=0.01, help="residual rate, rad/s")
-    parser.add_argument("--max-impulse", type=float, default=24.0, help="N m s")
-    parser.add_argument(
-        "--flights", type=positive_int, default=4000, help="independent flights per candidate"
-    )
     args = begin(parser, "Peak-rate bound on the mean flight, on single flights")
     scenario = preset("paper")
     bound = args.peak / _DEG
@@ -69,22 +61,14 @@ def main() -> None:
     )
     for length in args.lengths:
         for name in ("max_peak_rate_deg_s", "max_peak_rate_p95_deg_s"):
-            started = time.perf_counter()
-            result = pareto_search(
-                scenario,
-                sequence_length=length,
-                seed=args.seed,
-                operator=OperatorSettings(
-                    constraints={
-                        name: args.peak,
-                        "max_final_rate_rad_s": args.bound,
-                        "max_impulse_nms": args.max_impulse,
-                    }
-                ),
+            constraints = {
+                name: args.peak,
+                "max_final_rate_rad_s": args.bound,
+                "max_impulse_nms": args.max_impulse,
+            }
+            front, members, elapsed, confirmed = constrained_front(
+                scenario, length, args.seed, constraints
             )
-            elapsed = time.perf_counter() - started
-            front = result.front or {}
-            members = front.get("members", [])
             if not members:
                 print(f"{length} | {name} | 0 | {elapsed:.1f} | no member")
                 continue
@@ -95,8 +79,6 @@ def main() -> None:
             above = (peaks > bound).mean(axis=2).max(axis=1)  # (P,): fastest candidate's
             own = (peaks > p95[:, None, None]).mean(axis=2).max(axis=1)
             nearest = int(np.argmax(p95 if "p95" in name else mean))
-            confirmation = front.get("confirmation") or {}
-            confirmed = " / ".join(f"{a:.4f}" for a in confirmation.get("accuracy_by_noise", []))
             print(
                 f"{length} | {name} <= {args.peak:g} | {len(members)} | {elapsed:.1f} | "
                 f"#{nearest}: {mean[nearest] * _DEG:.3f}, {p95[nearest] * _DEG:.3f} | "
@@ -115,7 +97,7 @@ def main() -> None:
                     "peak_rate_p95_rad_s_by_member": p95.tolist(),
                     "share_above_by_member": above.tolist(),
                     "share_above_own_p95_by_member": own.tolist(),
-                    "confirmation": confirmation,
+                    "confirmation": front.get("confirmation"),
                 }
             )
     write_json(
