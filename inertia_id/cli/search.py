@@ -348,8 +348,9 @@ def search_cmd(
     """Find the actuation sequence that best separates the candidates.
 
     Writes the best sequence, its F1 on the search's noise draw and on fresh draws, its
-    fuel and final rate, the learning curve, and the hand-designed baselines scored on
-    the same fresh draws, as JSON.
+    impulse and rates (the residual once the lag is empty; |ω| at the last step's end),
+    the learning curve, the front, and the baselines scored on the same fresh draws, as
+    JSON.
     """
     import numpy as np
 
@@ -371,11 +372,11 @@ def search_cmd(
     )
     for name, base in outcome.baselines.items():
         if "unavailable" in base:
-            click.echo(f"  {name:14s} unavailable: {base['unavailable']}", err=True)
+            click.echo(f"  {name:16s} unavailable: {base['unavailable']}", err=True)
             continue
         f1, rate = np.mean(base["fresh_f1"]), np.mean(base["fresh_final_rate_rad_s"])
         click.echo(
-            f"  {name:14s} F1 {f1:.3f}, impulse {base['fuel_nms']:.1f} N m s, end rate "
+            f"  {name:16s} F1 {f1:.3f}, impulse {base['fuel_nms']:.1f} N m s, end rate "
             f"{rate:.3f} rad/s ({np.degrees(rate):.2f} deg/s)",
             err=True,
         )
