@@ -6,7 +6,6 @@ the job submission bodies here wrap them.
 
 from __future__ import annotations
 
-import math
 from datetime import UTC, datetime
 from typing import Annotated, Any, Literal, Self
 
@@ -21,6 +20,7 @@ from pydantic import (
     model_validator,
 )
 
+from inertia_id.checks import finite_or_none
 from inertia_id.evaluation.telemetry import MAX_TELEMETRY_SAMPLES, Telemetry
 from inertia_id.physics.presets import PRESETS
 from inertia_id.physics.scenario import Scenario
@@ -89,17 +89,6 @@ def as_utc(value: datetime) -> datetime:
 
 
 UtcDatetime = Annotated[datetime, AfterValidator(as_utc)]
-
-
-def finite_or_none(value: Any) -> Any:
-    """``value`` with every non-finite float replaced by None (JSON has no NaN or inf)."""
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {k: finite_or_none(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [finite_or_none(v) for v in value]
-    return value
 
 
 _Request = StrictModel

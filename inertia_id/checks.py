@@ -1,4 +1,4 @@
-"""The tests behind the core's checks of a number parameter.
+"""The tests behind the core's checks of a number parameter, and numbers made JSON-safe.
 
 Each caller raises its own :class:`~inertia_id.errors.InputError`, with its own message
 (they name the parameter and the rule in their own words); what they share is the test.
@@ -13,7 +13,7 @@ from typing import Any, TypeGuard
 
 import numpy as np
 
-__all__ = ["is_integer", "is_number"]
+__all__ = ["finite_or_none", "is_integer", "is_number"]
 
 
 def is_integer(
@@ -43,3 +43,17 @@ def is_number(value: Any, *, minimum: float, exclusive: bool = False) -> TypeGua
     if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
         return False
     return value > minimum if exclusive else value >= minimum
+
+
+def finite_or_none(value: Any) -> Any:
+    """``value`` with every non-finite float replaced by None and numpy scalars made
+    Python's, through dicts, lists and tuples: strict JSON has no NaN or Infinity."""
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: finite_or_none(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [finite_or_none(v) for v in value]
+    return value

@@ -21,6 +21,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 from fastapi import APIRouter, HTTPException, Query, Request, Response, status
+from pydantic import ValidationError
 from sqlalchemy import select
 from starlette.concurrency import run_in_threadpool
 from starlette.datastructures import UploadFile
@@ -187,8 +188,20 @@ def _judge(
     found, classifier = _classifier(database, cache, classifier_id)
     judge = identify_online if partial else identify
     result = judge(classifier, telemetry, **options.keywords(partial=partial)).model_dump()
+    return _answer(result, found, partial=partial)
+
+
+def _answer(result: dict[str, Any], classifier_id: str, *, partial: bool) -> Any:
+    """The verdict as its response model. A verdict that does not fit it (a NaN
+    posterior, say) is a fault of ours, a 500 with its reason logged, not the client's
+    422: the error handlers read a pydantic ValidationError as bad input."""
     model = PartialIdentifyResult if partial else IdentifyResult
-    return model.model_validate({**finite_or_none(result), "classifier_id": found})
+    try:
+        return model.model_validate({**finite_or_none(result), "classifier_id": classifier_id})
+    except ValidationError as exc:
+        raise RuntimeError(
+            f"the verdict of classifier {classifier_id} does not fit its response model: {exc}"
+        ) from exc
 
 
 async def _verdict(
@@ -218,8 +231,7 @@ async def _verdict(
         )
     except NotFound:
         raise not_found("classifier", classifier_id) from None
-    model = PartialIdentifyResult if partial else IdentifyResult
-    return model.model_validate({**finite_or_none(result), "classifier_id": classifier_id})
+    return _answer(result, classifier_id, partial=partial)
 
 
 async def _from_json(

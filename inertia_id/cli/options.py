@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 import click
 
+from ..checks import finite_or_none
 from ..errors import InputError
 from ..pipelines import PAPER_SEQUENCE
 
@@ -275,8 +276,10 @@ def parse_pairs(pairs: Sequence[str], option: str, example: str) -> dict[str, An
 
 
 def write_json(path: str | os.PathLike[str] | None, data: Any) -> None:
-    """``data`` as indented JSON to ``path``, or to stdout for None or "-"."""
-    text = json.dumps(data, indent=2)
+    """``data`` as indented JSON to ``path``, or to stdout for None or "-": strict JSON,
+    a non-finite number written as null (``json.dumps`` would write NaN or Infinity,
+    which strict parsers refuse)."""
+    text = json.dumps(finite_or_none(data), indent=2, allow_nan=False)
     if path is None or str(path) == "-":
         click.echo(text)
     else:

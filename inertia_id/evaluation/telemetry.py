@@ -46,6 +46,8 @@ __all__ = [
     "DEFAULT_START_WINDOW_S",
     "EDGE_GAP_PERIODS",
     "INTERIOR_GAP_PERIODS",
+    "MAX_START_SHIFTS",
+    "MAX_TELEMETRY_RATE_RAD_S",
     "MAX_TELEMETRY_SAMPLES",
     "Telemetry",
     "estimate_sequence_start",
@@ -57,12 +59,19 @@ __all__ = [
 ]
 
 MAX_TELEMETRY_SAMPLES = 200_000
+#: Largest rate a telemetry sample may hold, rad/s (5,730 deg/s): beyond any attitude
+#: gyro's range, so a larger one is a corrupted word, refused by name (a spike of 1e200
+#: rad/s once overflowed the verdict's arithmetic).
+MAX_TELEMETRY_RATE_RAD_S = 100.0
 # Seconds stamps whose first value lies within this of 0 are taken as from the sequence
 # start when no sequence_start is given (telemetry written before the time base existed).
 DEFAULT_START_WINDOW_S = 3600.0
 # Coverage rules, in periods p = max(grid period, median telemetry period).
 EDGE_GAP_PERIODS = 1.5
 INTERIOR_GAP_PERIODS = 4.0
+#: Most start times :func:`estimate_sequence_start` tries (±100 s on a 20 Hz grid; each
+#: resamples and scores the telemetry, a few milliseconds).
+MAX_START_SHIFTS = 4001
 #: A sample within this fraction of the grid period of a grid time was taken at it
 #: (:func:`resample_observed`); 50 µs at 20 Hz, far above ISO stamps' 1 µs rounding.
 ON_GRID_TOLERANCE = 1e-3
@@ -119,7 +128,11 @@ class Telemetry(BaseModel):
         max_length=MAX_TELEMETRY_SAMPLES,
         description=f"time stamps as ISO-8601 UTC strings, e.g. {_ISO_EXAMPLE!r}",
     )
-    omega_rad_s: list[list[float]] = Field(max_length=MAX_TELEMETRY_SAMPLES)
+    omega_rad_s: list[list[float]] = Field(
+        max_length=MAX_TELEMETRY_SAMPLES,
+        description="body rates, rad/s, one row of 3 per stamp; each value finite and at "
+        f"most {MAX_TELEMETRY_RATE_RAD_S:g} rad/s in magnitude",
+    )
     sequence_start: float | str | None = Field(
         default=None,
         description="start of the actuation sequence in the stamps' clock: seconds, or an "
@@ -158,6 +171,15 @@ class Telemetry(BaseModel):
         if bad.size:
             i, j = (int(v) for v in bad[0])
             raise InputError(f"omega_rad_s[{i}][{j}] = {value[i][j]!r} is not finite")
+        bad = np.argwhere(np.abs(arr) > MAX_TELEMETRY_RATE_RAD_S)
+        if bad.size:
+            i, j = (int(v) for v in bad[0])
+            raise InputError(
+                f"omega_rad_s[{i}][{j}] = {value[i][j]!r} rad/s is beyond any attitude gyro's "
+                f"range (at most {MAX_TELEMETRY_RATE_RAD_S:g} rad/s, "
+                f"{math.degrees(MAX_TELEMETRY_RATE_RAD_S):,.0f} deg/s, in magnitude): a "
+                "corrupted sample? Remove it (a gap of a few samples is interpolated)"
+            )
         return value
 
     @model_validator(mode="after")
@@ -462,9 +484,21 @@ def _check_coverage(
         gaps.append((float(max(t[-1], start)), end, edge, "before the end of the sequence"))
     inside = np.flatnonzero((t[1:] > start) & (t[:-1] < end))
     if inside.size:
-        lengths = t[inside + 1] - t[inside]
-        worst = int(inside[np.argmax(lengths)])
-        gaps.append((float(t[worst]), float(t[worst + 1]), interior, "between samples"))
+        # Only the part of a gap within the sequence counts: a dropout before the start
+        # (or after the end) leaves the sequence as covered as no samples there at all.
+        # Such a clipped gap is an edge of the sequence, as if the samples beyond were
+        # not there (they are farther than the resampling reaches), and has its limit.
+        lower = np.maximum(t[inside], start)
+        upper = np.minimum(t[inside + 1], end)
+        clipped = (t[inside] < start) | (t[inside + 1] > end)
+        for is_edge, limit, where in (
+            (False, interior, "between samples"),
+            (True, edge, "at an end of the sequence"),
+        ):
+            kind = np.flatnonzero(clipped == is_edge)
+            if kind.size:
+                worst = int(kind[np.argmax(upper[kind] - lower[kind])])
+                gaps.append((float(lower[worst]), float(upper[worst]), limit, where))
     # A tolerance of a microsecond for stamps rounded to it (ISO stamps).
     bad = [g for g in gaps if g[1] - g[0] > g[2] + 1e-6]
     if not bad:
@@ -506,6 +540,12 @@ def estimate_sequence_start(
     if not (math.isfinite(step) and step > 0):
         raise InputError(f"the start search step must be > 0 s, got {step_s!r}")
     n = math.floor(window_s / step + 1e-9)
+    if 2 * n + 1 > MAX_START_SHIFTS:
+        raise InputError(
+            f"the start window ±{window_s:g} s at a {step:g} s step is {2 * n + 1:.6g} start "
+            f"times to try; at most {MAX_START_SHIFTS:,} (±{(MAX_START_SHIFTS // 2) * step:g} s "
+            "at this step): narrow the window"
+        )
     t, omega = telemetry.time_array, telemetry.omega_array
     best: tuple[float, float, np.ndarray] | None = None
     refusal: InputError | None = None

@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from ..checks import finite_or_none
 from ..physics.scenario import Scenario
 from .scorer import PrefixScorer, ScorerSettings
 
@@ -337,7 +338,7 @@ class SearchResult:
 
     def to_json(self) -> str:
         """The result as JSON (NaN, e.g. a curve point before any episode, as null)."""
-        return json.dumps(_json_safe(self.to_dict()), allow_nan=False)
+        return json.dumps(finite_or_none(self.to_dict()), allow_nan=False)
 
     def summary(self) -> str:
         b = self.best
@@ -369,14 +370,3 @@ class SearchResult:
             f"episodes, {self.wall_time_s:.1f} s, stopped: {self.stopped}"
         )
 
-
-def _json_safe(value: Any) -> Any:
-    if isinstance(value, dict):
-        return {k: _json_safe(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_json_safe(v) for v in value]
-    if isinstance(value, np.generic):
-        value = value.item()
-    if isinstance(value, float) and not np.isfinite(value):
-        return None
-    return value

@@ -490,3 +490,38 @@ def test_telemetry_before_the_start_is_used_unless_asked_not_to(api: Api, paper:
         files={"file": ("t.csv", csv_text(series["time_s"], series["omega_rad_s"]))},
     )
     assert refused.status_code == 422 and "'soon'" in refused.text
+
+
+@pytest.mark.parametrize(("row", "value"), [(40, 1e200), (120, 1e154), (120, -101.0)])
+def test_a_corrupted_sample_is_refused_by_name(
+    api: Api, paper: Scenario, row: int, value: float
+) -> None:
+    """A rate beyond any gyro's range (a corrupted word in a downlink) is a 422 naming the
+    sample, before the start or in the sequence; one within it gets a verdict. A 1e200
+    spike was a 500 (the least-squares SVD did not converge), 1e154 a 422 blaming the
+    server's own posterior."""
+    from inertia_id.classifiers.marginal import AXES_GRID, train_marginal
+
+    model = train_marginal(paper, GOOD_SEQUENCE, 10, np.random.default_rng(4), grid=AXES_GRID)
+    found = api.insert_classifier(api.create_scenario()["id"], model)
+    flown = [[0] * paper.n_thrusters] * 4 + GOOD_SEQUENCE
+    result = simulate(paper, flown, 1, np.random.default_rng(5))
+    omega = result.omega_measured[1, 0].copy()
+    times = (result.time_s - 4.0).tolist()
+    omega[row, 1] = value
+    body = {"classifier_id": found, "telemetry": {"time_s": times, "omega_rad_s": omega.tolist()}}
+    refused = api.post("/identify", json=body)
+    assert refused.status_code == 422, refused.text
+    message = refused.json()["detail"][0]["msg"]
+    assert f"omega_rad_s[{row}][1] = {value!r} rad/s is beyond any attitude gyro's range" in message
+    form = api.post(
+        "/identify",
+        data={"classifier_id": found},
+        files={"file": ("t.csv", csv_text(times, omega))},
+    )
+    assert form.status_code == 422 and f"omega_rad_s[{row}][1]" in form.text
+    omega[row, 1] = 99.0 * np.sign(value)  # within range: judged, whatever the verdict
+    body["telemetry"]["omega_rad_s"] = omega.tolist()
+    judged = api.post("/identify", json=body)
+    assert judged.status_code == 200, judged.text
+    assert judged.json()["status"] in {"matches-none", "not-this-sequence"}

@@ -265,6 +265,30 @@ def test_tampered_classifier_is_refused(runner: CliRunner, tmp_path: Path) -> No
     assert "checksum mismatch" in result.output
 
 
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--multiples", "1,1e6"], "at most 1000 (beyond it the simulated rates"),
+        (["--multiples", "1e300"], "got [1e+300]"),
+        (["--ceiling-realisations", "2"], "must be 0 (no ceiling) or at least 3, got 2"),
+    ],
+)
+def test_a_sweep_beyond_its_bounds_is_refused_before_any_work(
+    runner: CliRunner, tmp_path: Path, args: list[str], message: str
+) -> None:
+    classifier = tmp_path / "c.json"
+    trained = runner.invoke(
+        main, ["train", "--metric", "euclidean", "-n", "4", "--out", str(classifier)]
+    )
+    assert trained.exit_code == 0, trained.output
+    out = tmp_path / "sweep.json"
+    result = runner.invoke(
+        main, ["sweep", "--classifier", str(classifier), "--out", str(out), *args]
+    )
+    assert result.exit_code != 0 and message in result.output, result.output
+    assert "Traceback" not in result.output and not out.exists()
+
+
 def test_parse_sequence_forms(tmp_path: Path) -> None:
     rows = [[4, 4, 4, 0, 0, 0], [0, 0, 0, 1, 2, 3]]
     assert parse_sequence("4,4,4,0,0,0;0,0,0,1,2,3") == rows
@@ -439,6 +463,34 @@ def test_identify_iso_stamps_and_an_estimated_start(
     wrong = runner.invoke(main, [*base, "--sequence-start", "noon"])
     assert wrong.exit_code != 0
     assert "sequence_start = 'noon' is not an ISO-8601 UTC time stamp" in wrong.output
+    # A window beyond use is one line naming it, not a 298 GiB allocation's traceback.
+    wide = runner.invoke(
+        main, [*base, "--sequence-start", "2025-03-01T12:00:00Z", "--estimate-start-within", "1e9"]
+    )
+    assert wide.exit_code != 0
+    assert "the start window ±1e+09 s at a 0.05 s step is 4e+10 start times" in wide.output
+    assert len(wide.output.strip().splitlines()) == 1
+    # A corrupted sample is refused by name, not judged into NaN and printed as invalid JSON.
+    lines = telemetry.read_text().splitlines()
+    stamp, *_ = lines[40].split(",")
+    lines[40] = f"{stamp},0.0,1e200,0.0"
+    telemetry.write_text("\n".join(lines) + "\n")
+    spike = runner.invoke(main, [*base, "--sequence-start", "2025-03-01T12:00:00Z"])
+    assert spike.exit_code != 0
+    assert "omega_rad_s[39][1] = 1e+200 rad/s is beyond any attitude gyro's range" in spike.output
+
+
+def test_json_output_is_strict_json(tmp_path: Path) -> None:
+    """NaN and Infinity are not JSON: they are written as null."""
+    from inertia_id.cli.options import write_json
+
+    path = tmp_path / "out.json"
+    write_json(path, {"a": float("nan"), "b": [1.0, float("inf")], "c": (2, -float("inf"))})
+    assert json.loads(path.read_text(), parse_constant=pytest.fail) == {
+        "a": None,
+        "b": [1.0, None],
+        "c": [2, None],
+    }
 
 
 def test_simulate_with_basilisk_writes_telemetry_identify_reads(

@@ -295,6 +295,30 @@ def test_first_sample_one_period_after_the_start_is_accepted() -> None:
                 resample(telemetry, grid)
 
 
+def test_a_dropout_outside_the_sequence_is_no_gap_in_it() -> None:
+    """A dropout from before the start (or past the end) into the sequence counts only
+    inside it: the telemetry resamples as it does with no samples out there at all
+    (a reviewer's 10 Hz pass lost -5 s to 0.1 s and was refused, while the same file
+    with every pre-start sample removed was identified)."""
+    grid = np.arange(1, 81) / 20
+    slope = np.array([0.01, -0.02, 0.005])
+    inside = np.arange(0.1, 4.0 + 1e-9, 0.1)  # 10 Hz over the sequence
+    for before, after in (
+        (np.arange(-10.0, -5.0 + 1e-9, 0.1), np.array([])),  # lost -5 s ... 0.1 s
+        (np.array([-0.5]), np.array([])),
+        (np.array([]), np.array([8.0, 9.9])),  # lost 4 s ... 8 s
+        (np.arange(-10.0, -1.0, 0.1), np.arange(6.0, 9.0, 0.1)),
+    ):
+        t = np.concatenate([before, inside, after])
+        np.testing.assert_allclose(
+            resample(plain(t, t[:, None] * slope), grid), grid[:, None] * slope, atol=1e-12
+        )
+    # The part within the sequence still has the edge's limit, 1.5 periods.
+    t = np.concatenate([[-3.0], np.arange(0.2, 4.0 + 1e-9, 0.1)])
+    with pytest.raises(ValueError, match=r"no sample from 0 s to 0\.2 s .* at an end of"):
+        resample(plain(t, t[:, None] * slope), grid)
+
+
 # Averaging.
 
 
@@ -348,3 +372,9 @@ def test_estimate_sequence_start_finds_a_shifted_start(
         assert int(np.argmin(euclidean_classifier.transform(series[None])[0])) == k
     with pytest.raises(ValueError, match=r"no start within ±0\.5 s fits the telemetry: .*too thin"):
         estimate_sequence_start(plain([0.0, 0.1], [[0, 0, 0]] * 2), grid, score, window_s=0.5)
+    # A window beyond any use is refused before any work (1e9 s asked 298 GiB).
+    with pytest.raises(ValueError, match=r"start window ±1e\+09 s at a 0\.05 s step is 4e\+10 "):
+        estimate_sequence_start(telemetry, grid, score, window_s=1e9)
+    assert estimate_sequence_start(telemetry, grid, score, window_s=100.0)[0] == pytest.approx(
+        0.3, abs=0.05
+    )
