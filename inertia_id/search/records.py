@@ -369,4 +369,3 @@ class SearchResult:
             f"impulse {b.fuel_nms:.2f} N m s | {self.timesteps} env steps, {self.episodes} "
             f"episodes, {self.wall_time_s:.1f} s, stopped: {self.stopped}"
         )
-
