@@ -397,13 +397,14 @@ def train_others(
 class SweepRequest(_Request):
     """A sweep of a trained classifier (the job's ``params``).
 
-    :param multiples: noise multiples to visit; None: 1 to 8.
+    :param multiples: noise multiples to visit, each at most
+        :data:`~inertia_id.evaluation.sweep.MAX_MULTIPLE` (1000); None: 1 to 8.
     :param noises: sources of error to scale in turn; None: process and measurement.
     :param others: classifiers trained at 1x and scored on the same test series, as
         specs.
     :param ceiling_realisations: the ceiling (per-candidate Gaussians fitted at each
         point's noise, :mod:`inertia_id.evaluation.ceiling`) on this many realisations per
-        candidate; 0 leaves it out.
+        candidate; 0 leaves it out, else at least 3.
     :param limit_realisations: deprecated name of ``ceiling_realisations``; when given
         it wins.
     :param n_train: training realisations per candidate for ``others``.
@@ -489,8 +490,20 @@ def sweep_with_limit(
     :param should_stop: polled between points; True stops with the points done (and
         skips the bodies).
     """
-    from .evaluation.sweep import run_inertia_sweep, run_sweep
+    from .evaluation.sweep import (
+        check_ceiling_realisations,
+        check_multiples,
+        run_inertia_sweep,
+        run_sweep,
+    )
 
+    # Refused before the others are trained, as run_sweep would refuse them after.
+    if request.multiples is not None:
+        check_multiples(request.multiples)
+    if request.limit_realisations is not None:
+        check_ceiling_realisations(request.limit_realisations, "limit_realisations")
+    else:
+        check_ceiling_realisations(request.ceiling_realisations)
     sequence = classifier.sequence_
     if classifier.scenario_ is None or sequence is None:
         raise InputError("the classifier does not carry its scenario and sequence")
@@ -576,10 +589,12 @@ def run_paper(
     :param log: told each stage as it starts.
     """
     from .evaluation.report import write_report
-    from .evaluation.sweep import DEFAULT_NOISES
+    from .evaluation.sweep import DEFAULT_NOISES, check_multiples
     from .physics.scenario import Scenario
     from .physics.simulate import simulate
 
+    if multiples is not None:
+        check_multiples(multiples)  # before the search and the training, not after
     say = log or (lambda _message: None)
     scenario = Scenario.paper()
     out = Path(out_dir)

@@ -24,6 +24,7 @@ __all__ = [
     "RESULT_TABLES",
     "Table",
     "identify_table",
+    "metrics_notes",
     "metrics_table",
     "result_table",
     "to_csv",
@@ -33,10 +34,14 @@ __all__ = [
 
 @dataclass(frozen=True)
 class Table:
-    """A header and rows of cells (numbers, text, or None for an empty cell)."""
+    """A header and rows of cells (numbers, text, or None for an empty cell), and notes:
+    figures about the whole table, which the CSV writes as ``# name: value`` lines before
+    the header, as the command plan's CSV does (``pandas.read_csv(path, comment="#")``
+    skips them); a name carries its unit (``_rad_s``, ``_kg_m2``)."""
 
     header: Sequence[str]
     rows: Sequence[Sequence[Any]]
+    notes: Sequence[tuple[str, Any]] = ()
 
 
 def _cell(value: Any) -> Any:
@@ -49,9 +54,16 @@ def _cell(value: Any) -> Any:
     return value
 
 
+def _note(value: Any) -> str:
+    """A note's value on one line: lists and objects as JSON, floats as they read back."""
+    return " ".join(str(_cell(value)).splitlines())
+
+
 def to_csv(table: Table) -> str:
-    """The table as CSV text (RFC 4180 quoting, ``\\n`` line ends)."""
+    """The table as CSV text (RFC 4180 quoting, ``\\n`` line ends), its notes first."""
     out = io.StringIO()
+    for name, value in table.notes:
+        out.write(f"# {name}: {_note(value)}\n")
     writer = csv.writer(out, lineterminator="\n")
     writer.writerow(table.header)
     for row in table.rows:
@@ -368,14 +380,43 @@ def _sweep_lines(result: Mapping[str, Any]) -> list[tuple[str, list[Mapping[str,
     return lines
 
 
+def _above_ceiling(
+    who: str, point: Mapping[str, Any], ceiling: Mapping[tuple[Any, Any], Mapping[str, Any]]
+) -> bool | None:
+    """Whether the point's accuracy lies above the ceiling's interval at the same point:
+    as the sweep stated it, or, in a result stored before it did, from the intervals."""
+    if who == "ceiling" or who.startswith("reference"):
+        return None
+    if "above_ceiling_interval" in point:
+        return point["above_ceiling_interval"]
+    top = ceiling.get((point.get("noise"), point.get("multiple")))
+    if top is None or not isinstance(point.get("accuracy"), int | float):
+        return None
+    return bool(point["accuracy"] > top.get("ci_high", 1.0))
+
+
 def _sweep_points(result: Mapping[str, Any]) -> Table:
+    """One row per classifier, noise and multiple; ``step`` is the multiple's index, as
+    the job's metrics number their points."""
     units = result.get("units") or {}
-    rows = [
-        [who, *(p.get(k) for k in _POINT), units.get(p.get("noise"), "")]
-        for who, points in _sweep_lines(result)
-        for p in points
-    ]
-    return Table(["who", *_POINT, "value_unit"], rows)
+    ceiling = {(p.get("noise"), p.get("multiple")): p for p in result.get("ceiling") or []}
+    rows = []
+    for who, points in _sweep_lines(result):
+        steps: dict[Any, int] = {}
+        for p in points:
+            step = steps[p.get("noise")] = steps.get(p.get("noise"), -1) + 1
+            rows.append(
+                [
+                    who,
+                    *(p.get(k) for k in _POINT[:2]),
+                    step,
+                    *(p.get(k) for k in _POINT[2:]),
+                    units.get(p.get("noise"), ""),
+                    _above_ceiling(who, p, ceiling),
+                ]
+            )
+    header = ["who", *_POINT[:2], "step", *_POINT[2:], "value_unit", "above_ceiling_interval"]
+    return Table(header, rows)
 
 
 def _sweep_confusion(result: Mapping[str, Any]) -> Table:
@@ -390,10 +431,94 @@ def _sweep_confusion(result: Mapping[str, Any]) -> Table:
 
 
 def _sweep_inertia(result: Mapping[str, Any]) -> Table:
+    """One row per body off the candidates: what it is (the candidate scaled, ``base``,
+    or the pair it lies between), how often it was flagged, and the candidate each of its
+    series was nearest to."""
     inertia = result.get("inertia") or {}
-    points = [p for p in inertia.get("points") or [] if isinstance(p, Mapping)]
-    keys = list(dict.fromkeys(k for p in points for k in p if not isinstance(p[k], list | dict)))
-    return Table(keys, [[p.get(k) for k in keys] for p in points])
+    names = list(inertia.get("candidate_names") or result.get("candidate_names") or [])
+
+    def name(index: Any) -> Any:
+        return names[index] if isinstance(index, int) and 0 <= index < len(names) else index
+
+    base = name(inertia.get("base"))
+    pair = [name(i) for i in inertia.get("pair") or []]
+    meaning = {
+        "scaled": f"multiple of {base}'s inertia tensor (1: the candidate itself)",
+        "between": (
+            f"position from {pair[0]} (0) to {pair[1]} (1), (1 - t) I_0 + t I_1"
+            if len(pair) == 2
+            else "position between the pair (0 to 1)"
+        ),
+    }
+    rows = []
+    for p in (p for p in inertia.get("points") or [] if isinstance(p, Mapping)):
+        body = p.get("body")
+        counts = list(p.get("predicted") or [])
+        counts += [None] * (len(names) - len(counts))
+        rows.append(
+            [
+                body,
+                p.get("parameter"),
+                meaning.get(str(body), ""),
+                base if body == "scaled" else None,
+                pair if body == "between" else None,
+                p.get("n_series"),
+                p.get("matches_none_rate"),
+                p.get("ci_low"),
+                p.get("ci_high"),
+                *counts[: len(names)],
+                p.get("inertia_kg_m2"),
+            ]
+        )
+    header = [
+        "body",
+        "parameter",
+        "parameter_meaning",
+        "base",
+        "pair",
+        "n_series",
+        "matches_none_rate",
+        "ci_low",
+        "ci_high",
+        *(f"predicted_{n}" for n in names),
+        "inertia_kg_m2",
+    ]
+    notes = [
+        ("inertia_seed", inertia.get("seed")),
+        ("noise", "every source at 1x, the scenario's own"),
+        ("predicted", "predicted_<candidate>: how many of the body's series were nearest to it"),
+    ]
+    return Table(header, rows, notes)
+
+
+def _sweep_notes(result: Mapping[str, Any], job: Mapping[str, Any]) -> list[tuple[str, Any]]:
+    """What every table of a sweep carries as ``#`` lines: what was swept and how."""
+    params = job.get("params") or {}
+    ceiling = result.get("ceiling_realisations", result.get("limit_realisations"))
+    return [
+        ("classifier_id", params.get("classifier_id")),
+        ("job_seed", job.get("seed")),
+        ("test_series_seed", result.get("seed")),
+        ("sequence", result.get("sequence")),
+        ("metric", result.get("metric")),
+        ("candidate_names", result.get("candidate_names")),
+        ("n_test_per_candidate", result.get("n_test_per_candidate")),
+        ("ceiling_realisations", ceiling),
+        ("multiples", params.get("multiples")),
+        ("levels_1x", result.get("levels")),
+        ("units", result.get("units")),
+        (
+            "step",
+            "the multiple's index among multiples (0, 1, ...): the step of the job's "
+            "accuracy_<noise> metrics",
+        ),
+        (
+            "above_ceiling_interval",
+            "the accuracy lies above the upper end of the ceiling's 95 % Wilson interval "
+            "at the same point (a check against that interval, not a paired test); empty "
+            "for the ceiling itself and without one",
+        ),
+    ]
 
 
 #: Every job type's tables, first the default: name -> (what it holds, how it is made).
@@ -428,9 +553,23 @@ RESULT_TABLES: dict[str, dict[str, tuple[str, Callable[[Mapping[str, Any]], Tabl
 }
 
 
-def result_table(job_type: str, result: Mapping[str, Any], table: str | None) -> Table:
+#: The job-wide facts every table of a type carries as ``#`` lines, from the result and
+#: the job (its ``seed`` and ``params``).
+_JOB_NOTES: dict[str, Callable[[Mapping[str, Any], Mapping[str, Any]], list[tuple[str, Any]]]] = {
+    "sweep": _sweep_notes,
+}
+
+
+def result_table(
+    job_type: str,
+    result: Mapping[str, Any],
+    table: str | None,
+    job: Mapping[str, Any] | None = None,
+) -> Table:
     """One table of a job's result; ``table`` None: the type's first.
 
+    :param job: the job's ``seed`` and ``params``, for the notes that name what was run
+        (a sweep's classifier id); without it those notes are empty.
     :raises InputError: the type has no table of that name (the message lists them).
     """
     tables = RESULT_TABLES.get(job_type, {})
@@ -439,37 +578,88 @@ def result_table(job_type: str, result: Mapping[str, Any], table: str | None) ->
         raise InputError(
             f"a {job_type} result has no table {table!r}; tables: {', '.join(tables) or 'none'}"
         )
-    return tables[name][1](result)
+    made = tables[name][1](result)
+    notes = _JOB_NOTES.get(job_type)
+    if notes is None:
+        return made
+    return Table(made.header, made.rows, [*notes(result, job or {}), *made.notes])
 
 
-def metrics_table(series: Sequence[tuple[str, int, float | None]]) -> Table:
-    """Metric points in long form: key, step, value."""
-    return Table(["key", "step", "value"], [list(point) for point in series])
+def metrics_table(
+    series: Sequence[tuple[str, int, float | None]], notes: Sequence[tuple[str, Any]] = ()
+) -> Table:
+    """Metric points in long form: key, step, value; ``notes`` say what a step is where
+    it is not obvious (a sweep's)."""
+    return Table(["key", "step", "value"], [list(point) for point in series], notes)
+
+
+def metrics_notes(job_type: str, params: Mapping[str, Any]) -> list[tuple[str, Any]]:
+    """What a job type's metric step means, when it is not a count of work done: a
+    sweep's step is the index of the noise multiple."""
+    if job_type != "sweep":
+        return []
+    return [
+        ("multiples", params.get("multiples")),
+        (
+            "step",
+            "the multiple's index among multiples (0, 1, ...); the sweep's points table "
+            "pairs each step with its multiple",
+        ),
+    ]
+
+
+#: What the identify CSV's figures are measured in.
+_IDENTIFY_UNITS = (
+    "posterior, p_none, confidence and required_confidence are probabilities in [0, 1] "
+    "(the posteriors and p_none sum to 1); distance, threshold and margin are the "
+    "classifier's own distance to a candidate (compare them with each other, not across "
+    "kinds); rates in rad/s, inertia in kg m^2"
+)
 
 
 def identify_table(verdict: Mapping[str, Any]) -> Table:
-    """A verdict, one row per candidate: its distance, whether it is the nearest, and the
-    verdict's threshold and "matches none" on every row."""
+    """A verdict, one row per candidate: its posterior, its distance and whether it is
+    the verdict's candidate (the most probable); the verdict's basis as notes: status
+    and confidence against the one required, the probability of none of these, the
+    novelty threshold, the offset measured before the start and the least-squares
+    estimate when there are, and the units."""
     distances = verdict.get("distances") or {}
+    posterior = verdict.get("posterior") or {}
+    names = list(dict.fromkeys([*distances, *posterior]))
     rows = [
-        [
-            name,
-            distance,
-            name == verdict.get("candidate"),
-            verdict.get("threshold"),
-            verdict.get("matches_none"),
-            verdict.get("verdict"),
-            verdict.get("classifier_id"),
+        [name, distances.get(name), name == verdict.get("candidate"), posterior.get(name)]
+        for name in names
+    ]
+    notes: list[tuple[str, Any]] = [
+        ("classifier_id", verdict.get("classifier_id")),
+        ("status", verdict.get("status")),
+        ("verdict", verdict.get("verdict")),
+        ("candidate", verdict.get("candidate")),
+        ("candidate_inertia_kg_m2", verdict.get("inertia_kg_m2")),
+        ("confidence", verdict.get("confidence")),
+        ("required_confidence", verdict.get("required_confidence")),
+        ("p_none", verdict.get("p_none")),
+        ("matches_none", verdict.get("matches_none")),
+        ("not_this_sequence", verdict.get("not_this_sequence")),
+        ("threshold", verdict.get("threshold")),
+        ("margin", verdict.get("margin")),
+        ("relative_margin", verdict.get("relative_margin")),
+    ]
+    if verdict.get("initial_offset_rad_s") is not None:
+        notes += [
+            ("initial_offset_rad_s", verdict.get("initial_offset_rad_s")),
+            ("initial_offset_std_rad_s", verdict.get("initial_offset_std_rad_s")),
+            ("pre_start_samples", verdict.get("pre_start_samples")),
         ]
-        for name, distance in distances.items()
-    ]
-    header = [
-        "candidate",
-        "distance",
-        "nearest",
-        "threshold",
-        "matches_none",
-        "verdict",
-        "classifier_id",
-    ]
-    return Table(header, rows)
+    estimate = (
+        "estimated_inertia_kg_m2",
+        "estimated_principal_moments_kg_m2",
+        "estimated_inertia_std_kg_m2",
+        "estimate_condition_number",
+        "estimate_rejected",
+    )
+    notes += [(key, verdict[key]) for key in estimate if verdict.get(key) is not None]
+    if verdict.get("poorly_excited"):
+        notes.append(("poorly_excited", verdict["poorly_excited"]))
+    notes.append(("units", _IDENTIFY_UNITS))
+    return Table(["candidate", "distance", "nearest", "posterior"], rows, notes)

@@ -23,6 +23,7 @@ from pydantic import (
     ConfigDict,
     Field,
     ValidationError,
+    ValidationInfo,
     field_validator,
     model_validator,
 )
@@ -365,7 +366,14 @@ class SweepParams(StrictModel):
     """Classifier accuracy against noise multiples."""
 
     classifier_id: str = Field(max_length=64)
-    multiples: list[float] = Field(default_factory=_sweep_multiples, min_length=1, max_length=20)
+    multiples: list[float] = Field(
+        default_factory=_sweep_multiples,
+        min_length=1,
+        max_length=20,
+        description="noise multiples of each source's 1x level, each > 0 and at most 1000 "
+        "(inertia_id.evaluation.sweep.MAX_MULTIPLE: beyond it the simulated rates lose "
+        "accuracy and then overflow)",
+    )
     noises: list[NoiseKind] = Field(
         default_factory=_sweep_noises,
         min_length=1,
@@ -387,7 +395,8 @@ class SweepParams(StrictModel):
         description="the ceiling: at every point per-candidate Gaussians (a quadratic "
         "discriminant that knows the simulator) are fitted on this many realisations per "
         "candidate simulated at that point's noise and scored on the same series; 0 leaves "
-        "it out. The default is where its accuracy stops moving as the count grows",
+        "it out, else at least 3. The default is where its accuracy stops moving as the "
+        "count grows",
     )
     limit_realisations: int | None = Field(
         default=SweepRequest.default("limit_realisations"),
@@ -423,10 +432,20 @@ class SweepParams(StrictModel):
     @field_validator("multiples")
     @classmethod
     def _positive(cls, value: list[float]) -> list[float]:
+        from inertia_id.evaluation.sweep import check_multiples
+
         bad = [m for m in value if not m > 0]
         if bad:
             raise ValueError(f"noise multiples must be > 0, got {bad} in {value}")
-        return value
+        return check_multiples(value)
+
+    @field_validator("ceiling_realisations", "limit_realisations")
+    @classmethod
+    def _ceiling_size(cls, value: int | None, info: ValidationInfo) -> int | None:
+        from inertia_id.evaluation.sweep import check_ceiling_realisations
+
+        name = info.field_name or "ceiling_realisations"
+        return None if value is None else check_ceiling_realisations(value, name)
 
     @field_validator("noises")
     @classmethod
@@ -460,7 +479,13 @@ def parse_params(job_type: str, params: dict[str, Any]) -> StrictModel:
         for error in exc.errors(include_url=False):
             where = ".".join(str(part) for part in ("params", *error["loc"]))
             message = str(error["msg"]).removeprefix("Value error, ")
-            if "input" in error and isinstance(error["input"], str | int | float | bool):
+            # A validator's own message quotes the value already, as the API's errors do.
+            quoted = error["type"] == "value_error"
+            if (
+                not quoted
+                and "input" in error
+                and isinstance(error["input"], str | int | float | bool)
+            ):
                 message = f"{message}, got {_clip(repr(error['input']))}"
             problems.append(f"{where}: {message}")
         raise InputError(f"the {job_type} job's parameters: {'; '.join(problems)}") from None

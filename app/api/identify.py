@@ -251,11 +251,11 @@ async def _from_json(
     return parsed.classifier_id, parsed.telemetry, options
 
 
-def _query_start(text: str | None) -> float | str | None:
+def _query_start(text: str | None, where: str = "query") -> float | str | None:
     try:
         return parse_sequence_start(text)
     except InputError as exc:
-        unprocessable(("query", "sequence_start"), str(exc))
+        unprocessable((where, "sequence_start"), str(exc))
 
 
 def _form_number(name: str, value: Any, rule: str, ok: Callable[[float], bool]) -> float | None:
@@ -288,9 +288,25 @@ async def _from_form(
 ) -> tuple[str, Telemetry, VerdictOptions]:
     start = _query_start(sequence_start)
     async with request.form(max_files=1, max_fields=10) as form:
+        unknown = sorted(set(form.keys()) - _FORM_FIELDS)
+        if unknown:
+            # A field the API does not read is refused, as an unknown JSON key is: a start
+            # or a unit sent under another name would otherwise be dropped silently.
+            unprocessable(
+                ("body", unknown[0]),
+                f"unknown form field {unknown[0]!r}; the fields are {sorted(_FORM_FIELDS)}",
+            )
         classifier_id = form.get("classifier_id")
         upload = form.get("file")
         options = _form_options(form)
+        field_start = form.get("sequence_start")
+        if isinstance(field_start, str) and field_start != "":
+            if sequence_start is not None:
+                unprocessable(
+                    ("body", "sequence_start"),
+                    "sequence_start is given both as a form field and in the query; give it once",
+                )
+            start = _query_start(field_start, "body")
         if not isinstance(classifier_id, str) or not classifier_id:
             unprocessable(("body", "classifier_id"), "form field classifier_id is required")
         if upload is None:
@@ -308,6 +324,10 @@ async def _from_form(
         unprocessable(("body", "file"), f"telemetry is not valid CSV: {exc}")
 
 
+_FORM_FIELDS = frozenset(
+    {"classifier_id", "file", "confidence", "pre_start_window_s", "sequence_start"}
+)
+
 _MULTIPART_SCHEMA = {
     "type": "object",
     "required": ["classifier_id", "file"],
@@ -315,11 +335,17 @@ _MULTIPART_SCHEMA = {
         "classifier_id": {"type": "string", "maxLength": 64},
         "confidence": {"type": "number", "exclusiveMinimum": 0, "exclusiveMaximum": 1},
         "pre_start_window_s": {"type": "number", "minimum": 0, "maximum": MAX_PRE_START_WINDOW_S},
+        "sequence_start": {
+            "type": "string",
+            "description": "start of the sequence in the telemetry's clock: seconds, or "
+            "ISO-8601 UTC (or ?sequence_start=, not both)",
+        },
         "file": {
             "type": "string",
             "format": "binary",
             "description": "CSV with columns time_s (seconds) or time_utc (ISO-8601 UTC), wx, "
-            "wy, wz (rad/s); a header row is allowed; the sequence start as ?sequence_start=",
+            "wy, wz (rad/s); a header row is allowed; the sequence start as the field "
+            "sequence_start or ?sequence_start=",
         },
     },
 }

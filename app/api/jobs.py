@@ -20,7 +20,14 @@ from sqlalchemy import ColumnElement, func, or_, select
 
 from inertia_id.errors import InputError
 from inertia_id.physics.scenario import Scenario
-from service.exports import RESULT_TABLES, metrics_table, result_table, to_csv, to_records
+from service.exports import (
+    RESULT_TABLES,
+    metrics_notes,
+    metrics_table,
+    result_table,
+    to_csv,
+    to_records,
+)
 from service.queue import RUN_JOB_TASK
 from service.store import jobs as job_store
 from service.store.models import (
@@ -460,7 +467,9 @@ def download_result(
             json.dumps(document, indent=1, allow_nan=False), "application/json", f"{stem}.json"
         )
     try:
-        rendered = result_table(job.type, out.result or {}, table)
+        rendered = result_table(
+            job.type, out.result or {}, table, {"seed": job.seed, "params": job.params or {}}
+        )
     except InputError as exc:
         unprocessable(("query", "table"), str(exc))
     name = table or "table"
@@ -518,7 +527,7 @@ def get_metrics(
     if format == "csv":
         points = [(k, s, v if np.isfinite(v) else None) for k, s, v in rows]
         return _download(
-            to_csv(metrics_table(points)),
+            to_csv(metrics_table(points, metrics_notes(job.type, job.params or {}))),
             "text/csv; charset=utf-8",
             f"{job.type}-{job.id[:8]}-metrics.csv",
         )

@@ -45,6 +45,7 @@ if TYPE_CHECKING:
 __all__ = [
     "DEFAULT_MULTIPLES",
     "DEFAULT_NOISES",
+    "MAX_MULTIPLE",
     "NOISE_KINDS",
     "NOISE_LABELS",
     "NOISE_UNITS",
@@ -53,6 +54,8 @@ __all__ = [
     "InertiaSweepResult",
     "SweepPoint",
     "SweepResult",
+    "check_ceiling_realisations",
+    "check_multiples",
     "noise_level",
     "run_inertia_sweep",
     "run_sweep",
@@ -72,6 +75,11 @@ NOISE_KINDS = tuple(NOISE_FIELDS)
 DEFAULT_NOISES = ("process", "measurement")
 #: The noise multiples a sweep visits unless told otherwise.
 DEFAULT_MULTIPLES: tuple[float, ...] = (1, 2, 3, 4, 5, 6, 7, 8)
+#: The largest noise multiple a sweep visits. On the paper preset at 1000x of any source
+#: the RK4 integration still agrees with one at a ten times finer step to 1e-5 (the rates
+#: reach 8 rad/s at 1000x thrust-scale error); at 1e4x thrust-scale error it is 1.4 % off,
+#: at 1e5x the rates overflow to inf and nan. Every classifier is at chance long before.
+MAX_MULTIPLE = 1000.0
 #: Units of each source's absolute level.
 #: What each source is, for a person reading a plot or a form.
 NOISE_LABELS = {
@@ -113,11 +121,21 @@ def wilson_interval(successes: int, total: int, z: float = 1.959964) -> tuple[fl
     denom = 1.0 + z**2 / total
     centre = (p + z**2 / (2 * total)) / denom
     half = z * math.sqrt(p * (1 - p) / total + z**2 / (4 * total**2)) / denom
-    return max(0.0, centre - half), min(1.0, centre + half)
+    # At 0 % and 100 % the end is exactly 0 or 1; computed, it rounds to 1e-19 or to
+    # 0.9999999999999999, which reads as "not quite certain" in a table.
+    low = 0.0 if successes <= 0 else max(0.0, centre - half)
+    high = 1.0 if successes >= total else min(1.0, centre + half)
+    return low, high
 
 
 class SweepPoint(BaseModel):
-    """Accuracy at one noise multiple; ``value`` is the absolute level used."""
+    """Accuracy at one noise multiple; ``value`` is the absolute level used.
+
+    ``above_ceiling_interval``: whether ``accuracy`` lies above the upper end of the
+    ceiling's Wilson interval at the same point (a check against that interval, not a
+    paired test); None for the ceiling itself, without a ceiling, and in results stored
+    before it was recorded.
+    """
 
     noise: str
     multiple: float
@@ -128,6 +146,7 @@ class SweepPoint(BaseModel):
     f1: float
     n_series: int
     confusion: list[list[int]]
+    above_ceiling_interval: bool | None = None
 
 
 class SweepResult(BaseModel):
@@ -162,7 +181,12 @@ class SweepResult(BaseModel):
         return [p for p in points if p.noise == noise]
 
 
-def _check_multiples(multiples: Sequence[float]) -> None:
+def check_multiples(multiples: Sequence[float]) -> list[float]:
+    """The noise multiples a sweep visits, as floats: at least one, each finite, >= 0 and
+    at most :data:`MAX_MULTIPLE`.
+
+    :raises InputError: quoting the multiples that break the rule.
+    """
     bad = [
         m
         for m in multiples
@@ -172,6 +196,32 @@ def _check_multiples(multiples: Sequence[float]) -> None:
     ]
     if bad or not multiples:
         raise InputError(f"noise multiples must be finite and >= 0, got {list(multiples)}")
+    large = [float(m) for m in multiples if m > MAX_MULTIPLE]
+    if large:
+        raise InputError(
+            f"noise multiples must be at most {MAX_MULTIPLE:g} (beyond it the simulated "
+            f"rates lose accuracy and then overflow), got {large} in "
+            f"{[float(m) for m in multiples]}"
+        )
+    return [float(m) for m in multiples]
+
+
+def check_ceiling_realisations(value: Any, name: str = "ceiling_realisations") -> int:
+    """The ceiling's realisations per candidate: 0 (no ceiling) or an integer >= 3, what
+    :func:`~inertia_id.evaluation.ceiling.fit_ceiling` needs for a per-candidate covariance.
+
+    :raises InputError: quoting the value.
+    """
+    if not is_integer(value, minimum=0, numpy=False):
+        raise InputError(f"{name} must be an integer >= 0, got {value!r}")
+    if 0 < value < 3:
+        raise InputError(f"{name} must be 0 (no ceiling) or at least 3, got {value}")
+    return int(value)
+
+
+def _mark_above_ceiling(points: list[SweepPoint], ceiling: SweepPoint) -> None:
+    for point in points:
+        point.above_ceiling_interval = point.accuracy > ceiling.ci_high
 
 
 def _point(
@@ -262,21 +312,14 @@ def run_sweep(
     unknown = [n for n in noises if n not in NOISE_KINDS]
     if unknown or not noises:
         raise InputError(f"noises must be among {list(NOISE_KINDS)}, got {list(noises)}")
-    _check_multiples(multiples)
+    check_multiples(multiples)
     others = dict(others or {})
     if n_test < scenario.n_candidates:
         raise InputError(f"n_test = {n_test} is fewer than the {scenario.n_candidates} candidates")
     per_candidate = n_test // scenario.n_candidates
     if ceiling_realisations is None:
         ceiling_realisations = limit_realisations
-    if not is_integer(ceiling_realisations, minimum=0, numpy=False):
-        raise InputError(
-            f"ceiling_realisations must be an integer >= 0, got {ceiling_realisations!r}"
-        )
-    if 0 < ceiling_realisations < 3:
-        raise InputError(
-            f"ceiling_realisations must be 0 (no ceiling) or at least 3, got {ceiling_realisations}"
-        )
+    ceiling_realisations = check_ceiling_realisations(ceiling_realisations)
     streams = np.random.SeedSequence(seed).spawn(len(noises) * len(multiples))
     limit_streams = np.random.SeedSequence([seed, 1]).spawn(len(streams))
     limit_points: list[SweepPoint] = []
@@ -300,6 +343,13 @@ def run_sweep(
             at_level, sequence, per_candidate, np.random.default_rng(streams[i]), **extra
         )
         X, y = result.dataset()
+        if not np.isfinite(X).all():
+            # A scenario whose own 1x level is large can overflow below MAX_MULTIPLE.
+            raise InputError(
+                f"{noise} noise at multiple {float(multiple):g} ({value:g} "
+                f"{NOISE_UNITS[noise]}) drives the simulated rates to inf or nan on this "
+                "scenario: sweep smaller multiples"
+            )
         where = {"noise": noise, "multiple": float(multiple), "value": value}
         points.append(_point(classifier, X, y, **where))
         for label, other in others.items():
@@ -312,6 +362,9 @@ def run_sweep(
             sources.append(ceiling.source)
             limit_points.append(
                 _point_from_predictions(ceiling.predict(X), y, scenario.n_candidates, **where)
+            )
+            _mark_above_ceiling(
+                [points[-1], *(other_points[label][-1] for label in others)], limit_points[-1]
             )
         if progress is not None:
             progress((i + 1) / total)

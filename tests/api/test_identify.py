@@ -364,6 +364,20 @@ def test_mission_clock_and_iso_stamps_with_a_sequence_start(
     )
     assert response.status_code == 200, response.text
     assert response.json()["candidate"] == paper.candidate_names[k]
+    # The start as a form field beside the file (it was dropped silently), not twice;
+    # a field the API does not read is refused by name.
+    upload = {"file": ("t.csv", "\n".join(rows))}
+    field = {"classifier_id": classifier_id, "sequence_start": "2025-03-01T12:00:00Z"}
+    response = api.post("/identify", data=field, files=upload)
+    assert response.status_code == 200, response.text
+    assert response.json()["candidate"] == paper.candidate_names[k]
+    twice = api.post("/identify?sequence_start=2025-03-01T12:00:00Z", data=field, files=upload)
+    assert twice.status_code == 422 and "given both as a form field and in" in twice.text
+    bad = api.post("/identify", data={**field, "sequence_start": "noon"}, files=upload)
+    assert bad.status_code == 422 and bad.json()["detail"][0]["loc"] == ["body", "sequence_start"]
+    unknown = api.post("/identify", data={**field, "units": "deg/s"}, files=upload)
+    assert unknown.status_code == 422
+    assert "unknown form field 'units'" in unknown.json()["detail"][0]["msg"]
 
 
 def test_a_missing_or_bad_sequence_start_is_422(

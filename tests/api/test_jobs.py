@@ -252,6 +252,14 @@ BAD_PARAMS: list[tuple[str, dict[str, Any], str]] = [
     ("sweep", {"multiples": [1, -2]}, "got [-2.0]"),
     ("sweep", {"multiples": [1.0] * 21}, "at most 20 items"),
     ("sweep", {"multiples": []}, "at least 1 item"),
+    # Beyond 1000x the simulated rates lose accuracy, then overflow to nan in the worker.
+    ("sweep", {"multiples": [1, 1e6]}, "at most 1000 (beyond it the simulated rates"),
+    ("sweep", {"multiples": [1, 1e6]}, "got [1000000.0] in [1.0, 1000000.0]"),
+    ("sweep", {"multiples": [1e300]}, "got [1e+300]"),
+    # The ceiling's own rule (inertia_id.evaluation.sweep.check_ceiling_realisations).
+    ("sweep", {"ceiling_realisations": 1}, "must be 0 (no ceiling) or at least 3, got 1"),
+    ("sweep", {"ceiling_realisations": 2}, "must be 0 (no ceiling) or at least 3, got 2"),
+    ("sweep", {"limit_realisations": 2}, "limit_realisations must be 0 (no ceiling)"),
     ("sweep", {"noises": ["thermal"]}, "got 'thermal'"),
     ("sweep", {"noises": ["process", "process"]}, "must not repeat"),
     ("sweep", {"n_test": 4}, "got 4"),

@@ -264,7 +264,8 @@ def test_classifier_lists_sort_filter_and_carry_the_training_jobs_labels(
 
 
 def _csv(text: str) -> list[list[str]]:
-    return list(csv.reader(io.StringIO(text)))
+    """The rows after the ``# name: value`` lines a table may begin with."""
+    return list(csv.reader(line for line in io.StringIO(text) if not line.startswith("# ")))
 
 
 def test_a_search_result_downloads_as_json_and_as_each_csv_table(api: Api) -> None:
@@ -521,9 +522,31 @@ def test_a_sweep_result_downloads_its_points_and_confusion_matrices(api: Api) ->
         "candidate_names": names,
         "points": [point("process", 1, 0.9), point("process", 8, 0.6)],
         "ceiling": [point("process", 1, 0.95), point("process", 8, 0.75)],
-        "others": {"least-squares": [point("process", 1, 0.85), point("process", 8, 0.5)]},
+        # Least squares at 8x lies above the ceiling's interval (0.75, up to 0.85).
+        "others": {"least-squares": [point("process", 1, 0.85), point("process", 8, 0.9)]},
         "units": {"process": "N m"},
         "seed": 123,
+        "sequence": GOOD_SEQUENCE,
+        "ceiling_realisations": 2000,
+        "inertia": {
+            "candidate_names": names,
+            "base": 1,
+            "pair": [0, 1],
+            "seed": 77,
+            "points": [
+                {
+                    "body": body,
+                    "parameter": parameter,
+                    "inertia_kg_m2": [[1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0]],
+                    "n_series": 10,
+                    "matches_none_rate": 0.2,
+                    "ci_low": 0.05,
+                    "ci_high": 0.5,
+                    "predicted": [3, 7],
+                }
+                for body, parameter in (("scaled", 1.2), ("between", 0.5))
+            ],
+        },
     }
     job = api.submit("train", scenario_id, params={"sequence": GOOD_SEQUENCE}).json()
     with api.db.session() as session:
@@ -535,7 +558,12 @@ def test_a_sweep_result_downloads_its_points_and_confusion_matrices(api: Api) ->
         row = session.get(JobRow, job["id"])
         assert row is not None
         row.type = "sweep"
+        row.params = {"classifier_id": "c" * 32, "multiples": [1.0, 8.0], "noises": ["process"]}
+        row.seed = 5
     with api.db.session() as session:
+        add_metrics(
+            session, job["id"], [("accuracy_process", 0, 0.9), ("accuracy_process", 1, 0.6)]
+        )
         finish(session, job["id"], "succeeded", result=result)
     stored = api.get(f"/jobs/{job['id']}").json()
     assert stored["summary"] == {
@@ -543,10 +571,44 @@ def test_a_sweep_result_downloads_its_points_and_confusion_matrices(api: Api) ->
         "accuracy_mean": pytest.approx(0.75),
         "ceiling_shortfall": pytest.approx(0.15),
     }
-    points = _csv(api.get(f"/jobs/{job['id']}/result?format=csv&table=points").text)
+    text = api.get(f"/jobs/{job['id']}/result?format=csv&table=points").text
+    points = _csv(text)
     assert [r[0] for r in points[1:]] == ["classifier"] * 2 + ["other:least-squares"] * 2 + [
         "ceiling"
     ] * 2
+    # What was swept, and how, as "# name: value" lines; the multiple beside the step the
+    # metrics number it by; whether each point lies above the ceiling's interval.
+    import pandas
+
+    table = pandas.read_csv(io.StringIO(text), comment="#", keep_default_na=False)
+    assert list(table["multiple"]) == [1.0, 8.0] * 3 and list(table["step"]) == [0, 1] * 3
+    assert list(table["above_ceiling_interval"]) == ["False", "False", "False", "True", "", ""]
+    notes = _notes(text)
+    assert notes["classifier_id"] == "c" * 32 and notes["job_seed"] == "5"
+    assert notes["test_series_seed"] == "123" and notes["ceiling_realisations"] == "2000"
+    assert json.loads(notes["sequence"]) == GOOD_SEQUENCE
+    assert json.loads(notes["multiples"]) == [1.0, 8.0]
+    assert "not a paired test" in notes["above_ceiling_interval"]
+    inertia_text = api.get(f"/jobs/{job['id']}/result?format=csv&table=inertia").text
+    inertia = pandas.read_csv(io.StringIO(inertia_text), comment="#", keep_default_na=False)
+    assert list(inertia["body"]) == ["scaled", "between"]
+    assert list(inertia["base"]) == ["b", ""] and list(inertia["pair"]) == ["", '["a","b"]']
+    assert list(inertia["predicted_a"]) == [3, 3] and list(inertia["predicted_b"]) == [7, 7]
+    assert (
+        inertia["parameter_meaning"][0]
+        == "multiple of b's inertia tensor (1: the candidate itself)"
+    )
+    assert inertia["parameter_meaning"][1].startswith("position from a (0) to b (1)")
+    assert _notes(inertia_text)["classifier_id"] == "c" * 32
+    assert _notes(inertia_text)["inertia_seed"] == "77"
+    metrics = api.get(f"/jobs/{job['id']}/metrics?format=csv").text
+    assert json.loads(_notes(metrics)["multiples"]) == [1.0, 8.0]
+    assert "index among multiples" in _notes(metrics)["step"]
+    assert _csv(metrics) == [
+        ["key", "step", "value"],
+        ["accuracy_process", "0", "0.9"],
+        ["accuracy_process", "1", "0.6"],
+    ]
     confusion = _csv(api.get(f"/jobs/{job['id']}/result?format=csv&table=confusion").text)
     assert confusion[0] == ["who", "noise", "multiple", "true", "predicted", "count"]
     assert confusion[1:5] == [
@@ -569,9 +631,17 @@ def test_metrics_download_every_point_as_csv(api: Api) -> None:
     assert rows[4001] == ["reward", "4000", "1000.0"]
 
 
+def _notes(text: str) -> dict[str, str]:
+    """The ``# name: value`` lines before a CSV's header."""
+    lines = [line for line in text.splitlines() if line.startswith("# ")]
+    return dict(line[2:].split(": ", 1) for line in lines)
+
+
 def test_an_identify_verdict_downloads_as_csv(
     api: Api, classifier: InertiaClassifier, paper: Scenario
 ) -> None:
+    import pandas
+
     classifier_id = api.insert_classifier(api.create_scenario()["id"], classifier)
     flight = simulate(paper, GOOD_SEQUENCE, 1, np.random.default_rng(7))
     body = {
@@ -585,11 +655,42 @@ def test_an_identify_verdict_downloads_as_csv(
     response = api.post("/identify?format=csv", json=body)
     assert response.status_code == 200, response.text
     assert response.headers["content-type"].startswith("text/csv")
-    rows = _csv(response.text)
-    assert rows[0][:3] == ["candidate", "distance", "nearest"]
-    assert [r[0] for r in rows[1:]] == list(verdict["distances"])
-    nearest = [r[0] for r in rows[1:] if r[2] == "True"]
-    assert nearest == [verdict["candidate"]] == ["payload 3 ejected"]
+    table = pandas.read_csv(io.StringIO(response.text), comment="#")
+    # One row per candidate with its posterior: the CSV alone says which one it is and
+    # how sure, not that the series "matches" every candidate.
+    assert list(table.columns) == ["candidate", "distance", "nearest", "posterior"]
+    assert list(table["candidate"]) == list(verdict["distances"])
+    assert list(table.loc[table["nearest"], "candidate"]) == [verdict["candidate"]]
+    assert verdict["candidate"] == "payload 3 ejected"
+    assert list(table["posterior"]) == pytest.approx(list(verdict["posterior"].values()))
+    assert list(table["distance"]) == pytest.approx(list(verdict["distances"].values()))
+    notes = _notes(response.text)
+    assert notes["status"] == verdict["status"] and notes["verdict"] == verdict["verdict"]
+    assert notes["classifier_id"] == classifier_id
+    for key in ("confidence", "required_confidence", "p_none", "threshold"):
+        assert float(notes[key]) == verdict[key], key
+    assert float(notes["p_none"]) + table["posterior"].sum() == pytest.approx(1.0)
+    assert "probabilities in [0, 1]" in notes["units"] and "rad/s" in notes["units"]
+    assert "initial_offset_rad_s" not in notes  # the telemetry starts at the start
+
+    # Telemetry 4 s before the start: the offset it measured is part of the verdict's basis.
+    from inertia_id.classifiers.marginal import AXES_GRID, train_marginal
+
+    model = train_marginal(paper, GOOD_SEQUENCE, 10, np.random.default_rng(4), grid=AXES_GRID)
+    flown = [[0] * paper.n_thrusters] * 4 + GOOD_SEQUENCE
+    early = simulate(paper, flown, 1, np.random.default_rng(5))
+    body = {
+        "classifier_id": api.insert_classifier(api.create_scenario()["id"], model),
+        "telemetry": {
+            "time_s": (early.time_s - 4.0).tolist(),
+            "omega_rad_s": early.omega_measured[1, 0].tolist(),
+        },
+    }
+    verdict = api.post("/identify", json=body).json()
+    notes = _notes(api.post("/identify?format=csv", json=body).text)
+    assert json.loads(notes["initial_offset_rad_s"]) == verdict["initial_offset_rad_s"]
+    assert json.loads(notes["initial_offset_std_rad_s"]) == verdict["initial_offset_std_rad_s"]
+    assert int(notes["pre_start_samples"]) == verdict["pre_start_samples"] > 0
 
 
 def test_the_key_check_is_204_for_the_key_and_401_otherwise(api: Api) -> None:

@@ -16,6 +16,7 @@ import json
 import re
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -472,6 +473,13 @@ def test_a_sweep_draws_both_accuracy_curves_with_intervals_and_a_confusion_matri
         assert ceiling == pytest.approx(
             [p["accuracy"] for p in result["ceiling"] if p["noise"] == noise]
         )
+    # What the page says of the ceiling is what the result says, never a fixed sentence.
+    above = [
+        p for points in [result["points"], *result["others"].values()] for p in points
+        if p["above_ceiling_interval"]
+    ]  # fmt: skip
+    check = page.inner_text("#sweep-ceiling-check")
+    assert check.startswith("Above the ceiling's interval" if above else "No classifier above")
     page.wait_for_function("() => document.getElementById('inertia-plot')?.data?.length === 2")
     flagged = page.evaluate("() => document.getElementById('inertia-plot').data[0].y")
     scaled = [p for p in result["inertia"]["points"] if p["body"] == "scaled"]
@@ -490,6 +498,74 @@ def test_a_sweep_draws_both_accuracy_curves_with_intervals_and_a_confusion_matri
     page.wait_for_selector("#confusion-plot")
     assert _trace_points(dashboard, "accuracy-measurement") == 3
     dashboard.screenshot("classifier")
+
+
+def _sweep_page_with(dashboard: Dashboard, change: Callable[[dict[str, Any]], None]) -> str:
+    """The sweep's job page with its result changed by ``change`` on the way to the page;
+    the page's statement about the ceiling."""
+    _needs("sweep")
+    page = dashboard.page
+    own = re.compile(rf"/jobs/{made['sweep']}(\?.*)?$")
+
+    def changed(route: Any) -> None:
+        answer = route.fetch()
+        body = answer.json()
+        change(body["result"])
+        route.fulfill(response=answer, json=body)
+
+    dashboard.open("#/jobs")  # away first: the same route again would keep its page
+    page.route(own, changed)
+    try:
+        dashboard.open(f"#/jobs/{made['sweep']}")
+        page.wait_for_selector("#sweep-ceiling-check", timeout=60_000)
+        return page.inner_text("#sweep-ceiling-check")
+    finally:
+        page.unroute(own)
+
+
+def test_the_sweep_page_says_which_classifier_lies_above_the_ceilings_interval(
+    dashboard: Dashboard,
+) -> None:
+    """The statement is computed: none above, one named with its point, and for a
+    result stored before points carried the flag, read from the intervals it holds."""
+
+    def none_above(result: dict[str, Any]) -> None:
+        for points in [result["points"], *result["others"].values()]:
+            for p in points:
+                p["above_ceiling_interval"] = False
+
+    assert _sweep_page_with(dashboard, none_above).startswith(
+        "No classifier above the ceiling's interval at any point"
+    )
+
+    def least_squares_above_at_8x(result: dict[str, Any]) -> None:
+        none_above(result)
+        for p in result["others"]["least-squares"]:
+            if p["multiple"] == 8:
+                p["above_ceiling_interval"] = True
+
+    check = _sweep_page_with(dashboard, least_squares_above_at_8x)
+    assert check.startswith("Above the ceiling's interval")
+    assert "least-squares at process ×8, measurement ×8" in check
+
+    def stored_before_the_field(result: dict[str, Any]) -> None:
+        for points in [result["points"], *result["others"].values()]:
+            for p in points:
+                p.pop("above_ceiling_interval", None)
+        first = result["points"][0]
+        ceiling = next(
+            c
+            for c in result["ceiling"]
+            if (c["noise"], c["multiple"]) == (first["noise"], first["multiple"])
+        )
+        ceiling["ci_high"] = first["accuracy"] - 0.01
+        for points in result["others"].values():
+            for p in points:
+                p["accuracy"] = 0.0
+
+    check = _sweep_page_with(dashboard, stored_before_the_field)
+    first = dashboard.service.job(made["sweep"])["result"]["points"][0]
+    assert f"at {first['noise']} ×{first['multiple']:g}" in check and "least-squares" not in check
 
 
 def test_identify_telemetry_files_verdict_distances_and_matches_none(
@@ -698,6 +774,25 @@ def test_identify_shows_the_rate_and_bias_measured_before_the_start(
         [v * 180 / np.pi for v in expected["initial_offset_rad_s"]], rel=0.01, abs=1e-4
     )
     assert _shown_posterior(dashboard) == _expected_posterior(expected)
+    # The response the telemetry is drawn over is shifted by that offset (it starts at
+    # rest; the dots sat 0.013 rad/s off the band on in-orbit telemetry).
+    page = dashboard.page
+    page.wait_for_function("() => document.getElementById('overlay-plot')?.data?.length === 12")
+    drawn = page.evaluate("() => document.getElementById('overlay-plot').data")
+    scenario_id = dashboard.service.client.get(f"/classifiers/{made['classifier']}").json()[
+        "scenario_id"
+    ]
+    response = dashboard.service.client.get(
+        f"/scenarios/{scenario_id}/response",
+        params={"sequence": json.dumps(GOOD), "n_realisations": 20},
+    ).json()
+    mean = next(c for c in response["candidates"] if c["name"] == expected["candidate"])
+    offset = expected["initial_offset_rad_s"]
+    for a in range(3):
+        shifted = [r[a] + offset[a] for r in mean["mean_rad_s"]]
+        assert drawn[4 * a + 2]["y"] == pytest.approx(shifted)
+    title = page.evaluate("() => document.getElementById('overlay-plot').layout.title.text")
+    assert "shifted by the rate + bias measured before the start" in title
 
 
 def test_the_classifier_page_shows_the_calibration_the_api_reports(
@@ -730,10 +825,13 @@ def test_an_identify_verdict_downloads_as_json_and_csv(
     page.wait_for_selector("#verdict")
     with page.expect_download() as download:
         page.click("#identify-downloads button[data-download='verdict (CSV)']")
-    rows = Path(download.value.path()).read_text(encoding="utf-8").splitlines()
-    assert rows[0].startswith("candidate,distance,nearest")
+    lines = Path(download.value.path()).read_text(encoding="utf-8").splitlines()
+    notes = [line for line in lines if line.startswith("#")]
+    rows = [line for line in lines if not line.startswith("#")]
+    assert rows[0].startswith("candidate,distance,nearest,posterior")
     nearest = [r.split(",")[0] for r in rows[1:] if r.split(",")[2] == "True"]
     assert nearest == ["payload 1 ejected"]
+    assert any(note.startswith("# status: identified") for note in notes)
     with page.expect_download() as download:
         page.click("#identify-downloads button[data-download='verdict (JSON)']")
     verdict = json.loads(Path(download.value.path()).read_text(encoding="utf-8"))

@@ -289,6 +289,15 @@ def test_a_sweep_beyond_its_bounds_is_refused_before_any_work(
     assert "Traceback" not in result.output and not out.exists()
 
 
+def test_the_paper_pipeline_refuses_large_multiples_before_it_trains(
+    runner: CliRunner, tmp_path: Path
+) -> None:
+    out = tmp_path / "paper"
+    result = runner.invoke(main, ["paper", "--multiples", "1,5000", "--out-dir", str(out)])
+    assert result.exit_code != 0 and "got [5000.0] in [1.0, 5000.0]" in result.output
+    assert not (out / "classifier.json").exists()
+
+
 def test_parse_sequence_forms(tmp_path: Path) -> None:
     rows = [[4, 4, 4, 0, 0, 0], [0, 0, 0, 1, 2, 3]]
     assert parse_sequence("4,4,4,0,0,0;0,0,0,1,2,3") == rows

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -15,6 +16,12 @@ from inertia_id import (
     run_sweep,
     simulate,
     wilson_interval,
+)
+from inertia_id.evaluation.sweep import (
+    MAX_MULTIPLE,
+    NOISE_KINDS,
+    check_ceiling_realisations,
+    check_multiples,
 )
 
 Z = 1.959964
@@ -46,6 +53,16 @@ def test_wilson_known_values() -> None:
     assert low == pytest.approx(0.4038, abs=1e-4)
     assert high == pytest.approx(0.5962, abs=1e-4)
     assert wilson_interval(0, 0) == (0.0, 1.0)
+
+
+@pytest.mark.parametrize("n", [1, 10, 40, 200, 500, 1000, 2000])
+def test_wilson_ends_are_exactly_0_and_1_at_0_and_100_percent(n: int) -> None:
+    # Computed, 200 of 200 gave an upper end of 0.9999999999999999 and 0 of 1000 a lower
+    # end of 2e-19: a table would read "not quite certain" where the interval reaches 1.
+    assert wilson_interval(n, n)[1] == 1.0
+    assert wilson_interval(0, n)[0] == 0.0
+    if n > 1:
+        assert wilson_interval(n - 1, n)[1] < 1.0
 
 
 @pytest.mark.parametrize(("k", "n"), [(1, 7), (3, 20), (17, 40), (99, 100), (480, 500)])
@@ -172,6 +189,51 @@ def test_bad_multiples_are_rejected(
     shown = str(list(multiples)).replace("[", r"\[").replace("]", r"\]")
     with pytest.raises(ValueError, match=rf"multiples must be finite and >= 0, got {shown}"):
         run_sweep(euclidean_classifier, multiples=multiples, n_test=10)
+
+
+@pytest.mark.parametrize("multiples", [[1.0, 1e6], [1e300], [1000.5]])
+def test_multiples_beyond_the_largest_are_refused_naming_them(
+    euclidean_classifier: InertiaClassifier, multiples: list[float]
+) -> None:
+    # 1e6x process noise made every series nan and failed naming a series, not the multiple.
+    large = [m for m in multiples if m > MAX_MULTIPLE]
+    with pytest.raises(ValueError, match=rf"at most 1000 \(.*\), got {re.escape(str(large))}"):
+        run_sweep(euclidean_classifier, multiples=multiples, n_test=10)
+    with pytest.raises(ValueError, match="at most 1000"):
+        check_multiples(multiples)
+
+
+def test_every_source_at_the_largest_multiple_simulates_finite_rates(
+    euclidean_classifier: InertiaClassifier,
+) -> None:
+    assert MAX_MULTIPLE == 1000
+    result = run_sweep(
+        euclidean_classifier, multiples=(MAX_MULTIPLE,), noises=NOISE_KINDS, n_test=10, seed=2
+    )
+    assert [p.noise for p in result.points] == list(NOISE_KINDS)
+    assert all(0.0 <= p.accuracy <= 1.0 for p in result.points)
+
+
+def test_a_scenario_that_overflows_below_the_bound_names_the_noise_and_multiple(
+    euclidean_classifier: InertiaClassifier, paper: Scenario
+) -> None:
+    # A 200 % thrust-scale error at 1x: 1000x of it drives the rates to inf.
+    wild = paper.with_uncertainty(thrust_scale_sigma=2.0)
+    with pytest.raises(ValueError, match=r"thrust_scale noise at multiple 1000 \(2000 fraction"):
+        run_sweep(
+            euclidean_classifier,
+            scenario=wild,
+            noises=["thrust_scale"],
+            multiples=(1, 1000),
+            n_test=10,
+        )
+
+
+@pytest.mark.parametrize("bad", [1, 2, -1])
+def test_the_ceilings_size_rule_is_the_cores(bad: int) -> None:
+    with pytest.raises(ValueError, match=f"got {bad}"):
+        check_ceiling_realisations(bad)
+    assert check_ceiling_realisations(0) == 0 and check_ceiling_realisations(3) == 3
 
 
 @pytest.mark.parametrize("noises", [["thermal"], ["process", "gyro"], []])
@@ -326,6 +388,29 @@ def test_the_ceiling_is_fitted_at_each_noise_and_is_never_below_the_classifier(
         assert limit.accuracy >= mine.accuracy - sampling_error, (mine, limit)
     # At 6x process noise a classifier trained at 1x is beaten by one that knows the noise.
     assert result.limit[1].accuracy > result.points[1].accuracy
+
+
+def test_each_point_says_whether_it_lies_above_the_ceilings_interval(
+    euclidean_classifier: InertiaClassifier,
+) -> None:
+    result = run_sweep(
+        euclidean_classifier,
+        others={"again": euclidean_classifier},
+        multiples=(1, 8),
+        n_test=50,
+        ceiling_realisations=20,
+        seed=4,
+    )
+    assert result.ceiling and all(c.above_ceiling_interval is None for c in result.ceiling)
+    for line in (result.points, result.others["again"]):
+        for point, ceiling in zip(line, result.ceiling, strict=True):
+            assert (point.noise, point.multiple) == (ceiling.noise, ceiling.multiple)
+            assert point.above_ceiling_interval is (point.accuracy > ceiling.ci_high)
+    # At 1x the ceiling is 100 %: its interval reaches 1 and nothing lies above it.
+    assert result.ceiling[0].accuracy == 1.0 and result.ceiling[0].ci_high == 1.0
+    assert result.points[0].above_ceiling_interval is False
+    without = run_sweep(euclidean_classifier, multiples=(1,), n_test=10)
+    assert [p.above_ceiling_interval for p in without.points] == [None, None]
 
 
 @pytest.mark.parametrize("bad", [2, -1, 1.5, True])

@@ -283,17 +283,24 @@ async function showVerdict(holder, verdict, classifier, { content, context, file
   const candidate = response.candidates[k];
   const telemetry = parseTelemetry(content, options.sequenceStart);
   const color = COLORS[k % COLORS.length];
+  // The response starts at rest; the telemetry carries the rate + gyro bias measured
+  // before the start, which the verdict accounted for: the band is shifted by it.
+  const offset = verdict.initial_offset_rad_s || [0, 0, 0];
+  const shifted = offset.some((v) => v !== 0);
   const traces = [];
   ["x", "y", "z"].forEach((axis, a) => {
     const yaxis = a === 0 ? "y" : `y${a + 1}`;
+    const plus = (rows) => rows.map((r) => r[a] + offset[a]);
     traces.push(
-      { x: response.time_s, y: candidate.low_rad_s.map((r) => r[a]), yaxis, mode: "lines", line: { width: 0 }, showlegend: false, hoverinfo: "skip" },
-      { x: response.time_s, y: candidate.high_rad_s.map((r) => r[a]), yaxis, mode: "lines", line: { width: 0 }, fill: "tonexty", fillcolor: withAlpha(color, 0.2), showlegend: false, hoverinfo: "skip" },
-      { x: response.time_s, y: candidate.mean_rad_s.map((r) => r[a]), yaxis, mode: "lines", line: { color, width: 2 }, name: "mean response", showlegend: a === 0 },
+      { x: response.time_s, y: plus(candidate.low_rad_s), yaxis, mode: "lines", line: { width: 0 }, showlegend: false, hoverinfo: "skip" },
+      { x: response.time_s, y: plus(candidate.high_rad_s), yaxis, mode: "lines", line: { width: 0 }, fill: "tonexty", fillcolor: withAlpha(color, 0.2), showlegend: false, hoverinfo: "skip" },
+      { x: response.time_s, y: plus(candidate.mean_rad_s), yaxis, mode: "lines", line: { color, width: 2 }, name: "mean response", showlegend: a === 0 },
       { x: telemetry.time, y: telemetry.omega.map((r) => r[a]), yaxis, mode: "markers", marker: { color: "#222", size: 4 }, name: "telemetry", showlegend: a === 0 },
     );
   });
-  Plotly.newPlot(overlayPlot, traces, responseLayout(`telemetry (dots) over ${candidate.name}'s mean and ${BAND.label} band`), PLOT_CONFIG);
+  overlayPlot.dataset.offset = JSON.stringify(offset);
+  const overlayTitle = `telemetry (dots) over ${candidate.name}'s mean and ${BAND.label} band${shifted ? ", shifted by the rate + bias measured before the start" : ""}`;
+  Plotly.newPlot(overlayPlot, traces, responseLayout(overlayTitle), PLOT_CONFIG);
 }
 
 // A bar per hypothesis, its percentage on it, the required confidence as a dashed line.

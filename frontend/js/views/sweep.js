@@ -26,6 +26,39 @@ function axisTitle(noise, result) {
   return `multiple of the 1× level (1× = ${Number(level.toPrecision(2))} ${unit})`;
 }
 
+// The points of each classifier whose accuracy lies above the ceiling's 95 % interval at
+// the same point: as the sweep states it per point (above_ceiling_interval), or, in a
+// result stored before it did, from the intervals it holds.
+function aboveCeiling(result, mainName) {
+  const top = new Map((result.ceiling || []).map((c) => [`${c.noise}|${c.multiple}`, c.ci_high]));
+  const lines = [[mainName, result.points || []], ...Object.entries(result.others || {})];
+  return lines
+    .map(([name, points]) => ({
+      name,
+      where: points.filter((p) => {
+        if (typeof p.above_ceiling_interval === "boolean") return p.above_ceiling_interval;
+        const high = top.get(`${p.noise}|${p.multiple}`);
+        return high !== undefined && p.accuracy > high;
+      }),
+    }))
+    .filter((line) => line.where.length);
+}
+
+// What the numbers say about the ceiling, never a fixed sentence.
+function ceilingCheck(result, mainName) {
+  const found = aboveCeiling(result, mainName);
+  const how = "each accuracy against the ceiling's 95 % Wilson interval at the same point, not a paired test";
+  if (!found.length) {
+    return h("p", { class: "note", id: "sweep-ceiling-check", "data-above": "none" }, `No classifier above the ceiling's interval at any point (${how}).`);
+  }
+  const named = found.map(({ name, where }) => `${name} at ${where.map((p) => `${p.noise} ×${p.multiple}`).join(", ")}`);
+  return h(
+    "p",
+    { class: "note dominated", id: "sweep-ceiling-check", "data-above": found.map((f) => f.name).join("|") },
+    `Above the ceiling's interval (${how}): ${named.join("; ")}. A ceiling fitted on too few realisations, or sampling error, can put a classifier there.`,
+  );
+}
+
 export async function sweepPanel(holder, job, classifier, context) {
   const noises = job.params.noises || vocabulary().default_noises;
   const plots = Object.fromEntries(noises.map((n) => [n, plotDiv(`accuracy-${n}`)]));
@@ -79,9 +112,10 @@ export async function sweepPanel(holder, job, classifier, context) {
       h(
         "p",
         { class: "muted", id: "sweep-seeds" },
-        `${result.n_test_per_candidate} test series per candidate and point. Seeds: the job's ${job.seed}; its test series come from ${result.seed}, a stream derived from it (the others' training and the bodies off the candidates use two more). Beside ${mainName}, on the same series: ${otherNames.join(", ") || "no other classifier"}${result.ceiling && result.ceiling.length ? `, and the ceiling (per-candidate Gaussians at each noise level, their covariance sampled from ${result.ceiling_realisations} realisations per candidate or written out by the scenario's noise model, whichever classified a validation draw better${result.ceiling_covariance && result.ceiling_covariance.length ? `: ${result.ceiling_covariance.filter((c) => c === "noise model").length} of ${result.ceiling_covariance.length} points took the noise model's` : ""}; no classifier beats it beyond sampling error)` : ""}.`,
+        `${result.n_test_per_candidate} test series per candidate and point. Seeds: the job's ${job.seed}; its test series come from ${result.seed}, a stream derived from it (the others' training and the bodies off the candidates use two more). Beside ${mainName}, on the same series: ${otherNames.join(", ") || "no other classifier"}${result.ceiling && result.ceiling.length ? `, and the ceiling (per-candidate Gaussians at each noise level, their covariance sampled from ${result.ceiling_realisations} realisations per candidate or written out by the scenario's noise model, whichever classified a validation draw better${result.ceiling_covariance && result.ceiling_covariance.length ? `: ${result.ceiling_covariance.filter((c) => c === "noise model").length} of ${result.ceiling_covariance.length} points took the noise model's` : ""})` : ""}.`,
       ),
     );
+    if (result.ceiling && result.ceiling.length) state.append(ceilingCheck(result, mainName));
     for (const noise of noises) {
       const points = result.points.filter((p) => p.noise === noise);
       if (!points.length) continue;
