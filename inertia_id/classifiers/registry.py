@@ -12,14 +12,14 @@ format, metrics, minimum and default realisations) in its class attributes. Kind
   (:mod:`inertia_id.classifiers.nearest`);
 - ``minirocket``: MiniRocket features and a ridge classifier
   (:mod:`inertia_id.classifiers.minirocket`);
-- ``likelihood``: the Gaussian matched filter that knows the simulator, the accuracy
-  limit (:mod:`inertia_id.classifiers.likelihood`);
+- ``likelihood``: the Gaussian matched filter that knows the simulator, fitted at one
+  noise level (:mod:`inertia_id.classifiers.likelihood`);
 - ``least-squares``: the physics baseline, an integral-form least-squares inertia
   estimate and the nearest candidate (:mod:`inertia_id.classifiers.leastsquares`);
 - ``marginal-likelihood``: the likelihood classifier marginalised over the unknown noise
   level (:mod:`inertia_id.classifiers.marginal`), the shipped default
-  (:data:`DEFAULT_KIND`): within half a percentage point of the limit up to 8x noise
-  (``bench/classifier_limit.py``).
+  (:data:`DEFAULT_KIND`): within 3 percentage points of the ceiling up to 8x noise on
+  the paper preset's three benchmark sequences (``bench/classifier_ceiling.py``).
 
 A *spec* names a kind and, optionally, its metric: ``"1nn:euclidean"``,
 ``"clustering:dtw"``, ``"likelihood"``.
