@@ -144,6 +144,19 @@ def add_flight_bounds(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def add_sweep_sizes(parser: argparse.ArgumentParser) -> None:
+    """A sweep bench's sizes: test series per point and the ceiling's realisations."""
+    from inertia_id.evaluation.ceiling import DEFAULT_CEILING_REALISATIONS
+
+    parser.add_argument("--n-test", type=int, default=500, help="test series per point")
+    parser.add_argument(
+        "--ceiling-realisations",
+        type=int,
+        default=DEFAULT_CEILING_REALISATIONS,
+        help="the ceiling's training per candidate",
+    )
+
+
 def constrained_front(
     scenario: Any, length: int, seed: int, constraints: dict[str, float]
 ) -> tuple[dict[str, Any], list[dict[str, Any]], float, str]:

@@ -34,11 +34,18 @@ import time
 from typing import Any
 
 import numpy as np
-from _common import base_parser, begin, print_table, sequence_text, warm_up_numba, write_json
+from _common import (
+    add_sweep_sizes,
+    base_parser,
+    begin,
+    print_table,
+    sequence_text,
+    warm_up_numba,
+    write_json,
+)
 
 from inertia_id import Scenario, run_sweep, simulate, train_classifier
 from inertia_id.classifiers.registry import default_realisations, parse_spec
-from inertia_id.evaluation.ceiling import DEFAULT_CEILING_REALISATIONS
 from inertia_id.physics.sequences import axis_in_turn, hand_designed
 from inertia_id.search import ScorerSettings, evaluate_sequence
 
@@ -130,13 +137,7 @@ def main() -> None:
     parser.add_argument(
         "--n-train", type=int, default=20, help="training realisations per candidate"
     )
-    parser.add_argument("--n-test", type=int, default=500, help="test series per point")
-    parser.add_argument(
-        "--ceiling-realisations",
-        type=int,
-        default=DEFAULT_CEILING_REALISATIONS,
-        help="the ceiling's training per candidate",
-    )
+    add_sweep_sizes(parser)
     args = begin(parser, "Classifiers against the ceiling, paper preset")
     warm_up_numba()
     scenario = Scenario.paper()

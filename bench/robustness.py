@@ -19,11 +19,10 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from _common import base_parser, begin, print_table, warm_up_numba, write_json
+from _common import add_sweep_sizes, base_parser, begin, print_table, warm_up_numba, write_json
 
 from inertia_id import Scenario, run_inertia_sweep, run_sweep, train_classifier
 from inertia_id.classifiers.registry import parse_spec
-from inertia_id.evaluation.ceiling import DEFAULT_CEILING_REALISATIONS
 from inertia_id.physics.sequences import hand_designed
 
 SOURCES = ("jitter", "thrust_scale", "gyro_bias")
@@ -33,13 +32,7 @@ MULTIPLES = (0, 1, 2, 4, 8)
 def main() -> None:
     parser = base_parser(__doc__.splitlines()[0])
     parser.add_argument("--kinds", default="clustering:dtw,nearest-centroid:euclidean")
-    parser.add_argument("--n-test", type=int, default=500, help="test series per point")
-    parser.add_argument(
-        "--ceiling-realisations",
-        type=int,
-        default=DEFAULT_CEILING_REALISATIONS,
-        help="the ceiling's training per candidate",
-    )
+    add_sweep_sizes(parser)
     args = begin(parser, "Robustness to confounders, paper preset, hand-designed sequence")
     warm_up_numba()
     scenario = Scenario.paper()
