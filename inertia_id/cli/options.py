@@ -193,7 +193,8 @@ def multiples_option(func: F) -> F:
     return click.option(
         "--multiples",
         default=None,
-        help="Noise multiples of the training level, comma-separated [default: 1,2,...,8].",
+        help="Noise multiples of the training level, comma-separated, each 0 to 1000 "
+        "[default: 1,2,...,8].",
     )(func)
 
 
