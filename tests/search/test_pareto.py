@@ -48,6 +48,19 @@ def small_front(paper: Scenario) -> dict:
     return _small_front(paper, {"max_impulse_nms": 12.0, "max_peak_rate_deg_s": 3.0})
 
 
+#: Fire, coast, brake at L = 8 (a rest-ending front member's shape).
+COAST_SEQUENCE = np.array([[[4, 4, 4, 0, 0, 0]] * 2 + [[0] * 6] * 4 + [[0, 0, 0, 4, 4, 4]] * 2])
+
+
+@pytest.fixture(scope="module")
+def coast_flights(paper: Scenario) -> tuple[np.ndarray, np.ndarray]:
+    """4,000 independent flights a candidate of COAST_SEQUENCE, drawn once for the
+    per-flight bound tests: their rates (K, n, T, 3) and settled residuals (K, n)."""
+    big = Simulator(paper, 4000)
+    rates, end = big.population_run(COAST_SEQUENCE, big.draw_noise(np.random.default_rng(99), 8))
+    return rates[0], big.settled(end)[0]
+
+
 def test_the_front_is_non_dominated_on_its_own_fresh_scores(small_front: dict) -> None:
     members = small_front["members"]
     assert members and [m["index"] for m in members] == list(range(len(members)))
@@ -366,20 +379,17 @@ def test_a_final_rate_bound_holds_for_every_candidate(paper: Scenario) -> None:
 
 
 def test_a_per_flight_bound_holds_on_95_percent_of_a_large_independent_draw(
-    paper: Scenario,
+    paper: Scenario, coast_flights: tuple[np.ndarray, np.ndarray]
 ) -> None:
     """A bound on the mean residual leaves many single flights above it (measured: 40 %
     for a member reported at 0.0098 rad/s under 0.01). The p95 figure, a tolerance bound
     from the scorer's realisations, is checked against 4,000 flights a candidate of
     another draw: at least 95 % of every candidate's flights end below it, for 20 and 40
     realisations a candidate, and at the mean far fewer do."""
-    sequence = np.array([[[4, 4, 4, 0, 0, 0]] * 2 + [[0] * 6] * 4 + [[0, 0, 0, 4, 4, 4]] * 2])
-    big = Simulator(paper, 4000)
-    _, end = big.population_run(sequence, big.draw_noise(np.random.default_rng(99), 8))
-    settled = big.settled(end)[0]  # (K, n)
+    settled = coast_flights[1]  # (K, n)
     for n in (20, 40):
         scorer = OperatorScorer(paper, 8, OperatorSettings(n_realisations=n), seed=5)
-        scores = scorer.score(sequence)[0]
+        scores = scorer.score(COAST_SEQUENCE)[0]
         assert scores.final_rate_p95_rad_s > scores.final_rate_max_rad_s
         assert scores.as_dict()["final_rate_p95_deg_s"] == pytest.approx(
             np.degrees(scores.final_rate_p95_rad_s)
@@ -522,7 +532,7 @@ def test_the_front_holds_a_per_flight_peak_bound_on_its_fresh_draw(paper: Scenar
 
 
 def test_a_per_flight_peak_bound_holds_on_95_percent_of_a_large_independent_draw(
-    paper: Scenario,
+    paper: Scenario, coast_flights: tuple[np.ndarray, np.ndarray]
 ) -> None:
     """A single flight's peak is its own fastest instant, above the mean speed's
     fastest instant the peak-rate figure reads; a front member at a 4 deg/s bound left
@@ -532,13 +542,10 @@ def test_a_per_flight_peak_bound_holds_on_95_percent_of_a_large_independent_draw
     some candidate's flights above it (14.5 % measured)."""
     from inertia_id.search.objectives import flight_peaks
 
-    sequence = np.array([[[4, 4, 4, 0, 0, 0]] * 2 + [[0] * 6] * 4 + [[0, 0, 0, 4, 4, 4]] * 2])
-    big = Simulator(paper, 4000)
-    rates, end = big.population_run(sequence, big.draw_noise(np.random.default_rng(99), 8))
-    peaks = flight_peaks(rates, big.settled(end))[0]  # (K, n)
+    peaks = flight_peaks(*coast_flights)  # (K, n)
     for n in (20, 40):
         scorer = OperatorScorer(paper, 8, OperatorSettings(n_realisations=n), seed=5)
-        scores = scorer.score(sequence)[0]
+        scores = scorer.score(COAST_SEQUENCE)[0]
         assert scores.peak_rate_p95_rad_s > scores.peak_rate_rad_s
         assert scores.as_dict()["peak_rate_p95_deg_s"] == pytest.approx(
             np.degrees(scores.peak_rate_p95_rad_s)
