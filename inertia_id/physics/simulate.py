@@ -31,6 +31,8 @@ __all__ = [
     "Simulator",
     "StepDraw",
     "StepResponse",
+    "at_gyro_samples",
+    "every_substep_scenario",
     "nominal_simulator",
     "settled_rates",
     "simulate",
@@ -325,12 +327,41 @@ class Simulator:
         )
 
 
-def nominal_simulator(scenario: Scenario, n_steps: int) -> tuple[Simulator, SequenceNoise]:
+def nominal_simulator(
+    scenario: Scenario, n_steps: int, *, every_substep: bool = False
+) -> tuple[Simulator, SequenceNoise]:
     """A simulator of one realisation a candidate with every source of noise off (the
     actuation lag kept), and its draw for ``n_steps`` steps (nothing random in it): the
-    response a flight team predicts, the one a command plan shows."""
-    simulator = Simulator(scenario.with_uncertainty(**NOISE_OFF), 1)
+    response a flight team predicts, the one a command plan shows.
+
+    With ``every_substep`` it records the rates at every integration step rather than at
+    the gyro's samples (:func:`every_substep_scenario`): what the attitude is propagated from, so
+    that the attitude does not depend on how often the gyro reports.
+    """
+    quiet = scenario.with_uncertainty(**NOISE_OFF)
+    simulator = Simulator(every_substep_scenario(quiet) if every_substep else quiet, 1)
     return simulator, simulator.draw_noise(np.random.default_rng(0), n_steps)
+
+
+def every_substep_scenario(scenario: Scenario) -> Scenario:
+    """A copy of ``scenario`` whose "gyro" samples every integration step: the same
+    dynamics, recorded on the integration grid. Sample ``s`` of it is at the time
+    ``(s + 1) * integration_step_s``, so the gyro's own samples are every
+    ``substeps_per_sample``-th of them, from index ``substeps_per_sample - 1``
+    (:func:`at_gyro_samples`)."""
+    timing = scenario.timing
+    if timing.substeps_per_sample == 1:
+        return scenario
+    dump = scenario.model_dump()
+    dump["timing"] = {**dump["timing"], "sample_rate_hz": 1.0 / timing.integration_step_s}
+    return type(scenario).model_validate(dump)
+
+
+def at_gyro_samples(scenario: Scenario, fine: np.ndarray) -> np.ndarray:
+    """The samples of a run recorded every integration step (..., T_fine, 3) that fall
+    on ``scenario``'s gyro samples (..., T, 3)."""
+    per_sample = scenario.timing.substeps_per_sample
+    return fine[..., per_sample - 1 :: per_sample, :]
 
 
 def settled_rates(

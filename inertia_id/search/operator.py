@@ -23,7 +23,12 @@ from ..checks import is_integer
 from ..errors import InputError
 from ..physics.attitude import propagate_attitude, rotation_angle_deg
 from ..physics.scenario import Scenario
-from ..physics.simulate import SimulationResult, Simulator, nominal_simulator
+from ..physics.simulate import (
+    SimulationResult,
+    Simulator,
+    at_gyro_samples,
+    nominal_simulator,
+)
 from .noise_model import LinearNoiseModel
 from .objectives import (
     DEFAULT_DESIGN_NOISE,
@@ -122,7 +127,11 @@ class OperatorScorer:
             np.random.default_rng(self.seed), self.sequence_length
         )
         # The noise-free prediction a command plan shows: every rate bound holds on it too.
-        self.nominal, self.nominal_noise = nominal_simulator(scenario, self.sequence_length)
+        # Recorded at every integration step, so that the attitude propagated from it does
+        # not depend on the gyro's rate; the rate bounds read its gyro samples.
+        self.nominal, self.nominal_noise = nominal_simulator(
+            scenario, self.sequence_length, every_substep=True
+        )
         self.model = LinearNoiseModel(scenario, self.sequence_length)
         self.evaluations = 0
 
@@ -254,8 +263,9 @@ class OperatorScorer:
         accuracy = np.clip(1.0 - errors, 1.0 / scenario.n_candidates, 1.0)  # (P, conditions)
         own, end = self.simulator.population_run(sequences, self.noise)
         speed = np.linalg.norm(own, axis=-1)  # (P, K, n, T)
-        planned, planned_end = self.nominal.population_run(sequences, self.nominal_noise)
-        planned = planned[:, :, 0]  # (P, K, T, 3): the command plan's rates
+        planned_fine, planned_end = self.nominal.population_run(sequences, self.nominal_noise)
+        planned_fine = planned_fine[:, :, 0]  # (P, K, T_fine, 3): every integration step
+        planned = at_gyro_samples(scenario, planned_fine)  # (P, K, T, 3): the plan's rates
         # Each rate is the larger of its mean over the realisations and the command plan's
         # noise-free prediction, so a bound holds on both: the duty jitter clipped at full
         # duty delivers 1 - σ/√(2π) of a full firing on average, and the mean alone ran
@@ -285,8 +295,9 @@ class OperatorScorer:
                 final_by_candidate.max(axis=1),
             ]
         )
-        # The attitude change is the plan's (quaternion propagation of the noise-free rates).
-        attitude = propagate_attitude(planned, 1.0 / scenario.timing.sample_rate_hz)
+        # The attitude change is the plan's (quaternion propagation of the noise-free rates,
+        # on the integration grid).
+        attitude = propagate_attitude(planned_fine, scenario.timing.integration_step_s)
         turned = rotation_angle_deg(attitude[..., -1, :]).max(axis=1)  # (P,)
         out = []
         for i, sequence in enumerate(sequences):
@@ -309,11 +320,15 @@ class OperatorScorer:
         return out
 
 
-def nominal_run(scenario: Scenario, sequence: Any) -> SimulationResult:
+def nominal_run(
+    scenario: Scenario, sequence: Any, *, every_substep: bool = False
+) -> SimulationResult:
     """Each candidate's response with every source of noise off (the actuation lag kept):
-    what a flight team predicts, one realisation a candidate."""
+    what a flight team predicts, one realisation a candidate; with ``every_substep``
+    recorded at every integration step (:func:`~inertia_id.physics.simulate.at_gyro_samples`
+    picks the gyro's samples out of it)."""
     rows = scenario.check_sequence(sequence)
-    simulator, noise = nominal_simulator(scenario, len(rows))
+    simulator, noise = nominal_simulator(scenario, len(rows), every_substep=every_substep)
     return simulator.run(rows, noise)
 
 
