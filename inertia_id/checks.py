@@ -1,4 +1,5 @@
-"""The tests behind the core's checks of a number parameter, and numbers made JSON-safe.
+"""The tests behind the core's checks of a number parameter, numbers made JSON-safe, and
+text made safe for a CSV file.
 
 Each caller raises its own :class:`~inertia_id.errors.InputError`, with its own message
 (they name the parameter and the rule in their own words); what they share is the test.
@@ -8,12 +9,24 @@ for a count is a mistake, not 1.
 
 from __future__ import annotations
 
+import json
 import math
+import unicodedata
 from typing import Any, TypeGuard
 
 import numpy as np
 
-__all__ = ["finite_or_none", "is_integer", "is_number"]
+__all__ = [
+    "control_characters",
+    "csv_note_text",
+    "finite_or_none",
+    "is_integer",
+    "is_number",
+    "spreadsheet_safe",
+]
+
+#: What a spreadsheet reads as the start of a formula (OWASP, "CSV injection").
+_FORMULA_START = ("=", "+", "-", "@", "\t", "\r")
 
 
 def is_integer(
@@ -57,3 +70,30 @@ def finite_or_none(value: Any) -> Any:
     if isinstance(value, list | tuple):
         return [finite_or_none(v) for v in value]
     return value
+
+
+def control_characters(text: str) -> list[str]:
+    """The control characters in ``text`` (Unicode category Cc, and the line and
+    paragraph separators), as ``U+XXXX``, once each: what no name may hold, since a name
+    is written into CSV and text files a line at a time."""
+    found = {
+        f"U+{ord(c):04X}"
+        for c in text
+        if unicodedata.category(c) == "Cc" or c in "\u2028\u2029"
+    }
+    return sorted(found)
+
+
+def spreadsheet_safe(text: str) -> str:
+    """``text`` as a CSV cell a spreadsheet shows as text: one that starts with ``=``,
+    ``+``, ``-``, ``@``, a tab or a carriage return gets a leading apostrophe (OWASP's
+    remedy for CSV injection), so a name such as ``=HYPERLINK(...)`` is not a formula."""
+    return "'" + text if text.startswith(_FORMULA_START) else text
+
+
+def csv_note_text(text: str) -> str:
+    """A user's text (a name) inside a CSV file's ``#`` line: as a JSON string (quoted;
+    a newline or other control character escaped, so it cannot end the line) whose commas
+    are written ``\\u002c``, so that a spreadsheet keeps it in the one cell the ``#``
+    starts. ``json.loads`` gives the text back."""
+    return json.dumps(text, ensure_ascii=False).replace(",", "\\u002c")

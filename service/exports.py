@@ -18,6 +18,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from inertia_id.checks import spreadsheet_safe
 from inertia_id.errors import InputError
 
 __all__ = [
@@ -44,14 +45,26 @@ class Table:
     notes: Sequence[tuple[str, Any]] = ()
 
 
+def _safe_text(value: Any) -> Any:
+    """Every string in ``value`` (through lists and dicts) as a spreadsheet shows it as
+    text (:func:`~inertia_id.checks.spreadsheet_safe`): names are the user's text."""
+    if isinstance(value, str):
+        return spreadsheet_safe(value)
+    if isinstance(value, list | tuple):
+        return [_safe_text(v) for v in value]
+    if isinstance(value, dict):
+        return {k: _safe_text(v) for k, v in value.items()}
+    return value
+
+
 def _cell(value: Any) -> Any:
     if value is None:
         return ""
     if isinstance(value, list | dict):
-        return json.dumps(value, separators=(",", ":"))
+        return json.dumps(_safe_text(value), separators=(",", ":"))
     if isinstance(value, float):
         return repr(value)  # shortest text that reads back as the same float
-    return value
+    return _safe_text(value)
 
 
 def _note(value: Any) -> str:
@@ -65,7 +78,7 @@ def to_csv(table: Table) -> str:
     for name, value in table.notes:
         out.write(f"# {name}: {_note(value)}\n")
     writer = csv.writer(out, lineterminator="\n")
-    writer.writerow(table.header)
+    writer.writerow([_cell(name) for name in table.header])  # headers can hold names
     for row in table.rows:
         writer.writerow([_cell(v) for v in row])
     return out.getvalue()

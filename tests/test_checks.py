@@ -7,7 +7,13 @@ from typing import Any
 import numpy as np
 import pytest
 
-from inertia_id.checks import is_integer, is_number
+from inertia_id.checks import (
+    control_characters,
+    csv_note_text,
+    is_integer,
+    is_number,
+    spreadsheet_safe,
+)
 
 
 @pytest.mark.parametrize(
@@ -44,3 +50,41 @@ def test_is_integer(value: Any, options: dict[str, Any], expected: bool) -> None
 )
 def test_is_number(value: Any, options: dict[str, Any], expected: bool) -> None:
     assert is_number(value, **options) is expected
+
+
+def test_text_is_made_safe_for_csv_files() -> None:
+    """Names are the user's text: what a CSV writer does with them."""
+    import csv
+    import io
+    import json
+
+    from service.exports import Table, to_csv
+
+    assert control_characters("a\tb\r\nc\u2028d\x00") == [
+        "U+0000",
+        "U+0009",
+        "U+000A",
+        "U+000D",
+        "U+2028",
+    ]
+    assert control_characters("payload, one éjecté =1") == []
+    assert [spreadsheet_safe(t) for t in ("=1+1", "+x", "-x", "@a", "\tx", "x=1", "")] == [
+        "'=1+1",
+        "'+x",
+        "'-x",
+        "'@a",
+        "'\tx",
+        "x=1",
+        "",
+    ]
+    name = 'a, b\n=HYPERLINK("x")'
+    assert "," not in csv_note_text(name) and "\n" not in csv_note_text(name)
+    assert json.loads(csv_note_text(name)) == name
+    # An export: cells, header and notes that hold names, numbers left alone.
+    text = to_csv(
+        Table(["name", "=evil"], [["=1+1", -0.5], ["ok", None]], [("names", ["-x", "y"])])
+    )
+    lines = text.splitlines()
+    assert lines[0] == '# names: ["\'-x","y"]'
+    rows = list(csv.reader(io.StringIO("\n".join(lines[1:]))))
+    assert rows == [["name", "'=evil"], ["'=1+1", "-0.5"], ["ok", ""]]

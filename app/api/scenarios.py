@@ -12,6 +12,7 @@ from fastapi import APIRouter, Depends, HTTPException, Query, Request, Response,
 from sqlalchemy import func, select
 from sqlalchemy.exc import IntegrityError
 
+from inertia_id.checks import control_characters
 from inertia_id.errors import InputError
 from inertia_id.physics.presets import PRESETS, preset
 from inertia_id.physics.scenario import Scenario
@@ -93,6 +94,23 @@ def _build(body: ScenarioCreate) -> Scenario:
         return preset(body.preset, **body.overrides)
 
 
+def _check_names(scenario: Scenario, source: str) -> None:
+    """Refuse a name holding a control character (a newline, a tab, ...): names are
+    written a line at a time into the CSV files a flight team uploads and reads."""
+    names = [(("name",), scenario.name)] + [
+        (("inertia_candidates", k, "name"), name)
+        for k, name in enumerate(scenario.candidate_names)
+    ]
+    for where, name in names:
+        found = control_characters(name)
+        if found:
+            unprocessable(
+                ("body", source, *where),
+                f"name {name!r} holds control characters ({', '.join(found)}); a name is "
+                "one line of printable text",
+            )
+
+
 def _check_storable(scenario: Scenario) -> dict[str, Any]:
     document = scenario.model_dump(mode="json")
     text = json.dumps(document)  # ASCII: non-ASCII text appears as \u escapes
@@ -119,7 +137,9 @@ def create_scenario(body: ScenarioCreate, session: SessionDep) -> ScenarioOut:
     break the triangle inequality is refused (422) with the moments.
     """
     scenario = _build(body)
-    row = ScenarioRow(name=scenario.name, document=_check_storable(scenario))
+    document = _check_storable(scenario)
+    _check_names(scenario, "scenario" if body.scenario is not None else "overrides")
+    row = ScenarioRow(name=scenario.name, document=document)
     session.add(row)
     session.flush()
     return scenario_out(row)

@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import is_integer
+from ..checks import csv_note_text, is_integer
 from ..errors import InputError
 from ..physics.attitude import propagate_attitude, rotation_angle_deg
 from ..physics.scenario import Scenario
@@ -208,7 +208,9 @@ class CommandPlan:
         document = self.to_dict()
         out = io.StringIO()
         propellant = document["propellant"]
-        out.write(f"# scenario: {self.scenario_name}\n")
+        # Names are the user's text: written as JSON strings (csv_note_text), so that a
+        # newline or a comma in one cannot end the line or start a spreadsheet cell.
+        out.write(f"# scenario: {csv_note_text(self.scenario_name)}\n")
         out.write(f"# step_duration_s: {self.step_duration_s:g}\n")
         out.write(f"# impulse_nms: {self.impulse_nms:.6g}\n")
         out.write(f"# on_time_s: {propellant['on_time_s']:.6g}\n")
@@ -218,20 +220,26 @@ class CommandPlan:
             summary = document["flights"]
             out.write(
                 f"# flights: {self.dispersion.flights} per candidate at the scenario's noise, "
-                f"seed {self.dispersion.seed}; residual_rate_p95_max_rad_s "
-                f"{summary['residual_rate_p95_max_rad_s']:.6g}; "
-                f"residual_rate_p95_bound_max_rad_s "
-                f"{summary['residual_rate_p95_bound_max_rad_s']:.6g}; "
-                f"peak_rate_p95_max_rad_s {summary['peak_rate_p95_max_rad_s']:.6g}; "
-                f"peak_rate_p95_bound_max_rad_s "
-                f"{summary['peak_rate_p95_bound_max_rad_s']:.6g}\n"
+                f"seed {self.dispersion.seed}"
+                + "".join(
+                    f"; {figure}_rad_s {summary[figure + '_rad_s']:.6g}"
+                    f"; {figure}_deg_s {summary[figure + '_deg_s']:.6g}"
+                    for figure in (
+                        "residual_rate_p95_max",
+                        "residual_rate_p95_bound_max",
+                        "peak_rate_p95_max",
+                        "peak_rate_p95_bound_max",
+                    )
+                )
+                + "\n"
             )
         for k, candidate in enumerate(document["candidates"], start=1):
             out.write(
-                f"# candidate_{k} {candidate['name']}: residual_rate_rad_s "
+                f"# candidate_{k} {csv_note_text(candidate['name'])}: residual_rate_rad_s "
                 f"{candidate['residual_rate_rad_s']:.6g}"
                 f", residual_rate_deg_s {candidate['residual_rate_deg_s']:.6g}"
                 f", end_rate_rad_s {candidate['end_rate_rad_s']:.6g}"
+                f", end_rate_deg_s {candidate['end_rate_deg_s']:.6g}"
                 f", peak_rate_rad_s {candidate['peak_rate_rad_s']:.6g}"
                 f", peak_rate_deg_s {candidate['peak_rate_deg_s']:.6g}"
                 f", attitude_change_deg {candidate['attitude_change_deg']:.6g}"
@@ -240,6 +248,8 @@ class CommandPlan:
                     if self.dispersion is None
                     else "".join(
                         f", flights_{key} {value:.6g}"
+                        f", flights_{key.removesuffix('_rad_s')}_deg_s "
+                        f"{candidate['flights'][key.removesuffix('_rad_s') + '_deg_s']:.6g}"
                         for key, value in candidate["flights"].items()
                         if key.endswith("_rad_s")
                     )

@@ -128,6 +128,11 @@ def test_triangle_inequality_names_rule_and_moments(api: Api, paper: Scenario, s
             "got -1",
         ),
         ({"preset": "paper", "overrides": {"name": "nul\x00byte"}}, "NUL"),
+        # Names go into CSV files a line at a time: a newline would end the line.
+        (
+            {"preset": "paper", "overrides": {"name": "ops\nstep,start_s\n1,0,1,999"}},
+            "holds control characters (U+000A)",
+        ),
         # The core divides by the product before checking it (found by schemathesis).
         (
             {
@@ -145,6 +150,23 @@ def test_bad_scenarios_are_422_with_the_value(
     assert response.status_code == 422, response.text
     messages = " | ".join(e["msg"] for e in response.json()["detail"])
     assert fragment in messages
+
+
+def test_a_candidate_name_with_a_control_character_is_refused_where_it_is(api: Api) -> None:
+    document = api.get("/scenarios/presets").json()["paper"]
+    document.pop("candidate_generator")
+    document["inertia_candidates"] = [
+        {"name": "none ejected", "inertia_kg_m2": [[10, 0, 0], [0, 11, 0], [0, 0, 12]]},
+        {"name": "payload, one\r\nejected", "inertia_kg_m2": [[11, 0, 0], [0, 11, 0], [0, 0, 12]]},
+    ]
+    response = api.post("/scenarios", json={"scenario": document})
+    assert response.status_code == 422, response.text
+    (error,) = response.json()["detail"]
+    assert error["loc"] == ["body", "scenario", "inertia_candidates", 1, "name"]
+    assert "U+000A, U+000D" in error["msg"] and "payload, one" in error["msg"]
+    # A comma, a leading "=" or non-ASCII letters are text, not control characters.
+    document["inertia_candidates"][1]["name"] = "=payload, one éjecté"
+    assert api.post("/scenarios", json={"scenario": document}).status_code == 201
 
 
 def test_list_get_delete(api: Api) -> None:

@@ -255,6 +255,42 @@ def test_the_plans_on_times_reproduce_the_simulated_impulse(paper: Scenario) -> 
     assert np.allclose(degrees, np.degrees(rates))
 
 
+def test_a_plans_csv_keeps_names_in_their_line_and_cell(paper: Scenario) -> None:
+    """Names are the user's text: a newline, a comma or a leading "=" in one must not end
+    the ``#`` line, add rows or start a spreadsheet cell (a stored name may predate the
+    service's refusal of control characters, and the CLI plans any scenario file)."""
+    import io
+
+    import pandas as pd
+
+    document = paper.model_dump()
+    document["name"] = "ops\nstep,start_s,end_s,on_time_s_thruster_1\n1,0.0,1.0,999"
+    document["candidate_generator"] = None
+    document["inertia_candidates"] = [
+        {"name": name, "inertia_kg_m2": inertia.tolist()}
+        for name, inertia in zip(paper.candidate_names, paper.inertia_array, strict=True)
+    ]
+    document["inertia_candidates"][1]["name"] = 'payload, one\nejected,=HYPERLINK("x","y"),'
+    named = Scenario.model_validate(document)
+    sequence = [[4, 4, 4, 0, 0, 0], [0, 0, 0, 4, 4, 4]]
+    text = command_plan(named, sequence, flights=20).to_csv()
+    table = pd.read_csv(io.StringIO(text), comment="#")
+    assert table.shape == (2, 3 + 2 * 6 + 3 + 5 * 6) and list(table["step"]) == [1, 2]
+    notes = [line for line in text.splitlines() if line.startswith("#")]
+    assert len(notes) == 5 + 1 + 5  # totals, flights, one line a candidate
+    scenario_note = notes[0].removeprefix("# scenario: ")
+    assert json.loads(scenario_note) == named.name
+    candidate_note = notes[7].removeprefix("# candidate_2 ").split(": residual_rate")[0]
+    assert json.loads(candidate_note) == named.candidate_names[1]
+    # No comma inside a name: a spreadsheet keeps it in the cell the "#" starts.
+    assert "=HYPERLINK" in notes[7] and ",=" not in notes[7]
+    # Every rate in deg/s beside rad/s, single flights too.
+    for note in notes[6:]:
+        rad = [w for w in note.replace(",", "").split() if w.endswith("_rad_s")]
+        assert rad and all(w.replace("_rad_s", "_deg_s") in note for w in rad), note
+    assert "peak_rate_p95_bound_max_deg_s" in notes[5] and "end_rate_deg_s" in notes[6]
+
+
 def test_a_plan_flies_the_sequence_and_states_how_single_flights_spread(paper: Scenario) -> None:
     """``flights``: the sequence flown at the scenario's noise; the residual rate's mean,
     the rate 95 % of flights stay under and the largest, per candidate. The percentile
@@ -305,7 +341,8 @@ def test_a_plan_flies_the_sequence_and_states_how_single_flights_spread(paper: S
     assert "# flights: 400 per candidate at the scenario's noise, seed 4" in csv_text
     flights_line = next(line for line in csv_text.splitlines() if line.startswith("# flights"))
     peak = document["flights"]["peak_rate_p95_bound_max_rad_s"]
-    assert flights_line.endswith(f"peak_rate_p95_bound_max_rad_s {peak:.6g}")
+    assert f"; peak_rate_p95_bound_max_rad_s {peak:.6g}; " in flights_line
+    assert flights_line.endswith(f"peak_rate_p95_bound_max_deg_s {np.degrees(peak):.6g}")
     assert "flights_residual_rate_p95_rad_s" in csv_text.splitlines()[6]
     # Same seed, same figures.
     assert command_plan(paper, sequence, flights=400, seed=4).to_dict() == document
