@@ -15,7 +15,7 @@ import { request } from "../api.js";
 import { downloads } from "../components/downloads.js";
 import { submitAndOpen } from "../components/jobs.js";
 import { PLOT_CONFIG, layout, plotDiv } from "../components/plots.js";
-import { clear, fmt, h, messageBox, sequenceText } from "../ui.js";
+import { clear, fmt, h, messageBox, put, sequenceText } from "../ui.js";
 
 const RAD_TO_DEG = 180 / Math.PI;
 const SYMBOLS = ["diamond", "square", "triangle-up", "cross", "star", "hexagon", "pentagon", "triangle-down"];
@@ -328,7 +328,9 @@ async function showMember(holder, job, member, context) {
   // The downloads fly as many times as the page's plan did (known once it is computed).
   let flown = PLAN_FLIGHTS;
   const plan = h("div", { id: "front-plan" }, h("p", { class: "muted" }, "Computing the command plan…"));
-  holder.append(
+  // put, not the DOM's append: append writes a null child as the text "null".
+  put(
+    holder,
     h("h3", {}, `Member ${member.index}`),
     h("p", {}, "Sequence (level indices): ", h("span", { class: "mono", id: "front-member-sequence" }, sequenceText(member.sequence))),
     cancelled ? messageBox("notice", "This search was cancelled: the member is from the partial front it had measured, and its plan says so.") : null,
