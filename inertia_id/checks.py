@@ -77,9 +77,7 @@ def control_characters(text: str) -> list[str]:
     paragraph separators), as ``U+XXXX``, once each: what no name may hold, since a name
     is written into CSV and text files a line at a time."""
     found = {
-        f"U+{ord(c):04X}"
-        for c in text
-        if unicodedata.category(c) == "Cc" or c in "\u2028\u2029"
+        f"U+{ord(c):04X}" for c in text if unicodedata.category(c) == "Cc" or c in "\u2028\u2029"
     }
     return sorted(found)
 

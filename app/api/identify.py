@@ -242,6 +242,9 @@ async def _from_json(
         data = json.loads(body)
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         unprocessable(("body",), f"request body is not valid JSON: {exc}")
+    except (ValueError, RecursionError) as exc:
+        # An integer of over 4,300 digits, or arrays nested thousands deep.
+        unprocessable(("body",), f"request body is not acceptable JSON: {exc}")
     start = _query_start(sequence_start)
     if start is not None and isinstance(data, dict):
         data = {**data, "sequence_start": start}

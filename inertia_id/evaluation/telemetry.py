@@ -23,8 +23,11 @@ is interpolated linearly between its samples. At the ends the two nearest cells 
 extrapolated linearly. Coverage, with ``p`` the larger of the grid period and the
 telemetry's median sample period: the first sample may come up to ``1.5 p`` after the
 sequence start and the last up to ``1.5 p`` before the grid's last time; inside the
-sequence no gap between samples may exceed ``4 p``. Otherwise the telemetry is too thin
-for a verdict and is refused with the largest offending gap named.
+sequence no gap between samples may exceed ``4 p``; and the sequence itself must hold at
+least :data:`MIN_SAMPLES_IN_SEQUENCE` samples (stamps in milliseconds read as seconds
+leave one). Otherwise the telemetry is too thin for a verdict and is refused with the
+largest offending gap named. A stamp more than :data:`MAX_OFFSET_S` from the start is
+refused by name.
 """
 
 from __future__ import annotations
@@ -34,6 +37,7 @@ import io
 import json
 import math
 import os
+import re
 from collections.abc import Callable
 from datetime import UTC, datetime, timedelta
 
@@ -46,9 +50,11 @@ __all__ = [
     "DEFAULT_START_WINDOW_S",
     "EDGE_GAP_PERIODS",
     "INTERIOR_GAP_PERIODS",
+    "MAX_OFFSET_S",
     "MAX_START_SHIFTS",
     "MAX_TELEMETRY_RATE_RAD_S",
     "MAX_TELEMETRY_SAMPLES",
+    "MIN_SAMPLES_IN_SEQUENCE",
     "Telemetry",
     "estimate_sequence_start",
     "load_telemetry",
@@ -69,6 +75,13 @@ DEFAULT_START_WINDOW_S = 3600.0
 # Coverage rules, in periods p = max(grid period, median telemetry period).
 EDGE_GAP_PERIODS = 1.5
 INTERIOR_GAP_PERIODS = 4.0
+#: Fewest samples the sequence itself must hold: telemetry whose stamps are in
+#: milliseconds, read as seconds, has one sample in a 4 s sequence and its median spacing
+#: (50 s) made every gap look small.
+MIN_SAMPLES_IN_SEQUENCE = 2
+#: Farthest a sample may lie from the sequence start, s (about 3.2 years): farther is a
+#: stamp in the wrong unit or a wrong start, not telemetry of this sequence.
+MAX_OFFSET_S = 1e8
 #: Most start times :func:`estimate_sequence_start` tries (±100 s on a 20 Hz grid; each
 #: resamples and scores the telemetry, a few milliseconds).
 MAX_START_SHIFTS = 4001
@@ -91,7 +104,11 @@ def _parse_utc(text: str, where: str) -> datetime:
         raise InputError(
             f"{where} = {text!r} has no time zone: end it with Z (UTC), e.g. {_ISO_EXAMPLE!r}"
         )
-    return stamp.astimezone(UTC)
+    try:
+        return stamp.astimezone(UTC)
+    except OverflowError:
+        # 9999-12-31T23:59:59-05:00 is in year 10000 in UTC, past what a datetime holds.
+        raise InputError(f"{where} = {text!r} lies outside the years 1 to 9999 in UTC") from None
 
 
 def parse_sequence_start(text: str | float | None) -> float | str | None:
@@ -226,6 +243,15 @@ class Telemetry(BaseModel):
                 )
             # The start is subtracted first: stamps of ~1e9 s keep their resolution.
             offsets = times - float(start)
+        far = np.flatnonzero(np.abs(offsets) > MAX_OFFSET_S)
+        if far.size:
+            i = int(far[0])
+            raise InputError(
+                f"{name}[{i}] = {stamps[i]!r} lies {offsets[i]:.6g} s from the sequence start "
+                f"({self.sequence_start!r}); at most {MAX_OFFSET_S:g} s (about 3 years) is "
+                "telemetry of this sequence: are the stamps in seconds (not milli- or "
+                "nanoseconds), and is the start right?"
+            )
         self._offsets_s = tuple(offsets.tolist())
         return self
 
@@ -285,7 +311,10 @@ class Telemetry(BaseModel):
         text = f"{offset_s:.6g} s"
         start = parse_sequence_start(self.sequence_start)
         if isinstance(start, str):
-            moment = _parse_utc(start, "sequence_start") + timedelta(seconds=offset_s)
+            try:
+                moment = _parse_utc(start, "sequence_start") + timedelta(seconds=offset_s)
+            except OverflowError:  # past year 9999: the offset in seconds says it all
+                return text
             text += f" ({moment.isoformat().replace('+00:00', 'Z')})"
         elif start:
             text += f" (clock {start + offset_s:.15g} s)"
@@ -299,7 +328,9 @@ def parse_telemetry(
 
     JSON: ``{"time_s": [...], "omega_rad_s": [[wx, wy, wz], ...]}`` (or ``time_utc``,
     optionally ``sequence_start``). CSV: four columns ``time_s, wx, wy, wz`` (seconds) or
-    ``time_utc, wx, wy, wz`` (ISO-8601 UTC stamps); a header row is allowed.
+    ``time_utc, wx, wy, wz`` (ISO-8601 UTC stamps), rad/s. A header row is optional; when
+    there is one its names are read: columns in any order, rates in deg/s when the names
+    say so (``wx_deg_s``), and a name that is no time or axis refused by name.
 
     :param sequence_start: the sequence start (seconds or ISO-8601 UTC); overrides one
         in a JSON document.
@@ -312,6 +343,9 @@ def parse_telemetry(
             data = json.loads(text)
         except json.JSONDecodeError as exc:
             raise InputError(f"telemetry is not valid JSON: {exc}") from None
+        except (ValueError, RecursionError) as exc:
+            # An integer of over 4,300 digits, or arrays nested thousands deep.
+            raise InputError(f"telemetry JSON is not acceptable: {exc}") from None
         if not isinstance(data, dict):
             raise InputError("telemetry JSON must be an object with time_s and omega_rad_s")
         if sequence_start is not None:
@@ -323,7 +357,9 @@ def parse_telemetry(
         rows = [r for r in csv.reader(io.StringIO(text)) if r and any(c.strip() for c in r)]
     except csv.Error as exc:
         raise InputError(f"telemetry is not valid CSV: {exc}") from None
+    order, scale = [0, 1, 2, 3], 1.0
     if rows and not _numeric(rows[0][0]) and not _iso(rows[0][0]):
+        order, scale = _read_header(rows[0])
         rows = rows[1:]
     if len(rows) > MAX_TELEMETRY_SAMPLES:
         raise InputError(f"telemetry has {len(rows)} rows; at most {MAX_TELEMETRY_SAMPLES}")
@@ -336,10 +372,10 @@ def parse_telemetry(
                 f"wx, wy, wz): {row}"
             )
         try:
-            values = [float(c) for c in row[1:]]
+            values = [float(row[j]) * scale for j in order[1:]]
         except ValueError:
             raise InputError(f"CSV data row {n} is not numeric: {row}") from None
-        cell = row[0].strip()
+        cell = row[order[0]].strip()
         if _numeric(cell):
             times.append(float(cell))
         elif _iso(cell):
@@ -355,6 +391,56 @@ def parse_telemetry(
             time_utc=[str(v) for v in times], omega_rad_s=omegas, sequence_start=sequence_start
         )
     return Telemetry(time_s=times, omega_rad_s=omegas, sequence_start=sequence_start)
+
+
+_TIME_NAME = re.compile(r"^(?:t|time|timestamp|utc|time_utc)(?:[_ ]*[(\[]?\s*s(?:ec)?\s*[)\]]?)?$")
+_TIME_MS = re.compile(r"^(?:t|time|timestamp)[_ ]*[(\[]?\s*(?:ms|us|µs|ns)\s*[)\]]?$")
+_AXIS_NAME = re.compile(r"^(?:w|omega|ω|rate|gyro|g)?[_ .-]?([xyz])$")
+#: The body rates' other names: roll, pitch and yaw rates about x, y and z.
+_PQR = {"p": "x", "q": "y", "r": "z"}
+_UNIT_SUFFIX = re.compile(r"[_ ]*[(\[]?\s*(rad|deg)\s*(?:/|_|per\s*)s(?:ec)?\s*[)\]]?$")
+
+
+def _read_header(header: list[str]) -> tuple[list[int], float]:
+    """The CSV columns' order (time, x, y, z) and the rates' scale to rad/s, from the
+    header's names: a header that says ``time_s,wz,wy,wx`` is read in that order, and
+    ``wx_deg_s`` columns are converted. A name that is none of these is refused by name:
+    a header read by position alone once put z where x belonged."""
+    if len(header) != 4:
+        raise InputError(
+            f"CSV header has {len(header)} columns, expected 4 (time_s or time_utc, wx, wy, "
+            f"wz): {header}"
+        )
+    where: dict[str, int] = {}
+    units: set[str] = set()
+    for j, raw in enumerate(header):
+        name = raw.strip().lower()
+        unit = _UNIT_SUFFIX.search(name)
+        bare = name[: unit.start()] if unit else name
+        if _TIME_MS.match(name):
+            raise InputError(
+                f"CSV header column {j + 1} is {raw!r}: give the time stamps in seconds "
+                "(time_s) or as ISO-8601 UTC (time_utc)"
+            )
+        if _TIME_NAME.match(name):
+            role = "time"
+        elif (axis := _AXIS_NAME.match(bare)) is not None or bare in _PQR:
+            role = axis.group(1) if axis is not None else _PQR[bare]
+            units.add(unit.group(1) if unit else "rad")
+        else:
+            raise InputError(
+                f"CSV header column {j + 1} is {raw!r}: not a time (time_s, time_utc, t) or a "
+                "rate about x, y or z (wx, omega_x, ..., optionally with _rad_s or _deg_s); "
+                "give the header time_s,wx_rad_s,wy_rad_s,wz_rad_s, or none (columns then read "
+                "as time, x, y, z in rad/s)"
+            )
+        if role in where:
+            raise InputError(f"CSV header names {role} twice: {header}")
+        where[role] = j
+    if len(units) > 1:
+        raise InputError(f"CSV header mixes rad/s and deg/s columns: {header}")
+    scale = math.pi / 180.0 if units == {"deg"} else 1.0
+    return [where["time"], where["x"], where["y"], where["z"]], scale
 
 
 def _numeric(cell: str) -> bool:
@@ -450,14 +536,12 @@ def _resample(
     margin = 2.0 * period
     near = (t >= grid_s[0] - margin) & (t <= grid_s[-1] + margin)
     t, omega = t[near], omega[near]
-    cell = np.rint((t - grid_s[0]) / step).astype(np.int64)
-    cell -= cell[0]
+    # The occupied cells only (np.unique, not a bincount over every cell between the
+    # first and last sample): memory grows with the samples, not with their spacing.
+    _, cell = np.unique(np.rint((t - grid_s[0]) / step).astype(np.int64), return_inverse=True)
     counts = np.bincount(cell)
-    used = counts > 0
-    mean_t = np.bincount(cell, weights=t)[used] / counts[used]
-    mean_w = np.stack(
-        [np.bincount(cell, weights=omega[:, a])[used] / counts[used] for a in range(3)], axis=-1
-    )
+    mean_t = np.bincount(cell, weights=t) / counts
+    mean_w = np.stack([np.bincount(cell, weights=omega[:, a]) / counts for a in range(3)], axis=-1)
     if len(mean_t) == 1:
         return np.repeat(mean_w, len(grid_s), axis=0)
     # The cell means lie at their mean stamps: interpolate them onto the grid times, and
@@ -475,6 +559,15 @@ def _check_coverage(
 ) -> None:
     """Refuse telemetry too thin for a verdict, naming the largest offending gap."""
     start, end = 0.0, float(grid_s[-1])
+    within = int(np.count_nonzero((t >= start) & (t <= end)))
+    if within < MIN_SAMPLES_IN_SEQUENCE:
+        raise InputError(
+            f"telemetry too thin for a verdict: {within} sample(s) within the sequence "
+            f"(0 s to {end:.6g} s from its start), at least {MIN_SAMPLES_IN_SEQUENCE} "
+            f"needed; the samples are {float(np.median(np.diff(t))):.6g} s apart (median) "
+            f"and span {describe(float(t[0]))} to {describe(float(t[-1]))}. Are the stamps "
+            "in seconds (not milliseconds), and is the sequence start right?"
+        )
     edge, interior = EDGE_GAP_PERIODS * period, INTERIOR_GAP_PERIODS * period
     # Every stretch of the sequence [start, end] with no sample, and its limit.
     gaps: list[tuple[float, float, float, str]] = []

@@ -539,3 +539,60 @@ def test_a_corrupted_sample_is_refused_by_name(
     judged = api.post("/identify", json=body)
     assert judged.status_code == 200, judged.text
     assert judged.json()["status"] in {"matches-none", "not-this-sequence"}
+
+
+def _digits_body(found: str) -> str:
+    return f'{{"classifier_id": "{found}", "telemetry": {{"time_s": [{"9" * 5000}, 1]}}}}'
+
+
+@pytest.mark.parametrize(
+    ("case", "fragment"),
+    [
+        ("start past year 9999 in UTC", "lies outside the years 1 to 9999 in UTC"),
+        ("start before year 1 in UTC", "lies outside the years 1 to 9999 in UTC"),
+        ("stamps a billion seconds apart", "s from the sequence start (0.0); at most 1e+08 s"),
+        ("stamps near 1e300", "from the sequence start"),
+        ("stamps in milliseconds", "Are the stamps in seconds (not milliseconds)"),
+        ("stamps in nanoseconds", "are the stamps in seconds (not milli- or nanoseconds)"),
+        ("no sample within the sequence", "0 sample(s) within the sequence"),
+        ("an integer of 5,000 digits", "request body is not acceptable JSON"),
+        ("arrays nested 100,000 deep", "request body is not acceptable JSON"),
+    ],
+)
+def test_telemetry_a_client_got_wrong_is_a_422_naming_it(
+    api: Api, classifier_id: str, flight: SimulationResult, case: str, fragment: str
+) -> None:
+    """Each of these was a 500 (a datetime overflow, a 298 GiB allocation, a negative
+    bincount, an unparsed integer, a RecursionError) or, for stamps in the wrong unit, a
+    confident "matches none" from one sample in the sequence."""
+    found = classifier_id
+    times, omega = flight.time_s, flight.omega_measured[2, 0]
+    telemetry: dict[str, Any] = {"time_s": times.tolist(), "omega_rad_s": omega.tolist()}
+    if case.startswith("start"):
+        late = case == "start past year 9999 in UTC"
+        start = "9999-12-31T23:59:59-05:00" if late else "0001-01-01T00:00:00+05:00"
+        telemetry = {
+            "time_utc": [f"2026-01-01T00:00:{i:02d}Z" for i in range(2)],
+            "omega_rad_s": omega[:2].tolist(),
+            "sequence_start": start,
+        }
+    elif case == "stamps a billion seconds apart":
+        telemetry = {**telemetry, "time_s": (np.arange(len(times)) * 1e9).tolist()}
+        telemetry["sequence_start"] = 0.0
+    elif case == "stamps near 1e300":
+        telemetry = {**telemetry, "time_s": (1e300 * np.arange(1, len(times) + 1)).tolist()}
+        telemetry["sequence_start"] = 1e300
+    elif case == "stamps in milliseconds":
+        telemetry = {**telemetry, "time_s": (times * 1e3).tolist()}
+    elif case == "stamps in nanoseconds":
+        telemetry = {**telemetry, "time_s": (times * 1e9).tolist(), "sequence_start": 0.0}
+    elif case == "no sample within the sequence":
+        telemetry = {**telemetry, "time_s": (times * 50 + 4.0).tolist()}
+    if case.startswith("an integer"):
+        refused = api.post_raw_json("/identify", _digits_body(found))
+    elif case.startswith("arrays"):
+        refused = api.post_raw_json("/identify", "[" * 100_000 + "]" * 100_000)
+    else:
+        refused = api.post("/identify", json={"classifier_id": found, "telemetry": telemetry})
+    assert refused.status_code == 422, refused.text
+    assert fragment in refused.json()["detail"][0]["msg"], refused.text

@@ -16,7 +16,15 @@ import pydantic
 import pytest
 from scenario_support import GOOD_SEQUENCE
 
-from inertia_id import InertiaClassifier, Scenario, Telemetry, identify, parse_telemetry, simulate
+from inertia_id import (
+    InertiaClassifier,
+    InputError,
+    Scenario,
+    Telemetry,
+    identify,
+    parse_telemetry,
+    simulate,
+)
 from inertia_id.evaluation.telemetry import estimate_sequence_start, resample
 
 MISSION_START_S = 810_000_123.0  # a spacecraft clock ~26 years after its epoch
@@ -377,4 +385,46 @@ def test_estimate_sequence_start_finds_a_shifted_start(
         estimate_sequence_start(telemetry, grid, score, window_s=1e9)
     assert estimate_sequence_start(telemetry, grid, score, window_s=100.0)[0] == pytest.approx(
         0.3, abs=0.05
+    )
+
+
+def test_a_csv_header_is_read_by_name() -> None:
+    """Columns in the header's order, rates in the header's unit; a name that is no time
+    or axis is refused by name. (The header used to be dropped and the columns read by
+    position: ``time_s,wz,wy,wx`` put z where x belonged, and a confident verdict
+    followed.)"""
+    rows = [(0.05, 0.01, 0.02, 0.03), (0.10, 0.04, 0.05, 0.06)]
+
+    def parsed(header: str, order: tuple[int, ...] = (0, 1, 2, 3), scale: float = 1.0) -> Any:
+        lines = [header] + [
+            ",".join(repr(row[j] / (scale if j else 1.0)) for j in order) for row in rows
+        ]
+        return parse_telemetry("\n".join(lines))
+
+    expected = np.array([row[1:] for row in rows])
+    for header, order in (
+        ("time_s,wx,wy,wz", (0, 1, 2, 3)),
+        ("time_s,wz,wy,wx", (0, 3, 2, 1)),
+        ("wx_rad_s,wy_rad_s,wz_rad_s,time_s", (1, 2, 3, 0)),
+        ("Time [s],gyro_x,gyro_y,gyro_z", (0, 1, 2, 3)),
+        ("t,r,q,p", (0, 3, 2, 1)),
+    ):
+        telemetry = parsed(header, order)
+        np.testing.assert_allclose(telemetry.omega_array, expected, err_msg=header)
+        np.testing.assert_allclose(telemetry.time_array, [0.05, 0.10])
+    degrees = parsed("time_s,wx_deg_s,wy_deg_s,wz_deg_s", scale=np.pi / 180)
+    np.testing.assert_allclose(degrees.omega_array, expected)
+    in_words = parsed("time (s),omega_x (deg/s),omega_y (deg/s),omega_z (deg/s)", scale=np.pi / 180)
+    np.testing.assert_allclose(in_words.omega_array, expected)
+    for header, match in (
+        ("time_ms,wx,wy,wz", r"column 1 is 'time_ms': give the time stamps in seconds"),
+        ("time_s,a,b,c", r"column 2 is 'a': not a time"),
+        ("time_s,wx,wx,wz", r"names x twice"),
+        ("time_s,wx_deg_s,wy,wz", r"mixes rad/s and deg/s"),
+    ):
+        with pytest.raises(InputError, match=match):
+            parsed(header)
+    # No header: time, x, y, z in rad/s, as before.
+    np.testing.assert_allclose(
+        parse_telemetry("0.05,0.01,0.02,0.03\n0.1,0.04,0.05,0.06").omega_array, expected
     )
