@@ -21,7 +21,7 @@ from __future__ import annotations
 import hashlib
 import json
 from collections.abc import Iterable
-from datetime import datetime, timedelta
+from datetime import UTC, datetime, timedelta
 from typing import Any
 
 from sqlalchemy import and_, delete, func, or_, select, update
@@ -159,6 +159,12 @@ def set_labels(
 ) -> None:
     """Rename (``rename``: set ``name``, None clears it) and retag (``tags`` not None:
     replace them) a job. Labels only: its parameters, seed and identity stay."""
+    # Take the job's row lock (PostgreSQL) or the database's write lock (SQLite) before
+    # reading its tags, and read them again: two retags at once then run one after the
+    # other, the second on what the first wrote (each had read the same tags, and the
+    # second's insert of a tag the first had added was a unique violation: a 500).
+    session.execute(update(JobRow).where(JobRow.id == job.id).values(name=JobRow.name))
+    session.refresh(job, attribute_names=["name", "tag_rows"])
     if rename:
         job.name = name
     if tags is not None:
@@ -362,9 +368,16 @@ def hand_back(session: Session, worker: str, reason: str) -> list[str]:
     ).all()
     for job in jobs:
         job.status, job.worker, job.sent_at = "queued", None, None
+        job.progress = 0.0  # a queued job at 55 % read as half done; the next run restarts
         job.handbacks = (job.handbacks or 0) + 1
         job.error = f"handed back: {reason}"
     return [job.id for job in jobs]
+
+
+def _utc_text(moment: datetime) -> str:
+    """An instant as ISO-8601 with its zone, ``Z``: the databases hand back naive UTC."""
+    aware = moment.replace(tzinfo=UTC) if moment.tzinfo is None else moment.astimezone(UTC)
+    return aware.isoformat().replace("+00:00", "Z")
 
 
 def reap_stale(
@@ -409,7 +422,7 @@ def reap_stale(
         last = job.heartbeat_at or job.started_at
         reason = (
             f"worker {job.worker or '?'} stopped sending heartbeats (last at "
-            f"{last.isoformat() if last else 'never'})"
+            f"{_utc_text(last) if last else 'never'})"
         )
         counted = job.attempts - (job.handbacks or 0)
         if job.cancel_requested:
@@ -421,7 +434,7 @@ def reap_stale(
             failed.append(job.id)
         else:
             job.status, job.worker, job.error = "queued", None, f"re-queued: {reason}"
-            job.sent_at = None
+            job.sent_at, job.progress = None, 0.0  # the next run starts from nothing
             requeued.append(job.id)
     return requeued, failed
 

@@ -129,6 +129,28 @@ def test_names_and_tags_are_labels_not_identity(api: Api) -> None:
     assert api.get(f"/jobs/{job['id']}").json()["tags"] == ["cem", "flight-2"]
 
 
+def test_concurrent_retags_of_one_job_all_succeed(api: Api) -> None:
+    """Twenty clients retag one job at once: each is a 200, the last writer's tags stand.
+    (Two retags read the same tags, and the second's insert of a tag the first had added
+    was a unique violation: a 500 on SQLite and on PostgreSQL.)"""
+    from concurrent.futures import ThreadPoolExecutor
+
+    job = api.submit("search", api.create_scenario()["id"]).json()
+
+    def retag(i: int) -> int:
+        response = api.client.patch(
+            f"/jobs/{job['id']}", json={"tags": ["a", "b", f"t{i % 3}"]}, headers=api.auth
+        )
+        return int(response.status_code)
+
+    for _ in range(3):
+        with ThreadPoolExecutor(max_workers=20) as pool:
+            codes = list(pool.map(retag, range(20)))
+        assert codes == [200] * 20, codes
+        tags = api.get(f"/jobs/{job['id']}").json()["tags"]
+        assert tags[:2] == ["a", "b"] and len(tags) == 3 and tags[2] in {"t0", "t1", "t2"}
+
+
 def test_editing_labels_needs_the_key(api: Api) -> None:
     job = api.submit("search", api.create_scenario()["id"]).json()
     response = api.client.patch(f"/jobs/{job['id']}", json={"name": "x"})

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import base64
 import json
+import re
 from datetime import timedelta
 from typing import TYPE_CHECKING
 
@@ -38,6 +39,7 @@ def _running(store: Store, *, beat_age_s: float, attempts: int = 1, cancel: bool
         started_at=beat,
         heartbeat_at=beat,
         cancel_requested=cancel,
+        progress=0.55,
     )
 
 
@@ -57,9 +59,12 @@ def test_stale_jobs_are_requeued_failed_or_cancelled_and_live_ones_left_alone(st
     job = store.job(retry)
     assert job.status == "queued" and job.worker is None and job.attempts == 1
     assert job.error is not None and "re-queued" in job.error and "gone@host" in job.error
+    assert job.progress == 0.0  # a queued job is not 55 % done: its next run restarts
     job = store.job(spent)
     assert job.status == "failed" and job.finished_at is not None
     assert job.error is not None and "heartbeat" in job.error and "after 2 attempts" in job.error
+    # The last heartbeat's time carries its zone, as every time the service shows.
+    assert re.search(r"\(last at \d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\.\d+Z\)", job.error), job.error
     job = store.job(cancelled)
     assert job.status == "cancelled" and job.finished_at is not None
     assert store.job(alive).status == "running"
@@ -209,7 +214,9 @@ def test_a_run_that_lost_its_job_writes_nothing_more(store: Store) -> None:
         assert job is not None
     with store.db.session() as session:
         assert owns(session, job_id, 1)
+        set_progress(session, job_id, 0.5, 1)
         hand_back(session, "w1@host", "stopping")
+    assert store.job(job_id).progress == 0.0  # queued again, from nothing
     with store.db.session() as session:
         assert not owns(session, job_id, 1)
         job = claim(session, job_id, "w2@host")
