@@ -99,10 +99,19 @@ def _check_search(body: SearchJobCreate, scenario: Scenario) -> None:
     from inertia_id.pipelines import SearchRequest
 
     try:
-        SearchRequest.from_params(params.model_dump(mode="json")).operator().check(scenario)
+        SearchRequest.from_params(params.model_dump(mode="json")).operator().check(
+            scenario, params.sequence_length
+        )
     except InputError as exc:
-        field = "objectives" if "objective" in str(exc) else "constraints"
-        unprocessable(("body", "search", "params", field), str(exc))
+        message = str(exc)
+        field = (
+            "design_noise"
+            if message.startswith("design_noise")
+            else "objectives"
+            if "objective" in message
+            else "constraints"
+        )
+        unprocessable(("body", "search", "params", field), message)
     if params.method != "exhaustive":
         return
     from inertia_id.search import space_size

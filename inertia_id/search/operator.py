@@ -71,8 +71,13 @@ class OperatorSettings:
     constraints: Mapping[str, float] = field(default_factory=dict)
     n_realisations: int = 20
 
-    def check(self, scenario: Scenario | None = None) -> OperatorSettings:
-        """The settings with every value checked (and normalised to tuples and floats)."""
+    def check(
+        self, scenario: Scenario | None = None, sequence_length: int | None = None
+    ) -> OperatorSettings:
+        """The settings with every value checked (and normalised to tuples and floats);
+        with the scenario, what needs it (a design condition with some noise, propellant);
+        with the sequence length too, a duration bound every sequence of that length
+        breaks."""
         n = self.n_realisations
         if not is_integer(n, minimum=2, maximum=1000):
             raise InputError(f"n_realisations must be an integer in 2..1000, got {n!r}")
@@ -83,10 +88,43 @@ class OperatorSettings:
                     "the propellant objective needs the scenario's thrusters to state "
                     "thrust_n (or lever_arm_m) and specific_impulse_s"
                 )
+        design_noise = check_design_noise(self.design_noise)
+        constraints = check_constraints(dict(self.constraints), scenario)
+        unc = None if scenario is None else scenario.uncertainty
+        for p, q in design_noise:
+            # The disturbance's random walk or the gyro's white noise makes the noise
+            # model's covariance full rank; with neither, only the duty jitter's few
+            # directions are left, every firing sequence is predicted at accuracy 1, and
+            # the search cannot rank them (one such was measured at 0.63).
+            process = p if unc is None else p * unc.disturbance_torque_sigma_nm
+            gyro = q if unc is None else q * unc.gyro_noise_sigma_rad_s
+            if process == 0 and gyro == 0:
+                raise InputError(
+                    f"design_noise condition [{p:g}, {q:g}] leaves neither disturbance nor "
+                    "gyro noise"
+                    + (
+                        ""
+                        if unc is None
+                        else f" (the scenario's sigmas {unc.disturbance_torque_sigma_nm:g} N m "
+                        f"and {unc.gyro_noise_sigma_rad_s:g} rad/s times the multiples)"
+                    )
+                    + ": the predicted accuracy then degenerates to 1 for every sequence "
+                    "that fires; give a multiple above 0"
+                )
+        bound = constraints.get("max_duration_s")
+        if bound is not None and scenario is not None and sequence_length is not None:
+            duration = scenario.duration_s([[0] * scenario.n_thrusters] * int(sequence_length))
+            if bound < duration * (1 - 1e-12):
+                raise InputError(
+                    f"constraint max_duration_s = {bound:g} s is below the duration of every "
+                    f"sequence of {sequence_length} steps ({sequence_length} x "
+                    f"{scenario.timing.step_duration_s:g} s = {duration:g} s): shorten the "
+                    "sequence or raise the bound"
+                )
         return OperatorSettings(
             objectives=objectives,
-            design_noise=check_design_noise(self.design_noise),
-            constraints=check_constraints(dict(self.constraints), scenario),
+            design_noise=design_noise,
+            constraints=constraints,
             n_realisations=int(n),
         )
 
@@ -116,9 +154,9 @@ class OperatorScorer:
         *,
         seed: int,
     ) -> None:
-        self.settings = (settings or OperatorSettings()).check(scenario)
         if not is_integer(sequence_length, minimum=1):
             raise InputError(f"sequence_length must be a positive integer, got {sequence_length!r}")
+        self.settings = (settings or OperatorSettings()).check(scenario, int(sequence_length))
         self.scenario = scenario
         self.sequence_length = int(sequence_length)
         self.seed = int(seed)

@@ -781,7 +781,7 @@ def pareto_search(
         raise InputError(f"sequence_length must be an integer in 1..50, got {sequence_length!r}")
     params = check_nsga2_params(nsga2_params)
     check_test_series(fresh_test_series)
-    checked = (operator or OperatorSettings()).check(scenario)
+    checked = (operator or OperatorSettings()).check(scenario, sequence_length)
     check_per_flight_realisations(dict(checked.constraints), checked.n_realisations)
     scorer = OperatorScorer(scenario, sequence_length, checked, seed=seed)
     constraints = dict(checked.constraints)

@@ -241,6 +241,18 @@ BAD_PARAMS: list[tuple[str, dict[str, Any], str]] = [
         {"method": "cem", "n_realisations": 9, "constraints": {"max_final_rate_p95_rad_s": 0.01}},
         "the search needs n_realisations >= 10",
     ),
+    # Decidable at submission (each was accepted, then failed in the worker or ranked
+    # nothing): a design condition without noise, a duration no sequence of L meets.
+    (
+        "search",
+        {"method": "nsga2", "design_noise": [[6, 1], [0, 0]]},
+        "design_noise condition [0, 0] leaves neither disturbance nor gyro noise",
+    ),
+    (
+        "search",
+        {"method": "nsga2", "sequence_length": 4, "constraints": {"max_duration_s": 1}},
+        "max_duration_s = 1 s is below the duration of every sequence of 4 steps",
+    ),
     ("train", {"sequence": [[9, 0, 0, 0, 0, 0]]}, "level index 9 is outside 0..4"),
     ("train", {"sequence": [[1, 2]]}, "got shape (1, 2)"),
     ("train", {"sequence": []}, "at least 1 item"),
