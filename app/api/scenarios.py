@@ -98,8 +98,7 @@ def _check_names(scenario: Scenario, source: str) -> None:
     """Refuse a name holding a control character (a newline, a tab, ...): names are
     written a line at a time into the CSV files a flight team uploads and reads."""
     names = [(("name",), scenario.name)] + [
-        (("inertia_candidates", k, "name"), name)
-        for k, name in enumerate(scenario.candidate_names)
+        (("inertia_candidates", k, "name"), name) for k, name in enumerate(scenario.candidate_names)
     ]
     for where, name in names:
         found = control_characters(name)
@@ -175,15 +174,21 @@ def scenario_baselines(
     scenario_id: str,
     session: SessionDep,
     length: int = Query(default=4, ge=1, le=64, description="steps"),
-) -> dict[str, list[list[int]]]:
+) -> dict[str, list[list[int]] | dict[str, str]]:
     """The baseline sequences of ``length`` steps for this scenario's thrusters, as the
     core defines them (level indices, one row per step): what searches are compared with,
-    and what the dashboard proposes to train on."""
-    from inertia_id.physics.sequences import BASELINES
+    and what the dashboard proposes to train on. Every baseline is named; one that the
+    length or the thrusters do not allow (fire then brake needs 2 steps, fire, coast,
+    brake 3) is ``{"unavailable": why}``, as in a search result, not a refusal of the
+    whole list."""
+    from inertia_id.physics.sequences import baseline_sequences
 
     row = get_or_404(session, ScenarioRow, scenario_id, "scenario")
     scenario = Scenario.model_validate(row.document)
-    return {name: make(scenario, length).tolist() for name, make in BASELINES.items()}
+    return {
+        name: {"unavailable": sequence} if isinstance(sequence, str) else sequence.tolist()
+        for name, sequence in baseline_sequences(scenario, length).items()
+    }
 
 
 @router.delete(

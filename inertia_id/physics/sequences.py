@@ -11,11 +11,22 @@ the body axes):
   the paper preset this is ``[[4, 4, 4, 0, 0, 0]] * L``.
 - :func:`axis_in_turn`: one principal axis per step (1, 2, 3, 1, ...), each driven by
   the thruster set whose summed torque is best aligned with it (the smallest angle; among
-  equally aligned sets the largest torque), at full duty. With canted thrusters that is
-  often a pair, never the same set for two axes unless the geometry allows nothing else.
-- :func:`fire_then_brake`: the hand-designed step for the first half, then the brake:
-  duties (nearest duty levels) that cancel the fired torque, from a non-negative least
-  squares over the thrusters; an odd step in the middle coasts. It ends near rest.
+  equally aligned sets the largest torque), at full duty. A set qualifies when every
+  thruster in it enlarges the set's summed torque (without it the sum would be smaller):
+  none works against the others, so two thrusters 109.5 degrees apart (a tetrahedral
+  set) that together give a pure axis torque qualify, while two nearly opposite ones,
+  whose sum is a sliver of what they burn, do not. With canted thrusters that is often a
+  pair, never the same set for two axes unless the geometry allows nothing else. Where
+  the geometry makes it the hand-designed sequence itself, the registered baseline
+  (:data:`BASELINES`, what searches score and the API lists) says so and is unavailable,
+  rather than scored twice.
+- :func:`fire_then_brake`: the hand-designed thrusters for the first half, then the
+  brake: duties (duty levels) that cancel the fired torque, from a least squares over
+  the thrusters with every duty between 0 and full (:func:`brake_duties`); an odd step in
+  the middle coasts. Fire and brake are chosen together (:func:`fire_and_brake`): the
+  fire runs at the largest duty level whose brake, on the levels, cancels it to within
+  1 % (full duty where the brake is as strong as the fire), or else at the level whose
+  brake cancels it best, so a brake weaker than the fire still ends near rest.
 - :func:`fire_coast_brake`: fire for a quarter of the steps (at least one), coast, brake
   for as many: the same propellant as fire-then-brake of twice the fire steps' length
   spends, held at rate longer (coasting costs nothing).
@@ -39,7 +50,9 @@ __all__ = [
     "BASELINES",
     "axis_in_turn",
     "baseline",
+    "baseline_sequences",
     "brake_duties",
+    "fire_and_brake",
     "fire_coast_brake",
     "fire_then_brake",
     "hand_designed",
@@ -51,6 +64,10 @@ __all__ = [
 _EXACT_SUBSETS = 12
 # Two sets whose torque directions differ by less than this cosine are equally aligned.
 _COSINE_TIE = 1e-9
+# A brake that leaves at most this fraction of the fired torque uncancelled cancels it:
+# the rate it leaves is about as small a fraction of the peak rate (on an irregular
+# geometry duty levels seldom cancel exactly, and a smaller fire would excite less).
+_CANCELLED = 0.01
 
 
 def _check_length(length: int) -> None:
@@ -72,22 +89,42 @@ def principal_axes(scenario: Scenario) -> np.ndarray:
     return out
 
 
+def _cooperates(torque: np.ndarray, subset: tuple[int, ...] | list[int]) -> bool:
+    """Whether every thruster of ``subset`` enlarges the set's summed torque: the set
+    without it gives a smaller torque, ``|T - t_j| < |T|``, that is ``t_j . T > |t_j|^2 / 2``
+    (``T`` the summed torque, ``t_j`` the thruster's).
+
+    A thruster whose removal leaves at least as large a torque cancels at least as much of
+    the others' torque as it adds: it works against them and only burns propellant. Two
+    thrusters 90 degrees apart or closer always cooperate (every set the old pairwise
+    rule allowed still qualifies); so do two of equal torque up to 120 degrees apart, a
+    tetrahedral pair (109.5 degrees) summing to a pure axis torque among them. Two nearly
+    opposite thrusters do not (fired together they give a sliver of torque at right angles
+    to both, however well that sliver is aligned), nor does such a pair hidden in a larger
+    set beside a thruster that tilts the sum.
+    """
+    columns = torque[:, list(subset)]
+    total = columns.sum(axis=1)
+    squares = (columns**2).sum(axis=0)
+    return bool(np.all(total @ columns - squares / 2 > _COSINE_TIE * squares))
+
+
 def _subsets(torque: np.ndarray) -> list[tuple[int, ...]]:
-    """Every thruster set in which no thruster works against another (pairwise torques
-    at 90 degrees or less): firing opposing thrusters together only burns propellant."""
+    """Every thruster set in which each thruster enlarges the set's summed torque
+    (:func:`_cooperates`): no thruster works against the others."""
     n = torque.shape[1]
-    opposed = (torque.T @ torque) < -1e-12 * float(np.abs(torque).max()) ** 2
     return [
         s
         for size in range(1, n + 1)
         for s in combinations(range(n), size)
-        if not opposed[np.ix_(s, s)].any()
+        if _cooperates(torque, s)
     ]
 
 
 def _best_aligned(torque: np.ndarray, direction: np.ndarray) -> tuple[int, ...]:
-    """The thruster set (no two opposed) whose summed full-duty torque is best aligned
-    with ``direction``; among equally aligned sets, the one with the largest torque."""
+    """The thruster set (every thruster enlarging the set's torque) whose summed
+    full-duty torque is best aligned with ``direction``; among equally aligned sets, the
+    one with the largest torque."""
     n = torque.shape[1]
     unit = direction / np.linalg.norm(direction)
     if n <= _EXACT_SUBSETS:
@@ -110,8 +147,7 @@ def _best_aligned(torque: np.ndarray, direction: np.ndarray) -> tuple[int, ...]:
             options = [
                 j
                 for j in range(n)
-                if j not in chosen_list
-                and all(float(torque[:, j] @ torque[:, i]) >= 0 for i in chosen_list)
+                if j not in chosen_list and _cooperates(torque, [*chosen_list, j])
             ]
             scored = []
             for j in options:
@@ -157,16 +193,37 @@ def _fire_row(scenario: Scenario) -> np.ndarray:
 def brake_duties(scenario: Scenario, torque_nm: np.ndarray) -> np.ndarray:
     """Level indices (N,) whose torque best cancels ``torque_nm`` (3,), N m.
 
-    The duties are the non-negative least-squares solution of ``A d = -torque`` (so only
-    thrusters that oppose the torque fire), clipped to full duty and rounded to the
-    nearest duty level.
+    The duties are the bounded least-squares solution of ``A d = -torque`` with every
+    duty between 0 and full (a brake that needs more than one thruster's full duty
+    spreads over those beside it rather than being clipped), rounded to the nearest duty
+    level; then, while moving one of those thrusters a level up or down shrinks the
+    torque left over, it is moved.
     """
-    from scipy.optimize import nnls
+    from scipy.optimize import lsq_linear
 
-    duty, _ = nnls(scenario.torque_matrix, -np.asarray(torque_nm, dtype=float))
-    duty = np.minimum(duty, 1.0)
+    matrix = scenario.torque_matrix
+    target = np.asarray(torque_nm, dtype=float)
     levels = scenario.level_values
-    return np.abs(duty[:, None] - levels[None, :]).argmin(axis=1)
+    if not np.any(target):
+        return np.zeros(scenario.n_thrusters, dtype=int)
+    duty = lsq_linear(matrix, -target, bounds=(0.0, 1.0), method="bvls").x
+    row = np.abs(duty[:, None] - levels[None, :]).argmin(axis=1)
+    braking = np.flatnonzero(duty > _COSINE_TIE)
+    left = target + matrix @ levels[row]
+    for _ in range(row.size * (levels.size - 1)):  # each pass shrinks the leftover
+        best_size, best_move = float(np.linalg.norm(left)), None
+        for j in braking:
+            for step in (-1, 1):
+                level = row[j] + step
+                if 0 <= level < levels.size:
+                    moved = left + matrix[:, j] * (levels[level] - levels[row[j]])
+                    size = float(np.linalg.norm(moved))
+                    if size < best_size - _COSINE_TIE * float(np.linalg.norm(target)):
+                        best_size, best_move = size, (j, level, moved)
+        if best_move is None:
+            break
+        j, row[j], left = best_move
+    return row
 
 
 def hand_designed(scenario: Scenario, length: int) -> np.ndarray:
@@ -176,17 +233,48 @@ def hand_designed(scenario: Scenario, length: int) -> np.ndarray:
 
 
 def axis_in_turn(scenario: Scenario, length: int) -> np.ndarray:
-    """One principal axis per step (1, 2, 3, 1, ...), driven by its best-aligned set."""
+    """One principal axis per step (1, 2, 3, 1, ...), driven by its best-aligned set.
+
+    Defined on every geometry that gives each axis some torque, even where that makes it
+    the hand-designed sequence; :data:`BASELINES` then reports it unavailable."""
     _check_length(length)
     axes = principal_axes(scenario)
     rows = [_full(scenario, _best_aligned(scenario.torque_matrix, axis)) for axis in axes]
     return np.stack([rows[step % 3] for step in range(int(length))])
 
 
+def fire_and_brake(scenario: Scenario) -> tuple[np.ndarray, np.ndarray]:
+    """The fire step and the brake step that cancels it, level indices, each (N,).
+
+    The fire is the hand-designed thrusters, all at one duty level; the brake is
+    :func:`brake_duties` for its torque (at most full duty, on the levels). Each fire
+    level is tried from full duty downwards: the first whose brake leaves at most 1 % of
+    the fired torque is kept, the most torque among near-exact cancellations; failing
+    any, the one whose brake leaves the smallest net torque relative to the fired torque
+    (the larger level on a tie). A brake as strong as the fire gives full duty, the
+    hand-designed step (the paper preset: ``[4, 4, 4, 0, 0, 0]`` then
+    ``[0, 0, 0, 4, 4, 4]``); a weaker one scales the fire down to what it can stop, rather
+    than leaving the body spinning on a clipped brake.
+    """
+    thrusters = _fire_row(scenario) > 0
+    torque_matrix = scenario.torque_matrix
+    best: tuple[float, np.ndarray, np.ndarray] | None = None
+    for level in range(scenario.n_levels - 1, 0, -1):
+        fire_row = thrusters * level
+        fired = torque_matrix @ scenario.level_values[fire_row]
+        brake_row = brake_duties(scenario, fired)
+        net = fired + torque_matrix @ scenario.level_values[brake_row]
+        left = float(np.linalg.norm(net)) / float(np.linalg.norm(fired))
+        if left <= _CANCELLED:
+            return fire_row, brake_row
+        if best is None or left < best[0] - _COSINE_TIE:
+            best = (left, fire_row, brake_row)
+    assert best is not None  # at least two levels: one fire level was tried
+    return best[1], best[2]
+
+
 def _fire_coast_brake(scenario: Scenario, fire: int, coast: int) -> np.ndarray:
-    fire_row = _fire_row(scenario)
-    torque = scenario.torque_matrix @ scenario.level_values[fire_row]
-    brake_row = brake_duties(scenario, torque)
+    fire_row, brake_row = fire_and_brake(scenario)
     if not brake_row.any():
         raise InputError("no thruster opposes the fired torque; there is no brake")
     coast_row = np.zeros(scenario.n_thrusters, dtype=int)
@@ -194,8 +282,10 @@ def _fire_coast_brake(scenario: Scenario, fire: int, coast: int) -> np.ndarray:
 
 
 def fire_then_brake(scenario: Scenario, length: int) -> np.ndarray:
-    """Fire the hand-designed step for half the steps, brake for as many (an odd middle
-    step coasts); needs at least 2 steps."""
+    """Fire the hand-designed thrusters for half the steps, brake for as many (an odd
+    middle step coasts); needs at least 2 steps. The fire's duty is the largest the brake
+    can cancel (:func:`fire_and_brake`): full duty, the hand-designed step, unless the
+    brake is weaker."""
     _check_length(length)
     if length < 2:
         raise InputError(f"fire then brake needs at least 2 steps, got {length}")
@@ -213,16 +303,50 @@ def fire_coast_brake(scenario: Scenario, length: int) -> np.ndarray:
     return _fire_coast_brake(scenario, fire, int(length) - 2 * fire)
 
 
+def _distinct_axis_in_turn(scenario: Scenario, length: int) -> np.ndarray:
+    """:func:`axis_in_turn`, unless it is the hand-designed sequence itself (a geometry
+    with one thruster set best aligned with every axis and the diagonal alike)."""
+    sequence = axis_in_turn(scenario, length)
+    try:
+        same = np.array_equal(sequence, hand_designed(scenario, length))
+    except InputError:
+        same = False
+    if same:
+        raise InputError(
+            "the same sequence as hand-designed on this geometry (no thruster set drives "
+            "one principal axis better than the hand-designed step)"
+        )
+    return sequence
+
+
+#: The baselines by name, in the order they are reported. A geometry or a length that
+#: does not allow one makes it raise :class:`~inertia_id.errors.InputError` saying why;
+#: so does an axis-in-turn that would repeat hand-designed.
 BASELINES = {
     "hand-designed": hand_designed,
-    "axis-in-turn": axis_in_turn,
+    "axis-in-turn": _distinct_axis_in_turn,
     "fire-then-brake": fire_then_brake,
     "fire-coast-brake": fire_coast_brake,
 }
 
 
 def baseline(name: str, scenario: Scenario, length: int) -> np.ndarray:
-    """A baseline sequence by name (:data:`BASELINES`)."""
+    """A baseline sequence by name (:data:`BASELINES`: an axis-in-turn that repeats
+    hand-designed raises, like a length or a geometry that does not allow one)."""
     if name not in BASELINES:
         raise InputError(f"baseline must be one of {sorted(BASELINES)}, got {name!r}")
     return BASELINES[name](scenario, length)
+
+
+def baseline_sequences(scenario: Scenario, length: int) -> dict[str, np.ndarray | str]:
+    """Every baseline of ``length`` steps by name (:data:`BASELINES` order): its sequence
+    (level indices, (length, N)), or, for one the length or the geometry does not allow,
+    why it is unavailable. A length that is no positive integer is an error."""
+    _check_length(length)
+    out: dict[str, np.ndarray | str] = {}
+    for name, make in BASELINES.items():
+        try:
+            out[name] = make(scenario, length)
+        except InputError as exc:
+            out[name] = str(exc)
+    return out

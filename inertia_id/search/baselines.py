@@ -9,9 +9,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from ..errors import InputError
 from ..physics.scenario import Scenario
-from ..physics.sequences import BASELINES
+from ..physics.sequences import baseline_sequences
 from .records import evaluate_sequence
 from .scorer import ScorerSettings
 
@@ -35,14 +34,14 @@ def compare_with_baselines(
     :param settings: the search's :class:`~inertia_id.search.ScorerSettings`.
     :returns: by baseline name: the sequence, the clustering F1 and mean final rate
         (rad/s) on each draw, and the fuel (commanded impulse, N m s); for a baseline the
-        length or the thruster geometry does not allow, ``unavailable`` (why).
+        length or the thruster geometry does not allow, ``unavailable`` (why), as for an
+        axis-in-turn that the geometry makes the hand-designed sequence itself (it is
+        not scored twice; :func:`~inertia_id.physics.sequences.baseline_sequences`).
     """
     out: dict[str, dict[str, Any]] = {}
-    for name, make in BASELINES.items():
-        try:
-            sequence = make(scenario, sequence_length)
-        except InputError as exc:
-            out[name] = {"unavailable": str(exc)}
+    for name, sequence in baseline_sequences(scenario, sequence_length).items():
+        if isinstance(sequence, str):
+            out[name] = {"unavailable": sequence}
             continue
         fresh = evaluate_sequence(scenario, sequence, settings, seed=seed, n_draws=n_draws)
         out[name] = {

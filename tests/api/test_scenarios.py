@@ -209,3 +209,35 @@ def test_page_size_is_capped(api: Api, limit: int) -> None:
     response = api.get("/scenarios", params={"limit": limit})
     assert response.status_code == 422
     assert str(limit) in response.json()["detail"][0]["msg"]
+
+
+def test_baselines_a_short_length_lists_those_that_exist_and_why_the_rest_do_not(
+    api: Api, paper: Scenario
+) -> None:
+    # Before, length 1 or 2 was a 422 for the whole list ("fire then brake needs at least
+    # 2 steps"), while a search of that length lists the baselines and marks the rest.
+    scenario_id = api.post("/scenarios", json={"preset": "paper"}).json()["id"]
+    one = api.get(f"/scenarios/{scenario_id}/baselines", params={"length": 1})
+    assert one.status_code == 200, one.text
+    assert one.json() == {
+        "hand-designed": [[4, 4, 4, 0, 0, 0]],
+        "axis-in-turn": [[4, 0, 0, 0, 0, 0]],
+        "fire-then-brake": {"unavailable": "fire then brake needs at least 2 steps, got 1"},
+        "fire-coast-brake": {"unavailable": "fire, coast, brake needs at least 3 steps, got 1"},
+    }
+    two = api.get(f"/scenarios/{scenario_id}/baselines", params={"length": 2}).json()
+    assert two["fire-then-brake"] == [[4, 4, 4, 0, 0, 0], [0, 0, 0, 4, 4, 4]]
+    assert two["fire-coast-brake"] == {
+        "unavailable": "fire, coast, brake needs at least 3 steps, got 2"
+    }
+    # A geometry that leaves axis-in-turn nothing but the hand-designed step says so.
+    document = paper.model_dump(mode="json")
+    document["name"] = "one thruster along the diagonal, one against it"
+    document["candidate_generator"] = None
+    document["thrusters"]["torque_matrix_nm"] = [[1, -1], [1, -1], [1, -1]]
+    created = api.post("/scenarios", json={"scenario": document})
+    assert created.status_code == 201, created.text
+    got = api.get(f"/scenarios/{created.json()['id']}/baselines", params={"length": 3}).json()
+    assert got["hand-designed"] == [[4, 0]] * 3
+    assert "the same sequence as hand-designed" in got["axis-in-turn"]["unavailable"]
+    assert got["fire-then-brake"] == [[4, 0], [0, 0], [0, 4]]

@@ -120,12 +120,14 @@ function submitForm(scenarios, classifiers, query) {
     n_realisations: h("input", { value: "", size: 6, placeholder: "default" }),
     seed: h("input", { value: 0, size: 8 }),
   };
-  // The core's hand-designed baseline for the chosen scenario's thrusters.
+  // The core's hand-designed baseline for the chosen scenario's thrusters (a baseline
+  // the thrusters do not allow comes as {unavailable: why}: the field is left alone).
   const defaultSequence = async () => {
     const scenario = byId[train.scenario.value];
     if (!scenario || query.sequence) return;
     const baselines = await api.baselines(scenario.id, 4).catch(() => null);
-    if (baselines && !query.sequence) train.sequence.value = JSON.stringify(baselines["hand-designed"]);
+    const hand = baselines && baselines["hand-designed"];
+    if (Array.isArray(hand) && !query.sequence) train.sequence.value = JSON.stringify(hand);
   };
   train.sequence.value = query.sequence || "";
   train.scenario.addEventListener("change", () => {
