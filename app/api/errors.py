@@ -8,7 +8,8 @@ in the message instead.
 
 Anything else raised while serving a request is our fault: a 500 whose body says only
 that, with the request's id (``X-Request-ID``), and a traceback in the log under the same
-id. Internals (messages, paths, SQL) never reach the client.
+id. Internals (messages, paths, SQL) never reach the client. The 500 ends that request
+only: the connection stays open for the client's next one (:class:`InternalErrors`).
 """
 
 from __future__ import annotations
@@ -113,24 +114,98 @@ async def _input_error(_request: Request, exc: Exception) -> JSONResponse:
     return _unprocessable([{"loc": [], "msg": _text(str(exc)), "type": "value_error"}])
 
 
-async def _internal_error(request: Request, exc: Exception) -> JSONResponse:
-    request_id = request_id_of(request)
+# Set in a request's scope to the exception already logged, so that it is logged once.
+_LOGGED = "inertia_id.logged_error"
+
+
+def _log_internal_error(scope: Scope, exc: Exception, note: str = "") -> None:
+    """Log ``exc`` with its traceback under the request's id, once per request."""
+    if scope.get(_LOGGED) is exc:
+        return
+    scope[_LOGGED] = exc
+    request = Request(scope)
     log.error(
-        "request %s (%s %s) failed: %s",
-        request_id,
+        "request %s (%s %s) failed%s: %s",
+        request_id_of(request),
         request.method,
         request.url.path,
+        note,
         type(exc).__name__,
         exc_info=exc,
     )
+
+
+def _internal_error_response(request_id: str, *, close: bool = False) -> JSONResponse:
+    headers = {REQUEST_ID_HEADER: request_id}
+    if close:
+        headers["Connection"] = "close"
     return JSONResponse(
         status_code=status.HTTP_500_INTERNAL_SERVER_ERROR,
         content={
             "detail": f"internal error: a defect of the service, not of the request "
             f"(request id {request_id}; the server's log has the details)"
         },
-        headers={REQUEST_ID_HEADER: request_id},
+        headers=headers,
     )
+
+
+async def _internal_error(request: Request, exc: Exception) -> JSONResponse:
+    """Starlette's ``ServerErrorMiddleware`` handler, for what :class:`InternalErrors`
+    did not catch (an exception raised by a middleware outside it). That middleware
+    re-raises after the answer and the server then closes the connection: the answer
+    says so (``Connection: close``), so that the client does not send its next request
+    on it."""
+    _log_internal_error(request.scope, exc)
+    return _internal_error_response(request_id_of(request), close=True)
+
+
+class InternalErrors:
+    """Answer an exception that no handler took (a defect) with our 500, its traceback
+    logged under the request's id, and end the request there: the connection serves the
+    client's next request.
+
+    Left to Starlette's ``ServerErrorMiddleware`` (where an ``Exception`` handler runs),
+    the same 500 is sent and the exception raised again, for the server to log; uvicorn,
+    seeing an exception after the answer started, closes the connection without a
+    ``Connection: close`` in the answer, and a client's next request on that keep-alive
+    connection failed ("connection reset").
+
+    Inside :class:`RequestId` (its id in the answer) and outside Starlette's
+    ``ExceptionMiddleware`` (so the handlers of :func:`install_error_handlers` still make
+    422s and 503s). An exception after the answer was complete (a background task) is
+    logged only. One in the middle of an answer is logged and raised again: the server
+    must close the connection, as the client cannot tell where the answer ends.
+    """
+
+    def __init__(self, app: ASGIApp) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        started = complete = False
+
+        async def watched(message: Message) -> None:
+            nonlocal started, complete
+            if message["type"] == "http.response.start":
+                started = True
+            elif message["type"] == "http.response.body" and not message.get("more_body"):
+                complete = True
+            await send(message)
+
+        try:
+            await self.app(scope, receive, watched)
+        except Exception as exc:
+            if complete:
+                _log_internal_error(scope, exc, " after its answer was sent")
+                return
+            if started:
+                _log_internal_error(scope, exc, " in the middle of its answer (connection closed)")
+                raise
+            _log_internal_error(scope, exc)
+            response = _internal_error_response(request_id_of(Request(scope)))
+            await response(scope, receive, send)
 
 
 def _unavailable(detail: str, retry_after_s: int) -> JSONResponse:
@@ -163,6 +238,8 @@ def install_error_handlers(app: FastAPI) -> None:
     app.add_exception_handler(sqlalchemy.exc.OperationalError, _database_down)
     app.add_exception_handler(sqlalchemy.exc.InterfaceError, _database_down)
     app.add_exception_handler(Exception, _internal_error)
+    # add_middleware puts the last added outermost: RequestId, then InternalErrors.
+    app.add_middleware(InternalErrors)
     app.add_middleware(RequestId)
 
 
