@@ -23,9 +23,11 @@ from typing import Any
 
 import sqlalchemy.exc
 from fastapi import FastAPI, Request, status
+from fastapi.exception_handlers import http_exception_handler
 from fastapi.exceptions import RequestValidationError
-from fastapi.responses import JSONResponse
+from fastapi.responses import JSONResponse, Response
 from pydantic import ValidationError
+from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from inertia_id.errors import InputError
@@ -228,8 +230,29 @@ async def _database_down(_request: Request, exc: Exception) -> JSONResponse:
     return _unavailable("the database cannot be reached; try again shortly", 5)
 
 
+async def _http_error(request: Request, exc: Exception) -> Response:
+    """FastAPI's HTTP errors as they were, but for a JSON body its parser could not take
+    past the JSON grammar (an integer of over 4,300 digits, arrays nested thousands deep):
+    FastAPI answers those 400 "There was an error parsing the body", naming nothing; they
+    are the caller's and a 422 says what was wrong, as ``POST /identify`` does."""
+    assert isinstance(exc, StarletteHTTPException)
+    cause = exc.__cause__
+    if exc.status_code == 400 and isinstance(cause, ValueError | RecursionError):
+        return _unprocessable(
+            [
+                {
+                    "loc": ["body"],
+                    "msg": _text(f"request body is not acceptable JSON: {cause}"),
+                    "type": "value_error",
+                }
+            ]
+        )
+    return await http_exception_handler(request, exc)
+
+
 def install_error_handlers(app: FastAPI) -> None:
     app.add_exception_handler(RequestValidationError, _request_validation)
+    app.add_exception_handler(StarletteHTTPException, _http_error)
     # The core's rules (scenario physics, sequences, telemetry) raise InputError; the
     # models' rules, pydantic's ValidationError.
     app.add_exception_handler(InputError, _input_error)

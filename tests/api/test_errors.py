@@ -99,3 +99,25 @@ def test_a_bad_train_sequence_is_a_422_naming_the_level(api: Api) -> None:
     response = api.submit("train", scenario_id, params={"sequence": bad})
     assert response.status_code == 422
     assert "level index 9" in response.text
+
+
+@pytest.mark.parametrize(
+    ("body", "fragment"),
+    [
+        ('{"scenario_id": "x", "seed": ' + "9" * 5000 + "}", "Exceeds the limit (4300 digits)"),
+        ("[" * 100_000 + "]" * 100_000, "maximum recursion depth exceeded"),
+    ],
+)
+def test_a_json_body_past_what_the_parser_takes_is_a_422_saying_why(
+    api: Api, body: str, fragment: str
+) -> None:
+    """FastAPI answered these 400 "There was an error parsing the body", naming nothing
+    (a reviewer's schemathesis-style probe); every JSON route now says what was wrong."""
+    for route in ("/jobs", f"/scenarios/{api.create_scenario()['id']}/plan"):
+        response = api.post_raw_json(route, body)
+        assert response.status_code == 422, (route, response.text)
+        message = response.json()["detail"][0]["msg"]
+        assert message.startswith("request body is not acceptable JSON") and fragment in message
+    # The other HTTP errors are FastAPI's as before.
+    assert api.get("/jobs/nope").status_code == 404
+    assert api.client.post("/jobs", json={}).status_code == 401
