@@ -29,7 +29,8 @@ the body axes):
   brake cancels it best, so a brake weaker than the fire still ends near rest.
 - :func:`fire_coast_brake`: fire for a quarter of the steps (at least one), coast, brake
   for as many: the same propellant as fire-then-brake of twice the fire steps' length
-  spends, held at rate longer (coasting costs nothing).
+  spends, held at rate longer (coasting costs nothing). At 3 steps it is fire-then-brake
+  itself, so the registered baseline is unavailable there.
 
 A search earns its keep only by beating these on fresh draws: fewer steps, less
 propellant, a smaller final rate, or more accuracy at high noise
@@ -319,14 +320,27 @@ def _distinct_axis_in_turn(scenario: Scenario, length: int) -> np.ndarray:
     return sequence
 
 
+def _distinct_fire_coast_brake(scenario: Scenario, length: int) -> np.ndarray:
+    """:func:`fire_coast_brake`, unless it is fire-then-brake itself (at 3 steps both
+    fire once, coast once and brake once)."""
+    sequence = fire_coast_brake(scenario, length)
+    if np.array_equal(sequence, fire_then_brake(scenario, length)):
+        raise InputError(
+            f"the same sequence as fire-then-brake at {length} steps (one step each of "
+            "fire, coast and brake)"
+        )
+    return sequence
+
+
 #: The baselines by name, in the order they are reported. A geometry or a length that
 #: does not allow one makes it raise :class:`~inertia_id.errors.InputError` saying why;
-#: so does an axis-in-turn that would repeat hand-designed.
+#: so does an axis-in-turn that would repeat hand-designed, and a fire-coast-brake that
+#: would repeat fire-then-brake (at 3 steps).
 BASELINES = {
     "hand-designed": hand_designed,
     "axis-in-turn": _distinct_axis_in_turn,
     "fire-then-brake": fire_then_brake,
-    "fire-coast-brake": fire_coast_brake,
+    "fire-coast-brake": _distinct_fire_coast_brake,
 }
 
 

@@ -307,12 +307,21 @@ def test_the_vocabulary_is_the_cores(api: Api) -> None:
 
 
 def test_baselines_are_the_cores_for_the_scenarios_thrusters(api: Api, paper: Scenario) -> None:
-    from inertia_id.physics.sequences import BASELINES
+    from inertia_id.physics.sequences import baseline_sequences
 
     scenario_id = api.post("/scenarios", json={"preset": "paper"}).json()["id"]
-    got = api.get(f"/scenarios/{scenario_id}/baselines", params={"length": 3}).json()
-    assert got == {name: make(paper, 3).tolist() for name, make in BASELINES.items()}
-    assert got["hand-designed"] == [[4, 4, 4, 0, 0, 0]] * 3
+    got = {}
+    for length in (3, 4):
+        got[length] = api.get(f"/scenarios/{scenario_id}/baselines", params={"length": length})
+        made = baseline_sequences(paper, length)
+        assert got[length].json() == {
+            name: {"unavailable": sequence} if isinstance(sequence, str) else sequence.tolist()
+            for name, sequence in made.items()
+        }
+        assert got[length].json()["hand-designed"] == [[4, 4, 4, 0, 0, 0]] * length
+    # At 3 steps fire-coast-brake is fire-then-brake itself; at 4 every baseline exists.
+    assert "same sequence as fire-then-brake" in got[3].json()["fire-coast-brake"]["unavailable"]
+    assert all(isinstance(sequence, list) for sequence in got[4].json().values())
     bad = api.get(f"/scenarios/{scenario_id}/baselines", params={"length": 0})
     assert bad.status_code == 422 and "0" in bad.text
     assert api.get("/scenarios/nope/baselines").status_code == 404

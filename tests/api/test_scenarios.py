@@ -241,3 +241,4 @@ def test_baselines_a_short_length_lists_those_that_exist_and_why_the_rest_do_not
     assert got["hand-designed"] == [[4, 0]] * 3
     assert "the same sequence as hand-designed" in got["axis-in-turn"]["unavailable"]
     assert got["fire-then-brake"] == [[4, 0], [0, 0], [0, 4]]
+    assert "same sequence as fire-then-brake" in got["fire-coast-brake"]["unavailable"]

@@ -155,3 +155,17 @@ def test_short_lengths_list_what_exists_and_why_the_rest_do_not(paper: Scenario)
     assert made["fire-coast-brake"] == "fire, coast, brake needs at least 3 steps, got 1"
     with pytest.raises(ValueError, match="got 0"):
         baseline_sequences(paper, 0)
+
+
+def test_fire_coast_brake_that_repeats_fire_then_brake_is_unavailable(paper: Scenario) -> None:
+    # At 3 steps both are one fire, one coast, one brake: it was scored (and listed) twice.
+    made = baseline_sequences(paper, 3)
+    fire, off, brake = [4, 4, 4, 0, 0, 0], [0] * 6, [0, 0, 0, 4, 4, 4]
+    assert made["fire-then-brake"].tolist() == [fire, off, brake]  # type: ignore[union-attr]
+    assert made["fire-coast-brake"] == (
+        "the same sequence as fire-then-brake at 3 steps (one step each of fire, coast and brake)"
+    )
+    # From 4 steps on they differ, and both are listed.
+    four = baseline_sequences(paper, 4)
+    assert four["fire-coast-brake"].tolist() == [fire, off, off, brake]  # type: ignore[union-attr]
+    assert four["fire-then-brake"].tolist() == [fire, fire, brake, brake]  # type: ignore[union-attr]
