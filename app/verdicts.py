@@ -7,14 +7,17 @@ sharing the GIL, one API process served about 200 requests a second at 20 client
 (queued 100 ms deep). Here the computation runs in a child process, so the API's two
 halves use two cores.
 
-The child is a :class:`concurrent.futures.ProcessPoolExecutor` of one process (spawned,
-not forked: the API process has threads). It keeps its own classifier cache by
+The child is a :class:`concurrent.futures.ProcessPoolExecutor` of one process, forked
+from multiprocessing's fork server (not from the API process, which has threads): the
+fork server, started with the first verdict process, imports the core and compiles its
+kernels once (:mod:`app.verdict_preload`), so a replacement child is ready in a fraction
+of a second rather than after another 3 s of imports. It keeps its own classifier cache by
 (id, checksum) and reads a classifier's document from the database itself on a miss;
 the API sends it the id, the checksum it looked up, the validated telemetry and the
 :class:`VerdictOptions`, and gets back the verdict as a dict. If the child dies, the next request
-starts another (that request is answered 503 with Retry-After). It ends with its parent:
+starts another (that request is answered 503 with Retry-After). It ends with the API process:
 a watchdog thread exits it when the API process is gone, however it ended (``kill -9``
-included).
+included); the fork server itself exits when the API process's end of its pipe closes.
 """
 
 from __future__ import annotations
@@ -42,8 +45,11 @@ __all__ = ["NotFound", "VerdictOptions", "VerdictProcess"]
 
 log = logging.getLogger("inertia_id.api")
 
-#: How often the child checks that its parent is still there.
+#: How often the child checks that the API process is still there.
 _WATCH_S = 0.5
+
+#: The module the fork server imports before it forks any verdict process.
+_PRELOAD = "app.verdict_preload"
 
 
 class NotFound(LookupError):
@@ -85,18 +91,33 @@ _cache: ClassifierCache | None = None
 _database: Database | None = None
 
 
-def _watch_parent(parent: int) -> None:
+def _api_gone(api: int, fork_server: int) -> bool:
+    """True once the API process has ended: the fork server this process was forked
+    from has gone (it ends when the API does, so this process is adopted elsewhere), or
+    the API process itself no longer exists."""
+    if os.getppid() != fork_server:
+        return True
+    try:
+        os.kill(api, 0)
+    except ProcessLookupError:
+        return True
+    except PermissionError:  # a process of another user took the number: ours is gone
+        return True
+    return False
+
+
+def _watch_api(api: int, fork_server: int) -> None:
     while True:
         time.sleep(_WATCH_S)
-        if os.getppid() != parent:
+        if _api_gone(api, fork_server):
             os._exit(0)
 
 
-def _initialise(database_url: str, cache_size: int, parent: int) -> None:
+def _initialise(database_url: str, cache_size: int, api: int) -> None:
     global _cache, _database
     # Ctrl-C reaches the whole process group: the API shuts this process down itself.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    threading.Thread(target=_watch_parent, args=(parent,), daemon=True).start()
+    threading.Thread(target=_watch_api, args=(api, os.getppid()), daemon=True).start()
     # One BLAS thread: the process computes one verdict at a time, on one core.
     from threadpoolctl import threadpool_limits
 
@@ -107,7 +128,8 @@ def _initialise(database_url: str, cache_size: int, parent: int) -> None:
 
     _cache = ClassifierCache(cache_size)
     _database = Database(database_url)  # connects on the first cold classifier
-    # The classifier kinds (scikit-learn) and numba's kernels, before the first request.
+    # The classifier kinds (scikit-learn) and numba's kernels, before the first request
+    # (loaded already by the fork server's preload; this is the fallback should it fail).
     from inertia_id import warm_up
     from inertia_id.classifiers import registry  # noqa: F401
 
@@ -158,6 +180,16 @@ def _loads() -> int:
 # --------------------------------------------------------------------------- the API side
 
 
+def _fork_server() -> multiprocessing.context.ForkServerContext:
+    """multiprocessing's forkserver context with :mod:`app.verdict_preload` preloaded.
+
+    The fork server is one per API process, started with the first verdict process and
+    reused by every later one (and by every app a test process builds)."""
+    context = multiprocessing.get_context("forkserver")
+    context.set_forkserver_preload([_PRELOAD])
+    return context
+
+
 class VerdictProcess:
     """The child process that computes verdicts, started on first use or by :meth:`start`.
 
@@ -183,7 +215,7 @@ class VerdictProcess:
             if self._pool is None:
                 self._pool = ProcessPoolExecutor(
                     max_workers=1,
-                    mp_context=multiprocessing.get_context("spawn"),
+                    mp_context=_fork_server(),
                     initializer=_initialise,
                     initargs=(self.database_url, self.cache_size, os.getpid()),
                 )
