@@ -181,16 +181,28 @@ def _best_rate_rows(method: Any, best: Mapping[str, Any]) -> list[tuple[str, Any
 _CURVE = ("timesteps", "episodes", "mean_episode_reward", "mean_f1", "best_f1")
 
 
+def _score_name(result: Mapping[str, Any]) -> str:
+    """What a curve's ``mean_f1``/``best_f1`` hold, as the CSV names them: the clustering
+    F1 (``f1``), the separability score (``separability``) or, for NSGA-II, the noise
+    model's predicted accuracy at the design noise."""
+    if result.get("method") == "nsga2":
+        return "predicted_accuracy_design_noise"
+    objective = (result.get("settings") or {}).get("scorer", {}).get("objective", "f1")
+    return "f1" if objective == "f1" else "separability"
+
+
 def _search_curve(result: Mapping[str, Any]) -> Table:
     curve = [p for p in result.get("curve") or [] if isinstance(p, Mapping)]
+    score = _score_name(result)
+    # The stored points name the objective's score f1 whatever it is; the columns say.
+    columns = [*_CURVE[:3], f"mean_{score}", f"best_{score}"]
     key, old = "best_residual_rate_rad_s", "best_final_rate_rad_s"
     if curve and all(key not in p for p in curve) and any(old in p for p in curve):
         # Stored before the key was named for what it is: NSGA-II's was its residual
         # rate already; the other searches' was |ω| when the last command ends.
         name = key if result.get("method") == "nsga2" else "best_end_rate_rad_s"
-        return Table([*_CURVE, name], [[*(p.get(k) for k in _CURVE), p.get(old)] for p in curve])
-    header = [*_CURVE, key]
-    return Table(header, [[p.get(k) for k in header] for p in curve])
+        return Table([*columns, name], [[*(p.get(k) for k in _CURVE), p.get(old)] for p in curve])
+    return Table([*columns, key], [[p.get(k) for k in (*_CURVE, key)] for p in curve])
 
 
 def _sequence_rows(sequence: Any) -> Table:
@@ -607,8 +619,17 @@ def metrics_table(
 
 
 def metrics_notes(job_type: str, params: Mapping[str, Any]) -> list[tuple[str, Any]]:
-    """What a job type's metric step means, when it is not a count of work done: a
-    sweep's step is the index of the noise multiple."""
+    """What a job type's metric step means, when it is not a count of work done (a
+    sweep's step is the index of the noise multiple), and what a search's ``mean_f1`` and
+    ``best_f1`` series hold: the search's score, an F1 only for the F1 objective."""
+    if job_type == "search":
+        held = {
+            "predicted_accuracy_design_noise": "the noise model's predicted accuracy at the "
+            "design noise (NSGA-II)",
+            "separability": "the separability score on the search's draw (not an F1)",
+            "f1": "the clustering F1 on the search's draw",
+        }[_score_name({"method": params.get("method"), "settings": {"scorer": params}})]
+        return [("mean_f1 and best_f1", held)]
     if job_type != "sweep":
         return []
     return [

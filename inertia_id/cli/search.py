@@ -281,6 +281,7 @@ def search_with_progress(
     # NSGA-II's budget is generations, a polish that may stop early and the front's
     # measurement, not --timesteps: its bar shows the fraction of the job done.
     by_fraction = request.method == "nsga2"
+    score = "f1" if request.objective == "f1" else "separability"
     if by_fraction:
         total, unit = 1000, "‰"
     elif request.method == "exhaustive":
@@ -297,9 +298,12 @@ def search_with_progress(
             elif by_fraction:
                 bar.set_postfix(best_accuracy=f"{report.point.best_f1:.3f}")
             else:
+                # The point's best_f1 is the objective's score: say which it is.
                 bar.set_postfix(
-                    reward=f"{report.point.mean_episode_reward:.3f}",
-                    best_f1=f"{report.point.best_f1:.3f}",
+                    {
+                        "reward": f"{report.point.mean_episode_reward:.3f}",
+                        f"best_{score}": f"{report.point.best_f1:.3f}",
+                    }
                 )
 
         outcome = search_with_baselines(

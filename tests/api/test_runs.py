@@ -308,6 +308,9 @@ def test_a_search_result_downloads_as_json_and_as_each_csv_table(api: Api) -> No
     assert rows[0][:3] == ["timesteps", "episodes", "mean_episode_reward"]
     assert [float(r[2]) for r in rows[1:]] == [p["mean_episode_reward"] for p in result["curve"]]
     assert rows[0][-1] == "best_residual_rate_rad_s" and rows[1][-1] == "0.2"
+    # The stored points name the objective's score f1; the columns name what it is.
+    assert rows[0][3:5] == ["mean_separability", "best_separability"]
+    assert [float(r[4]) for r in rows[1:]] == [p["best_f1"] for p in result["curve"]]
 
     sequence = _csv(api.get(f"/jobs/{job_id}/result?format=csv&table=sequence").text)
     assert sequence[0] == ["step", *(f"thruster_{j}_level" for j in range(1, 7))]
@@ -653,6 +656,25 @@ def test_metrics_download_every_point_as_csv(api: Api) -> None:
     assert rows[4001] == ["reward", "4000", "1000.0"]
 
 
+@pytest.mark.parametrize(
+    ("params", "held"),
+    [
+        ({"method": "cem", "objective": "separability"}, "the separability score"),
+        ({"method": "cem"}, "the clustering F1"),
+        ({"method": "nsga2"}, "predicted accuracy at the design noise"),
+    ],
+)
+def test_a_search_metrics_csv_says_what_its_f1_series_hold(
+    api: Api, params: dict[str, Any], held: str
+) -> None:
+    # The series are stored as best_f1 and mean_f1 whatever the search scores.
+    job_id = api.submit("search", api.create_scenario()["id"], params=params).json()["id"]
+    with api.db.session() as session:
+        add_metrics(session, job_id, [("best_f1", 0, 0.5)])
+    text = api.get(f"/jobs/{job_id}/metrics", params={"format": "csv"}).text
+    assert held in _notes(text)["mean_f1 and best_f1"]
+
+
 def _notes(text: str) -> dict[str, str]:
     """The ``# name: value`` lines before a CSV's header."""
     lines = [line for line in text.splitlines() if line.startswith("# ")]
@@ -775,6 +797,8 @@ def test_a_curve_stored_before_its_rate_was_named_is_exported_for_what_it_was(
     job_id = _finished(api, scenario_id, 0, result, name="old")
     rows = _csv(api.get(f"/jobs/{job_id}/result", params={"format": "csv", "table": "curve"}).text)
     assert rows[0][-1] == column and [r[-1] for r in rows[1:]] == ["0.2"] * 3
+    score = "predicted_accuracy_design_noise" if method == "nsga2" else "separability"
+    assert rows[0][3:5] == [f"mean_{score}", f"best_{score}"]
     summary = dict(_csv(api.get(f"/jobs/{job_id}/result?format=csv").text)[1:])
     if method == "nsga2":
         assert summary["best_residual_rate_rad_s_search_draw"] == "0.12"
