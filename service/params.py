@@ -431,12 +431,13 @@ class SweepParams(StrictModel):
 
     @field_validator("multiples")
     @classmethod
-    def _positive(cls, value: list[float]) -> list[float]:
+    def _not_negative(cls, value: list[float]) -> list[float]:
         from inertia_id.evaluation.sweep import check_multiples
 
-        bad = [m for m in value if not m > 0]
+        # 0 is that source off (the others at 1x), as from the core and the CLI.
+        bad = [m for m in value if not m >= 0]
         if bad:
-            raise ValueError(f"noise multiples must be > 0, got {bad} in {value}")
+            raise ValueError(f"noise multiples must be >= 0, got {bad} in {value}")
         return check_multiples(value)
 
     @field_validator("ceiling_realisations", "limit_realisations")

@@ -186,6 +186,12 @@ def test_sweep_job_for_a_stored_classifier(api: Api, classifier: InertiaClassifi
         "n_train": 20,
         "inertia": True,
     }
+    # A multiple of 0 switches that source off, as the core and the CLI take it.
+    off = api.submit(
+        "sweep", scenario_id, params={"classifier_id": classifier_id, "multiples": [0, 1]}
+    )
+    assert off.status_code == 202, off.text
+    assert off.json()["params"]["multiples"] == [0.0, 1.0]
 
 
 def test_sweep_refuses_a_classifier_of_other_candidates(
@@ -260,7 +266,7 @@ BAD_PARAMS: list[tuple[str, dict[str, Any], str]] = [
     ("train", {"sequence": GOOD_SEQUENCE, "metric": "cosine"}, "got 'cosine'"),
     ("train", {"sequence": GOOD_SEQUENCE, "n_realisations": 0}, "got 0"),
     ("train", {}, "give sequence, or search_job_id"),
-    ("sweep", {"multiples": [0]}, "noise multiples must be > 0, got [0.0]"),
+    ("sweep", {"multiples": [0, -1]}, "noise multiples must be >= 0, got [-1.0]"),
     ("sweep", {"multiples": [1, -2]}, "got [-2.0]"),
     ("sweep", {"multiples": [1.0] * 21}, "at most 20 items"),
     ("sweep", {"multiples": []}, "at least 1 item"),
