@@ -229,8 +229,9 @@ def _parser() -> argparse.ArgumentParser:
         "--api-workers",
         type=int,
         default=int(os.environ.get("INERTIA_ID_API_WORKERS", "1")),
-        help="API processes (default 1). Identify is computed in the API process: on a "
-        "machine with more cores, more processes serve more requests at once.",
+        help="API processes (default 1), each with a verdict process of its own that "
+        "computes /identify: on a machine with more cores, more API processes serve more "
+        "requests at once (on 2 cores, 2 did worse than 1).",
     )
     parser.add_argument(
         "--log-level",

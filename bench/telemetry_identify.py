@@ -407,16 +407,18 @@ def main() -> None:
     parser.add_argument(
         "--quick",
         action="store_true",
-        help="fewer series (--n 6 --n-off 4 --n-calibrate 40 --n-stop 20)",
+        help="fewer series (--n 6 --n-off 4 --n-calibrate 40 --n-stop 20, each unless given)",
     )
     parser.add_argument("--scenarios", default="paper,canted", help="paper and/or canted")
     parser.add_argument("--rates", type=int_list, default=[1, 10, 50, 200], help="gyro rates, Hz")
-    parser.add_argument("--n", type=int, default=20, help="genuine series per candidate per rate")
     parser.add_argument(
-        "--n-off", type=int, default=6, help="series per off-candidate body per rate"
+        "--n", type=int, default=None, help="genuine series per candidate per rate (20)"
     )
     parser.add_argument(
-        "--n-calibrate", type=int, default=200, help="calibrate's fresh draws per candidate"
+        "--n-off", type=int, default=None, help="series per off-candidate body per rate (6)"
+    )
+    parser.add_argument(
+        "--n-calibrate", type=int, default=None, help="calibrate's fresh draws per candidate (200)"
     )
     parser.add_argument(
         "--n-train", type=int, default=0, help="training realisations (0: the kind's default)"
@@ -424,8 +426,8 @@ def main() -> None:
     parser.add_argument(
         "--n-stop",
         type=int,
-        default=400,
-        help="native 10 Hz series per candidate for the stop rule's error rate (0: skip)",
+        default=None,
+        help="native 10 Hz series per candidate for the stop rule's error rate (400; 0: skip)",
     )
     parser.add_argument(
         "--none-spread",
@@ -451,8 +453,11 @@ def main() -> None:
         "or the engine-agreement tests' mixed-duty CANTED_SEQUENCE",
     )
     args = parser.parse_args()
-    if args.quick:
-        args.n, args.n_off, args.n_calibrate, args.n_stop = 6, 4, 40, 20
+    # --quick shrinks only the sizes not given on the command line.
+    sizes = {"n": (20, 6), "n_off": (6, 4), "n_calibrate": (200, 40), "n_stop": (400, 20)}
+    for name, (full, quick) in sizes.items():
+        if getattr(args, name) is None:
+            setattr(args, name, quick if args.quick else full)
     print_header("Identifying telemetry as a spacecraft sends it (issue 13)", args)
     engine = "basilisk"
     if not basilisk_available():
