@@ -11,7 +11,9 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import unicodedata
+from pathlib import Path
 from typing import Any, TypeGuard
 
 import numpy as np
@@ -22,11 +24,28 @@ __all__ = [
     "finite_or_none",
     "is_integer",
     "is_number",
+    "read_text",
     "spreadsheet_safe",
 ]
 
 #: What a spreadsheet reads as the start of a formula (OWASP, "CSV injection").
 _FORMULA_START = ("=", "+", "-", "@", "\t", "\r")
+
+
+def read_text(path: str | os.PathLike[str], what: str) -> str:
+    """A UTF-8 text file's content; a file that is no such text (a binary file, another
+    encoding) is an :class:`~inertia_id.errors.InputError` naming it and ``what`` it
+    should have been. A missing or unreadable file raises the ``OSError``, which names
+    the path."""
+    from .errors import InputError
+
+    try:
+        return Path(path).read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise InputError(
+            f"{os.fspath(path)!r} is not UTF-8 text (byte {exc.object[exc.start : exc.end]!r} "
+            f"at position {exc.start}): it should be {what}"
+        ) from None
 
 
 def is_integer(

@@ -210,6 +210,13 @@ class SearchRequest(_Request):
             options["ppo_params"] = dict(self.ppo)
             options["lagrangian_lr"] = self.lagrangian_lr
         if self.method == "cem":
+            from .search import CEM_DEFAULTS
+
+            # Only the CEM's own settings: any other name would reach the search as a
+            # keyword (a TypeError), or override the length, budget or seed given.
+            unknown = sorted(set(self.cem) - set(CEM_DEFAULTS))
+            if unknown:
+                raise InputError(f"unknown CEM setting(s) {unknown}; known: {sorted(CEM_DEFAULTS)}")
             options.update(self.cem)
         return options
 
@@ -445,24 +452,9 @@ def check_sweep_scenario(named: Scenario, trained: Scenario | None, sequence: An
     sequence must drive it on the same sample grid; its noise, thrust and everything else
     may differ: that is what the sweep then measures.
     """
-    if trained is not None:
-        mine = [(c.name, np.asarray(c.inertia_kg_m2).tolist()) for c in named.inertia_candidates]
-        theirs = [
-            (c.name, np.asarray(c.inertia_kg_m2).tolist()) for c in trained.inertia_candidates
-        ]
-        if mine != theirs:
-            raise InputError(
-                f"scenario {named.name!r} has candidates {named.candidate_names}, not the "
-                f"ones the classifier was trained on ({trained.candidate_names} of scenario "
-                f"{trained.name!r}, with their tensors)"
-            )
-        grid = (named.timing.samples_per_step, named.timing.sample_rate_hz)
-        if grid != (trained.timing.samples_per_step, trained.timing.sample_rate_hz):
-            raise InputError(
-                f"scenario {named.name!r} samples {grid[0]} times per step at {grid[1]:g} Hz; "
-                f"the classifier was trained on {trained.timing.samples_per_step} at "
-                f"{trained.timing.sample_rate_hz:g} Hz"
-            )
+    from .evaluation.sweep import check_classifier_scenario
+
+    check_classifier_scenario(named, trained)
     try:
         named.check_sequence(sequence)
     except InputError as exc:

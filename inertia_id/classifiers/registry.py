@@ -220,8 +220,9 @@ def classifier_from_json(text: str | bytes) -> CandidateClassifier:
 
 def load_classifier(path: str | os.PathLike[str]) -> CandidateClassifier:
     """Read any classifier document from a file (see :func:`classifier_from_json`)."""
-    with open(path, encoding="utf-8") as fh:
-        return classifier_from_json(fh.read())
+    from ..checks import read_text
+
+    return classifier_from_json(read_text(path, "a classifier's JSON document"))
 
 
 def warm_up() -> None:

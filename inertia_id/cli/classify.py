@@ -20,6 +20,7 @@ from .options import (
     load_scenario,
     multiples_option,
     n_test_option,
+    one_line,
     out_option,
     parse_multiples,
     parse_sequence,
@@ -323,7 +324,7 @@ def identify_cmd(
             line = {"path": path, **verdict}
         except (InputError, ValidationError, OSError, UnicodeDecodeError) as exc:
             failed += 1
-            line = {"path": path, "error": _one_line(exc)}
+            line = {"path": path, "error": one_line(exc)}
         click.echo(json.dumps(line))
     if failed:
         click.echo(f"{failed} of {len(paths)} telemetry files failed", err=True)
@@ -371,17 +372,3 @@ def _identify_file(
     )
     verdict = identify(classifier, telemetry.shifted(shift), **options).model_dump(mode="json")
     return {**verdict, "sequence_start_shift_s": shift}
-
-
-def _one_line(exc: BaseException) -> str:
-    from pydantic import ValidationError
-
-    if isinstance(exc, ValidationError):
-        # The rule and the value, without pydantic's type codes and links.
-        return "; ".join(_error_text(e["loc"], str(e["msg"])) for e in exc.errors())
-    return " ".join(str(exc).split())
-
-
-def _error_text(loc: tuple[Any, ...], msg: str) -> str:
-    msg = msg.removeprefix("Value error, ")
-    return f"{'.'.join(str(part) for part in loc)}: {msg}" if loc else msg

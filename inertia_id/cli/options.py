@@ -77,14 +77,42 @@ def friendly_errors(func: F) -> F:
             return func(*args, **kwargs)
         except OSError as exc:
             raise click.ClickException(str(exc)) from None
+        except MemoryError:
+            raise click.ClickException(
+                "out of memory: the sizes asked for (realisations -n, test series, "
+                "sequence length, flights) need more than this machine holds; ask for fewer"
+            ) from None
+        except UnicodeDecodeError as exc:
+            # A binary file where text (JSON, CSV) was expected.
+            raise click.ClickException(
+                f"a file given is not UTF-8 text (byte {exc.object[exc.start : exc.end]!r} "
+                f"at position {exc.start}): give a JSON or CSV file"
+            ) from None
         except ValueError as exc:
             from pydantic import ValidationError
 
-            if isinstance(exc, InputError | ValidationError):
+            if isinstance(exc, ValidationError):
+                raise click.ClickException(one_line(exc)) from None
+            if isinstance(exc, InputError):
                 raise click.ClickException(str(exc)) from None
             raise
 
     return wrapper  # type: ignore[return-value]
+
+
+def one_line(exc: BaseException) -> str:
+    """An error as one line: a validation error's rules and values, without pydantic's
+    type codes and links; anything else with its whitespace folded."""
+    from pydantic import ValidationError
+
+    if isinstance(exc, ValidationError):
+        return "; ".join(_error_text(e["loc"], str(e["msg"])) for e in exc.errors())
+    return " ".join(str(exc).split())
+
+
+def _error_text(loc: tuple[Any, ...], msg: str) -> str:
+    msg = msg.removeprefix("Value error, ")
+    return f"{'.'.join(str(part) for part in loc)}: {msg}" if loc else msg
 
 
 def _presets() -> list[str]:
@@ -118,10 +146,10 @@ def load_scenario(preset_name: str, scenario_path: str | None) -> Scenario:
         from ..physics.presets import preset
 
         return preset(preset_name)
+    from ..checks import read_text
     from ..physics.scenario import Scenario
 
-    text = Path(scenario_path).read_text(encoding="utf-8")
-    return Scenario.model_validate_json(text)
+    return Scenario.model_validate_json(read_text(scenario_path, "a scenario's JSON"))
 
 
 def parse_sequence(text: str) -> list[list[int]]:
@@ -129,7 +157,9 @@ def parse_sequence(text: str) -> list[list[int]]:
     list of rows, or a path to a JSON file holding one."""
     source = text
     if os.path.isfile(text):
-        source = Path(text).read_text(encoding="utf-8")
+        from ..checks import read_text
+
+        source = read_text(text, "a sequence: a JSON list of rows")
     source = source.strip()
     parts = source.removesuffix(";").split(";")
     empty = [i + 1 for i, row in enumerate(parts) if not row.strip()]
@@ -210,7 +240,11 @@ def n_test_option(default: int) -> Callable[[F], F]:
 
 def seed_option(func: F) -> F:
     return click.option(
-        "--seed", default=0, show_default=True, type=int, help="Seed of every random draw."
+        "--seed",
+        default=0,
+        show_default=True,
+        type=click.IntRange(0),
+        help="Seed of every random draw (a whole number >= 0).",
     )(func)
 
 

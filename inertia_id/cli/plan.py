@@ -97,12 +97,12 @@ def plan_cmd(
         sequence = parse_sequence(sequence_text)
     plan = command_plan(scenario, sequence, flights=flights, seed=seed)
     if out == "-":
-        click.echo(json.dumps(plan.to_dict(), indent=2))
+        click.echo(_strict_json(plan.to_dict()))
         return
     if out.lower().endswith(".csv"):
         Path(out).write_text(plan.to_csv(), encoding="utf-8")
     else:
-        Path(out).write_text(json.dumps(plan.to_dict(), indent=2) + "\n", encoding="utf-8")
+        Path(out).write_text(_strict_json(plan.to_dict()) + "\n", encoding="utf-8")
     summary = plan.to_dict()
     click.echo(
         f"wrote {out}: {len(plan.sequence)} steps, impulse {plan.impulse_nms:.2f} N m s, "
@@ -124,6 +124,14 @@ def plan_cmd(
         ),
         err=True,
     )
+
+
+def _strict_json(document: dict) -> str:
+    """Strict JSON: a non-finite figure as null (``json.dumps`` writes NaN, which strict
+    parsers refuse)."""
+    from ..checks import finite_or_none
+
+    return json.dumps(finite_or_none(document), indent=2, allow_nan=False)
 
 
 def _search_document(path: str) -> dict:
@@ -197,12 +205,19 @@ def _member_sequence(document: dict, member: int | None) -> list[list[int]]:
     from ..errors import InputError
 
     if member is None:
-        best = document.get("best", {}).get("sequence")
-        if best is None:
-            raise InputError("the search JSON holds no best sequence")
-        return list(best)
-    members = (document.get("front") or {}).get("members", [])
+        best = document.get("best")
+        sequence = best.get("sequence") if isinstance(best, dict) else None
+        if not isinstance(sequence, list):
+            raise InputError("the search JSON holds no best sequence (best.sequence, a list)")
+        return sequence
+    front = document.get("front")
+    members = front.get("members") if isinstance(front, dict) else None
+    if not isinstance(members, list):
+        raise InputError("the search JSON holds no front (front.members, a list)")
     for entry in members:
-        if entry.get("index") == member:
-            return list(entry["sequence"])
+        if isinstance(entry, dict) and entry.get("index") == member:
+            sequence = entry.get("sequence")
+            if not isinstance(sequence, list):
+                raise InputError(f"front member {member} holds no sequence (a list)")
+            return sequence
     raise InputError(f"the search's front has no member {member} (it holds {len(members)})")

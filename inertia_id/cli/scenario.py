@@ -204,14 +204,20 @@ def _with_coast(scenario: Any, sequence: Any, pre_start_s: float) -> tuple[Any, 
 
     from ..errors import InputError
 
+    rows = np.asarray(scenario.check_sequence(sequence))
     step_s = scenario.timing.step_duration_s
+    room = 1000 - len(rows)  # the most steps a sequence may have, coast included
+    if not math.isfinite(pre_start_s) or pre_start_s > room * step_s:
+        raise InputError(
+            f"--pre-start {pre_start_s:g} s: at most {room * step_s:g} s (1000 steps of "
+            f"{step_s:g} s with the {len(rows)}-step sequence)"
+        )
     coast = round(pre_start_s / step_s)
     if abs(coast * step_s - pre_start_s) > 1e-9 * max(step_s, pre_start_s):
         raise InputError(
             f"--pre-start {pre_start_s:g} s is not a whole number of the scenario's "
             f"{step_s:g} s steps"
         )
-    rows = np.asarray(sequence)
     coasting = np.zeros((coast, rows.shape[1]), dtype=rows.dtype)
     return np.concatenate([coasting, rows]), coast * step_s
 
@@ -235,6 +241,8 @@ def _at_rate(scenario: Any, rate_hz: float) -> Any:
     from ..errors import InputError
 
     timing, unc = scenario.timing, scenario.uncertainty
+    if not math.isfinite(rate_hz) or rate_hz < 0.01:
+        raise InputError(f"--sample-rate {rate_hz:g} Hz: give a rate from 0.01 Hz to 10 kHz")
     ns = [round(1e9 * v) for v in (1 / rate_hz, timing.step_duration_s, unc.disturbance_interval_s)]
     if abs(ns[0] - 1e9 / rate_hz) > 1e-3:
         raise InputError(f"--sample-rate {rate_hz:g} Hz: its period is not whole nanoseconds")

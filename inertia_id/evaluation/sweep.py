@@ -37,7 +37,7 @@ from pydantic import BaseModel
 from ..checks import is_integer
 from ..errors import InputError
 from ..physics.scenario import Scenario
-from ..physics.simulate import simulate
+from ..physics.simulate import SimulationOverflow, simulate
 
 if TYPE_CHECKING:
     from ..classifiers.registry import CandidateClassifier
@@ -55,6 +55,7 @@ __all__ = [
     "SweepPoint",
     "SweepResult",
     "check_ceiling_realisations",
+    "check_classifier_scenario",
     "check_multiples",
     "noise_level",
     "run_inertia_sweep",
@@ -265,6 +266,33 @@ def _point_from_predictions(
     )
 
 
+def check_classifier_scenario(named: Scenario, trained: Scenario | None) -> None:
+    """A scenario a classifier trained on ``trained`` can classify: the same candidates
+    (names and tensors, in order: the classifier's labels are their indices) on the same
+    sample grid; its noise, thrust and everything else may differ. Nothing to check
+    without ``trained``.
+
+    :raises InputError: naming both scenarios' candidates, or both grids.
+    """
+    if trained is None or named is trained:
+        return
+    mine = [(c.name, np.asarray(c.inertia_kg_m2).tolist()) for c in named.inertia_candidates]
+    theirs = [(c.name, np.asarray(c.inertia_kg_m2).tolist()) for c in trained.inertia_candidates]
+    if mine != theirs:
+        raise InputError(
+            f"scenario {named.name!r} has candidates {named.candidate_names}, not the "
+            f"ones the classifier was trained on ({trained.candidate_names} of scenario "
+            f"{trained.name!r}, with their tensors)"
+        )
+    grid = (named.timing.samples_per_step, named.timing.sample_rate_hz)
+    if grid != (trained.timing.samples_per_step, trained.timing.sample_rate_hz):
+        raise InputError(
+            f"scenario {named.name!r} samples {grid[0]} times per step at {grid[1]:g} Hz; "
+            f"the classifier was trained on {trained.timing.samples_per_step} at "
+            f"{trained.timing.sample_rate_hz:g} Hz"
+        )
+
+
 def run_sweep(
     classifier: CandidateClassifier,
     *,
@@ -308,6 +336,7 @@ def run_sweep(
     sequence = sequence if sequence is not None else classifier.sequence_
     if scenario is None or sequence is None:
         raise InputError("the classifier does not carry its scenario and sequence; pass them")
+    check_classifier_scenario(scenario, classifier.scenario_)
     sequence = scenario.check_sequence(sequence)
     unknown = [n for n in noises if n not in NOISE_KINDS]
     if unknown or not noises:
@@ -339,17 +368,18 @@ def run_sweep(
             at_level, extra = scenario, scales
         else:
             at_level, extra = scenario.with_uncertainty(**{NOISE_FIELDS[noise]: value}), {}
-        result = simulate(
-            at_level, sequence, per_candidate, np.random.default_rng(streams[i]), **extra
-        )
-        X, y = result.dataset()
-        if not np.isfinite(X).all():
+        try:
+            result = simulate(
+                at_level, sequence, per_candidate, np.random.default_rng(streams[i]), **extra
+            )
+        except SimulationOverflow:
             # A scenario whose own 1x level is large can overflow below MAX_MULTIPLE.
             raise InputError(
                 f"{noise} noise at multiple {float(multiple):g} ({value:g} "
                 f"{NOISE_UNITS[noise]}) drives the simulated rates to inf or nan on this "
                 "scenario: sweep smaller multiples"
-            )
+            ) from None
+        X, y = result.dataset()
         where = {"noise": noise, "multiple": float(multiple), "value": value}
         points.append(_point(classifier, X, y, **where))
         for label, other in others.items():
@@ -458,6 +488,7 @@ def run_inertia_sweep(
     sequence = classifier.sequence_
     if scenario is None or sequence is None:
         raise InputError("the classifier does not carry its scenario and sequence")
+    check_classifier_scenario(scenario, classifier.scenario_)
     k = scenario.n_candidates
     pair = pair if pair is not None else _closest_pair(scenario)
     for name, index in (("base", base), ("pair[0]", pair[0]), ("pair[1]", pair[1])):

@@ -463,8 +463,9 @@ def load_telemetry(
     path: str | os.PathLike[str], *, sequence_start: float | str | None = None
 ) -> Telemetry:
     """Read telemetry from a .json or .csv file (see :func:`parse_telemetry`)."""
-    with open(path, encoding="utf-8") as fh:
-        text = fh.read()
+    from ..checks import read_text
+
+    text = read_text(path, "telemetry as CSV or JSON")
     suffix = os.fspath(path).lower().rsplit(".", 1)[-1]
     return parse_telemetry(
         text, fmt=suffix if suffix in ("json", "csv") else "auto", sequence_start=sequence_start

@@ -211,7 +211,7 @@ def _windows(
         ends = np.arange(1, n_grid)
         return np.zeros_like(ends), ends
     width = window_s * sample_rate_hz
-    samples = round(width)
+    samples = round(width) if math.isfinite(width) else 0
     if not (math.isfinite(width) and abs(width - samples) < 1e-6 and samples >= 1):
         raise InputError(
             f"window_s = {window_s!r} is not a whole number of sample periods "
@@ -294,7 +294,13 @@ def estimate_inertia(
     design = regressor.reshape(n, -1, 6)
     target = (impulse[ends] - impulse[starts]).reshape(-1)
 
-    u, singular, vt = np.linalg.svd(design, full_matrices=False)
+    try:
+        u, singular, vt = np.linalg.svd(design, full_matrices=False)
+    except np.linalg.LinAlgError:
+        raise InputError(
+            "the least squares did not converge on these rates (the largest is "
+            f"{float(np.abs(rates).max()):g} rad/s): are they in rad/s, and uncorrupted?"
+        ) from None
     keep = singular > _RCOND * singular[:, :1]
     inverse = np.divide(1.0, singular, out=np.zeros_like(singular), where=keep)
     theta = np.einsum("nji,nj->ni", vt, inverse * np.einsum("nmj,m->nj", u, target))

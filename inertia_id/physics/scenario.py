@@ -141,7 +141,9 @@ class CandidateGenerator(_Model):
         for n in range(1, self.n_variations + 1):
             reduction = rng.uniform(low, high, size=3) * np.diag(base)
             tensor = base - np.diag(reduction)
-            name = self.variation_name.format(n=n)
+            # Only {n} is replaced: str.format would also read fields ({0}, {x}) and
+            # format specs ({n:>99999999}) from a document a user wrote.
+            name = self.variation_name.replace("{n}", str(n))
             try:
                 candidates.append(InertiaCandidate(name=name, inertia_kg_m2=tensor.tolist()))
             except ValueError as exc:

@@ -26,6 +26,7 @@ from .scenario import Scenario
 __all__ = [
     "InitialDraw",
     "SequenceNoise",
+    "SimulationOverflow",
     "SimulationResult",
     "SimulationState",
     "Simulator",
@@ -37,6 +38,11 @@ __all__ = [
     "settled_rates",
     "simulate",
 ]
+
+
+class SimulationOverflow(InputError):
+    """The simulated rates overflowed to inf or nan: the scenario (or the noise multiples
+    asked for) drives the bodies beyond what the integrator follows."""
 
 
 @dataclass(frozen=True)
@@ -225,6 +231,9 @@ class Simulator:
             gyro_noise=gyro_sigma * rng.standard_normal((k, n, self.samples, 3)),
         )
 
+    def _overflowed(self) -> None:
+        raise SimulationOverflow(_overflow_message(self))
+
     def draw_noise(self, rng: np.random.Generator, n_steps: int) -> SequenceNoise:
         initial = self.draw_initial(rng)
         return SequenceNoise(initial, [self.draw_step(rng) for _ in range(n_steps)])
@@ -315,6 +324,8 @@ class Simulator:
         for levels, draw in zip(sequence, noise.steps, strict=False):
             state, response = self.advance(state, levels, draw)
             responses.append(response)
+        if not all(np.isfinite(r.omega_measured).all() for r in responses):
+            self._overflowed()
         return SimulationResult(
             time_s=self.scenario.sample_times(len(sequence)),
             omega_measured=np.concatenate([r.omega_measured for r in responses], axis=2),
@@ -325,6 +336,24 @@ class Simulator:
             impulse_nms=self.scenario.impulse_nms(sequence),
             candidate_names=self.scenario.candidate_names,
         )
+
+
+def _overflow_message(simulator: Simulator) -> str:
+    scenario = simulator.scenario
+    moments = min(
+        float(np.linalg.eigvalsh(np.asarray(c.inertia_kg_m2)).min())
+        for c in scenario.inertia_candidates
+    )
+    torque = float(np.abs(np.asarray(scenario.thrusters.torque_matrix_nm)).max(initial=0.0))
+    return (
+        "the simulated rates overflowed to inf or nan: this scenario drives its bodies "
+        f"beyond what the integrator follows (torques up to {torque:g} N m on a smallest "
+        f"principal moment of {moments:g} kg m^2, initial-rate sigma "
+        f"{scenario.uncertainty.initial_rate_sigma_rad_s:g} rad/s, noise multiples "
+        f"process x{simulator.process_noise_scale:g} and gyro "
+        f"x{simulator.measurement_noise_scale:g}, integration step "
+        f"{scenario.timing.integration_step_s:g} s); scale them down"
+    )
 
 
 def nominal_simulator(
@@ -417,6 +446,10 @@ def simulate(
     :param measurement_noise_scale: multiple of the gyro noise (and random bias) sigma.
     """
     sequence = scenario.check_sequence(sequence)
+    if not isinstance(rng, np.random.Generator):
+        raise InputError(
+            f"rng must be a numpy Generator (np.random.default_rng(seed)), got {rng!r}"
+        )
     simulator = Simulator(
         scenario,
         n_realisations,
