@@ -19,6 +19,7 @@ from typing import Any, TypeGuard
 import numpy as np
 
 __all__ = [
+    "check_seed",
     "control_characters",
     "csv_note_text",
     "finite_or_none",
@@ -30,6 +31,16 @@ __all__ = [
 
 #: What a spreadsheet reads as the start of a formula (OWASP, "CSV injection").
 _FORMULA_START = ("=", "+", "-", "@", "\t", "\r")
+
+
+def check_seed(seed: Any, name: str = "seed") -> int:
+    """A seed as numpy takes it: a whole number >= 0 (a bool is not one); else an
+    :class:`~inertia_id.errors.InputError` naming it."""
+    from .errors import InputError
+
+    if not is_integer(seed, minimum=0):
+        raise InputError(f"{name} must be a whole number >= 0, got {seed!r}")
+    return int(seed)
 
 
 def read_text(path: str | os.PathLike[str], what: str) -> str:

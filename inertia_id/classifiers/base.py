@@ -116,7 +116,12 @@ class NoveltyTail:
     def from_dict(cls, data: Any) -> NoveltyTail | None:
         if data is None:
             return None
-        return cls(scale=float(data["scale"]), dof=float(data["dof"]))
+        tail = cls(scale=float(data["scale"]), dof=float(data["dof"]))
+        for name in ("scale", "dof"):
+            value = getattr(tail, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"novelty_tail.{name} must be finite and > 0, got {value!r}")
+        return tail
 
 
 def none_log_odds(log_p_value: np.ndarray, prior: float) -> np.ndarray:
@@ -787,6 +792,11 @@ class BaseClassifier(BaseEstimator):
             calibration = data.get("calibration")
             if calibration is not None and not isinstance(calibration, dict):
                 raise TypeError(f"calibration must be an object, got {type(calibration).__name__}")
+            temperature = (calibration or {}).get("temperature", 1.0)
+            if not is_number(temperature, minimum=0.0, exclusive=True):
+                raise ValueError(
+                    f"calibration.temperature must be a finite number > 0, got {temperature!r}"
+                )
             model.calibration_ = calibration
             model._load_state(data)
         except (KeyError, TypeError, ValueError, AttributeError) as exc:

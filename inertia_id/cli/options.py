@@ -274,8 +274,13 @@ def parse_multiples(text: str | None) -> list[float] | None:
     """``"1,2,4"`` -> ``[1.0, 2.0, 4.0]``; None stays None (the sweep's default)."""
     if text is None:
         return None
+    items = text.split(",")
+    if any(not v.strip() for v in items):
+        raise InputError(
+            f"--multiples {text!r} has an empty item; give numbers separated by commas"
+        )
     try:
-        return [float(v) for v in text.split(",") if v.strip()]
+        return [float(v) for v in items]
     except ValueError:
         raise InputError(f"--multiples {text!r} is not a comma-separated list of numbers") from None
 

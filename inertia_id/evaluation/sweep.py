@@ -34,7 +34,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from pydantic import BaseModel
 
-from ..checks import is_integer
+from ..checks import check_seed, is_integer
 from ..errors import InputError
 from ..physics.scenario import Scenario
 from ..physics.simulate import SimulationOverflow, simulate
@@ -349,7 +349,7 @@ def run_sweep(
     if ceiling_realisations is None:
         ceiling_realisations = limit_realisations
     ceiling_realisations = check_ceiling_realisations(ceiling_realisations)
-    streams = np.random.SeedSequence(seed).spawn(len(noises) * len(multiples))
+    streams = np.random.SeedSequence(check_seed(seed)).spawn(len(noises) * len(multiples))
     limit_streams = np.random.SeedSequence([seed, 1]).spawn(len(streams))
     limit_points: list[SweepPoint] = []
     sources: list[str] = []
@@ -508,7 +508,7 @@ def run_inertia_sweep(
         for t in between
     ]
     thresholds = classifier.novelty_thresholds()
-    streams = np.random.SeedSequence(seed).spawn(len(bodies))
+    streams = np.random.SeedSequence(check_seed(seed)).spawn(len(bodies))
     document = scenario.model_dump()
     points: list[InertiaPoint] = []
     for i, (body, parameter, tensor) in enumerate(bodies):

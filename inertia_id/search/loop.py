@@ -17,7 +17,7 @@ from typing import Any, TypedDict
 
 import numpy as np
 
-from ..checks import is_integer
+from ..checks import check_seed, is_integer
 from ..errors import InputError
 from ..physics.scenario import Scenario
 from .env import SequenceSearchEnv
@@ -124,7 +124,7 @@ class SearchRun:
         should_stop: Callable[[], bool] | None = None,
     ) -> None:
         self.started = time.perf_counter()
-        self.seed = seed
+        self.seed = check_seed(seed)
         self.n_fresh_draws = n_fresh_draws
         self.progress = progress
         self.should_stop = should_stop

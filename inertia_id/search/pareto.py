@@ -45,7 +45,7 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import is_integer
+from ..checks import check_seed, is_integer
 from ..errors import InputError
 from ..physics.scenario import Scenario
 from ..physics.sequences import BASELINES
@@ -779,6 +779,7 @@ def pareto_search(
     started = time.perf_counter()
     if not is_integer(sequence_length, minimum=1, maximum=50):
         raise InputError(f"sequence_length must be an integer in 1..50, got {sequence_length!r}")
+    seed = check_seed(seed)
     params = check_nsga2_params(nsga2_params)
     check_test_series(fresh_test_series)
     checked = (operator or OperatorSettings()).check(scenario, sequence_length)

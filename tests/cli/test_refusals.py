@@ -5,6 +5,7 @@ failed before its fix)."""
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -168,3 +169,49 @@ def test_running_out_of_memory_is_an_error_saying_so() -> None:
 
     with pytest.raises(click.ClickException, match="out of memory: the sizes asked for"):
         huge()
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "message"),
+    [
+        ("temperature", 0, "calibration.temperature must be a finite number > 0, got 0"),
+        ("temperature", None, "calibration.temperature must be a finite number > 0, got None"),
+        ("scale", -1.0, "novelty_tail.scale must be finite and > 0, got -1.0"),
+    ],
+)
+def test_a_classifier_document_edited_inside_is_refused_by_name(
+    paper: Scenario, field: str, value: object, message: str
+) -> None:
+    # A recomputed checksum vouches for the bytes, not for the figures: before, a
+    # temperature of 0 gave the verdict "ambiguous (nan)".
+    from inertia_id.classifiers.documents import checksum
+    from inertia_id.classifiers.registry import classifier_from_json
+
+    model = train_classifier(
+        paper, SEQUENCE, 3, np.random.default_rng(0), kind="nearest-centroid", metric="euclidean"
+    )
+    document = json.loads(model.to_json())
+    payload = document["classifier"]
+    if field == "temperature":
+        payload["calibration"] = {**(payload.get("calibration") or {}), "temperature": value}
+    else:
+        payload["novelty_tail"][field] = value
+    document["sha256"] = checksum(payload)
+    with pytest.raises(InputError, match=re.escape(message)):
+        classifier_from_json(json.dumps(document))
+
+
+def test_a_negative_seed_from_python_is_named(paper: Scenario) -> None:
+    from inertia_id.search import random_search
+
+    with pytest.raises(InputError, match="seed must be a whole number >= 0, got -1"):
+        random_search(paper, sequence_length=1, total_timesteps=4, seed=-1)
+
+
+def test_an_empty_multiple_is_refused() -> None:
+    from inertia_id.cli.options import parse_multiples
+
+    # Before, "1,,2" was read as [1.0, 2.0].
+    with pytest.raises(InputError, match="'1,,2' has an empty item"):
+        parse_multiples("1,,2")
+    assert parse_multiples("1, 2") == [1.0, 2.0]
