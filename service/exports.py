@@ -97,12 +97,11 @@ def _mean(values: Any) -> float | None:
 # Search.
 
 
-def _best_label(method: Any, objective: str) -> str:
-    """What the best sequence's ``f1`` holds: NSGA-II's is the noise model's predicted
-    accuracy at the design noise (no draw made it); the others score the search's draw."""
-    if method == "nsga2":
-        return "best_predicted_accuracy_design_noise"
-    return f"best_{'f1' if objective == 'f1' else 'separability'}_search_draw"
+def _best_label(result: Mapping[str, Any]) -> str:
+    """What the best sequence's ``f1`` holds (:func:`_score_name`): NSGA-II's prediction
+    (no draw made it), or the score on the search's draw."""
+    score = _score_name(result)
+    return f"best_{score}" if result.get("method") == "nsga2" else f"best_{score}_search_draw"
 
 
 def _confirmation_rows(result: Mapping[str, Any]) -> list[tuple[str, Any]]:
@@ -145,7 +144,7 @@ def _search_summary(result: Mapping[str, Any]) -> Table:
         # only scores the best sequence's fresh draws (the fresh_f1 rows).
         ("objective", "operator objectives" if result.get("method") == "nsga2" else objective),
         ("best_sequence", best.get("sequence")),
-        (_best_label(result.get("method"), objective), best.get("f1")),
+        (_best_label(result), best.get("f1")),
         *_best_rate_rows(result.get("method"), best),
         ("fuel_nms", best.get("fuel_nms")),
         *_confirmation_rows(result),
