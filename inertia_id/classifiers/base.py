@@ -369,6 +369,7 @@ class BaseClassifier(BaseEstimator):
             state gives the same model.
         """
         self._check_params()
+        scenario.check_distinguishable()
         self._fit_simulated(scenario, scenario.check_sequence(sequence), n_realisations, rng)
         # The posterior's novelty tail and temperature from fresh draws of a fixed seed
         # (the caller's rng untouched): training distances are in-sample, or, for the

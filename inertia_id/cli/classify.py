@@ -339,8 +339,11 @@ def _telemetry_files(given: tuple[str, ...]) -> list[str]:
     paths: list[str] = []
     for entry in given:
         if os.path.isdir(entry):
+            # Regular files only: a named pipe would be waited on for good.
             found = sorted(
-                str(p) for p in Path(entry).iterdir() if p.suffix.lower() in (".csv", ".json")
+                str(p)
+                for p in Path(entry).iterdir()
+                if p.suffix.lower() in (".csv", ".json") and p.is_file()
             )
             if not found:
                 raise InputError(f"folder {entry!r} holds no .csv or .json telemetry")

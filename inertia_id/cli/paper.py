@@ -6,6 +6,7 @@ from typing import Any
 
 import click
 
+from ..errors import InputError
 from ..pipelines import SweepRequest
 from .options import (
     LazyChoice,
@@ -87,6 +88,19 @@ def paper_cmd(
     search = None
     if sequence_text is None and search_method != "none":
         search = search_request(search_method, **search_options)
+    else:
+        # Search settings given with no search to apply them to are a mistake to say.
+        context = click.get_current_context()
+        given = [
+            name
+            for name in search_options
+            if context.get_parameter_source(name) is click.core.ParameterSource.COMMANDLINE
+        ]
+        if given:
+            why = "--sequence is given" if sequence_text is not None else "--search is none"
+            flags = {param.name: param.opts[0] for param in context.command.params}
+            options = ", ".join(flags.get(name, name) for name in given)
+            raise InputError(f"{options}: search settings, but no search runs ({why})")
     bars: list[Any] = []
 
     def search_progress(report: SearchProgress) -> None:

@@ -8,6 +8,7 @@ quotes the value that broke the rule.
 from __future__ import annotations
 
 import math
+from itertools import combinations
 from typing import Any, Self
 
 import numpy as np
@@ -231,6 +232,8 @@ class Thrusters(_Model):
             raise InputError(f"torque_matrix_nm has non-finite entries: {_fmt(arr)}")
         if arr.shape[1] > 64:
             raise InputError(f"torque_matrix_nm has {arr.shape[1]} thrusters; at most 64")
+        if not np.any(arr):
+            raise InputError("torque_matrix_nm is all zeros: no thruster gives any torque")
         return value
 
     @model_validator(mode="after")
@@ -435,6 +438,22 @@ class Scenario(_Model):
         if duplicates:
             raise InputError(f"candidate names must be unique; repeated: {duplicates}")
         return value
+
+    def check_distinguishable(self) -> None:
+        """Refuse candidates with the same tensor: no rate response tells them apart, so
+        a classifier of them cannot be trained (a scenario holding them is still valid,
+        as the two-body scenarios a sweep of bodies off the candidates builds).
+
+        :raises InputError: naming the first such pair.
+        """
+        candidates = self.inertia_candidates
+        tensors = [np.asarray(c.inertia_kg_m2, dtype=float) for c in candidates]
+        for i, j in combinations(range(len(candidates)), 2):
+            if np.array_equal(tensors[i], tensors[j]):
+                raise InputError(
+                    f"candidates {candidates[i].name!r} and {candidates[j].name!r} have the "
+                    "same inertia tensor: no rate response tells them apart"
+                )
 
     @model_validator(mode="after")
     def _disturbance_grid(self) -> Self:

@@ -215,3 +215,39 @@ def test_an_empty_multiple_is_refused() -> None:
     with pytest.raises(InputError, match="'1,,2' has an empty item"):
         parse_multiples("1,,2")
     assert parse_multiples("1, 2") == [1.0, 2.0]
+
+
+def test_a_scenario_whose_candidates_cannot_be_told_apart_is_refused() -> None:
+    document = Scenario.paper().model_dump(mode="json")
+    document["candidate_generator"] = None
+    document["inertia_candidates"][1]["inertia_kg_m2"] = document["inertia_candidates"][0][
+        "inertia_kg_m2"
+    ]
+    same = Scenario.model_validate(document)
+    with pytest.raises(InputError, match="'none ejected' and 'payload 1 ejected' have the same"):
+        train_classifier(same, SEQUENCE, 3, np.random.default_rng(0), kind="least-squares")
+    silent = Scenario.paper().model_dump(mode="json")
+    silent["thrusters"]["torque_matrix_nm"] = [[0.0] * 6] * 3
+    with pytest.raises(ValueError, match="all zeros: no thruster gives any torque"):
+        Scenario.model_validate(silent)
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--search", "none", "--design-noise", "6,1"], "--design-noise: search settings"),
+        (["--sequence", "4,4,4,0,0,0", "--cem", "population=3"], "(--sequence is given)"),
+    ],
+)
+def test_paper_refuses_search_settings_when_no_search_runs(args: list[str], message: str) -> None:
+    assert message in refused(["paper", *args])
+
+
+def test_a_named_pipe_in_a_telemetry_folder_is_not_waited_on(tmp_path: Path) -> None:
+    import os
+
+    from inertia_id.cli.classify import _telemetry_files
+
+    (tmp_path / "a.csv").write_text("time_s,wx_rad_s,wy_rad_s,wz_rad_s\n")
+    os.mkfifo(tmp_path / "pipe.csv")
+    assert _telemetry_files((str(tmp_path),)) == [str(tmp_path / "a.csv")]
