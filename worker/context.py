@@ -191,7 +191,12 @@ class JobContext:
         return self.cancelled or self.lost
 
     def beat(self) -> None:
-        """One heartbeat: the job's and this worker's."""
+        """One heartbeat: this worker's, then the job's.
+
+        In that order: a hand-back (:func:`~service.store.jobs.hand_back`) locks the
+        worker's row, then its jobs'; a heartbeat that locked the job's row first and the
+        worker's second deadlocked against it on PostgreSQL, and the stopping worker's job
+        was left running for the reaper (seen in a graceful-restart test)."""
         with self._db.session() as session:
-            heartbeat(session, self.spec.id, self.spec.attempt)
             touch_worker(session, self.worker_name, broker_label(self.settings))
+            heartbeat(session, self.spec.id, self.spec.attempt)

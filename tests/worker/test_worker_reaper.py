@@ -5,9 +5,11 @@ from __future__ import annotations
 import base64
 import json
 import re
+import time
 from datetime import timedelta
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
+import pytest
 from celery import Celery
 
 from service.queue import RUN_JOB_TASK, make_celery
@@ -245,3 +247,69 @@ def test_touch_worker_inserts_then_moves_last_seen(store: Store) -> None:
         assert row is not None
         assert row.started_at == started and row.last_seen_at > seen
         assert row.broker_url == "redis://127.0.0.1:6379/0"
+
+
+def test_a_heartbeat_during_a_hand_back_does_not_deadlock(
+    store: Store, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A job's heartbeat and its worker's hand-back take the same rows in the same order.
+
+    The heartbeat locked the job's row, then the worker's; the hand-back the worker's,
+    then the job's: on PostgreSQL the two deadlocked, and the stopping worker's job was
+    left running (a graceful-restart test caught it). Here the heartbeat stops after its
+    first statement, holding that row, while a hand-back starts; then it goes on.
+    """
+    import threading
+    from types import SimpleNamespace
+
+    import worker.context as context_module
+
+    worker = "w1@host"
+    with store.db.session() as session:
+        touch_worker(session, worker, "filesystem://")
+    job_id = store.add_job(status="running", worker=worker, attempts=1, heartbeat_at=utcnow())
+    paused, resume = threading.Event(), threading.Event()
+
+    def pausing(real: Any) -> Any:
+        def first_statement_then_wait(*args: Any, **kwargs: Any) -> Any:
+            done = real(*args, **kwargs)
+            if not paused.is_set():
+                paused.set()
+                resume.wait(10)
+            return done
+
+        return first_statement_then_wait
+
+    monkeypatch.setattr(context_module, "touch_worker", pausing(context_module.touch_worker))
+    monkeypatch.setattr(context_module, "heartbeat", pausing(context_module.heartbeat))
+    beating = SimpleNamespace(
+        _db=store.db,
+        spec=SimpleNamespace(id=job_id, attempt=1),
+        worker_name=worker,
+        settings=store.settings,
+    )
+    errors: list[BaseException] = []
+
+    def run(work: Any) -> threading.Thread:
+        def guarded() -> None:
+            try:
+                work()
+            except BaseException as exc:  # a deadlock victim's OperationalError
+                errors.append(exc)
+
+        thread = threading.Thread(target=guarded)
+        thread.start()
+        return thread
+
+    beat = run(lambda: context_module.JobContext.beat(beating))  # type: ignore[arg-type]
+    assert paused.wait(10)
+    back = run(
+        lambda: hand_back_jobs(store.settings, store.db, make_celery(store.settings), worker)
+    )
+    time.sleep(1.5)  # the hand-back is now waiting on the row the heartbeat holds
+    resume.set()
+    beat.join(30)
+    back.join(30)
+    assert errors == []
+    job = store.job(job_id)
+    assert job.status == "queued" and job.handbacks == 1
