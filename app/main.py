@@ -51,6 +51,13 @@ def _warm_up_core() -> None:
     in scikit-learn: a second or two); a request that needs a module still loading waits
     for that import, and the kernels are compiled (or loaded from numba's cache) here,
     never inside a request.
+
+    Compiling calls ``ast.parse`` (numba's array-expression lowering), and CPython
+    3.11.0-3.11.7 fails one of two ASTs built at once in two threads (gh-106905). No
+    request path of the API parses Python source (checked with ``ast.parse`` traced
+    during a cold start under requests), and numba compiles under its own global lock;
+    the test suite compiles the kernels before it collects (``tests/conftest.py``), as
+    pytest parses every test module it imports.
     """
     started = time.perf_counter()
     try:

@@ -20,6 +20,26 @@ from inertia_id.physics.presets import NOISE_OFF
 ZERO_UNCERTAINTY: dict[str, Any] = {**NOISE_OFF, "lowpass_time_constant_s": 0.0}
 
 
+def pytest_sessionstart(session: pytest.Session) -> None:
+    """Import the core and compile its numba kernels here, in the main thread, before
+    collection.
+
+    An app's lifespan starts a warm-up thread that does the same (``app.main``), and
+    ``tests/api/test_schemathesis.py`` starts one while it is collected. On a fresh clone
+    (no numba cache) that thread compiled for tens of seconds while pytest parsed the
+    next test modules, and CPython 3.11.0-3.11.7 cannot build two ASTs at once in two
+    threads (gh-106905, fixed in 3.11.8): numba's array-expression lowering and
+    ``inspect.signature`` of builtins both call ``ast.parse``, and the collection of
+    ``tests/search/test_pareto.py`` failed with "SystemError: AST constructor recursion
+    depth mismatch" in CI. With the kernels compiled and the modules imported here, an
+    app's warm-up thread finds them ready and parses nothing.
+    """
+    import inertia_id.search  # noqa: F401  (what the app's warm-up imports)
+    from inertia_id import warm_up
+
+    warm_up()
+
+
 @pytest.fixture(scope="session")
 def paper() -> Scenario:
     """The paper preset (5 candidates, 6 thrusters, 5 levels) started from rest with an
