@@ -60,7 +60,8 @@ def _noises() -> tuple[str, ...]:
     "--kind",
     default=None,
     type=LazyChoice(_kinds),
-    help="marginal-likelihood (the default: closest to the limit), clustering (the paper's; "
+    help="marginal-likelihood (the default: closest to the sweeps' ceiling, at most 3 points "
+    "short in bench/classifier_ceiling.py), clustering (the paper's; "
     "the default when only --metric is given), nearest-centroid, 1nn, minirocket, "
     "likelihood or least-squares (the physics baseline).",
 )

@@ -42,7 +42,15 @@ from collections.abc import Callable
 from datetime import UTC, datetime, timedelta
 
 import numpy as np
-from pydantic import BaseModel, Field, PrivateAttr, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    PrivateAttr,
+    StrictFloat,
+    field_validator,
+    model_validator,
+)
 
 from ..errors import InputError
 
@@ -133,9 +141,16 @@ class Telemetry(BaseModel):
     Give the stamps as ``time_s`` (seconds in any clock, or ISO-8601 UTC strings) or as
     ``time_utc`` (ISO-8601 UTC strings). ``sequence_start`` is the actuation sequence's
     start in the stamps' clock; see the module docstring for when it may be left out.
+
+    Numbers must be JSON numbers: ``true`` read as 1 rad/s or ``"0.1"`` as a rate is a
+    mistake in the export, refused by position, and so is a key that is none of these
+    fields (a misspelt ``sequence_start`` would otherwise be dropped and the stamps read
+    from another start).
     """
 
-    time_s: list[float | str] | None = Field(
+    model_config = ConfigDict(extra="forbid")
+
+    time_s: list[StrictFloat | str] | None = Field(
         default=None,
         max_length=MAX_TELEMETRY_SAMPLES,
         description="time stamps: seconds in the telemetry's clock, or ISO-8601 UTC strings",
@@ -145,12 +160,12 @@ class Telemetry(BaseModel):
         max_length=MAX_TELEMETRY_SAMPLES,
         description=f"time stamps as ISO-8601 UTC strings, e.g. {_ISO_EXAMPLE!r}",
     )
-    omega_rad_s: list[list[float]] = Field(
+    omega_rad_s: list[list[StrictFloat]] = Field(
         max_length=MAX_TELEMETRY_SAMPLES,
         description="body rates, rad/s, one row of 3 per stamp; each value finite and at "
         f"most {MAX_TELEMETRY_RATE_RAD_S:g} rad/s in magnitude",
     )
-    sequence_start: float | str | None = Field(
+    sequence_start: StrictFloat | str | None = Field(
         default=None,
         description="start of the actuation sequence in the stamps' clock: seconds, or an "
         "ISO-8601 UTC string; may be left out for seconds stamps that start near 0",
@@ -158,6 +173,18 @@ class Telemetry(BaseModel):
     # Seconds from the sequence start, computed once by the validator (a tuple, so that
     # two telemetries compare equal by value).
     _offsets_s: tuple[float, ...] = PrivateAttr(default=())
+
+    @model_validator(mode="before")
+    @classmethod
+    def _known_keys(cls, data: object) -> object:
+        if isinstance(data, dict):
+            unknown = [str(k) for k in data if k not in cls.model_fields]
+            if unknown:
+                raise InputError(
+                    f"telemetry has unknown key(s) {', '.join(map(repr, unknown))}; its keys "
+                    f"are {', '.join(cls.model_fields)}"
+                )
+        return data
 
     @field_validator("time_s")
     @classmethod

@@ -557,6 +557,8 @@ def _digits_body(found: str) -> str:
         ("no sample within the sequence", "0 sample(s) within the sequence"),
         ("an integer of 5,000 digits", "request body is not acceptable JSON"),
         ("arrays nested 100,000 deep", "request body is not acceptable JSON"),
+        ("a misspelt sequence_start", "unknown key(s) 'sequence_strat'"),
+        ("a rate given as true", "Input should be a valid number"),
     ],
 )
 def test_telemetry_a_client_got_wrong_is_a_422_naming_it(
@@ -588,6 +590,10 @@ def test_telemetry_a_client_got_wrong_is_a_422_naming_it(
         telemetry = {**telemetry, "time_s": (times * 1e9).tolist(), "sequence_start": 0.0}
     elif case == "no sample within the sequence":
         telemetry = {**telemetry, "time_s": (times * 50 + 4.0).tolist()}
+    elif case == "a misspelt sequence_start":
+        telemetry = {**telemetry, "time_s": (times + 4.0).tolist(), "sequence_strat": 4.0}
+    elif case == "a rate given as true":
+        telemetry["omega_rad_s"][3][1] = True
     if case.startswith("an integer"):
         refused = api.post_raw_json("/identify", _digits_body(found))
     elif case.startswith("arrays"):
@@ -596,3 +602,5 @@ def test_telemetry_a_client_got_wrong_is_a_422_naming_it(
         refused = api.post("/identify", json={"classifier_id": found, "telemetry": telemetry})
     assert refused.status_code == 422, refused.text
     assert fragment in refused.json()["detail"][0]["msg"], refused.text
+    if case == "a rate given as true":
+        assert refused.json()["detail"][0]["loc"][-3:] == ["omega_rad_s", 3, 1], refused.text

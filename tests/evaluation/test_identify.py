@@ -293,6 +293,30 @@ def test_parsed_csv_identifies_like_the_arrays(
         ("[[0, 0, 0, 0]]", "auto", r"must be an object with time_s and omega_rad_s"),
         ("0,0,0,0\n1,0,0,0", "xml", r"format must be json, csv or auto, got 'xml'"),
         ("time_s,wx,wy,wz\n", "auto", r"at least 2 samples, got 0"),
+        # A misspelt key was dropped, and the stamps read from another start.
+        (
+            '{"time_s": [5, 6], "omega_rad_s": [[0, 0, 0], [0, 0, 0]], "sequence_strat": 5}',
+            "json",
+            r"unknown key\(s\) 'sequence_strat'; its keys are time_s, time_utc, omega_rad_s, "
+            r"sequence_start",
+        ),
+        # true was read as 1 rad/s (57 deg/s), a quoted number as a rate.
+        (
+            '{"time_s": [0, 1], "omega_rad_s": [[true, 0, 0], [0, 0, 0]]}',
+            "json",
+            r"omega_rad_s\.0\.0",
+        ),
+        (
+            '{"time_s": [0, 1], "omega_rad_s": [[0, 0, 0], [0, "0.1", 0]]}',
+            "json",
+            r"omega_rad_s\.1\.1",
+        ),
+        ('{"time_s": [0, true], "omega_rad_s": [[0, 0, 0], [0, 0, 0]]}', "json", r"time_s\.1"),
+        (
+            '{"time_s": [0, 1], "omega_rad_s": [[0, 0, 0], [0, 0, 0]], "sequence_start": false}',
+            "json",
+            r"sequence_start",
+        ),
     ],
 )
 def test_bad_telemetry_text_is_rejected(text: str, fmt: str, match: str) -> None:
