@@ -332,6 +332,13 @@ class TrainRequest(_Request):
         if cls.METRICS:
             options["metric"] = self.metric or cls.METRICS[0]
             if self.sakoe_chiba_radius is not None:
+                if options["metric"] != "dtw":
+                    # The band only constrains dtw: with another metric it was dropped
+                    # without a word and the classifier trained unconstrained.
+                    raise InputError(
+                        f"a DTW band (sakoe_chiba_radius {self.sakoe_chiba_radius!r}) applies "
+                        f"to metric 'dtw' only, not {options['metric']!r}"
+                    )
                 options["sakoe_chiba_radius"] = self.sakoe_chiba_radius
         elif self.metric is not None:
             raise InputError(f"the {kind!r} classifier takes no metric, got {self.metric!r}")

@@ -61,6 +61,14 @@ def test_a_train_request_resolves_kind_realisations_and_options() -> None:
         TrainRequest(GOOD_SEQUENCE, kind="likelihood", metric="dtw").resolved()
     with pytest.raises(InputError, match=r"takes no DTW band, got 2"):
         TrainRequest(GOOD_SEQUENCE, kind="least-squares", sakoe_chiba_radius=2).resolved()
+    # The band constrains dtw only; with euclidean or softdtw it was dropped silently.
+    for kind, metric in (
+        ("clustering", "euclidean"),
+        ("clustering", "softdtw"),
+        ("1nn", "euclidean"),
+    ):
+        with pytest.raises(InputError, match=rf"applies to metric 'dtw' only, not '{metric}'"):
+            TrainRequest(GOOD_SEQUENCE, kind=kind, metric=metric, sakoe_chiba_radius=3).resolved()
 
 
 def test_a_search_request_gives_each_method_its_own_options() -> None:

@@ -134,6 +134,16 @@ def simulate_cmd(
     from ..evaluation.telemetry import parse_sequence_start
     from ..physics.simulate import simulate
 
+    if telemetry is None:
+        # These shape the telemetry file only: without one they were dropped silently.
+        context = click.get_current_context()
+        given = [
+            f"--{name.replace('_', '-')}"
+            for name in ("candidate", "realisation", "time_offset")
+            if context.get_parameter_source(name) is not click.core.ParameterSource.DEFAULT
+        ]
+        if given:
+            raise InputError(f"{', '.join(given)} apply with --telemetry only")
     scenario = load_scenario(preset_name, scenario_path)
     offset = parse_sequence_start(time_offset)
     sequence, coast_s = _with_coast(scenario, parse_sequence(sequence_text), pre_start_s)

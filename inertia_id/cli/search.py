@@ -358,6 +358,11 @@ def search_cmd(
     """
     import numpy as np
 
+    from ..errors import InputError
+
+    if policy_path is not None and method != "ppo":
+        # Only PPO trains a policy: the file was silently never written.
+        raise InputError(f"--policy applies to --method ppo only, not {method!r}")
     scenario = load_scenario(preset_name, scenario_path)
     request = search_request(method, max_sequences=max_sequences, **options)
     from ..search.objectives import check_constraints

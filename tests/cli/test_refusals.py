@@ -251,3 +251,27 @@ def test_a_named_pipe_in_a_telemetry_folder_is_not_waited_on(tmp_path: Path) -> 
     (tmp_path / "a.csv").write_text("time_s,wx_rad_s,wy_rad_s,wz_rad_s\n")
     os.mkfifo(tmp_path / "pipe.csv")
     assert _telemetry_files((str(tmp_path),)) == [str(tmp_path / "a.csv")]
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        # Options that shape one output only, given without it: each was dropped silently.
+        (["simulate", "-n", "1", "--candidate", "2"], "--candidate apply with --telemetry only"),
+        (
+            ["simulate", "-n", "1", "--realisation", "0", "--time-offset", "100"],
+            "--realisation, --time-offset apply with --telemetry only",
+        ),
+        (["search", "--method", "cem", "--policy", "p.zip"], "--policy applies to --method ppo"),
+        (
+            ["train", "--kind", "clustering", "--metric", "euclidean", "--band", "3"],
+            "applies to metric 'dtw' only, not 'euclidean'",
+        ),
+    ],
+)
+def test_an_option_that_would_be_ignored_is_refused(
+    args: list[str], message: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    assert message in refused(args)
+    assert list(tmp_path.iterdir()) == []  # nothing simulated or searched, nothing written
