@@ -209,13 +209,18 @@ def sweep_cmd(
 ) -> None:
     """Accuracy of a trained classifier as each source of error grows, beside others."""
     from ..classifiers.registry import load_classifier
+    from ..errors import InputError
     from ..pipelines import sweep_with_limit
 
+    other_specs = tuple(s.strip() for s in others.split(",") if s.strip())
+    if not other_specs:
+        # An empty list meant 'none' without saying so; a misquoted shell variable reads so.
+        raise InputError(f"--others names none, got {others!r}: give specs, or 'none'")
     model = load_classifier(classifier_path)
     request = SweepRequest(
         multiples=parse_multiples(multiples),
         noises=noises or None,
-        others=tuple(s.strip() for s in others.split(",") if s.strip() and s.strip() != "none"),
+        others=tuple(s for s in other_specs if s != "none"),
         ceiling_realisations=ceiling_realisations,
         limit_realisations=limit_realisations,
         n_train=n_train,

@@ -232,11 +232,20 @@ def search_request(
             raise InputError(
                 f"--design-noise takes 'process,measurement' pairs, got {design_noise!r}"
             )
+    from ..search.objectives import OPERATOR_OBJECTIVES
+
+    names = SearchRequest.default("objectives")
+    if objectives is not None:
+        names = tuple(s.strip() for s in objectives.split(",") if s.strip())
+        if not names:
+            # An empty list read as the default front before.
+            raise InputError(
+                f"--objectives names none, got {objectives!r}: give one or more of "
+                f"{', '.join(OPERATOR_OBJECTIVES)}"
+            )
     return SearchRequest(
         nsga2=parse_pairs(nsga2_pairs, "--nsga2", "generations=30"),
-        objectives=tuple(s.strip() for s in objectives.split(",") if s.strip())
-        if objectives
-        else SearchRequest.default("objectives"),
+        objectives=names,
         design_noise=pairs,
         constraints=parse_pairs(constraint_pairs, "--constraint", "max_final_rate_deg_s=0.2"),
         constraint_penalty=constraint_penalty,

@@ -267,6 +267,10 @@ def test_a_named_pipe_in_a_telemetry_folder_is_not_waited_on(tmp_path: Path) -> 
             ["train", "--kind", "clustering", "--metric", "euclidean", "--band", "3"],
             "applies to metric 'dtw' only, not 'euclidean'",
         ),
+        # An empty list read as the default front, and as no other classifiers.
+        (["search", "--method", "nsga2", "--objectives", " , "], "--objectives names none"),
+        # (Any existing file as the classifier: the list is checked before it is read.)
+        (["sweep", "--classifier", __file__, "--others", ""], "--others names none, got ''"),
     ],
 )
 def test_an_option_that_would_be_ignored_is_refused(
