@@ -11,7 +11,6 @@ and steps are numbered from 1, as on the dashboard and in the report.
 
 from __future__ import annotations
 
-import csv
 import io
 import json
 from collections.abc import Callable, Mapping, Sequence
@@ -72,15 +71,36 @@ def _note(value: Any) -> str:
     return " ".join(str(_cell(value)).splitlines())
 
 
+def _field(value: Any) -> str:
+    """One CSV field: RFC 4180 quoting, and a ``#`` quoted too.
+
+    Written here, not by :mod:`csv`: its minimal quoting never quotes ``#``, and a reader
+    told that ``#`` starts a comment (``pandas.read_csv(path, comment="#")``, as these
+    files are read for their notes) cut an unquoted candidate name such as ``config #2``
+    there and shifted the rest of its row.
+    """
+    text = str(value)
+    if any(c in text for c in ',"\r\n#') or text != text.strip():
+        return '"' + text.replace('"', '""') + '"'
+    return text
+
+
+def _line(values: Sequence[Any]) -> str:
+    fields = [_field(_cell(v)) for v in values]
+    if fields == [""]:
+        fields = ['""']  # a lone empty field, not a blank line that readers skip
+    return ",".join(fields) + "\n"
+
+
 def to_csv(table: Table) -> str:
-    """The table as CSV text (RFC 4180 quoting, ``\\n`` line ends), its notes first."""
+    """The table as CSV text (RFC 4180 quoting, a ``#`` in a field quoted as well, ``\\n``
+    line ends), its notes first."""
     out = io.StringIO()
     for name, value in table.notes:
         out.write(f"# {name}: {_note(value)}\n")
-    writer = csv.writer(out, lineterminator="\n")
-    writer.writerow([_cell(name) for name in table.header])  # headers can hold names
+    out.write(_line(table.header))  # headers can hold names
     for row in table.rows:
-        writer.writerow([_cell(v) for v in row])
+        out.write(_line(row))
     return out.getvalue()
 
 

@@ -88,3 +88,30 @@ def test_text_is_made_safe_for_csv_files() -> None:
     assert lines[0] == '# names: ["\'-x","y"]'
     rows = list(csv.reader(io.StringIO("\n".join(lines[1:]))))
     assert rows == [["name", "'=evil"], ["'=1+1", "-0.5"], ["ok", ""]]
+
+
+def test_an_export_read_with_hash_comments_keeps_a_name_holding_a_hash() -> None:
+    """Exports are read for their ``# name: value`` notes with ``comment="#"``: a candidate
+    named ``config #2`` was cut there, and its row lost its figures (a hostile review)."""
+    import csv
+    import io
+
+    import pandas as pd
+
+    from service.exports import Table, to_csv
+
+    names = ["stowed", "config #2 boom out", 'say "#3", gone']
+    text = to_csv(
+        Table(
+            ["candidate", "distance", f"predicted_{names[1]}"],
+            [[name, float(k), k] for k, name in enumerate(names)],
+            [("candidates", names)],
+        )
+    )
+    frame = pd.read_csv(io.StringIO(text), comment="#")
+    assert list(frame.columns) == ["candidate", "distance", f"predicted_{names[1]}"]
+    assert frame["candidate"].tolist() == names
+    assert frame["distance"].tolist() == [0.0, 1.0, 2.0]
+    rows = list(csv.reader(line for line in text.splitlines() if not line.startswith("# ")))
+    assert rows[1:] == [[name, f"{float(k)!r}", str(k)] for k, name in enumerate(names)]
+    assert to_csv(Table(["only"], [[""]])).splitlines() == ["only", '""']
