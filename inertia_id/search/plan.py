@@ -212,6 +212,7 @@ class CommandPlan:
         # newline or a comma in one cannot end the line or start a spreadsheet cell.
         out.write(f"# scenario: {csv_note_text(self.scenario_name)}\n")
         out.write(f"# step_duration_s: {self.step_duration_s:g}\n")
+        out.write(f"# attitude_quaternion: {document['attitude_quaternion_convention']}\n")
         out.write(f"# impulse_nms: {self.impulse_nms:.6g}\n")
         out.write(f"# on_time_s: {propellant['on_time_s']:.6g}\n")
         kg = self.propellant_kg
@@ -243,6 +244,11 @@ class CommandPlan:
                 f", peak_rate_rad_s {candidate['peak_rate_rad_s']:.6g}"
                 f", peak_rate_deg_s {candidate['peak_rate_deg_s']:.6g}"
                 f", attitude_change_deg {candidate['attitude_change_deg']:.6g}"
+                # The JSON's quaternion too (the README promises it in both forms).
+                + "".join(
+                    f", attitude_quaternion_{part} {value:.9g}"
+                    for part, value in zip("wxyz", candidate["attitude_quaternion"], strict=True)
+                )
                 + (
                     ""
                     if self.dispersion is None

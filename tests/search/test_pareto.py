@@ -241,7 +241,12 @@ def test_the_plans_on_times_reproduce_the_simulated_impulse(paper: Scenario) -> 
     commanded = result.commanded_torque_nm[0, 0] * quiet.timing.step_duration_s  # (L, 3)
     assert np.allclose(on_time @ quiet.torque_matrix.T, commanded)
     csv_text = plan.to_csv()
-    assert csv_text.count("\n") == 5 + 5 + 1 + 3
+    assert csv_text.count("\n") == 6 + 5 + 1 + 3
+    # The final attitude quaternion, as in the JSON (it was in the JSON only).
+    line = next(x for x in csv_text.splitlines() if x.startswith("# candidate_2 "))
+    quaternion = [float(line.split(f"attitude_quaternion_{p} ")[1].split(",")[0]) for p in "wxyz"]
+    assert quaternion == pytest.approx(document["candidates"][1]["attitude_quaternion"], abs=1e-8)
+    assert "# attitude_quaternion: (w, x, y, z), scalar first" in csv_text
     table = [line.split(",") for line in csv_text.splitlines() if not line.startswith("#")]
     header, first = table[0], dict(zip(table[0], table[1], strict=True))
     # Numbered from 1 like every other table of the service: step 1, thruster 1.
@@ -277,18 +282,18 @@ def test_a_plans_csv_keeps_names_in_their_line_and_cell(paper: Scenario) -> None
     table = pd.read_csv(io.StringIO(text), comment="#")
     assert table.shape == (2, 3 + 2 * 6 + 3 + 5 * 6) and list(table["step"]) == [1, 2]
     notes = [line for line in text.splitlines() if line.startswith("#")]
-    assert len(notes) == 5 + 1 + 5  # totals, flights, one line a candidate
+    assert len(notes) == 6 + 1 + 5  # totals and conventions, flights, one line a candidate
     scenario_note = notes[0].removeprefix("# scenario: ")
     assert json.loads(scenario_note) == named.name
-    candidate_note = notes[7].removeprefix("# candidate_2 ").split(": residual_rate")[0]
+    candidate_note = notes[8].removeprefix("# candidate_2 ").split(": residual_rate")[0]
     assert json.loads(candidate_note) == named.candidate_names[1]
     # No comma inside a name: a spreadsheet keeps it in the cell the "#" starts.
-    assert "=HYPERLINK" in notes[7] and ",=" not in notes[7]
+    assert "=HYPERLINK" in notes[8] and ",=" not in notes[8]
     # Every rate in deg/s beside rad/s, single flights too.
-    for note in notes[6:]:
+    for note in notes[7:]:
         rad = [w for w in note.replace(",", "").split() if w.endswith("_rad_s")]
         assert rad and all(w.replace("_rad_s", "_deg_s") in note for w in rad), note
-    assert "peak_rate_p95_bound_max_deg_s" in notes[5] and "end_rate_deg_s" in notes[6]
+    assert "peak_rate_p95_bound_max_deg_s" in notes[6] and "end_rate_deg_s" in notes[7]
 
 
 def test_a_plan_flies_the_sequence_and_states_how_single_flights_spread(paper: Scenario) -> None:
@@ -343,7 +348,7 @@ def test_a_plan_flies_the_sequence_and_states_how_single_flights_spread(paper: S
     peak = document["flights"]["peak_rate_p95_bound_max_rad_s"]
     assert f"; peak_rate_p95_bound_max_rad_s {peak:.6g}; " in flights_line
     assert flights_line.endswith(f"peak_rate_p95_bound_max_deg_s {np.degrees(peak):.6g}")
-    assert "flights_residual_rate_p95_rad_s" in csv_text.splitlines()[6]
+    assert "flights_residual_rate_p95_rad_s" in csv_text.splitlines()[7]
     # Same seed, same figures.
     assert command_plan(paper, sequence, flights=400, seed=4).to_dict() == document
     for bad in (1, -1, 2.5, True, MAX_FLIGHTS + 1):
