@@ -166,7 +166,8 @@ def _search_summary(result: Mapping[str, Any]) -> Table:
         ("best_sequence", best.get("sequence")),
         (_best_label(result), best.get("f1")),
         *_best_rate_rows(result.get("method"), best),
-        ("fuel_nms", best.get("fuel_nms")),
+        # The JSON's fuel_nms: commanded angular impulse, not propellant (a mass).
+        ("impulse_nms", best.get("fuel_nms")),
         *_confirmation_rows(result),
         ("fresh_f1_mean", fresh.get("f1_mean")),
         ("fresh_f1_min", fresh.get("f1_min")),
@@ -267,7 +268,7 @@ def _search_baselines(result: Mapping[str, Any]) -> Table:
         "fresh_f1_mean",
         "fresh_f1_min",
         "fresh_end_rate_rad_s_mean",
-        "fuel_nms",
+        "impulse_nms",
         "levels",
         "unavailable",
     ]
@@ -565,10 +566,32 @@ def _sweep_notes(result: Mapping[str, Any], job: Mapping[str, Any]) -> list[tupl
     ]
 
 
+def _search_notes(result: Mapping[str, Any], job: Mapping[str, Any]) -> list[tuple[str, Any]]:
+    """What every table of a search carries as ``#`` lines: how it was asked for, so that
+    a front's ``feasible`` column can be read against its constraints and a table handed
+    on says where it came from."""
+    params = job.get("params") or {}
+    names = (
+        "method",
+        "sequence_length",
+        "objective",
+        "objectives",
+        "design_noise",
+        "constraints",
+        "n_realisations",
+        "fresh_realisations",
+        "fresh_test_series",
+    )
+    return [
+        ("job_seed", job.get("seed")),
+        *((name, params.get(name)) for name in names if name in params),
+    ]
+
+
 #: Every job type's tables, first the default: name -> (what it holds, how it is made).
 RESULT_TABLES: dict[str, dict[str, tuple[str, Callable[[Mapping[str, Any]], Table]]]] = {
     "search": {
-        "summary": ("best sequence, its scores, fuel and the search's cost", _search_summary),
+        "summary": ("best sequence, its scores, impulse and the search's cost", _search_summary),
         "curve": ("the learning curve, one row per point", _search_curve),
         "sequence": ("the best sequence, one row per step, a level per thruster", _search_sequence),
         "baselines": (
@@ -600,6 +623,7 @@ RESULT_TABLES: dict[str, dict[str, tuple[str, Callable[[Mapping[str, Any]], Tabl
 #: The job-wide facts every table of a type carries as ``#`` lines, from the result and
 #: the job (its ``seed`` and ``params``).
 _JOB_NOTES: dict[str, Callable[[Mapping[str, Any], Mapping[str, Any]], list[tuple[str, Any]]]] = {
+    "search": _search_notes,
     "sweep": _sweep_notes,
 }
 

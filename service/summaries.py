@@ -48,7 +48,7 @@ SUMMARY_COLUMNS: dict[str, tuple[SummaryColumn, ...]] = {
         SummaryColumn("design_accuracy", "accuracy at the design noise", "", "high"),
         SummaryColumn("search_score", "score on the search's draw", "", "high"),
         SummaryColumn("residual_rate_rad_s", "residual rate (settled)", "rad/s", "low", 4),
-        SummaryColumn("fuel_nms", "propellant (impulse)", "N m s", "low", 1),
+        SummaryColumn("fuel_nms", "commanded impulse", "N m s", "low", 1),
         SummaryColumn("wall_time_s", "search time", "s", "low", 1),
         SummaryColumn("timesteps", "environment steps", "", "low", 0),
     ),

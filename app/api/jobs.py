@@ -481,7 +481,7 @@ def download_result(
         )
     except InputError as exc:
         unprocessable(("query", "table"), str(exc))
-    name = table or "table"
+    name = table or next(iter(RESULT_TABLES.get(job.type, {})), "table")  # the default's
     if format == "json":
         records = json.dumps(to_records(rendered), indent=1, allow_nan=False)
         return _download(records, "application/json", f"{stem}-{name}.json")

@@ -315,7 +315,16 @@ def test_a_search_result_downloads_as_json_and_as_each_csv_table(api: Api) -> No
     sequence = _csv(api.get(f"/jobs/{job_id}/result?format=csv&table=sequence").text)
     assert sequence[0] == ["step", *(f"thruster_{j}_level" for j in range(1, 7))]
     assert sequence[1] == ["1", "4", "4", "4", "0", "0", "0"]
-    summary = dict(_csv(api.get(f"/jobs/{job_id}/result?format=csv").text)[1:])
+    default = api.get(f"/jobs/{job_id}/result?format=csv")
+    # The default table is named for what it is (it was "search-…-table.csv").
+    assert f'filename="search-{job_id[:8]}-summary.csv"' in default.headers["content-disposition"]
+    summary = dict(_csv(default.text)[1:])
+    # Every search table says how the search was asked for (only sweeps' did).
+    notes = _notes(default.text)
+    assert notes["method"] == "cem" and notes["sequence_length"] == "4" and "job_seed" in notes
+    assert notes["constraints"] == "{}" and notes == _notes(curve.text)
+    # Commanded impulse, named so: not "fuel", and not propellant (a mass).
+    assert summary["impulse_nms"] == "20.0" and not any("fuel" in key for key in summary)
     # The separability search's score is labelled as such, not as an F1.
     assert summary["best_separability_search_draw"] == "1.0"
     assert summary["fresh_f1_mean"] == "0.9"
@@ -332,6 +341,7 @@ def test_a_search_result_downloads_as_json_and_as_each_csv_table(api: Api) -> No
     ]
     # A baseline the length does not allow says why it has no figures.
     assert baselines[0][-1] == "unavailable" and baselines[1][-1] == baselines[2][-1] == ""
+    assert baselines[0][4] == "impulse_nms"
     assert baselines[3][-1] == "fire, coast, brake needs at least 3 steps, got 2"
 
     bad = api.get(f"/jobs/{job_id}/result", params={"format": "csv", "table": "ranking"})
