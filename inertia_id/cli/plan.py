@@ -76,6 +76,7 @@ def plan_cmd(
     """Write the command plan of a sequence: per step and thruster the on-time (PWM, s),
     the commanded torque, each candidate's predicted rates (rad/s and deg/s), residual
     rate and attitude change, and the propellant figures."""
+    from ..checks import csv_note_text
     from ..errors import InputError
     from ..search.plan import command_plan
     from .options import parse_sequence
@@ -96,13 +97,27 @@ def plan_cmd(
         assert sequence_text is not None
         sequence = parse_sequence(sequence_text)
     plan = command_plan(scenario, sequence, flights=flights, seed=seed)
+    # Where the sequence came from, as the API's plan states it (scenario, job, member):
+    # a plan handed on can be traced to its search and member.
+    source: dict[str, object] = {}
+    if search_path is not None:
+        source = {
+            "search": str(Path(search_path).resolve()),
+            "member": "best" if member is None else member,
+        }
+    document = {"source": source, **plan.to_dict()} if source else plan.to_dict()
     if out == "-":
-        click.echo(_strict_json(plan.to_dict()))
+        click.echo(_strict_json(document))
         return
     if out.lower().endswith(".csv"):
-        Path(out).write_text(plan.to_csv(), encoding="utf-8")
+        # The path is the user's text: a JSON string, so a comma or newline stays put.
+        lines = "".join(
+            f"# {key}: {csv_note_text(str(value)) if key == 'search' else value}\n"
+            for key, value in source.items()
+        )
+        Path(out).write_text(lines + plan.to_csv(), encoding="utf-8")
     else:
-        Path(out).write_text(_strict_json(plan.to_dict()) + "\n", encoding="utf-8")
+        Path(out).write_text(_strict_json(document) + "\n", encoding="utf-8")
     summary = plan.to_dict()
     click.echo(
         f"wrote {out}: {len(plan.sequence)} steps, impulse {plan.impulse_nms:.2f} N m s, "

@@ -135,6 +135,11 @@ def test_plan_of_a_search_uses_the_scenario_searched(runner: CliRunner, tmp_path
     search.write_text(json.dumps(_search_document([[4, 0, 0, 0, 0, 0]], weak.model_dump())))
     plan, _ = run_cli_json(["plan", "--search", str(search), "--member", "0"], tmp_path / "p.json")
     assert plan["scenario"] == "weak"
+    # It says where it came from, as the API's plan does (its job and member).
+    assert plan["source"] == {"search": str(search.resolve()), "member": 0}
+    run_cli(["plan", "--search", str(search), "--out", str(tmp_path / "p.csv")])
+    notes = (tmp_path / "p.csv").read_text().splitlines()[:2]
+    assert notes == [f"# search: {json.dumps(str(search.resolve()))}", "# member: best"]
     assert plan["steps"][0]["torque_nm"][0] == pytest.approx(paper.torque_matrix[0, 0] / 2)
     # A scenario named beside it must be the searched one.
     refused = runner.invoke(main, ["plan", "--search", str(search), "--preset", "paper"])
