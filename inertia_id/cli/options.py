@@ -248,13 +248,26 @@ def seed_option(func: F) -> F:
     )(func)
 
 
+#: File name endings that promise a format other than JSON.
+OTHER_FORMATS = (".csv", ".tsv", ".npz", ".npy", ".zip", ".xlsx", ".parquet", ".h5", ".pkl")
+
+
+def _json_file_name(context: click.Context, param: click.Parameter, value: str | None) -> Any:
+    """A JSON output named for another format (``res.csv``) is refused: JSON text was
+    written into it, and a reader given the name failed or misread it."""
+    if value is not None and value.lower().endswith(OTHER_FORMATS):
+        raise click.BadParameter(f"this command writes JSON; name the file .json, got {value!r}")
+    return value
+
+
 def out_option(default: str | None, help_text: str, *, folder: bool = False) -> Callable[[F], F]:
-    """``--out`` (or ``--out-dir``): where a command writes."""
+    """``--out`` (or ``--out-dir``): where a command writes (a file: JSON)."""
     return click.option(
         "--out-dir" if folder else "--out",
         default=default,
         show_default=default is not None,
         type=click.Path(dir_okay=folder, file_okay=not folder),
+        callback=None if folder else _json_file_name,
         help=help_text,
     )
 

@@ -134,6 +134,9 @@ def simulate_cmd(
     from ..evaluation.telemetry import parse_sequence_start
     from ..physics.simulate import simulate
 
+    if out is not None and not out.lower().endswith((".npz", ".json")):
+        # JSON text went into s.csv or S.NPZ.
+        raise InputError(f"--out writes .npz (arrays) or .json, got {out!r}")
     if telemetry is None:
         # These shape the telemetry file only: without one they were dropped silently.
         context = click.get_current_context()
@@ -187,8 +190,16 @@ def simulate_cmd(
             "applied_torque_nm": result.applied_torque_nm,
             "sequence": result.sequence,
         }
-        if out.endswith(".npz"):
-            np.savez_compressed(out, **arrays)  # type: ignore[arg-type]
+        if out.lower().endswith(".npz"):
+            # The names and figures the JSON carries, beside the arrays.
+            # An open file: numpy adds ".npz" to a name that ends ".NPZ".
+            with open(out, "wb") as handle:
+                np.savez_compressed(
+                    handle,
+                    **arrays,  # type: ignore[arg-type]
+                    candidate_names=np.array(result.candidate_names),
+                    impulse_nms=np.array(result.impulse_nms),
+                )
         else:
             Path(out).write_text(
                 json.dumps({**summary, **{k: v.tolist() for k, v in arrays.items()}}),

@@ -267,6 +267,10 @@ def test_a_named_pipe_in_a_telemetry_folder_is_not_waited_on(tmp_path: Path) -> 
             ["train", "--kind", "clustering", "--metric", "euclidean", "--band", "3"],
             "applies to metric 'dtw' only, not 'euclidean'",
         ),
+        # JSON text was written into a file named for another format.
+        (["simulate", "-n", "1", "--out", "s.csv"], "--out writes .npz (arrays) or .json"),
+        (["search", "--out", "r.csv"], "this command writes JSON; name the file .json"),
+        (["train", "--out", "c.NPZ"], "got 'c.NPZ'"),
         # An empty list read as the default front, and as no other classifiers.
         (["search", "--method", "nsga2", "--objectives", " , "], "--objectives names none"),
         # (Any existing file as the classifier: the list is checked before it is read.)
@@ -279,3 +283,16 @@ def test_an_option_that_would_be_ignored_is_refused(
     monkeypatch.chdir(tmp_path)
     assert message in refused(args)
     assert list(tmp_path.iterdir()) == []  # nothing simulated or searched, nothing written
+
+
+def test_simulate_writes_arrays_to_an_npz_name_in_any_case_with_the_names(tmp_path: Path) -> None:
+    """``S.NPZ`` got JSON text (the check was case-sensitive), and numpy would have added
+    ".npz" to the name; the arrays now come with the candidates' names and the impulse."""
+    out = tmp_path / "S.NPZ"
+    result = CliRunner().invoke(main, ["simulate", "-n", "2", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["S.NPZ"]
+    with np.load(out) as arrays:
+        assert arrays["omega_measured_rad_s"].shape[:2] == (5, 2)
+        assert list(arrays["candidate_names"]) == Scenario.paper().candidate_names
+        assert float(arrays["impulse_nms"]) == 24.0
