@@ -290,10 +290,11 @@ def _at_rate(scenario: Any, rate_hz: float) -> Any:
 
 def _write_telemetry(path: str, time_s: Any, omega: Any, offset: float | str | None) -> None:
     """Telemetry CSV: time_s (plus a numeric offset) or time_utc (from an ISO start)."""
-    from datetime import datetime, timedelta
+    from datetime import UTC, datetime, timedelta
 
     if isinstance(offset, str):
-        origin = datetime.fromisoformat(offset)
+        # In UTC, as the column's name says, whatever offset the start was given with.
+        origin = datetime.fromisoformat(offset).astimezone(UTC)
         stamps = [
             (origin + timedelta(microseconds=round(1e6 * t))).isoformat().replace("+00:00", "Z")
             for t in time_s

@@ -560,3 +560,13 @@ def test_telemetry_from_before_the_start_is_written_and_used(
     refused = runner.invoke(main, ["simulate", "--pre-start", "2.5", "--telemetry", "x.csv"])
     assert refused.exit_code == 1
     assert "--pre-start 2.5 s is not a whole number of the scenario's 1 s steps" in refused.output
+
+
+def test_telemetry_stamps_from_a_start_with_an_offset_are_written_in_utc(tmp_path: Path) -> None:
+    """The column is time_utc: a start given at +02:00 gave stamps at +02:00 under it."""
+    telemetry = tmp_path / "t.csv"
+    start = "2025-03-01T14:00:00+02:00"
+    run_cli(["simulate", "-n", "1", "--time-offset", start, "--telemetry", str(telemetry)])
+    lines = telemetry.read_text().splitlines()
+    assert lines[0].startswith("time_utc,") and lines[1].startswith("2025-03-01T12:00:00.050000Z,")
+    assert all(line.split(",")[0].endswith("Z") for line in lines[1:])
