@@ -371,7 +371,10 @@ def test_a_search_curve_gains_points_while_ppo_runs(dashboard: Dashboard) -> Non
     ]
     with page.expect_download() as download:
         page.click("#job-downloads a[data-download='CSV: curve']")
-    saved = Path(download.value.path()).read_text(encoding="utf-8").splitlines()
+    text = Path(download.value.path()).read_text(encoding="utf-8").splitlines()
+    # How the search was asked for first, as "# name: value" lines; then the table.
+    assert text[0] == f"# job_seed: {job['seed']}" and "# method: ppo" in text
+    saved = [line for line in text if not line.startswith("# ")]
     assert saved[0].startswith("timesteps,episodes,mean_episode_reward")
     assert len(saved) == 1 + len(curve)
     # The hand-designed baselines, scored on the same fresh draws as the best sequence.
@@ -918,7 +921,7 @@ def test_compare_searches_on_one_table_and_on_the_curves(dashboard: Dashboard) -
     page.wait_for_function("() => document.getElementById('compare-reward')?.data?.length === 2")
     page.wait_for_function("() => document.getElementById('compare-reward').data[0].x.length > 1")
     header = page.inner_text("#compare-table thead")
-    for label in ("fresh F1 (mean)", "residual rate", "propellant", "search time"):
+    for label in ("fresh F1 (mean)", "residual rate", "commanded impulse", "search time"):
         assert label in header
     rows = page.locator("#compare-table tbody tr")
     assert rows.count() == 2
@@ -1160,6 +1163,8 @@ def test_a_pareto_front_is_drawn_beside_the_baselines_and_a_member_plans_and_tra
     with page.expect_download() as download:
         page.click("#front-downloads a[data-download='CSV']")
     lines = Path(download.value.path()).read_text(encoding="utf-8").splitlines()
+    assert "# method: nsga2" in lines  # the search's settings, then the table
+    lines = [line for line in lines if not line.startswith("# ")]
     assert lines[0].startswith("kind,member,accuracy,final_rate_rad_s,final_rate_deg_s")
     assert len(lines) == 1 + len(members) + len(available)
     dashboard.screenshot("search-front")
