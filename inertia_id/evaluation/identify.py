@@ -5,8 +5,8 @@ actuation sequence the classifier was trained for in that clock
 (:class:`~inertia_id.evaluation.telemetry.Telemetry`). It is resampled onto the
 classifier's sample grid (averaged when faster, interpolated when slower:
 :func:`~inertia_id.evaluation.telemetry.resample`) and compared with every candidate;
-telemetry slower than the grid whose samples fall on it is compared on its measured grid
-points only by the likelihood kinds (the exact Gaussian marginal of those values:
+telemetry slower than the grid is compared at its samples' nearest grid points
+only by the likelihood kinds (the exact Gaussian marginal of those values:
 :func:`~inertia_id.evaluation.telemetry.resample_observed`).
 
 The verdict is a posterior: a probability for each candidate and one for "none of

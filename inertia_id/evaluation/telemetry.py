@@ -513,12 +513,21 @@ def resample_observed(telemetry: Telemetry, grid_s: np.ndarray) -> tuple[np.ndar
     """:func:`resample`'s series and which grid times hold a real measurement, (len(grid),)
     booleans.
 
-    Telemetry slower than the grid whose every sample within the sequence falls on a
-    grid time (within :data:`ON_GRID_TOLERANCE` of the grid period: 10 Hz or 1 Hz on a
-    20 Hz grid) marks those grid times only: the others are interpolated, not measured,
-    and their noise is not the classifier's, so a likelihood kind evaluates the exact
-    Gaussian marginal of the measured ones. Otherwise (telemetry as fast as the grid or
-    faster, averaged; or samples off the grid) every grid time counts, as before.
+    Telemetry slower than the grid (10 Hz or 1 Hz on a 20 Hz grid) marks, for each of
+    its samples within the sequence, the grid time nearest to it (at most half a grid
+    period away), and those only: the others are interpolated between samples, not
+    measured, and their noise is not the classifier's, so a likelihood kind evaluates
+    the exact Gaussian marginal of the measured ones. A sample off its grid time is read
+    there from the linear interpolation, within half a grid period of the sample (on
+    the paper preset under thrust, at most about 0.8 mrad/s off at a full half period,
+    0.3 mrad/s at 10 ms). Telemetry as fast as the grid or faster is averaged into every
+    grid time, and every grid time counts.
+
+    Before, one sample more than :data:`ON_GRID_TOLERANCE` of a period off its grid time
+    made every grid time count: 1 Hz stamps a millisecond off, with a sample a second
+    before the start, counted 80 values interpolated across the thrusters' start as 80
+    measurements, and the verdicts were confidently wrong (helper-22's review; 11 of 20
+    on the paper preset, ``tests/evaluation/test_observed.py``).
     """
     series = resample(telemetry, grid_s)
     return series, _observed(telemetry.time_array, np.asarray(grid_s, dtype=float))
@@ -529,11 +538,12 @@ def _observed(t: np.ndarray, grid_s: np.ndarray) -> np.ndarray:
     everything = np.ones(len(grid_s), dtype=bool)
     if float(np.median(np.diff(t))) <= step * (1.0 + ON_GRID_TOLERANCE):
         return everything
-    tolerance = ON_GRID_TOLERANCE * step
-    inside = t[(t >= grid_s[0] - tolerance) & (t <= grid_s[-1] + tolerance)]
-    index = np.rint((inside - grid_s[0]) / step).astype(np.int64)
-    if inside.size == 0 or np.any(np.abs(inside - grid_s[index]) > tolerance):
+    # Each sample's nearest grid time, for the samples within half a period of the grid.
+    half = 0.5 * step
+    inside = t[(t >= grid_s[0] - half) & (t < grid_s[-1] + half)]
+    if inside.size == 0:
         return everything
+    index = np.clip(np.rint((inside - grid_s[0]) / step).astype(np.int64), 0, len(grid_s) - 1)
     observed = np.zeros(len(grid_s), dtype=bool)
     observed[index] = True
     return observed
