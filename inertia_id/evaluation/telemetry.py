@@ -651,9 +651,15 @@ def estimate_sequence_start(
     *,
     window_s: float,
     step_s: float | None = None,
+    tried: list[float] | None = None,
 ) -> tuple[float, np.ndarray]:
     """The shift of the sequence start, within ``±window_s``, whose resampled series
     scores lowest, and that series.
+
+    A shift the telemetry does not cover (the resampling's coverage rules: telemetry
+    that ends at the sequence's end allows no later start than a grid period or so) is
+    not tried; ``tried`` receives the shifts that were, so that a caller can say when
+    the window searched was narrower than the one asked for.
 
     :param telemetry: telemetry with its nominal sequence start.
     :param grid_s: the classifier's grid, s from the sequence start.
@@ -661,6 +667,7 @@ def estimate_sequence_start(
         distance to the nearest candidate).
     :param window_s: the true start lies within this of the nominal one, s.
     :param step_s: the search step, s (default the grid period).
+    :param tried: a list the shifts tried are appended to, s (in increasing order).
     :returns: (shift, s: the estimated start is the nominal one plus this; the series).
     """
     if not (math.isfinite(window_s) and window_s >= 0):
@@ -687,6 +694,8 @@ def estimate_sequence_start(
             refusal = refusal or exc
             continue
         cost = float(score(series))
+        if tried is not None:
+            tried.append(float(shift))
         if best is None or cost < best[0]:
             best = (cost, float(shift), series)
     if best is None:

@@ -474,6 +474,14 @@ def test_identify_iso_stamps_and_an_estimated_start(
     verdict = json.loads(early.stdout)
     assert verdict["sequence_start_shift_s"] == pytest.approx(0.2, abs=0.051)
     assert verdict["candidate"] == "payload 2 ejected"
+    # The telemetry ends 0.2 s after the sequence: no earlier start than about 0.2 s
+    # late could be tried, and a narrower window than asked for is said, not kept quiet.
+    low, high = verdict["sequence_start_shifts_tried_s"]
+    assert low > 0.1 and high <= 0.3 and low <= verdict["sequence_start_shift_s"] <= high
+    assert "could be tried, not ±0.3 s" in early.stderr
+    # A window the telemetry covers to within a grid period: nothing to say.
+    near = [*base, "--sequence-start", "2025-03-01T12:00:00Z", "--estimate-start-within", "0.05"]
+    assert "warning" not in run_cli(near).stderr
     wrong = runner.invoke(main, [*base, "--sequence-start", "noon"])
     assert wrong.exit_code != 0
     assert "sequence_start = 'noon' is not an ISO-8601 UTC time stamp" in wrong.output
