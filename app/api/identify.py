@@ -310,6 +310,10 @@ async def _from_form(
                     "sequence_start is given both as a form field and in the query; give it once",
                 )
             start = _query_start(field_start, "body")
+        averaged = form.get("averaged")
+        if isinstance(averaged, str) and averaged.lower() not in ("", "true", "false"):
+            unprocessable(("body", "averaged"), f"averaged must be true or false, got {averaged!r}")
+        is_averaged = isinstance(averaged, str) and averaged.lower() == "true"
         if not isinstance(classifier_id, str) or not classifier_id:
             unprocessable(("body", "classifier_id"), "form field classifier_id is required")
         if upload is None:
@@ -321,14 +325,15 @@ async def _from_form(
         unprocessable(("body", "file"), f"telemetry file is not UTF-8 text: {exc}")
     try:
         with refused_at(("body", "file")):
-            return classifier_id, parse_telemetry(text, sequence_start=start), options
+            telemetry = parse_telemetry(text, sequence_start=start, averaged=is_averaged)
+            return classifier_id, telemetry, options
     except csv.Error as exc:
         # The core's CSV reader lets this through, e.g. for a lone carriage return in a row.
         unprocessable(("body", "file"), f"telemetry is not valid CSV: {exc}")
 
 
 _FORM_FIELDS = frozenset(
-    {"classifier_id", "file", "confidence", "pre_start_window_s", "sequence_start"}
+    {"averaged", "classifier_id", "file", "confidence", "pre_start_window_s", "sequence_start"}
 )
 
 _MULTIPART_SCHEMA = {
@@ -342,6 +347,11 @@ _MULTIPART_SCHEMA = {
             "type": "string",
             "description": "start of the sequence in the telemetry's clock: seconds, or "
             "ISO-8601 UTC (or ?sequence_start=, not both)",
+        },
+        "averaged": {
+            "type": "boolean",
+            "description": "true when each rate is the mean over the interval since the "
+            "previous sample, stamped at its end (an integrating or delta-angle gyro)",
         },
         "file": {
             "type": "string",

@@ -290,6 +290,14 @@ def sweep_cmd(
     "the gyro bias there and the noise level; the default classifier conditions on them "
     "[default: 30; 0 ignores them].",
 )
+@click.option(
+    "--averaged-gyro",
+    "averaged",
+    is_flag=True,
+    help="Each rate is the mean over the interval since the previous sample, stamped at its "
+    "end (an integrating or delta-angle gyro): read it at the interval's midpoint. Without "
+    "it a rate is read as instantaneous at its stamp.",
+)
 @friendly_errors
 def identify_cmd(
     classifier_path: str,
@@ -298,6 +306,7 @@ def identify_cmd(
     sequence_start: str | None,
     start_window_s: float | None,
     pre_start_window_s: float | None,
+    averaged: bool,
 ) -> None:
     """Classify telemetry to a candidate inertia, or say it matches none.
 
@@ -321,12 +330,14 @@ def identify_cmd(
     if pre_start_window_s is not None:
         options["pre_start_window_s"] = pre_start_window_s
     if len(paths) == 1 and not any(os.path.isdir(p) for p in (*telemetry_paths, *inputs)):
-        write_json(None, _identify_file(classifier, paths[0], start, start_window_s, options))
+        write_json(
+            None, _identify_file(classifier, paths[0], start, start_window_s, options, averaged)
+        )
         return
     failed = 0
     for path in paths:
         try:
-            verdict = _identify_file(classifier, path, start, start_window_s, options)
+            verdict = _identify_file(classifier, path, start, start_window_s, options, averaged)
             line = {"path": path, **verdict}
         except (InputError, ValidationError, OSError, UnicodeDecodeError) as exc:
             failed += 1
@@ -365,11 +376,12 @@ def _identify_file(
     start: float | str | None,
     window_s: float | None,
     options: dict[str, Any],
+    averaged: bool = False,
 ) -> dict[str, Any]:
     from ..evaluation.identify import identify
     from ..evaluation.telemetry import estimate_sequence_start, load_telemetry
 
-    telemetry = load_telemetry(path, sequence_start=start)
+    telemetry = load_telemetry(path, sequence_start=start, averaged=averaged)
     if window_s is None:
         return identify(classifier, telemetry, **options).model_dump(mode="json")
     grid = classifier.scenario_.sample_times(len(classifier.sequence_))

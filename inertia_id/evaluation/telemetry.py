@@ -47,6 +47,7 @@ from pydantic import (
     ConfigDict,
     Field,
     PrivateAttr,
+    StrictBool,
     StrictFloat,
     field_validator,
     model_validator,
@@ -170,6 +171,12 @@ class Telemetry(BaseModel):
         description="start of the actuation sequence in the stamps' clock: seconds, or an "
         "ISO-8601 UTC string; may be left out for seconds stamps that start near 0",
     )
+    averaged: StrictBool = Field(
+        default=False,
+        description="true when each rate is the mean over the interval since the previous "
+        "sample, stamped at its end (an integrating or delta-angle gyro): each is then read "
+        "at its interval's midpoint; false: instantaneous rates at their stamps",
+    )
     # Seconds from the sequence start, computed once by the validator (a tuple, so that
     # two telemetries compare equal by value).
     _offsets_s: tuple[float, ...] = PrivateAttr(default=())
@@ -279,6 +286,14 @@ class Telemetry(BaseModel):
                 "telemetry of this sequence: are the stamps in seconds (not milli- or "
                 "nanoseconds), and is the start right?"
             )
+        if self.averaged:
+            # The mean of a rate over an interval is its value at the midpoint where the
+            # rate is linear in time, as under constant thrust. Read at the stamp (its
+            # interval's end), a 1 Hz delta-angle gyro was identified confidently wrong
+            # (12 of 15 on a reviewer's Basilisk flights; 0 wrong read at the midpoints).
+            # The first sample's interval is taken as long as the second's.
+            widths = np.diff(offsets)
+            offsets = offsets - 0.5 * np.concatenate([widths[:1], widths])
         self._offsets_s = tuple(offsets.tolist())
         return self
 
@@ -349,7 +364,11 @@ class Telemetry(BaseModel):
 
 
 def parse_telemetry(
-    text: str, *, fmt: str = "auto", sequence_start: float | str | None = None
+    text: str,
+    *,
+    fmt: str = "auto",
+    sequence_start: float | str | None = None,
+    averaged: bool = False,
 ) -> Telemetry:
     """Parse telemetry from JSON or CSV text.
 
@@ -361,6 +380,8 @@ def parse_telemetry(
 
     :param sequence_start: the sequence start (seconds or ISO-8601 UTC); overrides one
         in a JSON document.
+    :param averaged: each rate is the mean over the interval since the previous sample,
+        stamped at its end (:attr:`Telemetry.averaged`); true overrides a JSON document's.
     """
     text = text.strip()
     if fmt == "auto":
@@ -377,6 +398,8 @@ def parse_telemetry(
             raise InputError("telemetry JSON must be an object with time_s and omega_rad_s")
         if sequence_start is not None:
             data["sequence_start"] = sequence_start
+        if averaged:
+            data["averaged"] = True
         return Telemetry.model_validate(data)
     if fmt != "csv":
         raise InputError(f"telemetry format must be json, csv or auto, got {fmt!r}")
@@ -415,9 +438,14 @@ def parse_telemetry(
         omegas.append(values)
     if times and all(isinstance(v, str) for v in times):
         return Telemetry(
-            time_utc=[str(v) for v in times], omega_rad_s=omegas, sequence_start=sequence_start
+            time_utc=[str(v) for v in times],
+            omega_rad_s=omegas,
+            sequence_start=sequence_start,
+            averaged=averaged,
         )
-    return Telemetry(time_s=times, omega_rad_s=omegas, sequence_start=sequence_start)
+    return Telemetry(
+        time_s=times, omega_rad_s=omegas, sequence_start=sequence_start, averaged=averaged
+    )
 
 
 _TIME_NAME = re.compile(r"^(?:t|time|timestamp|utc|time_utc)(?:[_ ]*[(\[]?\s*s(?:ec)?\s*[)\]]?)?$")
@@ -487,7 +515,10 @@ def _iso(cell: str) -> bool:
 
 
 def load_telemetry(
-    path: str | os.PathLike[str], *, sequence_start: float | str | None = None
+    path: str | os.PathLike[str],
+    *,
+    sequence_start: float | str | None = None,
+    averaged: bool = False,
 ) -> Telemetry:
     """Read telemetry from a .json or .csv file (see :func:`parse_telemetry`)."""
     from ..checks import read_text
@@ -495,7 +526,10 @@ def load_telemetry(
     text = read_text(path, "telemetry as CSV or JSON")
     suffix = os.fspath(path).lower().rsplit(".", 1)[-1]
     return parse_telemetry(
-        text, fmt=suffix if suffix in ("json", "csv") else "auto", sequence_start=sequence_start
+        text,
+        fmt=suffix if suffix in ("json", "csv") else "auto",
+        sequence_start=sequence_start,
+        averaged=averaged,
     )
 
 

@@ -82,6 +82,37 @@ def test_csv_upload_identifies_the_candidate(
     assert result["distances"] == pytest.approx(as_json["distances"])
 
 
+def test_an_averaging_gyro_is_said_in_the_json_or_the_form(
+    api: Api, classifier_id: str, flight: SimulationResult
+) -> None:
+    """``averaged``: each rate the mean over the interval before its stamp. JSON and CSV
+    say it the same way, and anything but true or false is refused by name."""
+    means = flight.omega_measured[1, 0].reshape(4, 20, 3).mean(axis=1)
+    stamps = [1.0, 2.0, 3.0, 4.0]
+    body = {"time_s": stamps, "omega_rad_s": means.tolist(), "averaged": True}
+    as_json = api.post("/identify", json={"classifier_id": classifier_id, "telemetry": body})
+    assert as_json.status_code == 200, as_json.text
+    text = csv_text(np.array(stamps), means)
+    form = api.post(
+        "/identify",
+        data={"classifier_id": classifier_id, "averaged": "true"},
+        files={"file": ("t.csv", text)},
+    )
+    assert form.status_code == 200, form.text
+    assert form.json()["distances"] == pytest.approx(as_json.json()["distances"])
+    assert form.json()["candidate"] == as_json.json()["candidate"]
+    read_at_stamps = api.post(
+        "/identify", data={"classifier_id": classifier_id}, files={"file": ("t.csv", text)}
+    )
+    assert read_at_stamps.json()["distances"] != pytest.approx(as_json.json()["distances"])
+    bad = api.post(
+        "/identify",
+        data={"classifier_id": classifier_id, "averaged": "yes"},
+        files={"file": ("t.csv", text)},
+    )
+    assert bad.status_code == 422 and "averaged must be true or false, got 'yes'" in bad.text
+
+
 def test_classifier_is_cached(api: Api, classifier_id: str, flight: SimulationResult) -> None:
     # The verdict process keeps the classifier; the API remembers only its checksum.
     verdicts = api.app.state.verdicts

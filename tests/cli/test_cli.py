@@ -578,3 +578,25 @@ def test_telemetry_stamps_from_a_start_with_an_offset_are_written_in_utc(tmp_pat
     lines = telemetry.read_text().splitlines()
     assert lines[0].startswith("time_utc,") and lines[1].startswith("2025-03-01T12:00:00.050000Z,")
     assert all(line.split(",")[0].endswith("Z") for line in lines[1:])
+
+
+def test_identify_reads_an_averaging_gyro_at_its_intervals_midpoints(
+    tmp_path: Path, small_classifier: Path
+) -> None:
+    """--averaged-gyro: each rate the mean over the second before its stamp, read at the
+    interval's midpoint (the same telemetry read at its stamps is another series)."""
+    telemetry = tmp_path / "t.csv"
+    _simulate_telemetry(telemetry, "2")
+    import numpy as np
+
+    rows = np.loadtxt(telemetry, delimiter=",", skiprows=1)
+    means = rows[:, 1:].reshape(4, 20, 3).mean(axis=1)
+    lines = ["time_s,wx,wy,wz"] + [
+        f"{k + 1}.0," + ",".join(f"{v:.10g}" for v in row) for k, row in enumerate(means)
+    ]
+    telemetry.write_text("\n".join(lines) + "\n")
+    base = ["identify", "--classifier", str(small_classifier), str(telemetry)]
+    averaged = json.loads(run_cli([*base, "--averaged-gyro"]).stdout)
+    at_stamps = json.loads(run_cli(base).stdout)
+    assert averaged["distances"] != pytest.approx(at_stamps["distances"])
+    assert averaged["candidate"] == "payload 2 ejected"
