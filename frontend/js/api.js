@@ -76,10 +76,12 @@ export async function request(method, path, { json, form, query, key = null, raw
   return data;
 }
 
-function identifyForm(classifierId, file, { confidence } = {}) {
+function identifyForm(classifierId, file, { confidence, averaged } = {}) {
   const form = new FormData();
   form.set("classifier_id", classifierId);
   if (confidence !== undefined && confidence !== null && confidence !== "") form.set("confidence", String(confidence));
+  // An integrating (delta-angle) gyro: each rate the mean over the interval before its stamp.
+  if (averaged) form.set("averaged", "true");
   form.set("file", file);
   return form;
 }

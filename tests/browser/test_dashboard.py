@@ -108,8 +108,9 @@ def _api_verdict(
 ) -> dict[str, Any]:
     """What the service answers for this telemetry, as the page sends it (a form)."""
     form = {"classifier_id": made["classifier"]}
-    if "confidence" in params:
-        form["confidence"] = params.pop("confidence")
+    for field in ("confidence", "averaged"):
+        if field in params:
+            form[field] = params.pop(field)
     response = dashboard.service.client.post(
         path, data=form, files={"file": ("telemetry.csv", text)}, params=params
     )
@@ -632,6 +633,27 @@ def test_identify_telemetry_files_verdict_distances_and_matches_none(
     page.click("#identify-submit")
     error = page.wait_for_selector("#telemetry-text + .field-error")
     assert "3 columns" in error.inner_text() and "expected 4" in error.inner_text()
+
+
+def test_identify_says_the_gyro_averages_when_ticked(dashboard: Dashboard) -> None:
+    """The "averaging gyro" box sends ``averaged=true`` with the telemetry (an integrating
+    gyro's rates are read at their intervals' midpoints): the page shows the service's
+    posterior for that reading, and for the instantaneous one when the box is clear."""
+    _classifier(dashboard)
+    page = dashboard.page
+    _, omega = _flight(Scenario.paper(), 11)
+    # A 1 Hz integrating gyro: each rate the mean over the second before its stamp.
+    text = _csv_text(np.array([1.0, 2.0, 3.0, 4.0]), omega[3].reshape(4, 20, 3).mean(axis=1))
+    dashboard.open(f"#/identify?classifier={made['classifier']}")
+    averaged = _api_verdict(dashboard, text, averaged="true")
+    instantaneous = _api_verdict(dashboard, text)
+    assert _expected_posterior(averaged) != _expected_posterior(instantaneous)
+    page.check("#identify-averaged")
+    _identify(dashboard, text)
+    assert _shown_posterior(dashboard) == _expected_posterior(averaged)
+    page.uncheck("#identify-averaged")
+    _identify(dashboard, text)
+    assert _shown_posterior(dashboard) == _expected_posterior(instantaneous)
 
 
 def test_identify_shows_the_apis_posterior_and_is_green_only_when_identified(

@@ -81,6 +81,7 @@ export async function render(root, context) {
     if (file.files.length) text.value = await file.files[0].text();
   });
   const start = h("input", { type: "text", id: "identify-sequence-start", size: 34, placeholder: "e.g. 810000000.0 or 2025-03-01T12:00:00Z", value: context.query.sequence_start || "" });
+  const averaged = h("input", { type: "checkbox", id: "identify-averaged", checked: context.query.averaged === "true" });
   const confidence = h("input", { type: "number", id: "identify-confidence", min: "0", max: "1", step: "any", value: context.query.confidence || String(DEFAULT_CONFIDENCE) });
   const general = h("div", { id: "identify-errors" });
   const submit = h("button", { type: "submit", id: "identify-submit" }, "Identify");
@@ -99,7 +100,7 @@ export async function render(root, context) {
           return;
         }
         const name = content.trim().startsWith("{") ? "telemetry.json" : "telemetry.csv";
-        const options = { sequenceStart: start.value.trim(), confidence: confidence.value.trim() };
+        const options = { sequenceStart: start.value.trim(), confidence: confidence.value.trim(), averaged: averaged.checked };
         submit.disabled = true;
         try {
           const upload = new File([content], name, { type: "text/plain" });
@@ -107,7 +108,7 @@ export async function render(root, context) {
           const classifier = page.items.find((c) => c.id === select.value);
           await showVerdict(result, verdict, classifier, { content, context, file: upload, options });
         } catch (exc) {
-          showFieldErrors(exc, { file: text, classifier_id: select, sequence_start: start, confidence }, general);
+          showFieldErrors(exc, { file: text, classifier_id: select, sequence_start: start, confidence, averaged }, general);
         } finally {
           submit.disabled = false;
         }
@@ -127,6 +128,8 @@ export async function render(root, context) {
         start,
         h("div", { class: "hint" }, "when the actuation sequence began, in the telemetry's clock: seconds (e.g. mission time 810000000.0) or ISO-8601 UTC (2025-03-01T12:00:00Z). Leave empty when time_s counts from the sequence start."),
       ),
+      h("label", { for: "identify-averaged" }, "averaging gyro"),
+      h("div", {}, averaged, h("span", { class: "hint" }, " each rate is the mean over the interval since the previous sample, stamped at its end (an integrating or delta-angle gyro): read at the interval's midpoint")),
       h("label", { for: "identify-confidence" }, "confidence"),
       h("div", {}, confidence, h("div", { class: "hint" }, "the posterior the most probable candidate needs before it is named (0 to 1, exclusive); below it the verdict is ambiguous")),
       h("label", { for: "telemetry-text", class: "full" }, "or paste telemetry"),
