@@ -350,8 +350,8 @@ _MULTIPART_SCHEMA = {
         },
         "averaged": {
             "type": "boolean",
-            "description": "true when each rate is the mean over the interval since the "
-            "previous sample, stamped at its end (an integrating or delta-angle gyro)",
+            "description": "true when each rate is the mean over one sample period (the "
+            "median spacing) before its stamp (an integrating or delta-angle gyro)",
         },
         "file": {
             "type": "string",

@@ -294,8 +294,8 @@ def sweep_cmd(
     "--averaged-gyro",
     "averaged",
     is_flag=True,
-    help="Each rate is the mean over the interval since the previous sample, stamped at its "
-    "end (an integrating or delta-angle gyro): read it at the interval's midpoint. Without "
+    help="Each rate is the mean over one sample period (the median spacing) before its "
+    "stamp (an integrating or delta-angle gyro): read it half a period earlier. Without "
     "it a rate is read as instantaneous at its stamp.",
 )
 @friendly_errors

@@ -173,9 +173,9 @@ class Telemetry(BaseModel):
     )
     averaged: StrictBool = Field(
         default=False,
-        description="true when each rate is the mean over the interval since the previous "
-        "sample, stamped at its end (an integrating or delta-angle gyro): each is then read "
-        "at its interval's midpoint; false: instantaneous rates at their stamps",
+        description="true when each rate is the mean over one sample period (the median "
+        "spacing) before its stamp (an integrating or delta-angle gyro): each is then read "
+        "at that period's midpoint; false: instantaneous rates at their stamps",
     )
     # Seconds from the sequence start, computed once by the validator (a tuple, so that
     # two telemetries compare equal by value).
@@ -291,9 +291,9 @@ class Telemetry(BaseModel):
             # rate is linear in time, as under constant thrust. Read at the stamp (its
             # interval's end), a 1 Hz delta-angle gyro was identified confidently wrong
             # (12 of 15 on a reviewer's Basilisk flights; 0 wrong read at the midpoints).
-            # The first sample's interval is taken as long as the second's.
-            widths = np.diff(offsets)
-            offsets = offsets - 0.5 * np.concatenate([widths[:1], widths])
+            # The interval is the gyro's sample period (the median spacing), not the gap
+            # before each sample: after a dropped sample the next still averages one period.
+            offsets = offsets - 0.5 * float(np.median(np.diff(offsets)))
         self._offsets_s = tuple(offsets.tolist())
         return self
 
@@ -380,8 +380,8 @@ def parse_telemetry(
 
     :param sequence_start: the sequence start (seconds or ISO-8601 UTC); overrides one
         in a JSON document.
-    :param averaged: each rate is the mean over the interval since the previous sample,
-        stamped at its end (:attr:`Telemetry.averaged`); true overrides a JSON document's.
+    :param averaged: each rate is the mean over one sample period (the median spacing)
+        before its stamp (:attr:`Telemetry.averaged`); true overrides a JSON document's.
     """
     text = text.strip()
     if fmt == "auto":

@@ -213,6 +213,9 @@ def test_an_averaging_gyro_is_read_at_its_intervals_midpoints(paper: Scenario) -
         tallies.append((right, wrong))
     assert tallies[0][1] >= 10  # what it was: confidently wrong
     assert tallies[1] == (20, 0)
+    # A dropped sample: the next still averages one period, not the gap before it.
+    dropped = Telemetry(time_s=[1.0, 2.0, 3.0, 5.0], omega_rad_s=[[0.0] * 3] * 4, averaged=True)
+    assert dropped.time_array.tolist() == [0.5, 1.5, 2.5, 4.5]
     assert Telemetry(
         time_s=stamps, omega_rad_s=[[0.0] * 3] * 4, averaged=True
     ).time_array.tolist() == [

@@ -129,7 +129,7 @@ export async function render(root, context) {
         h("div", { class: "hint" }, "when the actuation sequence began, in the telemetry's clock: seconds (e.g. mission time 810000000.0) or ISO-8601 UTC (2025-03-01T12:00:00Z). Leave empty when time_s counts from the sequence start."),
       ),
       h("label", { for: "identify-averaged" }, "averaging gyro"),
-      h("div", {}, averaged, h("span", { class: "hint" }, " each rate is the mean over the interval since the previous sample, stamped at its end (an integrating or delta-angle gyro): read at the interval's midpoint")),
+      h("div", {}, averaged, h("span", { class: "hint" }, " each rate is the mean over one sample period before its stamp (an integrating or delta-angle gyro): read half a period earlier")),
       h("label", { for: "identify-confidence" }, "confidence"),
       h("div", {}, confidence, h("div", { class: "hint" }, "the posterior the most probable candidate needs before it is named (0 to 1, exclusive); below it the verdict is ambiguous")),
       h("label", { for: "telemetry-text", class: "full" }, "or paste telemetry"),
