@@ -69,7 +69,15 @@ export async function request(method, path, { json, form, query, key = null, raw
   if (!response.ok) {
     const error = errorFrom(response.status, data);
     if (response.status === 401 && key === null) {
-      error.message = `${error.message}: enter the API key (printed by "inertia-id serve" on its first run) at the top right`;
+      // A browser user cannot "send a header": every place that shows the error (a
+      // form's field messages too) says what to do, and a saved key the service refuses
+      // is marked in the key box instead of still reading "saved".
+      const hint = sent
+        ? "the saved API key was refused (a new key?): enter the current one at the top right"
+        : 'enter the API key (printed by "inertia-id serve" on its first run) at the top right';
+      error.message = `${error.message}: ${hint}`;
+      error.errors = error.errors.length ? error.errors.map((e) => ({ ...e, msg: `${e.msg}: ${hint}` })) : [{ loc: [], msg: error.message }];
+      if (sent) window.dispatchEvent(new CustomEvent("api-key-rejected"));
     }
     throw error;
   }

@@ -5,7 +5,7 @@
 // and `context.params` holds the route's parameters and query.
 
 import { api, getApiKey, setApiKey } from "./api.js";
-import { clear, messageBox } from "./ui.js";
+import { messageBox } from "./ui.js";
 import { loadVocabulary } from "./vocabulary.js";
 // Pages never import each other: what two pages share lives in components/ and views/.
 import * as classifiers from "./pages/classifiers.js";
@@ -28,6 +28,19 @@ const ROUTES = [
 ];
 
 let generation = 0;
+let vocabularyLoad = null;
+
+// The vocabulary, read once; a failed read is tried again at the next navigation rather
+// than leaving every link dead until a reload.
+function ensureVocabulary() {
+  if (!vocabularyLoad) {
+    vocabularyLoad = loadVocabulary().catch((exc) => {
+      vocabularyLoad = null;
+      throw exc;
+    });
+  }
+  return vocabularyLoad;
+}
 
 function parseHash() {
   const hash = location.hash.replace(/^#/, "") || "/jobs";
@@ -38,8 +51,11 @@ function parseHash() {
 async function route() {
   const mine = ++generation;
   const { path, query } = parseHash();
-  const root = document.getElementById("page");
-  clear(root);
+  // Each visit draws into a container of its own: a page still awaiting the API when the
+  // user moves on appends to its own container, now detached, and never under the next
+  // page (it used to, buttons and all, after a slow response).
+  const root = document.createElement("div");
+  document.getElementById("page").replaceChildren(root);
   const timers = [];
   const context = {
     query,
@@ -66,13 +82,25 @@ async function route() {
     () => timers.forEach((t) => clearInterval(t)),
     { once: true },
   );
+  try {
+    await ensureVocabulary();
+  } catch (exc) {
+    if (context.alive()) root.append(messageBox("error", `the service's vocabulary could not be read: ${exc.message}. Follow a link or reload the page to try again.`));
+    return;
+  }
+  if (!context.alive()) return;
   for (const [pattern, render, nav] of ROUTES) {
     const match = path.match(pattern);
     if (!match) continue;
     for (const a of document.querySelectorAll("nav a")) {
       a.classList.toggle("active", a.dataset.nav === nav);
     }
-    context.params = match.slice(1).map(decodeURIComponent);
+    try {
+      // A malformed escape (#/jobs/%) is no page, not an uncaught URIError.
+      context.params = match.slice(1).map(decodeURIComponent);
+    } catch {
+      break;
+    }
     try {
       await render(root, context);
     } catch (exc) {
@@ -113,6 +141,8 @@ function keyBox() {
     input.value = "";
     show();
   });
+  window.addEventListener("api-key-rejected", () => show("saved key refused: enter the current one", true));
+  window.addEventListener("api-key-changed", () => show());
   show();
 }
 
@@ -131,16 +161,10 @@ async function health() {
   }
 }
 
-async function start() {
+function start() {
   keyBox();
   health();
   setInterval(health, 10000);
-  try {
-    await loadVocabulary();
-  } catch (exc) {
-    document.getElementById("page").append(messageBox("error", `the service's vocabulary could not be read: ${exc.message}`));
-    return;
-  }
   window.addEventListener("hashchange", route);
   route();
 }

@@ -70,7 +70,9 @@ export function summaryValue(job, column) {
   if (value === null || value === undefined || !Number.isFinite(value)) return "–";
   if (column.digits === 0) return fmt(value);
   const abs = Math.abs(value);
-  return abs !== 0 && abs < 10 ** -column.digits ? value.toExponential(2) : value.toFixed(column.digits);
+  const text = abs !== 0 && abs < 10 ** -column.digits ? value.toExponential(2) : value.toFixed(column.digits);
+  // A flight team reads rates in deg/s: a rad/s figure carries its deg/s beside it.
+  return column.unit === "rad/s" ? `${text} (${fmt((value * 180) / Math.PI, 3)} deg/s)` : text;
 }
 
 // The first two figures with their labels, for lists mixing job types.

@@ -42,6 +42,15 @@ export function layout(xTitle, yTitle, extra = {}) {
   return out;
 }
 
+// Text a user wrote (a candidate, job or scenario name) as Plotly must be given it:
+// Plotly reads its text as markup (<a href>, <span style>, <b>) and a hover template's
+// %{...} as a substitution, so a name could draw a link or hide another label. Entities
+// are what Plotly decodes back to the characters (&#37; for %), so the name shows as
+// written.
+export function plotText(text) {
+  return String(text).replace(/&/g, "&amp;").replace(/</g, "&lt;").replace(/>/g, "&gt;").replace(/%/g, "&#37;");
+}
+
 export function title(text, size = 14) {
   return { text, font: { size }, x: 0, xanchor: "left", xref: "paper" };
 }
@@ -112,10 +121,11 @@ export function responseTraces(response, { only = null, view = "absolute" } = {}
     const color = COLORS[k % COLORS.length];
     AXES.forEach((axis, a) => {
       const yaxis = a === 0 ? "y" : `y${a + 1}`;
-      const common = { x: response.time_s, xaxis: "x", yaxis, legendgroup: candidate.name, hoverinfo: "skip" };
-      traces.push({ ...common, y: minus(candidate.low_rad_s, a), mode: "lines", line: { width: 0 }, showlegend: false, name: `${candidate.name} ${BAND.low} %` });
-      traces.push({ ...common, y: minus(candidate.high_rad_s, a), mode: "lines", line: { width: 0 }, fill: "tonexty", fillcolor: withAlpha(color, 0.2), showlegend: false, name: `${candidate.name} ${BAND.high} %` });
-      traces.push({ ...common, y: minus(candidate.mean_rad_s, a), mode: "lines", line: { color, width: 2 }, name: candidate.name, showlegend: a === 0, hoverinfo: "x+y+name" });
+      const name = plotText(candidate.name);
+      const common = { x: response.time_s, xaxis: "x", yaxis, legendgroup: `candidate ${k}`, hoverinfo: "skip" };
+      traces.push({ ...common, y: minus(candidate.low_rad_s, a), mode: "lines", line: { width: 0 }, showlegend: false, name: `${name} ${BAND.low} %` });
+      traces.push({ ...common, y: minus(candidate.high_rad_s, a), mode: "lines", line: { width: 0 }, fill: "tonexty", fillcolor: withAlpha(color, 0.2), showlegend: false, name: `${name} ${BAND.high} %` });
+      traces.push({ ...common, y: minus(candidate.mean_rad_s, a), mode: "lines", line: { color, width: 2 }, name, showlegend: a === 0, hoverinfo: "x+y+name" });
     });
   });
   return traces;
@@ -196,8 +206,8 @@ export function confusionPlot(element, confusion, names, text) {
       {
         type: "heatmap",
         z: confusion.map((row, i) => row.map((v) => v / totals[i])),
-        x: names,
-        y: names,
+        x: names.map(plotText),
+        y: names.map(plotText),
         text: confusion.map((row) => row.map((v) => String(v))),
         texttemplate: "%{text}",
         colorscale: HEAT_SCALE,

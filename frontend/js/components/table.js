@@ -52,14 +52,14 @@ export function dataTable({ id, columns, filters = [], load, initial = {}, pageS
   function set(name, value) {
     state[name] = value;
     state.offset = 0;
-    refresh();
+    refresh({ user: true });
   }
 
   function page(direction) {
     const offset = state.offset + direction * state.limit;
     if (offset < 0 || offset >= last.total) return;
     state.offset = offset;
-    refresh();
+    refresh({ user: true });
   }
 
   function sortBy(key) {
@@ -69,7 +69,35 @@ export function dataTable({ id, columns, filters = [], load, initial = {}, pageS
       state.order = key === "name" ? "asc" : "desc";
     }
     state.offset = 0;
-    refresh();
+    refresh({ user: true });
+  }
+
+  // What has the keyboard focus in the table (a sort button, a row's checkbox or link),
+  // to give it back after the rows are drawn again.
+  function focusedPlace() {
+    const focused = document.activeElement;
+    if (!focused || !(head.contains(focused) || body.contains(focused))) return null;
+    const row = focused.closest("tr");
+    const cell = focused.closest("td, th");
+    return { sort: focused.dataset.sort || null, id: row ? row.dataset.id : null, cell: cell ? cell.cellIndex : -1, tag: focused.tagName };
+  }
+
+  function refocus(place) {
+    if (!place) return;
+    let target = null;
+    if (place.sort) target = [...head.querySelectorAll("button[data-sort]")].find((b) => b.dataset.sort === place.sort);
+    else if (place.id) {
+      const row = [...body.rows].find((r) => r.dataset.id === place.id);
+      const cell = row && place.cell >= 0 ? row.cells[place.cell] : null;
+      target = cell ? cell.querySelector(place.tag.toLowerCase()) : null;
+    }
+    if (target) target.focus({ preventScroll: true });
+  }
+
+  // Text the user has selected in the table (to copy an id or a name).
+  function holdsSelection() {
+    const selection = window.getSelection();
+    return Boolean(selection && !selection.isCollapsed && selection.rangeCount && node.contains(selection.getRangeAt(0).commonAncestorContainer));
   }
 
   function drawHead(cols) {
@@ -90,7 +118,11 @@ export function dataTable({ id, columns, filters = [], load, initial = {}, pageS
     head.append(h("tr", {}, cells));
   }
 
-  async function refresh() {
+  // `user`: the user sorted, filtered or paged. A poll (no argument) draws nothing when the
+  // page is what is shown already, and waits while text in the table is selected: drawn
+  // again every 2 s, the rows took the keyboard focus and any selection away.
+  let shown = null;
+  async function refresh({ user = false } = {}) {
     const mine = ++generation;
     const query = {};
     for (const [name, value] of Object.entries(state)) if (value !== "" && value !== null && value !== undefined) query[name] = value;
@@ -107,6 +139,10 @@ export function dataTable({ id, columns, filters = [], load, initial = {}, pageS
     clear(notice);
     last = data;
     const cols = currentColumns();
+    const signature = JSON.stringify([data, cols.map((c) => c.key), state, [...selected]]);
+    if (!user && (signature === shown || holdsSelection())) return;
+    shown = signature;
+    const place = focusedPlace();
     drawHead(cols);
     clear(body);
     for (const row of data.items) {
@@ -138,6 +174,7 @@ export function dataTable({ id, columns, filters = [], load, initial = {}, pageS
     count.textContent = `${first}–${state.offset + data.items.length} of ${data.total}`;
     prev.disabled = state.offset === 0;
     next.disabled = state.offset + state.limit >= data.total;
+    refocus(place);
   }
 
   const node = h(

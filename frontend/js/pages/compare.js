@@ -7,7 +7,7 @@
 
 import { MetricFollower, api } from "../api.js";
 import { jobCell, jobDetail, summaryColumns, summaryValue } from "../components/jobs.js";
-import { COLORS, PLOT_CONFIG, extendWith, layout, plotDiv, tightRange, title } from "../components/plots.js";
+import { COLORS, PLOT_CONFIG, extendWith, layout, plotDiv, plotText, tightRange, title } from "../components/plots.js";
 import { dataTable } from "../components/table.js";
 import { classifierName, isTerminal, noiseInfo } from "../vocabulary.js";
 import { fmt, h, link, messageBox, score, statusBadge, tagChips, when } from "../ui.js";
@@ -147,7 +147,7 @@ async function load(type, ids) {
   return jobs.filter((job) => job && job.type === type);
 }
 
-const searchLabel = (job) => `${job.name || job.id.slice(0, 8)} (${job.params.method}, ${job.params.objective === "separability" ? "separability" : "F1"})`;
+const searchLabel = (job) => `${plotText(job.name || job.id.slice(0, 8))} (${job.params.method}, ${job.params.objective === "separability" ? "separability" : "F1"})`;
 
 // Searches of one scenario: a table of their headline figures, and their curves.
 async function searchGroup(section, jobs, suffix, context) {
@@ -196,11 +196,11 @@ async function searchGroup(section, jobs, suffix, context) {
       x: [job.summary.fuel_nms],
       y: [job.summary.fresh_f1],
       mode: "markers+text",
-      text: [job.name || job.id.slice(0, 8)],
+      text: [plotText(job.name || job.id.slice(0, 8))],
       textposition: "top center",
       marker: { size: 12, color: COLORS[jobs.indexOf(job) % COLORS.length] },
       name: searchLabel(job),
-      hovertemplate: `%{text}: fresh F1 %{y:.3f}, %{x:.1f} N m s, residual ${fmt(job.summary.residual_rate_rad_s, 4)} rad/s<extra></extra>`,
+      hovertemplate: `%{text}: fresh F1 %{y:.3f}, %{x:.1f} N m s, residual ${fmt(job.summary.residual_rate_rad_s, 4)} rad/s (${fmt(Number.isFinite(job.summary.residual_rate_rad_s) ? (job.summary.residual_rate_rad_s * 180) / Math.PI : null, 3)} deg/s)<extra></extra>`,
     })),
     layout("propellant: commanded impulse (N m s)", "fresh F1 (mean)", {
       title: title("Separation against propellant"),
@@ -279,7 +279,7 @@ async function sweepGroup(section, members, suffix, type) {
         x: points.map((p) => p.multiple),
         y: points.map((p) => p.accuracy),
         mode: "lines+markers",
-        name: e.label,
+        name: plotText(e.label),
         line: { color, width: 2 },
         error_y: { type: "data", symmetric: false, array: points.map((p) => p.ci_high - p.accuracy), arrayminus: points.map((p) => p.accuracy - p.ci_low), color, thickness: 1 },
         hovertemplate: "×%{x}: %{y:.3f}<extra>%{fullData.name}</extra>",

@@ -6,7 +6,7 @@
 
 import { api } from "../api.js";
 import { downloads } from "../components/downloads.js";
-import { BAND, COLORS, PLOT_CONFIG, layout, plotDiv, responseLayout, title, withAlpha } from "../components/plots.js";
+import { BAND, COLORS, PLOT_CONFIG, layout, plotDiv, plotText, responseLayout, title, withAlpha } from "../components/plots.js";
 import { kindInfo } from "../vocabulary.js";
 import { clear, fmt, h, jsonBlob, link, messageBox, plain, probability, sequenceText, showFieldErrors } from "../ui.js";
 
@@ -255,14 +255,14 @@ async function showVerdict(holder, verdict, classifier, { content, context, file
     [
       {
         type: "bar",
-        x: names,
+        x: names.map(plotText),
         y: values,
         marker: { color: names.map((n) => (n === verdict.candidate ? STATUS_COLOR[verdict.status] || (none ? "#b3261e" : "#1e7b34") : "#8da9c4")) },
         hovertemplate: "%{x}: %{y:.4g}<extra></extra>",
         name: "distance",
       },
       ...(verdict.threshold !== null
-        ? [{ x: names, y: names.map(() => verdict.threshold), mode: "lines", line: { color: "#b3261e", dash: "dash" }, name: `"matches none"<br>threshold` }]
+        ? [{ x: names.map(plotText), y: names.map(() => verdict.threshold), mode: "lines", line: { color: "#b3261e", dash: "dash" }, name: `"matches none"<br>threshold` }]
         : []),
     ],
     layout("candidate", "distance (training-RMS units)", {
@@ -302,21 +302,18 @@ async function showVerdict(holder, verdict, classifier, { content, context, file
     );
   });
   overlayPlot.dataset.offset = JSON.stringify(offset);
-  const overlayTitle = `telemetry (dots) over ${candidate.name}'s mean and ${BAND.label} band${shifted ? ", shifted by the rate + bias measured before the start" : ""}`;
+  const overlayTitle = `telemetry (dots) over ${plotText(candidate.name)}'s mean and ${BAND.label} band${shifted ? ", shifted by the rate + bias measured before the start" : ""}`;
   Plotly.newPlot(overlayPlot, traces, responseLayout(overlayTitle), PLOT_CONFIG);
 }
 
 // A bar per hypothesis, its percentage on it, the required confidence as a dashed line.
 function drawPosterior(element, verdict, ranked) {
   const names = Object.keys(verdict.posterior || {});
-  const x = [...names, "none of these"];
   const y = [...names.map((n) => verdict.posterior[n]), verdict.p_none];
   const top = ranked.length ? ranked[0][0] : null;
   const none = verdict.status === "matches-none" || verdict.status === "not-this-sequence";
-  const colors = x.map((n) => {
-    if (n === "none of these") return none ? STATUS_COLOR[verdict.status] : "#9aa5b1";
-    return n === top && !none ? STATUS_COLOR[verdict.status] : "#8da9c4";
-  });
+  const colors = [...names.map((n) => (n === top && !none ? STATUS_COLOR[verdict.status] : "#8da9c4")), none ? STATUS_COLOR[verdict.status] : "#9aa5b1"];
+  const x = [...names.map(plotText), "none of these"];
   Plotly.newPlot(
     element,
     [
@@ -372,8 +369,8 @@ async function showOnline(holder, verdict, file, options, context) {
     y: online.posterior[name],
     mode: "lines",
     line: { color: COLORS[k % COLORS.length], width: 2 },
-    name,
-    hovertemplate: `${name}, t = %{x:.2f} s: %{y:.2%}<extra></extra>`,
+    name: plotText(name),
+    hovertemplate: `${plotText(name)}, t = %{x:.2f} s: %{y:.2%}<extra></extra>`,
   }));
   traces.push({ x: online.time_s, y: online.p_none, mode: "lines", line: { color: "#5f6b7a", width: 2, dash: "dash" }, name: "none of these", hovertemplate: "none of these, t = %{x:.2f} s: %{y:.2%}<extra></extra>" });
   const shapes = [{ type: "line", xref: "paper", x0: 0, x1: 1, y0: 1 - online.alpha, y1: 1 - online.alpha, line: { color: "#9aa5b1", dash: "dot", width: 1 } }];

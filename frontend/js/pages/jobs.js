@@ -49,10 +49,22 @@ function field(id, label, input, hint = "") {
 function submitForm(scenarios, classifiers, query) {
   const OTHERS = otherSpecs();
   const general = h("div");
+  // A link naming a scenario or classifier the service no longer has (deleted in another
+  // tab, a stale bookmark) selects nothing and says so: falling back to the first one in
+  // the list sent the job against a scenario the user never chose.
+  const unknownScenario = query.scenario && !scenarios.some((s) => s.id === query.scenario);
+  const unknownClassifier = query.classifier && !classifiers.some((c) => c.id === query.classifier);
+  const missing = [unknownScenario ? `scenario ${query.scenario}` : null, unknownClassifier ? `classifier ${query.classifier}` : null].filter((v) => v);
+  const missingNote = missing.length
+    ? messageBox("error", `The link names ${missing.join(" and ")}, which the service does not have (deleted, or a wrong link): choose below.`)
+    : null;
+  if (missingNote) missingNote.id = "job-form-missing";
+  const choose = (what) => h("option", { value: "", selected: true, disabled: true }, `choose a ${what}`);
   const scenarioSelect = () => {
     const select = h(
       "select",
       {},
+      unknownScenario ? choose("scenario") : null,
       scenarios.map((s) => h("option", { value: s.id, selected: s.id === query.scenario }, `${s.name} (${s.id.slice(0, 8)})`)),
     );
     return select;
@@ -163,6 +175,7 @@ function submitForm(scenarios, classifiers, query) {
   const fillClassifiers = () => {
     clear(sweep.classifier);
     const mine = classifiers.filter((c) => c.scenario_id === sweep.scenario.value);
+    if (unknownClassifier && mine.length) sweep.classifier.append(choose("classifier"));
     for (const c of mine) {
       sweep.classifier.append(h("option", { value: c.id, selected: c.id === query.classifier }, `${c.job_name ? `${c.job_name}: ` : ""}${c.kind} ${c.metric}, F1 ${c.f1.toFixed(3)} (${c.id.slice(0, 8)})`));
     }
@@ -300,6 +313,7 @@ function submitForm(scenarios, classifiers, query) {
         }
       },
     },
+    missingNote,
     tabs,
     holder,
     labelFields,
@@ -349,7 +363,7 @@ export async function render(root, context) {
       ...(state.type ? summaryTableColumns(state.type) : [{ key: "headline", label: "result", cell: headline }]),
       { key: "created", label: "created", sort: "created", cell: (job) => when(job.created_at) },
       { key: "timing", label: "queue · run", cell: timingCell },
-      { key: "actions", label: "", cell: (job) => cancelButton(job, notice, () => runs.refresh()) },
+      { key: "actions", label: "", cell: (job) => cancelButton(job, notice, () => runs.refresh({ user: true })) },
     ],
   });
   root.append(

@@ -5,7 +5,7 @@
 import { api } from "../api.js";
 import { confirmAction } from "../components/dialog.js";
 import { downloads } from "../components/downloads.js";
-import { COLORS, PLOT_CONFIG, layout, tightRange } from "../components/plots.js";
+import { COLORS, PLOT_CONFIG, layout, plotText, tightRange } from "../components/plots.js";
 import { clear, h, jsonBlob, link, messageBox, plain, showError, showFieldErrors, table, when } from "../ui.js";
 
 const UNCERTAINTY_FIELDS = [
@@ -151,7 +151,7 @@ export async function renderOne(root, context) {
       type: "scatter",
       mode: "markers+lines",
       name: ["smallest", "middle", "largest"][axis],
-      x: scenario.candidates.map((c) => c.name),
+      x: scenario.candidates.map((c) => plotText(c.name)),
       y: scenario.candidates.map((c) => c.principal_moments_kg_m2[axis]),
       xaxis: "x",
       yaxis: axis === 0 ? "y" : `y${axis + 1}`,

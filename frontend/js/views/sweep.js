@@ -6,7 +6,7 @@
 import { MetricFollower } from "../api.js";
 import { classifierName, noiseInfo, vocabulary } from "../vocabulary.js";
 import { clear, h, score, statusBadge } from "../ui.js";
-import { COLORS, PLOT_CONFIG, confusionPlot, layout, plotDiv, title } from "../components/plots.js";
+import { COLORS, PLOT_CONFIG, confusionPlot, layout, plotDiv, plotText, title } from "../components/plots.js";
 
 // Accuracy vs each source of error's multiple with 95 % intervals, the other
 // classifiers scored on the same series (the ceiling dashed, least squares
@@ -204,7 +204,7 @@ function inertiaPlots(holder, inertia) {
     name,
     line: { color },
     error_y: { type: "data", symmetric: false, array: points.map((p) => p.ci_high - p.matches_none_rate), arrayminus: points.map((p) => p.matches_none_rate - p.ci_low), color },
-    text: points.map((p) => `nearest: ${p.predicted.map((c, k) => (c ? `${names[k]} ${c}` : "")).filter((t) => t).join(", ")}`),
+    text: points.map((p) => `nearest: ${p.predicted.map((c, k) => (c ? `${plotText(names[k])} ${c}` : "")).filter((t) => t).join(", ")}`),
     hovertemplate: "%{x}: matches none %{y:.2f}<br>%{text}<extra></extra>",
   });
   Plotly.newPlot(
@@ -212,7 +212,7 @@ function inertiaPlots(holder, inertia) {
     [trace(scaled, 1, COLORS[4], "scaled body"), trace(between, 2, COLORS[5], "in-between body")],
     layout("", "", {
       height: 380,
-      xaxis: { title: { text: `scale of ${names[inertia.base]}'s inertia (×)` }, domain: [0, 0.44], anchor: "y" },
+      xaxis: { title: { text: `scale of ${plotText(names[inertia.base])}'s inertia (×)` }, domain: [0, 0.44], anchor: "y" },
       yaxis: { title: { text: "fraction flagged \"matches none\"" }, range: [0, 1.05], anchor: "x" },
       xaxis2: { title: { text: "position between the closest two" }, domain: [0.56, 1], anchor: "y2" },
       yaxis2: { range: [0, 1.05], anchor: "x2" },

@@ -1,0 +1,254 @@
+"""The dashboard against a careless or hostile user (a review in Chromium found each of
+these): names that Plotly would read as markup, a slow page that the next one was drawn
+over, a link to a deleted scenario, a list that took the keyboard focus every 2 s, a
+malformed route, a refused key, a phone's width and a vocabulary that failed once.
+
+Each test makes what it needs through the API; no job here runs to the end.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+from dashboard_support import API_KEY, Dashboard
+
+KEY_STORAGE = "inertia-id-api-key"
+#: Names a user could type, each of which Plotly would draw as markup if given as is.
+HOSTILE = [
+    '<a href="https://evil.example/">none ejected</a>',
+    "payload 1 ejected",
+    '<span style="fill:transparent">payload 2 ejected</span>',
+    "payload 3 ejected",
+    "<b>payload 3 ejected</b> %{y} & more",
+]
+
+
+def _save_key(dashboard: Dashboard, key: str | None = API_KEY) -> None:
+    dashboard.page.goto(f"{dashboard.service.base_url}/#/scenarios")
+    if key is None:
+        dashboard.page.evaluate("k => localStorage.removeItem(k)", KEY_STORAGE)
+    else:
+        dashboard.page.evaluate("([k, v]) => localStorage.setItem(k, v)", [KEY_STORAGE, key])
+
+
+def _scenario(dashboard: Dashboard, names: list[str], name: str = "hostile names") -> str:
+    client = dashboard.service.client
+    document = client.get("/scenarios/presets").json()["paper"]
+    document.pop("candidate_generator")
+    document["name"] = name
+    document["inertia_candidates"] = [
+        {"name": n, "inertia_kg_m2": [[10 + k, 0, 0], [0, 12 + k, 0], [0, 0, 14 + 2 * k]]}
+        for k, n in enumerate(names)
+    ]
+    answer = client.post("/scenarios", json={"scenario": document})
+    assert answer.status_code == 201, answer.text
+    return str(answer.json()["id"])
+
+
+def _queued_search(dashboard: Dashboard, scenario_id: str, name: str) -> str:
+    """A search job with ``name``, cancelled at once: its page and lists are what count."""
+    client = dashboard.service.client
+    answer = client.post(
+        "/jobs",
+        json={
+            "type": "search",
+            "scenario_id": scenario_id,
+            "name": name,
+            "rerun": True,
+            "params": {"method": "random", "sequence_length": 2, "timesteps": 64},
+        },
+    )
+    assert answer.status_code == 202, answer.text
+    job_id = str(answer.json()["id"])
+    client.post(f"/jobs/{job_id}/cancel")
+    return job_id
+
+
+def _plot_text(dashboard: Dashboard, plot_id: str) -> dict[str, Any]:
+    """What a Plotly chart drew: its text, and any links or styled spans in it."""
+    return dict(
+        dashboard.page.evaluate(
+            """id => {
+              const svg = document.getElementById(id);
+              return {
+                text: [...svg.querySelectorAll('text')].map((t) => t.textContent),
+                links: svg.querySelectorAll('.main-svg a').length,
+                styled: [...svg.querySelectorAll('tspan[style]')].map((t) => t.textContent),
+              };
+            }""",
+            plot_id,
+        )
+    )
+
+
+def test_names_are_drawn_as_written_not_as_plotly_markup(dashboard: Dashboard) -> None:
+    _save_key(dashboard)
+    scenario_id = _scenario(dashboard, HOSTILE)
+    dashboard.open(f"#/scenarios/{scenario_id}")
+    dashboard.page.wait_for_selector("#moments-plot .xtick")
+    drawn = _plot_text(dashboard, "moments-plot")
+    # Each name is a tick label, character for character: no link, no hidden or bold
+    # text, no %{y} substituted.
+    assert drawn["links"] == 0 and drawn["styled"] == []
+    for name in HOSTILE:
+        assert name in drawn["text"], (name, drawn["text"])
+
+    job_id = _queued_search(dashboard, scenario_id, '<a href="https://evil.example/">sign in</a>')
+    dashboard.open(f"#/compare?type=search&ids={job_id}")
+    dashboard.page.wait_for_selector("#compare-reward .main-svg")
+    # The curves are empty until the search reports, and Plotly lists no empty trace in
+    # a legend: the traces the page made are drawn with a point each, as Plotly would.
+    legend = dashboard.page.evaluate(
+        """async (id) => {
+          const probe = document.createElement('div');
+          document.body.append(probe);
+          const traces = document.getElementById(id).data.map(
+            (t) => ({ x: [0], y: [0], name: t.name, showlegend: true }));
+          await Plotly.newPlot(probe, traces, { showlegend: true });
+          const out = {
+            text: [...probe.querySelectorAll('.legend text')].map((t) => t.textContent),
+            links: probe.querySelectorAll('.main-svg a').length,
+          };
+          Plotly.purge(probe);
+          probe.remove();
+          return out;
+        }""",
+        "compare-reward",
+    )
+    assert legend["links"] == 0
+    assert any(
+        t.startswith('<a href="https://evil.example/">sign in</a> (') for t in legend["text"]
+    )
+
+
+def test_a_slow_page_is_never_drawn_under_the_next(dashboard: Dashboard) -> None:
+    _save_key(dashboard)
+    scenario_id = _scenario(dashboard, [*HOSTILE[1:4], "stowed", "deployed"], "slow one")
+    page = dashboard.page
+
+    def slow(route: Any) -> None:
+        page.wait_for_timeout(3000)
+        route.continue_()
+
+    page.route(f"**/scenarios/{scenario_id}", slow)
+    page.goto(f"{dashboard.service.base_url}/#/scenarios/{scenario_id}")
+    page.wait_for_timeout(300)
+    page.evaluate("() => { location.hash = '#/identify' }")
+    page.wait_for_selector("#page h1")
+    page.wait_for_timeout(4500)  # the scenario's answer has come by now
+    headings = page.eval_on_selector_all("#page h1", "nodes => nodes.map((n) => n.textContent)")
+    assert headings == ["Identify telemetry"], headings
+    page.unroute(f"**/scenarios/{scenario_id}")
+
+
+def test_a_link_to_a_deleted_scenario_selects_none_and_says_so(dashboard: Dashboard) -> None:
+    _save_key(dashboard)
+    _scenario(dashboard, [*HOSTILE[1:4], "stowed", "deployed"], "present")
+    gone = _scenario(dashboard, [*HOSTILE[1:4], "stowed", "deployed"], "deleted")
+    assert dashboard.service.client.delete(f"/scenarios/{gone}").status_code == 204
+    dashboard.console.expect("status of 404")
+    dashboard.open(f"#/jobs?scenario={gone}&type=search")
+    note = dashboard.page.text_content("#job-form-missing") or ""
+    assert f"scenario {gone}" in note and "does not have" in note
+    assert dashboard.page.eval_on_selector("#search-scenario", "s => s.value") == ""
+    # Submitted as it stands, the service names the missing scenario; nothing is sent to
+    # a scenario the user did not choose.
+    with dashboard.page.expect_response(
+        lambda r: r.url.endswith("/jobs") and r.request.method == "POST"
+    ) as answer:
+        dashboard.page.click("#submit-job")
+    assert answer.value.status == 404, answer.value.text()
+    assert "scenario '' not found" in answer.value.text()
+    assert dashboard.service.client.get("/jobs", params={"scenario_id": gone}).json()["total"] == 0
+
+
+def test_the_job_list_keeps_the_keyboard_focus_and_a_selection(dashboard: Dashboard) -> None:
+    _save_key(dashboard)
+    scenario_id = _scenario(dashboard, [*HOSTILE[1:4], "stowed", "deployed"], "focus")
+    _queued_search(dashboard, scenario_id, "copy my id")
+    dashboard.open("#/jobs")
+    page = dashboard.page
+    page.wait_for_selector("#jobs-rows tr[data-id]")
+    page.focus("#jobs button.sort[data-sort='name']")
+    page.wait_for_timeout(2600)  # past a poll
+    focused = page.evaluate(
+        "() => document.activeElement.dataset.sort || document.activeElement.tagName"
+    )
+    assert focused == "name"
+    # Sorting by keyboard still redraws at once.
+    page.keyboard.press("Enter")
+    page.wait_for_selector("#jobs th[aria-sort='ascending'] button[data-sort='name']")
+    assert page.evaluate("() => document.activeElement.dataset.sort") == "name"
+    # A selection in the list outlives the polls.
+    page.evaluate(
+        """() => {
+          const cell = document.querySelector('#jobs-rows tr[data-id] td:nth-child(2)');
+          const range = document.createRange();
+          range.selectNodeContents(cell);
+          const s = getSelection();
+          s.removeAllRanges();
+          s.addRange(range);
+        }"""
+    )
+    selected = page.evaluate("() => getSelection().toString()")
+    page.wait_for_timeout(2600)
+    assert selected and page.evaluate("() => getSelection().toString()") == selected
+
+
+def test_a_malformed_route_is_no_page_not_an_uncaught_error(dashboard: Dashboard) -> None:
+    dashboard.page.goto(f"{dashboard.service.base_url}/#/jobs/%")
+    dashboard.page.wait_for_selector("#page .message.error")
+    assert "no page at #/jobs/%" in (dashboard.page.text_content("#page") or "")
+
+
+def test_a_refused_key_says_what_to_do_in_the_form_and_in_the_key_box(
+    dashboard: Dashboard,
+) -> None:
+    _save_key(dashboard)
+    scenario_id = _scenario(dashboard, [*HOSTILE[1:4], "stowed", "deployed"], "keys")
+    _save_key(dashboard, None)
+    dashboard.console.expect("status of 401")
+    dashboard.open(f"#/jobs?scenario={scenario_id}&type=search")
+    dashboard.page.click("#submit-job")
+    dashboard.page.wait_for_selector("#job-form .message.error")
+    shown = dashboard.page.text_content("#job-form") or ""
+    assert "missing API key" in shown and "at the top right" in shown
+    # A key the service has stopped accepting: the box no longer says "saved".
+    _save_key(dashboard, "an-old-key-" + "x" * 30)
+    dashboard.open(f"#/jobs?scenario={scenario_id}&type=search")
+    assert dashboard.page.text_content("#api-key-state") == "saved"
+    dashboard.page.click("#submit-job")
+    dashboard.page.wait_for_selector("#job-form .message.error")
+    assert "the saved API key was refused" in (dashboard.page.text_content("#job-form") or "")
+    assert (
+        dashboard.page.text_content("#api-key-state") == "saved key refused: enter the current one"
+    )
+    _save_key(dashboard)
+
+
+@pytest.mark.parametrize("route", ["#/jobs", "#/identify", "#/scenarios/new"])
+def test_a_phone_wide_window_does_not_widen_the_page(dashboard: Dashboard, route: str) -> None:
+    dashboard.page.set_viewport_size({"width": 375, "height": 800})
+    dashboard.open(route)
+    dashboard.page.wait_for_load_state("networkidle")
+    width = dashboard.page.evaluate("() => document.documentElement.scrollWidth")
+    assert width <= 375, f"{route} is {width} px wide in a 375 px window"
+    for selector in ("nav a[data-nav='identify']", "#api-key"):
+        box = dashboard.page.locator(selector).bounding_box()
+        assert box is not None and box["x"] + box["width"] <= 375, (selector, box)
+
+
+def test_a_vocabulary_that_failed_once_is_read_again_at_the_next_link(
+    dashboard: Dashboard,
+) -> None:
+    page = dashboard.page
+    dashboard.console.expect("Failed to load resource")
+    page.route("**/vocabulary", lambda route: route.fulfill(status=503, body="busy"))
+    page.goto(f"{dashboard.service.base_url}/#/jobs")
+    page.wait_for_selector("#page .message.error")
+    assert "vocabulary could not be read" in (page.text_content("#page") or "")
+    page.unroute("**/vocabulary")
+    page.click("nav a[data-nav='scenarios']")
+    page.wait_for_selector("#page h1")
+    assert page.text_content("#page h1") == "Scenarios"
