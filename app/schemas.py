@@ -20,7 +20,7 @@ from pydantic import (
     model_validator,
 )
 
-from inertia_id.checks import finite_or_none
+from inertia_id.checks import BIDI_CONTROLS, finite_or_none
 from inertia_id.evaluation.telemetry import MAX_TELEMETRY_SAMPLES, Telemetry
 from inertia_id.physics.presets import PRESETS
 from inertia_id.physics.scenario import Scenario
@@ -211,6 +211,18 @@ class ScenarioResponse(BaseModel):
     candidates: list[CandidateResponse]
 
 
+def _printable(value: str) -> str:
+    """A name or tag without bidirectional controls (the pattern refuses the other
+    control characters): ``run\u202egnp.exe`` would show as ``runexe.png``."""
+    found = sorted({f"U+{ord(c):04X}" for c in value if c in BIDI_CONTROLS})
+    if found:
+        raise ValueError(
+            f"{value!r} holds bidirectional control characters ({', '.join(found)}), which "
+            "show text in another order than it is written; remove them"
+        )
+    return value
+
+
 def _check_name(value: str | None) -> str | None:
     """The name without surrounding spaces; an empty one is no name."""
     return (value.strip() or None) if value is not None else None
@@ -230,9 +242,12 @@ TagText = Annotated[
         max_length=MAX_TAG_LENGTH,
         pattern=r"^\s*[^\s,\x00-\x1f\x7f][^,\x00-\x1f\x7f]*$",
     ),
+    AfterValidator(_printable),
 ]
 NameText = Annotated[
-    str, StringConstraints(max_length=MAX_NAME_LENGTH, pattern=r"^[^\x00-\x1f\x7f]*$")
+    str,
+    StringConstraints(max_length=MAX_NAME_LENGTH, pattern=r"^[^\x00-\x1f\x7f]*$"),
+    AfterValidator(_printable),
 ]
 
 

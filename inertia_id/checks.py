@@ -19,6 +19,7 @@ from typing import Any, TypeGuard
 import numpy as np
 
 __all__ = [
+    "BIDI_CONTROLS",
     "check_seed",
     "control_characters",
     "csv_note_text",
@@ -27,6 +28,7 @@ __all__ = [
     "is_number",
     "read_text",
     "spreadsheet_safe",
+    "spreadsheet_safe_json",
 ]
 
 #: What a spreadsheet reads as the start of a formula (OWASP, "CSV injection").
@@ -102,12 +104,21 @@ def finite_or_none(value: Any) -> Any:
     return value
 
 
+#: The bidirectional embeddings, overrides and isolates (U+202A-U+202E, U+2066-U+2069):
+#: in a name they reorder what follows on screen, so ``report\u202etxt.exe`` shows as
+#: ``reportexe.txt``. (The marks U+200E, U+200F, U+061C reorder nothing and stay allowed.)
+BIDI_CONTROLS = "\u202a\u202b\u202c\u202d\u202e\u2066\u2067\u2068\u2069"
+
+
 def control_characters(text: str) -> list[str]:
-    """The control characters in ``text`` (Unicode category Cc, and the line and
-    paragraph separators), as ``U+XXXX``, once each: what no name may hold, since a name
-    is written into CSV and text files a line at a time."""
+    """The control characters in ``text`` (Unicode category Cc, the line and paragraph
+    separators and the bidirectional controls), as ``U+XXXX``, once each: what no name
+    may hold, since a name is written into CSV and text files a line at a time, and shown
+    as written."""
     found = {
-        f"U+{ord(c):04X}" for c in text if unicodedata.category(c) == "Cc" or c in "\u2028\u2029"
+        f"U+{ord(c):04X}"
+        for c in text
+        if unicodedata.category(c) == "Cc" or c in "\u2028\u2029" or c in BIDI_CONTROLS
     }
     return sorted(found)
 
@@ -117,6 +128,26 @@ def spreadsheet_safe(text: str) -> str:
     ``+``, ``-``, ``@``, a tab or a carriage return gets a leading apostrophe (OWASP's
     remedy for CSV injection), so a name such as ``=HYPERLINK(...)`` is not a formula."""
     return "'" + text if text.startswith(_FORMULA_START) else text
+
+
+def spreadsheet_safe_json(value: Any) -> str:
+    """``value`` as compact JSON for a CSV cell or ``#`` note whose strings a spreadsheet
+    shows as text and ``json.loads`` gives back exactly: a string that would start a
+    formula (see :func:`spreadsheet_safe`) has its first character written as a ``\\u``
+    escape (``"\\u003dHYPERLINK(...)"``) instead of gaining an apostrophe, which changed
+    the name a reader got back."""
+    if isinstance(value, str):
+        if value.startswith(_FORMULA_START):
+            return f'"\\u{ord(value[0]):04x}' + json.dumps(value[1:], ensure_ascii=False)[1:]
+        return json.dumps(value, ensure_ascii=False)
+    if isinstance(value, list | tuple):
+        return "[" + ",".join(spreadsheet_safe_json(v) for v in value) + "]"
+    if isinstance(value, dict):
+        items = (
+            f"{spreadsheet_safe_json(str(k))}:{spreadsheet_safe_json(v)}" for k, v in value.items()
+        )
+        return "{" + ",".join(items) + "}"
+    return json.dumps(value)
 
 
 def csv_note_text(text: str) -> str:

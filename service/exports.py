@@ -12,12 +12,11 @@ and steps are numbered from 1, as on the dashboard and in the report.
 from __future__ import annotations
 
 import io
-import json
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from inertia_id.checks import spreadsheet_safe
+from inertia_id.checks import spreadsheet_safe, spreadsheet_safe_json
 from inertia_id.errors import InputError
 
 __all__ = [
@@ -44,26 +43,16 @@ class Table:
     notes: Sequence[tuple[str, Any]] = ()
 
 
-def _safe_text(value: Any) -> Any:
-    """Every string in ``value`` (through lists and dicts) as a spreadsheet shows it as
-    text (:func:`~inertia_id.checks.spreadsheet_safe`): names are the user's text."""
-    if isinstance(value, str):
-        return spreadsheet_safe(value)
-    if isinstance(value, list | tuple):
-        return [_safe_text(v) for v in value]
-    if isinstance(value, dict):
-        return {k: _safe_text(v) for k, v in value.items()}
-    return value
-
-
 def _cell(value: Any) -> Any:
+    """A value as a cell: names (the user's text) as a spreadsheet shows them as text,
+    lists and objects as JSON that reads back exactly."""
     if value is None:
         return ""
-    if isinstance(value, list | dict):
-        return json.dumps(_safe_text(value), separators=(",", ":"))
+    if isinstance(value, list | tuple | dict):
+        return spreadsheet_safe_json(value)
     if isinstance(value, float):
         return repr(value)  # shortest text that reads back as the same float
-    return _safe_text(value)
+    return spreadsheet_safe(value) if isinstance(value, str) else value
 
 
 def _note(value: Any) -> str:

@@ -60,6 +60,9 @@ def test_text_is_made_safe_for_csv_files() -> None:
 
     from service.exports import Table, to_csv
 
+    assert control_characters("a\u202eb\u2069") == ["U+202E", "U+2069"]
+    # Marks reorder nothing: a name in Arabic or Hebrew may need them.
+    assert control_characters("\u200f\u200e\u061c") == []
     assert control_characters("a\tb\r\nc\u2028d\x00") == [
         "U+0000",
         "U+0009",
@@ -85,7 +88,10 @@ def test_text_is_made_safe_for_csv_files() -> None:
         Table(["name", "=evil"], [["=1+1", -0.5], ["ok", None]], [("names", ["-x", "y"])])
     )
     lines = text.splitlines()
-    assert lines[0] == '# names: ["\'-x","y"]'
+    # A name in a JSON note or cell keeps its text: the formula's first character is a
+    # JSON escape a spreadsheet shows as text (an apostrophe changed the name read back).
+    assert lines[0] == '# names: ["\\u002dx","y"]'
+    assert json.loads(lines[0].removeprefix("# names: ")) == ["-x", "y"]
     rows = list(csv.reader(io.StringIO("\n".join(lines[1:]))))
     assert rows == [["name", "'=evil"], ["'=1+1", "-0.5"], ["ok", ""]]
 

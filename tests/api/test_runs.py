@@ -165,6 +165,9 @@ def test_editing_labels_needs_the_key(api: Api) -> None:
     [
         ({"name": "x" * 201}, "at most 200 characters"),
         ({"name": "bad\x07name"}, "pattern"),
+        # A right-to-left override shows "run\u202egnp.exe" as "runexe.png".
+        ({"name": "run\u202egnp.exe"}, "bidirectional control characters (U+202E)"),
+        ({"tags": ["ok", "a\u2066b"]}, "bidirectional control characters (U+2066)"),
         ({"tags": ["a,b"]}, "'a,b'"),
         ({"tags": [" "]}, "' '"),
         ({"tags": ["t" * 65]}, "at most 64 characters"),

@@ -128,6 +128,11 @@ def test_triangle_inequality_names_rule_and_moments(api: Api, paper: Scenario, s
             "got -1",
         ),
         ({"preset": "paper", "overrides": {"name": "nul\x00byte"}}, "NUL"),
+        # A right-to-left override reorders what follows on screen.
+        (
+            {"preset": "paper", "overrides": {"name": "orbit 3\u202etxt.exe"}},
+            "holds control characters (U+202E)",
+        ),
         # Names go into CSV files a line at a time: a newline would end the line.
         (
             {"preset": "paper", "overrides": {"name": "ops\nstep,start_s\n1,0,1,999"}},
