@@ -94,6 +94,12 @@ def _scenario(session: SessionDep, scenario_id: str) -> Scenario:
 
 def _check_search(body: SearchJobCreate, scenario: Scenario) -> None:
     params = body.params
+    _check_size(
+        scenario,
+        params.sequence_length,
+        params.n_realisations,
+        ("body", "search", "params", "sequence_length"),
+    )
     # What needs the scenario (a propellant objective or bound needs thrust and specific
     # impulse): refused here, not after the job has waited in the queue.
     from inertia_id.pipelines import SearchRequest
@@ -197,11 +203,59 @@ def _same_spacecraft(search: JobRow, scenario_id: str, scenario: Scenario) -> No
     )
 
 
+#: What one job may ask the worker to hold and integrate. Without these a valid-looking
+#: request (a scenario with hour-long steps, a long sequence, many realisations) was
+#: accepted and the worker grew past every limit until the kernel killed it, with nothing
+#: to say why; and a classifier document of hundreds of MB was stored for every read to
+#: load. The paper preset at its largest (64 steps, 400 realisations, the 8,000-flight
+#: ceiling) fits each with room to spare.
+MAX_FLIGHT_RK4_STEPS = 100_000
+MAX_SERIES_VALUES = 8_192
+MAX_HELD_VALUES = 2**23
+MAX_COVARIANCE_VALUES = 2**27
+
+
+def _check_size(
+    scenario: Scenario, n_steps: int, per_candidate: int, where: tuple[str, ...]
+) -> None:
+    """422 (at ``where``) for a job whose flights or series exceed what a worker holds:
+    ``per_candidate`` flights of ``n_steps`` steps per candidate at once."""
+    timing, k = scenario.timing, scenario.n_candidates
+    rk4 = n_steps * timing.substeps_per_step
+    d = n_steps * timing.samples_per_step * 3
+    shape = (
+        f"{n_steps} steps of {timing.step_duration_s:g} s (RK4 step "
+        f"{timing.integration_step_s:g} s, gyro at {timing.sample_rate_hz:g} Hz)"
+    )
+    problem = None
+    if rk4 > MAX_FLIGHT_RK4_STEPS:
+        problem = f"{shape} are {rk4} RK4 steps a flight; at most {MAX_FLIGHT_RK4_STEPS:,}"
+    elif d > MAX_SERIES_VALUES:
+        problem = f"{shape} are {d} rate values a series; at most {MAX_SERIES_VALUES:,}"
+    elif k * per_candidate * d > MAX_HELD_VALUES:
+        problem = (
+            f"{k} candidates x {per_candidate} flights x {d} values a series = "
+            f"{k * per_candidate * d:,} values; at most {MAX_HELD_VALUES:,}: ask for fewer "
+            "realisations or a shorter sequence"
+        )
+    elif k * d * d > MAX_COVARIANCE_VALUES:
+        problem = (
+            f"{k} candidates' covariances of {d} x {d} values (a series of {shape}) = "
+            f"{k * d * d:,} values; at most {MAX_COVARIANCE_VALUES:,}: shorten the sequence"
+        )
+    if problem is not None:
+        unprocessable(where, f"the job is too large for a worker: {problem}")
+
+
 def _check_train(body: TrainJobCreate, scenario: Scenario) -> None:
+    where = ("body", "train", "params")
     try:
-        scenario.check_sequence(body.params.sequence)
+        rows = scenario.check_sequence(body.params.sequence)
     except InputError as exc:
-        unprocessable(("body", "train", "params", "sequence"), str(exc))
+        unprocessable((*where, "sequence"), str(exc))
+    # Calibration flies 200 fresh series a candidate beside the training ones.
+    realisations = max(body.params.n_realisations or 0, 200)
+    _check_size(scenario, len(rows), realisations, (*where, "n_realisations"))
 
 
 def _check_sweep(session: SessionDep, body: SweepJobCreate, scenario: Scenario) -> None:
@@ -225,6 +279,9 @@ def _check_sweep(session: SessionDep, body: SweepJobCreate, scenario: Scenario) 
             ("body", "sweep", "params", "n_test"),
             f"n_test = {params.n_test} is fewer than the {scenario.n_candidates} candidates",
         )
+    # The ceiling flies its realisations in batches (its covariances are counted).
+    held = max(params.n_train, -(-params.n_test // scenario.n_candidates))
+    _check_size(scenario, len(classifier.sequence), held, ("body", "sweep", "params", "n_train"))
 
 
 @router.post(

@@ -179,7 +179,10 @@ class ClassifierRow(Base):
     sequence: Mapped[list[Any]] = mapped_column(JSON)
     candidate_names: Mapped[list[Any]] = mapped_column(JSON)
     confusion: Mapped[list[Any]] = mapped_column(JSON)
-    document: Mapped[str] = mapped_column(Text)
+    #: Loaded only where it is read (download, calibration, identify, the worker): a list
+    #: or a GET of classifiers loaded every document whole, hundreds of MB for a 1-NN
+    #: classifier of long series, on routes that need no key.
+    document: Mapped[str] = mapped_column(Text, deferred=True)
     sha256: Mapped[str] = mapped_column(String(64))
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
 

@@ -147,6 +147,62 @@ def test_exhaustive_search_too_large_is_refused_with_its_size(api: Api) -> None:
 
 
 @pytest.mark.parametrize(
+    ("timing", "job_type", "params", "field", "fragment"),
+    [
+        # Hour-long steps: 20 steps are 1.44 million RK4 steps a flight (a review's
+        # worker grew past 4 GB and was killed twice; the job failed saying nothing).
+        (
+            {"step_duration_s": 3600},
+            "train",
+            {"sequence": [[4, 4, 4, 0, 0, 0]] * 20, "n_realisations": 400},
+            "n_realisations",
+            "are 1440000 RK4 steps a flight; at most 100,000",
+        ),
+        (
+            {"step_duration_s": 3600},
+            "search",
+            {"method": "random", "sequence_length": 2},
+            "sequence_length",
+            "2 steps of 3600 s (RK4 step 0.05 s, gyro at 20 Hz) are 144000 RK4 steps",
+        ),
+        # 1-NN on 140 steps stored a 374 MB document that every read then loaded.
+        (
+            {},
+            "train",
+            {"sequence": [[4, 4, 4, 0, 0, 0]] * 140, "kind": "1nn", "metric": "euclidean"},
+            "n_realisations",
+            "are 8400 rate values a series; at most 8,192",
+        ),
+        (
+            {},
+            "train",
+            {"sequence": [[4, 4, 4, 0, 0, 0]] * 100, "n_realisations": 400},
+            "n_realisations",
+            "5 candidates x 400 flights x 6000 values a series = 12,000,000 values",
+        ),
+    ],
+)
+def test_a_job_too_large_for_a_worker_is_refused_naming_its_size(
+    api: Api,
+    timing: dict[str, Any],
+    job_type: str,
+    params: dict[str, Any],
+    field: str,
+    fragment: str,
+) -> None:
+    scenario_id = api.create_scenario(**({"timing": timing} if timing else {}))["id"]
+    response = api.submit(job_type, scenario_id, params=params)
+    assert response.status_code == 422, response.text
+    (error,) = response.json()["detail"]
+    assert error["loc"] == ["body", job_type, "params", field]
+    assert "the job is too large for a worker" in error["msg"] and fragment in error["msg"]
+    assert api.queued_messages() == []
+    # The paper preset at its largest training still fits.
+    largest = {"sequence": [[4, 4, 4, 0, 0, 0]] * 64, "n_realisations": 400}
+    assert api.submit("train", api.create_scenario()["id"], params=largest).status_code == 202
+
+
+@pytest.mark.parametrize(
     ("method", "own", "message"),
     [
         ("cem", {"ppo": {"gamma": 0.9}}, "ppo settings apply to method ppo only, not 'cem'"),
