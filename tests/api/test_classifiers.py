@@ -62,3 +62,31 @@ def test_unknown_classifier_is_404(api: Api) -> None:
         response = api.get(url)
         assert response.status_code == 404
         assert "not found" in response.json()["detail"]
+
+
+def test_lists_and_gets_never_read_the_document(
+    api: Api, classifier: InertiaClassifier, paper: Scenario
+) -> None:
+    """The document of a 1-NN classifier of long series is hundreds of MB; a list or a
+    GET of classifiers (no key needed) read it whole each time (a review: 1.1 GB of API
+    memory for one list). Only the routes that serve it read it."""
+    from sqlalchemy import event
+
+    scenario_id = api.create_scenario()["id"]
+    classifier_id = api.insert_classifier(scenario_id, classifier)
+    statements: list[str] = []
+    engine = api.app.state.db.engine
+
+    def record(_conn: object, _cursor: object, statement: str, *_: object) -> None:
+        statements.append(statement)
+
+    event.listen(engine, "before_cursor_execute", record)
+    try:
+        for path in ("/classifiers", f"/classifiers/{classifier_id}", "/classifiers?q=dtw"):
+            assert api.get(path).status_code == 200
+        read = [s for s in statements if "classifiers.document" in s]
+        assert statements and read == []
+        assert api.get(f"/classifiers/{classifier_id}/download").status_code == 200
+        assert [s for s in statements if "classifiers.document" in s]
+    finally:
+        event.remove(engine, "before_cursor_execute", record)
