@@ -34,6 +34,14 @@ def _engine(url: str) -> Engine:
             cursor.execute("PRAGMA busy_timeout=30000")
             cursor.execute("PRAGMA foreign_keys=ON")
             cursor.close()
+            # SQLite's own lower() folds ASCII only: a search for "énergie" missed a job
+            # named "Énergie" that PostgreSQL found. Python's folds every script.
+            dbapi_connection.create_function(
+                "lower",
+                1,
+                lambda text: text.lower() if isinstance(text, str) else text,
+                deterministic=True,
+            )
 
         return engine
     return create_engine(url, pool_pre_ping=True)

@@ -234,6 +234,11 @@ def test_lists_sort_by_a_summary_figure_and_filter_by_text_tag_and_status(api: A
     assert page["total"] == 4 and [j["id"] for j in page["items"]] == [mid, low]
     # LIKE wildcards in the text are plain characters.
     assert ids(q="%") == [] and ids(q="_") == []
+    # Any case, in any script: SQLite's own lower() folds ASCII only, and missed these.
+    labels = {"name": "Énergie Ökonomie", "tags": ["Überflug"]}
+    assert api.client.patch(f"/jobs/{mid}", json=labels, headers=api.auth).status_code == 200
+    for text in ("énergie", "ÉNERGIE", "ökonomie", "überflug", "ÜBER"):
+        assert ids(q=text) == [mid], text
 
 
 @pytest.mark.parametrize(
