@@ -27,10 +27,12 @@ from .expiring import Expiring
 
 __all__ = [
     "API_KEY_HEADER",
+    "SECURITY_HEADERS",
     "AllowedHosts",
     "BodySizeLimit",
     "BodyTooLarge",
     "KeyVerifier",
+    "SecurityHeaders",
     "ensure_api_key",
     "hash_key",
     "scope_header",
@@ -252,3 +254,38 @@ class AllowedHosts:
             f"({', '.join(sorted(self.hosts))}); set INERTIA_ID_ALLOWED_HOSTS to add one"
         )
         await send_detail(send, 400, detail)
+
+
+#: Sent with every answer. The dashboard keeps the API key in the browser's storage, so
+#: no other site may frame it (a clickjacking page could make a user press "Submit"),
+#: and no answer is to be sniffed into another content type. ``frame-ancestors`` is the
+#: only directive set: a full policy would have to allow Swagger UI's inline script.
+SECURITY_HEADERS: tuple[tuple[bytes, bytes], ...] = (
+    (b"x-content-type-options", b"nosniff"),
+    (b"x-frame-options", b"DENY"),
+    (b"content-security-policy", b"frame-ancestors 'none'"),
+    (b"referrer-policy", b"no-referrer"),
+)
+
+
+class SecurityHeaders:
+    """Adds :data:`SECURITY_HEADERS` to every HTTP response start (a header the app set
+    itself is kept)."""
+
+    def __init__(self, app: ASGIApp) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+
+        async def send_with_headers(message: Message) -> None:
+            if message["type"] == "http.response.start":
+                headers = list(message.get("headers", []))
+                present = {name.lower() for name, _ in headers}
+                headers += [(k, v) for k, v in SECURITY_HEADERS if k not in present]
+                message = {**message, "headers": headers}
+            await send(message)
+
+        await self.app(scope, receive, send_with_headers)

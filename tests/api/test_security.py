@@ -125,3 +125,21 @@ def test_oversized_streamed_body_is_413(small_body_api: Api) -> None:
 
 def test_small_body_passes_the_limit(small_body_api: Api) -> None:
     assert small_body_api.create_scenario(name="fits")["name"] == "fits"
+
+
+def test_every_answer_forbids_framing_and_sniffing(small_body_api: Api) -> None:
+    """The dashboard keeps the key in the browser: no other site may frame it (a review
+    found no such header on / or /static), refusals included."""
+    answers = [
+        small_body_api.client.get("/"),
+        small_body_api.client.get("/static/js/app.js"),
+        small_body_api.client.get("/health"),
+        small_body_api.client.get("/jobs/nope"),
+        small_body_api.client.post("/scenarios", content=b"x" * 5000),  # 413
+        small_body_api.client.get("/health", headers={"Host": "evil.example"}),  # 400
+    ]
+    assert [a.status_code for a in answers] == [200, 200, 200, 404, 413, 400]
+    for answer in answers:
+        assert answer.headers["x-frame-options"] == "DENY"
+        assert answer.headers["content-security-policy"] == "frame-ancestors 'none'"
+        assert answer.headers["x-content-type-options"] == "nosniff"
