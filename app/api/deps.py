@@ -215,12 +215,46 @@ def unprocessable(loc: tuple[str | int, ...], message: str) -> NoReturn:
 REPEATABLE_QUERY = frozenset({"tag"})
 
 
+_QUERY_NAMES: dict[int, frozenset[str]] = {}
+
+
+def _route_query_names(route: Any) -> frozenset[str] | None:
+    """The query parameters ``route`` reads (its dependencies' too), or None when it is
+    not an API route (the dashboard's page and the docs take whatever a browser adds).
+    Walked here from the route's dependency tree (FastAPI keeps it
+    public as ``route.dependant``; its own flattening helper is internal)."""
+    dependant = getattr(route, "dependant", None)
+    if dependant is None or not getattr(route, "include_in_schema", False):
+        return None
+    names = _QUERY_NAMES.get(id(route))
+    if names is None:
+        found: set[str] = set()
+        stack = [dependant]
+        while stack:
+            current = stack.pop()
+            found.update(field.alias for field in current.query_params)
+            stack.extend(current.dependencies)
+        names = _QUERY_NAMES[id(route)] = frozenset(found)
+    return names
+
+
 def one_value_each(request: Request) -> None:
-    """Refuse a query parameter given more than once, unless it is a list.
+    """Refuse a query parameter the route does not read, or one given more than once
+    unless it is a list.
 
     FastAPI (Starlette) keeps the last of repeated values, so
     ``?sequence=A&sequence=B`` would plan B alone and ``?format=csv&format=json`` answer
-    JSON: a request must mean one thing. Applied to every route (``app.main``)."""
+    JSON; and it ignores names it does not know, so ``/jobs?stauts=failed`` listed every
+    job: a request must mean one thing. Applied to every route (``app.main``)."""
+    known = _route_query_names(request.scope.get("route"))
+    if known is not None:
+        unknown = [name for name in request.query_params if name not in known]
+        if unknown:
+            takes = ", ".join(sorted(known)) or "none"
+            unprocessable(
+                ("query", unknown[0][:40]),
+                f"unknown query parameter {unknown[0][:40]!r}; this route takes: {takes}",
+            )
     for name in request.query_params:
         if name in REPEATABLE_QUERY:
             continue

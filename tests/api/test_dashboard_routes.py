@@ -137,6 +137,28 @@ def test_a_parameter_given_twice_is_422_not_the_last_one(
     assert api.get("/jobs?limit=1&limit=2").status_code == 422
 
 
+@pytest.mark.parametrize(
+    ("path", "name", "takes"),
+    [
+        # A typo of status: every job was listed, as if no filter had been asked for.
+        ("/jobs?stauts=failed", "stauts", "q, scenario_id, sort, status, tag, type"),
+        ("/classifiers?kidn=1nn", "kidn", "kind, limit, offset, order, q, scenario_id"),
+        ("/health?verbose=1", "verbose", "takes: none"),
+    ],
+)
+def test_an_unknown_query_parameter_is_422_naming_what_the_route_takes(
+    api: Api, path: str, name: str, takes: str
+) -> None:
+    response = api.get(path)
+    assert response.status_code == 422, response.text
+    (detail,) = response.json()["detail"]
+    assert detail["loc"] == ["query", name]
+    assert f"unknown query parameter {name!r}" in detail["msg"] and takes in detail["msg"]
+    # The dashboard's page and static files take what a browser adds.
+    assert api.get("/?utm_source=x").status_code == 200
+    assert api.get("/jobs?status=failed&tag=a&tag=b").status_code == 200
+
+
 def test_a_plan_too_long_says_how_many_steps_it_may_have(api: Api) -> None:
     scenario_id = api.post("/scenarios", json={"preset": "paper"}).json()["id"]
     response = api.get_with_key(
