@@ -26,6 +26,7 @@ from .options import (
     parse_sequence,
     progress_bar,
     realisations_option,
+    refuse_past_memory,
     scenario_options,
     seed_option,
     sequence_option,
@@ -122,6 +123,13 @@ def train_cmd(
         n_init=n_init,
     )
     kind, n_realisations, options = request.resolved()
+    # The training series alone; a classifier's features come on top of them.
+    refuse_past_memory(
+        f"-n {n_realisations}",
+        candidates=scenario.n_candidates,
+        realisations=n_realisations,
+        samples=len(request.sequence) * scenario.timing.samples_per_step,
+    )
     click.echo(
         f"training {kind} {options.get('metric', '')} classifier on {scenario.n_candidates} "
         f"candidates x {n_realisations} realisations ...",
@@ -217,6 +225,16 @@ def sweep_cmd(
         # An empty list meant 'none' without saying so; a misquoted shell variable reads so.
         raise InputError(f"--others names none, got {others!r}: give specs, or 'none'")
     model = load_classifier(classifier_path)
+    if model.scenario_ is not None and model.sequence_ is not None:
+        # The largest simulation a sweep runs at once: a point's test series (--n-test
+        # spread over the candidates) or the others' training series (--n-train).
+        k = model.scenario_.n_candidates
+        refuse_past_memory(
+            f"--n-test {n_test}, --n-train {n_train}",
+            candidates=k,
+            realisations=max(n_test // k, n_train if set(other_specs) - {"none"} else 0),
+            samples=len(model.sequence_) * model.scenario_.timing.samples_per_step,
+        )
     request = SweepRequest(
         multiples=parse_multiples(multiples),
         noises=noises or None,

@@ -16,6 +16,7 @@ from .options import (
     load_scenario,
     parse_sequence,
     realisations_option,
+    refuse_past_memory,
     scenario_options,
     seed_option,
     sequence_option,
@@ -167,6 +168,12 @@ def simulate_cmd(
         return
     if sample_rate_hz is not None:
         scenario = _at_rate(scenario, sample_rate_hz)
+    refuse_past_memory(
+        f"-n {realisations}",
+        candidates=scenario.n_candidates,
+        realisations=realisations,
+        samples=len(sequence) * scenario.timing.samples_per_step,
+    )
     result = simulate(
         scenario,
         sequence,

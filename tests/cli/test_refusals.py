@@ -296,3 +296,58 @@ def test_simulate_writes_arrays_to_an_npz_name_in_any_case_with_the_names(tmp_pa
         assert arrays["omega_measured_rad_s"].shape[:2] == (5, 2)
         assert list(arrays["candidate_names"]) == Scenario.paper().candidate_names
         assert float(arrays["impulse_nms"]) == 24.0
+
+
+def test_a_simulation_past_the_memory_available_is_refused_before_it_starts(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Linux overcommits: `simulate -n 100000000` grew to 21 GB and was killed, the
+    # MemoryError handler never reached. 10**12 realisations need more than any machine.
+    monkeypatch.chdir(tmp_path)
+    message = refused(["simulate", "-n", str(10**12), "--out", "big.npz"])
+    assert "-n 1000000000000: 5 candidates x 1000000000000 realisations x 80 samples" in message
+    assert "need about 86.4 PB" in message and "of memory available" in message
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    ("args", "asked"),
+    [
+        (["simulate", "-n", "1"], "-n 1: 5 candidates x 1 realisations x 80 samples"),
+        (["train", "--kind", "least-squares", "-n", "3"], "-n 3: 5 candidates x 3 realisations"),
+    ],
+)
+def test_sizes_past_the_memory_available_are_refused_naming_them(
+    args: list[str], asked: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from inertia_id.cli import options
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(options, "available_memory_bytes", lambda: 1000)
+    message = refused(args)
+    assert asked in message and "more than the 1 KB of memory available" in message
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_sweep_past_the_memory_available_is_refused_naming_its_sizes(
+    paper: Scenario, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from inertia_id.cli import options
+
+    path = tmp_path / "c.json"
+    train_classifier(paper, SEQUENCE, 3, np.random.default_rng(0), kind="least-squares").save(path)
+    monkeypatch.setattr(options, "available_memory_bytes", lambda: 1000)
+    message = refused(["sweep", "--classifier", str(path), "--n-test", "50", "--n-train", "7"])
+    assert "--n-test 50, --n-train 7: 5 candidates x 10 realisations x 80 samples" in message
+
+
+def test_the_memory_available_is_read_from_meminfo(tmp_path: Path) -> None:
+    from inertia_id.cli.options import available_memory_bytes
+
+    meminfo = tmp_path / "meminfo"
+    meminfo.write_text("MemTotal:  2048 kB\nMemAvailable:    1024 kB\n")
+    assert available_memory_bytes(str(meminfo)) == 1024 * 1024
+    # Unknown (not Linux, a file without the line): no check rather than a refusal.
+    assert available_memory_bytes(str(tmp_path / "missing")) is None
+    meminfo.write_text("MemTotal:  2048 kB\n")
+    assert available_memory_bytes(str(meminfo)) is None
