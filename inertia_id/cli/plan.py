@@ -8,12 +8,22 @@ from typing import TYPE_CHECKING
 
 import click
 
-from .options import friendly_errors, load_scenario, scenario_options
+from .options import OTHER_FORMATS, friendly_errors, load_scenario, scenario_options
 
 if TYPE_CHECKING:
     from ..physics.scenario import Scenario
 
 __all__ = ["plan_cmd"]
+
+
+def _plan_file_name(context: click.Context, param: click.Parameter, value: str) -> str:
+    """A plan named for a format other than CSV or JSON (``plan.npz``, ``plan.xlsx``) is
+    refused: JSON text was written into it."""
+    if value.lower().endswith(tuple(f for f in OTHER_FORMATS if f != ".csv")):
+        raise click.BadParameter(
+            f"plan writes CSV or JSON; name the file .csv or .json, got {value!r}"
+        )
+    return value
 
 
 @click.command("plan")
@@ -58,7 +68,9 @@ __all__ = ["plan_cmd"]
     default="plan.json",
     show_default=True,
     type=click.Path(dir_okay=False),
-    help="Where to write the plan: a .csv name writes CSV, anything else JSON; '-' prints JSON.",
+    callback=_plan_file_name,
+    help="Where to write the plan: a .csv name writes CSV, any other name JSON, except a "
+    "name of another format (.npz, .xlsx, ...), which is refused; '-' prints JSON.",
 )
 @click.pass_context
 @friendly_errors

@@ -12,6 +12,7 @@ import click
 
 from .options import (
     DEFAULT_SEQUENCE_TEXT,
+    _json_file_name,
     friendly_errors,
     load_scenario,
     parse_sequence,
@@ -41,12 +42,25 @@ def _noise_option(flag: str, source: str) -> Callable[[F], F]:
 
 @click.command("scenario")
 @scenario_options
-@click.option("--out", type=click.Path(dir_okay=False), help="Write here instead of stdout.")
+@click.option(
+    "--out",
+    type=click.Path(dir_okay=False),
+    callback=_json_file_name,
+    help="Write the JSON here instead of stdout.",
+)
 @friendly_errors
 def scenario_cmd(preset_name: str, scenario_path: str | None, out: str | None) -> None:
     """Print a scenario as JSON (a starting point to edit), after validating it."""
     scenario = load_scenario(preset_name, scenario_path)
     write_json(out, scenario.model_dump(mode="json"))
+
+
+def _arrays_file_name(context: click.Context, param: click.Parameter, value: str | None) -> Any:
+    """An output named for neither format simulate writes is refused (JSON text went into
+    s.csv), as click refuses a bad option: a usage error, as `search --out r.csv` is."""
+    if value is not None and not value.lower().endswith((".npz", ".json")):
+        raise click.BadParameter(f"simulate writes .npz (arrays) or .json, got {value!r}")
+    return value
 
 
 @click.command("simulate")
@@ -57,7 +71,10 @@ def scenario_cmd(preset_name: str, scenario_path: str | None, out: str | None) -
 @_noise_option("--measurement-noise", "gyro noise")
 @seed_option
 @click.option(
-    "--out", type=click.Path(dir_okay=False), help="Write every series: .npz (arrays) or .json."
+    "--out",
+    type=click.Path(dir_okay=False),
+    callback=_arrays_file_name,
+    help="Write every series: .npz (arrays) or .json.",
 )
 @click.option(
     "--telemetry",
@@ -135,9 +152,6 @@ def simulate_cmd(
     from ..evaluation.telemetry import parse_sequence_start
     from ..physics.simulate import simulate
 
-    if out is not None and not out.lower().endswith((".npz", ".json")):
-        # JSON text went into s.csv or S.NPZ.
-        raise InputError(f"--out writes .npz (arrays) or .json, got {out!r}")
     if telemetry is None:
         # These shape the telemetry file only: without one they were dropped silently.
         context = click.get_current_context()

@@ -268,7 +268,7 @@ def test_a_named_pipe_in_a_telemetry_folder_is_not_waited_on(tmp_path: Path) -> 
             "applies to metric 'dtw' only, not 'euclidean'",
         ),
         # JSON text was written into a file named for another format.
-        (["simulate", "-n", "1", "--out", "s.csv"], "--out writes .npz (arrays) or .json"),
+        (["simulate", "-n", "1", "--out", "s.csv"], "simulate writes .npz (arrays) or .json"),
         (["search", "--out", "r.csv"], "this command writes JSON; name the file .json"),
         (["train", "--out", "c.NPZ"], "got 'c.NPZ'"),
         # An empty list read as the default front, and as no other classifiers.
@@ -351,3 +351,38 @@ def test_the_memory_available_is_read_from_meminfo(tmp_path: Path) -> None:
     assert available_memory_bytes(str(tmp_path / "missing")) is None
     meminfo.write_text("MemTotal:  2048 kB\n")
     assert available_memory_bytes(str(meminfo)) is None
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        # Each wrote JSON text into a file named for another format.
+        (["plan", "--sequence", "4,4,4,0,0,0", "--out", "plan.npz"], "got 'plan.npz'"),
+        (["plan", "--sequence", "4,4,4,0,0,0", "--out", "plan.XLSX"], "got 'plan.XLSX'"),
+        (["scenario", "--out", "s.npz"], "this command writes JSON; name the file .json"),
+        # Refused by click like search's --out: exit 2 for each (simulate's was 1).
+        (["simulate", "-n", "1", "--out", "foo.txt"], "simulate writes .npz (arrays) or .json"),
+        (["search", "--out", "r.csv"], "got 'r.csv'"),
+    ],
+)
+def test_an_out_named_for_a_format_not_written_is_a_usage_error(
+    args: list[str], message: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == 2, result.output
+    assert message in " ".join(result.output.split())
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_plan_writes_csv_to_a_csv_name_and_json_to_others(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    for name in ("plan.csv", "plan.json", "plan"):
+        result = CliRunner().invoke(main, ["plan", "--sequence", "4,4,4,0,0,0", "--out", name])
+        assert result.exit_code == 0, result.output
+    assert not (tmp_path / "plan.csv").read_text().startswith("{")
+    assert json.loads((tmp_path / "plan.json").read_text()) == json.loads(
+        (tmp_path / "plan").read_text()
+    )
