@@ -130,8 +130,10 @@ def train_cmd(
         realisations=n_realisations,
         samples=len(request.sequence) * scenario.timing.samples_per_step,
     )
+    # A kind without a metric left two spaces where the metric goes.
+    described = " ".join(filter(None, (kind, options.get("metric"))))
     click.echo(
-        f"training {kind} {options.get('metric', '')} classifier on {scenario.n_candidates} "
+        f"training {described} classifier on {scenario.n_candidates} "
         f"candidates x {n_realisations} realisations ...",
         err=True,
     )

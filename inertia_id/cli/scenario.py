@@ -161,7 +161,8 @@ def simulate_cmd(
             if context.get_parameter_source(name) is not click.core.ParameterSource.DEFAULT
         ]
         if given:
-            raise InputError(f"{', '.join(given)} apply with --telemetry only")
+            verb = "applies" if len(given) == 1 else "apply"
+            raise InputError(f"{', '.join(given)} {verb} with --telemetry only")
     scenario = load_scenario(preset_name, scenario_path)
     offset = parse_sequence_start(time_offset)
     sequence, coast_s = _with_coast(scenario, parse_sequence(sequence_text), pre_start_s)

@@ -257,7 +257,7 @@ def test_a_named_pipe_in_a_telemetry_folder_is_not_waited_on(tmp_path: Path) -> 
     ("args", "message"),
     [
         # Options that shape one output only, given without it: each was dropped silently.
-        (["simulate", "-n", "1", "--candidate", "2"], "--candidate apply with --telemetry only"),
+        (["simulate", "-n", "1", "--candidate", "2"], "--candidate applies with --telemetry only"),
         (
             ["simulate", "-n", "1", "--realisation", "0", "--time-offset", "100"],
             "--realisation, --time-offset apply with --telemetry only",
@@ -386,3 +386,21 @@ def test_plan_writes_csv_to_a_csv_name_and_json_to_others(
     assert json.loads((tmp_path / "plan.json").read_text()) == json.loads(
         (tmp_path / "plan").read_text()
     )
+
+
+@pytest.mark.parametrize(
+    ("args", "line"),
+    [
+        (["--kind", "least-squares"], "training least-squares classifier on 5 candidates x 3"),
+        (["--kind", "1nn", "--metric", "euclidean"], "training 1nn euclidean classifier on 5"),
+    ],
+)
+def test_train_names_its_classifier_without_a_double_space(
+    args: list[str], line: str, tmp_path: Path
+) -> None:
+    # A kind without a metric read "training marginal-likelihood  classifier".
+    result = CliRunner().invoke(
+        main, ["train", *args, "-n", "3", "--out", str(tmp_path / "c.json")]
+    )
+    assert result.exit_code == 0, result.output
+    assert line in result.stderr and "  " not in result.stderr.splitlines()[0]
