@@ -600,3 +600,15 @@ def test_identify_reads_an_averaging_gyro_at_its_intervals_midpoints(
     at_stamps = json.loads(run_cli(base).stdout)
     assert averaged["distances"] != pytest.approx(at_stamps["distances"])
     assert averaged["candidate"] == "payload 2 ejected"
+
+
+def test_the_help_benchmark_times_every_command(monkeypatch: pytest.MonkeyPatch) -> None:
+    """bench/cli_help.py kept its own list, which left out ``plan``."""
+    import importlib
+    import sys
+
+    from inertia_id.cli import COMMANDS
+
+    monkeypatch.syspath_prepend(str(Path(__file__).parents[2] / "bench"))
+    monkeypatch.delitem(sys.modules, "cli_help", raising=False)
+    assert set(importlib.import_module("cli_help").COMMANDS) == set(COMMANDS)
