@@ -1,5 +1,5 @@
 // Download buttons: every result a page shows, as files, from the API when it serves
-// them (a plain link: reads need no key) or from data the page holds.
+// them (a plain link: downloads need no key) or from data the page holds.
 //
 //   downloads("search-downloads", [
 //     { label: "JSON", href: `/jobs/${id}/result` },
