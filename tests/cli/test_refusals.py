@@ -404,3 +404,56 @@ def test_train_names_its_classifier_without_a_double_space(
     )
     assert result.exit_code == 0, result.output
     assert line in result.stderr and "  " not in result.stderr.splitlines()[0]
+
+
+@pytest.fixture
+def nearest(paper: Scenario, tmp_path: Path) -> Path:
+    path = tmp_path / "c.json"
+    model = train_classifier(
+        paper, SEQUENCE, 3, np.random.default_rng(0), kind="nearest-centroid", metric="euclidean"
+    )
+    model.save(path)
+    return path
+
+
+@pytest.mark.parametrize(
+    ("args", "code", "message"),
+    [
+        # What click refuses before the command runs: 2.
+        (["simulate", "--seed", "-1"], 2, "-1 is not in the range x>=0"),
+        (["simulate", "--sample-rate", "0"], 2, "0.0 is not in the range 0<x<=10000"),
+        (["sweep", "--classifier", "missing.json"], 2, "'missing.json' does not exist"),
+        (["simulate", "--bogus"], 2, "No such option '--bogus'"),
+        # A value the command refuses once it has read it: 1, as the README says.
+        (
+            ["sweep", "--classifier", "{classifier}", "--multiples", "2000"],
+            1,
+            "must be at most 1000",
+        ),
+        (
+            ["identify", "--classifier", "{classifier}", "--estimate-start-within", "1000"],
+            1,
+            "at most 4,001 (±100 s at this step)",
+        ),
+    ],
+)
+def test_the_exit_status_is_as_the_readme_states(
+    args: list[str],
+    code: int,
+    message: str,
+    nearest: Path,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    telemetry = tmp_path / "t.csv"
+    telemetry.write_text(
+        "time_s,wx_rad_s,wy_rad_s,wz_rad_s\n"
+        + "".join(f"{0.05 * (i + 1):g},0,0,0\n" for i in range(80))
+    )
+    args = [a.format(classifier=nearest) for a in args]
+    if args[0] == "identify":
+        args.append(str(telemetry))
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == code, result.output
+    assert message in " ".join(result.output.split()) and "Traceback" not in result.output
