@@ -5,7 +5,7 @@
 // and `context.params` holds the route's parameters and query.
 
 import { api, getApiKey, setApiKey } from "./api.js";
-import { messageBox } from "./ui.js";
+import { h, messageBox } from "./ui.js";
 import { loadVocabulary } from "./vocabulary.js";
 // Pages never import each other: what two pages share lives in components/ and views/.
 import * as classifiers from "./pages/classifiers.js";
@@ -57,6 +57,11 @@ async function route() {
   const root = document.createElement("div");
   document.getElementById("page").replaceChildren(root);
   const timers = [];
+  // A page that follows a running job says so when the service stops answering, instead
+  // of showing "running" and figures that are no longer followed.
+  const pollState = h("div", { id: "poll-state", role: "status" });
+  root.append(pollState);
+  let answered = new Date();
   const context = {
     query,
     alive: () => mine === generation,
@@ -67,8 +72,12 @@ async function route() {
         running = true;
         try {
           await fn();
+          answered = new Date();
+          pollState.replaceChildren();
         } catch (exc) {
           console.warn("poll failed:", exc.message || exc);
+          const since = answered.toISOString().slice(11, 19);
+          pollState.replaceChildren(messageBox("error", `Not updated since ${since} UTC: ${exc.message || exc}. The page tries again every ${Math.round(ms / 1000)} s.`));
         } finally {
           running = false;
         }

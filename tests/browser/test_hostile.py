@@ -252,3 +252,38 @@ def test_a_vocabulary_that_failed_once_is_read_again_at_the_next_link(
     page.click("nav a[data-nav='scenarios']")
     page.wait_for_selector("#page h1")
     assert page.text_content("#page h1") == "Scenarios"
+
+
+def test_a_job_page_says_when_the_service_stops_answering(dashboard: Dashboard) -> None:
+    """It went on saying "running", the failed polls in the console alone."""
+    import json
+
+    _save_key(dashboard)
+    scenario_id = _scenario(dashboard, [*HOSTILE[1:4], "stowed", "deployed"], "polls")
+    job_id = _queued_search(dashboard, scenario_id, "followed")
+    page = dashboard.page
+    dashboard.console.expect("Failed to load resource")
+
+    def running(route: Any) -> None:
+        answer = route.fetch()
+        job = answer.json()
+        job["status"], job["finished_at"] = "running", None
+        route.fulfill(response=answer, body=json.dumps(job))
+
+    pattern = f"**/jobs/{job_id}"
+    page.route(pattern, running)
+    dashboard.open(f"#/jobs/{job_id}")
+    page.unroute(pattern)
+    page.route(pattern, lambda route: route.abort())
+    page.wait_for_selector("#poll-state .message.error", timeout=10_000)
+    assert "Not updated since" in (page.text_content("#poll-state") or "")
+    page.unroute(pattern)
+    page.wait_for_function("() => !document.querySelector('#poll-state .message')")
+
+
+def test_compare_names_ids_it_does_not_know(dashboard: Dashboard) -> None:
+    dashboard.console.expect("status of 404")
+    dashboard.open("#/compare?type=search&ids=zzz")
+    dashboard.page.wait_for_selector("#page .message")
+    text = dashboard.page.text_content("#page") or ""
+    assert "No search run has the id zzz (unknown, deleted, or a run of another type)" in text

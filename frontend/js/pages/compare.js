@@ -65,7 +65,12 @@ export async function render(root, context) {
   const items = await load(type, ids);
   const shown = items.filter((item) => !scenarioFilter || item.scenario_id === scenarioFilter);
   if (!shown.length) {
-    results.append(messageBox("notice", ids.length ? "None of the chosen runs belongs to this scenario." : "Tick runs below to compare them."));
+    const why = !ids.length
+      ? "Tick runs below to compare them."
+      : items.length
+        ? "None of the chosen runs belongs to this scenario."
+        : `No ${type} run has the id${ids.length > 1 ? "s" : ""} ${ids.join(", ")} (unknown, deleted, or a run of another type).`;
+    results.append(messageBox("notice", why));
     return;
   }
   const groups = new Map();
