@@ -144,7 +144,9 @@ def spreadsheet_safe_json(value: Any) -> str:
         return "[" + ",".join(spreadsheet_safe_json(v) for v in value) + "]"
     if isinstance(value, dict):
         items = (
-            f"{spreadsheet_safe_json(str(k))}:{spreadsheet_safe_json(v)}" for k, v in value.items()
+            f"{spreadsheet_safe_json(k if isinstance(k, str) else json.dumps(k))}:"
+            f"{spreadsheet_safe_json(v)}"
+            for k, v in value.items()
         )
         return "{" + ",".join(items) + "}"
     return json.dumps(value)

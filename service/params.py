@@ -289,7 +289,9 @@ class TrainParams(StrictModel):
         min_length=1,
         max_length=1000,
         description="L x N level indices, one row per step, one column per thruster; or "
-        "leave it out and name search_job_id (and front_member)",
+        "leave it out and name search_job_id (and front_member). A job too large for a "
+        "worker is refused (a series of at most 8,192 rate values, covariances of at most "
+        "2^27 values): on the paper preset at most 86 steps",
         examples=[[[4, 4, 4, 0, 0, 0]] * 4],
     )
     search_job_id: str | None = Field(

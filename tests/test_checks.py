@@ -13,6 +13,7 @@ from inertia_id.checks import (
     is_integer,
     is_number,
     spreadsheet_safe,
+    spreadsheet_safe_json,
 )
 
 
@@ -92,6 +93,8 @@ def test_text_is_made_safe_for_csv_files() -> None:
     # JSON escape a spreadsheet shows as text (an apostrophe changed the name read back).
     assert lines[0] == '# names: ["\\u002dx","y"]'
     assert json.loads(lines[0].removeprefix("# names: ")) == ["-x", "y"]
+    nested = {"=a": ["-x", None, 1.5, {"k": "@y"}], 1: True, None: "+z"}
+    assert json.loads(spreadsheet_safe_json(nested)) == json.loads(json.dumps(nested))
     rows = list(csv.reader(io.StringIO("\n".join(lines[1:]))))
     assert rows == [["name", "'=evil"], ["'=1+1", "-0.5"], ["ok", ""]]
 

@@ -31,6 +31,9 @@ export function layout(xTitle, yTitle, extra = {}) {
     xaxis: { title: { text: xTitle }, automargin: true, zeroline: false },
     yaxis: { title: { text: yTitle }, automargin: true, zeroline: false },
     legend: LEGEND_RIGHT,
+    // A hover's trace name in full: Plotly cut it at 15 characters, counted on the
+    // escaped text (plotText), so "Tank AB & C" showed as "Tank AB &amp...".
+    hoverlabel: { namelength: -1 },
     hovermode: "closest",
     height: 380,
   };

@@ -63,7 +63,7 @@ function submitForm(scenarios, classifiers, query) {
   const scenarioSelect = () => {
     const select = h(
       "select",
-      {},
+      { required: true },
       unknownScenario ? choose("scenario") : null,
       scenarios.map((s) => h("option", { value: s.id, selected: s.id === query.scenario }, `${s.name} (${s.id.slice(0, 8)})`)),
     );
