@@ -250,9 +250,13 @@ def test_worker_survives_empty_and_partial_message_files(deployment: Service) ->
     worker = deployment.start_worker()
     folder = deployment.settings.broker_dir / "queue"
     empty = folder / _file_name(age_ms=2000)
-    empty.write_bytes(b"")
     partial = folder / _file_name(age_ms=1000)
-    partial.write_bytes(json.dumps(_message({"job": "x"}))[:40].encode())
+    for path, data in ((empty, b""), (partial, json.dumps(_message({"job": "x"}))[:40].encode())):
+        # Each appears whole (written beside, then renamed in): written in place, the
+        # partial file could be polled while still empty, and warned about as empty.
+        staged = folder.parent / path.name
+        staged.write_bytes(data)
+        os.replace(staged, path)
     time.sleep(1.5)  # some fifteen polls of the queue
     assert worker.alive(), worker.log()
 
