@@ -294,6 +294,7 @@ def search_with_baselines(
         settings,
         seed=found.fresh.seed,
         n_draws=len(found.fresh.f1),
+        should_stop=should_stop,
     )
     return SearchOutcome(found, baselines, scenario)
 

@@ -7,6 +7,7 @@ baseline there.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 from ..physics.scenario import Scenario
@@ -24,6 +25,7 @@ def compare_with_baselines(
     *,
     seed: int,
     n_draws: int = 5,
+    should_stop: Callable[[], bool] | None = None,
 ) -> dict[str, dict[str, Any]]:
     """Each baseline of ``sequence_length`` steps scored on given fresh draws.
 
@@ -32,6 +34,9 @@ def compare_with_baselines(
     paired.
 
     :param settings: the search's :class:`~inertia_id.search.ScorerSettings`.
+    :param should_stop: asked before each baseline; once True the rest are
+        ``unavailable`` ("not scored: the search was cancelled"). A cancelled search
+        scored every baseline on its fresh draws first, minutes on a large scenario.
     :returns: by baseline name: the sequence, the clustering F1 and mean final rate
         (rad/s) on each draw, and the fuel (commanded impulse, N m s); for a baseline the
         length or the thruster geometry does not allow, ``unavailable`` (why), as for an
@@ -42,6 +47,9 @@ def compare_with_baselines(
     for name, sequence in baseline_sequences(scenario, sequence_length).items():
         if isinstance(sequence, str):
             out[name] = {"unavailable": sequence}
+            continue
+        if should_stop is not None and should_stop():
+            out[name] = {"unavailable": "not scored: the search was cancelled"}
             continue
         fresh = evaluate_sequence(scenario, sequence, settings, seed=seed, n_draws=n_draws)
         out[name] = {

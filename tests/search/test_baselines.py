@@ -22,3 +22,23 @@ def test_baselines_are_scored_on_the_given_fresh_draws(paper: Scenario) -> None:
     assert compared["hand-designed"]["fresh_f1"] == same.f1
     assert compared["hand-designed"]["fuel_nms"] == 18.0  # 3 thrusters x 2 N m x 3 s
     assert compared["axis-in-turn"]["fuel_nms"] == 6.0
+
+
+def test_a_cancelled_search_scores_no_further_baseline(paper: Scenario) -> None:
+    """A cancel came while the baselines were scored: each took a fresh evaluation, and
+    the job went on for minutes before it said cancelled."""
+    settings = ScorerSettings(n_realisations=8, metric="euclidean")
+    asked: list[int] = []
+
+    def stop_after_first() -> bool:
+        asked.append(1)
+        return len(asked) > 1
+
+    compared = compare_with_baselines(
+        paper, 4, settings, seed=11, n_draws=1, should_stop=stop_after_first
+    )
+    assert "fresh_f1" in compared["hand-designed"]
+    cancelled = {"unavailable": "not scored: the search was cancelled"}
+    assert [compared[n] for n in ("axis-in-turn", "fire-then-brake", "fire-coast-brake")] == [
+        cancelled
+    ] * 3
