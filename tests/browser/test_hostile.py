@@ -294,3 +294,31 @@ def test_compare_names_ids_it_does_not_know(dashboard: Dashboard) -> None:
     dashboard.page.wait_for_selector("#page .message")
     text = dashboard.page.text_content("#page") or ""
     assert "No search run has the id zzz (unknown, deleted, or a run of another type)" in text
+
+
+def test_the_job_lists_filters_and_sort_survive_a_reload_and_back(dashboard: Dashboard) -> None:
+    """Reload or Back from a job returned the list to page 1, sorted by created, with
+    every filter cleared."""
+    _save_key(dashboard)
+    scenario_id = _scenario(dashboard, [*HOSTILE[1:4], "stowed", "deployed"], "kept list")
+    job_id = _queued_search(dashboard, scenario_id, "kept")
+    page = dashboard.page
+    dashboard.open("#/jobs")
+    page.wait_for_selector("#jobs-rows tr[data-id]")
+    page.select_option("#jobs-filter-status", "cancelled")
+    page.click("#jobs button.sort[data-sort='name']")
+    page.wait_for_function("() => location.hash.includes('list_sort=name')")
+    assert "list_status=cancelled" in page.evaluate("() => location.hash")
+    page.reload()
+    page.wait_for_selector("#jobs-rows tr[data-id]")
+    assert page.eval_on_selector("#jobs-filter-status", "s => s.value") == "cancelled"
+    assert page.locator("#jobs th[aria-sort='ascending'] button[data-sort='name']").count() == 1
+    statuses = page.eval_on_selector_all(
+        "#jobs-rows tr[data-id]", "rows => rows.map((r) => r.dataset.status)"
+    )
+    assert statuses and set(statuses) == {"cancelled"}
+    page.click(f"#jobs-rows tr[data-id='{job_id}'] a")
+    page.wait_for_function("id => location.hash.startsWith(`#/jobs/${id}`)", arg=job_id)
+    page.go_back()
+    page.wait_for_selector("#jobs-rows tr[data-id]")
+    assert page.eval_on_selector("#jobs-filter-status", "s => s.value") == "cancelled"

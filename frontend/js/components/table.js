@@ -3,6 +3,8 @@
 // its toolbar filters, its pager pages, and an optional first column selects rows
 // (kept across pages and refreshes).
 //
+// `onState(state)` is told of every sort, filter and page the user chooses.
+//
 //   const runs = dataTable({
 //     id: "job-table",
 //     columns: [{ key: "name", label: "run", sort: "name", cell: (job) => ... }, ...],
@@ -18,7 +20,7 @@
 
 import { clear, h, messageBox } from "../ui.js";
 
-export function dataTable({ id, columns, filters = [], load, initial = {}, pageSize = 25, select = null, empty = "nothing here yet", rowAttrs = () => ({}) }) {
+export function dataTable({ id, columns, filters = [], load, initial = {}, pageSize = 25, select = null, empty = "nothing here yet", rowAttrs = () => ({}), onState = null }) {
   const state = { sort: "created", order: "desc", limit: pageSize, offset: 0, ...initial };
   const selected = new Set(select && select.initial ? select.initial : []);
   const head = h("thead");
@@ -124,6 +126,8 @@ export function dataTable({ id, columns, filters = [], load, initial = {}, pageS
   let shown = null;
   async function refresh({ user = false } = {}) {
     const mine = ++generation;
+    // The page keeps what the user chose (filters, sort, page) in its address.
+    if (user && onState) onState({ ...state });
     const query = {};
     for (const [name, value] of Object.entries(state)) if (value !== "" && value !== null && value !== undefined) query[name] = value;
     let data;

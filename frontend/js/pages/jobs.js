@@ -323,6 +323,10 @@ function submitForm(scenarios, classifiers, query) {
   return form;
 }
 
+//: The job list's state by its name in the page's address.
+const LIST_QUERY = { type: "list", q: "list_q", status: "list_status", scenario_id: "list_scenario", tag: "list_tag", sort: "list_sort", order: "list_order", offset: "list_offset" };
+const LIST_DEFAULTS = { sort: "created", order: "desc", offset: 0 };
+
 export async function render(root, context) {
   const query = { ...context.query };
   const [scenarios, classifiers] = await Promise.all([api.scenarios(), api.classifiers()]);
@@ -337,10 +341,29 @@ export async function render(root, context) {
   const notice = h("div");
   const compareButton = h("a", { class: "button secondary", id: "compare-selected", href: "#/compare" }, "Compare selected");
   const typeFilter = ["search", "train", "sweep"].includes(query.list) ? query.list : "";
+  // The list's filters, sort and page live in the address (list_status=failed, ...), so
+  // a reload, Back from a job or a shared link shows the same list (they reset to page
+  // 1, sorted by created, with no filter).
+  const initial = { sort: "created", order: "desc", type: typeFilter };
+  for (const [key, name] of Object.entries(LIST_QUERY)) {
+    if (key !== "type" && query[name]) initial[key] = key === "offset" ? Math.max(0, Number.parseInt(query[name], 10) || 0) : query[name];
+  }
+  const keepInAddress = (state) => {
+    const params = new URLSearchParams();
+    for (const [name, value] of Object.entries(context.query)) if (!Object.values(LIST_QUERY).includes(name)) params.set(name, value);
+    for (const [key, name] of Object.entries(LIST_QUERY)) {
+      const value = state[key];
+      if (value === "" || value === null || value === undefined || value === LIST_DEFAULTS[key]) continue;
+      params.set(name, value);
+    }
+    const text = params.toString();
+    history.replaceState(history.state, "", `#/jobs${text ? `?${text}` : ""}`);
+  };
   const runs = dataTable({
     id: "jobs",
     load: (q) => api.jobs(q),
-    initial: { sort: "created", order: "desc", type: typeFilter },
+    initial,
+    onState: keepInAddress,
     filters: [
       { name: "q", label: "search", type: "text", placeholder: "name, tag or id" },
       { name: "type", label: "type", options: [["", "all"], ...vocabulary().job_types.map((t) => [t, t])] },
