@@ -27,7 +27,14 @@ from .api.errors import install_error_handlers
 from .api.identify import ClassifierCache, openapi_components
 from .capacity import ComputeGate
 from .dashboard import mount_dashboard, mount_docs
-from .security import AllowedHosts, BodySizeLimit, KeyVerifier, SecurityHeaders, ensure_api_key
+from .security import (
+    AllowedHosts,
+    BodySizeLimit,
+    HeadAsGet,
+    KeyVerifier,
+    SecurityHeaders,
+    ensure_api_key,
+)
 from .verdicts import VerdictProcess
 
 __all__ = ["create_app"]
@@ -145,6 +152,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     mount_dashboard(app, settings)
     app.add_middleware(BodySizeLimit, max_bytes=settings.max_body_bytes)
     app.add_middleware(AllowedHosts, hosts=settings.resolved_allowed_hosts)
+    app.add_middleware(HeadAsGet)
     app.add_middleware(SecurityHeaders)  # outermost: on every answer, refusals too
     _extend_openapi(app, settings)
     return app

@@ -31,6 +31,7 @@ __all__ = [
     "AllowedHosts",
     "BodySizeLimit",
     "BodyTooLarge",
+    "HeadAsGet",
     "KeyVerifier",
     "SecurityHeaders",
     "ensure_api_key",
@@ -289,3 +290,24 @@ class SecurityHeaders:
             await send(message)
 
         await self.app(scope, receive, send_with_headers)
+
+
+class HeadAsGet:
+    """Answer ``HEAD`` as ``GET`` without the body (RFC 9110 §9.3.2): FastAPI routes a
+    GET route's HEAD to 405, and uptime monitors and ``curl -I`` ask with HEAD. The
+    headers, ``Content-Length`` included, are the GET's."""
+
+    def __init__(self, app: ASGIApp) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http" or scope["method"] != "HEAD":
+            await self.app(scope, receive, send)
+            return
+
+        async def without_body(message: Message) -> None:
+            if message["type"] == "http.response.body":
+                message = {**message, "body": b""}
+            await send(message)
+
+        await self.app({**scope, "method": "GET"}, receive, without_body)

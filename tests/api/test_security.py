@@ -143,3 +143,15 @@ def test_every_answer_forbids_framing_and_sniffing(small_body_api: Api) -> None:
         assert answer.headers["x-frame-options"] == "DENY"
         assert answer.headers["content-security-policy"] == "frame-ancestors 'none'"
         assert answer.headers["x-content-type-options"] == "nosniff"
+
+
+def test_head_is_answered_as_get_without_the_body(api: Api) -> None:
+    """Uptime monitors and ``curl -I`` ask with HEAD; it was a 405 on every route."""
+    for path in ("/health", "/", "/jobs", "/static/js/app.js"):
+        got, head = api.client.get(path), api.client.head(path)
+        assert head.status_code == got.status_code == 200, path
+        assert head.content == b""
+        assert head.headers["content-length"] == got.headers["content-length"], path
+        assert head.headers["content-type"] == got.headers["content-type"], path
+    # A HEAD writes nothing: a write route is not a GET route.
+    assert api.client.head("/identify").status_code == 405
