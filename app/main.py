@@ -31,6 +31,7 @@ from .security import (
     AllowedHosts,
     BodySizeLimit,
     HeadAsGet,
+    KeyBeforeBody,
     KeyVerifier,
     SecurityHeaders,
     ensure_api_key,
@@ -150,6 +151,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     install_error_handlers(app)
     mount_docs(app)
     mount_dashboard(app, settings)
+    app.add_middleware(KeyBeforeBody)
     app.add_middleware(BodySizeLimit, max_bytes=settings.max_body_bytes)
     app.add_middleware(AllowedHosts, hosts=settings.resolved_allowed_hosts)
     app.add_middleware(HeadAsGet)

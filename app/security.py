@@ -16,6 +16,7 @@ from collections.abc import Callable
 from dataclasses import KW_ONLY, InitVar, dataclass
 
 from sqlalchemy import select
+from starlette.concurrency import run_in_threadpool
 from starlette.exceptions import HTTPException
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
@@ -32,6 +33,7 @@ __all__ = [
     "BodySizeLimit",
     "BodyTooLarge",
     "HeadAsGet",
+    "KeyBeforeBody",
     "KeyVerifier",
     "SecurityHeaders",
     "ensure_api_key",
@@ -194,11 +196,63 @@ def scope_header(scope: Scope, name: bytes) -> str | None:
     return None
 
 
-async def send_detail(send: Send, status_code: int, detail: str, *, close: bool = False) -> None:
+async def key_refusal(verify: KeyVerifier, key: str | None) -> str | None:
+    """Why ``key`` is refused (the 401's detail, never echoing the key), or None when it
+    is accepted. A remembered key is answered on the event loop; only a lookup goes to a
+    thread."""
+    if not key:
+        return f"missing API key: send it in the {API_KEY_HEADER} header"
+    accepted = verify.remembered(key)
+    if accepted is None:
+        accepted = await run_in_threadpool(verify, key)
+    return None if accepted else f"invalid API key in the {API_KEY_HEADER} header"
+
+
+#: The methods that write: every route answering them needs the key.
+WRITE_METHODS = frozenset({"POST", "PUT", "PATCH", "DELETE"})
+
+
+class KeyBeforeBody:
+    """Refuse a write without an accepted key (401) before its body is read.
+
+    FastAPI reads and parses a route's body before it runs the route's dependencies, so
+    a client without a key had its body of up to the size limit parsed, and was told
+    what was wrong with it (422), before being refused. Every write route needs the key
+    (:func:`app.api.deps.require_api_key` checks it again, with the same message)."""
+
+    def __init__(self, app: ASGIApp) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http" or scope["method"] not in WRITE_METHODS:
+            await self.app(scope, receive, send)
+            return
+        key = scope_header(scope, API_KEY_HEADER.lower().encode())
+        problem = await key_refusal(scope["app"].state.verify_key, key)
+        if problem is None:
+            await self.app(scope, receive, send)
+            return
+        await send_detail(
+            send, 401, problem, headers=[(b"www-authenticate", API_KEY_HEADER.encode())]
+        )
+
+
+async def send_detail(
+    send: Send,
+    status_code: int,
+    detail: str,
+    *,
+    close: bool = False,
+    headers: list[tuple[bytes, bytes]] | None = None,
+) -> None:
     """Answer from a middleware, before the app: ``{"detail": detail}`` as JSON, the
     connection closed after it with ``close``."""
     body = json.dumps({"detail": detail}, separators=(",", ":")).encode()
-    headers = [(b"content-type", b"application/json"), (b"content-length", str(len(body)).encode())]
+    headers = [
+        (b"content-type", b"application/json"),
+        (b"content-length", str(len(body)).encode()),
+        *(headers or []),
+    ]
     if close:
         headers.append((b"connection", b"close"))
     await send({"type": "http.response.start", "status": status_code, "headers": headers})

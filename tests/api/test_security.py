@@ -155,3 +155,22 @@ def test_head_is_answered_as_get_without_the_body(api: Api) -> None:
         assert head.headers["content-type"] == got.headers["content-type"], path
     # A HEAD writes nothing: a write route is not a GET route.
     assert api.client.head("/identify").status_code == 405
+
+
+def test_a_write_without_the_key_is_refused_before_its_body_is_read(api: Api) -> None:
+    """A client without a key had its body parsed and was told what was wrong with it (a
+    422 naming the JSON error) before being refused."""
+    headers = {"Content-Type": "application/json"}
+    for path, body in (("/jobs", b"{not json"), ("/scenarios", b'{"preset": "nope"}')):
+        bare = api.client.post(path, content=body, headers=headers)
+        wrong = api.client.post(path, content=body, headers={**headers, "X-API-Key": "no"})
+        assert (bare.status_code, wrong.status_code) == (401, 401), (bare.text, wrong.text)
+        assert bare.json() == {"detail": "missing API key: send it in the X-API-Key header"}
+        assert wrong.json() == {"detail": "invalid API key in the X-API-Key header"}
+        assert bare.headers["www-authenticate"] == "X-API-Key"
+        # With the key, the body is judged as before.
+        assert (
+            api.client.post(path, content=body, headers={**headers, **api.auth}).status_code == 422
+        )
+    assert api.client.patch("/jobs/nope", json={"name": "x"}).status_code == 401
+    assert api.client.delete("/scenarios/nope").status_code == 401
