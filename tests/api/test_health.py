@@ -78,6 +78,10 @@ def test_openapi_and_docs_are_served(api: Api) -> None:
     docs = api.get("/docs")
     assert docs.status_code == 200
     assert "swagger" in docs.text.lower()
+    # A screen reader needs the page's language (axe-core's html-has-lang).
+    assert (
+        docs.text.lstrip().lower().startswith("<!doctype html>") and '<html lang="en">' in docs.text
+    )
     spec = api.get("/openapi.json").json()
     assert spec["info"]["title"] == "inertia-id"
     assert {

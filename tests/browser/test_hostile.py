@@ -240,7 +240,14 @@ def test_a_phone_wide_window_does_not_widen_the_page(dashboard: Dashboard, route
     dashboard.open(route)
     dashboard.page.wait_for_load_state("networkidle")
     width = dashboard.page.evaluate("() => document.documentElement.scrollWidth")
-    assert width <= 375, f"{route} is {width} px wide in a 375 px window"
+    widest = dashboard.page.evaluate(
+        """() => [...document.querySelectorAll('body *')]
+          .filter((e) => e.getBoundingClientRect().right > 376)
+          .filter((e) => !e.closest('.table-scroll'))
+          .slice(0, 6)
+          .map((e) => `${e.tagName.toLowerCase()}#${e.id}.${e.className}: ${Math.round(e.getBoundingClientRect().right)}`)"""
+    )
+    assert width <= 375, f"{route} is {width} px wide in a 375 px window: {widest}"
     for selector in ("nav a[data-nav='identify']", "#api-key"):
         box = dashboard.page.locator(selector).bounding_box()
         assert box is not None and box["x"] + box["width"] <= 375, (selector, box)
@@ -322,3 +329,77 @@ def test_the_job_lists_filters_and_sort_survive_a_reload_and_back(dashboard: Das
     page.go_back()
     page.wait_for_selector("#jobs-rows tr[data-id]")
     assert page.eval_on_selector("#jobs-filter-status", "s => s.value") == "cancelled"
+
+
+#: What axe-core checks: WCAG 2.0 and 2.1, A and AA, and its best practices.
+AXE_TAGS = ["wcag2a", "wcag2aa", "wcag21a", "wcag21aa", "best-practice"]
+
+
+def _axe_violations(dashboard: Dashboard) -> list[str]:
+    from axe_playwright_python.sync_playwright import Axe
+
+    results = Axe().run(
+        dashboard.page,
+        options={"runOnly": {"type": "tag", "values": AXE_TAGS}, "resultTypes": ["violations"]},
+    )
+    return [
+        f"{v['id']} ({v['impact']}): {[n['target'] for n in v['nodes']][:3]}"
+        for v in results.response["violations"]
+    ]
+
+
+def test_every_page_passes_axe_core(dashboard: Dashboard) -> None:
+    """An audit with axe-core found low-contrast progress figures, unnamed table columns,
+    a table that scrolled out of a keyboard's reach and a skipped heading level."""
+    _save_key(dashboard)
+    scenario_id = _scenario(dashboard, [*HOSTILE[1:4], "stowed", "deployed"], "audited")
+    job_id = _queued_search(dashboard, scenario_id, "audited search")
+    routes = [
+        "#/scenarios",
+        f"#/scenarios/{scenario_id}",
+        "#/scenarios/new",
+        "#/jobs?type=search",
+        "#/jobs?type=train",
+        "#/jobs?type=sweep",
+        f"#/jobs/{job_id}",
+        "#/classifiers",
+        f"#/compare?type=search&ids={job_id}",
+        "#/identify",
+    ]
+    found = {}
+    for route in routes:
+        dashboard.open(route)
+        dashboard.page.wait_for_load_state("networkidle")
+        problems = _axe_violations(dashboard)
+        if problems:
+            found[route] = problems
+    assert found == {}, "\n".join(f"{r}: {p}" for r, p in found.items())
+
+
+def test_the_confirm_dialog_gives_the_focus_back(dashboard: Dashboard) -> None:
+    """Closing it with its buttons left the focus on <body> when the list had redrawn the
+    row that opened it (a running job's row changes at every poll)."""
+    _save_key(dashboard)
+    scenario_id = _scenario(dashboard, [*HOSTILE[1:4], "stowed", "deployed"], "dialog")
+    client = dashboard.service.client
+    params = {"method": "random", "sequence_length": 4, "timesteps": 20480}
+    answer = client.post(
+        "/jobs",
+        json={"type": "search", "scenario_id": scenario_id, "params": params, "rerun": True},
+    )
+    job_id = answer.json()["id"]
+    page = dashboard.page
+    try:
+        dashboard.open("#/jobs")
+        button = f"#jobs-rows tr[data-id='{job_id}'] button.danger"
+        page.wait_for_selector(button)
+        page.focus(button)
+        page.keyboard.press("Enter")
+        page.wait_for_selector("#confirm-no")
+        page.wait_for_timeout(2500)  # a poll redraws the row behind the dialog
+        page.keyboard.press("Enter")  # "Keep it running": the focused, safe choice
+        page.wait_for_function("() => !document.querySelector('dialog.confirm')")
+        page.wait_for_timeout(300)
+        assert page.evaluate("() => document.activeElement !== document.body")
+    finally:
+        client.post(f"/jobs/{job_id}/cancel")

@@ -16,10 +16,17 @@ export function confirmAction({ title, text = "", confirm = "Confirm", keep = "K
       text ? h("p", {}, text) : null,
       h("div", { class: "toolbar" }, yes, no),
     );
+    // Focus goes back where it was (the button that asked), or to the page's main
+    // region when that button is gone (a cancel replaces it): never left on <body>.
+    const opener = document.activeElement;
     const done = (answer) => {
       dialog.close();
       dialog.remove();
       resolve(answer);
+      setTimeout(() => {
+        const target = opener && opener.isConnected ? opener : document.getElementById("page");
+        if (target) target.focus();
+      });
     };
     yes.addEventListener("click", () => done(true));
     no.addEventListener("click", () => done(false));

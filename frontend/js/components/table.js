@@ -105,7 +105,7 @@ export function dataTable({ id, columns, filters = [], load, initial = {}, pageS
   function drawHead(cols) {
     clear(head);
     const cells = [];
-    if (select) cells.push(h("th", { class: "select" }, ""));
+    if (select) cells.push(h("th", { class: "select", scope: "col" }, h("span", { class: "visually-hidden" }, "select")));
     for (const col of cols) {
       const attrs = { scope: "col", class: col.num ? "num" : "" };
       if (col.sort) {
@@ -114,7 +114,9 @@ export function dataTable({ id, columns, filters = [], load, initial = {}, pageS
         const arrow = active ? (state.order === "asc" ? " ▲" : " ▼") : "";
         cells.push(h("th", attrs, h("button", { type: "button", class: "sort", "data-sort": col.sort, title: `sort by ${col.label}`, onclick: () => sortBy(col.sort) }, col.label, col.unit ? h("span", { class: "unit" }, ` (${col.unit})`) : null, arrow)));
       } else {
-        cells.push(h("th", attrs, col.label, col.unit ? h("span", { class: "unit" }, ` (${col.unit})`) : null));
+        // A column without a visible title (row actions) still names itself to a screen reader.
+        const label = col.label || h("span", { class: "visually-hidden" }, col.key);
+        cells.push(h("th", attrs, label, col.unit ? h("span", { class: "unit" }, ` (${col.unit})`) : null));
       }
     }
     head.append(h("tr", {}, cells));
@@ -186,7 +188,7 @@ export function dataTable({ id, columns, filters = [], load, initial = {}, pageS
     { class: "data-table", id },
     filters.length ? h("div", { class: "toolbar filters" }, controls) : null,
     notice,
-    h("div", { class: "table-scroll" }, h("table", { id: `${id}-table` }, head, body)),
+    h("div", { class: "table-scroll", tabindex: "0", role: "region", "aria-label": `${id} list` }, h("table", { id: `${id}-table` }, head, body)),
     h("div", { class: "toolbar pager" }, prev, next, count),
   );
   return { node, refresh, state, selected };

@@ -111,6 +111,8 @@ export async function render(root, context) {
           showFieldErrors(exc, { file: text, classifier_id: select, sequence_start: start, confidence, averaged }, general);
         } finally {
           submit.disabled = false;
+          // Disabled while it ran, the button lost the focus to <body>: give it back.
+          if (document.activeElement === document.body && context.alive()) submit.focus();
         }
       },
     },

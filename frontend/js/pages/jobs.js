@@ -283,7 +283,7 @@ function submitForm(scenarios, classifiers, query) {
       tabs.append(
         h(
           "button",
-          { type: "button", role: "tab", id: `tab-${name}`, "aria-selected": String(name === current), onclick: () => { current = name; show(); } },
+          { type: "button", role: "tab", id: `tab-${name}`, "aria-selected": String(name === current), onclick: () => { current = name; show(); tabs.querySelector(`#tab-${name}`).focus(); } },
           name,
         ),
       );
@@ -310,6 +310,8 @@ function submitForm(scenarios, classifiers, query) {
           showFieldErrors(exc, { ...fields, name: labels.name, tags: labels.tags }, general, event.target);
         } finally {
           submit.disabled = false;
+          // Disabled while it was sent, the button lost the focus to <body>.
+          if (document.activeElement === document.body && submit.isConnected) submit.focus();
         }
       },
     },

@@ -41,7 +41,7 @@ export async function renderList(root) {
       "div",
       { class: "card" },
       table(
-        ["name", "candidates", "thrusters", "duty levels", "created", "id", ""],
+        ["name", "candidates", "thrusters", "duty levels", "created", "id", h("span", { class: "visually-hidden" }, "actions")],
         page.items.map((s) => [
           link(`#/scenarios/${s.id}`, s.name),
           s.candidates.length,
@@ -301,7 +301,7 @@ function buildForm(preset, general, suffix = " (edited)") {
   const candidateTable = h(
     "table",
     { class: "edit", id: "candidate-form" },
-    h("thead", {}, h("tr", {}, h("th", {}, "candidate"), COMPONENTS.map(([n]) => h("th", {}, `${n} (kg m²)`)), h("th", {}, ""))),
+    h("thead", {}, h("tr", {}, h("th", {}, "candidate"), COMPONENTS.map(([n]) => h("th", {}, `${n} (kg m²)`)), h("th", {}, h("span", { class: "visually-hidden" }, "remove")))),
     candidateBody,
   );
   fields.inertia_candidates = candidateTable;

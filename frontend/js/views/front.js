@@ -228,11 +228,12 @@ function memberTable(front, onPick) {
   });
   return h(
     "div",
-    { class: "table-scroll" },
+    // Focusable, so a keyboard user can scroll a table wider than the page.
+    { class: "table-scroll", tabindex: "0", role: "region", "aria-label": "front members" },
     h(
       "table",
       { id: "front-table" },
-      h("thead", {}, h("tr", {}, h("th", { class: "select" }, ""), h("th", { class: "num" }, "member"), columns.map(([, label]) => h("th", { class: "num" }, label)), h("th", {}, "dominated by"), h("th", {}, "within the constraints"))),
+      h("thead", {}, h("tr", {}, h("th", { class: "select" }, h("span", { class: "visually-hidden" }, "choose")), h("th", { class: "num" }, "member"), columns.map(([, label]) => h("th", { class: "num" }, label)), h("th", {}, "dominated by"), h("th", {}, "within the constraints"))),
       h("tbody", {}, rows),
     ),
   );
@@ -255,7 +256,7 @@ function baselineTable(front) {
   );
   return h(
     "div",
-    { class: "table-scroll" },
+    { class: "table-scroll", tabindex: "0", role: "region", "aria-label": "baselines" },
     h(
       "table",
       { id: "front-baselines" },

@@ -149,7 +149,7 @@ export async function sweepPanel(holder, job, classifier, context) {
     whoSelect.addEventListener("change", drawConfusion);
     fillMultiples();
     confusionHolder.append(
-      h("h3", {}, "Confusion matrix at a noise level"),
+      h("h2", {}, "Confusion matrix at a noise level"),
       h("div", { class: "toolbar" }, h("label", { for: "confusion-classifier" }, "classifier"), whoSelect, h("label", { for: "confusion-noise" }, "noise"), noiseSelect, h("label", { for: "confusion-multiple" }, "multiple"), multipleSelect),
       plot,
     );
@@ -191,7 +191,7 @@ function inertiaPlots(holder, inertia) {
   const between = inertia.points.filter((p) => p.body === "between");
   const plot = plotDiv("inertia-plot");
   holder.append(
-    h("h3", {}, "Bodies off the candidates: is the answer \"matches none\"?"),
+    h("h2", {}, "Bodies off the candidates: is the answer \"matches none\"?"),
     h("p", { class: "hint" }, `Scaled: ${names[inertia.base]}'s inertia times a factor (1 is the candidate itself). Between: from ${names[inertia.pair[0]]} (0) to ${names[inertia.pair[1]]} (1), the two closest candidates. Ideal: 0 at the candidates, 1 away from them.`),
     plot,
   );
