@@ -245,7 +245,10 @@ def test_a_phone_wide_window_does_not_widen_the_page(dashboard: Dashboard, route
           .filter((e) => e.getBoundingClientRect().right > 376)
           .filter((e) => !e.closest('.table-scroll'))
           .slice(0, 6)
-          .map((e) => `${e.tagName.toLowerCase()}#${e.id}.${e.className}: ${Math.round(e.getBoundingClientRect().right)}`)"""
+          .map((e) => {
+            const right = Math.round(e.getBoundingClientRect().right);
+            return `${e.tagName.toLowerCase()}#${e.id}.${e.className}: ${right}`;
+          })"""
     )
     assert width <= 375, f"{route} is {width} px wide in a 375 px window: {widest}"
     for selector in ("nav a[data-nav='identify']", "#api-key"):
