@@ -72,3 +72,21 @@ LAYOUT_PROBLEMS_JS = "\n".join(
     .splitlines()
     if not line.startswith("//")
 )
+
+
+#: What axe-core checks: WCAG 2.0 and 2.1, A and AA, and its best practices.
+AXE_TAGS = ["wcag2a", "wcag2aa", "wcag21a", "wcag21aa", "best-practice"]
+
+
+def axe_violations(dashboard: Dashboard) -> list[str]:
+    """What axe-core (bundled by axe-playwright-python) finds on the page as it stands."""
+    from axe_playwright_python.sync_playwright import Axe
+
+    results = Axe().run(
+        dashboard.page,
+        options={"runOnly": {"type": "tag", "values": AXE_TAGS}, "resultTypes": ["violations"]},
+    )
+    return [
+        f"{v['id']} ({v['impact']}): {[n['target'] for n in v['nodes']][:3]}"
+        for v in results.response["violations"]
+    ]

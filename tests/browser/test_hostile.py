@@ -11,7 +11,7 @@ from __future__ import annotations
 from typing import Any
 
 import pytest
-from dashboard_support import API_KEY, Dashboard
+from dashboard_support import API_KEY, Dashboard, axe_violations
 
 KEY_STORAGE = "inertia-id-api-key"
 #: Names a user could type, each of which Plotly would draw as markup if given as is.
@@ -334,23 +334,6 @@ def test_the_job_lists_filters_and_sort_survive_a_reload_and_back(dashboard: Das
     assert page.eval_on_selector("#jobs-filter-status", "s => s.value") == "cancelled"
 
 
-#: What axe-core checks: WCAG 2.0 and 2.1, A and AA, and its best practices.
-AXE_TAGS = ["wcag2a", "wcag2aa", "wcag21a", "wcag21aa", "best-practice"]
-
-
-def _axe_violations(dashboard: Dashboard) -> list[str]:
-    from axe_playwright_python.sync_playwright import Axe
-
-    results = Axe().run(
-        dashboard.page,
-        options={"runOnly": {"type": "tag", "values": AXE_TAGS}, "resultTypes": ["violations"]},
-    )
-    return [
-        f"{v['id']} ({v['impact']}): {[n['target'] for n in v['nodes']][:3]}"
-        for v in results.response["violations"]
-    ]
-
-
 def test_every_page_passes_axe_core(dashboard: Dashboard) -> None:
     """An audit with axe-core found low-contrast progress figures, unnamed table columns,
     a table that scrolled out of a keyboard's reach and a skipped heading level."""
@@ -373,7 +356,7 @@ def test_every_page_passes_axe_core(dashboard: Dashboard) -> None:
     for route in routes:
         dashboard.open(route)
         dashboard.page.wait_for_load_state("networkidle")
-        problems = _axe_violations(dashboard)
+        problems = axe_violations(dashboard)
         if problems:
             found[route] = problems
     assert found == {}, "\n".join(f"{r}: {p}" for r, p in found.items())
