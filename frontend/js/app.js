@@ -170,7 +170,17 @@ async function health() {
   }
 }
 
+// The skip link moves the focus past the header's eight stops to the page itself,
+// leaving the route alone (its href names the element, as skip links do).
+function skipLink() {
+  document.getElementById("skip-link").addEventListener("click", (event) => {
+    event.preventDefault();
+    document.getElementById("page").focus();
+  });
+}
+
 function start() {
+  skipLink();
   keyBox();
   health();
   setInterval(health, 10000);

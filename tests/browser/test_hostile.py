@@ -389,3 +389,32 @@ def test_the_confirm_dialog_gives_the_focus_back(dashboard: Dashboard) -> None:
         assert page.evaluate("() => document.activeElement !== document.body")
     finally:
         client.post(f"/jobs/{job_id}/cancel")
+
+
+def test_the_keyboard_skips_the_header_and_moves_between_form_tabs(dashboard: Dashboard) -> None:
+    """No skip link put eight header stops before every page's content, and the job
+    form's tabs were three Tab stops that no arrow key moved between."""
+    _save_key(dashboard)
+    _scenario(dashboard, [*HOSTILE[1:4], "stowed", "deployed"], "keyboard")
+    page = dashboard.page
+    dashboard.open("#/jobs")
+    page.keyboard.press("Tab")
+    assert page.evaluate("() => document.activeElement.id") == "skip-link"
+    page.keyboard.press("Enter")
+    assert page.evaluate("() => document.activeElement.id") == "page"
+    assert page.evaluate("() => location.hash") == "#/jobs"
+    page.focus("#tab-search")
+    page.keyboard.press("ArrowRight")
+    assert page.evaluate("() => document.activeElement.id") == "tab-train"
+    assert page.get_attribute("#tab-train", "aria-selected") == "true"
+    assert page.get_attribute("#job-form-panel", "aria-labelledby") == "tab-train"
+    page.keyboard.press("End")
+    assert page.evaluate("() => document.activeElement.id") == "tab-sweep"
+    page.keyboard.press("ArrowRight")  # wraps around
+    assert page.evaluate("() => document.activeElement.id") == "tab-search"
+    # One Tab stop for the list: Tab leaves it for the chosen panel.
+    assert [page.get_attribute(f"#tab-{t}", "tabindex") for t in ("search", "train", "sweep")] == [
+        "0",
+        "-1",
+        "-1",
+    ]

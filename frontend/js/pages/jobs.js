@@ -274,20 +274,39 @@ function submitForm(scenarios, classifiers, query) {
   };
 
   let current = ["search", "train", "sweep"].includes(query.type) ? query.type : "search";
-  const holder = h("div");
-  const tabs = h("div", { class: "tabs", role: "tablist" });
+  const holder = h("div", { role: "tabpanel", id: "job-form-panel" });
+  const tabs = h("div", { class: "tabs", role: "tablist", "aria-label": "job type" });
   const submit = h("button", { type: "submit", id: "submit-job" }, "Submit");
+  const names = Object.keys(panels);
+  const pickTab = (name) => {
+    current = name;
+    show();
+    tabs.querySelector(`#tab-${name}`).focus();
+  };
+  // The ARIA tabs pattern: one Tab stop for the list (the chosen tab), arrow keys, Home
+  // and End move between tabs and choose them.
+  const KEYS = { ArrowRight: 1, ArrowLeft: -1, Home: "first", End: "last" };
+  tabs.addEventListener("keydown", (event) => {
+    const move = KEYS[event.key];
+    if (move === undefined) return;
+    event.preventDefault();
+    const at = names.indexOf(current);
+    const to = move === "first" ? 0 : move === "last" ? names.length - 1 : (at + move + names.length) % names.length;
+    pickTab(names[to]);
+  });
   const show = () => {
     clear(tabs);
-    for (const name of Object.keys(panels)) {
+    for (const name of names) {
+      const chosen = name === current;
       tabs.append(
         h(
           "button",
-          { type: "button", role: "tab", id: `tab-${name}`, "aria-selected": String(name === current), onclick: () => { current = name; show(); tabs.querySelector(`#tab-${name}`).focus(); } },
+          { type: "button", role: "tab", id: `tab-${name}`, "aria-selected": String(chosen), "aria-controls": "job-form-panel", tabindex: chosen ? "0" : "-1", onclick: () => pickTab(name) },
           name,
         ),
       );
     }
+    holder.setAttribute("aria-labelledby", `tab-${current}`);
     clear(holder);
     clear(general);
     holder.append(panels[current][0]);
