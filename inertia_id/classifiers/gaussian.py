@@ -100,27 +100,51 @@ def whitened_distances(F: np.ndarray, means: np.ndarray, chol_lower: np.ndarray)
     return np.sqrt(np.sum(white**2, axis=0)).reshape(n, k)
 
 
-def cv_intensity(F: np.ndarray, y: np.ndarray, n_candidates: int, folds: np.ndarray) -> float:
+def shrink_towards(sample: np.ndarray, target: np.ndarray, intensity: float) -> np.ndarray:
+    """(1 - α) S + α T: towards a covariance ``target`` known from a model."""
+    return np.asarray((1.0 - intensity) * sample + intensity * target)
+
+
+def cv_intensity(
+    F: np.ndarray,
+    y: np.ndarray,
+    n_candidates: int,
+    folds: np.ndarray,
+    target: np.ndarray | None = None,
+) -> float:
     """The grid intensity of highest held-out Gaussian log-likelihood.
 
     Shrinking towards a multiple of the identity keeps the eigenvectors, so one
     eigendecomposition per fold serves every intensity of the grid.
+
+    :param target: shrink towards this covariance (:func:`shrink_towards`) instead. In the
+        basis that whitens it (T = C Cᵀ), (1 - α) S + α T is C ((1 - α) S' + α I) Cᵀ with
+        S' = C⁻¹ S C⁻ᵀ, so again one eigendecomposition per fold serves every intensity,
+        and log det T is added to each.
     """
+    factor = None if target is None else cholesky(target)
+    target_log_det = 0.0 if factor is None else 2.0 * float(np.sum(np.log(np.diag(factor))))
     loglik = np.zeros(len(CV_INTENSITIES))
     for fold in np.unique(folds):
         train, test = folds != fold, folds == fold
         means, _, sample = means_and_scatter(F[train], y[train], n_candidates)
+        residuals = (F[test] - means[y[test]]).T  # (p, n_test)
+        if factor is not None:
+            half = solve_triangular(factor, sample, lower=True, check_finite=False)
+            sample = solve_triangular(factor, half.T, lower=True, check_finite=False)
+            sample = 0.5 * (sample + sample.T)
+            residuals = solve_triangular(factor, residuals, lower=True, check_finite=False)
         eigenvalues, eigenvectors = np.linalg.eigh(sample)
         eigenvalues = np.maximum(eigenvalues, 0.0)  # rounding makes null ones negative
-        target = float(np.mean(eigenvalues))
-        projected = (eigenvectors.T @ (F[test] - means[y[test]]).T) ** 2  # (p, n_test)
+        isotropic = 1.0 if factor is not None else float(np.mean(eigenvalues))
+        projected = (eigenvectors.T @ residuals) ** 2  # (p, n_test)
         for i, intensity in enumerate(CV_INTENSITIES):
-            shrunk = (1.0 - intensity) * eigenvalues + intensity * target
+            shrunk = (1.0 - intensity) * eigenvalues + intensity * isotropic
             if shrunk.min() <= 0.0:
                 loglik[i] = -np.inf  # singular: never the optimum
                 continue
             mahalanobis = float(np.sum(projected / shrunk[:, None]))
-            log_det = float(np.sum(np.log(shrunk)))
+            log_det = float(np.sum(np.log(shrunk))) + target_log_det
             loglik[i] += -0.5 * mahalanobis - 0.5 * int(test.sum()) * log_det
     return float(CV_INTENSITIES[int(np.argmax(loglik))])
 

@@ -42,7 +42,13 @@ residuals, shrunk towards ``(tr S / dim) I`` by the likelihood classifier's cros
 validated rule. For white gyro noise that rule chooses full shrinkage, i.e. σ² I
 estimated from every number at once (a random gyro bias, which the simulator scales with
 the gyro noise, is kept apart as a constant per axis: :func:`_white_and_bias`); the
-smooth quiet and process components get almost none (0.001 to 0.02). Three matrices then
+smooth quiet component gets almost none (0.001 to 0.02). The process component is
+shrunk towards the covariance the scenario's disturbance torque gives the rates,
+written out (:func:`_process_target`), rather than towards the identity: its random walk
+has full rank, which 100 residuals cannot estimate in 3 T dimensions, and the same rule
+chooses that target outright on the paper preset (6x process noise on a 480-value
+braking sequence: 0.956 with the sample covariance, 0.962 with the target, against a
+ceiling of 0.966; see the README). Three matrices then
 serve any grid, and the white measurement noise, which a per-condition sample covariance
 must estimate (badly, in 240 dimensions), is known almost exactly. The candidates' mean
 responses, shared by every condition (the mean does not move with the noise level, to
@@ -104,7 +110,7 @@ from ..errors import InputError
 from ..physics.estimate import parameters_from_tensor, tensor_from_parameters
 from ..physics.scenario import Scenario
 from ..physics.series import check_series
-from ..physics.simulate import Simulator, simulate
+from ..physics.simulate import Simulator, disturbance_rate_covariance, simulate
 from . import gaussian
 from .base import BaseClassifier, is_number
 from .gaussian import log_softmax, logsumexp
@@ -116,11 +122,15 @@ __all__ = [
     "JOINT_GRID",
     "MEASUREMENT_MULTIPLES",
     "PROCESS_MULTIPLES",
+    "PROCESS_TARGETS",
     "MarginalLikelihoodClassifier",
     "inertia_sensitivity",
     "train_marginal",
 ]
 
+#: What the process component may be shrunk towards: the covariance the scenario's
+#: disturbance writes out (the default; where it cannot, the identity), or the identity.
+PROCESS_TARGETS = ("disturbance model", "isotropic")
 #: The noise sources a covariance is split into, in storage order.
 COMPONENTS = ("quiet", "process", "measurement")
 _OCTAVES = (1.0, 2.0, 4.0, 8.0)
@@ -170,6 +180,33 @@ def _component_from_document(data: dict[str, Any], dim: int) -> np.ndarray:
 #: noise when its coefficients' variance exceeds the white noise's by this many standard
 #: errors of a variance estimate.
 _BIAS_SIGNIFICANCE = 4.0
+
+
+def _process_target(scenario: Scenario | None, sequence: Any, dim: int) -> np.ndarray | None:
+    """What the process component is shrunk towards: the covariance the scenario's
+    disturbance torque gives the rates, written out
+    (:func:`~inertia_id.physics.simulate.disturbance_rate_covariance`); None (shrink
+    towards the identity, as before) without a scenario or where it does not fit.
+
+    Why a target from the model: the disturbance's random walk has a covariance of full
+    rank, which 100 residuals per candidate cannot estimate in 3 T dimensions (a fifth of
+    it at L = 8 on the paper preset), and shrinking towards the identity cannot restore
+    its structure. The written-out covariance neglects how the gyroscopic coupling
+    carries the noise between axes, so the cross-validated intensity decides how far to
+    trust it; on the paper preset it chooses the target outright. A tiny ridge (1e-9 of
+    the mean variance) keeps the target invertible where the disturbance intervals are
+    fewer than the samples (its rank is 3 per interval).
+    """
+    if scenario is None or sequence is None:
+        return None
+    target = disturbance_rate_covariance(scenario, len(sequence))
+    if target.shape != (dim, dim):
+        return None
+    ridge = 1e-9 * float(np.trace(target)) / dim
+    if not ridge > 0.0:
+        return None  # no disturbance: nothing to model
+    target[np.diag_indices(dim)] += ridge
+    return target
 
 
 def _white_and_bias(residuals: np.ndarray, n_candidates: int) -> np.ndarray | None:
@@ -437,6 +474,12 @@ class MarginalLikelihoodClassifier(BaseClassifier):
         deviation, as a fraction of the candidate's mean principal moment (see
         :meth:`near_none_log_bayes`); 0 leaves only the novelty tail. Needs the scenario
         at fit time (the response's sensitivity to the inertia is simulated).
+    :param process_target: what the process component's sample covariance is shrunk
+        towards, by the cross-validated intensity: "disturbance model" (the default: the
+        covariance the scenario's disturbance torque gives the rates, written out; see
+        :func:`_process_target`) or "isotropic" (a multiple of the identity, as before).
+        Fitting from components without a scenario falls back to the identity; the
+        fitted :attr:`process_target_` says which was used.
     """
 
     kind: ClassVar[str] = "marginal-likelihood"
@@ -471,10 +514,12 @@ class MarginalLikelihoodClassifier(BaseClassifier):
         grid: Sequence[Sequence[float]] = JOINT_GRID,
         novelty_factor: float = 1.1,
         none_spread: float = DEFAULT_NONE_SPREAD,
+        process_target: str = "disturbance model",
     ) -> None:
         self.grid = grid
         self.novelty_factor = novelty_factor
         self.none_spread = none_spread
+        self.process_target = process_target
 
     def _checked_grid(self) -> np.ndarray:
         try:
@@ -502,6 +547,11 @@ class MarginalLikelihoodClassifier(BaseClassifier):
         spread = self.none_spread
         if not is_number(spread, minimum=0.0):
             raise InputError(f"none_spread must be a finite number >= 0, got {spread!r}")
+        if self.process_target not in PROCESS_TARGETS:
+            raise InputError(
+                f"process_target must be one of {list(PROCESS_TARGETS)}, "
+                f"got {self.process_target!r}"
+            )
 
     # Fitting.
 
@@ -730,8 +780,17 @@ class MarginalLikelihoodClassifier(BaseClassifier):
         # Each source alone: the differences of the same realisations.
         parts = [quiet] + [arr.reshape(len(X), -1) - quiet for arr in responses[1:]]
         folds = gaussian.stratified_folds(y, min(gaussian.MAX_FOLDS, int(np.bincount(y).min())))
-        intensities = np.array([gaussian.cv_intensity(F, y, n_candidates, folds) for F in parts])
-        means, components = self._estimate(parts, y, n_candidates, intensities)
+        process = None
+        if self.process_target == "disturbance model":
+            process = _process_target(scenario, self.sequence_, quiet.shape[1])
+        targets = [None, process, None]
+        intensities = np.array(
+            [
+                gaussian.cv_intensity(F, y, n_candidates, folds, target)
+                for F, target in zip(parts, targets, strict=True)
+            ]
+        )
+        means, components = self._estimate(parts, y, n_candidates, intensities, targets)
         spread = float(np.trace(components.sum(axis=0))) / means.shape[1]
         if not spread > 1e-20 * float(np.mean(means**2)):
             # Rounding alone leaves a covariance of ~1e-34: any "noise model" is absurd.
@@ -753,7 +812,8 @@ class MarginalLikelihoodClassifier(BaseClassifier):
             self.none_prior_sd_ = self.none_spread * np.array(
                 [float(np.trace(t)) / 3.0 for t in scenario.inertia_array]
             )
-        training = self._out_of_fold(parts, y, folds, intensities)
+        self.process_target_ = "isotropic" if targets[1] is None else "disturbance model"
+        training = self._out_of_fold(parts, y, folds, intensities, targets)
         # Training scores, like the other kinds': the training series at 1x, which is
         # what the three parts add up to (the process noise acts linearly).
         self._record_training(self._at(parts, np.ones(2)).reshape(X.shape), y, training)
@@ -761,19 +821,29 @@ class MarginalLikelihoodClassifier(BaseClassifier):
 
     @staticmethod
     def _estimate(
-        parts: list[np.ndarray], y: np.ndarray, n_candidates: int, intensities: np.ndarray
+        parts: list[np.ndarray],
+        y: np.ndarray,
+        n_candidates: int,
+        intensities: np.ndarray,
+        targets: list[np.ndarray | None],
     ) -> tuple[np.ndarray, np.ndarray]:
         """Means from the quiet part, and each part's shrunk pooled covariance (the
         measurement part's white noise and constant bias apart, where it has a bias:
-        :func:`_white_and_bias`)."""
+        :func:`_white_and_bias`), shrunk towards its target where it has one
+        (:func:`_process_target`), else towards a multiple of the identity."""
         means = gaussian.means_and_scatter(parts[0], y, n_candidates)[0]
         components = []
-        for index, (F, intensity) in enumerate(zip(parts, intensities, strict=True)):
+        for index, (F, intensity, target) in enumerate(
+            zip(parts, intensities, targets, strict=True)
+        ):
             _, residuals, sample = gaussian.means_and_scatter(F, y, n_candidates)
             structured = _white_and_bias(residuals, n_candidates) if index == 2 else None
-            components.append(
-                _symmetric(gaussian.shrink(sample, intensity)) if structured is None else structured
-            )
+            if structured is not None:
+                components.append(structured)
+            elif target is not None:
+                components.append(_symmetric(gaussian.shrink_towards(sample, target, intensity)))
+            else:
+                components.append(_symmetric(gaussian.shrink(sample, intensity)))
         return means, np.stack(components)
 
     @staticmethod
@@ -804,6 +874,7 @@ class MarginalLikelihoodClassifier(BaseClassifier):
         y: np.ndarray,
         folds: np.ndarray,
         intensities: np.ndarray,
+        targets: list[np.ndarray | None],
     ) -> np.ndarray:
         """Distance of each series to each candidate, out-of-fold, (n, K).
 
@@ -815,7 +886,7 @@ class MarginalLikelihoodClassifier(BaseClassifier):
         for fold in np.unique(folds):
             train, test = folds != fold, folds == fold
             means, components = self._estimate(
-                [F[train] for F in parts], y[train], self.n_candidates_, intensities
+                [F[train] for F in parts], y[train], self.n_candidates_, intensities, targets
             )
             mixture = _Mixture(means, components, self.grid_)
             for condition in self._extremes(self.grid_):
@@ -988,6 +1059,8 @@ class MarginalLikelihoodClassifier(BaseClassifier):
             **near,
             **offset_free,
             "shrinkage_intensities": dict(zip(COMPONENTS, self.shrinkage_.tolist(), strict=True)),
+            # What the process component's intensity shrinks towards (_process_target).
+            "process_shrinkage_target": self.process_target_,
             "means_rad_s": self.means_.tolist(),
             # Each symmetric component as its lower triangle, row by row, or as one
             # number when it is a multiple of the identity (white gyro noise).
@@ -1001,6 +1074,13 @@ class MarginalLikelihoodClassifier(BaseClassifier):
         self.grid_ = self._checked_grid()
         intensities = data["shrinkage_intensities"]
         self.shrinkage_ = np.array([float(intensities[name]) for name in COMPONENTS])
+        # Documents from before the target was written out shrank towards the identity.
+        target = data.get("process_shrinkage_target", "isotropic")
+        if target not in PROCESS_TARGETS:
+            raise InputError(
+                f"process_shrinkage_target must be one of {list(PROCESS_TARGETS)}, got {target!r}"
+            )
+        self.process_target_ = target
         means = check_series(data["means_rad_s"])
         k = self.n_candidates_
         if len(means) != k:
@@ -1094,10 +1174,14 @@ def train_marginal(
     grid: Sequence[Sequence[float]] = JOINT_GRID,
     novelty_factor: float = 1.1,
     none_spread: float = DEFAULT_NONE_SPREAD,
+    process_target: str = "disturbance model",
 ) -> MarginalLikelihoodClassifier:
     """Simulate every candidate's noise components under ``sequence`` and fit
     (:meth:`MarginalLikelihoodClassifier.fit_scenario`)."""
     model = MarginalLikelihoodClassifier(
-        grid=grid, novelty_factor=novelty_factor, none_spread=none_spread
+        grid=grid,
+        novelty_factor=novelty_factor,
+        none_spread=none_spread,
+        process_target=process_target,
     )
     return model.fit_scenario(scenario, sequence, n_realisations, rng)

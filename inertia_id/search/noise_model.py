@@ -64,7 +64,7 @@ from itertools import combinations
 import numpy as np
 
 from ..physics.scenario import Scenario
-from ..physics.simulate import nominal_simulator
+from ..physics.simulate import disturbance_walk, nominal_simulator
 
 __all__ = ["LinearNoiseModel", "clipped_duty_moments"]
 
@@ -134,12 +134,7 @@ class LinearNoiseModel:
         unc = scenario.uncertainty
         times = scenario.sample_times(self.sequence_length)
         self.n_samples = len(times)
-        interval = unc.disturbance_interval_s
-        n_intervals = round(self.sequence_length * scenario.timing.step_duration_s / interval)
-        starts = np.arange(n_intervals) * interval
-        overlap = np.clip(times[:, None] - starts, 0.0, interval)  # (T, intervals)
-        walk = unc.disturbance_torque_sigma_nm**2 * (overlap @ overlap.T)
-        gamma, self._w = np.linalg.eigh(walk)
+        gamma, self._w = np.linalg.eigh(disturbance_walk(scenario, self.sequence_length))
         self._gamma = np.maximum(gamma, 0.0)
         pulses = _integrated_pulses(scenario, self.sequence_length, times)  # (T, L)
         self._pulses_w = self._w.T @ pulses  # (T, L) in W's basis
