@@ -44,6 +44,8 @@ __all__ = [
     "IdentifyRequest",
     "IdentifyResult",
     "JobCreate",
+    "JobListInclude",
+    "JobListed",
     "JobOut",
     "JobPage",
     "JobSubmitted",
@@ -375,8 +377,23 @@ class JobSubmitted(JobOut):
     )
 
 
+class JobListed(JobOut):
+    """A job as a list shows it: everything of :class:`JobOut` but its result, which is
+    there only when the list is asked for it (``GET /jobs?include=result``)."""
+
+    result: dict[str, Any] | None = Field(
+        default=None,
+        description="the worker's result: only with include=result (GET /jobs/{id} always "
+        "has it); the summary holds its headline figures",
+    )
+
+
+#: What ``GET /jobs?include=`` may add to each job.
+JobListInclude = Literal["result"]
+
+
 class JobPage(BaseModel):
-    items: list[JobOut]
+    items: list[JobListed]
     total: int
     limit: int
     offset: int

@@ -17,6 +17,7 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from fastapi import APIRouter, Body, HTTPException, Query, Request, Response, status
 from sqlalchemy import ColumnElement, func, or_, select
+from sqlalchemy.orm import defer
 
 from inertia_id.errors import InputError
 from inertia_id.physics.scenario import Scenario
@@ -41,6 +42,8 @@ from service.summaries import summary_keys
 
 from ..schemas import (
     JobCreate,
+    JobListed,
+    JobListInclude,
     JobOut,
     JobPage,
     JobStatus,
@@ -380,10 +383,40 @@ def _text_match(needle: str) -> ColumnElement[bool]:
     )
 
 
-@router.get("")
+#: The columns a listed job is built from (its result stays in the database unless asked).
+_LISTED_FIELDS = tuple(name for name in JobListed.model_fields if name != "result")
+
+
+def _listed(job: JobRow, *, with_result: bool) -> JobListed:
+    """``job`` as the list shows it. Without its result the field is left unset, and
+    the route leaves unset fields out: no ``result`` key, where null would read as
+    "no result yet"."""
+    fields = {name: getattr(job, name) for name in _LISTED_FIELDS}
+    if with_result:
+        fields["result"] = job.result
+    return JobListed.model_validate(fields)
+
+
+# The list sends what a list shows (labels, state, times, parameters, the summary's
+# headline figures), not each job's result: a search's result (curve, front, baselines,
+# fresh draws) is tens of KB, and a page of 200 was megabytes for a table that shows two
+# figures a row. As GitHub's lists send a resource's summary representation and its GET
+# the detailed one, GET /jobs/{id} keeps the whole job; a client that does want results
+# for a few jobs (the sweeps of one classifier) asks with ``include=result``, opt-in as
+# Stripe's ``expand`` and Google's AIP-157 list views (BASIC by default, FULL on request).
+# ``include`` rather than a ``view`` enum: it names what is added, and can name more.
+@router.get("", response_model_exclude_unset=True)
 def list_jobs(
     session: SessionDep,
     page: PagingDep,
+    include: Annotated[
+        JobListInclude | None,
+        Query(
+            description="result: each job's whole result too (as GET /jobs/{id}); "
+            "without it a listed job has no result key, its summary holds the headline "
+            "figures"
+        ),
+    ] = None,
     type: Annotated[JobType | None, Query(description="search, train or sweep")] = None,
     status: Annotated[JobStatus | None, Query()] = None,
     scenario_id: Annotated[str | None, Query(max_length=64)] = None,
@@ -408,7 +441,10 @@ def list_jobs(
     order: OrderQuery = "desc",
 ) -> JobPage:
     """Jobs, filtered by type, status, scenario, text, tags and classifier, sorted (newest
-    first by default; jobs without the figure sorted by come last), one page at a time."""
+    first by default; jobs without the figure sorted by come last), one page at a time.
+
+    Each job comes without its result (its ``summary`` has the headline figures) unless
+    ``include=result`` asks for it; ``GET /jobs/{id}`` always has it."""
     # A sweep names its classifier in its parameters.
     conditions = id_filters(
         (
@@ -428,16 +464,22 @@ def list_jobs(
     if needle is not None:
         conditions.append(_text_match(needle))
     conditions.extend(tag_filters(JobRow.id, tag))
+    with_result = include == "result"
+    # Not read at all without include: a page of results is most of the list's time. A
+    # read of it by mistake raises, rather than costing a query a row.
+    query = select(JobRow)
+    if not with_result:
+        query = query.options(defer(JobRow.result, raiseload=True))
     rows, total = one_page(
         session,
-        select(JobRow)
-        .where(*conditions)
-        .order_by(sort_order(_sort_expression(sort), order), JobRow.created_at.desc(), JobRow.id),
+        query.where(*conditions).order_by(
+            sort_order(_sort_expression(sort), order), JobRow.created_at.desc(), JobRow.id
+        ),
         count=select(func.count()).select_from(JobRow).where(*conditions),
         page=page,
     )
     return JobPage(
-        items=[JobOut.model_validate(job) for (job,) in rows],
+        items=[_listed(job, with_result=with_result) for (job,) in rows],
         total=total,
         limit=page.limit,
         offset=page.offset,

@@ -110,6 +110,7 @@ export const api = {
     request("GET", `/scenarios/${encodeURIComponent(id)}/response`, {
       query: { sequence: JSON.stringify(sequence), ...query },
     }),
+  // Listed jobs carry their summary, not their result (`include: "result"` asks for it).
   jobs: (query) => request("GET", "/jobs", { query: { limit: 100, ...query } }),
   job: (id) => request("GET", `/jobs/${encodeURIComponent(id)}`),
   submitJob: (body) => request("POST", "/jobs", { json: body }),

@@ -18,7 +18,7 @@ from inertia_id.search import SEARCH_METHODS
 from service.config import Settings
 from service.params import SearchParams, SweepParams, TrainParams
 from service.queue import RUN_JOB_TASK
-from service.store.jobs import add_metrics, config_hash
+from service.store.jobs import add_metrics, claim, config_hash, finish
 from service.store.models import JobRow
 
 from .support import GOOD_SEQUENCE, Api, make_settings
@@ -463,6 +463,57 @@ def test_list_filters_and_paging(api: Api) -> None:
     assert [j["id"] for j in page["items"]] == ids()[1:3]
     assert api.get("/jobs", params={"status": "sleeping"}).status_code == 422
     assert api.get("/jobs", params={"limit": 1000}).status_code == 422
+
+
+def test_list_sends_summaries_and_results_only_when_asked(api: Api) -> None:
+    scenario_id = api.create_scenario()["id"]
+    queued = api.submit("search", scenario_id).json()["id"]
+    done = api.submit("train", scenario_id, params={"sequence": GOOD_SEQUENCE}).json()["id"]
+    result = {"classifier_id": "c" * 32, "f1": 0.75, "accuracy": 0.8, "confusion": [[3, 1]]}
+    with api.db.session() as session:
+        assert claim(session, done, "tests") is not None
+    with api.db.session() as session:
+        assert finish(session, done, "succeeded", result=result)
+    whole = api.get(f"/jobs/{done}").json()
+    assert whole["result"] == result  # the job itself keeps its result
+
+    listed = {j["id"]: j for j in api.get("/jobs").json()["items"]}
+    assert "result" not in listed[done] and "result" not in listed[queued]
+    assert listed[done] == {k: v for k, v in whole.items() if k != "result"}
+    assert listed[done]["summary"] == {"f1": 0.75, "accuracy": 0.8}
+    assert listed[queued]["params"]["method"] == "ppo" and listed[queued]["summary"] is None
+
+    asked = api.get("/jobs", params={"include": "result"})
+    assert asked.status_code == 200, asked.text
+    with_results = {j["id"]: j for j in asked.json()["items"]}
+    assert with_results[done] == whole
+    assert with_results[queued]["result"] is None  # asked for: null until there is one
+
+    for bad in ("results", "summary", ""):
+        refused = api.get("/jobs", params={"include": bad})
+        assert refused.status_code == 422, refused.text
+        (error,) = refused.json()["detail"]
+        assert error["loc"] == ["query", "include"] and f"got {bad!r}" in error["msg"], error
+    unknown = api.get("/jobs", params={"includes": "result"})
+    assert unknown.status_code == 422
+    assert "'includes'" in unknown.json()["detail"][0]["msg"]
+    assert "include" in unknown.json()["detail"][0]["msg"]  # among the names it takes
+    twice = api.get("/jobs?include=result&include=result")
+    assert twice.status_code == 422
+
+
+def test_openapi_lists_jobs_without_results_by_default(api: Api) -> None:
+    spec = api.get("/openapi.json").json()
+    route = spec["paths"]["/jobs"]["get"]
+    (include,) = [p for p in route["parameters"] if p["name"] == "include"]
+    assert {"const": "result", "type": "string"} in include["schema"]["anyOf"]
+    schemas = spec["components"]["schemas"]
+    page = route["responses"]["200"]["content"]["application/json"]["schema"]["$ref"]
+    items = schemas[page.rsplit("/", 1)[1]]["properties"]["items"]["items"]["$ref"]
+    listed = schemas[items.rsplit("/", 1)[1]]
+    assert "result" in listed["properties"] and "result" not in listed["required"]
+    assert "summary" in listed["properties"] and "params" in listed["required"]
+    assert "result" in schemas["JobOut"]["required"]  # GET /jobs/{id}: always there
 
 
 # Cancelling.

@@ -143,7 +143,8 @@ async function load(type, ids) {
       classifiers
         .filter((c) => c)
         .map(async (c) => {
-          const page = await api.jobs({ type: "sweep", classifier_id: c.id, status: "succeeded", limit: 1 });
+          // Its points are drawn: the one sweep comes with its result.
+          const page = await api.jobs({ type: "sweep", classifier_id: c.id, status: "succeeded", limit: 1, include: "result" });
           return { ...c, sweep: page.items[0] || null };
         }),
     );

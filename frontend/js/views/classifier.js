@@ -153,6 +153,7 @@ async function sweepsOf(card, classifier, context, sweepId) {
     }
   };
   select.addEventListener("change", async () => show(await api.job(select.value)));
-  await show(chosen);
+  // The list sends no results: the chosen sweep's comes with the job itself.
+  await show(await api.job(chosen.id));
 }
 
