@@ -132,6 +132,10 @@ class SearchRequest(_Request):
     :param fresh_realisations: realisations per candidate when the front is re-scored.
     :param fresh_test_series: test series per candidate and design condition on which
         each front member's accuracy is measured; 0 keeps the prediction.
+    :param time_limit_s: the search's time budget in seconds (every method); None: none.
+        Once spent the search stops, ``stopped`` "time_limit", with the best so far
+        re-scored on fresh draws; the front's accuracy measurement and the baselines'
+        scoring, which may come after, are skipped once it is spent.
     """
 
     method: str = "ppo"
@@ -154,6 +158,7 @@ class SearchRequest(_Request):
     lagrangian_lr: float = 0.0
     fresh_realisations: int = 40
     fresh_test_series: int = 200
+    time_limit_s: float | None = None
 
     def operator(self) -> OperatorSettings:
         """What the front is judged on: objectives, design noise, constraints."""
@@ -187,8 +192,12 @@ class SearchRequest(_Request):
                 )
         if self.lagrangian_lr and self.method != "ppo":
             raise InputError(f"lagrangian_lr applies to method ppo only, not {self.method!r}")
+        from .search.loop import check_time_limit
+
+        time_limit_s = check_time_limit(self.time_limit_s)
         if self.method == "nsga2":
             return {
+                "time_limit_s": time_limit_s,
                 "sequence_length": self.sequence_length,
                 "operator": self.operator(),
                 "nsga2_params": dict(self.nsga2),
@@ -196,6 +205,7 @@ class SearchRequest(_Request):
                 "fresh_test_series": self.fresh_test_series,
             }
         options: dict[str, Any] = {
+            "time_limit_s": time_limit_s,
             "sequence_length": self.sequence_length,
             "fuel_weight": self.fuel_weight,
             "constraints": dict(self.constraints) or None,
@@ -247,6 +257,7 @@ def search_with_baselines(
     policy_path: str | None = None,
     progress: Callable[[SearchProgress], None] | None = None,
     should_stop: Callable[[], bool] | None = None,
+    clock: Callable[[], float] = time.monotonic,
 ) -> SearchOutcome:
     """Search for the sequence that best separates the candidates, then score the
     hand-designed baselines on the same fresh draws as the best sequence.
@@ -257,13 +268,21 @@ def search_with_baselines(
 
     :param policy_path: where a PPO search saves its policy (ignored by the others).
     :param progress: called at every learning-curve point.
-    :param should_stop: polled every environment step; True cancels the search.
+    :param should_stop: polled every environment step; True cancels the search. A
+        cancelled search's result is abandoned: its best is kept, but neither re-scored
+        nor judged on a front, and the baselines are not scored (each ``unavailable``).
+    :param clock: monotonic seconds for ``request.time_limit_s``. The limit covers the
+        search; after it only the best's re-score on fresh draws (and the front's
+        re-score on the fresh draw, without its accuracy measurement) runs: what a
+        result needs to be honest.
     """
     from .search import search
     from .search.baselines import compare_with_baselines
+    from .search.loop import CANCELLED, TIME_LIMIT, Deadline
 
     settings = request.scorer()
     options = request.options()
+    deadline = Deadline(request.time_limit_s, clock)
     if request.method == "ppo":
         options["policy_path"] = policy_path
     found = search(
@@ -273,12 +292,24 @@ def search_with_baselines(
         settings=settings,
         progress=progress,
         should_stop=should_stop,
+        clock=clock,
         **options,
     )
-    if found.front is None:
+    stopped = {"why": found.stopped}
+
+    def after_search_stop() -> bool:
+        """The work after the search (the front's measurement, the baselines) stops on a
+        cancel, or once the time limit is spent, whenever that comes."""
+        if stopped["why"] != CANCELLED and should_stop is not None and should_stop():
+            stopped["why"] = CANCELLED
+        elif stopped["why"] not in (CANCELLED, TIME_LIMIT) and deadline.expired():
+            stopped["why"] = TIME_LIMIT
+        return stopped["why"] in (CANCELLED, TIME_LIMIT)
+
+    if found.front is None and found.stopped != CANCELLED:
         from .search import build_front
 
-        found.front = build_front(
+        front = build_front(
             scenario,
             [found.best.sequence],
             request.operator(),
@@ -286,16 +317,25 @@ def search_with_baselines(
             fresh_realisations=request.fresh_realisations,
             test_series=request.fresh_test_series,
             keep_infeasible=True,
-            should_stop=should_stop,
-        ).to_dict()
+            should_stop=after_search_stop,
+        )
+        found.front = front.to_dict()
     baselines = compare_with_baselines(
         scenario,
         len(found.best.sequence),
         settings,
         seed=found.fresh.seed,
         n_draws=len(found.fresh.f1),
-        should_stop=should_stop,
+        should_stop=after_search_stop,
     )
+    if stopped["why"] == CANCELLED:
+        # A cancel heard after the search (while the front was measured): the job
+        # was abandoned all the same.
+        found.stopped = CANCELLED
+    else:
+        for entry in baselines.values():
+            if entry.get("unavailable") == "not scored: the search was cancelled":
+                entry["unavailable"] = "not scored: the time limit was reached"
     return SearchOutcome(found, baselines, scenario)
 
 

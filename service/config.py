@@ -64,6 +64,14 @@ class Settings(BaseSettings):
     #: checks it).
     allowed_hosts: str = Field(default="", alias="INERTIA_ID_ALLOWED_HOSTS")
     frontend_dir: Path | None = Field(default=None, alias="INERTIA_ID_FRONTEND_DIR")
+    #: The ceiling on every job's run time, s; a job may ask for less (``time_limit_s``),
+    #: never more. 6 h: a working day's share of a worker. The paper's PPO search (20,480
+    #: steps, 20 realisations, L = 4) and the largest sweeps take minutes, so this leaves
+    #: room for searches a hundred times larger, while a runaway (an exhaustive search of
+    #: 1e9 sequences runs for weeks) frees its worker the same day.
+    job_time_limit_s: float = Field(
+        default=6 * 3600.0, gt=0, allow_inf_nan=False, alias="INERTIA_ID_JOB_TIME_LIMIT_S"
+    )
 
     @property
     def resolved_database_url(self) -> str:

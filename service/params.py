@@ -59,6 +59,19 @@ MAX_EXHAUSTIVE_SEQUENCES = 1_000_000_000
 # Larger integers are no sensible parameter (and overflow the core's float conversions).
 _MAX_INT = 2**53
 
+
+def _time_limit_field() -> Any:
+    return Field(
+        default=None,
+        gt=0,
+        description="wall-clock limit of the job in seconds, at most the service's "
+        "INERTIA_ID_JOB_TIME_LIMIT_S (the ceiling every job has); none: the ceiling. A search "
+        "past it stops with its best so far re-scored (stopped: time_limit); a sweep keeps "
+        "the points done",
+        examples=[3600],
+    )
+
+
 SearchMethod = Literal["ppo", "cem", "exhaustive", "random", "nsga2"]
 SearchGoal = Literal[
     "accuracy", "final_rate", "peak_rate", "impulse", "on_time", "propellant", "duration"
@@ -205,6 +218,7 @@ class SearchParams(StrictModel):
         "member's accuracy is measured (the noise model's Bayes classifier on fresh "
         "series); 0 keeps the predicted accuracy",
     )
+    time_limit_s: float | None = _time_limit_field()
 
     @field_validator("nsga2")
     @classmethod
@@ -419,6 +433,7 @@ class SweepParams(StrictModel):
         "two): how often identify says 'matches none'",
     )
     n_test: int = Field(default=SweepRequest.default("n_test"), ge=5, le=2000)
+    time_limit_s: float | None = _time_limit_field()
 
     @field_validator("others")
     @classmethod

@@ -81,6 +81,7 @@ def test_a_search_request_gives_each_method_its_own_options() -> None:
         "max_sequences": 100_000,
         "constraints": None,
         "constraint_penalty": 0.0,
+        "time_limit_s": None,
     }
     assert SearchRequest(method="cem", cem={"population": 8}).options()["population"] == 8
     with pytest.raises(InputError, match="ppo settings apply to method ppo only, not 'random'"):

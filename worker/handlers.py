@@ -11,6 +11,7 @@ job and the CLI give the same numbers.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 from collections.abc import Callable
 from typing import Any
@@ -25,7 +26,7 @@ from inertia_id.pipelines import (
 )
 from inertia_id.search import SearchProgress
 
-from .context import JobContext, Outcome
+from .context import JobContext, JobTimeLimitExceeded, Outcome
 
 __all__ = ["HANDLERS", "run_search_job", "run_sweep_job", "run_train_job"]
 
@@ -43,10 +44,14 @@ def run_search_job(context: JobContext) -> Outcome:
 
     Metrics: :data:`SEARCH_METRICS` at step = timesteps, after every curve point.
     A PPO policy is saved to ``data_dir/policies/<job id>.zip`` and its path and
-    SHA-256 put in the result.
+    SHA-256 put in the result. The search runs to the job's time limit (its own, at most
+    the service's ceiling) on the context's clock: past it, it stops with its best so
+    far re-scored, ``stopped`` "time_limit", and the job succeeds.
     """
     spec = context.spec
-    request = SearchRequest.from_params(_params(context))
+    request = dataclasses.replace(
+        SearchRequest.from_params(_params(context)), time_limit_s=context.time_limit_s
+    )
     policy_path = None
     if request.method == "ppo":
         policy = context.data_dir / "policies" / f"{spec.id}.zip"
@@ -67,6 +72,7 @@ def run_search_job(context: JobContext) -> Outcome:
         policy_path=policy_path,
         progress=progress,
         should_stop=context.should_stop,
+        clock=context.now,
     )
     result = outcome.to_dict()
     if outcome.result.policy_path is not None:
@@ -80,7 +86,8 @@ def run_train_job(context: JobContext) -> Outcome:
     """Train the classifier for a sequence; the runner stores it as a ``classifiers`` row.
 
     The training draws (and a seed the kind needs) come from the job's seed. Metrics:
-    "f1" and "accuracy" at step 0.
+    "f1" and "accuracy" at step 0. A training cannot stop part-way: one that ends past
+    the job's time limit fails, naming it.
     """
     spec = context.spec
     trained = train_for_sequence(
@@ -88,6 +95,8 @@ def run_train_job(context: JobContext) -> Outcome:
     )
     if context.check_now():
         return Outcome(status="cancelled", result=None)
+    if context.past_time_limit():
+        raise JobTimeLimitExceeded(context.time_limit_text())
     summary = trained.summary()
     return Outcome(
         status="succeeded",
@@ -108,17 +117,28 @@ def run_sweep_job(context: JobContext) -> Outcome:
     "matches none". Metrics: "accuracy_<noise>" for each noise swept, one point per
     multiple, at step = the multiple's index in the job's ``multiples`` list (0, 1, ...),
     value = the accuracy there. A cancel stops between points; the points done are kept.
+    So does the job's time limit: the job then succeeds with the points done, and the
+    result says ``"stopped": "time_limit"``.
     """
     spec = context.spec
     if spec.classifier is None:
         raise ValueError("a sweep job runs with the classifier it names, resolved by the runner")
+    timed_out = False
+
+    def should_stop() -> bool:
+        nonlocal timed_out
+        if context.should_stop():
+            return True
+        timed_out = context.past_time_limit()
+        return timed_out
+
     outcome = sweep_with_limit(
         spec.classifier,
         SweepRequest.from_params(_params(context)),
         seed=spec.seed,
         scenario=spec.scenario,
         progress=lambda fraction: context.report(progress=fraction),
-        should_stop=context.should_stop,
+        should_stop=should_stop,
     )
     sweep = outcome.sweep
     metrics = [
@@ -127,7 +147,11 @@ def run_sweep_job(context: JobContext) -> Outcome:
         for step, point in enumerate(sweep.curve(noise))
     ]
     status = "cancelled" if context.cancelled else "succeeded"
-    return Outcome(status=status, result=outcome.to_dict(), metrics=metrics)
+    result = outcome.to_dict()
+    if timed_out and status == "succeeded":
+        result["stopped"] = "time_limit"
+        result["time_limit_s"] = context.time_limit_s
+    return Outcome(status=status, result=result, metrics=metrics)
 
 
 HANDLERS: dict[str, Callable[[JobContext], Outcome]] = {

@@ -38,7 +38,14 @@ from service.store.jobs import (
 )
 from service.store.models import JOB_TYPES, new_id
 
-from .context import CANCEL_POLL_S, JobContext, JobSpec, Outcome, finite_metrics
+from .context import (
+    CANCEL_POLL_S,
+    JobContext,
+    JobSpec,
+    JobTimeLimitExceeded,
+    Outcome,
+    finite_metrics,
+)
 from .ticker import Ticker
 
 __all__ = [
@@ -334,9 +341,10 @@ def _run(
             return _end(db, spec.id, spec.attempt, "cancelled", error=None)
         from inertia_id import InputError
 
-        if isinstance(exc, InputError):
+        if isinstance(exc, InputError | JobTimeLimitExceeded):
             # The job's own inputs cannot give a result (e.g. no sequence meets its
-            # constraints): the job says why; not a fault of the worker's to trace.
+            # constraints), or it outran its time limit: the job says why; not a fault
+            # of the worker's to trace.
             logger.warning("job %s failed: %s", spec.id, exc)
         else:
             logger.exception("job %s failed", spec.id)

@@ -287,6 +287,18 @@ def _check_sweep(session: SessionDep, body: SweepJobCreate, scenario: Scenario) 
     _check_size(scenario, len(classifier.sequence), held, ("body", "sweep", "params", "n_train"))
 
 
+def _check_time_limit(body: JobCreate, ceiling_s: float) -> None:
+    """A job may ask for less run time than the service's ceiling, never more."""
+    asked = getattr(body.params, "time_limit_s", None)
+    if asked is not None and asked > ceiling_s:
+        unprocessable(
+            ("body", body.type, "params", "time_limit_s"),
+            f"time_limit_s = {asked:g} s is more than this service's ceiling of "
+            f"{ceiling_s:g} s (INERTIA_ID_JOB_TIME_LIMIT_S); ask for at most that, or leave "
+            "it out to get the ceiling",
+        )
+
+
 @router.post(
     "",
     status_code=status.HTTP_202_ACCEPTED,
@@ -301,6 +313,7 @@ def submit_job(
     body: Annotated[JobCreate, Body()],
     session: SessionDep,
     celery: CeleryDep,
+    settings: SettingsDep,
     response: Response,
 ) -> JobSubmitted:
     """Queue a search, train or sweep job (202), or return the identical existing one (200).
@@ -309,6 +322,7 @@ def submit_job(
     reached the job stays queued (``sent_at`` null) and the workers' monitor sends it
     once the broker is back; ``GET /health`` says how many jobs wait to be sent.
     """
+    _check_time_limit(body, settings.job_time_limit_s)
     scenario = _scenario(session, body.scenario_id)
     if isinstance(body, SearchJobCreate):
         _check_search(body, scenario)

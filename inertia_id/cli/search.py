@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
@@ -61,6 +62,15 @@ def _option(flags: str, field: str, help_text: str, **kwargs: Any) -> Callable[[
 def _pairs(flag: str, help_text: str) -> Callable[[F], F]:
     name = f"{flag.removeprefix('--')}_pairs"
     return click.option(flag, name, multiple=True, metavar="NAME=VALUE", help=help_text)
+
+
+def _time_limit(
+    _context: click.Context, _parameter: click.Parameter, value: float | None
+) -> float | None:
+    """A usage error (exit status 2) for a time limit that is not a number of s > 0."""
+    if value is None or (math.isfinite(value) and value > 0):
+        return value
+    raise click.BadParameter(f"must be a finite number of seconds > 0, got {value!r}")
 
 
 def search_options(func: F) -> F:
@@ -177,6 +187,15 @@ def search_options(func: F) -> F:
             "accuracy is measured; 0 keeps the prediction.",
             type=click.IntRange(0, 5000),
         ),
+        _option(
+            "--time-limit time_limit_s",
+            "time_limit_s",
+            "Stop the search after this many seconds (wall clock) with the best found so "
+            "far, re-scored as usual (stopped: time_limit); none by default.",
+            type=float,
+            metavar="SECONDS",
+            callback=_time_limit,
+        ),
     ]
     for option in reversed(options):
         func = option(func)
@@ -205,6 +224,7 @@ def search_request(
     fresh_realisations: int | None = None,
     max_sequences: int | None = None,
     fresh_test_series: int | None = None,
+    time_limit_s: float | None = None,
 ) -> SearchRequest:
     """The options of :func:`search_options` as a request."""
     from ..errors import InputError
@@ -270,6 +290,7 @@ def search_request(
         patience_episodes=patience,
         ppo=parse_pairs(ppo_pairs, "--ppo", "ent_coef=0.01"),
         cem=parse_pairs(cem_pairs, "--cem", "population=64"),
+        time_limit_s=time_limit_s,
     )
 
 

@@ -12,7 +12,7 @@ from typing import Any
 
 from stable_baselines3.common.callbacks import BaseCallback
 
-from .loop import report_point
+from .loop import CANCELLED, TIME_LIMIT, Deadline, report_point
 from .records import SearchProgress, SearchTracker
 
 __all__ = ["SearchCallback"]
@@ -26,8 +26,9 @@ class SearchCallback(BaseCallback):
     At the end of every rollout a curve point (mean episode reward, mean and best F1)
     is added and ``progress`` called with it: this is what feeds a reward curve while
     training runs. Training stops at the next environment step when ``should_stop()``
-    says so (a cancel) or when the tracker reached its target (F1 = 1 and no better
-    sequence for ``patience_episodes`` episodes).
+    says so (a cancel), when ``deadline`` has expired (the time limit) or when the
+    tracker reached its target (F1 = 1 and no better sequence for ``patience_episodes``
+    episodes).
 
     :param tracker: collects episodes and the curve.
     :param total_timesteps: the training budget, for progress fractions.
@@ -37,6 +38,8 @@ class SearchCallback(BaseCallback):
         is updated after every rollout; None keeps it fixed.
     :param lagrangian_lr: the dual-ascent step: ``λ ← max(0, λ + lr · mean violation)``
         over the rollout's episodes.
+    :param deadline: the search's time budget, checked every environment step; None:
+        none.
     """
 
     tracker: SearchTracker
@@ -46,6 +49,7 @@ class SearchCallback(BaseCallback):
     _: KW_ONLY
     env: InitVar[Any] = None
     lagrangian_lr: float = 0.0
+    deadline: Deadline | None = None
     stopped: str = field(default="budget", init=False)
 
     def __post_init__(self, env: Any) -> None:
@@ -58,7 +62,11 @@ class SearchCallback(BaseCallback):
         for reward, done, info in zip(rewards, dones, infos, strict=True):
             self.tracker.on_step(float(reward), bool(done), info)
         if self.should_stop is not None and self.should_stop():
-            self.stopped = "cancelled"
+            self.stopped = CANCELLED
+            return False
+        # Not before one whole episode: a search stopped by its limit ends with a best.
+        if self.deadline is not None and self.tracker.best is not None and self.deadline.expired():
+            self.stopped = TIME_LIMIT
             return False
         if self.tracker.reached_target():
             self.stopped = "target"

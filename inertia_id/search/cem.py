@@ -88,8 +88,8 @@ def cem_search(
     :param patience_episodes: stop once the best F1 is 1 and nothing better (smaller
         final rate plus fuel cost) came for this many sequences; None = no such stop.
     :param options: fuel weight, seed (of the noise and of the sampling), scorer
-        settings, constraints, fresh draws and the progress and cancel hooks: see
-        :class:`~inertia_id.search.loop.SearchRun`.
+        settings, constraints, fresh draws, the progress and cancel hooks and the time
+        limit: see :class:`~inertia_id.search.loop.SearchRun`.
     """
     check_budget("total_timesteps", total_timesteps, sequence_length)
     n_elite = check_cem_params(population, elite_fraction, smoothing)

@@ -42,7 +42,8 @@ def exhaustive_search(
 
     :param max_sequences: the budget: the largest space this call will enumerate.
     :param options: fuel weight, seed, scorer settings, constraints, fresh draws and
-        the progress and cancel hooks: see :class:`~inertia_id.search.loop.SearchRun`.
+        the progress and cancel hooks and the time limit: see
+        :class:`~inertia_id.search.loop.SearchRun`.
     """
     size = space_size(scenario, sequence_length)
     if not is_integer(max_sequences, minimum=1, numpy=False):

@@ -11,6 +11,7 @@ its default and documented once, on :class:`SearchRun`.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any, TypedDict
@@ -32,7 +33,59 @@ from .records import (
 )
 from .scorer import ScorerSettings
 
-__all__ = ["RunOptions", "SearchRun", "check_budget", "overrides", "report_point"]
+__all__ = [
+    "CANCELLED",
+    "TIME_LIMIT",
+    "Deadline",
+    "RunOptions",
+    "SearchRun",
+    "check_budget",
+    "check_time_limit",
+    "overrides",
+    "report_point",
+]
+
+#: Why a search stopped when ``should_stop`` said so: the result is abandoned, so the
+#: best sequence is not re-scored (:meth:`SearchRun.finish`).
+CANCELLED = "cancelled"
+#: Why a search stopped when its time budget was spent: the best so far, re-scored as
+#: after any other stop.
+TIME_LIMIT = "time_limit"
+
+
+def check_time_limit(value: Any) -> float | None:
+    """A search's time budget: None (none), or a finite number of seconds > 0."""
+    if value is None:
+        return None
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, int | float)
+        or not (math.isfinite(value) and value > 0)
+    ):
+        raise InputError(
+            f"time_limit_s must be a finite number of seconds > 0 (or none), got {value!r}"
+        )
+    return float(value)
+
+
+class Deadline:
+    """The end of a search's time budget, on a monotonic clock (a wall clock set back or
+    forward must not stretch or cut a search).
+
+    :param time_limit_s: seconds from now; None: never expires.
+    :param clock: monotonic seconds; a test passes its own, so it needs no sleeps.
+    """
+
+    def __init__(
+        self, time_limit_s: float | None, clock: Callable[[], float] = time.monotonic
+    ) -> None:
+        self.time_limit_s = check_time_limit(time_limit_s)
+        self.clock = clock
+        self.started = clock()
+
+    def expired(self) -> bool:
+        """True once ``time_limit_s`` seconds have passed since the deadline was set."""
+        return self.time_limit_s is not None and self.clock() - self.started >= self.time_limit_s
 
 
 def check_budget(name: str, value: int, sequence_length: int) -> None:
@@ -88,6 +141,8 @@ class RunOptions(TypedDict, total=False):
     n_fresh_draws: int
     progress: Callable[[SearchProgress], None] | None
     should_stop: Callable[[], bool] | None
+    time_limit_s: float | None
+    clock: Callable[[], float]
 
 
 class SearchRun:
@@ -105,7 +160,12 @@ class SearchRun:
     :param n_fresh_draws: fresh noise draws the best sequence is re-scored on.
     :param progress: called with every learning-curve point.
     :param should_stop: polled before every sequence (by PPO, every step); True cancels
-        the search.
+        the search: its best sequence is kept but not re-scored (``fresh`` holds no
+        draw), as nobody waits for the result.
+    :param time_limit_s: the search's time budget in seconds (None: none), checked where
+        ``should_stop`` is, from the first whole sequence on: once spent the search
+        stops, "time_limit", and its best so far is re-scored as after any other stop.
+    :param clock: monotonic seconds for ``time_limit_s``.
     """
 
     def __init__(
@@ -122,12 +182,15 @@ class SearchRun:
         n_fresh_draws: int = 5,
         progress: Callable[[SearchProgress], None] | None = None,
         should_stop: Callable[[], bool] | None = None,
+        time_limit_s: float | None = None,
+        clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.started = time.perf_counter()
         self.seed = check_seed(seed)
         self.n_fresh_draws = n_fresh_draws
         self.progress = progress
         self.should_stop = should_stop
+        self.deadline = Deadline(time_limit_s, clock)
         self.env = SequenceSearchEnv(
             scenario,
             sequence_length=sequence_length,
@@ -150,14 +213,25 @@ class SearchRun:
         assert self.tracker.last is not None  # the last step of an episode terminates it
         return self.tracker.last
 
+    def interrupted(self) -> str | None:
+        """Why the search must stop now: "cancelled" when ``should_stop`` says so,
+        "time_limit" once the time budget is spent, else None. A cancel wins: its result
+        is abandoned."""
+        if self.should_stop is not None and self.should_stop():
+            return CANCELLED
+        # Not before one whole sequence: a search stopped by its limit ends with a best.
+        if self.tracker.best is not None and self.deadline.expired():
+            return TIME_LIMIT
+        return None
+
     def play_each(
         self, sequences: Iterable[np.ndarray], *, total_timesteps: int
     ) -> Iterator[tuple[np.ndarray, EpisodeRecord]]:
-        """Play sequences until the budget, the target or a cancel, yielding each
-        sequence played with its record.
+        """Play sequences until the budget, the target, a cancel or the time limit,
+        yielding each sequence played with its record.
 
         Afterwards :attr:`stopped` says why it stopped: "budget", "cancelled",
-        "target", or None when ``sequences`` ran out.
+        "time_limit", "target", or None when ``sequences`` ran out.
         """
         self.stopped = None
         length = self.env.sequence_length
@@ -165,8 +239,9 @@ class SearchRun:
             if self.tracker.timesteps + length > total_timesteps:
                 self.stopped = "budget"
                 return
-            if self.should_stop is not None and self.should_stop():
-                self.stopped = "cancelled"
+            interrupted = self.interrupted()
+            if interrupted is not None:
+                self.stopped = interrupted
                 return
             yield sequence, self.play(sequence)
             if self.tracker.reached_target():
@@ -176,10 +251,11 @@ class SearchRun:
     def run_episodes(
         self, sequences: Iterable[np.ndarray], *, total_timesteps: int, report_every: int
     ) -> str:
-        """Play sequences until the budget, the target or a cancel; a curve point every
-        ``report_every`` steps and at the end.
+        """Play sequences until the budget, the target, a cancel or the time limit; a
+        curve point every ``report_every`` steps and at the end.
 
-        Returns why it stopped: "budget", "target", "cancelled" or "exhausted".
+        Returns why it stopped: "budget", "target", "cancelled", "time_limit" or
+        "exhausted".
         """
         next_report = report_every
         for _ in self.play_each(sequences, total_timesteps=total_timesteps):
@@ -207,23 +283,31 @@ class SearchRun:
         settings: dict[str, Any],
         policy_path: str | None = None,
     ) -> SearchResult:
-        """Re-score the best sequence on fresh draws and assemble the result.
+        """Re-score the best sequence on fresh draws and assemble the result; a
+        cancelled search's best is not re-scored (``fresh`` holds no draw).
 
         :param settings: the method's own parameters; the length, fuel weight, seed and
             scorer are added.
         """
         env, tracker = self.env, self.tracker
         if tracker.best is None:
-            raise InputError(
-                f"the search ended before one complete sequence (budget "
-                f"{settings.get('timesteps')} steps, sequences of {env.sequence_length})"
+            budget = (
+                f"time limit {self.deadline.time_limit_s:g} s"
+                if stopped == TIME_LIMIT
+                else f"budget {settings.get('timesteps')} steps"
             )
+            raise InputError(
+                f"the search ended before one complete sequence ({budget}, sequences of "
+                f"{env.sequence_length})"
+            )
+        # A cancelled result is abandoned: a re-score (minutes at 200 realisations and
+        # L = 20) would only delay the cancel.
         fresh = evaluate_sequence(
             env.scenario,
             tracker.best.sequence,
             env.settings,
             seed=fresh_seed(self.seed),
-            n_draws=self.n_fresh_draws,
+            n_draws=0 if stopped == CANCELLED else self.n_fresh_draws,
         )
         return SearchResult(
             method=method,
@@ -241,6 +325,7 @@ class SearchRun:
                 "seed": self.seed,
                 "constraints": dict(env.constraints),
                 "constraint_penalty": env.constraint_penalty,
+                "time_limit_s": self.deadline.time_limit_s,
                 **settings,
                 "scorer": env.settings.as_dict(),
             },

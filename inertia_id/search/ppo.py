@@ -92,8 +92,8 @@ def ppo_search(
     :param policy_path: where to save the trained policy (stable-baselines3 zip).
     :param options: fuel weight, seed (of the noise, the policy and PPO's sampling),
         scorer settings, constraints, constraint penalty (the starting Lagrange
-        multiplier), fresh draws and the progress and cancel hooks (polled every step):
-        see :class:`~inertia_id.search.loop.SearchRun`.
+        multiplier), fresh draws, the progress and cancel hooks and the time limit
+        (both polled every step): see :class:`~inertia_id.search.loop.SearchRun`.
     :param lagrangian_lr: with a value > 0, the multiplier is updated after every
         rollout by dual ascent, ``λ ← max(0, λ + lr · mean violation)`` (PPO-Lagrangian):
         it grows while the policy's sequences break the constraints and stays once they
@@ -116,6 +116,7 @@ def ppo_search(
         run.should_stop,
         env=run.env if lagrangian_lr > 0 and run.env.constraints else None,
         lagrangian_lr=float(lagrangian_lr),
+        deadline=run.deadline,
     )
     threads = torch.get_num_threads()
     # A small MLP: one thread is as fast, and keeps the learning curve reproducible.

@@ -32,7 +32,8 @@ def random_search(
     :param report_every: environment steps between learning-curve points (2048 = one
         PPO rollout at the paper's n_steps).
     :param options: fuel weight, seed, scorer settings, constraints, fresh draws and
-        the progress and cancel hooks: see :class:`~inertia_id.search.loop.SearchRun`.
+        the progress and cancel hooks and the time limit: see
+        :class:`~inertia_id.search.loop.SearchRun`.
     """
     check_budget("total_timesteps", total_timesteps, sequence_length)
     run = SearchRun(scenario, sequence_length, patience_episodes, **options)

@@ -148,11 +148,12 @@ class FreshEvaluation:
 
     @property
     def f1_mean(self) -> float:
-        return float(np.mean(self.f1))
+        """NaN (null in JSON) without draws: a cancelled search is not re-scored."""
+        return float(np.mean(self.f1)) if self.f1 else float("nan")
 
     @property
     def f1_min(self) -> float:
-        return float(np.min(self.f1))
+        return float(np.min(self.f1)) if self.f1 else float("nan")
 
 
 def evaluate_sequence(
@@ -294,8 +295,9 @@ class SearchResult:
     :param episodes: sequences tried.
     :param wall_time_s: wall-clock time of the search, s.
     :param stopped: "budget", "target" (F1 = 1 and no improvement for the patience),
-        "cancelled", "exhausted" (every sequence tried) or "converged" (CEM's sampling
-        distribution collapsed onto one sequence).
+        "cancelled" (``fresh`` then holds no draw), "time_limit" (the search's time
+        budget was spent: the best so far, re-scored), "exhausted" (every sequence
+        tried) or "converged" (CEM's sampling distribution collapsed onto one sequence).
     :param space_size: number of distinct sequences, (M^N)^L.
     :param settings: the search's parameters, as given.
     :param policy_path: where PPO saved its policy, if it did.
@@ -360,12 +362,17 @@ class SearchResult:
             if math.isfinite(residual)
             else ""
         )
-        end = float(np.mean(self.fresh.final_rate_rad_s))
+        if self.fresh.f1:
+            end = float(np.mean(self.fresh.final_rate_rad_s))
+            fresh = (
+                f"{self.fresh.f1_mean:.3f} mean on {len(self.fresh.f1)} fresh draws "
+                f"(min {self.fresh.f1_min:.3f}) | {settled}|ω| at the last step's end "
+                f"{end:.4f} rad/s ({math.degrees(end):.3f} deg/s), fresh mean | "
+            )
+        else:
+            fresh = f"not re-scored on fresh draws ({self.stopped}) | {settled}"
         return (
-            f"{self.method}: best sequence {b.sequence} | {seen}"
-            f"{self.fresh.f1_mean:.3f} mean on {len(self.fresh.f1)} fresh draws "
-            f"(min {self.fresh.f1_min:.3f}) | {settled}|ω| at the last step's end "
-            f"{end:.4f} rad/s ({math.degrees(end):.3f} deg/s), fresh mean | "
+            f"{self.method}: best sequence {b.sequence} | {seen}{fresh}"
             f"impulse {b.fuel_nms:.2f} N m s | {self.timesteps} env steps, {self.episodes} "
             f"episodes, {self.wall_time_s:.1f} s, stopped: {self.stopped}"
         )

@@ -76,6 +76,7 @@ def test_submit_queues_a_job_and_a_message(api: Api) -> None:
         "lagrangian_lr": 0.0,
         "fresh_realisations": 40,
         "fresh_test_series": 200,
+        "time_limit_s": None,
     }
     assert job["config_hash"] == config_hash("search", scenario_id, job["params"], 7)
     assert message_job_ids(api) == [job["id"]]
@@ -241,6 +242,7 @@ def test_sweep_job_for_a_stored_classifier(api: Api, classifier: InertiaClassifi
         "limit_realisations": None,
         "n_train": 20,
         "inertia": True,
+        "time_limit_s": None,
     }
     # A multiple of 0 switches that source off, as the core and the CLI take it.
     off = api.submit(
@@ -660,3 +662,73 @@ def test_a_sweep_names_a_bad_other_classifier(api: Api, classifier: Any) -> None
         )
         assert response.status_code == 422, response.text
         assert quoted in response.text
+
+
+# Time limits.
+
+
+def test_a_job_may_ask_for_less_time_than_the_ceiling_and_it_is_stored(
+    make_api: Callable[..., Api], settings: Settings, classifier: InertiaClassifier
+) -> None:
+    api = make_api(settings.model_copy(update={"job_time_limit_s": 600.0}))
+    scenario_id = api.create_scenario()["id"]
+    search = api.submit("search", scenario_id, params={"time_limit_s": 600})
+    assert search.status_code == 202, search.text
+    assert api.get(f"/jobs/{search.json()['id']}").json()["params"]["time_limit_s"] == 600
+    unasked = api.submit("search", scenario_id, params={"method": "random"}).json()
+    assert api.get(f"/jobs/{unasked['id']}").json()["params"]["time_limit_s"] is None
+    classifier_id = api.insert_classifier(scenario_id, classifier)
+    sweep = api.submit(
+        "sweep", scenario_id, params={"classifier_id": classifier_id, "time_limit_s": 1.5}
+    )
+    assert sweep.status_code == 202, sweep.text
+    assert api.get(f"/jobs/{sweep.json()['id']}").json()["params"]["time_limit_s"] == 1.5
+
+
+@pytest.mark.parametrize("job_type", ["search", "sweep"])
+def test_a_job_asking_for_more_time_than_the_ceiling_is_422_naming_both(
+    make_api: Callable[..., Api],
+    settings: Settings,
+    classifier: InertiaClassifier,
+    job_type: str,
+) -> None:
+    api = make_api(settings.model_copy(update={"job_time_limit_s": 3600.0}))
+    scenario_id = api.create_scenario()["id"]
+    params: dict[str, Any] = {"time_limit_s": 3600.5}
+    if job_type == "sweep":
+        params["classifier_id"] = api.insert_classifier(scenario_id, classifier)
+    response = api.submit(job_type, scenario_id, params=params)
+    assert response.status_code == 422, response.text
+    (error,) = response.json()["detail"]
+    assert error["loc"] == ["body", job_type, "params", "time_limit_s"]
+    assert "time_limit_s = 3600.5 s" in error["msg"] and "ceiling of 3600 s" in error["msg"]
+    assert api.queued_messages() == []
+
+
+@pytest.mark.parametrize(
+    ("value", "quoted"),
+    [
+        (0, "greater than 0, got 0"),
+        (-5, "greater than 0, got -5"),
+        ("60", "a valid number, got '60'"),
+        (True, "a valid number, got True"),
+    ],
+)
+def test_a_time_limit_that_is_no_positive_number_is_422_naming_it(
+    api: Api, value: Any, quoted: str
+) -> None:
+    scenario_id = api.create_scenario()["id"]
+    response = api.submit("search", scenario_id, params={"time_limit_s": value})
+    assert response.status_code == 422, response.text
+    (error,) = response.json()["detail"]
+    assert error["loc"][-1] == "time_limit_s" and error["msg"].endswith(quoted)
+    assert api.queued_messages() == []
+
+
+def test_a_train_job_takes_no_time_limit_of_its_own(api: Api) -> None:
+    # A training cannot stop part-way: it has the service's ceiling only.
+    scenario_id = api.create_scenario()["id"]
+    params = {"sequence": GOOD_SEQUENCE, "time_limit_s": 60}
+    response = api.submit("train", scenario_id, params=params)
+    assert response.status_code == 422, response.text
+    assert response.json()["detail"][0]["loc"][-1] == "time_limit_s"

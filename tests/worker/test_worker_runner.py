@@ -20,6 +20,7 @@ from service.params import SearchParams
 from service.store import ClassifierRow, MetricRow
 from service.store.jobs import cancel
 from service.store.models import JobRow, utcnow
+from worker.context import TIME_LIMIT_GRACE_S
 from worker.runner import (
     CANCEL_POLL_S,
     JobContext,
@@ -259,3 +260,93 @@ def test_the_stop_raised_in_the_worker_is_seen_by_task_processes_it_forked() -> 
         process._STOPPING[0] = 0
         os.close(read)
         os.close(write)
+
+
+# Time limits.
+
+
+def test_a_search_job_past_its_time_limit_succeeds_with_its_best(store: Store) -> None:
+    params = {"method": "random", "sequence_length": 2, "timesteps": 100_000, "n_realisations": 2}
+    job_id = store.add_job("search", params)
+    # A ceiling spent at once: the search plays one sequence, then stops.
+    limited = store.settings.model_copy(update={"job_time_limit_s": 1e-9})
+    assert execute_job(job_id, settings=limited, worker_name=WORKER) == "succeeded"
+    job = store.job(job_id)
+    result = job.result or {}
+    assert job.status == "succeeded" and result["stopped"] == "time_limit"
+    assert result["best"]["sequence"] and len(result["fresh"]["f1"]) == 5
+    assert result["settings"]["time_limit_s"] == 1e-9
+
+
+def test_a_search_job_runs_to_its_own_limit_below_the_ceiling(store: Store) -> None:
+    spec = JobSpec(
+        "j", "search", SearchParams(time_limit_s=30), 0, store.scenario_id, Scenario.paper(),
+        attempt=1,
+    )  # fmt: skip
+    context = JobContext(spec, store.db, store.settings, WORKER, clock=lambda: 0.0)
+    assert context.time_limit_s == 30.0
+    roomy = JobContext(
+        spec, store.db, store.settings.model_copy(update={"job_time_limit_s": 10.0}), WORKER
+    )
+    assert roomy.time_limit_s == 10.0  # the ceiling wins
+
+
+def test_a_sweep_job_past_its_time_limit_keeps_the_points_done(store: Store) -> None:
+    train = store.add_job(
+        "train",
+        {
+            "sequence": GOOD_SEQUENCE,
+            "kind": "nearest-centroid",
+            "metric": "euclidean",
+            "n_realisations": 3,
+        },
+    )
+    assert execute_job(train, settings=store.settings, worker_name=WORKER) == "succeeded"
+    classifier_id = (store.job(train).result or {})["classifier_id"]
+    params = {
+        "classifier_id": classifier_id,
+        "multiples": [1.0, 2.0],
+        "n_test": 10,
+        "others": [],
+        "ceiling_realisations": 0,
+    }
+    job_id = store.add_job("sweep", params)
+    limited = store.settings.model_copy(update={"job_time_limit_s": 1e-9})
+    assert execute_job(job_id, settings=limited, worker_name=WORKER) == "succeeded"
+    result = store.job(job_id).result or {}
+    assert result["stopped"] == "time_limit" and result["time_limit_s"] == 1e-9
+    assert len(result["points"]) < 4  # stopped before the last of 2 noises x 2 multiples
+
+
+def test_a_train_job_past_its_time_limit_fails_naming_it(store: Store) -> None:
+    params = {
+        "sequence": GOOD_SEQUENCE,
+        "kind": "nearest-centroid",
+        "metric": "euclidean",
+        "n_realisations": 3,
+    }
+    job_id = store.add_job("train", params)
+    limited = store.settings.model_copy(update={"job_time_limit_s": 1e-9})
+    assert execute_job(job_id, settings=limited, worker_name=WORKER) == "failed"
+    job = store.job(job_id)
+    assert job.error == "JobTimeLimitExceeded: the job exceeded its time limit of 1e-09 s"
+    with store.db.session() as session:
+        assert session.scalars(select(ClassifierRow.id)).all() == []
+
+
+def test_the_heartbeat_ends_a_job_long_past_its_time_limit(store: Store) -> None:
+    job_id = store.add_job("search", status="running", attempts=1)
+    now = [0.0]
+    settings = store.settings.model_copy(update={"job_time_limit_s": 100.0})
+    context = JobContext(
+        _spec(store, job_id, attempt=1), store.db, settings, WORKER, clock=lambda: now[0]
+    )
+    now[0] = 100.0 + TIME_LIMIT_GRACE_S  # past the limit, within the grace: beats on
+    context.beat()
+    job = store.job(job_id)
+    assert job.status == "running" and job.heartbeat_at is not None and not context.lost
+    now[0] += 1.0
+    context.beat()
+    job = store.job(job_id)
+    assert job.status == "failed" and context.lost and context.should_stop()
+    assert job.error is not None and "exceeded its time limit of 100 s" in job.error

@@ -1,0 +1,181 @@
+"""A search's time limit (every method) and what a cancel skips, on an injected clock: no
+test sleeps or times anything."""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Callable
+from typing import Any
+
+import pytest
+
+from inertia_id import InputError, Scenario
+from inertia_id.pipelines import SearchRequest, search_with_baselines
+from inertia_id.search import (
+    OperatorSettings,
+    ScorerSettings,
+    cem_search,
+    exhaustive_search,
+    pareto_search,
+    ppo_search,
+    random_search,
+)
+from inertia_id.search.loop import Deadline, check_time_limit
+
+SETTINGS = ScorerSettings(n_realisations=4)
+
+
+def ticking() -> Callable[[], float]:
+    """A monotonic clock one second further on at every reading: a search reads it once
+    per check of its limit, so a limit of N s is spent at the N-th check."""
+    return itertools.count().__next__  # type: ignore[return-value]
+
+
+@pytest.mark.parametrize("value", [0, -1.0, math.nan, math.inf, True, "60"])
+def test_a_time_limit_that_is_no_positive_number_is_refused_naming_it(value: Any) -> None:
+    with pytest.raises(InputError, match=rf"time_limit_s must be .* got {value!r}"):
+        check_time_limit(value)
+    with pytest.raises(InputError, match="time_limit_s"):
+        SearchRequest(method="random", time_limit_s=value).options()
+
+
+def test_a_deadline_expires_on_its_clock() -> None:
+    now = [100.0]
+    deadline = Deadline(2.5, lambda: now[0])
+    now[0] = 102.4
+    assert not deadline.expired()
+    now[0] = 102.5
+    assert deadline.expired()
+    assert not Deadline(None, lambda: now[0]).expired()
+
+
+def test_exhaustive_search_stops_at_its_time_limit_with_its_best_rescored(tiny: Scenario) -> None:
+    result = exhaustive_search(
+        tiny, sequence_length=2, settings=SETTINGS, n_fresh_draws=2, time_limit_s=4,
+        clock=ticking(),
+    )  # fmt: skip
+    assert result.stopped == "time_limit"
+    # Checked before every sequence from the second on: 4 s before the fifth.
+    assert result.episodes == 4 < result.space_size
+    assert result.best.sequence is not None and len(result.fresh.f1) == 2
+    assert result.settings["time_limit_s"] == 4.0
+
+
+def test_random_search_stops_at_its_time_limit(tiny: Scenario) -> None:
+    result = random_search(
+        tiny, sequence_length=2, total_timesteps=10_000, settings=SETTINGS, n_fresh_draws=1,
+        time_limit_s=3, clock=ticking(),
+    )  # fmt: skip
+    assert (result.stopped, result.episodes) == ("time_limit", 3)
+    assert len(result.fresh.f1) == 1
+
+
+def test_cem_stops_at_its_time_limit_with_its_best_rescored(tiny: Scenario) -> None:
+    result = cem_search(
+        tiny, sequence_length=2, total_timesteps=10_000, population=8, settings=SETTINGS,
+        n_fresh_draws=1, patience_episodes=None, time_limit_s=11, clock=ticking(),
+    )  # fmt: skip
+    assert result.stopped == "time_limit"
+    assert result.episodes == 11  # within its second iteration
+    assert result.best is not None and len(result.fresh.f1) == 1
+
+
+def test_a_time_limit_spent_before_the_first_sequence_still_plays_one(tiny: Scenario) -> None:
+    # A search stopped by its limit ends with a best: a limit spent at once plays one.
+    result = random_search(
+        tiny, sequence_length=2, total_timesteps=10_000, settings=SETTINGS, n_fresh_draws=1,
+        time_limit_s=1e-9, clock=ticking(),
+    )  # fmt: skip
+    assert (result.stopped, result.episodes) == ("time_limit", 1)
+
+
+def test_ppo_stops_at_its_time_limit_at_the_step(tiny: Scenario) -> None:
+    result = ppo_search(
+        tiny, sequence_length=2, total_timesteps=320, settings=SETTINGS,
+        ppo_params={"n_steps": 32, "batch_size": 16, "n_epochs": 2}, n_fresh_draws=1,
+        time_limit_s=4, clock=ticking(),
+    )  # fmt: skip
+    assert result.stopped == "time_limit"
+    # Read every step once the first episode (2 steps) has ended: 4 s at step 5.
+    assert result.timesteps == 5 and len(result.fresh.f1) == 1
+
+
+def _nsga2(paper: Scenario, *, population: int = 8, **options: Any):
+    return pareto_search(
+        paper,
+        sequence_length=2,
+        seed=1,
+        operator=OperatorSettings(n_realisations=4),
+        nsga2_params={"population": population, "generations": 4, "polish_iterations": 0},
+        fresh_realisations=6,
+        fresh_test_series=20,
+        n_fresh_draws=2,
+        **options,
+    )
+
+
+def test_nsga2_stops_at_its_time_limit_with_a_front_on_fresh_draws(paper: Scenario) -> None:
+    result = _nsga2(paper, time_limit_s=2, clock=ticking())
+    assert result.stopped == "time_limit"
+    assert len(result.curve) == 2  # read after every generation: 2 s after the second
+    front = result.front
+    assert front is not None and front["members"] and front["candidates_rescored"] >= 1
+    # The front is re-scored on the fresh draw; its accuracy measurement is skipped.
+    assert front["accuracy_source"] == "predicted" and front["measurement_stopped"]
+    assert result.best.sequence == front["members"][0]["sequence"]
+    assert len(result.fresh.f1) == 2  # the best re-scored as usual
+
+
+def test_a_cancelled_nsga2_stops_within_a_generation_and_skips_the_front(
+    paper: Scenario, stop_after: Callable[[int], Callable[[], bool]]
+) -> None:
+    # 40 a generation, checked after every 16 scored: the second check cancels.
+    result = _nsga2(paper, population=40, should_stop=stop_after(1))
+    assert result.stopped == "cancelled"
+    assert result.episodes == 32 and result.curve == []
+    assert result.front is None and result.fresh.f1 == []
+    assert len(result.best.sequence) == 2
+
+
+def test_a_cancel_skips_the_rescore_a_time_limit_keeps_it(
+    tiny: Scenario, stop_after: Callable[[int], Callable[[], bool]]
+) -> None:
+    options = {"sequence_length": 2, "settings": SETTINGS, "n_fresh_draws": 2}
+    cancelled = exhaustive_search(tiny, should_stop=stop_after(3), **options)
+    assert cancelled.stopped == "cancelled" and cancelled.episodes == 3
+    assert cancelled.fresh.f1 == [] and math.isnan(cancelled.fresh.f1_mean)
+    assert "not re-scored" in cancelled.summary()
+    timed = exhaustive_search(tiny, time_limit_s=3, clock=ticking(), **options)
+    assert timed.stopped == "time_limit" and len(timed.fresh.f1) == 2
+
+
+def test_a_cancelled_search_skips_its_front_and_baselines(
+    paper: Scenario, stop_after: Callable[[int], Callable[[], bool]]
+) -> None:
+    request = SearchRequest(method="random", sequence_length=3, timesteps=60, n_realisations=4)
+    outcome = search_with_baselines(paper, request, seed=0, should_stop=stop_after(2))
+    result = outcome.result
+    assert result.stopped == "cancelled" and result.front is None and result.fresh.f1 == []
+    scored = [entry for entry in outcome.baselines.values() if "fresh_f1" in entry]
+    assert scored == []
+    assert {"unavailable": "not scored: the search was cancelled"} in outcome.baselines.values()
+    assert outcome.to_dict()["best"]["sequence"] == result.best.sequence
+
+
+def test_a_search_past_its_time_limit_keeps_the_best_rescore_only(paper: Scenario) -> None:
+    request = SearchRequest(
+        method="random",
+        sequence_length=3,
+        timesteps=60,
+        n_realisations=4,
+        fresh_test_series=20,
+        time_limit_s=3,
+    )
+    outcome = search_with_baselines(paper, request, seed=0, clock=ticking())
+    result = outcome.result
+    assert result.stopped == "time_limit" and len(result.fresh.f1) == 5
+    assert result.front is not None and result.front["accuracy_source"] == "predicted"
+    assert [m["sequence"] for m in result.front["members"]] == [result.best.sequence]
+    assert {"unavailable": "not scored: the time limit was reached"} in outcome.baselines.values()
+    assert not [entry for entry in outcome.baselines.values() if "fresh_f1" in entry]
