@@ -41,6 +41,19 @@ class Settings(BaseSettings):
     resend_after_s: float = Field(default=30.0, alias="INERTIA_ID_RESEND_AFTER_S")
     worker_max_jobs_per_process: int = Field(default=100, alias="INERTIA_ID_WORKER_MAX_JOBS")
     worker_max_memory_mb: int = Field(default=4096, alias="INERTIA_ID_WORKER_MAX_MEMORY_MB")
+    #: How long a worker waits for a new task process to warm up (import the core,
+    #: compile the kernels) and report in before it kills it and starts another. Celery's
+    #: own 4 s is shorter than the warm-up (7-9 s on an idle machine, 38 s measured under
+    #: load), so every replacement was killed in turn and the worker never ran another job.
+    worker_start_timeout_s: float = Field(
+        default=300.0, gt=0, allow_inf_nan=False, alias="INERTIA_ID_WORKER_START_TIMEOUT_S"
+    )
+    #: /health is "degraded" when a queued job has waited this long while a live worker
+    #: sat idle: twice the re-sender's wait for a lost message, plus a task process's
+    #: warm-up under load, and then some.
+    queue_stall_s: float = Field(
+        default=120.0, gt=0, allow_inf_nan=False, alias="INERTIA_ID_QUEUE_STALL_S"
+    )
     classifier_cache_size: int = Field(default=32, alias="INERTIA_ID_CLASSIFIER_CACHE")
     #: CPU work in the API process (identify, response simulation): threads of its own,
     #: and how many requests may wait for one, and for how long, before a 503.

@@ -30,6 +30,12 @@ _worker_conf: dict[str, Any] = {
     # that a leak cannot grow without bound.
     "worker_max_tasks_per_child": settings.worker_max_jobs_per_process,
     "worker_max_memory_per_child": settings.worker_max_memory_mb * 1024,
+    # A task process reports "up" to the worker only after its warm-up (see
+    # worker.process), and Celery kills a new one that has not reported in within this
+    # many seconds (4 s by default: less than the warm-up, so every replacement was
+    # killed in turn). Task processes started with the worker are not timed; those that
+    # replace one (killed, or retired after the jobs or memory above) are.
+    "worker_proc_alive_timeout": settings.worker_start_timeout_s,
     "task_acks_late": True,
     "task_reject_on_worker_lost": True,
     "include": ["worker.tasks"],

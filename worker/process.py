@@ -26,10 +26,11 @@ import mmap
 import os
 import secrets
 import signal
+import struct
 import sys
 from typing import Any
 
-from celery.signals import celeryd_init, worker_process_init
+from celery.signals import celeryd_init, worker_process_init, worker_ready
 from celery.utils.nodenames import default_nodename
 
 __all__ = [
@@ -54,20 +55,41 @@ _PR_SET_PDEATHSIG = 1
 # processes it forks later share the page, so a flag raised by the main process is seen
 # by them at once.
 _STOPPING = mmap.mmap(-1, 1)
-# Raised by a task process once it has imported the core: the worker is then seen (its
-# workers row) and counted idle by the re-sender. Before, a job sent to it would wait for
-# the imports, and the re-sender would take it for a worker that lost a message.
-_WARM = mmap.mmap(-1, 1)
+# The pid of each warm task process, in its pool slot (billiard's process index), written
+# by the task process once it has imported the core: the worker is then seen (its workers
+# row) and counted idle by the re-sender. Before, a job sent to it would wait for the
+# imports, and the re-sender would take it for a worker that lost a message. A pid, not a
+# flag: a task process killed outright (kill -9, the kernel's OOM killer) cannot lower a
+# flag, and its replacement warms up for seconds; meanwhile the worker can run no job and
+# must not be reported as able to.
+_WARM_SLOTS = 64
+_PID = struct.Struct("i")
+_WARM = mmap.mmap(-1, _PID.size * _WARM_SLOTS)
+
+
+def _slot_offset() -> int:
+    from billiard.process import current_process
+
+    index = getattr(current_process(), "index", 0)
+    return _PID.size * (int(index or 0) % _WARM_SLOTS)
 
 
 def mark_warm() -> None:
     """In a task process: the core is imported and the kernels compiled."""
-    _WARM[0] = 1
+    _PID.pack_into(_WARM, _slot_offset(), os.getpid())
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except (ProcessLookupError, PermissionError):
+        return False
+    return True
 
 
 def warm() -> bool:
-    """Whether a task process of this worker has warmed up."""
-    return _WARM[0] == 1
+    """Whether a live task process of this worker has warmed up."""
+    return any(pid and _alive(pid) for (pid,) in _PID.iter_unpack(_WARM))
 
 
 def mark_stopping() -> None:
@@ -135,3 +157,38 @@ def _task_process_started(**_kwargs: Any) -> None:
         logger.exception("could not warm up the task process")
     finally:
         mark_warm()
+
+
+def _release_if_held(lock: Any) -> bool:
+    """Release ``lock`` (a multiprocessing lock) if someone holds it; whether it was held."""
+    if lock.acquire(False):
+        lock.release()
+        return False
+    lock.release()
+    return True
+
+
+@worker_ready.connect
+def _free_the_queue_a_killed_task_process_held(sender: Any = None, **_kwargs: Any) -> None:
+    # On a broker without an event loop (the filesystem broker), Celery runs billiard's
+    # plain pool: its task processes share one job queue, and an idle one waits for a job
+    # holding the queue's read lock. Killed outright there (kill -9, the OOM killer), it
+    # never releases it, and every task process started in its place waits on the lock
+    # for ever: the worker beats but runs no job again. With one task process (the
+    # shipped --concurrency=1) a dead one's lock can be held by nobody else, so it is
+    # released when the pool sees it dead, before the pool starts the replacement.
+    pool = getattr(getattr(sender, "pool", None), "_pool", None)
+    lock = getattr(getattr(pool, "_inqueue", None), "_rlock", None)
+    if pool is None or lock is None or getattr(pool, "_processes", 0) != 1:
+        return
+    flush = pool.process_flush_queues
+
+    def process_flush_queues(process: Any) -> None:
+        flush(process)
+        exitcode = getattr(process, "exitcode", None)
+        if exitcode is not None and exitcode < 0 and _release_if_held(lock):
+            logger.warning(
+                "released the job queue's lock held by killed task process %s", process.pid
+            )
+
+    pool.process_flush_queues = process_flush_queues
