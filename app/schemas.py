@@ -585,7 +585,10 @@ class WorkersHealth(BaseModel):
 
 
 class QueueHealth(BaseModel):
-    ok: bool = Field(description="false when a queued job has waited long for its message")
+    ok: bool = Field(
+        description="false when a queued job has waited long for its message, or long "
+        "while a worker sat idle"
+    )
     queued: int
     running: int
     unsent: int = Field(
@@ -593,6 +596,12 @@ class QueueHealth(BaseModel):
         "(the broker is down, or no worker is there to send it)"
     )
     oldest_queued_s: float | None = Field(description="age of the oldest queued job, s")
+    stalled: bool = Field(
+        default=False,
+        description="the oldest queued job has waited longer than INERTIA_ID_QUEUE_STALL_S "
+        "while a live worker had no job: that worker is not taking jobs",
+    )
+    detail: str | None = Field(default=None, description="what is wrong, when not ok")
 
 
 class HealthOut(BaseModel):

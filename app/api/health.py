@@ -60,8 +60,12 @@ def _broker(settings: Settings, celery: Celery) -> ComponentHealth:
     return ComponentHealth(ok=True, detail=f"{scheme} broker reachable")
 
 
-def _queue(settings: Settings, database: Database, database_ok: bool) -> QueueHealth:
-    """Queued jobs, and whether any waits for a message that is not coming."""
+def _queue(
+    settings: Settings, database: Database, database_ok: bool, live_workers: int
+) -> QueueHealth:
+    """Queued jobs, whether any waits for a message that is not coming, and whether the
+    oldest has waited long while a live worker had no job (a worker that beats but takes
+    nothing: its task process cannot start, its consumer is stuck)."""
     if not database_ok:
         return QueueHealth(ok=False, queued=0, running=0, unsent=0, oldest_queued_s=None)
     now = utcnow()
@@ -92,12 +96,26 @@ def _queue(settings: Settings, database: Database, database_ok: bool) -> QueueHe
     if oldest is not None and oldest.tzinfo is None:
         oldest = oldest.replace(tzinfo=UTC)
     age = None if oldest is None else max(0.0, (now - oldest).total_seconds())
+    idle_workers = live_workers - int(running or 0)
+    # A worker with no job takes a queued job within a poll of its broker; one that
+    # just finished a long job may be caught for that moment, hence the long threshold.
+    stalled = age is not None and age > settings.queue_stall_s and idle_workers > 0
+    details = []
+    if unsent:
+        details.append(f"{unsent} queued job(s) without a message for a while")
+    if stalled:
+        details.append(
+            f"the oldest queued job has waited {age:.0f} s (over {settings.queue_stall_s:g} s) "
+            f"while {idle_workers} live worker(s) had no job: they are not taking jobs"
+        )
     return QueueHealth(
-        ok=not unsent,
+        ok=not unsent and not stalled,
         queued=int(queued or 0),
         running=int(running or 0),
         unsent=int(unsent or 0),
         oldest_queued_s=age,
+        stalled=stalled,
+        detail="; ".join(details) or None,
     )
 
 
@@ -123,14 +141,15 @@ def _workers(settings: Settings, database: Database, database_ok: bool) -> Worke
 @router.get("/health")
 def health(settings: SettingsDep, database: DatabaseDep, celery: CeleryDep) -> HealthOut:
     """Database reachable, broker reachable, workers seen recently, no queued job
-    left without a message: "ok", else "degraded".
+    left without a message nor waiting long while a worker sits idle: "ok", else
+    "degraded".
 
     Always 200: the body says what is wrong.
     """
     db = _database(database)
     broker = _broker(settings, celery)
     workers = _workers(settings, database, db.ok)
-    queue = _queue(settings, database, db.ok)
+    queue = _queue(settings, database, db.ok, workers.count)
     return HealthOut(
         status="ok" if db.ok and broker.ok and workers.ok and queue.ok else "degraded",
         version=inertia_id.__version__,

@@ -6,8 +6,10 @@ from collections.abc import Callable
 from datetime import timedelta
 from pathlib import Path
 
+from inertia_id import Scenario
 from service.config import Settings
-from service.store.models import WorkerRow, utcnow
+from service.store.jobs import config_hash
+from service.store.models import JobRow, ScenarioRow, WorkerRow, utcnow
 from service.store.session import Database
 
 from .support import Api, make_settings
@@ -44,6 +46,61 @@ def test_health_counts_recently_seen_workers(api: Api) -> None:
     assert health["status"] == "ok"
     assert health["workers"]["names"] == ["celery@alive"]
     assert health["workers"]["count"] == 1
+
+
+def add_job(api: Api, status: str, seconds_ago: float, seed: int) -> None:
+    """A job of ``status``, created and sent ``seconds_ago``."""
+    at = utcnow() - timedelta(seconds=seconds_ago)
+    params = {"sequence": [[4, 4, 4, 0, 0, 0]] * 4, "metric": "euclidean"}
+    with api.db.session() as session:
+        scenario = ScenarioRow(name="paper", document=Scenario.paper().model_dump(mode="json"))
+        session.add(scenario)
+        session.flush()
+        session.add(
+            JobRow(
+                type="train",
+                scenario_id=scenario.id,
+                params=params,
+                config_hash=config_hash("train", scenario.id, params, seed),
+                seed=seed,
+                status=status,
+                created_at=at,
+                sent_at=at,
+            )
+        )
+
+
+def test_health_is_degraded_when_a_job_waits_long_while_a_worker_is_idle(api: Api) -> None:
+    # The worker beats, yet the job it could take has waited past the threshold: its
+    # task process cannot start, or its consumer is stuck.
+    add_worker(api, "celery@stuck", seconds_ago=1.0)
+    waited_s = api.settings.queue_stall_s + 60.0
+    add_job(api, "queued", seconds_ago=waited_s, seed=1)
+    health = api.get("/health").json()
+    assert health["status"] == "degraded"
+    assert health["workers"]["ok"] is True
+    queue = health["queue"]
+    assert queue["ok"] is False and queue["stalled"] is True
+    assert queue["oldest_queued_s"] >= waited_s
+    assert "1 live worker(s) had no job" in queue["detail"]
+
+
+def test_health_is_ok_when_a_job_waits_long_for_busy_workers(api: Api) -> None:
+    # Every live worker runs a job: a long queue is a busy service, not a broken one.
+    add_worker(api, "celery@busy", seconds_ago=1.0)
+    add_job(api, "running", seconds_ago=600.0, seed=1)
+    add_job(api, "queued", seconds_ago=api.settings.queue_stall_s + 60.0, seed=2)
+    health = api.get("/health").json()
+    assert health["status"] == "ok", health
+    assert health["queue"]["stalled"] is False and health["queue"]["detail"] is None
+
+
+def test_health_is_ok_while_a_fresh_job_waits_for_an_idle_worker(api: Api) -> None:
+    add_worker(api, "celery@idle", seconds_ago=1.0)
+    add_job(api, "queued", seconds_ago=1.0, seed=1)
+    health = api.get("/health").json()
+    assert health["status"] == "ok", health
+    assert health["queue"]["queued"] == 1 and health["queue"]["stalled"] is False
 
 
 def test_health_reports_an_unreachable_redis_broker(
