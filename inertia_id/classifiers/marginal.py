@@ -47,8 +47,8 @@ shrunk towards the covariance the scenario's disturbance torque gives the rates,
 written out (:func:`_process_target`), rather than towards the identity: its random walk
 has full rank, which 100 residuals cannot estimate in 3 T dimensions, and the same rule
 chooses that target outright on the paper preset (6x process noise on a 480-value
-braking sequence: 0.956 with the sample covariance, 0.962 with the target, against a
-ceiling of 0.966; see the README). Three matrices then
+braking sequence: 0.948 shrunk towards the identity, 0.958 towards the target, against a
+ceiling of 0.962; ``bench/process_target.py``). Three matrices then
 serve any grid, and the white measurement noise, which a per-condition sample covariance
 must estimate (badly, in 240 dimensions), is known almost exactly. The candidates' mean
 responses, shared by every condition (the mean does not move with the noise level, to
