@@ -1,5 +1,6 @@
 """The tests behind the core's checks of a number parameter, numbers made JSON-safe, and
-text made safe for a CSV file.
+text made safe for a CSV file; and the readers of a user's JSON and number text that
+refuse what Python's own readers take silently (a key given twice, ``1_0`` read as 10).
 
 Each caller raises its own :class:`~inertia_id.errors.InputError`, with its own message
 (they name the parameter and the rule in their own words); what they share is the test.
@@ -20,12 +21,15 @@ import numpy as np
 
 __all__ = [
     "BIDI_CONTROLS",
+    "DuplicateKeyError",
     "check_seed",
     "control_characters",
     "csv_note_text",
     "finite_or_none",
     "is_integer",
     "is_number",
+    "json_location",
+    "loads_unique_keys",
     "read_text",
     "spreadsheet_safe",
     "spreadsheet_safe_json",
@@ -158,3 +162,88 @@ def csv_note_text(text: str) -> str:
     are written ``\\u002c``, so that a spreadsheet keeps it in the one cell the ``#``
     starts. ``json.loads`` gives the text back."""
     return json.dumps(text, ensure_ascii=False).replace(",", "\\u002c")
+
+
+class DuplicateKeyError(ValueError):
+    """A JSON object holds one key twice. Python's ``json`` keeps the last value without a
+    word, so a flight team's file with two ``omega_rad_s`` was read as the second alone.
+
+    A ``ValueError``, as ``json``'s own errors are, so a caller that refuses JSON it
+    cannot take refuses this too; ``key`` and ``path`` (the keys and list indices from
+    the top of the document to the object that holds it) let a caller say where.
+    """
+
+    def __init__(self, key: str, path: tuple[str | int, ...]) -> None:
+        self.key = key
+        self.path = path
+        super().__init__(f"duplicate key {key!r} in {json_location(path)}")
+
+
+def json_location(path: tuple[str | int, ...]) -> str:
+    """Where ``path`` leads in a JSON document, as a reader writes it: ``the top-level
+    object``, ``object at telemetry``, ``object at scenario.inertia_candidates[1]``."""
+    if not path:
+        return "the top-level object"
+    text = "".join(f"[{part}]" if isinstance(part, int) else f".{part}" for part in path)
+    return f"object at {text.removeprefix('.')}"
+
+
+class _Duplicated(dict[str, Any]):
+    """An object :func:`loads_unique_keys` found a key twice in: ``duplicate`` is the key."""
+
+    duplicate: str = ""
+
+
+def loads_unique_keys(text: str | bytes) -> Any:
+    """``json.loads(text)``, but a key given twice in one object is a
+    :class:`DuplicateKeyError` naming the key and the object: what every read of a
+    user's JSON goes through (the API's bodies, the command line's files). Malformed JSON
+    raises as ``json.loads`` does.
+
+    The hook only counts keys as each object is built; where the object lies is worked
+    out after the parse, and only when a key was repeated, so a document without one
+    costs a dict per object more than ``json.loads`` (telemetry is a few objects around
+    long lists of numbers).
+    """
+    repeated: list[_Duplicated] = []
+
+    def build(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+        built = dict(pairs)
+        if len(built) == len(pairs):
+            return built
+        marked = _Duplicated(built)
+        seen: set[str] = set()
+        for key, _ in pairs:
+            if key in seen:
+                marked.duplicate = key
+                break
+            seen.add(key)
+        repeated.append(marked)
+        return marked
+
+    value = json.loads(text, object_pairs_hook=build)
+    if repeated:
+        key, path = _first_duplicate(value)
+        raise DuplicateKeyError(key, path)
+    return value
+
+
+def _first_duplicate(value: Any) -> tuple[str, tuple[str | int, ...]]:
+    """The first object, in document order, that :func:`loads_unique_keys` marked: its
+    repeated key and its path. Walked with a stack, not recursion: the document may be
+    nested as deep as ``json`` takes."""
+    stack: list[tuple[Any, tuple[str | int, ...]]] = [(value, ())]
+    while stack:
+        node, path = stack.pop()
+        if isinstance(node, _Duplicated):
+            return node.duplicate, path
+        if isinstance(node, dict):
+            children: list[tuple[Any, tuple[str | int, ...]]] = [
+                (v, (*path, k)) for k, v in node.items() if isinstance(v, dict | list)
+            ]
+        elif isinstance(node, list):
+            children = [(v, (*path, i)) for i, v in enumerate(node) if isinstance(v, dict | list)]
+        else:
+            continue
+        stack.extend(reversed(children))
+    raise AssertionError("a marked object was not found in the document it was built in")

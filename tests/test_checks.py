@@ -1,17 +1,21 @@
-"""The core's number tests (inertia_id.checks): what counts as an integer or a number."""
+"""The core's number tests (inertia_id.checks): what counts as an integer or a number,
+and the reader of a user's JSON that refuses a key given twice."""
 
 from __future__ import annotations
 
+import json
 from typing import Any
 
 import numpy as np
 import pytest
 
 from inertia_id.checks import (
+    DuplicateKeyError,
     control_characters,
     csv_note_text,
     is_integer,
     is_number,
+    loads_unique_keys,
     spreadsheet_safe,
     spreadsheet_safe_json,
 )
@@ -124,3 +128,39 @@ def test_an_export_read_with_hash_comments_keeps_a_name_holding_a_hash() -> None
     rows = list(csv.reader(line for line in text.splitlines() if not line.startswith("# ")))
     assert rows[1:] == [[name, f"{float(k)!r}", str(k)] for k, name in enumerate(names)]
     assert to_csv(Table(["only"], [[""]])).splitlines() == ["only", '""']
+
+
+@pytest.mark.parametrize(
+    ("text", "key", "path", "where"),
+    [
+        ('{"a": 1, "a": 2}', "a", (), "the top-level object"),
+        ('{"t": {"w": [1], "w": [2]}}', "w", ("t",), "object at t"),
+        ('[{}, {"k": 1, "k": 1}]', "k", (1,), "object at [1]"),
+        (
+            '{"s": {"c": [{"n": "x"}, {"n": "y", "n": "z"}]}}',
+            "n",
+            ("s", "c", 1),
+            "object at s.c[1]",
+        ),
+        # The outer key is named: the inner object was one of the values it overwrote.
+        ('{"t": {"x": 1, "x": 2}, "t": 3}', "t", (), "the top-level object"),
+        # The first in the document, however deep.
+        ('{"a": {"b": {"q": 1, "q": 2}}, "c": {"r": 1, "r": 2}}', "q", ("a", "b"), "object at a.b"),
+    ],
+)
+def test_a_key_given_twice_is_named_with_where_it_is(
+    text: str, key: str, path: tuple[str | int, ...], where: str
+) -> None:
+    assert json.loads(text) is not None  # what json takes silently
+    with pytest.raises(DuplicateKeyError) as raised:
+        loads_unique_keys(text.encode())
+    assert (raised.value.key, raised.value.path) == (key, path)
+    assert str(raised.value) == f"duplicate key {key!r} in {where}"
+    assert isinstance(raised.value, ValueError)
+
+
+def test_json_without_a_key_given_twice_reads_as_json_reads_it() -> None:
+    text = '{"a": [1, 2.5, {"b": null, "B": true}], "c": "\\u00e9", "d": NaN}'
+    assert repr(loads_unique_keys(text)) == repr(json.loads(text))
+    with pytest.raises(json.JSONDecodeError):
+        loads_unique_keys('{"a": ')

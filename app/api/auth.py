@@ -5,10 +5,11 @@ from __future__ import annotations
 from fastapi import APIRouter, Response, status
 
 from .deps import UNAUTHORIZED, ApiKeyDep
+from .routing import UniqueKeysRoute
 
 __all__ = ["router"]
 
-router = APIRouter(prefix="/auth", tags=["auth"])
+router = APIRouter(prefix="/auth", tags=["auth"], route_class=UniqueKeysRoute)
 
 
 @router.get(

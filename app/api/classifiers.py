@@ -24,10 +24,11 @@ from .deps import (
     unknown_sort,
 )
 from .listing import id_filters, one_page, search_text, sort_order, tag_filters
+from .routing import UniqueKeysRoute
 
 __all__ = ["router"]
 
-router = APIRouter(prefix="/classifiers", tags=["classifiers"])
+router = APIRouter(prefix="/classifiers", tags=["classifiers"], route_class=UniqueKeysRoute)
 
 _NOT_FOUND = no_such("classifier")
 

@@ -30,12 +30,13 @@ from pydantic import ValidationError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
+from inertia_id.checks import DuplicateKeyError
 from inertia_id.errors import InputError
 
 from ..security import scope_header
 from .deps import unprocessable
 
-__all__ = ["format_errors", "install_error_handlers", "refused_at"]
+__all__ = ["duplicate_key_errors", "format_errors", "install_error_handlers", "refused_at"]
 
 log = logging.getLogger(__name__)
 
@@ -234,9 +235,12 @@ async def _http_error(request: Request, exc: Exception) -> Response:
     """FastAPI's HTTP errors as they were, but for a JSON body its parser could not take
     past the JSON grammar (an integer of over 4,300 digits, arrays nested thousands deep):
     FastAPI answers those 400 "There was an error parsing the body", naming nothing; they
-    are the caller's and a 422 says what was wrong, as ``POST /identify`` does."""
+    are the caller's and a 422 says what was wrong, as ``POST /identify`` does. A key given
+    twice in one object (:mod:`app.api.routing`) is located at that object."""
     assert isinstance(exc, StarletteHTTPException)
     cause = exc.__cause__
+    if exc.status_code == 400 and isinstance(cause, DuplicateKeyError):
+        return _unprocessable(duplicate_key_errors(cause))
     if exc.status_code == 400 and isinstance(cause, ValueError | RecursionError):
         return _unprocessable(
             [
@@ -248,6 +252,21 @@ async def _http_error(request: Request, exc: Exception) -> Response:
             ]
         )
     return await http_exception_handler(request, exc)
+
+
+def duplicate_key_errors(
+    error: DuplicateKeyError, at: Sequence[str | int] = ("body",)
+) -> list[dict[str, Any]]:
+    """A key given twice in a JSON request body (or in JSON held ``at`` another part of
+    the request), as the 422's errors: located at the object that holds it."""
+    loc = [*at, *error.path]
+    return [
+        {
+            "loc": [_text(p) if isinstance(p, str) else p for p in loc],
+            "msg": _text(str(error)),
+            "type": "value_error",
+        }
+    ]
 
 
 def install_error_handlers(app: FastAPI) -> None:

@@ -18,12 +18,13 @@ from service.store.session import Database
 
 from ..schemas import ComponentHealth, HealthOut, QueueHealth, WorkersHealth
 from .deps import CeleryDep, DatabaseDep, SettingsDep
+from .routing import UniqueKeysRoute
 
 __all__ = ["router"]
 
 log = logging.getLogger(__name__)
 
-router = APIRouter(tags=["health"])
+router = APIRouter(tags=["health"], route_class=UniqueKeysRoute)
 
 # A worker is alive if it was seen within this many heartbeat intervals.
 _HEARTBEATS_OF_GRACE = 3.0

@@ -21,11 +21,13 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 from fastapi import APIRouter, HTTPException, Query, Request, Response, status
+from fastapi.exceptions import RequestValidationError
 from pydantic import ValidationError
 from sqlalchemy import select
 from starlette.concurrency import run_in_threadpool
 from starlette.datastructures import UploadFile
 
+from inertia_id.checks import DuplicateKeyError, loads_unique_keys
 from inertia_id.errors import InputError
 from inertia_id.evaluation.identify import (
     identify,
@@ -47,14 +49,15 @@ from ..schemas import (
 )
 from ..verdicts import NotFound, VerdictOptions, VerdictProcess
 from .deps import UNAUTHORIZED, ApiKeyDep, no_such, not_found, plausible_id, unprocessable
-from .errors import refused_at
+from .errors import duplicate_key_errors, refused_at
+from .routing import UniqueKeysRoute
 
 if TYPE_CHECKING:
     from inertia_id.classifiers.registry import CandidateClassifier
 
 __all__ = ["ClassifierCache", "openapi_components", "router"]
 
-router = APIRouter(prefix="/identify", tags=["identify"])
+router = APIRouter(prefix="/identify", tags=["identify"], route_class=UniqueKeysRoute)
 
 
 class ClassifierCache:
@@ -239,7 +242,9 @@ async def _from_json(
 ) -> tuple[str, Telemetry, VerdictOptions]:
     body = await request.body()
     try:
-        data = json.loads(body)
+        data = loads_unique_keys(body)
+    except DuplicateKeyError as exc:
+        raise RequestValidationError(duplicate_key_errors(exc)) from None
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         unprocessable(("body",), f"request body is not valid JSON: {exc}")
     except (ValueError, RecursionError) as exc:

@@ -74,13 +74,14 @@ from .deps import (
     unprocessable,
 )
 from .listing import id_filters, one_page, search_text, sort_order, tag_filters
+from .routing import UniqueKeysRoute
 from .scenarios import PlanOptionsDep, plan_for
 
 __all__ = ["router"]
 
 log = logging.getLogger(__name__)
 
-router = APIRouter(prefix="/jobs", tags=["jobs"])
+router = APIRouter(prefix="/jobs", tags=["jobs"], route_class=UniqueKeysRoute)
 
 _NOT_FOUND = no_such("job")
 

@@ -9,10 +9,11 @@ from typing import Annotated, Any
 
 import numpy as np
 from fastapi import APIRouter, Depends, HTTPException, Query, Request, Response, status
+from fastapi.exceptions import RequestValidationError
 from sqlalchemy import func, select
 from sqlalchemy.exc import IntegrityError
 
-from inertia_id.checks import control_characters
+from inertia_id.checks import DuplicateKeyError, control_characters, loads_unique_keys
 from inertia_id.errors import InputError
 from inertia_id.physics.presets import PRESETS, preset
 from inertia_id.physics.scenario import Scenario
@@ -40,12 +41,13 @@ from .deps import (
     no_such,
     unprocessable,
 )
-from .errors import refused_at
+from .errors import duplicate_key_errors, refused_at
 from .listing import one_page
+from .routing import UniqueKeysRoute
 
 __all__ = ["PlanOptions", "PlanOptionsDep", "plan_for", "router", "scenario_out"]
 
-router = APIRouter(prefix="/scenarios", tags=["scenarios"])
+router = APIRouter(prefix="/scenarios", tags=["scenarios"], route_class=UniqueKeysRoute)
 
 _NOT_FOUND = no_such("scenario")
 
@@ -244,7 +246,9 @@ MAX_PLAN_FLIGHT_WORK = 1_000_000
 
 def _parse_sequence(text: str, scenario: Scenario) -> np.ndarray:
     try:
-        rows = json.loads(text)
+        rows = loads_unique_keys(text)
+    except DuplicateKeyError as exc:
+        raise RequestValidationError(duplicate_key_errors(exc, ("query", "sequence"))) from None
     except (ValueError, RecursionError):  # not JSON, digits beyond the limit, deep nesting
         unprocessable(
             ("query", "sequence"),

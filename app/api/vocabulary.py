@@ -15,9 +15,11 @@ from service.exports import RESULT_TABLES
 from service.store.models import JOB_STATUSES, JOB_TYPES, TERMINAL_STATUSES
 from service.summaries import SUMMARY_COLUMNS
 
+from .routing import UniqueKeysRoute
+
 __all__ = ["router"]
 
-router = APIRouter(tags=["vocabulary"])
+router = APIRouter(tags=["vocabulary"], route_class=UniqueKeysRoute)
 
 
 class KindOut(BaseModel):

@@ -827,7 +827,8 @@ class BaseClassifier(BaseEstimator):
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> Self:
         with open(path, encoding="utf-8") as fh:
-            return cls.from_json(fh.read())
+            document = documents.parse(fh.read(), unique_keys=True)
+        return cls.from_dict(documents.read(document, cls.FORMAT))
 
 
 class SupervisedClassifier(BaseClassifier):

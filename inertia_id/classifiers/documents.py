@@ -12,6 +12,7 @@ import hashlib
 import json
 from typing import Any
 
+from ..checks import DuplicateKeyError, loads_unique_keys
 from ..errors import InputError
 
 __all__ = ["VERSION", "checksum", "parse", "read", "write"]
@@ -37,10 +38,20 @@ def write(format_name: str, payload: dict[str, Any]) -> str:
     )
 
 
-def parse(text: str | bytes) -> dict[str, Any]:
-    """The document as a JSON object (not yet verified)."""
+def parse(text: str | bytes | dict[str, Any], *, unique_keys: bool = False) -> dict[str, Any]:
+    """The document as a JSON object (not yet verified); one parsed already as it is.
+
+    :param unique_keys: refuse a key given twice in one object, naming it: for a document
+        a user hands over (a file), where ``json`` would keep the last value silently. The
+        service's own stored documents (``json.dumps`` of a dict, which cannot repeat a
+        key) are read without the check's cost.
+    """
+    if isinstance(text, dict):
+        return text
     try:
-        doc = json.loads(text)
+        doc = loads_unique_keys(text) if unique_keys else json.loads(text)
+    except DuplicateKeyError as exc:
+        raise InputError(f"classifier document has a {exc}") from None
     except json.JSONDecodeError as exc:
         raise InputError(f"classifier document is not JSON: {exc}") from None
     if not isinstance(doc, dict):

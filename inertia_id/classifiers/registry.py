@@ -208,13 +208,15 @@ def train_classifier(
 train = train_classifier
 
 
-def classifier_from_json(text: str | bytes) -> CandidateClassifier:
-    """Load any classifier document, whatever its kind (the checksum is verified)."""
-    fmt = documents.parse(text).get("format")
+def classifier_from_json(text: str | bytes | dict[str, Any]) -> CandidateClassifier:
+    """Load any classifier document, whatever its kind (the checksum is verified): its
+    JSON text, or the text parsed already (:func:`documents.parse`)."""
+    document = documents.parse(text)
+    fmt = document.get("format")
     formats = sorted({cls.FORMAT for cls in _CLASSES.values()})
     if fmt not in formats:
         raise InputError(f"not a classifier document: format {fmt!r} is not one of {formats}")
-    payload = documents.read(text, fmt)
+    payload = documents.read(document, fmt)
     return document_class(fmt, payload).from_dict(payload)
 
 
@@ -222,7 +224,8 @@ def load_classifier(path: str | os.PathLike[str]) -> CandidateClassifier:
     """Read any classifier document from a file (see :func:`classifier_from_json`)."""
     from ..checks import read_text
 
-    return classifier_from_json(read_text(path, "a classifier's JSON document"))
+    text = read_text(path, "a classifier's JSON document")
+    return classifier_from_json(documents.parse(text, unique_keys=True))
 
 
 def warm_up() -> None:

@@ -18,7 +18,11 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 import click
 
-from ..checks import finite_or_none
+from ..checks import (
+    DuplicateKeyError,
+    finite_or_none,
+    loads_unique_keys,
+)
 from ..errors import InputError
 from ..pipelines import PAPER_SEQUENCE
 
@@ -146,10 +150,16 @@ def load_scenario(preset_name: str, scenario_path: str | None) -> Scenario:
         from ..physics.presets import preset
 
         return preset(preset_name)
-    from ..checks import read_text
+    from ..checks import DuplicateKeyError, loads_unique_keys, read_text
     from ..physics.scenario import Scenario
 
-    return Scenario.model_validate_json(read_text(scenario_path, "a scenario's JSON"))
+    try:
+        document = loads_unique_keys(read_text(scenario_path, "a scenario's JSON"))
+    except DuplicateKeyError as exc:
+        raise InputError(f"scenario {scenario_path!r} has a {exc}") from None
+    except (ValueError, RecursionError) as exc:
+        raise InputError(f"scenario {scenario_path!r} is not JSON: {exc}") from None
+    return Scenario.model_validate(document)
 
 
 def parse_sequence(text: str) -> list[list[int]]:
@@ -172,10 +182,12 @@ def parse_sequence(text: str) -> list[list[int]]:
         )
     try:
         if source.startswith("["):
-            rows = json.loads(source)
+            rows = loads_unique_keys(source)
         else:
             rows = [[int(v) for v in row.split(",")] for row in parts if row.strip()]
-    except (ValueError, json.JSONDecodeError):
+    except DuplicateKeyError as exc:
+        raise InputError(f"sequence {text!r} has a {exc}") from None
+    except (ValueError, RecursionError):
         raise InputError(
             f"sequence {text!r} is not rows of level indices like '4,4,4,0,0,0;0,0,0,4,4,4' "
             "or a JSON list of rows"

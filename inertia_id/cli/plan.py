@@ -162,11 +162,14 @@ def _strict_json(document: dict) -> str:
 
 
 def _search_document(path: str) -> dict:
+    from ..checks import DuplicateKeyError, loads_unique_keys
     from ..errors import InputError
 
     try:
-        document = json.loads(Path(path).read_text(encoding="utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as error:
+        document = loads_unique_keys(Path(path).read_text(encoding="utf-8"))
+    except DuplicateKeyError as error:
+        raise InputError(f"{path} has a {error}") from None
+    except (UnicodeDecodeError, ValueError, RecursionError) as error:
         raise InputError(f"{path} is not a search JSON: {error}") from None
     if not isinstance(document, dict):
         raise InputError(f"{path} is not a search JSON: it holds a {type(document).__name__}")

@@ -53,6 +53,7 @@ from pydantic import (
     model_validator,
 )
 
+from ..checks import DuplicateKeyError, loads_unique_keys
 from ..errors import InputError
 
 __all__ = [
@@ -388,7 +389,9 @@ def parse_telemetry(
         fmt = "json" if text.startswith(("{", "[")) else "csv"
     if fmt == "json":
         try:
-            data = json.loads(text)
+            data = loads_unique_keys(text)
+        except DuplicateKeyError as exc:
+            raise InputError(f"telemetry JSON has a {exc}") from None
         except json.JSONDecodeError as exc:
             raise InputError(f"telemetry is not valid JSON: {exc}") from None
         except (ValueError, RecursionError) as exc:

@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import json
 import logging
 from collections.abc import Callable
 
 import pytest
+from fastapi.routing import APIRoute
 
 import app.api.identify
+from app.api import ROUTERS
+from app.api.routing import UniqueKeysRoute
 from app.verdicts import VerdictProcess
 from inertia_id import InputError
 
@@ -121,3 +125,57 @@ def test_a_json_body_past_what_the_parser_takes_is_a_422_saying_why(
     # The other HTTP errors are FastAPI's as before.
     assert api.get("/jobs/nope").status_code == 404
     assert api.client.post("/jobs", json={}).status_code == 401
+
+
+def _duplicate_refused(response: object, loc: list[str | int], key: str) -> None:
+    assert response.status_code == 422, response.text  # type: ignore[attr-defined]
+    (error,) = response.json()["detail"]  # type: ignore[attr-defined]
+    assert error["loc"] == loc and error["type"] == "value_error"
+    assert error["msg"].startswith(f"duplicate key {key!r} in ")
+
+
+def test_a_json_body_with_a_key_given_twice_is_a_422_naming_the_key_and_the_object(
+    api: Api, classifier: object
+) -> None:
+    """``json.loads`` keeps the last of two values without a word: a flight team's body
+    with two ``omega_rad_s`` was judged on the second, a scenario with two
+    ``inertia_candidates`` stored with the second (a hostile review)."""
+    scenario = api.get(f"/scenarios/{api.create_scenario()['id']}").json()["document"]
+    candidates = '"inertia_candidates": ' + json.dumps(scenario["inertia_candidates"])
+    body = json.dumps({"scenario": scenario}).replace(candidates, f"{candidates}, {candidates}")
+    response = api.post_raw_json("/scenarios", body)
+    _duplicate_refused(response, ["body", "scenario"], "inertia_candidates")
+    assert "in object at scenario" in response.json()["detail"][0]["msg"]
+
+    scenario_id = api.create_scenario()["id"]
+    plan = '{"sequence": [[4, 4, 4, 0, 0, 0]], "sequence": [[0, 0, 0, 4, 4, 4]]}'
+    response = api.post_raw_json(f"/scenarios/{scenario_id}/plan", plan)
+    _duplicate_refused(response, ["body"], "sequence")
+    assert "in the top-level object" in response.json()["detail"][0]["msg"]
+    job = f'{{"type": "train", "scenario_id": "{scenario_id}", "seed": 1, "seed": 2}}'
+    _duplicate_refused(api.post_raw_json("/jobs", job), ["body"], "seed")
+    assert not api.queued_messages()
+
+    classifier_id = api.insert_classifier(scenario_id, classifier)  # type: ignore[arg-type]
+    rates = '"omega_rad_s": ' + json.dumps([[0.0, 0.0, 0.0]] * 80)
+    telemetry = f'{{"time_s": {[0.05 * (i + 1) for i in range(80)]}, {rates}, {rates}}}'
+    body = f'{{"classifier_id": "{classifier_id}", "telemetry": {telemetry}}}'
+    for route in ("/identify", "/identify/partial"):
+        response = api.post_raw_json(route, body)
+        _duplicate_refused(response, ["body", "telemetry"], "omega_rad_s")
+        msg = response.json()["detail"][0]["msg"]
+        assert msg == "duplicate key 'omega_rad_s' in object at telemetry"
+
+    sequence = '[[4,4,4,0,0,0], {"a": 1, "a": 2}]'
+    response = api.get_with_key(f"/scenarios/{scenario_id}/response", params={"sequence": sequence})
+    _duplicate_refused(response, ["query", "sequence", 1], "a")
+
+
+def test_every_api_route_refuses_a_key_given_twice(api: Api) -> None:
+    """A router added without the route class would take the last of two keys again (the
+    app includes the routers of ``ROUTERS``; the dashboard and the docs add GETs of their
+    own)."""
+    routes = [*api.app.routes, *(route for router in ROUTERS for route in router.routes)]
+    routes = [r for r in routes if isinstance(r, APIRoute) and r.methods - {"GET", "HEAD"}]
+    assert len(routes) > 5
+    assert [r.path for r in routes if not isinstance(r, UniqueKeysRoute)] == []

@@ -457,3 +457,53 @@ def test_the_exit_status_is_as_the_readme_states(
     result = CliRunner().invoke(main, args)
     assert result.exit_code == code, result.output
     assert message in " ".join(result.output.split()) and "Traceback" not in result.output
+
+
+def _twice(text: str, first: str) -> str:
+    """``text`` (JSON) with the key-value pair that starts at ``first`` given twice."""
+    start = text.index(first)
+    depth, end = 0, start + len(first)
+    for end in range(start + len(first), len(text)):
+        depth += text[end] in "[{"
+        depth -= text[end] in "]}"
+        if depth < 0 or (depth == 0 and text[end] == ","):
+            break
+    pair = text[start:end]
+    return text[:end] + ", " + pair + text[end:]
+
+
+def test_a_key_given_twice_in_a_json_file_is_refused_naming_it(
+    paper: Scenario, nearest: Path, tmp_path: Path
+) -> None:
+    """``json`` keeps the last of two values without a word: a telemetry file with two
+    ``omega_rad_s`` was judged on the second, a scenario with two ``inertia_candidates``
+    flown with the second (a hostile review). Every JSON file the commands read is read
+    with :func:`inertia_id.checks.loads_unique_keys`."""
+    telemetry = tmp_path / "t.json"
+    rates = {"time_s": [0.05 * (i + 1) for i in range(80)], "omega_rad_s": [[0, 0, 0]] * 80}
+    telemetry.write_text(_twice(json.dumps(rates), '"omega_rad_s"'))
+    message = refused(["identify", "--classifier", str(nearest), str(telemetry)])
+    assert "telemetry JSON has a duplicate key 'omega_rad_s' in the top-level object" in message
+
+    scenario = tmp_path / "s.json"
+    text = json.dumps(paper.model_dump(mode="json"))
+    scenario.write_text(_twice(text, '"inertia_candidates"'))
+    message = refused(["simulate", "-n", "1", "--scenario", str(scenario)])
+    assert f"scenario {str(scenario)!r} has a duplicate key 'inertia_candidates' in the " in message
+    scenario.write_text(_twice(text, '"gyro_noise_sigma_rad_s"'))
+    message = refused(["simulate", "-n", "1", "--scenario", str(scenario)])
+    assert "duplicate key 'gyro_noise_sigma_rad_s' in object at uncertainty" in message
+
+    search = tmp_path / "search.json"
+    document = {"best": {"sequence": SEQUENCE}, "scenario": paper.model_dump(mode="json")}
+    search.write_text(_twice(json.dumps(document), '"best"'))
+    message = refused(["plan", "--search", str(search), "--out", "-"])
+    assert "has a duplicate key 'best' in the top-level object" in message
+
+    classifier = tmp_path / "c.json"
+    classifier.write_text(_twice(nearest.read_text(), '"version"'))
+    telemetry.write_text(json.dumps(rates))
+    message = refused(["identify", "--classifier", str(classifier), str(telemetry)])
+    assert "classifier document has a duplicate key 'version' in the top-level" in message
+    with pytest.raises(InputError, match="duplicate key 'version'"):
+        load_classifier(classifier)

@@ -1,0 +1,41 @@
+"""The route class of every router: a JSON body with a key given twice is refused.
+
+FastAPI parses a JSON body with Starlette's ``Request.json``, that is ``json.loads``, which
+keeps the last of two values for one key without a word: ``{"scenario": {...},
+"scenario": {...}}`` was stored as the second. :class:`UniqueKeysRoute` hands the route a
+request whose ``json`` is :func:`inertia_id.checks.loads_unique_keys` (the same one parse,
+its hook counting each object's keys); FastAPI turns the
+:class:`~inertia_id.checks.DuplicateKeyError` into a 400 caused by it, which
+:mod:`app.api.errors` answers as a 422 at the object that holds the key.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Coroutine
+from typing import Any
+
+from fastapi import Request, Response
+from fastapi.routing import APIRoute
+
+from inertia_id.checks import loads_unique_keys
+
+__all__ = ["UniqueKeysRoute"]
+
+
+class _UniqueKeysRequest(Request):
+    async def json(self) -> Any:
+        if not hasattr(self, "_json"):
+            self._json = loads_unique_keys(await self.body())
+        return self._json
+
+
+class UniqueKeysRoute(APIRoute):
+    """An API route whose JSON body may not give a key twice in one object."""
+
+    def get_route_handler(self) -> Callable[[Request], Coroutine[Any, Any, Response]]:
+        handler = super().get_route_handler()
+
+        async def unique_keys_handler(request: Request) -> Response:
+            return await handler(_UniqueKeysRequest(request.scope, request.receive))
+
+        return unique_keys_handler
