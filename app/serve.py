@@ -194,6 +194,16 @@ class WorkerPool:
         self._logs.clear()
 
 
+def _whole_number(text: str) -> int:
+    """An option's whole number as written: ``int`` also takes ``80_80`` as 8080."""
+    from inertia_id.checks import parse_whole
+
+    try:
+        return parse_whole(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="inertia-id serve",
@@ -209,7 +219,7 @@ def _parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--port",
-        type=int,
+        type=_whole_number,
         default=int(os.environ.get("INERTIA_ID_PORT", "8000")),
         help="TCP port (default 8000).",
     )
@@ -220,14 +230,14 @@ def _parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--workers",
-        type=int,
+        type=_whole_number,
         default=1,
         help="Worker processes to start, each running one job at a time (default 1; 0 "
         "when workers run elsewhere).",
     )
     parser.add_argument(
         "--api-workers",
-        type=int,
+        type=_whole_number,
         default=int(os.environ.get("INERTIA_ID_API_WORKERS", "1")),
         help="API processes (default 1), each with a verdict process of its own that "
         "computes /identify: on a machine with more cores, more API processes serve more "

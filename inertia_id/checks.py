@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 import unicodedata
 from pathlib import Path
 from typing import Any, TypeGuard
@@ -30,6 +31,8 @@ __all__ = [
     "is_number",
     "json_location",
     "loads_unique_keys",
+    "parse_decimal",
+    "parse_whole",
     "read_text",
     "spreadsheet_safe",
     "spreadsheet_safe_json",
@@ -247,3 +250,37 @@ def _first_duplicate(value: Any) -> tuple[str, tuple[str | int, ...]]:
             continue
         stack.extend(reversed(children))
     raise AssertionError("a marked object was not found in the document it was built in")
+
+
+#: A number as a person writes one: ASCII digits, an optional sign, point and exponent.
+_DECIMAL = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+_WHOLE = re.compile(r"[+-]?[0-9]+")
+_NON_FINITE = re.compile(r"[+-]?(?:inf|infinity|nan)", re.IGNORECASE)
+
+
+def parse_decimal(text: str, *, non_finite: bool = False) -> float:
+    """``float(text)`` for a number as a person writes one (``0.1``, ``-2``, ``1e-3``,
+    ``.5``; spaces around it allowed), else a ``ValueError`` quoting the text: ``float``
+    also takes ``1_0`` (read as 10), digits of other scripts (full-width ``１０``), and
+    ``inf`` or ``nan`` in any case, none of which a flight team's file or option means.
+
+    :param non_finite: take ``inf``, ``infinity`` and ``nan`` (any case and sign), for a
+        reader whose next check names a non-finite value by where it stands (telemetry).
+    """
+    bare = text.strip()
+    if _DECIMAL.fullmatch(bare) or (non_finite and _NON_FINITE.fullmatch(bare)):
+        return float(bare)
+    raise ValueError(f"{text!r} is not a decimal number ({_AS_WRITTEN}, e.g. -0.25 or 1e-3)")
+
+
+def parse_whole(text: str) -> int:
+    """``int(text)`` for a whole number written in ASCII digits with an optional sign
+    (spaces around it allowed), else a ``ValueError`` quoting the text: ``int`` also takes
+    ``1_0`` (10) and other scripts' digits."""
+    bare = text.strip()
+    if _WHOLE.fullmatch(bare):
+        return int(bare)
+    raise ValueError(f"{text!r} is not a whole number ({_AS_WRITTEN}, e.g. 42)")
+
+
+_AS_WRITTEN = "ASCII digits with no separator"

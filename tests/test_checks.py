@@ -4,6 +4,7 @@ and the reader of a user's JSON that refuses a key given twice."""
 from __future__ import annotations
 
 import json
+import re
 from typing import Any
 
 import numpy as np
@@ -16,6 +17,8 @@ from inertia_id.checks import (
     is_integer,
     is_number,
     loads_unique_keys,
+    parse_decimal,
+    parse_whole,
     spreadsheet_safe,
     spreadsheet_safe_json,
 )
@@ -164,3 +167,21 @@ def test_json_without_a_key_given_twice_reads_as_json_reads_it() -> None:
     assert repr(loads_unique_keys(text)) == repr(json.loads(text))
     with pytest.raises(json.JSONDecodeError):
         loads_unique_keys('{"a": ')
+
+
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [("0.1", 0.1), (" -2 ", -2.0), ("1e-3", 1e-3), (".5", 0.5), ("+3.", 3.0)],
+)
+def test_a_number_as_written_reads_as_float_reads_it(text: str, expected: float) -> None:
+    assert parse_decimal(text) == float(text) == expected
+
+
+@pytest.mark.parametrize("text", ["1_0", "\uff11\uff10", "\u0663", "inf", "NaN", "", "0x10"])
+def test_what_float_takes_and_no_one_writes_is_refused_quoting_it(text: str) -> None:
+    with pytest.raises(ValueError, match=re.escape(repr(text))):
+        parse_decimal(text)
+    assert parse_decimal(" -Infinity", non_finite=True) == float("-inf")
+    with pytest.raises(ValueError, match="'1_0' is not a whole number"):
+        parse_whole("1_0")
+    assert int("1_0") == 10 and parse_whole(" -3 ") == -3

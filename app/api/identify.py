@@ -27,7 +27,7 @@ from sqlalchemy import select
 from starlette.concurrency import run_in_threadpool
 from starlette.datastructures import UploadFile
 
-from inertia_id.checks import DuplicateKeyError, loads_unique_keys
+from inertia_id.checks import DuplicateKeyError, loads_unique_keys, parse_decimal
 from inertia_id.errors import InputError
 from inertia_id.evaluation.identify import (
     identify,
@@ -270,8 +270,9 @@ def _form_number(name: str, value: Any, rule: str, ok: Callable[[float], bool]) 
     if value is None or value == "":
         return None
     try:
-        number = float(value)
-    except (TypeError, ValueError):
+        # A number as written: float() also takes 1_0 (10) and other scripts' digits.
+        number = parse_decimal(value) if isinstance(value, str) else float("nan")
+    except ValueError:
         number = float("nan")
     if not ok(number):
         unprocessable(("body", name), f"{name} must be {rule}, got {value!r}")

@@ -14,6 +14,8 @@ import click
 from ..pipelines import SweepRequest
 from .options import (
     DEFAULT_SEQUENCE_TEXT,
+    FloatRange,
+    IntRange,
     LazyChoice,
     classifier_option,
     friendly_errors,
@@ -80,13 +82,13 @@ def _noises() -> tuple[str, ...]:
 @click.option(
     "--n-init",
     default=None,
-    type=click.IntRange(1),
+    type=IntRange(1),
     help="clustering: k-means initialisations; the lowest-inertia one is kept [default: 5].",
 )
 @click.option(
     "--band",
     default=None,
-    type=click.IntRange(0),
+    type=IntRange(0),
     help="Sakoe-Chiba band half-width (samples) for dtw (clustering, nearest-centroid, "
     "1nn); default unconstrained.",
 )
@@ -176,21 +178,21 @@ def train_cmd(
     "--ceiling-realisations",
     default=SweepRequest.default("ceiling_realisations"),
     show_default=True,
-    type=click.IntRange(0),
+    type=IntRange(0),
     help="The ceiling: per-candidate Gaussians fitted at each point's noise on this many "
     "realisations per candidate, scored on the same series (0: leave it out).",
 )
 @click.option(
     "--limit-realisations",
     default=None,
-    type=click.IntRange(0),
+    type=IntRange(0),
     help="Deprecated name of --ceiling-realisations.",
 )
 @click.option(
     "--n-train",
     default=SweepRequest.default("n_train"),
     show_default=True,
-    type=click.IntRange(3),
+    type=IntRange(3),
     help="Training realisations per candidate for --others.",
 )
 @click.option(
@@ -297,7 +299,7 @@ def sweep_cmd(
     "--estimate-start-within",
     "start_window_s",
     default=None,
-    type=click.FloatRange(0),
+    type=FloatRange(0),
     help="Search start times within this many seconds of the given start, one grid period "
     "apart, for the one whose series is closest to a candidate; the shift is reported.",
 )
@@ -305,7 +307,7 @@ def sweep_cmd(
     "--pre-start-window",
     "pre_start_window_s",
     default=None,
-    type=click.FloatRange(0),
+    type=FloatRange(0),
     help="Seconds of telemetry before the sequence start that measure the body's rate plus "
     "the gyro bias there and the noise level; the default classifier conditions on them "
     "[default: 30; 0 ignores them].",

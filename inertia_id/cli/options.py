@@ -22,6 +22,8 @@ from ..checks import (
     DuplicateKeyError,
     finite_or_none,
     loads_unique_keys,
+    parse_decimal,
+    parse_whole,
 )
 from ..errors import InputError
 from ..pipelines import PAPER_SEQUENCE
@@ -68,6 +70,33 @@ class LazyChoice(click.Choice[str]):
         if self._loaded is None and not self._in_help:
             return (param.name or "choice").upper()
         return super().get_metavar(param, ctx)
+
+
+class IntRange(click.IntRange):
+    """:class:`click.IntRange` of whole numbers written in ASCII digits: click reads with
+    ``int``, which takes ``1_0`` as 10 and other scripts' digits."""
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        if isinstance(value, str):
+            try:
+                parse_whole(value)
+            except ValueError as exc:
+                self.fail(str(exc), param, ctx)
+        return super().convert(value, param, ctx)
+
+
+class FloatRange(click.FloatRange):
+    """:class:`click.FloatRange` of numbers written as a person writes them: click reads
+    with ``float``, which takes ``1_0`` as 10 and other scripts' digits. ``inf`` and
+    ``nan`` pass, as before: each command names them in its own words."""
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        if isinstance(value, str):
+            try:
+                parse_decimal(value, non_finite=True)
+            except ValueError as exc:
+                self.fail(str(exc), param, ctx)
+        return super().convert(value, param, ctx)
 
 
 def friendly_errors(func: F) -> F:
@@ -184,7 +213,7 @@ def parse_sequence(text: str) -> list[list[int]]:
         if source.startswith("["):
             rows = loads_unique_keys(source)
         else:
-            rows = [[int(v) for v in row.split(",")] for row in parts if row.strip()]
+            rows = [[parse_whole(v) for v in row.split(",")] for row in parts if row.strip()]
     except DuplicateKeyError as exc:
         raise InputError(f"sequence {text!r} has a {exc}") from None
     except (ValueError, RecursionError):
@@ -226,7 +255,7 @@ def realisations_option(help_text: str, default: int | None = 20) -> Callable[[F
         "--realisations",
         default=default,
         show_default=default is not None,
-        type=click.IntRange(1),
+        type=IntRange(1),
         help=help_text,
     )
 
@@ -245,7 +274,7 @@ def n_test_option(default: int) -> Callable[[F], F]:
         "--n-test",
         default=default,
         show_default=True,
-        type=click.IntRange(1),
+        type=IntRange(1),
         help="Test series per sweep point, spread over the candidates.",
     )
 
@@ -255,7 +284,7 @@ def seed_option(func: F) -> F:
         "--seed",
         default=0,
         show_default=True,
-        type=click.IntRange(0),
+        type=IntRange(0),
         help="Seed of every random draw (a whole number >= 0).",
     )(func)
 
@@ -305,9 +334,11 @@ def parse_multiples(text: str | None) -> list[float] | None:
             f"--multiples {text!r} has an empty item; give numbers separated by commas"
         )
     try:
-        return [float(v) for v in items]
-    except ValueError:
-        raise InputError(f"--multiples {text!r} is not a comma-separated list of numbers") from None
+        return [parse_decimal(v) for v in items]
+    except ValueError as exc:
+        raise InputError(
+            f"--multiples {text!r} is not a comma-separated list of numbers: {exc}"
+        ) from None
 
 
 def parse_radius(text: str) -> int | None:
@@ -315,7 +346,7 @@ def parse_radius(text: str) -> int | None:
     if text.strip().lower() in ("none", "full", "unconstrained"):
         return None
     try:
-        value = int(text)
+        value = parse_whole(text)
     except ValueError:
         value = -1
     if value < 0:
@@ -331,9 +362,12 @@ def parse_pairs(pairs: Sequence[str], option: str, example: str) -> dict[str, An
         if not sep or not name.strip():
             raise InputError(f"{option} takes NAME=VALUE (e.g. {example}), got {pair!r}")
         try:
-            number = float(value)
+            number = parse_decimal(value)
         except ValueError:
-            raise InputError(f"{option} {name.strip()} must be a number, got {value!r}") from None
+            raise InputError(
+                f"{option} {name.strip()} must be a number written in ASCII digits with no "
+                f"separator (e.g. {example}), got {value!r}"
+            ) from None
         if name.strip() in params:
             raise InputError(f"{option} {name.strip()} is given twice; give it once")
         params[name.strip()] = int(number) if number.is_integer() and "." not in value else number

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 
 import click
 
-from .options import OTHER_FORMATS, friendly_errors, load_scenario, scenario_options
+from .options import OTHER_FORMATS, IntRange, friendly_errors, load_scenario, scenario_options
 
 if TYPE_CHECKING:
     from ..physics.scenario import Scenario
@@ -45,13 +45,13 @@ def _plan_file_name(context: click.Context, param: click.Parameter, value: str) 
 )
 @click.option(
     "--member",
-    type=click.IntRange(0),
+    type=IntRange(0),
     default=None,
     help="With --search: the front member's index (0 = the most accurate).",
 )
 @click.option(
     "--flights",
-    type=click.IntRange(0),
+    type=IntRange(0),
     default=0,
     show_default=True,
     help="Also fly the sequence this many times a candidate at the scenario's noise and "
@@ -60,9 +60,7 @@ def _plan_file_name(context: click.Context, param: click.Parameter, value: str) 
     "a rate at least 95 % of flights stay under with 95 % confidence; at least 2, and 59 "
     "for that bound to be an order statistic; 0: the nominal prediction alone.",
 )
-@click.option(
-    "--seed", type=click.IntRange(0), default=0, show_default=True, help="Seed of --flights."
-)
+@click.option("--seed", type=IntRange(0), default=0, show_default=True, help="Seed of --flights.")
 @click.option(
     "--out",
     default="plan.json",

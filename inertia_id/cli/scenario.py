@@ -12,6 +12,8 @@ import click
 
 from .options import (
     DEFAULT_SEQUENCE_TEXT,
+    FloatRange,
+    IntRange,
     _json_file_name,
     friendly_errors,
     load_scenario,
@@ -35,7 +37,7 @@ def _noise_option(flag: str, source: str) -> Callable[[F], F]:
         flag,
         default=1.0,
         show_default=True,
-        type=click.FloatRange(0),
+        type=FloatRange(0),
         help=f"Multiple of the scenario's {source}.",
     )
 
@@ -91,7 +93,7 @@ def _arrays_file_name(context: click.Context, param: click.Parameter, value: str
     "--realisation",
     default=0,
     show_default=True,
-    type=click.IntRange(0),
+    type=IntRange(0),
     help="Which realisation --telemetry writes.",
 )
 @click.option(
@@ -106,7 +108,7 @@ def _arrays_file_name(context: click.Context, param: click.Parameter, value: str
     "--sample-rate",
     "sample_rate_hz",
     default=None,
-    type=click.FloatRange(0, 10_000, min_open=True),
+    type=FloatRange(0, 10_000, min_open=True),
     help="Gyro rate, Hz [default: the scenario's]; the gyro noise sigma stays per sample.",
 )
 @click.option(
@@ -121,7 +123,7 @@ def _arrays_file_name(context: click.Context, param: click.Parameter, value: str
     "pre_start_s",
     default=0.0,
     show_default=True,
-    type=click.FloatRange(0),
+    type=FloatRange(0),
     help="Begin the telemetry this many seconds before the sequence start (whole actuation "
     "steps, no thruster firing: the body drifts under the disturbance from its drawn "
     "initial rate), as a spacecraft's continuous telemetry does; `identify` measures the "

@@ -12,6 +12,8 @@ import click
 
 from ..pipelines import SearchRequest
 from .options import (
+    FloatRange,
+    IntRange,
     LazyChoice,
     friendly_errors,
     load_scenario,
@@ -81,13 +83,13 @@ def search_options(func: F) -> F:
             "--length sequence_length",
             "sequence_length",
             "Actuation steps L of the sequence.",
-            type=click.IntRange(1, 50),
+            type=IntRange(1, 50),
         ),
         _option(
             "--timesteps",
             "timesteps",
             "Environment-step budget (ppo, cem, random).",
-            type=click.IntRange(1),
+            type=IntRange(1),
         ),
         _option(
             "--objective",
@@ -113,19 +115,19 @@ def search_options(func: F) -> F:
             "--search-realisations search_realisations",
             "n_realisations",
             "Realisations per candidate in each environment step.",
-            type=click.IntRange(1),
+            type=IntRange(1),
         ),
         _option(
             "--fuel-weight",
             "fuel_weight",
             "Reward cost per N m s of commanded impulse.",
-            type=click.FloatRange(0),
+            type=FloatRange(0),
         ),
         _option(
             "--patience",
             "patience_episodes",
             "ppo/cem/random: stop once F1 = 1 and no better sequence came for this many episodes.",
-            type=click.IntRange(1),
+            type=IntRange(1),
         ),
         _pairs(
             "--cem", "Override a CEM setting (repeatable): population, elite_fraction, smoothing."
@@ -166,26 +168,26 @@ def search_options(func: F) -> F:
             "--constraint-penalty",
             "constraint_penalty",
             "ppo/cem/random/exhaustive: reward cost per unit of relative constraint violation.",
-            type=click.FloatRange(0),
+            type=FloatRange(0),
         ),
         _option(
             "--lagrangian-lr",
             "lagrangian_lr",
             "ppo: raise the penalty after every rollout by this times the mean violation.",
-            type=click.FloatRange(0),
+            type=FloatRange(0),
         ),
         _option(
             "--fresh-realisations",
             "fresh_realisations",
             "Realisations per candidate when the front is re-scored on fresh draws.",
-            type=click.IntRange(2),
+            type=IntRange(2),
         ),
         _option(
             "--fresh-test-series",
             "fresh_test_series",
             "Test series per candidate and design condition on which each front member's "
             "accuracy is measured; 0 keeps the prediction.",
-            type=click.IntRange(0, 5000),
+            type=IntRange(0, 5000),
         ),
         _option(
             "--time-limit time_limit_s",
@@ -237,16 +239,18 @@ def search_request(
         raise InputError(f"--nsga2 applies to --method nsga2 only, not {method!r}")
     pairs = SearchRequest.default("design_noise")
     if design_noise is not None:
+        from ..checks import parse_decimal
+
         try:
             pairs = tuple(
-                tuple(float(v) for v in part.split(","))
+                tuple(parse_decimal(v) for v in part.split(","))
                 for part in design_noise.split(";")
                 if part.strip()
             )
-        except ValueError:
+        except ValueError as exc:
             raise InputError(
                 f"--design-noise takes 'process,measurement' pairs separated by ';', "
-                f"got {design_noise!r}"
+                f"got {design_noise!r}: {exc}"
             ) from None
         if not pairs or not all(len(pair) == 2 for pair in pairs):
             raise InputError(
@@ -358,7 +362,7 @@ def search_with_progress(
     "--max-sequences",
     "max_sequences",
     "exhaustive: refuse spaces larger than this.",
-    type=click.IntRange(1),
+    type=IntRange(1),
 )
 @click.option(
     "--policy",

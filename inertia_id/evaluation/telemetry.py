@@ -53,7 +53,7 @@ from pydantic import (
     model_validator,
 )
 
-from ..checks import DuplicateKeyError, loads_unique_keys
+from ..checks import DuplicateKeyError, loads_unique_keys, parse_decimal
 from ..errors import InputError
 
 __all__ = [
@@ -128,8 +128,10 @@ def parse_sequence_start(text: str | float | None) -> float | str | None:
         return None if text is None else float(text)
     text = text.strip()
     try:
-        value = float(text)
-    except ValueError:
+        value = parse_decimal(text, non_finite=True)
+    except ValueError as exc:
+        if _python_number(text):
+            raise InputError(f"sequence_start = {exc}") from None
         _parse_utc(text, "sequence_start")
         return text
     if not math.isfinite(value):
@@ -425,12 +427,12 @@ def parse_telemetry(
                 f"wx, wy, wz): {row}"
             )
         try:
-            values = [float(row[j]) * scale for j in order[1:]]
-        except ValueError:
-            raise InputError(f"CSV data row {n} is not numeric: {row}") from None
+            values = [parse_decimal(row[j], non_finite=True) * scale for j in order[1:]]
+        except ValueError as exc:
+            raise InputError(f"CSV data row {n} is not numeric: {exc}: {row}") from None
         cell = row[order[0]].strip()
         if _numeric(cell):
-            times.append(float(cell))
+            times.append(parse_decimal(cell, non_finite=True))
         elif _iso(cell):
             times.append(cell)
         else:
@@ -502,8 +504,20 @@ def _read_header(header: list[str]) -> tuple[list[int], float]:
 
 
 def _numeric(cell: str) -> bool:
+    """``cell`` is a number (``inf`` and ``nan`` included: the rules name them where they
+    stand)."""
     try:
-        float(cell)
+        parse_decimal(cell, non_finite=True)
+    except ValueError:
+        return False
+    return True
+
+
+def _python_number(text: str) -> bool:
+    """``float`` takes ``text``: a number, or what it reads as one that no one writes
+    (``1_0`` as 10, full-width digits)."""
+    try:
+        float(text)
     except ValueError:
         return False
     return True

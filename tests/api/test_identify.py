@@ -253,6 +253,22 @@ def test_non_finite_telemetry_is_422(
         pytest.param(
             "time_s,wx,wy\n0.05,0,0\n0.10,0,0\n", "has 3 columns, expected 4", id="3-columns"
         ),
+        # float() reads 1_0 as 10 and full-width digits as digits: no one writes them.
+        pytest.param(
+            "time_s,wx,wy,wz\n0.05,0,0,0\n0.10,0,1_0e-3,0\n0.15,0,0,0\n",
+            "CSV data row 2 is not numeric: '1_0e-3' is not a decimal number",
+            id="underscore",
+        ),
+        pytest.param(
+            "time_s,wx,wy,wz\n0.05,0,0,0\n1_0,0,0,0\n0.15,0,0,0\n",
+            "CSV data row 2: time '1_0' is neither seconds nor",
+            id="underscore-time",
+        ),
+        pytest.param(
+            "time_s,wx,wy,wz\n0.05,0,0,0\n0.10,\uff11e-3,0,0\n0.15,0,0,0\n",
+            "'\uff11e-3' is not a decimal number",
+            id="full-width",
+        ),
     ],
 )
 def test_bad_csv_is_422(api: Api, classifier_id: str, text: str, fragment: str) -> None:
@@ -432,6 +448,25 @@ def test_a_missing_or_bad_sequence_start_is_422(
     detail = bad.json()["detail"][0]
     assert detail["loc"] == ["query", "sequence_start"]
     assert "sequence_start = 'tomorrow' is not an ISO-8601 UTC time stamp" in detail["msg"]
+    # float() reads 8_1e8 as 8.1e8: refused by name, not taken.
+    underscore = api.post(
+        "/identify?sequence_start=8_1e8",
+        json={"classifier_id": classifier_id, "telemetry": mission},
+    )
+    assert underscore.status_code == 422
+    detail = underscore.json()["detail"][0]
+    assert detail["loc"] == ["query", "sequence_start"]
+    assert "sequence_start = '8_1e8' is not a decimal number" in detail["msg"]
+    text = csv_text(flight.time_s, flight.omega_measured[0, 0])
+    form = api.post(
+        "/identify",
+        data={"classifier_id": classifier_id, "pre_start_window_s": "1_0"},
+        files={"file": ("t.csv", text)},
+    )
+    assert form.status_code == 422
+    assert form.json()["detail"][0]["msg"] == (
+        "pre_start_window_s must be a number of seconds in [0, 3600], got '1_0'"
+    )
     late = api.post(
         "/identify",
         json={"classifier_id": classifier_id, "telemetry": mission, "sequence_start": 8.1e8 + 1},

@@ -507,3 +507,55 @@ def test_a_key_given_twice_in_a_json_file_is_refused_naming_it(
     assert "classifier document has a duplicate key 'version' in the top-level" in message
     with pytest.raises(InputError, match="duplicate key 'version'"):
         load_classifier(classifier)
+
+
+@pytest.mark.parametrize(
+    ("args", "code", "message"),
+    [
+        # What click reads with int() or float(): a usage error, 2.
+        (["simulate", "-n", "1_0"], 2, "'1_0' is not a whole number"),
+        (["simulate", "-n", "\uff11"], 2, "'\uff11' is not a whole number"),
+        (["simulate", "-n", "1", "--sample-rate", "2_0"], 2, "'2_0' is not a decimal number"),
+        # What the command reads itself: 1.
+        (["simulate", "-n", "1", "--sequence", "4,4,4,0,0,0_0"], 1, "'4,4,4,0,0,0_0' is not rows"),
+        (
+            ["sweep", "--classifier", "{classifier}", "--multiples", "1,1_0"],
+            1,
+            "'1_0' is not a decimal number",
+        ),
+        (
+            ["search", "--method", "cem", "--length", "1", "--cem", "population=6_4"],
+            1,
+            "--cem population must be a number written in ASCII digits with no separator",
+        ),
+        (["search", "--design-noise", "1_0,1"], 1, "'1_0' is not a decimal number"),
+        (["search", "--method", "cem", "--radius", "1_0"], 1, "got '1_0'"),
+        (
+            ["identify", "--classifier", "{classifier}", "--sequence-start", "1_0"],
+            1,
+            "sequence_start = '1_0' is not a decimal number",
+        ),
+        (["identify", "--classifier", "{classifier}"], 1, "CSV data row 2 is not numeric: '1_0'"),
+    ],
+)
+def test_a_number_with_an_underscore_is_refused_not_read_as_another(
+    args: list[str],
+    code: int,
+    message: str,
+    nearest: Path,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """``float("1_0")`` is 10 and ``int("\uff11")`` is 1: ``--multiples 1_0`` swept ten times
+    the noise, a telemetry cell ``1_0`` read as 10 (a hostile review)."""
+    monkeypatch.chdir(tmp_path)
+    telemetry = tmp_path / "t.csv"
+    rows = [f"{0.05 * (i + 1):g},0,0,0\n" for i in range(80)]
+    rows[1] = "0.1,1_0,0,0\n"
+    telemetry.write_text("time_s,wx_rad_s,wy_rad_s,wz_rad_s\n" + "".join(rows))
+    args = [a.format(classifier=nearest) for a in args]
+    if args[0] == "identify":
+        args.append(str(telemetry))
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == code, result.output
+    assert message in " ".join(result.output.split()) and "Traceback" not in result.output
