@@ -360,6 +360,12 @@ def _whole(ratio: float, message: str) -> None:
         raise InputError(message)
 
 
+#: Largest gyro noise, bias or initial-rate spread a scenario may state, rad/s: the
+#: largest rate a telemetry sample may hold
+#: (:data:`inertia_id.evaluation.telemetry.MAX_TELEMETRY_RATE_RAD_S`).
+MAX_RATE_SIGMA_RAD_S = 100.0
+
+
 class Uncertainty(_Model):
     """Every source of randomness, in physical units; each can be zero.
 
@@ -398,6 +404,27 @@ class Uncertainty(_Model):
         values = value if isinstance(value, tuple) else (value,)
         if not all(math.isfinite(float(v)) for v in values):
             raise InputError(f"{info.field_name} must be finite, got {value!r}")
+        return value
+
+    @field_validator(
+        "gyro_noise_sigma_rad_s",
+        "gyro_bias_rad_s",
+        "gyro_bias_sigma_rad_s",
+        "initial_rate_sigma_rad_s",
+        mode="after",
+    )
+    @classmethod
+    def _a_rate_a_gyro_reads(cls, value: Any, info: Any) -> Any:
+        # A rate beyond any gyro's range is no noise of one: a sigma of 1e300 rad/s was
+        # simulated, then overflowed a classifier's covariance (inf, then "array must not
+        # contain infs or NaNs" at training, with no name).
+        values = value if isinstance(value, tuple) else (value,)
+        if any(abs(float(v)) > MAX_RATE_SIGMA_RAD_S for v in values):
+            raise InputError(
+                f"{info.field_name} = {value!r} rad/s is beyond any attitude gyro's range: "
+                f"at most {MAX_RATE_SIGMA_RAD_S:g} rad/s "
+                f"({math.degrees(MAX_RATE_SIGMA_RAD_S):,.0f} deg/s)"
+            )
         return value
 
 

@@ -561,3 +561,17 @@ def test_extreme_numbers_are_refused_with_a_value_error(
     # Overflow and underflow must surface as validation errors, not arithmetic crashes.
     with pytest.raises(ValueError, match=message):
         preset("paper", **overrides)
+
+
+@pytest.mark.parametrize(
+    "field", ["gyro_noise_sigma_rad_s", "gyro_bias_sigma_rad_s", "initial_rate_sigma_rad_s"]
+)
+def test_a_rate_sigma_beyond_any_gyro_is_refused_naming_it(field: str) -> None:
+    """A gyro noise of 1e300 rad/s was simulated, then overflowed the default classifier's
+    covariance at training: "array must not contain infs or NaNs", naming nothing (a
+    hostile review)."""
+    with pytest.raises(ValueError, match=rf"{field} = 1e\+300 rad/s is beyond any attitude gyro"):
+        preset("paper", uncertainty={field: 1e300})
+    with pytest.raises(ValueError, match=r"gyro_bias_rad_s = \(0.0, -101.0, 0.0\) rad/s"):
+        preset("paper", uncertainty={"gyro_bias_rad_s": (0.0, -101.0, 0.0)})
+    assert preset("paper", uncertainty={field: 100.0}).uncertainty.model_dump()[field] == 100.0
