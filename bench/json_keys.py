@@ -13,8 +13,9 @@ that counts each object's keys). This prints, side by side:
   each in turn.
 
 The two readers are timed in alternating rounds (best of ``--repeats`` calls each per
-round), so that a change in the machine's load falls on both; the medians over
-``--rounds`` are printed. Takes about 30 s: ``python bench/json_keys.py``.
+round, each reader first in every other round), so that a change in the machine's load
+falls on both; the medians over ``--rounds`` are printed. Takes about 30 s:
+``python bench/json_keys.py``.
 """
 
 from __future__ import annotations
@@ -58,8 +59,10 @@ def _telemetry_body(classifier_id: str, samples: int) -> bytes:
 def _alternate(work: Callable[[Callable[[Any], Any]], Callable[[], Any]], args: Any) -> list[float]:
     """Median seconds per call for each reader, timed in alternating rounds."""
     best: dict[str, list[float]] = {name: [] for name in READERS}
-    for _ in range(args.rounds):
-        for name, reader in READERS.items():
+    for round_ in range(args.rounds):
+        # Each reader goes first in every other round: the first of a pair ran slower.
+        order = list(READERS.items())
+        for name, reader in order if round_ % 2 == 0 else order[::-1]:
             seconds, _, _ = best_of(work(reader), args.repeats)
             best[name].append(seconds)
     return [statistics.median(best[name]) for name in READERS]
