@@ -284,8 +284,8 @@ def test_parsed_csv_identifies_like_the_arrays(
         (
             "0,0,0,0\n0.1,0,zero,0\n",
             "auto",
-            r"CSV data row 2 is not numeric: \['0\.1', '0', "
-            r"'zero', '0'\]",
+            r"CSV data row 2 is not numeric: 'zero' is not a decimal number \(.*\): "
+            r"\['0\.1', '0', 'zero', '0'\]",
         ),
         ("0,0,0,0\n0.1,0,nan,0\n", "auto", r"omega_rad_s\[1\]\[1\] = nan is not finite"),
         ("0,0,0,0\n-0.1,0,0,0\n", "auto", rf"time_s\[0\] = {F}0\.0\)?, time_s\[1\] = {F}-0\.1"),
