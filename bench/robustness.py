@@ -9,7 +9,8 @@ the preset leaves at zero scales a reference level: thrust-scale sigma 2 %, gyro
 (per-candidate Gaussians fitted at each point's noise on --ceiling-realisations per
 candidate, :mod:`inertia_id.evaluation.ceiling`) and least squares on the same series.
 Then bodies off the candidates: the first candidate's inertia scaled by 0.6..1.4, and
-bodies between the two closest candidates: how often is the answer "matches none"?
+bodies between the two closest candidates: how often does identify's verdict say "matches
+none", name the right or a wrong candidate, or stay ambiguous?
 
 Run: python bench/robustness.py [--kinds nearest-centroid:euclidean,clustering:dtw]
 """
@@ -80,13 +81,25 @@ def main() -> None:
         inertia = run_inertia_sweep(model, n_test=100, seed=args.seed + 2)
         names = inertia.candidate_names
         print_table(
-            ["body", "parameter", "matches none", "95 % interval", "nearest candidates"],
+            [
+                "body",
+                "parameter",
+                "matches none",
+                "95 % interval",
+                "identified right",
+                "identified wrong",
+                "ambiguous",
+                "most probable candidates",
+            ],
             [
                 [
                     p.body,
                     f"{p.parameter:g}",
                     f"{p.matches_none_rate:.2f}",
                     f"[{p.ci_low:.2f}, {p.ci_high:.2f}]",
+                    f"{p.identified_right_rate:.2f}",
+                    f"{p.identified_wrong_rate:.2f}",
+                    f"{p.ambiguous_rate:.2f}",
                     ", ".join(f"{names[k]} {c}" for k, c in enumerate(p.predicted) if c),
                 ]
                 for p in inertia.points

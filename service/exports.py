@@ -500,6 +500,9 @@ def _sweep_inertia(result: Mapping[str, Any]) -> Table:
                 p.get("matches_none_rate"),
                 p.get("ci_low"),
                 p.get("ci_high"),
+                p.get("identified_right_rate"),
+                p.get("identified_wrong_rate"),
+                p.get("ambiguous_rate"),
                 *counts[: len(names)],
                 p.get("inertia_kg_m2"),
             ]
@@ -514,13 +517,32 @@ def _sweep_inertia(result: Mapping[str, Any]) -> Table:
         "matches_none_rate",
         "ci_low",
         "ci_high",
+        "identified_right_rate",
+        "identified_wrong_rate",
+        "ambiguous_rate",
         *(f"predicted_{n}" for n in names),
         "inertia_kg_m2",
     ]
+    confidence = inertia.get("required_confidence")
+    # A result stored before the sweep counted identify's verdicts has no confidence:
+    # its rate is the novelty threshold's alone, and its predicted the nearest candidate.
+    verdicts = confidence is not None
     notes = [
         ("inertia_seed", inertia.get("seed")),
         ("noise", "every source at 1x, the scenario's own"),
-        ("predicted", "predicted_<candidate>: how many of the body's series were nearest to it"),
+        (
+            "matches_none_rate",
+            f"identify's verdict matches-none or not-this-sequence (confidence {confidence:g})"
+            if verdicts
+            else "beyond the nearest candidate's novelty threshold (stored before the sweep "
+            "counted identify's verdicts)",
+        ),
+        (
+            "predicted",
+            "predicted_<candidate>: how many of the body's series had it most probable"
+            if verdicts
+            else "predicted_<candidate>: how many of the body's series were nearest to it",
+        ),
     ]
     return Table(header, rows, notes)
 

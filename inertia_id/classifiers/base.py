@@ -674,25 +674,47 @@ class BaseClassifier(BaseEstimator):
         p_none = 1.0 / (1.0 + np.exp(-np.clip(log_odds, -700.0, 700.0)))
         return candidates * (1.0 - p_none)[..., None], p_none
 
-    def predict_posterior(self, X: Any, observed: Any = None) -> tuple[np.ndarray, np.ndarray]:
-        """Posterior of each candidate (n, K) and of "none of these" (n,); they sum to 1.
+    def _near_log_bayes(self, X: np.ndarray) -> np.ndarray | None:
+        """(n,) log Bayes factor of a proper "other bodies" model on checked whole
+        series; None for a kind without one."""
+        return None
+
+    def distances_and_posterior(
+        self, X: Any, observed: Any = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The distances (n, K) and the posterior of :meth:`predict_posterior` ((n, K)
+        candidates and (n,) none) from one evaluation of the series: what a verdict
+        (:func:`~inertia_id.evaluation.identify.verdicts`) needs.
 
         :param observed: (length,) booleans, the grid points that hold a measurement
             (slow telemetry, :func:`~inertia_id.evaluation.telemetry.resample_observed`);
             a likelihood kind then uses those values only. None: every point.
         """
         values = self._observed_values(observed)
-        if values is not None:
-            return self._observed_posterior(X, values)
-        return self.posterior_from_distances(self.transform(X))
-
-    def _observed_posterior(self, X: Any, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         series = self._check_input(X)
-        return self.posterior_from_distances(
-            self._observed_distances(series, values),
-            values.size / (3.0 * self.length_),
-            near_log_bayes=self._observed_near_log_bayes(series, values),
-        )
+        if values is None:
+            distances = np.asarray(self._candidate_distances(series))
+            candidates, p_none = self.posterior_from_distances(
+                distances, near_log_bayes=self._near_log_bayes(series)
+            )
+        else:
+            distances = np.asarray(self._observed_distances(series, values))
+            candidates, p_none = self.posterior_from_distances(
+                distances,
+                values.size / (3.0 * self.length_),
+                near_log_bayes=self._observed_near_log_bayes(series, values),
+            )
+        return distances, candidates, p_none
+
+    def predict_posterior(self, X: Any, observed: Any = None) -> tuple[np.ndarray, np.ndarray]:
+        """Posterior of each candidate (n, K) and of "none of these" (n,); they sum to 1.
+
+        "None" is a body near the candidates, where the kind models one
+        (:meth:`_near_log_bayes`), or something else entirely (the novelty tail's
+        bound). ``observed``: as for :meth:`distances_and_posterior`.
+        """
+        _, candidates, p_none = self.distances_and_posterior(X, observed)
+        return candidates, p_none
 
     def posterior_over_time(self, X: Any, observed: Any = None) -> tuple[np.ndarray, np.ndarray]:
         """The posterior after each sample of the series: (n, length, K) candidates and

@@ -143,6 +143,12 @@ JOINT_GRID = tuple((p, q) for p in PROCESS_MULTIPLES for q in MEASUREMENT_MULTIP
 #: One noise at a time, the other at 1x, in octaves, as a noise sweep visits them.
 AXES_GRID = ((1.0, 1.0), *((m, 1.0) for m in _OCTAVES[1:]), *((1.0, m) for m in _OCTAVES[1:]))
 _LOG_2PI = math.log(2.0 * math.pi)
+#: Batches of at most this many series keep their whitening and joint density for the
+#: next question about the same series: a verdict asks for the distances, the
+#: log-likelihood and the near-none model of each (identify: one series; the sweep of
+#: bodies off the candidates: 100 a body in the bench, where the three whitenings were
+#: most of the cost). A training batch is larger and is not held.
+_CACHED_SERIES = 128
 #: Prior spread of another body's inertia parameters around a candidate's, as a fraction
 #: of its mean principal moment (the "none of these" model, ``none_spread``).
 DEFAULT_NONE_SPREAD = 0.2
@@ -298,14 +304,14 @@ class _Mixture:
         if cached is not None and cached[0] == key:
             return cached[1]
         white = F[None] @ np.swapaxes(self.whiteners, 1, 2)  # (M, n, dim)
-        if len(F) <= 16:  # a verdict's few series, not a training batch
+        if len(F) <= _CACHED_SERIES:  # a verdict's or a sweep point's, not a training batch
             self._white_cache = (key, white)
         return white
 
     def joint(self, F: np.ndarray) -> np.ndarray:
         """log w_m N(x; μ_k, Σ_m) of each condition, series and candidate, (M, n, K)."""
         whites = self.whitened(F)
-        if len(F) <= 16:
+        if len(F) <= _CACHED_SERIES:
             # A verdict's few series: every condition and candidate in one pass (the
             # loop below costs 40 round trips through numpy for a few thousand numbers),
             # kept for the series' next question (distances, then the posterior).
@@ -996,20 +1002,8 @@ class MarginalLikelihoodClassifier(BaseClassifier):
         )
         return np.asarray(near - candidates)
 
-    def predict_posterior(self, X: Any, observed: Any = None) -> tuple[np.ndarray, np.ndarray]:
-        """Posterior of each candidate (n, K) and of "none of these" (n,).
-
-        "None" is a body near the candidates (:meth:`near_none_log_bayes`) or something
-        else entirely (the novelty tail's bound), with equal weight. ``observed``: the
-        grid points that hold a measurement (see the base class); both hypotheses are
-        then evaluated on those values only.
-        """
-        values = self._observed_values(observed)
-        if values is not None:
-            return self._observed_posterior(X, values)
-        return self.posterior_from_distances(
-            self.transform(X), near_log_bayes=self.near_none_log_bayes(X)
-        )
+    def _near_log_bayes(self, X: np.ndarray) -> np.ndarray | None:
+        return self.near_none_log_bayes(X)
 
     def _prefix_near_log_bayes(self, X: np.ndarray) -> np.ndarray | None:
         if self.sensitivity_ is None or self.none_prior_sd_ is None:

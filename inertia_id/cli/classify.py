@@ -273,7 +273,15 @@ def sweep_cmd(
         )
     if outcome.inertia is not None:
         for q in outcome.inertia.points:
-            click.echo(f"{q.body:8s} {q.parameter:>5g}  matches none {q.matches_none_rate:.2f}")
+            verdicts = (
+                ""
+                if q.identified_right_rate is None
+                else f"  identified right {q.identified_right_rate:.2f}, wrong "
+                f"{q.identified_wrong_rate:.2f}, ambiguous {q.ambiguous_rate:.2f}"
+            )
+            click.echo(
+                f"{q.body:8s} {q.parameter:>5g}  matches none {q.matches_none_rate:.2f}{verdicts}"
+            )
 
 
 @click.command("identify")

@@ -55,10 +55,12 @@ __all__ = [
     "Identification",
     "InitialOffset",
     "OnlineIdentification",
+    "Verdicts",
     "identify",
     "identify_online",
     "initial_offset",
     "posterior_over_time",
+    "verdicts",
 ]
 
 #: The verdict's statuses, in the order of increasing doubt about the telemetry.
@@ -352,6 +354,71 @@ def _estimate(scenario: Scenario, sequence: np.ndarray, series: np.ndarray) -> d
     }
 
 
+@dataclass(frozen=True)
+class Verdicts:
+    """What :func:`identify` decides for each of n series, as arrays.
+
+    :param distances: (n, K) distance to each candidate.
+    :param candidates: (n, K) posterior of each candidate; with ``p_none`` (n,) they
+        sum to 1.
+    :param thresholds: (K,) the novelty thresholds at the part of the series measured.
+    :param best: (n,) the most probable candidate, whatever the status.
+    :param status: (n,) index into :data:`STATUSES`.
+    :param not_this_sequence: (n,) beyond every candidate's threshold times
+        :data:`NOT_THIS_SEQUENCE_FACTOR`.
+    :param beyond_threshold: (n,) beyond the most probable candidate's threshold.
+    """
+
+    distances: np.ndarray
+    candidates: np.ndarray
+    p_none: np.ndarray
+    thresholds: np.ndarray
+    best: np.ndarray
+    status: np.ndarray
+    not_this_sequence: np.ndarray
+    beyond_threshold: np.ndarray
+
+
+def verdicts(
+    model: Any, series: Any, observed: Any = None, *, confidence: float = DEFAULT_CONFIDENCE
+) -> Verdicts:
+    """The verdict's rule on n series (n, length, 3) on the classifier's grid: the one
+    place it is written, for :func:`identify` (one telemetry series) and the sweep of
+    bodies off the candidates (many simulated ones).
+
+    In order: "not-this-sequence" beyond every candidate's threshold times
+    :data:`NOT_THIS_SEQUENCE_FACTOR`; "matches-none" when "none of these" is at least as
+    probable as the top candidate or the series is beyond the top candidate's novelty
+    threshold; "identified" when the top candidate's posterior reaches ``confidence``;
+    else "ambiguous".
+
+    :param model: a fitted classifier (or one conditioned on a measured offset).
+    :param observed: (length,) booleans, the measured grid points (slow telemetry).
+    """
+    distances, candidates, p_none = model.distances_and_posterior(series, observed)
+    thresholds = np.asarray(model.novelty_thresholds(model.observed_fraction(observed)))
+    best = np.argmax(candidates, axis=1)
+    rows = np.arange(len(best))
+    top = candidates[rows, best]
+    beyond_threshold = distances[rows, best] > thresholds[best]
+    not_this_sequence = np.all(distances > NOT_THIS_SEQUENCE_FACTOR * thresholds, axis=1)
+    # Assigned from the least doubt to the most, so the most doubtful that holds wins.
+    status = np.full(len(best), STATUSES.index("ambiguous"))
+    status[top >= confidence] = STATUSES.index("identified")
+    status[(p_none >= top) | beyond_threshold] = STATUSES.index("matches-none")
+    status[not_this_sequence] = STATUSES.index("not-this-sequence")
+    return Verdicts(
+        distances=distances,
+        candidates=candidates,
+        p_none=p_none,
+        thresholds=thresholds,
+        best=best,
+        status=status,
+        not_this_sequence=not_this_sequence,
+        beyond_threshold=beyond_threshold,
+    )
+
+
 def identify(
     classifier: CandidateClassifier,
     telemetry: Telemetry | dict[str, Any],
@@ -375,41 +442,36 @@ def identify(
     series, observed = resample_observed(telemetry, grid)
     model, offset = _offset_model(classifier, scenario, telemetry, pre_start_window_s)
     relative = series if offset is None else series - offset.offset_rad_s
-    fraction = model.observed_fraction(observed)
-    distances = model.transform_observed(relative[None], observed)[0]
-    candidates, p_none_array = model.predict_posterior(relative[None], observed=observed)
-    candidates, p_none = candidates[0], float(p_none_array[0])
-    order = np.argsort(-candidates, kind="stable")
-    best = int(order[0])
-    second = int(order[1])
+    verdict_arrays = verdicts(model, relative[None], observed, confidence=confidence)
+    distances = verdict_arrays.distances[0]
+    candidates = verdict_arrays.candidates[0]
+    p_none = float(verdict_arrays.p_none[0])
+    thresholds = verdict_arrays.thresholds
+    best = int(verdict_arrays.best[0])
+    status = STATUSES[int(verdict_arrays.status[0])]
+    not_this_sequence = bool(verdict_arrays.not_this_sequence[0])
+    second = int(np.argsort(-candidates, kind="stable")[1])
     names = classifier.candidate_names_
     by_distance = np.sort(distances)
     runner_up = float(by_distance[1])
     margin = runner_up - float(distances[best])
-    thresholds = np.asarray(model.novelty_thresholds(fraction))
     threshold = float(thresholds[best])
-    beyond_threshold = bool(distances[best] > threshold)
-    not_this_sequence = bool(np.all(distances > NOT_THIS_SEQUENCE_FACTOR * thresholds))
     top = float(candidates[best])
-    if not_this_sequence:
-        status = "not-this-sequence"
+    if status == "not-this-sequence":
         verdict = (
             f"not a response to this sequence: every candidate is more than "
             f"{NOT_THIS_SEQUENCE_FACTOR:g} times beyond its novelty threshold (nearest "
             f"{names[int(distances.argmin())]!r} at {distances.min():.4g})"
         )
-    elif p_none >= top or beyond_threshold:
-        status = "matches-none"
+    elif status == "matches-none":
         verdict = (
             f"matches none of the candidates: nearest is {names[best]!r} at distance "
             f"{distances[best]:.4g}, threshold {threshold:.4g} seen in training; "
             f"P(none) = {p_none:.3g}"
         )
-    elif top >= confidence:
-        status = "identified"
+    elif status == "identified":
         verdict = names[best]
     else:
-        status = "ambiguous"
         verdict = (
             f"ambiguous: {names[best]!r} ({top:.3g}) or {names[second]!r} "
             f"({float(candidates[second]):.3g}); {confidence:g} needed"

@@ -22,7 +22,9 @@ test series as the main one.
 
 :func:`run_inertia_sweep` asks the other question a GNC engineer has: if the true
 inertia is none of the candidates (between two of them, or all scaled), does the
-classifier say "matches none"?
+classifier say "matches none"? It counts the verdict
+:func:`~inertia_id.evaluation.identify.identify` gives each series (the same rule:
+:func:`~inertia_id.evaluation.identify.verdicts`).
 """
 
 from __future__ import annotations
@@ -38,6 +40,7 @@ from ..checks import check_seed, is_integer
 from ..errors import InputError
 from ..physics.scenario import Scenario
 from ..physics.simulate import SimulationOverflow, simulate
+from .identify import DEFAULT_CONFIDENCE, STATUSES, _check_probability, verdicts
 
 if TYPE_CHECKING:
     from ..classifiers.registry import CandidateClassifier
@@ -54,6 +57,7 @@ __all__ = [
     "InertiaSweepResult",
     "SweepPoint",
     "SweepResult",
+    "body_series",
     "check_ceiling_realisations",
     "check_classifier_scenario",
     "check_multiples",
@@ -417,12 +421,25 @@ def run_sweep(
 
 
 class InertiaPoint(BaseModel):
-    """How a classifier answers for a body that is not one of its candidates.
+    """How a classifier answers for a body that is not one of its candidates: the
+    verdicts :func:`~inertia_id.evaluation.identify.identify` gives its series.
 
     :param body: "scaled" (candidate ``base`` times ``parameter``) or "between"
         (``(1 - parameter) I_a + parameter I_b`` for the pair ``a``, ``b``).
-    :param matches_none_rate: fraction of the series flagged "matches none".
-    :param predicted: how many series were nearest to each candidate (flagged or not).
+    :param matches_none_rate: fraction of the series identify says match none (status
+        "matches-none" or "not-this-sequence"). In a result stored before the sweep used
+        identify's rule (``required_confidence`` None): the fraction beyond the nearest
+        candidate's novelty threshold only.
+    :param predicted: how many series had each candidate most probable (whatever the
+        status; before, nearest by distance).
+    :param true_candidate: the candidate this body is (scale 1, position 0 or 1), else
+        None: every "identified" is then wrong.
+    :param statuses: how many series got each of identify's statuses (empty in an
+        older result).
+    :param identified: how many series were identified as each candidate.
+    :param identified_right_rate: fraction identified as ``true_candidate`` (0 for a
+        body that is none); ``identified_wrong_rate``: identified as another one;
+        ``ambiguous_rate``: no candidate confident enough. None in an older result.
     """
 
     body: str
@@ -433,16 +450,27 @@ class InertiaPoint(BaseModel):
     ci_low: float
     ci_high: float
     predicted: list[int]
+    true_candidate: int | None = None
+    statuses: dict[str, int] = {}
+    identified: list[int] = []
+    identified_right_rate: float | None = None
+    identified_wrong_rate: float | None = None
+    ambiguous_rate: float | None = None
 
 
 class InertiaSweepResult(BaseModel):
-    """Answers for bodies scaled from a candidate and between two candidates (JSON-ready)."""
+    """Answers for bodies scaled from a candidate and between two candidates (JSON-ready).
+
+    ``required_confidence``: the posterior identify needed to name a candidate; None in
+    a result stored before the sweep counted identify's verdicts.
+    """
 
     candidate_names: list[str]
     base: int
     pair: tuple[int, int]
     seed: int
     points: list[InertiaPoint]
+    required_confidence: float | None = None
 
 
 def _closest_pair(scenario: Scenario) -> tuple[int, int]:
@@ -455,6 +483,42 @@ def _closest_pair(scenario: Scenario) -> tuple[int, int]:
     return best[1]
 
 
+def body_series(
+    scenario: Scenario,
+    sequence: Any,
+    inertia_kg_m2: np.ndarray,
+    n_series: int,
+    rng: np.random.Generator,
+) -> np.ndarray:
+    """``n_series`` measured responses (n, length, 3) of a body of tensor
+    ``inertia_kg_m2`` to ``sequence``, with the scenario's noise at 1x: the series
+    :func:`run_inertia_sweep` gives each body (body ``i`` draws from stream ``i`` of
+    ``SeedSequence(seed).spawn(n_bodies)``)."""
+    document = scenario.model_dump()
+    # A scenario needs two candidates: simulate the body beside candidate 0 and keep
+    # only the body's series.
+    test = Scenario.model_validate(
+        {
+            **document,
+            "candidate_generator": None,
+            "inertia_candidates": [
+                {"name": "test body", "inertia_kg_m2": np.asarray(inertia_kg_m2).tolist()},
+                document["inertia_candidates"][0],
+            ],
+        }
+    )
+    return np.asarray(simulate(test, sequence, n_series, rng).omega_measured[0])
+
+
+def _true_candidate(tensors: list[np.ndarray], tensor: np.ndarray) -> int | None:
+    """The candidate whose tensor ``tensor`` is (to rounding: scale 1, position 0 or 1),
+    or None."""
+    for index, candidate in enumerate(tensors):
+        if np.allclose(tensor, candidate, rtol=1e-12, atol=0.0):
+            return index
+    return None
+
+
 def run_inertia_sweep(
     classifier: CandidateClassifier,
     *,
@@ -465,15 +529,18 @@ def run_inertia_sweep(
     pair: tuple[int, int] | None = None,
     n_test: int = 50,
     seed: int = 0,
+    confidence: float = DEFAULT_CONFIDENCE,
     progress: Callable[[float], None] | None = None,
     should_stop: Callable[[], bool] | None = None,
 ) -> InertiaSweepResult:
     """Does the classifier say "matches none" when the true inertia is none of the candidates?
 
-    At 1x noise, simulate ``n_test`` series of each test body and record how often the
-    classifier flags them as matching none, and which candidate each was nearest to.
-    Scale 1 and the ends of the pair are candidates themselves: there the rate should
-    be near 0; far from every candidate it should be near 1.
+    At 1x noise, simulate ``n_test`` series of each test body and record the verdict
+    :func:`~inertia_id.evaluation.identify.identify` gives each (telemetry of the
+    sequence alone, no samples before its start): how often it says "matches none",
+    names the right or a wrong candidate, or is ambiguous. Scale 1 and the ends of the
+    pair are candidates themselves: there the matches-none rate should be near 0; far
+    from every candidate it should be near 1.
 
     :param scales: multiples of candidate ``base``'s inertia tensor.
     :param between: positions along the segment from candidate ``pair[0]`` to
@@ -483,7 +550,9 @@ def run_inertia_sweep(
     :param pair: defaults to the two candidates closest to each other (relative
         Frobenius distance), the pair hardest to tell apart.
     :param seed: seed of the draws; every body gets its own stream.
+    :param confidence: the posterior identify needs to name a candidate, in (0, 1).
     """
+    confidence = _check_probability("confidence", confidence)
     scenario = scenario if scenario is not None else classifier.scenario_
     sequence = classifier.sequence_
     if scenario is None or sequence is None:
@@ -507,29 +576,20 @@ def run_inertia_sweep(
         ("between", float(t), (1 - float(t)) * tensors[pair[0]] + float(t) * tensors[pair[1]])
         for t in between
     ]
-    thresholds = classifier.novelty_thresholds()
     streams = np.random.SeedSequence(check_seed(seed)).spawn(len(bodies))
-    document = scenario.model_dump()
     points: list[InertiaPoint] = []
     for i, (body, parameter, tensor) in enumerate(bodies):
         if should_stop is not None and should_stop():
             break
-        # A scenario needs two candidates: simulate the body beside candidate 0 and
-        # keep only the body's series.
-        test = Scenario.model_validate(
-            {
-                **document,
-                "candidate_generator": None,
-                "inertia_candidates": [
-                    {"name": "test body", "inertia_kg_m2": tensor.tolist()},
-                    document["inertia_candidates"][0],
-                ],
-            }
-        )
-        X = simulate(test, sequence, n_test, np.random.default_rng(streams[i])).omega_measured[0]
-        distances = classifier.transform(X)
-        nearest = distances.argmin(axis=1)
-        flagged = int(np.sum(distances[np.arange(len(X)), nearest] > thresholds[nearest]))
+        X = body_series(scenario, sequence, tensor, n_test, np.random.default_rng(streams[i]))
+        answers = verdicts(classifier, X, confidence=confidence)
+        counts = np.bincount(answers.status, minlength=len(STATUSES))
+        statuses = {name: int(c) for name, c in zip(STATUSES, counts, strict=True)}
+        flagged = statuses["matches-none"] + statuses["not-this-sequence"]
+        named = answers.best[answers.status == STATUSES.index("identified")]
+        identified = np.bincount(named, minlength=k)
+        truth = _true_candidate(tensors, tensor)
+        right = int(identified[truth]) if truth is not None else 0
         low, high = wilson_interval(flagged, len(X))
         points.append(
             InertiaPoint(
@@ -540,11 +600,22 @@ def run_inertia_sweep(
                 matches_none_rate=flagged / len(X),
                 ci_low=low,
                 ci_high=high,
-                predicted=np.bincount(nearest, minlength=k).tolist(),
+                predicted=np.bincount(answers.best, minlength=k).tolist(),
+                true_candidate=truth,
+                statuses=statuses,
+                identified=identified.tolist(),
+                identified_right_rate=right / len(X),
+                identified_wrong_rate=(statuses["identified"] - right) / len(X),
+                ambiguous_rate=statuses["ambiguous"] / len(X),
             )
         )
         if progress is not None:
             progress((i + 1) / len(bodies))
     return InertiaSweepResult(
-        candidate_names=scenario.candidate_names, base=base, pair=pair, seed=seed, points=points
+        candidate_names=scenario.candidate_names,
+        base=base,
+        pair=pair,
+        seed=seed,
+        points=points,
+        required_confidence=confidence,
     )

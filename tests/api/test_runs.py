@@ -644,6 +644,11 @@ def test_a_sweep_result_downloads_its_points_and_confusion_matrices(api: Api) ->
     assert inertia["parameter_meaning"][1].startswith("position from a (0) to b (1)")
     assert _notes(inertia_text)["classifier_id"] == "c" * 32
     assert _notes(inertia_text)["inertia_seed"] == "77"
+    # Stored before the sweep counted identify's verdicts: its rate says which rule gave
+    # it, and the verdicts' columns are empty.
+    assert "novelty threshold" in _notes(inertia_text)["matches_none_rate"]
+    assert list(inertia["identified_right_rate"]) == ["", ""]
+    assert list(inertia["matches_none_rate"]) == [0.2, 0.2]
     metrics = api.get(f"/jobs/{job['id']}/metrics?format=csv").text
     assert json.loads(_notes(metrics)["multiples"]) == [1.0, 8.0]
     assert "index among multiples" in _notes(metrics)["step"]

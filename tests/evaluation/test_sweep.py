@@ -353,6 +353,67 @@ def test_a_body_off_the_candidates_is_flagged_and_a_candidate_is_not(
     )
 
 
+def test_bodies_off_the_candidates_are_counted_as_identify_answers_them(paper: Scenario) -> None:
+    """The sweep's table is identify's verdict on the same series: before, it counted
+    only the series beyond the novelty threshold, and called the first candidate scaled
+    by 0.8 "matches none" 0 times in 20 where identify says so every time (the
+    posterior's "other bodies" model)."""
+    from collections import Counter
+
+    from inertia_id import Telemetry, identify, train_classifier
+    from inertia_id.evaluation.identify import STATUSES
+    from inertia_id.evaluation.sweep import body_series, run_inertia_sweep
+    from inertia_id.physics.sequences import hand_designed
+
+    model = train_classifier(paper, hand_designed(paper, 4), 20, np.random.default_rng(0))
+    scales, n_test, seed = (0.6, 0.8, 1.0, 1.2), 20, 5
+    result = run_inertia_sweep(model, scales=scales, between=(), n_test=n_test, seed=seed)
+    grid = paper.sample_times(len(hand_designed(paper, 4))).tolist()
+    streams = np.random.SeedSequence(seed).spawn(len(scales))
+    for point, stream in zip(result.points, streams, strict=True):
+        series = body_series(
+            paper,
+            model.sequence_,
+            np.asarray(point.inertia_kg_m2),
+            n_test,
+            np.random.default_rng(stream),
+        )
+        answers = [identify(model, Telemetry(time_s=grid, omega_rad_s=x.tolist())) for x in series]
+        assert point.matches_none_rate == np.mean([a.matches_none for a in answers])
+        counted = Counter(a.status for a in answers)
+        assert point.statuses == {status: counted[status] for status in STATUSES}
+        assert (
+            point.predicted
+            == np.bincount(
+                [a.candidate_index for a in answers], minlength=paper.n_candidates
+            ).tolist()
+        )
+    shrunk_06, shrunk_08, itself, grown_12 = result.points
+    assert shrunk_06.matches_none_rate == shrunk_08.matches_none_rate == 1.0
+    assert grown_12.matches_none_rate == 1.0
+    assert itself.true_candidate == 0 and shrunk_08.true_candidate is None
+    assert itself.matches_none_rate == 0.0 and itself.identified_right_rate == 1.0
+    assert result.required_confidence == 0.99
+
+
+def test_an_inertia_sweep_stored_before_the_verdicts_still_reads(
+    euclidean_classifier: InertiaClassifier,
+) -> None:
+    from inertia_id.evaluation.sweep import InertiaSweepResult, run_inertia_sweep
+
+    stored = run_inertia_sweep(euclidean_classifier, scales=(1.4,), between=(), n_test=4)
+    old = stored.model_dump()
+    old.pop("required_confidence")
+    for point in old["points"]:
+        for field in ("true_candidate", "statuses", "identified", "identified_right_rate"):
+            point.pop(field)
+        point.pop("identified_wrong_rate")
+        point.pop("ambiguous_rate")
+    read = InertiaSweepResult.model_validate(old)
+    assert read.required_confidence is None and read.points[0].statuses == {}
+    assert read.points[0].matches_none_rate == stored.points[0].matches_none_rate
+
+
 @pytest.mark.parametrize(
     ("options", "quoted"),
     [
