@@ -172,6 +172,15 @@ def _resolve_front_member(session: SessionDep, body: TrainJobCreate, scenario: S
                 f"(it holds {len(members)})",
             )
         sequence = found[0]["sequence"]
+        try:
+            scenario.check_fires(sequence)
+        except InputError as exc:
+            unprocessable(
+                ("body", "train", "params", "front_member"),
+                f"front member {params.front_member} of search job {search.id!r} cannot be "
+                f"trained on: {exc}. The front keeps it as its least-impulse end (marked "
+                '"fires": false); pick another member',
+            )
     if params.sequence is not None and params.sequence != sequence:
         unprocessable(
             ("body", "train", "params", "sequence"),
@@ -254,7 +263,7 @@ def _check_size(
 def _check_train(body: TrainJobCreate, scenario: Scenario) -> None:
     where = ("body", "train", "params")
     try:
-        rows = scenario.check_sequence(body.params.sequence)
+        rows = scenario.check_fires(body.params.sequence)
     except InputError as exc:
         unprocessable((*where, "sequence"), str(exc))
     # Calibration flies 200 fresh series a candidate beside the training ones.

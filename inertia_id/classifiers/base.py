@@ -370,7 +370,7 @@ class BaseClassifier(BaseEstimator):
         """
         self._check_params()
         scenario.check_distinguishable()
-        self._fit_simulated(scenario, scenario.check_sequence(sequence), n_realisations, rng)
+        self._fit_simulated(scenario, scenario.check_fires(sequence), n_realisations, rng)
         # The posterior's novelty tail and temperature from fresh draws of a fixed seed
         # (the caller's rng untouched): training distances are in-sample, or, for the
         # marginal likelihood, taken at the grid's extremes, both wider than 1x.

@@ -125,6 +125,7 @@ def train_cmd(
         n_init=n_init,
     )
     kind, n_realisations, options = request.resolved()
+    scenario.check_fires(request.sequence)
     # The training series alone; a classifier's features come on top of them.
     refuse_past_memory(
         f"-n {n_realisations}",

@@ -599,6 +599,33 @@ class Scenario(_Model):
             )
         return as_int
 
+    def check_fires(self, sequence: Any) -> np.ndarray:
+        """Return ``sequence`` as :meth:`check_sequence` does, or refuse one that applies
+        no torque at any step: every level index at duty 0, or firings whose torques
+        cancel at every step. The body then only drifts under noise, the same for every
+        candidate, so no classifier of its response can tell them apart (a search may
+        still score it: it is the zero-impulse end of a front).
+
+        :raises InputError: saying which.
+        """
+        rows = self.check_sequence(sequence)
+        duties = self.level_values[rows]
+        if not np.any(duties > 0.0):
+            raise InputError(
+                f"sequence {_shown(rows.tolist())} fires no thruster at any step (every "
+                "level index is duty 0): the body's response to it does not depend on its "
+                "inertia, so no classifier can tell the candidates apart"
+            )
+        torque = duties @ self.torque_matrix.T  # (L, 3), N m
+        scale = float(np.max(np.abs(self.torque_matrix)))
+        if np.all(np.abs(torque) <= 1e-9 * scale):
+            raise InputError(
+                f"sequence {_shown(rows.tolist())} applies no net torque at any step (its "
+                "thrusters' torques cancel): the body's response to it does not depend on "
+                "its inertia, so no classifier can tell the candidates apart"
+            )
+        return rows
+
     def duties(self, sequence: Any) -> np.ndarray:
         """Commanded duty of each thruster at each step, shape (L, N), in [0, 1]."""
         return self.level_values[self.check_sequence(sequence)]

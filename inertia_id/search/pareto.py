@@ -160,7 +160,8 @@ def non_dominated(objectives: np.ndarray) -> np.ndarray:
 class Front:
     """The front as stored with a search: members on fresh scores, the baselines beside.
 
-    :param members: each a dict with ``index`` (stable, 0 = most accurate), ``sequence``,
+    :param members: each a dict with ``index`` (stable, 0 = most accurate), ``fires``
+        (False: it applies no torque, a classifier cannot be trained on it), ``sequence``,
         ``scores`` (fresh: the rates on a fresh draw, the accuracy measured on fresh test
         series when ``test_series`` > 0, the prediction kept beside), ``search_scores``
         (what the search saw, when known),
@@ -387,6 +388,18 @@ def _feasible(score: SequenceScores, constraints: dict[str, float], series: int)
     return replace(score, accuracy=upper).feasible(constraints)
 
 
+def _fires(scenario: Scenario, row: np.ndarray) -> bool:
+    """Whether the sequence applies torque at some step. The all-off sequence is a
+    legitimate member (the end of the front that spends nothing and keeps the body at
+    rest, at chance accuracy) but no classifier can be trained on it: marked, so the
+    dashboard and ``train`` can say why (:meth:`Scenario.check_fires`)."""
+    try:
+        scenario.check_fires(row)
+    except InputError:
+        return False
+    return True
+
+
 def build_front(
     scenario: Scenario,
     sequences: Sequence[Any],
@@ -513,6 +526,7 @@ def build_front(
                 "search_scores": None if search_scores is None else search_scores[i].as_dict(),
                 "feasible": bool(feasible[i]),
                 "dominated_by": [],
+                "fires": _fires(scenario, rows[i]),
             }
         )
     for name, entry in baselines.items():

@@ -544,6 +544,32 @@ def test_a_front_downloads_as_csv_its_members_plan_by_index_and_a_member_trains(
     assert same.status_code == 202, same.text
 
 
+def test_a_sequence_that_fires_nothing_is_on_the_front_but_is_not_trained_on(api: Api) -> None:
+    """The all-off sequence is the front's zero-impulse end (kept, marked); before, a
+    train on it was accepted and scored at chance."""
+    scenario_id = api.create_scenario()["id"]
+    off = [[0, 0, 0, 0, 0, 0]] * 2
+    result = _with_front([off, [[4, 4, 4, 0, 0, 0]] * 2])
+    result["scenario"] = Scenario.paper().model_dump(mode="json")
+    members = result["front"]["members"]
+    silent = [m for m in members if m["sequence"] == off]
+    assert len(silent) == 1 and silent[0]["fires"] is False
+    assert all(m["fires"] for m in members if m["sequence"] != off)
+    job_id = _finished(api, scenario_id, 0, result)
+    by_member = api.submit(
+        "train", scenario_id, params={"search_job_id": job_id, "front_member": silent[0]["index"]}
+    )
+    assert by_member.status_code == 422, by_member.text
+    detail = by_member.json()["detail"][0]
+    assert detail["loc"][-1] == "front_member"
+    assert f"front member {silent[0]['index']}" in detail["msg"]
+    assert "fires no thruster at any step" in detail["msg"]
+    by_sequence = api.submit("train", scenario_id, params={"sequence": off})
+    assert by_sequence.status_code == 422, by_sequence.text
+    detail = by_sequence.json()["detail"][0]
+    assert detail["loc"][-1] == "sequence" and "fires no thruster" in detail["msg"]
+
+
 def test_a_sweep_result_downloads_its_points_and_confusion_matrices(api: Api) -> None:
     scenario_id = api.create_scenario()["id"]
     names = ["a", "b"]

@@ -56,6 +56,30 @@ def test_a_file_that_is_not_text_is_named(binary: Path, tmp_path: Path) -> None:
             load(binary)
 
 
+def test_a_sequence_that_applies_no_torque_is_not_trained_on(tmp_path: Path) -> None:
+    """Before, the all-off sequence trained (F1 at chance) and the CLI wrote it."""
+    out = tmp_path / "c.json"
+    result = CliRunner().invoke(
+        main, ["train", "--sequence", "0,0,0,0,0,0;0,0,0,0,0,0", "-n", "3", "--out", str(out)]
+    )
+    # 1, as for every value the command refuses once it has read it (README: a ragged
+    # sequence, candidates with the same tensor); 2 is click's, before the command runs.
+    assert result.exit_code == 1, result.output
+    assert len(result.output.strip().splitlines()) == 1, result.output
+    assert "fires no thruster at any step" in result.output
+    assert not out.exists()
+    # Opposing thrusters fired together: torque, but none net.
+    with pytest.raises(InputError, match="applies no net torque at any step"):
+        train_classifier(
+            Scenario.paper(),
+            [[4, 0, 0, 4, 0, 0]] * 2,
+            3,
+            np.random.default_rng(0),
+            kind="least-squares",
+        )
+    Scenario.paper().check_fires([[0] * 6, [4, 0, 0, 0, 0, 0]])  # one firing is enough
+
+
 @pytest.mark.parametrize(
     ("option", "message"),
     [

@@ -223,7 +223,13 @@ function memberTable(front, onPick) {
       columns.map(([key, , digits]) => num(key, member.scores[key], digits)),
       h("td", { "data-key": "dominated_by" }, dominated),
       // A searcher other than NSGA-II keeps its best sequence even when it breaks a bound.
-      h("td", { "data-key": "feasible" }, member.feasible === false ? h("strong", { class: "dominated" }, "breaks a constraint") : member.feasible ? "yes" : "–"),
+      h(
+        "td",
+        { "data-key": "feasible" },
+        member.feasible === false ? h("strong", { class: "dominated" }, "breaks a constraint") : member.feasible ? "yes" : "–",
+        // The all-off end of the front: a classifier cannot be trained on it (the service refuses).
+        member.fires === false ? h("span", { class: "muted" }, " · fires nothing: not trainable") : null,
+      ),
     );
   });
   return h(
