@@ -449,6 +449,9 @@ class ClassifierPage(BaseModel):
 
 #: The longest window of telemetry before the start a request may ask to be used, s.
 MAX_PRE_START_WINDOW_S = 3600.0
+#: The widest start search a request may ask for, s: the core tries at most 4,001 starts
+#: one grid period apart (±100 s on a 20 Hz grid) and refuses a wider one by name.
+MAX_ESTIMATE_START_WITHIN_S = 100.0
 
 
 class IdentifyRequest(_Request):
@@ -488,6 +491,15 @@ class IdentifyRequest(_Request):
         description="seconds of telemetry before the sequence start that measure the body's "
         "rate plus the gyro bias there and the noise level, which the default classifier "
         "conditions on (default 30; 0 ignores them)",
+    )
+    estimate_start_within_s: float | None = Field(
+        default=None,
+        ge=0,
+        le=MAX_ESTIMATE_START_WITHIN_S,
+        description="search the starts within this many seconds of the stated one, one grid "
+        "period apart, for the one whose series lies closest to a candidate, and judge from "
+        "it (the CLI's --estimate-start-within); the verdict reports sequence_start_shift_s. "
+        "POST /identify only",
     )
 
 
@@ -551,6 +563,40 @@ class IdentifyResult(BaseModel):
     pre_start_samples: int = Field(
         default=0, description="telemetry samples before the start that measured it"
     )
+    sequence_start: float | str | None = Field(
+        default=None,
+        description="the sequence start the verdict used (the stated one plus any shift "
+        "found): seconds in the stamps' clock, or ISO-8601 UTC ending in Z",
+    )
+    sequence_start_shift_s: float = Field(
+        default=0.0, description="how much later than stated the start was taken, s"
+    )
+    estimate_start_within_s: float | None = Field(
+        default=None, description="the start search asked for, s; null: none"
+    )
+    sequence_start_shifts_tried_s: list[float] | None = Field(
+        default=None,
+        description="the least and greatest shifts tried (narrower than asked where the "
+        "telemetry does not cover a start)",
+    )
+    telemetry_first_stamp: float | str | None = Field(
+        default=None, description="the first stamp as given (ISO ones in UTC)"
+    )
+    telemetry_last_stamp: float | str | None = Field(
+        default=None, description="the last stamp as given (ISO ones in UTC)"
+    )
+    telemetry_samples: int = Field(default=0, description="samples in the telemetry")
+    telemetry_span_s: list[float] | None = Field(
+        default=None, description="first and last sample, s from the start used"
+    )
+    start_hint: str | None = Field(
+        default=None,
+        description="with a matches-none or not-this-sequence verdict and no start search "
+        "asked for: a start near the stated one that identifies a candidate (the status "
+        "is unchanged)",
+    )
+    start_hint_shift_s: float | None = None
+    start_hint_candidate: str | None = None
 
 
 class PartialIdentifyResult(BaseModel):

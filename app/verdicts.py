@@ -64,12 +64,15 @@ class VerdictOptions:
         verdict the stop rule's ``alpha`` is ``1 - confidence`` (default 0.001).
     :param pre_start_window_s: seconds of telemetry before the start that measure the
         rate plus gyro bias there (default 30; 0 ignores them).
+    :param estimate_start_within_s: search the starts within this many seconds of the
+        stated one for the best fit (full verdicts only); None: the stated start.
     """
 
     confidence: float | None = None
     pre_start_window_s: float | None = None
+    estimate_start_within_s: float | None = None
 
-    def keywords(self, *, partial: bool) -> dict[str, float]:
+    def keywords(self, *, partial: bool) -> dict[str, Any]:
         from inertia_id.evaluation.identify import (
             DEFAULT_ALPHA,
             DEFAULT_CONFIDENCE,
@@ -77,11 +80,14 @@ class VerdictOptions:
         )
 
         window = self.pre_start_window_s
-        out = {"pre_start_window_s": DEFAULT_PRE_START_WINDOW_S if window is None else window}
+        out: dict[str, Any] = {
+            "pre_start_window_s": DEFAULT_PRE_START_WINDOW_S if window is None else window
+        }
         if partial:
             out["alpha"] = DEFAULT_ALPHA if self.confidence is None else 1.0 - self.confidence
         else:
             out["confidence"] = DEFAULT_CONFIDENCE if self.confidence is None else self.confidence
+            out["estimate_start_within_s"] = self.estimate_start_within_s
         return out
 
 

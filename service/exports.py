@@ -701,7 +701,9 @@ _IDENTIFY_UNITS = (
     "posterior, p_none, confidence and required_confidence are probabilities in [0, 1] "
     "(the posteriors and p_none sum to 1); distance, threshold and margin are the "
     "classifier's own distance to a candidate (compare them with each other, not across "
-    "kinds); rates in rad/s, inertia in kg m^2"
+    "kinds); rates in rad/s, inertia in kg m^2; sequence_start and the stamps in the "
+    "telemetry's clock (seconds) or ISO-8601 UTC, shifts and telemetry_span_s in s from "
+    "the start used"
 )
 
 
@@ -732,7 +734,20 @@ def identify_table(verdict: Mapping[str, Any]) -> Table:
         ("threshold", verdict.get("threshold")),
         ("margin", verdict.get("margin")),
         ("relative_margin", verdict.get("relative_margin")),
+        ("sequence_start", verdict.get("sequence_start")),
+        ("sequence_start_shift_s", verdict.get("sequence_start_shift_s")),
+        ("telemetry_first_stamp", verdict.get("telemetry_first_stamp")),
+        ("telemetry_last_stamp", verdict.get("telemetry_last_stamp")),
+        ("telemetry_samples", verdict.get("telemetry_samples")),
+        ("telemetry_span_s", verdict.get("telemetry_span_s")),
     ]
+    if verdict.get("estimate_start_within_s") is not None:
+        notes += [
+            ("estimate_start_within_s", verdict.get("estimate_start_within_s")),
+            ("sequence_start_shifts_tried_s", verdict.get("sequence_start_shifts_tried_s")),
+        ]
+    if verdict.get("start_hint") is not None:
+        notes.append(("start_hint", verdict.get("start_hint")))
     if verdict.get("initial_offset_rad_s") is not None:
         notes += [
             ("initial_offset_rad_s", verdict.get("initial_offset_rad_s")),

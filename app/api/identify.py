@@ -41,6 +41,7 @@ from service.store.session import Database
 from ..capacity import ComputeGate
 from ..expiring import Expiring
 from ..schemas import (
+    MAX_ESTIMATE_START_WITHIN_S,
     MAX_PRE_START_WINDOW_S,
     IdentifyRequest,
     IdentifyResult,
@@ -237,10 +238,23 @@ async def _verdict(
     return _answer(result, classifier_id, partial=partial)
 
 
+async def _parsed(request: Request, parse: Callable[..., Any], *args: Any) -> Any:
+    """``parse(*args)`` on the compute threads, behind their gate: 200,000 rows of
+    telemetry take seconds of Python, and on the event loop every other request (``/health``
+    included) waited for them."""
+    gate: ComputeGate = request.app.state.compute_gate
+    return await gate.run(parse, *args)
+
+
 async def _from_json(
     request: Request, sequence_start: str | None
 ) -> tuple[str, Telemetry, VerdictOptions]:
     body = await request.body()
+    start = _query_start(sequence_start)
+    return await _parsed(request, _parse_json, body, start)
+
+
+def _parse_json(body: bytes, start: float | str | None) -> tuple[str, Telemetry, VerdictOptions]:
     try:
         data = loads_unique_keys(body)
     except DuplicateKeyError as exc:
@@ -250,12 +264,13 @@ async def _from_json(
     except (ValueError, RecursionError) as exc:
         # An integer of over 4,300 digits, or arrays nested thousands deep.
         unprocessable(("body",), f"request body is not acceptable JSON: {exc}")
-    start = _query_start(sequence_start)
     if start is not None and isinstance(data, dict):
         data = {**data, "sequence_start": start}
     with refused_at(("body",)):
         parsed = IdentifyRequest.model_validate(data)
-    options = VerdictOptions(parsed.confidence, parsed.pre_start_window_s)
+    options = VerdictOptions(
+        parsed.confidence, parsed.pre_start_window_s, parsed.estimate_start_within_s
+    )
     return parsed.classifier_id, parsed.telemetry, options
 
 
@@ -289,7 +304,13 @@ def _form_options(form: Any) -> VerdictOptions:
         f"a number of seconds in [0, {MAX_PRE_START_WINDOW_S:g}]",
         lambda x: 0.0 <= x <= MAX_PRE_START_WINDOW_S,
     )
-    return VerdictOptions(confidence, window)
+    start_window = _form_number(
+        "estimate_start_within_s",
+        form.get("estimate_start_within_s"),
+        f"a number of seconds in [0, {MAX_ESTIMATE_START_WITHIN_S:g}]",
+        lambda x: 0.0 <= x <= MAX_ESTIMATE_START_WITHIN_S,
+    )
+    return VerdictOptions(confidence, window, start_window)
 
 
 async def _from_form(
@@ -325,21 +346,33 @@ async def _from_form(
         if upload is None:
             unprocessable(("body", "file"), "form field file (CSV telemetry) is required")
         raw = await upload.read() if isinstance(upload, UploadFile) else upload.encode()
+    telemetry = await _parsed(request, _parse_file, raw, start, is_averaged)
+    return classifier_id, telemetry, options
+
+
+def _parse_file(raw: bytes, start: float | str | None, averaged: bool) -> Telemetry:
     try:
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
         unprocessable(("body", "file"), f"telemetry file is not UTF-8 text: {exc}")
     try:
         with refused_at(("body", "file")):
-            telemetry = parse_telemetry(text, sequence_start=start, averaged=is_averaged)
-            return classifier_id, telemetry, options
+            return parse_telemetry(text, sequence_start=start, averaged=averaged)
     except csv.Error as exc:
         # The core's CSV reader lets this through, e.g. for a lone carriage return in a row.
         unprocessable(("body", "file"), f"telemetry is not valid CSV: {exc}")
 
 
 _FORM_FIELDS = frozenset(
-    {"averaged", "classifier_id", "file", "confidence", "pre_start_window_s", "sequence_start"}
+    {
+        "averaged",
+        "classifier_id",
+        "file",
+        "confidence",
+        "estimate_start_within_s",
+        "pre_start_window_s",
+        "sequence_start",
+    }
 )
 
 _MULTIPART_SCHEMA = {
@@ -349,6 +382,13 @@ _MULTIPART_SCHEMA = {
         "classifier_id": {"type": "string", "maxLength": 64},
         "confidence": {"type": "number", "exclusiveMinimum": 0, "exclusiveMaximum": 1},
         "pre_start_window_s": {"type": "number", "minimum": 0, "maximum": MAX_PRE_START_WINDOW_S},
+        "estimate_start_within_s": {
+            "type": "number",
+            "minimum": 0,
+            "maximum": MAX_ESTIMATE_START_WITHIN_S,
+            "description": "search the starts within this many seconds of the stated one "
+            "for the best fit (POST /identify only); the verdict reports the shift",
+        },
         "sequence_start": {
             "type": "string",
             "description": "start of the sequence in the telemetry's clock: seconds, or "
@@ -491,4 +531,11 @@ async def identify_partial(
     likelihood kinds answer (their Gaussian's leading block is exact); others get 422.
     """
     classifier_id, telemetry, options = await _read_body(request, sequence_start)
+    if options.estimate_start_within_s is not None:
+        unprocessable(
+            ("body", "estimate_start_within_s"),
+            "estimate_start_within_s is for POST /identify only, got "
+            f"{options.estimate_start_within_s!r}: the posterior over time follows the stated "
+            "start (find the start with POST /identify, then send it as sequence_start)",
+        )
     return await _verdict(request, classifier_id, telemetry, options, partial=True)

@@ -410,33 +410,24 @@ def _identify_file(
     averaged: bool = False,
 ) -> dict[str, Any]:
     from ..evaluation.identify import identify
-    from ..evaluation.telemetry import estimate_sequence_start, load_telemetry
+    from ..evaluation.telemetry import load_telemetry
 
     telemetry = load_telemetry(path, sequence_start=start, averaged=averaged)
-    if window_s is None:
-        return identify(classifier, telemetry, **options).model_dump(mode="json")
-    grid = classifier.scenario_.sample_times(len(classifier.sequence_))
-    tried: list[float] = []
-    shift, _ = estimate_sequence_start(
-        telemetry,
-        grid,
-        lambda series: float(classifier.transform(series[None])[0].min()),
-        window_s=window_s,
-        tried=tried,
-    )
-    step = float(grid[1] - grid[0])
-    searched = [min(tried), max(tried)]
-    if searched[0] > -window_s + step or searched[1] < window_s - step:
-        # Starts the telemetry does not cover were skipped: say so, not a quiet answer
-        # from a narrower window than the one asked for (helper-22's review).
-        t = telemetry.time_array
-        click.echo(
-            f"warning: {path}: only starts {searched[0]:+.6g} s to {searched[1]:+.6g} s from "
-            f"the stated one could be tried, not ±{window_s:g} s: the telemetry covers "
-            f"{t[0]:.6g} s to {t[-1]:.6g} s from the stated start and the sequence lasts "
-            f"{grid[-1]:.6g} s; telemetry from before the start to after the end searches "
-            "the whole window",
-            err=True,
-        )
-    verdict = identify(classifier, telemetry.shifted(shift), **options).model_dump(mode="json")
-    return {**verdict, "sequence_start_shift_s": shift, "sequence_start_shifts_tried_s": searched}
+    verdict = identify(classifier, telemetry, estimate_start_within_s=window_s, **options)
+    if window_s is not None and verdict.sequence_start_shifts_tried_s is not None:
+        grid = classifier.scenario_.sample_times(len(classifier.sequence_))
+        step = float(grid[1] - grid[0])
+        searched = verdict.sequence_start_shifts_tried_s
+        if searched[0] > -window_s + step or searched[1] < window_s - step:
+            # Starts the telemetry does not cover were skipped: say so, not a quiet answer
+            # from a narrower window than the one asked for (helper-22's review).
+            t = telemetry.time_array
+            click.echo(
+                f"warning: {path}: only starts {searched[0]:+.6g} s to {searched[1]:+.6g} s "
+                f"from the stated one could be tried, not ±{window_s:g} s: the telemetry "
+                f"covers {t[0]:.6g} s to {t[-1]:.6g} s from the stated start and the sequence "
+                f"lasts {grid[-1]:.6g} s; telemetry from before the start to after the end "
+                "searches the whole window",
+                err=True,
+            )
+    return verdict.model_dump(mode="json")

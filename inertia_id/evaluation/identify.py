@@ -40,7 +40,7 @@ from ..classifiers.gaussian import log_softmax
 from ..errors import InputError
 from ..physics.estimate import PARAMETER_NAMES, estimate_inertia, tensor_from_parameters
 from ..physics.scenario import Scenario
-from .telemetry import Telemetry, resample_observed
+from .telemetry import Telemetry, estimate_sequence_start, resample_observed
 
 if TYPE_CHECKING:
     from ..classifiers.registry import CandidateClassifier
@@ -51,6 +51,8 @@ __all__ = [
     "DEFAULT_CONFIDENCE",
     "DEFAULT_PRE_START_WINDOW_S",
     "NOT_THIS_SEQUENCE_FACTOR",
+    "START_HINT_PERIODS",
+    "START_HINT_WINDOW_S",
     "STATUSES",
     "Identification",
     "InitialOffset",
@@ -74,6 +76,14 @@ DEFAULT_ALPHA = 1e-3
 #: beyond for the Euclidean clustering; a response to the opposite thrusters 6 times
 #: beyond for the marginal likelihood, whose noise grid absorbs much of any misfit).
 NOT_THIS_SEQUENCE_FACTOR = 5.0
+#: A verdict of matches-none (or not-this-sequence) with no start search asked for tries
+#: the starts within this many seconds of the stated one (and at least
+#: :data:`START_HINT_PERIODS` grid periods) and, when one of them gives an identified
+#: candidate, says so in the verdict's text and ``start_hint`` without changing the
+#: verdict. A flight team's 10 Hz telemetry posted with its start one sample (0.1 s) off
+#: was otherwise a confident "matches none" with no hint of the cause.
+START_HINT_WINDOW_S = 0.5
+START_HINT_PERIODS = 2
 #: Telemetry this many seconds before the sequence start measures the body's rate plus
 #: the gyro bias there, and the noise level (:func:`initial_offset`). 30 s: on the paper
 #: preset at 1 Hz (four samples in the sequence) the online rule then decides 94 % of
@@ -121,6 +131,18 @@ class Identification(BaseModel):
     initial_offset_rad_s: list[float] | None = None
     initial_offset_std_rad_s: list[float] | None = None
     pre_start_samples: int = 0
+    # The inputs the verdict was computed from, so that a filed verdict ties to its pass.
+    sequence_start: float | str | None = None
+    sequence_start_shift_s: float = 0.0
+    estimate_start_within_s: float | None = None
+    sequence_start_shifts_tried_s: list[float] | None = None
+    telemetry_first_stamp: float | str | None = None
+    telemetry_last_stamp: float | str | None = None
+    telemetry_samples: int = 0
+    telemetry_span_s: list[float] | None = None
+    start_hint: str | None = None
+    start_hint_shift_s: float | None = None
+    start_hint_candidate: str | None = None
 
 
 #: The last this many samples before the start give the offset (a dense n x n solve):
@@ -419,12 +441,54 @@ def verdicts(
     )
 
 
+def _check_start_window(window_s: Any) -> float | None:
+    if window_s is None:
+        return None
+    if not is_number(window_s, minimum=0.0):
+        raise InputError(
+            f"estimate_start_within_s must be a finite number of seconds >= 0, got {window_s!r}"
+        )
+    return float(window_s)
+
+
+def _best_start(
+    classifier: CandidateClassifier,
+    telemetry: Telemetry,
+    grid: np.ndarray,
+    window_s: float,
+    pre_start_window_s: float,
+    tried: list[float],
+) -> float:
+    """The start shift within ``±window_s`` whose series lies closest to a candidate
+    (:func:`~inertia_id.evaluation.telemetry.estimate_sequence_start`).
+
+    The distance is the verdict's: less the offset measured before the stated start, by
+    the classifier conditioned on it. Measured once: a shift of a fraction of a second
+    moves a sample or two of the 30 s window. Without the offset a drifting body's
+    telemetry 0.1 s late was put 0.25 s early (paper-in-orbit, 10 Hz).
+    """
+    scenario = classifier.scenario_
+    assert scenario is not None  # _context checked it
+    model, offset = _offset_model(classifier, scenario, telemetry, pre_start_window_s)
+    less = 0.0 if offset is None else offset.offset_rad_s
+    shift, _ = estimate_sequence_start(
+        telemetry,
+        grid,
+        lambda series: float(model.transform((series - less)[None])[0].min()),
+        window_s=window_s,
+        tried=tried,
+    )
+    return shift
+
+
 def identify(
     classifier: CandidateClassifier,
     telemetry: Telemetry | dict[str, Any],
     *,
     confidence: float = DEFAULT_CONFIDENCE,
     pre_start_window_s: float = DEFAULT_PRE_START_WINDOW_S,
+    estimate_start_within_s: float | None = None,
+    start_hint: bool = True,
 ) -> Identification:
     """Classify one telemetry series: a candidate, "ambiguous", "matches none" or "not a
     response to this sequence", with the posterior behind it.
@@ -435,9 +499,82 @@ def identify(
     :param pre_start_window_s: samples this many seconds before the start measure the
         body's rate plus the gyro bias there and the noise level (:func:`initial_offset`),
         which the marginal likelihood then conditions on; 0 ignores them.
+    :param estimate_start_within_s: search the starts within this many seconds of the
+        stated one, one grid period apart, for the one whose series lies closest to a
+        candidate, and judge from it (``sequence_start_shift_s``; the shifts the
+        telemetry allowed in ``sequence_start_shifts_tried_s``). None: the stated start.
+    :param start_hint: with no search asked for, a matches-none (or not-this-sequence)
+        verdict tries the starts within :data:`START_HINT_WINDOW_S` and says in its text
+        and ``start_hint`` when one of them identifies a candidate; the status stays.
     """
     confidence = _check_probability("confidence", confidence)
-    telemetry, scenario, sequence, grid = _context(classifier, telemetry)
+    window_s = _check_start_window(estimate_start_within_s)
+    telemetry, _, _, grid = _context(classifier, telemetry)
+    if window_s is not None:
+        tried: list[float] = []
+        shift = _best_start(classifier, telemetry, grid, window_s, pre_start_window_s, tried)
+        moved = telemetry.shifted(shift) if shift != 0.0 else telemetry
+        verdict = _identify(classifier, moved, confidence, pre_start_window_s)
+        return verdict.model_copy(
+            update={
+                "sequence_start_shift_s": shift,
+                "estimate_start_within_s": window_s,
+                "sequence_start_shifts_tried_s": [min(tried), max(tried)],
+            }
+        )
+    verdict = _identify(classifier, telemetry, confidence, pre_start_window_s)
+    if start_hint and verdict.matches_none:
+        verdict = _with_start_hint(
+            classifier, telemetry, grid, verdict, confidence, pre_start_window_s
+        )
+    return verdict
+
+
+def _with_start_hint(
+    classifier: CandidateClassifier,
+    telemetry: Telemetry,
+    grid: np.ndarray,
+    verdict: Identification,
+    confidence: float,
+    pre_start_window_s: float,
+) -> Identification:
+    """``verdict`` with a hint when a start near the stated one identifies a candidate:
+    a start error of one sample otherwise reads as a body that is none of them."""
+    step = float(grid[1] - grid[0])
+    window_s = max(START_HINT_WINDOW_S, START_HINT_PERIODS * step)
+    try:
+        shift = _best_start(classifier, telemetry, grid, window_s, pre_start_window_s, [])
+    except InputError:
+        return verdict  # no other start fits the telemetry: nothing to say
+    if shift == 0.0:
+        return verdict
+    moved = _identify(classifier, telemetry.shifted(shift), confidence, pre_start_window_s)
+    if moved.status != "identified":
+        return verdict
+    when = "later" if shift > 0 else "earlier"
+    hint = (
+        f"the telemetry matches {moved.candidate!r} (posterior {moved.confidence:.3g}) if the "
+        f"sequence started {abs(shift):.6g} s {when} than stated: check the start, or ask "
+        f"for estimate_start_within_s (the starts within ±{window_s:g} s were tried)"
+    )
+    return verdict.model_copy(
+        update={
+            "verdict": f"{verdict.verdict}. Hint: {hint}",
+            "start_hint": hint,
+            "start_hint_shift_s": shift,
+            "start_hint_candidate": moved.candidate,
+        }
+    )
+
+
+def _identify(
+    classifier: CandidateClassifier,
+    telemetry: Telemetry,
+    confidence: float,
+    pre_start_window_s: float,
+) -> Identification:
+    """The verdict from the telemetry's own sequence start."""
+    _, scenario, sequence, grid = _context(classifier, telemetry)
     # Slow telemetry on the grid: the likelihood kinds use the measured points only.
     series, observed = resample_observed(telemetry, grid)
     model, offset = _offset_model(classifier, scenario, telemetry, pre_start_window_s)
@@ -463,11 +600,27 @@ def identify(
             f"{NOT_THIS_SEQUENCE_FACTOR:g} times beyond its novelty threshold (nearest "
             f"{names[int(distances.argmin())]!r} at {distances.min():.4g})"
         )
-    elif status == "matches-none":
+    elif status == "matches-none" and bool(verdict_arrays.beyond_threshold[0]):
         verdict = (
-            f"matches none of the candidates: nearest is {names[best]!r} at distance "
-            f"{distances[best]:.4g}, threshold {threshold:.4g} seen in training; "
-            f"P(none) = {p_none:.3g}"
+            f"matches none of the candidates: beyond the novelty threshold (nearest is "
+            f"{names[best]!r} at distance {distances[best]:.4g}, more than the threshold "
+            f"{threshold:.4g} seen in training); P(none) = {p_none:.3g}"
+        )
+    elif status == "matches-none":
+        # Within the threshold: the posterior decided, i.e. "none of these" (for the
+        # default classifier its model of other bodies near the candidates) explains the
+        # series better than any candidate. Citing the distance would give no reason.
+        model_of_none = (
+            "the model of other bodies near the candidates"
+            if getattr(classifier, "sensitivity_", None) is not None
+            and getattr(classifier, "none_prior_sd_", None) is not None
+            else "the novelty tail"
+        )
+        verdict = (
+            f"matches none of the candidates: P(none) = {p_none:.3g} from {model_of_none} "
+            f"against {top:.3g} for the nearest, {names[best]!r} (its distance "
+            f"{distances[best]:.4g} is within the novelty threshold {threshold:.4g}, so the "
+            "posterior decided)"
         )
     elif status == "identified":
         verdict = names[best]
@@ -496,6 +649,7 @@ def identify(
         initial_offset_std_rad_s=None if offset is None else offset.std_rad_s,
         pre_start_samples=0 if offset is None else offset.samples,
         **_estimate(scenario, sequence, series),
+        **telemetry.inputs(),
     )
 
 

@@ -121,6 +121,10 @@ def _parse_utc(text: str, where: str) -> datetime:
         raise InputError(f"{where} = {text!r} lies outside the years 1 to 9999 in UTC") from None
 
 
+def _utc_text(moment: datetime) -> str:
+    return moment.isoformat().replace("+00:00", "Z")
+
+
 def parse_sequence_start(text: str | float | None) -> float | str | None:
     """A sequence start as given on a command line or in a query: seconds (a number) or
     an ISO-8601 UTC string (checked here, so a typo is named at once)."""
@@ -349,6 +353,26 @@ class Telemetry(BaseModel):
         else:
             moved = (start or 0.0) + shift_s
         return Telemetry.model_validate({**self.model_dump(), "sequence_start": moved})
+
+    def inputs(self) -> dict[str, float | str | list[float] | int | None]:
+        """What a verdict echoes of its telemetry: the sequence start (seconds in the
+        stamps' clock, or ISO-8601 UTC ending in Z), the first and last stamps as given
+        (ISO ones in UTC), the number of samples, and the span in s from the start."""
+        start = parse_sequence_start(self.sequence_start)
+        if isinstance(start, str):
+            start = _utc_text(_parse_utc(start, "sequence_start"))
+        stamps = self.time_s if self.time_s is not None else self.time_utc
+        assert stamps is not None  # the validator requires them
+        ends = [stamps[0], stamps[-1]]
+        shown = [_utc_text(_parse_utc(v, "stamp")) if isinstance(v, str) else v for v in ends]
+        offsets = self._offsets_s
+        return {
+            "sequence_start": start,
+            "telemetry_first_stamp": shown[0],
+            "telemetry_last_stamp": shown[1],
+            "telemetry_samples": len(stamps),
+            "telemetry_span_s": [offsets[0], offsets[-1]],
+        }
 
     def describe_time(self, offset_s: float) -> str:
         """``offset_s`` (s from the sequence start) in words, with the telemetry's own clock

@@ -98,8 +98,10 @@ def test_far_off_inertia_matches_none(
             # clustering: so far off that it reads as no response to this sequence.
             assert verdict.status in ("matches-none", "not-this-sequence")
             if verdict.status == "matches-none":
+                # The distance decided, and the text says so.
                 assert verdict.verdict.startswith(
-                    f"matches none of the candidates: nearest is {verdict.candidate!r}"
+                    "matches none of the candidates: beyond the novelty threshold (nearest "
+                    f"is {verdict.candidate!r}"
                 )
             # Physically: the heavy body spins up slowest, like the heaviest candidate I0.
             # (The light one's nearest is not checked: with each axis' mean removed, as

@@ -1,0 +1,155 @@
+"""POST /identify: the start search asked for, the hint of a start near the stated one,
+the inputs echoed, and a large upload parsed off the event loop."""
+
+from __future__ import annotations
+
+import threading
+from typing import Any
+
+import numpy as np
+import pytest
+
+from inertia_id import InertiaClassifier, Scenario, simulate
+
+from .support import GOOD_SEQUENCE, Api
+
+
+@pytest.fixture(scope="module")
+def quiet_around(paper: Scenario) -> dict[str, list[Any]]:
+    """Candidate 1 with 2 s of quiet before the sequence and 2 s after, at 20 Hz."""
+    quiet = [[0] * paper.n_thrusters]
+    result = simulate(paper, quiet * 2 + GOOD_SEQUENCE + quiet * 2, 1, np.random.default_rng(8))
+    return {
+        "time_s": (result.time_s - 2.0).tolist(),
+        "omega_rad_s": result.omega_measured[1, 0].tolist(),
+    }
+
+
+def csv_of(series: dict[str, list[Any]]) -> str:
+    rows = ["time_s,wx,wy,wz"]
+    rows += [
+        ",".join(repr(float(v)) for v in (t, *w))
+        for t, w in zip(series["time_s"], series["omega_rad_s"], strict=True)
+    ]
+    return "\n".join(rows) + "\n"
+
+
+@pytest.fixture
+def classifier_id(api: Api, classifier: InertiaClassifier) -> str:
+    return api.insert_classifier(api.create_scenario()["id"], classifier)
+
+
+def test_the_start_search_as_json_and_form_and_its_refusals(
+    api: Api, classifier_id: str, quiet_around: dict[str, list[Any]], paper: Scenario
+) -> None:
+    truth = paper.candidate_names[1]
+    late = {**quiet_around, "sequence_start": 0.3}  # stated 6 samples after the true start
+    body = {"classifier_id": classifier_id, "telemetry": late}
+    plain = api.post("/identify", json=body)
+    assert plain.status_code == 200, plain.text
+    # The verdict is the stated start's; its text says a start 0.3 s earlier matches.
+    assert plain.json()["status"] == "matches-none"
+    assert plain.json()["start_hint_candidate"] == truth
+    assert plain.json()["start_hint_shift_s"] == pytest.approx(-0.3, abs=0.051)
+    assert "estimate_start_within_s" in plain.json()["verdict"]
+    searched = api.post("/identify", json={**body, "estimate_start_within_s": 0.5})
+    assert searched.status_code == 200, searched.text
+    found = searched.json()
+    assert (found["status"], found["candidate"]) == ("identified", truth)
+    assert found["sequence_start_shift_s"] == pytest.approx(-0.3, abs=0.051)
+    assert found["estimate_start_within_s"] == 0.5
+    assert found["sequence_start"] == pytest.approx(0.3 + found["sequence_start_shift_s"])
+    form = api.post(
+        "/identify",
+        data={
+            "classifier_id": classifier_id,
+            "sequence_start": "0.3",
+            "estimate_start_within_s": "0.5",
+        },
+        files={"file": ("t.csv", csv_of(quiet_around))},
+    )
+    assert form.status_code == 200, form.text
+    assert form.json()["sequence_start_shift_s"] == found["sequence_start_shift_s"]
+    assert form.json()["candidate"] == truth
+    for bad in ("-1", "1000", "soon"):
+        refused = api.post(
+            "/identify",
+            data={"classifier_id": classifier_id, "estimate_start_within_s": bad},
+            files={"file": ("t.csv", csv_of(quiet_around))},
+        )
+        assert refused.status_code == 422, refused.text
+        assert (
+            f"estimate_start_within_s must be a number of seconds in [0, 100], got '{bad}'"
+            in refused.text
+        )
+    for bad_number in (-1, 1000):
+        refused = api.post("/identify", json={**body, "estimate_start_within_s": bad_number})
+        assert refused.status_code == 422 and "estimate_start_within_s" in refused.text
+    partial = api.post("/identify/partial", json={**body, "estimate_start_within_s": 0.5})
+    assert partial.status_code == 422 and "POST /identify only, got 0.5" in partial.text
+
+
+def test_the_verdict_and_its_csv_echo_the_start_and_the_span(
+    api: Api, classifier_id: str, quiet_around: dict[str, list[Any]]
+) -> None:
+    telemetry = {
+        "time_s": [810000000.0 + t for t in quiet_around["time_s"]],
+        "omega_rad_s": quiet_around["omega_rad_s"],
+    }
+    body = {"classifier_id": classifier_id, "telemetry": telemetry, "sequence_start": 810000000.0}
+    verdict = api.post("/identify", json=body).json()
+    assert verdict["sequence_start"] == 810000000.0
+    assert verdict["telemetry_first_stamp"] == telemetry["time_s"][0]
+    assert verdict["telemetry_last_stamp"] == telemetry["time_s"][-1]
+    assert verdict["telemetry_samples"] == len(telemetry["time_s"]) == 160
+    assert verdict["telemetry_span_s"] == pytest.approx([-1.95, 6.0])
+    table = api.post("/identify?format=csv", json=body)
+    assert table.status_code == 200, table.text
+    assert "# sequence_start: 810000000.0\n" in table.text
+    assert f"# telemetry_first_stamp: {telemetry['time_s'][0]!r}\n" in table.text
+    assert "# telemetry_samples: 160\n" in table.text
+    assert "# sequence_start_shift_s: 0.0\n" in table.text
+
+
+def test_a_slow_parse_leaves_the_event_loop_to_other_requests(
+    api: Api,
+    classifier_id: str,
+    quiet_around: dict[str, list[Any]],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """While one upload is parsed, /health is answered: on the event loop the parse made
+    every request wait (a 78,000-row CSV held /health 3-6 s)."""
+    import app.api.identify as api_identify
+
+    parsing, release, parsed = threading.Event(), threading.Event(), threading.Event()
+    real_parse = api_identify.parse_telemetry
+
+    def slow_parse(*args: Any, **kwargs: Any) -> Any:
+        parsing.set()
+        # Waits for the test to release it; the limit only ends a test that failed.
+        release.wait(timeout=15)
+        parsed.set()
+        return real_parse(*args, **kwargs)
+
+    monkeypatch.setattr(api_identify, "parse_telemetry", slow_parse)
+    answers: list[Any] = []
+    upload = threading.Thread(
+        target=lambda: answers.append(
+            api.post(
+                "/identify",
+                data={"classifier_id": classifier_id},
+                files={"file": ("t.csv", csv_of(quiet_around))},
+            )
+        )
+    )
+    upload.start()
+    try:
+        assert parsing.wait(timeout=15)
+        health = api.client.get("/health")
+        answered_while_parsing = not parsed.is_set()
+    finally:
+        release.set()
+        upload.join()
+    assert health.status_code in (200, 503)
+    assert answered_while_parsing
+    assert answers[0].status_code == 200, answers[0].text

@@ -1,0 +1,99 @@
+"""A verdict's start: searched when asked, hinted at when a near one would match, echoed
+with the telemetry's span; and a matches-none verdict names the test that decided it."""
+
+from __future__ import annotations
+
+from datetime import datetime, timedelta, timezone
+
+import numpy as np
+import pytest
+from scenario_support import GOOD_SEQUENCE
+
+from inertia_id import Scenario, simulate
+from inertia_id.classifiers.marginal import MarginalLikelihoodClassifier
+from inertia_id.errors import InputError
+from inertia_id.evaluation.identify import identify
+from inertia_id.physics.presets import preset
+
+
+@pytest.fixture(scope="module")
+def ten_hz_flight(drifting_paper: Scenario) -> dict[str, list]:
+    """Candidate 2 flown with 30 s of quiet before the sequence and 4 s after, its gyro
+    read at 10 Hz (every other 20 Hz sample), stamps in s from the true start."""
+    quiet = [[0] * drifting_paper.n_thrusters]
+    flown = quiet * 30 + GOOD_SEQUENCE + quiet * 4
+    result = simulate(drifting_paper, flown, 1, np.random.default_rng(5))
+    return {
+        "time_s": (result.time_s[::2] - 30.0).tolist(),
+        "omega_rad_s": result.omega_measured[2, 0][::2].tolist(),
+    }
+
+
+def test_a_start_off_by_samples_is_hinted_at_and_found_when_asked(
+    marginal: MarginalLikelihoodClassifier, ten_hz_flight: dict[str, list]
+) -> None:
+    truth = marginal.candidate_names_[2]
+    assert identify(marginal, {**ten_hz_flight, "sequence_start": 0.0}).candidate == truth
+    late = {**ten_hz_flight, "sequence_start": 0.4}  # stated 4 samples after the true start
+    verdict = identify(marginal, late)
+    # The verdict stays what the stated start gives; the text says what a near one gives.
+    assert verdict.status == "matches-none"
+    assert verdict.start_hint_candidate == truth
+    assert verdict.start_hint_shift_s == pytest.approx(-0.4, abs=0.1)
+    assert f"Hint: the telemetry matches {truth!r}" in verdict.verdict
+    assert "earlier than stated" in verdict.verdict and "estimate_start_within_s" in verdict.verdict
+    assert verdict.sequence_start == 0.4 and verdict.sequence_start_shift_s == 0.0
+    searched = identify(marginal, late, estimate_start_within_s=0.5)
+    assert (searched.status, searched.candidate) == ("identified", truth)
+    assert searched.sequence_start_shift_s == pytest.approx(-0.4, abs=0.1)
+    assert searched.sequence_start == pytest.approx(0.4 + searched.sequence_start_shift_s)
+    assert searched.estimate_start_within_s == 0.5
+    assert searched.sequence_start_shifts_tried_s == pytest.approx([-0.5, 0.5])
+    assert searched.start_hint is None
+    # Without the hint asked for, the verdict is as before.
+    assert identify(marginal, late, start_hint=False).start_hint is None
+    with pytest.raises(InputError, match=r"estimate_start_within_s .* got -1"):
+        identify(marginal, late, estimate_start_within_s=-1)
+
+
+def test_matches_none_names_the_test_that_decided(
+    marginal: MarginalLikelihoodClassifier, drifting_paper: Scenario
+) -> None:
+    """A body 10 % lighter than a candidate lies within the novelty threshold: the model
+    of other bodies decided, and the text says so rather than citing the distance."""
+    light = np.asarray(drifting_paper.inertia_candidates[2].inertia_kg_m2) * 0.9
+    odd = preset(
+        "paper-in-orbit",
+        name="odd",
+        inertia_candidates=[
+            {"name": name, "inertia_kg_m2": light.tolist()} for name in ("light", "light too")
+        ],
+    )
+    result = simulate(odd, GOOD_SEQUENCE, 1, np.random.default_rng(3))
+    series = {"time_s": result.time_s.tolist(), "omega_rad_s": result.omega_measured[0, 0].tolist()}
+    verdict = identify(marginal, series)
+    assert verdict.status == "matches-none"
+    assert verdict.distances[verdict.candidate] < verdict.threshold
+    assert "from the model of other bodies near the candidates" in verdict.verdict
+    assert "beyond the novelty threshold" not in verdict.verdict
+    assert f"within the novelty threshold {verdict.threshold:.4g}" in verdict.verdict
+
+
+def test_the_verdict_echoes_its_start_and_the_telemetrys_span(
+    marginal: MarginalLikelihoodClassifier, ten_hz_flight: dict[str, list]
+) -> None:
+    # Stamps with a +01:00 offset, the start in UTC: both echoed in UTC, with their zone.
+    start = datetime(2025, 3, 1, 13, 0, 30, tzinfo=timezone(timedelta(hours=1)))
+    times = ten_hz_flight["time_s"]
+    stamps = [(start + timedelta(seconds=round(t, 6))).isoformat() for t in times]
+    telemetry = {
+        "time_utc": stamps,
+        "omega_rad_s": ten_hz_flight["omega_rad_s"],
+        "sequence_start": "2025-03-01T12:00:30Z",
+    }
+    verdict = identify(marginal, telemetry)
+    assert verdict.sequence_start == "2025-03-01T12:00:30Z"
+    assert verdict.telemetry_first_stamp == "2025-03-01T12:00:00.050000Z"
+    assert verdict.telemetry_last_stamp == "2025-03-01T12:00:37.950000Z"
+    assert verdict.telemetry_samples == len(stamps) == 380
+    assert verdict.telemetry_span_s == pytest.approx([times[0], times[-1]]) == [-29.95, 7.95]
