@@ -94,6 +94,12 @@ function identifyForm(classifierId, file, { confidence, averaged } = {}) {
   return form;
 }
 
+// The start search: /identify only (/identify/partial refuses it).
+function withStartSearch(form, { startWithin } = {}) {
+  if (startWithin !== undefined && startWithin !== null && startWithin !== "") form.set("estimate_start_within_s", String(startWithin));
+  return form;
+}
+
 export const api = {
   health: () => request("GET", "/health"),
   // 204 (null) when the service accepts `key`; an ApiError 401 when it does not.
@@ -124,7 +130,7 @@ export const api = {
   // sequenceStart (seconds in the telemetry's clock or ISO-8601 UTC), both optional.
   identify: (classifierId, file, format = "json", options = {}) =>
     request("POST", "/identify", {
-      form: identifyForm(classifierId, file, options),
+      form: withStartSearch(identifyForm(classifierId, file, options), options),
       query: { format: format === "json" ? undefined : format, sequence_start: options.sequenceStart },
       raw: format !== "json",
     }),

@@ -108,7 +108,7 @@ def _api_verdict(
 ) -> dict[str, Any]:
     """What the service answers for this telemetry, as the page sends it (a form)."""
     form = {"classifier_id": made["classifier"]}
-    for field in ("confidence", "averaged"):
+    for field in ("confidence", "averaged", "estimate_start_within_s"):
         if field in params:
             form[field] = params.pop(field)
     response = dashboard.service.client.post(
@@ -775,6 +775,41 @@ def test_identify_mission_time_telemetry_with_its_sequence_start(
     page.wait_for_function("() => document.getElementById('overlay-plot')?.data?.length === 12")
     first = page.evaluate("() => document.getElementById('overlay-plot').data[3].x[0]")
     assert first == pytest.approx(Scenario.paper().sample_times(len(GOOD))[0], abs=1e-6)
+
+
+def test_identify_searches_the_start_when_asked_and_says_the_shift(
+    dashboard: Dashboard, tmp_path: Path
+) -> None:
+    """The start search of POST /identify from the form: the verdict names the start it
+    used and the shift, as the API's answer to the same request; a window past the
+    service's bound is stopped by the form."""
+    _classifier(dashboard)
+    page = dashboard.page
+    mission = _telemetry_csv(
+        tmp_path / "mission.csv", Scenario.paper(), candidate=2, seed=43, clock_s=810_000_000.0
+    )
+    text = mission.read_text(encoding="utf-8")
+    dashboard.open(f"#/identify?classifier={made['classifier']}")
+    page.fill("#identify-start-within", "0.5")
+    verdict = _identify(dashboard, text, start="810000000.2")
+    expected = _api_verdict(
+        dashboard, text, sequence_start="810000000.2", estimate_start_within_s="0.5"
+    )
+    assert expected["estimate_start_within_s"] == 0.5
+    assert verdict.get_attribute("data-status") == expected["status"]
+    shown = page.inner_text("#start-used")
+    assert "by the search within ±0.5 s" in shown
+    shift = expected["sequence_start_shift_s"]
+    assert f"shifted {'+' if shift >= 0 else ''}" in shown
+    # Without a window the start is the stated one.
+    page.fill("#identify-start-within", "")
+    _identify(dashboard, text, start="810000000")
+    assert page.inner_text("#start-used").endswith("(as stated)")
+    # A window past the service's bound (100 s) is stopped by the form itself.
+    page.fill("#identify-start-within", "1000")
+    assert page.evaluate(
+        "() => document.getElementById('identify-start-within').validity.rangeOverflow"
+    )
 
 
 def test_identify_shows_the_rate_and_bias_measured_before_the_start(

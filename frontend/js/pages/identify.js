@@ -82,6 +82,7 @@ export async function render(root, context) {
   });
   const start = h("input", { type: "text", id: "identify-sequence-start", size: 34, placeholder: "e.g. 810000000.0 or 2025-03-01T12:00:00Z", value: context.query.sequence_start || "" });
   const averaged = h("input", { type: "checkbox", id: "identify-averaged", checked: context.query.averaged === "true" });
+  const startWithin = h("input", { type: "number", id: "identify-start-within", min: "0", max: "100", step: "any", placeholder: "e.g. 0.5", value: context.query.estimate_start_within_s || "" });
   const confidence = h("input", { type: "number", id: "identify-confidence", min: "0", max: "1", step: "any", value: context.query.confidence || String(DEFAULT_CONFIDENCE) });
   const general = h("div", { id: "identify-errors" });
   const submit = h("button", { type: "submit", id: "identify-submit" }, "Identify");
@@ -100,7 +101,7 @@ export async function render(root, context) {
           return;
         }
         const name = content.trim().startsWith("{") ? "telemetry.json" : "telemetry.csv";
-        const options = { sequenceStart: start.value.trim(), confidence: confidence.value.trim(), averaged: averaged.checked };
+        const options = { sequenceStart: start.value.trim(), startWithin: startWithin.value.trim(), confidence: confidence.value.trim(), averaged: averaged.checked };
         submit.disabled = true;
         try {
           const upload = new File([content], name, { type: "text/plain" });
@@ -108,7 +109,7 @@ export async function render(root, context) {
           const classifier = page.items.find((c) => c.id === select.value);
           await showVerdict(result, verdict, classifier, { content, context, file: upload, options });
         } catch (exc) {
-          showFieldErrors(exc, { file: text, classifier_id: select, sequence_start: start, confidence, averaged }, general);
+          showFieldErrors(exc, { file: text, classifier_id: select, sequence_start: start, estimate_start_within_s: startWithin, confidence, averaged }, general);
         } finally {
           submit.disabled = false;
           // Disabled while it ran, the button lost the focus to <body>: give it back.
@@ -130,6 +131,8 @@ export async function render(root, context) {
         start,
         h("div", { class: "hint" }, "when the actuation sequence began, in the telemetry's clock: seconds (e.g. mission time 810000000.0) or ISO-8601 UTC (2025-03-01T12:00:00Z). Leave empty when time_s counts from the sequence start."),
       ),
+      h("label", { for: "identify-start-within" }, "search the start within (s)"),
+      h("div", {}, startWithin, h("div", { class: "hint" }, "optional: try the starts within this many seconds of the stated one and judge from the one whose series lies closest to a candidate; the verdict says the shift it used. Empty: the stated start (a matches-none verdict still says when a start within 0.5 s would match).")),
       h("label", { for: "identify-averaged" }, "averaging gyro"),
       h("div", {}, averaged, h("span", { class: "hint" }, " each rate is the mean over one sample period before its stamp (an integrating or delta-angle gyro): read half a period earlier")),
       h("label", { for: "identify-confidence" }, "confidence"),
@@ -188,6 +191,14 @@ function offsetOf(verdict) {
   return `[${axes.join(", ")}] rad/s = [${deg.join(", ")}] deg/s, from ${verdict.pre_start_samples} samples`;
 }
 
+// The start the verdict judged from, and the shift a start search moved it by.
+function startUsed(verdict) {
+  const start = verdict.sequence_start ?? "the telemetry's zero";
+  if (verdict.estimate_start_within_s === null || verdict.estimate_start_within_s === undefined) return `${start} (as stated)`;
+  const shift = verdict.sequence_start_shift_s;
+  return `${start} (shifted ${shift >= 0 ? "+" : ""}${plain(shift, 6)} s by the search within ±${plain(verdict.estimate_start_within_s, 6)} s)`;
+}
+
 async function showVerdict(holder, verdict, classifier, { content, context, file, options }) {
   const names = Object.keys(verdict.distances);
   const ranked = Object.entries(verdict.posterior || {}).sort((a, b) => b[1] - a[1]);
@@ -231,6 +242,8 @@ async function showVerdict(holder, verdict, classifier, { content, context, file
         h("dd", {}, link(`#/classifiers/${verdict.classifier_id}`, verdict.classifier_id)),
         h("dt", {}, "least-squares estimate from this telemetry (kg m², ± standard error)"),
         h("dd", { id: "ls-estimate" }, estimateOf(verdict)),
+        h("dt", {}, "sequence start used"),
+        h("dd", { id: "start-used" }, startUsed(verdict)),
         h("dt", {}, "rate + gyro bias at the start, from the telemetry before it"),
         h("dd", { id: "initial-offset", class: "mono" }, offsetOf(verdict)),
       ),
