@@ -1148,9 +1148,10 @@ def test_a_pareto_front_is_drawn_beside_the_baselines_and_a_member_plans_and_tra
         assert (f"{name} {text} (dominates member 0)" in note) == figures["dominates_member_0"]
     assert ("none was measured beside it" in note) == (not rivals)
 
-    # Choose the last member: its plan (per candidate: residual rate, attitude change),
-    # downloaded as CSV and JSON.
-    chosen = members[-1]
+    # Choose the last member that fires a thruster (the front may end at zero impulse,
+    # which cannot be trained on): its plan (per candidate: residual rate, attitude
+    # change), downloaded as CSV and JSON.
+    chosen = [m for m in members if m.get("fires", True)][-1]
     page.click(f"#front-table tr[data-member='{chosen['index']}'] td[data-key='accuracy']")
     page.wait_for_function(
         "(seq) => document.getElementById('front-member-sequence')?.textContent === seq",

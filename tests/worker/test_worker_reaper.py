@@ -287,6 +287,8 @@ def test_a_heartbeat_during_a_hand_back_does_not_deadlock(
         spec=SimpleNamespace(id=job_id, attempt=1),
         worker_name=worker,
         settings=store.settings,
+        # Well within its time limit: a plain heartbeat (past it, beat ends the job).
+        time_left_s=lambda: 3600.0,
     )
     errors: list[BaseException] = []
 

@@ -331,6 +331,12 @@ async function showMember(holder, job, member, context) {
     },
     "Train on this sequence",
   );
+  if (member.fires === false) {
+    // The front's zero-impulse end: no torque, nothing to tell the candidates apart by
+    // (the service refuses to train on it).
+    train.disabled = true;
+    train.title = "this member fires no thruster: nothing to train on";
+  }
   const stem = `plan-${job.id.slice(0, 8)}-member-${member.index}`;
   // The downloads fly as many times as the page's plan did (known once it is computed).
   let flown = PLAN_FLIGHTS;
