@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any
 
 from sqlalchemy import select
 
+from inertia_id.deadline import time_limit_grace_s
 from service.config import Settings
 from service.params import StrictModel
 from service.store import Database, JobRow
@@ -45,12 +46,13 @@ logger = logging.getLogger(__name__)
 #: Seconds between two reads of a running job's cancel flag. The search polls
 #: ``should_stop`` every environment step; the database is asked at most this often.
 CANCEL_POLL_S = 1.0
-#: How long a job may run past its time limit before its heartbeat ends it "failed". A
-#: search stopped at its limit still finishes the sequence (NSGA-II: the 16 sequences) it
-#: is on and re-scores its best on fresh draws (NSGA-II its front too, on the fresh draw):
-#: seconds on small cases, 326 s measured for NSGA-II at 200 realisations and L = 20 on
-#: a busy 2-core machine (bench/cancel_latency.py); a sweep finishes the point it is on.
-#: The grace covers those; what ignores the limit (a training) is ended once past it.
+#: How long a job may run past its time limit and a search's re-score grace
+#: (:func:`~inertia_id.search.loop.time_limit_grace_s`: 10 % of the limit, at least
+#: 10 s) before its heartbeat ends it "failed". A search stopped at its limit still
+#: finishes the sequence (NSGA-II: the 16 sequences) it is on, re-scores while the grace
+#: lasts and then finishes the piece under way (a prefix's clustering, 16 front members;
+#: seconds); a sweep finishes the point it is on. This covers those; what ignores the
+#: limit (a training) is ended once past it.
 TIME_LIMIT_GRACE_S = 600.0
 
 
@@ -126,8 +128,10 @@ class JobContext:
 
     The job's time limit (:attr:`time_limit_s`) is its ``time_limit_s`` parameter or the
     service's ceiling (``job_time_limit_s``), whichever is less, counted from the
-    context's creation (the claim): a search and a sweep stop themselves there; a job
-    still running :data:`TIME_LIMIT_GRACE_S` later is ended "failed" by its heartbeat.
+    context's creation (the claim): a search and a sweep stop themselves there (a
+    search re-scores in the grace after it); a job still running
+    :data:`TIME_LIMIT_GRACE_S` past the limit and that grace is ended "failed" by its
+    heartbeat.
     """
 
     spec: JobSpec
@@ -155,6 +159,11 @@ class JobContext:
         asked = getattr(self.spec.params, "time_limit_s", None)
         ceiling = self.settings.job_time_limit_s
         return ceiling if asked is None else min(float(asked), ceiling)
+
+    @property
+    def rescore_grace_s(self) -> float:
+        """How long a search past :attr:`time_limit_s` may still re-score, s."""
+        return float(time_limit_grace_s(self.time_limit_s) or 0.0)
 
     def time_left_s(self) -> float:
         """Seconds of the time limit left (negative past it)."""
@@ -232,15 +241,16 @@ class JobContext:
 
     def beat(self) -> None:
         """One heartbeat: this worker's, then the job's; or, for a job
-        :data:`TIME_LIMIT_GRACE_S` past its time limit, its end ("failed", the limit
-        named). The run then no longer owns the job: a cooperative one stops at its next
-        check, one that cannot (a training) finishes in vain and its result is dropped.
+        :data:`TIME_LIMIT_GRACE_S` past its time limit and a search's re-score grace, its
+        end ("failed", the limit named). The run then no longer owns the job: a
+        cooperative one stops at its next check, one that cannot (a training) finishes in
+        vain and its result is dropped.
 
         In that order: a hand-back (:func:`~service.store.jobs.hand_back`) locks the
         worker's row, then its jobs'; a heartbeat that locked the job's row first and the
         worker's second deadlocked against it on PostgreSQL, and the stopping worker's job
         was left running for the reaper (seen in a graceful-restart test)."""
-        overdue = self.time_left_s() < -TIME_LIMIT_GRACE_S
+        overdue = self.time_left_s() < -(self.rescore_grace_s + TIME_LIMIT_GRACE_S)
         with self._db.session() as session:
             touch_worker(session, self.worker_name, broker_label(self.settings))
             if not overdue:
@@ -249,8 +259,8 @@ class JobContext:
                 session,
                 self.spec.id,
                 "failed",
-                error=f"{self.time_limit_text()} (still running {TIME_LIMIT_GRACE_S:g} s "
-                "after it; ended)",
+                error=f"{self.time_limit_text()} (still running "
+                f"{self.rescore_grace_s + TIME_LIMIT_GRACE_S:g} s after it; ended)",
                 attempt=self.spec.attempt,
             ):
                 self.lost = True

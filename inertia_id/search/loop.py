@@ -11,7 +11,6 @@ its default and documented once, on :class:`SearchRun`.
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any, TypedDict
@@ -19,6 +18,13 @@ from typing import Any, TypedDict
 import numpy as np
 
 from ..checks import check_seed, is_integer
+from ..deadline import (
+    GRACE_FRACTION,
+    GRACE_MIN_S,
+    Deadline,
+    check_time_limit,
+    time_limit_grace_s,
+)
 from ..errors import InputError
 from ..physics.scenario import Scenario
 from .env import SequenceSearchEnv
@@ -35,6 +41,8 @@ from .scorer import ScorerSettings
 
 __all__ = [
     "CANCELLED",
+    "GRACE_FRACTION",
+    "GRACE_MIN_S",
     "TIME_LIMIT",
     "Deadline",
     "RunOptions",
@@ -43,6 +51,7 @@ __all__ = [
     "check_time_limit",
     "overrides",
     "report_point",
+    "time_limit_grace_s",
 ]
 
 #: Why a search stopped when ``should_stop`` said so: the result is abandoned, so the
@@ -51,41 +60,6 @@ CANCELLED = "cancelled"
 #: Why a search stopped when its time budget was spent: the best so far, re-scored as
 #: after any other stop.
 TIME_LIMIT = "time_limit"
-
-
-def check_time_limit(value: Any) -> float | None:
-    """A search's time budget: None (none), or a finite number of seconds > 0."""
-    if value is None:
-        return None
-    if (
-        isinstance(value, bool)
-        or not isinstance(value, int | float)
-        or not (math.isfinite(value) and value > 0)
-    ):
-        raise InputError(
-            f"time_limit_s must be a finite number of seconds > 0 (or none), got {value!r}"
-        )
-    return float(value)
-
-
-class Deadline:
-    """The end of a search's time budget, on a monotonic clock (a wall clock set back or
-    forward must not stretch or cut a search).
-
-    :param time_limit_s: seconds from now; None: never expires.
-    :param clock: monotonic seconds; a test passes its own, so it needs no sleeps.
-    """
-
-    def __init__(
-        self, time_limit_s: float | None, clock: Callable[[], float] = time.monotonic
-    ) -> None:
-        self.time_limit_s = check_time_limit(time_limit_s)
-        self.clock = clock
-        self.started = clock()
-
-    def expired(self) -> bool:
-        """True once ``time_limit_s`` seconds have passed since the deadline was set."""
-        return self.time_limit_s is not None and self.clock() - self.started >= self.time_limit_s
 
 
 def check_budget(name: str, value: int, sequence_length: int) -> None:
@@ -164,7 +138,10 @@ class SearchRun:
         draw), as nobody waits for the result.
     :param time_limit_s: the search's time budget in seconds (None: none), checked where
         ``should_stop`` is, from the first whole sequence on: once spent the search
-        stops, "time_limit", and its best so far is re-scored as after any other stop.
+        stops, "time_limit", and its best so far is re-scored as after any other stop,
+        but only while the limit's grace lasts (:func:`time_limit_grace_s`): the fresh
+        draws completed by then are kept (``fresh.draws_asked`` says how many were
+        asked for), whatever stopped the search.
     :param clock: monotonic seconds for ``time_limit_s``.
     """
 
@@ -212,6 +189,13 @@ class SearchRun:
             self.tracker.on_step(reward, terminated, info)
         assert self.tracker.last is not None  # the last step of an episode terminates it
         return self.tracker.last
+
+    def rescore_stop(self) -> bool:
+        """Whether the re-score after the search must stop now: a cancel, or the time
+        limit's grace spent."""
+        if self.should_stop is not None and self.should_stop():
+            return True
+        return self.deadline.grace_spent()
 
     def interrupted(self) -> str | None:
         """Why the search must stop now: "cancelled" when ``should_stop`` says so,
@@ -284,7 +268,9 @@ class SearchRun:
         policy_path: str | None = None,
     ) -> SearchResult:
         """Re-score the best sequence on fresh draws and assemble the result; a
-        cancelled search's best is not re-scored (``fresh`` holds no draw).
+        cancelled search's best is not re-scored (``fresh`` holds no draw), and the
+        re-score stops at a cancel or once the time limit's grace is spent
+        (:meth:`rescore_stop`).
 
         :param settings: the method's own parameters; the length, fuel weight, seed and
             scorer are added.
@@ -308,6 +294,7 @@ class SearchRun:
             env.settings,
             seed=fresh_seed(self.seed),
             n_draws=0 if stopped == CANCELLED else self.n_fresh_draws,
+            should_stop=self.rescore_stop,
         )
         return SearchResult(
             method=method,
@@ -326,6 +313,7 @@ class SearchRun:
                 "constraints": dict(env.constraints),
                 "constraint_penalty": env.constraint_penalty,
                 "time_limit_s": self.deadline.time_limit_s,
+                "time_limit_grace_s": self.deadline.grace_s,
                 **settings,
                 "scorer": env.settings.as_dict(),
             },

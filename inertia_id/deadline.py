@@ -1,0 +1,73 @@
+"""A time limit and the grace after it, on a monotonic clock.
+
+Light on purpose (no NumPy): the worker's heartbeat reads the grace of any job.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from typing import Any
+
+from .errors import InputError
+
+__all__ = ["GRACE_FRACTION", "GRACE_MIN_S", "Deadline", "check_time_limit", "time_limit_grace_s"]
+
+#: Once a time limit is spent, the re-score after the search (fresh draws of the best,
+#: the front's members, the baselines) goes on only while a grace lasts: this fraction
+#: of the limit, and at least :data:`GRACE_MIN_S` (a few seconds hold the front's first
+#: member and its baselines on the fresh draw, whatever the limit).
+GRACE_FRACTION = 0.1
+GRACE_MIN_S = 10.0
+
+
+def check_time_limit(value: Any) -> float | None:
+    """A search's time budget: None (none), or a finite number of seconds > 0."""
+    if value is None:
+        return None
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, int | float)
+        or not (math.isfinite(value) and value > 0)
+    ):
+        raise InputError(
+            f"time_limit_s must be a finite number of seconds > 0 (or none), got {value!r}"
+        )
+    return float(value)
+
+
+def time_limit_grace_s(time_limit_s: float | None) -> float | None:
+    """The grace after ``time_limit_s`` in which a search's re-score may go on:
+    :data:`GRACE_FRACTION` of the limit, at least :data:`GRACE_MIN_S`; None without a
+    limit."""
+    limit = check_time_limit(time_limit_s)
+    return None if limit is None else max(GRACE_MIN_S, GRACE_FRACTION * limit)
+
+
+class Deadline:
+    """The end of a search's time budget, on a monotonic clock (a wall clock set back or
+    forward must not stretch or cut a search), and of the grace after it
+    (:func:`time_limit_grace_s`) in which the re-score may go on.
+
+    :param time_limit_s: seconds from now; None: never expires.
+    :param clock: monotonic seconds; a test passes its own, so it needs no sleeps.
+    """
+
+    def __init__(
+        self, time_limit_s: float | None, clock: Callable[[], float] = time.monotonic
+    ) -> None:
+        self.time_limit_s = check_time_limit(time_limit_s)
+        self.grace_s = time_limit_grace_s(self.time_limit_s)
+        self.clock = clock
+        self.started = clock()
+
+    def expired(self) -> bool:
+        """True once ``time_limit_s`` seconds have passed since the deadline was set."""
+        return self.time_limit_s is not None and self.clock() - self.started >= self.time_limit_s
+
+    def grace_spent(self) -> bool:
+        """True once the limit and its grace have passed: no re-score starts after it."""
+        if self.time_limit_s is None or self.grace_s is None:
+            return False
+        return self.clock() - self.started >= self.time_limit_s + self.grace_s
