@@ -133,9 +133,11 @@ class SearchRequest(_Request):
     :param fresh_test_series: test series per candidate and design condition on which
         each front member's accuracy is measured; 0 keeps the prediction.
     :param time_limit_s: the search's time budget in seconds (every method); None: none.
-        Once spent the search stops, ``stopped`` "time_limit", with the best so far
-        re-scored on fresh draws; the front's accuracy measurement and the baselines'
-        scoring, which may come after, are skipped once it is spent.
+        Once spent the search stops, ``stopped`` "time_limit", and the front's accuracy
+        measurement is skipped; the re-score on fresh draws (the best, the front, the
+        baselines, in that order of need) goes on only while the limit's grace lasts
+        (``settings.time_limit_grace_s``: 10 % of the limit, at least 10 s), and the
+        result says what it did not reach.
     """
 
     method: str = "ppo"
@@ -272,12 +274,14 @@ def search_with_baselines(
         cancelled search's result is abandoned: its best is kept, but neither re-scored
         nor judged on a front, and the baselines are not scored (each ``unavailable``).
     :param clock: monotonic seconds for ``request.time_limit_s``. The limit covers the
-        search; after it only the best's re-score on fresh draws (and the front's
-        re-score on the fresh draw, without its accuracy measurement) runs: what a
-        result needs to be honest.
+        search and the front's accuracy measurement; the re-score on fresh draws (the
+        best's draws, the front's first member and baselines, the baselines' draws) goes
+        on while the limit's grace lasts, each piece checked before it starts: what is
+        left out says so (``fresh.draws_asked``, the front's ``not_rescored``, a
+        baseline ``unavailable``).
     """
     from .search import search
-    from .search.baselines import compare_with_baselines
+    from .search.baselines import STOPPED, compare_with_baselines
     from .search.loop import CANCELLED, TIME_LIMIT, Deadline
 
     settings = request.scorer()
@@ -306,6 +310,13 @@ def search_with_baselines(
             stopped["why"] = TIME_LIMIT
         return stopped["why"] in (CANCELLED, TIME_LIMIT)
 
+    def rescore_stop() -> bool:
+        """The baselines' re-score stops on a cancel, or once the time limit's grace is
+        spent, whenever that comes."""
+        if stopped["why"] != CANCELLED and should_stop is not None and should_stop():
+            stopped["why"] = CANCELLED
+        return stopped["why"] == CANCELLED or deadline.grace_spent()
+
     if found.front is None and found.stopped != CANCELLED:
         from .search import build_front
 
@@ -326,7 +337,7 @@ def search_with_baselines(
         settings,
         seed=found.fresh.seed,
         n_draws=len(found.fresh.f1),
-        should_stop=after_search_stop,
+        should_stop=rescore_stop,
     )
     if stopped["why"] == CANCELLED:
         # A cancel heard after the search (while the front was measured): the job
@@ -334,8 +345,11 @@ def search_with_baselines(
         found.stopped = CANCELLED
     else:
         for entry in baselines.values():
-            if entry.get("unavailable") == "not scored: the search was cancelled":
-                entry["unavailable"] = "not scored: the time limit was reached"
+            if entry.get("unavailable") == STOPPED:
+                entry["unavailable"] = (
+                    f"not scored: the time limit ({deadline.time_limit_s:g} s) and its "
+                    f"grace ({deadline.grace_s:g} s) were spent"
+                )
     return SearchOutcome(found, baselines, scenario)
 
 

@@ -15,7 +15,10 @@ from ..physics.sequences import baseline_sequences
 from .records import evaluate_sequence
 from .scorer import ScorerSettings
 
-__all__ = ["compare_with_baselines"]
+__all__ = ["STOPPED", "compare_with_baselines"]
+
+#: Why a baseline was not scored once ``should_stop`` said so.
+STOPPED = "not scored: the search was cancelled"
 
 
 def compare_with_baselines(
@@ -34,9 +37,11 @@ def compare_with_baselines(
     paired.
 
     :param settings: the search's :class:`~inertia_id.search.ScorerSettings`.
-    :param should_stop: asked before each baseline; once True the rest are
-        ``unavailable`` ("not scored: the search was cancelled"). A cancelled search
-        scored every baseline on its fresh draws first, minutes on a large scenario.
+    :param should_stop: asked before each baseline and each prefix it clusters
+        (:func:`~inertia_id.search.records.evaluate_sequence`); once True the rest, and
+        the one under way, are ``unavailable`` ("not scored: the search was cancelled").
+        A cancelled search scored every baseline on its fresh draws first, minutes on a
+        large scenario.
     :returns: by baseline name: the sequence, the clustering F1 and mean final rate
         (rad/s) on each draw, and the fuel (commanded impulse, N m s); for a baseline the
         length or the thruster geometry does not allow, ``unavailable`` (why), as for an
@@ -49,9 +54,14 @@ def compare_with_baselines(
             out[name] = {"unavailable": sequence}
             continue
         if should_stop is not None and should_stop():
-            out[name] = {"unavailable": "not scored: the search was cancelled"}
+            out[name] = {"unavailable": STOPPED}
             continue
-        fresh = evaluate_sequence(scenario, sequence, settings, seed=seed, n_draws=n_draws)
+        fresh = evaluate_sequence(
+            scenario, sequence, settings, seed=seed, n_draws=n_draws, should_stop=should_stop
+        )
+        if len(fresh.f1) < n_draws:  # stopped under way: on the best's draws, or not at all
+            out[name] = {"unavailable": STOPPED}
+            continue
         out[name] = {
             "sequence": sequence.tolist(),
             "fresh_f1": list(fresh.f1),

@@ -177,6 +177,9 @@ class Front:
         when the accuracy is predicted, or when the measurement was stopped.
     :param stopped: ``should_stop`` ended the measurement or the confirmation (the front
         then says what it holds; a search reports why: "cancelled" or "time_limit").
+    :param not_rescored: the candidates left out once the re-score was stopped (a time
+        limit's grace spent), in the search's order: each ``sequence`` and its
+        ``search_scores`` (the search's draw only); the front is judged without them.
     """
 
     settings: OperatorSettings
@@ -188,6 +191,7 @@ class Front:
     test_series: int = 0
     confirmation: dict[str, Any] | None = None
     stopped: bool = False
+    not_rescored: list[dict[str, Any]] = field(default_factory=list)
 
     @property
     def dominated_by_baseline(self) -> bool:
@@ -206,6 +210,7 @@ class Front:
             "dominated_by_baseline": self.dominated_by_baseline,
             "confirmation": self.confirmation,
             "measurement_stopped": self.stopped,
+            "not_rescored": self.not_rescored,
         }
 
 
@@ -412,6 +417,7 @@ def build_front(
     test_series: int = 200,
     should_stop: Callable[[], bool] | None = None,
     progress: Callable[[float], None] | None = None,
+    rescore_stop: Callable[[], bool] | None = None,
 ) -> Front:
     """Re-score ``sequences`` on a fresh draw and keep the non-dominated (and, unless
     ``keep_infeasible``, feasible) ones; score the baselines on the same draw and flag
@@ -428,6 +434,10 @@ def build_front(
     :param should_stop: polled while the accuracy is measured; True keeps the predictions
         (the front then says its accuracy is predicted).
     :param progress: called while the accuracy is measured, with the fraction done.
+    :param rescore_stop: polled before every :data:`STOP_CHECK_SEQUENCES` sequences are
+        re-scored, after the first sequence and the baselines (always re-scored: a front
+        needs a member); True leaves the rest out of the front (``not_rescored``), so
+        put the sequences in the order they matter.
 
     When more than one sequence was measured and the front keeps a member, member 0 is
     measured again on :func:`confirmation_series` series from a seed independent of
@@ -452,13 +462,46 @@ def build_front(
     )
     baselines = scored_baselines(scenario, length, scorer)
     available = {name: scored for name, scored in baselines.items() if not isinstance(scored, str)}
+    # The per-flight figure from flights of their own: the scorer's 40 realisations bound
+    # it only through a model of the residual's distribution, which lopsided noise
+    # breaks; FRONT_FLIGHTS flights bound it without one (per_flight_bound).
+    figures = (
+        list(
+            scorer.per_flight_figures(
+                np.stack([sequence for sequence, _ in available.values()]),
+                FRONT_FLIGHTS,
+                seed=flights_seed(seed),
+            )
+        )
+        if available
+        else []
+    )
+    # The sequences a chunk at a time, the first alone: each scored and flown on the
+    # same draw whatever the cut, so a stop changes what is re-scored, not its scores.
+    predicted: list[SequenceScores] = []
+    flown: list[np.ndarray] = []
+    for first in (0, *range(1, len(rows), STOP_CHECK_SEQUENCES)):
+        if first and rescore_stop is not None and rescore_stop():
+            break
+        chunk = np.stack(rows[first : first + (STOP_CHECK_SEQUENCES if first else 1)])
+        predicted += scorer.score(chunk)
+        flown += list(scorer.per_flight_figures(chunk, FRONT_FLIGHTS, seed=flights_seed(seed)))
+    left_out = [
+        {
+            "sequence": rows[i].tolist(),
+            "search_scores": None if search_scores is None else search_scores[i].as_dict(),
+        }
+        for i in range(len(predicted), len(rows))
+    ]
+    rows = rows[: len(predicted)]
+    predicted += [score for _, score in available.values()]
+    figures = flown + figures
     # The members and the baselines measured on the same series, in one pass; then,
     # maybe, member 0 again (one row more).
     everything = [*rows, *(sequence for sequence, _ in available.values())]
     confirming = bool(test_series) and len(rows) > 1
     extra = confirmation_rows(test_series) if confirming else 0.0
     share = len(everything) / (len(everything) + extra)
-    predicted = scorer.score(np.stack(rows)) + [score for _, score in available.values()]
     measured = _measured(
         scorer,
         np.stack(everything),
@@ -472,12 +515,6 @@ def build_front(
     if stopped:
         test_series = 0  # stopped: the predictions stand, and the front says so
     scored = predicted if measured is None else measured
-    # The per-flight figure from flights of their own: the scorer's 40 realisations bound
-    # it only through a model of the residual's distribution, which lopsided noise
-    # breaks; FRONT_FLIGHTS flights bound it without one (per_flight_bound).
-    figures = scorer.per_flight_figures(
-        np.stack(everything), FRONT_FLIGHTS, seed=flights_seed(seed)
-    )
     scored = [
         replace(
             score,
@@ -516,6 +553,7 @@ def build_front(
         candidates=len(rows),
         test_series=int(test_series),
         stopped=stopped,
+        not_rescored=left_out,
     )
     for index, i in enumerate(chosen):
         front.members.append(
@@ -684,6 +722,7 @@ def _polish(
     rng: np.random.Generator,
     after_round: Callable[[], bool] | None = None,
     after_start: Callable[[], None] | None = None,
+    interrupted: Callable[[], bool] | None = None,
 ) -> bool:
     """Steepest-ascent local search (a memetic step after NSGA-II) from each start:
     each round scores ``batch`` neighbours and moves to the best if it ranks above the
@@ -692,7 +731,11 @@ def _polish(
 
     :param after_round: called after every round (to report progress); True ends the
         polish there, and the function returns False; ``after_start`` after each start's
-        climb."""
+        climb.
+    :param interrupted: polled between :data:`STOP_CHECK_SEQUENCES` sequences of a
+        round (a round of 64 at 200 realisations and L = 20 takes about 30 s); True
+        ends the polish there, what was scored kept in the archive, and the function
+        returns False."""
     n_levels = scorer.scenario.n_levels
     opposing = opposing_thrusters(scorer.scenario.torque_matrix)
     for start in starts:
@@ -703,8 +746,13 @@ def _polish(
             rows = rows[(rows != current).any(axis=(1, 2))]
             if not len(rows):
                 break
-            scores = scorer.score(rows)
-            archive.add(rows, scores)
+            scores: list[SequenceScores] = []
+            for first in range(0, len(rows), STOP_CHECK_SEQUENCES):
+                if scores and interrupted is not None and interrupted():
+                    return False
+                chunk = rows[first : first + STOP_CHECK_SEQUENCES]
+                scores += scorer.score(chunk)
+                archive.add(chunk, scores[first:])
             if after_round is not None and after_round():
                 return False
             keys = [_rank_key(score, constraints) for score in scores]
@@ -796,10 +844,13 @@ def pareto_search(
         the result, so no front is built (the best is the most accurate feasible
         sequence on the search's draw) and it is not re-scored.
     :param time_limit_s: the search's time budget in seconds (None: none), checked where
-        ``should_stop`` is: once spent the search stops, "time_limit"; the front is
-        re-scored on the fresh draw as usual but its accuracy stays predicted (the
-        measurement, minutes at 200 realisations and L = 20, is skipped, and the front
-        says so), and the best is re-scored on fresh draws.
+        ``should_stop`` is: once spent the search stops, "time_limit"; the front's
+        accuracy stays predicted (the measurement, minutes at 200 realisations and
+        L = 20, is skipped, and the front says so). The re-score on fresh draws goes on
+        only while the limit's grace lasts (:func:`~inertia_id.search.loop.
+        time_limit_grace_s`), in order of need: the front's candidates by accuracy on
+        the search's draw, 16 at a time after the first (those left out are listed in
+        ``not_rescored``), then the best's fresh draws (those completed kept).
     :param clock: monotonic seconds for ``time_limit_s``.
     :param seed: seeds the noise draw and NSGA-II: the same seed, the same front.
     """
@@ -892,6 +943,11 @@ def pareto_search(
                 halted.append(TIME_LIMIT)
         return bool(halted)
 
+    def rescore_stop() -> bool:
+        """Whether the re-score after the search must stop: a cancel, or the time
+        limit's grace spent (whatever stopped the search)."""
+        return (should_stop is not None and should_stop()) or deadline.grace_spent()
+
     def report(
         point: CurvePoint, *, new_point: bool = True, phase: str = "search", measured: float = 0.0
     ) -> bool:
@@ -957,6 +1013,7 @@ def pareto_search(
             rng=rng,
             after_round=lambda: report(curve[-1], new_point=False),
             after_start=bar.start_done,
+            interrupted=interrupted,
         ):
             stopped = halted[0]
     entries = list(archive.scores.values())
@@ -992,15 +1049,22 @@ def pareto_search(
             test_series=fresh_test_series,
             should_stop=interrupted,
             progress=measuring if curve else None,
+            rescore_stop=rescore_stop,
         )
         if front.stopped:
             # Told to stop while the front was measured (the reason, when it came
             # through ``interrupted``).
             stopped = halted[0] if halted else CANCELLED
         if not front.members:
+            cut = (
+                f" (the {front.candidates} re-scored before the time limit's grace of "
+                f"{deadline.grace_s:g} s was spent)"
+                if front.not_rescored
+                else ""
+            )
             raise InputError(
                 f"no sequence of the front met the constraints {constraints} on the fresh "
-                "draw; loosen them or search longer"
+                f"draw{cut}; loosen them or search longer"
             )
         best_sequence = np.asarray(front.members[0]["sequence"])
     seen = archive.scores[best_sequence.tobytes()][1]
@@ -1020,6 +1084,7 @@ def pareto_search(
         clustering,
         seed=fresh_seed(seed),
         n_draws=0 if stopped == CANCELLED else n_fresh_draws,
+        should_stop=rescore_stop,
     )
     return SearchResult(
         method="nsga2",
@@ -1039,6 +1104,7 @@ def pareto_search(
             "fresh_realisations": fresh_realisations,
             "fresh_test_series": int(fresh_test_series),
             "time_limit_s": deadline.time_limit_s,
+            "time_limit_grace_s": deadline.grace_s,
             "scorer": clustering.as_dict(),
         },
         front=None if front is None else front.to_dict(),

@@ -31,8 +31,9 @@ def test_a_cancelled_search_scores_no_further_baseline(paper: Scenario) -> None:
     asked: list[int] = []
 
     def stop_after_first() -> bool:
+        # Asked before each baseline and before each of its 4 prefixes is clustered.
         asked.append(1)
-        return len(asked) > 1
+        return len(asked) > 5
 
     compared = compare_with_baselines(
         paper, 4, settings, seed=11, n_draws=1, should_stop=stop_after_first
@@ -42,3 +43,18 @@ def test_a_cancelled_search_scores_no_further_baseline(paper: Scenario) -> None:
     assert [compared[n] for n in ("axis-in-turn", "fire-then-brake", "fire-coast-brake")] == [
         cancelled
     ] * 3
+
+
+def test_a_stop_heard_within_a_baseline_leaves_it_unscored(paper: Scenario) -> None:
+    """Stopped between two prefixes: the baseline is on the best's draws, or not at all."""
+    settings = ScorerSettings(n_realisations=8, metric="euclidean")
+    asked: list[int] = []
+
+    def stop_within_the_first() -> bool:
+        asked.append(1)
+        return len(asked) > 3
+
+    compared = compare_with_baselines(
+        paper, 4, settings, seed=11, n_draws=1, should_stop=stop_within_the_first
+    )
+    assert compared["hand-designed"] == {"unavailable": "not scored: the search was cancelled"}

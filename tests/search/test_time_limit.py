@@ -11,6 +11,7 @@ from typing import Any
 import pytest
 
 from inertia_id import InputError, Scenario
+from inertia_id.physics.simulate import Simulator
 from inertia_id.pipelines import SearchRequest, search_with_baselines
 from inertia_id.search import (
     OperatorSettings,
@@ -21,7 +22,7 @@ from inertia_id.search import (
     ppo_search,
     random_search,
 )
-from inertia_id.search.loop import Deadline, check_time_limit
+from inertia_id.search.loop import Deadline, check_time_limit, time_limit_grace_s
 
 SETTINGS = ScorerSettings(n_realisations=4)
 
@@ -163,7 +164,7 @@ def test_a_cancelled_search_skips_its_front_and_baselines(
     assert outcome.to_dict()["best"]["sequence"] == result.best.sequence
 
 
-def test_a_search_past_its_time_limit_keeps_the_best_rescore_only(paper: Scenario) -> None:
+def test_a_search_past_its_time_limit_rescores_while_its_grace_lasts(paper: Scenario) -> None:
     request = SearchRequest(
         method="random",
         sequence_length=3,
@@ -172,10 +173,135 @@ def test_a_search_past_its_time_limit_keeps_the_best_rescore_only(paper: Scenari
         fresh_test_series=20,
         time_limit_s=3,
     )
+    # One second a reading: the limit is spent at 3 s, its grace (10 s) at 13 s.
     outcome = search_with_baselines(paper, request, seed=0, clock=ticking())
     result = outcome.result
-    assert result.stopped == "time_limit" and len(result.fresh.f1) == 5
+    assert result.stopped == "time_limit" and result.settings["time_limit_grace_s"] == 10.0
+    # A draw clusters 3 prefixes, a reading before each: 3 of the 5 draws fit.
+    assert (len(result.fresh.f1), result.fresh.draws_asked) == (3, 5)
+    assert "3 fresh draws of 5 asked, the re-score stopped (time_limit)" in result.summary()
+    # The front of the best alone, always; its accuracy measurement skipped.
     assert result.front is not None and result.front["accuracy_source"] == "predicted"
     assert [m["sequence"] for m in result.front["members"]] == [result.best.sequence]
-    assert {"unavailable": "not scored: the time limit was reached"} in outcome.baselines.values()
+    spent = "not scored: the time limit (3 s) and its grace (10 s) were spent"
+    assert {"unavailable": spent} in outcome.baselines.values()
     assert not [entry for entry in outcome.baselines.values() if "fresh_f1" in entry]
+
+
+class WorkClock:
+    """A monotonic clock that moves only with the work: ``step_s`` seconds per simulated
+    step of a batch (every :meth:`Simulator.advance`, the search's and the re-score's
+    alike), so how far past its limit a search ends counts the work it did after it."""
+
+    def __init__(self, monkeypatch: pytest.MonkeyPatch, step_s: float = 1.0) -> None:
+        self.now = 0.0
+        advance = Simulator.advance
+
+        def timed(simulator: Simulator, *args: Any, **kwargs: Any) -> Any:
+            self.now += step_s
+            return advance(simulator, *args, **kwargs)
+
+        monkeypatch.setattr(Simulator, "advance", timed)
+
+    def __call__(self) -> float:
+        return self.now
+
+
+#: What may run past a limit and its grace, in simulated steps at L = 2 (WorkClock): the
+#: sequence under way when the limit was read (NSGA-II: 16 sequences, 4 steps), the
+#: front's first member and its baselines (always re-scored: NSGA-II, 12 steps), then
+#: the piece under way when the grace ran out (a prefix, 2 steps; 16 front members, 6).
+PAST_THE_GRACE_S = 24.0
+
+METHODS: dict[str, Callable[..., Any]] = {
+    "exhaustive": lambda scenario, **options: exhaustive_search(scenario, **options),
+    "random": lambda scenario, **options: random_search(
+        scenario, total_timesteps=10_000, **options
+    ),
+    "cem": lambda scenario, **options: cem_search(
+        scenario, total_timesteps=10_000, population=8, patience_episodes=None, **options
+    ),
+    "ppo": lambda scenario, **options: ppo_search(
+        scenario,
+        total_timesteps=10_000,
+        ppo_params={"n_steps": 32, "batch_size": 16, "n_epochs": 1},
+        patience_episodes=None,
+        **options,
+    ),
+    "nsga2": lambda scenario, settings, **options: pareto_search(
+        scenario,
+        operator=OperatorSettings(n_realisations=4),
+        nsga2_params={"population": 40, "generations": 100, "polish_iterations": 0},
+        fresh_realisations=6,
+        fresh_test_series=20,
+        **options,
+    ),
+}
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_a_search_ends_within_its_time_limit_and_grace(
+    method: str, paper: Scenario, tiny: Scenario, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    clock = WorkClock(monkeypatch)
+    # 20 fresh draws of 2 prefixes, 2 simulated steps each (the draw's and the plan's):
+    # 80 s of re-score, far more than the grace (10 s).
+    result = METHODS[method](
+        tiny if method == "exhaustive" else paper, sequence_length=2, settings=SETTINGS,
+        n_fresh_draws=20, seed=0, time_limit_s=30, clock=clock,
+    )  # fmt: skip
+    assert result.stopped == "time_limit"
+    assert result.settings["time_limit_grace_s"] == 10.0
+    assert clock() <= 30 + 10 + PAST_THE_GRACE_S
+    # The result says what the grace did not reach.
+    draws = len(result.fresh.f1)
+    assert result.fresh.draws_asked == 20 and draws < 20
+    summary = result.summary()
+    if draws:
+        assert f"{draws} fresh draws of 20 asked, the re-score stopped (time_limit)" in summary
+    else:
+        assert "not re-scored on fresh draws (time_limit)" in summary
+
+
+def test_nsga2_past_its_grace_lists_the_front_candidates_not_rescored(
+    paper: Scenario, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    clock = WorkClock(monkeypatch)
+    result = METHODS["nsga2"](
+        paper, settings=SETTINGS, sequence_length=2, seed=0, time_limit_s=30, clock=clock
+    )
+    front = result.front
+    assert result.stopped == "time_limit" and front is not None
+    left_out = front["not_rescored"]
+    # The most accurate on the search's draw first: member 0 always re-scored, more
+    # 16 at a time while the grace lasted, the rest listed with the search's scores only.
+    assert front["candidates_rescored"] >= 1 and left_out
+    assert all(entry["search_scores"]["accuracy"] is not None for entry in left_out)
+    members = {str(m["sequence"]) for m in front["members"]}
+    assert not members & {str(entry["sequence"]) for entry in left_out}
+    assert front["accuracy_source"] == "predicted" and front["measurement_stopped"]
+    # The best is member 0; its clustering F1 draws came after the front, past the grace.
+    assert result.best.sequence == front["members"][0]["sequence"]
+    assert result.fresh.f1 == [] and result.fresh.draws_asked == 5
+    assert "not re-scored on fresh draws (time_limit)" in result.summary()
+
+
+def test_without_a_time_limit_nothing_is_cut(tiny: Scenario) -> None:
+    result = random_search(
+        tiny, sequence_length=2, total_timesteps=40, settings=SETTINGS, n_fresh_draws=3,
+    )  # fmt: skip
+    assert result.settings["time_limit_grace_s"] is None
+    assert (len(result.fresh.f1), result.fresh.draws_asked) == (3, 3)
+    assert "asked" not in result.summary()
+
+
+def test_the_grace_is_a_tenth_of_the_limit_and_at_least_ten_seconds() -> None:
+    assert time_limit_grace_s(None) is None
+    assert time_limit_grace_s(60) == 10.0
+    assert time_limit_grace_s(3600) == 360.0
+    now = [0.0]
+    deadline = Deadline(200, lambda: now[0])
+    now[0] = 219.9
+    assert deadline.expired() and not deadline.grace_spent()
+    now[0] = 220.0
+    assert deadline.grace_spent()

@@ -161,6 +161,8 @@ def test_a_small_search_finds_the_same_sequence(store: Store, tmp_path: Path) ->
     # A job runs under the service's ceiling on run time; the command line has none.
     assert found["settings"].pop("time_limit_s") == store.settings.job_time_limit_s
     assert cli["settings"].pop("time_limit_s") is None
+    assert found["settings"].pop("time_limit_grace_s") == 0.1 * store.settings.job_time_limit_s
+    assert cli["settings"].pop("time_limit_grace_s") is None
     assert found == cli
     from inertia_id.physics.sequences import BASELINES
 
