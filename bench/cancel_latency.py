@@ -9,7 +9,8 @@ worker) and, for each ``--methods`` on the paper preset at ``--realisations`` an
   the worker still did after it heard the cancel: re-scores, the front, baselines);
 - **time limit** (with ``--time-limit``): submits the same search with
   ``time_limit_s`` and reports its run time (``run_time_s``), its status and
-  ``result.stopped``: how far past the limit the job ends (the honest re-score).
+  ``result.stopped``: how far past the limit the job ends (the re-score in the limit's
+  grace), and what that re-score reached (fresh draws, front candidates, baselines).
 
     python bench/cancel_latency.py [--methods nsga2,ppo] [--realisations 200]
         [--length 20] [--run-for 20] [--time-limit 30] [--port 18290]
@@ -96,6 +97,19 @@ def _params(method: str, args: argparse.Namespace) -> dict[str, Any]:
     return params
 
 
+def _rescored(result: dict[str, Any]) -> str:
+    """What the re-score after the limit reached in its grace."""
+    fresh, front = result.get("fresh") or {}, result.get("front") or {}
+    baselines = result.get("baselines") or {}
+    scored = sum("fresh_f1" in entry for entry in baselines.values())
+    return (
+        f"grace {(result.get('settings') or {}).get('time_limit_grace_s')} s: fresh draws "
+        f"{len(fresh.get('f1') or [])}/{fresh.get('draws_asked')}, front candidates "
+        f"re-scored {front.get('candidates_rescored')}, not {len(front.get('not_rescored') or [])}"
+        f", baselines scored {scored}/{len(baselines)}"
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--methods", default="nsga2,ppo")
@@ -134,12 +148,13 @@ def main() -> None:
                         client, scenario, {**params, "time_limit_s": args.time_limit}, seed
                     )
                     job = _wait(client, limited, lambda job: job["status"] in TERMINAL)
-                    stopped = (job.get("result") or {}).get("stopped")
+                    result = job.get("result") or {}
                     print(
                         f"{method:6s} L={args.length} realisations={args.realisations}: "
                         f"time_limit_s {args.time_limit:g} -> {job['status']} "
-                        f"(stopped={stopped}) run {job['run_time_s']:.1f} s "
-                        f"({job['run_time_s'] - args.time_limit:+.1f} s past the limit)",
+                        f"(stopped={result.get('stopped')}) run {job['run_time_s']:.1f} s "
+                        f"({job['run_time_s'] - args.time_limit:+.1f} s past the limit; "
+                        f"{_rescored(result)})",
                         flush=True,
                     )
         finally:

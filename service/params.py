@@ -66,7 +66,8 @@ def _time_limit_field() -> Any:
         gt=0,
         description="wall-clock limit of the job in seconds, at most the service's "
         "INERTIA_ID_JOB_TIME_LIMIT_S (the ceiling every job has); none: the ceiling. A search "
-        "past it stops with its best so far re-scored (stopped: time_limit); a sweep keeps "
+        "past it stops with its best so far (stopped: time_limit), re-scored only in a grace "
+        "of 10 % of the limit, at least 10 s (settings.time_limit_grace_s); a sweep keeps "
         "the points done",
         examples=[3600],
     )

@@ -193,7 +193,8 @@ def search_options(func: F) -> F:
             "--time-limit time_limit_s",
             "time_limit_s",
             "Stop the search after this many seconds (wall clock) with the best found so "
-            "far, re-scored as usual (stopped: time_limit); none by default.",
+            "far (stopped: time_limit), re-scored only in a grace of 10 % of the limit, at "
+            "least 10 s; none by default.",
             type=float,
             metavar="SECONDS",
             callback=_time_limit,

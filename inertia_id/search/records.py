@@ -321,7 +321,8 @@ class SearchResult:
     :param wall_time_s: wall-clock time of the search, s.
     :param stopped: "budget", "target" (F1 = 1 and no improvement for the patience),
         "cancelled" (``fresh`` then holds no draw), "time_limit" (the search's time
-        budget was spent: the best so far, re-scored), "exhausted" (every sequence
+        budget was spent: the best so far, re-scored while the limit's grace lasted,
+        ``fresh.draws_asked`` saying what it did not reach), "exhausted" (every sequence
         tried) or "converged" (CEM's sampling distribution collapsed onto one sequence).
     :param space_size: number of distinct sequences, (M^N)^L.
     :param settings: the search's parameters, as given.
