@@ -53,6 +53,7 @@ __all__ = [
     "MetricSeries",
     "MetricsOut",
     "PartialIdentifyResult",
+    "TelemetryGapResult",
     "ScenarioCreate",
     "ScenarioOut",
     "ScenarioPage",
@@ -503,6 +504,12 @@ class IdentifyRequest(_Request):
     )
 
 
+class TelemetryGapResult(BaseModel):
+    from_s: float = Field(description="the last sample before the gap, s from the start")
+    to_s: float = Field(description="the first sample after it, s from the start")
+    length_s: float = Field(description="its length, s")
+
+
 class IdentifyResult(BaseModel):
     classifier_id: str
     candidate_index: int
@@ -588,6 +595,17 @@ class IdentifyResult(BaseModel):
     telemetry_samples: int = Field(default=0, description="samples in the telemetry")
     telemetry_span_s: list[float] | None = Field(
         default=None, description="first and last sample, s from the start used"
+    )
+    telemetry_gaps: list[TelemetryGapResult] = Field(
+        default_factory=list,
+        description="gaps between samples inside the sequence that the verdict judged "
+        "across (longer than 4 periods; the likelihood kinds only, on the grid times the "
+        "samples cover), in s from the start used",
+    )
+    sequence_covered_fraction: float = Field(
+        default=1.0,
+        description="the part of the sequence's grid times outside those gaps (at least "
+        "0.5, else the telemetry is refused)",
     )
     start_hint: str | None = Field(
         default=None,

@@ -702,8 +702,9 @@ _IDENTIFY_UNITS = (
     "(the posteriors and p_none sum to 1); distance, threshold and margin are the "
     "classifier's own distance to a candidate (compare them with each other, not across "
     "kinds); rates in rad/s, inertia in kg m^2; sequence_start and the stamps in the "
-    "telemetry's clock (seconds) or ISO-8601 UTC, shifts and telemetry_span_s in s from "
-    "the start used"
+    "telemetry's clock (seconds) or ISO-8601 UTC, shifts, telemetry_span_s and the "
+    "telemetry_gaps (from_s, to_s, length_s) in s from the start used; "
+    "sequence_covered_fraction the part of the sequence's grid times outside those gaps"
 )
 
 
@@ -740,7 +741,10 @@ def identify_table(verdict: Mapping[str, Any]) -> Table:
         ("telemetry_last_stamp", verdict.get("telemetry_last_stamp")),
         ("telemetry_samples", verdict.get("telemetry_samples")),
         ("telemetry_span_s", verdict.get("telemetry_span_s")),
+        ("sequence_covered_fraction", verdict.get("sequence_covered_fraction")),
     ]
+    if verdict.get("telemetry_gaps"):
+        notes.append(("telemetry_gaps", verdict.get("telemetry_gaps")))
     if verdict.get("estimate_start_within_s") is not None:
         notes += [
             ("estimate_start_within_s", verdict.get("estimate_start_within_s")),

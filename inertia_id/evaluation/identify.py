@@ -7,7 +7,10 @@ classifier's sample grid (averaged when faster, interpolated when slower:
 :func:`~inertia_id.evaluation.telemetry.resample`) and compared with every candidate;
 telemetry slower than the grid is compared at its samples' nearest grid points
 only by the likelihood kinds (the exact Gaussian marginal of those values:
-:func:`~inertia_id.evaluation.telemetry.resample_observed`).
+:func:`~inertia_id.evaluation.telemetry.resample_observed`). The same kinds judge
+telemetry with a dropout (a gap between samples longer than the interpolation allows)
+on the grid times its samples cover, the gaps reported in the verdict; the others
+refuse it (:func:`~inertia_id.evaluation.telemetry.resample_covered`).
 
 The verdict is a posterior: a probability for each candidate and one for "none of
 these" (:meth:`~inertia_id.classifiers.base.BaseClassifier.posterior_from_distances`),
@@ -40,7 +43,13 @@ from ..classifiers.gaussian import log_softmax
 from ..errors import InputError
 from ..physics.estimate import PARAMETER_NAMES, estimate_inertia, tensor_from_parameters
 from ..physics.scenario import Scenario
-from .telemetry import Telemetry, estimate_sequence_start, resample_observed
+from .telemetry import (
+    Telemetry,
+    TelemetryGap,
+    estimate_sequence_start,
+    resample_covered,
+    resample_observed,
+)
 
 if TYPE_CHECKING:
     from ..classifiers.registry import CandidateClassifier
@@ -140,6 +149,10 @@ class Identification(BaseModel):
     telemetry_last_stamp: float | str | None = None
     telemetry_samples: int = 0
     telemetry_span_s: list[float] | None = None
+    # Gaps between samples judged across (a likelihood kind's marginal on the grid times
+    # covered), and the part of the sequence's grid times outside them.
+    telemetry_gaps: list[TelemetryGap] = []
+    sequence_covered_fraction: float = 1.0
     start_hint: str | None = None
     start_hint_shift_s: float | None = None
     start_hint_candidate: str | None = None
@@ -333,15 +346,20 @@ def _context(
     return telemetry, scenario, sequence, scenario.sample_times(len(sequence))
 
 
-def _estimate(scenario: Scenario, sequence: np.ndarray, series: np.ndarray) -> dict[str, Any]:
-    """The least-squares tensor, shown only when physically valid and well excited.
+def _estimate(
+    scenario: Scenario, sequence: np.ndarray, series: np.ndarray, covered: np.ndarray | None = None
+) -> dict[str, Any]:
+    """The least-squares tensor, shown only when physically valid and well excited; with
+    ``covered``, from the windows that end at grid times outside the gaps judged across.
 
     Valid: finite, positive definite, principal moments satisfying the triangle
     inequality. Well excited: every parameter's standard error within 2 % of the mean
     principal moment. Otherwise the tensor is withheld (None) and the reason given,
     with the parameters this sequence cannot see.
     """
-    estimate = estimate_inertia(scenario, sequence, series)
+    estimate = estimate_inertia(
+        scenario, sequence, series, covered=None if covered is None or covered.all() else covered
+    )
     tensor = np.asarray(tensor_from_parameters(estimate.parameters_kg_m2))
     std = np.asarray(estimate.parameter_std_kg_m2)
     condition = float(estimate.condition_number)
@@ -471,14 +489,25 @@ def _best_start(
     assert scenario is not None  # _context checked it
     model, offset = _offset_model(classifier, scenario, telemetry, pre_start_window_s)
     less = 0.0 if offset is None else offset.offset_rad_s
+    marginalise = _judges_gaps(classifier)
+
+    def score(series: np.ndarray, covered: np.ndarray | None = None) -> float:
+        relative = (series - less)[None]
+        if covered is None or covered.all():
+            return float(model.transform(relative)[0].min())
+        # Across a gap judged on the samples present: the grid times it covers only.
+        return float(model.transform_observed(relative, covered)[0].min())
+
     shift, _ = estimate_sequence_start(
-        telemetry,
-        grid,
-        lambda series: float(model.transform((series - less)[None])[0].min()),
-        window_s=window_s,
-        tried=tried,
+        telemetry, grid, score, window_s=window_s, tried=tried, marginalise_gaps=marginalise
     )
     return shift
+
+
+def _judges_gaps(classifier: CandidateClassifier) -> bool:
+    """Whether the kind judges a series on its measured grid times only (the likelihood
+    kinds' exact Gaussian marginal), and so across a gap between samples."""
+    return bool(getattr(classifier, "supports_observed", lambda: False)())
 
 
 def identify(
@@ -575,8 +604,12 @@ def _identify(
 ) -> Identification:
     """The verdict from the telemetry's own sequence start."""
     _, scenario, sequence, grid = _context(classifier, telemetry)
-    # Slow telemetry on the grid: the likelihood kinds use the measured points only.
-    series, observed = resample_observed(telemetry, grid)
+    # Slow telemetry on the grid, or telemetry with a dropout: the likelihood kinds use
+    # the measured points only; the others refuse a gap they would read as measured.
+    resampled = resample_covered(
+        telemetry, grid, marginalise_gaps=_judges_gaps(classifier), kind=classifier.kind
+    )
+    series, observed = resampled.series, resampled.observed
     model, offset = _offset_model(classifier, scenario, telemetry, pre_start_window_s)
     relative = series if offset is None else series - offset.offset_rad_s
     verdict_arrays = verdicts(model, relative[None], observed, confidence=confidence)
@@ -648,7 +681,9 @@ def _identify(
         initial_offset_rad_s=None if offset is None else offset.offset_rad_s.tolist(),
         initial_offset_std_rad_s=None if offset is None else offset.std_rad_s,
         pre_start_samples=0 if offset is None else offset.samples,
-        **_estimate(scenario, sequence, series),
+        telemetry_gaps=resampled.gaps,
+        sequence_covered_fraction=resampled.covered_fraction,
+        **_estimate(scenario, sequence, series, resampled.covered),
         **telemetry.inputs(),
     )
 
@@ -709,7 +744,9 @@ def identify_online(
             f"telemetry ends at {telemetry.time_array[-1]:.6g} s, before the first sample of "
             f"the sequence at {grid[0]:.6g} s"
         )
-    partial, measured = resample_observed(telemetry, grid[:covered])
+    partial, measured = resample_observed(
+        telemetry, grid[:covered], marginalise_gaps=_judges_gaps(classifier), kind=classifier.kind
+    )
     # The rest of the series is never looked at (each prefix's posterior is its own
     # leading block's), so any finite filler serves to make it whole.
     model, offset = _offset_model(classifier, scenario, telemetry, pre_start_window_s)

@@ -234,6 +234,7 @@ def estimate_inertia(
     window_s: float | None = None,
     lowpass: bool = True,
     start_at_rest: bool | None = None,
+    covered: Any = None,
 ) -> InertiaEstimate:
     """Least-squares inertia tensor from gyro rates and the commanded torque.
 
@@ -258,6 +259,11 @@ def estimate_inertia(
         as an exact sample; None takes it from the scenario (its initial-rate spread is
         0). Otherwise the grid starts at the first measured sample, whose gyro noise
         then enters every cumulative window. A constant gyro bias is not modelled.
+    :param covered: (T,) booleans, the grid times the telemetry measured (False inside
+        a dropout, where ``omega`` is interpolated across it): only the windows that
+        start and end at measured times give equations. The gyroscopic term's integral
+        still runs through the interpolated rates (second order in the rate). None:
+        every time.
     """
     sequence = scenario.check_sequence(sequence)
     timing = scenario.timing
@@ -278,6 +284,17 @@ def estimate_inertia(
     else:
         times = times[1:]
     starts, ends = _windows(len(times), timing.sample_rate_hz, window_s)
+    if covered is not None:
+        measured = np.asarray(covered, dtype=bool).reshape(-1)
+        if measured.shape != (n_samples,):
+            raise InputError(
+                f"covered must hold {n_samples} booleans (one per grid time), got "
+                f"{measured.shape[0]}"
+            )
+        if start_at_rest:
+            measured = np.concatenate([[True], measured])  # the known rest at t = 0
+        use = measured[starts] & measured[ends]
+        starts, ends = starts[use], ends[use]
     if 3 * len(starts) < len(PARAMETER_NAMES):
         raise InputError(f"{len(starts)} windows give fewer equations than the 6 parameters")
 

@@ -670,3 +670,43 @@ def test_telemetry_a_client_got_wrong_is_a_422_naming_it(
     assert fragment in refused.json()["detail"][0]["msg"], refused.text
     if case == "a rate given as true":
         assert refused.json()["detail"][0]["loc"][-3:] == ["omega_rad_s", 3, 1], refused.text
+
+
+def test_a_pass_with_a_dropout_is_judged_and_its_gap_reported(
+    api: Api, classifier_id: str, flight: SimulationResult, paper: Scenario
+) -> None:
+    """A 10 Hz pass that lost 0.5 s (more than 4 periods): the default kind judges it on
+    the samples present and says so in JSON and CSV; a whole-series kind refuses it with
+    a 422 that names the gap and the kind that can judge it."""
+    import json as jsonlib
+
+    from inertia_id.classifiers.marginal import AXES_GRID, train_marginal
+
+    model = train_marginal(paper, GOOD_SEQUENCE, 10, np.random.default_rng(4), grid=AXES_GRID)
+    found = api.insert_classifier(api.create_scenario()["id"], model)
+    t = flight.time_s[1::2]
+    keep = (t <= 1.5 + 1e-9) | (t >= 2.0 - 1e-9)
+    series = {
+        "time_s": t[keep].tolist(),
+        "omega_rad_s": flight.omega_measured[2, 0][1::2][keep].tolist(),
+    }
+    body = {"classifier_id": found, "telemetry": series}
+    response = api.post("/identify", json=body)
+    assert response.status_code == 200, response.text
+    verdict = response.json()
+    assert verdict["candidate"] == paper.candidate_names[2]
+    assert verdict["telemetry_gaps"] == [
+        {"from_s": pytest.approx(1.5), "to_s": pytest.approx(2.0), "length_s": pytest.approx(0.5)}
+    ]
+    assert verdict["sequence_covered_fraction"] == pytest.approx(71 / 80)
+    table = api.post("/identify?format=csv", json=body)
+    assert table.status_code == 200, table.text
+    notes = dict(
+        line[2:].split(": ", 1) for line in table.text.splitlines() if line.startswith("# ")
+    )
+    assert float(notes["sequence_covered_fraction"]) == pytest.approx(71 / 80)
+    assert jsonlib.loads(notes["telemetry_gaps"]) == verdict["telemetry_gaps"]
+    refused = api.post("/identify", json={**body, "classifier_id": classifier_id})
+    assert refused.status_code == 422, refused.text
+    assert "no sample from 1.5 s to 2 s" in refused.text
+    assert "a likelihood kind (marginal-likelihood, the default, or likelihood)" in refused.text

@@ -612,3 +612,30 @@ def test_the_help_benchmark_times_every_command(monkeypatch: pytest.MonkeyPatch)
     monkeypatch.syspath_prepend(str(Path(__file__).parents[2] / "bench"))
     monkeypatch.delitem(sys.modules, "cli_help", raising=False)
     assert set(importlib.import_module("cli_help").COMMANDS) == set(COMMANDS)
+
+
+def test_identify_judges_a_dropout_with_the_default_kind_and_reports_it(
+    runner: CliRunner, tmp_path: Path, small_classifier: Path
+) -> None:
+    """A 10 Hz pass that lost 0.5 s: the default kind's verdict lists the gap and the part
+    covered; the Euclidean clustering refuses it naming the gap and the kind that can."""
+    default = tmp_path / "default.json"
+    run_cli(["train", "-n", "10", "--out", str(default)])
+    telemetry = tmp_path / "t.csv"
+    _simulate_telemetry(telemetry, "2", "--sample-rate", "10")
+    header, *rows = telemetry.read_text().splitlines()
+    kept = [row for row in rows if not 1.5 + 1e-9 < float(row.split(",")[0]) < 2.0 - 1e-9]
+    assert len(rows) - len(kept) == 4
+    telemetry.write_text("\n".join([header, *kept]) + "\n")
+    verdict = json.loads(run_cli(["identify", "--classifier", str(default), str(telemetry)]).stdout)
+    assert verdict["candidate"] == "payload 2 ejected"
+    assert verdict["telemetry_gaps"] == [
+        {"from_s": pytest.approx(1.5), "to_s": pytest.approx(2.0), "length_s": pytest.approx(0.5)}
+    ]
+    assert verdict["sequence_covered_fraction"] == pytest.approx(71 / 80)
+    refused = runner.invoke(
+        main, ["identify", "--classifier", str(small_classifier), str(telemetry)]
+    )
+    assert refused.exit_code == 1
+    assert "no sample from 1.5 s to 2 s" in refused.output
+    assert "the 'clustering' classifier compares whole series" in refused.output

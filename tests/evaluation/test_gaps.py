@@ -1,0 +1,179 @@
+"""Telemetry with a dropout: the default kind judges it on the samples present (the exact
+Gaussian marginal of the grid times they cover), reports the gaps, and refuses too
+little; a kind that compares whole series refuses the gap by name."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+from scenario_support import GOOD_SEQUENCE
+
+from inertia_id import InertiaClassifier, Scenario, simulate
+from inertia_id.classifiers.marginal import MarginalLikelihoodClassifier
+from inertia_id.evaluation.identify import identify, identify_online
+from inertia_id.evaluation.telemetry import Telemetry, resample_covered
+
+
+@pytest.fixture(scope="module")
+def passes(drifting_paper: Scenario) -> Any:
+    """Four fresh series per candidate at the scenario's 20 Hz (every 2nd sample: 10 Hz)."""
+    return simulate(drifting_paper, GOOD_SEQUENCE, 4, np.random.default_rng(41))
+
+
+def _with_hole(passes: Any, k: int, i: int, hole: tuple[float, float] | None, every: int = 2):
+    """10 Hz telemetry of series (k, i) with every sample strictly inside ``hole`` lost."""
+    t = np.asarray(passes.time_s)[every - 1 :: every]
+    w = passes.omega_measured[k, i][every - 1 :: every]
+    keep = np.ones(len(t), dtype=bool)
+    if hole is not None:
+        keep = ~((t > hole[0] + 1e-9) & (t < hole[1] - 1e-9))
+    return Telemetry(time_s=t[keep].tolist(), omega_rad_s=w[keep].tolist())
+
+
+@pytest.mark.parametrize(("hole", "covered"), [((1.5, 2.0), 71 / 80), ((1.0, 3.0), 41 / 80)])
+def test_a_pass_with_a_hole_is_identified_and_the_gap_reported(
+    marginal: MarginalLikelihoodClassifier,
+    passes: Any,
+    hole: tuple[float, float],
+    covered: float,
+) -> None:
+    """A 10 Hz pass that lost 0.5 s (or 2 s of the 4 s sequence) was refused (gap over
+    4 periods, 0.4 s); it is judged on the samples it has, the gap in the verdict."""
+    for k in range(marginal.n_candidates_):
+        verdict = identify(marginal, _with_hole(passes, k, k % 4, hole))
+        assert verdict.candidate_index == k, verdict.verdict
+        assert verdict.status == "identified", verdict.verdict
+        assert [(g.from_s, g.to_s) for g in verdict.telemetry_gaps] == [pytest.approx(hole)]
+        assert verdict.telemetry_gaps[0].length_s == pytest.approx(hole[1] - hole[0])
+        assert verdict.sequence_covered_fraction == pytest.approx(covered)
+    dumped = verdict.model_dump(mode="json")
+    assert dumped["telemetry_gaps"] == [
+        {
+            "from_s": pytest.approx(hole[0]),
+            "to_s": pytest.approx(hole[1]),
+            "length_s": pytest.approx(hole[1] - hole[0]),
+        }
+    ]
+    # Without a hole: no gap, the whole sequence covered.
+    whole = identify(marginal, _with_hole(passes, 0, 0, None))
+    assert whole.telemetry_gaps == [] and whole.sequence_covered_fraction == 1.0
+
+
+def test_the_grid_times_in_a_gap_are_left_out(passes: Any) -> None:
+    """At 20 Hz a grid time is covered when a sample lies within half a grid period: the
+    ones strictly between the gap's two samples are out of the likelihood."""
+    grid = np.asarray(passes.time_s)
+    telemetry = _with_hole(passes, 0, 0, (1.5, 2.0), every=1)
+    resampled = resample_covered(telemetry, grid, marginalise_gaps=True)
+    out = np.flatnonzero(~resampled.observed)
+    np.testing.assert_allclose(grid[out], np.arange(1.55, 1.96, 0.05))
+    np.testing.assert_array_equal(resampled.observed, resampled.covered)
+    assert resampled.covered_fraction == pytest.approx(71 / 80)
+    # 10 Hz: each sample's nearest grid time, none inside the gap.
+    slow = resample_covered(_with_hole(passes, 0, 0, (1.5, 2.0)), grid, marginalise_gaps=True)
+    np.testing.assert_allclose(
+        grid[slow.observed], [*np.arange(0.1, 1.51, 0.1), *np.arange(2.0, 4.01, 0.1)]
+    )
+
+
+def test_too_little_covered_is_refused_naming_the_gaps(
+    marginal: MarginalLikelihoodClassifier, passes: Any
+) -> None:
+    with pytest.raises(
+        ValueError,
+        match=r"too thin for a verdict: its samples cover 31 of the sequence's 80 grid times "
+        r"\(38\.8 %\), at least 50% needed .*no sample from 0\.8 s to 3\.3 s \(2\.5 s\)",
+    ):
+        identify(marginal, _with_hole(passes, 0, 0, (0.8, 3.3)))
+    # The ends keep their rule: a pass that starts late is not a gap to judge across.
+    with pytest.raises(ValueError, match=r"no sample from 0 s to 0\.9 s .* after the sequence"):
+        identify(marginal, _with_hole(passes, 0, 0, (0.0, 0.9)))
+
+
+def test_a_whole_series_kind_refuses_the_gap_and_names_the_kind_that_judges_it(
+    euclidean_classifier: InertiaClassifier, paper: Scenario
+) -> None:
+    result = simulate(paper, GOOD_SEQUENCE, 1, np.random.default_rng(43))
+    t, w = result.time_s, result.omega_measured[0, 0]
+    keep = (t <= 1.5) | (t >= 2.0)
+    with pytest.raises(
+        ValueError,
+        match=r"no sample from 1\.5 s to 2 s .* a gap of 0\.5 s between samples; at most 0\.2 s "
+        r".*the 'clustering' classifier compares whole series and cannot judge across it; a "
+        r"likelihood kind \(marginal-likelihood, the default, or likelihood\) judges it",
+    ):
+        identify(
+            euclidean_classifier, Telemetry(time_s=t[keep].tolist(), omega_rad_s=w[keep].tolist())
+        )
+
+
+def test_accuracy_with_holes_matches_accuracy_without(
+    marginal: MarginalLikelihoodClassifier, drifting_paper: Scenario
+) -> None:
+    """Twenty fresh series at 10 Hz and 2x process noise, each judged whole and with a
+    0.5 s hole at one of four places: the top candidate is as often right, and no
+    genuine series is called none of these (the novelty threshold is the covered
+    values' own, its degrees of freedom in proportion)."""
+    result = simulate(
+        drifting_paper, GOOD_SEQUENCE, 4, np.random.default_rng(44), process_noise_scale=2.0
+    )
+    grid = np.asarray(result.time_s)
+    holes = [(0.5, 1.0), (1.5, 2.0), (2.5, 3.0), (3.0, 3.5)]
+    right = {"whole": 0, "holed": 0}
+    flagged = {"whole": 0, "holed": 0}
+    for k in range(marginal.n_candidates_):
+        for i in range(4):
+            for name, hole in (("whole", None), ("holed", holes[(k + i) % 4])):
+                telemetry = _with_hole(result, k, i, hole)
+                verdict = identify(marginal, telemetry)
+                right[name] += verdict.candidate_index == k
+                flagged[name] += verdict.matches_none
+                # The threshold is the one at the part of the values measured.
+                measured = resample_covered(telemetry, grid, marginalise_gaps=True).observed
+                expected = marginal.novelty_thresholds(float(measured.mean()))
+                assert verdict.threshold == pytest.approx(expected[verdict.candidate_index])
+    assert right["whole"] == 20
+    assert right["holed"] >= 19, right
+    assert flagged == {"whole": 0, "holed": 0}, flagged
+
+
+def test_online_posterior_moves_only_at_covered_samples(
+    marginal: MarginalLikelihoodClassifier, passes: Any
+) -> None:
+    online = identify_online(marginal, _with_hole(passes, 2, 0, (1.5, 2.0)))
+    inside = [j for j, t in enumerate(online.time_s) if 1.5 < t < 2.0]
+    trace = online.posterior[marginal.candidate_names_[2]]
+    assert len({trace[j] for j in [inside[0] - 1, *inside]}) == 1
+    assert online.candidate_index in (None, 2)
+
+
+def test_the_novelty_tail_on_the_covered_values_stays_calibrated(
+    marginal: MarginalLikelihoodClassifier, drifting_paper: Scenario
+) -> None:
+    """The threshold at a covered fraction f is the novelty tail's quantile with its
+    degrees of freedom times f. That is right only if a genuine series' squared distance
+    on the covered values has the tail's mean times f: checked on 100 fresh series (at
+    1x and 6x process noise) for holes of 0.5 s and 2 s, at 20 Hz and 10 Hz."""
+    tail = marginal.novelty_tail_
+    assert tail is not None
+    for process in (1.0, 6.0):
+        result = simulate(
+            drifting_paper,
+            GOOD_SEQUENCE,
+            20,
+            np.random.default_rng(45),
+            process_noise_scale=process,
+        )
+        X, y = result.dataset()
+        t = np.asarray(result.time_s)
+        ten_hz = np.arange(len(t)) % 2 == 1
+        for mask in (
+            ~((t > 1.5) & (t < 2.0)),
+            ~((t > 1.0) & (t < 3.0)),
+            ~((t > 1.0) & (t < 3.0)) & ten_hz,
+        ):
+            own = marginal.transform_observed(X, mask)[np.arange(len(y)), y]
+            expected = tail.scale * tail.dof * float(mask.mean())
+            assert np.mean(own**2) == pytest.approx(expected, rel=0.1)
