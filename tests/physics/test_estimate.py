@@ -151,3 +151,20 @@ def test_refuses_windows_off_the_sample_grid(paper: Scenario) -> None:
         estimate_inertia(paper, GOOD_SEQUENCE, omega, window_s=0.07)
     with pytest.raises(InputError, match=r"window_s = 5.0 is 100 samples; the telemetry grid"):
         estimate_inertia(paper, GOOD_SEQUENCE, omega, window_s=5.0)
+
+
+def test_windows_ending_in_a_dropout_give_no_equations(paper: Scenario) -> None:
+    """With ``covered``, the rates interpolated across a dropout end no window: the
+    estimate from the rest equals the one of a series whose gap holds garbage."""
+    result = simulate(paper, GOOD_SEQUENCE, 1, np.random.default_rng(46))
+    omega = result.omega_measured[1, 0].copy()
+    t = np.asarray(result.time_s)
+    covered = ~((t > 1.5) & (t < 2.0))
+    clean = estimate_inertia(paper, GOOD_SEQUENCE, omega, covered=covered)
+    assert not np.any((clean.windows_s[:, 1] > 1.5) & (clean.windows_s[:, 1] < 2.0))
+    assert len(clean.windows_s) == 80 - 9
+    omega[~covered] += 0.5  # nonsense inside the gap: no window ends there
+    garbled = estimate_inertia(paper, GOOD_SEQUENCE, omega, covered=covered)
+    np.testing.assert_allclose(garbled.windows_s, clean.windows_s)
+    with pytest.raises(ValueError, match=r"covered must hold 80 booleans .*got 79"):
+        estimate_inertia(paper, GOOD_SEQUENCE, omega, covered=covered[:-1])
