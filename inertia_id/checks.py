@@ -31,6 +31,7 @@ __all__ = [
     "is_number",
     "json_location",
     "loads_unique_keys",
+    "number_as_written",
     "parse_decimal",
     "parse_whole",
     "read_text",
@@ -256,18 +257,21 @@ def _first_duplicate(value: Any) -> tuple[str, tuple[str | int, ...]]:
 _DECIMAL = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
 _WHOLE = re.compile(r"[+-]?[0-9]+")
 _NON_FINITE = re.compile(r"[+-]?(?:inf|infinity|nan)", re.IGNORECASE)
+#: The spaces allowed around a number: ASCII ones. ``str.strip`` would also take the
+#: ideographic space U+3000 and the control characters U+001C-U+001F, as ``float`` does.
+_ASCII_SPACE = " \t\n\r\v\f"
 
 
 def parse_decimal(text: str, *, non_finite: bool = False) -> float:
     """``float(text)`` for a number as a person writes one (``0.1``, ``-2``, ``1e-3``,
-    ``.5``; spaces around it allowed), else a ``ValueError`` quoting the text: ``float``
+    ``.5``; ASCII spaces around it allowed), else a ``ValueError`` quoting the text: ``float``
     also takes ``1_0`` (read as 10), digits of other scripts (full-width ``１０``), and
     ``inf`` or ``nan`` in any case, none of which a flight team's file or option means.
 
     :param non_finite: take ``inf``, ``infinity`` and ``nan`` (any case and sign), for a
         reader whose next check names a non-finite value by where it stands (telemetry).
     """
-    bare = text.strip()
+    bare = text.strip(_ASCII_SPACE)
     if _DECIMAL.fullmatch(bare) or (non_finite and _NON_FINITE.fullmatch(bare)):
         return float(bare)
     raise ValueError(f"{text!r} is not a decimal number ({_AS_WRITTEN}, e.g. -0.25 or 1e-3)")
@@ -275,12 +279,36 @@ def parse_decimal(text: str, *, non_finite: bool = False) -> float:
 
 def parse_whole(text: str) -> int:
     """``int(text)`` for a whole number written in ASCII digits with an optional sign
-    (spaces around it allowed), else a ``ValueError`` quoting the text: ``int`` also takes
+    (ASCII spaces around it allowed), else a ``ValueError`` quoting the text: ``int`` also takes
     ``1_0`` (10) and other scripts' digits."""
-    bare = text.strip()
+    bare = text.strip(_ASCII_SPACE)
     if _WHOLE.fullmatch(bare):
         return int(bare)
     raise ValueError(f"{text!r} is not a whole number ({_AS_WRITTEN}, e.g. 42)")
 
 
 _AS_WRITTEN = "ASCII digits with no separator"
+
+
+def number_as_written(value: Any, name: str, *, whole: bool = False) -> Any:
+    """A number parameter's input as a validator should take it: a string is read with
+    :func:`parse_whole` (``whole``) or :func:`parse_decimal`, a bool is refused, anything
+    else (a JSON number, ``None``, a list) is handed back for the parameter's own type to
+    judge. A ``ValueError`` names the parameter and quotes the value.
+
+    What the API's query and path parameters and a scenario document's numbers go
+    through: pydantic's lax mode reads ``"1_0"`` as 10, ``"１０"`` as 10, ``" 1e1"`` as 10
+    for an int, and ``true`` as 1, none of which a person writing the number means.
+    """
+    if isinstance(value, str):
+        try:
+            return parse_whole(value) if whole else parse_decimal(value)
+        except ValueError:
+            pass
+    elif not isinstance(value, bool | np.bool_):
+        return value
+    kind, example = ("a whole number", "42") if whole else ("a decimal number", "-0.25 or 1e-3")
+    shown = repr(value)
+    if len(shown) > 60:
+        shown = shown[:57] + "..."
+    raise ValueError(f"{name} must be {kind} ({_AS_WRITTEN}, e.g. {example}), got {shown}")

@@ -9,6 +9,8 @@ from typing import Any
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from inertia_id.checks import (
     DuplicateKeyError,
@@ -17,6 +19,7 @@ from inertia_id.checks import (
     is_integer,
     is_number,
     loads_unique_keys,
+    number_as_written,
     parse_decimal,
     parse_whole,
     spreadsheet_safe,
@@ -177,7 +180,11 @@ def test_a_number_as_written_reads_as_float_reads_it(text: str, expected: float)
     assert parse_decimal(text) == float(text) == expected
 
 
-@pytest.mark.parametrize("text", ["1_0", "\uff11\uff10", "\u0663", "inf", "NaN", "", "0x10"])
+@pytest.mark.parametrize(
+    # (str.strip and float also take the ideographic space and U+001C-U+001F around it.)
+    "text",
+    ["1_0", "\uff11\uff10", "\u0663", "inf", "NaN", "", "0x10", "1\u3000", "\x1f1"],
+)
 def test_what_float_takes_and_no_one_writes_is_refused_quoting_it(text: str) -> None:
     with pytest.raises(ValueError, match=re.escape(repr(text))):
         parse_decimal(text)
@@ -185,3 +192,32 @@ def test_what_float_takes_and_no_one_writes_is_refused_quoting_it(text: str) -> 
     with pytest.raises(ValueError, match="'1_0' is not a whole number"):
         parse_whole("1_0")
     assert int("1_0") == 10 and parse_whole(" -3 ") == -3
+
+
+@given(st.text(max_size=12) | st.from_regex(r"\s?[+-]?[0-9_\uff10-\uff19]{1,4}\s?", fullmatch=True))
+def test_a_number_parameter_takes_a_string_only_as_the_command_line_does(text: str) -> None:
+    """What the API's query numbers and a scenario's numbers go through: a string is a
+    whole number exactly when it is sign and ASCII digits (spaces around), read as
+    ``int`` reads it; anything else is refused naming the parameter and quoting it."""
+    plain = re.fullmatch(r"[+-]?[0-9]+", text.strip(" \t\n\r\v\f")) is not None
+    try:
+        read = number_as_written(text, "seed", whole=True)
+    except ValueError as exc:
+        assert not plain
+        assert str(exc).startswith("seed must be a whole number")
+        assert str(exc).endswith(f"got {text!r}") or len(repr(text)) > 60
+    else:
+        assert plain and read == int(text)
+
+
+@pytest.mark.parametrize("value", [True, np.bool_(False), "1_0", "1e1", "\uff11"])
+def test_a_bool_or_a_number_not_as_written_is_no_number(value: Any) -> None:
+    with pytest.raises(
+        ValueError, match=f"^n must be a whole number .*got {re.escape(repr(value))}$"
+    ):
+        number_as_written(value, "n", whole=True)
+
+
+@pytest.mark.parametrize("value", [2, 2.5, np.float64(2.5), np.int64(2), None, [1, 2]])
+def test_anything_but_a_string_or_a_bool_is_left_to_the_field_type(value: Any) -> None:
+    assert number_as_written(value, "x") is value

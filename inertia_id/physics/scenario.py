@@ -9,12 +9,20 @@ from __future__ import annotations
 
 import math
 from itertools import combinations
-from typing import Any, Self
+from typing import Annotated, Any, Self
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Field,
+    ValidationInfo,
+    field_validator,
+    model_validator,
+)
 
-from ..checks import is_integer
+from ..checks import is_integer, number_as_written
 from ..errors import InputError
 
 __all__ = [
@@ -75,6 +83,22 @@ class _Model(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
 
+def _decimal_as_written(value: Any, info: ValidationInfo) -> Any:
+    return number_as_written(value, info.field_name or "value")
+
+
+def _whole_as_written(value: Any, info: ValidationInfo) -> Any:
+    return number_as_written(value, info.field_name or "value", whole=True)
+
+
+# The number fields of a scenario document. Pydantic's lax mode, which the core keeps
+# (numpy scalars and ints for floats pass), also reads "1_0" as 10, "１０" as 10 and true
+# as 1 (a person's JSON file or the API's body means none of them); a string written as a
+# plain decimal ("0.5") is still read, as the command line's options read it.
+WrittenFloat = Annotated[float, BeforeValidator(_decimal_as_written)]
+WrittenInt = Annotated[int, BeforeValidator(_whole_as_written)]
+
+
 class InertiaCandidate(_Model):
     """One configuration the spacecraft may be in.
 
@@ -84,7 +108,7 @@ class InertiaCandidate(_Model):
     """
 
     name: str = Field(min_length=1, max_length=200)
-    inertia_kg_m2: list[list[float]]
+    inertia_kg_m2: list[list[WrittenFloat]]
 
     @field_validator("inertia_kg_m2")
     @classmethod
@@ -111,10 +135,10 @@ class CandidateGenerator(_Model):
     :param seed: seed of the draws, so that a scenario can be regenerated exactly.
     """
 
-    base_inertia_kg_m2: list[list[float]]
-    n_variations: int = Field(ge=1, le=100)
-    reduction_range: tuple[float, float] = (0.05, 0.15)
-    seed: int = 0
+    base_inertia_kg_m2: list[list[WrittenFloat]]
+    n_variations: WrittenInt = Field(ge=1, le=100)
+    reduction_range: tuple[WrittenFloat, WrittenFloat] = (0.05, 0.15)
+    seed: WrittenInt = 0
     base_name: str = "none ejected"
     variation_name: str = "payload {n} ejected"
 
@@ -179,12 +203,12 @@ class Thrusters(_Model):
     number for ``thrust_n`` or ``lever_arm_m`` applies to every thruster.
     """
 
-    torque_matrix_nm: list[list[float]]
-    levels: list[float]
-    thrust_n: list[float] | None = None
-    lever_arm_m: list[float] | None = None
-    specific_impulse_s: float | None = None
-    standard_gravity_m_s2: float = 9.80665
+    torque_matrix_nm: list[list[WrittenFloat]]
+    levels: list[WrittenFloat]
+    thrust_n: list[WrittenFloat] | None = None
+    lever_arm_m: list[WrittenFloat] | None = None
+    specific_impulse_s: WrittenFloat | None = None
+    standard_gravity_m_s2: WrittenFloat = 9.80665
 
     @model_validator(mode="before")
     @classmethod
@@ -197,7 +221,7 @@ class Thrusters(_Model):
             if nominal is None:
                 raise InputError("give torque_matrix_nm (3 x N, N m) or nominal_torque_nm")
             try:
-                torque = float(nominal)
+                torque = float(number_as_written(nominal, "nominal_torque_nm"))
             except (TypeError, ValueError, OverflowError):
                 raise InputError(f"nominal_torque_nm must be a number, got {nominal!r}") from None
             if not (math.isfinite(torque) and torque > 0):
@@ -283,9 +307,9 @@ class Timing(_Model):
         integration steps and divide the step duration.
     """
 
-    step_duration_s: float = Field(default=1.0, gt=0, le=3600)
-    integration_step_s: float = Field(default=0.05, gt=0)
-    sample_rate_hz: float = Field(default=20.0, gt=0)
+    step_duration_s: WrittenFloat = Field(default=1.0, gt=0, le=3600)
+    integration_step_s: WrittenFloat = Field(default=0.05, gt=0)
+    sample_rate_hz: WrittenFloat = Field(default=20.0, gt=0)
 
     @model_validator(mode="after")
     def _commensurate(self) -> Self:
@@ -388,15 +412,15 @@ class Uncertainty(_Model):
         realisation at rest.
     """
 
-    duty_jitter_sigma: float = Field(default=0.02, ge=0)
-    lowpass_time_constant_s: float = Field(default=0.1, ge=0)
-    thrust_scale_sigma: float = Field(default=0.0, ge=0)
-    disturbance_torque_sigma_nm: float = Field(default=0.05, ge=0)
-    disturbance_interval_s: float = Field(default=0.05, gt=0)
-    gyro_noise_sigma_rad_s: float = Field(default=1e-3, ge=0)
-    gyro_bias_rad_s: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    gyro_bias_sigma_rad_s: float = Field(default=2e-3, ge=0)
-    initial_rate_sigma_rad_s: float = Field(default=5e-3, ge=0)
+    duty_jitter_sigma: WrittenFloat = Field(default=0.02, ge=0)
+    lowpass_time_constant_s: WrittenFloat = Field(default=0.1, ge=0)
+    thrust_scale_sigma: WrittenFloat = Field(default=0.0, ge=0)
+    disturbance_torque_sigma_nm: WrittenFloat = Field(default=0.05, ge=0)
+    disturbance_interval_s: WrittenFloat = Field(default=0.05, gt=0)
+    gyro_noise_sigma_rad_s: WrittenFloat = Field(default=1e-3, ge=0)
+    gyro_bias_rad_s: tuple[WrittenFloat, WrittenFloat, WrittenFloat] = (0.0, 0.0, 0.0)
+    gyro_bias_sigma_rad_s: WrittenFloat = Field(default=2e-3, ge=0)
+    initial_rate_sigma_rad_s: WrittenFloat = Field(default=5e-3, ge=0)
 
     @field_validator("*", mode="after")
     @classmethod

@@ -138,6 +138,18 @@ def test_a_scenario_error_is_one_line_without_pydantic_links(tmp_path: Path) -> 
     assert "timing.step_duration_s" in result.output
 
 
+@pytest.mark.parametrize("value", ["1_0", True])
+def test_a_scenario_files_number_not_as_written_is_named(tmp_path: Path, value: object) -> None:
+    """Pydantic's lax mode read "1_0" as 10 and true as 1 in a scenario file."""
+    document = Scenario.paper().model_dump(mode="json")
+    document["timing"]["sample_rate_hz"] = value
+    path = tmp_path / "s.json"
+    path.write_text(json.dumps(document))
+    message = refused(["simulate", "--scenario", str(path)])
+    assert "timing.sample_rate_hz: sample_rate_hz must be a decimal number" in message
+    assert message.endswith(f"got {value!r}")
+
+
 def test_a_candidate_name_template_is_no_format_string() -> None:
     document = Scenario.paper().model_dump(mode="json")
     document["inertia_candidates"] = None

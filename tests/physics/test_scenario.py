@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from typing import Any
 
 import numpy as np
@@ -265,6 +266,35 @@ def test_thrusters_expand_nominal_and_n_levels() -> None:
         thrusters.torque_matrix_nm, 0.5 * np.hstack([np.eye(3), -np.eye(3)])
     )
     assert thrusters.levels == [0.0, 0.5, 1.0]
+
+
+@pytest.mark.parametrize("value", ["1_0", "\uff12\uff10", "inf", True, "0x14"])
+def test_a_number_not_as_written_is_refused_by_name(value: Any) -> None:
+    """Pydantic's lax mode read "1_0" as 10 and true as 1 in a scenario file."""
+    shown = re.escape(repr(value))
+    with pytest.raises(
+        pydantic.ValidationError, match=rf"sample_rate_hz must be a decimal .*{shown}"
+    ):
+        Timing.model_validate({"sample_rate_hz": value})
+    with pytest.raises(pydantic.ValidationError, match=rf"seed must be a whole number .*{shown}"):
+        CandidateGenerator.model_validate(
+            {"base_inertia_kg_m2": I0, "n_variations": 2, "seed": value}
+        )
+    with pytest.raises(
+        pydantic.ValidationError, match=rf"nominal_torque_nm must be a number, got {shown}"
+    ):
+        Thrusters.model_validate({"nominal_torque_nm": value, "n_levels": 3})
+
+
+def test_a_number_as_written_is_read_from_a_string_as_before() -> None:
+    timing = Timing.model_validate(
+        {"sample_rate_hz": " 10 ", "step_duration_s": np.float64(2.0), "integration_step_s": 0.05}
+    )
+    assert (timing.sample_rate_hz, timing.step_duration_s) == (10.0, 2.0)
+    generator = CandidateGenerator.model_validate(
+        {"base_inertia_kg_m2": I0, "n_variations": "2", "seed": np.int64(3)}
+    )
+    assert (generator.n_variations, generator.seed) == (2, 3)
 
 
 # Uncertainty and timing.
