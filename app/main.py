@@ -22,7 +22,7 @@ from service.queue import make_celery
 from service.store.session import Database, upgrade
 
 from .api import ROUTERS
-from .api.deps import one_value_each
+from .api.deps import numbers_as_written, one_value_each
 from .api.errors import install_error_handlers
 from .api.identify import ClassifierCache, openapi_components
 from .capacity import ComputeGate
@@ -126,7 +126,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         # /docs is served from the installed Swagger UI package (app.dashboard), not a CDN.
         docs_url=None,
         redoc_url=None,
-        dependencies=[Depends(one_value_each)],
+        dependencies=[Depends(one_value_each), Depends(numbers_as_written)],
     )
     app.state.settings = settings
     app.state.db = database

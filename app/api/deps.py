@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import re
+import types
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
-from typing import Annotated, Any, Literal, NoReturn, TypeVar
+from typing import Annotated, Any, Literal, NoReturn, TypeVar, Union, get_args, get_origin
 
 from celery import Celery
 from fastapi import Depends, HTTPException, Query, Request, status
@@ -14,6 +15,7 @@ from fastapi.security import APIKeyHeader
 from sqlalchemy import ColumnElement, func, select
 from sqlalchemy.orm import Session
 
+from inertia_id.checks import number_as_written
 from service.config import Settings
 from service.store.models import MAX_TAG_LENGTH, JobTagRow
 from service.store.session import Database
@@ -37,6 +39,7 @@ __all__ = [
     "job_tagged",
     "no_such",
     "not_found",
+    "numbers_as_written",
     "plausible_id",
     "sort_query",
     "text_query",
@@ -255,6 +258,72 @@ def one_value_each(request: Request) -> None:
             unprocessable(
                 ("query", name), f"{name} is given {len(given)} times ({shown}); give one"
             )
+
+
+def _number_kind(annotation: Any) -> bool | None:
+    """True when a parameter of type ``annotation`` is a whole number (``int``, ``int |
+    None``, ``list[int]``), False for a decimal one (``float``), None for any other (text,
+    a choice, a bool)."""
+    members = get_args(annotation) if get_origin(annotation) in (Union, types.UnionType) else ()
+    found: set[Any] = set()
+    for member in members or (annotation,):
+        if get_origin(member) in (list, tuple, set, frozenset):
+            found.update(get_args(member))
+        else:
+            found.add(member)
+    if str in found or bool in found:
+        return None
+    if int in found:
+        return True
+    return False if float in found else None
+
+
+_NUMBER_PARAMETERS: dict[int, tuple[tuple[str, str, bool], ...]] = {}
+
+
+def _route_numbers(route: Any) -> tuple[tuple[str, str, bool], ...]:
+    """The number parameters of ``route`` (its dependencies' too): (``query`` or
+    ``path``, name, whether whole), read from its dependency tree as
+    :func:`_route_query_names` reads it."""
+    dependant = getattr(route, "dependant", None)
+    if dependant is None:
+        return ()
+    numbers = _NUMBER_PARAMETERS.get(id(route))
+    if numbers is None:
+        found: list[tuple[str, str, bool]] = []
+        stack = [dependant]
+        while stack:
+            current = stack.pop()
+            for where, fields in (("query", current.query_params), ("path", current.path_params)):
+                for field in fields:
+                    whole = _number_kind(field.field_info.annotation)
+                    if whole is not None:
+                        found.append((where, field.alias, whole))
+            stack.extend(current.dependencies)
+        numbers = _NUMBER_PARAMETERS[id(route)] = tuple(found)
+    return numbers
+
+
+def numbers_as_written(request: Request) -> None:
+    """Refuse a number in the query or the path that is not written as the command line
+    takes one (:func:`inertia_id.checks.number_as_written`): ASCII digits with an
+    optional sign (and point and exponent for a decimal), spaces around allowed.
+
+    Pydantic's lax mode, which reads every query and path parameter (text is all a URL
+    holds), also reads ``?seed=1_0`` as 10; its own grammar is not the command line's, so
+    each number parameter is read here first with the core's readers, on every route
+    (``app.main``), and then by pydantic for its range."""
+    for where, name, whole in _route_numbers(request.scope.get("route")):
+        if where == "query":
+            given = request.query_params.getlist(name)
+        else:
+            value = request.path_params.get(name)
+            given = [] if value is None else [str(value)]
+        for text in given:
+            try:
+                number_as_written(text, name, whole=whole)
+            except ValueError as exc:
+                unprocessable((where, name), str(exc))
 
 
 def not_found(what: str, row_id: str) -> HTTPException:
