@@ -25,7 +25,7 @@ from fastapi.exceptions import RequestValidationError
 from pydantic import ValidationError
 from sqlalchemy import select
 from starlette.concurrency import run_in_threadpool
-from starlette.datastructures import UploadFile
+from starlette.datastructures import FormData, UploadFile
 
 from inertia_id.checks import DuplicateKeyError, loads_unique_keys, parse_decimal
 from inertia_id.errors import InputError
@@ -317,7 +317,9 @@ async def _from_form(
     request: Request, sequence_start: str | None
 ) -> tuple[str, Telemetry, VerdictOptions]:
     start = _query_start(sequence_start)
-    async with request.form(max_files=1, max_fields=10) as form:
+    # Room for each field twice (a second file too), so that a repeated one is named
+    # below rather than refused by Starlette's count as a 400 that names none.
+    async with request.form(max_files=2, max_fields=2 * len(_FORM_FIELDS)) as form:
         unknown = sorted(set(form.keys()) - _FORM_FIELDS)
         if unknown:
             # A field the API does not read is refused, as an unknown JSON key is: a start
@@ -326,6 +328,7 @@ async def _from_form(
                 ("body", unknown[0]),
                 f"unknown form field {unknown[0]!r}; the fields are {sorted(_FORM_FIELDS)}",
             )
+        _one_value_each(form)
         classifier_id = form.get("classifier_id")
         upload = form.get("file")
         options = _form_options(form)
@@ -348,6 +351,22 @@ async def _from_form(
         raw = await upload.read() if isinstance(upload, UploadFile) else upload.encode()
     telemetry = await _parsed(request, _parse_file, raw, start, is_averaged)
     return classifier_id, telemetry, options
+
+
+def _one_value_each(form: FormData) -> None:
+    """Refuse a form field given more than once: Starlette's ``form.get`` keeps the last
+    value, so ``confidence=0.5`` then ``confidence=0.999`` judged at 0.999 without a word
+    (and a second ``file`` was the telemetry read)."""
+    given: dict[str, list[str]] = {}
+    for name, value in form.multi_items():
+        shown = value[:40] if isinstance(value, str) else f"file {value.filename!r}"
+        given.setdefault(name, []).append(shown)
+    for name, values in given.items():
+        if len(values) > 1:
+            unprocessable(
+                ("body", name),
+                f"form field {name!r} is given {len(values)} times ({values}); give it once",
+            )
 
 
 def _parse_file(raw: bytes, start: float | str | None, averaged: bool) -> Telemetry:

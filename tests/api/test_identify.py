@@ -475,6 +475,34 @@ def test_a_missing_or_bad_sequence_start_is_422(
     assert "a gap of 1 s before the end of the sequence" in late.json()["detail"][0]["msg"]
 
 
+@pytest.mark.parametrize("repeated", ["confidence", "classifier_id", "file", "sequence_start"])
+def test_a_form_field_given_twice_is_422_naming_it(
+    api: Api, classifier_id: str, flight: SimulationResult, repeated: str
+) -> None:
+    """Starlette's form keeps the last of repeated values: a verdict at a confidence, on
+    a classifier or from a file other than the first one sent, without a word."""
+    text = csv_text(flight.time_s, flight.omega_measured[1, 0])
+    fields = {"classifier_id": classifier_id, "confidence": "0.9", "sequence_start": "0"}
+    data: list[tuple[str, str]] = list(fields.items())
+    files = [("file", ("first.csv", text))]
+    if repeated == "file":
+        files.append(("file", ("second.csv", text)))
+    else:
+        data.append((repeated, "0.5" if repeated == "confidence" else fields[repeated]))
+    for path in ("/identify", "/identify/partial"):
+        response = api.client.post(
+            path,
+            headers=api.auth,
+            files=[*((name, (None, value)) for name, value in data), *files],
+        )
+        assert response.status_code == 422, response.text
+        detail = response.json()["detail"][0]
+        assert detail["loc"] == ["body", repeated]
+        assert detail["msg"].startswith(f"form field {repeated!r} is given 2 times")
+    once = api.post("/identify", data=fields, files=files[:1])
+    assert once.status_code == 200, once.text
+
+
 def test_the_verdict_carries_its_posterior_and_confidence(
     api: Api, classifier_id: str, flight: SimulationResult
 ) -> None:
