@@ -297,8 +297,8 @@ def number_as_written(value: Any, name: str, *, whole: bool = False) -> Any:
     judge. A ``ValueError`` names the parameter and quotes the value.
 
     What the API's query and path parameters and a scenario document's numbers go
-    through: pydantic's lax mode reads ``"1_0"`` as 10, ``"１０"`` as 10, ``" 1e1"`` as 10
-    for an int, and ``true`` as 1, none of which a person writing the number means.
+    through: pydantic's lax mode reads ``"1_0"`` as 10, ``"10.0"`` as the int 10, ``"inf"``
+    as infinity and ``true`` as 1, none of which a person writing the number means.
     """
     if isinstance(value, str):
         try:

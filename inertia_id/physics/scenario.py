@@ -92,9 +92,9 @@ def _whole_as_written(value: Any, info: ValidationInfo) -> Any:
 
 
 # The number fields of a scenario document. Pydantic's lax mode, which the core keeps
-# (numpy scalars and ints for floats pass), also reads "1_0" as 10, "１０" as 10 and true
-# as 1 (a person's JSON file or the API's body means none of them); a string written as a
-# plain decimal ("0.5") is still read, as the command line's options read it.
+# (numpy scalars and ints for floats pass), also reads "1_0" as 10, "inf" as infinity and
+# true as 1 (a person's JSON file or the API's body means none of them); a string written
+# as a plain decimal ("0.5") is still read, as the command line's options read it.
 WrittenFloat = Annotated[float, BeforeValidator(_decimal_as_written)]
 WrittenInt = Annotated[int, BeforeValidator(_whole_as_written)]
 
