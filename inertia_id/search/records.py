@@ -186,32 +186,30 @@ def evaluate_sequence(
     f1: list[float] = []
     rate: list[float] = []
     separability: list[float] = []
+
+    def evaluation() -> FreshEvaluation:
+        return FreshEvaluation(
+            seed=seed,
+            f1=f1,
+            final_rate_rad_s=rate,
+            separability=separability if settings.objective != "f1" else None,
+            draws_asked=n_draws,
+        )
+
     for draw_seed in seeds:
         scorer = PrefixScorer(scenario, len(rows), clustering, seed=int(draw_seed))
         # Prefix by prefix, so that a stop is heard within one clustering: the score is
         # the same (each prefix extends its cached parent, as one call would).
         for end in range(1, len(rows) + 1):
             if should_stop is not None and should_stop():
-                return FreshEvaluation(
-                    seed=seed,
-                    f1=f1,
-                    final_rate_rad_s=rate,
-                    separability=separability if settings.objective != "f1" else None,
-                    draws_asked=n_draws,
-                )
+                return evaluation()
             score = scorer.score(rows[:end])
         f1.append(score.f1)
         rate.append(score.final_rate_rad_s)
         if settings.objective != "f1":
             other = PrefixScorer(scenario, len(rows), settings, seed=int(draw_seed))
             separability.append(other.score(rows).f1)
-    return FreshEvaluation(
-        seed=seed,
-        f1=f1,
-        final_rate_rad_s=rate,
-        separability=separability if settings.objective != "f1" else None,
-        draws_asked=n_draws,
-    )
+    return evaluation()
 
 
 class SearchTracker:
