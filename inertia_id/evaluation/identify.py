@@ -499,7 +499,13 @@ def _best_start(
         return float(model.transform_observed(relative, covered)[0].min())
 
     shift, _ = estimate_sequence_start(
-        telemetry, grid, score, window_s=window_s, tried=tried, marginalise_gaps=marginalise
+        telemetry,
+        grid,
+        score,
+        window_s=window_s,
+        tried=tried,
+        marginalise_gaps=marginalise,
+        kind=classifier.kind,
     )
     return shift
 

@@ -888,6 +888,7 @@ def estimate_sequence_start(
     step_s: float | None = None,
     tried: list[float] | None = None,
     marginalise_gaps: bool = False,
+    kind: str | None = None,
 ) -> tuple[float, np.ndarray]:
     """The shift of the sequence start, within ``±window_s``, whose resampled series
     scores lowest, and that series.
@@ -907,6 +908,7 @@ def estimate_sequence_start(
     :param marginalise_gaps: a long gap between samples is judged across, not refused
         (:func:`resample_covered`): ``score`` is then called as ``score(series,
         covered)``, ``covered`` the (len(grid),) grid times outside such gaps.
+    :param kind: the classifier kind asking, named when a gap is refused.
     :returns: (shift, s: the estimated start is the nominal one plus this; the series).
     """
     if not (math.isfinite(window_s) and window_s >= 0):
@@ -925,14 +927,18 @@ def estimate_sequence_start(
         )
     t, omega = telemetry.time_array, telemetry.omega_array
     best: tuple[float, float, np.ndarray] | None = None
-    refusal: InputError | None = None
+    # When no start fits, the refusal told is the one nearest the nominal start: the
+    # earliest start tried is refused for the telemetry's late first sample, which hides
+    # the reason at the start the team gave (a gap, and the kinds that judge it).
+    refusal: tuple[float, InputError] | None = None
     for shift in np.arange(-n, n + 1) * step:
         try:
             series, covered, _ = _resample(
-                t - shift, omega, grid_s, marginalise_gaps=marginalise_gaps
+                t - shift, omega, grid_s, marginalise_gaps=marginalise_gaps, kind=kind
             )
         except InputError as exc:
-            refusal = refusal or exc
+            if refusal is None or abs(shift) < refusal[0]:
+                refusal = (abs(float(shift)), exc)
             continue
         cost = float(score(series, covered) if marginalise_gaps else score(series))
         if tried is not None:
@@ -941,5 +947,5 @@ def estimate_sequence_start(
             best = (cost, float(shift), series)
     if best is None:
         assert refusal is not None
-        raise InputError(f"no start within ±{window_s:g} s fits the telemetry: {refusal}")
+        raise InputError(f"no start within ±{window_s:g} s fits the telemetry: {refusal[1]}")
     return best[1], best[2]

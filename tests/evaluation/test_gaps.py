@@ -177,3 +177,21 @@ def test_the_novelty_tail_on_the_covered_values_stays_calibrated(
             own = marginal.transform_observed(X, mask)[np.arange(len(y)), y]
             expected = tail.scale * tail.dof * float(mask.mean())
             assert np.mean(own**2) == pytest.approx(expected, rel=0.1)
+
+
+def test_a_start_search_that_fits_nowhere_names_the_gap_at_the_nominal_start(
+    euclidean_classifier: InertiaClassifier, paper: Scenario
+) -> None:
+    """A whole-series kind asked to search the start of gapped telemetry: every start
+    is refused, and the error named the first one tried (the earliest, refused for
+    its late first sample), not the gap nor the kind that judges it."""
+    result = simulate(paper, GOOD_SEQUENCE, 1, np.random.default_rng(43))
+    t, w = result.time_s, result.omega_measured[0, 0]
+    keep = (t <= 1.5) | (t >= 2.0)
+    telemetry = Telemetry(time_s=t[keep].tolist(), omega_rad_s=w[keep].tolist())
+    with pytest.raises(
+        ValueError,
+        match=r"no start within ±0\.5 s fits the telemetry: .*no sample from 1\.5 s to 2 s .* "
+        r"between samples.*the 'clustering' classifier compares whole series",
+    ):
+        identify(euclidean_classifier, telemetry, estimate_start_within_s=0.5)
