@@ -195,7 +195,8 @@ def search_options(func: F) -> F:
             "Stop the search after this many seconds (wall clock) with the best found so "
             "far (stopped: time_limit), re-scored only in a grace of 10 % of the limit, at "
             "least 10 s; none by default.",
-            type=float,
+            # Not click's float, which reads 1_0 as 10; _time_limit names inf and nan.
+            type=FloatRange(0, min_open=True),
             metavar="SECONDS",
             callback=_time_limit,
         ),

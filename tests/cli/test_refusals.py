@@ -552,6 +552,8 @@ def test_a_key_given_twice_in_a_json_file_is_refused_naming_it(
         (["simulate", "-n", "1_0"], 2, "'1_0' is not a whole number"),
         (["simulate", "-n", "\uff11"], 2, "'\uff11' is not a whole number"),
         (["simulate", "-n", "1", "--sample-rate", "2_0"], 2, "'2_0' is not a decimal number"),
+        (["search", "--time-limit", "1_0"], 2, "'1_0' is not a decimal number"),
+        (["search", "--time-limit", "\uff11"], 2, "'\uff11' is not a decimal number"),
         # What the command reads itself: 1.
         (["simulate", "-n", "1", "--sequence", "4,4,4,0,0,0_0"], 1, "'4,4,4,0,0,0_0' is not rows"),
         (
