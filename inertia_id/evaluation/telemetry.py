@@ -862,9 +862,9 @@ def _check_coverage(
         # Only a kind that leaves grid times out can judge across a long gap; an
         # interpolation across it would be compared as if measured.
         who = (
-            f"the {kind!r} classifier compares whole series and cannot judge across it"
+            f"The {kind!r} classifier compares whole series and cannot judge across it"
             if kind is not None
-            else "a whole-series comparison cannot judge across it"
+            else "A whole-series comparison cannot judge across it"
         )
         hint = (
             f". {who}; a likelihood kind (marginal-likelihood, the default, or likelihood) "

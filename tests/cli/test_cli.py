@@ -638,4 +638,4 @@ def test_identify_judges_a_dropout_with_the_default_kind_and_reports_it(
     )
     assert refused.exit_code == 1
     assert "no sample from 1.5 s to 2 s" in refused.output
-    assert "the 'clustering' classifier compares whole series" in refused.output
+    assert "The 'clustering' classifier compares whole series" in refused.output

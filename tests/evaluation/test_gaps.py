@@ -101,7 +101,7 @@ def test_a_whole_series_kind_refuses_the_gap_and_names_the_kind_that_judges_it(
     with pytest.raises(
         ValueError,
         match=r"no sample from 1\.5 s to 2 s .* a gap of 0\.5 s between samples; at most 0\.2 s "
-        r".*the 'clustering' classifier compares whole series and cannot judge across it; a "
+        r".*The 'clustering' classifier compares whole series and cannot judge across it; a "
         r"likelihood kind \(marginal-likelihood, the default, or likelihood\) judges it",
     ):
         identify(
@@ -192,6 +192,6 @@ def test_a_start_search_that_fits_nowhere_names_the_gap_at_the_nominal_start(
     with pytest.raises(
         ValueError,
         match=r"no start within ±0\.5 s fits the telemetry: .*no sample from 1\.5 s to 2 s .* "
-        r"between samples.*the 'clustering' classifier compares whole series",
+        r"between samples.*The 'clustering' classifier compares whole series",
     ):
         identify(euclidean_classifier, telemetry, estimate_start_within_s=0.5)
