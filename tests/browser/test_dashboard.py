@@ -855,6 +855,41 @@ def test_identify_shows_the_rate_and_bias_measured_before_the_start(
     assert "shifted by the rate + bias measured before the start" in title
 
 
+def test_identify_shows_the_dropouts_judged_across_and_the_part_covered(
+    dashboard: Dashboard,
+) -> None:
+    """Telemetry that lost a second of samples (1.0 s to 2.0 s, more than 4 periods) is
+    judged on the samples present by the default classifier: the page shows the gap the
+    service reports and the part of the sequence covered; whole telemetry shows no row."""
+    _classifier(dashboard)
+    page = dashboard.page
+    times, omega = _flight(Scenario.paper(), 44)
+    kept = (times <= 1.0) | (times >= 2.0)
+    text = _csv_text(times[kept], omega[3][kept])
+    expected = _api_verdict(dashboard, text)
+    assert [g["from_s"] for g in expected["telemetry_gaps"]] == [pytest.approx(1.0)]
+    assert expected["sequence_covered_fraction"] < 1
+    dashboard.open(f"#/identify?classifier={made['classifier']}")
+    _identify(dashboard, text)
+    (gap,) = expected["telemetry_gaps"]
+    shown = page.inner_text("#telemetry-gaps")
+    spans, covered = shown.split("; ")
+    assert spans == f"{gap['length_s']:.2f} s ({gap['from_s']:.2f}–{gap['to_s']:.2f} s)"
+    # Three significant digits (JavaScript rounds a tie up, Python to even).
+    assert covered.endswith(" % of the sequence covered")
+    assert float(covered.split()[0]) == pytest.approx(
+        100 * expected["sequence_covered_fraction"], abs=0.051
+    )
+    assert "dropouts judged across" in page.inner_text("#identify-result dl.kv")
+    assert _shown_posterior(dashboard) == _expected_posterior(expected)
+    page.wait_for_function("() => document.getElementById('overlay-plot')?.data?.length === 12")
+
+    whole = _csv_text(times, omega[3])
+    assert _api_verdict(dashboard, whole)["telemetry_gaps"] == []
+    _identify(dashboard, whole)
+    assert page.query_selector("#telemetry-gaps") is None
+
+
 def test_the_classifier_page_shows_the_calibration_the_api_reports(
     dashboard: Dashboard,
 ) -> None:
@@ -1326,6 +1361,90 @@ def test_a_cancelled_searchs_front_plans_and_trains_on_the_sequence_itself(
     finally:
         page.unroute(own)
         page.unroute(re.compile(r"/jobs(\?.*)?$"))
+
+
+def test_a_front_the_time_limits_grace_cut_says_what_was_not_re_scored(
+    dashboard: Dashboard,
+) -> None:
+    """An NSGA-II search past its time limit (10 s) whose re-score outlasts the grace
+    (10 s): with 15 candidate configurations, 20 steps and 400 fresh realisations, 16
+    front candidates take about 10 s to re-score, and some 40 stand on the front (the
+    search at 2 realisations scores about 100 sequences in 10 s; measured on a 2-core
+    machine under load). The page says how many candidates were left out, lists their
+    scores on the search's draw, and on how many of the fresh draws asked the best was
+    measured."""
+    page = dashboard.page
+    # The member's plan needs the key (the first test saves it; this one may run alone).
+    dashboard.open("#/jobs")
+    page.evaluate("key => localStorage.setItem('inertia-id-api-key', key)", API_KEY)
+    client = dashboard.service.client
+    document = client.get("/scenarios/presets").json()["paper"]
+    document.pop("candidate_generator")
+    document["name"] = "paper, 15 candidates"
+    document["inertia_candidates"] = [
+        {
+            "name": f"{c['name']} x{k}",
+            "inertia_kg_m2": (np.asarray(c["inertia_kg_m2"]) * (1 + 0.07 * k)).tolist(),
+        }
+        for k in range(3)
+        for c in document["inertia_candidates"]
+    ]
+    created = client.post("/scenarios", json={"scenario": document})
+    assert created.status_code == 201, created.text
+    answer = client.post(
+        "/jobs",
+        json={
+            "type": "search",
+            "scenario_id": created.json()["id"],
+            "seed": 0,
+            "name": "NSGA-II cut by its time limit",
+            "params": {
+                "method": "nsga2",
+                "sequence_length": 20,
+                "n_realisations": 2,
+                "nsga2": {"population": 32, "generations": 50},
+                "fresh_realisations": 400,
+                "time_limit_s": 10,
+            },
+        },
+    )
+    assert answer.status_code == 202, answer.text
+    job_id = answer.json()["id"]
+    service = dashboard.service
+    service.until(lambda: service.job(job_id)["status"] in TERMINAL, 240, "the search ends")
+    job = service.job(job_id)
+    assert job["status"] == "succeeded", job
+    result = job["result"]
+    assert result["stopped"] == "time_limit"
+    left = result["front"]["not_rescored"]
+    assert left, "the grace re-scored every candidate: make the re-score slower"
+    asked = result["fresh"]["draws_asked"]
+    done = len(result["fresh"]["f1"])
+    assert asked > done
+    # Member 0's plan at 200 flights a candidate is past the service's budget for 15
+    # candidates: the page asks again without flights (the 422 it logs is that answer).
+    dashboard.console.expect(r"status of 422")
+    dashboard.open(f"#/jobs/{job['id']}")
+    page.wait_for_selector("#front-card")
+    n = len(result["front"]["members"])
+    assert page.inner_text("#front-card h2") == f"Pareto front: {n} sequence{'s' * (n != 1)}"
+    note = page.inner_text("#front-not-rescored")
+    assert note.startswith(
+        f"+ {len(left)} candidate{'s' * (len(left) != 1)} not re-scored: "
+        "the time limit's grace was spent (the 10 s limit and its 10 s grace)"
+    )
+    assert f"judged on the {result['front']['candidates_rescored']} re-scored" in note
+    assert f"measured on {done} of the {asked} fresh draws asked" in note
+    rows = _cells(dashboard, "#front-not-rescored-table")
+    assert len(rows) == len(left)
+    for row, candidate in zip(rows, left, strict=True):
+        for key in ("accuracy", "final_rate_deg_s", "impulse_nms"):
+            assert float(row[key]) == candidate["search_scores"][key], (key, row)
+    summary = page.inner_text("#best-summary")
+    assert f"clustering F1 on {done} of {asked} fresh draws asked" in summary
+    if not done:
+        assert page.inner_text("#best-fresh-f1") == "–"
+    page.wait_for_selector("#front-plan-table", timeout=60_000)
 
 
 def test_an_nsga2_search_draws_its_generations_not_an_empty_reward(dashboard: Dashboard) -> None:

@@ -199,6 +199,16 @@ function startUsed(verdict) {
   return `${start} (shifted ${shift >= 0 ? "+" : ""}${plain(shift, 6)} s by the search within ±${plain(verdict.estimate_start_within_s, 6)} s)`;
 }
 
+// The dropouts the verdict judged across (on the samples present) and the part of the
+// sequence's grid times the telemetry covers; null when it has none.
+function gapsOf(verdict) {
+  const gaps = verdict.telemetry_gaps || [];
+  if (!gaps.length) return null;
+  const s = (v) => v.toFixed(2);
+  const spans = gaps.map((g) => `${s(g.length_s)} s (${s(g.from_s)}–${s(g.to_s)} s)`).join(", ");
+  return `${spans}; ${plain(100 * verdict.sequence_covered_fraction, 3)} % of the sequence covered`;
+}
+
 async function showVerdict(holder, verdict, classifier, { content, context, file, options }) {
   const names = Object.keys(verdict.distances);
   const ranked = Object.entries(verdict.posterior || {}).sort((a, b) => b[1] - a[1]);
@@ -244,6 +254,7 @@ async function showVerdict(holder, verdict, classifier, { content, context, file
         h("dd", { id: "ls-estimate" }, estimateOf(verdict)),
         h("dt", {}, "sequence start used"),
         h("dd", { id: "start-used" }, startUsed(verdict)),
+        gapsOf(verdict) ? [h("dt", {}, "dropouts judged across (s from the start used)"), h("dd", { id: "telemetry-gaps" }, gapsOf(verdict))] : null,
         h("dt", {}, "rate + gyro bias at the start, from the telemetry before it"),
         h("dd", { id: "initial-offset", class: "mono" }, offsetOf(verdict)),
       ),

@@ -169,7 +169,10 @@ async function searchResult(holder, job, context) {
   const result = job.result;
   const best = result.best;
   const freshF1 = result.fresh.f1;
-  const mean = freshF1.reduce((a, b) => a + b, 0) / Math.max(1, freshF1.length);
+  const mean = meanOf(freshF1);
+  // A re-score cut by the time limit's grace kept the draws it completed.
+  const asked = result.fresh.draws_asked;
+  const drawsText = typeof asked === "number" && asked > freshF1.length ? `${freshF1.length} of ${asked} fresh draws asked (the re-score stopped)` : `${freshF1.length} fresh draws`;
   const seqPlot = plotDiv("sequence-plot", "short");
   const responseHolder = h("div", { id: "response-holder" });
   const trainHref = `#/jobs?type=train&scenario=${job.scenario_id}&sequence=${encodeURIComponent(sequenceText(best.sequence))}`;
@@ -186,8 +189,8 @@ async function searchResult(holder, job, context) {
         // NSGA-II ranks by the noise model's predicted accuracy, which no draw produced.
         h("dt", {}, job.params.method === "nsga2" ? "predicted accuracy at the design noise" : job.params.objective === "separability" ? "separability score on the search's draw" : "F1 on the search's noise draw"),
         h("dd", {}, score(best.f1)),
-        h("dt", {}, `clustering F1 on ${freshF1.length} fresh draws`),
-        h("dd", {}, `${score(mean)} mean (min ${score(Math.min(...freshF1))})`),
+        h("dt", {}, `clustering F1 on ${drawsText}`),
+        h("dd", { id: "best-fresh-f1" }, freshF1.length ? `${score(mean)} mean (min ${score(Math.min(...freshF1))})` : "–"),
         h("dt", {}, job.params.method === "nsga2" ? "residual rate (once the lag is empty)" : "rate at the last step's end"),
         h("dd", { id: "best-final-rate" }, `${fmt(best.final_rate_rad_s * RAD_TO_DEG, 3)} deg/s (${fmt(best.final_rate_rad_s, 4)} rad/s)`),
         h("dt", {}, "fuel (commanded impulse)"),
@@ -223,10 +226,14 @@ async function searchResult(holder, job, context) {
   }
 }
 
+// NaN (shown "–") without values: a re-score the time limit's grace cut may hold none.
+function meanOf(values) {
+  return values.length ? values.reduce((a, b) => a + b, 0) / values.length : NaN;
+}
+
 // The best sequence beside the hand-designed baselines, on the same fresh draws.
 function baselineTable(result, best, freshF1) {
   if (!result.baselines) return null;
-  const mean = (values) => values.reduce((a, b) => a + b, 0) / Math.max(1, values.length);
   const rows = [["found by the search", freshF1, result.fresh.final_rate_rad_s, best.fuel_nms, best.sequence]];
   for (const [name, base] of Object.entries(result.baselines)) {
     // A baseline the sequence length or the thrusters do not allow says why instead.
@@ -239,7 +246,7 @@ function baselineTable(result, best, freshF1) {
     h("h3", {}, `Against the hand-designed baselines, on the same ${freshF1.length} fresh draws`),
     table(
       ["sequence", "F1 mean", "F1 min", "rate at the last step's end (deg/s)", "(rad/s)", "fuel (N m s)", "levels"],
-      rows.map(([name, f1, rate, fuel, levels]) => [name, score(mean(f1)), score(Math.min(...f1)), fmt(mean(rate) * RAD_TO_DEG, 3), fmt(mean(rate), 4), fuel.toFixed(1), h("span", { class: "mono" }, sequenceText(levels))]),
+      rows.map(([name, f1, rate, fuel, levels]) => [name, score(meanOf(f1)), score(Math.min(...f1)), fmt(meanOf(rate) * RAD_TO_DEG, 3), fmt(meanOf(rate), 4), fuel.toFixed(1), h("span", { class: "mono" }, sequenceText(levels))]),
       { id: "baseline-table" },
     ),
   );

@@ -15,7 +15,7 @@ import { request } from "../api.js";
 import { downloads } from "../components/downloads.js";
 import { submitAndOpen } from "../components/jobs.js";
 import { PLOT_CONFIG, layout, plotDiv } from "../components/plots.js";
-import { clear, fmt, h, messageBox, put, sequenceText } from "../ui.js";
+import { clear, fmt, h, messageBox, plain, put, sequenceText } from "../ui.js";
 
 const RAD_TO_DEG = 180 / Math.PI;
 const SYMBOLS = ["diamond", "square", "triangle-up", "cross", "star", "hexagon", "pentagon", "triangle-down"];
@@ -103,6 +103,55 @@ function confirmationNote(front) {
     { class: "hint", id: "front-confirmation" },
     `Member 0 is the most accurate of the ${front.candidates_rescored || (front.members || []).length} sequences measured on the front's series, so its figure there is biased up on average. On ${c.test_series} other series per candidate at each condition it measured ${figures.join("; ")} (95 % Wilson intervals): the figure to quote.${beside}`,
   );
+}
+
+// What a time limit's grace left out of the re-score on fresh draws: the front's
+// candidates not re-scored (front.not_rescored: judged without them, their scores on the
+// search's draw listed) and the best's fresh draws when fewer than asked; null when none.
+function rescoreCut(job, front) {
+  const left = front.not_rescored || [];
+  const fresh = job.result.fresh || {};
+  const done = (fresh.f1 || []).length;
+  const fewer = typeof fresh.draws_asked === "number" && fresh.draws_asked > done;
+  if (!left.length && !fewer) return null;
+  const settings = job.result.settings || {};
+  const budget =
+    typeof settings.time_limit_s === "number" && typeof settings.time_limit_grace_s === "number"
+      ? ` (the ${plain(settings.time_limit_s)} s limit and its ${plain(settings.time_limit_grace_s)} s grace)`
+      : "";
+  const sentences = [];
+  if (left.length) {
+    sentences.push(
+      `+ ${left.length} candidate${left.length === 1 ? "" : "s"} not re-scored: the time limit's grace was spent${budget}. The front is judged on the ${front.candidates_rescored} re-scored without ${left.length === 1 ? "it" : "them"}; ${left.length === 1 ? "its" : "their"} scores on the search's draw are below.`,
+    );
+  }
+  if (fewer) sentences.push(`The best sequence's clustering F1 was measured on ${done} of the ${fresh.draws_asked} fresh draws asked${left.length ? "" : `: the time limit's grace was spent${budget}`}.`);
+  const hasPropellant = left.some((c) => c.search_scores && typeof c.search_scores.propellant_kg === "number");
+  const columns = figures(hasPropellant).filter(([key]) => !key.includes("p95") && !key.startsWith("final_rate_max"));
+  return [
+    h("p", { class: "message notice", id: "front-not-rescored", role: "status" }, sentences.join(" ")),
+    left.length
+      ? h(
+          "details",
+          { id: "front-not-rescored-list" },
+          h("summary", {}, `The ${left.length} not re-scored: their scores on the search's draw`),
+          h(
+            "div",
+            { class: "table-scroll", tabindex: "0", role: "region", "aria-label": "candidates not re-scored" },
+            h(
+              "table",
+              { id: "front-not-rescored-table" },
+              h("thead", {}, h("tr", {}, columns.map(([, label]) => h("th", { class: "num" }, label)), h("th", {}, "levels"))),
+              h(
+                "tbody",
+                {},
+                left.map((c) => h("tr", {}, columns.map(([key, , digits]) => num(key, (c.search_scores || {})[key], digits)), h("td", { class: "mono" }, sequenceText(c.sequence)))),
+              ),
+            ),
+          ),
+        )
+      : null,
+  ];
 }
 
 function hover(label, scores, sequence) {
@@ -430,6 +479,7 @@ export function frontPanel(job, context) {
       { class: "hint" },
       `${pareto ? "Non-dominated" : "Judged"} on ${(front.objectives || []).map((o) => OBJECTIVE_WORDS[o] || o).join(", ")}; the rates on a fresh draw (${front.fresh_realisations} realisations per candidate), the baselines on the same draws. Accuracy at the design noise (${designNoiseText(front)}): ${front.accuracy_source === "measured" ? `measured: the scenario's noise model as a Bayes classifier, tested on ${front.fresh_test_series} fresh series per candidate at each condition, every sequence on the same series (the search ranked by a prediction from the same model, kept beside it)` : "predicted from the scenario's own noise model (no draw: the same sequence, the same figure)"}. Colour: ${colourLabel}; a red outline marks a member a baseline dominates.`,
     ),
+    rescoreCut(job, front),
     confirmationNote(front),
     dominating.length
       ? h(
