@@ -12,7 +12,14 @@ from typing import Any
 
 from .errors import InputError
 
-__all__ = ["GRACE_FRACTION", "GRACE_MIN_S", "Deadline", "check_time_limit", "time_limit_grace_s"]
+__all__ = [
+    "GRACE_FRACTION",
+    "GRACE_MIN_S",
+    "Deadline",
+    "check_grace",
+    "check_time_limit",
+    "time_limit_grace_s",
+]
 
 #: Once a time limit is spent, the re-score after the search (fresh draws of the best,
 #: the front's members, the baselines) goes on only while a grace lasts: this fraction
@@ -37,12 +44,33 @@ def check_time_limit(value: Any) -> float | None:
     return float(value)
 
 
-def time_limit_grace_s(time_limit_s: float | None) -> float | None:
+def check_grace(value: Any) -> float | None:
+    """The grace a search asks for after its time limit: None (the default rule, see
+    :func:`time_limit_grace_s`), or a finite number of seconds >= 0 (0: stop at the
+    limit, re-scoring only what is always re-scored)."""
+    if value is None:
+        return None
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, int | float)
+        or not (math.isfinite(value) and value >= 0)
+    ):
+        raise InputError(
+            f"time_limit_grace_s must be a finite number of seconds >= 0 (or none: "
+            f"{GRACE_FRACTION:.0%} of the limit, at least {GRACE_MIN_S:g} s), got {value!r}"
+        )
+    return float(value)
+
+
+def time_limit_grace_s(time_limit_s: float | None, grace_s: float | None = None) -> float | None:
     """The grace after ``time_limit_s`` in which a search's re-score may go on:
-    :data:`GRACE_FRACTION` of the limit, at least :data:`GRACE_MIN_S`; None without a
-    limit."""
+    ``grace_s`` when one is asked for, else :data:`GRACE_FRACTION` of the limit and at
+    least :data:`GRACE_MIN_S`; None without a limit."""
     limit = check_time_limit(time_limit_s)
-    return None if limit is None else max(GRACE_MIN_S, GRACE_FRACTION * limit)
+    asked = check_grace(grace_s)
+    if limit is None:
+        return None
+    return asked if asked is not None else max(GRACE_MIN_S, GRACE_FRACTION * limit)
 
 
 class Deadline:
@@ -52,13 +80,17 @@ class Deadline:
 
     :param time_limit_s: seconds from now; None: never expires.
     :param clock: monotonic seconds; a test passes its own, so it needs no sleeps.
+    :param grace_s: the grace asked for (None: the default rule).
     """
 
     def __init__(
-        self, time_limit_s: float | None, clock: Callable[[], float] = time.monotonic
+        self,
+        time_limit_s: float | None,
+        clock: Callable[[], float] = time.monotonic,
+        grace_s: float | None = None,
     ) -> None:
         self.time_limit_s = check_time_limit(time_limit_s)
-        self.grace_s = time_limit_grace_s(self.time_limit_s)
+        self.grace_s = time_limit_grace_s(self.time_limit_s, grace_s)
         self.clock = clock
         self.started = clock()
 

@@ -138,6 +138,8 @@ class SearchRequest(_Request):
         baselines, in that order of need) goes on only while the limit's grace lasts
         (``settings.time_limit_grace_s``: 10 % of the limit, at least 10 s), and the
         result says what it did not reach.
+    :param time_limit_grace_s: that grace in seconds (>= 0; 0 stops the re-score at the
+        limit, after what is always re-scored); None: the default rule.
     """
 
     method: str = "ppo"
@@ -161,6 +163,7 @@ class SearchRequest(_Request):
     fresh_realisations: int = 40
     fresh_test_series: int = 200
     time_limit_s: float | None = None
+    time_limit_grace_s: float | None = None
 
     def operator(self) -> OperatorSettings:
         """What the front is judged on: objectives, design noise, constraints."""
@@ -194,12 +197,15 @@ class SearchRequest(_Request):
                 )
         if self.lagrangian_lr and self.method != "ppo":
             raise InputError(f"lagrangian_lr applies to method ppo only, not {self.method!r}")
+        from .deadline import check_grace
         from .search.loop import check_time_limit
 
         time_limit_s = check_time_limit(self.time_limit_s)
+        grace_s = check_grace(self.time_limit_grace_s)
         if self.method == "nsga2":
             return {
                 "time_limit_s": time_limit_s,
+                "time_limit_grace_s": grace_s,
                 "sequence_length": self.sequence_length,
                 "operator": self.operator(),
                 "nsga2_params": dict(self.nsga2),
@@ -208,6 +214,7 @@ class SearchRequest(_Request):
             }
         options: dict[str, Any] = {
             "time_limit_s": time_limit_s,
+            "time_limit_grace_s": grace_s,
             "sequence_length": self.sequence_length,
             "fuel_weight": self.fuel_weight,
             "constraints": dict(self.constraints) or None,
@@ -286,7 +293,7 @@ def search_with_baselines(
 
     settings = request.scorer()
     options = request.options()
-    deadline = Deadline(request.time_limit_s, clock)
+    deadline = Deadline(request.time_limit_s, clock, request.time_limit_grace_s)
     if request.method == "ppo":
         options["policy_path"] = policy_path
     found = search(

@@ -220,6 +220,16 @@ class SearchParams(StrictModel):
         "series); 0 keeps the predicted accuracy",
     )
     time_limit_s: float | None = _time_limit_field()
+    time_limit_grace_s: float | None = Field(
+        default=None,
+        ge=0,
+        allow_inf_nan=False,
+        description="seconds the re-score on fresh draws may go on past the time limit "
+        "(the best's draws, the front's candidates, the baselines' draws, in that order); "
+        "0 stops at the limit, after the front's first member and the baselines on the "
+        "fresh draw; none: 10 % of the limit, at least 10 s",
+        examples=[0, 60],
+    )
 
     @field_validator("nsga2")
     @classmethod

@@ -163,7 +163,8 @@ class JobContext:
     @property
     def rescore_grace_s(self) -> float:
         """How long a search past :attr:`time_limit_s` may still re-score, s."""
-        return float(time_limit_grace_s(self.time_limit_s) or 0.0)
+        asked = getattr(self.spec.params, "time_limit_grace_s", None)
+        return float(time_limit_grace_s(self.time_limit_s, asked) or 0.0)
 
     def time_left_s(self) -> float:
         """Seconds of the time limit left (negative past it)."""

@@ -200,6 +200,14 @@ def search_options(func: F) -> F:
             metavar="SECONDS",
             callback=_time_limit,
         ),
+        _option(
+            "--time-limit-grace time_limit_grace_s",
+            "time_limit_grace_s",
+            "Seconds the re-score on fresh draws may go on past --time-limit (0: stop at "
+            "the limit); by default 10 % of the limit, at least 10 s.",
+            type=FloatRange(0, max=1e9),
+            metavar="SECONDS",
+        ),
     ]
     for option in reversed(options):
         func = option(func)
@@ -229,9 +237,14 @@ def search_request(
     max_sequences: int | None = None,
     fresh_test_series: int | None = None,
     time_limit_s: float | None = None,
+    time_limit_grace_s: float | None = None,
 ) -> SearchRequest:
     """The options of :func:`search_options` as a request."""
     from ..errors import InputError
+
+    if time_limit_grace_s is not None and time_limit_s is None:
+        # An option that would have no effect is refused rather than dropped.
+        raise InputError("--time-limit-grace applies with --time-limit only")
 
     if ppo_pairs and method != "ppo":
         raise InputError(f"--ppo applies to --method ppo only, not {method!r}")
@@ -297,6 +310,7 @@ def search_request(
         ppo=parse_pairs(ppo_pairs, "--ppo", "ent_coef=0.01"),
         cem=parse_pairs(cem_pairs, "--cem", "population=64"),
         time_limit_s=time_limit_s,
+        time_limit_grace_s=time_limit_grace_s,
     )
 
 

@@ -116,6 +116,7 @@ class RunOptions(TypedDict, total=False):
     progress: Callable[[SearchProgress], None] | None
     should_stop: Callable[[], bool] | None
     time_limit_s: float | None
+    time_limit_grace_s: float | None
     clock: Callable[[], float]
 
 
@@ -142,6 +143,7 @@ class SearchRun:
         but only while the limit's grace lasts (:func:`time_limit_grace_s`): the fresh
         draws completed by then are kept (``fresh.draws_asked`` says how many were
         asked for), whatever stopped the search.
+    :param time_limit_grace_s: that grace in seconds (>= 0); None: the default rule.
     :param clock: monotonic seconds for ``time_limit_s``.
     """
 
@@ -160,6 +162,7 @@ class SearchRun:
         progress: Callable[[SearchProgress], None] | None = None,
         should_stop: Callable[[], bool] | None = None,
         time_limit_s: float | None = None,
+        time_limit_grace_s: float | None = None,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.started = time.perf_counter()
@@ -167,7 +170,7 @@ class SearchRun:
         self.n_fresh_draws = n_fresh_draws
         self.progress = progress
         self.should_stop = should_stop
-        self.deadline = Deadline(time_limit_s, clock)
+        self.deadline = Deadline(time_limit_s, clock, time_limit_grace_s)
         self.env = SequenceSearchEnv(
             scenario,
             sequence_length=sequence_length,

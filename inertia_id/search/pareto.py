@@ -827,6 +827,7 @@ def pareto_search(
     progress: Callable[[SearchProgress], None] | None = None,
     should_stop: Callable[[], bool] | None = None,
     time_limit_s: float | None = None,
+    time_limit_grace_s: float | None = None,
     clock: Callable[[], float] = time.monotonic,
 ) -> SearchResult:
     """NSGA-II over the operator's objectives; the front re-scored on fresh draws.
@@ -851,6 +852,7 @@ def pareto_search(
         time_limit_grace_s`), in order of need: the front's candidates by accuracy on
         the search's draw, 16 at a time after the first (those left out are listed in
         ``not_rescored``), then the best's fresh draws (those completed kept).
+    :param time_limit_grace_s: that grace in seconds (>= 0); None: the default rule.
     :param clock: monotonic seconds for ``time_limit_s``.
     :param seed: seeds the noise draw and NSGA-II: the same seed, the same front.
     """
@@ -861,7 +863,7 @@ def pareto_search(
     from pymoo.operators.repair.rounding import RoundingRepair
 
     started = time.perf_counter()
-    deadline = Deadline(time_limit_s, clock)
+    deadline = Deadline(time_limit_s, clock, time_limit_grace_s)
     if not is_integer(sequence_length, minimum=1, maximum=50):
         raise InputError(f"sequence_length must be an integer in 1..50, got {sequence_length!r}")
     seed = check_seed(seed)

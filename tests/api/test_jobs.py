@@ -77,6 +77,7 @@ def test_submit_queues_a_job_and_a_message(api: Api) -> None:
         "fresh_realisations": 40,
         "fresh_test_series": 200,
         "time_limit_s": None,
+        "time_limit_grace_s": None,
     }
     assert job["config_hash"] == config_hash("search", scenario_id, job["params"], 7)
     assert message_job_ids(api) == [job["id"]]
@@ -703,6 +704,25 @@ def test_a_job_asking_for_more_time_than_the_ceiling_is_422_naming_both(
     assert error["loc"] == ["body", job_type, "params", "time_limit_s"]
     assert "time_limit_s = 3600.5 s" in error["msg"] and "ceiling of 3600 s" in error["msg"]
     assert api.queued_messages() == []
+
+
+@pytest.mark.parametrize(
+    ("value", "quoted"),
+    [(-1, "greater than or equal to 0, got -1"), ("10", "a valid number, got '10'")],
+)
+def test_a_grace_that_is_no_number_of_seconds_is_422_naming_it(
+    api: Api, value: Any, quoted: str
+) -> None:
+    scenario_id = api.create_scenario()["id"]
+    response = api.submit("search", scenario_id, params={"time_limit_grace_s": value})
+    assert response.status_code == 422, response.text
+    (error,) = response.json()["detail"]
+    assert error["loc"] == ["body", "search", "params", "time_limit_grace_s"]
+    assert quoted in error["msg"]
+    assert api.queued_messages() == []
+    asked = api.submit("search", scenario_id, params={"time_limit_s": 60, "time_limit_grace_s": 0})
+    assert asked.status_code == 202, asked.text
+    assert api.get(f"/jobs/{asked.json()['id']}").json()["params"]["time_limit_grace_s"] == 0
 
 
 @pytest.mark.parametrize(

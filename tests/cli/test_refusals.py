@@ -554,6 +554,10 @@ def test_a_key_given_twice_in_a_json_file_is_refused_naming_it(
         (["simulate", "-n", "1", "--sample-rate", "2_0"], 2, "'2_0' is not a decimal number"),
         (["search", "--time-limit", "1_0"], 2, "'1_0' is not a decimal number"),
         (["search", "--time-limit", "\uff11"], 2, "'\uff11' is not a decimal number"),
+        (["search", "--time-limit-grace", "1_0"], 2, "'1_0' is not a decimal number"),
+        (["search", "--time-limit-grace", "-1"], 2, "-1.0 is not in the range 0<=x<="),
+        # An option that would have no effect is refused: 1.
+        (["search", "--time-limit-grace", "5"], 1, "--time-limit-grace applies with --time-limit"),
         # What the command reads itself: 1.
         (["simulate", "-n", "1", "--sequence", "4,4,4,0,0,0_0"], 1, "'4,4,4,0,0,0_0' is not rows"),
         (

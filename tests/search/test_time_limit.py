@@ -11,6 +11,7 @@ from typing import Any
 import pytest
 
 from inertia_id import InputError, Scenario
+from inertia_id.deadline import check_grace
 from inertia_id.physics.simulate import Simulator
 from inertia_id.pipelines import SearchRequest, search_with_baselines
 from inertia_id.search import (
@@ -284,6 +285,37 @@ def test_nsga2_past_its_grace_lists_the_front_candidates_not_rescored(
     assert result.best.sequence == front["members"][0]["sequence"]
     assert result.fresh.f1 == [] and result.fresh.draws_asked == 5
     assert "not re-scored on fresh draws (time_limit)" in result.summary()
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_a_grace_of_zero_stops_the_rescore_at_the_limit(
+    method: str, paper: Scenario, tiny: Scenario, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A flight team with a hard window asks for no grace: the search ends at its limit
+    with nothing re-scored but what always is (NSGA-II: the front's first member and the
+    baselines on the fresh draw), and the result says so."""
+    clock = WorkClock(monkeypatch)
+    result = METHODS[method](
+        tiny if method == "exhaustive" else paper, sequence_length=2, settings=SETTINGS,
+        n_fresh_draws=5, seed=0, time_limit_s=30, time_limit_grace_s=0, clock=clock,
+    )  # fmt: skip
+    assert result.stopped == "time_limit"
+    assert result.settings["time_limit_grace_s"] == 0.0
+    assert (result.fresh.f1, result.fresh.draws_asked) == ([], 5)
+    if method == "nsga2":
+        assert result.front is not None and result.front["not_rescored"]
+    # It ends within its limit and the piece under way: no grace.
+    assert clock() <= 30 + PAST_THE_GRACE_S
+
+
+@pytest.mark.parametrize("value", [-1.0, math.nan, math.inf, True, "10"])
+def test_a_grace_that_is_no_number_of_seconds_is_refused_naming_it(value: Any) -> None:
+    with pytest.raises(InputError, match=rf"time_limit_grace_s must be .* got {value!r}"):
+        check_grace(value)
+    with pytest.raises(InputError, match="time_limit_grace_s"):
+        SearchRequest(method="random", time_limit_s=60, time_limit_grace_s=value).options()
+    assert time_limit_grace_s(60, 0) == 0.0 and time_limit_grace_s(60, 120) == 120.0
+    assert time_limit_grace_s(None, 5) is None
 
 
 def test_without_a_time_limit_nothing_is_cut(tiny: Scenario) -> None:

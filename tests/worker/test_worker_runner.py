@@ -8,6 +8,7 @@ cancel-poll throttle.
 from __future__ import annotations
 
 import os
+from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
 import pytest
@@ -292,6 +293,10 @@ def test_a_search_job_runs_to_its_own_limit_below_the_ceiling(store: Store) -> N
         spec, store.db, store.settings.model_copy(update={"job_time_limit_s": 10.0}), WORKER
     )
     assert roomy.time_limit_s == 10.0  # the ceiling wins
+    # The heartbeat's backstop counts the grace the job asked for, else the default.
+    assert context.rescore_grace_s == 10.0
+    strict = replace(spec, params=SearchParams(time_limit_s=30, time_limit_grace_s=0))
+    assert JobContext(strict, store.db, store.settings, WORKER).rescore_grace_s == 0.0
 
 
 def test_a_sweep_job_past_its_time_limit_keeps_the_points_done(store: Store) -> None:

@@ -115,17 +115,22 @@ function rescoreCut(job, front) {
   const fewer = typeof fresh.draws_asked === "number" && fresh.draws_asked > done;
   if (!left.length && !fewer) return null;
   const settings = job.result.settings || {};
-  const budget =
-    typeof settings.time_limit_s === "number" && typeof settings.time_limit_grace_s === "number"
-      ? ` (the ${plain(settings.time_limit_s)} s limit and its ${plain(settings.time_limit_grace_s)} s grace)`
-      : "";
+  const limit = settings.time_limit_s;
+  const grace = settings.time_limit_grace_s;
+  // A grace of 0 is the job's own choice (stop at the limit), not a grace running out.
+  const why =
+    typeof limit === "number" && grace === 0
+      ? `the time limit (${plain(limit)} s) was reached and no grace was asked for`
+      : typeof limit === "number" && typeof grace === "number"
+        ? `the time limit's grace was spent (the ${plain(limit)} s limit and its ${plain(grace)} s grace)`
+        : "the time limit's grace was spent";
   const sentences = [];
   if (left.length) {
     sentences.push(
-      `+ ${left.length} candidate${left.length === 1 ? "" : "s"} not re-scored: the time limit's grace was spent${budget}. The front is judged on the ${front.candidates_rescored} re-scored without ${left.length === 1 ? "it" : "them"}; ${left.length === 1 ? "its" : "their"} scores on the search's draw are below.`,
+      `+ ${left.length} candidate${left.length === 1 ? "" : "s"} not re-scored: ${why}. The front is judged on the ${front.candidates_rescored} re-scored without ${left.length === 1 ? "it" : "them"}; ${left.length === 1 ? "its" : "their"} scores on the search's draw are below.`,
     );
   }
-  if (fewer) sentences.push(`The best sequence's clustering F1 was measured on ${done} of the ${fresh.draws_asked} fresh draws asked${left.length ? "" : `: the time limit's grace was spent${budget}`}.`);
+  if (fewer) sentences.push(`The best sequence's clustering F1 was measured on ${done} of the ${fresh.draws_asked} fresh draws asked${left.length ? "" : `: ${why}`}.`);
   const hasPropellant = left.some((c) => c.search_scores && typeof c.search_scores.propellant_kg === "number");
   const columns = figures(hasPropellant).filter(([key]) => !key.includes("p95") && !key.startsWith("final_rate_max"));
   return [
