@@ -21,7 +21,11 @@ from pydantic import (
 )
 
 from inertia_id.checks import BIDI_CONTROLS, finite_or_none
-from inertia_id.evaluation.telemetry import MAX_TELEMETRY_SAMPLES, Telemetry
+from inertia_id.evaluation.telemetry import (
+    MAX_TELEMETRY_SAMPLES,
+    MIN_COVERED_FRACTION,
+    Telemetry,
+)
 from inertia_id.physics.presets import PRESETS
 from inertia_id.physics.scenario import Scenario
 from service.params import (
@@ -604,8 +608,15 @@ class IdentifyResult(BaseModel):
     )
     sequence_covered_fraction: float = Field(
         default=1.0,
-        description="the part of the sequence's grid times outside those gaps (at least "
-        "0.5, else the telemetry is refused)",
+        description="the part of the sequence's grid times outside those gaps: the span "
+        f"the samples cover (at least {MIN_COVERED_FRACTION:g}, else the telemetry is "
+        "refused); 1.0 with no gap judged across, however sparse the samples",
+    )
+    sequence_measured_fraction: float = Field(
+        default=1.0,
+        description="the part of the sequence's grid times with a real sample within half "
+        "a grid period, the values a likelihood kind judges (0.5 for 10 Hz telemetry on a "
+        "20 Hz grid, or for 20 Hz telemetry that lost 3 of every 6 samples)",
     )
     start_hint: str | None = Field(
         default=None,
@@ -631,6 +642,21 @@ class PartialIdentifyResult(BaseModel):
     current_p_none: float
     covers_s: float
     sequence_s: float
+    telemetry_gaps: list[TelemetryGapResult] = Field(
+        default_factory=list,
+        description="gaps between samples so far that the posterior judged across (longer "
+        "than 4 periods; on the grid times the samples cover), in s from the start used",
+    )
+    sequence_covered_fraction: float = Field(
+        default=1.0,
+        description="the part of the grid times so far (time_s) outside those gaps (at "
+        f"least {MIN_COVERED_FRACTION:g}, else the telemetry is refused)",
+    )
+    sequence_measured_fraction: float = Field(
+        default=1.0,
+        description="the part of the grid times so far (time_s) with a real sample within "
+        "half a grid period, the values the posterior judges",
+    )
 
 
 # Health.

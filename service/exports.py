@@ -704,7 +704,8 @@ _IDENTIFY_UNITS = (
     "kinds); rates in rad/s, inertia in kg m^2; sequence_start and the stamps in the "
     "telemetry's clock (seconds) or ISO-8601 UTC, shifts, telemetry_span_s and the "
     "telemetry_gaps (from_s, to_s, length_s) in s from the start used; "
-    "sequence_covered_fraction the part of the sequence's grid times outside those gaps"
+    "sequence_covered_fraction the part of the sequence's grid times outside those gaps, "
+    "sequence_measured_fraction the part with a real sample within half a grid period"
 )
 
 
@@ -742,6 +743,7 @@ def identify_table(verdict: Mapping[str, Any]) -> Table:
         ("telemetry_samples", verdict.get("telemetry_samples")),
         ("telemetry_span_s", verdict.get("telemetry_span_s")),
         ("sequence_covered_fraction", verdict.get("sequence_covered_fraction")),
+        ("sequence_measured_fraction", verdict.get("sequence_measured_fraction")),
     ]
     if verdict.get("telemetry_gaps"):
         notes.append(("telemetry_gaps", verdict.get("telemetry_gaps")))

@@ -48,7 +48,6 @@ from .telemetry import (
     TelemetryGap,
     estimate_sequence_start,
     resample_covered,
-    resample_observed,
 )
 
 if TYPE_CHECKING:
@@ -150,9 +149,11 @@ class Identification(BaseModel):
     telemetry_samples: int = 0
     telemetry_span_s: list[float] | None = None
     # Gaps between samples judged across (a likelihood kind's marginal on the grid times
-    # covered), and the part of the sequence's grid times outside them.
+    # covered), the part of the sequence's grid times outside them, and the part with a
+    # real sample within half a grid period (the values a likelihood kind judges).
     telemetry_gaps: list[TelemetryGap] = []
     sequence_covered_fraction: float = 1.0
+    sequence_measured_fraction: float = 1.0
     start_hint: str | None = None
     start_hint_shift_s: float | None = None
     start_hint_candidate: str | None = None
@@ -321,6 +322,10 @@ class OnlineIdentification(BaseModel):
     current_p_none: float
     covers_s: float
     sequence_s: float
+    # As :class:`Identification`'s, of the grid times so far (``time_s``).
+    telemetry_gaps: list[TelemetryGap] = []
+    sequence_covered_fraction: float = 1.0
+    sequence_measured_fraction: float = 1.0
 
 
 def _check_probability(name: str, value: Any) -> float:
@@ -689,6 +694,7 @@ def _identify(
         pre_start_samples=0 if offset is None else offset.samples,
         telemetry_gaps=resampled.gaps,
         sequence_covered_fraction=resampled.covered_fraction,
+        sequence_measured_fraction=resampled.measured_fraction,
         **_estimate(scenario, sequence, series, resampled.covered),
         **telemetry.inputs(),
     )
@@ -750,9 +756,10 @@ def identify_online(
             f"telemetry ends at {telemetry.time_array[-1]:.6g} s, before the first sample of "
             f"the sequence at {grid[0]:.6g} s"
         )
-    partial, measured = resample_observed(
+    resampled = resample_covered(
         telemetry, grid[:covered], marginalise_gaps=_judges_gaps(classifier), kind=classifier.kind
     )
+    partial, measured = resampled.series, resampled.observed
     # The rest of the series is never looked at (each prefix's posterior is its own
     # leading block's), so any finite filler serves to make it whole.
     model, offset = _offset_model(classifier, scenario, telemetry, pre_start_window_s)
@@ -783,4 +790,7 @@ def identify_online(
         current_p_none=float(p_none[-1]),
         covers_s=float(grid[covered - 1]),
         sequence_s=float(grid[-1]),
+        telemetry_gaps=resampled.gaps,
+        sequence_covered_fraction=resampled.covered_fraction,
+        sequence_measured_fraction=resampled.measured_fraction,
     )

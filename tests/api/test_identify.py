@@ -727,12 +727,21 @@ def test_a_pass_with_a_dropout_is_judged_and_its_gap_reported(
         {"from_s": pytest.approx(1.5), "to_s": pytest.approx(2.0), "length_s": pytest.approx(0.5)}
     ]
     assert verdict["sequence_covered_fraction"] == pytest.approx(71 / 80)
+    # 36 samples, each at its own grid time: the values judged, not the span.
+    assert verdict["sequence_measured_fraction"] == pytest.approx(36 / 80)
+    # The posterior so far judges across the same gap, and its answer says so.
+    partial = api.post("/identify/partial", json=body)
+    assert partial.status_code == 200, partial.text
+    assert partial.json()["telemetry_gaps"] == verdict["telemetry_gaps"]
+    assert partial.json()["sequence_covered_fraction"] == pytest.approx(71 / 80)
+    assert partial.json()["sequence_measured_fraction"] == pytest.approx(36 / 80)
     table = api.post("/identify?format=csv", json=body)
     assert table.status_code == 200, table.text
     notes = dict(
         line[2:].split(": ", 1) for line in table.text.splitlines() if line.startswith("# ")
     )
     assert float(notes["sequence_covered_fraction"]) == pytest.approx(71 / 80)
+    assert float(notes["sequence_measured_fraction"]) == pytest.approx(36 / 80)
     assert jsonlib.loads(notes["telemetry_gaps"]) == verdict["telemetry_gaps"]
     refused = api.post("/identify", json={**body, "classifier_id": classifier_id})
     assert refused.status_code == 422, refused.text

@@ -78,6 +78,36 @@ def test_the_grid_times_in_a_gap_are_left_out(passes: Any) -> None:
     )
 
 
+def test_samples_lost_in_holes_the_interpolation_spans_are_not_measured(
+    marginal: MarginalLikelihoodClassifier, passes: Any
+) -> None:
+    """20 Hz telemetry that drops 3 of every 6 samples: each hole is 4 periods, the
+    interpolation's limit, so no gap is judged across and the span is whole, but half
+    the grid times hold no sample. They were counted as measured (their interpolated
+    values judged as gyro samples) and the verdict said nothing of the loss."""
+    t = np.asarray(passes.time_s)
+    kept = np.arange(len(t)) % 6 < 3
+    telemetry = Telemetry(
+        time_s=t[kept].tolist(), omega_rad_s=passes.omega_measured[1, 0][kept].tolist()
+    )
+    resampled = resample_covered(telemetry, t, marginalise_gaps=True)
+    np.testing.assert_array_equal(resampled.observed, kept)
+    assert resampled.covered.all() and resampled.gaps == []
+    verdict = identify(marginal, telemetry)
+    assert verdict.sequence_covered_fraction == 1.0
+    assert verdict.sequence_measured_fraction == pytest.approx(41 / 80)
+    assert verdict.threshold == pytest.approx(
+        marginal.novelty_thresholds(41 / 80)[verdict.candidate_index]
+    )
+    online = identify_online(marginal, telemetry)
+    assert online.sequence_measured_fraction == pytest.approx(41 / 80)
+    # Whole 20 Hz telemetry, and stamps half a grid period off it, are measured throughout.
+    whole = Telemetry(time_s=t.tolist(), omega_rad_s=passes.omega_measured[1, 0].tolist())
+    assert identify(marginal, whole).sequence_measured_fraction == 1.0
+    off = Telemetry(time_s=(t - 0.025).tolist(), omega_rad_s=passes.omega_measured[1, 0].tolist())
+    assert resample_covered(off, t, marginalise_gaps=True).observed.all()
+
+
 def test_too_little_covered_is_refused_naming_the_gaps(
     marginal: MarginalLikelihoodClassifier, passes: Any
 ) -> None:
