@@ -2,9 +2,9 @@
 against the same passes without one.
 
 The paper-in-orbit preset (initial rates and gyro biases drawn) flown with the paper's
-hand-designed step ``[4, 4, 4, 0, 0, 0]`` repeated ``--steps`` times (12 s by default:
-a 5 s hole must leave half the sequence), the default classifier (marginal likelihood,
-its default realisations) trained at 1x noise. Test series: ``--series`` per candidate
+hand-designed step ``[4, 4, 4, 0, 0, 0]`` repeated ``--steps`` times (12 s by default: a
+5 s hole leaves more than half of it), the default classifier (marginal likelihood, its
+default realisations) trained at 1x noise. Test series: ``--series`` per candidate
 at ``--process`` times the process noise, sent at ``--rate`` Hz (every n-th sample of
 the 20 Hz simulation), from the sequence start (no telemetry before it). Each series is
 judged whole, and with each ``--holes`` length lost (every sample strictly inside the
@@ -41,9 +41,9 @@ import numpy as np
 from _common import GOOD_SEQUENCE, base_parser, float_list, print_header, print_table, write_json
 
 from inertia_id.classifiers.registry import default_realisations, train_classifier
+from inertia_id.evaluation import telemetry as telemetry_module
 from inertia_id.evaluation.identify import identify
 from inertia_id.evaluation.sweep import wilson_interval
-from inertia_id.evaluation import telemetry as telemetry_module
 from inertia_id.evaluation.telemetry import Telemetry
 from inertia_id.physics.presets import preset
 from inertia_id.physics.simulate import simulate
@@ -147,9 +147,7 @@ def main() -> None:
     parser = base_parser(__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=12, help="steps of 1 s in the sequence")
     parser.add_argument("--series", type=int, default=20, help="test series per candidate")
-    parser.add_argument(
-        "--process", type=float_list, default=[6.0], help="process noise multiples"
-    )
+    parser.add_argument("--process", type=float_list, default=[6.0], help="process noise multiples")
     parser.add_argument("--rate", type=float, default=10.0, help="telemetry rate, Hz")
     parser.add_argument("--holes", type=float_list, default=[0.5, 2.0, 5.0], help="hole lengths, s")
     parser.add_argument(
@@ -251,8 +249,7 @@ def main() -> None:
             "s",
         ],
         rows,
-        title=f"{args.rate:g} Hz telemetry, {process:g}x process noise, "
-        f"{args.steps}-step sequence",
+        title=f"{args.rate:g} Hz telemetry, {process:g}x process noise, {args.steps}-step sequence",
     )
     write_json(args.json, args, {"rows": figures})
 

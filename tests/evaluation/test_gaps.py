@@ -32,19 +32,25 @@ def _with_hole(passes: Any, k: int, i: int, hole: tuple[float, float] | None, ev
     return Telemetry(time_s=t[keep].tolist(), omega_rad_s=w[keep].tolist())
 
 
-@pytest.mark.parametrize(("hole", "covered"), [((1.5, 2.0), 71 / 80), ((1.0, 3.0), 41 / 80)])
+@pytest.mark.parametrize(
+    ("hole", "covered"),
+    [((1.5, 2.0), 71 / 80), ((1.0, 3.0), 41 / 80), ((0.6, 3.4), 25 / 80)],
+)
 def test_a_pass_with_a_hole_is_identified_and_the_gap_reported(
     marginal: MarginalLikelihoodClassifier,
     passes: Any,
     hole: tuple[float, float],
     covered: float,
 ) -> None:
-    """A 10 Hz pass that lost 0.5 s (or 2 s of the 4 s sequence) was refused (gap over
-    4 periods, 0.4 s); it is judged on the samples it has, the gap in the verdict."""
+    """A 10 Hz pass that lost 0.5 s (or 2 s, or 2.8 s of the 4 s sequence) was refused (gap
+    over 4 periods, 0.4 s); it is judged on the samples it has, the gap in the verdict.
+    The 2.8 s hole leaves 31 % covered, under the 50 % floor that refused it before the
+    bench measured verdicts calibrated down to 5 % (MIN_COVERED_FRACTION)."""
     for k in range(marginal.n_candidates_):
         verdict = identify(marginal, _with_hole(passes, k, k % 4, hole))
         assert verdict.candidate_index == k, verdict.verdict
-        assert verdict.status == "identified", verdict.verdict
+        # At 31 % a verdict may be less sure (one of five is ambiguous at 0.975).
+        assert verdict.status == "identified" or covered < 0.5, verdict.verdict
         assert [(g.from_s, g.to_s) for g in verdict.telemetry_gaps] == [pytest.approx(hole)]
         assert verdict.telemetry_gaps[0].length_s == pytest.approx(hole[1] - hole[0])
         assert verdict.sequence_covered_fraction == pytest.approx(covered)
@@ -113,10 +119,10 @@ def test_too_little_covered_is_refused_naming_the_gaps(
 ) -> None:
     with pytest.raises(
         ValueError,
-        match=r"too thin for a verdict: its samples cover 31 of the sequence's 80 grid times "
-        r"\(38\.8 %\), at least 50% needed .*no sample from 0\.8 s to 3\.3 s \(2\.5 s\)",
+        match=r"too thin for a verdict: its samples cover 9 of the sequence's 80 grid times "
+        r"\(11\.2 %\), at least 15% needed .*no sample from 0\.2 s to 3\.8 s \(3\.6 s\)",
     ):
-        identify(marginal, _with_hole(passes, 0, 0, (0.8, 3.3)))
+        identify(marginal, _with_hole(passes, 0, 0, (0.2, 3.8)))
     # The ends keep their rule: a pass that starts late is not a gap to judge across.
     with pytest.raises(ValueError, match=r"no sample from 0 s to 0\.9 s .* after the sequence"):
         identify(marginal, _with_hole(passes, 0, 0, (0.0, 0.9)))
