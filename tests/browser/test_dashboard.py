@@ -876,9 +876,13 @@ def test_identify_shows_the_dropouts_judged_across_and_the_part_covered(
     spans, covered = shown.split("; ")
     assert spans == f"{gap['length_s']:.2f} s ({gap['from_s']:.2f}–{gap['to_s']:.2f} s)"
     # Three significant digits (JavaScript rounds a tie up, Python to even).
-    assert covered.endswith(" % of the sequence covered")
+    covered, sampled = covered.split(", ")
+    assert covered.endswith(" % of the sequence covered") and sampled.endswith(" % sampled")
     assert float(covered.split()[0]) == pytest.approx(
         100 * expected["sequence_covered_fraction"], abs=0.051
+    )
+    assert float(sampled.split()[0]) == pytest.approx(
+        100 * expected["sequence_measured_fraction"], abs=0.051
     )
     assert "dropouts judged across" in page.inner_text("#identify-result dl.kv")
     assert _shown_posterior(dashboard) == _expected_posterior(expected)

@@ -199,14 +199,19 @@ function startUsed(verdict) {
   return `${start} (shifted ${shift >= 0 ? "+" : ""}${plain(shift, 6)} s by the search within ±${plain(verdict.estimate_start_within_s, 6)} s)`;
 }
 
-// The dropouts the verdict judged across (on the samples present) and the part of the
-// sequence's grid times the telemetry covers; null when it has none.
+// The dropouts the verdict judged across (on the samples present), the part of the
+// sequence's grid times outside them and the part with a real sample; null when none.
 function gapsOf(verdict) {
   const gaps = verdict.telemetry_gaps || [];
   if (!gaps.length) return null;
   const s = (v) => v.toFixed(2);
   const spans = gaps.map((g) => `${s(g.length_s)} s (${s(g.from_s)}–${s(g.to_s)} s)`).join(", ");
-  return `${spans}; ${plain(100 * verdict.sequence_covered_fraction, 3)} % of the sequence covered`;
+  const covered = `${plain(100 * verdict.sequence_covered_fraction, 3)} % of the sequence covered`;
+  // The grid times with a real sample within half a grid period (older answers lack it).
+  const measured = verdict.sequence_measured_fraction;
+  return typeof measured === "number"
+    ? `${spans}; ${covered}, ${plain(100 * measured, 3)} % sampled`
+    : `${spans}; ${covered}`;
 }
 
 async function showVerdict(holder, verdict, classifier, { content, context, file, options }) {
