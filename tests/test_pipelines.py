@@ -82,6 +82,7 @@ def test_a_search_request_gives_each_method_its_own_options() -> None:
         "constraints": None,
         "constraint_penalty": 0.0,
         "time_limit_s": None,
+        "time_limit_grace_s": None,
     }
     assert SearchRequest(method="cem", cem={"population": 8}).options()["population"] == 8
     with pytest.raises(InputError, match="ppo settings apply to method ppo only, not 'random'"):
