@@ -602,9 +602,10 @@ class IdentifyResult(BaseModel):
     )
     telemetry_gaps: list[TelemetryGapResult] = Field(
         default_factory=list,
-        description="gaps between samples inside the sequence that the verdict judged "
-        "across (longer than 4 periods; the likelihood kinds only, on the grid times the "
-        "samples cover), in s from the start used",
+        description="gaps in the sequence that the verdict judged across (between "
+        "samples, longer than 4 periods; or at an end, longer than 1.5: from 0 s when the "
+        "pass started late, to the end when it ended early; the likelihood kinds only, on "
+        "the grid times the samples cover), in s from the start used",
     )
     sequence_covered_fraction: float = Field(
         default=1.0,
@@ -644,8 +645,9 @@ class PartialIdentifyResult(BaseModel):
     sequence_s: float
     telemetry_gaps: list[TelemetryGapResult] = Field(
         default_factory=list,
-        description="gaps between samples so far that the posterior judged across (longer "
-        "than 4 periods; on the grid times the samples cover), in s from the start used",
+        description="gaps so far that the posterior judged across (between samples, longer "
+        "than 4 periods; or from 0 s when the pass started more than 1.5 late; on the grid "
+        "times the samples cover), in s from the start used",
     )
     sequence_covered_fraction: float = Field(
         default=1.0,

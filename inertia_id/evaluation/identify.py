@@ -8,9 +8,10 @@ classifier's sample grid (averaged when faster, interpolated when slower:
 telemetry slower than the grid is compared at its samples' nearest grid points
 only by the likelihood kinds (the exact Gaussian marginal of those values:
 :func:`~inertia_id.evaluation.telemetry.resample_observed`). The same kinds judge
-telemetry with a dropout (a gap between samples longer than the interpolation allows)
-on the grid times its samples cover, the gaps reported in the verdict; the others
-refuse it (:func:`~inertia_id.evaluation.telemetry.resample_covered`).
+telemetry with a dropout (a gap between samples longer than the interpolation allows,
+or a pass that starts late or ends early) on the grid times its samples cover, the gaps
+reported in the verdict; the others refuse it
+(:func:`~inertia_id.evaluation.telemetry.resample_covered`).
 
 The verdict is a posterior: a probability for each candidate and one for "none of
 these" (:meth:`~inertia_id.classifiers.base.BaseClassifier.posterior_from_distances`),

@@ -37,7 +37,11 @@ of each covariance. A grid time inside such a gap is *covered* when a sample fal
 its cell (within half a grid period of it, the cells the averaging uses); the others
 are left out of the likelihood (their values, interpolated across the gap, are never
 looked at). At least :data:`MIN_COVERED_FRACTION` of the grid times must be covered,
-else the telemetry is refused with the gaps named. The ends keep their ``1.5 p`` rule.
+else the telemetry is refused with the gaps named. A first sample more than ``1.5 p``
+after the start (or a last more than ``1.5 p`` before the end) is such a gap at an end:
+its grid times are left out, and hold the nearest cell's value (not extrapolated).
+:func:`estimate_sequence_start` keeps the ``1.5 p`` rule at the ends: it tries only the
+starts the telemetry reaches.
 """
 
 from __future__ import annotations
@@ -602,8 +606,9 @@ def load_telemetry(
 
 
 class TelemetryGap(BaseModel):
-    """A gap between samples inside the sequence that a verdict judged across: no sample
-    from ``from_s`` to ``to_s`` (s from the sequence start used), ``length_s`` long."""
+    """A gap in the sequence that a verdict judged across: no sample from ``from_s`` to
+    ``to_s`` (s from the sequence start used), ``length_s`` long; from 0 s when the pass
+    started late, to the sequence's end when it ended early."""
 
     from_s: float
     to_s: float
@@ -668,8 +673,10 @@ def resample_covered(
 
     :param marginalise_gaps: the caller judges the series on its measured grid times
         only (a likelihood kind): a gap between samples longer than the interpolation
-        allows (``4 p``) is then left out, not refused, as long as the grid times covered
-        are at least :data:`MIN_COVERED_FRACTION` of the sequence's.
+        allows (``4 p``), or at an end longer than the extrapolation allows (``1.5 p``:
+        a pass that starts late or ends early), is then left out, not refused, as long
+        as the grid times covered are at least :data:`MIN_COVERED_FRACTION` of the
+        sequence's.
     :param kind: the classifier kind asking, named when a gap is refused.
     """
     grid = np.asarray(grid_s, dtype=float)
@@ -763,14 +770,17 @@ def _resample(
     *,
     marginalise_gaps: bool = False,
     kind: str | None = None,
+    edge_rule: bool = False,
 ) -> tuple[np.ndarray, np.ndarray, list[tuple[float, float]]]:
     """The series on the grid, the grid times outside the gaps judged across, and those
-    gaps (none without ``marginalise_gaps``)."""
+    gaps (none without ``marginalise_gaps``; with ``edge_rule`` a late first or early
+    last sample is refused even then)."""
     grid_s = np.asarray(grid_s, dtype=float)
     step = _grid_period(grid_s)
     period = max(step, float(np.median(np.diff(t))))
-    gaps = _check_coverage(t, grid_s, period, describe, marginalise_gaps, kind)
-    covered = _outside_gaps(grid_s, step, gaps)
+    judged = _check_coverage(t, grid_s, period, describe, marginalise_gaps, kind, edge_rule)
+    gaps = [(a, b) for a, b, _, _ in judged]
+    covered = _outside_gaps(grid_s, step, judged)
     _check_covered(covered, gaps, describe)
     # Samples near the grid only; each goes to the cell of width `step` centred on the
     # nearest grid time (a gyro sample is the instantaneous rate at its stamp, as in the
@@ -788,21 +798,28 @@ def _resample(
         return np.repeat(mean_w, len(grid_s), axis=0), covered, gaps
     # The cell means lie at their mean stamps: interpolate them onto the grid times, and
     # extrapolate the two nearest linearly past the ends (at most 1.5 periods, see above).
+    # Not into a gap judged at an end: its grid times are not covered, never looked at,
+    # and hold the nearest cell's mean (np.interp's), not a line run on for seconds.
     out = np.stack([np.interp(grid_s, mean_t, mean_w[:, a]) for a in range(3)], axis=-1)
     for ends, (i, j) in ((grid_s < mean_t[0], (0, 1)), (grid_s > mean_t[-1], (-1, -2))):
+        ends &= covered
         if np.any(ends):
             slope = (mean_w[j] - mean_w[i]) / (mean_t[j] - mean_t[i])
             out[ends] = mean_w[i] + (grid_s[ends, None] - mean_t[i]) * slope
     return out, covered, gaps
 
 
-def _outside_gaps(grid_s: np.ndarray, step: float, gaps: list[tuple[float, float]]) -> np.ndarray:
+def _outside_gaps(
+    grid_s: np.ndarray, step: float, gaps: list[tuple[float, float, float, float]]
+) -> np.ndarray:
     """The grid times not inside a gap: a grid time between the cells of a gap's two
-    samples holds no sample within half a grid period (its cell is empty)."""
+    samples holds no sample within half a grid period (its cell is empty). A gap at an
+    end of the sequence has a sample on one side only (the other is ±inf, or a sample
+    beyond the end whose cell may still reach the sequence's first or last grid time)."""
     covered = np.ones(len(grid_s), dtype=bool)
-    for a, b in gaps:
-        first = int(np.rint((a - grid_s[0]) / step)) + 1
-        last = int(np.rint((b - grid_s[0]) / step))
+    for _, _, before, after in gaps:
+        first = int(np.rint((before - grid_s[0]) / step)) + 1 if math.isfinite(before) else 0
+        last = int(np.rint((after - grid_s[0]) / step)) if math.isfinite(after) else len(grid_s)
         covered[max(first, 0) : max(min(last, len(grid_s)), 0)] = False
     return covered
 
@@ -832,10 +849,13 @@ def _check_coverage(
     describe: Callable[[float], str],
     marginalise_gaps: bool = False,
     kind: str | None = None,
-) -> list[tuple[float, float]]:
+    edge_rule: bool = False,
+) -> list[tuple[float, float, float, float]]:
     """Refuse telemetry too thin for a verdict, naming the largest offending gap; with
-    ``marginalise_gaps`` the gaps between samples longer than the interpolation allows
-    are returned (from, to, s from the start) instead of refused."""
+    ``marginalise_gaps`` the gaps longer than the interpolation (between samples) or the
+    extrapolation (at an end, unless ``edge_rule``) allows are returned instead of
+    refused: (from, to, s from the start, within the sequence; the samples either side,
+    -inf or inf where there is none)."""
     start, end = 0.0, float(grid_s[-1])
     within = int(np.count_nonzero((t >= start) & (t <= end)))
     if within < MIN_SAMPLES_IN_SEQUENCE:
@@ -849,43 +869,53 @@ def _check_coverage(
     edge, interior = EDGE_GAP_PERIODS * period, INTERIOR_GAP_PERIODS * period
     # A tolerance of a microsecond for stamps rounded to it (ISO stamps).
     tolerance = 1e-6
-    # Every stretch of the sequence [start, end] with no sample, and its limit.
-    gaps: list[tuple[float, float, float, str]] = []
-    judged: list[tuple[float, float]] = []
+    # Every stretch of the sequence [start, end] with no sample, its limit, and the
+    # samples either side.
+    gaps: list[tuple[float, float, float, str, float, float]] = []
     if t[0] > start:
-        gaps.append((start, float(min(t[0], end)), edge, "after the sequence start"))
+        gaps.append(
+            (start, float(min(t[0], end)), edge, "after the sequence start", -math.inf, t[0])
+        )
     if t[-1] < end:
-        gaps.append((float(max(t[-1], start)), end, edge, "before the end of the sequence"))
+        gaps.append(
+            (float(max(t[-1], start)), end, edge, "before the end of the sequence", t[-1], math.inf)
+        )
     inside = np.flatnonzero((t[1:] > start) & (t[:-1] < end))
-    if inside.size:
-        # Only the part of a gap within the sequence counts: a dropout before the start
-        # (or after the end) leaves the sequence as covered as no samples there at all.
-        # Such a clipped gap is an edge of the sequence, as if the samples beyond were
-        # not there (they are farther than the resampling reaches), and has its limit.
-        lower = np.maximum(t[inside], start)
-        upper = np.minimum(t[inside + 1], end)
-        clipped = (t[inside] < start) | (t[inside + 1] > end)
-        if marginalise_gaps:
-            # Between two samples of the sequence: judged on the samples either side.
-            long = ~clipped & (upper - lower > interior + tolerance)
-            judged = [(float(a), float(b)) for a, b in zip(lower[long], upper[long], strict=True)]
-            lower, upper, clipped = lower[~long], upper[~long], clipped[~long]
-        for is_edge, limit, where in (
-            (False, interior, "between samples"),
-            (True, edge, "at an end of the sequence"),
-        ):
-            kind_of = np.flatnonzero(clipped == is_edge)
-            if kind_of.size:
-                worst = int(kind_of[np.argmax(upper[kind_of] - lower[kind_of])])
-                gaps.append((float(lower[worst]), float(upper[worst]), limit, where))
-    bad = [g for g in gaps if g[1] - g[0] > g[2] + tolerance]
+    # Only the part of a gap within the sequence counts: a dropout before the start (or
+    # after the end) leaves the sequence as covered as no samples there at all. Such a
+    # clipped gap is an edge of the sequence, as if the samples beyond were not there
+    # (they are farther than the resampling reaches), and has its limit.
+    lower = np.maximum(t[inside], start)
+    upper = np.minimum(t[inside + 1], end)
+    clipped = (t[inside] < start) | (t[inside + 1] > end)
+    for is_edge, limit, where in (
+        (False, interior, "between samples"),
+        (True, edge, "at an end of the sequence"),
+    ):
+        # The long ones only: the others are within what the resampling spans.
+        for i in np.flatnonzero((clipped == is_edge) & (upper - lower > limit + tolerance)):
+            j = inside[i]
+            gaps.append((float(lower[i]), float(upper[i]), limit, where, t[j], t[j + 1]))
+    # A likelihood kind judges a long gap on the samples present: between two samples,
+    # and (but for the start search, which tries only the starts the telemetry covers)
+    # at an end, where a pass began late or ended early. Its grid times are left out.
+    judges = {"between samples"} if marginalise_gaps else set()
+    if marginalise_gaps and not edge_rule:
+        judges |= {"after the sequence start", "before the end of the sequence"}
+        judges |= {"at an end of the sequence"}
+    long = [g for g in gaps if g[1] - g[0] > g[2] + tolerance]
+    judged = [
+        (a, b, float(before), float(after)) for a, b, _, w, before, after in long if w in judges
+    ]
+    bad = [g for g in long if g[3] not in judges]
     if not bad:
-        return judged
-    a, b, limit, where = max(bad, key=lambda g: g[1] - g[0])
+        return sorted(judged)
+    a, b, limit, where, _, _ = max(bad, key=lambda g: g[1] - g[0])
     hint = ""
-    if where == "between samples":
-        # Only a kind that leaves grid times out can judge across a long gap; an
-        # interpolation across it would be compared as if measured.
+    if not marginalise_gaps:
+        # Only a kind that leaves grid times out can judge a long gap (between samples,
+        # or at an end); an interpolation or extrapolation across it would be compared
+        # as if measured.
         who = (
             f"The {kind!r} classifier compares whole series and cannot judge across it"
             if kind is not None
@@ -958,8 +988,15 @@ def estimate_sequence_start(
     refusal: tuple[float, InputError] | None = None
     for shift in np.arange(-n, n + 1) * step:
         try:
+            # The edge rule still bounds the starts tried: a start the telemetry does not
+            # reach is not one to score on the part it does.
             series, covered, _ = _resample(
-                t - shift, omega, grid_s, marginalise_gaps=marginalise_gaps, kind=kind
+                t - shift,
+                omega,
+                grid_s,
+                marginalise_gaps=marginalise_gaps,
+                kind=kind,
+                edge_rule=True,
             )
         except InputError as exc:
             if refusal is None or abs(shift) < refusal[0]:

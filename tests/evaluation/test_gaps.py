@@ -123,9 +123,13 @@ def test_too_little_covered_is_refused_naming_the_gaps(
         r"\(11\.2 %\), at least 15% needed .*no sample from 0\.2 s to 3\.8 s \(3\.6 s\)",
     ):
         identify(marginal, _with_hole(passes, 0, 0, (0.2, 3.8)))
-    # The ends keep their rule: a pass that starts late is not a gap to judge across.
-    with pytest.raises(ValueError, match=r"no sample from 0 s to 0\.9 s .* after the sequence"):
-        identify(marginal, _with_hole(passes, 0, 0, (0.0, 0.9)))
+    # A pass that starts late is held to the same floor: first sample at 3.5 s.
+    with pytest.raises(
+        ValueError,
+        match=r"cover 11 of the sequence's 80 grid times \(13\.8 %\).*no sample from 0 s to "
+        r"3\.5 s \(3\.5 s\)",
+    ):
+        identify(marginal, _with_hole(passes, 0, 0, (0.0, 3.5)))
 
 
 def test_a_whole_series_kind_refuses_the_gap_and_names_the_kind_that_judges_it(
@@ -231,3 +235,120 @@ def test_a_start_search_that_fits_nowhere_names_the_gap_at_the_nominal_start(
         r"between samples.*The 'clustering' classifier compares whole series",
     ):
         identify(euclidean_classifier, telemetry, estimate_start_within_s=0.5)
+
+
+@pytest.mark.parametrize(
+    ("hole", "gap", "covered"),
+    [((0.0, 0.6), (0.0, 0.6), 69 / 80), ((3.4, 4.1), (3.4, 4.0), 68 / 80)],
+    ids=["head", "tail"],
+)
+def test_a_pass_that_starts_late_or_ends_early_is_judged_on_the_samples_present(
+    marginal: MarginalLikelihoodClassifier,
+    passes: Any,
+    hole: tuple[float, float],
+    gap: tuple[float, float],
+    covered: float,
+) -> None:
+    """A 10 Hz pass whose first sample is 0.6 s after the sequence start (lost
+    acquisition), or whose last is 0.6 s before its end, was refused by the 1.5-period
+    edge rule: the missing head or tail is a gap at an end, judged like one inside."""
+    identified = 0
+    for k in range(marginal.n_candidates_):
+        telemetry = _with_hole(passes, k, k % 4, hole)
+        verdict = identify(marginal, telemetry)
+        # Right every time; sure of it but once (series (1, 1): 0.958 and 0.981 at 0.99).
+        assert verdict.candidate_index == k, verdict.verdict
+        assert verdict.status in ("identified", "ambiguous"), verdict.verdict
+        identified += verdict.status == "identified"
+        assert [(g.from_s, g.to_s) for g in verdict.telemetry_gaps] == [pytest.approx(gap)]
+        assert verdict.sequence_covered_fraction == pytest.approx(covered)
+        assert verdict.sequence_measured_fraction == pytest.approx(
+            resample_covered(
+                telemetry, np.asarray(passes.time_s), marginalise_gaps=True
+            ).observed.mean()
+        )
+        # The partial verdict judges it too (a tail lost is just where it stops).
+        online = identify_online(marginal, telemetry)
+        assert online.candidate_index in (None, k)
+        if hole[0] == 0.0:
+            assert [(g.from_s, g.to_s) for g in online.telemetry_gaps] == [pytest.approx(gap)]
+    assert identified >= 4
+
+
+def test_the_grid_times_of_a_lost_head_or_tail_are_not_extrapolated_into(passes: Any) -> None:
+    """The grid times before the first sample's cell (after the last's) are out of the
+    likelihood and hold the nearest cell's value, not a line run on across the gap."""
+    grid = np.asarray(passes.time_s)
+    for hole, out in (((0.0, 0.6), grid < 0.575), ((3.4, 4.1), grid > 3.425)):
+        telemetry = _with_hole(passes, 0, 0, hole, every=1)
+        resampled = resample_covered(telemetry, grid, marginalise_gaps=True)
+        np.testing.assert_array_equal(resampled.covered, ~out)
+        assert not resampled.observed[out].any()
+        nearest = 0 if hole[0] == 0.0 else -1
+        np.testing.assert_array_equal(
+            resampled.series[out], np.repeat(telemetry.omega_array[[nearest]], out.sum(), 0)
+        )
+
+
+def test_values_in_a_lost_head_are_never_looked_at(
+    marginal: MarginalLikelihoodClassifier, passes: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Whatever the series holds at the grid times a lost head leaves uncovered, the
+    verdict (distances, posterior, threshold, least-squares estimate) is the same."""
+    import inertia_id.evaluation.identify as identify_module
+
+    telemetry = _with_hole(passes, 3, 1, (0.0, 0.6))
+    honest = identify(marginal, telemetry).model_dump()
+    real = identify_module.resample_covered
+
+    def poisoned(*args: Any, **kwargs: Any) -> Any:
+        resampled = real(*args, **kwargs)
+        resampled.series[~resampled.covered] = 1.0  # 57 deg/s, far off every candidate
+        return resampled
+
+    monkeypatch.setattr(identify_module, "resample_covered", poisoned)
+    judged = identify(marginal, telemetry).model_dump()
+    # Exactly the same but for the least-squares estimate's rounding: its gyroscopic
+    # integral is a cumulative sum from the first grid time, differenced.
+    for name in ("distances", "posterior", "p_none", "threshold", "status", "candidate"):
+        assert judged[name] == honest[name], name
+    assert judged["estimate_rejected"] == honest["estimate_rejected"]
+    assert judged["estimate_condition_number"] == pytest.approx(
+        honest["estimate_condition_number"], rel=1e-12
+    )
+
+
+def test_twenty_passes_with_a_lost_head_name_no_wrong_candidate(
+    marginal: MarginalLikelihoodClassifier, drifting_paper: Scenario
+) -> None:
+    """Twenty fresh 10 Hz series at 2x process noise, each with its first 0.6 s lost:
+    none identified as the wrong candidate, none called none of these."""
+    result = simulate(
+        drifting_paper, GOOD_SEQUENCE, 4, np.random.default_rng(47), process_noise_scale=2.0
+    )
+    wrong = flagged = identified = 0
+    for k in range(marginal.n_candidates_):
+        for i in range(4):
+            verdict = identify(marginal, _with_hole(result, k, i, (0.0, 0.6)))
+            identified += verdict.status == "identified"
+            wrong += verdict.status == "identified" and verdict.candidate_index != k
+            flagged += verdict.matches_none
+    assert (wrong, flagged) == (0, 0)
+    assert identified >= 18, identified
+
+
+def test_a_whole_series_kind_refuses_a_late_first_sample_naming_the_kind_that_judges_it(
+    euclidean_classifier: InertiaClassifier, paper: Scenario
+) -> None:
+    result = simulate(paper, GOOD_SEQUENCE, 1, np.random.default_rng(43))
+    t, w = result.time_s, result.omega_measured[0, 0]
+    late = t >= 0.6
+    with pytest.raises(
+        ValueError,
+        match=r"no sample from 0 s to 0\.6 s .* after the sequence start; at most 0\.075 s "
+        r".*The 'clustering' classifier compares whole series and cannot judge across it; a "
+        r"likelihood kind \(marginal-likelihood, the default, or likelihood\) judges it",
+    ):
+        identify(
+            euclidean_classifier, Telemetry(time_s=t[late].tolist(), omega_rad_s=w[late].tolist())
+        )
