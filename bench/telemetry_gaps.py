@@ -9,7 +9,9 @@ at ``--process`` times the process noise, sent at ``--rate`` Hz (every n-th samp
 the 20 Hz simulation), from the sequence start (no telemetry before it). Each series is
 judged whole, and with each ``--holes`` length lost (every sample strictly inside the
 hole), the hole starting at one of ``--hole-starts`` in turn; ``identify`` judges it on
-the grid times its samples cover (the exact Gaussian marginal).
+the grid times its samples cover (the exact Gaussian marginal). With ``--head`` each
+hole starts at the sequence start instead: a pass whose first ``--holes`` seconds were
+lost (acquired late), judged the same way.
 
 Per row: accuracy of the most probable candidate (with its 95 % Wilson interval), the
 fraction "identified" at 0.99 and the errors among them, genuine series called matches
@@ -27,7 +29,7 @@ column "floor" says whether the shipped floor admits the row. Per row: the ident
 rate at the default confidence (0.99), wrong among identified (with its 95 % Wilson
 interval), genuine series called matches none, and accuracy of the most probable.
 
-Run: python bench/telemetry_gaps.py [--series 20] [--holes 0.5,2,5] [--process 6]
+Run: python bench/telemetry_gaps.py [--series 20] [--holes 0.5,2,5] [--process 6] [--head]
      python bench/telemetry_gaps.py --coverage 0.75,0.5,0.35,0.25,0.15 --process 1,6 \
          --steps 4 --rate 20 --series 20
 """
@@ -153,6 +155,11 @@ def main() -> None:
     parser.add_argument(
         "--hole-starts", type=float_list, default=[1.0, 3.5, 6.0], help="hole starts, s"
     )
+    parser.add_argument(
+        "--head",
+        action="store_true",
+        help="lose each hole from the sequence start (a pass acquired late)",
+    )
     parser.add_argument("--realisations", type=int, default=None, help="training realisations")
     parser.add_argument(
         "--coverage",
@@ -194,7 +201,7 @@ def main() -> None:
                 hole = None
                 if length is not None:
                     begin = args.hole_starts[(k * args.series + i) % len(args.hole_starts)]
-                    hole = (begin, begin + length)
+                    hole = (0.0, length) if args.head else (begin, begin + length)
                 try:
                     verdict = identify(classifier, _telemetry(t, omega[k, i], hole))
                 except ValueError as exc:
@@ -249,7 +256,8 @@ def main() -> None:
             "s",
         ],
         rows,
-        title=f"{args.rate:g} Hz telemetry, {process:g}x process noise, {args.steps}-step sequence",
+        title=f"{args.rate:g} Hz telemetry, {process:g}x process noise, {args.steps}-step sequence"
+        + (", each hole from the sequence start" if args.head else ""),
     )
     write_json(args.json, args, {"rows": figures})
 
