@@ -353,19 +353,37 @@ def _context(
 
 
 def _estimate(
-    scenario: Scenario, sequence: np.ndarray, series: np.ndarray, covered: np.ndarray | None = None
+    scenario: Scenario, sequence: np.ndarray, series: np.ndarray, measured: np.ndarray | None = None
 ) -> dict[str, Any]:
     """The least-squares tensor, shown only when physically valid and well excited; with
-    ``covered``, from the windows that end at grid times outside the gaps judged across.
+    ``measured``, from the windows whose ends hold a real sample within half a grid
+    period (:attr:`~inertia_id.evaluation.telemetry.Resampled.observed`): a grid time in
+    a hole the resampling interpolates across is no measurement, and an equation ending
+    there would fit the interpolation. Too few such windows withhold the tensor.
 
     Valid: finite, positive definite, principal moments satisfying the triangle
     inequality. Well excited: every parameter's standard error within 2 % of the mean
     principal moment. Otherwise the tensor is withheld (None) and the reason given,
     with the parameters this sequence cannot see.
     """
-    estimate = estimate_inertia(
-        scenario, sequence, series, covered=None if covered is None or covered.all() else covered
-    )
+    try:
+        estimate = estimate_inertia(
+            scenario,
+            sequence,
+            series,
+            covered=None if measured is None or measured.all() else measured,
+        )
+    except InputError as exc:
+        # Sparse telemetry (1 Hz on a 20 Hz grid) may leave fewer windows than the six
+        # parameters: the verdict stands, the tensor is withheld with the reason.
+        return {
+            "estimated_inertia_kg_m2": None,
+            "estimated_principal_moments_kg_m2": None,
+            "estimated_inertia_std_kg_m2": None,
+            "estimate_condition_number": None,
+            "estimate_rejected": f"no estimate from the measured grid times: {exc}",
+            "poorly_excited": [],
+        }
     tensor = np.asarray(tensor_from_parameters(estimate.parameters_kg_m2))
     std = np.asarray(estimate.parameter_std_kg_m2)
     condition = float(estimate.condition_number)
@@ -497,12 +515,13 @@ def _best_start(
     less = 0.0 if offset is None else offset.offset_rad_s
     marginalise = _judges_gaps(classifier)
 
-    def score(series: np.ndarray, covered: np.ndarray | None = None) -> float:
+    def score(series: np.ndarray, measured: np.ndarray | None = None) -> float:
         relative = (series - less)[None]
-        if covered is None or covered.all():
+        if measured is None or measured.all():
             return float(model.transform(relative)[0].min())
-        # Across a gap judged on the samples present: the grid times it covers only.
-        return float(model.transform_observed(relative, covered)[0].min())
+        # As the verdict: the grid times with a real sample only, not those interpolated
+        # across a gap or a hole between samples.
+        return float(model.transform_observed(relative, measured)[0].min())
 
     shift, _ = estimate_sequence_start(
         telemetry,
@@ -696,7 +715,7 @@ def _identify(
         telemetry_gaps=resampled.gaps,
         sequence_covered_fraction=resampled.covered_fraction,
         sequence_measured_fraction=resampled.measured_fraction,
-        **_estimate(scenario, sequence, series, resampled.covered),
+        **_estimate(scenario, sequence, series, resampled.observed),
         **telemetry.inputs(),
     )
 

@@ -962,7 +962,9 @@ def estimate_sequence_start(
     :param tried: a list the shifts tried are appended to, s (in increasing order).
     :param marginalise_gaps: a long gap between samples is judged across, not refused
         (:func:`resample_covered`): ``score`` is then called as ``score(series,
-        covered)``, ``covered`` the (len(grid),) grid times outside such gaps.
+        measured)``, ``measured`` the (len(grid),) grid times with a real sample within
+        half a grid period at that start (:attr:`Resampled.observed`), none inside such
+        gaps.
     :param kind: the classifier kind asking, named when a gap is refused.
     :returns: (shift, s: the estimated start is the nominal one plus this; the series).
     """
@@ -1002,7 +1004,13 @@ def estimate_sequence_start(
             if refusal is None or abs(shift) < refusal[0]:
                 refusal = (abs(float(shift)), exc)
             continue
-        cost = float(score(series, covered) if marginalise_gaps else score(series))
+        # The measured grid times at this start, as the verdict judges them
+        # (:func:`resample_covered`); a kind that compares whole series gets the series.
+        cost = float(
+            score(series, _observed(t - shift, grid_s) & covered)
+            if marginalise_gaps
+            else score(series)
+        )
         if tried is not None:
             tried.append(float(shift))
         if best is None or cost < best[0]:

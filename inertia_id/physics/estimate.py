@@ -261,8 +261,8 @@ def estimate_inertia(
         then enters every cumulative window. A constant gyro bias is not modelled.
     :param covered: (T,) booleans, the grid times the telemetry measured (False inside
         a dropout, where ``omega`` is interpolated across it): only the windows that
-        start and end at measured times give equations, the cumulative ones from the
-        first measured time. The gyroscopic term's integral
+        start and end at measured times give equations (cumulative windows start at
+        the first measured time). The gyroscopic term's integral
         still runs through the interpolated rates (second order in the rate). None:
         every time.
     """
@@ -294,13 +294,16 @@ def estimate_inertia(
             )
         if start_at_rest:
             measured = np.concatenate([[True], measured])  # the known rest at t = 0
-        if window_s is None and measured.any():
-            # Cumulative windows start at the first measured time: a pass that began
-            # late has no rate at the first grid time to start them from.
-            ends = np.arange(int(np.argmax(measured)) + 1, len(times))
-            starts = np.full_like(ends, int(np.argmax(measured)))
-        use = measured[starts] & measured[ends]
-        starts, ends = starts[use], ends[use]
+        if window_s is None:
+            # Cumulative windows from the first measured time: the grid's first time may
+            # hold no sample (10 Hz telemetry on a 20 Hz grid), and from it every window
+            # would be dropped.
+            first = int(np.argmax(measured))
+            ends = first + 1 + np.flatnonzero(measured[first + 1 :])
+            starts = np.full_like(ends, first)
+        else:
+            use = measured[starts] & measured[ends]
+            starts, ends = starts[use], ends[use]
     if 3 * len(starts) < len(PARAMETER_NAMES):
         raise InputError(f"{len(starts)} windows give fewer equations than the 6 parameters")
 

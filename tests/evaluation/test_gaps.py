@@ -10,10 +10,11 @@ import numpy as np
 import pytest
 from scenario_support import GOOD_SEQUENCE
 
+import inertia_id.evaluation.identify as identify_module
 from inertia_id import InertiaClassifier, Scenario, simulate
 from inertia_id.classifiers.marginal import MarginalLikelihoodClassifier
 from inertia_id.evaluation.identify import identify, identify_online
-from inertia_id.evaluation.telemetry import Telemetry, resample_covered
+from inertia_id.evaluation.telemetry import Telemetry, estimate_sequence_start, resample_covered
 
 
 @pytest.fixture(scope="module")
@@ -352,3 +353,59 @@ def test_a_whole_series_kind_refuses_a_late_first_sample_naming_the_kind_that_ju
         identify(
             euclidean_classifier, Telemetry(time_s=t[late].tolist(), omega_rad_s=w[late].tolist())
         )
+
+
+def test_the_estimate_and_the_start_search_use_the_measured_grid_times_only(
+    marginal: MarginalLikelihoodClassifier, passes: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """20 Hz telemetry that drops 3 of every 6 samples: the holes are within the
+    interpolation's reach, so every grid time is covered, but only half are measured.
+    The least-squares estimate took equations ending at the interpolated times, and the
+    start search scored them; both now use the measured grid times, as the verdict."""
+    t = np.asarray(passes.time_s)
+    kept = np.arange(len(t)) % 6 < 3
+    telemetry = Telemetry(
+        time_s=t[kept].tolist(), omega_rad_s=passes.omega_measured[1, 0][kept].tolist()
+    )
+    estimates: list[Any] = []
+    real_estimate = identify_module.estimate_inertia
+
+    def spy(*args: Any, **kwargs: Any) -> Any:
+        estimates.append(real_estimate(*args, **kwargs))
+        return estimates[-1]
+
+    monkeypatch.setattr(identify_module, "estimate_inertia", spy)
+    identify(marginal, telemetry)
+    (estimate,) = estimates
+    # Cumulative windows from the first measured time to each later one, no other.
+    np.testing.assert_allclose(estimate.windows_s[:, 1], t[kept][1:])
+    assert len(estimate.windows_s) == np.count_nonzero(kept) - 1
+
+    masks: list[np.ndarray] = []
+
+    def score(series: np.ndarray, measured: np.ndarray) -> float:
+        masks.append(measured.copy())
+        return float(np.abs(series).sum())
+
+    estimate_sequence_start(telemetry, t, score, window_s=0.0, marginalise_gaps=True)
+    (measured,) = masks
+    np.testing.assert_array_equal(measured, kept)
+
+
+def test_too_few_measured_grid_times_withhold_the_estimate_not_the_verdict(
+    marginal: MarginalLikelihoodClassifier, passes: Any
+) -> None:
+    """Two samples 2 s apart on the 4 s sequence of a drifting body: one window between
+    the measured grid times, three equations for six parameters. The tensor is withheld
+    with the reason; the verdict stands (before, the tensor came from 80 interpolated
+    grid times as if measured)."""
+    t = np.asarray(passes.time_s)
+    kept = np.isin(np.round(t, 6), [1.0, 3.0])
+    telemetry = Telemetry(
+        time_s=t[kept].tolist(), omega_rad_s=passes.omega_measured[0, 0][kept].tolist()
+    )
+    verdict = identify(marginal, telemetry)
+    assert verdict.sequence_measured_fraction == pytest.approx(2 / 80)
+    assert verdict.estimated_inertia_kg_m2 is None
+    assert verdict.estimate_rejected is not None
+    assert "1 windows give fewer equations than the 6 parameters" in verdict.estimate_rejected

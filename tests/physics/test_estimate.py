@@ -168,3 +168,17 @@ def test_windows_ending_in_a_dropout_give_no_equations(paper: Scenario) -> None:
     np.testing.assert_allclose(garbled.windows_s, clean.windows_s)
     with pytest.raises(ValueError, match=r"covered must hold 80 booleans .*got 79"):
         estimate_inertia(paper, GOOD_SEQUENCE, omega, covered=covered[:-1])
+
+
+def test_cumulative_windows_start_at_the_first_measured_time(drifting_paper: Scenario) -> None:
+    """A drifting body (no known rest at t = 0) seen at 10 Hz on the 20 Hz grid: the
+    grid's first time holds no sample, so every cumulative window started there was
+    dropped and the estimate refused; they start at the first measured time."""
+    result = simulate(drifting_paper, GOOD_SEQUENCE, 1, np.random.default_rng(46))
+    omega = result.omega_measured[0, 0].copy()
+    t = np.asarray(result.time_s)
+    measured = np.arange(len(t)) % 2 == 1  # 0.1 s, 0.2 s, ...: not the first, 0.05 s
+    estimate = estimate_inertia(drifting_paper, GOOD_SEQUENCE, omega, covered=measured)
+    np.testing.assert_allclose(estimate.windows_s[:, 0], t[1])
+    np.testing.assert_allclose(estimate.windows_s[:, 1], t[measured][1:])
+    assert np.all(np.isfinite(estimate.parameters_kg_m2))
