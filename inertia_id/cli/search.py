@@ -363,6 +363,32 @@ def search_with_progress(
     return outcome
 
 
+def _rescore_cut(settings: dict[str, Any], front: dict[str, Any], fresh: Any) -> list[str]:
+    """What a time limit left out of the re-score on fresh draws, one line each: the
+    front's candidates not re-scored and the best's fresh draws fewer than asked (the
+    dashboard's front panel says the same); none when nothing was left out."""
+    left = front.get("not_rescored") or []
+    asked, done = fresh.draws_asked, len(fresh.f1)
+    fewer = asked is not None and asked > done
+    limit, grace = settings.get("time_limit_s"), settings.get("time_limit_grace_s")
+    if grace == 0:
+        # A grace of 0 is the search's own choice (stop at the limit), not one running out.
+        why = f"the time limit ({limit:g} s) was reached and no grace was asked for"
+    elif grace is not None:
+        why = f"the time limit's grace ({grace:g} s) was spent"
+    else:
+        why = "the re-score was stopped"
+    lines = []
+    if left:
+        lines.append(
+            f"+ {len(left)} candidate{'' if len(left) == 1 else 's'} not re-scored: {why}; "
+            "the front above is judged without them"
+        )
+    if fewer:
+        lines.append(f"the best sequence's F1 is on {done} of the {asked} fresh draws asked: {why}")
+    return lines
+
+
 @click.command("search")
 @scenario_options
 @_option(
@@ -504,6 +530,8 @@ def search_cmd(
                     + (" (dominates #0)" if figures.get("dominates_member_0") else ""),
                     err=True,
                 )
+    for line in _rescore_cut(result.settings, front, result.fresh):
+        click.echo(line, err=True)
     # The document records the scenario, so that `inertia-id plan --search` plans the
     # spacecraft the search ran on, not whatever --preset defaults to.
     Path(out).write_text(json.dumps(outcome.to_dict()), encoding="utf-8")

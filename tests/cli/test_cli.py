@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 from pathlib import Path
 from typing import Any
@@ -12,6 +13,7 @@ from click.testing import CliRunner
 
 from inertia_id import InertiaClassifier
 from inertia_id.cli import main, parse_sequence
+from inertia_id.deadline import Deadline
 
 
 @pytest.fixture()
@@ -639,3 +641,33 @@ def test_identify_judges_a_dropout_with_the_default_kind_and_reports_it(
     assert refused.exit_code == 1
     assert "no sample from 1.5 s to 2 s" in refused.output
     assert "The 'clustering' classifier compares whole series" in refused.output
+
+
+def test_a_search_cut_at_its_time_limit_says_what_was_not_rescored(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """NSGA-II with --time-limit 1 --time-limit-grace 0: the front's other candidates
+    and the best's fresh draws are left out; the listing said nothing of either. The
+    deadlines run on a clock one second further on at every reading (no sleeps, and no
+    dependence on the machine's speed): the limit is spent at its first check."""
+    ticks = itertools.count()
+    init = Deadline.__init__
+
+    def on_ticking_clock(
+        self: Deadline, time_limit_s: Any, clock: Any = None, grace_s: Any = None
+    ) -> None:
+        init(self, time_limit_s, lambda: float(next(ticks)), grace_s)
+
+    monkeypatch.setattr(Deadline, "__init__", on_ticking_clock)
+    args = ["search", "--method", "nsga2", "--length", "2", "--nsga2", "population=8"]
+    args += ["--nsga2", "generations=2", "--search-realisations", "4"]
+    args += ["--fresh-realisations", "4", "--fresh-test-series", "2"]
+    doc, result = run_cli_json(
+        [*args, "--time-limit", "1", "--time-limit-grace", "0"], tmp_path / "s.json"
+    )
+    left = len(doc["front"]["not_rescored"])
+    assert left > 0 and doc["fresh"]["draws_asked"] > len(doc["fresh"]["f1"])
+    why = "the time limit (1 s) was reached and no grace was asked for"
+    assert f"+ {left} candidates not re-scored: {why}" in result.output
+    done, asked = len(doc["fresh"]["f1"]), doc["fresh"]["draws_asked"]
+    assert f"F1 is on {done} of the {asked} fresh draws asked: {why}" in result.output
