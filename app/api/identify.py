@@ -282,8 +282,12 @@ def _query_start(text: str | None, where: str = "query") -> float | str | None:
 
 
 def _form_number(name: str, value: Any, rule: str, ok: Callable[[float], bool]) -> float | None:
-    if value is None or value == "":
+    if value is None:
         return None
+    if value == "":
+        # As an empty query number (``?limit=``) is: a field sent empty was not the
+        # default asked for (a form that sends its untouched inputs, a template's blank).
+        unprocessable(("body", name), f"{name} is empty; leave the field out for the default")
     try:
         # A number as written: float() also takes 1_0 (10) and other scripts' digits.
         number = parse_decimal(value) if isinstance(value, str) else float("nan")

@@ -747,3 +747,24 @@ def test_a_pass_with_a_dropout_is_judged_and_its_gap_reported(
     assert refused.status_code == 422, refused.text
     assert "no sample from 1.5 s to 2 s" in refused.text
     assert "a likelihood kind (marginal-likelihood, the default, or likelihood)" in refused.text
+
+
+@pytest.mark.parametrize("field", ["confidence", "pre_start_window_s", "estimate_start_within_s"])
+def test_an_empty_numeric_form_field_is_422_naming_it(
+    api: Api, classifier_id: str, flight: SimulationResult, field: str
+) -> None:
+    """``confidence=`` took the default without a word, while an empty query number
+    (``?limit=``) is a 422: a field sent empty is refused, one left out is the default."""
+    text = csv_text(flight.time_s, flight.omega_measured[1, 0])
+    files = [("file", ("flight.csv", text))]
+    fields = {"classifier_id": classifier_id, "sequence_start": "0"}
+    paths = (
+        ["/identify"] if field == "estimate_start_within_s" else ["/identify", "/identify/partial"]
+    )
+    for path in paths:
+        response = api.post(path, data={**fields, field: ""}, files=files)
+        assert response.status_code == 422, response.text
+        detail = response.json()["detail"][0]
+        assert detail["loc"] == ["body", field]
+        assert detail["msg"] == f"{field} is empty; leave the field out for the default"
+    assert api.post("/identify", data=fields, files=files).status_code == 200
