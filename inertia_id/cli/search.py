@@ -448,13 +448,22 @@ def search_cmd(
     result = outcome.result
     # Found and baselines alike on the same fresh draws: the clustering F1 and |ω| at the
     # last step's end (the front below gives the settled residual rate).
-    click.echo(
-        f"on the same fresh draws (F1; |ω| at the last step's end): found F1 "
-        f"{result.fresh.f1_mean:.3f}, impulse {result.best.fuel_nms:.1f} N m s, end rate "
-        f"{np.mean(result.fresh.final_rate_rad_s):.3f} rad/s "
-        f"({np.degrees(np.mean(result.fresh.final_rate_rad_s)):.2f} deg/s)",
-        err=True,
-    )
+    if result.fresh.f1:
+        click.echo(
+            f"on the same fresh draws (F1; |ω| at the last step's end): found F1 "
+            f"{result.fresh.f1_mean:.3f}, impulse {result.best.fuel_nms:.1f} N m s, end rate "
+            f"{np.mean(result.fresh.final_rate_rad_s):.3f} rad/s "
+            f"({np.degrees(np.mean(result.fresh.final_rate_rad_s)):.2f} deg/s)",
+            err=True,
+        )
+    else:
+        # A time limit (or its grace of 0) can leave the best no fresh draw: no mean of
+        # nothing (it printed "F1 nan" with a RuntimeWarning); the lines below say why.
+        click.echo(
+            f"found: no fresh draw was scored (stopped: {result.stopped}), impulse "
+            f"{result.best.fuel_nms:.1f} N m s",
+            err=True,
+        )
     for name, base in outcome.baselines.items():
         if "unavailable" in base:
             click.echo(f"  {name:16s} unavailable: {base['unavailable']}", err=True)
