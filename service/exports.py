@@ -191,13 +191,12 @@ _CURVE = ("timesteps", "episodes", "mean_episode_reward", "mean_f1", "best_f1")
 
 
 def _score_name(result: Mapping[str, Any]) -> str:
-    """What a curve's ``mean_f1``/``best_f1`` hold, as the CSV names them: the clustering
-    F1 (``f1``), the separability score (``separability``) or, for NSGA-II, the noise
-    model's predicted accuracy at the design noise."""
-    if result.get("method") == "nsga2":
-        return "predicted_accuracy_design_noise"
+    """What a curve's ``mean_f1``/``best_f1`` hold, as the CSV names them
+    (:func:`~inertia_id.search.records.score_name`)."""
+    from inertia_id.search.records import score_name  # the search package loads on use
+
     objective = (result.get("settings") or {}).get("scorer", {}).get("objective", "f1")
-    return "f1" if objective == "f1" else "separability"
+    return score_name(result.get("method"), objective)
 
 
 def _search_curve(result: Mapping[str, Any]) -> Table:
@@ -677,12 +676,9 @@ def metrics_notes(job_type: str, params: Mapping[str, Any]) -> list[tuple[str, A
     sweep's step is the index of the noise multiple), and what a search's ``mean_f1`` and
     ``best_f1`` series hold: the search's score, an F1 only for the F1 objective."""
     if job_type == "search":
-        held = {
-            "predicted_accuracy_design_noise": "the noise model's predicted accuracy at the "
-            "design noise (NSGA-II)",
-            "separability": "the separability score on the search's draw (not an F1)",
-            "f1": "the clustering F1 on the search's draw",
-        }[_score_name({"method": params.get("method"), "settings": {"scorer": params}})]
+        from inertia_id.search.records import SCORE_NAMES, score_name
+
+        held = SCORE_NAMES[score_name(params.get("method"), params.get("objective", "f1"))]
         return [("mean_f1 and best_f1", held)]
     if job_type != "sweep":
         return []

@@ -306,6 +306,24 @@ class SearchTracker:
         return point
 
 
+#: What a search's ``best.f1`` and its curve's ``mean_f1``/``best_f1`` hold, by the name
+#: the exports give their columns (the stored key says f1 whatever the objective).
+SCORE_NAMES = {
+    "f1": "the clustering F1 on the search's draw",
+    "separability": "the separability score on the search's draw (not an F1)",
+    "predicted_accuracy_design_noise": "the noise model's predicted accuracy at the design "
+    "noise (NSGA-II; no draw produced it)",
+}
+
+
+def score_name(method: Any, objective: Any) -> str:
+    """The name (a key of :data:`SCORE_NAMES`) of what a search of ``method`` with the
+    scorer ``objective`` ranks by: NSGA-II's prediction, else the objective's score."""
+    if method == "nsga2":
+        return "predicted_accuracy_design_noise"
+    return "f1" if objective in (None, "f1") else "separability"
+
+
 @dataclass
 class SearchResult:
     """The outcome of a search, the same shape for every method.
@@ -356,8 +374,18 @@ class SearchResult:
         """What ``best.f1`` and the curve's F1 measure: "f1" or "separability"."""
         return str(self.settings.get("scorer", {}).get("objective", "f1"))
 
+    @property
+    def score_name(self) -> str:
+        """What ``best.f1`` holds (:func:`score_name`), stated in :meth:`to_dict` as
+        ``best.score_name`` with its meaning beside it."""
+        return score_name(self.method, self.objective)
+
     def to_dict(self) -> dict[str, Any]:
         out = asdict(self)
+        # The key says f1 whatever the search ranked by (kept for the clients that read
+        # it); the document says what it holds.
+        out["best"]["score_name"] = self.score_name
+        out["best"]["score_meaning"] = SCORE_NAMES[self.score_name]
         out["fresh"]["f1_mean"] = self.fresh.f1_mean
         out["fresh"]["f1_min"] = self.fresh.f1_min
         return out

@@ -119,6 +119,10 @@ def test_result_json_round_trips_with_the_shape_of_every_search(tiny: Scenario) 
     assert data["best"]["sequence"] == result.best.sequence
     assert data["settings"]["cem"] == {"population": 8, "elite_fraction": 0.125, "smoothing": 0.7}
     assert data["settings"]["scorer"]["objective"] == "separability"
+    # best.f1 holds the objective's score whatever its name; the document says which.
+    assert data["best"]["score_name"] == "separability"
+    assert "not an F1" in data["best"]["score_meaning"]
+    assert baseline["best"]["score_name"] == "f1"
     # The fresh draws report the clustering F1 and, for this objective, the separability.
     assert len(data["fresh"]["f1"]) == 2 and len(data["fresh"]["separability"]) == 2
     assert baseline["fresh"]["separability"] is None

@@ -736,8 +736,10 @@ def test_nsga2s_best_score_is_called_a_predicted_accuracy(paper: Scenario) -> No
     residual = result.best.residual_rate_rad_s
     assert f"residual rate {residual:.4f} rad/s" in result.summary()
     assert residual == result.front["members"][0]["search_scores"]["final_rate_rad_s"]
-    summary = dict(result_table("search", json.loads(result.to_json()), "summary").rows)
+    document = json.loads(result.to_json())
+    summary = dict(result_table("search", document, "summary").rows)
     assert summary["best_predicted_accuracy_design_noise"] == result.best.f1
+    assert document["best"]["score_name"] == "predicted_accuracy_design_noise"
     assert summary["objective"] == "operator objectives"
     assert summary["best_residual_rate_rad_s_search_draw"] == result.best.final_rate_rad_s
     assert not any(str(name).endswith("_search_draw") and "f1" in str(name) for name in summary)
