@@ -13,7 +13,9 @@ from typing import Any
 from .errors import InputError
 
 __all__ = [
+    "GRACE_ASKED_MAX_S",
     "GRACE_FRACTION",
+    "GRACE_MAX_S",
     "GRACE_MIN_S",
     "Deadline",
     "check_grace",
@@ -23,10 +25,21 @@ __all__ = [
 
 #: Once a time limit is spent, the re-score after the search (fresh draws of the best,
 #: the front's members, the baselines) goes on only while a grace lasts: this fraction
-#: of the limit, and at least :data:`GRACE_MIN_S` (a few seconds hold the front's first
-#: member and its baselines on the fresh draw, whatever the limit).
+#: of the limit, at least :data:`GRACE_MIN_S` (a few seconds hold the front's first
+#: member and its baselines on the fresh draw, whatever the limit) and at most
+#: :data:`GRACE_MAX_S`.
 GRACE_FRACTION = 0.1
 GRACE_MIN_S = 10.0
+#: The default grace's cap: a tenth of the 6 h job ceiling would be 36 min past a "time
+#: limit", more than anyone who set one expects. A job that wants a longer re-score asks
+#: for its grace (``time_limit_grace_s``).
+GRACE_MAX_S = 300.0
+#: The longest grace a search may ask for: an hour. Longer is no grace after a limit but a
+#: second, uncounted limit (who wants a longer re-score asks for a longer ``time_limit_s``);
+#: the worker's heartbeat backstop waits out limit + grace, so an unbounded grace would
+#: unbound it too; and a value typed in the wrong unit (60000 meaning ms) is refused rather
+#: than kept running for most of a day.
+GRACE_ASKED_MAX_S = 3600.0
 
 
 def check_time_limit(value: Any) -> float | None:
@@ -47,30 +60,34 @@ def check_time_limit(value: Any) -> float | None:
 def check_grace(value: Any) -> float | None:
     """The grace a search asks for after its time limit: None (the default rule, see
     :func:`time_limit_grace_s`), or a finite number of seconds >= 0 (0: stop at the
-    limit, re-scoring only what is always re-scored)."""
+    limit, re-scoring only what is always re-scored) and at most
+    :data:`GRACE_ASKED_MAX_S`."""
     if value is None:
         return None
     if (
         isinstance(value, bool)
         or not isinstance(value, int | float)
-        or not (math.isfinite(value) and value >= 0)
+        or not (math.isfinite(value) and 0 <= value <= GRACE_ASKED_MAX_S)
     ):
         raise InputError(
-            f"time_limit_grace_s must be a finite number of seconds >= 0 (or none: "
-            f"{GRACE_FRACTION:.0%} of the limit, at least {GRACE_MIN_S:g} s), got {value!r}"
+            f"time_limit_grace_s must be a finite number of seconds >= 0 and <= "
+            f"{GRACE_ASKED_MAX_S:g} (or none: {GRACE_FRACTION:.0%} of the limit, at least "
+            f"{GRACE_MIN_S:g} s, at most {GRACE_MAX_S:g} s), got {value!r}"
         )
     return float(value)
 
 
 def time_limit_grace_s(time_limit_s: float | None, grace_s: float | None = None) -> float | None:
     """The grace after ``time_limit_s`` in which a search's re-score may go on:
-    ``grace_s`` when one is asked for, else :data:`GRACE_FRACTION` of the limit and at
-    least :data:`GRACE_MIN_S`; None without a limit."""
+    ``grace_s`` when one is asked for, else :data:`GRACE_FRACTION` of the limit, at
+    least :data:`GRACE_MIN_S` and at most :data:`GRACE_MAX_S`; None without a limit."""
     limit = check_time_limit(time_limit_s)
     asked = check_grace(grace_s)
     if limit is None:
         return None
-    return asked if asked is not None else max(GRACE_MIN_S, GRACE_FRACTION * limit)
+    if asked is not None:
+        return asked
+    return min(GRACE_MAX_S, max(GRACE_MIN_S, GRACE_FRACTION * limit))
 
 
 class Deadline:

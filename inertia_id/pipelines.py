@@ -136,10 +136,11 @@ class SearchRequest(_Request):
         Once spent the search stops, ``stopped`` "time_limit", and the front's accuracy
         measurement is skipped; the re-score on fresh draws (the best, the front, the
         baselines, in that order of need) goes on only while the limit's grace lasts
-        (``settings.time_limit_grace_s``: 10 % of the limit, at least 10 s), and the
+        (``settings.time_limit_grace_s``: 10 % of the limit, at least 10 s, at most
+        300 s), and the
         result says what it did not reach.
-    :param time_limit_grace_s: that grace in seconds (>= 0; 0 stops the re-score at the
-        limit, after what is always re-scored); None: the default rule.
+    :param time_limit_grace_s: that grace in seconds (>= 0 and <= 3600; 0 stops the
+        re-score at the limit, after what is always re-scored); None: the default rule.
     """
 
     method: str = "ppo"

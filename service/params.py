@@ -28,6 +28,7 @@ from pydantic import (
     model_validator,
 )
 
+from inertia_id.deadline import GRACE_ASKED_MAX_S, GRACE_MAX_S
 from inertia_id.errors import InputError
 from inertia_id.pipelines import SearchRequest, SweepRequest, TrainRequest
 
@@ -67,8 +68,8 @@ def _time_limit_field() -> Any:
         description="wall-clock limit of the job in seconds, at most the service's "
         "INERTIA_ID_JOB_TIME_LIMIT_S (the ceiling every job has); none: the ceiling. A search "
         "past it stops with its best so far (stopped: time_limit), re-scored only in a grace "
-        "of 10 % of the limit, at least 10 s (settings.time_limit_grace_s); a sweep keeps "
-        "the points done",
+        f"of 10 % of the limit, at least 10 s, at most {GRACE_MAX_S:g} s "
+        "(settings.time_limit_grace_s); a sweep keeps the points done",
         examples=[3600],
     )
 
@@ -223,11 +224,13 @@ class SearchParams(StrictModel):
     time_limit_grace_s: float | None = Field(
         default=None,
         ge=0,
+        le=GRACE_ASKED_MAX_S,
         allow_inf_nan=False,
         description="seconds the re-score on fresh draws may go on past the time limit "
-        "(the best's draws, the front's candidates, the baselines' draws, in that order); "
-        "0 stops at the limit, after the front's first member and the baselines on the "
-        "fresh draw; none: 10 % of the limit, at least 10 s",
+        "(the best's draws, the front's candidates, the baselines' draws, in that order), "
+        f"at most {GRACE_ASKED_MAX_S:g}; 0 stops at the limit, after the front's first "
+        "member and the baselines on the fresh draw; none: 10 % of the limit, at least "
+        f"10 s, at most {GRACE_MAX_S:g} s",
         examples=[0, 60],
     )
 

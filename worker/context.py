@@ -48,11 +48,12 @@ logger = logging.getLogger(__name__)
 CANCEL_POLL_S = 1.0
 #: How long a job may run past its time limit and a search's re-score grace
 #: (:func:`~inertia_id.search.loop.time_limit_grace_s`: 10 % of the limit, at least
-#: 10 s) before its heartbeat ends it "failed". A search stopped at its limit still
-#: finishes the sequence (NSGA-II: the 16 sequences) it is on, re-scores while the grace
-#: lasts and then finishes the piece under way (a prefix's clustering, 16 front members;
-#: seconds); a sweep finishes the point it is on. This covers those; what ignores the
-#: limit (a training) is ended once past it.
+#: 10 s, at most 300 s; or the grace the job asked for, at most 3600 s) before its
+#: heartbeat ends it "failed". A search stopped at its limit still finishes the sequence
+#: (NSGA-II: the 16 sequences) it is on, re-scores while the grace lasts and then
+#: finishes the piece under way (a prefix's clustering, 16 front members; seconds); a
+#: sweep finishes the point it is on. This covers those; what ignores the limit (a
+#: training) is ended once past it.
 TIME_LIMIT_GRACE_S = 600.0
 
 

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 import click
 
+from ..deadline import GRACE_ASKED_MAX_S, GRACE_MAX_S
 from ..pipelines import SearchRequest
 from .options import (
     FloatRange,
@@ -194,7 +195,7 @@ def search_options(func: F) -> F:
             "time_limit_s",
             "Stop the search after this many seconds (wall clock) with the best found so "
             "far (stopped: time_limit), re-scored only in a grace of 10 % of the limit, at "
-            "least 10 s; none by default.",
+            f"least 10 s, at most {GRACE_MAX_S:g} s; none by default.",
             # Not click's float, which reads 1_0 as 10; _time_limit names inf and nan.
             type=FloatRange(0, min_open=True),
             metavar="SECONDS",
@@ -203,9 +204,10 @@ def search_options(func: F) -> F:
         _option(
             "--time-limit-grace time_limit_grace_s",
             "time_limit_grace_s",
-            "Seconds the re-score on fresh draws may go on past --time-limit (0: stop at "
-            "the limit); by default 10 % of the limit, at least 10 s.",
-            type=FloatRange(0, max=1e9),
+            f"Seconds the re-score on fresh draws may go on past --time-limit, at most "
+            f"{GRACE_ASKED_MAX_S:g} (0: stop at the limit); by default 10 % of the limit, at "
+            f"least 10 s, at most {GRACE_MAX_S:g} s.",
+            type=FloatRange(0, max=GRACE_ASKED_MAX_S),
             metavar="SECONDS",
         ),
     ]

@@ -19,7 +19,9 @@ import numpy as np
 
 from ..checks import check_seed, is_integer
 from ..deadline import (
+    GRACE_ASKED_MAX_S,
     GRACE_FRACTION,
+    GRACE_MAX_S,
     GRACE_MIN_S,
     Deadline,
     check_time_limit,
@@ -41,7 +43,9 @@ from .scorer import ScorerSettings
 
 __all__ = [
     "CANCELLED",
+    "GRACE_ASKED_MAX_S",
     "GRACE_FRACTION",
+    "GRACE_MAX_S",
     "GRACE_MIN_S",
     "TIME_LIMIT",
     "Deadline",
@@ -143,7 +147,8 @@ class SearchRun:
         but only while the limit's grace lasts (:func:`time_limit_grace_s`): the fresh
         draws completed by then are kept (``fresh.draws_asked`` says how many were
         asked for), whatever stopped the search.
-    :param time_limit_grace_s: that grace in seconds (>= 0); None: the default rule.
+    :param time_limit_grace_s: that grace in seconds (>= 0 and <= 3600); None: the
+        default rule.
     :param clock: monotonic seconds for ``time_limit_s``.
     """
 

@@ -852,7 +852,8 @@ def pareto_search(
         time_limit_grace_s`), in order of need: the front's candidates by accuracy on
         the search's draw, 16 at a time after the first (those left out are listed in
         ``not_rescored``), then the best's fresh draws (those completed kept).
-    :param time_limit_grace_s: that grace in seconds (>= 0); None: the default rule.
+    :param time_limit_grace_s: that grace in seconds (>= 0 and <= 3600); None: the
+        default rule.
     :param clock: monotonic seconds for ``time_limit_s``.
     :param seed: seeds the noise draw and NSGA-II: the same seed, the same front.
     """

@@ -708,7 +708,11 @@ def test_a_job_asking_for_more_time_than_the_ceiling_is_422_naming_both(
 
 @pytest.mark.parametrize(
     ("value", "quoted"),
-    [(-1, "greater than or equal to 0, got -1"), ("10", "a valid number, got '10'")],
+    [
+        (-1, "greater than or equal to 0, got -1"),
+        ("10", "a valid number, got '10'"),
+        (3600.5, "less than or equal to 3600, got 3600.5"),
+    ],
 )
 def test_a_grace_that_is_no_number_of_seconds_is_422_naming_it(
     api: Api, value: Any, quoted: str

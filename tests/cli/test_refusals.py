@@ -545,6 +545,16 @@ def test_a_key_given_twice_in_a_json_file_is_refused_naming_it(
         load_classifier(classifier)
 
 
+def test_a_grace_over_an_hour_is_refused_naming_it(tmp_path: Path) -> None:
+    """Before, any grace up to 1e9 s ran (a tiny search here, so it fails fast)."""
+    args = ["search", "--method", "random", "--length", "1", "--timesteps", "2"]
+    args += ["--search-realisations", "2", "--fresh-realisations", "2"]
+    args += ["--out", str(tmp_path / "s.json"), "--time-limit", "60"]
+    message = refused([*args, "--time-limit-grace", "3600.5"])
+    assert "'--time-limit-grace': 3600.5 is not in the range 0<=x<=3600" in message
+    assert not (tmp_path / "s.json").exists()
+
+
 @pytest.mark.parametrize(
     ("args", "code", "message"),
     [

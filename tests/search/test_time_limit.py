@@ -308,7 +308,7 @@ def test_a_grace_of_zero_stops_the_rescore_at_the_limit(
     assert clock() <= 30 + PAST_THE_GRACE_S
 
 
-@pytest.mark.parametrize("value", [-1.0, math.nan, math.inf, True, "10"])
+@pytest.mark.parametrize("value", [-1.0, math.nan, math.inf, True, "10", 3600.5, 60000])
 def test_a_grace_that_is_no_number_of_seconds_is_refused_naming_it(value: Any) -> None:
     with pytest.raises(InputError, match=rf"time_limit_grace_s must be .* got {value!r}"):
         check_grace(value)
@@ -316,6 +316,15 @@ def test_a_grace_that_is_no_number_of_seconds_is_refused_naming_it(value: Any) -
         SearchRequest(method="random", time_limit_s=60, time_limit_grace_s=value).options()
     assert time_limit_grace_s(60, 0) == 0.0 and time_limit_grace_s(60, 120) == 120.0
     assert time_limit_grace_s(None, 5) is None
+    # An hour at most, asked for (the default rule stops at 300 s).
+    assert time_limit_grace_s(60, 3600) == 3600.0
+
+
+def test_a_grace_over_its_bound_is_refused_with_the_bound() -> None:
+    with pytest.raises(InputError, match=r"<= 3600 .* got 3601"):
+        check_grace(3601)
+    with pytest.raises(InputError, match=r"<= 3600 .* got 3601"):
+        Deadline(60, grace_s=3601)
 
 
 def test_without_a_time_limit_nothing_is_cut(tiny: Scenario) -> None:
@@ -327,10 +336,13 @@ def test_without_a_time_limit_nothing_is_cut(tiny: Scenario) -> None:
     assert "asked" not in result.summary()
 
 
-def test_the_grace_is_a_tenth_of_the_limit_and_at_least_ten_seconds() -> None:
+def test_the_grace_is_a_tenth_of_the_limit_at_least_ten_seconds_at_most_five_minutes() -> None:
     assert time_limit_grace_s(None) is None
     assert time_limit_grace_s(60) == 10.0
-    assert time_limit_grace_s(3600) == 360.0
+    assert time_limit_grace_s(2000) == 200.0
+    assert time_limit_grace_s(3600) == 300.0
+    # The 6 h job ceiling: 300 s, not 36 min.
+    assert time_limit_grace_s(6 * 3600) == 300.0
     now = [0.0]
     deadline = Deadline(200, lambda: now[0])
     now[0] = 219.9

@@ -15,6 +15,7 @@ import pytest
 from cli_support import run_cli, run_cli_json
 from scenario_support import GOOD_SEQUENCE
 
+from inertia_id.deadline import time_limit_grace_s
 from service.store import ClassifierRow
 from worker.runner import execute_job
 
@@ -161,7 +162,8 @@ def test_a_small_search_finds_the_same_sequence(store: Store, tmp_path: Path) ->
     # A job runs under the service's ceiling on run time; the command line has none.
     assert found["settings"].pop("time_limit_s") == store.settings.job_time_limit_s
     assert cli["settings"].pop("time_limit_s") is None
-    assert found["settings"].pop("time_limit_grace_s") == 0.1 * store.settings.job_time_limit_s
+    grace = found["settings"].pop("time_limit_grace_s")
+    assert grace == time_limit_grace_s(store.settings.job_time_limit_s)
     assert cli["settings"].pop("time_limit_grace_s") is None
     assert found == cli
     from inertia_id.physics.sequences import BASELINES

@@ -297,6 +297,10 @@ def test_a_search_job_runs_to_its_own_limit_below_the_ceiling(store: Store) -> N
     assert context.rescore_grace_s == 10.0
     strict = replace(spec, params=SearchParams(time_limit_s=30, time_limit_grace_s=0))
     assert JobContext(strict, store.db, store.settings, WORKER).rescore_grace_s == 0.0
+    # A job at the 6 h ceiling: the default grace's cap (300 s), not a tenth (36 min).
+    at_ceiling = replace(spec, params=SearchParams())
+    six_hours = store.settings.model_copy(update={"job_time_limit_s": 6 * 3600.0})
+    assert JobContext(at_ceiling, store.db, six_hours, WORKER).rescore_grace_s == 300.0
 
 
 def test_a_sweep_job_past_its_time_limit_keeps_the_points_done(store: Store) -> None:
