@@ -281,13 +281,24 @@ def _query_start(text: str | None, where: str = "query") -> float | str | None:
         unprocessable((where, "sequence_start"), str(exc))
 
 
+def _no_empty_fields(form: FormData) -> None:
+    """Refuse a text field sent empty (``confidence=``, ``sequence_start=``,
+    ``averaged=``), as an empty query number (``?limit=``) is: it was not the default
+    asked for (a form that sends its untouched inputs, a template's blank), and a client
+    that meant to send a value learns it did not. A field left out is the default."""
+    for name, value in form.multi_items():
+        if isinstance(value, str) and value == "":
+            why = (
+                "it is required"
+                if name in _REQUIRED_FORM_FIELDS
+                else "leave the field out for the default"
+            )
+            unprocessable(("body", name), f"{name} is empty; {why}")
+
+
 def _form_number(name: str, value: Any, rule: str, ok: Callable[[float], bool]) -> float | None:
     if value is None:
         return None
-    if value == "":
-        # As an empty query number (``?limit=``) is: a field sent empty was not the
-        # default asked for (a form that sends its untouched inputs, a template's blank).
-        unprocessable(("body", name), f"{name} is empty; leave the field out for the default")
     try:
         # A number as written: float() also takes 1_0 (10) and other scripts' digits.
         number = parse_decimal(value) if isinstance(value, str) else float("nan")
@@ -333,11 +344,12 @@ async def _from_form(
                 f"unknown form field {unknown[0]!r}; the fields are {sorted(_FORM_FIELDS)}",
             )
         _one_value_each(form)
+        _no_empty_fields(form)
         classifier_id = form.get("classifier_id")
         upload = form.get("file")
         options = _form_options(form)
         field_start = form.get("sequence_start")
-        if isinstance(field_start, str) and field_start != "":
+        if isinstance(field_start, str):
             if sequence_start is not None:
                 unprocessable(
                     ("body", "sequence_start"),
@@ -345,7 +357,7 @@ async def _from_form(
                 )
             start = _query_start(field_start, "body")
         averaged = form.get("averaged")
-        if isinstance(averaged, str) and averaged.lower() not in ("", "true", "false"):
+        if isinstance(averaged, str) and averaged.lower() not in ("true", "false"):
             unprocessable(("body", "averaged"), f"averaged must be true or false, got {averaged!r}")
         is_averaged = isinstance(averaged, str) and averaged.lower() == "true"
         if not isinstance(classifier_id, str) or not classifier_id:
@@ -398,11 +410,13 @@ _FORM_FIELDS = frozenset(
     }
 )
 
+_REQUIRED_FORM_FIELDS = frozenset({"classifier_id", "file"})
+
 _MULTIPART_SCHEMA = {
     "type": "object",
-    "required": ["classifier_id", "file"],
+    "required": sorted(_REQUIRED_FORM_FIELDS),
     "properties": {
-        "classifier_id": {"type": "string", "maxLength": 64},
+        "classifier_id": {"type": "string", "minLength": 1, "maxLength": 64},
         "confidence": {"type": "number", "exclusiveMinimum": 0, "exclusiveMaximum": 1},
         "pre_start_window_s": {"type": "number", "minimum": 0, "maximum": MAX_PRE_START_WINDOW_S},
         "estimate_start_within_s": {
@@ -414,6 +428,7 @@ _MULTIPART_SCHEMA = {
         },
         "sequence_start": {
             "type": "string",
+            "minLength": 1,
             "description": "start of the sequence in the telemetry's clock: seconds, or "
             "ISO-8601 UTC (or ?sequence_start=, not both)",
         },

@@ -768,3 +768,43 @@ def test_an_empty_numeric_form_field_is_422_naming_it(
         assert detail["loc"] == ["body", field]
         assert detail["msg"] == f"{field} is empty; leave the field out for the default"
     assert api.post("/identify", data=fields, files=files).status_code == 200
+
+
+@pytest.mark.parametrize(
+    ("field", "why"),
+    [
+        ("sequence_start", "leave the field out for the default"),
+        ("averaged", "leave the field out for the default"),
+        ("classifier_id", "it is required"),
+        ("file", "it is required"),
+    ],
+)
+def test_an_empty_text_form_field_is_422_naming_it(
+    api: Api, classifier_id: str, flight: SimulationResult, field: str, why: str
+) -> None:
+    """``sequence_start=`` and ``averaged=`` meant "not given" without a word, as the
+    numeric fields did: a client that meant to send a value learns it did not."""
+    text = csv_text(flight.time_s, flight.omega_measured[1, 0])
+    files = [("file", ("flight.csv", text))]
+    fields = {"classifier_id": classifier_id, "sequence_start": "0", "averaged": "false"}
+    for path in ["/identify", "/identify/partial"]:
+        if field == "file":
+            # A text field named file (a part with no filename), not an upload.
+            response = api.post(path, data=fields, files=[("file", (None, ""))])
+        else:
+            response = api.post(path, data={**fields, field: ""}, files=files)
+        assert response.status_code == 422, response.text
+        detail = response.json()["detail"][0]
+        assert detail["loc"] == ["body", field]
+        assert detail["msg"] == f"{field} is empty; {why}"
+    assert api.post("/identify", data=fields, files=files).status_code == 200
+    # Left out, a field is the default.
+    left_out = {k: v for k, v in fields.items() if k not in ("sequence_start", "averaged")}
+    assert api.post("/identify", data=left_out, files=files).status_code == 200
+
+
+def test_the_multipart_schema_declares_text_fields_non_empty(api: Api) -> None:
+    body = api.get("/openapi.json").json()["paths"]["/identify"]["post"]["requestBody"]
+    properties = body["content"]["multipart/form-data"]["schema"]["properties"]
+    assert properties["sequence_start"]["minLength"] == 1
+    assert properties["classifier_id"]["minLength"] == 1
