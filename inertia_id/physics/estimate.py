@@ -29,6 +29,7 @@ case (see :class:`LeastSquaresClassifier`).
 from __future__ import annotations
 
 import math
+import sys
 import threading
 from collections import OrderedDict
 from dataclasses import dataclass
@@ -55,6 +56,8 @@ PARAMETER_NAMES = ("Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz")
 # Singular values below this fraction of the largest are treated as zero: the
 # corresponding parameter combination is not excited at all.
 _RCOND = 1e-12
+# ln of the largest float: the normal matrix (the squared singular values) stays below it.
+_LOG_FLOAT_MAX = math.log(sys.float_info.max)
 
 
 def tensor_from_parameters(parameters: np.ndarray) -> np.ndarray:
@@ -226,6 +229,28 @@ def _windows(
     return starts, starts + samples
 
 
+def _check_fittable(rates: np.ndarray, span_s: float, n_equations: int) -> None:
+    """Refuse rates too large for the least squares, before any arithmetic on them.
+
+    A regressor entry is a rate difference (at most 2 |ω|) plus the gyroscopic term's
+    integral over at most ``span_s`` (|ω × Φ(ω)| <= √6 |ω|², so at most 2√6 span |ω|²),
+    and the largest singular value's square (the normal matrix ΦᵀΦ holds it) is at most
+    the trace of ΦᵀΦ: the squares of the 6 × ``n_equations`` entries. Past the float
+    range, that arithmetic gave inf, then NaN (numpy's RuntimeWarnings "overflow" and
+    "invalid value"), and either an SVD that failed or an estimate with an infinite
+    normal matrix. The bound is worked out in Python floats, which overflow to inf
+    quietly, and compared in logarithms.
+    """
+    peak = float(np.abs(rates).max())
+    entry = 2.0 * peak + 2.0 * math.sqrt(6.0) * span_s * peak * peak
+    if entry > 0.0 and 2.0 * math.log(entry) + math.log(6 * n_equations) >= _LOG_FLOAT_MAX:
+        raise InputError(
+            f"the least squares cannot fit rates this large (the largest is {peak:g} "
+            "rad/s: its square and fourth power pass the floating-point range): are they "
+            "in rad/s, and uncorrupted?"
+        )
+
+
 def estimate_inertia(
     scenario: Scenario,
     sequence: Any,
@@ -306,6 +331,7 @@ def estimate_inertia(
             starts, ends = starts[use], ends[use]
     if 3 * len(starts) < len(PARAMETER_NAMES):
         raise InputError(f"{len(starts)} windows give fewer equations than the 6 parameters")
+    _check_fittable(rates, float(times[-1] - times[0]), 3 * len(starts))
 
     momentum = _momentum_regressor(rates)  # (n, G, 3, 6)
     # ω × Φ(ω) column by column: the gyroscopic term ω × (I ω) is linear in θ too.
