@@ -17,7 +17,7 @@ from inertia_id.checks import DuplicateKeyError, control_characters, loads_uniqu
 from inertia_id.errors import InputError
 from inertia_id.physics.presets import PRESETS, preset
 from inertia_id.physics.scenario import Scenario
-from inertia_id.physics.simulate import simulate
+from inertia_id.physics.simulate import SimulationOverflow, simulate
 from service.store.models import ClassifierRow, JobRow, ScenarioRow
 from service.store.session import Database
 
@@ -380,6 +380,17 @@ def plan_options(
 PlanOptionsDep = Annotated[PlanOptions, Depends(plan_options)]
 
 
+def _nominal_fits(scenario: Scenario, steps: np.ndarray) -> bool:
+    """Whether the plan's nominal prediction of ``steps`` stays finite (no flights)."""
+    from inertia_id.search.plan import command_plan
+
+    try:
+        command_plan(scenario, steps)
+    except SimulationOverflow:
+        return False
+    return True
+
+
 def _plan_response(
     scenario: Scenario,
     steps: np.ndarray,
@@ -412,6 +423,13 @@ def _plan_response(
         )
     try:
         plan = command_plan(scenario, steps, flights=flights, seed=options.seed)
+    except SimulationOverflow as exc:
+        # The nominal prediction overflowing is the sequence's (on this scenario), not
+        # the flights' (it was named at query.flights with no flights asked for); the
+        # flights' own draws only when the nominal plan alone goes through.
+        unprocessable(
+            ("query", "flights") if flights and _nominal_fits(scenario, steps) else where, str(exc)
+        )
     except InputError as exc:
         unprocessable(("query", "flights"), str(exc))
     stem = "plan-" + "-".join(

@@ -347,3 +347,28 @@ def test_baselines_are_the_cores_for_the_scenarios_thrusters(api: Api, paper: Sc
     bad = api.get(f"/scenarios/{scenario_id}/baselines", params={"length": 0})
     assert bad.status_code == 422 and "0" in bad.text
     assert api.get("/scenarios/nope/baselines").status_code == 404
+
+
+def test_a_plan_whose_scenario_overflows_names_the_sequence_not_flights(api: Api) -> None:
+    """A scenario the service stores but whose bodies overflow under a sequence (torques
+    of 1e300 N m) was refused at ``query.flights`` although no flights were asked for; the
+    plan's nominal prediction is what overflowed, so the sequence is named, and flights
+    only when the nominal plan alone goes through."""
+    scenario_id = api.create_scenario(thrusters={"nominal_torque_nm": 1e300})["id"]
+    sequence = [[4, 4, 4, 0, 0, 0]] * 2
+    by_query = api.get_with_key(
+        f"/scenarios/{scenario_id}/plan", params={"sequence": json.dumps(sequence)}
+    )
+    by_body = api.post(f"/scenarios/{scenario_id}/plan?flights=20", json={"sequence": sequence})
+    for response, loc in ((by_query, ["query", "sequence"]), (by_body, ["body", "sequence"])):
+        assert response.status_code == 422, response.text
+        (detail,) = response.json()["detail"]
+        assert detail["loc"] == loc
+        assert "overflowed to inf or nan" in detail["msg"]
+    # A disturbance that overflows only the noisy flights: the nominal plan is fine, so
+    # the flights asked for are what is named.
+    noisy_id = api.create_scenario(uncertainty={"disturbance_torque_sigma_nm": 1e300})["id"]
+    assert api.post(f"/scenarios/{noisy_id}/plan", json={"sequence": sequence}).status_code == 200
+    flown = api.post(f"/scenarios/{noisy_id}/plan?flights=20", json={"sequence": sequence})
+    assert flown.status_code == 422, flown.text
+    assert flown.json()["detail"][0]["loc"] == ["query", "flights"]
