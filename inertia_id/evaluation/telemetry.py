@@ -64,6 +64,7 @@ from pydantic import (
     PrivateAttr,
     StrictBool,
     StrictFloat,
+    ValidationInfo,
     field_validator,
     model_validator,
 )
@@ -233,13 +234,18 @@ class Telemetry(BaseModel):
 
     @field_validator("time_s")
     @classmethod
-    def _times(cls, value: list[float | str] | None) -> list[float | str] | None:
+    def _times(
+        cls, value: list[float | str] | None, info: ValidationInfo
+    ) -> list[float | str] | None:
         if value is None or any(isinstance(v, str) for v in value):
             return value  # ISO stamps: checked with the sequence start below
         arr = np.asarray(value, dtype=float)
         bad = np.flatnonzero(~np.isfinite(arr))
         if bad.size:
-            raise InputError(f"time_s[{bad[0]}] = {value[bad[0]]!r} is not finite")
+            raise InputError(
+                f"time_s[{bad[0]}] = {value[bad[0]]!r} is not finite"
+                f"{_csv_cell(info, int(bad[0]), 0)}"
+            )
         steps = np.diff(arr)
         if np.any(steps <= 0):
             i = int(np.flatnonzero(steps <= 0)[0])
@@ -251,7 +257,7 @@ class Telemetry(BaseModel):
 
     @field_validator("omega_rad_s")
     @classmethod
-    def _rates(cls, value: list[list[float]]) -> list[list[float]]:
+    def _rates(cls, value: list[list[float]], info: ValidationInfo) -> list[list[float]]:
         for i, row in enumerate(value):
             if len(row) != 3:
                 raise InputError(f"omega_rad_s row {i} has {len(row)} columns, expected 3: {row}")
@@ -259,12 +265,15 @@ class Telemetry(BaseModel):
         bad = np.argwhere(~np.isfinite(arr))
         if bad.size:
             i, j = (int(v) for v in bad[0])
-            raise InputError(f"omega_rad_s[{i}][{j}] = {value[i][j]!r} is not finite")
+            raise InputError(
+                f"omega_rad_s[{i}][{j}] = {value[i][j]!r} is not finite{_csv_cell(info, i, j + 1)}"
+            )
         bad = np.argwhere(np.abs(arr) > MAX_TELEMETRY_RATE_RAD_S)
         if bad.size:
             i, j = (int(v) for v in bad[0])
             raise InputError(
-                f"omega_rad_s[{i}][{j}] = {value[i][j]!r} rad/s is beyond any attitude gyro's "
+                f"omega_rad_s[{i}][{j}] = {value[i][j]!r} rad/s{_csv_cell(info, i, j + 1)} is "
+                "beyond any attitude gyro's "
                 f"range (at most {MAX_TELEMETRY_RATE_RAD_S:g} rad/s, "
                 f"{math.degrees(MAX_TELEMETRY_RATE_RAD_S):,.0f} deg/s, in magnitude): a "
                 "corrupted sample? Remove it (a gap of a few samples is interpolated)"
@@ -496,16 +505,31 @@ def parse_telemetry(
                 f"stamp: {row}"
             )
         omegas.append(values)
-    if times and all(isinstance(v, str) for v in times):
-        return Telemetry(
-            time_utc=[str(v) for v in times],
-            omega_rad_s=omegas,
-            sequence_start=sequence_start,
-            averaged=averaged,
-        )
-    return Telemetry(
-        time_s=times, omega_rad_s=omegas, sequence_start=sequence_start, averaged=averaged
+    stamps = "time_utc" if times and all(isinstance(v, str) for v in times) else "time_s"
+    # The rows as written go with the document, so that a refused value is named by its
+    # CSV row and cell too (1e400 reads as inf; the model's index counts from 0).
+    return Telemetry.model_validate(
+        {
+            stamps: [str(v) for v in times] if stamps == "time_utc" else times,
+            "omega_rad_s": omegas,
+            "sequence_start": sequence_start,
+            "averaged": averaged,
+        },
+        context={_CSV_ROWS: (rows, order)},
     )
+
+
+_CSV_ROWS = "csv_rows"
+
+
+def _csv_cell(info: ValidationInfo, index: int, role: int) -> str:
+    """Where a refused value stands in the CSV it was read from, when it was read from
+    one (:func:`parse_telemetry`): its data row, counted from 1 as the CSV errors count,
+    and the cell as written; "" for a JSON document. ``role``: 0 the time, 1-3 x, y, z."""
+    rows, order = (info.context or {}).get(_CSV_ROWS, (None, None))
+    if rows is None or not 0 <= index < len(rows):
+        return ""
+    return f" (CSV data row {index + 1}, written {rows[index][order[role]].strip()!r})"
 
 
 _TIME_NAME = re.compile(r"^(?:t|time|timestamp|utc|time_utc)(?:[_ ]*[(\[]?\s*s(?:ec)?\s*[)\]]?)?$")

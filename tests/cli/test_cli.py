@@ -501,7 +501,11 @@ def test_identify_iso_stamps_and_an_estimated_start(
     telemetry.write_text("\n".join(lines) + "\n")
     spike = runner.invoke(main, [*base, "--sequence-start", "2025-03-01T12:00:00Z"])
     assert spike.exit_code != 0
-    assert "omega_rad_s[39][1] = 1e+200 rad/s is beyond any attitude gyro's range" in spike.output
+    # Named by its index in the series and by its CSV row (counted from 1) as written.
+    assert (
+        "omega_rad_s[39][1] = 1e+200 rad/s (CSV data row 40, written '1e200') is beyond any "
+        "attitude gyro's range" in spike.output
+    )
 
 
 def test_json_output_is_strict_json(tmp_path: Path) -> None:

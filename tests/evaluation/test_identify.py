@@ -290,6 +290,17 @@ def test_parsed_csv_identifies_like_the_arrays(
             r"\['0\.1', '0', 'zero', '0'\]",
         ),
         ("0,0,0,0\n0.1,0,nan,0\n", "auto", r"omega_rad_s\[1\]\[1\] = nan is not finite"),
+        # A refused CSV value is named by its row and cell as written too: 1e400 reads as inf.
+        (
+            "t,wz,wy,wx\n0,0,0,0\n0.1,0,1e400,0\n",
+            "auto",
+            r"omega_rad_s\[1\]\[1\] = inf is not finite \(CSV data row 2, written '1e400'\)",
+        ),
+        (
+            "0,0,0,0\n1e999,0,0,0\n",
+            "auto",
+            r"time_s\[1\] = inf is not finite \(CSV data row 2, written '1e999'\)",
+        ),
         ("0,0,0,0\n-0.1,0,0,0\n", "auto", rf"time_s\[0\] = {F}0\.0\)?, time_s\[1\] = {F}-0\.1"),
         ('{"time_s": [0, 1], "omega_rad_s": ', "auto", r"telemetry is not valid JSON"),
         ("[[0, 0, 0, 0]]", "auto", r"must be an object with time_s and omega_rad_s"),
