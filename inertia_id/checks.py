@@ -10,6 +10,7 @@ for a count is a mistake, not 1.
 
 from __future__ import annotations
 
+import io
 import json
 import math
 import os
@@ -53,15 +54,26 @@ def check_seed(seed: Any, name: str = "seed") -> int:
     return int(seed)
 
 
-def read_text(path: str | os.PathLike[str], what: str) -> str:
+def read_text(path: str | os.PathLike[str], what: str, *, gzip_limit: int | None = None) -> str:
     """A UTF-8 text file's content; a file that is no such text (a binary file, another
     encoding) is an :class:`~inertia_id.errors.InputError` naming it and ``what`` it
     should have been. A missing or unreadable file raises the ``OSError``, which names
-    the path."""
-    from .errors import InputError
+    the path.
 
+    :param gzip_limit: with it, a file that is gzip (known by its magic bytes, whatever
+        its name) is decompressed, at most this many bytes
+        (:func:`inertia_id.gzipped.gunzip`); without it, gzip is not text.
+    """
+    from .errors import InputError
+    from .gzipped import gunzip, is_gzip
+
+    # One read of the file (a named pipe can be read once), decoded as Path.read_text
+    # decodes: UTF-8, universal newlines.
+    data = Path(path).read_bytes()
+    if gzip_limit is not None and is_gzip(data):
+        data = gunzip(data, limit=gzip_limit, what=repr(os.fspath(path)))
     try:
-        return Path(path).read_text(encoding="utf-8")
+        return io.TextIOWrapper(io.BytesIO(data), encoding="utf-8").read()
     except UnicodeDecodeError as exc:
         raise InputError(
             f"{os.fspath(path)!r} is not UTF-8 text (byte {exc.object[exc.start : exc.end]!r} "

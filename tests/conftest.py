@@ -7,6 +7,7 @@ failure is reproducible and no test depends on timing.
 from __future__ import annotations
 
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -60,6 +61,14 @@ def _one_blas_thread() -> None:
     from threadpoolctl import threadpool_limits
 
     _BLAS_LIMIT = threadpool_limits(limits=1, user_api="blas")
+
+
+@pytest.fixture(scope="session")
+def gzip_bomb(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A gzip file of about 1 MB holding 1 GiB of zeros (written once a session: 3 s)."""
+    from gzip_support import write_gzip_bomb
+
+    return write_gzip_bomb(tmp_path_factory.mktemp("bomb") / "pass.csv.gz")
 
 
 @pytest.fixture(scope="session")

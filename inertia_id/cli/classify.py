@@ -295,7 +295,8 @@ def sweep_cmd(
     type=click.Path(exists=True, dir_okay=True),
     help="Telemetry file or folder (repeatable; paths may also follow the options). CSV "
     "(time_s or time_utc, wx, wy, wz; header optional) or JSON ({time_s or time_utc: [...], "
-    "omega_rad_s: [[...], ...], sequence_start: ...}). A folder gives its *.csv and *.json.",
+    "omega_rad_s: [[...], ...], sequence_start: ...}), either gzip-compressed or not "
+    "(pass.csv.gz). A folder gives its *.csv, *.json, *.csv.gz and *.json.gz.",
 )
 @click.option(
     "--sequence-start",
@@ -379,6 +380,10 @@ def identify_cmd(
         raise SystemExit(1)
 
 
+#: The names a folder's telemetry files end with.
+_TELEMETRY_SUFFIXES = (".csv", ".json", ".csv.gz", ".json.gz")
+
+
 def _telemetry_files(given: tuple[str, ...]) -> list[str]:
     from ..errors import InputError
 
@@ -391,10 +396,12 @@ def _telemetry_files(given: tuple[str, ...]) -> list[str]:
             found = sorted(
                 str(p)
                 for p in Path(entry).iterdir()
-                if p.suffix.lower() in (".csv", ".json") and p.is_file()
+                if p.name.lower().endswith(_TELEMETRY_SUFFIXES) and p.is_file()
             )
             if not found:
-                raise InputError(f"folder {entry!r} holds no .csv or .json telemetry")
+                raise InputError(
+                    f"folder {entry!r} holds no .csv or .json telemetry (nor .csv.gz, .json.gz)"
+                )
             paths += found
         else:
             paths.append(entry)

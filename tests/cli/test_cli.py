@@ -586,6 +586,39 @@ def test_telemetry_stamps_from_a_start_with_an_offset_are_written_in_utc(tmp_pat
     assert all(line.split(",")[0].endswith("Z") for line in lines[1:])
 
 
+def test_identify_reads_gzip_telemetry_as_the_plain_file(
+    tmp_path: Path, small_classifier: Path
+) -> None:
+    """pass.csv.gz and pass.json.gz (and gzip under a plain name, known by its magic
+    bytes) give the plain file's verdict, alone and from a folder."""
+    import gzip
+
+    plain = tmp_path / "t.csv"
+    _simulate_telemetry(plain, "3")
+    text = plain.read_bytes()
+    rows = [line.split(",") for line in text.decode().split()[1:]]
+    document = {
+        "time_s": [float(r[0]) for r in rows],
+        "omega_rad_s": [[float(v) for v in r[1:]] for r in rows],
+    }
+    folder = tmp_path / "downlink"
+    folder.mkdir()
+    (folder / "a.csv.gz").write_bytes(gzip.compress(text))
+    (folder / "b.json.gz").write_bytes(gzip.compress(json.dumps(document).encode()))
+    (folder / "c.csv").write_bytes(gzip.compress(text))
+    base = ["identify", "--classifier", str(small_classifier)]
+    expected = json.loads(run_cli([*base, "--telemetry", str(plain)]).stdout)
+    assert expected["candidate"] == "payload 3 ejected"
+    for name in ("a.csv.gz", "b.json.gz", "c.csv"):
+        verdict = json.loads(run_cli([*base, "--telemetry", str(folder / name)]).stdout)
+        assert verdict == expected, name
+    lines = [json.loads(line) for line in run_cli([*base, str(folder)]).stdout.splitlines()]
+    assert [line.pop("path") for line in lines] == [
+        str(folder / name) for name in ("a.csv.gz", "b.json.gz", "c.csv")
+    ]
+    assert lines == [expected] * 3
+
+
 def test_identify_reads_an_averaging_gyro_at_its_intervals_midpoints(
     tmp_path: Path, small_classifier: Path
 ) -> None:

@@ -57,6 +57,30 @@ def test_a_file_that_is_not_text_is_named(binary: Path, tmp_path: Path) -> None:
             load(binary)
 
 
+def test_a_gzip_bomb_or_a_broken_gzip_is_refused_naming_the_file(
+    tmp_path: Path, gzip_bomb: Path
+) -> None:
+    """1 GiB of zeros in 1 MB of gzip: refused after inflating the limit (100 MB), not
+    the gigabyte; a truncated gzip names the file and what is wrong with it."""
+    import gzip
+
+    classifier = tmp_path / "c.json"
+    train_classifier(
+        Scenario.paper(), SEQUENCE, 3, np.random.default_rng(0), metric="euclidean"
+    ).save(classifier)
+    message = refused(["identify", "--classifier", str(classifier), str(gzip_bomb)])
+    assert "decompressed size exceeds the limit of" in message
+    from inertia_id.evaluation.telemetry import MAX_GZIP_TELEMETRY_BYTES
+
+    assert f"{str(gzip_bomb)!r} is gzip whose decompressed size exceeds the limit of " in message
+    assert f"the limit of {MAX_GZIP_TELEMETRY_BYTES} bytes" in message
+    truncated = tmp_path / "pass.csv.gz"
+    truncated.write_bytes(gzip.compress(b"time_s,wx,wy,wz\n0.05,0,0,0\n" * 100)[:-20])
+    message = refused(["identify", "--classifier", str(classifier), str(truncated)])
+    assert f"{str(truncated)!r} is not a valid gzip stream" in message
+    assert "Compressed file ended before the end-of-stream marker" in message
+
+
 def test_a_sequence_that_applies_no_torque_is_not_trained_on(tmp_path: Path) -> None:
     """Before, the all-off sequence trained (F1 at chance) and the CLI wrote it."""
     out = tmp_path / "c.json"
