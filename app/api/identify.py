@@ -34,6 +34,7 @@ from inertia_id.evaluation.identify import (
     identify_online,
 )
 from inertia_id.evaluation.telemetry import Telemetry, parse_sequence_start, parse_telemetry
+from inertia_id.gzipped import DecompressedTooLarge, gunzip, is_gzip
 from service.exports import identify_table, to_csv
 from service.store.models import ClassifierRow
 from service.store.session import Database
@@ -246,15 +247,44 @@ async def _parsed(request: Request, parse: Callable[..., Any], *args: Any) -> An
     return await gate.run(parse, *args)
 
 
+def _limit(request: Request) -> int:
+    """The most bytes a body may hold: compressed as sent, and once decompressed."""
+    return int(request.app.state.settings.max_body_bytes)
+
+
+def _gunzipped(data: bytes, limit: int, what: str, loc: tuple[str, ...]) -> bytes:
+    """What the gzip ``data`` holds: past ``limit`` bytes a 413, as a plain body over the
+    limit (having inflated no more than ``limit + 1`` bytes); a corrupt or truncated
+    stream a 422 at ``loc`` naming ``what``."""
+    try:
+        return gunzip(data, limit=limit, what=what)
+    except DecompressedTooLarge:
+        raise HTTPException(
+            status.HTTP_413_CONTENT_TOO_LARGE,
+            detail=f"{what} is gzip whose decompressed size exceeds the limit of {limit} "
+            "bytes (INERTIA_ID_MAX_BODY_BYTES, the limit of a plain body); send less data, "
+            "e.g. fewer telemetry samples",
+        ) from None
+    except InputError as exc:
+        unprocessable(loc, str(exc))
+
+
 async def _from_json(
-    request: Request, sequence_start: str | None
+    request: Request, sequence_start: str | None, *, gzipped: bool
 ) -> tuple[str, Telemetry, VerdictOptions]:
     body = await request.body()
     start = _query_start(sequence_start)
-    return await _parsed(request, _parse_json, body, start)
+    limit = _limit(request) if gzipped else None
+    return await _parsed(request, _parse_json, body, start, limit)
 
 
-def _parse_json(body: bytes, start: float | str | None) -> tuple[str, Telemetry, VerdictOptions]:
+def _parse_json(
+    body: bytes, start: float | str | None, gzip_limit: int | None = None
+) -> tuple[str, Telemetry, VerdictOptions]:
+    """The request's JSON body; with ``gzip_limit`` (``Content-Encoding: gzip``) the body
+    is gzip, decompressed (at most that many bytes) first."""
+    if gzip_limit is not None:
+        body = _gunzipped(body, gzip_limit, "request body (Content-Encoding: gzip)", ("body",))
     try:
         data = loads_unique_keys(body)
     except DuplicateKeyError as exc:
@@ -365,7 +395,8 @@ async def _from_form(
         if upload is None:
             unprocessable(("body", "file"), "form field file (CSV telemetry) is required")
         raw = await upload.read() if isinstance(upload, UploadFile) else upload.encode()
-    telemetry = await _parsed(request, _parse_file, raw, start, is_averaged)
+        name = upload.filename if isinstance(upload, UploadFile) else None
+    telemetry = await _parsed(request, _parse_file, raw, start, is_averaged, name, _limit(request))
     return classifier_id, telemetry, options
 
 
@@ -385,7 +416,19 @@ def _one_value_each(form: FormData) -> None:
             )
 
 
-def _parse_file(raw: bytes, start: float | str | None, averaged: bool) -> Telemetry:
+def _parse_file(
+    raw: bytes,
+    start: float | str | None,
+    averaged: bool,
+    name: str | None,
+    limit: int,
+) -> Telemetry:
+    """The uploaded telemetry file; gzip (known by its magic bytes, whatever its name) is
+    decompressed first, at most ``limit`` bytes (the body's limit), and what it holds read
+    as a plain upload is: CSV or JSON, told apart by its text."""
+    if is_gzip(raw):
+        what = "telemetry file" + (f" {name[:100]!r}" if name else "")
+        raw = _gunzipped(raw, limit, what, ("body", "file"))
     try:
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
@@ -442,7 +485,9 @@ _MULTIPART_SCHEMA = {
             "format": "binary",
             "description": "CSV with columns time_s (seconds) or time_utc (ISO-8601 UTC), wx, "
             "wy, wz (rad/s); a header row is allowed; the sequence start as the field "
-            "sequence_start or ?sequence_start=",
+            "sequence_start or ?sequence_start=; or the same JSON as the body's telemetry; "
+            "either may be gzip-compressed (known by its magic bytes), at most "
+            "INERTIA_ID_MAX_BODY_BYTES once decompressed",
         },
     },
 }
@@ -462,13 +507,45 @@ async def _read_body(
     # Both media types on one path: FastAPI declares one body per route, so the body is
     # read here and validated with the same models.
     content_type = request.headers.get("content-type", "").split(";")[0].strip().lower()
+    gzipped = _gzip_encoded(request)
     if content_type == "multipart/form-data":
+        if gzipped:
+            raise HTTPException(
+                status.HTTP_415_UNSUPPORTED_MEDIA_TYPE,
+                detail="Content-Encoding: gzip is read for a JSON body only; send the form "
+                "as is, with its telemetry file gzip-compressed (pass.csv.gz)",
+            )
         return await _from_form(request, sequence_start)
     if content_type == "application/json" or content_type.endswith("+json"):
-        return await _from_json(request, sequence_start)
+        return await _from_json(request, sequence_start, gzipped=gzipped)
     raise HTTPException(
         status.HTTP_415_UNSUPPORTED_MEDIA_TYPE,
         detail=f"send application/json or multipart/form-data, not {content_type[:80]!r}",
+    )
+
+
+#: The content codings a body may come in (RFC 9110 8.4.1: x-gzip is gzip's old name).
+_GZIP_CODINGS = frozenset({"gzip", "x-gzip"})
+
+
+def _gzip_encoded(request: Request) -> bool:
+    """Whether the body is gzip (``Content-Encoding: gzip``); any other coding is a 415
+    naming it (the header was ignored: a brotli body was refused as malformed JSON, and a
+    plain one labelled br was judged)."""
+    codings = [
+        coding.strip().lower()
+        for header in request.headers.getlist("content-encoding")
+        for coding in header.split(",")
+    ]
+    codings = [c for c in codings if c not in ("", "identity")]
+    if not codings:
+        return False
+    if len(codings) == 1 and codings[0] in _GZIP_CODINGS:
+        return True
+    raise HTTPException(
+        status.HTTP_415_UNSUPPORTED_MEDIA_TYPE,
+        detail=f"Content-Encoding {', '.join(codings)[:80]!r} is not supported: send the body "
+        "as is or gzip-compressed (Content-Encoding: gzip)",
     )
 
 
@@ -497,7 +574,15 @@ def _refusals(bad_telemetry: str) -> dict[int | str, dict[str, Any]]:
     return {
         **UNAUTHORIZED,
         **no_such("classifier"),
-        415: {"description": "neither JSON nor multipart/form-data"},
+        413: {
+            "description": "the body, or a gzip body or telemetry file once decompressed, "
+            "is larger than INERTIA_ID_MAX_BODY_BYTES",
+            "content": {"application/json": {"schema": {"$ref": "#/components/schemas/HTTPError"}}},
+        },
+        415: {
+            "description": "neither JSON nor multipart/form-data, or a Content-Encoding "
+            "other than gzip (and gzip for a JSON body only)"
+        },
         422: {"description": bad_telemetry},
         503: {"description": "past capacity: try again after Retry-After seconds"},
     }
@@ -528,6 +613,8 @@ async def identify_telemetry(
 
     Send JSON ``{"classifier_id": ..., "telemetry": {"time_s": [...], "omega_rad_s":
     [[wx, wy, wz], ...]}}`` or a multipart form with ``classifier_id`` and a CSV ``file``.
+    Either may be gzip-compressed: the JSON body with ``Content-Encoding: gzip``, the
+    file as it is (``pass.csv.gz``); once decompressed it is held to the body's limit.
     Stamps are seconds in any clock or ISO-8601 UTC strings (``time_utc``); the sequence
     start (``sequence_start``: in the body, the telemetry or the query) is needed unless
     they are seconds from the start.

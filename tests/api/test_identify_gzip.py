@@ -1,0 +1,173 @@
+"""Gzip-compressed telemetry: a gzip file upload (known by its magic bytes) and a JSON body
+sent with ``Content-Encoding: gzip`` give the plain file's verdict; a decompression bomb
+is refused after inflating no more than the body's limit, a corrupt or truncated gzip is a
+422 naming the file, and a coding the API does not read is a 415 naming it."""
+
+from __future__ import annotations
+
+import gzip
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from inertia_id import InertiaClassifier, Scenario, SimulationResult, simulate
+
+from .support import GOOD_SEQUENCE, Api
+from .test_identify import csv_text, telemetry
+
+
+@pytest.fixture(scope="module")
+def flight(paper: Scenario) -> SimulationResult:
+    return simulate(paper, GOOD_SEQUENCE, 1, np.random.default_rng(7))
+
+
+@pytest.fixture
+def classifier_id(api: Api, classifier: InertiaClassifier) -> str:
+    return api.insert_classifier(api.create_scenario()["id"], classifier)
+
+
+def _upload(api: Api, path: str, classifier_id: str, name: str, content: bytes) -> Any:
+    return api.post(path, data={"classifier_id": classifier_id}, files={"file": (name, content)})
+
+
+def _gzip_json_body(api: Api, path: str, body: bytes, encoding: str = "gzip") -> Any:
+    headers = {**api.auth, "content-type": "application/json", "content-encoding": encoding}
+    return api.client.post(path, content=body, headers=headers)
+
+
+def test_gzip_csv_and_json_give_the_plain_files_verdict(
+    api: Api, classifier_id: str, flight: SimulationResult, paper: Scenario
+) -> None:
+    k = 3
+    text = csv_text(flight.time_s, flight.omega_measured[k, 0]).encode()
+    plain = _upload(api, "/identify", classifier_id, "pass.csv", text)
+    assert plain.status_code == 200, plain.text
+    expected = plain.json()
+    assert expected["candidate"] == paper.candidate_names[k]
+    document = json.dumps(telemetry(flight, k)).encode()
+    uploads = {
+        "pass.csv.gz": gzip.compress(text),
+        # Known by its magic bytes, not its name.
+        "pass.csv": gzip.compress(text),
+        "downlink-0042": gzip.compress(text),
+        "pass.json.gz": gzip.compress(document),
+    }
+    for name, content in uploads.items():
+        response = _upload(api, "/identify", classifier_id, name, content)
+        assert response.status_code == 200, (name, response.text)
+        assert response.json()["candidate"] == expected["candidate"], name
+        assert response.json()["distances"] == pytest.approx(expected["distances"]), name
+    body = {"classifier_id": classifier_id, "telemetry": telemetry(flight, k)}
+    as_json = api.post("/identify", json=body)
+    assert as_json.status_code == 200, as_json.text
+    encoded = _gzip_json_body(api, "/identify", gzip.compress(json.dumps(body).encode()))
+    assert encoded.status_code == 200, encoded.text
+    assert encoded.json() == as_json.json()
+    assert as_json.json()["distances"] == pytest.approx(expected["distances"])
+    # "identity" is no coding at all; x-gzip is gzip's old name.
+    same = _gzip_json_body(api, "/identify", json.dumps(body).encode(), encoding="identity")
+    assert same.json() == as_json.json()
+    old_name = _gzip_json_body(
+        api, "/identify", gzip.compress(json.dumps(body).encode()), encoding="x-gzip"
+    )
+    assert old_name.json() == as_json.json()
+
+
+def test_identify_partial_reads_gzip_as_identify_does(
+    api: Api, classifier_id: str, flight: SimulationResult
+) -> None:
+    """The clustering answers no posterior over time: the gzip upload and body reach
+    that refusal as the plain ones do (before, gzip was "not UTF-8 text")."""
+    text = csv_text(flight.time_s[:30], flight.omega_measured[0, 0][:30]).encode()
+    body = {"classifier_id": classifier_id, "telemetry": telemetry(flight, 0)}
+    answers = [
+        _upload(api, "/identify/partial", classifier_id, "pass.csv", text),
+        _upload(api, "/identify/partial", classifier_id, "pass.csv.gz", gzip.compress(text)),
+        _gzip_json_body(api, "/identify/partial", gzip.compress(json.dumps(body).encode())),
+    ]
+    for response in answers:
+        assert response.status_code == 422 and "partial series" in response.text, response.text
+
+
+def test_a_gzip_bomb_is_refused_at_the_bodys_limit(
+    api: Api, classifier_id: str, gzip_bomb: Path
+) -> None:
+    """1 GiB of zeros in 1 MB of gzip passes the body's limit compressed; decompressed it
+    is refused 413 naming the limit, after inflating no more than the limit (the process
+    grew by tens of MB, not a gigabyte: measured by hand, see the change's report)."""
+    bomb = gzip_bomb.read_bytes()
+    limit = api.settings.max_body_bytes
+    assert len(bomb) < limit
+    refusal = f"decompressed size exceeds the limit of {limit} bytes"
+    for path in ("/identify", "/identify/partial"):
+        response = _upload(api, path, classifier_id, "pass.csv.gz", bomb)
+        assert response.status_code == 413, response.text
+        detail = response.json()["detail"]
+        assert "telemetry file 'pass.csv.gz'" in detail and refusal in detail
+        assert "INERTIA_ID_MAX_BODY_BYTES" in detail
+        response = _gzip_json_body(api, path, bomb)
+        assert response.status_code == 413, response.text
+        assert "request body (Content-Encoding: gzip)" in response.json()["detail"]
+        assert refusal in response.json()["detail"]
+
+
+def test_a_gzip_just_within_the_limit_is_read(api: Api, classifier_id: str) -> None:
+    """The limit is on what the gzip holds: limit bytes are read (and judged as
+    telemetry), limit + 1 refused."""
+    limit = api.settings.max_body_bytes
+    header = b"time_s,wx,wy,wz\n"
+    at_limit = header + b" " * (limit - len(header))
+    read = _upload(api, "/identify", classifier_id, "pass.csv.gz", gzip.compress(at_limit))
+    assert read.status_code == 422, read.text
+    assert "at least 2 samples" in read.text
+    over = _upload(api, "/identify", classifier_id, "pass.csv.gz", gzip.compress(at_limit + b" "))
+    assert over.status_code == 413, over.text
+
+
+def test_a_truncated_or_corrupt_gzip_is_a_422_naming_the_file(
+    api: Api, classifier_id: str, flight: SimulationResult
+) -> None:
+    text = csv_text(flight.time_s, flight.omega_measured[1, 0]).encode()
+    compressed = gzip.compress(text)
+    corrupt = bytearray(compressed)
+    corrupt[len(corrupt) // 2] ^= 0xFF
+    cases = {
+        "truncated": (compressed[: len(compressed) // 2], "Compressed file ended before"),
+        "corrupt": (bytes(corrupt), "is not a valid gzip stream"),
+        "trailing bytes": (compressed + b"not gzip", "Not a gzipped file"),
+    }
+    for case, (content, reason) in cases.items():
+        response = _upload(api, "/identify", classifier_id, "pass.csv.gz", content)
+        assert response.status_code == 422, (case, response.text)
+        error = response.json()["detail"][0]
+        assert error["loc"] == ["body", "file"], case
+        assert "telemetry file 'pass.csv.gz' is not a valid gzip stream" in error["msg"], case
+        assert reason in error["msg"], case
+    body = gzip.compress(b'{"classifier_id": "x"}')[:-6]
+    response = _gzip_json_body(api, "/identify", body)
+    assert response.status_code == 422, response.text
+    assert "request body (Content-Encoding: gzip) is not a valid gzip stream" in response.text
+
+
+def test_a_coding_the_api_does_not_read_is_a_415_naming_it(
+    api: Api, classifier_id: str, flight: SimulationResult
+) -> None:
+    """Before, the header was ignored: a brotli body was refused as malformed JSON, and
+    a plain one labelled br was judged."""
+    body = json.dumps({"classifier_id": classifier_id, "telemetry": telemetry(flight, 0)})
+    for encoding in ("br", "deflate", "gzip, br", "zstd"):
+        response = _gzip_json_body(api, "/identify", body.encode(), encoding=encoding)
+        assert response.status_code == 415, (encoding, response.text)
+        assert f"Content-Encoding {encoding!r} is not supported" in response.json()["detail"]
+    # A form is read as sent: gzip its telemetry file, not the form.
+    form = api.client.post(
+        "/identify",
+        data={"classifier_id": classifier_id},
+        files={"file": ("pass.csv", b"time_s,wx,wy,wz\n")},
+        headers={**api.auth, "content-encoding": "gzip"},
+    )
+    assert form.status_code == 415, form.text
+    assert "gzip is read for a JSON body only" in form.json()["detail"]
