@@ -635,6 +635,65 @@ def test_identify_telemetry_files_verdict_distances_and_matches_none(
     assert "3 columns" in error.inner_text() and "expected 4" in error.inner_text()
 
 
+def test_identify_reads_a_gzip_file_and_sends_it_compressed(
+    dashboard: Dashboard, tmp_path: Path, gzip_bomb: Path
+) -> None:
+    """A .csv.gz chosen: the page shows the CSV it holds and uploads the gzip as chosen
+    (the service decompresses it); the verdict is the plain CSV's. A truncated gzip is
+    named, and so is one holding more than the page reads (a bomb: 1 GiB of zeros),
+    nothing left to send."""
+    import gzip
+
+    _classifier(dashboard)
+    page = dashboard.page
+    plain = _telemetry_csv(tmp_path / "payload3.csv", Scenario.paper(), candidate=3, seed=11)
+    text = plain.read_text(encoding="utf-8")
+    packed = tmp_path / "payload3.csv.gz"
+    packed.write_bytes(gzip.compress(text.encode()))
+    dashboard.open(f"#/identify?classifier={made['classifier']}")
+    assert ".gz" in (page.get_attribute("#telemetry-file", "accept") or "").split(",")
+    page.set_input_files("#telemetry-file", str(packed))
+    page.wait_for_function(
+        "text => document.getElementById('telemetry-text').value === text", arg=text
+    )
+    # The browser does not show a form's file to the request events: the page's fetch
+    # notes the file it sends (name and first bytes).
+    page.evaluate(
+        """() => {
+          const send = window.fetch;
+          window.sentFiles = [];
+          window.fetch = async (url, init) => {
+            const file = init && init.body instanceof FormData ? init.body.get("file") : null;
+            if (file) {
+              const head = Array.from(new Uint8Array(await file.slice(0, 2).arrayBuffer()));
+              window.sentFiles.push({ url: String(url), name: file.name, head });
+            }
+            return send(url, init);
+          };
+        }"""
+    )
+    page.click("#identify-submit")
+    verdict = page.wait_for_selector("#verdict")
+    assert "payload 3 ejected" in verdict.inner_text()
+    assert _shown_posterior(dashboard) == _expected_posterior(_api_verdict(dashboard, text))
+    sent = page.evaluate("() => window.sentFiles")
+    assert "/identify?" in sent[0]["url"] + "?" and "/partial" not in sent[0]["url"]
+    assert (sent[0]["name"], sent[0]["head"]) == ("payload3.csv.gz", [0x1F, 0x8B])
+
+    broken = tmp_path / "broken.csv.gz"
+    broken.write_bytes(gzip.compress(text.encode())[:-30])
+    page.set_input_files("#telemetry-file", str(broken))
+    error = page.wait_for_selector("#identify-errors .message.error")
+    assert "broken.csv.gz is not a valid gzip file" in error.inner_text()
+    assert page.input_value("#telemetry-text") == ""
+    page.set_input_files("#telemetry-file", str(gzip_bomb))
+    error = page.wait_for_selector("#identify-errors .message.error >> text=once decompressed")
+    assert f"{gzip_bomb.name} holds more than {64 * 2**20} bytes once decompressed" in (
+        error.inner_text()
+    )
+    assert page.input_value("#telemetry-text") == ""
+
+
 def test_identify_says_the_gyro_averages_when_ticked(dashboard: Dashboard) -> None:
     """The "averaging gyro" box sends ``averaged=true`` with the telemetry (an integrating
     gyro's rates are read at their intervals' midpoints): the page shows the service's

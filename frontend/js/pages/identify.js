@@ -23,6 +23,41 @@ const STATUS_COLOR = { identified: "#1e7b34", ambiguous: "#c98a00", "matches-non
 
 const EXAMPLE = "time_s,wx_rad_s,wy_rad_s,wz_rad_s\n0.05,0.0001,0.0009,-0.0004\n0.10,0.0012,0.0031,0.0015\n...";
 
+// A file that begins with gzip's two magic bytes (RFC 1952) is gzip, whatever its name, as
+// the service reads an upload.
+async function isGzip(file) {
+  const head = new Uint8Array(await file.slice(0, 2).arrayBuffer());
+  return head.length === 2 && head[0] === 0x1f && head[1] === 0x8b;
+}
+
+// The most a gzip file may hold for the page to show it: a bomb (a megabyte of gzip that
+// holds gigabytes) stops here instead of filling the tab's memory. The service holds the
+// upload to its own limit (INERTIA_ID_MAX_BODY_BYTES, 5 MB by default).
+const PAGE_GUNZIP_LIMIT = 64 * 1024 * 1024;
+
+// The text a gzip file holds, decompressed as a stream and stopped past the page's limit.
+async function gunzipText(file) {
+  const reader = file.stream().pipeThrough(new DecompressionStream("gzip")).getReader();
+  const chunks = [];
+  let size = 0;
+  try {
+    for (;;) {
+      const { done, value } = await reader.read();
+      if (done) break;
+      size += value.length;
+      if (size > PAGE_GUNZIP_LIMIT) {
+        reader.cancel().catch(() => {});
+        throw new Error(`${file.name} holds more than ${PAGE_GUNZIP_LIMIT} bytes once decompressed: more than this page reads`);
+      }
+      chunks.push(value);
+    }
+  } catch (exc) {
+    if (size > PAGE_GUNZIP_LIMIT) throw exc;
+    throw new Error(`${file.name} is not a valid gzip file: ${exc.message}`);
+  }
+  return new Blob(chunks).text();
+}
+
 // A stamp in seconds: a number, or an ISO-8601 UTC time (to the millisecond: for drawing).
 function stampSeconds(value) {
   if (typeof value === "number") return value;
@@ -76,9 +111,26 @@ export async function render(root, context) {
     ),
   );
   const text = h("textarea", { id: "telemetry-text", rows: 8, placeholder: `CSV (time_s or time_utc, wx_rad_s, wy_rad_s, wz_rad_s) or JSON {"time_s": [...], "omega_rad_s": [[...], ...]}\n${EXAMPLE}` });
-  const file = h("input", { type: "file", id: "telemetry-file", accept: ".csv,.json,text/csv,application/json" });
+  const file = h("input", { type: "file", id: "telemetry-file", accept: ".csv,.json,.gz,text/csv,application/json,application/gzip" });
+  // A gzip file chosen and the text it holds: sent as chosen (compressed) while the text
+  // is not edited.
+  let gzipped = null;
   file.addEventListener("change", async () => {
-    if (file.files.length) text.value = await file.files[0].text();
+    gzipped = null;
+    clear(general);
+    if (!file.files.length) return;
+    const chosen = file.files[0];
+    try {
+      if (await isGzip(chosen)) {
+        text.value = await gunzipText(chosen);
+        gzipped = { file: chosen, text: text.value };
+      } else {
+        text.value = await chosen.text();
+      }
+    } catch (exc) {
+      text.value = "";
+      general.append(messageBox("error", exc.message));
+    }
   });
   const start = h("input", { type: "text", id: "identify-sequence-start", size: 34, placeholder: "e.g. 810000000.0 or 2025-03-01T12:00:00Z", value: context.query.sequence_start || "" });
   const averaged = h("input", { type: "checkbox", id: "identify-averaged", checked: context.query.averaged === "true" });
@@ -104,7 +156,7 @@ export async function render(root, context) {
         const options = { sequenceStart: start.value.trim(), startWithin: startWithin.value.trim(), confidence: confidence.value.trim(), averaged: averaged.checked };
         submit.disabled = true;
         try {
-          const upload = new File([content], name, { type: "text/plain" });
+          const upload = gzipped && gzipped.text === content ? gzipped.file : new File([content], name, { type: "text/plain" });
           const verdict = await api.identify(select.value, upload, "json", options);
           const classifier = page.items.find((c) => c.id === select.value);
           await showVerdict(result, verdict, classifier, { content, context, file: upload, options });
@@ -123,7 +175,7 @@ export async function render(root, context) {
       h("label", { for: "identify-classifier" }, "classifier"),
       select,
       h("label", { for: "telemetry-file" }, "upload a file"),
-      h("div", {}, file, h("span", { class: "hint" }, " .csv or .json; time_s in seconds (any clock) or time_utc in ISO-8601 UTC, ω in rad/s")),
+      h("div", {}, file, h("span", { class: "hint" }, " .csv or .json, or either gzip-compressed (.csv.gz, .json.gz); time_s in seconds (any clock) or time_utc in ISO-8601 UTC, ω in rad/s")),
       h("label", { for: "identify-sequence-start" }, "sequence start"),
       h(
         "div",
