@@ -29,6 +29,13 @@ For each, and for 1 and 2 API processes (``--api-workers``):
     python bench/service_latency.py [--deployments sqlite,postgres] [--duration 10]
         [--clients 1,20,50] [--api-workers 1,2] [--jobs 10] [--json out.json]
 
+- **memory** of the whole process tree (serve, its API processes, the verdict process
+  and the fork server it forks them from, the worker and its task process): each
+  process's RSS and PSS (``/proc/PID/smaps_rollup``; PSS shares a page among the
+  processes that map it, so the tree's PSS is what it takes from the machine), idle after
+  start-up, after the classifiers were trained (first API setting) and after the
+  /identify load.
+
 The load generator runs on the same machine: its own CPU per request is printed so the
 figures can be read against it.
 """
@@ -100,6 +107,56 @@ def _api_cpu_s(data_dir: Path) -> float:
         if len(fields) > 12:
             total += int(fields[11]) + int(fields[12])  # utime, stime
     return total / TICKS
+
+
+def _tree_memory(data_dir: Path) -> dict[str, Any]:
+    """RSS and PSS (MiB) of each live process of ``data_dir`` (serve and everything it
+    started), with its parent and command line, and the tree's totals."""
+    marker = f"INERTIA_ID_DATA_DIR={data_dir}".encode()
+    processes = []
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit() or marker not in _read(f"/proc/{entry}/environ").split(b"\0"):
+            continue
+        rollup = _read(f"/proc/{entry}/smaps_rollup").decode(errors="replace")
+        kib = dict(re.findall(r"^(Rss|Pss):\s+(\d+) kB", rollup, re.MULTILINE))
+        if not kib:
+            continue  # gone meanwhile
+        status = _read(f"/proc/{entry}/status").decode(errors="replace")
+        ppid = re.search(r"^PPid:\s+(\d+)", status, re.MULTILINE)
+        command = _read(f"/proc/{entry}/cmdline").replace(b"\0", b" ").decode(errors="replace")
+        processes.append(
+            {
+                "pid": int(entry),
+                "ppid": int(ppid.group(1)) if ppid else None,
+                "command": command.strip()[:80],
+                "rss_mib": int(kib["Rss"]) / 1024,
+                "pss_mib": int(kib["Pss"]) / 1024,
+            }
+        )
+    processes.sort(key=lambda p: p["pid"])
+    roles: dict[int, str] = {}
+    for p in processes:  # a parent's pid is below its children's (no wrap-around here)
+        p["role"] = roles[p["pid"]] = _role(p["command"], roles.get(p["ppid"]))
+    return {
+        "processes": processes,
+        "rss_mib": sum(p["rss_mib"] for p in processes),
+        "pss_mib": sum(p["pss_mib"] for p in processes),
+    }
+
+
+def _role(command: str, parent: str | None) -> str:
+    """What a process of the tree is, from its command line and its parent's role."""
+    if "app.serve" in command:
+        return "serve"  # with one API process, the API process too
+    if "celery" in command:
+        return "worker task process" if parent == "worker (main)" else "worker (main)"
+    if "resource_tracker" in command:
+        return "resource tracker"
+    if "multiprocessing.spawn" in command:
+        return "API process"
+    if "forkserver" in command:
+        return "verdict process" if parent == "fork server" else "fork server"
+    return command[:40]
 
 
 def _own_cpu_s() -> float:
@@ -461,7 +518,13 @@ async def _cold(
 
 
 def _run_deployment(name: str, args: Any) -> dict[str, Any]:
-    figures: dict[str, Any] = {"deployment": name, "startups": [], "identify": [], "jobs": None}
+    figures: dict[str, Any] = {
+        "deployment": name,
+        "startups": [],
+        "identify": [],
+        "jobs": None,
+        "memory": [],
+    }
     with tempfile.TemporaryDirectory(prefix="inertia-bench-") as tmp:
         data_dir = Path(tmp) / "data"
         with _backend(name, data_dir, args) as backend:
@@ -484,6 +547,18 @@ def _run_deployment(name: str, args: Any) -> dict[str, Any]:
                     f"{service.start_to_worker_s:.2f} s",
                     flush=True,
                 )
+
+                def memory(when: str, api_workers: int = api_workers) -> None:
+                    tree = _tree_memory(data_dir)
+                    figures["memory"].append({"api_workers": api_workers, "when": when, **tree})
+                    print(
+                        f"[{name}] memory {when} ({api_workers} API processes): "
+                        f"{len(tree['processes'])} processes, PSS {tree['pss_mib']:.0f} MiB, "
+                        f"RSS {tree['rss_mib']:.0f} MiB",
+                        flush=True,
+                    )
+
+                memory("idle after start-up")
                 try:
                     client = httpx.Client(base_url=service.base, headers={"X-API-Key": key})
                     client.timeout = httpx.Timeout(60)
@@ -503,6 +578,7 @@ def _run_deployment(name: str, args: Any) -> dict[str, Any]:
                                 f"{time.perf_counter() - started:.1f} s",
                                 flush=True,
                             )
+                        memory("after training the classifiers")
                     for label, classifier in ids.items():
                         body, expected = _body(classifier, args.seed)
                         cold = asyncio.run(_cold(service.base, key, body, 6 * api_workers))
@@ -557,6 +633,7 @@ def _run_deployment(name: str, args: Any) -> dict[str, Any]:
                                 f"{load['errors']} errors",
                                 flush=True,
                             )
+                    memory("after the /identify load")
                     client.close()
                 finally:
                     _stop(service)
@@ -579,7 +656,44 @@ def _jobs_figures(client: httpx.Client, scenario: str, args: Any) -> dict[str, A
     }
 
 
+def _print_memory(results: list[dict[str, Any]]) -> None:
+    rows = []
+    for figures in results:
+        for snapshot in figures.get("memory", []):
+            for p in snapshot["processes"]:
+                rows.append(
+                    [
+                        figures["deployment"],
+                        snapshot["api_workers"],
+                        snapshot["when"],
+                        p["pid"],
+                        p["ppid"],
+                        p["role"],
+                        p["rss_mib"],
+                        p["pss_mib"],
+                    ]
+                )
+            rows.append(
+                [
+                    figures["deployment"],
+                    snapshot["api_workers"],
+                    snapshot["when"],
+                    "all",
+                    "",
+                    f"{len(snapshot['processes'])} processes",
+                    snapshot["rss_mib"],
+                    snapshot["pss_mib"],
+                ]
+            )
+    print_table(
+        ["deployment", "API processes", "when", "pid", "parent", "process", "RSS MiB", "PSS MiB"],
+        rows,
+        title="Memory of the process tree (PSS: shared pages split among the processes)",
+    )
+
+
 def _print(results: list[dict[str, Any]]) -> None:
+    _print_memory(results)
     rows = []
     for figures in results:
         for s in figures["startups"]:
