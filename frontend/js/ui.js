@@ -41,6 +41,18 @@ export function clear(node) {
   return node;
 }
 
+// The decimals that show `significant` significant digits of `value` (0 where its
+// integer digits already do).
+function decimalsFor(value, significant) {
+  const abs = Math.abs(value);
+  if (abs === 0 || !Number.isFinite(abs)) return 0;
+  return Math.max(0, significant - 1 - Math.floor(Math.log10(abs)));
+}
+
+// A figure with `digits` decimals, but never fewer than `digits` significant digits
+// (0.00213, not 0.002: fixed decimals alone left a rate of 2.1e-3 rad/s one digit);
+// an integer as one, grouped; below 1e-3 or from 1e6, `digits` significant in
+// exponent form.
 export function fmt(value, digits = 3) {
   if (value === null || value === undefined || Number.isNaN(value)) return "–";
   if (typeof value !== "number") return String(value);
@@ -48,7 +60,40 @@ export function fmt(value, digits = 3) {
   if (Number.isInteger(value) && Math.abs(value) < 1e6) return value.toLocaleString("en");
   const abs = Math.abs(value);
   if (abs !== 0 && (abs < 1e-3 || abs >= 1e6)) return value.toExponential(digits - 1);
-  return value.toFixed(digits);
+  return value.toFixed(Math.max(digits, decimalsFor(value, digits)));
+}
+
+// A physical quantity (impulse, propellant, a rate, an inertia, a duration) to
+// `significant` significant digits, where fixed decimals lost them (0.45 N m s read
+// 0.5, a residual of 0.0004 deg/s 0.000). A value those digits hold exactly is written
+// as it is (0.45, 24, 15 and 0.5 alike: no padding, no bare integer beside padded
+// decimals); one rounded to them keeps every digit, zeros included (0.0410 for
+// 0.041037, 24.0 for 23.99999); a value with more integer digits keeps them all (1235,
+// not 1.23e+3 or 1230).
+export function quantity(value, significant = 3) {
+  if (typeof value !== "number" || !Number.isFinite(value)) return "–";
+  if (value === 0) return "0";
+  const text = value.toPrecision(significant);
+  if (Number(text) === value) return String(value);
+  return Math.abs(value) >= 10 ** significant || text.includes("e+") ? String(Math.round(value)) : text;
+}
+
+// A measured value ± its standard error: the error to two significant digits (below
+// 1e-3 in exponent form, as fmt writes it), the value to the decimal of the error's last
+// digit, and to three significant digits where the error is finer still (up to two
+// decimals past the error's), so it carries the digits its uncertainty justifies
+// (0.002134 ± 7.1e-5, not 0.002 ± 7.1e-5; 100.12 ± 0.53). Without a positive error, the
+// value as a quantity.
+export function measured(value, std) {
+  if (typeof value !== "number" || !Number.isFinite(value)) return "–";
+  if (typeof std !== "number" || !Number.isFinite(std) || std <= 0) {
+    return std === 0 ? `${quantity(value)} ± 0` : quantity(value);
+  }
+  const byError = decimalsFor(std, 2);
+  const decimals = Math.min(20, Math.max(byError, Math.min(decimalsFor(value, 3), byError + 2)));
+  const text = value.toFixed(decimals);
+  const error = std < 1e-3 ? fmt(std, 2) : std.toFixed(byError);
+  return `${Number(text) === 0 ? text.replace("-", "") : text} ± ${error}`;
 }
 
 // A value as a person types it: at most `significant` significant digits, trailing zeros

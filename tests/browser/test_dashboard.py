@@ -153,6 +153,24 @@ def _expected_posterior(verdict: dict[str, Any]) -> dict[str, str]:
     return {**shown, "none of these": _probability(verdict["p_none"])}
 
 
+def _significant(text: str) -> int:
+    """How many significant digits a number as the page writes it carries."""
+    return len(text.strip().lstrip("-").split("e")[0].replace(".", "").lstrip("0"))
+
+
+def _shows(text: str, value: float, significant: int = 3) -> None:
+    """``text`` writes ``value`` rounded at its own last digit, with at least
+    ``significant`` significant digits unless it is the value exactly (24, 0.5)."""
+    mantissa = text.strip().lstrip("-").split("e")[0]
+    exponent = int(text.split("e")[1]) if "e" in text else 0
+    decimals = len(mantissa.split(".")[1]) if "." in mantissa else 0
+    assert abs(float(text) - value) <= 0.5 * 10 ** (exponent - decimals) * (1 + 1e-9), (
+        text,
+        value,
+    )
+    assert float(text) == value or _significant(text) >= significant, (text, value)
+
+
 def test_without_the_key_a_write_says_to_enter_it_a_wrong_key_is_refused_then_it_is_kept(
     dashboard: Dashboard,
 ) -> None:
@@ -189,10 +207,39 @@ def test_create_a_scenario_from_the_preset_shows_its_principal_moments(
     assert rows.count() == 5
     first = rows.nth(0).inner_text()
     # I0 = diag(100, 60, 90): principal moments ascending.
-    assert "none ejected" in first and "60.00, 90.00, 100.00" in first
+    assert "none ejected" in first and "60, 90, 100" in first
     assert _trace_points(dashboard, "moments-plot") == 5
     assert "paper, from the browser" in dashboard.page.inner_text("h1")
     dashboard.screenshot("scenario")
+
+
+def test_a_small_bodys_inertias_keep_their_significant_digits(dashboard: Dashboard) -> None:
+    """A 3U CubeSat's inertias (about 0.01 kg m²) in the scenario's table and chart hover,
+    to four significant digits: two decimals wrote 0.0123 as 0.01 and hid the 8 %
+    between its candidates."""
+    client = dashboard.service.client
+    document = client.get("/scenarios/presets").json()["paper"]
+    document.pop("candidate_generator", None)
+    document["name"] = "a small body"
+    # Thrusters of a millinewton metre, to match.
+    document["thrusters"]["torque_matrix_nm"] = [
+        [1e-3 * v for v in row] for row in document["thrusters"]["torque_matrix_nm"]
+    ]
+    document["inertia_candidates"] = [
+        {"name": name, "inertia_kg_m2": [[ixx, 0, 0], [0, 0.0456, 0], [0, 0, 0.0501]]}
+        for name, ixx in (("stowed", 0.0123), ("deployed", 0.01331))
+    ]
+    created = client.post("/scenarios", json={"scenario": document})
+    assert created.status_code == 201, created.text
+    dashboard.open(f"#/scenarios/{created.json()['id']}")
+    page = dashboard.page
+    page.wait_for_selector("#candidate-table")
+    rows = page.locator("#candidate-table tbody tr")
+    assert "[0.0123, 0, 0] [0, 0.0456, 0] [0, 0, 0.0501]" in rows.nth(0).inner_text()
+    assert "0.01331, 0.0456, 0.0501" in rows.nth(1).inner_text()
+    page.wait_for_function("() => document.getElementById('moments-plot')?.data?.length === 3")
+    hover = page.evaluate("() => document.getElementById('moments-plot').data[0].customdata")
+    assert hover == ["0.0123", "0.01331"]
 
 
 def test_a_bad_scenario_shows_the_servers_message_next_to_the_field(
@@ -912,6 +959,97 @@ def test_identify_shows_the_rate_and_bias_measured_before_the_start(
         assert drawn[4 * a + 2]["y"] == pytest.approx(shifted)
     title = page.evaluate("() => document.getElementById('overlay-plot').layout.title.text")
     assert "shifted by the rate + bias measured before the start" in title
+
+
+#: A verdict's figures as a flight team reported them, put into the service's answer.
+INITIAL_RATE_RAD_S = [2.134e-3, -1.401e-3, 1.1e-3]
+INITIAL_RATE_STD_RAD_S = [7.1e-5, 6.6e-5, 9.0e-5]
+
+
+def _identify_with(dashboard: Dashboard, figures: dict[str, Any]) -> None:
+    """Identify one flight of candidate 3 (GOOD), the verdict the service answers with
+    ``figures`` put in it on the way to the page."""
+    _classifier(dashboard)
+    page = dashboard.page
+    times, omega = _flight(Scenario.paper(), 45)
+
+    def changed(route: Any) -> None:
+        if route.request.method != "POST":
+            route.continue_()
+            return
+        answer = route.fetch()
+        body = answer.json()
+        body.pop("estimate_rejected", None)
+        body.update(figures)
+        route.fulfill(response=answer, json=body)
+
+    verdicts = re.compile(r"/identify(\?.*)?$")
+    dashboard.open(f"#/identify?classifier={made['classifier']}")
+    page.route(verdicts, changed)
+    try:
+        _identify(dashboard, _csv_text(times, omega[3]))
+    finally:
+        page.unroute(verdicts)
+
+
+def test_identify_gives_the_initial_rate_every_digit_its_error_justifies(
+    dashboard: Dashboard,
+) -> None:
+    """The rate + gyro bias measured before the start, to the digit of its standard error
+    and at least three significant: fmt's fixed three decimals wrote 2.134e-3 rad/s as
+    0.002 beside an error of 7.1e-5."""
+    _identify_with(
+        dashboard,
+        {
+            "initial_offset_rad_s": INITIAL_RATE_RAD_S,
+            "initial_offset_std_rad_s": INITIAL_RATE_STD_RAD_S,
+            "pre_start_samples": 199,
+        },
+    )
+    shown = dashboard.page.inner_text("#initial-offset")
+    radians = shown.split("] rad/s")[0].lstrip("[").split(", ")
+    for written, value, error in zip(
+        radians, INITIAL_RATE_RAD_S, INITIAL_RATE_STD_RAD_S, strict=True
+    ):
+        figure, written_error = written.split(" ± ")
+        _shows(figure, value)
+        # Down to the error's last digit: 2.134e-3 ± 7.1e-5 keeps its 4.
+        assert abs(float(figure) - value) <= error / 10, written
+        _shows(written_error, error, significant=2)
+    assert shown.endswith("from 199 samples")
+
+
+def test_identify_writes_the_candidates_inertia_and_the_estimate_in_one_format(
+    dashboard: Dashboard,
+) -> None:
+    """The candidate's inertia to four significant digits, integer-looking or not (it read
+    [15, 0.5000, -0.3000]); a small body's least-squares estimate to its standard error
+    (two decimals wrote 0.0123 ± 4.0e-4 as 0.01 and its principal moments 0.01, 0.05)."""
+    _identify_with(
+        dashboard,
+        {
+            "inertia_kg_m2": [[15, 0.5, -0.3], [0.5, 12, 0], [-0.3, 0, 10]],
+            "estimated_inertia_kg_m2": [[0.0123, 0, 0], [0, 0.0456, 0], [0, 0, 0.0501]],
+            "estimated_inertia_std_kg_m2": {
+                "Ixx": 4.0e-4,
+                "Iyy": 0.0012,
+                "Izz": 0.0011,
+                "Ixy": 2.0e-5,
+                "Ixz": 2.0e-5,
+                "Iyz": 2.0e-5,
+            },
+            "estimated_principal_moments_kg_m2": [0.0123, 0.0456, 0.0501],
+            "estimate_condition_number": 12.5,
+        },
+    )
+    page = dashboard.page
+    inertia = page.inner_text("#identify-result dt:has-text('inertia of') + dd")
+    assert inertia == "[15, 0.5, -0.3] [0.5, 12, 0] [-0.3, 0, 10]"
+    cells = page.eval_on_selector_all(
+        "#ls-estimate table.tensor td", "cells => cells.map((c) => c.textContent)"
+    )
+    assert cells[0] == "0.01230 ± 4.0e-4" and cells[4] == "0.0456 ± 0.0012", cells
+    assert "principal moments 0.0123, 0.0456, 0.0501" in page.inner_text("#ls-estimate")
 
 
 def test_identify_shows_the_dropouts_judged_across_and_the_part_covered(

@@ -8,7 +8,7 @@ import { api } from "../api.js";
 import { downloads } from "../components/downloads.js";
 import { BAND, COLORS, PLOT_CONFIG, layout, plotDiv, plotText, responseLayout, title, withAlpha } from "../components/plots.js";
 import { kindInfo } from "../vocabulary.js";
-import { clear, fmt, h, jsonBlob, link, messageBox, plain, probability, sequenceText, showFieldErrors } from "../ui.js";
+import { clear, fmt, h, jsonBlob, link, measured, messageBox, plain, probability, quantity, sequenceText, showFieldErrors } from "../ui.js";
 
 const DEFAULT_CONFIDENCE = 0.99;
 
@@ -219,11 +219,11 @@ function estimateOf(verdict) {
   if (verdict.estimated_inertia_kg_m2) {
     const std = verdict.estimated_inertia_std_kg_m2 || {};
     const rows = verdict.estimated_inertia_kg_m2.map((row, i) =>
-      h("tr", {}, row.map((v, j) => h("td", {}, `${v.toFixed(2)}${std[TENSOR_NAMES[i][j]] !== undefined ? ` ± ${fmt(std[TENSOR_NAMES[i][j]], 2)}` : ""}`))),
+      h("tr", {}, row.map((v, j) => h("td", {}, measured(v, std[TENSOR_NAMES[i][j]])))),
     );
     return [
       h("table", { class: "tensor mono" }, h("tbody", {}, rows)),
-      `principal moments ${verdict.estimated_principal_moments_kg_m2.map((v) => v.toFixed(2)).join(", ")}; condition number ${fmt(verdict.estimate_condition_number, 3)}`,
+      `principal moments ${verdict.estimated_principal_moments_kg_m2.map((v) => quantity(v, 4)).join(", ")}; condition number ${fmt(verdict.estimate_condition_number, 3)}`,
       blind,
     ];
   }
@@ -234,11 +234,12 @@ function estimateOf(verdict) {
 const DEG = 180 / Math.PI;
 
 // The body's rate plus the gyro bias at the sequence start, measured by the samples before
-// it (the classifier conditions on it), in rad/s and deg/s with its standard error.
+// it (the classifier conditions on it), in rad/s and deg/s, the rad/s with its standard
+// error and every digit that justifies.
 function offsetOf(verdict) {
   if (!verdict.initial_offset_rad_s) return "– (the telemetry starts at the sequence start)";
   const std = verdict.initial_offset_std_rad_s || [];
-  const axes = verdict.initial_offset_rad_s.map((v, i) => `${fmt(v, 3)} ± ${fmt(std[i], 2)}`);
+  const axes = verdict.initial_offset_rad_s.map((v, i) => measured(v, std[i]));
   const deg = verdict.initial_offset_rad_s.map((v) => (v * DEG).toPrecision(3));
   return `[${axes.join(", ")}] rad/s = [${deg.join(", ")}] deg/s, from ${verdict.pre_start_samples} samples`;
 }
@@ -304,7 +305,7 @@ async function showVerdict(holder, verdict, classifier, { content, context, file
         h("dt", {}, "margin to the runner-up"),
         h("dd", {}, `${fmt(verdict.margin)} (relative ${fmt(verdict.relative_margin)})`),
         h("dt", {}, `inertia of ${verdict.status === "identified" ? "the candidate" : "the most probable candidate"} (kg m²)`),
-        h("dd", { class: "mono" }, verdict.inertia_kg_m2 ? verdict.inertia_kg_m2.map((r) => `[${r.map((v) => fmt(v, 4)).join(", ")}]`).join(" ") : "–"),
+        h("dd", { class: "mono", id: "candidate-inertia" }, verdict.inertia_kg_m2 ? verdict.inertia_kg_m2.map((r) => `[${r.map((v) => quantity(v, 4)).join(", ")}]`).join(" ") : "–"),
         h("dt", {}, "classifier"),
         h("dd", {}, link(`#/classifiers/${verdict.classifier_id}`, verdict.classifier_id)),
         h("dt", {}, "least-squares estimate from this telemetry (kg m², ± standard error)"),

@@ -6,7 +6,7 @@ import { api } from "../api.js";
 import { confirmAction } from "../components/dialog.js";
 import { downloads } from "../components/downloads.js";
 import { COLORS, PLOT_CONFIG, layout, plotText, tightRange } from "../components/plots.js";
-import { clear, h, jsonBlob, link, messageBox, plain, showError, showFieldErrors, table, when } from "../ui.js";
+import { clear, h, jsonBlob, link, messageBox, plain, quantity, showError, showFieldErrors, table, when } from "../ui.js";
 
 const UNCERTAINTY_FIELDS = [
   ["duty_jitter_sigma", "duty jitter σ", "fraction of full duty, per firing thruster and step"],
@@ -103,8 +103,8 @@ export async function renderOne(root, context) {
           ["candidate", "inertia tensor (kg m²)", "principal moments (kg m², ascending)"],
           scenario.candidates.map((c) => [
             c.name,
-            h("span", { class: "mono" }, c.inertia_kg_m2.map((r) => `[${r.map((v) => v.toFixed(2)).join(", ")}]`).join(" ")),
-            h("span", { class: "mono" }, c.principal_moments_kg_m2.map((v) => v.toFixed(2)).join(", ")),
+            h("span", { class: "mono" }, c.inertia_kg_m2.map((r) => `[${r.map((v) => quantity(v, 4)).join(", ")}]`).join(" ")),
+            h("span", { class: "mono" }, c.principal_moments_kg_m2.map((v) => quantity(v, 4)).join(", ")),
           ]),
           { id: "candidate-table" },
         ),
@@ -153,11 +153,12 @@ export async function renderOne(root, context) {
       name: ["smallest", "middle", "largest"][axis],
       x: scenario.candidates.map((c) => plotText(c.name)),
       y: scenario.candidates.map((c) => c.principal_moments_kg_m2[axis]),
+      customdata: scenario.candidates.map((c) => quantity(c.principal_moments_kg_m2[axis], 4)),
       xaxis: "x",
       yaxis: axis === 0 ? "y" : `y${axis + 1}`,
       marker: { color: COLORS[axis], size: 9 },
       line: { color: COLORS[axis], width: 1, dash: "dot" },
-      hovertemplate: "%{x}: %{y:.2f} kg m²<extra>%{fullData.name} moment</extra>",
+      hovertemplate: "%{x}: %{customdata} kg m²<extra>%{fullData.name} moment</extra>",
     })),
     layout("candidate", "", {
       height: 460,
