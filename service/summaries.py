@@ -28,7 +28,8 @@ class SummaryColumn:
     :param label: what a person reads in a column header.
     :param unit: SI unit, or "" for a fraction or a count.
     :param better: "high" or "low": which way a comparison should look.
-    :param digits: decimals a table shows.
+    :param digits: decimals a table shows a fraction with (0: a count). The dashboard
+        writes a figure with a unit to three significant digits, where decimals lost them.
     """
 
     key: str

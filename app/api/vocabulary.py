@@ -53,7 +53,10 @@ class SummaryColumnOut(BaseModel):
     label: str
     unit: str = Field(description='SI unit; "" for a fraction or a count')
     better: str = Field(description="high or low")
-    digits: int = Field(description="decimals to show")
+    digits: int = Field(
+        description='decimals to show a fraction (unit "") with; 0 for a count; the '
+        "dashboard writes a figure with a unit to three significant digits"
+    )
 
 
 class ResultTableOut(BaseModel):

@@ -481,7 +481,7 @@ def test_the_job_list_updates_without_reload_and_training_shows_the_classifier(
         "() => document.getElementById('classifier-fuel').textContent.includes('N m s')"
     )
     # Three thrusters at 2 N m, full duty, 4 s: 24 N m s.
-    assert page.inner_text("#classifier-fuel") == "24.0 N m s"
+    assert page.inner_text("#classifier-fuel") == "24 N m s"
 
 
 def test_a_sweep_draws_both_accuracy_curves_with_intervals_and_a_confusion_matrix(
@@ -1050,6 +1050,35 @@ def test_identify_writes_the_candidates_inertia_and_the_estimate_in_one_format(
     )
     assert cells[0] == "0.01230 ± 4.0e-4" and cells[4] == "0.0456 ± 0.0012", cells
     assert "principal moments 0.0123, 0.0456, 0.0501" in page.inner_text("#ls-estimate")
+
+
+def test_the_classifier_page_gives_its_sequences_impulse_to_three_significant_digits(
+    dashboard: Dashboard,
+) -> None:
+    """0.45 N m s reads 0.45 (one decimal wrote 0.5, and anything under 0.05 as 0.0); the
+    response the page asks for is the service's, its impulse changed on the way."""
+    classifier = _classifier(dashboard)
+    page = dashboard.page
+    client = dashboard.service.client
+    scenario_id = client.get(f"/classifiers/{classifier}").json()["scenario_id"]
+
+    def changed(route: Any) -> None:
+        answer = route.fetch()
+        body = answer.json()
+        body["impulse_nms"] = 0.45
+        route.fulfill(response=answer, json=body)
+
+    responses = re.compile(rf"/scenarios/{scenario_id}/response\?.*")
+    dashboard.open("#/scenarios")
+    page.route(responses, changed)
+    try:
+        dashboard.open(f"#/classifiers/{classifier}")
+        page.wait_for_function(
+            "() => document.getElementById('classifier-fuel')?.textContent.includes('N m s')"
+        )
+        assert page.inner_text("#classifier-fuel") == "0.45 N m s"
+    finally:
+        page.unroute(responses)
 
 
 def test_identify_shows_the_dropouts_judged_across_and_the_part_covered(
@@ -1730,6 +1759,80 @@ def test_a_baseline_that_dominates_the_best_sequence_is_flagged(dashboard: Dashb
     member = _cells(dashboard, "#front-table")[0]
     assert member["dominated_by"] == ", ".join(front["members"][0]["dominated_by"])
     page.wait_for_selector("#front-plan-table")
+
+
+#: Two random sequences and the baselines (as the test above): a finished search in seconds.
+TWO_RANDOM = {"method": "random", "timesteps": 8, "n_realisations": 10, "fresh_realisations": 10}
+
+
+def _texts(dashboard: Dashboard, selector: str) -> list[dict[str, str]]:
+    """Each row's number cells as the page writes them (data-key -> text)."""
+    return list(
+        dashboard.page.eval_on_selector_all(
+            f"{selector} tbody tr",
+            "rows => rows.map((r) => Object.fromEntries([...r.querySelectorAll('td[data-key]')]"
+            ".map((td) => [td.dataset.key, td.textContent])))",
+        )
+    )
+
+
+def test_a_searchs_impulse_and_rates_keep_their_significant_digits(dashboard: Dashboard) -> None:
+    """The commanded impulse to three significant digits wherever a search shows it: 0.45
+    N m s reads 0.45 on the best sequence's card, in the baselines' table, in the runs list
+    and on the compare chart (one decimal wrote 0.5), 0.0449 in the front's table (two
+    decimals wrote 0.04); a residual of 1.06e-3 rad/s in the runs list 0.00106 (0.0607
+    deg/s), not 0.0011 (0.061). The job is the service's, these figures changed on the
+    way to the page."""
+    page = dashboard.page
+    job_id = _finished_search(dashboard, TWO_RANDOM, "two random sequences")["id"]
+
+    def change(stored: dict[str, Any]) -> None:
+        if stored.get("summary"):
+            stored["summary"].update(fuel_nms=0.45, residual_rate_rad_s=1.06e-3)
+        if stored.get("result"):
+            stored["result"]["best"]["fuel_nms"] = 0.45
+            stored["result"]["front"]["members"][0]["scores"]["impulse_nms"] = 0.0449
+
+    def changed(route: Any) -> None:
+        answer = route.fetch()
+        body = answer.json()
+        for stored in [body, *(body.get("items") or [])]:
+            if isinstance(stored, dict) and stored.get("id") == job_id:
+                change(stored)
+        route.fulfill(response=answer, json=body)
+
+    jobs = re.compile(r"/jobs(/[0-9a-f]{32})?(\?.*)?$")
+    dashboard.open("#/scenarios")  # away first: the same route again would keep its page
+    page.route(jobs, changed)
+    try:
+        dashboard.open(f"#/jobs/{job_id}")
+        page.wait_for_selector("#front-plan-table", timeout=60_000)
+        assert page.inner_text("#best-summary dt:has-text('fuel') + dd") == "0.45 N m s"
+        found = page.locator("#baseline-table tbody tr").nth(0)
+        assert found.locator("td").nth(0).inner_text() == "found by the search"
+        assert found.locator("td").nth(5).inner_text() == "0.45"
+        assert _texts(dashboard, "#front-table")[0]["impulse_nms"] == "0.0449"
+
+        # The runs list: the impulse and the residual rate as the job's page writes them.
+        dashboard.open(f"#/jobs?list=search&list_q={job_id}")
+        row = f"#jobs-rows tr[data-job-id='{job_id}']"
+        page.wait_for_selector(f"{row} td")
+        cell = (
+            "([row, key]) => document.querySelector(row).cells["
+            "document.querySelector(`#jobs th button[data-sort='${key}']`).closest('th').cellIndex"
+            "].textContent"
+        )
+        assert page.evaluate(cell, [row, "fuel_nms"]) == "0.45"
+        assert page.evaluate(cell, [row, "residual_rate_rad_s"]) == "0.00106 (0.0607 deg/s)"
+
+        dashboard.open(f"#/compare?type=search&ids={job_id}")
+        page.wait_for_function("() => document.getElementById('compare-tradeoff')?.data")
+        hover = page.evaluate(
+            "() => document.getElementById('compare-tradeoff').data[0].hovertemplate"
+        )
+        assert ", 0.45 N m s," in hover
+    finally:
+        page.unroute(jobs)
 
 
 LAYOUT_ROUTES = {

@@ -5,7 +5,7 @@
 
 import { api } from "../api.js";
 import { isTerminal, vocabulary } from "../vocabulary.js";
-import { clear, fmt, h, link, messageBox, seconds, tagChips } from "../ui.js";
+import { clear, fmt, h, link, messageBox, quantity, seconds, tagChips } from "../ui.js";
 import { confirmAction } from "./dialog.js";
 
 // Where the jobs page keeps the body of a submission an identical job answered, for the
@@ -69,10 +69,16 @@ export function summaryValue(job, column) {
   const value = job.summary ? job.summary[column.key] : null;
   if (value === null || value === undefined || !Number.isFinite(value)) return "–";
   if (column.digits === 0) return fmt(value);
+  // A physical figure (a rate, an impulse, a time) to three significant digits, as the
+  // job's own page writes it (its `digits` decimals wrote 0.45 N m s as 0.5 and a rate
+  // of 1.06e-3 rad/s as 0.0011); a fraction (F1, accuracy) with its decimals.
+  if (column.unit) {
+    const text = quantity(value);
+    // A flight team reads rates in deg/s: a rad/s figure carries its deg/s beside it.
+    return column.unit === "rad/s" ? `${text} (${quantity((value * 180) / Math.PI)} deg/s)` : text;
+  }
   const abs = Math.abs(value);
-  const text = abs !== 0 && abs < 10 ** -column.digits ? value.toExponential(2) : value.toFixed(column.digits);
-  // A flight team reads rates in deg/s: a rad/s figure carries its deg/s beside it.
-  return column.unit === "rad/s" ? `${text} (${fmt((value * 180) / Math.PI, 3)} deg/s)` : text;
+  return abs !== 0 && abs < 10 ** -column.digits ? value.toExponential(2) : value.toFixed(column.digits);
 }
 
 // The first two figures with their labels, for lists mixing job types.

@@ -7,7 +7,7 @@ import { downloads, jobDownloads } from "../components/downloads.js";
 import { REUSED_KEY, cancelButton, labelEditor, reusedNotice, timingCell } from "../components/jobs.js";
 import { BAND, PLOT_CONFIG, extendWith, fitFlatSeries, layout, plotDiv, responseView, sequencePlot, title } from "../components/plots.js";
 import { isTerminal } from "../vocabulary.js";
-import { clear, fmt, h, link, messageBox, progressBar, put, score, sequenceText, statusBadge, table, tagChips, whenText } from "../ui.js";
+import { clear, fmt, h, link, messageBox, progressBar, put, quantity, score, sequenceText, statusBadge, table, tagChips, whenText } from "../ui.js";
 import { renderClassifier } from "../views/classifier.js";
 import { frontPanel } from "../views/front.js";
 import { sweepPanel } from "../views/sweep.js";
@@ -194,7 +194,7 @@ async function searchResult(holder, job, context) {
         h("dt", {}, job.params.method === "nsga2" ? "residual rate (once the lag is empty)" : "rate at the last step's end"),
         h("dd", { id: "best-final-rate" }, `${fmt(best.final_rate_rad_s * RAD_TO_DEG, 3)} deg/s (${fmt(best.final_rate_rad_s, 4)} rad/s)`),
         h("dt", {}, "fuel (commanded impulse)"),
-        h("dd", {}, `${best.fuel_nms.toFixed(1)} N m s`),
+        h("dd", {}, `${quantity(best.fuel_nms)} N m s`),
         h("dt", {}, "environment steps, episodes"),
         h("dd", {}, `${fmt(result.timesteps)}, ${fmt(result.episodes)}`),
         h("dt", {}, "wall time, stopped by"),
@@ -246,7 +246,7 @@ function baselineTable(result, best, freshF1) {
     h("h3", {}, `Against the hand-designed baselines, on the same ${freshF1.length} fresh draws`),
     table(
       ["sequence", "F1 mean", "F1 min", "rate at the last step's end (deg/s)", "(rad/s)", "fuel (N m s)", "levels"],
-      rows.map(([name, f1, rate, fuel, levels]) => [name, score(meanOf(f1)), score(Math.min(...f1)), fmt(meanOf(rate) * RAD_TO_DEG, 3), fmt(meanOf(rate), 4), fuel.toFixed(1), h("span", { class: "mono" }, sequenceText(levels))]),
+      rows.map(([name, f1, rate, fuel, levels]) => [name, score(meanOf(f1)), score(Math.min(...f1)), fmt(meanOf(rate) * RAD_TO_DEG, 3), fmt(meanOf(rate), 4), quantity(fuel), h("span", { class: "mono" }, sequenceText(levels))]),
       { id: "baseline-table" },
     ),
   );

@@ -7,7 +7,7 @@ import { api } from "../api.js";
 import { BAND, PLOT_CONFIG, confusionPlot, layout, plotDiv, responseView, sequencePlot, title } from "../components/plots.js";
 import { downloads, jobDownloads } from "../components/downloads.js";
 import { isTerminal } from "../vocabulary.js";
-import { clear, fmt, h, link, messageBox, score, sequenceText, tagChips, utcText, when } from "../ui.js";
+import { clear, fmt, h, link, messageBox, quantity, score, sequenceText, tagChips, utcText, when } from "../ui.js";
 import { sweepPanel } from "./sweep.js";
 
 export async function renderClassifier(container, classifier, context, sweepId = null) {
@@ -59,7 +59,7 @@ export async function renderClassifier(container, classifier, context, sweepId =
   try {
     const response = await api.response(classifier.scenario_id, classifier.sequence, { n_realisations: 20 });
     if (!context.alive()) return;
-    fuel.textContent = `${response.impulse_nms.toFixed(1)} N m s`;
+    fuel.textContent = `${quantity(response.impulse_nms)} N m s`;
     const rates = response.candidates.map((c) => c.final_rate_rad_s);
     finalRate.textContent = `${fmt(rates.reduce((a, b) => a + b, 0) / rates.length, 4)} rad/s`;
     sequencePlot(seqPlot, response);

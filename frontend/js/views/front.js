@@ -15,40 +15,43 @@ import { request } from "../api.js";
 import { downloads } from "../components/downloads.js";
 import { submitAndOpen } from "../components/jobs.js";
 import { PLOT_CONFIG, layout, plotDiv } from "../components/plots.js";
-import { clear, fmt, h, messageBox, plain, put, sequenceText } from "../ui.js";
+import { clear, fmt, h, messageBox, plain, put, quantity, score, sequenceText } from "../ui.js";
 
 const RAD_TO_DEG = 180 / Math.PI;
 const SYMBOLS = ["diamond", "square", "triangle-up", "cross", "star", "hexagon", "pentagon", "triangle-down"];
 const DOMINATES = "#d62728";
 
-// A number cell: the value as shown, and exactly as stored (data-value) for tests and
-// for copying.
-function num(key, value, digits) {
-  const shown = value === null || value === undefined ? "–" : typeof value === "number" ? value.toFixed(digits) : String(value);
+// A number cell: the value as `format` writes it (quantity: three significant digits),
+// and exactly as stored (data-value) for tests and for copying.
+function num(key, value, format = quantity) {
+  const shown = value === null || value === undefined ? "–" : typeof value === "number" ? format(value) : String(value);
   return h("td", { class: "num", "data-key": key, "data-value": value === null || value === undefined ? "" : String(value) }, shown);
 }
 
-// The figures every row shows, in order: [key in scores, header, digits].
+// The figures every row shows, in order: [key in scores, header, how it is written]:
+// the accuracy with three decimals, every physical figure as a quantity (three
+// significant digits: fixed decimals wrote a residual of 0.0004 deg/s as 0.000, and the
+// impulse differently from the best sequence's card).
 function figures(hasPropellant) {
   return [
-    ["accuracy", "accuracy", 3],
-    ["final_rate_deg_s", "residual rate (deg/s)", 3],
-    ["final_rate_rad_s", "residual rate (rad/s)", 5],
+    ["accuracy", "accuracy", score],
+    ["final_rate_deg_s", "residual rate (deg/s)", quantity],
+    ["final_rate_rad_s", "residual rate (rad/s)", quantity],
     // What a residual-rate bound acts on: the candidate that ends fastest.
-    ["final_rate_max_deg_s", "worst candidate's residual (deg/s)", 3],
-    ["final_rate_max_rad_s", "worst candidate's residual (rad/s)", 5],
+    ["final_rate_max_deg_s", "worst candidate's residual (deg/s)", quantity],
+    ["final_rate_max_rad_s", "worst candidate's residual (rad/s)", quantity],
     // What a per-flight bound acts on: a rate at least 95 % of that candidate's flights
     // stay under, with 95 % confidence (a tolerance bound from the realisations).
-    ["final_rate_p95_deg_s", "residual, ≥ 95 % of flights under, 95 % conf. (deg/s)", 3],
-    ["final_rate_p95_rad_s", "residual, ≥ 95 % of flights under, 95 % conf. (rad/s)", 5],
-    ["peak_rate_deg_s", "peak rate (deg/s)", 2],
+    ["final_rate_p95_deg_s", "residual, ≥ 95 % of flights under, 95 % conf. (deg/s)", quantity],
+    ["final_rate_p95_rad_s", "residual, ≥ 95 % of flights under, 95 % conf. (rad/s)", quantity],
+    ["peak_rate_deg_s", "peak rate (deg/s)", quantity],
     // The same for each flight's own peak rate (what a per-flight peak bound acts on).
-    ["peak_rate_p95_deg_s", "peak, ≥ 95 % of flights under, 95 % conf. (deg/s)", 2],
-    ["impulse_nms", "impulse (N m s)", 2],
-    ["on_time_s", "on-time (s)", 2],
-    ...(hasPropellant ? [["propellant_kg", "propellant (kg)", 4]] : []),
-    ["duration_s", "duration (s)", 1],
-    ["attitude_change_deg", "attitude change (deg)", 1],
+    ["peak_rate_p95_deg_s", "peak, ≥ 95 % of flights under, 95 % conf. (deg/s)", quantity],
+    ["impulse_nms", "impulse (N m s)", quantity],
+    ["on_time_s", "on-time (s)", quantity],
+    ...(hasPropellant ? [["propellant_kg", "propellant (kg)", quantity]] : []),
+    ["duration_s", "duration (s)", quantity],
+    ["attitude_change_deg", "attitude change (deg)", quantity],
   ];
 }
 
@@ -150,7 +153,7 @@ function rescoreCut(job, front) {
               h(
                 "tbody",
                 {},
-                left.map((c) => h("tr", {}, columns.map(([key, , digits]) => num(key, (c.search_scores || {})[key], digits)), h("td", { class: "mono" }, sequenceText(c.sequence)))),
+                left.map((c) => h("tr", {}, columns.map(([key, , format]) => num(key, (c.search_scores || {})[key], format)), h("td", { class: "mono" }, sequenceText(c.sequence)))),
               ),
             ),
           ),
@@ -166,7 +169,7 @@ function hover(label, scores, sequence) {
     `${label}<br>accuracy ${scores.accuracy.toFixed(3)}` +
     (mean === null ? "" : ` (predicted ${mean.toFixed(3)})`) +
     `<br>residual rate ${fmt(scores.final_rate_deg_s, 3)} deg/s (${fmt(scores.final_rate_rad_s, 4)} rad/s)` +
-    `<br>impulse ${fmt(scores.impulse_nms, 2)} N m s` +
+    `<br>impulse ${quantity(scores.impulse_nms)} N m s` +
     `<br>attitude change ${fmt(scores.attitude_change_deg, 1)} deg` +
     `<br>${sequenceText(sequence)}`
   );
@@ -274,7 +277,7 @@ function memberTable(front, onPick) {
       { "data-member": member.index, class: member.dominated_by.length ? "dominated-row" : null, onclick: () => onPick(member.index) },
       h("td", { class: "select" }, radio),
       h("td", { class: "num", "data-key": "index" }, String(member.index)),
-      columns.map(([key, , digits]) => num(key, member.scores[key], digits)),
+      columns.map(([key, , format]) => num(key, member.scores[key], format)),
       h("td", { "data-key": "dominated_by" }, dominated),
       // A searcher other than NSGA-II keeps its best sequence even when it breaks a bound.
       h(
@@ -307,7 +310,7 @@ function baselineTable(front) {
       "tr",
       { "data-baseline": name, class: (base.dominates || []).length ? "dominated-row" : null },
       h("td", {}, name),
-      columns.map(([key, , digits]) => num(key, base.scores[key], digits)),
+      columns.map(([key, , format]) => num(key, base.scores[key], format)),
       h("td", { "data-key": "dominates" }, (base.dominates || []).length ? h("strong", { class: "dominated" }, `members ${base.dominates.join(", ")}`) : "–"),
       // A baseline that breaks a constraint is shown for comparison only (it dominates nothing).
       h("td", { "data-key": "feasible" }, base.feasible === false ? h("strong", { class: "dominated" }, "breaks a constraint") : base.feasible ? "yes" : "–"),
@@ -419,34 +422,43 @@ async function showMember(holder, job, member, context) {
     if (!context.alive() || !plan.isConnected) return;
     clear(plan);
     const spread = document.flights;
-    // The percentile of these flights, and the rate at least 95 % of all flights stay
+    // Each candidate's figures, in order: [key (a flights_ key reads c.flights), header].
+    // With flights: their percentile, and the rate at least 95 % of all flights stay
     // under with 95 % confidence (the figure a front's per-flight bound reads).
-    const flightHeads = spread
-      ? [
-          h("th", { class: "num" }, `95th percentile of the ${spread.flights_per_candidate} flights (deg/s)`),
-          h("th", { class: "num" }, "residual, ≥ 95 % of flights under, 95 % conf. (deg/s)"),
-          h("th", { class: "num" }, "fastest flight (deg/s)"),
-        ]
-      : [];
-    const flightCells = (c) =>
-      spread
+    const columns = [
+      ["residual_rate_deg_s", "residual rate (deg/s)"],
+      ["residual_rate_rad_s", "residual rate (rad/s)"],
+      ...(spread
         ? [
-            num("flights_residual_rate_p95_deg_s", c.flights.residual_rate_p95_deg_s, 3),
-            num("flights_residual_rate_p95_bound_deg_s", c.flights.residual_rate_p95_bound_deg_s, 3),
-            num("flights_residual_rate_max_deg_s", c.flights.residual_rate_max_deg_s, 3),
+            ["flights_residual_rate_p95_deg_s", `95th percentile of the ${spread.flights_per_candidate} flights (deg/s)`],
+            ["flights_residual_rate_p95_bound_deg_s", "residual, ≥ 95 % of flights under, 95 % conf. (deg/s)"],
+            ["flights_residual_rate_max_deg_s", "fastest flight (deg/s)"],
           ]
-        : [];
+        : []),
+      ["end_rate_deg_s", "at the last command's end (deg/s)"],
+      ["peak_rate_deg_s", "peak rate (deg/s)"],
+      ...(spread
+        ? [
+            ["flights_peak_rate_p95_bound_deg_s", "peak, ≥ 95 % of flights under, 95 % conf. (deg/s)"],
+          ]
+        : []),
+      ["attitude_change_deg", "attitude change (deg)"],
+    ];
+    const figure = (c, key) => (key.startsWith("flights_") ? c.flights[key.slice("flights_".length)] : c[key]);
     plan.append(
-      h("p", { class: "hint" }, `Predicted with every noise off: the residual rate once the actuation lag has delivered the torque still in it when the last command ends (the rate at that moment beside it), the peak rate (the largest at a gyro sample or once settled), and the rotation the body makes over its ${document.duration_s} s (quaternion kinematics of the predicted rates).${spread ? ` Single flights spread around that: the sequence flown ${spread.flights_per_candidate} times a candidate at the scenario's noise (seed ${spread.seed}); their 95th percentile, a rate at least 95 % of all flights stay under with 95 % confidence, and the fastest; and a peak rate at least 95 % of flights stay under, with 95 % confidence.` : " Too long to fly many times within one request: the nominal prediction alone."} Impulse ${fmt(document.propellant.impulse_nms, 2)} N m s, on-time ${fmt(document.propellant.on_time_s, 2)} s${document.propellant.propellant_kg === null ? "" : `, propellant ${fmt(document.propellant.propellant_kg, 4)} kg`}.`),
+      h("p", { class: "hint" }, `Predicted with every noise off: the residual rate once the actuation lag has delivered the torque still in it when the last command ends (the rate at that moment beside it), the peak rate (the largest at a gyro sample or once settled), and the rotation the body makes over its ${document.duration_s} s (quaternion kinematics of the predicted rates).${spread ? ` Single flights spread around that: the sequence flown ${spread.flights_per_candidate} times a candidate at the scenario's noise (seed ${spread.seed}); their 95th percentile, a rate at least 95 % of all flights stay under with 95 % confidence, and the fastest; and a peak rate at least 95 % of flights stay under, with 95 % confidence.` : " Too long to fly many times within one request: the nominal prediction alone."} Impulse ${quantity(document.propellant.impulse_nms)} N m s, on-time ${quantity(document.propellant.on_time_s)} s${document.propellant.propellant_kg === null ? "" : `, propellant ${quantity(document.propellant.propellant_kg)} kg`}.`),
       h(
-        "table",
-        { id: "front-plan-table" },
-        h("thead", {}, h("tr", {}, h("th", {}, "candidate"), h("th", { class: "num" }, "residual rate (deg/s)"), h("th", { class: "num" }, "residual rate (rad/s)"), ...flightHeads, h("th", { class: "num" }, "at the last command's end (deg/s)"), h("th", { class: "num" }, "peak rate (deg/s)"), ...(spread ? [h("th", { class: "num" }, "peak, ≥ 95 % of flights under, 95 % conf. (deg/s)")] : []), h("th", { class: "num" }, "attitude change (deg)"))),
+        "div",
+        // Focusable, so a keyboard user can scroll a table wider than the page.
+        { class: "table-scroll", tabindex: "0", role: "region", "aria-label": "command plan per candidate" },
         h(
-          "tbody",
-          {},
-          document.candidates.map((c) =>
-            h("tr", { "data-candidate": c.name }, h("td", {}, c.name), num("residual_rate_deg_s", c.residual_rate_deg_s, 3), num("residual_rate_rad_s", c.residual_rate_rad_s, 5), ...flightCells(c), num("end_rate_deg_s", c.end_rate_deg_s, 3), num("peak_rate_deg_s", c.peak_rate_deg_s, 3), ...(spread ? [num("flights_peak_rate_p95_bound_deg_s", c.flights.peak_rate_p95_bound_deg_s, 3)] : []), num("attitude_change_deg", c.attitude_change_deg, 2)),
+          "table",
+          { id: "front-plan-table" },
+          h("thead", {}, h("tr", {}, h("th", {}, "candidate"), columns.map(([, label]) => h("th", { class: "num" }, label)))),
+          h(
+            "tbody",
+            {},
+            document.candidates.map((c) => h("tr", { "data-candidate": c.name }, h("td", {}, c.name), columns.map(([key]) => num(key, figure(c, key))))),
           ),
         ),
       ),
