@@ -441,12 +441,15 @@ def test_a_front_downloads_as_csv_its_members_plan_by_index_and_a_member_trains(
                 float(row[column[f"accuracy_{suffix}"]]) == member["scores"]["accuracy_by_noise"][c]
             )
             assert float(row[column[f"predicted_accuracy_{suffix}"]]) == predicted[c]
-        # and the rate 95 % of its flights stay under (what a per-flight bound is held to).
+        # and the rate 95 % of its flights stay under (what a per-flight bound is held to);
+        # the peak rates, as the residual rates, in rad/s and deg/s.
         for figure in (
             "final_rate_max_rad_s",
             "final_rate_max_deg_s",
             "final_rate_p95_rad_s",
             "final_rate_p95_deg_s",
+            "peak_rate_rad_s",
+            "peak_rate_deg_s",
             "peak_rate_p95_rad_s",
             "peak_rate_p95_deg_s",
         ):

@@ -1835,6 +1835,52 @@ def test_a_searchs_impulse_and_rates_keep_their_significant_digits(dashboard: Da
         page.unroute(jobs)
 
 
+def test_the_peak_rates_of_a_front_and_its_plan_show_in_rad_s_beside_deg_s(
+    dashboard: Dashboard,
+) -> None:
+    """The peak rate and its per-flight bound in rad/s beside deg/s, as the residual rate,
+    in the front's table, the baselines' and the member's command plan (they gave deg/s
+    only); each written to three significant digits."""
+    page = dashboard.page
+    job = _finished_search(dashboard, TWO_RANDOM, "two random sequences")
+    job_id = job["id"]
+    front = job["result"]["front"]
+    member = front["members"][0]
+    dashboard.open(f"#/jobs/{job_id}")
+    page.wait_for_selector("#front-plan-table", timeout=60_000)
+    heads = page.eval_on_selector_all(
+        "#front-table thead th", "cells => cells.map((c) => c.textContent)"
+    )
+    for unit in ("deg/s", "rad/s"):
+        assert f"peak rate ({unit})" in heads
+        assert f"peak, ≥ 95 % of flights under, 95 % conf. ({unit})" in heads
+    base = next(b for b in front["baselines"].values() if "unavailable" not in b)
+    for table, scores in (("#front-table", member["scores"]), ("#front-baselines", base["scores"])):
+        stored, written = _cells(dashboard, table)[0], _texts(dashboard, table)[0]
+        for key in ("peak_rate_rad_s", "peak_rate_p95_rad_s", "final_rate_rad_s"):
+            assert float(stored[key]) == scores[key], (table, key)
+            _shows(written[key], scores[key])
+
+    # The member's plan: each candidate's peak rate and its per-flight bound, both units.
+    plan = dashboard.service.client.get(
+        f"/jobs/{job_id}/plan", params={"member": member["index"], "flights": 200}
+    ).json()
+    heads = page.eval_on_selector_all(
+        "#front-plan-table thead th", "cells => cells.map((c) => c.textContent)"
+    )
+    assert heads.index("peak rate (rad/s)") == heads.index("peak rate (deg/s)") + 1
+    assert "peak, ≥ 95 % of flights under, 95 % conf. (rad/s)" in heads
+    stored, written = _cells(dashboard, "#front-plan-table"), _texts(dashboard, "#front-plan-table")
+    for row, text, candidate in zip(stored, written, plan["candidates"], strict=True):
+        flights = candidate["flights"]
+        assert float(row["peak_rate_rad_s"]) == candidate["peak_rate_rad_s"]
+        assert float(row["peak_rate_deg_s"]) == candidate["peak_rate_deg_s"]
+        bound = float(row["flights_peak_rate_p95_bound_rad_s"])
+        assert bound == flights["peak_rate_p95_bound_rad_s"]
+        _shows(text["peak_rate_rad_s"], candidate["peak_rate_rad_s"])
+        _shows(text["residual_rate_rad_s"], candidate["residual_rate_rad_s"])
+
+
 LAYOUT_ROUTES = {
     "scenarios": lambda: "#/scenarios",
     "scenario": lambda: f"#/scenarios/{made['scenario']}",

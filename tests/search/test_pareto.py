@@ -246,6 +246,9 @@ def test_the_plans_on_times_reproduce_the_simulated_impulse(paper: Scenario) -> 
     line = next(x for x in csv_text.splitlines() if x.startswith("# candidate_2 "))
     quaternion = [float(line.split(f"attitude_quaternion_{p} ")[1].split(",")[0]) for p in "wxyz"]
     assert quaternion == pytest.approx(document["candidates"][1]["attitude_quaternion"], abs=1e-8)
+    # Its peak rate, as its residual rate, in rad/s and deg/s.
+    peak = document["candidates"][1]["peak_rate_rad_s"]
+    assert f", peak_rate_rad_s {peak:.6g}, peak_rate_deg_s {np.degrees(peak):.6g}," in line
     assert "# attitude_quaternion: (w, x, y, z), scalar first" in csv_text
     table = [line.split(",") for line in csv_text.splitlines() if not line.startswith("#")]
     header, first = table[0], dict(zip(table[0], table[1], strict=True))

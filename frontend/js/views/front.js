@@ -3,8 +3,8 @@
 // hand-designed baselines scored on the same draws beside it. A chart of the accuracy at
 // the design noise against the residual rate (deg/s), coloured
 // by impulse (or propellant), the baselines each with its own symbol and a baseline that
-// dominates a member flagged; a table of the members (rates in deg/s and rad/s, attitude
-// change); a chosen member's command plan (per candidate: residual rate and attitude
+// dominates a member flagged; a table of the members (rates, peak rates included, in deg/s
+// and rad/s, attitude change); a chosen member's command plan (per candidate: residual rate and attitude
 // change, from GET /jobs/{id}/plan?member=) as CSV or JSON, and a button that trains a
 // classifier on it (POST /jobs with search_job_id and front_member).
 //
@@ -31,7 +31,7 @@ function num(key, value, format = quantity) {
 // The figures every row shows, in order: [key in scores, header, how it is written]:
 // the accuracy with three decimals, every physical figure as a quantity (three
 // significant digits: fixed decimals wrote a residual of 0.0004 deg/s as 0.000, and the
-// impulse differently from the best sequence's card).
+// impulse differently from the best sequence's card). Rates in deg/s and rad/s alike.
 function figures(hasPropellant) {
   return [
     ["accuracy", "accuracy", score],
@@ -45,8 +45,10 @@ function figures(hasPropellant) {
     ["final_rate_p95_deg_s", "residual, ≥ 95 % of flights under, 95 % conf. (deg/s)", quantity],
     ["final_rate_p95_rad_s", "residual, ≥ 95 % of flights under, 95 % conf. (rad/s)", quantity],
     ["peak_rate_deg_s", "peak rate (deg/s)", quantity],
+    ["peak_rate_rad_s", "peak rate (rad/s)", quantity],
     // The same for each flight's own peak rate (what a per-flight peak bound acts on).
     ["peak_rate_p95_deg_s", "peak, ≥ 95 % of flights under, 95 % conf. (deg/s)", quantity],
+    ["peak_rate_p95_rad_s", "peak, ≥ 95 % of flights under, 95 % conf. (rad/s)", quantity],
     ["impulse_nms", "impulse (N m s)", quantity],
     ["on_time_s", "on-time (s)", quantity],
     ...(hasPropellant ? [["propellant_kg", "propellant (kg)", quantity]] : []),
@@ -423,8 +425,9 @@ async function showMember(holder, job, member, context) {
     clear(plan);
     const spread = document.flights;
     // Each candidate's figures, in order: [key (a flights_ key reads c.flights), header].
-    // With flights: their percentile, and the rate at least 95 % of all flights stay
-    // under with 95 % confidence (the figure a front's per-flight bound reads).
+    // Peak rates, as residual rates, in deg/s and rad/s. With flights: their percentile,
+    // and the rate at least 95 % of all flights stay under with 95 % confidence (the
+    // figure a front's per-flight bound reads).
     const columns = [
       ["residual_rate_deg_s", "residual rate (deg/s)"],
       ["residual_rate_rad_s", "residual rate (rad/s)"],
@@ -437,9 +440,11 @@ async function showMember(holder, job, member, context) {
         : []),
       ["end_rate_deg_s", "at the last command's end (deg/s)"],
       ["peak_rate_deg_s", "peak rate (deg/s)"],
+      ["peak_rate_rad_s", "peak rate (rad/s)"],
       ...(spread
         ? [
             ["flights_peak_rate_p95_bound_deg_s", "peak, ≥ 95 % of flights under, 95 % conf. (deg/s)"],
+            ["flights_peak_rate_p95_bound_rad_s", "peak, ≥ 95 % of flights under, 95 % conf. (rad/s)"],
           ]
         : []),
       ["attitude_change_deg", "attitude change (deg)"],
