@@ -506,13 +506,16 @@ def search_cmd(
                 if scores.get("final_rate_p95_rad_s") is not None
                 else ""
             )
-            + f" | peak {scores['peak_rate_deg_s']:.2f} deg/s"
+            + f" | peak {scores['peak_rate_rad_s']:.4f} rad/s "
+            + f"({scores['peak_rate_deg_s']:.2f} deg/s)"
             + (
-                f" (>= 95 % of flights under {scores['peak_rate_p95_deg_s']:.2f} deg/s, 95 % conf.)"
-                if scores.get("peak_rate_p95_deg_s") is not None
+                f" (>= 95 % of flights under {scores['peak_rate_p95_rad_s']:.4f} rad/s "
+                f"({scores['peak_rate_p95_deg_s']:.2f} deg/s), 95 % conf.)"
+                if scores.get("peak_rate_p95_rad_s") is not None
                 else ""
             )
-            + f" | {scores['impulse_nms']:.1f} N m s{flags}",
+            # Three significant digits, as the dashboard: 0.45 N m s read 0.5 at :.1f.
+            + f" | {scores['impulse_nms']:.3g} N m s{flags}",
             err=True,
         )
         confirmation = front.get("confirmation")

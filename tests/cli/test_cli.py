@@ -120,6 +120,14 @@ def test_a_best_sequence_that_breaks_a_bound_is_flagged_in_the_listing(tmp_path:
     assert member["scores"]["final_rate_p95_rad_s"] > 0.0001
     line = next(x for x in result.output.splitlines() if x.strip().startswith("#0 "))
     assert "BREAKS A CONSTRAINT" in line and ">= 95 % of flights under" in line
+    # The peak rate in rad/s beside deg/s, as the residual rate; the impulse to three
+    # significant digits (a 0.45 N m s member read 0.5).
+    scores = member["scores"]
+    assert (
+        f"peak {scores['peak_rate_rad_s']:.4f} rad/s ({scores['peak_rate_deg_s']:.2f} deg/s)"
+        in line
+    )
+    assert f"{scores['impulse_nms']:.3g} N m s" in line
 
 
 def _search_document(sequence: list[list[int]], scenario: dict[str, Any]) -> dict[str, Any]:
