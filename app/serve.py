@@ -9,9 +9,11 @@
    prints the URL and the key when it was generated now (only then: it is stored hashed);
 3. starts ``--workers`` real ``celery worker`` processes (one job at a time each, each
    named uniquely), logging to ``DIR/logs/``, and restarts one that dies;
-4. serves the API with uvicorn (``--api-workers`` processes) until Ctrl-C or SIGTERM,
-   then stops the workers: each hands its running job back to the queue at once (it
-   costs the job no attempt) and exits; one still there after a grace period is killed.
+4. serves the API with uvicorn (``--api-workers`` processes; a connection that does not
+   send its request in time is closed: :mod:`app.request_deadlines`) until Ctrl-C or
+   SIGTERM, then stops the workers: each hands its running job back to the queue at
+   once (it costs the job no attempt) and exits; one still there after a grace period
+   is killed.
 
 If serve itself dies (``kill -9``), its workers are told to stop by the kernel
 (``PR_SET_PDEATHSIG``): they hand their jobs back and exit, and nothing is orphaned.
@@ -357,10 +359,12 @@ def _serve_processes(count: int, options: dict[str, Any]) -> None:
 
     Each process builds its app from the environment :func:`_settings_for` wrote.
     """
-    import uvicorn
     from uvicorn.supervisors import Multiprocess
 
-    config = uvicorn.Config("app.main:create_app", factory=True, workers=count, **options)
+    from .request_deadlines import ServerConfig
+
+    # A ServerConfig reaches each process pickled, its read deadlines with it.
+    config = ServerConfig("app.main:create_app", factory=True, workers=count, **options)
     Multiprocess(config, sockets=[tcp_socket(config.bind_socket())]).run()
 
 
@@ -394,6 +398,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     from service.store.session import Database, upgrade
 
     from .main import create_app
+    from .request_deadlines import ServerConfig
     from .security import ensure_api_key
 
     # Once, here, before any API process starts: several would race to generate a key.
@@ -420,14 +425,19 @@ def main(argv: Sequence[str] | None = None) -> int:
         logger.warning("listening on %s: reachable from other machines", args.host)
     try:
         pool.start()
+        # No limit_concurrency: uvicorn counts open connections against it, so slow
+        # clients would get every other client a 503; they are closed by the read
+        # deadlines instead. The listen backlog stays uvicorn's 2,048.
         options = {
             "host": args.host,
             "port": args.port,
             "log_level": args.log_level,
             "timeout_graceful_shutdown": API_GRACE_S,
+            "request_head_timeout_s": settings.request_head_timeout_s,
+            "request_body_timeout_s": settings.request_body_timeout_s,
         }
         if args.api_workers == 1:
-            uvicorn.Server(uvicorn.Config(create_app(settings), **options)).run()
+            uvicorn.Server(ServerConfig(create_app(settings), **options)).run()
         else:
             _serve_processes(args.api_workers, options)
     except KeyboardInterrupt:

@@ -30,6 +30,18 @@ class Settings(BaseSettings):
     port: int = Field(default=8000, alias="INERTIA_ID_PORT")
     max_body_bytes: int = Field(default=5_000_000, alias="INERTIA_ID_MAX_BODY_BYTES")
     max_page_size: int = Field(default=200, alias="INERTIA_ID_MAX_PAGE_SIZE")
+    #: A connection whose request head is not complete this long after it opened, or
+    #: after the previous response on it, is closed (slow clients, ``slowloris``; uvicorn
+    #: has no such timeout: ``app.request_deadlines``). 10 s: a head is one packet or a
+    #: few, sent at once by any real client.
+    request_head_timeout_s: float = Field(
+        default=10.0, gt=0, allow_inf_nan=False, alias="INERTIA_ID_REQUEST_HEAD_TIMEOUT_S"
+    )
+    #: ... and one whose request body brings less than 1 KiB (and does not end) in this
+    #: long: a slow but steady upload is never cut, a byte every few seconds is.
+    request_body_timeout_s: float = Field(
+        default=20.0, gt=0, allow_inf_nan=False, alias="INERTIA_ID_REQUEST_BODY_TIMEOUT_S"
+    )
     max_metric_points: int = Field(default=2000, alias="INERTIA_ID_MAX_METRIC_POINTS")
     heartbeat_interval_s: float = Field(default=5.0, alias="INERTIA_ID_HEARTBEAT_INTERVAL_S")
     heartbeat_timeout_s: float = Field(default=60.0, alias="INERTIA_ID_HEARTBEAT_TIMEOUT_S")
