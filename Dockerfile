@@ -20,4 +20,5 @@ ENV INERTIA_ID_DATA_DIR=/data INERTIA_ID_FRONTEND_DIR=/srv/inertia-id/frontend
 
 EXPOSE 8000
 # The API; migrations are applied when it starts. The worker overrides the command.
-CMD ["uvicorn", "app.main:create_app", "--factory", "--host", "0.0.0.0", "--port", "8000"]
+# --http: uvicorn's protocol with read deadlines (slow clients are closed; app/request_deadlines.py).
+CMD ["uvicorn", "app.main:create_app", "--factory", "--http", "app.request_deadlines:HttpToolsWithDeadlines", "--host", "0.0.0.0", "--port", "8000"]

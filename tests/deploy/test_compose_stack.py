@@ -24,6 +24,7 @@ import os
 import re
 import shutil
 import signal
+import socket
 import subprocess
 import sys
 import uuid
@@ -209,7 +210,7 @@ def test_the_compose_stack_trains_the_default_classifier_identifies_and_survives
 
     base = f"http://127.0.0.1:{port}"
     try:
-        start("api", command, api["environment"])
+        api_container = start("api", command, api["environment"])
         # depends_on api: service_started; the workers wait for nothing else.
         workers = [
             start(f"worker-{i + 1}", [str(p) for p in worker["command"]], worker["environment"])
@@ -223,6 +224,10 @@ def test_the_compose_stack_trains_the_default_classifier_identifies_and_survives
 
             health = wait_for(all_workers, 180, f"/health did not count {replicas} workers", logs)
             assert health["status"] == "ok", health
+            # A client that never finishes its request head (slowloris): the API's read
+            # deadline (10 s by default) closes it while the rest of this test runs.
+            slow = socket.create_connection(("127.0.0.1", port), timeout=60)
+            slow.sendall(b"GET /health HTTP/1.1\r\nHost: 127.0.0.1\r\n")
 
             scenario = client.post("/scenarios", json={"preset": "paper"})
             assert scenario.status_code == 201, scenario.text
@@ -301,6 +306,11 @@ def test_the_compose_stack_trains_the_default_classifier_identifies_and_survives
             jobs = client.get("/jobs").json()["items"]
             assert jobs and all(j["status"] in TERMINAL for j in jobs), jobs
             assert all(j["status"] == "succeeded" or j["error"] for j in jobs), jobs
+
+            # Closed by the server long since (a timeout here: still open).
+            with slow:
+                assert slow.recv(1) == b"", "the slow client's connection was answered"
+            assert "no complete request head within 10 s" in api_container.log(10**6)
     finally:
         for container in containers:
             container.stop()
