@@ -36,6 +36,8 @@ from pathlib import Path
 from types import FrameType
 from typing import IO, Any
 
+from pydantic import ValidationError
+
 from service.config import Settings, get_settings
 from service.queue import worker_command
 
@@ -387,7 +389,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     _configure_logging(args.log_level)
 
     data_dir = Path(args.data_dir).expanduser().resolve()
-    settings = _settings_for(data_dir, args.host, args.port)
+    try:
+        settings = _settings_for(data_dir, args.host, args.port)
+    except ValidationError as exc:
+        # A setting from the environment that is no value of its type or range: one line
+        # each, naming the variable and the value, before anything is created.
+        for error in exc.errors():
+            name = ".".join(str(part) for part in error["loc"])
+            print(
+                f"inertia-id serve: {name}={error.get('input')!r}: {error['msg']}",
+                file=sys.stderr,
+            )
+        return 1
     data_dir.mkdir(parents=True, exist_ok=True)
 
     # SIGTERM (systemd, docker stop) ends like Ctrl-C: through the finally below.

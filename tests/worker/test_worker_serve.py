@@ -45,6 +45,33 @@ def test_serve_refuses_a_negative_worker_count() -> None:
     assert done.returncode == 2 and "--workers must be >= 0, got -1" in done.stderr
 
 
+def test_serve_refuses_a_bad_setting_in_one_line_naming_it(tmp_path: Path) -> None:
+    """A setting from the environment that is no value of its type or range ended serve
+    with a pydantic traceback; it is one line per setting, and nothing is created."""
+    env = {
+        **clean_env(),
+        "INERTIA_ID_REQUEST_HEAD_TIMEOUT_S": "abc",
+        "INERTIA_ID_QUEUE_STALL_S": "0",
+    }
+    with socket.socket() as probe:  # a port free now: the port check comes first
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    done = subprocess.run(
+        [sys.executable, "-m", "app.serve", "--port", str(port), "--data-dir", "data"],
+        capture_output=True,
+        text=True,
+        env=env,
+        cwd=tmp_path,
+        timeout=60,
+    )
+    assert done.returncode == 1, done.stderr
+    assert "Traceback" not in done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert lines[0].startswith("inertia-id serve: INERTIA_ID_REQUEST_HEAD_TIMEOUT_S='abc': ")
+    assert lines[1].startswith("inertia-id serve: INERTIA_ID_QUEUE_STALL_S='0': ")
+    assert len(lines) == 2 and not (tmp_path / "data").exists()
+
+
 def test_serve_on_a_busy_port_says_so_before_starting_anything(tmp_path: Path) -> None:
     with socket.socket() as busy:
         busy.bind(("127.0.0.1", 0))
