@@ -17,7 +17,7 @@ from inertia_id.checks import DuplicateKeyError, control_characters, loads_uniqu
 from inertia_id.errors import InputError
 from inertia_id.physics.presets import PRESETS, preset
 from inertia_id.physics.scenario import Scenario
-from inertia_id.physics.simulate import SimulationOverflow, simulate
+from inertia_id.physics.simulate import SimulationOverflow, check_gyro_range, simulate
 from service.store.models import ClassifierRow, JobRow, ScenarioRow
 from service.store.session import Database
 
@@ -323,7 +323,18 @@ def _response(
             f"{integration} RK4 steps = {work}; at most {MAX_RESPONSE_WORK}: ask for fewer "
             "realisations",
         )
-    result = simulate(scenario, steps, n_realisations, np.random.default_rng(seed))
+    try:
+        result = simulate(scenario, steps, n_realisations, np.random.default_rng(seed))
+        # The plan's ceiling (search.plan.command_plan), on the realisations shown here:
+        # the two refuse a scenario that spins its bodies past any gyro's range alike.
+        check_gyro_range(
+            scenario,
+            steps,
+            result.omega_true,
+            flight=lambda i: f"realisation {i + 1} of {n_realisations} (seed {seed})",
+        )
+    except SimulationOverflow as exc:
+        unprocessable(("query", "sequence"), str(exc))
     omega = result.omega_measured  # (K, n, T, 3)
     low, high = np.percentile(omega, [10.0, 90.0], axis=1)
     mean = omega.mean(axis=1)

@@ -71,6 +71,7 @@ from pydantic import (
 
 from ..checks import DuplicateKeyError, loads_unique_keys, parse_decimal
 from ..errors import InputError
+from ..physics.scenario import MAX_GYRO_RATE_RAD_S
 
 __all__ = [
     "DEFAULT_START_WINDOW_S",
@@ -103,7 +104,7 @@ MAX_GZIP_TELEMETRY_BYTES = 500 * MAX_TELEMETRY_SAMPLES
 #: Largest rate a telemetry sample may hold, rad/s (5,730 deg/s): beyond any attitude
 #: gyro's range, so a larger one is a corrupted word, refused by name (a spike of 1e200
 #: rad/s once overflowed the verdict's arithmetic).
-MAX_TELEMETRY_RATE_RAD_S = 100.0
+MAX_TELEMETRY_RATE_RAD_S = MAX_GYRO_RATE_RAD_S
 # Seconds stamps whose first value lies within this of 0 are taken as from the sequence
 # start when no sequence_start is given (telemetry written before the time base existed).
 DEFAULT_START_WINDOW_S = 3600.0

@@ -26,6 +26,8 @@ from ..checks import is_integer, number_as_written
 from ..errors import InputError
 
 __all__ = [
+    "MAX_GYRO_RATE_RAD_S",
+    "MAX_RATE_SIGMA_RAD_S",
     "CandidateGenerator",
     "InertiaCandidate",
     "Scenario",
@@ -384,10 +386,16 @@ def _whole(ratio: float, message: str) -> None:
         raise InputError(message)
 
 
+#: The largest body rate an attitude gyro measures, rad/s (5,730 deg/s, some 16 turns a
+#: second): a rate past it is beyond any attitude gyro's range, a corrupted word or a unit
+#: slip rather than attitude motion. The one ceiling on telemetry
+#: (:data:`inertia_id.evaluation.telemetry.MAX_TELEMETRY_RATE_RAD_S`), on a scenario's
+#: noise figures (below) and on the rates a command plan or a response predicts
+#: (:func:`inertia_id.physics.simulate.check_gyro_range`).
+MAX_GYRO_RATE_RAD_S = 100.0
 #: Largest gyro noise, bias or initial-rate spread a scenario may state, rad/s: the
-#: largest rate a telemetry sample may hold
-#: (:data:`inertia_id.evaluation.telemetry.MAX_TELEMETRY_RATE_RAD_S`).
-MAX_RATE_SIGMA_RAD_S = 100.0
+#: largest rate a gyro measures.
+MAX_RATE_SIGMA_RAD_S = MAX_GYRO_RATE_RAD_S
 
 
 class Uncertainty(_Model):

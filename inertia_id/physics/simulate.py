@@ -12,6 +12,7 @@ function of it. Two consequences a user can rely on:
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -21,10 +22,11 @@ from ..errors import InputError
 from .actuation import commanded_torque, delivered_duty
 from .dynamics import RigidBodies
 from .presets import NOISE_OFF
-from .scenario import Scenario
+from .scenario import MAX_GYRO_RATE_RAD_S, Scenario, _shown
 
 __all__ = [
     "InitialDraw",
+    "RatesBeyondGyro",
     "SequenceNoise",
     "SimulationOverflow",
     "SimulationResult",
@@ -33,6 +35,7 @@ __all__ = [
     "StepDraw",
     "StepResponse",
     "at_gyro_samples",
+    "check_gyro_range",
     "disturbance_rate_covariance",
     "disturbance_walk",
     "every_substep_scenario",
@@ -45,6 +48,12 @@ __all__ = [
 class SimulationOverflow(InputError):
     """The simulated rates overflowed to inf or nan: the scenario (or the noise multiples
     asked for) drives the bodies beyond what the integrator follows."""
+
+
+class RatesBeyondGyro(SimulationOverflow):
+    """The simulated rates stay finite but pass the largest rate an attitude gyro
+    measures (:data:`~inertia_id.physics.scenario.MAX_GYRO_RATE_RAD_S`): a prediction of
+    them is no prediction of a spacecraft (an inertia or a torque in the wrong units)."""
 
 
 @dataclass(frozen=True)
@@ -340,13 +349,20 @@ class Simulator:
         )
 
 
-def _overflow_message(simulator: Simulator) -> str:
-    scenario = simulator.scenario
-    moments = min(
+def _drive(scenario: Scenario) -> tuple[float, float]:
+    """The largest thruster torque (N m) and the smallest principal moment of any
+    candidate (kg m^2): what sets how fast a scenario spins its bodies up."""
+    moment = min(
         float(np.linalg.eigvalsh(np.asarray(c.inertia_kg_m2)).min())
         for c in scenario.inertia_candidates
     )
     torque = float(np.abs(np.asarray(scenario.thrusters.torque_matrix_nm)).max(initial=0.0))
+    return torque, moment
+
+
+def _overflow_message(simulator: Simulator) -> str:
+    scenario = simulator.scenario
+    torque, moments = _drive(scenario)
     return (
         "the simulated rates overflowed to inf or nan: this scenario drives its bodies "
         f"beyond what the integrator follows (torques up to {torque:g} N m on a smallest "
@@ -355,6 +371,67 @@ def _overflow_message(simulator: Simulator) -> str:
         f"process x{simulator.process_noise_scale:g} and gyro "
         f"x{simulator.measurement_noise_scale:g}, integration step "
         f"{scenario.timing.integration_step_s:g} s); scale them down"
+    )
+
+
+def check_gyro_range(
+    scenario: Scenario,
+    sequence: np.ndarray,
+    omega: np.ndarray,
+    *,
+    settled: np.ndarray | None = None,
+    flight: Callable[[int], str] = lambda _n: "the nominal prediction",
+) -> None:
+    """Refuse predicted body rates that no attitude gyro measures.
+
+    A scenario whose inertia or torques are off by orders of magnitude (kg m^2 typed
+    for g cm^2, say) is valid in every rule of its own, yet spins its bodies up to
+    rates of 1e29 rad/s: a plan or a response that showed them would be read as a
+    prediction. The ceiling is telemetry's: a rate past
+    :data:`~inertia_id.physics.scenario.MAX_GYRO_RATE_RAD_S` about any body axis, as a
+    gyro measures it axis by axis.
+
+    :param sequence: (L, N) the level indices flown.
+    :param omega: (K, n, T, 3) true body rates, rad/s, T a whole number of samples a
+        step (a gyro's samples, or every integration step).
+    :param settled: (K, n, 3) the rates once the actuation lag has emptied, if shown.
+    :param flight: the words for realisation ``i`` (the nominal prediction, a flight).
+    :raises RatesBeyondGyro: naming the sequence, the candidate and where (flight,
+        step, axis) its rate is largest, in rad/s and deg/s, and the scenario's largest
+        torque and smallest principal moment.
+    """
+    rates = np.abs(np.asarray(omega, dtype=float))
+    after = None if settled is None else np.abs(np.asarray(settled, dtype=float))
+    during_max = rates.max(initial=0.0)
+    after_max = 0.0 if after is None else after.max(initial=0.0)
+    largest = max(during_max, after_max)
+    if not largest > MAX_GYRO_RATE_RAD_S:  # nan is left to the overflow check
+        return
+    rows = np.asarray(sequence)
+    if after is not None and after_max > during_max:
+        k, i, axis = np.unravel_index(int(np.argmax(after)), after.shape)
+        when = "once the actuation lag has emptied"
+    else:
+        k, i, _t, axis = np.unravel_index(int(np.argmax(rates)), rates.shape)
+        when = "at its fastest"
+    # Where that flight first passes the ceiling: the step to look at.
+    past = np.flatnonzero(rates[k, i].max(axis=-1) > MAX_GYRO_RATE_RAD_S)
+    per_step = max(1, rates.shape[2] // len(rows))
+    first = (
+        f"past {MAX_GYRO_RATE_RAD_S:g} rad/s from step {int(past[0]) // per_step + 1} of "
+        f"{len(rows)}"
+        if past.size
+        else f"past {MAX_GYRO_RATE_RAD_S:g} rad/s once the lag has emptied"
+    )
+    torque, moment = _drive(scenario)
+    raise RatesBeyondGyro(
+        f"sequence {_shown(rows.tolist())} spins candidate "
+        f"{scenario.candidate_names[int(k)]!r} to {largest:.3g} rad/s "
+        f"({np.degrees(largest):.3g} deg/s) about its {'xyz'[int(axis)]} axis {when} in "
+        f"{flight(int(i))} ({first}): beyond any attitude gyro's range (at most "
+        f"{MAX_GYRO_RATE_RAD_S:g} rad/s, {np.degrees(MAX_GYRO_RATE_RAD_S):,.0f} deg/s), so "
+        "no attitude gyro measures it; the scenario's inertia (smallest principal moment "
+        f"{moment:.3g} kg m^2) or torques (up to {torque:.3g} N m) are likely wrong in units"
     )
 
 

@@ -21,6 +21,7 @@ largest.
 from __future__ import annotations
 
 import csv
+import functools
 import io
 from dataclasses import dataclass
 from typing import Any
@@ -31,7 +32,7 @@ from ..checks import csv_note_text, is_integer
 from ..errors import InputError
 from ..physics.attitude import propagate_attitude, rotation_angle_deg
 from ..physics.scenario import Scenario
-from ..physics.simulate import at_gyro_samples, simulate
+from ..physics.simulate import at_gyro_samples, check_gyro_range, settled_rates, simulate
 from .objectives import (
     FLIGHT_QUANTILE,
     QUANTILE_METHOD,
@@ -292,6 +293,10 @@ class CommandPlan:
 _FLIGHT_BLOCK_VALUES = 4_000_000
 
 
+def _flight_words(i: int, *, first: int, flights: int, seed: int) -> str:
+    return f"flight {first + i} of {flights} at the scenario's noise (seed {seed})"
+
+
 def flight_dispersion(
     scenario: Scenario,
     rows: np.ndarray,
@@ -311,7 +316,17 @@ def flight_dispersion(
     residual_parts, peak_parts = [], []
     for start in range(0, flights, block):
         result = simulate(scenario, rows, min(block, flights - start), rng)
-        residual = result.settled_rate_rad_s(scenario)  # (K, n)
+        settled = settled_rates(
+            scenario, result.omega_true[:, :, -1], result.applied_torque_nm[:, :, -1]
+        )
+        check_gyro_range(
+            scenario,
+            rows,
+            result.omega_true,
+            settled=settled,
+            flight=functools.partial(_flight_words, first=start + 1, flights=flights, seed=seed),
+        )
+        residual = np.linalg.norm(settled, axis=-1)  # (K, n)
         residual_parts.append(residual)
         peak_parts.append(flight_peaks(result.omega_true, residual))
     residual = np.concatenate(residual_parts, axis=1)
@@ -335,7 +350,13 @@ def command_plan(
     scenario: Scenario, sequence: Any, *, flights: int = 0, seed: int = 0
 ) -> CommandPlan:
     """The command plan of ``sequence`` ((L, N) level indices) for ``scenario``; with
-    ``flights`` > 0 (at least 2), how single flights spread, drawn from ``seed``."""
+    ``flights`` > 0 (at least 2), how single flights spread, drawn from ``seed``.
+
+    :raises ~inertia_id.physics.simulate.RatesBeyondGyro: a candidate's predicted rate,
+        nominal or in a flight, passes any attitude gyro's range
+        (:func:`~inertia_id.physics.simulate.check_gyro_range`): no prediction of a
+        spacecraft, but of a scenario in the wrong units.
+    """
     rows = scenario.check_sequence(sequence)
     if not is_integer(flights, minimum=0, maximum=MAX_FLIGHTS) or flights == 1:
         raise InputError(
@@ -346,6 +367,8 @@ def command_plan(
     duty = scenario.duties(rows)  # (L, N)
     step = scenario.timing.step_duration_s
     run = nominal_run(scenario, rows, every_substep=True)
+    settled = settled_rates(scenario, run.omega_true[:, :, -1], run.applied_torque_nm[:, :, -1])
+    check_gyro_range(scenario, rows, run.omega_true, settled=settled)
     fine = run.omega_true[:, 0]  # (K, T_fine, 3) at every integration step
     rates = at_gyro_samples(scenario, fine)  # (K, T, 3) at the gyro's samples
     per_step = scenario.timing.samples_per_step
@@ -354,7 +377,7 @@ def command_plan(
     # degree turn).
     quaternions = propagate_attitude(fine, scenario.timing.integration_step_s)[:, -1]
     end = rates[:, per_step - 1 :: per_step]  # (K, L, 3)
-    residual = run.settled_rate_rad_s(scenario)[:, 0]
+    residual = np.linalg.norm(settled[:, 0], axis=-1)
     # As the operator's scorer reads it: at every sample, or once the lag has delivered
     # the torque still in it (|ω| moves on a line to the settled rate, convex: see
     # OperatorScorer).

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import urllib.parse
 from pathlib import Path
 from typing import Any
@@ -372,3 +373,49 @@ def test_a_plan_whose_scenario_overflows_names_the_sequence_not_flights(api: Api
     flown = api.post(f"/scenarios/{noisy_id}/plan?flights=20", json={"sequence": sequence})
     assert flown.status_code == 422, flown.text
     assert flown.json()["detail"][0]["loc"] == ["query", "flights"]
+
+
+def test_a_plan_and_a_response_past_any_gyros_range_are_refused_alike(api: Api) -> None:
+    """A scenario with an inertia of 1e-30 kg m² is stored; its plan was a 200 predicting
+    1e30 rad/s, while its response was refused (at no parameter) only because its noisy
+    realisations overflowed; at 1e-2 kg m² both were 200s (780 and 1,340 rad/s). Both
+    routes now refuse rates past any gyro's range at the sequence, naming the candidate and the rate
+    in rad/s and deg/s; a plan whose nominal prediction is in range but whose flights are
+    not names the flights."""
+    sequence = [[4, 4, 4, 0, 0, 0]] * 4
+    for moment in (1e-30, 1e-2):
+        candidates = Scenario.paper().model_dump(mode="json")["inertia_candidates"]
+        candidates[0]["inertia_kg_m2"] = (moment * np.eye(3)).tolist()
+        scenario_id = api.create_scenario(inertia_candidates=candidates)["id"]
+        query = {"sequence": json.dumps(sequence)}
+        answers = {
+            ("query", "sequence"): api.get_with_key(f"/scenarios/{scenario_id}/plan", params=query),
+            ("body", "sequence"): api.post(
+                f"/scenarios/{scenario_id}/plan", json={"sequence": sequence}
+            ),
+            ("query", "sequence", "response"): api.get_with_key(
+                f"/scenarios/{scenario_id}/response", params=query
+            ),
+        }
+        for loc, response in answers.items():
+            assert response.status_code == 422, (moment, loc, response.text)
+            (detail,) = response.json()["detail"]
+            assert tuple(detail["loc"]) == loc[:2]
+            message = detail["msg"]
+            if moment == 1e-30 and "response" in loc:
+                # Its noisy realisations overflow before they can be measured.
+                assert "overflowed to inf or nan" in message
+                continue
+            assert message.startswith(f"sequence {sequence} spins candidate 'none ejected'")
+            assert re.search(r"to [0-9.e+]+ rad/s \([0-9.e+]+ deg/s\)", message), message
+            assert "no attitude gyro measures it" in message
+            assert "likely wrong in units" in message
+    # In range nominally, past it in single flights (torques 1000 x the nominal).
+    noisy_id = api.create_scenario(uncertainty={"thrust_scale_sigma": 1e3})["id"]
+    two = sequence[:2]
+    assert api.post(f"/scenarios/{noisy_id}/plan", json={"sequence": two}).status_code == 200
+    flown = api.post(f"/scenarios/{noisy_id}/plan?flights=20&seed=3", json={"sequence": two})
+    assert flown.status_code == 422, flown.text
+    (detail,) = flown.json()["detail"]
+    assert detail["loc"] == ["query", "flights"]
+    assert "of 20 at the scenario's noise (seed 3)" in detail["msg"]

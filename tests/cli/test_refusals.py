@@ -646,3 +646,23 @@ def test_a_number_with_an_underscore_is_refused_not_read_as_another(
     result = CliRunner().invoke(main, args)
     assert result.exit_code == code, result.output
     assert message in " ".join(result.output.split()) and "Traceback" not in result.output
+
+
+def test_a_plan_whose_rates_no_gyro_measures_is_one_line_and_exit_1(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A scenario of an inertia in the wrong units (1e-30 kg m²) was planned: 1e30 rad/s
+    written to plan.json as a prediction. Refused in one line, exit 1, nothing written."""
+    document = Scenario.paper().model_dump(mode="json")
+    document["inertia_candidates"][0]["inertia_kg_m2"] = (1e-30 * np.eye(3)).tolist()
+    document["candidate_generator"] = None
+    (tmp_path / "tiny.json").write_text(json.dumps(document))
+    monkeypatch.chdir(tmp_path)
+    result = CliRunner().invoke(
+        main, ["plan", "--scenario", "tiny.json", "--sequence", "4,4,4,0,0,0", "--out", "p.json"]
+    )
+    assert result.exit_code == 1, result.output
+    assert result.output.count("\n") == 1 and "Traceback" not in result.output
+    assert result.output.startswith("Error: sequence [[4, 4, 4, 0, 0, 0]] spins candidate")
+    assert "deg/s" in result.output and "no attitude gyro measures it" in result.output
+    assert not (tmp_path / "p.json").exists()

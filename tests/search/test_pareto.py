@@ -1063,3 +1063,47 @@ def test_a_search_told_to_stop_while_its_front_is_confirmed_says_it_was_cancelle
     monkeypatch.setattr(pareto, "_confirmed", real)
     finished = _tiny_search(paper, polish_iterations=0, fresh_test_series=20)
     assert finished.stopped == "budget" and not finished.front["measurement_stopped"]
+
+
+def _with_round_candidate(paper: Scenario, moment_kg_m2: float) -> Scenario:
+    """The paper preset with its first candidate a sphere of ``moment_kg_m2``: no
+    gyroscopic coupling, so a step of torque τ for T seconds leaves it τ T / I per axis
+    once the lag has emptied."""
+    document = paper.model_dump(mode="json")
+    document["inertia_candidates"][0]["inertia_kg_m2"] = (moment_kg_m2 * np.eye(3)).tolist()
+    document["candidate_generator"] = None
+    return Scenario.model_validate(document)
+
+
+def test_a_plan_is_refused_where_its_rates_pass_any_gyros_range(paper: Scenario) -> None:
+    """A scenario with an inertia in the wrong units (1e-30 kg m²) was planned as a 200 with
+    rates of 1e30 rad/s. One full step of the paper's [4,4,4,0,0,0] (2 N m on each axis for
+    1 s) leaves a sphere of I kg m² at 2 / I rad/s per axis: 80 rad/s at I = 0.025, inside
+    telemetry's 100 rad/s ceiling, is planned; 125 rad/s at I = 0.016 is refused, naming
+    the sequence, the candidate and the rate in rad/s and deg/s; so is 2e30 rad/s."""
+    step = [[4, 4, 4, 0, 0, 0]]
+    planned = command_plan(_with_round_candidate(paper, 0.025), step)
+    assert planned.residual_rate_rad_s[0] == pytest.approx(80 * np.sqrt(3), rel=1e-6)
+    for moment, rate in ((0.016, "125 rad/s (7.16e+03 deg/s)"), (1e-30, "2e+30 rad/s")):
+        scenario = _with_round_candidate(paper, moment)
+        with pytest.raises(InputError) as refused:
+            command_plan(scenario, step)
+        message = str(refused.value)
+        assert message.startswith("sequence [[4, 4, 4, 0, 0, 0]] spins candidate 'none ejected'")
+        assert rate in message and "past 100 rad/s from step 1 of 1" in message
+        assert "no attitude gyro measures it" in message
+        assert f"smallest principal moment {moment:.3g} kg m^2" in message
+        assert "likely wrong in units" in message
+
+
+def test_a_plans_flights_past_any_gyros_range_are_refused_naming_the_flight(
+    paper: Scenario,
+) -> None:
+    """The nominal prediction can stay in range while single flights at the scenario's
+    noise do not (a thrust-scale error of 1000 sigma: torques 1000 times the nominal):
+    refused naming the flight."""
+    noisy = paper.with_uncertainty(thrust_scale_sigma=1e3)
+    sequence = [[4, 4, 4, 0, 0, 0]] * 2
+    assert command_plan(noisy, sequence).peak_rate_rad_s[0] < 1.0
+    with pytest.raises(InputError, match=r"in flight \d+ of 20 at the scenario's noise \(seed 3\)"):
+        command_plan(noisy, sequence, flights=20, seed=3)
