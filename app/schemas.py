@@ -54,6 +54,7 @@ __all__ = [
     "JobPage",
     "JobSubmitted",
     "JobUpdate",
+    "LostAttempt",
     "MetricSeries",
     "MetricsOut",
     "PartialIdentifyResult",
@@ -323,6 +324,23 @@ JobCreate = Annotated[
 ]
 
 
+class LostAttempt(BaseModel):
+    """A run taken from its job before it ended it: its worker died, its heartbeat
+    stopped, or its worker was told to stop and handed the job back."""
+
+    attempt: int = Field(description="the run's number (1 = the first run)")
+    worker: str | None = Field(description="the worker that ran it, when known")
+    started_at: UtcDatetime | None = Field(description="when the run claimed the job")
+    last_heartbeat_at: UtcDatetime | None = Field(
+        default=None, description="the run's last heartbeat"
+    )
+    ended_at: UtcDatetime = Field(description="when it was declared lost or handed back")
+    outcome: str = Field(description="lost, or handed back (costs no attempt)")
+    cause: str = Field(description="worker lost, heartbeat missed, or asked to stop")
+    reason: str = Field(description="the cause in words, with the times it rests on")
+    then: str = Field(description="what became of the job: re-queued, failed or cancelled")
+
+
 class JobOut(BaseModel):
     model_config = ConfigDict(from_attributes=True)
 
@@ -357,11 +375,22 @@ class JobOut(BaseModel):
         default=None,
         description="the result's headline figures (keys: GET /vocabulary job_summaries)",
     )
+    attempt_history: list[LostAttempt] = Field(
+        default_factory=list,
+        description="the earlier runs that did not end the job, oldest first: when each "
+        "started, when and why it was lost or handed back, its worker; the current run's "
+        "started_at and worker overwrite theirs (empty for jobs stored before it was kept)",
+    )
 
     @field_validator("params", "result", "summary", mode="after")
     @classmethod
     def _finite(cls, value: Any) -> Any:
         return finite_or_none(value)
+
+    @field_validator("attempt_history", mode="before")
+    @classmethod
+    def _no_history_kept(cls, value: Any) -> Any:
+        return [] if value is None else value
 
     @computed_field(description="s from submission to the start of its last run (or to now)")
     def queue_time_s(self) -> float:

@@ -14,6 +14,11 @@ Nothing is lost or stuck:
   costs no attempt;
 - a queued job whose message never reached the broker, or was lost there, is picked by
   :func:`due_for_sending` and sent again; a duplicate message is harmless (the claim).
+
+A run taken from its job (reaped or handed back) leaves a record in the job's
+``attempt_history`` (:func:`lost_run`): the next claim overwrites ``started_at``,
+``worker`` and ``error``, and a flight team auditing a result must still see that a
+worker died during it.
 """
 
 from __future__ import annotations
@@ -42,6 +47,9 @@ from .models import (
 )
 
 __all__ = [
+    "ASKED_TO_STOP",
+    "HEARTBEAT_MISSED",
+    "WORKER_LOST",
     "ScenarioGone",
     "add_metrics",
     "cancel",
@@ -54,6 +62,7 @@ __all__ = [
     "hand_back",
     "heartbeat",
     "is_cancel_requested",
+    "lost_run",
     "mark_sent",
     "owns",
     "reap_stale",
@@ -61,6 +70,14 @@ __all__ = [
     "set_progress",
     "touch_worker",
 ]
+
+
+#: Why a run was taken from its job (``attempt_history[].cause``): its whole worker went
+#: quiet (killed, its machine lost); its own heartbeat stopped while its worker still
+#: reported (its task process died or hung); its worker was told to stop and handed it back.
+WORKER_LOST = "worker lost"
+HEARTBEAT_MISSED = "heartbeat missed"
+ASKED_TO_STOP = "asked to stop"
 
 
 class ScenarioGone(LookupError):
@@ -366,7 +383,9 @@ def hand_back(session: Session, worker: str, reason: str) -> list[str]:
     jobs = session.scalars(
         select(JobRow).where(JobRow.worker == worker, JobRow.status == "running").with_for_update()
     ).all()
+    now = utcnow()
     for job in jobs:
+        lost_run(job, now=now, cause=ASKED_TO_STOP, reason=f"handed back: {reason}")
         job.status, job.worker, job.sent_at = "queued", None, None
         job.progress = 0.0  # a queued job at 55 % read as half done; the next run restarts
         job.handbacks = (job.handbacks or 0) + 1
@@ -374,10 +393,68 @@ def hand_back(session: Session, worker: str, reason: str) -> list[str]:
     return [job.id for job in jobs]
 
 
+def _aware(moment: datetime) -> datetime:
+    """``moment`` in UTC with its zone: SQLite hands back naive UTC."""
+    return moment.replace(tzinfo=UTC) if moment.tzinfo is None else moment.astimezone(UTC)
+
+
 def _utc_text(moment: datetime) -> str:
     """An instant as ISO-8601 with its zone, ``Z``: the databases hand back naive UTC."""
-    aware = moment.replace(tzinfo=UTC) if moment.tzinfo is None else moment.astimezone(UTC)
-    return aware.isoformat().replace("+00:00", "Z")
+    return _aware(moment).isoformat().replace("+00:00", "Z")
+
+
+def lost_run(
+    job: JobRow, *, now: datetime, cause: str, reason: str, then: str = "re-queued"
+) -> None:
+    """Record in ``job.attempt_history`` that its current run is taken from it, before
+    the job's run fields are overwritten: the attempt, its worker, when it started and
+    last beat, when and why (``cause``, one of :data:`WORKER_LOST`,
+    :data:`HEARTBEAT_MISSED`, :data:`ASKED_TO_STOP`, and ``reason`` in words) and what
+    became of the job (``then``: re-queued, failed, cancelled). Times in ISO-8601 UTC
+    with their zone, as the API gives every time."""
+    record = {
+        "attempt": job.attempts,
+        "worker": job.worker,
+        "started_at": _utc_text(job.started_at) if job.started_at else None,
+        "last_heartbeat_at": _utc_text(job.heartbeat_at) if job.heartbeat_at else None,
+        "ended_at": _utc_text(now),
+        "outcome": "handed back" if cause == ASKED_TO_STOP else "lost",
+        "cause": cause,
+        "reason": reason,
+        "then": then,
+    }
+    # A new list, not an append: the JSON column is not mutation-tracked.
+    job.attempt_history = [*(job.attempt_history or []), record]
+
+
+def _why_lost(
+    job: JobRow,
+    *,
+    seen: datetime | None,
+    silent_since: datetime | None,
+    timeout_s: float,
+) -> tuple[str, str]:
+    """The cause and the words for a dead run: its worker gone quiet too (``seen``, its
+    worker's last report, before ``silent_since``, or never) or its heartbeat alone."""
+    worker = job.worker or "?"
+    last = job.heartbeat_at or job.started_at
+    beat = _utc_text(last) if last else "never"
+    if silent_since is not None and (seen is None or _aware(seen) < silent_since):
+        heard = f"last reported at {_utc_text(seen)}" if seen else "not reporting"
+        return WORKER_LOST, (
+            f"worker lost: worker {worker} {heard}, the run's last heartbeat at {beat} "
+            "(the worker was killed or its machine lost)"
+        )
+    alive = (
+        f"; its worker {worker} still reported at {_utc_text(seen)}, so the run's task "
+        "process died or hung"
+        if seen
+        else " (the run died or hung)"
+    )
+    return HEARTBEAT_MISSED, (
+        f"heartbeat missed: the run's last heartbeat at {beat}, more than {timeout_s:g} s "
+        f"before{alive}"
+    )
 
 
 def reap_stale(
@@ -417,6 +494,14 @@ def reap_stale(
         # again in between is not re-queued a second time. SQLite serialises writers anyway.
         .with_for_update(skip_locked=True)
     ).all()
+    names = {job.worker for job in stale if job.worker}
+    seen: dict[str, datetime] = {
+        name: last_seen
+        for name, last_seen in session.execute(
+            select(WorkerRow.name, WorkerRow.last_seen_at).where(WorkerRow.name.in_(names))
+        )
+    }
+    silent_since = None if worker_silence_s is None else now - timedelta(seconds=worker_silence_s)
     requeued, failed = [], []
     for job in stale:
         last = job.heartbeat_at or job.started_at
@@ -424,15 +509,21 @@ def reap_stale(
             f"worker {job.worker or '?'} stopped sending heartbeats (last at "
             f"{_utc_text(last) if last else 'never'})"
         )
+        cause, why = _why_lost(
+            job, seen=seen.get(job.worker or ""), silent_since=silent_since, timeout_s=timeout_s
+        )
         counted = job.attempts - (job.handbacks or 0)
         if job.cancel_requested:
+            lost_run(job, now=now, cause=cause, reason=why, then="cancelled")
             job.status, job.finished_at, job.error = "cancelled", now, reason
             failed.append(job.id)
         elif counted >= max_attempts:
+            lost_run(job, now=now, cause=cause, reason=why, then="failed")
             job.status, job.finished_at = "failed", now
             job.error = f"{reason}; gave up after {counted} attempts"
             failed.append(job.id)
         else:
+            lost_run(job, now=now, cause=cause, reason=why)
             job.status, job.worker, job.error = "queued", None, f"re-queued: {reason}"
             job.sent_at, job.progress = None, 0.0  # the next run starts from nothing
             requeued.append(job.id)

@@ -129,6 +129,12 @@ class JobRow(Base):
     #: The result's headline figures (``service.summaries``), written when the job
     #: finishes: what lists show and sort by.
     summary: Mapped[dict[str, Any] | None] = mapped_column(JSON, default=None)
+    #: The runs that did not end the job themselves, oldest first: each a JSON object
+    #: with the attempt, its worker, when it started and last beat, when and why it was
+    #: lost or handed back, and what became of the job (``service.store.jobs``). The
+    #: next claim overwrites ``started_at``, ``worker`` and ``error``; this keeps them.
+    #: NULL on rows stored before it was kept.
+    attempt_history: Mapped[list[Any] | None] = mapped_column(JSON, default=list)
     tag_rows: Mapped[list[JobTagRow]] = relationship(
         back_populates="job",
         cascade="all, delete-orphan",

@@ -5,7 +5,7 @@ from __future__ import annotations
 import base64
 import json
 from collections.abc import Callable
-from datetime import datetime, timedelta
+from datetime import UTC, datetime, timedelta
 from pathlib import Path
 from typing import Any
 
@@ -18,7 +18,7 @@ from inertia_id.search import SEARCH_METHODS
 from service.config import Settings
 from service.params import SearchParams, SweepParams, TrainParams
 from service.queue import RUN_JOB_TASK
-from service.store.jobs import add_metrics, claim, config_hash, finish
+from service.store.jobs import add_metrics, claim, config_hash, finish, reap_stale
 from service.store.models import JobRow
 
 from .support import GOOD_SEQUENCE, Api, make_settings
@@ -438,6 +438,45 @@ def test_get_job(api: Api) -> None:
     assert job["error"] is None and job["result"] is None
     assert job["started_at"] is None and job["finished_at"] is None
     assert datetime.fromisoformat(job["created_at"]).utcoffset() == timedelta(0)
+
+
+def test_a_run_lost_before_the_one_that_succeeded_shows_in_the_job_and_its_download(
+    api: Api,
+) -> None:
+    """The second run's claim overwrote the first's ``started_at`` and ``error``: the job
+    and its downloaded JSON said only ``attempts: 2``. Both now list the lost run: its
+    worker, when it started (with its zone), when and why it was lost, what followed."""
+    scenario_id = api.create_scenario()["id"]
+    job_id = api.submit("train", scenario_id, params={"sequence": GOOD_SEQUENCE}).json()["id"]
+    with api.db.session() as session:
+        first = claim(session, job_id, "worker1-3fa2c1@host")
+        assert first is not None
+        first.heartbeat_at = first.started_at = datetime.now(UTC) - timedelta(seconds=600)
+        first_started = first.started_at
+    with api.db.session() as session:
+        assert reap_stale(session, timeout_s=60.0, max_attempts=2) == ([job_id], [])
+    with api.db.session() as session:
+        assert claim(session, job_id, "worker1-3fa2c1@host") is not None
+        assert finish(session, job_id, "succeeded", result={"f1": 1.0}, attempt=2)
+
+    job = api.get(f"/jobs/{job_id}").json()
+    assert job["attempts"] == 2 and job["error"] is None
+    (lost,) = job["attempt_history"]
+    assert lost["attempt"] == 1 and lost["worker"] == "worker1-3fa2c1@host"
+    assert datetime.fromisoformat(lost["started_at"]) == first_started
+    assert datetime.fromisoformat(lost["ended_at"]).utcoffset() == timedelta(0)
+    assert datetime.fromisoformat(lost["started_at"]) != datetime.fromisoformat(job["started_at"])
+    assert (lost["outcome"], lost["cause"], lost["then"]) == (
+        "lost",
+        "heartbeat missed",
+        "re-queued",
+    )
+    assert lost["reason"].startswith("heartbeat missed: the run's last heartbeat at")
+    download = json.loads(api.get(f"/jobs/{job_id}/result").text)
+    assert download["attempt_history"] == job["attempt_history"]
+    # A job with no lost run has an empty history, not null.
+    other = api.submit("train", scenario_id, params={"sequence": GOOD_SEQUENCE}, seed=5).json()
+    assert api.get(f"/jobs/{other['id']}").json()["attempt_history"] == []
 
 
 def test_list_filters_and_paging(api: Api) -> None:

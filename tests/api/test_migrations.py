@@ -7,9 +7,10 @@ from datetime import UTC, datetime
 
 from alembic.autogenerate import compare_metadata
 from alembic.migration import MigrationContext
-from sqlalchemy import create_engine, text
+from sqlalchemy import create_engine, inspect, text
+from sqlalchemy.orm import Session
 
-from service.store.models import Base
+from service.store.models import Base, JobRow
 from service.store.session import downgrade, upgrade
 
 
@@ -79,5 +80,59 @@ def test_stored_curve_rates_are_renamed_for_what_they_hold(empty_database_url: s
         }
         downgrade(url, "0004")
         assert keys() == before
+    finally:
+        engine.dispose()
+
+
+def test_attempt_history_comes_and_goes_keeping_every_job_its_metrics_and_tags(
+    empty_database_url: str,
+) -> None:
+    """0006 adds ``jobs.attempt_history``: a job stored before has none kept (NULL, shown
+    as an empty list); the downgrade removes the column and nothing else. A batch that
+    copied the jobs table on SQLite had deleted every metric and tag with it (their ON
+    DELETE CASCADE, foreign keys on)."""
+    from app.schemas import JobOut
+
+    url = empty_database_url
+    upgrade(url, "0005")
+    now = datetime.now(UTC)
+    engine = create_engine(url)
+
+    def count(table: str) -> int:
+        with engine.connect() as connection:
+            return int(connection.execute(text(f"SELECT count(*) FROM {table}")).scalar_one())
+
+    def columns() -> set[str]:
+        with engine.connect() as connection:
+            return {column["name"] for column in inspect(connection).get_columns("jobs")}
+
+    try:
+        with engine.begin() as connection:
+            connection.execute(
+                text("INSERT INTO scenarios VALUES ('s', 'x', '{}', :t)"), {"t": now}
+            )
+            connection.execute(
+                text(
+                    "INSERT INTO jobs (id, type, status, scenario_id, params, seed, "
+                    "config_hash, progress, cancel_requested, attempts, handbacks, superseded, "
+                    "created_at) VALUES "
+                    "('j', 'train', 'succeeded', 's', '{}', 0, 'h', 1.0, false, 2, 0, false, :t)"
+                ),
+                {"t": now},
+            )
+            connection.execute(
+                text("INSERT INTO metrics (job_id, key, step, value) VALUES ('j', 'f1', 0, 1)")
+            )
+            connection.execute(text("INSERT INTO job_tags (job_id, tag) VALUES ('j', 'audit')"))
+        assert "attempt_history" not in columns()
+        upgrade(url)
+        assert "attempt_history" in columns()
+        with Session(engine) as session:
+            job = session.get(JobRow, "j")
+            assert job is not None and job.attempt_history is None
+            assert JobOut.model_validate(job).attempt_history == []
+        downgrade(url, "0005")
+        assert "attempt_history" not in columns()
+        assert (count("jobs"), count("metrics"), count("job_tags")) == (1, 1, 1)
     finally:
         engine.dispose()

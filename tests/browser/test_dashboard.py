@@ -17,6 +17,7 @@ import re
 import subprocess
 import sys
 from collections.abc import Callable
+from datetime import timedelta
 from pathlib import Path
 from typing import Any
 
@@ -1277,6 +1278,66 @@ def test_a_cancel_asks_first_then_cancels(dashboard: Dashboard) -> None:
     page.click("#confirm-yes")
     page.wait_for_selector("#job-header .badge.status-cancelled", timeout=120_000)
     assert dashboard.service.job(job_id)["status"] == "cancelled"
+
+
+def test_a_job_page_lists_the_runs_its_workers_lost(dashboard: Dashboard) -> None:
+    """A job whose first run's worker died and whose second run's heartbeat stopped: the
+    page lists both runs beneath the current one (the next claim overwrote their start and
+    worker), "attempt 1 lost at … UTC: worker lost; re-queued", each with its worker and
+    times, in UTC. Marked lost by the reaper's own function on the service's database."""
+    from service.store import Database
+    from service.store.jobs import claim, config_hash, reap_stale
+    from service.store.models import JobRow, utcnow
+
+    client = dashboard.service.client
+    scenario_id = client.post("/scenarios", json={"preset": "paper"}).json()["id"]
+    database = Database(f"sqlite:///{dashboard.service.log.parent / 'data' / 'inertia-id.db'}")
+    params = {"sequence": GOOD}
+    long_ago = utcnow() - timedelta(seconds=600)
+    try:
+        # One transaction: the service's own reaper (every 5 s) sees the job only failed.
+        with database.session() as session:
+            job = JobRow(
+                type="train",
+                scenario_id=scenario_id,
+                params=params,
+                seed=4242,
+                config_hash=config_hash("train", scenario_id, params, 4242),
+                status="running",
+                worker="worker1-dead00@host",
+                attempts=1,
+                started_at=long_ago,
+                heartbeat_at=long_ago,
+            )
+            session.add(job)
+            session.flush()
+            job_id = job.id
+            assert reap_stale(
+                session, timeout_s=60.0, max_attempts=2, worker_silence_s=15.0, now=utcnow()
+            ) == ([job_id], [])
+            again = claim(session, job_id, "worker2-dead11@host")
+            assert again is not None
+            again.heartbeat_at = again.started_at = long_ago + timedelta(seconds=100)
+            session.flush()
+            assert reap_stale(session, timeout_s=60.0, max_attempts=2) == ([], [job_id])
+    finally:
+        database.dispose()
+    history = dashboard.service.job(job_id)["attempt_history"]
+    assert [run["cause"] for run in history] == ["worker lost", "heartbeat missed"]
+    page = dashboard.page
+    dashboard.open(f"#/jobs/{job_id}")
+    lines = page.locator("#job-attempt-history .lost-run")
+    lines.first.wait_for()
+    assert lines.count() == 2
+    first, second = (lines.nth(i).inner_text() for i in range(2))
+    assert re.match(
+        r"attempt 1 lost at \d{4}-\d\d-\d\d \d\d:\d\d:\d\d UTC: worker lost; re-queued\n", first
+    ), first
+    assert "worker worker1-dead00@host, started " in first and first.count(" UTC") == 3
+    assert re.match(r"attempt 2 lost at .* UTC: heartbeat missed; failed\n", second), second
+    assert "worker worker2-dead11@host" in second
+    assert lines.first.get_attribute("title").startswith("worker lost: worker worker1-dead00@host")
+    dashboard.screenshot("job-lost-runs")
 
 
 FRONT_FIGURES = (

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from datetime import UTC, datetime
 from typing import TYPE_CHECKING, Any
 
 from sqlalchemy import select
@@ -111,6 +112,20 @@ def test_a_job_whose_worker_was_killed_is_rerun_and_nothing_else_changes(
     job = deployment.wait_for(job_id, timeout_s=120)
     assert job.status == "succeeded", (job.status, job.error, deployment.logs())
     assert job.attempts == 2 and job.worker == second.name and job.error is None
+    # The first run is not overwritten by the second: when it started, that its worker
+    # was lost, and what followed.
+    (lost,) = job.attempt_history or []
+    assert (lost["attempt"], lost["worker"], lost["outcome"], lost["cause"], lost["then"]) == (
+        1,
+        first.name,
+        "lost",
+        "worker lost",
+        "re-queued",
+    )
+    assert orphan.started_at is not None
+    assert datetime.fromisoformat(lost["started_at"]) == orphan.started_at.replace(
+        tzinfo=orphan.started_at.tzinfo or UTC
+    )
     result = job.result or {}
     assert result["method"] == "ppo" and result["timesteps"] == 320
 

@@ -6,7 +6,7 @@ import base64
 import json
 import re
 import time
-from datetime import timedelta
+from datetime import UTC, datetime, timedelta
 from typing import TYPE_CHECKING, Any
 
 import pytest
@@ -316,3 +316,85 @@ def test_a_heartbeat_during_a_hand_back_does_not_deadlock(
     assert errors == []
     job = store.job(job_id)
     assert job.status == "queued" and job.handbacks == 1
+
+
+def test_each_run_taken_from_a_job_is_recorded_not_overwritten(store: Store) -> None:
+    """After a task process was killed (``kill -9``) the job was re-queued and its second
+    run's claim overwrote ``started_at`` and cleared ``error``: only ``attempts: 2`` said a
+    run had died. Each run taken from the job now stays in ``attempt_history``: when it
+    started and last beat, when and why it was taken (its heartbeat alone stopped, its
+    whole worker went quiet, its worker handed it back), its worker and what followed."""
+    long_ago = utcnow() - timedelta(seconds=600)
+    with store.db.session() as session:
+        # Its main process still beats: the run's task process died.
+        touch_worker(session, "alive@host", "filesystem://")
+        touch_worker(session, "killed@host", "filesystem://")
+        session.get(WorkerRow, "killed@host").last_seen_at = long_ago  # type: ignore[union-attr]
+    job_id = store.add_job(
+        status="running",
+        worker="alive@host",
+        attempts=1,
+        started_at=long_ago,
+        heartbeat_at=long_ago + timedelta(seconds=5),
+    )
+
+    def reap() -> tuple[list[str], list[str]]:
+        with store.db.session() as session:
+            return reap_stale(session, timeout_s=TIMEOUT_S, max_attempts=2, worker_silence_s=15.0)
+
+    def run_again(worker: str, *, stale: bool) -> datetime:
+        with store.db.session() as session:
+            job = claim(session, job_id, worker)
+            assert job is not None and job.started_at is not None
+            if stale:
+                job.heartbeat_at = job.started_at = long_ago + timedelta(seconds=60)
+            return job.started_at
+
+    assert reap() == ([job_id], [])
+    # A second run, handed back by its worker (told to stop), a third, whose worker died.
+    second_started = run_again("alive@host", stale=False)
+    with store.db.session() as session:
+        hand_back(session, "alive@host", "worker alive@host was asked to stop")
+    third_started = run_again("killed@host", stale=True)
+    assert reap() == ([], [job_id])  # 3 runs, 1 handed back: 2 attempts spent
+
+    job = store.job(job_id)
+    assert job.status == "failed" and job.attempts == 3
+    first, second, third = job.attempt_history or []
+    assert {key: first[key] for key in ("attempt", "worker", "outcome", "cause", "then")} == {
+        "attempt": 1,
+        "worker": "alive@host",
+        "outcome": "lost",
+        "cause": "heartbeat missed",
+        "then": "re-queued",
+    }
+    assert first["started_at"] == _iso(long_ago)
+    assert first["last_heartbeat_at"] == _iso(long_ago + timedelta(seconds=5))
+    assert first["ended_at"] > first["last_heartbeat_at"] and first["ended_at"].endswith("Z")
+    assert first["reason"].startswith("heartbeat missed: the run's last heartbeat at ")
+    assert "; its worker alive@host still reported at " in first["reason"]
+    assert first["reason"].endswith("so the run's task process died or hung")
+    assert (second["attempt"], second["outcome"], second["cause"], second["then"]) == (
+        2,
+        "handed back",
+        "asked to stop",
+        "re-queued",
+    )
+    assert second["started_at"] == _iso(second_started)
+    assert second["reason"] == "handed back: worker alive@host was asked to stop"
+    assert (third["attempt"], third["worker"], third["cause"], third["then"]) == (
+        3,
+        "killed@host",
+        "worker lost",
+        "failed",
+    )
+    assert third["started_at"] == _iso(third_started)
+    assert third["reason"].startswith(
+        f"worker lost: worker killed@host last reported at {_iso(long_ago)}"
+    )
+
+
+def _iso(moment: datetime) -> str:
+    """As the store writes an instant: ISO-8601 in UTC with ``Z``."""
+    aware = moment.replace(tzinfo=UTC) if moment.tzinfo is None else moment.astimezone(UTC)
+    return aware.isoformat().replace("+00:00", "Z")

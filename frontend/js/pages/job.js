@@ -7,7 +7,7 @@ import { downloads, jobDownloads } from "../components/downloads.js";
 import { REUSED_KEY, cancelButton, labelEditor, reusedNotice, timingCell } from "../components/jobs.js";
 import { BAND, PLOT_CONFIG, extendWith, fitFlatSeries, layout, plotDiv, responseView, sequencePlot, title } from "../components/plots.js";
 import { isTerminal } from "../vocabulary.js";
-import { clear, fmt, h, link, messageBox, progressBar, put, quantity, score, sequenceText, statusBadge, table, tagChips, whenText } from "../ui.js";
+import { clear, fmt, h, link, messageBox, progressBar, put, quantity, score, sequenceText, statusBadge, table, tagChips, utcText, whenText } from "../ui.js";
 import { renderClassifier } from "../views/classifier.js";
 import { frontPanel } from "../views/front.js";
 import { sweepPanel } from "../views/sweep.js";
@@ -41,11 +41,28 @@ function drawHeader(header, job, scenarioName, onLabels) {
       h("dd", {}, whenText(job.finished_at)),
       h("dt", {}, "worker, attempts"),
       h("dd", {}, `${job.worker || "–"}, ${job.attempts}`),
+      ...lostRuns(job.attempt_history || []),
     ),
     h("details", {}, h("summary", {}, "name and tags"), labelEditor(job, onLabels)),
     h("details", {}, h("summary", {}, "parameters"), h("pre", { class: "mono" }, JSON.stringify(job.params, null, 2))),
     job.result ? downloads("job-downloads", jobDownloads(job), { label: "Download the result" }) : null,
   );
+}
+
+// The runs taken from the job (a worker killed, a heartbeat missed, a worker told to
+// stop): a later run's claim overwrote their start and worker above.
+// "attempt 1 lost at … UTC: heartbeat missed; re-queued", its worker and times beneath,
+// the reason in words as the line's title.
+function lostRuns(history) {
+  if (!history.length) return [];
+  const line = (run) =>
+    h(
+      "div",
+      { class: "lost-run", title: run.reason },
+      `attempt ${run.attempt} ${run.outcome} at ${utcText(run.ended_at)}: ${run.cause}; ${run.then}`,
+      h("div", { class: "hint" }, `worker ${run.worker || "unknown"}, started ${utcText(run.started_at)}, last heartbeat ${utcText(run.last_heartbeat_at)}`),
+    );
+  return [h("dt", {}, "interrupted runs"), h("dd", { id: "job-attempt-history" }, history.map(line))];
 }
 
 function reused(job, context) {
