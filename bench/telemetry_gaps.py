@@ -11,7 +11,8 @@ judged whole, and with each ``--holes`` length lost (every sample strictly insid
 hole), the hole starting at one of ``--hole-starts`` in turn; ``identify`` judges it on
 the grid times its samples cover (the exact Gaussian marginal). With ``--head`` each
 hole starts at the sequence start instead: a pass whose first ``--holes`` seconds were
-lost (acquired late), judged the same way.
+lost (acquired late), judged the same way; with ``--tail`` each hole ends at the
+sequence's end: a pass whose last ``--holes`` seconds were lost (it ended early).
 
 Per row: accuracy of the most probable candidate (with its 95 % Wilson interval), the
 fraction "identified" at 0.99 and the errors among them, genuine series called matches
@@ -29,13 +30,14 @@ column "floor" says whether the shipped floor admits the row. Per row: the ident
 rate at the default confidence (0.99), wrong among identified (with its 95 % Wilson
 interval), genuine series called matches none, and accuracy of the most probable.
 
-Run: python bench/telemetry_gaps.py [--series 20] [--holes 0.5,2,5] [--process 6] [--head]
+Run: python bench/telemetry_gaps.py [--series 20] [--holes 0.5,2,5] [--process 6] [--head | --tail]
      python bench/telemetry_gaps.py --coverage 0.75,0.5,0.35,0.25,0.15 --process 1,6 \
          --steps 4 --rate 20 --series 20
 """
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -175,10 +177,16 @@ def main() -> None:
     parser.add_argument(
         "--hole-starts", type=float_list, default=[1.0, 3.5, 6.0], help="hole starts, s"
     )
-    parser.add_argument(
+    ends = parser.add_mutually_exclusive_group()
+    ends.add_argument(
         "--head",
         action="store_true",
         help="lose each hole from the sequence start (a pass acquired late)",
+    )
+    ends.add_argument(
+        "--tail",
+        action="store_true",
+        help="lose each hole up to the sequence's end (a pass that ended early)",
     )
     parser.add_argument("--realisations", type=int, default=None, help="training realisations")
     parser.add_argument(
@@ -206,6 +214,7 @@ def main() -> None:
         f"{time.perf_counter() - started:.1f} s",
         flush=True,
     )
+    duration = float(len(sequence))  # steps of 1 s
     result = simulate(scenario, sequence, args.series, rng, process_noise_scale=process)
     every = round(scenario.timing.sample_rate_hz / args.rate)
     t = np.asarray(result.time_s)[every - 1 :: every]
@@ -221,7 +230,12 @@ def main() -> None:
                 hole = None
                 if length is not None:
                     begin = args.hole_starts[(k * args.series + i) % len(args.hole_starts)]
-                    hole = (0.0, length) if args.head else (begin, begin + length)
+                    if args.head:
+                        hole = (0.0, length)
+                    elif args.tail:
+                        hole = (duration - length, math.inf)
+                    else:
+                        hole = (begin, begin + length)
                 try:
                     verdict = identify(classifier, _telemetry(t, omega[k, i], hole))
                 except ValueError as exc:
@@ -279,7 +293,8 @@ def main() -> None:
         ],
         rows,
         title=f"{args.rate:g} Hz telemetry, {process:g}x process noise, {args.steps}-step sequence"
-        + (", each hole from the sequence start" if args.head else ""),
+        + (", each hole from the sequence start" if args.head else "")
+        + (", each hole up to the sequence's end" if args.tail else ""),
     )
     write_json(args.json, args, {"rows": figures})
 
