@@ -13,6 +13,19 @@ the grid times its samples cover (the exact Gaussian marginal). With ``--head`` 
 hole starts at the sequence start instead: a pass whose first ``--holes`` seconds were
 lost (acquired late), judged the same way; with ``--tail`` each hole ends at the
 sequence's end: a pass whose last ``--holes`` seconds were lost (it ended early).
+With ``--loss`` every sample is also lost at random with that probability (packet loss,
+drawn per series): the grid times measured then differ between nearby starts.
+
+With ``--start-within W`` the start is searched: each series is flown with 30 s of quiet
+before the sequence (the pre-start window the verdict conditions on) and ``W`` + 1 s
+after, the stated start is off the true one by a whole number of grid periods drawn
+within ``±W / 2``, and ``identify(..., estimate_start_within_s=W)`` judges it. The row
+adds the part of the searches that found the true start, and of the others how many
+took a start that measured fewer, more or the same number of grid times as the true
+one, or could not try the true start (the telemetry falls short of it at an end: the
+search tries only the starts the telemetry reaches at both ends, so ``--head`` and
+``--tail`` do not combine with it). ``--loss`` and ``--start-within`` are for this
+accuracy mode, not ``--coverage``.
 
 Per row: accuracy of the most probable candidate (with its 95 % Wilson interval), the
 fraction "identified" at 0.99 and the errors among them, genuine series called matches
@@ -31,12 +44,15 @@ rate at the default confidence (0.99), wrong among identified (with its 95 % Wil
 interval), genuine series called matches none, and accuracy of the most probable.
 
 Run: python bench/telemetry_gaps.py [--series 20] [--holes 0.5,2,5] [--process 6] [--head | --tail]
+     python bench/telemetry_gaps.py --steps 4 --rate 20 --loss 0.3 --holes 0.5 \
+         --hole-starts 1,2 --start-within 0.3 --process 1
      python bench/telemetry_gaps.py --coverage 0.75,0.5,0.35,0.25,0.15 --process 1,6 \
          --steps 4 --rate 20 --series 20
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 from dataclasses import dataclass, field
@@ -49,16 +65,57 @@ from inertia_id.classifiers.registry import default_realisations, train_classifi
 from inertia_id.evaluation import telemetry as telemetry_module
 from inertia_id.evaluation.identify import identify
 from inertia_id.evaluation.sweep import wilson_interval
-from inertia_id.evaluation.telemetry import Telemetry
+from inertia_id.evaluation.telemetry import Telemetry, estimate_sequence_start
 from inertia_id.physics.presets import preset
 from inertia_id.physics.simulate import simulate
 
 
-def _telemetry(t: np.ndarray, omega: np.ndarray, hole: tuple[float, float] | None) -> Telemetry:
-    keep = np.ones(len(t), dtype=bool)
+def _telemetry(
+    t: np.ndarray,
+    omega: np.ndarray,
+    hole: tuple[float, float] | None,
+    lost: np.ndarray | None = None,
+    start_s: float | None = None,
+) -> Telemetry:
+    """The samples outside ``hole`` and not ``lost``; ``start_s`` the stated start (None:
+    the stamps' 0)."""
+    keep = np.ones(len(t), dtype=bool) if lost is None else ~lost
     if hole is not None:
-        keep = ~((t > hole[0] + 1e-9) & (t < hole[1] - 1e-9))
-    return Telemetry(time_s=t[keep].tolist(), omega_rad_s=omega[keep].tolist())
+        keep &= ~((t > hole[0] + 1e-9) & (t < hole[1] - 1e-9))
+    return Telemetry(
+        time_s=t[keep].tolist(), omega_rad_s=omega[keep].tolist(), sequence_start=start_s
+    )
+
+
+def _start_found(
+    classifier: Any, verdict: Any, telemetry: Telemetry, stated: float, grid_period: float
+) -> str:
+    """Whether the start search found the true start (0 s, ``stated`` s before the stated
+    one): "right", else whether the start it took measured "fewer", "more" or the "same"
+    number of grid times as the true start, or the true start was "untried" (the
+    telemetry does not reach it at an end)."""
+    if abs(stated + verdict.sequence_start_shift_s) < grid_period / 2:
+        return "right"
+    grid = classifier.scenario_.sample_times(len(classifier.sequence_))
+    tried: list[float] = []
+    with contextlib.suppress(ValueError):
+        # The search's own rule for which starts it tries, on the same shifts.
+        estimate_sequence_start(
+            telemetry,
+            grid,
+            lambda *_: 0.0,
+            window_s=abs(stated),
+            tried=tried,
+            marginalise_gaps=True,
+        )
+    true_shift = [shift for shift in tried if abs(stated + shift) < grid_period / 2]
+    if not true_shift:
+        return "untried"
+    truth = identify(classifier, telemetry.shifted(true_shift[0]), start_hint=False)
+    # The fractions are of the same grid's times: compare them as counts.
+    measured = round(verdict.sequence_measured_fraction * classifier.length_)
+    truly = round(truth.sequence_measured_fraction * classifier.length_)
+    return "fewer" if measured < truly else "more" if measured > truly else "same"
 
 
 @dataclass
@@ -188,6 +245,19 @@ def main() -> None:
         action="store_true",
         help="lose each hole up to the sequence's end (a pass that ended early)",
     )
+    parser.add_argument(
+        "--loss",
+        type=float,
+        default=0.0,
+        help="probability that each sample is also lost at random (packet loss)",
+    )
+    parser.add_argument(
+        "--start-within",
+        type=float,
+        default=None,
+        metavar="W",
+        help="search the start within ±W s, the stated one off by up to W/2 (see above)",
+    )
     parser.add_argument("--realisations", type=int, default=None, help="training realisations")
     parser.add_argument(
         "--coverage",
@@ -201,6 +271,18 @@ def main() -> None:
         return
     if len(args.process) != 1:
         parser.error(f"--process takes one multiple without --coverage, got {args.process}")
+    if not 0.0 <= args.loss < 1.0:
+        parser.error(f"--loss must be a probability in [0, 1), got {args.loss:g}")
+    if args.start_within is not None:
+        if not (math.isfinite(args.start_within) and args.start_within > 0):
+            parser.error(
+                f"--start-within must be a number of seconds > 0, got {args.start_within:g}"
+            )
+        if args.head or args.tail:
+            parser.error(
+                "--start-within does not combine with --head or --tail: the start search "
+                "tries only the starts the telemetry reaches at both ends"
+            )
     process = args.process[0]
     print_header("Telemetry with a hole: accuracy against the same series whole", args)
     rng = np.random.default_rng(args.seed)
@@ -215,15 +297,28 @@ def main() -> None:
         flush=True,
     )
     duration = float(len(sequence))  # steps of 1 s
-    result = simulate(scenario, sequence, args.series, rng, process_noise_scale=process)
+    search = args.start_within
+    before = after = 0
+    if search is not None:
+        # Quiet before (the pre-start window the verdict conditions on) and after, so that
+        # the telemetry reaches every start searched; stamps in s from the true start.
+        before, after = 30, math.ceil(search) + 1
+    quiet = [[0] * scenario.n_thrusters]
+    flown = quiet * before + sequence + quiet * after
+    result = simulate(scenario, flown, args.series, rng, process_noise_scale=process)
     every = round(scenario.timing.sample_rate_hz / args.rate)
-    t = np.asarray(result.time_s)[every - 1 :: every]
+    t = np.asarray(result.time_s)[every - 1 :: every] - before
     omega = result.omega_measured[:, :, every - 1 :: every]
+    grid_period = 1.0 / scenario.timing.sample_rate_hz
     cases: list[tuple[str, float | None]] = [("none", None), *((f"{h:g} s", h) for h in args.holes)]
     rows, figures = [], {}
     for name, length in cases:
         tally = Tally()
         refused = 0
+        # Start search: found the true start; a wrong start that measured fewer or more
+        # grid times than the true one (the raw distance's bias favoured fewer).
+        starts = dict.fromkeys(("right", "fewer", "more", "same", "untried"), 0)
+        errors: list[float] = []  # each search's start less the true one, s
         started = time.perf_counter()
         for k in range(scenario.n_candidates):
             for i in range(args.series):
@@ -236,13 +331,23 @@ def main() -> None:
                         hole = (duration - length, math.inf)
                     else:
                         hole = (begin, begin + length)
+                lost = rng.random(len(t)) < args.loss if args.loss > 0 else None
+                stated = None
+                if search is not None:
+                    off = math.floor(search / 2 / grid_period + 1e-9)
+                    stated = float(rng.integers(-off, off + 1)) * grid_period
+                telemetry = _telemetry(t, omega[k, i], hole, lost, stated)
                 try:
-                    verdict = identify(classifier, _telemetry(t, omega[k, i], hole))
+                    verdict = identify(classifier, telemetry, estimate_start_within_s=search)
                 except ValueError as exc:
                     refused += 1
                     print(f"  refused ({name}): {exc}")
                     continue
                 tally.add(verdict, k)
+                if stated is not None:
+                    found = _start_found(classifier, verdict, telemetry, stated, grid_period)
+                    starts[found] += 1
+                    errors.append(round(stated + verdict.sequence_start_shift_s, 6))
         right, identified, wrong, flagged = (
             tally.right,
             tally.identified,
@@ -264,37 +369,53 @@ def main() -> None:
             "mean_covered_fraction": float(np.mean(covered)) if covered else None,
             "seconds": seconds,
         }
-        rows.append(
-            [
-                name,
-                total,
-                right / total,
-                f"{low:.3f}-{high:.3f}",
-                identified / total,
-                wrong / max(identified, 1),
-                flagged / total,
-                refused,
-                float(np.mean(covered)) if covered else None,
-                seconds,
+        row = [
+            name,
+            total,
+            right / total,
+            f"{low:.3f}-{high:.3f}",
+            identified / total,
+            wrong / max(identified, 1),
+            flagged / total,
+            refused,
+            float(np.mean(covered)) if covered else None,
+        ]
+        if search is not None:
+            figures[name]["right_start"] = starts["right"] / total
+            figures[name]["wrong_starts"] = {k: v for k, v in starts.items() if k != "right"}
+            figures[name]["start_errors_s"] = errors
+            row += [
+                starts["right"] / total,
+                "/".join(str(starts[k]) for k in ("fewer", "more", "same", "untried")),
             ]
-        )
+        rows.append([*row, seconds])
+    header = [
+        "hole",
+        "series",
+        "accuracy",
+        "95% interval",
+        "identified",
+        "wrong|identified",
+        "false alarms",
+        "refused",
+        "covered",
+    ]
+    if search is not None:
+        header += ["right start", "wrong: fewer/more/same measured/true untried"]
+    where = ""
+    if args.head:
+        where = ", each hole from the sequence start"
+    elif args.tail:
+        where = ", each hole up to the sequence's end"
+    if args.loss:
+        where += f", {args.loss:.0%} of samples lost at random"
+    if search is not None:
+        where += f", start searched within ±{search:g} s"
     print_table(
-        [
-            "hole",
-            "series",
-            "accuracy",
-            "95% interval",
-            "identified",
-            "wrong|identified",
-            "false alarms",
-            "refused",
-            "covered",
-            "s",
-        ],
+        [*header, "s"],
         rows,
         title=f"{args.rate:g} Hz telemetry, {process:g}x process noise, {args.steps}-step sequence"
-        + (", each hole from the sequence start" if args.head else "")
-        + (", each hole up to the sequence's end" if args.tail else ""),
+        + where,
     )
     write_json(args.json, args, {"rows": figures})
 

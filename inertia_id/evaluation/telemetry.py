@@ -993,7 +993,10 @@ def estimate_sequence_start(
     :param telemetry: telemetry with its nominal sequence start.
     :param grid_s: the classifier's grid, s from the sequence start.
     :param score: cost of a resampled (len(grid), 3) series, lower is better (e.g. the
-        distance to the nearest candidate).
+        distance to the nearest candidate). With ``marginalise_gaps`` the count of
+        measured grid times can differ between starts, so the costs must be comparable
+        across counts: a raw distance is not (it grows with the count), its p-value is
+        (what :func:`~inertia_id.evaluation.identify.identify` uses).
     :param window_s: the true start lies within this of the nominal one, s.
     :param step_s: the search step, s (default the grid period).
     :param tried: a list the shifts tried are appended to, s (in increasing order).

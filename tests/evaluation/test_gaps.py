@@ -12,6 +12,7 @@ from scenario_support import GOOD_SEQUENCE
 
 import inertia_id.evaluation.identify as identify_module
 from inertia_id import InertiaClassifier, Scenario, simulate
+from inertia_id.classifiers.base import BaseClassifier
 from inertia_id.classifiers.marginal import MarginalLikelihoodClassifier
 from inertia_id.evaluation.identify import identify, identify_online
 from inertia_id.evaluation.telemetry import Telemetry, estimate_sequence_start, resample_covered
@@ -236,6 +237,53 @@ def test_a_start_search_that_fits_nowhere_names_the_gap_at_the_nominal_start(
         r"between samples.*The 'clustering' classifier compares whole series",
     ):
         identify(euclidean_classifier, telemetry, estimate_start_within_s=0.5)
+
+
+def test_the_start_search_is_not_drawn_to_a_start_that_measures_fewer_grid_times(
+    marginal: MarginalLikelihoodClassifier,
+    drifting_paper: Scenario,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """20 Hz telemetry that lost 30 % of its samples at random: the grid times measured
+    differ between nearby starts. A squared distance grows by about 3 a grid time, so
+    the raw distance took the start 0.15 s early, which measures 2 fewer, over the true
+    one (its distance less by 1.3 in the square); the starts are now compared by the
+    distance's p-value with their own degrees of freedom, and the true start wins."""
+    rng = np.random.default_rng(25)
+    quiet = [[0] * drifting_paper.n_thrusters]
+    result = simulate(drifting_paper, quiet * 30 + GOOD_SEQUENCE + quiet * 2, 1, rng)
+    t = result.time_s - 30.0
+    kept = rng.random(len(t)) > 0.3
+    telemetry = Telemetry(
+        time_s=t[kept].tolist(),
+        omega_rad_s=result.omega_measured[4, 0][kept].tolist(),
+        sequence_start=0.0,
+    )
+    # What the search scored at each start: the measured grid times and the distance.
+    scored: list[tuple[int, float]] = []
+    tried: list[float] = []
+    real_distances = BaseClassifier.transform_observed
+    real_search = identify_module.estimate_sequence_start
+
+    def distances(self: Any, X: Any, observed: Any = None) -> np.ndarray:
+        out = real_distances(self, X, observed)
+        scored.append((int(np.count_nonzero(observed)), float(out[0].min())))
+        return out
+
+    def search(*args: Any, **kwargs: Any) -> Any:
+        found = real_search(*args, **kwargs)
+        tried.extend(kwargs["tried"])
+        return found
+
+    monkeypatch.setattr(BaseClassifier, "transform_observed", distances)
+    monkeypatch.setattr(identify_module, "estimate_sequence_start", search)
+    verdict = identify(marginal, telemetry, estimate_start_within_s=0.15)
+    assert verdict.sequence_start_shift_s == 0.0
+    assert verdict.candidate == marginal.candidate_names_[4]
+    starts = dict(zip(np.round(tried, 6), scored, strict=True))
+    nearest = min(starts, key=lambda shift: starts[shift][1])
+    assert nearest == -0.15
+    assert starts[nearest][0] == starts[0.0][0] - 2
 
 
 @pytest.mark.parametrize(
