@@ -224,8 +224,8 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--port",
         type=_whole_number,
-        default=int(os.environ.get("INERTIA_ID_PORT", "8000")),
-        help="TCP port (default 8000).",
+        default=None,
+        help="TCP port (default 8000, or INERTIA_ID_PORT).",
     )
     parser.add_argument(
         "--data-dir",
@@ -242,10 +242,10 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--api-workers",
         type=_whole_number,
-        default=int(os.environ.get("INERTIA_ID_API_WORKERS", "1")),
-        help="API processes (default 1), each with a verdict process of its own that "
-        "computes /identify: on a machine with more cores, more API processes serve more "
-        "requests at once (on 2 cores, 2 did worse than 1).",
+        default=None,
+        help="API processes (default 1, or INERTIA_ID_API_WORKERS), each with a verdict "
+        "process of its own that computes /identify: on a machine with more cores, more API "
+        "processes serve more requests at once (on 2 cores, 2 did worse than 1).",
     )
     parser.add_argument(
         "--log-level",
@@ -374,8 +374,35 @@ def _raise_on_sigterm(signum: int, _frame: FrameType | None) -> None:
     raise SystemExit(128 + signum)
 
 
+def _env_whole_numbers(args: argparse.Namespace) -> list[str]:
+    """Fill ``--port`` and ``--api-workers`` left out from the environment (or their
+    defaults); the problems of values there, one line each naming the variable and the
+    value. Read here, not as the parser's defaults: ``INERTIA_ID_PORT=x`` was a
+    traceback from building the parser, even with ``--port`` given."""
+    problems = []
+    for option, name, default in (
+        ("port", "INERTIA_ID_PORT", 8000),
+        ("api_workers", "INERTIA_ID_API_WORKERS", 1),
+    ):
+        if getattr(args, option) is not None:
+            continue
+        text = os.environ.get(name)
+        setattr(args, option, default)
+        if text is None:
+            continue
+        try:
+            setattr(args, option, _whole_number(text))
+        except argparse.ArgumentTypeError as exc:
+            problems.append(f"inertia-id serve: {name}={text!r}: {exc}")
+    return problems
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    problems = _env_whole_numbers(args)
+    if problems:
+        print("\n".join(problems), file=sys.stderr)
+        return 1
     if args.workers < 0:
         _parser().error(f"--workers must be >= 0, got {args.workers}")
     if args.api_workers < 1:

@@ -72,6 +72,31 @@ def test_serve_refuses_a_bad_setting_in_one_line_naming_it(tmp_path: Path) -> No
     assert len(lines) == 2 and not (tmp_path / "data").exists()
 
 
+def test_serve_refuses_a_bad_port_or_api_workers_setting_in_one_line(tmp_path: Path) -> None:
+    """INERTIA_ID_PORT=x (or INERTIA_ID_API_WORKERS=two) ended serve with a traceback from
+    building its parser, --port given or not; it is one line naming the variable and its
+    value, exit 1, nothing created. A --port given wins over the variable."""
+    env = {**clean_env(), "INERTIA_ID_PORT": "x", "INERTIA_ID_API_WORKERS": "two"}
+    command = [sys.executable, "-m", "app.serve", "--data-dir", "data"]
+    done = subprocess.run(
+        command, capture_output=True, text=True, env=env, cwd=tmp_path, timeout=60
+    )
+    assert done.returncode == 1 and "Traceback" not in done.stderr, done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert lines[0].startswith("inertia-id serve: INERTIA_ID_PORT='x': ")
+    assert lines[1].startswith("inertia-id serve: INERTIA_ID_API_WORKERS='two': ")
+    assert len(lines) == 2 and not (tmp_path / "data").exists()
+    # --port given: the variable is not read; the other one still is.
+    done = subprocess.run(
+        [*command, "--port", "1"], capture_output=True, text=True, env=env, cwd=tmp_path, timeout=60
+    )
+    assert done.returncode == 1 and "Traceback" not in done.stderr, done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(
+        "inertia-id serve: INERTIA_ID_API_WORKERS='two': "
+    )
+
+
 def test_serve_on_a_busy_port_says_so_before_starting_anything(tmp_path: Path) -> None:
     with socket.socket() as busy:
         busy.bind(("127.0.0.1", 0))
