@@ -66,6 +66,12 @@ def gunzip(source: bytes | BinaryIO, *, limit: int, what: str) -> bytes:
         raise InputError(f"{what} is not a valid gzip stream: {exc}") from None
     if len(data) > limit:
         raise DecompressedTooLarge(what, limit)
+    if is_gzip(data):
+        # Compressed twice (gzip of a .gz): read as text it was "not UTF-8 (byte 0x8b at
+        # position 1)", which did not say why. No telemetry text starts with the magic.
+        raise InputError(
+            f"{what} is gzip holding gzip again (compressed twice): compress the telemetry once"
+        )
     return data
 
 

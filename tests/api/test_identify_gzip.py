@@ -152,6 +152,24 @@ def test_a_truncated_or_corrupt_gzip_is_a_422_naming_the_file(
     assert "request body (Content-Encoding: gzip) is not a valid gzip stream" in response.text
 
 
+def test_gzip_inside_gzip_is_a_422_saying_it_is_compressed_twice(
+    api: Api, classifier_id: str, flight: SimulationResult
+) -> None:
+    """A .gz compressed again was refused as "not UTF-8 text ... byte 0x8b", naming
+    neither the file nor why; it names both, for a file part and a JSON body."""
+    text = csv_text(flight.time_s, flight.omega_measured[1, 0]).encode()
+    twice = gzip.compress(gzip.compress(text))
+    response = _upload(api, "/identify", classifier_id, "pass.csv.gz", twice)
+    assert response.status_code == 422, response.text
+    error = response.json()["detail"][0]
+    assert error["loc"] == ["body", "file"]
+    assert error["msg"].startswith("telemetry file 'pass.csv.gz' is gzip holding gzip again")
+    body = json.dumps({"classifier_id": classifier_id, "telemetry": telemetry(flight, 0)})
+    response = _gzip_json_body(api, "/identify", gzip.compress(gzip.compress(body.encode())))
+    assert response.status_code == 422, response.text
+    assert "request body (Content-Encoding: gzip) is gzip holding gzip again" in response.text
+
+
 def test_a_coding_the_api_does_not_read_is_a_415_naming_it(
     api: Api, classifier_id: str, flight: SimulationResult
 ) -> None:
