@@ -52,7 +52,7 @@ from ..schemas import (
 from ..verdicts import NotFound, VerdictOptions, VerdictProcess
 from .deps import UNAUTHORIZED, ApiKeyDep, no_such, not_found, plausible_id, unprocessable
 from .errors import duplicate_key_errors, refused_at
-from .routing import UniqueKeysRoute
+from .routing import UniqueKeysRoute, content_codings
 
 if TYPE_CHECKING:
     from inertia_id.classifiers.registry import CandidateClassifier
@@ -532,12 +532,7 @@ def _gzip_encoded(request: Request) -> bool:
     """Whether the body is gzip (``Content-Encoding: gzip``); any other coding is a 415
     naming it (the header was ignored: a brotli body was refused as malformed JSON, and a
     plain one labelled br was judged)."""
-    codings = [
-        coding.strip().lower()
-        for header in request.headers.getlist("content-encoding")
-        for coding in header.split(",")
-    ]
-    codings = [c for c in codings if c not in ("", "identity")]
+    codings = content_codings(request)
     if not codings:
         return False
     if len(codings) == 1 and codings[0] in _GZIP_CODINGS:

@@ -14,17 +14,39 @@ from __future__ import annotations
 from collections.abc import Callable, Coroutine
 from typing import Any
 
-from fastapi import Request, Response
+from fastapi import HTTPException, Request, Response, status
 from fastapi.routing import APIRoute
 
 from inertia_id.checks import loads_unique_keys
 
-__all__ = ["UniqueKeysRoute"]
+__all__ = ["UniqueKeysRoute", "content_codings"]
+
+
+def content_codings(request: Request) -> list[str]:
+    """The body's content codings (``Content-Encoding``, every header, lower case),
+    ``identity`` left out."""
+    codings = [
+        coding.strip().lower()
+        for header in request.headers.getlist("content-encoding")
+        for coding in header.split(",")
+    ]
+    return [c for c in codings if c not in ("", "identity")]
 
 
 class _UniqueKeysRequest(Request):
     async def json(self) -> Any:
         if not hasattr(self, "_json"):
+            codings = content_codings(self)
+            if codings:
+                # The header was ignored: a gzip body was "not acceptable JSON: 'utf-8'
+                # codec can't decode byte 0x8b", and a plain one labelled gzip or br was
+                # stored. Only /identify and /identify/partial read gzip (their own body).
+                raise HTTPException(
+                    status.HTTP_415_UNSUPPORTED_MEDIA_TYPE,
+                    detail=f"Content-Encoding {', '.join(codings)[:80]!r} is not supported "
+                    "on this route: send the JSON body as is (only POST /identify and "
+                    "/identify/partial read a gzip body)",
+                )
             self._json = loads_unique_keys(await self.body())
         return self._json
 

@@ -189,3 +189,30 @@ def test_a_coding_the_api_does_not_read_is_a_415_naming_it(
     )
     assert form.status_code == 415, form.text
     assert "gzip is read for a JSON body only" in form.json()["detail"]
+
+
+def test_a_coded_body_on_another_route_is_a_415_not_read_as_plain(api: Api) -> None:
+    """Other routes ignored Content-Encoding: a gzip scenario was "not acceptable JSON:
+    'utf-8' codec can't decode byte 0x8b", and a plain body labelled gzip or br was
+    stored. Only /identify and /identify/partial read gzip; elsewhere a coded JSON body
+    is a 415 naming the coding, and nothing is stored."""
+    scenario = api.create_scenario()
+    plain = json.dumps({"preset": "paper"}).encode()
+    sequence = json.dumps({"sequence": [[4, 4, 4, 0, 0, 0]]}).encode()
+    for path, body in (
+        ("/scenarios", plain),
+        ("/jobs", json.dumps({"type": "train", "scenario_id": scenario["id"]}).encode()),
+        (f"/scenarios/{scenario['id']}/plan", sequence),
+    ):
+        for encoding, content in (("gzip", gzip.compress(body)), ("gzip", body), ("br", body)):
+            response = _gzip_json_body(api, path, content, encoding=encoding)
+            assert response.status_code == 415, (path, encoding, response.text)
+            detail = response.json()["detail"]
+            assert f"Content-Encoding {encoding!r} is not supported on this route" in detail
+    assert [s["id"] for s in api.get("/scenarios").json()["items"]] == [scenario["id"]]
+    # Without the key, still a 401 before the body (or its coding) is looked at.
+    bare = {"content-type": "application/json", "content-encoding": "br"}
+    assert api.client.post("/scenarios", content=plain, headers=bare).status_code == 401
+    # Plain (or identity) as before.
+    response = _gzip_json_body(api, "/scenarios", plain, encoding="identity")
+    assert response.status_code == 201, response.text
