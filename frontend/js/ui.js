@@ -75,7 +75,9 @@ export function quantity(value, significant = 3) {
   if (value === 0) return "0";
   const text = value.toPrecision(significant);
   if (Number(text) === value) return String(value);
-  return Math.abs(value) >= 10 ** significant || text.includes("e+") ? String(Math.round(value)) : text;
+  // Halves away from zero on both signs (Math.round took -1234.5 to -1234, 1234.5 to 1235).
+  const whole = Math.sign(value) * Math.round(Math.abs(value));
+  return Math.abs(value) >= 10 ** significant || text.includes("e+") ? String(whole) : text;
 }
 
 // A measured value ± its standard error: the error to two significant digits (below
@@ -88,6 +90,16 @@ export function measured(value, std) {
   if (typeof value !== "number" || !Number.isFinite(value)) return "–";
   if (typeof std !== "number" || !Number.isFinite(std) || std <= 0) {
     return std === 0 ? `${quantity(value)} ± 0` : quantity(value);
+  }
+  const magnitude = Math.max(Math.abs(value), std);
+  if (std >= 100 || magnitude < 1e-4) {
+    // Too large or too small for fixed decimals (1000000000 ± 12346 kept five digits of
+    // its error; 1e-25 read 0.00000000000000000000): both in exponent form, the value's
+    // mantissa down to the error's second significant digit.
+    const exponent = (v) => Math.floor(Math.log10(Math.abs(v)));
+    const digits = value === 0 ? 1 : Math.min(15, Math.max(1, exponent(value) - exponent(std) + 1));
+    const shown = value === 0 ? "0" : value.toExponential(digits);
+    return `${shown} ± ${std.toExponential(1)}`;
   }
   const byError = decimalsFor(std, 2);
   const decimals = Math.min(20, Math.max(byError, Math.min(decimalsFor(value, 3), byError + 2)));

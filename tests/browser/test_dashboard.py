@@ -1020,6 +1020,32 @@ def test_identify_gives_the_initial_rate_every_digit_its_error_justifies(
     assert shown.endswith("from 199 samples")
 
 
+def test_measured_and_quantity_keep_their_digits_at_the_extremes(dashboard: Dashboard) -> None:
+    """``measured`` wrote 1e9 ± 12345.6 as 1000000000 ± 12346 and 1e-25 ± 1e-27 as
+    0.00000000000000000000 ± 1.0e-27; ``quantity`` rounded -1234.5 to -1234 but 1234.5
+    to 1235. Called in the page, as the dashboard's own module."""
+    dashboard.open("")
+    shown = dashboard.page.evaluate(
+        """async () => {
+            const ui = await import("/static/js/ui.js");
+            return [
+                ui.measured(1e9, 12345.6), ui.measured(1e-25, 1e-27), ui.measured(1e-9, 1e-12),
+                ui.measured(0.002134, 7.1e-5), ui.measured(0, 1e-6),
+                ui.quantity(-1234.5), ui.quantity(1234.5),
+            ];
+        }"""
+    )
+    assert shown == [
+        "1.000000e+9 ± 1.2e+4",
+        "1.000e-25 ± 1.0e-27",
+        "1.0000e-9 ± 1.0e-12",
+        "0.002134 ± 7.1e-5",
+        "0 ± 1.0e-6",
+        "-1235",
+        "1235",
+    ]
+
+
 def test_identify_writes_the_candidates_inertia_and_the_estimate_in_one_format(
     dashboard: Dashboard,
 ) -> None:
