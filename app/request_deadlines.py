@@ -204,66 +204,48 @@ class _Deadlines:
         protocol.transport.close()
 
 
-class H11WithDeadlines(H11Protocol):
+class _WithDeadlines:
+    """The read deadlines of :class:`ServerConfig` on one of uvicorn's HTTP protocols:
+    mixed in before it (``class X(_WithDeadlines, H11Protocol)``), each hook calls the
+    protocol's own and then tells the connection's :class:`_Deadlines`."""
+
+    cycle: Any
+
+    def __init__(
+        self,
+        config: uvicorn.Config,
+        server_state: ServerState,
+        app_state: dict[str, Any],
+        _loop: asyncio.AbstractEventLoop | None = None,
+    ) -> None:
+        super().__init__(config, server_state, app_state, _loop)  # type: ignore[call-arg]
+        self.deadlines = _Deadlines(self, config)
+
+    def connection_made(self, transport: asyncio.Transport) -> None:
+        super().connection_made(transport)  # type: ignore[misc]
+        self.deadlines.connected()
+
+    def data_received(self, data: bytes) -> None:
+        cycle = self.cycle
+        super().data_received(data)  # type: ignore[misc]
+        self.deadlines.received(cycle, len(data))
+
+    def on_response_complete(self) -> None:
+        super().on_response_complete()  # type: ignore[misc]
+        self.deadlines.answered()
+
+    def connection_lost(self, exc: Exception | None) -> None:
+        self.deadlines.stop()
+        super().connection_lost(exc)  # type: ignore[misc]
+
+
+# (uvicorn types connection_made's transport narrower than asyncio's BaseProtocol does.)
+class H11WithDeadlines(_WithDeadlines, H11Protocol):  # type: ignore[misc]
     """uvicorn's h11 protocol with the read deadlines of :class:`ServerConfig`."""
 
-    def __init__(
-        self,
-        config: uvicorn.Config,
-        server_state: ServerState,
-        app_state: dict[str, Any],
-        _loop: asyncio.AbstractEventLoop | None = None,
-    ) -> None:
-        super().__init__(config, server_state, app_state, _loop)
-        self.deadlines = _Deadlines(self, config)
 
-    def connection_made(self, transport: asyncio.Transport) -> None:  # type: ignore[override]
-        super().connection_made(transport)
-        self.deadlines.connected()
-
-    def data_received(self, data: bytes) -> None:
-        cycle = self.cycle
-        super().data_received(data)
-        self.deadlines.received(cycle, len(data))
-
-    def on_response_complete(self) -> None:
-        super().on_response_complete()
-        self.deadlines.answered()
-
-    def connection_lost(self, exc: Exception | None) -> None:
-        self.deadlines.stop()
-        super().connection_lost(exc)
-
-
-class HttpToolsWithDeadlines(HttpToolsProtocol):
+class HttpToolsWithDeadlines(_WithDeadlines, HttpToolsProtocol):  # type: ignore[misc]
     """uvicorn's httptools protocol with the read deadlines of :class:`ServerConfig`."""
-
-    def __init__(
-        self,
-        config: uvicorn.Config,
-        server_state: ServerState,
-        app_state: dict[str, Any],
-        _loop: asyncio.AbstractEventLoop | None = None,
-    ) -> None:
-        super().__init__(config, server_state, app_state, _loop)
-        self.deadlines = _Deadlines(self, config)
-
-    def connection_made(self, transport: asyncio.Transport) -> None:  # type: ignore[override]
-        super().connection_made(transport)
-        self.deadlines.connected()
-
-    def data_received(self, data: bytes) -> None:
-        cycle = self.cycle
-        super().data_received(data)
-        self.deadlines.received(cycle, len(data))
-
-    def on_response_complete(self) -> None:
-        super().on_response_complete()
-        self.deadlines.answered()
-
-    def connection_lost(self, exc: Exception | None) -> None:
-        self.deadlines.stop()
-        super().connection_lost(exc)
 
 
 def _timeouts(config: uvicorn.Config) -> tuple[float, float]:
