@@ -189,9 +189,12 @@ def test_a_verdict_past_its_time_kills_the_verdict_process_with_a_503(
     assert verdicts.restarts == 1  # replaced at once, not on the next request
     deadline = time.monotonic() + 30
     while time.monotonic() < deadline and os.path.exists(f"/proc/{first}/stat"):
-        with open(f"/proc/{first}/stat") as stat:
-            if stat.read().rpartition(")")[2].split()[0] == "Z":
-                break
+        try:
+            with open(f"/proc/{first}/stat") as stat:
+                if stat.read().rpartition(")")[2].split()[0] == "Z":
+                    break
+        except FileNotFoundError:
+            break  # reaped between the check and the read: gone, as wanted
         time.sleep(0.1)
     else:
         assert not os.path.exists(f"/proc/{first}/stat"), "the hung child is still running"
