@@ -12,11 +12,15 @@ import json
 import os
 import platform
 import re
+import signal
+import socket
 import statistics
+import subprocess
 import sys
 import time
 import warnings
 from collections.abc import Callable, Iterator, Sequence
+from pathlib import Path
 from typing import Any, TypeVar
 
 import numpy as np
@@ -359,3 +363,67 @@ def without_gyroscopic_term() -> Iterator[None]:
         mock.patch.object(dynamics.RigidBodies, "run", dynamics.RigidBodies.run_reference),
     ):
         yield
+
+
+# --------------------------------------------------------------------------- the service
+
+#: The API key ``python -m app.serve`` generates, as its banner shows it.
+GENERATED_KEY = re.compile(r"^API key:   (\S+)\n\s+\(generated now", re.MULTILINE)
+
+
+def free_port() -> int:
+    """A TCP port free on 127.0.0.1 now."""
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+def service_env(repo: Path) -> dict[str, str]:
+    """This process's environment without any inertia-id setting (the machine's
+    configuration never reaches the service measured), ``repo`` first on ``PYTHONPATH``
+    and the output unbuffered (the log is read while the service runs)."""
+    env = {
+        k: v
+        for k, v in os.environ.items()
+        if not k.startswith("INERTIA_ID_") and k not in ("DATABASE_URL", "BROKER_URL")
+    }
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(repo), env.get("PYTHONPATH")]))
+    env["PYTHONUNBUFFERED"] = "1"
+    return env
+
+
+def spawn_service(
+    argv: list[str],
+    *,
+    log_path: Path,
+    cwd: Path,
+    env: dict[str, str],
+    preexec_fn: Callable[[], None] | None = None,
+) -> subprocess.Popen[bytes]:
+    """Start ``argv`` (the service) in a session of its own, its output to ``log_path``."""
+    with open(log_path, "wb") as log:
+        return subprocess.Popen(
+            argv,
+            cwd=cwd,
+            env=env,
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            start_new_session=True,
+            preexec_fn=preexec_fn,
+        )
+
+
+def generated_key(log_path: Path) -> str | None:
+    """The API key the service generated, from its banner in ``log_path`` (None: none)."""
+    found = GENERATED_KEY.search(log_path.read_text(errors="replace"))
+    return found.group(1) if found else None
+
+
+def stop_service(process: subprocess.Popen[bytes]) -> None:
+    """SIGTERM; the whole session SIGKILLed when it is not gone within 60 s."""
+    process.send_signal(signal.SIGTERM)
+    try:
+        process.wait(60)
+    except subprocess.TimeoutExpired:
+        os.killpg(process.pid, signal.SIGKILL)
+        process.wait(10)

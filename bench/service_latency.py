@@ -47,8 +47,6 @@ import json
 import os
 import re
 import resource
-import signal
-import socket
 import subprocess
 import sys
 import tempfile
@@ -63,24 +61,29 @@ from typing import Any
 
 import httpx
 import numpy as np
-from _common import GOOD_SEQUENCE, base_parser, int_list, positive_int, print_header, print_table
+from _common import (
+    GOOD_SEQUENCE,
+    base_parser,
+    free_port,
+    generated_key,
+    int_list,
+    positive_int,
+    print_header,
+    print_table,
+    service_env,
+    spawn_service,
+    stop_service,
+)
 from _common import write_json as _write_json
 
 ROOT = Path(__file__).resolve().parents[1]
 TERMINAL = ("succeeded", "failed", "cancelled")
-_KEY = re.compile(r"^API key:   (\S+)\n\s+\(generated now", re.MULTILINE)
 TINY = {"sequence": GOOD_SEQUENCE, "kind": "nearest-centroid", "metric": "euclidean"}
 CLASSIFIERS = {
     "default (marginal likelihood)": {"sequence": GOOD_SEQUENCE},
     "dtw (clustering)": {"sequence": GOOD_SEQUENCE, "kind": "clustering", "metric": "dtw"},
 }
 TICKS = os.sysconf("SC_CLK_TCK")
-
-
-def _free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return int(sock.getsockname()[1])
 
 
 def _read(path: str) -> bytes:
@@ -176,13 +179,7 @@ class Backend:
 
 @contextmanager
 def _backend(name: str, data_dir: Path, args: Any) -> Iterator[Backend]:
-    env = {
-        k: v
-        for k, v in os.environ.items()
-        if not k.startswith("INERTIA_ID_") and k not in ("DATABASE_URL", "BROKER_URL")
-    }
-    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH")]))
-    env["PYTHONUNBUFFERED"] = "1"
+    env = service_env(ROOT)
     env["INERTIA_ID_DATA_DIR"] = str(data_dir)
     if name == "sqlite":
         yield Backend(name, env)
@@ -219,21 +216,13 @@ class Service:
 
 
 def _start(backend: Backend, data_dir: Path, api_workers: int, key: str | None) -> Service:
-    port = _free_port()
+    port = free_port()
     log_path = data_dir.parent / f"serve-{api_workers}.log"
     argv = [sys.executable, "-m", "app.serve", "--port", str(port), "--data-dir", str(data_dir)]
     argv += ["--workers", "1", "--api-workers", str(api_workers), "--log-level", "warning"]
     base = f"http://127.0.0.1:{port}"
-    with open(log_path, "wb") as log:
-        spawned = time.perf_counter()
-        process = subprocess.Popen(
-            argv,
-            cwd=data_dir.parent,
-            env=backend.env,
-            stdout=log,
-            stderr=subprocess.STDOUT,
-            start_new_session=True,
-        )
+    spawned = time.perf_counter()
+    process = spawn_service(argv, log_path=log_path, cwd=data_dir.parent, env=backend.env)
     first = worker = None
     deadline = spawned + 300
     with httpx.Client(timeout=5) as client:
@@ -253,20 +242,10 @@ def _start(backend: Backend, data_dir: Path, api_workers: int, key: str | None) 
             time.sleep(0.02)
     if first is None or worker is None:
         raise RuntimeError(f"serve did not come up:\n{log_path.read_text(errors='replace')}")
-    found = _KEY.search(log_path.read_text(errors="replace"))
-    key = found.group(1) if found else key
+    key = generated_key(log_path) or key
     if not key:
         raise RuntimeError("serve printed no generated API key")
     return Service(process, base, key, first, worker, log_path)
-
-
-def _stop(service: Service) -> None:
-    service.process.send_signal(signal.SIGTERM)
-    try:
-        service.process.wait(60)
-    except subprocess.TimeoutExpired:
-        os.killpg(service.process.pid, signal.SIGKILL)
-        service.process.wait(10)
 
 
 # --------------------------------------------------------------------------- jobs
@@ -636,7 +615,7 @@ def _run_deployment(name: str, args: Any) -> dict[str, Any]:
                     memory("after the /identify load")
                     client.close()
                 finally:
-                    _stop(service)
+                    stop_service(service.process)
     return figures
 
 

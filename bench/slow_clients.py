@@ -31,10 +31,7 @@ from __future__ import annotations
 
 import asyncio
 import os
-import re
 import resource
-import signal
-import socket
 import statistics
 import subprocess
 import sys
@@ -44,23 +41,27 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from _common import base_parser, int_list, positive_int, print_header, print_table
+from _common import (
+    base_parser,
+    free_port,
+    generated_key,
+    int_list,
+    positive_int,
+    print_header,
+    print_table,
+    service_env,
+    spawn_service,
+    stop_service,
+)
 from _common import write_json as _write_json
 
 ROOT = Path(__file__).resolve().parents[1]
-_KEY = re.compile(r"^API key:   (\S+)\n\s+\(generated now", re.MULTILINE)
 HEAD = b"GET /health HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Slow: "
 #: A normal request gets this long to be answered before it counts as a failure (s).
 NORMAL_TIMEOUT_S = 5.0
 PAGE_KB = os.sysconf("SC_PAGE_SIZE") / 1024
 #: Seconds of the normal client alone, first.
 BASELINE_S = 10
-
-
-def _free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return int(sock.getsockname()[1])
 
 
 def _open_fds(pid: int) -> int:
@@ -81,13 +82,6 @@ class Service:
 
 
 def _start(repo: Path, data_dir: Path, port: int, nofile: int | None) -> Service:
-    env = {
-        k: v
-        for k, v in os.environ.items()
-        if not k.startswith("INERTIA_ID_") and k not in ("DATABASE_URL", "BROKER_URL")
-    }
-    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(repo), env.get("PYTHONPATH")]))
-    env["PYTHONUNBUFFERED"] = "1"
     log_path = data_dir.parent / "serve.log"
     # As shipped: log level info (each request and each closed slow client is a line).
     argv = [sys.executable, "-m", "app.serve", "--port", str(port), "--data-dir", str(data_dir)]
@@ -97,16 +91,9 @@ def _start(repo: Path, data_dir: Path, port: int, nofile: int | None) -> Service
             _soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
             resource.setrlimit(resource.RLIMIT_NOFILE, (nofile, hard))
 
-    with open(log_path, "wb") as log:
-        process = subprocess.Popen(
-            argv,
-            cwd=repo,
-            env=env,
-            stdout=log,
-            stderr=subprocess.STDOUT,
-            start_new_session=True,
-            preexec_fn=limit_fds,
-        )
+    process = spawn_service(
+        argv, log_path=log_path, cwd=repo, env=service_env(repo), preexec_fn=limit_fds
+    )
     deadline = time.monotonic() + 300
     while time.monotonic() < deadline:
         if process.poll() is not None:
@@ -120,19 +107,10 @@ def _start(repo: Path, data_dir: Path, port: int, nofile: int | None) -> Service
     # Warm: the first requests import and cache what later ones use.
     for _ in range(20):
         asyncio.run(_get_health(port))
-    found = _KEY.search(log_path.read_text(errors="replace"))
-    if not found:
+    key = generated_key(log_path)
+    if not key:
         raise RuntimeError("serve printed no generated API key")
-    return Service(process, port, found.group(1), log_path)
-
-
-def _stop(service: Service) -> None:
-    service.process.send_signal(signal.SIGTERM)
-    try:
-        service.process.wait(60)
-    except subprocess.TimeoutExpired:
-        os.killpg(service.process.pid, signal.SIGKILL)
-        service.process.wait(10)
+    return Service(process, port, key, log_path)
 
 
 async def _get_health(port: int) -> tuple[int | None, str]:
@@ -394,7 +372,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="slow-clients-") as tmp:
         data_dir = Path(tmp) / "data"
         service = _start(
-            Path(args.repo).resolve(), data_dir, args.port or _free_port(), args.server_nofile
+            Path(args.repo).resolve(), data_dir, args.port or free_port(), args.server_nofile
         )
         try:
             phases = [("head", 0)] + [("head", n) for n in args.connections]
@@ -408,7 +386,7 @@ def main() -> None:
                 summaries.append(_summary(phase))
                 print(summaries[-1], flush=True)
         finally:
-            _stop(service)
+            stop_service(service.process)
     print()
     _print(summaries, args.hold_s)
     _write_json(args.json, args, {"phases": summaries})

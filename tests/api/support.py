@@ -1,14 +1,20 @@
-"""Helpers of the API tests: settings independent of the environment, a client wrapper."""
+"""Helpers of the API tests: settings independent of the environment, a client wrapper,
+and an app served by a real uvicorn server in a thread."""
 
 from __future__ import annotations
 
 import json
+import threading
+import time
 import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import uvicorn
 from fastapi import FastAPI
 from scenario_support import GOOD_SEQUENCE
 
@@ -21,7 +27,14 @@ with warnings.catch_warnings():
     warnings.simplefilter("ignore")
     from fastapi.testclient import TestClient
 
-__all__ = ["GOOD_SEQUENCE", "Api", "TestClient", "make_settings"]
+__all__ = [
+    "GOOD_SEQUENCE",
+    "Api",
+    "TestClient",
+    "keyed_app",
+    "make_settings",
+    "served_in_thread",
+]
 
 
 def make_settings(data_dir: Path, database_url: str, **overrides: Any) -> Settings:
@@ -44,6 +57,40 @@ def make_settings(data_dir: Path, database_url: str, **overrides: Any) -> Settin
     }
     values.update(overrides)
     return Settings(**values)
+
+
+def keyed_app(tmp_path: Path, api_key: str) -> FastAPI:
+    """The app on SQLite in ``tmp_path``, with ``api_key`` and no verdict process: for a
+    real server (:func:`served_in_thread`), to which test routes may be added."""
+    from app.main import create_app
+
+    settings = make_settings(
+        tmp_path / "data",
+        f"sqlite:///{tmp_path / 'inertia-id.db'}",
+        INERTIA_ID_API_KEY=api_key,
+        INERTIA_ID_VERDICT_PROCESS="off",
+    )
+    return create_app(settings)
+
+
+@contextmanager
+def served_in_thread(app: FastAPI, config: uvicorn.Config) -> Iterator[None]:
+    """``config``'s uvicorn server (serving ``app``) in a thread of this process, once it
+    has started; stopped at the end, and the app's broker and database closed."""
+    served = uvicorn.Server(config)
+    thread = threading.Thread(target=served.run, name="uvicorn under test", daemon=True)
+    thread.start()
+    deadline = time.monotonic() + 30
+    while not served.started:
+        assert thread.is_alive() and time.monotonic() < deadline, "uvicorn did not start"
+        time.sleep(0.02)
+    try:
+        yield
+    finally:
+        served.should_exit = True
+        thread.join(15)
+        app.state.celery.close()
+        app.state.db.dispose()
 
 
 @dataclass

@@ -9,8 +9,6 @@ its HTTP implementations) and one ``httpx.Client``.
 from __future__ import annotations
 
 import logging
-import threading
-import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -23,9 +21,7 @@ from service_support import free_port
 from starlette.background import BackgroundTask
 from starlette.types import ASGIApp, Receive, Scope, Send
 
-from app.main import create_app
-
-from .support import make_settings
+from .support import keyed_app, served_in_thread
 
 KEY = "keep-alive-test-key-0123456789"
 
@@ -48,13 +44,7 @@ class _OuterBoom:
 
 
 def _app(tmp_path: Path) -> FastAPI:
-    settings = make_settings(
-        tmp_path / "data",
-        f"sqlite:///{tmp_path / 'inertia-id.db'}",
-        INERTIA_ID_API_KEY=KEY,
-        INERTIA_ID_VERDICT_PROCESS="off",
-    )
-    app = create_app(settings)
+    app = keyed_app(tmp_path, KEY)
 
     # Test-only routes, added to the app as built.
     async def boom() -> None:
@@ -86,20 +76,8 @@ def server(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[str]:
     config = uvicorn.Config(
         app, host="127.0.0.1", port=port, http=request.param, lifespan="off", log_level="info"
     )
-    served = uvicorn.Server(config)
-    thread = threading.Thread(target=served.run, name="uvicorn under test", daemon=True)
-    thread.start()
-    deadline = time.monotonic() + 30
-    while not served.started:
-        assert thread.is_alive() and time.monotonic() < deadline, "uvicorn did not start"
-        time.sleep(0.02)
-    try:
+    with served_in_thread(app, config):
         yield f"http://127.0.0.1:{port}"
-    finally:
-        served.should_exit = True
-        thread.join(15)
-        app.state.celery.close()
-        app.state.db.dispose()
 
 
 def _port(client: httpx.Client) -> int:

@@ -17,7 +17,6 @@ import json
 import socket
 import subprocess
 import sys
-import threading
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -25,14 +24,12 @@ from pathlib import Path
 
 import httpx
 import pytest
-import uvicorn
 from fastapi import Request
 from service_support import clean_env, free_port, tail, wait_for
 
-from app.main import create_app
 from app.request_deadlines import ServerConfig
 
-from .support import make_settings
+from .support import keyed_app, served_in_thread
 
 KEY = "slow-clients-test-key-0123456789"
 #: How long a connection the server should close is given to close: far past the
@@ -47,13 +44,7 @@ class Served:
 
 
 def _serve(tmp_path: Path, http: str, head_s: float, body_s: float) -> Iterator[Served]:
-    settings = make_settings(
-        tmp_path / "data",
-        f"sqlite:///{tmp_path / 'inertia-id.db'}",
-        INERTIA_ID_API_KEY=KEY,
-        INERTIA_ID_VERDICT_PROCESS="off",
-    )
-    app = create_app(settings)
+    app = keyed_app(tmp_path, KEY)
 
     async def body_size(request: Request) -> dict[str, int]:
         return {"size": len(await request.body())}
@@ -76,20 +67,8 @@ def _serve(tmp_path: Path, http: str, head_s: float, body_s: float) -> Iterator[
         request_head_timeout_s=head_s,
         request_body_timeout_s=body_s,
     )
-    served = uvicorn.Server(config)
-    thread = threading.Thread(target=served.run, name="uvicorn under test", daemon=True)
-    thread.start()
-    deadline = time.monotonic() + 30
-    while not served.started:
-        assert thread.is_alive() and time.monotonic() < deadline, "uvicorn did not start"
-        time.sleep(0.02)
-    try:
+    with served_in_thread(app, config):
         yield Served(port)
-    finally:
-        served.should_exit = True
-        thread.join(15)
-        app.state.celery.close()
-        app.state.db.dispose()
 
 
 @pytest.fixture(params=["h11", "httptools"])
