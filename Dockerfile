@@ -20,5 +20,5 @@ ENV INERTIA_ID_DATA_DIR=/data INERTIA_ID_FRONTEND_DIR=/srv/inertia-id/frontend
 
 EXPOSE 8000
 # The API; migrations are applied when it starts. The worker overrides the command.
-# --http: uvicorn's protocol with read deadlines (slow clients are closed; app/request_deadlines.py).
+# --http: uvicorn's protocol with read deadlines and request-head limits (app/request_deadlines.py).
 CMD ["uvicorn", "app.main:create_app", "--factory", "--http", "app.request_deadlines:HttpToolsWithDeadlines", "--host", "0.0.0.0", "--port", "8000"]

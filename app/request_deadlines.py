@@ -25,15 +25,29 @@ connection may be read by the client as the answer to the request it is sending 
 then). A request whose body is cut short sees ``http.disconnect``, as when a client goes
 away. Nothing changes once a request has been received: a slow computation or a slow
 reader of the response is not timed here.
+
+The request head has limits too, which uvicorn lacks: httptools (llhttp) takes any
+number of header fields of any size, and h11 refuses only a head still incomplete past
+``h11_max_incomplete_event_size`` (16 KiB; a larger head that arrives in one read is
+taken whole, and the refusal is a 400). Measured (``bench/header_limits.py``): 10,000
+header fields, or one of 16 MB sent at once, were answered 200 by httptools, ten such
+16 MB heads at once adding 181 MB to the API process. Here a head with more than
+``request_header_max_count`` fields, or more than ``request_header_max_bytes`` bytes (its
+target and header fields), is answered **431** (Request Header Fields Too Large, RFC
+6585) with a body naming the limit, and its connection closed; no part of the app sees
+it. A field still arriving counts as it arrives: memory held for a head stays within the
+limit and one read of the socket (about 256 KB).
 """
 
 from __future__ import annotations
 
 import asyncio
+import json
 import logging
 from collections.abc import Callable
 from typing import Any, Literal
 
+import h11
 import uvicorn
 from uvicorn.config import HTTPProtocolType
 from uvicorn.protocols.http.flow_control import FlowControl
@@ -43,7 +57,13 @@ from uvicorn.server import ServerState
 
 from service.config import get_settings
 
-__all__ = ["H11WithDeadlines", "HttpToolsWithDeadlines", "ServerConfig", "protocol_class"]
+__all__ = [
+    "H11WithDeadlines",
+    "HeadLimits",
+    "HttpToolsWithDeadlines",
+    "ServerConfig",
+    "protocol_class",
+]
 
 logger = logging.getLogger("uvicorn.error")
 
@@ -53,7 +73,8 @@ BODY_PROGRESS_BYTES = 1024
 
 
 class ServerConfig(uvicorn.Config):
-    """uvicorn's ``Config`` with the two read deadlines and the protocol that keeps them.
+    """uvicorn's ``Config`` with the two read deadlines, the limits on a request head and
+    the protocol that keeps them.
 
     A class of its own (not attributes set on a ``Config``) so that it travels whole to
     the API processes of ``--api-workers`` > 1, which receive the config pickled.
@@ -62,6 +83,10 @@ class ServerConfig(uvicorn.Config):
         connection's start or the previous response (s).
     :param request_body_timeout_s: longest a request body being read may take to bring
         :data:`BODY_PROGRESS_BYTES` more, or its end (s).
+    :param request_header_max_count: most header fields a request head may have (None:
+        the settings', ``INERTIA_ID_REQUEST_HEADER_MAX_COUNT``).
+    :param request_header_max_bytes: most bytes a request head may have, its target and
+        header fields (None: the settings', ``INERTIA_ID_REQUEST_HEADER_MAX_BYTES``).
     :param http: which of uvicorn's HTTP implementations to extend: ``auto`` (httptools,
         as uvicorn picks it when installed), ``httptools`` or ``h11``.
     """
@@ -72,6 +97,8 @@ class ServerConfig(uvicorn.Config):
         *,
         request_head_timeout_s: float,
         request_body_timeout_s: float,
+        request_header_max_count: int | None = None,
+        request_header_max_bytes: int | None = None,
         http: Literal["auto", "h11", "httptools"] = "auto",
         **options: Any,
     ) -> None:
@@ -81,9 +108,54 @@ class ServerConfig(uvicorn.Config):
         ):
             if not value > 0:
                 raise ValueError(f"{name} must be > 0 s, got {value!r}")
+        if request_header_max_count is None:
+            request_header_max_count = get_settings().request_header_max_count
+        if request_header_max_bytes is None:
+            request_header_max_bytes = get_settings().request_header_max_bytes
+        self.header_limits = HeadLimits(request_header_max_count, request_header_max_bytes)
         super().__init__(app, http=protocol_class(http), **options)
         self.request_head_timeout_s = float(request_head_timeout_s)
         self.request_body_timeout_s = float(request_body_timeout_s)
+
+
+class HeadLimits:
+    """The limits on one request head: ``max_count`` header fields, ``max_bytes`` bytes
+    (the request target and each field's name and value, and 4 for its ``": "`` and
+    CRLF)."""
+
+    def __init__(self, max_count: int, max_bytes: int) -> None:
+        if not (isinstance(max_count, int) and max_count >= 1):
+            raise ValueError(f"request_header_max_count must be >= 1, got {max_count!r}")
+        if not (isinstance(max_bytes, int) and max_bytes >= 1):
+            raise ValueError(f"request_header_max_bytes must be >= 1, got {max_bytes!r}")
+        self.max_count = max_count
+        self.max_bytes = max_bytes
+
+    def too_many_bytes(self) -> str:
+        return (
+            f"the request head is over {self.max_bytes} bytes (the limit: "
+            f"INERTIA_ID_REQUEST_HEADER_MAX_BYTES={self.max_bytes})"
+        )
+
+    def exceeded(self, count: int, size: int) -> str | None:
+        """Why a head of ``count`` fields and ``size`` bytes is refused (None: it is not)."""
+        if count > self.max_count:
+            return (
+                f"the request head has more than {self.max_count} header fields (the limit: "
+                f"INERTIA_ID_REQUEST_HEADER_MAX_COUNT={self.max_count})"
+            )
+        if size > self.max_bytes:
+            return self.too_many_bytes()
+        return None
+
+
+def field_bytes(name: bytes, value: bytes) -> int:
+    """What one header field counts towards :attr:`HeadLimits.max_bytes`."""
+    return len(name) + len(value) + 4
+
+
+class _HeadTooLarge(Exception):
+    """Raised in a parser callback to stop parsing a head past its limits."""
 
 
 class _ResumableFlow(FlowControl):
@@ -205,11 +277,14 @@ class _Deadlines:
 
 
 class _WithDeadlines:
-    """The read deadlines of :class:`ServerConfig` on one of uvicorn's HTTP protocols:
-    mixed in before it (``class X(_WithDeadlines, H11Protocol)``), each hook calls the
-    protocol's own and then tells the connection's :class:`_Deadlines`."""
+    """The read deadlines and head limits of :class:`ServerConfig` on one of uvicorn's
+    HTTP protocols: mixed in before it (``class X(_WithDeadlines, H11Protocol)``), each
+    hook calls the protocol's own and then tells the connection's :class:`_Deadlines`."""
 
     cycle: Any
+    transport: asyncio.Transport
+    client: tuple[str, int] | None
+    server_state: ServerState
 
     def __init__(
         self,
@@ -220,6 +295,9 @@ class _WithDeadlines:
     ) -> None:
         super().__init__(config, server_state, app_state, _loop)  # type: ignore[call-arg]
         self.deadlines = _Deadlines(self, config)
+        self.head_limits = _head_limits(config)
+        #: Why the current request head was refused (None: it was not).
+        self.head_refused: str | None = None
 
     def connection_made(self, transport: asyncio.Transport) -> None:
         super().connection_made(transport)  # type: ignore[misc]
@@ -238,14 +316,140 @@ class _WithDeadlines:
         self.deadlines.stop()
         super().connection_lost(exc)  # type: ignore[misc]
 
+    def send_400_response(self, msg: str) -> None:
+        """uvicorn's answer to a head its parser refused: a 431 where a limit stopped
+        the parser (:attr:`head_refused` says which), else uvicorn's own 400."""
+        if self.head_refused is None:
+            super().send_400_response(msg)  # type: ignore[misc]
+        else:
+            self.answer_431(self.head_refused)
+
+    def answer_431(self, why: str) -> None:
+        """Answer 431 with ``why`` (the body, as the API's errors: ``{"detail": why}``)
+        and close the connection."""
+        self.deadlines.stop()
+        if self.transport.is_closing():
+            return
+        peer = f"{self.client[0]}:{self.client[1]}" if self.client else "a client"
+        logger.warning("answered 431 to %s: %s", peer, why)
+        body = json.dumps({"detail": why}).encode()
+        head = [b"HTTP/1.1 431 Request Header Fields Too Large\r\n"]
+        for name, value in self.server_state.default_headers:
+            head.append(name + b": " + value + b"\r\n")
+        head.append(b"content-type: application/json\r\n")
+        head.append(b"content-length: %d\r\nconnection: close\r\n\r\n" % len(body))
+        self.transport.write(b"".join(head) + body)
+        self.transport.close()
+
 
 # (uvicorn types connection_made's transport narrower than asyncio's BaseProtocol does.)
 class H11WithDeadlines(_WithDeadlines, H11Protocol):  # type: ignore[misc]
-    """uvicorn's h11 protocol with the read deadlines of :class:`ServerConfig`."""
+    """uvicorn's h11 protocol with the read deadlines and head limits of
+    :class:`ServerConfig`.
+
+    h11 refuses a head still incomplete past its ``max_incomplete_event_size``: set here
+    to the byte limit (whatever ``h11_max_incomplete_event_size`` says), its refusal
+    becomes a 431; a complete head (one that came in one read) is checked as parsed."""
+
+    def __init__(
+        self,
+        config: uvicorn.Config,
+        server_state: ServerState,
+        app_state: dict[str, Any],
+        _loop: asyncio.AbstractEventLoop | None = None,
+    ) -> None:
+        super().__init__(config, server_state, app_state, _loop)
+        self.conn = _LimitedH11Connection(self)
+
+
+class _LimitedH11Connection(h11.Connection):
+    """h11's server side, refusing heads past the limits of ``protocol``."""
+
+    def __init__(self, protocol: H11WithDeadlines) -> None:
+        super().__init__(h11.SERVER, max_incomplete_event_size=protocol.head_limits.max_bytes)
+        self._protocol = protocol
+
+    def next_event(self) -> Any:
+        limits = self._protocol.head_limits
+        in_head = self.their_state is h11.IDLE
+        try:
+            event = super().next_event()
+        except h11.RemoteProtocolError as exc:
+            if in_head and exc.error_status_hint == 431:  # h11's "Receive buffer too long"
+                self._protocol.head_refused = limits.too_many_bytes()
+            raise
+        if isinstance(event, h11.Request):
+            size = len(event.target) + sum(field_bytes(n, v) for n, v in event.headers)
+            why = limits.exceeded(len(event.headers), size)
+            if why is not None:
+                # uvicorn answers it with send_400_response: a 431 there.
+                self._protocol.head_refused = why
+                raise h11.RemoteProtocolError(why, error_status_hint=431)
+        return event
 
 
 class HttpToolsWithDeadlines(_WithDeadlines, HttpToolsProtocol):  # type: ignore[misc]
-    """uvicorn's httptools protocol with the read deadlines of :class:`ServerConfig`."""
+    """uvicorn's httptools protocol with the read deadlines and head limits of
+    :class:`ServerConfig`.
+
+    llhttp has no limit of its own. Each field is counted as the parser hands it over
+    (a callback raising stops the parser, and uvicorn answers with send_400_response: a
+    431 there); a field still arriving is counted by the bytes read while its head is
+    open, from the read after the one that began the head (whose share of the read is
+    unknown: a read may end a request's body and begin the next head)."""
+
+    def __init__(
+        self,
+        config: uvicorn.Config,
+        server_state: ServerState,
+        app_state: dict[str, Any],
+        _loop: asyncio.AbstractEventLoop | None = None,
+    ) -> None:
+        super().__init__(config, server_state, app_state, _loop)
+        #: Heads begun on this connection; whether the last one is still open.
+        self._heads = 0
+        self._head_open = False
+        #: The current head's fields and bytes as parsed, and the bytes of the reads
+        #: that began and ended inside it.
+        self._head_count = 0
+        self._head_bytes = 0
+        self._head_read = 0
+
+    def data_received(self, data: bytes) -> None:
+        head, was_open = self._heads, self._head_open
+        super().data_received(data)
+        if was_open and self._head_open and self._heads == head:
+            self._head_read += len(data)
+            if self._head_read > self.head_limits.max_bytes:
+                self.answer_431(self.head_limits.too_many_bytes())
+
+    def on_message_begin(self) -> None:
+        super().on_message_begin()
+        self._heads += 1
+        self._head_open = True
+        self._head_count = self._head_bytes = self._head_read = 0
+        self.head_refused = None
+
+    def on_url(self, url: bytes) -> None:
+        super().on_url(url)
+        self._head_bytes += len(url)
+        self._check_head()
+
+    def on_header(self, name: bytes, value: bytes) -> None:
+        super().on_header(name, value)
+        self._head_count += 1
+        self._head_bytes += field_bytes(name, value)
+        self._check_head()
+
+    def on_headers_complete(self) -> None:
+        self._head_open = False
+        super().on_headers_complete()
+
+    def _check_head(self) -> None:
+        why = self.head_limits.exceeded(self._head_count, self._head_bytes)
+        if why is not None:
+            self.head_refused = why
+            raise _HeadTooLarge(why)
 
 
 def _timeouts(config: uvicorn.Config) -> tuple[float, float]:
@@ -256,6 +460,15 @@ def _timeouts(config: uvicorn.Config) -> tuple[float, float]:
         return config.request_head_timeout_s, config.request_body_timeout_s
     settings = get_settings()
     return settings.request_head_timeout_s, settings.request_body_timeout_s
+
+
+def _head_limits(config: uvicorn.Config) -> HeadLimits:
+    """The limits on a request head: a :class:`ServerConfig`'s, else the settings'
+    (``INERTIA_ID_REQUEST_HEADER_MAX_COUNT``, ``INERTIA_ID_REQUEST_HEADER_MAX_BYTES``)."""
+    if isinstance(config, ServerConfig):
+        return config.header_limits
+    settings = get_settings()
+    return HeadLimits(settings.request_header_max_count, settings.request_header_max_bytes)
 
 
 def protocol_class(http: HTTPProtocolType | str = "auto") -> type[asyncio.Protocol]:

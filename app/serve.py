@@ -475,6 +475,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             "timeout_graceful_shutdown": API_GRACE_S,
             "request_head_timeout_s": settings.request_head_timeout_s,
             "request_body_timeout_s": settings.request_body_timeout_s,
+            "request_header_max_count": settings.request_header_max_count,
+            "request_header_max_bytes": settings.request_header_max_bytes,
         }
         if args.api_workers == 1:
             uvicorn.Server(ServerConfig(create_app(settings), **options)).run()

@@ -37,7 +37,21 @@ class Settings(BaseSettings):
     request_head_timeout_s: float = Field(
         default=10.0, gt=0, allow_inf_nan=False, alias="INERTIA_ID_REQUEST_HEAD_TIMEOUT_S"
     )
-    #: ... and one whose request body brings less than 1 KiB (and does not end) in this
+    #: A request head with more header fields than this, or more bytes (its target and
+    #: header fields) is answered 431 and its connection closed (``app.request_deadlines``;
+    #: uvicorn's httptools has no limit at all, its h11 only 16 KiB on a head still
+    #: incomplete). 100 fields: gunicorn's ``limit_request_fields`` and Apache's
+    #: ``LimitRequestFields`` (both 100 by default); 16 KiB: uvicorn's own
+    #: ``h11_max_incomplete_event_size``, between gunicorn's 8,190 bytes a field and
+    #: nginx's 32 KiB a head (``large_client_header_buffers 4 8k``). A browser's request
+    #: to the API or the dashboard has about 15 fields and 1-2 KB.
+    request_header_max_count: int = Field(
+        default=100, ge=1, alias="INERTIA_ID_REQUEST_HEADER_MAX_COUNT"
+    )
+    request_header_max_bytes: int = Field(
+        default=16_384, ge=1024, alias="INERTIA_ID_REQUEST_HEADER_MAX_BYTES"
+    )
+    #: A connection whose request body brings less than 1 KiB (and does not end) in this
     #: long: a slow but steady upload is never cut, a byte every few seconds is.
     request_body_timeout_s: float = Field(
         default=20.0, gt=0, allow_inf_nan=False, alias="INERTIA_ID_REQUEST_BODY_TIMEOUT_S"

@@ -4,6 +4,8 @@ and an app served by a real uvicorn server in a thread."""
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 import threading
 import time
 import warnings
@@ -13,10 +15,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import httpx
 import numpy as np
 import uvicorn
 from fastapi import FastAPI
 from scenario_support import GOOD_SEQUENCE
+from service_support import clean_env, free_port, tail, wait_for
 
 from inertia_id import InertiaClassifier
 from service.config import Settings
@@ -33,6 +37,7 @@ __all__ = [
     "TestClient",
     "keyed_app",
     "make_settings",
+    "serve_api_only",
     "served_in_thread",
 ]
 
@@ -91,6 +96,39 @@ def served_in_thread(app: FastAPI, config: uvicorn.Config) -> Iterator[None]:
         thread.join(15)
         app.state.celery.close()
         app.state.db.dispose()
+
+
+@contextmanager
+def serve_api_only(root: Path, api_workers: int, **env: str) -> Iterator[tuple[int, Path]]:
+    """``python -m app.serve`` as shipped but with no workers (``--workers 0``) and
+    ``api_workers`` API processes, data in ``root/data``, ``env`` added to a clean
+    environment; its port and log file once ``/health`` answers 200. SIGTERM at the end
+    (SIGKILL, and a failure, when that is ignored for 40 s)."""
+    port = free_port()
+    log = root / "serve.log"
+    argv = [sys.executable, "-m", "app.serve", "--port", str(port), "--data-dir", "data"]
+    argv += ["--workers", "0", "--api-workers", str(api_workers)]
+    with open(log, "wb") as out:
+        server = subprocess.Popen(
+            argv, env=clean_env(**env), cwd=root, stdout=out, stderr=subprocess.STDOUT
+        )
+    try:
+
+        def healthy() -> bool:
+            try:
+                return httpx.get(f"http://127.0.0.1:{port}/health", timeout=5).status_code == 200
+            except httpx.TransportError:
+                return False
+
+        wait_for(healthy, 90, "serve did not answer /health", lambda: tail(log))
+        yield port, log
+    finally:
+        server.terminate()
+        try:
+            server.wait(40)
+        except subprocess.TimeoutExpired:
+            server.kill()
+            raise
 
 
 @dataclass

@@ -15,8 +15,6 @@ from __future__ import annotations
 import asyncio
 import json
 import socket
-import subprocess
-import sys
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -25,11 +23,11 @@ from pathlib import Path
 import httpx
 import pytest
 from fastapi import Request
-from service_support import clean_env, free_port, tail, wait_for
+from service_support import free_port
 
 from app.request_deadlines import ServerConfig
 
-from .support import keyed_app, served_in_thread
+from .support import keyed_app, serve_api_only, served_in_thread
 
 KEY = "slow-clients-test-key-0123456789"
 #: How long a connection the server should close is given to close: far past the
@@ -216,23 +214,9 @@ def test_serve_closes_slow_heads_with_one_api_process_and_with_two(
     """``python -m app.serve`` as shipped (no workers needed here), with
     ``INERTIA_ID_REQUEST_HEAD_TIMEOUT_S=1``: slow heads are closed whichever API process
     accepted them, and a normal request still works."""
-    port = free_port()
-    log = tmp_path / "serve.log"
-    argv = [sys.executable, "-m", "app.serve", "--port", str(port), "--data-dir", "data"]
-    argv += ["--workers", "0", "--api-workers", str(api_workers)]
-    env = clean_env(INERTIA_ID_REQUEST_HEAD_TIMEOUT_S="1", INERTIA_ID_VERDICT_PROCESS="off")
-    with open(log, "wb") as out:
-        server = subprocess.Popen(argv, env=env, cwd=tmp_path, stdout=out, stderr=subprocess.STDOUT)
-    try:
+    env = {"INERTIA_ID_REQUEST_HEAD_TIMEOUT_S": "1", "INERTIA_ID_VERDICT_PROCESS": "off"}
+    with serve_api_only(tmp_path, api_workers, **env) as (port, log):
         base = f"http://127.0.0.1:{port}"
-
-        def healthy() -> bool:
-            try:
-                return httpx.get(f"{base}/health", timeout=5).status_code == 200
-            except httpx.TransportError:
-                return False
-
-        wait_for(healthy, 90, "serve did not answer /health", lambda: tail(log))
         # Several, to whichever API process accepts each.
         slow = [_connect(port) for _ in range(8)]
         try:
@@ -246,10 +230,3 @@ def test_serve_closes_slow_heads_with_one_api_process_and_with_two(
         answer = httpx.get(f"{base}/health", timeout=30)
         assert answer.status_code == 200 and "status" in json.loads(answer.text)
         assert "no complete request head within 1 s" in log.read_text()
-    finally:
-        server.terminate()
-        try:
-            server.wait(40)
-        except subprocess.TimeoutExpired:
-            server.kill()
-            raise

@@ -1,0 +1,215 @@
+"""A request head past the limits on its header fields is answered 431, and closed.
+
+uvicorn's httptools took any number of header fields of any size (10,000 fields, or one
+of 16 MB, answered 200), and its h11 refused only a head still incomplete past 16 KiB,
+with a 400 (a larger one that came in one read went through). Here with a real uvicorn
+server (both of its HTTP implementations: ``app.request_deadlines``' ServerConfig, and
+uvicorn's own Config with the protocol class, as the Dockerfile's command runs it) and
+raw sockets, and through ``python -m app.serve`` with two API processes.
+
+No timing is asserted: an answer or a close is waited for with a generous bound.
+"""
+
+from __future__ import annotations
+
+import json
+import socket
+from collections.abc import Iterator
+from pathlib import Path
+
+import httpx
+import pytest
+import uvicorn
+from pydantic import ValidationError
+from service_support import free_port
+
+from app.request_deadlines import H11WithDeadlines, HttpToolsWithDeadlines, ServerConfig
+from service.config import get_settings
+
+from .support import keyed_app, make_settings, serve_api_only, served_in_thread
+
+KEY = "header-limits-test-key-0123456789"
+#: How long a client waits for the answer and the close (s): far past what they take.
+WAIT_S = 30.0
+PROTOCOLS = {"h11": H11WithDeadlines, "httptools": HttpToolsWithDeadlines}
+
+
+@pytest.fixture(params=["h11", "httptools"])
+def port(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[int]:
+    """The app under ServerConfig in a thread, with the default limits (100 fields,
+    16 KiB); its port."""
+    app = keyed_app(tmp_path, KEY)
+    port = free_port()
+    config = ServerConfig(
+        app,
+        host="127.0.0.1",
+        port=port,
+        http=request.param,
+        lifespan="off",
+        log_level="info",
+        request_head_timeout_s=10.0,
+        request_body_timeout_s=10.0,
+    )
+    with served_in_thread(app, config):
+        yield port
+
+
+def _head(fields: list[bytes]) -> bytes:
+    """A ``GET /health`` head with a Host field and ``fields`` (whole lines, CRLF
+    included)."""
+    return b"GET /health HTTP/1.1\r\nHost: 127.0.0.1\r\n" + b"".join(fields) + b"\r\n"
+
+
+def _small_fields(count: int) -> list[bytes]:
+    return [b"X-Field-%04d: value\r\n" % i for i in range(count)]
+
+
+def _answer_and_close(sock: socket.socket) -> bytes:
+    """All the server sends until it closes the connection (a reset after its answer,
+    the client still sending, counts as a close). Fails if it stays open."""
+    sock.settimeout(WAIT_S)
+    received = b""
+    while True:
+        try:
+            data = sock.recv(65536)
+        except ConnectionResetError:
+            return received
+        except TimeoutError:
+            raise AssertionError(f"the server kept the connection open for {WAIT_S} s") from None
+        if not data:
+            return received
+        received += data
+
+
+def _send(port: int, request: bytes) -> bytes:
+    """Send ``request`` at once; what the server answered before it closed."""
+    with socket.create_connection(("127.0.0.1", port), timeout=WAIT_S) as sock:
+        try:
+            sock.sendall(request)
+        except (BrokenPipeError, ConnectionResetError):
+            pass  # answered and closed before the whole head was sent
+        return _answer_and_close(sock)
+
+
+def _assert_431(answer: bytes, *limits: str) -> None:
+    """``answer`` is a 431 whose detail names one of ``limits``, and says it closes."""
+    head, _, body = answer.partition(b"\r\n\r\n")
+    assert head.startswith(b"HTTP/1.1 431 Request Header Fields Too Large\r\n"), answer[:300]
+    assert b"\r\nconnection: close" in head.lower()
+    detail = json.loads(body)["detail"]
+    assert any(limit in detail for limit in limits), detail
+
+
+def _health(port: int) -> None:
+    answer = httpx.get(f"http://127.0.0.1:{port}/health", timeout=WAIT_S)
+    assert answer.status_code == 200, answer.text
+
+
+def test_more_header_fields_than_the_limit_is_a_431(port: int) -> None:
+    # 101 fields (Host and 100 more), about 2 KB: the count's limit, not the size's.
+    answer = _send(port, _head(_small_fields(100)))
+    _assert_431(answer, "INERTIA_ID_REQUEST_HEADER_MAX_COUNT=100")
+    _health(port)
+
+
+def test_10000_header_fields_are_a_431(port: int) -> None:
+    """About 220 KB: refused for its count or for its size, whichever the server meets
+    first (h11 and a first read short of the whole head: the size)."""
+    answer = _send(port, _head(_small_fields(10_000)))
+    _assert_431(
+        answer,
+        "INERTIA_ID_REQUEST_HEADER_MAX_COUNT=100",
+        "INERTIA_ID_REQUEST_HEADER_MAX_BYTES=16384",
+    )
+    _health(port)
+
+
+def test_a_head_over_16_kib_sent_at_once_is_a_431(port: int) -> None:
+    """20 KB in a few fields (under the count), one read on the loopback: h11's own
+    limit is only on a head still incomplete."""
+    fields = [b"X-Big-%d: %s\r\n" % (i, b"b" * 5000) for i in range(4)]
+    answer = _send(port, _head(fields))
+    _assert_431(answer, "INERTIA_ID_REQUEST_HEADER_MAX_BYTES=16384")
+    _health(port)
+
+
+def test_one_1_mb_header_sent_in_pieces_is_a_431(port: int) -> None:
+    """A single field of 1 MB, sent 64 KiB at a time (as fast as the socket takes it):
+    refused while it arrives, not once it is whole."""
+    with socket.create_connection(("127.0.0.1", port), timeout=WAIT_S) as sock:
+        sock.sendall(b"GET /health HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Big: ")
+        try:
+            for _ in range(16):
+                sock.sendall(b"a" * 65536)
+            sock.sendall(b"\r\n\r\n")
+        except (BrokenPipeError, ConnectionResetError):
+            pass  # answered and closed on the way
+        answer = _answer_and_close(sock)
+    _assert_431(answer, "INERTIA_ID_REQUEST_HEADER_MAX_BYTES=16384")
+    _health(port)
+
+
+def test_a_head_at_the_limits_goes_through_and_keeps_its_connection(port: int) -> None:
+    """100 fields (Host and 99 more) and close to 16 KiB: answered, and the connection
+    stays open for the next request."""
+    fields = [*_small_fields(98), b"X-Pad: " + b"p" * 14_250 + b"\r\n"]
+    request = _head(fields)
+    assert 16_300 < len(request) <= 16_384
+    with socket.create_connection(("127.0.0.1", port), timeout=WAIT_S) as sock:
+        for _ in range(2):
+            sock.sendall(request)
+            answer = b""
+            while b'"status"' not in answer:
+                data = sock.recv(65536)
+                assert data, f"the server closed the connection: {answer!r}"
+                answer += data
+            assert answer.startswith(b"HTTP/1.1 200 OK\r\n"), answer[:300]
+
+
+@pytest.mark.parametrize("http", ["h11", "httptools"])
+def test_uvicorns_own_config_takes_the_limits_from_the_settings(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, http: str
+) -> None:
+    """The Dockerfile's command (``uvicorn --http app.request_deadlines:...``) has no
+    ServerConfig: the limits are the settings', INERTIA_ID_REQUEST_HEADER_MAX_COUNT here."""
+    monkeypatch.setenv("INERTIA_ID_REQUEST_HEADER_MAX_COUNT", "10")
+    get_settings.cache_clear()
+    try:
+        app = keyed_app(tmp_path, KEY)
+        port = free_port()
+        config = uvicorn.Config(
+            app,
+            host="127.0.0.1",
+            port=port,
+            http=PROTOCOLS[http],
+            lifespan="off",
+            log_level="info",
+        )
+        with served_in_thread(app, config):
+            _health(port)  # Host and a few of httpx's own: under 10
+            answer = _send(port, _head(_small_fields(10)))
+            _assert_431(answer, "INERTIA_ID_REQUEST_HEADER_MAX_COUNT=10")
+    finally:
+        monkeypatch.delenv("INERTIA_ID_REQUEST_HEADER_MAX_COUNT")
+        get_settings.cache_clear()
+
+
+@pytest.mark.parametrize(
+    ("variable", "value"),
+    [("INERTIA_ID_REQUEST_HEADER_MAX_COUNT", 0), ("INERTIA_ID_REQUEST_HEADER_MAX_BYTES", 1023)],
+)
+def test_a_limit_below_its_bound_is_refused(tmp_path: Path, variable: str, value: int) -> None:
+    with pytest.raises(ValidationError, match=variable):
+        make_settings(tmp_path, "sqlite://", **{variable: value})
+
+
+def test_serve_with_two_api_processes_answers_431(tmp_path: Path) -> None:
+    """``python -m app.serve`` as shipped (no workers needed here) with
+    ``INERTIA_ID_REQUEST_HEADER_MAX_BYTES=2048``: the limit reaches each API process."""
+    env = {"INERTIA_ID_REQUEST_HEADER_MAX_BYTES": "2048", "INERTIA_ID_VERDICT_PROCESS": "off"}
+    with serve_api_only(tmp_path, 2, **env) as (port, log):
+        for _ in range(4):  # to whichever API process accepts each
+            answer = _send(port, _head([b"X-Big: " + b"b" * 3000 + b"\r\n"]))
+            _assert_431(answer, "INERTIA_ID_REQUEST_HEADER_MAX_BYTES=2048")
+        _health(port)
+        assert "answered 431 to 127.0.0.1:" in log.read_text()
