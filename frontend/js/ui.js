@@ -42,8 +42,8 @@ export function clear(node) {
 }
 
 // The decimals that show `significant` significant digits of `value` (0 where its
-// integer digits already do).
-function decimalsFor(value, significant) {
+// integer digits already do): with 1, the decimals that resolve a step of `value`.
+export function decimalsFor(value, significant) {
   const abs = Math.abs(value);
   if (abs === 0 || !Number.isFinite(abs)) return 0;
   return Math.max(0, significant - 1 - Math.floor(Math.log10(abs)));

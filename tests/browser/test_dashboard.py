@@ -1147,6 +1147,87 @@ def test_identify_shows_the_dropouts_judged_across_and_the_part_covered(
     assert page.query_selector("#telemetry-gaps") is None
 
 
+def _mean_rate_text(text: str) -> tuple[str, str]:
+    """ "X deg/s (Y rad/s)" as (X, Y)."""
+    match = re.fullmatch(r"(\S+) deg/s \((\S+) rad/s\)", text)
+    assert match, text
+    return match.group(1), match.group(2)
+
+
+def _thousand_hz(clock_s: float = 0.0) -> tuple[Any, Any]:
+    """Candidate 3's flight (GOOD) as a 1 kHz gyro writes it, its stamps ``clock_s``
+    later: the 20 Hz realisation interpolated onto every millisecond, the samples from
+    1.003 s to 2.017 s lost."""
+    times, omega = _flight(Scenario.paper(), 44)
+    fine = np.arange(1, round(times[-1] * 1000) + 1) / 1000
+    rates = np.stack([np.interp(fine, times, omega[3][:, a]) for a in range(3)], axis=-1)
+    kept = (fine <= 1.003 + 1e-9) | (fine >= 2.017 - 1e-9)
+    return fine[kept] + clock_s, rates[kept]
+
+
+def test_identify_gives_a_1_khz_gyros_times_to_its_sample_period(dashboard: Dashboard) -> None:
+    """A 1 kHz gyro's dropout, the start used and the decision time to the millisecond
+    its samples resolve: two decimals wrote the gap from 1.003 s to 2.017 s (1.014 s) as
+    1.01 s (1.00–2.02 s), and a stated start of 810000000 as 810000000."""
+    _classifier(dashboard)
+    page = dashboard.page
+    text = _csv_text(*_thousand_hz())
+    expected = _api_verdict(dashboard, text)
+    (gap,) = expected["telemetry_gaps"]
+    assert (gap["from_s"], gap["to_s"]) == (pytest.approx(1.003), pytest.approx(2.017))
+    dashboard.open(f"#/identify?classifier={made['classifier']}")
+    _identify(dashboard, text)
+    spans = page.inner_text("#telemetry-gaps").split("; ")[0]
+    assert spans == f"{gap['length_s']:.3f} s ({gap['from_s']:.3f}–{gap['to_s']:.3f} s)"
+    # The posterior over time: its decision time to the millisecond too.
+    summary = page.wait_for_selector("#online-summary", timeout=60_000).inner_text()
+    partial = _api_verdict(dashboard, text, path="/identify/partial", confidence="0.99")
+    if partial["decided"]:
+        assert f" at {partial['decision_time_s']:.3f} s " in summary, summary
+    else:
+        assert f"within {partial['covers_s']:.3f} s" in summary, summary
+
+    # On a mission clock, the stated start to the telemetry's millisecond.
+    mission = _csv_text(*_thousand_hz(clock_s=810_000_000.0))
+    _identify(dashboard, mission, start="810000000")
+    assert page.inner_text("#start-used") == "810000000.000 (as stated)"
+    spans = page.inner_text("#telemetry-gaps").split("; ")[0]
+    assert spans.endswith("(1.003–2.017 s)"), spans
+
+
+def test_identify_writes_dimensionless_figures_without_trailing_zeros(
+    dashboard: Dashboard,
+) -> None:
+    """The condition number, the margins and the distances to three significant digits
+    with no padding: fmt's fixed decimals wrote a condition number of 12.5 as 12.500 and a
+    margin of 0.25 as 0.250."""
+    _identify_with(
+        dashboard,
+        {
+            "estimated_inertia_kg_m2": [[15, 0.5, -0.3], [0.5, 12, 0], [-0.3, 0, 10]],
+            "estimated_inertia_std_kg_m2": {
+                k: 0.01 for k in ("Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz")
+            },
+            "estimated_principal_moments_kg_m2": [9.96, 11.9, 15.1],
+            "estimate_condition_number": 12.5,
+            "margin": 0.25,
+            "relative_margin": 3.0,
+        },
+    )
+    page = dashboard.page
+    estimate = page.inner_text("#ls-estimate")
+    assert re.search(r"; condition number 12\.5(?![0-9])", estimate), estimate
+    margin = page.inner_text("#identify-result dt:has-text('margin to the runner-up') + dd")
+    assert margin == "0.25 (relative 3)"
+    shown = page.eval_on_selector_all(
+        "#posterior-table tbody tr", "rows => rows.map((r) => r.cells[2].textContent)"
+    )
+    distances = [t for t in shown if t != "–"]
+    assert distances, shown
+    for text in distances:
+        assert _significant(text) <= 3 and not re.search(r"\.\d*0$", text), text
+
+
 def test_the_classifier_page_shows_the_calibration_the_api_reports(
     dashboard: Dashboard,
 ) -> None:

@@ -8,7 +8,7 @@ import { api } from "../api.js";
 import { downloads } from "../components/downloads.js";
 import { BAND, COLORS, PLOT_CONFIG, layout, plotDiv, plotText, responseLayout, title, withAlpha } from "../components/plots.js";
 import { kindInfo } from "../vocabulary.js";
-import { clear, fmt, h, jsonBlob, link, measured, messageBox, plain, probability, quantity, sequenceText, showFieldErrors } from "../ui.js";
+import { clear, decimalsFor, h, jsonBlob, link, measured, messageBox, plain, probability, quantity, sequenceText, showFieldErrors } from "../ui.js";
 
 const DEFAULT_CONFIDENCE = 0.99;
 
@@ -223,7 +223,7 @@ function estimateOf(verdict) {
     );
     return [
       h("table", { class: "tensor mono" }, h("tbody", {}, rows)),
-      `principal moments ${verdict.estimated_principal_moments_kg_m2.map((v) => quantity(v, 4)).join(", ")}; condition number ${fmt(verdict.estimate_condition_number, 3)}`,
+      `principal moments ${verdict.estimated_principal_moments_kg_m2.map((v) => quantity(v, 4)).join(", ")}; condition number ${ratio(verdict.estimate_condition_number)}`,
       blind,
     ];
   }
@@ -244,20 +244,48 @@ function offsetOf(verdict) {
   return `[${axes.join(", ")}] rad/s = [${deg.join(", ")}] deg/s, from ${verdict.pre_start_samples} samples`;
 }
 
-// The start the verdict judged from, and the shift a start search moved it by.
-function startUsed(verdict) {
-  const start = verdict.sequence_start ?? "the telemetry's zero";
+// A dimensionless figure (a condition number, a distance in training-RMS units, a
+// margin): three significant digits, no trailing zeros (fixed decimals wrote 12.500).
+const ratio = (value) => (typeof value === "number" && Number.isFinite(value) ? plain(value, 3) : "–");
+
+// The telemetry's sample period, s: the median spacing of its stamps (as the service
+// takes it), to three significant digits (mission-time stamps near 1e9 s differ by a
+// period give or take their rounding); null for fewer than two stamps.
+function samplePeriod(time) {
+  const steps = [];
+  for (let i = 1; i < time.length; i += 1) if (time[i] > time[i - 1]) steps.push(time[i] - time[i - 1]);
+  if (!steps.length) return null;
+  steps.sort((a, b) => a - b);
+  return Number(steps[Math.floor(steps.length / 2)].toPrecision(3));
+}
+
+// The decimals a time on this page carries: those that resolve one sample period of the
+// telemetry (and of the posterior's grid, `periods` more), and never fewer than two (two
+// alone wrote a 1 kHz gyro's dropout from 1.003 s as 1.00).
+function timeDecimals(...periods) {
+  return Math.max(2, ...periods.filter((p) => typeof p === "number" && p > 0).map((p) => decimalsFor(p, 1)));
+}
+
+// The start the verdict judged from, and the shift a start search moved it by: seconds
+// to the telemetry's decimals, or as many as the stated start was typed with (an ISO
+// start as the service wrote it).
+function startUsed(verdict, decimals, stated) {
+  const typed = /^[-+]?\d*\.(\d+)$/.exec(String(stated ?? "").trim());
+  const start =
+    typeof verdict.sequence_start === "number"
+      ? verdict.sequence_start.toFixed(Math.max(decimals, typed ? typed[1].length : 0))
+      : verdict.sequence_start ?? "the telemetry's zero";
   if (verdict.estimate_start_within_s === null || verdict.estimate_start_within_s === undefined) return `${start} (as stated)`;
   const shift = verdict.sequence_start_shift_s;
-  return `${start} (shifted ${shift >= 0 ? "+" : ""}${plain(shift, 6)} s by the search within ±${plain(verdict.estimate_start_within_s, 6)} s)`;
+  return `${start} (shifted ${shift >= 0 ? "+" : ""}${shift.toFixed(decimals)} s by the search within ±${plain(verdict.estimate_start_within_s, 6)} s)`;
 }
 
 // The dropouts the verdict judged across (on the samples present), the part of the
 // sequence's grid times outside them and the part with a real sample; null when none.
-function gapsOf(verdict) {
+function gapsOf(verdict, decimals) {
   const gaps = verdict.telemetry_gaps || [];
   if (!gaps.length) return null;
-  const s = (v) => v.toFixed(2);
+  const s = (v) => v.toFixed(decimals);
   const spans = gaps.map((g) => `${s(g.length_s)} s (${s(g.from_s)}–${s(g.to_s)} s)`).join(", ");
   const covered = `${plain(100 * verdict.sequence_covered_fraction, 3)} % of the sequence covered`;
   // The grid times with a real sample within half a grid period (older answers lack it).
@@ -268,6 +296,9 @@ function gapsOf(verdict) {
 }
 
 async function showVerdict(holder, verdict, classifier, { content, context, file, options }) {
+  const telemetry = parseTelemetry(content, options.sequenceStart);
+  const period = samplePeriod(telemetry.time);
+  const decimals = timeDecimals(period);
   const names = Object.keys(verdict.distances);
   const ranked = Object.entries(verdict.posterior || {}).sort((a, b) => b[1] - a[1]);
   const met = verdict.confidence >= verdict.required_confidence;
@@ -281,7 +312,7 @@ async function showVerdict(holder, verdict, classifier, { content, context, file
       { class: name === verdict.candidate && verdict.status === "identified" ? "top" : null, "data-hypothesis": name },
       h("td", {}, name),
       h("td", { class: "num posterior" }, probability(p)),
-      h("td", { class: "num" }, name in verdict.distances ? fmt(verdict.distances[name]) : "–"),
+      h("td", { class: "num" }, name in verdict.distances ? ratio(verdict.distances[name]) : "–"),
     ),
   );
   holder.append(
@@ -303,7 +334,7 @@ async function showVerdict(holder, verdict, classifier, { content, context, file
         "dl",
         { class: "kv" },
         h("dt", {}, "margin to the runner-up"),
-        h("dd", {}, `${fmt(verdict.margin)} (relative ${fmt(verdict.relative_margin)})`),
+        h("dd", { id: "verdict-margin" }, `${ratio(verdict.margin)} (relative ${ratio(verdict.relative_margin)})`),
         h("dt", {}, `inertia of ${verdict.status === "identified" ? "the candidate" : "the most probable candidate"} (kg m²)`),
         h("dd", { class: "mono", id: "candidate-inertia" }, verdict.inertia_kg_m2 ? verdict.inertia_kg_m2.map((r) => `[${r.map((v) => quantity(v, 4)).join(", ")}]`).join(" ") : "–"),
         h("dt", {}, "classifier"),
@@ -311,8 +342,8 @@ async function showVerdict(holder, verdict, classifier, { content, context, file
         h("dt", {}, "least-squares estimate from this telemetry (kg m², ± standard error)"),
         h("dd", { id: "ls-estimate" }, estimateOf(verdict)),
         h("dt", {}, "sequence start used"),
-        h("dd", { id: "start-used" }, startUsed(verdict)),
-        gapsOf(verdict) ? [h("dt", {}, "dropouts judged across (s from the start used)"), h("dd", { id: "telemetry-gaps" }, gapsOf(verdict))] : null,
+        h("dd", { id: "start-used" }, startUsed(verdict, decimals, options.sequenceStart)),
+        gapsOf(verdict, decimals) ? [h("dt", {}, "dropouts judged across (s from the start used)"), h("dd", { id: "telemetry-gaps" }, gapsOf(verdict, decimals))] : null,
         h("dt", {}, "rate + gyro bias at the start, from the telemetry before it"),
         h("dd", { id: "initial-offset", class: "mono" }, offsetOf(verdict)),
       ),
@@ -361,14 +392,13 @@ async function showVerdict(holder, verdict, classifier, { content, context, file
   if (info && !info.online) {
     onlineHolder.append(h("p", { class: "note", id: "online-note" }, `No posterior over time for the ${info.label} kind: only the likelihood kinds have one (their Gaussian's leading block).`));
   } else {
-    await showOnline(onlineHolder, verdict, file, options, context);
+    await showOnline(onlineHolder, verdict, file, options, context, period);
   }
   if (!classifier || !context.alive()) return;
   const response = await api.response(classifier.scenario_id, classifier.sequence, { n_realisations: 20 });
   if (!context.alive()) return;
   const k = response.candidates.findIndex((c) => c.name === verdict.candidate);
   const candidate = response.candidates[k];
-  const telemetry = parseTelemetry(content, options.sequenceStart);
   const color = COLORS[k % COLORS.length];
   // The response starts at rest; the telemetry carries the rate + gyro bias measured
   // before the start, which the verdict accounted for: the band is shifted by it.
@@ -425,7 +455,7 @@ function drawPosterior(element, verdict, ranked) {
 
 // The posterior after every covered sample (likelihood kinds), the decision marked; a
 // kind without a Gaussian model gets the service's message instead.
-async function showOnline(holder, verdict, file, options, context) {
+async function showOnline(holder, verdict, file, options, context, period) {
   let online;
   try {
     online = await api.identifyPartial(verdict.classifier_id, file, options);
@@ -437,13 +467,16 @@ async function showOnline(holder, verdict, file, options, context) {
   if (!context.alive()) return;
   const plot = plotDiv("online-plot");
   const decided = online.decided && online.decision_time_s !== null;
+  // The posterior's times lie on the classifier's grid: to a period of it and of the telemetry.
+  const decimals = timeDecimals(period, samplePeriod(online.time_s));
+  const t = (v) => v.toFixed(decimals);
   holder.append(
     h(
       "p",
       { class: "note", id: "online-summary" },
       decided
-        ? `decided on ${online.candidate} at ${online.decision_time_s.toFixed(2)} s (posterior ≥ ${plain(100 * (1 - online.alpha), 8)} %)`
-        : `not decided within ${fmt(online.covers_s)} s of the ${fmt(online.sequence_s)} s sequence (posterior ≥ ${plain(100 * (1 - online.alpha), 8)} % needed)`,
+        ? `decided on ${online.candidate} at ${t(online.decision_time_s)} s (posterior ≥ ${plain(100 * (1 - online.alpha), 8)} %)`
+        : `not decided within ${t(online.covers_s)} s of the ${t(online.sequence_s)} s sequence (posterior ≥ ${plain(100 * (1 - online.alpha), 8)} % needed)`,
     ),
     plot,
   );
@@ -454,9 +487,9 @@ async function showOnline(holder, verdict, file, options, context) {
     mode: "lines",
     line: { color: COLORS[k % COLORS.length], width: 2 },
     name: plotText(name),
-    hovertemplate: `${plotText(name)}, t = %{x:.2f} s: %{y:.2%}<extra></extra>`,
+    hovertemplate: `${plotText(name)}, t = %{x:.${decimals}f} s: %{y:.2%}<extra></extra>`,
   }));
-  traces.push({ x: online.time_s, y: online.p_none, mode: "lines", line: { color: "#5f6b7a", width: 2, dash: "dash" }, name: "none of these", hovertemplate: "none of these, t = %{x:.2f} s: %{y:.2%}<extra></extra>" });
+  traces.push({ x: online.time_s, y: online.p_none, mode: "lines", line: { color: "#5f6b7a", width: 2, dash: "dash" }, name: "none of these", hovertemplate: `none of these, t = %{x:.${decimals}f} s: %{y:.2%}<extra></extra>` });
   const shapes = [{ type: "line", xref: "paper", x0: 0, x1: 1, y0: 1 - online.alpha, y1: 1 - online.alpha, line: { color: "#9aa5b1", dash: "dot", width: 1 } }];
   if (decided) shapes.push({ type: "line", yref: "paper", x0: online.decision_time_s, x1: online.decision_time_s, y0: 0, y1: 1, line: { color: "#1e7b34", dash: "dash", width: 2 } });
   Plotly.newPlot(
@@ -465,7 +498,7 @@ async function showOnline(holder, verdict, file, options, context) {
     layout("time from sequence start (s)", "posterior", {
       height: 560,
       yaxis: { title: { text: "posterior" }, range: [0, 1.05], tickformat: ".0%" },
-      title: title(decided ? `decided at ${online.decision_time_s.toFixed(2)} s (dashed line)` : "not decided yet", 13),
+      title: title(decided ? `decided at ${t(online.decision_time_s)} s (dashed line)` : "not decided yet", 13),
       shapes,
     }),
     PLOT_CONFIG,
