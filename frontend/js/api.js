@@ -8,6 +8,9 @@ export function getApiKey() {
   return localStorage.getItem(KEY_STORAGE) || "";
 }
 
+// Where a browser user finds the key, for every message that asks for it.
+export const KEY_HINT = 'enter the API key (printed by "inertia-id serve" on its first run) at the top right';
+
 export function setApiKey(key) {
   if (key) localStorage.setItem(KEY_STORAGE, key.trim());
   else localStorage.removeItem(KEY_STORAGE);
@@ -74,7 +77,7 @@ export async function request(method, path, { json, form, query, key = null, raw
       // is marked in the key box instead of still reading "saved".
       const hint = sent
         ? "the saved API key was refused (a new key?): enter the current one at the top right"
-        : 'enter the API key (printed by "inertia-id serve" on its first run) at the top right';
+        : KEY_HINT;
       error.message = `${error.message}: ${hint}`;
       error.errors = error.errors.length ? error.errors.map((e) => ({ ...e, msg: `${e.msg}: ${hint}` })) : [{ loc: [], msg: error.message }];
       if (sent) window.dispatchEvent(new CustomEvent("api-key-rejected"));

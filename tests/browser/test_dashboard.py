@@ -2049,6 +2049,55 @@ def test_the_peak_rates_of_a_front_and_its_plan_show_in_rad_s_beside_deg_s(
         _shows(text["residual_rate_rad_s"], candidate["residual_rate_rad_s"])
 
 
+def test_job_pages_without_the_key_ask_for_it_and_log_no_401(
+    browser: Any, dashboard: Dashboard
+) -> None:
+    """A search's page (its response and its front's command plan), a training's and a
+    classifier's opened with no key saved: each part that needs the key says so, and where
+    the key is, instead of asking the service (every 401 was a console error, and the
+    parts said nothing); saving the key then draws them. The console has no error."""
+    search = _finished_search(dashboard, TWO_RANDOM, "two random sequences")
+    classifier = _classifier(dashboard)
+    training = dashboard.service.client.get(f"/classifiers/{classifier}").json()["job_id"]
+    context = browser.new_context(viewport={"width": 1440, "height": 900})
+    page = context.new_page()
+    page.set_default_timeout(30_000)
+    errors: list[str] = []
+    page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+    page.on("pageerror", lambda error: errors.append(f"uncaught: {error}"))
+    refused: list[str] = []
+    page.on("response", lambda r: refused.append(r.url) if r.status == 401 else None)
+    keyless = Dashboard(page, dashboard.console, dashboard.service)
+    try:
+        keyless.open(f"#/jobs/{search['id']}")
+        page.wait_for_selector("#front-plan")
+        page.wait_for_load_state("networkidle")
+        assert (errors, refused) == ([], [])
+        page.wait_for_selector("#front-plan .needs-key")
+        page.wait_for_selector("#response-holder .needs-key")
+        for where in ("#front-plan", "#response-holder"):
+            text = page.inner_text(f"{where} .needs-key")
+            assert "needs the API key" in text and "inertia-id serve" in text, text
+        assert not page.is_visible("#front-plan-downloads")
+        assert not page.is_visible("#sequence-plot")
+        for route in (f"#/jobs/{training}", f"#/classifiers/{classifier}"):
+            keyless.open(route)
+            page.wait_for_selector("#classifier-response-holder .needs-key")
+            assert "needs the API key" in page.inner_text("#classifier-final-rate")
+        page.wait_for_load_state("networkidle")
+        assert (errors, refused) == ([], [])
+
+        # The key saved, the parts that waited for it are drawn on the page as it stands.
+        page.fill("#api-key", API_KEY)
+        page.click("#api-key-form button")
+        page.wait_for_selector("#classifier-response .legend", timeout=60_000)
+        assert page.query_selector(".needs-key") is None
+        assert "rad/s" in page.inner_text("#classifier-final-rate")
+        assert (errors, refused) == ([], [])
+    finally:
+        context.close()
+
+
 LAYOUT_ROUTES = {
     "scenarios": lambda: "#/scenarios",
     "scenario": lambda: f"#/scenarios/{made['scenario']}",

@@ -5,6 +5,7 @@
 import { MetricFollower, api } from "../api.js";
 import { downloads, jobDownloads } from "../components/downloads.js";
 import { REUSED_KEY, cancelButton, labelEditor, reusedNotice, timingCell } from "../components/jobs.js";
+import { whenKeyed } from "../components/keyed.js";
 import { BAND, PLOT_CONFIG, extendWith, fitFlatSeries, layout, plotDiv, responseView, sequencePlot, title } from "../components/plots.js";
 import { isTerminal } from "../vocabulary.js";
 import { clear, fmt, h, link, messageBox, progressBar, put, quantity, score, sequenceText, statusBadge, table, tagChips, utcText, whenText } from "../ui.js";
@@ -231,16 +232,21 @@ async function searchResult(holder, job, context) {
     holder.append(front.node);
     await front.draw();
   }
-  try {
-    const response = await api.response(job.scenario_id, best.sequence, { n_realisations: 20, seed: job.seed });
-    if (!context.alive()) return;
-    sequencePlot(seqPlot, response);
-    const view = responseView(response, { id: "response-plot", titleText: "ω response to the best sequence" });
-    responseHolder.append(view.node);
-    view.draw();
-  } catch (exc) {
-    responseHolder.replaceWith(messageBox("error", exc.message));
-  }
+  // Both drawn from the simulated response, which needs the key: hidden until it comes.
+  seqPlot.hidden = true;
+  await whenKeyed(responseHolder, "The thruster duty and each candidate's simulated response", async () => {
+    try {
+      const response = await api.response(job.scenario_id, best.sequence, { n_realisations: 20, seed: job.seed });
+      if (!context.alive()) return;
+      seqPlot.hidden = false;
+      sequencePlot(seqPlot, response);
+      const view = responseView(response, { id: "response-plot", titleText: "ω response to the best sequence" });
+      responseHolder.append(view.node);
+      view.draw();
+    } catch (exc) {
+      responseHolder.replaceWith(messageBox("error", exc.message));
+    }
+  });
 }
 
 // NaN (shown "–") without values: a re-score the time limit's grace cut may hold none.

@@ -3,9 +3,10 @@
 // against noise) and its sequence with every candidate's response. Used by the
 // classifier page and by the job page of a training.
 
-import { api } from "../api.js";
+import { api, getApiKey } from "../api.js";
 import { BAND, PLOT_CONFIG, confusionPlot, layout, plotDiv, responseView, sequencePlot, title } from "../components/plots.js";
 import { downloads, jobDownloads } from "../components/downloads.js";
+import { whenKeyed } from "../components/keyed.js";
 import { isTerminal } from "../vocabulary.js";
 import { clear, fmt, h, link, messageBox, quantity, score, sequenceText, tagChips, utcText, when } from "../ui.js";
 import { sweepPanel } from "./sweep.js";
@@ -47,7 +48,7 @@ export async function renderClassifier(container, classifier, context, sweepId =
     ["trained by job", classifier.job_id ? link(`#/jobs/${classifier.job_id}`, classifier.job_id.slice(0, 8)) : "–"],
   ];
   const fuel = h("span", { id: "classifier-fuel" }, "…");
-  const finalRate = h("span", {}, "…");
+  const finalRate = h("span", { id: "classifier-final-rate" }, "…");
   rows.push(["fuel (commanded impulse)", fuel], ["mean final rate", finalRate]);
   for (const [name, value] of rows) summary.append(h("dt", {}, name), h("dd", {}, value));
   confusionPlot(confusion, classifier.confusion, classifier.candidate_names, "training series");
@@ -56,19 +57,26 @@ export async function renderClassifier(container, classifier, context, sweepId =
   await calibrationOf(calibrationCard, classifier, context);
   await sweepsOf(sweepCard, classifier, context, sweepId);
 
-  try {
-    const response = await api.response(classifier.scenario_id, classifier.sequence, { n_realisations: 20 });
-    if (!context.alive()) return;
-    fuel.textContent = `${quantity(response.impulse_nms)} N m s`;
-    const rates = response.candidates.map((c) => c.final_rate_rad_s);
-    finalRate.textContent = `${fmt(rates.reduce((a, b) => a + b, 0) / rates.length, 4)} rad/s`;
-    sequencePlot(seqPlot, response);
-    const view = responseView(response, { id: "classifier-response", titleText: "ω response to the classifier's sequence" });
-    responseHolder.append(view.node);
-    view.draw();
-  } catch (exc) {
-    fuel.textContent = exc.message;
-  }
+  // The fuel, the final rate and both plots come from the simulated response, which
+  // needs the key: without one they wait for it.
+  seqPlot.hidden = true;
+  if (!getApiKey()) fuel.textContent = finalRate.textContent = "– (needs the API key: see below)";
+  await whenKeyed(responseHolder, "The sequence's simulated response (its fuel, final rate and plots)", async () => {
+    try {
+      const response = await api.response(classifier.scenario_id, classifier.sequence, { n_realisations: 20 });
+      if (!context.alive()) return;
+      fuel.textContent = `${quantity(response.impulse_nms)} N m s`;
+      const rates = response.candidates.map((c) => c.final_rate_rad_s);
+      finalRate.textContent = `${fmt(rates.reduce((a, b) => a + b, 0) / rates.length, 4)} rad/s`;
+      seqPlot.hidden = false;
+      sequencePlot(seqPlot, response);
+      const view = responseView(response, { id: "classifier-response", titleText: "ω response to the classifier's sequence" });
+      responseHolder.append(view.node);
+      view.draw();
+    } catch (exc) {
+      fuel.textContent = exc.message;
+    }
+  });
 }
 
 // The calibration report measured on fresh draws at training: the ECE and a reliability

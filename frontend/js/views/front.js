@@ -14,6 +14,7 @@
 import { request } from "../api.js";
 import { downloads } from "../components/downloads.js";
 import { submitAndOpen } from "../components/jobs.js";
+import { whenKeyed } from "../components/keyed.js";
 import { PLOT_CONFIG, layout, plotDiv } from "../components/plots.js";
 import { clear, fmt, h, messageBox, plain, put, quantity, score, sequenceText } from "../ui.js";
 
@@ -399,7 +400,15 @@ async function showMember(holder, job, member, context) {
   const stem = `plan-${job.id.slice(0, 8)}-member-${member.index}`;
   // The downloads fly as many times as the page's plan did (known once it is computed).
   let flown = PLAN_FLIGHTS;
-  const plan = h("div", { id: "front-plan" }, h("p", { class: "muted" }, "Computing the command plan…"));
+  const plan = h("div", { id: "front-plan" });
+  const planDownloads = downloads(
+    "front-plan-downloads",
+    [
+      { label: "CSV", filename: `${stem}.csv`, make: () => planBlob(job, member.index, "csv", flown) },
+      { label: "JSON", filename: `${stem}.json`, make: () => planBlob(job, member.index, "json", flown) },
+    ],
+    { label: "Command plan" },
+  );
   // put, not the DOM's append: append writes a null child as the text "null".
   put(
     holder,
@@ -408,19 +417,22 @@ async function showMember(holder, job, member, context) {
     cancelled ? messageBox("notice", "This search was cancelled: the member is from the partial front it had measured, and its plan says so.") : null,
     h("div", { class: "toolbar" }, train),
     notice,
-    downloads(
-      "front-plan-downloads",
-      [
-        { label: "CSV", filename: `${stem}.csv`, make: () => planBlob(job, member.index, "csv", flown) },
-        { label: "JSON", filename: `${stem}.json`, make: () => planBlob(job, member.index, "json", flown) },
-      ],
-      { label: "Command plan" },
-    ),
+    planDownloads,
     plan,
   );
+  // The plan and its downloads are computed on request, which needs the key.
+  planDownloads.hidden = true;
+  await whenKeyed(plan, "The member's command plan", () => drawPlan(plan, planDownloads, job, member, context, (flights) => (flown = flights)));
+}
+
+// The member's command plan as a table, per candidate; `flewWith(flights)` learns how
+// many flights the service flew (the downloads fly as many).
+async function drawPlan(plan, planDownloads, job, member, context, flewWith) {
+  planDownloads.hidden = false;
+  plan.replaceChildren(h("p", { class: "muted" }, "Computing the command plan…"));
   try {
     const [document, flights] = await memberPlan(job, member.index);
-    flown = flights;
+    flewWith(flights);
     if (!context.alive() || !plan.isConnected) return;
     clear(plan);
     const spread = document.flights;

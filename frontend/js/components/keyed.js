@@ -1,0 +1,29 @@
+// A part of a page that only the API key opens (a simulated response, a command plan):
+// drawn at once when a key is saved; without one, a notice that says where the key is,
+// and drawn when one is saved. A request the service is known to refuse is never sent:
+// the browser logs every 401 as a console error, and the page would show one per part.
+
+import { KEY_HINT, getApiKey } from "../api.js";
+import { messageBox } from "../ui.js";
+
+// Runs `draw()` (what it returns is returned) when a key is saved; else puts the notice
+// "<what> needs the API key: …" in `holder` and runs `draw` once a key is saved while
+// `holder` is still on the page.
+export async function whenKeyed(holder, what, draw) {
+  if (getApiKey()) return draw();
+  const notice = messageBox("notice", `${what} needs the API key: ${KEY_HINT}.`);
+  notice.classList.add("needs-key");
+  holder.append(notice);
+  const saved = () => {
+    if (!holder.isConnected) {
+      window.removeEventListener("api-key-changed", saved);
+      return;
+    }
+    if (!getApiKey()) return;
+    window.removeEventListener("api-key-changed", saved);
+    notice.remove();
+    draw();
+  };
+  window.addEventListener("api-key-changed", saved);
+  return null;
+}
