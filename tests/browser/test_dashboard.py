@@ -2049,6 +2049,56 @@ def test_the_peak_rates_of_a_front_and_its_plan_show_in_rad_s_beside_deg_s(
         _shows(text["residual_rate_rad_s"], candidate["residual_rate_rad_s"])
 
 
+def test_a_plans_end_rate_and_flights_and_a_classifiers_final_rate_show_rad_s_beside_deg_s(
+    dashboard: Dashboard,
+) -> None:
+    """The command plan's rate at the last command's end and its single flights' residual
+    rates (95th percentile, bound, fastest) in rad/s beside deg/s (they gave deg/s only),
+    and a classifier's mean final rate in deg/s beside rad/s (it gave rad/s only); each
+    to three significant digits."""
+    page = dashboard.page
+    job = _finished_search(dashboard, TWO_RANDOM, "two random sequences")
+    member = job["result"]["front"]["members"][0]
+    dashboard.open(f"#/jobs/{job['id']}")
+    page.wait_for_selector("#front-plan-table", timeout=60_000)
+    heads = page.eval_on_selector_all(
+        "#front-plan-table thead th", "cells => cells.map((c) => c.textContent)"
+    )
+    for label in (
+        "at the last command's end",
+        "95th percentile of the 200 flights",
+        "residual, ≥ 95 % of flights under, 95 % conf.",
+        "fastest flight",
+    ):
+        assert heads.index(f"{label} (rad/s)") == heads.index(f"{label} (deg/s)") + 1, heads
+    plan = dashboard.service.client.get(
+        f"/jobs/{job['id']}/plan", params={"member": member["index"], "flights": 200}
+    ).json()
+    stored, written = _cells(dashboard, "#front-plan-table"), _texts(dashboard, "#front-plan-table")
+    for row, text, candidate in zip(stored, written, plan["candidates"], strict=True):
+        assert float(row["end_rate_rad_s"]) == candidate["end_rate_rad_s"]
+        _shows(text["end_rate_rad_s"], candidate["end_rate_rad_s"])
+        for figure in ("residual_rate_p95", "residual_rate_p95_bound", "residual_rate_max"):
+            key = f"{figure}_rad_s"
+            assert float(row[f"flights_{key}"]) == candidate["flights"][key]
+            _shows(text[f"flights_{key}"], candidate["flights"][key])
+
+    classifier = _classifier(dashboard)
+    details = dashboard.service.client.get(f"/classifiers/{classifier}").json()
+    response = dashboard.service.client.get(
+        f"/scenarios/{details['scenario_id']}/response",
+        params={"sequence": json.dumps(details["sequence"]), "n_realisations": 20},
+    ).json()
+    mean = float(np.mean([c["final_rate_rad_s"] for c in response["candidates"]]))
+    dashboard.open(f"#/classifiers/{classifier}")
+    page.wait_for_function(
+        "() => document.getElementById('classifier-final-rate')?.textContent.includes('rad/s')"
+    )
+    degrees, radians = _mean_rate_text(page.inner_text("#classifier-final-rate"))
+    _shows(degrees, float(np.degrees(mean)))
+    _shows(radians, mean)
+
+
 def test_job_pages_without_the_key_ask_for_it_and_log_no_401(
     browser: Any, dashboard: Dashboard
 ) -> None:

@@ -11,6 +11,8 @@ import { isTerminal } from "../vocabulary.js";
 import { clear, fmt, h, link, messageBox, quantity, score, sequenceText, tagChips, utcText, when } from "../ui.js";
 import { sweepPanel } from "./sweep.js";
 
+const RAD_TO_DEG = 180 / Math.PI;
+
 export async function renderClassifier(container, classifier, context, sweepId = null) {
   const scenario = await api.scenario(classifier.scenario_id).catch(() => null);
   const summary = h("dl", { class: "kv", id: "classifier-summary" });
@@ -67,7 +69,9 @@ export async function renderClassifier(container, classifier, context, sweepId =
       if (!context.alive()) return;
       fuel.textContent = `${quantity(response.impulse_nms)} N m s`;
       const rates = response.candidates.map((c) => c.final_rate_rad_s);
-      finalRate.textContent = `${fmt(rates.reduce((a, b) => a + b, 0) / rates.length, 4)} rad/s`;
+      const mean = rates.reduce((a, b) => a + b, 0) / rates.length;
+      // In deg/s with rad/s beside it, as every rate on the dashboard.
+      finalRate.textContent = `${quantity(mean * RAD_TO_DEG)} deg/s (${quantity(mean)} rad/s)`;
       seqPlot.hidden = false;
       sequencePlot(seqPlot, response);
       const view = responseView(response, { id: "classifier-response", titleText: "ω response to the classifier's sequence" });

@@ -446,11 +446,15 @@ async function drawPlan(plan, planDownloads, job, member, context, flewWith) {
       ...(spread
         ? [
             ["flights_residual_rate_p95_deg_s", `95th percentile of the ${spread.flights_per_candidate} flights (deg/s)`],
+            ["flights_residual_rate_p95_rad_s", `95th percentile of the ${spread.flights_per_candidate} flights (rad/s)`],
             ["flights_residual_rate_p95_bound_deg_s", "residual, ≥ 95 % of flights under, 95 % conf. (deg/s)"],
+            ["flights_residual_rate_p95_bound_rad_s", "residual, ≥ 95 % of flights under, 95 % conf. (rad/s)"],
             ["flights_residual_rate_max_deg_s", "fastest flight (deg/s)"],
+            ["flights_residual_rate_max_rad_s", "fastest flight (rad/s)"],
           ]
         : []),
       ["end_rate_deg_s", "at the last command's end (deg/s)"],
+      ["end_rate_rad_s", "at the last command's end (rad/s)"],
       ["peak_rate_deg_s", "peak rate (deg/s)"],
       ["peak_rate_rad_s", "peak rate (rad/s)"],
       ...(spread
