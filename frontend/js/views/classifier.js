@@ -79,6 +79,7 @@ export async function renderClassifier(container, classifier, context, sweepId =
       view.draw();
     } catch (exc) {
       fuel.textContent = exc.message;
+      finalRate.textContent = "–";
     }
   });
 }
