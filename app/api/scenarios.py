@@ -17,7 +17,13 @@ from inertia_id.checks import DuplicateKeyError, control_characters, loads_uniqu
 from inertia_id.errors import InputError
 from inertia_id.physics.presets import PRESETS, preset
 from inertia_id.physics.scenario import Scenario
-from inertia_id.physics.simulate import SimulationOverflow, check_gyro_range, simulate
+from inertia_id.physics.simulate import (
+    SimulationOverflow,
+    check_gyro_range,
+    check_nominal_gyro_range,
+    settled_rates,
+    simulate,
+)
 from service.store.models import ClassifierRow, JobRow, ScenarioRow
 from service.store.session import Database
 
@@ -324,17 +330,27 @@ def _response(
             "realisations",
         )
     try:
+        # The plan's rule (search.plan.command_plan) on the same quantity: the nominal
+        # true rate at every integration step and once the lag has emptied, so the two
+        # refuse a sequence alike (this route checked only its gyro samples: 94 rad/s
+        # answered where the plan refused 105 once the lag emptied).
+        check_nominal_gyro_range(scenario, steps)
+    except SimulationOverflow as exc:
+        unprocessable(("query", "sequence"), str(exc))
+    try:
         result = simulate(scenario, steps, n_realisations, np.random.default_rng(seed))
-        # The plan's ceiling (search.plan.command_plan), on the realisations shown here:
-        # the two refuse a scenario that spins its bodies past any gyro's range alike.
+        # And the realisations shown, with their lag's tails, as a plan checks its flights.
         check_gyro_range(
             scenario,
             steps,
             result.omega_true,
+            settled=settled_rates(
+                scenario, result.omega_true[:, :, -1], result.applied_torque_nm[:, :, -1]
+            ),
             flight=lambda i: f"realisation {i + 1} of {n_realisations} (seed {seed})",
         )
     except SimulationOverflow as exc:
-        unprocessable(("query", "sequence"), str(exc))
+        unprocessable(("query", "n_realisations"), str(exc))
     omega = result.omega_measured  # (K, n, T, 3)
     low, high = np.percentile(omega, [10.0, 90.0], axis=1)
     mean = omega.mean(axis=1)
@@ -392,11 +408,10 @@ PlanOptionsDep = Annotated[PlanOptions, Depends(plan_options)]
 
 
 def _nominal_fits(scenario: Scenario, steps: np.ndarray) -> bool:
-    """Whether the plan's nominal prediction of ``steps`` stays finite (no flights)."""
-    from inertia_id.search.plan import command_plan
-
+    """Whether the plan's nominal prediction of ``steps`` stays finite and in any gyro's
+    range (no flights)."""
     try:
-        command_plan(scenario, steps)
+        check_nominal_gyro_range(scenario, steps)
     except SimulationOverflow:
         return False
     return True

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -36,6 +37,7 @@ __all__ = [
     "StepResponse",
     "at_gyro_samples",
     "check_gyro_range",
+    "check_nominal_gyro_range",
     "disturbance_rate_covariance",
     "disturbance_walk",
     "every_substep_scenario",
@@ -433,6 +435,30 @@ def check_gyro_range(
         "no attitude gyro measures it; the scenario's inertia (smallest principal moment "
         f"{moment:.3g} kg m^2) or torques (up to {torque:.3g} N m) are likely wrong in units"
     )
+
+
+def check_nominal_gyro_range(scenario: Scenario, sequence: Any) -> SimulationResult:
+    """The one rule for a sequence whose rates pass any attitude gyro's range: refuse
+    ``sequence`` on ``scenario`` when its nominal prediction (every source of noise off,
+    the actuation lag kept: :func:`nominal_simulator`) passes
+    :data:`~inertia_id.physics.scenario.MAX_GYRO_RATE_RAD_S` about any body axis, at any
+    integration step or once the lag has delivered the torque still in it
+    (:func:`settled_rates`): what a gyro would see if the pass went on. A plan, a
+    response, a training, a sweep and a search's submission all decide with it, so that
+    none shows a prediction another refuses (a response read 94 rad/s at its gyro
+    samples where the plan refused 105 once the lag emptied).
+
+    :param sequence: (L, N) level indices.
+    :returns: the nominal run, recorded at every integration step
+        (:func:`at_gyro_samples` picks the gyro's samples out of it).
+    :raises RatesBeyondGyro: as :func:`check_gyro_range` words it.
+    """
+    rows = scenario.check_sequence(sequence)
+    simulator, noise = nominal_simulator(scenario, len(rows), every_substep=True)
+    run = simulator.run(rows, noise)
+    settled = settled_rates(scenario, run.omega_true[:, :, -1], run.applied_torque_nm[:, :, -1])
+    check_gyro_range(scenario, rows, run.omega_true, settled=settled)
+    return run
 
 
 def nominal_simulator(

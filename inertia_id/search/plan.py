@@ -32,7 +32,13 @@ from ..checks import csv_note_text, is_integer
 from ..errors import InputError
 from ..physics.attitude import propagate_attitude, rotation_angle_deg
 from ..physics.scenario import Scenario
-from ..physics.simulate import at_gyro_samples, check_gyro_range, settled_rates, simulate
+from ..physics.simulate import (
+    at_gyro_samples,
+    check_gyro_range,
+    check_nominal_gyro_range,
+    settled_rates,
+    simulate,
+)
 from .objectives import (
     FLIGHT_QUANTILE,
     QUANTILE_METHOD,
@@ -40,7 +46,6 @@ from .objectives import (
     flight_quantile,
     per_flight_bound,
 )
-from .operator import nominal_run
 
 __all__ = ["CommandPlan", "FlightDispersion", "command_plan"]
 
@@ -354,7 +359,8 @@ def command_plan(
 
     :raises ~inertia_id.physics.simulate.RatesBeyondGyro: a candidate's predicted rate,
         nominal or in a flight, passes any attitude gyro's range
-        (:func:`~inertia_id.physics.simulate.check_gyro_range`): no prediction of a
+        (:func:`~inertia_id.physics.simulate.check_nominal_gyro_range`, and
+        :func:`~inertia_id.physics.simulate.check_gyro_range` on flights): no prediction of a
         spacecraft, but of a scenario in the wrong units.
     """
     rows = scenario.check_sequence(sequence)
@@ -366,9 +372,8 @@ def command_plan(
         raise InputError(f"seed must be a non-negative integer, got {seed!r}")
     duty = scenario.duties(rows)  # (L, N)
     step = scenario.timing.step_duration_s
-    run = nominal_run(scenario, rows, every_substep=True)
+    run = check_nominal_gyro_range(scenario, rows)
     settled = settled_rates(scenario, run.omega_true[:, :, -1], run.applied_torque_nm[:, :, -1])
-    check_gyro_range(scenario, rows, run.omega_true, settled=settled)
     fine = run.omega_true[:, 0]  # (K, T_fine, 3) at every integration step
     rates = at_gyro_samples(scenario, fine)  # (K, T, 3) at the gyro's samples
     per_step = scenario.timing.samples_per_step

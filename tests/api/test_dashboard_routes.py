@@ -378,7 +378,8 @@ def test_a_plan_whose_scenario_overflows_names_the_sequence_not_flights(api: Api
 def test_a_plan_and_a_response_past_any_gyros_range_are_refused_alike(api: Api) -> None:
     """A scenario with an inertia of 1e-30 kg m² is stored; its plan was a 200 predicting
     1e30 rad/s, while its response was refused (at no parameter) only because its noisy
-    realisations overflowed; at 1e-2 kg m² both were 200s (780 and 1,340 rad/s). Both
+    realisations overflowed (now both by the nominal rule, before any realisation); at
+    1e-2 kg m² both were 200s (780 and 1,340 rad/s). Both
     routes now refuse rates past any gyro's range at the sequence, naming the candidate and the rate
     in rad/s and deg/s; a plan whose nominal prediction is in range but whose flights are
     not names the flights."""
@@ -402,10 +403,6 @@ def test_a_plan_and_a_response_past_any_gyros_range_are_refused_alike(api: Api) 
             (detail,) = response.json()["detail"]
             assert tuple(detail["loc"]) == loc[:2]
             message = detail["msg"]
-            if moment == 1e-30 and "response" in loc:
-                # Its noisy realisations overflow before they can be measured.
-                assert "overflowed to inf or nan" in message
-                continue
             assert message.startswith(f"sequence {sequence} spins candidate 'none ejected'")
             assert re.search(r"to [0-9.e+]+ rad/s \([0-9.e+]+ deg/s\)", message), message
             assert "no attitude gyro measures it" in message
@@ -419,3 +416,43 @@ def test_a_plan_and_a_response_past_any_gyros_range_are_refused_alike(api: Api) 
     (detail,) = flown.json()["detail"]
     assert detail["loc"] == ["query", "flights"]
     assert "of 20 at the scenario's noise (seed 3)" in detail["msg"]
+
+
+def test_a_plan_and_a_response_refuse_the_same_sequence_near_the_gyro_ceiling(api: Api) -> None:
+    """One rule decides both: a sphere of 0.019 kg m² under one full-duty step reads at
+    most 94 to 96 rad/s at the gyro's samples, but is left at 2 / 0.019 = 105 rad/s once the
+    actuation lag has emptied. The response answered 200 while the plan refused; now both
+    refuse with the same message, at query.sequence, naming the peak, the candidate and
+    the ceiling; at 0.025 kg m² (80 rad/s settled) both answer 200."""
+    sequence = [[4, 4, 4, 0, 0, 0]]
+    query = {"sequence": json.dumps(sequence)}
+    for moment, refused in ((0.019, True), (0.025, False)):
+        candidates = Scenario.paper().model_dump(mode="json")["inertia_candidates"]
+        candidates[0]["inertia_kg_m2"] = (moment * np.eye(3)).tolist()
+        scenario_id = api.create_scenario(inertia_candidates=candidates)["id"]
+        plan = api.get_with_key(f"/scenarios/{scenario_id}/plan", params=query)
+        posted = api.post(f"/scenarios/{scenario_id}/plan", json={"sequence": sequence})
+        response = api.get_with_key(f"/scenarios/{scenario_id}/response", params=query)
+        if not refused:
+            assert [plan.status_code, posted.status_code, response.status_code] == [200] * 3
+            continue
+        messages = set()
+        for answer in (plan, posted, response):
+            assert answer.status_code == 422, answer.text
+            (detail,) = answer.json()["detail"]
+            assert detail["loc"][-1] == "sequence"
+            messages.add(detail["msg"])
+        (message,) = messages  # one message, word for word
+        assert "spins candidate 'none ejected' to 105 rad/s (6.03e+03 deg/s)" in message
+        assert "once the actuation lag has emptied" in message
+        assert "at most 100 rad/s, 5,730 deg/s" in message
+    # In range nominally, past it in the noisy realisations shown (torques 1000 x the
+    # nominal): named at n_realisations, as a plan's flights are at flights.
+    noisy_id = api.create_scenario(uncertainty={"thrust_scale_sigma": 1e3})["id"]
+    two = {"sequence": json.dumps(sequence * 2)}
+    assert api.get_with_key(f"/scenarios/{noisy_id}/plan", params=two).status_code == 200
+    shown = api.get_with_key(f"/scenarios/{noisy_id}/response", params=two)
+    assert shown.status_code == 422, shown.text
+    (detail,) = shown.json()["detail"]
+    assert detail["loc"] == ["query", "n_realisations"]
+    assert re.search(r"in realisation \d+ of 20 \(seed 0\)", detail["msg"]), detail["msg"]
