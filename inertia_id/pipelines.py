@@ -58,6 +58,7 @@ __all__ = [
     "SweepRequest",
     "TrainRequest",
     "Trained",
+    "check_search_scenario",
     "check_sweep_scenario",
     "run_paper",
     "search_with_baselines",
@@ -290,6 +291,8 @@ def search_with_baselines(
     """
     from .search import search
     from .search.baselines import STOPPED, compare_with_baselines
+
+    check_search_scenario(scenario, request.sequence_length)
     from .search.loop import CANCELLED, TIME_LIMIT, Deadline
 
     settings = request.scorer()
@@ -359,6 +362,33 @@ def search_with_baselines(
                     f"grace ({deadline.grace_s:g} s) were spent"
                 )
     return SearchOutcome(found, baselines, scenario)
+
+
+def check_search_scenario(scenario: Scenario, sequence_length: int) -> None:
+    """Refuse a search on a scenario whose hand-designed sequence of ``sequence_length``
+    steps (full duty on the principal diagonal: the baseline every search is scored
+    against) passes any attitude gyro's range
+    (:func:`~inertia_id.physics.simulate.check_nominal_gyro_range`). At 100 rad/s (5,730
+    deg/s) that is a scenario in the wrong units, not a spacecraft: a search on it would
+    rank responses no gyro measures, and its baselines' figures would be of rates no
+    flight shows. Refused before the search rather than flagged after it, at the cost of
+    one nominal run.
+
+    :raises ~inertia_id.physics.simulate.RatesBeyondGyro: naming the scenario, the
+        baseline and, in :func:`~inertia_id.physics.simulate.check_gyro_range`'s words,
+        the candidate, its rate and the ceiling.
+    """
+    from .physics.sequences import hand_designed
+    from .physics.simulate import RatesBeyondGyro, check_nominal_gyro_range
+
+    try:
+        check_nominal_gyro_range(scenario, hand_designed(scenario, sequence_length))
+    except RatesBeyondGyro as exc:
+        raise RatesBeyondGyro(
+            f"no search on scenario {scenario.name!r}: its hand-designed baseline of "
+            f"{sequence_length} steps, what every search is scored against, leaves the "
+            f"gyro's range: {exc}"
+        ) from None
 
 
 # Training.
@@ -442,8 +472,11 @@ def train_for_sequence(
 ) -> Trained:
     """Train the classifier a request names, on draws from ``default_rng(seed)``."""
     from .classifiers.registry import train_classifier
+    from .physics.simulate import check_nominal_gyro_range
 
     kind, n_realisations, options = request.resolved()
+    # A classifier of responses no gyro measures classifies no telemetry.
+    check_nominal_gyro_range(scenario, request.sequence)
     rng = np.random.default_rng(seed)
     model = train_classifier(scenario, request.sequence, n_realisations, rng, kind=kind, **options)
     return Trained(model, kind, n_realisations)
@@ -523,6 +556,7 @@ def check_sweep_scenario(named: Scenario, trained: Scenario | None, sequence: An
     may differ: that is what the sweep then measures.
     """
     from .evaluation.sweep import check_classifier_scenario
+    from .physics.simulate import check_nominal_gyro_range
 
     check_classifier_scenario(named, trained)
     try:
@@ -531,6 +565,8 @@ def check_sweep_scenario(named: Scenario, trained: Scenario | None, sequence: An
         raise InputError(
             f"the classifier's sequence does not drive scenario {named.name!r}: {exc}"
         ) from None
+    # Its noise may be scaled up, but its nominal response must be one a gyro measures.
+    check_nominal_gyro_range(named, sequence)
     return named
 
 

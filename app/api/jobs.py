@@ -21,6 +21,7 @@ from sqlalchemy.orm import defer
 
 from inertia_id.errors import InputError
 from inertia_id.physics.scenario import Scenario
+from inertia_id.physics.simulate import check_nominal_gyro_range
 from service.exports import (
     RESULT_TABLES,
     metrics_notes,
@@ -122,6 +123,12 @@ def _check_search(body: SearchJobCreate, scenario: Scenario) -> None:
             else "constraints"
         )
         unprocessable(("body", "search", "params", field), message)
+    from inertia_id.pipelines import check_search_scenario
+
+    try:
+        check_search_scenario(scenario, params.sequence_length)
+    except InputError as exc:
+        unprocessable(("body", "scenario_id"), str(exc))
     if params.method != "exhaustive":
         return
     from inertia_id.search import space_size
@@ -269,6 +276,10 @@ def _check_train(body: TrainJobCreate, scenario: Scenario) -> None:
     # Calibration flies 200 fresh series a candidate beside the training ones.
     realisations = max(body.params.n_realisations or 0, 200)
     _check_size(scenario, len(rows), realisations, (*where, "n_realisations"))
+    try:
+        check_nominal_gyro_range(scenario, rows)
+    except InputError as exc:
+        unprocessable((*where, "sequence"), str(exc))
 
 
 def _check_sweep(session: SessionDep, body: SweepJobCreate, scenario: Scenario) -> None:
@@ -295,6 +306,10 @@ def _check_sweep(session: SessionDep, body: SweepJobCreate, scenario: Scenario) 
     # The ceiling flies its realisations in batches (its covariances are counted).
     held = max(params.n_train, -(-params.n_test // scenario.n_candidates))
     _check_size(scenario, len(classifier.sequence), held, ("body", "sweep", "params", "n_train"))
+    try:
+        check_nominal_gyro_range(scenario, classifier.sequence)
+    except InputError as exc:
+        unprocessable(("body", "sweep", "params", "classifier_id"), str(exc))
 
 
 def _check_time_limit(body: JobCreate, ceiling_s: float) -> None:

@@ -152,7 +152,7 @@ def simulate_cmd(
 
     from ..errors import InputError
     from ..evaluation.telemetry import parse_sequence_start
-    from ..physics.simulate import simulate
+    from ..physics.simulate import check_nominal_gyro_range, simulate
 
     if telemetry is None:
         # These shape the telemetry file only: without one they were dropped silently.
@@ -168,6 +168,9 @@ def simulate_cmd(
     scenario = load_scenario(preset_name, scenario_path)
     offset = parse_sequence_start(time_offset)
     sequence, coast_s = _with_coast(scenario, parse_sequence(sequence_text), pre_start_s)
+    # The plan's and the response's rule: a scenario that spins its bodies past any
+    # gyro's range (wrong units) is refused before either engine flies it.
+    check_nominal_gyro_range(scenario, sequence)
     if engine == "basilisk":
         _fly_basilisk(
             scenario,

@@ -9,9 +9,10 @@ from datetime import UTC, datetime, timedelta
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 
-from inertia_id import METRICS, InertiaClassifier
+from inertia_id import METRICS, InertiaClassifier, Scenario
 from inertia_id.classifiers.registry import CLASSIFIER_KINDS
 from inertia_id.evaluation.sweep import DEFAULT_NOISES, NOISE_KINDS
 from inertia_id.search import SEARCH_METHODS
@@ -795,3 +796,50 @@ def test_a_train_job_takes_no_time_limit_of_its_own(api: Api) -> None:
     response = api.submit("train", scenario_id, params=params)
     assert response.status_code == 422, response.text
     assert response.json()["detail"][0]["loc"][-1] == "time_limit_s"
+
+
+def test_jobs_whose_sequences_no_gyro_measures_are_refused_at_submission(
+    api: Api, classifier: InertiaClassifier
+) -> None:
+    """The plan's rule at submission: a sphere of 0.019 kg m² is left at 105 rad/s by one
+    full-duty step once the lag has emptied. A search on it (its hand-designed baseline
+    past the ceiling) and a training on that step were queued, to rank or classify rates
+    no gyro measures; a sweep on thrusters 1000 times the classifier's too. Each is a 422
+    naming the candidate and the rate, and nothing is queued."""
+    candidates = Scenario.paper().model_dump(mode="json")["inertia_candidates"]
+    candidates[0]["inertia_kg_m2"] = (0.019 * np.eye(3)).tolist()
+    tiny = api.create_scenario(inertia_candidates=candidates)["id"]
+    torque = Scenario.paper().model_dump(mode="json")["thrusters"]["torque_matrix_nm"]
+    strong = api.create_scenario(
+        thrusters={"torque_matrix_nm": [[1000 * v for v in row] for row in torque]}
+    )["id"]
+    classifier_id = api.insert_classifier(api.create_scenario()["id"], classifier)
+    for job_type, scenario_id, params, loc in (
+        ("search", tiny, {"method": "random", "sequence_length": 1}, ["body", "scenario_id"]),
+        (
+            "train",
+            tiny,
+            {"sequence": [[4, 4, 4, 0, 0, 0]]},
+            ["body", "train", "params", "sequence"],
+        ),
+        (
+            "sweep",
+            strong,
+            {"classifier_id": classifier_id},
+            ["body", "sweep", "params", "classifier_id"],
+        ),
+    ):
+        response = api.submit(job_type, scenario_id, params=params)
+        assert response.status_code == 422, (job_type, response.text)
+        (error,) = response.json()["detail"]
+        assert error["loc"] == loc
+        assert "beyond any attitude gyro's range" in error["msg"]
+        if scenario_id == tiny:
+            assert "candidate 'none ejected' to 105 rad/s (6.03e+03 deg/s)" in error["msg"]
+    assert (
+        "its hand-designed baseline of 1 steps"
+        in api.submit("search", tiny, params={"method": "random", "sequence_length": 1}).json()[
+            "detail"
+        ][0]["msg"]
+    )
+    assert api.queued_messages() == []

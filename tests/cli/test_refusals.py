@@ -18,6 +18,7 @@ from inertia_id.cli import main
 from inertia_id.errors import InputError
 from inertia_id.evaluation.sweep import run_inertia_sweep, run_sweep
 from inertia_id.evaluation.telemetry import load_telemetry
+from inertia_id.pipelines import SweepRequest, sweep_with_limit
 
 SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
 
@@ -666,3 +667,47 @@ def test_a_plan_whose_rates_no_gyro_measures_is_one_line_and_exit_1(
     assert result.output.startswith("Error: sequence [[4, 4, 4, 0, 0, 0]] spins candidate")
     assert "deg/s" in result.output and "no attitude gyro measures it" in result.output
     assert not (tmp_path / "p.json").exists()
+
+
+def test_every_command_that_flies_a_users_sequence_refuses_rates_no_gyro_measures(
+    tmp_path: Path, paper: Scenario
+) -> None:
+    """The plan's rule, everywhere a user's sequence is flown on a user's scenario: a
+    sphere of 0.019 kg m² under one full-duty step reads up to 96 rad/s at the gyro's
+    samples and is left at 105 rad/s once the lag has emptied. ``simulate`` wrote it,
+    ``train`` trained on it and ``search`` searched it (its hand-designed baseline past
+    the ceiling); each now refuses in one line, exit 1, naming the candidate and the rate.
+    A sweep refuses a scenario whose thrusters spin the classifier's sequence past it."""
+    document = paper.model_dump(mode="json")
+    document["inertia_candidates"][0]["inertia_kg_m2"] = (0.019 * np.eye(3)).tolist()
+    document["candidate_generator"] = None
+    tiny = tmp_path / "tiny.json"
+    tiny.write_text(json.dumps(document))
+    rate = "spins candidate 'none ejected' to 105 rad/s (6.03e+03 deg/s)"
+    for args in (
+        ["simulate", "-n", "2", "--sequence", "4,4,4,0,0,0", "--out", str(tmp_path / "s.npz")],
+        ["train", "-n", "3", "--sequence", "4,4,4,0,0,0", "--out", str(tmp_path / "c.json")],
+        [
+            *("search", "--method", "random", "--length", "1", "--timesteps", "2"),
+            *("--search-realisations", "2", "--fresh-realisations", "2"),
+            *("--out", str(tmp_path / "r.json")),
+        ],
+    ):
+        result = CliRunner().invoke(main, [*args, "--scenario", str(tiny)])
+        assert result.exit_code == 1, (args[0], result.output)
+        *_, error = result.output.splitlines()  # after a progress line, if any
+        assert error.startswith("Error: ") and "Traceback" not in result.output
+        assert rate in error, result.output
+    assert "its hand-designed baseline of 1 steps" in result.output
+    assert not list(tmp_path.glob("[scr].*"))
+    classifier = train_classifier(
+        paper, SEQUENCE, 3, np.random.default_rng(0), kind="nearest-centroid", metric="euclidean"
+    )
+    strong = paper.model_dump(mode="json")
+    strong["thrusters"]["torque_matrix_nm"] = [
+        [1000 * v for v in row] for row in strong["thrusters"]["torque_matrix_nm"]
+    ]
+    with pytest.raises(InputError, match="beyond any attitude gyro's range"):
+        sweep_with_limit(
+            classifier, SweepRequest(), seed=0, scenario=Scenario.model_validate(strong)
+        )
