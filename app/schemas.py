@@ -657,6 +657,14 @@ class IdentifyResult(BaseModel):
     start_hint_shift_s: float | None = None
     start_hint_candidate: str | None = None
 
+    @computed_field(
+        description="the candidate's number as plan tables, exports and the CLI number it "
+        "(from 1, the scenario's order); candidate_index is its position in "
+        "candidate_names (from 0)"
+    )
+    def candidate_number(self) -> int:
+        return self.candidate_index + 1
+
 
 class PartialIdentifyResult(BaseModel):
     classifier_id: str
@@ -688,6 +696,13 @@ class PartialIdentifyResult(BaseModel):
         description="the part of the grid times so far (time_s) with a real sample within "
         "half a grid period, the values the posterior judges",
     )
+
+    @computed_field(
+        description="the decided candidate's number (from 1, as plan tables number it); "
+        "null until decided"
+    )
+    def candidate_number(self) -> int | None:
+        return None if self.candidate_index is None else self.candidate_index + 1
 
 
 # Health.

@@ -714,15 +714,19 @@ def identify_table(verdict: Mapping[str, Any]) -> Table:
     distances = verdict.get("distances") or {}
     posterior = verdict.get("posterior") or {}
     names = list(dict.fromkeys([*distances, *posterior]))
+    # ``number``: the candidate's number from 1, in the classifier's order, as plan tables
+    # and the verdict's candidate_number number it (appended: the columns before it keep
+    # their places for readers by position).
     rows = [
-        [name, distances.get(name), name == verdict.get("candidate"), posterior.get(name)]
-        for name in names
+        [name, distances.get(name), name == verdict.get("candidate"), posterior.get(name), k]
+        for k, name in enumerate(names, start=1)
     ]
     notes: list[tuple[str, Any]] = [
         ("classifier_id", verdict.get("classifier_id")),
         ("status", verdict.get("status")),
         ("verdict", verdict.get("verdict")),
         ("candidate", verdict.get("candidate")),
+        ("candidate_number", verdict.get("candidate_number")),
         ("candidate_inertia_kg_m2", verdict.get("inertia_kg_m2")),
         ("confidence", verdict.get("confidence")),
         ("required_confidence", verdict.get("required_confidence")),
@@ -767,4 +771,4 @@ def identify_table(verdict: Mapping[str, Any]) -> Table:
     if verdict.get("poorly_excited"):
         notes.append(("poorly_excited", verdict["poorly_excited"]))
     notes.append(("units", _IDENTIFY_UNITS))
-    return Table(["candidate", "distance", "nearest", "posterior"], rows, notes)
+    return Table(["candidate", "distance", "nearest", "posterior", "number"], rows, notes)

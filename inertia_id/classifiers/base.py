@@ -431,7 +431,8 @@ class BaseClassifier(BaseEstimator):
         elif scenario is not None:
             names = list(scenario.candidate_names)
         else:
-            names = [f"candidate {i}" for i in range(n_candidates)]
+            # Numbered from 1, as plan tables and candidate_number number candidates.
+            names = [f"candidate {i}" for i in range(1, n_candidates + 1)]
         self.n_candidates_ = n_candidates
         self.candidate_names_ = names
         self.length_ = int(X.shape[1])

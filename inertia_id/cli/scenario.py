@@ -85,9 +85,10 @@ def _arrays_file_name(context: click.Context, param: click.Parameter, value: str
 )
 @click.option(
     "--candidate",
-    default="0",
+    default="1",
     show_default=True,
-    help="Candidate (index or name) whose series --telemetry writes.",
+    help="Candidate (its name, or its number from 1 as plan tables and identify's "
+    "candidate_number give it) whose series --telemetry writes.",
 )
 @click.option(
     "--realisation",
@@ -241,7 +242,10 @@ def simulate_cmd(
         _write_telemetry(
             telemetry, result.time_s - coast_s, result.omega_measured[k, realisation], offset
         )
-        click.echo(f"wrote {telemetry} ({names[k]}, realisation {realisation})", err=True)
+        click.echo(
+            f"wrote {telemetry} (candidate {k + 1} {names[k]!r}, realisation {realisation})",
+            err=True,
+        )
     write_json(None, summary)
 
 
@@ -271,14 +275,22 @@ def _with_coast(scenario: Any, sequence: Any, pre_start_s: float) -> tuple[Any, 
 
 
 def _candidate_index(names: list[str], candidate: str) -> int:
+    """The position in ``names`` of ``candidate``: a name, or a number from 1 as plan
+    tables and an identification's ``candidate_number`` number it."""
     from ..errors import InputError
 
     if candidate in names:
         return names.index(candidate)
-    if candidate.isdigit() and int(candidate) < len(names):
-        return int(candidate)
+    if candidate.isdigit() and 1 <= int(candidate) <= len(names):
+        return int(candidate) - 1
+    zero = (
+        f" (candidates are numbered from 1, as plan tables and identify number them: the "
+        f"first is 1, {names[0]!r})"
+        if candidate.isdigit() and int(candidate) == 0
+        else ""
+    )
     raise InputError(
-        f"candidate {candidate!r} is neither an index 0..{len(names) - 1} nor one of {names}"
+        f"candidate {candidate!r} is neither a number 1..{len(names)} nor one of {names}{zero}"
     )
 
 

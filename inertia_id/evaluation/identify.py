@@ -38,7 +38,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from pydantic import BaseModel
+from pydantic import BaseModel, computed_field
 from scipy import special
 
 from ..checks import is_number
@@ -160,6 +160,14 @@ class Identification(BaseModel):
     start_hint: str | None = None
     start_hint_shift_s: float | None = None
     start_hint_candidate: str | None = None
+
+    @computed_field  # type: ignore[prop-decorator]
+    @property
+    def candidate_number(self) -> int:
+        """The candidate's number as plan tables, exports and the CLI number it: from 1,
+        in the scenario's order. ``candidate_index`` is its position in
+        ``candidate_names`` (from 0), kept for code that reads it."""
+        return self.candidate_index + 1
 
 
 #: The last this many samples before the start give the offset (a dense n x n solve):
@@ -329,6 +337,12 @@ class OnlineIdentification(BaseModel):
     telemetry_gaps: list[TelemetryGap] = []
     sequence_covered_fraction: float = 1.0
     sequence_measured_fraction: float = 1.0
+
+    @computed_field  # type: ignore[prop-decorator]
+    @property
+    def candidate_number(self) -> int | None:
+        """The decided candidate's number, from 1 (as :class:`Identification`'s)."""
+        return None if self.candidate_index is None else self.candidate_index + 1
 
 
 def _check_probability(name: str, value: Any) -> float:

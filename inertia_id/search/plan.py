@@ -170,6 +170,9 @@ class CommandPlan:
             "candidates": [
                 {
                     "name": name,
+                    # Numbered from 1 as the CSV's candidate_<number> columns and an
+                    # identification's candidate_number number it.
+                    "number": k + 1,
                     "rates_rad_s": rates[k].tolist(),
                     "rates_deg_s": (rates[k] * _DEG).tolist(),
                     "residual_rate_rad_s": float(residual[k]),

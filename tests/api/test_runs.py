@@ -738,7 +738,8 @@ def test_an_identify_verdict_downloads_as_csv(
 ) -> None:
     import pandas
 
-    classifier_id = api.insert_classifier(api.create_scenario()["id"], classifier)
+    scenario_id = api.create_scenario()["id"]
+    classifier_id = api.insert_classifier(scenario_id, classifier)
     flight = simulate(paper, GOOD_SEQUENCE, 1, np.random.default_rng(7))
     body = {
         "classifier_id": classifier_id,
@@ -754,13 +755,25 @@ def test_an_identify_verdict_downloads_as_csv(
     table = pandas.read_csv(io.StringIO(response.text), comment="#")
     # One row per candidate with its posterior: the CSV alone says which one it is and
     # how sure, not that the series "matches" every candidate.
-    assert list(table.columns) == ["candidate", "distance", "nearest", "posterior"]
+    assert list(table.columns) == ["candidate", "distance", "nearest", "posterior", "number"]
     assert list(table["candidate"]) == list(verdict["distances"])
     assert list(table.loc[table["nearest"], "candidate"]) == [verdict["candidate"]]
     assert verdict["candidate"] == "payload 3 ejected"
+    # Numbered from 1 as the plan's tables number it; candidate_index keeps its 0-based
+    # meaning beside it.
+    assert (verdict["candidate_number"], verdict["candidate_index"]) == (4, 3)
+    assert list(table["number"]) == [1, 2, 3, 4, 5]
+    assert list(table.loc[table["nearest"], "number"]) == [verdict["candidate_number"]]
+    planned = {"sequence": GOOD_SEQUENCE}
+    plan = api.post(f"/scenarios/{scenario_id}/plan", json=planned).json()
+    assert [c["number"] for c in plan["candidates"]] == [1, 2, 3, 4, 5]
+    assert plan["candidates"][3]["name"] == verdict["candidate"]
+    plan_csv = api.post(f"/scenarios/{scenario_id}/plan?format=csv", json=planned).text
+    assert f'# candidate_4 "{verdict["candidate"]}": ' in plan_csv
     assert list(table["posterior"]) == pytest.approx(list(verdict["posterior"].values()))
     assert list(table["distance"]) == pytest.approx(list(verdict["distances"].values()))
     notes = _notes(response.text)
+    assert notes["candidate_number"] == "4"
     assert notes["status"] == verdict["status"] and notes["verdict"] == verdict["verdict"]
     assert notes["classifier_id"] == classifier_id
     for key in ("confidence", "required_confidence", "p_none", "threshold"):

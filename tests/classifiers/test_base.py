@@ -55,3 +55,16 @@ def test_confusion_scores_average_over_the_candidates_present() -> None:
     assert scores["f1"] == pytest.approx((6 / 7 + 8 / 9) / 2)
     assert scores["accuracy"] == pytest.approx(7 / 8)
     assert scores["confusion"] is confusion
+
+
+def test_candidates_fitted_without_names_are_numbered_from_one() -> None:
+    """A classifier fitted on arrays alone named its candidates "candidate 0", "candidate
+    1", ... while plan tables and identify's candidate_number count from 1: the label now
+    carries the same number."""
+    from inertia_id import NearestCentroidClassifier
+
+    rng = np.random.default_rng(0)
+    X = np.concatenate([rng.normal(k, 0.1, (3, 8, 3)) for k in range(3)])
+    y = np.repeat(np.arange(3), 3)
+    model = NearestCentroidClassifier(metric="euclidean").fit(X, y)
+    assert model.candidate_names_ == ["candidate 1", "candidate 2", "candidate 3"]

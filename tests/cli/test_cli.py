@@ -373,7 +373,7 @@ def test_any_kind_trains_and_a_sweep_scores_others_beside_it(
             "--sequence",
             sequence,
             "--candidate",
-            "2",
+            "3",
             "--telemetry",
             str(telemetry),
         ],
@@ -422,8 +422,8 @@ def test_identify_many_files_with_a_mission_clock(
     folder = tmp_path / "downlink"
     folder.mkdir()
     start = "810000000"
-    _simulate_telemetry(folder / "a.csv", "1", "--sample-rate", "200", "--time-offset", start)
-    _simulate_telemetry(folder / "b.csv", "3", "--sample-rate", "10", "--time-offset", start)
+    _simulate_telemetry(folder / "a.csv", "2", "--sample-rate", "200", "--time-offset", start)
+    _simulate_telemetry(folder / "b.csv", "4", "--sample-rate", "10", "--time-offset", start)
     assert (folder / "a.csv").read_text().splitlines()[1].startswith("810000000.005,")
     (folder / "notes.txt").write_text("not telemetry")  # not .csv or .json: skipped
     bad = tmp_path / "bad.csv"
@@ -470,7 +470,7 @@ def test_identify_iso_stamps_and_an_estimated_start(
     runner: CliRunner, tmp_path: Path, small_classifier: Path
 ) -> None:
     telemetry = tmp_path / "t.csv"
-    _simulate_telemetry(telemetry, "2", "--time-offset", "2025-03-01T12:00:00Z")
+    _simulate_telemetry(telemetry, "3", "--time-offset", "2025-03-01T12:00:00Z")
     assert telemetry.read_text().startswith(
         "time_utc,wx_rad_s,wy_rad_s,wz_rad_s\n2025-03-01T12:00:00.050000Z,"
     )
@@ -542,7 +542,7 @@ def test_simulate_with_basilisk_writes_telemetry_identify_reads(
         "--seed",
         "3",
         "--candidate",
-        "4",
+        "5",
         "--sample-rate",
         "50",
         "--telemetry",
@@ -571,7 +571,7 @@ def test_telemetry_from_before_the_start_is_written_and_used(
     run_cli(["train", "--preset", "paper-in-orbit", "-n", "20", "--out", str(classifier)])
     telemetry = tmp_path / "t.csv"
     args = ["--preset", "paper-in-orbit", "--sample-rate", "1", "--pre-start", "10"]
-    _simulate_telemetry(telemetry, "2", *args, "--time-offset", "810000000")
+    _simulate_telemetry(telemetry, "3", *args, "--time-offset", "810000000")
     stamps = [line.split(",")[0] for line in telemetry.read_text().splitlines()[1:]]
     assert stamps[0] == "809999991" and "810000000" in stamps and stamps[-1] == "810000004"
     base = ["identify", "--classifier", str(classifier), "--sequence-start", "810000000"]
@@ -602,7 +602,7 @@ def test_identify_reads_gzip_telemetry_as_the_plain_file(
     import gzip
 
     plain = tmp_path / "t.csv"
-    _simulate_telemetry(plain, "3")
+    _simulate_telemetry(plain, "4")
     text = plain.read_bytes()
     rows = [line.split(",") for line in text.decode().split()[1:]]
     document = {
@@ -633,7 +633,7 @@ def test_identify_reads_an_averaging_gyro_at_its_intervals_midpoints(
     """--averaged-gyro: each rate the mean over the second before its stamp, read at the
     interval's midpoint (the same telemetry read at its stamps is another series)."""
     telemetry = tmp_path / "t.csv"
-    _simulate_telemetry(telemetry, "2")
+    _simulate_telemetry(telemetry, "3")
     import numpy as np
 
     rows = np.loadtxt(telemetry, delimiter=",", skiprows=1)
@@ -669,7 +669,7 @@ def test_identify_judges_a_dropout_with_the_default_kind_and_reports_it(
     default = tmp_path / "default.json"
     run_cli(["train", "-n", "10", "--out", str(default)])
     telemetry = tmp_path / "t.csv"
-    _simulate_telemetry(telemetry, "2", "--sample-rate", "10")
+    _simulate_telemetry(telemetry, "3", "--sample-rate", "10")
     header, *rows = telemetry.read_text().splitlines()
     kept = [row for row in rows if not 1.5 + 1e-9 < float(row.split(",")[0]) < 2.0 - 1e-9]
     assert len(rows) - len(kept) == 4
@@ -719,3 +719,37 @@ def test_a_search_cut_at_its_time_limit_says_what_was_not_rescored(
     # No mean of no draws (it printed "F1 nan" with a RuntimeWarning).
     assert done > 0 or "found: no fresh draw was scored (stopped: time_limit)" in result.output
     assert "nan" not in result.output
+
+
+def test_identify_and_the_plan_number_a_candidate_alike(
+    runner: CliRunner, tmp_path: Path, small_classifier: Path
+) -> None:
+    """identify named its candidate by ``candidate_index`` from 0 while plan tables number
+    candidates from 1 (``# candidate_3 ...``, ``candidate_3_wx_rad_s``), and ``simulate
+    --candidate 2`` flew the third. Now one convention: a candidate's number from 1 beside
+    its name in identify's ``candidate_number``, the plan's JSON ``number`` and CSV, and
+    ``simulate --candidate``; ``candidate_index`` keeps its meaning (from 0)."""
+    telemetry = tmp_path / "t.csv"
+    flown = runner.invoke(
+        main,
+        ["simulate", "-n", "1", "--seed", "11", "--candidate", "3", "--telemetry", str(telemetry)],
+    )
+    assert flown.exit_code == 0, flown.output
+    assert "(candidate 3 'payload 2 ejected', realisation 0)" in flown.stderr
+    verdict = json.loads(
+        run_cli(["identify", "--classifier", str(small_classifier), str(telemetry)]).stdout
+    )
+    assert verdict["candidate"] == "payload 2 ejected"
+    assert (verdict["candidate_number"], verdict["candidate_index"]) == (3, 2)
+    plan, _ = run_cli_json(["plan", "--sequence", "4,4,4,0,0,0"], tmp_path / "p.json")
+    numbered = {c["number"]: c["name"] for c in plan["candidates"]}
+    assert numbered[verdict["candidate_number"]] == verdict["candidate"]
+    run_cli(["plan", "--sequence", "4,4,4,0,0,0", "--out", str(tmp_path / "p.csv")])
+    table = (tmp_path / "p.csv").read_text()
+    assert f'# candidate_3 "{verdict["candidate"]}": residual_rate_rad_s' in table
+    assert ",candidate_3_wx_rad_s," in table
+    refused = runner.invoke(main, ["simulate", "--candidate", "0", "--telemetry", "x.csv"])
+    assert refused.exit_code == 1
+    assert (
+        "numbered from 1" in refused.output and "the first is 1, 'none ejected'" in refused.output
+    )

@@ -319,6 +319,11 @@ def test_a_pass_that_starts_late_or_ends_early_is_judged_on_the_samples_present(
         # The partial verdict judges it too (a tail lost is just where it stops).
         online = identify_online(marginal, telemetry)
         assert online.candidate_index in (None, k)
+        # Numbered from 1 beside the index, as plan tables number candidates.
+        assert verdict.model_dump()["candidate_number"] == k + 1
+        assert online.model_dump()["candidate_number"] == (
+            None if online.candidate_index is None else k + 1
+        )
         if hole[0] == 0.0:
             assert [(g.from_s, g.to_s) for g in online.telemetry_gaps] == [pytest.approx(gap)]
     assert identified >= 4
