@@ -38,7 +38,7 @@ from typing import IO, Any
 
 from pydantic import ValidationError
 
-from service.config import Settings, get_settings
+from service.config import Settings, get_settings, setting_problems
 from service.queue import worker_command
 
 __all__ = ["WorkerPool", "main", "tcp_socket"]
@@ -421,12 +421,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except ValidationError as exc:
         # A setting from the environment that is no value of its type or range: one line
         # each, naming the variable and the value, before anything is created.
-        for error in exc.errors():
-            name = ".".join(str(part) for part in error["loc"])
-            print(
-                f"inertia-id serve: {name}={error.get('input')!r}: {error['msg']}",
-                file=sys.stderr,
-            )
+        for line in setting_problems(exc):
+            print(f"inertia-id serve: {line}", file=sys.stderr)
         return 1
     data_dir.mkdir(parents=True, exist_ok=True)
 

@@ -11,10 +11,16 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Literal
 
-from pydantic import Field
+from pydantic import Field, ValidationError, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
-__all__ = ["Settings", "get_settings"]
+__all__ = ["LONGEST_S", "Settings", "get_settings", "setting_problems", "settings_or_exit"]
+
+#: The longest any duration setting may be, s: a year. Longer is a typo (a value in ms,
+#: a stray exponent), and past about 1e10 s the waits and clock arithmetic they feed
+#: (``threading.Event.wait``, ``now - timedelta(...)``) raise OverflowError at run time
+#: instead of at start.
+LONGEST_S = 365 * 86400.0
 
 
 class Settings(BaseSettings):
@@ -27,15 +33,19 @@ class Settings(BaseSettings):
     broker_url: str = Field(default="filesystem://", alias="BROKER_URL")
     api_key: str | None = Field(default=None, alias="INERTIA_ID_API_KEY")
     host: str = Field(default="127.0.0.1", alias="INERTIA_ID_HOST")
-    port: int = Field(default=8000, alias="INERTIA_ID_PORT")
-    max_body_bytes: int = Field(default=5_000_000, alias="INERTIA_ID_MAX_BODY_BYTES")
-    max_page_size: int = Field(default=200, alias="INERTIA_ID_MAX_PAGE_SIZE")
+    port: int = Field(default=8000, ge=1, le=65535, alias="INERTIA_ID_PORT")
+    max_body_bytes: int = Field(default=5_000_000, ge=1, alias="INERTIA_ID_MAX_BODY_BYTES")
+    max_page_size: int = Field(default=200, ge=1, alias="INERTIA_ID_MAX_PAGE_SIZE")
     #: A connection whose request head is not complete this long after it opened, or
     #: after the previous response on it, is closed (slow clients, ``slowloris``; uvicorn
     #: has no such timeout: ``app.request_deadlines``). 10 s: a head is one packet or a
     #: few, sent at once by any real client.
     request_head_timeout_s: float = Field(
-        default=10.0, gt=0, allow_inf_nan=False, alias="INERTIA_ID_REQUEST_HEAD_TIMEOUT_S"
+        default=10.0,
+        gt=0,
+        le=LONGEST_S,
+        allow_inf_nan=False,
+        alias="INERTIA_ID_REQUEST_HEAD_TIMEOUT_S",
     )
     #: A request head with more header fields than this, or more bytes (its target and
     #: header fields) is answered 431 and its connection closed (``app.request_deadlines``;
@@ -54,33 +64,61 @@ class Settings(BaseSettings):
     #: A connection whose request body brings less than 1 KiB (and does not end) in this
     #: long: a slow but steady upload is never cut, a byte every few seconds is.
     request_body_timeout_s: float = Field(
-        default=20.0, gt=0, allow_inf_nan=False, alias="INERTIA_ID_REQUEST_BODY_TIMEOUT_S"
+        default=20.0,
+        gt=0,
+        le=LONGEST_S,
+        allow_inf_nan=False,
+        alias="INERTIA_ID_REQUEST_BODY_TIMEOUT_S",
     )
-    max_metric_points: int = Field(default=2000, alias="INERTIA_ID_MAX_METRIC_POINTS")
-    heartbeat_interval_s: float = Field(default=5.0, alias="INERTIA_ID_HEARTBEAT_INTERVAL_S")
-    heartbeat_timeout_s: float = Field(default=60.0, alias="INERTIA_ID_HEARTBEAT_TIMEOUT_S")
-    max_attempts: int = Field(default=2, alias="INERTIA_ID_MAX_ATTEMPTS")
+    #: A downsampled metric series keeps its first and last points: at least 2.
+    max_metric_points: int = Field(default=2000, ge=2, alias="INERTIA_ID_MAX_METRIC_POINTS")
+    #: A running job's heartbeat, and each worker's beat, reaper and re-sender, every
+    #: this many seconds; shorter than the timeout (checked below).
+    heartbeat_interval_s: float = Field(
+        default=5.0,
+        gt=0,
+        le=LONGEST_S,
+        allow_inf_nan=False,
+        alias="INERTIA_ID_HEARTBEAT_INTERVAL_S",
+    )
+    heartbeat_timeout_s: float = Field(
+        default=60.0,
+        gt=0,
+        le=LONGEST_S,
+        allow_inf_nan=False,
+        alias="INERTIA_ID_HEARTBEAT_TIMEOUT_S",
+    )
+    max_attempts: int = Field(default=2, ge=1, alias="INERTIA_ID_MAX_ATTEMPTS")
     #: A queued job never sent this long after its creation is sent by a worker.
-    unsent_grace_s: float = Field(default=10.0, alias="INERTIA_ID_UNSENT_GRACE_S")
+    unsent_grace_s: float = Field(
+        default=10.0, gt=0, le=LONGEST_S, allow_inf_nan=False, alias="INERTIA_ID_UNSENT_GRACE_S"
+    )
     #: A queued job whose message went out this long ago while a worker sat idle lost
     #: its message (a live idle worker takes a message within a poll): it is sent again.
-    resend_after_s: float = Field(default=30.0, alias="INERTIA_ID_RESEND_AFTER_S")
-    worker_max_jobs_per_process: int = Field(default=100, alias="INERTIA_ID_WORKER_MAX_JOBS")
-    worker_max_memory_mb: int = Field(default=4096, alias="INERTIA_ID_WORKER_MAX_MEMORY_MB")
+    resend_after_s: float = Field(
+        default=30.0, gt=0, le=LONGEST_S, allow_inf_nan=False, alias="INERTIA_ID_RESEND_AFTER_S"
+    )
+    worker_max_jobs_per_process: int = Field(default=100, ge=1, alias="INERTIA_ID_WORKER_MAX_JOBS")
+    worker_max_memory_mb: int = Field(default=4096, ge=1, alias="INERTIA_ID_WORKER_MAX_MEMORY_MB")
     #: How long a worker waits for a new task process to warm up (import the core,
     #: compile the kernels) and report in before it kills it and starts another. Celery's
     #: own 4 s is shorter than the warm-up (7-9 s on an idle machine, 38 s measured under
     #: load), so every replacement was killed in turn and the worker never ran another job.
     worker_start_timeout_s: float = Field(
-        default=300.0, gt=0, allow_inf_nan=False, alias="INERTIA_ID_WORKER_START_TIMEOUT_S"
+        default=300.0,
+        gt=0,
+        le=LONGEST_S,
+        allow_inf_nan=False,
+        alias="INERTIA_ID_WORKER_START_TIMEOUT_S",
     )
     #: /health is "degraded" when a queued job has waited this long while a live worker
     #: sat idle: twice the re-sender's wait for a lost message, plus a task process's
     #: warm-up under load, and then some.
     queue_stall_s: float = Field(
-        default=120.0, gt=0, allow_inf_nan=False, alias="INERTIA_ID_QUEUE_STALL_S"
+        default=120.0, gt=0, le=LONGEST_S, allow_inf_nan=False, alias="INERTIA_ID_QUEUE_STALL_S"
     )
-    classifier_cache_size: int = Field(default=32, alias="INERTIA_ID_CLASSIFIER_CACHE")
+    #: Classifiers kept loaded (0: none, each verdict loads its own).
+    classifier_cache_size: int = Field(default=32, ge=0, alias="INERTIA_ID_CLASSIFIER_CACHE")
     #: CPU work in the API process (identify, response simulation): threads of its own,
     #: and how many requests may wait for one, and for how long, before a 503.
     #: One thread by default: a verdict is small numpy work that holds the GIL most of
@@ -94,10 +132,14 @@ class Settings(BaseSettings):
     verdict_process: Literal["eager", "lazy", "off"] = Field(
         default="eager", alias="INERTIA_ID_VERDICT_PROCESS"
     )
-    compute_wait_s: float = Field(default=10.0, gt=0, alias="INERTIA_ID_COMPUTE_WAIT_S")
+    compute_wait_s: float = Field(
+        default=10.0, gt=0, le=LONGEST_S, allow_inf_nan=False, alias="INERTIA_ID_COMPUTE_WAIT_S"
+    )
     #: Longest a verdict may take in the verdict process (a cold classifier's load
     #: included) before the process is killed, replaced and the request answered 503.
-    verdict_timeout_s: float = Field(default=30.0, gt=0, alias="INERTIA_ID_VERDICT_TIMEOUT_S")
+    verdict_timeout_s: float = Field(
+        default=30.0, gt=0, le=LONGEST_S, allow_inf_nan=False, alias="INERTIA_ID_VERDICT_TIMEOUT_S"
+    )
     #: Host header values accepted (comma-separated); empty: the loopback names, plus
     #: INERTIA_ID_HOST when it names one address. "*" accepts any (behind a proxy that
     #: checks it).
@@ -109,8 +151,23 @@ class Settings(BaseSettings):
     #: room for searches a hundred times larger, while a runaway (an exhaustive search of
     #: 1e9 sequences runs for weeks) frees its worker the same day.
     job_time_limit_s: float = Field(
-        default=6 * 3600.0, gt=0, allow_inf_nan=False, alias="INERTIA_ID_JOB_TIME_LIMIT_S"
+        default=6 * 3600.0,
+        gt=0,
+        le=LONGEST_S,
+        allow_inf_nan=False,
+        alias="INERTIA_ID_JOB_TIME_LIMIT_S",
     )
+
+    @model_validator(mode="after")
+    def _heartbeat_within_timeout(self) -> Settings:
+        # A job whose beat is due only after the reaper's timeout is reaped while alive.
+        if self.heartbeat_interval_s >= self.heartbeat_timeout_s:
+            raise ValueError(
+                f"INERTIA_ID_HEARTBEAT_INTERVAL_S={self.heartbeat_interval_s:g} must be "
+                f"shorter than INERTIA_ID_HEARTBEAT_TIMEOUT_S={self.heartbeat_timeout_s:g}: "
+                "a running job would be reaped between two of its heartbeats"
+            )
+        return self
 
     @property
     def resolved_database_url(self) -> str:
@@ -148,3 +205,29 @@ class Settings(BaseSettings):
 @lru_cache(maxsize=1)
 def get_settings() -> Settings:
     return Settings()
+
+
+def setting_problems(error: ValidationError) -> list[str]:
+    """One line per bad setting: ``NAME='value': why``, or the rule broken by two
+    settings together (which names both and their values)."""
+    lines = []
+    for problem in error.errors(include_url=False):
+        name = ".".join(str(part) for part in problem["loc"])
+        reason = problem["msg"]
+        if problem["type"] == "value_error":
+            # pydantic's "Value error, " before our own message adds nothing.
+            reason = str(problem.get("ctx", {}).get("error", reason))
+        lines.append(f"{name}={problem.get('input')!r}: {reason}" if name else reason)
+    return lines
+
+
+def settings_or_exit(program: str) -> Settings:
+    """:func:`get_settings`, or ``SystemExit`` with one line per bad setting, each
+    starting with ``program:``: the worker's and the API's start (``celery -A
+    worker.celery_app``, ``uvicorn app.main:create_app --factory``) end with status 1
+    and those lines rather than a pydantic traceback."""
+    try:
+        return get_settings()
+    except ValidationError as exc:
+        lines = [f"{program}: {line}" for line in setting_problems(exc)]
+        raise SystemExit("\n".join(lines)) from None

@@ -14,12 +14,13 @@ from __future__ import annotations
 
 from typing import Any
 
-from service.config import get_settings
+from service.config import settings_or_exit
 from service.queue import make_celery
 
 __all__ = ["celery"]
 
-settings = get_settings()
+# A bad setting ends the worker's start with one line naming it, not a traceback.
+settings = settings_or_exit("inertia-id worker")
 celery = make_celery(settings)
 
 _worker_conf: dict[str, Any] = {

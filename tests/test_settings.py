@@ -1,0 +1,154 @@
+"""The service's settings refuse values out of range, one line each naming the variable."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from pydantic import ValidationError
+from service_support import clean_env, free_port
+
+from service.config import LONGEST_S, Settings, setting_problems
+
+#: A value each setting took before it had a range, and the service started with it:
+#: a body limit of -5 bytes, a heartbeat timeout of -1 s, a wait of 1e12 s that
+#: overflows ``threading.Event.wait`` when it is first used, ...
+OUT_OF_RANGE = [
+    ("INERTIA_ID_PORT", "0"),
+    ("INERTIA_ID_PORT", "65536"),
+    ("INERTIA_ID_MAX_BODY_BYTES", "-5"),
+    ("INERTIA_ID_MAX_BODY_BYTES", "0"),
+    ("INERTIA_ID_MAX_PAGE_SIZE", "0"),
+    ("INERTIA_ID_MAX_METRIC_POINTS", "1"),
+    ("INERTIA_ID_HEARTBEAT_INTERVAL_S", "0"),
+    ("INERTIA_ID_HEARTBEAT_INTERVAL_S", "-inf"),
+    ("INERTIA_ID_HEARTBEAT_TIMEOUT_S", "-1"),
+    ("INERTIA_ID_HEARTBEAT_TIMEOUT_S", "inf"),
+    ("INERTIA_ID_MAX_ATTEMPTS", "0"),
+    ("INERTIA_ID_UNSENT_GRACE_S", "-1"),
+    ("INERTIA_ID_UNSENT_GRACE_S", "0"),
+    ("INERTIA_ID_RESEND_AFTER_S", "0"),
+    ("INERTIA_ID_RESEND_AFTER_S", "1e12"),
+    ("INERTIA_ID_WORKER_MAX_JOBS", "0"),
+    ("INERTIA_ID_WORKER_MAX_MEMORY_MB", "-1"),
+    ("INERTIA_ID_WORKER_START_TIMEOUT_S", "1e12"),
+    ("INERTIA_ID_QUEUE_STALL_S", "1e12"),
+    ("INERTIA_ID_CLASSIFIER_CACHE", "-1"),
+    ("INERTIA_ID_COMPUTE_WAIT_S", "inf"),
+    ("INERTIA_ID_VERDICT_TIMEOUT_S", "inf"),
+    ("INERTIA_ID_JOB_TIME_LIMIT_S", "1e12"),
+    ("INERTIA_ID_REQUEST_HEAD_TIMEOUT_S", "1e12"),
+    ("INERTIA_ID_REQUEST_BODY_TIMEOUT_S", "1e12"),
+]
+
+#: The edges of the same ranges, which are accepted.
+AT_THE_EDGE = [
+    ("INERTIA_ID_PORT", "1"),
+    ("INERTIA_ID_PORT", "65535"),
+    ("INERTIA_ID_MAX_BODY_BYTES", "1"),
+    ("INERTIA_ID_MAX_PAGE_SIZE", "1"),
+    ("INERTIA_ID_MAX_METRIC_POINTS", "2"),
+    ("INERTIA_ID_HEARTBEAT_INTERVAL_S", "0.001"),
+    ("INERTIA_ID_MAX_ATTEMPTS", "1"),
+    ("INERTIA_ID_UNSENT_GRACE_S", str(LONGEST_S)),
+    ("INERTIA_ID_WORKER_MAX_JOBS", "1"),
+    ("INERTIA_ID_WORKER_MAX_MEMORY_MB", "1"),
+    ("INERTIA_ID_CLASSIFIER_CACHE", "0"),
+    ("INERTIA_ID_JOB_TIME_LIMIT_S", str(LONGEST_S)),
+]
+
+
+def test_every_numeric_setting_has_a_lower_bound_and_every_duration_an_upper_one() -> None:
+    """A new setting cannot come without a range: each number has a lower bound, each
+    duration (``_s``) an upper one and no inf or nan."""
+    for field, info in Settings.model_fields.items():
+        if info.annotation not in (int, float):
+            continue
+        kinds = {type(rule).__name__ for rule in info.metadata}
+        assert kinds & {"Ge", "Gt"}, f"{info.alias} has no lower bound"
+        if field.endswith("_s"):
+            assert "Le" in kinds and "AllowInfNan" in kinds, f"{info.alias} has no ceiling"
+    assert {"Ge", "Le"} <= {type(r).__name__ for r in Settings.model_fields["port"].metadata}
+
+
+@pytest.mark.parametrize(("name", "value"), OUT_OF_RANGE)
+def test_a_setting_out_of_range_is_refused_naming_it(name: str, value: str) -> None:
+    with pytest.raises(ValidationError) as refused:
+        Settings(**{name: value})
+    (line,) = setting_problems(refused.value)
+    assert line.startswith(f"{name}={value!r}: Input should be ")
+
+
+@pytest.mark.parametrize(("name", "value"), AT_THE_EDGE)
+def test_a_setting_at_the_edge_of_its_range_is_accepted(name: str, value: str) -> None:
+    settings = Settings(**{name: value})
+    field = next(f for f, info in Settings.model_fields.items() if info.alias == name)
+    assert getattr(settings, field) == type(getattr(settings, field))(value)
+
+
+@pytest.mark.parametrize(("interval", "timeout"), [("60", "60"), ("90", "60"), ("5", "4.5")])
+def test_a_heartbeat_interval_not_shorter_than_the_timeout_is_refused(
+    interval: str, timeout: str
+) -> None:
+    """A job beating every 90 s with a reaper timeout of 60 s is reaped while it runs."""
+    with pytest.raises(ValidationError) as refused:
+        Settings(INERTIA_ID_HEARTBEAT_INTERVAL_S=interval, INERTIA_ID_HEARTBEAT_TIMEOUT_S=timeout)
+    (line,) = setting_problems(refused.value)
+    assert line.startswith(
+        f"INERTIA_ID_HEARTBEAT_INTERVAL_S={float(interval):g} must be shorter than "
+        f"INERTIA_ID_HEARTBEAT_TIMEOUT_S={float(timeout):g}"
+    )
+    assert Settings(INERTIA_ID_HEARTBEAT_INTERVAL_S="0.5", INERTIA_ID_HEARTBEAT_TIMEOUT_S="3")
+
+
+BAD_ENV = {
+    "INERTIA_ID_MAX_BODY_BYTES": "-5",
+    "INERTIA_ID_HEARTBEAT_TIMEOUT_S": "-1",
+}
+
+
+def _refused_lines(command: list[str], tmp_path: Path, **env: str) -> list[str]:
+    data = tmp_path / "data"
+    done = subprocess.run(
+        command,
+        capture_output=True,
+        text=True,
+        env=clean_env(INERTIA_ID_DATA_DIR=str(data), **env),
+        cwd=tmp_path,
+        timeout=120,
+    )
+    assert done.returncode == 1, done.stderr
+    assert "Traceback" not in done.stderr, done.stderr
+    assert not data.exists()
+    return done.stderr.strip().splitlines()
+
+
+def _command(program: str) -> list[str]:
+    if program == "inertia-id serve":
+        # A free port: serve checks its port before its settings.
+        serve = [sys.executable, "-m", "app.serve", "--workers", "0"]
+        return [*serve, "--port", str(free_port()), "--data-dir", "data"]
+    if program == "inertia-id worker":
+        return [sys.executable, "-m", "celery", "-A", "worker.celery_app", "worker"]
+    return [sys.executable, "-m", "uvicorn", "app.main:create_app", "--factory", "--port", "1"]
+
+
+@pytest.mark.parametrize("program", ["inertia-id serve", "inertia-id worker", "inertia-id api"])
+def test_every_entry_point_refuses_a_bad_setting_in_one_line(program: str, tmp_path: Path) -> None:
+    """``inertia-id serve``, a worker and the API under uvicorn: one line per bad setting,
+    naming the variable and its value, status 1, nothing created (the worker and the API
+    ended with a pydantic traceback, serve started with these values)."""
+    command = _command(program)
+    lines = _refused_lines(command, tmp_path, **BAD_ENV)
+    assert lines == [
+        f"{program}: INERTIA_ID_MAX_BODY_BYTES='-5': Input should be greater than or equal to 1",
+        f"{program}: INERTIA_ID_HEARTBEAT_TIMEOUT_S='-1': Input should be greater than 0",
+    ]
+    lines = _refused_lines(command, tmp_path, INERTIA_ID_HEARTBEAT_INTERVAL_S="120")
+    assert lines == [
+        f"{program}: INERTIA_ID_HEARTBEAT_INTERVAL_S=120 must be shorter than "
+        "INERTIA_ID_HEARTBEAT_TIMEOUT_S=60: a running job would be reaped between two of its "
+        "heartbeats"
+    ]
