@@ -15,8 +15,8 @@ import json
 import math
 import os
 import re
+import stat
 import unicodedata
-from pathlib import Path
 from typing import Any, TypeGuard
 
 import numpy as np
@@ -54,7 +54,13 @@ def check_seed(seed: Any, name: str = "seed") -> int:
     return int(seed)
 
 
-def read_text(path: str | os.PathLike[str], what: str, *, gzip_limit: int | None = None) -> str:
+def read_text(
+    path: str | os.PathLike[str],
+    what: str,
+    *,
+    gzip_limit: int | None = None,
+    limit: int | None = None,
+) -> str:
     """A UTF-8 text file's content; a file that is no such text (a binary file, another
     encoding) is an :class:`~inertia_id.errors.InputError` naming it and ``what`` it
     should have been. A missing or unreadable file raises the ``OSError``, which names
@@ -63,15 +69,28 @@ def read_text(path: str | os.PathLike[str], what: str, *, gzip_limit: int | None
     :param gzip_limit: with it, a file that is gzip (known by its magic bytes, whatever
         its name) is decompressed, at most this many bytes
         (:func:`inertia_id.gzipped.gunzip`); without it, gzip is not text.
+    :param limit: with it, a plain file of more bytes is an
+        :class:`~inertia_id.errors.InputError` naming the file, its size and the limit,
+        raised before its content is read (a named pipe, whose size is not known
+        beforehand: after ``limit + 1`` bytes of it).
     """
     from .errors import InputError
     from .gzipped import gunzip, is_gzip
 
-    # One read of the file (a named pipe can be read once), decoded as Path.read_text
+    # One pass over the file (a named pipe can be read once), decoded as Path.read_text
     # decodes: UTF-8, universal newlines.
-    data = Path(path).read_bytes()
-    if gzip_limit is not None and is_gzip(data):
-        data = gunzip(data, limit=gzip_limit, what=repr(os.fspath(path)))
+    with open(path, "rb") as file:
+        if gzip_limit is not None and is_gzip(file.peek(2)[:2]):
+            data = gunzip(file, limit=gzip_limit, what=repr(os.fspath(path)))
+        elif limit is None:
+            data = file.read()
+        else:
+            status = os.fstat(file.fileno())
+            if stat.S_ISREG(status.st_mode) and status.st_size > limit:
+                raise InputError(_over_limit(path, f"is {status.st_size} bytes", limit, what))
+            data = file.read(limit + 1)
+            if len(data) > limit:
+                raise InputError(_over_limit(path, f"holds more than {limit} bytes", limit, what))
     try:
         return io.TextIOWrapper(io.BytesIO(data), encoding="utf-8").read()
     except UnicodeDecodeError as exc:
@@ -79,6 +98,13 @@ def read_text(path: str | os.PathLike[str], what: str, *, gzip_limit: int | None
             f"{os.fspath(path)!r} is not UTF-8 text (byte {exc.object[exc.start : exc.end]!r} "
             f"at position {exc.start}): it should be {what}"
         ) from None
+
+
+def _over_limit(path: str | os.PathLike[str], size: str, limit: int, what: str) -> str:
+    return (
+        f"{os.fspath(path)!r} {size}, over the limit of {limit} bytes for {what}; "
+        "give less data (fewer samples), or gzip it"
+    )
 
 
 def is_integer(

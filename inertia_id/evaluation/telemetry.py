@@ -80,6 +80,7 @@ __all__ = [
     "MAX_GZIP_TELEMETRY_BYTES",
     "MAX_OFFSET_S",
     "MAX_START_SHIFTS",
+    "MAX_TELEMETRY_BYTES",
     "MAX_TELEMETRY_RATE_RAD_S",
     "MAX_TELEMETRY_SAMPLES",
     "MIN_COVERED_FRACTION",
@@ -97,10 +98,12 @@ __all__ = [
 ]
 
 MAX_TELEMETRY_SAMPLES = 200_000
-#: Most bytes a gzip telemetry file may hold once decompressed (:func:`load_telemetry`):
-#: 500 a sample at the sample cap, three times the 166 of JSON indented by 4 with ISO
-#: stamps; past it a file is refused after inflating this much, not all of it.
-MAX_GZIP_TELEMETRY_BYTES = 500 * MAX_TELEMETRY_SAMPLES
+#: Most bytes a telemetry file may hold (:func:`load_telemetry`), a gzip one once
+#: decompressed: 500 a sample at the sample cap, three times the 166 of JSON indented by
+#: 4 with ISO stamps. A plain file past it is refused by its size, before it is read; a
+#: gzip one after inflating this much, not all of it.
+MAX_TELEMETRY_BYTES = 500 * MAX_TELEMETRY_SAMPLES
+MAX_GZIP_TELEMETRY_BYTES = MAX_TELEMETRY_BYTES
 #: Largest rate a telemetry sample may hold, rad/s (5,730 deg/s): beyond any attitude
 #: gyro's range, so a larger one is a corrupted word, refused by name (a spike of 1e200
 #: rad/s once overflowed the verdict's arithmetic).
@@ -625,14 +628,20 @@ def load_telemetry(
     """Read telemetry from a .json or .csv file (see :func:`parse_telemetry`), or from
     one gzip-compressed (``pass.csv.gz``; known by its magic bytes, whatever its name).
 
-    The format is the name's (less ``.gz``), else sniffed. A gzip file may hold at most
-    :data:`MAX_GZIP_TELEMETRY_BYTES` once decompressed, and is refused past them having
-    inflated no more (a decompression bomb costs that much, not its content).
+    The format is the name's (less ``.gz``), else sniffed. A file may hold at most
+    :data:`MAX_TELEMETRY_BYTES`: a plain one past them is refused by its size, unread; a
+    gzip one once decompressed, refused past them having inflated no more (a
+    decompression bomb costs that much, not its content).
     """
     from ..checks import read_text
     from ..gzipped import without_gz_suffix
 
-    text = read_text(path, "telemetry as CSV or JSON", gzip_limit=MAX_GZIP_TELEMETRY_BYTES)
+    text = read_text(
+        path,
+        "telemetry as CSV or JSON",
+        gzip_limit=MAX_TELEMETRY_BYTES,
+        limit=MAX_TELEMETRY_BYTES,
+    )
     suffix = without_gz_suffix(os.fspath(path)).lower().rsplit(".", 1)[-1]
     return parse_telemetry(
         text,

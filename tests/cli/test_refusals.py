@@ -17,7 +17,7 @@ from inertia_id import Scenario, estimate_inertia, load_classifier, simulate, tr
 from inertia_id.cli import main
 from inertia_id.errors import InputError
 from inertia_id.evaluation.sweep import run_inertia_sweep, run_sweep
-from inertia_id.evaluation.telemetry import load_telemetry
+from inertia_id.evaluation.telemetry import MAX_TELEMETRY_BYTES, load_telemetry
 from inertia_id.pipelines import SweepRequest, sweep_with_limit
 
 SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
@@ -80,6 +80,63 @@ def test_a_gzip_bomb_or_a_broken_gzip_is_refused_naming_the_file(
     message = refused(["identify", "--classifier", str(classifier), str(truncated)])
     assert f"{str(truncated)!r} is not a valid gzip stream" in message
     assert "Compressed file ended before the end-of-stream marker" in message
+
+
+@pytest.mark.parametrize("size", [MAX_TELEMETRY_BYTES + 1, 2**40], ids=["limit+1", "1TiB"])
+def test_a_plain_telemetry_file_over_the_byte_limit_is_refused_unread(
+    tmp_path: Path, size: int
+) -> None:
+    """A plain file had only the 200,000-row cap, checked after the whole file was read
+    into memory; it is held to the gzip file's byte limit, by its size, unread (a
+    sparse file: a terabyte of it costs no disk, and reading it would fail for memory)."""
+    classifier = tmp_path / "c.json"
+    train_classifier(
+        Scenario.paper(), SEQUENCE, 3, np.random.default_rng(0), metric="euclidean"
+    ).save(classifier)
+    big = tmp_path / "pass.csv"
+    with big.open("wb") as file:
+        file.truncate(size)
+    message = refused(["identify", "--classifier", str(classifier), str(big)])
+    assert message == (
+        f"Error: {str(big)!r} is {size} bytes, over the limit of {MAX_TELEMETRY_BYTES} bytes "
+        "for telemetry as CSV or JSON; give less data (fewer samples), or gzip it"
+    )
+
+
+def test_a_named_pipe_is_read_no_further_than_the_limit(tmp_path: Path) -> None:
+    """A pipe has no size to check: it is refused one byte past the limit."""
+    import os
+    import threading
+
+    from inertia_id.checks import read_text
+
+    pipe = tmp_path / "pass.csv"
+    os.mkfifo(pipe)
+    written: list[int] = []
+
+    def write() -> None:
+        # Unbuffered: nothing is left to flush on a pipe the reader has closed.
+        with pipe.open("wb", buffering=0) as file:
+            try:
+                for _ in range(1000):
+                    file.write(b"0.05,0,0,0\n" * 100)
+                    written.append(1)
+            except BrokenPipeError:
+                pass
+
+    # A daemon: a reader that never opens the pipe leaves it blocked, not the test run.
+    writer = threading.Thread(target=write, daemon=True)
+    writer.start()
+    with pytest.raises(
+        InputError,
+        match=r"'.*pass\.csv' holds more than 5000 bytes, over the limit of 5000 bytes for ",
+    ):
+        read_text(pipe, "telemetry", limit=5000)
+    writer.join(10)
+    assert not writer.is_alive() and len(written) < 1000
+    exact = tmp_path / "exact.csv"
+    exact.write_text("0.05,0,0,0\n" * 10)
+    assert read_text(exact, "telemetry", limit=110) == "0.05,0,0,0\n" * 10
 
 
 def test_a_sequence_that_applies_no_torque_is_not_trained_on(tmp_path: Path) -> None:
