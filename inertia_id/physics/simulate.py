@@ -12,6 +12,7 @@ function of it. Two consequences a user can rely on:
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -376,6 +377,19 @@ def _overflow_message(simulator: Simulator) -> str:
     )
 
 
+def _visibly_past(value: float, ceiling: float) -> tuple[str, str]:
+    """``value`` and ``ceiling`` (``value`` > ``ceiling``) with the fewest significant
+    digits that show the value above the ceiling: at least 3, and the ceiling's whole
+    part (5,730 deg/s, not 5.73e+03). ``:.3g`` showed a peak of 100.4 rad/s as "100",
+    the ceiling's own figure."""
+    whole = len(f"{abs(ceiling):.0f}")
+    for digits in range(max(3, whole), 18):
+        shown, limit = f"{value:,.{digits}g}", f"{ceiling:,.{digits}g}"
+        if float(shown.replace(",", "")) > float(limit.replace(",", "")):
+            return shown, limit
+    return repr(value), repr(ceiling)  # not past the ceiling: each as it is
+
+
 def check_gyro_range(
     scenario: Scenario,
     sequence: np.ndarray,
@@ -419,19 +433,20 @@ def check_gyro_range(
     # Where that flight first passes the ceiling: the step to look at.
     past = np.flatnonzero(rates[k, i].max(axis=-1) > MAX_GYRO_RATE_RAD_S)
     per_step = max(1, rates.shape[2] // len(rows))
+    rate, ceiling = _visibly_past(float(largest), MAX_GYRO_RATE_RAD_S)
+    rate_deg, ceiling_deg = _visibly_past(math.degrees(largest), math.degrees(MAX_GYRO_RATE_RAD_S))
     first = (
-        f"past {MAX_GYRO_RATE_RAD_S:g} rad/s from step {int(past[0]) // per_step + 1} of "
-        f"{len(rows)}"
+        f"past {ceiling} rad/s from step {int(past[0]) // per_step + 1} of {len(rows)}"
         if past.size
-        else f"past {MAX_GYRO_RATE_RAD_S:g} rad/s once the lag has emptied"
+        else f"past {ceiling} rad/s once the lag has emptied"
     )
     torque, moment = _drive(scenario)
     raise RatesBeyondGyro(
         f"sequence {_shown(rows.tolist())} spins candidate "
-        f"{scenario.candidate_names[int(k)]!r} to {largest:.3g} rad/s "
-        f"({np.degrees(largest):.3g} deg/s) about its {'xyz'[int(axis)]} axis {when} in "
+        f"{scenario.candidate_names[int(k)]!r} to {rate} rad/s "
+        f"({rate_deg} deg/s) about its {'xyz'[int(axis)]} axis {when} in "
         f"{flight(int(i))} ({first}): beyond any attitude gyro's range (at most "
-        f"{MAX_GYRO_RATE_RAD_S:g} rad/s, {np.degrees(MAX_GYRO_RATE_RAD_S):,.0f} deg/s), so "
+        f"{ceiling} rad/s, {ceiling_deg} deg/s), so "
         "no attitude gyro measures it; the scenario's inertia (smallest principal moment "
         f"{moment:.3g} kg m^2) or torques (up to {torque:.3g} N m) are likely wrong in units"
     )

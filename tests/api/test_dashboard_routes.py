@@ -443,7 +443,7 @@ def test_a_plan_and_a_response_refuse_the_same_sequence_near_the_gyro_ceiling(ap
             assert detail["loc"][-1] == "sequence"
             messages.add(detail["msg"])
         (message,) = messages  # one message, word for word
-        assert "spins candidate 'none ejected' to 105 rad/s (6.03e+03 deg/s)" in message
+        assert "spins candidate 'none ejected' to 105 rad/s (6,031 deg/s)" in message
         assert "once the actuation lag has emptied" in message
         assert "at most 100 rad/s, 5,730 deg/s" in message
     # In range nominally, past it in the noisy realisations shown (torques 1000 x the

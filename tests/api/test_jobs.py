@@ -835,7 +835,7 @@ def test_jobs_whose_sequences_no_gyro_measures_are_refused_at_submission(
         assert error["loc"] == loc
         assert "beyond any attitude gyro's range" in error["msg"]
         if scenario_id == tiny:
-            assert "candidate 'none ejected' to 105 rad/s (6.03e+03 deg/s)" in error["msg"]
+            assert "candidate 'none ejected' to 105 rad/s (6,031 deg/s)" in error["msg"]
     assert (
         "its hand-designed baseline of 1 steps"
         in api.submit("search", tiny, params={"method": "random", "sequence_length": 1}).json()[

@@ -740,7 +740,7 @@ def test_every_command_that_flies_a_users_sequence_refuses_rates_no_gyro_measure
     document["candidate_generator"] = None
     tiny = tmp_path / "tiny.json"
     tiny.write_text(json.dumps(document))
-    rate = "spins candidate 'none ejected' to 105 rad/s (6.03e+03 deg/s)"
+    rate = "spins candidate 'none ejected' to 105 rad/s (6,031 deg/s)"
     for args in (
         ["simulate", "-n", "2", "--sequence", "4,4,4,0,0,0", "--out", str(tmp_path / "s.npz")],
         ["train", "-n", "3", "--sequence", "4,4,4,0,0,0", "--out", str(tmp_path / "c.json")],

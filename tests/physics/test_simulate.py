@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from typing import Any
 
 import numpy as np
@@ -433,3 +434,39 @@ def test_settled_rate_agrees_with_an_independent_integration_of_the_lag_tail(
         moved = max(moved, abs(np.linalg.norm(settled[k]) - np.linalg.norm(omega[k])))
     if lag_moves_it or preset_name == "custom":
         assert moved > 1e-3
+
+
+@pytest.mark.parametrize(
+    ("peak_rad_s", "shown"),
+    [
+        (100.4, "to 100.4 rad/s (5,752 deg/s)"),
+        (100.0001, "to 100.0001 rad/s (5,729.584 deg/s)"),
+        (125.0, "to 125 rad/s (7,162 deg/s)"),
+    ],
+)
+def test_a_rate_just_past_the_gyro_ceiling_is_shown_above_it(
+    paper: Scenario, peak_rad_s: float, shown: str
+) -> None:
+    """A peak of 100.4 rad/s read "spins ... to 100 rad/s ... past 100 rad/s" (``:.3g``):
+    the measured peak is written with the digits that show it past the ceiling, in rad/s
+    and deg/s, the ceiling with as many (5,730 deg/s is 5,729.578 beside 5,729.584)."""
+    from inertia_id.physics.scenario import MAX_GYRO_RATE_RAD_S
+    from inertia_id.physics.simulate import RatesBeyondGyro, check_gyro_range
+
+    sequence = np.array([[4, 4, 4, 0, 0, 0]] * 2)
+    omega = np.zeros((paper.n_candidates, 1, 2 * 10, 3))
+    omega[0, 0, 15, 2] = -peak_rad_s
+    with pytest.raises(RatesBeyondGyro) as refused:
+        check_gyro_range(paper, sequence, omega)
+    message = str(refused.value)
+    assert shown in message, message
+    assert "about its z axis at its fastest" in message
+    number = r"([0-9][0-9,.e+]*)"
+    peak = re.search(rf"to {number} rad/s \({number} deg/s\)", message)
+    ceiling = re.search(rf"at most {number} rad/s, {number} deg/s", message)
+    assert peak is not None and ceiling is not None, message
+    rad, deg, ceiling_rad, ceiling_deg = (
+        float(text.replace(",", "")) for text in (*peak.groups(), *ceiling.groups())
+    )
+    assert rad > ceiling_rad == MAX_GYRO_RATE_RAD_S and deg > ceiling_deg
+    assert f"past {ceiling_rad:g} rad/s from step 2 of 2" in message

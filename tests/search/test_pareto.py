@@ -1084,7 +1084,7 @@ def test_a_plan_is_refused_where_its_rates_pass_any_gyros_range(paper: Scenario)
     step = [[4, 4, 4, 0, 0, 0]]
     planned = command_plan(_with_round_candidate(paper, 0.025), step)
     assert planned.residual_rate_rad_s[0] == pytest.approx(80 * np.sqrt(3), rel=1e-6)
-    for moment, rate in ((0.016, "125 rad/s (7.16e+03 deg/s)"), (1e-30, "2e+30 rad/s")):
+    for moment, rate in ((0.016, "125 rad/s (7,162 deg/s)"), (1e-30, "2e+30 rad/s")):
         scenario = _with_round_candidate(paper, moment)
         with pytest.raises(InputError) as refused:
             command_plan(scenario, step)
