@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import json
 from datetime import UTC, datetime
+from typing import Any
 
 from alembic.autogenerate import compare_metadata
 from alembic.migration import MigrationContext
-from sqlalchemy import create_engine, inspect, text
+from sqlalchemy import Engine, create_engine, inspect, text
 from sqlalchemy.orm import Session
 
 from service.store.models import Base, JobRow
@@ -134,5 +135,137 @@ def test_attempt_history_comes_and_goes_keeping_every_job_its_metrics_and_tags(
         downgrade(url, "0005")
         assert "attempt_history" not in columns()
         assert (count("jobs"), count("metrics"), count("job_tags")) == (1, 1, 1)
+    finally:
+        engine.dispose()
+
+
+def _tables(engine: Engine) -> dict[str, tuple[set[str], list[dict[str, Any]]]]:
+    """Each table but Alembic's: its columns, and its rows as column -> value (sorted)."""
+    with engine.connect() as connection:
+        schema = inspect(connection)
+        found = {}
+        for name in schema.get_table_names():
+            if name == "alembic_version":
+                continue
+            rows = connection.execute(text(f"SELECT * FROM {name}")).mappings().all()
+            columns = {column["name"] for column in schema.get_columns(name)}
+            found[name] = (columns, sorted((dict(row) for row in rows), key=repr))
+    return found
+
+
+def _kept(
+    before: dict[str, tuple[set[str], list[dict[str, Any]]]],
+    after: dict[str, tuple[set[str], list[dict[str, Any]]]],
+) -> dict[str, list[dict[str, Any]]]:
+    """``before``'s rows of the tables ``after`` has, cut to the columns ``after`` has:
+    what a migration between the two must have kept."""
+    return {
+        name: sorted(
+            (
+                {k: v for k, v in row.items() if k in columns}
+                for row in before.get(name, ((), []))[1]
+            ),
+            key=repr,
+        )
+        for name, (columns, _rows) in after.items()
+    }
+
+
+def _rows(
+    tables: dict[str, tuple[set[str], list[dict[str, Any]]]],
+) -> dict[str, list[dict[str, Any]]]:
+    return {name: rows for name, (_columns, rows) in tables.items()}
+
+
+def test_each_step_down_to_0003_and_back_keeps_every_row_the_schema_still_holds(
+    empty_database_url: str,
+) -> None:
+    """Every table holds rows at head (jobs with a name, summary, tags, metrics, an
+    attempt history and a classifier); each downgrade to 0003 and each upgrade back keeps
+    every row, and every value, of the columns its schema still has. 0004's downgrade
+    dropped the jobs' name and summary with a batch that copied ``jobs`` on SQLite: the
+    old table's drop deleted every metric (ON DELETE CASCADE, foreign keys on) and
+    unlinked every classifier from its job (ON DELETE SET NULL)."""
+    from service.store import (
+        ApiKey,
+        ClassifierRow,
+        Database,
+        JobTagRow,
+        MetricRow,
+        ScenarioRow,
+        WorkerRow,
+    )
+
+    url = empty_database_url
+    upgrade(url)
+    db = Database(url)
+    try:
+        with db.session() as session:
+            session.add(ScenarioRow(id="s", name="paper", document={"x": 1}))
+            session.add(WorkerRow(name="w1@host", broker_url="filesystem://"))
+            session.add(ApiKey(key_hash="0" * 64))
+            session.flush()
+            for index, status in enumerate(["succeeded", "running", "queued"]):
+                job_id = f"job{index}"
+                session.add(
+                    JobRow(
+                        id=job_id,
+                        type="train",
+                        status=status,
+                        scenario_id="s",
+                        params={"n_realisations": index},
+                        seed=index,
+                        config_hash=f"h{index}",
+                        attempts=index,
+                        name=f"run {index}",
+                        summary={"f1": 0.5},
+                        attempt_history=[{"attempt": 1, "cause": "worker lost"}],
+                        tag_rows=[JobTagRow(tag="audit"), JobTagRow(tag=f"t{index}")],
+                    )
+                )
+                session.flush()
+                session.add_all(
+                    MetricRow(job_id=job_id, key="f1", step=step, value=0.25 * step)
+                    for step in range(3)
+                )
+            session.add(
+                ClassifierRow(
+                    id="c",
+                    job_id="job0",
+                    scenario_id="s",
+                    metric="euclidean",
+                    f1=1.0,
+                    accuracy=1.0,
+                    sequence=[[4, 0]],
+                    candidate_names=["a"],
+                    confusion=[[1]],
+                    document="{}",
+                    sha256="0" * 64,
+                )
+            )
+    finally:
+        db.dispose()
+
+    engine = create_engine(url)
+    try:
+        at_head = _rows(_tables(engine))
+        assert all(at_head.values()), {name for name, rows in at_head.items() if not rows}
+        for revision in ["0005", "0004", "0003"]:
+            before = _tables(engine)
+            downgrade(url, revision)
+            after = _tables(engine)
+            assert _rows(after) == _kept(before, after), f"rows lost going down to {revision}"
+        at_0003 = _rows(_tables(engine))
+        assert len(at_0003["metrics"]) == 9
+        assert [row["job_id"] for row in at_0003["classifiers"]] == ["job0"]
+        for revision in ["0004", "0005", "head"]:
+            before = _tables(engine)
+            upgrade(url, revision)
+            after = _tables(engine)
+            assert _kept(after, before) == _rows(before), f"rows lost going up to {revision}"
+        assert {name: len(rows) for name, rows in _rows(_tables(engine)).items()} == {
+            **{name: len(rows) for name, rows in at_head.items()},
+            "job_tags": 0,  # gone with their table at 0003
+        }
     finally:
         engine.dispose()

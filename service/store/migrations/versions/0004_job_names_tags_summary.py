@@ -59,6 +59,10 @@ def upgrade() -> None:
 def downgrade() -> None:
     op.drop_index("ix_job_tags_tag", table_name="job_tags")
     op.drop_table("job_tags")
-    with op.batch_alter_table("jobs") as batch:
-        batch.drop_column("summary")
-        batch.drop_column("name")
+    # Plain ALTER TABLE, not a batch (as in 0006): on SQLite a batch copies ``jobs`` into
+    # a new table and drops the old one, and with foreign keys on (the store's connections
+    # turn them on) that drop deleted every job's metrics (ON DELETE CASCADE) and unlinked
+    # every classifier from its job (ON DELETE SET NULL). SQLite drops a column in place
+    # since 3.35.
+    op.drop_column("jobs", "summary")
+    op.drop_column("jobs", "name")
