@@ -336,7 +336,10 @@ class LostAttempt(BaseModel):
     )
     ended_at: UtcDatetime = Field(description="when it was declared lost or handed back")
     outcome: str = Field(description="lost, or handed back (costs no attempt)")
-    cause: str = Field(description="worker lost, heartbeat missed, or asked to stop")
+    cause: str = Field(
+        description="worker lost, heartbeat missed, asked to stop, or how the run's task "
+        "process died (task process killed by signal 9 (SIGKILL))"
+    )
     reason: str = Field(description="the cause in words, with the times it rests on")
     then: str = Field(description="what became of the job: re-queued, failed or cancelled")
 

@@ -28,7 +28,7 @@ from .process import mark_stopping, warm
 from .reaper import hand_back_jobs, reap_once, resend_once
 from .ticker import Ticker
 
-__all__ = ["WorkerMonitor"]
+__all__ = ["WorkerMonitor", "current"]
 
 logger = logging.getLogger(__name__)
 
@@ -102,6 +102,11 @@ class WorkerMonitor:
 
 
 _monitor: WorkerMonitor | None = None
+
+
+def current() -> WorkerMonitor | None:
+    """This worker's monitor, once the worker is ready (in its main process)."""
+    return _monitor
 
 
 def _after_fork_in_child() -> None:

@@ -12,6 +12,10 @@ when it is told to stop.
   broker restarted empty) is sent again.
 - **Hand-back**: a stopping worker puts its running job back in the queue at once,
   without spending one of the job's attempts.
+- **Lost run**: a worker whose task process died while running a job (``kill -9``, the
+  OOM killer) re-queues or fails that job at once, by the reaper's rule
+  (:func:`take_lost_run`, called from :mod:`worker.request`); the reaper stays the
+  backstop for a worker lost whole, which cannot tell anyone.
 
 Two monitors at once are harmless: a job is claimed by one atomic UPDATE, so an extra
 message for it finds it taken and does nothing, and each send is claimed the same way.
@@ -21,7 +25,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
-from datetime import timedelta
+from datetime import datetime, timedelta
 
 from celery import Celery
 from sqlalchemy import func, select, update
@@ -29,7 +33,13 @@ from sqlalchemy import func, select, update
 from service.config import Settings
 from service.queue import RUN_JOB_TASK
 from service.store import Database, JobRow, WorkerRow
-from service.store.jobs import due_for_sending, hand_back, mark_sent, reap_stale
+from service.store.jobs import (
+    due_for_sending,
+    hand_back,
+    mark_sent,
+    reap_stale,
+    task_process_lost,
+)
 from service.store.models import utcnow
 
 __all__ = [
@@ -39,6 +49,7 @@ __all__ = [
     "idle_workers",
     "reap_once",
     "resend_once",
+    "take_lost_run",
 ]
 
 logger = logging.getLogger(__name__)
@@ -159,3 +170,35 @@ def hand_back_jobs(settings: Settings, db: Database, celery: Celery, worker: str
     for job_id in job_ids:
         logger.warning("handed job %s back to the queue: this worker is stopping", job_id)
     return job_ids
+
+
+def take_lost_run(
+    settings: Settings,
+    db: Database,
+    celery: Celery,
+    job_id: str,
+    *,
+    worker: str,
+    lost_at: datetime,
+    cause: str,
+    reason: str,
+) -> str | None:
+    """Re-queue and re-send, or end, job ``job_id`` whose run on ``worker`` lost its task
+    process (seen by the worker at ``lost_at``), by the reaper's ``max_attempts`` rule.
+    What became of the job, or None when the run no longer held it (the reaper or a
+    hand-back took it first, or it had finished)."""
+    with db.session() as session:
+        then = task_process_lost(
+            session,
+            job_id,
+            worker=worker,
+            lost_at=lost_at,
+            cause=cause,
+            reason=reason,
+            max_attempts=settings.max_attempts,
+        )
+    if then == "re-queued":
+        _dispatch(db, celery, [job_id], mark=True)
+    if then is not None:
+        logger.warning("%s job %s at once: its %s", then, job_id, cause)
+    return then

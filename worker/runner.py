@@ -8,8 +8,10 @@ metrics, a trained classifier) with the job's finish, in one transaction. Handle
 pure functions of their typed parameters (:mod:`worker.handlers`).
 
 Whatever happens the job leaves ``running``: a handler's exception fails it with a
-one-line reason, a cancel ends it ``cancelled``, and a process that dies outright stops
-the heartbeat, so the reaper (:mod:`worker.reaper`) re-queues or fails it.
+one-line reason, a cancel ends it ``cancelled``, and a task process that dies outright
+(``kill -9``, the OOM killer) is reported to its worker's main process, which re-queues or
+fails the job at once (:mod:`worker.request`); were the whole worker lost, its stopped
+heartbeat has the reaper (:mod:`worker.reaper`) do so.
 """
 
 from __future__ import annotations

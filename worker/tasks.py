@@ -14,12 +14,14 @@ from service.queue import RUN_JOB_TASK
 
 from .celery_app import celery
 from .process import stopping
+from .request import RunJobRequest
 from .runner import execute_job
 
 __all__ = ["run_job"]
 
 
-@celery.task(name=RUN_JOB_TASK, bind=True)
+# A run whose task process dies is taken from its job at once (worker.request).
+@celery.task(name=RUN_JOB_TASK, bind=True, Request=RunJobRequest)
 def run_job(self: Any, job_id: str) -> str:
     """Claim job ``job_id``, run it, and store its outcome; returns the status it ended in.
 

@@ -8,8 +8,11 @@ of a run is conditional on the run still owning the job (``attempts`` is the run
 
 Nothing is lost or stuck:
 
+- a running job whose task process died (``kill -9``, the OOM killer) is re-queued at once
+  by :func:`task_process_lost`, when its worker sees the death, or failed with the reason
+  after ``max_attempts`` runs;
 - a running job whose worker died (its heartbeat and its worker's both went quiet) is
-  re-queued by :func:`reap_stale` (up to ``max_attempts`` runs) or failed with the reason;
+  re-queued by :func:`reap_stale` by the same rule;
 - a worker asked to stop hands its running job back at once (:func:`hand_back`), which
   costs no attempt;
 - a queued job whose message never reached the broker, or was lost there, is picked by
@@ -68,13 +71,16 @@ __all__ = [
     "reap_stale",
     "set_labels",
     "set_progress",
+    "task_process_lost",
     "touch_worker",
 ]
 
 
 #: Why a run was taken from its job (``attempt_history[].cause``): its whole worker went
 #: quiet (killed, its machine lost); its own heartbeat stopped while its worker still
-#: reported (its task process died or hung); its worker was told to stop and handed it back.
+#: reported (its task process hung, or died unseen); its worker was told to stop and
+#: handed it back. A task process whose death its worker saw names how it died instead
+#: ("task process killed by signal 9 (SIGKILL)", see :func:`task_process_lost`).
 WORKER_LOST = "worker lost"
 HEARTBEAT_MISSED = "heartbeat missed"
 ASKED_TO_STOP = "asked to stop"
@@ -409,7 +415,8 @@ def lost_run(
     """Record in ``job.attempt_history`` that its current run is taken from it, before
     the job's run fields are overwritten: the attempt, its worker, when it started and
     last beat, when and why (``cause``, one of :data:`WORKER_LOST`,
-    :data:`HEARTBEAT_MISSED`, :data:`ASKED_TO_STOP`, and ``reason`` in words) and what
+    :data:`HEARTBEAT_MISSED`, :data:`ASKED_TO_STOP` or how its task process died, and
+    ``reason`` in words) and what
     became of the job (``then``: re-queued, failed, cancelled). Times in ISO-8601 UTC
     with their zone, as the API gives every time."""
     record = {
@@ -486,6 +493,13 @@ def reap_stale(
             .exists()
         )
         dead = or_(dead, and_(beat < silent, ~worker_alive))
+    if session.get_bind().dialect.name == "sqlite":
+        # SQLite's reads take no lock: the database's write lock first, so that a run
+        # taken meanwhile by another writer (a task process's death seen by its worker,
+        # see task_process_lost; a hand-back) is read as it is now, not taken twice.
+        session.execute(
+            update(JobRow).where(JobRow.status == "running", dead).values(status=JobRow.status)
+        )
     stale = session.scalars(
         select(JobRow)
         .where(JobRow.status == "running", dead)
@@ -502,32 +516,90 @@ def reap_stale(
         )
     }
     silent_since = None if worker_silence_s is None else now - timedelta(seconds=worker_silence_s)
-    requeued, failed = [], []
+    requeued: list[str] = []
+    failed: list[str] = []
     for job in stale:
         last = job.heartbeat_at or job.started_at
-        reason = (
+        error = (
             f"worker {job.worker or '?'} stopped sending heartbeats (last at "
             f"{_utc_text(last) if last else 'never'})"
         )
         cause, why = _why_lost(
             job, seen=seen.get(job.worker or ""), silent_since=silent_since, timeout_s=timeout_s
         )
-        counted = job.attempts - (job.handbacks or 0)
-        if job.cancel_requested:
-            lost_run(job, now=now, cause=cause, reason=why, then="cancelled")
-            job.status, job.finished_at, job.error = "cancelled", now, reason
-            failed.append(job.id)
-        elif counted >= max_attempts:
-            lost_run(job, now=now, cause=cause, reason=why, then="failed")
-            job.status, job.finished_at = "failed", now
-            job.error = f"{reason}; gave up after {counted} attempts"
-            failed.append(job.id)
-        else:
-            lost_run(job, now=now, cause=cause, reason=why)
-            job.status, job.worker, job.error = "queued", None, f"re-queued: {reason}"
-            job.sent_at, job.progress = None, 0.0  # the next run starts from nothing
-            requeued.append(job.id)
+        then = _take_run(
+            job, now=now, cause=cause, reason=why, error=error, max_attempts=max_attempts
+        )
+        (requeued if then == "re-queued" else failed).append(job.id)
     return requeued, failed
+
+
+def _take_run(
+    job: JobRow, *, now: datetime, cause: str, reason: str, error: str, max_attempts: int
+) -> str:
+    """Take its dead run from a running job, recorded in its history: re-queued (unsent),
+    or ended once it has had ``max_attempts`` runs (hand-backs not counted) or its cancel
+    was asked for. ``error`` is the job's error in words. What became of it: "re-queued",
+    "failed" or "cancelled"."""
+    counted = job.attempts - (job.handbacks or 0)
+    if job.cancel_requested:
+        lost_run(job, now=now, cause=cause, reason=reason, then="cancelled")
+        job.status, job.finished_at, job.error = "cancelled", now, error
+        return "cancelled"
+    if counted >= max_attempts:
+        lost_run(job, now=now, cause=cause, reason=reason, then="failed")
+        job.status, job.finished_at = "failed", now
+        job.error = f"{error}; gave up after {counted} attempts"
+        return "failed"
+    lost_run(job, now=now, cause=cause, reason=reason)
+    job.status, job.worker, job.error = "queued", None, f"re-queued: {error}"
+    job.sent_at, job.progress = None, 0.0  # the next run starts from nothing
+    return "re-queued"
+
+
+def task_process_lost(
+    session: Session,
+    job_id: str,
+    *,
+    worker: str,
+    lost_at: datetime,
+    cause: str,
+    reason: str,
+    max_attempts: int,
+) -> str | None:
+    """Take job ``job_id`` from its run on ``worker`` whose task process died (killed by
+    a signal, the OOM killer, an exit), as that worker saw it at ``lost_at``: re-queued
+    or ended by the reaper's rule (:func:`reap_stale`), at once rather than after the
+    heartbeat timeout. ``cause`` names how the process died.
+
+    Returns what became of the job ("re-queued", "failed", "cancelled"), or None when the
+    run does not hold it any more: the reaper or a hand-back took it first, or it
+    finished; a run claimed after ``lost_at`` (by the worker's next task process) is
+    another run and is left alone.
+    """
+    run = (
+        JobRow.id == job_id,
+        JobRow.status == "running",
+        JobRow.worker == worker,
+        JobRow.started_at <= lost_at,
+    )
+    # A write first: it takes the row's lock (PostgreSQL) or the database's write lock
+    # (SQLite, whose reads take none) before the row is read, so a reaper cannot take
+    # the run between this read and the write below, nor this one after the reaper's.
+    held = session.execute(  # type: ignore[attr-defined]
+        update(JobRow).where(*run).values(status=JobRow.status)
+    ).rowcount
+    job = session.scalars(select(JobRow).where(*run)).first() if held else None
+    if job is None:
+        return None
+    return _take_run(
+        job,
+        now=utcnow(),
+        cause=cause,
+        reason=reason,
+        error=f"{cause} (worker {worker})",
+        max_attempts=max_attempts,
+    )
 
 
 def clear_metrics(session: Session, job_id: str) -> None:

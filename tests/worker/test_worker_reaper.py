@@ -24,7 +24,8 @@ from service.store.jobs import (
     touch_worker,
 )
 from service.store.models import JobRow, WorkerRow, utcnow
-from worker.reaper import hand_back_jobs, idle_workers, reap_once, resend_once
+from worker.reaper import hand_back_jobs, idle_workers, reap_once, resend_once, take_lost_run
+from worker.request import lost_cause
 
 if TYPE_CHECKING:
     from conftest import Store
@@ -398,3 +399,82 @@ def _iso(moment: datetime) -> str:
     """As the store writes an instant: ISO-8601 in UTC with ``Z``."""
     aware = moment.replace(tzinfo=UTC) if moment.tzinfo is None else moment.astimezone(UTC)
     return aware.isoformat().replace("+00:00", "Z")
+
+
+KILLED = "task process killed by signal 9 (SIGKILL)"
+
+
+def test_the_cause_names_how_the_task_process_died() -> None:
+    from billiard.exceptions import WorkerLostError
+
+    def cause(status: str) -> str:
+        return lost_cause(WorkerLostError(f"Worker exited prematurely: {status} Job: 0."))
+
+    assert cause("signal 9 (SIGKILL)") == KILLED
+    assert cause("signal 11 (SIGSEGV)") == "task process killed by signal 11 (SIGSEGV)"
+    assert cause("signal 99") == "task process killed by signal 99"
+    assert cause("exitcode 1") == "task process exited with code 1"
+    assert lost_cause(WorkerLostError("gone")) == "task process lost"
+
+
+def test_a_run_whose_task_process_died_is_taken_at_once_and_only_once(store: Store) -> None:
+    """The worker that saw its task process die re-queues the job by the reaper's rule
+    (failed after max_attempts, cancelled when asked), names the signal, and sends its
+    message; whichever of it and the reaper comes second finds nothing to take."""
+    celery = make_celery(store.settings)
+    started = utcnow() - timedelta(seconds=5)
+
+    def running(**values: Any) -> str:
+        values.setdefault("attempts", 1)
+        return store.add_job(
+            status="running", worker="w1@host", started_at=started, heartbeat_at=started, **values
+        )
+
+    def take(job_id: str, *, worker: str = "w1@host", lost_at: datetime | None = None) -> Any:
+        return take_lost_run(
+            store.settings,
+            store.db,
+            celery,
+            job_id,
+            worker=worker,
+            lost_at=lost_at or utcnow(),
+            cause=KILLED,
+            reason=f"{KILLED} while it ran the job",
+        )
+
+    def reap() -> tuple[list[str], list[str]]:
+        with store.db.session() as session:
+            return reap_stale(session, timeout_s=1.0, max_attempts=2)
+
+    retry, spent, cancelled = running(), running(attempts=2), running(cancel_requested=True)
+    assert take(retry, worker="w2@host") is None  # another worker's run
+    assert take(retry, lost_at=started - timedelta(seconds=1)) is None  # a later claim's
+    assert take(retry) == "re-queued"
+    assert take(retry) is None
+    assert take(spent) == "failed"
+    assert take(cancelled) == "cancelled"
+    assert reap() == ([], [])  # nothing left for the reaper
+
+    job = store.job(retry)
+    assert (job.status, job.worker, job.progress) == ("queued", None, 0.0)
+    assert job.sent_at is not None  # its message went again
+    assert job.error == f"re-queued: {KILLED} (worker w1@host)"
+    (lost,) = job.attempt_history or []
+    assert (lost["attempt"], lost["worker"], lost["cause"], lost["then"]) == (
+        1,
+        "w1@host",
+        KILLED,
+        "re-queued",
+    )
+    assert lost["reason"] == f"{KILLED} while it ran the job"
+    job = store.job(spent)
+    assert job.status == "failed"
+    assert job.error == f"{KILLED} (worker w1@host); gave up after 2 attempts"
+    assert [run["then"] for run in job.attempt_history or []] == ["failed"]
+    assert store.job(cancelled).status == "cancelled"
+
+    # The reaper first (the worker's report came late): the run is taken once.
+    late = running()
+    assert reap() == ([late], [])
+    assert take(late) is None
+    assert [run["cause"] for run in store.job(late).attempt_history or []] == ["heartbeat missed"]
