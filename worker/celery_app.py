@@ -39,6 +39,12 @@ _worker_conf: dict[str, Any] = {
     "worker_proc_alive_timeout": settings.worker_start_timeout_s,
     "task_acks_late": True,
     "task_reject_on_worker_lost": True,
+    # A task process that died mid-job is reported (WorkerLostError) only after the pool
+    # waits this long for a result it may have sent before dying (Celery's default: 10 s);
+    # the worker then takes the run from its job (worker.request). Our results are in the
+    # database, not in that message: a report that comes too soon for a job that did
+    # finish finds it finished and does nothing (its message, requeued, too).
+    "worker_lost_wait": 1.0,
     "include": ["worker.tasks"],
 }
 if settings.broker_url.startswith("filesystem://"):
