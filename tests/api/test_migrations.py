@@ -177,11 +177,11 @@ def _rows(
     return {name: rows for name, (_columns, rows) in tables.items()}
 
 
-def test_each_step_down_to_0003_and_back_keeps_every_row_the_schema_still_holds(
+def test_each_step_down_to_0002_and_back_keeps_every_row_the_schema_still_holds(
     empty_database_url: str,
 ) -> None:
     """Every table holds rows at head (jobs with a name, summary, tags, metrics, an
-    attempt history and a classifier); each downgrade to 0003 and each upgrade back keeps
+    attempt history and a classifier); each downgrade to 0002 and each upgrade back keeps
     every row, and every value, of the columns its schema still has. 0004's downgrade
     dropped the jobs' name and summary with a batch that copied ``jobs`` on SQLite: the
     old table's drop deleted every metric (ON DELETE CASCADE, foreign keys on) and
@@ -250,22 +250,22 @@ def test_each_step_down_to_0003_and_back_keeps_every_row_the_schema_still_holds(
     try:
         at_head = _rows(_tables(engine))
         assert all(at_head.values()), {name for name, rows in at_head.items() if not rows}
-        for revision in ["0005", "0004", "0003"]:
+        for revision in ["0005", "0004", "0003", "0002"]:
             before = _tables(engine)
             downgrade(url, revision)
             after = _tables(engine)
             assert _rows(after) == _kept(before, after), f"rows lost going down to {revision}"
-        at_0003 = _rows(_tables(engine))
-        assert len(at_0003["metrics"]) == 9
-        assert [row["job_id"] for row in at_0003["classifiers"]] == ["job0"]
-        for revision in ["0004", "0005", "head"]:
+        at_0002 = _rows(_tables(engine))
+        assert len(at_0002["metrics"]) == 9
+        assert [row["job_id"] for row in at_0002["classifiers"]] == ["job0"]
+        for revision in ["0003", "0004", "0005", "head"]:
             before = _tables(engine)
             upgrade(url, revision)
             after = _tables(engine)
             assert _kept(after, before) == _rows(before), f"rows lost going up to {revision}"
         assert {name: len(rows) for name, rows in _rows(_tables(engine)).items()} == {
             **{name: len(rows) for name, rows in at_head.items()},
-            "job_tags": 0,  # gone with their table at 0003
+            "job_tags": 0,  # gone with their table at 0003 and below
         }
     finally:
         engine.dispose()

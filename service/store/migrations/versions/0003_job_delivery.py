@@ -38,14 +38,15 @@ def upgrade() -> None:
             existing_nullable=False,
             existing_server_default="clustering",
         )
-    with op.batch_alter_table("jobs") as batch:
-        batch.add_column(
-            sa.Column("superseded", sa.Boolean(), nullable=False, server_default=sa.false())
-        )
-        batch.add_column(sa.Column("sent_at", sa.DateTime(timezone=True), nullable=True))
-        batch.add_column(sa.Column("handbacks", sa.Integer(), nullable=False, server_default="0"))
-    with op.batch_alter_table("workers") as batch:
-        batch.add_column(sa.Column("stopping_since", sa.DateTime(timezone=True), nullable=True))
+    # Plain ALTER TABLE ADD COLUMN, not a batch: on SQLite the batch copied ``jobs`` into a
+    # new table and dropped the old one, which (foreign keys on) deleted every job's
+    # metrics and unlinked every classifier from its job; see downgrade().
+    op.add_column(
+        "jobs", sa.Column("superseded", sa.Boolean(), nullable=False, server_default=sa.false())
+    )
+    op.add_column("jobs", sa.Column("sent_at", sa.DateTime(timezone=True), nullable=True))
+    op.add_column("jobs", sa.Column("handbacks", sa.Integer(), nullable=False, server_default="0"))
+    op.add_column("workers", sa.Column("stopping_since", sa.DateTime(timezone=True), nullable=True))
     jobs = sa.table(
         "jobs",
         sa.column("id", sa.String),
@@ -79,12 +80,16 @@ def upgrade() -> None:
 
 def downgrade() -> None:
     op.drop_index("ux_jobs_reusable_config", table_name="jobs")
-    with op.batch_alter_table("workers") as batch:
-        batch.drop_column("stopping_since")
-    with op.batch_alter_table("jobs") as batch:
-        batch.drop_column("handbacks")
-        batch.drop_column("sent_at")
-        batch.drop_column("superseded")
+    # Plain ALTER TABLE, not a batch (as in 0004 and 0006): on SQLite a batch copies the
+    # table into a new one and drops the old, and with foreign keys on (the store's
+    # connections turn them on) dropping the old ``jobs`` deleted every job's metrics
+    # (ON DELETE CASCADE) and unlinked every classifier from its job (ON DELETE SET
+    # NULL). SQLite drops a column in place since 3.35, once no index names it (the
+    # partial index above is dropped first).
+    op.drop_column("workers", "stopping_since")
+    op.drop_column("jobs", "handbacks")
+    op.drop_column("jobs", "sent_at")
+    op.drop_column("jobs", "superseded")
     with op.batch_alter_table("classifiers") as batch:
         batch.alter_column("kind", type_=sa.String(32), existing_nullable=False)
         batch.alter_column("metric", type_=sa.String(16), existing_nullable=False)
