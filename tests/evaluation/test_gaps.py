@@ -286,6 +286,46 @@ def test_the_start_search_is_not_drawn_to_a_start_that_measures_fewer_grid_times
     assert starts[nearest][0] == starts[0.0][0] - 2
 
 
+@pytest.mark.parametrize("lost", [(0.0, 0.05), (3.95, 4.0)], ids=["start", "end"])
+def test_the_start_search_tries_a_start_whose_samples_at_an_end_were_lost(
+    marginal: MarginalLikelihoodClassifier, drifting_paper: Scenario, lost: tuple[float, float]
+) -> None:
+    """20 Hz telemetry from 30 s before the sequence to 1 s after it, the two samples
+    nearest one end of the sequence lost (as 30 % packet loss does in about 16 % of
+    passes): 0.1 s without a sample across that end, past the 1.5-period edge rule,
+    and the search never tried the true start. The telemetry runs past both ends, so
+    the start is tried and judged on the samples present: the grid times with no
+    sample within half a period are left out, as between samples. (This series' search
+    finds the true start with nothing lost, as about half do at 1x process noise.)"""
+    rng = np.random.default_rng(27)
+    quiet = [[0] * drifting_paper.n_thrusters]
+    result = simulate(drifting_paper, quiet * 30 + GOOD_SEQUENCE + quiet, 1, rng)
+    t = result.time_s - 30.0
+    kept = ~np.isin(np.round(t, 6), lost)
+    telemetry = Telemetry(
+        time_s=t[kept].tolist(),
+        omega_rad_s=result.omega_measured[2, 0][kept].tolist(),
+        sequence_start=0.0,
+    )
+    grid = drifting_paper.sample_times(len(GOOD_SEQUENCE))
+    masks: dict[float, np.ndarray] = {}
+    tried: list[float] = []
+
+    def score(series: np.ndarray, measured: np.ndarray) -> float:
+        masks[len(masks)] = measured.copy()
+        return 0.0
+
+    estimate_sequence_start(
+        telemetry, grid, score, window_s=0.1, tried=tried, marginalise_gaps=True
+    )
+    assert np.round(tried, 6).tolist() == [-0.1, -0.05, 0.0, 0.05, 0.1]
+    unmeasured = grid[~masks[tried.index(0.0)]]
+    np.testing.assert_allclose(unmeasured, [v for v in lost if v in grid.round(6)])
+    verdict = identify(marginal, telemetry, estimate_start_within_s=0.1)
+    assert verdict.sequence_start_shift_s == 0.0
+    assert verdict.candidate == marginal.candidate_names_[2]
+
+
 @pytest.mark.parametrize(
     ("hole", "gap", "covered"),
     [((0.0, 0.6), (0.0, 0.6), 69 / 80), ((3.4, 4.1), (3.4, 4.0), 68 / 80)],
