@@ -54,9 +54,10 @@ import json
 import math
 import os
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta
+from typing import Any, Self
 
 import numpy as np
 from pydantic import (
@@ -199,7 +200,11 @@ class Telemetry(BaseModel):
     from another start).
     """
 
-    model_config = ConfigDict(extra="forbid")
+    # Frozen: the offsets from the sequence start are derived from the fields once, by
+    # the validator, so a field assigned afterwards would leave them stale (and a
+    # validated assignment that fails keeps the new value); a changed copy is made by
+    # :meth:`model_copy`, which validates it.
+    model_config = ConfigDict(extra="forbid", frozen=True)
 
     time_s: list[StrictFloat | str] | None = Field(
         default=None,
@@ -355,6 +360,15 @@ class Telemetry(BaseModel):
         self._offsets_s = tuple(offsets.tolist())
         return self
 
+    def model_copy(self, *, update: Mapping[str, Any] | None = None, deep: bool = False) -> Self:
+        """A copy; with ``update``, a telemetry validated afresh from the fields updated, so
+        that its offsets are measured from its own sequence start. (Pydantic's copy skips
+        validation: ``model_copy(update={"sequence_start": ...})`` kept the offsets from
+        the old start, and a misspelt key was set without a word.)"""
+        if not update:
+            return super().model_copy(deep=deep)
+        return self.model_validate({**self.model_dump(), **update})
+
     @staticmethod
     def _iso_offsets(stamps: list[str], name: str, start: float | str | None) -> np.ndarray:
         parsed = [_parse_utc(s, f"{name}[{i}]") for i, s in enumerate(stamps)]
@@ -403,7 +417,7 @@ class Telemetry(BaseModel):
             moved: float | str = moment.isoformat().replace("+00:00", "Z")
         else:
             moved = (start or 0.0) + shift_s
-        return Telemetry.model_validate({**self.model_dump(), "sequence_start": moved})
+        return self.model_copy(update={"sequence_start": moved})
 
     def inputs(self) -> dict[str, float | str | list[float] | int | None]:
         """What a verdict echoes of its telemetry: the sequence start (seconds in the

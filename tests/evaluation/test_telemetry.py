@@ -86,6 +86,41 @@ def test_mission_clock_stamps_need_and_use_the_sequence_start(
         plain(t + MISSION_START_S, w)
 
 
+def test_a_copy_with_a_new_start_measures_from_it_and_a_field_cannot_be_reassigned() -> None:
+    """``model_copy(update=...)`` skipped validation and kept the offsets from the old
+    start (a start moved 0.05 s later read the same times), and assignment left them
+    stale too: a copy is now validated afresh, and a field cannot be assigned."""
+    w = [[0.0, 0.0, 0.0]] * 3
+    telemetry = plain(
+        MISSION_START_S + np.array([0.0, 0.05, 0.1]), w, sequence_start=MISSION_START_S
+    )
+    moved = telemetry.model_copy(update={"sequence_start": MISSION_START_S + 0.05})
+    np.testing.assert_allclose(moved.time_array, [-0.05, 0.0, 0.05], atol=2e-7)
+    assert moved == telemetry.shifted(0.05) and moved != telemetry
+    np.testing.assert_allclose(telemetry.time_array, [0.0, 0.05, 0.1], atol=2e-7)
+    # The other fields the offsets come from: the stamps, and averaged rates.
+    restamped = telemetry.model_copy(
+        update={"time_s": [MISSION_START_S + 1.0, MISSION_START_S + 2.0, MISSION_START_S + 4.0]}
+    )
+    np.testing.assert_allclose(restamped.time_array, [1.0, 2.0, 4.0], atol=2e-7)
+    averaged = telemetry.model_copy(update={"averaged": True})
+    np.testing.assert_allclose(averaged.time_array, [-0.025, 0.025, 0.075], atol=2e-7)
+    stamps = iso(np.array([0.0, 0.05, 0.1]))
+    utc = Telemetry(time_utc=stamps, omega_rad_s=w, sequence_start=stamps[0])
+    np.testing.assert_allclose(
+        utc.model_copy(update={"sequence_start": stamps[2]}).time_array, [-0.1, -0.05, 0.0]
+    )
+    # An update is checked as a new telemetry would be, by name.
+    with pytest.raises(ValueError, match=r"sequence_start = '2025-03-01T12:00:00Z' is an ISO"):
+        telemetry.model_copy(update={"sequence_start": "2025-03-01T12:00:00Z"})
+    with pytest.raises(ValueError, match=r"unknown key\(s\) 'sequence_star'"):
+        telemetry.model_copy(update={"sequence_star": 1.0})
+    with pytest.raises(pydantic.ValidationError, match="frozen"):
+        telemetry.sequence_start = MISSION_START_S + 0.05  # type: ignore[misc]
+    np.testing.assert_allclose(telemetry.time_array, [0.0, 0.05, 0.1], atol=2e-7)
+    assert telemetry.model_copy() == telemetry
+
+
 def test_iso_stamps_in_json_and_csv(
     euclidean_classifier: InertiaClassifier, paper: Scenario
 ) -> None:
