@@ -8,6 +8,9 @@ import subprocess
 from pathlib import Path
 
 import pytest
+import yaml
+
+from service.config import Settings
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -52,3 +55,29 @@ def test_compose_refuses_to_start_without_an_api_key() -> None:
     )
     assert done.returncode != 0
     assert "INERTIA_ID_API_KEY" in done.stderr
+
+
+def _api_settings(env: dict[str, str]) -> Settings:
+    """The settings the compose's api container reads from its environment."""
+    done = _config({"INERTIA_ID_API_KEY": "k" * 32, **env})
+    assert done.returncode == 0, done.stderr
+    environment = yaml.safe_load(done.stdout)["services"]["api"]["environment"]
+    return Settings.model_validate({k: "" if v is None else v for k, v in environment.items()})
+
+
+def test_compose_passes_the_allowed_hosts_to_the_api() -> None:
+    """A TLS proxy in front that forwards the public Host (Caddy's and Traefik's
+    default) or names the service (``api:8000``) was refused 400 on every request: the
+    compose file gave no way to set INERTIA_ID_ALLOWED_HOSTS short of editing it. The
+    loopback names stay: the healthcheck asks 127.0.0.1, and without it the api never
+    turns healthy and no worker starts."""
+    given = _api_settings({"INERTIA_ID_ALLOWED_HOSTS": "inertia.example.org,api"})
+    hosts = given.resolved_allowed_hosts
+    assert {"inertia.example.org", "api", "127.0.0.1", "localhost"} <= set(hosts), hosts
+    assert "*" not in hosts
+    # Unset: the loopback names, as before (the port is published on loopback only).
+    unset = {k: v for k, v in os.environ.items() if k != "INERTIA_ID_ALLOWED_HOSTS"}
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(os, "environ", unset)
+        hosts = _api_settings({}).resolved_allowed_hosts
+    assert set(hosts) == {"127.0.0.1", "localhost", "::1", "[::1]"}, hosts
