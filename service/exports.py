@@ -12,6 +12,7 @@ and steps are numbered from 1, as on the dashboard and in the report.
 from __future__ import annotations
 
 import io
+import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -103,6 +104,29 @@ def _mean(values: Any) -> float | None:
     return sum(numbers) / len(numbers) if numbers else None
 
 
+def _deg(value: Any) -> Any:
+    """A rate in rad/s (a number, or lists of them) in deg/s, for the column a flight
+    team reads beside each ``_rad_s`` one; None (an empty cell) stays None."""
+    if isinstance(value, bool) or value is None:
+        return None
+    if isinstance(value, int | float):
+        return math.degrees(value)
+    if isinstance(value, list | tuple):
+        return [_deg(v) for v in value]
+    return None
+
+
+def _with_degrees(pairs: Sequence[tuple[str, Any]]) -> list[tuple[str, Any]]:
+    """Each ``…_rad_s…`` quantity followed by its ``…_deg_s…`` twin (a flight team reads
+    deg/s; the rad/s name is kept as clients read it)."""
+    out: list[tuple[str, Any]] = []
+    for name, value in pairs:
+        out.append((name, value))
+        if "_rad_s" in name:
+            out.append((name.replace("_rad_s", "_deg_s"), _deg(value)))
+    return out
+
+
 # Search.
 
 
@@ -147,27 +171,29 @@ def _search_summary(result: Mapping[str, Any]) -> Table:
     best = result.get("best") or {}
     fresh = result.get("fresh") or {}
     objective = (result.get("settings") or {}).get("scorer", {}).get("objective", "f1")
-    pairs = [
-        ("method", result.get("method")),
-        # NSGA-II ranks by the operator's objectives, not the scorer's: its F1 setting
-        # only scores the best sequence's fresh draws (the fresh_f1 rows).
-        ("objective", "operator objectives" if result.get("method") == "nsga2" else objective),
-        ("best_sequence", best.get("sequence")),
-        (_best_label(result), best.get("f1")),
-        *_best_rate_rows(result.get("method"), best),
-        # The JSON's fuel_nms: commanded angular impulse, not propellant (a mass).
-        ("impulse_nms", best.get("fuel_nms")),
-        *_confirmation_rows(result),
-        ("fresh_f1_mean", fresh.get("f1_mean")),
-        ("fresh_f1_min", fresh.get("f1_min")),
-        ("fresh_draws", len(fresh.get("f1") or [])),
-        ("fresh_end_rate_rad_s_mean", _mean(fresh.get("final_rate_rad_s"))),
-        ("timesteps", result.get("timesteps")),
-        ("episodes", result.get("episodes")),
-        ("wall_time_s", result.get("wall_time_s")),
-        ("stopped", result.get("stopped")),
-        ("space_size", result.get("space_size")),
-    ]
+    pairs = _with_degrees(
+        [
+            ("method", result.get("method")),
+            # NSGA-II ranks by the operator's objectives, not the scorer's: its F1 setting
+            # only scores the best sequence's fresh draws (the fresh_f1 rows).
+            ("objective", "operator objectives" if result.get("method") == "nsga2" else objective),
+            ("best_sequence", best.get("sequence")),
+            (_best_label(result), best.get("f1")),
+            *_best_rate_rows(result.get("method"), best),
+            # The JSON's fuel_nms: commanded angular impulse, not propellant (a mass).
+            ("impulse_nms", best.get("fuel_nms")),
+            *_confirmation_rows(result),
+            ("fresh_f1_mean", fresh.get("f1_mean")),
+            ("fresh_f1_min", fresh.get("f1_min")),
+            ("fresh_draws", len(fresh.get("f1") or [])),
+            ("fresh_end_rate_rad_s_mean", _mean(fresh.get("final_rate_rad_s"))),
+            ("timesteps", result.get("timesteps")),
+            ("episodes", result.get("episodes")),
+            ("wall_time_s", result.get("wall_time_s")),
+            ("stopped", result.get("stopped")),
+            ("space_size", result.get("space_size")),
+        ]
+    )
     return Table(["quantity", "value"], [list(p) for p in pairs])
 
 
@@ -209,8 +235,14 @@ def _search_curve(result: Mapping[str, Any]) -> Table:
         # Stored before the key was named for what it is: NSGA-II's was its residual
         # rate already; the other searches' was |ω| when the last command ends.
         name = key if result.get("method") == "nsga2" else "best_end_rate_rad_s"
-        return Table([*columns, name], [[*(p.get(k) for k in _CURVE), p.get(old)] for p in curve])
-    return Table([*columns, key], [[p.get(k) for k in (*_CURVE, key)] for p in curve])
+        return Table(
+            [*columns, name, name.replace("_rad_s", "_deg_s")],
+            [[*(p.get(k) for k in _CURVE), p.get(old), _deg(p.get(old))] for p in curve],
+        )
+    return Table(
+        [*columns, key, key.replace("_rad_s", "_deg_s")],
+        [[*(p.get(k) for k in (*_CURVE, key)), _deg(p.get(key))] for p in curve],
+    )
 
 
 def _sequence_rows(sequence: Any) -> Table:
@@ -233,6 +265,7 @@ def _search_baselines(result: Mapping[str, Any]) -> Table:
             fresh.get("f1_mean"),
             fresh.get("f1_min"),
             _mean(fresh.get("final_rate_rad_s")),
+            _deg(_mean(fresh.get("final_rate_rad_s"))),
             best.get("fuel_nms"),
             best.get("sequence"),
             None,
@@ -246,6 +279,7 @@ def _search_baselines(result: Mapping[str, Any]) -> Table:
                 _mean(f1),
                 min(f1) if f1 else None,
                 _mean(base.get("fresh_final_rate_rad_s")),
+                _deg(_mean(base.get("fresh_final_rate_rad_s"))),
                 base.get("fuel_nms"),
                 base.get("sequence"),
                 base.get("unavailable"),  # why a baseline has no figures (e.g. too short)
@@ -256,6 +290,7 @@ def _search_baselines(result: Mapping[str, Any]) -> Table:
         "fresh_f1_mean",
         "fresh_f1_min",
         "fresh_end_rate_rad_s_mean",
+        "fresh_end_rate_deg_s_mean",
         "impulse_nms",
         "levels",
         "unavailable",
@@ -316,6 +351,18 @@ def _by_condition(scores: Mapping[str, Any], conditions: list[str]) -> list[Any]
     return out
 
 
+def _front_figures(scores: Mapping[str, Any]) -> list[Any]:
+    """A member's or baseline's figures; a deg/s one a front stored without it (only
+    its rad/s twin) converted from that twin, not left empty."""
+    out = []
+    for key in _FRONT_FIGURES:
+        value = scores.get(key)
+        if value is None and key.endswith("_deg_s"):
+            value = _deg(scores.get(key.replace("_deg_s", "_rad_s")))
+        out.append(value)
+    return out
+
+
 def _search_front(result: Mapping[str, Any]) -> Table:
     """The front's members, then the baselines, on the same fresh draws: one row each;
     ``accuracy_source`` says whether ``accuracy`` was measured or predicted; the accuracy
@@ -330,7 +377,7 @@ def _search_front(result: Mapping[str, Any]) -> Table:
             [
                 "member",
                 member.get("index"),
-                *(scores.get(k) for k in _FRONT_FIGURES),
+                *_front_figures(scores),
                 source,
                 _predicted(scores),
                 *_by_condition(scores, conditions),
@@ -348,7 +395,7 @@ def _search_front(result: Mapping[str, Any]) -> Table:
             [
                 "baseline",
                 name,
-                *(scores.get(k) for k in _FRONT_FIGURES),
+                *_front_figures(scores),
                 source,
                 _predicted(scores),
                 *_by_condition(scores, conditions),
@@ -445,10 +492,20 @@ def _sweep_points(result: Mapping[str, Any]) -> Table:
                     step,
                     *(p.get(k) for k in _POINT[2:]),
                     units.get(p.get("noise"), ""),
+                    # The level in deg/s where it is a rate (gyro noise and bias).
+                    _deg(p.get("value")) if units.get(p.get("noise")) == "rad/s" else None,
                     _above_ceiling(who, p, ceiling),
                 ]
             )
-    header = ["who", *_POINT[:2], "step", *_POINT[2:], "value_unit", "above_ceiling_interval"]
+    header = [
+        "who",
+        *_POINT[:2],
+        "step",
+        *_POINT[2:],
+        "value_unit",
+        "value_deg_s",
+        "above_ceiling_interval",
+    ]
     return Table(header, rows)
 
 
@@ -697,8 +754,9 @@ _IDENTIFY_UNITS = (
     "posterior, p_none, confidence and required_confidence are probabilities in [0, 1] "
     "(the posteriors and p_none sum to 1); distance, threshold and margin are the "
     "classifier's own distance to a candidate (compare them with each other, not across "
-    "kinds); rates in rad/s, inertia in kg m^2; sequence_start and the stamps in the "
-    "telemetry's clock (seconds) or ISO-8601 UTC, shifts, telemetry_span_s and the "
+    "kinds); rates in rad/s (_rad_s) and deg/s (_deg_s), inertia in kg m^2; "
+    "sequence_start and the stamps in the telemetry's clock (seconds) or ISO-8601 UTC, "
+    "shifts, telemetry_span_s and the "
     "telemetry_gaps (from_s, to_s, length_s) in s from the start used; "
     "sequence_covered_fraction the part of the sequence's grid times outside those gaps, "
     "sequence_measured_fraction the part with a real sample within half a grid period"
@@ -755,11 +813,13 @@ def identify_table(verdict: Mapping[str, Any]) -> Table:
     if verdict.get("start_hint") is not None:
         notes.append(("start_hint", verdict.get("start_hint")))
     if verdict.get("initial_offset_rad_s") is not None:
-        notes += [
-            ("initial_offset_rad_s", verdict.get("initial_offset_rad_s")),
-            ("initial_offset_std_rad_s", verdict.get("initial_offset_std_rad_s")),
-            ("pre_start_samples", verdict.get("pre_start_samples")),
-        ]
+        notes += _with_degrees(
+            [
+                ("initial_offset_rad_s", verdict.get("initial_offset_rad_s")),
+                ("initial_offset_std_rad_s", verdict.get("initial_offset_std_rad_s")),
+            ]
+        )
+        notes.append(("pre_start_samples", verdict.get("pre_start_samples")))
     estimate = (
         "estimated_inertia_kg_m2",
         "estimated_principal_moments_kg_m2",

@@ -315,7 +315,7 @@ def test_a_search_result_downloads_as_json_and_as_each_csv_table(api: Api) -> No
     rows = _csv(curve.text)
     assert rows[0][:3] == ["timesteps", "episodes", "mean_episode_reward"]
     assert [float(r[2]) for r in rows[1:]] == [p["mean_episode_reward"] for p in result["curve"]]
-    assert rows[0][-1] == "best_residual_rate_rad_s" and rows[1][-1] == "0.2"
+    assert rows[0][5] == "best_residual_rate_rad_s" and rows[1][5] == "0.2"
     # The stored points name the objective's score f1; the columns name what it is.
     assert rows[0][3:5] == ["mean_separability", "best_separability"]
     assert [float(r[4]) for r in rows[1:]] == [p["best_f1"] for p in result["curve"]]
@@ -349,7 +349,7 @@ def test_a_search_result_downloads_as_json_and_as_each_csv_table(api: Api) -> No
     ]
     # A baseline the length does not allow says why it has no figures.
     assert baselines[0][-1] == "unavailable" and baselines[1][-1] == baselines[2][-1] == ""
-    assert baselines[0][4] == "impulse_nms"
+    assert baselines[0][5] == "impulse_nms"
     assert baselines[3][-1] == "fire, coast, brake needs at least 3 steps, got 2"
 
     bad = api.get(f"/jobs/{job_id}/result", params={"format": "csv", "table": "ranking"})
@@ -708,6 +708,85 @@ def test_metrics_download_every_point_as_csv(api: Api) -> None:
     assert rows[4001] == ["reward", "4000", "1000.0"]
 
 
+def _rates_in_both_units(what: str, records: list[dict[str, Any]]) -> int:
+    """Every ``_rad_s`` figure of ``records`` (the rows of a table as objects) has its
+    ``_deg_s`` twin beside it, the same rate converted; how many pairs there are."""
+    pairs = 0
+    for record in records:
+        names = list(record)
+        for i, name in enumerate(names):
+            if "_rad_s" not in name:
+                continue
+            twin = name.replace("_rad_s", "_deg_s")
+            assert names[i + 1 : i + 2] == [twin], f"{what}: no {twin} beside {name}: {names}"
+            rad, deg = record[name], record[twin]
+            if rad in ("", None):
+                assert deg in ("", None), (what, name, deg)
+                continue
+            rad = json.loads(rad) if isinstance(rad, str) else rad
+            deg = json.loads(deg) if isinstance(deg, str) else deg
+            assert np.degrees(rad) == pytest.approx(deg, rel=1e-12), (what, name)
+            pairs += 1
+    return pairs
+
+
+def test_every_rate_in_a_search_or_sweep_export_is_in_rad_s_and_deg_s(api: Api) -> None:
+    """A flight team reads deg/s: each rad/s column (or summary quantity) of the search's
+    tables and of a sweep's points, CSV and JSON alike, has the deg/s one beside it
+    (fresh_end_rate_rad_s_mean and the curve's rate had none); no rad/s name is gone."""
+    scenario_id = api.create_scenario()["id"]
+    job_id = _finished(api, scenario_id, 0, _search_result([1.0, 0.8], 20.0, 3.5))
+    pairs = {}
+    for table in ("summary", "curve", "baselines", "front"):
+        csv_rows = _csv(api.get(f"/jobs/{job_id}/result?format=csv&table={table}").text)
+        as_json = api.get(f"/jobs/{job_id}/result?format=json&table={table}").json()
+        if table == "summary":  # quantity, value rows: one record of every quantity
+            records = [dict((r[0], r[1]) for r in csv_rows[1:])]
+            as_json = [{r["quantity"]: r["value"] for r in as_json}]
+        else:
+            records = [dict(zip(csv_rows[0], r, strict=True)) for r in csv_rows[1:]]
+        pairs[table] = _rates_in_both_units(f"{table} CSV", records)
+        assert _rates_in_both_units(f"{table} JSON", as_json) == pairs[table]
+    # The names clients read are all still there.
+    summary = dict(_csv(api.get(f"/jobs/{job_id}/result?format=csv").text)[1:])
+    assert float(summary["fresh_end_rate_deg_s_mean"]) == pytest.approx(np.degrees(0.15))
+    assert {"fresh_end_rate_rad_s_mean", "best_end_rate_rad_s_search_draw"} <= set(summary)
+    assert pairs == {"summary": 3, "curve": 3, "baselines": 2, "front": 1}
+
+    # A sweep's gyro-noise level is a rate: in deg/s beside its value; a torque's is not.
+    sweep = api.submit("train", scenario_id, params={"sequence": GOOD_SEQUENCE}).json()
+    with api.db.session() as session:
+        claim(session, sweep["id"], "tests")
+    with api.db.session() as session:
+        from service.store.models import JobRow
+
+        row = session.get(JobRow, sweep["id"])
+        assert row is not None
+        row.type = "sweep"
+        row.params = {"classifier_id": "c" * 32, "multiples": [2.0], "noises": ["measurement"]}
+    point = {"multiple": 2.0, "accuracy": 0.9, "ci_low": 0.8, "ci_high": 0.95, "n_series": 10}
+    result = {
+        "candidate_names": ["a", "b"],
+        "points": [
+            {**point, "noise": "measurement", "value": 0.002},
+            {**point, "noise": "process", "value": 0.5},
+        ],
+        "units": {"measurement": "rad/s", "process": "N m"},
+    }
+    with api.db.session() as session:
+        finish(session, sweep["id"], "succeeded", result=result)
+    for fmt in ("csv", "json"):
+        answer = api.get(f"/jobs/{sweep['id']}/result?format={fmt}&table=points")
+        if fmt == "csv":
+            rows = _csv(answer.text)
+            points = [dict(zip(rows[0], r, strict=True)) for r in rows[1:]]
+        else:
+            points = answer.json()
+        assert [p["value_unit"] for p in points] == ["rad/s", "N m"]
+        assert float(points[0]["value_deg_s"]) == pytest.approx(np.degrees(0.002))
+        assert points[1]["value_deg_s"] in ("", None)
+
+
 @pytest.mark.parametrize(
     ("params", "held"),
     [
@@ -799,6 +878,10 @@ def test_an_identify_verdict_downloads_as_csv(
     notes = _notes(api.post("/identify?format=csv", json=body).text)
     assert json.loads(notes["initial_offset_rad_s"]) == verdict["initial_offset_rad_s"]
     assert json.loads(notes["initial_offset_std_rad_s"]) == verdict["initial_offset_std_rad_s"]
+    # and in deg/s, as a flight team reads a rate.
+    for name in ("initial_offset", "initial_offset_std"):
+        degrees = json.loads(notes[f"{name}_deg_s"])
+        assert degrees == pytest.approx(np.degrees(verdict[f"{name}_rad_s"]), rel=1e-12)
     assert int(notes["pre_start_samples"]) == verdict["pre_start_samples"] > 0
 
 
@@ -861,7 +944,7 @@ def test_a_curve_stored_before_its_rate_was_named_is_exported_for_what_it_was(
         point["best_final_rate_rad_s"] = point.pop("best_residual_rate_rad_s")
     job_id = _finished(api, scenario_id, 0, result, name="old")
     rows = _csv(api.get(f"/jobs/{job_id}/result", params={"format": "csv", "table": "curve"}).text)
-    assert rows[0][-1] == column and [r[-1] for r in rows[1:]] == ["0.2"] * 3
+    assert rows[0][5] == column and [r[5] for r in rows[1:]] == ["0.2"] * 3
     score = "predicted_accuracy_design_noise" if method == "nsga2" else "separability"
     assert rows[0][3:5] == [f"mean_{score}", f"best_{score}"]
     summary = dict(_csv(api.get(f"/jobs/{job_id}/result?format=csv").text)[1:])
