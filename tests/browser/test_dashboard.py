@@ -2148,6 +2148,82 @@ def test_job_pages_without_the_key_ask_for_it_and_log_no_401(
         context.close()
 
 
+def test_actions_without_the_key_ask_for_it_and_send_nothing_then_work_with_it(
+    browser: Any, dashboard: Dashboard, tmp_path: Path
+) -> None:
+    """With no key saved, "Train on this sequence", Save labels, Identify and Cancel say
+    that they need the key, and where it is, without sending their request (each sent it
+    and showed the hint after its 401, a console error); saved, the notices go and the
+    actions work: the cancel, asked again, cancels."""
+    search = _finished_search(dashboard, TWO_RANDOM, "two random sequences")
+    classifier = _classifier(dashboard)
+    client = dashboard.service.client
+    body = {"type": "search", "scenario_id": search["scenario_id"], "seed": 59}
+    submitted = client.post("/jobs", json={**body, "params": {"timesteps": 200000}})
+    assert submitted.status_code == 202, submitted.text
+    running = submitted.json()["id"]
+    telemetry = _telemetry_csv(tmp_path / "t.csv", Scenario.paper(), candidate=1, seed=59)
+    context = browser.new_context(viewport={"width": 1440, "height": 900})
+    page = context.new_page()
+    page.set_default_timeout(30_000)
+    errors: list[str] = []
+    page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+    page.on("pageerror", lambda error: errors.append(f"uncaught: {error}"))
+    sent: list[str] = []
+    page.on("request", lambda r: sent.append(f"{r.method} {r.url}") if r.method != "GET" else None)
+    refused: list[str] = []
+    page.on("response", lambda r: refused.append(r.url) if r.status == 401 else None)
+    keyless = Dashboard(page, dashboard.console, dashboard.service)
+
+    def asks(selector: str, what: str) -> None:
+        text = page.wait_for_selector(f"{selector} .needs-key").inner_text()
+        assert text.startswith(f"{what} needs the API key") and "inertia-id serve" in text, text
+
+    try:
+        keyless.open(f"#/jobs/{search['id']}")
+        page.click("#front-train")
+        asks("#front-train-notice", "Training on this sequence")
+        page.click("#front-train")  # again: still one notice
+        assert len(page.query_selector_all("#front-train-notice .needs-key")) == 1
+        page.click("#job-header details summary")
+        page.fill("#job-name", "renamed without the key")
+        page.click("#save-labels")
+        asks("#job-header", "Saving labels")
+        assert dashboard.service.job(search["id"])["name"] == "two random sequences"
+
+        keyless.open(f"#/identify?classifier={classifier}")
+        page.set_input_files("#telemetry-file", str(telemetry))
+        page.wait_for_function("() => document.getElementById('telemetry-text').value.length")
+        page.click("#identify-submit")
+        asks("#identify-errors", "Identifying telemetry")
+        assert page.query_selector("#verdict") is None
+
+        keyless.open(f"#/jobs/{running}")
+        page.click("#cancel-job")
+        asks("#cancel-notice", "Cancelling a job")
+        assert page.query_selector("dialog.confirm[open]") is None
+        # Each poll redraws a running job's header (two polls: the first's redraw is
+        # done by the second): the notice is kept.
+        for _ in range(2):
+            with page.expect_response(lambda r: r.url.endswith(f"/jobs/{running}")):
+                pass
+        asks("#cancel-notice", "Cancelling a job")
+        page.wait_for_load_state("networkidle")
+        assert (errors, refused, sent) == ([], [], [])
+        assert dashboard.service.job(running)["cancel_requested"] is False
+
+        page.fill("#api-key", API_KEY)
+        page.click("#api-key-form button")
+        page.wait_for_selector(".needs-key", state="detached")
+        page.click("#cancel-job")
+        page.click("#confirm-yes")
+        page.wait_for_selector("#job-header .badge.status-cancelled", timeout=120_000)
+        assert (errors, refused) == ([], [])
+    finally:
+        context.close()
+        client.post(f"/jobs/{running}/cancel")
+
+
 LAYOUT_ROUTES = {
     "scenarios": lambda: "#/scenarios",
     "scenario": lambda: f"#/scenarios/{made['scenario']}",

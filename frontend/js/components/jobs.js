@@ -7,6 +7,7 @@ import { api } from "../api.js";
 import { isTerminal, vocabulary } from "../vocabulary.js";
 import { clear, fmt, h, link, messageBox, quantity, seconds, tagChips } from "../ui.js";
 import { confirmAction } from "./dialog.js";
+import { withoutKey } from "./keyed.js";
 
 // Where the jobs page keeps the body of a submission an identical job answered, for the
 // rerun button on that job's page.
@@ -101,6 +102,8 @@ export function cancelButton(job, notice, after = () => {}, { id = null, text = 
       "data-cancel": job.id,
       disabled: job.cancel_requested,
       onclick: async () => {
+        // Without the key the service refuses it: say so before asking anything.
+        if (withoutKey(notice, "Cancelling a job")) return;
         const ok = await confirmAction({
           title: `Cancel ${jobTitle(job)}?`,
           text: job.status === "running" ? "The worker stops it at its next check; what it measured so far is kept." : "It is taken off the queue and never runs.",
@@ -136,6 +139,7 @@ export function labelEditor(job, onSaved) {
         event.preventDefault();
         clear(errors);
         state.textContent = "";
+        if (withoutKey(errors, "Saving labels")) return;
         try {
           const saved = await api.updateJob(job.id, { name: name.value.trim() || null, tags: parseTags(tags.value) });
           state.textContent = "saved";

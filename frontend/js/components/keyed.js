@@ -1,7 +1,9 @@
 // A part of a page that only the API key opens (a simulated response, a command plan):
 // drawn at once when a key is saved; without one, a notice that says where the key is,
-// and drawn when one is saved. A request the service is known to refuse is never sent:
-// the browser logs every 401 as a console error, and the page would show one per part.
+// and drawn when one is saved. An action that needs the key (train, cancel, save labels,
+// identify) clicked without one shows the same notice instead of sending its request.
+// A request the service is known to refuse is never sent: the browser logs every 401 as
+// a console error, and the page would show one per part.
 
 import { KEY_HINT, getApiKey } from "../api.js";
 import { messageBox } from "../ui.js";
@@ -11,8 +13,7 @@ import { messageBox } from "../ui.js";
 // `holder` is still on the page.
 export async function whenKeyed(holder, what, draw) {
   if (getApiKey()) return draw();
-  const notice = messageBox("notice", `${what} needs the API key: ${KEY_HINT}.`);
-  notice.classList.add("needs-key");
+  const notice = keyNotice(what);
   holder.append(notice);
   const saved = () => {
     if (!holder.isConnected) {
@@ -26,4 +27,27 @@ export async function whenKeyed(holder, what, draw) {
   };
   window.addEventListener("api-key-changed", saved);
   return null;
+}
+
+// For an action whose request needs the key: false when a key is saved (go on and send
+// it); else true, with the notice "<what> needs the API key: …" in `holder` (one, however
+// often it is clicked), which goes once a key is saved: the action then works as usual.
+export function withoutKey(holder, what) {
+  if (getApiKey()) return false;
+  for (const old of holder.querySelectorAll(".needs-key")) old.remove();
+  const notice = keyNotice(what);
+  holder.append(notice);
+  const saved = () => {
+    if (notice.isConnected && !getApiKey()) return;
+    window.removeEventListener("api-key-changed", saved);
+    notice.remove();
+  };
+  window.addEventListener("api-key-changed", saved);
+  return true;
+}
+
+function keyNotice(what) {
+  const notice = messageBox("notice", `${what} needs the API key: ${KEY_HINT}.`);
+  notice.classList.add("needs-key");
+  return notice;
 }

@@ -6,6 +6,7 @@
 
 import { api } from "../api.js";
 import { downloads } from "../components/downloads.js";
+import { withoutKey } from "../components/keyed.js";
 import { BAND, COLORS, PLOT_CONFIG, layout, plotDiv, plotText, responseLayout, title, withAlpha } from "../components/plots.js";
 import { kindInfo } from "../vocabulary.js";
 import { clear, decimalsFor, h, jsonBlob, link, measured, messageBox, plain, probability, quantity, sequenceText, showFieldErrors } from "../ui.js";
@@ -147,6 +148,7 @@ export async function render(root, context) {
         event.preventDefault();
         clear(result);
         clear(general);
+        if (withoutKey(general, "Identifying telemetry")) return;
         const content = text.value;
         if (!content.trim()) {
           general.append(messageBox("error", "paste telemetry or choose a file first"));

@@ -16,9 +16,10 @@ import { sweepPanel } from "../views/sweep.js";
 const POLL_MS = 2000;
 const RAD_TO_DEG = 180 / Math.PI;
 
-function drawHeader(header, job, scenarioName, onLabels) {
+// `notice`: what the cancel button says (a refusal, the key it needs), kept across the
+// redraws of a running job's header.
+function drawHeader(header, job, scenarioName, onLabels, notice) {
   clear(header);
-  const notice = h("div");
   const cancel = cancelButton(job, notice, () => {}, { id: "cancel-job", text: "Cancel job" });
   put(
     header,
@@ -93,7 +94,8 @@ export async function render(root, context) {
     named();
     redraw();
   };
-  const redraw = () => drawHeader(header, job, scenario && scenario.name, onLabels);
+  const cancelNotice = h("div", { id: "cancel-notice" });
+  const redraw = () => drawHeader(header, job, scenario && scenario.name, onLabels, cancelNotice);
   named();
   put(root, heading, reused(job, context), header, body);
   redraw();

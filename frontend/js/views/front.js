@@ -14,7 +14,7 @@
 import { request } from "../api.js";
 import { downloads } from "../components/downloads.js";
 import { submitAndOpen } from "../components/jobs.js";
-import { whenKeyed } from "../components/keyed.js";
+import { whenKeyed, withoutKey } from "../components/keyed.js";
 import { PLOT_CONFIG, layout, plotDiv } from "../components/plots.js";
 import { clear, fmt, h, messageBox, plain, put, quantity, score, sequenceText } from "../ui.js";
 
@@ -374,8 +374,9 @@ async function showMember(holder, job, member, context) {
       type: "button",
       id: "front-train",
       onclick: async () => {
-        train.disabled = true;
         clear(notice);
+        if (withoutKey(notice, "Training on this sequence")) return;
+        train.disabled = true;
         // A cancelled search's member is trained as the sequence itself: the service
         // trains on a member by reference only for a search that succeeded.
         const params = cancelled ? { sequence: member.sequence } : { sequence: member.sequence, search_job_id: job.id, front_member: member.index };
