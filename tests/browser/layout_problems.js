@@ -1,6 +1,9 @@
 // Evaluated in the page by the browser tests: every layout problem of the visible
-// Plotly charts, as text; [] when there is none. Boxes are page pixels.
+// Plotly charts, as text; [] when there is none. Boxes are page pixels. Tick labels and
+// titles of every axis count, the stacked subplots' and the deg/s twins' (y2…y6, x2) too.
 () => {
+  const TICKS = ['x', 'y', 'x2', 'y2', 'y3', 'y4', 'y5', 'y6'].map((a) => `.${a}tick text`).join(', ');
+  const TITLES = ['x', 'y', 'x2', 'y2', 'y3', 'y4', 'y5', 'y6'].map((a) => `.g-${a}title text`).join(', ');
   const box = (el) => el.getBoundingClientRect();
   const overlap = (a, b) => {
     const w = Math.min(a.right, b.right) - Math.max(a.left, b.left);
@@ -17,8 +20,8 @@
     const legend = plot.querySelector('g.legend');
     const others = [
       ...[...plot.querySelectorAll('.nsewdrag')].map((el) => ['plot area', el]),
-      ...[...plot.querySelectorAll('.xtick text, .ytick text')].map((el) => ['tick label ' + el.textContent, el]),
-      ...[...plot.querySelectorAll('.g-xtitle text, .g-ytitle text, .g-x2title text, .g-y2title text, .g-y3title text')].map((el) => ['axis title ' + el.textContent, el]),
+      ...[...plot.querySelectorAll(TICKS)].map((el) => ['tick label ' + el.textContent, el]),
+      ...[...plot.querySelectorAll(TITLES)].map((el) => ['axis title ' + el.textContent, el]),
       ...[...plot.querySelectorAll('.g-gtitle text')].map((el) => ['title', el]),
       ...[...plot.querySelectorAll('.colorbar')].map((el) => ['colour bar', el]),
     ];
@@ -32,12 +35,12 @@
     }
     // Axis titles must not run into each other (stacked subplots) or into tick labels.
     const titles = [...plot.querySelectorAll('[class^="g-"][class$="title"] text')].filter((el) => el.textContent && !el.closest('.g-gtitle'));
-    const ticks = [...plot.querySelectorAll('.xtick text, .ytick text')].filter((el) => el.textContent);
+    const ticks = [...plot.querySelectorAll(TICKS)].filter((el) => el.textContent);
     titles.forEach((a, i) => {
       for (const b of titles.slice(i + 1)) if (overlap(box(a), box(b))) problems.push(`${name}: axis titles "${a.textContent}" and "${b.textContent}" overlap`);
       for (const t of ticks) if (overlap(box(a), box(t))) problems.push(`${name}: axis title "${a.textContent}" overlaps tick label ${t.textContent}`);
     });
-    for (const el of plot.querySelectorAll('.g-xtitle text, .g-ytitle text, .g-y2title text, .g-y3title text, .xtick text, .ytick text, .g-gtitle text')) {
+    for (const el of plot.querySelectorAll(`${TITLES}, ${TICKS}, .g-gtitle text`)) {
       if (!el.textContent) continue;
       const b = box(el);
       if (b.left < figure.left - 1 || b.right > figure.right + 1 || b.top < figure.top - 1 || b.bottom > figure.bottom + 1) {

@@ -30,6 +30,9 @@ from inertia_id import Scenario, simulate
 GOOD = [[4, 4, 4, 0, 0, 0]] * 4
 TERMINAL = ("succeeded", "failed", "cancelled")
 made: dict[str, Any] = {}
+#: The identify overlay is drawn: 3 axes x (band edges, mean, telemetry), and the empty
+#: traces that draw the 3 deg/s axes.
+OVERLAY_DRAWN = "() => document.getElementById('overlay-plot')?.data?.length === 15"
 
 
 def _needs(*names: str) -> None:
@@ -388,8 +391,8 @@ def test_a_search_curve_gains_points_while_ppo_runs(dashboard: Dashboard) -> Non
     curve = job["result"]["curve"]
     assert _trace_points(dashboard, "reward-plot") == len(curve)
     page.wait_for_function(
-        "() => document.getElementById('response-plot')?.data?.length === 45"
-    )  # 5 candidates x 3 axes x (mean + two band edges)
+        "() => document.getElementById('response-plot')?.data?.length === 48"
+    )  # 5 candidates x 3 axes x (mean + two band edges), and the 3 deg/s axes' empty traces
     # Drawn as differences from the mean over candidates, the absolute rates a click away.
     assert page.get_attribute("#response-plot", "data-view") == "difference"
     means = page.evaluate(
@@ -640,7 +643,7 @@ def test_identify_telemetry_files_verdict_distances_and_matches_none(
     assert "withheld" in estimate and "hardly excites" in estimate
     assert page.query_selector("#ls-estimate table.tensor") is None
     assert _trace_points(dashboard, "distance-plot") == 5
-    page.wait_for_function("() => document.getElementById('overlay-plot')?.data?.length === 12")
+    page.wait_for_function(OVERLAY_DRAWN)
     dashboard.screenshot("identify")
 
     # A body 50 % heavier than every candidate: the answer is "matches none".
@@ -662,7 +665,7 @@ def test_identify_telemetry_files_verdict_distances_and_matches_none(
     page.click("#identify-submit")
     page.wait_for_selector("#verdict.none")
     assert "Matches none" in page.inner_text("#verdict")
-    page.wait_for_function("() => document.getElementById('overlay-plot')?.data?.length === 12")
+    page.wait_for_function(OVERLAY_DRAWN)
     dashboard.screenshot("identify-matches-none")
 
     # Pasted JSON works as a file does.
@@ -798,7 +801,7 @@ def test_identify_shows_the_apis_posterior_and_is_green_only_when_identified(
     vertical = [s for s in drawn["shapes"] if s.get("yref") == "paper"]
     assert [s["x0"] for s in vertical] == [pytest.approx(online["decision_time_s"])]
     assert f"at {online['decision_time_s']:.2f} s" in page.inner_text("#online-summary")
-    page.wait_for_function("() => document.getElementById('overlay-plot')?.data?.length === 12")
+    page.wait_for_function(OVERLAY_DRAWN)
     dashboard.screenshot("identify-posterior")
 
 
@@ -838,7 +841,7 @@ def test_identify_a_coin_toss_is_amber_naming_the_top_two_never_green(
     )
     assert _shown_posterior(dashboard) == _expected_posterior(expected)
     assert "< required 99 %" in page.inner_text("#verdict-confidence")
-    page.wait_for_function("() => document.getElementById('overlay-plot')?.data?.length === 12")
+    page.wait_for_function(OVERLAY_DRAWN)
     dashboard.screenshot("identify-ambiguous")
 
     # A genuine series asked for more confidence than any posterior here can reach ("none
@@ -879,7 +882,7 @@ def test_identify_mission_time_telemetry_with_its_sequence_start(
     )
     assert _shown_posterior(dashboard) == _expected_posterior(expected)
     # The telemetry is drawn from the sequence start, over the candidate's response.
-    page.wait_for_function("() => document.getElementById('overlay-plot')?.data?.length === 12")
+    page.wait_for_function(OVERLAY_DRAWN)
     first = page.evaluate("() => document.getElementById('overlay-plot').data[3].x[0]")
     assert first == pytest.approx(Scenario.paper().sample_times(len(GOOD))[0], abs=1e-6)
 
@@ -944,7 +947,7 @@ def test_identify_shows_the_rate_and_bias_measured_before_the_start(
     # The response the telemetry is drawn over is shifted by that offset (it starts at
     # rest; the dots sat 0.013 rad/s off the band on in-orbit telemetry).
     page = dashboard.page
-    page.wait_for_function("() => document.getElementById('overlay-plot')?.data?.length === 12")
+    page.wait_for_function(OVERLAY_DRAWN)
     drawn = page.evaluate("() => document.getElementById('overlay-plot').data")
     scenario_id = dashboard.service.client.get(f"/classifiers/{made['classifier']}").json()[
         "scenario_id"
@@ -1139,7 +1142,7 @@ def test_identify_shows_the_dropouts_judged_across_and_the_part_covered(
     )
     assert "dropouts judged across" in page.inner_text("#identify-result dl.kv")
     assert _shown_posterior(dashboard) == _expected_posterior(expected)
-    page.wait_for_function("() => document.getElementById('overlay-plot')?.data?.length === 12")
+    page.wait_for_function(OVERLAY_DRAWN)
 
     whole = _csv_text(times, omega[3])
     assert _api_verdict(dashboard, whole)["telemetry_gaps"] == []
@@ -1531,8 +1534,9 @@ def test_a_pareto_front_is_drawn_beside_the_baselines_and_a_member_plans_and_tra
 
     # The chart: every member at (residual rate in deg/s, measured accuracy), each
     # available baseline its own trace with its own symbol, under its name.
+    # (The empty trace that draws the rad/s axis has no marker.)
     traces = page.evaluate(
-        "() => document.getElementById('front-plot').data.map((t) => "
+        "() => document.getElementById('front-plot').data.filter((t) => t.marker).map((t) => "
         "({name: t.name, x: t.x, y: t.y, symbol: t.marker.symbol, index: t.customdata}))"
     )
     drawn = dict(
@@ -1918,7 +1922,7 @@ def test_a_baseline_that_dominates_the_best_sequence_is_flagged(dashboard: Dashb
         assert f"Baseline {name} dominates member 0" in flag.inner_text()
     assert "best sequence" in page.inner_text("#front-card h2")
     traces = page.evaluate(
-        "() => document.getElementById('front-plot').data.map((t) => "
+        "() => document.getElementById('front-plot').data.filter((t) => t.marker).map((t) => "
         "({name: t.name, line: t.marker.line && t.marker.line.color}))"
     )
     flagged = {t["name"] for t in traces if t["name"].endswith(": dominates")}
@@ -2097,6 +2101,89 @@ def test_a_plans_end_rate_and_flights_and_a_classifiers_final_rate_show_rad_s_be
     degrees, radians = _mean_rate_text(page.inner_text("#classifier-final-rate"))
     _shows(degrees, float(np.degrees(mean)))
     _shows(radians, mean)
+
+
+def _twins_follow(
+    dashboard: Dashboard, plot_id: str, pairs: list[tuple[str, str]], factor: float
+) -> None:
+    """Each twin axis of the plot (``(axis, twin)`` in ``pairs``) is drawn and spans
+    exactly ``factor`` times its axis's range: as drawn, after a zoom to half the range,
+    and after a double-click's autorange."""
+    page = dashboard.page
+    follows = (
+        "([id, pairs, factor]) => { const p = document.getElementById(id);"
+        " return p && p._fullLayout && pairs.every(([a, t]) => {"
+        " const r = p._fullLayout[a].range, w = p._fullLayout[t].range;"
+        " return r.every((v, i) => Math.abs(w[i] - v * factor) <= 1e-12 * Math.abs(v * factor))"
+        " }) }"
+    )
+    for _, twin in pairs:
+        page.wait_for_selector(f"#{plot_id} .{twin.replace('axis', '')}tick text")
+    page.wait_for_function(follows, arg=[plot_id, pairs, factor])
+    for axis, _ in pairs:
+        low, high = page.evaluate(
+            "([id, a]) => document.getElementById(id)._fullLayout[a].range", [plot_id, axis]
+        )
+        zoomed = [low + 0.25 * (high - low), high - 0.25 * (high - low)]
+        page.evaluate(
+            "([id, a, r]) => Plotly.relayout(document.getElementById(id), {[`${a}.range`]: r})",
+            [plot_id, axis, zoomed],
+        )
+        page.wait_for_function(follows, arg=[plot_id, pairs, factor])
+        drawn = page.evaluate(
+            "([id, a]) => document.getElementById(id)._fullLayout[a].range", [plot_id, axis]
+        )
+        assert drawn == pytest.approx(zoomed)
+    page.evaluate(
+        "([id, pairs]) => Plotly.relayout(document.getElementById(id),"
+        " Object.fromEntries(pairs.map(([a]) => [`${a}.autorange`, true])))",
+        [plot_id, pairs],
+    )
+    page.wait_for_function(follows, arg=[plot_id, pairs, factor])
+
+
+def test_rate_plots_give_deg_s_beside_rad_s_and_keep_it_on_zoom(dashboard: Dashboard) -> None:
+    """A flight team reads deg/s: the NSGA-II residual-rate curve and the response plots
+    (rad/s) carry a deg/s axis at the right, the front (deg/s) a rad/s axis on top, each
+    spanning exactly the other's range converted, after a zoom and an autorange too
+    (they gave one unit)."""
+    page = dashboard.page
+    job = _finished_search(
+        dashboard,
+        {
+            "method": "nsga2",
+            "n_realisations": 10,
+            "nsga2": {"population": 16, "generations": 4},
+            "fresh_realisations": 10,
+            "constraints": {"max_final_rate_deg_s": 8.0},
+        },
+        "small NSGA-II",
+    )
+    degrees = 180 / np.pi
+    dashboard.open(f"#/jobs/{job['id']}")
+    page.wait_for_selector("#response-plot .legend", timeout=60_000)
+    _twins_follow(dashboard, "reward-plot", [("yaxis", "yaxis2")], degrees)
+    assert "deg/s" in page.evaluate(
+        "() => document.getElementById('reward-plot').layout.yaxis2.title.text"
+    )
+    _twins_follow(dashboard, "front-plot", [("xaxis", "xaxis2")], 1 / degrees)
+    assert "rad/s" in page.evaluate(
+        "() => document.getElementById('front-plot').layout.xaxis2.title.text"
+    )
+    response = [("yaxis", "yaxis4"), ("yaxis2", "yaxis5"), ("yaxis3", "yaxis6")]
+    for view in ("difference", "absolute"):
+        page.click(f"#response-holder button[data-view='{view}']")
+        page.wait_for_function(
+            f"() => document.getElementById('response-plot').dataset.view === '{view}'"
+        )
+        _twins_follow(dashboard, "response-plot", response, degrees)
+        titles = page.evaluate(
+            "() => ['yaxis4', 'yaxis5', 'yaxis6'].map((a) =>"
+            " document.getElementById('response-plot').layout[a].title.text)"
+        )
+        assert all(t.endswith("(deg/s)") for t in titles), titles
+    assert page.evaluate(LAYOUT_PROBLEMS_JS) == []
+    dashboard.screenshot("rate-axes-search-front")
 
 
 def test_job_pages_without_the_key_ask_for_it_and_log_no_401(

@@ -101,6 +101,68 @@ export function fitFlatSeries(plot) {
   }
 }
 
+// Rate axes in deg/s beside rad/s. A flight team reads deg/s: each rate axis gets a
+// twin on the other side (Plotly's `overlaying`) in the other unit, whose range is kept
+// exactly the first's times the factor. The twin's range is set, not autoscaled: it
+// holds no data (one empty trace makes Plotly draw it). Hover text alone would be right
+// at any zoom but shows one point at a time; a twin axis reads the whole plot, and it
+// stays right on zoom because keepTwins sets its range after every draw and relayout
+// (a zoom, a pan, a double-click's autorange, a live curve's extendTraces rescale).
+export const DEG_PER_RAD = 180 / Math.PI;
+
+// `twins`: [{ of: "yaxis", twin: "yaxis4", factor, title }]; the twin axes for a layout.
+export function twinAxes(twins, extra = {}) {
+  const out = {};
+  for (const { of, twin, title: text } of twins) {
+    const side = of.startsWith("x") ? "top" : "right";
+    out[twin] = { overlaying: of.replace("axis", ""), side, title: { text }, automargin: true, showgrid: false, zeroline: false, tickmode: "auto", autorange: false, ...extra };
+  }
+  return out;
+}
+
+// The empty traces that make Plotly draw the twin axes.
+export function twinTraces(twins) {
+  return twins.map(({ twin }) => ({ x: [], y: [], [twin.startsWith("x") ? "xaxis" : "yaxis"]: twin.replace("axis", ""), showlegend: false, hoverinfo: "skip", name: twin }));
+}
+
+// Keeps each twin's range the factor times its axis's, now and after every draw or
+// relayout of `plot`.
+export function keepTwins(plot, twins) {
+  plot.twins = twins;
+  if (!plot.twinsKept) {
+    plot.twinsKept = true;
+    const sync = () => {
+      const update = {};
+      for (const { of, twin, factor } of plot.twins || []) {
+        const range = plot.layout && plot.layout[of] && plot.layout[of].range;
+        if (!range || range.length !== 2) continue;
+        const want = range.map((v) => Number(v) * factor);
+        const have = plot.layout[twin] && plot.layout[twin].range;
+        if (!have || have[0] !== want[0] || have[1] !== want[1]) update[`${twin}.range`] = want;
+      }
+      if (Object.keys(update).length) Plotly.relayout(plot, update);
+    };
+    plot.on("plotly_afterplot", sync);
+    plot.on("plotly_relayout", sync);
+  }
+  const update = {};
+  for (const { of, twin, factor } of twins) {
+    const range = plot.layout && plot.layout[of] && plot.layout[of].range;
+    if (range) update[`${twin}.range`] = range.map((v) => Number(v) * factor);
+  }
+  if (Object.keys(update).length) Plotly.relayout(plot, update);
+}
+
+// The legend where a twin axis sits at the right: at the figure's right edge, beyond the
+// twin's tick labels and title (at the plot area's edge it covered them).
+export const LEGEND_PAST_TWIN = { xref: "container", x: 1, xanchor: "right" };
+
+// The response plots' twins: ω_x, ω_y, ω_z in deg/s at the right.
+export function responseTwins(view = "absolute") {
+  const unit = view === "difference" ? "− mean (deg/s)" : "(deg/s)";
+  return ["x", "y", "z"].map((axis, a) => ({ of: a === 0 ? "yaxis" : `yaxis${a + 1}`, twin: `yaxis${a + 4}`, factor: DEG_PER_RAD, title: `ω_${axis} ${unit}` }));
+}
+
 const AXES = ["x", "y", "z"];
 
 // What a response view subtracts at each sample and axis: nothing ("absolute"), or the
@@ -131,7 +193,7 @@ export function responseTraces(response, { only = null, view = "absolute" } = {}
       traces.push({ ...common, y: minus(candidate.mean_rad_s, a), mode: "lines", line: { color, width: 2 }, name, showlegend: a === 0, hoverinfo: "x+y+name" });
     });
   });
-  return traces;
+  return [...traces, ...twinTraces(responseTwins(view))];
 }
 
 export function responseLayout(text, view = "absolute") {
@@ -142,6 +204,8 @@ export function responseLayout(text, view = "absolute") {
     yaxis: { title: { text: `ω_x ${unit}` }, domain: [0.7, 1], anchor: "x" },
     yaxis2: { title: { text: `ω_y ${unit}` }, domain: [0.36, 0.64], anchor: "x" },
     yaxis3: { title: { text: `ω_z ${unit}` }, domain: [0, 0.3], anchor: "x" },
+    ...twinAxes(responseTwins(view), { anchor: "x" }),
+    legend: LEGEND_PAST_TWIN,
     height: 560,
   });
 }
@@ -156,6 +220,7 @@ export function responseView(response, { id, titleText, view = "difference" } = 
     for (const [name, button] of Object.entries(buttons)) button.setAttribute("aria-pressed", String(name === which));
     const what = which === "difference" ? `${titleText}: each candidate minus the mean over candidates` : titleText;
     Plotly.react(plot, responseTraces(response, { view: which }), responseLayout(what, which), PLOT_CONFIG);
+    keepTwins(plot, responseTwins(which));
     plot.dataset.view = which;
   };
   buttons.difference = h("button", { type: "button", class: "secondary toggle", "data-view": "difference", onclick: () => draw("difference") }, "differences from the mean");

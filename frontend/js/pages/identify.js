@@ -7,7 +7,7 @@
 import { api } from "../api.js";
 import { downloads } from "../components/downloads.js";
 import { withoutKey } from "../components/keyed.js";
-import { BAND, COLORS, PLOT_CONFIG, layout, plotDiv, plotText, responseLayout, title, withAlpha } from "../components/plots.js";
+import { BAND, COLORS, PLOT_CONFIG, keepTwins, layout, plotDiv, plotText, responseLayout, responseTwins, title, twinTraces, withAlpha } from "../components/plots.js";
 import { kindInfo } from "../vocabulary.js";
 import { clear, decimalsFor, h, jsonBlob, link, measured, messageBox, plain, probability, quantity, sequenceText, showFieldErrors } from "../ui.js";
 
@@ -419,7 +419,8 @@ async function showVerdict(holder, verdict, classifier, { content, context, file
   });
   overlayPlot.dataset.offset = JSON.stringify(offset);
   const overlayTitle = `telemetry (dots) over ${plotText(candidate.name)}'s mean and ${BAND.label} band${shifted ? ", shifted by the rate + bias measured before the start" : ""}`;
-  Plotly.newPlot(overlayPlot, traces, responseLayout(overlayTitle), PLOT_CONFIG);
+  await Plotly.newPlot(overlayPlot, [...traces, ...twinTraces(responseTwins())], responseLayout(overlayTitle), PLOT_CONFIG);
+  keepTwins(overlayPlot, responseTwins());
 }
 
 // A bar per hypothesis, its percentage on it, the required confidence as a dashed line.

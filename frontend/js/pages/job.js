@@ -6,7 +6,7 @@ import { MetricFollower, api } from "../api.js";
 import { downloads, jobDownloads } from "../components/downloads.js";
 import { REUSED_KEY, cancelButton, labelEditor, reusedNotice, timingCell } from "../components/jobs.js";
 import { whenKeyed } from "../components/keyed.js";
-import { BAND, PLOT_CONFIG, extendWith, fitFlatSeries, layout, plotDiv, responseView, sequencePlot, title } from "../components/plots.js";
+import { BAND, DEG_PER_RAD, PLOT_CONFIG, extendWith, fitFlatSeries, keepTwins, layout, plotDiv, responseView, sequencePlot, title, twinAxes, twinTraces } from "../components/plots.js";
 import { isTerminal } from "../vocabulary.js";
 import { clear, fmt, h, link, messageBox, progressBar, put, quantity, score, sequenceText, statusBadge, table, tagChips, utcText, whenText } from "../ui.js";
 import { renderClassifier } from "../views/classifier.js";
@@ -140,16 +140,19 @@ async function searchView(body, job, context) {
   const what = separability ? "separability score" : "clustering F1";
   const rewardText = separability ? "Reward per episode: −1 + 3·separability per step, −|ω| (rad/s) at the last" : "Reward per episode: −1 + 3·F1 per step, −|ω| (rad/s) at the last";
   const steps = pareto ? "sequences evaluated × steps" : "environment steps";
-  Plotly.newPlot(
+  // NSGA-II's residual rate in rad/s, and in deg/s on the right.
+  const rateTwins = [{ of: "yaxis", twin: "yaxis2", factor: DEG_PER_RAD, title: "residual rate (deg/s)" }];
+  await Plotly.newPlot(
     rewardPlot,
     pareto
-      ? [{ x: [], y: [], mode: "lines+markers", name: "residual rate", line: { color: "#1f77b4" } }]
+      ? [{ x: [], y: [], mode: "lines+markers", name: "residual rate", line: { color: "#1f77b4" } }, ...twinTraces(rateTwins)]
       : [{ x: [], y: [], mode: "lines+markers", name: "mean episode reward", line: { color: "#1f77b4" } }],
     pareto
-      ? layout(steps, "residual rate (rad/s)", { title: title("Residual rate of each generation's most accurate feasible sequence", 13), showlegend: false })
+      ? layout(steps, "residual rate (rad/s)", { title: title("Residual rate of each generation's most accurate feasible sequence", 13), showlegend: false, ...twinAxes(rateTwins) })
       : layout(steps, "mean episode reward", { title: title(rewardText, 13), showlegend: false }),
     PLOT_CONFIG,
   );
+  if (pareto) keepTwins(rewardPlot, rateTwins);
   const accuracyText = "predicted accuracy at the design noise";
   Plotly.newPlot(
     f1Plot,

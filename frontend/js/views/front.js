@@ -15,10 +15,11 @@ import { request } from "../api.js";
 import { downloads } from "../components/downloads.js";
 import { submitAndOpen } from "../components/jobs.js";
 import { whenKeyed, withoutKey } from "../components/keyed.js";
-import { PLOT_CONFIG, layout, plotDiv } from "../components/plots.js";
+import { DEG_PER_RAD, PLOT_CONFIG, keepTwins, layout, plotDiv, twinAxes, twinTraces } from "../components/plots.js";
 import { clear, fmt, h, messageBox, plain, put, quantity, score, sequenceText } from "../ui.js";
 
 const RAD_TO_DEG = 180 / Math.PI;
+const RATE_TWINS = [{ of: "xaxis", twin: "xaxis2", factor: 1 / DEG_PER_RAD, title: "residual rate (rad/s)" }];
 const SYMBOLS = ["diamond", "square", "triangle-up", "cross", "star", "hexagon", "pentagon", "triangle-down"];
 const DOMINATES = "#d62728";
 
@@ -240,6 +241,9 @@ async function drawPlot(node, front, selected) {
       },
     });
   });
+  // The residual rate in deg/s, and in rad/s on the top axis (the chosen member's
+  // marker stays the last trace: markChosen moves it).
+  traces.push(...twinTraces(RATE_TWINS));
   const chosen = members.find((m) => m.index === selected);
   traces.push({
     x: chosen ? [chosen.scores.final_rate_deg_s] : [],
@@ -255,9 +259,11 @@ async function drawPlot(node, front, selected) {
     layout("residual rate once the lag is empty (deg/s, mean over candidates)", `${accuracyWord(front)} accuracy`, {
       height: 440,
       margin: { l: 60, r: 10, t: 16, b: 96 },
+      ...twinAxes(RATE_TWINS, { anchor: "y" }),
     }),
     PLOT_CONFIG,
   );
+  keepTwins(node, RATE_TWINS);
   node.on("plotly_click", (event) => {
     const point = event.points && event.points[0];
     if (point && point.curveNumber === 0) node.dispatchEvent(new CustomEvent("member", { detail: point.customdata }));
