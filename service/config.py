@@ -14,13 +14,23 @@ from typing import Literal
 from pydantic import Field, ValidationError, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
-__all__ = ["LONGEST_S", "Settings", "get_settings", "setting_problems", "settings_or_exit"]
+__all__ = [
+    "LONGEST_S",
+    "LOOPBACK_HOSTS",
+    "Settings",
+    "get_settings",
+    "setting_problems",
+    "settings_or_exit",
+]
 
 #: The longest any duration setting may be, s: a year. Longer is a typo (a value in ms,
 #: a stray exponent), and past about 1e10 s the waits and clock arithmetic they feed
 #: (``threading.Event.wait``, ``now - timedelta(...)``) raise OverflowError at run time
 #: instead of at start.
 LONGEST_S = 365 * 86400.0
+
+#: Host header names the API always answers to: those of this machine's loopback.
+LOOPBACK_HOSTS = ("127.0.0.1", "localhost", "::1", "[::1]")
 
 
 class Settings(BaseSettings):
@@ -140,9 +150,9 @@ class Settings(BaseSettings):
     verdict_timeout_s: float = Field(
         default=30.0, gt=0, le=LONGEST_S, allow_inf_nan=False, alias="INERTIA_ID_VERDICT_TIMEOUT_S"
     )
-    #: Host header values accepted (comma-separated); empty: the loopback names, plus
-    #: INERTIA_ID_HOST when it names one address. "*" accepts any (behind a proxy that
-    #: checks it).
+    #: Host header values accepted besides the loopback names (127.0.0.1, localhost,
+    #: ::1, [::1]) and INERTIA_ID_HOST when it names one address; comma-separated.
+    #: "*" accepts any (behind a proxy that checks it).
     allowed_hosts: str = Field(default="", alias="INERTIA_ID_ALLOWED_HOSTS")
     frontend_dir: Path | None = Field(default=None, alias="INERTIA_ID_FRONTEND_DIR")
     #: The ceiling on every job's run time, s; a job may ask for less (``time_limit_s``),
@@ -184,16 +194,24 @@ class Settings(BaseSettings):
 
     @property
     def resolved_allowed_hosts(self) -> list[str]:
-        """Host header values the API accepts (the port is not part of them)."""
-        if self.allowed_hosts.strip():
-            return [h.strip() for h in self.allowed_hosts.split(",") if h.strip()]
-        hosts = ["127.0.0.1", "localhost", "::1", "[::1]"]
-        if self.host in ("0.0.0.0", "::", ""):
+        """Host header values the API accepts (the port is not part of them): the
+        loopback names, INERTIA_ID_HOST when it names one address, and those of
+        INERTIA_ID_ALLOWED_HOSTS. The setting adds to the loopback names rather than
+        replacing them, as its 400 says ("set INERTIA_ID_ALLOWED_HOSTS to add one"): a
+        deployment that named only its public host refused its own healthcheck's
+        ``Host: 127.0.0.1``."""
+        configured = [h.strip() for h in self.allowed_hosts.split(",") if h.strip()]
+        if "*" in configured:
+            return ["*"]
+        if not configured and self.host in ("0.0.0.0", "::", ""):
             # Bound to every address with no names configured: the names it will be
             # reached by are unknown here (serve warns about it).
             return ["*"]
-        if self.host not in hosts:
-            hosts.append(self.host)
+        hosts = list(LOOPBACK_HOSTS)
+        wildcard = self.host in ("0.0.0.0", "::", "")
+        for name in ([] if wildcard else [self.host]) + configured:
+            if name.lower() not in hosts:
+                hosts.append(name.lower())
         return hosts
 
     @property

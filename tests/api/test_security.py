@@ -9,12 +9,17 @@ from pathlib import Path
 
 import pytest
 from sqlalchemy import select
+from starlette.applications import Starlette
+from starlette.requests import Request
+from starlette.responses import PlainTextResponse
+from starlette.routing import Route
 
 from app.main import create_app
+from app.security import AllowedHosts
 from service.config import Settings
 from service.store.models import ApiKey
 
-from .support import Api, make_settings
+from .support import Api, TestClient, make_settings
 
 WRONG_KEY = "not-the-key-0123456789"
 
@@ -174,3 +179,36 @@ def test_a_write_without_the_key_is_refused_before_its_body_is_read(api: Api) ->
         )
     assert api.client.patch("/jobs/nope", json={"name": "x"}).status_code == 401
     assert api.client.delete("/scenarios/nope").status_code == 401
+
+
+async def _ok(_request: Request) -> PlainTextResponse:
+    return PlainTextResponse("ok")
+
+
+@pytest.mark.parametrize("host", ["127.0.0.1", "0.0.0.0"])
+def test_allowed_hosts_add_to_the_loopback_names(host: str) -> None:
+    """The 400 says "set INERTIA_ID_ALLOWED_HOSTS to add one", but the setting replaced
+    the loopback names: a deployment that named only its public host refused its own
+    healthcheck (``Host: 127.0.0.1``). Now the names are added to them."""
+    settings = Settings(INERTIA_ID_HOST=host, INERTIA_ID_ALLOWED_HOSTS="Inertia.Example.org")
+    assert set(settings.resolved_allowed_hosts) == {
+        "127.0.0.1",
+        "localhost",
+        "::1",
+        "[::1]",
+        "inertia.example.org",
+    }
+    app = Starlette(routes=[Route("/", _ok)])
+    client = TestClient(AllowedHosts(app, hosts=settings.resolved_allowed_hosts))
+    for name in ("127.0.0.1:8000", "localhost", "[::1]:8000", "inertia.example.org"):
+        assert client.get("/", headers={"Host": name}).status_code == 200, name
+    refused = client.get("/", headers={"Host": "evil.example"})
+    assert refused.status_code == 400
+    assert "'evil.example'" in refused.json()["detail"]
+    assert "INERTIA_ID_ALLOWED_HOSTS" in refused.json()["detail"]
+    # "*" still accepts any; unset still means the loopback names (or any, bound to all).
+    assert Settings(INERTIA_ID_ALLOWED_HOSTS="api,*").resolved_allowed_hosts == ["*"]
+    unset = Settings(INERTIA_ID_HOST=host, INERTIA_ID_ALLOWED_HOSTS="")
+    assert unset.resolved_allowed_hosts == (
+        ["*"] if host == "0.0.0.0" else ["127.0.0.1", "localhost", "::1", "[::1]"]
+    )
