@@ -15,6 +15,7 @@ import io
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from datetime import UTC, datetime
 from typing import Any
 
 from inertia_id.checks import spreadsheet_safe, spreadsheet_safe_json
@@ -24,6 +25,7 @@ __all__ = [
     "RESULT_TABLES",
     "Table",
     "identify_table",
+    "job_notes",
     "metrics_notes",
     "metrics_table",
     "result_table",
@@ -92,6 +94,34 @@ def to_csv(table: Table) -> str:
     for row in table.rows:
         out.write(_line(row))
     return out.getvalue()
+
+
+def _iso_utc(value: datetime | None) -> str | None:
+    """A stored time as ISO 8601 in UTC with ``Z`` (SQLite hands back naive datetimes;
+    every stored time is UTC), as the job's JSON writes it."""
+    if value is None:
+        return None
+    utc = value.replace(tzinfo=UTC) if value.tzinfo is None else value.astimezone(UTC)
+    return utc.isoformat().replace("+00:00", "Z")
+
+
+def job_notes(job: Mapping[str, Any], exported_at: datetime) -> list[tuple[str, Any]]:
+    """The ``#`` lines every CSV of a job begins with, so that a file handed on (or
+    renamed) still says which job it comes from and when it was written: the job's id,
+    type, scenario and seed, when it was created and finished, and when it was exported.
+
+    :param job: the job's ``id``, ``type``, ``scenario_id``, ``seed``, ``created_at`` and
+        ``finished_at`` (datetimes; a missing one is an empty note).
+    """
+    return [
+        ("job_id", job.get("id")),
+        ("job_type", job.get("type")),
+        ("scenario_id", job.get("scenario_id")),
+        ("job_seed", job.get("seed")),
+        ("created_at", _iso_utc(job.get("created_at"))),
+        ("finished_at", _iso_utc(job.get("finished_at"))),
+        ("exported_at", _iso_utc(exported_at)),
+    ]
 
 
 def to_records(table: Table) -> list[dict[str, Any]]:
@@ -609,7 +639,6 @@ def _sweep_notes(result: Mapping[str, Any], job: Mapping[str, Any]) -> list[tupl
     ceiling = result.get("ceiling_realisations", result.get("limit_realisations"))
     return [
         ("classifier_id", params.get("classifier_id")),
-        ("job_seed", job.get("seed")),
         ("test_series_seed", result.get("seed")),
         ("sequence", result.get("sequence")),
         ("metric", result.get("metric")),
@@ -636,7 +665,7 @@ def _sweep_notes(result: Mapping[str, Any], job: Mapping[str, Any]) -> list[tupl
 def _search_notes(result: Mapping[str, Any], job: Mapping[str, Any]) -> list[tuple[str, Any]]:
     """What every table of a search carries as ``#`` lines: how it was asked for, so that
     a front's ``feasible`` column can be read against its constraints and a table handed
-    on says where it came from."""
+    on says how it was made (:func:`job_notes` says which job it is)."""
     params = job.get("params") or {}
     names = (
         "method",
@@ -649,10 +678,7 @@ def _search_notes(result: Mapping[str, Any], job: Mapping[str, Any]) -> list[tup
         "fresh_realisations",
         "fresh_test_series",
     )
-    return [
-        ("job_seed", job.get("seed")),
-        *((name, params.get(name)) for name in names if name in params),
-    ]
+    return [(name, params.get(name)) for name in names if name in params]
 
 
 #: Every job type's tables, first the default: name -> (what it holds, how it is made).
@@ -687,8 +713,8 @@ RESULT_TABLES: dict[str, dict[str, tuple[str, Callable[[Mapping[str, Any]], Tabl
 }
 
 
-#: The job-wide facts every table of a type carries as ``#`` lines, from the result and
-#: the job (its ``seed`` and ``params``).
+#: The job-wide facts every table of a type carries as ``#`` lines after
+#: :func:`job_notes`, from the result and the job (its ``params``).
 _JOB_NOTES: dict[str, Callable[[Mapping[str, Any], Mapping[str, Any]], list[tuple[str, Any]]]] = {
     "search": _search_notes,
     "sweep": _sweep_notes,
@@ -700,11 +726,14 @@ def result_table(
     result: Mapping[str, Any],
     table: str | None,
     job: Mapping[str, Any] | None = None,
+    exported_at: datetime | None = None,
 ) -> Table:
     """One table of a job's result; ``table`` None: the type's first.
 
-    :param job: the job's ``seed`` and ``params``, for the notes that name what was run
-        (a sweep's classifier id); without it those notes are empty.
+    :param job: the job (``params`` and what :func:`job_notes` reads), for the notes that
+        say which job it is and what was run (a sweep's classifier id); without it the
+        table has only its own notes.
+    :param exported_at: when the table is written (default now).
     :raises InputError: the type has no table of that name (the message lists them).
     """
     tables = RESULT_TABLES.get(job_type, {})
@@ -714,10 +743,18 @@ def result_table(
             f"a {job_type} result has no table {table!r}; tables: {', '.join(tables) or 'none'}"
         )
     made = tables[name][1](result)
-    notes = _JOB_NOTES.get(job_type)
-    if notes is None:
+    if job is None:
         return made
-    return Table(made.header, made.rows, [*notes(result, job or {}), *made.notes])
+    notes = _JOB_NOTES.get(job_type)
+    return Table(
+        made.header,
+        made.rows,
+        [
+            *job_notes(job, exported_at or datetime.now(UTC)),
+            *(notes(result, job) if notes is not None else []),
+            *made.notes,
+        ],
+    )
 
 
 def metrics_table(

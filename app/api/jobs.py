@@ -24,6 +24,7 @@ from inertia_id.physics.scenario import Scenario
 from inertia_id.physics.simulate import check_nominal_gyro_range
 from service.exports import (
     RESULT_TABLES,
+    job_notes,
     metrics_notes,
     metrics_table,
     result_table,
@@ -38,6 +39,7 @@ from service.store.models import (
     JobRow,
     MetricRow,
     ScenarioRow,
+    utcnow,
 )
 from service.summaries import summary_keys
 
@@ -614,9 +616,7 @@ def download_result(
             json.dumps(document, indent=1, allow_nan=False), "application/json", f"{stem}.json"
         )
     try:
-        rendered = result_table(
-            job.type, out.result or {}, table, {"seed": job.seed, "params": job.params or {}}
-        )
+        rendered = result_table(job.type, out.result or {}, table, _job_facts(job))
     except InputError as exc:
         unprocessable(("query", "table"), str(exc))
     name = table or next(iter(RESULT_TABLES.get(job.type, {})), "table")  # the default's
@@ -624,6 +624,19 @@ def download_result(
         records = json.dumps(to_records(rendered), indent=1, allow_nan=False)
         return _download(records, "application/json", f"{stem}-{name}.json")
     return _download(to_csv(rendered), "text/csv; charset=utf-8", f"{stem}-{name}.csv")
+
+
+def _job_facts(job: JobRow) -> dict[str, Any]:
+    """What a job's CSV exports say about it (:func:`service.exports.job_notes`)."""
+    return {
+        "id": job.id,
+        "type": job.type,
+        "scenario_id": job.scenario_id,
+        "seed": job.seed,
+        "created_at": job.created_at,
+        "finished_at": job.finished_at,
+        "params": job.params or {},
+    }
 
 
 @router.get("/{job_id}", responses=_NOT_FOUND)
@@ -674,7 +687,15 @@ def get_metrics(
     if format == "csv":
         points = [(k, s, v if np.isfinite(v) else None) for k, s, v in rows]
         return _download(
-            to_csv(metrics_table(points, metrics_notes(job.type, job.params or {}))),
+            to_csv(
+                metrics_table(
+                    points,
+                    [
+                        *job_notes(_job_facts(job), utcnow()),
+                        *metrics_notes(job.type, job.params or {}),
+                    ],
+                )
+            ),
             "text/csv; charset=utf-8",
             f"{job.type}-{job.id[:8]}-metrics.csv",
         )

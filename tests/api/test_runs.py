@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+from datetime import UTC, datetime, timedelta
 from typing import Any
 
 import numpy as np
@@ -330,7 +331,10 @@ def test_a_search_result_downloads_as_json_and_as_each_csv_table(api: Api) -> No
     # Every search table says how the search was asked for (only sweeps' did).
     notes = _notes(default.text)
     assert notes["method"] == "cem" and notes["sequence_length"] == "4" and "job_seed" in notes
-    assert notes["constraints"] == "{}" and notes == _notes(curve.text)
+    # The same lines on every table, but the time each was written.
+    curve_notes = _notes(curve.text)
+    assert notes.pop("exported_at") and curve_notes.pop("exported_at")
+    assert notes["constraints"] == "{}" and notes == curve_notes
     # Commanded impulse, named so: not "fuel", and not propellant (a mass).
     assert summary["impulse_nms"] == "20.0" and not any("fuel" in key for key in summary)
     # The separability search's score is labelled as such, not as an F1.
@@ -810,6 +814,85 @@ def _notes(text: str) -> dict[str, str]:
     """The ``# name: value`` lines before a CSV's header."""
     lines = [line for line in text.splitlines() if line.startswith("# ")]
     return dict(line[2:].split(": ", 1) for line in lines)
+
+
+def _utc(text: str) -> datetime:
+    """An ISO 8601 time that must name UTC with ``Z``."""
+    assert text.endswith("Z"), text
+    stamp = datetime.fromisoformat(text)
+    assert stamp.utcoffset() == timedelta(0), text
+    return stamp
+
+
+def test_every_job_csv_says_which_job_it_comes_from_and_when_it_was_written(api: Api) -> None:
+    """A training's CSV tables had no ``# name: value`` line at all, and no job CSV
+    named its job or the time it was written except through its file name: a table
+    renamed or handed on could not be traced to its job or seed. Every job CSV (each
+    result table of each type, and the metrics) now begins with the same lines; the
+    existing lines and the columns are kept."""
+    import pandas
+
+    scenario_id = api.create_scenario()["id"]
+    search_id = _finished(api, scenario_id, 11, _search_result([1.0, 0.8], 20.0, 3.5))
+    train = api.submit("train", scenario_id, seed=12, params={"sequence": GOOD_SEQUENCE}).json()
+    with api.db.session() as session:
+        claim(session, train["id"], "tests")
+    with api.db.session() as session:
+        add_metrics(session, train["id"], [("f1", 0, 0.75)])
+        result = {
+            "classifier_id": "c" * 32,
+            "kind": "kmeans",
+            "metric": "euclidean",
+            "f1": 0.75,
+            "accuracy": 0.8,
+            "candidate_names": ["a", "config #2"],
+            "confusion": [[4, 1], [1, 4]],
+            "sequence": GOOD_SEQUENCE,
+        }
+        assert finish(session, train["id"], "succeeded", result=result)
+    downloads = [
+        (search_id, 11, f"/jobs/{search_id}/result?format=csv&table={table}")
+        for table in ("summary", "curve", "sequence", "baselines", "front")
+    ]
+    downloads += [
+        (train["id"], 12, f"/jobs/{train['id']}/result?format=csv&table={table}")
+        for table in ("summary", "confusion", "sequence")
+    ]
+    downloads += [(search_id, 11, f"/jobs/{search_id}/metrics?format=csv")]
+    downloads += [(train["id"], 12, f"/jobs/{train['id']}/metrics?format=csv")]
+    for job_id, seed, path in downloads:
+        before = datetime.now(UTC)
+        response = api.get(path)
+        after = datetime.now(UTC)
+        assert response.status_code == 200, (path, response.text)
+        job = api.get(f"/jobs/{job_id}").json()
+        lines = response.text.splitlines()
+        names = [line[2:].split(": ", 1)[0] for line in lines if line.startswith("# ")]
+        # The job's lines first, in this order; the table's own (if any) follow.
+        assert names[:7] == [
+            "job_id",
+            "job_type",
+            "scenario_id",
+            "job_seed",
+            "created_at",
+            "finished_at",
+            "exported_at",
+        ], path
+        notes = _notes(response.text)
+        assert notes["job_id"] == job_id and notes["job_type"] == job["type"], path
+        assert notes["scenario_id"] == scenario_id and notes["job_seed"] == str(seed), path
+        assert _utc(notes["created_at"]) == _utc(job["created_at"]), path
+        assert _utc(notes["finished_at"]) == _utc(job["finished_at"]), path
+        assert before <= _utc(notes["exported_at"]) <= after, path
+        # Still a table a reader told that "#" starts a comment reads whole.
+        table = pandas.read_csv(io.StringIO(response.text), comment="#")
+        assert len(table) == len(_csv(response.text)) - 1 and len(table.columns) > 1, path
+    confusion = _csv(api.get(f"/jobs/{train['id']}/result?format=csv&table=confusion").text)
+    assert confusion == [
+        ["true \\ predicted", "a", "config #2"],
+        ["a", "4", "1"],
+        ["config #2", "1", "4"],
+    ]
 
 
 def test_an_identify_verdict_downloads_as_csv(

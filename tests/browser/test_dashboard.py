@@ -424,8 +424,10 @@ def test_a_search_curve_gains_points_while_ppo_runs(dashboard: Dashboard) -> Non
     with page.expect_download() as download:
         page.click("#job-downloads a[data-download='CSV: curve']")
     text = Path(download.value.path()).read_text(encoding="utf-8").splitlines()
-    # How the search was asked for first, as "# name: value" lines; then the table.
-    assert text[0] == f"# job_seed: {job['seed']}" and "# method: ppo" in text
+    # Which job it is, then how the search was asked for, as "# name: value" lines; then
+    # the table.
+    assert text[0] == f"# job_id: {job_id}" and f"# job_seed: {job['seed']}" in text
+    assert "# method: ppo" in text
     saved = [line for line in text if not line.startswith("# ")]
     assert saved[0].startswith("timesteps,episodes,mean_episode_reward")
     assert len(saved) == 1 + len(curve)
