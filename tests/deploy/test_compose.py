@@ -9,6 +9,9 @@ from pathlib import Path
 
 import pytest
 import yaml
+from psycopg.pq import Conninfo
+from sqlalchemy import create_engine
+from sqlalchemy.engine import make_url
 
 from service.config import Settings
 
@@ -81,3 +84,29 @@ def test_compose_passes_the_allowed_hosts_to_the_api() -> None:
         patch.setattr(os, "environ", unset)
         hosts = _api_settings({}).resolved_allowed_hosts
     assert set(hosts) == {"127.0.0.1", "localhost", "::1", "[::1]"}, hosts
+
+
+def test_a_postgres_password_with_url_characters_reaches_the_service_as_it_is(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The password was pasted into DATABASE_URL unescaped: ``p@ss`` made the host
+    ``ss@postgres``, and a ``%`` or ``/`` broke the URL too. The URL now holds none and
+    the password goes as PGPASSWORD, which libpq (under psycopg) reads when the URL
+    has none."""
+    password = "p@ss%25w/rd:1#x?y"
+    done = _config({"INERTIA_ID_API_KEY": "k" * 32, "POSTGRES_PASSWORD": password})
+    assert done.returncode == 0, done.stderr
+    services = yaml.safe_load(done.stdout)["services"]
+    assert services["postgres"]["environment"]["POSTGRES_PASSWORD"] == password
+    for name in ("api", "worker"):
+        environment = services[name]["environment"]
+        settings = Settings.model_validate(environment)
+        url = make_url(settings.resolved_database_url)
+        assert (url.drivername, url.host, url.port) == ("postgresql+psycopg", "postgres", 5432)
+        assert (url.username, url.database, url.password) == ("inertia", "inertia", None)
+        # What psycopg is given: no password, so libpq takes PGPASSWORD, unescaped.
+        _args, given = create_engine(url).dialect.create_connect_args(url)
+        assert "password" not in given, given
+        monkeypatch.setenv("PGPASSWORD", environment["PGPASSWORD"])
+        defaults = {option.keyword: option.val for option in Conninfo.get_defaults()}
+        assert defaults[b"password"] == password.encode(), name
