@@ -16,16 +16,17 @@ import os
 import threading
 from typing import Any
 
-from celery.signals import worker_ready, worker_shutdown, worker_shutting_down
+from celery.signals import worker_init, worker_ready, worker_shutdown, worker_shutting_down
 
 from service.config import Settings, get_settings
 from service.queue import make_celery
 from service.store import Database
-from service.store.jobs import touch_worker
+from service.store.jobs import start_worker, touch_worker
 
+from . import incarnation
 from .context import broker_label
 from .process import mark_stopping, warm
-from .reaper import hand_back_jobs, reap_once, resend_once
+from .reaper import hand_back_jobs, reap_once, resend_once, take_restarted_runs
 from .ticker import Ticker
 
 __all__ = ["WorkerMonitor", "current"]
@@ -43,10 +44,14 @@ class WorkerMonitor:
     :param settings: database, broker, interval and timeout.
     """
 
-    def __init__(self, name: str, settings: Settings) -> None:
+    def __init__(self, name: str, settings: Settings, life: incarnation.Life | None = None) -> None:
         self.name = name
         self.settings = settings
         self.db = Database(settings.resolved_database_url)
+        #: This worker process's lock (see worker.incarnation): taken before its task
+        #: processes can claim a job, or at the first tick.
+        self.life = life or incarnation.Life(settings.resolved_database_url, incarnation.current())
+        self._started = False
         # Its own app and connections: the reaper publishes from this thread, away from
         # the consumer's event loop.
         self.celery = make_celery(settings)
@@ -58,10 +63,25 @@ class WorkerMonitor:
         )
 
     def tick(self) -> None:
+        if not self.life.held:
+            try:
+                self.life.hold()
+            except Exception:
+                logger.exception("could not take this worker's incarnation lock; will retry")
         if warm():
             # Seen only once a task process can run a job at once (see worker.process).
             with self.db.session() as session:
-                touch_worker(session, self.name, broker_label(self.settings))
+                if self._started:
+                    touch_worker(session, self.name, broker_label(self.settings))
+                else:
+                    # A new incarnation of the name: a fresh row, not a dead one's.
+                    start_worker(
+                        session, self.name, broker_label(self.settings), self.life.incarnation
+                    )
+            self._started = True
+        # Before the reaper: a run of this name's earlier, dead process is taken at once,
+        # with its cause, not by the heartbeat timeout as a hung task process.
+        take_restarted_runs(self.settings, self.db, self.celery, self.name, self.life.incarnation)
         report = reap_once(self.settings, self.db, self.celery)
         if report.requeued or report.failed:
             logger.warning(
@@ -94,14 +114,19 @@ class WorkerMonitor:
     def stop(self) -> None:
         self._ticker.stop()
         self.db.dispose()
+        self.life.release()
 
     def forget_after_fork(self) -> None:
         """In a forked task process: let go of the parent's connections without closing
         them (closing would end the parent's sessions on PostgreSQL)."""
         self.db.engine.dispose(close=False)
+        self.life.forget_after_fork()
 
 
 _monitor: WorkerMonitor | None = None
+#: This process's incarnation lock, taken when the worker starts, before its pool forks
+#: (``worker_init``), so no job is claimed under an incarnation that is not held.
+_life: incarnation.Life | None = None
 
 
 def current() -> WorkerMonitor | None:
@@ -112,6 +137,19 @@ def current() -> WorkerMonitor | None:
 def _after_fork_in_child() -> None:
     if _monitor is not None:
         _monitor.forget_after_fork()
+    elif _life is not None:
+        _life.forget_after_fork()
+
+
+@worker_init.connect
+def _hold_incarnation(**_kwargs: Any) -> None:
+    global _life
+    _life = incarnation.Life(get_settings().resolved_database_url, incarnation.current())
+    try:
+        _life.hold()
+    except Exception:
+        # The database may not be up yet: the monitor tries again at each tick.
+        logger.exception("could not take this worker's incarnation lock yet")
 
 
 os.register_at_fork(after_in_child=_after_fork_in_child)
@@ -121,7 +159,7 @@ os.register_at_fork(after_in_child=_after_fork_in_child)
 def _start_monitor(sender: Any = None, **_kwargs: Any) -> None:
     global _monitor
     name = getattr(sender, "hostname", None) or f"celery@{os.uname().nodename}"
-    _monitor = WorkerMonitor(name, get_settings()).start()
+    _monitor = WorkerMonitor(name, get_settings(), _life).start()
     logger.info(
         "worker %s: heartbeat and reaper every %g s (stale after %g s)",
         name,

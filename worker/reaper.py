@@ -38,9 +38,12 @@ from service.store.jobs import (
     hand_back,
     mark_sent,
     reap_stale,
+    take_earlier_incarnations,
     task_process_lost,
 )
 from service.store.models import utcnow
+
+from . import incarnation
 
 __all__ = [
     "WORKER_SILENCE_BEATS",
@@ -50,6 +53,7 @@ __all__ = [
     "reap_once",
     "resend_once",
     "take_lost_run",
+    "take_restarted_runs",
 ]
 
 logger = logging.getLogger(__name__)
@@ -134,11 +138,14 @@ def reap_once(settings: Settings, db: Database, celery: Celery) -> ReapReport:
 
 
 def idle_workers(settings: Settings, db: Database) -> int:
-    """Live workers (seen within the silence window) minus running jobs, at least 0."""
+    """Live workers (seen within the silence window, not stopping) minus running jobs,
+    at least 0."""
     cutoff = utcnow() - timedelta(seconds=WORKER_SILENCE_BEATS * settings.heartbeat_interval_s)
     with db.session() as session:
         live = session.scalar(
-            select(func.count()).select_from(WorkerRow).where(WorkerRow.last_seen_at >= cutoff)
+            select(func.count())
+            .select_from(WorkerRow)
+            .where(WorkerRow.last_seen_at >= cutoff, WorkerRow.stopping_since.is_(None))
         )
         running = session.scalar(
             select(func.count()).select_from(JobRow).where(JobRow.status == "running")
@@ -202,3 +209,27 @@ def take_lost_run(
     if then is not None:
         logger.warning("%s job %s at once: its %s", then, job_id, cause)
     return then
+
+
+def take_restarted_runs(
+    settings: Settings, db: Database, celery: Celery, worker: str, current: str
+) -> ReapReport:
+    """Re-queue and re-send, or end, the jobs still running under ``worker``'s name for
+    an earlier process of that name that is gone (incarnation ``current`` is this one):
+    a worker killed whole and started again under its name, as docker restarts a
+    container. At once, by the reaper's ``max_attempts`` rule; a live process of the
+    same name keeps its jobs (see :mod:`worker.incarnation`)."""
+    url = settings.resolved_database_url
+    with db.session() as session:
+        requeued, ended = take_earlier_incarnations(
+            session,
+            worker,
+            current,
+            alive=lambda other: incarnation.alive(session, url, other),
+            max_attempts=settings.max_attempts,
+        )
+    for job_id in _dispatch(db, celery, requeued, mark=True):
+        logger.warning("re-queued job %s: worker %s restarted, its run was lost", job_id, worker)
+    for job_id in ended:
+        logger.warning("ended job %s: worker %s restarted, its run was lost", job_id, worker)
+    return ReapReport(requeued=requeued, failed=ended)

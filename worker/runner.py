@@ -48,6 +48,7 @@ from .context import (
     Outcome,
     finite_metrics,
 )
+from .incarnation import current as current_incarnation
 from .ticker import Ticker
 
 __all__ = [
@@ -208,7 +209,7 @@ def _execute(
         logger.exception("the worker cannot import the job handlers")
         handlers = _broken_handlers(exc)
     with db.session() as session:
-        job = claim(session, job_id, worker_name)
+        job = claim(session, job_id, worker_name, current_incarnation())
         if job is None:
             claimed = None
         else:

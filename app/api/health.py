@@ -130,7 +130,9 @@ def _workers(settings: Settings, database: Database, database_ok: bool) -> Worke
                 names = list(
                     session.scalars(
                         select(WorkerRow.name)
-                        .where(WorkerRow.last_seen_at >= cutoff)
+                        # A worker told to stop (SIGTERM) takes no job any more: it
+                        # leaves the list at once, not a silence window later.
+                        .where(WorkerRow.last_seen_at >= cutoff, WorkerRow.stopping_since.is_(None))
                         .order_by(WorkerRow.name)
                     )
                 )

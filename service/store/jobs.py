@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import hashlib
 import json
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from datetime import UTC, datetime, timedelta
 from typing import Any
 
@@ -53,6 +53,7 @@ __all__ = [
     "ASKED_TO_STOP",
     "HEARTBEAT_MISSED",
     "WORKER_LOST",
+    "WORKER_RESTARTED",
     "ScenarioGone",
     "add_metrics",
     "cancel",
@@ -71,6 +72,8 @@ __all__ = [
     "reap_stale",
     "set_labels",
     "set_progress",
+    "start_worker",
+    "take_earlier_incarnations",
     "task_process_lost",
     "touch_worker",
 ]
@@ -84,6 +87,9 @@ __all__ = [
 WORKER_LOST = "worker lost"
 HEARTBEAT_MISSED = "heartbeat missed"
 ASKED_TO_STOP = "asked to stop"
+#: Its worker started again under the same name, and the earlier process, which ran it,
+#: is gone (see :func:`take_earlier_incarnations`).
+WORKER_RESTARTED = "worker restarted"
 
 
 class ScenarioGone(LookupError):
@@ -254,8 +260,11 @@ def due_for_sending(
     return taken
 
 
-def claim(session: Session, job_id: str, worker: str) -> JobRow | None:
-    """Mark a queued job running for ``worker``; None if it is not queued any more."""
+def claim(
+    session: Session, job_id: str, worker: str, incarnation: str | None = None
+) -> JobRow | None:
+    """Mark a queued job running for ``worker`` (its process ``incarnation``, see
+    :func:`start_worker`); None if it is not queued any more."""
     now = utcnow()
     claimed = session.execute(  # type: ignore[attr-defined]
         update(JobRow)
@@ -263,6 +272,7 @@ def claim(session: Session, job_id: str, worker: str) -> JobRow | None:
         .values(
             status="running",
             worker=worker,
+            worker_incarnation=incarnation,
             started_at=now,
             heartbeat_at=now,
             attempts=JobRow.attempts + 1,
@@ -393,6 +403,7 @@ def hand_back(session: Session, worker: str, reason: str) -> list[str]:
     for job in jobs:
         lost_run(job, now=now, cause=ASKED_TO_STOP, reason=f"handed back: {reason}")
         job.status, job.worker, job.sent_at = "queued", None, None
+        job.worker_incarnation = None
         job.progress = 0.0  # a queued job at 55 % read as half done; the next run restarts
         job.handbacks = (job.handbacks or 0) + 1
         job.error = f"handed back: {reason}"
@@ -553,6 +564,7 @@ def _take_run(
         return "failed"
     lost_run(job, now=now, cause=cause, reason=reason)
     job.status, job.worker, job.error = "queued", None, f"re-queued: {error}"
+    job.worker_incarnation = None
     job.sent_at, job.progress = None, 0.0  # the next run starts from nothing
     return "re-queued"
 
@@ -602,9 +614,99 @@ def task_process_lost(
     )
 
 
+def take_earlier_incarnations(
+    session: Session,
+    worker: str,
+    incarnation: str,
+    *,
+    alive: Callable[[str], bool],
+    max_attempts: int,
+    now: datetime | None = None,
+) -> tuple[list[str], list[str]]:
+    """Take the jobs still running under ``worker``'s name for an earlier incarnation
+    (another worker process of that name, see :func:`start_worker`) that is not
+    ``alive`` any more: the worker was killed whole and started again under its name
+    (docker keeps a container's hostname across a restart). Re-queued or ended by the
+    reaper's rule (:func:`reap_stale`), at once rather than after the heartbeat timeout,
+    with the cause :data:`WORKER_RESTARTED`. The jobs of a live incarnation (a second
+    worker started under the same name by mistake) are left to it; so are the jobs
+    claimed before incarnations were recorded (NULL: the reaper takes them).
+
+    Returns (re-queued job ids, ended job ids).
+    """
+    mine = and_(
+        JobRow.status == "running",
+        JobRow.worker == worker,
+        JobRow.worker_incarnation.is_not(None),
+        JobRow.worker_incarnation != incarnation,
+    )
+    earlier = set(session.scalars(select(JobRow.worker_incarnation).where(mine)))
+    gone = sorted(other for other in earlier if other is not None and not alive(other))
+    if not gone:
+        return [], []
+    lost = and_(mine, JobRow.worker_incarnation.in_(gone))
+    # As in reap_stale: the write lock (SQLite) or the rows' (PostgreSQL, skipping those
+    # another taker holds) before the read, so no run is taken twice.
+    if session.get_bind().dialect.name == "sqlite":
+        session.execute(update(JobRow).where(lost).values(status=JobRow.status))
+    jobs = session.scalars(select(JobRow).where(lost).with_for_update(skip_locked=True)).all()
+    now = now or utcnow()
+    requeued: list[str] = []
+    ended: list[str] = []
+    for job in jobs:
+        last = job.heartbeat_at or job.started_at
+        beat = _utc_text(last) if last else "never"
+        then = _take_run(
+            job,
+            now=now,
+            cause=WORKER_RESTARTED,
+            reason=(
+                f"worker {worker} restarted; its earlier process was lost (the run's last "
+                f"heartbeat at {beat})"
+            ),
+            error=f"worker {worker} restarted; its earlier process was lost",
+            max_attempts=max_attempts,
+        )
+        (requeued if then == "re-queued" else ended).append(job.id)
+    return requeued, ended
+
+
 def clear_metrics(session: Session, job_id: str) -> None:
     """Drop a job's metrics: a re-run (after its worker died) starts a fresh curve."""
     session.execute(delete(MetricRow).where(MetricRow.job_id == job_id))
+
+
+def start_worker(session: Session, name: str, broker_url: str, incarnation: str) -> None:
+    """Record that a worker process started under ``name`` as ``incarnation``: a new
+    row, or the name's row made new (``started_at`` now, no ``stopping_since`` left from
+    an earlier process of that name, which stopped or died)."""
+    now = utcnow()
+    values = {
+        "name": name,
+        "broker_url": broker_url,
+        "started_at": now,
+        "last_seen_at": now,
+        "stopping_since": None,
+        "incarnation": incarnation,
+    }
+    dialect = session.get_bind().dialect.name
+    if dialect in ("sqlite", "postgresql"):
+        insert = sqlite.insert if dialect == "sqlite" else postgresql.insert
+        session.execute(
+            insert(WorkerRow)
+            .values(**values)
+            .on_conflict_do_update(
+                index_elements=[WorkerRow.name],
+                set_={key: value for key, value in values.items() if key != "name"},
+            )
+        )
+        return
+    row = session.get(WorkerRow, name)
+    if row is None:
+        session.add(WorkerRow(**values))
+    else:
+        for key, value in values.items():
+            setattr(row, key, value)
 
 
 def touch_worker(session: Session, name: str, broker_url: str) -> None:

@@ -115,6 +115,8 @@ class JobRow(Base):
     #: against ``max_attempts``.
     handbacks: Mapped[int] = mapped_column(Integer, default=0, server_default="0")
     worker: Mapped[str | None] = mapped_column(String(200), default=None)
+    #: The incarnation of ``worker`` (``workers.incarnation``) whose run claimed the job.
+    worker_incarnation: Mapped[str | None] = mapped_column(String(32), default=None)
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
     started_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
     finished_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
@@ -204,6 +206,9 @@ class WorkerRow(Base):
     last_seen_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
     #: Set when the worker was told to stop: it claims no more jobs, and hands back any.
     stopping_since: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
+    #: The worker process that holds the name now: a new id each time a worker starts
+    #: under it (``service.store.jobs.start_worker``). NULL on rows stored before.
+    incarnation: Mapped[str | None] = mapped_column(String(32), default=None)
 
 
 class ApiKey(Base):

@@ -48,6 +48,25 @@ def test_health_counts_recently_seen_workers(api: Api) -> None:
     assert health["workers"]["count"] == 1
 
 
+def test_health_leaves_out_a_worker_told_to_stop(api: Api) -> None:
+    # SIGTERM: the worker marks its row stopping and takes no job any more; it leaves
+    # the list at once, not when its last beat falls out of the window.
+    add_worker(api, "celery@alive", seconds_ago=1.0)
+    add_worker(api, "celery@stopped", seconds_ago=1.0)
+    with api.db.session() as session:
+        row = session.get(WorkerRow, "celery@stopped")
+        assert row is not None
+        row.stopping_since = utcnow()
+    health = api.get("/health").json()
+    assert health["workers"]["names"] == ["celery@alive"]
+    with api.db.session() as session:
+        row = session.get(WorkerRow, "celery@alive")
+        assert row is not None
+        row.stopping_since = utcnow()
+    health = api.get("/health").json()
+    assert (health["status"], health["workers"]["count"]) == ("degraded", 0)
+
+
 def add_job(api: Api, status: str, seconds_ago: float, seed: int) -> None:
     """A job of ``status``, created and sent ``seconds_ago``."""
     at = utcnow() - timedelta(seconds=seconds_ago)

@@ -88,10 +88,17 @@ class Service:
     scenario_id: str = ""
     workers: list[WorkerProcess] = field(default_factory=list)
 
-    def start_worker(self, **env: str) -> WorkerProcess:
+    def start_worker(self, *, prefix: str | None = None, **env: str) -> WorkerProcess:
         """Start a worker (extra environment in ``env``) and wait until it is ready:
-        its monitor has written its ``workers`` row."""
-        prefix = f"w{len(self.workers) + 1}-{uuid.uuid4().hex[:6]}"
+        its monitor has written its ``workers`` row. ``prefix`` names it as an earlier
+        worker was (its row then shows the new worker's incarnation)."""
+        prefix = prefix or f"w{len(self.workers) + 1}-{uuid.uuid4().hex[:6]}"
+        with self.db.session() as session:
+            earlier = set(
+                session.scalars(
+                    select(WorkerRow.incarnation).where(WorkerRow.name.like(f"{prefix}@%"))
+                )
+            )
         log_path = self.root / f"{prefix}.log"
         process = start_in_group(
             worker_command(prefix, pool="prefork"),
@@ -105,7 +112,12 @@ class Service:
         while time.monotonic() < deadline:
             with self.db.session() as session:
                 seen = session.scalars(
-                    select(WorkerRow.name).where(WorkerRow.name.like(f"{prefix}@%"))
+                    select(WorkerRow.name).where(
+                        WorkerRow.name.like(f"{prefix}@%"),
+                        WorkerRow.incarnation.is_(None) | WorkerRow.incarnation.not_in(earlier)
+                        if earlier
+                        else True,
+                    )
                 ).first()
             if seen:
                 worker.name = seen

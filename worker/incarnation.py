@@ -1,0 +1,162 @@
+"""Which worker process holds a name: its *incarnation*, and whether an earlier one lives.
+
+A worker started again under a name it had (docker keeps a container's hostname across a
+restart, and ``celery -n w1@host`` names it outright) is a new incarnation: a fresh id,
+made once in the worker's main process before it forks its task processes, stamped on
+each job its runs claim (``jobs.worker_incarnation``) and on its ``workers`` row.
+
+Whether the incarnation a job was claimed by is still alive is answered by a lock that
+the incarnation holds for as long as its main process lives and that the operating
+system lets go of when it dies, however it dies (``kill -9`` included): a PostgreSQL
+session advisory lock (its connection closes with the process), or, for SQLite (the
+workers share the database's machine), an ``flock`` on a file beside the database. So a
+worker restarted at once finds its earlier incarnation's lock free and takes that one's
+jobs at once, while two *live* workers started under one name by mistake each find the
+other's lock held and leave the other's jobs alone. A database where neither can be
+held (an in-memory SQLite) reports every earlier incarnation alive: the reaper's
+heartbeat timeout stays the backstop.
+
+Written here rather than taken from a library: the lock has to be tied to the database
+the workers share (its server, or its file), which no lock library we use knows of.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import fcntl
+import hashlib
+import logging
+import os
+from pathlib import Path
+from typing import Any
+
+from sqlalchemy import text
+from sqlalchemy.engine import make_url
+from sqlalchemy.orm import Session
+
+from service.store.models import new_id
+
+__all__ = ["Life", "alive", "current"]
+
+logger = logging.getLogger(__name__)
+
+# Made at import, in the worker's main process, before the pool forks: its task
+# processes (and those started in place of dead ones) inherit it.
+_CURRENT = new_id()
+
+
+def current() -> str:
+    """This worker's incarnation id (the same in its main and its task processes)."""
+    return _CURRENT
+
+
+def _key(incarnation: str) -> int:
+    """A PostgreSQL advisory lock key (signed 64 bits) for ``incarnation``."""
+    return int.from_bytes(hashlib.sha256(incarnation.encode()).digest()[:8], "big", signed=True)
+
+
+def _lock_file(database_url: str, incarnation: str) -> Path | None:
+    """The lock file of ``incarnation`` beside a SQLite database file; None elsewhere."""
+    url = make_url(database_url)
+    if not url.drivername.startswith("sqlite") or url.database in (None, "", ":memory:"):
+        return None
+    database = Path(url.database or "")
+    return database.with_name(f"{database.name}.incarnations") / f"{incarnation}.lock"
+
+
+class Life:
+    """The lock ``incarnation`` holds while its process lives (see the module's notes)."""
+
+    def __init__(self, database_url: str, incarnation: str) -> None:
+        self.database_url = database_url
+        self.incarnation = incarnation
+        self._connection: Any = None
+        self._fd: int | None = None
+        self._path: Path | None = None
+
+    @property
+    def held(self) -> bool:
+        return self._connection is not None or self._fd is not None
+
+    def hold(self) -> bool:
+        """Take the lock (once); whether it is held."""
+        if self.held:
+            return True
+        url = make_url(self.database_url)
+        if url.drivername.startswith("postgresql"):
+            import psycopg
+
+            conninfo = url.set(drivername="postgresql").render_as_string(hide_password=False)
+            connection = psycopg.connect(conninfo, autocommit=True)
+            connection.execute("SELECT pg_advisory_lock(%s)", (_key(self.incarnation),))
+            self._connection = connection
+            return True
+        path = _lock_file(self.database_url, self.incarnation)
+        if path is None:
+            return False
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o600)
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        self._fd, self._path = fd, path
+        return True
+
+    def release(self) -> None:
+        """Let go of the lock (a clean exit); its file, if any, is removed."""
+        if self._connection is not None:
+            with contextlib.suppress(Exception):
+                self._connection.close()
+            self._connection = None
+        if self._fd is not None:
+            if self._path is not None:
+                with contextlib.suppress(OSError):
+                    self._path.unlink()
+            os.close(self._fd)
+            self._fd, self._path = None, None
+
+    def forget_after_fork(self) -> None:
+        """In a forked task process: drop the PostgreSQL connection's socket without a
+        word to the server (a goodbye sent from here would end the parent's session, and
+        its lock with it). The ``flock`` file stays open: it is the parent's lock, and the
+        task process dies with its parent."""
+        if self._connection is None:
+            return
+        devnull = os.open(os.devnull, os.O_RDWR)
+        try:
+            os.dup2(devnull, self._connection.fileno())
+        finally:
+            os.close(devnull)
+
+
+def alive(session: Session, database_url: str, incarnation: str) -> bool:
+    """Whether the worker process of ``incarnation`` still lives: its lock is held.
+
+    On PostgreSQL asked through ``session``'s connection (another session than the
+    holder's, also in the holder's own process). True where it cannot be told.
+    """
+    dialect = session.get_bind().dialect.name
+    if dialect == "postgresql":
+        key = _key(incarnation)
+        free = session.execute(text("SELECT pg_try_advisory_lock(:key)"), {"key": key}).scalar()
+        if free:
+            session.execute(text("SELECT pg_advisory_unlock(:key)"), {"key": key})
+        return not free
+    path = _lock_file(database_url, incarnation)
+    if path is None:
+        return True
+    try:
+        fd = os.open(path, os.O_RDWR)
+    except FileNotFoundError:
+        return False  # released at a clean exit, or never taken: not running
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError as exc:
+        if exc.errno in (errno.EAGAIN, errno.EACCES, errno.EWOULDBLOCK):
+            return True
+        raise
+    else:
+        with contextlib.suppress(OSError):
+            path.unlink()  # a dead incarnation's file: nobody will hold it again
+        return False
+    finally:
+        os.close(fd)
