@@ -116,6 +116,19 @@ def _reusable(session: Session, digest: str) -> JobRow | None:
     ).first()
 
 
+def _standing_ids(session: Session, digest: str) -> set[str]:
+    """The ids of the reusable jobs of configuration ``digest`` now."""
+    return set(
+        session.scalars(
+            select(JobRow.id).where(
+                JobRow.config_hash == digest,
+                JobRow.superseded.is_(False),
+                JobRow.status.in_(REUSABLE_STATUSES),
+            )
+        )
+    )
+
+
 def create_job(
     session: Session,
     *,
@@ -131,7 +144,9 @@ def create_job(
 
     Returns ``(job, reused)``. Without ``rerun`` an identical queued, running or
     succeeded job is returned (``reused``), its name and tags as they were; with it, the
-    new job takes that job's place for later submissions. Concurrent identical
+    new job takes that job's place for later submissions, unless a job made since the
+    rerun was asked (an identical rerun at the same time) stands already: that one is
+    returned (``reused``), so identical reruns at once make one new job. Concurrent identical
     submissions make one job: the unique index on reusable configurations refuses all
     inserts but one, and the others return that one. ``name`` and ``tags`` label the new
     job; they are not part of its identity (:func:`config_hash`).
@@ -139,17 +154,30 @@ def create_job(
     :raises ScenarioGone: the scenario was deleted meanwhile (its foreign key failed).
     """
     digest = config_hash(job_type, scenario_id, params, seed)
+    standing = JobRow.config_hash == digest, JobRow.superseded.is_(False)
+    asked_over: set[str] = set()
+    if rerun:
+        # The jobs a rerun asks to replace: those that stood when it was asked. Read in a
+        # transaction of its own, ended here, so the write below starts (on SQLite) from
+        # what is committed when it gets the lock, not from this read's snapshot.
+        asked_over = _standing_ids(session, digest)
+        session.commit()
     for _ in range(3):
         if not rerun:
             existing = _reusable(session, digest)
             if existing is not None:
                 return existing, True
         else:
-            session.execute(
-                update(JobRow)
-                .where(JobRow.config_hash == digest, JobRow.superseded.is_(False))
-                .values(superseded=True)
-            )
+            # Identical reruns at once take turns from here: a no-op write takes the
+            # standing rows' locks (PostgreSQL) or the database's write lock (SQLite).
+            # One that finds a job made since it was asked (another rerun's) takes it:
+            # concurrent identical reruns make one new job, as identical submissions do.
+            session.execute(update(JobRow).where(*standing).values(superseded=JobRow.superseded))
+            fresh = _reusable(session, digest)
+            if fresh is not None and fresh.id not in asked_over:
+                session.commit()
+                return fresh, True
+            session.execute(update(JobRow).where(*standing).values(superseded=True))
         job = JobRow(
             type=job_type,
             status="queued",

@@ -13,6 +13,7 @@ from sqlalchemy.orm import Session
 
 from inertia_id import Scenario
 from service.store import Database, JobRow, ScenarioRow, upgrade
+from service.store import jobs as store_jobs
 from service.store.jobs import ScenarioGone, cancel, create_job, finish
 
 PARAMS: dict[str, Any] = {"sequence": [[4, 4, 4, 0, 0, 0]] * 4, "metric": "euclidean"}
@@ -89,6 +90,37 @@ def test_reruns_at_once_leave_one_job_standing_for_later_submissions(
     standing, reused = _submit(db, scenario_id)
     assert reused and standing != first
     assert standing in {job_id for job_id, _ in results}
+
+
+def test_identical_reruns_at_once_make_one_new_job_the_others_reuse(
+    db: Database, scenario_id: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # A rerun asks for a run fresher than the job that stood when it was asked: one new
+    # job made while the reruns were in flight answers all of them (before: 6 new jobs
+    # and 4 reused of 10, neither one nor ten).
+    first, _ = _submit(db, scenario_id)
+    # All ten asked before any of them writes: each has read the job that stands then.
+    asked = threading.Barrier(10)
+    read = store_jobs._standing_ids if hasattr(store_jobs, "_standing_ids") else None
+
+    def standing_then_wait(session: Session, digest: str) -> set[str]:
+        ids = read(session, digest) if read else set()
+        asked.wait(30)
+        return ids
+
+    monkeypatch.setattr(store_jobs, "_standing_ids", standing_then_wait, raising=False)
+    results = _at_once(10, lambda: _submit(db, scenario_id, rerun=True))
+    monkeypatch.undo()
+    assert not [r for r in results if isinstance(r, Exception)], results
+    assert len({job_id for job_id, _ in results}) == 1, results
+    assert sorted(reused for _, reused in results) == [False] + [True] * 9
+    (fresh,) = {job_id for job_id, _ in results}
+    assert fresh != first
+    with db.session() as session:
+        assert session.scalar(select(func.count()).select_from(JobRow)) == 2
+    # A rerun asked afterwards is a new request: it makes a new job again.
+    again, reused = _submit(db, scenario_id, rerun=True)
+    assert not reused and again not in (first, fresh)
 
 
 def test_a_failed_or_cancelled_job_no_longer_stands_in(db: Database, scenario_id: str) -> None:
