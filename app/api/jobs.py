@@ -15,7 +15,7 @@ import logging
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from fastapi import APIRouter, Body, HTTPException, Query, Request, Response, status
+from fastapi import APIRouter, Body, Depends, HTTPException, Query, Request, Response, status
 from sqlalchemy import ColumnElement, func, or_, select
 from sqlalchemy.orm import defer
 
@@ -326,10 +326,18 @@ def _check_time_limit(body: JobCreate, ceiling_s: float) -> None:
         )
 
 
+async def _note_asked_at(request: Request) -> None:
+    # On the event loop, before the key check and the submission's checks: the moment
+    # the request was taken up. Ten reruns sent at once are taken up within milliseconds,
+    # then checked one after another (tens of ms each, under load), so this, not the
+    # handler's start, tells which job was made since a rerun was asked (create_job).
+    request.state.asked_at = utcnow()
+
+
 @router.post(
     "",
     status_code=status.HTTP_202_ACCEPTED,
-    dependencies=[ApiKeyDep],
+    dependencies=[Depends(_note_asked_at), ApiKeyDep],
     responses={
         200: {"model": JobSubmitted, "description": "an identical job exists; it is returned"},
         **no_such("scenario or classifier"),
@@ -341,6 +349,7 @@ def submit_job(
     session: SessionDep,
     celery: CeleryDep,
     settings: SettingsDep,
+    request: Request,
     response: Response,
 ) -> JobSubmitted:
     """Queue a search, train or sweep job (202), or return the identical existing one (200).
@@ -368,6 +377,7 @@ def submit_job(
             rerun=body.rerun,
             name=body.name,
             tags=body.tags or (),
+            asked_at=request.state.asked_at,
         )
     except job_store.ScenarioGone:
         raise HTTPException(

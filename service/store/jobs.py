@@ -139,6 +139,7 @@ def create_job(
     rerun: bool = False,
     name: str | None = None,
     tags: Iterable[str] = (),
+    asked_at: datetime | None = None,
 ) -> tuple[JobRow, bool]:
     """Insert a queued job and commit it; or return the identical job that stands.
 
@@ -146,7 +147,11 @@ def create_job(
     succeeded job is returned (``reused``), its name and tags as they were; with it, the
     new job takes that job's place for later submissions, unless a job made since the
     rerun was asked (an identical rerun at the same time) stands already: that one is
-    returned (``reused``), so identical reruns at once make one new job. Concurrent identical
+    returned (``reused``), so identical reruns at once make one new job. ``asked_at``,
+    when the caller received the request (the API: when its handler began), widens "made
+    since": a job created at or after it counts, though committed before this call read
+    what stood (the API's checks of a submission take a while, and ten reruns sent at
+    once reach this call one after another). Concurrent identical
     submissions make one job: the unique index on reusable configurations refuses all
     inserts but one, and the others return that one. ``name`` and ``tags`` label the new
     job; they are not part of its identity (:func:`config_hash`).
@@ -174,7 +179,10 @@ def create_job(
             # concurrent identical reruns make one new job, as identical submissions do.
             session.execute(update(JobRow).where(*standing).values(superseded=JobRow.superseded))
             fresh = _reusable(session, digest)
-            if fresh is not None and fresh.id not in asked_over:
+            if fresh is not None and (
+                fresh.id not in asked_over
+                or (asked_at is not None and _aware(fresh.created_at) >= _aware(asked_at))
+            ):
                 session.commit()
                 return fresh, True
             session.execute(update(JobRow).where(*standing).values(superseded=True))

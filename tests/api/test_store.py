@@ -15,6 +15,7 @@ from inertia_id import Scenario
 from service.store import Database, JobRow, ScenarioRow, upgrade
 from service.store import jobs as store_jobs
 from service.store.jobs import ScenarioGone, cancel, create_job, finish
+from service.store.models import utcnow
 
 PARAMS: dict[str, Any] = {"sequence": [[4, 4, 4, 0, 0, 0]] * 4, "metric": "euclidean"}
 
@@ -121,6 +122,22 @@ def test_identical_reruns_at_once_make_one_new_job_the_others_reuse(
     # A rerun asked afterwards is a new request: it makes a new job again.
     again, reused = _submit(db, scenario_id, rerun=True)
     assert not reused and again not in (first, fresh)
+
+
+def test_a_rerun_asked_before_an_identical_reruns_job_was_made_takes_that_job(
+    db: Database, scenario_id: str
+) -> None:
+    # The API's checks of a submission take a while: a rerun received before another's
+    # job was made, though it reads what stands after that job was committed, is
+    # answered by it; one received after it makes a new job.
+    first, _ = _submit(db, scenario_id)
+    asked_at = utcnow()
+    fresh, reused = _submit(db, scenario_id, rerun=True, asked_at=asked_at)
+    assert not reused and fresh != first
+    same, reused = _submit(db, scenario_id, rerun=True, asked_at=asked_at)
+    assert (same, reused) == (fresh, True)
+    later, reused = _submit(db, scenario_id, rerun=True, asked_at=utcnow())
+    assert not reused and later not in (first, fresh)
 
 
 def test_a_failed_or_cancelled_job_no_longer_stands_in(db: Database, scenario_id: str) -> None:
