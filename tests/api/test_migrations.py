@@ -250,7 +250,7 @@ def test_each_step_down_to_0002_and_back_keeps_every_row_the_schema_still_holds(
     try:
         at_head = _rows(_tables(engine))
         assert all(at_head.values()), {name for name, rows in at_head.items() if not rows}
-        for revision in ["0005", "0004", "0003", "0002"]:
+        for revision in ["0006", "0005", "0004", "0003", "0002"]:
             before = _tables(engine)
             downgrade(url, revision)
             after = _tables(engine)
@@ -258,7 +258,7 @@ def test_each_step_down_to_0002_and_back_keeps_every_row_the_schema_still_holds(
         at_0002 = _rows(_tables(engine))
         assert len(at_0002["metrics"]) == 9
         assert [row["job_id"] for row in at_0002["classifiers"]] == ["job0"]
-        for revision in ["0003", "0004", "0005", "head"]:
+        for revision in ["0003", "0004", "0005", "0006", "head"]:
             before = _tables(engine)
             upgrade(url, revision)
             after = _tables(engine)
