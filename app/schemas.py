@@ -603,6 +603,12 @@ class IdentifyResult(BaseModel):
     initial_offset_std_rad_s: list[float] | None = Field(
         default=None, description="that offset's standard error per axis at 1x noise (rad/s)"
     )
+    initial_offset_deg_s: list[float] | None = Field(
+        default=None, description="the same offset in deg/s"
+    )
+    initial_offset_std_deg_s: list[float] | None = Field(
+        default=None, description="its standard error per axis at 1x noise (deg/s)"
+    )
     pre_start_samples: int = Field(
         default=0, description="telemetry samples before the start that measured it"
     )

@@ -141,6 +141,8 @@ class Identification(BaseModel):
     poorly_excited: list[str] = []
     initial_offset_rad_s: list[float] | None = None
     initial_offset_std_rad_s: list[float] | None = None
+    initial_offset_deg_s: list[float] | None = None
+    initial_offset_std_deg_s: list[float] | None = None
     pre_start_samples: int = 0
     # The inputs the verdict was computed from, so that a filed verdict ties to its pass.
     sequence_start: float | str | None = None
@@ -783,6 +785,8 @@ def _identify(
         not_this_sequence=not_this_sequence,
         initial_offset_rad_s=None if offset is None else offset.offset_rad_s.tolist(),
         initial_offset_std_rad_s=None if offset is None else offset.std_rad_s,
+        initial_offset_deg_s=None if offset is None else _degrees(offset.offset_rad_s),
+        initial_offset_std_deg_s=None if offset is None else _degrees(offset.std_rad_s),
         pre_start_samples=0 if offset is None else offset.samples,
         telemetry_gaps=resampled.gaps,
         sequence_covered_fraction=resampled.covered_fraction,
@@ -790,6 +794,11 @@ def _identify(
         **_estimate(scenario, sequence, series, resampled.observed),
         **telemetry.inputs(),
     )
+
+
+def _degrees(rates_rad_s: Any) -> list[float]:
+    """Rates in deg/s, for a verdict's deg/s fields beside its rad/s ones."""
+    return np.degrees(np.asarray(rates_rad_s, dtype=float)).tolist()
 
 
 def posterior_over_time(

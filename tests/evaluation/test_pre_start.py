@@ -108,6 +108,17 @@ def test_one_hertz_telemetry_gains_from_the_part_before_the_start(
             assert with_part.candidate_index == k
             assert with_part.pre_start_samples == BEFORE and without.pre_start_samples == 0
             assert without.initial_offset_rad_s is None
+            assert without.initial_offset_deg_s is None
+            np.testing.assert_allclose(
+                with_part.initial_offset_deg_s,
+                np.asarray(with_part.initial_offset_rad_s) * 180 / np.pi,
+                rtol=1e-12,
+            )
+            np.testing.assert_allclose(
+                with_part.initial_offset_std_deg_s,
+                np.asarray(with_part.initial_offset_std_rad_s) * 180 / np.pi,
+                rtol=1e-12,
+            )
             assert with_part.posterior[with_part.candidate] >= 0.5
             gains.append(np.log(with_part.confidence / max(without.confidence, 1e-300)))
     assert np.mean(np.asarray(gains) > 0) >= 0.8
