@@ -579,6 +579,11 @@ def test_telemetry_before_the_start_is_used_unless_asked_not_to(api: Api, paper:
     # The paper preset has no gyro bias: the offset is the body's rate at the start.
     error = np.asarray(used.json()["initial_offset_rad_s"]) - result.omega_true[1, 0, 79]
     assert np.all(np.abs(error) < 4 * np.asarray(used.json()["initial_offset_std_rad_s"]))
+    np.testing.assert_allclose(
+        used.json()["initial_offset_deg_s"],
+        np.degrees(used.json()["initial_offset_rad_s"]),
+        rtol=1e-12,
+    )
     ignored = api.post("/identify", json={**body, "pre_start_window_s": 0})
     assert ignored.status_code == 200, ignored.text
     assert ignored.json()["pre_start_samples"] == 0
