@@ -42,6 +42,14 @@ export async function request(method, path, { json, form, query, key = null, raw
   const headers = { Accept: raw ? "*/*" : "application/json" };
   const sent = key ?? getApiKey();
   if (sent) headers["X-API-Key"] = sent;
+  else if (method !== "GET") {
+    // Every write needs the key (the service always has one: generated on its first
+    // run, or INERTIA_ID_API_KEY): without one the request would be a 401, which the
+    // browser logs as a console error. Refused here, nothing sent, with the same words
+    // and hint as the service's 401 would carry, wherever the page shows the error.
+    const message = `missing API key (nothing was sent): ${KEY_HINT}`;
+    throw new ApiError(401, message, [{ loc: [], msg: message }]);
+  }
   let body;
   if (json !== undefined) {
     headers["Content-Type"] = "application/json";

@@ -215,12 +215,15 @@ def test_a_refused_key_says_what_to_do_in_the_form_and_in_the_key_box(
     _save_key(dashboard)
     scenario_id = _scenario(dashboard, [*HOSTILE[1:4], "stowed", "deployed"], "keys")
     _save_key(dashboard, None)
-    dashboard.console.expect("status of 401")
+    posted: list[str] = []
+    dashboard.page.on("request", lambda r: posted.append(r.url) if r.method == "POST" else None)
     dashboard.open(f"#/jobs?scenario={scenario_id}&type=search")
     dashboard.page.click("#submit-job")
     dashboard.page.wait_for_selector("#job-form .message.error")
     shown = dashboard.page.text_content("#job-form") or ""
     assert "missing API key" in shown and "at the top right" in shown
+    assert posted == []  # known to be a 401: not sent, so no console error either
+    dashboard.console.expect("status of 401")  # the refused key's answer, below
     # A key the service has stopped accepting: the box no longer says "saved".
     _save_key(dashboard, "an-old-key-" + "x" * 30)
     dashboard.open(f"#/jobs?scenario={scenario_id}&type=search")
