@@ -96,9 +96,8 @@ class Life:
         if path is None:
             return False
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o600)
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        self._fd, self._path = fd, path
+        self._fd, self._path = _open_locked(path), path
+        _sweep(path.parent, keep=path)
         return True
 
     def release(self) -> None:
@@ -126,6 +125,51 @@ class Life:
             os.dup2(devnull, self._connection.fileno())
         finally:
             os.close(devnull)
+
+
+def _open_locked(path: Path) -> int:
+    """``path`` opened (made if missing) and ``flock``-ed, as the file at ``path`` now.
+
+    A sweep or :func:`alive` may unlink a file between our open and our lock (it found
+    the lock free); a lock on an unlinked file is invisible to the others, so try again.
+    """
+    while True:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o600)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            if os.fstat(fd).st_ino == os.stat(path).st_ino:
+                return fd
+        except FileNotFoundError:
+            pass
+        except BaseException:
+            os.close(fd)
+            raise
+        os.close(fd)
+
+
+def _sweep(folder: Path, *, keep: Path) -> None:
+    """Remove the lock files in ``folder`` that no live process holds: those of workers
+    killed (``kill -9``, or ``inertia-id serve``'s stop, which kills a worker once its job
+    is handed back) before they could remove their own. ``serve`` names each worker
+    afresh at every start, so no later incarnation of its name would ever look at them:
+    without this, one file was left per worker start. Housekeeping: errors are ignored."""
+    with contextlib.suppress(OSError):
+        for path in folder.glob("*.lock"):
+            if path == keep:
+                continue
+            try:
+                fd = os.open(path, os.O_RDWR)
+            except OSError:
+                continue
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                pass  # held: a live worker's
+            else:
+                with contextlib.suppress(OSError):
+                    path.unlink()
+            finally:
+                os.close(fd)
 
 
 def alive(session: Session, database_url: str, incarnation: str) -> bool:
