@@ -74,6 +74,7 @@ class Life:
         self._connection: Any = None
         self._fd: int | None = None
         self._path: Path | None = None
+        self._failure: str | None = None  # the last failure try_hold logged
 
     @property
     def held(self) -> bool:
@@ -99,6 +100,23 @@ class Life:
         self._fd, self._path = _open_locked(path), path
         _sweep(path.parent, keep=path)
         return True
+
+    def try_hold(self) -> bool:
+        """:meth:`hold`, its failure logged rather than raised: with its traceback the
+        first time, then only when the reason changes (the monitor retries every beat:
+        a data dir where the lock file cannot be made logged a traceback every 5 s)."""
+        try:
+            held = self.hold()
+        except Exception as exc:
+            failure = f"{type(exc).__name__}: {exc}"
+            if failure != self._failure:
+                logger.exception("could not take this worker's incarnation lock; will retry")
+            self._failure = failure
+            return False
+        if self._failure is not None:
+            logger.info("took this worker's incarnation lock")
+            self._failure = None
+        return held
 
     def release(self) -> None:
         """Let go of the lock (a clean exit); its file, if any, is removed."""

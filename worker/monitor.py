@@ -64,10 +64,7 @@ class WorkerMonitor:
 
     def tick(self) -> None:
         if not self.life.held:
-            try:
-                self.life.hold()
-            except Exception:
-                logger.exception("could not take this worker's incarnation lock; will retry")
+            self.life.try_hold()
         if warm():
             # Seen only once a task process can run a job at once (see worker.process).
             with self.db.session() as session:
@@ -145,11 +142,8 @@ def _after_fork_in_child() -> None:
 def _hold_incarnation(**_kwargs: Any) -> None:
     global _life
     _life = incarnation.Life(get_settings().resolved_database_url, incarnation.current())
-    try:
-        _life.hold()
-    except Exception:
-        # The database may not be up yet: the monitor tries again at each tick.
-        logger.exception("could not take this worker's incarnation lock yet")
+    # The database may not be up yet: the monitor tries again at each tick.
+    _life.try_hold()
 
 
 os.register_at_fork(after_in_child=_after_fork_in_child)

@@ -1,10 +1,14 @@
 """The flock files of worker incarnations beside a SQLite database (worker.incarnation):
 those left by workers that died without removing theirs are removed by the next worker
-that starts, a live worker's kept."""
+that starts, a live worker's kept; a lock that cannot be taken is logged once, not at
+every beat the monitor tries it again."""
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
+
+import pytest
 
 from worker.incarnation import Life
 
@@ -28,3 +32,21 @@ def test_a_starting_worker_removes_the_lock_files_of_dead_ones_and_keeps_live_on
         new.release()
         live.release()
     assert list(folder.iterdir()) == []
+
+
+def test_a_lock_that_cannot_be_taken_is_logged_once_not_at_every_retry(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    url = f"sqlite:///{tmp_path / 'inertia-id.db'}"
+    (tmp_path / "inertia-id.db.incarnations").touch()  # a file where the folder goes
+    life = Life(url, "one")
+    with caplog.at_level(logging.INFO, logger="worker.incarnation"):
+        # The worker's start, then the monitor's beats.
+        assert [life.try_hold() for _ in range(3)] == [False, False, False]
+        failures = [r for r in caplog.records if r.levelno >= logging.ERROR]
+        assert len(failures) == 1 and failures[0].exc_info is not None
+        (tmp_path / "inertia-id.db.incarnations").unlink()
+        caplog.clear()
+        assert life.try_hold() and life.held
+        assert [r.getMessage() for r in caplog.records] == ["took this worker's incarnation lock"]
+    life.release()
