@@ -7,11 +7,12 @@ broker, both under ``INERTIA_ID_DATA_DIR``. Scale-out is configuration only:
 
 from __future__ import annotations
 
+import re
 from functools import lru_cache
 from pathlib import Path
 from typing import Literal
 
-from pydantic import Field, ValidationError, model_validator
+from pydantic import Field, ValidationError, field_validator, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 __all__ = [
@@ -168,6 +169,20 @@ class Settings(BaseSettings):
         alias="INERTIA_ID_JOB_TIME_LIMIT_S",
     )
 
+    @field_validator("allowed_hosts")
+    @classmethod
+    def _host_names_only(cls, value: str) -> str:
+        # The Host header is compared without its port, so "api:8000" (or a URL) would be
+        # accepted here and then match no request: every one a 400. Refused at start.
+        for entry in (h.strip() for h in value.split(",")):
+            if re.fullmatch(r"(\[[^\]]*\]|[^:\[\]]+):\d*", entry) or re.search(r"[/@]", entry):
+                raise ValueError(
+                    f"{entry!r} is not a host name: write the name alone, without a scheme, "
+                    "path or port (the port is not compared), e.g. "
+                    f"{_bare_host(entry)!r}"
+                )
+        return value
+
     @model_validator(mode="after")
     def _heartbeat_within_timeout(self) -> Settings:
         # A job whose beat is due only after the reaper's timeout is reaped while alive.
@@ -218,6 +233,15 @@ class Settings(BaseSettings):
     def broker_dir(self) -> Path:
         """Folder of the filesystem broker's messages (embedded default)."""
         return (self.data_dir / "broker").resolve()
+
+
+def _bare_host(entry: str) -> str:
+    """The host name in ``entry`` ("https://api:8000/x" -> "api"), for the message that
+    refuses it."""
+    rest = entry.split("://", 1)[-1].split("/", 1)[0].rsplit("@", 1)[-1]
+    if rest.startswith("["):
+        return rest.split("]", 1)[0] + "]"
+    return rest.split(":", 1)[0]
 
 
 @lru_cache(maxsize=1)

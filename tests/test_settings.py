@@ -88,6 +88,29 @@ def test_a_setting_at_the_edge_of_its_range_is_accepted(name: str, value: str) -
     assert getattr(settings, field) == type(getattr(settings, field))(value)
 
 
+@pytest.mark.parametrize(
+    ("entry", "bare"),
+    [
+        ("api:8000", "api"),
+        ("[::1]:8000", "[::1]"),
+        ("https://ops.example.org", "ops.example.org"),
+        ("ops.example.org/inertia", "ops.example.org"),
+    ],
+)
+def test_an_allowed_host_with_a_port_or_scheme_is_refused_naming_the_bare_name(
+    entry: str, bare: str
+) -> None:
+    """The Host header is compared without its port: "api:8000" was accepted and matched no
+    request, so every one behind that proxy was a 400."""
+    with pytest.raises(ValidationError) as refused:
+        Settings(INERTIA_ID_ALLOWED_HOSTS=f"ops.example.org,{entry}")
+    (line,) = setting_problems(refused.value)
+    assert line.startswith("INERTIA_ID_ALLOWED_HOSTS=")
+    assert f"{entry!r} is not a host name" in line and f"e.g. {bare!r}" in line
+    accepted = Settings(INERTIA_ID_ALLOWED_HOSTS=f"ops.example.org,{bare}")
+    assert bare in accepted.resolved_allowed_hosts
+
+
 @pytest.mark.parametrize(("interval", "timeout"), [("60", "60"), ("90", "60"), ("5", "4.5")])
 def test_a_heartbeat_interval_not_shorter_than_the_timeout_is_refused(
     interval: str, timeout: str
