@@ -194,6 +194,19 @@ class Settings(BaseSettings):
             )
         return self
 
+    @model_validator(mode="after")
+    def _stall_after_resend(self) -> Settings:
+        # /health calls the queue stalled after queue_stall_s with a worker idle; the
+        # re-sender sends a lost message again after resend_after_s. Shorter, the health
+        # said "degraded" about a queue the re-sender had not yet had its turn to mend.
+        if self.queue_stall_s <= self.resend_after_s:
+            raise ValueError(
+                f"INERTIA_ID_QUEUE_STALL_S={self.queue_stall_s:g} must be longer than "
+                f"INERTIA_ID_RESEND_AFTER_S={self.resend_after_s:g}: /health would call the "
+                "queue stalled before a lost message is sent again"
+            )
+        return self
+
     @property
     def resolved_database_url(self) -> str:
         if self.database_url:

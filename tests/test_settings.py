@@ -88,6 +88,20 @@ def test_a_setting_at_the_edge_of_its_range_is_accepted(name: str, value: str) -
     assert getattr(settings, field) == type(getattr(settings, field))(value)
 
 
+@pytest.mark.parametrize(("stall", "resend"), [("30", "30"), ("20", "30"), ("5", "6")])
+def test_a_queue_stall_not_longer_than_the_resend_wait_is_refused(stall: str, resend: str) -> None:
+    """/health called the queue stalled before the re-sender's turn to send a lost
+    message again."""
+    with pytest.raises(ValidationError) as refused:
+        Settings(INERTIA_ID_QUEUE_STALL_S=stall, INERTIA_ID_RESEND_AFTER_S=resend)
+    (line,) = setting_problems(refused.value)
+    assert line.startswith(
+        f"INERTIA_ID_QUEUE_STALL_S={float(stall):g} must be longer than "
+        f"INERTIA_ID_RESEND_AFTER_S={float(resend):g}"
+    )
+    assert Settings(INERTIA_ID_QUEUE_STALL_S="31", INERTIA_ID_RESEND_AFTER_S="30")
+
+
 @pytest.mark.parametrize(
     ("entry", "bare"),
     [
