@@ -17,6 +17,15 @@ export function setApiKey(key) {
   window.dispatchEvent(new CustomEvent("api-key-changed"));
 }
 
+// A key saved or removed in another tab of the dashboard: this tab's key box and the
+// sections waiting for a key follow it. The browser fires "storage" only in the other
+// documents of the origin (a null key: the storage was cleared).
+window.addEventListener("storage", (event) => {
+  if (event.key === KEY_STORAGE || event.key === null) {
+    window.dispatchEvent(new CustomEvent("api-key-changed"));
+  }
+});
+
 export class ApiError extends Error {
   // status: the HTTP status (0 when the server could not be reached);
   // errors: [{loc: [...], msg}] as the service's 422 answers carry them.

@@ -25,11 +25,16 @@ HOSTILE = [
 
 
 def _save_key(dashboard: Dashboard, key: str | None = API_KEY) -> None:
+    """Put ``key`` (None: no key) in the page's storage and load the page again, as a
+    user's next visit would find it: the page reads the storage when it loads (a change
+    made in the page itself fires no "storage" event)."""
     dashboard.page.goto(f"{dashboard.service.base_url}/#/scenarios")
     if key is None:
         dashboard.page.evaluate("k => localStorage.removeItem(k)", KEY_STORAGE)
     else:
         dashboard.page.evaluate("([k, v]) => localStorage.setItem(k, v)", [KEY_STORAGE, key])
+    dashboard.page.reload()
+    dashboard.page.wait_for_selector("#page h1")
 
 
 def _scenario(dashboard: Dashboard, names: list[str], name: str = "hostile names") -> str:
@@ -421,3 +426,33 @@ def test_the_keyboard_skips_the_header_and_moves_between_form_tabs(dashboard: Da
         "-1",
         "-1",
     ]
+
+
+def test_a_key_saved_or_removed_in_another_tab_shows_in_this_one(dashboard: Dashboard) -> None:
+    """Two tabs of the dashboard: the key entered in one is the key the other sends (both
+    read the same storage), so the other's key box says so without a reload. Before, it
+    kept saying "not set" while its requests carried the key."""
+    _save_key(dashboard, None)
+    dashboard.open("#/scenarios")
+    assert dashboard.page.text_content("#api-key-state") == "not set"
+    other = dashboard.page.context.new_page()
+    try:
+        other.set_default_timeout(30_000)
+        other.goto(f"{dashboard.service.base_url}/#/scenarios")
+        other.wait_for_selector("#page h1")
+        other.fill("#api-key", API_KEY)
+        other.click("#api-key-form button")
+        other.wait_for_function(
+            "() => document.getElementById('api-key-state').textContent === 'saved'"
+        )
+        dashboard.page.wait_for_function(
+            "() => document.getElementById('api-key-state').textContent === 'saved'"
+        )
+        other.fill("#api-key", "")
+        other.click("#api-key-form button")
+        dashboard.page.wait_for_function(
+            "() => document.getElementById('api-key-state').textContent === 'not set'"
+        )
+    finally:
+        other.close()
+    _save_key(dashboard)
