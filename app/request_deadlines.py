@@ -34,8 +34,13 @@ header fields, or one of 16 MB sent at once, were answered 200 by httptools, ten
 16 MB heads at once adding 181 MB to the API process. Here a head with more than
 ``request_header_max_count`` fields, or more than ``request_header_max_bytes`` bytes (its
 target and header fields), is answered **431** (Request Header Fields Too Large, RFC
-6585) with a body naming the limit, and its connection closed; no part of the app sees
-it. A field still arriving counts as it arrives: memory held for a head stays within the
+6585), and a request target (URL) alone longer than ``request_header_max_bytes`` is
+answered **414** (URI Too Long, RFC 9110 15.5.15), with a body naming the limit, and the
+connection closed; no part of the app sees it. One limit on bytes, not one for the
+target and another for the fields: it bounds the memory a head holds, of which the
+target is part (a second setting would be a second knob on the same memory).
+
+A field still arriving counts as it arrives: memory held for a head stays within the
 limit and one read of the socket (about 256 KB).
 """
 
@@ -45,7 +50,7 @@ import asyncio
 import json
 import logging
 from collections.abc import Callable
-from typing import Any, Literal
+from typing import Any, Literal, NamedTuple
 
 import h11
 import uvicorn
@@ -118,10 +123,25 @@ class ServerConfig(uvicorn.Config):
         self.request_body_timeout_s = float(request_body_timeout_s)
 
 
+#: The reason phrases of a refused head's answer: RFC 9110's (Python 3.11's ``http``
+#: still has RFC 2616's "Request-URI Too Long" for 414).
+_REASONS = {414: b"URI Too Long", 431: b"Request Header Fields Too Large"}
+
+
+class HeadRefusal(NamedTuple):
+    """Why a request head is refused, and the status that says it."""
+
+    #: 414 (the request target is too long) or 431 (the head is).
+    status: int
+    #: The answer's ``detail``, naming the setting whose limit the head passed.
+    why: str
+
+
 class HeadLimits:
     """The limits on one request head: ``max_count`` header fields, ``max_bytes`` bytes
     (the request target and each field's name and value, and 4 for its ``": "`` and
-    CRLF)."""
+    CRLF). A target alone over ``max_bytes`` is refused as too long (414), a head past
+    either limit otherwise as too large (431)."""
 
     def __init__(self, max_count: int, max_bytes: int) -> None:
         if not (isinstance(max_count, int) and max_count >= 1):
@@ -131,18 +151,31 @@ class HeadLimits:
         self.max_count = max_count
         self.max_bytes = max_bytes
 
-    def too_many_bytes(self) -> str:
-        return (
+    def too_many_bytes(self) -> HeadRefusal:
+        return HeadRefusal(
+            431,
             f"the request head is over {self.max_bytes} bytes (the limit: "
-            f"INERTIA_ID_REQUEST_HEADER_MAX_BYTES={self.max_bytes})"
+            f"INERTIA_ID_REQUEST_HEADER_MAX_BYTES={self.max_bytes})",
         )
 
-    def exceeded(self, count: int, size: int) -> str | None:
+    def target_too_long(self) -> HeadRefusal:
+        return HeadRefusal(
+            414,
+            f"the request target (URL) is over {self.max_bytes} bytes (the limit on a "
+            f"request head: INERTIA_ID_REQUEST_HEADER_MAX_BYTES={self.max_bytes})",
+        )
+
+    def target_exceeded(self, size: int) -> HeadRefusal | None:
+        """Why a request target of ``size`` bytes is refused (None: it is not)."""
+        return self.target_too_long() if size > self.max_bytes else None
+
+    def exceeded(self, count: int, size: int) -> HeadRefusal | None:
         """Why a head of ``count`` fields and ``size`` bytes is refused (None: it is not)."""
         if count > self.max_count:
-            return (
+            return HeadRefusal(
+                431,
                 f"the request head has more than {self.max_count} header fields (the limit: "
-                f"INERTIA_ID_REQUEST_HEADER_MAX_COUNT={self.max_count})"
+                f"INERTIA_ID_REQUEST_HEADER_MAX_COUNT={self.max_count})",
             )
         if size > self.max_bytes:
             return self.too_many_bytes()
@@ -297,7 +330,7 @@ class _WithDeadlines:
         self.deadlines = _Deadlines(self, config)
         self.head_limits = _head_limits(config)
         #: Why the current request head was refused (None: it was not).
-        self.head_refused: str | None = None
+        self.head_refused: HeadRefusal | None = None
 
     def connection_made(self, transport: asyncio.Transport) -> None:
         super().connection_made(transport)  # type: ignore[misc]
@@ -317,23 +350,24 @@ class _WithDeadlines:
         super().connection_lost(exc)  # type: ignore[misc]
 
     def send_400_response(self, msg: str) -> None:
-        """uvicorn's answer to a head its parser refused: a 431 where a limit stopped
-        the parser (:attr:`head_refused` says which), else uvicorn's own 400."""
+        """uvicorn's answer to a head its parser refused: a 414 or 431 where a limit
+        stopped the parser (:attr:`head_refused` says which), else uvicorn's own 400."""
         if self.head_refused is None:
             super().send_400_response(msg)  # type: ignore[misc]
         else:
-            self.answer_431(self.head_refused)
+            self.refuse_head(self.head_refused)
 
-    def answer_431(self, why: str) -> None:
-        """Answer 431 with ``why`` (the body, as the API's errors: ``{"detail": why}``)
-        and close the connection."""
+    def refuse_head(self, refusal: HeadRefusal) -> None:
+        """Answer ``refusal`` (its status; the body, as the API's errors: ``{"detail":
+        why}``), log it and close the connection."""
+        self.head_refused = refusal
         self.deadlines.stop()
         if self.transport.is_closing():
             return
         peer = f"{self.client[0]}:{self.client[1]}" if self.client else "a client"
-        logger.warning("answered 431 to %s: %s", peer, why)
-        body = json.dumps({"detail": why}).encode()
-        head = [b"HTTP/1.1 431 Request Header Fields Too Large\r\n"]
+        logger.warning("answered %d to %s: %s", refusal.status, peer, refusal.why)
+        body = json.dumps({"detail": refusal.why}).encode()
+        head = [b"HTTP/1.1 %d %s\r\n" % (refusal.status, _REASONS[refusal.status])]
         for name, value in self.server_state.default_headers:
             head.append(name + b": " + value + b"\r\n")
         head.append(b"content-type: application/json\r\n")
@@ -349,7 +383,8 @@ class H11WithDeadlines(_WithDeadlines, H11Protocol):  # type: ignore[misc]
 
     h11 refuses a head still incomplete past its ``max_incomplete_event_size``: set here
     to the byte limit (whatever ``h11_max_incomplete_event_size`` says), its refusal
-    becomes a 431; a complete head (one that came in one read) is checked as parsed."""
+    becomes a 414 (no line end yet: the request line is what is too long) or a 431; a
+    complete head (one that came in one read) is checked as parsed."""
 
     def __init__(
         self,
@@ -375,16 +410,24 @@ class _LimitedH11Connection(h11.Connection):
         try:
             event = super().next_event()
         except h11.RemoteProtocolError as exc:
-            if in_head and exc.error_status_hint == 431:  # h11's "Receive buffer too long"
-                self._protocol.head_refused = limits.too_many_bytes()
+            if in_head and exc.error_status_hint == 431:
+                # h11's "Receive buffer too long": the head so far, all of it one line or
+                # not (h11 has no public view of its buffer; it is pinned in pyproject).
+                received = bytes(self._receive_buffer).lstrip(b"\r\n")
+                in_request_line = b"\n" not in received
+                self._protocol.head_refused = (
+                    limits.target_too_long() if in_request_line else limits.too_many_bytes()
+                )
             raise
         if isinstance(event, h11.Request):
             size = len(event.target) + sum(field_bytes(n, v) for n, v in event.headers)
-            why = limits.exceeded(len(event.headers), size)
-            if why is not None:
-                # uvicorn answers it with send_400_response: a 431 there.
-                self._protocol.head_refused = why
-                raise h11.RemoteProtocolError(why, error_status_hint=431)
+            refusal = limits.target_exceeded(len(event.target)) or limits.exceeded(
+                len(event.headers), size
+            )
+            if refusal is not None:
+                # uvicorn answers it with send_400_response: a 414 or 431 there.
+                self._protocol.head_refused = refusal
+                raise h11.RemoteProtocolError(refusal.why, error_status_hint=refusal.status)
         return event
 
 
@@ -392,11 +435,12 @@ class HttpToolsWithDeadlines(_WithDeadlines, HttpToolsProtocol):  # type: ignore
     """uvicorn's httptools protocol with the read deadlines and head limits of
     :class:`ServerConfig`.
 
-    llhttp has no limit of its own. Each field is counted as the parser hands it over
-    (a callback raising stops the parser, and uvicorn answers with send_400_response: a
-    431 there); a field still arriving is counted by the bytes read while its head is
-    open, from the read after the one that began the head (whose share of the read is
-    unknown: a read may end a request's body and begin the next head)."""
+    llhttp has no limit of its own. The target and each field are counted as the parser
+    hands them over (a callback raising stops the parser, and uvicorn answers with
+    send_400_response: a 414 or 431 there); a field still arriving is counted by the
+    bytes read while its head is open, from the read after the one that began the head
+    (whose share of the read is unknown: a read may end a request's body and begin the
+    next head)."""
 
     def __init__(
         self,
@@ -421,7 +465,7 @@ class HttpToolsWithDeadlines(_WithDeadlines, HttpToolsProtocol):  # type: ignore
         if was_open and self._head_open and self._heads == head:
             self._head_read += len(data)
             if self._head_read > self.head_limits.max_bytes:
-                self.answer_431(self.head_limits.too_many_bytes())
+                self.refuse_head(self.head_limits.too_many_bytes())
 
     def on_message_begin(self) -> None:
         super().on_message_begin()
@@ -433,23 +477,23 @@ class HttpToolsWithDeadlines(_WithDeadlines, HttpToolsProtocol):  # type: ignore
     def on_url(self, url: bytes) -> None:
         super().on_url(url)
         self._head_bytes += len(url)
-        self._check_head()
+        self._refuse(self.head_limits.target_exceeded(len(self.url)))
+        self._refuse(self.head_limits.exceeded(self._head_count, self._head_bytes))
 
     def on_header(self, name: bytes, value: bytes) -> None:
         super().on_header(name, value)
         self._head_count += 1
         self._head_bytes += field_bytes(name, value)
-        self._check_head()
+        self._refuse(self.head_limits.exceeded(self._head_count, self._head_bytes))
 
     def on_headers_complete(self) -> None:
         self._head_open = False
         super().on_headers_complete()
 
-    def _check_head(self) -> None:
-        why = self.head_limits.exceeded(self._head_count, self._head_bytes)
-        if why is not None:
-            self.head_refused = why
-            raise _HeadTooLarge(why)
+    def _refuse(self, refusal: HeadRefusal | None) -> None:
+        if refusal is not None:
+            self.head_refused = refusal
+            raise _HeadTooLarge(refusal.why)
 
 
 def _timeouts(config: uvicorn.Config) -> tuple[float, float]:

@@ -59,7 +59,8 @@ class Settings(BaseSettings):
         alias="INERTIA_ID_REQUEST_HEAD_TIMEOUT_S",
     )
     #: A request head with more header fields than this, or more bytes (its target and
-    #: header fields) is answered 431 and its connection closed (``app.request_deadlines``;
+    #: header fields) is answered 431, a request target alone over the byte limit 414, and
+    #: the connection closed (``app.request_deadlines``;
     #: uvicorn's httptools has no limit at all, its h11 only 16 KiB on a head still
     #: incomplete). 100 fields: gunicorn's ``limit_request_fields`` and Apache's
     #: ``LimitRequestFields`` (both 100 by default); 16 KiB: uvicorn's own

@@ -1,4 +1,5 @@
-"""A request head past the limits on its header fields is answered 431, and closed.
+"""A request head past the limits on its header fields is answered 431, a request target
+past the byte limit 414, and the connection closed.
 
 uvicorn's httptools took any number of header fields of any size (10,000 fields, or one
 of 16 MB, answered 200), and its h11 refused only a head still incomplete past 16 KiB,
@@ -91,13 +92,22 @@ def _send(port: int, request: bytes) -> bytes:
         return _answer_and_close(sock)
 
 
-def _assert_431(answer: bytes, *limits: str) -> None:
-    """``answer`` is a 431 whose detail names one of ``limits``, and says it closes."""
+def _assert_refused(answer: bytes, status_line: bytes, *limits: str) -> None:
+    """``answer`` has ``status_line``, a detail naming one of ``limits``, and says it
+    closes."""
     head, _, body = answer.partition(b"\r\n\r\n")
-    assert head.startswith(b"HTTP/1.1 431 Request Header Fields Too Large\r\n"), answer[:300]
+    assert head.startswith(status_line + b"\r\n"), answer[:300]
     assert b"\r\nconnection: close" in head.lower()
     detail = json.loads(body)["detail"]
     assert any(limit in detail for limit in limits), detail
+
+
+def _assert_431(answer: bytes, *limits: str) -> None:
+    _assert_refused(answer, b"HTTP/1.1 431 Request Header Fields Too Large", *limits)
+
+
+def _assert_414(answer: bytes, *limits: str) -> None:
+    _assert_refused(answer, b"HTTP/1.1 414 URI Too Long", *limits)
 
 
 def _health(port: int) -> None:
@@ -147,6 +157,38 @@ def test_one_1_mb_header_sent_in_pieces_is_a_431(port: int) -> None:
         answer = _answer_and_close(sock)
     _assert_431(answer, "INERTIA_ID_REQUEST_HEADER_MAX_BYTES=16384")
     _health(port)
+
+
+def test_a_target_over_16_kib_sent_at_once_is_a_414(port: int) -> None:
+    """A 20 KB URL is URI Too Long (RFC 9110 15.5.15), not Request Header Fields Too
+    Large: a 431 before. The app, which answers ``/health`` 200 whatever its query, never
+    sees it."""
+    answer = _send(
+        port, b"GET /health?q=" + b"q" * 20_000 + b" HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"
+    )
+    _assert_414(answer, "INERTIA_ID_REQUEST_HEADER_MAX_BYTES=16384")
+    _health(port)
+
+
+def test_a_1_mb_target_sent_in_pieces_is_a_414(port: int) -> None:
+    with socket.create_connection(("127.0.0.1", port), timeout=WAIT_S) as sock:
+        sock.sendall(b"GET /health?q=")
+        try:
+            for _ in range(16):
+                sock.sendall(b"q" * 65536)
+            sock.sendall(b" HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")
+        except (BrokenPipeError, ConnectionResetError):
+            pass  # answered and closed on the way
+        answer = _answer_and_close(sock)
+    _assert_414(answer, "INERTIA_ID_REQUEST_HEADER_MAX_BYTES=16384")
+    _health(port)
+
+
+def test_a_target_within_the_limit_and_fields_past_it_are_a_431(port: int) -> None:
+    """10 KB of target and 10 KB of a field: the head is too large, not the URL."""
+    request = b"GET /health?q=" + b"q" * 10_000 + b" HTTP/1.1\r\nHost: 127.0.0.1\r\n"
+    answer = _send(port, request + b"X-Big: " + b"b" * 10_000 + b"\r\n\r\n")
+    _assert_431(answer, "INERTIA_ID_REQUEST_HEADER_MAX_BYTES=16384")
 
 
 def test_a_head_at_the_limits_goes_through_and_keeps_its_connection(port: int) -> None:
