@@ -41,7 +41,9 @@ target and another for the fields: it bounds the memory a head holds, of which t
 target is part (a second setting would be a second knob on the same memory).
 
 A field still arriving counts as it arrives: memory held for a head stays within the
-limit and one read of the socket (about 256 KB).
+limit and one read of the socket (about 256 KB). The refusal is the one line logged for
+the request (not uvicorn's "Invalid HTTP request received." besides, which stays for
+heads its parser refuses).
 """
 
 from __future__ import annotations
@@ -53,6 +55,7 @@ from collections.abc import Callable
 from typing import Any, Literal, NamedTuple
 
 import h11
+import httptools
 import uvicorn
 from uvicorn.config import HTTPProtocolType
 from uvicorn.protocols.http.flow_control import FlowControl
@@ -338,8 +341,12 @@ class _WithDeadlines:
 
     def data_received(self, data: bytes) -> None:
         cycle = self.cycle
-        super().data_received(data)  # type: ignore[misc]
+        self.parse(data)
         self.deadlines.received(cycle, len(data))
+
+    def parse(self, data: bytes) -> None:
+        """Hand ``data`` to the parser: the protocol's own ``data_received``."""
+        super().data_received(data)  # type: ignore[misc]
 
     def on_response_complete(self) -> None:
         super().on_response_complete()  # type: ignore[misc]
@@ -349,17 +356,9 @@ class _WithDeadlines:
         self.deadlines.stop()
         super().connection_lost(exc)  # type: ignore[misc]
 
-    def send_400_response(self, msg: str) -> None:
-        """uvicorn's answer to a head its parser refused: a 414 or 431 where a limit
-        stopped the parser (:attr:`head_refused` says which), else uvicorn's own 400."""
-        if self.head_refused is None:
-            super().send_400_response(msg)  # type: ignore[misc]
-        else:
-            self.refuse_head(self.head_refused)
-
     def refuse_head(self, refusal: HeadRefusal) -> None:
         """Answer ``refusal`` (its status; the body, as the API's errors: ``{"detail":
-        why}``), log it and close the connection."""
+        why}``), log it, the one line for this request, and close the connection."""
         self.head_refused = refusal
         self.deadlines.stop()
         if self.transport.is_closing():
@@ -398,7 +397,11 @@ class H11WithDeadlines(_WithDeadlines, H11Protocol):  # type: ignore[misc]
 
 
 class _LimitedH11Connection(h11.Connection):
-    """h11's server side, refusing heads past the limits of ``protocol``."""
+    """h11's server side, refusing heads past the limits of ``protocol``.
+
+    A refused head is answered here, and ``NEED_DATA`` returned (uvicorn's
+    ``handle_events`` stops on it), not raised: uvicorn would log its generic "Invalid
+    HTTP request received." for it besides our line, and answer a 400."""
 
     def __init__(self, protocol: H11WithDeadlines) -> None:
         super().__init__(h11.SERVER, max_incomplete_event_size=protocol.head_limits.max_bytes)
@@ -410,24 +413,24 @@ class _LimitedH11Connection(h11.Connection):
         try:
             event = super().next_event()
         except h11.RemoteProtocolError as exc:
-            if in_head and exc.error_status_hint == 431:
-                # h11's "Receive buffer too long": the head so far, all of it one line or
-                # not (h11 has no public view of its buffer; it is pinned in pyproject).
-                received = bytes(self._receive_buffer).lstrip(b"\r\n")
-                in_request_line = b"\n" not in received
-                self._protocol.head_refused = (
-                    limits.target_too_long() if in_request_line else limits.too_many_bytes()
-                )
-            raise
+            if not (in_head and exc.error_status_hint == 431):
+                raise
+            # h11's "Receive buffer too long": the head so far, all of it one line or
+            # not (h11 has no public view of its buffer; it is pinned in pyproject).
+            received = bytes(self._receive_buffer).lstrip(b"\r\n")
+            in_request_line = b"\n" not in received
+            self._protocol.refuse_head(
+                limits.target_too_long() if in_request_line else limits.too_many_bytes()
+            )
+            return h11.NEED_DATA
         if isinstance(event, h11.Request):
             size = len(event.target) + sum(field_bytes(n, v) for n, v in event.headers)
             refusal = limits.target_exceeded(len(event.target)) or limits.exceeded(
                 len(event.headers), size
             )
             if refusal is not None:
-                # uvicorn answers it with send_400_response: a 414 or 431 there.
-                self._protocol.head_refused = refusal
-                raise h11.RemoteProtocolError(refusal.why, error_status_hint=refusal.status)
+                self._protocol.refuse_head(refusal)
+                return h11.NEED_DATA
         return event
 
 
@@ -436,11 +439,14 @@ class HttpToolsWithDeadlines(_WithDeadlines, HttpToolsProtocol):  # type: ignore
     :class:`ServerConfig`.
 
     llhttp has no limit of its own. The target and each field are counted as the parser
-    hands them over (a callback raising stops the parser, and uvicorn answers with
-    send_400_response: a 414 or 431 there); a field still arriving is counted by the
-    bytes read while its head is open, from the read after the one that began the head
-    (whose share of the read is unknown: a read may end a request's body and begin the
-    next head)."""
+    hands them over (a callback raising stops the parser); a field still arriving is
+    counted by the bytes read while its head is open, from the read after the one that
+    began the head (whose share of the read is unknown: a read may end a request's body
+    and begin the next head).
+
+    The parser is fed here, not by uvicorn's ``data_received``, its errors handled as
+    uvicorn handles them but for a head past the limits: answered 414 or 431 with one
+    line logged."""
 
     def __init__(
         self,
@@ -459,9 +465,25 @@ class HttpToolsWithDeadlines(_WithDeadlines, HttpToolsProtocol):  # type: ignore
         self._head_bytes = 0
         self._head_read = 0
 
-    def data_received(self, data: bytes) -> None:
+    def parse(self, data: bytes) -> None:
+        self._unset_keepalive_if_required()
         head, was_open = self._heads, self._head_open
-        super().data_received(data)
+        try:
+            self.parser.feed_data(data)
+        except httptools.HttpParserUpgrade:
+            if self._should_upgrade():
+                self.handle_websocket_upgrade()
+            else:
+                self._unsupported_upgrade_warning()
+            return
+        except httptools.HttpParserError:
+            if self.head_refused is not None:
+                self.refuse_head(self.head_refused)
+            else:
+                msg = "Invalid HTTP request received."
+                self.logger.warning(msg)
+                self.send_400_response(msg)
+            return
         if was_open and self._head_open and self._heads == head:
             self._head_read += len(data)
             if self._head_read > self.head_limits.max_bytes:

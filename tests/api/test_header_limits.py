@@ -1,5 +1,5 @@
 """A request head past the limits on its header fields is answered 431, a request target
-past the byte limit 414, and the connection closed.
+past the byte limit 414, and the connection closed, with one line logged.
 
 uvicorn's httptools took any number of header fields of any size (10,000 fields, or one
 of 16 MB, answered 200), and its h11 refused only a head still incomplete past 16 KiB,
@@ -14,6 +14,7 @@ No timing is asserted: an answer or a close is waited for with a generous bound.
 from __future__ import annotations
 
 import json
+import logging
 import socket
 from collections.abc import Iterator
 from pathlib import Path
@@ -189,6 +190,66 @@ def test_a_target_within_the_limit_and_fields_past_it_are_a_431(port: int) -> No
     request = b"GET /health?q=" + b"q" * 10_000 + b" HTTP/1.1\r\nHost: 127.0.0.1\r\n"
     answer = _send(port, request + b"X-Big: " + b"b" * 10_000 + b"\r\n\r\n")
     _assert_431(answer, "INERTIA_ID_REQUEST_HEADER_MAX_BYTES=16384")
+
+
+class _Records(logging.Handler):
+    def __init__(self) -> None:
+        super().__init__(logging.DEBUG)
+        self.lines: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.lines.append(f"{record.levelname} {record.getMessage()}")
+
+
+@pytest.fixture
+def uvicorn_log(port: int) -> Iterator[list[str]]:
+    """The lines uvicorn's error log gets (our refusals go there too), from the server of
+    ``port`` on (its config sets up uvicorn's logging, removing any handler before)."""
+    records = _Records()
+    log = logging.getLogger("uvicorn.error")
+    log.addHandler(records)
+    try:
+        yield records.lines
+    finally:
+        log.removeHandler(records)
+
+
+@pytest.mark.parametrize(
+    ("request_bytes", "status", "limit"),
+    [
+        (_head(_small_fields(100)), 431, "INERTIA_ID_REQUEST_HEADER_MAX_COUNT=100"),
+        (
+            _head([b"X-Big: " + b"b" * 20_000 + b"\r\n"]),
+            431,
+            "INERTIA_ID_REQUEST_HEADER_MAX_BYTES=16384",
+        ),
+        (
+            b"GET /?q=" + b"q" * 20_000 + b" HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n",
+            414,
+            "INERTIA_ID_REQUEST_HEADER_MAX_BYTES=16384",
+        ),
+    ],
+    ids=["fields", "bytes", "target"],
+)
+def test_a_refused_head_logs_one_line_naming_its_status_and_limit(
+    port: int, uvicorn_log: list[str], request_bytes: bytes, status: int, limit: str
+) -> None:
+    """Not uvicorn's "Invalid HTTP request received." besides, which says nothing of the
+    limit (it was logged for each refused head before)."""
+    answer = _send(port, request_bytes)  # logged before the close the client waits for
+    assert answer.startswith(b"HTTP/1.1 %d " % status), answer[:300]
+    assert len(uvicorn_log) == 1, uvicorn_log
+    assert f"answered {status} to 127.0.0.1:" in uvicorn_log[0], uvicorn_log
+    assert limit in uvicorn_log[0], uvicorn_log
+
+
+def test_a_malformed_request_keeps_uvicorns_400_and_warning(
+    port: int, uvicorn_log: list[str]
+) -> None:
+    answer = _send(port, b"GET /health HTTP/1.1\r\nHost 127.0.0.1\r\n\r\n")  # no colon
+    assert answer.startswith(b"HTTP/1.1 400 Bad Request\r\n"), answer[:300]
+    assert uvicorn_log == ["WARNING Invalid HTTP request received."]
+    _health(port)
 
 
 def test_a_head_at_the_limits_goes_through_and_keeps_its_connection(port: int) -> None:
