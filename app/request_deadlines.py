@@ -40,10 +40,13 @@ connection closed; no part of the app sees it. One limit on bytes, not one for t
 target and another for the fields: it bounds the memory a head holds, of which the
 target is part (a second setting would be a second knob on the same memory).
 
-A field still arriving counts as it arrives: memory held for a head stays within the
-limit and one read of the socket (about 256 KB). The refusal is the one line logged for
-the request (not uvicorn's "Invalid HTTP request received." besides, which stays for
-heads its parser refuses).
+A head still arriving is counted by the bytes received for it (besides the method,
+version and line ends, at most :data:`REQUEST_LINE_FRAMING` bytes, which a complete head
+is not charged): memory held for a head stays within the limit and
+:data:`HEAD_FEED_BYTES`, where it once was the limit and a whole read of the socket
+(about 256 KB, uncounted). The refusal is the one line logged for the request (not
+uvicorn's "Invalid HTTP request received." besides, which stays for heads its parser
+refuses).
 """
 
 from __future__ import annotations
@@ -78,6 +81,20 @@ logger = logging.getLogger("uvicorn.error")
 #: A request body must bring this much more (or end) within each
 #: ``request_body_timeout_s``: a byte every few seconds does not keep a connection.
 BODY_PROGRESS_BYTES = 1024
+
+#: Bytes a request head has besides its target and header fields (as
+#: :attr:`HeadLimits.max_bytes` counts them): the method (13 bytes at most in llhttp's
+#: list, ``GET_PARAMETER``), two spaces, ``HTTP/1.1`` and two line ends make at most 27;
+#: 64 leaves room for optional whitespace. A head still arriving, counted by the bytes
+#: received, is refused past ``max_bytes`` and this, so that a head within the limit is
+#: never refused for arriving in pieces.
+REQUEST_LINE_FRAMING = 64
+
+#: Most bytes of one read handed to llhttp at once where a request head may begin in
+#: them (not in a request body of known length): a head that begins after another
+#: request inside such a piece is counted from the next piece on (its share of this one
+#: is unknown), so a head's memory is bounded by the limit and this much.
+HEAD_FEED_BYTES = 4096
 
 
 class ServerConfig(uvicorn.Config):
@@ -181,6 +198,13 @@ class HeadLimits:
                 f"INERTIA_ID_REQUEST_HEADER_MAX_COUNT={self.max_count})",
             )
         if size > self.max_bytes:
+            return self.too_many_bytes()
+        return None
+
+    def received_exceeded(self, received: int) -> HeadRefusal | None:
+        """Why a head still arriving, ``received`` bytes of it so far, is refused (None:
+        it is not)."""
+        if received > self.max_bytes + REQUEST_LINE_FRAMING:
             return self.too_many_bytes()
         return None
 
@@ -381,9 +405,10 @@ class H11WithDeadlines(_WithDeadlines, H11Protocol):  # type: ignore[misc]
     :class:`ServerConfig`.
 
     h11 refuses a head still incomplete past its ``max_incomplete_event_size``: set here
-    to the byte limit (whatever ``h11_max_incomplete_event_size`` says), its refusal
-    becomes a 414 (no line end yet: the request line is what is too long) or a 431; a
-    complete head (one that came in one read) is checked as parsed."""
+    to the byte limit and :data:`REQUEST_LINE_FRAMING` (whatever
+    ``h11_max_incomplete_event_size`` says), its refusal becomes a 414 (no line end yet:
+    the request line is what is too long) or a 431; a complete head (one that came in one
+    read) is checked as parsed."""
 
     def __init__(
         self,
@@ -404,7 +429,10 @@ class _LimitedH11Connection(h11.Connection):
     HTTP request received." for it besides our line, and answer a 400."""
 
     def __init__(self, protocol: H11WithDeadlines) -> None:
-        super().__init__(h11.SERVER, max_incomplete_event_size=protocol.head_limits.max_bytes)
+        super().__init__(
+            h11.SERVER,
+            max_incomplete_event_size=protocol.head_limits.max_bytes + REQUEST_LINE_FRAMING,
+        )
         self._protocol = protocol
 
     def next_event(self) -> Any:
@@ -439,14 +467,18 @@ class HttpToolsWithDeadlines(_WithDeadlines, HttpToolsProtocol):  # type: ignore
     :class:`ServerConfig`.
 
     llhttp has no limit of its own. The target and each field are counted as the parser
-    hands them over (a callback raising stops the parser); a field still arriving is
-    counted by the bytes read while its head is open, from the read after the one that
-    began the head (whose share of the read is unknown: a read may end a request's body
-    and begin the next head).
+    hands them over (a callback raising stops the parser); a field still arriving, which
+    httptools keeps to itself until it is whole, is counted by the bytes received while
+    its head is open. A read is handed to the parser in pieces of at most
+    :data:`HEAD_FEED_BYTES` where a head may begin in it (a request body of known length
+    goes whole), so that the bytes of a head are known: all of a piece that began between
+    requests and ends inside one head, or began and ended inside it. Only a head that
+    begins after another request inside one piece goes uncounted for its share of that
+    piece (at most :data:`HEAD_FEED_BYTES`).
 
-    The parser is fed here, not by uvicorn's ``data_received``, its errors handled as
-    uvicorn handles them but for a head past the limits: answered 414 or 431 with one
-    line logged."""
+    The parser is fed here, not by uvicorn's ``data_received`` (which feeds a read
+    whole), its errors handled as uvicorn handles them but for a head past the limits:
+    answered 414 or 431 with one line logged."""
 
     def __init__(
         self,
@@ -456,44 +488,67 @@ class HttpToolsWithDeadlines(_WithDeadlines, HttpToolsProtocol):  # type: ignore
         _loop: asyncio.AbstractEventLoop | None = None,
     ) -> None:
         super().__init__(config, server_state, app_state, _loop)
-        #: Heads begun on this connection; whether the last one is still open.
+        #: Heads begun on this connection; whether the last one is still open; whether
+        #: a request is being parsed (its head or its body).
         self._heads = 0
         self._head_open = False
-        #: The current head's fields and bytes as parsed, and the bytes of the reads
-        #: that began and ended inside it.
+        self._in_message = False
+        #: The current head's fields and bytes as parsed, and the bytes received for it.
         self._head_count = 0
         self._head_bytes = 0
-        self._head_read = 0
+        self._head_received = 0
+        #: Bytes of the current request's body still to come, where its length is known.
+        self._body_left: int | None = None
 
     def parse(self, data: bytes) -> None:
         self._unset_keepalive_if_required()
-        head, was_open = self._heads, self._head_open
-        try:
-            self.parser.feed_data(data)
-        except httptools.HttpParserUpgrade:
-            if self._should_upgrade():
-                self.handle_websocket_upgrade()
-            else:
-                self._unsupported_upgrade_warning()
-            return
-        except httptools.HttpParserError:
-            if self.head_refused is not None:
-                self.refuse_head(self.head_refused)
-            else:
-                msg = "Invalid HTTP request received."
-                self.logger.warning(msg)
-                self.send_400_response(msg)
-            return
-        if was_open and self._head_open and self._heads == head:
-            self._head_read += len(data)
-            if self._head_read > self.head_limits.max_bytes:
-                self.refuse_head(self.head_limits.too_many_bytes())
+        view = memoryview(data)
+        start = 0
+        while start < len(view):
+            piece = view[start : start + self._piece_bytes()]
+            start += len(piece)
+            heads, was_open, was_idle = self._heads, self._head_open, not self._in_message
+            try:
+                self.parser.feed_data(piece)
+            except httptools.HttpParserUpgrade:
+                # As uvicorn: the rest of the read is not parsed.
+                if self._should_upgrade():
+                    self.handle_websocket_upgrade()
+                else:
+                    self._unsupported_upgrade_warning()
+                return
+            except httptools.HttpParserError:
+                if self.head_refused is not None:
+                    self.refuse_head(self.head_refused)
+                else:
+                    msg = "Invalid HTTP request received."
+                    self.logger.warning(msg)
+                    self.send_400_response(msg)
+                return
+            if not self._head_open:
+                continue
+            if self._heads == heads and was_open:
+                self._head_received += len(piece)  # all of it inside the head
+            elif self._heads == heads + 1 and was_idle:
+                self._head_received = len(piece)  # the head began it (blank lines aside)
+            refusal = self.head_limits.received_exceeded(self._head_received)
+            if refusal is not None:
+                self.refuse_head(refusal)
+                return
+
+    def _piece_bytes(self) -> int:
+        """How much of a read to hand the parser next: the rest of a request body of
+        known length (no head can begin in it), else :data:`HEAD_FEED_BYTES`."""
+        if self._in_message and not self._head_open and self._body_left:
+            return self._body_left
+        return HEAD_FEED_BYTES
 
     def on_message_begin(self) -> None:
         super().on_message_begin()
         self._heads += 1
-        self._head_open = True
-        self._head_count = self._head_bytes = self._head_read = 0
+        self._head_open = self._in_message = True
+        self._head_count = self._head_bytes = self._head_received = 0
+        self._body_left = None
         self.head_refused = None
 
     def on_url(self, url: bytes) -> None:
@@ -510,7 +565,21 @@ class HttpToolsWithDeadlines(_WithDeadlines, HttpToolsProtocol):  # type: ignore
 
     def on_headers_complete(self) -> None:
         self._head_open = False
+        # llhttp has checked the framing (one Content-Length, not with Transfer-Encoding).
+        lengths = [value for name, value in self.headers if name == b"content-length"]
+        chunked = any(name == b"transfer-encoding" for name, _ in self.headers)
+        self._body_left = int(lengths[0]) if lengths and not chunked else None
         super().on_headers_complete()
+
+    def on_body(self, body: bytes) -> None:
+        if self._body_left is not None:
+            self._body_left -= len(body)
+        super().on_body(body)
+
+    def on_message_complete(self) -> None:
+        self._in_message = False
+        self._body_left = None
+        super().on_message_complete()
 
     def _refuse(self, refusal: HeadRefusal | None) -> None:
         if refusal is not None:

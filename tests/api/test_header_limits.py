@@ -24,6 +24,7 @@ import pytest
 import uvicorn
 from pydantic import ValidationError
 from service_support import free_port
+from starlette.requests import Request
 
 from app.request_deadlines import H11WithDeadlines, HttpToolsWithDeadlines, ServerConfig
 from service.config import get_settings
@@ -39,8 +40,13 @@ PROTOCOLS = {"h11": H11WithDeadlines, "httptools": HttpToolsWithDeadlines}
 @pytest.fixture(params=["h11", "httptools"])
 def port(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[int]:
     """The app under ServerConfig in a thread, with the default limits (100 fields,
-    16 KiB); its port."""
+    16 KiB), and a route that answers the size of the body it got; its port."""
     app = keyed_app(tmp_path, KEY)
+
+    async def body_size(request: Request) -> dict[str, int]:
+        return {"size": len(await request.body())}
+
+    app.add_api_route("/test/body-size", body_size, methods=["POST"])
     port = free_port()
     config = ServerConfig(
         app,
@@ -160,6 +166,17 @@ def test_one_1_mb_header_sent_in_pieces_is_a_431(port: int) -> None:
     _health(port)
 
 
+def test_an_unfinished_header_past_the_limit_in_one_read_is_a_431(port: int) -> None:
+    """30 KB of one header field, sent at once and not finished: httptools counted a
+    head from its second read on (the first, up to 256 KB, held uncounted), so a head
+    that came in one read waited, unanswered, for the head deadline (10 s) to close it."""
+    with socket.create_connection(("127.0.0.1", port), timeout=WAIT_S) as sock:
+        sock.sendall(b"GET /health HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Big: " + b"a" * 30_000)
+        answer = _answer_and_close(sock)
+    _assert_431(answer, "INERTIA_ID_REQUEST_HEADER_MAX_BYTES=16384")
+    _health(port)
+
+
 def test_a_target_over_16_kib_sent_at_once_is_a_414(port: int) -> None:
     """A 20 KB URL is URI Too Long (RFC 9110 15.5.15), not Request Header Fields Too
     Large: a 431 before. The app, which answers ``/health`` 200 whatever its query, never
@@ -190,6 +207,45 @@ def test_a_target_within_the_limit_and_fields_past_it_are_a_431(port: int) -> No
     request = b"GET /health?q=" + b"q" * 10_000 + b" HTTP/1.1\r\nHost: 127.0.0.1\r\n"
     answer = _send(port, request + b"X-Big: " + b"b" * 10_000 + b"\r\n\r\n")
     _assert_431(answer, "INERTIA_ID_REQUEST_HEADER_MAX_BYTES=16384")
+
+
+def _response(sock: socket.socket, received: bytes) -> tuple[bytes, bytes]:
+    """The next whole response (with a Content-Length) from ``received`` and ``sock``,
+    and what was received after it."""
+    while b"\r\n\r\n" not in received:
+        data = sock.recv(65536)
+        assert data, f"the server closed the connection: {received!r}"
+        received += data
+    head, _, rest = received.partition(b"\r\n\r\n")
+    length = next(
+        int(line.split(b":", 1)[1])
+        for line in head.split(b"\r\n")
+        if line.lower().startswith(b"content-length:")
+    )
+    while len(rest) < length:
+        data = sock.recv(65536)
+        assert data, f"the server closed the connection: {head!r}"
+        rest += data
+    return head + b"\r\n\r\n" + rest[:length], rest[length:]
+
+
+def test_bodies_and_heads_pipelined_in_one_send_are_each_answered(port: int) -> None:
+    """A body of known length, a chunked one, and a head close to the limit, sent
+    together (the parser is fed heads in pieces and bodies of known length whole): each
+    body arrives whole, the head is answered."""
+    post = b"POST /test/body-size HTTP/1.1\r\nHost: 127.0.0.1\r\nX-API-Key: " + KEY.encode()
+    sized = post + b"\r\nContent-Length: 300000\r\n\r\n" + b"s" * 300_000
+    chunk = b"c" * 30_000
+    chunked = post + b"\r\nTransfer-Encoding: chunked\r\n\r\n"
+    chunked += b"%x\r\n%s\r\n" % (len(chunk), chunk) * 10 + b"0\r\n\r\n"
+    near_limit = _head([*_small_fields(98), b"X-Pad: " + b"p" * 14_250 + b"\r\n"])
+    with socket.create_connection(("127.0.0.1", port), timeout=WAIT_S) as sock:
+        sock.sendall(sized + chunked + near_limit)
+        received = b""
+        for expected in (b'{"size":300000}', b'{"size":300000}', b'"status"'):
+            answer, received = _response(sock, received)
+            assert answer.startswith(b"HTTP/1.1 200 OK\r\n"), answer[:300]
+            assert expected in answer, answer[-300:]
 
 
 class _Records(logging.Handler):
