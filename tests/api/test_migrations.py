@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import json
+import re
+from collections.abc import Iterator
+from contextlib import contextmanager
 from datetime import UTC, datetime
 from typing import Any
 
 from alembic.autogenerate import compare_metadata
 from alembic.migration import MigrationContext
-from sqlalchemy import Engine, create_engine, inspect, text
+from sqlalchemy import Engine, create_engine, event, inspect, text
 from sqlalchemy.orm import Session
 
 from service.store.models import Base, JobRow
@@ -177,15 +180,90 @@ def _rows(
     return {name: rows for name, (_columns, rows) in tables.items()}
 
 
-def test_each_step_down_to_0002_and_back_keeps_every_row_the_schema_still_holds(
+def _revisions() -> list[str]:
+    """Every revision, base first (from the scripts, so a new migration is walked too)."""
+    from alembic.config import Config
+    from alembic.script import ScriptDirectory
+
+    from service.store.session import MIGRATIONS
+
+    config = Config()
+    config.set_main_option("script_location", str(MIGRATIONS))
+    walked = ScriptDirectory.from_config(config).walk_revisions()
+    return [script.revision for script in reversed(list(walked))]
+
+
+@contextmanager
+def _tables_copied(url: str) -> Iterator[set[str]]:
+    """The tables that the statements run inside the block copy into a new one (an
+    Alembic batch on SQLite: create ``_alembic_tmp_<table>``, copy, drop the old, rename)."""
+    copied: set[str] = set()
+    copy = re.compile(r"CREATE TABLE \"?_alembic_tmp_(\w+)")
+
+    def record(_conn: Any, _cursor: Any, statement: str, *_args: Any) -> None:
+        copied.update(copy.findall(statement))
+
+    event.listen(Engine, "before_cursor_execute", record)
+    try:
+        yield copied
+    finally:
+        event.remove(Engine, "before_cursor_execute", record)
+
+
+def _seed_at_0001(engine: Engine) -> None:
+    """Rows in every table of 0001: three jobs with three metrics each, a classifier of
+    the first, a worker and an API key."""
+    now = datetime(2026, 11, 22, 12, tzinfo=UTC)
+    with engine.begin() as connection:
+        connection.execute(
+            text("INSERT INTO scenarios VALUES ('s', 'paper', '{\"x\": 1}', :t)"), {"t": now}
+        )
+        for index, state in enumerate(["succeeded", "running", "queued"]):
+            connection.execute(
+                text(
+                    "INSERT INTO jobs (id, type, status, scenario_id, params, seed, "
+                    "config_hash, progress, cancel_requested, attempts, created_at) VALUES "
+                    "(:id, 'train', :state, 's', '{}', :i, :id, 0.5, false, :i, :t)"
+                ),
+                {"id": f"job{index}", "state": state, "i": index, "t": now},
+            )
+            for step in range(3):
+                connection.execute(
+                    text(
+                        "INSERT INTO metrics (job_id, key, step, value) VALUES (:j, 'f1', :s, :v)"
+                    ),
+                    {"j": f"job{index}", "s": step, "v": 0.25 * step},
+                )
+        connection.execute(
+            text(
+                "INSERT INTO classifiers (id, job_id, scenario_id, metric, f1, accuracy, "
+                "sequence, candidate_names, confusion, document, sha256, created_at) VALUES "
+                "('c', 'job0', 's', 'euclidean', 1.0, 1.0, '[[4, 0]]', '[\"a\"]', '[[1]]', "
+                "'{}', :sha, :t)"
+            ),
+            {"sha": "0" * 64, "t": now},
+        )
+        connection.execute(
+            text("INSERT INTO workers VALUES ('w1@host', 'filesystem://', :t, :t)"), {"t": now}
+        )
+        connection.execute(
+            text("INSERT INTO api_keys (key_hash, created_at) VALUES (:h, :t)"),
+            {"h": "0" * 64, "t": now},
+        )
+
+
+def test_each_step_down_to_base_and_back_keeps_every_row_the_schema_still_holds(
     empty_database_url: str,
 ) -> None:
     """Every table holds rows at head (jobs with a name, summary, tags, metrics, an
-    attempt history and a classifier); each downgrade to 0002 and each upgrade back keeps
-    every row, and every value, of the columns its schema still has. 0004's downgrade
-    dropped the jobs' name and summary with a batch that copied ``jobs`` on SQLite: the
-    old table's drop deleted every metric (ON DELETE CASCADE, foreign keys on) and
-    unlinked every classifier from its job (ON DELETE SET NULL)."""
+    attempt history and a classifier); each downgrade to base keeps every row, and every
+    value, of the tables and columns its schema still has, and so does each upgrade back
+    from 0001 (seeded with a row in every table). 0004's downgrade dropped the jobs' name
+    and summary with a batch that copied ``jobs`` on SQLite: the old table's drop deleted
+    every metric (ON DELETE CASCADE, foreign keys on) and unlinked every classifier from
+    its job (ON DELETE SET NULL). No step copies a table but 0003's, which changes the
+    classifier columns' types (SQLite alters no type in place; no foreign key points at
+    ``classifiers``); 0002's downgrade copied ``classifiers`` to drop its kind."""
     from service.store import (
         ApiKey,
         ClassifierRow,
@@ -246,26 +324,47 @@ def test_each_step_down_to_0002_and_back_keeps_every_row_the_schema_still_holds(
     finally:
         db.dispose()
 
+    revisions = _revisions()
+    assert revisions[0] == "0001" and len(revisions) >= 7, revisions
+    copies: dict[str, set[str]] = {}
     engine = create_engine(url)
     try:
         at_head = _rows(_tables(engine))
         assert all(at_head.values()), {name for name, rows in at_head.items() if not rows}
-        for revision in ["0006", "0005", "0004", "0003", "0002"]:
+        # Down: undo each revision from head's, ending with 0001's (to base).
+        for undone, target in zip(revisions[::-1], [*revisions[-2::-1], "base"], strict=True):
             before = _tables(engine)
-            downgrade(url, revision)
+            with _tables_copied(url) as copied:
+                downgrade(url, target)
+            copies[f"{undone} down"] = copied
             after = _tables(engine)
-            assert _rows(after) == _kept(before, after), f"rows lost going down to {revision}"
-        at_0002 = _rows(_tables(engine))
-        assert len(at_0002["metrics"]) == 9
-        assert [row["job_id"] for row in at_0002["classifiers"]] == ["job0"]
-        for revision in ["0003", "0004", "0005", "0006", "head"]:
+            assert _rows(after) == _kept(before, after), f"rows lost going down to {target}"
+            if target == "0001":
+                assert len(_rows(after)["metrics"]) == 9
+                assert [row["job_id"] for row in _rows(after)["classifiers"]] == ["job0"]
+        assert _tables(engine) == {}  # base: no table of ours
+        upgrade(url, "0001")
+        _seed_at_0001(engine)
+        at_0001 = _rows(_tables(engine))
+        assert all(at_0001.values()), {name for name, rows in at_0001.items() if not rows}
+        # Up: apply each revision after 0001's, to head.
+        for target in revisions[1:]:
             before = _tables(engine)
-            upgrade(url, revision)
+            with _tables_copied(url) as copied:
+                upgrade(url, target)
+            copies[f"{target} up"] = copied
             after = _tables(engine)
-            assert _kept(after, before) == _rows(before), f"rows lost going up to {revision}"
+            assert _kept(after, before) == _rows(before), f"rows lost going up to {target}"
+            if target == "0002":
+                assert [row["kind"] for row in _rows(after)["classifiers"]] == ["clustering"]
         assert {name: len(rows) for name, rows in _rows(_tables(engine)).items()} == {
-            **{name: len(rows) for name, rows in at_head.items()},
-            "job_tags": 0,  # gone with their table at 0003 and below
+            **{name: len(rows) for name, rows in at_0001.items()},
+            "job_tags": 0,  # none at 0001: the table came with 0004
         }
     finally:
         engine.dispose()
+    sqlite = url.startswith("sqlite")
+    copied_tables = {step: tables for step, tables in copies.items() if tables}
+    assert copied_tables == (
+        {"0003 down": {"classifiers"}, "0003 up": {"classifiers"}} if sqlite else {}
+    )
