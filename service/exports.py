@@ -12,7 +12,9 @@ and steps are numbered from 1, as on the dashboard and in the report.
 from __future__ import annotations
 
 import io
+import itertools
 import math
+import operator
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
@@ -28,6 +30,7 @@ __all__ = [
     "job_notes",
     "metrics_notes",
     "metrics_table",
+    "metrics_with_degrees",
     "result_table",
     "to_csv",
     "to_records",
@@ -763,6 +766,25 @@ def metrics_table(
     """Metric points in long form: key, step, value; ``notes`` say what a step is where
     it is not obvious (a sweep's)."""
     return Table(["key", "step", "value"], [list(point) for point in series], notes)
+
+
+def metrics_with_degrees(
+    points: Sequence[tuple[str, int, float]],
+) -> list[tuple[str, int, float]]:
+    """Metric points (key, step, value), ordered by key then step, with each ``…_rad_s…``
+    series followed by its ``…_deg_s…`` twin, the same points converted (a search's
+    ``best_residual_rate_rad_s`` then ``best_residual_rate_deg_s``), as every other rate
+    of the exports has its deg/s beside it; a twin the job stored itself is not made
+    again."""
+    stored = {key for key, _step, _value in points}
+    out: list[tuple[str, int, float]] = []
+    for key, series in itertools.groupby(points, key=operator.itemgetter(0)):
+        series_points = list(series)
+        out += series_points
+        twin = key.replace("_rad_s", "_deg_s")
+        if twin != key and twin not in stored:
+            out += [(twin, step, math.degrees(value)) for _key, step, value in series_points]
+    return out
 
 
 def metrics_notes(job_type: str, params: Mapping[str, Any]) -> list[tuple[str, Any]]:

@@ -27,6 +27,7 @@ from service.exports import (
     job_notes,
     metrics_notes,
     metrics_table,
+    metrics_with_degrees,
     result_table,
     to_csv,
     to_records,
@@ -685,15 +686,23 @@ def get_metrics(
 
     A series longer than the server's cap (INERTIA_ID_MAX_METRIC_POINTS) is thinned to
     evenly spaced points, first and last kept; ``last_step`` is always the true last step.
-    ``format=csv`` downloads every point, never thinned.
+    ``format=csv`` downloads every point, never thinned. A series in rad/s
+    (``best_residual_rate_rad_s``) is followed by its deg/s twin, made from it
+    (``best_residual_rate_deg_s``).
     """
     job = get_or_404(session, JobRow, job_id, "job")
     query = select(MetricRow.key, MetricRow.step, MetricRow.value).where(MetricRow.job_id == job.id)
     if key is not None:
-        query = query.where(MetricRow.key == key)
+        # A deg/s series is made from its rad/s twin (metrics_with_degrees).
+        query = query.where(MetricRow.key.in_({key, key.replace("_deg_s", "_rad_s")}))
     if after is not None:
         query = query.where(MetricRow.step > after)
-    rows = session.execute(query.order_by(MetricRow.key, MetricRow.step, MetricRow.id)).all()
+    stored = session.execute(query.order_by(MetricRow.key, MetricRow.step, MetricRow.id)).all()
+    rows = [
+        point
+        for point in metrics_with_degrees([(k, s, v) for k, s, v in stored])
+        if key is None or point[0] == key
+    ]
     if format == "csv":
         points = [(k, s, v if np.isfinite(v) else None) for k, s, v in rows]
         return _download(

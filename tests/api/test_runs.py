@@ -736,8 +736,9 @@ def _rates_in_both_units(what: str, records: list[dict[str, Any]]) -> int:
 
 def test_every_rate_in_a_search_or_sweep_export_is_in_rad_s_and_deg_s(api: Api) -> None:
     """A flight team reads deg/s: each rad/s column (or summary quantity) of the search's
-    tables and of a sweep's points, CSV and JSON alike, has the deg/s one beside it
-    (fresh_end_rate_rad_s_mean and the curve's rate had none); no rad/s name is gone."""
+    tables, of its metric series and of a sweep's points, CSV and JSON alike, has the
+    deg/s one beside it (fresh_end_rate_rad_s_mean, the curve's rate and the metrics'
+    best_residual_rate_rad_s had none); no rad/s name is gone."""
     scenario_id = api.create_scenario()["id"]
     job_id = _finished(api, scenario_id, 0, _search_result([1.0, 0.8], 20.0, 3.5))
     pairs = {}
@@ -756,6 +757,51 @@ def test_every_rate_in_a_search_or_sweep_export_is_in_rad_s_and_deg_s(api: Api) 
     assert float(summary["fresh_end_rate_deg_s_mean"]) == pytest.approx(np.degrees(0.15))
     assert {"fresh_end_rate_rad_s_mean", "best_end_rate_rad_s_search_draw"} <= set(summary)
     assert pairs == {"summary": 3, "curve": 3, "baselines": 2, "front": 1}
+
+    # The job's metric series: the residual rate had rad/s alone. Long form (key, step,
+    # value) in the CSV and a list of series in the JSON: a step's figures read in the
+    # series' order, the deg/s series next to its rad/s one.
+    rates = [0.02, 0.01, 0.005]
+    with api.db.session() as session:
+        add_metrics(
+            session,
+            job_id,
+            [
+                *(("best_residual_rate_rad_s", step, rate) for step, rate in enumerate(rates)),
+                *(("mean_f1", step, 0.5) for step in range(3)),
+                *(("best_f1", step, 0.75) for step in range(3)),
+            ],
+        )
+    csv_rows = _csv(api.get(f"/jobs/{job_id}/metrics?format=csv").text)
+    assert csv_rows[0] == ["key", "step", "value"]
+    by_step: dict[int, dict[str, Any]] = {}
+    for key, step, value in csv_rows[1:]:
+        by_step.setdefault(int(step), {})[key] = value
+    assert _rates_in_both_units("metrics CSV", list(by_step.values())) == 3
+    series = api.get(f"/jobs/{job_id}/metrics").json()["series"]
+    by_step = {}
+    for one in series:
+        for step, value in zip(one["steps"], one["values"], strict=True):
+            by_step.setdefault(step, {})[one["key"]] = value
+    assert _rates_in_both_units("metrics JSON", list(by_step.values())) == 3
+    assert [one["key"] for one in series] == [
+        "best_f1",
+        "best_residual_rate_rad_s",
+        "best_residual_rate_deg_s",
+        "mean_f1",
+    ]
+    # One series asked for by name: the deg/s one too; the rad/s one stays alone.
+    for name, values in [
+        ("best_residual_rate_deg_s", np.degrees(rates)),
+        ("best_residual_rate_rad_s", rates),
+    ]:
+        only = api.get(f"/jobs/{job_id}/metrics", params={"key": name, "after": 0}).json()
+        assert [(one["key"], one["steps"]) for one in only["series"]] == [(name, [1, 2])]
+        assert only["series"][0]["values"] == pytest.approx(values[1:], rel=1e-12)
+        text = api.get(f"/jobs/{job_id}/metrics", params={"key": name, "format": "csv"}).text
+        assert [(k, int(step), float(v)) for k, step, v in _csv(text)[1:]] == [
+            (name, step, pytest.approx(value, rel=1e-12)) for step, value in enumerate(values)
+        ]
 
     # A sweep's gyro-noise level is a rate: in deg/s beside its value; a torque's is not.
     sweep = api.submit("train", scenario_id, params={"sequence": GOOD_SEQUENCE}).json()
@@ -789,6 +835,28 @@ def test_every_rate_in_a_search_or_sweep_export_is_in_rad_s_and_deg_s(api: Api) 
         assert [p["value_unit"] for p in points] == ["rad/s", "N m"]
         assert float(points[0]["value_deg_s"]) == pytest.approx(np.degrees(0.002))
         assert points[1]["value_deg_s"] in ("", None)
+
+
+def test_a_deg_s_metric_series_is_made_from_rad_s_once_and_only_beside_it() -> None:
+    """The twin follows its rad/s series (not sorted before it as ``d`` < ``r``), keeps a
+    non-finite point non-finite, and is not made again where the job stored one."""
+    from service.exports import metrics_with_degrees
+
+    made = metrics_with_degrees(
+        [("a_rad_s", 0, 1.0), ("a_rad_s", 1, float("inf")), ("b", 0, 2.0), ("c_rad_s", 0, 3.0)]
+    )
+    assert [(k, s) for k, s, _v in made] == [
+        ("a_rad_s", 0),
+        ("a_rad_s", 1),
+        ("a_deg_s", 0),
+        ("a_deg_s", 1),
+        ("b", 0),
+        ("c_rad_s", 0),
+        ("c_deg_s", 0),
+    ]
+    assert made[2][2] == pytest.approx(np.degrees(1.0)) and made[3][2] == float("inf")
+    stored = [("c_deg_s", 0, 9.0), ("c_rad_s", 0, 3.0)]
+    assert metrics_with_degrees(stored) == stored
 
 
 @pytest.mark.parametrize(
