@@ -31,6 +31,8 @@ __all__ = [
     "metrics_notes",
     "metrics_table",
     "metrics_with_degrees",
+    "note_lines",
+    "plan_notes",
     "result_table",
     "to_csv",
     "to_records",
@@ -87,12 +89,16 @@ def _line(values: Sequence[Any]) -> str:
     return ",".join(fields) + "\n"
 
 
+def note_lines(notes: Sequence[tuple[str, Any]]) -> str:
+    """``# name: value`` lines, each value on one line (as a table's notes)."""
+    return "".join(f"# {name}: {_note(value)}\n" for name, value in notes)
+
+
 def to_csv(table: Table) -> str:
     """The table as CSV text (RFC 4180 quoting, a ``#`` in a field quoted as well, ``\\n``
     line ends), its notes first."""
     out = io.StringIO()
-    for name, value in table.notes:
-        out.write(f"# {name}: {_note(value)}\n")
+    out.write(note_lines(table.notes))
     out.write(_line(table.header))  # headers can hold names
     for row in table.rows:
         out.write(_line(row))
@@ -125,6 +131,25 @@ def job_notes(job: Mapping[str, Any], exported_at: datetime) -> list[tuple[str, 
         ("finished_at", _iso_utc(job.get("finished_at"))),
         ("exported_at", _iso_utc(exported_at)),
     ]
+
+
+def plan_notes(
+    source: Mapping[str, Any], job: Mapping[str, Any] | None, exported_at: datetime
+) -> list[tuple[str, Any]]:
+    """The ``#`` lines a command plan's CSV begins with, before the plan's own: for a
+    plan of a job's sequence the lines every CSV of the job begins with
+    (:func:`job_notes`), then the rest of where it comes from (the front member, a
+    cancelled search's status); for any other, where it comes from (the scenario's id)
+    and when it was exported.
+
+    :param source: where the sequence comes from, as the plan's JSON states it.
+    :param job: the job it comes from (what :func:`job_notes` reads), or None.
+    """
+    if job is None:
+        return [*source.items(), ("exported_at", _iso_utc(exported_at))]
+    head = job_notes(job, exported_at)
+    named = {name for name, _value in head}
+    return [*head, *((name, value) for name, value in source.items() if name not in named)]
 
 
 def to_records(table: Table) -> list[dict[str, Any]]:

@@ -802,6 +802,7 @@ async def job_plan(
     with database.session() as session:
         job = get_or_404(session, JobRow, job_id, "job")
         kind, state, result, scenario_id = job.type, job.status, job.result, job.scenario_id
+        facts = _job_facts(job)
     if kind != "search":
         unprocessable(("path", "job_id"), f"job {job_id!r} is a {kind} job: no plan")
     best = ((result or {}).get("best") or {}).get("sequence")
@@ -827,5 +828,5 @@ async def job_plan(
     source = {"job_id": job_id, "member": "best" if member is None else member}
     if state == "cancelled":
         source["job_status"] = "cancelled"  # the best it had found when it stopped
-    planned = functools.partial(plan_for, parsed=True, source=source)
+    planned = functools.partial(plan_for, parsed=True, source=source, job=facts)
     return await gate.run(planned, database, scenario_id, sequence, options)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import functools
 import json
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Annotated, Any
 
@@ -24,7 +25,8 @@ from inertia_id.physics.simulate import (
     settled_rates,
     simulate,
 )
-from service.store.models import ClassifierRow, JobRow, ScenarioRow
+from service.exports import note_lines, plan_notes
+from service.store.models import ClassifierRow, JobRow, ScenarioRow, utcnow
 from service.store.session import Database
 
 from ..capacity import ComputeGate
@@ -423,10 +425,13 @@ def _plan_response(
     options: PlanOptions,
     source: dict[str, Any],
     where: tuple[str, ...] = ("query", "sequence"),
+    job: Mapping[str, Any] | None = None,
 ) -> Response:
     """The plan, with where it comes from (``source``: the scenario's id, and the search
     job and front member when it is one) in the JSON, in the CSV's ``#`` lines and in the
-    file's name, so that plans downloaded side by side can be told apart and traced."""
+    file's name, so that plans downloaded side by side can be told apart and traced; the
+    CSV's lines say when it was exported and, for a plan of a ``job``'s sequence, which
+    job it is as every CSV of the job does (:func:`service.exports.plan_notes`)."""
     from inertia_id.search.plan import command_plan
 
     timing = scenario.timing
@@ -466,7 +471,7 @@ def _plan_response(
     if source.get("job_status") == "cancelled":
         stem += "-cancelled"  # the best sequence a cancelled search had found
     if fmt == "csv":
-        lines = "".join(f"# {key}: {value}\n" for key, value in source.items())
+        lines = note_lines(plan_notes(source, job, utcnow()))
         return Response(
             lines + plan.to_csv(),
             media_type="text/csv",
@@ -488,11 +493,12 @@ def plan_for(
     parsed: bool = False,
     source: dict[str, Any] | None = None,
     where: tuple[str, ...] = ("query", "member"),
+    job: Mapping[str, Any] | None = None,
 ) -> Response:
     """The command plan of a sequence for a stored scenario (JSON or CSV); ``source``
-    names the search job and member it comes from, beside the scenario's id. A
-    ``parsed`` sequence (a list of rows) that the scenario refuses is named at
-    ``where``."""
+    names the search job and member it comes from, beside the scenario's id, and ``job``
+    is that job (:func:`service.exports.job_notes`), for the CSV's lines. A ``parsed``
+    sequence (a list of rows) that the scenario refuses is named at ``where``."""
     with database.session() as session:
         row = get_or_404(session, ScenarioRow, scenario_id, "scenario")
         document = row.document
@@ -510,6 +516,7 @@ def plan_for(
         options,
         {"scenario_id": scenario_id, **(source or {})},
         where if parsed else ("query", "sequence"),
+        job,
     )
 
 

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import json
+import os
+import re
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -108,26 +111,35 @@ def plan_cmd(
         sequence = parse_sequence(sequence_text)
     plan = command_plan(scenario, sequence, flights=flights, seed=seed)
     # Where the sequence came from, as the API's plan states it (scenario, job, member):
-    # a plan handed on can be traced to its search and member.
+    # a plan handed on can be traced to its search and member, or to its sequence file.
     source: dict[str, object] = {}
+    job: dict | None = None
     if search_path is not None:
         source = {
             "search": str(Path(search_path).resolve()),
             "member": "best" if member is None else member,
         }
-    document = {"source": source, **plan.to_dict()} if source else plan.to_dict()
+        job = document.get("_job_facts")
+    elif sequence_text is not None and os.path.isfile(sequence_text):
+        source = {"sequence_file": str(Path(sequence_text).resolve())}
+    planned = {"source": source, **plan.to_dict()} if source else plan.to_dict()
     if out == "-":
-        click.echo(_strict_json(document))
+        click.echo(_strict_json(planned))
         return
     if out.lower().endswith(".csv"):
-        # The path is the user's text: a JSON string, so a comma or newline stays put.
+        exported_at = datetime.now(UTC)
+        # Paths are the user's text: JSON strings, so a comma or newline stays put.
         lines = "".join(
-            f"# {key}: {csv_note_text(str(value)) if key == 'search' else value}\n"
+            f"# {key}: {csv_note_text(str(value)) if key in _PATHS else value}\n"
             for key, value in source.items()
         )
+        if job is None:
+            lines += f"# exported_at: {_iso_utc(exported_at)}\n"
+        else:
+            lines = _job_note_lines(job, exported_at) + lines
         Path(out).write_text(lines + plan.to_csv(), encoding="utf-8")
     else:
-        Path(out).write_text(_strict_json(document) + "\n", encoding="utf-8")
+        Path(out).write_text(_strict_json(planned) + "\n", encoding="utf-8")
     summary = plan.to_dict()
     click.echo(
         f"wrote {out}: {len(plan.sequence)} steps, impulse {plan.impulse_nms:.2f} N m s, "
@@ -149,6 +161,53 @@ def plan_cmd(
         ),
         err=True,
     )
+
+
+#: The source entries that are paths (the user's text).
+_PATHS = ("search", "sequence_file")
+
+
+def _iso_utc(stamp: datetime) -> str:
+    """A time as ISO 8601 in UTC with ``Z``, as the service's CSV lines write it."""
+    return stamp.astimezone(UTC).isoformat().replace("+00:00", "Z")
+
+
+def _job_note_lines(job: dict, exported_at: datetime) -> str:
+    """The ``#`` lines every CSV of a service job begins with (which job it is and when
+    it was written), for a plan of a job's search downloaded from the service.
+
+    The same names in the same order as ``service.exports.job_notes`` (the core imports
+    nothing from the service; a test holds the two to the same lines). The job's values
+    come from a file: a stamp is written in UTC with ``Z``, and a text that is no plain
+    word as a JSON string (a comma or newline in it cannot start a cell or a line).
+    """
+    from ..checks import csv_note_text
+
+    def text(value: object) -> str:
+        if value is None:
+            return ""
+        if isinstance(value, int) and not isinstance(value, bool):
+            return str(value)
+        plain = str(value)
+        return plain if re.fullmatch(r"[\w.:+-]*", plain) else csv_note_text(plain)
+
+    def stamp(value: object) -> str:
+        try:
+            parsed = datetime.fromisoformat(str(value))
+        except ValueError:
+            return text(value)
+        return _iso_utc(parsed if parsed.tzinfo else parsed.replace(tzinfo=UTC))
+
+    lines = [
+        ("job_id", text(job.get("id"))),
+        ("job_type", text(job.get("type"))),
+        ("scenario_id", text(job.get("scenario_id"))),
+        ("job_seed", text(job.get("seed"))),
+        ("created_at", stamp(job.get("created_at")) if job.get("created_at") else ""),
+        ("finished_at", stamp(job.get("finished_at")) if job.get("finished_at") else ""),
+        ("exported_at", _iso_utc(exported_at)),
+    ]
+    return "".join(f"# {name}: {value}\n" for name, value in lines)
 
 
 def _strict_json(document: dict) -> str:
@@ -177,6 +236,9 @@ def _search_document(path: str) -> dict:
             raise InputError(f"{path} is a {document['type']} job, not a search")
         job = document
         document = {**document["result"]}
+        # Which job it is, for the lines a plan's CSV begins with (as the service's).
+        facts = ("id", "type", "scenario_id", "seed", "created_at", "finished_at")
+        document["_job_facts"] = {key: job.get(key) for key in facts}
         # A job stored before results recorded their scenario: say whose it was.
         document.setdefault(
             "_job",

@@ -169,6 +169,11 @@ def test_a_plan_too_long_says_how_many_steps_it_may_have(api: Api) -> None:
     assert "1000 steps: at most 64 steps" in response.json()["detail"][0]["msg"]
 
 
+def _unstamped(text: str) -> list[str]:
+    """A plan's lines but its ``# exported_at`` one."""
+    return [line for line in text.splitlines() if not line.startswith("# exported_at: ")]
+
+
 def test_a_plan_posted_in_the_body_is_the_plan_of_the_query(api: Api) -> None:
     scenario_id = api.post("/scenarios", json={"preset": "paper"}).json()["id"]
     sequence = [[4, 4, 4, 0, 0, 0]] * 2 + [[0, 0, 0, 4, 4, 4]] * 2
@@ -181,7 +186,9 @@ def test_a_plan_posted_in_the_body_is_the_plan_of_the_query(api: Api) -> None:
             f"/scenarios/{scenario_id}/plan?format={fmt}", json={"sequence": sequence}
         )
         assert by_body.status_code == 200, by_body.text
-        assert by_body.content == by_query.content
+        # The same file but for the CSV's export time (a line of its own).
+        assert _unstamped(by_body.text) == _unstamped(by_query.text)
+        assert ("# exported_at: " in by_body.text) == (fmt == "csv")
         assert by_body.headers["content-disposition"] == by_query.headers["content-disposition"]
     # It computes, so it needs the key.
     anonymous = api.client.post(f"/scenarios/{scenario_id}/plan", json={"sequence": sequence})

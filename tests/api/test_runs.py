@@ -7,6 +7,7 @@ import csv
 import io
 import json
 from datetime import UTC, datetime, timedelta
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -399,7 +400,8 @@ def test_a_cancelled_search_plans_the_best_sequence_it_had_found(api: Api) -> No
     assert document["source"]["job_status"] == "cancelled"
     assert document["sequence"] == _search_result([0.9], 12.0, 2.0)["best"]["sequence"]
     as_csv = api.get_with_key(f"/jobs/{partial}/plan", params={"format": "csv"})
-    assert "# job_status: cancelled" in as_csv.text.splitlines()[:6]
+    # After the job's lines (test_a_plan_csv_says_which_job...) and the member.
+    assert as_csv.text.splitlines()[7:9] == ["# member: best", "# job_status: cancelled"]
     assert as_csv.headers["content-disposition"] == (
         f'attachment; filename="plan-scenario-{scenario_id[:8]}-job-{partial[:8]}'
         '-member-best-cancelled.csv"'
@@ -497,7 +499,12 @@ def test_a_front_downloads_as_csv_its_members_plan_by_index_and_a_member_trains(
     # Where a plan comes from, so that plans downloaded side by side can be told apart.
     source = {"scenario_id": scenario_id, "job_id": job_id, "member": chosen["index"]}
     assert document["source"] == source
-    assert as_csv.text.splitlines()[:3] == [f"# {key}: {value}" for key, value in source.items()]
+    lines = as_csv.text.splitlines()
+    assert [lines[0], lines[2], lines[7]] == [
+        f"# job_id: {job_id}",
+        f"# scenario_id: {scenario_id}",
+        f"# member: {chosen['index']}",
+    ]
     name = f"plan-scenario-{scenario_id[:8]}-job-{job_id[:8]}-member-{chosen['index']}"
     assert f'filename="{name}.csv"' in as_csv.headers["content-disposition"]
     assert f'filename="{name}.json"' in plan.headers["content-disposition"]
@@ -961,6 +968,81 @@ def test_every_job_csv_says_which_job_it_comes_from_and_when_it_was_written(api:
         ["a", "4", "1"],
         ["config #2", "1", "4"],
     ]
+
+
+_JOB_LINES = [
+    "job_id",
+    "job_type",
+    "scenario_id",
+    "job_seed",
+    "created_at",
+    "finished_at",
+    "exported_at",
+]
+
+
+def test_a_plan_csv_says_which_job_or_scenario_it_comes_from_and_when_it_was_written(
+    api: Api, tmp_path: Path
+) -> None:
+    """A plan's CSV began with its source alone (``# scenario_id``, ``# job_id``,
+    ``# member``): no job type, seed, times or export time, which every job CSV now
+    gives. A plan of a search job's sequence begins with the job's lines, then the
+    member; a plan of a sequence given to a scenario with the scenario's id and the
+    export time. ``inertia-id plan --search`` on the job as downloaded writes the job's
+    lines too. Each is still read whole by ``pandas.read_csv(path, comment="#")``."""
+    import pandas
+    from cli_support import run_cli
+
+    scenario_id = api.create_scenario()["id"]
+    job_id = _finished(api, scenario_id, 11, _search_result([1.0, 0.8], 20.0, 3.5))
+    job = api.get(f"/jobs/{job_id}").json()
+    steps = len(_search_result([1.0], 1.0, 1.0)["best"]["sequence"])
+
+    def read(text: str) -> tuple[list[str], dict[str, str]]:
+        names = [line[2:].split(": ", 1)[0] for line in text.splitlines() if line[:2] == "# "]
+        table = pandas.read_csv(io.StringIO(text), comment="#")
+        assert len(table) == steps and "step" in table.columns, text
+        return names, _notes(text)
+
+    before = datetime.now(UTC)
+    from_job = api.get_with_key(f"/jobs/{job_id}/plan", params={"member": 0, "format": "csv"})
+    after = datetime.now(UTC)
+    assert from_job.status_code == 200, from_job.text
+    names, notes = read(from_job.text)
+    assert names[:9] == [*_JOB_LINES, "member", "scenario"]
+    assert notes["job_id"] == job_id and notes["job_type"] == "search"
+    assert notes["scenario_id"] == scenario_id and notes["job_seed"] == "11"
+    assert _utc(notes["created_at"]) == _utc(job["created_at"])
+    assert _utc(notes["finished_at"]) == _utc(job["finished_at"])
+    assert before <= _utc(notes["exported_at"]) <= after and notes["member"] == "0"
+    # The same lines as the job's own tables (the export time aside).
+    summary = _notes(api.get(f"/jobs/{job_id}/result?format=csv").text)
+    assert {k: notes[k] for k in _JOB_LINES[:-1]} == {k: summary[k] for k in _JOB_LINES[:-1]}
+
+    before = datetime.now(UTC)
+    planned = api.get_with_key(
+        f"/scenarios/{scenario_id}/plan",
+        params={"sequence": json.dumps(GOOD_SEQUENCE[:steps]), "format": "csv"},
+    )
+    after = datetime.now(UTC)
+    assert planned.status_code == 200, planned.text
+    names, notes = read(planned.text)
+    assert names[:3] == ["scenario_id", "exported_at", "scenario"]
+    assert notes["scenario_id"] == scenario_id
+    assert before <= _utc(notes["exported_at"]) <= after
+
+    # The CLI's plan of the job as downloaded: the same job lines.
+    downloaded = tmp_path / "job.json"
+    downloaded.write_text(api.get(f"/jobs/{job_id}/result").text, encoding="utf-8")
+    out = tmp_path / "plan.csv"
+    before = datetime.now(UTC)
+    run_cli(["plan", "--search", str(downloaded), "--member", "0", "--out", str(out)])
+    after = datetime.now(UTC)
+    names, cli_notes = read(out.read_text(encoding="utf-8"))
+    assert names[:10] == [*_JOB_LINES, "search", "member", "scenario"]
+    assert {k: cli_notes[k] for k in _JOB_LINES[:-1]} == {k: summary[k] for k in _JOB_LINES[:-1]}
+    assert before <= _utc(cli_notes["exported_at"]) <= after
+    assert json.loads(cli_notes["search"]) == str(downloaded.resolve())
 
 
 def test_an_identify_verdict_downloads_as_csv(

@@ -1645,13 +1645,20 @@ def test_a_pareto_front_is_drawn_beside_the_baselines_and_a_member_plans_and_tra
     with page.expect_download() as download:
         page.click("#front-plan-downloads button[data-download='CSV']")
     lines = Path(download.value.path()).read_text(encoding="utf-8").splitlines()
-    # Where it comes from first: the scenario's id, the job and the member.
-    assert lines[:3] == [
-        f"# scenario_id: {job['scenario_id']}",
-        f"# job_id: {job_id}",
-        f"# member: {chosen['index']}",
+    # Where it comes from first: the job's lines (as its other CSVs), then the member.
+    assert [line.split(": ", 1)[0] for line in lines[:7]] == [
+        "# job_id",
+        "# job_type",
+        "# scenario_id",
+        "# job_seed",
+        "# created_at",
+        "# finished_at",
+        "# exported_at",
     ]
-    assert lines[3].startswith("# scenario:")
+    assert lines[0] == f"# job_id: {job_id}"
+    assert lines[2] == f"# scenario_id: {job['scenario_id']}"
+    assert lines[7] == f"# member: {chosen['index']}"
+    assert lines[8].startswith("# scenario:")
     assert any(line.startswith("# flights: 200 per candidate") for line in lines)
     assert sum(1 for line in lines if not line.startswith("#")) == 1 + len(chosen["sequence"])
     # The front itself: its members and the baselines, one object (or CSV row) each.

@@ -136,6 +136,42 @@ def _search_document(sequence: list[list[int]], scenario: dict[str, Any]) -> dic
     return {"best": {"sequence": sequence}, "front": {"members": [member]}, "scenario": scenario}
 
 
+def test_a_plan_csv_says_where_its_sequence_comes_from_and_when_it_was_written(
+    tmp_path: Path,
+) -> None:
+    """A plan of ``--sequence`` began with the plan's own lines: nothing said which file
+    the sequence came from or when the plan was written, which every job CSV now says.
+    Now the sequence file (JSON: ``source``) when there is one, then ``exported_at`` (UTC,
+    ``Z``); ``pandas.read_csv(path, comment="#")`` still reads the table whole."""
+    import io
+    from datetime import UTC, datetime
+
+    import pandas
+
+    sequence = tmp_path / "sequence.json"
+    sequence.write_text("[[4, 4, 4, 0, 0, 0], [0, 0, 0, 4, 4, 4]]", encoding="utf-8")
+    out = tmp_path / "p.csv"
+    for given, source in [
+        (str(sequence), {"sequence_file": str(sequence.resolve())}),
+        ("4,4,4,0,0,0;0,0,0,4,4,4", {}),
+    ]:
+        before = datetime.now(UTC)
+        run_cli(["plan", "--sequence", given, "--out", str(out)])
+        after = datetime.now(UTC)
+        text = out.read_text(encoding="utf-8")
+        lines = [line for line in text.splitlines() if line.startswith("# ")]
+        named = [f"# {key}: {json.dumps(value)}" for key, value in source.items()]
+        assert lines[: len(named)] == named
+        name, stamp = lines[len(named)][2:].split(": ", 1)
+        assert name == "exported_at" and stamp.endswith("Z"), lines
+        assert before <= datetime.fromisoformat(stamp) <= after
+        assert lines[len(named) + 1].startswith("# scenario: ")
+        table = pandas.read_csv(io.StringIO(text), comment="#")
+        assert list(table["step"]) == [1, 2]
+        plan, _ = run_cli_json(["plan", "--sequence", given], tmp_path / "p.json")
+        assert plan.get("source", {}) == source
+
+
 def test_plan_of_a_search_uses_the_scenario_searched(runner: CliRunner, tmp_path: Path) -> None:
     from inertia_id import preset
 
@@ -148,8 +184,11 @@ def test_plan_of_a_search_uses_the_scenario_searched(runner: CliRunner, tmp_path
     # It says where it came from, as the API's plan does (its job and member).
     assert plan["source"] == {"search": str(search.resolve()), "member": 0}
     run_cli(["plan", "--search", str(search), "--out", str(tmp_path / "p.csv")])
-    notes = (tmp_path / "p.csv").read_text().splitlines()[:2]
-    assert notes == [f"# search: {json.dumps(str(search.resolve()))}", "# member: best"]
+    notes = (tmp_path / "p.csv").read_text().splitlines()[:4]
+    assert notes[:2] == [f"# search: {json.dumps(str(search.resolve()))}", "# member: best"]
+    # Not a job's search: no job lines, the export time after the source.
+    assert notes[2].startswith("# exported_at: ") and notes[2].endswith("Z")
+    assert notes[3].startswith("# scenario: ")
     assert plan["steps"][0]["torque_nm"][0] == pytest.approx(paper.torque_matrix[0, 0] / 2)
     # A scenario named beside it must be the searched one.
     refused = runner.invoke(main, ["plan", "--search", str(search), "--preset", "paper"])
