@@ -203,20 +203,22 @@ class Telemetry(BaseModel):
     # Frozen: the offsets from the sequence start are derived from the fields once, by
     # the validator, so a field assigned afterwards would leave them stale (and a
     # validated assignment that fails keeps the new value); a changed copy is made by
-    # :meth:`model_copy`, which validates it.
+    # :meth:`model_copy`, which validates it. The sequences are tuples for the same
+    # reason: a list could be changed in place (``time_s.append``) under the offsets. A
+    # JSON array or a list is accepted for each, and the schema still says array.
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    time_s: list[StrictFloat | str] | None = Field(
+    time_s: tuple[StrictFloat | str, ...] | None = Field(
         default=None,
         max_length=MAX_TELEMETRY_SAMPLES,
         description="time stamps: seconds in the telemetry's clock, or ISO-8601 UTC strings",
     )
-    time_utc: list[str] | None = Field(
+    time_utc: tuple[str, ...] | None = Field(
         default=None,
         max_length=MAX_TELEMETRY_SAMPLES,
         description=f"time stamps as ISO-8601 UTC strings, e.g. {_ISO_EXAMPLE!r}",
     )
-    omega_rad_s: list[list[StrictFloat]] = Field(
+    omega_rad_s: tuple[tuple[StrictFloat, ...], ...] = Field(
         max_length=MAX_TELEMETRY_SAMPLES,
         description="body rates, rad/s, one row of 3 per stamp; each value finite and at "
         f"most {MAX_TELEMETRY_RATE_RAD_S:g} rad/s in magnitude",
@@ -251,8 +253,8 @@ class Telemetry(BaseModel):
     @field_validator("time_s")
     @classmethod
     def _times(
-        cls, value: list[float | str] | None, info: ValidationInfo
-    ) -> list[float | str] | None:
+        cls, value: tuple[float | str, ...] | None, info: ValidationInfo
+    ) -> tuple[float | str, ...] | None:
         if value is None or any(isinstance(v, str) for v in value):
             return value  # ISO stamps: checked with the sequence start below
         arr = np.asarray(value, dtype=float)
@@ -273,10 +275,14 @@ class Telemetry(BaseModel):
 
     @field_validator("omega_rad_s")
     @classmethod
-    def _rates(cls, value: list[list[float]], info: ValidationInfo) -> list[list[float]]:
+    def _rates(
+        cls, value: tuple[tuple[float, ...], ...], info: ValidationInfo
+    ) -> tuple[tuple[float, ...], ...]:
         for i, row in enumerate(value):
             if len(row) != 3:
-                raise InputError(f"omega_rad_s row {i} has {len(row)} columns, expected 3: {row}")
+                raise InputError(
+                    f"omega_rad_s row {i} has {len(row)} columns, expected 3: {list(row)}"
+                )
         arr = np.asarray(value, dtype=float).reshape(-1, 3)
         bad = np.argwhere(~np.isfinite(arr))
         if bad.size:

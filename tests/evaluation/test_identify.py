@@ -267,7 +267,7 @@ def test_csv_and_json_parse_to_the_same_telemetry(fresh: Any) -> None:
     np.testing.assert_array_equal(parsed.omega_array, [[1, 2, 3], [4, 5, 6]])
     assert parse_telemetry(
         '{"time_s": [0, 1], "omega_rad_s": [[0, 0, 0], [1, 1, 1]]}', fmt="json"
-    ).time_s == [0.0, 1.0]
+    ).time_s == (0.0, 1.0)
 
 
 def test_parsed_csv_identifies_like_the_arrays(

@@ -7,6 +7,7 @@ the coverage rules are exercised through :func:`identify`, as a user meets them.
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
 from datetime import UTC, datetime, timedelta
 from typing import Any
@@ -119,6 +120,37 @@ def test_a_copy_with_a_new_start_measures_from_it_and_a_field_cannot_be_reassign
         telemetry.sequence_start = MISSION_START_S + 0.05  # type: ignore[misc]
     np.testing.assert_allclose(telemetry.time_array, [0.0, 0.05, 0.1], atol=2e-7)
     assert telemetry.model_copy() == telemetry
+
+
+def test_the_stamps_and_rates_cannot_be_changed_in_place() -> None:
+    """Frozen stopped assignment, but the fields were lists: ``time_s.append(...)`` or
+    ``omega_rad_s[0][0] = ...`` changed the telemetry under the offsets the validator
+    had derived (four stamps, three offsets). They are tuples now; a list or a JSON
+    array is still what goes in, and a JSON array what comes out."""
+    stamps, rates = [0.0, 0.05, 0.1], [[0.0, 0.0, 0.0], [0.1, 0.2, 0.3], [0.0, 0.0, 0.0]]
+    telemetry = plain(np.array(stamps), rates)
+    with pytest.raises(AttributeError):
+        telemetry.time_s.append(0.15)  # type: ignore[union-attr]
+    with pytest.raises(TypeError):
+        telemetry.omega_rad_s[1][0] = 5.0  # type: ignore[index]
+    with pytest.raises(AttributeError):
+        telemetry.omega_rad_s.append([0.0, 0.0, 0.0])  # type: ignore[attr-defined]
+    utc_stamps = iso(np.array(stamps))
+    utc = Telemetry(time_utc=utc_stamps, omega_rad_s=rates, sequence_start=utc_stamps[0])
+    with pytest.raises(AttributeError):
+        utc.time_utc.append(utc_stamps[0])  # type: ignore[union-attr]
+    # The caller's lists are not the telemetry's either.
+    given = {"time_s": list(stamps), "omega_rad_s": [list(r) for r in rates]}
+    kept = Telemetry.model_validate(given)
+    given["time_s"].append(0.15)
+    given["omega_rad_s"][1][0] = 5.0
+    assert len(kept.time_s or ()) == len(kept.time_array) == 3
+    np.testing.assert_array_equal(kept.omega_array, rates)
+    assert kept == telemetry
+    # In and out as JSON arrays, as before.
+    assert json.loads(kept.model_dump_json())["omega_rad_s"] == rates
+    assert kept.model_dump(mode="json")["time_s"] == stamps
+    assert Telemetry.model_validate_json(kept.model_dump_json()) == kept
 
 
 def test_iso_stamps_in_json_and_csv(
