@@ -85,7 +85,7 @@ class Settings(BaseSettings):
     #: A downsampled metric series keeps its first and last points: at least 2.
     max_metric_points: int = Field(default=2000, ge=2, alias="INERTIA_ID_MAX_METRIC_POINTS")
     #: A running job's heartbeat, and each worker's beat, reaper and re-sender, every
-    #: this many seconds; shorter than the timeout (checked below).
+    #: this many seconds; at most half the timeout (checked below).
     heartbeat_interval_s: float = Field(
         default=5.0,
         gt=0,
@@ -186,12 +186,16 @@ class Settings(BaseSettings):
 
     @model_validator(mode="after")
     def _heartbeat_within_timeout(self) -> Settings:
-        # A job whose beat is due only after the reaper's timeout is reaped while alive.
-        if self.heartbeat_interval_s >= self.heartbeat_timeout_s:
+        # The reaper takes a job whose last beat is older than the timeout. With the
+        # interval merely shorter (59 s beats, a 60 s timeout) one beat late by a second
+        # (a busy machine, a slow commit) or lost got a live job reaped; two beats a
+        # timeout at least leave one to miss.
+        if self.heartbeat_interval_s > self.heartbeat_timeout_s / 2:
             raise ValueError(
-                f"INERTIA_ID_HEARTBEAT_INTERVAL_S={self.heartbeat_interval_s:g} must be "
-                f"shorter than INERTIA_ID_HEARTBEAT_TIMEOUT_S={self.heartbeat_timeout_s:g}: "
-                "a running job would be reaped between two of its heartbeats"
+                f"INERTIA_ID_HEARTBEAT_INTERVAL_S={self.heartbeat_interval_s:g} must be at "
+                f"most half INERTIA_ID_HEARTBEAT_TIMEOUT_S={self.heartbeat_timeout_s:g} (at "
+                f"most {self.heartbeat_timeout_s / 2:g} s): with fewer than two heartbeats "
+                "a timeout, one late or lost beat gets a running job reaped"
             )
         return self
 

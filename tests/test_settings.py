@@ -125,19 +125,26 @@ def test_an_allowed_host_with_a_port_or_scheme_is_refused_naming_the_bare_name(
     assert bare in accepted.resolved_allowed_hosts
 
 
-@pytest.mark.parametrize(("interval", "timeout"), [("60", "60"), ("90", "60"), ("5", "4.5")])
-def test_a_heartbeat_interval_not_shorter_than_the_timeout_is_refused(
-    interval: str, timeout: str
-) -> None:
-    """A job beating every 90 s with a reaper timeout of 60 s is reaped while it runs."""
+@pytest.mark.parametrize(
+    ("interval", "timeout"), [("60", "60"), ("90", "60"), ("5", "4.5"), ("59", "60"), ("31", "60")]
+)
+def test_a_heartbeat_interval_over_half_the_timeout_is_refused(interval: str, timeout: str) -> None:
+    """A job beating every 90 s with a reaper timeout of 60 s is reaped while it runs, and
+    one beating every 59 s was reaped after a single late or lost beat: at least two beats
+    a timeout."""
     with pytest.raises(ValidationError) as refused:
         Settings(INERTIA_ID_HEARTBEAT_INTERVAL_S=interval, INERTIA_ID_HEARTBEAT_TIMEOUT_S=timeout)
     (line,) = setting_problems(refused.value)
     assert line.startswith(
-        f"INERTIA_ID_HEARTBEAT_INTERVAL_S={float(interval):g} must be shorter than "
-        f"INERTIA_ID_HEARTBEAT_TIMEOUT_S={float(timeout):g}"
+        f"INERTIA_ID_HEARTBEAT_INTERVAL_S={float(interval):g} must be at most half "
+        f"INERTIA_ID_HEARTBEAT_TIMEOUT_S={float(timeout):g} (at most {float(timeout) / 2:g} s)"
     )
-    assert Settings(INERTIA_ID_HEARTBEAT_INTERVAL_S="0.5", INERTIA_ID_HEARTBEAT_TIMEOUT_S="3")
+    for accepted_interval, accepted_timeout in (("30", "60"), ("0.5", "3"), ("1.5", "3")):
+        accepted = Settings(
+            INERTIA_ID_HEARTBEAT_INTERVAL_S=accepted_interval,
+            INERTIA_ID_HEARTBEAT_TIMEOUT_S=accepted_timeout,
+        )
+        assert accepted.heartbeat_interval_s == float(accepted_interval)
 
 
 BAD_ENV = {
@@ -183,9 +190,9 @@ def test_every_entry_point_refuses_a_bad_setting_in_one_line(program: str, tmp_p
         f"{program}: INERTIA_ID_MAX_BODY_BYTES='-5': Input should be greater than or equal to 1",
         f"{program}: INERTIA_ID_HEARTBEAT_TIMEOUT_S='-1': Input should be greater than 0",
     ]
-    lines = _refused_lines(command, tmp_path, INERTIA_ID_HEARTBEAT_INTERVAL_S="120")
+    lines = _refused_lines(command, tmp_path, INERTIA_ID_HEARTBEAT_INTERVAL_S="59")
     assert lines == [
-        f"{program}: INERTIA_ID_HEARTBEAT_INTERVAL_S=120 must be shorter than "
-        "INERTIA_ID_HEARTBEAT_TIMEOUT_S=60: a running job would be reaped between two of its "
-        "heartbeats"
+        f"{program}: INERTIA_ID_HEARTBEAT_INTERVAL_S=59 must be at most half "
+        "INERTIA_ID_HEARTBEAT_TIMEOUT_S=60 (at most 30 s): with fewer than two heartbeats a "
+        "timeout, one late or lost beat gets a running job reaped"
     ]
