@@ -18,6 +18,7 @@ from pydantic_settings import BaseSettings, SettingsConfigDict
 __all__ = [
     "LONGEST_S",
     "LOOPBACK_HOSTS",
+    "MAX_COMPUTE_THREADS",
     "Settings",
     "get_settings",
     "setting_problems",
@@ -29,6 +30,13 @@ __all__ = [
 #: (``threading.Event.wait``, ``now - timedelta(...)``) raise OverflowError at run time
 #: instead of at start.
 LONGEST_S = 365 * 86400.0
+
+#: Most compute threads the API process may have (``INERTIA_ID_COMPUTE_THREADS``): more
+#: than the cores of any machine it runs on, where one thread already serves best (a
+#: verdict holds the GIL). Unbounded, 10**9 was accepted and made the gate no gate: every
+#: request in flight took an OS thread of its own (1,000 at once: 1,001 threads, none
+#: answered 503), bounded by nothing but the system's thread limit.
+MAX_COMPUTE_THREADS = 256
 
 #: Host header names the API always answers to: those of this machine's loopback.
 LOOPBACK_HOSTS = ("127.0.0.1", "localhost", "::1", "[::1]")
@@ -136,8 +144,10 @@ class Settings(BaseSettings):
     #: One thread by default: a verdict is small numpy work that holds the GIL most of
     #: the time, so a second thread in the same process only adds GIL hand-offs (20
     #: clients on one API process: 160 req/s with two threads, 215 with one). Scale with
-    #: --api-workers instead.
-    compute_threads: int = Field(default=1, ge=1, alias="INERTIA_ID_COMPUTE_THREADS")
+    #: --api-workers instead. At most :data:`MAX_COMPUTE_THREADS`.
+    compute_threads: int = Field(
+        default=1, ge=1, le=MAX_COMPUTE_THREADS, alias="INERTIA_ID_COMPUTE_THREADS"
+    )
     compute_queue: int = Field(default=200, ge=0, alias="INERTIA_ID_COMPUTE_QUEUE")
     #: Where /identify computes: "eager" (a process of its own, started with the API),
     #: "lazy" (the same, started by the first identify), "off" (the compute threads).

@@ -10,7 +10,7 @@ import pytest
 from pydantic import ValidationError
 from service_support import clean_env, free_port
 
-from service.config import LONGEST_S, Settings, setting_problems
+from service.config import LONGEST_S, MAX_COMPUTE_THREADS, Settings, setting_problems
 
 #: A value each setting took before it had a range, and the service started with it:
 #: a body limit of -5 bytes, a heartbeat timeout of -1 s, a wait of 1e12 s that
@@ -36,6 +36,9 @@ OUT_OF_RANGE = [
     ("INERTIA_ID_WORKER_START_TIMEOUT_S", "1e12"),
     ("INERTIA_ID_QUEUE_STALL_S", "1e12"),
     ("INERTIA_ID_CLASSIFIER_CACHE", "-1"),
+    ("INERTIA_ID_COMPUTE_THREADS", "0"),
+    ("INERTIA_ID_COMPUTE_THREADS", str(MAX_COMPUTE_THREADS + 1)),
+    ("INERTIA_ID_COMPUTE_THREADS", str(10**9)),
     ("INERTIA_ID_COMPUTE_WAIT_S", "inf"),
     ("INERTIA_ID_VERDICT_TIMEOUT_S", "inf"),
     ("INERTIA_ID_JOB_TIME_LIMIT_S", "1e12"),
@@ -56,6 +59,8 @@ AT_THE_EDGE = [
     ("INERTIA_ID_WORKER_MAX_JOBS", "1"),
     ("INERTIA_ID_WORKER_MAX_MEMORY_MB", "1"),
     ("INERTIA_ID_CLASSIFIER_CACHE", "0"),
+    ("INERTIA_ID_COMPUTE_THREADS", "1"),
+    ("INERTIA_ID_COMPUTE_THREADS", str(MAX_COMPUTE_THREADS)),
     ("INERTIA_ID_JOB_TIME_LIMIT_S", str(LONGEST_S)),
 ]
 
