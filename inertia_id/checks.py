@@ -60,6 +60,7 @@ def read_text(
     *,
     gzip_limit: int | None = None,
     limit: int | None = None,
+    advice: str = "",
 ) -> str:
     """A UTF-8 text file's content; a file that is no such text (a binary file, another
     encoding) is an :class:`~inertia_id.errors.InputError` naming it and ``what`` it
@@ -73,6 +74,7 @@ def read_text(
         :class:`~inertia_id.errors.InputError` naming the file, its size and the limit,
         raised before its content is read (a named pipe, whose size is not known
         beforehand: after ``limit + 1`` bytes of it).
+    :param advice: what to do about a file over ``limit``, said after the limit.
     """
     from .errors import InputError
     from .gzipped import gunzip, is_gzip
@@ -87,10 +89,14 @@ def read_text(
         else:
             status = os.fstat(file.fileno())
             if stat.S_ISREG(status.st_mode) and status.st_size > limit:
-                raise InputError(_over_limit(path, f"is {status.st_size} bytes", limit, what))
-            data = file.read(limit + 1)
+                raise InputError(
+                    _over_limit(path, f"is {status.st_size} bytes", limit, what, advice)
+                )
+            data = _read_at_most(file, limit + 1)
             if len(data) > limit:
-                raise InputError(_over_limit(path, f"holds more than {limit} bytes", limit, what))
+                raise InputError(
+                    _over_limit(path, f"holds more than {limit} bytes", limit, what, advice)
+                )
     try:
         return io.TextIOWrapper(io.BytesIO(data), encoding="utf-8").read()
     except UnicodeDecodeError as exc:
@@ -100,11 +106,28 @@ def read_text(
         ) from None
 
 
-def _over_limit(path: str | os.PathLike[str], size: str, limit: int, what: str) -> str:
-    return (
-        f"{os.fspath(path)!r} {size}, over the limit of {limit} bytes for {what}; "
-        "give less data (fewer samples), or gzip it"
-    )
+def _read_at_most(file: io.BufferedReader, size: int) -> bytes:
+    """Up to ``size`` bytes of ``file``, read a megabyte at a time. ``file.read(size)``
+    allocates all of ``size`` before it reads (``read(40_000_000_001)`` of a 2.6 MB file:
+    MemoryError on a machine of 23 GB), so a limit of gigabytes, a classifier's, would
+    have asked that much of every file read under it."""
+    chunks = []
+    left = size
+    while left > 0:
+        chunk = file.read(min(left, _CHUNK_BYTES))
+        if not chunk:
+            break
+        chunks.append(chunk)
+        left -= len(chunk)
+    return b"".join(chunks)
+
+
+_CHUNK_BYTES = 1 << 20
+
+
+def _over_limit(path: str | os.PathLike[str], size: str, limit: int, what: str, advice: str) -> str:
+    text = f"{os.fspath(path)!r} {size}, over the limit of {limit} bytes for {what}"
+    return f"{text}; {advice}" if advice else text
 
 
 def is_integer(

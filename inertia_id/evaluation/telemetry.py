@@ -663,6 +663,7 @@ def load_telemetry(
         "telemetry as CSV or JSON",
         gzip_limit=MAX_TELEMETRY_BYTES,
         limit=MAX_TELEMETRY_BYTES,
+        advice="give less data (fewer samples), or gzip it",
     )
     suffix = without_gz_suffix(os.fspath(path)).lower().rsplit(".", 1)[-1]
     return parse_telemetry(

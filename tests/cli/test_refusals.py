@@ -139,6 +139,14 @@ def test_a_named_pipe_is_read_no_further_than_the_limit(tmp_path: Path) -> None:
     assert read_text(exact, "telemetry", limit=110) == "0.05,0,0,0\n" * 10
 
 
+def test_a_limit_far_above_memory_costs_only_the_file() -> None:
+    """A buffered read allocates all it is asked for first: reading a small file under a
+    limit of 2**62 bytes was a MemoryError."""
+    from inertia_id.checks import read_text
+
+    assert read_text(__file__, "Python", limit=2**62).startswith('"""Hostile input')
+
+
 def test_a_sequence_that_applies_no_torque_is_not_trained_on(tmp_path: Path) -> None:
     """Before, the all-off sequence trained (F1 at chance) and the CLI wrote it."""
     out = tmp_path / "c.json"
