@@ -849,8 +849,9 @@ class BaseClassifier(BaseEstimator):
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> Self:
-        with open(path, encoding="utf-8") as fh:
-            document = documents.parse(fh.read(), unique_keys=True)
+        """Read a document written by :meth:`save` (at most
+        :data:`~inertia_id.classifiers.documents.MAX_CLASSIFIER_BYTES`)."""
+        document = documents.parse(documents.read_file(path), unique_keys=True)
         return cls.from_dict(documents.read(document, cls.FORMAT))
 
 

@@ -10,14 +10,24 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 from typing import Any
 
-from ..checks import DuplicateKeyError, loads_unique_keys
+from ..checks import DuplicateKeyError, loads_unique_keys, read_text
 from ..errors import InputError
 
-__all__ = ["VERSION", "checksum", "parse", "read", "write"]
+__all__ = ["MAX_CLASSIFIER_BYTES", "VERSION", "checksum", "parse", "read", "read_file", "write"]
 
 VERSION = 1
+#: Most bytes a classifier file may hold (:func:`~inertia_id.classifiers.registry.
+#: load_classifier`): a file past it is refused by its size, unread (a pipe, one byte past
+#: it). A document grows with the square of its series: the default kind keeps up to four
+#: covariances as lower triangles, about 24 bytes a value, and measured 2.6 MB trained on
+#: the paper's 4-step sequence and 33.8 MB on 16 steps (``inertia-id train --sequence``).
+#: The longest series the service trains on (8,192 values, two candidates under its 2**27
+#: covariance values) would make about 3.2 GB by the same count. 4 GB is above them all
+#: and still refuses a wrong file (a disk image, an endless pipe) before it is read.
+MAX_CLASSIFIER_BYTES = 4_000_000_000
 
 
 def checksum(payload: dict[str, Any]) -> str:
@@ -35,6 +45,16 @@ def write(format_name: str, payload: dict[str, Any]) -> str:
             "sha256": checksum(payload),
             "classifier": payload,
         }
+    )
+
+
+def read_file(path: str | os.PathLike[str]) -> str:
+    """A classifier file's text, refused unread past :data:`MAX_CLASSIFIER_BYTES`."""
+    return read_text(
+        path,
+        "a classifier's JSON document",
+        limit=MAX_CLASSIFIER_BYTES,
+        advice="is it a classifier (inertia-id train writes one)?",
     )
 
 

@@ -225,11 +225,10 @@ def classifier_from_json(text: str | bytes | dict[str, Any]) -> CandidateClassif
 
 
 def load_classifier(path: str | os.PathLike[str]) -> CandidateClassifier:
-    """Read any classifier document from a file (see :func:`classifier_from_json`)."""
-    from ..checks import read_text
-
-    text = read_text(path, "a classifier's JSON document")
-    return classifier_from_json(documents.parse(text, unique_keys=True))
+    """Read any classifier document from a file (see :func:`classifier_from_json`); one
+    of more than :data:`~inertia_id.classifiers.documents.MAX_CLASSIFIER_BYTES` is
+    refused by its size, unread."""
+    return classifier_from_json(documents.parse(documents.read_file(path), unique_keys=True))
 
 
 def warm_up() -> None:

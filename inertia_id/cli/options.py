@@ -33,6 +33,13 @@ if TYPE_CHECKING:
 
 F = TypeVar("F", bound=Callable[..., Any])
 
+#: Most bytes a scenario file (``--scenario``) or a sequence file (``--sequence``) may
+#: hold; past it the file is refused by its size, unread (a pipe, one byte past it). The
+#: presets' JSON is 3 KB indented, and a 136-step sequence (the longest series the
+#: service trains on) of 24 thrusters 24 KB: a megabyte is a wrong file, not a scenario.
+MAX_SCENARIO_BYTES = 1_000_000
+MAX_SEQUENCE_BYTES = 1_000_000
+
 
 class LazyChoice(click.Choice[str]):
     """A :class:`click.Choice` whose choices come from the core when first needed.
@@ -182,8 +189,15 @@ def load_scenario(preset_name: str, scenario_path: str | None) -> Scenario:
     from ..checks import DuplicateKeyError, loads_unique_keys, read_text
     from ..physics.scenario import Scenario
 
+    # Read outside the try: a file refused for its size or encoding says so, not "not JSON".
+    text = read_text(
+        scenario_path,
+        "a scenario's JSON",
+        limit=MAX_SCENARIO_BYTES,
+        advice="is it a scenario (inertia-id scenario writes one)?",
+    )
     try:
-        document = loads_unique_keys(read_text(scenario_path, "a scenario's JSON"))
+        document = loads_unique_keys(text)
     except DuplicateKeyError as exc:
         raise InputError(f"scenario {scenario_path!r} has a {exc}") from None
     except (ValueError, RecursionError) as exc:
@@ -198,7 +212,12 @@ def parse_sequence(text: str) -> list[list[int]]:
     if os.path.isfile(text):
         from ..checks import read_text
 
-        source = read_text(text, "a sequence: a JSON list of rows")
+        source = read_text(
+            text,
+            "a sequence: a JSON list of rows",
+            limit=MAX_SEQUENCE_BYTES,
+            advice="is it a sequence (rows of level indices)?",
+        )
     source = source.strip()
     parts = source.removesuffix(";").split(";")
     empty = [i + 1 for i, row in enumerate(parts) if not row.strip()]

@@ -5,7 +5,9 @@ failed before its fix)."""
 from __future__ import annotations
 
 import json
+import os
 import re
+import threading
 import warnings
 from pathlib import Path
 
@@ -13,8 +15,18 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from inertia_id import Scenario, estimate_inertia, load_classifier, simulate, train_classifier
+from inertia_id import (
+    InertiaClassifier,
+    Scenario,
+    estimate_inertia,
+    load_classifier,
+    simulate,
+    train_classifier,
+)
+from inertia_id.classifiers import documents
+from inertia_id.classifiers.documents import MAX_CLASSIFIER_BYTES
 from inertia_id.cli import main
+from inertia_id.cli.options import MAX_SCENARIO_BYTES, MAX_SEQUENCE_BYTES
 from inertia_id.errors import InputError
 from inertia_id.evaluation.sweep import run_inertia_sweep, run_sweep
 from inertia_id.evaluation.telemetry import MAX_TELEMETRY_BYTES, load_telemetry
@@ -137,6 +149,100 @@ def test_a_named_pipe_is_read_no_further_than_the_limit(tmp_path: Path) -> None:
     exact = tmp_path / "exact.csv"
     exact.write_text("0.05,0,0,0\n" * 10)
     assert read_text(exact, "telemetry", limit=110) == "0.05,0,0,0\n" * 10
+
+
+def _sparse(path: Path, size: int) -> Path:
+    """A file of ``size`` bytes that takes no disk (reading it would take the memory)."""
+    with path.open("wb") as file:
+        file.truncate(size)
+    return path
+
+
+def _pipe_of(path: Path, data: bytes) -> threading.Thread:
+    """A named pipe at ``path`` that serves ``data`` once, from a daemon thread."""
+    os.mkfifo(path)
+
+    def write() -> None:
+        with path.open("wb", buffering=0) as file:
+            try:
+                file.write(data)
+            except BrokenPipeError:
+                pass
+
+    writer = threading.Thread(target=write, daemon=True)
+    writer.start()
+    return writer
+
+
+def test_a_classifier_file_over_the_byte_limit_is_refused_unread(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A classifier file was read whole, whatever its size (telemetry alone had a limit):
+    one past MAX_CLASSIFIER_BYTES is refused by its size, a pipe one byte past it."""
+    big = _sparse(tmp_path / "c.json", MAX_CLASSIFIER_BYTES + 1)
+    telemetry = tmp_path / "pass.csv"
+    telemetry.write_text("time_s,wx,wy,wz\n0.05,0,0,0\n0.1,0,0,0\n")
+    message = refused(["identify", "--classifier", str(big), str(telemetry)])
+    assert message == (
+        f"Error: {str(big)!r} is {MAX_CLASSIFIER_BYTES + 1} bytes, over the limit of "
+        f"{MAX_CLASSIFIER_BYTES} bytes for a classifier's JSON document; is it a "
+        "classifier (inertia-id train writes one)?"
+    )
+    for load in (load_classifier, InertiaClassifier.load):
+        with pytest.raises(InputError, match=f"is {MAX_CLASSIFIER_BYTES + 1} bytes, over the"):
+            load(big)
+    # At the limit a classifier loads; a pipe is refused one byte past it.
+    fitted = train_classifier(
+        Scenario.paper(), SEQUENCE, 3, np.random.default_rng(0), metric="euclidean"
+    )
+    document = fitted.to_json().encode()
+    monkeypatch.setattr(documents, "MAX_CLASSIFIER_BYTES", len(document))
+    exact = tmp_path / "exact.json"
+    exact.write_bytes(document)
+    assert load_classifier(exact).candidate_names_ == fitted.candidate_names_
+    writer = _pipe_of(tmp_path / "piped.json", document + b" ")
+    with pytest.raises(
+        InputError, match=rf"piped\.json' holds more than {len(document)} bytes, over the limit"
+    ):
+        load_classifier(tmp_path / "piped.json")
+    writer.join(10)
+
+
+@pytest.mark.parametrize("option", ["--scenario", "--sequence"])
+def test_a_scenario_or_sequence_file_over_the_byte_limit_is_refused_unread(
+    tmp_path: Path, option: str
+) -> None:
+    """They were read whole, whatever their size: a megabyte is a wrong file, refused by
+    its size (one byte past it; at the limit, padded JSON is read as ever)."""
+    limit, what, advice = {
+        "--scenario": (
+            MAX_SCENARIO_BYTES,
+            "a scenario's JSON",
+            "is it a scenario (inertia-id scenario writes one)?",
+        ),
+        "--sequence": (
+            MAX_SEQUENCE_BYTES,
+            "a sequence: a JSON list of rows",
+            "is it a sequence (rows of level indices)?",
+        ),
+    }[option]
+    other = ["--sequence", "4,4,4,0,0,0"] if option == "--scenario" else []
+    big = _sparse(tmp_path / "big.json", limit + 1)
+    message = refused(["plan", *other, option, str(big)])
+    assert message == (
+        f"Error: {str(big)!r} is {limit + 1} bytes, over the limit of {limit} bytes for "
+        f"{what}; {advice}"
+    )
+    document = (
+        Scenario.paper().model_dump_json() if option == "--scenario" else json.dumps(SEQUENCE)
+    )
+    exact = tmp_path / "exact.json"
+    exact.write_text(document + " " * (limit - len(document)))
+    assert exact.stat().st_size == limit
+    out = tmp_path / "plan.json"
+    result = CliRunner().invoke(main, ["plan", *other, option, str(exact), "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    assert json.loads(out.read_text())
 
 
 def test_a_limit_far_above_memory_costs_only_the_file() -> None:
