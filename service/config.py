@@ -18,6 +18,7 @@ from pydantic_settings import BaseSettings, SettingsConfigDict
 __all__ = [
     "LONGEST_S",
     "LOOPBACK_HOSTS",
+    "MAX_COMPUTE_QUEUE",
     "MAX_COMPUTE_THREADS",
     "Settings",
     "get_settings",
@@ -37,6 +38,13 @@ LONGEST_S = 365 * 86400.0
 #: request in flight took an OS thread of its own (1,000 at once: 1,001 threads, none
 #: answered 503), bounded by nothing but the system's thread limit.
 MAX_COMPUTE_THREADS = 256
+
+#: Most requests ``INERTIA_ID_COMPUTE_QUEUE`` lets wait for a compute thread. Each waiter
+#: holds its connection and its request body (up to ``INERTIA_ID_MAX_BODY_BYTES``, 5 MB
+#: by default): 10,000 of them is already 50 GB at the default body limit and ten times
+#: the usual 1,024 open files of a process, so a longer queue only moves the failure from
+#: a 503 with Retry-After to memory or file descriptors running out.
+MAX_COMPUTE_QUEUE = 10_000
 
 #: Host header names the API always answers to: those of this machine's loopback.
 LOOPBACK_HOSTS = ("127.0.0.1", "localhost", "::1", "[::1]")
@@ -148,7 +156,11 @@ class Settings(BaseSettings):
     compute_threads: int = Field(
         default=1, ge=1, le=MAX_COMPUTE_THREADS, alias="INERTIA_ID_COMPUTE_THREADS"
     )
-    compute_queue: int = Field(default=200, ge=0, alias="INERTIA_ID_COMPUTE_QUEUE")
+    #: Requests allowed to wait for a compute thread; one more is a 503. At most
+    #: :data:`MAX_COMPUTE_QUEUE`.
+    compute_queue: int = Field(
+        default=200, ge=0, le=MAX_COMPUTE_QUEUE, alias="INERTIA_ID_COMPUTE_QUEUE"
+    )
     #: Where /identify computes: "eager" (a process of its own, started with the API),
     #: "lazy" (the same, started by the first identify), "off" (the compute threads).
     verdict_process: Literal["eager", "lazy", "off"] = Field(

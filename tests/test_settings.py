@@ -10,7 +10,13 @@ import pytest
 from pydantic import ValidationError
 from service_support import clean_env, free_port
 
-from service.config import LONGEST_S, MAX_COMPUTE_THREADS, Settings, setting_problems
+from service.config import (
+    LONGEST_S,
+    MAX_COMPUTE_QUEUE,
+    MAX_COMPUTE_THREADS,
+    Settings,
+    setting_problems,
+)
 
 #: A value each setting took before it had a range, and the service started with it:
 #: a body limit of -5 bytes, a heartbeat timeout of -1 s, a wait of 1e12 s that
@@ -39,6 +45,9 @@ OUT_OF_RANGE = [
     ("INERTIA_ID_COMPUTE_THREADS", "0"),
     ("INERTIA_ID_COMPUTE_THREADS", str(MAX_COMPUTE_THREADS + 1)),
     ("INERTIA_ID_COMPUTE_THREADS", str(10**9)),
+    ("INERTIA_ID_COMPUTE_QUEUE", "-1"),
+    ("INERTIA_ID_COMPUTE_QUEUE", str(MAX_COMPUTE_QUEUE + 1)),
+    ("INERTIA_ID_COMPUTE_QUEUE", str(10**9)),
     ("INERTIA_ID_COMPUTE_WAIT_S", "inf"),
     ("INERTIA_ID_VERDICT_TIMEOUT_S", "inf"),
     ("INERTIA_ID_JOB_TIME_LIMIT_S", "1e12"),
@@ -61,6 +70,8 @@ AT_THE_EDGE = [
     ("INERTIA_ID_CLASSIFIER_CACHE", "0"),
     ("INERTIA_ID_COMPUTE_THREADS", "1"),
     ("INERTIA_ID_COMPUTE_THREADS", str(MAX_COMPUTE_THREADS)),
+    ("INERTIA_ID_COMPUTE_QUEUE", "0"),
+    ("INERTIA_ID_COMPUTE_QUEUE", str(MAX_COMPUTE_QUEUE)),
     ("INERTIA_ID_JOB_TIME_LIMIT_S", str(LONGEST_S)),
 ]
 

@@ -166,6 +166,11 @@ def plan_cmd(
 #: The source entries that are paths (the user's text).
 _PATHS = ("search", "sequence_file")
 
+#: Most bytes of a search's JSON ``--search`` reads (refused unread past it): an NSGA-II
+#: search of the paper preset at L = 8 writes 93 KB (its front, baselines and curves),
+#: so 100 MB, the telemetry limit, is a wrong file.
+MAX_SEARCH_BYTES = 100_000_000
+
 
 def _iso_utc(stamp: datetime) -> str:
     """A time as ISO 8601 in UTC with ``Z``, as the service's CSV lines write it."""
@@ -219,14 +224,22 @@ def _strict_json(document: dict) -> str:
 
 
 def _search_document(path: str) -> dict:
-    from ..checks import DuplicateKeyError, loads_unique_keys
+    from ..checks import DuplicateKeyError, loads_unique_keys, read_text
     from ..errors import InputError
 
+    # Read outside the try: a file refused for its size or encoding says so, not "not a
+    # search JSON".
+    text = read_text(
+        path,
+        "a search's JSON",
+        limit=MAX_SEARCH_BYTES,
+        advice="is it a search (a job downloaded from the service, or inertia-id search --out)?",
+    )
     try:
-        document = loads_unique_keys(Path(path).read_text(encoding="utf-8"))
+        document = loads_unique_keys(text)
     except DuplicateKeyError as error:
         raise InputError(f"{path} has a {error}") from None
-    except (UnicodeDecodeError, ValueError, RecursionError) as error:
+    except (ValueError, RecursionError) as error:
         raise InputError(f"{path} is not a search JSON: {error}") from None
     if not isinstance(document, dict):
         raise InputError(f"{path} is not a search JSON: it holds a {type(document).__name__}")

@@ -324,6 +324,18 @@ def test_a_malformed_search_document_is_named(
     assert message in refused([*args, "--member", member] if member else args)
 
 
+def test_a_search_file_over_the_byte_limit_is_refused_unread(tmp_path: Path) -> None:
+    """It was read whole, whatever its size (a sparse file one byte past the limit)."""
+    from inertia_id.cli.plan import MAX_SEARCH_BYTES
+
+    big = _sparse(tmp_path / "search.json", MAX_SEARCH_BYTES + 1)
+    assert refused(["plan", "--search", str(big), "--out", "-"]) == (
+        f"Error: {str(big)!r} is {MAX_SEARCH_BYTES + 1} bytes, over the limit of "
+        f"{MAX_SEARCH_BYTES} bytes for a search's JSON; is it a search (a job downloaded "
+        "from the service, or inertia-id search --out)?"
+    )
+
+
 def test_a_scenario_error_is_one_line_without_pydantic_links(tmp_path: Path) -> None:
     document = Scenario.paper().model_dump(mode="json")
     document["timing"]["step_duration_s"] = -1
