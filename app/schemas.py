@@ -722,11 +722,34 @@ class ComponentHealth(BaseModel):
     detail: str
 
 
+class WarmingWorker(BaseModel):
+    name: str
+    warming_s: float = Field(
+        description="how long the worker has had no warm task process, s: since its "
+        "replacement started (the first of them, when one was killed before it was warm); "
+        "read from the worker's last beat"
+    )
+
+
 class WorkersHealth(BaseModel):
-    ok: bool
+    ok: bool = Field(
+        description="false when no worker is live, or when one has been warming longer "
+        "than warming_limit_s"
+    )
     count: int
-    names: list[str]
+    names: list[str] = Field(description="live workers, those warming included")
     window_s: float = Field(description="a worker counts if seen within this many seconds")
+    warming: list[WarmingWorker] = Field(
+        default_factory=list,
+        description="live workers whose task process is being replaced (the last one "
+        "retired after its jobs or its memory limit, or was killed) and imports the core: "
+        "each takes queued jobs as soon as it is warm",
+    )
+    warming_limit_s: float = Field(
+        description="a warm-up longer than this (INERTIA_ID_HEARTBEAT_TIMEOUT_S, or "
+        "INERTIA_ID_WORKER_START_TIMEOUT_S when shorter) makes the workers not ok"
+    )
+    detail: str | None = Field(default=None, description="what is wrong, when not ok")
 
 
 class QueueHealth(BaseModel):

@@ -14,6 +14,8 @@ from __future__ import annotations
 import logging
 import os
 import threading
+import time
+from datetime import UTC, datetime
 from typing import Any
 
 from celery.signals import worker_init, worker_ready, worker_shutdown, worker_shutting_down
@@ -21,11 +23,11 @@ from celery.signals import worker_init, worker_ready, worker_shutdown, worker_sh
 from service.config import Settings, get_settings
 from service.queue import make_celery
 from service.store import Database
-from service.store.jobs import start_worker, touch_worker
+from service.store.jobs import beat_worker, start_worker
 
 from . import incarnation
 from .context import broker_label
-from .process import mark_stopping, warm
+from .process import cold_since, mark_stopping, warm
 from .reaper import hand_back_jobs, reap_once, resend_once, take_restarted_runs
 from .ticker import Ticker
 
@@ -65,11 +67,22 @@ class WorkerMonitor:
     def tick(self) -> None:
         if not self.life.held:
             self.life.try_hold()
-        if warm():
-            # Seen only once a task process can run a job at once (see worker.process).
+        is_warm = warm()
+        if is_warm or self._started:
+            # Seen first once a task process can run a job at once (see worker.process).
+            # Later, while a replacement task process warms up (the last one retired
+            # after its jobs or its memory limit, or was killed), the worker beats on as
+            # warming: it takes the queued jobs as soon as the replacement is up, so
+            # /health need not call it gone (which it did at every retirement), and can
+            # tell a warm-up that takes too long.
             with self.db.session() as session:
                 if self._started:
-                    touch_worker(session, self.name, broker_label(self.settings))
+                    beat_worker(
+                        session,
+                        self.name,
+                        broker_label(self.settings),
+                        warming_since=None if is_warm else _warming_since(),
+                    )
                 else:
                     # A new incarnation of the name: a fresh row, not a dead one's.
                     start_worker(
@@ -118,6 +131,13 @@ class WorkerMonitor:
         them (closing would end the parent's sessions on PostgreSQL)."""
         self.db.engine.dispose(close=False)
         self.life.forget_after_fork()
+
+
+def _warming_since() -> datetime:
+    # Now, when the replacement has not started yet (the pool starts it within a
+    # second of the last one's exit).
+    since = cold_since()
+    return datetime.fromtimestamp(time.time() if since is None else since, UTC)
 
 
 _monitor: WorkerMonitor | None = None

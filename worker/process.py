@@ -28,6 +28,7 @@ import secrets
 import signal
 import struct
 import sys
+import time
 from typing import Any
 
 from celery.signals import celeryd_init, worker_process_init, worker_ready
@@ -35,7 +36,9 @@ from celery.utils.nodenames import default_nodename
 
 __all__ = [
     "PARENT_PID_ENV",
+    "cold_since",
     "die_with_parent",
+    "mark_starting",
     "mark_stopping",
     "mark_warm",
     "stop_with_launcher",
@@ -65,6 +68,15 @@ _STOPPING = mmap.mmap(-1, 1)
 _WARM_SLOTS = 64
 _PID = struct.Struct("i")
 _WARM = mmap.mmap(-1, _PID.size * _WARM_SLOTS)
+# Since when (s since the epoch; 0: not) the worker has had no warm task process: set by
+# a task process that starts while none is warm (the last one retired after its jobs or
+# its memory limit, or was killed), kept by another that starts in its place before
+# warming up (Celery kills one that takes too long), cleared by the first to be warm. The
+# main process beats only every few seconds: a warm-up, a job and the next warm-up can
+# all fall between two beats, and each warm-up is then dated from its own start, not
+# from the beat that first saw the worker warming.
+_SINCE = struct.Struct("d")
+_COLD_SINCE = mmap.mmap(-1, _SINCE.size)
 
 
 def _slot_offset() -> int:
@@ -74,9 +86,17 @@ def _slot_offset() -> int:
     return _PID.size * (int(index or 0) % _WARM_SLOTS)
 
 
+def mark_starting() -> None:
+    """In a task process, before its warm-up: the worker is cold from now unless a warm
+    task process is left, or it was cold already."""
+    if not warm() and _SINCE.unpack_from(_COLD_SINCE)[0] == 0.0:
+        _SINCE.pack_into(_COLD_SINCE, 0, time.time())
+
+
 def mark_warm() -> None:
     """In a task process: the core is imported and the kernels compiled."""
     _PID.pack_into(_WARM, _slot_offset(), os.getpid())
+    _SINCE.pack_into(_COLD_SINCE, 0, 0.0)
 
 
 def _alive(pid: int) -> bool:
@@ -90,6 +110,16 @@ def _alive(pid: int) -> bool:
 def warm() -> bool:
     """Whether a live task process of this worker has warmed up."""
     return any(pid and _alive(pid) for (pid,) in _PID.iter_unpack(_WARM))
+
+
+def cold_since() -> float | None:
+    """When (s since the epoch) this worker's task process now warming up, or the first
+    of those that started in turn, started, as none was warm; None when there is a warm
+    one, or when the replacement has not started yet."""
+    if warm():
+        return None
+    since = float(_SINCE.unpack_from(_COLD_SINCE)[0])
+    return since or None
 
 
 def mark_stopping() -> None:
@@ -148,6 +178,7 @@ def _unique_default_name(instance: Any = None, **_kwargs: Any) -> None:
 def _task_process_started(**_kwargs: Any) -> None:
     # A task process left behind by a worker that was killed would run on unsupervised.
     die_with_parent(signal.SIGKILL)
+    mark_starting()
     from .runner import warm_up
 
     try:

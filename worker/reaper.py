@@ -138,14 +138,19 @@ def reap_once(settings: Settings, db: Database, celery: Celery) -> ReapReport:
 
 
 def idle_workers(settings: Settings, db: Database) -> int:
-    """Live workers (seen within the silence window, not stopping) minus running jobs,
-    at least 0."""
+    """Live workers (seen within the silence window, not stopping, not warming) minus
+    running jobs, at least 0. A warming worker takes no message until its task process
+    is up: a message waiting for it is not lost."""
     cutoff = utcnow() - timedelta(seconds=WORKER_SILENCE_BEATS * settings.heartbeat_interval_s)
     with db.session() as session:
         live = session.scalar(
             select(func.count())
             .select_from(WorkerRow)
-            .where(WorkerRow.last_seen_at >= cutoff, WorkerRow.stopping_since.is_(None))
+            .where(
+                WorkerRow.last_seen_at >= cutoff,
+                WorkerRow.stopping_since.is_(None),
+                WorkerRow.warming_since.is_(None),
+            )
         )
         running = session.scalar(
             select(func.count()).select_from(JobRow).where(JobRow.status == "running")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import logging
 import os
-from datetime import UTC, timedelta
+from datetime import UTC, datetime, timedelta
 from typing import Any
 
 from celery import Celery
@@ -16,7 +16,7 @@ from service.config import Settings
 from service.store.models import JobRow, WorkerRow, utcnow
 from service.store.session import Database
 
-from ..schemas import ComponentHealth, HealthOut, QueueHealth, WorkersHealth
+from ..schemas import ComponentHealth, HealthOut, QueueHealth, WarmingWorker, WorkersHealth
 from .deps import CeleryDep, DatabaseDep, SettingsDep
 from .routing import UniqueKeysRoute
 
@@ -61,6 +61,12 @@ def _broker(settings: Settings, celery: Celery) -> ComponentHealth:
     return ComponentHealth(ok=True, detail=f"{scheme} broker reachable")
 
 
+def _age_s(now: datetime, since: datetime) -> float:
+    if since.tzinfo is None:  # SQLite hands back naive UTC
+        since = since.replace(tzinfo=UTC)
+    return max(0.0, (now - since).total_seconds())
+
+
 def _queue(
     settings: Settings, database: Database, database_ok: bool, live_workers: int
 ) -> QueueHealth:
@@ -94,9 +100,7 @@ def _queue(
     except Exception:  # the database went away between the ping and the query
         log.exception("could not read the jobs table")
         return QueueHealth(ok=False, queued=0, running=0, unsent=0, oldest_queued_s=None)
-    if oldest is not None and oldest.tzinfo is None:
-        oldest = oldest.replace(tzinfo=UTC)
-    age = None if oldest is None else max(0.0, (now - oldest).total_seconds())
+    age = None if oldest is None else _age_s(now, oldest)
     idle_workers = live_workers - int(running or 0)
     # A worker with no job takes a queued job within a poll of its broker; one that
     # just finished a long job may be caught for that moment, hence the long threshold.
@@ -122,37 +126,69 @@ def _queue(
 
 def _workers(settings: Settings, database: Database, database_ok: bool) -> WorkersHealth:
     window = _HEARTBEATS_OF_GRACE * settings.heartbeat_interval_s
-    names: list[str] = []
+    # Past the heartbeat timeout a warm-up is as stuck as a run that stopped beating;
+    # past the start timeout Celery has killed the replacement and started another.
+    limit = min(settings.heartbeat_timeout_s, settings.worker_start_timeout_s)
+    rows: list[tuple[str, datetime | None]] = []
+    now = utcnow()
     if database_ok:
-        cutoff = utcnow() - timedelta(seconds=window)
+        cutoff = now - timedelta(seconds=window)
         try:
             with database.session() as session:
-                names = list(
-                    session.scalars(
-                        select(WorkerRow.name)
+                rows = [
+                    (name, since)
+                    for name, since in session.execute(
+                        select(WorkerRow.name, WorkerRow.warming_since)
                         # A worker told to stop (SIGTERM) takes no job any more: it
                         # leaves the list at once, not a silence window later.
                         .where(WorkerRow.last_seen_at >= cutoff, WorkerRow.stopping_since.is_(None))
                         .order_by(WorkerRow.name)
                     )
-                )
+                ]
         except Exception:  # the database went away between the ping and the query
             log.exception("could not read the workers table")
-    return WorkersHealth(ok=bool(names), count=len(names), names=names, window_s=window)
+    warming = [
+        WarmingWorker(name=name, warming_s=_age_s(now, since))
+        for name, since in rows
+        if since is not None
+    ]
+    overdue = [w for w in warming if w.warming_s > limit]
+    detail = None
+    if not database_ok:
+        detail = "the database is unreachable: no worker can be read"
+    elif not rows:
+        detail = f"no worker seen in the last {window:g} s"
+    elif overdue:
+        detail = "; ".join(
+            f"worker {w.name} has been warming up for {w.warming_s:.0f} s (over {limit:g} s): "
+            "its task process does not start"
+            for w in overdue
+        )
+    return WorkersHealth(
+        ok=bool(rows) and not overdue,
+        count=len(rows),
+        names=[name for name, _ in rows],
+        window_s=window,
+        warming=warming,
+        warming_limit_s=limit,
+        detail=detail,
+    )
 
 
 @router.get("/health")
 def health(settings: SettingsDep, database: DatabaseDep, celery: CeleryDep) -> HealthOut:
-    """Database reachable, broker reachable, workers seen recently, no queued job
-    left without a message nor waiting long while a worker sits idle: "ok", else
-    "degraded".
+    """Database reachable, broker reachable, workers seen recently (one whose task
+    process is being replaced counts, as warming, unless its warm-up takes too long), no
+    queued job left without a message nor waiting long while a worker sits idle: "ok",
+    else "degraded".
 
     Always 200: the body says what is wrong.
     """
     db = _database(database)
     broker = _broker(settings, celery)
     workers = _workers(settings, database, db.ok)
-    queue = _queue(settings, database, db.ok, workers.count)
+    # A warming worker takes no job until it is warm: it is not idle.
+    queue = _queue(settings, database, db.ok, workers.count - len(workers.warming))
     return HealthOut(
         status="ok" if db.ok and broker.ok and workers.ok and queue.ok else "degraded",
         version=inertia_id.__version__,

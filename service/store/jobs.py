@@ -56,6 +56,7 @@ __all__ = [
     "WORKER_RESTARTED",
     "ScenarioGone",
     "add_metrics",
+    "beat_worker",
     "cancel",
     "claim",
     "clear_metrics",
@@ -724,6 +725,7 @@ def start_worker(session: Session, name: str, broker_url: str, incarnation: str)
         "last_seen_at": now,
         "stopping_since": None,
         "incarnation": incarnation,
+        "warming_since": None,
     }
     dialect = session.get_bind().dialect.name
     if dialect in ("sqlite", "postgresql"):
@@ -747,8 +749,21 @@ def start_worker(session: Session, name: str, broker_url: str, incarnation: str)
 
 def touch_worker(session: Session, name: str, broker_url: str) -> None:
     """Record that worker ``name`` is alive now (insert its row, or move last_seen_at)."""
+    _upsert_worker(session, name, broker_url, {})
+
+
+def beat_worker(
+    session: Session, name: str, broker_url: str, *, warming_since: datetime | None
+) -> None:
+    """The worker's main process's beat: alive now, and since when it has had no warm
+    task process (a replacement importing the core), None when it has one."""
+    _upsert_worker(session, name, broker_url, {"warming_since": warming_since})
+
+
+def _upsert_worker(session: Session, name: str, broker_url: str, updates: dict[str, Any]) -> None:
     now = utcnow()
-    values = {"name": name, "broker_url": broker_url, "started_at": now, "last_seen_at": now}
+    updates = {"last_seen_at": now, "broker_url": broker_url, **updates}
+    values = {"name": name, "started_at": now, **updates}
     dialect = session.get_bind().dialect.name
     if dialect in ("sqlite", "postgresql"):
         # A worker's main process and its task process beat under one name: an atomic
@@ -756,14 +771,12 @@ def touch_worker(session: Session, name: str, broker_url: str) -> None:
         insert = sqlite.insert if dialect == "sqlite" else postgresql.insert
         statement = insert(WorkerRow).values(**values)
         session.execute(
-            statement.on_conflict_do_update(
-                index_elements=[WorkerRow.name],
-                set_={"last_seen_at": now, "broker_url": broker_url},
-            )
+            statement.on_conflict_do_update(index_elements=[WorkerRow.name], set_=updates)
         )
         return
     row = session.get(WorkerRow, name)
     if row is None:
         session.add(WorkerRow(**values))
     else:
-        row.last_seen_at, row.broker_url = now, broker_url
+        for key, value in updates.items():
+            setattr(row, key, value)

@@ -15,11 +15,23 @@ from service.store.session import Database
 from .support import Api, make_settings
 
 
-def add_worker(api: Api, name: str, seconds_ago: float) -> None:
-    seen = utcnow() - timedelta(seconds=seconds_ago)
+def add_worker(
+    api: Api, name: str, seconds_ago: float, *, warming_for_s: float | None = None
+) -> None:
+    """A worker row last beaten ``seconds_ago``; ``warming_for_s``: its task process has
+    been warming up that long (a replacement importing the core)."""
+    now = utcnow()
+    seen = now - timedelta(seconds=seconds_ago)
+    warming = None if warming_for_s is None else now - timedelta(seconds=warming_for_s)
     with api.db.session() as session:
         session.add(
-            WorkerRow(name=name, broker_url="filesystem://", started_at=seen, last_seen_at=seen)
+            WorkerRow(
+                name=name,
+                broker_url="filesystem://",
+                started_at=seen,
+                last_seen_at=seen,
+                warming_since=warming,
+            )
         )
 
 
@@ -36,6 +48,9 @@ def test_health_without_workers_is_degraded(api: Api) -> None:
         "count": 0,
         "names": [],
         "window_s": 3 * api.settings.heartbeat_interval_s,
+        "warming": [],
+        "warming_limit_s": api.settings.heartbeat_timeout_s,
+        "detail": f"no worker seen in the last {3 * api.settings.heartbeat_interval_s:g} s",
     }
 
 
@@ -65,6 +80,44 @@ def test_health_leaves_out_a_worker_told_to_stop(api: Api) -> None:
         row.stopping_since = utcnow()
     health = api.get("/health").json()
     assert (health["status"], health["workers"]["count"]) == ("degraded", 0)
+
+
+def test_health_is_ok_while_a_workers_task_process_warms_up(api: Api) -> None:
+    # Its task process retired after its jobs (or its memory limit) and the replacement
+    # imports the core: the worker beats on and takes the queued jobs once warm. It used
+    # to drop out of the list, and /health said "degraded" after every such job.
+    add_worker(api, "celery@warming", seconds_ago=1.0, warming_for_s=12.0)
+    add_job(api, "queued", seconds_ago=api.settings.queue_stall_s + 60.0, seed=1)
+    health = api.get("/health").json()
+    assert health["status"] == "ok", health
+    workers = health["workers"]
+    assert (workers["ok"], workers["names"], workers["detail"]) == (True, ["celery@warming"], None)
+    [warming] = workers["warming"]
+    assert warming["name"] == "celery@warming"
+    assert 12.0 <= warming["warming_s"] < 60.0
+    # It takes no job while warming: the queue waits for it, it is not stalled.
+    assert health["queue"]["stalled"] is False
+
+
+def test_health_is_degraded_when_a_warm_up_takes_too_long(api: Api) -> None:
+    limit = min(api.settings.heartbeat_timeout_s, api.settings.worker_start_timeout_s)
+    add_worker(api, "celery@ready", seconds_ago=1.0)
+    add_worker(api, "celery@stuck", seconds_ago=1.0, warming_for_s=limit + 30.0)
+    health = api.get("/health").json()
+    assert health["status"] == "degraded"
+    workers = health["workers"]
+    assert workers["ok"] is False and workers["warming_limit_s"] == limit
+    assert workers["names"] == ["celery@ready", "celery@stuck"]
+    assert [w["name"] for w in workers["warming"]] == ["celery@stuck"]
+    assert "worker celery@stuck has been warming up for" in workers["detail"]
+    assert f"(over {limit:g} s)" in workers["detail"]
+
+
+def test_a_warming_worker_that_stopped_beating_is_gone(api: Api) -> None:
+    add_worker(api, "celery@dead", seconds_ago=3600.0, warming_for_s=3600.0)
+    health = api.get("/health").json()
+    assert health["status"] == "degraded"
+    assert (health["workers"]["names"], health["workers"]["warming"]) == ([], [])
 
 
 def add_job(api: Api, status: str, seconds_ago: float, seed: int) -> None:

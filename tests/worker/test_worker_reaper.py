@@ -14,6 +14,7 @@ from celery import Celery
 
 from service.queue import RUN_JOB_TASK, make_celery
 from service.store.jobs import (
+    beat_worker,
     claim,
     finish,
     hand_back,
@@ -248,6 +249,45 @@ def test_touch_worker_inserts_then_moves_last_seen(store: Store) -> None:
         assert row is not None
         assert row.started_at == started and row.last_seen_at > seen
         assert row.broker_url == "redis://127.0.0.1:6379/0"
+
+
+def test_a_workers_beat_says_since_when_it_is_warming(store: Store) -> None:
+    def warming_since() -> datetime | None:
+        with store.db.session() as session:
+            row = session.get(WorkerRow, "w1@host")
+            assert row is not None
+            since = row.warming_since
+        # SQLite hands back naive UTC.
+        return since if since is None or since.tzinfo else since.replace(tzinfo=UTC)
+
+    began = utcnow() - timedelta(seconds=7)
+    with store.db.session() as session:
+        beat_worker(session, "w1@host", "filesystem://", warming_since=began)
+    assert warming_since() == began
+    # A task process's beat (mid-job) leaves it as the main process last said.
+    with store.db.session() as session:
+        touch_worker(session, "w1@host", "filesystem://")
+    assert warming_since() == began
+    with store.db.session() as session:
+        beat_worker(session, "w1@host", "filesystem://", warming_since=None)
+    assert warming_since() is None
+
+
+def test_a_warming_worker_is_not_idle_for_the_re_sender(store: Store) -> None:
+    # Its task process is being replaced: a message waits in the broker until the new
+    # one is up. It is not lost, and is not sent again.
+    long_ago = utcnow() - timedelta(seconds=600)
+    waiting = store.add_job(status="queued", created_at=long_ago, sent_at=long_ago)
+    settings = store.settings.model_copy(update={"resend_after_s": 30.0})
+    celery = make_celery(settings)
+    with store.db.session() as session:
+        beat_worker(session, "w1@host", "filesystem://", warming_since=utcnow())
+    assert idle_workers(settings, store.db) == 0
+    assert resend_once(settings, store.db, celery) == []
+    with store.db.session() as session:
+        beat_worker(session, "w1@host", "filesystem://", warming_since=None)
+    assert idle_workers(settings, store.db) == 1
+    assert resend_once(settings, store.db, celery) == [waiting]
 
 
 def test_a_heartbeat_during_a_hand_back_does_not_deadlock(
