@@ -160,9 +160,17 @@ async function health() {
   try {
     const data = await api.health();
     const workers = data.workers.count;
-    badge.textContent = `${data.status} · ${workers} worker${workers === 1 ? "" : "s"}`;
+    // A worker whose task process is being replaced takes no job until it is warm: the
+    // badge counts it, and says so, as /health lists it.
+    const warming = new Map((data.workers.warming ?? []).map((w) => [w.name, w.warming_s]));
+    const names = data.workers.names.map((name) =>
+      warming.has(name) ? `${name} (warming up, ${Math.round(warming.get(name))} s)` : name,
+    );
+    badge.textContent =
+      `${data.status} · ${workers} worker${workers === 1 ? "" : "s"}` +
+      (warming.size ? ` (${warming.size} warming up)` : "");
     badge.className = `health ${data.status}`;
-    badge.title = `database: ${data.database.detail}\nbroker: ${data.broker.detail}\nworkers: ${data.workers.names.join(", ") || "none seen"}`;
+    badge.title = `database: ${data.database.detail}\nbroker: ${data.broker.detail}\nworkers: ${names.join(", ") || "none seen"}`;
   } catch (exc) {
     badge.textContent = "unreachable";
     badge.className = "health degraded";

@@ -8,6 +8,7 @@ Each test makes what it needs through the API; no job here runs to the end.
 
 from __future__ import annotations
 
+import json
 from typing import Any
 
 import pytest
@@ -456,3 +457,30 @@ def test_a_key_saved_or_removed_in_another_tab_shows_in_this_one(dashboard: Dash
     finally:
         other.close()
     _save_key(dashboard)
+
+
+def test_the_health_badge_says_which_worker_is_warming_up(dashboard: Dashboard) -> None:
+    """/health lists a worker whose task process is being replaced as warming (status
+    still ok); the badge said "ok · 1 worker" and its tooltip named it as any other."""
+    service = dashboard.service
+    answer = service.client.get("/health").json()
+    name = "celery@replaced"
+    answer["workers"] |= {
+        "count": 1,
+        "names": [name],
+        "warming": [{"name": name, "warming_s": 7.4}],
+    }
+    dashboard.page.route(
+        f"{service.base_url}/health",
+        lambda route: route.fulfill(
+            status=200, content_type="application/json", body=json.dumps(answer)
+        ),
+    )
+    dashboard.open("#/scenarios")
+    badge = dashboard.page.locator("#health")
+    dashboard.page.wait_for_function(
+        "() => document.getElementById('health').textContent.includes('warming')"
+    )
+    assert badge.text_content() == f"{answer['status']} · 1 worker (1 warming up)"
+    assert f"workers: {name} (warming up, 7 s)" in (badge.get_attribute("title") or "")
+    dashboard.page.unroute(f"{service.base_url}/health")
