@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 from pydantic import ValidationError
-from service_support import clean_env, free_port
+from service_support import ROOT, clean_env, free_port
 
 from service.config import (
     LONGEST_S,
@@ -212,3 +212,56 @@ def test_every_entry_point_refuses_a_bad_setting_in_one_line(program: str, tmp_p
         "INERTIA_ID_HEARTBEAT_TIMEOUT_S=60 (at most 30 s): with fewer than two heartbeats a "
         "timeout, one late or lost beat gets a running job reaped"
     ]
+
+
+def _readme_settings_table() -> dict[str, tuple[str, str]]:
+    """The README's table of numeric settings: each variable's default and range cells
+    as written (a row may name several, ``A, B | 10, 30``: the defaults in that order)."""
+    rows: dict[str, tuple[str, str]] = {}
+    for line in (ROOT / "README.md").read_text(encoding="utf-8").splitlines():
+        cells = [cell.strip() for cell in line.strip().strip("|").split("|")]
+        if len(cells) != 3 or not cells[0].startswith("`INERTIA_ID_"):
+            continue
+        names = [name.strip().strip("`") for name in cells[0].split(",")]
+        defaults = [value.strip() for value in cells[1].split(",")]
+        assert len(names) == len(defaults), f"README row {line!r}: names and defaults differ"
+        for name, default in zip(names, defaults, strict=True):
+            rows[name] = (default, cells[2])
+    return rows
+
+
+def test_the_readme_states_every_setting_and_each_numeric_ones_default_and_bound() -> None:
+    """A new contributor follows the README: every setting of ``service/config.py`` is
+    named there, and each numeric one sits in its table with the default the code uses
+    and its lower bound (the request-head limits and the data folder were missing)."""
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    table = _readme_settings_table()
+    problems = []
+    for info in Settings.model_fields.values():
+        name = str(info.alias)
+        if name not in readme:
+            problems.append(f"{name} is not in README.md")
+        if info.annotation not in (int, float):
+            continue
+        if name not in table:
+            problems.append(f"{name} is not in README.md's table of numeric settings")
+            continue
+        default, bound = table[name]
+        if float(default) != info.default:
+            problems.append(f"README gives {name} the default {default}, the code {info.default:g}")
+        for rule in info.metadata:
+            kind = type(rule).__name__
+            if kind in ("Ge", "Gt"):
+                limit = getattr(rule, kind.lower())
+                sign = "≥" if kind == "Ge" else ">"
+                if f"{sign} {limit:g}" not in bound and f"{limit:g}.." not in bound:
+                    problems.append(
+                        f"README gives {name} the range {bound!r}, the code {sign} {limit:g}"
+                    )
+            elif kind == "Le" and not name.endswith("_S"):
+                # Every duration's ceiling is the one year the text above the table states.
+                if f"..{rule.le:g}" not in bound and f"≤ {rule.le:g}" not in bound:
+                    problems.append(
+                        f"README gives {name} the range {bound!r}, the code ≤ {rule.le:g}"
+                    )
+    assert not problems, "\n".join(problems)
