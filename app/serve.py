@@ -218,8 +218,8 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--host",
         default=os.environ.get("INERTIA_ID_HOST", "127.0.0.1"),
-        help="Address to bind (default 127.0.0.1: this machine only; 0.0.0.0 opens it to "
-        "the network).",
+        help="Address to bind (default 127.0.0.1, or INERTIA_ID_HOST: 127.0.0.1 is this "
+        "machine only; 0.0.0.0 opens it to the network).",
     )
     parser.add_argument(
         "--port",
@@ -230,7 +230,8 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--data-dir",
         default=os.environ.get("INERTIA_ID_DATA_DIR", "inertia-id-data"),
-        help="Folder for the database, broker, policies and logs (default ./inertia-id-data).",
+        help="Folder for the database, broker, policies and logs (default ./inertia-id-data, "
+        "or INERTIA_ID_DATA_DIR).",
     )
     parser.add_argument(
         "--workers",

@@ -32,6 +32,17 @@ def test_serve_help_lists_its_options_from_both_entry_points() -> None:
         for option in ("--host", "--port", "--data-dir", "--workers"):
             assert option in done.stdout
         assert "127.0.0.1" in done.stdout
+        # Each option that takes its default from a variable names it: with
+        # INERTIA_ID_HOST=0.0.0.0 set, the help said "default 127.0.0.1" while serve
+        # bound every address.
+        help_text = " ".join(done.stdout.split())
+        for variable in (
+            "INERTIA_ID_HOST",
+            "INERTIA_ID_PORT",
+            "INERTIA_ID_DATA_DIR",
+            "INERTIA_ID_API_WORKERS",
+        ):
+            assert variable in help_text
 
 
 def test_serve_refuses_a_negative_worker_count() -> None:
