@@ -486,6 +486,16 @@ class SweepParams(StrictModel):
             raise ValueError(f"noises must not repeat, got {value}")
         return value
 
+    @model_validator(mode="after")
+    def _deprecated_name_moved(self) -> SweepParams:
+        # The deprecated name wins when given (as documented): the job stores the count
+        # that runs under its one name. Kept apart, a job given limit_realisations 200
+        # showed ceiling_realisations 2000 beside it while its sweep used 200.
+        if self.limit_realisations is not None:
+            self.ceiling_realisations = self.limit_realisations
+            self.limit_realisations = None
+        return self
+
 
 JobParams = SearchParams | TrainParams | SweepParams
 #: The parameter model of each job type.

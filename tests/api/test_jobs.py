@@ -252,6 +252,16 @@ def test_sweep_job_for_a_stored_classifier(api: Api, classifier: InertiaClassifi
     )
     assert off.status_code == 202, off.text
     assert off.json()["params"]["multiples"] == [0.0, 1.0]
+    # The deprecated name wins and is stored under the one the sweep runs by: it showed
+    # ceiling_realisations 2000 beside limit_realisations 200, and the sweep used 200.
+    old_name = api.submit(
+        "sweep",
+        scenario_id,
+        params={"classifier_id": classifier_id, "limit_realisations": 200},
+    )
+    assert old_name.status_code == 202, old_name.text
+    stored = api.get_with_key(f"/jobs/{old_name.json()['id']}").json()["params"]
+    assert (stored["ceiling_realisations"], stored["limit_realisations"]) == (200, None)
 
 
 def test_sweep_refuses_a_classifier_of_other_candidates(
