@@ -24,7 +24,8 @@ def _plan_file_name(context: click.Context, param: click.Parameter, value: str) 
     refused: JSON text was written into it."""
     if value.lower().endswith(tuple(f for f in OTHER_FORMATS if f != ".csv")):
         raise click.BadParameter(
-            f"plan writes CSV or JSON; name the file .csv or .json, got {value!r}"
+            f"plan writes CSV (to a .csv name) or JSON (to any name of no other known "
+            f"format); name the file .csv or .json, got {value!r}"
         )
     return value
 

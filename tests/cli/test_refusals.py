@@ -612,7 +612,10 @@ def test_the_memory_available_is_read_from_meminfo(tmp_path: Path) -> None:
     ("args", "message"),
     [
         # Each wrote JSON text into a file named for another format.
-        (["plan", "--sequence", "4,4,4,0,0,0", "--out", "plan.npz"], "got 'plan.npz'"),
+        (
+            ["plan", "--sequence", "4,4,4,0,0,0", "--out", "plan.npz"],
+            "(to any name of no other known format); name the file .csv or .json, got 'plan.npz'",
+        ),
         (["plan", "--sequence", "4,4,4,0,0,0", "--out", "plan.XLSX"], "got 'plan.XLSX'"),
         (["scenario", "--out", "s.npz"], "this command writes JSON; name the file .json"),
         # Refused by click like search's --out: exit 2 for each (simulate's was 1).
