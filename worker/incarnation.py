@@ -11,10 +11,17 @@ system lets go of when it dies, however it dies (``kill -9`` included): a Postgr
 session advisory lock (its connection closes with the process), or, for SQLite (the
 workers share the database's machine), an ``flock`` on a file beside the database. So a
 worker restarted at once finds its earlier incarnation's lock free and takes that one's
-jobs at once, while two *live* workers started under one name by mistake each find the
-other's lock held and leave the other's jobs alone. A database where neither can be
-held (an in-memory SQLite) reports every earlier incarnation alive: the reaper's
-heartbeat timeout stays the backstop.
+jobs within two beats (see :class:`Witness`), while two *live* workers started under
+one name by mistake each find the other's lock held and leave the other's jobs alone. A
+database where neither can be held (an in-memory SQLite) reports every earlier
+incarnation alive: the reaper's heartbeat timeout stays the backstop.
+
+A lock can be lost while its process lives: the PostgreSQL session that holds it ends
+(the server restarts, ``pg_terminate_backend``, ``idle_session_timeout``), or its file
+is removed. Others then find it free and could judge the live process dead and run its
+jobs again. So the worker's monitor checks its lock at every beat and takes it again
+(:meth:`Life.keep`); and a lock found free is believed only when found free again
+two beats later, its run silent meanwhile (:class:`Witness`).
 
 Written here rather than taken from a library: the lock has to be tied to the database
 the workers share (its server, or its file), which no lock library we use knows of.
@@ -28,6 +35,8 @@ import fcntl
 import hashlib
 import logging
 import os
+import time
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
@@ -37,7 +46,7 @@ from sqlalchemy.orm import Session
 
 from service.store.models import new_id
 
-__all__ = ["Life", "alive", "current"]
+__all__ = ["Life", "Witness", "alive", "current"]
 
 logger = logging.getLogger(__name__)
 
@@ -89,8 +98,24 @@ class Life:
             import psycopg
 
             conninfo = url.set(drivername="postgresql").render_as_string(hide_password=False)
-            connection = psycopg.connect(conninfo, autocommit=True)
-            connection.execute("SELECT pg_advisory_lock(%s)", (_key(self.incarnation),))
+            # Named, so an operator sees it in pg_stat_activity for what it is.
+            connection = psycopg.connect(
+                conninfo, autocommit=True, application_name=f"inertia-id lock {self.incarnation}"
+            )
+            try:
+                # Not pg_advisory_lock: a session holding the key (an alive() probe
+                # stuck mid-way) would block the monitor's beat for as long.
+                taken = connection.execute(
+                    "SELECT pg_try_advisory_lock(%s)", (_key(self.incarnation),)
+                ).fetchone()
+                if not (taken and taken[0]):
+                    raise RuntimeError(
+                        f"the lock of incarnation {self.incarnation} is held by another "
+                        "database session"
+                    )
+            except BaseException:
+                connection.close()
+                raise
             self._connection = connection
             return True
         path = _lock_file(self.database_url, self.incarnation)
@@ -100,6 +125,56 @@ class Life:
         self._fd, self._path = _open_locked(path), path
         _sweep(path.parent, keep=path)
         return True
+
+    def lost(self) -> str | None:
+        """Why the lock this process took is not held any more, or None (held, or never
+        taken): its database session ended (a server restart, ``pg_terminate_backend``,
+        ``idle_session_timeout``), or its file was removed (others then find no lock
+        and judge this live process dead)."""
+        if self._connection is not None:
+            key = _key(self.incarnation)
+            # pg_locks names a bigint advisory key in two unsigned 32-bit halves.
+            high, low = (key >> 32) & 0xFFFFFFFF, key & 0xFFFFFFFF
+            try:
+                row = self._connection.execute(
+                    "SELECT count(*) FROM pg_locks WHERE locktype = 'advisory'"
+                    " AND pid = pg_backend_pid() AND granted AND objsubid = 1"
+                    " AND classid = %s::bigint::oid AND objid = %s::bigint::oid",
+                    (high, low),
+                ).fetchone()
+            except Exception as exc:
+                return f"its database session ended ({type(exc).__name__}: {exc})"
+            return None if row and row[0] else "its database session no longer holds it"
+        if self._fd is not None and self._path is not None:
+            try:
+                same = os.fstat(self._fd).st_ino == os.stat(self._path).st_ino
+            except OSError:
+                same = False
+            return None if same else f"its file {self._path} was removed"
+        return None
+
+    def keep(self) -> bool:
+        """At each of the monitor's beats: take the lock again if it was lost (see
+        :meth:`lost`), or take it at last; whether it is held. The check also keeps
+        the lock's session from idling past the server's ``idle_session_timeout``."""
+        reason = self.lost()
+        if reason is not None:
+            logger.warning("this worker's incarnation lock was lost: %s; taking it again", reason)
+            self._let_go()
+            if self.try_hold():
+                logger.info("took this worker's incarnation lock again")
+                return True
+            return False
+        return self.held or self.try_hold()
+
+    def _let_go(self) -> None:
+        if self._connection is not None:
+            with contextlib.suppress(Exception):
+                self._connection.close()
+            self._connection = None
+        if self._fd is not None:
+            os.close(self._fd)
+            self._fd, self._path = None, None
 
     def try_hold(self) -> bool:
         """:meth:`hold`, its failure logged rather than raised: with its traceback the
@@ -222,3 +297,35 @@ def alive(session: Session, database_url: str, incarnation: str) -> bool:
         return False
     finally:
         os.close(fd)
+
+
+class Witness:
+    """Judges an earlier incarnation gone only once its lock was found free at two
+    probes at least ``confirm_s`` apart (with no probe between that found it held).
+
+    A lock found free once may belong to a live process whose lock's session just
+    ended (the database restarted): that process takes it again at its next beat
+    (:meth:`Life.keep`), so with ``confirm_s`` longer than a beat a live process is
+    found holding it at the second probe. A dead one's lock stays free.
+
+    :param confirm_s: seconds between the first and the deciding probe.
+    :param clock: monotonic seconds (a test passes its own).
+    """
+
+    def __init__(self, confirm_s: float, clock: Callable[[], float] = time.monotonic) -> None:
+        self.confirm_s = confirm_s
+        self._clock = clock
+        self._free_since: dict[str, float] = {}
+
+    def gone(self, incarnation: str, lock_free: bool) -> bool:
+        """Record a probe of ``incarnation``'s lock; whether it is judged gone."""
+        if not lock_free:
+            self._free_since.pop(incarnation, None)
+            return False
+        now = self._clock()
+        return now - self._free_since.setdefault(incarnation, now) >= self.confirm_s
+
+    def keep_only(self, incarnations: Iterable[str]) -> None:
+        """Forget the incarnations not among ``incarnations`` (their runs were taken)."""
+        wanted = set(incarnations)
+        self._free_since = {k: v for k, v in self._free_since.items() if k in wanted}

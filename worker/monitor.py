@@ -54,6 +54,8 @@ class WorkerMonitor:
         #: processes can claim a job, or at the first tick.
         self.life = life or incarnation.Life(settings.resolved_database_url, incarnation.current())
         self._started = False
+        #: Judges an earlier incarnation of this name gone (see take_restarted_runs).
+        self.witness = incarnation.Witness(2 * settings.heartbeat_interval_s)
         # Its own app and connections: the reaper publishes from this thread, away from
         # the consumer's event loop.
         self.celery = make_celery(settings)
@@ -65,8 +67,8 @@ class WorkerMonitor:
         )
 
     def tick(self) -> None:
-        if not self.life.held:
-            self.life.try_hold()
+        # Taken again if it was lost while this process lives (see Life.keep).
+        self.life.keep()
         is_warm = warm()
         if is_warm or self._started:
             # Seen first once a task process can run a job at once (see worker.process).
@@ -89,9 +91,11 @@ class WorkerMonitor:
                         session, self.name, broker_label(self.settings), self.life.incarnation
                     )
             self._started = True
-        # Before the reaper: a run of this name's earlier, dead process is taken at once,
-        # with its cause, not by the heartbeat timeout as a hung task process.
-        take_restarted_runs(self.settings, self.db, self.celery, self.name, self.life.incarnation)
+        # Before the reaper: a run of this name's earlier, dead process is taken within
+        # two beats, with its cause, not by the heartbeat timeout as a hung task process.
+        take_restarted_runs(
+            self.settings, self.db, self.celery, self.name, self.life.incarnation, self.witness
+        )
         report = reap_once(self.settings, self.db, self.celery)
         if report.requeued or report.failed:
             logger.warning(

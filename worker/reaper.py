@@ -217,22 +217,38 @@ def take_lost_run(
 
 
 def take_restarted_runs(
-    settings: Settings, db: Database, celery: Celery, worker: str, current: str
+    settings: Settings,
+    db: Database,
+    celery: Celery,
+    worker: str,
+    current: str,
+    witness: incarnation.Witness,
 ) -> ReapReport:
     """Re-queue and re-send, or end, the jobs still running under ``worker``'s name for
     an earlier process of that name that is gone (incarnation ``current`` is this one):
     a worker killed whole and started again under its name, as docker restarts a
-    container. At once, by the reaper's ``max_attempts`` rule; a live process of the
-    same name keeps its jobs (see :mod:`worker.incarnation`)."""
+    container. By the reaper's ``max_attempts`` rule, within two beats rather than the
+    heartbeat timeout: gone means its lock found free at two of ``witness``'s probes
+    two beats apart, and its run silent for two beats; a live process of the same name
+    keeps its jobs, also while it takes again a lock it lost (see
+    :mod:`worker.incarnation`)."""
     url = settings.resolved_database_url
+    probed: list[str] = []
+
+    def alive(other: str) -> bool:
+        probed.append(other)
+        return not witness.gone(other, not incarnation.alive(session, url, other))
+
     with db.session() as session:
         requeued, ended = take_earlier_incarnations(
             session,
             worker,
             current,
-            alive=lambda other: incarnation.alive(session, url, other),
+            alive=alive,
             max_attempts=settings.max_attempts,
+            beat_within_s=2 * settings.heartbeat_interval_s,
         )
+    witness.keep_only(probed)
     for job_id in _dispatch(db, celery, requeued, mark=True):
         logger.warning("re-queued job %s: worker %s restarted, its run was lost", job_id, worker)
     for job_id in ended:

@@ -658,24 +658,31 @@ def take_earlier_incarnations(
     *,
     alive: Callable[[str], bool],
     max_attempts: int,
+    beat_within_s: float = 0.0,
     now: datetime | None = None,
 ) -> tuple[list[str], list[str]]:
     """Take the jobs still running under ``worker``'s name for an earlier incarnation
     (another worker process of that name, see :func:`start_worker`) that is not
     ``alive`` any more: the worker was killed whole and started again under its name
     (docker keeps a container's hostname across a restart). Re-queued or ended by the
-    reaper's rule (:func:`reap_stale`), at once rather than after the heartbeat timeout,
-    with the cause :data:`WORKER_RESTARTED`. The jobs of a live incarnation (a second
-    worker started under the same name by mistake) are left to it; so are the jobs
-    claimed before incarnations were recorded (NULL: the reaper takes them).
+    reaper's rule (:func:`reap_stale`), sooner than the heartbeat timeout, with the
+    cause :data:`WORKER_RESTARTED`. The jobs of a live incarnation (a second worker
+    started under the same name by mistake) are left to it; so are the jobs claimed
+    before incarnations were recorded (NULL: the reaper takes them), and a run that beat
+    within ``beat_within_s``: its process lives, whatever its lock says (a live process
+    whose lock's database session ended takes the lock again at its next beat; see
+    :mod:`worker.incarnation`).
 
     Returns (re-queued job ids, ended job ids).
     """
+    now = now or utcnow()
     mine = and_(
         JobRow.status == "running",
         JobRow.worker == worker,
         JobRow.worker_incarnation.is_not(None),
         JobRow.worker_incarnation != incarnation,
+        func.coalesce(JobRow.heartbeat_at, JobRow.started_at)
+        < now - timedelta(seconds=beat_within_s),
     )
     earlier = set(session.scalars(select(JobRow.worker_incarnation).where(mine)))
     gone = sorted(other for other in earlier if other is not None and not alive(other))
@@ -687,7 +694,6 @@ def take_earlier_incarnations(
     if session.get_bind().dialect.name == "sqlite":
         session.execute(update(JobRow).where(lost).values(status=JobRow.status))
     jobs = session.scalars(select(JobRow).where(lost).with_for_update(skip_locked=True)).all()
-    now = now or utcnow()
     requeued: list[str] = []
     ended: list[str] = []
     for job in jobs:
