@@ -20,7 +20,8 @@ A lock can be lost while its process lives: the PostgreSQL session that holds it
 (the server restarts, ``pg_terminate_backend``, ``idle_session_timeout``), or its file
 is removed. Others then find it free and could judge the live process dead and run its
 jobs again. So the worker's monitor checks its lock at every beat and takes it again
-(:meth:`Life.keep`); and a lock found free is believed only when found free again
+(:meth:`Life.keep`); until it holds it again its task processes claim no job
+(:meth:`Life.may_claim`); and a lock found free is believed only when found free again
 two beats later, its run silent meanwhile (:class:`Witness`).
 
 Written here rather than taken from a library: the lock has to be tied to the database
@@ -34,6 +35,7 @@ import errno
 import fcntl
 import hashlib
 import logging
+import mmap
 import os
 import time
 from collections.abc import Callable, Iterable
@@ -84,10 +86,22 @@ class Life:
         self._fd: int | None = None
         self._path: Path | None = None
         self._failure: str | None = None  # the last failure try_hold logged
+        # One shared byte, 1 while this process may claim jobs (see may_claim): mapped
+        # before the worker forks its task processes, so they read what the main
+        # process writes.
+        self._claims = mmap.mmap(-1, 1)
 
     @property
     def held(self) -> bool:
         return self._connection is not None or self._fd is not None
+
+    def may_claim(self) -> bool:
+        """Whether a job claimed now is safe from a twin (another live process of the
+        same worker name): the lock is held, or the database has none (an in-memory
+        SQLite, where :func:`alive` judges no incarnation dead). Read by the task
+        processes before each claim; a job they may not claim stays queued for
+        another worker, or for this one once its lock is taken again."""
+        return self._claims[0] == 1
 
     def hold(self) -> bool:
         """Take the lock (once); whether it is held."""
@@ -117,13 +131,16 @@ class Life:
                 connection.close()
                 raise
             self._connection = connection
+            self._claims[0] = 1
             return True
         path = _lock_file(self.database_url, self.incarnation)
         if path is None:
+            self._claims[0] = 1  # nothing to guard: alive() judges no incarnation dead
             return False
         path.parent.mkdir(parents=True, exist_ok=True)
         self._fd, self._path = _open_locked(path), path
         _sweep(path.parent, keep=path)
+        self._claims[0] = 1
         return True
 
     def lost(self) -> str | None:
@@ -155,8 +172,9 @@ class Life:
 
     def keep(self) -> bool:
         """At each of the monitor's beats: take the lock again if it was lost (see
-        :meth:`lost`), or take it at last; whether it is held. The check also keeps
-        the lock's session from idling past the server's ``idle_session_timeout``."""
+        :meth:`lost`), or take it at last; whether it is held. Until it is, the task
+        processes claim no job (:meth:`may_claim`). The check also keeps the lock's
+        session from idling past the server's ``idle_session_timeout``."""
         reason = self.lost()
         if reason is not None:
             logger.warning("this worker's incarnation lock was lost: %s; taking it again", reason)
@@ -168,6 +186,7 @@ class Life:
         return self.held or self.try_hold()
 
     def _let_go(self) -> None:
+        self._claims[0] = 0
         if self._connection is not None:
             with contextlib.suppress(Exception):
                 self._connection.close()
@@ -195,6 +214,7 @@ class Life:
 
     def release(self) -> None:
         """Let go of the lock (a clean exit); its file, if any, is removed."""
+        self._claims[0] = 0
         if self._connection is not None:
             with contextlib.suppress(Exception):
                 self._connection.close()

@@ -31,7 +31,7 @@ from .process import cold_since, mark_stopping, warm
 from .reaper import hand_back_jobs, reap_once, resend_once, take_restarted_runs
 from .ticker import Ticker
 
-__all__ = ["WorkerMonitor", "current"]
+__all__ = ["WorkerMonitor", "current", "may_claim"]
 
 logger = logging.getLogger(__name__)
 
@@ -153,6 +153,13 @@ _life: incarnation.Life | None = None
 def current() -> WorkerMonitor | None:
     """This worker's monitor, once the worker is ready (in its main process)."""
     return _monitor
+
+
+def may_claim() -> bool:
+    """In a task process: whether its worker holds its incarnation lock, so a job it
+    claims now cannot be taken by a twin of its name (see Life.may_claim). True outside
+    a worker (no lock was ever wanted)."""
+    return _life is None or _life.may_claim()
 
 
 def _after_fork_in_child() -> None:

@@ -150,6 +150,7 @@ def execute_job(
     settings: Settings,
     worker_name: str,
     stopping: Callable[[], bool] = lambda: False,
+    may_claim: Callable[[], bool] = lambda: True,
 ) -> str:
     """Run job ``job_id`` if it is still queued; returns the status it ends in.
 
@@ -158,11 +159,14 @@ def execute_job(
     taken from this run (reaped after a stall) before it finished; "passed on" when
     ``stopping()`` says this worker is stopping: the job is left queued, unsent, for
     another worker's monitor to send again (a claim made as the stop came is handed
-    back, at no cost of an attempt).
+    back, at no cost of an attempt); "passed on" too when ``may_claim()`` says no:
+    this worker does not hold its incarnation lock (see :mod:`worker.incarnation`), so
+    a twin of its name could judge its run dead and run the job again; the job is left
+    queued, unsent, and sent again at a later beat.
     """
     db = Database(settings.resolved_database_url)
     try:
-        return _execute(job_id, db, settings, worker_name, stopping)
+        return _execute(job_id, db, settings, worker_name, stopping, may_claim)
     finally:
         db.dispose()
 
@@ -181,6 +185,21 @@ def _pass_on(db: Database, job_id: str, worker_name: str) -> str:
     return "passed on"
 
 
+def _leave_unclaimed(db: Database, job_id: str) -> str:
+    with db.session() as session:
+        session.execute(
+            update(JobRow)
+            .where(JobRow.id == job_id, JobRow.status == "queued")
+            .values(sent_at=None)
+        )
+    logger.warning(
+        "job %s left queued: this worker does not hold its incarnation lock, so another "
+        "worker of its name could take the run from it; it is sent again at a later beat",
+        job_id,
+    )
+    return "passed on"
+
+
 def _status(db: Database, job_id: str) -> str | None:
     with db.session() as session:
         return session.scalar(select(JobRow.status).where(JobRow.id == job_id))
@@ -192,6 +211,7 @@ def _execute(
     settings: Settings,
     worker_name: str,
     stopping: Callable[[], bool],
+    may_claim: Callable[[], bool],
 ) -> str:
     status = _status(db, job_id)
     if status is None:
@@ -202,6 +222,8 @@ def _execute(
         return status
     if stopping():
         return _pass_on(db, job_id, worker_name)
+    if not may_claim():
+        return _leave_unclaimed(db, job_id)
     try:
         handlers = _import_handlers()
     except Exception as exc:

@@ -13,6 +13,7 @@ from service.config import get_settings
 from service.queue import RUN_JOB_TASK
 
 from .celery_app import celery
+from .monitor import may_claim
 from .process import stopping
 from .request import RunJobRequest
 from .runner import execute_job
@@ -29,4 +30,10 @@ def run_job(self: Any, job_id: str) -> str:
     another delivery of the same message) does nothing.
     """
     worker_name = self.request.hostname or f"celery@{os.uname().nodename}"
-    return execute_job(job_id, settings=get_settings(), worker_name=worker_name, stopping=stopping)
+    return execute_job(
+        job_id,
+        settings=get_settings(),
+        worker_name=worker_name,
+        stopping=stopping,
+        may_claim=may_claim,
+    )

@@ -3,18 +3,26 @@ shapes: its PostgreSQL session ended (``pg_terminate_backend``; a server restart
 ``idle_session_timeout`` end it alike), or its lock file removed beside the SQLite file.
 
 Others then find the lock free. Before, a twin of the worker's name judged the live
-worker dead and re-queued its running job (run twice), and the worker never took its
-lock again. Now its monitor takes the lock again at its next beat, and a run whose lock
-is found free is taken only when found free again two beats later, its run silent.
+worker dead and re-queued its running job (run twice), the worker never took its lock
+again, and it went on claiming jobs a twin could take the same way. Now its monitor
+takes the lock again at its next beat, a run whose lock is found free is taken only when
+found free again two beats later, its run silent, and until the lock is held again the
+worker's task processes leave new jobs queued.
 """
 
 from __future__ import annotations
 
 import shutil
-from typing import TYPE_CHECKING
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from functools import partial
+from typing import TYPE_CHECKING, Any
 
+import pytest
 from scenario_support import GOOD_SEQUENCE
-from sqlalchemy import text, update
+from service_support import wait_for
+from sqlalchemy import Connection, text, update
 
 from service.store import JobRow
 from service.store.jobs import claim
@@ -22,11 +30,19 @@ from service.store.models import utcnow
 from worker.incarnation import Life, Witness, alive
 from worker.monitor import WorkerMonitor
 from worker.reaper import ReapReport, take_restarted_runs
+from worker.runner import execute_job
 
 if TYPE_CHECKING:
-    from conftest import Store
+    from conftest import Service, Store
 
 WORKER = "w1@host"
+QUICK_SEARCH: dict[str, Any] = {
+    "method": "random",
+    "sequence_length": 2,
+    "timesteps": 40,
+    "n_realisations": 3,
+    "metric": "euclidean",
+}
 
 
 def _lose(store: Store, life: Life) -> int | None:
@@ -49,6 +65,27 @@ def _lose(store: Store, life: Life) -> int | None:
     # The folder beside the database, cleaned out by hand (or a backup restored).
     shutil.rmtree(store.settings.data_dir / "inertia-id.db.incarnations")
     return None
+
+
+@contextmanager
+def _kept_from(store: Store, life: Life) -> Iterator[None]:
+    """The lock lost, and kept from its worker while inside: another session holds its
+    key (PostgreSQL), a file stands where its folder goes (SQLite)."""
+    key = _lose(store, life)
+    if key is None:
+        folder = store.settings.data_dir / "inertia-id.db.incarnations"
+        folder.touch()
+        try:
+            yield
+        finally:
+            folder.unlink()
+        return
+    with store.db.engine.connect() as connection:
+        assert connection.scalar(text("SELECT pg_try_advisory_lock(:key)"), {"key": key})
+        try:
+            yield
+        finally:
+            connection.execute(text("SELECT pg_advisory_unlock(:key)"), {"key": key})
 
 
 def _alive(store: Store, incarnation: str) -> bool:
@@ -74,7 +111,7 @@ def test_a_lock_lost_while_the_worker_lives_is_taken_again_at_its_next_beat(
         _lose(store, life)
         assert not _alive(store, "first")  # what a twin's probe sees now
         monitor.tick()
-        assert _alive(store, "first") and life.held
+        assert _alive(store, "first") and life.held and life.may_claim()
     finally:
         monitor.stop()
 
@@ -147,3 +184,114 @@ def test_a_lock_found_held_again_starts_the_count_afresh() -> None:
     assert not witness.gone("x", lock_free=True)
     now[0] = 22.0
     assert witness.gone("x", lock_free=True)
+
+
+def test_a_worker_without_its_lock_leaves_a_job_queued_and_runs_it_once_held(
+    store: Store, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import worker.monitor
+
+    # As the worker's start (worker_init) makes it, read by its task processes.
+    life = Life(store.settings.resolved_database_url, "first")
+    monkeypatch.setattr(worker.monitor, "_life", life)
+    monitor = WorkerMonitor(WORKER, store.settings, life)
+    job_id = store.add_job("train", {"sequence": "not a sequence"}, sent_at=utcnow())
+    try:
+        monitor.tick()
+        with _kept_from(store, life):
+            monitor.tick()  # finds it lost, cannot take it again
+            assert not life.held and not worker.monitor.may_claim()
+            status = execute_job(
+                job_id,
+                settings=store.settings,
+                worker_name=WORKER,
+                may_claim=worker.monitor.may_claim,
+            )
+            assert status == "passed on"
+            job = store.job(job_id)
+            assert (job.status, job.attempts, job.worker, job.sent_at) == ("queued", 0, None, None)
+        monitor.tick()
+        assert life.held and _alive(store, "first")
+        status = execute_job(
+            job_id, settings=store.settings, worker_name=WORKER, may_claim=worker.monitor.may_claim
+        )
+        assert status == "failed" and store.job(job_id).attempts == 1
+    finally:
+        monitor.stop()
+
+
+def _block_worker_lock(deployment: Service, timeout_s: float) -> Callable[[], None]:
+    """Take a running worker's lock from it and keep it so (as in _kept_from, for a
+    worker process); the function that gives it back."""
+    folder = deployment.settings.data_dir / "inertia-id.db.incarnations"
+    if deployment.kind == "filesystem":
+        while True:
+            shutil.rmtree(folder, ignore_errors=True)
+            try:
+                folder.touch(exist_ok=False)
+            except FileExistsError:
+                continue  # the worker made it again first, at a beat
+            return folder.unlink
+    connection = deployment.db.engine.connect()
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        row = connection.execute(
+            text(
+                # The worker's: the one advisory lock held long in this module's
+                # database (an alive() probe holds one for a moment, never the worker's).
+                "SELECT pid, (classid::bigint << 32) | objid::bigint FROM pg_locks"
+                " WHERE locktype = 'advisory' AND granted AND pid <> pg_backend_pid()"
+                " AND database = (SELECT oid FROM pg_database WHERE datname = current_database())"
+            )
+        ).first()
+        if row is not None:
+            pid, key = int(row[0]), int(row[1])
+            key = key - (1 << 64) if key >= 1 << 63 else key
+            connection.execute(text("SELECT pg_terminate_backend(:pid, 10000)"), {"pid": pid})
+            # The worker may take it again first, at its next beat: then again.
+            if connection.scalar(text("SELECT pg_try_advisory_lock(:key)"), {"key": key}):
+                connection.commit()
+                return partial(_unlock, connection, key)
+        connection.rollback()
+        time.sleep(0.05)
+    connection.close()
+    raise AssertionError("could not take the worker's lock from it")
+
+
+def _unlock(connection: Connection, key: int) -> None:
+    # By hand: a pooled connection's session, and its locks, outlive close().
+    connection.execute(text("SELECT pg_advisory_unlock(:key)"), {"key": key})
+    connection.close()
+
+
+def test_a_worker_whose_lock_is_taken_from_it_runs_no_job_until_it_holds_it_again(
+    deployment: Service,
+) -> None:
+    beat = {"INERTIA_ID_HEARTBEAT_INTERVAL_S": "0.5", "INERTIA_ID_UNSENT_GRACE_S": "0.5"}
+    worker = deployment.start_worker(**beat)
+    try:
+        give_back = _block_worker_lock(deployment, 30.0)
+        try:
+            # Seen lost at a beat, and not taken again (the worker may have taken it
+            # back before _block_worker_lock held it: "lost" alone is not enough).
+            wait_for(
+                lambda: "could not take this worker's incarnation lock" in worker.log(20_000),
+                30.0,
+                "the worker did not find its lock lost and kept from it",
+                worker.log,
+            )
+            job_id = deployment.submit("search", QUICK_SEARCH, seed=64)
+            wait_for(
+                lambda: f"job {job_id} left queued" in worker.log(20_000),
+                60.0,
+                f"job {job_id} was not left queued",
+                worker.log,
+            )
+            job = deployment.job(job_id)
+            assert (job.status, job.attempts) == ("queued", 0), (job.status, job.attempts)
+        finally:
+            give_back()
+        job = deployment.wait_for(job_id)
+        assert (job.status, job.attempts) == ("succeeded", 1), worker.log()
+    finally:
+        worker.kill()
