@@ -25,7 +25,15 @@ took a start that measured fewer, more or the same number of grid times as the t
 one, or could not try the true start (the telemetry falls short of it at an end: the
 search tries only the starts the telemetry reaches at both ends, so ``--head`` and
 ``--tail`` do not combine with it). ``--loss`` and ``--start-within`` are for this
-accuracy mode, not ``--coverage``.
+accuracy mode, not ``--coverage``. With ``--sub-grid`` the stated start is off the true
+one by any amount within ``±W / 2``, not a whole number of grid periods, and the samples
+lie at a random phase from the true start (the pass simulated at 100 Hz, read every
+n-th sample from a random one of the first n): the true start then lies anywhere
+between the grid times the search tries, as a spacecraft's clock leaves it. The row
+adds how far the start taken lies from the true one, in grid periods (median, 90th
+percentile and largest of its size), and the part of the searches that refined the
+start below the grid. ``--rate`` above the grid's (100 Hz) simulates the pass at that
+rate, the classifier's grid unchanged.
 
 Per row: accuracy of the most probable candidate (with its 95 % Wilson interval), the
 fraction "identified" at 0.99 and the errors among them, genuine series called matches
@@ -62,6 +70,7 @@ import numpy as np
 from _common import GOOD_SEQUENCE, base_parser, float_list, print_header, print_table, write_json
 
 from inertia_id.classifiers.registry import default_realisations, train_classifier
+from inertia_id.cli.scenario import _at_rate
 from inertia_id.evaluation import telemetry as telemetry_module
 from inertia_id.evaluation.identify import identify
 from inertia_id.evaluation.sweep import wilson_interval
@@ -104,11 +113,12 @@ def _start_found(
             telemetry,
             grid,
             lambda *_: 0.0,
-            window_s=abs(stated),
+            # The nearest grid start to a true start between grid times too (--sub-grid).
+            window_s=abs(stated) + grid_period / 2,
             tried=tried,
             marginalise_gaps=True,
         )
-    true_shift = [shift for shift in tried if abs(stated + shift) < grid_period / 2]
+    true_shift = [shift for shift in tried if abs(stated + shift) <= grid_period / 2]
     if not true_shift:
         return "untried"
     truth = identify(classifier, telemetry.shifted(true_shift[0]), start_hint=False)
@@ -258,6 +268,11 @@ def main() -> None:
         metavar="W",
         help="search the start within ±W s, the stated one off by up to W/2 (see above)",
     )
+    parser.add_argument(
+        "--sub-grid",
+        action="store_true",
+        help="with --start-within: the true start anywhere between grid times (see above)",
+    )
     parser.add_argument("--realisations", type=int, default=None, help="training realisations")
     parser.add_argument(
         "--coverage",
@@ -283,6 +298,8 @@ def main() -> None:
                 "--start-within does not combine with --head or --tail: the start search "
                 "tries only the starts the telemetry reaches at both ends"
             )
+    if args.sub_grid and args.start_within is None:
+        parser.error("--sub-grid is for the start search: give --start-within")
     process = args.process[0]
     print_header("Telemetry with a hole: accuracy against the same series whole", args)
     rng = np.random.default_rng(args.seed)
@@ -305,11 +322,16 @@ def main() -> None:
         before, after = 30, math.ceil(search) + 1
     quiet = [[0] * scenario.n_thrusters]
     flown = quiet * before + sequence + quiet * after
-    result = simulate(scenario, flown, args.series, rng, process_noise_scale=process)
-    every = round(scenario.timing.sample_rate_hz / args.rate)
-    t = np.asarray(result.time_s)[every - 1 :: every] - before
-    omega = result.omega_measured[:, :, every - 1 :: every]
-    grid_period = 1.0 / scenario.timing.sample_rate_hz
+    grid_rate = scenario.timing.sample_rate_hz
+    # Faster than the grid, or at a random phase from the true start: simulated faster.
+    sim_rate = max(args.rate, 5.0 * grid_rate if args.sub_grid else grid_rate)
+    every = round(sim_rate / args.rate)
+    if abs(every * args.rate - sim_rate) > 1e-9 * sim_rate:
+        parser.error(f"--rate {args.rate:g} Hz does not divide the simulation's {sim_rate:g} Hz")
+    flying = scenario if sim_rate == grid_rate else _at_rate(scenario, sim_rate)
+    result = simulate(flying, flown, args.series, rng, process_noise_scale=process)
+    times = np.asarray(result.time_s) - before
+    grid_period = 1.0 / grid_rate
     cases: list[tuple[str, float | None]] = [("none", None), *((f"{h:g} s", h) for h in args.holes)]
     rows, figures = [], {}
     for name, length in cases:
@@ -319,6 +341,7 @@ def main() -> None:
         # grid times than the true one (the raw distance's bias favoured fewer).
         starts = dict.fromkeys(("right", "fewer", "more", "same", "untried"), 0)
         errors: list[float] = []  # each search's start less the true one, s
+        refined = 0
         started = time.perf_counter()
         for k in range(scenario.n_candidates):
             for i in range(args.series):
@@ -331,12 +354,18 @@ def main() -> None:
                         hole = (duration - length, math.inf)
                     else:
                         hole = (begin, begin + length)
+                # The samples a pass reads: every n-th, from the last of the first n (the
+                # grid's times at the grid's rate) or, with --sub-grid, a random one.
+                first = int(rng.integers(0, every)) if args.sub_grid else every - 1
+                t, omega = times[first::every], result.omega_measured[k, i, first::every]
                 lost = rng.random(len(t)) < args.loss if args.loss > 0 else None
                 stated = None
-                if search is not None:
+                if search is not None and args.sub_grid:
+                    stated = float(rng.uniform(-search / 2, search / 2))
+                elif search is not None:
                     off = math.floor(search / 2 / grid_period + 1e-9)
                     stated = float(rng.integers(-off, off + 1)) * grid_period
-                telemetry = _telemetry(t, omega[k, i], hole, lost, stated)
+                telemetry = _telemetry(t, omega, hole, lost, stated)
                 try:
                     verdict = identify(classifier, telemetry, estimate_start_within_s=search)
                 except ValueError as exc:
@@ -348,6 +377,7 @@ def main() -> None:
                     found = _start_found(classifier, verdict, telemetry, stated, grid_period)
                     starts[found] += 1
                     errors.append(round(stated + verdict.sequence_start_shift_s, 6))
+                    refined += bool(getattr(verdict, "sequence_start_refined", False))
         right, identified, wrong, flagged = (
             tally.right,
             tally.identified,
@@ -384,9 +414,17 @@ def main() -> None:
             figures[name]["right_start"] = starts["right"] / total
             figures[name]["wrong_starts"] = {k: v for k, v in starts.items() if k != "right"}
             figures[name]["start_errors_s"] = errors
+            size = np.abs(errors) / grid_period if errors else np.array([np.nan])
+            spread = [float(np.median(size)), float(np.quantile(size, 0.9)), float(size.max())]
+            figures[name]["start_error_periods"] = dict(
+                zip(("median", "p90", "max"), spread, strict=True)
+            )
+            figures[name]["refined"] = refined / total
             row += [
                 starts["right"] / total,
                 "/".join(str(starts[k]) for k in ("fewer", "more", "same", "untried")),
+                "/".join(f"{v:.2f}" for v in spread),
+                refined / total,
             ]
         rows.append([*row, seconds])
     header = [
@@ -401,7 +439,12 @@ def main() -> None:
         "covered",
     ]
     if search is not None:
-        header += ["right start", "wrong: fewer/more/same measured/true untried"]
+        header += [
+            "right start",
+            "wrong: fewer/more/same measured/true untried",
+            "|start error|, periods: median/p90/max",
+            "refined",
+        ]
     where = ""
     if args.head:
         where = ", each hole from the sequence start"
@@ -411,6 +454,8 @@ def main() -> None:
         where += f", {args.loss:.0%} of samples lost at random"
     if search is not None:
         where += f", start searched within ±{search:g} s"
+        if args.sub_grid:
+            where += ", true start between grid times"
     print_table(
         [*header, "s"],
         rows,
