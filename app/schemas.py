@@ -534,9 +534,10 @@ class IdentifyRequest(_Request):
         ge=0,
         le=MAX_ESTIMATE_START_WITHIN_S,
         description="search the starts within this many seconds of the stated one, one grid "
-        "period apart, for the one whose series lies closest to a candidate, and judge from "
-        "it (the CLI's --estimate-start-within); the verdict reports sequence_start_shift_s. "
-        "POST /identify only",
+        "period apart, for the one whose series lies closest to a candidate (refined below "
+        "the period for the likelihood kinds), and judge from it (the CLI's "
+        "--estimate-start-within); the verdict reports sequence_start_shift_s and "
+        "sequence_start_refined. POST /identify only",
     )
 
 
@@ -619,6 +620,14 @@ class IdentifyResult(BaseModel):
     )
     sequence_start_shift_s: float = Field(
         default=0.0, description="how much later than stated the start was taken, s"
+    )
+    sequence_start_refined: bool | None = Field(
+        default=None,
+        description="with a start search: true when the start was refined below the grid "
+        "period (the vertex of a parabola through the scores of the grid start found and "
+        "its neighbours), false when the grid's start was kept (a neighbour the telemetry "
+        "does not reach, scores that bracket no minimum, or a kind that compares whole "
+        "series); null: no search",
     )
     estimate_start_within_s: float | None = Field(
         default=None, description="the start search asked for, s; null: none"

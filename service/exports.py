@@ -893,6 +893,7 @@ def identify_table(verdict: Mapping[str, Any]) -> Table:
         notes += [
             ("estimate_start_within_s", verdict.get("estimate_start_within_s")),
             ("sequence_start_shifts_tried_s", verdict.get("sequence_start_shifts_tried_s")),
+            ("sequence_start_refined", verdict.get("sequence_start_refined")),
         ]
     if verdict.get("start_hint") is not None:
         notes.append(("start_hint", verdict.get("start_hint")))

@@ -34,12 +34,12 @@ the top candidate reaches ``1 - alpha``.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from pydantic import BaseModel, computed_field
-from scipy import special
 
 from ..checks import is_number
 from ..classifiers.gaussian import log_softmax
@@ -147,6 +147,7 @@ class Identification(BaseModel):
     # The inputs the verdict was computed from, so that a filed verdict ties to its pass.
     sequence_start: float | str | None = None
     sequence_start_shift_s: float = 0.0
+    sequence_start_refined: bool | None = None
     estimate_start_within_s: float | None = None
     sequence_start_shifts_tried_s: list[float] | None = None
     telemetry_first_stamp: float | str | None = None
@@ -518,26 +519,53 @@ def _best_start(
     window_s: float,
     pre_start_window_s: float,
     tried: list[float],
-) -> float:
+    *,
+    refine: bool = False,
+) -> tuple[float, bool]:
     """The start shift within ``±window_s`` whose series lies closest to a candidate
     (:func:`~inertia_id.evaluation.telemetry.estimate_sequence_start`); for a kind that
-    judges gaps, closest by the distance's novelty p-value on the grid times measured
-    at each start (:func:`_start_misfit`), as their count differs between starts.
+    judges gaps, closest by the distance's novelty deviate on the grid times measured
+    at each start (:func:`_start_misfit`), as their count differs between starts. With
+    ``refine``, that kind's start is then refined below the grid step
+    (:func:`_refined_start`); the second value says whether it was.
 
     The distance is the verdict's: less the offset measured before the stated start, by
     the classifier conditioned on it; but where the kind weighs its noise conditions by
     the samples before the start, every start's from the one condition they favour,
     not each start's own likeliest (``squared_distances_at_noise``: whole 20 Hz
     telemetry at 1x found the true start in 31 of 100 series, now 99). The offset is
-    measured once: a shift of a fraction of a second moves a sample or two of the 30 s
-    window. Without the offset a drifting body's telemetry 0.1 s late was put 0.25 s
-    early (paper-in-orbit, 10 Hz).
+    measured once, so that the starts are compared under one model (measured afresh at
+    each start, the search chose worse: README *Start below the grid period*); the
+    verdict measures it at the start taken. Without the offset a drifting body's
+    telemetry 0.1 s late was put 0.25 s early (paper-in-orbit, 10 Hz).
     """
+    marginalise = _judges_gaps(classifier)
+    costs: list[float] = []
+    shift, _ = estimate_sequence_start(
+        telemetry,
+        grid,
+        _start_score(classifier, telemetry, pre_start_window_s),
+        window_s=window_s,
+        tried=tried,
+        costs=costs,
+        marginalise_gaps=marginalise,
+        kind=classifier.kind,
+    )
+    if not (refine and marginalise):
+        return shift, False
+    refined = _refined_start(shift, tried, costs, float(grid[1] - grid[0]))
+    return (shift, False) if refined is None else (refined, True)
+
+
+def _start_score(
+    classifier: CandidateClassifier, telemetry: Telemetry, pre_start_window_s: float
+) -> Callable[..., float]:
+    """The start search's score of a resampled series (lower fits better), less the
+    offset measured before ``telemetry``'s sequence start (see :func:`_best_start`)."""
     scenario = classifier.scenario_
     assert scenario is not None  # _context checked it
     model, offset = _offset_model(classifier, scenario, telemetry, pre_start_window_s)
     less = 0.0 if offset is None else offset.offset_rad_s
-    marginalise = _judges_gaps(classifier)
 
     # One noise condition for every start where the kind weighs its conditions by the
     # telemetry before the start (:meth:`squared_distances_at_noise`).
@@ -556,22 +584,45 @@ def _best_start(
             squares = model.transform_observed(relative, measured) ** 2
         return _start_misfit(model, float(squares[0].min()), fraction)
 
-    shift, _ = estimate_sequence_start(
-        telemetry,
-        grid,
-        score,
-        window_s=window_s,
-        tried=tried,
-        marginalise_gaps=marginalise,
-        kind=classifier.kind,
-    )
-    return shift
+    return score
+
+
+def _refined_start(
+    shift: float, tried: list[float], costs: list[float], step: float
+) -> float | None:
+    """``shift`` (the grid start the search took) refined below the grid step, from the
+    scores the search gave it and its two neighbours a grid period away: the vertex of
+    the parabola through them, when it is convex and its vertex lies between the
+    neighbours (within half a period of ``shift``, which scored lowest); None when a
+    neighbour was not tried (the telemetry does not reach it) or the scores bracket no
+    minimum.
+
+    Only the grid's starts are used: they share the samples' phase on the grid, whereas
+    between them the score moves with that phase (a sample midway between two grid
+    times is interpolated, not read) by more than with the start (20 Hz telemetry on
+    the 20 Hz grid, paper-in-orbit at 1x: up to about 100 in the squared distance within
+    a period, against about 30 for a start a period off), so a minimisation over the
+    continuous shift chased the sampling, not the start. The scores are the search's,
+    under the one offset measured before the stated start: measured afresh at each start
+    the search chose worse (README *Start below the grid period*); the verdict measures
+    it at the start refined, as at any start it uses.
+    """
+    where = {round(s / step): i for i, s in enumerate(tried)}
+    middle = round(shift / step)
+    if middle - 1 not in where or middle + 1 not in where:
+        return None
+    before, here, after = (costs[where[middle + d]] for d in (-1, 0, 1))
+    curvature = before - 2.0 * here + after
+    if not curvature > 0.0:
+        return None
+    return shift + 0.5 * (before - after) / curvature * step
 
 
 def _start_misfit(model: Any, squared: float, fraction: float) -> float:
     """How badly a start fits, comparable between starts that measure different numbers
-    of grid times: ``-log`` of the nearest candidate's novelty p-value, P(D² >= squared)
-    for a genuine series on ``fraction`` of the grid's values.
+    of grid times: the normal deviate of the nearest candidate's novelty p-value,
+    P(D² >= squared) for a genuine series on ``fraction`` of the grid's values (larger:
+    a smaller p-value).
 
     Gapped telemetry measures a different number of grid times at different starts (a
     few more or fewer as a hole or the sampling pattern meets the sequence's ends). A
@@ -591,11 +642,17 @@ def _start_misfit(model: Any, squared: float, fraction: float) -> float:
 
     The tail is the verdict's (:class:`~inertia_id.classifiers.base.NoveltyTail`, its
     degrees of freedom in proportion to the part measured; without one, the Mahalanobis
-    distance's exact chi-square). Its log p-value is taken through the Wilson-Hilferty
+    distance's exact chi-square). Its normal deviate is taken through the Wilson-Hilferty
     cube root, within 0.01 of the exact normal deviate for p from 1e-3 to 1 - 1e-3 at 60
     degrees of freedom or more (0.03 at 20), written here because scipy's chi-square
     tail underflows to 0 (log -inf) below about 1e-308, as it does at every start of a
     series far from all the candidates, and those starts would all tie.
+
+    The deviate itself is returned, not ``-log p``: it ranks the starts in the same
+    order (``-log p`` grows with it), and it is smooth where ``-log p`` is not, flat at
+    0 for every start that fits well, so that :func:`_refined_start` can fit a parabola
+    through the scores of three starts (the deviate is locally affine in the squared
+    distance, itself quadratic in a small start error).
     """
     tail = model.novelty_tail_
     if tail is None:
@@ -605,8 +662,7 @@ def _start_misfit(model: Any, squared: float, fraction: float) -> float:
     k = max(dof * fraction, 1.0)
     spread = math.sqrt(2.0 / (9.0 * k))
     # np.cbrt: the square may fall below 0 (one condition's density for every start).
-    z = (float(np.cbrt(squared / (scale * k))) - (1.0 - spread**2)) / spread
-    return float(-special.log_ndtr(-z))
+    return (float(np.cbrt(squared / (scale * k))) - (1.0 - spread**2)) / spread
 
 
 def _judges_gaps(classifier: CandidateClassifier) -> bool:
@@ -646,12 +702,15 @@ def identify(
     telemetry, _, _, grid = _context(classifier, telemetry)
     if window_s is not None:
         tried: list[float] = []
-        shift = _best_start(classifier, telemetry, grid, window_s, pre_start_window_s, tried)
+        shift, refined = _best_start(
+            classifier, telemetry, grid, window_s, pre_start_window_s, tried, refine=True
+        )
         moved = telemetry.shifted(shift) if shift != 0.0 else telemetry
         verdict = _identify(classifier, moved, confidence, pre_start_window_s)
         return verdict.model_copy(
             update={
                 "sequence_start_shift_s": shift,
+                "sequence_start_refined": refined,
                 "estimate_start_within_s": window_s,
                 "sequence_start_shifts_tried_s": [min(tried), max(tried)],
             }
@@ -677,7 +736,8 @@ def _with_start_hint(
     step = float(grid[1] - grid[0])
     window_s = max(START_HINT_WINDOW_S, START_HINT_PERIODS * step)
     try:
-        shift = _best_start(classifier, telemetry, grid, window_s, pre_start_window_s, [])
+        # The grid's start: a hint names a start to check, not one to a fraction of a period.
+        shift, _ = _best_start(classifier, telemetry, grid, window_s, pre_start_window_s, [])
     except InputError:
         return verdict  # no other start fits the telemetry: nothing to say
     if shift == 0.0:

@@ -1015,6 +1015,7 @@ def estimate_sequence_start(
     window_s: float,
     step_s: float | None = None,
     tried: list[float] | None = None,
+    costs: list[float] | None = None,
     marginalise_gaps: bool = False,
     kind: str | None = None,
 ) -> tuple[float, np.ndarray]:
@@ -1036,6 +1037,9 @@ def estimate_sequence_start(
     :param window_s: the true start lies within this of the nominal one, s.
     :param step_s: the search step, s (default the grid period).
     :param tried: a list the shifts tried are appended to, s (in increasing order).
+    :param costs: a list each tried shift's score is appended to, in the order of
+        ``tried`` (for a caller that refines the start below the step, e.g.
+        :func:`~inertia_id.evaluation.identify.identify`).
     :param marginalise_gaps: a long gap between samples is judged across, not refused
         (:func:`resample_covered`): ``score`` is then called as ``score(series,
         measured)``, ``measured`` the (len(grid),) grid times with a real sample within
@@ -1091,6 +1095,8 @@ def estimate_sequence_start(
         )
         if tried is not None:
             tried.append(float(shift))
+        if costs is not None:
+            costs.append(cost)
         if best is None or cost < best[0]:
             best = (cost, float(shift), series)
     if best is None:

@@ -521,12 +521,16 @@ def test_identify_iso_stamps_and_an_estimated_start(
         [*base, "--sequence-start", "2025-03-01T11:59:59.8Z", "--estimate-start-within", "0.3"]
     )
     verdict = json.loads(early.stdout)
+    # Within a grid period: the start taken (0.25 s) is the latest the telemetry lets
+    # the search try, with no later neighbour to bracket a minimum, so it is not refined
+    # below the grid (README *Start below the grid period*; checked below).
     assert verdict["sequence_start_shift_s"] == pytest.approx(0.2, abs=0.051)
     assert verdict["candidate"] == "payload 2 ejected"
     # The telemetry ends 0.2 s after the sequence: no earlier start than about 0.2 s
     # late could be tried, and a narrower window than asked for is said, not kept quiet.
     low, high = verdict["sequence_start_shifts_tried_s"]
     assert low > 0.1 and high <= 0.3 and low <= verdict["sequence_start_shift_s"] <= high
+    assert verdict["sequence_start_refined"] is (verdict["sequence_start_shift_s"] < high)
     assert "could be tried, not ±0.3 s" in early.stderr
     # A window the telemetry covers to within a grid period: nothing to say.
     near = [*base, "--sequence-start", "2025-03-01T12:00:00Z", "--estimate-start-within", "0.05"]

@@ -16,6 +16,14 @@ from inertia_id.classifiers.marginal import MarginalLikelihoodClassifier
 from inertia_id.evaluation.identify import identify, identify_online
 from inertia_id.evaluation.telemetry import Telemetry, estimate_sequence_start, resample_covered
 
+#: How far a start found may lie from the true one, s, now that the likelihood kinds
+#: refine it below the 0.05 s grid: 0.45 of a period, above the largest error measured
+#: at 1x process noise on 20 Hz telemetry with the true start anywhere between grid
+#: times (0.34 periods of 40 series, a /tmp script; 0.40 of 40, bench/telemetry_gaps.py
+#: --sub-grid; README *Start below the grid period*). Before, the true start was
+#: asserted exactly (0.0), a grid time.
+START_TOLERANCE_S = 0.0225
+
 
 @pytest.fixture(scope="module")
 def passes(drifting_paper: Scenario) -> Any:
@@ -281,7 +289,7 @@ def test_the_start_search_is_not_drawn_to_a_start_that_measures_fewer_grid_times
     monkeypatch.setattr(MarginalLikelihoodClassifier, "squared_distances_at_noise", squares)
     monkeypatch.setattr(identify_module, "estimate_sequence_start", search)
     verdict = identify(marginal, telemetry, estimate_start_within_s=0.15)
-    assert verdict.sequence_start_shift_s == 0.0
+    assert abs(verdict.sequence_start_shift_s) <= START_TOLERANCE_S
     assert verdict.candidate == marginal.candidate_names_[4]
     starts = dict(zip(np.round(tried, 6), scored, strict=True))
     counts, squared = zip(*(starts[shift] for shift in sorted(starts)), strict=True)
@@ -310,7 +318,7 @@ def test_the_start_search_compares_the_starts_under_one_noise_condition(
                 sequence_start=0.0,
             )
             verdict = identify(marginal, telemetry, estimate_start_within_s=0.15)
-            assert verdict.sequence_start_shift_s == 0.0, (k, i)
+            assert abs(verdict.sequence_start_shift_s) <= START_TOLERANCE_S, (k, i)
             assert verdict.candidate_index == k
     # The squares against the marginal likelihood, on two starts' series.
     model, offset = identify_module._offset_model(marginal, drifting_paper, telemetry, 30.0)
@@ -366,7 +374,7 @@ def test_the_start_search_tries_a_start_whose_samples_at_an_end_were_lost(
     unmeasured = grid[~masks[tried.index(0.0)]]
     np.testing.assert_allclose(unmeasured, [v for v in lost if v in grid.round(6)])
     verdict = identify(marginal, telemetry, estimate_start_within_s=0.1)
-    assert verdict.sequence_start_shift_s == 0.0
+    assert abs(verdict.sequence_start_shift_s) <= START_TOLERANCE_S
     assert verdict.candidate == marginal.candidate_names_[2]
 
 

@@ -279,7 +279,9 @@ function startUsed(verdict, decimals, stated) {
       : verdict.sequence_start ?? "the telemetry's zero";
   if (verdict.estimate_start_within_s === null || verdict.estimate_start_within_s === undefined) return `${start} (as stated)`;
   const shift = verdict.sequence_start_shift_s;
-  return `${start} (shifted ${shift >= 0 ? "+" : ""}${shift.toFixed(decimals)} s by the search within ±${plain(verdict.estimate_start_within_s, 6)} s)`;
+  // A start refined below the grid period (the likelihood kinds) is said to be.
+  const refined = verdict.sequence_start_refined === true ? ", refined below the grid period" : "";
+  return `${start} (shifted ${shift >= 0 ? "+" : ""}${shift.toFixed(decimals)} s by the search within ±${plain(verdict.estimate_start_within_s, 6)} s${refined})`;
 }
 
 // The dropouts the verdict judged across (on the samples present), the part of the
