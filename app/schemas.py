@@ -740,10 +740,19 @@ class WarmingWorker(BaseModel):
     )
 
 
+class WorkerWithoutLock(BaseModel):
+    name: str
+    without_lock_s: float = Field(
+        description="how long the worker has not held its incarnation lock, s: since the "
+        "first of its beats that found it missing (not taken at its start, or lost and not "
+        "taken again); read from the worker's last beat"
+    )
+
+
 class WorkersHealth(BaseModel):
     ok: bool = Field(
-        description="false when no worker is live, or when one has been warming longer "
-        "than warming_limit_s"
+        description="false when no worker is live, when one has been warming longer "
+        "than warming_limit_s, or when none holds its incarnation lock"
     )
     count: int
     names: list[str] = Field(description="live workers, those warming included")
@@ -753,6 +762,12 @@ class WorkersHealth(BaseModel):
         description="live workers whose task process is being replaced (the last one "
         "retired after its jobs or its memory limit, or was killed) and imports the core: "
         "each takes queued jobs as soon as it is warm",
+    )
+    without_lock: list[WorkerWithoutLock] = Field(
+        default_factory=list,
+        description="live workers that do not hold their incarnation lock: each claims no "
+        "job (a job sent to it stays queued and is sent again) until it takes the lock "
+        "again, which it tries at every beat; its log says why it could not",
     )
     warming_limit_s: float = Field(
         description="a warm-up longer than this (INERTIA_ID_HEARTBEAT_TIMEOUT_S, or "

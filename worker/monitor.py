@@ -24,6 +24,7 @@ from service.config import Settings, get_settings
 from service.queue import make_celery
 from service.store import Database
 from service.store.jobs import beat_worker, start_worker
+from service.store.models import utcnow
 
 from . import incarnation
 from .context import broker_label
@@ -54,6 +55,8 @@ class WorkerMonitor:
         #: processes can claim a job, or at the first tick.
         self.life = life or incarnation.Life(settings.resolved_database_url, incarnation.current())
         self._started = False
+        #: Since when this worker's beats have found its lock not held (see tick).
+        self._lock_missing_since: datetime | None = None
         #: Judges an earlier incarnation of this name gone (see take_restarted_runs).
         self.witness = incarnation.Witness(2 * settings.heartbeat_interval_s)
         # Its own app and connections: the reaper publishes from this thread, away from
@@ -69,6 +72,12 @@ class WorkerMonitor:
     def tick(self) -> None:
         # Taken again if it was lost while this process lives (see Life.keep).
         self.life.keep()
+        # Not held (nor taken again just now): the task processes claim no job, so the
+        # row says since when, for /health (see Life.may_claim).
+        if self.life.may_claim():
+            self._lock_missing_since = None
+        elif self._lock_missing_since is None:
+            self._lock_missing_since = utcnow()
         is_warm = warm()
         if is_warm or self._started:
             # Seen first once a task process can run a job at once (see worker.process).
@@ -84,11 +93,16 @@ class WorkerMonitor:
                         self.name,
                         broker_label(self.settings),
                         warming_since=None if is_warm else _warming_since(),
+                        lock_missing_since=self._lock_missing_since,
                     )
                 else:
                     # A new incarnation of the name: a fresh row, not a dead one's.
                     start_worker(
-                        session, self.name, broker_label(self.settings), self.life.incarnation
+                        session,
+                        self.name,
+                        broker_label(self.settings),
+                        self.life.incarnation,
+                        lock_missing_since=self._lock_missing_since,
                     )
             self._started = True
         # Before the reaper: a run of this name's earlier, dead process is taken within

@@ -16,7 +16,14 @@ from service.config import Settings
 from service.store.models import JobRow, WorkerRow, utcnow
 from service.store.session import Database
 
-from ..schemas import ComponentHealth, HealthOut, QueueHealth, WarmingWorker, WorkersHealth
+from ..schemas import (
+    ComponentHealth,
+    HealthOut,
+    QueueHealth,
+    WarmingWorker,
+    WorkersHealth,
+    WorkerWithoutLock,
+)
 from .deps import CeleryDep, DatabaseDep, SettingsDep
 from .routing import UniqueKeysRoute
 
@@ -129,16 +136,18 @@ def _workers(settings: Settings, database: Database, database_ok: bool) -> Worke
     # Past the heartbeat timeout a warm-up is as stuck as a run that stopped beating;
     # past the start timeout Celery has killed the replacement and started another.
     limit = min(settings.heartbeat_timeout_s, settings.worker_start_timeout_s)
-    rows: list[tuple[str, datetime | None]] = []
+    rows: list[tuple[str, datetime | None, datetime | None]] = []
     now = utcnow()
     if database_ok:
         cutoff = now - timedelta(seconds=window)
         try:
             with database.session() as session:
                 rows = [
-                    (name, since)
-                    for name, since in session.execute(
-                        select(WorkerRow.name, WorkerRow.warming_since)
+                    (name, since, lock_missing_since)
+                    for name, since, lock_missing_since in session.execute(
+                        select(
+                            WorkerRow.name, WorkerRow.warming_since, WorkerRow.lock_missing_since
+                        )
                         # A worker told to stop (SIGTERM) takes no job any more: it
                         # leaves the list at once, not a silence window later.
                         .where(WorkerRow.last_seen_at >= cutoff, WorkerRow.stopping_since.is_(None))
@@ -149,36 +158,51 @@ def _workers(settings: Settings, database: Database, database_ok: bool) -> Worke
             log.exception("could not read the workers table")
     warming = [
         WarmingWorker(name=name, warming_s=_age_s(now, since))
-        for name, since in rows
+        for name, since, _ in rows
+        if since is not None
+    ]
+    without_lock = [
+        WorkerWithoutLock(name=name, without_lock_s=_age_s(now, since))
+        for name, _, since in rows
         if since is not None
     ]
     overdue = [w for w in warming if w.warming_s > limit]
-    detail = None
+    # Each live worker lacks its lock: none claims a job (each sent to one stays queued).
+    # One that holds it takes them all in turn, so the others alone are no fault.
+    none_locked = bool(rows) and len(without_lock) == len(rows)
+    details = []
     if not database_ok:
-        detail = "the database is unreachable: no worker can be read"
+        details.append("the database is unreachable: no worker can be read")
     elif not rows:
-        detail = f"no worker seen in the last {window:g} s"
-    elif overdue:
-        detail = "; ".join(
-            f"worker {w.name} has been warming up for {w.warming_s:.0f} s (over {limit:g} s): "
-            "its task process does not start"
-            for w in overdue
-        )
+        details.append(f"no worker seen in the last {window:g} s")
+    details += [
+        f"worker {w.name} has been warming up for {w.warming_s:.0f} s (over {limit:g} s): "
+        "its task process does not start"
+        for w in overdue
+    ]
+    if none_locked:
+        details += [
+            f"worker {w.name} has not held its incarnation lock for {w.without_lock_s:.0f} s: "
+            "it claims no job until it takes it again (its log says why it cannot)"
+            for w in without_lock
+        ]
     return WorkersHealth(
-        ok=bool(rows) and not overdue,
+        ok=bool(rows) and not overdue and not none_locked,
         count=len(rows),
-        names=[name for name, _ in rows],
+        names=[name for name, _, _ in rows],
         window_s=window,
         warming=warming,
+        without_lock=without_lock,
         warming_limit_s=limit,
-        detail=detail,
+        detail="; ".join(details) or None,
     )
 
 
 @router.get("/health")
 def health(settings: SettingsDep, database: DatabaseDep, celery: CeleryDep) -> HealthOut:
     """Database reachable, broker reachable, workers seen recently (one whose task
-    process is being replaced counts, as warming, unless its warm-up takes too long), no
+    process is being replaced counts, as warming, unless its warm-up takes too long; one
+    without its incarnation lock is listed, and no worker holding its lock is a fault), no
     queued job left without a message nor waiting long while a worker sits idle: "ok",
     else "degraded".
 

@@ -719,10 +719,18 @@ def clear_metrics(session: Session, job_id: str) -> None:
     session.execute(delete(MetricRow).where(MetricRow.job_id == job_id))
 
 
-def start_worker(session: Session, name: str, broker_url: str, incarnation: str) -> None:
+def start_worker(
+    session: Session,
+    name: str,
+    broker_url: str,
+    incarnation: str,
+    *,
+    lock_missing_since: datetime | None = None,
+) -> None:
     """Record that a worker process started under ``name`` as ``incarnation``: a new
     row, or the name's row made new (``started_at`` now, no ``stopping_since`` left from
-    an earlier process of that name, which stopped or died)."""
+    an earlier process of that name, which stopped or died). ``lock_missing_since``: as
+    in :func:`beat_worker`."""
     now = utcnow()
     values = {
         "name": name,
@@ -732,6 +740,7 @@ def start_worker(session: Session, name: str, broker_url: str, incarnation: str)
         "stopping_since": None,
         "incarnation": incarnation,
         "warming_since": None,
+        "lock_missing_since": lock_missing_since,
     }
     dialect = session.get_bind().dialect.name
     if dialect in ("sqlite", "postgresql"):
@@ -759,11 +768,23 @@ def touch_worker(session: Session, name: str, broker_url: str) -> None:
 
 
 def beat_worker(
-    session: Session, name: str, broker_url: str, *, warming_since: datetime | None
+    session: Session,
+    name: str,
+    broker_url: str,
+    *,
+    warming_since: datetime | None,
+    lock_missing_since: datetime | None = None,
 ) -> None:
-    """The worker's main process's beat: alive now, and since when it has had no warm
-    task process (a replacement importing the core), None when it has one."""
-    _upsert_worker(session, name, broker_url, {"warming_since": warming_since})
+    """The worker's main process's beat: alive now, since when it has had no warm task
+    process (a replacement importing the core), None when it has one, and since when it
+    has not held its incarnation lock (it claims no job meanwhile), None when it holds
+    it."""
+    _upsert_worker(
+        session,
+        name,
+        broker_url,
+        {"warming_since": warming_since, "lock_missing_since": lock_missing_since},
+    )
 
 
 def _upsert_worker(session: Session, name: str, broker_url: str, updates: dict[str, Any]) -> None:

@@ -214,6 +214,12 @@ class WorkerRow(Base):
     #: importing the core (``worker.process.cold_since``). It takes no job meanwhile, and
     #: takes the queued ones once warm. NULL: warm. Written by the worker's main process.
     warming_since: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
+    #: Since when the worker has not held its incarnation lock (``worker.incarnation``):
+    #: not taken at its start, or lost and not taken again. It claims no job meanwhile.
+    #: NULL: held (or none is needed). Written by the worker's main process at each beat.
+    lock_missing_since: Mapped[datetime | None] = mapped_column(
+        DateTime(timezone=True), default=None
+    )
 
 
 class ApiKey(Base):

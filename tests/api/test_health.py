@@ -16,13 +16,20 @@ from .support import Api, make_settings
 
 
 def add_worker(
-    api: Api, name: str, seconds_ago: float, *, warming_for_s: float | None = None
+    api: Api,
+    name: str,
+    seconds_ago: float,
+    *,
+    warming_for_s: float | None = None,
+    without_lock_for_s: float | None = None,
 ) -> None:
     """A worker row last beaten ``seconds_ago``; ``warming_for_s``: its task process has
-    been warming up that long (a replacement importing the core)."""
+    been warming up that long (a replacement importing the core); ``without_lock_for_s``:
+    it has not held its incarnation lock for that long."""
     now = utcnow()
     seen = now - timedelta(seconds=seconds_ago)
     warming = None if warming_for_s is None else now - timedelta(seconds=warming_for_s)
+    lockless = None if without_lock_for_s is None else now - timedelta(seconds=without_lock_for_s)
     with api.db.session() as session:
         session.add(
             WorkerRow(
@@ -31,6 +38,7 @@ def add_worker(
                 started_at=seen,
                 last_seen_at=seen,
                 warming_since=warming,
+                lock_missing_since=lockless,
             )
         )
 
@@ -49,6 +57,7 @@ def test_health_without_workers_is_degraded(api: Api) -> None:
         "names": [],
         "window_s": 3 * api.settings.heartbeat_interval_s,
         "warming": [],
+        "without_lock": [],
         "warming_limit_s": api.settings.heartbeat_timeout_s,
         "detail": f"no worker seen in the last {3 * api.settings.heartbeat_interval_s:g} s",
     }
@@ -111,6 +120,25 @@ def test_health_is_degraded_when_a_warm_up_takes_too_long(api: Api) -> None:
     assert [w["name"] for w in workers["warming"]] == ["celery@stuck"]
     assert "worker celery@stuck has been warming up for" in workers["detail"]
     assert f"(over {limit:g} s)" in workers["detail"]
+
+
+def test_health_is_degraded_when_no_live_worker_holds_its_incarnation_lock(api: Api) -> None:
+    # Such a worker leaves every job sent to it queued (a same-name twin could take its
+    # run): before, /health said "ok" while the queue waited for it.
+    add_worker(api, "celery@lockless", seconds_ago=1.0, without_lock_for_s=20.0)
+    health = api.get("/health").json()
+    assert health["status"] == "degraded", health
+    workers = health["workers"]
+    assert (workers["ok"], workers["names"]) == (False, ["celery@lockless"])
+    [lockless] = workers["without_lock"]
+    assert lockless["name"] == "celery@lockless" and 20.0 <= lockless["without_lock_s"] < 60.0
+    assert "worker celery@lockless has not held its incarnation lock for" in workers["detail"]
+    # A worker that holds its lock takes the jobs: listed, yet "ok".
+    add_worker(api, "celery@locked", seconds_ago=1.0)
+    health = api.get("/health").json()
+    assert health["status"] == "ok", health
+    assert [w["name"] for w in health["workers"]["without_lock"]] == ["celery@lockless"]
+    assert health["workers"]["detail"] is None
 
 
 def test_a_warming_worker_that_stopped_beating_is_gone(api: Api) -> None:

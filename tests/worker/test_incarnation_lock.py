@@ -220,6 +220,34 @@ def test_a_worker_without_its_lock_leaves_a_job_queued_and_runs_it_once_held(
         monitor.stop()
 
 
+def test_health_names_a_lone_worker_whose_beat_finds_it_without_its_lock(
+    store: Store, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import worker.monitor
+    from app.api.health import health
+
+    monkeypatch.setattr(worker.monitor, "warm", lambda: True)  # its task process is up
+    life = Life(store.settings.resolved_database_url, "first")
+    monitor = WorkerMonitor(WORKER, store.settings, life)
+
+    def status() -> tuple[str, str | None]:
+        answer = health(store.settings, store.db, monitor.celery)
+        return answer.status, answer.workers.detail
+
+    try:
+        monitor.tick()
+        assert status() == ("ok", None)
+        with _kept_from(store, life):
+            monitor.tick()  # finds it lost, cannot take it again: claims no job
+            state, detail = status()
+            assert state == "degraded", detail  # before: "ok"
+            assert f"worker {WORKER} has not held its incarnation lock" in (detail or "")
+        monitor.tick()
+        assert status() == ("ok", None)
+    finally:
+        monitor.stop()
+
+
 def _block_worker_lock(deployment: Service, timeout_s: float) -> Callable[[], None]:
     """Take a running worker's lock from it and keep it so (as in _kept_from, for a
     worker process); the function that gives it back."""
