@@ -289,7 +289,9 @@ def alive(session: Session, database_url: str, incarnation: str) -> bool:
     """Whether the worker process of ``incarnation`` still lives: its lock is held.
 
     On PostgreSQL asked through ``session``'s connection (another session than the
-    holder's, also in the holder's own process). True where it cannot be told.
+    holder's, also in the holder's own process). True where it cannot be told: an
+    in-memory SQLite, or a lock file that cannot be read (``<database>.incarnations`` is a
+    file, or unreadable; logged once).
     """
     dialect = session.get_bind().dialect.name
     if dialect == "postgresql":
@@ -305,18 +307,42 @@ def alive(session: Session, database_url: str, incarnation: str) -> bool:
         fd = os.open(path, os.O_RDWR)
     except FileNotFoundError:
         return False  # released at a clean exit, or never taken: not running
+    except OSError as exc:
+        # The folder is a file (NotADirectoryError), or cannot be read: the lock's state
+        # is unknown, so the other incarnation is not judged dead (its run stays its
+        # own); the beat goes on to the reaper and the re-sender.
+        return _unknown(path, exc)
     try:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except OSError as exc:
         if exc.errno in (errno.EAGAIN, errno.EACCES, errno.EWOULDBLOCK):
             return True
-        raise
+        return _unknown(path, exc)
     else:
         with contextlib.suppress(OSError):
             path.unlink()  # a dead incarnation's file: nobody will hold it again
         return False
     finally:
         os.close(fd)
+
+
+#: The folders and reasons :func:`alive` could not read a lock for, each logged once a
+#: process: the monitor asks at every beat.
+_UNREADABLE: set[tuple[Path, str]] = set()
+
+
+def _unknown(path: Path, exc: OSError) -> bool:
+    """:func:`alive`'s answer for a lock it could not read: alive (see there)."""
+    reason = f"{type(exc).__name__}: {exc.strerror or exc}"
+    if (path.parent, reason) not in _UNREADABLE:
+        _UNREADABLE.add((path.parent, reason))
+        logger.warning(
+            "cannot read the incarnation locks in %s (%s): their workers are taken to be "
+            "alive, and their runs left to them, until it can be read",
+            path.parent,
+            reason,
+        )
+    return True
 
 
 class Witness:
