@@ -118,13 +118,16 @@ class WorkerMonitor:
         resend_once(self.settings, self.db, self.celery)
 
     def hand_back(self) -> list[str]:
-        """Give this worker's running job back to the queue (it is stopping).
+        """Give this worker's running job back to the queue (it is stopping): this
+        process's, not a live twin's of its name.
 
         Then, every second until the worker is gone, again: a message fetched just as
         the stop began can still start a job (see :func:`worker.runner._execute`).
         """
         self._ticker.stop()
-        handed = hand_back_jobs(self.settings, self.db, self.celery, self.name)
+        handed = hand_back_jobs(
+            self.settings, self.db, self.celery, self.name, self.life.incarnation
+        )
         self._ticker = Ticker(
             self._hand_back_again,
             STOPPING_TICK_S,
@@ -133,7 +136,7 @@ class WorkerMonitor:
         return handed
 
     def _hand_back_again(self) -> None:
-        hand_back_jobs(self.settings, self.db, self.celery, self.name)
+        hand_back_jobs(self.settings, self.db, self.celery, self.name, self.life.incarnation)
 
     def start(self) -> WorkerMonitor:
         self._ticker.start()

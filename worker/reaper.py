@@ -174,10 +174,13 @@ def resend_once(settings: Settings, db: Database, celery: Celery) -> list[str]:
     return sent
 
 
-def hand_back_jobs(settings: Settings, db: Database, celery: Celery, worker: str) -> list[str]:
-    """Re-queue and re-send the jobs ``worker`` runs, at no cost of an attempt."""
+def hand_back_jobs(
+    settings: Settings, db: Database, celery: Celery, worker: str, incarnation: str
+) -> list[str]:
+    """Re-queue and re-send the jobs ``worker`` runs as ``incarnation`` (this process;
+    not a live twin's of its name), at no cost of an attempt."""
     with db.session() as session:
-        job_ids = hand_back(session, worker, f"worker {worker} was asked to stop")
+        job_ids = hand_back(session, worker, f"worker {worker} was asked to stop", incarnation)
     _dispatch(db, celery, job_ids, mark=True)
     for job_id in job_ids:
         logger.warning("handed job %s back to the queue: this worker is stopping", job_id)

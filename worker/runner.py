@@ -175,7 +175,12 @@ def _pass_on(db: Database, job_id: str, worker_name: str) -> str:
     with db.session() as session:
         # Claimed just as the stop came (the main process's hand-back may have missed
         # it): back to the queue, uncounted. Else still queued: marked unsent.
-        hand_back(session, worker_name, f"worker {worker_name} was asked to stop")
+        hand_back(
+            session,
+            worker_name,
+            f"worker {worker_name} was asked to stop",
+            current_incarnation(),
+        )
         session.execute(
             update(JobRow)
             .where(JobRow.id == job_id, JobRow.status == "queued")

@@ -418,7 +418,9 @@ def cancel(session: Session, job: JobRow) -> None:
         job.finished_at = utcnow()
 
 
-def hand_back(session: Session, worker: str, reason: str) -> list[str]:
+def hand_back(
+    session: Session, worker: str, reason: str, incarnation: str | None = None
+) -> list[str]:
     """Re-queue every job that ``worker`` is running, at no cost of an attempt.
 
     For a worker told to stop (SIGTERM: a restart, ``docker stop``): its job goes back
@@ -427,15 +429,29 @@ def hand_back(session: Session, worker: str, reason: str) -> list[str]:
     The run notices (it no longer owns the job) and drops whatever it was doing. The
     caller sends the returned jobs' messages. The worker is marked stopping, so that
     it claims nothing more (a message it already fetched included).
+
+    With ``incarnation`` (the stopping process's, see :func:`start_worker`), only its
+    own runs, and those claimed before incarnations were recorded (NULL): a live
+    process started under the same name (a twin) keeps its runs, which would otherwise
+    run twice; its row is marked stopping only while it names this incarnation (or
+    none).
     """
+    own_row = WorkerRow.name == worker
+    own_runs = and_(JobRow.worker == worker, JobRow.status == "running")
+    if incarnation is not None:
+        own_row = and_(
+            own_row, or_(WorkerRow.incarnation == incarnation, WorkerRow.incarnation.is_(None))
+        )
+        own_runs = and_(
+            own_runs,
+            or_(JobRow.worker_incarnation == incarnation, JobRow.worker_incarnation.is_(None)),
+        )
     session.execute(
         update(WorkerRow)
-        .where(WorkerRow.name == worker, WorkerRow.stopping_since.is_(None))
+        .where(own_row, WorkerRow.stopping_since.is_(None))
         .values(stopping_since=utcnow())
     )
-    jobs = session.scalars(
-        select(JobRow).where(JobRow.worker == worker, JobRow.status == "running").with_for_update()
-    ).all()
+    jobs = session.scalars(select(JobRow).where(own_runs).with_for_update()).all()
     now = utcnow()
     for job in jobs:
         lost_run(job, now=now, cause=ASKED_TO_STOP, reason=f"handed back: {reason}")

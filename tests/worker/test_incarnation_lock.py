@@ -24,8 +24,8 @@ from scenario_support import GOOD_SEQUENCE
 from service_support import wait_for
 from sqlalchemy import Connection, text, update
 
-from service.store import JobRow
-from service.store.jobs import claim
+from service.store import JobRow, WorkerRow
+from service.store.jobs import claim, start_worker
 from service.store.models import utcnow
 from worker.incarnation import Life, Witness, alive
 from worker.monitor import WorkerMonitor
@@ -93,7 +93,7 @@ def _alive(store: Store, incarnation: str) -> bool:
         return alive(session, store.settings.resolved_database_url, incarnation)
 
 
-def _running(store: Store, incarnation: str) -> str:
+def _running(store: Store, incarnation: str | None) -> str:
     job_id = store.add_job("train", {"sequence": GOOD_SEQUENCE})
     with store.db.session() as session:
         assert claim(session, job_id, WORKER, incarnation) is not None
@@ -246,6 +246,31 @@ def test_health_names_a_lone_worker_whose_beat_finds_it_without_its_lock(
         assert status() == ("ok", None)
     finally:
         monitor.stop()
+
+
+def test_a_stopping_worker_hands_back_its_own_runs_not_a_live_twins(store: Store) -> None:
+    first = WorkerMonitor(
+        WORKER, store.settings, Life(store.settings.resolved_database_url, "first")
+    )
+    mine, older, twins = _running(store, "first"), _running(store, None), _running(store, "twin")
+    with store.db.session() as session:
+        start_worker(session, WORKER, "filesystem://", "twin")  # the twin started last
+    try:
+        # The main process's hand-back (SIGTERM); a job claimed before incarnations
+        # were recorded keeps the old rule (its worker's name).
+        assert sorted(first.hand_back()) == sorted([mine, older])
+        # A task process given a message as the stop came passes it on the same way.
+        fetched = store.add_job("train", {"sequence": GOOD_SEQUENCE})
+        stopping = execute_job(
+            fetched, settings=store.settings, worker_name=WORKER, stopping=lambda: True
+        )
+        assert stopping == "passed on"
+    finally:
+        first.stop()
+    job = store.job(twins)
+    assert (job.status, job.worker_incarnation, job.handbacks) == ("running", "twin", 0)
+    with store.db.session() as session:
+        assert session.get_one(WorkerRow, WORKER).stopping_since is None  # the twin's row
 
 
 def _block_worker_lock(deployment: Service, timeout_s: float) -> Callable[[], None]:

@@ -192,7 +192,9 @@ def test_a_dead_workers_job_is_reaped_as_soon_as_the_worker_goes_quiet(store: St
 def test_a_handed_back_job_is_queued_at_once_and_costs_no_attempt(store: Store) -> None:
     job_id = store.add_job(status="running", worker="w1@host", attempts=2, heartbeat_at=utcnow())
     other = store.add_job(status="running", worker="w2@host", attempts=1, heartbeat_at=utcnow())
-    report = hand_back_jobs(store.settings, store.db, make_celery(store.settings), "w1@host")
+    report = hand_back_jobs(
+        store.settings, store.db, make_celery(store.settings), "w1@host", "first"
+    )
     assert report == [job_id]
     job = store.job(job_id)
     assert job.status == "queued" and job.worker is None and job.handbacks == 1
@@ -348,7 +350,9 @@ def test_a_heartbeat_during_a_hand_back_does_not_deadlock(
     beat = run(lambda: context_module.JobContext.beat(beating))  # type: ignore[arg-type]
     assert paused.wait(10)
     back = run(
-        lambda: hand_back_jobs(store.settings, store.db, make_celery(store.settings), worker)
+        lambda: hand_back_jobs(
+            store.settings, store.db, make_celery(store.settings), worker, "first"
+        )
     )
     time.sleep(1.5)  # the hand-back is now waiting on the row the heartbeat holds
     resume.set()
