@@ -163,9 +163,12 @@ async function health() {
     // A worker whose task process is being replaced takes no job until it is warm: the
     // badge counts it, and says so, as /health lists it.
     const warming = new Map((data.workers.warming ?? []).map((w) => [w.name, w.warming_s]));
-    const names = data.workers.names.map((name) =>
-      warming.has(name) ? `${name} (warming up, ${Math.round(warming.get(name))} s)` : name,
-    );
+    // A worker without its incarnation lock takes no job until it holds it again.
+    const lockless = new Map((data.workers.without_lock ?? []).map((w) => [w.name, w.without_lock_s]));
+    const names = data.workers.names.map((name) => {
+      if (lockless.has(name)) return `${name} (without its lock for ${Math.round(lockless.get(name))} s: takes no job)`;
+      return warming.has(name) ? `${name} (warming up, ${Math.round(warming.get(name))} s)` : name;
+    });
     badge.textContent =
       `${data.status} · ${workers} worker${workers === 1 ? "" : "s"}` +
       (warming.size ? ` (${warming.size} warming up)` : "");

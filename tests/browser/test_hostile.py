@@ -483,4 +483,16 @@ def test_the_health_badge_says_which_worker_is_warming_up(dashboard: Dashboard) 
     )
     assert badge.text_content() == f"{answer['status']} · 1 worker (1 warming up)"
     assert f"workers: {name} (warming up, 7 s)" in (badge.get_attribute("title") or "")
+    # A worker without its incarnation lock is named as one that takes no job.
+    answer["workers"] |= {
+        "warming": [],
+        "without_lock": [{"name": name, "without_lock_s": 12.2}],
+    }
+    dashboard.page.reload()
+    dashboard.page.wait_for_function(
+        "() => document.getElementById('health').title.includes('without its lock')"
+    )
+    assert f"workers: {name} (without its lock for 12 s: takes no job)" in (
+        badge.get_attribute("title") or ""
+    )
     dashboard.page.unroute(f"{service.base_url}/health")
