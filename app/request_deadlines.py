@@ -499,8 +499,31 @@ class HttpToolsWithDeadlines(_WithDeadlines, HttpToolsProtocol):  # type: ignore
         self._head_received = 0
         #: Bytes of the current request's body still to come, where its length is known.
         self._body_left: int | None = None
+        #: A refusal waiting for the answers to the requests pipelined before its head.
+        self._refusal_waits: HeadRefusal | None = None
+
+    def refuse_head(self, refusal: HeadRefusal) -> None:
+        """Answer ``refusal`` now, or, where requests pipelined before the refused head
+        are still being answered, after them: answers go out in the order of their
+        requests (RFC 9112 9.3.2), and the close that follows the refusal would cut them
+        off. (h11 parses no head before the request ahead of it is answered.)"""
+        cycle = self.cycle
+        if cycle is not None and not cycle.response_complete and not self.transport.is_closing():
+            self.head_refused = self._refusal_waits = refusal
+            self.deadlines.stop()
+            return
+        super().refuse_head(refusal)
+
+    def on_response_complete(self) -> None:
+        super().on_response_complete()
+        refusal = self._refusal_waits
+        if refusal is not None and (self.cycle is None or self.cycle.response_complete):
+            self._refusal_waits = None
+            super().refuse_head(refusal)
 
     def parse(self, data: bytes) -> None:
+        if self._refusal_waits is not None:
+            return  # past a refused head: nothing more is parsed (its answer waits)
         self._unset_keepalive_if_required()
         view = memoryview(data)
         start = 0

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import json
 import logging
+import re
 import socket
 from collections.abc import Iterator
 from pathlib import Path
@@ -246,6 +247,23 @@ def test_bodies_and_heads_pipelined_in_one_send_are_each_answered(port: int) -> 
             answer, received = _response(sock, received)
             assert answer.startswith(b"HTTP/1.1 200 OK\r\n"), answer[:300]
             assert expected in answer, answer[-300:]
+
+
+def test_requests_pipelined_before_a_refused_head_are_answered_first(port: int) -> None:
+    """Three requests, then a head past the limit, sent together: the three are answered
+    in order, then the refusal, then the connection closes. The refusal used to be
+    written at once, ahead of them, and the connection closed under them: a pipelining
+    client read the 414 as the answer to its first request (a POST the app did carry
+    out) and got none for the others."""
+    post = b"POST /test/body-size HTTP/1.1\r\nHost: 127.0.0.1\r\nX-API-Key: " + KEY.encode()
+    sized = post + b"\r\nContent-Length: 5\r\n\r\nhello"
+    health = _head([])
+    too_long = b"GET /health?q=" + b"q" * 20_000 + b" HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"
+    answer = _send(port, health + sized + health + too_long)
+    statuses = re.findall(rb"HTTP/1\.1 (\d{3}) ", answer)
+    assert statuses == [b"200", b"200", b"200", b"414"], answer[:600]
+    assert b'{"size":5}' in answer
+    _assert_414(answer[answer.index(b"HTTP/1.1 414") :], "INERTIA_ID_REQUEST_HEADER_MAX_BYTES")
 
 
 class _Records(logging.Handler):
