@@ -59,6 +59,9 @@ class WorkerMonitor:
         self._lock_missing_since: datetime | None = None
         #: Judges an earlier incarnation of this name gone (see take_restarted_runs).
         self.witness = incarnation.Witness(2 * settings.heartbeat_interval_s)
+        #: When a beat first saw no warm task process and no replacement started (s
+        #: since the epoch; None: it has not, or one is warm or started since).
+        self._unreplaced_since: float | None = None
         # Its own app and connections: the reaper publishes from this thread, away from
         # the consumer's event loop.
         self.celery = make_celery(settings)
@@ -92,7 +95,7 @@ class WorkerMonitor:
                         session,
                         self.name,
                         broker_label(self.settings),
-                        warming_since=None if is_warm else _warming_since(),
+                        warming_since=None if is_warm else self._warming_since(),
                         lock_missing_since=self._lock_missing_since,
                     )
                 else:
@@ -105,6 +108,8 @@ class WorkerMonitor:
                         lock_missing_since=self._lock_missing_since,
                     )
             self._started = True
+            if is_warm:
+                self._unreplaced_since = None
         # Before the reaper: a run of this name's earlier, dead process is taken within
         # two beats, with its cause, not by the heartbeat timeout as a hung task process.
         take_restarted_runs(
@@ -116,6 +121,21 @@ class WorkerMonitor:
                 "reaper: re-queued %s, ended %s", report.requeued or "none", report.failed or "none"
             )
         resend_once(self.settings, self.db, self.celery)
+
+    def _warming_since(self) -> datetime:
+        """Since when the worker has had no warm task process: the start of the
+        replacement warming up (or of the first of those killed in turn), else, none
+        started yet, the first beat that saw none. The pool starts one within a second
+        of the last one's exit; should it never, the age grows past /health's limit
+        (dated "now" at each beat, it stayed 0 s and the worker "ok")."""
+        since = cold_since()
+        if since is None:
+            if self._unreplaced_since is None:
+                self._unreplaced_since = time.time()
+            since = self._unreplaced_since
+        else:
+            self._unreplaced_since = None
+        return datetime.fromtimestamp(since, UTC)
 
     def hand_back(self) -> list[str]:
         """Give this worker's running job back to the queue (it is stopping): this
@@ -152,13 +172,6 @@ class WorkerMonitor:
         them (closing would end the parent's sessions on PostgreSQL)."""
         self.db.engine.dispose(close=False)
         self.life.forget_after_fork()
-
-
-def _warming_since() -> datetime:
-    # Now, when the replacement has not started yet (the pool starts it within a
-    # second of the last one's exit).
-    since = cold_since()
-    return datetime.fromtimestamp(time.time() if since is None else since, UTC)
 
 
 _monitor: WorkerMonitor | None = None

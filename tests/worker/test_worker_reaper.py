@@ -522,3 +522,50 @@ def test_a_run_whose_task_process_died_is_taken_at_once_and_only_once(store: Sto
     assert reap() == ([late], [])
     assert take(late) is None
     assert [run["cause"] for run in store.job(late).attempt_history or []] == ["heartbeat missed"]
+
+
+def test_a_worker_whose_task_process_is_not_replaced_ages_as_warming(
+    store: Store, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # The main process beats on while no task process is warm. Until a replacement
+    # starts (cold_since None) the warm-up was dated "now" at every beat, so a pool that
+    # never started one stayed "warming 0 s", /health "ok", with no process to take a
+    # job. Now it is dated from the first beat that saw none, and ages past the limit.
+    from worker import monitor
+
+    def warming_since() -> datetime | None:
+        with store.db.session() as session:
+            row = session.get(WorkerRow, "w1@host")
+            assert row is not None
+            since = row.warming_since
+        return since if since is None or since.tzinfo else since.replace(tzinfo=UTC)
+
+    beats = monitor.WorkerMonitor("w1@host", store.settings)
+    try:
+        monkeypatch.setattr(monitor, "warm", lambda: True)
+        beats.tick()  # seen once warm
+        assert warming_since() is None
+        monkeypatch.setattr(monitor, "warm", lambda: False)
+        monkeypatch.setattr(monitor, "cold_since", lambda: None)
+        beats.tick()
+        first = warming_since()
+        assert first is not None
+        time.sleep(0.01)
+        beats.tick()
+        assert warming_since() == first
+        # A replacement starts: its warm-up is dated from its own start.
+        started = time.time()
+        monkeypatch.setattr(monitor, "cold_since", lambda: started)
+        beats.tick()
+        assert warming_since() == datetime.fromtimestamp(started, UTC)
+        # Warm again, then gone with none started: dated from that beat, not the first.
+        monkeypatch.setattr(monitor, "warm", lambda: True)
+        beats.tick()
+        assert warming_since() is None
+        monkeypatch.setattr(monitor, "warm", lambda: False)
+        monkeypatch.setattr(monitor, "cold_since", lambda: None)
+        beats.tick()
+        again = warming_since()
+        assert again is not None and again > first
+    finally:
+        beats.stop()
