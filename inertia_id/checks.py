@@ -92,11 +92,14 @@ def read_text(
                 raise InputError(
                     _over_limit(path, f"is {status.st_size} bytes", limit, what, advice)
                 )
-            data = _read_at_most(file, limit + 1)
-            if len(data) > limit:
+            chunks = _read_at_most(file, limit + 1)
+            if sum(len(chunk) for chunk in chunks) > limit:
+                # Refused before the pieces are joined: a stream past the limit is held
+                # once, not twice (8.1 GB for a classifier's 4 GB from /dev/zero).
                 raise InputError(
                     _over_limit(path, f"holds more than {limit} bytes", limit, what, advice)
                 )
+            data = b"".join(chunks)
     try:
         return io.TextIOWrapper(io.BytesIO(data), encoding="utf-8").read()
     except UnicodeDecodeError as exc:
@@ -106,8 +109,8 @@ def read_text(
         ) from None
 
 
-def _read_at_most(file: io.BufferedReader, size: int) -> bytes:
-    """Up to ``size`` bytes of ``file``, read a megabyte at a time. ``file.read(size)``
+def _read_at_most(file: io.BufferedReader, size: int) -> list[bytes]:
+    """Up to ``size`` bytes of ``file``, read a megabyte at a time, in pieces. ``file.read(size)``
     allocates all of ``size`` before it reads (``read(40_000_000_001)`` of a 2.6 MB file:
     MemoryError on a machine of 23 GB), so a limit of gigabytes, a classifier's, would
     have asked that much of every file read under it."""
@@ -119,7 +122,7 @@ def _read_at_most(file: io.BufferedReader, size: int) -> bytes:
             break
         chunks.append(chunk)
         left -= len(chunk)
-    return b"".join(chunks)
+    return chunks
 
 
 _CHUNK_BYTES = 1 << 20
