@@ -44,6 +44,7 @@ from typing import Any
 
 from sqlalchemy import text
 from sqlalchemy.engine import make_url
+from sqlalchemy.exc import DBAPIError
 from sqlalchemy.orm import Session
 
 from service.store.models import new_id
@@ -290,15 +291,32 @@ def alive(session: Session, database_url: str, incarnation: str) -> bool:
 
     On PostgreSQL asked through ``session``'s connection (another session than the
     holder's, also in the holder's own process). True where it cannot be told: an
-    in-memory SQLite, or a lock file that cannot be read (``<database>.incarnations`` is a
-    file, or unreadable; logged once).
+    in-memory SQLite, a lock file that cannot be read (``<database>.incarnations`` is a
+    file, or unreadable), or a PostgreSQL probe that fails (the server restarting, the
+    session ended, a statement error); each reason logged once.
     """
     dialect = session.get_bind().dialect.name
     if dialect == "postgresql":
         key = _key(incarnation)
-        free = session.execute(text("SELECT pg_try_advisory_lock(:key)"), {"key": key}).scalar()
-        if free:
-            session.execute(text("SELECT pg_advisory_unlock(:key)"), {"key": key})
+        try:
+            # In a savepoint: a statement that fails leaves the caller's transaction
+            # usable (else every later statement of the beat's session failed too).
+            with session.begin_nested():
+                free = session.execute(
+                    text("SELECT pg_try_advisory_lock(:key)"), {"key": key}
+                ).scalar()
+                if free:
+                    session.execute(text("SELECT pg_advisory_unlock(:key)"), {"key": key})
+        except Exception as exc:
+            # The server restarting, the session ended, a statement error: the lock's
+            # state is unknown, so the other incarnation is not judged dead (before,
+            # the error left the monitor's beat before its reaper and re-sender).
+            if isinstance(exc, DBAPIError) and exc.connection_invalidated:
+                # The server ended the session, and the transaction with it: rolled
+                # back here too, so the caller's session connects afresh at its next
+                # statement instead of failing at each until its end.
+                session.rollback()
+            return _unknown("on the PostgreSQL server", exc)
         return not free
     path = _lock_file(database_url, incarnation)
     if path is None:
@@ -311,13 +329,13 @@ def alive(session: Session, database_url: str, incarnation: str) -> bool:
         # The folder is a file (NotADirectoryError), or cannot be read: the lock's state
         # is unknown, so the other incarnation is not judged dead (its run stays its
         # own); the beat goes on to the reaper and the re-sender.
-        return _unknown(path, exc)
+        return _unknown(f"in {path.parent}", exc)
     try:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except OSError as exc:
         if exc.errno in (errno.EAGAIN, errno.EACCES, errno.EWOULDBLOCK):
             return True
-        return _unknown(path, exc)
+        return _unknown(f"in {path.parent}", exc)
     else:
         with contextlib.suppress(OSError):
             path.unlink()  # a dead incarnation's file: nobody will hold it again
@@ -326,20 +344,24 @@ def alive(session: Session, database_url: str, incarnation: str) -> bool:
         os.close(fd)
 
 
-#: The folders and reasons :func:`alive` could not read a lock for, each logged once a
-#: process: the monitor asks at every beat.
-_UNREADABLE: set[tuple[Path, str]] = set()
+#: The places (a lock folder, the PostgreSQL server) and reasons :func:`alive`
+#: could not read a lock for, each logged once a process: the monitor asks at every beat.
+_UNREADABLE: set[tuple[str, str]] = set()
 
 
-def _unknown(path: Path, exc: OSError) -> bool:
+def _unknown(where: str, exc: BaseException) -> bool:
     """:func:`alive`'s answer for a lock it could not read: alive (see there)."""
-    reason = f"{type(exc).__name__}: {exc.strerror or exc}"
-    if (path.parent, reason) not in _UNREADABLE:
-        _UNREADABLE.add((path.parent, reason))
+    if isinstance(exc, OSError):
+        reason = f"{type(exc).__name__}: {exc.strerror or exc}"
+    else:
+        # The first line: PostgreSQL's errors go on with the statement and a link.
+        reason = f"{type(exc).__name__}: {(str(exc).strip().splitlines() or [''])[0]}"
+    if (where, reason) not in _UNREADABLE:
+        _UNREADABLE.add((where, reason))
         logger.warning(
-            "cannot read the incarnation locks in %s (%s): their workers are taken to be "
+            "cannot read the incarnation locks %s (%s): their workers are taken to be "
             "alive, and their runs left to them, until it can be read",
-            path.parent,
+            where,
             reason,
         )
     return True

@@ -12,17 +12,19 @@ worker's task processes leave new jobs queued.
 
 from __future__ import annotations
 
+import logging
 import shutil
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from datetime import timedelta
 from functools import partial
 from typing import TYPE_CHECKING, Any
 
 import pytest
 from scenario_support import GOOD_SEQUENCE
 from service_support import wait_for
-from sqlalchemy import Connection, text, update
+from sqlalchemy import Connection, event, text, update
 
 from service.store import JobRow, WorkerRow
 from service.store.jobs import claim, start_worker
@@ -348,3 +350,47 @@ def test_a_worker_whose_lock_is_taken_from_it_runs_no_job_until_it_holds_it_agai
         assert (job.status, job.attempts) == ("succeeded", 1), worker.log()
     finally:
         worker.kill()
+
+
+@pytest.mark.parametrize("store", ["postgresql"], indirect=True)
+@pytest.mark.parametrize(
+    "failure",
+    ["SELECT 1/0", "SELECT pg_terminate_backend(pg_backend_pid())"],
+    ids=["statement-error", "session-ended"],
+)
+def test_a_twins_beat_whose_lock_probe_fails_leaves_the_run_and_goes_on(
+    store: Store, failure: str, caplog: pytest.LogCaptureFixture, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import worker.incarnation
+
+    monkeypatch.setattr(worker.incarnation, "_UNREADABLE", set())  # logged once a process
+    # The probe of the other incarnation's lock fails on the server (an error, or its
+    # session ended as at a restart): the lock's state is unknown, so the run is left.
+    # Before, alive() raised out of the beat, before its reaper and re-sender.
+    running = _running(store, "other")
+    with store.db.session() as session:
+        start_worker(session, WORKER, "filesystem://", "other")
+        session.get_one(JobRow, running).heartbeat_at = utcnow() - timedelta(seconds=30)
+    unsent = store.add_job("train", {}, created_at=utcnow() - timedelta(minutes=5))
+    twin = WorkerMonitor(WORKER, store.settings, Life(store.settings.resolved_database_url, "twin"))
+
+    def fail_the_probe(
+        _conn: Any, _cursor: Any, statement: str, parameters: Any, *_: Any
+    ) -> tuple[str, Any]:
+        if "pg_try_advisory_lock" in statement:
+            return failure, {}
+        return statement, parameters
+
+    event.listen(twin.db.engine, "before_cursor_execute", fail_the_probe, retval=True)
+    try:
+        with caplog.at_level(logging.WARNING, logger="worker.incarnation"):
+            for _ in range(3):
+                twin.tick()
+            with twin.db.session() as session:  # unknown: not judged dead at a later probe
+                assert alive(session, store.settings.resolved_database_url, "other")
+    finally:
+        twin.stop()
+    assert store.job(running).status == "running"
+    assert store.job(unsent).sent_at is not None  # the re-sender ran
+    unknown = [r for r in caplog.records if "cannot read the incarnation locks" in r.message]
+    assert len(unknown) == 1, [r.message for r in unknown]
