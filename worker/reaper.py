@@ -138,9 +138,11 @@ def reap_once(settings: Settings, db: Database, celery: Celery) -> ReapReport:
 
 
 def idle_workers(settings: Settings, db: Database) -> int:
-    """Live workers (seen within the silence window, not stopping, not warming) minus
-    running jobs, at least 0. A warming worker takes no message until its task process
-    is up: a message waiting for it is not lost."""
+    """Live workers (seen within the silence window, not stopping, not warming, holding
+    their incarnation lock) minus running jobs, at least 0. A warming worker takes no
+    message until its task process is up: a message waiting for it is not lost. One
+    without its lock claims no job (see :mod:`worker.incarnation`): counted idle, the
+    jobs it left were sent to it again at every beat, each time left again."""
     cutoff = utcnow() - timedelta(seconds=WORKER_SILENCE_BEATS * settings.heartbeat_interval_s)
     with db.session() as session:
         live = session.scalar(
@@ -150,6 +152,7 @@ def idle_workers(settings: Settings, db: Database) -> int:
                 WorkerRow.last_seen_at >= cutoff,
                 WorkerRow.stopping_since.is_(None),
                 WorkerRow.warming_since.is_(None),
+                WorkerRow.lock_missing_since.is_(None),
             )
         )
         running = session.scalar(

@@ -38,7 +38,7 @@ from service.store.jobs import (
     finish,
     hand_back,
 )
-from service.store.models import JOB_TYPES, new_id
+from service.store.models import JOB_TYPES, new_id, utcnow
 
 from .context import (
     CANCEL_POLL_S,
@@ -162,7 +162,8 @@ def execute_job(
     back, at no cost of an attempt); "passed on" too when ``may_claim()`` says no:
     this worker does not hold its incarnation lock (see :mod:`worker.incarnation`), so
     a twin of its name could judge its run dead and run the job again; the job is left
-    queued, unsent, and sent again at a later beat.
+    queued, its message spent, and sent again once a worker that holds its lock is idle
+    (see :func:`worker.reaper.resend_once`).
     """
     db = Database(settings.resolved_database_url)
     try:
@@ -192,14 +193,19 @@ def _pass_on(db: Database, job_id: str, worker_name: str) -> str:
 
 def _leave_unclaimed(db: Database, job_id: str) -> str:
     with db.session() as session:
+        # Its message is spent: dated as sent now, the re-sender sends it again once it
+        # is older than resend_after_s and a worker that holds its lock sits idle (see
+        # worker.reaper.idle_workers). Marked unsent, it was sent again at every beat,
+        # to this worker too, and left again each time.
         session.execute(
             update(JobRow)
             .where(JobRow.id == job_id, JobRow.status == "queued")
-            .values(sent_at=None)
+            .values(sent_at=utcnow())
         )
     logger.warning(
         "job %s left queued: this worker does not hold its incarnation lock, so another "
-        "worker of its name could take the run from it; it is sent again at a later beat",
+        "worker of its name could take the run from it; it is sent again once a worker "
+        "that holds its lock is idle",
         job_id,
     )
     return "passed on"

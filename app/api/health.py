@@ -198,6 +198,12 @@ def _workers(settings: Settings, database: Database, database_ok: bool) -> Worke
     )
 
 
+def _takers(workers: WorkersHealth) -> int:
+    """The live workers that can take a job now: warm and holding their lock."""
+    unable = {w.name for w in workers.warming} | {w.name for w in workers.without_lock}
+    return sum(1 for name in workers.names if name not in unable)
+
+
 @router.get("/health")
 def health(settings: SettingsDep, database: DatabaseDep, celery: CeleryDep) -> HealthOut:
     """Database reachable, broker reachable, workers seen recently (one whose task
@@ -211,8 +217,11 @@ def health(settings: SettingsDep, database: DatabaseDep, celery: CeleryDep) -> H
     db = _database(database)
     broker = _broker(settings, celery)
     workers = _workers(settings, database, db.ok)
-    # A warming worker takes no job until it is warm: it is not idle.
-    queue = _queue(settings, database, db.ok, workers.count - len(workers.warming))
+    # A warming worker takes no job until it is warm, one without its incarnation lock
+    # none until it takes it again (listed, and a fault when none holds it): neither is
+    # idle. Counted, a lockless worker beside a busy one made a long queue "stalled",
+    # blamed on a stuck task process, while workers.without_lock names the cause.
+    queue = _queue(settings, database, db.ok, _takers(workers))
     return HealthOut(
         status="ok" if db.ok and broker.ok and workers.ok and queue.ok else "degraded",
         version=inertia_id.__version__,

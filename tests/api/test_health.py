@@ -195,6 +195,25 @@ def test_health_is_ok_when_a_job_waits_long_for_busy_workers(api: Api) -> None:
     assert health["queue"]["stalled"] is False and health["queue"]["detail"] is None
 
 
+def test_a_worker_without_its_lock_is_not_an_idle_worker_of_a_stalled_queue(api: Api) -> None:
+    # It claims no job until it takes its lock again: listed (workers.without_lock), yet
+    # not a worker that beats but takes nothing for no known reason. Before, it counted
+    # idle: a busy locked worker's queue was "stalled", and /health "degraded".
+    add_worker(api, "celery@busy", seconds_ago=1.0)
+    add_worker(api, "celery@lockless", seconds_ago=1.0, without_lock_for_s=300.0)
+    add_job(api, "running", seconds_ago=600.0, seed=1)
+    add_job(api, "queued", seconds_ago=api.settings.queue_stall_s + 60.0, seed=2)
+    health = api.get("/health").json()
+    assert health["status"] == "ok", health
+    assert health["queue"]["stalled"] is False and health["queue"]["detail"] is None
+    # Alone, it is the fault /health names: the workers' detail, not a stalled queue.
+    with api.db.session() as session:
+        session.get_one(WorkerRow, "celery@busy").lock_missing_since = utcnow()
+    health = api.get("/health").json()
+    assert health["status"] == "degraded" and health["queue"]["stalled"] is False
+    assert "has not held its incarnation lock" in health["workers"]["detail"]
+
+
 def test_health_is_ok_while_a_fresh_job_waits_for_an_idle_worker(api: Api) -> None:
     add_worker(api, "celery@idle", seconds_ago=1.0)
     add_job(api, "queued", seconds_ago=1.0, seed=1)

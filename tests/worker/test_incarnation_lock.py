@@ -211,13 +211,49 @@ def test_a_worker_without_its_lock_leaves_a_job_queued_and_runs_it_once_held(
             )
             assert status == "passed on"
             job = store.job(job_id)
-            assert (job.status, job.attempts, job.worker, job.sent_at) == ("queued", 0, None, None)
+            assert (job.status, job.attempts, job.worker) == ("queued", 0, None)
         monitor.tick()
         assert life.held and _alive(store, "first")
         status = execute_job(
             job_id, settings=store.settings, worker_name=WORKER, may_claim=worker.monitor.may_claim
         )
         assert status == "failed" and store.job(job_id).attempts == 1
+    finally:
+        monitor.stop()
+
+
+def test_a_job_left_by_a_worker_without_its_lock_is_not_sent_to_it_at_every_beat(
+    store: Store, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import worker.monitor
+
+    monkeypatch.setattr(worker.monitor, "warm", lambda: True)  # its task process is up
+    life = Life(store.settings.resolved_database_url, "first")
+    monkeypatch.setattr(worker.monitor, "_life", life)
+    monitor = WorkerMonitor(WORKER, store.settings, life)
+    job_id = store.add_job("train", {"sequence": "not a sequence"}, sent_at=utcnow())
+    try:
+        monitor.tick()
+        with _kept_from(store, life):
+            monitor.tick()  # finds it lost, cannot take it again
+            status = execute_job(
+                job_id,
+                settings=store.settings,
+                worker_name=WORKER,
+                may_claim=worker.monitor.may_claim,
+            )
+            assert status == "passed on"
+            # Its message spent, it waits long: no worker that may claim it sits idle.
+            # Before: marked unsent, then sent again at every beat (and left again).
+            assert store.job(job_id).sent_at is not None
+            with store.db.session() as session:
+                session.execute(update(JobRow).values(sent_at=utcnow() - timedelta(minutes=5)))
+            long_ago = store.job(job_id).sent_at
+            monitor.tick()
+            monitor.tick()
+            assert store.job(job_id).sent_at == long_ago  # before: sent again
+        monitor.tick()  # holds its lock again: idle, its lost message sent again
+        assert life.held and store.job(job_id).sent_at != long_ago
     finally:
         monitor.stop()
 
@@ -322,7 +358,12 @@ def _unlock(connection: Connection, key: int) -> None:
 def test_a_worker_whose_lock_is_taken_from_it_runs_no_job_until_it_holds_it_again(
     deployment: Service,
 ) -> None:
-    beat = {"INERTIA_ID_HEARTBEAT_INTERVAL_S": "0.5", "INERTIA_ID_UNSENT_GRACE_S": "0.5"}
+    beat = {
+        "INERTIA_ID_HEARTBEAT_INTERVAL_S": "0.5",
+        "INERTIA_ID_UNSENT_GRACE_S": "0.5",
+        # The job left queued is sent again this long after, once the worker is back.
+        "INERTIA_ID_RESEND_AFTER_S": "2",
+    }
     worker = deployment.start_worker(**beat)
     try:
         give_back = _block_worker_lock(deployment, 30.0)
