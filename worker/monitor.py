@@ -97,6 +97,9 @@ class WorkerMonitor:
                         broker_label(self.settings),
                         warming_since=None if is_warm else self._warming_since(),
                         lock_missing_since=self._lock_missing_since,
+                        # A twin of this name told to stop marked the row it shares
+                        # stopping: this live process's beat takes it back.
+                        incarnation=self.life.incarnation,
                     )
                 else:
                     # A new incarnation of the name: a fresh row, not a dead one's.

@@ -32,7 +32,7 @@ from collections.abc import Callable, Iterable
 from datetime import UTC, datetime, timedelta
 from typing import Any
 
-from sqlalchemy import and_, delete, func, or_, select, update
+from sqlalchemy import and_, case, delete, func, or_, select, update
 from sqlalchemy.dialects import postgresql, sqlite
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
@@ -790,23 +790,54 @@ def beat_worker(
     *,
     warming_since: datetime | None,
     lock_missing_since: datetime | None = None,
+    incarnation: str | None = None,
 ) -> None:
     """The worker's main process's beat: alive now, since when it has had no warm task
     process (a replacement importing the core), None when it has one, and since when it
     has not held its incarnation lock (it claims no job meanwhile), None when it holds
-    it."""
+    it.
+
+    With ``incarnation`` (the beating process's): a row marked stopping by another
+    incarnation of the name becomes this one's, no longer stopping. Two live processes
+    started under one name by mistake (twins) share the row; the one it names, told to
+    stop, marks it stopping (see :func:`hand_back`), and /health left the other out
+    while it lived and beat."""
     _upsert_worker(
         session,
         name,
         broker_url,
         {"warming_since": warming_since, "lock_missing_since": lock_missing_since},
+        incarnation=incarnation,
     )
 
 
-def _upsert_worker(session: Session, name: str, broker_url: str, updates: dict[str, Any]) -> None:
+def _upsert_worker(
+    session: Session,
+    name: str,
+    broker_url: str,
+    updates: dict[str, Any],
+    *,
+    incarnation: str | None = None,
+) -> None:
+    """Insert worker ``name``'s row, or set ``updates`` on it; with ``incarnation``, a row
+    marked stopping by another incarnation becomes ``incarnation``'s, not stopping (see
+    :func:`beat_worker`)."""
     now = utcnow()
     updates = {"last_seen_at": now, "broker_url": broker_url, **updates}
     values = {"name": name, "started_at": now, **updates}
+    taken_over: dict[str, Any] = {}
+    if incarnation is not None:
+        values["incarnation"] = incarnation
+        stopped_by_other = and_(
+            WorkerRow.stopping_since.is_not(None),
+            WorkerRow.incarnation.is_distinct_from(incarnation),
+        )
+        # Expressions of the row's old values, in one statement: a twin's hand-back
+        # cannot slip between the read and the write.
+        taken_over = {
+            "stopping_since": case((stopped_by_other, None), else_=WorkerRow.stopping_since),
+            "incarnation": case((stopped_by_other, incarnation), else_=WorkerRow.incarnation),
+        }
     dialect = session.get_bind().dialect.name
     if dialect in ("sqlite", "postgresql"):
         # A worker's main process and its task process beat under one name: an atomic
@@ -814,12 +845,17 @@ def _upsert_worker(session: Session, name: str, broker_url: str, updates: dict[s
         insert = sqlite.insert if dialect == "sqlite" else postgresql.insert
         statement = insert(WorkerRow).values(**values)
         session.execute(
-            statement.on_conflict_do_update(index_elements=[WorkerRow.name], set_=updates)
+            statement.on_conflict_do_update(
+                index_elements=[WorkerRow.name], set_={**updates, **taken_over}
+            )
         )
         return
     row = session.get(WorkerRow, name)
     if row is None:
         session.add(WorkerRow(**values))
-    else:
-        for key, value in updates.items():
-            setattr(row, key, value)
+        return
+    if incarnation is not None and row.stopping_since is not None:
+        if row.incarnation != incarnation:
+            row.stopping_since, row.incarnation = None, incarnation
+    for key, value in updates.items():
+        setattr(row, key, value)

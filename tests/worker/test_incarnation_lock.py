@@ -311,6 +311,37 @@ def test_a_stopping_worker_hands_back_its_own_runs_not_a_live_twins(store: Store
         assert session.get_one(WorkerRow, WORKER).stopping_since is None  # the twin's row
 
 
+def test_a_twin_told_to_stop_leaves_the_live_twin_listed(
+    store: Store, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import worker.monitor
+    from app.api.health import health
+
+    monkeypatch.setattr(worker.monitor, "warm", lambda: True)  # their task processes are up
+    url = store.settings.resolved_database_url
+    first = WorkerMonitor(WORKER, store.settings, Life(url, "first"))
+    twin = WorkerMonitor(WORKER, store.settings, Life(url, "twin"))
+
+    def row() -> tuple[str | None, bool]:
+        with store.db.session() as session:
+            worker_row = session.get_one(WorkerRow, WORKER)
+            return worker_row.incarnation, worker_row.stopping_since is not None
+
+    try:
+        first.tick()
+        twin.tick()  # started last: the shared row names it
+        twin.hand_back()  # told to stop: marks the row it names stopping
+        assert row() == ("twin", True)
+        first.tick()  # before: the row stayed stopping, /health left the live twin out
+        assert row() == ("first", False)
+        twin._hand_back_again()  # its repeats, every second until it is gone
+        assert row() == ("first", False)
+        assert health(store.settings, store.db, first.celery).workers.names == [WORKER]
+    finally:
+        twin.stop()
+        first.stop()
+
+
 def _block_worker_lock(deployment: Service, timeout_s: float) -> Callable[[], None]:
     """Take a running worker's lock from it and keep it so (as in _kept_from, for a
     worker process); the function that gives it back."""
