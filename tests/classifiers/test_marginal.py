@@ -415,3 +415,59 @@ def test_refuses_components_of_other_realisations(
         MarginalLikelihoodClassifier().fit_components(X, X[:-1], X, y)
     with pytest.raises(ValueError, match="not a valid marginal-likelihood classifier document"):
         MarginalLikelihoodClassifier.from_dict({**marginal.to_dict(), "components": {}})
+
+
+def test_a_low_rank_update_is_the_updated_covariance_factored_afresh() -> None:
+    """A conditioned copy's mixture is the offset-free one updated by rank 3, not
+    refactored (``_Mixture.updated``): every number a verdict or a prefix reads from it
+    is the fresh factorisation's, to rounding, and the mixture it updates is left as it
+    was (a second update from it gives the same)."""
+    from inertia_id.classifiers.marginal import _Mixture
+
+    rng = np.random.default_rng(3)
+    dim, n_candidates, rank = 12, 3, 3
+    grid = np.array([[1.0, 1.0], [2.0, 1.0], [1.0, 4.0]])
+    parts = [rng.normal(size=(dim, 2 * dim)) for _ in range(3)]
+    components = np.stack([p @ p.T / dim for p in parts])
+    means = rng.normal(size=(n_candidates, dim))
+    columns = rng.normal(size=(len(grid), dim, rank))
+    series = rng.normal(size=(2, dim))
+
+    base = _Mixture(means, components, grid)
+    before = base.white_means.copy()
+    updated = base.updated(columns)
+    # Each condition's updated covariance factored afresh, as a one-condition mixture.
+    zero = np.zeros((dim, dim))
+    afresh = [
+        _Mixture(
+            means,
+            np.stack(
+                [components[0] + p**2 * components[1] + q**2 * components[2] + X @ X.T, zero, zero]
+            ),
+            np.ones((1, 2)),
+        )
+        for (p, q), X in zip(grid, columns, strict=True)
+    ]
+    for c, one in enumerate(afresh):
+        np.testing.assert_allclose(updated.whiteners[c], one.whiteners[0], rtol=1e-10, atol=1e-12)
+        np.testing.assert_allclose(updated.white_means[c], one.white_means[0], rtol=1e-10)
+        np.testing.assert_allclose(updated.log_diagonal[c], one.log_diagonal[0], rtol=1e-12)
+        # Equal weights: 1 / M here, 1 / 1 there.
+        assert updated.log_norm[c] == pytest.approx(one.log_norm[0] - math.log(len(grid)))
+    np.testing.assert_array_equal(base.white_means, before)
+    np.testing.assert_array_equal(base.updated(columns).white_means, updated.white_means)
+
+    # What a verdict and a prefix ask, against the fresh factors as one mixture.
+    whole = _Mixture(means, components, grid)
+    whole._formed["whiteners"] = np.concatenate([one.whiteners for one in afresh])
+    whole.white_means = np.concatenate([one.white_means for one in afresh])
+    whole.log_diagonal = np.concatenate([one.log_diagonal for one in afresh])
+    whole.log_norm = np.concatenate([one.log_norm for one in afresh]) - math.log(len(grid))
+    sensitivity, prior_sd = rng.normal(size=(n_candidates, dim, 6)), np.array([0.3, 0.5, 0.7])
+    for question in (
+        lambda m: m.log_likelihood(series),
+        lambda m: m.distances(series),
+        lambda m: m.near_none_log_likelihood(series, sensitivity, prior_sd),
+        lambda m: m.prefix_distances(series),
+    ):
+        np.testing.assert_allclose(question(updated), question(whole), rtol=1e-9, atol=1e-12)

@@ -3,14 +3,16 @@ with the telemetry's span; and a matches-none verdict names the test that decide
 
 from __future__ import annotations
 
+import copy
 from datetime import datetime, timedelta, timezone
+from typing import Any
 
 import numpy as np
 import pytest
 from scenario_support import GOOD_SEQUENCE
 
 from inertia_id import Scenario, simulate
-from inertia_id.classifiers.marginal import MarginalLikelihoodClassifier
+from inertia_id.classifiers.marginal import MarginalLikelihoodClassifier, _Mixture
 from inertia_id.errors import InputError
 from inertia_id.evaluation.identify import identify
 from inertia_id.evaluation.telemetry import Telemetry
@@ -133,3 +135,61 @@ def test_a_true_start_between_grid_times_is_found_below_the_grid_period(
     assert refined == [True] * marginal.n_candidates_
     # No search, nothing refined: the field says so by its absence.
     assert identify(marginal, telemetry).sequence_start_refined is None
+
+
+def test_a_refined_start_gives_the_verdict_of_the_model_factored_afresh(
+    marginal: MarginalLikelihoodClassifier,
+    drifting_paper: Scenario,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Every start conditions the default kind afresh (a start refined below the grid
+    period moves the lag its offset's error grows with); the conditioned copy updates the
+    offset-free mixture by rank 3 instead of factoring its covariances again. Its
+    verdicts, the search's included, are those of the copy factored afresh (as before
+    the update), to rounding, for series after series through the one classifier."""
+    quiet = [[0] * drifting_paper.n_thrusters]
+    period = 1.0 / drifting_paper.timing.sample_rate_hz
+    flights = []
+    for seed in range(5):
+        result = simulate(
+            drifting_paper, quiet * 30 + GOOD_SEQUENCE + quiet * 2, 1, np.random.default_rng(seed)
+        )
+        k = seed % marginal.n_candidates_
+        flights.append(
+            Telemetry(
+                time_s=(result.time_s - 30.0).tolist(),
+                omega_rad_s=result.omega_measured[k, 0].tolist(),
+                sequence_start=(seed - 2 + 0.5) * period,
+            )
+        )
+    updated = [identify(marginal, t, estimate_start_within_s=0.3) for t in flights]
+
+    conditioned = MarginalLikelihoodClassifier.conditioned_on_offset
+
+    def factored_afresh(
+        self: MarginalLikelihoodClassifier, *args: Any, **kwargs: Any
+    ) -> MarginalLikelihoodClassifier:
+        model = conditioned(self, *args, **kwargs)
+        fresh = copy.copy(model)
+        fresh.__dict__ = {**model.__dict__, "_observed_mixtures": {}}
+        mixture = _Mixture(
+            model.means_.reshape(model.n_candidates_, -1), model.components_, model.grid_
+        )
+        weights = model._condition_log_weights
+        fresh._mixture = mixture if weights is None else mixture.reweighted(weights)
+        return fresh
+
+    monkeypatch.setattr(MarginalLikelihoodClassifier, "conditioned_on_offset", factored_afresh)
+    for telemetry, verdict in zip(flights, updated, strict=True):
+        reference = identify(marginal, telemetry, estimate_start_within_s=0.3)
+        assert verdict.sequence_start_refined is True
+        assert verdict.sequence_start_shift_s == pytest.approx(
+            reference.sequence_start_shift_s, abs=1e-12
+        )
+        assert verdict.initial_offset_rad_s == pytest.approx(reference.initial_offset_rad_s)
+        for name, distance in reference.distances.items():
+            assert verdict.distances[name] == pytest.approx(distance, rel=1e-10)
+        for name, probability in reference.posterior.items():
+            assert verdict.posterior[name] == pytest.approx(probability, rel=1e-9, abs=1e-15)
+        assert verdict.p_none == pytest.approx(reference.p_none, rel=1e-9, abs=1e-15)
+        assert (verdict.status, verdict.candidate) == (reference.status, reference.candidate)
