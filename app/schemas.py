@@ -627,7 +627,8 @@ class IdentifyResult(BaseModel):
         "period (the vertex of a parabola through the scores of the grid start found and "
         "its neighbours), false when the grid's start was kept (a neighbour the telemetry "
         "does not reach, scores that bracket no minimum, or a kind that compares whole "
-        "series); null: no search",
+        "series) or the stated start kept (no sample before it: no score then tells it "
+        "from the next start); null: no search",
     )
     estimate_start_within_s: float | None = Field(
         default=None, description="the start search asked for, s; null: none"
