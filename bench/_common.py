@@ -413,6 +413,25 @@ def spawn_service(
         )
 
 
+def wait_until_ok(
+    client: Any, process: subprocess.Popen[Any], log_path: Path, timeout_s: float = 300
+) -> None:
+    """Poll the service's ``/health`` (``client``, an ``httpx.Client`` on its base URL)
+    until it says "ok"; raise with the service's log if it exits or ``timeout_s`` passes."""
+    import httpx
+
+    deadline = time.perf_counter() + timeout_s
+    while True:
+        try:
+            if client.get("/health").json()["status"] == "ok":
+                return
+        except httpx.TransportError:
+            pass
+        if time.perf_counter() > deadline or process.poll() is not None:
+            raise RuntimeError(log_path.read_text(errors="replace"))
+        time.sleep(0.2)
+
+
 def generated_key(log_path: Path) -> str | None:
     """The API key the service generated, from its banner in ``log_path`` (None: none)."""
     found = GENERATED_KEY.search(log_path.read_text(errors="replace"))

@@ -37,6 +37,7 @@ from _common import (
     service_env,
     spawn_service,
     stop_service,
+    wait_until_ok,
     write_json,
 )
 
@@ -132,16 +133,7 @@ def main() -> None:
         try:
             base = f"http://127.0.0.1:{port}"
             with httpx.Client(base_url=base, timeout=30) as client:
-                deadline = time.perf_counter() + 300
-                while True:
-                    try:
-                        if client.get("/health").json()["status"] == "ok":
-                            break
-                    except httpx.TransportError:
-                        pass
-                    if time.perf_counter() > deadline or process.poll() is not None:
-                        raise RuntimeError(log_path.read_text(errors="replace"))
-                    time.sleep(0.2)
+                wait_until_ok(client, process, log_path)
                 client.headers["X-API-Key"] = generated_key(log_path) or ""
                 created = client.post("/scenarios", json={"preset": "paper"})
                 created.raise_for_status()

@@ -34,6 +34,7 @@ from _common import (
     service_env,
     spawn_service,
     stop_service,
+    wait_until_ok,
     write_json,
 )
 
@@ -91,16 +92,7 @@ def main() -> None:
         folder = root / "data" / "inertia-id.db.incarnations"
         try:
             with httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=30) as client:
-                deadline = time.perf_counter() + 300
-                while True:
-                    try:
-                        if client.get("/health").json()["status"] == "ok":
-                            break
-                    except httpx.TransportError:
-                        pass
-                    if time.perf_counter() > deadline or process.poll() is not None:
-                        raise RuntimeError(log_path.read_text(errors="replace"))
-                    time.sleep(0.2)
+                wait_until_ok(client, process, log_path)
                 for _ in range(args.rounds):
                     _keep_lock_away(folder)
                     shown, said = _until(client, _lockless, args.interval, args.give_up)

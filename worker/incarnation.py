@@ -186,13 +186,18 @@ class Life:
             return False
         return self.held or self.try_hold()
 
-    def _let_go(self) -> None:
+    def _let_go(self, *, remove_file: bool = False) -> None:
+        """Close what held the lock (claims stop at once); with ``remove_file``, the lock
+        file too (a clean exit: a lost lock's path may be another's by now)."""
         self._claims[0] = 0
         if self._connection is not None:
             with contextlib.suppress(Exception):
                 self._connection.close()
             self._connection = None
         if self._fd is not None:
+            if remove_file and self._path is not None:
+                with contextlib.suppress(OSError):
+                    self._path.unlink()
             os.close(self._fd)
             self._fd, self._path = None, None
 
@@ -215,17 +220,7 @@ class Life:
 
     def release(self) -> None:
         """Let go of the lock (a clean exit); its file, if any, is removed."""
-        self._claims[0] = 0
-        if self._connection is not None:
-            with contextlib.suppress(Exception):
-                self._connection.close()
-            self._connection = None
-        if self._fd is not None:
-            if self._path is not None:
-                with contextlib.suppress(OSError):
-                    self._path.unlink()
-            os.close(self._fd)
-            self._fd, self._path = None, None
+        self._let_go(remove_file=True)
 
     def forget_after_fork(self) -> None:
         """In a forked task process: drop the PostgreSQL connection's socket without a
