@@ -25,6 +25,7 @@ import pytest
 from scenario_support import GOOD_SEQUENCE
 from service_support import wait_for
 from sqlalchemy import Connection, event, text, update
+from test_worker_restart import QUICK_SEARCH
 
 from service.store import JobRow, WorkerRow
 from service.store.jobs import claim, start_worker
@@ -38,13 +39,6 @@ if TYPE_CHECKING:
     from conftest import Service, Store
 
 WORKER = "w1@host"
-QUICK_SEARCH: dict[str, Any] = {
-    "method": "random",
-    "sequence_length": 2,
-    "timesteps": 40,
-    "n_realisations": 3,
-    "metric": "euclidean",
-}
 
 
 def _lose(store: Store, life: Life) -> int | None:
