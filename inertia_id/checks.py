@@ -10,6 +10,7 @@ for a count is a mistake, not 1.
 
 from __future__ import annotations
 
+import codecs
 import io
 import json
 import math
@@ -61,11 +62,18 @@ def read_text(
     gzip_limit: int | None = None,
     limit: int | None = None,
     advice: str = "",
+    opening: str = "",
 ) -> str:
     """A UTF-8 text file's content; a file that is no such text (a binary file, another
     encoding) is an :class:`~inertia_id.errors.InputError` naming it and ``what`` it
     should have been. A missing or unreadable file raises the ``OSError``, which names
-    the path.
+    the path. A named pipe, ``/dev/stdin`` or a process substitution (``<(cat f)``) is
+    read as a file is, once.
+
+    The memory it takes is the text twice at most, while the last piece is decoded or
+    the pieces joined: a regular file is read in one buffer of its size, a stream a
+    megabyte at a time, each piece decoded as it comes (the bytes' pieces, the bytes
+    joined and the text had made three copies of the file at once).
 
     :param gzip_limit: with it, a file that is gzip (known by its magic bytes, whatever
         its name) is decompressed, at most this many bytes
@@ -74,58 +82,93 @@ def read_text(
         :class:`~inertia_id.errors.InputError` naming the file, its size and the limit,
         raised before its content is read (a named pipe, whose size is not known
         beforehand: after ``limit + 1`` bytes of it).
-    :param advice: what to do about a file over ``limit``, said after the limit.
+    :param advice: what to do about a file over ``limit`` or not ``opening``, said after
+        the limit.
+    :param opening: the characters ``what`` begins with (``{`` for a JSON object): a
+        stream whose first character other than JSON's whitespace is none of them is
+        refused as that character comes. A stream has no size to check, and one that is
+        no such text (``/dev/zero``, a disk) was read to the limit before it was refused:
+        4 GB of memory for a classifier. A regular file is refused by its size, and its
+        reader says what is wrong with what it holds.
     """
     from .errors import InputError
     from .gzipped import gunzip, is_gzip
 
     # One pass over the file (a named pipe can be read once), decoded as Path.read_text
     # decodes: UTF-8, universal newlines.
+    decoder = io.IncrementalNewlineDecoder(codecs.getincrementaldecoder("utf-8")(), True)
     with open(path, "rb") as file:
         if gzip_limit is not None and is_gzip(file.peek(2)[:2]):
             data = gunzip(file, limit=gzip_limit, what=repr(os.fspath(path)))
-        elif limit is None:
-            data = file.read()
-        else:
-            status = os.fstat(file.fileno())
-            if stat.S_ISREG(status.st_mode) and status.st_size > limit:
-                raise InputError(
-                    _over_limit(path, f"is {status.st_size} bytes", limit, what, advice)
-                )
-            chunks = _read_at_most(file, limit + 1)
-            if sum(len(chunk) for chunk in chunks) > limit:
-                # Refused before the pieces are joined: a stream past the limit is held
-                # once, not twice (8.1 GB for a classifier's 4 GB from /dev/zero).
+            return _decode(decoder, data, 0, final=True, path=path, what=what)
+        status = os.fstat(file.fileno())
+        regular = stat.S_ISREG(status.st_mode)
+        if limit is not None and regular and status.st_size > limit:
+            raise InputError(_over_limit(path, f"is {status.st_size} bytes", limit, what, advice))
+        # A regular file in one read of its size (read(n) allocates n before it reads, so
+        # never of the limit: read(40_000_000_001) of a 2.6 MB file was a MemoryError); a
+        # stream a megabyte at a time, each piece as soon as it comes (read1).
+        size = status.st_size + 1 if regular else _CHUNK_BYTES
+        pieces: list[str] = []
+        total = 0
+        begun = regular or not opening
+        while True:
+            ask = size if limit is None else min(size, limit + 1 - total)
+            chunk = file.read(ask) if regular else file.read1(ask)
+            total += len(chunk)
+            if limit is not None and total > limit:
                 raise InputError(
                     _over_limit(path, f"holds more than {limit} bytes", limit, what, advice)
                 )
-            data = b"".join(chunks)
+            piece = _decode(
+                decoder, chunk, total - len(chunk), final=not chunk, path=path, what=what
+            )
+            if not begun and (first := _NOT_JSON_SPACE.search(piece)) is not None:
+                begun = True
+                if first.group() not in opening:
+                    raise InputError(_not_opening(path, first.group(), opening, what, advice))
+            pieces.append(piece)
+            if not chunk:
+                break
+            size = _CHUNK_BYTES
+    return "".join(pieces)
+
+
+def _decode(
+    decoder: io.IncrementalNewlineDecoder,
+    chunk: bytes,
+    offset: int,
+    *,
+    final: bool,
+    path: str | os.PathLike[str],
+    what: str,
+) -> str:
+    """``chunk``, the file's bytes from ``offset`` on, as text; bytes that are no UTF-8
+    are an :class:`~inertia_id.errors.InputError` naming the file and their position."""
+    from .errors import InputError
+
+    pending = len(decoder.getstate()[0])  # a character's first bytes, from the last chunk
     try:
-        return io.TextIOWrapper(io.BytesIO(data), encoding="utf-8").read()
+        return decoder.decode(chunk, final=final)
     except UnicodeDecodeError as exc:
         raise InputError(
             f"{os.fspath(path)!r} is not UTF-8 text (byte {exc.object[exc.start : exc.end]!r} "
-            f"at position {exc.start}): it should be {what}"
+            f"at position {offset - pending + exc.start}): it should be {what}"
         ) from None
 
 
-def _read_at_most(file: io.BufferedReader, size: int) -> list[bytes]:
-    """Up to ``size`` bytes of ``file``, read a megabyte at a time, in pieces. ``file.read(size)``
-    allocates all of ``size`` before it reads (``read(40_000_000_001)`` of a 2.6 MB file:
-    MemoryError on a machine of 23 GB), so a limit of gigabytes, a classifier's, would
-    have asked that much of every file read under it."""
-    chunks = []
-    left = size
-    while left > 0:
-        chunk = file.read(min(left, _CHUNK_BYTES))
-        if not chunk:
-            break
-        chunks.append(chunk)
-        left -= len(chunk)
-    return chunks
-
+#: The first character that is not JSON's whitespace (RFC 8259: space, tab, LF, CR).
+_NOT_JSON_SPACE = re.compile(r"[^ \t\n\r]")
 
 _CHUNK_BYTES = 1 << 20
+
+
+def _not_opening(
+    path: str | os.PathLike[str], found: str, opening: str, what: str, advice: str
+) -> str:
+    expected = " or ".join(repr(c) for c in opening)
+    text = f"{os.fspath(path)!r} is not {what}: it begins with {found!r}, not {expected}"
+    return f"{text}; {advice}" if advice else text
 
 
 def _over_limit(path: str | os.PathLike[str], size: str, limit: int, what: str, advice: str) -> str:

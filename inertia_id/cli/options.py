@@ -195,6 +195,7 @@ def load_scenario(preset_name: str, scenario_path: str | None) -> Scenario:
         "a scenario's JSON",
         limit=MAX_SCENARIO_BYTES,
         advice="is it a scenario (inertia-id scenario writes one)?",
+        opening="{",
     )
     try:
         document = loads_unique_keys(text)

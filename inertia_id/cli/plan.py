@@ -235,6 +235,7 @@ def _search_document(path: str) -> dict:
         "a search's JSON",
         limit=MAX_SEARCH_BYTES,
         advice="is it a search (a job downloaded from the service, or inertia-id search --out)?",
+        opening="{",
     )
     try:
         document = loads_unique_keys(text)
