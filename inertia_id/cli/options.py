@@ -11,6 +11,7 @@ from __future__ import annotations
 import functools
 import json
 import os
+import re
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -208,9 +209,13 @@ def load_scenario(preset_name: str, scenario_path: str | None) -> Scenario:
 
 def parse_sequence(text: str) -> list[list[int]]:
     """A sequence from ``"4,4,4,0,0,0;0,0,0,4,4,4"`` (rows separated by ';'), a JSON
-    list of rows, or a path to a JSON file holding one."""
+    list of rows, or a path to a file holding either (a named pipe too)."""
     source = text
-    if os.path.isfile(text):
+    # Any file but a folder: a named pipe, /dev/stdin or a process substitution
+    # (<(cat seq.json), /dev/fd/63) too, as a flight team pipes files (isfile took
+    # them for sequence text).
+    from_file = os.path.exists(text) and not os.path.isdir(text)
+    if from_file:
         from ..checks import read_text
 
         source = read_text(
@@ -237,9 +242,17 @@ def parse_sequence(text: str) -> list[list[int]]:
     except DuplicateKeyError as exc:
         raise InputError(f"sequence {text!r} has a {exc}") from None
     except (ValueError, RecursionError):
+        # A path that names nothing (a typo, a file not yet written) is read as sequence
+        # text: one that reads as a path (a folder, or a name with an extension) is said
+        # to be no file too.
+        missing = (
+            "no file by that name, and "
+            if not from_file and (os.sep in text or re.search(r"\.[A-Za-z]\w*$", text))
+            else ""
+        )
         raise InputError(
-            f"sequence {text!r} is not rows of level indices like '4,4,4,0,0,0;0,0,0,4,4,4' "
-            "or a JSON list of rows"
+            f"sequence {text!r} is {missing}not rows of level indices like "
+            "'4,4,4,0,0,0;0,0,0,4,4,4' or a JSON list of rows"
         ) from None
     if not isinstance(rows, list) or not rows:
         raise InputError(f"sequence {text!r} holds no steps")

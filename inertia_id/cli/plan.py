@@ -122,6 +122,7 @@ def plan_cmd(
         }
         job = document.get("_job_facts")
     elif sequence_text is not None and os.path.isfile(sequence_text):
+        # A regular file only: a pipe's path (/dev/fd/63) names nothing once it is read.
         source = {"sequence_file": str(Path(sequence_text).resolve())}
     planned = {"source": source, **plan.to_dict()} if source else plan.to_dict()
     if out == "-":

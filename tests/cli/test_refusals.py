@@ -339,6 +339,45 @@ def test_a_file_read_under_a_limit_is_held_twice_at_most(tmp_path: Path, kind: s
         writer.join(10)
 
 
+def test_a_sequence_may_be_piped_and_keeps_its_byte_limit(tmp_path: Path) -> None:
+    """``--sequence`` took a named pipe, ``/dev/stdin`` or a process substitution
+    (``<(cat seq.json)``) for sequence text (``os.path.isfile``): "sequence '/dev/fd/63'
+    is not rows of level indices". A pipe is read as a file, to the same byte limit."""
+    fifo = tmp_path / "seq.json"
+    _pipe_of(fifo, json.dumps(SEQUENCE).encode())
+    out = tmp_path / "plan.json"
+    result = CliRunner().invoke(main, ["plan", "--sequence", str(fifo), "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    assert json.loads(out.read_text())["sequence"] == SEQUENCE
+    # What a process substitution hands over: /dev/fd/N, the read end of a pipe.
+    read_end, write_end = os.pipe()
+    os.write(write_end, b"4,4,4,0,0,0;0,0,0,4,4,4\n")
+    os.close(write_end)
+    try:
+        result = CliRunner().invoke(
+            main, ["plan", "--sequence", f"/dev/fd/{read_end}", "--out", str(out)]
+        )
+    finally:
+        os.close(read_end)
+    assert result.exit_code == 0, result.output
+    assert json.loads(out.read_text())["sequence"] == [[4, 4, 4, 0, 0, 0], [0, 0, 0, 4, 4, 4]]
+    big = tmp_path / "big.json"
+    writer = _pipe_of(big, b" " * (MAX_SEQUENCE_BYTES + 1))
+    assert refused(["plan", "--sequence", str(big)]) == (
+        f"Error: {str(big)!r} holds more than {MAX_SEQUENCE_BYTES} bytes, over the limit of "
+        f"{MAX_SEQUENCE_BYTES} bytes for a sequence: a JSON list of rows; is it a sequence "
+        "(rows of level indices)?"
+    )
+    writer.join(10)
+    # A path that names nothing is still sequence text, and the error says it is no file.
+    for missing in (str(tmp_path / "nosuch.json"), "seq.jsn"):
+        assert refused(["plan", "--sequence", missing]) == (
+            f"Error: sequence {missing!r} is no file by that name, and not rows of level "
+            "indices like '4,4,4,0,0,0;0,0,0,4,4,4' or a JSON list of rows"
+        )
+    assert "is no file" not in refused(["plan", "--sequence", "4.5,4,4,0,0,0"])
+
+
 def test_a_limit_far_above_memory_costs_only_the_file() -> None:
     """A buffered read allocates all it is asked for first: reading a small file under a
     limit of 2**62 bytes was a MemoryError."""
