@@ -339,6 +339,31 @@ def test_a_file_read_under_a_limit_is_held_twice_at_most(tmp_path: Path, kind: s
         writer.join(10)
 
 
+@pytest.mark.parametrize("kind", ["file", "pipe"])
+def test_a_file_read_in_pieces_reads_as_one_text(tmp_path: Path, kind: str) -> None:
+    """A stream is decoded a piece at a time: a character or a CRLF cut between two
+    pieces is read whole, and a byte that is no UTF-8 is named at its place in the file."""
+    from inertia_id.checks import read_text
+
+    mib = 1 << 20
+    cases = {
+        "text": b"a" * (mib - 1) + "\u00e9".encode() + b"b\r" * (mib // 2) + b"\nc\r",
+        "bad": b"a" * (mib - 1) + b"\xc3zz",
+    }
+    for name, data in cases.items():
+        path = tmp_path / name
+        if kind == "file":
+            path.write_bytes(data)
+        else:
+            _pipe_of(path, data)
+        if name == "text":
+            expected = data.decode().replace("\r\n", "\n").replace("\r", "\n")
+            assert read_text(path, "text", limit=4 * mib) == expected
+        else:
+            with pytest.raises(InputError, match=rf"\(byte b'\\xc3' at position {mib - 1}\)"):
+                read_text(path, "text", limit=4 * mib)
+
+
 def test_a_sequence_may_be_piped_and_keeps_its_byte_limit(tmp_path: Path) -> None:
     """``--sequence`` took a named pipe, ``/dev/stdin`` or a process substitution
     (``<(cat seq.json)``) for sequence text (``os.path.isfile``): "sequence '/dev/fd/63'
