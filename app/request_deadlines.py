@@ -406,9 +406,9 @@ class H11WithDeadlines(_WithDeadlines, H11Protocol):  # type: ignore[misc]
 
     h11 refuses a head still incomplete past its ``max_incomplete_event_size``: set here
     to the byte limit and :data:`REQUEST_LINE_FRAMING` (whatever
-    ``h11_max_incomplete_event_size`` says), its refusal becomes a 414 (no line end yet:
-    the request line is what is too long) or a 431; a complete head (one that came in one
-    read) is checked as parsed."""
+    ``h11_max_incomplete_event_size`` says), its refusal becomes a 414 (the request
+    target is what runs on) or a 431; a complete head (one that came in one read) is
+    checked as parsed, and by its bytes as received."""
 
     def __init__(
         self,
@@ -426,7 +426,16 @@ class _LimitedH11Connection(h11.Connection):
 
     A refused head is answered here, and ``NEED_DATA`` returned (uvicorn's
     ``handle_events`` stops on it), not raised: uvicorn would log its generic "Invalid
-    HTTP request received." for it besides our line, and answer a 400."""
+    HTTP request received." for it besides our line, and answer a 400.
+
+    A complete head is also held to the bound on a head still arriving (its bytes as
+    received, past ``max_bytes`` and :data:`REQUEST_LINE_FRAMING`): h11 takes a method of
+    any length and any amount of whitespace around a value, which the target and the
+    fields it hands over do not show (a 100 KB method in one read reached the app, a 405;
+    40 KB of spaces before a value, a 200). Its bytes are what left h11's receive buffer
+    for it, seen through the public ``trailing_data`` (a copy: taken once as a head
+    begins, and once as it is parsed; the bytes received in between are added up here).
+    """
 
     def __init__(self, protocol: H11WithDeadlines) -> None:
         super().__init__(
@@ -434,32 +443,53 @@ class _LimitedH11Connection(h11.Connection):
             max_incomplete_event_size=protocol.head_limits.max_bytes + REQUEST_LINE_FRAMING,
         )
         self._protocol = protocol
+        #: Bytes in h11's receive buffer while it waits for a request head (None: not
+        #: waiting for one, or not counted yet).
+        self._buffered_for_head: int | None = None
+
+    def receive_data(self, data: bytes) -> None:
+        super().receive_data(data)
+        if self._buffered_for_head is not None:
+            self._buffered_for_head += len(data)
 
     def next_event(self) -> Any:
         limits = self._protocol.head_limits
         in_head = self.their_state is h11.IDLE
+        if in_head and self._buffered_for_head is None:
+            self._buffered_for_head = len(self.trailing_data[0])
         try:
             event = super().next_event()
         except h11.RemoteProtocolError as exc:
             if not (in_head and exc.error_status_hint == 431):
                 raise
-            # h11's "Receive buffer too long": the head so far, all of it one line or
-            # not (h11 has no public view of its buffer; it is pinned in pyproject).
-            received = bytes(self._receive_buffer).lstrip(b"\r\n")
-            in_request_line = b"\n" not in received
-            self._protocol.refuse_head(
-                limits.target_too_long() if in_request_line else limits.too_many_bytes()
-            )
+            # h11's "Receive buffer too long": the head so far is what is too long.
+            self._buffered_for_head = None
+            self._protocol.refuse_head(_unfinished_head_refusal(limits, self.trailing_data[0]))
             return h11.NEED_DATA
         if isinstance(event, h11.Request):
+            received = (self._buffered_for_head or 0) - len(self.trailing_data[0])
+            self._buffered_for_head = None
             size = len(event.target) + sum(field_bytes(n, v) for n, v in event.headers)
-            refusal = limits.target_exceeded(len(event.target)) or limits.exceeded(
-                len(event.headers), size
+            refusal = (
+                limits.target_exceeded(len(event.target))
+                or limits.exceeded(len(event.headers), size)
+                or limits.received_exceeded(received)
             )
             if refusal is not None:
                 self._protocol.refuse_head(refusal)
                 return h11.NEED_DATA
         return event
+
+
+def _unfinished_head_refusal(limits: HeadLimits, received: bytes) -> HeadRefusal:
+    """Why an unfinished head, ``received`` so far, past the bytes allowed is refused: a
+    414 while its request target is what runs on (the method ended with a space, the
+    target has not), a 431 otherwise (a line end came, or the method runs on: h11 takes
+    one of any length, and a 30 KB method was answered "the request target is over")."""
+    _method, space, rest = received.partition(b" ")
+    if space and b"\n" not in received and b" " not in rest:
+        return limits.target_too_long()
+    return limits.too_many_bytes()
 
 
 class HttpToolsWithDeadlines(_WithDeadlines, HttpToolsProtocol):  # type: ignore[misc]

@@ -17,6 +17,7 @@ import json
 import logging
 import re
 import socket
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -61,6 +62,12 @@ def port(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[int]:
     )
     with served_in_thread(app, config):
         yield port
+
+
+@pytest.fixture
+def http(port: int, request: pytest.FixtureRequest) -> str:
+    """Which of uvicorn's HTTP implementations serves ``port``."""
+    return str(request.node.callspec.params["port"])
 
 
 def _head(fields: list[bytes]) -> bytes:
@@ -264,6 +271,45 @@ def test_requests_pipelined_before_a_refused_head_are_answered_first(port: int) 
     assert statuses == [b"200", b"200", b"200", b"414"], answer[:600]
     assert b'{"size":5}' in answer
     _assert_414(answer[answer.index(b"HTTP/1.1 414") :], "INERTIA_ID_REQUEST_HEADER_MAX_BYTES")
+
+
+def _statuses(answer: bytes) -> list[bytes]:
+    return re.findall(rb"HTTP/1\.1 (\d{3}) ", answer)
+
+
+def test_a_long_method_in_one_read_is_refused_before_the_app(port: int, http: str) -> None:
+    """h11 takes a method of any length: 100 KB of one, sent at once, reached the app (a
+    405) uncounted. llhttp knows only its own methods: a 400 at once."""
+    answer = _send(port, b"M" * 100_000 + b" /health HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")
+    if http == "h11":
+        _assert_431(answer, "INERTIA_ID_REQUEST_HEADER_MAX_BYTES=16384")
+    else:
+        assert answer.startswith(b"HTTP/1.1 400 Bad Request\r\n"), answer[:300]
+    _health(port)
+
+
+def test_whitespace_around_a_value_counts_towards_the_byte_limit(port: int) -> None:
+    """40 KB of spaces before a one-byte value, sent at once: h11 hands the value over
+    without them, and the head was answered 200."""
+    answer = _send(port, _head([b"X-Spaces:" + b" " * 40_000 + b"v\r\n"]))
+    _assert_431(answer, "INERTIA_ID_REQUEST_HEADER_MAX_BYTES=16384")
+
+
+def test_a_long_method_still_arriving_is_not_a_long_target(port: int, http: str) -> None:
+    """30 KB of a method and no space yet: h11's refusal said "the request target (URL) is
+    over 16384 bytes" (a 414), of a request that had no target yet."""
+    with socket.create_connection(("127.0.0.1", port), timeout=WAIT_S) as sock:
+        try:
+            for _ in range(3):
+                sock.sendall(b"M" * 10_000)
+                time.sleep(0.05)
+        except (BrokenPipeError, ConnectionResetError):
+            pass  # answered and closed on the way
+        answer = _answer_and_close(sock)
+    if http == "h11":
+        _assert_431(answer, "INERTIA_ID_REQUEST_HEADER_MAX_BYTES=16384")
+    else:
+        assert answer.startswith(b"HTTP/1.1 400 Bad Request\r\n"), answer[:300]
 
 
 class _Records(logging.Handler):
