@@ -42,11 +42,13 @@ target is part (a second setting would be a second knob on the same memory).
 
 A head still arriving is counted by the bytes received for it (besides the method,
 version and line ends, at most :data:`REQUEST_LINE_FRAMING` bytes, which a complete head
-is not charged): memory held for a head stays within the limit and
-:data:`HEAD_FEED_BYTES`, where it once was the limit and a whole read of the socket
-(about 256 KB, uncounted). The refusal is the one line logged for the request (not
-uvicorn's "Invalid HTTP request received." besides, which stays for heads its parser
-refuses).
+is not charged), a head that began after another request in the same read included, and
+a complete head that came in one read is held to the same bound (h11 takes a method of
+any length): memory held for a head stays within the limit, :data:`REQUEST_LINE_FRAMING`
+and the :data:`HEAD_FEED_BYTES` it may take to see it past them, where it once was the
+limit and a whole read of the socket (about 256 KB, uncounted). The refusal is the one
+line logged for the request (not uvicorn's "Invalid HTTP request received." besides,
+which stays for heads its parser refuses).
 """
 
 from __future__ import annotations
@@ -91,9 +93,8 @@ BODY_PROGRESS_BYTES = 1024
 REQUEST_LINE_FRAMING = 64
 
 #: Most bytes of one read handed to llhttp at once where a request head may begin in
-#: them (not in a request body of known length): a head that begins after another
-#: request inside such a piece is counted from the next piece on (its share of this one
-#: is unknown), so a head's memory is bounded by the limit and this much.
+#: them (not in a request body of known length), so that a head still arriving is
+#: counted every this many bytes.
 HEAD_FEED_BYTES = 4096
 
 
@@ -502,9 +503,9 @@ class HttpToolsWithDeadlines(_WithDeadlines, HttpToolsProtocol):  # type: ignore
     its head is open. A read is handed to the parser in pieces of at most
     :data:`HEAD_FEED_BYTES` where a head may begin in it (a request body of known length
     goes whole), so that the bytes of a head are known: all of a piece that began between
-    requests and ends inside one head, or began and ended inside it. Only a head that
-    begins after another request inside one piece goes uncounted for its share of that
-    piece (at most :data:`HEAD_FEED_BYTES`).
+    requests and ends inside one head, or began and ended inside it, and for a head that
+    begins after another request inside one piece, what follows that request's last blank
+    line (:func:`_after_last_blank_line`).
 
     The parser is fed here, not by uvicorn's ``data_received`` (which feeds a read
     whole), its errors handled as uvicorn handles them but for a head past the limits:
@@ -531,6 +532,8 @@ class HttpToolsWithDeadlines(_WithDeadlines, HttpToolsProtocol):  # type: ignore
         self._body_left: int | None = None
         #: A refusal waiting for the answers to the requests pipelined before its head.
         self._refusal_waits: HeadRefusal | None = None
+        #: The last (up to 3) bytes handed to the parser: a blank line may begin in them.
+        self._fed_tail = b""
 
     def refuse_head(self, refusal: HeadRefusal) -> None:
         """Answer ``refusal`` now, or, where requests pipelined before the refused head
@@ -578,12 +581,16 @@ class HttpToolsWithDeadlines(_WithDeadlines, HttpToolsProtocol):  # type: ignore
                     self.logger.warning(msg)
                     self.send_400_response(msg)
                 return
+            before, self._fed_tail = self._fed_tail, _last_bytes(self._fed_tail, piece)
             if not self._head_open:
                 continue
             if self._heads == heads and was_open:
                 self._head_received += len(piece)  # all of it inside the head
             elif self._heads == heads + 1 and was_idle:
                 self._head_received = len(piece)  # the head began it (blank lines aside)
+            else:
+                # The head began after the end of another request inside this piece.
+                self._head_received = _after_last_blank_line(before, piece)
             refusal = self.head_limits.received_exceeded(self._head_received)
             if refusal is not None:
                 self.refuse_head(refusal)
@@ -638,6 +645,28 @@ class HttpToolsWithDeadlines(_WithDeadlines, HttpToolsProtocol):  # type: ignore
         if refusal is not None:
             self.head_refused = refusal
             raise _HeadTooLarge(refusal.why)
+
+
+def _last_bytes(before: bytes, piece: memoryview) -> bytes:
+    """The last 3 bytes of ``before`` followed by ``piece``: where a blank line that ends
+    in the next piece may begin."""
+    return (before + bytes(piece[-3:]))[-3:]
+
+
+def _after_last_blank_line(before: bytes, piece: memoryview) -> int:
+    """How many bytes of ``piece`` follow the end of its last blank line (``\\r\\n\\r\\n``,
+    which may begin in ``before``, the bytes handed to the parser just before it).
+
+    A request that ends inside a piece of the parser's feed (not a body of known length,
+    which is fed to its end) ends with a blank line: its head's, or its chunked body's
+    last one, as llhttp requires CRLF line ends. What follows is at most 3 bytes of blank
+    lines and the head that began after it, which holds no blank line while it is still
+    open: these bytes are the head's share of the piece, and llhttp's own place in the
+    piece, which httptools does not tell, is not needed. All of ``piece`` where it has no
+    blank line (which the above rules out)."""
+    joined = before + bytes(piece)
+    end = joined.rfind(b"\r\n\r\n")
+    return len(piece) if end < 0 else len(joined) - (end + 4)
 
 
 def _timeouts(config: uvicorn.Config) -> tuple[float, float]:

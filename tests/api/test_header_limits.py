@@ -312,6 +312,41 @@ def test_a_long_method_still_arriving_is_not_a_long_target(port: int, http: str)
         assert answer.startswith(b"HTTP/1.1 400 Bad Request\r\n"), answer[:300]
 
 
+def test_a_head_pipelined_after_a_request_counts_from_its_first_byte(port: int) -> None:
+    """A request, and the start of an unfinished head, in the first 4 KiB (one piece of the
+    parser's feed), then 16,300 bytes more of its field: 20 KB in all. httptools counted
+    that head from the next piece on (its share of the first was unknown): 16,300 bytes,
+    within the limit and its 64 bytes of framing, held until the head deadline closed the
+    connection, unanswered."""
+    start = _head([]) + b"GET /health HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Big: "
+    first = start + b"a" * (4096 - len(start))
+    with socket.create_connection(("127.0.0.1", port), timeout=WAIT_S) as sock:
+        sock.sendall(first)
+        try:
+            sock.sendall(b"a" * 16_300)
+        except (BrokenPipeError, ConnectionResetError):
+            pass  # answered and closed on the way
+        answer = _answer_and_close(sock)
+    assert _statuses(answer) == [b"200", b"431"], answer[:600]
+    _assert_431(answer[answer.index(b"HTTP/1.1 431") :], "INERTIA_ID_REQUEST_HEADER_MAX_BYTES")
+
+
+def test_a_head_pipelined_after_a_chunked_body_counts_from_its_first_byte(port: int) -> None:
+    """As above, the request before it a POST with a chunked body ending in the piece."""
+    post = b"POST /test/body-size HTTP/1.1\r\nHost: 127.0.0.1\r\nX-API-Key: " + KEY.encode()
+    start = post + b"\r\nTransfer-Encoding: chunked\r\n\r\n5\r\nhello\r\n0\r\n\r\n"
+    start += b"GET /health HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Big: "
+    with socket.create_connection(("127.0.0.1", port), timeout=WAIT_S) as sock:
+        sock.sendall(start + b"a" * (4096 - len(start)))
+        try:
+            sock.sendall(b"a" * 16_300)
+        except (BrokenPipeError, ConnectionResetError):
+            pass  # answered and closed on the way
+        answer = _answer_and_close(sock)
+    assert _statuses(answer) == [b"200", b"431"], answer[:600]
+    assert b'{"size":5}' in answer
+
+
 class _Records(logging.Handler):
     def __init__(self) -> None:
         super().__init__(logging.DEBUG)
