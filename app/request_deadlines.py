@@ -49,6 +49,12 @@ and the :data:`HEAD_FEED_BYTES` it may take to see it past them, where it once w
 limit and a whole read of the socket (about 256 KB, uncounted). The refusal is the one
 line logged for the request (not uvicorn's "Invalid HTTP request received." besides,
 which stays for heads its parser refuses).
+
+A request asking for a protocol upgrade that is not made (no WebSocket here) is answered
+as any other, and the connection goes on in HTTP/1.1 (RFC 9110 7.8): a request pipelined
+after it is answered too (uvicorn dropped the rest of the read). On httptools, one that
+also has a body, which llhttp does not read after such a head (the app was handed the
+request without it), is refused: a 400 naming it, and the connection closed.
 """
 
 from __future__ import annotations
@@ -144,9 +150,14 @@ class ServerConfig(uvicorn.Config):
         self.request_body_timeout_s = float(request_body_timeout_s)
 
 
-#: The reason phrases of a refused head's answer: RFC 9110's (Python 3.11's ``http``
-#: still has RFC 2616's "Request-URI Too Long" for 414).
-_REASONS = {414: b"URI Too Long", 431: b"Request Header Fields Too Large"}
+#: The reason phrases of a refused head's answer (400: an upgrade request with a body, on
+#: httptools): RFC 9110's (Python 3.11's ``http`` still has RFC 2616's "Request-URI Too
+#: Long" for 414).
+_REASONS = {
+    400: b"Bad Request",
+    414: b"URI Too Long",
+    431: b"Request Header Fields Too Large",
+}
 
 
 class HeadRefusal(NamedTuple):
@@ -566,13 +577,17 @@ class HttpToolsWithDeadlines(_WithDeadlines, HttpToolsProtocol):  # type: ignore
             heads, was_open, was_idle = self._heads, self._head_open, not self._in_message
             try:
                 self.parser.feed_data(piece)
-            except httptools.HttpParserUpgrade:
-                # As uvicorn: the rest of the read is not parsed.
+            except httptools.HttpParserUpgrade as upgrade:
                 if self._should_upgrade():
                     self.handle_websocket_upgrade()
-                else:
-                    self._unsupported_upgrade_warning()
-                return
+                    return
+                self._unsupported_upgrade_warning()
+                # Not upgraded, the connection goes on in HTTP/1.1 (RFC 9110 7.8), and
+                # httptools parses on after the request: from where it stopped (uvicorn
+                # dropped the rest of the read, a request pipelined after it unanswered).
+                start += upgrade.args[0] - len(piece)
+                self._fed_tail = _last_bytes(self._fed_tail, piece[: upgrade.args[0]])
+                continue
             except httptools.HttpParserError:
                 if self.head_refused is not None:
                     self.refuse_head(self.head_refused)
@@ -629,6 +644,21 @@ class HttpToolsWithDeadlines(_WithDeadlines, HttpToolsProtocol):  # type: ignore
         lengths = [value for name, value in self.headers if name == b"content-length"]
         chunked = any(name == b"transfer-encoding" for name, _ in self.headers)
         self._body_left = int(lengths[0]) if lengths and not chunked else None
+        if (
+            self.parser.should_upgrade()
+            and not self._should_upgrade()
+            and (chunked or self._body_left)
+        ):
+            # llhttp takes what follows such a head for the other protocol, the body
+            # too (the app was handed none): nothing after it could be read as HTTP.
+            upgrade = dict(self.headers).get(b"upgrade", b"")[:100].decode("latin-1")
+            method = self.parser.get_method().decode("ascii")
+            asked = method if method == "CONNECT" else f"Upgrade: {upgrade}"
+            why = (
+                f"a request with a body cannot ask for a protocol upgrade here ({asked}): "
+                "none is made, and its body is not read"
+            )
+            self._refuse(HeadRefusal(400, why))
         super().on_headers_complete()
 
     def on_body(self, body: bytes) -> None:

@@ -347,6 +347,41 @@ def test_a_head_pipelined_after_a_chunked_body_counts_from_its_first_byte(port: 
     assert b'{"size":5}' in answer
 
 
+#: A request for a protocol this server does not speak (RFC 9110 7.8).
+_UPGRADE = b"Connection: upgrade\r\nUpgrade: example/1\r\n"
+
+
+def test_a_request_pipelined_after_an_upgrade_not_made_is_answered(port: int) -> None:
+    """The upgrade is not made, so the connection stays HTTP/1.1 and the next request,
+    sent with it, is answered: uvicorn's httptools dropped the rest of the read (its
+    parser stops where the other protocol would begin), and the client waited for an
+    answer until the head deadline closed the connection."""
+    with socket.create_connection(("127.0.0.1", port), timeout=WAIT_S) as sock:
+        sock.sendall(_head([_UPGRADE]) + _head([]))
+        first, received = _response(sock, b"")
+        second, received = _response(sock, received)
+        assert first.startswith(b"HTTP/1.1 200 OK\r\n"), first[:300]
+        assert second.startswith(b"HTTP/1.1 200 OK\r\n"), second[:300]
+        sock.sendall(_head([]))  # and the connection goes on
+        third, _ = _response(sock, received)
+        assert third.startswith(b"HTTP/1.1 200 OK\r\n"), third[:300]
+
+
+def test_an_upgrade_request_with_a_body_is_refused_on_httptools(port: int, http: str) -> None:
+    """llhttp takes what follows the head of such a request as the other protocol's, its
+    body too: the app was handed the POST without its body (``{"size":0}``), and the
+    rest of the read was dropped. Now a 400 naming the upgrade, and the connection
+    closed. h11 reads the body, and goes on in HTTP/1.1."""
+    post = b"POST /test/body-size HTTP/1.1\r\nHost: 127.0.0.1\r\nX-API-Key: " + KEY.encode()
+    request = post + b"\r\n" + _UPGRADE + b"Content-Length: 5\r\n\r\nhello"
+    answer = _send(port, request + _head([]) + _head([b"Connection: close\r\n"]))
+    if http == "h11":
+        assert _statuses(answer) == [b"200", b"200", b"200"], answer[:600]
+        assert b'{"size":5}' in answer
+    else:
+        _assert_refused(answer, b"HTTP/1.1 400 Bad Request", "Upgrade: example/1")
+
+
 class _Records(logging.Handler):
     def __init__(self) -> None:
         super().__init__(logging.DEBUG)
