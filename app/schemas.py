@@ -735,9 +735,9 @@ class ComponentHealth(BaseModel):
 class WarmingWorker(BaseModel):
     name: str
     warming_s: float = Field(
-        description="how long the worker has had no warm task process, s: since its "
-        "replacement started (the first of them, when one was killed before it was warm); "
-        "read from the worker's last beat"
+        description="how long the worker has had no warm task process, s: as it starts, "
+        "since the worker process started; later, since its replacement started (the first "
+        "of them, when one was killed before it was warm); read from the worker's last beat"
     )
 
 
@@ -760,9 +760,9 @@ class WorkersHealth(BaseModel):
     window_s: float = Field(description="a worker counts if seen within this many seconds")
     warming: list[WarmingWorker] = Field(
         default_factory=list,
-        description="live workers whose task process is being replaced (the last one "
-        "retired after its jobs or its memory limit, or was killed) and imports the core: "
-        "each takes queued jobs as soon as it is warm",
+        description="live workers whose task process imports the core: the first one, as "
+        "the worker starts, or a replacement (the last one retired after its jobs or its "
+        "memory limit, or was killed): each takes queued jobs as soon as it is warm",
     )
     without_lock: list[WorkerWithoutLock] = Field(
         default_factory=list,

@@ -62,6 +62,10 @@ class WorkerMonitor:
         #: When a beat first saw no warm task process and no replacement started (s
         #: since the epoch; None: it has not, or one is warm or started since).
         self._unreplaced_since: float | None = None
+        #: When this worker process started (s since the epoch: its ``worker_init``, else
+        #: now), until its first task process is warm: that first warm-up is dated from
+        #: it. None once a task process has been warm.
+        self._booting_since: float | None = _started_at or time.time()
         # Its own app and connections: the reaper publishes from this thread, away from
         # the consumer's event loop.
         self.celery = make_celery(settings)
@@ -82,37 +86,38 @@ class WorkerMonitor:
         elif self._lock_missing_since is None:
             self._lock_missing_since = utcnow()
         is_warm = warm()
-        if is_warm or self._started:
-            # Seen first once a task process can run a job at once (see worker.process).
-            # Later, while a replacement task process warms up (the last one retired
-            # after its jobs or its memory limit, or was killed), the worker beats on as
-            # warming: it takes the queued jobs as soon as the replacement is up, so
-            # /health need not call it gone (which it did at every retirement), and can
-            # tell a warm-up that takes too long.
-            with self.db.session() as session:
-                if self._started:
-                    beat_worker(
-                        session,
-                        self.name,
-                        broker_label(self.settings),
-                        warming_since=None if is_warm else self._warming_since(),
-                        lock_missing_since=self._lock_missing_since,
-                        # A twin of this name told to stop marked the row it shares
-                        # stopping: this live process's beat takes it back.
-                        incarnation=self.life.incarnation,
-                    )
-                else:
-                    # A new incarnation of the name: a fresh row, not a dead one's.
-                    start_worker(
-                        session,
-                        self.name,
-                        broker_label(self.settings),
-                        self.life.incarnation,
-                        lock_missing_since=self._lock_missing_since,
-                    )
-            self._started = True
-            if is_warm:
-                self._unreplaced_since = None
+        # Listed from its first beat: while a task process warms up (the first one, as
+        # the worker starts, or a replacement: the last one retired after its jobs or
+        # its memory limit, or was killed), the worker beats as warming. It takes the
+        # queued jobs as soon as one is up, so /health need not call it gone (nor
+        # absent while it starts), and can tell a warm-up that takes too long.
+        warming_since = None if is_warm else self._warming_since()
+        with self.db.session() as session:
+            if self._started:
+                beat_worker(
+                    session,
+                    self.name,
+                    broker_label(self.settings),
+                    warming_since=warming_since,
+                    lock_missing_since=self._lock_missing_since,
+                    # A twin of this name told to stop marked the row it shares
+                    # stopping: this live process's beat takes it back.
+                    incarnation=self.life.incarnation,
+                )
+            else:
+                # A new incarnation of the name: a fresh row, not a dead one's.
+                start_worker(
+                    session,
+                    self.name,
+                    broker_label(self.settings),
+                    self.life.incarnation,
+                    warming_since=warming_since,
+                    lock_missing_since=self._lock_missing_since,
+                )
+        self._started = True
+        if is_warm:
+            self._unreplaced_since = None
+            self._booting_since = None
         # Before the reaper: a run of this name's earlier, dead process is taken within
         # two beats, with its cause, not by the heartbeat timeout as a hung task process.
         take_restarted_runs(
@@ -126,12 +131,17 @@ class WorkerMonitor:
         resend_once(self.settings, self.db, self.celery)
 
     def _warming_since(self) -> datetime:
-        """Since when the worker has had no warm task process: the start of the
-        replacement warming up (or of the first of those killed in turn), else, none
-        started yet, the first beat that saw none. The pool starts one within a second
-        of the last one's exit; should it never, the age grows past /health's limit
-        (dated "now" at each beat, it stayed 0 s and the worker "ok")."""
+        """Since when the worker has had no warm task process: before its first was
+        warm, the worker's own start; later, the start of the replacement warming up
+        (or of the first of those killed in turn), else, none started yet, the first
+        beat that saw none. The pool starts one within a second of the last one's exit;
+        should it never, the age grows past /health's limit (dated "now" at each beat,
+        it stayed 0 s and the worker "ok")."""
         since = cold_since()
+        if self._booting_since is not None:
+            # The first task process starts after the worker: the warm-up an operator
+            # sees begins when the worker was started.
+            since = self._booting_since if since is None else min(since, self._booting_since)
         if since is None:
             if self._unreplaced_since is None:
                 self._unreplaced_since = time.time()
@@ -181,6 +191,26 @@ _monitor: WorkerMonitor | None = None
 #: This process's incarnation lock, taken when the worker starts, before its pool forks
 #: (``worker_init``), so no job is claimed under an incarnation that is not held.
 _life: incarnation.Life | None = None
+#: When this worker process started (s since the epoch; set at ``worker_init``).
+_started_at: float | None = None
+
+
+def _process_started_at() -> float | None:
+    """When this process was started (s since the epoch, to a clock tick), from /proc
+    (Linux); None elsewhere. A worker's main process takes seconds to import Celery and
+    its app before ``worker_init`` (4-6 s measured on the loaded 2-core machine): its
+    first warm-up is dated from its start, not from there."""
+    try:
+        now = time.time()
+        with open("/proc/self/stat") as stat:
+            # "pid (comm) state ...": field 22, starttime, in clock ticks after boot.
+            ticks = int(stat.read().rpartition(")")[2].split()[19])
+        with open("/proc/uptime") as uptime:
+            # Not /proc/stat's btime: whole seconds, up to 1 s early.
+            up_s = float(uptime.read().split()[0])
+    except (OSError, ValueError, IndexError):
+        return None
+    return now - up_s + ticks / os.sysconf("SC_CLK_TCK")
 
 
 def current() -> WorkerMonitor | None:
@@ -204,7 +234,8 @@ def _after_fork_in_child() -> None:
 
 @worker_init.connect
 def _hold_incarnation(**_kwargs: Any) -> None:
-    global _life
+    global _life, _started_at
+    _started_at = _process_started_at() or time.time()
     _life = incarnation.Life(get_settings().resolved_database_url, incarnation.current())
     # The database may not be up yet: the monitor tries again at each tick.
     _life.try_hold()

@@ -59,8 +59,8 @@ _PR_SET_PDEATHSIG = 1
 # by them at once.
 _STOPPING = mmap.mmap(-1, 1)
 # The pid of each warm task process, in its pool slot (billiard's process index), written
-# by the task process once it has imported the core: the worker is then seen (its workers
-# row) and counted idle by the re-sender. Before, a job sent to it would wait for the
+# by the task process once it has imported the core: the worker's row then says it is
+# warm, and the re-sender counts it idle. Before, a job sent to it would wait for the
 # imports, and the re-sender would take it for a worker that lost a message. A pid, not a
 # flag: a task process killed outright (kill -9, the kernel's OOM killer) cannot lower a
 # flag, and its replacement warms up for seconds; meanwhile the worker can run no job and

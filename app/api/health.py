@@ -207,7 +207,8 @@ def _takers(workers: WorkersHealth) -> int:
 @router.get("/health")
 def health(settings: SettingsDep, database: DatabaseDep, celery: CeleryDep) -> HealthOut:
     """Database reachable, broker reachable, workers seen recently (one whose task
-    process is being replaced counts, as warming, unless its warm-up takes too long; one
+    process warms up, as the worker starts or as a replacement, counts, as warming,
+    unless its warm-up takes too long; one
     without its incarnation lock is listed, and no worker holding its lock is a fault), no
     queued job left without a message nor waiting long while a worker sits idle: "ok",
     else "degraded".

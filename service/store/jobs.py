@@ -741,12 +741,14 @@ def start_worker(
     broker_url: str,
     incarnation: str,
     *,
+    warming_since: datetime | None = None,
     lock_missing_since: datetime | None = None,
 ) -> None:
     """Record that a worker process started under ``name`` as ``incarnation``: a new
     row, or the name's row made new (``started_at`` now, no ``stopping_since`` left from
-    an earlier process of that name, which stopped or died). ``lock_missing_since``: as
-    in :func:`beat_worker`."""
+    an earlier process of that name, which stopped or died). ``warming_since`` (its
+    first task process not warm yet) and ``lock_missing_since``: as in
+    :func:`beat_worker`."""
     now = utcnow()
     values = {
         "name": name,
@@ -755,7 +757,7 @@ def start_worker(
         "last_seen_at": now,
         "stopping_since": None,
         "incarnation": incarnation,
-        "warming_since": None,
+        "warming_since": warming_since,
         "lock_missing_since": lock_missing_since,
     }
     dialect = session.get_bind().dialect.name

@@ -209,10 +209,11 @@ class WorkerRow(Base):
     #: The worker process that holds the name now: a new id each time a worker starts
     #: under it (``service.store.jobs.start_worker``). NULL on rows stored before.
     incarnation: Mapped[str | None] = mapped_column(String(32), default=None)
-    #: Since when the worker has had no warm task process: its last one retired (after
-    #: its jobs, or its memory limit) or was killed, and the replacement, started then, is
-    #: importing the core (``worker.process.cold_since``). It takes no job meanwhile, and
-    #: takes the queued ones once warm. NULL: warm. Written by the worker's main process.
+    #: Since when the worker has had no warm task process: it started (its first task
+    #: process is importing the core), or its last one retired (after its jobs, or its
+    #: memory limit) or was killed, and the replacement, started then, is importing the
+    #: core (``worker.process.cold_since``). It takes no job meanwhile, and takes the
+    #: queued ones once warm. NULL: warm. Written by the worker's main process.
     warming_since: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
     #: Since when the worker has not held its incarnation lock (``worker.incarnation``):
     #: not taken at its start, or lost and not taken again. It claims no job meanwhile.

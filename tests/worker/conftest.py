@@ -63,6 +63,9 @@ class WorkerProcess(GroupProcess):
     """A ``celery worker`` subprocess, in its own process group (so that :meth:`kill`
     ends it and its task processes at once, as a machine that died)."""
 
+    #: The incarnations its name's row had before it started.
+    earlier: set[str | None] = field(default_factory=set)
+
     def stop(self, timeout_s: float = 15.0) -> None:
         """Warm shutdown (SIGTERM to the main process, which waits for its task), then
         SIGKILL whatever is left of the group."""
@@ -90,8 +93,14 @@ class Service:
 
     def start_worker(self, *, prefix: str | None = None, **env: str) -> WorkerProcess:
         """Start a worker (extra environment in ``env``) and wait until it is ready:
-        its monitor has written its ``workers`` row. ``prefix`` names it as an earlier
-        worker was (its row then shows the new worker's incarnation)."""
+        its monitor has written its ``workers`` row, its task process warm. ``prefix``
+        names it as an earlier worker was (its row then shows the new worker's
+        incarnation)."""
+        return self._await_worker(self.spawn_worker(prefix=prefix, **env), warm=True)
+
+    def spawn_worker(self, *, prefix: str | None = None, **env: str) -> WorkerProcess:
+        """Start a worker as :meth:`start_worker` does, without waiting for it: its
+        name is ``prefix`` (not yet the row's ``prefix@host``)."""
         prefix = prefix or f"w{len(self.workers) + 1}-{uuid.uuid4().hex[:6]}"
         with self.db.session() as session:
             earlier = set(
@@ -107,7 +116,12 @@ class Service:
             env={**self.env, **env},
         )
         worker = WorkerProcess(name=prefix, process=process, log_path=log_path)
+        worker.earlier = earlier
         self.workers.append(worker)
+        return worker
+
+    def _await_worker(self, worker: WorkerProcess, *, warm: bool) -> WorkerProcess:
+        prefix, earlier = worker.name, worker.earlier
         deadline = time.monotonic() + WORKER_READY_TIMEOUT_S
         while time.monotonic() < deadline:
             with self.db.session() as session:
@@ -117,6 +131,8 @@ class Service:
                         WorkerRow.incarnation.is_(None) | WorkerRow.incarnation.not_in(earlier)
                         if earlier
                         else True,
+                        # A worker is listed from its first beat, warming up.
+                        WorkerRow.warming_since.is_(None) if warm else True,
                     )
                 ).first()
             if seen:

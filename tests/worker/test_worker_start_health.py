@@ -1,0 +1,147 @@
+"""What ``/health`` says while a worker starts: its first task process imports the core
+(seconds; tens of seconds on a loaded machine) before the worker can take a job.
+
+The worker is listed from its first beat, as warming (the warm-up's age since the worker
+started), until its task process is warm. Before, it was listed only once warm: an
+operator who started a worker saw no worker at all ("degraded") for the whole warm-up.
+A worker killed whole and started again under its name is the new process from that
+process's first beat: before, the dead one's row (warming, when it was killed warming)
+stayed listed as it was for the silence window, while its restart warmed up unlisted.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+from datetime import timedelta
+from typing import TYPE_CHECKING, Any
+
+import pytest
+from service_support import ROOT, wait_for
+from test_worker_replacement import REPLACED_JOB_TIMEOUT_S
+
+import worker.monitor
+from app.api.health import health
+from service.config import Settings
+from service.store import WorkerRow
+from service.store.jobs import beat_worker, start_worker
+from service.store.models import utcnow
+from worker.incarnation import Life
+from worker.monitor import WorkerMonitor
+
+if TYPE_CHECKING:
+    from conftest import Service, Store
+
+WORKER = "w1@host"
+
+
+def _warming(report: Any) -> dict[str, float]:
+    return {w.name: w.warming_s for w in report.workers.warming}
+
+
+def test_a_starting_worker_is_listed_as_warming_from_its_first_beat(
+    store: Store, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    cold = True
+    monkeypatch.setattr(worker.monitor, "warm", lambda: not cold)
+    monkeypatch.setattr(worker.monitor, "cold_since", lambda: None)  # none started yet
+    url = store.settings.resolved_database_url
+    # The worker process started (worker_init) 4 s before its first beat.
+    monkeypatch.setattr(worker.monitor, "_started_at", time.time() - 4.0, raising=False)
+    monitor = WorkerMonitor(WORKER, store.settings, Life(url, "first"))
+    try:
+        monitor.tick()
+        report = health(store.settings, store.db, monitor.celery)
+        # Before: no worker listed, "degraded" ("no worker seen in the last 15 s").
+        assert report.workers.names == [WORKER], report.workers
+        assert report.status == "ok", report
+        # Dated from the worker's start, not from its first beat.
+        assert 4.0 <= _warming(report)[WORKER] < 4.0 + 30.0, report.workers.warming
+        cold = False
+        monitor.tick()
+        report = health(store.settings, store.db, monitor.celery)
+        assert (report.status, report.workers.names, report.workers.warming) == (
+            "ok",
+            [WORKER],
+            [],
+        )
+    finally:
+        monitor.stop()
+
+
+def test_a_worker_process_knows_when_it_was_started() -> None:
+    """The first warm-up's date: the process's start, before its imports (seconds)."""
+    before = time.time()
+    printed = subprocess.run(
+        [sys.executable, "-c", "import worker.monitor as m; print(m._process_started_at())"],
+        capture_output=True,
+        text=True,
+        check=True,
+        env={**os.environ, "PYTHONPATH": str(ROOT)},
+    ).stdout
+    after = time.time()
+    # /proc's uptime is to 10 ms, a process's start to a clock tick.
+    assert before - 0.1 <= float(printed) <= after, (before, printed, after)
+
+
+def test_a_restart_under_its_name_replaces_the_dead_ones_warming_row_at_its_first_beat(
+    store: Store, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(worker.monitor, "warm", lambda: False)  # the restart warms up
+    monkeypatch.setattr(worker.monitor, "cold_since", lambda: None)
+    url = store.settings.resolved_database_url
+    dead_since = utcnow() - timedelta(seconds=40)
+    with store.db.session() as session:
+        # The dead process's last beat: it was warming up (a replacement, for 40 s)
+        # when it was killed (kill -9), a moment ago.
+        start_worker(session, WORKER, "filesystem://", "dead")
+        beat_worker(session, WORKER, "filesystem://", warming_since=dead_since, incarnation="dead")
+    monkeypatch.setattr(worker.monitor, "_started_at", time.time(), raising=False)
+    restart = WorkerMonitor(WORKER, store.settings, Life(url, "restart"))
+    try:
+        restart.tick()
+        with store.db.session() as session:
+            row = session.get_one(WorkerRow, WORKER)
+            assert row.incarnation == "restart"  # before: "dead", until the restart was warm
+        report = health(store.settings, store.db, restart.celery)
+        # The restart's own warm-up, seconds old; before, the dead one's, 40 s old.
+        assert report.workers.names == [WORKER], report.workers
+        assert _warming(report)[WORKER] < 30.0, report.workers.warming
+    finally:
+        restart.stop()
+
+
+def _settings(deployment: Service) -> Settings:
+    return Settings(
+        INERTIA_ID_DATA_DIR=deployment.settings.data_dir,
+        DATABASE_URL=deployment.settings.database_url,
+        BROKER_URL=deployment.settings.broker_url,
+        # A warm-up on a loaded machine (38 s measured) stays within the warming limit.
+        INERTIA_ID_HEARTBEAT_TIMEOUT_S=300,
+    )
+
+
+def test_health_lists_a_real_worker_warming_while_it_starts(deployment: Service) -> None:
+    """A ``celery worker`` as the compose file and README start one: from its first beat
+    until its task process is warm, /health lists it as warming and says "ok"."""
+    settings = _settings(deployment)
+    started = deployment.spawn_worker()
+    seen: list[tuple[str, list[str], list[str]]] = []
+
+    def warm() -> bool:
+        report = health(settings, deployment.db, deployment.celery)
+        names = [n for n in report.workers.names if n.startswith(f"{started.name}@")]
+        warming = [w.name for w in report.workers.warming if w.name in names]
+        if names:
+            seen.append((report.status, names, warming))
+        return bool(names) and not warming
+
+    try:
+        wait_for(warm, REPLACED_JOB_TIMEOUT_S, "the worker never became warm", started.log)
+        # Its first beat comes while its task process imports the core (seconds).
+        assert seen[0][2] == seen[0][1], seen[:3]  # before: first listed once warm
+        assert all(status == "ok" for status, _, _ in seen), seen
+    finally:
+        started.stop()
