@@ -750,6 +750,14 @@ class WorkerWithoutLock(BaseModel):
     )
 
 
+class GoneWorker(BaseModel):
+    name: str
+    silent_s: float = Field(
+        description="how long ago the worker's process last beat, s: it is gone since "
+        "(killed, its machine lost: its incarnation lock is free)"
+    )
+
+
 class WorkersHealth(BaseModel):
     ok: bool = Field(
         description="false when no worker is live, when one has been warming longer "
@@ -769,6 +777,12 @@ class WorkersHealth(BaseModel):
         description="live workers that do not hold their incarnation lock: each claims no "
         "job (a job sent to it stays queued and is sent again) until it takes the lock "
         "again, which it tries at every beat; its log says why it could not",
+    )
+    gone: list[GoneWorker] = Field(
+        default_factory=list,
+        description="workers seen within window_s whose process is gone (its incarnation "
+        "lock is free: killed, its machine lost): not counted nor listed above, and listed "
+        "here until window_s after their last beat",
     )
     warming_limit_s: float = Field(
         description="a warm-up longer than this (INERTIA_ID_HEARTBEAT_TIMEOUT_S, or "

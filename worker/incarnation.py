@@ -31,9 +31,7 @@ the workers share (its server, or its file), which no lock library we use knows 
 from __future__ import annotations
 
 import contextlib
-import errno
 import fcntl
-import hashlib
 import logging
 import mmap
 import os
@@ -42,11 +40,12 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
-from sqlalchemy import text
 from sqlalchemy.engine import make_url
-from sqlalchemy.exc import DBAPIError
 from sqlalchemy.orm import Session
 
+from service.store.incarnations import LockUnreadable, lock_held
+from service.store.incarnations import lock_file as _lock_file
+from service.store.incarnations import lock_key as _key
 from service.store.models import new_id
 
 __all__ = ["Life", "Witness", "alive", "current"]
@@ -61,20 +60,6 @@ _CURRENT = new_id()
 def current() -> str:
     """This worker's incarnation id (the same in its main and its task processes)."""
     return _CURRENT
-
-
-def _key(incarnation: str) -> int:
-    """A PostgreSQL advisory lock key (signed 64 bits) for ``incarnation``."""
-    return int.from_bytes(hashlib.sha256(incarnation.encode()).digest()[:8], "big", signed=True)
-
-
-def _lock_file(database_url: str, incarnation: str) -> Path | None:
-    """The lock file of ``incarnation`` beside a SQLite database file; None elsewhere."""
-    url = make_url(database_url)
-    if not url.drivername.startswith("sqlite") or url.database in (None, "", ":memory:"):
-        return None
-    database = Path(url.database or "")
-    return database.with_name(f"{database.name}.incarnations") / f"{incarnation}.lock"
 
 
 class Life:
@@ -290,53 +275,14 @@ def alive(session: Session, database_url: str, incarnation: str) -> bool:
     file, or unreadable), or a PostgreSQL probe that fails (the server restarting, the
     session ended, a statement error); each reason logged once.
     """
-    dialect = session.get_bind().dialect.name
-    if dialect == "postgresql":
-        key = _key(incarnation)
-        try:
-            # In a savepoint: a statement that fails leaves the caller's transaction
-            # usable (else every later statement of the beat's session failed too).
-            with session.begin_nested():
-                free = session.execute(
-                    text("SELECT pg_try_advisory_lock(:key)"), {"key": key}
-                ).scalar()
-                if free:
-                    session.execute(text("SELECT pg_advisory_unlock(:key)"), {"key": key})
-        except Exception as exc:
-            # The server restarting, the session ended, a statement error: the lock's
-            # state is unknown, so the other incarnation is not judged dead (before,
-            # the error left the monitor's beat before its reaper and re-sender).
-            if isinstance(exc, DBAPIError) and exc.connection_invalidated:
-                # The server ended the session, and the transaction with it: rolled
-                # back here too, so the caller's session connects afresh at its next
-                # statement instead of failing at each until its end.
-                session.rollback()
-            return _unknown("on the PostgreSQL server", exc)
-        return not free
-    path = _lock_file(database_url, incarnation)
-    if path is None:
-        return True
     try:
-        fd = os.open(path, os.O_RDWR)
-    except FileNotFoundError:
-        return False  # released at a clean exit, or never taken: not running
-    except OSError as exc:
-        # The folder is a file (NotADirectoryError), or cannot be read: the lock's state
-        # is unknown, so the other incarnation is not judged dead (its run stays its
-        # own); the beat goes on to the reaper and the re-sender.
-        return _unknown(f"in {path.parent}", exc)
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except OSError as exc:
-        if exc.errno in (errno.EAGAIN, errno.EACCES, errno.EWOULDBLOCK):
-            return True
-        return _unknown(f"in {path.parent}", exc)
-    else:
-        with contextlib.suppress(OSError):
-            path.unlink()  # a dead incarnation's file: nobody will hold it again
-        return False
-    finally:
-        os.close(fd)
+        held = lock_held(session, database_url, incarnation)
+    except LockUnreadable as unreadable:
+        # The lock's state is unknown, so the other incarnation is not judged dead (its
+        # run stays its own; before, the error left the monitor's beat before its
+        # reaper and re-sender).
+        return _unknown(unreadable.where, unreadable.error)
+    return held is None or held
 
 
 #: The places (a lock folder, the PostgreSQL server) and reasons :func:`alive`

@@ -10,14 +10,17 @@ from typing import Any
 from celery import Celery
 from fastapi import APIRouter
 from sqlalchemy import func, select
+from sqlalchemy.orm import Session
 
 import inertia_id
 from service.config import Settings
+from service.store.incarnations import LockUnreadable, lock_held
 from service.store.models import JobRow, WorkerRow, utcnow
 from service.store.session import Database
 
 from ..schemas import (
     ComponentHealth,
+    GoneWorker,
     HealthOut,
     QueueHealth,
     WarmingWorker,
@@ -131,29 +134,53 @@ def _queue(
     )
 
 
+def _gone(session: Session, database_url: str, incarnation: str | None) -> bool:
+    """Whether the process of the worker row's ``incarnation`` (its last beat's) is gone:
+    its incarnation lock is free. A row without one (stored before incarnations), a lock
+    that cannot be read, or a database without locks: not known gone."""
+    if incarnation is None:
+        return False
+    try:
+        return lock_held(session, database_url, incarnation) is False
+    except LockUnreadable:  # its workers log why, once
+        return False
+
+
 def _workers(settings: Settings, database: Database, database_ok: bool) -> WorkersHealth:
     window = _HEARTBEATS_OF_GRACE * settings.heartbeat_interval_s
     # Past the heartbeat timeout a warm-up is as stuck as a run that stopped beating;
     # past the start timeout Celery has killed the replacement and started another.
     limit = min(settings.heartbeat_timeout_s, settings.worker_start_timeout_s)
     rows: list[tuple[str, datetime | None, datetime | None]] = []
+    gone: list[GoneWorker] = []
     now = utcnow()
     if database_ok:
         cutoff = now - timedelta(seconds=window)
         try:
             with database.session() as session:
-                rows = [
-                    (name, since, lock_missing_since)
-                    for name, since, lock_missing_since in session.execute(
-                        select(
-                            WorkerRow.name, WorkerRow.warming_since, WorkerRow.lock_missing_since
-                        )
-                        # A worker told to stop (SIGTERM) takes no job any more: it
-                        # leaves the list at once, not a silence window later.
-                        .where(WorkerRow.last_seen_at >= cutoff, WorkerRow.stopping_since.is_(None))
-                        .order_by(WorkerRow.name)
+                for name, since, lock_missing_since, incarnation, last_seen in session.execute(
+                    select(
+                        WorkerRow.name,
+                        WorkerRow.warming_since,
+                        WorkerRow.lock_missing_since,
+                        WorkerRow.incarnation,
+                        WorkerRow.last_seen_at,
                     )
-                ]
+                    # A worker told to stop (SIGTERM) takes no job any more: it
+                    # leaves the list at once, not a silence window later.
+                    .where(WorkerRow.last_seen_at >= cutoff, WorkerRow.stopping_since.is_(None))
+                    .order_by(WorkerRow.name)
+                ):
+                    # Killed (kill -9, its machine lost): its lock went with its process,
+                    # and its row, which it can no longer beat, says what it was
+                    # (warming, say) until the silence window ends. A worker that knows
+                    # its lock is missing says so (lock_missing_since) and is live.
+                    if lock_missing_since is None and _gone(
+                        session, settings.resolved_database_url, incarnation
+                    ):
+                        gone.append(GoneWorker(name=name, silent_s=_age_s(now, last_seen)))
+                    else:
+                        rows.append((name, since, lock_missing_since))
         except Exception:  # the database went away between the ping and the query
             log.exception("could not read the workers table")
     warming = [
@@ -175,6 +202,12 @@ def _workers(settings: Settings, database: Database, database_ok: bool) -> Worke
         details.append("the database is unreachable: no worker can be read")
     elif not rows:
         details.append(f"no worker seen in the last {window:g} s")
+    if not rows:
+        details += [
+            f"worker {w.name}'s process is gone (its incarnation lock is free; "
+            f"its last beat {w.silent_s:.0f} s ago)"
+            for w in gone
+        ]
     details += [
         f"worker {w.name} has been warming up for {w.warming_s:.0f} s (over {limit:g} s): "
         "its task process does not start"
@@ -193,6 +226,7 @@ def _workers(settings: Settings, database: Database, database_ok: bool) -> Worke
         window_s=window,
         warming=warming,
         without_lock=without_lock,
+        gone=gone,
         warming_limit_s=limit,
         detail="; ".join(details) or None,
     )

@@ -799,11 +799,12 @@ def beat_worker(
     has not held its incarnation lock (it claims no job meanwhile), None when it holds
     it.
 
-    With ``incarnation`` (the beating process's): a row marked stopping by another
-    incarnation of the name becomes this one's, no longer stopping. Two live processes
-    started under one name by mistake (twins) share the row; the one it names, told to
-    stop, marks it stopping (see :func:`hand_back`), and /health left the other out
-    while it lived and beat."""
+    With ``incarnation`` (the beating process's): the row names it (its last beater),
+    and a row marked stopping by another incarnation of the name is no longer stopping.
+    Two live processes started under one name by mistake (twins) share the row; the one
+    it names, told to stop, marks it stopping (see :func:`hand_back`), and /health left
+    the other out while it lived and beat; and /health finds a row that names a dead
+    process gone, as when one twin was killed."""
     _upsert_worker(
         session,
         name,
@@ -821,9 +822,9 @@ def _upsert_worker(
     *,
     incarnation: str | None = None,
 ) -> None:
-    """Insert worker ``name``'s row, or set ``updates`` on it; with ``incarnation``, a row
-    marked stopping by another incarnation becomes ``incarnation``'s, not stopping (see
-    :func:`beat_worker`)."""
+    """Insert worker ``name``'s row, or set ``updates`` on it; with ``incarnation``, the
+    row becomes ``incarnation``'s, and one marked stopping by another incarnation is no
+    longer stopping (see :func:`beat_worker`)."""
     now = utcnow()
     updates = {"last_seen_at": now, "broker_url": broker_url, **updates}
     values = {"name": name, "started_at": now, **updates}
@@ -835,10 +836,12 @@ def _upsert_worker(
             WorkerRow.incarnation.is_distinct_from(incarnation),
         )
         # Expressions of the row's old values, in one statement: a twin's hand-back
-        # cannot slip between the read and the write.
+        # cannot slip between the read and the write. The row names its last beater:
+        # /health finds a row that names a dead process (its lock free) gone, which a
+        # live twin's beat makes its own again.
         taken_over = {
             "stopping_since": case((stopped_by_other, None), else_=WorkerRow.stopping_since),
-            "incarnation": case((stopped_by_other, incarnation), else_=WorkerRow.incarnation),
+            "incarnation": incarnation,
         }
     dialect = session.get_bind().dialect.name
     if dialect in ("sqlite", "postgresql"):
@@ -856,8 +859,9 @@ def _upsert_worker(
     if row is None:
         session.add(WorkerRow(**values))
         return
-    if incarnation is not None and row.stopping_since is not None:
-        if row.incarnation != incarnation:
-            row.stopping_since, row.incarnation = None, incarnation
+    if incarnation is not None:
+        if row.stopping_since is not None and row.incarnation != incarnation:
+            row.stopping_since = None
+        row.incarnation = incarnation
     for key, value in updates.items():
         setattr(row, key, value)

@@ -58,6 +58,7 @@ def test_health_without_workers_is_degraded(api: Api) -> None:
         "window_s": 3 * api.settings.heartbeat_interval_s,
         "warming": [],
         "without_lock": [],
+        "gone": [],
         "warming_limit_s": api.settings.heartbeat_timeout_s,
         "detail": f"no worker seen in the last {3 * api.settings.heartbeat_interval_s:g} s",
     }
@@ -146,6 +147,38 @@ def test_a_warming_worker_that_stopped_beating_is_gone(api: Api) -> None:
     health = api.get("/health").json()
     assert health["status"] == "degraded"
     assert (health["workers"]["names"], health["workers"]["warming"]) == ([], [])
+
+
+def test_a_worker_whose_process_is_gone_is_listed_gone_not_warming(api: Api) -> None:
+    """Killed (kill -9) as it warmed up: its row, which it can no longer beat, still
+    says warming within the silence window, but its incarnation lock went with it."""
+    from worker.incarnation import Life
+
+    live = Life(api.settings.resolved_database_url, "live-incarnation")
+    assert live.hold()
+    try:
+        add_worker(api, "celery@killed", seconds_ago=2.0, warming_for_s=20.0)
+        add_worker(api, "celery@live", seconds_ago=2.0, warming_for_s=5.0)
+        with api.db.session() as session:
+            session.get_one(WorkerRow, "celery@killed").incarnation = "dead-incarnation"
+            session.get_one(WorkerRow, "celery@live").incarnation = live.incarnation
+        health = api.get("/health").json()
+        workers = health["workers"]
+        # Before: both listed, the dead one warming 20 s, until its row fell out of the
+        # silence window.
+        assert (workers["names"], [w["name"] for w in workers["warming"]]) == (
+            ["celery@live"],
+            ["celery@live"],
+        ), workers
+        assert [w["name"] for w in workers["gone"]] == ["celery@killed"], workers
+        assert 2.0 <= workers["gone"][0]["silent_s"] < 2.0 + 30.0
+        assert health["status"] == "ok", health
+    finally:
+        live.release()
+    # The only worker gone: no live worker, and the detail says which is gone.
+    health = api.get("/health").json()
+    assert health["status"] == "degraded"
+    assert "worker celery@live's process is gone" in health["workers"]["detail"], health
 
 
 def add_job(api: Api, status: str, seconds_ago: float, seed: int) -> None:

@@ -113,6 +113,77 @@ def test_a_restart_under_its_name_replaces_the_dead_ones_warming_row_at_its_firs
         restart.stop()
 
 
+def _killed(monitor: WorkerMonitor) -> None:
+    """As ``kill -9`` of the worker's main process leaves it: its lock let go by the
+    operating system (its file left behind), its row as its last beat wrote it."""
+    monitor._ticker.stop()
+    monitor.life._let_go()
+    monitor.db.dispose()
+
+
+@pytest.mark.parametrize("same_name", [True, False], ids=["same-name", "new-name"])
+def test_a_killed_worker_is_listed_gone_not_warming_beside_its_restart(
+    store: Store, monkeypatch: pytest.MonkeyPatch, same_name: bool
+) -> None:
+    """Killed while warming up and started again: under its name (``-n w1@host``), or
+    under a new one (serve's worker1-<token>, compose's celery-<token>@host), before the
+    restart's first beat and after it."""
+    cold_since = [time.time() - 40.0]  # a replacement warming up for 40 s
+    monkeypatch.setattr(worker.monitor, "warm", lambda: False)
+    monkeypatch.setattr(worker.monitor, "cold_since", lambda: cold_since[0])
+    url = store.settings.resolved_database_url
+    dead = WorkerMonitor(WORKER, store.settings, Life(url, "dead"))
+    dead.life.hold()
+    dead._booting_since = None  # it had been warm: this is a replacement's warm-up
+    dead.tick()
+    report = health(store.settings, store.db, dead.celery)
+    assert _warming(report) == {WORKER: pytest.approx(40.0, abs=30.0)}, report.workers
+    _killed(dead)
+    restarted = WORKER if same_name else "w1-4f1a2b@host"
+    restart = WorkerMonitor(restarted, store.settings, Life(url, "restart"))
+    try:
+        restart.life.hold()
+        # Before the restart's first beat: the dead one is gone, not warming (before,
+        # listed warming 40 s, and live, until its row fell out of the 15 s window).
+        report = health(store.settings, store.db, restart.celery)
+        assert (report.workers.names, report.workers.warming) == ([], []), report.workers
+        assert [w.name for w in report.workers.gone] == [WORKER], report.workers
+        assert report.status == "degraded"
+        assert f"worker {WORKER}'s process is gone" in (report.workers.detail or "")
+        cold_since[0] = time.time()
+        restart.tick()
+        report = health(store.settings, store.db, restart.celery)
+        assert report.workers.names == [restarted], report.workers
+        assert list(_warming(report)) == [restarted], report.workers
+        assert [w.name for w in report.workers.gone] == ([] if same_name else [WORKER])
+        assert report.status == "ok", report
+    finally:
+        restart.stop()
+
+
+def test_a_live_twin_takes_back_the_row_a_killed_twin_named(
+    store: Store, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(worker.monitor, "warm", lambda: True)
+    url = store.settings.resolved_database_url
+    first = WorkerMonitor(WORKER, store.settings, Life(url, "first"))
+    twin = WorkerMonitor(WORKER, store.settings, Life(url, "twin"))
+    try:
+        for monitor in (first, twin):
+            monitor.life.hold()
+            monitor.tick()  # the twin, started last, is named by the row
+        _killed(twin)
+        first.tick()  # the live one's beat: the row names it, and it is listed
+        report = health(store.settings, store.db, first.celery)
+        assert (report.status, report.workers.names, report.workers.gone) == (
+            "ok",
+            [WORKER],
+            [],
+        ), report.workers
+    finally:
+        first.stop()
+
+
 def _settings(deployment: Service) -> Settings:
     return Settings(
         INERTIA_ID_DATA_DIR=deployment.settings.data_dir,

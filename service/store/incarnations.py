@@ -1,0 +1,100 @@
+"""Whether a worker incarnation's lock is held: the probe the workers and ``/health``
+share (see :mod:`worker.incarnation` for the lock itself, which each worker process holds
+for as long as it lives).
+
+Here, not in ``worker``: the API reads the same locks to tell a live worker from the
+row a dead one left (``app`` and ``worker`` never import each other).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import fcntl
+import hashlib
+import os
+from pathlib import Path
+
+from sqlalchemy import text
+from sqlalchemy.engine import make_url
+from sqlalchemy.exc import DBAPIError
+from sqlalchemy.orm import Session
+
+__all__ = ["LockUnreadable", "lock_file", "lock_held", "lock_key"]
+
+
+class LockUnreadable(Exception):
+    """A lock whose state cannot be told: ``where`` (its folder, or the PostgreSQL
+    server) and the error, as ``__cause__``."""
+
+    def __init__(self, where: str, error: BaseException) -> None:
+        super().__init__(f"cannot read the incarnation locks {where}: {error}")
+        self.where = where
+        self.error = error
+
+
+def lock_key(incarnation: str) -> int:
+    """A PostgreSQL advisory lock key (signed 64 bits) for ``incarnation``."""
+    return int.from_bytes(hashlib.sha256(incarnation.encode()).digest()[:8], "big", signed=True)
+
+
+def lock_file(database_url: str, incarnation: str) -> Path | None:
+    """The lock file of ``incarnation`` beside a SQLite database file; None elsewhere."""
+    url = make_url(database_url)
+    if not url.drivername.startswith("sqlite") or url.database in (None, "", ":memory:"):
+        return None
+    database = Path(url.database or "")
+    return database.with_name(f"{database.name}.incarnations") / f"{incarnation}.lock"
+
+
+def lock_held(session: Session, database_url: str, incarnation: str) -> bool | None:
+    """Whether ``incarnation``'s lock is held now; None where a database has no locks (an
+    in-memory SQLite). Raises :class:`LockUnreadable` where it cannot be told: a lock
+    file that cannot be read (``<database>.incarnations`` is a file, or unreadable), or
+    a PostgreSQL probe that fails (the server restarting, the session ended, a
+    statement error).
+
+    On PostgreSQL asked through ``session``'s connection (another session than the
+    holder's, also in the holder's own process). A free lock file is removed: a dead
+    incarnation's, which nobody will hold again.
+    """
+    if session.get_bind().dialect.name == "postgresql":
+        key = lock_key(incarnation)
+        try:
+            # In a savepoint: a statement that fails leaves the caller's transaction
+            # usable (else every later statement of the caller's session failed too).
+            with session.begin_nested():
+                free = session.execute(
+                    text("SELECT pg_try_advisory_lock(:key)"), {"key": key}
+                ).scalar()
+                if free:
+                    session.execute(text("SELECT pg_advisory_unlock(:key)"), {"key": key})
+        except Exception as exc:
+            if isinstance(exc, DBAPIError) and exc.connection_invalidated:
+                # The server ended the session, and the transaction with it: rolled
+                # back here too, so the caller's session connects afresh at its next
+                # statement instead of failing at each until its end.
+                session.rollback()
+            raise LockUnreadable("on the PostgreSQL server", exc) from exc
+        return not free
+    path = lock_file(database_url, incarnation)
+    if path is None:
+        return None
+    try:
+        fd = os.open(path, os.O_RDWR)
+    except FileNotFoundError:
+        return False  # released at a clean exit, or never taken: not running
+    except OSError as exc:
+        raise LockUnreadable(f"in {path.parent}", exc) from exc
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError as exc:
+        if exc.errno in (errno.EAGAIN, errno.EACCES, errno.EWOULDBLOCK):
+            return True
+        raise LockUnreadable(f"in {path.parent}", exc) from exc
+    else:
+        with contextlib.suppress(OSError):
+            path.unlink()  # a dead incarnation's file: nobody will hold it again
+        return False
+    finally:
+        os.close(fd)
