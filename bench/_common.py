@@ -417,13 +417,16 @@ def wait_until_ok(
     client: Any, process: subprocess.Popen[Any], log_path: Path, timeout_s: float = 300
 ) -> None:
     """Poll the service's ``/health`` (``client``, an ``httpx.Client`` on its base URL)
-    until it says "ok"; raise with the service's log if it exits or ``timeout_s`` passes."""
+    until it says "ok" with no worker warming up (a starting worker is listed, warming,
+    while its task process imports the core); raise with the service's log if it exits
+    or ``timeout_s`` passes."""
     import httpx
 
     deadline = time.perf_counter() + timeout_s
     while True:
         try:
-            if client.get("/health").json()["status"] == "ok":
+            health = client.get("/health").json()
+            if health["status"] == "ok" and not health["workers"].get("warming"):
                 return
         except httpx.TransportError:
             pass

@@ -224,8 +224,9 @@ def serve_app(
     root: Path, *, api_key: str, ready_timeout_s: float = 120.0
 ) -> Iterator[ServeProcess]:
     """``python -m app.serve`` as a user runs it (the API and one worker, the embedded
-    default, data in ``root/data``) on a free port, once ``/health`` says ok; SIGTERM at
-    the end (SIGKILL when that is ignored for 40 s)."""
+    default, data in ``root/data``) on a free port, once ``/health`` says ok and its
+    worker is warm (listed, not warming); SIGTERM at the end (SIGKILL when that is
+    ignored for 40 s)."""
     port = free_port()
     log_path = root / "serve.log"
     with open(log_path, "wb") as out:
@@ -241,7 +242,10 @@ def serve_app(
     running = ServeProcess(base_url, client, log_path)
     try:
         wait_for(
-            lambda: client.get("/health").json()["status"] == "ok",
+            lambda: (
+                (health := client.get("/health").json())["status"] == "ok"
+                and not health["workers"]["warming"]
+            ),
             ready_timeout_s,
             "the service did not become healthy",
             running.logs,

@@ -471,7 +471,9 @@ class Deployment:
             if len(names) < workers:
                 return False
             health = httpx.get(f"{serve.base}/health", timeout=10).json()
-            seen = {n.partition("@")[0] for n in health["workers"]["names"]}
+            # Listed from their first beat; up once warm.
+            warming = {w["name"] for w in health["workers"]["warming"]}
+            seen = {n.partition("@")[0] for n in health["workers"]["names"] if n not in warming}
             return names <= seen
 
         wait_for(ready, ready_timeout_s, "serve did not come up with its workers", serve.log)
