@@ -51,7 +51,9 @@ def _start(data_dir: Path, port: int) -> tuple[subprocess.Popen[bytes], str, Pat
                 raise RuntimeError(f"serve exited:\n{log_path.read_text(errors='replace')}")
             try:
                 health = client.get("/health")
-                if health.status_code == 200 and health.json()["workers"]["count"] >= 1:
+                # Listed from its first beat, warming: up once warm.
+                workers = health.json()["workers"] if health.status_code == 200 else {}
+                if workers.get("count", 0) >= 1 and not workers.get("warming"):
                     break
             except httpx.TransportError:
                 pass

@@ -237,7 +237,9 @@ def _start(backend: Backend, data_dir: Path, api_workers: int, key: str | None) 
             now = time.perf_counter()
             if health.status_code == 200:
                 first = first if first is not None else now - spawned
-                if health.json()["workers"]["count"] >= 1:
+                workers = health.json()["workers"]
+                # Listed from its first beat, warming: seen once warm, as before.
+                if workers["count"] >= 1 and not workers.get("warming"):
                     worker = now - spawned
             time.sleep(0.02)
     if first is None or worker is None:
