@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import logging
 import re
+import sqlite3
 import uuid
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
@@ -226,7 +227,42 @@ async def _database_busy(_request: Request, exc: Exception) -> JSONResponse:
     return _unavailable("the service is past its capacity (no database connection free)", 2)
 
 
+# What the database says when it is there but cannot store: SQLite's primary result
+# codes (the low byte of sqlite3's ``sqlite_errorcode``) and PostgreSQL's SQLSTATEs
+# (disk_full, io_error).
+_PG_DISK_FULL, _PG_IO_ERROR = "53100", "58030"
+_CANNOT_STORE = {
+    "full": "the database cannot store anything: the disk that holds it is full; free "
+    "space there, then try again",
+    "read-only": "the database takes no writes: it is read-only; make it writable, then try again",
+    "io": "the database could not write to its disk (an I/O error): check the disk that "
+    "holds it, then try again",
+}
+
+
+def _why_cannot_store(exc: Exception) -> str | None:
+    """``full``, ``read-only`` or ``io`` when the database answered but refused to store
+    (a full disk, a read-only file, a failing disk); None when it could not be reached."""
+    orig = getattr(exc, "orig", None)
+    code = getattr(orig, "sqlite_errorcode", None)
+    if isinstance(code, int):
+        primary = code & 0xFF
+        return {
+            sqlite3.SQLITE_FULL: "full",
+            sqlite3.SQLITE_READONLY: "read-only",
+            sqlite3.SQLITE_IOERR: "io",
+        }.get(primary)
+    sqlstate = getattr(orig, "sqlstate", None)
+    return {_PG_DISK_FULL: "full", _PG_IO_ERROR: "io"}.get(sqlstate) if sqlstate else None
+
+
 async def _database_down(_request: Request, exc: Exception) -> JSONResponse:
+    # A full disk or a read-only database file is reachable: saying "cannot be reached"
+    # sent an operator to look at the network, not at the disk (the 503 was the same).
+    why = _why_cannot_store(exc)
+    if why is not None:
+        log.error("database cannot store (%s): %s", why, exc)
+        return _unavailable(_CANNOT_STORE[why], 30)
     log.error("database unreachable: %s", exc)
     return _unavailable("the database cannot be reached; try again shortly", 5)
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import logging
 import os
+import tempfile
 from datetime import UTC, datetime, timedelta
 from typing import Any
 
@@ -41,11 +42,38 @@ _HEARTBEATS_OF_GRACE = 3.0
 _BROKER_TIMEOUT_S = 2.0
 
 
-def _database(database: Database) -> ComponentHealth:
+_PROBE_BYTES = 4096
+
+
+def _write_refused(folder: str) -> str | None:
+    """Why a small file cannot be written in ``folder`` (the OS's words), or None when it
+    can; the file is removed again. Permission bits alone said "writable" to root on a
+    full disk, where every write failed (``os.access`` looks at the mode, not the room)."""
+    try:
+        with tempfile.NamedTemporaryFile(dir=folder, prefix=".health-probe-") as probe:
+            probe.write(b"\0" * _PROBE_BYTES)
+            probe.flush()
+    except OSError as exc:
+        return exc.strerror or type(exc).__name__
+    return None
+
+
+def _database(database: Database, reachable: bool) -> ComponentHealth:
     dialect = database.engine.dialect.name
-    if database.ping():
-        return ComponentHealth(ok=True, detail=f"{dialect} reachable")
-    return ComponentHealth(ok=False, detail=f"{dialect} unreachable")
+    if not reachable:
+        return ComponentHealth(ok=False, detail=f"{dialect} unreachable")
+    # A SQLite file is read while its disk is full or its folder read-only, but nothing
+    # can be stored: every write was a 503 and every worker's beat failed.
+    path = database.engine.url.database if dialect == "sqlite" else None
+    if path and path != ":memory:" and not path.startswith("file:"):
+        refused = _write_refused(os.path.dirname(os.path.abspath(path)))
+        if refused is not None:
+            return ComponentHealth(
+                ok=False,
+                detail=f"{dialect} reachable, but the folder of its file takes no writes: "
+                f"{refused}",
+            )
+    return ComponentHealth(ok=True, detail=f"{dialect} reachable")
 
 
 def _broker(settings: Settings, celery: Celery) -> ComponentHealth:
@@ -55,7 +83,17 @@ def _broker(settings: Settings, celery: Celery) -> ComponentHealth:
         folder = options.get("data_folder_in") or str(settings.broker_dir)
         # The folder is named relative to the data dir: no server path in a response.
         if os.path.isdir(folder) and os.access(folder, os.W_OK | os.X_OK):
-            return ComponentHealth(ok=True, detail="filesystem broker folder writable")
+            # Where a message is written first (service.queue); no consumer reads a
+            # name like the probe's in either folder.
+            staging = options.get("staging_folder") or folder
+            refused = _write_refused(staging if os.path.isdir(staging) else folder)
+            if refused is None:
+                return ComponentHealth(ok=True, detail="filesystem broker folder writable")
+            return ComponentHealth(
+                ok=False,
+                detail=f"filesystem broker folder (broker/ in the data dir) takes no writes: "
+                f"{refused}",
+            )
         return ComponentHealth(
             ok=False,
             detail="filesystem broker folder (broker/queue in the data dir) is missing or "
@@ -249,14 +287,17 @@ def health(settings: SettingsDep, database: DatabaseDep, celery: CeleryDep) -> H
 
     Always 200: the body says what is wrong.
     """
-    db = _database(database)
+    # A database that is read but takes no writes (a full disk) still lists its workers
+    # and jobs: those say whether the workers beat through it.
+    reachable = database.ping()
+    db = _database(database, reachable)
     broker = _broker(settings, celery)
-    workers = _workers(settings, database, db.ok)
+    workers = _workers(settings, database, reachable)
     # A warming worker takes no job until it is warm, one without its incarnation lock
     # none until it takes it again (listed, and a fault when none holds it): neither is
     # idle. Counted, a lockless worker beside a busy one made a long queue "stalled",
     # blamed on a stuck task process, while workers.without_lock names the cause.
-    queue = _queue(settings, database, db.ok, _takers(workers))
+    queue = _queue(settings, database, reachable, _takers(workers))
     return HealthOut(
         status="ok" if db.ok and broker.ok and workers.ok and queue.ok else "degraded",
         version=inertia_id.__version__,

@@ -5,9 +5,11 @@ from __future__ import annotations
 import json
 import logging
 from collections.abc import Callable
+from typing import Any
 
 import pytest
 from fastapi.routing import APIRoute
+from sqlalchemy import event
 
 import app.api.identify
 from app.api import ROUTERS
@@ -179,3 +181,49 @@ def test_every_api_route_refuses_a_key_given_twice(api: Api) -> None:
     routes = [r for r in routes if isinstance(r, APIRoute) and r.methods - {"GET", "HEAD"}]
     assert len(routes) > 5
     assert [r.path for r in routes if not isinstance(r, UniqueKeysRoute)] == []
+
+
+@pytest.mark.parametrize(
+    ("pragma", "says"),
+    [
+        # Each SQLite connection limited to the pages the file has: the next page is
+        # SQLITE_FULL, "database or disk is full", as on a full disk.
+        ("max_page_count", "the disk that holds it is full"),
+        # query_only: SQLITE_READONLY, "attempt to write a readonly database".
+        ("query_only", "it is read-only"),
+    ],
+)
+def test_a_database_that_cannot_store_is_a_503_saying_why_not_unreachable(
+    api: Api, pragma: str, says: str, caplog: pytest.LogCaptureFixture
+) -> None:
+    # Before: both were "the database cannot be reached; try again shortly", while /health
+    # said the database was reachable: the operator was sent to the network, not the disk.
+    if api.db.engine.dialect.name != "sqlite":
+        pytest.skip("SQLite's per-connection limits stand in for a full or read-only disk")
+    with api.db.engine.connect() as connection:
+        pages = connection.exec_driver_sql("PRAGMA page_count").scalar()
+    value = pages if pragma == "max_page_count" else 1
+
+    def limit(dbapi_connection: Any, _record: Any) -> None:
+        dbapi_connection.execute(f"PRAGMA {pragma} = {value}")
+
+    event.listen(api.db.engine, "connect", limit)
+    api.db.engine.dispose()
+    try:
+        with caplog.at_level(logging.ERROR, logger="app.api.errors"):
+            # Scenarios until one needs a page the file may not have (a few fit in the
+            # free room of its last pages).
+            for _ in range(50):
+                response = api.post("/scenarios", json={"preset": "paper"})
+                if response.status_code != 201:
+                    break
+    finally:
+        event.remove(api.db.engine, "connect", limit)
+        api.db.engine.dispose()
+    assert response.status_code == 503, response.text
+    detail = response.json()["detail"]
+    assert says in detail and "cannot be reached" not in detail
+    assert response.headers["Retry-After"] == "30"
+    assert "database cannot store" in caplog.text
+    # Once the database takes writes again, so does the service.
+    assert api.post("/scenarios", json={"preset": "paper"}).status_code == 201

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import resource
 from collections.abc import Callable
 from datetime import timedelta
 from pathlib import Path
@@ -313,3 +314,41 @@ def test_openapi_and_docs_are_served(api: Api) -> None:
         schemas
     )
     assert "APIKeyHeader" in spec["components"]["securitySchemes"]
+
+
+def test_health_is_degraded_naming_the_disk_when_the_data_dir_takes_no_writes(api: Api) -> None:
+    # A full disk, stood in for by a file-size limit of 1 KiB on this process (no root
+    # needed): a write past it fails (EFBIG; Python ignores SIGXFSZ), as one on a full disk
+    # fails (ENOSPC). Before, /health said "ok", "filesystem broker folder writable" and
+    # "sqlite reachable" on a full tmpfs where every POST was a 503 and every beat failed:
+    # os.access reads the mode bits, and root passes them.
+    add_worker(api, "celery@alive", seconds_ago=0.0)
+    assert api.get("/health").json()["status"] == "ok"
+    soft, hard = resource.getrlimit(resource.RLIMIT_FSIZE)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (1024, hard))
+    try:
+        response = api.get("/health")
+    finally:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (soft, hard))
+    assert response.status_code == 200
+    health = response.json()
+    assert health["status"] == "degraded"
+    assert health["broker"] == {
+        "ok": False,
+        "detail": "filesystem broker folder (broker/ in the data dir) takes no writes: "
+        "File too large",
+    }
+    if api.db.engine.dialect.name == "sqlite":
+        assert health["database"] == {
+            "ok": False,
+            "detail": "sqlite reachable, but the folder of its file takes no writes: "
+            "File too large",
+        }
+    else:
+        assert health["database"]["ok"] is True
+    # The database is still read: its workers are listed, not "the database is unreachable".
+    assert health["workers"]["names"] == ["celery@alive"]
+    assert health["queue"]["ok"] is True
+    # Nothing is left behind, and with room again the service is "ok".
+    assert not list(api.settings.broker_dir.rglob(".health-probe-*"))
+    assert api.get("/health").json()["status"] == "ok"
