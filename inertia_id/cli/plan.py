@@ -11,7 +11,14 @@ from typing import TYPE_CHECKING
 
 import click
 
-from .options import OTHER_FORMATS, IntRange, friendly_errors, load_scenario, scenario_options
+from .options import (
+    OTHER_FORMATS,
+    IntRange,
+    friendly_errors,
+    load_scenario,
+    scenario_options,
+    write_output,
+)
 
 if TYPE_CHECKING:
     from ..physics.scenario import Scenario
@@ -139,9 +146,9 @@ def plan_cmd(
             lines += f"# exported_at: {_iso_utc(exported_at)}\n"
         else:
             lines = _job_note_lines(job, exported_at) + lines
-        Path(out).write_text(lines + plan.to_csv(), encoding="utf-8")
+        write_output(out, lines + plan.to_csv())
     else:
-        Path(out).write_text(_strict_json(planned) + "\n", encoding="utf-8")
+        write_output(out, _strict_json(planned) + "\n")
     summary = plan.to_dict()
     click.echo(
         f"wrote {out}: {len(plan.sequence)} steps, impulse {plan.impulse_nms:.2f} N m s, "

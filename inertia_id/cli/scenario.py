@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any, TypeVar
 
 import click
@@ -24,6 +23,7 @@ from .options import (
     seed_option,
     sequence_option,
     write_json,
+    write_output,
 )
 
 __all__ = ["scenario_cmd", "simulate_cmd"]
@@ -221,18 +221,17 @@ def simulate_cmd(
         if out.lower().endswith(".npz"):
             # The names and figures the JSON carries, beside the arrays.
             # An open file: numpy adds ".npz" to a name that ends ".NPZ".
-            with open(out, "wb") as handle:
-                np.savez_compressed(
+            write_output(
+                out,
+                lambda handle: np.savez_compressed(
                     handle,
                     **arrays,  # type: ignore[arg-type]
                     candidate_names=np.array(result.candidate_names),
                     impulse_nms=np.array(result.impulse_nms),
-                )
-        else:
-            Path(out).write_text(
-                json.dumps({**summary, **{k: v.tolist() for k, v in arrays.items()}}),
-                encoding="utf-8",
+                ),
             )
+        else:
+            write_output(out, json.dumps({**summary, **{k: v.tolist() for k, v in arrays.items()}}))
         click.echo(f"wrote {out}", err=True)
     if telemetry:
         names = scenario.candidate_names
@@ -347,7 +346,7 @@ def _write_telemetry(path: str, time_s: Any, omega: Any, offset: float | str | N
     lines += [
         f"{s},{w[0]:.10g},{w[1]:.10g},{w[2]:.10g}" for s, w in zip(stamps, omega, strict=True)
     ]
-    Path(path).write_text("\n".join(lines) + "\n", encoding="utf-8")
+    write_output(path, "\n".join(lines) + "\n")
 
 
 def _fly_basilisk(

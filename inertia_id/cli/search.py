@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Callable
-from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
 import click
@@ -24,6 +23,7 @@ from .options import (
     progress_bar,
     scenario_options,
     seed_option,
+    write_output,
 )
 
 if TYPE_CHECKING:
@@ -548,6 +548,6 @@ def search_cmd(
         click.echo(line, err=True)
     # The document records the scenario, so that `inertia-id plan --search` plans the
     # spacecraft the search ran on, not whatever --preset defaults to.
-    Path(out).write_text(json.dumps(outcome.to_dict()), encoding="utf-8")
+    write_output(out, json.dumps(outcome.to_dict()))
     click.echo(f"wrote {out}", err=True)
     click.echo(json.dumps(result.best.sequence))

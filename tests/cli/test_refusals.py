@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import resource
 import threading
 import warnings
 from pathlib import Path
@@ -1055,3 +1056,30 @@ def test_every_command_that_flies_a_users_sequence_refuses_rates_no_gyro_measure
         sweep_with_limit(
             classifier, SweepRequest(), seed=0, scenario=Scenario.model_validate(strong)
         )
+
+
+@pytest.mark.parametrize("out", ["plan.csv", "plan.json"])
+def test_a_plan_that_cannot_be_written_whole_leaves_no_truncated_file(
+    tmp_path: Path, out: str
+) -> None:
+    # A file-size limit of 2 KiB stands in for a disk that fills mid-write (EFBIG as
+    # ENOSPC; Python ignores SIGXFSZ). Before: exit 1, "Error: [Errno 27] File too large"
+    # naming no file, and plan.csv left holding its first 2,048 bytes, a command plan
+    # cut short under the name asked for.
+    args = ["plan", "--sequence", "4,4,4,0,0,0;4,4,4,0,0,0;0,0,0,4,4,4", "--out"]
+    earlier = tmp_path / "earlier.csv"
+    assert CliRunner().invoke(main, [*args, str(earlier)]).exit_code == 0  # warm, and whole
+    target = tmp_path / out
+    target.write_text("the plan flown last week\n", encoding="utf-8")
+    soft, hard = resource.getrlimit(resource.RLIMIT_FSIZE)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (2048, hard))
+    try:
+        message = refused([*args, str(target)])
+    finally:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (soft, hard))
+    assert f"could not write {target}: File too large; nothing was written there" in message
+    assert target.read_text(encoding="utf-8") == "the plan flown last week\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["earlier.csv", out])
+    # With room, the same command writes the whole plan.
+    assert CliRunner().invoke(main, [*args, str(target)]).exit_code == 0
+    assert target.stat().st_size > 2048
