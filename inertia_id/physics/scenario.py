@@ -8,6 +8,7 @@ quotes the value that broke the rule.
 from __future__ import annotations
 
 import math
+import unicodedata
 from itertools import combinations
 from typing import Annotated, Any, Self
 
@@ -36,6 +37,17 @@ __all__ = [
     "Uncertainty",
     "check_inertia_tensor",
 ]
+
+
+def _name_as_read(name: str) -> str:
+    """``name`` as a reader tells it from another: NFKC-normalised (an accent composed or
+    not, a full-width letter), invisible format characters (Unicode category Cf: zero-width
+    space, soft hyphen, ...) dropped, white space runs as one space, trimmed."""
+    visible = "".join(
+        c for c in unicodedata.normalize("NFKC", name) if unicodedata.category(c) != "Cf"
+    )
+    return " ".join(visible.split())
+
 
 # Relative tolerance for symmetry and the triangle inequality: tensors typed by hand or
 # round-tripped through JSON carry rounding noise of a few ulps.
@@ -496,6 +508,25 @@ class Scenario(_Model):
         duplicates = sorted({n for n in names if names.count(n) > 1})
         if duplicates:
             raise InputError(f"candidate names must be unique; repeated: {duplicates}")
+        # Names are what an operator reads in a plan's columns and a verdict: two that
+        # read the same ("café" in one code point or two, "stowed" and "stowed" with a
+        # zero-width space) or one that shows nothing ("   ") name no candidate. Case is
+        # seen, and kept: "Stowed" and "stowed" stay two names.
+        seen: dict[str, str] = {}
+        for name in names:
+            read = _name_as_read(name)
+            if not read:
+                raise InputError(
+                    f"candidate name {name!r} shows nothing (white space or invisible "
+                    "characters only); give each candidate a visible name"
+                )
+            if read in seen:
+                raise InputError(
+                    f"candidate names must read differently: {seen[read]!r} and {name!r} "
+                    "read the same (Unicode normalisation NFKC, white space and invisible "
+                    "characters aside)"
+                )
+            seen[read] = name
         return value
 
     def check_distinguishable(self) -> None:

@@ -459,6 +459,33 @@ def test_duplicate_candidate_names_are_rejected() -> None:
         Scenario.model_validate(data)
 
 
+@pytest.mark.parametrize(
+    ("first", "second"),
+    [
+        ("caf\u00e9", "cafe\u0301"),  # é as one code point, and as e with a combining accent
+        ("stowed", "stowed\u200b"),  # a zero-width space after it
+        ("boom deployed", "boom  deployed "),  # white space
+        ("payload 1", "payload \uff11"),  # a full-width digit one
+    ],
+)
+def test_candidate_names_that_read_the_same_are_rejected(first: str, second: str) -> None:
+    # Before: stored as two candidates that a plan's columns, a verdict and
+    # `simulate --candidate` showed alike (found by a hostile review of the service).
+    data = paper_data()
+    data["inertia_candidates"][0]["name"] = first
+    data["inertia_candidates"][2]["name"] = second
+    with pytest.raises(pydantic.ValidationError, match="candidate names must read differently"):
+        Scenario.model_validate(data)
+
+
+@pytest.mark.parametrize("name", ["   ", "\u200b", "\u00ad\u2060"])
+def test_a_candidate_name_that_shows_nothing_is_rejected(name: str) -> None:
+    data = paper_data()
+    data["inertia_candidates"][1]["name"] = name
+    with pytest.raises(pydantic.ValidationError, match="shows nothing"):
+        Scenario.model_validate(data)
+
+
 def test_candidate_count_and_presence_rules() -> None:
     data = paper_data()
     data["inertia_candidates"] = data["inertia_candidates"][:1]
