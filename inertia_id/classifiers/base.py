@@ -844,8 +844,11 @@ class BaseClassifier(BaseEstimator):
         return cls.from_dict(documents.read(text, cls.FORMAT))
 
     def save(self, path: str | os.PathLike[str]) -> None:
-        with open(path, "w", encoding="utf-8") as fh:
-            fh.write(self.to_json())
+        """Write :meth:`to_json` to ``path``, whole or not at all (a failed write leaves
+        what the path held before, never a truncated document)."""
+        from ..files import write_whole
+
+        write_whole(path, self.to_json())
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> Self:

@@ -8,12 +8,10 @@ click needs them (:class:`LazyChoice`); the core itself is imported inside the c
 
 from __future__ import annotations
 
-import contextlib
 import functools
 import json
 import os
 import re
-import secrets
 import sys
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any, BinaryIO, TypeVar
@@ -411,48 +409,18 @@ def parse_pairs(pairs: Sequence[str], option: str, example: str) -> dict[str, An
 def write_output(
     path: str | os.PathLike[str], data: str | bytes | Callable[[BinaryIO], None]
 ) -> None:
-    """Write ``data`` (text as UTF-8, bytes, or a function that writes to the open file)
-    to ``path`` whole or not at all: into a file beside it, flushed, then renamed over it.
+    """Write ``data`` to ``path`` whole or not at all (:func:`inertia_id.files.write_whole`);
+    a failed write is one line naming the path: in place, it left a truncated file there
+    and said only ``Error: [Errno 27] File too large``."""
+    from ..files import write_whole
 
-    Written in place, a write that failed part-way (a full disk, a file-size limit) left a
-    truncated file under the name asked for, a command plan cut after its first 2 KiB,
-    and only the exit status said so. Now the path keeps what it held before (nothing, or
-    the earlier file) and the one-line error names it. A device or pipe (``/dev/stdout``)
-    is written directly: renaming over it would replace the device. The standard library
-    has no atomic write, and ``atomicwrites``, the package that had one, is archived.
-    """
-    if os.path.exists(path) and not os.path.isfile(path):
-        with open(path, "wb") as handle:
-            _write_to(handle, data)
-        return
-    # Through a symbolic link, the file it names is replaced, not the link.
-    target = os.path.realpath(path)
-    folder, name = os.path.split(target)
-    part = os.path.join(folder, f".{name}.{os.getpid()}.{secrets.token_hex(4)}.part")
     try:
-        # Mode 0o666 less the umask, as open() gives the file itself.
-        fd = os.open(part, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
-        with os.fdopen(fd, "wb") as handle:
-            _write_to(handle, data)
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.replace(part, target)
+        write_whole(path, data)
     except OSError as exc:
-        with contextlib.suppress(OSError):
-            os.remove(part)
         raise click.ClickException(
             f"could not write {os.fspath(path)}: {exc.strerror or exc}; nothing was written "
             "there (a file it held before is left as it was)"
         ) from None
-
-
-def _write_to(handle: BinaryIO, data: str | bytes | Callable[[BinaryIO], None]) -> None:
-    if isinstance(data, str):
-        handle.write(data.encode("utf-8"))
-    elif isinstance(data, bytes):
-        handle.write(data)
-    else:
-        data(handle)
 
 
 def write_json(path: str | os.PathLike[str] | None, data: Any) -> None:

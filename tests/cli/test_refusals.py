@@ -1083,3 +1083,33 @@ def test_a_plan_that_cannot_be_written_whole_leaves_no_truncated_file(
     # With room, the same command writes the whole plan.
     assert CliRunner().invoke(main, [*args, str(target)]).exit_code == 0
     assert target.stat().st_size > 2048
+
+
+def test_a_classifier_that_cannot_be_saved_whole_leaves_the_earlier_document(
+    tmp_path: Path,
+) -> None:
+    # Before: `train --out` under a 8 KiB file-size limit left the first 8,192 bytes of
+    # the document ("classifier document is not JSON" on load), the error naming no file.
+    model = train_classifier(
+        Scenario.paper(),
+        SEQUENCE,
+        5,
+        np.random.default_rng(0),
+        kind="nearest-centroid",
+        metric="euclidean",
+    )
+    path = tmp_path / "classifier.json"
+    model.save(path)
+    earlier = path.read_bytes()
+    assert len(earlier) > 8192
+    soft, hard = resource.getrlimit(resource.RLIMIT_FSIZE)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (8192, hard))
+    try:
+        with pytest.raises(OSError, match="File too large") as raised:
+            model.save(path)
+    finally:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (soft, hard))
+    assert raised.value.filename == str(path)
+    assert path.read_bytes() == earlier
+    assert [p.name for p in tmp_path.iterdir()] == ["classifier.json"]
+    assert load_classifier(path).to_json() == model.to_json()
