@@ -9,9 +9,14 @@ Mahalanobis distances.
 
 from __future__ import annotations
 
+import functools
+from typing import Any
+
 import numpy as np
 from scipy.linalg import cholesky as scipy_cholesky
 from scipy.linalg import solve_triangular
+from scipy.linalg.lapack import dtrtri
+from threadpoolctl import ThreadpoolController
 
 from ..errors import InputError
 
@@ -20,9 +25,11 @@ __all__ = [
     "MAX_FOLDS",
     "cholesky",
     "cv_intensity",
+    "inverse_cholesky",
     "log_softmax",
     "logsumexp",
     "means_and_scatter",
+    "one_blas_thread",
     "shrink",
     "stratified_folds",
     "whitened_distances",
@@ -159,3 +166,36 @@ def cholesky(covariance: np.ndarray) -> np.ndarray:
             "do not vary (all noise off?) or the shrinkage is 0 with fewer series than "
             "dimensions"
         ) from None
+
+
+def inverse_cholesky(chol_lower: np.ndarray) -> np.ndarray:
+    """The inverse of a lower Cholesky factor (lower triangular, the whitening matrix).
+
+    LAPACK's triangular inverse (``dtrtri``, n³/3 flops) rather than solving against the
+    identity (``solve_triangular(L, I)``, n³): the same matrix to rounding, at a third of
+    the work; loading a marginal-likelihood classifier forms 40 of them.
+    """
+    inverse, info = dtrtri(chol_lower, lower=1)
+    if info != 0:
+        # A Cholesky factor has a positive diagonal; a zero pivot means it underflowed.
+        raise InputError(
+            f"the noise covariance's Cholesky factor is singular (pivot {info} is zero)"
+        )
+    return np.asarray(inverse)
+
+
+@functools.cache
+def _threadpools() -> ThreadpoolController:
+    return ThreadpoolController()
+
+
+def one_blas_thread() -> Any:
+    """Run BLAS and LAPACK on one thread (a context manager), for the factorisations of a
+    covariance per noise condition.
+
+    OpenBLAS's threaded Cholesky waits for its threads at every block, and on a busy
+    2-core machine they wait for cores: factoring one 960 x 960 covariance (a 16-step
+    sequence) took 2.2 s wall with them against 0.09 s without, and loading a 16-step
+    classifier (40 of them) 98 s. (threadpoolctl comes with scikit-learn.)
+    """
+    return _threadpools().limit(limits=1, user_api="blas")

@@ -104,7 +104,6 @@ from collections.abc import Sequence
 from typing import Any, ClassVar, Self
 
 import numpy as np
-from scipy.linalg import solve_triangular
 
 from ..errors import InputError
 from ..physics.estimate import parameters_from_tensor, tensor_from_parameters
@@ -303,20 +302,33 @@ class _Mixture:
         # log of the Cholesky factor's diagonal: the leading block of a Cholesky factor
         # is the factor of the leading block, so these give every prefix's determinant.
         self.log_diagonal = np.empty((len(grid), dim))
-        for c, (process, measurement) in enumerate(grid):
-            covariance = components[0] + process**2 * components[1] + measurement**2 * components[2]
-            try:
-                chol = gaussian.cholesky(covariance)
-            except InputError as exc:
-                raise InputError(
-                    f"at process x{process:g}, measurement x{measurement:g}: {exc}"
-                ) from None
-            self.whiteners[c] = solve_triangular(chol, np.eye(dim), lower=True)
-            self.white_means[c] = means @ self.whiteners[c].T
-            self.log_diagonal[c] = np.log(np.diag(chol))
-            log_det = 2.0 * float(np.sum(self.log_diagonal[c]))
-            # log w_m - log det(2π Σ_m) / 2, with equal weights w_m = 1 / M.
-            self.log_norm[c] = self.log_weights[c] - 0.5 * (log_det + dim * _LOG_2PI)
+        with gaussian.one_blas_thread():
+            for c, (process, measurement) in enumerate(grid):
+                self._factor(c, components, process, measurement, means)
+
+    def _factor(
+        self,
+        c: int,
+        components: np.ndarray,
+        process: float,
+        measurement: float,
+        means: np.ndarray,
+    ) -> None:
+        """Whiten condition ``c``: its covariance's inverse factor, white means and norm."""
+        dim = means.shape[1]
+        covariance = components[0] + process**2 * components[1] + measurement**2 * components[2]
+        try:
+            chol = gaussian.cholesky(covariance)
+            self.whiteners[c] = gaussian.inverse_cholesky(chol)
+        except InputError as exc:
+            raise InputError(
+                f"at process x{process:g}, measurement x{measurement:g}: {exc}"
+            ) from None
+        self.white_means[c] = means @ self.whiteners[c].T
+        self.log_diagonal[c] = np.log(np.diag(chol))
+        log_det = 2.0 * float(np.sum(self.log_diagonal[c]))
+        # log w_m - log det(2π Σ_m) / 2, with equal weights w_m = 1 / M.
+        self.log_norm[c] = self.log_weights[c] - 0.5 * (log_det + dim * _LOG_2PI)
 
     @property
     def whiteners(self) -> np.ndarray:

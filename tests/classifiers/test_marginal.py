@@ -6,13 +6,16 @@ import json
 import math
 from collections.abc import Callable
 from pathlib import Path
+from unittest import mock
 
 import numpy as np
 import pytest
 from scenario_support import I0, noisy
+from scipy.linalg import solve_triangular
 from scipy.special import logsumexp
 
 from inertia_id import Scenario, identify, simulate
+from inertia_id.classifiers import gaussian
 from inertia_id.classifiers.documents import checksum
 from inertia_id.classifiers.likelihood import LikelihoodClassifier
 from inertia_id.classifiers.marginal import AXES_GRID, MarginalLikelihoodClassifier, train_marginal
@@ -388,6 +391,43 @@ def test_stored_components_give_the_same_mixture(
     assert set(components["measurement"]) == {"isotropic_rad2_s2"}
     assert len(components["process"]["lower_rad2_s2"]) == 240 * 241 // 2
     assert path.stat().st_size < 2_000_000
+
+
+def test_a_loaded_document_factors_every_condition_as_before(
+    marginal: MarginalLikelihoodClassifier, paper: Scenario
+) -> None:
+    """The load inverts each condition's Cholesky factor with LAPACK's triangular inverse
+    on one BLAS thread; solving the factor against the identity, as the load did before,
+    gives the same whiteners to rounding, the same normalisers exactly, and the same
+    log-likelihoods and verdicts on fixed telemetry."""
+    document = marginal.to_json()
+    X, _ = noisy(paper, AXIS_IN_TURN, 4, 13, 4.0, 2.0)
+    loaded = MarginalLikelihoodClassifier.from_json(document)
+    with mock.patch.object(
+        gaussian,
+        "inverse_cholesky",
+        lambda chol: solve_triangular(chol, np.eye(len(chol)), lower=True),
+    ):
+        before = MarginalLikelihoodClassifier.from_json(document)
+    ours, theirs = loaded._mixture.whiteners, before._mixture.whiteners
+    assert ours.shape == (len(loaded.grid_), 240, 240)
+    assert not np.any(np.triu(ours, 1))
+    np.testing.assert_allclose(ours, theirs, rtol=0, atol=1e-12 * np.abs(theirs).max())
+    np.testing.assert_array_equal(loaded._mixture.log_norm, before._mixture.log_norm)
+    np.testing.assert_allclose(loaded.log_likelihood(X), before.log_likelihood(X), rtol=1e-12)
+    np.testing.assert_array_equal(loaded.predict(X), before.predict(X))
+    np.testing.assert_allclose(
+        loaded.condition_posterior(X), before.condition_posterior(X), rtol=1e-9, atol=1e-15
+    )
+
+
+def test_inverse_cholesky_refuses_a_singular_factor() -> None:
+    chol = np.array([[2.0, 0.0], [1.0, 0.0]])
+    with pytest.raises(ValueError, match=r"Cholesky factor is singular \(pivot 2 is zero\)"):
+        gaussian.inverse_cholesky(chol)
+    np.testing.assert_allclose(
+        gaussian.inverse_cholesky(np.array([[2.0, 0.0], [1.0, 4.0]])), [[0.5, 0.0], [-0.125, 0.25]]
+    )
 
 
 # Refusals quote what they got.
