@@ -29,7 +29,10 @@ VERSION = 1
 #: (8,192 values) makes 2.4 GB by the same count. 4 GB is above every document the
 #: service writes and still refuses a wrong file (a disk image, an endless pipe) before
 #: it is read. It is no setting: what bounds the classifiers a machine loads is its
-#: memory, about 12 times the file (loading the 33.8 MB one took 413 MB).
+#: memory, about 12 times the file (loading the 33.8 MB one took 413 MB; 399 MB for a
+#: 28 MB one, bench/classifier_load.py), most of it the whitening matrix of each of the
+#: default kind's 40 noise conditions (8 bytes x 40 x 960² = 295 MB at 960 values),
+#: which every verdict uses.
 MAX_CLASSIFIER_BYTES = 4_000_000_000
 
 
