@@ -50,8 +50,8 @@ from itertools import combinations
 from typing import Any, Final
 
 import numpy as np
-from threadpoolctl import ThreadpoolController
 
+from ..classifiers.gaussian import one_blas_thread
 from ..errors import InputError
 
 __all__ = [
@@ -68,21 +68,6 @@ __all__ = [
 # when the responses hold no noise at all (distinct means are then infinitely far apart,
 # equal ones at distance 0) without changing any noisy estimate.
 _RELATIVE_VARIANCE_FLOOR = 1e-12
-
-
-@functools.cache
-def _threadpools() -> ThreadpoolController:
-    return ThreadpoolController()
-
-
-def _one_blas_thread() -> Any:
-    """Run BLAS on one thread (a context manager).
-
-    At these sizes (N ≈ 100) threads save nothing, and on a busy machine OpenBLAS's
-    threads wait for cores: one score measured 130 ms with them against 0.6 ms without
-    on a loaded 2-core machine. (threadpoolctl comes with scikit-learn.)
-    """
-    return _threadpools().limit(limits=1, user_api="blas")
 
 
 @dataclass(frozen=True)
@@ -182,7 +167,7 @@ def pooled_covariance(omega: np.ndarray, *, shrinkage: float | None = None) -> P
         every direction gets the mean variance: Euclidean distances, as k-means sees them).
     """
     _check_shrinkage(shrinkage)
-    with _one_blas_thread():
+    with one_blas_thread():
         return _pooled(_flatten(omega), shrinkage)
 
 
@@ -233,7 +218,7 @@ def mahalanobis_matrix(
     k, n, _ = x.shape
     pairs = list(combinations(range(k), 2))
     first, second = (np.array(side) for side in zip(*pairs, strict=True))
-    with _one_blas_thread():
+    with one_blas_thread():
         covariance = _pooled(x, shrinkage)
         means = x.mean(axis=1)
         # Differences of means, not a Gram matrix of the means: the means are large next
