@@ -575,9 +575,12 @@ class IdentifyResult(BaseModel):
     )
     status: Literal["identified", "ambiguous", "matches-none", "not-this-sequence"] = Field(
         default="identified",
-        description="identified: the top posterior reaches the confidence; ambiguous: none "
-        "does (the verdict names the top two); matches-none: 'none of these' is the most "
-        "probable or the series is beyond the novelty threshold; not-this-sequence: far "
+        description="identified: the top posterior reaches the confidence and the telemetry "
+        "does not fit another body near the candidates better; ambiguous: none does (the "
+        "verdict names the top two), or one does but the telemetry fits another body better "
+        "(fits_off_candidates: thrusters off their stated torque, for one); matches-none: "
+        "'none of these' is the most probable or the series is beyond the novelty "
+        "threshold; not-this-sequence: far "
         "beyond every candidate's threshold",
     )
     posterior: dict[str, float] = Field(
@@ -587,6 +590,16 @@ class IdentifyResult(BaseModel):
     confidence: float = Field(default=0.0, description="the top candidate's posterior")
     required_confidence: float = Field(default=0.99, description="what naming one takes")
     not_this_sequence: bool = False
+    off_candidates_log_bayes: float | None = Field(
+        default=None,
+        description="log Bayes factor of another body near the candidates against them "
+        "(the default classifier's model of 'none'); null for a kind without one",
+    )
+    fits_off_candidates: bool = Field(
+        default=False,
+        description="a candidate reached the confidence, but that log Bayes factor was not "
+        "below 0, so the verdict is ambiguous, not identified",
+    )
     estimated_inertia_std_kg_m2: dict[str, float] | None = Field(
         default=None, description="standard error of each estimated parameter (kg m^2)"
     )

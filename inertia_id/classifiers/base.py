@@ -684,28 +684,39 @@ class BaseClassifier(BaseEstimator):
         self, X: Any, observed: Any = None
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The distances (n, K) and the posterior of :meth:`predict_posterior` ((n, K)
-        candidates and (n,) none) from one evaluation of the series: what a verdict
-        (:func:`~inertia_id.evaluation.identify.verdicts`) needs.
+        candidates and (n,) none) from one evaluation of the series.
 
         :param observed: (length,) booleans, the grid points that hold a measurement
             (slow telemetry, :func:`~inertia_id.evaluation.telemetry.resample_observed`);
             a likelihood kind then uses those values only. None: every point.
         """
+        distances, candidates, p_none, _ = self.verdict_evidence(X, observed)
+        return distances, candidates, p_none
+
+    def verdict_evidence(
+        self, X: Any, observed: Any = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+        """:meth:`distances_and_posterior` and, beside it, the log Bayes factor (n,) of
+        the kind's model of other bodies near the candidates against the candidates
+        (None for a kind without one): what a verdict
+        (:func:`~inertia_id.evaluation.identify.verdicts`) needs, from one evaluation.
+
+        The posterior weighs that factor by the prior of "none" (:data:`NONE_PRIOR`);
+        the verdict also reads it alone, as what the telemetry says whatever the prior.
+        """
         values = self._observed_values(observed)
         series = self._check_input(X)
         if values is None:
             distances = np.asarray(self._candidate_distances(series))
-            candidates, p_none = self.posterior_from_distances(
-                distances, near_log_bayes=self._near_log_bayes(series)
-            )
+            near = self._near_log_bayes(series)
+            candidates, p_none = self.posterior_from_distances(distances, near_log_bayes=near)
         else:
             distances = np.asarray(self._observed_distances(series, values))
+            near = self._observed_near_log_bayes(series, values)
             candidates, p_none = self.posterior_from_distances(
-                distances,
-                values.size / (3.0 * self.length_),
-                near_log_bayes=self._observed_near_log_bayes(series, values),
+                distances, values.size / (3.0 * self.length_), near_log_bayes=near
             )
-        return distances, candidates, p_none
+        return distances, candidates, p_none, None if near is None else np.asarray(near)
 
     def predict_posterior(self, X: Any, observed: Any = None) -> tuple[np.ndarray, np.ndarray]:
         """Posterior of each candidate (n, K) and of "none of these" (n,); they sum to 1.
