@@ -1030,6 +1030,32 @@ def test_identify_gives_the_initial_rate_every_digit_its_error_justifies(
     assert shown.endswith("from 199 samples")
 
 
+def test_identify_a_candidate_the_telemetry_disowns_is_amber_saying_why(
+    dashboard: Dashboard,
+) -> None:
+    """A candidate at 0.99 and more that the telemetry fits worse than another body near
+    the candidates (a thruster weaker than the scenario states) is not named: amber, and
+    the headline says why, not "Ambiguous: X (99.9 %) or Y (0.1 %)"."""
+    _identify_with(
+        dashboard,
+        {
+            "status": "ambiguous",
+            "fits_off_candidates": True,
+            "off_candidates_log_bayes": 3.2,
+            "confidence": 0.9991,
+            "posterior": {"payload 3 ejected": 0.9991, "none ejected": 0.0008},
+        },
+    )
+    verdict = dashboard.page.wait_for_selector("#verdict")
+    assert verdict.get_attribute("data-status") == "ambiguous"
+    classes = (verdict.get_attribute("class") or "").split()
+    assert "ambiguous" in classes and "match" not in classes
+    assert verdict.inner_text() == (
+        "Not identified: payload 3 ejected (99.91 %) fits best, but the telemetry fits "
+        "another body better (thrusters off their stated torque?)"
+    )
+
+
 def test_measured_and_quantity_keep_their_digits_at_the_extremes(dashboard: Dashboard) -> None:
     """``measured`` wrote 1e9 ± 12345.6 as 1000000000 ± 12346 and 1e-25 ± 1e-27 as
     0.00000000000000000000 ± 1.0e-27; ``quantity`` rounded -1234.5 to -1234 but 1234.5

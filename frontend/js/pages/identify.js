@@ -206,7 +206,11 @@ function verdictBox(verdict, ranked) {
   const named = (entry) => `${entry[0]} (${probability(entry[1])})`;
   const headline = {
     identified: ["match", `Candidate: ${verdict.candidate} (${probability(verdict.confidence)})`],
-    ambiguous: ["ambiguous", `Ambiguous: ${named(first)} or ${second ? named(second) : "none of these"}`],
+    // A candidate reached the confidence, but the telemetry fits another body near the
+    // candidates better (thrusters off their stated torque, for one): not named.
+    ambiguous: verdict.fits_off_candidates
+      ? ["ambiguous", `Not identified: ${named(first)} fits best, but the telemetry fits another body better (thrusters off their stated torque?)`]
+      : ["ambiguous", `Ambiguous: ${named(first)} or ${second ? named(second) : "none of these"}`],
     "matches-none": ["none", `Matches none of the candidates (none of these: ${probability(verdict.p_none)})`],
     "not-this-sequence": ["none", "Matches none of the candidates: not a response to this sequence"],
   }[verdict.status] || ["none", verdict.verdict];
