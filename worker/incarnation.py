@@ -41,12 +41,15 @@ from pathlib import Path
 from typing import Any
 
 from sqlalchemy.engine import make_url
+from sqlalchemy.exc import DBAPIError
 from sqlalchemy.orm import Session
 
 from service.store.incarnations import LockUnreadable, lock_held
 from service.store.incarnations import lock_file as _lock_file
 from service.store.incarnations import lock_key as _key
 from service.store.models import new_id
+
+from .episode import Episode
 
 __all__ = ["Life", "Witness", "alive", "current"]
 
@@ -62,6 +65,11 @@ def current() -> str:
     return _CURRENT
 
 
+class HeldElsewhere(RuntimeError):
+    """The lock is held by another database session (a twin's probe, or a session that
+    kept it): a condition to wait out, not a fault."""
+
+
 class Life:
     """The lock ``incarnation`` holds while its process lives (see the module's notes)."""
 
@@ -71,7 +79,8 @@ class Life:
         self._connection: Any = None
         self._fd: int | None = None
         self._path: Path | None = None
-        self._failure: str | None = None  # the last failure try_hold logged
+        #: try_hold's failures, logged once an episode (see worker.episode).
+        self._hold_failing = Episode(logger)
         # One shared byte, 1 while this process may claim jobs (see may_claim): mapped
         # before the worker forks its task processes, so they read what the main
         # process writes.
@@ -109,7 +118,7 @@ class Life:
                     "SELECT pg_try_advisory_lock(%s)", (_key(self.incarnation),)
                 ).fetchone()
                 if not (taken and taken[0]):
-                    raise RuntimeError(
+                    raise HeldElsewhere(
                         f"the lock of incarnation {self.incarnation} is held by another "
                         "database session"
                     )
@@ -187,20 +196,22 @@ class Life:
             self._fd, self._path = None, None
 
     def try_hold(self) -> bool:
-        """:meth:`hold`, its failure logged rather than raised: with its traceback the
-        first time, then only when the reason changes (the monitor retries every beat:
-        a data dir where the lock file cannot be made logged a traceback every 5 s)."""
+        """:meth:`hold`, its failure logged rather than raised: once an episode (when
+        it starts, for each new reason, then as a rare reminder; see
+        :class:`worker.episode.Episode`), the traceback only for a failure that is no
+        outage (a database or file that cannot be reached says all in its message).
+        The monitor retries every beat: a data dir where the lock file cannot be made
+        logged a traceback every 5 s, and a second outage later was never logged."""
         try:
             held = self.hold()
         except Exception as exc:
-            failure = f"{type(exc).__name__}: {exc}"
-            if failure != self._failure:
-                logger.exception("could not take this worker's incarnation lock; will retry")
-            self._failure = failure
+            self._hold_failing.seen(
+                _reason(exc),
+                "could not take this worker's incarnation lock (%s); will retry at every beat",
+                exc_info=not _outage(exc),
+            )
             return False
-        if self._failure is not None:
-            logger.info("took this worker's incarnation lock")
-            self._failure = None
+        self._hold_failing.cleared("took this worker's incarnation lock (after %.0f s)")
         return held
 
     def release(self) -> None:
@@ -273,7 +284,7 @@ def alive(session: Session, database_url: str, incarnation: str) -> bool:
     holder's, also in the holder's own process). True where it cannot be told: an
     in-memory SQLite, a lock file that cannot be read (``<database>.incarnations`` is a
     file, or unreadable), or a PostgreSQL probe that fails (the server restarting, the
-    session ended, a statement error); each reason logged once.
+    session ended, a statement error); logged once an episode (see :func:`_unknown`).
     """
     try:
         held = lock_held(session, database_url, incarnation)
@@ -282,30 +293,53 @@ def alive(session: Session, database_url: str, incarnation: str) -> bool:
         # run stays its own; before, the error left the monitor's beat before its
         # reaper and re-sender).
         return _unknown(unreadable.where, unreadable.error)
+    if session.get_bind().dialect.name == "postgresql":
+        _readable("on the PostgreSQL server")
+    elif (path := _lock_file(database_url, incarnation)) is not None:
+        _readable(f"in {path.parent}")
     return held is None or held
 
 
-#: The places (a lock folder, the PostgreSQL server) and reasons :func:`alive`
-#: could not read a lock for, each logged once a process: the monitor asks at every beat.
-_UNREADABLE: set[tuple[str, str]] = set()
+#: For each place (a lock folder, the PostgreSQL server), the episodes in which
+#: :func:`alive` could not read a lock there, each logged once an episode: the monitor
+#: asks at every beat. (Once a process before: a second outage was never logged.)
+_UNREADABLE: dict[str, Episode] = {}
+
+
+def _reason(exc: BaseException) -> str:
+    """``exc``'s type and message in one line: an OSError's ``strerror``, or the first
+    line (PostgreSQL's errors go on with the statement and a link)."""
+    if isinstance(exc, OSError) and exc.strerror:
+        return f"{type(exc).__name__}: {exc.strerror}"
+    inner = exc.orig if isinstance(exc, DBAPIError) and exc.orig is not None else exc
+    return f"{type(inner).__name__}: {(str(inner).strip().splitlines() or [''])[0]}"
+
+
+def _outage(exc: BaseException) -> bool:
+    """Whether ``exc`` says the lock's database or file cannot be reached (its message
+    says all), rather than a fault in our code (its traceback is wanted)."""
+    import psycopg
+
+    if isinstance(exc, DBAPIError):
+        return exc.connection_invalidated or isinstance(exc.orig, psycopg.OperationalError)
+    return isinstance(exc, OSError | psycopg.OperationalError | HeldElsewhere)
 
 
 def _unknown(where: str, exc: BaseException) -> bool:
     """:func:`alive`'s answer for a lock it could not read: alive (see there)."""
-    if isinstance(exc, OSError):
-        reason = f"{type(exc).__name__}: {exc.strerror or exc}"
-    else:
-        # The first line: PostgreSQL's errors go on with the statement and a link.
-        reason = f"{type(exc).__name__}: {(str(exc).strip().splitlines() or [''])[0]}"
-    if (where, reason) not in _UNREADABLE:
-        _UNREADABLE.add((where, reason))
-        logger.warning(
-            "cannot read the incarnation locks %s (%s): their workers are taken to be "
-            "alive, and their runs left to them, until it can be read",
-            where,
-            reason,
-        )
+    _UNREADABLE.setdefault(where, Episode(logger)).seen(
+        _reason(exc),
+        f"cannot read the incarnation locks {where} (%s): their workers are taken to be "
+        "alive, and their runs left to them, until it can be read",
+    )
     return True
+
+
+def _readable(where: str) -> None:
+    """:func:`alive` read a lock ``where``: an episode of :func:`_unknown` there ends."""
+    episode = _UNREADABLE.get(where)
+    if episode is not None:
+        episode.cleared(f"can read the incarnation locks {where} again (after %.0f s)")
 
 
 class Witness:

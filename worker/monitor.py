@@ -19,6 +19,7 @@ from datetime import UTC, datetime
 from typing import Any
 
 from celery.signals import worker_init, worker_ready, worker_shutdown, worker_shutting_down
+from sqlalchemy.exc import DBAPIError, InterfaceError, OperationalError
 
 from service.config import Settings, get_settings
 from service.queue import make_celery
@@ -28,6 +29,7 @@ from service.store.models import utcnow
 
 from . import incarnation
 from .context import broker_label
+from .episode import Episode
 from .process import cold_since, mark_stopping, warm
 from .reaper import hand_back_jobs, reap_once, resend_once, take_restarted_runs
 from .ticker import Ticker
@@ -69,12 +71,43 @@ class WorkerMonitor:
         # Its own app and connections: the reaper publishes from this thread, away from
         # the consumer's event loop.
         self.celery = make_celery(settings)
+        #: The database unreachable at this worker's beats, and any other failure of a
+        #: beat: each logged once an episode (see worker.episode).
+        self._outage = Episode(logger)
+        self._failing = Episode(logger)
         self._ticker = Ticker(
-            self.tick,
+            self.beat,
             settings.heartbeat_interval_s,
             name=f"inertia-id monitor {name}",
             immediately=True,
         )
+
+    def beat(self) -> None:
+        """One beat (:meth:`tick`), its failure logged once an episode rather than with
+        a traceback at every beat: a database wholly down failed every beat (every
+        ``heartbeat_interval_s``) for as long as it was down, each logged in over 100
+        lines. Now one line when it starts (with the reason), a reminder every
+        :data:`worker.episode.REMIND_EVERY_S`, and one line when it answers again."""
+        try:
+            self.tick()
+        except Exception as exc:
+            if _database_unreachable(exc):
+                self._outage.seen(
+                    _first_line(exc),
+                    f"worker {self.name}: the database is unreachable (%s); its beat "
+                    "(heartbeat, reaper, re-sender) tries again every "
+                    f"{self.settings.heartbeat_interval_s:g} s",
+                )
+            else:
+                self._failing.seen(
+                    _first_line(exc),
+                    f"worker {self.name}: its beat failed (%s); trying again every "
+                    f"{self.settings.heartbeat_interval_s:g} s",
+                    exc_info=True,
+                )
+            return
+        self._outage.cleared(f"worker {self.name}: the database answers again after %.0f s")
+        self._failing.cleared(f"worker {self.name}: its beat succeeds again after %.0f s")
 
     def tick(self) -> None:
         # Taken again if it was lost while this process lives (see Life.keep).
@@ -185,6 +218,21 @@ class WorkerMonitor:
         them (closing would end the parent's sessions on PostgreSQL)."""
         self.db.engine.dispose(close=False)
         self.life.forget_after_fork()
+
+
+def _database_unreachable(exc: BaseException) -> bool:
+    """Whether ``exc`` says the database cannot be reached (refused, down, its session
+    ended, its file unopenable) rather than a fault of the statement or of our code."""
+    if isinstance(exc, DBAPIError) and exc.connection_invalidated:
+        return True
+    return isinstance(exc, OperationalError | InterfaceError)
+
+
+def _first_line(exc: BaseException) -> str:
+    """``exc``'s type and the first line of its driver's message (SQLAlchemy's goes on
+    with the statement and a link)."""
+    inner = exc.orig if isinstance(exc, DBAPIError) and exc.orig is not None else exc
+    return f"{type(inner).__name__}: {(str(inner).strip().splitlines() or [''])[0]}"
 
 
 _monitor: WorkerMonitor | None = None

@@ -429,7 +429,7 @@ def test_a_twins_beat_whose_lock_probe_fails_leaves_the_run_and_goes_on(
 ) -> None:
     import worker.incarnation
 
-    monkeypatch.setattr(worker.incarnation, "_UNREADABLE", set())  # logged once a process
+    monkeypatch.setattr(worker.incarnation, "_UNREADABLE", {})  # logged once an episode
     # The probe of the other incarnation's lock fails on the server (an error, or its
     # session ended as at a restart): the lock's state is unknown, so the run is left.
     # Before, alive() raised out of the beat, before its reaper and re-sender.

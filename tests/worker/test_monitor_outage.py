@@ -1,0 +1,178 @@
+"""The worker's beat while its database is wholly down, on both shapes: the SQLite file
+cannot be opened, or the PostgreSQL database takes no connection (``ALLOW_CONNECTIONS
+false``, its sessions ended). The outage is logged in one line when it starts, naming
+its reason, and in one line when the database answers again; a later outage is an
+episode of its own. Before, every beat (every 5 s) logged a traceback of over 100 lines
+for as long as the outage lasted, and nothing said when it ended.
+
+Also the lock code's "logged once" warnings: once an episode, not once a process (a
+second outage later in the worker's life was never logged).
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from typing import TYPE_CHECKING, Any
+
+import pytest
+from service_support import POSTGRES_ADMIN_URL
+from sqlalchemy import create_engine, event, make_url, text
+
+from worker.episode import Episode
+from worker.incarnation import Life, alive
+from worker.monitor import WorkerMonitor
+
+if TYPE_CHECKING:
+    from conftest import Store
+
+WORKER = "w1@host"
+
+
+@contextmanager
+def _database_down(store: Store, monitor: WorkerMonitor) -> Iterator[None]:
+    """The monitor's database wholly down while inside."""
+    url = make_url(store.settings.resolved_database_url)
+    if url.drivername.startswith("sqlite"):
+        path = str(url.database)
+        os.rename(path, f"{path}.away")
+        os.mkdir(path)  # a folder where the file goes: it cannot be opened
+        monitor.db.engine.dispose()  # a pooled connection holds the file open
+        try:
+            yield
+        finally:
+            os.rmdir(path)
+            os.rename(f"{path}.away", path)
+        return
+    # The test's own database (never the server's others): no new connection, and its
+    # sessions ended, the worker's lock's among them.
+    admin = create_engine(POSTGRES_ADMIN_URL, isolation_level="AUTOCOMMIT")
+    name = url.database
+    try:
+        with admin.connect() as connection:
+            connection.execute(text(f'ALTER DATABASE "{name}" ALLOW_CONNECTIONS false'))
+            connection.execute(
+                text(
+                    "SELECT pg_terminate_backend(pid, 10000) FROM pg_stat_activity"
+                    " WHERE datname = :name AND pid <> pg_backend_pid()"
+                ),
+                {"name": name},
+            )
+        yield
+    finally:
+        with admin.connect() as connection:
+            connection.execute(text(f'ALTER DATABASE "{name}" ALLOW_CONNECTIONS true'))
+        admin.dispose()
+
+
+def _lines(caplog: pytest.LogCaptureFixture) -> list[logging.LogRecord]:
+    return [r for r in caplog.records if r.name.startswith("worker.")]
+
+
+def test_a_database_outage_is_logged_once_when_it_starts_and_once_when_it_ends(
+    store: Store, caplog: pytest.LogCaptureFixture, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import worker.monitor
+
+    monkeypatch.setattr(worker.monitor, "warm", lambda: True)  # its task process is up
+    monitor = WorkerMonitor(WORKER, store.settings, Life(store.settings.resolved_database_url, "a"))
+    # What the monitor's thread calls at each beat, its failures caught and logged there.
+    beat: Callable[[], None] = monitor._ticker._safe_tick
+    try:
+        beat()
+        with caplog.at_level(logging.INFO, logger="worker"):
+            for episode in (1, 2):  # a later outage is logged as the first was
+                caplog.clear()
+                with _database_down(store, monitor):
+                    for _ in range(4):
+                        beat()
+                    down = _lines(caplog)
+                    # Before: an ERROR with a traceback (over 100 lines) at every beat.
+                    assert [r for r in down if r.exc_info] == [], [r.getMessage() for r in down]
+                    outage = [r for r in down if "the database is unreachable" in r.getMessage()]
+                    assert len(outage) == 1, (episode, [r.getMessage() for r in down])
+                    assert "OperationalError" in outage[0].getMessage()
+                    caplog.clear()
+                beat()
+                beat()
+                back = [r.getMessage() for r in _lines(caplog)]
+                assert sum("the database answers again" in m for m in back) == 1, back
+    finally:
+        monitor.stop()
+
+
+def _unreadable(caplog: pytest.LogCaptureFixture) -> int:
+    return sum("cannot read the incarnation locks" in r.getMessage() for r in caplog.records)
+
+
+def test_a_lock_unreadable_again_later_is_logged_again(
+    store: Store, caplog: pytest.LogCaptureFixture
+) -> None:
+    url = store.settings.resolved_database_url
+    broken = [False]
+    if url.startswith("postgresql"):
+
+        def fail_the_probe(
+            _conn: Any, _cursor: Any, statement: str, parameters: Any, *_: Any
+        ) -> tuple[str, Any]:
+            if broken[0] and "pg_try_advisory_lock" in statement:
+                return "SELECT 1/0", {}
+            return statement, parameters
+
+        event.listen(store.db.engine, "before_cursor_execute", fail_the_probe, retval=True)
+
+        def break_it(on: bool) -> None:
+            broken[0] = on
+    else:
+        folder = store.settings.data_dir / "inertia-id.db.incarnations"
+
+        def break_it(on: bool) -> None:
+            if on:
+                folder.touch()  # a file where the folder goes
+            else:
+                folder.unlink()
+
+    def probe() -> bool:
+        with store.db.session() as session:
+            return alive(session, url, "other")
+
+    with caplog.at_level(logging.INFO, logger="worker.incarnation"):
+        for outage in (1, 2):
+            break_it(True)
+            assert probe() and probe()  # unknown: taken to be alive
+            # Before: logged at the first outage only, for the process's life.
+            assert _unreadable(caplog) == outage, outage
+            break_it(False)
+            assert not probe()  # read: never taken, so free
+    back = [r.getMessage() for r in caplog.records if "can read the incarnation locks" in r.message]
+    assert len(back) == 2, back
+
+
+def test_an_episode_is_logged_when_it_starts_for_each_new_reason_as_a_reminder_and_when_it_ends(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    now = [0.0]
+    episode = Episode(logging.getLogger("worker.test"), remind_every_s=60.0, clock=lambda: now[0])
+    with caplog.at_level(logging.INFO, logger="worker.test"):
+        assert episode.seen("A", "down (%s)")
+        now[0] = 30.0
+        assert not episode.seen("A", "down (%s)")
+        assert episode.seen("B", "down (%s)")  # a new reason
+        assert not episode.seen("A", "down (%s)")  # not new in this episode
+        now[0] = 89.0
+        assert not episode.seen("A", "down (%s)")  # 59 s after the last line
+        now[0] = 91.0
+        assert episode.seen("A", "down (%s)")  # the reminder
+        now[0] = 100.0
+        assert episode.cleared("up after %.0f s")
+        assert not episode.cleared("up after %.0f s")
+        assert episode.seen("A", "down (%s)")  # a new episode
+    assert [r.getMessage() for r in caplog.records] == [
+        "down (A)",
+        "down (B)",
+        "still, for 91 s: down (A)",
+        "up after 100 s",
+        "down (A)",
+    ]
