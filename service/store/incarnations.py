@@ -12,6 +12,7 @@ import contextlib
 import errno
 import fcntl
 import hashlib
+import logging
 import os
 from pathlib import Path
 
@@ -21,6 +22,8 @@ from sqlalchemy.exc import DBAPIError
 from sqlalchemy.orm import Session
 
 __all__ = ["LockUnreadable", "lock_file", "lock_held", "lock_key"]
+
+logger = logging.getLogger(__name__)
 
 
 class LockUnreadable(Exception):
@@ -67,8 +70,6 @@ def lock_held(session: Session, database_url: str, incarnation: str) -> bool | N
                 free = session.execute(
                     text("SELECT pg_try_advisory_lock(:key)"), {"key": key}
                 ).scalar()
-                if free:
-                    session.execute(text("SELECT pg_advisory_unlock(:key)"), {"key": key})
         except Exception as exc:
             if isinstance(exc, DBAPIError) and exc.connection_invalidated:
                 # The server ended the session, and the transaction with it: rolled
@@ -76,6 +77,8 @@ def lock_held(session: Session, database_url: str, incarnation: str) -> bool | N
                 # statement instead of failing at each until its end.
                 session.rollback()
             raise LockUnreadable("on the PostgreSQL server", exc) from exc
+        if free:
+            _release_probe(session, key, incarnation)
         return not free
     path = lock_file(database_url, incarnation)
     if path is None:
@@ -98,3 +101,35 @@ def lock_held(session: Session, database_url: str, incarnation: str) -> bool | N
         return False
     finally:
         os.close(fd)
+
+
+def _release_probe(session: Session, key: int, incarnation: str) -> None:
+    """Let go of ``incarnation``'s lock, which a probe in ``session`` just took (found
+    free). Should the unlock fail, or find no lock to release, the probe's session is
+    ended (its connection closed, not put back in the pool; the caller's transaction
+    rolled back): a session advisory lock outlives the rollback of a savepoint or a
+    transaction, so the pooled connection went on holding the other incarnation's lock,
+    which that process, alive after all, could then never take again (nor any later
+    probe find free: it is re-entrant)."""
+    try:
+        with session.begin_nested():
+            released = session.execute(
+                text("SELECT pg_advisory_unlock(:key)"), {"key": key}
+            ).scalar()
+    except Exception as exc:
+        if isinstance(exc, DBAPIError) and exc.connection_invalidated:
+            session.rollback()  # the session ended: the lock went with it
+            return
+        released, reason = False, f"{type(exc).__name__}: {exc}".splitlines()[0]
+    else:
+        reason = "it held none"
+    if released:
+        return
+    logger.warning(
+        "a probe could not release the lock of incarnation %s it took (%s): its database "
+        "session is closed so that the lock goes with it",
+        incarnation,
+        reason,
+    )
+    session.connection().invalidate()
+    session.rollback()

@@ -460,3 +460,46 @@ def test_a_twins_beat_whose_lock_probe_fails_leaves_the_run_and_goes_on(
     assert store.job(unsent).sent_at is not None  # the re-sender ran
     unknown = [r for r in caplog.records if "cannot read the incarnation locks" in r.message]
     assert len(unknown) == 1, [r.message for r in unknown]
+
+
+@pytest.mark.parametrize("store", ["postgresql"], indirect=True)
+@pytest.mark.parametrize("unlock", ["SELECT 1/0", "SELECT false"], ids=["fails", "releases-none"])
+def test_a_probe_whose_unlock_fails_leaves_the_probed_lock_free(store: Store, unlock: str) -> None:
+    # A probe finds the other incarnation's lock free (its session just ended, as at a
+    # server restart) and so takes it for a moment; its unlock then fails without the
+    # connection dropping. A session advisory lock outlives the rollback: before, the
+    # pooled connection kept the other's lock, which its live process then could never
+    # take again (its beats found it "held by another database session").
+    url = store.settings.resolved_database_url
+
+    def fail_the_unlock(
+        _conn: Any, _cursor: Any, statement: str, parameters: Any, *_: Any
+    ) -> tuple[str, Any]:
+        if "pg_advisory_unlock" in statement:
+            return unlock, {}
+        return statement, parameters
+
+    event.listen(store.db.engine, "before_cursor_execute", fail_the_unlock, retval=True)
+    with store.db.session() as session:
+        found_alive = alive(session, url, "other")
+        session.execute(text("SELECT 1"))  # the caller's session goes on
+    event.remove(store.db.engine, "before_cursor_execute", fail_the_unlock)
+
+    def nobody_holds_it() -> bool:
+        with store.db.session() as session:
+            return not session.scalar(
+                text(
+                    "SELECT count(*) FROM pg_locks WHERE locktype = 'advisory' AND granted"
+                    " AND database = (SELECT oid FROM pg_database"
+                    " WHERE datname = current_database())"
+                )
+            )
+
+    # The closed session's locks go when the server sees it gone: a moment.
+    wait_for(nobody_holds_it, 10.0, "the probed lock was kept by the probe's session", str)
+    other = Life(url, "other")
+    try:
+        assert other.hold()
+    finally:
+        other.release()
+    assert not found_alive  # it was found free (a second probe, two beats on, decides)
