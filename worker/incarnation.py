@@ -37,6 +37,7 @@ import mmap
 import os
 import time
 from collections.abc import Callable, Iterable
+from datetime import datetime
 from pathlib import Path
 from typing import Any
 
@@ -47,7 +48,7 @@ from sqlalchemy.orm import Session
 from service.store.incarnations import LockUnreadable, lock_held
 from service.store.incarnations import lock_file as _lock_file
 from service.store.incarnations import lock_key as _key
-from service.store.models import new_id
+from service.store.models import new_id, utcnow
 
 from .episode import Episode
 
@@ -81,6 +82,10 @@ class Life:
         self._path: Path | None = None
         #: try_hold's failures, logged once an episode (see worker.episode).
         self._hold_failing = Episode(logger)
+        #: Since when this process's task processes have claimed no job (the lock let
+        #: go of, or never taken; UTC), until the monitor has sent again what they left
+        #: meanwhile (see worker.reaper.resend_left); None otherwise.
+        self.claims_stopped_at: datetime | None = None
         # One shared byte, 1 while this process may claim jobs (see may_claim): mapped
         # before the worker forks its task processes, so they read what the main
         # process writes.
@@ -183,6 +188,8 @@ class Life:
     def _let_go(self, *, remove_file: bool = False) -> None:
         """Close what held the lock (claims stop at once); with ``remove_file``, the lock
         file too (a clean exit: a lost lock's path may be another's by now)."""
+        if self._claims[0] == 1 and self.claims_stopped_at is None:
+            self.claims_stopped_at = utcnow()
         self._claims[0] = 0
         if self._connection is not None:
             with contextlib.suppress(Exception):
@@ -205,6 +212,8 @@ class Life:
         try:
             held = self.hold()
         except Exception as exc:
+            if self._claims[0] == 0 and self.claims_stopped_at is None:
+                self.claims_stopped_at = utcnow()  # never taken: its jobs are left from now
             self._hold_failing.seen(
                 _reason(exc),
                 "could not take this worker's incarnation lock (%s); will retry at every beat",

@@ -31,7 +31,7 @@ from . import incarnation
 from .context import broker_label
 from .episode import Episode
 from .process import cold_since, mark_stopping, warm
-from .reaper import hand_back_jobs, reap_once, resend_once, take_restarted_runs
+from .reaper import hand_back_jobs, reap_once, resend_left, resend_once, take_restarted_runs
 from .ticker import Ticker
 
 __all__ = ["WorkerMonitor", "current", "may_claim"]
@@ -161,6 +161,13 @@ class WorkerMonitor:
             logger.warning(
                 "reaper: re-queued %s, ended %s", report.requeued or "none", report.failed or "none"
             )
+        left_since = self.life.claims_stopped_at
+        if left_since is not None and self.life.may_claim():
+            # Its lock taken again: what its task processes left meanwhile is sent now
+            # (before resend_once, which would send it again a second time), not
+            # resend_after_s after it was left.
+            resend_left(self.db, self.celery, left_since)
+            self.life.claims_stopped_at = None
         resend_once(self.settings, self.db, self.celery)
 
     def _warming_since(self) -> datetime:

@@ -38,6 +38,7 @@ from service.store.jobs import (
     hand_back,
     mark_sent,
     reap_stale,
+    send_again_since,
     take_earlier_incarnations,
     task_process_lost,
 )
@@ -51,6 +52,7 @@ __all__ = [
     "hand_back_jobs",
     "idle_workers",
     "reap_once",
+    "resend_left",
     "resend_once",
     "take_lost_run",
     "take_restarted_runs",
@@ -174,6 +176,20 @@ def resend_once(settings: Settings, db: Database, celery: Celery) -> list[str]:
     sent = _dispatch(db, celery, due, mark=False)
     for job_id in sent:
         logger.warning("sent job %s (again): it was queued without a message", job_id)
+    return sent
+
+
+def resend_left(db: Database, celery: Celery, since: datetime) -> list[str]:
+    """Send again the messages of the queued jobs spent at or after ``since``: the jobs
+    this worker's task processes left, from ``since`` on, because it held no incarnation
+    lock (see :func:`worker.runner.execute_job`), called at the beat that takes it again.
+    Left to :func:`resend_once`, they waited ``resend_after_s`` (30 s) after they were
+    left, the worker idle meanwhile. Their ids."""
+    with db.session() as session:
+        due = send_again_since(session, since)
+    sent = _dispatch(db, celery, due, mark=False)
+    for job_id in sent:
+        logger.warning("sent job %s again: it was left while this worker held no lock", job_id)
     return sent
 
 

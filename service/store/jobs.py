@@ -71,6 +71,7 @@ __all__ = [
     "mark_sent",
     "owns",
     "reap_stale",
+    "send_again_since",
     "set_labels",
     "set_progress",
     "start_worker",
@@ -291,6 +292,28 @@ def due_for_sending(
             update(JobRow)
             .where(JobRow.id == job_id, JobRow.status == "queued", or_(never, stale))
             .values(sent_at=now)
+        ).rowcount
+        if marked:
+            taken.append(job_id)
+    return taken
+
+
+def send_again_since(
+    session: Session, since: datetime, *, now: datetime | None = None
+) -> list[str]:
+    """Queued jobs whose message was spent at or after ``since`` (and before ``now``),
+    oldest first, marked as sent now: those a worker's task processes left while it held
+    no incarnation lock, its lock taken again now (see :mod:`worker.incarnation`). Each
+    is marked by a conditional UPDATE before it is returned, so two monitors never both
+    send it. A job sent at that time whose message still waits in the broker gets a
+    second message: harmless (a claim is one atomic UPDATE; the later message finds the
+    job taken and does nothing)."""
+    now = now or utcnow()
+    left = and_(JobRow.status == "queued", JobRow.sent_at >= since, JobRow.sent_at < now)
+    taken = []
+    for job_id in session.scalars(select(JobRow.id).where(left).order_by(JobRow.sent_at)).all():
+        marked = session.execute(  # type: ignore[attr-defined]
+            update(JobRow).where(JobRow.id == job_id, left).values(sent_at=now)
         ).rowcount
         if marked:
             taken.append(job_id)

@@ -252,6 +252,40 @@ def test_a_job_left_by_a_worker_without_its_lock_is_not_sent_to_it_at_every_beat
         monitor.stop()
 
 
+def test_a_job_left_by_a_worker_without_its_lock_is_sent_again_at_the_beat_that_retakes_it(
+    store: Store, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import worker.monitor
+
+    monkeypatch.setattr(worker.monitor, "warm", lambda: True)  # its task process is up
+    life = Life(store.settings.resolved_database_url, "first")
+    monkeypatch.setattr(worker.monitor, "_life", life)
+    monitor = WorkerMonitor(WORKER, store.settings, life)
+    job_id = store.add_job("train", {"sequence": "not a sequence"}, sent_at=utcnow())
+    try:
+        monitor.tick()
+        with _kept_from(store, life):
+            monitor.tick()  # finds it lost, cannot take it again
+            status = execute_job(
+                job_id,
+                settings=store.settings,
+                worker_name=WORKER,
+                may_claim=worker.monitor.may_claim,
+            )
+            assert status == "passed on"
+            left_at = store.job(job_id).sent_at
+            monitor.tick()
+            assert store.job(job_id).sent_at == left_at  # not sent to it at every beat
+        monitor.tick()  # takes its lock again
+        # Before: sent again only resend_after_s (30 s) after it was left.
+        assert life.held and store.job(job_id).sent_at != left_at
+        sent_at = store.job(job_id).sent_at
+        monitor.tick()
+        assert store.job(job_id).sent_at == sent_at  # once
+    finally:
+        monitor.stop()
+
+
 def test_health_names_a_lone_worker_whose_beat_finds_it_without_its_lock(
     store: Store, monkeypatch: pytest.MonkeyPatch
 ) -> None:
