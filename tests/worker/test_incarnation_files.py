@@ -7,6 +7,7 @@ goes) leaves its worker judged alive, logged once, and the beat goes on."""
 from __future__ import annotations
 
 import logging
+import shutil
 from datetime import timedelta
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -63,6 +64,13 @@ def test_a_lock_that_cannot_be_taken_is_logged_once_not_at_every_retry(
         assert [r.getMessage() for r in caplog.records] == [
             "took this worker's incarnation lock (after 0 s)"
         ]
+        # A later episode (the lock let go of, its folder a file again) is logged again.
+        life.release()
+        shutil.rmtree(tmp_path / "inertia-id.db.incarnations")
+        (tmp_path / "inertia-id.db.incarnations").touch()
+        caplog.clear()
+        assert [life.try_hold() for _ in range(3)] == [False, False, False]
+        assert len([r for r in caplog.records if r.levelno >= logging.WARNING]) == 1
     life.release()
 
 
