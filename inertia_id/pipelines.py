@@ -292,7 +292,7 @@ def search_with_baselines(
     from .search import search
     from .search.baselines import STOPPED, compare_with_baselines
 
-    check_search_scenario(scenario, request.sequence_length)
+    check_search_scenario(scenario, request.sequence_length, request.constraints)
     from .search.loop import CANCELLED, TIME_LIMIT, Deadline
 
     settings = request.scorer()
@@ -364,7 +364,9 @@ def search_with_baselines(
     return SearchOutcome(found, baselines, scenario)
 
 
-def check_search_scenario(scenario: Scenario, sequence_length: int) -> None:
+def check_search_scenario(
+    scenario: Scenario, sequence_length: int, constraints: Mapping[str, float] | None = None
+) -> None:
     """Refuse a search on a scenario whose hand-designed sequence of ``sequence_length``
     steps (full duty on the principal diagonal: the baseline every search is scored
     against) passes any attitude gyro's range
@@ -374,13 +376,20 @@ def check_search_scenario(scenario: Scenario, sequence_length: int) -> None:
     flight shows. Refused before the search rather than flagged after it, at the cost of
     one nominal run.
 
+    Also refuse a rate bound among ``constraints`` below what the scenario's initial-rate
+    spread alone leaves (:func:`~inertia_id.search.objectives.check_rate_floor`): no
+    sequence meets it, and the search would end saying only that none did.
+
+    :raises InputError: a rate bound below the initial-rate floor, naming both.
     :raises ~inertia_id.physics.simulate.RatesBeyondGyro: naming the scenario, the
         baseline and, in :func:`~inertia_id.physics.simulate.check_gyro_range`'s words,
         the candidate, its rate and the ceiling.
     """
     from .physics.sequences import hand_designed
     from .physics.simulate import RatesBeyondGyro, check_nominal_gyro_range
+    from .search.objectives import check_constraints, check_rate_floor
 
+    check_rate_floor(check_constraints(dict(constraints or {})), scenario)
     try:
         check_nominal_gyro_range(scenario, hand_designed(scenario, sequence_length))
     except RatesBeyondGyro as exc:

@@ -111,11 +111,12 @@ def _check_search(body: SearchJobCreate, scenario: Scenario) -> None:
     # What needs the scenario (a propellant objective or bound needs thrust and specific
     # impulse): refused here, not after the job has waited in the queue.
     from inertia_id.pipelines import SearchRequest
+    from inertia_id.search.objectives import check_rate_floor
 
     try:
-        SearchRequest.from_params(params.model_dump(mode="json")).operator().check(
-            scenario, params.sequence_length
-        )
+        operator = SearchRequest.from_params(params.model_dump(mode="json")).operator()
+        checked = operator.check(scenario, params.sequence_length)
+        check_rate_floor(dict(checked.constraints), scenario)
     except InputError as exc:
         message = str(exc)
         field = (
@@ -129,7 +130,7 @@ def _check_search(body: SearchJobCreate, scenario: Scenario) -> None:
     from inertia_id.pipelines import check_search_scenario
 
     try:
-        check_search_scenario(scenario, params.sequence_length)
+        check_search_scenario(scenario, params.sequence_length, params.constraints)
     except InputError as exc:
         unprocessable(("body", "scenario_id"), str(exc))
     if params.method != "exhaustive":

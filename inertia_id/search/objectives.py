@@ -519,6 +519,71 @@ def check_design_noise(design_noise: Any) -> tuple[tuple[float, float], ...]:
     return pairs
 
 
+#: The rate bounds that no sequence can bring below the initial-rate spread, with the
+#: statistic of |ω(0)| each reads: the mean over flights, or the rate 95 % stay under.
+_FLOOR_STATISTIC: Final = {
+    "max_final_rate": "mean",
+    "max_peak_rate": "mean",
+    "max_final_rate_p95": "p95",
+    "max_peak_rate_p95": "p95",
+}
+
+
+def initial_rate_floor(sigma_rad_s: float) -> dict[str, float]:
+    """What the spread of the rate at the start alone leaves, rad/s: the mean of |ω(0)|
+    over flights (``"mean"``, 2 σ sqrt(2/π) = 1.60 σ: ω(0) is N(0, σ² I), so |ω(0)|/σ
+    is Maxwell-distributed) and the rate 95 % of flights stay under (``"p95"``, σ sqrt of
+    the chi-square(3) 95th percentile = 2.80 σ).
+
+    The all-off sequence leaves these (its residual is ω(0), the disturbance aside), and
+    no open-loop sequence leaves less: a sequence adds the same change c to every flight
+    and noise independent of ω(0), and for a centred Gaussian ω(0),
+    P(|ω(0) + c| <= r) <= P(|ω(0)| <= r) for every r (Anderson's theorem), so neither
+    the mean nor a percentile of the residual falls below ω(0)'s. (That holds while the
+    gyroscopic coupling over the sequence is small, as it is at rates a spread of a few
+    mrad/s gives.)
+    """
+    from scipy.stats import chi2
+
+    sigma = float(sigma_rad_s)
+    return {
+        "mean": 2.0 * sigma * float(np.sqrt(2.0 / np.pi)),
+        "p95": sigma * float(np.sqrt(chi2.ppf(FLIGHT_QUANTILE, 3))),
+    }
+
+
+def check_rate_floor(constraints: dict[str, float], scenario: Any) -> None:
+    """Refuse a rate bound below what the scenario's initial-rate spread alone leaves
+    (:func:`initial_rate_floor`): no sequence meets it, the all-off one included, and a
+    search would only report that none did.
+
+    :param constraints: checked bounds (:func:`check_constraints`).
+    :raises InputError: naming the constraint, its bound, the floor in its unit and
+        ``initial_rate_sigma_rad_s``.
+    """
+    sigma = float(scenario.uncertainty.initial_rate_sigma_rad_s)
+    if sigma <= 0.0:
+        return
+    floor = initial_rate_floor(sigma)
+    for name, bound in constraints.items():
+        stem = name.removesuffix("_s").removesuffix("_rad").removesuffix("_deg")
+        statistic = _FLOOR_STATISTIC.get(stem)
+        if statistic is None:
+            continue
+        factor = CONSTRAINTS[name][2]  # bound * factor is rad/s
+        least = floor[statistic] / factor  # in the constraint's unit
+        if bound < least:
+            unit_text = "deg/s" if name.endswith("_deg_s") else "rad/s"
+            what = "mean over flights" if statistic == "mean" else "rate 95 % of flights stay under"
+            raise InputError(
+                f"constraint {name} = {bound:g} {unit_text} is below what the scenario's "
+                f"initial-rate spread alone leaves ({what} of |ω(0)|: {least:.4g} {unit_text} "
+                f"for initial_rate_sigma_rad_s = {sigma:g}): no sequence, the all-off one "
+                f"included, can meet it; raise the bound to at least {least:.4g} {unit_text} "
+                f"or give the scenario's true initial-rate spread"
+            )
+
+
 def check_constraints(constraints: Any, scenario: Any = None) -> dict[str, float]:
     """Constraint bounds by name (:data:`CONSTRAINTS`), finite and >= 0; a propellant bound
     needs a scenario that states thrust and specific impulse."""

@@ -853,3 +853,21 @@ def test_jobs_whose_sequences_no_gyro_measures_are_refused_at_submission(
         ][0]["msg"]
     )
     assert api.queued_messages() == []
+
+
+def test_a_rate_bound_below_the_initial_rate_spread_is_422_naming_both(api: Api) -> None:
+    # Accepted before, it ran to "no sequence met the constraints": the spread of the rate
+    # at the start alone leaves a mean of 0.2286 deg/s, whatever the sequence.
+    paper = Scenario.model_validate(api.create_scenario()["document"])
+    uncertainty = {**paper.uncertainty.model_dump(), "initial_rate_sigma_rad_s": 0.0025}
+    scenario_id = api.create_scenario(name="spread", uncertainty=uncertainty)["id"]
+    params = {"method": "nsga2", "constraints": {"max_final_rate_deg_s": 0.2}}
+    response = api.submit("search", scenario_id, params=params)
+    assert response.status_code == 422, response.text
+    (error,) = response.json()["detail"]
+    assert error["loc"][-1] == "constraints"
+    assert "max_final_rate_deg_s = 0.2 deg/s" in error["msg"]
+    assert "0.2286 deg/s for initial_rate_sigma_rad_s = 0.0025" in error["msg"]
+    assert api.queued_messages() == []
+    params = {"method": "nsga2", "constraints": {"max_final_rate_deg_s": 0.25}}
+    assert api.submit("search", scenario_id, params=params).status_code == 202

@@ -12,7 +12,9 @@ from inertia_id import InputError, Scenario, preset
 from inertia_id.physics.attitude import propagate_attitude, rotation_angle_deg
 from inertia_id.physics.sequences import BASELINES, axis_in_turn, hand_designed, principal_axes
 from inertia_id.physics.simulate import Simulator
+from inertia_id.pipelines import check_search_scenario
 from inertia_id.search import OperatorScorer, OperatorSettings, pareto_search
+from inertia_id.search.objectives import initial_rate_floor
 from inertia_id.search.pareto import (
     _Archive,
     _neighbours,
@@ -1107,3 +1109,48 @@ def test_a_plans_flights_past_any_gyros_range_are_refused_naming_the_flight(
     assert command_plan(noisy, sequence).peak_rate_rad_s[0] < 1.0
     with pytest.raises(InputError, match=r"in flight \d+ of 20 at the scenario's noise \(seed 3\)"):
         command_plan(noisy, sequence, flights=20, seed=3)
+
+
+def _spread(sigma_rad_s: float) -> Scenario:
+    paper = preset("paper")
+    return preset(
+        "paper",
+        name="spread",
+        uncertainty={**paper.uncertainty.model_dump(), "initial_rate_sigma_rad_s": sigma_rad_s},
+    )
+
+
+def test_the_initial_rate_floor_is_what_the_all_off_sequence_leaves() -> None:
+    # Physical check: the all-off sequence's residual is ω(0) (the disturbance aside), a
+    # Maxwell-distributed |ω(0)| of mean 2 σ sqrt(2/π) and 95th percentile 2.80 σ.
+    scenario = _spread(0.0025)
+    settings = OperatorSettings(objectives=("accuracy", "final_rate"), n_realisations=1000)
+    scorer = OperatorScorer(scenario, 2, settings, seed=3)
+    off = np.zeros((2, scenario.n_thrusters), dtype=int)
+    floor = initial_rate_floor(0.0025)
+    (score,) = scorer.score([off])
+    assert score.final_rate_rad_s == pytest.approx(floor["mean"], rel=0.03)
+    # The order statistic of 1,000 flights reads near their 96th percentile.
+    residual, _peak = scorer.per_flight_figures([off], 1000, seed=4)[0]
+    assert floor["p95"] <= residual <= 1.06 * floor["p95"]
+    # No sequence leaves less (Anderson's theorem): one firing every thruster in turn.
+    firing = np.eye(2, scenario.n_thrusters, dtype=int)
+    (fired,) = scorer.score([firing])
+    assert fired.final_rate_rad_s >= floor["mean"]
+
+
+def test_a_rate_bound_below_the_initial_rate_spread_is_refused_naming_both() -> None:
+    # A reviewer's case: with initial_rate_sigma_rad_s = 0.0025 every sequence, the all-off
+    # one included, leaves 0.23 deg/s on average; the search ended "no sequence met the
+    # constraints ...; loosen them or search longer".
+    scenario = _spread(0.0025)
+    with pytest.raises(InputError) as caught:
+        check_search_scenario(scenario, 2, {"max_final_rate_deg_s": 0.2})
+    message = str(caught.value)
+    assert "max_final_rate_deg_s = 0.2 deg/s" in message
+    assert "0.2286 deg/s" in message and "initial_rate_sigma_rad_s = 0.0025" in message
+    with pytest.raises(InputError, match=r"max_peak_rate_p95_rad_s = 0.005 rad/s .* 0.006989"):
+        check_search_scenario(scenario, 2, {"max_peak_rate_p95_rad_s": 0.005})
+    # A bound above the floor, and any bound on a scenario that starts at rest, pass.
+    check_search_scenario(scenario, 2, {"max_final_rate_deg_s": 0.25})
+    check_search_scenario(_spread(0.0), 2, {"max_final_rate_deg_s": 0.001})
