@@ -461,6 +461,9 @@ class Trained:
     model: CandidateClassifier
     kind: str
     n_realisations: int
+    #: What the training found doubtful but did not refuse (a response far below the
+    #: gyro noise: :func:`~inertia_id.physics.simulate.weak_response_warning`).
+    warnings: tuple[str, ...] = ()
 
     def summary(self) -> dict[str, Any]:
         """What a training reports: scores, confusion, candidates, sequence, kind."""
@@ -473,6 +476,7 @@ class Trained:
             "candidate_names": list(self.model.candidate_names_),
             "sequence": np.asarray(self.model.sequence_).tolist(),
             "n_realisations": self.n_realisations,
+            "warnings": list(self.warnings),
         }
 
 
@@ -481,14 +485,16 @@ def train_for_sequence(
 ) -> Trained:
     """Train the classifier a request names, on draws from ``default_rng(seed)``."""
     from .classifiers.registry import train_classifier
-    from .physics.simulate import check_nominal_gyro_range
+    from .physics.simulate import check_nominal_gyro_range, weak_response_warning
 
     kind, n_realisations, options = request.resolved()
     # A classifier of responses no gyro measures classifies no telemetry.
-    check_nominal_gyro_range(scenario, request.sequence)
+    run = check_nominal_gyro_range(scenario, request.sequence)
+    # One of responses far below the gyro noise classifies noise: said, not refused.
+    weak = weak_response_warning(scenario, request.sequence, run)
     rng = np.random.default_rng(seed)
     model = train_classifier(scenario, request.sequence, n_realisations, rng, kind=kind, **options)
-    return Trained(model, kind, n_realisations)
+    return Trained(model, kind, n_realisations, () if weak is None else (weak,))
 
 
 def train_others(

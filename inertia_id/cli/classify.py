@@ -145,6 +145,8 @@ def train_cmd(
     trained.model.save(out)
     click.echo(f"wrote {out} in {time.perf_counter() - started:.1f} s", err=True)
     summary = trained.summary()
+    for warning in trained.warnings:
+        click.echo(f"warning: {warning}", err=True)
     write_json(
         None,
         {
@@ -152,6 +154,7 @@ def train_cmd(
             "accuracy": summary["accuracy"],
             "confusion": summary["confusion"],
             "candidates": summary["candidate_names"],
+            "warnings": summary["warnings"],
         },
     )
 

@@ -118,6 +118,8 @@ def plan_cmd(
         assert sequence_text is not None
         sequence = parse_sequence(sequence_text)
     plan = command_plan(scenario, sequence, flights=flights, seed=seed)
+    for warning in plan.warnings:
+        click.echo(f"warning: {warning}", err=True)
     # Where the sequence came from, as the API's plan states it (scenario, job, member):
     # a plan handed on can be traced to its search and member, or to its sequence file.
     source: dict[str, object] = {}

@@ -45,6 +45,7 @@ __all__ = [
     "nominal_simulator",
     "settled_rates",
     "simulate",
+    "weak_response_warning",
 ]
 
 
@@ -474,6 +475,44 @@ def check_nominal_gyro_range(scenario: Scenario, sequence: Any) -> SimulationRes
     settled = settled_rates(scenario, run.omega_true[:, :, -1], run.applied_torque_nm[:, :, -1])
     check_gyro_range(scenario, rows, run.omega_true, settled=settled)
     return run
+
+
+#: A sequence whose predicted rates stay this many times below the gyro's white noise (its
+#: sigma a sample) is flagged, not refused: a classifier trained on it reads noise (a
+#: scenario whose inertia was typed in kg mm^2 as kg m^2 peaked at 7.7e-7 deg/s under a
+#: 0.03 deg/s gyro and trained to F1 0.31, 0.25 being chance, without a word).
+WEAK_RESPONSE_FACTOR = 100.0
+
+
+def weak_response_warning(scenario: Scenario, sequence: Any, run: SimulationResult) -> str | None:
+    """A warning when ``sequence``'s nominal prediction ``run`` (from
+    :func:`check_nominal_gyro_range`) peaks at least :data:`WEAK_RESPONSE_FACTOR` times
+    below the scenario's gyro noise, naming both figures and the likely cause; None
+    otherwise (or without gyro noise). A warning, not a refusal: a spacecraft may be that
+    quiet on purpose, but a classifier of it then reads noise.
+    """
+    sigma = float(scenario.uncertainty.gyro_noise_sigma_rad_s)
+    if not sigma > 0.0:
+        return None
+    settled = settled_rates(scenario, run.omega_true[:, :, -1], run.applied_torque_nm[:, :, -1])
+    peak = max(
+        float(np.linalg.norm(run.omega_true, axis=-1).max(initial=0.0)),
+        float(np.linalg.norm(settled, axis=-1).max(initial=0.0)),
+    )
+    if not peak * WEAK_RESPONSE_FACTOR <= sigma:  # nan is left to the overflow check
+        return None
+    below = "(it moves no candidate at all)" if peak == 0.0 else f"by {sigma / peak:.3g}x"
+    torque, moment = _drive(scenario)
+    return (
+        f"sequence {_shown(scenario.check_sequence(sequence).tolist())} on scenario "
+        f"{scenario.name!r} is predicted to peak at {peak:.3g} rad/s "
+        f"({math.degrees(peak):.3g} deg/s), below the gyro noise ({sigma:.3g} rad/s, "
+        f"{math.degrees(sigma):.3g} deg/s a sample) {below}: its responses are noise to a "
+        "classifier; the scenario's inertia (smallest principal moment "
+        f"{moment:.3g} kg m^2) or torques (up to {torque:.3g} N m) are likely wrong in "
+        "units (an inertia in kg mm^2 typed as kg m^2 makes every rate 1e6 too small), "
+        "or the sequence fires too little"
+    )
 
 
 def nominal_simulator(

@@ -23,7 +23,7 @@ from __future__ import annotations
 import csv
 import functools
 import io
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -38,6 +38,7 @@ from ..physics.simulate import (
     check_nominal_gyro_range,
     settled_rates,
     simulate,
+    weak_response_warning,
 )
 from .objectives import (
     FLIGHT_QUANTILE,
@@ -144,6 +145,9 @@ class CommandPlan:
     propellant_kg: float | None
     #: Single flights' spread, when the plan was asked to fly the sequence.
     dispersion: FlightDispersion | None = None
+    #: What the plan found doubtful but did not refuse (rates far below the gyro noise:
+    #: :func:`~inertia_id.physics.simulate.weak_response_warning`).
+    warnings: list[str] = field(default_factory=list)
 
     def to_dict(self) -> dict[str, Any]:
         rates = np.asarray(self.rates_rad_s)
@@ -209,6 +213,7 @@ class CommandPlan:
                 "firing counts, opposed or not): a propellant proxy",
                 "propellant_kg": self.propellant_kg,
             },
+            "warnings": list(self.warnings),
         }
 
     def to_csv(self) -> str:
@@ -376,6 +381,7 @@ def command_plan(
     duty = scenario.duties(rows)  # (L, N)
     step = scenario.timing.step_duration_s
     run = check_nominal_gyro_range(scenario, rows)
+    weak = weak_response_warning(scenario, rows, run)
     settled = settled_rates(scenario, run.omega_true[:, :, -1], run.applied_torque_nm[:, :, -1])
     fine = run.omega_true[:, 0]  # (K, T_fine, 3) at every integration step
     rates = at_gyro_samples(scenario, fine)  # (K, T, 3) at the gyro's samples
@@ -412,4 +418,5 @@ def command_plan(
             if flights
             else None
         ),
+        warnings=[] if weak is None else [weak],
     )

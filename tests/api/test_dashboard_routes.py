@@ -463,3 +463,25 @@ def test_a_plan_and_a_response_refuse_the_same_sequence_near_the_gyro_ceiling(ap
     (detail,) = shown.json()["detail"]
     assert detail["loc"] == ["query", "n_realisations"]
     assert re.search(r"in realisation \d+ of 20 \(seed 0\)", detail["msg"]), detail["msg"]
+
+
+def test_a_plan_far_below_the_gyro_noise_says_so_in_its_warnings(api: Api) -> None:
+    # Inertia typed in kg mm^2 as kg m^2: planned, as before, but no longer without a word.
+    paper = api.post("/scenarios", json={"preset": "paper"}).json()["document"]
+    candidates = [
+        {**c, "inertia_kg_m2": [[v * 1e6 for v in row] for row in c["inertia_kg_m2"]]}
+        for c in paper["inertia_candidates"]
+    ]
+    overrides = {"name": "mm", "inertia_candidates": candidates}
+    scenario_id = api.post("/scenarios", json={"preset": "paper", "overrides": overrides}).json()[
+        "id"
+    ]
+    sequence = json.dumps([[4, 4, 4, 0, 0, 0]] * 2)
+    response = api.get_with_key(f"/scenarios/{scenario_id}/plan", params={"sequence": sequence})
+    assert response.status_code == 200, response.text
+    (warning,) = response.json()["warnings"]
+    assert "peak at 1.02e-07 rad/s" in warning and "by 9.83e+03x" in warning
+    assert "kg mm^2 typed as kg m^2" in warning
+    paper_id = api.post("/scenarios", json={"preset": "paper"}).json()["id"]
+    plain = api.get_with_key(f"/scenarios/{paper_id}/plan", params={"sequence": sequence})
+    assert plain.json()["warnings"] == []

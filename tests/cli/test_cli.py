@@ -7,6 +7,7 @@ import json
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 from cli_support import run_cli, run_cli_json
 from click.testing import CliRunner
@@ -796,3 +797,37 @@ def test_identify_and_the_plan_number_a_candidate_alike(
     assert (
         "numbered from 1" in refused.output and "the first is 1, 'none ejected'" in refused.output
     )
+
+
+def test_train_and_plan_warn_when_the_response_is_far_below_the_gyro_noise(
+    tmp_path: Path,
+) -> None:
+    # A reviewer's case: inertia typed in kg mm^2 as kg m^2 (1e6 too large) trained to F1
+    # near chance and planned a peak rate of 1e-7 rad/s under a 1e-3 rad/s gyro without a
+    # word. Warned, not refused: both still write their outputs.
+    from inertia_id import preset
+
+    paper = preset("paper")
+    candidates = [
+        {"name": c.name, "inertia_kg_m2": (np.asarray(c.inertia_kg_m2) * 1e6).tolist()}
+        for c in paper.inertia_candidates
+    ]
+    scenario = tmp_path / "mm.json"
+    scenario.write_text(preset("paper", name="mm", inertia_candidates=candidates).model_dump_json())
+    sequence = "4,4,4,0,0,0;4,4,4,0,0,0"
+    plan, planned = run_cli_json(
+        ["plan", "--scenario", str(scenario), "--sequence", sequence], tmp_path / "p.json"
+    )
+    (warning,) = plan["warnings"]
+    assert "predicted to peak at 1.02e-07 rad/s" in warning
+    assert "below the gyro noise (0.001 rad/s, 0.0573 deg/s a sample) by 9.83e+03x" in warning
+    assert "kg mm^2 typed as kg m^2" in warning
+    assert f"warning: {warning}" in planned.stderr
+    classifier = tmp_path / "c.json"
+    options = ["--sequence", sequence, "--metric", "euclidean", "-n", "5"]
+    trained = run_cli(["train", "--scenario", str(scenario), *options, "--out", str(classifier)])
+    assert json.loads(trained.stdout)["warnings"] == [warning]
+    assert f"warning: {warning}" in trained.stderr
+    # The paper preset's own scenario warns of nothing.
+    plan, planned = run_cli_json(["plan", "--sequence", sequence], tmp_path / "q.json")
+    assert plan["warnings"] == [] and "warning" not in planned.stderr
