@@ -50,7 +50,12 @@ from ..errors import InputError
 from ..physics.scenario import Scenario
 from ..physics.sequences import BASELINES
 from .loop import CANCELLED, TIME_LIMIT, Deadline, overrides
-from .objectives import FRONT_FLIGHTS, SequenceScores, check_per_flight_realisations
+from .objectives import (
+    CONSTRAINTS,
+    FRONT_FLIGHTS,
+    SequenceScores,
+    check_per_flight_realisations,
+)
 from .operator import MAX_TEST_SERIES, OperatorScorer, OperatorSettings
 from .records import (
     CurvePoint,
@@ -813,6 +818,23 @@ class _Bar:
         return self._last
 
 
+def _nearest(entries: list[tuple[Any, SequenceScores]], constraints: dict[str, float]) -> str:
+    """Each constraint's best figure among the sequences evaluated, in its unit, and how
+    many of them met it: why none met them all (one bound no sequence came near, or
+    bounds each met by other sequences)."""
+    words = []
+    for name, bound in constraints.items():
+        figure, sense, factor = CONSTRAINTS[name]
+        values = np.array([score.figure(figure) for _, score in entries]) / factor
+        values = values[np.isfinite(values)]
+        met = int(np.count_nonzero(values <= bound if sense == "max" else values >= bound))
+        best = (values.min() if sense == "max" else values.max()) if values.size else np.nan
+        words.append(
+            f"{name} = {bound:g}: best {best:.4g}, met by {met} of {len(entries)} sequences"
+        )
+    return "; ".join(words)
+
+
 def pareto_search(
     scenario: Scenario,
     *,
@@ -1024,8 +1046,8 @@ def pareto_search(
     allowed = np.array([s.feasible(constraints) for _, s in entries])
     if not allowed.any():
         raise InputError(
-            f"no sequence met the constraints {constraints} in {scorer.evaluations} evaluations; "
-            "loosen them or search longer"
+            f"no sequence met the constraints {constraints} in {scorer.evaluations} evaluations "
+            f"({_nearest(entries, constraints)}); loosen them or search longer"
         )
     candidates = np.flatnonzero(allowed)[non_dominated(vectors[allowed])]
     candidates = candidates[

@@ -4,6 +4,7 @@ command plan and the attitude change."""
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -1154,3 +1155,29 @@ def test_a_rate_bound_below_the_initial_rate_spread_is_refused_naming_both() -> 
     # A bound above the floor, and any bound on a scenario that starts at rest, pass.
     check_search_scenario(scenario, 2, {"max_final_rate_deg_s": 0.25})
     check_search_scenario(_spread(0.0), 2, {"max_final_rate_deg_s": 0.001})
+
+
+def test_a_search_none_of_whose_sequences_met_the_constraints_says_how_near_they_came(
+    paper: Scenario,
+) -> None:
+    # Only the all-off sequence burns nothing, and it tells no candidate apart: each bound
+    # is met by some sequences, both by none. Before, the error named the bounds only.
+    constraints = {"min_accuracy": 0.6, "max_impulse_nms": 0.0}
+    with pytest.raises(InputError) as caught:
+        pareto_search(
+            paper,
+            sequence_length=2,
+            seed=4,
+            operator=OperatorSettings(constraints=constraints, n_realisations=4),
+            nsga2_params={"population": 8, "generations": 2},
+            fresh_realisations=4,
+        )
+    message = str(caught.value)
+    assert "no sequence met the constraints" in message
+    nearest = re.search(
+        r"min_accuracy = 0.6: best ([\d.]+), met by (\d+) of (\d+) sequences; "
+        r"max_impulse_nms = 0: best 0, met by (\d+) of \3 sequences\)",
+        message,
+    )
+    assert nearest is not None, message
+    assert float(nearest[1]) >= 0.6 and int(nearest[2]) >= 1 and int(nearest[4]) >= 1
