@@ -229,8 +229,9 @@ async def _database_busy(_request: Request, exc: Exception) -> JSONResponse:
 
 # What the database says when it is there but cannot store: SQLite's primary result
 # codes (the low byte of sqlite3's ``sqlite_errorcode``) and PostgreSQL's SQLSTATEs
-# (disk_full, io_error).
-_PG_DISK_FULL, _PG_IO_ERROR = "53100", "58030"
+# (disk_full, io_error, read_only_sql_transaction: a hot standby, or a database whose
+# transactions are read-only by default).
+_PG_DISK_FULL, _PG_IO_ERROR, _PG_READ_ONLY = "53100", "58030", "25006"
 _CANNOT_STORE = {
     "full": "the database cannot store anything: the disk that holds it is full; free "
     "space there, then try again",
@@ -253,7 +254,8 @@ def _why_cannot_store(exc: Exception) -> str | None:
             sqlite3.SQLITE_IOERR: "io",
         }.get(primary)
     sqlstate = getattr(orig, "sqlstate", None)
-    return {_PG_DISK_FULL: "full", _PG_IO_ERROR: "io"}.get(sqlstate) if sqlstate else None
+    refusals = {_PG_DISK_FULL: "full", _PG_IO_ERROR: "io", _PG_READ_ONLY: "read-only"}
+    return refusals.get(sqlstate) if sqlstate else None
 
 
 async def _database_down(_request: Request, exc: Exception) -> JSONResponse:
@@ -265,6 +267,17 @@ async def _database_down(_request: Request, exc: Exception) -> JSONResponse:
         return _unavailable(_CANNOT_STORE[why], 30)
     log.error("database unreachable: %s", exc)
     return _unavailable("the database cannot be reached; try again shortly", 5)
+
+
+async def _database_refused(_request: Request, exc: Exception) -> JSONResponse:
+    # PostgreSQL raises a write in a read-only transaction (25006) as an InternalError,
+    # which was a 500 "defect" while the database was a standby or set read-only; any
+    # other InternalError is still one, answered by InternalErrors as before.
+    why = _why_cannot_store(exc)
+    if why is None:
+        raise exc
+    log.error("database cannot store (%s): %s", why, exc)
+    return _unavailable(_CANNOT_STORE[why], 30)
 
 
 async def _http_error(request: Request, exc: Exception) -> Response:
@@ -315,6 +328,7 @@ def install_error_handlers(app: FastAPI) -> None:
     app.add_exception_handler(sqlalchemy.exc.TimeoutError, _database_busy)
     app.add_exception_handler(sqlalchemy.exc.OperationalError, _database_down)
     app.add_exception_handler(sqlalchemy.exc.InterfaceError, _database_down)
+    app.add_exception_handler(sqlalchemy.exc.InternalError, _database_refused)
     app.add_exception_handler(Exception, _internal_error)
     # add_middleware puts the last added outermost: RequestId, then InternalErrors.
     app.add_middleware(InternalErrors)

@@ -4,13 +4,15 @@ from __future__ import annotations
 
 import logging
 import os
+import sqlite3
 import tempfile
 from datetime import UTC, datetime, timedelta
+from pathlib import Path
 from typing import Any
 
 from celery import Celery
 from fastapi import APIRouter
-from sqlalchemy import func, select
+from sqlalchemy import func, select, text
 from sqlalchemy.orm import Session
 
 import inertia_id
@@ -58,10 +60,63 @@ def _write_refused(folder: str) -> str | None:
     return None
 
 
+def _sqlite_write_refused(path: str) -> str | None:
+    """Why SQLite refuses to begin a write on the file at ``path`` (its words), or None
+    when it takes one; nothing is stored. The folder probe passed with the file (and its
+    WAL) immutable or read-only while every write failed: a connection opened after that
+    has the file read-only and refuses the first write. A new connection, since a pooled
+    one opened before keeps its writable descriptor and fails only at its commit.
+    ``timeout=0``: a writer holding the lock makes this SQLITE_BUSY at once, never a
+    wait behind it (busy means a writer is writing, so writes are taken)."""
+    try:
+        # mode=rw: a missing file is an error, not a new empty database.
+        uri = f"{Path(path).as_uri()}?mode=rw"
+        probe = sqlite3.connect(uri, uri=True, timeout=0, isolation_level=None)
+    except sqlite3.Error as exc:
+        return str(exc)
+    try:
+        probe.execute("BEGIN IMMEDIATE")
+        (version,) = probe.execute("PRAGMA user_version").fetchone()
+        # The same value: the header page is changed in the cache, then rolled back.
+        probe.execute(f"PRAGMA user_version = {int(version)}")
+        probe.execute("ROLLBACK")
+    except sqlite3.Error as exc:
+        if exc.sqlite_errorcode & 0xFF in (sqlite3.SQLITE_BUSY, sqlite3.SQLITE_LOCKED):
+            return None
+        return str(exc)
+    finally:
+        probe.close()
+    return None
+
+
+def _postgres_write_refused(database: Database) -> str | None:
+    """Why a PostgreSQL database takes no writes (a hot standby, or its transactions
+    read-only by default), or None when it takes them: every write was a 500 while
+    /health said "ok" (SQLSTATE 25006, read_only_sql_transaction)."""
+    with database.engine.connect() as connection:
+        read_only, in_recovery = connection.execute(
+            text("SELECT current_setting('transaction_read_only'), pg_is_in_recovery()")
+        ).one()
+    if in_recovery:
+        return "it is a standby in recovery (pg_is_in_recovery())"
+    if read_only == "on":
+        return "its transactions are read-only (transaction_read_only is on)"
+    return None
+
+
 def _database(database: Database, reachable: bool) -> ComponentHealth:
     dialect = database.engine.dialect.name
     if not reachable:
         return ComponentHealth(ok=False, detail=f"{dialect} unreachable")
+    if dialect == "postgresql":
+        try:
+            refused = _postgres_write_refused(database)
+        except Exception as exc:  # reported, never raised: /health is always a 200
+            return ComponentHealth(ok=False, detail=f"{dialect} unreachable: {exc}")
+        if refused is not None:
+            return ComponentHealth(
+                ok=False, detail=f"{dialect} reachable, but it takes no writes: {refused}"
+            )
     # A SQLite file is read while its disk is full or its folder read-only, but nothing
     # can be stored: every write was a 503 and every worker's beat failed.
     path = database.engine.url.database if dialect == "sqlite" else None
@@ -72,6 +127,11 @@ def _database(database: Database, reachable: bool) -> ComponentHealth:
                 ok=False,
                 detail=f"{dialect} reachable, but the folder of its file takes no writes: "
                 f"{refused}",
+            )
+        refused = _sqlite_write_refused(os.path.abspath(path))
+        if refused is not None:
+            return ComponentHealth(
+                ok=False, detail=f"{dialect} reachable, but its file takes no writes: {refused}"
             )
     return ComponentHealth(ok=True, detail=f"{dialect} reachable")
 

@@ -21,6 +21,7 @@ import uvicorn
 from fastapi import FastAPI
 from scenario_support import GOOD_SEQUENCE
 from service_support import clean_env, free_port, tail, wait_for
+from sqlalchemy import create_engine, text
 
 from inertia_id import InertiaClassifier
 from service.config import Settings
@@ -203,3 +204,26 @@ class Api:
             session.add(row)
             session.flush()
             return row.id
+
+
+@contextmanager
+def read_only_postgres(api: Api) -> Iterator[None]:
+    """The test's PostgreSQL database with its transactions read-only by default, as an
+    operator sets one (``ALTER DATABASE ... SET default_transaction_read_only``) and as a
+    hot standby takes every transaction: a write is SQLSTATE 25006. Set and reset from
+    the server's maintenance database; the pool is emptied so connections pick it up."""
+    url = api.db.engine.url
+    name = url.database
+    admin = create_engine(url.set(database="postgres"), isolation_level="AUTOCOMMIT")
+    try:
+        with admin.connect() as connection:
+            connection.execute(
+                text(f'ALTER DATABASE "{name}" SET default_transaction_read_only = on')
+            )
+        api.db.engine.dispose()
+        yield
+    finally:
+        with admin.connect() as connection:
+            connection.execute(text(f'ALTER DATABASE "{name}" RESET default_transaction_read_only'))
+        admin.dispose()
+        api.db.engine.dispose()

@@ -17,7 +17,7 @@ from app.api.routing import UniqueKeysRoute
 from app.verdicts import VerdictProcess
 from inertia_id import InputError
 
-from .support import GOOD_SEQUENCE, Api, TestClient
+from .support import GOOD_SEQUENCE, Api, TestClient, read_only_postgres
 
 
 def _identify(api: Api, classifier_id: str) -> object:
@@ -226,4 +226,24 @@ def test_a_database_that_cannot_store_is_a_503_saying_why_not_unreachable(
     assert response.headers["Retry-After"] == "30"
     assert "database cannot store" in caplog.text
     # Once the database takes writes again, so does the service.
+    assert api.post("/scenarios", json={"preset": "paper"}).status_code == 201
+
+
+def test_a_read_only_postgresql_is_a_503_saying_so_not_a_500(
+    api: Api, caplog: pytest.LogCaptureFixture
+) -> None:
+    # Before: a write in a read-only transaction (SQLSTATE 25006: a hot standby, or
+    # default_transaction_read_only on) is an InternalError, answered as a defect, 500.
+    if api.db.engine.dialect.name != "postgresql":
+        pytest.skip("a PostgreSQL database set read-only")
+    with read_only_postgres(api), caplog.at_level(logging.ERROR, logger="app.api.errors"):
+        response = api.post("/scenarios", json={"preset": "paper"})
+        # Reads go on.
+        assert api.get("/scenarios").status_code == 200
+    assert response.status_code == 503, response.text
+    assert response.json()["detail"] == (
+        "the database takes no writes: it is read-only; make it writable, then try again"
+    )
+    assert response.headers["Retry-After"] == "30"
+    assert "database cannot store (read-only)" in caplog.text
     assert api.post("/scenarios", json={"preset": "paper"}).status_code == 201

@@ -2,10 +2,16 @@
 
 from __future__ import annotations
 
+import os
 import resource
-from collections.abc import Callable
+import sqlite3
+import subprocess
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from datetime import timedelta
 from pathlib import Path
+
+import pytest
 
 from inertia_id import Scenario
 from service.config import Settings
@@ -13,7 +19,7 @@ from service.store.jobs import config_hash
 from service.store.models import JobRow, ScenarioRow, WorkerRow, utcnow
 from service.store.session import Database
 
-from .support import Api, make_settings
+from .support import Api, make_settings, read_only_postgres
 
 
 def add_worker(
@@ -352,3 +358,88 @@ def test_health_is_degraded_naming_the_disk_when_the_data_dir_takes_no_writes(ap
     # Nothing is left behind, and with room again the service is "ok".
     assert not list(api.settings.broker_dir.rglob(".health-probe-*"))
     assert api.get("/health").json()["status"] == "ok"
+
+
+def test_health_is_degraded_naming_a_read_only_postgresql(api: Api) -> None:
+    # Before: "ok" and "postgresql reachable" while every write was a 500.
+    if api.db.engine.dialect.name != "postgresql":
+        pytest.skip("a PostgreSQL database set read-only")
+    add_worker(api, "celery@alive", seconds_ago=0.0)
+    assert api.get("/health").json()["status"] == "ok"
+    with read_only_postgres(api):
+        health = api.get("/health").json()
+    assert health["status"] == "degraded"
+    assert health["database"] == {
+        "ok": False,
+        "detail": "postgresql reachable, but it takes no writes: its transactions are "
+        "read-only (transaction_read_only is on)",
+    }
+    # Still read: the workers are listed.
+    assert health["workers"]["names"] == ["celery@alive"]
+    assert api.get("/health").json()["status"] == "ok"
+
+
+@contextmanager
+def immutable(*paths: Path) -> Iterator[None]:
+    """``paths`` made unwritable, their folder not: immutable (``chattr +i``) where this
+    process may set that (root, whom mode bits do not stop), else mode 0444."""
+    as_root = os.geteuid() == 0
+    if as_root:
+        done = subprocess.run(["chattr", "+i", *map(str, paths)], capture_output=True, text=True)
+        if done.returncode != 0:
+            pytest.skip(f"chattr +i is refused here: {done.stderr.strip()}")
+    else:
+        for path in paths:
+            path.chmod(0o444)
+    try:
+        yield
+    finally:
+        if as_root:
+            subprocess.run(["chattr", "-i", *map(str, paths)], check=True)
+        else:
+            for path in paths:
+                path.chmod(0o644)
+
+
+def test_health_is_degraded_naming_a_sqlite_file_that_takes_no_writes(api: Api) -> None:
+    # Before: "ok", "sqlite reachable" with the database file and its WAL immutable and
+    # their folder writable, while every write was a 503 and every beat failed, until the
+    # workers' beats went stale.
+    if api.db.engine.dialect.name != "sqlite":
+        pytest.skip("a SQLite file made read-only")
+    add_worker(api, "celery@alive", seconds_ago=0.0)
+    assert api.get("/health").json()["status"] == "ok"
+    path = Path(str(api.db.engine.url.database))
+    files = [p for p in (path, path.with_name(path.name + "-wal")) if p.exists()]
+    with immutable(*files):
+        health = api.get("/health").json()
+        assert api.post("/scenarios", json={"preset": "paper"}).status_code == 503
+    assert health["status"] == "degraded"
+    assert health["database"] == {
+        "ok": False,
+        "detail": "sqlite reachable, but its file takes no writes: attempt to write a "
+        "readonly database",
+    }
+    assert health["workers"]["names"] == ["celery@alive"]
+    assert api.get("/health").json()["status"] == "ok"
+    assert api.post("/scenarios", json={"preset": "paper"}).status_code == 201
+
+
+def test_health_takes_a_sqlite_writer_holding_the_lock_for_a_database_that_takes_writes(
+    api: Api,
+) -> None:
+    # The file probe begins a write: behind a long writer it is refused at once
+    # (SQLITE_BUSY, no busy timeout), which means writes are taken, not "takes no writes".
+    if api.db.engine.dialect.name != "sqlite":
+        pytest.skip("SQLite's write lock")
+    add_worker(api, "celery@alive", seconds_ago=0.0)
+    writer = sqlite3.connect(str(api.db.engine.url.database), isolation_level=None)
+    try:
+        writer.execute("BEGIN IMMEDIATE")
+        writer.execute("UPDATE workers SET broker_url = broker_url")
+        health = api.get("/health").json()
+    finally:
+        writer.execute("ROLLBACK")
+        writer.close()
+    assert health["database"] == {"ok": True, "detail": "sqlite reachable"}
+    assert health["status"] == "ok"
