@@ -17,12 +17,14 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from sqlalchemy import select
+from sqlalchemy.exc import DBAPIError
 
 from inertia_id.deadline import time_limit_grace_s
 from service.config import Settings
 from service.params import StrictModel
 from service.store import Database, JobRow
 from service.store.jobs import add_metrics, finish, heartbeat, owns, set_progress, touch_worker
+from service.store.refusals import why_cannot_store
 
 if TYPE_CHECKING:
     # Types only: the worker's main process imports this module and must stay light.
@@ -143,6 +145,7 @@ class JobContext:
     clock: InitVar[Callable[[], float]] = time.monotonic
     cancelled: bool = field(default=False, init=False)
     lost: bool = field(default=False, init=False)
+    _beat_refused: str | None = field(default=None, init=False)
 
     def __post_init__(self, db: Database, clock: Callable[[], float]) -> None:
         # Kept private: a handler reports through the context, it does not use the store.
@@ -240,6 +243,34 @@ class JobContext:
         elif row.cancel_requested:
             self.cancelled = True
         return self.cancelled or self.lost
+
+    def tick(self) -> None:
+        """The run's heartbeat ticker's work: :meth:`beat`. A beat the database refuses to
+        store (a full disk, a read-only database) is logged once, naming the refusal, not
+        as a failed tick's traceback at every beat; the run goes on and beats again once
+        it can (its end then stored with the reason, :mod:`worker.runner`)."""
+        try:
+            self.beat()
+        except Exception as exc:
+            why = why_cannot_store(exc)
+            if why is None:
+                raise
+            if why != self._beat_refused:
+                logger.error(
+                    "job %s: heartbeat not stored: the database refuses writes (%s): %s",
+                    self.spec.id,
+                    why,
+                    exc.orig if isinstance(exc, DBAPIError) else exc,
+                )
+            self._beat_refused = why
+            return
+        if self._beat_refused is not None:
+            logger.warning(
+                "job %s: heartbeat stored again (refused for a while: %s)",
+                self.spec.id,
+                self._beat_refused,
+            )
+            self._beat_refused = None
 
     def beat(self) -> None:
         """One heartbeat: this worker's, then the job's; or, for a job

@@ -20,13 +20,14 @@ import hashlib
 import json
 import logging
 import math
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from sqlalchemy import select, update
-from sqlalchemy.exc import StatementError
+from sqlalchemy.exc import OperationalError, StatementError
 
 from service.config import Settings
 from service.params import parse_params
@@ -39,6 +40,7 @@ from service.store.jobs import (
     hand_back,
 )
 from service.store.models import JOB_TYPES, new_id, utcnow
+from service.store.refusals import why_cannot_store
 
 from .context import (
     CANCEL_POLL_S,
@@ -276,10 +278,10 @@ def _execute(
         logger.exception("job %s: its inputs cannot be resolved", job_id)
         return _end(db, claimed.id, claimed.attempt, "failed", error=_error_text(exc, settings))
     context = JobContext(spec, db, settings, worker_name)
-    beat = Ticker(context.beat, settings.heartbeat_interval_s, name=f"heartbeat {job_id}")
+    beat = Ticker(context.tick, settings.heartbeat_interval_s, name=f"heartbeat {job_id}")
     beat.start()
     try:
-        return _run(context, db, handlers)
+        return _run(context, db, handlers, stopping)
     finally:
         beat.stop()
 
@@ -361,7 +363,10 @@ def _classifier_row(spec: JobSpec, outcome: Outcome) -> ClassifierRow | None:
 
 
 def _run(
-    context: JobContext, db: Database, handlers: dict[str, Callable[[JobContext], Outcome]]
+    context: JobContext,
+    db: Database,
+    handlers: dict[str, Callable[[JobContext], Outcome]],
+    stopping: Callable[[], bool] = lambda: False,
 ) -> str:
     spec = context.spec
     try:
@@ -401,16 +406,53 @@ def _run(
                 logger.warning("job %s was taken from this run; dropping its result", spec.id)
                 return "lost"
     except Exception as exc:
-        logger.exception("job %s: could not store its outcome", spec.id)
-        return _end(
-            db,
+        error = f"could not store the result: {one_line_error(exc)}"
+        why = why_cannot_store(exc)
+        if why is None:
+            logger.exception("job %s: could not store its outcome", spec.id)
+            return _end(db, spec.id, spec.attempt, "failed", error=error)
+        logger.error(
+            "job %s: could not store its outcome: the database refuses writes (%s): %s; "
+            "its end is stored once the database takes writes",
             spec.id,
-            spec.attempt,
-            "failed",
-            error=f"could not store the result: {one_line_error(exc)}",
+            why,
+            one_line_error(exc),
         )
+        return _end_once_writable(context, db, stopping, "failed", error=error)
     logger.info("job %s %s", spec.id, outcome.status)
     return outcome.status
+
+
+def _end_once_writable(
+    context: JobContext, db: Database, stopping: Callable[[], bool], status: str, *, error: str
+) -> str:
+    """End the run with ``error`` as soon as the database takes writes again (a full
+    disk freed, a read-only database made writable), trying every heartbeat interval.
+
+    The end was tried once and its write refused too: the job was left running, and once
+    the database took writes the reaper said "heartbeat missed ... task process died or
+    hung", the cause lost. The heartbeat goes on meanwhile (beating once it can), so the
+    reaper leaves the run alone. A database out of reach meanwhile (an OperationalError)
+    is waited for too. A stopping worker gives up (logged): its job is handed back or
+    reaped as before."""
+    spec = context.spec
+    while True:
+        try:
+            return _end(db, spec.id, spec.attempt, status, error=error)
+        except Exception as exc:
+            why = why_cannot_store(exc)
+            if why is None and not isinstance(exc, OperationalError):
+                raise
+            if stopping():
+                logger.error(
+                    "job %s: its end (%s: %s) could not be stored before this worker stopped: %s",
+                    spec.id,
+                    status,
+                    error,
+                    one_line_error(exc),
+                )
+                raise
+        time.sleep(context.settings.heartbeat_interval_s)
 
 
 def _end(db: Database, job_id: str, attempt: int, status: str, *, error: str | None) -> str:

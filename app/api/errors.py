@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import logging
 import re
-import sqlite3
 import uuid
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
@@ -33,6 +32,7 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from inertia_id.checks import DuplicateKeyError
 from inertia_id.errors import InputError
+from service.store.refusals import why_cannot_store
 
 from ..security import scope_header
 from .deps import unprocessable
@@ -227,11 +227,7 @@ async def _database_busy(_request: Request, exc: Exception) -> JSONResponse:
     return _unavailable("the service is past its capacity (no database connection free)", 2)
 
 
-# What the database says when it is there but cannot store: SQLite's primary result
-# codes (the low byte of sqlite3's ``sqlite_errorcode``) and PostgreSQL's SQLSTATEs
-# (disk_full, io_error, read_only_sql_transaction: a hot standby, or a database whose
-# transactions are read-only by default).
-_PG_DISK_FULL, _PG_IO_ERROR, _PG_READ_ONLY = "53100", "58030", "25006"
+# What the caller is told for each refusal (service.store.refusals.why_cannot_store).
 _CANNOT_STORE = {
     "full": "the database cannot store anything: the disk that holds it is full; free "
     "space there, then try again",
@@ -241,27 +237,10 @@ _CANNOT_STORE = {
 }
 
 
-def _why_cannot_store(exc: Exception) -> str | None:
-    """``full``, ``read-only`` or ``io`` when the database answered but refused to store
-    (a full disk, a read-only file, a failing disk); None when it could not be reached."""
-    orig = getattr(exc, "orig", None)
-    code = getattr(orig, "sqlite_errorcode", None)
-    if isinstance(code, int):
-        primary = code & 0xFF
-        return {
-            sqlite3.SQLITE_FULL: "full",
-            sqlite3.SQLITE_READONLY: "read-only",
-            sqlite3.SQLITE_IOERR: "io",
-        }.get(primary)
-    sqlstate = getattr(orig, "sqlstate", None)
-    refusals = {_PG_DISK_FULL: "full", _PG_IO_ERROR: "io", _PG_READ_ONLY: "read-only"}
-    return refusals.get(sqlstate) if sqlstate else None
-
-
 async def _database_down(_request: Request, exc: Exception) -> JSONResponse:
     # A full disk or a read-only database file is reachable: saying "cannot be reached"
     # sent an operator to look at the network, not at the disk (the 503 was the same).
-    why = _why_cannot_store(exc)
+    why = why_cannot_store(exc)
     if why is not None:
         log.error("database cannot store (%s): %s", why, exc)
         return _unavailable(_CANNOT_STORE[why], 30)
@@ -273,7 +252,7 @@ async def _database_refused(_request: Request, exc: Exception) -> JSONResponse:
     # PostgreSQL raises a write in a read-only transaction (25006) as an InternalError,
     # which was a 500 "defect" while the database was a standby or set read-only; any
     # other InternalError is still one, answered by InternalErrors as before.
-    why = _why_cannot_store(exc)
+    why = why_cannot_store(exc)
     if why is None:
         raise exc
     log.error("database cannot store (%s): %s", why, exc)

@@ -7,13 +7,17 @@ cancel-poll throttle.
 
 from __future__ import annotations
 
+import logging
 import os
+import sqlite3
+import threading
 from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
 import pytest
 from scenario_support import GOOD_SEQUENCE
-from sqlalchemy import select
+from sqlalchemy import event, select
+from sqlalchemy.engine import Engine
 
 from inertia_id import Scenario
 from inertia_id.pipelines import TrainRequest, train_for_sequence
@@ -364,3 +368,54 @@ def test_the_heartbeat_ends_a_job_long_past_its_time_limit(store: Store) -> None
     assert job.status == "failed" and context.lost and context.should_stop()
     assert job.error is not None and "exceeded its time limit of 100 s" in job.error
     assert f"still running {10.0 + TIME_LIMIT_GRACE_S:g} s after it" in job.error
+
+
+def test_a_result_refused_by_a_full_or_read_only_database_is_stored_with_the_reason_once_it_can(
+    store: Store, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    # Before: the end's write was refused too and raised out of the run, the job was left
+    # running, and once the database took writes the reaper said "heartbeat missed ...
+    # task process died or hung"; each refused beat logged a failed tick's traceback.
+    from worker import handlers
+
+    refusing = threading.Event()
+
+    def read_only_while_refusing(dbapi_connection: Any, _record: Any, _proxy: Any) -> None:
+        # Every connection handed out is read-only while ``refusing`` is set: SQLite's
+        # query_only (SQLITE_READONLY, as a read-only file), PostgreSQL's read-only
+        # transactions (SQLSTATE 25006, as a hot standby).
+        if isinstance(dbapi_connection, sqlite3.Connection):
+            dbapi_connection.execute(f"PRAGMA query_only = {int(refusing.is_set())}")
+        else:
+            mode = "READ ONLY" if refusing.is_set() else "READ WRITE"
+            dbapi_connection.execute(f"SET SESSION CHARACTERISTICS AS TRANSACTION {mode}")
+            dbapi_connection.commit()
+
+    job_id = store.add_job("train", {"sequence": GOOD_SEQUENCE})
+
+    def refused(context: JobContext) -> Outcome:
+        refusing.set()
+        context.tick()
+        context.tick()
+        # Writable again a while after the run ends.
+        threading.Timer(1.0, refusing.clear).start()
+        return Outcome("succeeded", {"f1": 1.0}, metrics=[("f1", 0, 1.0)])
+
+    monkeypatch.setitem(handlers.HANDLERS, "train", refused)
+    settings = store.settings.model_copy(update={"heartbeat_interval_s": 0.2})
+    event.listen(Engine, "checkout", read_only_while_refusing)
+    try:
+        with caplog.at_level(logging.WARNING):
+            status = execute_job(job_id, settings=settings, worker_name=WORKER)
+    finally:
+        event.remove(Engine, "checkout", read_only_while_refusing)
+        refusing.clear()
+    assert status == "failed"
+    job = store.job(job_id)
+    assert job.status == "failed" and job.result is None
+    assert job.error is not None and job.error.startswith("could not store the result: ")
+    assert "read-only" in job.error or "readonly" in job.error, job.error
+    assert not job.attempt_history
+    assert caplog.text.count("heartbeat not stored: the database refuses writes (read-only)") == 1
+    assert "could not store its outcome: the database refuses writes (read-only)" in caplog.text
+    assert "tick failed" not in caplog.text
