@@ -1135,6 +1135,33 @@ class MarginalLikelihoodClassifier(BaseClassifier):
             return self._mixture.squares_at(F, condition)
         return self._mixture_on(values).squares_at(F[:, values], condition)
 
+    def squared_distances_by_noise(
+        self, X: Any, observed: Any = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Squared marginal distances of series (on the grid points ``observed`` marks as
+        measured) from every noise condition's peak density, (n, M, K), and each series'
+        likeliest condition, (n,) (the one :meth:`transform` takes).
+
+        For the start search where no telemetry before the start weighs the conditions:
+        it scores one telemetry at several starts, and must take every start's square
+        from one condition (:meth:`quietest_condition` of the starts' own), not each
+        start's own likeliest (see :meth:`squared_distances_at_noise`)."""
+        F = self._flat(X)
+        values = self._observed_values(observed)
+        mixture = self._mixture if values is None else self._mixture_on(values)
+        joint = mixture.joint(F if values is None else F[:, values])  # (M, n, K)
+        likeliest = np.argmax(logsumexp(joint, axis=2), axis=0)
+        log_likelihood = logsumexp(joint, axis=0)  # (n, K), the mixture's
+        squares = 2.0 * (mixture.log_norm[None, :, None] - log_likelihood[:, None, :])
+        return squares, likeliest
+
+    def quietest_condition(self, conditions: Any) -> int:
+        """Of the noise conditions ``conditions`` (indices into :attr:`grid_`), the one
+        with the highest peak density over the whole series (the smallest covariance
+        determinant): the least noise any of them needs."""
+        chosen = [int(c) for c in conditions]
+        return max(chosen, key=lambda c: float(self._mixture.log_norm[c]))
+
     def _observed_sensitivity(self, values: np.ndarray) -> np.ndarray | None:
         if self.sensitivity_ is None or self.none_prior_sd_ is None:
             return None
