@@ -347,6 +347,28 @@ def test_a_head_pipelined_after_a_chunked_body_counts_from_its_first_byte(port: 
     assert b'{"size":5}' in answer
 
 
+def test_a_head_at_the_limit_pipelined_after_a_sized_body_is_answered(port: int) -> None:
+    """A POST with a body of known length and, sent with it, a head of exactly the byte
+    limit: the head is answered. httptools charged the head the part of the body in the
+    parser's first 4 KiB piece (counted from the POST head's blank line), and a body of
+    3,965 bytes put it past the limit and its 64 bytes of framing: a 431."""
+    post = b"POST /test/body-size HTTP/1.1\r\nHost: 127.0.0.1\r\nX-API-Key: " + KEY.encode()
+    at_limit = _head([b"X-Pad: " + b"p" * 16_351 + b"\r\n"])
+    # The target, Host and X-Pad as HeadLimits counts them: 16 KiB exactly.
+    assert len(b"/health") + (4 + 9 + 4) + (5 + 16_351 + 4) == 16_384
+    head = post + b"\r\nContent-Length: %d\r\n\r\n"
+    # The body's size that leaves the head open past 4 pieces of 4 KiB after the first.
+    size = 4 * 4096 + 4 + 4096 - len(head % 1000) - len(at_limit)
+    assert 0 < size < 4096 - len(head % 1000)
+    with socket.create_connection(("127.0.0.1", port), timeout=WAIT_S) as sock:
+        sock.sendall(head % size + b"b" * size + at_limit)
+        received = b""
+        for expected in (b'{"size":%d}' % size, b'"status"'):
+            answer, received = _response(sock, received)
+            assert answer.startswith(b"HTTP/1.1 200 OK\r\n"), answer[:300]
+            assert expected in answer, answer[-300:]
+
+
 #: A request for a protocol this server does not speak (RFC 9110 7.8).
 _UPGRADE = b"Connection: upgrade\r\nUpgrade: example/1\r\n"
 
