@@ -242,13 +242,14 @@ def parse_sequence(text: str) -> list[list[int]]:
         raise InputError(f"sequence {text!r} has a {exc}") from None
     except (ValueError, RecursionError):
         # A path that names nothing (a typo, a file not yet written) is read as sequence
-        # text: one that reads as a path (a folder, or a name with an extension) is said
-        # to be no file too.
-        missing = (
-            "no file by that name, and "
-            if not from_file and (os.sep in text or re.search(r"\.[A-Za-z]\w*$", text))
-            else ""
-        )
+        # text: one that reads as a path (a name with a folder or an extension) is said
+        # to be no file too, and a folder to be one.
+        if os.path.isdir(text):
+            missing = "a folder, not a file, and "  # (was said to be "no file by that name")
+        elif not from_file and (os.sep in text or re.search(r"\.[A-Za-z]\w*$", text)):
+            missing = "no file by that name, and "
+        else:
+            missing = ""
         raise InputError(
             f"sequence {text!r} is {missing}not rows of level indices like "
             "'4,4,4,0,0,0;0,0,0,4,4,4' or a JSON list of rows"

@@ -402,6 +402,12 @@ def test_a_sequence_may_be_piped_and_keeps_its_byte_limit(tmp_path: Path) -> Non
             "indices like '4,4,4,0,0,0;0,0,0,4,4,4' or a JSON list of rows"
         )
     assert "is no file" not in refused(["plan", "--sequence", "4.5,4,4,0,0,0"])
+    # A folder is a name that exists: it is said to be a folder (it was "no file by that
+    # name").
+    assert refused(["plan", "--sequence", str(tmp_path)]) == (
+        f"Error: sequence {str(tmp_path)!r} is a folder, not a file, and not rows of level "
+        "indices like '4,4,4,0,0,0;0,0,0,4,4,4' or a JSON list of rows"
+    )
 
 
 def test_a_limit_far_above_memory_costs_only_the_file() -> None:
