@@ -15,6 +15,7 @@ import logging
 import os
 import threading
 import time
+from collections.abc import Callable
 from datetime import UTC, datetime
 from typing import Any
 
@@ -75,6 +76,12 @@ class WorkerMonitor:
         #: beat: each logged once an episode (see worker.episode).
         self._outage = Episode(logger)
         self._failing = Episode(logger)
+        #: Whether the last beat could not store this worker's row (the database down,
+        #: full or read-only), and the monotonic second from which the reaper may judge
+        #: runs again after such beats (see tick).
+        self._beat_unstored = False
+        self._reap_from = 0.0
+        self._clock: Callable[[], float] = time.monotonic
         self._ticker = Ticker(
             self.beat,
             settings.heartbeat_interval_s,
@@ -110,6 +117,49 @@ class WorkerMonitor:
         self._failing.cleared(f"worker {self.name}: its beat succeeds again after %.0f s")
 
     def tick(self) -> None:
+        try:
+            self._store_beat()
+        except Exception:
+            self._beat_unstored = True
+            raise
+        if self._beat_unstored:
+            # The runs' heartbeats were refused as this beat was (the database down,
+            # full or read-only): each is a heartbeat timeout old now, though its task
+            # process lives and beats again within an interval. Judged at once, a run
+            # that outlived a 2-minute outage was re-queued here as "heartbeat missed
+            # ... died or hung" and run twice, its own end (the refusal) dropped.
+            self._beat_unstored = False
+            self._reap_from = self._clock() + self.settings.heartbeat_timeout_s
+            logger.info(
+                "worker %s: its beat is stored again; runs are reaped from %g s on, once "
+                "their heartbeats could be stored for a heartbeat timeout",
+                self.name,
+                self.settings.heartbeat_timeout_s,
+            )
+        # Before the reaper: a run of this name's earlier, dead process is taken within
+        # two beats, with its cause, not by the heartbeat timeout as a hung task process.
+        take_restarted_runs(
+            self.settings, self.db, self.celery, self.name, self.life.incarnation, self.witness
+        )
+        if self._clock() >= self._reap_from:
+            report = reap_once(self.settings, self.db, self.celery)
+            if report.requeued or report.failed:
+                logger.warning(
+                    "reaper: re-queued %s, ended %s",
+                    report.requeued or "none",
+                    report.failed or "none",
+                )
+        left_since = self.life.claims_stopped_at
+        if left_since is not None and self.life.may_claim():
+            # Its lock taken again: what its task processes left meanwhile is sent now
+            # (before resend_once, which would send it again a second time), not
+            # resend_after_s after it was left.
+            resend_left(self.db, self.celery, left_since)
+            self.life.claims_stopped_at = None
+        resend_once(self.settings, self.db, self.celery)
+
+    def _store_beat(self) -> None:
+        """This worker's row: its lock's state and its warm-up, as of now."""
         # Taken again if it was lost while this process lives (see Life.keep).
         self.life.keep()
         # Not held (nor taken again just now): the task processes claim no job, so the
@@ -151,24 +201,6 @@ class WorkerMonitor:
         if is_warm:
             self._unreplaced_since = None
             self._booting_since = None
-        # Before the reaper: a run of this name's earlier, dead process is taken within
-        # two beats, with its cause, not by the heartbeat timeout as a hung task process.
-        take_restarted_runs(
-            self.settings, self.db, self.celery, self.name, self.life.incarnation, self.witness
-        )
-        report = reap_once(self.settings, self.db, self.celery)
-        if report.requeued or report.failed:
-            logger.warning(
-                "reaper: re-queued %s, ended %s", report.requeued or "none", report.failed or "none"
-            )
-        left_since = self.life.claims_stopped_at
-        if left_since is not None and self.life.may_claim():
-            # Its lock taken again: what its task processes left meanwhile is sent now
-            # (before resend_once, which would send it again a second time), not
-            # resend_after_s after it was left.
-            resend_left(self.db, self.celery, left_since)
-            self.life.claims_stopped_at = None
-        resend_once(self.settings, self.db, self.celery)
 
     def _warming_since(self) -> datetime:
         """Since when the worker has had no warm task process: before its first was

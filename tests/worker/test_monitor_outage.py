@@ -15,12 +15,14 @@ import logging
 import os
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from datetime import timedelta
 from typing import TYPE_CHECKING, Any
 
 import pytest
 from service_support import POSTGRES_ADMIN_URL
-from sqlalchemy import create_engine, event, make_url, text
+from sqlalchemy import create_engine, event, make_url, text, update
 
+from service.store.models import JobRow, utcnow
 from worker.episode import Episode
 from worker.incarnation import Life, alive
 from worker.monitor import WorkerMonitor
@@ -176,3 +178,44 @@ def test_an_episode_is_logged_when_it_starts_for_each_new_reason_as_a_reminder_a
         "up after 100 s",
         "down (A)",
     ]
+
+
+def test_a_run_the_outage_kept_from_beating_is_not_reaped_when_the_database_answers_again(
+    store: Store, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Before: the first beat after a 2-minute outage (a full disk, here the database
+    # wholly down) re-queued the run as "heartbeat missed ... died or hung": its last
+    # heartbeat was 2 minutes old, though its task process lived and had only been
+    # refused. It ran twice, and the end its run was waiting to store was dropped.
+    import worker.monitor
+
+    monkeypatch.setattr(worker.monitor, "warm", lambda: True)
+    monitor = WorkerMonitor(WORKER, store.settings, Life(store.settings.resolved_database_url, "a"))
+    now = [1000.0]
+    monitor._clock = lambda: now[0]
+    beat: Callable[[], None] = monitor._ticker._safe_tick
+    timeout_s = store.settings.heartbeat_timeout_s
+    job_id = store.add_job(
+        status="running", worker=WORKER, worker_incarnation="a", attempts=1, heartbeat_at=utcnow()
+    )
+    try:
+        beat()
+        with _database_down(store, monitor):
+            beat()
+            beat()
+        # The outage lasted twice the heartbeat timeout: the run's last beat is that old.
+        stale = utcnow() - timedelta(seconds=2 * timeout_s)
+        with store.db.session() as session:
+            session.execute(update(JobRow).where(JobRow.id == job_id).values(heartbeat_at=stale))
+        beat()
+        assert store.job(job_id).status == "running"
+        now[0] += timeout_s / 2
+        beat()
+        assert store.job(job_id).status == "running"
+        # A run still silent a heartbeat timeout after the database answered is reaped.
+        now[0] += timeout_s / 2
+        beat()
+        job = store.job(job_id)
+        assert (job.status, job.attempts) == ("queued", 1)
+    finally:
+        monitor.stop()
