@@ -24,7 +24,7 @@ from service.config import Settings
 from service.params import StrictModel
 from service.store import Database, JobRow
 from service.store.jobs import add_metrics, finish, heartbeat, owns, set_progress, touch_worker
-from service.store.refusals import why_cannot_store
+from service.store.refusals import unreachable, why_cannot_store
 
 if TYPE_CHECKING:
     # Types only: the worker's main process imports this module and must stay light.
@@ -253,14 +253,23 @@ class JobContext:
             self.beat()
         except Exception as exc:
             why = why_cannot_store(exc)
+            if why is None and unreachable(exc):
+                # The database down: as a refusal, one line, not a failed tick's
+                # traceback (some 10 KB) at every beat of the outage.
+                why = "unreachable"
             if why is None:
                 raise
             if why != self._beat_refused:
                 logger.error(
-                    "job %s: heartbeat not stored: the database refuses writes (%s): %s",
+                    "job %s: heartbeat not stored: %s: %s",
                     self.spec.id,
-                    why,
-                    exc.orig if isinstance(exc, DBAPIError) else exc,
+                    "the database cannot be reached"
+                    if why == "unreachable"
+                    else f"the database refuses writes ({why})",
+                    (
+                        str(exc.orig if isinstance(exc, DBAPIError) else exc).strip().splitlines()
+                        or [""]
+                    )[0],
                 )
             self._beat_refused = why
             return

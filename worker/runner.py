@@ -40,7 +40,7 @@ from service.store.jobs import (
     hand_back,
 )
 from service.store.models import JOB_TYPES, new_id, utcnow
-from service.store.refusals import why_cannot_store
+from service.store.refusals import unreachable, why_cannot_store
 
 from .context import (
     CANCEL_POLL_S,
@@ -393,34 +393,65 @@ def _run(
     if context.lost:
         logger.warning("job %s was taken from this run; dropping its result", spec.id)
         return "lost"
-    try:
-        with db.session() as session:
-            row = _classifier_row(spec, outcome)
-            if row is not None:
-                session.add(row)
-                session.flush()
-            add_metrics(session, spec.id, finite_metrics(outcome.metrics))
-            result = None if outcome.result is None else json_safe(outcome.result, context.data_dir)
-            if not finish(session, spec.id, outcome.status, result=result, attempt=spec.attempt):
-                session.rollback()
-                logger.warning("job %s was taken from this run; dropping its result", spec.id)
+    reported_unreachable = False
+    while True:
+        try:
+            if not _store_outcome(context, db, outcome):
                 return "lost"
-    except Exception as exc:
-        error = f"could not store the result: {one_line_error(exc)}"
-        why = why_cannot_store(exc)
-        if why is None:
-            logger.exception("job %s: could not store its outcome", spec.id)
-            return _end(db, spec.id, spec.attempt, "failed", error=error)
-        logger.error(
-            "job %s: could not store its outcome: the database refuses writes (%s): %s; "
-            "its end is stored once the database takes writes",
-            spec.id,
-            why,
-            one_line_error(exc),
-        )
-        return _end_once_writable(context, db, stopping, "failed", error=error)
+            break
+        except Exception as exc:
+            error = f"could not store the result: {one_line_error(exc)}"
+            why = why_cannot_store(exc)
+            if why is None and unreachable(exc) and not stopping():
+                # The database down (a restart, a network cut, its connections refused):
+                # the outcome is kept and stored whole once it answers. Before, the run
+                # gave up (its end's write failed too), the job was left running, and
+                # the reaper re-ran it as "heartbeat missed ... task process died or
+                # hung": the result computed was thrown away and computed again.
+                if not reported_unreachable:
+                    logger.error(
+                        "job %s: could not store its outcome: the database cannot be "
+                        "reached (%s); stored once it answers, tried every %g s",
+                        spec.id,
+                        one_line_error(exc),
+                        context.settings.heartbeat_interval_s,
+                    )
+                    reported_unreachable = True
+                time.sleep(context.settings.heartbeat_interval_s)
+                continue
+            if why is None:
+                logger.exception("job %s: could not store its outcome", spec.id)
+                return _end(db, spec.id, spec.attempt, "failed", error=error)
+            logger.error(
+                "job %s: could not store its outcome: the database refuses writes (%s): %s; "
+                "its end is stored once the database takes writes",
+                spec.id,
+                why,
+                one_line_error(exc),
+            )
+            return _end_once_writable(context, db, stopping, "failed", error=error)
+    if reported_unreachable:
+        logger.warning("job %s: its outcome is stored (the database answers again)", spec.id)
     logger.info("job %s %s", spec.id, outcome.status)
     return outcome.status
+
+
+def _store_outcome(context: JobContext, db: Database, outcome: Outcome) -> bool:
+    """Store the run's outcome (its classifier, metrics, result and status) in one
+    transaction; False, nothing stored, when the job is no longer this run's."""
+    spec = context.spec
+    with db.session() as session:
+        row = _classifier_row(spec, outcome)
+        if row is not None:
+            session.add(row)
+            session.flush()
+        add_metrics(session, spec.id, finite_metrics(outcome.metrics))
+        result = None if outcome.result is None else json_safe(outcome.result, context.data_dir)
+        if not finish(session, spec.id, outcome.status, result=result, attempt=spec.attempt):
+            session.rollback()
+            logger.warning("job %s was taken from this run; dropping its result", spec.id)
+            return False
+    return True
 
 
 def _end_once_writable(

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import sqlite3
 
-__all__ = ["why_cannot_store"]
+__all__ = ["unreachable", "why_cannot_store"]
 
 # SQLite's primary result codes (the low byte of sqlite3's ``sqlite_errorcode``) and
 # PostgreSQL's SQLSTATEs: disk_full, io_error, read_only_sql_transaction (a hot standby,
@@ -29,3 +29,28 @@ def why_cannot_store(exc: BaseException) -> str | None:
         return _SQLITE_REFUSALS.get(code & 0xFF)
     sqlstate = getattr(orig, "sqlstate", None)
     return _PG_REFUSALS.get(sqlstate) if isinstance(sqlstate, str) else None
+
+
+# SQLite: the file cannot be opened, or a writer held the lock past the busy timeout.
+_SQLITE_UNREACHABLE = {sqlite3.SQLITE_CANTOPEN, sqlite3.SQLITE_BUSY, sqlite3.SQLITE_LOCKED}
+
+
+def unreachable(exc: BaseException) -> bool:
+    """Whether ``exc`` says the database could not be reached for now (its server down or
+    refusing connections, the session ended, a SQLite file that cannot be opened or stays
+    locked), as opposed to a refusal (:func:`why_cannot_store`) or a statement at fault (a
+    missing table is an OperationalError too, and trying it again would never end)."""
+    if getattr(exc, "connection_invalidated", False):
+        return True
+    orig = getattr(exc, "orig", exc)
+    code = getattr(orig, "sqlite_errorcode", None)
+    if isinstance(code, int):
+        return code & 0xFF in _SQLITE_UNREACHABLE
+    import psycopg
+
+    if not isinstance(orig, psycopg.OperationalError):
+        return False
+    # No SQLSTATE: the connection itself failed; class 08 (connection exception) and
+    # 57P01-57P03 (the server shutting down, or not yet accepting connections).
+    sqlstate = orig.sqlstate
+    return sqlstate is None or sqlstate.startswith("08") or sqlstate in ("57P01", "57P02", "57P03")

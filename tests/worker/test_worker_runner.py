@@ -11,12 +11,14 @@ import logging
 import os
 import sqlite3
 import threading
+from collections.abc import Callable
 from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
 import pytest
 from scenario_support import GOOD_SEQUENCE
-from sqlalchemy import event, select
+from service_support import POSTGRES_ADMIN_URL
+from sqlalchemy import create_engine, event, make_url, select, text
 from sqlalchemy.engine import Engine
 
 from inertia_id import Scenario
@@ -419,3 +421,76 @@ def test_a_result_refused_by_a_full_or_read_only_database_is_stored_with_the_rea
     assert caplog.text.count("heartbeat not stored: the database refuses writes (read-only)") == 1
     assert "could not store its outcome: the database refuses writes (read-only)" in caplog.text
     assert "tick failed" not in caplog.text
+
+
+def _take_the_database_down(store: Store, context: JobContext) -> Callable[[], None]:
+    """The run's database wholly down (SQLite: a folder where its file goes; PostgreSQL:
+    the test's own database refusing connections, its sessions ended); returns what
+    brings it back."""
+    url = make_url(store.settings.resolved_database_url)
+    if url.drivername.startswith("sqlite"):
+        path = str(url.database)
+        os.rename(path, f"{path}.away")
+        os.mkdir(path)
+        context._db.engine.dispose()  # a pooled connection holds the file open
+
+        def back() -> None:
+            os.rmdir(path)
+            os.rename(f"{path}.away", path)
+
+        return back
+    admin = create_engine(POSTGRES_ADMIN_URL, isolation_level="AUTOCOMMIT")
+    with admin.connect() as connection:
+        connection.execute(text(f'ALTER DATABASE "{url.database}" ALLOW_CONNECTIONS false'))
+        connection.execute(
+            text(
+                "SELECT pg_terminate_backend(pid, 10000) FROM pg_stat_activity"
+                " WHERE datname = :name AND pid <> pg_backend_pid()"
+            ),
+            {"name": url.database},
+        )
+
+    def allow() -> None:
+        with admin.connect() as connection:
+            connection.execute(text(f'ALTER DATABASE "{url.database}" ALLOW_CONNECTIONS true'))
+        admin.dispose()
+
+    return allow
+
+
+def test_an_outcome_the_database_could_not_be_reached_for_is_stored_once_it_answers(
+    store: Store, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    # Before: the outcome's write failed, so did the end's, the run raised out of the task
+    # with the job left running, and once the database answered the reaper re-ran it as
+    # "heartbeat missed ... task process died or hung", the result computed thrown away;
+    # each beat of the outage logged a failed tick's traceback (150 KB a worker in 2 min).
+    from worker import handlers
+
+    job_id = store.add_job("train", {"sequence": GOOD_SEQUENCE})
+    restored = threading.Event()
+
+    def outage(context: JobContext) -> Outcome:
+        back = _take_the_database_down(store, context)
+        for _ in range(3):
+            context.tick()
+
+        def bring_back() -> None:
+            back()
+            restored.set()
+
+        threading.Timer(1.0, bring_back).start()
+        return Outcome("succeeded", {"f1": 1.0}, metrics=[("f1", 0, 1.0)])
+
+    monkeypatch.setitem(handlers.HANDLERS, "train", outage)
+    settings = store.settings.model_copy(update={"heartbeat_interval_s": 0.2})
+    with caplog.at_level(logging.WARNING):
+        status = execute_job(job_id, settings=settings, worker_name=WORKER)
+    assert restored.wait(10)
+    assert status == "succeeded"
+    job = store.job(job_id)
+    assert (job.status, job.result, job.attempts) == ("succeeded", {"f1": 1.0}, 1)
+    assert caplog.text.count("heartbeat not stored: the database cannot be reached") == 1
+    assert caplog.text.count("could not store its outcome: the database cannot be reached") == 1
+    assert "tick failed" not in caplog.text
+    assert "Traceback" not in caplog.text
