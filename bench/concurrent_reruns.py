@@ -1,0 +1,151 @@
+"""How many jobs identical reruns sent at once through the API make.
+
+Runs ``python -m app.serve`` as shipped (its generated key; ``--workers 0`` by default,
+so that no worker runs the jobs while they are counted; ``--database-url`` for
+PostgreSQL, the scale-out path: an empty database of your own), stores the paper
+scenario, submits one small search and then, for each of ``--rounds``, sends
+``--clients`` identical submissions at once, each on its own connection, with ``"rerun":
+true`` and, with ``--rerun-of``, ``"rerun_of"``: the id of the job that stood before the
+round (what the dashboard's Run it again button sends). Each round prints how many new
+jobs (202) and reused answers (200) it got, and how many jobs of the configuration exist
+then. One new job a round is what a user who double-clicked, or a retrying script, meant.
+
+    python bench/concurrent_reruns.py [--clients 10] [--rounds 3] [--rerun-of]
+        [--database-url postgresql+psycopg://postgres@127.0.0.1:5432/NAME] [--repo DIR]
+"""
+
+from __future__ import annotations
+
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import httpx
+from _common import (
+    base_parser,
+    begin,
+    free_port,
+    generated_key,
+    positive_int,
+    service_env,
+    spawn_service,
+    stop_service,
+    write_json,
+)
+
+
+def _at_once(count: int, send: Any) -> list[Any]:
+    """``send()`` on ``count`` threads released together: answers or exceptions."""
+    barrier = threading.Barrier(count)
+    answers: list[Any] = [None] * count
+
+    def run(index: int) -> None:
+        barrier.wait()
+        try:
+            answers[index] = send()
+        except Exception as exc:
+            answers[index] = exc
+
+    threads = [threading.Thread(target=run, args=(i,)) for i in range(count)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join(120)
+    return answers
+
+
+def _rounds(base: str, key: str, args: Any) -> list[dict[str, Any]]:
+    headers = {"X-API-Key": key}
+    with httpx.Client(base_url=base, headers=headers, timeout=60) as client:
+        scenario = client.post("/scenarios", json={"preset": "paper"}).json()["id"]
+        body: dict[str, Any] = {
+            "type": "search",
+            "scenario_id": scenario,
+            "seed": args.seed,
+            "params": {"method": "random", "sequence_length": 4, "timesteps": 64},
+        }
+        first = client.post("/jobs", json=body)
+        if first.status_code not in (200, 202):
+            raise RuntimeError(f"POST /jobs answered {first.status_code}: {first.text}")
+        standing, digest = first.json()["id"], first.json()["config_hash"]
+        rounds = []
+        for _ in range(args.rounds):
+            rerun = {**body, "rerun": True}
+            if args.rerun_of:
+                rerun["rerun_of"] = standing
+
+            def send(rerun: dict[str, Any] = rerun) -> httpx.Response:
+                with httpx.Client(base_url=base, headers=headers, timeout=60) as own:
+                    return own.post("/jobs", json=rerun)
+
+            answers = _at_once(args.clients, send)
+            codes = [a.status_code for a in answers if isinstance(a, httpx.Response)]
+            listed = client.get("/jobs", params={"scenario_id": scenario, "limit": 200}).json()
+            rounds.append(
+                {
+                    "new": codes.count(202),
+                    "reused": codes.count(200),
+                    "other": sorted(c for c in codes if c not in (200, 202)),
+                    "errors": [repr(a) for a in answers if not isinstance(a, httpx.Response)],
+                    "jobs_in_all": sum(j["config_hash"] == digest for j in listed["items"]),
+                }
+            )
+            # A plain submission is handed the job that stands now.
+            standing = client.post("/jobs", json=body).json()["id"]
+    return rounds
+
+
+def main() -> None:
+    parser = base_parser(__doc__.splitlines()[0])
+    parser.add_argument("--clients", type=positive_int, default=10, help="reruns sent at once")
+    parser.add_argument("--rounds", type=positive_int, default=3)
+    parser.add_argument("--rerun-of", action="store_true", help="send rerun_of too")
+    parser.add_argument("--workers", type=int, default=0, help="serve --workers")
+    parser.add_argument("--database-url", default=None, help="default: serve's SQLite file")
+    parser.add_argument(
+        "--repo", type=str, default=str(Path(__file__).resolve().parents[1]), help="checkout run"
+    )
+    args = begin(parser, "Identical reruns sent at once: jobs made")
+    with tempfile.TemporaryDirectory(prefix="concurrent-reruns-") as folder:
+        root = Path(folder)
+        env = service_env(Path(args.repo).resolve())
+        if args.database_url:
+            env["DATABASE_URL"] = args.database_url
+        port = free_port()
+        log_path = root / "serve.log"
+        argv = [sys.executable, "-m", "app.serve", "--port", str(port), "--data-dir", "data"]
+        argv += ["--workers", str(args.workers), "--log-level", "warning"]
+        process = spawn_service(argv, log_path=log_path, cwd=root, env=env)
+        base = f"http://127.0.0.1:{port}"
+        try:
+            deadline = time.monotonic() + 300
+            while True:
+                try:
+                    if httpx.get(f"{base}/health", timeout=5).status_code == 200:
+                        break
+                except httpx.TransportError:
+                    pass
+                if time.monotonic() > deadline or process.poll() is not None:
+                    raise RuntimeError(log_path.read_text(errors="replace"))
+                time.sleep(0.2)
+            key = generated_key(log_path)
+            if key is None:
+                raise RuntimeError("serve generated no API key: give it an empty database")
+            rounds = _rounds(base, key, args)
+        finally:
+            stop_service(process)
+    for n, result in enumerate(rounds, 1):
+        print(
+            f"round {n}: {args.clients} reruns at once -> {result['new']} new jobs (202), "
+            f"{result['reused']} reused (200), other {result['other']}, "
+            f"errors {len(result['errors'])}; {result['jobs_in_all']} jobs of the "
+            "configuration in all"
+        )
+    write_json(args.json, args, {"rounds": rounds})
+
+
+if __name__ == "__main__":
+    main()
