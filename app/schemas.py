@@ -295,7 +295,23 @@ class _JobCreate(_Labels):
     scenario_id: str = Field(max_length=64)
     seed: int = Field(default=0, ge=0, le=MAX_SEED)
     rerun: bool = Field(
-        default=False, description="run again even if the same job exists (not failed/cancelled)"
+        default=False,
+        description="run again even if the same job exists (not failed/cancelled): a new "
+        "job takes its place. Identical reruns the API takes up together make one new job; "
+        "one taken up after another's job was made makes its own, so a client that may "
+        "send a rerun twice (a double click, a retry) sends `rerun_of` as well",
+    )
+    rerun_of: str | None = Field(
+        default=None,
+        min_length=1,
+        max_length=64,
+        description="the id of the job this submission reruns (implies `rerun`; a job of "
+        "the same type, scenario, params and seed, else a 422): a new job is made only "
+        "while that job still stands for the configuration, or none does; once another "
+        "stands in its place (an identical rerun's, sent at once or earlier) that one is "
+        'returned (200, `"reused": true`), so sending the same rerun again makes no '
+        "second job",
+        examples=["5f0c3a9e2b7d4e61a8c9d0f1e2a3b4c5"],
     )
 
 
@@ -410,7 +426,9 @@ class JobOut(BaseModel):
 
 class JobSubmitted(JobOut):
     reused: bool = Field(
-        description="true: an identical job (same scenario, parameters and seed) was returned"
+        description="true: an identical job (same scenario, parameters and seed) was "
+        "returned, not a new one: the one that stands, or for a rerun the one that already "
+        "replaced the job it asked to replace (`rerun_of`, or an identical rerun's at once)"
     )
 
 

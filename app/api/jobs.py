@@ -4,7 +4,9 @@ The ``jobs`` table is the source of truth; the broker only delivers the job id t
 worker (by task name, :data:`service.queue.RUN_JOB_TASK`). A job with the same type,
 scenario, parameters and seed as one that is queued, running or succeeded is not run
 twice: that job is returned (200, ``reused``) unless ``rerun`` is asked for; a unique
-key in the database makes this hold for submissions that race each other too.
+key in the database makes this hold for submissions that race each other too. A rerun
+that names the job it replaces (``rerun_of``) makes a new job only while that job still
+stands, so the same rerun sent twice makes one job.
 """
 
 from __future__ import annotations
@@ -72,6 +74,7 @@ from .deps import (
     get_or_404,
     job_tagged,
     no_such,
+    plausible_id,
     sort_query,
     text_query,
     unknown_sort,
@@ -328,6 +331,31 @@ def _check_time_limit(body: JobCreate, ceiling_s: float) -> None:
         )
 
 
+def _check_rerun_of(
+    session: SessionDep, body: JobCreate, params: dict[str, Any], rerun_of: str
+) -> None:
+    """``rerun_of`` names a job of this submission's configuration, and asks for a rerun."""
+    where = ("body", body.type, "rerun_of")
+    if "rerun" in body.model_fields_set and not body.rerun:
+        unprocessable(
+            where,
+            f"rerun_of = {rerun_of!r} asks for a rerun, but rerun is false; leave "
+            "rerun out or set it true",
+        )
+    # An id no job can have (a NUL byte, which PostgreSQL refuses in text) is looked up in
+    # no table, as on every route.
+    replaced = session.get(JobRow, rerun_of) if plausible_id(rerun_of) else None
+    if replaced is None:
+        unprocessable(where, f"no job {rerun_of!r} to rerun")
+    digest = job_store.config_hash(body.type, body.scenario_id, params, body.seed)
+    if replaced.config_hash != digest:
+        unprocessable(
+            where,
+            f"job {rerun_of!r} is not this submission's job: its type, scenario, "
+            "params or seed differ (a rerun replaces a job of the same configuration)",
+        )
+
+
 async def _note_asked_at(request: Request) -> None:
     # On the event loop, before the key check and the submission's checks: the moment
     # the request was taken up. Ten reruns sent at once are taken up within milliseconds,
@@ -341,7 +369,11 @@ async def _note_asked_at(request: Request) -> None:
     status_code=status.HTTP_202_ACCEPTED,
     dependencies=[Depends(_note_asked_at), ApiKeyDep],
     responses={
-        200: {"model": JobSubmitted, "description": "an identical job exists; it is returned"},
+        200: {
+            "model": JobSubmitted,
+            "description": "an identical job exists (for a rerun: one that already replaced "
+            "the job it asked to replace); it is returned",
+        },
         **no_such("scenario or classifier"),
         **UNAUTHORIZED,
     },
@@ -369,14 +401,18 @@ def submit_job(
         _check_train(body, scenario)
     else:
         _check_sweep(session, body, scenario)
+    params = body.params.model_dump(mode="json")
+    if body.rerun_of is not None:
+        _check_rerun_of(session, body, params, body.rerun_of)
     try:
         job, reused = job_store.create_job(
             session,
             job_type=body.type,
             scenario_id=body.scenario_id,
-            params=body.params.model_dump(mode="json"),
+            params=params,
             seed=body.seed,
             rerun=body.rerun,
+            rerun_of=body.rerun_of,
             name=body.name,
             tags=body.tags or (),
             asked_at=request.state.asked_at,

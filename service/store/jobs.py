@@ -131,6 +131,17 @@ def _standing_ids(session: Session, digest: str) -> set[str]:
     )
 
 
+def _replaced_already(
+    standing: JobRow, rerun_of: str | None, asked_over: set[str], asked_at: datetime | None
+) -> bool:
+    """Whether the job ``standing`` now already replaces the one a rerun asked to replace."""
+    if rerun_of is not None:
+        return standing.id != rerun_of
+    return standing.id not in asked_over or (
+        asked_at is not None and _aware(standing.created_at) >= _aware(asked_at)
+    )
+
+
 def create_job(
     session: Session,
     *,
@@ -139,6 +150,7 @@ def create_job(
     params: dict[str, Any],
     seed: int,
     rerun: bool = False,
+    rerun_of: str | None = None,
     name: str | None = None,
     tags: Iterable[str] = (),
     asked_at: datetime | None = None,
@@ -158,16 +170,28 @@ def create_job(
     inserts but one, and the others return that one. ``name`` and ``tags`` label the new
     job; they are not part of its identity (:func:`config_hash`).
 
+    ``rerun_of`` (a rerun: ``rerun`` need not be set too) names the job the caller saw
+    standing and wants replaced, which makes a rerun idempotent whenever it is taken
+    up: a new job is made only while that job still stands (or while none stands, as
+    after it failed or was cancelled); once another job stands in its place (an
+    identical rerun's, at once or long since) that one is returned (``reused``). The
+    caller checks that ``rerun_of`` is a job of this configuration. Without it, which
+    job a rerun replaces is guessed from when it was asked (above), and a rerun taken up
+    after another's job was made makes its own.
+
     :raises ScenarioGone: the scenario was deleted meanwhile (its foreign key failed).
     """
     digest = config_hash(job_type, scenario_id, params, seed)
     standing = JobRow.config_hash == digest, JobRow.superseded.is_(False)
     asked_over: set[str] = set()
+    rerun = rerun or rerun_of is not None
     if rerun:
-        # The jobs a rerun asks to replace: those that stood when it was asked. Read in a
-        # transaction of its own, ended here, so the write below starts (on SQLite) from
-        # what is committed when it gets the lock, not from this read's snapshot.
-        asked_over = _standing_ids(session, digest)
+        # The jobs a rerun asks to replace, unless it names one: those that stood when it
+        # was asked. Read in a transaction of its own, ended here (with any reads of the
+        # caller's), so the write below starts (on SQLite) from what is committed when it
+        # gets the lock, not from an older snapshot.
+        if rerun_of is None:
+            asked_over = _standing_ids(session, digest)
         session.commit()
     for _ in range(3):
         if not rerun:
@@ -181,10 +205,7 @@ def create_job(
             # concurrent identical reruns make one new job, as identical submissions do.
             session.execute(update(JobRow).where(*standing).values(superseded=JobRow.superseded))
             fresh = _reusable(session, digest)
-            if fresh is not None and (
-                fresh.id not in asked_over
-                or (asked_at is not None and _aware(fresh.created_at) >= _aware(asked_at))
-            ):
+            if fresh is not None and _replaced_already(fresh, rerun_of, asked_over, asked_at):
                 session.commit()
                 return fresh, True
             session.execute(update(JobRow).where(*standing).values(superseded=True))

@@ -109,6 +109,61 @@ def test_identical_submission_returns_the_existing_job(api: Api) -> None:
     assert len(api.queued_messages()) == 3
 
 
+def test_a_rerun_that_names_the_job_it_replaces_makes_one_job_however_often_sent(
+    api: Api,
+) -> None:
+    # A double click or a retry sends the same rerun again after its job was made: with
+    # rerun_of it is handed that job (before: each one a new job that ran).
+    scenario_id = api.create_scenario()["id"]
+    params = {"method": "random", "timesteps": 4096}
+    first = api.submit("search", scenario_id, params=params, seed=1).json()["id"]
+    rerun = api.submit("search", scenario_id, params=params, seed=1, rerun_of=first)
+    assert rerun.status_code == 202, rerun.text
+    fresh = rerun.json()["id"]
+    assert fresh != first and rerun.json()["reused"] is False
+    for fields in ({"rerun_of": first}, {"rerun_of": first, "rerun": True}):
+        again = api.submit("search", scenario_id, params=params, seed=1, **fields)
+        assert again.status_code == 200, again.text
+        assert (again.json()["id"], again.json()["reused"]) == (fresh, True)
+    assert len(api.queued_messages()) == 2
+    # Rerunning the job that stands now makes a new one; a plain rerun still always does.
+    third = api.submit("search", scenario_id, params=params, seed=1, rerun_of=fresh)
+    assert third.status_code == 202 and third.json()["id"] not in (first, fresh)
+    plain = api.submit("search", scenario_id, params=params, seed=1, rerun=True)
+    assert plain.status_code == 202 and plain.json()["id"] != third.json()["id"]
+    assert api.get(f"/jobs/{first}").json()["status"] == "queued"
+
+
+def test_a_rerun_of_a_failed_job_makes_one_new_job(api: Api) -> None:
+    scenario_id = api.create_scenario()["id"]
+    first = api.submit("search", scenario_id, seed=3).json()["id"]
+    set_status(api, first, "failed")
+    made = api.submit("search", scenario_id, seed=3, rerun_of=first)
+    assert made.status_code == 202, made.text
+    again = api.submit("search", scenario_id, seed=3, rerun_of=first)
+    assert (again.status_code, again.json()["id"]) == (200, made.json()["id"])
+
+
+def test_a_bad_rerun_of_is_422_naming_it(api: Api) -> None:
+    scenario_id = api.create_scenario()["id"]
+    job = api.submit("search", scenario_id, seed=1).json()["id"]
+    missing = "0123456789abcdef0123456789abcdef"
+    for fields, fragment in (
+        ({"rerun_of": missing}, f"no job '{missing}' to rerun"),
+        ({"rerun_of": job, "seed": 2}, f"job '{job}' is not this submission's job"),
+        ({"rerun_of": job, "seed": 1, "rerun": False}, "asks for a rerun, but rerun is false"),
+        ({"rerun_of": ""}, "at least 1 character"),
+        ({"rerun_of": "a\x00b"}, "no job 'a\\x00b' to rerun"),
+        ({"rerun_of": 7}, "Input should be a valid string"),
+    ):
+        response = api.submit("search", scenario_id, **fields)
+        assert response.status_code == 422, (fields, response.text)
+        (error,) = response.json()["detail"]
+        assert error["loc"][-1] == "rerun_of"
+        assert fragment in error["msg"], error
+    assert len(api.queued_messages()) == 1
+
+
 @pytest.mark.parametrize("status", ["failed", "cancelled"])
 def test_failed_or_cancelled_job_is_not_reused(api: Api, status: str) -> None:
     scenario_id = api.create_scenario()["id"]

@@ -140,6 +140,46 @@ def test_a_rerun_asked_before_an_identical_reruns_job_was_made_takes_that_job(
     assert not reused and later not in (first, fresh)
 
 
+def test_reruns_naming_the_job_they_replace_make_one_new_job_whenever_taken_up(
+    db: Database, scenario_id: str
+) -> None:
+    # Reruns taken up one after another, each after the one before made its job (a
+    # busy API, a double click, a retry): named, they make one job (before: rerun_of
+    # unknown; without it each makes its own, as the last line shows).
+    first, _ = _submit(db, scenario_id)
+    answers = [_submit(db, scenario_id, rerun_of=first, asked_at=utcnow()) for _ in range(5)]
+    fresh = answers[0][0]
+    assert answers == [(fresh, False)] + [(fresh, True)] * 4
+    assert fresh != first
+    with db.session() as session:
+        assert session.scalar(select(func.count()).select_from(JobRow)) == 2
+        assert _job(session, first).superseded
+    unnamed = [_submit(db, scenario_id, rerun=True, asked_at=utcnow()) for _ in range(2)]
+    assert len({job_id for job_id, _ in unnamed} | {fresh}) == 3
+
+
+def test_named_reruns_at_once_make_one_new_job(db: Database, scenario_id: str) -> None:
+    first, _ = _submit(db, scenario_id)
+    results = _at_once(10, lambda: _submit(db, scenario_id, rerun_of=first))
+    assert not [r for r in results if isinstance(r, Exception)], results
+    assert len({job_id for job_id, _ in results} | {first}) == 2, results
+    assert sorted(reused for _, reused in results) == [False] + [True] * 9
+
+
+def test_named_reruns_of_a_failed_job_at_once_make_one_new_job(
+    db: Database, scenario_id: str
+) -> None:
+    # Nothing stands to lock: the unique index lets one insert through.
+    first, _ = _submit(db, scenario_id)
+    with db.session() as session:
+        _job(session, first).status = "running"
+        assert finish(session, first, "failed", error="boom")
+    results = _at_once(10, lambda: _submit(db, scenario_id, rerun_of=first))
+    assert not [r for r in results if isinstance(r, Exception)], results
+    assert len({job_id for job_id, _ in results} | {first}) == 2, results
+    assert sorted(reused for _, reused in results) == [False] + [True] * 9
+
+
 def test_a_failed_or_cancelled_job_no_longer_stands_in(db: Database, scenario_id: str) -> None:
     first, _ = _submit(db, scenario_id)
     with db.session() as session:

@@ -496,3 +496,43 @@ def test_the_health_badge_says_which_worker_is_warming_up(dashboard: Dashboard) 
         badge.get_attribute("title") or ""
     )
     dashboard.page.unroute(f"{service.base_url}/health")
+
+
+def test_run_it_again_sent_twice_makes_one_new_job(dashboard: Dashboard) -> None:
+    # Two tabs on the same "Reused an earlier result" notice, or a click sent again: the
+    # rerun names the job it replaces (rerun_of), so the second is handed the first's job
+    # (before: a `rerun: true` alone, and the second click made and ran a second job).
+    _save_key(dashboard)
+    client = dashboard.service.client
+    scenario_id = _scenario(dashboard, ["stowed", "deployed", "ejected"], "clicked twice")
+    body = {
+        "type": "search",
+        "scenario_id": scenario_id,
+        "params": {"method": "random", "sequence_length": 2, "timesteps": 64},
+    }
+    answer = client.post("/jobs", json=body)
+    assert answer.status_code == 202, answer.text
+    standing = str(answer.json()["id"])
+    first, second = dashboard.page, dashboard.page.context.new_page()
+    route = f"{dashboard.service.base_url}/#/jobs/{standing}?reused=1"
+    for page in (first, second):
+        page.goto(route)
+        page.wait_for_selector("#reused-notice #rerun-job")
+    made, bodies = [], []
+    for page in (first, second):
+        with page.expect_response(
+            lambda r: r.url.endswith("/jobs") and r.request.method == "POST"
+        ) as sent:
+            page.click("#rerun-job")
+        bodies.append(sent.value.request.post_data_json)
+        page.wait_for_function("id => !location.hash.includes(id)", arg=standing)
+        made.append((sent.value.status, page.url.split("#/jobs/")[1].split("?")[0]))
+    second.close()
+    fresh = made[0][1]
+    assert made == [(202, fresh), (200, fresh)], made
+    assert fresh != standing
+    assert [(b["rerun"], b.get("rerun_of")) for b in bodies] == [(True, standing)] * 2
+    listed = client.get("/jobs", params={"scenario_id": scenario_id, "limit": 50}).json()
+    assert sorted(job["id"] for job in listed["items"]) == sorted([standing, fresh])
+    for job_id in (standing, fresh):
+        client.post(f"/jobs/{job_id}/cancel")

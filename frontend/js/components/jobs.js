@@ -180,7 +180,8 @@ export async function submitAndOpen(body) {
 }
 
 // Shown on the page of a job an identical submission handed back: say so, and offer to
-// run it again anyway (`rerun: true`).
+// run it again anyway. The rerun names the job it replaces (`rerun_of`): sent again (a
+// second tab, a retry) once its job is made, it is handed that job, not another run.
 export function reusedNotice(body, job) {
   const holder = h("div", { id: "reused-notice" });
   const rerun = h(
@@ -191,7 +192,7 @@ export function reusedNotice(body, job) {
       onclick: async () => {
         rerun.disabled = true;
         try {
-          const fresh = await api.submitJob({ ...body, rerun: true });
+          const fresh = await api.submitJob({ ...body, rerun: true, rerun_of: job.id });
           location.hash = `#/jobs/${fresh.id}`;
         } catch (exc) {
           holder.append(messageBox("error", exc.message));
