@@ -222,6 +222,18 @@ def format_table(
     return "\n".join(out)
 
 
+def state_runs(samples: Sequence[tuple[float, Sequence[Any]]]) -> list[list[Any]]:
+    """Polled states as table rows ``[from s, to s, *state]``: a run of polls that saw the
+    same state is one row (what /health said second by second, in the health benches)."""
+    rows: list[list[Any]] = []
+    for at, state in samples:
+        if rows and tuple(rows[-1][2:]) == tuple(state):
+            rows[-1][1] = f"{at:.1f}"
+        else:
+            rows.append([f"{at:.1f}", f"{at:.1f}", *state])
+    return rows
+
+
 def print_table(
     headers: Sequence[str], rows: Sequence[Sequence[Any]], title: str | None = None
 ) -> None:

@@ -36,6 +36,7 @@ from _common import (
     print_table,
     service_env,
     spawn_service,
+    state_runs,
     stop_service,
     wait_until_ok,
     write_json,
@@ -162,12 +163,7 @@ def main() -> None:
         ],
     )
     print()
-    rows: list[list[Any]] = []
-    for at, state in samples:
-        if rows and tuple(rows[-1][2:]) == state:
-            rows[-1][1] = f"{at:.1f}"
-        else:
-            rows.append([f"{at:.1f}", f"{at:.1f}", *state])
+    rows = state_runs(samples)
     print_table(["from s", "to s", "status", "workers", "warming"], rows)
     print(
         f"\nafter the first job ended: {len(not_ok)} of {len(after)} polls not ok "

@@ -45,6 +45,7 @@ from _common import (
     print_table,
     service_env,
     spawn_service,
+    state_runs,
     stop_service,
     write_json,
 )
@@ -216,12 +217,7 @@ def main() -> None:
     finally:
         for hog in hogs:
             hog.kill()
-    rows: list[list[Any]] = []
-    for at, state in samples:
-        if rows and tuple(rows[-1][2:]) == state:
-            rows[-1][1] = f"{at:.1f}"
-        else:
-            rows.append([f"{at:.1f}", f"{at:.1f}", *state])
+    rows = state_runs(samples)
     print_table(["from s", "to s", "status", "workers", "warming", "gone"], rows)
     write_json(args.json, args, {"samples": samples})
 
