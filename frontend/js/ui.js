@@ -196,6 +196,15 @@ export function messageBox(kind, text) {
   return h("div", { class: `message ${kind}`, role: kind === "error" ? "alert" : "status" }, text);
 }
 
+// What the service found doubtful but did not refuse (a command plan's or a training's
+// `warnings`: a sequence predicted to peak far below the gyro noise): an amber notice
+// with each warning's full text, or null when there is none.
+export function warningsBox(warnings, id) {
+  const shown = (warnings || []).filter((w) => typeof w === "string" && w);
+  if (!shown.length) return null;
+  return h("div", { class: "message warning", id, role: "status" }, shown.map((w) => h("p", { class: "warning-text" }, `Warning: ${w}`)));
+}
+
 export function showError(container, error) {
   clear(container);
   container.append(messageBox("error", error.message || String(error)));

@@ -1500,14 +1500,17 @@ FRONT_FIGURES = (
 )
 
 
-def _finished_search(dashboard: Dashboard, params: dict[str, Any], name: str) -> dict[str, Any]:
-    """A search submitted through the API (the scenario of the earlier tests, or a new
-    one from the preset when this test runs alone), once it has succeeded."""
+def _finished_search(
+    dashboard: Dashboard, params: dict[str, Any], name: str, scenario_id: str | None = None
+) -> dict[str, Any]:
+    """A search submitted through the API (on ``scenario_id``, else the scenario of the
+    earlier tests, or a new one from the preset when this test runs alone), once it has
+    succeeded."""
     service = dashboard.service
     # The plan needs the key (the first test saves it; this one may run alone).
     dashboard.open("#/jobs")
     dashboard.page.evaluate("key => localStorage.setItem('inertia-id-api-key', key)", API_KEY)
-    if "scenario" not in made:
+    if scenario_id is None and "scenario" not in made:
         created = service.client.post("/scenarios", json={"preset": "paper"})
         assert created.status_code == 201, created.text
         made["scenario"] = created.json()["id"]
@@ -1515,7 +1518,7 @@ def _finished_search(dashboard: Dashboard, params: dict[str, Any], name: str) ->
         "/jobs",
         json={
             "type": "search",
-            "scenario_id": made["scenario"],
+            "scenario_id": scenario_id or made["scenario"],
             "seed": 0,
             "name": name,
             "params": params,
@@ -2141,6 +2144,79 @@ def test_a_plans_end_rate_and_flights_and_a_classifiers_final_rate_show_rad_s_be
     degrees, radians = _mean_rate_text(page.inner_text("#classifier-final-rate"))
     _shows(degrees, float(np.degrees(mean)))
     _shows(radians, mean)
+
+
+def _inertia_in_mm2(dashboard: Dashboard) -> str:
+    """The paper preset with every inertia typed in kg mm² as kg m² (1e6 too large): its
+    rates peak far below the gyro noise, which the service warns of, not refuses."""
+    client = dashboard.service.client
+    paper = client.get("/scenarios/presets").json()["paper"]
+    candidates = [
+        {**c, "inertia_kg_m2": [[v * 1e6 for v in row] for row in c["inertia_kg_m2"]]}
+        for c in paper["inertia_candidates"]
+    ]
+    overrides = {"name": "inertia in kg mm2", "inertia_candidates": candidates}
+    created = client.post("/scenarios", json={"preset": "paper", "overrides": overrides})
+    assert created.status_code == 201, created.text
+    return str(created.json()["id"])
+
+
+def _warnings_shown(dashboard: Dashboard, selector: str) -> list[str]:
+    dashboard.page.wait_for_selector(selector, timeout=60_000)
+    classes = (dashboard.page.get_attribute(selector, "class") or "").split()
+    assert "warning" in classes, classes  # the amber notice, not a plain line
+    return list(
+        dashboard.page.eval_on_selector_all(
+            f"{selector} .warning-text", "lines => lines.map((p) => p.textContent)"
+        )
+    )
+
+
+def test_a_plan_and_a_training_far_below_the_gyro_noise_show_the_services_warning(
+    dashboard: Dashboard,
+) -> None:
+    """The plan's ``warnings`` (a front member's command plan) and a training job's
+    result ``warnings`` appear, in full, in an amber notice where the plan and the
+    training are shown (the page showed neither: a scenario 1e6 too heavy planned and
+    trained without a word)."""
+    page = dashboard.page
+    service = dashboard.service
+    scenario_id = _inertia_in_mm2(dashboard)
+    job = _finished_search(dashboard, TWO_RANDOM, "too heavy to see", scenario_id)
+    member = job["result"]["front"]["members"][0]
+    plan = service.client.get(
+        f"/jobs/{job['id']}/plan", params={"member": member["index"], "flights": 200}
+    ).json()
+    assert plan["warnings"] and "kg mm^2 typed as kg m^2" in plan["warnings"][0]
+    dashboard.open(f"#/jobs/{job['id']}")
+    page.wait_for_selector("#front-plan-table", timeout=60_000)
+    shown = _warnings_shown(dashboard, "#front-plan-warnings")
+    assert shown == [f"Warning: {w}" for w in plan["warnings"]]
+    assert axe_violations(dashboard) == []
+    dashboard.screenshot("plan-warnings")
+
+    submitted = service.client.post(
+        "/jobs",
+        json={
+            "type": "train",
+            "scenario_id": scenario_id,
+            "seed": 0,
+            "params": {"sequence": member["sequence"]},
+        },
+    )
+    assert submitted.status_code in (200, 202), submitted.text
+    train_id = submitted.json()["id"]
+    trained = service.until(
+        lambda: (j := service.job(train_id))["status"] in TERMINAL and j, 300, "the training"
+    )
+    assert trained["status"] == "succeeded", trained["error"]
+    assert trained["result"]["warnings"], trained["result"]
+    dashboard.open(f"#/jobs/{train_id}")
+    page.wait_for_selector("#classifier-f1")
+    shown = _warnings_shown(dashboard, "#train-warnings")
+    assert shown == [f"Warning: {w}" for w in trained["result"]["warnings"]]
+    assert axe_violations(dashboard) == []
+    dashboard.screenshot("train-warnings")
 
 
 def _twins_follow(

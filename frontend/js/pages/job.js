@@ -8,7 +8,7 @@ import { REUSED_KEY, cancelButton, labelEditor, reusedNotice, timingCell } from 
 import { whenKeyed } from "../components/keyed.js";
 import { BAND, DEG_PER_RAD, PLOT_CONFIG, extendWith, fitFlatSeries, keepTwins, layout, plotDiv, responseView, sequencePlot, title, twinAxes, twinTraces } from "../components/plots.js";
 import { isTerminal } from "../vocabulary.js";
-import { clear, fmt, h, link, messageBox, progressBar, put, quantity, score, sequenceText, statusBadge, table, tagChips, utcText, whenText } from "../ui.js";
+import { clear, fmt, h, link, messageBox, progressBar, put, quantity, score, sequenceText, statusBadge, table, tagChips, utcText, warningsBox, whenText } from "../ui.js";
 import { renderClassifier } from "../views/classifier.js";
 import { frontPanel } from "../views/front.js";
 import { sweepPanel } from "../views/sweep.js";
@@ -289,6 +289,9 @@ async function trainView(body, job, context) {
     if (current.status === "succeeded" && current.result) {
       shown = true;
       clear(holder);
+      // What the training found doubtful (a sequence whose responses are noise to the
+      // gyro): said above the classifier it trained.
+      put(holder, warningsBox(current.result.warnings, "train-warnings"));
       const classifier = await api.classifier(current.result.classifier_id);
       if (context.alive()) await renderClassifier(holder, classifier, context);
     } else if (!isTerminal(current.status)) {

@@ -16,7 +16,7 @@ import { downloads } from "../components/downloads.js";
 import { submitAndOpen } from "../components/jobs.js";
 import { whenKeyed, withoutKey } from "../components/keyed.js";
 import { DEG_PER_RAD, PLOT_CONFIG, keepTwins, layout, plotDiv, twinAxes, twinTraces } from "../components/plots.js";
-import { clear, fmt, h, messageBox, plain, put, quantity, score, sequenceText } from "../ui.js";
+import { clear, fmt, h, messageBox, plain, put, quantity, score, sequenceText, warningsBox } from "../ui.js";
 
 const RAD_TO_DEG = 180 / Math.PI;
 const RATE_TWINS = [{ of: "xaxis", twin: "xaxis2", factor: 1 / DEG_PER_RAD, title: "residual rate (rad/s)" }];
@@ -473,7 +473,11 @@ async function drawPlan(plan, planDownloads, job, member, context, flewWith) {
       ["attitude_change_deg", "attitude change (deg)"],
     ];
     const figure = (c, key) => (key.startsWith("flights_") ? c.flights[key.slice("flights_".length)] : c[key]);
-    plan.append(
+    put(
+      plan,
+      // A plan the service found doubtful (its rates far below the gyro noise: an
+      // inertia typed in kg mm² as kg m², say) says so above its figures.
+      warningsBox(document.warnings, "front-plan-warnings"),
       h("p", { class: "hint" }, `Predicted with every noise off: the residual rate once the actuation lag has delivered the torque still in it when the last command ends (the rate at that moment beside it), the peak rate (the largest at a gyro sample or once settled), and the rotation the body makes over its ${document.duration_s} s (quaternion kinematics of the predicted rates).${spread ? ` Single flights spread around that: the sequence flown ${spread.flights_per_candidate} times a candidate at the scenario's noise (seed ${spread.seed}); their 95th percentile, a rate at least 95 % of all flights stay under with 95 % confidence, and the fastest; and a peak rate at least 95 % of flights stay under, with 95 % confidence.` : " Too long to fly many times within one request: the nominal prediction alone."} Impulse ${quantity(document.propellant.impulse_nms)} N m s, on-time ${quantity(document.propellant.on_time_s)} s${document.propellant.propellant_kg === null ? "" : `, propellant ${quantity(document.propellant.propellant_kg)} kg`}.`),
       h(
         "div",
