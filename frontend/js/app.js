@@ -169,11 +169,15 @@ async function health() {
       if (lockless.has(name)) return `${name} (without its lock for ${Math.round(lockless.get(name))} s: takes no job)`;
       return warming.has(name) ? `${name} (warming up, ${Math.round(warming.get(name))} s)` : name;
     });
+    // A worker whose process is gone (killed, its machine lost: its incarnation lock is
+    // free) is neither counted nor named above; /health lists it apart until its row
+    // leaves the window.
+    const gone = (data.workers.gone ?? []).map((w) => `${w.name} (process gone, its lock free; last beat ${Math.round(w.silent_s)} s ago)`);
     badge.textContent =
       `${data.status} · ${workers} worker${workers === 1 ? "" : "s"}` +
       (warming.size ? ` (${warming.size} warming up)` : "");
     badge.className = `health ${data.status}`;
-    badge.title = `database: ${data.database.detail}\nbroker: ${data.broker.detail}\nworkers: ${names.join(", ") || "none seen"}`;
+    badge.title = `database: ${data.database.detail}\nbroker: ${data.broker.detail}\nworkers: ${names.join(", ") || "none seen"}` + (gone.length ? `\ngone: ${gone.join(", ")}` : "");
   } catch (exc) {
     badge.textContent = "unreachable";
     badge.className = "health degraded";

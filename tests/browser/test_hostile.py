@@ -536,3 +536,36 @@ def test_run_it_again_sent_twice_makes_one_new_job(dashboard: Dashboard) -> None
     assert sorted(job["id"] for job in listed["items"]) == sorted([standing, fresh])
     for job_id in (standing, fresh):
         client.post(f"/jobs/{job_id}/cancel")
+
+
+def test_the_health_badge_names_a_worker_whose_process_is_gone(dashboard: Dashboard) -> None:
+    """/health lists a killed worker (its incarnation lock free) apart, in workers.gone,
+    neither counted nor named as live; the badge's tooltip named warming and lockless
+    workers but said nothing of a gone one."""
+    service = dashboard.service
+    answer = service.client.get("/health").json()
+    answer["workers"] |= {
+        "count": 1,
+        "names": ["celery@restarted"],
+        "gone": [{"name": "celery@killed", "silent_s": 9.6}],
+    }
+    dashboard.page.route(
+        f"{service.base_url}/health",
+        lambda route: route.fulfill(
+            status=200, content_type="application/json", body=json.dumps(answer)
+        ),
+    )
+    try:
+        dashboard.open("#/scenarios")
+        badge = dashboard.page.locator("#health")
+        dashboard.page.wait_for_function(
+            "() => document.getElementById('health').title.includes('workers:')"
+        )
+        title = badge.get_attribute("title") or ""
+        assert "workers: celery@restarted\n" in title, title
+        assert title.endswith(
+            "\ngone: celery@killed (process gone, its lock free; last beat 10 s ago)"
+        ), title
+        assert badge.text_content() == f"{answer['status']} · 1 worker"
+    finally:
+        dashboard.page.unroute(f"{service.base_url}/health")
