@@ -792,6 +792,11 @@ def test_identify_shows_the_apis_posterior_and_is_green_only_when_identified(
     assert _shown_posterior(dashboard) == _expected_posterior(expected)
     confidence = page.inner_text("#verdict-confidence")
     assert f"confidence {_probability(expected['confidence'])} ≥ required 99 %" in confidence
+    # The default kind's model of other bodies near the candidates fits worse: below 0.
+    factor = expected["off_candidates_log_bayes"]
+    assert factor < 0 and page.inner_text("#off-candidates") == (
+        f"{float(f'{factor:.3g}'):g} (below 0: no other body near the candidates fits better)"
+    )
     bars = page.evaluate("() => document.getElementById('posterior-plot').data[0]")
     assert bars["x"] == [*expected["posterior"], "none of these"]
     assert bars["y"] == pytest.approx([*expected["posterior"].values(), expected["p_none"]])
@@ -1053,6 +1058,10 @@ def test_identify_a_candidate_the_telemetry_disowns_is_amber_saying_why(
     assert verdict.inner_text() == (
         "Not identified: payload 3 ejected (99.91 %) fits best, but the telemetry fits "
         "another body better (thrusters off their stated torque?)"
+    )
+    # The factor that decided it, beside the margin (it was in no figure on the page).
+    assert dashboard.page.inner_text("#off-candidates") == (
+        "3.2 (not below 0: another body near the candidates fits better, so none is named)"
     )
 
 

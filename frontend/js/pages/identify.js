@@ -217,6 +217,16 @@ function verdictBox(verdict, ranked) {
   return h("div", { class: `verdict ${headline[0]}`, id: "verdict", role: "status", "data-status": verdict.status }, headline[1]);
 }
 
+// How much better another body near the candidates explains the telemetry than they do
+// (the default kind's model of "none"): a candidate is named only below 0. Null for a
+// kind without that model.
+function offCandidates(verdict) {
+  const factor = verdict.off_candidates_log_bayes;
+  if (typeof factor !== "number" || !Number.isFinite(factor)) return null;
+  const reading = factor < 0 ? "below 0: no other body near the candidates fits better" : "not below 0: another body near the candidates fits better, so none is named";
+  return [h("dt", {}, "another body near the candidates against them (log Bayes factor)"), h("dd", { id: "off-candidates" }, `${ratio(factor)} (${reading})`)];
+}
+
 // The tensor with each entry's standard error, or why it is withheld and what this
 // sequence cannot see.
 function estimateOf(verdict) {
@@ -343,6 +353,7 @@ async function showVerdict(holder, verdict, classifier, { content, context, file
         { class: "kv" },
         h("dt", {}, "margin to the runner-up"),
         h("dd", { id: "verdict-margin" }, `${ratio(verdict.margin)} (relative ${ratio(verdict.relative_margin)})`),
+        offCandidates(verdict),
         h("dt", {}, `inertia of ${verdict.status === "identified" ? "the candidate" : "the most probable candidate"} (kg m²)`),
         h("dd", { class: "mono", id: "candidate-inertia" }, verdict.inertia_kg_m2 ? verdict.inertia_kg_m2.map((r) => `[${r.map((v) => quantity(v, 4)).join(", ")}]`).join(" ") : "–"),
         h("dt", {}, "classifier"),
