@@ -8,7 +8,20 @@ import secrets
 from collections.abc import Callable
 from typing import BinaryIO
 
-__all__ = ["write_whole"]
+__all__ = ["NotWritten", "write_whole"]
+
+
+class NotWritten(OSError):
+    """A write that failed, leaving the path as it was: one line naming the path (its
+    ``filename``) and the reason, however far up it is caught (the CLI prints it as it
+    is; ``[Errno 27] File too large: 'classifier.json'`` said neither that the write
+    failed nor what became of the file)."""
+
+    def __str__(self) -> str:
+        return (
+            f"could not write {self.filename}: {self.strerror}; nothing was written there "
+            "(a file it held before is left as it was)"
+        )
 
 
 def write_whole(
@@ -24,7 +37,8 @@ def write_whole(
     over it would replace the device. The standard library has no atomic write, and
     ``atomicwrites``, the package that had one, is archived.
 
-    :raises OSError: the write failed; its ``filename`` is ``path``.
+    :raises NotWritten: the write failed; its ``filename`` is ``path``.
+    :raises OSError: a device's write failed.
     """
     if os.path.exists(path) and not os.path.isfile(path):
         with open(path, "wb") as handle:
@@ -45,7 +59,7 @@ def write_whole(
     except OSError as exc:
         with contextlib.suppress(OSError):
             os.remove(part)
-        raise OSError(exc.errno, exc.strerror or str(exc), os.fspath(path)) from None
+        raise NotWritten(exc.errno, exc.strerror or str(exc), os.fspath(path)) from None
 
 
 def _write_to(handle: BinaryIO, data: str | bytes | Callable[[BinaryIO], None]) -> None:

@@ -703,6 +703,7 @@ def run_paper(
     """
     from .evaluation.report import write_report
     from .evaluation.sweep import DEFAULT_NOISES, check_multiples
+    from .files import write_whole
     from .physics.scenario import Scenario
     from .physics.simulate import simulate
 
@@ -725,7 +726,7 @@ def run_paper(
         found = search_with_baselines(
             scenario, search, seed=seed, policy_path=policy, progress=search_progress
         )
-        (out / "search.json").write_text(json.dumps(found.to_dict()), encoding="utf-8")
+        write_whole(out / "search.json", json.dumps(found.to_dict()))
         searched = found.result
         steps = searched.best_sequence
     say(
@@ -748,7 +749,7 @@ def run_paper(
         progress=sweep_progress,
     )
     sweep = swept.sweep
-    (out / "sweep.json").write_text(sweep.model_dump_json(indent=2), encoding="utf-8")
+    write_whole(out / "sweep.json", sweep.model_dump_json(indent=2))
     say("[3/3] report")
     result = simulate(scenario, steps, n_realisations, np.random.default_rng(seeds[2]))
     write_report(
@@ -760,7 +761,7 @@ def run_paper(
         sweep=sweep,
         search=searched,
     )
-    (out / "scenario.json").write_text(scenario.model_dump_json(indent=2), encoding="utf-8")
+    write_whole(out / "scenario.json", scenario.model_dump_json(indent=2))
 
     def by_multiple(points: Any, noise: str) -> dict[str, float]:
         return {f"{p.multiple:g}": p.accuracy for p in points if p.noise == noise}
@@ -784,5 +785,5 @@ def run_paper(
         },
         "wall_time_s": time.perf_counter() - started,
     }
-    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
+    write_whole(out / "summary.json", json.dumps(summary, indent=2) + "\n")
     return PaperOutcome(out, summary, sweep)

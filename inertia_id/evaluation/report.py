@@ -15,6 +15,7 @@ import plotly.graph_objects as go
 import plotly.io as pio
 from plotly.subplots import make_subplots
 
+from ..files import write_whole
 from ..physics.scenario import Scenario
 from ..physics.simulate import SimulationResult
 from .sweep import SweepResult
@@ -277,7 +278,8 @@ def write_report(
     sweep: SweepResult | None = None,
     search: SearchResult | None = None,
 ) -> None:
-    """Write the HTML report: summary, candidates, search, sequence, responses, accuracy."""
+    """Write the HTML report: summary, candidates, search, sequence, responses, accuracy,
+    whole or not at all (:func:`~inertia_id.files.write_whole`)."""
     candidates = "".join(
         f"<tr><td>{html.escape(c.name)}</td><td>"
         f"{', '.join(f'{m:.2f}' for m in c.principal_moments_kg_m2)}</td></tr>"
@@ -328,5 +330,4 @@ th, td {{ border: 1px solid #ccc; padding: 4px 8px; text-align: left; }}
 {charts}
 </body></html>
 """
-    with open(path, "w", encoding="utf-8") as fh:
-        fh.write(document)
+    write_whole(path, document)

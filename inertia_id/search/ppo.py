@@ -89,7 +89,9 @@ def ppo_search(
     :param ppo_params: overrides of :data:`PPO_DEFAULTS` (the paper's values).
     :param patience_episodes: stop once the best F1 is 1 and nothing better came for
         this many episodes; None trains for the whole budget.
-    :param policy_path: where to save the trained policy (stable-baselines3 zip).
+    :param policy_path: where to save the trained policy (stable-baselines3 zip; a name
+        with no suffix gets ".zip", as stable-baselines3 adds it), whole or not at all
+        (:func:`~inertia_id.files.write_whole`).
     :param options: fuel weight, seed (of the noise, the policy and PPO's sampling),
         scorer settings, constraints, constraint penalty (the starting Lagrange
         multiplier), fresh draws, the progress and cancel hooks and the time limit
@@ -126,10 +128,7 @@ def ppo_search(
         model.learn(total_timesteps=total_timesteps, callback=callback)
         saved = None
         if policy_path is not None:
-            saved = os.fspath(policy_path)
-            model.save(saved)
-            if not saved.endswith(".zip"):
-                saved += ".zip"
+            saved = _save_whole(model, policy_path)
     finally:
         torch.set_num_threads(threads)
     run.close_curve(total_timesteps)
@@ -145,3 +144,25 @@ def ppo_search(
         },
         policy_path=saved,
     )
+
+
+def _save_whole(model: Any, policy_path: str | os.PathLike[str]) -> str:
+    """Save ``model`` to ``policy_path`` whole or not at all, and say where it went.
+
+    stable-baselines3 writes its zip in place: a save that failed part-way (a full disk)
+    left a truncated zip under the name asked for. Given an open file, it writes the zip
+    there and leaves the file open, so :func:`~inertia_id.files.write_whole` hands it the
+    file beside the target that it renames over it. The name follows stable-baselines3's
+    own rule (".zip" added to a name with no suffix; it wrote ``p.bin`` where ``p.bin.zip``
+    was reported) and its missing folders are made, as stable-baselines3 made them.
+    """
+    from pathlib import Path
+
+    from ..files import write_whole
+
+    path = Path(policy_path)
+    if path.suffix == "":
+        path = path.with_name(f"{path.name}.zip")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_whole(path, model.save)
+    return os.fspath(path)

@@ -1119,3 +1119,80 @@ def test_a_classifier_that_cannot_be_saved_whole_leaves_the_earlier_document(
     assert path.read_bytes() == earlier
     assert [p.name for p in tmp_path.iterdir()] == ["classifier.json"]
     assert load_classifier(path).to_json() == model.to_json()
+
+
+_SMALL_PPO = ["search", "--method", "ppo", "--length", "2", "--timesteps", "64"]
+_SMALL_PPO += ["--search-realisations", "2", "--ppo", "n_steps=32", "--ppo", "batch_size=32"]
+_SMALL_PPO += ["--fresh-test-series", "0"]
+
+
+def test_a_policy_that_cannot_be_saved_whole_leaves_the_earlier_zip(tmp_path: Path) -> None:
+    # Before: stable-baselines3 wrote the zip in place, so under a 2 KiB file-size limit
+    # `search --policy p.zip` left its first 2,048 bytes (no zip) and said only
+    # "Error: [Errno 27] File too large", naming no file.
+    policy, out = tmp_path / "p.zip", tmp_path / "s.json"
+    args = [*_SMALL_PPO, "--policy", str(policy), "--out", str(out)]
+    assert CliRunner().invoke(main, args).exit_code == 0  # warm, and whole
+    earlier = policy.read_bytes()
+    assert len(earlier) > 2048
+    soft, hard = resource.getrlimit(resource.RLIMIT_FSIZE)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (2048, hard))
+    try:
+        message = refused(args)
+    finally:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (soft, hard))
+    assert f"could not write {policy}: File too large; nothing was written there" in message
+    assert policy.read_bytes() == earlier
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["p.zip", "s.json"]
+
+
+def test_a_policy_is_reported_under_the_name_it_was_saved_as(tmp_path: Path) -> None:
+    # stable-baselines3 adds ".zip" to a name with no suffix only. Before: `--policy
+    # p.bin` wrote p.bin and the search document said policy_path "p.bin.zip".
+    from stable_baselines3 import PPO
+
+    for name, written in (("p.bin", "p.bin"), ("policy", "policy.zip")):
+        out = tmp_path / f"{name}.json"
+        args = [*_SMALL_PPO, "--policy", str(tmp_path / name), "--out", str(out)]
+        assert CliRunner().invoke(main, args).exit_code == 0
+        doc = json.loads(out.read_text(encoding="utf-8"))
+        assert doc["policy_path"] == str(tmp_path / written)
+        assert PPO.load(doc["policy_path"], device="cpu").policy is not None
+
+
+def test_paper_files_that_cannot_be_written_whole_leave_the_earlier_ones(tmp_path: Path) -> None:
+    # Before: `paper --out-dir` wrote report.html (4.9 MB) in place, so under a 64 KiB
+    # file-size limit it left the report's first 65,536 bytes and said only
+    # "Error: [Errno 27] File too large".
+    out = tmp_path / "paper"
+    args = ["paper", "--metric", "euclidean", "-n", "10", "--search", "none"]
+    args += ["--multiples", "1", "--n-test", "20", "--out-dir", str(out)]
+    assert CliRunner().invoke(main, args).exit_code == 0  # warm, and whole
+    earlier = {p.name: p.read_bytes() for p in out.iterdir()}
+    assert len(earlier["report.html"]) > 65536 > len(earlier["classifier.json"])
+    soft, hard = resource.getrlimit(resource.RLIMIT_FSIZE)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (65536, hard))
+    try:
+        message = refused(args)
+    finally:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (soft, hard))
+    report = out / "report.html"
+    assert f"could not write {report}: File too large; nothing was written there" in message
+    assert {p.name: p.read_bytes() for p in out.iterdir()}["report.html"] == earlier["report.html"]
+    assert sorted(p.name for p in out.iterdir()) == sorted(earlier)
+
+
+def test_train_says_which_classifier_it_could_not_write(tmp_path: Path) -> None:
+    # Before: "Error: [Errno 27] File too large: '.../c.json'", which said neither that
+    # the write failed whole nor what became of the file; now the one line every --out
+    # gives.
+    out = tmp_path / "c.json"
+    args = ["train", "--metric", "euclidean", "-n", "10", "--out", str(out)]
+    soft, hard = resource.getrlimit(resource.RLIMIT_FSIZE)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (8192, hard))
+    try:
+        message = refused(args)
+    finally:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (soft, hard))
+    assert f"could not write {out}: File too large; nothing was written there" in message
+    assert list(tmp_path.iterdir()) == []
