@@ -85,10 +85,16 @@ def _arrays_file_name(context: click.Context, param: click.Parameter, value: str
 )
 @click.option(
     "--candidate",
-    default="1",
-    show_default=True,
-    help="Candidate (its name, or its number from 1 as plan tables and identify's "
-    "candidate_number give it) whose series --telemetry writes.",
+    default=None,
+    help="Candidate whose series --telemetry writes: its name, or its number from 1 as plan "
+    "tables and identify's candidate_number give it [default: 1]. A value that is one "
+    "candidate's name and another's number is refused: give --candidate-number.",
+)
+@click.option(
+    "--candidate-number",
+    default=None,
+    type=IntRange(1),
+    help="The same by its number from 1 only, never read as a name.",
 )
 @click.option(
     "--realisation",
@@ -141,7 +147,8 @@ def simulate_cmd(
     seed: int,
     out: str | None,
     telemetry: str | None,
-    candidate: str,
+    candidate: str | None,
+    candidate_number: int | None,
     realisation: int,
     engine: str,
     sample_rate_hz: float | None,
@@ -160,13 +167,20 @@ def simulate_cmd(
         context = click.get_current_context()
         given = [
             f"--{name.replace('_', '-')}"
-            for name in ("candidate", "realisation", "time_offset")
+            for name in ("candidate", "candidate_number", "realisation", "time_offset")
             if context.get_parameter_source(name) is not click.core.ParameterSource.DEFAULT
         ]
         if given:
             verb = "applies" if len(given) == 1 else "apply"
             raise InputError(f"{', '.join(given)} {verb} with --telemetry only")
+    if candidate is not None and candidate_number is not None:
+        raise InputError(
+            f"--candidate {candidate!r} and --candidate-number {candidate_number} both name "
+            "the candidate; give one"
+        )
     scenario = load_scenario(preset_name, scenario_path)
+    # Before the flight, not after it: a candidate the scenario lacks is refused at once.
+    k = _candidate_index(scenario.candidate_names, candidate, candidate_number)
     offset = parse_sequence_start(time_offset)
     sequence, coast_s = _with_coast(scenario, parse_sequence(sequence_text), pre_start_s)
     # The plan's and the response's rule: a scenario that spins its bodies past any
@@ -177,7 +191,7 @@ def simulate_cmd(
             scenario,
             sequence,
             coast_s=coast_s,
-            candidate=candidate,
+            k=k,
             seed=seed,
             process_noise=process_noise,
             measurement_noise=measurement_noise,
@@ -235,7 +249,6 @@ def simulate_cmd(
         click.echo(f"wrote {out}", err=True)
     if telemetry:
         names = scenario.candidate_names
-        k = _candidate_index(names, candidate)
         if realisation >= realisations:
             raise InputError(f"--realisation {realisation} but only {realisations} simulated")
         _write_telemetry(
@@ -273,19 +286,45 @@ def _with_coast(scenario: Any, sequence: Any, pre_start_s: float) -> tuple[Any, 
     return np.concatenate([coasting, rows]), coast * step_s
 
 
-def _candidate_index(names: list[str], candidate: str) -> int:
-    """The position in ``names`` of ``candidate``: a name, or a number from 1 as plan
-    tables and an identification's ``candidate_number`` number it."""
+def _candidate_index(names: list[str], candidate: str | None, number: int | None) -> int:
+    """The position in ``names`` of the candidate ``--candidate`` (a name, or a number
+    from 1 as plan tables and an identification's ``candidate_number`` number it) or
+    ``--candidate-number`` names; the first when neither is given.
+
+    A name and a number that point at different candidates (a candidate named "3" that
+    is not the third) are refused naming both: the name won before, so the third could
+    not be named by its number, and the number it showed in plan tables flew another.
+    """
     from ..errors import InputError
 
-    if candidate in names:
-        return names.index(candidate)
-    if candidate.isdigit() and 1 <= int(candidate) <= len(names):
-        return int(candidate) - 1
+    if number is not None:
+        if number > len(names):
+            raise InputError(
+                f"--candidate-number {number}: the scenario has {len(names)} candidates, "
+                f"numbered 1..{len(names)}"
+            )
+        return number - 1
+    if candidate is None:
+        return 0
+    # ASCII digits only: "²".isdigit() is True, and int() refuses it.
+    digits = candidate.isascii() and candidate.isdigit()
+    by_name = names.index(candidate) if candidate in names else None
+    by_number = int(candidate) - 1 if digits and 1 <= int(candidate) <= len(names) else None
+    if by_name is not None and by_number is not None and by_name != by_number:
+        raise InputError(
+            f"--candidate {candidate!r} is both the name of candidate {by_name + 1} and the "
+            f"number of candidate {by_number + 1} ({names[by_number]!r}): give "
+            f"--candidate-number {by_name + 1} for the one named {candidate!r}, or "
+            f"--candidate-number {by_number + 1} for number {candidate}"
+        )
+    if by_name is not None:
+        return by_name
+    if by_number is not None:
+        return by_number
     zero = (
         f" (candidates are numbered from 1, as plan tables and identify number them: the "
         f"first is 1, {names[0]!r})"
-        if candidate.isdigit() and int(candidate) == 0
+        if digits and int(candidate) == 0
         else ""
     )
     raise InputError(
@@ -354,7 +393,7 @@ def _fly_basilisk(
     sequence: Any,
     *,
     coast_s: float,
-    candidate: str,
+    k: int,
     seed: int,
     process_noise: float,
     measurement_noise: float,
@@ -363,7 +402,8 @@ def _fly_basilisk(
     telemetry: str | None,
     offset: float | str | None,
 ) -> None:
-    """One series flown by Basilisk: the --telemetry one (realisation 0 of --seed)."""
+    """One series flown by Basilisk: the --telemetry one (candidate ``k`` from 0,
+    realisation 0 of --seed)."""
     import numpy as np
 
     from ..errors import InputError
@@ -374,7 +414,6 @@ def _fly_basilisk(
         from ..physics.engines.basilisk import BasiliskUnavailableError, simulate_basilisk
     except ImportError as exc:  # pragma: no cover - the module imports Basilisk lazily
         raise click.ClickException(f"Basilisk is not available: {exc}") from None
-    k = _candidate_index(scenario.candidate_names, candidate)
     try:
         flown = simulate_basilisk(
             scenario,

@@ -831,3 +831,50 @@ def test_train_and_plan_warn_when_the_response_is_far_below_the_gyro_noise(
     # The paper preset's own scenario warns of nothing.
     plan, planned = run_cli_json(["plan", "--sequence", sequence], tmp_path / "q.json")
     assert plan["warnings"] == [] and "warning" not in planned.stderr
+
+
+def test_simulate_refuses_a_candidate_that_is_one_name_and_another_number(
+    runner: CliRunner, tmp_path: Path
+) -> None:
+    """A name won over a number, so with the first candidate named "3", ``--candidate 3``
+    flew the first and the third (number 3 in plan tables) could not be asked for by its
+    number. Now that value is refused naming both readings, and ``--candidate-number``
+    is a number only."""
+    from inertia_id import preset
+
+    document = preset("paper").model_dump(mode="json")
+    document["inertia_candidates"][0]["name"] = "3"
+    document["inertia_candidates"][4]["name"] = "5"  # the fifth: no other reading
+    scenario = tmp_path / "s.json"
+    scenario.write_text(json.dumps(document))
+    telemetry = tmp_path / "t.csv"
+    base = ["simulate", "-n", "1", "--scenario", str(scenario), "--telemetry", str(telemetry)]
+
+    refused = runner.invoke(main, [*base, "--candidate", "3"])
+    assert refused.exit_code == 1, refused.output
+    assert (
+        "--candidate '3' is both the name of candidate 1 and the number of candidate 3 "
+        "('payload 2 ejected'): give --candidate-number 1 for the one named '3', or "
+        "--candidate-number 3 for number 3"
+    ) in refused.output
+    assert not telemetry.exists()
+    for asked, flown in (
+        (["--candidate-number", "3"], "(candidate 3 'payload 2 ejected', realisation 0)"),
+        (["--candidate-number", "1"], "(candidate 1 '3', realisation 0)"),
+        (["--candidate", "5"], "(candidate 5 '5', realisation 0)"),
+        (["--candidate", "payload 2 ejected"], "(candidate 3 'payload 2 ejected', realisation 0)"),
+        ([], "(candidate 1 '3', realisation 0)"),
+    ):
+        result = runner.invoke(main, [*base, *asked])
+        assert result.exit_code == 0, result.output
+        assert flown in result.stderr, asked
+    for asked, message in (
+        (["--candidate", "3", "--candidate-number", "3"], "both name the candidate; give one"),
+        (["--candidate-number", "6"], "--candidate-number 6: the scenario has 5 candidates"),
+        (["--candidate-number", "0"], "0 is not in the range x>=1"),
+    ):
+        result = runner.invoke(main, [*base, *asked])
+        assert result.exit_code in (1, 2) and message in result.output, result.output
+    result = runner.invoke(main, ["simulate", "-n", "1", "--candidate-number", "2"])
+    assert result.exit_code == 1
+    assert "--candidate-number applies with --telemetry only" in result.output
