@@ -58,6 +58,7 @@ __all__ = [
     "SweepRequest",
     "TrainRequest",
     "Trained",
+    "check_search",
     "check_search_scenario",
     "check_sweep_scenario",
     "run_paper",
@@ -362,6 +363,20 @@ def search_with_baselines(
                     f"grace ({deadline.grace_s:g} s) were spent"
                 )
     return SearchOutcome(found, baselines, scenario)
+
+
+def check_search(scenario: Scenario, request: SearchRequest) -> None:
+    """Everything a search on ``scenario`` refuses that can be told before it starts: the
+    operator's settings on the scenario (constraints, a propellant bound or objective, a
+    duration bound every sequence breaks, design noise) and
+    :func:`check_search_scenario` (a rate bound below the initial-rate floor, a gyro
+    range the baseline passes). The API's submission runs the same checks; the CLI runs
+    them before its first progress line, which the refusal followed before.
+
+    :raises InputError: naming the setting and its value.
+    """
+    request.operator().check(scenario, request.sequence_length)
+    check_search_scenario(scenario, request.sequence_length, request.constraints)
 
 
 def check_search_scenario(
@@ -711,6 +726,8 @@ def run_paper(
         check_multiples(multiples)  # before the search and the training, not after
     say = log or (lambda _message: None)
     scenario = Scenario.paper()
+    if sequence is None and search is not None:
+        check_search(scenario, search)  # before the folder and the first stage's line
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     seeds = np.random.SeedSequence(seed).spawn(3)

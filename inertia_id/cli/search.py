@@ -443,9 +443,11 @@ def search_cmd(
         raise InputError(f"--policy applies to --method ppo only, not {method!r}")
     scenario = load_scenario(preset_name, scenario_path)
     request = search_request(method, max_sequences=max_sequences, **options)
-    from ..search.objectives import check_constraints
+    from ..pipelines import check_search
 
-    check_constraints(dict(request.constraints), scenario)  # before the progress bar starts
+    # Before the progress line: a rate bound below the initial-rate floor was refused
+    # inside the pipeline, after "searching (nsga2) ..." and the bar had started.
+    check_search(scenario, request)
     outcome = search_with_progress(scenario, request, seed=seed, policy_path=policy_path)
     result = outcome.result
     # Found and baselines alike on the same fresh draws: the clustering F1 and |ω| at the

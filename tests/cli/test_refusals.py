@@ -1196,3 +1196,43 @@ def test_train_says_which_classifier_it_could_not_write(tmp_path: Path) -> None:
         resource.setrlimit(resource.RLIMIT_FSIZE, (soft, hard))
     assert f"could not write {out}: File too large; nothing was written there" in message
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        # Before: "searching (nsga2) for a 4-step sequence ..." and the bar's first frame,
+        # then the refusal, from inside the pipeline.
+        (
+            [
+                *("search", "--preset", "paper-in-orbit", "--method", "nsga2"),
+                *("--constraint", "max_final_rate_deg_s=0.01"),
+            ],
+            "Error: constraint max_final_rate_deg_s = 0.01 deg/s is below what the scenario's "
+            "initial-rate spread alone leaves (mean over flights of |ω(0)|: 0.4572 deg/s",
+        ),
+        # Before: the whole search ran first, and the refusal came at its front.
+        (
+            [
+                *("search", "--method", "random", "--length", "2", "--timesteps", "8"),
+                *("--constraint", "max_duration_s=0.1"),
+            ],
+            "Error: constraint max_duration_s = 0.1 s is below the duration of every "
+            "sequence of 2 steps",
+        ),
+        # Before: "[0/3] searching for the sequence", then the refusal.
+        (
+            ["paper", "--search", "random", "--constraint", "max_propellant_kg=1"],
+            "Error: constraint max_propellant_kg needs the scenario's thrusters to state",
+        ),
+    ],
+)
+def test_a_search_setting_no_sequence_can_meet_is_refused_before_any_progress(
+    tmp_path: Path, args: list[str], message: str
+) -> None:
+    out = ["--out-dir", str(tmp_path / "p")] if args[0] == "paper" else ["--out", "s.json"]
+    result = CliRunner().invoke(main, [*args, *out])
+    assert result.exit_code == 1, result.output
+    assert result.output.startswith(message), result.output
+    assert result.output.count("\n") == 1  # the refusal's one line, and nothing before it
+    assert not list(tmp_path.iterdir())
