@@ -192,6 +192,18 @@ class Settings(BaseSettings):
         alias="INERTIA_ID_JOB_TIME_LIMIT_S",
     )
 
+    #: How long a finished run keeps an outcome the database refuses to store (a full
+    #: disk, a read-only database), trying it every heartbeat interval, before the job
+    #: fails with the refusal named. An hour: time for an operator to free the disk,
+    #: while a result too large for the room left does not hold its worker for ever.
+    outcome_refused_wait_s: float = Field(
+        default=3600.0,
+        ge=0,
+        le=LONGEST_S,
+        allow_inf_nan=False,
+        alias="INERTIA_ID_OUTCOME_REFUSED_WAIT_S",
+    )
+
     @field_validator("allowed_hosts")
     @classmethod
     def _host_names_only(cls, value: str) -> str:

@@ -14,19 +14,22 @@ from __future__ import annotations
 import os
 import signal
 import socket
+import sqlite3
 import subprocess
 import sys
+import threading
 import time
 import uuid
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import NoReturn, TypeVar
+from typing import Any, NoReturn, TypeVar
 
 import httpx
 import pytest
-from sqlalchemy import create_engine, text
+from sqlalchemy import create_engine, event, text
+from sqlalchemy.engine import Engine
 
 from service.store import Database, JobRow
 
@@ -258,3 +261,26 @@ def serve_app(
             server.wait(40)
         except subprocess.TimeoutExpired:
             server.kill()
+
+
+@contextmanager
+def writes_refused_while(refusing: threading.Event) -> Iterator[None]:
+    """Inside, every connection handed out is read-only while ``refusing`` is set: SQLite's
+    ``query_only`` (SQLITE_READONLY, as a read-only file), PostgreSQL's read-only
+    transactions (SQLSTATE 25006, as a hot standby): the database answers and refuses
+    writes, as a full disk's does. ``refusing`` is cleared on the way out."""
+
+    def read_only_while_refusing(dbapi_connection: Any, _record: Any, _proxy: Any) -> None:
+        if isinstance(dbapi_connection, sqlite3.Connection):
+            dbapi_connection.execute(f"PRAGMA query_only = {int(refusing.is_set())}")
+        else:
+            mode = "READ ONLY" if refusing.is_set() else "READ WRITE"
+            dbapi_connection.execute(f"SET SESSION CHARACTERISTICS AS TRANSACTION {mode}")
+            dbapi_connection.commit()
+
+    event.listen(Engine, "checkout", read_only_while_refusing)
+    try:
+        yield
+    finally:
+        event.remove(Engine, "checkout", read_only_while_refusing)
+        refusing.clear()

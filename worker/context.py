@@ -26,6 +26,8 @@ from service.store import Database, JobRow
 from service.store.jobs import add_metrics, finish, heartbeat, owns, set_progress, touch_worker
 from service.store.refusals import unreachable, why_cannot_store
 
+from .episode import Episode
+
 if TYPE_CHECKING:
     # Types only: the worker's main process imports this module and must stay light.
     from inertia_id.classifiers.registry import CandidateClassifier
@@ -152,6 +154,10 @@ class JobContext:
         self._db = db
         self._clock = clock
         self._last_poll = self.started = clock()
+        #: Progress that cannot be stored, a cancel flag that cannot be read: each
+        #: logged once an episode (see worker.episode).
+        self._report_failing = Episode(logger)
+        self._poll_failing = Episode(logger)
 
     def now(self) -> float:
         """The context's monotonic clock, s (a search's time limit runs on it)."""
@@ -208,8 +214,16 @@ class JobContext:
                     add_metrics(session, self.spec.id, rows)
                 if progress is not None:
                     set_progress(session, self.spec.id, progress, self.spec.attempt)
-        except Exception:
-            logger.exception("job %s: could not store progress; going on", self.spec.id)
+        except Exception as exc:
+            # Once an episode (worker.episode), as the beat's: a traceback at every
+            # report filled the log for as long as the database refused or was down.
+            self._report_failing.seen(
+                _condition(exc),
+                f"job {self.spec.id}: could not store progress (%s); going on",
+                exc_info=_unforeseen(exc),
+            )
+            return
+        self._report_failing.cleared(f"job {self.spec.id}: progress is stored again after %.0f s")
 
     def should_stop(self) -> bool:
         """True once a cancel was asked for, or the job stopped being this run's.
@@ -234,9 +248,17 @@ class JobContext:
                         JobRow.id == self.spec.id
                     )
                 ).one_or_none()
-        except Exception:
-            logger.exception("job %s: could not read its cancel flag; going on", self.spec.id)
+        except Exception as exc:
+            # Once an episode: asked every second by a search, a traceback each time.
+            self._poll_failing.seen(
+                _condition(exc),
+                f"job {self.spec.id}: could not read its cancel flag (%s); going on",
+                exc_info=_unforeseen(exc),
+            )
             return False
+        self._poll_failing.cleared(
+            f"job {self.spec.id}: its cancel flag is read again after %.0f s"
+        )
         if row is None or row.status != "running" or row.attempts != self.spec.attempt:
             # Reaped while we were stalled (and perhaps re-run elsewhere), or deleted.
             self.lost = True
@@ -307,3 +329,22 @@ class JobContext:
             ):
                 self.lost = True
                 logger.warning("job %s ended: %s", self.spec.id, self.time_limit_text())
+
+
+def _unforeseen(exc: BaseException) -> bool:
+    """Whether ``exc`` is neither the database refusing writes nor out of reach: such a
+    failure is logged with its traceback (once an episode)."""
+    return why_cannot_store(exc) is None and not unreachable(exc)
+
+
+def _condition(exc: BaseException) -> str:
+    """What kept a write or a read from the database, in one line."""
+    why = why_cannot_store(exc)
+    inner = exc.orig if isinstance(exc, DBAPIError) and exc.orig is not None else exc
+    first = (str(inner).strip().splitlines() or [""])[0]
+    text = f"{type(inner).__name__}: {first}"
+    if why is not None:
+        return f"the database refuses writes ({why}): {text}"
+    if unreachable(exc):
+        return f"the database cannot be reached: {text}"
+    return text

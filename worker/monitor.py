@@ -27,6 +27,7 @@ from service.queue import make_celery
 from service.store import Database
 from service.store.jobs import beat_worker, start_worker
 from service.store.models import utcnow
+from service.store.refusals import database_label, why_cannot_store
 
 from . import incarnation
 from .context import broker_label
@@ -75,6 +76,8 @@ class WorkerMonitor:
         #: The database unreachable at this worker's beats, and any other failure of a
         #: beat: each logged once an episode (see worker.episode).
         self._outage = Episode(logger)
+        #: The database answering but refusing this worker's beat (full, read-only).
+        self._refused = Episode(logger)
         self._failing = Episode(logger)
         #: Whether the last beat could not store this worker's row (the database down,
         #: full or read-only), and the monotonic second from which the reaper may judge
@@ -98,7 +101,16 @@ class WorkerMonitor:
         try:
             self.tick()
         except Exception as exc:
-            if _database_unreachable(exc):
+            why = why_cannot_store(exc)
+            if why is not None:
+                # Answered, but refused: not "unreachable" (which it said of a full disk).
+                self._refused.seen(
+                    f"{why}: {_first_line(exc)}",
+                    f"worker {self.name}: the database {database_label(self.db.url)} refuses "
+                    "writes (%s); its beat (heartbeat, reaper, re-sender) tries again every "
+                    f"{self.settings.heartbeat_interval_s:g} s",
+                )
+            elif _database_unreachable(exc):
                 self._outage.seen(
                     _first_line(exc),
                     f"worker {self.name}: the database is unreachable (%s); its beat "
@@ -113,6 +125,7 @@ class WorkerMonitor:
                     exc_info=True,
                 )
             return
+        self._refused.cleared(f"worker {self.name}: the database takes writes again after %.0f s")
         self._outage.cleared(f"worker {self.name}: the database answers again after %.0f s")
         self._failing.cleared(f"worker {self.name}: its beat succeeds again after %.0f s")
 

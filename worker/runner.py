@@ -393,7 +393,16 @@ def _run(
     if context.lost:
         logger.warning("job %s was taken from this run; dropping its result", spec.id)
         return "lost"
-    reported_unreachable = False
+    # The outcome is kept while the database cannot take it (out of reach, or refusing
+    # writes: a full disk, a read-only database) and stored whole once it can, tried
+    # every heartbeat interval; the run's heartbeat goes on meanwhile, so the reaper
+    # leaves it alone. Before, a refused outcome failed the job ("could not store the
+    # result: ... database or disk is full") once writes were accepted again: the work
+    # was thrown away for a passing condition. A refusal that outlasts
+    # outcome_refused_wait_s (a result larger than the room left) fails the job, named.
+    interval_s = context.settings.heartbeat_interval_s
+    reported: str | None = None
+    refused_since: float | None = None
     while True:
         try:
             if not _store_outcome(context, db, outcome):
@@ -402,36 +411,54 @@ def _run(
         except Exception as exc:
             error = f"could not store the result: {one_line_error(exc)}"
             why = why_cannot_store(exc)
-            if why is None and unreachable(exc) and not stopping():
-                # The database down (a restart, a network cut, its connections refused):
-                # the outcome is kept and stored whole once it answers. Before, the run
-                # gave up (its end's write failed too), the job was left running, and
-                # the reaper re-ran it as "heartbeat missed ... task process died or
-                # hung": the result computed was thrown away and computed again.
-                if not reported_unreachable:
-                    logger.error(
-                        "job %s: could not store its outcome: the database cannot be "
-                        "reached (%s); stored once it answers, tried every %g s",
-                        spec.id,
-                        one_line_error(exc),
-                        context.settings.heartbeat_interval_s,
-                    )
-                    reported_unreachable = True
-                time.sleep(context.settings.heartbeat_interval_s)
-                continue
-            if why is None:
+            if why is None and not unreachable(exc):
                 logger.exception("job %s: could not store its outcome", spec.id)
                 return _end(db, spec.id, spec.attempt, "failed", error=error)
-            logger.error(
-                "job %s: could not store its outcome: the database refuses writes (%s): %s; "
-                "its end is stored once the database takes writes",
-                spec.id,
-                why,
-                one_line_error(exc),
+            condition = (
+                "the database cannot be reached"
+                if why is None
+                else f"the database refuses writes ({why})"
             )
-            return _end_once_writable(context, db, stopping, "failed", error=error)
-    if reported_unreachable:
-        logger.warning("job %s: its outcome is stored (the database answers again)", spec.id)
+            if stopping():
+                logger.error(
+                    "job %s: could not store its outcome: %s: %s; this worker is stopping",
+                    spec.id,
+                    condition,
+                    one_line_error(exc),
+                )
+                return _end_once_writable(context, db, stopping, "failed", error=error)
+            if why is not None:
+                now = time.monotonic()
+                refused_since = now if refused_since is None else refused_since
+                wait_s = context.settings.outcome_refused_wait_s
+                if now - refused_since >= wait_s:
+                    logger.error(
+                        "job %s: its outcome was refused for %.0f s (%s); the job fails",
+                        spec.id,
+                        now - refused_since,
+                        condition,
+                    )
+                    return _end_once_writable(
+                        context,
+                        db,
+                        stopping,
+                        "failed",
+                        error=f"could not store the result: {condition} for {wait_s:g} s "
+                        f"(INERTIA_ID_OUTCOME_REFUSED_WAIT_S): {one_line_error(exc)}",
+                    )
+            if condition != reported:
+                logger.error(
+                    "job %s: could not store its outcome: %s (%s); kept, and stored once "
+                    "the database takes it, tried every %g s",
+                    spec.id,
+                    condition,
+                    one_line_error(exc),
+                    interval_s,
+                )
+                reported = condition
+            time.sleep(interval_s)
+    if reported is not None:
+        logger.warning("job %s: its outcome is stored (the database takes writes again)", spec.id)
     logger.info("job %s %s", spec.id, outcome.status)
     return outcome.status
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import sqlite3
 
-__all__ = ["unreachable", "why_cannot_store"]
+__all__ = ["database_label", "unreachable", "why_cannot_store"]
 
 # SQLite's primary result codes (the low byte of sqlite3's ``sqlite_errorcode``) and
 # PostgreSQL's SQLSTATEs: disk_full, io_error, read_only_sql_transaction (a hot standby,
@@ -17,6 +17,17 @@ _SQLITE_REFUSALS = {
     sqlite3.SQLITE_IOERR: "io",
 }
 _PG_REFUSALS = {"53100": "full", "58030": "io", "25006": "read-only"}
+
+
+def database_label(url: str) -> str:
+    """The database as a log line names it: a SQLite file's path, else the URL with any
+    password masked."""
+    from sqlalchemy import make_url
+
+    parsed = make_url(url)
+    if parsed.drivername.startswith("sqlite"):
+        return str(parsed.database)
+    return parsed.render_as_string(hide_password=True)
 
 
 def why_cannot_store(exc: BaseException) -> str | None:

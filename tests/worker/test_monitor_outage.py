@@ -13,13 +13,14 @@ from __future__ import annotations
 
 import logging
 import os
+import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from datetime import timedelta
 from typing import TYPE_CHECKING, Any
 
 import pytest
-from service_support import POSTGRES_ADMIN_URL
+from service_support import POSTGRES_ADMIN_URL, writes_refused_while
 from sqlalchemy import create_engine, event, make_url, text, update
 
 from service.store.models import JobRow, utcnow
@@ -103,6 +104,43 @@ def test_a_database_outage_is_logged_once_when_it_starts_and_once_when_it_ends(
                 assert sum("the database answers again" in m for m in back) == 1, back
     finally:
         monitor.stop()
+
+
+def test_a_database_that_refuses_writes_is_named_so_not_unreachable_once_an_episode(
+    store: Store, caplog: pytest.LogCaptureFixture, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Before: a full disk's beat logged "the database is unreachable (OperationalError:
+    # database or disk is full)", though the database answered and refused the write
+    # (seen under inertia-id serve, its SQLite file on a filled 40 MiB tmpfs).
+    import worker.monitor
+
+    monkeypatch.setattr(worker.monitor, "warm", lambda: True)
+    monitor = WorkerMonitor(WORKER, store.settings, Life(store.settings.resolved_database_url, "a"))
+    beat: Callable[[], None] = monitor._ticker._safe_tick
+    refusing = threading.Event()
+    try:
+        beat()
+        with writes_refused_while(refusing), caplog.at_level(logging.INFO, logger="worker"):
+            refusing.set()
+            monitor.db.engine.dispose()  # connections checked out from now on
+            for _ in range(4):
+                beat()
+            down = [r.getMessage() for r in _lines(caplog)]
+            refusing.clear()
+            monitor.db.engine.dispose()
+            beat()
+            beat()
+        lines = [r.getMessage() for r in _lines(caplog)]
+    finally:
+        monitor.stop()
+    assert not any("unreachable" in m for m in lines), lines
+    refused = [m for m in down if "refuses writes (read-only" in m]
+    assert len(refused) == 1, down
+    label = make_url(store.settings.resolved_database_url)
+    name = str(label.database) if label.drivername.startswith("sqlite") else label.database
+    assert str(name) in refused[0], refused[0]
+    assert sum("the database takes writes again" in m for m in lines) == 1, lines
+    assert not [r for r in _lines(caplog) if r.exc_info]
 
 
 def _unreadable(caplog: pytest.LogCaptureFixture) -> int:
