@@ -44,7 +44,23 @@ def _engine(url: str) -> Engine:
             )
 
         return engine
-    return create_engine(url, pool_pre_ping=True)
+    engine = create_engine(url, pool_pre_ping=True)
+
+    @event.listens_for(engine, "handle_error")
+    def _drop_read_only_sessions(context: Any) -> None:
+        # A PostgreSQL session takes default_transaction_read_only as it starts (ALTER
+        # DATABASE ... SET) and keeps it: a pooled connection opened while the database
+        # was read-only refused every write after the setting was reset, for the life
+        # of its process (a worker's heartbeat, its run's outcome, the API's writes),
+        # while the sessions opened before went on writing, so another worker's reaper
+        # could judge the refused run dead. Closed at its refusal (this connection
+        # only: the writable ones stay), the next write opens a session that reads the
+        # database's current setting.
+        if getattr(context.original_exception, "sqlstate", None) == "25006":
+            context.is_disconnect = True
+            context.invalidate_pool_on_disconnect = False
+
+    return engine
 
 
 class Database:

@@ -17,12 +17,12 @@ from typing import TYPE_CHECKING, Any
 import pytest
 from scenario_support import GOOD_SEQUENCE
 from service_support import POSTGRES_ADMIN_URL, writes_refused_while
-from sqlalchemy import create_engine, make_url, select, text
+from sqlalchemy import create_engine, make_url, select, text, update
 
 from inertia_id import Scenario
 from inertia_id.pipelines import TrainRequest, train_for_sequence
 from service.params import SearchParams
-from service.store import ClassifierRow, MetricRow
+from service.store import ClassifierRow, Database, MetricRow
 from service.store.jobs import cancel
 from service.store.models import JobRow, utcnow
 from worker.context import TIME_LIMIT_GRACE_S
@@ -545,3 +545,47 @@ def test_a_cancel_flag_or_progress_the_database_cannot_take_is_logged_once_an_ep
     assert sum("its cancel flag is read again" in m for m in messages) == 2, messages
     assert sum("progress is stored again" in m for m in messages) == 2, messages
     assert store.job(job_id).progress == 0.6
+
+
+def test_a_session_opened_while_postgresql_was_read_only_writes_once_it_is_writable_again(
+    store: Store, caplog: pytest.LogCaptureFixture
+) -> None:
+    # A PostgreSQL session keeps the default_transaction_read_only it started with
+    # (ALTER DATABASE ... SET): before, a run whose pooled connection was opened while the
+    # database was read-only had every heartbeat refused after the setting was reset,
+    # while the sessions opened before wrote on, so another worker's reaper re-queued the
+    # live run as "heartbeat missed" (and its outcome was refused too).
+    url = make_url(store.settings.resolved_database_url)
+    if not url.drivername.startswith("postgresql"):
+        pytest.skip("a PostgreSQL session's own read-only default")
+    job_id = store.add_job(status="running", worker=WORKER, attempts=1)
+    run_db = Database(store.settings.resolved_database_url)  # the run's own, as a worker's
+    context = JobContext(_spec(store, job_id, attempt=1), run_db, store.settings, WORKER)
+    admin = create_engine(POSTGRES_ADMIN_URL, isolation_level="AUTOCOMMIT")
+
+    def beat_stored() -> bool:
+        # Through the test's own session, opened before: writable throughout.
+        with store.db.session() as session:
+            session.execute(update(JobRow).where(JobRow.id == job_id).values(heartbeat_at=None))
+        context.tick()
+        return store.job(job_id).heartbeat_at is not None
+
+    try:
+        with admin.connect() as connection:
+            connection.execute(
+                text(f'ALTER DATABASE "{url.database}" SET default_transaction_read_only = on')
+            )
+        run_db.engine.dispose()  # the run's next connection starts read-only
+        with caplog.at_level(logging.WARNING):
+            assert not beat_stored()
+            assert "heartbeat not stored: the database refuses writes (read-only)" in caplog.text
+    finally:
+        with admin.connect() as connection:
+            connection.execute(
+                text(f'ALTER DATABASE "{url.database}" RESET default_transaction_read_only')
+            )
+        admin.dispose()
+    try:
+        assert beat_stored()  # before: refused for the life of the pooled session
+    finally:
+        run_db.dispose()
