@@ -360,6 +360,13 @@ _FRONT_FIGURES = (
     "accuracy",
     "final_rate_rad_s",
     "final_rate_deg_s",
+    # The part of the residual the sequence itself leaves (the plan's prediction from
+    # rest), mean and worst candidate: beside an initial-rate spread the figures around
+    # it carry |ω(0)|, which no sequence removes (empty for a front stored before it).
+    "commanded_residual_rate_rad_s",
+    "commanded_residual_rate_deg_s",
+    "commanded_residual_rate_max_rad_s",
+    "commanded_residual_rate_max_deg_s",
     # What a residual-rate bound is held to: the candidate that ends fastest.
     "final_rate_max_rad_s",
     "final_rate_max_deg_s",

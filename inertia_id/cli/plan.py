@@ -158,6 +158,17 @@ def plan_cmd(
         f"{summary['residual_rate_max_rad_s']:.4f} rad/s "
         f"({summary['residual_rate_max_deg_s']:.3f} deg/s)"
         + (
+            # The prediction starts from rest: beside an initial-rate spread, say so and
+            # what the spread adds to every flight.
+            ", commanded (from rest: commanded_residual_rate_max); every flight also keeps "
+            "the rate it started with, which no open-loop sequence removes: "
+            f"{floor['mean_rad_s']:.4f} rad/s ({floor['mean_deg_s']:.3f} deg/s) on average, "
+            f"{floor['p95_rad_s']:.4f} rad/s ({floor['p95_deg_s']:.3f} deg/s) on 95 % of "
+            f"flights (initial_rate_sigma_rad_s = {floor['initial_rate_sigma_rad_s']:g})"
+            if (floor := summary["initial_rate_floor"]) is not None
+            else ""
+        )
+        + (
             f"; over {flights} flights a candidate: at least 95 % of flights end under "
             f"{summary['flights']['residual_rate_p95_bound_max_rad_s']:.4f} rad/s "
             f"({summary['flights']['residual_rate_p95_bound_max_deg_s']:.3f} deg/s) with 95 % "

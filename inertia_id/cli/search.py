@@ -486,7 +486,8 @@ def search_cmd(
     )
     click.echo(
         f"front on fresh draws (accuracy at each design noise, {how} | residual rate once "
-        "the lag is empty, mean and worst candidate | impulse):",
+        "the lag is empty, mean and worst candidate; the part the commands leave, from rest "
+        "| impulse):",
         err=True,
     )
     for member in front.get("members", []):
@@ -502,6 +503,13 @@ def search_cmd(
             + "/".join(f"{a:.3f}" for a in scores["accuracy_by_noise"])
             + f" | {scores['final_rate_rad_s']:.4f} rad/s ({scores['final_rate_deg_s']:.2f} deg/s)"
             + f", worst {scores['final_rate_max_rad_s']:.4f}"
+            + (
+                f"; commanded (from rest) {scores['commanded_residual_rate_rad_s']:.4f} rad/s "
+                f"({scores['commanded_residual_rate_deg_s']:.2f} deg/s), worst "
+                f"{scores['commanded_residual_rate_max_rad_s']:.4f}"
+                if scores.get("commanded_residual_rate_rad_s") is not None
+                else ""
+            )
             + (
                 f"; >= 95 % of flights under {scores['final_rate_p95_rad_s']:.4f} rad/s "
                 f"({scores['final_rate_p95_deg_s']:.3f} deg/s), 95 % conf."

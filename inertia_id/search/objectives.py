@@ -620,6 +620,10 @@ def check_constraints(constraints: Any, scenario: Any = None) -> dict[str, float
     return out
 
 
+def _deg_or_none(rad_s: float | None) -> float | None:
+    return None if rad_s is None else rad_s * _DEG
+
+
 @dataclass(frozen=True)
 class SequenceScores:
     """What an operator asks of one sequence, on one noise draw.
@@ -643,6 +647,16 @@ class SequenceScores:
         of :data:`FRONT_FLIGHTS` flights of its own, whatever the distribution; on a
         search's draw, the normal proxy from its realisations. What the
         ``max_final_rate_p95`` constraints bound. None in scores stored before it.
+    :param commanded_residual_rate_rad_s: the part of the residual rate the sequence
+        itself leaves: the command plan's noise-free prediction from rest (ω(0) = 0, no
+        disturbance, duty jitter or thrust-scale error), mean over candidates. Beside a
+        scenario's initial-rate spread (``initial_rate_sigma_rad_s``) the ``final_rate``
+        figures include |ω(0)|, which no open-loop sequence removes (its mean 1.60 σ):
+        when that floor dominates, this figure tells a sequence that brakes from one
+        that does not. Reported only: no constraint or objective reads it (the
+        ``max_final_rate`` bounds hold the total). None in scores stored before it.
+    :param commanded_residual_rate_max_rad_s: the same, of the candidate the commands
+        leave fastest. None in scores stored before it.
     :param peak_rate_rad_s: the largest |ω| during the sequence or after it, while the
         lag delivers the torque still in it, of the candidate that spins fastest: the
         larger of the mean over realisations and the plan's prediction.
@@ -677,6 +691,8 @@ class SequenceScores:
     predicted_accuracy_by_noise: list[float] | None = None
     final_rate_p95_rad_s: float | None = None
     peak_rate_p95_rad_s: float | None = None
+    commanded_residual_rate_rad_s: float | None = None
+    commanded_residual_rate_max_rad_s: float | None = None
 
     @property
     def final_rate_deg_s(self) -> float:
@@ -729,6 +745,12 @@ class SequenceScores:
             "final_rate_p95_deg_s": None
             if self.final_rate_p95_rad_s is None
             else self.final_rate_p95_rad_s * _DEG,
+            "commanded_residual_rate_rad_s": self.commanded_residual_rate_rad_s,
+            "commanded_residual_rate_deg_s": _deg_or_none(self.commanded_residual_rate_rad_s),
+            "commanded_residual_rate_max_rad_s": self.commanded_residual_rate_max_rad_s,
+            "commanded_residual_rate_max_deg_s": _deg_or_none(
+                self.commanded_residual_rate_max_rad_s
+            ),
             "peak_rate_rad_s": self.peak_rate_rad_s,
             "peak_rate_deg_s": self.peak_rate_deg_s,
             "peak_rate_p95_rad_s": self.peak_rate_p95_rad_s,

@@ -312,9 +312,11 @@ class OperatorScorer:
         # torque still in it when the last command ends (else braking in the last step
         # would look 0.005 rad/s worse than braking a step earlier and coasting).
         settled = self.simulator.settled(end)  # (P, K, n): each realisation's residual
-        final_by_candidate = np.maximum(  # (P, K)
-            settled.mean(axis=2), self.nominal.settled(planned_end)[:, :, 0]
-        )
+        # The plan's prediction starts from rest with every noise off: what the commands
+        # themselves leave, reported beside the total (which carries |ω(0)|, a floor no
+        # open-loop sequence removes).
+        commanded = self.nominal.settled(planned_end)[:, :, 0]  # (P, K)
+        final_by_candidate = np.maximum(settled.mean(axis=2), commanded)  # (P, K)
         # Single flights spread around that mean: a rate at least 95 % of them stay
         # under, with 95 % confidence.
         p95_by_candidate = np.maximum(per_flight_bound(settled, axis=2), final_by_candidate)
@@ -346,6 +348,8 @@ class OperatorScorer:
                     final_rate_rad_s=float(final_by_candidate[i].mean()),
                     final_rate_max_rad_s=float(final_by_candidate[i].max()),
                     final_rate_p95_rad_s=float(p95_by_candidate[i].max()),
+                    commanded_residual_rate_rad_s=float(commanded[i].mean()),
+                    commanded_residual_rate_max_rad_s=float(commanded[i].max()),
                     peak_rate_rad_s=float(peak[i]),
                     peak_rate_p95_rad_s=max(float(peak_p95[i]), float(peak[i])),
                     impulse_nms=scenario.impulse_nms(sequence),

@@ -45,6 +45,7 @@ from .objectives import (
     QUANTILE_METHOD,
     flight_peaks,
     flight_quantile,
+    initial_rate_floor,
     per_flight_bound,
 )
 
@@ -148,6 +149,24 @@ class CommandPlan:
     #: What the plan found doubtful but did not refuse (rates far below the gyro noise:
     #: :func:`~inertia_id.physics.simulate.weak_response_warning`).
     warnings: list[str] = field(default_factory=list)
+    #: The scenario's initial-rate spread (σ a body axis, rad/s): a flight's residual
+    #: carries |ω(0)|, which the nominal prediction (from rest) leaves out.
+    initial_rate_sigma_rad_s: float = 0.0
+
+    def _floor(self) -> dict[str, float] | None:
+        """What the initial-rate spread alone leaves (:func:`~inertia_id.search.
+        objectives.initial_rate_floor`), rad/s and deg/s; None for a scenario at rest."""
+        sigma = self.initial_rate_sigma_rad_s
+        if not sigma > 0.0:
+            return None
+        floor = initial_rate_floor(sigma)
+        return {
+            "initial_rate_sigma_rad_s": sigma,
+            "mean_rad_s": floor["mean"],
+            "mean_deg_s": floor["mean"] * _DEG,
+            "p95_rad_s": floor["p95"],
+            "p95_deg_s": floor["p95"] * _DEG,
+        }
 
     def to_dict(self) -> dict[str, Any]:
         rates = np.asarray(self.rates_rad_s)
@@ -181,6 +200,10 @@ class CommandPlan:
                     "rates_deg_s": (rates[k] * _DEG).tolist(),
                     "residual_rate_rad_s": float(residual[k]),
                     "residual_rate_deg_s": float(residual[k] * _DEG),
+                    # The nominal prediction starts from rest: its residual is the part
+                    # the commands leave, named so beside a flight's total.
+                    "commanded_residual_rate_rad_s": float(residual[k]),
+                    "commanded_residual_rate_deg_s": float(residual[k] * _DEG),
                     "end_rate_rad_s": self.end_rate_rad_s[k],
                     "end_rate_deg_s": self.end_rate_rad_s[k] * _DEG,
                     "peak_rate_rad_s": self.peak_rate_rad_s[k],
@@ -196,6 +219,9 @@ class CommandPlan:
             "flights": None if self.dispersion is None else self.dispersion.summary(),
             "residual_rate_max_rad_s": float(residual.max()),
             "residual_rate_max_deg_s": float(residual.max() * _DEG),
+            "commanded_residual_rate_max_rad_s": float(residual.max()),
+            "commanded_residual_rate_max_deg_s": float(residual.max() * _DEG),
+            "initial_rate_floor": self._floor(),
             "peak_rate_max_rad_s": float(max(self.peak_rate_rad_s)),
             "peak_rate_max_deg_s": float(max(self.peak_rate_rad_s) * _DEG),
             "attitude_quaternion_convention": "(w, x, y, z), scalar first: rotates "
@@ -204,7 +230,12 @@ class CommandPlan:
             "still in it when the last command ends (what the spacecraft keeps); "
             "end_rate is |ω| at that moment; peak_rate is the largest |ω| at the gyro's "
             "samples or once settled (between samples it can be a few tenths of a percent "
-            "higher)",
+            "higher); the prediction starts from rest with every noise off, so "
+            "residual_rate is the commanded residual (commanded_residual_rate: what the "
+            "sequence itself leaves); a flight's residual (flights) adds the rate it "
+            "started with, |ω(0)|, which no open-loop sequence removes (initial_rate_floor: "
+            "its mean and the rate 95 % of flights' |ω(0)| stay under, for the scenario's "
+            "initial_rate_sigma_rad_s; null when the scenario starts at rest)",
             "propellant": {
                 "on_time_per_thruster_s": self.on_time_per_thruster_s,
                 "on_time_s": float(np.sum(self.on_time_per_thruster_s)),
@@ -231,6 +262,16 @@ class CommandPlan:
         out.write(f"# on_time_s: {propellant['on_time_s']:.6g}\n")
         kg = self.propellant_kg
         out.write(f"# propellant_kg: {'' if kg is None else f'{kg:.6g}'}\n")
+        floor = document["initial_rate_floor"]
+        if floor is not None:
+            out.write(
+                "# initial_rate_floor: initial_rate_sigma_rad_s "
+                f"{floor['initial_rate_sigma_rad_s']:g}"
+                f"; mean_rad_s {floor['mean_rad_s']:.6g}; mean_deg_s {floor['mean_deg_s']:.6g}"
+                f"; p95_rad_s {floor['p95_rad_s']:.6g}; p95_deg_s {floor['p95_deg_s']:.6g}"
+                " (|omega(0)|, in every flight's residual, removed by no open-loop sequence; the "
+                "residual rates below start from rest: the commanded part)\n"
+            )
         if self.dispersion is not None:
             summary = document["flights"]
             out.write(
@@ -253,6 +294,8 @@ class CommandPlan:
                 f"# candidate_{k} {csv_note_text(candidate['name'])}: residual_rate_rad_s "
                 f"{candidate['residual_rate_rad_s']:.6g}"
                 f", residual_rate_deg_s {candidate['residual_rate_deg_s']:.6g}"
+                f", commanded_residual_rate_rad_s {candidate['commanded_residual_rate_rad_s']:.6g}"
+                f", commanded_residual_rate_deg_s {candidate['commanded_residual_rate_deg_s']:.6g}"
                 f", end_rate_rad_s {candidate['end_rate_rad_s']:.6g}"
                 f", end_rate_deg_s {candidate['end_rate_deg_s']:.6g}"
                 f", peak_rate_rad_s {candidate['peak_rate_rad_s']:.6g}"
@@ -419,4 +462,5 @@ def command_plan(
             else None
         ),
         warnings=[] if weak is None else [weak],
+        initial_rate_sigma_rad_s=float(scenario.uncertainty.initial_rate_sigma_rad_s),
     )

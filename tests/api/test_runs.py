@@ -458,6 +458,11 @@ def test_a_front_downloads_as_csv_its_members_plan_by_index_and_a_member_trains(
             "peak_rate_deg_s",
             "peak_rate_p95_rad_s",
             "peak_rate_p95_deg_s",
+            # The part of the residual the commands leave (from rest), mean and worst.
+            "commanded_residual_rate_rad_s",
+            "commanded_residual_rate_deg_s",
+            "commanded_residual_rate_max_rad_s",
+            "commanded_residual_rate_max_deg_s",
         ):
             assert float(row[column[figure]]) == member["scores"][figure]
         assert member["scores"]["final_rate_p95_rad_s"] >= member["scores"]["final_rate_max_rad_s"]

@@ -131,6 +131,22 @@ def test_a_best_sequence_that_breaks_a_bound_is_flagged_in_the_listing(tmp_path:
     assert f"{scores['impulse_nms']:.3g} N m s" in line
 
 
+def test_the_search_listing_gives_the_commanded_residual_beside_the_total(tmp_path: Path) -> None:
+    # On a scenario that draws an initial rate the residual carries its floor; the part
+    # the commands leave is listed beside it, rad/s and deg/s, mean and worst candidate.
+    doc, result = _random_search(
+        tmp_path / "s.json", 8, 10, "--preset", "paper-in-orbit", "--fresh-test-series", "0"
+    )
+    scores = doc["front"]["members"][0]["scores"]
+    line = next(x for x in result.output.splitlines() if x.strip().startswith("#0 "))
+    assert (
+        f"commanded (from rest) {scores['commanded_residual_rate_rad_s']:.4f} rad/s "
+        f"({scores['commanded_residual_rate_deg_s']:.2f} deg/s), worst "
+        f"{scores['commanded_residual_rate_max_rad_s']:.4f}"
+    ) in line
+    assert scores["commanded_residual_rate_max_rad_s"] <= scores["final_rate_max_rad_s"]
+
+
 def _search_document(sequence: list[list[int]], scenario: dict[str, Any]) -> dict[str, Any]:
     """The parts of a search JSON that ``plan --search`` reads."""
     member = {"index": 0, "sequence": sequence}
@@ -243,6 +259,35 @@ def test_plan_flies_the_sequence_when_asked(runner: CliRunner, tmp_path: Path) -
     refused = runner.invoke(main, ["plan", "--sequence", sequence, "--flights", "1"])
     assert refused.exit_code != 0
     assert "flights must be 0 (none) or an integer in 2..100000, got 1" in refused.output
+
+
+def test_plan_names_the_commanded_residual_beside_the_initial_rate_floor(tmp_path: Path) -> None:
+    # paper-in-orbit draws an initial rate (σ 0.005 rad/s an axis): every flight keeps
+    # |ω(0)|, 0.0080 rad/s on average, which the plan's prediction from rest leaves out;
+    # the plan said "largest residual rate 0.0004 rad/s" with no word of either.
+    sequence = "4,4,4,0,0,0;0,0,0,4,4,4"
+    plan, result = run_cli_json(
+        ["plan", "--preset", "paper-in-orbit", "--sequence", sequence, "--flights", "60"],
+        tmp_path / "p.json",
+    )
+    commanded = plan["commanded_residual_rate_max_rad_s"]
+    assert commanded < 0.001 and commanded == plan["residual_rate_max_rad_s"]
+    floor = plan["initial_rate_floor"]
+    assert floor["mean_rad_s"] == pytest.approx(0.0079788, rel=1e-4)
+    assert f"largest residual rate {commanded:.4f} rad/s" in result.output
+    assert "commanded (from rest: commanded_residual_rate_max)" in result.output
+    assert f"{floor['mean_rad_s']:.4f} rad/s ({floor['mean_deg_s']:.3f} deg/s) on average" in (
+        result.output
+    )
+    # The flights carry the floor: their mean residual is about it, the commands' part not.
+    for candidate in plan["candidates"]:
+        assert candidate["commanded_residual_rate_rad_s"] < 0.1 * floor["mean_rad_s"]
+        assert candidate["flights"]["residual_rate_mean_rad_s"] > 0.7 * floor["mean_rad_s"]
+    out = tmp_path / "p.csv"
+    run_cli(["plan", "--preset", "paper-in-orbit", "--sequence", sequence, "--out", str(out)])
+    text = out.read_text()
+    assert "# initial_rate_floor: initial_rate_sigma_rad_s 0.005; mean_rad_s 0.00797885" in text
+    assert ", commanded_residual_rate_rad_s " in text and ", commanded_residual_rate_deg_s " in text
 
 
 @pytest.mark.parametrize(

@@ -1181,3 +1181,60 @@ def test_a_search_none_of_whose_sequences_met_the_constraints_says_how_near_they
     )
     assert nearest is not None, message
     assert float(nearest[1]) >= 0.6 and int(nearest[2]) >= 1 and int(nearest[4]) >= 1
+
+
+def test_a_front_member_that_brakes_reports_its_commanded_residual_beside_the_floor() -> None:
+    # With an initial-rate spread every member's residual carries |ω(0)| (mean 1.60 σ),
+    # which no open-loop sequence removes: a sequence that fires and brakes read about
+    # the floor, as the all-off one did, and nothing told them apart. The part the
+    # commands leave (the plan's prediction from rest) is reported beside it.
+    scenario = preset("paper-in-orbit")
+    sigma = scenario.uncertainty.initial_rate_sigma_rad_s
+    floor = initial_rate_floor(sigma)["mean"]
+    result = pareto_search(
+        scenario,
+        sequence_length=2,
+        seed=4,
+        operator=OperatorSettings(
+            objectives=("accuracy", "final_rate", "impulse"), n_realisations=6
+        ),
+        nsga2_params={"population": 12, "generations": 3},
+        fresh_realisations=10,
+    )
+    front = result.front
+    assert front is not None
+    braking = front["baselines"]["fire-then-brake"]
+    assert braking["sequence"] == [[4, 4, 4, 0, 0, 0], [0, 0, 0, 4, 4, 4]]
+    fired_and_braked = [m["scores"] for m in front["members"] if m["scores"]["impulse_nms"] > 0] + [
+        braking["scores"]
+    ]
+    stopped = [s for s in fired_and_braked if s["commanded_residual_rate_max_rad_s"] < 0.05 * floor]
+    assert len(stopped) >= 2  # the baseline and at least one member
+    for scores in stopped:
+        # Its total is about the floor (10 fresh realisations a candidate), the part the
+        # commands leave a few hundredths of it, in both units.
+        assert 0.7 * floor < scores["final_rate_rad_s"] < 1.3 * floor
+        assert (
+            scores["commanded_residual_rate_rad_s"] <= scores["commanded_residual_rate_max_rad_s"]
+        )
+        assert scores["commanded_residual_rate_deg_s"] == pytest.approx(
+            np.degrees(scores["commanded_residual_rate_rad_s"])
+        )
+    # A member that fires without braking fully is told apart: its commanded residual
+    # is most of its total.
+    spinning = [s for s in fired_and_braked if s["final_rate_rad_s"] > 3 * floor]
+    assert spinning
+    for scores in spinning:
+        assert scores["commanded_residual_rate_rad_s"] > 0.8 * scores["final_rate_rad_s"]
+    # The command plan of the braking sequence says the same, and the floor beside it.
+    plan = command_plan(scenario, braking["sequence"]).to_dict()
+    assert plan["commanded_residual_rate_max_rad_s"] == pytest.approx(
+        braking["scores"]["commanded_residual_rate_max_rad_s"]
+    )
+    assert plan["initial_rate_floor"]["mean_rad_s"] == pytest.approx(floor)
+    for candidate in plan["candidates"]:
+        assert candidate["commanded_residual_rate_rad_s"] == candidate["residual_rate_rad_s"]
+    # A scenario that starts at rest states no floor.
+    assert (
+        command_plan(preset("paper"), braking["sequence"]).to_dict()["initial_rate_floor"] is None
+    )
