@@ -2228,6 +2228,50 @@ def test_a_plan_and_a_training_far_below_the_gyro_noise_show_the_services_warnin
     dashboard.screenshot("train-warnings")
 
 
+def test_a_front_on_a_scenario_with_an_initial_rate_shows_the_commanded_residual(
+    dashboard: Dashboard,
+) -> None:
+    """With an initial-rate spread (paper-in-orbit) a member's residual carries |ω(0)|,
+    which no sequence removes; the front's table gives the part the commands leave
+    beside it (rad/s and deg/s), and the member's plan names its prediction from rest
+    as that part, the flights' mean with ω(0) beside it and the floor in its note."""
+    page = dashboard.page
+    created = dashboard.service.client.post("/scenarios", json={"preset": "paper-in-orbit"})
+    assert created.status_code == 201, created.text
+    job = _finished_search(dashboard, TWO_RANDOM, "in orbit", created.json()["id"])
+    member = job["result"]["front"]["members"][0]
+    dashboard.open(f"#/jobs/{job['id']}")
+    page.wait_for_selector("#front-plan-table", timeout=60_000)
+    heads = page.eval_on_selector_all(
+        "#front-table thead th", "cells => cells.map((c) => c.textContent)"
+    )
+    assert heads.index("commanded residual, from rest (rad/s)") == (
+        heads.index("commanded residual, from rest (deg/s)") + 1
+    )
+    stored, written = _cells(dashboard, "#front-table")[0], _texts(dashboard, "#front-table")[0]
+    for key in ("commanded_residual_rate_rad_s", "commanded_residual_rate_deg_s"):
+        assert float(stored[key]) == member["scores"][key]
+        _shows(written[key], member["scores"][key])
+
+    plan = dashboard.service.client.get(
+        f"/jobs/{job['id']}/plan", params={"member": member["index"], "flights": 200}
+    ).json()
+    heads = page.eval_on_selector_all(
+        "#front-plan-table thead th", "cells => cells.map((c) => c.textContent)"
+    )
+    assert "commanded residual, from rest (rad/s)" in heads
+    assert "mean of the 200 flights, ω(0) included (rad/s)" in heads
+    rows = _cells(dashboard, "#front-plan-table")
+    for row, candidate in zip(rows, plan["candidates"], strict=True):
+        assert float(row["residual_rate_rad_s"]) == candidate["commanded_residual_rate_rad_s"]
+        mean = candidate["flights"]["residual_rate_mean_rad_s"]
+        assert float(row["flights_residual_rate_mean_rad_s"]) == mean
+    floor = plan["initial_rate_floor"]
+    note = page.inner_text("#front-plan-table >> xpath=../preceding-sibling::p[1]")
+    assert "which no open-loop sequence removes" in note, note
+    assert f"({floor['mean_rad_s']:.3g} rad/s) on average over flights" in note, note
+
+
 def _twins_follow(
     dashboard: Dashboard, plot_id: str, pairs: list[tuple[str, str]], factor: float
 ) -> None:

@@ -39,6 +39,11 @@ function figures(hasPropellant) {
     ["accuracy", "accuracy", score],
     ["final_rate_deg_s", "residual rate (deg/s)", quantity],
     ["final_rate_rad_s", "residual rate (rad/s)", quantity],
+    // The part of it the sequence itself leaves (the plan's prediction from rest, mean
+    // over candidates): beside an initial-rate spread the residual carries |ω(0)|, which
+    // no sequence removes, and would hide whether a sequence brakes.
+    ["commanded_residual_rate_deg_s", "commanded residual, from rest (deg/s)", quantity],
+    ["commanded_residual_rate_rad_s", "commanded residual, from rest (rad/s)", quantity],
     // What a residual-rate bound acts on: the candidate that ends fastest.
     ["final_rate_max_deg_s", "worst candidate's residual (deg/s)", quantity],
     ["final_rate_max_rad_s", "worst candidate's residual (rad/s)", quantity],
@@ -432,6 +437,13 @@ async function showMember(holder, job, member, context) {
   await whenKeyed(plan, "The member's command plan", () => drawPlan(plan, planDownloads, job, member, context, (flights) => (flown = flights)));
 }
 
+// What the scenario's initial-rate spread adds to every flight's residual (the plan's
+// `initial_rate_floor`), or nothing for a scenario that starts at rest.
+function floorText(floor) {
+  if (!floor) return "";
+  return `The residual predicted here starts from rest: what the commands leave. Every flight also keeps the rate it started with (the scenario's initial-rate spread, σ ${quantity(floor.initial_rate_sigma_rad_s)} rad/s an axis), which no open-loop sequence removes: ${quantity(floor.mean_deg_s)} deg/s (${quantity(floor.mean_rad_s)} rad/s) on average over flights, ${quantity(floor.p95_deg_s)} deg/s (${quantity(floor.p95_rad_s)} rad/s) on 95 % of them. `;
+}
+
 // The member's command plan as a table, per candidate; `flewWith(flights)` learns how
 // many flights the service flew (the downloads fly as many).
 async function drawPlan(plan, planDownloads, job, member, context, flewWith) {
@@ -448,10 +460,14 @@ async function drawPlan(plan, planDownloads, job, member, context, flewWith) {
     // and the rate at least 95 % of all flights stay under with 95 % confidence (the
     // figure a front's per-flight bound reads).
     const columns = [
-      ["residual_rate_deg_s", "residual rate (deg/s)"],
-      ["residual_rate_rad_s", "residual rate (rad/s)"],
+      // The nominal prediction starts from rest: its residual is the commanded one.
+      ["residual_rate_deg_s", "commanded residual, from rest (deg/s)"],
+      ["residual_rate_rad_s", "commanded residual, from rest (rad/s)"],
       ...(spread
         ? [
+            // A flight's total: it adds the rate the flight started with.
+            ["flights_residual_rate_mean_deg_s", `mean of the ${spread.flights_per_candidate} flights, ω(0) included (deg/s)`],
+            ["flights_residual_rate_mean_rad_s", `mean of the ${spread.flights_per_candidate} flights, ω(0) included (rad/s)`],
             ["flights_residual_rate_p95_deg_s", `95th percentile of the ${spread.flights_per_candidate} flights (deg/s)`],
             ["flights_residual_rate_p95_rad_s", `95th percentile of the ${spread.flights_per_candidate} flights (rad/s)`],
             ["flights_residual_rate_p95_bound_deg_s", "residual, ≥ 95 % of flights under, 95 % conf. (deg/s)"],
@@ -478,7 +494,7 @@ async function drawPlan(plan, planDownloads, job, member, context, flewWith) {
       // A plan the service found doubtful (its rates far below the gyro noise: an
       // inertia typed in kg mm² as kg m², say) says so above its figures.
       warningsBox(document.warnings, "front-plan-warnings"),
-      h("p", { class: "hint" }, `Predicted with every noise off: the residual rate once the actuation lag has delivered the torque still in it when the last command ends (the rate at that moment beside it), the peak rate (the largest at a gyro sample or once settled), and the rotation the body makes over its ${document.duration_s} s (quaternion kinematics of the predicted rates).${spread ? ` Single flights spread around that: the sequence flown ${spread.flights_per_candidate} times a candidate at the scenario's noise (seed ${spread.seed}); their 95th percentile, a rate at least 95 % of all flights stay under with 95 % confidence, and the fastest; and a peak rate at least 95 % of flights stay under, with 95 % confidence.` : " Too long to fly many times within one request: the nominal prediction alone."} Impulse ${quantity(document.propellant.impulse_nms)} N m s, on-time ${quantity(document.propellant.on_time_s)} s${document.propellant.propellant_kg === null ? "" : `, propellant ${quantity(document.propellant.propellant_kg)} kg`}.`),
+      h("p", { class: "hint" }, `Predicted with every noise off: the residual rate once the actuation lag has delivered the torque still in it when the last command ends (the rate at that moment beside it), the peak rate (the largest at a gyro sample or once settled), and the rotation the body makes over its ${document.duration_s} s (quaternion kinematics of the predicted rates).${spread ? ` Single flights spread around that: the sequence flown ${spread.flights_per_candidate} times a candidate at the scenario's noise (seed ${spread.seed}); their 95th percentile, a rate at least 95 % of all flights stay under with 95 % confidence, and the fastest; and a peak rate at least 95 % of flights stay under, with 95 % confidence.` : " Too long to fly many times within one request: the nominal prediction alone."} ${floorText(document.initial_rate_floor)}Impulse ${quantity(document.propellant.impulse_nms)} N m s, on-time ${quantity(document.propellant.on_time_s)} s${document.propellant.propellant_kg === null ? "" : `, propellant ${quantity(document.propellant.propellant_kg)} kg`}.`),
       h(
         "div",
         // Focusable, so a keyboard user can scroll a table wider than the page.
