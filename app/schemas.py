@@ -217,6 +217,13 @@ class ScenarioResponse(BaseModel):
     seed: int
     impulse_nms: float = Field(description="commanded angular impulse (fuel), N m s")
     candidates: list[CandidateResponse]
+    warnings: list[str] = Field(
+        default_factory=list,
+        description="what the service found doubtful but did not refuse, as a plan's and a "
+        "training's warnings: a sequence whose nominal prediction peaks at least 100 times "
+        "below the gyro's white noise (its responses are noise to a classifier); empty when "
+        "nothing is doubtful",
+    )
 
 
 def _printable(value: str) -> str:

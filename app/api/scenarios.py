@@ -24,6 +24,7 @@ from inertia_id.physics.simulate import (
     check_nominal_gyro_range,
     settled_rates,
     simulate,
+    weak_response_warning,
 )
 from service.exports import note_lines, plan_notes
 from service.store.models import ClassifierRow, JobRow, ScenarioRow, utcnow
@@ -336,9 +337,12 @@ def _response(
         # true rate at every integration step and once the lag has emptied, so the two
         # refuse a sequence alike (this route checked only its gyro samples: 94 rad/s
         # answered where the plan refused 105 once the lag emptied).
-        check_nominal_gyro_range(scenario, steps)
+        nominal = check_nominal_gyro_range(scenario, steps)
     except SimulationOverflow as exc:
         unprocessable(("query", "sequence"), str(exc))
+    # The plan's and the training's warning on the same prediction: the search page's
+    # best-sequence charts and the classifier page draw this response.
+    weak = weak_response_warning(scenario, steps, nominal)
     try:
         result = simulate(scenario, steps, n_realisations, np.random.default_rng(seed))
         # And the realisations shown, with their lag's tails, as a plan checks its flights.
@@ -376,6 +380,7 @@ def _response(
             )
             for k, name in enumerate(scenario.candidate_names)
         ],
+        warnings=[] if weak is None else [weak],
     )
 
 

@@ -485,3 +485,32 @@ def test_a_plan_far_below_the_gyro_noise_says_so_in_its_warnings(api: Api) -> No
     paper_id = api.post("/scenarios", json={"preset": "paper"}).json()["id"]
     plain = api.get_with_key(f"/scenarios/{paper_id}/plan", params={"sequence": sequence})
     assert plain.json()["warnings"] == []
+
+
+def test_a_response_far_below_the_gyro_noise_says_so_in_its_warnings(api: Api) -> None:
+    # The search page's best-sequence charts and the classifier page draw this response:
+    # with inertia typed in kg mm^2 as kg m^2 they drew noise without a word, where the
+    # plan of the same sequence warned.
+    paper = api.post("/scenarios", json={"preset": "paper"}).json()["document"]
+    candidates = [
+        {**c, "inertia_kg_m2": [[v * 1e6 for v in row] for row in c["inertia_kg_m2"]]}
+        for c in paper["inertia_candidates"]
+    ]
+    overrides = {"name": "mm", "inertia_candidates": candidates}
+    scenario_id = api.post("/scenarios", json={"preset": "paper", "overrides": overrides}).json()[
+        "id"
+    ]
+    query = {"sequence": json.dumps([[4, 4, 4, 0, 0, 0]] * 2), "n_realisations": 4}
+    response = api.get_with_key(f"/scenarios/{scenario_id}/response", params=query)
+    assert response.status_code == 200, response.text
+    (warning,) = response.json()["warnings"]
+    assert "peak at 1.02e-07 rad/s" in warning and "by 9.83e+03x" in warning
+    assert "kg mm^2 typed as kg m^2" in warning
+    # The plan's text, word for word.
+    plan = api.get_with_key(
+        f"/scenarios/{scenario_id}/plan", params={"sequence": query["sequence"]}
+    )
+    assert plan.json()["warnings"] == [warning]
+    paper_id = api.post("/scenarios", json={"preset": "paper"}).json()["id"]
+    plain = api.get_with_key(f"/scenarios/{paper_id}/response", params=query)
+    assert plain.status_code == 200 and plain.json()["warnings"] == []

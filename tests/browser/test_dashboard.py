@@ -2272,6 +2272,59 @@ def test_a_front_on_a_scenario_with_an_initial_rate_shows_the_commanded_residual
     assert f"({floor['mean_rad_s']:.3g} rad/s) on average over flights" in note, note
 
 
+def test_the_best_sequence_and_a_classifier_far_below_the_gyro_noise_show_the_responses_warning(
+    dashboard: Dashboard,
+) -> None:
+    """The search page's best-sequence charts and the classifier page, both drawn from
+    the sequence's simulated response, say its ``warnings`` in an amber notice (they drew
+    noise without a word where the member's plan and the training warned); the training
+    job's page, which says the training's warning, does not say it twice."""
+    page = dashboard.page
+    service = dashboard.service
+    scenario_id = _inertia_in_mm2(dashboard)
+    job = _finished_search(dashboard, TWO_RANDOM, "too heavy to see, best", scenario_id)
+    best = job["result"]["best"]["sequence"]
+    response = service.client.get(
+        f"/scenarios/{scenario_id}/response",
+        params={"sequence": json.dumps(best), "n_realisations": 20, "seed": job["seed"]},
+    ).json()
+    assert response["warnings"] and "kg mm^2 typed as kg m^2" in response["warnings"][0]
+    dashboard.open(f"#/jobs/{job['id']}")
+    shown = _warnings_shown(dashboard, "#best-response-warnings")
+    assert shown == [f"Warning: {w}" for w in response["warnings"]]
+    page.wait_for_selector("#response-plot")
+    assert axe_violations(dashboard) == []
+
+    submitted = service.client.post(
+        "/jobs",
+        json={"type": "train", "scenario_id": scenario_id, "seed": 1, "params": {"sequence": best}},
+    )
+    assert submitted.status_code in (200, 202), submitted.text
+    train_id = submitted.json()["id"]
+    trained = service.until(
+        lambda: (j := service.job(train_id))["status"] in TERMINAL and j, 300, "the training"
+    )
+    assert trained["status"] == "succeeded", trained["error"]
+    classifier = trained["result"]["classifier_id"]
+    details = service.client.get(f"/classifiers/{classifier}").json()
+    response = service.client.get(
+        f"/scenarios/{scenario_id}/response",
+        params={"sequence": json.dumps(details["sequence"]), "n_realisations": 20},
+    ).json()
+    assert response["warnings"]
+    dashboard.open(f"#/classifiers/{classifier}")
+    shown = _warnings_shown(dashboard, "#classifier-response-warnings")
+    assert shown == [f"Warning: {w}" for w in response["warnings"]]
+    assert axe_violations(dashboard) == []
+    dashboard.screenshot("classifier-response-warnings")
+
+    # The training's page: its own warning, once.
+    dashboard.open(f"#/jobs/{train_id}")
+    page.wait_for_selector("#classifier-response")
+    _warnings_shown(dashboard, "#train-warnings")
+    assert page.query_selector("#classifier-response-warnings") is None
+
+
 def _twins_follow(
     dashboard: Dashboard, plot_id: str, pairs: list[tuple[str, str]], factor: float
 ) -> None:

@@ -198,6 +198,9 @@ async function searchResult(holder, job, context) {
   const drawsText = typeof asked === "number" && asked > freshF1.length ? `${freshF1.length} of ${asked} fresh draws asked (the re-score stopped)` : `${freshF1.length} fresh draws`;
   const seqPlot = plotDiv("sequence-plot", "short");
   const responseHolder = h("div", { id: "response-holder" });
+  // The response's warning (a sequence whose rates stay far below the gyro noise), as a
+  // front member's plan and a training say it: above the charts drawn from it.
+  const responseWarnings = h("div", { id: "best-response-warnings-holder" });
   const trainHref = `#/jobs?type=train&scenario=${job.scenario_id}&sequence=${encodeURIComponent(sequenceText(best.sequence))}`;
   holder.append(
     h(
@@ -225,6 +228,7 @@ async function searchResult(holder, job, context) {
       ),
       baselineTable(result, best, freshF1),
       h("div", { class: "toolbar" }, link(trainHref, "Train a classifier on this sequence", { class: "button", id: "train-best" })),
+      responseWarnings,
       h("h3", {}, "Thruster duty over time"),
       h("p", { class: "hint" }, "Thrusters numbered from 1, as in the report."),
       seqPlot,
@@ -243,6 +247,7 @@ async function searchResult(holder, job, context) {
     try {
       const response = await api.response(job.scenario_id, best.sequence, { n_realisations: 20, seed: job.seed });
       if (!context.alive()) return;
+      put(responseWarnings, warningsBox(response.warnings, "best-response-warnings"));
       seqPlot.hidden = false;
       sequencePlot(seqPlot, response);
       const view = responseView(response, { id: "response-plot", titleText: "ω response to the best sequence" });
@@ -291,9 +296,12 @@ async function trainView(body, job, context) {
       clear(holder);
       // What the training found doubtful (a sequence whose responses are noise to the
       // gyro): said above the classifier it trained.
-      put(holder, warningsBox(current.result.warnings, "train-warnings"));
+      const warned = warningsBox(current.result.warnings, "train-warnings");
+      put(holder, warned);
       const classifier = await api.classifier(current.result.classifier_id);
-      if (context.alive()) await renderClassifier(holder, classifier, context);
+      // The classifier's response says the same warning: once is enough (a training
+      // stored before its result had warnings leaves it to the response).
+      if (context.alive()) await renderClassifier(holder, classifier, context, null, { responseWarnings: !warned });
     } else if (!isTerminal(current.status)) {
       clear(holder);
       holder.append(messageBox("notice", "Training: the classifier appears here when the job finishes."));

@@ -8,20 +8,25 @@ import { BAND, PLOT_CONFIG, confusionPlot, layout, plotDiv, responseView, sequen
 import { downloads, jobDownloads } from "../components/downloads.js";
 import { whenKeyed } from "../components/keyed.js";
 import { isTerminal } from "../vocabulary.js";
-import { clear, fmt, h, link, messageBox, quantity, score, sequenceText, tagChips, utcText, when } from "../ui.js";
+import { clear, fmt, h, link, messageBox, put, quantity, score, sequenceText, tagChips, utcText, warningsBox, when } from "../ui.js";
 import { sweepPanel } from "./sweep.js";
 
 const RAD_TO_DEG = 180 / Math.PI;
 
-export async function renderClassifier(container, classifier, context, sweepId = null) {
+// `responseWarnings`: whether the sequence's response states its warnings (a sequence
+// whose rates stay far below the gyro noise) above the classifier; the job page of a
+// training that said them already passes false.
+export async function renderClassifier(container, classifier, context, sweepId = null, { responseWarnings = true } = {}) {
   const scenario = await api.scenario(classifier.scenario_id).catch(() => null);
   const summary = h("dl", { class: "kv", id: "classifier-summary" });
   const confusion = plotDiv("training-confusion");
   const seqPlot = plotDiv("classifier-sequence", "short");
   const responseHolder = h("div", { id: "classifier-response-holder" });
   const sweepCard = h("div", { class: "card", id: "sweep-card" });
+  const warningsHolder = h("div", { id: "classifier-response-warnings-holder" });
   const calibrationCard = h("div", { class: "card", id: "calibration-card" }, h("h2", {}, "Calibration of the posterior"));
   container.append(
+    warningsHolder,
     h(
       "div",
       { class: "toolbar" },
@@ -67,6 +72,9 @@ export async function renderClassifier(container, classifier, context, sweepId =
     try {
       const response = await api.response(classifier.scenario_id, classifier.sequence, { n_realisations: 20 });
       if (!context.alive()) return;
+      // A classifier of a sequence whose responses are noise to the gyro reads noise:
+      // said above it, as at its training.
+      if (responseWarnings) put(warningsHolder, warningsBox(response.warnings, "classifier-response-warnings"));
       fuel.textContent = `${quantity(response.impulse_nms)} N m s`;
       const rates = response.candidates.map((c) => c.final_rate_rad_s);
       const mean = rates.reduce((a, b) => a + b, 0) / rates.length;
