@@ -156,7 +156,9 @@ def search_options(func: F) -> F:
         _pairs(
             "--constraint",
             "A bound (repeatable): max_final_rate_deg_s, max_final_rate_rad_s (every "
-            "candidate's residual rate, mean over flights), max_final_rate_p95_deg_s, "
+            "candidate's residual rate, mean over flights: the total, any initial rate "
+            "included, not the commanded part the listing gives beside it), "
+            "max_final_rate_p95_deg_s, "
             "max_final_rate_p95_rad_s (a rate at least 95 % of every candidate's flights "
             "stay under, with 95 % confidence), max_peak_rate_deg_s, max_peak_rate_rad_s "
             "(the fastest candidate's largest mean speed over the flights, or the plan's "
