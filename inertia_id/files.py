@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import contextlib
+import io
 import os
 import secrets
+import stat
 from collections.abc import Callable
 from typing import BinaryIO
 
@@ -12,15 +14,32 @@ __all__ = ["NotWritten", "write_whole"]
 
 
 class NotWritten(OSError):
-    """A write that failed, leaving the path as it was: one line naming the path (its
-    ``filename``) and the reason, however far up it is caught (the CLI prints it as it
-    is; ``[Errno 27] File too large: 'classifier.json'`` said neither that the write
-    failed nor what became of the file)."""
+    """A write that failed: one line naming the path (its ``filename``), the reason and
+    what became of the path, however far up it is caught (the CLI prints it as it is;
+    ``[Errno 27] File too large: 'classifier.json'`` said neither that the write failed
+    nor what became of the file).
+
+    A file is written beside the path and renamed over it, so a failed write leaves it as
+    it was. A device or pipe is written directly (``written`` is then the bytes it took
+    before the write failed, ``size`` the bytes meant for it): a pipe whose reader stops
+    after 100 bytes has taken a pipe buffer's worth, which no message may call nothing.
+    """
+
+    #: What the path is, for a device or pipe written directly ("a pipe", "a device"); None
+    #: for a file written beside it and renamed.
+    direct: str | None = None
+    written = 0
+    size = 0
 
     def __str__(self) -> str:
+        head = f"could not write {self.filename}: {self.strerror}"
+        if self.direct is None:
+            return f"{head}; nothing was written there (a file it held before is left as it was)"
+        if self.written == 0:
+            return f"{head}; nothing was written to it ({self.direct}, written directly)"
         return (
-            f"could not write {self.filename}: {self.strerror}; nothing was written there "
-            "(a file it held before is left as it was)"
+            f"{head}; the first {self.written} of {self.size} bytes went to it before the "
+            f"write failed ({self.direct}, written directly): what it got is incomplete"
         )
 
 
@@ -37,12 +56,11 @@ def write_whole(
     over it would replace the device. The standard library has no atomic write, and
     ``atomicwrites``, the package that had one, is archived.
 
-    :raises NotWritten: the write failed; its ``filename`` is ``path``.
-    :raises OSError: a device's write failed.
+    :raises NotWritten: the write failed; its ``filename`` is ``path``, and for a device
+        or pipe, how many bytes it took.
     """
     if os.path.exists(path) and not os.path.isfile(path):
-        with open(path, "wb") as handle:
-            _write_to(handle, data)
+        _write_directly(path, data)
         return
     # Through a symbolic link, the file it names is replaced, not the link.
     target = os.path.realpath(path)
@@ -60,6 +78,34 @@ def write_whole(
         with contextlib.suppress(OSError):
             os.remove(part)
         raise NotWritten(exc.errno, exc.strerror or str(exc), os.fspath(path)) from None
+
+
+def _write_directly(
+    path: str | os.PathLike[str], data: str | bytes | Callable[[BinaryIO], None]
+) -> None:
+    """Write ``data`` to a device or pipe, counting the bytes it takes, so that a failure
+    says how many went (a buffered file object does not tell)."""
+    buffer = io.BytesIO()
+    _write_to(buffer, data)
+    content = buffer.getbuffer()
+    written = 0
+    kind = "a device or pipe"
+    try:
+        fd = os.open(path, os.O_WRONLY)
+        try:
+            mode = os.fstat(fd).st_mode
+            kind = "a pipe" if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode) else kind
+            kind = "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) else kind
+            while written < len(content):
+                written += os.write(fd, content[written:])
+        finally:
+            os.close(fd)
+    except OSError as exc:
+        failed = NotWritten(exc.errno, exc.strerror or str(exc), os.fspath(path))
+        failed.direct, failed.written, failed.size = kind, written, len(content)
+        raise failed from None
+    finally:
+        content.release()
 
 
 def _write_to(handle: BinaryIO, data: str | bytes | Callable[[BinaryIO], None]) -> None:

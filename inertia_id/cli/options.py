@@ -413,15 +413,16 @@ def write_output(
     """Write ``data`` to ``path`` whole or not at all (:func:`inertia_id.files.write_whole`);
     a failed write is one line naming the path: in place, it left a truncated file there
     and said only ``Error: [Errno 27] File too large``."""
-    from ..files import write_whole
+    from ..files import NotWritten, write_whole
 
     try:
         write_whole(path, data)
+    except NotWritten as exc:
+        # Its words say what became of the path: a file is left as it was, a device or
+        # pipe (written directly) may have taken part of it.
+        raise click.ClickException(str(exc)) from None
     except OSError as exc:
-        raise click.ClickException(
-            f"could not write {os.fspath(path)}: {exc.strerror or exc}; nothing was written "
-            "there (a file it held before is left as it was)"
-        ) from None
+        raise click.ClickException(f"could not write {os.fspath(path)}: {exc}") from None
 
 
 def write_json(path: str | os.PathLike[str] | None, data: Any) -> None:

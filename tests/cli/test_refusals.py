@@ -1198,6 +1198,44 @@ def test_train_says_which_classifier_it_could_not_write(tmp_path: Path) -> None:
     assert list(tmp_path.iterdir()) == []
 
 
+def test_a_failed_write_to_a_device_or_pipe_says_what_reached_it(tmp_path: Path) -> None:
+    """A device or pipe is written directly (renaming over it would replace it), so a
+    failed write there may have sent part of the data. Before, every failure said
+    "nothing was written there (a file it held before is left as it was)": untrue for a
+    pipe whose reader stopped after 100 bytes, which had taken 65,536 of them."""
+    sequence = tmp_path / "seq.txt"
+    sequence.write_text(";".join(["4,4,4,0,0,0", "0,0,0,4,4,4"] * 400))
+    args = ["plan", "--sequence", str(sequence), "--out"]
+    if os.path.exists("/dev/full"):
+        message = refused(["plan", "--sequence", "4,4,4,0,0,0", "--out", "/dev/full"])
+        assert message == (
+            "Error: could not write /dev/full: No space left on device; nothing was written "
+            "to it (a device, written directly)"
+        )
+    # A reader that takes 100 bytes and stops: the pipe holds more before the write fails.
+    pipe = tmp_path / "pipe"
+    os.mkfifo(pipe)
+    taken: list[bytes] = []
+
+    def read_100() -> None:
+        with pipe.open("rb") as reader:
+            taken.append(reader.read(100))
+
+    reader = threading.Thread(target=read_100, daemon=True)
+    reader.start()
+    message = refused([*args, str(pipe)])
+    reader.join(10)
+    found = re.fullmatch(
+        rf"Error: could not write {re.escape(str(pipe))}: Broken pipe; the first (\d+) of "
+        r"(\d+) bytes went to it before the write failed \(a pipe, written directly\): what "
+        "it got is incomplete",
+        message,
+    )
+    assert found is not None, message
+    assert 100 <= int(found[1]) < int(found[2])
+    assert taken and len(taken[0]) == 100
+
+
 @pytest.mark.parametrize(
     ("args", "message"),
     [
