@@ -270,6 +270,7 @@ def search_with_baselines(
     progress: Callable[[SearchProgress], None] | None = None,
     should_stop: Callable[[], bool] | None = None,
     clock: Callable[[], float] = time.monotonic,
+    checked: bool = False,
 ) -> SearchOutcome:
     """Search for the sequence that best separates the candidates, then score the
     hand-designed baselines on the same fresh draws as the best sequence.
@@ -289,11 +290,16 @@ def search_with_baselines(
         on while the limit's grace lasts, each piece checked before it starts: what is
         left out says so (``fresh.draws_asked``, the front's ``not_rescored``, a
         baseline ``unavailable``).
+    :param checked: the caller ran :func:`check_search` on this scenario and request
+        already (the CLI, before its first progress line): its checks are not run again.
+        They cost a nominal simulation of the baseline, which the CLI's search and the
+        paper pipeline ran twice.
     """
     from .search import search
     from .search.baselines import STOPPED, compare_with_baselines
 
-    check_search_scenario(scenario, request.sequence_length, request.constraints)
+    if not checked:
+        check_search_scenario(scenario, request.sequence_length, request.constraints)
     from .search.loop import CANCELLED, TIME_LIMIT, Deadline
 
     settings = request.scorer()
@@ -741,7 +747,12 @@ def run_paper(
         say("[0/3] searching for the sequence")
         policy = str(out / "policy.zip") if search.method == "ppo" else None
         found = search_with_baselines(
-            scenario, search, seed=seed, policy_path=policy, progress=search_progress
+            scenario,
+            search,
+            seed=seed,
+            policy_path=policy,
+            progress=search_progress,
+            checked=True,  # above, before the folder
         )
         write_whole(out / "search.json", json.dumps(found.to_dict()))
         searched = found.result

@@ -321,10 +321,15 @@ def search_request(
 def search_with_progress(
     scenario: Scenario, request: SearchRequest, *, seed: int, policy_path: str | None = None
 ) -> SearchOutcome:
-    """The search with a progress bar on stderr, and its summary line after it."""
-    from ..pipelines import search_with_baselines
+    """The search with a progress bar on stderr, and its summary line after it; what
+    :func:`~inertia_id.pipelines.check_search` refuses is refused before the first line
+    (a rate bound below the initial-rate floor was refused inside the pipeline, after
+    "searching (nsga2) ..." and the bar had started), and only there (the pipeline ran
+    the checks again, and with them one more nominal simulation)."""
+    from ..pipelines import check_search, search_with_baselines
     from ..search import SearchProgress, space_size
 
+    check_search(scenario, request)
     size = space_size(scenario, request.sequence_length)
     click.echo(
         f"searching ({request.method}) for a {request.sequence_length}-step sequence in a space "
@@ -361,7 +366,7 @@ def search_with_progress(
                 )
 
         outcome = search_with_baselines(
-            scenario, request, seed=seed, policy_path=policy_path, progress=progress
+            scenario, request, seed=seed, policy_path=policy_path, progress=progress, checked=True
         )
     click.echo(outcome.result.summary(), err=True)
     return outcome
@@ -445,11 +450,6 @@ def search_cmd(
         raise InputError(f"--policy applies to --method ppo only, not {method!r}")
     scenario = load_scenario(preset_name, scenario_path)
     request = search_request(method, max_sequences=max_sequences, **options)
-    from ..pipelines import check_search
-
-    # Before the progress line: a rate bound below the initial-rate floor was refused
-    # inside the pipeline, after "searching (nsga2) ..." and the bar had started.
-    check_search(scenario, request)
     outcome = search_with_progress(scenario, request, seed=seed, policy_path=policy_path)
     result = outcome.result
     # Found and baselines alike on the same fresh draws: the clustering F1 and |ω| at the

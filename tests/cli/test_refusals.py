@@ -1274,3 +1274,41 @@ def test_a_search_setting_no_sequence_can_meet_is_refused_before_any_progress(
     assert result.output.startswith(message), result.output
     assert result.output.count("\n") == 1  # the refusal's one line, and nothing before it
     assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("command", ["search", "paper"])
+def test_a_search_runs_its_checks_once(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, command: str
+) -> None:
+    """The checks a search's settings can fail ran before the first progress line and
+    again inside the pipeline: the hand-designed baseline's nominal simulation (the
+    gyro-range check) twice a search. Once now. (The paper's training is stopped after
+    the search: it flies a sequence of its own.)"""
+    from inertia_id import pipelines
+    from inertia_id.physics import simulate as simulation
+
+    flown: list[int] = []
+    check = simulation.check_nominal_gyro_range
+
+    def counted(*args: object, **kwargs: object) -> object:
+        flown.append(1)
+        return check(*args, **kwargs)  # type: ignore[arg-type]
+
+    class Trained(Exception):
+        pass
+
+    def stop(*args: object, **kwargs: object) -> None:
+        raise Trained
+
+    monkeypatch.setattr(simulation, "check_nominal_gyro_range", counted)
+    monkeypatch.setattr(pipelines, "train_for_sequence", stop)
+    search = ["--method", "random"] if command == "search" else ["--search", "random"]
+    args = [command, *search, "--length", "2", "--timesteps", "8"]
+    args += ["--out", str(tmp_path / "s.json")] if command == "search" else []
+    args += ["--out-dir", str(tmp_path / "p")] if command == "paper" else []
+    result = CliRunner().invoke(main, args)
+    if command == "search":
+        assert result.exit_code == 0, result.output
+    else:
+        assert isinstance(result.exception, Trained), result.output
+    assert len(flown) == 1
