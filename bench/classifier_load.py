@@ -1,11 +1,12 @@
 """How long loading a classifier document takes and how much memory it needs: as shipped
-(each noise condition's covariance factored on one BLAS thread, its inverse factor by
-LAPACK's triangular inverse) against before (BLAS threads as the library ships them, the
-inverse factor solved against the identity).
+(a document laid out as canonical JSON verified by hashing its payload's text as read)
+against before (the parsed payload re-encoded as canonical JSON to be hashed, as every
+load did). Give documents this code wrote (``inertia-id train``): one written before is
+laid out otherwise, and both variants re-encode it.
 
-Each load runs in a fresh Python process (so that its peak memory is its own): read and
-parse the file as ``--classifier`` does, then build the classifier
-(``registry.classifier_from_json``), best of ``--repeats`` for the time; a second pass
+Each load runs in a fresh Python process (so that its peak memory is its own): read,
+verify and build the classifier as ``--classifier`` does
+(``registry.load_classifier``), best of ``--repeats`` for the time; a second pass
 under tracemalloc gives the load's peak traced memory, and the process's peak resident
 memory less its resident memory after the imports is printed beside it. Both variants
 then score the same fixed telemetry (``--realisations`` seeded series per candidate of
@@ -49,19 +50,12 @@ def _rss_mb() -> float:
 
 
 def _before() -> contextlib.ExitStack:
-    """The load as it was: no BLAS thread limit, the inverse factor solved against I."""
-    from scipy.linalg import solve_triangular
-
-    from inertia_id.classifiers import gaussian
+    """The load as it was: the payload re-encoded to verify its checksum."""
+    from inertia_id.classifiers import documents
 
     stack = contextlib.ExitStack()
-    stack.enter_context(mock.patch.object(gaussian, "one_blas_thread", contextlib.nullcontext))
     stack.enter_context(
-        mock.patch.object(
-            gaussian,
-            "inverse_cholesky",
-            lambda chol: solve_triangular(chol, np.eye(len(chol)), lower=True),
-        )
+        mock.patch.object(documents, "_verified_as_read", lambda source, doc: False)
     )
     return stack
 
@@ -69,15 +63,13 @@ def _before() -> contextlib.ExitStack:
 def child(variant: str, path: str, repeats: int, realisations: int, seed: int, out: str) -> None:
     """One variant's figures for one document, written as JSON to ``out``."""
     from inertia_id import simulate
-    from inertia_id.classifiers import documents, registry
+    from inertia_id.classifiers import registry
 
     rss_imports = _rss_mb()
     patches = _before() if variant == "before" else contextlib.ExitStack()
 
     def load() -> Any:
-        return registry.classifier_from_json(
-            documents.parse(documents.read_file(path), unique_keys=True)
-        )
+        return registry.load_classifier(path)
 
     with patches:
         walls, cpus = [], []

@@ -865,8 +865,14 @@ class BaseClassifier(BaseEstimator):
     def load(cls, path: str | os.PathLike[str]) -> Self:
         """Read a document written by :meth:`save` (at most
         :data:`~inertia_id.classifiers.documents.MAX_CLASSIFIER_BYTES`)."""
-        document = documents.parse(documents.read_file(path), unique_keys=True)
-        return cls.from_dict(documents.read(document, cls.FORMAT))
+        return cls.from_dict(cls._read_verified(path))
+
+    @classmethod
+    def _read_verified(cls, path: str | os.PathLike[str]) -> dict[str, Any]:
+        """The verified payload of the document at ``path``; its text is let go on return,
+        before the classifier is built."""
+        text = documents.read_file(path)
+        return documents.read(documents.parse(text, unique_keys=True), cls.FORMAT, source=text)
 
 
 class SupervisedClassifier(BaseClassifier):

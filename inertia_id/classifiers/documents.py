@@ -38,20 +38,36 @@ MAX_CLASSIFIER_BYTES = 4_000_000_000
 
 def checksum(payload: dict[str, Any]) -> str:
     """SHA-256 of the payload's canonical JSON (sorted keys, no spaces)."""
-    canonical = json.dumps(payload, sort_keys=True, separators=(",", ":"))
-    return hashlib.sha256(canonical.encode()).hexdigest()
+    return hashlib.sha256(_canonical(payload).encode()).hexdigest()
+
+
+def _canonical(payload: dict[str, Any]) -> str:
+    return json.dumps(payload, sort_keys=True, separators=(",", ":"))
+
+
+#: A document as :func:`write` lays it out begins with this: the whole document's
+#: canonical JSON (sorted keys, no spaces), so the payload's text in it is the very text
+#: its checksum hashes.
+_HEAD = '{"classifier":'
+
+
+def _tail(format_name: Any, sha256: Any, version: Any) -> str:
+    """What follows the payload in a document :func:`write` lays out."""
+    return (
+        f',"format":{json.dumps(format_name)},"sha256":{json.dumps(sha256)},'
+        f'"version":{json.dumps(version)}}}'
+    )
 
 
 def write(format_name: str, payload: dict[str, Any]) -> str:
-    """The document holding ``payload`` under ``format_name``."""
-    return json.dumps(
-        {
-            "format": format_name,
-            "version": VERSION,
-            "sha256": checksum(payload),
-            "classifier": payload,
-        }
-    )
+    """The document holding ``payload`` under ``format_name``: its canonical JSON
+    (``json.dumps(document, sort_keys=True, separators=(",", ":"))``), built around the
+    payload's canonical text, which the checksum hashes, so that :func:`read` can verify
+    the payload by hashing the text as read (it had written the default ``json.dumps``,
+    whose spaces and key order left a reader only the re-encoding to hash)."""
+    canonical = _canonical(payload)
+    digest = hashlib.sha256(canonical.encode()).hexdigest()
+    return _HEAD + canonical + _tail(format_name, digest, VERSION)
 
 
 def read_file(path: str | os.PathLike[str]) -> str:
@@ -86,9 +102,25 @@ def parse(text: str | bytes | dict[str, Any], *, unique_keys: bool = False) -> d
     return doc
 
 
-def read(text: str | bytes | dict[str, Any], format_name: str) -> dict[str, Any]:
-    """The verified payload of a ``format_name`` document."""
+def read(
+    text: str | bytes | dict[str, Any],
+    format_name: str,
+    *,
+    source: str | bytes | None = None,
+) -> dict[str, Any]:
+    """The verified payload of a ``format_name`` document.
+
+    :param source: the text ``text`` was parsed from, when it is a parsed document (its
+        own text otherwise): a document laid out as :func:`write` lays it out is
+        verified by hashing its payload's text as read, in 1 MB pieces; any other (one
+        written before, or edited since) by re-encoding the parsed payload, as every
+        document was (2.9 s of the 7.7 s that loading a 28 MB one took). Both accept the
+        same documents: the text as read hashes to the stated SHA-256 only where it is
+        the canonical text the writer hashed.
+    """
     doc = text if isinstance(text, dict) else parse(text)
+    if source is None and not isinstance(text, dict):
+        source = text
     if doc.get("format") != format_name:
         raise InputError(f"not an {format_name} document (format {doc.get('format')!r})")
     if doc.get("version") != VERSION:
@@ -96,6 +128,8 @@ def read(text: str | bytes | dict[str, Any], format_name: str) -> dict[str, Any]
     payload = doc.get("classifier")
     if not isinstance(payload, dict):
         raise InputError("classifier document has no classifier payload")
+    if source is not None and _verified_as_read(source, doc):
+        return payload
     actual = checksum(payload)
     if actual != doc.get("sha256"):
         raise InputError(
@@ -103,3 +137,40 @@ def read(text: str | bytes | dict[str, Any], format_name: str) -> dict[str, Any]
             f"content hashes to {actual!r}"
         )
     return payload
+
+
+#: JSON's whitespace (RFC 8259), which may surround the document.
+_BLANKS = " \t\n\r"
+
+
+def _verified_as_read(source: str | bytes, doc: dict[str, Any]) -> bool:
+    """Whether ``source`` is ``doc`` laid out as :func:`write` lays it out and its
+    payload's text hashes to the SHA-256 it states. The payload's text starts right after
+    the head: the value of the document's first key, which is "classifier", and JSON's
+    values are self-delimiting, so what the parse took for the payload is that text."""
+    stated = doc.get("sha256")
+    if not isinstance(stated, str):
+        return False
+    text = source if isinstance(source, str) else None
+    if text is None:
+        try:
+            text = source.decode("utf-8")  # type: ignore[union-attr]
+        except UnicodeDecodeError:
+            return False
+    start, end = 0, len(text)
+    while start < end and text[start] in _BLANKS:
+        start += 1
+    while end > start and text[end - 1] in _BLANKS:
+        end -= 1
+    tail = _tail(doc.get("format"), stated, doc.get("version"))
+    if not text.startswith(_HEAD, start) or not text.endswith(tail, start, end):
+        return False
+    digest = hashlib.sha256()
+    first, last = start + len(_HEAD), end - len(tail)
+    for at in range(first, last, _PIECE):
+        digest.update(text[at : min(at + _PIECE, last)].encode())
+    return digest.hexdigest() == stated
+
+
+#: Characters hashed at a time: the payload's text is not copied whole.
+_PIECE = 1 << 20

@@ -220,19 +220,35 @@ def classifier_from_json(text: str | bytes | dict[str, Any]) -> CandidateClassif
     """Load any classifier document, whatever its kind (the checksum is verified): its
     JSON text, or the text parsed already (:func:`documents.parse`)."""
     document = documents.parse(text)
+    fmt = _format_of(document)
+    payload = documents.read(document, fmt, source=None if isinstance(text, dict) else text)
+    return document_class(fmt, payload).from_dict(payload)
+
+
+def _format_of(document: dict[str, Any]) -> str:
     fmt = document.get("format")
     formats = sorted({cls.FORMAT for cls in _CLASSES.values()})
     if fmt not in formats:
         raise InputError(f"not a classifier document: format {fmt!r} is not one of {formats}")
-    payload = documents.read(document, fmt)
-    return document_class(fmt, payload).from_dict(payload)
+    return str(fmt)
 
 
 def load_classifier(path: str | os.PathLike[str]) -> CandidateClassifier:
     """Read any classifier document from a file (see :func:`classifier_from_json`); one
     of more than :data:`~inertia_id.classifiers.documents.MAX_CLASSIFIER_BYTES` is
     refused by its size, unread."""
-    return classifier_from_json(documents.parse(documents.read_file(path), unique_keys=True))
+    fmt, payload = _read_verified(path)
+    return document_class(fmt, payload).from_dict(payload)
+
+
+def _read_verified(path: str | os.PathLike[str]) -> tuple[str, dict[str, Any]]:
+    """The format and verified payload of the document at ``path``; its text is let go
+    on return, before the classifier is built (it was held while the classifier factored
+    its covariances)."""
+    text = documents.read_file(path)
+    document = documents.parse(text, unique_keys=True)
+    fmt = _format_of(document)
+    return fmt, documents.read(document, fmt, source=text)
 
 
 def warm_up() -> None:
