@@ -20,20 +20,22 @@ __all__ = ["MAX_CLASSIFIER_BYTES", "VERSION", "checksum", "parse", "read", "read
 
 VERSION = 1
 #: Most bytes a classifier file may hold (:func:`~inertia_id.classifiers.registry.
-#: load_classifier`): a file past it is refused by its size, unread (a pipe, one byte past
-#: it; a pipe that does not begin with '{', at its first character). A document grows
-#: with the square of its series: the default kind keeps its covariances as lower
-#: triangles shared by the candidates, three of them at 23.8 bytes a value, and measured
-#: 2.6 MB trained on the paper's 4-step sequence (240 values) and 33.8 MB on 16 steps
-#: (960; ``inertia-id train --sequence``). The longest series the service trains on
-#: (8,192 values) makes 2.4 GB by the same count. 4 GB is above every document the
-#: service writes and still refuses a wrong file (a disk image, an endless pipe) before
-#: it is read. It is no setting: what bounds the classifiers a machine loads is its
-#: memory, about 12 times the file (loading the 33.8 MB one took 413 MB; 399 MB for a
-#: 28 MB one, bench/classifier_load.py), most of it the whitening matrix of each of the
-#: default kind's 40 noise conditions (8 bytes x 40 x 960² = 295 MB at 960 values),
-#: which every verdict uses.
-MAX_CLASSIFIER_BYTES = 4_000_000_000
+#: load_classifier`): a file past it is refused by its size, unread; a pipe, whose size is
+#: not known, one byte past it (one that does not begin with '{', at its first character),
+#: so a stream that begins with '{' and never ends costs this much memory before it is
+#: refused. A document grows with the square of its series: the default kind keeps its
+#: covariances as lower triangles shared by the candidates, and measured 1.8 MB trained
+#: on the paper's 4-step sequence (240 values) and 26.6 MB on 16 steps (960 values;
+#: ``inertia-id train -n 20 --sequence``), 28.8 bytes a value squared. The paper preset's
+#: 64 steps (3,840 values) make 425 MB by that count, and the longest series the service
+#: trains on the paper preset (5,181 values, where its 5 candidates' covariances reach
+#: 2^27 values) 773 MB: 1 GB is above both. Loading a document takes about 12 times the
+#: file in memory (most of it a whitening matrix for each of the default kind's 40 noise
+#: conditions, 8 bytes x 40 x values², which every verdict uses): 12 GB for one of 1 GB.
+#: It was 4 GB, which a stream of '{' and blanks held before it was refused (peak RSS
+#: 4.1 GB); the service's largest series of all (8,192 values, on a scenario of 2
+#: candidates) makes 1.9 GB, and would take 21 GB of whitening matrices to load.
+MAX_CLASSIFIER_BYTES = 1_000_000_000
 
 
 def checksum(payload: dict[str, Any]) -> str:

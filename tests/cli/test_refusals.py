@@ -265,6 +265,28 @@ def _endless_pipe(path: Path, piece: bytes, most: int) -> tuple[threading.Thread
     return writer, written
 
 
+def test_a_classifier_stream_that_never_ends_is_refused_at_a_gigabyte(tmp_path: Path) -> None:
+    """``--classifier <(printf '{'; cat /dev/zero)`` begins as a JSON object does, so
+    only the byte limit stops it: it was 4 GB, held before the refusal (peak RSS 4.1 GB,
+    13 s). The limit is 1 GB now, above the paper preset's largest classifier the service
+    trains (773 MB) and the 64-step one (425 MB); the message names the file and it."""
+    assert MAX_CLASSIFIER_BYTES == 1_000_000_000
+    endless = tmp_path / "endless"
+    # A brace and blanks, a mebibyte at a time: the reader stops at the limit, whatever
+    # follows the first brace.
+    writer, written = _endless_pipe(endless, b"{" + b" " * ((1 << 20) - 1), 2 * 10**9)
+    telemetry = tmp_path / "pass.csv"
+    telemetry.write_text("time_s,wx,wy,wz\n0.05,0,0,0\n0.1,0,0,0\n")
+    message = refused(["identify", "--classifier", str(endless), str(telemetry)])
+    assert message == (
+        f"Error: {str(endless)!r} holds more than 1000000000 bytes, over the limit of "
+        "1000000000 bytes for a classifier's JSON document; is it a classifier "
+        "(inertia-id train writes one)?"
+    )
+    writer.join(10)
+    assert not writer.is_alive() and written[0] < MAX_CLASSIFIER_BYTES + (4 << 20)
+
+
 def test_a_stream_that_is_no_json_object_is_refused_as_it_begins(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
