@@ -1,20 +1,20 @@
 """How long loading a classifier document takes and how much memory it needs: as shipped
-(a document laid out as canonical JSON verified by hashing its payload's text as read)
-against before (the parsed payload re-encoded as canonical JSON to be hashed, as every
-load did). Give documents this code wrote (``inertia-id train``): one written before is
-laid out otherwise, and both variants re-encode it.
+(``registry.load_classifier``: a document laid out as canonical JSON verified by hashing
+its payload's text as read, and the parsed document let go before the covariances are
+factored) against before (the load as ``--classifier`` did it: the parsed payload
+re-encoded as canonical JSON to be hashed, and held while the covariances were factored).
+Give documents this code wrote (``inertia-id train``): one written before is laid out
+otherwise, and both variants re-encode it.
 
-Each load runs in a fresh Python process (so that its peak memory is its own): read,
-verify and build the classifier as ``--classifier`` does
-(``registry.load_classifier``), best of ``--repeats`` for the time; a second pass
-under tracemalloc gives the load's peak traced memory, and the process's peak resident
-memory less its resident memory after the imports is printed beside it. Both variants
-then score the same fixed telemetry (``--realisations`` seeded series per candidate of
-the document's own scenario and sequence at 1x); the largest difference of their
-log-likelihoods and whether every verdict agrees are printed. The documents are any
-``inertia-id train`` wrote (the default kind, marginal likelihood, is the one whose load
-factors covariances), e.g. ``python -m inertia_id.cli train --sequence '...' --out
-c8.json``.
+Each load runs in a fresh Python process (so that its peak memory is its own), best of
+``--repeats`` for the time; a second pass under tracemalloc gives the load's peak traced
+memory, and the process's peak resident memory less its resident memory after the
+imports is printed beside it. Both variants then score the same fixed telemetry
+(``--realisations`` seeded series per candidate of the document's own scenario and
+sequence at 1x); the largest difference of their log-likelihoods and whether every
+verdict agrees are printed. The documents are any ``inertia-id train`` wrote (the
+default kind, marginal likelihood, is the one whose load factors covariances), e.g.
+``python -m inertia_id.cli train --sequence '...' --out c8.json``.
 
 Run: python bench/classifier_load.py --classifier c4.json c8.json [--repeats 1]
 """
@@ -22,7 +22,6 @@ Run: python bench/classifier_load.py --classifier c4.json c8.json [--repeats 1]
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import os
 import resource
@@ -33,7 +32,6 @@ import time
 import tracemalloc
 from pathlib import Path
 from typing import Any
-from unittest import mock
 
 import numpy as np
 from _common import base_parser, positive_int, print_header, print_table, write_json
@@ -49,41 +47,34 @@ def _rss_mb() -> float:
         return int(fh.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 1e6
 
 
-def _before() -> contextlib.ExitStack:
-    """The load as it was: the payload re-encoded to verify its checksum."""
-    from inertia_id.classifiers import documents
-
-    stack = contextlib.ExitStack()
-    stack.enter_context(
-        mock.patch.object(documents, "_verified_as_read", lambda source, doc: False)
-    )
-    return stack
-
-
 def child(variant: str, path: str, repeats: int, realisations: int, seed: int, out: str) -> None:
     """One variant's figures for one document, written as JSON to ``out``."""
     from inertia_id import simulate
-    from inertia_id.classifiers import registry
+    from inertia_id.classifiers import documents, registry
 
     rss_imports = _rss_mb()
-    patches = _before() if variant == "before" else contextlib.ExitStack()
 
     def load() -> Any:
+        if variant == "before":
+            # The caller holds the parsed document while the classifier is built, and
+            # hands over no text: the payload is re-encoded to be hashed.
+            return registry.classifier_from_json(
+                documents.parse(documents.read_file(path), unique_keys=True)
+            )
         return registry.load_classifier(path)
 
-    with patches:
-        walls, cpus = [], []
-        for _ in range(repeats):
-            wall, cpu = time.perf_counter(), time.process_time()
-            model = load()
-            walls.append(time.perf_counter() - wall)
-            cpus.append(time.process_time() - cpu)
-            del model
-        rss_peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e3
-        tracemalloc.start()
+    walls, cpus = [], []
+    for _ in range(repeats):
+        wall, cpu = time.perf_counter(), time.process_time()
         model = load()
-        traced_peak = tracemalloc.get_traced_memory()[1] / 1e6
-        tracemalloc.stop()
+        walls.append(time.perf_counter() - wall)
+        cpus.append(time.process_time() - cpu)
+        del model
+    rss_peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e3
+    tracemalloc.start()
+    model = load()
+    traced_peak = tracemalloc.get_traced_memory()[1] / 1e6
+    tracemalloc.stop()
     if model.scenario_ is None or model.sequence_ is None:
         raise SystemExit(f"{path}: the document holds no scenario and sequence to simulate")
     X, _ = simulate(

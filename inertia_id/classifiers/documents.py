@@ -29,9 +29,9 @@ VERSION = 1
 #: ``inertia-id train -n 20 --sequence``), 28.8 bytes a value squared. The paper preset's
 #: 64 steps (3,840 values) make 425 MB by that count, and the longest series the service
 #: trains on the paper preset (5,181 values, where its 5 candidates' covariances reach
-#: 2^27 values) 773 MB: 1 GB is above both. Loading a document takes about 12 times the
+#: 2^27 values) 773 MB: 1 GB is above both. Loading a document takes about 13 times the
 #: file in memory (most of it a whitening matrix for each of the default kind's 40 noise
-#: conditions, 8 bytes x 40 x values², which every verdict uses): 12 GB for one of 1 GB.
+#: conditions, 8 bytes x 40 x values², which every verdict uses): 13 GB for one of 1 GB.
 #: It was 4 GB, which a stream of '{' and blanks held before it was refused (peak RSS
 #: 4.1 GB); the service's largest series of all (8,192 values, on a scenario of 2
 #: candidates) makes 1.9 GB, and would take 21 GB of whitening matrices to load.

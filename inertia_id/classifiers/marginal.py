@@ -1306,7 +1306,6 @@ class MarginalLikelihoodClassifier(BaseClassifier):
         )
         self.means_ = means
         self.length_ = int(means.shape[1])
-        self._mixture = _Mixture(means.reshape(k, -1), self.components_, self.grid_)
         self.__dict__.pop("_observed_mixtures", None)
         self.sensitivity_, self.none_prior_sd_ = None, None
         if data.get("inertia_sensitivity") is not None:
@@ -1331,6 +1330,12 @@ class MarginalLikelihoodClassifier(BaseClassifier):
             self.offset_free_means_ = free_means
             self.offset_free_quiet_ = _component_from_document(offset_free["quiet"], dim)
             self.white_variance_ = float(offset_free["white_variance"])
+
+    def _form_derived(self) -> None:
+        """Factor every noise condition's covariance (:class:`_Mixture`)."""
+        self._mixture = _Mixture(
+            self.means_.reshape(self.n_candidates_, -1), self.components_, self.grid_
+        )
 
 
 def inertia_sensitivity(scenario: Scenario, sequence: Any) -> np.ndarray:

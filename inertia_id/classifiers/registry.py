@@ -222,7 +222,11 @@ def classifier_from_json(text: str | bytes | dict[str, Any]) -> CandidateClassif
     document = documents.parse(text)
     fmt = _format_of(document)
     payload = documents.read(document, fmt, source=None if isinstance(text, dict) else text)
-    return document_class(fmt, payload).from_dict(payload)
+    del document  # what this function parsed is let go before the model is formed
+    model = document_class(fmt, payload)._from_dict_unformed(payload)
+    del payload
+    model._form_loaded()
+    return model
 
 
 def _format_of(document: dict[str, Any]) -> str:
@@ -238,7 +242,10 @@ def load_classifier(path: str | os.PathLike[str]) -> CandidateClassifier:
     of more than :data:`~inertia_id.classifiers.documents.MAX_CLASSIFIER_BYTES` is
     refused by its size, unread."""
     fmt, payload = _read_verified(path)
-    return document_class(fmt, payload).from_dict(payload)
+    model = document_class(fmt, payload)._from_dict_unformed(payload)
+    del payload  # let go before the model factors its covariances
+    model._form_loaded()
+    return model
 
 
 def _read_verified(path: str | os.PathLike[str]) -> tuple[str, dict[str, Any]]:

@@ -511,3 +511,39 @@ def test_a_low_rank_update_is_the_updated_covariance_factored_afresh() -> None:
         lambda m: m.prefix_distances(series),
     ):
         np.testing.assert_allclose(question(updated), question(whole), rtol=1e-9, atol=1e-12)
+
+
+def test_a_loaded_document_is_let_go_before_the_covariances_are_factored(
+    marginal: MarginalLikelihoodClassifier, tmp_path: Path
+) -> None:
+    """Loading a classifier factors each noise condition's covariance into a whitening
+    matrix (295 MB at 960 values); the parsed document (46 MB for that one) was held
+    all the while, on top of them. Now ``load_classifier`` and ``classifier_from_json``
+    let it go first: no list of the document's covariance triangles is alive when the
+    first covariance is factored. The model is the same, to the bit."""
+    import gc
+
+    from inertia_id.classifiers.registry import classifier_from_json, load_classifier
+
+    text = marginal.to_json()
+    path = tmp_path / "c.json"
+    path.write_text(text)
+    lower = len(json.loads(text)["classifier"]["components"]["quiet"]["lower_rad2_s2"])
+    factor = gaussian.cholesky
+    alive: list[bool] = []
+
+    def first_factor(covariance: np.ndarray) -> np.ndarray:
+        if not alive:
+            alive.append(any(type(o) is list and len(o) == lower for o in gc.get_objects()))
+        return factor(covariance)
+
+    with mock.patch.object(gaussian, "cholesky", first_factor):
+        loaded = [load_classifier(path), classifier_from_json(text)]
+        assert alive == [False]
+        alive.clear()
+        classifier_from_json(json.loads(text))  # the caller's own dict: still held
+        assert alive == [True]
+    X, _ = simulate(marginal.scenario_, marginal.sequence_, 2, np.random.default_rng(5)).dataset()
+    for model in loaded:
+        assert model.to_json() == text
+        np.testing.assert_array_equal(model.log_likelihood(X), marginal.log_likelihood(X))
