@@ -17,7 +17,7 @@ from sqlalchemy.orm import Session
 
 import inertia_id
 from service.config import Settings
-from service.store.incarnations import LockUnreadable, lock_held
+from service.store.incarnations import LockUnreadable, locks_held
 from service.store.models import JobRow, WorkerRow, utcnow
 from service.store.session import Database
 
@@ -232,16 +232,16 @@ def _queue(
     )
 
 
-def _gone(session: Session, database_url: str, incarnation: str | None) -> bool:
-    """Whether the process of the worker row's ``incarnation`` (its last beat's) is gone:
-    its incarnation lock is free. A row without one (stored before incarnations), a lock
-    that cannot be read, or a database without locks: not known gone."""
-    if incarnation is None:
-        return False
+def _gone_incarnations(session: Session, database_url: str, incarnations: list[str]) -> set[str]:
+    """Those of ``incarnations`` (the last beats' of worker rows) whose processes are
+    gone: their incarnation locks are free, all read at once (see
+    :func:`service.store.incarnations.locks_held`). A lock that cannot be read, or a
+    database without locks: none known gone."""
     try:
-        return lock_held(session, database_url, incarnation) is False
+        held = locks_held(session, database_url, incarnations)
     except LockUnreadable:  # its workers log why, once
-        return False
+        return set()
+    return {incarnation for incarnation, is_held in held.items() if is_held is False}
 
 
 def _workers(settings: Settings, database: Database, database_ok: bool) -> WorkersHealth:
@@ -256,7 +256,7 @@ def _workers(settings: Settings, database: Database, database_ok: bool) -> Worke
         cutoff = now - timedelta(seconds=window)
         try:
             with database.session() as session:
-                for name, since, lock_missing_since, incarnation, last_seen in session.execute(
+                seen = session.execute(
                     select(
                         WorkerRow.name,
                         WorkerRow.warming_since,
@@ -268,14 +268,19 @@ def _workers(settings: Settings, database: Database, database_ok: bool) -> Worke
                     # leaves the list at once, not a silence window later.
                     .where(WorkerRow.last_seen_at >= cutoff, WorkerRow.stopping_since.is_(None))
                     .order_by(WorkerRow.name)
-                ):
+                ).all()
+                # A row without an incarnation (stored before them) is not known gone.
+                gone_incarnations = _gone_incarnations(
+                    session,
+                    settings.resolved_database_url,
+                    [row.incarnation for row in seen if row.incarnation is not None],
+                )
+                for name, since, lock_missing_since, incarnation, last_seen in seen:
                     # Killed (kill -9, its machine lost): its lock went with its process,
                     # and its row, which it can no longer beat, says what it was
                     # (warming, say) until the silence window ends. A worker that knows
                     # its lock is missing says so (lock_missing_since) and is live.
-                    if lock_missing_since is None and _gone(
-                        session, settings.resolved_database_url, incarnation
-                    ):
+                    if lock_missing_since is None and incarnation in gone_incarnations:
                         gone.append(GoneWorker(name=name, silent_s=_age_s(now, last_seen)))
                     else:
                         rows.append((name, since, lock_missing_since))

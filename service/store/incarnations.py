@@ -14,6 +14,7 @@ import fcntl
 import hashlib
 import logging
 import os
+from collections.abc import Iterable
 from pathlib import Path
 
 from sqlalchemy import text
@@ -21,7 +22,7 @@ from sqlalchemy.engine import make_url
 from sqlalchemy.exc import DBAPIError
 from sqlalchemy.orm import Session
 
-__all__ = ["LockUnreadable", "lock_file", "lock_held", "lock_key"]
+__all__ = ["LockUnreadable", "lock_file", "lock_held", "lock_key", "locks_held"]
 
 logger = logging.getLogger(__name__)
 
@@ -43,11 +44,17 @@ def lock_key(incarnation: str) -> int:
 
 def lock_file(database_url: str, incarnation: str) -> Path | None:
     """The lock file of ``incarnation`` beside a SQLite database file; None elsewhere."""
+    folder = _lock_folder(database_url)
+    return None if folder is None else folder / f"{incarnation}.lock"
+
+
+def _lock_folder(database_url: str) -> Path | None:
+    """The folder of the lock files beside a SQLite database file; None elsewhere."""
     url = make_url(database_url)
     if not url.drivername.startswith("sqlite") or url.database in (None, "", ":memory:"):
         return None
     database = Path(url.database or "")
-    return database.with_name(f"{database.name}.incarnations") / f"{incarnation}.lock"
+    return database.with_name(f"{database.name}.incarnations")
 
 
 def lock_held(session: Session, database_url: str, incarnation: str) -> bool | None:
@@ -101,6 +108,59 @@ def lock_held(session: Session, database_url: str, incarnation: str) -> bool | N
         return False
     finally:
         os.close(fd)
+
+
+def locks_held(
+    session: Session, database_url: str, incarnations: Iterable[str]
+) -> dict[str, bool | None]:
+    """Whether each of ``incarnations``' locks is held now, as :func:`lock_held` says of
+    one (None where a database has no locks; :class:`LockUnreadable` where it cannot be
+    told), at a cost that does not grow with the rows on PostgreSQL: ``/health`` probed
+    each row of a gone worker with its own savepoint, try-lock and unlock, 0.10 s for 50
+    rows and 1.06 s for 500 (``bench/health_gone_rows.py --store postgresql``).
+
+    On PostgreSQL one read of ``pg_locks``, which lists the advisory locks every session
+    of this database holds, takes none (no probe can keep a live worker's lock from it).
+    On SQLite the lock folder is listed once and only the files in it are tried (those
+    of live workers, and of killed ones until a probe removes them)."""
+    wanted = list(dict.fromkeys(incarnations))
+    if not wanted:
+        return {}
+    if session.get_bind().dialect.name == "postgresql":
+        try:
+            with session.begin_nested():
+                # A bigint key is listed in two unsigned 32-bit halves (objsubid 1).
+                halves = session.execute(
+                    text(
+                        "SELECT classid::bigint, objid::bigint FROM pg_locks"
+                        " WHERE locktype = 'advisory' AND objsubid = 1 AND granted"
+                        " AND database = (SELECT oid FROM pg_database"
+                        " WHERE datname = current_database())"
+                    )
+                ).all()
+        except Exception as exc:
+            if isinstance(exc, DBAPIError) and exc.connection_invalidated:
+                session.rollback()  # as in lock_held
+            raise LockUnreadable("on the PostgreSQL server", exc) from exc
+        held = {
+            int.from_bytes(((high << 32) | low).to_bytes(8, "big"), "big", signed=True)
+            for high, low in halves
+        }
+        return {incarnation: lock_key(incarnation) in held for incarnation in wanted}
+    folder = _lock_folder(database_url)
+    if folder is None:
+        return dict.fromkeys(wanted)
+    try:
+        present = set(os.listdir(folder))
+    except FileNotFoundError:
+        present = set()  # no worker has taken a lock here yet
+    except OSError as exc:
+        raise LockUnreadable(f"in {folder}", exc) from exc
+    return {
+        incarnation: f"{incarnation}.lock" in present
+        and lock_held(session, database_url, incarnation)
+        for incarnation in wanted
+    }
 
 
 def _release_probe(session: Session, key: int, incarnation: str) -> None:

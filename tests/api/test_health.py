@@ -12,6 +12,7 @@ from datetime import timedelta
 from pathlib import Path
 
 import pytest
+from sqlalchemy import delete
 
 from inertia_id import Scenario
 from service.config import Settings
@@ -186,6 +187,39 @@ def test_a_worker_whose_process_is_gone_is_listed_gone_not_warming(api: Api) -> 
     health = api.get("/health").json()
     assert health["status"] == "degraded"
     assert "worker celery@live's process is gone" in health["workers"]["detail"], health
+
+
+def test_health_reads_the_locks_of_many_gone_workers_at_a_cost_that_does_not_grow(
+    api: Api,
+) -> None:
+    """Each killed worker leaves a row its lock tells gone. Before: on PostgreSQL each
+    row was probed in its own savepoint (a try-lock and an unlock), 4 statements a row:
+    /health took 0.10 s with 50 such rows and 1.06 s with 500. Now the statements are
+    as many with 30 gone rows as with 1."""
+    from sqlalchemy import event
+
+    def statements_of_health(gone: int) -> int:
+        with api.db.session() as session:
+            session.execute(delete(WorkerRow))
+        for index in range(gone):
+            add_worker(api, f"celery@killed-{index}", seconds_ago=2.0)
+            with api.db.session() as session:
+                session.get_one(WorkerRow, f"celery@killed-{index}").incarnation = f"dead-{index}"
+        executed: list[str] = []
+
+        def count(*args: object) -> None:
+            executed.append(str(args[2]))
+
+        engine = api.app.state.db.engine
+        event.listen(engine, "before_cursor_execute", count)
+        try:
+            workers = api.get("/health").json()["workers"]
+        finally:
+            event.remove(engine, "before_cursor_execute", count)
+        assert len(workers["gone"]) == gone, workers
+        return len(executed)
+
+    assert statements_of_health(30) == statements_of_health(1)
 
 
 def add_job(api: Api, status: str, seconds_ago: float, seed: int) -> None:
