@@ -20,13 +20,16 @@ from datetime import UTC, datetime
 from typing import Any
 
 from celery.signals import worker_init, worker_ready, worker_shutdown, worker_shutting_down
+from sqlalchemy import select
 from sqlalchemy.exc import DBAPIError, InterfaceError, OperationalError
+from sqlalchemy.orm import Session
 
 from service.config import Settings, get_settings
 from service.queue import make_celery
 from service.store import Database
-from service.store.jobs import beat_worker, start_worker
-from service.store.models import utcnow
+from service.store.incarnations import LockUnreadable, lock_held
+from service.store.jobs import beat_worker, start_worker, touch_twin_row
+from service.store.models import WorkerRow, utcnow
 from service.store.refusals import database_label, why_cannot_store
 
 from . import incarnation
@@ -79,6 +82,8 @@ class WorkerMonitor:
         #: The database answering but refusing this worker's beat (full, read-only).
         self._refused = Episode(logger)
         self._failing = Episode(logger)
+        #: Beats that found the row named by a live twin (see _live_twin).
+        self._twin = Episode(logger)
         #: Whether the last beat could not store this worker's row (the database down,
         #: full or read-only), and the monotonic second from which the reaper may judge
         #: runs again after such beats (see tick).
@@ -189,7 +194,24 @@ class WorkerMonitor:
         # absent while it starts), and can tell a warm-up that takes too long.
         warming_since = None if is_warm else self._warming_since()
         with self.db.session() as session:
-            if self._started:
+            twin = self._live_twin(session) if self._started else None
+            if twin is not None:
+                # A twin: another live process started under this name by mistake. Both
+                # wrote their own warm-up and lock state and incarnation on the row they
+                # share at each beat, so it switched between them every beat (warming,
+                # then warm, then warming...). The row stays the twin's, which beat it
+                # last; this one says only that the name lives, and logs why.
+                self._twin.seen(
+                    twin,
+                    f"worker {self.name}: another live process beats under this name "
+                    "(incarnation %s): its row is left to it, and this process is not "
+                    "listed by /health; give each worker a name of its own",
+                )
+                touch_twin_row(session, self.name, twin)
+            elif self._started:
+                self._twin.cleared(
+                    f"worker {self.name}: its row is this process's again after %.0f s"
+                )
                 beat_worker(
                     session,
                     self.name,
@@ -214,6 +236,26 @@ class WorkerMonitor:
         if is_warm:
             self._unreplaced_since = None
             self._booting_since = None
+
+    def _live_twin(self, session: Session) -> str | None:
+        """The incarnation of another live process under this name that the row names
+        (a twin), or None: the row is this process's, marked stopping (the twin was told
+        to stop and hands its row back), or names a process whose lock is free or
+        cannot be read (it is taken over, as before twins were told apart)."""
+        row = session.execute(
+            select(WorkerRow.incarnation, WorkerRow.stopping_since).where(
+                WorkerRow.name == self.name
+            )
+        ).one_or_none()
+        if row is None or row.incarnation in (None, self.life.incarnation):
+            return None
+        if row.stopping_since is not None:
+            return None
+        try:
+            held = lock_held(session, self.settings.resolved_database_url, row.incarnation)
+        except LockUnreadable:
+            return None
+        return row.incarnation if held else None
 
     def _warming_since(self) -> datetime:
         """Since when the worker has had no warm task process: before its first was

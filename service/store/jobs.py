@@ -77,6 +77,7 @@ __all__ = [
     "start_worker",
     "take_earlier_incarnations",
     "task_process_lost",
+    "touch_twin_row",
     "touch_worker",
 ]
 
@@ -848,13 +849,31 @@ def beat_worker(
     Two live processes started under one name by mistake (twins) share the row; the one
     it names, told to stop, marks it stopping (see :func:`hand_back`), and /health left
     the other out while it lived and beat; and /health finds a row that names a dead
-    process gone, as when one twin was killed."""
+    process gone, as when one twin was killed. While the row names a live twin, the
+    worker's monitor beats with :func:`touch_twin_row` instead, so the row is not
+    switched between the twins at every beat."""
     _upsert_worker(
         session,
         name,
         broker_url,
         {"warming_since": warming_since, "lock_missing_since": lock_missing_since},
         incarnation=incarnation,
+    )
+
+
+def touch_twin_row(session: Session, name: str, twin: str) -> None:
+    """A beat of a process under ``name`` whose row another live process of that name
+    (a twin, incarnation ``twin``) beat last: the name is seen now, and the rest of the
+    row (its incarnation, warm-up and lock state) stays the twin's. Only while the row
+    still names ``twin`` and is not marked stopping (else the next beat takes it)."""
+    session.execute(
+        update(WorkerRow)
+        .where(
+            WorkerRow.name == name,
+            WorkerRow.incarnation == twin,
+            WorkerRow.stopping_since.is_(None),
+        )
+        .values(last_seen_at=utcnow())
     )
 
 

@@ -26,8 +26,10 @@ import worker.monitor
 from app.api.health import health
 from service.config import Settings
 from service.store import WorkerRow
+from service.store.incarnations import lock_held
 from service.store.jobs import beat_worker, start_worker
 from service.store.models import utcnow
+from service.store.session import Database
 from worker.incarnation import Life
 from worker.monitor import WorkerMonitor
 
@@ -119,6 +121,21 @@ def _killed(monitor: WorkerMonitor) -> None:
     monitor._ticker.stop()
     monitor.life._let_go()
     monitor.db.dispose()
+    # A PostgreSQL server ends the lock's session a moment after its client is gone
+    # (on SQLite the lock is let go of at once, its file left behind).
+    url = monitor.settings.resolved_database_url
+    if not url.startswith("postgresql"):
+        return
+    probe = Database(url)
+
+    def free() -> bool:
+        with probe.session() as session:
+            return lock_held(session, url, monitor.life.incarnation) is not True
+
+    try:
+        wait_for(free, 10.0, "the killed worker's lock was never let go of", lambda: "")
+    finally:
+        probe.dispose()
 
 
 @pytest.mark.parametrize("same_name", [True, False], ids=["same-name", "new-name"])
@@ -176,6 +193,46 @@ def test_a_live_twin_takes_back_the_row_a_killed_twin_named(
         first.tick()  # the live one's beat: the row names it, and it is listed
         report = health(store.settings, store.db, first.celery)
         assert (report.status, report.workers.names, report.workers.gone) == (
+            "ok",
+            [WORKER],
+            [],
+        ), report.workers
+    finally:
+        first.stop()
+
+
+def test_two_live_twins_leave_their_shared_row_to_one_of_them(
+    store: Store, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    """Two live processes started under one name by mistake, one warm and one warming.
+    Before: each beat wrote its own state and incarnation on the row they share, so
+    /health said warming, then warm, then warming, at every beat. Now the row stays the
+    twin's that beat it last, the other keeps it seen and says why in its log, and the
+    row is the other's once the first has gone."""
+    url = store.settings.resolved_database_url
+    beating = ["first"]  # the process whose beat runs: "first" is warm, "twin" warming
+    monkeypatch.setattr(worker.monitor, "warm", lambda: beating[0] == "first")
+    monkeypatch.setattr(worker.monitor, "cold_since", lambda: time.time() - 3.0)
+    first = WorkerMonitor(WORKER, store.settings, Life(url, "first"))
+    twin = WorkerMonitor(WORKER, store.settings, Life(url, "twin"))
+    try:
+        for beating[0], monitor in (("first", first), ("twin", twin)):
+            monitor.life.hold()
+            monitor.tick()  # the twin, started last, is named by the row
+        states = []
+        for _ in range(3):
+            for beating[0], monitor in (("first", first), ("twin", twin)):
+                monitor.tick()
+                with store.db.session() as session:
+                    row = session.get_one(WorkerRow, WORKER)
+                    states.append((row.incarnation, row.warming_since is not None))
+        assert set(states) == {("twin", True)}, states
+        assert "another live process beats under this name (incarnation twin)" in caplog.text
+        _killed(twin)
+        beating[0] = "first"
+        first.tick()  # the twin's lock is free: the row is this one's again
+        report = health(store.settings, store.db, first.celery)
+        assert (report.status, report.workers.names, report.workers.warming) == (
             "ok",
             [WORKER],
             [],
