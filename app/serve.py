@@ -34,12 +34,15 @@ import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from types import FrameType
-from typing import IO, Any
+from typing import IO, TYPE_CHECKING, Any
 
 from pydantic import ValidationError
 
 from service.config import Settings, get_settings, setting_problems
 from service.queue import worker_command
+
+if TYPE_CHECKING:
+    from service.store.session import Database
 
 __all__ = ["WorkerPool", "main", "tcp_socket"]
 
@@ -74,10 +77,24 @@ class WorkerPool:
     :param log_level: Celery log level.
     """
 
-    def __init__(self, count: int, log_dir: Path, *, log_level: str = "INFO") -> None:
+    def __init__(
+        self,
+        count: int,
+        log_dir: Path,
+        *,
+        log_level: str = "INFO",
+        settings: Settings | None = None,
+    ) -> None:
         self.count = count
         self.log_dir = log_dir
         self.log_level = log_level
+        #: Where the workers beat: each is announced there as starting (see _announce).
+        self._database: Database | None = None
+        if settings is not None:
+            from service.store.session import Database
+
+            self._database = Database(settings.resolved_database_url)
+        self._broker_label = "" if settings is None else _broker_label(settings.broker_url)
         self.processes: dict[int, subprocess.Popen[bytes]] = {}
         self.names: dict[int, str] = {}
         self._logs: dict[int, IO[bytes]] = {}
@@ -128,10 +145,48 @@ class WorkerPool:
             self.processes[index].pid,
             self.names[index],
         )
+        self._announce(index)
+
+    def node_name(self, index: int) -> str:
+        """Worker ``index``'s Celery node name, its ``workers`` row's key."""
+        return f"{self.names[index]}@{socket.gethostname()}"
+
+    def _announce(self, index: int) -> None:
+        """Record worker ``index`` as starting (warming since now): its main process
+        imports Celery for seconds before its first beat (4 s after the API first
+        answered, measured), and meanwhile /health said "no worker seen". Housekeeping:
+        a failure is logged, and the worker's own first beat writes the row anyway."""
+        if self._database is None:
+            return
+        from service.store.jobs import announce_worker
+
+        try:
+            with self._database.session() as session:
+                announce_worker(session, self.node_name(index), self._broker_label)
+        except Exception:
+            logger.warning("could not record worker%d as starting", index, exc_info=True)
+
+    def _keep_announced(self) -> None:
+        """Keep the rows of workers that live but have not beaten yet in the silence
+        window (an import past 15 s on a loaded machine); a worker that died before its
+        first beat is let go of, and leaves the list once its row is older."""
+        if self._database is None:
+            return
+        names = [self.node_name(i) for i, p in self.processes.items() if p.poll() is None]
+        if not names:
+            return
+        from service.store.jobs import keep_announced_workers
+
+        try:
+            with self._database.session() as session:
+                keep_announced_workers(session, names)
+        except Exception:
+            logger.debug("could not refresh the starting workers' rows", exc_info=True)
 
     def _supervise(self) -> None:
         started = {index: time.monotonic() for index in self.processes}
         while not self._stopping.wait(1.0):
+            self._keep_announced()
             for index, process in list(self.processes.items()):
                 code = process.poll()
                 if code is None or self._stopping.is_set():
@@ -171,7 +226,7 @@ class WorkerPool:
             except ProcessLookupError:
                 pass
         deadline = time.monotonic() + grace_s
-        names = [f"{self.names[i]}@{socket.gethostname()}" for i in running]
+        names = [self.node_name(i) for i in running]
         while time.monotonic() < deadline and any(p.poll() is None for p in running.values()):
             time.sleep(0.2)
             if settled is not None and names:
@@ -196,6 +251,15 @@ class WorkerPool:
         for log in self._logs.values():
             log.close()
         self._logs.clear()
+        if self._database is not None:
+            self._database.dispose()
+
+
+def _broker_label(broker_url: str) -> str:
+    """The broker URL as the workers' rows show it: any password masked."""
+    from kombu.utils.url import maybe_sanitize_url
+
+    return str(maybe_sanitize_url(broker_url))
 
 
 def _whole_number(text: str) -> int:
@@ -448,7 +512,9 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     shown_host = f"[{args.host}]" if ":" in args.host else args.host
     url = f"http://{shown_host}:{args.port}"
-    pool = WorkerPool(args.workers, data_dir / "logs", log_level=args.log_level.upper())
+    pool = WorkerPool(
+        args.workers, data_dir / "logs", log_level=args.log_level.upper(), settings=settings
+    )
     print(
         f"\ninertia-id service\n"
         f"URL:       {url}   (dashboard; API docs: {url}/docs)\n"

@@ -56,6 +56,7 @@ __all__ = [
     "WORKER_RESTARTED",
     "ScenarioGone",
     "add_metrics",
+    "announce_worker",
     "beat_worker",
     "cancel",
     "claim",
@@ -67,6 +68,7 @@ __all__ = [
     "hand_back",
     "heartbeat",
     "is_cancel_requested",
+    "keep_announced_workers",
     "lost_run",
     "mark_sent",
     "owns",
@@ -858,6 +860,39 @@ def beat_worker(
         broker_url,
         {"warming_since": warming_since, "lock_missing_since": lock_missing_since},
         incarnation=incarnation,
+    )
+
+
+def announce_worker(session: Session, name: str, broker_url: str) -> None:
+    """Record that a worker process was just started under ``name`` (by ``inertia-id
+    serve``), before it can beat: listed as warming since now, with no incarnation (none
+    is known yet: never judged gone). A row that exists is left alone (the worker beat
+    first). Its own first beat makes the row its own (:func:`start_worker`)."""
+    now = utcnow()
+    values = {
+        "name": name,
+        "broker_url": broker_url,
+        "started_at": now,
+        "last_seen_at": now,
+        "warming_since": now,
+    }
+    dialect = session.get_bind().dialect.name
+    if dialect in ("sqlite", "postgresql"):
+        insert = sqlite.insert if dialect == "sqlite" else postgresql.insert
+        session.execute(
+            insert(WorkerRow).values(**values).on_conflict_do_nothing(index_elements=["name"])
+        )
+    elif session.get(WorkerRow, name) is None:
+        session.add(WorkerRow(**values))
+
+
+def keep_announced_workers(session: Session, names: list[str]) -> None:
+    """Seen now: those of the workers ``names`` (announced by :func:`announce_worker`,
+    their processes alive) that have not beaten yet (no incarnation on their rows)."""
+    session.execute(
+        update(WorkerRow)
+        .where(WorkerRow.name.in_(names), WorkerRow.incarnation.is_(None))
+        .values(last_seen_at=utcnow())
     )
 
 

@@ -9,17 +9,24 @@ import signal
 import socket
 import subprocess
 import sys
+import time
 import urllib.request
+from datetime import datetime, timedelta
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+import pytest
 from service_support import clean_env, free_port, tail, wait_for
 
 from inertia_id import Scenario
 from service.config import Settings
 from service.queue import RUN_JOB_TASK, make_celery
-from service.store import Database, JobRow, ScenarioRow
+from service.store import Database, JobRow, ScenarioRow, WorkerRow
 from service.store.jobs import config_hash
+from service.store.models import utcnow
+
+if TYPE_CHECKING:
+    from conftest import Store
 
 
 def test_serve_help_lists_its_options_from_both_entry_points() -> None:
@@ -244,3 +251,52 @@ def test_the_socket_shared_by_several_api_processes_accepts_connections_without_
     with ThreadPoolExecutor(1) as pool:
         nodelay = pool.submit(asyncio.run, nodelay_of_an_accepted_connection()).result()
     assert nodelay != 0
+
+
+def test_serve_lists_a_worker_it_started_as_warming_before_its_first_beat(
+    store: Store, monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    """A worker's main process imports Celery for seconds before its first beat. Before,
+    /health said "no worker seen" meanwhile, 4 s after serve's API first answered. Now
+    serve records each worker it starts as warming, keeps its row seen while the process
+    lives and has not beaten, and lets it go once the process is gone."""
+    from app.api.health import health
+    from app.serve import WorkerPool
+
+    # A worker that never gets to its first beat.
+    monkeypatch.setattr(
+        WorkerPool,
+        "command",
+        lambda _self, _index: [sys.executable, "-c", "import time; time.sleep(60)"],
+    )
+    pool = WorkerPool(1, tmp_path / "logs", settings=store.settings)
+    celery = make_celery(store.settings)
+    pool.start()
+    name = pool.node_name(1)
+
+    def seen_at() -> datetime:
+        with store.db.session() as session:
+            return session.get_one(WorkerRow, name).last_seen_at
+
+    def age_row() -> None:
+        with store.db.session() as session:
+            session.get_one(WorkerRow, name).last_seen_at = utcnow() - timedelta(seconds=60)
+
+    try:
+        report = health(store.settings, store.db, celery)
+        assert (report.status, report.workers.names) == ("ok", [name]), report.workers
+        assert [w.name for w in report.workers.warming] == [name], report.workers
+        age_row()
+        old = seen_at()
+        wait_for(lambda: seen_at() != old, 10.0, "the starting worker's row was not kept", str)
+        process = pool.processes[1]
+        process.kill()
+        process.wait(10)
+        age_row()
+        old = seen_at()
+        time.sleep(2.5)  # the pool's supervisor refreshes every second
+        assert seen_at() == old
+        report = health(store.settings, store.db, celery)
+        assert (report.status, report.workers.names) == ("degraded", []), report.workers
+    finally:
+        pool.stop(grace_s=1.0)
