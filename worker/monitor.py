@@ -27,7 +27,7 @@ from sqlalchemy.orm import Session
 from service.config import Settings, get_settings
 from service.queue import make_celery
 from service.store import Database
-from service.store.incarnations import LockUnreadable, lock_held
+from service.store.incarnations import LockUnreadable, locks_held
 from service.store.jobs import beat_worker, start_worker, touch_twin_row
 from service.store.models import WorkerRow, utcnow
 from service.store.refusals import database_label, why_cannot_store
@@ -252,10 +252,12 @@ class WorkerMonitor:
         if row.stopping_since is not None:
             return None
         try:
-            held = lock_held(session, self.settings.resolved_database_url, row.incarnation)
+            # Read, not tried (on PostgreSQL, pg_locks): a try-lock held the twin's key
+            # for a moment, in which a twin that had lost its lock could not take it.
+            held = locks_held(session, self.settings.resolved_database_url, [row.incarnation])
         except LockUnreadable:
             return None
-        return row.incarnation if held else None
+        return row.incarnation if held.get(row.incarnation) else None
 
     def _warming_since(self) -> datetime:
         """Since when the worker has had no warm task process: before its first was
