@@ -63,6 +63,15 @@ class Settings(BaseSettings):
     port: int = Field(default=8000, ge=1, le=65535, alias="INERTIA_ID_PORT")
     max_body_bytes: int = Field(default=5_000_000, ge=1, alias="INERTIA_ID_MAX_BODY_BYTES")
     max_page_size: int = Field(default=200, ge=1, alias="INERTIA_ID_MAX_PAGE_SIZE")
+    #: How long a POST's ``Idempotency-Key`` and its answer are kept: a retry within this
+    #: gets the first answer back, a later one is a new request. 24 h: Stripe's.
+    idempotency_key_ttl_s: float = Field(
+        default=86_400.0,
+        gt=0,
+        le=LONGEST_S,
+        allow_inf_nan=False,
+        alias="INERTIA_ID_IDEMPOTENCY_KEY_TTL_S",
+    )
     #: A connection whose request head is not complete this long after it opened, or
     #: after the previous response on it, is closed (slow clients, ``slowloris``; uvicorn
     #: has no such timeout: ``app.request_deadlines``). 10 s: a head is one packet or a

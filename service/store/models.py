@@ -24,6 +24,7 @@ from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 __all__ = [
     "JOB_STATUSES",
     "JOB_TYPES",
+    "MAX_IDEMPOTENCY_KEY_LENGTH",
     "MAX_NAME_LENGTH",
     "MAX_TAGS",
     "MAX_TAG_LENGTH",
@@ -33,6 +34,7 @@ __all__ = [
     "ApiKey",
     "Base",
     "ClassifierRow",
+    "IdempotencyKeyRow",
     "JobRow",
     "JobTagRow",
     "MetricRow",
@@ -54,6 +56,8 @@ MAX_TAGS = 16
 MAX_TAG_LENGTH = 64
 #: A job's name, for people; not part of its identity.
 MAX_NAME_LENGTH = 200
+#: The longest ``Idempotency-Key`` kept (Stripe's limit too).
+MAX_IDEMPOTENCY_KEY_LENGTH = 255
 
 
 def new_id() -> str:
@@ -229,3 +233,31 @@ class ApiKey(Base):
     id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
     key_hash: Mapped[str] = mapped_column(String(64), unique=True)
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+
+
+class IdempotencyKeyRow(Base):
+    """A POST sent with an ``Idempotency-Key``, and the answer it got.
+
+    One row per client (the SHA-256 of its API key, as ``api_keys.key_hash``) and key:
+    the first request with the key claims the row (``claim``), a second one at once
+    finds it claimed (409), a later one with the same request gets ``answer_*`` back,
+    and one with another request is refused (422). Kept until ``expires_at``.
+    """
+
+    __tablename__ = "idempotency_keys"
+    __table_args__ = (Index("ix_idempotency_keys_expires_at", "expires_at"),)
+
+    client: Mapped[str] = mapped_column(String(64), primary_key=True)
+    key: Mapped[str] = mapped_column(String(MAX_IDEMPOTENCY_KEY_LENGTH), primary_key=True)
+    #: The route the key was used on (``POST /jobs``), for the refusal of another use.
+    route: Mapped[str] = mapped_column(String(200))
+    #: SHA-256 of the route and the request's body as parsed (``service.store.idempotency``).
+    fingerprint: Mapped[str] = mapped_column(String(64))
+    #: The token of the request that holds the key: only it stores the answer or lets
+    #: the key go.
+    claim: Mapped[str] = mapped_column(String(32))
+    claimed_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+    expires_at: Mapped[datetime] = mapped_column(DateTime(timezone=True))
+    #: The answer's status and JSON body; NULL while the request is in progress.
+    answer_status: Mapped[int | None] = mapped_column(Integer, default=None)
+    answer_body: Mapped[dict[str, Any] | None] = mapped_column(JSON, default=None)

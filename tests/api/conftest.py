@@ -35,7 +35,16 @@ PG_ADMIN_URL = os.environ.get(
     "INERTIA_ID_TEST_POSTGRES_URL", "postgresql+psycopg://postgres@127.0.0.1:5432/test"
 )
 REQUIRE_SERVICES = os.environ.get("INERTIA_ID_REQUIRE_SERVICES") == "1"
-TABLES = ("metrics", "job_tags", "classifiers", "jobs", "scenarios", "workers", "api_keys")
+TABLES = (
+    "metrics",
+    "job_tags",
+    "classifiers",
+    "jobs",
+    "scenarios",
+    "workers",
+    "api_keys",
+    "idempotency_keys",
+)
 
 
 @contextmanager

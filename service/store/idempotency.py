@@ -1,0 +1,180 @@
+"""Idempotency keys: a POST retried with its key is answered once, from the database.
+
+A client that sent a POST and lost the answer (a timeout, a dropped connection) cannot
+tell whether it was done. Sent again with the same ``Idempotency-Key`` header (Stripe's
+API; the IETF draft "The Idempotency-Key HTTP Header Field"), it gets the first answer
+back instead of a second job. The ``idempotency_keys`` table holds, per client and key,
+the request's fingerprint and, once it is answered, the answer:
+
+- :func:`claim` inserts the row in a transaction of its own, committed at once, so the
+  primary key settles a race: of identical requests sent together one claims the key,
+  the others find it claimed (:data:`IN_PROGRESS`) or answered (:data:`REPLAY`);
+- :func:`answer` stores the answer in the caller's transaction (the one that stores
+  the new row, where the route allows), so the answer and what it reports commit together;
+- :func:`release` lets the key go when the request failed: nothing was made, and the
+  same request may be sent again;
+- a claim left unanswered past :data:`CLAIM_LEASE` (the API process died mid-request) is
+  taken over by the next request with the key; expired rows are deleted by the claims.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import secrets
+from dataclasses import dataclass
+from datetime import UTC, datetime, timedelta
+from typing import Any, Literal
+
+from sqlalchemy import delete, update
+from sqlalchemy.exc import IntegrityError
+from sqlalchemy.orm import Session
+
+from .models import IdempotencyKeyRow, utcnow
+from .session import Database
+
+__all__ = [
+    "CLAIM_LEASE",
+    "IN_PROGRESS",
+    "MISMATCH",
+    "NEW",
+    "REPLAY",
+    "Claim",
+    "answer",
+    "claim",
+    "fingerprint",
+    "release",
+]
+
+#: How long a claim without an answer holds its key. A POST that creates a job or a
+#: scenario is answered in well under a second; a claim this old belongs to a request
+#: whose process died, and the next request with the key takes it over.
+CLAIM_LEASE = timedelta(minutes=2)
+
+NEW: Literal["new"] = "new"
+REPLAY: Literal["replay"] = "replay"
+IN_PROGRESS: Literal["in_progress"] = "in_progress"
+MISMATCH: Literal["mismatch"] = "mismatch"
+
+
+@dataclass(frozen=True)
+class Claim:
+    """What :func:`claim` found.
+
+    :param outcome: ``new`` (this request holds the key: run it, then :func:`answer` or
+        :func:`release`), ``replay`` (answered before: ``status`` and ``body``),
+        ``in_progress`` (another request holds it), ``mismatch`` (the key was used for
+        another request: ``route`` is the one it was used on).
+    :param token: this request's claim, for :func:`answer` and :func:`release` (``new``).
+    """
+
+    outcome: Literal["new", "replay", "in_progress", "mismatch"]
+    token: str | None = None
+    route: str | None = None
+    status: int | None = None
+    body: dict[str, Any] | None = None
+
+
+def fingerprint(route: str, body: Any) -> str:
+    """The request's identity: its route and its body as parsed (the same JSON written
+    with other spacing, key order or defaults is the same request)."""
+    canonical = json.dumps(
+        {"route": route, "body": body}, sort_keys=True, separators=(",", ":"), ensure_ascii=True
+    )
+    return hashlib.sha256(canonical.encode()).hexdigest()
+
+
+def _aware(moment: datetime) -> datetime:
+    # SQLite hands back naive datetimes (UTC as stored).
+    return moment if moment.tzinfo is not None else moment.replace(tzinfo=UTC)
+
+
+def claim(
+    db: Database,
+    *,
+    client: str,
+    key: str,
+    route: str,
+    digest: str,
+    ttl: timedelta,
+    now: datetime | None = None,
+) -> Claim:
+    """Claim ``key`` for ``client``'s request (``route``, fingerprint ``digest``), or say
+    why not. Committed before it returns: a concurrent request sees the claim."""
+    now = now or utcnow()
+    token = secrets.token_hex(16)
+    # Three rounds: the row found may go (released, expired) between the failed insert
+    # and the read; the next insert then meets the next request's row or none.
+    for _ in range(3):
+        try:
+            with db.session() as session:
+                session.execute(delete(IdempotencyKeyRow).where(IdempotencyKeyRow.expires_at < now))
+                session.add(
+                    IdempotencyKeyRow(
+                        client=client,
+                        key=key,
+                        route=route,
+                        fingerprint=digest,
+                        claim=token,
+                        claimed_at=now,
+                        expires_at=now + ttl,
+                    )
+                )
+            return Claim(NEW, token=token)
+        except IntegrityError:
+            pass
+        with db.session() as session:
+            row = session.get(IdempotencyKeyRow, (client, key), populate_existing=True)
+            if row is None:
+                continue
+            if _aware(row.expires_at) < now:
+                session.delete(row)
+                continue
+            if row.fingerprint != digest:
+                return Claim(MISMATCH, route=row.route)
+            if row.answer_status is not None:
+                return Claim(REPLAY, status=row.answer_status, body=row.answer_body)
+            if _aware(row.claimed_at) > now - CLAIM_LEASE:
+                return Claim(IN_PROGRESS)
+            taken = session.execute(
+                update(IdempotencyKeyRow)
+                .where(
+                    IdempotencyKeyRow.client == client,
+                    IdempotencyKeyRow.key == key,
+                    IdempotencyKeyRow.claim == row.claim,
+                    IdempotencyKeyRow.answer_status.is_(None),
+                )
+                .values(claim=token, claimed_at=now)
+            )
+            if taken.rowcount == 1:  # type: ignore[attr-defined]
+                return Claim(NEW, token=token)
+    return Claim(IN_PROGRESS)
+
+
+def answer(
+    session: Session, *, client: str, key: str, token: str, status: int, body: dict[str, Any]
+) -> None:
+    """Store the answer of the request that holds ``key`` in ``session`` (committed with
+    the caller's transaction)."""
+    session.execute(
+        update(IdempotencyKeyRow)
+        .where(
+            IdempotencyKeyRow.client == client,
+            IdempotencyKeyRow.key == key,
+            IdempotencyKeyRow.claim == token,
+        )
+        .values(answer_status=status, answer_body=body)
+    )
+
+
+def release(db: Database, *, client: str, key: str, token: str) -> None:
+    """Let ``key`` go: the request that held it failed before it was answered."""
+    with db.session() as session:
+        session.execute(
+            delete(IdempotencyKeyRow).where(
+                IdempotencyKeyRow.client == client,
+                IdempotencyKeyRow.key == key,
+                IdempotencyKeyRow.claim == token,
+                IdempotencyKeyRow.answer_status.is_(None),
+            )
+        )
