@@ -270,6 +270,7 @@ def test_each_step_down_to_base_and_back_keeps_every_row_the_schema_still_holds(
         ApiKey,
         ClassifierRow,
         Database,
+        IdempotencyKeyRow,
         JobTagRow,
         MetricRow,
         ScenarioRow,
@@ -284,6 +285,18 @@ def test_each_step_down_to_base_and_back_keeps_every_row_the_schema_still_holds(
             session.add(ScenarioRow(id="s", name="paper", document={"x": 1}))
             session.add(WorkerRow(name="w1@host", broker_url="filesystem://"))
             session.add(ApiKey(key_hash="0" * 64))
+            session.add(
+                IdempotencyKeyRow(
+                    client="0" * 64,
+                    key="retry-1",
+                    route="POST /jobs",
+                    fingerprint="f" * 64,
+                    claim="c" * 32,
+                    expires_at=datetime(2030, 1, 1, tzinfo=UTC),
+                    answer_status=202,
+                    answer_body={"id": "job0"},
+                )
+            )
             session.flush()
             for index, status in enumerate(["succeeded", "running", "queued"]):
                 job_id = f"job{index}"
@@ -362,6 +375,7 @@ def test_each_step_down_to_base_and_back_keeps_every_row_the_schema_still_holds(
         assert {name: len(rows) for name, rows in _rows(_tables(engine)).items()} == {
             **{name: len(rows) for name, rows in at_0001.items()},
             "job_tags": 0,  # none at 0001: the table came with 0004
+            "idempotency_keys": 0,  # the table came with 0010
         }
     finally:
         engine.dispose()

@@ -37,5 +37,9 @@ def upgrade() -> None:
 
 
 def downgrade() -> None:
-    op.drop_index("ix_idempotency_keys_expires_at", table_name="idempotency_keys")
-    op.drop_table("idempotency_keys")
+    # ``if_exists``: Python's sqlite3 runs DDL sent before any DML of a transaction
+    # outside it, so when a later step of the same downgrade fails (0009's DROP COLUMN
+    # on an SQLite older than 3.35, refused by name) this drop stays done while the
+    # version stays 0010; the downgrade run again must get past it.
+    op.drop_index("ix_idempotency_keys_expires_at", table_name="idempotency_keys", if_exists=True)
+    op.drop_table("idempotency_keys", if_exists=True)
