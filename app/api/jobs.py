@@ -80,6 +80,7 @@ from .deps import (
     unknown_sort,
     unprocessable,
 )
+from .idempotency import IDEMPOTENCY_RESPONSES, IdempotencyDep
 from .listing import id_filters, one_page, search_text, sort_order, tag_filters
 from .routing import UniqueKeysRoute
 from .scenarios import PlanOptionsDep, plan_for
@@ -367,6 +368,7 @@ async def _note_asked_at(request: Request) -> None:
 @router.post(
     "",
     status_code=status.HTTP_202_ACCEPTED,
+    response_model=JobSubmitted,
     dependencies=[Depends(_note_asked_at), ApiKeyDep],
     responses={
         200: {
@@ -376,6 +378,7 @@ async def _note_asked_at(request: Request) -> None:
         },
         **no_such("scenario or classifier"),
         **UNAUTHORIZED,
+        **IDEMPOTENCY_RESPONSES,
     },
 )
 def submit_job(
@@ -385,13 +388,19 @@ def submit_job(
     settings: SettingsDep,
     request: Request,
     response: Response,
-) -> JobSubmitted:
+    idempotent: IdempotencyDep,
+) -> Any:
     """Queue a search, train or sweep job (202), or return the identical existing one (200).
 
     The job is stored before its message goes to the broker. If the broker cannot be
     reached the job stays queued (``sent_at`` null) and the workers' monitor sends it
     once the broker is back; ``GET /health`` says how many jobs wait to be sent.
+
+    With an ``Idempotency-Key`` the same request sent again is answered as the first
+    time (:mod:`app.api.idempotency`).
     """
+    if idempotent is not None and (replay := idempotent.begin(body)) is not None:
+        return replay
     _check_time_limit(body, settings.job_time_limit_s)
     scenario = _scenario(session, body.scenario_id)
     if isinstance(body, SearchJobCreate):
@@ -424,7 +433,10 @@ def submit_job(
         ) from None
     if reused:
         response.status_code = status.HTTP_200_OK
-        return JobSubmitted.model_validate({**_as_dict(job), "reused": True})
+        submitted = JobSubmitted.model_validate({**_as_dict(job), "reused": True})
+        if idempotent is not None:
+            idempotent.answer(session, status.HTTP_200_OK, submitted)
+        return submitted
     try:
         celery.send_task(RUN_JOB_TASK, args=[job.id])
     except Exception:  # any broker failure: the job waits, queued, for the monitor's send
@@ -433,7 +445,10 @@ def submit_job(
         job_store.mark_sent(session, job.id)
         session.commit()
         session.refresh(job)
-    return JobSubmitted.model_validate({**_as_dict(job), "reused": False})
+    submitted = JobSubmitted.model_validate({**_as_dict(job), "reused": False})
+    if idempotent is not None:
+        idempotent.answer(session, status.HTTP_202_ACCEPTED, submitted)
+    return submitted
 
 
 def _as_dict(job: JobRow) -> dict[str, Any]:

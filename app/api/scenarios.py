@@ -51,6 +51,7 @@ from .deps import (
     unprocessable,
 )
 from .errors import duplicate_key_errors, refused_at
+from .idempotency import IDEMPOTENCY_RESPONSES, IdempotencyDep
 from .listing import one_page
 from .routing import UniqueKeysRoute
 
@@ -137,22 +138,31 @@ def _check_storable(scenario: Scenario) -> dict[str, Any]:
 @router.post(
     "",
     status_code=status.HTTP_201_CREATED,
+    response_model=ScenarioOut,
     dependencies=[ApiKeyDep],
-    responses=UNAUTHORIZED,
+    responses={**UNAUTHORIZED, **IDEMPOTENCY_RESPONSES},
 )
-def create_scenario(body: ScenarioCreate, session: SessionDep) -> ScenarioOut:
+def create_scenario(body: ScenarioCreate, session: SessionDep, idempotent: IdempotencyDep) -> Any:
     """Store a scenario from a preset with overrides, or from a full document.
 
     Every rule of the physics is checked, e.g. an inertia tensor whose principal moments
-    break the triangle inequality is refused (422) with the moments.
+    break the triangle inequality is refused (422) with the moments. With an
+    ``Idempotency-Key`` the same request sent again is answered as the first time, and
+    stores no second scenario (:mod:`app.api.idempotency`).
     """
+    if idempotent is not None and (replay := idempotent.begin(body)) is not None:
+        return replay
     scenario = _build(body)
     document = _check_storable(scenario)
     _check_names(scenario, "scenario" if body.scenario is not None else "overrides")
     row = ScenarioRow(name=scenario.name, document=document)
     session.add(row)
     session.flush()
-    return scenario_out(row)
+    created = scenario_out(row)
+    if idempotent is not None:
+        # In the scenario's own transaction: both are kept, or neither.
+        idempotent.answer(session, status.HTTP_201_CREATED, created)
+    return created
 
 
 @router.get("")

@@ -1,0 +1,177 @@
+"""The ``Idempotency-Key`` header of the POSTs that store a new row (a job, a scenario).
+
+As Stripe's API and the IETF draft "The Idempotency-Key HTTP Header Field": a client
+that sends a POST with a key it made up (a UUID) and loses the answer sends the same
+request with the same key again, and is answered what the first one was (the same job,
+the same status code), with ``Idempotent-Replayed: true``; the job is made once. The
+same key with another request (another body, or another route) is refused, 422 naming
+the key; with a request still in progress, 409. A request that failed (a 4xx or a 5xx
+of the route) keeps no answer: sent again, it runs again. Keys belong to an API key
+(two clients never meet in each other's keys) and are kept ``INERTIA_ID_IDEMPOTENCY_KEY_TTL_S``
+(24 h). The table and its races: :mod:`service.store.idempotency`.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterator
+from dataclasses import dataclass
+from datetime import timedelta
+from typing import Annotated, Any
+
+from fastapi import Depends, Header, HTTPException, Request, status
+from fastapi.responses import JSONResponse
+from pydantic import BaseModel
+from sqlalchemy.orm import Session
+
+from service.store import idempotency as store
+from service.store.models import MAX_IDEMPOTENCY_KEY_LENGTH
+from service.store.session import Database
+
+from ..security import API_KEY_HEADER, hash_key
+from .deps import DatabaseDep, SettingsDep, unprocessable
+
+__all__ = [
+    "IDEMPOTENCY_KEY_HEADER",
+    "IDEMPOTENCY_RESPONSES",
+    "REPLAYED_HEADER",
+    "IdempotencyDep",
+    "IdempotentRequest",
+    "parse_key",
+]
+
+IDEMPOTENCY_KEY_HEADER = "Idempotency-Key"
+REPLAYED_HEADER = "Idempotent-Replayed"
+
+_WHERE = ("header", IDEMPOTENCY_KEY_HEADER)
+# A bare token (Stripe's keys, UUIDs) is visible ASCII; the draft's own form is a
+# Structured Field string (RFC 8941 3.3.3): in double quotes, printable ASCII, with
+# ``\"`` and ``\\`` the only escapes. Parsed here, for one header of one type, rather than
+# with a structured-fields library the project does not otherwise need.
+_BARE = re.compile(r"[\x20-\x7e]+")
+_QUOTED = re.compile(r'"((?:[\x20\x21\x23-\x5b\x5d-\x7e]|\\["\\])*)"')
+
+#: What the schema says of a route that takes the header.
+IDEMPOTENCY_RESPONSES: dict[int | str, dict[str, Any]] = {
+    409: {"description": "a request with this Idempotency-Key is still in progress"},
+}
+
+
+def parse_key(raw: str) -> str:
+    """The key an ``Idempotency-Key`` header holds: a bare token or a quoted string of
+    1 to 255 printable ASCII characters; else a 422 that quotes the value."""
+    quoted = _QUOTED.fullmatch(raw)
+    key = re.sub(r"\\(.)", r"\1", quoted.group(1)) if quoted else raw
+    if not (quoted or _BARE.fullmatch(raw)) or not key.strip():
+        unprocessable(
+            _WHERE,
+            f"{IDEMPOTENCY_KEY_HEADER} must be 1 to {MAX_IDEMPOTENCY_KEY_LENGTH} printable "
+            f"ASCII characters (a UUID, say), got {raw[:80]!r}",
+        )
+    if len(key) > MAX_IDEMPOTENCY_KEY_LENGTH:
+        unprocessable(
+            _WHERE,
+            f"{IDEMPOTENCY_KEY_HEADER} must be at most {MAX_IDEMPOTENCY_KEY_LENGTH} "
+            f"characters, got {len(key)}: {key[:40]!r}...",
+        )
+    return key
+
+
+@dataclass
+class IdempotentRequest:
+    """One request's key: :meth:`begin` before the work, :meth:`answer` with its answer."""
+
+    db: Database
+    client: str
+    key: str
+    route: str
+    ttl: timedelta
+    token: str | None = None
+
+    def begin(self, body: BaseModel) -> JSONResponse | None:
+        """Claim the key for this request (None: go on), or the first answer to replay.
+
+        :raises HTTPException: 409 while another request holds the key.
+        :raises RequestValidationError: 422, the key was used for another request.
+        """
+        digest = store.fingerprint(self.route, body.model_dump(mode="json"))
+        found = store.claim(
+            self.db, client=self.client, key=self.key, route=self.route, digest=digest, ttl=self.ttl
+        )
+        if found.outcome == store.NEW:
+            self.token = found.token
+            return None
+        if found.outcome == store.REPLAY:
+            assert found.status is not None
+            return JSONResponse(
+                found.body, status_code=found.status, headers={REPLAYED_HEADER: "true"}
+            )
+        if found.outcome == store.IN_PROGRESS:
+            raise HTTPException(
+                status.HTTP_409_CONFLICT,
+                detail=f"a request with {IDEMPOTENCY_KEY_HEADER} {self.key!r} is still in "
+                "progress; send it again once that one is answered",
+                headers={"Retry-After": "1"},
+            )
+        unprocessable(
+            _WHERE,
+            f"{IDEMPOTENCY_KEY_HEADER} {self.key!r} was used for another request "
+            f"({found.route} with another body); a new request needs a new key",
+        )
+
+    def answer(self, session: Session, status_code: int, body: BaseModel) -> None:
+        """Keep this answer for the key, in ``session``'s transaction."""
+        if self.token is None:
+            return
+        store.answer(
+            session,
+            client=self.client,
+            key=self.key,
+            token=self.token,
+            status=status_code,
+            body=body.model_dump(mode="json"),
+        )
+
+    def release(self) -> None:
+        if self.token is not None:
+            store.release(self.db, client=self.client, key=self.key, token=self.token)
+            self.token = None
+
+
+def _idempotent_request(
+    request: Request,
+    database: DatabaseDep,
+    settings: SettingsDep,
+    key: Annotated[
+        str | None,
+        Header(
+            alias=IDEMPOTENCY_KEY_HEADER,
+            description="A key the client makes up for this request (a UUID; 1 to 255 "
+            "printable ASCII characters): sent again with the same request, within "
+            "INERTIA_ID_IDEMPOTENCY_KEY_TTL_S (24 h), it is answered as the first time, "
+            "with Idempotent-Replayed: true, and nothing is made twice",
+        ),
+    ] = None,
+) -> Iterator[IdempotentRequest | None]:
+    if key is None:
+        yield None
+        return
+    route = request.scope.get("route")
+    handle = IdempotentRequest(
+        db=database,
+        # The route's API key check ran first: the header is there, and accepted.
+        client=hash_key(request.headers.get(API_KEY_HEADER, "")),
+        key=parse_key(key),
+        route=f"{request.method} {getattr(route, 'path', request.url.path)}",
+        ttl=timedelta(seconds=settings.idempotency_key_ttl_s),
+    )
+    try:
+        yield handle
+    except BaseException:
+        # Nothing was made (the route's transaction rolled back): a retry runs again.
+        handle.release()
+        raise
+
+
+# scope="function": the key is let go, or its answer kept, before the answer is sent.
+IdempotencyDep = Annotated[IdempotentRequest | None, Depends(_idempotent_request, scope="function")]

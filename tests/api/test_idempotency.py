@@ -1,0 +1,259 @@
+"""``Idempotency-Key`` on the POSTs that store a row: a retry is answered, not redone.
+
+Without the key, a rerun sent again, or a scenario stored again, makes a second one: a
+client whose answer was lost (a timeout) cannot retry safely. With it, the retry gets
+the first answer back (``Idempotent-Replayed: true``) and nothing is made twice, also
+when the identical requests are sent at once to a real server, on both databases.
+"""
+
+from __future__ import annotations
+
+import secrets
+import threading
+from collections.abc import Callable
+from datetime import timedelta
+from pathlib import Path
+from typing import Any
+
+import httpx
+import pytest
+import uvicorn
+from pydantic import TypeAdapter
+from service_support import free_port
+from sqlalchemy import func, select, update
+
+from app.api.idempotency import IDEMPOTENCY_KEY_HEADER, REPLAYED_HEADER
+from app.main import create_app
+from app.schemas import JobCreate
+from app.security import hash_key
+from service.config import Settings
+from service.store import ApiKey, IdempotencyKeyRow, JobRow, ScenarioRow
+from service.store import idempotency as store
+from service.store.models import utcnow
+
+from .support import Api, make_settings, served_in_thread
+
+SEARCH: dict[str, Any] = {"method": "random", "sequence_length": 4, "timesteps": 64}
+
+
+def _keyed(api: Api, key: str | bytes, other_key: str | None = None) -> dict[str, Any]:
+    return {"X-API-Key": other_key or api.key, IDEMPOTENCY_KEY_HEADER: key}
+
+
+def _count(api: Api, table: Any, *where: Any) -> int:
+    with api.db.session() as session:
+        return int(session.scalar(select(func.count()).select_from(table).where(*where)) or 0)
+
+
+def _same_answer(replayed: dict[str, Any], first: dict[str, Any]) -> bool:
+    """The first answer as it was, but for the time queued so far, which an answer
+    computes when it is written (milliseconds apart for the first one)."""
+    return {**replayed, "queue_time_s": None} == {**first, "queue_time_s": None}
+
+
+def _rerun(scenario_id: str) -> dict[str, Any]:
+    """A rerun: without a key, each one sent makes a new job in the last one's place."""
+    return {"type": "search", "scenario_id": scenario_id, "params": SEARCH, "rerun": True}
+
+
+def test_a_rerun_sent_again_with_its_key_is_answered_as_the_first_and_makes_one_job(
+    api: Api,
+) -> None:
+    scenario = api.create_scenario()["id"]
+    headers = _keyed(api, "rerun-7f3c")
+    first = api.client.post("/jobs", json=_rerun(scenario), headers=headers)
+    again = api.client.post("/jobs", json=_rerun(scenario), headers=headers)
+    assert first.status_code == 202, first.text
+    assert REPLAYED_HEADER.lower() not in first.headers
+    assert again.status_code == 202, again.text
+    assert again.headers[REPLAYED_HEADER] == "true"
+    assert _same_answer(again.json(), first.json())
+    assert _count(api, JobRow) == 1
+    # The key changes nothing else: a rerun with a new key is a new job.
+    third = api.client.post("/jobs", json=_rerun(scenario), headers=_keyed(api, "rerun-8a01"))
+    assert third.status_code == 202 and third.json()["id"] != first.json()["id"]
+
+
+def test_a_scenario_stored_again_with_its_key_is_the_first_and_a_reused_job_replays_200(
+    api: Api,
+) -> None:
+    headers = _keyed(api, '"scenario one"')  # the draft's form: a quoted string
+    first = api.client.post("/scenarios", json={"preset": "paper"}, headers=headers)
+    again = api.client.post("/scenarios", json={"preset": "paper"}, headers=headers)
+    assert (first.status_code, again.status_code) == (201, 201), again.text
+    assert again.headers[REPLAYED_HEADER] == "true"
+    assert again.json()["id"] == first.json()["id"]
+    assert _count(api, ScenarioRow) == 1
+    # The job that stands is handed back (200, reused), and so is its replay.
+    body = {"type": "search", "scenario_id": first.json()["id"], "params": SEARCH}
+    assert api.submit("search", first.json()["id"], params=SEARCH).status_code == 202
+    reused = api.client.post("/jobs", json=body, headers=_keyed(api, "plain"))
+    replayed = api.client.post("/jobs", json=body, headers=_keyed(api, "plain"))
+    assert (reused.status_code, replayed.status_code) == (200, 200)
+    assert _same_answer(replayed.json(), reused.json()) and replayed.json()["reused"] is True
+
+
+def test_a_key_used_for_another_request_is_422_naming_it(api: Api) -> None:
+    scenario = api.create_scenario()["id"]
+    headers = _keyed(api, "k-1")
+    assert api.client.post("/jobs", json=_rerun(scenario), headers=headers).status_code == 202
+    other = {**_rerun(scenario), "seed": 5}
+    refused = api.client.post("/jobs", json=other, headers=headers)
+    assert refused.status_code == 422, refused.text
+    (error,) = refused.json()["detail"]
+    assert error["loc"] == ["header", IDEMPOTENCY_KEY_HEADER]
+    assert "'k-1'" in error["msg"] and "POST /jobs" in error["msg"]
+    # Another route is another request too.
+    on_scenarios = api.client.post("/scenarios", json={"preset": "paper"}, headers=headers)
+    assert on_scenarios.status_code == 422 and "'k-1'" in on_scenarios.text
+    assert _count(api, JobRow) == 1 and _count(api, ScenarioRow) == 1
+
+
+@pytest.mark.parametrize(
+    ("key", "quoted"),
+    [
+        ("", "''"),
+        ("x" * 256, "at most 255 characters, got 256"),
+        ("café".encode(), "'caf"),
+        ("a\tb", "'a\\tb'"),
+    ],
+)
+def test_a_key_no_client_would_send_is_422_naming_it(
+    api: Api, key: str | bytes, quoted: str
+) -> None:
+    response = api.client.post("/scenarios", json={"preset": "paper"}, headers=_keyed(api, key))
+    assert response.status_code == 422, response.text
+    (error,) = response.json()["detail"]
+    assert error["loc"] == ["header", IDEMPOTENCY_KEY_HEADER]
+    assert quoted in error["msg"]
+    assert _count(api, ScenarioRow) == 0
+
+
+def _claim_as_the_api(api: Api, key: str, body: dict[str, Any], *, age: timedelta) -> None:
+    """Claim ``key`` for ``body`` on POST /jobs as a request begun ``age`` ago that was
+    never answered (still running, or its process died)."""
+    parsed = TypeAdapter(JobCreate).validate_python(body)
+    found = store.claim(
+        api.db,
+        client=hash_key(api.key),
+        key=key,
+        route="POST /jobs",
+        digest=store.fingerprint("POST /jobs", parsed.model_dump(mode="json")),
+        ttl=timedelta(days=1),
+        now=utcnow() - age,
+    )
+    assert found.outcome == store.NEW
+
+
+def test_a_request_still_in_progress_is_409_and_a_dead_ones_key_is_taken_over(api: Api) -> None:
+    scenario = api.create_scenario()["id"]
+    _claim_as_the_api(api, "busy", _rerun(scenario), age=timedelta(seconds=1))
+    busy = api.client.post("/jobs", json=_rerun(scenario), headers=_keyed(api, "busy"))
+    assert busy.status_code == 409, busy.text
+    assert "'busy'" in busy.json()["detail"] and busy.headers["retry-after"] == "1"
+    assert _count(api, JobRow) == 0
+    # A claim older than the lease was a request whose API process died: the next one runs.
+    _claim_as_the_api(api, "dead", _rerun(scenario), age=store.CLAIM_LEASE + timedelta(seconds=5))
+    taken = api.client.post("/jobs", json=_rerun(scenario), headers=_keyed(api, "dead"))
+    assert taken.status_code == 202, taken.text
+    again = api.client.post("/jobs", json=_rerun(scenario), headers=_keyed(api, "dead"))
+    assert again.headers[REPLAYED_HEADER] == "true" and again.json()["id"] == taken.json()["id"]
+
+
+def test_a_failed_request_keeps_no_answer_and_expired_keys_are_new_and_deleted(api: Api) -> None:
+    missing = {"type": "search", "scenario_id": "0" * 32, "params": SEARCH}
+    for _ in range(2):
+        gone = api.client.post("/jobs", json=missing, headers=_keyed(api, "fails"))
+        assert gone.status_code == 404 and REPLAYED_HEADER.lower() not in gone.headers
+    assert _count(api, IdempotencyKeyRow) == 0
+    headers = _keyed(api, "old")
+    first = api.client.post("/scenarios", json={"preset": "paper"}, headers=headers)
+    with api.db.session() as session:
+        session.execute(update(IdempotencyKeyRow).values(expires_at=utcnow() - timedelta(1)))
+    later = api.client.post("/scenarios", json={"preset": "paper"}, headers=headers)
+    assert later.status_code == 201 and REPLAYED_HEADER.lower() not in later.headers
+    assert later.json()["id"] != first.json()["id"]
+    # Any claim deletes what expired: only the new row is left.
+    api.client.post("/scenarios", json={"preset": "paper"}, headers=_keyed(api, "new"))
+    with api.db.session() as session:
+        session.execute(
+            update(IdempotencyKeyRow)
+            .where(IdempotencyKeyRow.key == "old")
+            .values(expires_at=utcnow() - timedelta(1))
+        )
+    api.client.post("/scenarios", json={"preset": "paper"}, headers=_keyed(api, "newer"))
+    assert _count(api, IdempotencyKeyRow) == 2
+
+
+def test_keys_belong_to_their_api_key(api: Api) -> None:
+    other = secrets.token_urlsafe(24)
+    with api.db.session() as session:
+        session.add(ApiKey(key_hash=hash_key(other)))
+    mine = api.client.post("/scenarios", json={"preset": "paper"}, headers=_keyed(api, "same"))
+    again = api.client.post("/scenarios", json={"preset": "paper"}, headers=_keyed(api, "same"))
+    theirs = api.client.post(
+        "/scenarios", json={"preset": "paper"}, headers=_keyed(api, "same", other)
+    )
+    assert again.json()["id"] == mine.json()["id"]
+    assert theirs.status_code == 201 and REPLAYED_HEADER.lower() not in theirs.headers
+    assert theirs.json()["id"] != mine.json()["id"]
+
+
+def _at_once(count: int, send: Callable[[], httpx.Response]) -> list[Any]:
+    barrier = threading.Barrier(count)
+    answers: list[Any] = [None] * count
+
+    def run(index: int) -> None:
+        barrier.wait()
+        try:
+            answers[index] = send()
+        except Exception as exc:
+            answers[index] = exc
+
+    threads = [threading.Thread(target=run, args=(i,)) for i in range(count)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join(120)
+    return answers
+
+
+def test_identical_posts_with_one_key_sent_at_once_to_a_server_make_one_row(
+    tmp_path: Path, database_url: str
+) -> None:
+    """8 identical POSTs /scenarios (then reruns) with one key, each on its own
+    connection, released together at a real uvicorn: one is done, each other one is
+    its replay or a 409 (the first still in progress), and one row is made."""
+    key = secrets.token_urlsafe(24)
+    settings: Settings = make_settings(
+        tmp_path / "data", database_url, INERTIA_ID_API_KEY=key, INERTIA_ID_VERDICT_PROCESS="off"
+    )
+    app = create_app(settings)
+    port = free_port()
+    config = uvicorn.Config(app, host="127.0.0.1", port=port, lifespan="off", log_level="warning")
+    base = f"http://127.0.0.1:{port}"
+    clients = 8
+
+    def burst(path: str, body: dict[str, Any], idempotency_key: str) -> list[httpx.Response]:
+        def send() -> httpx.Response:
+            with httpx.Client(base_url=base, timeout=60) as client:
+                return client.post(
+                    path, json=body, headers={"X-API-Key": key, "Idempotency-Key": idempotency_key}
+                )
+
+        answers = _at_once(clients, send)
+        assert all(isinstance(a, httpx.Response) for a in answers), answers
+        done = [a for a in answers if a.status_code in (201, 202)]
+        fresh = [a for a in done if REPLAYED_HEADER.lower() not in a.headers]
+        assert len(fresh) == 1, [(a.status_code, a.text[:80]) for a in answers]
+        assert {a.json()["id"] for a in done} == {fresh[0].json()["id"]}
+        assert all(a.status_code in (201, 202, 409) for a in answers)
+        return answers
+
+    with served_in_thread(app, config):
+        burst("/scenarios", {"preset": "paper"}, "burst-scenario")
+        with app.state.db.session() as session:
+            (scenario,) = session.scalars(select(ScenarioRow.id)).all()
+        burst("/jobs", _rerun(scenario), "burst-rerun")
+        with app.state.db.session() as session:
+            assert session.scalar(select(func.count()).select_from(JobRow)) == 1
