@@ -10,12 +10,22 @@ round (what the dashboard's Run it again button sends). Each round prints how ma
 jobs (202) and reused answers (200) it got, and how many jobs of the configuration exist
 then. One new job a round is what a user who double-clicked, or a retrying script, meant.
 
+With ``--idempotency-key`` every submission of a round carries one ``Idempotency-Key``
+(a new one each round), and the round's rerun is sent once more after the burst, as a
+client whose answer was lost retries it; the scenario is stored the same way first,
+``--clients`` identical POSTs /scenarios at once with one key. Printed: the scenarios
+made, and each round's new jobs, replays (``Idempotent-Replayed: true``) and 409s (the
+first still in progress). Without the header a retry was a new job and each POST a new
+scenario.
+
     python bench/concurrent_reruns.py [--clients 10] [--rounds 3] [--rerun-of]
+        [--idempotency-key]
         [--database-url postgresql+psycopg://postgres@127.0.0.1:5432/NAME] [--repo DIR]
 """
 
 from __future__ import annotations
 
+import secrets
 import sys
 import tempfile
 import threading
@@ -57,10 +67,48 @@ def _at_once(count: int, send: Any) -> list[Any]:
     return answers
 
 
-def _rounds(base: str, key: str, args: Any) -> list[dict[str, Any]]:
+def _keyed(headers: dict[str, str], args: Any, what: str) -> dict[str, str]:
+    """``headers`` with a new ``Idempotency-Key`` when the bench sends one."""
+    if not args.idempotency_key:
+        return headers
+    return {**headers, "Idempotency-Key": f"{what}-{secrets.token_hex(8)}"}
+
+
+def _burst(base: str, path: str, body: dict[str, Any], headers: dict[str, str], n: int) -> Any:
+    def send() -> httpx.Response:
+        with httpx.Client(base_url=base, headers=headers, timeout=60) as own:
+            return own.post(path, json=body)
+
+    return _at_once(n, send)
+
+
+def _status(answer: Any) -> int | None:
+    return answer.status_code if isinstance(answer, httpx.Response) else None
+
+
+def _replays(answers: list[Any]) -> int:
+    return sum(
+        isinstance(a, httpx.Response) and a.headers.get("Idempotent-Replayed") == "true"
+        for a in answers
+    )
+
+
+def _rounds(base: str, key: str, args: Any) -> tuple[dict[str, Any], list[dict[str, Any]]]:
     headers = {"X-API-Key": key}
     with httpx.Client(base_url=base, headers=headers, timeout=60) as client:
-        scenario = client.post("/scenarios", json={"preset": "paper"}).json()["id"]
+        stored = _burst(
+            base, "/scenarios", {"preset": "paper"}, _keyed(headers, args, "scenario"), args.clients
+        )
+        made = {a.json()["id"] for a in stored if isinstance(a, httpx.Response) and a.is_success}
+        if not made:
+            raise RuntimeError(f"POST /scenarios stored nothing: {stored}")
+        scenarios = {
+            "sent": args.clients,
+            "made": client.get("/scenarios", params={"limit": 200}).json()["total"],
+            "replayed": _replays(stored),
+            "conflicts": sum(_status(a) == 409 for a in stored),
+        }
+        scenario = sorted(made)[0]
         body: dict[str, Any] = {
             "type": "search",
             "scenario_id": scenario,
@@ -76,18 +124,19 @@ def _rounds(base: str, key: str, args: Any) -> list[dict[str, Any]]:
             rerun = {**body, "rerun": True}
             if args.rerun_of:
                 rerun["rerun_of"] = standing
-
-            def send(rerun: dict[str, Any] = rerun) -> httpx.Response:
-                with httpx.Client(base_url=base, headers=headers, timeout=60) as own:
-                    return own.post("/jobs", json=rerun)
-
-            answers = _at_once(args.clients, send)
+            sent = _keyed(headers, args, "rerun")
+            answers = _burst(base, "/jobs", rerun, sent, args.clients)
+            if args.idempotency_key:
+                # The retry of a client whose answer was lost, once the burst is answered.
+                answers.append(client.post("/jobs", json=rerun, headers=sent))
             codes = [a.status_code for a in answers if isinstance(a, httpx.Response)]
             listed = client.get("/jobs", params={"scenario_id": scenario, "limit": 200}).json()
+            replayed = _replays(answers)
             rounds.append(
                 {
-                    "new": codes.count(202),
+                    "new": codes.count(202) - _replays([a for a in answers if _status(a) == 202]),
                     "reused": codes.count(200),
+                    "replayed": replayed,
                     "other": sorted(c for c in codes if c not in (200, 202)),
                     "errors": [repr(a) for a in answers if not isinstance(a, httpx.Response)],
                     "jobs_in_all": sum(j["config_hash"] == digest for j in listed["items"]),
@@ -95,7 +144,7 @@ def _rounds(base: str, key: str, args: Any) -> list[dict[str, Any]]:
             )
             # A plain submission is handed the job that stands now.
             standing = client.post("/jobs", json=body).json()["id"]
-    return rounds
+    return scenarios, rounds
 
 
 def main() -> None:
@@ -103,6 +152,11 @@ def main() -> None:
     parser.add_argument("--clients", type=positive_int, default=10, help="reruns sent at once")
     parser.add_argument("--rounds", type=positive_int, default=3)
     parser.add_argument("--rerun-of", action="store_true", help="send rerun_of too")
+    parser.add_argument(
+        "--idempotency-key",
+        action="store_true",
+        help="one Idempotency-Key a round (and for the scenario), and a retry after each burst",
+    )
     parser.add_argument("--workers", type=int, default=0, help="serve --workers")
     parser.add_argument("--database-url", default=None, help="default: serve's SQLite file")
     parser.add_argument(
@@ -134,17 +188,24 @@ def main() -> None:
             key = generated_key(log_path)
             if key is None:
                 raise RuntimeError("serve generated no API key: give it an empty database")
-            rounds = _rounds(base, key, args)
+            scenarios, rounds = _rounds(base, key, args)
         finally:
             stop_service(process)
+    keyed = " with one Idempotency-Key" if args.idempotency_key else ""
+    print(
+        f"scenario: {scenarios['sent']} identical POSTs /scenarios at once{keyed} -> "
+        f"{scenarios['made']} scenarios stored ({scenarios['replayed']} replays, "
+        f"{scenarios['conflicts']} 409 in progress)"
+    )
+    sent = f"{args.clients} reruns at once{keyed}" + (" and 1 retry" if keyed else "")
     for n, result in enumerate(rounds, 1):
         print(
-            f"round {n}: {args.clients} reruns at once -> {result['new']} new jobs (202), "
-            f"{result['reused']} reused (200), other {result['other']}, "
-            f"errors {len(result['errors'])}; {result['jobs_in_all']} jobs of the "
-            "configuration in all"
+            f"round {n}: {sent} -> {result['new']} new jobs (202), "
+            f"{result['reused']} reused (200), {result['replayed']} replays, "
+            f"other {result['other']}, errors {len(result['errors'])}; "
+            f"{result['jobs_in_all']} jobs of the configuration in all"
         )
-    write_json(args.json, args, {"rounds": rounds})
+    write_json(args.json, args, {"scenarios": scenarios, "rounds": rounds})
 
 
 if __name__ == "__main__":
