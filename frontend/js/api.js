@@ -47,8 +47,25 @@ function errorFrom(status, body) {
   return new ApiError(status, `the service answered ${status}`);
 }
 
-export async function request(method, path, { json, form, query, key = null, raw = false } = {}) {
+// A POST that stores a row (a job, a scenario) carries an Idempotency-Key made for it.
+// When its answer is lost (the connection dropped, so the page cannot tell whether the
+// service stored it) it is sent again with the same key, and the service answers what
+// it did the first time instead of storing a second; a 409 with Retry-After (the first
+// is still being answered) is asked again after that wait.
+const IDEMPOTENT_TRIES = 3;
+
+function newIdempotencyKey() {
+  // crypto.randomUUID exists in secure contexts only (https, localhost); a dashboard
+  // served over plain http on another host has getRandomValues still.
+  if (crypto.randomUUID) return crypto.randomUUID();
+  return Array.from(crypto.getRandomValues(new Uint8Array(16)), (b) => b.toString(16).padStart(2, "0")).join("");
+}
+
+const pause = (ms) => new Promise((resolve) => setTimeout(resolve, ms));
+
+export async function request(method, path, { json, form, query, key = null, raw = false, idempotent = false } = {}) {
   const headers = { Accept: raw ? "*/*" : "application/json" };
+  if (idempotent) headers["Idempotency-Key"] = newIdempotencyKey();
   const sent = key ?? getApiKey();
   if (sent) headers["X-API-Key"] = sent;
   else if (method !== "GET") {
@@ -76,10 +93,19 @@ export async function request(method, path, { json, form, query, key = null, raw
     if (text) url += `?${text}`;
   }
   let response;
-  try {
-    response = await fetch(url, { method, headers, body });
-  } catch (exc) {
-    throw new ApiError(0, `the service at ${location.origin} could not be reached (${exc.message})`);
+  for (let tries = 1; ; tries += 1) {
+    try {
+      response = await fetch(url, { method, headers, body });
+    } catch (exc) {
+      if (idempotent && tries < IDEMPOTENT_TRIES) {
+        await pause(500 * tries);
+        continue;
+      }
+      throw new ApiError(0, `the service at ${location.origin} could not be reached (${exc.message})`);
+    }
+    const retryAfter = Number(response.headers.get("Retry-After"));
+    if (!(idempotent && response.status === 409 && retryAfter > 0 && tries < IDEMPOTENT_TRIES)) break;
+    await pause(1000 * Math.min(retryAfter, 5));
   }
   if (response.status === 204) return null;
   let data = null;
@@ -130,7 +156,7 @@ export const api = {
     request("GET", `/scenarios/${encodeURIComponent(id)}/baselines`, { query: { length } }),
   scenarios: (query) => request("GET", "/scenarios", { query: { limit: 200, ...query } }),
   scenario: (id) => request("GET", `/scenarios/${encodeURIComponent(id)}`),
-  createScenario: (body) => request("POST", "/scenarios", { json: body }),
+  createScenario: (body) => request("POST", "/scenarios", { json: body, idempotent: true }),
   deleteScenario: (id) => request("DELETE", `/scenarios/${encodeURIComponent(id)}`),
   response: (id, sequence, query = {}) =>
     request("GET", `/scenarios/${encodeURIComponent(id)}/response`, {
@@ -139,7 +165,7 @@ export const api = {
   // Listed jobs carry their summary, not their result (`include: "result"` asks for it).
   jobs: (query) => request("GET", "/jobs", { query: { limit: 100, ...query } }),
   job: (id) => request("GET", `/jobs/${encodeURIComponent(id)}`),
-  submitJob: (body) => request("POST", "/jobs", { json: body }),
+  submitJob: (body) => request("POST", "/jobs", { json: body, idempotent: true }),
   updateJob: (id, labels) => request("PATCH", `/jobs/${encodeURIComponent(id)}`, { json: labels }),
   cancelJob: (id) => request("POST", `/jobs/${encodeURIComponent(id)}/cancel`),
   metrics: (id, query) => request("GET", `/jobs/${encodeURIComponent(id)}/metrics`, { query }),

@@ -222,6 +222,42 @@ def test_create_a_scenario_from_the_preset_shows_its_principal_moments(
     dashboard.screenshot("scenario")
 
 
+def test_a_scenario_whose_answer_was_lost_is_sent_again_with_its_key_and_stored_once(
+    dashboard: Dashboard,
+) -> None:
+    """The service stores the scenario but its answer never reaches the page (the
+    connection reset): the dashboard sends the POST again with the same Idempotency-Key,
+    is answered the first one's scenario, and opens it; one scenario is stored. Before,
+    the page said the service could not be reached, and a second click stored another."""
+    page = dashboard.page
+    keys: list[str | None] = []
+
+    def lose_the_first_answer(route: Any) -> None:
+        if route.request.method != "POST":
+            route.continue_()
+            return
+        keys.append(route.request.headers.get("idempotency-key"))
+        answer = route.fetch()
+        if len(keys) == 1:
+            route.abort("connectionreset")
+        else:
+            route.fulfill(response=answer)
+
+    # The aborted request is logged by Chromium as a failed resource load.
+    dashboard.console.expect(r"ERR_CONNECTION_RESET|Failed to load resource")
+    page.route(re.compile(r"/scenarios$"), lose_the_first_answer)
+    try:
+        dashboard.open("#/scenarios/new")
+        page.fill("#preset-name", "answer lost once")
+        page.click("#create-preset")
+        scenario = _hash_id(dashboard, "scenarios")
+    finally:
+        page.unroute(re.compile(r"/scenarios$"))
+    assert len(keys) == 2 and keys[0] and keys[1] == keys[0], keys
+    listed = dashboard.service.client.get("/scenarios", params={"limit": 200}).json()["items"]
+    assert [s["id"] for s in listed if s["name"] == "answer lost once"] == [scenario]
+
+
 def test_a_small_bodys_inertias_keep_their_significant_digits(dashboard: Dashboard) -> None:
     """A 3U CubeSat's inertias (about 0.01 kg m²) in the scenario's table and chart hover,
     to four significant digits: two decimals wrote 0.0123 as 0.01 and hid the 8 %
