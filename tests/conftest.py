@@ -6,7 +6,7 @@ failure is reproducible and no test depends on timing.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -69,6 +69,25 @@ def gzip_bomb(tmp_path_factory: pytest.TempPathFactory) -> Path:
     from gzip_support import write_gzip_bomb
 
     return write_gzip_bomb(tmp_path_factory.mktemp("bomb") / "pass.csv.gz")
+
+
+@pytest.fixture(scope="session")
+def migrated_sqlite(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A SQLite file migrated to head, made once a session: a test copies it as its
+    fresh database (``service_support.migrated_sqlite_template``)."""
+    from service_support import migrated_sqlite_template
+
+    return migrated_sqlite_template(tmp_path_factory.mktemp("migrated"))
+
+
+@pytest.fixture(scope="session")
+def migrated_postgres() -> Iterator[str]:
+    """The name of a PostgreSQL database migrated to head, made once a session, for
+    ``postgres_database(template=...)`` to copy (``migrated_postgres_template``)."""
+    from service_support import migrated_postgres_template
+
+    with migrated_postgres_template() as name:
+        yield name
 
 
 @pytest.fixture(scope="session")

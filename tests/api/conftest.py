@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import os
 import secrets
+import shutil
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -103,8 +104,13 @@ def _empty_tables(url: str) -> None:
 
 @pytest.fixture(params=["sqlite", "postgresql"])
 def database_url(request: pytest.FixtureRequest, tmp_path: Path) -> str:
+    """A database at head with empty tables: on SQLite a fresh copy of the session's
+    migrated file (a migration per test cost about 0.4 s under load), on PostgreSQL the
+    session's database emptied. ``empty_database_url`` is the one to migrate."""
     if request.param == "sqlite":
-        return f"sqlite:///{tmp_path / 'inertia-id.db'}"
+        path = tmp_path / "inertia-id.db"
+        shutil.copyfile(request.getfixturevalue("migrated_sqlite"), path)
+        return f"sqlite:///{path}"
     url: str = request.getfixturevalue("postgres_url")
     _empty_tables(url)
     return url

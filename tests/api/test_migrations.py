@@ -20,9 +20,9 @@ from service.store.models import Base, JobRow
 from service.store.session import downgrade, upgrade
 
 
-def test_migrating_to_head_gives_the_models_schema(database_url: str) -> None:
-    upgrade(database_url)
-    engine = create_engine(database_url)
+def test_migrating_to_head_gives_the_models_schema(empty_database_url: str) -> None:
+    upgrade(empty_database_url)
+    engine = create_engine(empty_database_url)
     try:
         with engine.connect() as connection:
             context = MigrationContext.configure(connection, opts={"compare_type": True})

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import itertools
 import os
+import shutil
 import signal
 import subprocess
 import time
@@ -287,17 +288,22 @@ class Store:
 
 @pytest.fixture(params=["sqlite", "postgresql"])
 def store(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[Store]:
+    # A copy of the session's database at head (a migration per test cost about 0.4 s
+    # under load): the file copied on SQLite, the template on PostgreSQL.
     databases: Iterator[str] | None = None
+    (tmp_path / "data").mkdir(parents=True, exist_ok=True)
     if request.param == "sqlite":
-        database_url = f"sqlite:///{tmp_path / 'data' / 'inertia-id.db'}"
+        path = tmp_path / "data" / "inertia-id.db"
+        shutil.copyfile(request.getfixturevalue("migrated_sqlite"), path)
+        database_url = f"sqlite:///{path}"
     else:
-        databases = postgres_database(prefix="inertia_id_worker")
+        databases = postgres_database(
+            prefix="inertia_id_worker", template=request.getfixturevalue("migrated_postgres")
+        )
         database_url = next(databases)
     settings = Settings(
         INERTIA_ID_DATA_DIR=tmp_path / "data", DATABASE_URL=database_url, BROKER_URL="filesystem://"
     )
-    settings.data_dir.mkdir(parents=True, exist_ok=True)
-    upgrade(database_url)
     db = Database(database_url)
     with db.session() as session:
         row = ScenarioRow(name="paper", document=Scenario.paper().model_dump(mode="json"))
