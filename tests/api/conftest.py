@@ -28,6 +28,7 @@ from app.main import create_app
 from inertia_id import InertiaClassifier, Scenario, train
 from service.config import Settings
 from service.store import upgrade
+from service.store.models import Base
 
 from .support import GOOD_SEQUENCE, Api, TestClient, make_settings
 
@@ -36,16 +37,6 @@ PG_ADMIN_URL = os.environ.get(
     "INERTIA_ID_TEST_POSTGRES_URL", "postgresql+psycopg://postgres@127.0.0.1:5432/test"
 )
 REQUIRE_SERVICES = os.environ.get("INERTIA_ID_REQUIRE_SERVICES") == "1"
-TABLES = (
-    "metrics",
-    "job_tags",
-    "classifiers",
-    "jobs",
-    "scenarios",
-    "workers",
-    "api_keys",
-    "idempotency_keys",
-)
 
 
 @contextmanager
@@ -94,10 +85,16 @@ def empty_database_url(request: pytest.FixtureRequest, tmp_path: Path) -> Iterat
 
 
 def _empty_tables(url: str) -> None:
+    """Delete every row of the models' tables, those that reference others first.
+
+    Not ``TRUNCATE``: it gives each table a new file, which took 0.1-0.35 s before every
+    PostgreSQL test under load, where deleting the few rows a test leaves takes about
+    0.01 s. Neither resets a sequence (``TRUNCATE`` without ``RESTART IDENTITY``)."""
     engine = create_engine(url)
     try:
         with engine.begin() as connection:
-            connection.execute(text(f"TRUNCATE {', '.join(TABLES)} CASCADE"))
+            for table in reversed(Base.metadata.sorted_tables):
+                connection.execute(table.delete())
     finally:
         engine.dispose()
 
