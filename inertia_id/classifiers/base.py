@@ -740,27 +740,40 @@ class BaseClassifier(BaseEstimator):
             posterior then moves at those only (the leading blocks of the measured
             values' marginal), and is the prior before the first. None: every point.
         """
+        candidates, none, _ = self.evidence_over_time(X, observed)
+        return candidates, none
+
+    def evidence_over_time(
+        self, X: Any, observed: Any = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """:meth:`posterior_over_time` and, beside it, the log Bayes factor (n, length)
+        of the kind's model of other bodies near the candidates against the candidates
+        after each sample (None for a kind without one; NaN before the first measured
+        point): what the online decision
+        (:func:`~inertia_id.evaluation.identify.identify_online`) needs, as
+        :meth:`verdict_evidence` is what a verdict needs."""
         values = self._observed_values(observed)
         if values is not None:
-            return self._observed_posterior_over_time(X, values)
+            return self._observed_evidence_over_time(X, values)
         series = self._check_input(X)
         distances = self._prefix_distances(series)
         fraction = np.arange(1, self.length_ + 1) / self.length_
-        return self.posterior_from_distances(
-            distances, fraction[None, :], near_log_bayes=self._prefix_near_log_bayes(series)
+        near = self._prefix_near_log_bayes(series)
+        candidates, none = self.posterior_from_distances(
+            distances, fraction[None, :], near_log_bayes=near
         )
+        return candidates, none, None if near is None else np.asarray(near)
 
-    def _observed_posterior_over_time(
+    def _observed_evidence_over_time(
         self, X: Any, values: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray]:
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         series = self._check_input(X)
         distances = self._observed_prefix_distances(series, values)  # (n, m, K)
         measured = values.size // 3
         fraction = np.arange(1, measured + 1) / self.length_
+        near = self._observed_prefix_near_log_bayes(series, values)
         candidates, none = self.posterior_from_distances(
-            distances,
-            fraction[None, :],
-            near_log_bayes=self._observed_prefix_near_log_bayes(series, values),
+            distances, fraction[None, :], near_log_bayes=near
         )
         # Row 0 the prior (before the first measurement), row j after the j-th.
         n, k = len(series), self.n_candidates_
@@ -770,7 +783,10 @@ class BaseClassifier(BaseEstimator):
         mask = np.zeros(self.length_, dtype=bool)
         mask[values[::3] // 3] = True
         seen = np.cumsum(mask)
-        return candidates[:, seen], none[:, seen]
+        if near is not None:
+            # No data before the first measurement: no factor either.
+            near = np.concatenate([np.full((n, 1), np.nan), np.asarray(near)], axis=1)[:, seen]
+        return candidates[:, seen], none[:, seen], near
 
     def _prefix_near_log_bayes(self, X: np.ndarray) -> np.ndarray | None:
         """(n, length) log Bayes factor of a proper "other bodies" model after each

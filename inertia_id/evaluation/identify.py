@@ -31,7 +31,8 @@ and a status:
 
 :func:`identify_online` gives the posterior after every sample, for the kinds with a
 Gaussian model (exact: the leading block of mean and covariance), and the first time
-the top candidate reaches ``1 - alpha``.
+the top candidate reaches ``1 - alpha`` while the data up to then do not fit another
+body near the candidates better (the verdict's rule on that prefix).
 """
 
 from __future__ import annotations
@@ -338,7 +339,9 @@ def _offset_model(
 
 class OnlineIdentification(BaseModel):
     """The posterior after every sample of (part of) the sequence, and the stop rule's
-    decision: the first time the top candidate's posterior reaches ``1 - alpha``.
+    decision: the first time the top candidate's posterior reaches ``1 - alpha`` while
+    the data so far do not fit another body near the candidates better (the verdict's
+    rule, :data:`OFF_CANDIDATES_LOG_BAYES`, on each prefix).
 
     ``posterior`` holds one list per candidate, one value per time of ``time_s``.
     """
@@ -353,6 +356,20 @@ class OnlineIdentification(BaseModel):
     candidate: str | None
     current: dict[str, float]
     current_p_none: float
+    # The verdict's off-candidates rule, prefix by prefix: the log Bayes factor of another
+    # body near the candidates against them after every sample (None for a kind without
+    # that model; NaN before the first measured point), at the last and at the decision;
+    # the decision is taken only where it is below :data:`OFF_CANDIDATES_LOG_BAYES`.
+    # ``fits_off_candidates``: the top posterior reached 1 - alpha at some sample, but
+    # the data so far (the last prefix) fit another body better: the rule's outcome on
+    # all of them, as the verdict's on the whole series; a decision taken earlier stands
+    # as taken (a stop rule's is final), this says the data since disown it.
+    # ``withheld_time_s``: the first sample at 1 - alpha where the factor held it back.
+    off_candidates_log_bayes: list[float] | None = None
+    current_off_candidates_log_bayes: float | None = None
+    decision_off_candidates_log_bayes: float | None = None
+    fits_off_candidates: bool = False
+    withheld_time_s: float | None = None
     covers_s: float
     sequence_s: float
     # As :class:`Identification`'s, of the grid times so far (``time_s``).
@@ -993,9 +1010,17 @@ def posterior_over_time(
     return model.posterior_over_time(series, observed=observed)
 
 
-def decide(candidates: np.ndarray, alpha: float = DEFAULT_ALPHA) -> tuple[np.ndarray, np.ndarray]:
+def decide(
+    candidates: np.ndarray,
+    alpha: float = DEFAULT_ALPHA,
+    off_candidates_log_bayes: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
     """The stop rule on posterior traces (..., T, K): the first sample at which the top
-    candidate's posterior reaches ``1 - alpha``, -1 if none, and the candidate then.
+    candidate's posterior reaches ``1 - alpha`` while the data so far do not favour
+    another body near the candidates (``off_candidates_log_bayes`` (..., T), the
+    kind's factor after each sample, below :data:`OFF_CANDIDATES_LOG_BAYES`: the
+    verdict's rule, prefix by prefix; None for a kind without that model), -1 if none,
+    and the candidate then.
 
     If the posteriors are calibrated, a decision taken at posterior >= 1 - alpha is
     wrong at most alpha of the time, whenever it is taken.
@@ -1003,9 +1028,26 @@ def decide(candidates: np.ndarray, alpha: float = DEFAULT_ALPHA) -> tuple[np.nda
     alpha = _check_probability("alpha", alpha)
     top = candidates.max(axis=-1)
     reached = top >= 1.0 - alpha
+    if off_candidates_log_bayes is not None:
+        # NaN (no measurement yet) is not below the bound: no decision.
+        reached &= np.asarray(off_candidates_log_bayes) < OFF_CANDIDATES_LOG_BAYES
     first = np.where(reached.any(axis=-1), reached.argmax(axis=-1), -1)
     at = np.take_along_axis(candidates.argmax(axis=-1), np.maximum(first, 0)[..., None], -1)
     return first, np.where(first >= 0, at[..., 0], -1)
+
+
+def _withheld(
+    candidates: np.ndarray, alpha: float, off_candidates_log_bayes: np.ndarray | None
+) -> int:
+    """The first sample of one trace (T, K) at which the top posterior reached
+    ``1 - alpha`` but the factor was not below :data:`OFF_CANDIDATES_LOG_BAYES`; -1 if
+    none."""
+    if off_candidates_log_bayes is None:
+        return -1
+    held = (candidates.max(axis=-1) >= 1.0 - alpha) & ~(
+        np.asarray(off_candidates_log_bayes) < OFF_CANDIDATES_LOG_BAYES
+    )
+    return int(held.argmax()) if held.any() else -1
 
 
 def identify_online(
@@ -1052,11 +1094,14 @@ def identify_online(
     if not measured.all():
         observed = np.zeros(len(grid), dtype=bool)
         observed[:covered] = measured
-    candidates, p_none = posterior_over_time(model, series[None], observed)
+    candidates, p_none, near = model.evidence_over_time(series[None], observed)
     candidates, p_none = candidates[0, :covered], p_none[0, :covered]
-    first, chosen = decide(candidates[None], alpha)
+    if near is not None:
+        near = near[0, :covered]
+    first, chosen = decide(candidates[None], alpha, None if near is None else near[None])
     names = classifier.candidate_names_
     decided = bool(first[0] >= 0)
+    withheld = _withheld(candidates, alpha, near)
     return OnlineIdentification(
         time_s=grid[:covered].tolist(),
         posterior={n: candidates[:, k].tolist() for k, n in enumerate(names)},
@@ -1068,6 +1113,17 @@ def identify_online(
         candidate=names[int(chosen[0])] if decided else None,
         current={n: float(candidates[-1, k]) for k, n in enumerate(names)},
         current_p_none=float(p_none[-1]),
+        off_candidates_log_bayes=None if near is None else near.tolist(),
+        current_off_candidates_log_bayes=None if near is None else float(near[-1]),
+        decision_off_candidates_log_bayes=(
+            float(near[first[0]]) if decided and near is not None else None
+        ),
+        fits_off_candidates=bool(
+            near is not None
+            and (decided or withheld >= 0)
+            and not near[-1] < OFF_CANDIDATES_LOG_BAYES
+        ),
+        withheld_time_s=float(grid[withheld]) if withheld >= 0 else None,
         covers_s=float(grid[covered - 1]),
         sequence_s=float(grid[-1]),
         telemetry_gaps=resampled.gaps,

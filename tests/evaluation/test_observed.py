@@ -115,8 +115,16 @@ def test_slow_telemetry_is_identified_on_the_measured_points(
             assert verdict.status in ("identified", "ambiguous"), verdict.verdict
             identified += verdict.status == "identified"
             online = identify_online(marginal, telemetry)
+            # The off-candidates factor after every sample: none before the first
+            # measurement, the verdict's once all are in.
+            near = np.asarray(online.off_candidates_log_bayes, dtype=float)
+            first = next(j for j, t in enumerate(online.time_s) if round(t * 20) % every == 0)
+            assert np.isnan(near[:first]).all() and np.isfinite(near[first:]).all()
+            assert near[-1] == pytest.approx(verdict.off_candidates_log_bayes, abs=1e-6)
             if online.decided:
                 decided += 1
+                assert online.decision_off_candidates_log_bayes is not None
+                assert online.decision_off_candidates_log_bayes < 0.0
                 assert online.candidate_index == k
                 # Decided at a measured sample (the posterior moves only there).
                 assert round(online.decision_time_s * 20) % every == 0

@@ -163,6 +163,66 @@ def test_thrusters_weaker_than_stated_get_no_confident_wrong_name_the_data_disow
             assert not verdict.fits_off_candidates
 
 
+def test_the_online_decision_keeps_the_off_candidates_rule_on_each_prefix(
+    marginal: MarginalLikelihoodClassifier, drifting_paper: Scenario
+) -> None:
+    """The weak thrusters above, decided online: the stop rule named a wrong candidate
+    at 1 - alpha on series whose batch verdict withholds the name. Now a decision is
+    taken only at a sample where the data so far do not fit another body near the
+    candidates better (the verdict's rule on that prefix), the factor after every sample
+    is reported, and where the data so far disown a confident candidate the result says
+    so (``fits_off_candidates``): no series the batch verdict holds back stands as an
+    online decision unflagged."""
+    alpha = 1e-3
+    weak = simulate(
+        with_torque_scaled(drifting_paper, 0.9), GOOD_SEQUENCE, 10, np.random.default_rng(21)
+    )
+    held_back = 0
+    for k in range(drifting_paper.n_candidates):
+        for i in range(10):
+            telemetry = telemetry_of(weak.time_s, weak.omega_measured[k, i])
+            online = identify_online(marginal, telemetry, alpha=alpha)
+            verdict = identify(marginal, telemetry)
+            near = np.asarray(online.off_candidates_log_bayes, dtype=float)
+            assert near.shape == (len(online.time_s),)
+            # The last prefix is the whole series: the verdict's factor.
+            assert near[-1] == pytest.approx(verdict.off_candidates_log_bayes, abs=1e-6)
+            assert online.current_off_candidates_log_bayes == pytest.approx(near[-1])
+            traces = np.array([online.posterior[n] for n in marginal.candidate_names_]).T
+            confident = traces.max(axis=1) >= 1 - alpha
+            allowed = confident & (near < 0.0)
+            old_first, old_chosen = decide(traces[None], alpha)
+            if online.decided:
+                j = online.time_s.index(online.decision_time_s)
+                assert j == int(np.argmax(allowed))
+                assert near[j] < 0.0
+                assert online.decision_off_candidates_log_bayes == pytest.approx(near[j])
+            else:
+                assert not allowed.any() and online.decision_off_candidates_log_bayes is None
+            assert online.fits_off_candidates == bool(confident.any() and near[-1] >= 0.0)
+            if confident.any() and not allowed[: int(np.argmax(confident)) + 1].any():
+                assert online.withheld_time_s == online.time_s[int(np.argmax(confident))]
+            if verdict.fits_off_candidates:
+                assert not online.decided or online.fits_off_candidates
+            # The rule before: the first sample at 1 - alpha, whatever the data fit.
+            if old_first[0] >= 0 and old_chosen[0] != k:
+                held_back += not online.decided or online.fits_off_candidates
+    assert held_back >= 10  # 23 of the 50 on this draw
+    nominal = simulate(drifting_paper, GOOD_SEQUENCE, 10, np.random.default_rng(21))
+    decided = 0
+    for k in range(drifting_paper.n_candidates):
+        for i in range(10):
+            telemetry = telemetry_of(nominal.time_s, nominal.omega_measured[k, i])
+            online = identify_online(marginal, telemetry, alpha=alpha)
+            traces = np.array([online.posterior[n] for n in marginal.candidate_names_]).T
+            old_first, _ = decide(traces[None], alpha)
+            decided += online.decided
+            assert online.decided == (old_first[0] >= 0)
+            assert not online.decided or online.candidate_index == k
+            assert not online.fits_off_candidates
+    assert decided >= 45  # 49 of the 50, each as the rule before decided it
+
+
 def test_a_response_to_another_sequence_is_not_this_sequence(
     marginal: MarginalLikelihoodClassifier, drifting_paper: Scenario
 ) -> None:
