@@ -729,12 +729,40 @@ class PartialIdentifyResult(BaseModel):
     posterior: dict[str, list[float]] = Field(description="each candidate's posterior over time")
     p_none: list[float]
     alpha: float
-    decided: bool = Field(description="the top posterior reached 1 - alpha")
+    decided: bool = Field(
+        description="the top posterior reached 1 - alpha while the data so far did not fit "
+        "another body near the candidates better (off_candidates_log_bayes below 0 then: the "
+        "verdict's rule, on each prefix)"
+    )
     decision_time_s: float | None
     candidate_index: int | None
     candidate: str | None
     current: dict[str, float] = Field(description="the posterior at the last covered sample")
     current_p_none: float
+    off_candidates_log_bayes: list[float | None] | None = Field(
+        default=None,
+        description="after every time of time_s, the log Bayes factor of another body near "
+        "the candidates against them (null before the first measured point; the whole list "
+        "null for a kind without that model)",
+    )
+    current_off_candidates_log_bayes: float | None = Field(
+        default=None, description="that factor at the last covered sample"
+    )
+    decision_off_candidates_log_bayes: float | None = Field(
+        default=None, description="that factor at the decision; null until decided"
+    )
+    fits_off_candidates: bool = Field(
+        default=False,
+        description="the top posterior reached 1 - alpha at some sample, but the data so far "
+        "fit another body near the candidates better (current_off_candidates_log_bayes not "
+        "below 0): undecided for that reason, or decided earlier and disowned since "
+        "(thrusters off their stated torque?)",
+    )
+    withheld_time_s: float | None = Field(
+        default=None,
+        description="the first sample at which the top posterior reached 1 - alpha but the "
+        "factor held the decision back; null if none",
+    )
     covers_s: float
     sequence_s: float
     telemetry_gaps: list[TelemetryGapResult] = Field(

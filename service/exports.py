@@ -850,7 +850,10 @@ _IDENTIFY_UNITS = (
     "shifts, telemetry_span_s and the "
     "telemetry_gaps (from_s, to_s, length_s) in s from the start used; "
     "sequence_covered_fraction the part of the sequence's grid times outside those gaps, "
-    "sequence_measured_fraction the part with a real sample within half a grid period"
+    "sequence_measured_fraction the part with a real sample within half a grid period; "
+    "off_candidates_log_bayes a natural-log Bayes factor of another body near the "
+    "candidates against them (a candidate is named only below 0; empty for a kind without "
+    "that model), fits_off_candidates whether it withheld the name"
 )
 
 
@@ -923,4 +926,9 @@ def identify_table(verdict: Mapping[str, Any]) -> Table:
     if verdict.get("poorly_excited"):
         notes.append(("poorly_excited", verdict["poorly_excited"]))
     notes.append(("units", _IDENTIFY_UNITS))
+    # Appended after the units, so that no note before them moves for a reader by position.
+    notes += [
+        ("fits_off_candidates", verdict.get("fits_off_candidates")),
+        ("off_candidates_log_bayes", verdict.get("off_candidates_log_bayes")),
+    ]
     return Table(["candidate", "distance", "nearest", "posterior", "number"], rows, notes)

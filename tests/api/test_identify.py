@@ -816,3 +816,44 @@ def test_the_multipart_schema_declares_text_fields_non_empty(api: Api) -> None:
     properties = body["content"]["multipart/form-data"]["schema"]["properties"]
     assert properties["sequence_start"]["minLength"] == 1
     assert properties["classifier_id"]["minLength"] == 1
+
+
+def test_the_off_candidates_rule_in_the_partial_answer_and_the_csv(
+    api: Api, classifier_id: str, flight: SimulationResult, paper: Scenario
+) -> None:
+    """The verdict's off-candidates factor and whether it withheld the name are in its
+    CSV, as notes appended after the units (none before them moves); the posterior over
+    time carries the factor after every sample (null before the first measured one, here
+    10 Hz telemetry on the 20 Hz grid), at the last sample and at the decision."""
+    from inertia_id.classifiers.marginal import AXES_GRID, train_marginal
+
+    model = train_marginal(paper, GOOD_SEQUENCE, 10, np.random.default_rng(4), grid=AXES_GRID)
+    found = api.insert_classifier(api.create_scenario()["id"], model)
+    series = {
+        "time_s": flight.time_s[1::2].tolist(),
+        "omega_rad_s": flight.omega_measured[2, 0][1::2].tolist(),
+    }
+    body = {"classifier_id": found, "telemetry": series}
+    verdict = api.post("/identify", json=body).json()
+    assert verdict["off_candidates_log_bayes"] is not None
+    table = api.post("/identify?format=csv", json=body)
+    assert table.status_code == 200, table.text
+    lines = [line[2:].split(": ", 1) for line in table.text.splitlines() if line.startswith("# ")]
+    names = [name for name, _ in lines]
+    assert names[-3:] == ["units", "fits_off_candidates", "off_candidates_log_bayes"]
+    assert names[:3] == ["classifier_id", "status", "verdict"]
+    notes = dict(lines)
+    assert notes["fits_off_candidates"] == str(verdict["fits_off_candidates"])
+    assert float(notes["off_candidates_log_bayes"]) == verdict["off_candidates_log_bayes"]
+    partial = api.post("/identify/partial", json=body)
+    assert partial.status_code == 200, partial.text
+    online = partial.json()
+    factors = online["off_candidates_log_bayes"]
+    assert len(factors) == len(online["time_s"])
+    assert factors[0] is None and all(f is not None for f in factors[1:])
+    assert factors[-1] == pytest.approx(verdict["off_candidates_log_bayes"], abs=1e-6)
+    assert online["current_off_candidates_log_bayes"] == factors[-1]
+    assert online["fits_off_candidates"] is False and online["withheld_time_s"] is None
+    assert online["decided"] and online["candidate"] == paper.candidate_names[2]
+    at = online["time_s"].index(online["decision_time_s"])
+    assert online["decision_off_candidates_log_bayes"] == factors[at] < 0.0
