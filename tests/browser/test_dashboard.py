@@ -1101,6 +1101,71 @@ def test_identify_a_candidate_the_telemetry_disowns_is_amber_saying_why(
     )
 
 
+@pytest.mark.parametrize("decided", [False, True])
+def test_identify_online_says_when_the_data_fit_another_body_better(
+    dashboard: Dashboard, decided: bool
+) -> None:
+    """The posterior over time applies the verdict's off-candidates rule on each prefix:
+    where a candidate reached 1 - alpha but the data so far fit another body better, the
+    panel says so in amber (held back, or a decision taken earlier disowned since), not
+    only "not decided" or a green-looking "decided on ..."; the factor at a decision is in
+    its summary."""
+    _classifier(dashboard)
+    page = dashboard.page
+    times, omega = _flight(Scenario.paper(), 45)
+    figures: dict[str, Any] = {
+        "fits_off_candidates": True,
+        "current_off_candidates_log_bayes": 2.5,
+        "withheld_time_s": 0.9,
+    }
+    if decided:
+        figures["withheld_time_s"] = None
+        figures["decision_off_candidates_log_bayes"] = -1.25
+    else:
+        figures.update(
+            decided=False,
+            decision_time_s=None,
+            candidate=None,
+            candidate_index=None,
+            decision_off_candidates_log_bayes=None,
+        )
+
+    def changed(route: Any) -> None:
+        answer = route.fetch()
+        body = answer.json()
+        body.update(figures)
+        route.fulfill(response=answer, json=body)
+
+    partial = re.compile(r"/identify/partial(\?.*)?$")
+    dashboard.open(f"#/identify?classifier={made['classifier']}")
+    page.route(partial, changed)
+    try:
+        _identify(dashboard, _csv_text(times, omega[3]))
+        shown = page.wait_for_selector("#online-off-candidates", timeout=60_000)
+    finally:
+        page.unroute(partial)
+    classes = (shown.get_attribute("class") or "").split()
+    assert "ambiguous" in classes and "match" not in classes
+    summary = page.inner_text("#online-summary")
+    if decided:
+        assert summary.startswith("decided on payload 3 ejected at ")
+        assert summary.endswith(
+            "another body near the candidates: log Bayes factor -1.25, below 0)"
+        ), summary
+        assert shown.inner_text() == (
+            "but the data so far fit another body near the candidates better (log Bayes "
+            "factor 2.5, not below 0): the decision on payload 3 ejected is disowned since "
+            "(thrusters off their stated torque?)"
+        )
+    else:
+        assert summary.startswith("not decided within "), summary
+        assert shown.inner_text() == (
+            "not decided: a candidate reached 99 % at 0.90 s, but the data so far fit "
+            "another body near the candidates better (log Bayes factor 2.5, not below 0; "
+            "thrusters off their stated torque?)"
+        )
+
+
 def test_measured_and_quantity_keep_their_digits_at_the_extremes(dashboard: Dashboard) -> None:
     """``measured`` wrote 1e9 ± 12345.6 as 1000000000 ± 12346 and 1e-25 ± 1e-27 as
     0.00000000000000000000 ± 1.0e-27; ``quantity`` rounded -1234.5 to -1234 but 1234.5

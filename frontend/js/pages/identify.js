@@ -227,6 +227,18 @@ function offCandidates(verdict) {
   return [h("dt", {}, "another body near the candidates against them (log Bayes factor)"), h("dd", { id: "off-candidates" }, `${ratio(factor)} (${reading})`)];
 }
 
+// Where a candidate reached 1 - alpha but the data so far fit another body near the
+// candidates better (the online result's fits_off_candidates): amber, saying whether that
+// held the decision back or disowns one taken earlier. Null otherwise.
+function offCandidatesOnline(online, decided, t, needed) {
+  if (!online.fits_off_candidates) return null;
+  const factor = `log Bayes factor ${ratio(online.current_off_candidates_log_bayes)}, not below 0`;
+  const text = decided
+    ? `but the data so far fit another body near the candidates better (${factor}): the decision on ${online.candidate} is disowned since (thrusters off their stated torque?)`
+    : `not decided: a candidate reached ${needed} %${online.withheld_time_s === null ? "" : ` at ${t(online.withheld_time_s)} s`}, but the data so far fit another body near the candidates better (${factor}; thrusters off their stated torque?)`;
+  return h("p", { class: "verdict ambiguous", id: "online-off-candidates", role: "status" }, text);
+}
+
 // The tensor with each entry's standard error, or why it is withheld and what this
 // sequence cannot see.
 function estimateOf(verdict) {
@@ -490,14 +502,19 @@ async function showOnline(holder, verdict, file, options, context, period) {
   // The posterior's times lie on the classifier's grid: to a period of it and of the telemetry.
   const decimals = timeDecimals(period, samplePeriod(online.time_s));
   const t = (v) => v.toFixed(decimals);
+  const needed = plain(100 * (1 - online.alpha), 8);
+  // The verdict's off-candidates rule, prefix by prefix: the factor at the decision.
+  const atDecision = online.decision_off_candidates_log_bayes;
+  const factorThen = typeof atDecision === "number" && Number.isFinite(atDecision) ? `; another body near the candidates: log Bayes factor ${ratio(atDecision)}, below 0` : "";
   holder.append(
     h(
       "p",
       { class: "note", id: "online-summary" },
       decided
-        ? `decided on ${online.candidate} at ${t(online.decision_time_s)} s (posterior ≥ ${plain(100 * (1 - online.alpha), 8)} %)`
-        : `not decided within ${t(online.covers_s)} s of the ${t(online.sequence_s)} s sequence (posterior ≥ ${plain(100 * (1 - online.alpha), 8)} % needed)`,
+        ? `decided on ${online.candidate} at ${t(online.decision_time_s)} s (posterior ≥ ${needed} %${factorThen})`
+        : `not decided within ${t(online.covers_s)} s of the ${t(online.sequence_s)} s sequence (posterior ≥ ${needed} % needed)`,
     ),
+    ...[offCandidatesOnline(online, decided, t, needed)].filter(Boolean),
     plot,
   );
   const names = Object.keys(online.posterior);
