@@ -19,7 +19,7 @@ body better (``fits_off_candidates``: flagged), undecided, and the median decisi
 of the right decisions.
 
 Run: python bench/thrust_mismatch.py [--series 40] [--scales 1,0.95,0.9] [--thrusters all,1]
-[--online] [--stated-sigma-too]
+[--online] [--exact-only]
 """
 
 from __future__ import annotations
