@@ -2444,6 +2444,52 @@ def test_the_best_sequence_and_a_classifier_far_below_the_gyro_noise_show_the_re
     assert page.query_selector("#classifier-response-warnings") is None
 
 
+def test_identify_with_a_classifier_far_below_the_gyro_noise_shows_the_responses_warning(
+    dashboard: Dashboard,
+) -> None:
+    """The identify page draws the classifier's sequence's response under the telemetry:
+    where that response warns (rates far below the gyro noise: the verdict reads noise),
+    the warning is said under the verdict, as the classifier page says it (the page drew
+    the response without a word)."""
+    dashboard.page.add_init_script(
+        f"localStorage.setItem('inertia-id-api-key', {json.dumps(API_KEY)})"
+    )
+    service = dashboard.service
+    scenario_id = _inertia_in_mm2(dashboard)
+    submitted = service.client.post(
+        "/jobs",
+        json={"type": "train", "scenario_id": scenario_id, "seed": 0, "params": {"sequence": GOOD}},
+    )
+    assert submitted.status_code == 202, submitted.text
+    train_id = submitted.json()["id"]
+    trained = service.until(
+        lambda: (j := service.job(train_id))["status"] in TERMINAL and j, 300, "the training"
+    )
+    assert trained["status"] == "succeeded", trained["error"]
+    classifier = trained["result"]["classifier_id"]
+    response = service.client.get(
+        f"/scenarios/{scenario_id}/response",
+        params={"sequence": json.dumps(GOOD), "n_realisations": 20},
+    ).json()
+    assert response["warnings"] and "kg mm^2 typed as kg m^2" in response["warnings"][0]
+    paper = Scenario.paper()
+    heavy = paper.model_copy(
+        update={
+            "inertia_candidates": [
+                c.model_copy(update={"inertia_kg_m2": (1e6 * np.asarray(c.inertia_kg_m2)).tolist()})
+                for c in paper.inertia_candidates
+            ]
+        }
+    )
+    times, omega = _flight(heavy, 11)
+    dashboard.open(f"#/identify?classifier={classifier}")
+    _identify(dashboard, _csv_text(times, omega[0]))
+    dashboard.page.wait_for_function(OVERLAY_DRAWN)
+    shown = _warnings_shown(dashboard, "#identify-response-warnings")
+    assert shown == [f"Warning: {w}" for w in response["warnings"]]
+    assert axe_violations(dashboard) == []
+
+
 def _twins_follow(
     dashboard: Dashboard, plot_id: str, pairs: list[tuple[str, str]], factor: float
 ) -> None:

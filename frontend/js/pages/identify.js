@@ -9,7 +9,7 @@ import { downloads } from "../components/downloads.js";
 import { withoutKey } from "../components/keyed.js";
 import { BAND, COLORS, PLOT_CONFIG, keepTwins, layout, plotDiv, plotText, responseLayout, responseTwins, title, twinTraces, withAlpha } from "../components/plots.js";
 import { kindInfo } from "../vocabulary.js";
-import { clear, decimalsFor, h, jsonBlob, link, measured, messageBox, plain, probability, quantity, sequenceText, showFieldErrors } from "../ui.js";
+import { clear, decimalsFor, h, jsonBlob, link, measured, messageBox, plain, probability, put, quantity, sequenceText, showFieldErrors, warningsBox } from "../ui.js";
 
 const DEFAULT_CONFIDENCE = 0.99;
 
@@ -335,6 +335,10 @@ async function showVerdict(holder, verdict, classifier, { content, context, file
   const posteriorPlot = plotDiv("posterior-plot", "short");
   const distancePlot = plotDiv("distance-plot", "short");
   const overlayPlot = plotDiv("overlay-plot");
+  // The response's warnings (a classifier's sequence whose rates stay far below the gyro
+  // noise: its verdict reads noise), said under the verdict as the classifier page says
+  // them above the classifier; filled once the response the overlay draws has come.
+  const responseWarnings = h("div", { id: "identify-response-warnings-holder" });
   const onlineHolder = h("div", { id: "online-holder" });
   const posteriorRows = [...ranked, ["none of these", verdict.p_none]].map(([name, p]) =>
     h(
@@ -350,6 +354,7 @@ async function showVerdict(holder, verdict, classifier, { content, context, file
       "div",
       { class: "card" },
       verdictBox(verdict, ranked),
+      responseWarnings,
       h(
         "p",
         { class: "verdict-confidence", id: "verdict-confidence" },
@@ -428,6 +433,7 @@ async function showVerdict(holder, verdict, classifier, { content, context, file
   if (!classifier || !context.alive()) return;
   const response = await api.response(classifier.scenario_id, classifier.sequence, { n_realisations: 20 });
   if (!context.alive()) return;
+  put(responseWarnings, warningsBox(response.warnings, "identify-response-warnings"));
   const k = response.candidates.findIndex((c) => c.name === verdict.candidate);
   const candidate = response.candidates[k];
   const color = COLORS[k % COLORS.length];
