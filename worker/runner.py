@@ -427,6 +427,21 @@ def _run(
                     one_line_error(exc),
                 )
                 return _end_once_writable(context, db, stopping, "failed", error=error)
+            # A cancel asked for (or the run reaped) while the outcome waits: honoured at
+            # once, the outcome dropped. Before, the flag was never read again: a result
+            # too large for the room a full disk had left, whose cancel (a one-row
+            # write) was stored, held the job "running" and its worker's slot for up to
+            # INERTIA_ID_OUTCOME_REFUSED_WAIT_S, then failed it as refused.
+            if context.check_now():
+                if context.lost:
+                    logger.warning("job %s was taken from this run; dropping its result", spec.id)
+                    return "lost"
+                logger.warning(
+                    "job %s: cancelled while its outcome was refused (%s); the outcome is dropped",
+                    spec.id,
+                    condition,
+                )
+                return _end_once_writable(context, db, stopping, "cancelled", error=None)
             if why is not None:
                 now = time.monotonic()
                 refused_since = now if refused_since is None else refused_since
@@ -482,7 +497,12 @@ def _store_outcome(context: JobContext, db: Database, outcome: Outcome) -> bool:
 
 
 def _end_once_writable(
-    context: JobContext, db: Database, stopping: Callable[[], bool], status: str, *, error: str
+    context: JobContext,
+    db: Database,
+    stopping: Callable[[], bool],
+    status: str,
+    *,
+    error: str | None,
 ) -> str:
     """End the run with ``error`` as soon as the database takes writes again (a full
     disk freed, a read-only database made writable), trying every heartbeat interval.

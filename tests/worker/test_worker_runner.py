@@ -440,6 +440,41 @@ def test_a_result_refused_past_the_wait_fails_the_job_naming_the_refusal(
     ), job.error
 
 
+def test_a_cancel_stored_while_the_result_is_refused_ends_the_job_cancelled(
+    store: Store, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    # A result the database refuses (a full disk, read-only) is held and retried; a
+    # cancel stored meanwhile (a one-row write a full disk can still take where the
+    # result cannot) was never read again: the job stayed "running", its worker's slot
+    # held, until the result was stored as "succeeded" (or, refused past
+    # INERTIA_ID_OUTCOME_REFUSED_WAIT_S, the job failed). Now the cancel is honoured and
+    # the held outcome dropped, the end stored once the database takes it.
+    from worker import handlers
+
+    refusing = threading.Event()
+    job_id = store.add_job("train", {"sequence": GOOD_SEQUENCE})
+
+    def cancelled_at_its_end(context: JobContext) -> Outcome:
+        with store.db.session() as session:
+            job = session.get(JobRow, job_id)
+            assert job is not None
+            cancel(session, job)  # asked for after the run's last look at its flag
+        refusing.set()
+        threading.Timer(1.0, refusing.clear).start()
+        return Outcome("succeeded", {"f1": 1.0}, metrics=[("f1", 0, 1.0)])
+
+    monkeypatch.setitem(handlers.HANDLERS, "train", cancelled_at_its_end)
+    settings = store.settings.model_copy(update={"heartbeat_interval_s": 0.2})
+    with writes_refused_while(refusing), caplog.at_level(logging.WARNING):
+        status = execute_job(job_id, settings=settings, worker_name=WORKER)
+    assert status == "cancelled"
+    job = store.job(job_id)
+    assert (job.status, job.result, job.error, job.attempts) == ("cancelled", None, None, 1)
+    with store.db.session() as session:
+        assert session.scalars(select(MetricRow.value)).all() == []
+    assert "cancelled while its outcome was refused (the database refuses writes" in caplog.text
+
+
 def _take_the_database_down(store: Store, context: JobContext) -> Callable[[], None]:
     """The run's database wholly down (SQLite: a folder where its file goes; PostgreSQL:
     the test's own database refusing connections, its sessions ended); returns what
