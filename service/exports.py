@@ -360,13 +360,6 @@ _FRONT_FIGURES = (
     "accuracy",
     "final_rate_rad_s",
     "final_rate_deg_s",
-    # The part of the residual the sequence itself leaves (the plan's prediction from
-    # rest), mean and worst candidate: beside an initial-rate spread the figures around
-    # it carry |ω(0)|, which no sequence removes (empty for a front stored before it).
-    "commanded_residual_rate_rad_s",
-    "commanded_residual_rate_deg_s",
-    "commanded_residual_rate_max_rad_s",
-    "commanded_residual_rate_max_deg_s",
     # What a residual-rate bound is held to: the candidate that ends fastest.
     "final_rate_max_rad_s",
     "final_rate_max_deg_s",
@@ -384,6 +377,20 @@ _FRONT_FIGURES = (
     "propellant_kg",
     "duration_s",
     "attitude_change_deg",
+)
+
+
+#: The part of the residual the sequence itself leaves (the plan's prediction from rest),
+#: mean and worst candidate: beside an initial-rate spread the final_rate figures carry
+#: |ω(0)|, which no sequence removes (empty for a front stored before it). Last in the
+#: front's table, after ``sequence``: a reader that takes the columns by position keeps
+#: every earlier column where it was (inserted after final_rate_deg_s, they moved every
+#: column from final_rate_max_rad_s on four places right).
+_FRONT_COMMANDED = (
+    "commanded_residual_rate_rad_s",
+    "commanded_residual_rate_deg_s",
+    "commanded_residual_rate_max_rad_s",
+    "commanded_residual_rate_max_deg_s",
 )
 
 
@@ -416,11 +423,11 @@ def _by_condition(scores: Mapping[str, Any], conditions: list[str]) -> list[Any]
     return out
 
 
-def _front_figures(scores: Mapping[str, Any]) -> list[Any]:
+def _front_figures(scores: Mapping[str, Any], keys: Sequence[str] = _FRONT_FIGURES) -> list[Any]:
     """A member's or baseline's figures; a deg/s one a front stored without it (only
     its rad/s twin) converted from that twin, not left empty."""
     out = []
-    for key in _FRONT_FIGURES:
+    for key in keys:
         value = scores.get(key)
         if value is None and key.endswith("_deg_s"):
             value = _deg(scores.get(key.replace("_deg_s", "_rad_s")))
@@ -450,6 +457,7 @@ def _search_front(result: Mapping[str, Any]) -> Table:
                 list(member.get("dominated_by") or []),
                 [],
                 member.get("sequence"),
+                *_front_figures(scores, _FRONT_COMMANDED),
             ]
         )
     for name, base in (front.get("baselines") or {}).items():
@@ -468,6 +476,7 @@ def _search_front(result: Mapping[str, Any]) -> Table:
                 [],
                 list(base.get("dominates") or []),
                 base.get("sequence"),
+                *_front_figures(scores, _FRONT_COMMANDED),
             ]
         )
     header = [
@@ -482,6 +491,7 @@ def _search_front(result: Mapping[str, Any]) -> Table:
         "dominated_by",
         "dominates_members",
         "sequence",
+        *_FRONT_COMMANDED,
     ]
     return Table(header, rows)
 

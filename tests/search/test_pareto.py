@@ -1238,3 +1238,44 @@ def test_a_front_member_that_brakes_reports_its_commanded_residual_beside_the_fl
     assert (
         command_plan(preset("paper"), braking["sequence"]).to_dict()["initial_rate_floor"] is None
     )
+
+
+def test_the_front_tables_commanded_residual_columns_come_after_every_earlier_column() -> None:
+    """A reader of the front's CSV that takes its columns by position: the commanded
+    residual's four columns were inserted after ``final_rate_deg_s``, so column 5
+    (``final_rate_max_rad_s`` before) read the commanded residual, and every column from
+    there on moved four places. They come last now; the others stay where they were."""
+    from service.exports import result_table
+
+    scores = {
+        "accuracy": 0.9,
+        "final_rate_rad_s": 0.0083,
+        "final_rate_max_rad_s": 0.0087,
+        "commanded_residual_rate_rad_s": 0.0009,
+        "commanded_residual_rate_max_rad_s": 0.0013,
+        "impulse_nms": 12.0,
+    }
+    member = {"index": 0, "sequence": [[4, 0], [0, 4]], "scores": scores, "feasible": True}
+    front = {"members": [member], "baselines": {}, "accuracy_source": "predicted"}
+    table = result_table("search", {"front": front}, "front")
+    # The columns as they were before the commanded residual (a front without design
+    # conditions).
+    before = [
+        "kind", "member", "accuracy", "final_rate_rad_s", "final_rate_deg_s",
+        "final_rate_max_rad_s", "final_rate_max_deg_s", "final_rate_p95_rad_s",
+        "final_rate_p95_deg_s", "peak_rate_rad_s", "peak_rate_deg_s", "peak_rate_p95_rad_s",
+        "peak_rate_p95_deg_s", "impulse_nms", "on_time_s", "propellant_kg", "duration_s",
+        "attitude_change_deg", "accuracy_source", "predicted_accuracy", "feasible",
+        "dominated_by", "dominates_members", "sequence",
+    ]  # fmt: skip
+    added = [
+        "commanded_residual_rate_rad_s",
+        "commanded_residual_rate_deg_s",
+        "commanded_residual_rate_max_rad_s",
+        "commanded_residual_rate_max_deg_s",
+    ]
+    assert list(table.header) == before + added
+    (row,) = table.rows
+    assert row[before.index("final_rate_max_rad_s")] == 0.0087
+    assert row[len(before) :] == [0.0009, pytest.approx(np.degrees(0.0009)), 0.0013,
+                                  pytest.approx(np.degrees(0.0013))]  # fmt: skip
