@@ -147,6 +147,9 @@ class JobContext:
     clock: InitVar[Callable[[], float]] = time.monotonic
     cancelled: bool = field(default=False, init=False)
     lost: bool = field(default=False, init=False)
+    #: The handler has returned and its outcome waits to be stored (worker.runner): the
+    #: time limit no longer ends the run; INERTIA_ID_OUTCOME_REFUSED_WAIT_S bounds the wait.
+    outcome_held: bool = field(default=False, init=False)
     _beat_refused: str | None = field(default=None, init=False)
 
     def __post_init__(self, db: Database, clock: Callable[[], float]) -> None:
@@ -314,7 +317,12 @@ class JobContext:
         worker's row, then its jobs'; a heartbeat that locked the job's row first and the
         worker's second deadlocked against it on PostgreSQL, and the stopping worker's job
         was left running for the reaper (seen in a graceful-restart test)."""
-        overdue = self.time_left_s() < -(self.rescore_grace_s + TIME_LIMIT_GRACE_S)
+        # Not once the handler has returned: a result computed within the limit, its
+        # write refused (a full disk) past the limit and its grace, was failed by the
+        # beat as "still running", the result dropped once the database took it.
+        overdue = not self.outcome_held and self.time_left_s() < -(
+            self.rescore_grace_s + TIME_LIMIT_GRACE_S
+        )
         with self._db.session() as session:
             touch_worker(session, self.worker_name, broker_label(self.settings))
             if not overdue:

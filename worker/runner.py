@@ -393,6 +393,7 @@ def _run(
     if context.lost:
         logger.warning("job %s was taken from this run; dropping its result", spec.id)
         return "lost"
+    context.outcome_held = True
     # The outcome is kept while the database cannot take it (out of reach, or refusing
     # writes: a full disk, a read-only database) and stored whole once it can, tried
     # every heartbeat interval; the run's heartbeat goes on meanwhile, so the reaper

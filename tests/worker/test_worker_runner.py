@@ -475,6 +475,55 @@ def test_a_cancel_stored_while_the_result_is_refused_ends_the_job_cancelled(
     assert "cancelled while its outcome was refused (the database refuses writes" in caplog.text
 
 
+def test_a_result_refused_past_the_jobs_time_limit_is_stored_not_failed_as_overdue(
+    store: Store, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # The run ended within its time limit; its result was refused (larger than the room
+    # a full disk had left, while the one-row heartbeats still fitted) past the limit and
+    # its grace. Before: the beat ended the job "failed: ... time limit ... (still
+    # running ...; ended)" and the result, stored once the disk had room, was dropped
+    # as taken from the run. The hold has its own bound (outcome_refused_wait_s).
+    import sqlite3
+
+    from sqlalchemy.exc import OperationalError
+
+    from worker import context as context_module
+    from worker import handlers, runner
+
+    # No grace after the limit (600 s, and a search's re-score grace, in service).
+    monkeypatch.setattr(context_module, "TIME_LIMIT_GRACE_S", 0.0)
+    monkeypatch.setattr(JobContext, "rescore_grace_s", property(lambda _self: 0.0))
+    room = threading.Event()
+    job_id = store.add_job("train", {"sequence": GOOD_SEQUENCE})
+
+    def quick(_context: JobContext) -> Outcome:
+        threading.Timer(2.0, room.set).start()  # well past the 0.5 s limit
+        return Outcome("succeeded", {"f1": 1.0})
+
+    store_outcome = runner._store_outcome
+
+    def too_large_until_room(context: JobContext, db: Database, outcome: Outcome) -> bool:
+        if not room.is_set():
+            full = sqlite3.OperationalError("database or disk is full")
+            full.sqlite_errorcode = sqlite3.SQLITE_FULL
+            raise OperationalError("UPDATE jobs ...", {}, full)
+        return store_outcome(context, db, outcome)
+
+    monkeypatch.setitem(handlers.HANDLERS, "train", quick)
+    monkeypatch.setattr(runner, "_store_outcome", too_large_until_room)
+    settings = store.settings.model_copy(
+        update={"heartbeat_interval_s": 0.1, "job_time_limit_s": 0.5}
+    )
+    status = execute_job(job_id, settings=settings, worker_name=WORKER)
+    job = store.job(job_id)
+    assert (status, job.status, job.error, job.result) == (
+        "succeeded",
+        "succeeded",
+        None,
+        {"f1": 1.0},
+    )
+
+
 def _take_the_database_down(store: Store, context: JobContext) -> Callable[[], None]:
     """The run's database wholly down (SQLite: a folder where its file goes; PostgreSQL:
     the test's own database refusing connections, its sessions ended); returns what
