@@ -761,7 +761,8 @@ class PartialIdentifyResult(BaseModel):
     withheld_time_s: float | None = Field(
         default=None,
         description="the first sample at which the top posterior reached 1 - alpha but the "
-        "factor held the decision back; null if none",
+        "factor held the decision back (before decision_time_s where decided: the rule stops "
+        "there); null if none",
     )
     covers_s: float
     sequence_s: float

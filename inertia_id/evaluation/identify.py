@@ -364,7 +364,8 @@ class OnlineIdentification(BaseModel):
     # the data so far (the last prefix) fit another body better: the rule's outcome on
     # all of them, as the verdict's on the whole series; a decision taken earlier stands
     # as taken (a stop rule's is final), this says the data since disown it.
-    # ``withheld_time_s``: the first sample at 1 - alpha where the factor held it back.
+    # ``withheld_time_s``: the first sample at 1 - alpha where the factor held it back,
+    # before the decision if one was taken (none after it was held back).
     off_candidates_log_bayes: list[float] | None = None
     current_off_candidates_log_bayes: float | None = None
     decision_off_candidates_log_bayes: float | None = None
@@ -1037,16 +1038,22 @@ def decide(
 
 
 def _withheld(
-    candidates: np.ndarray, alpha: float, off_candidates_log_bayes: np.ndarray | None
+    candidates: np.ndarray,
+    alpha: float,
+    off_candidates_log_bayes: np.ndarray | None,
+    decided_at: int = -1,
 ) -> int:
     """The first sample of one trace (T, K) at which the top posterior reached
-    ``1 - alpha`` but the factor was not below :data:`OFF_CANDIDATES_LOG_BAYES`; -1 if
-    none."""
+    ``1 - alpha`` but the factor was not below :data:`OFF_CANDIDATES_LOG_BAYES`, before
+    the decision (``decided_at``, -1 if none): the stop rule stops there, so nothing
+    after it was held back (a later disowning is ``fits_off_candidates``); -1 if none."""
     if off_candidates_log_bayes is None:
         return -1
     held = (candidates.max(axis=-1) >= 1.0 - alpha) & ~(
         np.asarray(off_candidates_log_bayes) < OFF_CANDIDATES_LOG_BAYES
     )
+    if decided_at >= 0:
+        held = held[:decided_at]
     return int(held.argmax()) if held.any() else -1
 
 
@@ -1101,7 +1108,7 @@ def identify_online(
     first, chosen = decide(candidates[None], alpha, None if near is None else near[None])
     names = classifier.candidate_names_
     decided = bool(first[0] >= 0)
-    withheld = _withheld(candidates, alpha, near)
+    withheld = _withheld(candidates, alpha, near, int(first[0]))
     return OnlineIdentification(
         time_s=grid[:covered].tolist(),
         posterior={n: candidates[:, k].tolist() for k, n in enumerate(names)},
