@@ -1085,6 +1085,14 @@ def identify_online(
             f"telemetry ends at {telemetry.time_array[-1]:.6g} s, before the first sample of "
             f"the sequence at {grid[0]:.6g} s"
         )
+    if covered < 2:
+        # The resampling onto the covered grid needs its period: one time has none (it
+        # said "the classifier's grid has 1 time(s)", naming the wrong thing).
+        raise InputError(
+            f"telemetry ends at {telemetry.time_array[-1]:.6g} s, covering only the first "
+            f"sample of the sequence at {grid[0]:.6g} s; the posterior over time needs the "
+            f"first two (telemetry up to {grid[1]:.6g} s)"
+        )
     resampled = resample_covered(
         telemetry, grid[:covered], marginalise_gaps=_judges_gaps(classifier), kind=classifier.kind
     )

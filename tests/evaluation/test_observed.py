@@ -232,3 +232,23 @@ def test_an_averaging_gyro_is_read_at_its_intervals_midpoints(paper: Scenario) -
         2.5,
         3.5,
     ]
+
+
+def test_a_downlink_that_covers_one_grid_time_says_so(
+    marginal: MarginalLikelihoodClassifier, fresh: Any
+) -> None:
+    """A partial downlink that stops within half a period of the sequence's first sample
+    covers one grid time: the online answer needs two, and said "the classifier's grid
+    has 1 time(s)", naming the classifier (whose grid has 80) instead of the telemetry."""
+    grid = fresh.time_s
+    omega = fresh.omega_measured[0, 0]
+    short = Telemetry(
+        time_s=[-1.0, float(grid[0]) + 0.01], omega_rad_s=[[0.0, 0.0, 0.0], omega[0].tolist()]
+    )
+    with pytest.raises(InputError, match="covering only the first sample") as caught:
+        identify_online(marginal, short)
+    assert "classifier" not in str(caught.value)
+    assert f"{grid[0] + 0.01:.6g} s" in str(caught.value)
+    # Two grid times: an answer, one posterior per time.
+    two = Telemetry(time_s=grid[:2].tolist(), omega_rad_s=omega[:2].tolist())
+    assert len(identify_online(marginal, two).time_s) == 2
