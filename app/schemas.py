@@ -732,11 +732,16 @@ class PartialIdentifyResult(BaseModel):
     decided: bool = Field(
         description="the top posterior reached 1 - alpha while the data so far did not fit "
         "another body near the candidates better (off_candidates_log_bayes below 0 then: the "
-        "verdict's rule, on each prefix)"
+        "verdict's rule, on each prefix). A decision stands once taken (a stop rule's is "
+        "final), even where the data since disown it: read fits_off_candidates beside it"
     )
-    decision_time_s: float | None
-    candidate_index: int | None
-    candidate: str | None
+    decision_time_s: float | None = Field(description="when decided; null until then")
+    candidate_index: int | None = Field(description="the candidate decided on, from 0")
+    candidate: str | None = Field(
+        description="the candidate decided on, kept when later data disown it "
+        "(fits_off_candidates true: the data so far fit another body near the candidates "
+        "better, so this name is not a confirmed identification); null until decided"
+    )
     current: dict[str, float] = Field(description="the posterior at the last covered sample")
     current_p_none: float
     off_candidates_log_bayes: list[float | None] | None = Field(

@@ -857,3 +857,17 @@ def test_the_off_candidates_rule_in_the_partial_answer_and_the_csv(
     assert online["decided"] and online["candidate"] == paper.candidate_names[2]
     at = online["time_s"].index(online["decision_time_s"])
     assert online["decision_off_candidates_log_bayes"] == factors[at] < 0.0
+
+
+def test_the_partial_schema_says_a_decision_stands_beside_the_flag(api: Api) -> None:
+    """/identify/partial keeps a decision taken earlier where the data since fit another
+    body better (``fits_off_candidates``): its OpenAPI document says so at the decision's
+    own fields, where a client reading ``decided`` and ``candidate`` looks, not only in
+    the flag's (the candidate field had no description at all)."""
+    schema = api.get("/openapi.json").json()["components"]["schemas"]["PartialIdentifyResult"]
+    fields = schema["properties"]
+    assert "fits_off_candidates" in fields["decided"]["description"]
+    assert "stands" in fields["decided"]["description"]
+    assert "fits_off_candidates" in fields["candidate"]["description"]
+    assert "not a confirmed identification" in fields["candidate"]["description"]
+    assert "disowned" in fields["fits_off_candidates"]["description"]
