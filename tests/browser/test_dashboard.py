@@ -1171,6 +1171,14 @@ def test_identify_online_says_when_the_data_fit_another_body_better(
             "factor 2.5, not below 0): the decision on payload 3 ejected is disowned since "
             "(thrusters off their stated torque?)"
         )
+        # The plot's decision line and title say it too (they read as a confirmed
+        # identification: a green line, "decided at ... s").
+        drawn = page.evaluate(
+            "() => { const d = document.getElementById('online-plot'); "
+            "return [d.layout.title.text, d.layout.shapes.map((s) => s.line.color)]; }"
+        )
+        assert "disowned since" in drawn[0], drawn
+        assert "#c98a00" in drawn[1] and "#1e7b34" not in drawn[1], drawn
     else:
         assert summary.startswith("not decided within "), summary
         assert shown.inner_text() == (

@@ -534,14 +534,17 @@ async function showOnline(holder, verdict, file, options, context, period) {
   }));
   traces.push({ x: online.time_s, y: online.p_none, mode: "lines", line: { color: "#5f6b7a", width: 2, dash: "dash" }, name: "none of these", hovertemplate: `none of these, t = %{x:.${decimals}f} s: %{y:.2%}<extra></extra>` });
   const shapes = [{ type: "line", xref: "paper", x0: 0, x1: 1, y0: 1 - online.alpha, y1: 1 - online.alpha, line: { color: "#9aa5b1", dash: "dot", width: 1 } }];
-  if (decided) shapes.push({ type: "line", yref: "paper", x0: online.decision_time_s, x1: online.decision_time_s, y0: 0, y1: 1, line: { color: "#1e7b34", dash: "dash", width: 2 } });
+  // A decision the data since disown (fits_off_candidates) is drawn amber, not green, and
+  // the title says so: the plot alone read as a confirmed identification.
+  const disowned = decided && online.fits_off_candidates;
+  if (decided) shapes.push({ type: "line", yref: "paper", x0: online.decision_time_s, x1: online.decision_time_s, y0: 0, y1: 1, line: { color: disowned ? STATUS_COLOR.ambiguous : STATUS_COLOR.identified, dash: "dash", width: 2 } });
   Plotly.newPlot(
     plot,
     traces,
     layout("time from sequence start (s)", "posterior", {
       height: 560,
       yaxis: { title: { text: "posterior" }, range: [0, 1.05], tickformat: ".0%" },
-      title: title(decided ? `decided at ${t(online.decision_time_s)} s (dashed line)` : "not decided yet", 13),
+      title: title(decided ? `decided at ${t(online.decision_time_s)} s (dashed line)${disowned ? ", disowned since: the data so far fit another body better" : ""}` : "not decided yet", 13),
       shapes,
     }),
     PLOT_CONFIG,
