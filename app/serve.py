@@ -97,6 +97,11 @@ class WorkerPool:
         self._broker_label = "" if settings is None else _broker_label(settings.broker_url)
         self.processes: dict[int, subprocess.Popen[bytes]] = {}
         self.names: dict[int, str] = {}
+        #: The workers whose last process ended before its first beat (see _forget):
+        #: their restarts are not announced, so /health keeps saying no worker is seen.
+        self._died_unbeaten: set[int] = set()
+        #: The pids whose end was handled (their announced row forgotten).
+        self._ended: set[int] = set()
         self._logs: dict[int, IO[bytes]] = {}
         self._stopping = threading.Event()
         self._supervisor = threading.Thread(
@@ -156,7 +161,10 @@ class WorkerPool:
         imports Celery for seconds before its first beat (4 s after the API first
         answered, measured), and meanwhile /health said "no worker seen". Housekeeping:
         a failure is logged, and the worker's own first beat writes the row anyway."""
-        if self._database is None:
+        if self._database is None or index in self._died_unbeaten:
+            # Its last process crashed before its first beat (in its imports): this one
+            # most likely will too, and a row announced for each restart (each under a
+            # name of its own) kept /health "ok" with a worker warming for ever.
             return
         from service.store.jobs import announce_worker
 
@@ -165,6 +173,37 @@ class WorkerPool:
                 announce_worker(session, self.node_name(index), self._broker_label)
         except Exception:
             logger.warning("could not record worker%d as starting", index, exc_info=True)
+
+    def _forget(self, index: int) -> None:
+        """Worker ``index``'s process has ended: remove its announced row if it never
+        beat (crashed while importing), so /health says at once that no worker is seen
+        instead of "warming" (the reason is in serve's log and the worker's)."""
+        process = self.processes[index]
+        if process.pid in self._ended:
+            return
+        self._ended.add(process.pid)
+        if self._database is None:
+            return
+        from service.store.jobs import forget_announced_worker
+
+        try:
+            with self._database.session() as session:
+                beat = forget_announced_worker(session, self.node_name(index))
+        except Exception:
+            logger.warning("could not remove worker%d's row", index, exc_info=True)
+            return
+        if not beat:
+            self._died_unbeaten.add(index)
+            logger.error(
+                "worker%d (pid %d) exited with status %s before its first beat; /health "
+                "lists it no more (log: %s)",
+                index,
+                process.pid,
+                process.returncode,
+                self.log_path(index),
+            )
+        else:
+            self._died_unbeaten.discard(index)
 
     def _keep_announced(self) -> None:
         """Keep the rows of workers that live but have not beaten yet in the silence
@@ -191,6 +230,7 @@ class WorkerPool:
                 code = process.poll()
                 if code is None or self._stopping.is_set():
                     continue
+                self._forget(index)
                 if time.monotonic() - started[index] < RESTART_DELAY_S:
                     continue
                 logger.warning(
@@ -246,6 +286,8 @@ class WorkerPool:
                 process.wait(5)
             except subprocess.TimeoutExpired:
                 logger.error("worker%d (pid %d) did not die", index, process.pid)
+            else:
+                self._forget(index)  # one stopped while importing was listed warming
         if self._supervisor.is_alive():
             self._supervisor.join(5)
         for log in self._logs.values():

@@ -65,6 +65,7 @@ __all__ = [
     "create_job",
     "due_for_sending",
     "finish",
+    "forget_announced_worker",
     "hand_back",
     "heartbeat",
     "is_cancel_requested",
@@ -894,6 +895,20 @@ def keep_announced_workers(session: Session, names: list[str]) -> None:
         .where(WorkerRow.name.in_(names), WorkerRow.incarnation.is_(None))
         .values(last_seen_at=utcnow())
     )
+
+
+def forget_announced_worker(session: Session, name: str) -> bool:
+    """Worker ``name``'s process (started by ``inertia-id serve``) has ended: remove its
+    row if the process never beat (it crashed while importing: a bad setting, a broken
+    install), the row :func:`announce_worker` wrote; whether it ever beat (its row has
+    an incarnation, and is left alone). /health then says at once that no worker is
+    seen, where the announced row said "warming" until its silence window ended, and
+    serve's restarts, each under a name of its own, kept it "ok" with a warming worker
+    for as long as serve ran."""
+    session.execute(
+        delete(WorkerRow).where(WorkerRow.name == name, WorkerRow.incarnation.is_(None))
+    )
+    return session.get(WorkerRow, name) is not None
 
 
 def touch_twin_row(session: Session, name: str, twin: str) -> None:

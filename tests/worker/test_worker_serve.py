@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 
 import pytest
 from service_support import clean_env, free_port, tail, wait_for
+from sqlalchemy import select
 
 from inertia_id import Scenario
 from service.config import Settings
@@ -259,7 +260,7 @@ def test_serve_lists_a_worker_it_started_as_warming_before_its_first_beat(
     """A worker's main process imports Celery for seconds before its first beat. Before,
     /health said "no worker seen" meanwhile, 4 s after serve's API first answered. Now
     serve records each worker it starts as warming, keeps its row seen while the process
-    lives and has not beaten, and lets it go once the process is gone."""
+    lives and has not beaten, and removes it once the process is gone."""
     from app.api.health import health
     from app.serve import WorkerPool
 
@@ -292,11 +293,69 @@ def test_serve_lists_a_worker_it_started_as_warming_before_its_first_beat(
         process = pool.processes[1]
         process.kill()
         process.wait(10)
-        age_row()
-        old = seen_at()
-        time.sleep(2.5)  # the pool's supervisor refreshes every second
-        assert seen_at() == old
+
+        def row_gone() -> bool:
+            with store.db.session() as session:
+                return session.get(WorkerRow, name) is None
+
+        # Ended before its first beat: its row is removed (the supervisor looks every
+        # second), not left "warming" until its silence window ends.
+        wait_for(row_gone, 10.0, "the dead worker's row was kept", str)
         report = health(store.settings, store.db, celery)
         assert (report.status, report.workers.names) == ("degraded", []), report.workers
+    finally:
+        pool.stop(grace_s=1.0)
+
+
+def test_serve_lists_no_worker_whose_process_crashes_before_its_first_beat(
+    store: Store, monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    """A worker that crashes while importing (a bad setting, a broken install) never
+    beats. Its announced row said "warming" until its silence window ended, and each of
+    serve's restarts (a name of its own each) announced another: /health stayed "ok"
+    with up to 3 warming workers for as long as serve ran (90 s seen) while none lived.
+    Now the row of a process that ended unbeaten is removed, and its restarts are not
+    announced: /health says no worker is seen from the first crash on."""
+    import app.serve
+    from app.api.health import health
+    from app.serve import WorkerPool
+
+    monkeypatch.setattr(app.serve, "RESTART_DELAY_S", 0.5)
+    monkeypatch.setattr(
+        WorkerPool,
+        "command",
+        lambda _self, _index: [sys.executable, "-c", "raise SystemExit(3)"],
+    )
+
+    def rows() -> list[str]:
+        with store.db.session() as session:
+            return list(session.scalars(select(WorkerRow.name)))
+
+    spawns: list[str] = []
+    #: The rows right after each start: the first is announced, its restarts not.
+    listed: list[list[str]] = []
+    spawn = WorkerPool._spawn
+
+    def counted_spawn(self: WorkerPool, index: int) -> None:
+        spawn(self, index)
+        spawns.append(self.node_name(index))
+        listed.append(rows())
+
+    monkeypatch.setattr(WorkerPool, "_spawn", counted_spawn)
+    pool = WorkerPool(1, tmp_path / "logs", settings=store.settings)
+    celery = make_celery(store.settings)
+    pool.start()
+
+    try:
+        # Restarted three times: each under a name of its own.
+        wait_for(lambda: len(spawns) >= 4, 30.0, "the worker was not restarted", str)
+        assert len(set(spawns)) == len(spawns)
+        assert listed[0] == [spawns[0]]
+        assert listed[1:] == [[]] * (len(listed) - 1)
+        time.sleep(1.5)  # the supervisor looks every second
+        assert rows() == []
+        report = health(store.settings, store.db, celery)
+        assert (report.status, report.workers.names) == ("degraded", []), report.workers
+        assert "no worker seen" in (report.workers.detail or "")
     finally:
         pool.stop(grace_s=1.0)
