@@ -116,9 +116,15 @@ def read(
         own text otherwise): a document laid out as :func:`write` lays it out is
         verified by hashing its payload's text as read, in 1 MB pieces; any other (one
         written before, or edited since) by re-encoding the parsed payload, as every
-        document was (2.9 s of the 7.7 s that loading a 28 MB one took). Both accept the
-        same documents: the text as read hashes to the stated SHA-256 only where it is
-        the canonical text the writer hashed.
+        document was (2.9 s of the 7.7 s that loading a 28 MB one took). Both accept
+        every document the writer wrote, as written or re-laid out (indented, keys
+        reordered, CRLF), and refuse every one edited or truncated since. They part
+        only on a document whose SHA-256 was remade by hand over a payload text that is
+        not this canonical form (a number written ``1.00``, a key escaped as
+        ``\u0061``, keys out of order, raw UTF-8 as ``jq -cS`` writes it): its text
+        as read hashes to the stated SHA-256 and it is accepted, where the re-encoding
+        (and every release before) refuses it. The checksum guards against damage, not
+        against its author: whoever remakes it can state any payload either way.
     """
     doc = text if isinstance(text, dict) else parse(text)
     if source is None and not isinstance(text, dict):
