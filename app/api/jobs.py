@@ -413,6 +413,15 @@ def submit_job(
     params = body.params.model_dump(mode="json")
     if body.rerun_of is not None:
         _check_rerun_of(session, body, params, body.rerun_of)
+
+    def answer_made(job: JobRow) -> None:
+        # The job is committed before the send below: the key's answer is committed with
+        # it, so a request that fails or dies after that (the send, the commit of the
+        # answer below) is answered with its job when retried, and makes no second one.
+        assert idempotent is not None
+        made = JobSubmitted.model_validate({**_as_dict(job), "reused": False})
+        idempotent.answer(session, status.HTTP_202_ACCEPTED, made)
+
     try:
         job, reused = job_store.create_job(
             session,
@@ -425,6 +434,7 @@ def submit_job(
             name=body.name,
             tags=body.tags or (),
             asked_at=request.state.asked_at,
+            on_insert=answer_made if idempotent is not None else None,
         )
     except job_store.ScenarioGone:
         raise HTTPException(

@@ -158,6 +158,7 @@ def create_job(
     name: str | None = None,
     tags: Iterable[str] = (),
     asked_at: datetime | None = None,
+    on_insert: Callable[[JobRow], None] | None = None,
 ) -> tuple[JobRow, bool]:
     """Insert a queued job and commit it; or return the identical job that stands.
 
@@ -182,6 +183,11 @@ def create_job(
     caller checks that ``rerun_of`` is a job of this configuration. Without it, which
     job a rerun replaces is guessed from when it was asked (above), and a rerun taken up
     after another's job was made makes its own.
+
+    ``on_insert`` is called with the new job, flushed, before the commit that makes it:
+    what it writes in ``session`` is committed with the job or not at all (the API stores
+    an ``Idempotency-Key``'s answer there, so a request that fails or dies once its job
+    is made is answered with that job when it is retried, and makes no second one).
 
     :raises ScenarioGone: the scenario was deleted meanwhile (its foreign key failed).
     """
@@ -225,6 +231,9 @@ def create_job(
         )
         session.add(job)
         try:
+            if on_insert is not None:
+                session.flush()
+                on_insert(job)
             # The row must be committed before a message can reach a worker that claims it.
             session.commit()
         except IntegrityError:

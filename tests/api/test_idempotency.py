@@ -257,3 +257,34 @@ def test_identical_posts_with_one_key_sent_at_once_to_a_server_make_one_row(
         burst("/jobs", _rerun(scenario), "burst-rerun")
         with app.state.db.session() as session:
             assert session.scalar(select(func.count()).select_from(JobRow)) == 1
+
+
+def test_a_job_made_before_its_request_failed_is_its_keys_answer_not_made_again(
+    api: Api, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The job is committed (so a worker can claim it) before the rest of the request
+    runs: a request that fails after that (here: noting the send; as well, a process
+    killed there) made its job, and its retry must get that job, not make a second."""
+    from starlette.testclient import TestClient
+
+    from service.store import jobs as job_store
+
+    scenario = api.create_scenario()["id"]
+    headers = _keyed(api, "made-then-failed")
+
+    def broken(*args: Any, **kwargs: Any) -> None:
+        raise RuntimeError("the database went away")
+
+    monkeypatch.setattr(job_store, "mark_sent", broken)
+    with TestClient(api.app, raise_server_exceptions=False) as client:
+        failed = client.post("/jobs", json=_rerun(scenario), headers=headers)
+    assert failed.status_code == 500
+    assert _count(api, JobRow) == 1
+    monkeypatch.undo()
+    again = api.client.post("/jobs", json=_rerun(scenario), headers=headers)
+    assert again.status_code == 202, again.text
+    assert again.headers.get(REPLAYED_HEADER) == "true"
+    assert _count(api, JobRow) == 1
+    with api.db.session() as session:
+        (made,) = session.scalars(select(JobRow.id)).all()
+    assert again.json()["id"] == made
