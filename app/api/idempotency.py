@@ -156,6 +156,15 @@ def _idempotent_request(
     if key is None:
         yield None
         return
+    sent = request.headers.getlist(IDEMPOTENCY_KEY_HEADER)
+    if len(sent) > 1:
+        # Two lines are two keys (the draft's field is one Item; joined, "a, b" is not
+        # one): the request's own key is not known, so neither is taken.
+        unprocessable(
+            _WHERE,
+            f"send one {IDEMPOTENCY_KEY_HEADER} header, got {len(sent)}: "
+            + ", ".join(repr(value[:80]) for value in sent[:4]),
+        )
     route = request.scope.get("route")
     handle = IdempotentRequest(
         db=database,

@@ -288,3 +288,19 @@ def test_a_job_made_before_its_request_failed_is_its_keys_answer_not_made_again(
     with api.db.session() as session:
         (made,) = session.scalars(select(JobRow.id)).all()
     assert again.json()["id"] == made
+
+
+def test_two_keys_in_one_request_are_422_naming_both(api: Api) -> None:
+    """Two ``Idempotency-Key`` lines (a client's and a proxy's, say) are two keys: taking
+    one of them silently would replay, or not, by a key the client may not retry with."""
+    headers = [
+        ("X-API-Key", api.key),
+        (IDEMPOTENCY_KEY_HEADER, "k-a"),
+        (IDEMPOTENCY_KEY_HEADER, "k-b"),
+    ]
+    response = api.client.post("/scenarios", json={"preset": "paper"}, headers=headers)
+    assert response.status_code == 422, response.text
+    (error,) = response.json()["detail"]
+    assert error["loc"] == ["header", IDEMPOTENCY_KEY_HEADER]
+    assert "'k-a'" in error["msg"] and "'k-b'" in error["msg"]
+    assert _count(api, ScenarioRow) == 0 and _count(api, IdempotencyKeyRow) == 0
