@@ -38,6 +38,7 @@ __all__ = [
     "IdempotencyDep",
     "IdempotentRequest",
     "parse_key",
+    "replayable",
 ]
 
 IDEMPOTENCY_KEY_HEADER = "Idempotency-Key"
@@ -53,8 +54,36 @@ _QUOTED = re.compile(r'"((?:[\x20\x21\x23-\x5b\x5d-\x7e]|\\["\\])*)"')
 
 #: What the schema says of a route that takes the header.
 IDEMPOTENCY_RESPONSES: dict[int | str, dict[str, Any]] = {
-    409: {"description": "a request with this Idempotency-Key is still in progress"},
+    409: {
+        "description": "a request with this Idempotency-Key is still in progress",
+        "headers": {
+            "Retry-After": {
+                "description": "seconds to wait before sending the request again",
+                "schema": {"type": "integer"},
+            }
+        },
+    },
 }
+
+_REPLAYED_DOC = {
+    REPLAYED_HEADER: {
+        "description": "`true` when this is the stored answer to an earlier request sent "
+        f"with the same {IDEMPOTENCY_KEY_HEADER} (nothing was done again); absent otherwise",
+        "schema": {"type": "string", "enum": ["true"]},
+    }
+}
+
+
+def replayable(
+    responses: dict[int | str, dict[str, Any]], *codes: int
+) -> dict[int | str, dict[str, Any]]:
+    """``responses`` with the replay's header on the answers ``codes`` that a key replays."""
+    merged = dict(responses)
+    for code in codes:
+        entry = dict(merged.get(code, {}))
+        entry["headers"] = {**entry.get("headers", {}), **_REPLAYED_DOC}
+        merged[code] = entry
+    return merged
 
 
 def parse_key(raw: str) -> str:
@@ -150,6 +179,13 @@ def _idempotent_request(
             "printable ASCII characters): sent again with the same request, within "
             "INERTIA_ID_IDEMPOTENCY_KEY_TTL_S (24 h), it is answered as the first time, "
             "with Idempotent-Replayed: true, and nothing is made twice",
+            # Documented only: checked by parse_key, whose 422 quotes the value (a bare
+            # token, or the draft's quoted string: up to 2 + 2 x 255 characters).
+            json_schema_extra={
+                "minLength": 1,
+                "maxLength": 2 + 2 * MAX_IDEMPOTENCY_KEY_LENGTH,
+                "pattern": "^[\\x20-\\x7e]+$",
+            },
         ),
     ] = None,
 ) -> Iterator[IdempotentRequest | None]:

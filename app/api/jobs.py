@@ -80,7 +80,7 @@ from .deps import (
     unknown_sort,
     unprocessable,
 )
-from .idempotency import IDEMPOTENCY_RESPONSES, IdempotencyDep
+from .idempotency import IDEMPOTENCY_RESPONSES, IdempotencyDep, replayable
 from .listing import id_filters, one_page, search_text, sort_order, tag_filters
 from .routing import UniqueKeysRoute
 from .scenarios import PlanOptionsDep, plan_for
@@ -370,16 +370,20 @@ async def _note_asked_at(request: Request) -> None:
     status_code=status.HTTP_202_ACCEPTED,
     response_model=JobSubmitted,
     dependencies=[Depends(_note_asked_at), ApiKeyDep],
-    responses={
-        200: {
-            "model": JobSubmitted,
-            "description": "an identical job exists (for a rerun: one that already replaced "
-            "the job it asked to replace); it is returned",
+    responses=replayable(
+        {
+            200: {
+                "model": JobSubmitted,
+                "description": "an identical job exists (for a rerun: one that already "
+                "replaced the job it asked to replace); it is returned",
+            },
+            **no_such("scenario or classifier"),
+            **UNAUTHORIZED,
+            **IDEMPOTENCY_RESPONSES,
         },
-        **no_such("scenario or classifier"),
-        **UNAUTHORIZED,
-        **IDEMPOTENCY_RESPONSES,
-    },
+        status.HTTP_200_OK,
+        status.HTTP_202_ACCEPTED,
+    ),
 )
 def submit_job(
     body: Annotated[JobCreate, Body()],

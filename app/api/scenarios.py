@@ -51,7 +51,7 @@ from .deps import (
     unprocessable,
 )
 from .errors import duplicate_key_errors, refused_at
-from .idempotency import IDEMPOTENCY_RESPONSES, IdempotencyDep
+from .idempotency import IDEMPOTENCY_RESPONSES, IdempotencyDep, replayable
 from .listing import one_page
 from .routing import UniqueKeysRoute
 
@@ -140,7 +140,7 @@ def _check_storable(scenario: Scenario) -> dict[str, Any]:
     status_code=status.HTTP_201_CREATED,
     response_model=ScenarioOut,
     dependencies=[ApiKeyDep],
-    responses={**UNAUTHORIZED, **IDEMPOTENCY_RESPONSES},
+    responses=replayable({**UNAUTHORIZED, **IDEMPOTENCY_RESPONSES}, status.HTTP_201_CREATED),
 )
 def create_scenario(body: ScenarioCreate, session: SessionDep, idempotent: IdempotencyDep) -> Any:
     """Store a scenario from a preset with overrides, or from a full document.

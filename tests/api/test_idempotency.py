@@ -304,3 +304,19 @@ def test_two_keys_in_one_request_are_422_naming_both(api: Api) -> None:
     assert error["loc"] == ["header", IDEMPOTENCY_KEY_HEADER]
     assert "'k-a'" in error["msg"] and "'k-b'" in error["msg"]
     assert _count(api, ScenarioRow) == 0 and _count(api, IdempotencyKeyRow) == 0
+
+
+def test_the_schema_documents_the_keys_answers_headers(api: Api) -> None:
+    """A client generated from /openapi.json learns of the replay's header and the
+    409's wait, and of what a key may hold, not only of the request header."""
+    paths = api.client.get("/openapi.json").json()["paths"]
+    for path, codes in (("/jobs", ("200", "202")), ("/scenarios", ("201",))):
+        operation = paths[path]["post"]
+        (header,) = (p for p in operation["parameters"] if p["name"] == IDEMPOTENCY_KEY_HEADER)
+        # Beside the anyOf or in its string branch: either applies to the strings only.
+        variant = next(s for s in header["schema"]["anyOf"] if s.get("type") == "string")
+        constraints = {**header["schema"], **variant}
+        assert constraints.get("minLength") == 1 and "pattern" in constraints
+        for code in codes:
+            assert REPLAYED_HEADER in operation["responses"][code]["headers"], (path, code)
+        assert "Retry-After" in operation["responses"]["409"]["headers"]
