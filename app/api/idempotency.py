@@ -29,7 +29,7 @@ from service.store.models import MAX_IDEMPOTENCY_KEY_LENGTH
 from service.store.session import Database
 
 from ..security import API_KEY_HEADER, hash_key
-from .deps import DatabaseDep, SettingsDep, unprocessable
+from .deps import DatabaseDep, SessionDep, SettingsDep, unprocessable
 
 __all__ = [
     "IDEMPOTENCY_KEY_HEADER",
@@ -170,6 +170,7 @@ class IdempotentRequest:
 def _idempotent_request(
     request: Request,
     database: DatabaseDep,
+    session: SessionDep,
     settings: SettingsDep,
     key: Annotated[
         str | None,
@@ -212,8 +213,16 @@ def _idempotent_request(
     )
     try:
         yield handle
+        # The route's work and its answer are committed here, not after this exit (the
+        # request's session, the same one, is closed after): when that commit fails,
+        # nothing was stored, and the key must go too, or its retry is a 409 until the
+        # lease ends.
+        session.commit()
     except BaseException:
-        # Nothing was made (the route's transaction rolled back): a retry runs again.
+        # Nothing was made (the route's transaction is rolled back, here first: on
+        # SQLite it may hold the write lock the release needs): a retry runs again.
+        # (A job already stored keeps its answer: release leaves an answered key.)
+        session.rollback()
         handle.release()
         raise
 

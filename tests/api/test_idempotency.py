@@ -320,3 +320,37 @@ def test_the_schema_documents_the_keys_answers_headers(api: Api) -> None:
         for code in codes:
             assert REPLAYED_HEADER in operation["responses"][code]["headers"], (path, code)
         assert "Retry-After" in operation["responses"]["409"]["headers"]
+
+
+def test_a_request_whose_commit_failed_lets_its_key_go(api: Api) -> None:
+    """The answer is committed with the scenario, after the route returned: when that
+    commit fails nothing was stored, and the retry must run, not meet its own claim
+    (a 409 for the 2 minutes of the lease)."""
+    from sqlalchemy import event
+    from sqlalchemy.exc import OperationalError
+    from starlette.testclient import TestClient
+
+    def note(connection: Any, cursor: Any, statement: str, *args: Any) -> None:
+        if statement.lstrip().upper().startswith("INSERT INTO SCENARIOS"):
+            connection.info["stores_a_scenario"] = True
+
+    def refuse(connection: Any) -> None:
+        if connection.info.pop("stores_a_scenario", False):
+            raise OperationalError("COMMIT", {}, Exception("the disk is full"))
+
+    engine = api.db.engine
+    headers = _keyed(api, "commit-fails")
+    event.listen(engine, "before_cursor_execute", note)
+    event.listen(engine, "commit", refuse)
+    try:
+        with TestClient(api.app, raise_server_exceptions=False) as client:
+            failed = client.post("/scenarios", json={"preset": "paper"}, headers=headers)
+    finally:
+        event.remove(engine, "before_cursor_execute", note)
+        event.remove(engine, "commit", refuse)
+    assert failed.status_code >= 500
+    assert _count(api, ScenarioRow) == 0
+    again = api.client.post("/scenarios", json={"preset": "paper"}, headers=headers)
+    assert again.status_code == 201, again.text
+    assert REPLAYED_HEADER.lower() not in again.headers
+    assert _count(api, ScenarioRow) == 1
