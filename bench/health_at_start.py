@@ -43,13 +43,13 @@ from _common import (
     begin,
     free_port,
     print_table,
+    scratch_postgres,
     service_env,
     spawn_service,
     state_runs,
     stop_service,
     write_json,
 )
-from sqlalchemy import create_engine, text
 
 State = tuple[str, str, str, str]
 
@@ -95,17 +95,8 @@ def _store(args: argparse.Namespace, root: Path) -> Iterator[dict[str, str]]:
     if args.store == "sqlite":
         yield {"DATABASE_URL": f"sqlite:///{root / 'data' / 'inertia-id.db'}"}
         return
-    admin = create_engine(args.postgres, isolation_level="AUTOCOMMIT")
-    name = f"inertia_id_bench_{uuid.uuid4().hex[:12]}"
-    with admin.connect() as connection:
-        connection.execute(text(f'CREATE DATABASE "{name}"'))
-    try:
-        url = admin.url.set(database=name).render_as_string(hide_password=False)
+    with scratch_postgres(args.postgres) as url:
         yield {"DATABASE_URL": url, "BROKER_URL": args.redis}
-    finally:
-        with admin.connect() as connection:
-            connection.execute(text(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)'))
-        admin.dispose()
 
 
 def _serve(args: argparse.Namespace, root: Path, env: dict[str, str]) -> list[Any]:

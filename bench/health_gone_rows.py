@@ -26,8 +26,15 @@ from contextlib import contextmanager
 from datetime import timedelta
 from pathlib import Path
 
-from _common import base_parser, begin, positive_int, print_table, write_json
-from sqlalchemy import create_engine, text, update
+from _common import (
+    base_parser,
+    begin,
+    positive_int,
+    print_table,
+    scratch_postgres,
+    write_json,
+)
+from sqlalchemy import update
 
 
 def _counts(value: str) -> list[int]:
@@ -53,18 +60,9 @@ def _database(args: argparse.Namespace, root: Path) -> Iterator[str]:
         upgrade(url)
         yield url
         return
-    admin = create_engine(args.postgres, isolation_level="AUTOCOMMIT")
-    name = f"inertia_id_bench_{uuid.uuid4().hex[:12]}"
-    with admin.connect() as connection:
-        connection.execute(text(f'CREATE DATABASE "{name}"'))
-    try:
-        url = admin.url.set(database=name).render_as_string(hide_password=False)
+    with scratch_postgres(args.postgres) as url:
         upgrade(url)
         yield url
-    finally:
-        with admin.connect() as connection:
-            connection.execute(text(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)'))
-        admin.dispose()
 
 
 def _fill(url: str, gone: int) -> None:
