@@ -333,6 +333,7 @@ def test_a_heartbeat_during_a_hand_back_does_not_deadlock(
         # Well within its time limit: a plain heartbeat (past it, beat ends the job).
         time_left_s=lambda: 3600.0,
         rescore_grace_s=10.0,
+        outcome_held=False,  # its handler still running
     )
     errors: list[BaseException] = []
 
