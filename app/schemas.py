@@ -44,6 +44,7 @@ __all__ = [
     "ClassifierOut",
     "ClassifierPage",
     "ComponentHealth",
+    "DatabaseHealth",
     "HealthOut",
     "IdentifyRequest",
     "IdentifyResult",
@@ -804,6 +805,16 @@ class ComponentHealth(BaseModel):
     detail: str
 
 
+class DatabaseHealth(ComponentHealth):
+    takes_writes: bool | None = Field(
+        default=None,
+        description="false when the database answers but refuses writes (its disk full, "
+        "its file or folder read-only, its transactions read-only, a standby): the "
+        "workers' heartbeats and results cannot be stored meanwhile; null when it cannot "
+        "be reached",
+    )
+
+
 class WarmingWorker(BaseModel):
     name: str
     warming_s: float = Field(
@@ -860,6 +871,17 @@ class WorkersHealth(BaseModel):
         description="a warm-up longer than this (INERTIA_ID_HEARTBEAT_TIMEOUT_S, or "
         "INERTIA_ID_WORKER_START_TIMEOUT_S when shorter) makes the workers not ok"
     )
+    state_unknown_since: UtcDatetime | None = Field(
+        default=None,
+        description="while the database refuses writes and no beat is within window_s: "
+        "the last beat it stored (any worker's). The workers' beats are refused as every "
+        "write is, so whether they live since is unknown; null otherwise",
+    )
+    last_known: list[str] = Field(
+        default_factory=list,
+        description="with state_unknown_since: the workers that beat within window_s of it "
+        "(live when the database began refusing their beats, as far as it knows)",
+    )
     detail: str | None = Field(default=None, description="what is wrong, when not ok")
 
 
@@ -886,7 +908,7 @@ class QueueHealth(BaseModel):
 class HealthOut(BaseModel):
     status: Literal["ok", "degraded"]
     version: str
-    database: ComponentHealth
+    database: DatabaseHealth
     broker: ComponentHealth
     workers: WorkersHealth
     queue: QueueHealth

@@ -14,6 +14,7 @@ from celery import Celery
 from fastapi import APIRouter
 from sqlalchemy import func, select, text
 from sqlalchemy.orm import Session
+from sqlalchemy.pool import QueuePool
 
 import inertia_id
 from service.config import Settings
@@ -23,6 +24,7 @@ from service.store.session import Database
 
 from ..schemas import (
     ComponentHealth,
+    DatabaseHealth,
     GoneWorker,
     HealthOut,
     QueueHealth,
@@ -92,11 +94,27 @@ def _sqlite_write_refused(path: str) -> str | None:
 def _postgres_write_refused(database: Database) -> str | None:
     """Why a PostgreSQL database takes no writes (a hot standby, or its transactions
     read-only by default), or None when it takes them: every write was a 500 while
-    /health said "ok" (SQLSTATE 25006, read_only_sql_transaction)."""
-    with database.engine.connect() as connection:
-        read_only, in_recovery = connection.execute(
-            text("SELECT current_setting('transaction_read_only'), pg_is_in_recovery()")
-        ).one()
+    /health said "ok" (SQLSTATE 25006, read_only_sql_transaction). Read, never written:
+    the setting and the recovery flag say it without a write to undo.
+
+    A session keeps the ``default_transaction_read_only`` it started with (``ALTER
+    DATABASE ... SET`` reaches new sessions only): a pooled connection opened during a
+    read-only spell read "on" after it ended, and /health said "takes no writes" for as
+    long as it stayed in the pool (the workers stored their beats and results again).
+    A pooled connection that reads read-only is closed and the question asked again,
+    until one opened now reads the database's setting as it is now."""
+    pool = database.engine.pool
+    # Each idle pooled connection may be one of those: past them, the pool opens one.
+    stale = pool.checkedin() if isinstance(pool, QueuePool) else 0
+    for tried in range(stale + 1):
+        with database.engine.connect() as connection:
+            read_only, in_recovery = connection.execute(
+                text("SELECT current_setting('transaction_read_only'), pg_is_in_recovery()")
+            ).one()
+            if read_only == "on" and not in_recovery and tried < stale:
+                connection.invalidate()  # closed, not pooled again
+                continue
+        break
     if in_recovery:
         return "it is a standby in recovery (pg_is_in_recovery())"
     if read_only == "on":
@@ -104,18 +122,28 @@ def _postgres_write_refused(database: Database) -> str | None:
     return None
 
 
-def _database(database: Database, reachable: bool) -> ComponentHealth:
+#: Said of a database that answers but refuses writes: what an operator meets.
+_WRITES_REFUSED = "; workers' heartbeats and results cannot be stored until it takes writes"
+
+
+def _database(database: Database, reachable: bool) -> DatabaseHealth:
+    """Reachable, and whether it takes writes. The probes write nothing that stays: on
+    PostgreSQL two settings read; on SQLite a 4 KiB file written and removed beside the
+    database (a full disk or read-only folder refuses it) and a write begun on the file
+    and rolled back (a read-only or immutable file refuses it); both cost a few ms."""
     dialect = database.engine.dialect.name
     if not reachable:
-        return ComponentHealth(ok=False, detail=f"{dialect} unreachable")
+        return DatabaseHealth(ok=False, detail=f"{dialect} unreachable")
     if dialect == "postgresql":
         try:
             refused = _postgres_write_refused(database)
         except Exception as exc:  # reported, never raised: /health is always a 200
-            return ComponentHealth(ok=False, detail=f"{dialect} unreachable: {exc}")
+            return DatabaseHealth(ok=False, detail=f"{dialect} unreachable: {exc}")
         if refused is not None:
-            return ComponentHealth(
-                ok=False, detail=f"{dialect} reachable, but it takes no writes: {refused}"
+            return DatabaseHealth(
+                ok=False,
+                takes_writes=False,
+                detail=f"{dialect} reachable, but it takes no writes: {refused}" + _WRITES_REFUSED,
             )
     # A SQLite file is read while its disk is full or its folder read-only, but nothing
     # can be stored: every write was a 503 and every worker's beat failed.
@@ -123,17 +151,21 @@ def _database(database: Database, reachable: bool) -> ComponentHealth:
     if path and path != ":memory:" and not path.startswith("file:"):
         refused = _write_refused(os.path.dirname(os.path.abspath(path)))
         if refused is not None:
-            return ComponentHealth(
+            return DatabaseHealth(
                 ok=False,
+                takes_writes=False,
                 detail=f"{dialect} reachable, but the folder of its file takes no writes: "
-                f"{refused}",
+                f"{refused}" + _WRITES_REFUSED,
             )
         refused = _sqlite_write_refused(os.path.abspath(path))
         if refused is not None:
-            return ComponentHealth(
-                ok=False, detail=f"{dialect} reachable, but its file takes no writes: {refused}"
+            return DatabaseHealth(
+                ok=False,
+                takes_writes=False,
+                detail=f"{dialect} reachable, but its file takes no writes: {refused}"
+                + _WRITES_REFUSED,
             )
-    return ComponentHealth(ok=True, detail=f"{dialect} reachable")
+    return DatabaseHealth(ok=True, takes_writes=True, detail=f"{dialect} reachable")
 
 
 def _broker(settings: Settings, celery: Celery) -> ComponentHealth:
@@ -244,13 +276,66 @@ def _gone_incarnations(session: Session, database_url: str, incarnations: list[s
     return {incarnation for incarnation, is_held in held.items() if is_held is False}
 
 
-def _workers(settings: Settings, database: Database, database_ok: bool) -> WorkersHealth:
+def _last_known(session: Session, window: float) -> tuple[datetime | None, list[str], int]:
+    """While the database refuses writes: the last beat it stored (any worker's not told
+    to stop), the workers that beat within ``window`` of it, and the jobs running then."""
+    last = session.scalar(
+        select(func.max(WorkerRow.last_seen_at)).where(WorkerRow.stopping_since.is_(None))
+    )
+    running = session.scalar(
+        select(func.count()).select_from(JobRow).where(JobRow.status == "running")
+    )
+    if last is None:
+        return None, [], int(running or 0)
+    names = session.scalars(
+        select(WorkerRow.name)
+        .where(
+            WorkerRow.last_seen_at >= last - timedelta(seconds=window),
+            WorkerRow.stopping_since.is_(None),
+        )
+        .order_by(WorkerRow.name)
+    ).all()
+    return last, list(names), int(running or 0)
+
+
+def _seconds_z(moment: datetime) -> str:
+    """An instant in UTC to the second, ``Z``, as the API writes times."""
+    return moment.isoformat(timespec="seconds").replace("+00:00", "Z")
+
+
+def _unknown_detail(last: datetime | None, names: list[str], running: int) -> str:
+    """The workers' state, in words, while the database refuses their beats."""
+    if last is None:
+        said = "no worker's beat is stored, and none can be while the database refuses writes"
+    else:
+        stamp = (last if last.tzinfo else last.replace(tzinfo=UTC)).astimezone(UTC)
+        said = (
+            f"the workers' state is unknown since {_seconds_z(stamp)} "
+            "(their last beat stored): the database refuses writes, their heartbeats "
+            "included"
+        )
+        if names:
+            said += f"; live then: {', '.join(names)}"
+    if running:
+        said += (
+            f"; {running} job(s) running as last stored: a run that finished since keeps "
+            "its result and stores it once the database takes writes"
+        )
+    return said
+
+
+def _workers(
+    settings: Settings, database: Database, database_ok: bool, refusing: bool = False
+) -> WorkersHealth:
+    """The workers as their beats say; ``refusing``: the database refuses writes, so
+    their beats are not stored either, and no beat in the window says nothing of them."""
     window = _HEARTBEATS_OF_GRACE * settings.heartbeat_interval_s
     # Past the heartbeat timeout a warm-up is as stuck as a run that stopped beating;
     # past the start timeout Celery has killed the replacement and started another.
     limit = min(settings.heartbeat_timeout_s, settings.worker_start_timeout_s)
     rows: list[tuple[str, datetime | None, datetime | None]] = []
     gone: list[GoneWorker] = []
+    unknown: tuple[datetime | None, list[str], int] | None = None
     now = utcnow()
     if database_ok:
         cutoff = now - timedelta(seconds=window)
@@ -284,6 +369,8 @@ def _workers(settings: Settings, database: Database, database_ok: bool) -> Worke
                         gone.append(GoneWorker(name=name, silent_s=_age_s(now, last_seen)))
                     else:
                         rows.append((name, since, lock_missing_since))
+                if refusing and not rows:
+                    unknown = _last_known(session, window)
         except Exception:  # the database went away between the ping and the query
             log.exception("could not read the workers table")
     warming = [
@@ -303,6 +390,10 @@ def _workers(settings: Settings, database: Database, database_ok: bool) -> Worke
     details = []
     if not database_ok:
         details.append("the database is unreachable: no worker can be read")
+    elif unknown is not None:
+        # Said "no worker seen" while the workers beat on, their beats refused, and one
+        # held a finished run's result for the database to take.
+        details.append(_unknown_detail(*unknown))
     elif not rows:
         details.append(f"no worker seen in the last {window:g} s")
     if not rows:
@@ -331,6 +422,8 @@ def _workers(settings: Settings, database: Database, database_ok: bool) -> Worke
         without_lock=without_lock,
         gone=gone,
         warming_limit_s=limit,
+        state_unknown_since=None if unknown is None else unknown[0],
+        last_known=[] if unknown is None else unknown[1],
         detail="; ".join(details) or None,
     )
 
@@ -357,7 +450,7 @@ def health(settings: SettingsDep, database: DatabaseDep, celery: CeleryDep) -> H
     reachable = database.ping()
     db = _database(database, reachable)
     broker = _broker(settings, celery)
-    workers = _workers(settings, database, reachable)
+    workers = _workers(settings, database, reachable, refusing=db.takes_writes is False)
     # A warming worker takes no job until it is warm, one without its incarnation lock
     # none until it takes it again (listed, and a fault when none holds it): neither is
     # idle. Counted, a lockless worker beside a busy one made a long queue "stalled",

@@ -8,11 +8,11 @@ import sqlite3
 import subprocess
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from datetime import timedelta
+from datetime import UTC, timedelta
 from pathlib import Path
 
 import pytest
-from sqlalchemy import delete
+from sqlalchemy import create_engine, delete, text
 
 from inertia_id import Scenario
 from service.config import Settings
@@ -68,6 +68,8 @@ def test_health_without_workers_is_degraded(api: Api) -> None:
         "without_lock": [],
         "gone": [],
         "warming_limit_s": api.settings.heartbeat_timeout_s,
+        "state_unknown_since": None,
+        "last_known": [],
         "detail": f"no worker seen in the last {3 * api.settings.heartbeat_interval_s:g} s",
     }
 
@@ -320,7 +322,11 @@ def test_health_reports_an_unreachable_database(api: Api) -> None:
     assert response.status_code == 200
     health = response.json()
     assert health["status"] == "degraded"
-    assert health["database"] == {"ok": False, "detail": "postgresql unreachable"}
+    assert health["database"] == {
+        "ok": False,
+        "takes_writes": None,
+        "detail": "postgresql unreachable",
+    }
     assert health["workers"]["ok"] is False
 
 
@@ -381,8 +387,10 @@ def test_health_is_degraded_naming_the_disk_when_the_data_dir_takes_no_writes(ap
     if api.db.engine.dialect.name == "sqlite":
         assert health["database"] == {
             "ok": False,
+            "takes_writes": False,
             "detail": "sqlite reachable, but the folder of its file takes no writes: "
-            "File too large",
+            "File too large; workers' heartbeats and results cannot be stored until it "
+            "takes writes",
         }
     else:
         assert health["database"]["ok"] is True
@@ -405,8 +413,10 @@ def test_health_is_degraded_naming_a_read_only_postgresql(api: Api) -> None:
     assert health["status"] == "degraded"
     assert health["database"] == {
         "ok": False,
+        "takes_writes": False,
         "detail": "postgresql reachable, but it takes no writes: its transactions are "
-        "read-only (transaction_read_only is on)",
+        "read-only (transaction_read_only is on); workers' heartbeats and results cannot be "
+        "stored until it takes writes",
     }
     # Still read: the workers are listed.
     assert health["workers"]["names"] == ["celery@alive"]
@@ -451,8 +461,10 @@ def test_health_is_degraded_naming_a_sqlite_file_that_takes_no_writes(api: Api) 
     assert health["status"] == "degraded"
     assert health["database"] == {
         "ok": False,
+        "takes_writes": False,
         "detail": "sqlite reachable, but its file takes no writes: attempt to write a "
-        "readonly database",
+        "readonly database; workers' heartbeats and results cannot be stored until it "
+        "takes writes",
     }
     assert health["workers"]["names"] == ["celery@alive"]
     assert api.get("/health").json()["status"] == "ok"
@@ -475,5 +487,109 @@ def test_health_takes_a_sqlite_writer_holding_the_lock_for_a_database_that_takes
     finally:
         writer.execute("ROLLBACK")
         writer.close()
-    assert health["database"] == {"ok": True, "detail": "sqlite reachable"}
+    assert health["database"] == {"ok": True, "takes_writes": True, "detail": "sqlite reachable"}
+    assert health["status"] == "ok"
+
+
+@contextmanager
+def writes_refused(api: Api) -> Iterator[None]:
+    """The test's database answering but refusing writes: a PostgreSQL one read-only, a
+    SQLite one on a full disk (a 1 KiB file-size limit on this process, see above)."""
+    if api.db.engine.dialect.name == "postgresql":
+        with read_only_postgres(api):
+            yield
+        return
+    soft, hard = resource.getrlimit(resource.RLIMIT_FSIZE)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (1024, hard))
+    try:
+        yield
+    finally:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (soft, hard))
+
+
+def test_health_says_the_workers_state_is_unknown_while_the_database_refuses_writes(
+    api: Api,
+) -> None:
+    # The workers' beats are refused as every write is: their last one stored falls out
+    # of the window, and /health said "no worker seen in the last 3 s" while they beat on
+    # and one held a finished run's result for the database to take (under `inertia-id
+    # serve` on a full tmpfs; a celery worker on a read-only PostgreSQL).
+    add_worker(api, "celery@held", seconds_ago=40.0)
+    add_worker(api, "celery@beside", seconds_ago=41.0)
+    add_worker(api, "celery@long-gone", seconds_ago=3600.0)
+    add_job(api, "running", seconds_ago=60.0, seed=1)
+    with api.db.session() as session:
+        last_beat = session.get_one(WorkerRow, "celery@held").last_seen_at
+    with writes_refused(api):
+        response = api.get("/health")
+    assert response.status_code == 200
+    health = response.json()
+    assert health["status"] == "degraded"
+    assert "no worker seen" not in health["workers"]["detail"], health["workers"]
+    database = health["database"]
+    assert database["ok"] is False and database["takes_writes"] is False
+    assert database["detail"].endswith(
+        "; workers' heartbeats and results cannot be stored until it takes writes"
+    )
+    workers = health["workers"]
+    assert workers["ok"] is False and workers["names"] == []
+    assert workers["last_known"] == ["celery@beside", "celery@held"]
+    stamp = last_beat.replace(tzinfo=UTC) if last_beat.tzinfo is None else last_beat
+    assert workers["state_unknown_since"] == stamp.isoformat().replace("+00:00", "Z")
+    detail = workers["detail"]
+    second = stamp.astimezone(UTC).isoformat(timespec="seconds").replace("+00:00", "Z")
+    assert detail.startswith(
+        f"the workers' state is unknown since {second}"
+        " (their last beat stored): the database refuses writes, their heartbeats included; "
+        "live then: celery@beside, celery@held; 1 job(s) running as last stored: a run that "
+        "finished since keeps its result and stores it once the database takes writes"
+    ), detail
+    # Writes taken again, and no beat since: no worker seen, as before.
+    health = api.get("/health").json()
+    assert health["database"] == {
+        "ok": True,
+        "takes_writes": True,
+        "detail": health["database"]["detail"],
+    }
+    assert health["workers"]["state_unknown_since"] is None
+    assert health["workers"]["last_known"] == []
+    assert health["workers"]["detail"].startswith("no worker seen in the last")
+
+
+def test_health_does_not_call_a_postgresql_read_only_after_its_setting_is_reset(api: Api) -> None:
+    # A session keeps the default_transaction_read_only it started with: the API's pooled
+    # connection opened during a read-only spell read "on" after the reset, and /health
+    # said "takes no writes" while the workers stored their beats again (a celery worker
+    # and the API on a scratch database: "degraded ... read-only" 10 s after the reset).
+    if api.db.engine.dialect.name != "postgresql":
+        pytest.skip("a PostgreSQL session's read-only default")
+    add_worker(api, "celery@alive", seconds_ago=0.0)
+    url = api.db.engine.url
+    admin = create_engine(url.set(database="postgres"), isolation_level="AUTOCOMMIT")
+    try:
+        with admin.connect() as connection:
+            connection.execute(
+                text(f'ALTER DATABASE "{url.database}" SET default_transaction_read_only = on')
+            )
+        api.db.engine.dispose()
+        assert api.get("/health").json()["database"]["ok"] is False
+        with admin.connect() as connection:
+            connection.execute(
+                text(f'ALTER DATABASE "{url.database}" RESET default_transaction_read_only')
+            )
+        # The pool still holds the session opened read-only.
+        health = api.get("/health").json()
+    finally:
+        with admin.connect() as connection:
+            connection.execute(
+                text(f'ALTER DATABASE "{url.database}" RESET default_transaction_read_only')
+            )
+        admin.dispose()
+        api.db.engine.dispose()
+    assert health["database"]["detail"] == "postgresql reachable", health
+    assert health["database"] == {
+        "ok": True,
+        "takes_writes": True,
+        "detail": "postgresql reachable",
+    }
     assert health["status"] == "ok"
