@@ -173,11 +173,16 @@ async function health() {
     // free) is neither counted nor named above; /health lists it apart until its row
     // leaves the window.
     const gone = (data.workers.gone ?? []).map((w) => `${w.name} (process gone, its lock free; last beat ${Math.round(w.silent_s)} s ago)`);
-    badge.textContent =
-      `${data.status} · ${workers} worker${workers === 1 ? "" : "s"}` +
-      (warming.size ? ` (${warming.size} warming up)` : "");
+    // The database refuses writes, the workers' beats with them: none is seen, yet they
+    // may beat on (and hold a finished run's result). Said "0 workers", "none seen".
+    const unknown = data.workers.state_unknown_since != null;
+    badge.textContent = unknown
+      ? `${data.status} · workers unknown`
+      : `${data.status} · ${workers} worker${workers === 1 ? "" : "s"}` +
+        (warming.size ? ` (${warming.size} warming up)` : "");
     badge.className = `health ${data.status}`;
-    badge.title = `database: ${data.database.detail}\nbroker: ${data.broker.detail}\nworkers: ${names.join(", ") || "none seen"}` + (gone.length ? `\ngone: ${gone.join(", ")}` : "");
+    const seen = unknown ? data.workers.detail : names.join(", ") || "none seen";
+    badge.title = `database: ${data.database.detail}\nbroker: ${data.broker.detail}\nworkers: ${seen}` + (gone.length ? `\ngone: ${gone.join(", ")}` : "");
   } catch (exc) {
     badge.textContent = "unreachable";
     badge.className = "health degraded";

@@ -569,3 +569,43 @@ def test_the_health_badge_names_a_worker_whose_process_is_gone(dashboard: Dashbo
         assert badge.text_content() == f"{answer['status']} · 1 worker"
     finally:
         dashboard.page.unroute(f"{service.base_url}/health")
+
+
+def test_the_health_badge_says_the_workers_are_unknown_while_writes_are_refused(
+    dashboard: Dashboard,
+) -> None:
+    """While the database refuses writes their beats are refused too: /health says the
+    workers' state is unknown since their last stored beat. The badge said "degraded · 0
+    workers" and its tooltip "workers: none seen" while they beat on."""
+    service = dashboard.service
+    answer = service.client.get("/health").json()
+    detail = (
+        "the workers' state is unknown since 2026-12-05T22:05:29Z (their last beat stored): "
+        "the database refuses writes, their heartbeats included; live then: w1@vm"
+    )
+    answer["status"] = "degraded"
+    answer["workers"] |= {
+        "ok": False,
+        "count": 0,
+        "names": [],
+        "state_unknown_since": "2026-12-05T22:05:29.365099Z",
+        "last_known": ["w1@vm"],
+        "detail": detail,
+    }
+    dashboard.page.route(
+        f"{service.base_url}/health",
+        lambda route: route.fulfill(
+            status=200, content_type="application/json", body=json.dumps(answer)
+        ),
+    )
+    try:
+        dashboard.open("#/scenarios")
+        badge = dashboard.page.locator("#health")
+        dashboard.page.wait_for_function(
+            "() => document.getElementById('health').title.includes('workers:')"
+        )
+        title = badge.get_attribute("title") or ""
+        assert title.endswith(f"\nworkers: {detail}"), title
+        assert badge.text_content() == "degraded · workers unknown"
+    finally:
+        dashboard.page.unroute(f"{service.base_url}/health")
