@@ -86,9 +86,35 @@ def replayable(
     return merged
 
 
+def _list_or_bad_string(raw: str) -> str | None:
+    """Why ``raw`` is neither a bare key nor one sf-string, or None when it is one of them.
+
+    A value that opens with a double quote is the draft's sf-string and is parsed as one:
+    a quote left open, an escape other than ``\\"`` and ``\\\\``, or anything after the
+    closing quote is refused, not kept as a bare key that merely begins with a quote. A
+    comma outside quotes makes the field a list (two keys joined by a proxy, or
+    ``a, b`` typed as one): which of them the client retries with is not known."""
+    if not raw.startswith('"'):
+        if "," in raw:
+            return "is a list (a comma outside a quoted string): send one key"
+        return None
+    closed = _QUOTED.match(raw)
+    if closed is not None and closed.end() == len(raw):
+        return None
+    if closed is not None and raw[closed.end() :].lstrip(" ").startswith(","):
+        return "is a list (a comma outside a quoted string): send one key"
+    return (
+        "starts with a double quote but is not a Structured Field string (RFC 8941: one "
+        'closing quote, nothing after it, printable ASCII, \\" and \\\\ the only escapes)'
+    )
+
+
 def parse_key(raw: str) -> str:
     """The key an ``Idempotency-Key`` header holds: a bare token or a quoted string of
     1 to 255 printable ASCII characters; else a 422 that quotes the value."""
+    why = _list_or_bad_string(raw) if _BARE.fullmatch(raw) else None
+    if why is not None:
+        unprocessable(_WHERE, f"{IDEMPOTENCY_KEY_HEADER} {raw[:80]!r} {why}")
     quoted = _QUOTED.fullmatch(raw)
     key = re.sub(r"\\(.)", r"\1", quoted.group(1)) if quoted else raw
     if not (quoted or _BARE.fullmatch(raw)) or not key.strip():

@@ -129,6 +129,39 @@ def test_a_key_no_client_would_send_is_422_naming_it(
     assert _count(api, ScenarioRow) == 0
 
 
+@pytest.mark.parametrize(
+    ("key", "why"),
+    [
+        ('"unterminated', "not a Structured Field string"),
+        ('"bad\\x escape"', "not a Structured Field string"),
+        ('"closed"then-more', "not a Structured Field string"),
+        ("a, b", "is a list"),
+        ('"a", "b"', "is a list"),
+    ],
+)
+def test_a_key_that_is_not_one_key_or_not_the_drafts_string_is_422_naming_it(
+    api: Api, key: str, why: str
+) -> None:
+    """The draft's field is one sf-string. A bare token (Stripe's, a UUID) is taken as
+    it is, but a value that opens a quoted string and breaks it, or a list of keys, is
+    not some other key: kept as one, a retry with the key the client meant would miss
+    it. Before, both were taken as bare keys (201)."""
+    response = api.client.post("/scenarios", json={"preset": "paper"}, headers=_keyed(api, key))
+    assert response.status_code == 422, response.text
+    (error,) = response.json()["detail"]
+    assert error["loc"] == ["header", IDEMPOTENCY_KEY_HEADER]
+    assert IDEMPOTENCY_KEY_HEADER in error["msg"] and repr(key) in error["msg"]
+    assert why in error["msg"]
+    assert _count(api, ScenarioRow) == 0 and _count(api, IdempotencyKeyRow) == 0
+
+
+def test_a_comma_inside_the_drafts_quoted_string_is_part_of_one_key(api: Api) -> None:
+    quoted = api.client.post("/scenarios", json={"preset": "paper"}, headers=_keyed(api, '"a, b"'))
+    assert quoted.status_code == 201, quoted.text
+    with api.db.session() as session:
+        assert session.scalars(select(IdempotencyKeyRow.key)).all() == ["a, b"]
+
+
 def _claim_as_the_api(api: Api, key: str, body: dict[str, Any], *, age: timedelta) -> None:
     """Claim ``key`` for ``body`` on POST /jobs as a request begun ``age`` ago that was
     never answered (still running, or its process died)."""
