@@ -13,10 +13,11 @@ of the route) keeps no answer: sent again, it runs again. Keys belong to an API 
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Iterator
 from dataclasses import dataclass
-from datetime import timedelta
+from datetime import datetime, timedelta
 from typing import Annotated, Any
 
 from fastapi import Depends, Header, HTTPException, Request, status
@@ -25,7 +26,7 @@ from pydantic import BaseModel
 from sqlalchemy.orm import Session
 
 from service.store import idempotency as store
-from service.store.models import MAX_IDEMPOTENCY_KEY_LENGTH
+from service.store.models import MAX_IDEMPOTENCY_KEY_LENGTH, utcnow
 from service.store.session import Database
 
 from ..security import API_KEY_HEADER, hash_key
@@ -34,11 +35,13 @@ from .deps import DatabaseDep, SessionDep, SettingsDep, unprocessable
 __all__ = [
     "IDEMPOTENCY_KEY_HEADER",
     "IDEMPOTENCY_RESPONSES",
+    "LIVE_CLAIM",
     "REPLAYED_HEADER",
     "IdempotencyDep",
     "IdempotentRequest",
     "parse_key",
     "replayable",
+    "retry_after_s",
 ]
 
 IDEMPOTENCY_KEY_HEADER = "Idempotency-Key"
@@ -52,13 +55,32 @@ _WHERE = ("header", IDEMPOTENCY_KEY_HEADER)
 _BARE = re.compile(r"[\x20-\x7e]+")
 _QUOTED = re.compile(r'"((?:[\x20\x21\x23-\x5b\x5d-\x7e]|\\["\\])*)"')
 
+#: A claim held for less than this is taken for a request still being answered (a POST
+#: that stores a row is answered in well under a second): its 409 asks for the retry in
+#: 1 s. One held longer is, most likely, a request whose process died: the 409 gives the
+#: wait until its lease ends, when the next request takes the key over.
+LIVE_CLAIM = timedelta(seconds=10)
+
+
+def retry_after_s(claimed_at: datetime | None, now: datetime) -> int:
+    """The 409's ``Retry-After`` for a key claimed at ``claimed_at``: 1 s while the claim
+    is live (younger than :data:`LIVE_CLAIM`, or not known), else the seconds left on its
+    lease (:data:`service.store.idempotency.CLAIM_LEASE`), rounded up, at least 1."""
+    if claimed_at is None or now - claimed_at < LIVE_CLAIM:
+        return 1
+    left = (claimed_at + store.CLAIM_LEASE - now).total_seconds()
+    return max(1, math.ceil(left))
+
+
 #: What the schema says of a route that takes the header.
 IDEMPOTENCY_RESPONSES: dict[int | str, dict[str, Any]] = {
     409: {
         "description": "a request with this Idempotency-Key is still in progress",
         "headers": {
             "Retry-After": {
-                "description": "seconds to wait before sending the request again",
+                "description": "seconds to wait before sending the request again: 1 "
+                "while the request that holds the key was begun less than 10 s ago, else "
+                "what is left of its 2-minute lease (its process died, most likely)",
                 "schema": {"type": "integer"},
             }
         },
@@ -162,11 +184,22 @@ class IdempotentRequest:
                 found.body, status_code=found.status, headers={REPLAYED_HEADER: "true"}
             )
         if found.outcome == store.IN_PROGRESS:
+            now = utcnow()
+            wait = retry_after_s(found.claimed_at, now)
+            if found.claimed_at is None or now - found.claimed_at < LIVE_CLAIM:
+                detail = (
+                    f"a request with {IDEMPOTENCY_KEY_HEADER} {self.key!r} is still in "
+                    "progress; send it again once that one is answered"
+                )
+            else:
+                held = (now - found.claimed_at).total_seconds()
+                detail = (
+                    f"a request with {IDEMPOTENCY_KEY_HEADER} {self.key!r} has held it "
+                    f"for {held:.0f} s without an answer (its process may have died); "
+                    f"the key is free in {wait} s, when the request sent again runs"
+                )
             raise HTTPException(
-                status.HTTP_409_CONFLICT,
-                detail=f"a request with {IDEMPOTENCY_KEY_HEADER} {self.key!r} is still in "
-                "progress; send it again once that one is answered",
-                headers={"Retry-After": "1"},
+                status.HTTP_409_CONFLICT, detail=detail, headers={"Retry-After": str(wait)}
             )
         unprocessable(
             _WHERE,

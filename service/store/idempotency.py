@@ -66,6 +66,8 @@ class Claim:
         ``in_progress`` (another request holds it), ``mismatch`` (the key was used for
         another request: ``route`` is the one it was used on).
     :param token: this request's claim, for :func:`answer` and :func:`release` (``new``).
+    :param claimed_at: when the request that holds the key claimed it (``in_progress``;
+        its lease ends :data:`CLAIM_LEASE` after), or when this one did (``new``).
     """
 
     outcome: Literal["new", "replay", "in_progress", "mismatch"]
@@ -73,6 +75,7 @@ class Claim:
     route: str | None = None
     status: int | None = None
     body: dict[str, Any] | None = None
+    claimed_at: datetime | None = None
 
 
 def fingerprint(route: str, body: Any) -> str:
@@ -120,7 +123,7 @@ def claim(
                         expires_at=now + ttl,
                     )
                 )
-            return Claim(NEW, token=token)
+            return Claim(NEW, token=token, claimed_at=now)
         except IntegrityError:
             pass
         with db.session() as session:
@@ -135,7 +138,7 @@ def claim(
             if row.answer_status is not None:
                 return Claim(REPLAY, status=row.answer_status, body=row.answer_body)
             if _aware(row.claimed_at) > now - CLAIM_LEASE:
-                return Claim(IN_PROGRESS)
+                return Claim(IN_PROGRESS, claimed_at=_aware(row.claimed_at))
             taken = session.execute(
                 update(IdempotencyKeyRow)
                 .where(
@@ -147,7 +150,7 @@ def claim(
                 .values(claim=token, claimed_at=now)
             )
             if taken.rowcount == 1:  # type: ignore[attr-defined]
-                return Claim(NEW, token=token)
+                return Claim(NEW, token=token, claimed_at=now)
     return Claim(IN_PROGRESS)
 
 

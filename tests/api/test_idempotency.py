@@ -22,7 +22,12 @@ from pydantic import TypeAdapter
 from service_support import free_port
 from sqlalchemy import func, select, update
 
-from app.api.idempotency import IDEMPOTENCY_KEY_HEADER, REPLAYED_HEADER
+from app.api.idempotency import (
+    IDEMPOTENCY_KEY_HEADER,
+    LIVE_CLAIM,
+    REPLAYED_HEADER,
+    retry_after_s,
+)
 from app.main import create_app
 from app.schemas import JobCreate
 from app.security import hash_key
@@ -191,6 +196,33 @@ def test_a_request_still_in_progress_is_409_and_a_dead_ones_key_is_taken_over(ap
     assert taken.status_code == 202, taken.text
     again = api.client.post("/jobs", json=_rerun(scenario), headers=_keyed(api, "dead"))
     assert again.headers[REPLAYED_HEADER] == "true" and again.json()["id"] == taken.json()["id"]
+
+
+def test_a_409s_retry_after_is_1_s_for_a_live_claim_and_the_leases_rest_for_a_stale_one(
+    api: Api,
+) -> None:
+    """A claim just taken belongs to a request being answered: ask again in 1 s. One held
+    past LIVE_CLAIM belongs, most likely, to a dead process and is free only when its
+    lease ends: ``Retry-After`` says when (before: 1 s throughout, so a client that obeys
+    it sent up to 120 requests that could only be 409s)."""
+    scenario = api.create_scenario()["id"]
+    for key, age in (("fresh", timedelta(seconds=2)), ("nearly-live", LIVE_CLAIM / 2)):
+        _claim_as_the_api(api, key, _rerun(scenario), age=age)
+        busy = api.client.post("/jobs", json=_rerun(scenario), headers=_keyed(api, key))
+        assert busy.status_code == 409 and busy.headers["retry-after"] == "1", busy.text
+    _claim_as_the_api(api, "stale", _rerun(scenario), age=timedelta(seconds=60))
+    stale = api.client.post("/jobs", json=_rerun(scenario), headers=_keyed(api, "stale"))
+    assert stale.status_code == 409, stale.text
+    # 60 s of the lease left when claimed, less the time this request took to arrive
+    # (rounded up).
+    assert 55 <= int(stale.headers["retry-after"]) <= 60, stale.headers
+    assert f"free in {stale.headers['retry-after']} s" in stale.json()["detail"]
+    assert _count(api, JobRow) == 0
+    # The rule itself: rounded up, and never 0 however little of the lease is left.
+    now = utcnow()
+    assert retry_after_s(now - timedelta(seconds=60.5), now) == 60
+    assert retry_after_s(now - (store.CLAIM_LEASE - timedelta(milliseconds=300)), now) == 1
+    assert retry_after_s(None, now) == 1
 
 
 def test_a_failed_request_keeps_no_answer_and_expired_keys_are_new_and_deleted(api: Api) -> None:
