@@ -13,6 +13,7 @@ of the route) keeps no answer: sent again, it runs again. Keys belong to an API 
 
 from __future__ import annotations
 
+import logging
 import math
 import re
 from collections.abc import Iterator
@@ -46,6 +47,8 @@ __all__ = [
 
 IDEMPOTENCY_KEY_HEADER = "Idempotency-Key"
 REPLAYED_HEADER = "Idempotent-Replayed"
+
+log = logging.getLogger(__name__)
 
 _WHERE = ("header", IDEMPOTENCY_KEY_HEADER)
 # A bare token (Stripe's keys, UUIDs) is visible ASCII; the draft's own form is a
@@ -164,6 +167,7 @@ class IdempotentRequest:
     route: str
     ttl: timedelta
     token: str | None = None
+    claimed_at: datetime | None = None
 
     def begin(self, body: BaseModel) -> JSONResponse | None:
         """Claim the key for this request (None: go on), or the first answer to replay.
@@ -172,11 +176,17 @@ class IdempotentRequest:
         :raises RequestValidationError: 422, the key was used for another request.
         """
         digest = store.fingerprint(self.route, body.model_dump(mode="json"))
+        pending = store.pending_releases(self.db)
+        if len(pending):
+            # A key this process could not let go (the database refused writes) is let go
+            # first: this may be its retry, which must run, not meet the dead claim.
+            pending.flush()
         found = store.claim(
             self.db, client=self.client, key=self.key, route=self.route, digest=digest, ttl=self.ttl
         )
         if found.outcome == store.NEW:
             self.token = found.token
+            self.claimed_at = found.claimed_at
             return None
         if found.outcome == store.REPLAY:
             assert found.status is not None
@@ -221,9 +231,28 @@ class IdempotentRequest:
         )
 
     def release(self) -> None:
-        if self.token is not None:
-            store.release(self.db, client=self.client, key=self.key, token=self.token)
-            self.token = None
+        """Let the key go: this request failed before it was answered. A release the
+        database refuses (it turned read-only after the claim) is left to
+        :class:`service.store.idempotency.PendingReleases`, never raised over the
+        request's own error."""
+        if self.token is None:
+            return
+        token, self.token = self.token, None
+        try:
+            store.release(self.db, client=self.client, key=self.key, token=token)
+        except Exception as exc:
+            log.warning(
+                "%s %r not let go (%s): tried again until the database takes it",
+                IDEMPOTENCY_KEY_HEADER,
+                self.key,
+                exc,
+            )
+            store.pending_releases(self.db).add(
+                client=self.client,
+                key=self.key,
+                token=token,
+                claimed_at=self.claimed_at or utcnow(),
+            )
 
 
 def _idempotent_request(

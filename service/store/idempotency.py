@@ -13,6 +13,10 @@ the request's fingerprint and, once it is answered, the answer:
   the new row, where the route allows), so the answer and what it reports commit together;
 - :func:`release` lets the key go when the request failed: nothing was made, and the
   same request may be sent again;
+- a release the database refused (it turned read-only, or its disk full, after the claim:
+  the delete is a write too) is tried again by :class:`PendingReleases`, before the
+  process's next keyed request and every second in the background, until the database
+  takes it or the lease ends: the key is free as soon as writes are, not 2 minutes on;
 - a claim left unanswered past :data:`CLAIM_LEASE` (the API process died mid-request) is
   taken over by the next request with the key; expired rows are deleted by the claims.
 """
@@ -21,7 +25,11 @@ from __future__ import annotations
 
 import hashlib
 import json
+import logging
 import secrets
+import threading
+import time
+import weakref
 from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta
 from typing import Any, Literal
@@ -40,11 +48,15 @@ __all__ = [
     "NEW",
     "REPLAY",
     "Claim",
+    "PendingReleases",
     "answer",
     "claim",
     "fingerprint",
+    "pending_releases",
     "release",
 ]
+
+log = logging.getLogger(__name__)
 
 #: How long a claim without an answer holds its key. A POST that creates a job or a
 #: scenario is answered in well under a second; a claim this old belongs to a request
@@ -181,3 +193,81 @@ def release(db: Database, *, client: str, key: str, token: str) -> None:
                 IdempotencyKeyRow.answer_status.is_(None),
             )
         )
+
+
+class PendingReleases:
+    """Claims of failed requests that the database refused to let go, let go later.
+
+    A request that claimed its key and then met a database that refuses writes (turned
+    read-only, its disk full) fails, and so does its :func:`release`, a delete: the claim
+    would hold the key until its lease ends, and a retry sent once the database takes
+    writes again would be a 409 for up to 2 minutes. The process that failed knows the
+    claim is dead; it tries the release again before each keyed request it serves
+    (:meth:`flush`) and every ``interval_s`` in a background thread that ends when none is
+    left. A claim whose lease ended is dropped (the next request takes it over anyway).
+    A process killed meanwhile leaves its claims to the lease, as before.
+
+    :param db: the database the claims are in.
+    :param interval_s: seconds between the background thread's tries.
+    """
+
+    def __init__(self, db: Database, *, interval_s: float = 1.0) -> None:
+        self._db = db
+        self._interval_s = interval_s
+        self._lock = threading.Lock()
+        # (client, key) -> (token, when the lease ends)
+        self._pending: dict[tuple[str, str], tuple[str, datetime]] = {}
+        self._thread: threading.Thread | None = None
+
+    def __len__(self) -> int:
+        with self._lock:
+            return len(self._pending)
+
+    def add(self, *, client: str, key: str, token: str, claimed_at: datetime) -> None:
+        """Let ``key``'s claim ``token`` go once the database takes writes."""
+        with self._lock:
+            self._pending[(client, key)] = (token, _aware(claimed_at) + CLAIM_LEASE)
+            if self._thread is None or not self._thread.is_alive():
+                self._thread = threading.Thread(
+                    target=self._retry, name="idempotency-releases", daemon=True
+                )
+                self._thread.start()
+
+    def flush(self) -> None:
+        """Try every pending release once; those the database took, or whose lease
+        ended, are dropped. Never raises: a database still refusing keeps them."""
+        with self._lock:
+            pending = list(self._pending.items())
+        now = utcnow()
+        for (client, key), (token, lease_end) in pending:
+            if lease_end > now:
+                try:
+                    release(self._db, client=client, key=key, token=token)
+                except Exception as exc:  # still refused, or unreachable: try again later
+                    log.debug("idempotency key %r not let go yet: %s", key, exc)
+                    continue
+            with self._lock:
+                if self._pending.get((client, key), (None,))[0] == token:
+                    del self._pending[(client, key)]
+
+    def _retry(self) -> None:
+        while True:
+            time.sleep(self._interval_s)
+            self.flush()
+            with self._lock:
+                if not self._pending:
+                    self._thread = None
+                    return
+
+
+_PENDING: weakref.WeakKeyDictionary[Database, PendingReleases] = weakref.WeakKeyDictionary()
+_PENDING_LOCK = threading.Lock()
+
+
+def pending_releases(db: Database) -> PendingReleases:
+    """The releases ``db`` refused in this process (one set per database)."""
+    with _PENDING_LOCK:
+        found = _PENDING.get(db)
+        if found is None:
+            found = _PENDING[db] = PendingReleases(db)
+        return found

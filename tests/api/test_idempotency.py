@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import secrets
 import threading
+import time
 from collections.abc import Callable
 from datetime import timedelta
 from pathlib import Path
@@ -19,7 +20,7 @@ import httpx
 import pytest
 import uvicorn
 from pydantic import TypeAdapter
-from service_support import free_port
+from service_support import free_port, writes_refused_while
 from sqlalchemy import func, select, update
 
 from app.api.idempotency import (
@@ -419,3 +420,66 @@ def test_a_request_whose_commit_failed_lets_its_key_go(api: Api) -> None:
     assert again.status_code == 201, again.text
     assert REPLAYED_HEADER.lower() not in again.headers
     assert _count(api, ScenarioRow) == 1
+
+
+def _read_only_after_the_claim(monkeypatch: pytest.MonkeyPatch, refusing: threading.Event) -> None:
+    """The database turns read-only right after a request claimed its key: the route's
+    write and the key's release are refused (SQLITE_READONLY, PostgreSQL 25006)."""
+    original = store.claim
+
+    def claim_then_refuse(*args: Any, **kwargs: Any) -> store.Claim:
+        found = original(*args, **kwargs)
+        refusing.set()
+        return found
+
+    monkeypatch.setattr(store, "claim", claim_then_refuse)
+
+
+def test_a_key_whose_request_met_a_read_only_database_is_free_once_it_takes_writes(
+    api: Api, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The request is a 503 and cannot let its key go (the release is a write too). The
+    retry sent once the database takes writes again must run, not meet the dead claim:
+    before, it was a 409 for the 2 minutes of the lease."""
+    from starlette.testclient import TestClient
+
+    refusing = threading.Event()
+    headers = _keyed(api, "read-only-then-back")
+    with writes_refused_while(refusing):
+        _read_only_after_the_claim(monkeypatch, refusing)
+        with TestClient(api.app, raise_server_exceptions=False) as client:
+            failed = client.post("/scenarios", json={"preset": "paper"}, headers=headers)
+        monkeypatch.undo()
+        assert failed.status_code == 503, failed.text
+        assert "read-only" in failed.text
+        assert _count(api, ScenarioRow) == 0
+        refusing.clear()
+        again = api.client.post("/scenarios", json={"preset": "paper"}, headers=headers)
+    assert again.status_code == 201, again.text
+    assert REPLAYED_HEADER.lower() not in again.headers
+    assert _count(api, ScenarioRow) == 1
+
+
+def test_a_claim_the_read_only_database_kept_is_let_go_without_a_request(
+    api: Api, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """With no request to this process after the database takes writes again (the retry
+    went to another API worker), the process that failed lets the key go by itself."""
+    from starlette.testclient import TestClient
+
+    refusing = threading.Event()
+    with writes_refused_while(refusing):
+        _read_only_after_the_claim(monkeypatch, refusing)
+        with TestClient(api.app, raise_server_exceptions=False) as client:
+            failed = client.post(
+                "/scenarios", json={"preset": "paper"}, headers=_keyed(api, "left-behind")
+            )
+        monkeypatch.undo()
+        assert failed.status_code == 503, failed.text
+        assert _count(api, IdempotencyKeyRow) == 1
+        refusing.clear()
+        # Polled, not timed: it goes once a retry of the release meets a writable database.
+        deadline = time.monotonic() + 60
+        while _count(api, IdempotencyKeyRow) and time.monotonic() < deadline:
+            time.sleep(0.2)
+    assert _count(api, IdempotencyKeyRow) == 0
