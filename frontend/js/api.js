@@ -51,8 +51,14 @@ function errorFrom(status, body) {
 // When its answer is lost (the connection dropped, so the page cannot tell whether the
 // service stored it) it is sent again with the same key, and the service answers what
 // it did the first time instead of storing a second; a 409 with Retry-After (the first
-// is still being answered) is asked again after that wait.
+// is still being answered) is asked again after that wait. A 502, 503 or 504 (a proxy
+// that lost the service, or the service's own "try again") is sent again too, the key
+// making it safe: after 0.5, 1 and 2 s (or the answer's Retry-After, at most 5 s), each
+// wait drawn between half and all of that so that pages refused together do not come
+// back together.
 const IDEMPOTENT_TRIES = 3;
+const GATEWAY_TRIES = 4;
+const RETRIED_STATUSES = new Set([502, 503, 504]);
 
 function newIdempotencyKey() {
   // crypto.randomUUID exists in secure contexts only (https, localhost); a dashboard
@@ -104,6 +110,11 @@ export async function request(method, path, { json, form, query, key = null, raw
       throw new ApiError(0, `the service at ${location.origin} could not be reached (${exc.message})`);
     }
     const retryAfter = Number(response.headers.get("Retry-After"));
+    if (idempotent && RETRIED_STATUSES.has(response.status) && tries < GATEWAY_TRIES) {
+      const backoff = retryAfter > 0 ? 1000 * Math.min(retryAfter, 5) : 500 * 2 ** (tries - 1);
+      await pause(backoff * (0.5 + Math.random() / 2));
+      continue;
+    }
     if (!(idempotent && response.status === 409 && retryAfter > 0 && tries < IDEMPOTENT_TRIES)) break;
     await pause(1000 * Math.min(retryAfter, 5));
   }

@@ -82,6 +82,13 @@ def _telemetry_csv(
     return path
 
 
+def _key_saved(dashboard: Dashboard) -> None:
+    """The API key in localStorage, as the first test saves it: for a test run on its own."""
+    dashboard.page.add_init_script(
+        f"localStorage.setItem('inertia-id-api-key', {json.dumps(API_KEY)})"
+    )
+
+
 def _classifier(dashboard: Dashboard) -> str:
     """The classifier the training test made; trained here through the API (the paper
     preset, GOOD, the dashboard's defaults) when the identify tests run on their own, and
@@ -244,6 +251,7 @@ def test_a_scenario_whose_answer_was_lost_is_sent_again_with_its_key_and_stored_
     is answered the first one's scenario, and opens it; one scenario is stored. Before,
     the page said the service could not be reached, and a second click stored another."""
     page = dashboard.page
+    _key_saved(dashboard)
     keys: list[str | None] = []
 
     def lose_the_first_answer(route: Any) -> None:
@@ -270,6 +278,76 @@ def test_a_scenario_whose_answer_was_lost_is_sent_again_with_its_key_and_stored_
     assert len(keys) == 2 and keys[0] and keys[1] == keys[0], keys
     listed = dashboard.service.client.get("/scenarios", params={"limit": 200}).json()["items"]
     assert [s["id"] for s in listed if s["name"] == "answer lost once"] == [scenario]
+
+
+def test_a_scenario_refused_by_a_proxy_is_sent_again_with_its_key_and_stored_once(
+    dashboard: Dashboard,
+) -> None:
+    """A proxy answers the POST 502, then 503 (the service restarting behind it), then
+    lets it through: the dashboard sends it again with the same Idempotency-Key, waiting
+    between tries, and opens the one scenario stored. Before, the first 502 was the
+    page's error, though the key made the retry safe."""
+    page = dashboard.page
+    _key_saved(dashboard)
+    keys: list[str | None] = []
+
+    def refuse_twice(route: Any) -> None:
+        if route.request.method != "POST":
+            route.continue_()
+            return
+        keys.append(route.request.headers.get("idempotency-key"))
+        if len(keys) == 1:
+            route.fulfill(status=502, body="<html>502 Bad Gateway</html>")
+        elif len(keys) == 2:
+            route.fulfill(status=503, body="<html>503 Service Unavailable</html>")
+        else:
+            route.continue_()
+
+    # Chromium logs each refused load as a console error.
+    dashboard.console.expect(r"status of 50[23]|Failed to load resource")
+    page.route(re.compile(r"/scenarios$"), refuse_twice)
+    try:
+        dashboard.open("#/scenarios/new")
+        page.fill("#preset-name", "refused by a proxy twice")
+        page.click("#create-preset")
+        scenario = _hash_id(dashboard, "scenarios")
+    finally:
+        page.unroute(re.compile(r"/scenarios$"))
+    assert len(keys) == 3 and keys[0] and keys[1] == keys[0] and keys[2] == keys[0], keys
+    listed = dashboard.service.client.get("/scenarios", params={"limit": 200}).json()["items"]
+    assert [s["id"] for s in listed if s["name"] == "refused by a proxy twice"] == [scenario]
+
+
+def test_a_submission_a_proxy_keeps_refusing_is_tried_four_times_then_shown(
+    dashboard: Dashboard,
+) -> None:
+    """The retries are bounded: a gateway that answers 504 every time is tried 4 times
+    (one key), then the page says what the last answer was, and nothing is stored."""
+    page = dashboard.page
+    _key_saved(dashboard)
+    keys: list[str | None] = []
+
+    def always_504(route: Any) -> None:
+        if route.request.method != "POST":
+            route.continue_()
+            return
+        keys.append(route.request.headers.get("idempotency-key"))
+        route.fulfill(status=504, body="<html>504 Gateway Timeout</html>")
+
+    dashboard.console.expect(r"status of 504|Failed to load resource")
+    page.route(re.compile(r"/scenarios$"), always_504)
+    try:
+        dashboard.open("#/scenarios/new")
+        page.fill("#preset-name", "never through the proxy")
+        page.click("#create-preset")
+        page.wait_for_function(
+            "document.querySelector('#preset-errors')?.textContent.includes('504')"
+        )
+    finally:
+        page.unroute(re.compile(r"/scenarios$"))
+    assert len(keys) == 4 and keys[0] and set(keys) == {keys[0]}, keys
+    listed = dashboard.service.client.get("/scenarios", params={"limit": 200}).json()["items"]
+    assert not [s for s in listed if s["name"] == "never through the proxy"]
 
 
 def test_a_small_bodys_inertias_keep_their_significant_digits(dashboard: Dashboard) -> None:

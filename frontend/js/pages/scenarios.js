@@ -183,7 +183,7 @@ export async function renderNew(root, context) {
 
   const presetName = h("input", { id: "preset-name", name: "preset-name", value: "paper preset", size: 30 });
   const presetSelect = h("select", { id: "preset-select" }, names.map((n) => h("option", { value: n }, n)));
-  const presetErrors = h("div");
+  const presetErrors = h("div", { id: "preset-errors" });
   const presetForm = h(
     "form",
     {
