@@ -6,8 +6,9 @@ sequence; the default classifier (marginal likelihood, 100 realisations per cand
 trained on the scenario as stated, then --series telemetry series per candidate flown
 with the torque of every thruster ("all") or of one (numbered from 1) of --thrusters
 scaled by each of --scales (the same seed for every scale), each judged by ``identify``:
-identified right, identified wrong (at the required confidence, 0.99), ambiguous (of
-which: a candidate reached 0.99 but the telemetry fit another body better,
+identified right, identified wrong (at the required confidence, 0.99; of which: the
+verdict notes that its classifier cannot test for other bodies, ``off_candidates_note``),
+ambiguous (of which: a candidate reached 0.99 but the telemetry fit another body better,
 ``fits_off_candidates``), or matches none / not this sequence. Twice: trained with the
 preset's thrust-scale sigma (0, thrust known exactly), and with the scenario stating
 --stated-sigma per thruster. Scale 1 is the nominal telemetry: its "right" column is
@@ -15,11 +16,14 @@ the accuracy at 0.99, the rest false alarms.
 
 With --online the same series are also decided by ``identify_online`` (alpha 1e-3):
 decided right, decided wrong, of those wrong the ones whose data by the end fit another
-body better (``fits_off_candidates``: flagged), undecided, and the median decision time
-of the right decisions.
+body better (``fits_off_candidates``: flagged) or that note the test was not made,
+undecided, and the median decision time of the right decisions.
+
+--kind judges with another kind: ``likelihood`` has no model of other bodies, so its
+verdicts carry ``off_candidates_note`` instead of the flag.
 
 Run: python bench/thrust_mismatch.py [--series 40] [--scales 1,0.95,0.9] [--thrusters all,1]
-[--online] [--exact-only]
+[--online] [--exact-only] [--kind likelihood]
 """
 
 from __future__ import annotations
@@ -77,6 +81,8 @@ def online_decisions(model: Any, telemetry: Telemetry, k: int, counts: dict[str,
         counts["online_wrong"] += 1
         # Absent from the online result before the rule reached it.
         counts["online_wrong_flagged"] += bool(getattr(online, "fits_off_candidates", 0))
+        # A kind that cannot test for other bodies says so instead (absent before).
+        counts["online_wrong_noted"] += bool(getattr(online, "off_candidates_note", None))
 
 
 def verdicts(
@@ -93,6 +99,8 @@ def verdicts(
         "online_right": 0,
         "online_wrong": 0,
         "online_wrong_flagged": 0,
+        "online_wrong_noted": 0,
+        "wrong_noted": 0,
         "online_undecided": 0,
         "online_right_times_s": [],
     }
@@ -108,6 +116,7 @@ def verdicts(
                 counts["right" if right else "wrong"] += 1
                 if not right:
                     wrong_confidence.append(float(verdict.confidence))
+                    counts["wrong_noted"] += bool(getattr(verdict, "off_candidates_note", None))
             elif verdict.status == "ambiguous":
                 counts["ambiguous"] += 1
                 # Absent from the verdict before the rule existed.
@@ -137,6 +146,11 @@ def main() -> None:
         "--online", action="store_true", help="also decide every series with identify_online"
     )
     parser.add_argument(
+        "--kind",
+        default=None,
+        help="classifier kind (default: the default kind, marginal-likelihood)",
+    )
+    parser.add_argument(
         "--exact-only",
         action="store_true",
         help="only the classifier trained with the thrust known exactly (not --stated-sigma)",
@@ -150,7 +164,9 @@ def main() -> None:
         del trained_on["stated"]
     rows, figures = [], {}
     for label, scenario in trained_on.items():
-        model = train_classifier(scenario, GOOD_SEQUENCE, 100, np.random.default_rng(args.seed))
+        model = train_classifier(
+            scenario, GOOD_SEQUENCE, 100, np.random.default_rng(args.seed), kind=args.kind
+        )
         sigma = scenario.uncertainty.thrust_scale_sigma
         for thruster in args.thrusters:
             which = "all" if thruster is None else f"thruster {thruster + 1}"
@@ -168,6 +184,7 @@ def main() -> None:
                     found["right"],
                     found["wrong"],
                     "-" if low is None else f"{low:.4f}",
+                    found["wrong_noted"],
                     found["ambiguous"],
                     found["fits_off_candidates"],
                     found["none"],
@@ -178,6 +195,7 @@ def main() -> None:
                         found["online_right"],
                         found["online_wrong"],
                         found["online_wrong_flagged"],
+                        found["online_wrong_noted"],
                         found["online_undecided"],
                         "-" if median is None else f"{median:.2f}",
                     ]
@@ -189,6 +207,7 @@ def main() -> None:
         "right",
         "wrong",
         "wrong, least conf.",
+        "of which noted untested",
         "ambiguous",
         "of which fits off",
         "none",
@@ -198,13 +217,16 @@ def main() -> None:
             "online right",
             "online wrong",
             "of which flagged",
+            "of which noted untested",
             "undecided",
             "t50 right, s",
         ]
     print_table(
         headers,
         rows,
-        title=f"{total} series per row, default classifier, hand-designed sequence",
+        title=(
+            f"{total} series per row, {args.kind or 'default'} classifier, hand-designed sequence"
+        ),
     )
     write_json(args.json, args, figures)
 
