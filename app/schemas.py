@@ -621,10 +621,18 @@ class IdentifyResult(BaseModel):
         description="log Bayes factor of another body near the candidates against them "
         "(the default classifier's model of 'none'); null for a kind without one",
     )
-    fits_off_candidates: bool = Field(
+    fits_off_candidates: bool | None = Field(
         default=False,
         description="a candidate reached the confidence, but that log Bayes factor was not "
-        "below 0, so the verdict is ambiguous, not identified",
+        "below 0, so the verdict is ambiguous, not identified; null where the classifier "
+        "cannot test for other bodies (off_candidates_note says so)",
+    )
+    off_candidates_note: str | None = Field(
+        default=None,
+        description="where the classifier has no model of other bodies near the "
+        "candidates (every kind but the default, marginal-likelihood): that it cannot test "
+        "for them, so a pass no candidate gives (thrusters off their stated torque) can be "
+        "named with full confidence; null where it can",
     )
     estimated_inertia_std_kg_m2: dict[str, float] | None = Field(
         default=None, description="standard error of each estimated parameter (kg m^2)"
@@ -757,12 +765,18 @@ class PartialIdentifyResult(BaseModel):
     decision_off_candidates_log_bayes: float | None = Field(
         default=None, description="that factor at the decision; null until decided"
     )
-    fits_off_candidates: bool = Field(
+    fits_off_candidates: bool | None = Field(
         default=False,
         description="the top posterior reached 1 - alpha at some sample, but the data so far "
         "fit another body near the candidates better (current_off_candidates_log_bayes not "
         "below 0): undecided for that reason, or decided earlier and disowned since "
-        "(thrusters off their stated torque?)",
+        "(thrusters off their stated torque?); null where the classifier cannot test for "
+        "other bodies (off_candidates_note says so)",
+    )
+    off_candidates_note: str | None = Field(
+        default=None,
+        description="as the verdict's: that the classifier cannot test for other bodies "
+        "near the candidates, so a decision here is the posterior's alone; null where it can",
     )
     withheld_time_s: float | None = Field(
         default=None,

@@ -863,7 +863,8 @@ _IDENTIFY_UNITS = (
     "sequence_measured_fraction the part with a real sample within half a grid period; "
     "off_candidates_log_bayes a natural-log Bayes factor of another body near the "
     "candidates against them (a candidate is named only below 0; empty for a kind without "
-    "that model), fits_off_candidates whether it withheld the name"
+    "that model), fits_off_candidates whether it withheld the name (empty where the "
+    "classifier cannot test for other bodies: off_candidates_note then says so)"
 )
 
 
@@ -941,4 +942,6 @@ def identify_table(verdict: Mapping[str, Any]) -> Table:
         ("fits_off_candidates", verdict.get("fits_off_candidates")),
         ("off_candidates_log_bayes", verdict.get("off_candidates_log_bayes")),
     ]
+    if verdict.get("off_candidates_note"):
+        notes.append(("off_candidates_note", verdict["off_candidates_note"]))
     return Table(["candidate", "distance", "nearest", "posterior", "number"], rows, notes)

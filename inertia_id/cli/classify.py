@@ -365,19 +365,22 @@ def identify_cmd(
     if pre_start_window_s is not None:
         options["pre_start_window_s"] = pre_start_window_s
     if len(paths) == 1 and not any(os.path.isdir(p) for p in (*telemetry_paths, *inputs)):
-        write_json(
-            None, _identify_file(classifier, paths[0], start, start_window_s, options, averaged)
-        )
+        verdict = _identify_file(classifier, paths[0], start, start_window_s, options, averaged)
+        write_json(None, verdict)
+        _warn_untested([verdict])
         return
     failed = 0
+    judged: list[dict[str, Any]] = []
     for path in paths:
         try:
             verdict = _identify_file(classifier, path, start, start_window_s, options, averaged)
+            judged.append(verdict)
             line = {"path": path, **verdict}
         except (InputError, ValidationError, OSError, UnicodeDecodeError) as exc:
             failed += 1
             line = {"path": path, "error": one_line(exc)}
         click.echo(json.dumps(line))
+    _warn_untested(judged)
     if failed:
         click.echo(f"{failed} of {len(paths)} telemetry files failed", err=True)
         raise SystemExit(1)
@@ -441,3 +444,14 @@ def _identify_file(
                 err=True,
             )
     return verdict.model_dump(mode="json")
+
+
+def _warn_untested(verdicts: list[dict[str, Any]]) -> None:
+    """Once a run, on stderr: the identified verdicts whose classifier cannot test for
+    bodies off the candidates (their names are the posterior's alone), said beside the
+    JSON, not only in a field of each verdict."""
+    named = [v for v in verdicts if v.get("status") == "identified"]
+    notes = [v["off_candidates_note"] for v in named if v.get("off_candidates_note")]
+    if notes:
+        which = "" if len(verdicts) == 1 else f" ({len(notes)} identified verdicts)"
+        click.echo(f"warning{which}: {notes[0]}", err=True)

@@ -871,3 +871,46 @@ def test_the_partial_schema_says_a_decision_stands_beside_the_flag(api: Api) -> 
     assert "fits_off_candidates" in fields["candidate"]["description"]
     assert "not a confirmed identification" in fields["candidate"]["description"]
     assert "disowned" in fields["fits_off_candidates"]["description"]
+
+
+def test_a_kind_without_the_off_candidates_test_says_so_in_every_answer(
+    api: Api, paper: Scenario
+) -> None:
+    """A ``likelihood`` classifier cannot test for bodies off the candidates: its verdict,
+    its CSV and its posterior over time answered ``fits_off_candidates`` false, as though
+    the test had passed. Now null, with ``off_candidates_note`` saying why (in the CSV a
+    note after the others, so that none moves)."""
+    from inertia_id import train_classifier
+
+    model = train_classifier(paper, GOOD_SEQUENCE, 20, np.random.default_rng(0), kind="likelihood")
+    found = api.insert_classifier(api.create_scenario()["id"], model)
+    flown = simulate(paper, GOOD_SEQUENCE, 1, np.random.default_rng(21))
+    series = {"time_s": flown.time_s.tolist(), "omega_rad_s": flown.omega_measured[1, 0].tolist()}
+    body = {"classifier_id": found, "telemetry": series}
+    response = api.post("/identify", json=body)
+    assert response.status_code == 200, response.text
+    verdict = response.json()
+    assert verdict["status"] == "identified"
+    assert verdict["fits_off_candidates"] is None and verdict["off_candidates_log_bayes"] is None
+    note = verdict["off_candidates_note"]
+    assert note.startswith("this classifier cannot test for bodies off the candidates")
+    assert "likelihood kind" in note
+    table = api.post("/identify?format=csv", json=body)
+    assert table.status_code == 200, table.text
+    lines = [line[2:].split(": ", 1) for line in table.text.splitlines() if line.startswith("# ")]
+    names = [name for name, _ in lines]
+    assert names[-4:] == [
+        "units",
+        "fits_off_candidates",
+        "off_candidates_log_bayes",
+        "off_candidates_note",
+    ]
+    assert dict(lines)["off_candidates_note"] == note
+    partial = api.post("/identify/partial", json=body)
+    assert partial.status_code == 200, partial.text
+    online = partial.json()
+    assert online["fits_off_candidates"] is None and online["off_candidates_log_bayes"] is None
+    assert online["off_candidates_note"] == note
+    schema = api.get("/openapi.json").json()["components"]["schemas"]
+    for name in ("IdentifyResult", "PartialIdentifyResult"):
+        assert "off_candidates_note" in schema[name]["properties"], name

@@ -580,7 +580,7 @@ def test_identify_iso_stamps_and_an_estimated_start(
     assert "could be tried, not ±0.3 s" in early.stderr
     # A window the telemetry covers to within a grid period: nothing to say.
     near = [*base, "--sequence-start", "2025-03-01T12:00:00Z", "--estimate-start-within", "0.05"]
-    assert "warning" not in run_cli(near).stderr
+    assert "could be tried" not in run_cli(near).stderr
     wrong = runner.invoke(main, [*base, "--sequence-start", "noon"])
     assert wrong.exit_code != 0
     assert "sequence_start = 'noon' is not an ISO-8601 UTC time stamp" in wrong.output
@@ -923,3 +923,33 @@ def test_simulate_refuses_a_candidate_that_is_one_name_and_another_number(
     result = runner.invoke(main, ["simulate", "-n", "1", "--candidate-number", "2"])
     assert result.exit_code == 1
     assert "--candidate-number applies with --telemetry only" in result.output
+
+
+def test_identify_says_when_the_kind_cannot_test_for_bodies_off_the_candidates(
+    tmp_path: Path,
+) -> None:
+    """A ``likelihood`` classifier has no model of other bodies near the candidates: its
+    verdict gave ``fits_off_candidates`` false, as though the test had passed, so a pass
+    no candidate gives was named with full confidence and no warning. Now the flag is
+    null, the note says why, and a name is followed by a warning on stderr."""
+    classifier = tmp_path / "likelihood.json"
+    run_cli(["train", "--kind", "likelihood", "-n", "10", "--out", str(classifier)])
+    telemetry = tmp_path / "pass.csv"
+    _simulate_telemetry(telemetry, "4")
+    result = run_cli(["identify", "--classifier", str(classifier), "--telemetry", str(telemetry)])
+    verdict = json.loads(result.stdout)
+    assert verdict["status"] == "identified"
+    assert verdict["fits_off_candidates"] is None
+    assert verdict["off_candidates_log_bayes"] is None
+    note = verdict["off_candidates_note"]
+    assert note.startswith("this classifier cannot test for bodies off the candidates")
+    assert "likelihood kind" in note
+    assert result.stderr == f"warning: {note}\n"
+    # Several files: one warning for the run, counting the names it concerns.
+    folder = tmp_path / "downlink"
+    folder.mkdir()
+    for name in ("a.csv", "b.csv"):
+        (folder / name).write_text(telemetry.read_text())
+    many = run_cli(["identify", "--classifier", str(classifier), str(folder)])
+    assert len(many.stdout.splitlines()) == 2
+    assert many.stderr == f"warning (2 identified verdicts): {note}\n"

@@ -10,9 +10,13 @@ import numpy as np
 import pytest
 from scenario_support import GOOD_SEQUENCE
 
-from inertia_id import InertiaClassifier, Scenario, simulate, train
+from inertia_id import InertiaClassifier, Scenario, simulate, train, train_classifier
 from inertia_id.classifiers.base import BaseClassifier
-from inertia_id.classifiers.marginal import MarginalLikelihoodClassifier
+from inertia_id.classifiers.marginal import (
+    AXES_GRID,
+    MarginalLikelihoodClassifier,
+    train_marginal,
+)
 from inertia_id.errors import InputError
 from inertia_id.evaluation.calibration import calibrate
 from inertia_id.evaluation.identify import decide, identify, identify_online
@@ -341,3 +345,54 @@ def test_every_document_round_trips_its_calibration(euclidean_classifier: BaseCl
     data = json.loads(euclidean_classifier.to_json())["classifier"]
     assert data["calibration"]["temperature"] >= 1.0
     assert "ece" in data["calibration"] and data["novelty_tail"]["dof"] > 0
+
+
+@pytest.fixture(scope="module")
+def likelihood_kind(paper: Scenario) -> BaseClassifier:
+    """The likelihood kind (one Gaussian at 1x noise) on the paper preset and the
+    hand-designed sequence, as ``bench/thrust_mismatch.py --kind likelihood`` trains it."""
+    return train_classifier(paper, GOOD_SEQUENCE, 100, np.random.default_rng(0), kind="likelihood")
+
+
+def test_a_kind_that_cannot_test_for_bodies_off_the_candidates_says_so(
+    likelihood_kind: BaseClassifier, marginal: MarginalLikelihoodClassifier, paper: Scenario
+) -> None:
+    """Every torque 10 % weak: the likelihood kind has no model of other bodies near the
+    candidates, and its verdicts said ``fits_off_candidates`` false, as though the test
+    had been made and passed, beside names of a wrong candidate at 0.99 and more. Its
+    verdicts (batch and online) now say the test was not made: the flag null, and a note
+    that says why and what it means. The default kind's verdicts carry no note."""
+    model = likelihood_kind
+    weak = simulate(with_torque_scaled(paper, 0.9), GOOD_SEQUENCE, 10, np.random.default_rng(21))
+    named_wrong = 0
+    for k in range(paper.n_candidates):
+        for i in range(10):
+            telemetry = telemetry_of(weak.time_s, weak.omega_measured[k, i])
+            verdict = identify(model, telemetry)
+            named_wrong += verdict.status == "identified" and verdict.candidate_index != k
+            assert verdict.off_candidates_log_bayes is None
+            assert verdict.fits_off_candidates is None
+            note = verdict.off_candidates_note
+            assert note is not None
+            assert note.startswith("this classifier cannot test for bodies off the candidates")
+            assert "likelihood kind" in note and "full confidence" in note
+            online = identify_online(model, telemetry)
+            assert online.fits_off_candidates is None
+            assert online.off_candidates_log_bayes is None
+            assert online.off_candidates_note == note
+    assert named_wrong >= 5  # the wrong names the note warns of (11 of the 50 on this draw)
+    nominal = simulate(paper, GOOD_SEQUENCE, 1, np.random.default_rng(21))
+    telemetry = telemetry_of(nominal.time_s, nominal.omega_measured[2, 0])
+    assert identify(model, telemetry).off_candidates_note is not None
+    # The default kind tests it: a flag, no note.
+    default = identify(marginal, telemetry_of(nominal.time_s, nominal.omega_measured[2, 0]))
+    assert default.fits_off_candidates is False and default.off_candidates_note is None
+    online = identify_online(marginal, telemetry_of(nominal.time_s, nominal.omega_measured[2, 0]))
+    assert online.fits_off_candidates is False and online.off_candidates_note is None
+    # A default classifier without its model (none_spread 0) cannot test it either.
+    bare = train_marginal(
+        paper, GOOD_SEQUENCE, 10, np.random.default_rng(4), grid=AXES_GRID, none_spread=0.0
+    )
+    verdict = identify(bare, telemetry)
+    assert verdict.fits_off_candidates is None
+    assert "none_spread 0" in (verdict.off_candidates_note or "")
