@@ -1239,6 +1239,19 @@ def test_identify_online_says_when_the_data_fit_another_body_better(
     classes = (shown.get_attribute("class") or "").split()
     assert "ambiguous" in classes and "match" not in classes
     summary = page.inner_text("#online-summary")
+    # The summary line above the amber box: amber where it names a disowned decision (it
+    # stayed the grey of a plain note), grey where nothing was decided.
+    colour = "(id) => getComputedStyle(document.getElementById(id)).color"
+    summary_colour = page.evaluate(colour, "online-summary")
+    muted = page.evaluate(
+        "() => { const p = document.createElement('p'); p.className = 'note'; "
+        "document.body.append(p); const c = getComputedStyle(p).color; p.remove(); return c; }"
+    )
+    if decided:
+        assert summary_colour == page.evaluate(colour, "online-off-candidates") != muted
+        assert summary_colour == "rgb(107, 71, 0)"
+    else:
+        assert summary_colour == muted
     if decided:
         assert summary.startswith("decided on payload 3 ejected at ")
         assert summary.endswith(
@@ -1264,6 +1277,42 @@ def test_identify_online_says_when_the_data_fit_another_body_better(
             "another body near the candidates better (log Bayes factor 2.5, not below 0; "
             "thrusters off their stated torque?)"
         )
+
+
+def test_identify_says_when_the_classifier_cannot_test_for_bodies_off_the_candidates(
+    dashboard: Dashboard,
+) -> None:
+    """A classifier without a model of other bodies near the candidates (the likelihood
+    kind) answers ``fits_off_candidates`` null with a note: the page shows the note in
+    amber where the factor would be, and under the posterior over time."""
+    note = (
+        "this classifier cannot test for bodies off the candidates (the likelihood kind has "
+        "no model of other bodies near the candidates): a pass no candidate gives ..."
+    )
+    untested = {"fits_off_candidates": None, "off_candidates_log_bayes": None}
+    page = dashboard.page
+
+    def changed(route: Any) -> None:
+        answer = route.fetch()
+        body = answer.json()
+        body.update(untested, off_candidates_note=note, current_off_candidates_log_bayes=None)
+        body.update(decision_off_candidates_log_bayes=None)
+        route.fulfill(response=answer, json=body)
+
+    partial = re.compile(r"/identify/partial(\?.*)?$")
+    _classifier(dashboard)
+    page.route(partial, changed)
+    try:
+        _identify_with(dashboard, {**untested, "off_candidates_note": note})
+        online = page.wait_for_selector("#online-off-candidates-untested", timeout=60_000)
+    finally:
+        page.unroute(partial)
+    shown = page.wait_for_selector("#off-candidates")
+    assert shown.inner_text() == f"not tested: {note}"
+    assert online.inner_text() == f"not tested: {note}"
+    colour = "(e) => getComputedStyle(e).color"
+    assert shown.evaluate(colour) == online.evaluate(colour) == "rgb(107, 71, 0)"
+    assert page.query_selector("#online-off-candidates") is None
 
 
 def test_measured_and_quantity_keep_their_digits_at_the_extremes(dashboard: Dashboard) -> None:

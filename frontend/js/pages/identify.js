@@ -218,10 +218,14 @@ function verdictBox(verdict, ranked) {
 }
 
 // How much better another body near the candidates explains the telemetry than they do
-// (the default kind's model of "none"): a candidate is named only below 0. Null for a
-// kind without that model.
+// (the default kind's model of "none"): a candidate is named only below 0. A classifier
+// without that model says it cannot test it (off_candidates_note): amber, since its name
+// is the posterior's alone.
 function offCandidates(verdict) {
   const factor = verdict.off_candidates_log_bayes;
+  if (verdict.off_candidates_note && typeof factor !== "number") {
+    return [h("dt", {}, "another body near the candidates"), h("dd", { id: "off-candidates", class: "caution" }, `not tested: ${verdict.off_candidates_note}`)];
+  }
   if (typeof factor !== "number" || !Number.isFinite(factor)) return null;
   const reading = factor < 0 ? "below 0: no other body near the candidates fits better" : "not below 0: another body near the candidates fits better, so none is named";
   return [h("dt", {}, "another body near the candidates against them (log Bayes factor)"), h("dd", { id: "off-candidates" }, `${ratio(factor)} (${reading})`)];
@@ -512,15 +516,21 @@ async function showOnline(holder, verdict, file, options, context, period) {
   // The verdict's off-candidates rule, prefix by prefix: the factor at the decision.
   const atDecision = online.decision_off_candidates_log_bayes;
   const factorThen = typeof atDecision === "number" && Number.isFinite(atDecision) ? `; another body near the candidates: log Bayes factor ${ratio(atDecision)}, below 0` : "";
+  // A decision the data since disown (fits_off_candidates): its summary is amber like the
+  // box below it and the plot's line, not the grey of a plain note.
+  const disowned = decided && online.fits_off_candidates;
+  // A classifier that cannot test for other bodies says so (its decision is the
+  // posterior's alone), in amber.
+  const untested = online.off_candidates_note ? h("p", { class: "note caution", id: "online-off-candidates-untested" }, `not tested: ${online.off_candidates_note}`) : null;
   holder.append(
     h(
       "p",
-      { class: "note", id: "online-summary" },
+      { class: disowned ? "note disowned" : "note", id: "online-summary" },
       decided
         ? `decided on ${online.candidate} at ${t(online.decision_time_s)} s (posterior ≥ ${needed} %${factorThen})`
         : `not decided within ${t(online.covers_s)} s of the ${t(online.sequence_s)} s sequence (posterior ≥ ${needed} % needed)`,
     ),
-    ...[offCandidatesOnline(online, decided, t, needed)].filter(Boolean),
+    ...[offCandidatesOnline(online, decided, t, needed), untested].filter(Boolean),
     plot,
   );
   const names = Object.keys(online.posterior);
@@ -534,9 +544,8 @@ async function showOnline(holder, verdict, file, options, context, period) {
   }));
   traces.push({ x: online.time_s, y: online.p_none, mode: "lines", line: { color: "#5f6b7a", width: 2, dash: "dash" }, name: "none of these", hovertemplate: `none of these, t = %{x:.${decimals}f} s: %{y:.2%}<extra></extra>` });
   const shapes = [{ type: "line", xref: "paper", x0: 0, x1: 1, y0: 1 - online.alpha, y1: 1 - online.alpha, line: { color: "#9aa5b1", dash: "dot", width: 1 } }];
-  // A decision the data since disown (fits_off_candidates) is drawn amber, not green, and
-  // the title says so: the plot alone read as a confirmed identification.
-  const disowned = decided && online.fits_off_candidates;
+  // A decision the data since disown is drawn amber, not green, and the title says so:
+  // the plot alone read as a confirmed identification.
   if (decided) shapes.push({ type: "line", yref: "paper", x0: online.decision_time_s, x1: online.decision_time_s, y0: 0, y1: 1, line: { color: disowned ? STATUS_COLOR.ambiguous : STATUS_COLOR.identified, dash: "dash", width: 2 } });
   Plotly.newPlot(
     plot,
