@@ -319,7 +319,8 @@ class TrainParams(StrictModel):
         description="L x N level indices, one row per step, one column per thruster; or "
         "leave it out and name search_job_id (and front_member). A job too large for a "
         "worker is refused (a series of at most 8,192 rate values, covariances of at most "
-        "2^27 values): on the paper preset at most 86 steps",
+        "2^27 values), and so is one whose classifier document could pass the 1 GB a "
+        "classifier file may hold: on the paper preset at most 72 steps for the default kind",
         examples=[[[4, 4, 4, 0, 0, 0]] * 4],
     )
     search_job_id: str | None = Field(

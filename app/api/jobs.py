@@ -276,6 +276,12 @@ def _check_size(
 
 
 def _check_train(body: TrainJobCreate, scenario: Scenario) -> None:
+    from inertia_id.classifiers.registry import (
+        DEFAULT_KIND,
+        check_document_size,
+        default_realisations,
+    )
+
     where = ("body", "train", "params")
     try:
         rows = scenario.check_fires(body.params.sequence)
@@ -284,6 +290,14 @@ def _check_train(body: TrainJobCreate, scenario: Scenario) -> None:
     # Calibration flies 200 fresh series a candidate beside the training ones.
     realisations = max(body.params.n_realisations or 0, 200)
     _check_size(scenario, len(rows), realisations, (*where, "n_realisations"))
+    # The classifier it makes must be one the CLI loads (MAX_CLASSIFIER_BYTES): a 2-candidate
+    # scenario's 8,192-value series made a 1.9 GB document that identify --classifier refused.
+    kind = body.params.kind or DEFAULT_KIND
+    trained = body.params.n_realisations or default_realisations(kind)
+    try:
+        check_document_size(kind, scenario, len(rows), trained)
+    except InputError as exc:
+        unprocessable((*where, "sequence"), f"the job's classifier is too large: {exc}")
     try:
         check_nominal_gyro_range(scenario, rows)
     except InputError as exc:

@@ -310,6 +310,14 @@ class BaseClassifier(BaseEstimator):
     def _state(self) -> dict[str, Any]:
         raise NotImplementedError
 
+    @classmethod
+    def stored_numbers(cls, n_candidates: int, values: int, n_realisations: int) -> int:
+        """Most numbers the kind's own state (:meth:`_state`) holds, trained on
+        ``n_realisations`` series a candidate of ``values`` rate values each: what
+        :func:`~inertia_id.classifiers.registry.document_bytes` bounds a document by
+        before it is trained. Here one series a candidate (a centroid or a mean)."""
+        return n_candidates * values
+
     def _load_state(self, data: dict[str, Any]) -> None:
         raise NotImplementedError
 

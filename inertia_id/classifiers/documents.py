@@ -34,7 +34,9 @@ VERSION = 1
 #: conditions, 8 bytes x 40 x values², which every verdict uses): 13 GB for one of 1 GB.
 #: It was 4 GB, which a stream of '{' and blanks held before it was refused (peak RSS
 #: 4.1 GB); the service's largest series of all (8,192 values, on a scenario of 2
-#: candidates) makes 1.9 GB, and would take 21 GB of whitening matrices to load.
+#: candidates) made 1.9 GB, and would take 21 GB of whitening matrices to load: a training
+#: whose document could pass this is refused before it runs, by the CLI and the service
+#: (:func:`~inertia_id.classifiers.registry.check_document_size`).
 MAX_CLASSIFIER_BYTES = 1_000_000_000
 
 

@@ -137,6 +137,11 @@ class LeastSquaresClassifier(BaseClassifier):
 
     # Storage as data: the common fields hold the whole model (scenario and sequence).
 
+    @classmethod
+    def stored_numbers(cls, n_candidates: int, values: int, n_realisations: int) -> int:
+        """None: the scenario and sequence, among the common fields, are the model."""
+        return 0
+
     def _state(self) -> dict[str, Any]:
         return {}
 

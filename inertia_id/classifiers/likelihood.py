@@ -215,6 +215,11 @@ class LikelihoodClassifier(BaseClassifier):
 
     # Storage as data.
 
+    @classmethod
+    def stored_numbers(cls, n_candidates: int, values: int, n_realisations: int) -> int:
+        """One covariance triangle and a mean a candidate."""
+        return values * (values + 1) // 2 + n_candidates * values
+
     def _state(self) -> dict[str, Any]:
         lower = self.covariance_[np.tril_indices(len(self.covariance_))]
         return {

@@ -1254,6 +1254,13 @@ class MarginalLikelihoodClassifier(BaseClassifier):
         params["grid"] = np.asarray(self.grid, dtype=float).tolist()
         return params
 
+    @classmethod
+    def stored_numbers(cls, n_candidates: int, values: int, n_realisations: int) -> int:
+        """Four covariance triangles of ``values`` dimensions (the three components, each
+        kept whole however sparse or isotropic it comes out, and the offset-free quiet
+        one), and two means and the inertia sensitivity (6 numbers a value) a candidate."""
+        return 2 * values * (values + 1) + 8 * n_candidates * values
+
     def _state(self) -> dict[str, Any]:
         near: dict[str, Any] = {}
         if self.sensitivity_ is not None and self.none_prior_sd_ is not None:

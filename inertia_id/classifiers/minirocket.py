@@ -531,6 +531,13 @@ class MiniRocketClassifier(SupervisedClassifier):
         decision = minirocket_transform(X, self.parameters_) @ self.coef_.T + self.intercept_
         return _distance_to_codes(_per_candidate(decision))
 
+    @classmethod
+    def stored_numbers(cls, n_candidates: int, values: int, n_realisations: int) -> int:
+        """The ridge's weights, a row a candidate over the features, the features' biases,
+        and the transform's dilations and channels (at most 84 x 32 combinations of at
+        most 3 channels, under two more rows), at the default 10,000 features."""
+        return (n_candidates + 3) * 10_000
+
     def _model_state(self) -> dict[str, Any]:
         return {
             "transform": self.parameters_.to_dict(),

@@ -182,6 +182,11 @@ class NearestNeighbourClassifier(_DistanceClassifier):
     def _candidate_distances(self, X: np.ndarray) -> np.ndarray:
         return self._nearest_per_candidate(self._distances(X, self.training_series_))
 
+    @classmethod
+    def stored_numbers(cls, n_candidates: int, values: int, n_realisations: int) -> int:
+        """Every training series and its label."""
+        return n_candidates * n_realisations * (values + 1)
+
     def _model_state(self) -> dict[str, Any]:
         return {
             "training_series_rad_s": self.training_series_.tolist(),

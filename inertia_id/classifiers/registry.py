@@ -45,9 +45,11 @@ __all__ = [
     "CLASSIFIER_KINDS",
     "DEFAULT_KIND",
     "CandidateClassifier",
+    "check_document_size",
     "classifier_from_json",
     "default_realisations",
     "describe",
+    "document_bytes",
     "kind_class",
     "kind_metrics",
     "load_classifier",
@@ -146,6 +148,61 @@ def resolve_kind(kind: str | None, metric: str | None) -> str:
 def default_realisations(kind: str) -> int:
     """Training realisations per candidate when none are asked for."""
     return kind_class(kind).DEFAULT_REALISATIONS
+
+
+#: Most bytes a number takes in a document: a float's shortest repr is at most 24
+#: characters (``-2.2250738585072014e-308``), then a comma and, for a nested list's last
+#: item, a bracket.
+BYTES_PER_NUMBER = 26
+#: Most bytes of a document's fields beside its numbers and its scenario: names, params,
+#: the calibration's bins, the novelty tail (3.5 KB measured on the paper preset).
+FIELDS_BYTES = 65_536
+
+
+def document_bytes(kind: str, scenario: Scenario, n_steps: int, n_realisations: int) -> int:
+    """Most bytes the document of a ``kind`` classifier trained on ``scenario`` for a
+    sequence of ``n_steps`` steps, with ``n_realisations`` series a candidate, can hold:
+    every number the kind stores (:meth:`~inertia_id.classifiers.base.BaseClassifier.
+    stored_numbers`) and the common fields (scenario, sequence, confusion matrix) at
+    :data:`BYTES_PER_NUMBER` each. A bound, not a guess: it never falls below the
+    document (the default kind's covariances are counted whole, four triangles, however
+    many zeros the process one holds or whether the measurement one is one number), and
+    lies within 2 times of what the default kind wrote on the paper preset."""
+    import json
+
+    k = scenario.n_candidates
+    values = n_steps * scenario.timing.samples_per_step * 3
+    numbers = kind_class(kind).stored_numbers(k, values, n_realisations)
+    common = k * k + 2 * k + n_steps * scenario.n_thrusters
+    scenario_text = json.dumps(scenario.model_dump(mode="json"), separators=(",", ":"))
+    return BYTES_PER_NUMBER * (numbers + common) + len(scenario_text.encode()) + FIELDS_BYTES
+
+
+def check_document_size(kind: str, scenario: Scenario, n_steps: int, n_realisations: int) -> None:
+    """Refuse a training whose document could pass what a classifier file may hold
+    (:data:`~inertia_id.classifiers.documents.MAX_CLASSIFIER_BYTES`), so that every
+    classifier trained, by the CLI or the service, is one ``identify --classifier`` loads.
+
+    :raises InputError: naming the kind, the candidates, the series, the document's
+        bound and the limit.
+    """
+    limit = documents.MAX_CLASSIFIER_BYTES
+    bound = document_bytes(kind, scenario, n_steps, n_realisations)
+    if bound <= limit:
+        return
+    k, values = scenario.n_candidates, n_steps * scenario.timing.samples_per_step * 3
+    stored = kind_class(kind).stored_numbers
+    # A kind that keeps its training series (1nn) shrinks with fewer of them too.
+    fewer = (
+        " or fewer realisations" if stored(k, values, n_realisations) > stored(k, values, 1) else ""
+    )
+    raise InputError(
+        f"a {kind} classifier of {k} candidates on {n_steps} steps "
+        f"({values:,} rate values a series, {n_realisations} realisations a candidate) "
+        f"writes a document of up to {bound:,} bytes, over the limit of {limit:,} bytes "
+        f"a classifier file may hold (the CLI refuses to load one past it): ask for a "
+        f"shorter sequence{fewer}"
+    )
 
 
 def make_classifier(kind: str, **options: Any) -> CandidateClassifier:

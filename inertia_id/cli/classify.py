@@ -108,7 +108,7 @@ def train_cmd(
     out: str,
 ) -> None:
     """Train a classifier of any kind for a sequence at 1x noise."""
-    from ..classifiers.registry import kind_metrics, resolve_kind
+    from ..classifiers.registry import check_document_size, kind_metrics, resolve_kind
     from ..errors import InputError
     from ..pipelines import TrainRequest, train_for_sequence
 
@@ -126,6 +126,8 @@ def train_cmd(
     )
     kind, n_realisations, options = request.resolved()
     scenario.check_fires(request.sequence)
+    # A classifier that identify --classifier would refuse to load is not trained.
+    check_document_size(kind, scenario, len(request.sequence), n_realisations)
     # The training series alone; a classifier's features come on top of them.
     refuse_past_memory(
         f"-n {n_realisations}",

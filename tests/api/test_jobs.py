@@ -260,6 +260,33 @@ def test_a_job_too_large_for_a_worker_is_refused_naming_its_size(
     assert api.submit("train", api.create_scenario()["id"], params=largest).status_code == 202
 
 
+def test_a_training_whose_classifier_the_cli_could_not_load_is_refused(api: Api) -> None:
+    # Before: a training was held to the worker's sizes only, and the default kind on 86
+    # steps of the paper preset (a 2-candidate scenario on 136) made a document past the
+    # 1 GB a classifier file may hold, which GET /classifiers/{id}/download offered and
+    # `inertia-id identify --classifier` refused. Its bound (document_bytes) decides.
+    scenario_id = api.create_scenario()["id"]
+    over = {"sequence": [[4, 4, 4, 0, 0, 0]] * 73}
+    response = api.submit("train", scenario_id, params=over)
+    assert response.status_code == 422, response.text
+    (error,) = response.json()["detail"]
+    assert error["loc"] == ["body", "train", "params", "sequence"]
+    from inertia_id.classifiers.registry import document_bytes
+    from inertia_id.physics.presets import preset
+
+    bound = document_bytes("marginal-likelihood", preset("paper"), 73, 100)
+    assert error["msg"].endswith(
+        "the job's classifier is too large: a marginal-likelihood classifier of 5 candidates "
+        "on 73 steps (4,380 rate values a series, 100 realisations a candidate) writes a "
+        f"document of up to {bound:,} bytes, over the limit of 1,000,000,000 bytes a "
+        "classifier file may hold (the CLI refuses to load one past it): ask for a shorter "
+        "sequence"
+    )
+    assert api.queued_messages() == []
+    under = {"sequence": [[4, 4, 4, 0, 0, 0]] * 72}
+    assert api.submit("train", scenario_id, params=under).status_code == 202
+
+
 @pytest.mark.parametrize(
     ("method", "own", "message"),
     [

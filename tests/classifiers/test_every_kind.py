@@ -23,6 +23,7 @@ from inertia_id.classifiers.registry import (
     classifier_from_json,
     default_realisations,
     describe,
+    document_bytes,
     kind_class,
     load_classifier,
     make_classifier,
@@ -75,6 +76,17 @@ def telemetry(scenario: Scenario, omega: np.ndarray) -> dict[str, Any]:
 
 
 # What the kind declares.
+
+
+def test_its_document_is_within_the_bound_a_training_is_checked_by(
+    kind: str, fitted: CandidateClassifier, paper: Scenario
+) -> None:
+    # The service and `inertia-id train` refuse a training by this bound before it runs,
+    # so that no classifier is made that `identify --classifier` cannot load: every number
+    # the kind keeps is counted (a kind that kept more than it says would pass the bound).
+    written = len(fitted.to_json().encode())
+    bound = document_bytes(kind, paper, len(GOOD_SEQUENCE), N_TRAIN)
+    assert written <= bound
 
 
 def test_it_declares_what_it_is(kind: str) -> None:

@@ -20,9 +20,12 @@ from inertia_id import (
     train_classifier,
 )
 from inertia_id.classifiers.base import KINDS
+from inertia_id.classifiers.documents import MAX_CLASSIFIER_BYTES
 from inertia_id.classifiers.registry import (
     DEFAULT_KIND,
+    check_document_size,
     default_realisations,
+    document_bytes,
     kind_class,
     kind_metrics,
     parse_spec,
@@ -107,3 +110,36 @@ def test_bad_kinds_and_options_are_refused(kind: str, options: dict[str, Any], m
 def test_unknown_documents_are_refused_by_name() -> None:
     with pytest.raises(InputError, match="format 'someone/else' is not one of"):
         classifier_from_json('{"format": "someone/else"}')
+
+
+@pytest.mark.parametrize("steps", [1, 2])
+def test_the_document_bound_holds_the_default_kinds_documents(paper: Scenario, steps: int) -> None:
+    # What a training will write, bounded before it runs (the service and `inertia-id
+    # train` refuse one past MAX_CLASSIFIER_BYTES): above the document, and not far above
+    # (measured 1.8 times on 2 to 16 steps of the paper preset at 20 realisations).
+    sequence = np.array([[4, 4, 4, 0, 0, 0], [0, 0, 0, 4, 4, 4]])[:steps]
+    model = train_classifier(paper, sequence, 5, np.random.default_rng(0))
+    written = len(model.to_json().encode())
+    bound = document_bytes("marginal-likelihood", paper, steps, 5)
+    assert written <= bound <= 2.5 * written
+
+
+def test_a_training_whose_document_could_pass_the_files_limit_is_refused(
+    paper: Scenario,
+) -> None:
+    # The default kind's covariances grow with the square of the series: on the paper
+    # preset (60 values a step) 72 steps are bounded under 1 GB, 73 over it.
+    check_document_size("marginal-likelihood", paper, 72, 100)
+    assert document_bytes("marginal-likelihood", paper, 72, 100) <= MAX_CLASSIFIER_BYTES
+    with pytest.raises(InputError) as refused:
+        check_document_size("marginal-likelihood", paper, 73, 100)
+    bound = document_bytes("marginal-likelihood", paper, 73, 100)
+    assert str(refused.value) == (
+        "a marginal-likelihood classifier of 5 candidates on 73 steps (4,380 rate values a "
+        f"series, 100 realisations a candidate) writes a document of up to {bound:,} bytes, "
+        "over the limit of 1,000,000,000 bytes a classifier file may hold (the CLI refuses "
+        "to load one past it): ask for a shorter sequence"
+    )
+    # A kind that keeps its training series says fewer of them would do too.
+    with pytest.raises(InputError, match="ask for a shorter sequence or fewer realisations"):
+        check_document_size("1nn", paper, 100, 10_000)

@@ -1220,6 +1220,31 @@ def test_train_says_which_classifier_it_could_not_write(tmp_path: Path) -> None:
     assert list(tmp_path.iterdir()) == []
 
 
+def test_train_refuses_a_classifier_identify_could_not_load(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Before: `train` on 73 steps of the paper preset set out to write a document that
+    # `identify --classifier` could refuse (past MAX_CLASSIFIER_BYTES); now it is refused
+    # by its bound before a series is simulated. 72 steps pass and go on to train.
+    def trained(*args: object, **kwargs: object) -> None:
+        raise InputError("the training began")
+
+    monkeypatch.setattr("inertia_id.pipelines.train_for_sequence", trained)
+    out = tmp_path / "c.json"
+    message = refused(["train", "--sequence", ";".join(["4,4,4,0,0,0"] * 73), "--out", str(out)])
+    assert message.startswith(
+        "Error: a marginal-likelihood classifier of 5 candidates on 73 steps (4,380 rate "
+        "values a series, 100 realisations a candidate) writes a document of up to "
+    ), message
+    assert message.endswith(
+        "bytes, over the limit of 1,000,000,000 bytes a classifier file may hold (the CLI "
+        "refuses to load one past it): ask for a shorter sequence"
+    )
+    message = refused(["train", "--sequence", ";".join(["4,4,4,0,0,0"] * 72), "--out", str(out)])
+    assert message.endswith("Error: the training began")
+    assert not out.exists()
+
+
 def test_a_failed_write_to_a_device_or_pipe_says_what_reached_it(tmp_path: Path) -> None:
     """A device or pipe is written directly (renaming over it would replace it), so a
     failed write there may have sent part of the data. Before, every failure said
