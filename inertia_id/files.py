@@ -8,7 +8,7 @@ import os
 import secrets
 import stat
 from collections.abc import Callable
-from typing import BinaryIO
+from typing import Any, BinaryIO, cast
 
 __all__ = ["NotWritten", "write_whole"]
 
@@ -80,37 +80,76 @@ def write_whole(
         raise NotWritten(exc.errno, exc.strerror or str(exc), os.fspath(path)) from None
 
 
+#: The most bytes held at once on the way to a device or pipe, and the size of each piece
+#: of text encoded for any file: a write had encoded the whole text (a classifier document
+#: of hundreds of MB) and, for a device or pipe, copied it once more into a buffer first.
+CHUNK_BYTES = 1 << 20
+
+
+class _DirectWriter(io.RawIOBase):
+    """A device or pipe's descriptor as a file, written in the pieces it is handed,
+    counting the bytes it takes (a buffered file object does not tell). After a failed
+    write it takes the rest without sending it, only counting, so that the failure can say
+    how many of how many bytes went."""
+
+    def __init__(self, fd: int) -> None:
+        super().__init__()
+        self.fd = fd
+        self.written = 0
+        self.size = 0
+        self.failure: OSError | None = None
+
+    def writable(self) -> bool:
+        return True
+
+    def write(self, data: Any) -> int:
+        with memoryview(data) as view, view.cast("B") as piece:
+            self.size += len(piece)
+            sent = 0
+            while self.failure is None and sent < len(piece):
+                try:
+                    sent += os.write(self.fd, piece[sent:])
+                except OSError as exc:
+                    self.failure = exc
+            self.written += sent
+            return len(piece)
+
+
 def _write_directly(
     path: str | os.PathLike[str], data: str | bytes | Callable[[BinaryIO], None]
 ) -> None:
-    """Write ``data`` to a device or pipe, counting the bytes it takes, so that a failure
-    says how many went (a buffered file object does not tell)."""
-    buffer = io.BytesIO()
-    _write_to(buffer, data)
-    content = buffer.getbuffer()
-    written = 0
+    """Write ``data`` to a device or pipe as it is made, in pieces of at most
+    :data:`CHUNK_BYTES`, counting the bytes it takes, so that a failure says how many
+    went. It had been made whole in memory first, then written: ``--out /dev/stdout``
+    held a classifier document twice over (its text and its bytes) before a byte went."""
     kind = "a device or pipe"
+    writer: _DirectWriter | None = None
     try:
         fd = os.open(path, os.O_WRONLY)
         try:
             mode = os.fstat(fd).st_mode
             kind = "a pipe" if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode) else kind
             kind = "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) else kind
-            while written < len(content):
-                written += os.write(fd, content[written:])
+            writer = _DirectWriter(fd)
+            with io.BufferedWriter(writer, CHUNK_BYTES) as buffered:
+                _write_to(cast(BinaryIO, buffered), data)
+            if writer.failure is not None:
+                raise writer.failure
         finally:
             os.close(fd)
     except OSError as exc:
         failed = NotWritten(exc.errno, exc.strerror or str(exc), os.fspath(path))
-        failed.direct, failed.written, failed.size = kind, written, len(content)
+        failed.direct = kind
+        if writer is not None:
+            failed.written, failed.size = writer.written, writer.size
         raise failed from None
-    finally:
-        content.release()
 
 
 def _write_to(handle: BinaryIO, data: str | bytes | Callable[[BinaryIO], None]) -> None:
     if isinstance(data, str):
-        handle.write(data.encode("utf-8"))
+        # In pieces: the whole text encoded at once is a second copy of it.
+        for start in range(0, len(data), CHUNK_BYTES):
+            handle.write(data[start : start + CHUNK_BYTES].encode("utf-8"))
     elif isinstance(data, bytes):
         handle.write(data)
     else:
