@@ -73,7 +73,12 @@ class OperatorObjectiveOut(BaseModel):
 
 class ConstraintOut(BaseModel):
     name: str
-    bounds: str = Field(description="the figure it bounds (an objective's name)")
+    bounds: str = Field(
+        description="the figure it bounds: an objective's name, or "
+        "commanded_residual_rate (the residual the command plan predicts from rest with "
+        "every noise off, which every front member and baseline reports beside final_rate; "
+        "no objective)"
+    )
     sense: str = Field(description="max: the figure <= the bound; min: >=")
     worst_candidate: bool = Field(
         default=False,
@@ -160,7 +165,13 @@ def vocabulary() -> VocabularyOut:
 
     by_field = {figure: name for name, figure in OBJECTIVE_FIELDS.items()}
     # Figures of the worst candidate (its mean, or the rate 95 % of its flights stay under)
-    worst = {"final_rate_max_rad_s": "final_rate", "final_rate_p95_rad_s": "final_rate"}
+    worst = {
+        "final_rate_max_rad_s": "final_rate",
+        "final_rate_p95_rad_s": "final_rate",
+        "commanded_residual_rate_max_rad_s": "commanded_residual_rate",
+    }
+    # Figures reported beside the objectives, bounded by a constraint of their own.
+    by_field["commanded_residual_rate_rad_s"] = "commanded_residual_rate"
     # Figures bounded on 95 % of flights (the peak's objective is the fastest candidate's
     # already), and the objective each one bounds.
     per_flight = {"final_rate_p95_rad_s": "final_rate", "peak_rate_p95_rad_s": "peak_rate"}

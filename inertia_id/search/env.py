@@ -193,6 +193,8 @@ class SequenceSearchEnv(gym.Env[np.ndarray, np.ndarray]):
             "final_rate_p95_rad_s": score.final_rate_p95_rad_s,
             "peak_rate_rad_s": score.peak_rate_rad_s,
             "peak_rate_p95_rad_s": score.peak_rate_p95_rad_s,
+            "commanded_residual_rate_rad_s": score.commanded_residual_rate_rad_s,
+            "commanded_residual_rate_max_rad_s": score.commanded_residual_rate_max_rad_s,
             "impulse_nms": score.impulse_nms,
             "on_time_s": float(self.scenario.on_time_s(prefix).sum()),
             "propellant_kg": self.scenario.propellant_kg(prefix),

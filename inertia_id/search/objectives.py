@@ -363,6 +363,19 @@ CONSTRAINTS: dict[str, tuple[str, str, float]] = {
     # mean leaves up to half the flights of a member near it above it.
     "max_final_rate_p95_rad_s": ("final_rate_p95_rad_s", "max", 1.0),
     "max_final_rate_p95_deg_s": ("final_rate_p95_rad_s", "max", 1.0 / _DEG),
+    # The part of the residual the commands themselves leave (the plan's noise-free
+    # prediction from rest, :attr:`SequenceScores.commanded_residual_rate_rad_s`): beside an
+    # initial-rate spread the final-rate bounds hold |ω(0)|, which no open-loop sequence
+    # removes, so a sequence that brakes and one that does not read alike there. The
+    # mean over candidates, and the candidate the commands leave fastest ("_max_").
+    "max_commanded_residual_rate_rad_s": ("commanded_residual_rate_rad_s", "max", 1.0),
+    "max_commanded_residual_rate_deg_s": ("commanded_residual_rate_rad_s", "max", 1.0 / _DEG),
+    "max_commanded_residual_rate_max_rad_s": ("commanded_residual_rate_max_rad_s", "max", 1.0),
+    "max_commanded_residual_rate_max_deg_s": (
+        "commanded_residual_rate_max_rad_s",
+        "max",
+        1.0 / _DEG,
+    ),
     "max_peak_rate_rad_s": ("peak_rate_rad_s", "max", 1.0),
     "max_peak_rate_deg_s": ("peak_rate_rad_s", "max", 1.0 / _DEG),
     # The same on a peak rate at least 95 % of flights stay under, with 95 % confidence:
@@ -604,7 +617,14 @@ def check_constraints(constraints: Any, scenario: Any = None) -> dict[str, float
         if name == "min_accuracy" and bound > 1:
             raise InputError(f"constraint min_accuracy is a fraction in [0, 1], got {bound!r}")
         out[name] = float(bound)
-    for figure in ("final_rate", "final_rate_p95", "peak_rate", "peak_rate_p95"):
+    for figure in (
+        "final_rate",
+        "final_rate_p95",
+        "commanded_residual_rate",
+        "commanded_residual_rate_max",
+        "peak_rate",
+        "peak_rate_p95",
+    ):
         both = [f"max_{figure}_rad_s", f"max_{figure}_deg_s"]
         if all(name in out for name in both):
             raise InputError(
@@ -653,10 +673,12 @@ class SequenceScores:
         scenario's initial-rate spread (``initial_rate_sigma_rad_s``) the ``final_rate``
         figures include |ω(0)|, which no open-loop sequence removes (its mean 1.60 σ):
         when that floor dominates, this figure tells a sequence that brakes from one
-        that does not. Reported only: no constraint or objective reads it (the
-        ``max_final_rate`` bounds hold the total). None in scores stored before it.
+        that does not. What the ``max_commanded_residual_rate`` constraints bound (the
+        ``max_final_rate`` ones hold the total); no objective reads it. None in scores
+        stored before it.
     :param commanded_residual_rate_max_rad_s: the same, of the candidate the commands
-        leave fastest. None in scores stored before it.
+        leave fastest: what the ``max_commanded_residual_rate_max`` constraints bound.
+        None in scores stored before it.
     :param peak_rate_rad_s: the largest |ω| during the sequence or after it, while the
         lag delivers the torque still in it, of the candidate that spins fastest: the
         larger of the mean over realisations and the plan's prediction.

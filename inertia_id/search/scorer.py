@@ -182,6 +182,12 @@ class PrefixScore:
     :param peak_rate_p95_rad_s: the same for each series' own peak rate (its fastest
         instant, or once settled), at least ``peak_rate_rad_s``: what a
         ``max_peak_rate_p95`` constraint penalises.
+    :param commanded_residual_rate_rad_s: the residual rate the command plan predicts from
+        rest with every noise off (the part the commands themselves leave, without
+        |ω(0)|), mean over candidates: what a ``max_commanded_residual_rate`` constraint
+        penalises.
+    :param commanded_residual_rate_max_rad_s: the same, of the candidate the commands
+        leave fastest: what a ``max_commanded_residual_rate_max`` constraint penalises.
     """
 
     f1: float
@@ -196,6 +202,8 @@ class PrefixScore:
     final_rate_p95_rad_s: float = 0.0
     residual_rate_rad_s: float = 0.0
     peak_rate_p95_rad_s: float = 0.0
+    commanded_residual_rate_rad_s: float = 0.0
+    commanded_residual_rate_max_rad_s: float = 0.0
 
 
 @dataclass
@@ -337,7 +345,9 @@ class PrefixScorer:
         # series and the plan's noise-free prediction.
         # (K, n) -> the candidate ending fastest
         settled = self.simulator.settled(state)  # (K, n): each series' residual
-        by_candidate = np.maximum(settled.mean(axis=1), self._planner.settled(planned)[:, 0])
+        # The plan's prediction from rest, every noise off: what the commands leave.
+        commanded = self._planner.settled(planned)[:, 0]  # (K,)
+        by_candidate = np.maximum(settled.mean(axis=1), commanded)
         worst = float(by_candidate.max())
         p95 = float(np.maximum(per_flight_bound(settled, axis=1), by_candidate).max())
         # (K, n, samples) -> the candidate spinning fastest at its fastest
@@ -373,6 +383,8 @@ class PrefixScorer:
                 final_rate_p95_rad_s=p95,
                 residual_rate_rad_s=float(by_candidate.mean()),
                 peak_rate_p95_rad_s=peak_p95,
+                commanded_residual_rate_rad_s=float(commanded.mean()),
+                commanded_residual_rate_max_rad_s=float(commanded.max()),
             )
             return _Node(state, planned, series, None, None, score, during, series_peak)
         labels, centers = self._cluster(series, parent, prefix)
@@ -388,6 +400,8 @@ class PrefixScorer:
             final_rate_p95_rad_s=p95,
             residual_rate_rad_s=float(by_candidate.mean()),
             peak_rate_p95_rad_s=peak_p95,
+            commanded_residual_rate_rad_s=float(commanded.mean()),
+            commanded_residual_rate_max_rad_s=float(commanded.max()),
         )
         return _Node(state, planned, series, centers, labels, score, during, series_peak)
 

@@ -336,6 +336,26 @@ def test_the_vocabulary_is_the_cores(api: Api) -> None:
     assert words["terminal_statuses"] == list(TERMINAL_STATUSES)
 
 
+def test_the_vocabulary_lists_the_commanded_residual_bounds(api: Api) -> None:
+    """The dashboard's constraint hint lists the vocabulary's names: the commanded
+    residual's bounds are among them, the mean over candidates and the worst one, in
+    rad/s and deg/s. (Before, the names were not constraints at all.)"""
+    from inertia_id.search.objectives import CONSTRAINTS
+
+    listed = {c["name"]: c for c in api.get("/vocabulary").json()["constraints"]}
+    assert list(listed) == list(CONSTRAINTS)
+    for unit in ("rad_s", "deg_s"):
+        mean = listed[f"max_commanded_residual_rate_{unit}"]
+        worst = listed[f"max_commanded_residual_rate_max_{unit}"]
+        for entry in (mean, worst):
+            assert entry["bounds"] == "commanded_residual_rate" and entry["sense"] == "max"
+            assert entry["flight_quantile"] is None
+        assert mean["worst_candidate"] is False and worst["worst_candidate"] is True
+    # The final rate's bounds stay as they were: the worst candidate's total.
+    assert listed["max_final_rate_deg_s"]["bounds"] == "final_rate"
+    assert listed["max_final_rate_deg_s"]["worst_candidate"] is True
+
+
 def test_baselines_are_the_cores_for_the_scenarios_thrusters(api: Api, paper: Scenario) -> None:
     from inertia_id.physics.sequences import baseline_sequences
 

@@ -451,6 +451,35 @@ BAD_PARAMS: list[tuple[str, dict[str, Any], str]] = [
         {"constraints": {"max_final_rate_rad_s": 0.5, "max_final_rate_deg_s": 1}},
         "max_final_rate_rad_s = 0.5 and max_final_rate_deg_s = 1 bound the same rate",
     ),
+    # The commanded residual's bounds follow the same rules (both units of one figure
+    # refused; the mean and the worst candidate are two figures).
+    (
+        "search",
+        {
+            "constraints": {
+                "max_commanded_residual_rate_rad_s": 0.003,
+                "max_commanded_residual_rate_deg_s": 0.2,
+            }
+        },
+        "max_commanded_residual_rate_rad_s = 0.003 and max_commanded_residual_rate_deg_s = "
+        "0.2 bound the same rate",
+    ),
+    (
+        "search",
+        {
+            "constraints": {
+                "max_commanded_residual_rate_max_rad_s": 0.003,
+                "max_commanded_residual_rate_max_deg_s": 0.2,
+            }
+        },
+        "max_commanded_residual_rate_max_rad_s = 0.003 and "
+        "max_commanded_residual_rate_max_deg_s = 0.2 bound the same rate",
+    ),
+    (
+        "search",
+        {"constraints": {"max_commanded_residual_rate_max_deg_s": -0.2}},
+        "constraint max_commanded_residual_rate_max_deg_s must be a finite number >= 0, got -0.2",
+    ),
 ]
 
 
@@ -953,3 +982,25 @@ def test_a_rate_bound_below_the_initial_rate_spread_is_422_naming_both(api: Api)
     assert api.queued_messages() == []
     params = {"method": "nsga2", "constraints": {"max_final_rate_deg_s": 0.25}}
     assert api.submit("search", scenario_id, params=params).status_code == 202
+
+
+def test_a_commanded_residual_bound_below_the_initial_rate_spread_is_accepted(api: Api) -> None:
+    """The commanded residual is predicted from rest: |ω(0)| is not in it, so a bound
+    below the floor a final-rate bound is refused under (0.2286 deg/s here) is met by a
+    sequence that brakes, and accepted, in both units and on the mean or the worst
+    candidate. Before, each name was a 422 "unknown constraint"."""
+    paper = Scenario.model_validate(api.create_scenario()["document"])
+    uncertainty = {**paper.uncertainty.model_dump(), "initial_rate_sigma_rad_s": 0.0025}
+    scenario_id = api.create_scenario(name="spread", uncertainty=uncertainty)["id"]
+    for name, bound in (
+        ("max_commanded_residual_rate_deg_s", 0.2),
+        ("max_commanded_residual_rate_rad_s", 0.0035),
+        ("max_commanded_residual_rate_max_deg_s", 0.2),
+        ("max_commanded_residual_rate_max_rad_s", 0.0035),
+    ):
+        for method in ("nsga2", "ppo"):
+            params = {"method": method, "constraints": {name: bound}}
+            response = api.submit("search", scenario_id, params=params)
+            assert response.status_code == 202, response.text
+            job = api.get(f"/jobs/{response.json()['id']}").json()
+            assert job["params"]["constraints"] == {name: bound}

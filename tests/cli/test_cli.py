@@ -147,6 +147,29 @@ def test_the_search_listing_gives_the_commanded_residual_beside_the_total(tmp_pa
     assert scores["commanded_residual_rate_max_rad_s"] <= scores["final_rate_max_rad_s"]
 
 
+def test_a_search_bounds_the_commanded_residual_in_deg_s(tmp_path: Path) -> None:
+    """``--constraint max_commanded_residual_rate_max_deg_s=0.2`` on paper-in-orbit: the
+    bound is on the part the commands leave (from rest), not the total with |ω(0)| (a
+    final-rate bound of 0.2 deg/s is refused there). The front's member and baselines
+    are judged on it: fire-then-brake meets it, the hand-designed sequence (spinning at
+    about 5 deg/s) does not. Before, the name was refused as unknown."""
+    bound = ["--constraint", "max_commanded_residual_rate_max_deg_s=0.2"]
+    doc, result = _random_search(
+        tmp_path / "s.json", 8, 4, "--preset", "paper-in-orbit", "--fresh-test-series", "0", *bound
+    )
+    front = doc["front"]
+    assert front["constraints"] == {"max_commanded_residual_rate_max_deg_s": 0.2}
+    for entry in [*front["members"], *front["baselines"].values()]:
+        if "scores" in entry:
+            commanded = entry["scores"]["commanded_residual_rate_max_deg_s"]
+            assert entry["feasible"] is (commanded <= 0.2)
+    assert front["baselines"]["fire-then-brake"]["feasible"] is True
+    assert front["baselines"]["hand-designed"]["feasible"] is False
+    member = front["members"][0]
+    line = next(x for x in result.output.splitlines() if x.strip().startswith("#0 "))
+    assert ("BREAKS A CONSTRAINT" in line) is (member["feasible"] is False)
+
+
 def _search_document(sequence: list[list[int]], scenario: dict[str, Any]) -> dict[str, Any]:
     """The parts of a search JSON that ``plan --search`` reads."""
     member = {"index": 0, "sequence": sequence}

@@ -1296,6 +1296,16 @@ def test_a_failed_write_to_a_device_or_pipe_says_what_reached_it(tmp_path: Path)
             "Error: constraint max_final_rate_deg_s = 0.01 deg/s is below what the scenario's "
             "initial-rate spread alone leaves (mean over flights of |ω(0)|: 0.4572 deg/s",
         ),
+        # The commanded residual in both units at once (before: an unknown constraint).
+        (
+            [
+                *("search", "--preset", "paper-in-orbit", "--method", "nsga2"),
+                *("--constraint", "max_commanded_residual_rate_deg_s=0.2"),
+                *("--constraint", "max_commanded_residual_rate_rad_s=0.003"),
+            ],
+            "Error: constraints max_commanded_residual_rate_rad_s = 0.003 and "
+            "max_commanded_residual_rate_deg_s = 0.2 bound the same rate; give one",
+        ),
         # Before: the whole search ran first, and the refusal came at its front.
         (
             [

@@ -358,9 +358,59 @@ def test_a_residual_rate_bound_is_checked_on_the_worst_candidates_settled_rate(
             if n not in ("min_accuracy", "max_propellant_kg")
             and not (n.endswith(("_rad_s", "_deg_s")) and not n.endswith(unit))
         }
-        assert len(others) == 7, others
+        assert len(others) == 9, others
         every = SequenceSearchEnv(
             paper, sequence_length=2, n_realisations=10, seed=0, constraints=others
         )
         _, infos = play(every, brake)
         assert np.isfinite(infos[-1]["constraint_violation"])
+
+
+@pytest.mark.parametrize(
+    ("name", "figure"),
+    [
+        ("max_commanded_residual_rate_deg_s", "commanded_residual_rate_rad_s"),
+        ("max_commanded_residual_rate_rad_s", "commanded_residual_rate_rad_s"),
+        ("max_commanded_residual_rate_max_deg_s", "commanded_residual_rate_max_rad_s"),
+        ("max_commanded_residual_rate_max_rad_s", "commanded_residual_rate_max_rad_s"),
+    ],
+)
+def test_a_commanded_residual_bound_is_checked_on_the_plans_prediction_from_rest(
+    drifting_paper: Scenario, name: str, figure: str
+) -> None:
+    """With an initial-rate spread every flight keeps |ω(0)| (0.46 deg/s on average on
+    paper-in-orbit), so a final-rate bound of 0.2 deg/s is refused and one above the
+    floor tells a brake from an all-off sequence by nothing. A bound on the commanded
+    residual (the plan's prediction from rest, every noise off) reads the part the
+    commands leave: met by a brake, broken by a sequence that only fires. Before, the
+    environment refused the name as an unknown constraint."""
+    from inertia_id.search.objectives import CONSTRAINTS
+    from inertia_id.search.plan import command_plan
+
+    brake = [[4, 4, 4, 0, 0, 0], [0, 0, 0, 4, 4, 4]]
+    spin = [[4, 4, 4, 0, 0, 0], [0, 0, 0, 0, 0, 0]]
+    plans = {
+        "brake": command_plan(drifting_paper, brake).to_dict(),
+        "spin": command_plan(drifting_paper, spin).to_dict(),
+    }
+    _, _, factor = CONSTRAINTS[name]
+    bound = np.radians(0.2) / factor  # 0.2 deg/s in the constraint's unit
+    env = SequenceSearchEnv(
+        drifting_paper, sequence_length=2, n_realisations=10, seed=0, constraints={name: bound}
+    )
+    for label, sequence in (("brake", brake), ("spin", spin)):
+        score = env.scorer.score(tuple(map(tuple, sequence)))
+        # The scorer's figure is the command plan's, mean or worst candidate.
+        rates = [c["commanded_residual_rate_rad_s"] for c in plans[label]["candidates"]]
+        expected = max(rates) if figure.endswith("_max_rad_s") else float(np.mean(rates))
+        assert getattr(score, figure) == pytest.approx(expected, rel=1e-9)
+        _, infos = play(env, sequence)
+        if label == "brake":
+            assert getattr(score, figure) < np.radians(0.2)
+            assert infos[-1]["constraint_violation"] == 0.0
+            # Its total carries the floor: far above the bound.
+            assert score.final_rate_max_rad_s > 2 * np.radians(0.2)
+        else:
+            violation = getattr(score, figure) / np.radians(0.2) - 1.0
+            assert violation > 1.0
+            assert infos[-1]["constraint_violation"] == pytest.approx(violation)

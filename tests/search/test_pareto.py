@@ -1240,6 +1240,59 @@ def test_a_front_member_that_brakes_reports_its_commanded_residual_beside_the_fl
     )
 
 
+@pytest.mark.parametrize(
+    ("name", "figure"),
+    [
+        ("max_commanded_residual_rate_max_deg_s", "commanded_residual_rate_max_deg_s"),
+        ("max_commanded_residual_rate_rad_s", "commanded_residual_rate_rad_s"),
+    ],
+)
+def test_a_commanded_residual_bound_keeps_members_that_brake_not_only_the_all_off_one(
+    name: str, figure: str
+) -> None:
+    """A flight team's "the commanded residual <= 0.2 deg/s" on paper-in-orbit: the
+    final-rate bounds hold |ω(0)| (0.46 deg/s on average), so 0.2 deg/s there is refused
+    and a bound above the floor keeps sequences that spin at 5 deg/s. Bounding the
+    commanded residual keeps only members the commands leave below it, and more than
+    the all-off sequence (members that fire and brake). Before, the name was unknown."""
+    scenario = preset("paper-in-orbit")
+    bound = 0.2 if figure.endswith("_deg_s") else float(np.radians(0.2))
+    result = pareto_search(
+        scenario,
+        sequence_length=2,
+        seed=4,
+        operator=OperatorSettings(
+            objectives=("accuracy", "final_rate", "impulse"),
+            n_realisations=6,
+            constraints={name: bound},
+        ),
+        nsga2_params={"population": 12, "generations": 3},
+        fresh_realisations=10,
+        fresh_test_series=20,
+    )
+    front = result.front
+    assert front is not None and front["members"]
+    for member in front["members"]:
+        assert member["feasible"] is True
+        assert member["scores"][figure] <= bound
+    firing = [m for m in front["members"] if m["scores"]["impulse_nms"] > 0]
+    assert firing, "only the all-off sequence met the bound"
+    # The baselines are judged on the same bound: the hand-designed one spins (about
+    # 5.8 deg/s), fire-then-brake stops.
+    assert front["baselines"]["hand-designed"]["feasible"] is False
+    assert front["baselines"]["fire-then-brake"]["feasible"] is True
+    # The plan of each member that fires predicts the same commanded residual.
+    for member in firing:
+        plan = command_plan(scenario, member["sequence"]).to_dict()
+        rates = [c["commanded_residual_rate_rad_s"] for c in plan["candidates"]]
+        assert plan["commanded_residual_rate_max_rad_s"] == pytest.approx(
+            member["scores"]["commanded_residual_rate_max_rad_s"]
+        )
+        assert float(np.mean(rates)) == pytest.approx(
+            member["scores"]["commanded_residual_rate_rad_s"]
+        )
+
+
 def test_the_front_tables_commanded_residual_columns_come_after_every_earlier_column() -> None:
     """A reader of the front's CSV that takes its columns by position: the commanded
     residual's four columns were inserted after ``final_rate_deg_s``, so column 5
