@@ -46,6 +46,7 @@ from service.store.models import (
 )
 from service.summaries import summary_keys
 
+from ..plan_schema import PlanOut
 from ..schemas import (
     JobCreate,
     JobListed,
@@ -857,7 +858,12 @@ def cancel_job(job_id: str, session: SessionDep) -> JobOut:
     responses={
         **_NOT_FOUND,
         **UNAUTHORIZED,
-        200: {"content": {"application/json": {}, "text/csv": {}}},
+        200: {
+            "description": "the plan as JSON (as GET /scenarios/{id}/plan, its source naming "
+            "the job and member) or as CSV",
+            "model": PlanOut,
+            "content": {"application/json": {}, "text/csv": {}},
+        },
         409: {"description": "the search has no sequence to plan (yet)"},
         422: {"description": "not a search job, or no such front member"},
         503: {"description": "past capacity: try again after Retry-After seconds"},

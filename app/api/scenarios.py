@@ -31,6 +31,7 @@ from service.store.models import ClassifierRow, JobRow, ScenarioRow, utcnow
 from service.store.session import Database
 
 from ..capacity import ComputeGate
+from ..plan_schema import PlanOut
 from ..schemas import (
     MAX_SEED,
     CandidateOut,
@@ -542,6 +543,7 @@ _PLAN_RESPONSES: dict[int | str, dict[str, Any]] = {
         "description": "the plan as JSON (steps with on-times and torque, candidates with "
         "predicted rates in rad/s and deg/s, residual rates, attitude change, propellant) "
         "or as CSV (one row per step, totals as '#' lines)",
+        "model": PlanOut,
         "content": {"application/json": {}, "text/csv": {}},
     },
     503: {"description": "past capacity: try again after Retry-After seconds"},
