@@ -27,6 +27,7 @@ from .api.errors import install_error_handlers
 from .api.identify import ClassifierCache, openapi_components
 from .capacity import ComputeGate
 from .dashboard import mount_dashboard, mount_docs
+from .result_schema import add_result_schemas
 from .security import (
     AllowedHosts,
     BodySizeLimit,
@@ -198,6 +199,7 @@ def _extend_openapi(app: FastAPI, settings: Settings) -> None:
             for name, component in openapi_components().items():
                 schemas.setdefault(name, component)
             schemas["HTTPError"] = _HTTP_ERROR
+            add_result_schemas(schema)
             for operations in schema.get("paths", {}).values():
                 for operation in operations.values():
                     for parameter in operation.get("parameters", []):
