@@ -525,7 +525,8 @@ class Verdicts:
     :param candidates: (n, K) posterior of each candidate; with ``p_none`` (n,) they
         sum to 1.
     :param thresholds: (K,) the novelty thresholds at the part of the series measured.
-    :param best: (n,) the most probable candidate, whatever the status.
+    :param best: (n,) the most probable candidate, whatever the status; of equally
+        probable ones (every posterior 0.0 far from the candidates) the nearest.
     :param status: (n,) index into :data:`STATUSES`.
     :param not_this_sequence: (n,) beyond every candidate's threshold times
         :data:`NOT_THIS_SEQUENCE_FACTOR`.
@@ -574,7 +575,10 @@ def verdicts(
     """
     distances, candidates, p_none, near = model.verdict_evidence(series, observed)
     thresholds = np.asarray(model.novelty_thresholds(model.observed_fraction(observed)))
-    best = np.argmax(candidates, axis=1)
+    # The most probable; among equally probable ones the nearest. Far from every
+    # candidate each posterior underflows to 0.0, where argmax took the first candidate
+    # and the verdict called it the nearest, at a distance larger than the others'.
+    best = np.lexsort((distances, -candidates), axis=-1)[:, 0]
     rows = np.arange(len(best))
     top = candidates[rows, best]
     beyond_threshold = distances[rows, best] > thresholds[best]

@@ -396,3 +396,22 @@ def test_a_kind_that_cannot_test_for_bodies_off_the_candidates_says_so(
     verdict = identify(bare, telemetry)
     assert verdict.fits_off_candidates is None
     assert "none_spread 0" in (verdict.off_candidates_note or "")
+
+
+def test_telemetry_far_from_every_candidate_names_the_nearest_one(paper: Scenario) -> None:
+    # Telemetry of another sequence lies so far from every candidate that each one's
+    # posterior is 0.0 in floating point: the verdict named the first candidate (the
+    # argmax of a row of zeros) "nearest" at its distance, the farthest here, with a
+    # negative margin to the runner-up (found flying [[4,4,4,0,0,0]] * 4 to a classifier
+    # trained on another sequence, through the dashboard's Identify page).
+    trained_on = [[4, 4, 4, 0, 0, 0], [4, 4, 4, 0, 0, 0], [0, 4, 4, 1, 0, 0], [0, 0, 4, 0, 4, 0]]
+    classifier = train(paper, trained_on, 20, np.random.default_rng(0))
+    other = simulate(paper, [[4, 4, 4, 0, 0, 0]] * 4, 1, np.random.default_rng(7))
+    for k in range(len(paper.candidate_names)):
+        verdict = identify(classifier, telemetry_of(other.time_s, other.omega_measured[k, 0]))
+        assert verdict.status == "matches-none"
+        assert max(verdict.posterior.values()) == 0.0  # the case this test is about
+        nearest = min(verdict.distances, key=verdict.distances.__getitem__)
+        assert verdict.candidate == nearest, (k, verdict.candidate, verdict.distances)
+        assert verdict.margin >= 0.0
+        assert f"nearest is {nearest!r}" in verdict.verdict
