@@ -12,9 +12,10 @@ its hook counting each object's keys); FastAPI turns the
 from __future__ import annotations
 
 from collections.abc import Callable, Coroutine
+from email.message import Message
 from typing import Any
 
-from fastapi import HTTPException, Request, Response, status
+from fastapi import HTTPException, Request, Response, params, status
 from fastapi.routing import APIRoute
 
 from inertia_id.checks import loads_unique_keys
@@ -51,13 +52,40 @@ class _UniqueKeysRequest(Request):
         return self._json
 
 
+def _is_json(content_type: str) -> bool:
+    message = Message()
+    message["content-type"] = content_type
+    subtype = message.get_content_subtype()
+    return message.get_content_maintype() == "application" and (
+        subtype == "json" or subtype.endswith("+json")
+    )
+
+
 class UniqueKeysRoute(APIRoute):
-    """An API route whose JSON body may not give a key twice in one object."""
+    """An API route whose JSON body may not give a key twice in one object, and whose
+    JSON body sent as another media type is a 415 naming it: FastAPI handed such a body
+    to the model as bytes, and ``curl -d '{"preset": "paper"}'`` (curl's default type,
+    application/x-www-form-urlencoded) was a 422 "Input should be a valid dictionary or
+    object to extract fields from" that named neither the header nor the fix."""
 
     def get_route_handler(self) -> Callable[[Request], Coroutine[Any, Any, Response]]:
         handler = super().get_route_handler()
+        takes_json = self.body_field is not None and not isinstance(
+            self.body_field.field_info, params.Form
+        )
 
         async def unique_keys_handler(request: Request) -> Response:
-            return await handler(_UniqueKeysRequest(request.scope, request.receive))
+            request = _UniqueKeysRequest(request.scope, request.receive)
+            content_type = request.headers.get("content-type")
+            if takes_json and not (content_type and _is_json(content_type)):
+                if await request.body():
+                    sent = f"not {content_type[:80]!r}" if content_type else "with no type"
+                    raise HTTPException(
+                        status.HTTP_415_UNSUPPORTED_MEDIA_TYPE,
+                        detail=f"send the JSON body as application/json, {sent} (curl -d "
+                        "sends application/x-www-form-urlencoded: add -H 'Content-Type: "
+                        "application/json')",
+                    )
+            return await handler(request)
 
         return unique_keys_handler

@@ -216,3 +216,30 @@ def test_a_coded_body_on_another_route_is_a_415_not_read_as_plain(api: Api) -> N
     # Plain (or identity) as before.
     response = _gzip_json_body(api, "/scenarios", plain, encoding="identity")
     assert response.status_code == 201, response.text
+
+
+def test_a_json_body_sent_as_another_media_type_is_a_415_naming_it(api: Api) -> None:
+    """``curl -d '{"preset": "paper"}'`` sends application/x-www-form-urlencoded; FastAPI
+    gave such a body to the model as bytes, a 422 "Input should be a valid dictionary or
+    object to extract fields from" that named neither the header nor the fix."""
+    scenario = api.create_scenario()
+    plain = json.dumps({"preset": "paper"}).encode()
+    job = json.dumps({"type": "train", "scenario_id": scenario["id"]}).encode()
+    for path, body in (("/scenarios", plain), ("/jobs", job)):
+        for media in ("application/x-www-form-urlencoded", "text/plain"):
+            headers = {**api.auth, "content-type": media}
+            response = api.client.post(path, content=body, headers=headers)
+            assert response.status_code == 415, (path, media, response.text)
+            detail = response.json()["detail"]
+            assert f"not {media!r}" in detail and "application/json" in detail
+    assert [s["id"] for s in api.get("/scenarios").json()["items"]] == [scenario["id"]]
+    untyped = api.client.post("/scenarios", content=plain, headers=api.auth)
+    assert untyped.status_code == 415 and "with no type" in untyped.json()["detail"]
+    # JSON under its own names is read as before.
+    for media in ("application/json", "application/json; charset=utf-8"):
+        headers = {**api.auth, "content-type": media}
+        response = api.client.post("/scenarios", content=plain, headers=headers)
+        assert response.status_code == 201, (media, response.text)
+    # Without the key, still a 401 before the body (or its type) is looked at.
+    bare = {"content-type": "text/plain"}
+    assert api.client.post("/scenarios", content=plain, headers=bare).status_code == 401
