@@ -501,7 +501,7 @@ def _estimate(
                 "inequality (the two smaller must add up to the largest)"
             )
         elif poorly:
-            rejected = f"poorly excited by this sequence: {poorly}"
+            rejected = f"poorly excited by this sequence: {', '.join(poorly)}"
     shown = rejected is None
     return {
         "estimated_inertia_kg_m2": tensor.tolist() if shown else None,

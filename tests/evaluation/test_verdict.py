@@ -415,3 +415,17 @@ def test_telemetry_far_from_every_candidate_names_the_nearest_one(paper: Scenari
         assert verdict.candidate == nearest, (k, verdict.candidate, verdict.distances)
         assert verdict.margin >= 0.0
         assert f"nearest is {nearest!r}" in verdict.verdict
+
+
+def test_a_poorly_excited_estimate_names_the_parameters_as_words(paper: Scenario) -> None:
+    # The reason was the Python list's repr, shown as is on the dashboard's Identify
+    # page: "withheld: poorly excited by this sequence: ['Ixx']".
+    sequence = [[4, 4, 4, 0, 0, 0], [4, 4, 4, 0, 0, 0], [0, 4, 4, 1, 0, 0], [0, 0, 4, 0, 4, 0]]
+    classifier = train(paper, sequence, 20, np.random.default_rng(0))
+    flown = simulate(paper, sequence, 1, np.random.default_rng(1))
+    verdict = identify(classifier, telemetry_of(flown.time_s, flown.omega_measured[2, 0]))
+    assert verdict.status == "identified" and verdict.poorly_excited
+    assert verdict.estimated_inertia_kg_m2 is None
+    assert verdict.estimate_rejected == (
+        f"poorly excited by this sequence: {', '.join(verdict.poorly_excited)}"
+    )
