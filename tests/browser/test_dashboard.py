@@ -2270,6 +2270,11 @@ def test_a_searchs_impulse_and_rates_keep_their_significant_digits(dashboard: Da
         if stored.get("result"):
             stored["result"]["best"]["fuel_nms"] = 0.45
             stored["result"]["front"]["members"][0]["scores"]["impulse_nms"] = 0.0449
+            # The rates and the wall time fixed decimals wrote as 11.245 deg/s (0.1963
+            # rad/s), 10.877 (0.1898) and 13.779 s.
+            stored["result"]["best"]["final_rate_rad_s"] = 0.19626
+            stored["result"]["fresh"]["final_rate_rad_s"] = [0.18984]
+            stored["result"]["wall_time_s"] = 13.779
 
     def changed(route: Any) -> None:
         answer = route.fetch()
@@ -2289,6 +2294,10 @@ def test_a_searchs_impulse_and_rates_keep_their_significant_digits(dashboard: Da
         found = page.locator("#baseline-table tbody tr").nth(0)
         assert found.locator("td").nth(0).inner_text() == "found by the search"
         assert found.locator("td").nth(5).inner_text() == "0.45"
+        assert page.inner_text("#best-final-rate") == "11.2 deg/s (0.196 rad/s)"
+        assert [found.locator("td").nth(i).inner_text() for i in (3, 4)] == ["10.9", "0.190"]
+        wall = page.inner_text("#best-summary dt:has-text('wall time') + dd")
+        assert wall.startswith("13.8 s, "), wall
         assert _texts(dashboard, "#front-table")[0]["impulse_nms"] == "0.0449"
 
         # The runs list: the impulse and the residual rate as the job's page writes them.
