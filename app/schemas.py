@@ -12,6 +12,7 @@ from typing import Annotated, Any, Literal, Self
 from pydantic import (
     AfterValidator,
     BaseModel,
+    BeforeValidator,
     ConfigDict,
     Field,
     StringConstraints,
@@ -249,6 +250,31 @@ def _check_tags(values: list[str] | None) -> list[str] | None:
     return None if values is None else list(dict.fromkeys(tag.strip() for tag in values))
 
 
+def _without_controls(value: Any) -> Any:
+    """A name or tag's control characters refused in words: the pattern's own message
+    ("String should match pattern '^[^\\x00-\\x1f\\x7f]*$'") named no character."""
+    if isinstance(value, str):
+        found = sorted({f"U+{ord(c):04X}" for c in value if ord(c) < 0x20 or ord(c) == 0x7F})
+        if found:
+            raise ValueError(
+                f"{value!r} holds control characters ({', '.join(found)}); remove them"
+            )
+    return value
+
+
+def _readable_tag(value: Any) -> Any:
+    """A tag's comma or blankness refused in words, before the pattern (which the
+    OpenAPI document keeps) would answer with the regular expression itself."""
+    if isinstance(value, str):
+        _without_controls(value.lstrip())  # leading white space is dropped, tabs and all
+    if isinstance(value, str) and value:
+        if "," in value:
+            raise ValueError(f"{value!r} holds a comma, which separates tags: send it as two")
+        if not value.strip():
+            raise ValueError(f"{value!r} is blank: a tag needs a character other than a space")
+    return value
+
+
 #: A tag as a request carries it: 1 to 64 characters with at least one that is not a space,
 #: no commas or control characters (surrounding spaces are dropped).
 TagText = Annotated[
@@ -258,11 +284,13 @@ TagText = Annotated[
         max_length=MAX_TAG_LENGTH,
         pattern=r"^\s*[^\s,\x00-\x1f\x7f][^,\x00-\x1f\x7f]*$",
     ),
+    BeforeValidator(_readable_tag),
     AfterValidator(_printable),
 ]
 NameText = Annotated[
     str,
     StringConstraints(max_length=MAX_NAME_LENGTH, pattern=r"^[^\x00-\x1f\x7f]*$"),
+    BeforeValidator(_without_controls),
     AfterValidator(_printable),
 ]
 

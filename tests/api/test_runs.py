@@ -166,12 +166,14 @@ def test_editing_labels_needs_the_key(api: Api) -> None:
     ("labels", "fragment"),
     [
         ({"name": "x" * 201}, "at most 200 characters"),
-        ({"name": "bad\x07name"}, "pattern"),
+        # The pattern's own message quoted the regular expression, naming no character.
+        ({"name": "bad\x07name"}, "holds control characters (U+0007); remove them"),
         # A right-to-left override shows "run\u202egnp.exe" as "runexe.png".
         ({"name": "run\u202egnp.exe"}, "bidirectional control characters (U+202E)"),
         ({"tags": ["ok", "a\u2066b"]}, "bidirectional control characters (U+2066)"),
-        ({"tags": ["a,b"]}, "'a,b'"),
-        ({"tags": [" "]}, "' '"),
+        ({"tags": ["a,b"]}, "'a,b' holds a comma, which separates tags"),
+        ({"tags": [" "]}, "' ' is blank"),
+        ({"tags": ["x\ty"]}, "holds control characters (U+0009); remove them"),
         ({"tags": ["t" * 65]}, "at most 64 characters"),
         ({"tags": [f"t{i}" for i in range(17)]}, "at most 16 items"),
         ({"tags": "paper"}, "list"),
