@@ -129,6 +129,9 @@ function keyBox() {
   const show = (text = null, bad = false) => {
     state.textContent = text ?? (getApiKey() ? "saved" : "not set");
     state.classList.toggle("bad", bad);
+    // The box is emptied once a key is saved: its placeholder said "needed to submit"
+    // beside "saved", as if there were none, and Check and save on the empty box forgets it.
+    input.placeholder = getApiKey() ? "saved: type another to replace it" : "needed to submit";
   };
   form.addEventListener("submit", async (event) => {
     event.preventDefault();

@@ -220,9 +220,12 @@ def test_without_the_key_a_write_says_to_enter_it_a_wrong_key_is_refused_then_it
     page.fill("#api-key", API_KEY)
     page.click("#api-key-form button")
     page.wait_for_function("() => document.getElementById('api-key-state').textContent === 'saved'")
+    # The box is emptied, its placeholder no longer the "needed to submit" of no key.
+    assert page.get_attribute("#api-key", "placeholder") == "saved: type another to replace it"
     page.reload()
     page.wait_for_selector("#page h1")
     assert page.inner_text("#api-key-state") == "saved"
+    assert page.get_attribute("#api-key", "placeholder") == "saved: type another to replace it"
 
 
 def test_create_a_scenario_from_the_preset_shows_its_principal_moments(
