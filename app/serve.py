@@ -17,11 +17,20 @@
 
 If serve itself dies (``kill -9``), its workers are told to stop by the kernel
 (``PR_SET_PDEATHSIG``): they hand their jobs back and exit, and nothing is orphaned.
+
+On its way out serve leaves no process behind: it is its descendants' *subreaper*
+(``PR_SET_CHILD_SUBREAPER``), so any of them orphaned (the API's fork server and verdict
+process, multiprocessing's resource tracker, a worker's task process) is its child, and
+once the workers and the API have stopped it stops every child left (the fork server and
+the resource tracker by closing their pipes, the others by SIGTERM; SIGKILL for any still
+there after :data:`LEFTOVER_GRACE_S`), reaps them, and logs how each ended.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import ctypes
 import logging
 import os
 import secrets
@@ -60,6 +69,167 @@ STOP_GRACE_S = 10.0
 RESTART_DELAY_S = 5.0
 
 PROJECT_ROOT = Path(__file__).resolve().parent.parent
+
+#: Seconds the processes left at shutdown get to exit once asked, before SIGKILL.
+LEFTOVER_GRACE_S = 3.0
+#: ``prctl`` option: orphaned descendants are re-parented to this process, not to init.
+_PR_SET_CHILD_SUBREAPER = 36
+
+
+def become_subreaper() -> bool:
+    """Make this process the subreaper of its descendants (Linux; False elsewhere or on
+    failure), so that :func:`stop_children` finds the ones whose parent has gone."""
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        return bool(libc.prctl(_PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0) == 0)
+    except (OSError, AttributeError):
+        return False
+
+
+def child_processes(parent: int | None = None) -> dict[int, tuple[str, str]]:
+    """The processes whose parent is ``parent`` (this one by default), by pid: each one's
+    state (``Z`` a zombie) and command line (its name in brackets when it has none, as a
+    zombie or a process that is exiting has not), from ``/proc``."""
+    parent = os.getpid() if parent is None else parent
+    found: dict[int, tuple[str, str]] = {}
+    try:
+        entries = os.listdir("/proc")
+    except OSError:
+        return found
+    for entry in entries:
+        if not entry.isdigit():
+            continue
+        try:
+            with open(f"/proc/{entry}/stat", "rb") as stat:
+                head, _, tail = stat.read().rpartition(b")")
+            fields = tail.split()
+            if int(fields[1]) != parent:
+                continue
+            with open(f"/proc/{entry}/cmdline", "rb") as cmdline:
+                command = cmdline.read().replace(b"\0", b" ").decode(errors="replace").strip()
+        except (OSError, IndexError, ValueError):
+            continue  # gone meanwhile
+        name = head.partition(b"(")[2].decode(errors="replace")
+        found[int(entry)] = (fields[0].decode(), command or f"[{name}]")
+    return found
+
+
+def reap_orphans(keep: set[int]) -> int:
+    """Reap this process's ended children but those in ``keep`` (the ones a
+    :class:`subprocess.Popen` waits for) and multiprocessing's helpers (which it waits for
+    itself): orphans adopted as subreaper (a killed worker's task process) would otherwise
+    stay zombies until serve ends. The number reaped."""
+    from multiprocessing import forkserver, resource_tracker
+
+    keep = keep | {
+        getattr(forkserver._forkserver, "_forkserver_pid", None) or 0,
+        getattr(resource_tracker._resource_tracker, "_pid", None) or 0,
+    }
+    reaped = 0
+    for pid, (state, _command) in child_processes().items():
+        if pid in keep or state != "Z":
+            continue
+        with contextlib.suppress(ChildProcessError):
+            if os.waitpid(pid, os.WNOHANG)[0] == pid:
+                reaped += 1
+    return reaped
+
+
+def _role(pid: int, command: str) -> str:
+    from multiprocessing import forkserver, resource_tracker
+
+    if pid == getattr(forkserver._forkserver, "_forkserver_pid", None):
+        return "fork server"
+    if pid == getattr(resource_tracker._resource_tracker, "_pid", None):
+        return "resource tracker"
+    if "multiprocessing.forkserver" in command:
+        return "verdict process"
+    if "celery" in command:
+        return "worker process"
+    return f"process {command[:80]!r}"
+
+
+def _ask_multiprocessing_helpers_to_stop() -> None:
+    """Close this process's ends of the fork server's and the resource tracker's pipes:
+    each exits at the end of its pipe (what they would do when this process exits)."""
+    from multiprocessing import forkserver, resource_tracker
+
+    server: Any = forkserver._forkserver
+    if getattr(server, "_forkserver_alive_fd", None) is not None:
+        with contextlib.suppress(OSError):
+            os.close(server._forkserver_alive_fd)
+        server._forkserver_alive_fd = None
+    tracker: Any = resource_tracker._resource_tracker
+    if getattr(tracker, "_fd", None) is not None:
+        with contextlib.suppress(OSError):
+            os.close(tracker._fd)
+        tracker._fd = None
+
+
+def _reap(pid: int) -> bool:
+    """Collect ``pid``'s exit status if it has ended; True once it is gone."""
+    try:
+        done, _status = os.waitpid(pid, os.WNOHANG)
+    except ChildProcessError:
+        return True  # not a child (any more): reaped elsewhere
+    return done == pid
+
+
+def stop_children(grace_s: float = LEFTOVER_GRACE_S) -> list[str]:
+    """Stop every process still a child of this one, reaped; one line each saying what it
+    was and how it ended (asked and exited, or killed after ``grace_s``)."""
+    from multiprocessing import forkserver, resource_tracker, util
+
+    left = child_processes()
+    if not left:
+        return []
+    roles = {pid: _role(pid, command) for pid, (_state, command) in left.items()}
+    _ask_multiprocessing_helpers_to_stop()
+    for pid, role in roles.items():
+        # The resource tracker ignores SIGTERM and exits at the end of its pipe, having
+        # cleaned up; the fork server holds nothing, and its own exit once its pipe is
+        # closed (the interpreter's teardown of what it preloaded) took over 3 s.
+        if role != "resource tracker":
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGTERM)
+    deadline = time.monotonic() + grace_s
+    waiting = set(left)
+    while waiting and time.monotonic() < deadline:
+        waiting = {pid for pid in waiting if not _reap(pid)}
+        if waiting:
+            time.sleep(0.05)
+    lines = []
+    for pid in sorted(left):
+        how = "exited" if left[pid][0] == "Z" else "exited when asked"
+        if pid in waiting:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGKILL)
+            with contextlib.suppress(ChildProcessError):
+                os.waitpid(pid, 0)
+            how = f"killed (still there {grace_s:g} s after being asked to stop)"
+        lines.append(f"{roles[pid]} (pid {pid}) {how}")
+    # The helpers are gone: a later start in this process (tests) starts new ones.
+    server: Any = forkserver._forkserver
+    if getattr(server, "_forkserver_pid", None) in left:
+        address = server._forkserver_address
+        server._forkserver_pid = None
+        server._forkserver_address = None
+        if address and not util.is_abstract_socket_namespace(address):
+            with contextlib.suppress(OSError):
+                os.unlink(address)
+    tracker: Any = resource_tracker._resource_tracker
+    if getattr(tracker, "_pid", None) in left:
+        tracker._pid = None
+    return lines
+
+
+def _leave_no_process() -> None:
+    """Stop the children left at shutdown and reap them, saying so in the log."""
+    lines = stop_children()
+    if lines:
+        for line in lines:
+            logger.info("shutdown: %s", line)
+    logger.info("shutdown complete: no process of this service is left")
 
 
 class WorkerPool:
@@ -103,6 +273,8 @@ class WorkerPool:
         #: The pids whose end was handled (their announced row forgotten).
         self._ended: set[int] = set()
         self._logs: dict[int, IO[bytes]] = {}
+        #: serve is its descendants' subreaper: reap the orphans that end meanwhile.
+        self.adopts_orphans = False
         self._stopping = threading.Event()
         self._supervisor = threading.Thread(
             target=self._supervise, name="inertia-id worker supervisor", daemon=True
@@ -226,6 +398,8 @@ class WorkerPool:
         started = {index: time.monotonic() for index in self.processes}
         while not self._stopping.wait(1.0):
             self._keep_announced()
+            if self.adopts_orphans:
+                reap_orphans({p.pid for p in self.processes.values()})
             for index, process in list(self.processes.items()):
                 code = process.poll()
                 if code is None or self._stopping.is_set():
@@ -535,6 +709,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     # SIGTERM (systemd, docker stop) ends like Ctrl-C: through the finally below.
     signal.signal(signal.SIGTERM, _raise_on_sigterm)
+    # Orphans among our descendants become our children, stopped at the end.
+    subreaper = become_subreaper()
 
     import uvicorn
 
@@ -568,6 +744,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     if args.host not in ("127.0.0.1", "localhost", "::1"):
         logger.warning("listening on %s: reachable from other machines", args.host)
+    pool.adopts_orphans = subreaper
     try:
         pool.start()
         # No limit_concurrency: uvicorn counts open connections against it, so slow
@@ -595,6 +772,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         pool.stop(settled=_handed_back(settings))
         if args.workers:
             print("workers stopped", flush=True)
+        if subreaper:
+            _leave_no_process()
     return 0
 
 
