@@ -82,6 +82,9 @@ class WorkerMonitor:
         #: The database answering but refusing this worker's beat (full, read-only).
         self._refused = Episode(logger)
         self._failing = Episode(logger)
+        #: The database without the service's tables (not migrated yet: the API
+        #: migrates it when it starts): one clear line, no traceback, until it has them.
+        self._no_schema = Episode(logger)
         #: Beats that found the row named by a live twin (see _live_twin).
         self._twin = Episode(logger)
         #: Whether the last beat could not store this worker's row (the database down,
@@ -107,7 +110,17 @@ class WorkerMonitor:
             self.tick()
         except Exception as exc:
             why = why_cannot_store(exc)
-            if why is not None:
+            if no_schema(exc):
+                # Before the database is migrated (a worker started before the API): it
+                # said "unreachable" (SQLite) or logged a traceback (PostgreSQL).
+                self._no_schema.seen(
+                    _first_line(exc),
+                    f"worker {self.name}: the database {database_label(self.db.url)} has "
+                    "no schema yet (%s): start the API first (`inertia-id serve` or the API "
+                    "process migrates it); retrying every "
+                    f"{self.settings.heartbeat_interval_s:g} s",
+                )
+            elif why is not None:
                 # Answered, but refused: not "unreachable" (which it said of a full disk).
                 self._refused.seen(
                     f"{why}: {_first_line(exc)}",
@@ -130,6 +143,7 @@ class WorkerMonitor:
                     exc_info=True,
                 )
             return
+        self._no_schema.cleared(f"worker {self.name}: the database has its schema after %.0f s")
         self._refused.cleared(f"worker {self.name}: the database takes writes again after %.0f s")
         self._outage.cleared(f"worker {self.name}: the database answers again after %.0f s")
         self._failing.cleared(f"worker {self.name}: its beat succeeds again after %.0f s")
@@ -324,6 +338,16 @@ def _database_unreachable(exc: BaseException) -> bool:
     return isinstance(exc, OperationalError | InterfaceError)
 
 
+def no_schema(exc: BaseException) -> bool:
+    """Whether ``exc`` says a table of the service is missing: the database was not
+    migrated yet (PostgreSQL's ``undefined_table``, SQLite's "no such table")."""
+    if not isinstance(exc, DBAPIError) or exc.orig is None:
+        return False
+    if getattr(exc.orig, "sqlstate", None) == "42P01":
+        return True
+    return isinstance(exc, OperationalError) and str(exc.orig).startswith("no such table")
+
+
 def _first_line(exc: BaseException) -> str:
     """``exc``'s type and the first line of its driver's message (SQLAlchemy's goes on
     with the statement and a link)."""
@@ -407,7 +431,14 @@ _hand_back_thread: threading.Thread | None = None
 def _hand_back_now(monitor: WorkerMonitor) -> None:
     try:
         monitor.hand_back()
-    except Exception:
+    except Exception as exc:
+        if no_schema(exc):  # not migrated: it holds no job to give back
+            logger.info(
+                "worker %s: no job to hand back: the database has no schema yet (%s)",
+                monitor.name,
+                _first_line(exc),
+            )
+            return
         logger.exception("could not hand the running job back; the reaper will")
 
 

@@ -17,13 +17,16 @@ import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from datetime import timedelta
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import pytest
-from service_support import POSTGRES_ADMIN_URL, writes_refused_while
+from service_support import POSTGRES_ADMIN_URL, postgres_database, writes_refused_while
 from sqlalchemy import create_engine, event, make_url, text, update
 
-from service.store.models import JobRow, utcnow
+from service.config import Settings
+from service.store.models import JobRow, WorkerRow, utcnow
+from service.store.session import upgrade
 from worker.episode import Episode
 from worker.incarnation import Life, alive
 from worker.monitor import WorkerMonitor
@@ -257,3 +260,63 @@ def test_a_run_the_outage_kept_from_beating_is_not_reaped_when_the_database_answ
         assert (job.status, job.attempts) == ("queued", 1)
     finally:
         monitor.stop()
+
+
+@pytest.fixture(params=["sqlite", "postgresql"])
+def unmigrated(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[Settings]:
+    """Settings on a database that exists but has no schema: a fresh SQLite file, or an
+    empty PostgreSQL database (dropped after)."""
+    databases: Iterator[str] | None = None
+    (tmp_path / "data").mkdir()
+    if request.param == "sqlite":
+        url = f"sqlite:///{tmp_path / 'data' / 'inertia-id.db'}"
+    else:
+        databases = postgres_database(prefix="inertia_id_worker_unmigrated")
+        url = next(databases)
+    try:
+        yield Settings(
+            INERTIA_ID_DATA_DIR=tmp_path / "data", DATABASE_URL=url, BROKER_URL="filesystem://"
+        )
+    finally:
+        if databases is not None:
+            for _ in databases:
+                pass
+
+
+def test_a_worker_started_before_the_schema_says_so_in_one_line_and_beats_once_it_is_there(
+    unmigrated: Settings, caplog: pytest.LogCaptureFixture, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Before: PostgreSQL's beat logged "its beat failed (UndefinedTable ...)" with a
+    # traceback, SQLite's "the database is unreachable (... no such table: workers)";
+    # stopped before the schema came, both logged "could not hand the running job back"
+    # with a traceback.
+    import worker.monitor
+
+    monkeypatch.setattr(worker.monitor, "warm", lambda: True)
+    url = unmigrated.resolved_database_url
+    monitor = WorkerMonitor(WORKER, unmigrated, Life(url, "a"))
+    beat: Callable[[], None] = monitor._ticker._safe_tick
+    try:
+        with caplog.at_level(logging.INFO, logger="worker"):
+            for _ in range(3):
+                beat()
+            worker.monitor._hand_back_now(monitor)
+            before = _lines(caplog)
+            caplog.clear()
+            upgrade(url)
+            beat()
+            beat()
+            after = [r.getMessage() for r in _lines(caplog)]
+        with monitor.db.session() as session:
+            row = session.get(WorkerRow, WORKER)
+            assert row is not None and row.incarnation == "a"
+    finally:
+        monitor.stop()
+    messages = [r.getMessage() for r in before]
+    assert [r for r in before if r.exc_info or r.levelno >= logging.ERROR] == [], messages
+    assert not any("unreachable" in m or "beat failed" in m for m in messages), messages
+    no_schema = [m for m in messages if "has no schema yet (" in m and "hand back" not in m]
+    assert len(no_schema) == 1, messages
+    assert "start the API first" in no_schema[0] and "workers" in no_schema[0], no_schema
+    assert sum("no job to hand back: the database has no schema yet" in m for m in messages) == 1
+    assert sum("the database has its schema after" in m for m in after) == 1, after
