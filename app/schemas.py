@@ -890,6 +890,13 @@ class WorkersHealth(BaseModel):
     )
     count: int
     names: list[str] = Field(description="live workers, those warming included")
+    duplicates_seen: int = Field(
+        default=0,
+        description="live workers of `names` under which a second live process (a twin, "
+        "started under the same name by mistake) beat within window_s: each name is listed "
+        "and counted once, with the state of the process that beat its row last; the "
+        "other's is in its own log. Give each worker its own name (celery -n)",
+    )
     window_s: float = Field(description="a worker counts if seen within this many seconds")
     warming: list[WarmingWorker] = Field(
         default_factory=list,
@@ -924,7 +931,9 @@ class WorkersHealth(BaseModel):
         description="with state_unknown_since: the workers that beat within window_s of it "
         "(live when the database began refusing their beats, as far as it knows)",
     )
-    detail: str | None = Field(default=None, description="what is wrong, when not ok")
+    detail: str | None = Field(
+        default=None, description="what is wrong, when not ok; and any twin (duplicates_seen)"
+    )
 
 
 class QueueHealth(BaseModel):

@@ -335,6 +335,8 @@ def _workers(
     limit = min(settings.heartbeat_timeout_s, settings.worker_start_timeout_s)
     rows: list[tuple[str, datetime | None, datetime | None]] = []
     gone: list[GoneWorker] = []
+    #: Live rows another live process of the same name beat within the window (twins).
+    twins: list[tuple[str, float]] = []
     unknown: tuple[datetime | None, list[str], int] | None = None
     now = utcnow()
     if database_ok:
@@ -348,6 +350,7 @@ def _workers(
                         WorkerRow.lock_missing_since,
                         WorkerRow.incarnation,
                         WorkerRow.last_seen_at,
+                        WorkerRow.twin_seen_at,
                     )
                     # A worker told to stop (SIGTERM) takes no job any more: it
                     # leaves the list at once, not a silence window later.
@@ -360,7 +363,7 @@ def _workers(
                     settings.resolved_database_url,
                     [row.incarnation for row in seen if row.incarnation is not None],
                 )
-                for name, since, lock_missing_since, incarnation, last_seen in seen:
+                for name, since, lock_missing_since, incarnation, last_seen, twin_at in seen:
                     # Killed (kill -9, its machine lost): its lock went with its process,
                     # and its row, which it can no longer beat, says what it was
                     # (warming, say) until the silence window ends. A worker that knows
@@ -369,6 +372,8 @@ def _workers(
                         gone.append(GoneWorker(name=name, silent_s=_age_s(now, last_seen)))
                     else:
                         rows.append((name, since, lock_missing_since))
+                        if twin_at is not None and _age_s(now, twin_at) <= window:
+                            twins.append((name, _age_s(now, twin_at)))
                 if refusing and not rows:
                     unknown = _last_known(session, window)
         except Exception:  # the database went away between the ping and the query
@@ -413,9 +418,17 @@ def _workers(
             "it claims no job until it takes it again (its log says why it cannot)"
             for w in without_lock
         ]
+    # Not a fault of the service (both processes take jobs), but the list shows one of
+    # them: the other's state (warming, its lock) is in its own log only.
+    details += [
+        f"worker {name}: a second live process beats under this name ({age:.0f} s ago), "
+        "and this list shows only one of them: give each worker its own name (celery -n)"
+        for name, age in twins
+    ]
     return WorkersHealth(
         ok=bool(rows) and not overdue and not none_locked,
         count=len(rows),
+        duplicates_seen=len(twins),
         names=[name for name, _, _ in rows],
         window_s=window,
         warming=warming,

@@ -923,8 +923,10 @@ def forget_announced_worker(session: Session, name: str) -> bool:
 def touch_twin_row(session: Session, name: str, twin: str) -> None:
     """A beat of a process under ``name`` whose row another live process of that name
     (a twin, incarnation ``twin``) beat last: the name is seen now, and the rest of the
-    row (its incarnation, warm-up and lock state) stays the twin's. Only while the row
-    still names ``twin`` and is not marked stopping (else the next beat takes it)."""
+    row (its incarnation, warm-up and lock state) stays the twin's, and ``twin_seen_at``
+    says that a second process beats under the name (``/health`` counts it). Only while
+    the row still names ``twin`` and is not marked stopping (else the next beat takes it)."""
+    now = utcnow()
     session.execute(
         update(WorkerRow)
         .where(
@@ -932,7 +934,7 @@ def touch_twin_row(session: Session, name: str, twin: str) -> None:
             WorkerRow.incarnation == twin,
             WorkerRow.stopping_since.is_(None),
         )
-        .values(last_seen_at=utcnow())
+        .values(last_seen_at=now, twin_seen_at=now)
     )
 
 
@@ -964,6 +966,12 @@ def _upsert_worker(
         taken_over = {
             "stopping_since": case((stopped_by_other, None), else_=WorkerRow.stopping_since),
             "incarnation": incarnation,
+            # A twin seen was this process, deferring to the one that beat the row: it
+            # says nothing once the row is this process's.
+            "twin_seen_at": case(
+                (WorkerRow.incarnation.is_distinct_from(incarnation), None),
+                else_=WorkerRow.twin_seen_at,
+            ),
         }
     dialect = session.get_bind().dialect.name
     if dialect in ("sqlite", "postgresql"):
@@ -984,6 +992,8 @@ def _upsert_worker(
     if incarnation is not None:
         if row.stopping_since is not None and row.incarnation != incarnation:
             row.stopping_since = None
+        if row.incarnation != incarnation:
+            row.twin_seen_at = None
         row.incarnation = incarnation
     for key, value in updates.items():
         setattr(row, key, value)

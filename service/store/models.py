@@ -225,6 +225,10 @@ class WorkerRow(Base):
     lock_missing_since: Mapped[datetime | None] = mapped_column(
         DateTime(timezone=True), default=None
     )
+    #: When another live process of this name (a twin, started under the same name by
+    #: mistake) last beat: its beats leave the row (its state, its incarnation) to the
+    #: process that beat it last, and set this. NULL: none seen.
+    twin_seen_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
 
 
 class ApiKey(Base):

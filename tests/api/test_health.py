@@ -63,6 +63,7 @@ def test_health_without_workers_is_degraded(api: Api) -> None:
         "ok": False,
         "count": 0,
         "names": [],
+        "duplicates_seen": 0,
         "window_s": 3 * api.settings.heartbeat_interval_s,
         "warming": [],
         "without_lock": [],

@@ -228,6 +228,11 @@ def test_two_live_twins_leave_their_shared_row_to_one_of_them(
                     states.append((row.incarnation, row.warming_since is not None))
         assert set(states) == {("twin", True)}, states
         assert "another live process beats under this name (incarnation twin)" in caplog.text
+        # /health lists the name once, with the twin's state, and says that a second
+        # process beats under it (before: nothing did; the first's state was unseen).
+        report = health(store.settings, store.db, first.celery)
+        assert (report.workers.names, report.workers.duplicates_seen) == ([WORKER], 1)
+        assert "give each worker its own name" in (report.workers.detail or "")
         _killed(twin)
         beating[0] = "first"
         first.tick()  # the twin's lock is free: the row is this one's again
@@ -237,6 +242,7 @@ def test_two_live_twins_leave_their_shared_row_to_one_of_them(
             [WORKER],
             [],
         ), report.workers
+        assert (report.workers.duplicates_seen, report.workers.detail) == (0, None)
     finally:
         first.stop()
 
