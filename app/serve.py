@@ -143,7 +143,8 @@ def _role(pid: int, command: str) -> str:
     if pid == getattr(resource_tracker._resource_tracker, "_pid", None):
         return "resource tracker"
     if "multiprocessing.forkserver" in command:
-        return "verdict process"
+        # An API process's fork server (--api-workers above 1) or a verdict process.
+        return "fork server or verdict process"
     if "celery" in command:
         return "worker process"
     return f"process {command[:80]!r}"

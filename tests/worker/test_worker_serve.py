@@ -10,6 +10,7 @@ import signal
 import socket
 import subprocess
 import sys
+import textwrap
 import time
 import urllib.request
 from datetime import datetime, timedelta
@@ -426,3 +427,40 @@ def test_serve_leaves_no_process_behind_when_it_stops(tmp_path: Path, stop_signa
             os.kill(pid, signal.SIGKILL)
     assert not left, f"left behind by serve: {left}\n{tail(log)}"
     assert "shutdown complete: no process of this service is left" in log.read_text()
+
+
+def test_serve_as_subreaper_reaps_an_orphan_that_ended_and_stops_one_that_lives(
+    tmp_path: Path,
+) -> None:
+    """serve adopts its descendants' orphans (a killed worker's task process, say): one
+    that has ended is reaped while serve runs (else a zombie until serve ends), and one
+    still there at the end is stopped. Run in a process of its own, as serve is."""
+    script = tmp_path / "subreaper.py"
+    script.write_text(
+        textwrap.dedent(
+            """
+            import os, subprocess, sys, time
+            from app.serve import become_subreaper, child_processes, reap_orphans, stop_children
+
+            assert become_subreaper()
+            # Each middle process starts a grandchild and exits: the grandchild is orphaned.
+            for seconds in ("0.2", "600"):
+                subprocess.run([sys.executable, "-c",
+                    "import subprocess, sys; subprocess.Popen([sys.executable, '-c', "
+                    f"'import time; time.sleep({seconds})'])"], check=True)
+            time.sleep(2)
+            before = {pid: state for pid, (state, _) in child_processes().items()}
+            reaped = reap_orphans(set())
+            after = child_processes()
+            lines = stop_children(grace_s=2)
+            print(sorted(before.values()), reaped, len(after), len(lines), len(child_processes()))
+            """
+        )
+    )
+    out = subprocess.run(
+        [sys.executable, str(script)], env=clean_env(), capture_output=True, text=True, timeout=60
+    )
+    assert out.returncode == 0, out.stderr
+    # Two adopted (one ended: a zombie, one sleeping), one reaped, one left and stopped.
+    assert out.stdout.split("]")[1].split() == ["1", "1", "1", "0"], out.stdout
+    assert out.stdout.startswith("['S', 'Z']"), out.stdout
