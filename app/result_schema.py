@@ -30,10 +30,13 @@ __all__ = ["JOB_RESULTS", "add_result_schemas", "result_components"]
 
 
 class TrainJobResult(BaseModel):
-    """A training's result (:meth:`inertia_id.pipelines.Trained.summary`)."""
+    """A training's result (:meth:`inertia_id.pipelines.Trained.summary`, with the
+    ``classifier_id`` and ``sha256`` of the row the runner stores)."""
 
     model_config = ConfigDict(extra="forbid")
 
+    classifier_id: str = Field(description="the stored classifier (GET /classifiers/{id})")
+    sha256: str = Field(description="the stored classifier document's checksum")
     kind: str = Field(description="the classifier kind trained")
     metric: str | None = Field(description="its distance, for the kinds that take one")
     f1: float | None = Field(description="macro F1 on its training series")
