@@ -31,13 +31,18 @@ __all__ = ["JOB_RESULTS", "add_result_schemas", "result_components"]
 
 class TrainJobResult(BaseModel):
     """A training's result (:meth:`inertia_id.pipelines.Trained.summary`, with the
-    ``classifier_id`` and ``sha256`` of the row the runner stores)."""
+    ``classifier_id`` and ``sha256`` of the row the runner stores). Fields added after
+    the first release are optional: a result stored before them lacks them (``kind``
+    before every kind could be trained, ``warnings`` before weak responses were
+    warned of)."""
 
     model_config = ConfigDict(extra="forbid")
 
     classifier_id: str = Field(description="the stored classifier (GET /classifiers/{id})")
     sha256: str = Field(description="the stored classifier document's checksum")
-    kind: str = Field(description="the classifier kind trained")
+    kind: str | None = Field(
+        default=None, description="the classifier kind trained; absent in older results"
+    )
     metric: str | None = Field(description="its distance, for the kinds that take one")
     f1: float | None = Field(description="macro F1 on its training series")
     accuracy: float | None
@@ -45,7 +50,9 @@ class TrainJobResult(BaseModel):
     candidate_names: list[str]
     sequence: list[list[int]]
     n_realisations: int = Field(description="training realisations per candidate")
-    warnings: list[str]
+    warnings: list[str] = Field(
+        default_factory=list, description="what the training warns of; absent in older results"
+    )
 
 
 class SweepJobResult(SweepResult):
@@ -81,7 +88,8 @@ class SearchFront(_Open):
 
 class SearchJobResult(_Open):
     """A search's result (:meth:`inertia_id.pipelines.SearchOutcome.to_dict`): its top
-    level; fields beyond these (``policy_sha256`` of a PPO search) are open."""
+    level; fields beyond these (``policy_sha256`` of a PPO search) are open. ``front``
+    and ``baselines`` are optional: a result stored before them lacks them."""
 
     method: Literal["ppo", "cem", "exhaustive", "random", "nsga2"]
     best: dict[str, Any] = Field(description="the best sequence and its scores")
@@ -96,8 +104,15 @@ class SearchJobResult(_Open):
     policy_path: str | None
     cache_hits: int
     cache_misses: int
-    front: SearchFront | None
-    baselines: dict[str, dict[str, Any]]
+    front: SearchFront | None = Field(
+        default=None,
+        description="the front on fresh draws; null when cancelled, absent in results "
+        "stored before fronts",
+    )
+    baselines: dict[str, dict[str, Any]] = Field(
+        default_factory=dict,
+        description="the hand-designed baselines by name; absent in results stored before them",
+    )
     scenario: dict[str, Any] | None = Field(
         default=None, description="the scenario searched (POST /scenarios' document)"
     )
