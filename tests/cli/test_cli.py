@@ -628,6 +628,33 @@ def test_identify_iso_stamps_and_an_estimated_start(
     )
 
 
+def test_a_start_search_with_a_kind_that_compares_whole_series_says_it_is_not_refined(
+    tmp_path: Path, small_classifier: Path
+) -> None:
+    """README's ISO example searched the start with the clustering kind and took 0.25 s
+    for a 0.2 s late start, with nothing but ``sequence_start_refined: false`` to say
+    that the kind takes a grid start its distance favours; the CLI now says it."""
+    telemetry = tmp_path / "t.csv"
+    _simulate_telemetry(
+        telemetry, "2", "--pre-start", "1", "--time-offset", "2025-03-01T12:00:00.2Z"
+    )
+    base = ["identify", "--classifier", str(small_classifier), str(telemetry)]
+    search = [*base, "--sequence-start", "2025-03-01T12:00:00Z", "--estimate-start-within", "0.5"]
+    result = run_cli(search)
+    verdict = json.loads(result.stdout)
+    assert verdict["sequence_start_refined"] is False
+    taken = f"{verdict['sequence_start_shift_s']:+.6g} s"
+    assert (
+        f"the 'clustering' kind compares whole series: the start taken ({taken}) is the "
+        "0.05 s grid's that its distance favours, not refined below the grid period"
+        in result.stderr
+    )
+    assert "the likelihood kinds (marginal-likelihood, the default" in result.stderr
+    # Without a search nothing is said.
+    plain = run_cli([*base, "--sequence-start", "2025-03-01T12:00:00Z"])
+    assert "not refined" not in plain.stderr
+
+
 def test_json_output_is_strict_json(tmp_path: Path) -> None:
     """NaN and Infinity are not JSON: they are written as null."""
     from inertia_id.cli.options import write_json
