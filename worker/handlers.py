@@ -60,8 +60,9 @@ def run_search_job(context: JobContext) -> Outcome:
 
     def progress(report: SearchProgress) -> None:
         point = report.point
-        # Between curve points (NSGA-II's polish) only the progress moves: the curve
-        # the dashboard draws is the stored result's, one point per generation.
+        # Between curve points (NSGA-II's front measurement) only the progress moves:
+        # the curve the dashboard draws is the stored result's, one point per
+        # generation and per polish round.
         metrics = [(key, report.timesteps, getattr(point, key)) for key in SEARCH_METRICS]
         context.report(progress=report.fraction, metrics=metrics if report.new_point else [])
 

@@ -106,8 +106,9 @@ class CurvePoint:
 @dataclass(frozen=True)
 class SearchProgress:
     """Passed to a search's ``progress`` callback at every curve point, and while a
-    search works between points (NSGA-II's polish, the front's measurement): then
-    ``new_point`` is False and ``point`` repeats the last curve point.
+    search works between points (the front's measurement after NSGA-II's generations
+    and polish rounds, each of which is a point): then ``new_point`` is False and
+    ``point`` repeats the last curve point.
 
     :param phase: what the search is doing: ``"search"``, or ``"measuring the front"``
         (the fresh measurement of the front's accuracy after the last curve point).

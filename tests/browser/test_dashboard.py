@@ -2153,13 +2153,30 @@ def test_an_nsga2_search_draws_its_generations_not_an_empty_reward(dashboard: Da
     title = page.evaluate("() => document.getElementById('reward-plot').layout.title.text")
     assert "Residual rate" in title and "reward" not in title.lower()
     generations = job["params"]["nsga2"]["generations"]
+    result = job["result"]
+    curve = result["curve"]
+    # The generations, then the polish rounds: the curve ends at the steps the card
+    # reports (it ended at the last generation, 256 of 1,000-odd steps, unsaid).
+    assert len(curve) > generations
+    assert curve[-1]["timesteps"] == result["timesteps"]
     page.wait_for_function(
-        f"() => Number(document.querySelector('#curve-points')?.dataset.points) >= {generations}"
+        f"() => Number(document.querySelector('#curve-points')?.dataset.points) >= {len(curve)}"
     )
-    assert _trace_points(dashboard, "reward-plot") == generations
-    assert _trace_points(dashboard, "f1-plot") == generations
+    assert _trace_points(dashboard, "reward-plot") == len(curve)
+    assert _trace_points(dashboard, "f1-plot") == len(curve)
     drawn = page.evaluate("() => document.getElementById('reward-plot').data[0].y")
-    assert drawn == [p["best_residual_rate_rad_s"] for p in job["result"]["curve"]]
+    assert drawn == [p["best_residual_rate_rad_s"] for p in curve]
+    steps = page.evaluate("() => document.getElementById('f1-plot').data[0].x")
+    assert steps[-1] == result["timesteps"]
+    split = curve[generations - 1]["timesteps"]
+    page.wait_for_selector("#curve-phases:not([hidden])")
+    assert page.inner_text("#curve-phases") == (
+        f"{result['timesteps']:,} environment steps on the curve: {split:,} in {generations} "
+        f"generations, then {result['timesteps'] - split:,} in {len(curve) - generations} polish "
+        f"rounds (the points after step {split:,}, each a round's neighbours of the sequence "
+        "climbed)."
+    )
+    assert f"{result['timesteps']:,}, " in page.inner_text("#best-summary")
     # The axis shows the rates at their height, also when they never change (Plotly's
     # own range for a flat series is v - 1 .. v + 1, where 0.0015 rad/s reads as 0).
     low, high = page.evaluate(

@@ -709,10 +709,31 @@ def test_the_polish_reports_progress_and_stops_when_told(paper: Scenario) -> Non
         should_stop=stop,
     )
     assert result.stopped == "cancelled"
-    assert len(seen) == 6 and len(result.curve) == 3  # polish rounds report, not plot
-    assert [new for *_, new in seen] == [True] * 3 + [False] * 3
+    # Every polish round is a point of the curve, as every generation.
+    assert len(seen) == 6 and len(result.curve) == 6
+    assert [new for *_, new in seen] == [True] * 6
+    assert [point.timesteps for point in result.curve] == [done for done, *_ in seen]
     assert all(done <= total for done, total, _ in seen)
     assert seen[-1][0] > seen[2][0]  # the polish scored more sequences
+
+
+def test_the_learning_curve_ends_at_the_evaluations_the_search_reports(paper: Scenario) -> None:
+    """The polish's evaluations are on the curve: it ended at the last generation (3 x 8
+    sequences x 2 steps = 48) while the search reported every sequence the polish scored
+    too, and the dashboard drew one against the other with nothing to say why."""
+    seen: list = []
+    result = _tiny_search(paper, polish_iterations=3, progress=seen.append)
+    assert result.stopped == "budget"
+    generations = 3
+    assert len(result.curve) > generations
+    assert result.curve[-1].timesteps == result.timesteps
+    assert result.curve[-1].episodes == result.episodes
+    steps = [point.timesteps for point in result.curve]
+    assert steps == sorted(set(steps))  # one point per round, each after more sequences
+    # What the worker stores as metrics: the new points, the same as the curve.
+    assert [r.point for r in seen if r.new_point] == result.curve
+    for point in result.curve[generations:]:
+        assert 0.0 <= point.mean_f1 <= 1.0 and 0.0 <= point.best_f1 <= 1.0
 
 
 def test_the_fronts_measurement_reports_progress_and_the_bar_only_moves_forward(

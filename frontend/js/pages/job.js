@@ -126,12 +126,16 @@ async function searchView(body, job, context) {
   // each generation (its predicted accuracy at the design noise, and its residual rate).
   const pareto = job.params.method === "nsga2";
   const resultHolder = h("div", { id: "search-result" });
+  // NSGA-II's curve runs through its generations, then its polish rounds: where the
+  // one ends and the other begins, once the result says.
+  const phases = h("p", { id: "curve-phases", class: "hint", hidden: true });
   body.append(
     h(
       "div",
       { class: "card" },
       h("div", { class: "toolbar" }, h("h2", { style: "margin: 0" }, "Learning curve"), pointCount, link(`#/compare?ids=${job.id}`, "compare with other searches")),
       h("div", { class: "grid2" }, rewardPlot, f1Plot),
+      phases,
     ),
     resultHolder,
   );
@@ -148,7 +152,7 @@ async function searchView(body, job, context) {
       ? [{ x: [], y: [], mode: "lines+markers", name: "residual rate", line: { color: "#1f77b4" } }, ...twinTraces(rateTwins)]
       : [{ x: [], y: [], mode: "lines+markers", name: "mean episode reward", line: { color: "#1f77b4" } }],
     pareto
-      ? layout(steps, "residual rate (rad/s)", { title: title("Residual rate of each generation's most accurate feasible sequence", 13), showlegend: false, ...twinAxes(rateTwins) })
+      ? layout(steps, "residual rate (rad/s)", { title: title("Residual rate of each generation's (then polish round's) most accurate feasible sequence", 13), showlegend: false, ...twinAxes(rateTwins) })
       : layout(steps, "mean episode reward", { title: title(rewardText, 13), showlegend: false }),
     PLOT_CONFIG,
   );
@@ -161,7 +165,7 @@ async function searchView(body, job, context) {
       { x: [], y: [], mode: "lines+markers", name: pareto ? "population mean" : "mean since last point", line: { color: "#ff7f0e", dash: "dot" } },
     ],
     layout(steps, pareto ? accuracyText : what, {
-      title: title(pareto ? "Predicted accuracy, per NSGA-II generation" : `${separability ? "Separability score" : "Clustering F1"} of the episodes' sequences`),
+      title: title(pareto ? "Predicted accuracy, per NSGA-II generation, then per polish round" : `${separability ? "Separability score" : "Clustering F1"} of the episodes' sequences`),
       yaxis: { title: { text: pareto ? accuracyText : what }, range: [0, 1.05] },
     }),
     PLOT_CONFIG,
@@ -181,11 +185,30 @@ async function searchView(body, job, context) {
     pointCount.dataset.points = String(points);
     if (!resultShown && isTerminal(current.status) && current.result) {
       resultShown = true;
+      if (pareto) curvePhases(phases, current);
       await searchResult(resultHolder, current, context);
     }
   };
   await update(job);
   return { update };
+}
+
+// "736 environment steps on the curve: 192 in 3 generations, 544 in 34 polish rounds":
+// the generations are the curve's first points (fewer when the search stopped in them).
+function curvePhases(node, job) {
+  const result = job.result;
+  const curve = result.curve || [];
+  if (!curve.length) return;
+  const generations = Math.min(curve.length, result.settings?.nsga2?.generations ?? job.params.nsga2?.generations ?? curve.length);
+  const inGenerations = curve[generations - 1].timesteps;
+  const rounds = curve.length - generations;
+  const last = curve[curve.length - 1].timesteps;
+  const plural = (n, word) => `${fmt(n)} ${word}${n === 1 ? "" : "s"}`;
+  let text = `${fmt(last)} environment steps on the curve: ${fmt(inGenerations)} in ${plural(generations, "generation")}`;
+  if (rounds) text += `, then ${fmt(last - inGenerations)} in ${plural(rounds, "polish round")} (the points after step ${fmt(inGenerations)}, each a round's neighbours of the sequence climbed)`;
+  if (last !== result.timesteps) text += `; ${fmt(result.timesteps - last)} more scored after the last point`;
+  node.textContent = text + ".";
+  node.hidden = false;
 }
 
 async function searchResult(holder, job, context) {
