@@ -144,6 +144,26 @@ MAX_START_SHIFTS = 4001
 ON_GRID_TOLERANCE = 1e-3
 
 _MICROSECOND = timedelta(microseconds=1)
+_MAX_STAMP_DECIMALS = 9
+
+
+def _decimal_scale(values: np.ndarray) -> float | None:
+    """``10**k`` for the fewest decimal places ``k`` (at most 9) that write every value as
+    the decimal it was read from (the float nearest ``n / 10**k``), or None: the values are
+    then not short decimals, or too large for whole units of that place to be exact."""
+    if not np.all(np.isfinite(values)):
+        return None
+    big = float(np.max(np.abs(values)))
+    for k in range(_MAX_STAMP_DECIMALS + 1):
+        scale = 10.0**k
+        # Below 2**50 units and their quarters (a half period's half) are exact.
+        if big * scale >= 2.0**50:
+            return None
+        if np.array_equal(np.rint(values * scale) / scale, values):
+            return scale
+    return None
+
+
 _ISO_EXAMPLE = "2025-03-01T12:00:00.050Z"
 
 
@@ -327,7 +347,8 @@ class Telemetry(BaseModel):
                     f"{name}[{i}] = {stamps[i]!r} is a number but {name}[{iso.index(True)}] "
                     "is a string: give every stamp in one form"
                 )
-            offsets = self._iso_offsets([str(v) for v in stamps], name, start)
+            units = self._iso_offsets([str(v) for v in stamps], name, start)
+            scale: float | None = 1e6
         else:
             times = np.asarray(stamps, dtype=float)
             if start is None:
@@ -344,8 +365,15 @@ class Telemetry(BaseModel):
                     f"sequence_start = {start!r} is an ISO-8601 time but the stamps are "
                     f"seconds ({name}[0] = {stamps[0]!r}): give it in seconds of their clock"
                 )
-            # The start is subtracted first: stamps of ~1e9 s keep their resolution.
-            offsets = times - float(start)
+            # The start is subtracted first: stamps of ~1e9 s keep their resolution. Stamps
+            # written with a few decimals (809999990.1) are subtracted as those decimals, in
+            # whole units of their last place: in binary the offset was -9.899999976158142.
+            scale = _decimal_scale(np.append(times, float(start)))
+            if scale is None:
+                units = times - float(start)
+            else:
+                units = np.rint(times * scale) - np.rint(float(start) * scale)
+        offsets = units if scale is None else units / scale
         far = np.flatnonzero(np.abs(offsets) > MAX_OFFSET_S)
         if far.size:
             i = int(far[0])
@@ -362,7 +390,9 @@ class Telemetry(BaseModel):
             # (12 of 15 on a reviewer's Basilisk flights; 0 wrong read at the midpoints).
             # The interval is the gyro's sample period (the median spacing), not the gap
             # before each sample: after a dropped sample the next still averages one period.
-            offsets = offsets - 0.5 * float(np.median(np.diff(offsets)))
+            # In the stamps' units the half period is exact (a multiple of 1/4 unit).
+            units = units - 0.5 * float(np.median(np.diff(units)))
+            offsets = units if scale is None else units / scale
         self._offsets_s = tuple(offsets.tolist())
         return self
 
@@ -395,9 +425,10 @@ class Telemetry(BaseModel):
                 f"({name}[0] = {stamps[0]!r}): give it as an ISO-8601 UTC time"
             )
         origin = _parse_utc(start, "sequence_start")
-        # Whole microseconds from the start, exact in int64, then seconds.
+        # Whole microseconds from the start, exact in int64 (the caller divides by 1e6:
+        # a division rounds once, where ``* 1e-6`` gave 0.049999999999999996 s).
         micros = np.array([(p - origin) // _MICROSECOND for p in parsed], dtype=np.int64)
-        return micros * 1e-6
+        return micros.astype(float)
 
     @property
     def time_array(self) -> np.ndarray:

@@ -427,6 +427,38 @@ def test_one_kilohertz_at_mission_time_keeps_its_resolution() -> None:
     np.testing.assert_allclose(resample(telemetry, grid), expected, atol=3e-4)
 
 
+def test_mission_clock_offsets_are_exact_to_the_stamps_decimals() -> None:
+    """A 10 Hz gyro on a mission clock, 10 s before the start: the stamps' 0.1 s steps are
+    subtracted as decimals (the span read -9.899999976158142 and 0.004999995231628418 at
+    200 Hz in the CLI's, the API's and the CSV's verdicts)."""
+    rows = [f"{810_000_000 + k / 10:.1f},0,0,0" for k in range(-99, 41)]
+    telemetry = parse_telemetry("time_s,wx,wy,wz\n" + "\n".join(rows), sequence_start=810_000_000)
+    assert rows[0].startswith("809999990.1,")
+    assert telemetry.inputs()["telemetry_span_s"] == [-9.9, 4.0]
+    assert telemetry.time_array[:3].tolist() == [-9.9, -9.8, -9.7]
+    fast = plain(
+        [810_000_000.005, 810_000_000.01, 810_000_004.0],
+        [[0, 0, 0]] * 3,
+        sequence_start=810_000_000,
+    )
+    assert fast.inputs()["telemetry_span_s"] == [0.005, 4.0]
+    # An averaging gyro is read at the midpoints, half a period (0.05 s) earlier: exact too.
+    averaged = parse_telemetry(
+        "time_s,wx,wy,wz\n" + "\n".join(rows), sequence_start=810_000_000, averaged=True
+    )
+    assert averaged.inputs()["telemetry_span_s"] == [-9.95, 3.95]
+    # ISO stamps: whole microseconds divided once (0.05 s read 0.049999999999999996).
+    utc = Telemetry(
+        time_utc=["2025-03-01T12:00:00.05Z", "2025-03-01T12:00:04Z"],
+        omega_rad_s=[[0, 0, 0]] * 2,
+        sequence_start="2025-03-01T12:00:00Z",
+    )
+    assert utc.inputs()["telemetry_span_s"] == [0.05, 4.0]
+    # A start with more decimals than the stamps: the offsets carry the start's.
+    shifted = plain([810_000_000.1, 810_000_004.0], [[0, 0, 0]] * 2, sequence_start=810_000_000.25)
+    assert shifted.inputs()["telemetry_span_s"] == [-0.15, 3.75]
+
+
 # Estimating the start.
 
 
