@@ -722,6 +722,19 @@ class Scenario(_Model):
             return np.asarray(torque / np.asarray(thrusters.lever_arm_m, dtype=float))
         return None
 
+    @property
+    def propellant_unstated(self) -> str | None:
+        """Why :meth:`propellant_kg` is None, naming the thruster fields that would state
+        it; None when the scenario states it."""
+        missing = []
+        if self.thrust_per_thruster_n is None:
+            missing.append("thrust_n (or lever_arm_m)")
+        if self.thrusters.specific_impulse_s is None:
+            missing.append("specific_impulse_s")
+        if not missing:
+            return None
+        return f"the scenario's thrusters give no {' and no '.join(missing)}"
+
     def propellant_kg(self, sequence: Any) -> float | None:
         """Propellant mass a sequence burns, kg: ``Σ_j F_j t_j / (Isp g0)``, counting every
         thruster's on-time (opposing thrusters both burn); None unless the scenario gives

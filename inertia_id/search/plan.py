@@ -152,6 +152,8 @@ class CommandPlan:
     #: The scenario's initial-rate spread (σ a body axis, rad/s): a flight's residual
     #: carries |ω(0)|, which the nominal prediction (from rest) leaves out.
     initial_rate_sigma_rad_s: float = 0.0
+    #: Why propellant_kg is None (the fields the scenario lacks); None when it is stated.
+    propellant_unstated: str | None = None
 
     def _floor(self) -> dict[str, float] | None:
         """What the initial-rate spread alone leaves (:func:`~inertia_id.search.
@@ -261,7 +263,10 @@ class CommandPlan:
         out.write(f"# impulse_nms: {self.impulse_nms:.6g}\n")
         out.write(f"# on_time_s: {propellant['on_time_s']:.6g}\n")
         kg = self.propellant_kg
-        out.write(f"# propellant_kg: {'' if kg is None else f'{kg:.6g}'}\n")
+        # Kept when unknown, so that a reader by name finds it, in words (it was empty).
+        why = self.propellant_unstated
+        stated = f"{kg:.6g}" if kg is not None else "not stated" + (f" ({why})" if why else "")
+        out.write(f"# propellant_kg: {stated}\n")
         floor = document["initial_rate_floor"]
         if floor is not None:
             out.write(
@@ -463,4 +468,5 @@ def command_plan(
         ),
         warnings=[] if weak is None else [weak],
         initial_rate_sigma_rad_s=float(scenario.uncertainty.initial_rate_sigma_rad_s),
+        propellant_unstated=scenario.propellant_unstated,
     )

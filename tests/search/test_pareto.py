@@ -156,6 +156,31 @@ def test_opposing_thrusters_cost_propellant() -> None:
     assert by_arm.propellant_kg(opposed) == pytest.approx(expected_kg)
 
 
+def test_a_plans_csv_says_in_words_when_the_propellant_is_not_stated(paper: Scenario) -> None:
+    """The ``# propellant_kg:`` line was left empty when the scenario gives no thrust or
+    specific impulse; it stays (a reader by name finds it) and says what would state it."""
+    sequence = [[4, 0, 0, 4, 0, 0]]
+
+    def line(scenario: Scenario) -> str:
+        text = command_plan(scenario, sequence).to_csv()
+        return next(x for x in text.splitlines() if x.startswith("# propellant_kg:"))
+
+    assert paper.propellant_kg(sequence) is None
+    assert line(paper) == (
+        "# propellant_kg: not stated (the scenario's thrusters give no thrust_n (or "
+        "lever_arm_m) and no specific_impulse_s)"
+    )
+    thrusters = {"nominal_torque_nm": 2.0, "n_levels": 5}
+    no_isp = preset("paper", thrusters={**thrusters, "thrust_n": 4.0})
+    assert line(no_isp) == (
+        "# propellant_kg: not stated (the scenario's thrusters give no specific_impulse_s)"
+    )
+    no_thrust = preset("paper", thrusters={**thrusters, "specific_impulse_s": 220.0})
+    assert line(no_thrust).endswith("give no thrust_n (or lever_arm_m))")
+    stated = preset("paper", thrusters={**thrusters, "thrust_n": 4.0, "specific_impulse_s": 220.0})
+    assert line(stated) == f"# propellant_kg: {4.0 * 2.0 / (220.0 * 9.80665):.6g}"
+
+
 def test_propulsion_fields_are_validated() -> None:
     with pytest.raises(ValueError, match="not both"):
         preset(
