@@ -104,9 +104,38 @@ def _unprocessable(detail: list[dict[str, Any]]) -> JSONResponse:
     )
 
 
+# The key a discriminated union of the request models is told apart by (POST /jobs:
+# "search", "train" or "sweep").
+_DISCRIMINATOR = "type"
+
+
+def _without_union_tags(error: Mapping[str, Any], body: Any) -> Mapping[str, Any]:
+    """``error`` located where the client put the value: pydantic puts a discriminated
+    union's tag in ``loc`` (``["body", "search", "seed"]`` for a search job's seed), a key
+    the client never sent. Each tag is dropped, walking ``loc`` down the body (the client's
+    own ``type`` says which job it was)."""
+    loc = list(error.get("loc", ()))
+    if loc[:1] != ["body"]:
+        return error
+    kept: list[Any] = ["body"]
+    node = body
+    for part in loc[1:]:
+        if isinstance(node, Mapping):
+            if isinstance(part, str) and part not in node and node.get(_DISCRIMINATOR) == part:
+                continue
+            node = node.get(part)
+        elif isinstance(node, list) and isinstance(part, int) and 0 <= part < len(node):
+            node = node[part]
+        else:
+            node = None
+        kept.append(part)
+    return {**error, "loc": tuple(kept)}
+
+
 async def _request_validation(_request: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, RequestValidationError)
-    return _unprocessable(format_errors(exc.errors()))
+    body = getattr(exc, "body", None)
+    return _unprocessable(format_errors(_without_union_tags(e, body) for e in exc.errors()))
 
 
 async def _validation_error(_request: Request, exc: Exception) -> JSONResponse:

@@ -111,7 +111,7 @@ def _check_search(body: SearchJobCreate, scenario: Scenario) -> None:
         scenario,
         params.sequence_length,
         params.n_realisations,
-        ("body", "search", "params", "sequence_length"),
+        ("body", "params", "sequence_length"),
     )
     # What needs the scenario (a propellant objective or bound needs thrust and specific
     # impulse): refused here, not after the job has waited in the queue.
@@ -131,7 +131,7 @@ def _check_search(body: SearchJobCreate, scenario: Scenario) -> None:
             if "objective" in message
             else "constraints"
         )
-        unprocessable(("body", "search", "params", field), message)
+        unprocessable(("body", "params", field), message)
     from inertia_id.pipelines import check_search_scenario
 
     try:
@@ -146,7 +146,7 @@ def _check_search(body: SearchJobCreate, scenario: Scenario) -> None:
     if size > params.max_sequences:
         m, n, length = scenario.n_levels, scenario.n_thrusters, params.sequence_length
         unprocessable(
-            ("body", "search", "params", "max_sequences"),
+            ("body", "params", "max_sequences"),
             f"the space holds ({m}^{n})^{length} = {_approx(size)} sequences, more than the "
             f"budget max_sequences = {params.max_sequences} for exhaustive search; shorten "
             "the sequence, raise the budget, or use method random or ppo",
@@ -166,7 +166,7 @@ def _resolve_front_member(session: SessionDep, body: TrainJobCreate, scenario: S
     params = body.params
     if params.search_job_id is None:
         return
-    where = ("body", "train", "params", "search_job_id")
+    where = ("body", "params", "search_job_id")
     search = get_or_404(session, JobRow, params.search_job_id, "job")
     if search.type != "search" or search.status != "succeeded" or not search.result:
         unprocessable(
@@ -183,7 +183,7 @@ def _resolve_front_member(session: SessionDep, body: TrainJobCreate, scenario: S
         found = [m for m in members if m.get("index") == params.front_member]
         if not found:
             unprocessable(
-                ("body", "train", "params", "front_member"),
+                ("body", "params", "front_member"),
                 f"search job {search.id!r} has no front member {params.front_member} "
                 f"(it holds {len(members)})",
             )
@@ -192,14 +192,14 @@ def _resolve_front_member(session: SessionDep, body: TrainJobCreate, scenario: S
             scenario.check_fires(sequence)
         except InputError as exc:
             unprocessable(
-                ("body", "train", "params", "front_member"),
+                ("body", "params", "front_member"),
                 f"front member {params.front_member} of search job {search.id!r} cannot be "
                 f"trained on: {exc}. The front keeps it as its least-impulse end (marked "
                 '"fires": false); pick another member',
             )
     if params.sequence is not None and params.sequence != sequence:
         unprocessable(
-            ("body", "train", "params", "sequence"),
+            ("body", "params", "sequence"),
             f"sequence {params.sequence} is not the one search job {search.id!r} names "
             f"({sequence}); give one or the other",
         )
@@ -224,7 +224,7 @@ def _same_spacecraft(search: JobRow, scenario_id: str, scenario: Scenario) -> No
         ):
             return
     unprocessable(
-        ("body", "train", "scenario_id"),
+        ("body", "scenario_id"),
         f"search job {search.id!r} ran on scenario {search.scenario_id!r}, not "
         f"{scenario_id!r}, which is not the same spacecraft (level indices mean duties of "
         "one scenario's thrusters); train on the search's scenario, or give the sequence "
@@ -283,7 +283,7 @@ def _check_train(body: TrainJobCreate, scenario: Scenario) -> None:
         default_realisations,
     )
 
-    where = ("body", "train", "params")
+    where = ("body", "params")
     try:
         rows = scenario.check_fires(body.params.sequence)
     except InputError as exc:
@@ -310,7 +310,7 @@ def _check_sweep(session: SessionDep, body: SweepJobCreate, scenario: Scenario) 
     classifier = get_or_404(session, ClassifierRow, params.classifier_id, "classifier")
     if list(classifier.candidate_names) != scenario.candidate_names:
         unprocessable(
-            ("body", "sweep", "params", "classifier_id"),
+            ("body", "params", "classifier_id"),
             f"classifier {classifier.id!r} was trained for candidates "
             f"{classifier.candidate_names}, but the scenario has {scenario.candidate_names}",
         )
@@ -318,21 +318,21 @@ def _check_sweep(session: SessionDep, body: SweepJobCreate, scenario: Scenario) 
         scenario.check_sequence(classifier.sequence)
     except InputError as exc:
         unprocessable(
-            ("body", "sweep", "params", "classifier_id"),
+            ("body", "params", "classifier_id"),
             f"the classifier's sequence does not fit the scenario: {exc}",
         )
     if params.n_test < scenario.n_candidates:
         unprocessable(
-            ("body", "sweep", "params", "n_test"),
+            ("body", "params", "n_test"),
             f"n_test = {params.n_test} is fewer than the {scenario.n_candidates} candidates",
         )
     # The ceiling flies its realisations in batches (its covariances are counted).
     held = max(params.n_train, -(-params.n_test // scenario.n_candidates))
-    _check_size(scenario, len(classifier.sequence), held, ("body", "sweep", "params", "n_train"))
+    _check_size(scenario, len(classifier.sequence), held, ("body", "params", "n_train"))
     try:
         check_nominal_gyro_range(scenario, classifier.sequence)
     except InputError as exc:
-        unprocessable(("body", "sweep", "params", "classifier_id"), str(exc))
+        unprocessable(("body", "params", "classifier_id"), str(exc))
 
 
 def _check_time_limit(body: JobCreate, ceiling_s: float) -> None:
@@ -340,7 +340,7 @@ def _check_time_limit(body: JobCreate, ceiling_s: float) -> None:
     asked = getattr(body.params, "time_limit_s", None)
     if asked is not None and asked > ceiling_s:
         unprocessable(
-            ("body", body.type, "params", "time_limit_s"),
+            ("body", "params", "time_limit_s"),
             f"time_limit_s = {asked:g} s is more than this service's ceiling of "
             f"{ceiling_s:g} s (INERTIA_ID_JOB_TIME_LIMIT_S); ask for at most that, or leave "
             "it out to get the ceiling",
@@ -351,7 +351,7 @@ def _check_rerun_of(
     session: SessionDep, body: JobCreate, params: dict[str, Any], rerun_of: str
 ) -> None:
     """``rerun_of`` names a job of this submission's configuration, and asks for a rerun."""
-    where = ("body", body.type, "rerun_of")
+    where = ("body", "rerun_of")
     if "rerun" in body.model_fields_set and not body.rerun:
         unprocessable(
             where,

@@ -252,7 +252,7 @@ def test_a_job_too_large_for_a_worker_is_refused_naming_its_size(
     response = api.submit(job_type, scenario_id, params=params)
     assert response.status_code == 422, response.text
     (error,) = response.json()["detail"]
-    assert error["loc"] == ["body", job_type, "params", field]
+    assert error["loc"] == ["body", "params", field]
     assert "the job is too large for a worker" in error["msg"] and fragment in error["msg"]
     assert api.queued_messages() == []
     # The paper preset at its largest training still fits.
@@ -270,7 +270,7 @@ def test_a_training_whose_classifier_the_cli_could_not_load_is_refused(api: Api)
     response = api.submit("train", scenario_id, params=over)
     assert response.status_code == 422, response.text
     (error,) = response.json()["detail"]
-    assert error["loc"] == ["body", "train", "params", "sequence"]
+    assert error["loc"] == ["body", "params", "sequence"]
     from inertia_id.classifiers.registry import document_bytes
     from inertia_id.physics.presets import preset
 
@@ -862,7 +862,7 @@ def test_a_job_asking_for_more_time_than_the_ceiling_is_422_naming_both(
     response = api.submit(job_type, scenario_id, params=params)
     assert response.status_code == 422, response.text
     (error,) = response.json()["detail"]
-    assert error["loc"] == ["body", job_type, "params", "time_limit_s"]
+    assert error["loc"] == ["body", "params", "time_limit_s"]
     assert "time_limit_s = 3600.5 s" in error["msg"] and "ceiling of 3600 s" in error["msg"]
     assert api.queued_messages() == []
 
@@ -882,12 +882,45 @@ def test_a_grace_that_is_no_number_of_seconds_is_422_naming_it(
     response = api.submit("search", scenario_id, params={"time_limit_grace_s": value})
     assert response.status_code == 422, response.text
     (error,) = response.json()["detail"]
-    assert error["loc"] == ["body", "search", "params", "time_limit_grace_s"]
+    assert error["loc"] == ["body", "params", "time_limit_grace_s"]
     assert quoted in error["msg"]
     assert api.queued_messages() == []
     asked = api.submit("search", scenario_id, params={"time_limit_s": 60, "time_limit_grace_s": 0})
     assert asked.status_code == 202, asked.text
     assert api.get(f"/jobs/{asked.json()['id']}").json()["params"]["time_limit_grace_s"] == 0
+
+
+@pytest.mark.parametrize(
+    ("job_type", "fields", "loc", "fragment"),
+    [
+        ("search", {"seed": "x"}, ["body", "seed"], "a valid integer, got 'x'"),
+        ("search", {"params": {"timesteps": -1}}, ["body", "params", "timesteps"], "got -1"),
+        ("train", {"params": {"sequence": "x"}}, ["body", "params", "sequence"], "'x'"),
+        ("train", {}, ["body", "params"], "Field required"),
+        ("sweep", {"seed": 1.5, "params": {"classifier_id": "0" * 32}}, ["body", "seed"], "1.5"),
+        (
+            "sweep",
+            {"params": {"classifier_id": "0" * 32, "n_test": "x"}},
+            ["body", "params", "n_test"],
+            "x",
+        ),
+    ],
+)
+def test_a_job_field_refused_is_located_where_the_client_sent_it(
+    api: Api, job_type: str, fields: dict[str, Any], loc: list[str], fragment: str
+) -> None:
+    """Pydantic located a job's fields under the union's tag, ``["body", "search",
+    "seed"]``, a key the client never sent."""
+    scenario_id = api.create_scenario()["id"]
+    response = api.submit(job_type, scenario_id, **fields)
+    assert response.status_code == 422, response.text
+    errors = response.json()["detail"]
+    assert [error["loc"] for error in errors] == [loc], errors
+    assert fragment in errors[0]["msg"]
+    # An unknown type is refused at the type, as before.
+    response = api.post("/jobs", json={"type": "serch", "scenario_id": scenario_id})
+    assert response.status_code == 422 and response.json()["detail"][0]["loc"] == ["body"]
+    assert api.queued_messages() == []
 
 
 @pytest.mark.parametrize(
@@ -941,13 +974,13 @@ def test_jobs_whose_sequences_no_gyro_measures_are_refused_at_submission(
             "train",
             tiny,
             {"sequence": [[4, 4, 4, 0, 0, 0]]},
-            ["body", "train", "params", "sequence"],
+            ["body", "params", "sequence"],
         ),
         (
             "sweep",
             strong,
             {"classifier_id": classifier_id},
-            ["body", "sweep", "params", "classifier_id"],
+            ["body", "params", "classifier_id"],
         ),
     ):
         response = api.submit(job_type, scenario_id, params=params)

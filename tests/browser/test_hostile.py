@@ -609,3 +609,31 @@ def test_the_health_badge_says_the_workers_are_unknown_while_writes_are_refused(
         assert badge.text_content() == "degraded · workers unknown"
     finally:
         dashboard.page.unroute(f"{service.base_url}/health")
+
+
+def test_a_job_forms_refused_fields_are_shown_next_to_them(dashboard: Dashboard) -> None:
+    # The service locates a job's field where the client sent it (["body", "seed"], not
+    # under the job union's tag): the form still puts each message next to its input.
+    _save_key(dashboard)
+    scenario_id = _scenario(dashboard, ["stowed", "deployed", "ejected"], "refused fields")
+    page = dashboard.page
+    dashboard.console.expect(r"status of 422")
+    dashboard.open(f"#/jobs?scenario={scenario_id}&type=search")
+    page.fill("#search-seed", "x")
+    page.fill("#search-sequence_length", "0")
+    with page.expect_response(lambda r: r.url.endswith("/jobs")) as sent:
+        page.click("#submit-job")
+    locs = [e["loc"] for e in sent.value.json()["detail"]]
+    assert sorted(locs) == [["body", "params", "sequence_length"], ["body", "seed"]], locs
+    seed = page.wait_for_selector("#search-seed + .field-error").inner_text()
+    assert "got 'x'" in seed, seed
+    length = page.wait_for_selector("#search-sequence_length + .field-error").inner_text()
+    assert "greater than or equal to 1" in length, length
+    dashboard.open(f"#/jobs?scenario={scenario_id}&type=train")
+    page.fill("#train-sequence", "[[4, 4, 4, 0, 0, 0]]")
+    page.fill("#train-n_realisations", "lots")
+    with page.expect_response(lambda r: r.url.endswith("/jobs")) as sent:
+        page.click("#submit-job")
+    assert [e["loc"] for e in sent.value.json()["detail"]] == [["body", "params", "n_realisations"]]
+    shown = page.wait_for_selector("#train-n_realisations + .field-error").inner_text()
+    assert "got 'lots'" in shown, shown
