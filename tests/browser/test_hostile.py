@@ -611,6 +611,34 @@ def test_the_health_badge_says_the_workers_are_unknown_while_writes_are_refused(
         dashboard.page.unroute(f"{service.base_url}/health")
 
 
+def test_broken_json_in_an_overrides_box_is_named_before_anything_is_sent(
+    dashboard: Dashboard,
+) -> None:
+    # Sent as typed, "{bad" came back "Input should be a valid dictionary, got '{bad'":
+    # now the form says the box's JSON is broken, and why, and sends nothing.
+    _save_key(dashboard)
+    scenario_id = _scenario(dashboard, ["stowed", "deployed", "ejected"], "broken json")
+    dashboard.open(f"#/jobs?scenario={scenario_id}&type=search")
+    page = dashboard.page
+    posted: list[str] = []
+    page.on("request", lambda r: posted.append(r.url) if r.method == "POST" else None)
+    for method, box, label in (
+        ("ppo", "#search-ppo", "PPO overrides"),
+        ("nsga2", "#search-nsga2", "NSGA-II settings"),
+    ):
+        page.select_option("#search-method", method)
+        page.fill(box, '{"population": 8,')
+        page.click("#submit-job")
+        shown = page.wait_for_selector(f"{box} + .field-error").inner_text()
+        assert shown.startswith(f"{label}: not valid JSON: "), shown
+        assert "valid dictionary" not in shown and len(shown) > len(label) + 20, shown
+        assert page.locator(".field-error").count() == 1
+        assert page.eval_on_selector("#submit-job", "b => !b.disabled")
+        page.fill(box, "{}")
+    page.wait_for_timeout(300)
+    assert posted == []
+
+
 def test_a_job_forms_refused_fields_are_shown_next_to_them(dashboard: Dashboard) -> None:
     # The service locates a job's field where the client sent it (["body", "seed"], not
     # under the job union's tag): the form still puts each message next to its input.

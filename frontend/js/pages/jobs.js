@@ -25,6 +25,28 @@ function jsonOrText(text) {
   }
 }
 
+// A box of JSON overrides refused before it is sent, next to the box (`loc` as the
+// service's 422 would give it): sent as typed, "{bad" came back "Input should be a valid
+// dictionary, got '{bad'", which never said the JSON was broken.
+class BoxError extends Error {
+  constructor(loc, message) {
+    super(message);
+    this.errors = [{ loc, msg: message }];
+  }
+}
+
+// The object typed in a box of JSON overrides (empty: none), or a BoxError naming the
+// box and the parser's reason.
+function overridesBox(input, label, loc) {
+  const text = String(input.value).trim();
+  if (!text) return {};
+  try {
+    return JSON.parse(text);
+  } catch (exc) {
+    throw new BoxError(loc, `${label}: not valid JSON: ${exc.message}`);
+  }
+}
+
 // "max_final_rate_deg_s=0.2, max_impulse_nms=20" as an object of numbers; anything that
 // does not parse is sent as typed, so the service's 422 names it.
 function constraintsOrText(text) {
@@ -109,8 +131,8 @@ function submitForm(scenarios, classifiers, query) {
       metric: search.metric.value,
       patience_episodes: intOrText(search.patience_episodes.value),
       fuel_weight: Number.isFinite(Number(search.fuel_weight.value)) ? Number(search.fuel_weight.value) : search.fuel_weight.value,
-      ...(search.method.value === "ppo" ? { ppo: jsonOrText(search.ppo.value) } : {}),
-      ...(search.method.value === "nsga2" ? { nsga2: jsonOrText(search.nsga2.value) } : {}),
+      ...(search.method.value === "ppo" ? { ppo: overridesBox(search.ppo, "PPO overrides", ["body", "params", "ppo"]) } : {}),
+      ...(search.method.value === "nsga2" ? { nsga2: overridesBox(search.nsga2, "NSGA-II settings", ["body", "params", "nsga2"]) } : {}),
       objectives: chosenObjectives(),
       design_noise: jsonOrText(search.design_noise.value),
       constraints: constraintsOrText(search.constraints.value),
@@ -321,9 +343,8 @@ function submitForm(scenarios, classifiers, query) {
         event.preventDefault();
         const [, body, inputs] = panels[current];
         submit.disabled = true;
-        const sent = withLabels(body());
         try {
-          await submitAndOpen(sent);
+          await submitAndOpen(withLabels(body()));
         } catch (exc) {
           const fields = Object.fromEntries(Object.entries(inputs).filter(([, v]) => v instanceof Element));
           showFieldErrors(exc, { ...fields, name: labels.name, tags: labels.tags }, general, event.target);
