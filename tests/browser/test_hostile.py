@@ -665,3 +665,20 @@ def test_a_job_forms_refused_fields_are_shown_next_to_them(dashboard: Dashboard)
     assert [e["loc"] for e in sent.value.json()["detail"]] == [["body", "params", "n_realisations"]]
     shown = page.wait_for_selector("#train-n_realisations + .field-error").inner_text()
     assert "got 'lots'" in shown, shown
+
+
+def test_the_parameters_a_sequence_cannot_see_are_one_it_or_several_them(
+    dashboard: Dashboard,
+) -> None:
+    # One parameter read "this sequence hardly excites Ixx: it cannot see them".
+    _save_key(dashboard)
+    shown = dashboard.page.evaluate(
+        """async () => {
+            const page = await import("/static/js/pages/identify.js");
+            return [page.notExcitedText(["Ixx"]), page.notExcitedText(["Ixy", "Iyz"])];
+        }"""
+    )
+    assert shown == [
+        "this sequence hardly excites Ixx: it cannot see it",
+        "this sequence hardly excites Ixy, Iyz: it cannot see them",
+    ]

@@ -243,11 +243,17 @@ function offCandidatesOnline(online, decided, t, needed) {
   return h("p", { class: "verdict ambiguous", id: "online-off-candidates", role: "status" }, text);
 }
 
+// What the sequence hardly excites, in words: "it cannot see it" for one entry, "them"
+// for several (one read "it cannot see them").
+export function notExcitedText(poorly) {
+  return `this sequence hardly excites ${poorly.join(", ")}: it cannot see ${poorly.length === 1 ? "it" : "them"}`;
+}
+
 // The tensor with each entry's standard error, or why it is withheld and what this
 // sequence cannot see.
 function estimateOf(verdict) {
   const poorly = verdict.poorly_excited || [];
-  const blind = poorly.length ? h("div", { class: "field-error", id: "ls-blind" }, `this sequence hardly excites ${poorly.join(", ")}: it cannot see them`) : null;
+  const blind = poorly.length ? h("div", { class: "field-error", id: "ls-blind" }, notExcitedText(poorly)) : null;
   if (verdict.estimated_inertia_kg_m2) {
     const std = verdict.estimated_inertia_std_kg_m2 || {};
     const rows = verdict.estimated_inertia_kg_m2.map((row, i) =>
