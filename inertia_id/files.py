@@ -78,6 +78,12 @@ def write_whole(
         with contextlib.suppress(OSError):
             os.remove(part)
         raise NotWritten(exc.errno, exc.strerror or str(exc), os.fspath(path)) from None
+    except BaseException:
+        # Any other stop (Ctrl-C, a writer function that raised) leaves nothing beside
+        # the path either: it had left the part file, as large as what was written.
+        with contextlib.suppress(OSError):
+            os.remove(part)
+        raise
 
 
 #: The most bytes held at once on the way to a device or pipe, and the size of each piece

@@ -118,3 +118,23 @@ def test_a_device_that_takes_nothing_is_said_to_have_got_nothing() -> None:
         "could not write /dev/full: No space left on device; nothing was written to it (a "
         "device, written directly)"
     )
+
+
+@pytest.mark.parametrize("failure", [KeyboardInterrupt, ValueError])
+def test_a_write_stopped_by_any_exception_leaves_the_old_file_and_nothing_beside_it(
+    tmp_path: Path, failure: type[BaseException]
+) -> None:
+    # Before: only an OSError removed the part file; Ctrl-C during `train --out` (or a
+    # writer function that raised) left the old file intact but a hidden
+    # '.name.PID.HEX.part' beside it, as large as what had been written (2 MiB here).
+    target = tmp_path / "classifier.json"
+    target.write_text("old")
+
+    def stopped(handle: BinaryIO) -> None:
+        handle.write(b"x" * (2 * CHUNK_BYTES))
+        raise failure("stopped")
+
+    with pytest.raises(failure, match="stopped"):
+        write_whole(target, stopped)
+    assert target.read_text() == "old"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["classifier.json"]
