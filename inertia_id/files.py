@@ -104,6 +104,8 @@ class _DirectWriter(io.RawIOBase):
         self.written = 0
         self.size = 0
         self.failure: OSError | None = None
+        # Set when the data's maker raised: what is still buffered is not sent.
+        self.stopped = False
 
     def writable(self) -> bool:
         return True
@@ -112,7 +114,7 @@ class _DirectWriter(io.RawIOBase):
         with memoryview(data) as view, view.cast("B") as piece:
             self.size += len(piece)
             sent = 0
-            while self.failure is None and sent < len(piece):
+            while self.failure is None and not self.stopped and sent < len(piece):
                 try:
                     sent += os.write(self.fd, piece[sent:])
                 except OSError as exc:
@@ -137,8 +139,23 @@ def _write_directly(
             kind = "a pipe" if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode) else kind
             kind = "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) else kind
             writer = _DirectWriter(fd)
-            with io.BufferedWriter(writer, CHUNK_BYTES) as buffered:
+            buffered = io.BufferedWriter(writer, CHUNK_BYTES)
+            try:
                 _write_to(cast(BinaryIO, buffered), data)
+                buffered.flush()
+            except BaseException as exc:
+                # The data's maker raised (a writer function, Ctrl-C): the rest is not
+                # sent, and what went already is said beside the error, which told nothing
+                # of the bytes a pipe had taken.
+                writer.stopped = True
+                if writer.written and not isinstance(exc, OSError):
+                    exc.add_note(
+                        f"the first {writer.written} bytes went to {os.fspath(path)} before "
+                        f"it ({kind}, written directly): what it got is incomplete"
+                    )
+                raise
+            finally:
+                buffered.close()
             if writer.failure is not None:
                 raise writer.failure
         finally:

@@ -138,3 +138,25 @@ def test_a_write_stopped_by_any_exception_leaves_the_old_file_and_nothing_beside
         write_whole(target, stopped)
     assert target.read_text() == "old"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["classifier.json"]
+
+
+def test_a_writer_that_raises_mid_pipe_says_what_the_pipe_had_taken(pipe: Path) -> None:
+    # Written as it is made, a pipe takes the first pieces before the maker fails; the
+    # error said nothing of them (before the pieces, nothing had gone), and the piece
+    # still buffered was sent after the failure too. Now the rest is held back and the
+    # error carries a note counting what went.
+    thread, taken, _ = _read_in_thread(pipe)
+
+    def failing(handle: BinaryIO) -> None:
+        handle.write(b"a" * (2 * CHUNK_BYTES))
+        handle.write(b"b" * 1000)  # buffered when the maker fails: not sent
+        raise ValueError("the maker failed")
+
+    with pytest.raises(ValueError, match="the maker failed") as failed:
+        write_whole(pipe, failing)
+    thread.join(30)
+    assert taken[0] == 2 * CHUNK_BYTES
+    assert failed.value.__notes__ == [
+        f"the first {2 * CHUNK_BYTES} bytes went to {pipe} before it (a pipe, written "
+        "directly): what it got is incomplete"
+    ]
