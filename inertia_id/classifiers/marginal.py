@@ -1345,6 +1345,11 @@ class MarginalLikelihoodClassifier(BaseClassifier):
         )
 
 
+#: The perturbed bodies :func:`inertia_sensitivity` flies in one scenario: eight
+#: candidates' twelve each, within a scenario's 100 candidates.
+SENSITIVITY_BATCH = 96
+
+
 def inertia_sensitivity(scenario: Scenario, sequence: Any) -> np.ndarray:
     """How each candidate's noise-free response moves with its six inertia parameters
     (Ixx, Iyy, Izz, Ixy, Ixz, Iyz), by central differences: (K, length, 3, 6) rad/s
@@ -1367,9 +1372,6 @@ def inertia_sensitivity(scenario: Scenario, sequence: Any) -> np.ndarray:
                 perturbed.append(tensor_from_parameters(p))
     data = scenario.model_dump()
     data["candidate_generator"] = None
-    data["inertia_candidates"] = [
-        {"name": f"perturbed {i}", "inertia_kg_m2": t.tolist()} for i, t in enumerate(perturbed)
-    ]
     data["uncertainty"] = {
         "lowpass_time_constant_s": scenario.uncertainty.lowpass_time_constant_s,
         "disturbance_interval_s": scenario.uncertainty.disturbance_interval_s,
@@ -1385,8 +1387,19 @@ def inertia_sensitivity(scenario: Scenario, sequence: Any) -> np.ndarray:
             0.0,
         ),
     }
-    quiet = Scenario.model_validate(data)
-    omega = simulate(quiet, steps, 1, np.random.default_rng(0)).omega_measured[:, 0]
+    # Twelve bodies a candidate, flown in scenarios of at most SENSITIVITY_BATCH of them
+    # (a scenario holds at most 100 candidates): one of 9 candidates or more made 108 and
+    # more, and the default kind could not be trained on it (a pydantic ValidationError).
+    # Noise-free, so each body's response is the same in any batch.
+    flown = []
+    for start in range(0, len(perturbed), SENSITIVITY_BATCH):
+        data["inertia_candidates"] = [
+            {"name": f"perturbed {i}", "inertia_kg_m2": perturbed[i].tolist()}
+            for i in range(start, min(start + SENSITIVITY_BATCH, len(perturbed)))
+        ]
+        quiet = Scenario.model_validate(data)
+        flown.append(simulate(quiet, steps, 1, np.random.default_rng(0)).omega_measured[:, 0])
+    omega = np.concatenate(flown)
     omega = omega.reshape(len(tensors), 6, 2, *omega.shape[1:])
     h = 1e-4 * np.trace(tensors, axis1=1, axis2=2) / 3.0
     derivative = (omega[:, :, 0] - omega[:, :, 1]) / (2.0 * h[:, None, None, None])

@@ -547,3 +547,30 @@ def test_a_loaded_document_is_let_go_before_the_covariances_are_factored(
     for model in loaded:
         assert model.to_json() == text
         np.testing.assert_array_equal(model.log_likelihood(X), marginal.log_likelihood(X))
+
+
+def test_the_default_kind_trains_on_more_than_eight_candidates() -> None:
+    # Its model of other bodies flies twelve perturbed bodies a candidate: in one scenario,
+    # 9 candidates made 108, past a scenario's 100, and training the default kind on any
+    # scenario of 9 to 100 candidates failed with a pydantic ValidationError. Now in
+    # batches, each body's noise-free response the same in any of them.
+    from inertia_id import preset, train_classifier
+    from inertia_id.classifiers import marginal
+
+    document = preset("paper").model_dump(mode="json")
+    document["candidate_generator"]["n_variations"] = 8
+    document["inertia_candidates"] = []
+    nine = Scenario.model_validate(document)
+    sequence = [[4, 4, 4, 0, 0, 0], [0, 4, 0, 4, 0, 4]]
+    sensitivity = marginal.inertia_sensitivity(nine, sequence)
+    assert sensitivity.shape == (9, 2 * 20, 3, 6)
+    with mock.patch.object(marginal, "SENSITIVITY_BATCH", 12):
+        assert np.array_equal(marginal.inertia_sensitivity(nine, sequence), sensitivity)
+    model = train_classifier(nine, sequence, 3, np.random.default_rng(0))
+    flown = simulate(nine, sequence, 1, np.random.default_rng(1))
+    telemetry = {
+        "time_s": flown.time_s.tolist(),
+        "omega_rad_s": flown.omega_measured[8, 0].tolist(),
+    }
+    verdict = identify(model, telemetry)
+    assert verdict.off_candidates_note is None and verdict.fits_off_candidates is not None
