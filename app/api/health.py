@@ -101,20 +101,48 @@ def _postgres_write_refused(database: Database) -> str | None:
     DATABASE ... SET`` reaches new sessions only): a pooled connection opened during a
     read-only spell read "on" after it ended, and /health said "takes no writes" for as
     long as it stayed in the pool (the workers stored their beats and results again).
-    A pooled connection that reads read-only is closed and the question asked again,
-    until one opened now reads the database's setting as it is now."""
-    pool = database.engine.pool
-    # Each idle pooled connection may be one of those: past them, the pool opens one.
-    stale = pool.checkedin() if isinstance(pool, QueuePool) else 0
-    for tried in range(stale + 1):
-        with database.engine.connect() as connection:
-            read_only, in_recovery = connection.execute(
-                text("SELECT current_setting('transaction_read_only'), pg_is_in_recovery()")
-            ).one()
-            if read_only == "on" and not in_recovery and tried < stale:
-                connection.invalidate()  # closed, not pooled again
-                continue
-        break
+    A pooled connection that reads read-only is checked against a session opened now,
+    outside the pool: when that one reads read-only too the database is, and the pool's
+    sessions say so rightly and are kept (closing them made every request after a poll
+    open its own); else the pool's idle sessions that read read-only are closed."""
+    engine = database.engine
+    with engine.connect() as connection:
+        read_only, in_recovery = connection.execute(text(_PG_WRITES)).one()
+        if read_only != "on" or in_recovery:
+            return _postgres_refusal(read_only, in_recovery)
+        read_only, in_recovery = _postgres_fresh(database)
+        if read_only == "on" or in_recovery:
+            return _postgres_refusal(read_only, in_recovery)
+        connection.invalidate()  # opened during a read-only spell since ended
+    pool = engine.pool
+    # The others opened then: each idle one is taken once (the pool hands them out in
+    # turn), closed if it reads read-only, kept otherwise.
+    for _ in range(pool.checkedin() if isinstance(pool, QueuePool) else 0):
+        with engine.connect() as connection:
+            if connection.execute(text(_PG_WRITES)).one()[0] == "on":
+                connection.invalidate()
+    return None
+
+
+_PG_WRITES = "SELECT current_setting('transaction_read_only'), pg_is_in_recovery()"
+
+
+def _postgres_fresh(database: Database) -> tuple[str, bool]:
+    """:data:`_PG_WRITES` read on a session opened now, outside the pool, and closed."""
+    dialect = database.engine.dialect
+    args, kwargs = dialect.create_connect_args(database.engine.url)
+    raw = dialect.connect(*args, **kwargs)
+    try:
+        cursor = raw.cursor()
+        cursor.execute(_PG_WRITES)
+        row = cursor.fetchone()
+        assert row is not None  # one row: the SELECT has no FROM
+        return str(row[0]), bool(row[1])
+    finally:
+        raw.close()
+
+
+def _postgres_refusal(read_only: str, in_recovery: bool) -> str | None:
     if in_recovery:
         return "it is a standby in recovery (pg_is_in_recovery())"
     if read_only == "on":
