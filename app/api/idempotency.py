@@ -178,9 +178,11 @@ class IdempotentRequest:
         digest = store.fingerprint(self.route, body.model_dump(mode="json"))
         pending = store.pending_releases(self.db)
         if len(pending):
-            # A key this process could not let go (the database refused writes) is let go
-            # first: this may be its retry, which must run, not meet the dead claim.
-            pending.flush()
+            # This key, if this process could not let it go (the database refused writes),
+            # is let go first: this is its retry, which must run, not meet the dead claim.
+            # Only this one: the others' are left to their own retries and the background
+            # thread (each try is a write: a request paid one per dead claim).
+            pending.flush(only=(self.client, self.key))
         found = store.claim(
             self.db, client=self.client, key=self.key, route=self.route, digest=digest, ttl=self.ttl
         )

@@ -15,7 +15,7 @@ the request's fingerprint and, once it is answered, the answer:
   same request may be sent again;
 - a release the database refused (it turned read-only, or its disk full, after the claim:
   the delete is a write too) is tried again by :class:`PendingReleases`, before the
-  process's next keyed request and every second in the background, until the database
+  process's next request with that key and every second in the background, until the database
   takes it or the lease ends: the key is free as soon as writes are, not 2 minutes on;
 - a claim left unanswered past :data:`CLAIM_LEASE` (the API process died mid-request) is
   taken over by the next request with the key; expired rows are deleted by the claims.
@@ -233,11 +233,17 @@ class PendingReleases:
                 )
                 self._thread.start()
 
-    def flush(self) -> None:
-        """Try every pending release once; those the database took, or whose lease
-        ended, are dropped. Never raises: a database still refusing keeps them."""
+    def flush(self, *, only: tuple[str, str] | None = None) -> None:
+        """Try the pending releases once (``only``: that ``(client, key)``'s, if pending);
+        those the database took, or whose lease ended, are dropped. Never raises: a
+        database still refusing keeps them, and the round stops at its first refusal (the
+        others would be refused as well: each try is a write, and on PostgreSQL a session
+        closed and opened again)."""
         with self._lock:
-            pending = list(self._pending.items())
+            if only is None:
+                pending = list(self._pending.items())
+            else:
+                pending = [(only, self._pending[only])] if only in self._pending else []
         now = utcnow()
         for (client, key), (token, lease_end) in pending:
             if lease_end > now:
@@ -245,7 +251,7 @@ class PendingReleases:
                     release(self._db, client=client, key=key, token=token)
                 except Exception as exc:  # still refused, or unreachable: try again later
                     log.debug("idempotency key %r not let go yet: %s", key, exc)
-                    continue
+                    return
             with self._lock:
                 if self._pending.get((client, key), (None,))[0] == token:
                     del self._pending[(client, key)]
