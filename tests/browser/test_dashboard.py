@@ -321,6 +321,53 @@ def test_a_scenario_refused_by_a_proxy_is_sent_again_with_its_key_and_stored_onc
     assert [s["id"] for s in listed if s["name"] == "refused by a proxy twice"] == [scenario]
 
 
+def test_a_preset_submitted_again_while_its_retry_waits_is_not_stored_twice(
+    dashboard: Dashboard,
+) -> None:
+    """The preset form is answered 503 with Retry-After 5 (the service's own "try again"):
+    the page waits 2.5 to 5 s before sending it again with its key. Enter pressed in the
+    name field meanwhile (nothing seemed to happen) sent a second submission with a new
+    key: two scenarios were stored. The form takes no second submission while one is sent."""
+    page = dashboard.page
+    _key_saved(dashboard)
+    keys: list[str | None] = []
+
+    def refuse_the_first(route: Any) -> None:
+        if route.request.method != "POST":
+            route.continue_()
+            return
+        keys.append(route.request.headers.get("idempotency-key"))
+        if len(keys) == 1:
+            route.fulfill(
+                status=503,
+                headers={"Retry-After": "5", "Content-Type": "application/json"},
+                body='{"detail": "the database takes no writes"}',
+            )
+        else:
+            route.continue_()
+
+    dashboard.console.expect(r"status of 503|Failed to load resource")
+    page.route(re.compile(r"/scenarios$"), refuse_the_first)
+    try:
+        dashboard.open("#/scenarios/new")
+        page.fill("#preset-name", "submitted again while waiting")
+        page.click("#create-preset")
+        while not keys:
+            page.wait_for_timeout(50)
+        page.press("#preset-name", "Enter")
+        # Until the first submission's retry went through (a second one, if sent, was
+        # answered long before: it met no 503).
+        while keys.count(keys[0]) < 2:
+            page.wait_for_timeout(100)
+        scenario = _hash_id(dashboard, "scenarios")
+    finally:
+        page.unroute(re.compile(r"/scenarios$"))
+    assert len(keys) == 2 and set(keys) == {keys[0]}, keys
+    listed = dashboard.service.client.get("/scenarios", params={"limit": 200}).json()["items"]
+    named = [s["id"] for s in listed if s["name"] == "submitted again while waiting"]
+    assert named == [scenario]
+
+
 def test_a_submission_a_proxy_keeps_refusing_is_tried_four_times_then_shown(
     dashboard: Dashboard,
 ) -> None:

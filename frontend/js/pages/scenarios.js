@@ -184,6 +184,7 @@ export async function renderNew(root, context) {
   const presetName = h("input", { id: "preset-name", name: "preset-name", value: "paper preset", size: 30 });
   const presetSelect = h("select", { id: "preset-select" }, names.map((n) => h("option", { value: n }, n)));
   const presetErrors = h("div", { id: "preset-errors" });
+  const presetSubmit = h("button", { type: "submit", id: "create-preset" }, "Create from preset");
   const presetForm = h(
     "form",
     {
@@ -191,12 +192,18 @@ export async function renderNew(root, context) {
       id: "preset-form",
       onsubmit: async (event) => {
         event.preventDefault();
+        // One at a time: a submission answered 502/503/504 is sent again after a wait (up
+        // to 5 s); Enter pressed meanwhile sent a second one, with a new key: two stored.
+        if (presetSubmit.disabled) return;
+        presetSubmit.disabled = true;
         clear(presetErrors);
         try {
           const created = await api.createScenario({ preset: presetSelect.value, overrides: { name: presetName.value } });
           location.hash = `#/scenarios/${created.id}`;
         } catch (exc) {
           showError(presetErrors, exc);
+        } finally {
+          presetSubmit.disabled = false;
         }
       },
     },
@@ -204,7 +211,7 @@ export async function renderNew(root, context) {
     presetSelect,
     h("label", { for: "preset-name" }, "name"),
     presetName,
-    h("button", { type: "submit", id: "create-preset" }, "Create from preset"),
+    presetSubmit,
   );
   root.append(h("div", { class: "card" }, h("h2", {}, "Quick start"), presetForm, presetErrors));
 
