@@ -53,9 +53,9 @@ function errorFrom(status, body) {
 // it did the first time instead of storing a second; a 409 with Retry-After (the first
 // is still being answered) is asked again after that wait. A 502, 503 or 504 (a proxy
 // that lost the service, or the service's own "try again") is sent again too, the key
-// making it safe: after 0.5, 1 and 2 s (or the answer's Retry-After, at most 5 s), each
-// wait drawn between half and all of that so that pages refused together do not come
-// back together.
+// making it safe: after 0.5, 1 and 2 s, each wait drawn between half and all of that so
+// that pages refused together do not come back together, or after the answer's
+// Retry-After (at most 5 s), drawn between all of it and half as much again.
 const IDEMPOTENT_TRIES = 3;
 const GATEWAY_TRIES = 4;
 const RETRIED_STATUSES = new Set([502, 503, 504]);
@@ -111,8 +111,13 @@ export async function request(method, path, { json, form, query, key = null, raw
     }
     const retryAfter = Number(response.headers.get("Retry-After"));
     if (idempotent && RETRIED_STATUSES.has(response.status) && tries < GATEWAY_TRIES) {
-      const backoff = retryAfter > 0 ? 1000 * Math.min(retryAfter, 5) : 500 * 2 ** (tries - 1);
-      await pause(backoff * (0.5 + Math.random() / 2));
+      // A Retry-After is a floor (the service asked for that wait): the jitter goes above
+      // it, never below (drawn between half and all, a "Retry-After: 2" was retried in 1 s).
+      const wait =
+        retryAfter > 0
+          ? 1000 * Math.min(retryAfter, 5) * (1 + Math.random() / 2)
+          : 500 * 2 ** (tries - 1) * (0.5 + Math.random() / 2);
+      await pause(wait);
       continue;
     }
     if (!(idempotent && response.status === 409 && retryAfter > 0 && tries < IDEMPOTENT_TRIES)) break;

@@ -368,6 +368,51 @@ def test_a_preset_submitted_again_while_its_retry_waits_is_not_stored_twice(
     assert named == [scenario]
 
 
+def test_a_503s_retry_after_is_waited_in_full_before_the_submission_is_sent_again(
+    dashboard: Dashboard,
+) -> None:
+    """The service answers 503 with Retry-After 2 (its pool is full): the page's wait is
+    at least those 2 s, its jitter above them. Before, the wait was drawn between half and
+    all of it: 1 to 2 s, sooner than the service asked. The delays the page asks of
+    setTimeout are recorded, with Math.random fixed (no clock read)."""
+    page = dashboard.page
+    _key_saved(dashboard)
+    page.add_init_script(
+        "Math.random = () => 0.25; window.__delays = []; const set = window.setTimeout;"
+        "window.setTimeout = (f, ms, ...rest) => { window.__delays.push(ms); "
+        "return set(f, ms, ...rest); };"
+    )
+    posts: list[str | None] = []
+
+    def busy_once(route: Any) -> None:
+        if route.request.method != "POST":
+            route.continue_()
+            return
+        posts.append(route.request.headers.get("idempotency-key"))
+        if len(posts) == 1:
+            route.fulfill(
+                status=503,
+                headers={"Retry-After": "2", "Content-Type": "application/json"},
+                body='{"detail": "the service is past its capacity"}',
+            )
+        else:
+            route.continue_()
+
+    dashboard.console.expect(r"status of 503|Failed to load resource")
+    page.route(re.compile(r"/scenarios$"), busy_once)
+    try:
+        dashboard.open("#/scenarios/new")
+        page.fill("#preset-name", "retried after its Retry-After")
+        page.click("#create-preset")
+        _hash_id(dashboard, "scenarios")
+    finally:
+        page.unroute(re.compile(r"/scenarios$"))
+    delays = page.evaluate("window.__delays")
+    assert len(posts) == 2 and posts[0] and posts[1] == posts[0], posts
+    # 2 s and an eighth more (Math.random 0.25); before, 2 s x (0.5 + 0.125) = 1,250 ms.
+    assert 2250 in delays and 1250 not in delays, delays
+
+
 def test_a_submission_a_proxy_keeps_refusing_is_tried_four_times_then_shown(
     dashboard: Dashboard,
 ) -> None:
