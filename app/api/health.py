@@ -6,6 +6,9 @@ import logging
 import os
 import sqlite3
 import tempfile
+import threading
+import time
+import weakref
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
 from typing import Any
@@ -127,7 +130,30 @@ def _postgres_write_refused(database: Database) -> str | None:
 _PG_WRITES = "SELECT current_setting('transaction_read_only'), pg_is_in_recovery()"
 
 
+#: How long what a session opened for the probe read answers for: polls at once during a
+#: read-only spell share it (each opened its own: 20 pollers, up to 20 sessions beyond the
+#: pool's), and it is late by no more than this after the spell ends.
+_FRESH_FOR_S = 1.0
+_clock = time.monotonic
+_fresh_lock = threading.Lock()
+_fresh: weakref.WeakKeyDictionary[Database, tuple[float, tuple[str, bool]]] = (
+    weakref.WeakKeyDictionary()
+)
+
+
 def _postgres_fresh(database: Database) -> tuple[str, bool]:
+    """:data:`_PG_WRITES` as a session opened now reads it: one opened at most
+    :data:`_FRESH_FOR_S` ago, or one opened here, outside the pool (one at a time)."""
+    with _fresh_lock:
+        found = _fresh.get(database)
+        if found is not None and _clock() - found[0] < _FRESH_FOR_S:
+            return found[1]
+        read = _postgres_opened_now(database)
+        _fresh[database] = (_clock(), read)
+        return read
+
+
+def _postgres_opened_now(database: Database) -> tuple[str, bool]:
     """:data:`_PG_WRITES` read on a session opened now, outside the pool, and closed."""
     dialect = database.engine.dialect
     args, kwargs = dialect.create_connect_args(database.engine.url)

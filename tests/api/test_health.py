@@ -10,6 +10,7 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from datetime import UTC, timedelta
 from pathlib import Path
+from typing import Any
 
 import pytest
 from sqlalchemy import create_engine, delete, text
@@ -557,7 +558,9 @@ def test_health_says_the_workers_state_is_unknown_while_the_database_refuses_wri
     assert health["workers"]["detail"].startswith("no worker seen in the last")
 
 
-def test_health_does_not_call_a_postgresql_read_only_after_its_setting_is_reset(api: Api) -> None:
+def test_health_does_not_call_a_postgresql_read_only_after_its_setting_is_reset(
+    api: Api, monkeypatch: pytest.MonkeyPatch
+) -> None:
     # A session keeps the default_transaction_read_only it started with: the API's pooled
     # connection opened during a read-only spell read "on" after the reset, and /health
     # said "takes no writes" while the workers stored their beats again (a celery worker
@@ -578,7 +581,12 @@ def test_health_does_not_call_a_postgresql_read_only_after_its_setting_is_reset(
             connection.execute(
                 text(f'ALTER DATABASE "{url.database}" RESET default_transaction_read_only')
             )
-        # The pool still holds the session opened read-only.
+        # The pool still holds the session opened read-only; what the probe's own session
+        # read answers for a second (app.api.health._FRESH_FOR_S), a second passed.
+        from app.api import health as module
+
+        later = _clock_now() + module._FRESH_FOR_S
+        monkeypatch.setattr(module, "_clock", lambda: later)
         health = api.get("/health").json()
     finally:
         with admin.connect() as connection:
@@ -594,6 +602,12 @@ def test_health_does_not_call_a_postgresql_read_only_after_its_setting_is_reset(
         "detail": "postgresql reachable",
     }
     assert health["status"] == "ok"
+
+
+def _clock_now() -> float:
+    from app.api import health
+
+    return health._clock()
 
 
 def _backend_pids(database: Database, count: int) -> set[int]:
@@ -636,3 +650,45 @@ def test_health_keeps_the_pools_sessions_while_postgresql_is_read_only(api: Api)
         admin.dispose()
         api.db.engine.dispose()
     assert after == before
+
+
+def test_polls_at_once_on_a_read_only_postgresql_share_the_probes_new_session(
+    api: Api, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # The pooled session's "read-only" is checked on a session opened for the probe,
+    # outside the pool: each poll opened its own (20 pollers: up to 20 sessions beyond
+    # the pool's). Within a second (the clock held still here) they share one.
+    if api.db.engine.dialect.name != "postgresql":
+        pytest.skip("a PostgreSQL session's read-only default")
+    from app.api import health
+
+    monkeypatch.setattr(health, "_clock", lambda: 1000.0, raising=False)
+    url = api.db.engine.url
+    admin = create_engine(url.set(database="postgres"), isolation_level="AUTOCOMMIT")
+    dialect = api.db.engine.dialect
+    opened: list[int] = []
+    connect = dialect.connect
+
+    def counted(*args: Any, **kwargs: Any) -> Any:
+        opened.append(1)
+        return connect(*args, **kwargs)
+
+    try:
+        with admin.connect() as connection:
+            connection.execute(
+                text(f'ALTER DATABASE "{url.database}" SET default_transaction_read_only = on')
+            )
+        api.db.engine.dispose()
+        _backend_pids(api.db, 3)  # the pool's sessions, opened read-only
+        monkeypatch.setattr(dialect, "connect", counted)
+        for _ in range(3):
+            assert api.get("/health").json()["database"]["takes_writes"] is False
+    finally:
+        monkeypatch.undo()
+        with admin.connect() as connection:
+            connection.execute(
+                text(f'ALTER DATABASE "{url.database}" RESET default_transaction_read_only')
+            )
+        admin.dispose()
+        api.db.engine.dispose()
+    assert len(opened) == 1
