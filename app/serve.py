@@ -656,6 +656,19 @@ def _raise_on_sigterm(signum: int, _frame: FrameType | None) -> None:
     raise SystemExit(128 + signum)
 
 
+def _already_stopping(signum: int, _frame: FrameType | None) -> None:
+    """A second SIGTERM or Ctrl-C while serve stops: said, not acted on. Raised out of
+    the cleanup, it cut the shutdown short: serve exited with its workers and fork server
+    still running (ppid 1) and their jobs not yet handed back."""
+    logger.warning(
+        "%s while stopping: already stopping (the workers get at most %g s, the processes "
+        "left %g s more); kill -9 to force",
+        signal.Signals(signum).name,
+        STOP_GRACE_S,
+        LEFTOVER_GRACE_S,
+    )
+
+
 def _env_whole_numbers(args: argparse.Namespace) -> list[str]:
     """Fill ``--port`` and ``--api-workers`` left out from the environment (or their
     defaults); the problems of values there, one line each naming the variable and the
@@ -768,6 +781,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         pass
     finally:
+        # Bounded from here on (STOP_GRACE_S, then LEFTOVER_GRACE_S): a second signal
+        # must not raise out of it.
+        signal.signal(signal.SIGTERM, _already_stopping)
+        signal.signal(signal.SIGINT, _already_stopping)
         if args.workers:
             print("stopping workers (a running job goes back to the queue) ...", flush=True)
         pool.stop(settled=_handed_back(settings))

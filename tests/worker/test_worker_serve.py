@@ -429,6 +429,58 @@ def test_serve_leaves_no_process_behind_when_it_stops(tmp_path: Path, stop_signa
     assert "shutdown complete: no process of this service is left" in log.read_text()
 
 
+@pytest.mark.parametrize("stop_signal", [signal.SIGTERM, signal.SIGINT])
+def test_a_second_stop_signal_while_serve_stops_does_not_cut_its_shutdown_short(
+    tmp_path: Path, stop_signal: int
+) -> None:
+    """A second SIGTERM (or Ctrl-C) while serve is stopping its workers is logged and
+    the shutdown goes on. Before, it raised out of the cleanup: serve exited at once with
+    its worker (ppid 1) and fork server still running, and no "workers stopped" line."""
+    port = free_port()
+    log = tmp_path / "serve.log"
+    with open(log, "wb") as out:
+        server = subprocess.Popen(
+            [sys.executable, "-m", "app.serve", "--port", str(port), "--data-dir", "data"],
+            env=clean_env(),
+            cwd=tmp_path,
+            stdout=out,
+            stderr=subprocess.STDOUT,
+        )
+    try:
+        tree = wait_for(
+            lambda: (
+                (found := _descendants(server.pid))
+                and any("celery" in c for c in found.values())
+                and "Uvicorn running" in log.read_text()
+                and found
+            ),
+            120,
+            "serve did not start its API and worker",
+            lambda: tail(log),
+        )
+        server.send_signal(stop_signal)
+        wait_for(
+            lambda: "stopping workers" in log.read_text(),
+            60,
+            "serve did not start stopping its workers",
+            lambda: tail(log),
+        )
+        server.send_signal(stop_signal)
+        server.wait(60)
+    finally:
+        if server.poll() is None:
+            server.kill()
+            server.wait()
+    left = {pid: command for pid, command in tree.items() if _alive(pid)}
+    for pid in left:
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(pid, signal.SIGKILL)
+    text = log.read_text()
+    assert not left, f"left behind by serve: {left}\n{tail(log)}"
+    assert "workers stopped" in text and "shutdown complete" in text, tail(log)
+    assert f"{signal.Signals(stop_signal).name} while stopping" in text, tail(log)
+
+
 def test_serve_as_subreaper_reaps_an_orphan_that_ended_and_stops_one_that_lives(
     tmp_path: Path,
 ) -> None:
