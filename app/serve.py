@@ -116,15 +116,26 @@ def child_processes(parent: int | None = None) -> dict[int, tuple[str, str]]:
 
 def reap_orphans(keep: set[int]) -> int:
     """Reap this process's ended children but those in ``keep`` (the ones a
-    :class:`subprocess.Popen` waits for) and multiprocessing's helpers (which it waits for
-    itself): orphans adopted as subreaper (a killed worker's task process) would otherwise
+    :class:`subprocess.Popen` waits for), multiprocessing's helpers and the processes it
+    started (uvicorn's API processes with ``--api-workers`` above 1), which it waits for
+    itself: orphans adopted as subreaper (a killed worker's task process) would otherwise
     stay zombies until serve ends. The number reaped."""
-    from multiprocessing import forkserver, resource_tracker
+    from multiprocessing import forkserver, process, resource_tracker
 
     keep = keep | {
         getattr(forkserver._forkserver, "_forkserver_pid", None) or 0,
         getattr(resource_tracker._resource_tracker, "_pid", None) or 0,
     }
+    # Reaped here, a process multiprocessing started had no exit code for its owner
+    # (uvicorn could not tell a startup failure from a crash) and its pid, free for the
+    # kernel to reuse, was sent SIGKILL. Copied: the main thread adds and removes them.
+    while True:
+        try:
+            started = list(process._children)  # type: ignore[attr-defined]
+            break
+        except RuntimeError:  # changed size while copied
+            continue
+    keep |= {getattr(child, "pid", None) or 0 for child in started}
     reaped = 0
     for pid, (state, _command) in child_processes().items():
         if pid in keep or state != "Z":

@@ -481,6 +481,31 @@ def test_a_second_stop_signal_while_serve_stops_does_not_cut_its_shutdown_short(
     assert f"{signal.Signals(stop_signal).name} while stopping" in text, tail(log)
 
 
+def test_the_orphan_reaper_leaves_multiprocessing_s_own_children_to_it() -> None:
+    """serve's supervisor reaps the orphans it adopted, not the processes that
+    multiprocessing started and waits for itself (uvicorn's API processes with
+    --api-workers 2). Before, it reaped an API process that had exited: uvicorn then saw
+    no exit code (a startup failure not told from a crash) and sent SIGKILL to its pid
+    after the health-check timeout, a pid the kernel may have given to another process."""
+    import multiprocessing
+
+    from app.serve import child_processes, reap_orphans
+
+    process = multiprocessing.get_context("spawn").Process(target=sys.exit, args=(3,))
+    process.start()
+    try:
+        wait_for(
+            lambda: child_processes().get(process.pid or 0, ("",))[0] == "Z",
+            60,
+            "the child did not exit",
+            lambda: "",
+        )
+        assert reap_orphans(set()) == 0
+    finally:
+        process.join(10)
+    assert process.exitcode == 3
+
+
 def test_serve_as_subreaper_reaps_an_orphan_that_ended_and_stops_one_that_lives(
     tmp_path: Path,
 ) -> None:
