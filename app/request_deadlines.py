@@ -60,9 +60,12 @@ request without it), is refused: a 400 naming it, and the connection closed.
 from __future__ import annotations
 
 import asyncio
+import ctypes
 import json
 import logging
+import os
 import re
+import signal
 from collections.abc import Callable
 from typing import Any, Literal, NamedTuple
 
@@ -133,6 +136,7 @@ class ServerConfig(uvicorn.Config):
         request_header_max_count: int | None = None,
         request_header_max_bytes: int | None = None,
         http: Literal["auto", "h11", "httptools"] = "auto",
+        stop_with: int | None = None,
         **options: Any,
     ) -> None:
         for name, value in (
@@ -149,6 +153,32 @@ class ServerConfig(uvicorn.Config):
         super().__init__(app, http=protocol_class(http), **options)
         self.request_head_timeout_s = float(request_head_timeout_s)
         self.request_body_timeout_s = float(request_body_timeout_s)
+        #: The pid of the process (``inertia-id serve``) whose API processes load this
+        #: config: each is sent SIGTERM by the kernel when that process dies.
+        self.stop_with = stop_with
+
+    def load(self) -> None:
+        if self.stop_with is not None and not self.loaded and os.getpid() != self.stop_with:
+            # In an API process of --api-workers > 1 (loaded there, not in serve): after
+            # serve's kill -9 they served on, holding its port, for ever (ppid 1).
+            _stop_when_parent_dies(self.stop_with)
+        super().load()
+
+
+#: ``prctl`` option: the signal this process gets when its parent dies.
+_PR_SET_PDEATHSIG = 1
+
+
+def _stop_when_parent_dies(parent: int) -> None:
+    """Ask the kernel for SIGTERM (uvicorn's graceful stop) when the parent dies (Linux;
+    nothing elsewhere); if ``parent`` has gone already, SIGTERM now."""
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGTERM), 0, 0, 0)
+    except (OSError, AttributeError):
+        return
+    if os.getppid() != parent:
+        os.kill(os.getpid(), signal.SIGTERM)
 
 
 #: The reason phrases of a refused head's answer (400: an upgrade request with a body, on

@@ -659,7 +659,9 @@ def _serve_processes(count: int, options: dict[str, Any]) -> None:
     from .request_deadlines import ServerConfig
 
     # A ServerConfig reaches each process pickled, its read deadlines with it.
-    config = ServerConfig("app.main:create_app", factory=True, workers=count, **options)
+    config = ServerConfig(
+        "app.main:create_app", factory=True, workers=count, stop_with=os.getpid(), **options
+    )
     Multiprocess(config, sockets=[tcp_socket(config.bind_socket())]).run()
 
 

@@ -506,6 +506,51 @@ def test_the_orphan_reaper_leaves_multiprocessing_s_own_children_to_it() -> None
     assert process.exitcode == 3
 
 
+def test_the_api_processes_stop_when_serve_is_killed(tmp_path: Path) -> None:
+    """``kill -9`` of serve with --api-workers 2: the kernel tells its API processes to
+    stop (PR_SET_PDEATHSIG), as it tells its workers. Before, both served on (ppid 1) for
+    ever, holding serve's port: a new serve on it said "cannot listen"."""
+    port = free_port()
+    log = tmp_path / "serve.log"
+    command = [sys.executable, "-m", "app.serve", "--port", str(port), "--data-dir", "data"]
+    with open(log, "wb") as out:
+        server = subprocess.Popen(
+            [*command, "--workers", "0", "--api-workers", "2"],
+            env=clean_env(),
+            cwd=tmp_path,
+            stdout=out,
+            stderr=subprocess.STDOUT,
+        )
+    api: list[int] = []
+    try:
+        api = wait_for(
+            lambda: (
+                len(found := [p for p, c in _descendants(server.pid).items() if "spawn_main" in c])
+                == 2
+                and log.read_text().count("Application startup complete") == 2
+                and found
+            ),
+            120,
+            "serve did not start its two API processes",
+            lambda: tail(log),
+        )
+        server.kill()
+        server.wait(10)
+        gone = wait_for(
+            lambda: not any(_alive(pid) for pid in api),
+            30,
+            "the API processes outlived serve",
+            lambda: tail(log),
+        )
+        assert gone
+    finally:
+        if server.poll() is None:
+            server.kill()
+        for pid in api:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGKILL)
+
+
 def test_serve_as_subreaper_reaps_an_orphan_that_ended_and_stops_one_that_lives(
     tmp_path: Path,
 ) -> None:
