@@ -662,7 +662,20 @@ def _serve_processes(count: int, options: dict[str, Any]) -> None:
     config = ServerConfig(
         "app.main:create_app", factory=True, workers=count, stop_with=os.getpid(), **options
     )
-    Multiprocess(config, sockets=[tcp_socket(config.bind_socket())]).run()
+
+    class Supervisor(Multiprocess):
+        terminated = False
+
+        def handle_term(self) -> None:
+            self.terminated = True
+            super().handle_term()
+
+    supervisor = Supervisor(config, sockets=[tcp_socket(config.bind_socket())])
+    supervisor.run()
+    if supervisor.terminated:
+        # uvicorn's supervisor takes SIGTERM itself and returns: serve exited 0 where one
+        # API process made it 128 + 15 (uvicorn raises the signal again on its way out).
+        raise SystemExit(128 + signal.SIGTERM)
 
 
 def _raise_on_sigterm(signum: int, _frame: FrameType | None) -> None:

@@ -551,6 +551,45 @@ def test_the_api_processes_stop_when_serve_is_killed(tmp_path: Path) -> None:
                 os.kill(pid, signal.SIGKILL)
 
 
+_SERVE = [sys.executable, "-m", "app.serve"]
+_TWO_API_PROCESSES = ["--workers", "0", "--api-workers", "2"]
+
+
+@pytest.mark.parametrize(
+    ("stop_signal", "code"), [(signal.SIGTERM, 128 + signal.SIGTERM), (signal.SIGINT, 0)]
+)
+def test_serve_with_several_api_processes_exits_as_with_one(
+    tmp_path: Path, stop_signal: int, code: int
+) -> None:
+    """SIGTERM ends serve with 128 + 15 and Ctrl-C with 0 whatever --api-workers is.
+    Before, with --api-workers 2 SIGTERM ended it with 0 (uvicorn's supervisor took the
+    signal and returned), with 1 with 143."""
+    port = free_port()
+    log = tmp_path / "serve.log"
+    with open(log, "wb") as out:
+        server = subprocess.Popen(
+            [*_SERVE, "--port", str(port), "--data-dir", "data", *_TWO_API_PROCESSES],
+            env=clean_env(),
+            cwd=tmp_path,
+            stdout=out,
+            stderr=subprocess.STDOUT,
+        )
+    try:
+        wait_for(
+            lambda: log.read_text().count("Application startup complete") == 2,
+            120,
+            "serve did not start its two API processes",
+            lambda: tail(log),
+        )
+        server.send_signal(stop_signal)
+        assert server.wait(60) == code, tail(log)
+    finally:
+        if server.poll() is None:
+            server.kill()
+            server.wait()
+    assert "shutdown complete" in log.read_text(), tail(log)
+
+
 def test_serve_as_subreaper_reaps_an_orphan_that_ended_and_stops_one_that_lives(
     tmp_path: Path,
 ) -> None:
