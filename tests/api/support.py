@@ -9,7 +9,7 @@ import sys
 import threading
 import time
 import warnings
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -207,23 +207,29 @@ class Api:
 
 
 @contextmanager
-def read_only_postgres(api: Api) -> Iterator[None]:
+def read_only_postgres(api: Api) -> Iterator[Callable[[], None]]:
     """The test's PostgreSQL database with its transactions read-only by default, as an
     operator sets one (``ALTER DATABASE ... SET default_transaction_read_only``) and as a
     hot standby takes every transaction: a write is SQLSTATE 25006. Set and reset from
-    the server's maintenance database; the pool is emptied so connections pick it up."""
+    the server's maintenance database; the pool is emptied so connections pick it up.
+    Yields the reset, for a test that makes the database writable again inside the block
+    (the pool then kept as it is: its sessions still read-only, as after a real reset)."""
     url = api.db.engine.url
     name = url.database
     admin = create_engine(url.set(database="postgres"), isolation_level="AUTOCOMMIT")
+
+    def reset() -> None:
+        with admin.connect() as connection:
+            connection.execute(text(f'ALTER DATABASE "{name}" RESET default_transaction_read_only'))
+
     try:
         with admin.connect() as connection:
             connection.execute(
                 text(f'ALTER DATABASE "{name}" SET default_transaction_read_only = on')
             )
         api.db.engine.dispose()
-        yield
+        yield reset
     finally:
-        with admin.connect() as connection:
-            connection.execute(text(f'ALTER DATABASE "{name}" RESET default_transaction_read_only'))
+        reset()
         admin.dispose()
         api.db.engine.dispose()

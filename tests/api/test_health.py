@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from sqlalchemy import create_engine, delete, text
+from sqlalchemy import delete, text
 
 from inertia_id import Scenario
 from service.config import Settings
@@ -568,19 +568,9 @@ def test_health_does_not_call_a_postgresql_read_only_after_its_setting_is_reset(
     if api.db.engine.dialect.name != "postgresql":
         pytest.skip("a PostgreSQL session's read-only default")
     add_worker(api, "celery@alive", seconds_ago=0.0)
-    url = api.db.engine.url
-    admin = create_engine(url.set(database="postgres"), isolation_level="AUTOCOMMIT")
-    try:
-        with admin.connect() as connection:
-            connection.execute(
-                text(f'ALTER DATABASE "{url.database}" SET default_transaction_read_only = on')
-            )
-        api.db.engine.dispose()
+    with read_only_postgres(api) as reset:
         assert api.get("/health").json()["database"]["ok"] is False
-        with admin.connect() as connection:
-            connection.execute(
-                text(f'ALTER DATABASE "{url.database}" RESET default_transaction_read_only')
-            )
+        reset()
         # The pool still holds the session opened read-only; what the probe's own session
         # read answers for a second (app.api.health._FRESH_FOR_S), a second passed.
         from app.api import health as module
@@ -588,13 +578,6 @@ def test_health_does_not_call_a_postgresql_read_only_after_its_setting_is_reset(
         later = _clock_now() + module._FRESH_FOR_S
         monkeypatch.setattr(module, "_clock", lambda: later)
         health = api.get("/health").json()
-    finally:
-        with admin.connect() as connection:
-            connection.execute(
-                text(f'ALTER DATABASE "{url.database}" RESET default_transaction_read_only')
-            )
-        admin.dispose()
-        api.db.engine.dispose()
     assert health["database"]["detail"] == "postgresql reachable", health
     assert health["database"] == {
         "ok": True,
@@ -627,14 +610,7 @@ def test_health_keeps_the_pools_sessions_while_postgresql_is_read_only(api: Api)
     # connections (20 pollers: 1,990 sessions opened in 15 s, 775 while it took writes).
     if api.db.engine.dialect.name != "postgresql":
         pytest.skip("a PostgreSQL session's read-only default")
-    url = api.db.engine.url
-    admin = create_engine(url.set(database="postgres"), isolation_level="AUTOCOMMIT")
-    try:
-        with admin.connect() as connection:
-            connection.execute(
-                text(f'ALTER DATABASE "{url.database}" SET default_transaction_read_only = on')
-            )
-        api.db.engine.dispose()
+    with read_only_postgres(api):
         # Three sessions opened read-only, idle in the pool as after three requests.
         before = _backend_pids(api.db, 3)
         for _ in range(3):
@@ -642,13 +618,6 @@ def test_health_keeps_the_pools_sessions_while_postgresql_is_read_only(api: Api)
             assert database["takes_writes"] is False, database
             assert "read-only" in database["detail"], database
         after = _backend_pids(api.db, 3)
-    finally:
-        with admin.connect() as connection:
-            connection.execute(
-                text(f'ALTER DATABASE "{url.database}" RESET default_transaction_read_only')
-            )
-        admin.dispose()
-        api.db.engine.dispose()
     assert after == before
 
 
@@ -663,8 +632,6 @@ def test_polls_at_once_on_a_read_only_postgresql_share_the_probes_new_session(
     from app.api import health
 
     monkeypatch.setattr(health, "_clock", lambda: 1000.0, raising=False)
-    url = api.db.engine.url
-    admin = create_engine(url.set(database="postgres"), isolation_level="AUTOCOMMIT")
     dialect = api.db.engine.dialect
     opened: list[int] = []
     connect = dialect.connect
@@ -673,22 +640,12 @@ def test_polls_at_once_on_a_read_only_postgresql_share_the_probes_new_session(
         opened.append(1)
         return connect(*args, **kwargs)
 
-    try:
-        with admin.connect() as connection:
-            connection.execute(
-                text(f'ALTER DATABASE "{url.database}" SET default_transaction_read_only = on')
-            )
-        api.db.engine.dispose()
+    with read_only_postgres(api):
         _backend_pids(api.db, 3)  # the pool's sessions, opened read-only
         monkeypatch.setattr(dialect, "connect", counted)
-        for _ in range(3):
-            assert api.get("/health").json()["database"]["takes_writes"] is False
-    finally:
-        monkeypatch.undo()
-        with admin.connect() as connection:
-            connection.execute(
-                text(f'ALTER DATABASE "{url.database}" RESET default_transaction_read_only')
-            )
-        admin.dispose()
-        api.db.engine.dispose()
+        try:
+            for _ in range(3):
+                assert api.get("/health").json()["database"]["takes_writes"] is False
+        finally:
+            monkeypatch.undo()
     assert len(opened) == 1
