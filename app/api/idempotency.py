@@ -16,10 +16,11 @@ from __future__ import annotations
 import logging
 import math
 import re
+import string
 from collections.abc import Iterator
 from dataclasses import dataclass
 from datetime import datetime, timedelta
-from typing import Annotated, Any
+from typing import Annotated, Any, NoReturn
 
 from fastapi import Depends, Header, HTTPException, Request, status
 from fastapi.responses import JSONResponse
@@ -51,12 +52,19 @@ REPLAYED_HEADER = "Idempotent-Replayed"
 log = logging.getLogger(__name__)
 
 _WHERE = ("header", IDEMPOTENCY_KEY_HEADER)
-# A bare token (Stripe's keys, UUIDs) is visible ASCII; the draft's own form is a
-# Structured Field string (RFC 8941 3.3.3): in double quotes, printable ASCII, with
-# ``\"`` and ``\\`` the only escapes. Parsed here, for one header of one type, rather than
-# with a structured-fields library the project does not otherwise need.
-_BARE = re.compile(r"[\x20-\x7e]+")
-_QUOTED = re.compile(r'"((?:[\x20\x21\x23-\x5b\x5d-\x7e]|\\["\\])*)"')
+# The draft's field is a Structured Field String (RFC 8941 3.3.3): in double quotes,
+# printable ASCII, ``\"`` and ``\\`` the only escapes. A bare key (Stripe's, a UUID) is
+# taken too, as the characters of an sf-token (RFC 8941 3.3.4: tchar, ":" and "/"), a
+# leading digit allowed (a UUID's): anything else there (a quote, a backslash, a space,
+# "=", ";", ",") is what a structured field would read as something other than one key.
+# Parsed here, for one header of one type, as RFC 8941 4.2 parses an Item (its
+# algorithms, with messages that say where it broke), rather than with a
+# structured-fields library the project does not otherwise need.
+_TOKEN_PUNCTUATION = "!#$%&'*+-.^_`|~:/"
+_TOKEN_CHARS = frozenset(string.ascii_letters + string.digits + _TOKEN_PUNCTUATION)
+_PRINTABLE = re.compile(r"[\x20-\x7e]*")
+_NAMED = {" ": "a space", ",": "a comma", '"': "a double quote", "\\": "a backslash"}
+_SF_STRING_RULE = '(RFC 8941: "..." of printable ASCII, \\" and \\\\ its only escapes)'
 
 #: A claim held for less than this is taken for a request still being answered (a POST
 #: that stores a row is answered in well under a second): its 409 asks for the retry in
@@ -111,43 +119,88 @@ def replayable(
     return merged
 
 
-def _list_or_bad_string(raw: str) -> str | None:
-    """Why ``raw`` is neither a bare key nor one sf-string, or None when it is one of them.
+def _refuse(raw: str, why: str) -> NoReturn:
+    unprocessable(_WHERE, f"{IDEMPOTENCY_KEY_HEADER} {raw[:80]!r} {why}")
 
-    A value that opens with a double quote is the draft's sf-string and is parsed as one:
-    a quote left open, an escape other than ``\\"`` and ``\\\\``, or anything after the
-    closing quote is refused, not kept as a bare key that merely begins with a quote. A
-    comma outside quotes makes the field a list (two keys joined by a proxy, or
-    ``a, b`` typed as one): which of them the client retries with is not known."""
-    if not raw.startswith('"'):
-        if "," in raw:
-            return "is a list (a comma outside a quoted string): send one key"
-        return None
-    closed = _QUOTED.match(raw)
-    if closed is not None and closed.end() == len(raw):
-        return None
-    if closed is not None and raw[closed.end() :].lstrip(" ").startswith(","):
-        return "is a list (a comma outside a quoted string): send one key"
-    return (
-        "starts with a double quote but is not a Structured Field string (RFC 8941: one "
-        'closing quote, nothing after it, printable ASCII, \\" and \\\\ the only escapes)'
-    )
+
+def _sf_string(raw: str, value: str) -> str:
+    """The key of ``value``, an sf-string (RFC 8941 4.2.5), and nothing after it but
+    spaces; else a 422 saying where it broke."""
+    key: list[str] = []
+    at = 1
+    while at < len(value):
+        char = value[at]
+        if char == "\\":
+            escaped = value[at + 1 : at + 2]
+            if escaped not in ('"', "\\"):
+                _refuse(
+                    raw,
+                    f"is not a Structured Field string: the escape {value[at : at + 2]!r} at "
+                    f"character {at + 1} {_SF_STRING_RULE}",
+                )
+            key.append(escaped)
+            at += 2
+        elif char == '"':
+            rest = value[at + 1 :].lstrip(" ")
+            if rest.startswith(","):
+                _refuse(raw, "is a list (a comma after the quoted key): send one key")
+            if rest.startswith(";"):
+                _refuse(
+                    raw,
+                    "has parameters (';' after the quoted key), which this header does not "
+                    "take: send the quoted key alone",
+                )
+            if rest:
+                _refuse(
+                    raw,
+                    f"is not a Structured Field string: {rest[:40]!r} follows its closing "
+                    "quote (send the quoted key alone)",
+                )
+            return "".join(key)
+        else:
+            key.append(char)
+            at += 1
+    _refuse(raw, f"is not a Structured Field string: its quote is never closed {_SF_STRING_RULE}")
+
+
+def _bare_key(raw: str, value: str) -> str:
+    """``value``, a bare key: the characters of an sf-token (RFC 8941 3.3.4), a leading
+    digit allowed (a UUID's); else a 422 naming the first other character."""
+    for at, char in enumerate(value):
+        if char in _TOKEN_CHARS:
+            continue
+        if char == ",":
+            _refuse(
+                raw,
+                f"is a list (a comma at character {at + 1}, outside a quoted string): send one key",
+            )
+        _refuse(
+            raw,
+            f"has {_NAMED.get(char, repr(char))} at character {at + 1}, which a bare key "
+            f"may not hold (an sf-token: letters, digits and {_TOKEN_PUNCTUATION}): send "
+            'such a key as a quoted string, "...", with \\" and \\\\ for its quotes and '
+            "backslashes",
+        )
+    return value
 
 
 def parse_key(raw: str) -> str:
-    """The key an ``Idempotency-Key`` header holds: a bare token or a quoted string of
-    1 to 255 printable ASCII characters; else a 422 that quotes the value."""
-    why = _list_or_bad_string(raw) if _BARE.fullmatch(raw) else None
-    if why is not None:
-        unprocessable(_WHERE, f"{IDEMPOTENCY_KEY_HEADER} {raw[:80]!r} {why}")
-    quoted = _QUOTED.fullmatch(raw)
-    key = re.sub(r"\\(.)", r"\1", quoted.group(1)) if quoted else raw
-    if not (quoted or _BARE.fullmatch(raw)) or not key.strip():
-        unprocessable(
-            _WHERE,
-            f"{IDEMPOTENCY_KEY_HEADER} must be 1 to {MAX_IDEMPOTENCY_KEY_LENGTH} printable "
-            f"ASCII characters (a UUID, say), got {raw[:80]!r}",
-        )
+    """The key an ``Idempotency-Key`` header holds: the draft's sf-string (``"..."``) or
+    a bare sf-token (a UUID), of 1 to 255 printable ASCII characters; else a 422 that
+    quotes the value and says what in it is refused.
+
+    A value that opens with a double quote is an sf-string and is parsed as one: a quote
+    left open, an escape other than ``\\"`` and ``\\\\``, or anything after the closing
+    quote is refused, not kept as a bare key that merely begins with a quote. A bare key
+    holds token characters only: a quote, a space, a ``,`` (a list: which key the client
+    retries with is not known) or a ``;`` would make a structured field something else."""
+    # RFC 8941 4.2: spaces around the value are not part of it (HTTP strips them first).
+    value = raw.strip(" ")
+    if not value or not _PRINTABLE.fullmatch(value):
+        _refuse_characters(raw)
+    key = _sf_string(raw, value) if value.startswith('"') else _bare_key(raw, value)
+    if not key.strip(" "):
+        _refuse_characters(raw)
     if len(key) > MAX_IDEMPOTENCY_KEY_LENGTH:
         unprocessable(
             _WHERE,
@@ -155,6 +208,14 @@ def parse_key(raw: str) -> str:
             f"characters, got {len(key)}: {key[:40]!r}...",
         )
     return key
+
+
+def _refuse_characters(raw: str) -> NoReturn:
+    unprocessable(
+        _WHERE,
+        f"{IDEMPOTENCY_KEY_HEADER} must be 1 to {MAX_IDEMPOTENCY_KEY_LENGTH} printable "
+        f"ASCII characters (a UUID, say), got {raw[:80]!r}",
+    )
 
 
 @dataclass

@@ -143,15 +143,26 @@ def test_a_key_no_client_would_send_is_422_naming_it(
         ('"closed"then-more', "not a Structured Field string"),
         ("a, b", "is a list"),
         ('"a", "b"', "is a list"),
+        # A comma inside quotes is no list: the '=' before it is what no bare key holds
+        # (before: "a comma outside a quoted string").
+        ('tok="x,y"', "has '=' at character 4, which a bare key may not hold"),
+        # Bare keys are sf-tokens: a quote, a backslash, a space or a ';' in one would
+        # make the structured field something else (before: each taken as a key, 201).
+        ('ab"c', "has a double quote at character 3"),
+        ("ab\\c", "has a backslash at character 3"),
+        ("two words", "has a space at character 4"),
+        ("k;v=1", "has ';' at character 2"),
+        ('"k";v=1', "has parameters"),
     ],
 )
 def test_a_key_that_is_not_one_key_or_not_the_drafts_string_is_422_naming_it(
     api: Api, key: str, why: str
 ) -> None:
-    """The draft's field is one sf-string. A bare token (Stripe's, a UUID) is taken as
-    it is, but a value that opens a quoted string and breaks it, or a list of keys, is
-    not some other key: kept as one, a retry with the key the client meant would miss
-    it. Before, both were taken as bare keys (201)."""
+    """The draft's field is one sf-string (RFC 8941). A bare sf-token (Stripe's keys, a
+    UUID) is taken as it is, but a value that opens a quoted string and breaks it, a
+    bare value with a character no token holds, or a list of keys, is not some other
+    key: kept as one, a retry with the key the client meant would miss it. The 422 names
+    the character and where it is."""
     response = api.client.post("/scenarios", json={"preset": "paper"}, headers=_keyed(api, key))
     assert response.status_code == 422, response.text
     (error,) = response.json()["detail"]
@@ -166,6 +177,23 @@ def test_a_comma_inside_the_drafts_quoted_string_is_part_of_one_key(api: Api) ->
     assert quoted.status_code == 201, quoted.text
     with api.db.session() as session:
         assert session.scalars(select(IdempotencyKeyRow.key)).all() == ["a, b"]
+
+
+def test_the_drafts_escapes_are_read_and_a_bare_token_is_taken_as_sent(api: Api) -> None:
+    """``\\"`` and ``\\\\`` in the quoted string stand for a quote and a backslash; a bare
+    key with a leading digit (a UUID) or any of the token's punctuation is kept as is."""
+    sent = [
+        '"say \\"hi\\" \\\\o/"',
+        "550e8400-e29b-41d4-a716-446655440000",
+        "*k_1.2~a:b/c!#$%&'+^`|",
+    ]
+    for key in sent:
+        made = api.client.post("/scenarios", json={"preset": "paper"}, headers=_keyed(api, key))
+        assert made.status_code == 201, made.text
+    with api.db.session() as session:
+        assert sorted(session.scalars(select(IdempotencyKeyRow.key)).all()) == sorted(
+            ['say "hi" \\o/', sent[1], sent[2]]
+        )
 
 
 def _claim_as_the_api(api: Api, key: str, body: dict[str, Any], *, age: timedelta) -> None:
