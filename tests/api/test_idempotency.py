@@ -27,6 +27,7 @@ from app.api.idempotency import (
     IDEMPOTENCY_KEY_HEADER,
     LIVE_CLAIM,
     REPLAYED_HEADER,
+    RETRY_AFTER_MAX,
     retry_after_s,
 )
 from app.main import create_app
@@ -227,29 +228,38 @@ def test_a_request_still_in_progress_is_409_and_a_dead_ones_key_is_taken_over(ap
     assert again.headers[REPLAYED_HEADER] == "true" and again.json()["id"] == taken.json()["id"]
 
 
-def test_a_409s_retry_after_is_1_s_for_a_live_claim_and_the_leases_rest_for_a_stale_one(
+def test_a_409s_retry_after_grows_with_the_claims_age_bounded_and_within_its_lease(
     api: Api,
 ) -> None:
     """A claim just taken belongs to a request being answered: ask again in 1 s. One held
-    past LIVE_CLAIM belongs, most likely, to a dead process and is free only when its
-    lease ends: ``Retry-After`` says when (before: 1 s throughout, so a client that obeys
-    it sent up to 120 requests that could only be 409s)."""
+    past LIVE_CLAIM may be a request still waiting (on SQLite's 30 s write lock) or a dead
+    process's: the wait is a fifth of its age, at most RETRY_AFTER_MAX, never past the
+    lease's end. Before, past LIVE_CLAIM it was the lease's rest: 108 s for a live request
+    held 12 s, whose key would be free a second later."""
     scenario = api.create_scenario()["id"]
     for key, age in (("fresh", timedelta(seconds=2)), ("nearly-live", LIVE_CLAIM / 2)):
         _claim_as_the_api(api, key, _rerun(scenario), age=age)
         busy = api.client.post("/jobs", json=_rerun(scenario), headers=_keyed(api, key))
         assert busy.status_code == 409 and busy.headers["retry-after"] == "1", busy.text
+    _claim_as_the_api(api, "held-up", _rerun(scenario), age=timedelta(seconds=12))
+    held_up = api.client.post("/jobs", json=_rerun(scenario), headers=_keyed(api, "held-up"))
+    assert held_up.status_code == 409, held_up.text
+    # 12 s and the time this request took to arrive, over 5, rounded up.
+    assert held_up.headers["retry-after"] in ("3", "4"), held_up.headers
+    detail = held_up.json()["detail"]
+    assert f"send it again in {held_up.headers['retry-after']} s" in detail, detail
+    assert "at the latest, when its lease ends" in detail, detail
     _claim_as_the_api(api, "stale", _rerun(scenario), age=timedelta(seconds=60))
     stale = api.client.post("/jobs", json=_rerun(scenario), headers=_keyed(api, "stale"))
-    assert stale.status_code == 409, stale.text
-    # 60 s of the lease left when claimed, less the time this request took to arrive
-    # (rounded up).
-    assert 55 <= int(stale.headers["retry-after"]) <= 60, stale.headers
-    assert f"free in {stale.headers['retry-after']} s" in stale.json()["detail"]
+    assert stale.status_code == 409 and stale.headers["retry-after"] == "10", stale.headers
     assert _count(api, JobRow) == 0
-    # The rule itself: rounded up, and never 0 however little of the lease is left.
+    # The rule itself: a fifth of the age past LIVE_CLAIM, rounded up; at most
+    # RETRY_AFTER_MAX; never past the lease's end, and never 0.
     now = utcnow()
-    assert retry_after_s(now - timedelta(seconds=60.5), now) == 60
+    assert retry_after_s(now - LIVE_CLAIM, now) == 2
+    assert retry_after_s(now - timedelta(seconds=20.5), now) == 5
+    assert retry_after_s(now - timedelta(seconds=90), now) == RETRY_AFTER_MAX.seconds
+    assert retry_after_s(now - (store.CLAIM_LEASE - timedelta(seconds=3.5)), now) == 4
     assert retry_after_s(now - (store.CLAIM_LEASE - timedelta(milliseconds=300)), now) == 1
     assert retry_after_s(None, now) == 1
 
