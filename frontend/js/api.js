@@ -56,7 +56,9 @@ function errorFrom(status, body) {
 // making it safe: after 0.5, 1 and 2 s, each wait drawn between half and all of that so
 // that pages refused together do not come back together, or after the answer's
 // Retry-After (at most 5 s), drawn between all of it and half as much again.
+// Tries of a request whose answer was lost, and of one answered 409 (each its own count).
 const IDEMPOTENT_TRIES = 3;
+// Tries of one answered 502, 503 or 504 (a count of its own).
 const GATEWAY_TRIES = 4;
 const RETRIED_STATUSES = new Set([502, 503, 504]);
 
@@ -99,28 +101,37 @@ export async function request(method, path, { json, form, query, key = null, raw
     if (text) url += `?${text}`;
   }
   let response;
-  for (let tries = 1; ; tries += 1) {
+  // Each kind of failure has its own budget: a 504 does not spend a 409's tries (after a
+  // 504 and a 409, a third answer 409 was shown as "still in progress" though a 409 had
+  // been retried once), and all of them together stay bounded.
+  const tries = { lost: 0, gateway: 0, conflict: 0 };
+  for (;;) {
     try {
       response = await fetch(url, { method, headers, body });
     } catch (exc) {
-      if (idempotent && tries < IDEMPOTENT_TRIES) {
-        await pause(500 * tries);
+      tries.lost += 1;
+      if (idempotent && tries.lost < IDEMPOTENT_TRIES) {
+        await pause(500 * tries.lost);
         continue;
       }
       throw new ApiError(0, `the service at ${location.origin} could not be reached (${exc.message})`);
     }
     const retryAfter = Number(response.headers.get("Retry-After"));
-    if (idempotent && RETRIED_STATUSES.has(response.status) && tries < GATEWAY_TRIES) {
+    if (idempotent && RETRIED_STATUSES.has(response.status)) {
+      tries.gateway += 1;
+      if (tries.gateway >= GATEWAY_TRIES) break;
       // A Retry-After is a floor (the service asked for that wait): the jitter goes above
       // it, never below (drawn between half and all, a "Retry-After: 2" was retried in 1 s).
       const wait =
         retryAfter > 0
           ? 1000 * Math.min(retryAfter, 5) * (1 + Math.random() / 2)
-          : 500 * 2 ** (tries - 1) * (0.5 + Math.random() / 2);
+          : 500 * 2 ** (tries.gateway - 1) * (0.5 + Math.random() / 2);
       await pause(wait);
       continue;
     }
-    if (!(idempotent && response.status === 409 && retryAfter > 0 && tries < IDEMPOTENT_TRIES)) break;
+    if (!(idempotent && response.status === 409 && retryAfter > 0)) break;
+    tries.conflict += 1;
+    if (tries.conflict >= IDEMPOTENT_TRIES) break;
     await pause(1000 * Math.min(retryAfter, 5));
   }
   if (response.status === 204) return null;

@@ -445,6 +445,55 @@ def test_a_submission_a_proxy_keeps_refusing_is_tried_four_times_then_shown(
     assert not [s for s in listed if s["name"] == "never through the proxy"]
 
 
+def test_a_409_after_a_504_has_its_own_retries_and_the_submission_is_stored_once(
+    dashboard: Dashboard,
+) -> None:
+    """A proxy answers 504, then the service 409 twice (the first try, which reached it,
+    still in progress), then lets the retry through: the page retries each kind on its own
+    budget, sends the one key 4 times and opens the one scenario stored. Before, 504s and
+    409s shared one count of 3 tries: the second 409 was shown as "still in progress"."""
+    page = dashboard.page
+    _key_saved(dashboard)
+    keys: list[str | None] = []
+    in_progress = json.dumps({"detail": "a request with this key is still in progress"})
+
+    def gateway_then_busy_twice(route: Any) -> None:
+        if route.request.method != "POST":
+            route.continue_()
+            return
+        keys.append(route.request.headers.get("idempotency-key"))
+        if len(keys) == 1:
+            route.fulfill(status=504, body="<html>504 Gateway Timeout</html>")
+        elif len(keys) in (2, 3):
+            route.fulfill(
+                status=409,
+                headers={"Retry-After": "1", "Content-Type": "application/json"},
+                body=in_progress,
+            )
+        else:
+            route.continue_()
+
+    dashboard.console.expect(r"status of 50[4]|status of 409|Failed to load resource")
+    page.route(re.compile(r"/scenarios$"), gateway_then_busy_twice)
+    try:
+        dashboard.open("#/scenarios/new")
+        page.fill("#preset-name", "a 504 and two 409s")
+        page.click("#create-preset")
+        # The scenario opened, or the page's error shown (as before): whichever comes.
+        page.wait_for_function(
+            "/^#\\/scenarios\\/[0-9a-f]{32}/.test(location.hash) || "
+            "document.querySelector('#preset-errors')?.textContent.includes('in progress')"
+        )
+        errors = page.evaluate("document.querySelector('#preset-errors')?.textContent ?? ''")
+    finally:
+        page.unroute(re.compile(r"/scenarios$"))
+    assert "in progress" not in errors, errors
+    scenario = _hash_id(dashboard, "scenarios")
+    assert len(keys) == 4 and keys[0] and set(keys) == {keys[0]}, keys
+    listed = dashboard.service.client.get("/scenarios", params={"limit": 200}).json()["items"]
+    assert [s["id"] for s in listed if s["name"] == "a 504 and two 409s"] == [scenario]
+
+
 def test_a_small_bodys_inertias_keep_their_significant_digits(dashboard: Dashboard) -> None:
     """A 3U CubeSat's inertias (about 0.01 kg m²) in the scenario's table and chart hover,
     to four significant digits: two decimals wrote 0.0123 as 0.01 and hid the 8 %
