@@ -18,7 +18,12 @@ the request's fingerprint and, once it is answered, the answer:
   process's next request with that key and every second in the background, until the database
   takes it or the lease ends: the key is free as soon as writes are, not 2 minutes on;
 - a claim left unanswered past :data:`CLAIM_LEASE` (the API process died mid-request) is
-  taken over by the next request with the key; expired rows are deleted by the claims.
+  taken over by the next request with the key; expired rows are deleted by the claims;
+- a claim whose process is known to be dead is taken over at once, not at the lease's
+  end: its token names the process that made it (:func:`claim_token`), which a process of
+  the same host and PID namespace can look up (:func:`claimer_died`). A process killed
+  while the database refused writes (its pending releases lost with it), or with a request
+  in flight, left its keys to the lease: their retries were 409s for up to 2 minutes.
 """
 
 from __future__ import annotations
@@ -26,7 +31,9 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
+import os
 import secrets
+import socket
 import threading
 import time
 import weakref
@@ -51,6 +58,8 @@ __all__ = [
     "PendingReleases",
     "answer",
     "claim",
+    "claim_token",
+    "claimer_died",
     "fingerprint",
     "pending_releases",
     "release",
@@ -104,6 +113,82 @@ def _aware(moment: datetime) -> datetime:
     return moment if moment.tzinfo is not None else moment.replace(tzinfo=UTC)
 
 
+def _read(path: str) -> str | None:
+    try:
+        with open(path) as opened:
+            return opened.read()
+    except OSError:
+        return None
+
+
+def _process_start(pid: int) -> str | None:
+    """Process ``pid``'s start, in clock ticks after boot (``/proc/<pid>/stat`` field 22),
+    or None where it cannot be read (no such process, no /proc)."""
+    stat = _read(f"/proc/{pid}/stat")
+    fields = stat.rpartition(")")[2].split() if stat else []
+    return fields[19] if len(fields) > 19 else None
+
+
+def _digest(*parts: object) -> str:
+    return hashlib.sha256("\0".join(map(str, parts)).encode()).hexdigest()[:8]
+
+
+def _host() -> str | None:
+    """This host's boot and PID namespace (8 hex digits), or None without /proc: the
+    processes it may look up. Two containers on one kernel share the boot but not the
+    namespace; the host's name besides, for hosts whose boot ids could meet."""
+    boot = _read("/proc/sys/kernel/random/boot_id")
+    try:
+        namespace = os.readlink("/proc/self/ns/pid")
+    except OSError:
+        return None
+    if not boot:
+        return None
+    return _digest(socket.gethostname(), boot.strip(), namespace)
+
+
+def _incarnation(host: str, pid: int, started: str) -> str:
+    return _digest(host, pid, started)
+
+
+def claim_token() -> str:
+    """A new claim's token (32 hex digits, the ``claim`` column's width): the claiming
+    process's host (:func:`_host`), pid and incarnation (its pid's start: a pid used
+    again is another process), then 8 random hex digits; 32 random ones without /proc."""
+    pid = os.getpid()
+    host = _host()
+    started = _process_start(pid)
+    if host is None or started is None:
+        return secrets.token_hex(16)
+    return f"{host}{pid:08x}{_incarnation(host, pid, started)}{secrets.token_hex(4)}"
+
+
+def claimer_died(token: str) -> bool:
+    """Whether the process that made the claim ``token`` is known to be dead: made on this
+    host and PID namespace by a pid that no process holds now, or that another process
+    has taken since. False whenever it cannot be told (another host, no /proc, a token
+    with no process in it, a process this one may not read): those keep their lease."""
+    host = _host()
+    if host is None or len(token) != 32 or not token.startswith(host):
+        return False
+    try:
+        pid = int(token[8:16], 16)
+    except ValueError:
+        return False
+    if pid <= 0:
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return True
+    except PermissionError:
+        pass  # alive, another user's: its start is read below where /proc shows it
+    except OSError:
+        return False
+    started = _process_start(pid)
+    return started is not None and _incarnation(host, pid, started) != token[16:24]
+
+
 def claim(
     db: Database,
     *,
@@ -117,7 +202,7 @@ def claim(
     """Claim ``key`` for ``client``'s request (``route``, fingerprint ``digest``), or say
     why not. Committed before it returns: a concurrent request sees the claim."""
     now = now or utcnow()
-    token = secrets.token_hex(16)
+    token = claim_token()
     # Three rounds: the row found may go (released, expired) between the failed insert
     # and the read; the next insert then meets the next request's row or none.
     for _ in range(3):
@@ -149,7 +234,7 @@ def claim(
                 return Claim(MISMATCH, route=row.route)
             if row.answer_status is not None:
                 return Claim(REPLAY, status=row.answer_status, body=row.answer_body)
-            if _aware(row.claimed_at) > now - CLAIM_LEASE:
+            if _aware(row.claimed_at) > now - CLAIM_LEASE and not claimer_died(row.claim):
                 return Claim(IN_PROGRESS, claimed_at=_aware(row.claimed_at))
             taken = session.execute(
                 update(IdempotencyKeyRow)
