@@ -348,7 +348,9 @@ def _idempotent_request(
         Header(
             alias=IDEMPOTENCY_KEY_HEADER,
             description="A key the client makes up for this request (a UUID; 1 to 255 "
-            "printable ASCII characters): sent again with the same request, within "
+            "printable ASCII characters, in double quotes as the draft's RFC 8941 string, "
+            'with \\" and \\\\ escapes, or bare of token characters only: letters, digits '
+            "and !#$%&'*+-.^_`|~:/): sent again with the same request, within "
             "INERTIA_ID_IDEMPOTENCY_KEY_TTL_S (24 h), it is answered as the first time, "
             "with Idempotent-Replayed: true, and nothing is made twice",
             # Documented only: checked by parse_key, whose 422 quotes the value (a bare
