@@ -122,6 +122,10 @@ class PlanPropellant(_Out):
     propellant_kg: float | None = Field(
         description="null unless the scenario gives thrust and specific impulse"
     )
+    propellant_note: str = Field(
+        description="how propellant_kg is reached, or, when it is null, 'not stated' and "
+        "the thruster fields the scenario lacks (the CSV's # propellant_kg line's words)"
+    )
 
 
 class PlanOut(_Out):

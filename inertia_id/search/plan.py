@@ -155,6 +155,14 @@ class CommandPlan:
     #: Why propellant_kg is None (the fields the scenario lacks); None when it is stated.
     propellant_unstated: str | None = None
 
+    def _propellant_note(self) -> str:
+        """How ``propellant_kg`` is reached, or why it is null (the words the CSV's
+        ``# propellant_kg:`` line gives)."""
+        if self.propellant_kg is not None:
+            return "sum over thrusters of thrust_n x on-time / (specific_impulse_s x g0), kg"
+        why = self.propellant_unstated
+        return "not stated" + (f" ({why})" if why else "")
+
     def _floor(self) -> dict[str, float] | None:
         """What the initial-rate spread alone leaves (:func:`~inertia_id.search.
         objectives.initial_rate_floor`), rad/s and deg/s; None for a scenario at rest."""
@@ -245,6 +253,7 @@ class CommandPlan:
                 "impulse_note": "commanded angular impulse summed over thrusters (every "
                 "firing counts, opposed or not): a propellant proxy",
                 "propellant_kg": self.propellant_kg,
+                "propellant_note": self._propellant_note(),
             },
             "warnings": list(self.warnings),
         }
@@ -264,8 +273,7 @@ class CommandPlan:
         out.write(f"# on_time_s: {propellant['on_time_s']:.6g}\n")
         kg = self.propellant_kg
         # Kept when unknown, so that a reader by name finds it, in words (it was empty).
-        why = self.propellant_unstated
-        stated = f"{kg:.6g}" if kg is not None else "not stated" + (f" ({why})" if why else "")
+        stated = f"{kg:.6g}" if kg is not None else propellant["propellant_note"]
         out.write(f"# propellant_kg: {stated}\n")
         floor = document["initial_rate_floor"]
         if floor is not None:

@@ -1378,3 +1378,23 @@ def test_the_front_tables_commanded_residual_columns_come_after_every_earlier_co
     assert row[before.index("final_rate_max_rad_s")] == 0.0087
     assert row[len(before) :] == [0.0009, pytest.approx(np.degrees(0.0009)), 0.0013,
                                   pytest.approx(np.degrees(0.0013))]  # fmt: skip
+
+
+def test_a_plans_json_says_in_words_why_the_propellant_is_null(paper: Scenario) -> None:
+    """The JSON gave ``propellant_kg: null`` and nothing more, where the CSV says why:
+    ``propellant_note`` carries the same words."""
+    sequence = [[4, 0, 0, 4, 0, 0]]
+    unstated = command_plan(paper, sequence).to_dict()["propellant"]
+    assert unstated["propellant_kg"] is None
+    assert unstated["propellant_note"] == (
+        "not stated (the scenario's thrusters give no thrust_n (or lever_arm_m) and no "
+        "specific_impulse_s)"
+    )
+    thrusters = {"nominal_torque_nm": 2.0, "n_levels": 5, "thrust_n": 4.0}
+    no_isp = command_plan(preset("paper", thrusters=thrusters), sequence).to_dict()
+    assert no_isp["propellant"]["propellant_note"].endswith("give no specific_impulse_s)")
+    stated = preset("paper", thrusters={**thrusters, "specific_impulse_s": 220.0})
+    propellant = command_plan(stated, sequence).to_dict()["propellant"]
+    assert propellant["propellant_kg"] is not None
+    assert "specific_impulse_s" in propellant["propellant_note"]
+    assert not propellant["propellant_note"].startswith("not stated")
