@@ -38,7 +38,9 @@ class SequenceSearchEnv(gym.Env[np.ndarray, np.ndarray]):
                   angular impulse it commands, N m s (the paper's multi-objective variant).
                   The constrained variant (``constraints`` given): the last step also
                   subtracts ``constraint_penalty`` times the summed relative violation
-                  of the constraints (``Σ max(0, value / bound − 1)``), a penalty whose
+                  of the constraints (``Σ max(0, (value − bound) / max(bound,
+                  scale))``, the scale :data:`~inertia_id.search.objectives.
+                  CONSTRAINT_SCALES` gives: a bound of 0 is no special case), a penalty whose
                   multiplier a Lagrangian PPO raises while episodes violate them.
     Episode end   Terminated after L steps; never truncated.
     Info          ``f1`` (the objective's score), ``accuracy``, ``final_rate_rad_s``
@@ -184,7 +186,7 @@ class SequenceSearchEnv(gym.Env[np.ndarray, np.ndarray]):
         """Summed relative violation of the constraints by the whole sequence (0: all hold)."""
         if not self.constraints:
             return 0.0
-        from .objectives import CONSTRAINTS
+        from .objectives import CONSTRAINTS, constraint_violation
 
         prefix = self._prefix
         figures = {
@@ -202,8 +204,7 @@ class SequenceSearchEnv(gym.Env[np.ndarray, np.ndarray]):
         }
         total = 0.0
         for name, bound in self.constraints.items():
-            figure, _, factor = CONSTRAINTS[name]
-            value, limit = figures[figure], bound * factor
+            value = figures[CONSTRAINTS[name][0]]
             assert value is not None  # checked against the scenario at construction
-            total += max(0.0, value / limit - 1.0) if limit > 0 else max(0.0, value)
+            total += max(0.0, constraint_violation(name, value, bound))
         return float(total)

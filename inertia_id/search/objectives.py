@@ -388,6 +388,45 @@ CONSTRAINTS: dict[str, tuple[str, str, float]] = {
     "max_propellant_kg": ("propellant_kg", "max", 1.0),
     "max_duration_s": ("duration_s", "max", 1.0),
 }
+#: Figure of :data:`CONSTRAINTS` -> the scale, in the figure's unit, that a violation is
+#: measured against when the bound is below it (a bound of exactly 0 included): a
+#: violation is ``excess / max(bound, scale)``. Relative to the bound alone, a bound of
+#: 0 had no scale and the penalised searches charged the absolute excess (0.02 rad/s
+#: over cost 0.02 x constraint_penalty) while a bound of 1e-9 rad/s charged 2e7 times
+#: that; with the scale, a bound of 0 costs what a bound at the scale or just under
+#: it does. Rates: 1e-4 rad/s, a tenth of the paper preset's gyro noise (1e-3 rad/s).
+CONSTRAINT_SCALES: dict[str, float] = {
+    "accuracy": 0.01,
+    "final_rate_max_rad_s": 1e-4,
+    "final_rate_p95_rad_s": 1e-4,
+    "commanded_residual_rate_rad_s": 1e-4,
+    "commanded_residual_rate_max_rad_s": 1e-4,
+    "peak_rate_rad_s": 1e-4,
+    "peak_rate_p95_rad_s": 1e-4,
+    "impulse_nms": 1e-3,
+    "on_time_s": 1e-3,
+    "propellant_kg": 1e-6,
+    "duration_s": 1e-3,
+}
+
+
+def constraint_violation(name: str, value: float, bound: float) -> float:
+    """A constraint's violation by a figure's value, relative to the bound or, for a
+    bound below it (0 included), to the figure's :data:`CONSTRAINT_SCALES`: ``(value −
+    bound) / max(bound, scale)`` for a "max_" bound (``bound − value`` for "min_"),
+    <= 0 when it holds; inf for a value that is not finite.
+
+    :param name: the constraint's name (:data:`CONSTRAINTS`), in whose unit ``bound`` is.
+    :param value: the figure, in the figure's unit (rad/s for every rate).
+    """
+    figure, sense, factor = CONSTRAINTS[name]
+    if not np.isfinite(value):
+        return float("inf")
+    limit = bound * factor
+    excess = value - limit if sense == "max" else limit - value
+    return float(excess / max(limit, CONSTRAINT_SCALES[figure]))
+
+
 #: How a percentile of many flights is read (a command plan's flights): Hyndman and Fan's
 #: type 8, median unbiased; numpy's default (type 7) reads the 95th percentile of 20
 #: draws at about the 90th.
@@ -737,15 +776,14 @@ class SequenceScores:
         return np.asarray(out)
 
     def violations(self, constraints: dict[str, float]) -> np.ndarray:
-        """Each constraint's violation, relative to its bound (<= 0 holds), in order."""
-        out = []
-        for name, bound in constraints.items():
-            figure, sense, factor = CONSTRAINTS[name]
-            value, limit = self.figure(figure), bound * factor
-            scale = limit if limit > 0 else 1.0
-            excess = value - limit if sense == "max" else limit - value
-            out.append(excess / scale if np.isfinite(value) else np.inf)
-        return np.asarray(out)
+        """Each constraint's violation (:func:`constraint_violation`, <= 0 holds), in
+        order."""
+        return np.asarray(
+            [
+                constraint_violation(name, self.figure(CONSTRAINTS[name][0]), bound)
+                for name, bound in constraints.items()
+            ]
+        )
 
     def feasible(self, constraints: dict[str, float]) -> bool:
         return bool(np.all(self.violations(constraints) <= 0.0))

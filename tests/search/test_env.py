@@ -414,3 +414,52 @@ def test_a_commanded_residual_bound_is_checked_on_the_plans_prediction_from_rest
             violation = getattr(score, figure) / np.radians(0.2) - 1.0
             assert violation > 1.0
             assert infos[-1]["constraint_violation"] == pytest.approx(violation)
+
+
+@pytest.mark.parametrize(
+    "name", ["max_final_rate_rad_s", "max_final_rate_deg_s", "max_peak_rate_rad_s"]
+)
+def test_a_rate_bound_of_zero_costs_what_a_bound_just_above_zero_does(
+    paper: Scenario, name: str
+) -> None:
+    """A bound of exactly 0 had no scale to divide by and the penalty fell back to the
+    absolute excess (0.05 rad/s over cost 0.05 x constraint_penalty) while a bound of
+    1e-9 rad/s cost 5e7 x: a violation is now measured against max(bound, the figure's
+    stated scale), continuous in the bound, the Pareto search's ratios alike."""
+    from inertia_id.search.objectives import CONSTRAINT_SCALES, CONSTRAINTS, SequenceScores
+
+    spin = [[4, 4, 4, 0, 0, 0], [0, 0, 0, 0, 0, 0]]
+    figure, _, factor = CONSTRAINTS[name]
+    scale = CONSTRAINT_SCALES[figure]
+    violations = {}
+    for bound_rad_s in (0.0, 1e-9, scale):
+        env = SequenceSearchEnv(
+            paper,
+            sequence_length=2,
+            n_realisations=4,
+            seed=0,
+            constraints={name: bound_rad_s / factor},
+            constraint_penalty=2.0,
+        )
+        score = env.scorer.score(tuple(map(tuple, spin)))
+        value = getattr(score, figure)
+        assert value > 100 * scale  # the spin breaks every one of these bounds
+        _, infos = play(env, spin)
+        violations[bound_rad_s] = infos[-1]["constraint_violation"]
+        assert violations[bound_rad_s] == pytest.approx((value - bound_rad_s) / scale)
+        # NSGA-II reads the same ratio off a member's scores.
+        member = SequenceScores(
+            accuracy=1.0,
+            accuracy_by_noise=[1.0],
+            final_rate_rad_s=value,
+            final_rate_max_rad_s=value,
+            peak_rate_rad_s=value,
+            impulse_nms=1.0,
+            on_time_s=1.0,
+            propellant_kg=None,
+            duration_s=1.0,
+            attitude_change_deg=0.0,
+        )
+        assert member.violations(env.constraints)[0] == pytest.approx(violations[bound_rad_s])
+    assert violations[0.0] == pytest.approx(violations[1e-9], rel=1e-4)
+    assert violations[0.0] > violations[scale] > 0.99 * violations[0.0]
