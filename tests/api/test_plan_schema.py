@@ -2,9 +2,10 @@
 
 The plan routes answer a plain Response (the plan's JSON as the core writes it); before,
 their 200 carried no schema at all (``"application/json": {}``), so a generated client
-knew nothing of its fields. Real answers are validated against the published schema,
-whose models forbid unknown fields: a field the plan gains or loses without the schema
-fails here.
+knew nothing of its fields. Real answers are validated against the strict variant of
+the published schema (:func:`app.result_schema.strict_document`: unknown fields refused),
+so a field the plan gains or loses without the schema fails here; the published schema
+itself allows unknown fields, for a client of a later release.
 """
 
 from __future__ import annotations
@@ -13,6 +14,8 @@ from typing import Any
 
 import jsonschema_rs
 import pytest
+
+from app.result_schema import strict_document
 
 from .support import GOOD_SEQUENCE, Api
 from .test_runs import _finished, _search_result, _with_front
@@ -41,7 +44,7 @@ def _check(validator: Any, document: dict[str, Any]) -> None:
 
 
 def test_the_plan_json_is_what_the_published_schema_describes(api: Api) -> None:
-    spec = api.get("/openapi.json").json()
+    spec = strict_document(api.get("/openapi.json").json())
     validators = {(p, m): _validator(spec, p, m) for p, m in PLAN_PATHS}
     # The paper preset at rest: no floor, no flights, no propellant mass.
     paper = api.create_scenario()["id"]
@@ -96,8 +99,8 @@ def test_the_plan_json_is_what_the_published_schema_describes(api: Api) -> None:
 def test_the_published_plan_schema_refuses_a_plan_it_does_not_describe(
     api: Api, change: Any, path: str
 ) -> None:
-    """The schema is strict: a field more, a field less or a wrong type is an error."""
-    spec = api.get("/openapi.json").json()
+    """The strict variant: a field more, a field less or a wrong type is an error."""
+    spec = strict_document(api.get("/openapi.json").json())
     validator = _validator(spec, *PLAN_PATHS[0])
     paper = api.create_scenario()["id"]
     document = api.get_with_key(
@@ -106,3 +109,24 @@ def test_the_published_plan_schema_refuses_a_plan_it_does_not_describe(
     change(document)
     errors = [str(list(e.instance_path)) for e in validator.iter_errors(document)]
     assert path in errors, errors
+
+
+def test_the_published_plan_schema_allows_a_field_a_later_release_adds(api: Api) -> None:
+    """Before, PlanOut forbade unknown fields: a client validating strictly against
+    /openapi.json would refuse a later release's plan for a field it added."""
+    published = api.get("/openapi.json").json()
+    paper = api.create_scenario()["id"]
+    document = api.get_with_key(
+        f"/scenarios/{paper}/plan", params={"sequence": "[[4,4,4,0,0,0]]"}
+    ).json()
+    document["added_later"] = 1
+    document["propellant"]["added_later"] = 1
+    document["steps"][0]["added_later"] = 1
+    for path, method in PLAN_PATHS:
+        assert list(_validator(published, path, method).iter_errors(document)) == []
+    strict = _validator(strict_document(published), *PLAN_PATHS[0])
+    assert {str(list(e.instance_path)) for e in strict.iter_errors(document)} == {
+        "[]",
+        "['propellant']",
+        "['steps', 0]",
+    }

@@ -1,5 +1,10 @@
 """Job results against the schema ``/openapi.json`` publishes for them, per job type.
 
+The published models allow fields they do not list (a client validating strictly against
+``/openapi.json`` reads a later release's results); real results are validated against
+its strict variant (:func:`app.result_schema.strict_document`, every described object
+closed), so that a field the code emits and the models do not describe fails here.
+
 Before, ``result`` was ``{"type": "object"}`` (``additionalProperties: true``) in every job
 model and ``GET /jobs/{id}/result?format=json`` an untyped object: a client learnt
 nothing of a training's, a sweep's or a search's result. Each is now described by the
@@ -17,6 +22,7 @@ from typing import Any
 import jsonschema_rs
 import pytest
 
+from app.result_schema import strict_document
 from inertia_id import InertiaClassifier, Scenario
 from inertia_id.pipelines import (
     SearchRequest,
@@ -88,7 +94,7 @@ def results(classifier: InertiaClassifier) -> dict[str, dict[str, Any]]:
 def test_each_job_types_result_is_what_the_published_schema_says(
     api: Api, classifier: InertiaClassifier, results: dict[str, dict[str, Any]]
 ) -> None:
-    spec = api.get("/openapi.json").json()
+    spec = strict_document(api.get("/openapi.json").json())
     schemas = spec["components"]["schemas"]
     one = _validator(spec, {"$ref": "#/components/schemas/JobOut"})
     listed = _validator(spec, {"$ref": "#/components/schemas/JobListed"})
@@ -132,29 +138,72 @@ def test_each_job_types_result_is_what_the_published_schema_says(
         ),
         ("search", lambda r: r.update(method="annealing"), "['method']"),
         ("search", lambda r: r.pop("best"), "[]"),
+        # A search's nested parts are described too (before, open objects).
+        ("search", lambda r: r["best"].update(sequence=[["4"]]), "['best', 'sequence', 0, 0]"),
+        ("search", lambda r: r["curve"][0].pop("timesteps"), "['curve', 0]"),
+        ("search", lambda r: r["fresh"].update(seed="s"), "['fresh', 'seed']"),
+        (
+            "search",
+            lambda r: r["baselines"]["hand-designed"].update(fuel_nms=None),
+            "['baselines', 'hand-designed']",
+        ),
     ],
 )
 def test_the_published_result_schema_refuses_a_result_it_does_not_describe(
     api: Api, results: dict[str, dict[str, Any]], job_type: str, change: Any, path: str
 ) -> None:
-    spec = api.get("/openapi.json").json()
-    one = _validator(spec, {"$ref": "#/components/schemas/JobOut"})
+    spec = strict_document(api.get("/openapi.json").json())
+    # The type's own variant of the job (JobOut is the union of them, by type).
+    variant = {"search": "SearchJobOut", "train": "TrainJobOut", "sweep": "SweepJobOut"}
+    one = _validator(spec, {"$ref": f"#/components/schemas/{variant[job_type]}"})
+    union = _validator(spec, {"$ref": "#/components/schemas/JobOut"})
     scenario_id = api.create_scenario()["id"]
     params = {"search": {"method": "random"}, "train": {"sequence": GOOD_SEQUENCE}}
     kind = "search" if job_type == "sweep" else job_type  # a sweep needs a classifier row
     job = api.get(f"/jobs/{_finished(api, kind, scenario_id, params[kind], None)}").json()
     result = json.loads(json.dumps(results[job_type]))
     change(result)
-    errors = [
-        str(list(e.instance_path))
-        for e in one.iter_errors({**job, "type": job_type, "result": result})
-    ]
+    document = {**job, "type": job_type, "result": result}
+    errors = [str(list(e.instance_path)) for e in one.iter_errors(document)]
     # Under the type's anyOf (its model or null), the error is the result's; the
     # type's own model says where in it.
     assert errors and all(e.startswith("['result'") for e in errors), errors
+    assert _errors(union, document)
     model = {"search": "SearchJobResult", "train": "TrainJobResult", "sweep": "SweepJobResult"}
     own = _validator(spec, {"$ref": f"#/components/schemas/{model[job_type]}"})
     assert path in [str(list(e.instance_path)) for e in own.iter_errors(result)]
+
+
+@pytest.mark.parametrize(
+    ("change", "path"),
+    [
+        (
+            lambda f: f["members"][0]["scores"].update(accuracy="high"),
+            "['members', 0, 'scores', 'accuracy']",
+        ),
+        (lambda f: f["members"][0].update(added=1), "['members', 0]"),
+        (lambda f: f["members"][0].pop("dominated_by"), "['members', 0]"),
+        (
+            lambda f: f["baselines"]["hand-designed"].pop("dominates"),
+            "['baselines', 'hand-designed']",
+        ),
+        (lambda f: f.update(dominated_by_baseline="no"), "['dominated_by_baseline']"),
+    ],
+)
+def test_the_published_schema_describes_a_search_fronts_members_and_baselines(
+    api: Api, results: dict[str, dict[str, Any]], change: Any, path: str
+) -> None:
+    """Before, a front's members and baselines were objects whose fields were open: any
+    value passed. (The front is ``SearchFront`` or null: an error in it is reported at
+    ``front``, so the front is checked against its own model.)"""
+    spec = strict_document(api.get("/openapi.json").json())
+    front = json.loads(json.dumps(results["search"]["front"]))
+    own = _validator(spec, {"$ref": "#/components/schemas/SearchFront"})
+    assert _errors(own, front) == []
+    change(front)
+    assert path in [str(list(e.instance_path)) for e in own.iter_errors(front)]
+    whole = _validator(spec, {"$ref": "#/components/schemas/SearchJobResult"})
+    assert _errors(whole, {**results["search"], "front": front})
 
 
 @pytest.mark.parametrize("kind", ["clustering", "likelihood", "least-squares"])
@@ -166,7 +215,7 @@ def test_a_train_job_run_by_the_worker_has_the_result_the_schema_describes(
     # train job's real result.
     from worker.runner import execute_job
 
-    spec = api.get("/openapi.json").json()
+    spec = strict_document(api.get("/openapi.json").json())
     one = _validator(spec, {"$ref": "#/components/schemas/JobOut"})
     scenario_id = api.create_scenario()["id"]
     params: dict[str, Any] = {"sequence": GOOD_SEQUENCE, "kind": kind, "n_realisations": 4}
@@ -214,3 +263,88 @@ def test_a_result_stored_by_an_older_release_still_meets_the_published_schema(
     job = api.get(f"/jobs/{job_id}").json()
     assert not set(missing) & set(job["result"])
     assert _errors(one, job) == []
+
+
+def test_a_search_job_run_by_the_worker_has_the_result_the_schema_describes(api: Api) -> None:
+    """A real NSGA-II search through the worker's runner (its front measured, member 0
+    confirmed, the baselines beside): every nested part is described, none of its
+    fields unknown to the strict variant."""
+    from worker.runner import execute_job
+
+    spec = strict_document(api.get("/openapi.json").json())
+    one = _validator(spec, {"$ref": "#/components/schemas/JobOut"})
+    scenario_id = api.create_scenario()["id"]
+    params: dict[str, Any] = {
+        "method": "nsga2",
+        "sequence_length": 2,
+        "timesteps": 40,
+        "n_realisations": 4,
+        "fresh_test_series": 2,
+        "fresh_realisations": 4,
+        "nsga2": {"population": 8, "generations": 2},
+    }
+    submitted = api.submit("search", scenario_id, params=params)
+    assert submitted.status_code == 202, submitted.text
+    job_id = submitted.json()["id"]
+    assert execute_job(job_id, settings=api.settings, worker_name="tests") == "succeeded"
+    job = api.get(f"/jobs/{job_id}").json()
+    result = job["result"]
+    assert result["front"]["members"] and result["front"]["confirmation"] is not None
+    assert result["curve"] and result["baselines"]
+    assert _errors(one, job) == []
+    member = _validator(spec, {"$ref": "#/components/schemas/SearchFrontMember"})
+    assert _errors(member, result["front"]["members"][0]) == []
+
+
+def test_the_published_schemas_allow_a_field_a_later_release_adds(
+    api: Api, results: dict[str, dict[str, Any]]
+) -> None:
+    """A client validating strictly against /openapi.json must still read a later
+    release's results and plans: the published models allow fields they do not list
+    (before, TrainJobResult and PlanOut refused any), the strict variant the tests use
+    does not."""
+    published = api.get("/openapi.json").json()
+    strict = strict_document(published)
+    scenario_id = api.create_scenario()["id"]
+    params = {"search": {"method": "random"}, "train": {"sequence": GOOD_SEQUENCE}}
+    job = api.get(f"/jobs/{_finished(api, 'search', scenario_id, params['search'], None)}").json()
+    later = {
+        "train": lambda r: r.update(added_later=1),
+        "sweep": lambda r: r["points"][0].update(added_later=1),
+        "search": lambda r: r["front"]["members"][0]["scores"].update(added_later=1),
+    }
+    for job_type, change in later.items():
+        result = json.loads(json.dumps(results[job_type]))
+        change(result)
+        document = {**job, "type": job_type, "result": result, "added_later": True}
+        ref = {"$ref": "#/components/schemas/JobOut"}
+        assert _errors(_validator(published, ref), document) == [], job_type
+        assert _errors(_validator(strict, ref), document), job_type
+
+
+def test_a_jobs_result_is_a_union_tagged_by_the_job_type(api: Api) -> None:
+    """Every job model is a oneOf of one variant a job type with an OpenAPI
+    discriminator on ``type`` (client generators make a tagged union of it); before,
+    an ``allOf`` of ``if``/``then`` clauses, which most generators ignore."""
+    spec = api.get("/openapi.json").json()
+    schemas = spec["components"]["schemas"]
+    models = {"search": "SearchJobResult", "train": "TrainJobResult", "sweep": "SweepJobResult"}
+    for name in ("JobOut", "JobSubmitted", "JobListed", "JobDownload"):
+        union = schemas[name]
+        assert "allOf" not in union and "if" not in json.dumps(union)
+        mapping = union["discriminator"]["mapping"]
+        assert union["discriminator"]["propertyName"] == "type"
+        assert set(mapping) == set(models)
+        assert [v["$ref"] for v in union["oneOf"]] == list(mapping.values())
+        for job_type, ref in mapping.items():
+            variant = schemas[ref.rsplit("/", 1)[1]]
+            assert "type" in variant["required"]
+            assert variant["properties"]["type"]["const"] == job_type
+            targets = [r.get("$ref") for r in variant["properties"]["result"]["anyOf"]]
+            assert targets == [f"#/components/schemas/{models[job_type]}", None]
+        assert ("config_hash" in schemas[ref.rsplit("/", 1)[1]]["properties"]) == (
+            name != "JobDownload"
+        )
+    # The routes point at the unions.
+    one = spec["paths"]["/jobs/{job_id}"]["get"]["responses"]["200"]["content"]
+    assert one["application/json"]["schema"] == {"$ref": "#/components/schemas/JobOut"}
