@@ -306,8 +306,8 @@ def test_the_published_schemas_allow_a_field_a_later_release_adds(
     published = api.get("/openapi.json").json()
     strict = strict_document(published)
     scenario_id = api.create_scenario()["id"]
-    params = {"search": {"method": "random"}, "train": {"sequence": GOOD_SEQUENCE}}
-    job = api.get(f"/jobs/{_finished(api, 'search', scenario_id, params['search'], None)}").json()
+    job_id = _finished(api, "search", scenario_id, {"method": "random"}, None)
+    job = api.get(f"/jobs/{job_id}").json()
     later = {
         "train": lambda r: r.update(added_later=1),
         "sweep": lambda r: r["points"][0].update(added_later=1),
