@@ -56,8 +56,9 @@ _WHERE = ("header", IDEMPOTENCY_KEY_HEADER)
 # The draft's field is a Structured Field String (RFC 8941 3.3.3): in double quotes,
 # printable ASCII, ``\"`` and ``\\`` the only escapes. A bare key (Stripe's, a UUID) is
 # taken too, as the characters of an sf-token (RFC 8941 3.3.4: tchar, ":" and "/"), a
-# leading digit allowed (a UUID's): anything else there (a quote, a backslash, a space,
-# "=", ";", ",") is what a structured field would read as something other than one key.
+# leading digit allowed (a UUID's), and base64's trailing "=" padding: anything else
+# there (a quote, a backslash, a space, "=" before the end, ";", ",") is what a
+# structured field would read as something other than one key.
 # Parsed here, for one header of one type, as RFC 8941 4.2 parses an Item (its
 # algorithms, with messages that say where it broke), rather than with a
 # structured-fields library the project does not otherwise need.
@@ -187,6 +188,11 @@ def _bare_key(raw: str, value: str) -> str:
     for at, char in enumerate(value):
         if char in _TOKEN_CHARS:
             continue
+        if char == "=" and at > 0 and value[at:] == "=" * (len(value) - at):
+            # base64 padding (a random key from a client's base64 encoder): taken, as it
+            # was before the RFC 8941 parser; RFC 8941 has no "=" in a token, but at the
+            # end of a bare value it cannot start a parameter or a dictionary member.
+            return value
         if char == ",":
             _refuse(
                 raw,

@@ -184,18 +184,20 @@ def test_a_comma_inside_the_drafts_quoted_string_is_part_of_one_key(api: Api) ->
 
 def test_the_drafts_escapes_are_read_and_a_bare_token_is_taken_as_sent(api: Api) -> None:
     """``\\"`` and ``\\\\`` in the quoted string stand for a quote and a backslash; a bare
-    key with a leading digit (a UUID) or any of the token's punctuation is kept as is."""
+    key with a leading digit (a UUID), any of the token's punctuation or base64's
+    trailing "=" padding is kept as is."""
     sent = [
         '"say \\"hi\\" \\\\o/"',
         "550e8400-e29b-41d4-a716-446655440000",
         "*k_1.2~a:b/c!#$%&'+^`|",
+        "q83vEjRWeJA+/w==",
     ]
     for key in sent:
         made = api.client.post("/scenarios", json={"preset": "paper"}, headers=_keyed(api, key))
         assert made.status_code == 201, made.text
     with api.db.session() as session:
         assert sorted(session.scalars(select(IdempotencyKeyRow.key)).all()) == sorted(
-            ['say "hi" \\o/', sent[1], sent[2]]
+            ['say "hi" \\o/', sent[1], sent[2], sent[3]]
         )
 
 
