@@ -7,6 +7,11 @@ Playwright the tests skip, or fail when ``INERTIA_ID_REQUIRE_SERVICES=1`` (CI se
 Every page records its JavaScript console: a test fails on any console error or
 uncaught exception it did not declare with ``console.expect(...)``. Screenshots go to
 ``artifacts/screenshots/`` (or ``INERTIA_ID_ARTIFACTS_DIR``).
+
+Every test has a browser context of its own, with the API key saved as a user who
+entered it once has it (``@pytest.mark.without_api_key``: none saved), so that a test
+passes alone and in any order: with one context per module, the tests that write from
+the page passed only after the module's first test had typed the key in.
 """
 
 from __future__ import annotations
@@ -18,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from dashboard_support import API_KEY, Console, Dashboard, Service
+from dashboard_support import API_KEY, KEY_STORAGE, Console, Dashboard, Service
 from service_support import serve_app, skip_or_fail
 
 CHROMIUM = os.environ.get("INERTIA_ID_CHROMIUM", "/usr/bin/chromium")
@@ -50,10 +55,24 @@ def browser() -> Iterator[Any]:
             chromium.close()
 
 
-@pytest.fixture(scope="module")
-def context(browser: Any) -> Iterator[Any]:
-    # One browser context per module: the API key saved in localStorage carries over.
-    ctx = browser.new_context(viewport={"width": 1440, "height": 900})
+def pytest_configure(config: pytest.Config) -> None:
+    config.addinivalue_line(
+        "markers", "without_api_key: the test's browser starts with no API key saved"
+    )
+
+
+@pytest.fixture
+def context(browser: Any, service: Service, request: pytest.FixtureRequest) -> Iterator[Any]:
+    # A context per test: nothing one test leaves in the browser's storage reaches another.
+    keyless = request.node.get_closest_marker("without_api_key") is not None
+    saved = [] if keyless else [{"name": KEY_STORAGE, "value": API_KEY}]
+    ctx = browser.new_context(
+        viewport={"width": 1440, "height": 900},
+        storage_state={
+            "cookies": [],
+            "origins": [{"origin": service.base_url, "localStorage": saved}],
+        },
+    )
     try:
         yield ctx
     finally:

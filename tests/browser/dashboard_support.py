@@ -13,6 +13,8 @@ import httpx
 from service_support import ROOT, tail, wait_for
 
 API_KEY = "browser-" + "k" * 40
+#: Where the dashboard keeps the API key (frontend/js/api.js).
+KEY_STORAGE = "inertia-id-api-key"
 ARTIFACTS = Path(os.environ.get("INERTIA_ID_ARTIFACTS_DIR", ROOT / "artifacts")) / "screenshots"
 
 

@@ -1,13 +1,15 @@
 """The dashboard's whole workflow in headless Chromium against a running service + worker.
 
-The tests run in file order and share what they made (scenario, searches, classifier,
-sweep) in ``made``: a wrong API key refused when entered; create a scenario from the
-preset, see a bad one refused field by field and then fixed, clone one and upload the
-file ``inertia-id scenario --out`` writes; run a small PPO search with a name and tags
-and watch its curve grow, download its result; train and sweep; identify telemetry and
-download the verdict; resubmit an identical job (reused, then rerun); compare searches
-and classifiers; cancel a job after confirming; the API docs offline; every page type at
-1366 and 1920 px with no legend over a plot. Each saves screenshots of its pages.
+The tests share what they made (scenario, searches, classifier, sweep) in ``made``; each
+starts with the API key saved (``conftest.py``), and one that needs what another makes
+says so (``_needs``) or makes it itself. In file order: a wrong API key refused when
+entered; create a scenario from the preset, see a bad one refused field by field and then
+fixed, clone one and upload the file ``inertia-id scenario --out`` writes; run a small
+PPO search with a name and tags and watch its curve grow, download its result; train and
+sweep; identify telemetry and download the verdict; resubmit an identical job (reused,
+then rerun); compare searches and classifiers; cancel a job after confirming; the API
+docs offline; every page type at 1366 and 1920 px with no legend over a plot.
+Each saves screenshots of its pages.
 """
 
 from __future__ import annotations
@@ -82,20 +84,9 @@ def _telemetry_csv(
     return path
 
 
-def _key_saved(dashboard: Dashboard) -> None:
-    """The API key in localStorage, as the first test saves it: for a test run on its own."""
-    dashboard.page.add_init_script(
-        f"localStorage.setItem('inertia-id-api-key', {json.dumps(API_KEY)})"
-    )
-
-
 def _classifier(dashboard: Dashboard) -> str:
     """The classifier the training test made; trained here through the API (the paper
-    preset, GOOD, the dashboard's defaults) when the identify tests run on their own, and
-    the API key saved as the first test saves it."""
-    dashboard.page.add_init_script(
-        f"localStorage.setItem('inertia-id-api-key', {json.dumps(API_KEY)})"
-    )
+    preset, GOOD, the dashboard's defaults) when the identify tests run on their own."""
     if "classifier" not in made:
         client = dashboard.service.client
         scenario = client.post("/scenarios", json={"preset": "paper"})
@@ -196,6 +187,7 @@ def _shows(text: str, value: float, significant: int = 3) -> None:
     assert float(text) == value or _significant(text) >= significant, (text, value)
 
 
+@pytest.mark.without_api_key
 def test_without_the_key_a_write_says_to_enter_it_a_wrong_key_is_refused_then_it_is_kept(
     dashboard: Dashboard,
 ) -> None:
@@ -254,7 +246,6 @@ def test_a_scenario_whose_answer_was_lost_is_sent_again_with_its_key_and_stored_
     is answered the first one's scenario, and opens it; one scenario is stored. Before,
     the page said the service could not be reached, and a second click stored another."""
     page = dashboard.page
-    _key_saved(dashboard)
     keys: list[str | None] = []
 
     def lose_the_first_answer(route: Any) -> None:
@@ -291,7 +282,6 @@ def test_a_scenario_refused_by_a_proxy_is_sent_again_with_its_key_and_stored_onc
     between tries, and opens the one scenario stored. Before, the first 502 was the
     page's error, though the key made the retry safe."""
     page = dashboard.page
-    _key_saved(dashboard)
     keys: list[str | None] = []
 
     def refuse_twice(route: Any) -> None:
@@ -329,7 +319,6 @@ def test_a_preset_submitted_again_while_its_retry_waits_is_not_stored_twice(
     name field meanwhile (nothing seemed to happen) sent a second submission with a new
     key: two scenarios were stored. The form takes no second submission while one is sent."""
     page = dashboard.page
-    _key_saved(dashboard)
     keys: list[str | None] = []
 
     def refuse_the_first(route: Any) -> None:
@@ -376,7 +365,6 @@ def test_a_503s_retry_after_is_waited_in_full_before_the_submission_is_sent_agai
     all of it: 1 to 2 s, sooner than the service asked. The delays the page asks of
     setTimeout are recorded, with Math.random fixed (no clock read)."""
     page = dashboard.page
-    _key_saved(dashboard)
     page.add_init_script(
         "Math.random = () => 0.25; window.__delays = []; const set = window.setTimeout;"
         "window.setTimeout = (f, ms, ...rest) => { window.__delays.push(ms); "
@@ -419,7 +407,6 @@ def test_a_submission_a_proxy_keeps_refusing_is_tried_four_times_then_shown(
     """The retries are bounded: a gateway that answers 504 every time is tried 4 times
     (one key), then the page says what the last answer was, and nothing is stored."""
     page = dashboard.page
-    _key_saved(dashboard)
     keys: list[str | None] = []
 
     def always_504(route: Any) -> None:
@@ -1914,9 +1901,6 @@ def _finished_search(
     earlier tests, or a new one from the preset when this test runs alone), once it has
     succeeded."""
     service = dashboard.service
-    # The plan needs the key (the first test saves it; this one may run alone).
-    dashboard.open("#/jobs")
-    dashboard.page.evaluate("key => localStorage.setItem('inertia-id-api-key', key)", API_KEY)
     if scenario_id is None and "scenario" not in made:
         created = service.client.post("/scenarios", json={"preset": "paper"})
         assert created.status_code == 201, created.text
@@ -2224,9 +2208,6 @@ def test_a_front_the_time_limits_grace_cut_says_what_was_not_re_scored(
     candidates were left out and why, lists their scores on the search's draw, and on
     how many of the fresh draws asked the best was measured."""
     page = dashboard.page
-    # The member's plan needs the key (the first test saves it; this one may run alone).
-    dashboard.open("#/jobs")
-    page.evaluate("key => localStorage.setItem('inertia-id-api-key', key)", API_KEY)
     client = dashboard.service.client
     created = client.post("/scenarios", json={"preset": "paper"})
     assert created.status_code == 201, created.text
@@ -2756,9 +2737,6 @@ def test_identify_with_a_classifier_far_below_the_gyro_noise_shows_the_responses
     where that response warns (rates far below the gyro noise: the verdict reads noise),
     the warning is said under the verdict, as the classifier page says it (the page drew
     the response without a word)."""
-    dashboard.page.add_init_script(
-        f"localStorage.setItem('inertia-id-api-key', {json.dumps(API_KEY)})"
-    )
     service = dashboard.service
     scenario_id = _inertia_in_mm2(dashboard)
     submitted = service.client.post(
