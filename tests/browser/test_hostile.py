@@ -639,6 +639,45 @@ def test_broken_json_in_an_overrides_box_is_named_before_anything_is_sent(
     assert posted == []
 
 
+def test_broken_json_in_the_design_noise_constraints_or_sequence_is_named_before_sending(
+    dashboard: Dashboard,
+) -> None:
+    # Sent as typed, a design noise of "[[1, 1]" came back from the service quoted as a
+    # string ("Input should be a valid list", the text echoed), and so did a training's
+    # sequence: now the form names the box, says its JSON is broken and why, and sends
+    # nothing, as the overrides boxes do.
+    _save_key(dashboard)
+    scenario_id = _scenario(dashboard, ["stowed", "deployed", "ejected"], "broken json boxes")
+    dashboard.open(f"#/jobs?scenario={scenario_id}&type=search")
+    page = dashboard.page
+    posted: list[str] = []
+    page.on("request", lambda r: posted.append(r.url) if r.method == "POST" else None)
+    page.select_option("#search-method", "nsga2")
+    for box, label, broken in (
+        ("#search-design_noise", "design noise", "[[1, 1]"),
+        ("#search-constraints", "constraints", '{"max_impulse_nms": 20,'),
+    ):
+        kept = page.input_value(box)
+        page.fill(box, broken)
+        page.click("#submit-job")
+        shown = page.wait_for_selector(f"{box} + .field-error").inner_text()
+        assert shown.startswith(f"{label}: not valid JSON: "), shown
+        assert broken not in shown and len(shown) > len(label) + 20, shown
+        assert page.locator(".field-error").count() == 1
+        page.fill(box, kept)
+    page.click("#tab-train")
+    # The box is filled with the scenario's hand-designed sequence once it is fetched.
+    page.wait_for_function("() => document.getElementById('train-sequence').value !== ''")
+    page.fill("#train-sequence", "[[4, 4, 4, 0, 0, 0], [4, 4")
+    page.click("#submit-job")
+    shown = page.wait_for_selector("#train-sequence + .field-error").inner_text()
+    assert shown.startswith("sequence: not valid JSON: "), shown
+    assert page.locator(".field-error").count() == 1
+    assert page.eval_on_selector("#submit-job", "b => !b.disabled")
+    page.wait_for_timeout(300)
+    assert posted == []
+
+
 def test_a_job_forms_refused_fields_are_shown_next_to_them(dashboard: Dashboard) -> None:
     # The service locates a job's field where the client sent it (["body", "seed"], not
     # under the job union's tag): the form still puts each message next to its input.

@@ -17,17 +17,10 @@ function intOrText(text) {
   return /^[+-]?\d+$/.test(trimmed) ? Number(trimmed) : trimmed;
 }
 
-function jsonOrText(text) {
-  try {
-    return JSON.parse(text);
-  } catch {
-    return text;
-  }
-}
-
-// A box of JSON overrides refused before it is sent, next to the box (`loc` as the
-// service's 422 would give it): sent as typed, "{bad" came back "Input should be a valid
-// dictionary, got '{bad'", which never said the JSON was broken.
+// A box of JSON refused before it is sent, next to the box (`loc` as the service's 422
+// would give it): sent as typed, "{bad" came back "Input should be a valid dictionary,
+// got '{bad'", and a design noise of "[[1, 1]" came back quoted as a string: neither
+// said the JSON was broken.
 class BoxError extends Error {
   constructor(loc, message) {
     super(message);
@@ -35,11 +28,11 @@ class BoxError extends Error {
   }
 }
 
-// The object typed in a box of JSON overrides (empty: none), or a BoxError naming the
-// box and the parser's reason.
-function overridesBox(input, label, loc) {
+// The value typed in a box of JSON, or a BoxError naming the box and the parser's
+// reason. An empty box is `empty` (undefined: sent as typed, for the service to name).
+function jsonBox(input, label, loc, empty = undefined) {
   const text = String(input.value).trim();
-  if (!text) return {};
+  if (!text) return empty === undefined ? text : empty;
   try {
     return JSON.parse(text);
   } catch (exc) {
@@ -47,12 +40,13 @@ function overridesBox(input, label, loc) {
   }
 }
 
-// "max_final_rate_deg_s=0.2, max_impulse_nms=20" as an object of numbers; anything that
-// does not parse is sent as typed, so the service's 422 names it.
-function constraintsOrText(text) {
-  const trimmed = String(text).trim();
+// "max_final_rate_deg_s=0.2, max_impulse_nms=20" as an object of numbers, or a JSON
+// object (broken JSON named before it is sent); anything else that does not parse is
+// sent as typed, so the service's 422 names it.
+function constraintsOrText(input) {
+  const trimmed = String(input.value).trim();
   if (!trimmed) return {};
-  if (trimmed.startsWith("{")) return jsonOrText(trimmed);
+  if (trimmed.startsWith("{")) return jsonBox(input, "constraints", ["body", "params", "constraints"]);
   const out = {};
   for (const part of trimmed.split(/[,;\n]+/)) {
     // Names carry digits too (max_final_rate_p95_deg_s).
@@ -131,11 +125,11 @@ function submitForm(scenarios, classifiers, query) {
       metric: search.metric.value,
       patience_episodes: intOrText(search.patience_episodes.value),
       fuel_weight: Number.isFinite(Number(search.fuel_weight.value)) ? Number(search.fuel_weight.value) : search.fuel_weight.value,
-      ...(search.method.value === "ppo" ? { ppo: overridesBox(search.ppo, "PPO overrides", ["body", "params", "ppo"]) } : {}),
-      ...(search.method.value === "nsga2" ? { nsga2: overridesBox(search.nsga2, "NSGA-II settings", ["body", "params", "nsga2"]) } : {}),
+      ...(search.method.value === "ppo" ? { ppo: jsonBox(search.ppo, "PPO overrides", ["body", "params", "ppo"], {}) } : {}),
+      ...(search.method.value === "nsga2" ? { nsga2: jsonBox(search.nsga2, "NSGA-II settings", ["body", "params", "nsga2"], {}) } : {}),
       objectives: chosenObjectives(),
-      design_noise: jsonOrText(search.design_noise.value),
-      constraints: constraintsOrText(search.constraints.value),
+      design_noise: jsonBox(search.design_noise, "design noise", ["body", "params", "design_noise"]),
+      constraints: constraintsOrText(search.constraints),
     },
   });
 
@@ -174,7 +168,7 @@ function submitForm(scenarios, classifiers, query) {
     scenario_id: train.scenario.value,
     seed: intOrText(train.seed.value),
     params: {
-      sequence: jsonOrText(train.sequence.value),
+      sequence: jsonBox(train.sequence, "sequence", ["body", "params", "sequence"]),
       kind: train.kind.value,
       ...(train.metric.value ? { metric: train.metric.value } : {}),
       ...(train.n_realisations.value.trim() ? { n_realisations: intOrText(train.n_realisations.value) } : {}),
