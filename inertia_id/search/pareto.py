@@ -1001,12 +1001,22 @@ def pareto_search(
         )
         report(curve[-1], new_point=False, phase="measuring the front", measured=done)
 
+    #: The most accurate feasible sequence scored so far (of all, while none is feasible).
+    best_so_far: list[SequenceScores] = []
+
     def curve_point(scored: list[SequenceScores]) -> CurvePoint:
         """A point of the learning curve at the evaluations so far: the most accurate
-        feasible of ``scored`` (a generation's population, or a polish round's
-        neighbours; of all where none is feasible) and their mean accuracy."""
-        feasible = [s for s in scored if s.feasible(constraints)] or scored
-        top = max(feasible, key=lambda s: s.accuracy)
+        feasible sequence so far, as :class:`CurvePoint` says of every method, and the
+        mean accuracy of ``scored`` (a generation's population, or a polish round's
+        neighbours). The best of ``scored`` alone dipped: a polish round's neighbours
+        are each a step off the sequence climbed, most of them less accurate."""
+        best_so_far[:] = [
+            max(
+                [*best_so_far, *scored],
+                key=lambda s: (s.feasible(constraints), s.accuracy),
+            )
+        ]
+        top = best_so_far[0]
         return CurvePoint(
             timesteps=scorer.evaluations * sequence_length,
             episodes=scorer.evaluations,
