@@ -28,6 +28,7 @@ __all__ = [
     "BAND_PERCENTILES",
     "accuracy_figure",
     "learning_curve_figure",
+    "polish_start_timesteps",
     "response_figure",
     "sequence_figure",
     "write_report",
@@ -194,6 +195,18 @@ def sequence_figure(scenario: Scenario, sequence: np.ndarray) -> go.Figure:
     return fig
 
 
+def polish_start_timesteps(search: SearchResult) -> int | None:
+    """The environment steps at NSGA-II's last generation, where its polish rounds begin
+    on the curve; None for another method or a curve with no polish round. The
+    generations are the curve's first points (fewer when the search stopped in them)."""
+    curve = search.curve
+    if search.method != "nsga2" or not curve:
+        return None
+    settings = search.settings.get("nsga2") or {}
+    generations = min(len(curve), int(settings.get("generations", len(curve))))
+    return curve[generations - 1].timesteps if 0 < generations < len(curve) else None
+
+
 def learning_curve_figure(search: SearchResult) -> go.Figure:
     """Mean episode reward (left axis) and mean / best F1 (right axis) vs environment steps."""
     fig = make_subplots(specs=[[{"secondary_y": True}]])
@@ -208,10 +221,15 @@ def learning_curve_figure(search: SearchResult) -> go.Figure:
         ),
         secondary_y=False,
     )
+    # NSGA-II's score is a predicted accuracy, its mean one of a generation or a polish
+    # round's neighbours (:func:`~inertia_id.search.pareto.pareto_search`).
+    pareto = search.method == "nsga2"
+    score = "predicted accuracy" if pareto else "F1"
+    mean = "mean of the generation (polish round)" if pareto else "mean of the episodes' sequences"
     for i, (name, values) in enumerate(
         (
-            ("mean F1 of the episodes' sequences", [p.mean_f1 for p in search.curve]),
-            ("best F1 so far", [p.best_f1 for p in search.curve]),
+            (f"{score}: {mean}", [p.mean_f1 for p in search.curve]),
+            (f"best {score} so far", [p.best_f1 for p in search.curve]),
         )
     ):
         fig.add_trace(
@@ -224,6 +242,13 @@ def learning_curve_figure(search: SearchResult) -> go.Figure:
             ),
             secondary_y=True,
         )
+    start = polish_start_timesteps(search)
+    if start is not None:
+        fig.add_vline(
+            x=start,
+            line={"dash": "dash", "color": "#555", "width": 1},
+            annotation={"text": "polish starts", "xanchor": "left", "font": {"size": 11}},
+        )
     fig.update_layout(
         title=f"Search ({search.method}): learning curve",
         xaxis_title="environment steps",
@@ -233,7 +258,7 @@ def learning_curve_figure(search: SearchResult) -> go.Figure:
     # Round ticks of its own (0, 0.2, ..., 1): Plotly would otherwise align them with
     # the reward axis's ticks, at values such as 0.078 and 0.245.
     fig.update_yaxes(
-        title_text="F1",
+        title_text=score,
         range=[0, 1.02],
         tickmode="linear",
         tick0=0,

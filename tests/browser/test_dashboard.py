@@ -2295,8 +2295,8 @@ def test_an_nsga2_search_draws_its_generations_not_an_empty_reward(dashboard: Da
     assert page.inner_text("#curve-phases") == (
         f"{result['timesteps']:,} environment steps on the curve: {split:,} in {generations} "
         f"generations, then {result['timesteps'] - split:,} in {len(curve) - generations} polish "
-        f"rounds (the points after step {split:,}, each a round's neighbours of the sequence "
-        "climbed)."
+        f"rounds (the points after step {split:,}, at the dashed line: each a round's "
+        "neighbours of the sequences climbed)."
     )
     assert f"{result['timesteps']:,}, " in page.inner_text("#best-summary")
     # The axis shows the rates at their height, also when they never change (Plotly's
@@ -2308,6 +2308,57 @@ def test_an_nsga2_search_draws_its_generations_not_an_empty_reward(dashboard: Da
     assert high - low <= 4 * max(abs(v) for v in drawn) + (max(drawn) - min(drawn))
     accuracy = page.evaluate("() => document.getElementById('f1-plot').layout.yaxis.title.text")
     assert "predicted accuracy" in accuracy
+
+
+def test_an_nsga2_curves_best_only_rises_and_its_polish_start_is_marked_where_it_is_drawn(
+    dashboard: Dashboard,
+) -> None:
+    """The best line is the most accurate feasible sequence so far: it dipped through the
+    polish rounds (each round's best neighbour). The job page and the compare page draw
+    a dashed line where the polish starts (the compare page had none)."""
+    page = dashboard.page
+    job = _finished_search(
+        dashboard,
+        {
+            "method": "nsga2",
+            "sequence_length": 2,
+            "n_realisations": 4,
+            "nsga2": {"population": 8, "generations": 2, "polish_iterations": 3},
+            "fresh_realisations": 6,
+        },
+        "NSGA-II with a polish",
+    )
+    curve = job["result"]["curve"]
+    assert len(curve) > 2
+    start = curve[1]["timesteps"]
+    best = [p["best_f1"] for p in curve]
+    assert best == sorted(best)
+    dashboard.open(f"#/jobs/{job['id']}")
+    page.wait_for_selector("#curve-phases:not([hidden])")
+    for plot in ("f1-plot", "reward-plot"):
+        page.wait_for_function(
+            "id => document.getElementById(id)?.layout?.shapes?.length === 1", arg=plot
+        )
+        shape = page.evaluate("id => document.getElementById(id).layout.shapes[0]", plot)
+        assert (shape["x0"], shape["x1"], shape["line"]["dash"]) == (start, start, "dash")
+    names = page.evaluate("() => document.getElementById('f1-plot').data.map((d) => d.name)")
+    assert names == ["most accurate feasible so far", "mean of the generation (polish round)"]
+    page.wait_for_function(
+        f"() => document.getElementById('f1-plot').data[0].y.length === {len(curve)}"
+    )
+    assert page.evaluate("() => document.getElementById('f1-plot').data[0].y") == best
+
+    dashboard.open(f"#/compare?type=search&ids={job['id']}")
+    page.wait_for_function("() => document.getElementById('compare-best')?.layout")
+    for plot in ("compare-best", "compare-reward"):
+        shapes = page.evaluate("id => document.getElementById(id).layout.shapes || []", plot)
+        assert [(s["x0"], s["x1"]) for s in shapes] == [(start, start)], plot
+        notes = page.evaluate(
+            "id => (document.getElementById(id).layout.annotations || []).map((a) => a.text)",
+            plot,
+        )
+        assert notes == ["NSGA-II with a polish: polish starts"], plot
+    dashboard.screenshot("compare-nsga2-polish")
 
 
 def test_the_search_form_submits_nsga2_objectives_design_noise_and_constraints(

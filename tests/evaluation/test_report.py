@@ -1,5 +1,5 @@
 """The HTML report speaks as the dashboard does: thrusters from 1, the same 10–90 % band,
-an F1 axis ticked at round values."""
+an F1 axis ticked at round values, NSGA-II's best so far with its polish start marked."""
 
 from __future__ import annotations
 
@@ -10,10 +10,13 @@ from inertia_id import Scenario, simulate
 from inertia_id.evaluation.report import (
     BAND_PERCENTILES,
     learning_curve_figure,
+    polish_start_timesteps,
     response_figure,
     sequence_figure,
 )
 from inertia_id.search import ScorerSettings, cem_search
+from inertia_id.search.operator import OperatorSettings
+from inertia_id.search.pareto import pareto_search
 
 
 def test_thrusters_are_numbered_from_one(paper: Scenario, good_sequence: np.ndarray) -> None:
@@ -50,3 +53,42 @@ def test_the_f1_axis_ticks_at_round_values(seed: int) -> None:
     )
     axis = learning_curve_figure(found).layout.yaxis2
     assert (axis.tickmode, axis.tick0, axis.dtick) == ("linear", 0, 0.2)
+
+
+def test_an_nsga2_curve_marks_where_its_polish_starts_and_names_its_lines() -> None:
+    """NSGA-II's curve is its generations, then its polish rounds: the report drew both as
+    one line with nothing to say where the one ends, and named the lines "best F1 so
+    far" and "mean F1 of the episodes' sequences" (its score is a predicted accuracy)."""
+    found = pareto_search(
+        Scenario.paper(),
+        sequence_length=2,
+        seed=1,
+        operator=OperatorSettings(n_realisations=4),
+        nsga2_params={"population": 8, "generations": 2, "polish_iterations": 2},
+        fresh_realisations=6,
+    )
+    assert len(found.curve) > 2
+    start = found.curve[1].timesteps
+    assert polish_start_timesteps(found) == start
+    figure = learning_curve_figure(found)
+    assert [(shape.x0, shape.x1) for shape in figure.layout.shapes] == [(start, start)]
+    assert [a.text for a in figure.layout.annotations] == ["polish starts"]
+    names = [trace.name for trace in figure.data]
+    assert "best predicted accuracy so far" in names
+    assert "predicted accuracy: mean of the generation (polish round)" in names
+    assert figure.layout.yaxis2.title.text == "predicted accuracy"
+
+
+def test_a_search_without_polish_rounds_has_no_polish_mark() -> None:
+    found = cem_search(
+        Scenario.paper(),
+        sequence_length=1,
+        total_timesteps=32,
+        population=16,
+        seed=0,
+        settings=ScorerSettings(n_realisations=4, objective="separability"),
+        patience_episodes=None,
+        n_fresh_draws=1,
+    )
+    assert polish_start_timesteps(found) is None
+    assert not learning_curve_figure(found).layout.shapes

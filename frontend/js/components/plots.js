@@ -303,3 +303,35 @@ export function tightRange(values, pad = 0.15) {
   const span = high - low || Math.abs(high) * 0.05 || 1;
   return [low - pad * span, high + pad * span];
 }
+
+// Where an NSGA-II search's curve leaves its generations for its polish rounds, once the
+// result says: { timesteps (the last generation's point), generations, rounds }, or null
+// (another method, no result yet, or no polish round on the curve). The generations are
+// the curve's first points (fewer when the search stopped in them).
+export function polishStart(job) {
+  const result = job.result;
+  const curve = (result && result.curve) || [];
+  if (job.params.method !== "nsga2" || !curve.length) return null;
+  const generations = Math.min(curve.length, result.settings?.nsga2?.generations ?? job.params.nsga2?.generations ?? curve.length);
+  return { timesteps: curve[generations - 1].timesteps, generations, rounds: curve.length - generations };
+}
+
+// A dashed vertical line at each search's polish start, labelled: Plotly shapes and
+// annotations for a plot's layout. `marks`: [{ x, label, color }].
+export function polishMarks(marks) {
+  return {
+    shapes: marks.map((m) => ({ type: "line", xref: "x", yref: "paper", x0: m.x, x1: m.x, y0: 0, y1: 1, line: { color: m.color || "#555", width: 1, dash: "dash" } })),
+    annotations: marks.map((m, i) => ({
+      xref: "x",
+      yref: "paper",
+      x: m.x,
+      y: 1 - 0.08 * i,
+      xanchor: "left",
+      yanchor: "top",
+      showarrow: false,
+      text: plotText(m.label),
+      font: { size: 11, color: m.color || "#555" },
+      bgcolor: "rgba(255,255,255,0.8)",
+    })),
+  };
+}

@@ -7,7 +7,7 @@
 
 import { MetricFollower, api } from "../api.js";
 import { jobCell, jobDetail, summaryColumns, summaryValue } from "../components/jobs.js";
-import { COLORS, PLOT_CONFIG, extendWith, layout, plotDiv, plotText, tightRange, title } from "../components/plots.js";
+import { COLORS, PLOT_CONFIG, extendWith, layout, plotDiv, plotText, polishMarks, polishStart, tightRange, title } from "../components/plots.js";
 import { dataTable } from "../components/table.js";
 import { classifierName, isTerminal, noiseInfo } from "../vocabulary.js";
 import { fmt, h, link, messageBox, quantity, score, statusBadge, tagChips, when } from "../ui.js";
@@ -184,7 +184,14 @@ async function searchGroup(section, jobs, suffix, context) {
   const tradeoff = plotDiv(`compare-tradeoff${suffix}`, "short");
   section.append(h("div", { class: "grid2" }, reward, best), tradeoff);
   const traces = () => jobs.map((job, i) => ({ x: [], y: [], mode: "lines+markers", name: searchLabel(job), line: { color: COLORS[i % COLORS.length] } }));
-  Plotly.newPlot(reward, traces(), layout("environment steps", "mean episode reward", { title: title("Mean episode reward (each search's own reward)"), showlegend: true }), PLOT_CONFIG);
+  // Where each finished NSGA-II search's polish rounds begin on its curve: a dashed line
+  // in its colour (its points before are its generations).
+  const marks = jobs.flatMap((job, i) => {
+    const start = polishStart(job);
+    return start && start.rounds ? [{ x: start.timesteps, label: `${job.name || job.id.slice(0, 8)}: polish starts`, color: COLORS[i % COLORS.length] }] : [];
+  });
+  const polish = polishMarks(marks);
+  Plotly.newPlot(reward, traces(), layout("environment steps", "mean episode reward", { title: title("Mean episode reward (each search's own reward)"), showlegend: true, ...polish }), PLOT_CONFIG);
   Plotly.newPlot(
     best,
     traces(),
@@ -192,6 +199,7 @@ async function searchGroup(section, jobs, suffix, context) {
       title: title("Best score on the search's draw: F1, or separability"),
       showlegend: true,
       yaxis: { title: { text: "best score so far" }, range: [0, 1.05] },
+      ...polish,
     }),
     PLOT_CONFIG,
   );

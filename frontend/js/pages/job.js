@@ -6,7 +6,7 @@ import { MetricFollower, api } from "../api.js";
 import { downloads, jobDownloads } from "../components/downloads.js";
 import { REUSED_KEY, cancelButton, labelEditor, reusedNotice, timingCell } from "../components/jobs.js";
 import { whenKeyed } from "../components/keyed.js";
-import { BAND, DEG_PER_RAD, PLOT_CONFIG, extendWith, fitFlatSeries, keepTwins, layout, plotDiv, responseView, sequencePlot, title, twinAxes, twinTraces } from "../components/plots.js";
+import { BAND, DEG_PER_RAD, PLOT_CONFIG, extendWith, fitFlatSeries, keepTwins, layout, plotDiv, polishMarks, polishStart, responseView, sequencePlot, title, twinAxes, twinTraces } from "../components/plots.js";
 import { isTerminal } from "../vocabulary.js";
 import { clear, fmt, h, link, messageBox, progressBar, put, quantity, score, sequenceText, statusBadge, table, tagChips, utcText, warningsBox, whenText } from "../ui.js";
 import { renderClassifier } from "../views/classifier.js";
@@ -122,12 +122,13 @@ async function searchView(body, job, context) {
   const f1Plot = plotDiv("f1-plot");
   const pointCount = h("span", { id: "curve-points", class: "muted" }, "0 points");
   const separability = job.params.objective === "separability";
-  // NSGA-II has no episode reward: its curve is the most accurate feasible sequence of
-  // each generation (its predicted accuracy at the design noise, and its residual rate).
+  // NSGA-II has no episode reward: its curve is the most accurate feasible sequence so
+  // far (its predicted accuracy at the design noise, and its residual rate), and the
+  // mean accuracy of each generation, then of each polish round's neighbours.
   const pareto = job.params.method === "nsga2";
   const resultHolder = h("div", { id: "search-result" });
   // NSGA-II's curve runs through its generations, then its polish rounds: where the
-  // one ends and the other begins, once the result says.
+  // one ends and the other begins, once the result says (and a line on both plots).
   const phases = h("p", { id: "curve-phases", class: "hint", hidden: true });
   body.append(
     h(
@@ -152,7 +153,7 @@ async function searchView(body, job, context) {
       ? [{ x: [], y: [], mode: "lines+markers", name: "residual rate", line: { color: "#1f77b4" } }, ...twinTraces(rateTwins)]
       : [{ x: [], y: [], mode: "lines+markers", name: "mean episode reward", line: { color: "#1f77b4" } }],
     pareto
-      ? layout(steps, "residual rate (rad/s)", { title: title("Residual rate of each generation's (then polish round's) most accurate feasible sequence", 13), showlegend: false, ...twinAxes(rateTwins) })
+      ? layout(steps, "residual rate (rad/s)", { title: title("Residual rate of the most accurate feasible sequence so far", 13), showlegend: false, ...twinAxes(rateTwins) })
       : layout(steps, "mean episode reward", { title: title(rewardText, 13), showlegend: false }),
     PLOT_CONFIG,
   );
@@ -161,11 +162,11 @@ async function searchView(body, job, context) {
   Plotly.newPlot(
     f1Plot,
     [
-      { x: [], y: [], mode: "lines+markers", name: pareto ? "most accurate feasible" : "best so far", line: { color: "#2ca02c" } },
-      { x: [], y: [], mode: "lines+markers", name: pareto ? "population mean" : "mean since last point", line: { color: "#ff7f0e", dash: "dot" } },
+      { x: [], y: [], mode: "lines+markers", name: pareto ? "most accurate feasible so far" : "best so far", line: { color: "#2ca02c" } },
+      { x: [], y: [], mode: "lines+markers", name: pareto ? "mean of the generation (polish round)" : "mean since last point", line: { color: "#ff7f0e", dash: "dot" } },
     ],
     layout(steps, pareto ? accuracyText : what, {
-      title: title(pareto ? "Predicted accuracy, per NSGA-II generation, then per polish round" : `${separability ? "Separability score" : "Clustering F1"} of the episodes' sequences`),
+      title: title(pareto ? "Predicted accuracy: best so far, and each NSGA-II generation's (then polish round's) mean" : `${separability ? "Separability score" : "Clustering F1"} of the episodes' sequences`),
       yaxis: { title: { text: pareto ? accuracyText : what }, range: [0, 1.05] },
     }),
     PLOT_CONFIG,
@@ -185,7 +186,14 @@ async function searchView(body, job, context) {
     pointCount.dataset.points = String(points);
     if (!resultShown && isTerminal(current.status) && current.result) {
       resultShown = true;
-      if (pareto) curvePhases(phases, current);
+      if (pareto) {
+        const start = polishStart(current);
+        curvePhases(phases, current, start);
+        if (start && start.rounds) {
+          const marks = polishMarks([{ x: start.timesteps, label: "polish starts" }]);
+          await Promise.all([Plotly.relayout(rewardPlot, marks), Plotly.relayout(f1Plot, marks)]);
+        }
+      }
       await searchResult(resultHolder, current, context);
     }
   };
@@ -195,17 +203,15 @@ async function searchView(body, job, context) {
 
 // "736 environment steps on the curve: 192 in 3 generations, 544 in 34 polish rounds":
 // the generations are the curve's first points (fewer when the search stopped in them).
-function curvePhases(node, job) {
+function curvePhases(node, job, start) {
   const result = job.result;
   const curve = result.curve || [];
-  if (!curve.length) return;
-  const generations = Math.min(curve.length, result.settings?.nsga2?.generations ?? job.params.nsga2?.generations ?? curve.length);
-  const inGenerations = curve[generations - 1].timesteps;
-  const rounds = curve.length - generations;
+  if (!start) return;
+  const { generations, rounds, timesteps: inGenerations } = start;
   const last = curve[curve.length - 1].timesteps;
   const plural = (n, word) => `${fmt(n)} ${word}${n === 1 ? "" : "s"}`;
   let text = `${fmt(last)} environment steps on the curve: ${fmt(inGenerations)} in ${plural(generations, "generation")}`;
-  if (rounds) text += `, then ${fmt(last - inGenerations)} in ${plural(rounds, "polish round")} (the points after step ${fmt(inGenerations)}, each a round's neighbours of the sequence climbed)`;
+  if (rounds) text += `, then ${fmt(last - inGenerations)} in ${plural(rounds, "polish round")} (the points after step ${fmt(inGenerations)}, at the dashed line: each a round's neighbours of the sequences climbed)`;
   if (last !== result.timesteps) text += `; ${fmt(result.timesteps - last)} more scored after the last point`;
   node.textContent = text + ".";
   node.hidden = false;
