@@ -7,6 +7,7 @@ runs from the 10th to the 90th percentile of the realisations (:data:`BAND_PERCE
 from __future__ import annotations
 
 import html
+import math
 import os
 from typing import TYPE_CHECKING, Any
 
@@ -67,8 +68,11 @@ def response_figure(result: SimulationResult) -> go.Figure:
         shared_xaxes=True,
         vertical_spacing=0.04,
         subplot_titles=("ω_x", "ω_y", "ω_z"),
+        specs=[[{"secondary_y": True}]] * 3,
     )
     t = result.time_s
+    # Each row's extent over every band, for its rad/s axis and its deg/s twin.
+    extent = [np.inf, -np.inf] * 3
     for k, name in enumerate(result.candidate_names):
         colour = _COLOURS[k % len(_COLOURS)]
         series = result.omega_measured[k]
@@ -79,6 +83,8 @@ def response_figure(result: SimulationResult) -> go.Figure:
         )
         for axis in range(3):
             row = axis + 1
+            extent[2 * axis] = min(extent[2 * axis], float(low[:, axis].min()))
+            extent[2 * axis + 1] = max(extent[2 * axis + 1], float(high[:, axis].max()))
             fig.add_trace(
                 go.Scatter(
                     x=np.concatenate([t, t[::-1]]),
@@ -105,7 +111,28 @@ def response_figure(result: SimulationResult) -> go.Figure:
                 row=row,
                 col=1,
             )
-            fig.update_yaxes(title_text="rad/s", row=row, col=1)
+    # A flight team reads rates in deg/s: each row has a deg/s axis on the right, its
+    # range the rad/s axis's times 180/π (an empty trace places it; rad/s alone before).
+    for axis in range(3):
+        row = axis + 1
+        low_rad, high_rad = extent[2 * axis], extent[2 * axis + 1]
+        pad = 0.05 * (high_rad - low_rad) or 1e-6
+        span = [low_rad - pad, high_rad + pad]
+        fig.add_trace(
+            go.Scatter(x=[t[0]], y=[None], showlegend=False, hoverinfo="skip"),
+            row=row,
+            col=1,
+            secondary_y=True,
+        )
+        fig.update_yaxes(title_text="rad/s", range=span, row=row, col=1, secondary_y=False)
+        fig.update_yaxes(
+            title_text="deg/s",
+            range=[math.degrees(v) for v in span],
+            showgrid=False,
+            row=row,
+            col=1,
+            secondary_y=True,
+        )
     fig.update_xaxes(title_text="time since sequence start (s)", row=3, col=1)
     low, high = (f"{p:g}" for p in BAND_PERCENTILES)
     fig.update_layout(title=f"Gyro response per candidate (mean, {low}–{high} % band)", height=750)
@@ -324,7 +351,11 @@ def write_report(
             ("training F1 (best cluster matching)", f"{classifier.f1_:.3f}"),
             ("training accuracy", f"{classifier.accuracy_:.3f}"),
             ("fuel use (total angular impulse)", f"{result.impulse_nms:.3f} N m s"),
-            ("mean final rate |ω|", f"{result.mean_final_rate_rad_s:.4g} rad/s"),
+            (
+                "mean final rate |ω|",
+                f"{result.mean_final_rate_rad_s:.4g} rad/s "
+                f"({math.degrees(result.mean_final_rate_rad_s):.4g} deg/s)",
+            ),
             *_search_rows(search),
         ]
     )

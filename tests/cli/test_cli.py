@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import itertools
 import json
+import math
+import re
 from pathlib import Path
 from typing import Any
 
@@ -64,7 +66,12 @@ def test_paper_writes_results_and_report(tmp_path: Path) -> None:
         assert (out / name).is_file(), name
     assert summary["training_f1"] == 1.0
     assert set(summary["accuracy"]["process"]) == {"1", "8"}
-    assert "Accuracy vs noise" in (out / "report.html").read_text()
+    report = (out / "report.html").read_text()
+    assert "Accuracy vs noise" in report
+    # A rate in deg/s beside rad/s, as the dashboard gives it (rad/s alone before).
+    shown = re.search(r"mean final rate \|ω\|</th><td>(\S+) rad/s \((\S+) deg/s\)", report)
+    assert shown is not None
+    assert float(shown[2]) == pytest.approx(math.degrees(float(shown[1])), rel=1e-3)
     assert summary["sequence"] == [[4, 4, 4, 0, 0, 0]] * 4
     assert summary["sequence_from"] == "given"
 

@@ -92,3 +92,25 @@ def test_a_search_without_polish_rounds_has_no_polish_mark() -> None:
     )
     assert polish_start_timesteps(found) is None
     assert not learning_curve_figure(found).layout.shapes
+
+
+def test_each_response_row_gives_deg_s_beside_rad_s(
+    paper: Scenario, good_sequence: np.ndarray
+) -> None:
+    """As the dashboard's rate plots do: a deg/s axis on the right of each rad/s one, its
+    range the same span in degrees (the report gave rad/s alone)."""
+    result = simulate(paper, good_sequence, 20, np.random.default_rng(0))
+    layout = response_figure(result).layout
+    axes = [layout[name] for name in sorted(layout) if name.startswith("yaxis")]
+    rad = [a for a in axes if a.title.text == "rad/s"]
+    deg = [a for a in axes if a.title.text == "deg/s"]
+    assert len(rad) == len(deg) == 3
+    for left, right in zip(rad, deg, strict=True):
+        assert right.side == "right"
+        assert np.allclose(np.degrees(left.range), right.range)
+    # The span holds every band of its row.
+    bands = result.omega_measured
+    for axis, left in enumerate(rad):
+        low = np.percentile(bands[..., axis], 10, axis=1).min()
+        high = np.percentile(bands[..., axis], 90, axis=1).max()
+        assert left.range[0] <= low and high <= left.range[1]
