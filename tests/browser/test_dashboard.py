@@ -1788,7 +1788,7 @@ def test_compare_searches_on_one_table_and_on_the_curves(dashboard: Dashboard) -
     ppo = dashboard.service.job(made["search"])
     assert f"{ppo['summary']['fresh_f1']:.3f}" in rows.nth(0).inner_text()
     title = page.evaluate("() => document.getElementById('compare-best').layout.title.text")
-    assert "F1, or separability" in title
+    assert "F1, separability or NSGA-II's predicted accuracy" in title
     # Restricted to another scenario, the two searches are not drawn.
     other = dashboard.service.client.get("/scenarios").json()["items"][0]["id"]
     assert other != made["scenario"]
@@ -2350,14 +2350,15 @@ def test_an_nsga2_curves_best_only_rises_and_its_polish_start_is_marked_where_it
 
     dashboard.open(f"#/compare?type=search&ids={job['id']}")
     page.wait_for_function("() => document.getElementById('compare-best')?.layout")
-    for plot in ("compare-best", "compare-reward"):
-        shapes = page.evaluate("id => document.getElementById(id).layout.shapes || []", plot)
-        assert [(s["x0"], s["x1"]) for s in shapes] == [(start, start)], plot
-        notes = page.evaluate(
-            "id => (document.getElementById(id).layout.annotations || []).map((a) => a.text)",
-            plot,
-        )
-        assert notes == ["NSGA-II with a polish: polish starts"], plot
+    heading = page.evaluate("() => document.getElementById('compare-best').layout.title.text")
+    assert "NSGA-II's predicted accuracy" in heading  # it said "F1, or separability"
+    shapes = page.evaluate("() => document.getElementById('compare-best').layout.shapes || []")
+    assert [(s["x0"], s["x1"]) for s in shapes] == [(start, start)]
+    notes = page.evaluate(
+        "() => (document.getElementById('compare-best').layout.annotations || [])"
+        ".map((a) => a.text)"
+    )
+    assert notes == ["NSGA-II with a polish: polish starts"]
     dashboard.screenshot("compare-nsga2-polish")
 
 

@@ -185,18 +185,19 @@ async function searchGroup(section, jobs, suffix, context) {
   section.append(h("div", { class: "grid2" }, reward, best), tradeoff);
   const traces = () => jobs.map((job, i) => ({ x: [], y: [], mode: "lines+markers", name: searchLabel(job), line: { color: COLORS[i % COLORS.length] } }));
   // Where each finished NSGA-II search's polish rounds begin on its curve: a dashed line
-  // in its colour (its points before are its generations).
+  // in its colour (its points before are its generations), on the score's plot (NSGA-II
+  // has no episode reward).
   const marks = jobs.flatMap((job, i) => {
     const start = polishStart(job);
     return start && start.rounds ? [{ x: start.timesteps, label: `${job.name || job.id.slice(0, 8)}: polish starts`, color: COLORS[i % COLORS.length] }] : [];
   });
   const polish = polishMarks(marks);
-  Plotly.newPlot(reward, traces(), layout("environment steps", "mean episode reward", { title: title("Mean episode reward (each search's own reward)"), showlegend: true, ...polish }), PLOT_CONFIG);
+  Plotly.newPlot(reward, traces(), layout("environment steps", "mean episode reward", { title: title("Mean episode reward (each search's own reward)"), showlegend: true }), PLOT_CONFIG);
   Plotly.newPlot(
     best,
     traces(),
     layout("environment steps", "best score so far", {
-      title: title("Best score on the search's draw: F1, or separability"),
+      title: title("Best score so far (F1, separability or NSGA-II's predicted accuracy)"),
       showlegend: true,
       yaxis: { title: { text: "best score so far" }, range: [0, 1.05] },
       ...polish,
