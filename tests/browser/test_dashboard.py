@@ -32,6 +32,8 @@ from inertia_id import Scenario, simulate
 GOOD = [[4, 4, 4, 0, 0, 0]] * 4
 TERMINAL = ("succeeded", "failed", "cancelled")
 made: dict[str, Any] = {}
+#: The name the preset test gives its scenario (and ``_scenario`` gives it).
+PRESET_NAME = "paper, from the browser"
 #: The identify overlay is drawn: 3 axes x (band edges, mean, telemetry), and the empty
 #: traces that draw the 3 deg/s axes.
 OVERLAY_DRAWN = "() => document.getElementById('overlay-plot')?.data?.length === 15"
@@ -41,6 +43,18 @@ def _needs(*names: str) -> None:
     missing = [n for n in names if n not in made]
     if missing:
         pytest.fail(f"an earlier step did not make {missing}")
+
+
+def _scenario(dashboard: Dashboard) -> str:
+    """The scenario the preset test made; made here through the API as that test makes
+    it (the paper preset, its name) when a test that needs only it runs on its own."""
+    if "scenario" not in made:
+        created = dashboard.service.client.post(
+            "/scenarios", json={"preset": "paper", "overrides": {"name": PRESET_NAME}}
+        )
+        assert created.status_code == 201, created.text
+        made["scenario"] = created.json()["id"]
+    return str(made["scenario"])
 
 
 def _hash_id(dashboard: Dashboard, prefix: str) -> str:
@@ -224,7 +238,7 @@ def test_create_a_scenario_from_the_preset_shows_its_principal_moments(
     dashboard: Dashboard,
 ) -> None:
     dashboard.open("#/scenarios/new")
-    dashboard.page.fill("#preset-name", "paper, from the browser")
+    dashboard.page.fill("#preset-name", PRESET_NAME)
     dashboard.page.click("#create-preset")
     made["scenario"] = _hash_id(dashboard, "scenarios")
     dashboard.page.wait_for_selector("#candidate-table")
@@ -234,7 +248,7 @@ def test_create_a_scenario_from_the_preset_shows_its_principal_moments(
     # I0 = diag(100, 60, 90): principal moments ascending.
     assert "none ejected" in first and "60, 90, 100" in first
     assert _trace_points(dashboard, "moments-plot") == 5
-    assert "paper, from the browser" in dashboard.page.inner_text("h1")
+    assert PRESET_NAME in dashboard.page.inner_text("h1")
     dashboard.screenshot("scenario")
 
 
@@ -558,12 +572,12 @@ def test_a_bad_scenario_shows_the_servers_message_next_to_the_field(
 def test_a_scenario_is_cloned_edited_and_uploaded_from_the_cli_file(
     dashboard: Dashboard, tmp_path: Path
 ) -> None:
-    _needs("scenario")
+    _scenario(dashboard)
     page = dashboard.page
     dashboard.open(f"#/scenarios/{made['scenario']}")
     page.click("#clone-scenario")
     page.wait_for_selector("#scenario-form")
-    assert page.input_value("#scenario-name") == "paper, from the browser (copy)"
+    assert page.input_value("#scenario-name") == f"{PRESET_NAME} (copy)"
     page.fill("#scenario-name", "paper, noisier gyro")
     page.fill("#noise-gyro_noise_sigma_rad_s", "0.002")
     page.click("#create-scenario")
@@ -612,7 +626,7 @@ def test_a_scenario_is_cloned_edited_and_uploaded_from_the_cli_file(
 
 
 def test_a_search_curve_gains_points_while_ppo_runs(dashboard: Dashboard) -> None:
-    _needs("scenario")
+    _scenario(dashboard)
     page = dashboard.page
     metric_requests: list[str] = []
     page.on("request", lambda r: metric_requests.append(r.url) if "/metrics" in r.url else None)
@@ -1798,7 +1812,7 @@ def test_compare_searches_on_one_table_and_on_the_curves(dashboard: Dashboard) -
 
 
 def test_a_cancel_asks_first_then_cancels(dashboard: Dashboard) -> None:
-    _needs("scenario")
+    _scenario(dashboard)
     page = dashboard.page
     dashboard.open(f"#/jobs?scenario={made['scenario']}&type=search")
     page.fill("#search-timesteps", "200000")
@@ -2365,7 +2379,7 @@ def test_an_nsga2_curves_best_only_rises_and_its_polish_start_is_marked_where_it
 def test_the_search_form_submits_nsga2_objectives_design_noise_and_constraints(
     dashboard: Dashboard,
 ) -> None:
-    _needs("scenario")
+    _scenario(dashboard)
     page = dashboard.page
     dashboard.open(f"#/jobs?scenario={made['scenario']}&type=search")
     page.select_option("#search-method", "nsga2")
