@@ -705,6 +705,14 @@ class IdentifyResult(BaseModel):
         "series) or the stated start kept (no sample before it: no score then tells it "
         "from the next start); null: no search",
     )
+    sequence_start_note: str | None = Field(
+        default=None,
+        description="with a start search on a kind that compares whole series (the "
+        "clustering kinds, sequence_start_refined false): in words, that the start taken "
+        "is the grid time its distance favours, not refined below the grid period, and may "
+        "lie a period or two off the true one; null without a search or for the likelihood "
+        "kinds, which refine it",
+    )
     estimate_start_within_s: float | None = Field(
         default=None, description="the start search asked for, s; null: none"
     )

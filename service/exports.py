@@ -944,4 +944,6 @@ def identify_table(verdict: Mapping[str, Any]) -> Table:
     ]
     if verdict.get("off_candidates_note"):
         notes.append(("off_candidates_note", verdict["off_candidates_note"]))
+    if verdict.get("sequence_start_note"):
+        notes.append(("sequence_start_note", verdict["sequence_start_note"]))
     return Table(["candidate", "distance", "nearest", "posterior", "number"], rows, notes)

@@ -445,21 +445,12 @@ def _identify_file(
                 "searches the whole window",
                 err=True,
             )
-        if not classifier.supports_observed():
+        if verdict.sequence_start_note:
             # The kind compares whole series: its start is the grid start its distance
-            # favours, not refined (README *Start below the grid period*), and a distance
-            # that bends time (DTW) or compares with barycentres barely moves with a start
-            # a period or two off; said beside the JSON, not only by the false
+            # favours, not refined (README *Start below the grid period*); said beside the
+            # JSON as the verdict's sequence_start_note says it, not only by the false
             # sequence_start_refined.
-            click.echo(
-                f"warning: {path}: the {classifier.kind!r} kind compares whole series: the "
-                f"start taken ({verdict.sequence_start_shift_s:+.6g} s) is the {step:g} s "
-                "grid's that its distance favours, not refined below the grid period, and "
-                "may lie a period or two off the true one (README's example: 0.25 s for a "
-                "0.2 s late start); the likelihood kinds (marginal-likelihood, the default, "
-                "or likelihood) refine it",
-                err=True,
-            )
+            click.echo(f"warning: {path}: {verdict.sequence_start_note}", err=True)
     return verdict.model_dump(mode="json")
 
 

@@ -130,6 +130,17 @@ OFF_CANDIDATES_UNTESTED = (
 #: was otherwise a confident "matches none" with no hint of the cause.
 START_HINT_WINDOW_S = 0.5
 START_HINT_PERIODS = 2
+#: What a verdict says (``sequence_start_note``) when a start search ran on a kind that
+#: compares whole series (``sequence_start_refined`` false): the start it took is the
+#: grid time its distance favours, which can lie a period or more off. README's ISO
+#: example: DTW took 0.25 s for a start 0.2 s late (*Start below the grid period*).
+START_UNREFINED = (
+    "the {kind!r} kind compares whole series: the start taken ({shift:+.6g} s) is the "
+    "{step:g} s grid's that its distance favours, not refined below the grid period, and "
+    "may lie a period or two off the true one (README's example: 0.25 s for a 0.2 s late "
+    "start); the likelihood kinds (marginal-likelihood, the default, or likelihood) "
+    "refine it"
+)
 #: Telemetry this many seconds before the sequence start measures the body's rate plus
 #: the gyro bias there, and the noise level (:func:`initial_offset`). 30 s: on the paper
 #: preset at 1 Hz (four samples in the sequence) the online rule then decides 94 % of
@@ -190,6 +201,9 @@ class Identification(BaseModel):
     sequence_start: float | str | None = None
     sequence_start_shift_s: float = 0.0
     sequence_start_refined: bool | None = None
+    # Why a searched start was not refined, in words, where the kind cannot refine it
+    # (:data:`START_UNREFINED`); None without a search or where it can.
+    sequence_start_note: str | None = None
     estimate_start_within_s: float | None = None
     sequence_start_shifts_tried_s: list[float] | None = None
     telemetry_first_stamp: float | str | None = None
@@ -882,6 +896,15 @@ def identify(
             update={
                 "sequence_start_shift_s": shift,
                 "sequence_start_refined": refined,
+                "sequence_start_note": (
+                    None
+                    if _judges_gaps(classifier)
+                    else START_UNREFINED.format(
+                        kind=getattr(classifier, "kind", "this"),
+                        shift=shift,
+                        step=float(grid[1] - grid[0]),
+                    )
+                ),
                 "estimate_start_within_s": window_s,
                 "sequence_start_shifts_tried_s": [min(tried), max(tried)],
             }

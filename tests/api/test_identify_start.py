@@ -158,3 +158,45 @@ def test_a_slow_parse_leaves_the_event_loop_to_other_requests(
     assert health.status_code in (200, 503)
     assert answered_while_parsing
     assert answers[0].status_code == 200, answers[0].text
+
+
+def test_a_start_search_on_a_whole_series_kind_says_in_words_it_is_unrefined(
+    api: Api, classifier_id: str, quiet_around: dict[str, list[Any]], paper: Scenario
+) -> None:
+    """A clustering classifier keeps the grid start its distance favours: the answer
+    said so only by ``sequence_start_refined: false`` (the CLI warned in words); it says
+    it in ``sequence_start_note``, in the JSON and the CSV, and a likelihood kind, which
+    refines the start, has no note."""
+    from inertia_id.classifiers.marginal import AXES_GRID, train_marginal
+
+    body = {
+        "classifier_id": classifier_id,
+        "telemetry": {**quiet_around, "sequence_start": 0.3},
+        "estimate_start_within_s": 0.5,
+    }
+    found = api.post("/identify", json=body).json()
+    assert found["sequence_start_refined"] is False
+    shift = f"{found['sequence_start_shift_s']:+.6g}"
+    assert found["sequence_start_note"] == (
+        f"the 'clustering' kind compares whole series: the start taken ({shift} s) is the "
+        "0.05 s grid's that its distance favours, not refined below the grid period, and "
+        "may lie a period or two off the true one (README's example: 0.25 s for a 0.2 s "
+        "late start); the likelihood kinds (marginal-likelihood, the default, or "
+        "likelihood) refine it"
+    )
+    table = api.post("/identify?format=csv", json=body)
+    assert table.status_code == 200, table.text
+    assert f"# sequence_start_note: {found['sequence_start_note']}\n" in table.text
+    schema = api.get("/openapi.json").json()["components"]["schemas"]["IdentifyResult"]
+    assert "sequence_start_note" in schema["properties"]
+    assert (
+        api.post("/identify", json={**body, "estimate_start_within_s": None}).json()[
+            "sequence_start_note"
+        ]
+        is None
+    )
+    model = train_marginal(paper, GOOD_SEQUENCE, 10, np.random.default_rng(4), grid=AXES_GRID)
+    likelihood_id = api.insert_classifier(api.create_scenario()["id"], model)
+    refined = api.post("/identify", json={**body, "classifier_id": likelihood_id}).json()
+    assert refined["estimate_start_within_s"] == 0.5
+    assert refined["sequence_start_note"] is None

@@ -1196,6 +1196,9 @@ def test_identify_searches_the_start_when_asked_and_says_the_shift(
     assert "by the search within ±0.5 s" in shown
     shift = expected["sequence_start_shift_s"]
     assert f"shifted {'+' if shift >= 0 else ''}" in shown
+    # The default kind refines the start: no word of an unrefined one.
+    assert expected["sequence_start_note"] is None
+    assert page.query_selector("#start-unrefined") is None
     # Without a window the start is the stated one.
     page.fill("#identify-start-within", "")
     _identify(dashboard, text, start="810000000")
@@ -1205,6 +1208,31 @@ def test_identify_searches_the_start_when_asked_and_says_the_shift(
     assert page.evaluate(
         "() => document.getElementById('identify-start-within').validity.rangeOverflow"
     )
+
+
+def test_identify_says_in_amber_when_a_searched_start_is_the_grids_unrefined(
+    dashboard: Dashboard,
+) -> None:
+    """A kind that compares whole series keeps the grid start its distance favours: the
+    verdict's sequence_start_note says so, and the page shows it under the start used,
+    in amber (it said only the shift, as the API only sequence_start_refined false)."""
+    note = (
+        "the 'clustering' kind compares whole series: the start taken (+0.25 s) is the "
+        "0.05 s grid's that its distance favours, not refined below the grid period ..."
+    )
+    _identify_with(
+        dashboard,
+        {
+            "estimate_start_within_s": 0.5,
+            "sequence_start_shift_s": 0.25,
+            "sequence_start_refined": False,
+            "sequence_start_note": note,
+        },
+    )
+    shown = dashboard.page.wait_for_selector("#start-unrefined")
+    assert shown.inner_text() == note
+    assert shown.evaluate("(e) => getComputedStyle(e).color") == "rgb(107, 71, 0)"
+    assert "(shifted +0.25" in dashboard.page.inner_text("#start-used")
 
 
 def test_identify_shows_the_rate_and_bias_measured_before_the_start(

@@ -657,6 +657,8 @@ def test_a_start_search_with_a_kind_that_compares_whole_series_says_it_is_not_re
         in result.stderr
     )
     assert "the likelihood kinds (marginal-likelihood, the default" in result.stderr
+    # The JSON says it as the API's does, word for word.
+    assert f"warning: {telemetry}: {verdict['sequence_start_note']}" in result.stderr
     # Without a search nothing is said.
     plain = run_cli([*base, "--sequence-start", "2025-03-01T12:00:00Z"])
     assert "not refined" not in plain.stderr

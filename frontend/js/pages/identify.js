@@ -317,7 +317,10 @@ function startUsed(verdict, decimals, stated) {
   const shift = verdict.sequence_start_shift_s;
   // A start refined below the grid period (the likelihood kinds) is said to be.
   const refined = verdict.sequence_start_refined === true ? ", refined below the grid period" : "";
-  return `${start} (shifted ${shift >= 0 ? "+" : ""}${shift.toFixed(decimals)} s by the search within ±${plain(verdict.estimate_start_within_s, 6)} s${refined})`;
+  const used = `${start} (shifted ${shift >= 0 ? "+" : ""}${shift.toFixed(decimals)} s by the search within ±${plain(verdict.estimate_start_within_s, 6)} s${refined})`;
+  // A kind that compares whole series keeps its grid's start, unrefined: said in amber.
+  if (!verdict.sequence_start_note) return used;
+  return [used, h("div", { class: "caution", id: "start-unrefined" }, verdict.sequence_start_note)];
 }
 
 // The dropouts the verdict judged across (on the samples present), the part of the
