@@ -630,7 +630,9 @@ class IdentifyResult(BaseModel):
     status: Literal["identified", "ambiguous", "matches-none", "not-this-sequence"] = Field(
         default="identified",
         description="identified: the top posterior reaches the confidence and the telemetry "
-        "does not fit another body near the candidates better; ambiguous: none does (the "
+        "does not fit another body near the candidates better (where the classifier cannot "
+        "test that, off_candidates_note says so and the name is the posterior's alone); "
+        "ambiguous: none does (the "
         "verdict names the top two), or one does but the telemetry fits another body better "
         "(fits_off_candidates: thrusters off their stated torque, for one); matches-none: "
         "'none of these' is the most probable or the series is beyond the novelty "

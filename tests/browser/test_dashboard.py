@@ -1488,6 +1488,74 @@ def test_identify_says_when_the_classifier_cannot_test_for_bodies_off_the_candid
     assert page.query_selector("#online-off-candidates") is None
 
 
+def test_identify_an_untested_name_and_decision_are_amber_not_green(
+    dashboard: Dashboard,
+) -> None:
+    """A classifier without a model of other bodies near the candidates (the likelihood
+    kind) names a candidate on the posterior alone: a pass with thrusters off their stated
+    torque is named as confidently. The page drew that name in the green box of a
+    confirmed identification, and its online decision as a green line under a grey
+    "decided on ..." summary, with only an amber note below; now the box, the candidate's
+    bars, the summary, the decision line and the plot's title are amber and say so."""
+    note = (
+        "this classifier cannot test for bodies off the candidates (the likelihood kind has "
+        "no model of other bodies near the candidates): a pass no candidate gives ..."
+    )
+    untested = {"fits_off_candidates": None, "off_candidates_log_bayes": None}
+    page = dashboard.page
+
+    def changed(route: Any) -> None:
+        answer = route.fetch()
+        body = answer.json()
+        body.update(untested, off_candidates_note=note, current_off_candidates_log_bayes=None)
+        body.update(decision_off_candidates_log_bayes=None, withheld_time_s=None)
+        route.fulfill(response=answer, json=body)
+
+    partial = re.compile(r"/identify/partial(\?.*)?$")
+    _classifier(dashboard)
+    page.route(partial, changed)
+    try:
+        _identify_with(
+            dashboard,
+            {
+                **untested,
+                "off_candidates_note": note,
+                "status": "identified",
+                "confidence": 0.9991,
+                "posterior": {"payload 3 ejected": 0.9991, "none ejected": 0.0008},
+            },
+        )
+        page.wait_for_selector("#online-off-candidates-untested", timeout=60_000)
+    finally:
+        page.unroute(partial)
+    amber = "rgb(107, 71, 0)"
+    colour = "(e) => getComputedStyle(e).color"
+    verdict = page.wait_for_selector("#verdict")
+    assert verdict.get_attribute("data-status") == "identified"
+    classes = (verdict.get_attribute("class") or "").split()
+    assert "untested" in classes and "match" not in classes
+    assert verdict.evaluate(colour) == amber
+    assert verdict.inner_text() == (
+        "Candidate: payload 3 ejected (99.91 %), untested: this classifier cannot tell it "
+        "from a body off the candidates (thrusters off their stated torque?)"
+    )
+    bars = page.evaluate(
+        "() => ['posterior-plot', 'distance-plot'].map((id) => "
+        "document.getElementById(id).data[0].marker.color)"
+    )
+    assert all("#c98a00" in b and "#1e7b34" not in b for b in bars), bars
+    summary = page.wait_for_selector("#online-summary")
+    assert summary.inner_text().startswith("decided on payload 3 ejected at ")
+    assert summary.inner_text().endswith("; untested for a body off the candidates)")
+    assert summary.evaluate(colour) == amber
+    drawn = page.evaluate(
+        "() => { const d = document.getElementById('online-plot'); "
+        "return [d.layout.title.text, d.layout.shapes.map((s) => s.line.color)]; }"
+    )
+    assert drawn[0].endswith(", untested for a body off the candidates"), drawn
+    assert "#c98a00" in drawn[1] and "#1e7b34" not in drawn[1], drawn
+
+
 def test_measured_and_quantity_keep_their_digits_at_the_extremes(dashboard: Dashboard) -> None:
     """``measured`` wrote 1e9 ± 12345.6 as 1000000000 ± 12346 and 1e-25 ± 1e-27 as
     0.00000000000000000000 ± 1.0e-27; ``quantity`` rounded -1234.5 to -1234 but 1234.5

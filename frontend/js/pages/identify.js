@@ -22,6 +22,19 @@ const TENSOR_NAMES = [
 
 const STATUS_COLOR = { identified: "#1e7b34", ambiguous: "#c98a00", "matches-none": "#b3261e", "not-this-sequence": "#b3261e" };
 
+// A verdict (or online result) whose classifier cannot test for a body off the candidates
+// (off_candidates_note, no factor): its name is the posterior's alone, so a pass no
+// candidate gives (thrusters off their stated torque) is named as confidently. Green
+// means a name that passed that test too: such a name is drawn amber, not green.
+export function untested(result) {
+  return Boolean(result.off_candidates_note) && typeof result.off_candidates_log_bayes !== "number";
+}
+
+// The colour of the verdict's candidate: its status's, amber for an untested name.
+function candidateColor(verdict) {
+  return verdict.status === "identified" && untested(verdict) ? STATUS_COLOR.ambiguous : STATUS_COLOR[verdict.status];
+}
+
 const EXAMPLE = "time_s,wx_rad_s,wy_rad_s,wz_rad_s\n0.05,0.0001,0.0009,-0.0004\n0.10,0.0012,0.0031,0.0015\n...";
 
 // A file that begins with gzip's two magic bytes (RFC 1952) is gzip, whatever its name, as
@@ -200,12 +213,17 @@ export async function render(root, context) {
   root.append(h("div", { class: "card" }, form), result);
 }
 
-// The box's class and headline for each status: green only for "identified".
+// The box's class and headline for each status: green only for "identified" by a
+// classifier that tested for a body off the candidates; amber, saying so, for one that
+// cannot (its name is the posterior's alone).
 function verdictBox(verdict, ranked) {
   const [first, second] = ranked;
   const named = (entry) => `${entry[0]} (${probability(entry[1])})`;
+  const candidate = `Candidate: ${verdict.candidate} (${probability(verdict.confidence)})`;
   const headline = {
-    identified: ["match", `Candidate: ${verdict.candidate} (${probability(verdict.confidence)})`],
+    identified: untested(verdict)
+      ? ["untested", `${candidate}, untested: this classifier cannot tell it from a body off the candidates (thrusters off their stated torque?)`]
+      : ["match", candidate],
     // A candidate reached the confidence, but the telemetry fits another body near the
     // candidates better (thrusters off their stated torque, for one): not named.
     ambiguous: verdict.fits_off_candidates
@@ -421,7 +439,7 @@ async function showVerdict(holder, verdict, classifier, { content, context, file
         type: "bar",
         x: names.map(plotText),
         y: values,
-        marker: { color: names.map((n) => (n === verdict.candidate ? STATUS_COLOR[verdict.status] || (none ? "#b3261e" : "#1e7b34") : "#8da9c4")) },
+        marker: { color: names.map((n) => (n === verdict.candidate ? candidateColor(verdict) || (none ? "#b3261e" : "#1e7b34") : "#8da9c4")) },
         hovertemplate: "%{x}: %{y:.4g}<extra></extra>",
         name: "distance",
       },
@@ -477,7 +495,7 @@ function drawPosterior(element, verdict, ranked) {
   const y = [...names.map((n) => verdict.posterior[n]), verdict.p_none];
   const top = ranked.length ? ranked[0][0] : null;
   const none = verdict.status === "matches-none" || verdict.status === "not-this-sequence";
-  const colors = [...names.map((n) => (n === top && !none ? STATUS_COLOR[verdict.status] : "#8da9c4")), none ? STATUS_COLOR[verdict.status] : "#9aa5b1"];
+  const colors = [...names.map((n) => (n === top && !none ? candidateColor(verdict) : "#8da9c4")), none ? STATUS_COLOR[verdict.status] : "#9aa5b1"];
   const x = [...names.map(plotText), "none of these"];
   Plotly.newPlot(
     element,
@@ -529,17 +547,19 @@ async function showOnline(holder, verdict, file, options, context, period) {
   // box below it and the plot's line, not the grey of a plain note.
   const disowned = decided && online.fits_off_candidates;
   // A classifier that cannot test for other bodies says so (its decision is the
-  // posterior's alone), in amber.
-  const untested = online.off_candidates_note ? h("p", { class: "note caution", id: "online-off-candidates-untested" }, `not tested: ${online.off_candidates_note}`) : null;
+  // posterior's alone), in amber; a decision it took is amber too (summary, line and
+  // title), not the grey summary and green line of a decision that passed the test.
+  const unconfirmed = decided && untested(online);
+  const untestedNote = online.off_candidates_note ? h("p", { class: "note caution", id: "online-off-candidates-untested" }, `not tested: ${online.off_candidates_note}`) : null;
   holder.append(
     h(
       "p",
-      { class: disowned ? "note disowned" : "note", id: "online-summary" },
+      { class: disowned || unconfirmed ? "note disowned" : "note", id: "online-summary" },
       decided
-        ? `decided on ${online.candidate} at ${t(online.decision_time_s)} s (posterior ≥ ${needed} %${factorThen})`
+        ? `decided on ${online.candidate} at ${t(online.decision_time_s)} s (posterior ≥ ${needed} %${factorThen}${unconfirmed ? "; untested for a body off the candidates" : ""})`
         : `not decided within ${t(online.covers_s)} s of the ${t(online.sequence_s)} s sequence (posterior ≥ ${needed} % needed)`,
     ),
-    ...[offCandidatesOnline(online, decided, t, needed), untested].filter(Boolean),
+    ...[offCandidatesOnline(online, decided, t, needed), untestedNote].filter(Boolean),
     plot,
   );
   const names = Object.keys(online.posterior);
@@ -553,16 +573,18 @@ async function showOnline(holder, verdict, file, options, context, period) {
   }));
   traces.push({ x: online.time_s, y: online.p_none, mode: "lines", line: { color: "#5f6b7a", width: 2, dash: "dash" }, name: "none of these", hovertemplate: `none of these, t = %{x:.${decimals}f} s: %{y:.2%}<extra></extra>` });
   const shapes = [{ type: "line", xref: "paper", x0: 0, x1: 1, y0: 1 - online.alpha, y1: 1 - online.alpha, line: { color: "#9aa5b1", dash: "dot", width: 1 } }];
-  // A decision the data since disown is drawn amber, not green, and the title says so:
-  // the plot alone read as a confirmed identification.
-  if (decided) shapes.push({ type: "line", yref: "paper", x0: online.decision_time_s, x1: online.decision_time_s, y0: 0, y1: 1, line: { color: disowned ? STATUS_COLOR.ambiguous : STATUS_COLOR.identified, dash: "dash", width: 2 } });
+  // A decision the data since disown, or one a classifier took that cannot test for a
+  // body off the candidates, is drawn amber, not green, and the title says so: the plot
+  // alone read as a confirmed identification.
+  if (decided) shapes.push({ type: "line", yref: "paper", x0: online.decision_time_s, x1: online.decision_time_s, y0: 0, y1: 1, line: { color: disowned || unconfirmed ? STATUS_COLOR.ambiguous : STATUS_COLOR.identified, dash: "dash", width: 2 } });
+  const caveat = disowned ? ", disowned since: the data so far fit another body better" : unconfirmed ? ", untested for a body off the candidates" : "";
   Plotly.newPlot(
     plot,
     traces,
     layout("time from sequence start (s)", "posterior", {
       height: 560,
       yaxis: { title: { text: "posterior" }, range: [0, 1.05], tickformat: ".0%" },
-      title: title(decided ? `decided at ${t(online.decision_time_s)} s (dashed line)${disowned ? ", disowned since: the data so far fit another body better" : ""}` : "not decided yet", 13),
+      title: title(decided ? `decided at ${t(online.decision_time_s)} s (dashed line)${caveat}` : "not decided yet", 13),
       shapes,
     }),
     PLOT_CONFIG,
