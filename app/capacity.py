@@ -19,6 +19,8 @@ import anyio
 from anyio import to_thread
 from fastapi import HTTPException, status
 
+from inertia_id.wording import counted
+
 __all__ = ["ComputeGate", "Overloaded"]
 
 T = TypeVar("T")
@@ -89,7 +91,8 @@ class ComputeGate:
         limiter = self.limiter
         if self.waiting >= self.queue and limiter.available_tokens == 0:
             self.refused += 1
-            raise Overloaded(f"{self.waiting} requests already wait for CPU", 1.0)
+            waits = "waits" if self.waiting == 1 else "wait"
+            raise Overloaded(f"{counted(self.waiting, 'request')} already {waits} for CPU", 1.0)
         self.waiting += 1
         try:
             with anyio.fail_after(self.wait_s):

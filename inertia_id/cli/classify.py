@@ -12,6 +12,7 @@ from typing import Any
 import click
 
 from ..pipelines import SweepRequest
+from ..wording import counted
 from .options import (
     DEFAULT_SEQUENCE_TEXT,
     FloatRange,
@@ -139,7 +140,7 @@ def train_cmd(
     described = " ".join(filter(None, (kind, options.get("metric"))))
     click.echo(
         f"training {described} classifier on {scenario.n_candidates} "
-        f"candidates x {n_realisations} realisations ...",
+        f"candidates x {counted(n_realisations, 'realisation')} ...",
         err=True,
     )
     started = time.perf_counter()
@@ -461,5 +462,5 @@ def _warn_untested(verdicts: list[dict[str, Any]]) -> None:
     named = [v for v in verdicts if v.get("status") == "identified"]
     notes = [v["off_candidates_note"] for v in named if v.get("off_candidates_note")]
     if notes:
-        which = "" if len(verdicts) == 1 else f" ({len(notes)} identified verdicts)"
+        which = "" if len(verdicts) == 1 else f" ({counted(len(notes), 'identified verdict')})"
         click.echo(f"warning{which}: {notes[0]}", err=True)

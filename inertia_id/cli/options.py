@@ -27,6 +27,7 @@ from ..checks import (
 )
 from ..errors import InputError
 from ..pipelines import PAPER_SEQUENCE
+from ..wording import counted
 
 if TYPE_CHECKING:
     from ..physics.scenario import Scenario
@@ -486,8 +487,9 @@ def refuse_past_memory(
     available = available_memory_bytes()
     if available is not None and need > available:
         raise InputError(
-            f"{asked}: {candidates} candidates x {realisations} realisations x {samples} "
-            f"samples x 3 axes need about {_bytes_text(need)} ({arrays} arrays of 8-byte "
+            f"{asked}: {counted(candidates, 'candidate')} x "
+            f"{counted(realisations, 'realisation')} x {counted(samples, 'sample')} x 3 axes "
+            f"need about {_bytes_text(need)} ({counted(arrays, 'array')} of 8-byte "
             f"rates at once), more than the {_bytes_text(available)} of memory available; "
             "ask for fewer realisations"
         )

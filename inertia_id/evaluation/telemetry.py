@@ -75,6 +75,7 @@ from pydantic import (
 from ..checks import DuplicateKeyError, loads_unique_keys, parse_decimal
 from ..errors import InputError
 from ..physics.scenario import MAX_GYRO_RATE_RAD_S
+from ..wording import counted
 
 __all__ = [
     "DEFAULT_START_WINDOW_S",
@@ -301,7 +302,8 @@ class Telemetry(BaseModel):
         for i, row in enumerate(value):
             if len(row) != 3:
                 raise InputError(
-                    f"omega_rad_s row {i} has {len(row)} columns, expected 3: {list(row)}"
+                    f"omega_rad_s row {i} has {counted(len(row), 'column')}, expected 3: "
+                    f"{list(row)}"
                 )
         arr = np.asarray(value, dtype=float).reshape(-1, 3)
         bad = np.argwhere(~np.isfinite(arr))
@@ -549,8 +551,8 @@ def parse_telemetry(
     for n, row in enumerate(rows, start=1):
         if len(row) != 4:
             raise InputError(
-                f"CSV data row {n} has {len(row)} columns, expected 4 (time_s or time_utc, "
-                f"wx, wy, wz): {row}"
+                f"CSV data row {n} has {counted(len(row), 'column')}, expected 4 (time_s or "
+                f"time_utc, wx, wy, wz): {row}"
             )
         try:
             values = [parse_decimal(row[j], non_finite=True) * scale for j in order[1:]]
@@ -609,8 +611,8 @@ def _read_header(header: list[str]) -> tuple[list[int], float]:
     a header read by position alone once put z where x belonged."""
     if len(header) != 4:
         raise InputError(
-            f"CSV header has {len(header)} columns, expected 4 (time_s or time_utc, wx, wy, "
-            f"wz): {header}"
+            f"CSV header has {counted(len(header), 'column')}, expected 4 (time_s or time_utc, "
+            f"wx, wy, wz): {header}"
         )
     where: dict[str, int] = {}
     units: set[str] = set()

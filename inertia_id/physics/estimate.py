@@ -38,6 +38,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
+from ..wording import counted
 from .dynamics import cross
 from .scenario import Scenario
 from .series import check_series
@@ -330,7 +331,10 @@ def estimate_inertia(
             use = measured[starts] & measured[ends]
             starts, ends = starts[use], ends[use]
     if 3 * len(starts) < len(PARAMETER_NAMES):
-        raise InputError(f"{len(starts)} windows give fewer equations than the 6 parameters")
+        gives = "gives" if len(starts) == 1 else "give"
+        raise InputError(
+            f"{counted(len(starts), 'window')} {gives} fewer equations than the 6 parameters"
+        )
     _check_fittable(rates, float(times[-1] - times[0]), 3 * len(starts))
 
     momentum = _momentum_regressor(rates)  # (n, G, 3, 6)

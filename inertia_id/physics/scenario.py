@@ -25,6 +25,7 @@ from pydantic import (
 
 from ..checks import is_integer, number_as_written
 from ..errors import InputError
+from ..wording import counted
 
 __all__ = [
     "MAX_GYRO_RATE_RAD_S",
@@ -253,7 +254,8 @@ class Thrusters(_Model):
             data["levels"] = np.linspace(0.0, 1.0, n_levels).tolist()
         elif n_levels is not None and len(data["levels"]) != n_levels:
             raise InputError(
-                f"n_levels = {n_levels!r} disagrees with {len(data['levels'])} levels given"
+                f"n_levels = {n_levels!r} disagrees with {counted(len(data['levels']), 'level')} "
+                "given"
             )
         return _expand_per_thruster(data)
 

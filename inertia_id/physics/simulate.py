@@ -21,6 +21,7 @@ import numpy as np
 
 from ..checks import is_integer
 from ..errors import InputError
+from ..wording import counted
 from .actuation import commanded_torque, delivered_duty
 from .dynamics import RigidBodies
 from .presets import NOISE_OFF
@@ -333,7 +334,9 @@ class Simulator:
         """Simulate a whole sequence with the given randomness."""
         sequence = self.scenario.check_sequence(sequence)
         if len(noise.steps) < len(sequence):
-            raise InputError(f"noise holds {len(noise.steps)} steps, the sequence {len(sequence)}")
+            raise InputError(
+                f"noise holds {counted(len(noise.steps), 'step')}, the sequence {len(sequence)}"
+            )
         state = self.start(noise.initial)
         responses = []
         for levels, draw in zip(sequence, noise.steps, strict=False):

@@ -37,6 +37,8 @@ from sqlalchemy.dialects import postgresql, sqlite
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
+from inertia_id.wording import counted as counted_text
+
 from ..summaries import summarise
 from .models import (
     REUSABLE_STATUSES,
@@ -670,7 +672,7 @@ def _take_run(
     if counted >= max_attempts:
         lost_run(job, now=now, cause=cause, reason=reason, then="failed")
         job.status, job.finished_at = "failed", now
-        job.error = f"{error}; gave up after {counted} attempts"
+        job.error = f"{error}; gave up after {counted_text(counted, 'attempt')}"
         return "failed"
     lost_run(job, now=now, cause=cause, reason=reason)
     job.status, job.worker, job.error = "queued", None, f"re-queued: {error}"

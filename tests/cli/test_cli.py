@@ -664,6 +664,23 @@ def test_a_start_search_with_a_kind_that_compares_whole_series_says_it_is_not_re
     assert "not refined" not in plain.stderr
 
 
+@pytest.mark.parametrize(
+    ("named", "counted"), [(1, "1 identified verdict"), (2, "2 identified verdicts")]
+)
+def test_the_untested_warning_counts_its_verdicts_in_agreement(
+    capsys: pytest.CaptureFixture[str], named: int, counted: str
+) -> None:
+    """A run of three verdicts, ``named`` of them identified by a kind that cannot test for
+    bodies off the candidates, warned "(1 identified verdicts)" for one."""
+    from inertia_id.cli.classify import _warn_untested
+
+    note = "this classifier cannot test for bodies off the candidates"
+    verdicts = [{"status": "identified", "off_candidates_note": note}] * named
+    verdicts += [{"status": "ambiguous", "off_candidates_note": note}] * (3 - named)
+    _warn_untested(verdicts)
+    assert capsys.readouterr().err == f"warning ({counted}): {note}\n"
+
+
 def test_json_output_is_strict_json(tmp_path: Path) -> None:
     """NaN and Infinity are not JSON: they are written as null."""
     from inertia_id.cli.options import write_json

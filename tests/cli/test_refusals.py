@@ -755,7 +755,7 @@ def test_a_simulation_past_the_memory_available_is_refused_before_it_starts(
 @pytest.mark.parametrize(
     ("args", "asked"),
     [
-        (["simulate", "-n", "1"], "-n 1: 5 candidates x 1 realisations x 80 samples"),
+        (["simulate", "-n", "1"], "-n 1: 5 candidates x 1 realisation x 80 samples"),
         (["train", "--kind", "least-squares", "-n", "3"], "-n 3: 5 candidates x 3 realisations"),
     ],
 )
@@ -838,6 +838,8 @@ def test_plan_writes_csv_to_a_csv_name_and_json_to_others(
     [
         (["--kind", "least-squares"], "training least-squares classifier on 5 candidates x 3"),
         (["--kind", "1nn", "--metric", "euclidean"], "training 1nn euclidean classifier on 5"),
+        # One realisation a candidate: "x 1 realisations" before.
+        (["--metric", "euclidean", "-n", "1"], "on 5 candidates x 1 realisation ...\n"),
     ],
 )
 def test_train_names_its_classifier_without_a_double_space(
@@ -845,7 +847,7 @@ def test_train_names_its_classifier_without_a_double_space(
 ) -> None:
     # A kind without a metric read "training marginal-likelihood  classifier".
     result = CliRunner().invoke(
-        main, ["train", *args, "-n", "3", "--out", str(tmp_path / "c.json")]
+        main, ["train", "-n", "3", *args, "--out", str(tmp_path / "c.json")]
     )
     assert result.exit_code == 0, result.output
     assert line in result.stderr and "  " not in result.stderr.splitlines()[0]

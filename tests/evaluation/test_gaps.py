@@ -553,4 +553,4 @@ def test_too_few_measured_grid_times_withhold_the_estimate_not_the_verdict(
     assert verdict.sequence_measured_fraction == pytest.approx(2 / 80)
     assert verdict.estimated_inertia_kg_m2 is None
     assert verdict.estimate_rejected is not None
-    assert "1 windows give fewer equations than the 6 parameters" in verdict.estimate_rejected
+    assert "1 window gives fewer equations than the 6 parameters" in verdict.estimate_rejected

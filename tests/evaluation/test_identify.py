@@ -216,6 +216,7 @@ def test_too_short_telemetry_is_rejected(
             r"omega_rad_s row 1 has 2 columns, expected 3: \[1\.0, 2\.0\]",
         ),
         ([0.0, 0.1, 0.2], [[0, 0, 0, 0]] * 3, r"omega_rad_s row 0 has 4 columns"),
+        ([0.0, 0.1, 0.2], [[0, 0, 0], [1], [0, 0, 0]], r"omega_rad_s row 1 has 1 column, exp"),
         (
             [0.0, 0.2, 0.1],
             [[0, 0, 0]] * 3,
@@ -283,6 +284,8 @@ def test_parsed_csv_identifies_like_the_arrays(
     ("text", "fmt", "match"),
     [
         ("t,wx,wy,wz\n0,0,0,0\n0.1,0,0\n", "auto", r"CSV data row 2 has 3 columns, expected 4"),
+        ("t,wx,wy,wz\n0,0,0,0\n0.1\n", "auto", r"CSV data row 2 has 1 column, expected 4"),
+        ("time_s\n0\n0.1\n", "auto", r"CSV header has 1 column, expected 4"),
         (
             "0,0,0,0\n0.1,0,zero,0\n",
             "auto",

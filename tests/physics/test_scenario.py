@@ -238,6 +238,10 @@ def test_physical_edge_cases_are_accepted() -> None:
             {"nominal_torque_nm": 2.0, "levels": [0, 1], "n_levels": 3},
             r"n_levels = 3 disagrees with 2",
         ),
+        (
+            {"nominal_torque_nm": 2.0, "levels": [1.0], "n_levels": 3},
+            r"n_levels = 3 disagrees with 1 level given",
+        ),
         ({"torque_matrix_nm": [[1, 2], [3, 4]], "n_levels": 2}, r"3 x N .*lengths \[2, 2\]"),
         (
             {"torque_matrix_nm": [[1, 2], [3], [4, 5]], "n_levels": 2},

@@ -355,7 +355,7 @@ def test_simulator_parameter_validation(paper: Scenario) -> None:
         Simulator(paper, 2, measurement_noise_scale=float("nan"))
     simulator = Simulator(paper, 2)
     noise = simulator.draw_noise(np.random.default_rng(0), 1)
-    with pytest.raises(ValueError, match="noise holds 1 steps, the sequence 2"):
+    with pytest.raises(ValueError, match="noise holds 1 step, the sequence 2"):
         simulator.run(np.array([[4, 0, 0, 0, 0, 0]] * 2), noise)
 
 

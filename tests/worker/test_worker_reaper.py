@@ -80,6 +80,15 @@ def test_stale_jobs_are_requeued_failed_or_cancelled_and_live_ones_left_alone(st
         assert reap_stale(session, timeout_s=TIMEOUT_S, max_attempts=2) == ([], [])
 
 
+def test_a_job_given_up_after_one_attempt_says_attempt(store: Store) -> None:
+    """With INERTIA_ID_MAX_ATTEMPTS=1 a lost run ended its job "gave up after 1 attempts"."""
+    spent = _running(store, beat_age_s=600, attempts=1)
+    with store.db.session() as session:
+        assert reap_stale(session, timeout_s=TIMEOUT_S, max_attempts=1) == ([], [spent])
+    error = store.job(spent).error
+    assert error is not None and error.endswith("; gave up after 1 attempt"), error
+
+
 def _sent_job_ids(store: Store) -> list[str]:
     """Job ids of the run_job messages waiting in the filesystem broker's folder."""
     ids = []
