@@ -454,7 +454,6 @@ def test_a_409_after_a_504_has_its_own_retries_and_the_submission_is_stored_once
     budget, sends the one key 4 times and opens the one scenario stored. Before, 504s and
     409s shared one count of 3 tries: the second 409 was shown as "still in progress"."""
     page = dashboard.page
-    _key_saved(dashboard)
     keys: list[str | None] = []
     in_progress = json.dumps({"detail": "a request with this key is still in progress"})
 
