@@ -19,7 +19,7 @@ from fastapi.openapi.utils import get_openapi
 import inertia_id
 from service.config import Settings, settings_or_exit
 from service.queue import make_celery
-from service.store.session import Database, upgrade
+from service.store.session import Database, DatabaseNewerThanCode, upgrade
 
 from .api import ROUTERS
 from .api.deps import numbers_as_written, one_value_each
@@ -92,7 +92,12 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     settings = settings or settings_or_exit("inertia-id api")
     settings.data_dir.mkdir(parents=True, exist_ok=True)
     url = settings.resolved_database_url
-    upgrade(url)
+    try:
+        upgrade(url)
+    except DatabaseNewerThanCode as exc:
+        # One line, as for a bad setting: it was Alembic's traceback ending in "Can't
+        # locate revision identified by '0012'".
+        raise SystemExit(f"inertia-id api: {exc}") from None
     database = Database(url)
     generated_key = ensure_api_key(database, settings)
 

@@ -754,14 +754,18 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     import uvicorn
 
-    from service.store.session import Database, upgrade
+    from service.store.session import Database, DatabaseNewerThanCode, upgrade
 
     from .main import create_app
     from .request_deadlines import ServerConfig
     from .security import ensure_api_key
 
     # Once, here, before any API process starts: several would race to generate a key.
-    upgrade(settings.resolved_database_url)
+    try:
+        upgrade(settings.resolved_database_url)
+    except DatabaseNewerThanCode as exc:
+        print(f"inertia-id serve: {exc}", file=sys.stderr)
+        return 1
     database = Database(settings.resolved_database_url)
     try:
         generated = ensure_api_key(database, settings)

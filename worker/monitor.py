@@ -82,8 +82,8 @@ class WorkerMonitor:
         #: The database answering but refusing this worker's beat (full, read-only).
         self._refused = Episode(logger)
         self._failing = Episode(logger)
-        #: The database without the service's tables (not migrated yet: the API
-        #: migrates it when it starts): one clear line, no traceback, until it has them.
+        #: The database without the service's tables (not migrated yet: `inertia-id
+        #: migrate`, or the API as it starts): one clear line, no traceback, until it has them.
         self._no_schema = Episode(logger)
         #: Beats that found the row named by a live twin (see _live_twin).
         self._twin = Episode(logger)
@@ -116,8 +116,8 @@ class WorkerMonitor:
                 self._no_schema.seen(
                     _first_line(exc),
                     f"worker {self.name}: the database {database_label(self.db.url)} has "
-                    "no schema yet (%s): start the API first (`inertia-id serve` or the API "
-                    "process migrates it); retrying every "
+                    "no schema yet (%s): run `inertia-id migrate` on it (the API and "
+                    "`inertia-id serve` migrate it too as they start); retrying every "
                     f"{self.settings.heartbeat_interval_s:g} s",
                 )
             elif why is not None:

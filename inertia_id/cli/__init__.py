@@ -6,10 +6,11 @@ parses its options, calls a pipeline of the core (:mod:`inertia_id.pipelines`) a
 
 One module per command group: :mod:`~inertia_id.cli.scenario` (scenario, simulate),
 :mod:`~inertia_id.cli.classify` (train, sweep, identify), :mod:`~inertia_id.cli.search`,
-:mod:`~inertia_id.cli.paper`, :mod:`~inertia_id.cli.plan` and
-:mod:`~inertia_id.cli.serve`; :mod:`~inertia_id.cli.options` holds what they share. The
-group imports a command's module only when the command is asked for (or its help
-listed), and the modules import the core inside the commands, so
+:mod:`~inertia_id.cli.paper`, :mod:`~inertia_id.cli.plan`, :mod:`~inertia_id.cli.serve`
+and :mod:`~inertia_id.cli.migrate` (the last two hand over to the service's own modules);
+:mod:`~inertia_id.cli.options` holds what they share. The group imports a command's
+module only when the command is asked for (or its help listed), and the modules import
+the core inside the commands, so
 ``inertia-id --help`` answers at once.
 """
 
@@ -27,6 +28,7 @@ __all__ = ["main", "parse_sequence"]
 #: Command name -> "module:attribute" of its click command.
 COMMANDS = {
     "identify": "inertia_id.cli.classify:identify_cmd",
+    "migrate": "inertia_id.cli.migrate:migrate_cmd",
     "paper": "inertia_id.cli.paper:paper_cmd",
     "plan": "inertia_id.cli.plan:plan_cmd",
     "scenario": "inertia_id.cli.scenario:scenario_cmd",

@@ -4,15 +4,25 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from alembic import command
 from alembic.config import Config
+from alembic.migration import MigrationContext
+from alembic.script import ScriptDirectory
 from sqlalchemy import Engine, create_engine, event, text
 from sqlalchemy.orm import Session, sessionmaker
 
-__all__ = ["Database", "upgrade"]
+__all__ = [
+    "Database",
+    "DatabaseNewerThanCode",
+    "Revisions",
+    "head_revision",
+    "revisions",
+    "upgrade",
+]
 
 MIGRATIONS = Path(__file__).with_name("migrations")
 
@@ -100,8 +110,84 @@ class Database:
         self.engine.dispose()
 
 
+class DatabaseNewerThanCode(RuntimeError):
+    """The database is at a revision this code's migrations do not have: a newer
+    inertia-id migrated it. Upgrading it (Alembic's "Can't locate revision") or serving
+    from it (columns this code does not know) would be wrong either way."""
+
+    def __init__(self, url: str, current: str, head: str) -> None:
+        from .refusals import database_label
+
+        self.current, self.head = current, head
+        super().__init__(
+            f"the database {database_label(url)} is at revision {current}, which this "
+            f"inertia-id ({_version()}) does not have: its newest is {head}. A newer "
+            "inertia-id migrated it; run that version, or downgrade the database with it "
+            f"to {head} first. Nothing was changed"
+        )
+
+
+@dataclass(frozen=True)
+class Revisions:
+    """Where a database stands against this code's migrations.
+
+    :param current: the database's revision; None for a database never migrated.
+    :param head: the newest revision of this code's migrations.
+    :param known: whether this code has ``current`` (None always is).
+    :param pending: how many of this code's migrations ``current`` lacks (0 if unknown).
+    """
+
+    current: str | None
+    head: str
+    known: bool
+    pending: int
+
+    @property
+    def at_head(self) -> bool:
+        return self.current == self.head
+
+
+def _version() -> str:
+    from inertia_id import __version__
+
+    return __version__
+
+
+def _config(url: str) -> Config:
+    config = Config()
+    config.set_main_option("script_location", str(MIGRATIONS))
+    config.set_main_option("sqlalchemy.url", url.replace("%", "%%"))
+    return config
+
+
+def head_revision() -> str:
+    """The newest revision of this code's migrations."""
+    head = ScriptDirectory.from_config(_config("")).get_current_head()
+    assert head is not None, "no migrations found"
+    return head
+
+
+def revisions(url: str) -> Revisions:
+    """The database's revision at ``url`` beside this code's head (reads only)."""
+    scripts = ScriptDirectory.from_config(_config(url))
+    head = head_revision()
+    engine = _engine(url)
+    try:
+        with engine.connect() as connection:
+            current = MigrationContext.configure(connection).get_current_revision()
+    finally:
+        engine.dispose()
+    known = current is None or any(s.revision == current for s in scripts.walk_revisions())
+    pending = sum(1 for _ in scripts.iterate_revisions(head, current or "base")) if known else 0
+    return Revisions(current=current, head=head, known=known, pending=pending)
+
+
 def upgrade(url: str, revision: str = "head") -> None:
-    """Apply the Alembic migrations to the database at ``url``, up to ``revision``."""
+    """Apply the Alembic migrations to the database at ``url``, up to ``revision``.
+
+    :raises DatabaseNewerThanCode: the database is at a revision this code does not
+        have (Alembic said only "Can't locate revision identified by '0012'").
+    """
     _migrate(url, command.upgrade, revision)
 
 
@@ -111,12 +197,17 @@ def downgrade(url: str, revision: str) -> None:
 
 
 def _migrate(url: str, action: Callable[[Config, str], None], revision: str) -> None:
-    config = Config()
-    config.set_main_option("script_location", str(MIGRATIONS))
-    config.set_main_option("sqlalchemy.url", url.replace("%", "%%"))
+    config = _config(url)
+    scripts = ScriptDirectory.from_config(config)
     engine = _engine(url)
     try:
         with engine.begin() as connection:
+            current = MigrationContext.configure(connection).get_current_revision()
+            if current is not None and not any(
+                s.revision == current for s in scripts.walk_revisions()
+            ):
+                head = scripts.get_current_head()
+                raise DatabaseNewerThanCode(url, current, str(head))
             config.attributes["connection"] = connection
             action(config, revision)
     finally:

@@ -46,6 +46,23 @@ def test_compose_file_validates_with_the_scale_out_services() -> None:
     assert "127.0.0.1:8000" in done.stdout or "host_ip: 127.0.0.1" in done.stdout
 
 
+def test_compose_migrates_once_before_the_api_and_the_workers_start() -> None:
+    """Before, the API migrated as it started and the workers waited for it to answer;
+    a one-shot ``migrate`` service (``inertia-id migrate``) now runs first, once the
+    database is healthy, and the others start once it exited 0."""
+    done = _config({"INERTIA_ID_API_KEY": "k" * 32})
+    assert done.returncode == 0, done.stderr
+    services = yaml.safe_load(done.stdout)["services"]
+    migrate = services["migrate"]
+    assert migrate["command"] == ["inertia-id", "migrate"]
+    assert migrate["depends_on"]["postgres"] == {"condition": "service_healthy"}
+    assert migrate.get("restart", "no") == "no"
+    assert migrate["environment"]["DATABASE_URL"] == services["api"]["environment"]["DATABASE_URL"]
+    for name in ("api", "worker"):
+        depends_on = services[name]["depends_on"]
+        assert depends_on["migrate"] == {"condition": "service_completed_successfully"}, name
+
+
 def test_compose_refuses_to_start_without_an_api_key() -> None:
     env = {k: v for k, v in os.environ.items() if k != "INERTIA_ID_API_KEY"}
     done = subprocess.run(

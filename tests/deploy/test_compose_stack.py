@@ -1,8 +1,9 @@
 """The docker-compose stack as it ships, run on this machine without Docker.
 
 ``docker-compose config`` says what the stack runs; this test runs exactly that: the
-``api`` service's command and two of the ``worker`` service's (its ``replicas``), with
-the services' environment. Only what cannot be the same outside Docker is changed:
+``migrate`` service's command, then two of the ``worker`` service's (its ``replicas``)
+and the ``api`` service's, with the services' environment. Only what cannot be the same
+outside Docker is changed:
 
 - the hostnames ``postgres`` and ``redis`` become 127.0.0.1 (a fresh database on the
   machine's PostgreSQL, as the compose user, and Redis database 13, flushed before and
@@ -210,12 +211,22 @@ def test_the_compose_stack_trains_the_default_classifier_identifies_and_survives
 
     base = f"http://127.0.0.1:{port}"
     try:
-        api_container = start("api", command, api["environment"])
-        # depends_on api: service_started; the workers wait for nothing else.
+        # depends_on: the api and the workers wait for `migrate` to exit 0, and for
+        # nothing else of ours: the workers start first here, on the schema it left.
+        migrate = services["migrate"]
+        for service in (api, worker):
+            assert service["depends_on"]["migrate"] == {
+                "condition": "service_completed_successfully"
+            }, service["depends_on"]
+            assert "api" not in service["depends_on"], service["depends_on"]
+        migration = start("migrate", [str(p) for p in migrate["command"]], migrate["environment"])
+        assert migration.process.wait(120) == 0, migration.log()
+        assert "migrated from none (no schema yet) to " in migration.log(), migration.log()
         workers = [
             start(f"worker-{i + 1}", [str(p) for p in worker["command"]], worker["environment"])
             for i in range(replicas)
         ]
+        api_container = start("api", command, api["environment"])
         with httpx.Client(base_url=base, headers={"X-API-Key": API_KEY}, timeout=60) as client:
 
             def all_workers() -> dict[str, Any] | None:

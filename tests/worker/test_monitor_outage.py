@@ -317,6 +317,7 @@ def test_a_worker_started_before_the_schema_says_so_in_one_line_and_beats_once_i
     assert not any("unreachable" in m or "beat failed" in m for m in messages), messages
     no_schema = [m for m in messages if "has no schema yet (" in m and "hand back" not in m]
     assert len(no_schema) == 1, messages
-    assert "start the API first" in no_schema[0] and "workers" in no_schema[0], no_schema
+    # It names the command that migrates (before: "start the API first", the only way).
+    assert "run `inertia-id migrate`" in no_schema[0] and "workers" in no_schema[0], no_schema
     assert sum("no job to hand back: the database has no schema yet" in m for m in messages) == 1
     assert sum("the database has its schema after" in m for m in after) == 1, after

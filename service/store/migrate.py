@@ -1,0 +1,125 @@
+"""``inertia-id migrate``: bring the configured database's schema to this code's head.
+
+``python -m service.store.migrate [--data-dir DIR] [--check]``
+
+The database is the one the service uses: ``DATABASE_URL``, else the SQLite file in
+``--data-dir`` (or ``INERTIA_ID_DATA_DIR``, default ``./inertia-id-data``), as for
+``inertia-id serve``. The API and ``serve`` migrate when they start; this command is for
+a deployment that migrates once before any API or worker starts (docker-compose.yml's
+``migrate`` service), and for checking where a database stands.
+
+Exit status: 0 when the database is at this code's head (after migrating it, or with
+``--check``, as found); 1 with ``--check`` when migrations are pending; 1 with one line
+on stderr when the database is newer than this code (migrated by a newer inertia-id),
+cannot be reached, or a setting is bad. Nothing is changed in those cases.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from pydantic import ValidationError
+from sqlalchemy.exc import SQLAlchemyError
+
+from service.config import get_settings, setting_problems
+
+from .refusals import database_label
+from .session import DatabaseNewerThanCode, head_revision, revisions, upgrade
+
+__all__ = ["main"]
+
+PROGRAM = "inertia-id migrate"
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog=PROGRAM,
+        description="Apply the database migrations (Alembic) up to this code's newest, on "
+        "DATABASE_URL, else the SQLite database in --data-dir, and print the revision "
+        "before and after. A database migrated by a newer inertia-id is refused, unchanged.",
+    )
+    parser.add_argument(
+        "--data-dir",
+        default=None,
+        help="Folder of the SQLite database when DATABASE_URL is unset (default "
+        "INERTIA_ID_DATA_DIR, else ./inertia-id-data), as for `inertia-id serve`.",
+    )
+    parser.add_argument(
+        "--check",
+        action="store_true",
+        help="Change nothing: exit 0 if the database is at this code's newest revision, "
+        "else 1, saying how many migrations are pending.",
+    )
+    return parser
+
+
+def _name(revision: str | None) -> str:
+    return "none (no schema yet)" if revision is None else revision
+
+
+def _unreachable(label: str, exc: SQLAlchemyError) -> str:
+    lines = str(getattr(exc, "orig", exc) or exc).strip().splitlines()
+    why = lines[0] if lines else type(exc).__name__
+    return f"{PROGRAM}: cannot reach the database {label}: {why}"
+
+
+def _sqlite_file_exists(url: str) -> bool:
+    from sqlalchemy import make_url
+
+    database = make_url(url).database
+    return not database or database == ":memory:" or Path(database).exists()
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    if args.data_dir is not None:
+        os.environ["INERTIA_ID_DATA_DIR"] = str(Path(args.data_dir).expanduser())
+    get_settings.cache_clear()
+    try:
+        settings = get_settings()
+    except ValidationError as exc:
+        print("\n".join(f"{PROGRAM}: {line}" for line in setting_problems(exc)), file=sys.stderr)
+        return 1
+    url = settings.resolved_database_url
+    label = database_label(url)
+    if args.check and url.startswith("sqlite") and not _sqlite_file_exists(url):
+        # Connecting would create the file: --check changes nothing.
+        print(f"{label}: no database yet; this code's newest revision is {head_revision()}")
+        return 1
+    try:
+        found = revisions(url)
+        if not found.known:
+            raise DatabaseNewerThanCode(url, str(found.current), found.head)
+        if args.check:
+            if found.at_head:
+                print(f"{label}: at {found.head}, this code's newest revision")
+                return 0
+            print(
+                f"{label}: at {_name(found.current)}; this code's newest is {found.head}: "
+                f"{found.pending} migration(s) pending (run `{PROGRAM}`)"
+            )
+            return 1
+        if found.at_head:
+            print(f"{label}: at {found.head} already, this code's newest revision; nothing to do")
+            return 0
+        upgrade(url)
+        after = revisions(url)
+        print(
+            f"{label}: migrated from {_name(found.current)} to {after.current} "
+            f"({found.pending} migration(s) applied)"
+        )
+    except DatabaseNewerThanCode as exc:
+        print(f"{PROGRAM}: {exc}", file=sys.stderr)
+        return 1
+    except SQLAlchemyError as exc:
+        print(_unreachable(label, exc), file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

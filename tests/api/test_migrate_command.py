@@ -1,0 +1,108 @@
+"""``inertia-id migrate``: the database to this code's head before any API or worker
+starts, ``--check`` for where it stands, and a database newer than the code refused."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from sqlalchemy import create_engine, text
+
+from app.main import create_app
+from service.store.session import DatabaseNewerThanCode, head_revision, revisions, upgrade
+
+from .support import make_settings
+
+
+def migrate(url: str, tmp_path: Path, *options: str) -> subprocess.CompletedProcess[str]:
+    """The installed command line, as a deployment runs it, on the database at ``url``."""
+    env = {**os.environ, "DATABASE_URL": url, "INERTIA_ID_DATA_DIR": str(tmp_path / "data")}
+    return subprocess.run(
+        [sys.executable, "-m", "inertia_id.cli", "migrate", *options],
+        capture_output=True,
+        text=True,
+        env=env,
+        cwd=tmp_path,
+        timeout=120,
+    )
+
+
+def _set_revision(url: str, revision: str) -> None:
+    engine = create_engine(url)
+    try:
+        with engine.begin() as connection:
+            connection.execute(text("UPDATE alembic_version SET version_num = :r"), {"r": revision})
+    finally:
+        engine.dispose()
+
+
+def test_migrate_says_from_and_to_and_check_tells_pending_from_done(
+    empty_database_url: str, tmp_path: Path
+) -> None:
+    """Before, there was no such command (``Error: No such command 'migrate'``): a
+    database was migrated only by starting the API or ``serve``."""
+    url = empty_database_url
+    head = head_revision()
+    upgrade(url, "0009")
+
+    pending = migrate(url, tmp_path, "--check")
+    assert pending.returncode == 1, pending.stderr
+    assert f"at 0009; this code's newest is {head}" in pending.stdout, pending.stdout
+    assert revisions(url).current == "0009", "--check changed the database"
+
+    done = migrate(url, tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert f"migrated from 0009 to {head}" in done.stdout, done.stdout
+    assert revisions(url).current == head
+
+    again = migrate(url, tmp_path)
+    assert again.returncode == 0, again.stderr
+    assert f"at {head} already" in again.stdout, again.stdout
+    checked = migrate(url, tmp_path, "--check")
+    assert checked.returncode == 0, checked.stdout + checked.stderr
+    assert f"at {head}, this code's newest revision" in checked.stdout
+
+
+def test_migrate_check_on_a_database_never_migrated_is_pending(
+    empty_database_url: str, tmp_path: Path
+) -> None:
+    checked = migrate(empty_database_url, tmp_path, "--check")
+    assert checked.returncode == 1, checked.stdout + checked.stderr
+    done = migrate(empty_database_url, tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert f"migrated from none (no schema yet) to {head_revision()}" in done.stdout
+
+
+def test_a_database_newer_than_the_code_is_refused_by_name_and_left_alone(
+    empty_database_url: str, tmp_path: Path
+) -> None:
+    """A database a newer inertia-id migrated: Alembic's traceback ended in "Can't locate
+    revision identified by '0099'" (serve and the API's start alike). Now one line naming
+    both revisions, exit status 1, and the database unchanged."""
+    url = empty_database_url
+    upgrade(url)
+    _set_revision(url, "0099")
+    head = head_revision()
+    for options in ((), ("--check",)):
+        refused = migrate(url, tmp_path, *options)
+        assert refused.returncode == 1, (options, refused.stdout)
+        assert "Traceback" not in refused.stderr, refused.stderr
+        line = refused.stderr.strip()
+        assert line.startswith("inertia-id migrate: the database "), line
+        assert "at revision 0099, which this inertia-id" in line and f"newest is {head}" in line
+    assert revisions(url).current == "0099"
+    with pytest.raises(DatabaseNewerThanCode, match="0099"):
+        upgrade(url)
+    with pytest.raises(SystemExit, match=r"^inertia-id api: .* at revision 0099"):
+        create_app(make_settings(tmp_path, url))
+    assert revisions(url).current == "0099"
+
+
+def test_an_unreachable_database_is_one_line(tmp_path: Path) -> None:
+    done = migrate("postgresql+psycopg://nobody@127.0.0.1:1/none", tmp_path)
+    assert done.returncode == 1
+    assert done.stderr.startswith("inertia-id migrate: cannot reach the database "), done.stderr
+    assert "Traceback" not in done.stderr
