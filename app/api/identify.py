@@ -52,7 +52,7 @@ from ..schemas import (
 from ..verdicts import NotFound, VerdictOptions, VerdictProcess
 from .deps import UNAUTHORIZED, ApiKeyDep, no_such, not_found, plausible_id, unprocessable
 from .errors import duplicate_key_errors, refused_at
-from .routing import UniqueKeysRoute, content_codings
+from .routing import UniqueKeysRoute, content_codings, refuse_json_charset
 
 if TYPE_CHECKING:
     from inertia_id.classifiers.registry import CandidateClassifier
@@ -506,7 +506,8 @@ async def _read_body(
 ) -> tuple[str, Telemetry, VerdictOptions]:
     # Both media types on one path: FastAPI declares one body per route, so the body is
     # read here and validated with the same models.
-    content_type = request.headers.get("content-type", "").split(";")[0].strip().lower()
+    full_type = request.headers.get("content-type", "")
+    content_type = full_type.split(";")[0].strip().lower()
     gzipped = _gzip_encoded(request)
     if content_type == "multipart/form-data":
         if gzipped:
@@ -517,6 +518,7 @@ async def _read_body(
             )
         return await _from_form(request, sequence_start)
     if content_type == "application/json" or content_type.endswith("+json"):
+        refuse_json_charset(full_type)
         return await _from_json(request, sequence_start, gzipped=gzipped)
     raise HTTPException(
         status.HTTP_415_UNSUPPORTED_MEDIA_TYPE,
@@ -575,8 +577,8 @@ def _refusals(bad_telemetry: str) -> dict[int | str, dict[str, Any]]:
             "content": {"application/json": {"schema": {"$ref": "#/components/schemas/HTTPError"}}},
         },
         415: {
-            "description": "neither JSON nor multipart/form-data, or a Content-Encoding "
-            "other than gzip (and gzip for a JSON body only)"
+            "description": "neither JSON nor multipart/form-data, JSON with a charset other "
+            "than UTF-8, or a Content-Encoding other than gzip (and gzip for a JSON body only)"
         },
         422: {"description": bad_telemetry},
         503: {"description": "past capacity: try again after Retry-After seconds"},

@@ -11,6 +11,7 @@ its hook counting each object's keys); FastAPI turns the
 
 from __future__ import annotations
 
+import codecs
 from collections.abc import Callable, Coroutine
 from email.message import Message
 from typing import Any
@@ -20,7 +21,7 @@ from fastapi.routing import APIRoute
 
 from inertia_id.checks import loads_unique_keys
 
-__all__ = ["UniqueKeysRoute", "content_codings"]
+__all__ = ["UniqueKeysRoute", "content_codings", "refuse_json_charset"]
 
 
 def content_codings(request: Request) -> list[str]:
@@ -50,6 +51,35 @@ class _UniqueKeysRequest(Request):
                 )
             self._json = loads_unique_keys(await self.body())
         return self._json
+
+
+def refuse_json_charset(content_type: str) -> None:
+    """A 415 naming the charset when a JSON body's ``Content-Type`` states one other than
+    UTF-8 (``utf-8``, ``UTF8``: any of Python's names for it).
+
+    JSON exchanged between systems MUST be UTF-8 (RFC 8259, 8.1), and the body is read as
+    UTF-8 whatever the header says: ``application/json; charset=latin-1`` was accepted,
+    and its ``Ã©`` stored as ``é`` (a byte outside UTF-8 was a 422 about the 'utf-8'
+    codec that named neither the header nor the fix). Refused rather than decoded as
+    stated: the other routes of the same client, the CLI's files and the stored documents
+    are UTF-8 only, and a charset is no parameter of application/json (RFC 8259, 11).
+    """
+    message = Message()
+    message["content-type"] = content_type
+    charset = message.get_content_charset()
+    if charset is None:
+        return
+    try:
+        utf8 = codecs.lookup(charset).name == "utf-8"
+    except LookupError:
+        utf8 = False
+    if not utf8:
+        raise HTTPException(
+            status.HTTP_415_UNSUPPORTED_MEDIA_TYPE,
+            detail=f"charset {charset[:40]!r} is not supported: a JSON body is read as UTF-8 "
+            "(RFC 8259: JSON exchanged between systems must be UTF-8); send it encoded in "
+            "UTF-8, as application/json or application/json; charset=utf-8",
+        )
 
 
 def _is_json(content_type: str) -> bool:
@@ -86,6 +116,8 @@ class UniqueKeysRoute(APIRoute):
                         "sends application/x-www-form-urlencoded: add -H 'Content-Type: "
                         "application/json')",
                     )
+            if takes_json and content_type:
+                refuse_json_charset(content_type)
             return await handler(request)
 
         return unique_keys_handler

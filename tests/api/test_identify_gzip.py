@@ -243,3 +243,37 @@ def test_a_json_body_sent_as_another_media_type_is_a_415_naming_it(api: Api) -> 
     # Without the key, still a 401 before the body (or its type) is looked at.
     bare = {"content-type": "text/plain"}
     assert api.client.post("/scenarios", content=plain, headers=bare).status_code == 401
+
+
+def test_a_json_body_in_a_charset_other_than_utf8_is_a_415_naming_it(
+    api: Api, classifier_id: str, flight: SimulationResult
+) -> None:
+    """``application/json; charset=latin-1`` was accepted and its body read as UTF-8: the
+    name ``Ã©nergie`` sent in Latin-1 (bytes C3 A9) was stored as ``énergie``, and
+    ``Énergie`` (byte C9) was a 422 about the 'utf-8' codec. JSON between systems must be
+    UTF-8 (RFC 8259, 8.1): another charset is refused by name, nothing stored."""
+    stored = [s["id"] for s in api.get("/scenarios").json()["items"]]
+    overrides = {"name": "Ã©nergie"}
+    misread = json.dumps({"preset": "paper", "overrides": overrides}, ensure_ascii=False)
+    assert b"\xc3\xa9" in misread.encode("latin-1")
+    identify = json.dumps({"classifier_id": classifier_id, "telemetry": telemetry(flight, 3)})
+    for path, text in (("/scenarios", misread), ("/identify", identify)):
+        for charset in ("latin-1", "ISO-8859-1", '"windows-1252"', "utf-16", "no-such"):
+            headers = {**api.auth, "content-type": f"application/json; charset={charset}"}
+            response = api.client.post(path, content=text.encode("latin-1"), headers=headers)
+            assert response.status_code == 415, (path, charset, response.text)
+            detail = response.json()["detail"]
+            named = charset.strip('"').lower()
+            assert detail.startswith(f"charset {named!r} is not supported"), detail
+            assert "UTF-8" in detail
+    assert [s["id"] for s in api.get("/scenarios").json()["items"]] == stored
+    # UTF-8 under any of its names, or none, is read as before.
+    named = json.dumps({"preset": "paper", "overrides": {"name": "Énergie"}}).encode()
+    for charset in ("", "; charset=utf-8", "; charset=UTF-8", '; charset="utf8"'):
+        headers = {**api.auth, "content-type": f"application/json{charset}"}
+        response = api.client.post("/scenarios", content=named, headers=headers)
+        assert response.status_code == 201, (charset, response.text)
+        assert response.json()["name"] == "Énergie"
+    headers = {**api.auth, "content-type": "application/json; charset=utf-8"}
+    verdict = api.client.post("/identify", content=identify.encode(), headers=headers)
+    assert verdict.status_code == 200, verdict.text
