@@ -11,9 +11,10 @@
    named uniquely), logging to ``DIR/logs/``, and restarts one that dies;
 4. serves the API with uvicorn (``--api-workers`` processes; a connection that does not
    send its request in time is closed: :mod:`app.request_deadlines`) until Ctrl-C or
-   SIGTERM, then stops the workers: each hands its running job back to the queue at
-   once (it costs the job no attempt) and exits; one still there after a grace period
-   is killed.
+   SIGTERM. At that signal the workers are told to stop, while uvicorn gives the
+   requests in flight their grace (:data:`API_GRACE_S`): each hands its running job back
+   to the queue at once (it costs the job no attempt) and exits; once the API has
+   stopped, serve waits for them, and one still there after a grace period is killed.
 
 If serve itself dies (``kill -9``), its workers are told to stop by the kernel
 (``PR_SET_PDEATHSIG``): they hand their jobs back and exit, and nothing is orphaned.
@@ -288,6 +289,11 @@ class WorkerPool:
         #: serve is its descendants' subreaper: reap the orphans that end meanwhile.
         self.adopts_orphans = False
         self._stopping = threading.Event()
+        #: The pids told to stop (SIGTERM), by the supervisor or by stop(), under its lock.
+        self._told: set[int] = set()
+        self._told_lock = threading.Lock()
+        #: When the first worker was told to stop (monotonic s): stop()'s grace runs from it.
+        self._stop_began: float | None = None
         self._supervisor = threading.Thread(
             target=self._supervise, name="inertia-id worker supervisor", daemon=True
         )
@@ -406,7 +412,49 @@ class WorkerPool:
         except Exception:
             logger.debug("could not refresh the starting workers' rows", exc_info=True)
 
+    def request_stop(self) -> None:
+        """Have the workers told to stop now, without waiting: safe in a signal handler
+        (it sets an event; the supervisor thread sends the signals and logs).
+
+        serve calls it at its first stop signal, so that the workers wind down (each
+        hands its job back, then Celery takes seconds to close its pool) while uvicorn
+        gives the API's requests their grace: the workers were told only after it, and
+        serve took 7-14 s to stop under /identify load. Safe to overlap: no request of
+        the API waits for a worker (a job submitted meanwhile stays queued, and is sent
+        again when a worker starts)."""
+        self._stopping.set()
+
+    def _tell_to_stop(self) -> int:
+        """SIGTERM to every live worker not told yet; how many were told now."""
+        told = 0
+        with self._told_lock:
+            if self._stop_began is None:
+                self._stop_began = time.monotonic()
+            for process in self.processes.values():
+                if process.poll() is not None or process.pid in self._told:
+                    continue
+                try:
+                    process.send_signal(signal.SIGTERM)
+                except ProcessLookupError:
+                    continue
+                self._told.add(process.pid)
+                told += 1
+        return told
+
     def _supervise(self) -> None:
+        try:
+            self._watch()
+        finally:
+            if self._stopping.is_set():
+                told = self._tell_to_stop()
+                if told:
+                    logger.info(
+                        "told %d worker(s) to stop (a running job goes back to the queue), "
+                        "while the API finishes its requests",
+                        told,
+                    )
+
+    def _watch(self) -> None:
         started = {index: time.monotonic() for index in self.processes}
         while not self._stopping.wait(1.0):
             self._keep_announced()
@@ -445,16 +493,18 @@ class WorkerPool:
             nothing left to wait for, and the rest of the grace is skipped.
         """
         self._stopping.set()
+        if self._supervisor.is_alive():
+            # It tells the workers as it leaves its loop (at once: the event is set).
+            self._supervisor.join(5)
         running = {i: p for i, p in self.processes.items() if p.poll() is None}
-        for process in running.values():
-            try:
-                process.send_signal(signal.SIGTERM)
-            except ProcessLookupError:
-                pass
-        deadline = time.monotonic() + grace_s
+        self._tell_to_stop()
+        # The grace runs from the first worker told: by request_stop, at serve's signal.
+        assert self._stop_began is not None
+        deadline = self._stop_began + grace_s
         names = [self.node_name(i) for i in running]
         while time.monotonic() < deadline and any(p.poll() is None for p in running.values()):
-            time.sleep(0.2)
+            # Checked before the first pause: told at serve's signal, the workers have
+            # mostly handed their jobs back by the time the API has stopped.
             if settled is not None and names:
                 try:
                     if settled(names):
@@ -462,6 +512,7 @@ class WorkerPool:
                 except Exception:  # the database is away: wait out the grace instead
                     logger.warning("could not check the workers' hand-back", exc_info=True)
                     settled = None
+            time.sleep(0.2)
         for index, process in self.processes.items():
             # The whole group: the worker and its task process, if either is left.
             try:
@@ -474,8 +525,6 @@ class WorkerPool:
                 logger.error("worker%d (pid %d) did not die", index, process.pid)
             else:
                 self._forget(index)  # one stopped while importing was listed warming
-        if self._supervisor.is_alive():
-            self._supervisor.join(5)
         for log in self._logs.values():
             log.close()
         self._logs.clear()
@@ -649,10 +698,24 @@ def tcp_socket(sock: socket.socket) -> socket.socket:
     return sock
 
 
-def _serve_processes(count: int, options: dict[str, Any]) -> None:
+def _serve_one(config: Any, on_stop: Callable[[], None]) -> None:
+    """One API process, this one: uvicorn's server, ``on_stop`` called at its first stop
+    signal (SIGTERM, Ctrl-C), before uvicorn gives the requests in flight their grace."""
+    import uvicorn
+
+    class Server(uvicorn.Server):
+        def handle_exit(self, sig: int, frame: FrameType | None) -> None:
+            on_stop()
+            super().handle_exit(sig, frame)
+
+    Server(config).run()
+
+
+def _serve_processes(count: int, options: dict[str, Any], on_stop: Callable[[], None]) -> None:
     """``count`` API processes on one listening socket (uvicorn's multiprocess mode).
 
-    Each process builds its app from the environment :func:`_settings_for` wrote.
+    Each process builds its app from the environment :func:`_settings_for` wrote;
+    ``on_stop`` is called when the supervisor takes a stop signal, as it tells them to stop.
     """
     from uvicorn.supervisors import Multiprocess
 
@@ -668,7 +731,12 @@ def _serve_processes(count: int, options: dict[str, Any]) -> None:
 
         def handle_term(self) -> None:
             self.terminated = True
+            on_stop()
             super().handle_term()
+
+        def handle_int(self) -> None:
+            on_stop()
+            super().handle_int()
 
     supervisor = Supervisor(config, sockets=[tcp_socket(config.bind_socket())])
     supervisor.run()
@@ -752,8 +820,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     # Orphans among our descendants become our children, stopped at the end.
     subreaper = become_subreaper()
 
-    import uvicorn
-
     from service.store.session import Database, DatabaseNewerThanCode, upgrade
 
     from .main import create_app
@@ -804,10 +870,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             "request_header_max_count": settings.request_header_max_count,
             "request_header_max_bytes": settings.request_header_max_bytes,
         }
+        # The workers are told to stop at the signal, while uvicorn gives the API's
+        # requests their grace (API_GRACE_S); the finally below waits for them.
         if args.api_workers == 1:
-            uvicorn.Server(ServerConfig(create_app(settings), **options)).run()
+            _serve_one(ServerConfig(create_app(settings), **options), pool.request_stop)
         else:
-            _serve_processes(args.api_workers, options)
+            _serve_processes(args.api_workers, options, pool.request_stop)
     except KeyboardInterrupt:
         pass
     finally:

@@ -458,6 +458,12 @@ def test_a_second_stop_signal_while_serve_stops_does_not_cut_its_shutdown_short(
             "serve did not start its API and worker",
             lambda: tail(log),
         )
+        # A worker that does not stop (frozen): serve waits its grace for it, the window
+        # the second signal must land in. The workers are told to stop at the first
+        # signal now, and an idle one was gone before this test could send a second.
+        for pid, command in tree.items():
+            if "celery" in command:
+                os.kill(pid, signal.SIGSTOP)
         server.send_signal(stop_signal)
         wait_for(
             lambda: "stopping workers" in log.read_text(),
@@ -479,6 +485,71 @@ def test_a_second_stop_signal_while_serve_stops_does_not_cut_its_shutdown_short(
     assert not left, f"left behind by serve: {left}\n{tail(log)}"
     assert "workers stopped" in text and "shutdown complete" in text, tail(log)
     assert f"{signal.Signals(stop_signal).name} while stopping" in text, tail(log)
+
+
+@pytest.mark.parametrize("api_workers", ["1", "2"])
+def test_serve_tells_its_workers_to_stop_while_the_api_gives_its_requests_their_grace(
+    tmp_path: Path, api_workers: str
+) -> None:
+    """At SIGTERM the workers are told to stop at once, and wind down while uvicorn waits
+    for the requests in flight (here an upload left half sent, which holds it for its
+    whole grace); serve waits for them once the API has stopped. Before, they were told
+    only after the API had stopped: under /identify load serve took the grace and then the
+    workers' wind-down, one after the other. Asserted as the order of the log's lines."""
+    port = free_port()
+    log = tmp_path / "serve.log"
+    key = "serve-stop-" + "k" * 24
+    argv = [*_SERVE, "--port", str(port), "--data-dir", "data", "--api-workers", api_workers]
+    with open(log, "wb") as out:
+        server = subprocess.Popen(
+            argv,
+            env=clean_env(INERTIA_ID_API_KEY=key),
+            cwd=tmp_path,
+            stdout=out,
+            stderr=subprocess.STDOUT,
+        )
+    slow: socket.socket | None = None
+    try:
+        worker_log = tmp_path / "data" / "logs" / "worker1.log"
+        wait_for(
+            lambda: (
+                log.read_text().count("Application startup complete") == int(api_workers)
+                and worker_log.exists()
+                and "heartbeat and reaper" in worker_log.read_text(errors="replace")
+            ),
+            120,
+            "serve did not start its API and worker",
+            lambda: tail(log) + tail(worker_log),
+        )
+        body = b'{"preset": "paper"}'
+        slow = socket.create_connection(("127.0.0.1", port), timeout=60)
+        slow.sendall(
+            f"POST /scenarios HTTP/1.1\r\nHost: 127.0.0.1\r\nX-API-Key: {key}\r\n"
+            f"Content-Type: application/json\r\nContent-Length: {len(body)}\r\n\r\n".encode()
+            + body[:5]
+        )
+        time.sleep(0.5)  # its head read: a request in flight
+        server.send_signal(signal.SIGTERM)
+        server.wait(60)
+    finally:
+        if slow is not None:
+            slow.close()
+        if server.poll() is None:
+            server.kill()
+            server.wait()
+    lines = log.read_text().splitlines()
+
+    def first(*markers: str) -> int:
+        found = [i for i, line in enumerate(lines) if any(m in line for m in markers)]
+        assert found, f"none of {markers} in serve's log:\n{tail(log)}"
+        return found[0]
+
+    # The first word to the workers: its own line now, "stopping workers" before.
+    told = first("told 1 worker(s) to stop", "stopping workers")
+    # One process: uvicorn's own line; several: their supervisor's, after every child's.
+    stopped = "Finished server process" if api_workers == "1" else "Stopping parent process"
+    api_stopped = first(stopped)
+    assert told < api_stopped < first("workers stopped"), "\n".join(lines[told - 5 :])
 
 
 def test_the_orphan_reaper_leaves_multiprocessing_s_own_children_to_it() -> None:
