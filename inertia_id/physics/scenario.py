@@ -737,6 +737,20 @@ class Scenario(_Model):
             return None
         return f"the scenario's thrusters give no {' and no '.join(missing)}"
 
+    @property
+    def propellant_basis(self) -> str | None:
+        """How :meth:`propellant_kg` is reached from the fields the scenario gives (its
+        thrust from ``thrust_n`` or from the lever arms); None when it is not stated."""
+        if self.propellant_unstated is not None:
+            return None
+        thrust = (
+            "thrust_n" if self.thrusters.thrust_n is not None else "thrust (|A_j| / lever_arm_m)"
+        )
+        return (
+            f"sum over thrusters of {thrust} x on-time / "
+            "(specific_impulse_s x standard_gravity_m_s2), kg"
+        )
+
     def propellant_kg(self, sequence: Any) -> float | None:
         """Propellant mass a sequence burns, kg: ``Σ_j F_j t_j / (Isp g0)``, counting every
         thruster's on-time (opposing thrusters both burn); None unless the scenario gives

@@ -154,12 +154,15 @@ class CommandPlan:
     initial_rate_sigma_rad_s: float = 0.0
     #: Why propellant_kg is None (the fields the scenario lacks); None when it is stated.
     propellant_unstated: str | None = None
+    #: How propellant_kg is reached from the fields the scenario gives (thrust_n or the
+    #: lever arms); None when it is not stated.
+    propellant_basis: str | None = None
 
     def _propellant_note(self) -> str:
         """How ``propellant_kg`` is reached, or why it is null (the words the CSV's
         ``# propellant_kg:`` line gives)."""
         if self.propellant_kg is not None:
-            return "sum over thrusters of thrust_n x on-time / (specific_impulse_s x g0), kg"
+            return self.propellant_basis or "stated"
         why = self.propellant_unstated
         return "not stated" + (f" ({why})" if why else "")
 
@@ -477,4 +480,5 @@ def command_plan(
         warnings=[] if weak is None else [weak],
         initial_rate_sigma_rad_s=float(scenario.uncertainty.initial_rate_sigma_rad_s),
         propellant_unstated=scenario.propellant_unstated,
+        propellant_basis=scenario.propellant_basis,
     )

@@ -1415,3 +1415,21 @@ def test_a_plans_json_says_in_words_why_the_propellant_is_null(paper: Scenario) 
     assert propellant["propellant_kg"] is not None
     assert "specific_impulse_s" in propellant["propellant_note"]
     assert not propellant["propellant_note"].startswith("not stated")
+
+
+def test_a_plans_propellant_note_names_the_lever_arms_when_they_give_the_thrust(
+    paper: Scenario,
+) -> None:
+    """The stated note said ``thrust_n x on-time`` whatever the scenario gave: a scenario
+    with lever arms and no thrust_n was told of a field it lacks. The note names the
+    lever arms there (thrust = |A_j| / lever_arm_m), thrust_n where it is given, and the
+    mass is the same for the same thrust."""
+    sequence = [[4, 0, 0, 4, 0, 0]]
+    base = {"nominal_torque_nm": 2.0, "n_levels": 5, "specific_impulse_s": 220.0}
+    by_arm = command_plan(preset("paper", thrusters={**base, "lever_arm_m": 0.5}), sequence)
+    by_thrust = command_plan(preset("paper", thrusters={**base, "thrust_n": 4.0}), sequence)
+    arm, thrust = by_arm.to_dict()["propellant"], by_thrust.to_dict()["propellant"]
+    assert arm["propellant_kg"] == pytest.approx(thrust["propellant_kg"])
+    assert "lever_arm_m" in arm["propellant_note"] and "thrust_n" not in arm["propellant_note"]
+    assert "thrust_n" in thrust["propellant_note"]
+    assert "lever_arm_m" not in thrust["propellant_note"]
