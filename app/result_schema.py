@@ -218,7 +218,11 @@ class SearchConfirmation(SearchConfirmationFigures):
     seed: int
     test_series: int
     series_per_condition: int
-    baselines: dict[str, SearchConfirmationBaseline]
+    baselines: dict[str, SearchConfirmationBaseline] | None = Field(
+        default=None,
+        description="by name; absent in confirmations stored before the baselines were "
+        "measured on its series (13426f5)",
+    )
 
 
 class SearchNotRescored(_Open):

@@ -348,3 +348,35 @@ def test_a_jobs_result_is_a_union_tagged_by_the_job_type(api: Api) -> None:
     # The routes point at the unions.
     one = spec["paths"]["/jobs/{job_id}"]["get"]["responses"]["200"]["content"]
     assert one["application/json"]["schema"] == {"$ref": "#/components/schemas/JobOut"}
+
+
+def test_an_nsga2_result_stored_before_its_confirmation_measured_the_baselines_still_meets_the_published_schema(  # noqa: E501
+    api: Api,
+) -> None:
+    """A front's confirmation gained ``baselines`` in 13426f5 (2026-12-03); the NSGA-II
+    results stored between f34c58e and it have a confirmation without them. The
+    published schema required them: GET /jobs/{id} of such a job failed a client's
+    validation (a datamodel-code-generator client: 'confirmation.baselines Field
+    required'), on a real result of that release as on this one without the key."""
+    request = SearchRequest.from_params(
+        {
+            "method": "nsga2",
+            "sequence_length": 2,
+            "n_realisations": 4,
+            "fresh_test_series": 2,
+            "fresh_realisations": 4,
+            "nsga2": {"population": 8, "generations": 2},
+        }
+    )
+    result = search_with_baselines(Scenario.paper(), request, seed=0).to_dict()
+    assert result["front"]["confirmation"] is not None
+    result["front"]["confirmation"].pop("baselines")
+    spec = api.get("/openapi.json").json()
+    scenario_id = api.create_scenario()["id"]
+    job_id = _finished(api, "search", scenario_id, {"method": "random"}, result)
+    job = api.get(f"/jobs/{job_id}").json()
+    assert "baselines" not in job["result"]["front"]["confirmation"]
+    assert _errors(_validator(spec, {"$ref": "#/components/schemas/JobOut"}), job) == []
+    # Every field it holds is still described.
+    strict = strict_document(spec)
+    assert _errors(_validator(strict, {"$ref": "#/components/schemas/JobOut"}), job) == []
