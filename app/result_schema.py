@@ -138,6 +138,11 @@ class SearchCurvePoint(_Open):
     best_residual_rate_rad_s: float | None = Field(
         default=None, description="rad/s; results stored before it have best_final_rate_rad_s"
     )
+    best_final_rate_rad_s: float | None = Field(
+        default=None,
+        description="rad/s, in results stored before best_residual_rate_rad_s (b4cfab5) "
+        "only: NSGA-II's residual rate, the other methods' |ω| when the last command ends",
+    )
 
 
 class SearchScores(_Open):

@@ -380,3 +380,21 @@ def test_an_nsga2_result_stored_before_its_confirmation_measured_the_baselines_s
     # Every field it holds is still described.
     strict = strict_document(spec)
     assert _errors(_validator(strict, {"$ref": "#/components/schemas/JobOut"}), job) == []
+
+
+def test_a_curve_stored_before_the_residual_rate_was_named_is_described(
+    api: Api, results: dict[str, dict[str, Any]]
+) -> None:
+    """Curves stored before b4cfab5 hold ``best_final_rate_rad_s`` where later ones hold
+    ``best_residual_rate_rad_s`` (the dashboard and the CSV export still read it). The
+    schema named it in a description only: a client typed from /openapi.json could not
+    read it by name, the strict variant refused every such stored result, and any value
+    passed there."""
+    spec = strict_document(api.get("/openapi.json").json())
+    point = _validator(spec, {"$ref": "#/components/schemas/SearchCurvePoint"})
+    old = json.loads(json.dumps(results["search"]["curve"][-1]))
+    old["best_final_rate_rad_s"] = old.pop("best_residual_rate_rad_s")
+    assert _errors(point, old) == []
+    assert [str(list(e.instance_path)) for e in point.iter_errors(
+        {**old, "best_final_rate_rad_s": "fast"}
+    )] == ["['best_final_rate_rad_s']"]  # fmt: skip
