@@ -134,17 +134,30 @@ def _digest(*parts: object) -> str:
 
 
 def _host() -> str | None:
-    """This host's boot and PID namespace (8 hex digits), or None without /proc: the
-    processes it may look up. Two containers on one kernel share the boot but not the
-    namespace; the host's name besides, for hosts whose boot ids could meet."""
+    """This host's boot, PID namespace and time namespace (8 hex digits), or None where
+    /proc cannot tell them: the processes it may look up, and read as this one does. Two
+    containers on one kernel share the boot but not the namespace; the host's name
+    besides, for hosts whose boot ids could meet.
+
+    The time namespace, as a process in another one reads another start for the same
+    process (``/proc/<pid>/stat`` is shifted by the reader's boot-time offset): one
+    started with ``unshare --time --boottime`` took a live claim of this host for a dead
+    one and ran its request a second time. And None where ``/proc`` is not this PID
+    namespace's (``unshare --pid`` without ``--mount-proc``): ``/proc/<pid>`` is then
+    another process than ``os.getpid()`` and ``os.kill`` name."""
     boot = _read("/proc/sys/kernel/random/boot_id")
     try:
         namespace = os.readlink("/proc/self/ns/pid")
+        seen_as = os.readlink("/proc/self")
     except OSError:
         return None
-    if not boot:
+    if not boot or seen_as != str(os.getpid()):
         return None
-    return _digest(socket.gethostname(), boot.strip(), namespace)
+    try:
+        clock = os.readlink("/proc/self/ns/time")
+    except OSError:
+        clock = ""  # a kernel without time namespaces (before 5.6): one clock for all
+    return _digest(socket.gethostname(), boot.strip(), namespace, clock)
 
 
 def _incarnation(host: str, pid: int, started: str) -> str:

@@ -8,7 +8,9 @@ when the identical requests are sent at once to a real server, on both databases
 
 from __future__ import annotations
 
+import os
 import secrets
+import shutil
 import subprocess
 import sys
 import threading
@@ -311,6 +313,79 @@ def test_a_key_claimed_by_a_process_since_killed_is_taken_over_at_once(api: Api)
     # in it (made on another host, or before claims named their process).
     assert not store.claimer_died(store.claim_token())
     assert not store.claimer_died(secrets.token_hex(16))
+
+
+_CLAIM_IN_ANOTHER_CLOCK = """
+import sys
+from datetime import timedelta
+from service.store import idempotency as store
+from service.store.session import Database
+
+client, key, route, digest = sys.argv[2:6]
+found = store.claim(
+    Database(sys.argv[1]), client=client, key=key, route=route, digest=digest,
+    ttl=timedelta(days=1),
+)
+print(found.outcome)
+"""
+
+
+def test_a_live_claim_is_409_to_a_process_in_another_time_namespace(api: Api) -> None:
+    """A process in another time namespace (``unshare --time --boottime``, CRIU) reads
+    every start in ``/proc/<pid>/stat`` shifted by its boot-time offset: it took this live
+    process's claim for a dead one's and ran the request again (two API servers on one
+    database made two scenarios for one key; before: ``new``). A process whose clock
+    differs cannot tell, and leaves the claim to its lease."""
+    scenario = api.create_scenario()["id"]
+    body = _rerun(scenario)
+    _claim_as_the_api(api, "live-other-clock", body, age=timedelta(seconds=1))
+    parsed = TypeAdapter(JobCreate).validate_python(body)
+    digest = store.fingerprint("POST /jobs", parsed.model_dump(mode="json"))
+    argv = [api.db.url, hash_key(api.key), "live-other-clock", "POST /jobs", digest]
+    unshare = shutil.which("unshare")
+    if unshare is None:
+        pytest.skip("no unshare(1) to start a process in another time namespace")
+    other_clock = [unshare, "--time", "--boottime", "100000", "--fork"]
+    probe = subprocess.run([*other_clock, "true"], capture_output=True, text=True, timeout=60)
+    if probe.returncode != 0:
+        pytest.skip(f"cannot make a time namespace here: {probe.stderr.strip()}")
+    judged = subprocess.run(
+        [*other_clock, sys.executable, "-c", _CLAIM_IN_ANOTHER_CLOCK, *argv],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=ROOT,
+    )
+    assert judged.returncode == 0, judged.stderr
+    assert judged.stdout.strip() == store.IN_PROGRESS, judged.stdout
+
+
+def test_no_claim_is_judged_dead_where_proc_is_another_pid_namespaces(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Where ``/proc`` is not this process's PID namespace's (``unshare --pid`` without
+    ``--mount-proc``: ``/proc/self`` is another number than ``os.getpid()``), ``/proc/<pid>``
+    is another process than the pid ``os.kill`` reaches, and a live claim's start was read
+    from a stranger: nothing there is judged dead, and no token names its process."""
+    print_token = "from service.store import idempotency as s; print(s.claim_token())"
+    made = subprocess.run(
+        [sys.executable, "-c", print_token],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=ROOT,
+    )
+    assert made.returncode == 0, made.stderr
+    exited = made.stdout.strip()
+    assert store.claimer_died(exited)  # its process is gone: with our own /proc, told
+    readlink = os.readlink
+
+    def from_another_namespace(path: str) -> str:
+        return "4194303" if path == "/proc/self" else readlink(path)
+
+    monkeypatch.setattr(os, "readlink", from_another_namespace)
+    assert not store.claimer_died(exited)
+    assert not store.claimer_died(store.claim_token())
 
 
 def test_a_failed_request_keeps_no_answer_and_expired_keys_are_new_and_deleted(api: Api) -> None:
