@@ -253,6 +253,7 @@ class IdempotentRequest:
     ttl: timedelta
     token: str | None = None
     claimed_at: datetime | None = None
+    answered: bool = False
 
     def begin(self, body: BaseModel) -> JSONResponse | None:
         """Claim the key for this request (None: go on), or the first answer to replay.
@@ -307,16 +308,43 @@ class IdempotentRequest:
         )
 
     def answer(self, session: Session, status_code: int, body: BaseModel) -> None:
-        """Keep this answer for the key, in ``session``'s transaction."""
+        """Keep this answer for the key, in ``session``'s transaction.
+
+        :raises HTTPException: 409 when another request took the key over before this one
+            stored its first answer (this one outlived its lease, or its process was taken
+            for dead): the route's work is rolled back, as that request does it. Before,
+            the answer was dropped and the work committed: the request was done twice."""
         if self.token is None:
             return
-        store.answer(
+        held = store.answer(
             session,
             client=self.client,
             key=self.key,
             token=self.token,
             status=status_code,
             body=body.model_dump(mode="json"),
+        )
+        if held:
+            self.answered = True
+            return
+        if self.answered:
+            # Its first answer is committed with its work (a job's, before the broker's
+            # send): the key's row went since (past its TTL), not to another request.
+            log.warning(
+                "%s %r: its row went before its answer was updated",
+                IDEMPOTENCY_KEY_HEADER,
+                self.key,
+            )
+            return
+        self.token = None  # nothing of this request's is left to let go
+        raise HTTPException(
+            status.HTTP_409_CONFLICT,
+            detail=f"a later request with {IDEMPOTENCY_KEY_HEADER} {self.key!r} took the "
+            "key over while this one was being answered (this one held it past its "
+            f"{store.CLAIM_LEASE.total_seconds():.0f} s lease, or its process was taken "
+            "for dead): nothing was kept of this one; send it again for that request's "
+            "answer",
+            headers={"Retry-After": "1"},
         )
 
     def release(self) -> None:

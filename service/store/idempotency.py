@@ -266,10 +266,13 @@ def claim(
 
 def answer(
     session: Session, *, client: str, key: str, token: str, status: int, body: dict[str, Any]
-) -> None:
+) -> bool:
     """Store the answer of the request that holds ``key`` in ``session`` (committed with
-    the caller's transaction)."""
-    session.execute(
+    the caller's transaction). False when the claim ``token`` no longer holds the key
+    (another request took it over: its lease ended, or its process was taken for dead;
+    or the key's row is gone): nothing was stored, and the caller, whose work another
+    request is doing, must roll its transaction back, or the request is done twice."""
+    stored = session.execute(
         update(IdempotencyKeyRow)
         .where(
             IdempotencyKeyRow.client == client,
@@ -278,6 +281,7 @@ def answer(
         )
         .values(answer_status=status, answer_body=body)
     )
+    return bool(stored.rowcount == 1)  # type: ignore[attr-defined]
 
 
 def release(db: Database, *, client: str, key: str, token: str) -> None:

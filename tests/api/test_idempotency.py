@@ -27,6 +27,7 @@ from pydantic import TypeAdapter
 from service_support import ROOT, free_port, writes_refused_while
 from sqlalchemy import func, select, update
 
+from app.api import scenarios as scenarios_api
 from app.api.idempotency import (
     IDEMPOTENCY_KEY_HEADER,
     LIVE_CLAIM,
@@ -386,6 +387,44 @@ def test_no_claim_is_judged_dead_where_proc_is_another_pid_namespaces(
     monkeypatch.setattr(os, "readlink", from_another_namespace)
     assert not store.claimer_died(exited)
     assert not store.claimer_died(store.claim_token())
+
+
+def test_a_request_whose_claim_was_taken_over_keeps_nothing_and_is_409(
+    api: Api, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A live request can lose its claim: held past the lease (a lock waited on for
+    minutes), or its process taken for dead. The request that took the key over does the
+    work; the first one must keep nothing. Before, its answer matched no row and was
+    dropped, its scenario committed all the same (201): one key, two scenarios once the
+    taker was answered too."""
+    body = {"preset": "paper"}
+    build = scenarios_api._build
+    taken: list[store.Claim] = []
+
+    def taken_over_meanwhile(sent: Any) -> Any:
+        # What a request with the key sent after the lease's end does: take it over.
+        taken.append(
+            store.claim(
+                api.db,
+                client=hash_key(api.key),
+                key="outlived",
+                route="POST /scenarios",
+                digest=store.fingerprint("POST /scenarios", sent.model_dump(mode="json")),
+                ttl=timedelta(days=1),
+                now=utcnow() + store.CLAIM_LEASE + timedelta(seconds=5),
+            )
+        )
+        return build(sent)
+
+    monkeypatch.setattr(scenarios_api, "_build", taken_over_meanwhile)
+    first = api.client.post("/scenarios", json=body, headers=_keyed(api, "outlived"))
+    assert [claim.outcome for claim in taken] == [store.NEW]
+    assert first.status_code == 409, first.text
+    assert "took the key over" in first.json()["detail"] and first.headers["retry-after"] == "1"
+    assert _count(api, ScenarioRow) == 0
+    with api.db.session() as session:
+        (row,) = session.scalars(select(IdempotencyKeyRow)).all()
+    assert row.claim == taken[0].token and row.answer_status is None  # the taker's, intact
 
 
 def test_a_failed_request_keeps_no_answer_and_expired_keys_are_new_and_deleted(api: Api) -> None:
