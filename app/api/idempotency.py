@@ -104,7 +104,9 @@ def retry_after_s(claimed_at: datetime | None, now: datetime) -> int:
 #: What the schema says of a route that takes the header.
 IDEMPOTENCY_RESPONSES: dict[int | str, dict[str, Any]] = {
     409: {
-        "description": "a request with this Idempotency-Key is still in progress",
+        "description": "a request with this Idempotency-Key is still in progress (or took "
+        "the key over from this one, which then kept nothing): send it again after "
+        "Retry-After",
         "headers": {
             "Retry-After": {
                 "description": "seconds to wait before sending the request again: 1 "
