@@ -27,6 +27,7 @@ from pydantic import TypeAdapter
 from service_support import ROOT, free_port, writes_refused_while
 from sqlalchemy import func, select, update
 
+from app.api import jobs as jobs_api
 from app.api import scenarios as scenarios_api
 from app.api.idempotency import (
     IDEMPOTENCY_KEY_HEADER,
@@ -425,6 +426,36 @@ def test_a_request_whose_claim_was_taken_over_keeps_nothing_and_is_409(
     with api.db.session() as session:
         (row,) = session.scalars(select(IdempotencyKeyRow)).all()
     assert row.claim == taken[0].token and row.answer_status is None  # the taker's, intact
+
+
+def test_a_rerun_whose_claim_was_taken_over_makes_no_job_and_is_409(
+    api: Api, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """As above, on POST /jobs: a rerun (each one makes a new job) whose key a later
+    request took over while it was checked stores no job (before: 202 and its job)."""
+    scenario = api.create_scenario()["id"]
+    check = jobs_api._check_search
+    taken: list[store.Claim] = []
+
+    def taken_over_meanwhile(sent: Any, found: Any) -> None:
+        taken.append(
+            store.claim(
+                api.db,
+                client=hash_key(api.key),
+                key="outlived-rerun",
+                route="POST /jobs",
+                digest=store.fingerprint("POST /jobs", sent.model_dump(mode="json")),
+                ttl=timedelta(days=1),
+                now=utcnow() + store.CLAIM_LEASE + timedelta(seconds=5),
+            )
+        )
+        check(sent, found)
+
+    monkeypatch.setattr(jobs_api, "_check_search", taken_over_meanwhile)
+    first = api.client.post("/jobs", json=_rerun(scenario), headers=_keyed(api, "outlived-rerun"))
+    assert [claim.outcome for claim in taken] == [store.NEW]
+    assert first.status_code == 409 and "took the key over" in first.json()["detail"], first.text
+    assert _count(api, JobRow) == 0
 
 
 def test_a_failed_request_keeps_no_answer_and_expired_keys_are_new_and_deleted(api: Api) -> None:
