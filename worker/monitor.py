@@ -131,7 +131,8 @@ class WorkerMonitor:
             elif _database_unreachable(exc):
                 self._outage.seen(
                     _first_line(exc),
-                    f"worker {self.name}: the database is unreachable (%s); its beat "
+                    f"worker {self.name}: the database {database_label(self.db.url)} is "
+                    "unreachable (%s); its beat "
                     "(heartbeat, reaper, re-sender) tries again every "
                     f"{self.settings.heartbeat_interval_s:g} s",
                 )
@@ -436,6 +437,18 @@ def _hand_back_now(monitor: WorkerMonitor) -> None:
             logger.info(
                 "worker %s: no job to hand back: the database has no schema yet (%s)",
                 monitor.name,
+                _first_line(exc),
+            )
+            return
+        if _database_unreachable(exc):
+            # Out of reach, the database holds no run this worker could have started
+            # since (a claim is a write): one line, not a traceback. A run it did start
+            # before the outage is re-queued by a reaper once the database answers.
+            logger.warning(
+                "worker %s: no job handed back: the database %s is unreachable (%s); a run "
+                "it holds is re-queued by the reaper once the database answers",
+                monitor.name,
+                database_label(monitor.db.url),
                 _first_line(exc),
             )
             return

@@ -40,7 +40,7 @@ from service.store.jobs import (
     hand_back,
 )
 from service.store.models import JOB_TYPES, new_id, utcnow
-from service.store.refusals import unreachable, why_cannot_store
+from service.store.refusals import database_label, unreachable, why_cannot_store
 
 from .context import (
     CANCEL_POLL_S,
@@ -50,11 +50,13 @@ from .context import (
     Outcome,
     finite_metrics,
 )
+from .episode import Episode
 from .incarnation import current as current_incarnation
 from .ticker import Ticker
 
 __all__ = [
     "CANCEL_POLL_S",
+    "HANDED_BACK",
     "JobContext",
     "JobSpec",
     "Outcome",
@@ -165,13 +167,73 @@ def execute_job(
     this worker does not hold its incarnation lock (see :mod:`worker.incarnation`), so
     a twin of its name could judge its run dead and run the job again; the job is left
     queued, its message spent, and sent again once a worker that holds its lock is idle
-    (see :func:`worker.reaper.resend_once`).
+    (see :func:`worker.reaper.resend_once`); :data:`HANDED_BACK` when the database
+    could not be reached before the claim: nothing of the job was touched, and the
+    caller gives its message back to the broker (after a wait, see :func:`_back_off`).
     """
     db = Database(settings.resolved_database_url)
     try:
-        return _execute(job_id, db, settings, worker_name, stopping, may_claim)
+        status = _execute(job_id, db, settings, worker_name, stopping, may_claim)
+    except _OutOfReach as out:
+        return _back_off(job_id, db, out.error, stopping)
     finally:
         db.dispose()
+    _ended_outage()
+    return status
+
+
+#: :func:`execute_job`'s status for a job whose database could not be reached before it
+#: was claimed: nothing of it was touched, and its message goes back to the broker.
+HANDED_BACK = "handed back"
+
+#: Longest wait (s) of a task process between two jobs handed back for an unreachable
+#: database; the first waits 1 s, each next one twice the last.
+UNREACHABLE_BACKOFF_MAX_S = 30.0
+
+
+class _OutOfReach(Exception):
+    """The database could not be reached before the job was claimed."""
+
+    def __init__(self, error: BaseException) -> None:
+        super().__init__(one_line_error(error))
+        self.error = error
+
+
+#: This task process's outage (see worker.episode): the database out of reach as jobs
+#: came, logged once when it starts and once when it ends; and how many jobs in a row
+#: were handed back, which sets the next wait.
+_outage = Episode(logger)
+_handed_back_in_a_row = 0
+
+
+def _back_off(job_id: str, db: Database, error: BaseException, stopping: Callable[[], bool]) -> str:
+    """A job whose database is out of reach: said once an outage (the database named,
+    its password masked, and why), then a wait that doubles with each job handed back
+    in a row (cut short when the worker stops), so that the worker neither spins on the
+    broker nor fails jobs for a passing outage. Before, the task failed with a traceback
+    of the driver's error and its message was spent; the job waited for the re-sender.
+    """
+    global _handed_back_in_a_row
+    _handed_back_in_a_row += 1
+    wait_s = min(UNREACHABLE_BACKOFF_MAX_S, 2.0 ** (_handed_back_in_a_row - 1))
+    label = database_label(db.url).replace("%", "%%")
+    _outage.seen(
+        one_line_error(error),
+        f"this worker cannot reach its database {label} (%s): the jobs it is sent go back "
+        "to the queue untouched, and it takes them again once the database answers, "
+        f"trying again after a wait that doubles up to {UNREACHABLE_BACKOFF_MAX_S:g} s",
+    )
+    logger.info("job %s handed back to the queue untouched; next try in %g s", job_id, wait_s)
+    deadline = time.monotonic() + wait_s
+    while not stopping() and time.monotonic() < deadline:
+        time.sleep(min(0.2, max(0.0, deadline - time.monotonic())))
+    return HANDED_BACK
+
+
+def _ended_outage() -> None:
+    global _handed_back_in_a_row
+    _handed_back_in_a_row = 0
+    _outage.cleared("this worker reaches its database again after %.0f s")
 
 
 def _pass_on(db: Database, job_id: str, worker_name: str) -> str:
@@ -226,6 +288,62 @@ def _execute(
     stopping: Callable[[], bool],
     may_claim: Callable[[], bool],
 ) -> str:
+    try:
+        taken = _take(job_id, db, worker_name, stopping, may_claim)
+    except Exception as exc:
+        # Nothing of the job was written (the claim is one transaction): it can go back
+        # to the queue as it came.
+        if unreachable(exc):
+            raise _OutOfReach(exc) from exc
+        raise
+    if isinstance(taken, str):
+        return taken
+    handlers, claimed = taken
+    if stopping():
+        # The stop came between the check above and the claim.
+        return _pass_on(db, job_id, worker_name)
+    logger.info(
+        "job %s (%s, attempt %d) claimed by %s",
+        job_id,
+        claimed.type,
+        claimed.attempt,
+        worker_name,
+    )
+    try:
+        spec = _resolve(db, claimed)
+    except Exception as exc:
+        logger.exception("job %s: its inputs cannot be resolved", job_id)
+        return _end(db, claimed.id, claimed.attempt, "failed", error=_error_text(exc, settings))
+    context = JobContext(spec, db, settings, worker_name)
+    beat = Ticker(context.tick, settings.heartbeat_interval_s, name=f"heartbeat {job_id}")
+    beat.start()
+    try:
+        return _run(context, db, handlers, stopping)
+    finally:
+        beat.stop()
+
+
+@dataclass(frozen=True)
+class _Claimed:
+    """The job row as claimed, before its inputs are resolved."""
+
+    id: str
+    type: str
+    params: dict[str, Any]
+    seed: int
+    scenario_id: str
+    attempt: int
+
+
+def _take(
+    job_id: str,
+    db: Database,
+    worker_name: str,
+    stopping: Callable[[], bool],
+    may_claim: Callable[[], bool],
+) -> str | tuple[dict[str, Callable[[JobContext], Outcome]], _Claimed]:
+    """Claim job ``job_id``: the handlers and the claimed row, or the status to return
+    when it is not claimed (see :func:`execute_job`)."""
     status = _status(db, job_id)
     if status is None:
         logger.warning("job %s does not exist; message dropped", job_id)
@@ -262,40 +380,7 @@ def _execute(
         status = _status(db, job_id) or "missing"
         logger.info("job %s was not claimed (now %s)", job_id, status)
         return status
-    if stopping():
-        # The stop came between the check above and the claim.
-        return _pass_on(db, job_id, worker_name)
-    logger.info(
-        "job %s (%s, attempt %d) claimed by %s",
-        job_id,
-        claimed.type,
-        claimed.attempt,
-        worker_name,
-    )
-    try:
-        spec = _resolve(db, claimed)
-    except Exception as exc:
-        logger.exception("job %s: its inputs cannot be resolved", job_id)
-        return _end(db, claimed.id, claimed.attempt, "failed", error=_error_text(exc, settings))
-    context = JobContext(spec, db, settings, worker_name)
-    beat = Ticker(context.tick, settings.heartbeat_interval_s, name=f"heartbeat {job_id}")
-    beat.start()
-    try:
-        return _run(context, db, handlers, stopping)
-    finally:
-        beat.stop()
-
-
-@dataclass(frozen=True)
-class _Claimed:
-    """The job row as claimed, before its inputs are resolved."""
-
-    id: str
-    type: str
-    params: dict[str, Any]
-    seed: int
-    scenario_id: str
-    attempt: int
+    return handlers, claimed
 
 
 def _resolve(db: Database, claimed: _Claimed) -> JobSpec:

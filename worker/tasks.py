@@ -6,8 +6,11 @@ outcome written back to it (see :mod:`worker.runner`).
 
 from __future__ import annotations
 
+import logging
 import os
 from typing import Any
+
+from celery.exceptions import Reject
 
 from service.config import get_settings
 from service.queue import RUN_JOB_TASK
@@ -16,9 +19,25 @@ from .celery_app import celery
 from .monitor import may_claim
 from .process import stopping
 from .request import RunJobRequest
-from .runner import execute_job
+from .runner import HANDED_BACK, execute_job
 
-__all__ = ["run_job"]
+__all__ = ["HandedBack", "run_job"]
+
+
+class HandedBack(Reject):
+    """The job's message goes back to the broker untouched: the worker could not reach
+    its database (said in one line by :mod:`worker.runner`)."""
+
+
+class _WithoutHandBackTraceback(logging.Filter):
+    """Celery logs every rejected message with the traceback of the ``Reject``; a hand-back
+    is no fault, and the runner has said why in one line."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return not (record.exc_info and isinstance(record.exc_info[1], HandedBack))
+
+
+logging.getLogger("celery.app.trace").addFilter(_WithoutHandBackTraceback())
 
 
 # A run whose task process dies is taken from its job at once (worker.request).
@@ -30,10 +49,15 @@ def run_job(self: Any, job_id: str) -> str:
     another delivery of the same message) does nothing.
     """
     worker_name = self.request.hostname or f"celery@{os.uname().nodename}"
-    return execute_job(
+    status = execute_job(
         job_id,
         settings=get_settings(),
         worker_name=worker_name,
         stopping=stopping,
         may_claim=may_claim,
     )
+    if status == HANDED_BACK:
+        # Requeued, not acknowledged: before, the task failed with the driver's
+        # traceback and its message was spent.
+        raise HandedBack(f"job {job_id}: the database cannot be reached", requeue=True)
+    return status

@@ -26,6 +26,7 @@ from sqlalchemy import create_engine, event, make_url, text, update
 
 from service.config import Settings
 from service.store.models import JobRow, WorkerRow, utcnow
+from service.store.refusals import database_label
 from service.store.session import upgrade
 from worker.episode import Episode
 from worker.incarnation import Life, alive
@@ -97,7 +98,8 @@ def test_a_database_outage_is_logged_once_when_it_starts_and_once_when_it_ends(
                     down = _lines(caplog)
                     # Before: an ERROR with a traceback (over 100 lines) at every beat.
                     assert [r for r in down if r.exc_info] == [], [r.getMessage() for r in down]
-                    outage = [r for r in down if "the database is unreachable" in r.getMessage()]
+                    named = f"the database {database_label(monitor.db.url)} is unreachable"
+                    outage = [r for r in down if named in r.getMessage()]
                     assert len(outage) == 1, (episode, [r.getMessage() for r in down])
                     assert "OperationalError" in outage[0].getMessage()
                     caplog.clear()
