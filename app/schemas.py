@@ -410,9 +410,13 @@ class JobOut(BaseModel):
     error: str | None
     result: dict[str, Any] | None = Field(description="summary written by the worker")
     cancel_requested: bool
-    attempts: int = Field(description="runs started, hand-backs included")
+    attempts: int = Field(
+        description="runs started, hand-backs included (see handbacks and counted_attempts)"
+    )
     handbacks: int = Field(
-        default=0, description="runs handed back by a stopping worker (not counted as attempts)"
+        default=0,
+        description="runs handed back to the queue by a stopping worker, through no fault "
+        "of the job's: not counted against INERTIA_ID_MAX_ATTEMPTS",
     )
     worker: str | None
     created_at: UtcDatetime
@@ -446,6 +450,16 @@ class JobOut(BaseModel):
     @classmethod
     def _no_history_kept(cls, value: Any) -> Any:
         return [] if value is None else value
+
+    @computed_field(
+        description="runs that count against INERTIA_ID_MAX_ATTEMPTS: attempts less handbacks "
+        "(the run under way, the one that ended the job, and those lost to a dead or hung "
+        "task process or worker); the job fails for good when a run is lost at the limit"
+    )
+    def counted_attempts(self) -> int:
+        # attempts alone read like failed tries: 6 after 5 worker restarts that each
+        # handed the run back, though none of those counted.
+        return max(0, self.attempts - self.handbacks)
 
     @computed_field(description="s from submission to the start of its last run (or to now)")
     def queue_time_s(self) -> float:

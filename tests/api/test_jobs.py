@@ -19,7 +19,7 @@ from inertia_id.search import SEARCH_METHODS
 from service.config import Settings
 from service.params import SearchParams, SweepParams, TrainParams
 from service.queue import RUN_JOB_TASK
-from service.store.jobs import add_metrics, claim, config_hash, finish, reap_stale
+from service.store.jobs import add_metrics, claim, config_hash, finish, hand_back, reap_stale
 from service.store.models import JobRow
 
 from .support import GOOD_SEQUENCE, Api, make_settings
@@ -599,6 +599,35 @@ def test_a_run_lost_before_the_one_that_succeeded_shows_in_the_job_and_its_downl
     # A job with no lost run has an empty history, not null.
     other = api.submit("train", scenario_id, params={"sequence": GOOD_SEQUENCE}, seed=5).json()
     assert api.get(f"/jobs/{other['id']}").json()["attempt_history"] == []
+
+
+def test_a_job_handed_back_at_each_restart_says_its_runs_counted_apart(api: Api) -> None:
+    """Five worker restarts, each handing the run back, then a run that succeeds: the
+    job said only ``attempts: 6``, which read as six tries though the failure rule
+    (INERTIA_ID_MAX_ATTEMPTS) counted one. ``counted_attempts`` now says what the rule
+    counts; ``attempts`` and ``handbacks`` are kept as they were."""
+    scenario_id = api.create_scenario()["id"]
+    job_id = api.submit("train", scenario_id, params={"sequence": GOOD_SEQUENCE}).json()["id"]
+    for restart in range(5):
+        with api.db.session() as session:
+            assert claim(session, job_id, f"worker{restart}@host") is not None
+        with api.db.session() as session:
+            assert hand_back(session, f"worker{restart}@host", "asked to stop") == [job_id]
+    job = api.get(f"/jobs/{job_id}").json()
+    assert (job["status"], job["attempts"], job["handbacks"], job["counted_attempts"]) == (
+        "queued",
+        5,
+        5,
+        0,
+    )
+    with api.db.session() as session:
+        assert claim(session, job_id, "worker5@host") is not None
+        assert finish(session, job_id, "succeeded", result={"f1": 1.0}, attempt=6)
+    job = api.get(f"/jobs/{job_id}").json()
+    assert (job["attempts"], job["handbacks"], job["counted_attempts"]) == (6, 5, 1)
+    [listed] = [j for j in api.get("/jobs").json()["items"] if j["id"] == job_id]
+    assert listed["counted_attempts"] == 1
+    assert [run["outcome"] for run in job["attempt_history"]] == ["handed back"] * 5
 
 
 def test_list_filters_and_paging(api: Api) -> None:

@@ -1993,6 +1993,45 @@ def test_a_job_page_lists_the_runs_its_workers_lost(dashboard: Dashboard) -> Non
     dashboard.screenshot("job-lost-runs")
 
 
+def test_a_job_page_counts_handed_back_runs_apart(dashboard: Dashboard) -> None:
+    """A job run 3 times, 2 of them handed back by a stopping worker: the page said
+    "worker, attempts: …, 3", read as three tries though the failure rule counted one.
+    It now says "3 runs: 2 handed back, 1 counted"."""
+    from service.store import Database
+    from service.store.jobs import config_hash
+    from service.store.models import JobRow, utcnow
+
+    client = dashboard.service.client
+    scenario_id = client.post("/scenarios", json={"preset": "paper"}).json()["id"]
+    database = Database(f"sqlite:///{dashboard.service.log.parent / 'data' / 'inertia-id.db'}")
+    params = {"sequence": GOOD}
+    try:
+        with database.session() as session:
+            job = JobRow(
+                type="train",
+                scenario_id=scenario_id,
+                params=params,
+                seed=4343,
+                config_hash=config_hash("train", scenario_id, params, 4343),
+                status="failed",
+                error="ValueError: for the page",
+                worker="worker3-a1b2c3@host",
+                attempts=3,
+                handbacks=2,
+                started_at=utcnow(),
+                finished_at=utcnow(),
+            )
+            session.add(job)
+            session.flush()
+            job_id = job.id
+    finally:
+        database.dispose()
+    dashboard.open(f"#/jobs/{job_id}")
+    runs = dashboard.page.locator("#job-runs")
+    runs.wait_for()
+    assert runs.inner_text() == "worker3-a1b2c3@host, 3 runs: 2 handed back, 1 counted"
+
+
 FRONT_FIGURES = (
     "accuracy",
     "final_rate_deg_s",

@@ -41,14 +41,23 @@ function drawHeader(header, job, scenarioName, onLabels, notice) {
       h("dd", {}, whenText(job.started_at)),
       h("dt", {}, "finished"),
       h("dd", {}, whenText(job.finished_at)),
-      h("dt", {}, "worker, attempts"),
-      h("dd", {}, `${job.worker || "–"}, ${job.attempts}`),
+      h("dt", {}, "worker, runs"),
+      h("dd", { id: "job-runs" }, `${job.worker || "–"}, ${runsText(job)}`),
       ...lostRuns(job.attempt_history || []),
     ),
     h("details", {}, h("summary", {}, "name and tags"), labelEditor(job, onLabels)),
     h("details", {}, h("summary", {}, "parameters"), h("pre", { class: "mono" }, JSON.stringify(job.params, null, 2))),
     job.result ? downloads("job-downloads", jobDownloads(job), { label: "Download the result" }) : null,
   );
+}
+
+// "3 runs: 2 handed back, 1 counted": a hand-back (a worker told to stop) costs no
+// attempt, so the bare attempts count (3) read like failed tries.
+function runsText(job) {
+  const runs = `${job.attempts} run${job.attempts === 1 ? "" : "s"}`;
+  if (!job.handbacks) return runs;
+  const counted = job.counted_attempts ?? job.attempts - job.handbacks;
+  return `${runs}: ${job.handbacks} handed back, ${counted} counted`;
 }
 
 // The runs taken from the job (a worker killed, a heartbeat missed, a worker told to
