@@ -2517,6 +2517,50 @@ def test_an_nsga2_curves_best_only_rises_and_its_polish_start_is_marked_where_it
     dashboard.screenshot("compare-nsga2-polish")
 
 
+def test_an_nsga2_search_stored_before_the_best_so_far_is_drawn_as_the_best_so_far(
+    dashboard: Dashboard,
+) -> None:
+    """A search stored before 19f0737 logged each generation's (then polish round's) best:
+    on the job and compare pages its "most accurate feasible so far" line dipped from
+    0.795 to 0.326 (a search made on 2871866, population 8, 3 generations, 3 polish
+    rounds). Without constraints the line is the running maximum, with the residual rate
+    logged where it was set; with constraints it is drawn as stored. Run in the page,
+    on the dashboard's own module, with that search's first points."""
+    dashboard.open("")
+    steps = [16, 32, 48, 56, 64, 72]
+    stored = {
+        "best_f1": {"steps": steps, "values": [0.795, 0.795, 0.795, 0.777, 0.631, 0.80]},
+        "best_residual_rate_rad_s": {
+            "steps": steps,
+            "values": [0.0982, 0.0982, 0.0982, 0.0954, 0.0789, 0.05],
+        },
+    }
+    drawn = dashboard.page.evaluate(
+        """async (stored) => {
+            const { BestSoFar } = await import("/static/js/components/plots.js");
+            const job = (constraints) => ({ params: { method: "nsga2", constraints } });
+            // Two polls: the metrics so far, then the rest.
+            const part = (from, to) => Object.fromEntries(Object.entries(stored).map(
+                ([key, s]) => [key, { steps: s.steps.slice(from, to),
+                                      values: s.values.slice(from, to) }]));
+            const free = new BestSoFar(job({}));
+            const first = free.apply(part(0, 4));
+            const rest = free.apply(part(4));
+            const bound = new BestSoFar(job({ max_final_rate_deg_s: 5 })).apply(stored);
+            const rates = "best_residual_rate_rad_s";
+            return [
+                [...first.best_f1.values, ...rest.best_f1.values],
+                [...first[rates].values, ...rest[rates].values],
+                bound.best_f1.values,
+            ];
+        }""",
+        stored,
+    )
+    assert drawn[0] == [0.795, 0.795, 0.795, 0.795, 0.795, 0.80]
+    assert drawn[1] == [0.0982, 0.0982, 0.0982, 0.0982, 0.0982, 0.05]
+    assert drawn[2] == stored["best_f1"]["values"]
+
+
 def test_the_search_form_submits_nsga2_objectives_design_noise_and_constraints(
     dashboard: Dashboard,
 ) -> None:

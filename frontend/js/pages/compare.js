@@ -7,7 +7,7 @@
 
 import { MetricFollower, api } from "../api.js";
 import { jobCell, jobDetail, summaryColumns, summaryValue } from "../components/jobs.js";
-import { COLORS, PLOT_CONFIG, extendWith, layout, plotDiv, plotText, polishMarks, polishStart, tightRange, title } from "../components/plots.js";
+import { BestSoFar, COLORS, PLOT_CONFIG, extendWith, layout, plotDiv, plotText, polishMarks, polishStart, tightRange, title } from "../components/plots.js";
 import { dataTable } from "../components/table.js";
 import { classifierName, isTerminal, noiseInfo } from "../vocabulary.js";
 import { fmt, h, link, messageBox, quantity, score, statusBadge, tagChips, when } from "../ui.js";
@@ -227,8 +227,10 @@ async function searchGroup(section, jobs, suffix, context) {
     PLOT_CONFIG,
   );
   const followers = jobs.map((job) => new MetricFollower(job.id));
+  // NSGA-II's best line as the best so far, for searches stored before it was.
+  const bests = jobs.map((job) => new BestSoFar(job));
   const poll = async () => {
-    const batches = await Promise.all(followers.map((f) => f.poll()));
+    const batches = await Promise.all(followers.map(async (f, i) => bests[i].apply(await f.poll())));
     if (!context.alive()) return;
     for (const [plot, key] of [
       [reward, "mean_episode_reward"],

@@ -6,7 +6,7 @@ import { MetricFollower, api } from "../api.js";
 import { downloads, jobDownloads } from "../components/downloads.js";
 import { REUSED_KEY, cancelButton, labelEditor, reusedNotice, timingCell } from "../components/jobs.js";
 import { whenKeyed } from "../components/keyed.js";
-import { BAND, DEG_PER_RAD, PLOT_CONFIG, extendWith, fitFlatSeries, keepTwins, layout, plotDiv, polishMarks, polishStart, responseView, sequencePlot, title, twinAxes, twinTraces } from "../components/plots.js";
+import { BAND, BestSoFar, DEG_PER_RAD, PLOT_CONFIG, extendWith, fitFlatSeries, keepTwins, layout, plotDiv, polishMarks, polishStart, responseView, sequencePlot, title, twinAxes, twinTraces } from "../components/plots.js";
 import { isTerminal } from "../vocabulary.js";
 import { clear, fmt, h, link, messageBox, progressBar, put, quantity, score, sequenceText, statusBadge, table, tagChips, utcText, warningsBox, whenText } from "../ui.js";
 import { renderClassifier } from "../views/classifier.js";
@@ -181,10 +181,12 @@ async function searchView(body, job, context) {
     PLOT_CONFIG,
   );
   const follower = new MetricFollower(job.id);
+  // NSGA-II's best line as the best so far, for searches stored before it was.
+  const bestSoFar = new BestSoFar(job);
   let points = 0;
   let resultShown = false;
   const update = async (current) => {
-    const fresh = await follower.poll();
+    const fresh = bestSoFar.apply(await follower.poll());
     if (!context.alive()) return;
     // Metrics stored before the rate was named for what it is were renamed by the
     // database migration 0005 (NSGA-II's to best_residual_rate_rad_s).
