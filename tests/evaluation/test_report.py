@@ -9,6 +9,7 @@ import pytest
 from inertia_id import Scenario, simulate
 from inertia_id.evaluation.report import (
     BAND_PERCENTILES,
+    _search_rows,
     learning_curve_figure,
     polish_start_timesteps,
     response_figure,
@@ -77,6 +78,20 @@ def test_an_nsga2_curve_marks_where_its_polish_starts_and_names_its_lines() -> N
     assert "best predicted accuracy so far" in names
     assert "predicted accuracy: mean of the generation (polish round)" in names
     assert figure.layout.yaxis2.title.text == "predicted accuracy"
+    # NSGA-II has no episode reward: the left axis held an all-null "mean episode
+    # reward" line; it is the residual rate of the most accurate so far, as on the job
+    # page, with deg/s beside rad/s.
+    assert "mean episode reward" not in names
+    assert figure.layout.yaxis.title.text == "residual rate (rad/s)"
+    rates = figure.data[0]
+    assert list(rates.y) == [p.best_residual_rate_rad_s for p in found.curve]
+    assert list(rates.customdata) == pytest.approx(
+        [np.degrees(p.best_residual_rate_rad_s) for p in found.curve]
+    )
+    assert "deg/s" in rates.hovertemplate
+    rows = dict(_search_rows(found))
+    assert rows["search's predicted accuracy (at its design noise)"] == f"{found.best.f1:.3f}"
+    assert "search F1 (its own noise draw)" not in rows
 
 
 def test_a_search_without_polish_rounds_has_no_polish_mark() -> None:
