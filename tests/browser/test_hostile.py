@@ -678,6 +678,33 @@ def test_broken_json_in_the_design_noise_constraints_or_sequence_is_named_before
     assert posted == []
 
 
+def test_an_emptied_design_noise_box_is_left_out_not_sent_empty(dashboard: Dashboard) -> None:
+    # The box is filled with the default design noise; an operator who cleared it (it is
+    # NSGA-II's) had every search refused, a CEM one too: sent as "", the service answered
+    # 422 "Input should be a valid list, got ''". Left out, the service's default is taken.
+    _save_key(dashboard)
+    scenario_id = _scenario(dashboard, ["stowed", "deployed", "ejected"], "emptied noise")
+    dashboard.open(f"#/jobs?scenario={scenario_id}&type=search")
+    page = dashboard.page
+    page.select_option("#search-method", "cem")
+    page.fill("#search-timesteps", "8")
+    page.fill("#search-design_noise", "  ")
+    with page.expect_response(lambda r: r.url.endswith("/jobs")) as sent:
+        page.click("#submit-job")
+    assert sent.value.status == 202, sent.value.text()
+    assert page.locator(".field-error").count() == 0
+    job = sent.value.json()
+    default = dashboard.service.client.get("/vocabulary").json()["default_design_noise"]
+    assert job["params"]["design_noise"] == default
+    service = dashboard.service
+    service.client.post(f"/jobs/{job['id']}/cancel")
+    service.until(
+        lambda: service.job(job["id"])["status"] in ("succeeded", "failed", "cancelled"),
+        120,
+        "the search ends",
+    )
+
+
 def test_a_job_forms_refused_fields_are_shown_next_to_them(dashboard: Dashboard) -> None:
     # The service locates a job's field where the client sent it (["body", "seed"], not
     # under the job union's tag): the form still puts each message next to its input.

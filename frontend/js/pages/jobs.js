@@ -128,7 +128,9 @@ function submitForm(scenarios, classifiers, query) {
       ...(search.method.value === "ppo" ? { ppo: jsonBox(search.ppo, "PPO overrides", ["body", "params", "ppo"], {}) } : {}),
       ...(search.method.value === "nsga2" ? { nsga2: jsonBox(search.nsga2, "NSGA-II settings", ["body", "params", "nsga2"], {}) } : {}),
       objectives: chosenObjectives(),
-      design_noise: jsonBox(search.design_noise, "design noise", ["body", "params", "design_noise"]),
+      // An emptied design-noise box is left out: the service's default. Sent as "", it
+      // refused every search, CEM and PPO too ("Input should be a valid list, got ''").
+      ...(search.design_noise.value.trim() ? { design_noise: jsonBox(search.design_noise, "design noise", ["body", "params", "design_noise"]) } : {}),
       constraints: constraintsOrText(search.constraints),
     },
   });
