@@ -2514,6 +2514,8 @@ def test_an_nsga2_curves_best_only_rises_and_its_polish_start_is_marked_where_it
         ".map((a) => a.text)"
     )
     assert notes == ["NSGA-II with a polish: polish starts"]
+    legend = page.evaluate("() => document.getElementById('compare-best').data.map((d) => d.name)")
+    assert legend == ["NSGA-II with a polish (nsga2, predicted accuracy)"]  # "(nsga2, F1)"
     dashboard.screenshot("compare-nsga2-polish")
 
 

@@ -153,7 +153,10 @@ async function load(type, ids) {
   return jobs.filter((job) => job && job.type === type);
 }
 
-const searchLabel = (job) => `${plotText(job.name || job.id.slice(0, 8))} (${job.params.method}, ${job.params.objective === "separability" ? "separability" : "F1"})`;
+// A search's name, method and score: NSGA-II's is a predicted accuracy (its legend said
+// "F1", under a title that says predicted accuracy).
+const searchScore = (job) => (job.params.method === "nsga2" ? "predicted accuracy" : job.params.objective === "separability" ? "separability" : "F1");
+const searchLabel = (job) => `${plotText(job.name || job.id.slice(0, 8))} (${job.params.method}, ${searchScore(job)})`;
 
 // Searches of one scenario: a table of their headline figures, and their curves.
 async function searchGroup(section, jobs, suffix, context) {
