@@ -175,7 +175,9 @@ async function searchView(body, job, context) {
       { x: [], y: [], mode: "lines+markers", name: pareto ? "mean of the generation (polish round)" : "mean since last point", line: { color: "#ff7f0e", dash: "dot" } },
     ],
     layout(steps, pareto ? accuracyText : what, {
-      title: title(pareto ? "Predicted accuracy: best so far, and each NSGA-II generation's (then polish round's) mean" : `${separability ? "Separability score" : "Clustering F1"} of the episodes' sequences`),
+      // NSGA-II's title short enough for half a 1024 px page: the longer one was cut at the
+      // figure's edge up to 1440 px (the legend and the phases line name the polish rounds).
+      title: title(pareto ? "Predicted accuracy: best so far, and each generation's mean" : `${separability ? "Separability score" : "Clustering F1"} of the episodes' sequences`),
       yaxis: { title: { text: pareto ? accuracyText : what }, range: [0, 1.05] },
     }),
     PLOT_CONFIG,
