@@ -382,7 +382,15 @@ class WorkerPool:
         except Exception:
             logger.warning("could not remove worker%d's row", index, exc_info=True)
             return
-        if not beat:
+        if not beat and (self._stopping.is_set() or process.pid in self._told):
+            # Told to stop (serve's SIGTERM or Ctrl-C) while it still imported Celery: a
+            # stop asked for, not a crash (it was logged at ERROR as one).
+            logger.info(
+                "worker%d (pid %d) stopped before its first beat, as serve stops",
+                index,
+                process.pid,
+            )
+        elif not beat:
             self._died_unbeaten.add(index)
             logger.error(
                 "worker%d (pid %d) exited with status %s before its first beat; /health "

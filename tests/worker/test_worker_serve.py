@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import logging
 import os
 import re
 import signal
@@ -307,6 +308,35 @@ def test_serve_lists_a_worker_it_started_as_warming_before_its_first_beat(
         assert (report.status, report.workers.names) == ("degraded", []), report.workers
     finally:
         pool.stop(grace_s=1.0)
+
+
+def test_a_worker_stopped_before_its_first_beat_at_serve_s_stop_is_no_error(
+    store: Store, monkeypatch: pytest.MonkeyPatch, tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """serve stopped (SIGTERM, Ctrl-C) while a worker still imports: the worker ends at
+    serve's request before its first beat. That was logged at ERROR as a crash ("worker1
+    (pid ...) exited with status -15 before its first beat"); now it is an INFO line
+    saying it was stopped, and its announced row is still removed."""
+    from app.serve import WorkerPool
+
+    monkeypatch.setattr(
+        WorkerPool,
+        "command",
+        lambda _self, _index: [sys.executable, "-c", "import time; time.sleep(60)"],
+    )
+    pool = WorkerPool(1, tmp_path / "logs", settings=store.settings)
+    pool.start()
+    name = pool.node_name(1)
+    with caplog.at_level(logging.INFO, logger="inertia_id.serve"):
+        pool.request_stop()
+        pool.stop(grace_s=5.0)
+    records = [r for r in caplog.records if r.name == "inertia_id.serve"]
+    assert [r.getMessage() for r in records if r.levelno >= logging.WARNING] == []
+    assert any("stopped before its first beat" in r.getMessage() for r in records), [
+        r.getMessage() for r in records
+    ]
+    with store.db.session() as session:
+        assert session.get(WorkerRow, name) is None
 
 
 def test_serve_lists_no_worker_whose_process_crashes_before_its_first_beat(
