@@ -37,6 +37,7 @@ from .security import (
     SecurityHeaders,
     ensure_api_key,
 )
+from .shutdown import StopCut
 from .verdicts import VerdictProcess
 
 __all__ = ["create_app"]
@@ -163,6 +164,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.add_middleware(BodySizeLimit, max_bytes=settings.max_body_bytes)
     app.add_middleware(AllowedHosts, hosts=settings.resolved_allowed_hosts)
     app.add_middleware(HeadAsGet)
+    # A request cut off by the shutdown's grace: a 503, not a traceback and a 500.
+    app.add_middleware(StopCut)
     app.add_middleware(SecurityHeaders)  # outermost: on every answer, refusals too
     _extend_openapi(app, settings)
     return app
