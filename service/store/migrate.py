@@ -67,6 +67,15 @@ def _unreachable(label: str, exc: SQLAlchemyError) -> str:
     return f"{PROGRAM}: cannot reach the database {label}: {why}"
 
 
+def _pending(current: str | None, head: str) -> int:
+    from alembic.script import ScriptDirectory
+
+    from .session import _config
+
+    scripts = ScriptDirectory.from_config(_config(""))
+    return sum(1 for _ in scripts.iterate_revisions(head, current or "base"))
+
+
 def _sqlite_file_exists(url: str) -> bool:
     from sqlalchemy import make_url
 
@@ -106,11 +115,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         if found.at_head:
             print(f"{label}: at {found.head} already, this code's newest revision; nothing to do")
             return 0
-        upgrade(url)
+        # The revision before is read again under the migration lock: another migration
+        # that ran meanwhile (a second `migrate`, serve or the API starting) made it.
+        before = upgrade(url)
         after = revisions(url)
+        if before == after.current:
+            print(f"{label}: at {after.current}, migrated meanwhile by another run; nothing to do")
+            return 0
+        applied = found.pending if before == found.current else _pending(before, after.head)
         print(
-            f"{label}: migrated from {_name(found.current)} to {after.current} "
-            f"({found.pending} migration(s) applied)"
+            f"{label}: migrated from {_name(before)} to {after.current} "
+            f"({applied} migration(s) applied)"
         )
     except DatabaseNewerThanCode as exc:
         print(f"{PROGRAM}: {exc}", file=sys.stderr)

@@ -182,13 +182,15 @@ def revisions(url: str) -> Revisions:
     return Revisions(current=current, head=head, known=known, pending=pending)
 
 
-def upgrade(url: str, revision: str = "head") -> None:
+def upgrade(url: str, revision: str = "head") -> str | None:
     """Apply the Alembic migrations to the database at ``url``, up to ``revision``.
 
+    :returns: the database's revision before (None: no schema), read once the other
+        migrations running on it have ended (see :func:`_migration_lock`).
     :raises DatabaseNewerThanCode: the database is at a revision this code does not
         have (Alembic said only "Can't locate revision identified by '0012'").
     """
-    _migrate(url, command.upgrade, revision)
+    return _migrate(url, command.upgrade, revision)
 
 
 def downgrade(url: str, revision: str) -> None:
@@ -196,12 +198,58 @@ def downgrade(url: str, revision: str) -> None:
     _migrate(url, command.downgrade, revision)
 
 
-def _migrate(url: str, action: Callable[[Config, str], None], revision: str) -> None:
+#: Key of the PostgreSQL advisory lock that migrations hold (any number: the same in every
+#: inertia-id process). Bytes of "inertia-id migrate".
+_MIGRATION_LOCK_KEY = 0x69642D6D69677261
+
+
+@contextmanager
+def _migration_lock(url: str) -> Iterator[Callable[[Any], None]]:
+    """One migration at a time on a database: two at once (two `inertia-id migrate`, or
+    one beside `serve` or the API starting) both read no schema and both created it; the
+    second failed on "table scenarios already exists" (SQLite) or a duplicate key in
+    pg_type (PostgreSQL) and exited 1 saying it could not reach the database. The other
+    now waits, then finds the schema the first made.
+
+    SQLite: an exclusive ``flock`` on a file beside the database, held here until the
+    migration's transaction has committed (Python's sqlite3 commits before DDL: no one
+    transaction holds it all). PostgreSQL: the function given, called on the migration's
+    connection once its transaction has begun, takes an advisory lock that transaction
+    holds to its end."""
+    from sqlalchemy import make_url
+
+    parsed = make_url(url)
+    if parsed.get_backend_name() == "postgresql":
+
+        def advisory(connection: Any) -> None:
+            connection.execute(
+                text("SELECT pg_advisory_xact_lock(:key)"), {"key": _MIGRATION_LOCK_KEY}
+            )
+
+        yield advisory
+        return
+    database = parsed.database
+    if parsed.get_backend_name() != "sqlite" or not database or database == ":memory:":
+        yield lambda _connection: None
+        return
+    import fcntl
+
+    Path(database).parent.mkdir(parents=True, exist_ok=True)
+    with open(f"{database}.migrate-lock", "a+b") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        try:
+            yield lambda _connection: None
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
+
+
+def _migrate(url: str, action: Callable[[Config, str], None], revision: str) -> str | None:
     config = _config(url)
     scripts = ScriptDirectory.from_config(config)
     engine = _engine(url)
     try:
-        with engine.begin() as connection:
+        with _migration_lock(url) as lock, engine.begin() as connection:
+            lock(connection)
             current = MigrationContext.configure(connection).get_current_revision()
             if current is not None and not any(
                 s.revision == current for s in scripts.walk_revisions()
@@ -210,5 +258,6 @@ def _migrate(url: str, action: Callable[[Config, str], None], revision: str) -> 
                 raise DatabaseNewerThanCode(url, current, str(head))
             config.attributes["connection"] = connection
             action(config, revision)
+            return current
     finally:
         engine.dispose()

@@ -106,3 +106,32 @@ def test_an_unreachable_database_is_one_line(tmp_path: Path) -> None:
     assert done.returncode == 1
     assert done.stderr.startswith("inertia-id migrate: cannot reach the database "), done.stderr
     assert "Traceback" not in done.stderr
+
+
+def test_migrations_run_at_once_on_one_database_take_turns(
+    empty_database_url: str, tmp_path: Path
+) -> None:
+    """Three `inertia-id migrate` started together on an empty database (a deployment's
+    migrate beside a `serve` or an API starting). Before, each read no schema and each
+    created it: all but one failed, exit 1, "cannot reach the database ...: table
+    scenarios already exists" (SQLite) or 'duplicate key value violates unique constraint
+    "pg_type_typname_nsp_index"' (PostgreSQL). Now they take turns: one migrates, the
+    others find it done."""
+    url = empty_database_url
+    env = {**os.environ, "DATABASE_URL": url, "INERTIA_ID_DATA_DIR": str(tmp_path / "data")}
+    runs = [
+        subprocess.Popen(
+            [sys.executable, "-m", "inertia_id.cli", "migrate"],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            env=env,
+            cwd=tmp_path,
+        )
+        for _ in range(3)
+    ]
+    outputs = [(run.wait(120), *run.communicate()) for run in runs]
+    assert [code for code, _out, _err in outputs] == [0, 0, 0], outputs
+    said = " ".join(out for _code, out, _err in outputs)
+    assert said.count("migrated from none (no schema yet)") == 1, outputs
+    assert revisions(url).current == head_revision()
