@@ -108,6 +108,26 @@ def test_an_unreachable_database_is_one_line(tmp_path: Path) -> None:
     assert "Traceback" not in done.stderr
 
 
+@pytest.mark.parametrize(
+    ("url", "said"),
+    [
+        # A SQLite file where no folder can be made: a FileNotFoundError traceback before.
+        ("sqlite:////proc/no-such-folder/inertia-id.db", "cannot open the database "),
+        # A database kind with no driver here: "No module named 'MySQLdb'" traceback before.
+        ("mysql://user:secret@127.0.0.1/inertia", "no driver for the database "),
+        # No URL at all: SQLAlchemy's ArgumentError traceback before.
+        ("secret-and-no-url", "DATABASE_URL is no database URL "),
+    ],
+)
+def test_a_database_that_cannot_be_opened_is_one_line(tmp_path: Path, url: str, said: str) -> None:
+    done = migrate(url, tmp_path)
+    assert done.returncode == 1
+    assert "Traceback" not in done.stderr, done.stderr
+    assert done.stderr.startswith(f"inertia-id migrate: {said}"), done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1, done.stderr
+    assert "secret" not in done.stderr
+
+
 def test_migrations_run_at_once_on_one_database_take_turns(
     empty_database_url: str, tmp_path: Path
 ) -> None:
