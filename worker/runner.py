@@ -447,6 +447,18 @@ def _classifier_row(spec: JobSpec, outcome: Outcome) -> ClassifierRow | None:
     return row
 
 
+def _stop_behind(exc: BaseException) -> BaseException | None:
+    """The SystemExit or KeyboardInterrupt in ``exc``'s chain of causes, if any."""
+    seen: set[int] = set()
+    current: BaseException | None = exc
+    while current is not None and id(current) not in seen:
+        if isinstance(current, SystemExit | KeyboardInterrupt):
+            return current
+        seen.add(id(current))
+        current = current.__cause__ or current.__context__
+    return None
+
+
 def _run(
     context: JobContext,
     db: Database,
@@ -460,6 +472,18 @@ def _run(
             raise ValueError(f"job type must be one of {sorted(handlers)}, got {spec.type!r}")
         outcome = handler(context)
     except Exception as exc:
+        stop = _stop_behind(exc)
+        if stop is not None:
+            # The task process was told to stop (SIGTERM raises SystemExit in it) while
+            # compiled code ran, which wrapped the SystemExit in another error (numba's
+            # and CPython's "returned a result with an exception set" SystemError): a
+            # stop, not the job's fault. Raised as the stop it is, the main process hands
+            # the job back. Before, the job was failed, an attempt spent: a job running
+            # when a Redis worker's process group got SIGTERM failed in 5 of 10 stops.
+            logger.warning(
+                "job %s: stopped while it ran (%s); handing it back", spec.id, one_line_error(exc)
+            )
+            raise stop from exc
         if context.lost:
             logger.warning("job %s was taken from this run; dropping its error", spec.id)
             return "lost"

@@ -235,6 +235,32 @@ def test_a_worker_that_cannot_import_the_core_fails_the_job_instead_of_dropping_
     assert "cannot load the science core (ImportError: libtorch_cpu.so" in job.error
 
 
+def test_a_stop_wrapped_by_compiled_code_hands_the_job_back_not_fails_it(
+    store: Store, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """SIGTERM raises SystemExit in a task process; raised inside numba's code it comes
+    out as a SystemError caused by it (CPython's "returned a result with an exception
+    set"). The run raises the stop, so the main process hands the job back; before, the
+    job was failed with the SystemError, an attempt spent."""
+    import worker.runner
+
+    def stopped_inside_compiled_code(context: JobContext) -> Outcome:
+        try:
+            raise SystemExit(143)
+        except SystemExit as stop:
+            raise SystemError("<function _lloyd> returned a result with an exception set") from stop
+
+    monkeypatch.setattr(
+        worker.runner, "_import_handlers", lambda: {"search": stopped_inside_compiled_code}
+    )
+    job_id = store.add_job("search", {"method": "random"})
+
+    with pytest.raises(SystemExit):
+        execute_job(job_id, settings=store.settings, worker_name=WORKER)
+    job = store.job(job_id)
+    assert job.status == "running" and job.error is None  # the main process hands it back
+
+
 def test_one_line_error_names_the_type_and_flattens_the_message() -> None:
     error = ValueError("first line\n  second line")
     assert one_line_error(error) == "ValueError: first line second line"
