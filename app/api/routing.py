@@ -55,7 +55,8 @@ class _UniqueKeysRequest(Request):
 
 def refuse_json_charset(content_type: str) -> None:
     """A 415 naming the charset when a JSON body's ``Content-Type`` states one other than
-    UTF-8 (``utf-8``, ``UTF8``: any of Python's names for it).
+    UTF-8 (``utf-8``, ``UTF8``: any of Python's names for it) or ASCII (``us-ascii``,
+    ``ascii``), which is a subset of UTF-8: an ASCII body read as UTF-8 is read as sent.
 
     JSON exchanged between systems MUST be UTF-8 (RFC 8259, 8.1), and the body is read as
     UTF-8 whatever the header says: ``application/json; charset=latin-1`` was accepted,
@@ -70,10 +71,10 @@ def refuse_json_charset(content_type: str) -> None:
     if charset is None:
         return
     try:
-        utf8 = codecs.lookup(charset).name == "utf-8"
+        readable = codecs.lookup(charset).name in ("utf-8", "ascii")
     except LookupError:
-        utf8 = False
-    if not utf8:
+        readable = False
+    if not readable:
         raise HTTPException(
             status.HTTP_415_UNSUPPORTED_MEDIA_TYPE,
             detail=f"charset {charset[:40]!r} is not supported: a JSON body is read as UTF-8 "

@@ -277,3 +277,20 @@ def test_a_json_body_in_a_charset_other_than_utf8_is_a_415_naming_it(
     headers = {**api.auth, "content-type": "application/json; charset=utf-8"}
     verdict = api.client.post("/identify", content=identify.encode(), headers=headers)
     assert verdict.status_code == 200, verdict.text
+
+
+def test_a_json_body_labelled_ascii_is_read_as_utf8(
+    api: Api, classifier_id: str, flight: SimulationResult
+) -> None:
+    """``application/json; charset=us-ascii`` was a 415 "charset 'us-ascii' is not
+    supported", though ASCII is a subset of UTF-8 (RFC 8259, 8.1): an ASCII body read as
+    UTF-8 is read as sent. Both names, any case, quoted or not, on every route."""
+    scenario = json.dumps({"preset": "paper", "overrides": {"name": "ascii"}}).encode("ascii")
+    identify = json.dumps({"classifier_id": classifier_id, "telemetry": telemetry(flight, 3)})
+    for charset in ("us-ascii", "US-ASCII", '"us-ascii"', "ascii", '"ASCII"'):
+        headers = {**api.auth, "content-type": f"application/json; charset={charset}"}
+        response = api.client.post("/scenarios", content=scenario, headers=headers)
+        assert response.status_code == 201, (charset, response.text)
+        assert response.json()["name"] == "ascii"
+        verdict = api.client.post("/identify", content=identify.encode("ascii"), headers=headers)
+        assert verdict.status_code == 200, (charset, verdict.text)
