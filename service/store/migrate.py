@@ -8,10 +8,15 @@ The database is the one the service uses: ``DATABASE_URL``, else the SQLite file
 a deployment that migrates once before any API or worker starts (docker-compose.yml's
 ``migrate`` service), and for checking where a database stands.
 
-Exit status: 0 when the database is at this code's head (after migrating it, or with
-``--check``, as found); 1 with ``--check`` when migrations are pending; 1 with one line
-on stderr when the database is newer than this code (migrated by a newer inertia-id),
-cannot be reached, or a setting is bad. Nothing is changed in those cases.
+Exit status, one per case so that a deployment script can tell them apart (see
+``EXIT_STATUS``): 0 the database is at this code's head (after migrating it, or with
+``--check``, as found); 1 with ``--check``, migrations are pending; 2 a usage error (an
+unknown option: argparse's own); 3 the database is newer than this code (migrated by a
+newer inertia-id); 4 the database cannot be reached or opened (refused connection, bad
+password, a SQLite folder that cannot be made: worth retrying once it is up); 5 the
+settings name no usable database (a bad setting, a ``DATABASE_URL`` that is no URL or of
+a kind with no driver here: retrying will not help). Each but 0 and 1 is one line on
+stderr, and nothing is changed.
 """
 
 from __future__ import annotations
@@ -34,6 +39,18 @@ __all__ = ["main"]
 
 PROGRAM = "inertia-id migrate"
 
+# Before, pending, newer and unreachable were all 1. 2 is argparse's usage error.
+PENDING = 1
+NEWER = 3
+UNREACHABLE = 4
+MISCONFIGURED = 5
+
+EXIT_STATUS = f"""exit status: 0 at this code's newest revision; {PENDING} with --check, \
+migrations pending; 2 usage error; {NEWER} the database is newer than this code (migrated by \
+a newer inertia-id); {UNREACHABLE} the database cannot be reached or opened; \
+{MISCONFIGURED} the settings name no usable database (bad setting, DATABASE_URL no URL \
+or of a kind with no driver here)."""
+
 
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
@@ -41,6 +58,7 @@ def _parser() -> argparse.ArgumentParser:
         description="Apply the database migrations (Alembic) up to this code's newest, on "
         "DATABASE_URL, else the SQLite database in --data-dir, and print the revision "
         "before and after. A database migrated by a newer inertia-id is refused, unchanged.",
+        epilog=EXIT_STATUS,
     )
     parser.add_argument(
         "--data-dir",
@@ -52,7 +70,7 @@ def _parser() -> argparse.ArgumentParser:
         "--check",
         action="store_true",
         help="Change nothing: exit 0 if the database is at this code's newest revision, "
-        "else 1, saying how many migrations are pending.",
+        f"{PENDING} if migrations are pending (saying how many); other statuses below.",
     )
     return parser
 
@@ -92,7 +110,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         settings = get_settings()
     except ValidationError as exc:
         print("\n".join(f"{PROGRAM}: {line}" for line in setting_problems(exc)), file=sys.stderr)
-        return 1
+        return MISCONFIGURED
     url = settings.resolved_database_url
     try:
         label = database_label(url)
@@ -103,11 +121,11 @@ def main(argv: Sequence[str] | None = None) -> int:
             "postgresql+psycopg://USER:PASSWORD@HOST:PORT/NAME)",
             file=sys.stderr,
         )
-        return 1
+        return MISCONFIGURED
     if args.check and url.startswith("sqlite") and not _sqlite_file_exists(url):
         # Connecting would create the file: --check changes nothing.
         print(f"{label}: no database yet; this code's newest revision is {head_revision()}")
-        return 1
+        return PENDING
     try:
         found = revisions(url)
         if not found.known:
@@ -120,7 +138,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 f"{label}: at {_name(found.current)}; this code's newest is {found.head}: "
                 f"{found.pending} migration(s) pending (run `{PROGRAM}`)"
             )
-            return 1
+            return PENDING
         if found.at_head:
             print(f"{label}: at {found.head} already, this code's newest revision; nothing to do")
             return 0
@@ -138,10 +156,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
     except DatabaseNewerThanCode as exc:
         print(f"{PROGRAM}: {exc}", file=sys.stderr)
-        return 1
+        return NEWER
     except SQLAlchemyError as exc:
         print(_unreachable(label, exc), file=sys.stderr)
-        return 1
+        return UNREACHABLE
     except ImportError as exc:
         # A database kind this install has no driver for (mysql://): a traceback before.
         print(
@@ -149,7 +167,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             "SQLite (sqlite:///PATH) and PostgreSQL (postgresql+psycopg://...)",
             file=sys.stderr,
         )
-        return 1
+        return MISCONFIGURED
     except OSError as exc:
         # The SQLite file's folder cannot be made (read-only, no such parent): a traceback.
         where = f": {exc.filename}" if exc.filename else ""
@@ -157,7 +175,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"{PROGRAM}: cannot open the database {label}: {exc.strerror or exc}{where}",
             file=sys.stderr,
         )
-        return 1
+        return UNREACHABLE
     return 0
 
 

@@ -17,9 +17,17 @@ from service.store.session import DatabaseNewerThanCode, head_revision, revision
 from .support import make_settings
 
 
-def migrate(url: str, tmp_path: Path, *options: str) -> subprocess.CompletedProcess[str]:
-    """The installed command line, as a deployment runs it, on the database at ``url``."""
-    env = {**os.environ, "DATABASE_URL": url, "INERTIA_ID_DATA_DIR": str(tmp_path / "data")}
+def migrate(
+    url: str, tmp_path: Path, *options: str, **settings: str
+) -> subprocess.CompletedProcess[str]:
+    """The installed command line, as a deployment runs it, on the database at ``url``
+    (``settings``: more environment variables)."""
+    env = {
+        **os.environ,
+        "DATABASE_URL": url,
+        "INERTIA_ID_DATA_DIR": str(tmp_path / "data"),
+        **settings,
+    }
     return subprocess.run(
         [sys.executable, "-m", "inertia_id.cli", "migrate", *options],
         capture_output=True,
@@ -81,14 +89,15 @@ def test_a_database_newer_than_the_code_is_refused_by_name_and_left_alone(
 ) -> None:
     """A database a newer inertia-id migrated: Alembic's traceback ended in "Can't locate
     revision identified by '0099'" (serve and the API's start alike). Now one line naming
-    both revisions, exit status 1, and the database unchanged."""
+    both revisions, exit status 3 (1 before, as for pending migrations: a deployment
+    script could not tell them apart), and the database unchanged."""
     url = empty_database_url
     upgrade(url)
     _set_revision(url, "0099")
     head = head_revision()
     for options in ((), ("--check",)):
         refused = migrate(url, tmp_path, *options)
-        assert refused.returncode == 1, (options, refused.stdout)
+        assert refused.returncode == 3, (options, refused.stdout)
         assert "Traceback" not in refused.stderr, refused.stderr
         line = refused.stderr.strip()
         assert line.startswith("inertia-id migrate: the database "), line
@@ -101,27 +110,55 @@ def test_a_database_newer_than_the_code_is_refused_by_name_and_left_alone(
     assert revisions(url).current == "0099"
 
 
-def test_an_unreachable_database_is_one_line(tmp_path: Path) -> None:
-    done = migrate("postgresql+psycopg://nobody@127.0.0.1:1/none", tmp_path)
-    assert done.returncode == 1
-    assert done.stderr.startswith("inertia-id migrate: cannot reach the database "), done.stderr
-    assert "Traceback" not in done.stderr
+def test_an_unreachable_database_is_one_line_and_exit_status_4(tmp_path: Path) -> None:
+    """Exit status 4 with or without --check (1 before, as for pending migrations)."""
+    for options in ((), ("--check",)):
+        done = migrate("postgresql+psycopg://nobody@127.0.0.1:1/none", tmp_path, *options)
+        assert done.returncode == 4, (options, done.stderr)
+        assert done.stderr.startswith("inertia-id migrate: cannot reach the database "), done.stderr
+        assert "Traceback" not in done.stderr
+
+
+def test_help_documents_each_exit_status(tmp_path: Path) -> None:
+    helped = migrate("sqlite:///unused.db", tmp_path, "--help")
+    assert helped.returncode == 0, helped.stderr
+    said = " ".join(helped.stdout.split())
+    for status in (
+        "0 at this code's newest",
+        "1 with --check, migrations pending",
+        "2 usage error",
+        "3 the database is newer",
+        "4 the database cannot be reached",
+        "5 the settings name no usable database",
+    ):
+        assert status in said, (status, said)
+    assert migrate("sqlite:///unused.db", tmp_path, "--no-such").returncode == 2
+
+
+def test_a_bad_setting_is_exit_status_5(tmp_path: Path) -> None:
+    done = migrate("sqlite:///unused.db", tmp_path, "--check", INERTIA_ID_PORT="0")
+    assert done.returncode == 5, done.stderr
+    assert done.stderr.startswith("inertia-id migrate: INERTIA_ID_PORT='0'"), done.stderr
 
 
 @pytest.mark.parametrize(
-    ("url", "said"),
+    ("url", "said", "status"),
     [
         # A SQLite file where no folder can be made: a FileNotFoundError traceback before.
-        ("sqlite:////proc/no-such-folder/inertia-id.db", "cannot open the database "),
+        ("sqlite:////proc/no-such-folder/inertia-id.db", "cannot open the database ", 4),
         # A database kind with no driver here: "No module named 'MySQLdb'" traceback before.
-        ("mysql://user:secret@127.0.0.1/inertia", "no driver for the database "),
+        ("mysql://user:secret@127.0.0.1/inertia", "no driver for the database ", 5),
         # No URL at all: SQLAlchemy's ArgumentError traceback before.
-        ("secret-and-no-url", "DATABASE_URL is no database URL "),
+        ("secret-and-no-url", "DATABASE_URL is no database URL ", 5),
     ],
 )
-def test_a_database_that_cannot_be_opened_is_one_line(tmp_path: Path, url: str, said: str) -> None:
+def test_a_database_that_cannot_be_opened_is_one_line(
+    tmp_path: Path, url: str, said: str, status: int
+) -> None:
+    """Exit status 4 where it cannot be opened, 5 where the setting names no usable
+    database (both 1 before, as for pending migrations)."""
     done = migrate(url, tmp_path)
-    assert done.returncode == 1
+    assert done.returncode == status, done.stderr
     assert "Traceback" not in done.stderr, done.stderr
     assert done.stderr.startswith(f"inertia-id migrate: {said}"), done.stderr
     assert len(done.stderr.strip().splitlines()) == 1, done.stderr
