@@ -821,6 +821,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         for line in setting_problems(exc):
             print(f"inertia-id serve: {line}", file=sys.stderr)
         return 1
+    from service.store.refusals import unusable_database
+
+    problem = unusable_database(settings.resolved_database_url)
+    if problem:
+        # Before anything starts: a traceback from the first connection before.
+        print(f"inertia-id serve: {problem}", file=sys.stderr)
+        return 1
     data_dir.mkdir(parents=True, exist_ok=True)
 
     # SIGTERM (systemd, docker stop) ends like Ctrl-C: through the finally below.

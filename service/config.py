@@ -328,9 +328,16 @@ def settings_or_exit(program: str) -> Settings:
     """:func:`get_settings`, or ``SystemExit`` with one line per bad setting, each
     starting with ``program:``: the worker's and the API's start (``celery -A
     worker.celery_app``, ``uvicorn app.main:create_app --factory``) end with status 1
-    and those lines rather than a pydantic traceback."""
+    and those lines rather than a pydantic traceback; so does a ``DATABASE_URL`` that is
+    no URL or of a kind with no driver here, rather than SQLAlchemy's."""
     try:
-        return get_settings()
+        settings = get_settings()
     except ValidationError as exc:
         lines = [f"{program}: {line}" for line in setting_problems(exc)]
         raise SystemExit("\n".join(lines)) from None
+    from service.store.refusals import unusable_database
+
+    problem = unusable_database(settings.resolved_database_url)
+    if problem:
+        raise SystemExit(f"{program}: {problem}")
+    return settings

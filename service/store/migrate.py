@@ -28,11 +28,11 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from pydantic import ValidationError
-from sqlalchemy.exc import ArgumentError, SQLAlchemyError
+from sqlalchemy.exc import SQLAlchemyError
 
 from service.config import get_settings, setting_problems
 
-from .refusals import database_label
+from .refusals import database_label, unusable_database
 from .session import DatabaseNewerThanCode, head_revision, revisions, upgrade
 
 __all__ = ["main"]
@@ -112,16 +112,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         print("\n".join(f"{PROGRAM}: {line}" for line in setting_problems(exc)), file=sys.stderr)
         return MISCONFIGURED
     url = settings.resolved_database_url
-    try:
-        label = database_label(url)
-    except ArgumentError:
-        # Not shown: an unparsed URL's password cannot be masked (a traceback before).
-        print(
-            f"{PROGRAM}: DATABASE_URL is no database URL (sqlite:///PATH or "
-            "postgresql+psycopg://USER:PASSWORD@HOST:PORT/NAME)",
-            file=sys.stderr,
-        )
+    problem = unusable_database(url)
+    if problem:
+        print(f"{PROGRAM}: {problem}", file=sys.stderr)
         return MISCONFIGURED
+    label = database_label(url)
     if args.check and url.startswith("sqlite") and not _sqlite_file_exists(url):
         # Connecting would create the file: --check changes nothing.
         print(f"{label}: no database yet; this code's newest revision is {head_revision()}")
@@ -160,14 +155,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SQLAlchemyError as exc:
         print(_unreachable(label, exc), file=sys.stderr)
         return UNREACHABLE
-    except ImportError as exc:
-        # A database kind this install has no driver for (mysql://): a traceback before.
-        print(
-            f"{PROGRAM}: no driver for the database {label}: {exc}; inertia-id runs on "
-            "SQLite (sqlite:///PATH) and PostgreSQL (postgresql+psycopg://...)",
-            file=sys.stderr,
-        )
-        return MISCONFIGURED
     except OSError as exc:
         # The SQLite file's folder cannot be made (read-only, no such parent): a traceback.
         where = f": {exc.filename}" if exc.filename else ""

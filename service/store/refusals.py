@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import sqlite3
 
-__all__ = ["database_label", "unreachable", "why_cannot_store"]
+__all__ = ["database_label", "unreachable", "unusable_database", "why_cannot_store"]
 
 # SQLite's primary result codes (the low byte of sqlite3's ``sqlite_errorcode``) and
 # PostgreSQL's SQLSTATEs: disk_full, io_error, read_only_sql_transaction (a hot standby,
@@ -28,6 +28,32 @@ def database_label(url: str) -> str:
     if parsed.drivername.startswith("sqlite"):
         return str(parsed.database)
     return parsed.render_as_string(hide_password=True)
+
+
+def unusable_database(url: str) -> str | None:
+    """Why ``url`` names no database this install can open, as one sentence: it is no URL,
+    or of a kind with no driver here (``mysql://``: "No module named 'MySQLdb'"); None
+    when it can be tried. Checked before anything is started: each was a traceback from
+    the first connection (``serve``, the worker's and the API's start). A URL that does
+    not parse is not shown: its password cannot be masked."""
+    from sqlalchemy import make_url
+    from sqlalchemy.exc import ArgumentError, NoSuchModuleError
+
+    try:
+        parsed = make_url(url)
+    except ArgumentError:
+        return (
+            "DATABASE_URL is no database URL (sqlite:///PATH or "
+            "postgresql+psycopg://USER:PASSWORD@HOST:PORT/NAME)"
+        )
+    try:
+        parsed.get_dialect().import_dbapi()
+    except (NoSuchModuleError, ImportError) as exc:
+        return (
+            f"no driver for the database {database_label(url)}: {exc}; inertia-id runs on "
+            "SQLite (sqlite:///PATH) and PostgreSQL (postgresql+psycopg://...)"
+        )
+    return None
 
 
 def why_cannot_store(exc: BaseException) -> str | None:

@@ -730,3 +730,42 @@ def test_serve_as_subreaper_reaps_an_orphan_that_ended_and_stops_one_that_lives(
     # Two adopted (one ended: a zombie, one sleeping), one reaped, one left and stopped.
     assert out.stdout.split("]")[1].split() == ["1", "1", "1", "0"], out.stdout
     assert out.stdout.startswith("['S', 'Z']"), out.stdout
+
+
+@pytest.mark.parametrize(
+    ("url", "said"),
+    [
+        # No URL at all: SQLAlchemy's ArgumentError traceback from the first connection.
+        ("secret-and-no-url", "DATABASE_URL is no database URL "),
+        # A kind with no driver here: a "No module named 'MySQLdb'" traceback.
+        ("mysql://user:secret@127.0.0.1/inertia", "no driver for the database "),
+    ],
+)
+def test_serve_and_the_worker_refuse_an_unusable_database_url_in_one_line(
+    tmp_path: Path, url: str, said: str
+) -> None:
+    """``serve`` ended in a traceback, nothing said before it; the worker's start (``celery
+    -A worker.celery_app``, which imports it) went on, logging the traceback at each
+    beat. Now each is one line, exit status 1, the password not shown, nothing created."""
+    env = clean_env(DATABASE_URL=url)
+    with socket.socket() as probe:  # a port free now: the port check comes first
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    starts = {
+        "serve": [sys.executable, "-m", "app.serve", "--port", str(port), "--data-dir", "data"],
+        "worker": [sys.executable, "-c", "import worker.celery_app"],
+        "api": [sys.executable, "-c", "from app.main import create_app; create_app()"],
+    }
+    for program, command in starts.items():
+        done = subprocess.run(
+            command, capture_output=True, text=True, env=env, cwd=tmp_path, timeout=120
+        )
+        assert done.returncode == 1, (program, done.stderr)
+        assert "Traceback" not in done.stderr, (program, done.stderr)
+        lines = done.stderr.strip().splitlines()
+        assert lines == [lines[0]] and lines[0].startswith(f"inertia-id {program}: {said}"), (
+            program,
+            done.stderr,
+        )
+        assert "secret" not in done.stderr
+    assert not (tmp_path / "data").exists()
