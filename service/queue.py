@@ -248,9 +248,18 @@ class FilesystemChannel(filesystem.Channel):
 
 
 class FilesystemTransport(filesystem.Transport):
-    """kombu's filesystem transport on :class:`FilesystemChannel`."""
+    """kombu's filesystem transport on :class:`FilesystemChannel`, with no host."""
 
     Channel = FilesystemChannel
+
+    @property
+    def default_connection_params(self) -> dict[str, object]:
+        # kombu's virtual transports default to hostname 'localhost', so each clone of a
+        # "filesystem://" connection (every publish: POST /jobs, the re-sender) logged
+        # "WARNING: No hostname was supplied. Reverting to default 'localhost'". Harmless
+        # (this transport reads only its folders, never a host) but it looked like a
+        # misconfigured broker: a transport with no host has no default one.
+        return {"port": self.default_port}
 
 
 def make_celery(settings: Settings) -> Celery:

@@ -107,6 +107,25 @@ def test_make_celery_puts_the_filesystem_broker_on_our_transport(tmp_path: Path)
     assert not redis.conf.broker_transport
 
 
+def test_sending_a_job_on_the_filesystem_broker_logs_no_warning(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """Each send (``POST /jobs``) logged kombu's "No hostname was supplied. Reverting to
+    default 'localhost'" in serve's log: a filesystem transport has no host to supply."""
+    settings = Settings(
+        INERTIA_ID_DATA_DIR=tmp_path / "data",
+        DATABASE_URL=f"sqlite:///{tmp_path / 'data' / 'db.sqlite'}",
+        BROKER_URL="filesystem://",
+    )
+    celery = make_celery(settings)
+    with caplog.at_level(logging.WARNING):
+        celery.send_task("inertia_id.run_job", args=["job-1"])
+        celery.send_task("inertia_id.run_job", args=["job-2"])
+    assert len(list((settings.broker_dir / "queue").glob("*.msg"))) == 2
+    warned = [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING]
+    assert warned == [], warned
+
+
 def test_put_never_shows_a_partial_file_under_the_consumers_name(
     broker: tuple[FilesystemChannel, Path], monkeypatch: pytest.MonkeyPatch
 ) -> None:
