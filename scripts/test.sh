@@ -23,4 +23,13 @@ ruff format --check inertia_id service app worker tests bench
 echo "== mypy"
 mypy
 echo "== pytest"
-pytest "$@"
+# Two pytest-xdist workers, a test module each at a time (--dist loadscope: a module's
+# fixtures are built once and its tests keep their order). One pytest process kept this
+# 2-core machine about 30 % busy, waiting on the services, workers and browsers its tests
+# start; two overlap those waits. INERTIA_ID_TEST_WORKERS=0 runs the suite in one process.
+workers=${INERTIA_ID_TEST_WORKERS:-2}
+if [ "$workers" = "0" ]; then
+  pytest "$@"
+else
+  pytest -n "$workers" --dist loadscope "$@"
+fi

@@ -39,8 +39,16 @@ def service(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Service]:
         yield Service(running.base_url, running.client, running.log_path)
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def browser() -> Iterator[Any]:
+    """Chromium under Playwright's sync API, for one test module.
+
+    Module-scoped, not session: between its sync calls Playwright leaves its asyncio
+    loop marked as running in the main thread, so while it lives every other test in
+    this process sees "a running event loop" (``anyio.run`` in tests/api/test_capacity.py
+    raised "Already running asyncio in this thread" when it ran after the browser
+    module in the same pytest-xdist worker). Ended with the module, nothing leaks.
+    """
     if shutil.which(CHROMIUM) is None and not Path(CHROMIUM).is_file():
         _missing(f"Chromium is not installed at {CHROMIUM} (apt-get install -y chromium)")
     try:

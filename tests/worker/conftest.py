@@ -5,7 +5,8 @@ Every test module runs against both deployments:
 
 - ``filesystem``: the embedded default, a SQLite file and Celery's ``filesystem://`` broker;
 - ``redis``: the scale-out shape, PostgreSQL and Redis on this machine (a database created
-  for the module and dropped after; Redis database 9, flushed before and after).
+  for the module and dropped after; Redis database 9, or 9 to 12 by pytest-xdist worker,
+  flushed before and after).
 
 Without Redis or PostgreSQL the ``redis`` cases skip, or fail when
 ``INERTIA_ID_REQUIRE_SERVICES=1`` (CI sets it).
@@ -45,7 +46,21 @@ from service.queue import RUN_JOB_TASK, make_celery, worker_command
 from service.store import Database, JobRow, MetricRow, ScenarioRow, WorkerRow, upgrade
 from service.store.jobs import config_hash, create_job, mark_sent
 
-REDIS_URL = os.environ.get("INERTIA_ID_TEST_REDIS_URL", "redis://127.0.0.1:6379/9")
+
+def _redis_database() -> int:
+    """Redis database 9 for a serial run; under pytest-xdist one of 9 to 12 per worker
+    (``gw0`` to ``gw3``), so that two workers' modules never flush each other's
+    queues (13 is the compose stack test's)."""
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "gw0")
+    index = int(worker[2:]) if worker[2:].isdigit() else 0
+    if index > 3:
+        raise RuntimeError(f"at most 4 pytest-xdist workers (-n 4): {worker} has no Redis database")
+    return 9 + index
+
+
+REDIS_URL = os.environ.get(
+    "INERTIA_ID_TEST_REDIS_URL", f"redis://127.0.0.1:6379/{_redis_database()}"
+)
 WORKER_READY_TIMEOUT_S = 60.0
 
 
