@@ -35,6 +35,8 @@ import fcntl
 import logging
 import mmap
 import os
+import socket
+import threading
 import time
 from collections.abc import Callable, Iterable
 from datetime import datetime
@@ -52,9 +54,18 @@ from service.store.models import new_id, utcnow
 
 from .episode import Episode
 
-__all__ = ["Life", "Witness", "alive", "current"]
+__all__ = ["LOCK_ANSWER_S", "Life", "LockSilent", "Witness", "alive", "current"]
 
 logger = logging.getLogger(__name__)
+
+#: Seconds the lock's PostgreSQL session is given to answer a statement (the beat's
+#: check, the take, a stop's unlock), and to connect (libpq's ``connect_timeout``,
+#: whole seconds). A server whose packets go unanswered (a silent network: no refusal,
+#: no reset) otherwise held the beat, and a stop, for as long: the kernel acknowledges
+#: what is sent, and a query waits on its answer for ever (behind a SIGSTOPped proxy,
+#: release(), lost() and hold() each still waited after 30 s; a stop would wait past
+#: serve's 10 s grace, which then kills the worker).
+LOCK_ANSWER_S = 3.0
 
 # Made at import, in the worker's main process, before the pool forks: its task
 # processes (and those started in place of dead ones) inherit it.
@@ -64,6 +75,12 @@ _CURRENT = new_id()
 def current() -> str:
     """This worker's incarnation id (the same in its main and its task processes)."""
     return _CURRENT
+
+
+class LockSilent(TimeoutError):
+    """The lock's database session gave no answer in time (see :data:`LOCK_ANSWER_S`);
+    its connection was cut, so the server drops the session, and the lock with it, when
+    it sees it end."""
 
 
 class HeldElsewhere(RuntimeError):
@@ -114,14 +131,17 @@ class Life:
             conninfo = url.set(drivername="postgresql").render_as_string(hide_password=False)
             # Named, so an operator sees it in pg_stat_activity for what it is.
             connection = psycopg.connect(
-                conninfo, autocommit=True, application_name=f"inertia-id lock {self.incarnation}"
+                conninfo,
+                autocommit=True,
+                application_name=f"inertia-id lock {self.incarnation}",
+                connect_timeout=max(2, round(LOCK_ANSWER_S)),
             )
             try:
                 # Not pg_advisory_lock: a session holding the key (an alive() probe
                 # stuck mid-way) would block the monitor's beat for as long.
-                taken = connection.execute(
-                    "SELECT pg_try_advisory_lock(%s)", (_key(self.incarnation),)
-                ).fetchone()
+                taken = _ask(
+                    connection, "SELECT pg_try_advisory_lock(%s)", (_key(self.incarnation),)
+                )
                 if not (taken and taken[0]):
                     raise HeldElsewhere(
                         f"the lock of incarnation {self.incarnation} is held by another "
@@ -153,12 +173,15 @@ class Life:
             # pg_locks names a bigint advisory key in two unsigned 32-bit halves.
             high, low = (key >> 32) & 0xFFFFFFFF, key & 0xFFFFFFFF
             try:
-                row = self._connection.execute(
+                row = _ask(
+                    self._connection,
                     "SELECT count(*) FROM pg_locks WHERE locktype = 'advisory'"
                     " AND pid = pg_backend_pid() AND granted AND objsubid = 1"
                     " AND classid = %s::bigint::oid AND objid = %s::bigint::oid",
                     (high, low),
-                ).fetchone()
+                )
+            except LockSilent as exc:
+                return f"its database session gave {exc} (its connection is closed now)"
             except Exception as exc:
                 return f"its database session ended ({type(exc).__name__}: {exc})"
             return None if row and row[0] else "its database session no longer holds it"
@@ -196,9 +219,19 @@ class Life:
             # process's exit, which ends after close() returns; another session reading
             # pg_locks meanwhile saw this released lock held (in 20 of 200 releases on
             # the loaded 2-core machine), and /health a stopped worker alive. A lost
-            # session's unlock fails, and is let be: its lock went with it.
-            with contextlib.suppress(Exception):
-                self._connection.execute("SELECT pg_advisory_unlock(%s)", (_key(self.incarnation),))
+            # session's unlock fails, and is let be: its lock went with it. One that
+            # gets no answer in time is cut (see _ask): released, unconfirmed.
+            try:
+                _ask(self._connection, "SELECT pg_advisory_unlock(%s)", (_key(self.incarnation),))
+            except LockSilent as exc:
+                logger.warning(
+                    "could not confirm the release of this worker's incarnation lock (%s): "
+                    "its session's connection is closed, and the server lets go of the lock "
+                    "as it sees that session end",
+                    exc,
+                )
+            except Exception:
+                pass
             with contextlib.suppress(Exception):
                 self._connection.close()
             self._connection = None
@@ -246,6 +279,50 @@ class Life:
             os.dup2(devnull, self._connection.fileno())
         finally:
             os.close(devnull)
+
+
+def _ask(connection: Any, statement: str, params: tuple[Any, ...]) -> Any:
+    """The first row of ``statement`` on the lock's ``connection``, answered within
+    :data:`LOCK_ANSWER_S`; else :class:`LockSilent`, the connection cut.
+
+    psycopg has no client-side deadline for a statement, and a server-side one
+    (``statement_timeout``) needs a server that hears the statement. So the socket is
+    shut down at the deadline: the wait (ours, or that of another thread in the middle
+    of a statement on this connection, which holds its lock) ends at once on an error.
+    The server ends the session, and lets go of its lock, when it sees the connection
+    end; until then others find the lock held, which keeps this process's runs its own.
+    """
+    guard = threading.Lock()
+    state = {"done": False, "cut": False}
+
+    def cut() -> None:
+        with guard:
+            if state["done"]:
+                return
+            state["cut"] = True
+        with contextlib.suppress(Exception):
+            with socket.socket(fileno=os.dup(connection.fileno())) as sock:
+                sock.shutdown(socket.SHUT_RDWR)
+
+    timer = threading.Timer(LOCK_ANSWER_S, cut)
+    timer.daemon = True
+    timer.start()
+    try:
+        row = connection.execute(statement, params).fetchone()
+    except Exception as exc:
+        with guard:
+            state["done"] = True
+        if state["cut"]:
+            raise LockSilent(f"no answer within {LOCK_ANSWER_S:g} s") from exc
+        raise
+    finally:
+        timer.cancel()
+    with guard:
+        state["done"] = True
+        cut_meanwhile = state["cut"]
+    if cut_meanwhile:  # answered as the deadline cut the connection: it is gone now
+        raise LockSilent(f"no answer within {LOCK_ANSWER_S:g} s")
+    return row
 
 
 def _open_locked(path: Path) -> int:

@@ -12,8 +12,12 @@ worker's task processes leave new jobs queued.
 
 from __future__ import annotations
 
+import contextlib
 import logging
+import select
 import shutil
+import socket
+import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -25,11 +29,13 @@ import pytest
 from scenario_support import GOOD_SEQUENCE
 from service_support import wait_for
 from sqlalchemy import Connection, event, text, update
+from sqlalchemy.engine import make_url
 from test_worker_restart import QUICK_SEARCH
 
 from service.store import JobRow, WorkerRow
 from service.store.jobs import claim, start_worker
 from service.store.models import utcnow
+from worker import incarnation
 from worker.incarnation import Life, Witness, alive
 from worker.monitor import WorkerMonitor
 from worker.reaper import ReapReport, take_restarted_runs
@@ -558,3 +564,111 @@ def test_a_released_lock_is_free_at_once_to_every_other_session(store: Store) ->
             if locks_held(session, url, [life.incarnation])[life.incarnation]:
                 still_held.append(index)
     assert still_held == []
+
+
+class _SilentableProxy:
+    """A TCP relay to the PostgreSQL server that can fall silent (:meth:`silence`): it
+    then passes nothing on, either way, while the kernel still acknowledges what is
+    sent, as for a server whose answers are lost on the way (a SIGSTOPped proxy does
+    the same). Closed, it ends its connections, so the server ends their sessions."""
+
+    def __init__(self, host: str, port: int) -> None:
+        self.target = (host, port)
+        self.listener = socket.create_server(("127.0.0.1", 0))
+        self.listener.settimeout(0.1)
+        self.port = self.listener.getsockname()[1]
+        self.silent = threading.Event()
+        self.closing = threading.Event()
+        self.sockets: list[socket.socket] = []
+        self.threads = [threading.Thread(target=self._accept, daemon=True)]
+        self.threads[0].start()
+
+    def silence(self) -> None:
+        self.silent.set()
+
+    def _accept(self) -> None:
+        while not self.closing.is_set():
+            try:
+                client, _ = self.listener.accept()
+            except TimeoutError:
+                continue
+            server = socket.create_connection(self.target)
+            self.sockets += [client, server]
+            for source, sink in ((client, server), (server, client)):
+                thread = threading.Thread(target=self._relay, args=(source, sink), daemon=True)
+                self.threads.append(thread)
+                thread.start()
+
+    def _relay(self, source: socket.socket, sink: socket.socket) -> None:
+        with contextlib.suppress(OSError, ValueError):
+            while not self.closing.is_set():
+                # Asked after select: what arrives once silent is left unread.
+                if not select.select([source], [], [], 0.1)[0] or self.silent.is_set():
+                    time.sleep(0.05)
+                    continue
+                data = source.recv(65536)
+                if not data:
+                    sink.shutdown(socket.SHUT_WR)
+                    return
+                sink.sendall(data)
+
+    def close(self) -> None:
+        self.closing.set()
+        for thread in self.threads:
+            thread.join(5.0)
+        for sock in [*self.sockets, self.listener]:
+            sock.close()
+
+
+def _within(seconds: float, call: Callable[[], Any], what: str) -> Any:
+    """What ``call`` returns, called on a thread of its own; a failure if it still
+    waits after ``seconds`` (a bound well past the one it is meant to keep)."""
+    outcome: list[Any] = []
+    thread = threading.Thread(target=lambda: outcome.append(call()), daemon=True)
+    thread.start()
+    thread.join(seconds)
+    if thread.is_alive() or not outcome:
+        pytest.fail(f"{what} still waited {seconds:g} s after the database fell silent")
+    return outcome[0]
+
+
+@pytest.mark.parametrize("store", ["postgresql"], indirect=True)
+def test_a_lock_whose_database_falls_silent_is_let_go_of_without_waiting_on_it(
+    store: Store, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    """The lock's server stops answering, its packets lost rather than refused. Before,
+    a stop's release() waited on its unlock's answer for ever (past serve's 10 s grace,
+    when it kills the worker; a plain celery worker never ended), and a beat's check
+    (keep(), lost()) likewise. Now each statement gets LOCK_ANSWER_S (1 s here), and
+    a connection at most 2 s (libpq's least connect_timeout); the connection is then
+    cut: a released lock goes when the server sees its session end, said in one line."""
+    monkeypatch.setattr(incarnation, "LOCK_ANSWER_S", 1.0, raising=False)
+    url = make_url(store.settings.resolved_database_url)
+    proxy = _SilentableProxy(url.host or "127.0.0.1", url.port or 5432)
+    try:
+        through = url.set(host="127.0.0.1", port=proxy.port).render_as_string(hide_password=False)
+        stopping, beating = Life(through, "stopping"), Life(through, "beating")
+        assert stopping.hold() and beating.hold()
+        proxy.silence()
+        with caplog.at_level(logging.WARNING, logger="worker.incarnation"):
+            _within(10.0, stopping.release, "release()")
+            assert not stopping.held
+            assert [r.message for r in caplog.records] == [
+                "could not confirm the release of this worker's incarnation lock (no answer "
+                "within 1 s): its session's connection is closed, and the server lets go of "
+                "the lock as it sees that session end"
+            ]
+            caplog.clear()
+            # The beat: its check finds no answer, and taking the lock again finds none.
+            assert _within(10.0, beating.keep, "a beat's keep()") is False
+            assert not beating.may_claim()
+            assert "lock was lost: its database session gave no answer within 1 s" in (
+                caplog.records[0].message
+            )
+            beating.release()
+    finally:
+        proxy.close()
+    # The server ends the cut sessions as the proxy closes: their locks are free.
+    other = Life(store.settings.resolved_database_url, "stopping")
+    wait_for(other.try_hold, 10.0, "the silent session's lock was never let go of", str)
+    other.release()
