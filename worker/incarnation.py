@@ -129,19 +129,23 @@ class Life:
             import psycopg
 
             conninfo = url.set(drivername="postgresql").render_as_string(hide_password=False)
-            # Named, so an operator sees it in pg_stat_activity for what it is.
+            # Named, so an operator sees it in pg_stat_activity for what it is, and
+            # so that this process knows its own earlier sessions (see below).
+            name = f"inertia-id lock {self.incarnation}"
             connection = psycopg.connect(
                 conninfo,
                 autocommit=True,
-                application_name=f"inertia-id lock {self.incarnation}",
+                application_name=name,
                 connect_timeout=max(2, round(LOCK_ANSWER_S)),
             )
             try:
                 # Not pg_advisory_lock: a session holding the key (an alive() probe
                 # stuck mid-way) would block the monitor's beat for as long.
-                taken = _ask(
-                    connection, "SELECT pg_try_advisory_lock(%s)", (_key(self.incarnation),)
-                )
+                key = _key(self.incarnation)
+                take = "SELECT pg_try_advisory_lock(%s)"
+                taken = _ask(connection, take, (key,))
+                if not (taken and taken[0]) and _end_own_sessions(connection, name, key):
+                    taken = _ask(connection, take, (key,))
                 if not (taken and taken[0]):
                     raise HeldElsewhere(
                         f"the lock of incarnation {self.incarnation} is held by another "
@@ -279,6 +283,49 @@ class Life:
             os.dup2(devnull, self._connection.fileno())
         finally:
             os.close(devnull)
+
+
+def _end_own_sessions(connection: Any, name: str, key: int) -> bool:
+    """End the server sessions that hold the lock ``key`` under this process's own lock
+    session name ``name`` (its incarnation's, unique to this process) other than
+    ``connection``'s; whether one was ended (within half of :data:`LOCK_ANSWER_S`: the
+    server's locks go before it counts a session as ended).
+
+    Such a session is one this process let go of without the server hearing of it: its
+    connection cut when it did not answer (see :func:`_ask`), the goodbye lost in a
+    silent network. The server ends it only when its TCP keepalive gives up (hours, by
+    default), and each beat meanwhile found the lock "held by another database
+    session": the live worker claimed no job. A probe of another process (``alive()``)
+    holding the key a moment has another name, and is waited out as before.
+    """
+    try:
+        row = _ask(
+            connection,
+            "SELECT count(*) FILTER (WHERE pg_terminate_backend(l.pid, %s))"
+            " FROM pg_locks l JOIN pg_stat_activity a ON a.pid = l.pid"
+            " WHERE l.locktype = 'advisory' AND l.granted AND l.objsubid = 1"
+            " AND l.classid = %s::bigint::oid AND l.objid = %s::bigint::oid"
+            " AND l.database = (SELECT oid FROM pg_database WHERE datname = current_database())"
+            " AND a.application_name = %s AND l.pid <> pg_backend_pid()",
+            (
+                max(1, int(LOCK_ANSWER_S * 500)),
+                (key >> 32) & 0xFFFFFFFF,
+                key & 0xFFFFFFFF,
+                name,
+            ),
+        )
+    except LockSilent:
+        raise
+    except Exception as exc:  # no right to end it, or a server before 14: wait it out
+        logger.debug("could not end this process's earlier lock session: %s", exc)
+        return False
+    if not (row and row[0]):
+        return False
+    logger.warning(
+        "ended this worker's earlier incarnation lock session, which the database server "
+        "still kept (its connection was closed here while the server did not answer)"
+    )
+    return True
 
 
 def _ask(connection: Any, statement: str, params: tuple[Any, ...]) -> Any:

@@ -580,11 +580,24 @@ class _SilentableProxy:
         self.silent = threading.Event()
         self.closing = threading.Event()
         self.sockets: list[socket.socket] = []
+        self.clients: list[socket.socket] = []
+        self.guard = threading.Lock()
         self.threads = [threading.Thread(target=self._accept, daemon=True)]
         self.threads[0].start()
 
     def silence(self) -> None:
         self.silent.set()
+
+    def speak_again(self, *, forget: bool = False) -> None:
+        """Pass bytes on again; with ``forget``, first drop the connections from its
+        clients without a word to the server (their goodbyes lost in the silence): the
+        server's sessions live on, as after a long outage."""
+        if forget:
+            with self.guard:
+                clients, self.clients = self.clients, []
+            for client in clients:
+                client.close()
+        self.silent.clear()
 
     def _accept(self) -> None:
         while not self.closing.is_set():
@@ -593,7 +606,9 @@ class _SilentableProxy:
             except TimeoutError:
                 continue
             server = socket.create_connection(self.target)
-            self.sockets += [client, server]
+            with self.guard:
+                self.sockets += [client, server]
+                self.clients.append(client)
             for source, sink in ((client, server), (server, client)):
                 thread = threading.Thread(target=self._relay, args=(source, sink), daemon=True)
                 self.threads.append(thread)
@@ -672,3 +687,32 @@ def test_a_lock_whose_database_falls_silent_is_let_go_of_without_waiting_on_it(
     other = Life(store.settings.resolved_database_url, "stopping")
     wait_for(other.try_hold, 10.0, "the silent session's lock was never let go of", str)
     other.release()
+
+
+@pytest.mark.parametrize("store", ["postgresql"], indirect=True)
+def test_a_lock_cut_in_a_silence_the_server_never_heard_of_is_taken_again(
+    store: Store, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A beat's check gets no answer, so the lock's connection is cut; the network comes
+    back, but the server never heard the goodbye (lost in the silence), and its session
+    holds the lock on until the server's TCP keepalive ends it (hours by default).
+    Before, each beat found the lock "held by another database session" and the live
+    worker claimed no job meanwhile; now the take ends that session, which is this
+    process's own (its application_name names this incarnation), and holds the lock."""
+    monkeypatch.setattr(incarnation, "LOCK_ANSWER_S", 1.0, raising=False)
+    url = make_url(store.settings.resolved_database_url)
+    proxy = _SilentableProxy(url.host or "127.0.0.1", url.port or 5432)
+    try:
+        through = url.set(host="127.0.0.1", port=proxy.port).render_as_string(hide_password=False)
+        life = Life(through, "cut")
+        assert life.hold()
+        proxy.silence()
+        assert not _within(10.0, life.keep, "keep()")  # its check cut, the take unanswered
+        proxy.speak_again(forget=True)
+        assert _alive(store, "cut")  # the old session holds it still
+        assert life.keep() and life.may_claim()
+        assert _alive(store, "cut")
+        life.release()
+        assert not _alive(store, "cut")
+    finally:
+        proxy.close()
