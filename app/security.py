@@ -25,6 +25,7 @@ from service.store.models import ApiKey
 from service.store.session import Database
 
 from .expiring import Expiring
+from .watched_send import WatchedSend
 
 __all__ = [
     "API_KEY_HEADER",
@@ -162,7 +163,6 @@ class BodySizeLimit:
             await _send_413(send, self.max_bytes, declared)
             return
         received = 0
-        started = False
 
         async def counting_receive() -> Message:
             nonlocal received
@@ -173,16 +173,11 @@ class BodySizeLimit:
                     raise BodyTooLarge(self.max_bytes)
             return message
 
-        async def tracking_send(message: Message) -> None:
-            nonlocal started
-            if message["type"] == "http.response.start":
-                started = True
-            await send(message)
-
+        watched = WatchedSend(send)
         try:
-            await self.app(scope, counting_receive, tracking_send)
+            await self.app(scope, counting_receive, watched.send)
         except BodyTooLarge:
-            if started:
+            if watched.started:
                 raise
             await _send_413(send, self.max_bytes, None)
 

@@ -14,7 +14,9 @@ from __future__ import annotations
 import asyncio
 import json
 
-from starlette.types import ASGIApp, Message, Receive, Scope, Send
+from starlette.types import ASGIApp, Receive, Scope, Send
+
+from .watched_send import WatchedSend
 
 __all__ = ["RETRY_AFTER_S", "StopCut"]
 
@@ -44,23 +46,16 @@ class StopCut:
         if scope["type"] != "http":
             await self.app(scope, receive, send)
             return
-        started = False
-
-        async def tracked(message: Message) -> None:
-            nonlocal started
-            if message["type"] == "http.response.start":
-                started = True
-            await send(message)
-
+        watched = WatchedSend(send)
         try:
-            await self.app(scope, receive, tracked)
+            await self.app(scope, receive, watched.send)
         except asyncio.CancelledError:
             task = asyncio.current_task()
             if task is None or task.cancelling() == 0:
                 raise
             # The server's cancel, taken here: the task ends without an error.
             task.uncancel()
-            if started:
+            if watched.started:
                 return
             body = json.dumps({"detail": _DETAIL}).encode()
             await send(

@@ -35,6 +35,7 @@ from inertia_id.errors import InputError
 from service.store.refusals import why_cannot_store
 
 from ..security import scope_header
+from ..watched_send import WatchedSend
 from .deps import unprocessable
 
 __all__ = ["duplicate_key_errors", "format_errors", "install_error_handlers", "refused_at"]
@@ -217,23 +218,14 @@ class InternalErrors:
         if scope["type"] != "http":
             await self.app(scope, receive, send)
             return
-        started = complete = False
-
-        async def watched(message: Message) -> None:
-            nonlocal started, complete
-            if message["type"] == "http.response.start":
-                started = True
-            elif message["type"] == "http.response.body" and not message.get("more_body"):
-                complete = True
-            await send(message)
-
+        watched = WatchedSend(send)
         try:
-            await self.app(scope, receive, watched)
+            await self.app(scope, receive, watched.send)
         except Exception as exc:
-            if complete:
+            if watched.complete:
                 _log_internal_error(scope, exc, " after its answer was sent")
                 return
-            if started:
+            if watched.started:
                 _log_internal_error(scope, exc, " in the middle of its answer (connection closed)")
                 raise
             _log_internal_error(scope, exc)
