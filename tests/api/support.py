@@ -18,7 +18,7 @@ from typing import Any
 import httpx
 import numpy as np
 import uvicorn
-from fastapi import FastAPI
+from fastapi import FastAPI, Request
 from scenario_support import GOOD_SEQUENCE
 from service_support import clean_env, free_port, tail, wait_for
 from sqlalchemy import create_engine, text
@@ -35,7 +35,9 @@ with warnings.catch_warnings():
 __all__ = [
     "GOOD_SEQUENCE",
     "Api",
+    "InThread",
     "TestClient",
+    "add_body_size_route",
     "keyed_app",
     "make_settings",
     "serve_api_only",
@@ -79,8 +81,28 @@ def keyed_app(tmp_path: Path, api_key: str) -> FastAPI:
     return create_app(settings)
 
 
+def add_body_size_route(app: FastAPI, entered: threading.Event | None = None) -> None:
+    """A test route, ``POST /test/body-size``, that reads the whole body and answers its
+    size (``{"size": N}``); ``entered`` is set when a request reaches it."""
+
+    async def body_size(request: Request) -> dict[str, int]:
+        if entered is not None:
+            entered.set()
+        return {"size": len(await request.body())}
+
+    app.add_api_route("/test/body-size", body_size, methods=["POST"])
+
+
+@dataclass(frozen=True)
+class InThread:
+    """A uvicorn server running in a thread of this process."""
+
+    server: uvicorn.Server
+    thread: threading.Thread
+
+
 @contextmanager
-def served_in_thread(app: FastAPI, config: uvicorn.Config) -> Iterator[None]:
+def served_in_thread(app: FastAPI, config: uvicorn.Config) -> Iterator[InThread]:
     """``config``'s uvicorn server (serving ``app``) in a thread of this process, once it
     has started; stopped at the end, and the app's broker and database closed."""
     served = uvicorn.Server(config)
@@ -91,7 +113,7 @@ def served_in_thread(app: FastAPI, config: uvicorn.Config) -> Iterator[None]:
         assert thread.is_alive() and time.monotonic() < deadline, "uvicorn did not start"
         time.sleep(0.02)
     try:
-        yield
+        yield InThread(served, thread)
     finally:
         served.should_exit = True
         thread.join(15)

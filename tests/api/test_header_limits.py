@@ -26,12 +26,11 @@ import pytest
 import uvicorn
 from pydantic import ValidationError
 from service_support import free_port
-from starlette.requests import Request
 
 from app.request_deadlines import H11WithDeadlines, HttpToolsWithDeadlines, ServerConfig
 from service.config import get_settings
 
-from .support import keyed_app, make_settings, serve_api_only, served_in_thread
+from .support import add_body_size_route, keyed_app, make_settings, serve_api_only, served_in_thread
 
 KEY = "header-limits-test-key-0123456789"
 #: How long a client waits for the answer and the close (s): far past what they take.
@@ -45,10 +44,7 @@ def port(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[int]:
     16 KiB), and a route that answers the size of the body it got; its port."""
     app = keyed_app(tmp_path, KEY)
 
-    async def body_size(request: Request) -> dict[str, int]:
-        return {"size": len(await request.body())}
-
-    app.add_api_route("/test/body-size", body_size, methods=["POST"])
+    add_body_size_route(app)
     port = free_port()
     config = ServerConfig(
         app,

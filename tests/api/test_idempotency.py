@@ -390,6 +390,20 @@ def test_no_claim_is_judged_dead_where_proc_is_another_pid_namespaces(
     assert not store.claimer_died(store.claim_token())
 
 
+def _take_over_after_the_lease(api: Api, key: str, route: str, sent: Any) -> store.Claim:
+    """What a request with ``key`` sent to ``route`` (its body ``sent``, the route's
+    model) does once the lease of the claim on it has run out: take the key over."""
+    return store.claim(
+        api.db,
+        client=hash_key(api.key),
+        key=key,
+        route=route,
+        digest=store.fingerprint(route, sent.model_dump(mode="json")),
+        ttl=timedelta(days=1),
+        now=utcnow() + store.CLAIM_LEASE + timedelta(seconds=5),
+    )
+
+
 def test_a_request_whose_claim_was_taken_over_keeps_nothing_and_is_409(
     api: Api, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -403,18 +417,7 @@ def test_a_request_whose_claim_was_taken_over_keeps_nothing_and_is_409(
     taken: list[store.Claim] = []
 
     def taken_over_meanwhile(sent: Any) -> Any:
-        # What a request with the key sent after the lease's end does: take it over.
-        taken.append(
-            store.claim(
-                api.db,
-                client=hash_key(api.key),
-                key="outlived",
-                route="POST /scenarios",
-                digest=store.fingerprint("POST /scenarios", sent.model_dump(mode="json")),
-                ttl=timedelta(days=1),
-                now=utcnow() + store.CLAIM_LEASE + timedelta(seconds=5),
-            )
-        )
+        taken.append(_take_over_after_the_lease(api, "outlived", "POST /scenarios", sent))
         return build(sent)
 
     monkeypatch.setattr(scenarios_api, "_build", taken_over_meanwhile)
@@ -438,17 +441,7 @@ def test_a_rerun_whose_claim_was_taken_over_makes_no_job_and_is_409(
     taken: list[store.Claim] = []
 
     def taken_over_meanwhile(sent: Any, found: Any) -> None:
-        taken.append(
-            store.claim(
-                api.db,
-                client=hash_key(api.key),
-                key="outlived-rerun",
-                route="POST /jobs",
-                digest=store.fingerprint("POST /jobs", sent.model_dump(mode="json")),
-                ttl=timedelta(days=1),
-                now=utcnow() + store.CLAIM_LEASE + timedelta(seconds=5),
-            )
-        )
+        taken.append(_take_over_after_the_lease(api, "outlived-rerun", "POST /jobs", sent))
         check(sent, found)
 
     monkeypatch.setattr(jobs_api, "_check_search", taken_over_meanwhile)

@@ -14,17 +14,14 @@ from __future__ import annotations
 import logging
 import socket
 import threading
-import time
 from pathlib import Path
 
 import pytest
-import uvicorn
-from fastapi import Request
 from service_support import free_port
 
 from app.request_deadlines import ServerConfig
 
-from .support import keyed_app
+from .support import add_body_size_route, keyed_app, served_in_thread
 
 KEY = "shutdown-cut-test-key-0123456789"
 
@@ -35,12 +32,7 @@ def test_a_request_cut_off_by_the_shutdown_grace_is_a_503_not_a_logged_500(
 ) -> None:
     app = keyed_app(tmp_path, KEY)
     entered = threading.Event()
-
-    async def body_size(request: Request) -> dict[str, int]:
-        entered.set()
-        return {"size": len(await request.body())}
-
-    app.add_api_route("/test/body-size", body_size, methods=["POST"])
+    add_body_size_route(app, entered)
     port = free_port()
     config = ServerConfig(
         app,
@@ -57,15 +49,8 @@ def test_a_request_cut_off_by_the_shutdown_grace_is_a_503_not_a_logged_500(
         request_head_timeout_s=60.0,
         request_body_timeout_s=60.0,
     )
-    server = uvicorn.Server(config)
-    thread = threading.Thread(target=server.run, name="uvicorn under test", daemon=True)
     caplog.set_level(logging.INFO)
-    thread.start()
-    try:
-        deadline = time.monotonic() + 30
-        while not server.started:
-            assert thread.is_alive() and time.monotonic() < deadline, "uvicorn did not start"
-            time.sleep(0.02)
+    with served_in_thread(app, config) as running:
         with socket.create_connection(("127.0.0.1", port), timeout=30) as sock:
             sock.sendall(
                 b"POST /test/body-size HTTP/1.1\r\nHost: 127.0.0.1\r\n"
@@ -73,20 +58,15 @@ def test_a_request_cut_off_by_the_shutdown_grace_is_a_503_not_a_logged_500(
                 b"Content-Type: application/octet-stream\r\nContent-Length: 100\r\n\r\n" + b"x" * 10
             )
             assert entered.wait(30), "the request did not reach the app"
-            server.should_exit = True
+            running.server.should_exit = True
             received = b""
             while True:
                 data = sock.recv(65536)
                 if not data:
                     break
                 received += data
-        thread.join(30)
-        assert not thread.is_alive(), "uvicorn did not stop"
-    finally:
-        server.should_exit = True
-        thread.join(15)
-        app.state.celery.close()
-        app.state.db.dispose()
+        running.thread.join(30)
+        assert not running.thread.is_alive(), "uvicorn did not stop"
     status_line = received.split(b"\r\n", 1)[0]
     assert status_line == b"HTTP/1.1 503 Service Unavailable", received
     head = received.split(b"\r\n\r\n", 1)[0].lower()

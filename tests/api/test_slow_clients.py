@@ -27,7 +27,7 @@ from service_support import free_port
 
 from app.request_deadlines import ServerConfig
 
-from .support import keyed_app, serve_api_only, served_in_thread
+from .support import add_body_size_route, keyed_app, serve_api_only, served_in_thread
 
 KEY = "slow-clients-test-key-0123456789"
 #: How long a connection the server should close is given to close: far past the
@@ -44,15 +44,12 @@ class Served:
 def _serve(tmp_path: Path, http: str, head_s: float, body_s: float) -> Iterator[Served]:
     app = keyed_app(tmp_path, KEY)
 
-    async def body_size(request: Request) -> dict[str, int]:
-        return {"size": len(await request.body())}
-
     async def late_body_size(request: Request) -> dict[str, int]:
         # Takes its body only after the body deadline has passed.
         await asyncio.sleep(body_s + 1.0)
         return {"size": len(await request.body())}
 
-    app.add_api_route("/test/body-size", body_size, methods=["POST"])
+    add_body_size_route(app)
     app.add_api_route("/test/late-body-size", late_body_size, methods=["POST"])
     port = free_port()
     config = ServerConfig(
