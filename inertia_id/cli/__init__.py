@@ -7,7 +7,8 @@ parses its options, calls a pipeline of the core (:mod:`inertia_id.pipelines`) a
 One module per command group: :mod:`~inertia_id.cli.scenario` (scenario, simulate),
 :mod:`~inertia_id.cli.classify` (train, sweep, identify), :mod:`~inertia_id.cli.search`,
 :mod:`~inertia_id.cli.paper`, :mod:`~inertia_id.cli.plan`, :mod:`~inertia_id.cli.serve`
-and :mod:`~inertia_id.cli.migrate` (the last two hand over to the service's own modules);
+and :mod:`~inertia_id.cli.migrate` (the last two hand over to the service's own modules,
+through :mod:`~inertia_id.cli.handover`);
 :mod:`~inertia_id.cli.options` holds what they share. The group imports a command's
 module only when the command is asked for (or its help listed), and the modules import
 the core inside the commands, so
