@@ -383,6 +383,25 @@ def without_gyroscopic_term() -> Iterator[None]:
 GENERATED_KEY = re.compile(r"^API key:   (\S+)\n\s+\(generated now", re.MULTILINE)
 
 
+def classifier_row(scenario_id: str, model: Any) -> Any:
+    """A ``service.store.models.ClassifierRow`` for a classifier trained here (``model``,
+    an ``InertiaClassifier``) under ``scenario_id``, as a train job would store it."""
+    from service.store.models import ClassifierRow
+
+    document = model.to_json()
+    return ClassifierRow(
+        scenario_id=scenario_id,
+        metric=model.metric,
+        f1=model.f1_,
+        accuracy=model.accuracy_,
+        sequence=np.asarray(model.sequence_).tolist(),
+        candidate_names=list(model.candidate_names_),
+        confusion=model.confusion_.tolist(),
+        document=document,
+        sha256=json.loads(document)["sha256"],
+    )
+
+
 def free_port() -> int:
     """A TCP port free on 127.0.0.1 now."""
     with socket.socket() as sock:

@@ -34,6 +34,7 @@ from _common import (
     base_parser,
     begin,
     best_of,
+    classifier_row,
     positive_int,
     print_table,
     write_json,
@@ -86,7 +87,6 @@ def _in_process(args: Any) -> tuple[list[list[Any]], dict[str, bytes]]:
     from app.main import create_app
     from inertia_id import Scenario, train
     from service.config import Settings
-    from service.store.models import ClassifierRow
 
     data_dir = Path(tempfile.mkdtemp(prefix="json-keys-"))
     settings = Settings(
@@ -104,18 +104,7 @@ def _in_process(args: Any) -> tuple[list[list[Any]], dict[str, bytes]]:
     with TestClient(api) as client:
         created = client.post("/scenarios", content=scenario_body, headers=headers)
         model = train(paper, GOOD_SEQUENCE, 10, np.random.default_rng(1), metric="euclidean")
-        document = model.to_json()
-        row = ClassifierRow(
-            scenario_id=created.json()["id"],
-            metric=model.metric,
-            f1=model.f1_,
-            accuracy=model.accuracy_,
-            sequence=GOOD_SEQUENCE,
-            candidate_names=list(model.candidate_names_),
-            confusion=model.confusion_.tolist(),
-            document=document,
-            sha256=json.loads(document)["sha256"],
-        )
+        row = classifier_row(created.json()["id"], model)
         with api.state.db.session() as session:
             session.add(row)
             session.flush()
@@ -140,7 +129,7 @@ def _in_process(args: Any) -> tuple[list[list[Any]], dict[str, bytes]]:
         "identify body, 80 samples": body,
         "identify body, 20,000 samples": _telemetry_body(classifier_id, 20_000),
         "POST /scenarios body (paper)": scenario_body,
-        "stored classifier document (euclidean)": document.encode(),
+        "stored classifier document (euclidean)": row.document.encode(),
     }
     return rows, bodies
 

@@ -33,8 +33,10 @@ from typing import Any
 import httpx
 import numpy as np
 from _common import (
+    GOOD_SEQUENCE,
     base_parser,
     begin,
+    classifier_row,
     free_port,
     positive_int,
     print_table,
@@ -46,7 +48,6 @@ from _common import (
 
 ROOT = Path(__file__).resolve().parents[1]
 API_KEY = "bench-serve-stop-" + "k" * 24
-GOOD_SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
 #: Log lines that mark a shutdown step (substring -> step name).
 STEPS = {
     "Shutting down": "uvicorn shutting down",
@@ -64,21 +65,9 @@ def _classifier_row(database_url: str, scenario_id: str) -> str:
     from sqlalchemy.orm import Session
 
     from inertia_id import Scenario, train
-    from service.store.models import ClassifierRow
 
     model = train(Scenario.paper(), GOOD_SEQUENCE, 20, np.random.default_rng(1))
-    document = model.to_json()
-    row = ClassifierRow(
-        scenario_id=scenario_id,
-        metric=model.metric,
-        f1=model.f1_,
-        accuracy=model.accuracy_,
-        sequence=np.asarray(model.sequence_).tolist(),
-        candidate_names=list(model.candidate_names_),
-        confusion=model.confusion_.tolist(),
-        document=document,
-        sha256=json.loads(document)["sha256"],
-    )
+    row = classifier_row(scenario_id, model)
     engine = create_engine(database_url)
     try:
         with Session(engine) as session:
