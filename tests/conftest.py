@@ -45,6 +45,23 @@ def pytest_sessionstart(session: pytest.Session) -> None:
 _BLAS_LIMIT: Any = None
 
 
+@pytest.hookimpl(trylast=True)
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Refuse a collection in which two tests share an id.
+
+    pytest-xdist hands tests out by id, so it runs only one of a set that share one,
+    and says nothing: under ``-n 2`` schemathesis' 26 operation tests ran as one
+    (``tests/api/conftest.py``). This makes such a loss an error in one process too.
+    """
+    seen: set[str] = set()
+    shared = sorted({item.nodeid for item in items if item.nodeid in seen or seen.add(item.nodeid)})
+    if shared:
+        raise pytest.UsageError(
+            f"{len(shared)} test id(s) shared by more than one test (pytest-xdist would run"
+            f" only one of each): {', '.join(shared[:5])}"
+        )
+
+
 def _one_blas_thread() -> None:
     """One BLAS thread in this process (numpy's and scipy's OpenBLAS, both loaded by
     now).
