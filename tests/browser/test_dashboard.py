@@ -1441,7 +1441,7 @@ def test_identify_online_says_when_the_data_fit_another_body_better(
             "return [d.layout.title.text, d.layout.shapes.map((s) => s.line.color)]; }"
         )
         assert "disowned since" in drawn[0], drawn
-        assert "#c98a00" in drawn[1] and "#1e7b34" not in drawn[1], drawn
+        assert "#b97f00" in drawn[1] and "#1e7b34" not in drawn[1], drawn
     else:
         assert summary.startswith("not decided within "), summary
         assert shown.inner_text() == (
@@ -1542,7 +1542,7 @@ def test_identify_an_untested_name_and_decision_are_amber_not_green(
         "() => ['posterior-plot', 'distance-plot'].map((id) => "
         "document.getElementById(id).data[0].marker.color)"
     )
-    assert all("#c98a00" in b and "#1e7b34" not in b for b in bars), bars
+    assert all("#b97f00" in b and "#1e7b34" not in b for b in bars), bars
     summary = page.wait_for_selector("#online-summary")
     assert summary.inner_text().startswith("decided on payload 3 ejected at ")
     assert summary.inner_text().endswith("; untested for a body off the candidates)")
@@ -1552,7 +1552,7 @@ def test_identify_an_untested_name_and_decision_are_amber_not_green(
         "return [d.layout.title.text, d.layout.shapes.map((s) => s.line.color)]; }"
     )
     assert drawn[0].endswith(", untested for a body off the candidates"), drawn
-    assert "#c98a00" in drawn[1] and "#1e7b34" not in drawn[1], drawn
+    assert "#b97f00" in drawn[1] and "#1e7b34" not in drawn[1], drawn
 
 
 def test_measured_and_quantity_keep_their_digits_at_the_extremes(dashboard: Dashboard) -> None:

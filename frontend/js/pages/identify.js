@@ -20,7 +20,9 @@ const TENSOR_NAMES = [
   ["Ixz", "Iyz", "Izz"],
 ];
 
-const STATUS_COLOR = { identified: "#1e7b34", ambiguous: "#c98a00", "matches-none": "#b3261e", "not-this-sequence": "#b3261e" };
+// Each at least 3:1 on the plots' white, WCAG 2.x's contrast for graphics (the amber,
+// #c98a00 before, was 2.95:1; #b97f00 is the same hue at 3.44:1): tests/test_dashboard_contrast.py.
+const STATUS_COLOR = { identified: "#1e7b34", ambiguous: "#b97f00", "matches-none": "#b3261e", "not-this-sequence": "#b3261e" };
 
 // A verdict (or online result) whose classifier cannot test for a body off the candidates
 // (off_candidates_note, no factor): its name is the posterior's alone, so a pass no
