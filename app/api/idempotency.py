@@ -222,11 +222,13 @@ def parse_key(raw: str) -> str:
     retries with is not known) or a ``;`` would make a structured field something else."""
     # RFC 8941 4.2: spaces around the value are not part of it (HTTP strips them first).
     value = raw.strip(" ")
-    if not value or not _PRINTABLE.fullmatch(value):
+    if not value:
+        _refuse_empty(raw, "is empty" if not raw else "holds only spaces")
+    if not _PRINTABLE.fullmatch(value):
         _refuse_characters(raw)
     key = _sf_string(raw, value) if value.startswith('"') else _bare_key(raw, value)
     if not key.strip(" "):
-        _refuse_characters(raw)
+        _refuse_empty(raw, "is an empty quoted string" if not key else "quotes only spaces")
     if len(key) > MAX_IDEMPOTENCY_KEY_LENGTH:
         unprocessable(
             _WHERE,
@@ -234,6 +236,17 @@ def parse_key(raw: str) -> str:
             f"characters, got {len(key)}: {key[:40]!r}...",
         )
     return key
+
+
+def _refuse_empty(raw: str, why: str) -> NoReturn:
+    # Said as it is: "must be 1 to 255 printable ASCII characters" left a client that
+    # sent an empty key (an unset variable) to look for a character it did not send.
+    unprocessable(
+        _WHERE,
+        f"{IDEMPOTENCY_KEY_HEADER} {why} (got {raw[:80]!r}): send a key of 1 to "
+        f"{MAX_IDEMPOTENCY_KEY_LENGTH} printable ASCII characters (a UUID, say), or no "
+        f"{IDEMPOTENCY_KEY_HEADER} header",
+    )
 
 
 def _refuse_characters(raw: str) -> NoReturn:

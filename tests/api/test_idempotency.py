@@ -125,7 +125,12 @@ def test_a_key_used_for_another_request_is_422_naming_it(api: Api) -> None:
 @pytest.mark.parametrize(
     ("key", "quoted"),
     [
-        ("", "''"),
+        # An empty key is said to be empty: the 422 said "must be 1 to 255 printable
+        # ASCII characters", as for a character no key holds.
+        ("", "Idempotency-Key is empty (got '')"),
+        ("   ", "Idempotency-Key holds only spaces (got '   ')"),
+        ('""', "Idempotency-Key is an empty quoted string (got '\"\"')"),
+        ('"  "', "Idempotency-Key quotes only spaces (got '\"  \"')"),
         ("x" * 256, "at most 255 characters, got 256"),
         ("café".encode(), "'caf"),
         ("a\tb", "'a\\tb'"),
