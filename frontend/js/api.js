@@ -51,13 +51,19 @@ function errorFrom(status, body) {
 // When its answer is lost (the connection dropped, so the page cannot tell whether the
 // service stored it) it is sent again with the same key, and the service answers what
 // it did the first time instead of storing a second; a 409 with Retry-After (the first
-// is still being answered) is asked again after that wait. A 502, 503 or 504 (a proxy
-// that lost the service, or the service's own "try again") is sent again too, the key
-// making it safe: after 0.5, 1 and 2 s, each wait drawn between half and all of that so
-// that pages refused together do not come back together, or after the answer's
-// Retry-After (at most 5 s), drawn between all of it and half as much again.
+// is still being answered) is asked again after that wait (at most 10 s, and up to a
+// quarter more). A 502, 503 or 504 (a proxy that lost the service, or the service's own
+// "try again") is sent again too, the key making it safe: after 0.5, 1 and 2 s, each
+// wait drawn between half and all of that so that pages refused together do not come
+// back together, or after the answer's Retry-After (at most 5 s), drawn between all of
+// it and half as much again.
 // Tries of a request whose answer was lost, and of one answered 409 (each its own count).
 const IDEMPOTENT_TRIES = 3;
+// The most a 409's Retry-After is honoured: the service asks for 1 s while the request
+// holding the key is young, then a fifth of its age, at most 10 s (RETRY_AFTER_MAX in
+// app/api/idempotency.py). Capped at 5 s before, a 409 asking 10 s was sent again after
+// 5, to be answered 409 again while its tries ran out.
+const CONFLICT_RETRY_AFTER_MAX_S = 10;
 // Tries of one answered 502, 503 or 504 (a count of its own).
 const GATEWAY_TRIES = 4;
 const RETRIED_STATUSES = new Set([502, 503, 504]);
@@ -132,7 +138,12 @@ export async function request(method, path, { json, form, query, key = null, raw
     if (!(idempotent && response.status === 409 && retryAfter > 0)) break;
     tries.conflict += 1;
     if (tries.conflict >= IDEMPOTENT_TRIES) break;
-    await pause(1000 * Math.min(retryAfter, 5));
+    // The Retry-After in full (a floor, as a 503's), and a jitter of up to a quarter more
+    // above it: the requests a held lock (SQLite's write lock) kept waiting are answered
+    // 409 together, with the same Retry-After, and without it they would all come back in
+    // the same instant and meet the lock together again. A quarter, not a 503's half, so
+    // that the 10 s bound's wait stays near the 10 s the service means.
+    await pause(1000 * Math.min(retryAfter, CONFLICT_RETRY_AFTER_MAX_S) * (1 + Math.random() / 4));
   }
   if (response.status === 204) return null;
   let data = null;

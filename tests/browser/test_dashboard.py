@@ -415,6 +415,56 @@ def test_a_503s_retry_after_is_waited_in_full_before_the_submission_is_sent_agai
     assert 2250 in delays and 1250 not in delays, delays
 
 
+def test_a_409s_retry_after_is_honoured_up_to_the_services_10_s_with_jitter_above_it(
+    dashboard: Dashboard,
+) -> None:
+    """The service answers 409 with Retry-After 8 (the key's request held up 40 s), then
+    with 60 (more than it ever asks), then lets the retry through: the page waits the 8 s
+    and up to a quarter more (Math.random fixed at 0.5: 9 s), then the service's 10 s
+    bound on a 409's Retry-After and as much more (11.25 s). Before, each wait was capped
+    at 5 s, with no jitter. The delays the page asks of setTimeout are recorded, and a
+    retry's (over 2 s) is not waited (no clock read, no 20 s spent)."""
+    page = dashboard.page
+    page.add_init_script(
+        "Math.random = () => 0.5; window.__delays = []; const set = window.setTimeout;"
+        "window.setTimeout = (f, ms, ...rest) => { window.__delays.push(ms); "
+        "return set(f, ms > 2000 ? 0 : ms, ...rest); };"
+    )
+    keys: list[str | None] = []
+
+    def busy_once(route: Any) -> None:
+        if route.request.method != "POST":
+            route.continue_()
+            return
+        keys.append(route.request.headers.get("idempotency-key"))
+        if len(keys) in (1, 2):
+            route.fulfill(
+                status=409,
+                headers={
+                    "Retry-After": "8" if len(keys) == 1 else "60",
+                    "Content-Type": "application/json",
+                },
+                body='{"detail": "a request with this key is still in progress"}',
+            )
+        else:
+            route.continue_()
+
+    dashboard.console.expect(r"status of 409|Failed to load resource")
+    page.route(re.compile(r"/scenarios$"), busy_once)
+    try:
+        dashboard.open("#/scenarios/new")
+        page.fill("#preset-name", "retried after a 409's Retry-After")
+        page.click("#create-preset")
+        _hash_id(dashboard, "scenarios")
+    finally:
+        page.unroute(re.compile(r"/scenarios$"))
+    delays = page.evaluate("window.__delays")
+    assert len(keys) == 3 and keys[0] and set(keys) == {keys[0]}, keys
+    # 8 s and 10 s, each an eighth more (Math.random 0.5, a quarter's half); before,
+    # 5,000 ms twice.
+    assert [d for d in delays if d > 2000] == [9000, 11250], delays
+
+
 def test_a_submission_a_proxy_keeps_refusing_is_tried_four_times_then_shown(
     dashboard: Dashboard,
 ) -> None:
