@@ -341,6 +341,15 @@ def _ask(connection: Any, statement: str, params: tuple[Any, ...]) -> Any:
     """
     guard = threading.Lock()
     state = {"done": False, "cut": False}
+    # The cut shuts down a duplicate of the socket's descriptor, taken here and closed
+    # only once the cut is over: looked up at the deadline, the number could name
+    # another socket by then (this connection closed meanwhile, and its number reused
+    # by the next connection, or the broker's). A closed connection has none: its
+    # statement fails on its own.
+    try:
+        own = os.dup(connection.fileno())
+    except Exception:
+        own = -1
 
     def cut() -> None:
         with guard:
@@ -348,7 +357,7 @@ def _ask(connection: Any, statement: str, params: tuple[Any, ...]) -> Any:
                 return
             state["cut"] = True
         with contextlib.suppress(Exception):
-            with socket.socket(fileno=os.dup(connection.fileno())) as sock:
+            with socket.socket(fileno=os.dup(own)) as sock:
                 sock.shutdown(socket.SHUT_RDWR)
 
     timer = threading.Timer(LOCK_ANSWER_S, cut)
@@ -364,6 +373,10 @@ def _ask(connection: Any, statement: str, params: tuple[Any, ...]) -> Any:
         raise
     finally:
         timer.cancel()
+        # A cut under way ends before its descriptor is closed (it does not wait).
+        timer.join()
+        if own >= 0:
+            os.close(own)
     with guard:
         state["done"] = True
         cut_meanwhile = state["cut"]

@@ -716,3 +716,69 @@ def test_a_lock_cut_in_a_silence_the_server_never_heard_of_is_taken_again(
         assert not _alive(store, "cut")
     finally:
         proxy.close()
+
+
+class _AnsweredAtTheDeadline:
+    """A lock connection (its socket one end of a pair) whose answer comes as the deadline
+    cuts it, and that its caller closes, its descriptor's number soon another socket's,
+    while the cut has still to reach the socket: :func:`connection.fileno` on the
+    deadline's thread waits until the test says the number is reused."""
+
+    def __init__(self) -> None:
+        self.sock, self.peer = socket.socketpair()
+        self.cutting = threading.Event()
+        self.reused = threading.Event()
+
+    def fileno(self) -> int:
+        number = self.sock.fileno()
+        if isinstance(threading.current_thread(), threading.Timer):
+            self.cutting.set()
+            self.reused.wait(5.0)
+        return number
+
+    def execute(self, statement: str, params: tuple[Any, ...]) -> Any:
+        # Answered once the deadline has begun its cut (or ended it).
+        timers = [t for t in threading.enumerate() if isinstance(t, threading.Timer)]
+        while not self.cutting.wait(0.01) and any(t.is_alive() for t in timers):
+            pass
+        return self
+
+    def fetchone(self) -> tuple[int]:
+        return (1,)
+
+
+def test_a_deadline_met_as_the_answer_came_cuts_no_other_socket(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Before, _ask returned (LockSilent) as soon as its deadline had begun the cut, which
+    then looked up the connection's descriptor number and shut down whatever socket had
+    that number by then: the caller closes the connection and connects again at once
+    (keep()), so that could be the lock's new connection, or any socket of the process
+    (the broker's). Now the cut works on a duplicate taken before the statement, and
+    _ask returns only once the cut is over."""
+    monkeypatch.setattr(incarnation, "LOCK_ANSWER_S", 0.05, raising=False)
+    connection = _AnsweredAtTheDeadline()
+    with pytest.raises(incarnation.LockSilent):
+        incarnation._ask(connection, "SELECT 1", ())
+    number = connection.sock.fileno()
+    connection.sock.close()  # the caller closes the connection...
+    connection.peer.close()
+    other, far = socket.socketpair()  # ...and the process opens another socket
+    try:
+        if other.fileno() != number:
+            pytest.skip(f"descriptor {number} was not reused ({other.fileno()})")
+        connection.reused.set()
+        for thread in threading.enumerate():
+            if isinstance(thread, threading.Timer):
+                thread.join(5.0)
+        try:
+            other.sendall(b"x")
+            far.settimeout(5.0)
+            answer = far.recv(1)
+        except OSError as exc:
+            answer = repr(exc).encode()
+        assert answer == b"x", f"the deadline's cut shut down another socket ({answer!r})"
+    finally:
+        connection.reused.set()
+        other.close()
+        far.close()
