@@ -285,6 +285,10 @@ class Life:
             os.close(devnull)
 
 
+#: The refusals to end this process's earlier lock session (see _end_own_sessions).
+_COULD_NOT_END: list[str] = []
+
+
 def _end_own_sessions(connection: Any, name: str, key: int) -> bool:
     """End the server sessions that hold the lock ``key`` under this process's own lock
     session name ``name`` (its incarnation's, unique to this process) other than
@@ -317,7 +321,17 @@ def _end_own_sessions(connection: Any, name: str, key: int) -> bool:
     except LockSilent:
         raise
     except Exception as exc:  # no right to end it, or a server before 14: wait it out
-        logger.debug("could not end this process's earlier lock session: %s", exc)
+        # Once a process at WARNING (it comes back at each beat while the key is held):
+        # otherwise an operator saw only "held by another database session", for hours.
+        first = not _COULD_NOT_END
+        _COULD_NOT_END.append(str(exc))
+        logger.log(
+            logging.WARNING if first else logging.DEBUG,
+            "could not end this worker's earlier incarnation lock session, which the "
+            "database server still keeps (%s): the worker claims no job until the server "
+            "ends it (its TCP keepalive) or an operator does (pg_terminate_backend)",
+            exc,
+        )
         return False
     if not (row and row[0]):
         return False

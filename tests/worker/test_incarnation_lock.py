@@ -783,3 +783,39 @@ def test_a_deadline_met_as_the_answer_came_cuts_no_other_socket(
         connection.reused.set()
         other.close()
         far.close()
+
+
+class _RefusingConnection:
+    """A lock connection on which ending a session is refused (no right to, or a server
+    before PostgreSQL 14, which lacks pg_terminate_backend's timeout)."""
+
+    def __init__(self) -> None:
+        self.sock, self.peer = socket.socketpair()
+
+    def fileno(self) -> int:
+        return self.sock.fileno()
+
+    def execute(self, statement: str, params: Any) -> Any:
+        raise RuntimeError("permission denied to terminate process")
+
+
+def test_a_refusal_to_end_the_workers_earlier_lock_session_is_a_warning_once(
+    monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    """Before, the refusal was logged at DEBUG only, so an operator saw just "held by
+    another database session" at each beat, for as long as the server kept the session
+    (hours). Now the first refusal in a process is a warning that says what the worker
+    waits for; the ones after it (one a beat) stay at DEBUG."""
+    monkeypatch.setattr(incarnation, "_COULD_NOT_END", [], raising=False)
+    connection = _RefusingConnection()
+    try:
+        with caplog.at_level(logging.DEBUG, logger=incarnation.logger.name):
+            for _ in range(3):
+                assert not incarnation._end_own_sessions(connection, "inertia-id lock x", 7)
+    finally:
+        connection.sock.close()
+        connection.peer.close()
+    said = [r for r in caplog.records if "earlier incarnation lock session" in r.getMessage()]
+    assert [r.levelno for r in said] == [logging.WARNING, logging.DEBUG, logging.DEBUG], said
+    assert "permission denied to terminate process" in said[0].getMessage()
+    assert "claims no job until the server ends it" in said[0].getMessage()
