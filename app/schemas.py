@@ -332,10 +332,11 @@ class _JobCreate(_Labels):
     seed: int = Field(default=0, ge=0, le=MAX_SEED)
     rerun: bool = Field(
         default=False,
-        description="run again even if the same job exists (not failed/cancelled): a new "
-        "job takes its place. Identical reruns the API takes up together make one new job; "
-        "one taken up after another's job was made makes its own, so a client that may "
-        "send a rerun twice (a double click, a retry) sends `rerun_of` as well",
+        description="run again even if the same job succeeded: a new job takes its place. "
+        "While an identical job is queued or running (not asked to stop) that job is "
+        'returned instead (200, `"reused": true`; same seed, same result), so identical '
+        "reruns sent at once or while their job waits or runs make one new job. To run "
+        "an unfinished job again, cancel it first or name it in `rerun_of`",
     )
     rerun_of: str | None = Field(
         default=None,
@@ -478,7 +479,8 @@ class JobSubmitted(JobOut):
     reused: bool = Field(
         description="true: an identical job (same scenario, parameters and seed) was "
         "returned, not a new one: the one that stands, or for a rerun the one that already "
-        "replaced the job it asked to replace (`rerun_of`, or an identical rerun's at once)"
+        "replaced the job it asked to replace (`rerun_of`), or an identical one that is queued "
+        "or running"
     )
 
 

@@ -3,10 +3,11 @@
 The ``jobs`` table is the source of truth; the broker only delivers the job id to a
 worker (by task name, :data:`service.queue.RUN_JOB_TASK`). A job with the same type,
 scenario, parameters and seed as one that is queued, running or succeeded is not run
-twice: that job is returned (200, ``reused``) unless ``rerun`` is asked for; a unique
-key in the database makes this hold for submissions that race each other too. A rerun
-that names the job it replaces (``rerun_of``) makes a new job only while that job still
-stands, so the same rerun sent twice makes one job.
+twice: that job is returned (200, ``reused``) unless ``rerun`` is asked for and that
+job has finished (a plain rerun of a queued or running job is handed it, so a burst of
+reruns makes one job); a unique key in the database makes this hold for submissions
+that race each other too. A rerun that names the job it replaces (``rerun_of``) makes a
+new job only while that job still stands, so the same rerun sent twice makes one job.
 """
 
 from __future__ import annotations

@@ -1,6 +1,7 @@
 """``Idempotency-Key`` on the POSTs that store a row: a retry is answered, not redone.
 
-Without the key, a rerun sent again, or a scenario stored again, makes a second one: a
+Without the key, a scenario stored again makes a second one, and a rerun sent again
+makes a second job once the first has finished (before, it is handed that one, 200): a
 client whose answer was lost (a timeout) cannot retry safely. With it, the retry gets
 the first answer back (``Idempotent-Replayed: true``) and nothing is made twice, also
 when the identical requests are sent at once to a real server, on both databases.
@@ -65,7 +66,9 @@ def _same_answer(replayed: dict[str, Any], first: dict[str, Any]) -> bool:
 
 
 def _rerun(scenario_id: str) -> dict[str, Any]:
-    """A rerun: without a key, each one sent makes a new job in the last one's place."""
+    """A rerun: without a key, each one sent once the last one's job has finished makes
+    a new job in its place (while that job waits or runs, it is handed that job, 200);
+    with one, a replay is the first answer again (202 and the replay header)."""
     return {"type": "search", "scenario_id": scenario_id, "params": SEARCH, "rerun": True}
 
 
@@ -82,7 +85,10 @@ def test_a_rerun_sent_again_with_its_key_is_answered_as_the_first_and_makes_one_
     assert again.headers[REPLAYED_HEADER] == "true"
     assert _same_answer(again.json(), first.json())
     assert _count(api, JobRow) == 1
-    # The key changes nothing else: a rerun with a new key is a new job.
+    # The key changes nothing else: a rerun with a new key, once the job has finished,
+    # is a new job (while it waits it is that job, 200, as without a key).
+    with api.db.session() as session:
+        session.execute(update(JobRow).values(status="succeeded"))
     third = api.client.post("/jobs", json=_rerun(scenario), headers=_keyed(api, "rerun-8a01"))
     assert third.status_code == 202 and third.json()["id"] != first.json()["id"]
 

@@ -103,6 +103,11 @@ def test_identical_submission_returns_the_existing_job(api: Api) -> None:
     assert other_seed.status_code == 202
     assert other_seed.json()["id"] != first.json()["id"]
 
+    # A rerun of a job still queued is handed that job: it has yet to run.
+    waiting = api.submit("search", scenario_id, params=params, seed=1, rerun=True)
+    assert (waiting.status_code, waiting.json()["id"]) == (200, first.json()["id"])
+    assert waiting.json()["reused"] is True
+    set_status(api, first.json()["id"], "succeeded")
     rerun = api.submit("search", scenario_id, params=params, seed=1, rerun=True)
     assert rerun.status_code == 202
     assert rerun.json()["id"] not in (first.json()["id"], other_seed.json()["id"])
@@ -126,9 +131,13 @@ def test_a_rerun_that_names_the_job_it_replaces_makes_one_job_however_often_sent
         assert again.status_code == 200, again.text
         assert (again.json()["id"], again.json()["reused"]) == (fresh, True)
     assert len(api.queued_messages()) == 2
-    # Rerunning the job that stands now makes a new one; a plain rerun still always does.
+    # Rerunning the job that stands now makes a new one, queued as it is (named); a
+    # plain rerun is handed that one while it waits or runs, and makes one once it ended.
     third = api.submit("search", scenario_id, params=params, seed=1, rerun_of=fresh)
     assert third.status_code == 202 and third.json()["id"] not in (first, fresh)
+    plain = api.submit("search", scenario_id, params=params, seed=1, rerun=True)
+    assert (plain.status_code, plain.json()["id"]) == (200, third.json()["id"])
+    set_status(api, third.json()["id"], "succeeded")
     plain = api.submit("search", scenario_id, params=params, seed=1, rerun=True)
     assert plain.status_code == 202 and plain.json()["id"] != third.json()["id"]
     assert api.get(f"/jobs/{first}").json()["status"] == "queued"

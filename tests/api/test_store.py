@@ -65,6 +65,18 @@ def _job(session: Session, job_id: str) -> JobRow:
     return job
 
 
+def _succeed(db: Database, job_id: str) -> None:
+    """Run the job to success, as a worker would: it stands, finished."""
+    with db.session() as session:
+        _job(session, job_id).status = "running"
+        assert finish(session, job_id, "succeeded", result={})
+
+
+def _count_jobs(db: Database) -> int:
+    with db.session() as session:
+        return int(session.scalar(select(func.count()).select_from(JobRow)) or 0)
+
+
 def _submit(db: Database, scenario_id: str, **options: Any) -> tuple[str, bool]:
     with db.session() as session:
         job, reused = create_job(
@@ -86,6 +98,7 @@ def test_reruns_at_once_leave_one_job_standing_for_later_submissions(
     db: Database, scenario_id: str
 ) -> None:
     first, _ = _submit(db, scenario_id)
+    _succeed(db, first)
     results = _at_once(5, lambda: _submit(db, scenario_id, rerun=True))
     assert not [r for r in results if isinstance(r, Exception)], results
     standing, reused = _submit(db, scenario_id)
@@ -100,6 +113,7 @@ def test_identical_reruns_at_once_make_one_new_job_the_others_reuse(
     # job made while the reruns were in flight answers all of them (before: 6 new jobs
     # and 4 reused of 10, neither one nor ten).
     first, _ = _submit(db, scenario_id)
+    _succeed(db, first)
     # All ten asked before any of them writes: each has read the job that stands then.
     asked = threading.Barrier(10)
     read = store_jobs._standing_ids if hasattr(store_jobs, "_standing_ids") else None
@@ -119,7 +133,8 @@ def test_identical_reruns_at_once_make_one_new_job_the_others_reuse(
     assert fresh != first
     with db.session() as session:
         assert session.scalar(select(func.count()).select_from(JobRow)) == 2
-    # A rerun asked afterwards is a new request: it makes a new job again.
+    # A rerun asked once that job has finished makes a new job again.
+    _succeed(db, fresh)
     again, reused = _submit(db, scenario_id, rerun=True)
     assert not reused and again not in (first, fresh)
 
@@ -128,12 +143,14 @@ def test_a_rerun_asked_before_an_identical_reruns_job_was_made_takes_that_job(
     db: Database, scenario_id: str
 ) -> None:
     # The API's checks of a submission take a while: a rerun received before another's
-    # job was made, though it reads what stands after that job was committed, is
-    # answered by it; one received after it makes a new job.
+    # job was made, though it reads what stands after that job was committed (and after
+    # that job finished), is answered by it; one received after it makes a new job.
     first, _ = _submit(db, scenario_id)
+    _succeed(db, first)
     asked_at = utcnow()
     fresh, reused = _submit(db, scenario_id, rerun=True, asked_at=asked_at)
     assert not reused and fresh != first
+    _succeed(db, fresh)
     same, reused = _submit(db, scenario_id, rerun=True, asked_at=asked_at)
     assert (same, reused) == (fresh, True)
     later, reused = _submit(db, scenario_id, rerun=True, asked_at=utcnow())
@@ -145,8 +162,9 @@ def test_reruns_naming_the_job_they_replace_make_one_new_job_whenever_taken_up(
 ) -> None:
     # Reruns taken up one after another, each after the one before made its job (a
     # busy API, a double click, a retry): named, they make one job (before: rerun_of
-    # unknown; without it each makes its own, as the last line shows).
+    # unknown), though the job each names has finished.
     first, _ = _submit(db, scenario_id)
+    _succeed(db, first)
     answers = [_submit(db, scenario_id, rerun_of=first, asked_at=utcnow()) for _ in range(5)]
     fresh = answers[0][0]
     assert answers == [(fresh, False)] + [(fresh, True)] * 4
@@ -154,8 +172,46 @@ def test_reruns_naming_the_job_they_replace_make_one_new_job_whenever_taken_up(
     with db.session() as session:
         assert session.scalar(select(func.count()).select_from(JobRow)) == 2
         assert _job(session, first).superseded
-    unnamed = [_submit(db, scenario_id, rerun=True, asked_at=utcnow()) for _ in range(2)]
-    assert len({job_id for job_id, _ in unnamed} | {fresh}) == 3
+    # Naming a job that has not finished replaces it all the same: asked for by name.
+    named, reused = _submit(db, scenario_id, rerun_of=fresh, asked_at=utcnow())
+    assert not reused and named not in (first, fresh)
+
+
+def test_plain_reruns_of_a_finished_job_taken_up_over_time_make_one_job(
+    db: Database, scenario_id: str
+) -> None:
+    # Twenty dashboards click rerun on the same finished job at once, and a busy API
+    # takes the requests up over hundreds of milliseconds: part after the first one's
+    # job was made, part after a worker started it. They asked for one fresh run: one
+    # job (before: the later waves made one more each on SQLite, 3 jobs in all, and one
+    # more on PostgreSQL).
+    first, _ = _submit(db, scenario_id)
+    _succeed(db, first)
+
+    def rerun() -> tuple[str, bool]:
+        return _submit(db, scenario_id, rerun=True, asked_at=utcnow())
+
+    waves = [_at_once(10, rerun), _at_once(10, rerun)]
+    made = {job_id for job_id, reused in waves[0] if not reused}
+    assert len(made) == 1, waves[0]
+    (fresh,) = made
+    with db.session() as session:
+        _job(session, fresh).status = "running"
+    waves.append(_at_once(5, rerun))
+    answers = [answer for wave in waves for answer in wave]
+    assert not [a for a in answers if isinstance(a, Exception)], answers
+    assert {job_id for job_id, _ in answers} == {fresh}, answers
+    assert sorted(reused for _, reused in answers) == [False] + [True] * 24
+    assert _count_jobs(db) == 2
+    # Asked to stop, the job no longer answers a rerun; finished, neither does it.
+    with db.session() as session:
+        cancel(session, _job(session, fresh))
+    stopping, reused = rerun()
+    assert not reused and stopping not in (first, fresh)
+    _succeed(db, stopping)
+    after, reused = rerun()
+    assert not reused and after not in (first, fresh, stopping)
+    assert _count_jobs(db) == 4
 
 
 def test_named_reruns_at_once_make_one_new_job(db: Database, scenario_id: str) -> None:

@@ -168,7 +168,7 @@ class Service:
 
     def submit(self, job_type: str, params: dict[str, Any], *, seed: int = 0) -> str:
         """Store a queued job and send its message, as the API does (a new job even when
-        an identical one exists: a rerun)."""
+        an identical one has finished: a rerun; one still queued or running is returned)."""
         with self.db.session() as session:
             job, _reused = create_job(
                 session,
