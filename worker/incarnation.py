@@ -107,6 +107,13 @@ class Life:
         # before the worker forks its task processes, so they read what the main
         # process writes.
         self._claims = mmap.mmap(-1, 1)
+        #: Set by release(): no lock is taken from then on. A beat (keep()) still under
+        #: way as a stop released the lock (its statements each take up to
+        #: LOCK_ANSWER_S, and the stop waits for the beat only so long) took it again
+        #: after the release, and held it until the process exited. Read, and what
+        #: holds the lock swapped, under _guard; the network waits are outside it.
+        self._closed = False
+        self._guard = threading.Lock()
 
     @property
     def held(self) -> bool:
@@ -121,9 +128,11 @@ class Life:
         return self._claims[0] == 1
 
     def hold(self) -> bool:
-        """Take the lock (once); whether it is held."""
+        """Take the lock (once); whether it is held (never after :meth:`release`)."""
         if self.held:
             return True
+        if self._closed:
+            return False
         url = make_url(self.database_url)
         if url.drivername.startswith("postgresql"):
             import psycopg
@@ -154,17 +163,32 @@ class Life:
             except BaseException:
                 connection.close()
                 raise
-            self._connection = connection
-            self._claims[0] = 1
-            return True
+            with self._guard:
+                if not self._closed:
+                    self._connection = connection
+                    self._claims[0] = 1
+                    return True
+            _close_session(connection, self.incarnation)  # released meanwhile
+            return False
         path = _lock_file(self.database_url, self.incarnation)
         if path is None:
-            self._claims[0] = 1  # nothing to guard: alive() judges no incarnation dead
+            with self._guard:
+                if not self._closed:
+                    self._claims[0] = 1  # nothing to guard: alive() judges none dead
             return False
         path.parent.mkdir(parents=True, exist_ok=True)
-        self._fd, self._path = _open_locked(path), path
+        fd = _open_locked(path)
+        with self._guard:
+            taken = not self._closed
+            if taken:
+                self._fd, self._path = fd, path
+                self._claims[0] = 1
+        if not taken:  # released meanwhile: as release() leaves it
+            with contextlib.suppress(OSError):
+                path.unlink()
+            os.close(fd)
+            return False
         _sweep(path.parent, keep=path)
-        self._claims[0] = 1
         return True
 
     def lost(self) -> str | None:
@@ -202,6 +226,8 @@ class Life:
         :meth:`lost`), or take it at last; whether it is held. Until it is, the task
         processes claim no job (:meth:`may_claim`). The check also keeps the lock's
         session from idling past the server's ``idle_session_timeout``."""
+        if self._closed:
+            return False
         reason = self.lost()
         if reason is not None:
             logger.warning("this worker's incarnation lock was lost: %s; taking it again", reason)
@@ -215,36 +241,21 @@ class Life:
     def _let_go(self, *, remove_file: bool = False) -> None:
         """Close what held the lock (claims stop at once); with ``remove_file``, the lock
         file too (a clean exit: a lost lock's path may be another's by now)."""
-        if self._claims[0] == 1 and self.claims_stopped_at is None:
-            self.claims_stopped_at = utcnow()
-        self._claims[0] = 0
-        if self._connection is not None:
-            # Unlocked before the goodbye: closing alone leaves the lock to the server
-            # process's exit, which ends after close() returns; another session reading
-            # pg_locks meanwhile saw this released lock held (in 20 of 200 releases on
-            # the loaded 2-core machine), and /health a stopped worker alive. A lost
-            # session's unlock fails, and is let be: its lock went with it. One that
-            # gets no answer in time is cut (see _ask): released, unconfirmed.
-            try:
-                _ask(self._connection, "SELECT pg_advisory_unlock(%s)", (_key(self.incarnation),))
-            except LockSilent as exc:
-                logger.warning(
-                    "could not confirm the release of this worker's incarnation lock (%s): "
-                    "its session's connection is closed, and the server lets go of the lock "
-                    "as it sees that session end",
-                    exc,
-                )
-            except Exception:
-                pass
-            with contextlib.suppress(Exception):
-                self._connection.close()
-            self._connection = None
-        if self._fd is not None:
-            if remove_file and self._path is not None:
+        # Taken out under the guard, so that a beat and a stop letting go at once each
+        # close what they took, and nothing twice.
+        with self._guard:
+            if self._claims[0] == 1 and self.claims_stopped_at is None:
+                self.claims_stopped_at = utcnow()
+            self._claims[0] = 0
+            connection, self._connection = self._connection, None
+            fd, path, self._fd, self._path = self._fd, self._path, None, None
+        if connection is not None:
+            _close_session(connection, self.incarnation)
+        if fd is not None:
+            if remove_file and path is not None:
                 with contextlib.suppress(OSError):
-                    self._path.unlink()
-            os.close(self._fd)
-            self._fd, self._path = None, None
+                    path.unlink()
+            os.close(fd)
 
     def try_hold(self) -> bool:
         """:meth:`hold`, its failure logged rather than raised: once an episode (when
@@ -268,7 +279,10 @@ class Life:
         return held
 
     def release(self) -> None:
-        """Let go of the lock (a clean exit); its file, if any, is removed."""
+        """Let go of the lock (a clean exit), for good: a beat still under way takes it
+        no more (see :attr:`_closed`); its file, if any, is removed."""
+        with self._guard:
+            self._closed = True
         self._let_go(remove_file=True)
 
     def forget_after_fork(self) -> None:
@@ -283,6 +297,30 @@ class Life:
             os.dup2(devnull, self._connection.fileno())
         finally:
             os.close(devnull)
+
+
+def _close_session(connection: Any, incarnation: str) -> None:
+    """Let go of the lock ``incarnation``'s session ``connection`` holds, and close it.
+
+    Unlocked before the goodbye: closing alone leaves the lock to the server process's
+    exit, which ends after close() returns; another session reading pg_locks meanwhile
+    saw this released lock held (in 20 of 200 releases on the loaded 2-core machine),
+    and /health a stopped worker alive. A lost session's unlock fails, and is let be:
+    its lock went with it. One that gets no answer in time is cut (see _ask): released,
+    unconfirmed."""
+    try:
+        _ask(connection, "SELECT pg_advisory_unlock(%s)", (_key(incarnation),))
+    except LockSilent as exc:
+        logger.warning(
+            "could not confirm the release of this worker's incarnation lock (%s): "
+            "its session's connection is closed, and the server lets go of the lock "
+            "as it sees that session end",
+            exc,
+        )
+    except Exception:
+        pass
+    with contextlib.suppress(Exception):
+        connection.close()
 
 
 #: The refusals to end this process's earlier lock session (see _end_own_sessions).

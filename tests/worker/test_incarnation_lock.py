@@ -819,3 +819,46 @@ def test_a_refusal_to_end_the_workers_earlier_lock_session_is_a_warning_once(
     assert [r.levelno for r in said] == [logging.WARNING, logging.DEBUG, logging.DEBUG], said
     assert "permission denied to terminate process" in said[0].getMessage()
     assert "claims no job until the server ends it" in said[0].getMessage()
+
+
+def test_a_beat_under_way_as_the_stop_releases_the_lock_does_not_take_it_again(
+    store: Store, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A stop waits for the monitor's beat only so long (its lock statements each take up
+    to LOCK_ANSWER_S on a silent server), then releases the lock. Before, a beat still
+    taking the lock again (it found it lost) went on after the release and held it: the
+    stopped worker's lock stayed held, its task processes free to claim, until the
+    process exited. Now the release is for good: the late take lets go of what it got."""
+    import psycopg
+
+    url = store.settings.resolved_database_url
+    life = Life(url, "stopping")
+    assert life.hold()
+    _lose(store, life)  # the beat finds it lost and takes it again
+    taking, released = threading.Event(), threading.Event()
+
+    def when_released(take: Callable[..., Any]) -> Callable[..., Any]:
+        def late(*args: Any, **kwargs: Any) -> Any:
+            taking.set()
+            assert released.wait(10.0)
+            return take(*args, **kwargs)
+
+        return late
+
+    if url.startswith("postgresql"):
+        monkeypatch.setattr(psycopg, "connect", when_released(psycopg.connect))
+    else:
+        monkeypatch.setattr(incarnation, "_open_locked", when_released(incarnation._open_locked))
+    beat: list[bool] = []
+    thread = threading.Thread(target=lambda: beat.append(life.keep()), daemon=True)
+    thread.start()
+    assert taking.wait(10.0)
+    life.release()
+    released.set()
+    thread.join(10.0)
+    assert beat == [False]
+    assert not life.held and not life.may_claim()
+    assert not _alive(store, "stopping")
+    if not url.startswith("postgresql"):
+        assert list((store.settings.data_dir / "inertia-id.db.incarnations").glob("*.lock")) == []
+
