@@ -36,6 +36,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "CANCEL_POLL_S",
+    "DATABASE_SILENT_S",
     "TIME_LIMIT_GRACE_S",
     "JobContext",
     "JobSpec",
@@ -50,6 +51,13 @@ logger = logging.getLogger(__name__)
 #: Seconds between two reads of a running job's cancel flag. The search polls
 #: ``should_stop`` every environment step; the database is asked at most this often.
 CANCEL_POLL_S = 1.0
+#: The worker's database connections (its beat's, its hand-back's, its runs') are given
+#: up after about this many seconds of a silent network (see
+#: service.store.session.Database): a connect, or a statement whose packets the server's
+#: machine stopped acknowledging (packets dropped: given up after 2.4 s with 2 s, where
+#: it waited 25 s and on before). Not a statement that something acknowledges but
+#: nothing answers (a frozen proxy): see worker.monitor.STOP_WAIT_S.
+DATABASE_SILENT_S = 10.0
 #: How long a job may run past its time limit and a search's re-score grace
 #: (:func:`~inertia_id.search.loop.time_limit_grace_s`: 10 % of the limit, at least
 #: 10 s, at most 300 s; or the grace the job asked for, at most 3600 s) before its

@@ -33,7 +33,7 @@ from service.store.models import WorkerRow, utcnow
 from service.store.refusals import database_label, why_cannot_store
 
 from . import incarnation
-from .context import broker_label
+from .context import DATABASE_SILENT_S, broker_label
 from .episode import Episode
 from .process import cold_since, mark_stopping, warm
 from .reaper import hand_back_jobs, reap_once, resend_left, resend_once, take_restarted_runs
@@ -57,7 +57,7 @@ class WorkerMonitor:
     def __init__(self, name: str, settings: Settings, life: incarnation.Life | None = None) -> None:
         self.name = name
         self.settings = settings
-        self.db = Database(settings.resolved_database_url)
+        self.db = Database(settings.resolved_database_url, silent_after_s=DATABASE_SILENT_S)
         #: This worker process's lock (see worker.incarnation): taken before its task
         #: processes can claim a job, or at the first tick.
         self.life = life or incarnation.Life(settings.resolved_database_url, incarnation.current())

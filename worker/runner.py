@@ -44,6 +44,7 @@ from service.store.refusals import database_label, unreachable, why_cannot_store
 
 from .context import (
     CANCEL_POLL_S,
+    DATABASE_SILENT_S,
     JobContext,
     JobSpec,
     JobTimeLimitExceeded,
@@ -171,7 +172,7 @@ def execute_job(
     could not be reached before the claim: nothing of the job was touched, and the
     caller gives its message back to the broker (after a wait, see :func:`_back_off`).
     """
-    db = Database(settings.resolved_database_url)
+    db = Database(settings.resolved_database_url, silent_after_s=DATABASE_SILENT_S)
     try:
         status = _execute(job_id, db, settings, worker_name, stopping, may_claim)
     except _OutOfReach as out:

@@ -27,7 +27,41 @@ __all__ = [
 MIGRATIONS = Path(__file__).with_name("migrations")
 
 
-def _engine(url: str) -> Engine:
+#: The libpq options :class:`Database` gives for ``silent_after_s`` (a URL that names one
+#: keeps its own), each the kernel's or libpq's: a connect given up after that many
+#: seconds (``connect_timeout``, per address, whole seconds, at least 2), and an
+#: established connection given up once the server's machine has left what was sent
+#: unacknowledged that long (``tcp_user_timeout``) or stopped answering keepalive
+#: probes (``keepalives_*``, within about that long). A slow server is no silent one:
+#: its machine acknowledges at once. A proxy still acknowledging for a server that
+#: does not answer (frozen) is bounded by none of them but the connect.
+SILENT_NETWORK_OPTIONS = (
+    "connect_timeout",
+    "keepalives",
+    "keepalives_idle",
+    "keepalives_interval",
+    "keepalives_count",
+    "tcp_user_timeout",
+)
+
+
+def _silent_network_args(url: str, silent_after_s: float) -> dict[str, Any]:
+    from sqlalchemy import make_url
+
+    given = set(make_url(url).query)
+    probe_s = max(1, round(silent_after_s / 4))
+    options = {
+        "connect_timeout": max(2, round(silent_after_s)),
+        "keepalives": 1,
+        "keepalives_idle": probe_s,
+        "keepalives_interval": probe_s,
+        "keepalives_count": 3,
+        "tcp_user_timeout": round(silent_after_s * 1000),
+    }
+    return {key: value for key, value in options.items() if key not in given}
+
+
+def _engine(url: str, silent_after_s: float | None = None) -> Engine:
     if url.startswith("sqlite"):
         path = url.split("///", 1)[-1]
         if path and path != ":memory:":
@@ -54,7 +88,8 @@ def _engine(url: str) -> Engine:
             )
 
         return engine
-    engine = create_engine(url, pool_pre_ping=True)
+    connect_args = {} if silent_after_s is None else _silent_network_args(url, silent_after_s)
+    engine = create_engine(url, pool_pre_ping=True, connect_args=connect_args)
 
     @event.listens_for(engine, "handle_error")
     def _drop_read_only_sessions(context: Any) -> None:
@@ -78,11 +113,15 @@ class Database:
 
     :param url: SQLAlchemy URL, e.g. ``sqlite:////path/db.sqlite`` or
         ``postgresql+psycopg://user@host/db``.
+    :param silent_after_s: PostgreSQL: give up a connect, or a connection whose
+        server's machine stopped acknowledging, after about this many seconds (see
+        :data:`SILENT_NETWORK_OPTIONS`); None: libpq's defaults (a connect, or a wait
+        for an answer, without end).
     """
 
-    def __init__(self, url: str) -> None:
+    def __init__(self, url: str, *, silent_after_s: float | None = None) -> None:
         self.url = url
-        self.engine = _engine(url)
+        self.engine = _engine(url, silent_after_s)
         self._sessions = sessionmaker(self.engine, expire_on_commit=False)
 
     @contextmanager

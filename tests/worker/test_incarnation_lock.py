@@ -862,3 +862,33 @@ def test_a_beat_under_way_as_the_stop_releases_the_lock_does_not_take_it_again(
     if not url.startswith("postgresql"):
         assert list((store.settings.data_dir / "inertia-id.db.incarnations").glob("*.lock")) == []
 
+
+@pytest.mark.parametrize("store", ["postgresql"], indirect=True)
+def test_the_workers_database_gives_up_a_connect_to_a_silent_server(
+    store: Store, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The worker's own connections (its beat's, its hand-back's, its runs') to a server
+    that does not answer: before, a connect waited for ever (libpq's default), and so did
+    a beat, or a stop's hand-back, that needed a new connection. Now libpq gives it up
+    after DATABASE_SILENT_S (2 s here, libpq's least)."""
+    from service.config import Settings
+    from worker import monitor as monitor_module
+
+    monkeypatch.setattr(monitor_module, "DATABASE_SILENT_S", 2.0, raising=False)
+    url = make_url(store.settings.resolved_database_url)
+    proxy = _SilentableProxy(url.host or "127.0.0.1", url.port or 5432)
+    proxy.silence()
+    try:
+        through = url.set(host="127.0.0.1", port=proxy.port).render_as_string(hide_password=False)
+        settings = Settings(
+            INERTIA_ID_DATA_DIR=store.settings.data_dir,
+            DATABASE_URL=through,
+            BROKER_URL="filesystem://",
+        )
+        monitor = WorkerMonitor(WORKER, settings, Life(through, "connecting"))
+        try:
+            assert _within(10.0, monitor.db.ping, "the worker's connect") is False
+        finally:
+            monitor.db.dispose()
+    finally:
+        proxy.close()
