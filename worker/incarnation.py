@@ -238,9 +238,11 @@ class Life:
             return False
         return self.held or self.try_hold()
 
-    def _let_go(self, *, remove_file: bool = False) -> None:
+    def _let_go(self, *, remove_file: bool = False, confirm: bool = True) -> None:
         """Close what held the lock (claims stop at once); with ``remove_file``, the lock
-        file too (a clean exit: a lost lock's path may be another's by now)."""
+        file too (a clean exit: a lost lock's path may be another's by now); without
+        ``confirm``, the lock's session closed without asking the server to unlock first
+        (see :func:`_close_session`)."""
         # Taken out under the guard, so that a beat and a stop letting go at once each
         # close what they took, and nothing twice.
         with self._guard:
@@ -250,7 +252,7 @@ class Life:
             connection, self._connection = self._connection, None
             fd, path, self._fd, self._path = self._fd, self._path, None, None
         if connection is not None:
-            _close_session(connection, self.incarnation)
+            _close_session(connection, self.incarnation, confirm=confirm)
         if fd is not None:
             if remove_file and path is not None:
                 with contextlib.suppress(OSError):
@@ -278,12 +280,15 @@ class Life:
         self._hold_failing.cleared("took this worker's incarnation lock (after %.0f s)")
         return held
 
-    def release(self) -> None:
+    def release(self, *, confirm: bool = True) -> None:
         """Let go of the lock (a clean exit), for good: a beat still under way takes it
-        no more (see :attr:`_closed`); its file, if any, is removed."""
+        no more (see :attr:`_closed`); its file, if any, is removed. Without
+        ``confirm`` (a stop whose database gave no answer already), its PostgreSQL
+        session is closed at once, not asked to unlock first (up to
+        :data:`LOCK_ANSWER_S` more)."""
         with self._guard:
             self._closed = True
-        self._let_go(remove_file=True)
+        self._let_go(remove_file=True, confirm=confirm)
 
     def forget_after_fork(self) -> None:
         """In a forked task process: drop the PostgreSQL connection's socket without a
@@ -299,17 +304,18 @@ class Life:
             os.close(devnull)
 
 
-def _close_session(connection: Any, incarnation: str) -> None:
+def _close_session(connection: Any, incarnation: str, *, confirm: bool = True) -> None:
     """Let go of the lock ``incarnation``'s session ``connection`` holds, and close it.
 
-    Unlocked before the goodbye: closing alone leaves the lock to the server process's
-    exit, which ends after close() returns; another session reading pg_locks meanwhile
-    saw this released lock held (in 20 of 200 releases on the loaded 2-core machine),
-    and /health a stopped worker alive. A lost session's unlock fails, and is let be:
-    its lock went with it. One that gets no answer in time is cut (see _ask): released,
-    unconfirmed."""
+    Unlocked before the goodbye (with ``confirm``): closing alone leaves the lock to the
+    server process's exit, which ends after close() returns; another session reading
+    pg_locks meanwhile saw this released lock held (in 20 of 200 releases on the loaded
+    2-core machine), and /health a stopped worker alive. A lost session's unlock fails,
+    and is let be: its lock went with it. One that gets no answer in time is cut (see
+    _ask): released, unconfirmed."""
     try:
-        _ask(connection, "SELECT pg_advisory_unlock(%s)", (_key(incarnation),))
+        if confirm:
+            _ask(connection, "SELECT pg_advisory_unlock(%s)", (_key(incarnation),))
     except LockSilent as exc:
         logger.warning(
             "could not confirm the release of this worker's incarnation lock (%s): "

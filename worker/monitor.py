@@ -45,6 +45,20 @@ logger = logging.getLogger(__name__)
 
 #: Seconds between two hand-back passes of a stopping worker.
 STOPPING_TICK_S = 1.0
+#: Seconds from the stop (SIGTERM) that a worker waits for its hand-back and its beat
+#: before it lets go of its lock and exits without them. A database that stops
+#: answering keeps a statement waiting: its packets dropped, DATABASE_SILENT_S; behind a
+#: frozen proxy (the kernel still acknowledging for it) for ever, as neither libpq nor
+#: psycopg has a deadline for an answer and the kernel's (TCP keepalive,
+#: ``tcp_user_timeout``) do not fire while something acknowledges. Before, such a stop
+#: waited 10 s for the hand-back, up to 10 s more for the beat, then the lock's release:
+#: 19.9 s and 20.0 s behind a frozen proxy (now 6.1 s to 8.9 s), past `inertia-id
+#: serve`'s 10 s grace, when it kills the worker. What a
+#: hand-back left undone loses: a run it held is re-queued by the reaper once its
+#: heartbeat is stale (``heartbeat_timeout_s``), counting an attempt, and its row is not
+#: marked stopping (/health reports its process gone once the server has let go of its
+#: lock). Celery's own wind-down (its task process's exit) runs meanwhile.
+STOP_WAIT_S = 5.0
 
 
 class WorkerMonitor:
@@ -62,6 +76,8 @@ class WorkerMonitor:
         #: processes can claim a job, or at the first tick.
         self.life = life or incarnation.Life(settings.resolved_database_url, incarnation.current())
         self._started = False
+        #: Set by stop(): a hand-back still under way starts no further passes.
+        self._stopped = False
         #: Since when this worker's beats have found its lock not held (see tick).
         self._lock_missing_since: datetime | None = None
         #: Judges an earlier incarnation of this name gone (see take_restarted_runs).
@@ -305,6 +321,8 @@ class WorkerMonitor:
         handed = hand_back_jobs(
             self.settings, self.db, self.celery, self.name, self.life.incarnation
         )
+        if self._stopped:  # the stop did not wait for it: no passes after it
+            return handed
         self._ticker = Ticker(
             self._hand_back_again,
             STOPPING_TICK_S,
@@ -319,10 +337,15 @@ class WorkerMonitor:
         self._ticker.start()
         return self
 
-    def stop(self) -> None:
-        self._ticker.stop()
+    def stop(self, wait_s: float = 10.0, *, answered: bool = True) -> None:
+        """Stop beating (a beat under way is waited for up to ``wait_s``), close the
+        database's pooled connections and let go of the lock, for good (a beat that
+        outlives the wait takes it no more: see Life.release); unless the database
+        ``answered`` the stop's hand-back, without waiting on the server's word."""
+        self._stopped = True
+        self._ticker.stop(wait_s)
         self.db.dispose()
-        self.life.release()
+        self.life.release(confirm=answered)
 
     def forget_after_fork(self) -> None:
         """In a forked task process: let go of the parent's connections without closing
@@ -427,6 +450,8 @@ def _start_monitor(sender: Any = None, **_kwargs: Any) -> None:
 
 
 _hand_back_thread: threading.Thread | None = None
+#: When this worker was told to stop (monotonic s): STOP_WAIT_S runs from it.
+_stop_began: float | None = None
 
 
 def _hand_back_now(monitor: WorkerMonitor) -> None:
@@ -466,8 +491,10 @@ def _hand_back(**_kwargs: Any) -> None:
     # Celery sends this from inside its signal handler, on the main thread interrupted
     # wherever it was: database and broker I/O there could wait on a lock the
     # interrupted code holds, so the hand-back runs on a thread of its own.
-    global _hand_back_thread
+    global _hand_back_thread, _stop_began
     mark_stopping()
+    if _stop_began is None:
+        _stop_began = time.monotonic()
     monitor = _monitor
     if monitor is None or _hand_back_thread is not None:
         return
@@ -480,8 +507,23 @@ def _hand_back(**_kwargs: Any) -> None:
 @worker_shutdown.connect
 def _stop_monitor(**_kwargs: Any) -> None:
     global _monitor
+    deadline = (_stop_began if _stop_began is not None else time.monotonic()) + STOP_WAIT_S
+    answered = True
     if _hand_back_thread is not None:
-        _hand_back_thread.join(10.0)
+        _hand_back_thread.join(max(0.0, deadline - time.monotonic()))
+        answered = not _hand_back_thread.is_alive()
+        if not answered and _monitor is not None:
+            logger.warning(
+                "worker %s: no answer from the database %s to its hand-back within %g s "
+                "of the stop; exiting without it (a run it holds is re-queued by the "
+                "reaper once its heartbeat is stale), its incarnation lock let go of "
+                "without waiting on the server's word",
+                _monitor.name,
+                database_label(_monitor.db.url),
+                STOP_WAIT_S,
+            )
     if _monitor is not None:
-        _monitor.stop()
+        # A release asked of a server silent so far would wait LOCK_ANSWER_S more (3 s,
+        # past serve's grace behind a frozen proxy: 9.5 to 9.8 s in all).
+        _monitor.stop(max(0.0, deadline - time.monotonic()), answered=answered)
         _monitor = None

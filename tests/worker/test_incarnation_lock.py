@@ -892,3 +892,48 @@ def test_the_workers_database_gives_up_a_connect_to_a_silent_server(
             monitor.db.dispose()
     finally:
         proxy.close()
+
+
+@pytest.mark.parametrize("store", ["postgresql"], indirect=True)
+def test_a_stop_whose_database_falls_silent_exits_without_waiting_on_it(
+    store: Store, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    """The worker told to stop (SIGTERM) as its database stops answering, its packets
+    lost rather than refused. Before, the stop waited 10 s for the hand-back (its
+    statement waiting on the answer for ever), then the beat, then the lock's release: a
+    real worker behind a frozen proxy took 20 s to exit, past serve's 10 s grace. Now
+    the hand-back and the beat are waited for STOP_WAIT_S (1 s here) from the stop, which
+    then goes on, saying so in one line: the reaper re-queues what was left."""
+    from service.config import Settings
+    from worker import monitor as monitor_module
+    from worker import process
+
+    monkeypatch.setattr(incarnation, "LOCK_ANSWER_S", 1.0, raising=False)
+    monkeypatch.setattr(monitor_module, "STOP_WAIT_S", 1.0, raising=False)
+    monkeypatch.setattr(monitor_module, "_hand_back_thread", None)
+    monkeypatch.setattr(monitor_module, "_stop_began", None, raising=False)
+    url = make_url(store.settings.resolved_database_url)
+    proxy = _SilentableProxy(url.host or "127.0.0.1", url.port or 5432)
+    try:
+        through = url.set(host="127.0.0.1", port=proxy.port).render_as_string(hide_password=False)
+        settings = Settings(
+            INERTIA_ID_DATA_DIR=store.settings.data_dir,
+            DATABASE_URL=through,
+            BROKER_URL="filesystem://",
+        )
+        monitor = WorkerMonitor(WORKER, settings, Life(through, "silent"))
+        monitor.tick()  # its pool keeps a connection through the proxy; its lock is held
+        monkeypatch.setattr(monitor_module, "_monitor", monitor)
+        proxy.silence()
+        with caplog.at_level(logging.WARNING, logger="worker.monitor"):
+            monitor_module._hand_back()  # at SIGTERM: the hand-back starts on its thread
+            _within(8.0, monitor_module._stop_monitor, "the stop")  # as Celery exits
+        assert not monitor.life.held
+        assert any(
+            "no answer from the database" in r.message
+            and "to its hand-back within 1 s" in r.message
+            for r in caplog.records
+        ), [r.message for r in caplog.records]
+    finally:
+        process._STOPPING[0] = 0
+        proxy.close()
