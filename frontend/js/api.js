@@ -55,15 +55,19 @@ function errorFrom(status, body) {
 // quarter more). A 502, 503 or 504 (a proxy that lost the service, or the service's own
 // "try again") is sent again too, the key making it safe: after 0.5, 1 and 2 s, each
 // wait drawn between half and all of that so that pages refused together do not come
-// back together, or after the answer's Retry-After (at most 5 s), drawn between all of
-// it and half as much again.
+// back together, or after the answer's Retry-After as a 409's (up to a quarter more);
+// one asking more than 10 s is shown at once.
 // Tries of a request whose answer was lost, and of one answered 409 (each its own count).
 const IDEMPOTENT_TRIES = 3;
-// The most a 409's Retry-After is honoured: the service asks for 1 s while the request
-// holding the key is young, then a fifth of its age, at most 10 s (RETRY_AFTER_MAX in
-// app/api/idempotency.py). Capped at 5 s before, a 409 asking 10 s was sent again after
-// 5, to be answered 409 again while its tries ran out.
-const CONFLICT_RETRY_AFTER_MAX_S = 10;
+// The longest Retry-After the page waits, a 409's or a 503's. The service asks a 409 for
+// 1 s while the request holding the key is young, then a fifth of its age, at most 10 s
+// (RETRY_AFTER_MAX in app/api/idempotency.py); a 503 for 1 or 2 s past its capacity, 5 s
+// while the database cannot be reached or the service stops, the compute queue's wait
+// (INERTIA_ID_COMPUTE_WAIT_S, 10 s by default) when no thread came free in it. Capped at
+// 5 s before, a 409 asking 10 s was sent again after 5, and a 503 asking 10 s (the queue
+// still full) after 5 to 7.5 s, to be refused again while its tries ran out. A 409 asking
+// more (never the service's) is still asked again after 10 s.
+const RETRY_AFTER_MAX_S = 10;
 // Tries of one answered 502, 503 or 504 (a count of its own).
 const GATEWAY_TRIES = 4;
 const RETRIED_STATUSES = new Set([502, 503, 504]);
@@ -125,12 +129,16 @@ export async function request(method, path, { json, form, query, key = null, raw
     const retryAfter = Number(response.headers.get("Retry-After"));
     if (idempotent && RETRIED_STATUSES.has(response.status)) {
       tries.gateway += 1;
-      if (tries.gateway >= GATEWAY_TRIES) break;
+      // A 503 asking more than the page waits is one an operator must end (30 s: the
+      // database's disk is full, or it takes no writes): its message is shown at once,
+      // where sending it again at 10 s had the page spin 30 to 37 s to show the same.
+      if (tries.gateway >= GATEWAY_TRIES || retryAfter > RETRY_AFTER_MAX_S) break;
       // A Retry-After is a floor (the service asked for that wait): the jitter goes above
-      // it, never below (drawn between half and all, a "Retry-After: 2" was retried in 1 s).
+      // it, never below (drawn between half and all, a "Retry-After: 2" was retried in 1 s),
+      // and is a quarter as a 409's.
       const wait =
         retryAfter > 0
-          ? 1000 * Math.min(retryAfter, 5) * (1 + Math.random() / 2)
+          ? 1000 * retryAfter * (1 + Math.random() / 4)
           : 500 * 2 ** (tries.gateway - 1) * (0.5 + Math.random() / 2);
       await pause(wait);
       continue;
@@ -141,9 +149,9 @@ export async function request(method, path, { json, form, query, key = null, raw
     // The Retry-After in full (a floor, as a 503's), and a jitter of up to a quarter more
     // above it: the requests a held lock (SQLite's write lock) kept waiting are answered
     // 409 together, with the same Retry-After, and without it they would all come back in
-    // the same instant and meet the lock together again. A quarter, not a 503's half, so
-    // that the 10 s bound's wait stays near the 10 s the service means.
-    await pause(1000 * Math.min(retryAfter, CONFLICT_RETRY_AFTER_MAX_S) * (1 + Math.random() / 4));
+    // the same instant and meet the lock together again. A quarter, so that the 10 s
+    // bound's wait stays near the 10 s the service means.
+    await pause(1000 * Math.min(retryAfter, RETRY_AFTER_MAX_S) * (1 + Math.random() / 4));
   }
   if (response.status === 204) return null;
   let data = null;

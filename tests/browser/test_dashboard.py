@@ -411,8 +411,59 @@ def test_a_503s_retry_after_is_waited_in_full_before_the_submission_is_sent_agai
         page.unroute(re.compile(r"/scenarios$"))
     delays = page.evaluate("window.__delays")
     assert len(posts) == 2 and posts[0] and posts[1] == posts[0], posts
-    # 2 s and an eighth more (Math.random 0.25); before, 2 s x (0.5 + 0.125) = 1,250 ms.
-    assert 2250 in delays and 1250 not in delays, delays
+    # 2 s and a sixteenth more (Math.random 0.25, a quarter's quarter); before the floor,
+    # 2 s x (0.5 + 0.125) = 1,250 ms.
+    assert 2125 in delays and 1250 not in delays, delays
+
+
+def test_a_503s_retry_after_is_honoured_up_to_10_s_and_a_longer_one_is_shown_at_once(
+    dashboard: Dashboard,
+) -> None:
+    """The service answers 503 with Retry-After 8 (the compute queue's wait), then with
+    30 (the database's disk is full): the page waits the 8 s and up to a quarter more
+    (Math.random fixed at 0.5: 9 s), as a 409's, then shows the second answer at once,
+    nothing stored. Before, every wait was cut at 5 s (and half as much again, 6,250 ms),
+    so the 8 s one was sent again too soon, and the 30 s one three times more, the page
+    spinning before it showed the answer. The delays the page asks of setTimeout are
+    recorded, and a retry's (over 2 s) is not waited (no clock read, no 20 s spent)."""
+    page = dashboard.page
+    page.add_init_script(
+        "Math.random = () => 0.5; window.__delays = []; const set = window.setTimeout;"
+        "window.setTimeout = (f, ms, ...rest) => { window.__delays.push(ms); "
+        "return set(f, ms > 2000 ? 0 : ms, ...rest); };"
+    )
+    keys: list[str | None] = []
+
+    def busy_then_full(route: Any) -> None:
+        if route.request.method != "POST":
+            route.continue_()
+            return
+        keys.append(route.request.headers.get("idempotency-key"))
+        route.fulfill(
+            status=503,
+            headers={
+                "Retry-After": "8" if len(keys) == 1 else "30",
+                "Content-Type": "application/json",
+            },
+            body='{"detail": "the database cannot store anything: the disk is full"}',
+        )
+
+    dashboard.console.expect(r"status of 503|Failed to load resource")
+    page.route(re.compile(r"/scenarios$"), busy_then_full)
+    try:
+        dashboard.open("#/scenarios/new")
+        page.fill("#preset-name", "refused with a long Retry-After")
+        page.click("#create-preset")
+        page.wait_for_function(
+            "document.querySelector('#preset-errors')?.textContent.includes('disk is full')"
+        )
+    finally:
+        page.unroute(re.compile(r"/scenarios$"))
+    delays = page.evaluate("window.__delays")
+    assert len(keys) == 2 and keys[0] and set(keys) == {keys[0]}, keys
+    # 8 s and an eighth more (Math.random 0.5, a quarter's half); before, 6,250 ms
+    # three times.
+    assert [d for d in delays if d > 2000] == [9000], delays
 
 
 def test_a_409s_retry_after_is_honoured_up_to_the_services_10_s_with_jitter_above_it(
