@@ -2600,15 +2600,21 @@ def test_an_nsga2_curves_best_only_rises_and_its_polish_start_is_marked_where_it
     names = page.evaluate("() => document.getElementById('f1-plot').data.map((d) => d.name)")
     assert names == ["most accurate feasible so far", "mean of the generation (polish round)"]
     # The accuracy plot's title was cut at the figure's edge at 1366 and 1440 px, and at
-    # 1024 px after it was shortened. Each width's page is loaded afresh: opening the same
-    # route again draws nothing new, and the check ran on the figures of the last width
-    # while Plotly's resize to the new one was still pending (at 1024 px, 308 px too wide).
-    for width in (1440, 1366, 1024):
+    # 1024 px after it was shortened; both titles were still cut in a 969 px window, where
+    # the two plots side by side were narrowest (440 px each), the accuracy plot's axis
+    # title too. They are side by side down to 1203 px now (560 px each), one under the
+    # other below: at 969, at the body's 900 px down to 721, at the window's width from
+    # 720. Each width's page is loaded afresh: opening the same route again draws nothing
+    # new, and the check ran on the figures of the last width while Plotly's resize to the
+    # new one was still pending (at 1024 px, 308 px too wide).
+    for width in (1440, 1366, 1203, 1024, 969, 720):
         page.set_viewport_size({"width": width, "height": 900})
         page.reload()
         page.wait_for_function("() => document.getElementById('f1-plot')?.layout?.shapes?.length")
         cut = [p for p in page.evaluate(LAYOUT_PROBLEMS_JS) if "plot" in p.split(":")[0]]
         assert cut == [], (width, cut)
+        if width in (1203, 969, 720):
+            dashboard.screenshot(f"nsga2-curves-{width}")
     page.set_viewport_size({"width": 1440, "height": 900})
     page.wait_for_function(
         f"() => document.getElementById('f1-plot').data[0].y.length === {len(curve)}"

@@ -144,7 +144,7 @@ async function searchView(body, job, context) {
       "div",
       { class: "card" },
       h("div", { class: "toolbar" }, h("h2", { style: "margin: 0" }, "Learning curve"), pointCount, link(`#/compare?ids=${job.id}`, "compare with other searches")),
-      h("div", { class: "grid2" }, rewardPlot, f1Plot),
+      h("div", { class: "grid2 curves" }, rewardPlot, f1Plot),
       phases,
     ),
     resultHolder,
@@ -178,7 +178,8 @@ async function searchView(body, job, context) {
       // NSGA-II's title short enough for half a 1024 px page: the longer one was cut at the
       // figure's edge up to 1440 px (the legend and the phases line name the polish rounds),
       // and this one at 14 px still by 15 px at 1024; at 13 px, as the residual rate's
-      // title beside it, it fits.
+      // title beside it, it fits (the two plots side by side only where each is 560 px wide:
+      // .grid2.curves in style.css).
       title: pareto
         ? title("Predicted accuracy: best so far, and each generation's mean", 13)
         : title(`${separability ? "Separability score" : "Clustering F1"} of the episodes' sequences`),
