@@ -2,13 +2,14 @@
 
 The tests share what they made (scenario, searches, classifier, sweep) in ``made``; each
 starts with the API key saved (``conftest.py``), and one that needs what another makes
-says so (``_needs``) or makes it itself. In file order: a wrong API key refused when
-entered; create a scenario from the preset, see a bad one refused field by field and then
-fixed, clone one and upload the file ``inertia-id scenario --out`` writes; run a small
-PPO search with a name and tags and watch its curve grow, download its result; train and
-sweep; identify telemetry and download the verdict; resubmit an identical job (reused,
-then rerun); compare searches and classifiers; cancel a job after confirming; the API
-docs offline; every page type at 1366 and 1920 px with no legend over a plot.
+says so (``_needs``), which makes it through the API when that test did not run (``-k``).
+In file order: a wrong API key refused when entered; create a scenario from the preset,
+see a bad one refused field by field and then fixed, clone one and upload the file
+``inertia-id scenario --out`` writes; run a small PPO search with a name and tags and
+watch its curve grow, download its result; train and sweep; identify telemetry and
+download the verdict; resubmit an identical job (reused, then rerun); compare searches and
+classifiers; cancel a job after confirming; the API docs offline; every page type at 1366
+and 1920 px with no legend over a plot.
 Each saves screenshots of its pages.
 """
 
@@ -39,10 +40,59 @@ PRESET_NAME = "paper, from the browser"
 OVERLAY_DRAWN = "() => document.getElementById('overlay-plot')?.data?.length === 15"
 
 
-def _needs(*names: str) -> None:
-    missing = [n for n in names if n not in made]
-    if missing:
-        pytest.fail(f"an earlier step did not make {missing}")
+#: The searches the module's tests make through the page or the API, as ``_needs`` makes
+#: them through the API for a test run on its own.
+SMALL_PPO = {
+    "method": "ppo",
+    "timesteps": 1280,
+    "n_realisations": 10,
+    "ppo": {"n_steps": 128, "batch_size": 64},
+}
+FAST_CEM = {"method": "cem", "objective": "separability", "n_realisations": 10}
+SMALL_NSGA2 = {
+    "method": "nsga2",
+    "n_realisations": 10,
+    "nsga2": {"population": 16, "generations": 4},
+    "fresh_realisations": 10,
+    # The hand-designed baseline ends at 11 deg/s: it breaks this bound.
+    "constraints": {"max_final_rate_deg_s": 8.0},
+}
+
+
+def _needs(dashboard: Dashboard, *names: str) -> None:
+    """What a test needs of what the module's earlier tests make (``made``): in the
+    module's run they made it, through the page; run on its own (``-k``), or after the
+    test that makes it failed, the test makes it here through the API, as small. It
+    failed alone before: "an earlier step did not make [...]"."""
+    makers: dict[str, Callable[[], str]] = {
+        "scenario": lambda: _scenario(dashboard),
+        "classifier": lambda: _classifier(dashboard),
+        "search": lambda: _finished_search(dashboard, SMALL_PPO, "small PPO")["id"],
+        "cem": lambda: _finished_search(dashboard, FAST_CEM, "fast CEM")["id"],
+        "sweep": lambda: _sweep(dashboard),
+        "nsga2": lambda: _finished_search(dashboard, SMALL_NSGA2, "small NSGA-II")["id"],
+    }
+    for name in names:
+        if name not in made:
+            made[name] = makers[name]()
+
+
+def _sweep(dashboard: Dashboard) -> str:
+    """A sweep of the classifier as the sweep test submits it (multiples 1, 4, 8 of the
+    default noises, 50 test series), once it has succeeded."""
+    service = dashboard.service
+    classifier = _classifier(dashboard)
+    scenario = service.client.get(f"/classifiers/{classifier}").json()["scenario_id"]
+    params = {"classifier_id": classifier, "multiples": [1, 4, 8], "n_test": 50}
+    answer = service.client.post(
+        "/jobs", json={"type": "sweep", "scenario_id": scenario, "seed": 0, "params": params}
+    )
+    assert answer.status_code in (200, 202), answer.text
+    job_id = str(answer.json()["id"])
+    service.until(lambda: service.job(job_id)["status"] in TERMINAL, 240, "the sweep ends")
+    job = service.job(job_id)
+    assert job["status"] == "succeeded", job
+    return job_id
 
 
 def _scenario(dashboard: Dashboard) -> str:
@@ -821,7 +871,8 @@ def test_a_search_curve_gains_points_while_ppo_runs(dashboard: Dashboard) -> Non
 def test_the_job_list_updates_without_reload_and_training_shows_the_classifier(
     dashboard: Dashboard,
 ) -> None:
-    _needs("scenario")
+    # The search: the small PPO the text filter finds.
+    _needs(dashboard, "scenario", "search")
     page = dashboard.page
     dashboard.open(f"#/jobs?scenario={made['scenario']}&type=train")
     # The form fills the core's hand-designed baseline once GET /scenarios/{id}/baselines
@@ -871,7 +922,7 @@ def test_the_job_list_updates_without_reload_and_training_shows_the_classifier(
 def test_a_sweep_draws_both_accuracy_curves_with_intervals_and_a_confusion_matrix(
     dashboard: Dashboard,
 ) -> None:
-    _needs("classifier")
+    _needs(dashboard, "classifier")
     page = dashboard.page
     dashboard.open(f"#/classifiers/{made['classifier']}")
     page.click("#run-sweep")
@@ -938,7 +989,7 @@ def test_a_sweep_draws_both_accuracy_curves_with_intervals_and_a_confusion_matri
 def _sweep_page_with(dashboard: Dashboard, change: Callable[[dict[str, Any]], None]) -> str:
     """The sweep's job page with its result changed by ``change`` on the way to the page;
     the page's statement about the ceiling."""
-    _needs("sweep")
+    _needs(dashboard, "sweep")
     page = dashboard.page
     own = re.compile(rf"/jobs/{made['sweep']}(\?.*)?$")
 
@@ -1914,7 +1965,7 @@ def test_an_identify_verdict_downloads_as_json_and_csv(
 def test_compare_classifiers_draws_their_accuracy_curves_on_one_plot(
     dashboard: Dashboard,
 ) -> None:
-    _needs("classifier", "sweep")
+    _needs(dashboard, "classifier", "sweep")
     page = dashboard.page
     dashboard.open("#/classifiers")
     page.wait_for_selector(f"#classifier-list-rows tr[data-id='{made['classifier']}']")
@@ -1949,7 +2000,7 @@ def test_the_api_docs_render_their_operations_offline(dashboard: Dashboard) -> N
 def test_an_identical_resubmission_says_it_reused_the_result_and_can_run_again(
     dashboard: Dashboard,
 ) -> None:
-    _needs("scenario", "search")
+    _needs(dashboard, "scenario", "search")
     page = dashboard.page
     separability = _submit_cem(dashboard, "fast CEM")
     made["cem"] = separability
@@ -1985,7 +2036,7 @@ def _submit_cem(dashboard: Dashboard, name: str) -> str:
 
 
 def test_compare_searches_on_one_table_and_on_the_curves(dashboard: Dashboard) -> None:
-    _needs("scenario", "search", "cem")
+    _needs(dashboard, "scenario", "search", "cem")
     page = dashboard.page
     # Another scenario to restrict the comparison to (the earlier tests make several;
     # run after the searches alone, there was none and the test failed on it).
@@ -2195,18 +2246,7 @@ def test_a_pareto_front_is_drawn_beside_the_baselines_and_a_member_plans_and_tra
 ) -> None:
     page = dashboard.page
     service = dashboard.service
-    job = _finished_search(
-        dashboard,
-        {
-            "method": "nsga2",
-            "n_realisations": 10,
-            "nsga2": {"population": 16, "generations": 4},
-            "fresh_realisations": 10,
-            # The hand-designed baseline ends at 11 deg/s: it breaks this bound.
-            "constraints": {"max_final_rate_deg_s": 8.0},
-        },
-        "small NSGA-II",
-    )
+    job = _finished_search(dashboard, SMALL_NSGA2, "small NSGA-II")
     made["nsga2"] = job_id = job["id"]
     front = job["result"]["front"]
     members = front["members"]
@@ -2371,7 +2411,7 @@ def test_a_plan_past_the_flight_budget_shows_the_nominal_prediction(dashboard: D
     """A member too long to fly 200 times within one request (the service's 422 on
     ``flights``, served here by rewriting the answer) is planned without flights, and the
     page says so; its downloads ask for none."""
-    _needs("nsga2")
+    _needs(dashboard, "nsga2")
     page = dashboard.page
     job_id = made["nsga2"]
     asked: list[str] = []
@@ -2411,7 +2451,7 @@ def test_a_cancelled_searchs_front_plans_and_trains_on_the_sequence_itself(
     and trains on the member's sequence itself (the service trains on a member by
     reference only for a search that succeeded). The job is served as cancelled by
     rewriting its status on the way to the page."""
-    _needs("nsga2")
+    _needs(dashboard, "nsga2")
     page = dashboard.page
     job_id = made["nsga2"]
     members = dashboard.service.job(job_id)["result"]["front"]["members"]
@@ -2523,7 +2563,7 @@ def test_a_front_the_time_limits_grace_cut_says_what_was_not_re_scored(
 
 
 def test_an_nsga2_search_draws_its_generations_not_an_empty_reward(dashboard: Dashboard) -> None:
-    _needs("nsga2")
+    _needs(dashboard, "nsga2")
     page = dashboard.page
     job = dashboard.service.job(made["nsga2"])
     dashboard.open(f"#/jobs/{made['nsga2']}")
@@ -3382,7 +3422,7 @@ LAYOUT_READY = {
 def test_every_page_type_fits_with_no_legend_over_the_plot(
     dashboard: Dashboard, width: int, tmp_path: Path
 ) -> None:
-    _needs("scenario", "search", "cem", "classifier", "sweep", "nsga2")
+    _needs(dashboard, "scenario", "search", "cem", "classifier", "sweep", "nsga2")
     page = dashboard.page
     page.set_viewport_size({"width": width, "height": 900})
     telemetry = _telemetry_csv(tmp_path / "t.csv", Scenario.paper(), candidate=2, seed=21)
