@@ -2721,6 +2721,55 @@ def test_an_nsga2_search_stored_before_the_best_so_far_is_drawn_as_the_best_so_f
     assert drawn[2] == stored["best_f1"]["values"]
 
 
+def test_a_constrained_nsga2_search_stored_before_the_best_so_far_says_what_its_line_is(
+    dashboard: Dashboard,
+) -> None:
+    """A constrained NSGA-II search stored before 19f0737 logged each generation's (then
+    polish round's) most accurate feasible sequence: its line dipped under the name "most
+    accurate feasible so far", with nothing said. No running best can be drawn from it
+    (which points were feasible was not stored), so it is drawn as stored, named for what
+    it is, with a note. The best so far falls at most once (where the first feasible
+    sequence displaces infeasible ones): the small constrained search's own metrics show
+    no note; answered with a line that falls at every other point, the page shows it."""
+    _needs(dashboard, "nsga2")
+    page = dashboard.page
+    job_id = made["nsga2"]
+    drawn = "n => Number(document.querySelector('#curve-points')?.dataset.points) >= n"
+    length = len(dashboard.service.job(job_id)["result"]["curve"])
+    assert length >= 4
+    names = "() => document.getElementById('f1-plot').data.map((d) => d.name)"
+
+    dashboard.open(f"#/jobs/{job_id}")
+    page.wait_for_function(drawn, arg=length)
+    assert page.is_hidden("#curve-predates")
+    assert page.evaluate(names)[0] == "most accurate feasible so far"
+
+    stored: list[float] = []
+
+    def dipping(route: Any) -> None:
+        answer = route.fetch()
+        body = answer.json()
+        for series in body["series"]:
+            if series["key"] == "best_f1":
+                series["values"] = [v - 0.1 * (i % 2) for i, v in enumerate(series["values"])]
+                stored.extend(series["values"])
+        route.fulfill(response=answer, json=body)
+
+    page.route(re.compile(rf"/jobs/{job_id}/metrics"), dipping)
+    try:
+        page.reload()
+        page.wait_for_function(drawn, arg=length)
+        note = page.inner_text("#curve-predates")
+        line = page.evaluate("() => document.getElementById('f1-plot').data[0].y")
+        legend = page.evaluate(names)
+    finally:
+        page.unroute(re.compile(rf"/jobs/{job_id}/metrics"))
+    assert "stored before its curve held the most accurate feasible sequence so far" in note
+    assert line == stored[:length]
+    assert legend[0] == "most accurate feasible of the generation (polish round)"
+    dashboard.screenshot("nsga2-stored-before-constrained")
+
+
 def test_the_search_form_submits_nsga2_objectives_design_noise_and_constraints(
     dashboard: Dashboard,
 ) -> None:

@@ -344,17 +344,36 @@ export function polishMarks(marks) {
 // exact for such a search and the identity for one stored since; its residual rate is
 // the one logged at the step that set the maximum. With constraints the stored line is
 // drawn as it is: it may fall where the first feasible sequence displaces more accurate
-// infeasible ones, and an old point's feasibility is not stored.
+// infeasible ones, and an old point's feasibility is not stored, so no running best can
+// be drawn from it. The best so far falls there once at most: a line that falls twice is
+// one stored before, and `predates` says so (the page says what the line is).
 export class BestSoFar {
   constructor(job) {
-    this.on = job.params.method === "nsga2" && !Object.keys(job.params.constraints || {}).length;
+    const nsga2 = job.params.method === "nsga2";
+    const constrained = Object.keys(job.params.constraints || {}).length > 0;
+    this.on = nsga2 && !constrained;
+    this.watched = nsga2 && constrained;
     this.best = -Infinity;
     this.rate = undefined;
     this.rateAt = new Map();
+    this.last = undefined;
+    this.falls = 0;
+  }
+
+  // A constrained NSGA-II search stored before its curve held the best feasible so far.
+  get predates() {
+    return this.falls >= 2;
   }
 
   apply(fresh) {
     const f1 = fresh.best_f1;
+    if (this.watched && f1) {
+      for (const v of f1.values) {
+        if (typeof v !== "number") continue;
+        if (this.last !== undefined && v < this.last) this.falls += 1;
+        this.last = v;
+      }
+    }
     if (!this.on || !f1) return fresh;
     const rates = fresh.best_residual_rate_rad_s;
     const logged = new Map(rates ? rates.steps.map((s, i) => [s, rates.values[i]]) : []);

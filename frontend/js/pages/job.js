@@ -139,6 +139,9 @@ async function searchView(body, job, context) {
   // NSGA-II's curve runs through its generations, then its polish rounds: where the
   // one ends and the other begins, once the result says (and a line on both plots).
   const phases = h("p", { id: "curve-phases", class: "hint", hidden: true });
+  // A constrained NSGA-II search stored before its curve held the best feasible so far:
+  // what its line is instead (BestSoFar.predates).
+  const predates = h("p", { id: "curve-predates", class: "hint", hidden: true });
   body.append(
     h(
       "div",
@@ -146,6 +149,7 @@ async function searchView(body, job, context) {
       h("div", { class: "toolbar" }, h("h2", { style: "margin: 0" }, "Learning curve"), pointCount, link(`#/compare?ids=${job.id}`, "compare with other searches")),
       h("div", { class: "grid2 curves" }, rewardPlot, f1Plot),
       phases,
+      predates,
     ),
     resultHolder,
   );
@@ -199,6 +203,17 @@ async function searchView(body, job, context) {
     // database migration 0005 (NSGA-II's to best_residual_rate_rad_s).
     if (extendWith(rewardPlot, fresh, [pareto ? "best_residual_rate_rad_s" : "mean_episode_reward"])) fitFlatSeries(rewardPlot);
     extendWith(f1Plot, fresh, ["best_f1", "mean_f1"]);
+    if (bestSoFar.predates && predates.hidden) {
+      // Its line named for what it holds, not "so far" (which cannot fall), and why.
+      await Plotly.restyle(f1Plot, { name: "most accurate feasible of the generation (polish round)" }, [0]);
+      predates.textContent =
+        "This search was stored before its curve held the most accurate feasible sequence so far: each " +
+        "point, on both plots, is the most accurate feasible sequence of its generation, then of its polish " +
+        "round (of all where none was feasible), so the lines fall where one was less accurate than an " +
+        "earlier one. They are drawn as stored: which earlier sequences were feasible was not stored, so the " +
+        "best so far cannot be drawn from them.";
+      predates.hidden = false;
+    }
     if (fresh.best_f1) points += fresh.best_f1.steps.length;
     pointCount.textContent = `${points} point${points === 1 ? "" : "s"}${isTerminal(current.status) ? "" : " · updating live"}`;
     pointCount.dataset.points = String(points);
