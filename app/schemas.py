@@ -776,6 +776,17 @@ class IdentifyResult(BaseModel):
     )
     start_hint_shift_s: float | None = None
     start_hint_candidate: str | None = None
+    unit_hint: str | None = Field(
+        default=None,
+        description="with a matches-none or not-this-sequence verdict and no start hint: "
+        "the candidate the rates identify when read in the other unit (deg/s sent as "
+        "rad/s, or the reverse; the status is unchanged)",
+    )
+    unit_hint_candidate: str | None = None
+    unit_hint_rates_unit: str | None = Field(
+        default=None,
+        description="the unit the rates match a candidate in: deg/s or rad/s",
+    )
 
     @computed_field(
         description="the candidate's number as plan tables, exports and the CLI number it "

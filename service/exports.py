@@ -946,4 +946,6 @@ def identify_table(verdict: Mapping[str, Any]) -> Table:
         notes.append(("off_candidates_note", verdict["off_candidates_note"]))
     if verdict.get("sequence_start_note"):
         notes.append(("sequence_start_note", verdict["sequence_start_note"]))
+    if verdict.get("unit_hint"):
+        notes.append(("unit_hint", verdict["unit_hint"]))
     return Table(["candidate", "distance", "nearest", "posterior", "number"], rows, notes)

@@ -51,6 +51,7 @@ from ..errors import InputError
 from ..physics.estimate import PARAMETER_NAMES, estimate_inertia, tensor_from_parameters
 from ..physics.scenario import Scenario
 from .telemetry import (
+    MAX_TELEMETRY_RATE_RAD_S,
     Telemetry,
     TelemetryGap,
     estimate_sequence_start,
@@ -219,6 +220,11 @@ class Identification(BaseModel):
     start_hint: str | None = None
     start_hint_shift_s: float | None = None
     start_hint_candidate: str | None = None
+    # A matches-none verdict whose rates, read in the other unit, name a candidate
+    # (:func:`_with_unit_hint`): the words, the candidate and the unit the rates match in.
+    unit_hint: str | None = None
+    unit_hint_candidate: str | None = None
+    unit_hint_rates_unit: str | None = None
 
     @computed_field  # type: ignore[prop-decorator]
     @property
@@ -880,7 +886,9 @@ def identify(
         telemetry reaches it (:func:`_best_start`).
     :param start_hint: with no search asked for, a matches-none (or not-this-sequence)
         verdict tries the starts within :data:`START_HINT_WINDOW_S` and says in its text
-        and ``start_hint`` when one of them identifies a candidate; the status stays.
+        and ``start_hint`` when one of them identifies a candidate; failing that, it reads
+        the rates in the other unit (deg/s for rad/s and back) and says so in its text and
+        ``unit_hint`` when that identifies one (:func:`_with_unit_hint`); the status stays.
     """
     confidence = _check_probability("confidence", confidence)
     window_s = _check_start_window(estimate_start_within_s)
@@ -913,6 +921,53 @@ def identify(
     if start_hint and verdict.matches_none:
         verdict = _with_start_hint(
             classifier, telemetry, grid, verdict, confidence, pre_start_window_s
+        )
+        if verdict.start_hint is None:
+            verdict = _with_unit_hint(
+                classifier, telemetry, verdict, confidence, pre_start_window_s
+            )
+    return verdict
+
+
+#: The other units a matches-none verdict reads the rates in (:func:`_with_unit_hint`):
+#: the factor to rad/s and the unit the rates are then taken to be in.
+UNIT_HINTS = ((math.pi / 180.0, "deg/s"), (180.0 / math.pi, "rad/s"))
+
+
+def _with_unit_hint(
+    classifier: CandidateClassifier,
+    telemetry: Telemetry,
+    verdict: Identification,
+    confidence: float,
+    pre_start_window_s: float,
+) -> Identification:
+    """``verdict`` with a hint when the rates, read in the other unit, identify a
+    candidate: a gyro export in deg/s posted as rad/s (or a CSV header that says deg/s
+    over rad/s values) was otherwise a confident "not a response to this sequence" with
+    no hint of the cause, the commonest slip in a flight team's hand-over."""
+    rates = np.asarray(telemetry.omega_rad_s, dtype=float)
+    for factor, unit in UNIT_HINTS:
+        if np.abs(rates).max(initial=0.0) * factor > MAX_TELEMETRY_RATE_RAD_S:
+            continue  # past the largest rate a gyro reads: not this unit
+        scaled = telemetry.model_copy(update={"omega_rad_s": (rates * factor).tolist()})
+        try:
+            read = _identify(classifier, scaled, confidence, pre_start_window_s)
+        except InputError:
+            continue  # no verdict in this unit (too little excitation to fit): no hint
+        if read.status != "identified":
+            continue
+        hint = (
+            f"the telemetry matches {read.candidate!r} (posterior {read.confidence:.3g}) if "
+            f"its rates are in {unit}: check the unit, and send omega_rad_s in rad/s (a CSV "
+            "header may say wx_deg_s, and its rates are converted)"
+        )
+        return verdict.model_copy(
+            update={
+                "verdict": f"{verdict.verdict}. Hint: {hint}",
+                "unit_hint": hint,
+                "unit_hint_candidate": read.candidate,
+                "unit_hint_rates_unit": unit,
+            }
         )
     return verdict
 

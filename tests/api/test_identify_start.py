@@ -200,3 +200,35 @@ def test_a_start_search_on_a_whole_series_kind_says_in_words_it_is_unrefined(
     refined = api.post("/identify", json={**body, "classifier_id": likelihood_id}).json()
     assert refined["estimate_start_within_s"] == 0.5
     assert refined["sequence_start_note"] is None
+
+
+def test_a_csv_in_deg_s_without_its_unit_is_hinted_at(
+    api: Api, classifier_id: str, quiet_around: dict[str, list[Any]], paper: Scenario
+) -> None:
+    """A flight team's gyro export in deg/s, uploaded with no header (so read as rad/s),
+    is a verdict of no candidate that says which one the rates match in deg/s, in the
+    JSON and in the CSV; labelled wx_deg_s it is identified."""
+    truth = paper.candidate_names[1]
+    in_degrees = {
+        "time_s": quiet_around["time_s"],
+        "omega_rad_s": np.degrees(quiet_around["omega_rad_s"]).tolist(),
+    }
+    text = csv_of(in_degrees).split("\n", 1)[1]  # no header: rad/s
+    form = {"classifier_id": classifier_id, "sequence_start": "0"}
+    wrong = api.post("/identify", data=form, files={"file": ("pass.csv", text)})
+    assert wrong.status_code == 200, wrong.text
+    verdict = wrong.json()
+    assert verdict["status"] != "identified" and verdict["matches_none"]
+    assert (verdict["unit_hint_candidate"], verdict["unit_hint_rates_unit"]) == (truth, "deg/s")
+    assert "if its rates are in deg/s" in verdict["verdict"]
+    table = api.post("/identify?format=csv", data=form, files={"file": ("pass.csv", text)})
+    assert table.status_code == 200, table.text
+    assert f"# unit_hint: the telemetry matches {truth!r}" in table.text
+    labelled = api.post(
+        "/identify",
+        data=form,
+        files={"file": ("pass.csv", "time_s,wx_deg_s,wy_deg_s,wz_deg_s\n" + text)},
+    )
+    assert labelled.status_code == 200, labelled.text
+    assert (labelled.json()["status"], labelled.json()["candidate"]) == ("identified", truth)
+    assert labelled.json()["unit_hint"] is None

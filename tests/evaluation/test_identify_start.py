@@ -289,3 +289,29 @@ def test_telemetry_a_period_late_with_nothing_before_the_start_is_put_at_its_sta
             assert searched.sequence_start_shifts_tried_s == pytest.approx([period, 2 * period])
             assert searched.sequence_start_shift_s == pytest.approx(period), (seed, k)
             assert (searched.status, searched.candidate_index) == ("identified", k), (seed, k)
+
+
+def test_rates_in_the_wrong_unit_are_hinted_at(
+    marginal: MarginalLikelihoodClassifier, ten_hz_flight: dict[str, list]
+) -> None:
+    """A gyro export in deg/s posted as rad/s (or the reverse) reads as a body that is no
+    candidate: the verdict stays, and says which candidate the rates match in the other
+    unit, as a start one sample off is hinted at."""
+    truth = marginal.candidate_names_[2]
+    rates = np.asarray(ten_hz_flight["omega_rad_s"])
+    for factor, unit in ((180.0 / np.pi, "deg/s"), (np.pi / 180.0, "rad/s")):
+        wrong = {**ten_hz_flight, "omega_rad_s": (rates * factor).tolist(), "sequence_start": 0.0}
+        verdict = identify(marginal, wrong)
+        assert verdict.matches_none and verdict.status != "identified"
+        assert verdict.unit_hint_candidate == truth
+        assert verdict.unit_hint_rates_unit == unit
+        assert f"Hint: the telemetry matches {truth!r}" in verdict.verdict
+        assert f"if its rates are in {unit}" in verdict.verdict
+        assert verdict.start_hint is None
+        assert identify(marginal, wrong, start_hint=False).unit_hint is None
+    # Rates in the right unit get no hint, and neither does a pass that matches none in
+    # either unit (a still body: noise alone).
+    right = identify(marginal, {**ten_hz_flight, "sequence_start": 0.0})
+    assert right.status == "identified" and right.unit_hint is None
+    still = {**ten_hz_flight, "omega_rad_s": (0.0 * rates).tolist(), "sequence_start": 0.0}
+    assert identify(marginal, still).unit_hint is None
