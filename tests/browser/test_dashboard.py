@@ -775,6 +775,56 @@ def test_a_scenario_is_cloned_edited_and_uploaded_from_the_cli_file(
     assert "bad.json is not a scenario document" in error.inner_text()
 
 
+def test_a_scenarios_propulsion_is_shown_and_kept_by_a_clone_and_an_upload(
+    dashboard: Dashboard, tmp_path: Path
+) -> None:
+    """The thrust (or lever arm) and specific impulse that the propellant figures rest on
+    are on the scenario's page, and a clone or an uploaded file keeps them: the form sent
+    the torque matrix and levels alone, and a clone lost its propellant model silently."""
+    page = dashboard.page
+    created = dashboard.service.client.post(
+        "/scenarios",
+        json={
+            "preset": "paper",
+            "overrides": {
+                "name": "paper with propulsion",
+                "thrusters": {"thrust_n": 1.5, "specific_impulse_s": 220},
+            },
+        },
+    )
+    assert created.status_code == 201, created.text
+    original = created.json()
+    dashboard.open(f"#/scenarios/{original['id']}")
+    shown = page.wait_for_selector("#propulsion").inner_text()
+    assert "Thrust 1.5 N each" in shown and "specific impulse 220 s" in shown
+    page.click("#clone-scenario")
+    page.wait_for_selector("#scenario-form")
+    assert page.input_value("#thrust-n") == "1.5, 1.5, 1.5, 1.5, 1.5, 1.5"
+    page.fill("#scenario-name", "paper with propulsion, cloned")
+    page.click("#create-scenario")
+    clone = _hash_id(dashboard, "scenarios")
+    thrusters = dashboard.service.client.get(f"/scenarios/{clone}").json()["document"]["thrusters"]
+    assert thrusters == original["document"]["thrusters"]
+
+    # A file that states a lever arm instead keeps it too; one that states neither says so.
+    document = dict(original["document"], name="from a file with a lever arm")
+    document["thrusters"] = dict(document["thrusters"], thrust_n=None, lever_arm_m=[0.5] * 6)
+    written = tmp_path / "lever.json"
+    written.write_text(json.dumps(document), encoding="utf-8")
+    dashboard.open("#/scenarios/new")
+    page.set_input_files("#scenario-file", str(written))
+    page.wait_for_function(
+        "name => document.getElementById('scenario-name').value === name", arg=document["name"]
+    )
+    page.click("#create-scenario")
+    uploaded = _hash_id(dashboard, "scenarios")
+    stored = dashboard.service.client.get(f"/scenarios/{uploaded}").json()["document"]
+    assert stored["thrusters"] == document["thrusters"]
+    assert "Lever arm 0.5 m each" in page.wait_for_selector("#propulsion").inner_text()
+    dashboard.open(f"#/scenarios/{_scenario(dashboard)}")
+    assert "not stated" in page.wait_for_selector("#propulsion").inner_text()
+
+
 def test_a_search_curve_gains_points_while_ppo_runs(dashboard: Dashboard) -> None:
     _scenario(dashboard)
     page = dashboard.page

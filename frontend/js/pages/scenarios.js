@@ -26,6 +26,38 @@ const TIMING_FIELDS = [
   ["sample_rate_hz", "gyro sample rate", "Hz"],
 ];
 
+// Per-thruster values (thrust, lever arm) in words: one value when every thruster has it.
+function perThruster(values, unit) {
+  return values.every((v) => v === values[0]) ? `${plain(values[0])} ${unit} each` : `${values.map((v) => plain(v)).join(", ")} ${unit} (thrusters 1 to ${values.length})`;
+}
+
+// What the propellant figures rest on: the thrust (or the lever arm it is derived from),
+// the specific impulse and standard gravity; or that the scenario states none, so a plan
+// gives the commanded impulse alone. A clone or an upload keeps them (the form below).
+function propulsionText(thrusters) {
+  const parts = [];
+  if (Array.isArray(thrusters.thrust_n)) parts.push(`thrust ${perThruster(thrusters.thrust_n, "N")}`);
+  if (Array.isArray(thrusters.lever_arm_m)) parts.push(`lever arm ${perThruster(thrusters.lever_arm_m, "m")} (thrust = |torque| / lever arm)`);
+  if (typeof thrusters.specific_impulse_s === "number") parts.push(`specific impulse ${plain(thrusters.specific_impulse_s)} s`);
+  if (parts.length === 0) return "Thrust and specific impulse not stated: plans give the commanded impulse (N m s), no propellant mass.";
+  parts.push(`standard gravity ${plain(thrusters.standard_gravity_m_s2)} m/s²`);
+  const text = parts.join(" · ");
+  return `${text[0].toUpperCase()}${text.slice(1)}.`;
+}
+
+// A per-thruster field of the form: empty is "not stated" (null), one value is every
+// thruster's, several are one per thruster (the service says which count it needs).
+function perThrusterField(text) {
+  const values = listOf(text);
+  if (values.length === 0) return null;
+  return values.length === 1 ? values[0] : values;
+}
+
+function listText(value) {
+  if (value === null || value === undefined) return "";
+  return (Array.isArray(value) ? value : [value]).map((v) => plain(v, null)).join(", ");
+}
+
 export async function renderList(root) {
   root.append(
     h("h1", {}, "Scenarios"),
@@ -125,6 +157,7 @@ export async function renderOne(root, context) {
           { class: "matrix", id: "thruster-table" },
         ),
         h("p", {}, "Duty levels: ", h("span", { class: "mono" }, doc.thrusters.levels.map((v) => plain(v)).join(", "))),
+        h("p", { id: "propulsion" }, propulsionText(doc.thrusters)),
       ),
       h(
         "div",
@@ -356,6 +389,16 @@ function buildForm(preset, general, suffix = " (edited)") {
 
   const levelsInput = h("input", { id: "levels", name: "levels", value: preset.thrusters.levels.map((v) => plain(v, null)).join(", "), size: 40 });
   fields["thrusters.levels"] = levelsInput;
+  // Propulsion: what the propellant figures rest on. A clone or an uploaded file keeps it
+  // (the form used to send the matrix and levels alone, and dropped it silently).
+  const thrustInput = h("input", { id: "thrust-n", value: listText(preset.thrusters.thrust_n), size: 40, inputmode: "decimal" });
+  const leverInput = h("input", { id: "lever-arm-m", value: listText(preset.thrusters.lever_arm_m), size: 40, inputmode: "decimal" });
+  const ispInput = h("input", { id: "specific-impulse-s", value: listText(preset.thrusters.specific_impulse_s), inputmode: "decimal" });
+  const gravityInput = h("input", { id: "standard-gravity", value: listText(preset.thrusters.standard_gravity_m_s2), inputmode: "decimal" });
+  fields["thrusters.thrust_n"] = thrustInput;
+  fields["thrusters.lever_arm_m"] = leverInput;
+  fields["thrusters.specific_impulse_s"] = ispInput;
+  fields["thrusters.standard_gravity_m_s2"] = gravityInput;
 
   const timingInputs = {};
   for (const [key] of TIMING_FIELDS) {
@@ -397,7 +440,14 @@ function buildForm(preset, general, suffix = " (edited)") {
             return { name: tr.querySelector(".cand-name").value, inertia_kg_m2: inertia };
           }),
           candidate_generator: null,
-          thrusters: { torque_matrix_nm: readMatrix(), levels: listOf(levelsInput.value) },
+          thrusters: {
+            torque_matrix_nm: readMatrix(),
+            levels: listOf(levelsInput.value),
+            thrust_n: perThrusterField(thrustInput.value),
+            lever_arm_m: perThrusterField(leverInput.value),
+            specific_impulse_s: ispInput.value.trim() === "" ? null : numberOrText(ispInput.value),
+            ...(gravityInput.value.trim() === "" ? {} : { standard_gravity_m_s2: numberOrText(gravityInput.value) }),
+          },
           timing: Object.fromEntries(Object.entries(timingInputs).map(([k, input]) => [k, numberOrText(input.value)])),
           uncertainty: Object.fromEntries(
             Object.entries(noiseInputs).map(([k, input]) => [k, k === "gyro_bias_rad_s" ? listOf(input.value) : numberOrText(input.value)]),
@@ -428,6 +478,15 @@ function buildForm(preset, general, suffix = " (edited)") {
     matrixTable,
     thrusterButtons,
     h("div", { class: "stack" }, labelled(levelsInput, "duty levels", "fractions of full duty, sorted, including 0 and 1")),
+    h("h3", {}, "Propulsion (for propellant mass)"),
+    h(
+      "div",
+      { class: "stack" },
+      labelled(thrustInput, "thrust", "N: one value for every thruster, or one per thruster; empty when not stated"),
+      labelled(leverInput, "lever arm", "m, instead of the thrust (thrust = |torque| / lever arm); empty when not stated"),
+      labelled(ispInput, "specific impulse", "s; empty when not stated"),
+      labelled(gravityInput, "standard gravity", "m/s²"),
+    ),
     h("h3", {}, "Timing"),
     h("div", { class: "stack" }, TIMING_FIELDS.map(([key, label, unit]) => labelled(timingInputs[key], label, unit))),
     h("h3", {}, "Noise (the 1× level of the sweeps)"),
