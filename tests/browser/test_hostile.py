@@ -265,6 +265,38 @@ def test_a_phone_wide_window_does_not_widen_the_page(dashboard: Dashboard, route
         assert box is not None and box["x"] + box["width"] <= 375, (selector, box)
 
 
+def test_a_classifier_of_a_long_sequence_does_not_widen_the_identify_page(
+    dashboard: Dashboard,
+) -> None:
+    """The classifier menu names each classifier's sequence: one of 12 steps made the
+    menu 1,322 px wide (an 8-step one), and a 1,280 px laptop window scrolled sideways,
+    the ends of the form's hints out of sight. The menu now keeps to its column."""
+    client = dashboard.service.client
+    scenario = client.post("/scenarios", json={"preset": "paper"})
+    assert scenario.status_code == 201, scenario.text
+    sequence = [[4, 4, 4, 0, 0, 0], [0, 0, 0, 4, 4, 4]] * 6
+    params = {"sequence": sequence, "kind": "nearest-centroid", "n_realisations": 5}
+    submitted = client.post(
+        "/jobs",
+        json={"type": "train", "scenario_id": scenario.json()["id"], "seed": 0, "params": params},
+    )
+    assert submitted.status_code == 202, submitted.text
+    job_id = submitted.json()["id"]
+    job = dashboard.service.until(
+        lambda: (j := dashboard.service.job(job_id))["status"] in ("succeeded", "failed") and j,
+        300,
+        "the training finished",
+    )
+    assert job["status"] == "succeeded", job["error"]
+    dashboard.page.set_viewport_size({"width": 1280, "height": 800})
+    dashboard.open(f"#/identify?classifier={job['result']['classifier_id']}")
+    dashboard.page.wait_for_load_state("networkidle")
+    width = dashboard.page.evaluate("() => document.documentElement.scrollWidth")
+    assert width <= 1280, f"#/identify is {width} px wide in a 1280 px window"
+    menu = dashboard.page.locator("#identify-classifier").bounding_box()
+    assert menu is not None and menu["x"] + menu["width"] <= 1280, menu
+
+
 def test_a_vocabulary_that_failed_once_is_read_again_at_the_next_link(
     dashboard: Dashboard,
 ) -> None:
