@@ -98,6 +98,26 @@ def take_lost_run_soon(
     return thread
 
 
+class _WithoutLostRunTraceback(logging.Filter):
+    """Celery logs a task process's death ("Task handler raised error: WorkerLostError(...
+    signal 9 (SIGKILL)...)") with billiard's traceback, which names no fault of ours and
+    read, after a ``kill -9``, as a crash the worker had not dealt with. The line and its
+    cause stay; the traceback goes, and the worker says in one line what it did with the
+    job (:func:`_take_lost_run`). Any other error keeps its traceback."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        error = record.exc_info[1] if record.exc_info else None
+        if isinstance(error, ExceptionWithTraceback):
+            error = error.exc
+        if isinstance(error, WorkerLostError):
+            record.exc_info = None
+            record.exc_text = None
+        return True
+
+
+logging.getLogger("celery.worker.request").addFilter(_WithoutLostRunTraceback())
+
+
 class RunJobRequest(Request):
     """Celery's request, which also takes a job from a run whose task process died."""
 

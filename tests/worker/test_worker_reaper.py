@@ -471,6 +471,44 @@ def test_the_cause_names_how_the_task_process_died() -> None:
     assert lost_cause(WorkerLostError("gone")) == "task process lost"
 
 
+def test_a_task_process_death_is_logged_in_one_line_without_billiards_traceback() -> None:
+    """Celery logs a task process's death ("Task handler raised error: WorkerLostError")
+    with billiard's traceback, which an operator reads as a crash of ours after a
+    ``kill -9`` the worker handles at once: the line and its cause stay, the traceback
+    goes (another error's stays)."""
+    import io
+    import logging
+
+    from billiard.einfo import ExceptionWithTraceback
+    from billiard.exceptions import WorkerLostError
+
+    import worker.request  # noqa: F401  (installs the filter)
+
+    logger = logging.getLogger("celery.worker.request")
+    written = io.StringIO()
+    handler = logging.StreamHandler(written)
+    logger.addHandler(handler)
+    try:
+        lost = WorkerLostError("Worker exited prematurely: signal 9 (SIGKILL) Job: 13.")
+        # As Celery logs it: the lost error in the text, the error raised (billiard's
+        # wrapper, or the error itself) as exc_info.
+        for error in (lost, ExceptionWithTraceback(lost, "Traceback (most recent call last):")):
+            try:
+                raise error
+            except BaseException:
+                logger.error("Task handler raised error: %r", lost, exc_info=True)
+        try:
+            raise ValueError("a fault of the job's own")
+        except ValueError:
+            logger.error("Task handler raised error", exc_info=True)
+    finally:
+        logger.removeHandler(handler)
+    lines = written.getvalue().splitlines()
+    assert sum("signal 9 (SIGKILL)" in line for line in lines) == 2
+    assert sum("Traceback" in line for line in lines) == 1  # the ValueError's alone
+    assert "ValueError: a fault of the job's own" in lines[-1]
+
+
 def test_a_run_whose_task_process_died_is_taken_at_once_and_only_once(store: Store) -> None:
     """The worker that saw its task process die re-queues the job by the reaper's rule
     (failed after max_attempts, cancelled when asked), names the signal, and sends its
