@@ -138,6 +138,7 @@ class JobContext:
     :param settings: the service settings (data_dir for files).
     :param worker_name: the Celery node name that claimed the job.
     :param clock: monotonic seconds, for the cancel-poll throttle and the time limit.
+    :param stopping: whether this worker was told to stop (see :meth:`check_now`).
 
     The job's time limit (:attr:`time_limit_s`) is its ``time_limit_s`` parameter or the
     service's ceiling (``job_time_limit_s``), whichever is less, counted from the
@@ -153,6 +154,7 @@ class JobContext:
     worker_name: str
     _: KW_ONLY
     clock: InitVar[Callable[[], float]] = time.monotonic
+    stopping: InitVar[Callable[[], bool]] = lambda: False
     cancelled: bool = field(default=False, init=False)
     lost: bool = field(default=False, init=False)
     #: The handler has returned and its outcome waits to be stored (worker.runner): the
@@ -160,10 +162,13 @@ class JobContext:
     outcome_held: bool = field(default=False, init=False)
     _beat_refused: str | None = field(default=None, init=False)
 
-    def __post_init__(self, db: Database, clock: Callable[[], float]) -> None:
+    def __post_init__(
+        self, db: Database, clock: Callable[[], float], stopping: Callable[[], bool]
+    ) -> None:
         # Kept private: a handler reports through the context, it does not use the store.
         self._db = db
         self._clock = clock
+        self._stopping = stopping
         self._last_poll = self.started = clock()
         #: Progress that cannot be stored, a cancel flag that cannot be read: each
         #: logged once an episode (see worker.episode).
@@ -251,7 +256,15 @@ class JobContext:
         return self.check_now()
 
     def check_now(self) -> bool:
-        """Read the job's cancel flag and ownership now (unthrottled)."""
+        """Read the job's cancel flag and ownership now (unthrottled).
+
+        A run whose flag cannot be read once its worker is stopping is given up (True,
+        :attr:`lost`): the stop's hand-back takes the job from it, unseen, or, with a
+        database that answered neither, the reaper does. Before, it went on: behind a
+        frozen proxy its read waited for ever and Celery, waiting for the run, kept a
+        plain ``celery worker`` from exiting; its statement is now cut once the stop
+        has waited STOP_ANSWER_S for its answer (worker.cut.StopCut, worker.runner).
+        """
         try:
             with self._db.session() as session:
                 row = session.execute(
@@ -260,6 +273,16 @@ class JobContext:
                     )
                 ).one_or_none()
         except Exception as exc:
+            if self._stopping():
+                self.lost = True
+                logger.warning(
+                    "job %s: this worker is stopping and the job's cancel flag cannot be "
+                    "read (%s): the run is given up, its job left to the stop's hand-back "
+                    "or the reaper",
+                    self.spec.id,
+                    _condition(exc),
+                )
+                return True
             # Once an episode: asked every second by a search, a traceback each time.
             self._poll_failing.seen(
                 _condition(exc),

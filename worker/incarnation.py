@@ -35,7 +35,6 @@ import fcntl
 import logging
 import mmap
 import os
-import socket
 import threading
 import time
 from collections.abc import Callable, Iterable
@@ -52,6 +51,7 @@ from service.store.incarnations import lock_file as _lock_file
 from service.store.incarnations import lock_key as _key
 from service.store.models import new_id, utcnow
 
+from .cut import SocketCut
 from .episode import Episode
 
 __all__ = ["LOCK_ANSWER_S", "Life", "LockSilent", "Witness", "alive", "current"]
@@ -399,24 +399,14 @@ def _ask(connection: Any, statement: str, params: tuple[Any, ...]) -> Any:
     """
     guard = threading.Lock()
     state = {"done": False, "cut": False}
-    # The cut shuts down a duplicate of the socket's descriptor, taken here and closed
-    # only once the cut is over: looked up at the deadline, the number could name
-    # another socket by then (this connection closed meanwhile, and its number reused
-    # by the next connection, or the broker's). A closed connection has none: its
-    # statement fails on its own.
-    try:
-        own = os.dup(connection.fileno())
-    except Exception:
-        own = -1
+    held = SocketCut(connection)
 
     def cut() -> None:
         with guard:
             if state["done"]:
                 return
             state["cut"] = True
-        with contextlib.suppress(Exception):
-            with socket.socket(fileno=os.dup(own)) as sock:
-                sock.shutdown(socket.SHUT_RDWR)
+        held.cut()
 
     timer = threading.Timer(LOCK_ANSWER_S, cut)
     timer.daemon = True
@@ -433,8 +423,7 @@ def _ask(connection: Any, statement: str, params: tuple[Any, ...]) -> Any:
         timer.cancel()
         # A cut under way ends before its descriptor is closed (it does not wait).
         timer.join()
-        if own >= 0:
-            os.close(own)
+        held.close()
     with guard:
         state["done"] = True
         cut_meanwhile = state["cut"]

@@ -51,6 +51,7 @@ from .context import (
     Outcome,
     finite_metrics,
 )
+from .cut import StopCut
 from .episode import Episode
 from .incarnation import current as current_incarnation
 from .ticker import Ticker
@@ -173,12 +174,16 @@ def execute_job(
     caller gives its message back to the broker (after a wait, see :func:`_back_off`).
     """
     db = Database(settings.resolved_database_url, silent_after_s=DATABASE_SILENT_S)
+    # Once the worker stops, a statement the database leaves unanswered is cut and the
+    # run given up (see worker.cut.StopCut): Celery waits for the run before it exits.
+    cut = StopCut(db, stopping).start()
     try:
         status = _execute(job_id, db, settings, worker_name, stopping, may_claim)
     except _OutOfReach as out:
         return _back_off(job_id, db, out.error, stopping)
     finally:
         db.dispose()
+        cut.stop()
     _ended_outage()
     return status
 
@@ -315,13 +320,16 @@ def _execute(
     except Exception as exc:
         logger.exception("job %s: its inputs cannot be resolved", job_id)
         return _end(db, claimed.id, claimed.attempt, "failed", error=_error_text(exc, settings))
-    context = JobContext(spec, db, settings, worker_name)
+    context = JobContext(spec, db, settings, worker_name, stopping=stopping)
     beat = Ticker(context.tick, settings.heartbeat_interval_s, name=f"heartbeat {job_id}")
     beat.start()
     try:
         return _run(context, db, handlers, stopping)
     finally:
-        beat.stop()
+        # A stopping worker's run does not wait for a beat under way: it may be opening
+        # a connection to a database that gave the run no answer (up to
+        # DATABASE_SILENT_S; see worker.cut.StopCut).
+        beat.stop(0.0 if stopping() else 10.0)
 
 
 @dataclass(frozen=True)

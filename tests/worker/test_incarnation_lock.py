@@ -937,3 +937,60 @@ def test_a_stop_whose_database_falls_silent_exits_without_waiting_on_it(
     finally:
         process._STOPPING[0] = 0
         proxy.close()
+
+
+@pytest.mark.parametrize("store", ["postgresql"], indirect=True)
+def test_a_run_whose_database_falls_silent_as_its_worker_stops_gives_itself_up(
+    store: Store, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A search running as its worker is told to stop and its database stops answering,
+    its packets lost rather than refused. Before, its cancel poll waited on the answer
+    for ever, and Celery, which waits for its run before it exits, kept a plain
+    ``celery worker`` running (76 s after SIGTERM, then killed). Now a statement still
+    unanswered STOP_ANSWER_S (0.5 s here) into the stop has the run's connections cut,
+    and the run, its cancel flag unread, gives itself up: its job is left running, its
+    heartbeat stale, for the reaper (or the stop's hand-back, had the database heard
+    it)."""
+    from service.config import Settings
+    from worker import cut
+
+    monkeypatch.setattr(cut, "STOP_ANSWER_S", 0.5, raising=False)
+    url = make_url(store.settings.resolved_database_url)
+    proxy = _SilentableProxy(url.host or "127.0.0.1", url.port or 5432)
+    stop = threading.Event()
+    try:
+        through = url.set(host="127.0.0.1", port=proxy.port).render_as_string(hide_password=False)
+        settings = Settings(
+            INERTIA_ID_DATA_DIR=store.settings.data_dir,
+            DATABASE_URL=through,
+            BROKER_URL="filesystem://",
+        )
+        long_search = {**QUICK_SEARCH, "timesteps": 400, "n_realisations": 50, "time_limit_s": 120}
+        job_id = store.add_job("search", long_search)
+        statuses: list[str] = []
+        run = threading.Thread(
+            target=lambda: statuses.append(
+                execute_job(job_id, settings=settings, worker_name=WORKER, stopping=stop.is_set)
+            ),
+            daemon=True,
+        )
+        run.start()
+        deadline = time.monotonic() + 120.0
+        while store.job(job_id).status != "running" and run.is_alive():
+            assert time.monotonic() < deadline, "the search was never claimed"
+            time.sleep(0.1)
+        time.sleep(2.5)  # its cancel flag read, through the proxy, at least once more
+        proxy.silence()
+        stop.set()
+        with caplog.at_level(logging.WARNING):
+            run.join(15.0)
+            if run.is_alive():
+                pytest.fail("the run still waited 15 s after the database fell silent")
+        assert statuses == ["lost"]
+        job = store.job(job_id)
+        assert (job.status, job.attempts, job.worker) == ("running", 1, WORKER)
+        assert any("the run given up" in r.message for r in caplog.records), [
+            r.message for r in caplog.records
+        ]
+    finally:
+        proxy.close()
