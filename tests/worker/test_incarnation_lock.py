@@ -895,6 +895,43 @@ def test_the_workers_database_gives_up_a_connect_to_a_silent_server(
 
 
 @pytest.mark.parametrize("store", ["postgresql"], indirect=True)
+def test_a_runs_database_gives_up_a_connect_to_a_silent_server(
+    store: Store, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A task process's run (its claim, its heartbeat, its outcome) on its own engine,
+    the server silent as the job comes: libpq gives the connect up after
+    DATABASE_SILENT_S (2 s here, libpq's least), and the job's message goes back to the
+    broker, the job untouched. With libpq's defaults the connect waited for ever, and the
+    task process with it."""
+    from service.config import Settings
+    from worker import runner
+
+    monkeypatch.setattr(runner, "DATABASE_SILENT_S", 2.0)
+    monkeypatch.setattr(runner, "_handed_back_in_a_row", 0)  # its back-off: 1 s
+    url = make_url(store.settings.resolved_database_url)
+    proxy = _SilentableProxy(url.host or "127.0.0.1", url.port or 5432)
+    proxy.silence()
+    try:
+        through = url.set(host="127.0.0.1", port=proxy.port).render_as_string(hide_password=False)
+        settings = Settings(
+            INERTIA_ID_DATA_DIR=store.settings.data_dir,
+            DATABASE_URL=through,
+            BROKER_URL="filesystem://",
+        )
+        job_id = store.add_job("train", {"sequence": GOOD_SEQUENCE})
+        status = _within(
+            10.0,
+            lambda: execute_job(job_id, settings=settings, worker_name=WORKER),
+            "the run's connect",
+        )
+        assert status == runner.HANDED_BACK
+        job = store.job(job_id)
+        assert (job.status, job.attempts, job.worker) == ("queued", 0, None)
+    finally:
+        proxy.close()
+
+
+@pytest.mark.parametrize("store", ["postgresql"], indirect=True)
 def test_a_stop_whose_database_falls_silent_exits_without_waiting_on_it(
     store: Store, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
 ) -> None:
