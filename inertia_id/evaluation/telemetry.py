@@ -168,9 +168,25 @@ def _decimal_scale(values: np.ndarray) -> float | None:
 _ISO_EXAMPLE = "2025-03-01T12:00:00.050Z"
 
 
+#: RFC 3339 (section 5.6) lets a time stamp's "T" and "Z" be written "t" and "z";
+#: Python's ``datetime.fromisoformat`` takes only the capitals.
+_RFC3339_LOWER_T = re.compile(r"(?<=\d)t(?=\d)")
+_RFC3339_LOWER_Z = re.compile(r"(?<=\d)z$")
+
+
+def _capitals(text: str) -> str:
+    """``text`` with RFC 3339's lower-case "t" and "z" written as the capitals."""
+    return _RFC3339_LOWER_Z.sub("Z", _RFC3339_LOWER_T.sub("T", text.strip()))
+
+
+def _fromisoformat(text: str) -> datetime:
+    """``datetime.fromisoformat``, with RFC 3339's lower-case "t" and "z" taken too."""
+    return datetime.fromisoformat(_capitals(text))
+
+
 def _parse_utc(text: str, where: str) -> datetime:
     try:
-        stamp = datetime.fromisoformat(text.strip())
+        stamp = _fromisoformat(text)
     except ValueError:
         raise InputError(
             f"{where} = {text!r} is not an ISO-8601 UTC time stamp (e.g. {_ISO_EXAMPLE!r})"
@@ -202,7 +218,7 @@ def parse_sequence_start(text: str | float | None) -> float | str | None:
         if _python_number(text):
             raise InputError(f"sequence_start = {exc}") from None
         _parse_utc(text, "sequence_start")
-        return text
+        return _capitals(text)  # as Python's datetime reads it, wherever it goes next
     if not math.isfinite(value):
         raise InputError(f"sequence_start = {text!r} is not finite")
     return value
@@ -668,7 +684,7 @@ def _python_number(text: str) -> bool:
 
 def _iso(cell: str) -> bool:
     try:
-        datetime.fromisoformat(cell.strip())
+        _fromisoformat(cell)
     except ValueError:
         return False
     return True

@@ -26,7 +26,11 @@ from inertia_id import (
     parse_telemetry,
     simulate,
 )
-from inertia_id.evaluation.telemetry import estimate_sequence_start, resample
+from inertia_id.evaluation.telemetry import (
+    estimate_sequence_start,
+    parse_sequence_start,
+    resample,
+)
 
 MISSION_START_S = 810_000_123.0  # a spacecraft clock ~26 years after its epoch
 UTC_START = datetime(2025, 3, 1, 12, 0, 0, tzinfo=UTC)
@@ -177,6 +181,30 @@ def test_iso_stamps_in_json_and_csv(
         sequence_start=start,
     )
     np.testing.assert_allclose(shifted.time_array, t, atol=1e-9)
+
+
+def test_rfc3339_lower_case_t_and_z_are_taken_as_the_capitals() -> None:
+    """RFC 3339 (5.6) allows "t" and "z"; they were refused as "not an ISO-8601 UTC time
+    stamp" (Python's fromisoformat takes the capitals only)."""
+    upper = ["2025-03-01T12:00:00Z", "2025-03-01T12:00:00.050Z", "2025-03-01T12:00:00.100Z"]
+    lower = [s.replace("T", "t").replace("Z", "z") for s in upper]
+    rates = [[0.0, 0.0, 0.0]] * 3
+    expected = Telemetry(time_utc=upper, omega_rad_s=rates, sequence_start=upper[0])
+    for stamps, start in ((lower, upper[0]), (upper, lower[0]), (lower, lower[0])):
+        got = Telemetry(time_utc=stamps, omega_rad_s=rates, sequence_start=start)
+        np.testing.assert_array_equal(got.time_array, expected.time_array)
+    parsed = parse_telemetry(
+        "\n".join(f"{s},0,0,0" for s in lower), sequence_start="2025-03-01t12:00:00z"
+    )
+    np.testing.assert_array_equal(parsed.time_array, expected.time_array)
+    assert parse_sequence_start(" 2025-03-01t12:00:00z ") == "2025-03-01T12:00:00Z"
+    # Only the separator and the zone: other letters are still refused, by name.
+    with pytest.raises(pydantic.ValidationError, match=r"time_utc\[1\] = '2025-03-01x12:00:00z'"):
+        Telemetry(
+            time_utc=[upper[0], "2025-03-01x12:00:00z"],
+            omega_rad_s=rates[:2],
+            sequence_start=upper[0],
+        )
 
 
 @pytest.mark.parametrize(
