@@ -681,7 +681,11 @@ class IdentifyResult(BaseModel):
         "named with full confidence; null where it can",
     )
     estimated_inertia_std_kg_m2: dict[str, float] | None = Field(
-        default=None, description="standard error of each estimated parameter (kg m^2)"
+        default=None,
+        description="standard error of each estimated parameter (kg m^2), allowing for the "
+        "errors the least-squares windows share (a random walk of disturbance and jitter, "
+        "gyro noise at the window ends), sized from this telemetry's own residuals; a bias "
+        "(a thrust scale off nominal, a poorly excited tensor) is not in it",
     )
     estimate_rejected: str | None = Field(
         default=None,

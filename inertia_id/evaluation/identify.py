@@ -149,10 +149,11 @@ START_UNREFINED = (
 #: telemetry, 300 series): the longer window pins the noise level, while the offset's
 #: weights favour the last samples (the disturbance's random walk makes old ones stale).
 DEFAULT_PRE_START_WINDOW_S = 30.0
-#: An estimated parameter is shown when its standard error is below this fraction of
-#: the mean principal moment (the rule of ``InertiaEstimate.poorly_excited``).
+#: An estimated parameter is shown when its independent-error standard error (the
+#: excitation ranking, not the reported figure) is below this fraction of the mean
+#: principal moment (the rule of ``InertiaEstimate.poorly_excited``).
 # 2 %: a sequence that drives each axis and each pair (the CLI test's six steps) gives
-# formal errors of 0.5-1.1 % of the mean moment and an estimate within 3 % of the truth;
+# independent-error figures of 0.5-1.1 % of the mean moment and an estimate within 3 % of the truth;
 # the hand-designed diagonal sequence gives 6-14 % and an estimate 60 % off.
 _WELL_EXCITED_RTOL = 0.02
 
@@ -481,7 +482,8 @@ def _estimate(
     there would fit the interpolation. Too few such windows withhold the tensor.
 
     Valid: finite, positive definite, principal moments satisfying the triangle
-    inequality. Well excited: every parameter's standard error within 2 % of the mean
+    inequality. Well excited: every parameter's independent-error standard error (the
+    excitation ranking) within 2 % of the mean
     principal moment. Otherwise the tensor is withheld (None) and the reason given,
     with the parameters this sequence cannot see.
     """
