@@ -180,9 +180,12 @@ class InertiaEstimate:
     :param parameter_std_kg_m2: (..., 6) standard errors that allow for the equation
         errors the windows share (a random walk along them, and white gyro noise at
         their ends), both measured from the residuals (:func:`_sandwich_covariance`).
-        On simulated series the truth lies within 2 of them about 95 % of the time or
-        more (bench/estimate_coverage.py); a systematic error, a thrust scale off nominal
-        or the bias noisy rates give a poorly excited tensor, is not in them.
+        On simulated series (bench/estimate_coverage.py) the truth lies beyond 2 of
+        them in 0-4 % of passes at 6x process noise and on paper-in-orbit, but in 11-21 %
+        at 1x on the paper preset, where a few seconds of one pass size the random walk
+        only roughly: read them as honest to within about 1.5x there. A systematic
+        error, a thrust scale off nominal or the bias noisy rates give a poorly excited
+        tensor, is not in them.
     :param independent_std_kg_m2: (..., 6) the textbook figure, from the residual
         variance as if every equation's error were independent: 3 to 8 times too small
         for overlapping windows, but a fair ranking of which parameters the sequence
