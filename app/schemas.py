@@ -482,6 +482,12 @@ class JobSubmitted(JobOut):
         "replaced the job it asked to replace (`rerun_of`), or an identical one that is queued "
         "or running"
     )
+    reused_note: str | None = Field(
+        default=None,
+        description="null when a new job was made; else why this job was returned rather "
+        "than a new one made, and how to run it anew (a rerun of a queued or running job: "
+        "cancel it, or name it in `rerun_of`)",
+    )
 
 
 class JobListed(JobOut):

@@ -391,7 +391,9 @@ async def _note_asked_at(request: Request) -> None:
             200: {
                 "model": JobSubmitted,
                 "description": "an identical job exists (for a rerun: one that already "
-                "replaced the job it asked to replace); it is returned",
+                "replaced the job it asked to replace, or, for a plain rerun, one still "
+                "queued or running and not asked to stop); it is returned, "
+                "`reused_note` saying why and how to run it anew",
             },
             **no_such("scenario or classifier"),
             **UNAUTHORIZED,
@@ -463,7 +465,9 @@ def submit_job(
         ) from None
     if reused:
         response.status_code = status.HTTP_200_OK
-        submitted = JobSubmitted.model_validate({**_as_dict(job), "reused": True})
+        submitted = JobSubmitted.model_validate(
+            {**_as_dict(job), "reused": True, "reused_note": _reused_note(body, job)}
+        )
         if idempotent is not None:
             idempotent.answer(session, status.HTTP_200_OK, submitted)
         return submitted
@@ -479,6 +483,42 @@ def submit_job(
     if idempotent is not None:
         idempotent.answer(session, status.HTTP_202_ACCEPTED, submitted)
     return submitted
+
+
+def _reused_note(body: JobCreate, job: JobRow) -> str:
+    """Why ``job`` answers the submission ``body`` instead of a new run, and how to get
+    one: a client that sent ``"rerun": true`` and got 200 with the old job back had only
+    ``reused`` to go by, and a job stuck running on a dead worker looked like a rerun
+    refused for no reason."""
+    cancel = f"POST /jobs/{job.id}/cancel"
+    if body.rerun_of is not None:
+        return (
+            f"job {body.rerun_of} was already replaced by this identical job (a rerun of it "
+            "sent earlier or at the same time): it is returned, not run once more"
+        )
+    unfinished = job.status in job_store.UNFINISHED_STATUSES and not job.cancel_requested
+    if body.rerun and unfinished:
+        return (
+            f"not rerun: the identical job {job.id} is still {job.status} (same scenario, "
+            "parameters and seed: same result), so a rerun is handed it; to run it anew, "
+            f'cancel it ({cancel}) and send the rerun again, or send "rerun_of": "{job.id}"'
+        )
+    if body.rerun:
+        return (
+            f"an identical rerun sent at the same time made job {job.id}: it is returned, "
+            "not run once more"
+        )
+    if unfinished:
+        return (
+            f"the identical job {job.id} is {job.status}: it is returned, not run twice; to "
+            f'run it anew, cancel it ({cancel}) and resubmit with "rerun": true, or send '
+            f'"rerun_of": "{job.id}"'
+        )
+    return (
+        f"the identical job {job.id} is {job.status}"
+        f"{' (asked to stop)' if job.cancel_requested else ''}: it is returned, not run "
+        f'again; send "rerun": true to run it anew'
+    )
 
 
 def _as_dict(job: JobRow) -> dict[str, Any]:

@@ -114,6 +114,33 @@ def test_identical_submission_returns_the_existing_job(api: Api) -> None:
     assert len(api.queued_messages()) == 3
 
 
+def test_a_rerun_handed_an_unfinished_job_says_why_and_how_to_run_it_anew(api: Api) -> None:
+    # A job stuck "running" on a dead worker (before the reaper notices) answers a plain
+    # rerun: the answer says so, and how to get a new run (before: only "reused": true).
+    scenario_id = api.create_scenario()["id"]
+    params = {"method": "random", "timesteps": 4096}
+    first = api.submit("search", scenario_id, params=params, seed=1).json()
+    assert first["reused_note"] is None
+    set_status(api, first["id"], "running")
+    handed = api.submit("search", scenario_id, params=params, seed=1, rerun=True)
+    assert (handed.status_code, handed.json()["id"]) == (200, first["id"])
+    note = handed.json()["reused_note"]
+    assert "still running" in note, note
+    assert f"POST /jobs/{first['id']}/cancel" in note and f'"rerun_of": "{first["id"]}"' in note
+    # What it says works: cancelled, the same rerun makes a new job, which says nothing.
+    assert api.post(f"/jobs/{first['id']}/cancel").status_code == 200
+    fresh = api.submit("search", scenario_id, params=params, seed=1, rerun=True)
+    assert fresh.status_code == 202 and fresh.json()["id"] != first["id"]
+    assert fresh.json()["reused_note"] is None
+    # A plain submission of a finished job is told how to run it again.
+    set_status(api, fresh.json()["id"], "succeeded")
+    same = api.submit("search", scenario_id, params=params, seed=1)
+    assert same.status_code == 200 and '"rerun": true' in same.json()["reused_note"]
+    # The OpenAPI text of the 200 says a plain rerun of an unfinished job is answered so.
+    answers = api.get("/openapi.json").json()["paths"]["/jobs"]["post"]["responses"]
+    assert "queued or running" in answers["200"]["description"]
+
+
 def test_a_rerun_that_names_the_job_it_replaces_makes_one_job_however_often_sent(
     api: Api,
 ) -> None:
