@@ -5,7 +5,8 @@ worker (by task name, :data:`service.queue.RUN_JOB_TASK`). A job with the same t
 scenario, parameters and seed as one that is queued, running or succeeded is not run
 twice: that job is returned (200, ``reused``) unless ``rerun`` is asked for and that
 job has finished (a plain rerun of a queued or running job is handed it, so a burst of
-reruns makes one job); a unique key in the database makes this hold for submissions
+reruns makes one job), or it is asked to stop (it ends with no result: a new job takes
+its place); a unique key in the database makes this hold for submissions
 that race each other too. A rerun that names the job it replaces (``rerun_of``) makes a
 new job only while that job still stands, so the same rerun sent twice makes one job.
 """
@@ -515,9 +516,8 @@ def _reused_note(body: JobCreate, job: JobRow) -> str:
             f'"rerun_of": "{job.id}"'
         )
     return (
-        f"the identical job {job.id} is {job.status}"
-        f"{' (asked to stop)' if job.cancel_requested else ''}: it is returned, not run "
-        f'again; send "rerun": true to run it anew'
+        f"the identical job {job.id} is {job.status}: it is returned, not run again; send "
+        '"rerun": true to run it anew'
     )
 
 

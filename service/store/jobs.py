@@ -142,6 +142,11 @@ def _standing_ids(session: Session, digest: str) -> set[str]:
 UNFINISHED_STATUSES = ("queued", "running")
 
 
+def _being_cancelled(job: JobRow) -> bool:
+    """Whether ``job`` is queued or running but asked to stop: it will end cancelled."""
+    return job.status in UNFINISHED_STATUSES and bool(job.cancel_requested)
+
+
 def _replaced_already(
     standing: JobRow, rerun_of: str | None, asked_over: set[str], asked_at: datetime | None
 ) -> bool:
@@ -154,7 +159,7 @@ def _replaced_already(
     # over hundreds of milliseconds under load: by "made since asked" alone a burst of
     # 15 made 1 to 9 jobs. A job that has not finished (and is not being cancelled)
     # answers it whenever it is taken up: a second run could only repeat its result.
-    if standing.status in UNFINISHED_STATUSES and not standing.cancel_requested:
+    if standing.status in UNFINISHED_STATUSES and not _being_cancelled(standing):
         return True
     return standing.id not in asked_over or (
         asked_at is not None and _aware(standing.created_at) >= _aware(asked_at)
@@ -178,7 +183,9 @@ def create_job(
     """Insert a queued job and commit it; or return the identical job that stands.
 
     Returns ``(job, reused)``. Without ``rerun`` an identical queued, running or
-    succeeded job is returned (``reused``), its name and tags as they were; with it, the
+    succeeded job is returned (``reused``), its name and tags as they were, unless it is
+    queued or running but asked to stop (it will end cancelled, with no result): a new
+    job replaces it, as a rerun naming it would; with ``rerun``, the
     new job takes that job's place for later submissions, unless an identical job that
     has not finished (queued or running, not asked to stop) or one made since the rerun
     was asked (an identical rerun at the same time) stands already: that one is returned
@@ -222,9 +229,15 @@ def create_job(
     for _ in range(3):
         if not rerun:
             existing = _reusable(session, digest)
-            if existing is not None:
+            if existing is not None and not _being_cancelled(existing):
                 return existing, True
-        else:
+            if existing is not None:
+                # It ends cancelled, with no result: replaced, as a rerun naming it would
+                # (identical submissions at once make one job: the later ones find it).
+                rerun, rerun_of = True, existing.id
+                # The write below starts from what is committed then (see above).
+                session.commit()
+        if rerun:
             # Identical reruns at once take turns from here: a no-op write takes the
             # standing rows' locks (PostgreSQL) or the database's write lock (SQLite).
             # One that finds a job made since it was asked (another rerun's) takes it:

@@ -141,6 +141,26 @@ def test_a_rerun_handed_an_unfinished_job_says_why_and_how_to_run_it_anew(api: A
     assert "queued or running" in answers["200"]["description"]
 
 
+def test_a_submission_is_not_handed_a_job_that_is_being_cancelled(api: Api) -> None:
+    # A running job asked to stop ends cancelled, with no result: a plain submission of
+    # its configuration was handed it all the same (200), and its user got nothing.
+    scenario_id = api.create_scenario()["id"]
+    params = {"method": "random", "timesteps": 4096}
+    first = api.submit("search", scenario_id, params=params, seed=1).json()["id"]
+    set_status(api, first, "running")
+    assert api.post(f"/jobs/{first}/cancel").json()["cancel_requested"] is True
+    made = [api.submit("search", scenario_id, params=params, seed=1) for _ in range(2)]
+    assert [a.status_code for a in made] == [202, 200], [a.text for a in made]
+    assert made[0].json()["id"] != first and made[1].json()["id"] == made[0].json()["id"]
+    assert len(api.queued_messages()) == 2
+    # A job that finished before it saw the request to stop stands, as any finished one.
+    set_status(api, made[0].json()["id"], "running")
+    api.post(f"/jobs/{made[0].json()['id']}/cancel")
+    set_status(api, made[0].json()["id"], "succeeded")
+    again = api.submit("search", scenario_id, params=params, seed=1)
+    assert (again.status_code, again.json()["id"]) == (200, made[0].json()["id"])
+
+
 def test_a_rerun_that_names_the_job_it_replaces_makes_one_job_however_often_sent(
     api: Api,
 ) -> None:

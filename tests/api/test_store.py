@@ -268,3 +268,23 @@ def test_a_submission_for_a_deleted_scenario_says_so(db: Database, scenario_id: 
         _submit(db, scenario_id)
     with db.session() as session:
         assert session.scalar(select(func.count()).select_from(JobRow)) == 0
+
+
+def test_identical_submissions_at_once_replace_a_job_being_cancelled_with_one(
+    db: Database, scenario_id: str
+) -> None:
+    # A running job asked to stop will end cancelled, with no result: submissions of its
+    # configuration at once make one job in its place (before: each was handed the job
+    # being cancelled), and the later ones are handed that one.
+    first, _ = _submit(db, scenario_id)
+    with db.session() as session:
+        job = _job(session, first)
+        job.status = "running"
+        cancel(session, job)
+    answers = _at_once(10, lambda: _submit(db, scenario_id))
+    assert not [a for a in answers if isinstance(a, Exception)], answers
+    made = {job_id for job_id, reused in answers if not reused}
+    assert len(made) == 1 and first not in made, answers
+    assert {job_id for job_id, _ in answers} == made
+    assert _count_jobs(db) == 2
+    assert _submit(db, scenario_id) == (made.pop(), True)
