@@ -177,6 +177,7 @@ def test_a_rerun_that_names_the_job_it_replaces_makes_one_job_however_often_sent
         again = api.submit("search", scenario_id, params=params, seed=1, **fields)
         assert again.status_code == 200, again.text
         assert (again.json()["id"], again.json()["reused"]) == (fresh, True)
+        assert f"job {first} was already replaced" in again.json()["reused_note"]
     assert len(api.queued_messages()) == 2
     # Rerunning the job that stands now makes a new one, queued as it is (named); a
     # plain rerun is handed that one while it waits or runs, and makes one once it ended.
