@@ -9,6 +9,7 @@ Each test makes what it needs through the API; no job here runs to the end.
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from typing import Any
 
 import pytest
@@ -568,6 +569,55 @@ def test_run_it_again_sent_twice_makes_one_new_job(dashboard: Dashboard) -> None
     assert sorted(job["id"] for job in listed["items"]) == sorted([standing, fresh])
     for job_id in (standing, fresh):
         client.post(f"/jobs/{job_id}/cancel")
+
+
+def _answering(body: str) -> Callable[[Any], None]:
+    """A route handler that answers 200 with the JSON ``body``."""
+
+    def answer(route: Any) -> None:
+        route.fulfill(status=200, content_type="application/json", body=body)
+
+    return answer
+
+
+def test_a_submission_handed_a_job_still_running_says_so_not_reused_result(
+    dashboard: Dashboard,
+) -> None:
+    """A job still queued or running has no result: the notice said "Reused an earlier
+    result" for it too (a plain submission or rerun is handed the run under way)."""
+    _save_key(dashboard)
+    client = dashboard.service.client
+    scenario_id = _scenario(dashboard, ["stowed", "deployed", "ejected"], "still running")
+    answer = client.post(
+        "/jobs",
+        json={
+            "type": "search",
+            "scenario_id": scenario_id,
+            "params": {"method": "random", "sequence_length": 2, "timesteps": 64},
+        },
+    )
+    assert answer.status_code == 202, answer.text
+    job_id = str(answer.json()["id"])
+    client.post(f"/jobs/{job_id}/cancel")
+    page = dashboard.page
+    for status, words, button in (
+        ("running", "Handed the identical job", "Start a second run anyway"),
+        ("queued", "Handed the identical job", "Start a second run anyway"),
+        ("succeeded", "Reused an earlier result", "Run it again"),
+    ):
+        shown = client.get(f"/jobs/{job_id}").json() | {"status": status}
+        url = f"{dashboard.service.base_url}/jobs/{job_id}"
+        page.route(url, _answering(json.dumps(shown)))
+        try:
+            page.goto("about:blank")  # the same route opened again would draw nothing new
+            page.goto(f"{dashboard.service.base_url}/#/jobs/{job_id}?reused=1")
+            notice = page.wait_for_selector("#reused-notice #rerun-job")
+            text = page.inner_text("#reused-notice")
+            assert words in text, (status, text)
+            assert f"still {status}" in text or status == "succeeded", (status, text)
+            assert notice.inner_text() == button, (status, notice.inner_text())
+        finally:
+            page.unroute(url)
 
 
 def test_the_health_badge_names_a_worker_whose_process_is_gone(dashboard: Dashboard) -> None:

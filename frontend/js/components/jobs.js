@@ -202,9 +202,16 @@ export function reusedNotice(body, job) {
     },
     "Run it again",
   );
+  const created = `created ${new Date(job.created_at).toISOString().replace("T", " ").slice(0, 19)} UTC`;
+  // A job not yet finished has no result to reuse: the submission was handed the run
+  // under way (the service starts no second copy of it), and "Run it again" would.
+  const unfinished = job.status === "queued" || job.status === "running";
+  if (unfinished) rerun.textContent = "Start a second run anyway";
   holder.append(
     messageBox("notice", [
-      `Reused an earlier result: job ${job.id.slice(0, 8)} has the same scenario, parameters and seed (${job.status}, created ${new Date(job.created_at).toISOString().replace("T", " ").slice(0, 19)} UTC), so it was not run again. `,
+      unfinished
+        ? `Handed the identical job ${job.id.slice(0, 8)}, still ${job.status} (${created}): it has the same scenario, parameters and seed, so no second copy was started; its result will answer this submission. `
+        : `Reused an earlier result: job ${job.id.slice(0, 8)} has the same scenario, parameters and seed (${job.status}, ${created}), so it was not run again. `,
       rerun,
     ]),
   );
