@@ -486,7 +486,9 @@ class JobSubmitted(JobOut):
         default=None,
         description="null when a new job was made; else why this job was returned rather "
         "than a new one made, and how to run it anew (a rerun of a queued or running job: "
-        "cancel it, or name it in `rerun_of`)",
+        "cancel it, or name it in `rerun_of`); then the submission's `name` and `tags` "
+        "that job lacks, if any: they are not applied to it (a job that stands is "
+        "relabelled only on purpose), and the `PATCH /jobs/{id}` body that sets them",
     )
 
 

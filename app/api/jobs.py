@@ -490,7 +490,42 @@ def _reused_note(body: JobCreate, job: JobRow) -> str:
     """Why ``job`` answers the submission ``body`` instead of a new run, and how to get
     one: a client that sent ``"rerun": true`` and got 200 with the old job back had only
     ``reused`` to go by, and a job stuck running on a dead worker looked like a rerun
-    refused for no reason."""
+    refused for no reason. Then the labels of ``body`` that ``job`` lacks, if any."""
+    return _why_reused(body, job) + _labels_not_applied(body, job)
+
+
+def _labels_not_applied(body: JobCreate, job: JobRow) -> str:
+    """What of the submission's ``name`` and ``tags`` the job handed back lacks, and the
+    ``PATCH`` that sets it; empty when it lacks none.
+
+    A submission handed a job that stands does not relabel it: that job is someone's
+    (another submission's, another user's), and a resubmission with other labels must
+    not rename it by surprise. But the labels were dropped without a word, and a rerun
+    sent to tag a new run found its tags nowhere.
+    """
+    name = body.name if body.name is not None and body.name != job.name else None
+    have = job.tags
+    missing = [tag for tag in dict.fromkeys(body.tags or ()) if tag not in have]
+    if name is None and not missing:
+        return ""
+    dropped: list[str] = []
+    change: dict[str, Any] = {}
+    if name is not None:
+        named = f"named {job.name!r}" if job.name is not None else "unnamed"
+        dropped.append(f"name {name!r} (it is {named})")
+        change["name"] = name
+    if missing:
+        tagged = f"tagged {have}" if have else "untagged"
+        dropped.append(f"tags {missing} (it is {tagged})")
+        change["tags"] = [*have, *missing]
+    return (
+        f"; this submission's {' and '.join(dropped)} were not applied to it, labels of "
+        f"a job that stands being changed only on purpose: to set them, PATCH "
+        f"/jobs/{job.id} with {json.dumps(change)}"
+    )
+
+
+def _why_reused(body: JobCreate, job: JobRow) -> str:
     cancel = f"POST /jobs/{job.id}/cancel"
     if body.rerun_of is not None:
         return (

@@ -197,7 +197,8 @@ def create_job(
     once reach this call one after another). Concurrent identical
     submissions make one job: the unique index on reusable configurations refuses all
     inserts but one, and the others return that one. ``name`` and ``tags`` label the new
-    job; they are not part of its identity (:func:`config_hash`).
+    job; they are not part of its identity (:func:`config_hash`), and a job returned
+    (``reused``) keeps its own (the API's ``reused_note`` says which were not applied).
 
     ``rerun_of`` (a rerun: ``rerun`` need not be set too) names the job the caller saw
     standing and wants replaced, which makes a rerun idempotent whenever it is taken

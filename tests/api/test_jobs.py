@@ -141,6 +141,53 @@ def test_a_rerun_handed_an_unfinished_job_says_why_and_how_to_run_it_anew(api: A
     assert "queued or running" in answers["200"]["description"]
 
 
+def test_a_submission_handed_a_standing_job_says_which_labels_it_did_not_apply(
+    api: Api,
+) -> None:
+    # A rerun handed a job still running kept that job's labels, and the new name and
+    # tags it carried were dropped without a word (before: the note said nothing of them).
+    scenario_id = api.create_scenario()["id"]
+    params = {"method": "random", "timesteps": 4096}
+    first = api.submit("search", scenario_id, params=params, seed=1, tags=["baseline"]).json()
+    set_status(api, first["id"], "running")
+    handed = api.submit(
+        "search",
+        scenario_id,
+        params=params,
+        seed=1,
+        rerun=True,
+        name="flight 2",
+        tags=["baseline", "flight-2"],
+    )
+    assert (handed.status_code, handed.json()["id"]) == (200, first["id"])
+    # Not applied: the job that stands is relabelled only on purpose.
+    assert (handed.json()["name"], handed.json()["tags"]) == (None, ["baseline"])
+    note = handed.json()["reused_note"]
+    assert "still running" in note, note
+    assert "name 'flight 2' (it is unnamed)" in note, note
+    assert "tags ['flight-2'] (it is tagged ['baseline'])" in note, note
+    change = (
+        f'PATCH /jobs/{first["id"]} with {{"name": "flight 2", "tags": ["baseline", "flight-2"]}}'
+    )
+    assert note.endswith(change), note
+    # What it says works.
+    patched = api.client.patch(
+        f"/jobs/{first['id']}",
+        json={"name": "flight 2", "tags": ["baseline", "flight-2"]},
+        headers=api.auth,
+    )
+    assert patched.status_code == 200, patched.text
+    assert (patched.json()["name"], patched.json()["tags"]) == (
+        "flight 2",
+        ["baseline", "flight-2"],
+    )
+    # A submission whose labels the job has (or that sends none) is told nothing of them.
+    for labels in ({}, {"name": "flight 2", "tags": ["flight-2"]}):
+        same = api.submit("search", scenario_id, params=params, seed=1, **labels)
+        assert same.status_code == 200
+        assert "not applied" not in same.json()["reused_note"], labels
+
+
 def test_a_submission_is_not_handed_a_job_that_is_being_cancelled(api: Api) -> None:
     # A running job asked to stop ends cancelled, with no result: a plain submission of
     # its configuration was handed it all the same (200), and its user got nothing.
