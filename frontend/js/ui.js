@@ -80,6 +80,21 @@ export function quantity(value, significant = 3) {
   return Math.abs(value) >= 10 ** significant || text.includes("e+") ? String(whole) : text;
 }
 
+// A rate smaller than this is written 0 (as the plan's CSV writes it: inertia_id/search/
+// plan.py RATE_RESOLUTION_DEG_S): no gyro tells it from rest (1e-9 deg/s is 3.6e-6 deg/h,
+// under the best gyros' bias stability, about 1e-4 deg/h), while thrusters whose torques
+// cancel leave some 1e-16 deg/s of double rounding, which read "3.79e-16 deg/s".
+export const RATE_RESOLUTION_DEG_S = 1e-9;
+
+// A rate in deg/s (or rad/s, with `radians`) as a quantity, or 0 below the resolution.
+export function rate(value, { radians = false } = {}) {
+  const floor = radians ? (RATE_RESOLUTION_DEG_S * Math.PI) / 180 : RATE_RESOLUTION_DEG_S;
+  return typeof value === "number" && Math.abs(value) < floor ? "0" : quantity(value);
+}
+
+export const rateDeg = (value) => rate(value);
+export const rateRad = (value) => rate(value, { radians: true });
+
 // A measured value ± its standard error: the error to two significant digits (below
 // 1e-3 in exponent form, as fmt writes it), the value to the decimal of the error's last
 // digit, and to three significant digits where the error is finer still (up to two

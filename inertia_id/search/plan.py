@@ -57,6 +57,32 @@ MAX_FLIGHTS = 100_000
 
 _DEG = 180.0 / np.pi
 
+#: A rate smaller than this is written 0 (the CSV here, the dashboard's tables): no gyro
+#: tells it from rest (1e-9 deg/s is 3.6e-6 deg/h, under the bias stability of the best,
+#: strategic-grade gyros, about 1e-4 deg/h), and it turns a body a microdegree in 1000 s,
+#: while what double rounding leaves where thrusters' torques cancel is some 1e-16 deg/s
+#: (a front member of such thrusters read "residual rate 3.79e-16 deg/s": dust written
+#: as a figure). The JSON keeps every rate as computed: a program reading it decides.
+RATE_RESOLUTION_DEG_S = 1e-9
+RATE_RESOLUTION_RAD_S = RATE_RESOLUTION_DEG_S / _DEG
+
+
+def _rate_text(value: float, *, deg: bool = False) -> str:
+    """A rate (rad/s, or deg/s with ``deg``) for the CSV: 6 significant digits, or 0 below
+    :data:`RATE_RESOLUTION_DEG_S`."""
+    floor = RATE_RESOLUTION_DEG_S if deg else RATE_RESOLUTION_RAD_S
+    return "0" if abs(value) < floor else f"{value:.6g}"
+
+
+def _rate_pair(figures: dict[str, Any], name: str, *, label: str = "", sep: str = ", ") -> str:
+    """``figures``' rate ``name`` in rad/s and in deg/s, as the CSV's ``#`` lines write
+    them: ``{label}_rad_s value{sep}{label}_deg_s value`` (``label``: ``name``)."""
+    label = label or name
+    return (
+        f"{label}_rad_s {_rate_text(figures[name + '_rad_s'])}{sep}"
+        f"{label}_deg_s {_rate_text(figures[name + '_deg_s'], deg=True)}"
+    )
+
 
 @dataclass(frozen=True)
 class FlightDispersion:
@@ -283,8 +309,7 @@ class CommandPlan:
             out.write(
                 "# initial_rate_floor: initial_rate_sigma_rad_s "
                 f"{floor['initial_rate_sigma_rad_s']:g}"
-                f"; mean_rad_s {floor['mean_rad_s']:.6g}; mean_deg_s {floor['mean_deg_s']:.6g}"
-                f"; p95_rad_s {floor['p95_rad_s']:.6g}; p95_deg_s {floor['p95_deg_s']:.6g}"
+                f"; {_rate_pair(floor, 'mean', sep='; ')}; {_rate_pair(floor, 'p95', sep='; ')}"
                 " (|omega(0)|, in every flight's residual, removed by no open-loop sequence; the "
                 "residual rates below start from rest: the commanded part)\n"
             )
@@ -294,8 +319,7 @@ class CommandPlan:
                 f"# flights: {self.dispersion.flights} per candidate at the scenario's noise, "
                 f"seed {self.dispersion.seed}"
                 + "".join(
-                    f"; {figure}_rad_s {summary[figure + '_rad_s']:.6g}"
-                    f"; {figure}_deg_s {summary[figure + '_deg_s']:.6g}"
+                    f"; {_rate_pair(summary, figure, sep='; ')}"
                     for figure in (
                         "residual_rate_p95_max",
                         "residual_rate_p95_bound_max",
@@ -306,17 +330,19 @@ class CommandPlan:
                 + "\n"
             )
         for k, candidate in enumerate(document["candidates"], start=1):
+            flown = candidate.get("flights") or {}
             out.write(
-                f"# candidate_{k} {csv_note_text(candidate['name'])}: residual_rate_rad_s "
-                f"{candidate['residual_rate_rad_s']:.6g}"
-                f", residual_rate_deg_s {candidate['residual_rate_deg_s']:.6g}"
-                f", commanded_residual_rate_rad_s {candidate['commanded_residual_rate_rad_s']:.6g}"
-                f", commanded_residual_rate_deg_s {candidate['commanded_residual_rate_deg_s']:.6g}"
-                f", end_rate_rad_s {candidate['end_rate_rad_s']:.6g}"
-                f", end_rate_deg_s {candidate['end_rate_deg_s']:.6g}"
-                f", peak_rate_rad_s {candidate['peak_rate_rad_s']:.6g}"
-                f", peak_rate_deg_s {candidate['peak_rate_deg_s']:.6g}"
-                f", attitude_change_deg {candidate['attitude_change_deg']:.6g}"
+                f"# candidate_{k} {csv_note_text(candidate['name'])}: "
+                + ", ".join(
+                    _rate_pair(candidate, rate)
+                    for rate in (
+                        "residual_rate",
+                        "commanded_residual_rate",
+                        "end_rate",
+                        "peak_rate",
+                    )
+                )
+                + f", attitude_change_deg {candidate['attitude_change_deg']:.6g}"
                 # The JSON's quaternion too (the README promises it in both forms).
                 + "".join(
                     f", attitude_quaternion_{part} {value:.9g}"
@@ -326,11 +352,10 @@ class CommandPlan:
                     ""
                     if self.dispersion is None
                     else "".join(
-                        f", flights_{key} {value:.6g}"
-                        f", flights_{key.removesuffix('_rad_s')}_deg_s "
-                        f"{candidate['flights'][key.removesuffix('_rad_s') + '_deg_s']:.6g}"
-                        for key, value in candidate["flights"].items()
-                        if key.endswith("_rad_s")
+                        ", " + _rate_pair(flown, rate, label=f"flights_{rate}")
+                        for rate in (
+                            key.removesuffix("_rad_s") for key in flown if key.endswith("_rad_s")
+                        )
                     )
                 )
                 + "\n"
@@ -353,8 +378,8 @@ class CommandPlan:
             row += [f"{v:.6g}" for v in step["on_time_s"]] + [f"{v:.6g}" for v in step["duty"]]
             row += [f"{v:.6g}" for v in step["torque_nm"]]
             for k in range(len(self.candidate_names)):
-                row += [f"{v:.6g}" for v in rates[k, i]]
-                row += [f"{v:.6g}" for v in rates[k, i] * _DEG]
+                row += [_rate_text(v) for v in rates[k, i]]
+                row += [_rate_text(v, deg=True) for v in rates[k, i] * _DEG]
             writer.writerow(row)
         return out.getvalue()
 

@@ -1783,6 +1783,40 @@ def test_measured_and_quantity_keep_their_digits_at_the_extremes(dashboard: Dash
     ]
 
 
+def test_a_rate_no_gyro_reads_is_written_0(dashboard: Dashboard) -> None:
+    """A front member whose thrusters cancel read "residual rate 3.79e-16 deg/s": double
+    rounding written as a figure. Below 1e-9 deg/s (ui.js ``RATE_RESOLUTION_DEG_S``) a
+    rate is written 0, in deg/s and in rad/s alike, as the job list's rate column writes
+    it; a rate just above keeps its digits. Called in the page, as the dashboard's own
+    modules."""
+    dashboard.open("")
+    shown = dashboard.page.evaluate(
+        """async () => {
+            const ui = await import("/static/js/ui.js");
+            const jobs = await import("/static/js/components/jobs.js");
+            const column = { key: "residual_rate_rad_s", unit: "rad/s" };
+            return [
+                ui.rateDeg(3.79e-16), ui.rateDeg(-3.79e-16), ui.rateRad(6.6e-18),
+                ui.rateDeg(2e-9), ui.rateRad(1.2345e-10), ui.rateDeg(0.0412345),
+                ui.rateDeg(null),
+                jobs.summaryValue({ summary: { residual_rate_rad_s: 6.6e-18 } }, column),
+                jobs.summaryValue({ summary: { residual_rate_rad_s: 0.00123456 } }, column),
+            ];
+        }"""
+    )
+    assert shown == [
+        "0",
+        "0",
+        "0",
+        "2e-9",
+        "1.23e-10",
+        "0.0412",
+        "–",
+        "0 (0 deg/s)",
+        "0.00123 (0.0707 deg/s)",
+    ]
+
+
 def test_identify_writes_the_candidates_inertia_and_the_estimate_in_one_format(
     dashboard: Dashboard,
 ) -> None:

@@ -156,6 +156,38 @@ def test_opposing_thrusters_cost_propellant() -> None:
     assert by_arm.propellant_kg(opposed) == pytest.approx(expected_kg)
 
 
+def test_a_plans_csv_writes_the_rate_dust_of_cancelling_thrusters_as_0(paper: Scenario) -> None:
+    """Thrusters whose torques cancel (0.1 + 0.2 - 0.3 N m) leave some 1e-17 deg/s of
+    double rounding: the CSV wrote it as a figure ("residual_rate_deg_s 6.36111e-17"),
+    as the dashboard wrote "3.79e-16 deg/s". Written 0 now; the JSON keeps it as computed,
+    and a rate a gyro can read keeps its six digits."""
+    thrusters = paper.model_dump()["thrusters"]
+    thrusters["torque_matrix_nm"] = [[0.1, 0.2, -0.3, 0, 0], [0, 0, 0, 0.1, 0], [0, 0, 0, 0, 0.1]]
+    cancelling = Scenario.model_validate({**paper.model_dump(), "thrusters": thrusters})
+    plan = command_plan(cancelling, [[4, 4, 4, 0, 0]] * 2 + [[0, 0, 0, 1, 0]])
+    residual = plan.to_dict()["candidates"][0]["residual_rate_deg_s"]
+    lines = plan.to_csv().splitlines()
+    first = next(x for x in lines if x.startswith("# candidate_1 "))
+    steps = [x.split(",") for x in lines if not x.startswith("#")]
+    header, rows = steps[0], steps[1:]
+    # Dust while the cancelling thrusters fire, in the JSON (raw) and nowhere in the CSV.
+    dust = plan.to_dict()["steps"][0]["torque_nm"][0]
+    assert 0 < abs(dust) < 1e-15
+    rate_columns = [i for i, name in enumerate(header) if name.startswith("candidate_")]
+    assert {rows[i][c] for i in (0, 1) for c in rate_columns} == {"0"}
+    # The last step fires the y thruster alone: a real rate, written to six digits.
+    wy = float(rows[-1][header.index("candidate_1_wy_deg_s")])
+    assert wy == pytest.approx(np.degrees(plan.rates_rad_s[0][-1][1]), rel=1e-5) and wy > 1e-3
+    assert f"residual_rate_deg_s {residual:.6g}," in first, first
+    # A plan of the cancelling steps alone: every rate on the candidate's line is 0.
+    still = command_plan(cancelling, [[4, 4, 4, 0, 0]] * 2)
+    raw = still.to_dict()["candidates"][0]
+    assert 0 < raw["residual_rate_deg_s"] < 1e-12 and 0 < raw["peak_rate_deg_s"] < 1e-12
+    line = next(x for x in still.to_csv().splitlines() if x.startswith("# candidate_1 "))
+    for name in ("residual_rate", "commanded_residual_rate", "end_rate", "peak_rate"):
+        assert f" {name}_rad_s 0," in line and f" {name}_deg_s 0," in line, line
+
+
 def test_a_plans_csv_says_in_words_when_the_propellant_is_not_stated(paper: Scenario) -> None:
     """The ``# propellant_kg:`` line was left empty when the scenario gives no thrust or
     specific impulse; it stays (a reader by name finds it) and says what would state it."""

@@ -5,7 +5,7 @@
 
 import { api } from "../api.js";
 import { isTerminal, vocabulary } from "../vocabulary.js";
-import { clear, fmt, h, link, messageBox, quantity, seconds, tagChips } from "../ui.js";
+import { clear, fmt, h, link, messageBox, quantity, rateDeg, rateRad, seconds, tagChips } from "../ui.js";
 import { confirmAction } from "./dialog.js";
 import { withoutKey } from "./keyed.js";
 
@@ -74,9 +74,9 @@ export function summaryValue(job, column) {
   // job's own page writes it (its `digits` decimals wrote 0.45 N m s as 0.5 and a rate
   // of 1.06e-3 rad/s as 0.0011); a fraction (F1, accuracy) with its decimals.
   if (column.unit) {
-    const text = quantity(value);
-    // A flight team reads rates in deg/s: a rad/s figure carries its deg/s beside it.
-    return column.unit === "rad/s" ? `${text} (${quantity((value * 180) / Math.PI)} deg/s)` : text;
+    // A flight team reads rates in deg/s: a rad/s figure carries its deg/s beside it (a
+    // rate no gyro reads, the dust of cancelling thrusters, written 0).
+    return column.unit === "rad/s" ? `${rateRad(value)} (${rateDeg((value * 180) / Math.PI)} deg/s)` : quantity(value);
   }
   const abs = Math.abs(value);
   return abs !== 0 && abs < 10 ** -column.digits ? value.toExponential(2) : value.toFixed(column.digits);

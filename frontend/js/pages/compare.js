@@ -10,7 +10,7 @@ import { jobCell, jobDetail, summaryColumns, summaryValue } from "../components/
 import { BestSoFar, COLORS, PLOT_CONFIG, extendWith, layout, plotDiv, plotText, polishMarks, polishStart, tightRange, title } from "../components/plots.js";
 import { dataTable } from "../components/table.js";
 import { classifierName, isTerminal, noiseInfo } from "../vocabulary.js";
-import { fmt, h, link, messageBox, quantity, score, statusBadge, tagChips, when } from "../ui.js";
+import { fmt, h, link, messageBox, quantity, rateDeg, rateRad, score, statusBadge, tagChips, when } from "../ui.js";
 
 const TYPES = [
   ["search", "Searches"],
@@ -218,7 +218,7 @@ async function searchGroup(section, jobs, suffix, context) {
       textposition: "top center",
       marker: { size: 12, color: COLORS[jobs.indexOf(job) % COLORS.length] },
       name: searchLabel(job),
-      hovertemplate: `%{text}: fresh F1 %{y:.3f}, ${quantity(job.summary.fuel_nms)} N m s, residual ${fmt(job.summary.residual_rate_rad_s, 4)} rad/s (${fmt(Number.isFinite(job.summary.residual_rate_rad_s) ? (job.summary.residual_rate_rad_s * 180) / Math.PI : null, 3)} deg/s)<extra></extra>`,
+      hovertemplate: `%{text}: fresh F1 %{y:.3f}, ${quantity(job.summary.fuel_nms)} N m s, residual ${rateRad(job.summary.residual_rate_rad_s)} rad/s (${rateDeg(Number.isFinite(job.summary.residual_rate_rad_s) ? (job.summary.residual_rate_rad_s * 180) / Math.PI : null)} deg/s)<extra></extra>`,
     })),
     layout("propellant: commanded impulse (N m s)", "fresh F1 (mean)", {
       title: title("Separation against propellant"),

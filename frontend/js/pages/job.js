@@ -8,7 +8,7 @@ import { REUSED_KEY, cancelButton, labelEditor, reusedNotice, timingCell } from 
 import { whenKeyed } from "../components/keyed.js";
 import { BAND, BestSoFar, DEG_PER_RAD, PLOT_CONFIG, extendWith, fitFlatSeries, keepTwins, layout, plotDiv, polishMarks, polishStart, responseView, sequencePlot, title, twinAxes, twinTraces } from "../components/plots.js";
 import { isTerminal } from "../vocabulary.js";
-import { clear, fmt, h, link, messageBox, progressBar, put, quantity, score, sequenceText, statusBadge, table, tagChips, utcText, warningsBox, whenText } from "../ui.js";
+import { clear, fmt, h, link, messageBox, progressBar, put, quantity, rateDeg, rateRad, score, sequenceText, statusBadge, table, tagChips, utcText, warningsBox, whenText } from "../ui.js";
 import { renderClassifier } from "../views/classifier.js";
 import { frontPanel } from "../views/front.js";
 import { sweepPanel } from "../views/sweep.js";
@@ -280,7 +280,7 @@ async function searchResult(holder, job, context) {
         h("dt", {}, `clustering F1 on ${drawsText}`),
         h("dd", { id: "best-fresh-f1" }, freshF1.length ? `${score(mean)} mean (min ${score(Math.min(...freshF1))})` : "–"),
         h("dt", {}, job.params.method === "nsga2" ? "residual rate (once the lag is empty)" : "rate at the last step's end"),
-        h("dd", { id: "best-final-rate" }, `${quantity(best.final_rate_rad_s * RAD_TO_DEG)} deg/s (${quantity(best.final_rate_rad_s)} rad/s)`),
+        h("dd", { id: "best-final-rate" }, `${rateDeg(best.final_rate_rad_s * RAD_TO_DEG)} deg/s (${rateRad(best.final_rate_rad_s)} rad/s)`),
         h("dt", {}, "fuel (commanded impulse)"),
         h("dd", {}, `${quantity(best.fuel_nms)} N m s`),
         h("dt", {}, "environment steps, episodes"),
@@ -341,7 +341,7 @@ function baselineTable(result, best, freshF1) {
     h("h3", {}, `Against the hand-designed baselines, on the same ${freshF1.length} fresh draws`),
     table(
       ["sequence", "F1 mean", "F1 min", "rate at the last step's end (deg/s)", "(rad/s)", "fuel (N m s)", "levels"],
-      rows.map(([name, f1, rate, fuel, levels]) => [name, score(meanOf(f1)), score(Math.min(...f1)), quantity(meanOf(rate) * RAD_TO_DEG), quantity(meanOf(rate)), quantity(fuel), h("span", { class: "mono" }, sequenceText(levels))]),
+      rows.map(([name, f1, rate, fuel, levels]) => [name, score(meanOf(f1)), score(Math.min(...f1)), rateDeg(meanOf(rate) * RAD_TO_DEG), rateRad(meanOf(rate)), quantity(fuel), h("span", { class: "mono" }, sequenceText(levels))]),
       { id: "baseline-table" },
     ),
   );

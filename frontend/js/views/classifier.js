@@ -8,7 +8,7 @@ import { BAND, PLOT_CONFIG, confusionPlot, layout, plotDiv, responseView, sequen
 import { downloads, jobDownloads } from "../components/downloads.js";
 import { whenKeyed } from "../components/keyed.js";
 import { isTerminal } from "../vocabulary.js";
-import { clear, fmt, h, link, messageBox, put, quantity, score, sequenceText, tagChips, utcText, warningsBox, when } from "../ui.js";
+import { clear, fmt, h, link, messageBox, put, quantity, rateDeg, rateRad, score, sequenceText, tagChips, utcText, warningsBox, when } from "../ui.js";
 import { sweepPanel } from "./sweep.js";
 
 const RAD_TO_DEG = 180 / Math.PI;
@@ -79,7 +79,7 @@ export async function renderClassifier(container, classifier, context, sweepId =
       const rates = response.candidates.map((c) => c.final_rate_rad_s);
       const mean = rates.reduce((a, b) => a + b, 0) / rates.length;
       // In deg/s with rad/s beside it, as every rate on the dashboard.
-      finalRate.textContent = `${quantity(mean * RAD_TO_DEG)} deg/s (${quantity(mean)} rad/s)`;
+      finalRate.textContent = `${rateDeg(mean * RAD_TO_DEG)} deg/s (${rateRad(mean)} rad/s)`;
       seqPlot.hidden = false;
       sequencePlot(seqPlot, response);
       const view = responseView(response, { id: "classifier-response", titleText: "ω response to the classifier's sequence" });

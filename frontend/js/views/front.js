@@ -16,7 +16,7 @@ import { downloads } from "../components/downloads.js";
 import { submitAndOpen } from "../components/jobs.js";
 import { whenKeyed, withoutKey } from "../components/keyed.js";
 import { DEG_PER_RAD, PLOT_CONFIG, keepTwins, layout, plotDiv, twinAxes, twinTraces } from "../components/plots.js";
-import { clear, fmt, h, messageBox, plain, put, quantity, score, sequenceText, warningsBox } from "../ui.js";
+import { clear, fmt, h, messageBox, plain, put, quantity, rateDeg, rateRad, score, sequenceText, warningsBox } from "../ui.js";
 
 const RAD_TO_DEG = 180 / Math.PI;
 const RATE_TWINS = [{ of: "xaxis", twin: "xaxis2", factor: 1 / DEG_PER_RAD, title: "residual rate (rad/s)" }];
@@ -30,6 +30,12 @@ function num(key, value, format = quantity) {
   return h("td", { class: "num", "data-key": key, "data-value": value === null || value === undefined ? "" : String(value) }, shown);
 }
 
+// How a figure keyed `key` is written: a rate (…_deg_s, …_rad_s) 0 below the resolution
+// a gyro reads, anything else as a quantity.
+function rateFormat(key) {
+  return key.endsWith("_deg_s") ? rateDeg : key.endsWith("_rad_s") ? rateRad : quantity;
+}
+
 // The figures every row shows, in order: [key in scores, header, how it is written]:
 // the accuracy with three decimals, every physical figure as a quantity (three
 // significant digits: fixed decimals wrote a residual of 0.0004 deg/s as 0.000, and the
@@ -37,25 +43,25 @@ function num(key, value, format = quantity) {
 function figures(hasPropellant) {
   return [
     ["accuracy", "accuracy", score],
-    ["final_rate_deg_s", "residual rate (deg/s)", quantity],
-    ["final_rate_rad_s", "residual rate (rad/s)", quantity],
+    ["final_rate_deg_s", "residual rate (deg/s)", rateDeg],
+    ["final_rate_rad_s", "residual rate (rad/s)", rateRad],
     // The part of it the sequence itself leaves (the plan's prediction from rest, mean
     // over candidates): beside an initial-rate spread the residual carries |ω(0)|, which
     // no sequence removes, and would hide whether a sequence brakes.
-    ["commanded_residual_rate_deg_s", "commanded residual, from rest (deg/s)", quantity],
-    ["commanded_residual_rate_rad_s", "commanded residual, from rest (rad/s)", quantity],
+    ["commanded_residual_rate_deg_s", "commanded residual, from rest (deg/s)", rateDeg],
+    ["commanded_residual_rate_rad_s", "commanded residual, from rest (rad/s)", rateRad],
     // What a residual-rate bound acts on: the candidate that ends fastest.
-    ["final_rate_max_deg_s", "worst candidate's residual (deg/s)", quantity],
-    ["final_rate_max_rad_s", "worst candidate's residual (rad/s)", quantity],
+    ["final_rate_max_deg_s", "worst candidate's residual (deg/s)", rateDeg],
+    ["final_rate_max_rad_s", "worst candidate's residual (rad/s)", rateRad],
     // What a per-flight bound acts on: a rate at least 95 % of that candidate's flights
     // stay under, with 95 % confidence (a tolerance bound from the realisations).
-    ["final_rate_p95_deg_s", "residual, ≥ 95 % of flights under, 95 % conf. (deg/s)", quantity],
-    ["final_rate_p95_rad_s", "residual, ≥ 95 % of flights under, 95 % conf. (rad/s)", quantity],
-    ["peak_rate_deg_s", "peak rate (deg/s)", quantity],
-    ["peak_rate_rad_s", "peak rate (rad/s)", quantity],
+    ["final_rate_p95_deg_s", "residual, ≥ 95 % of flights under, 95 % conf. (deg/s)", rateDeg],
+    ["final_rate_p95_rad_s", "residual, ≥ 95 % of flights under, 95 % conf. (rad/s)", rateRad],
+    ["peak_rate_deg_s", "peak rate (deg/s)", rateDeg],
+    ["peak_rate_rad_s", "peak rate (rad/s)", rateRad],
     // The same for each flight's own peak rate (what a per-flight peak bound acts on).
-    ["peak_rate_p95_deg_s", "peak, ≥ 95 % of flights under, 95 % conf. (deg/s)", quantity],
-    ["peak_rate_p95_rad_s", "peak, ≥ 95 % of flights under, 95 % conf. (rad/s)", quantity],
+    ["peak_rate_p95_deg_s", "peak, ≥ 95 % of flights under, 95 % conf. (deg/s)", rateDeg],
+    ["peak_rate_p95_rad_s", "peak, ≥ 95 % of flights under, 95 % conf. (rad/s)", rateRad],
     ["impulse_nms", "impulse (N m s)", quantity],
     ["on_time_s", "on-time (s)", quantity],
     ...(hasPropellant ? [["propellant_kg", "propellant (kg)", quantity]] : []),
@@ -177,7 +183,7 @@ function hover(label, scores, sequence) {
   return (
     `${label}<br>accuracy ${scores.accuracy.toFixed(3)}` +
     (mean === null ? "" : ` (predicted ${mean.toFixed(3)})`) +
-    `<br>residual rate ${fmt(scores.final_rate_deg_s, 3)} deg/s (${fmt(scores.final_rate_rad_s, 4)} rad/s)` +
+    `<br>residual rate ${rateDeg(scores.final_rate_deg_s)} deg/s (${rateRad(scores.final_rate_rad_s)} rad/s)` +
     `<br>impulse ${quantity(scores.impulse_nms)} N m s` +
     `<br>attitude change ${fmt(scores.attitude_change_deg, 1)} deg` +
     `<br>${sequenceText(sequence)}`
@@ -441,7 +447,7 @@ async function showMember(holder, job, member, context) {
 // `initial_rate_floor`), or nothing for a scenario that starts at rest.
 function floorText(floor) {
   if (!floor) return "";
-  return `The residual predicted here starts from rest: what the commands leave. Every flight also keeps the rate it started with (the scenario's initial-rate spread, σ ${quantity(floor.initial_rate_sigma_rad_s)} rad/s an axis), which no open-loop sequence removes: ${quantity(floor.mean_deg_s)} deg/s (${quantity(floor.mean_rad_s)} rad/s) on average over flights, ${quantity(floor.p95_deg_s)} deg/s (${quantity(floor.p95_rad_s)} rad/s) on 95 % of them. `;
+  return `The residual predicted here starts from rest: what the commands leave. Every flight also keeps the rate it started with (the scenario's initial-rate spread, σ ${quantity(floor.initial_rate_sigma_rad_s)} rad/s an axis), which no open-loop sequence removes: ${rateDeg(floor.mean_deg_s)} deg/s (${rateRad(floor.mean_rad_s)} rad/s) on average over flights, ${rateDeg(floor.p95_deg_s)} deg/s (${rateRad(floor.p95_rad_s)} rad/s) on 95 % of them. `;
 }
 
 // The member's command plan as a table, per candidate; `flewWith(flights)` learns how
@@ -506,7 +512,7 @@ async function drawPlan(plan, planDownloads, job, member, context, flewWith) {
           h(
             "tbody",
             {},
-            document.candidates.map((c) => h("tr", { "data-candidate": c.name }, h("td", {}, c.name), columns.map(([key]) => num(key, figure(c, key))))),
+            document.candidates.map((c) => h("tr", { "data-candidate": c.name }, h("td", {}, c.name), columns.map(([key]) => num(key, figure(c, key), rateFormat(key))))),
           ),
         ),
       ),
