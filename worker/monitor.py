@@ -36,7 +36,15 @@ from . import incarnation
 from .context import DATABASE_SILENT_S, broker_label
 from .episode import Episode
 from .process import cold_since, mark_stopping, warm
-from .reaper import hand_back_jobs, reap_once, resend_left, resend_once, take_restarted_runs
+from .reaper import (
+    HAND_BACK_RECORD,
+    HAND_BACK_SEND,
+    hand_back_jobs,
+    reap_once,
+    resend_left,
+    resend_once,
+    take_restarted_runs,
+)
 from .ticker import Ticker
 
 __all__ = ["WorkerMonitor", "current", "may_claim"]
@@ -57,8 +65,13 @@ STOPPING_TICK_S = 1.0
 #: hand-back left undone loses: a run it held is re-queued by the reaper once its
 #: heartbeat is stale (``heartbeat_timeout_s``), counting an attempt, and its row is not
 #: marked stopping (/health reports its process gone once the server has let go of its
-#: lock). Celery's own wind-down (its task process's exit) runs meanwhile.
+#: lock); a hand-back whose commit re-queued its runs but whose send to the broker hangs
+#: left them queued and unsent, for a monitor's send. Celery's own wind-down (its task
+#: process's exit) runs meanwhile.
 STOP_WAIT_S = 5.0
+
+#: The stop's hand-back waits for a beat under way first (its database work, mostly).
+HAND_BACK_BEAT = "beat"
 
 
 class WorkerMonitor:
@@ -80,6 +93,11 @@ class WorkerMonitor:
         self._stopped = False
         #: Since when this worker's beats have found its lock not held (see tick).
         self._lock_missing_since: datetime | None = None
+        #: Where the stop's hand-back is (:data:`HAND_BACK_BEAT`, then reaper's
+        #: ``HAND_BACK_*``), and the jobs it re-queued: a stop that cannot wait for it
+        #: says which part did not finish. None before the hand-back begins.
+        self.hand_back_stage: str | None = None
+        self.handed_back: list[str] = []
         #: Judges an earlier incarnation of this name gone (see take_restarted_runs).
         self.witness = incarnation.Witness(2 * settings.heartbeat_interval_s)
         #: When a beat first saw no warm task process and no replacement started (s
@@ -317,9 +335,15 @@ class WorkerMonitor:
         Then, every second until the worker is gone, again: a message fetched just as
         the stop began can still start a job (see :func:`worker.runner._execute`).
         """
+        self.hand_back_stage = HAND_BACK_BEAT
         self._ticker.stop()
         handed = hand_back_jobs(
-            self.settings, self.db, self.celery, self.name, self.life.incarnation
+            self.settings,
+            self.db,
+            self.celery,
+            self.name,
+            self.life.incarnation,
+            stage=self._hand_back_at,
         )
         if self._stopped:  # the stop did not wait for it: no passes after it
             return handed
@@ -329,6 +353,41 @@ class WorkerMonitor:
             name=f"inertia-id hand-back {self.name}",
         ).start()
         return handed
+
+    def _hand_back_at(self, stage: str, job_ids: list[str]) -> None:
+        self.hand_back_stage, self.handed_back = stage, list(job_ids)
+
+    def hand_back_unfinished(self, wait_s: float) -> tuple[str, bool]:
+        """What a stop that waited ``wait_s`` for the hand-back, and waits no longer,
+        logs of where it stands; and whether the database answered it (false while the
+        part under way is the database's: the beat it waits for, the commit that
+        re-queues the runs, the record of their send)."""
+        label = database_label(self.db.url)
+        stage, jobs = self.hand_back_stage, ", ".join(self.handed_back) or "none"
+        lock = "its incarnation lock let go of without waiting on the server's word"
+        if stage == HAND_BACK_SEND:
+            return (
+                f"worker {self.name}: its hand-back re-queued its runs (jobs: {jobs}), but "
+                f"the broker {broker_label(self.settings)} did not take their messages "
+                f"within {wait_s:g} s of the stop; exiting without it: a worker's monitor "
+                "sends a queued job never sent once the broker answers",
+                True,
+            )
+        if stage == HAND_BACK_RECORD:
+            return (
+                f"worker {self.name}: its hand-back re-queued and sent its runs (jobs: "
+                f"{jobs}), but the database {label} did not answer the record of the send "
+                f"within {wait_s:g} s of the stop; exiting without it (a second message "
+                f"for a job, sent by a monitor meanwhile, is harmless), {lock}",
+                False,
+            )
+        what = "the beat under way" if stage == HAND_BACK_BEAT else "its hand-back"
+        return (
+            f"worker {self.name}: no answer from the database {label} to {what} within "
+            f"{wait_s:g} s of the stop; exiting without it (a run it holds is re-queued by "
+            f"the reaper once its heartbeat is stale), {lock}",
+            False,
+        )
 
     def _hand_back_again(self) -> None:
         hand_back_jobs(self.settings, self.db, self.celery, self.name, self.life.incarnation)
@@ -511,17 +570,12 @@ def _stop_monitor(**_kwargs: Any) -> None:
     answered = True
     if _hand_back_thread is not None:
         _hand_back_thread.join(max(0.0, deadline - time.monotonic()))
-        answered = not _hand_back_thread.is_alive()
-        if not answered and _monitor is not None:
-            logger.warning(
-                "worker %s: no answer from the database %s to its hand-back within %g s "
-                "of the stop; exiting without it (a run it holds is re-queued by the "
-                "reaper once its heartbeat is stale), its incarnation lock let go of "
-                "without waiting on the server's word",
-                _monitor.name,
-                database_label(_monitor.db.url),
-                STOP_WAIT_S,
-            )
+        if _hand_back_thread.is_alive() and _monitor is not None:
+            # Which part hangs: the database's (the lock's server is silent too: asking
+            # it to unlock would wait LOCK_ANSWER_S more) or the broker's, after the
+            # runs were re-queued (the database answered: it is asked to unlock).
+            line, answered = _monitor.hand_back_unfinished(STOP_WAIT_S)
+            logger.warning("%s", line)
     if _monitor is not None:
         # A release asked of a server silent so far would wait LOCK_ANSWER_S more (3 s,
         # past serve's grace behind a frozen proxy: 9.5 to 9.8 s in all).

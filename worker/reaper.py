@@ -24,6 +24,7 @@ message for it finds it taken and does nothing, and each send is claimed the sam
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import datetime, timedelta
 
@@ -104,11 +105,34 @@ def _unmark(db: Database, unsent: list[tuple[str, str]]) -> None:
     )
 
 
-def _dispatch(db: Database, celery: Celery, job_ids: list[str], *, mark: bool) -> list[str]:
+#: What a stopping worker's hand-back (:func:`hand_back_jobs`) is doing, in order: its
+#: database commit that re-queues the runs, the send of their messages to the broker,
+#: the database write that records what was sent, then nothing more. A stop that cannot
+#: wait for it says which (:mod:`worker.monitor`): the runs are re-queued from the send on.
+HAND_BACK_REQUEUE, HAND_BACK_SEND, HAND_BACK_RECORD, HAND_BACK_DONE = (
+    "re-queue",
+    "send",
+    "record",
+    "done",
+)
+
+
+def _dispatch(
+    db: Database,
+    celery: Celery,
+    job_ids: list[str],
+    *,
+    mark: bool,
+    stage: Callable[[str], None] | None = None,
+) -> list[str]:
     """Send the jobs' messages; those sent marked sent now with ``mark`` (false where
     :func:`due_for_sending` marked them already), those not sent back to "not sent".
-    The ids sent."""
+    The ids sent. ``stage`` is told of the send and of the write after it."""
+    if stage is not None:
+        stage(HAND_BACK_SEND)
     sent, unsent = _send(celery, job_ids)
+    if stage is not None:
+        stage(HAND_BACK_RECORD)
     if mark and sent:
         with db.session() as session:
             for job_id in sent:
@@ -194,13 +218,28 @@ def resend_left(db: Database, celery: Celery, since: datetime) -> list[str]:
 
 
 def hand_back_jobs(
-    settings: Settings, db: Database, celery: Celery, worker: str, incarnation: str
+    settings: Settings,
+    db: Database,
+    celery: Celery,
+    worker: str,
+    incarnation: str,
+    *,
+    stage: Callable[[str, list[str]], None] | None = None,
 ) -> list[str]:
     """Re-queue and re-send the jobs ``worker`` runs as ``incarnation`` (this process;
-    not a live twin's of its name), at no cost of an attempt."""
+    not a live twin's of its name), at no cost of an attempt. ``stage`` is told of each
+    step as it begins (``HAND_BACK_*``), with the jobs re-queued so far."""
+    job_ids: list[str] = []
+
+    def note(step: str) -> None:
+        if stage is not None:
+            stage(step, job_ids)
+
+    note(HAND_BACK_REQUEUE)
     with db.session() as session:
         job_ids = hand_back(session, worker, f"worker {worker} was asked to stop", incarnation)
-    _dispatch(db, celery, job_ids, mark=True)
+    _dispatch(db, celery, job_ids, mark=True, stage=note)
+    note(HAND_BACK_DONE)
     for job_id in job_ids:
         logger.warning("handed job %s back to the queue: this worker is stopping", job_id)
     return job_ids

@@ -976,6 +976,53 @@ def test_a_stop_whose_database_falls_silent_exits_without_waiting_on_it(
         proxy.close()
 
 
+def test_a_stop_whose_broker_hangs_after_the_hand_back_commit_blames_the_broker(
+    store: Store, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    """The hand-back's commit re-queued the run, then its send to the broker hung past
+    STOP_WAIT_S (1 s here). The stop's warning said "no answer from the database" and
+    that the reaper would re-queue the run (it was re-queued already), and the lock was
+    let go of without asking the healthy server to unlock. Now it names the broker and
+    the job, and the lock is released as in a clean exit."""
+    from worker import monitor as monitor_module
+    from worker import process
+
+    monkeypatch.setattr(monitor_module, "STOP_WAIT_S", 1.0, raising=False)
+    monkeypatch.setattr(monitor_module, "_hand_back_thread", None)
+    monkeypatch.setattr(monitor_module, "_stop_began", None, raising=False)
+    monitor = WorkerMonitor(
+        WORKER, store.settings, Life(store.settings.resolved_database_url, "hung")
+    )
+    monitor.tick()  # its lock is held
+    job_id = _running(store, "hung")
+    broker = threading.Event()
+    monkeypatch.setattr(monitor.celery, "send_task", lambda *a, **k: broker.wait(30))
+    releases: list[bool] = []
+    release = monitor.life.release
+    monkeypatch.setattr(
+        monitor.life,
+        "release",
+        lambda *, confirm=True: (releases.append(confirm), release(confirm=confirm)),
+    )
+    monkeypatch.setattr(monitor_module, "_monitor", monitor)
+    try:
+        with caplog.at_level(logging.WARNING, logger="worker.monitor"):
+            monitor_module._hand_back()  # at SIGTERM: the hand-back starts on its thread
+            _within(8.0, monitor_module._stop_monitor, "the stop")  # as Celery exits
+        warnings = [r.message for r in caplog.records if r.name == "worker.monitor"]
+        assert len(warnings) == 1, warnings
+        assert f"re-queued its runs (jobs: {job_id})" in warnings[0], warnings
+        assert "but the broker filesystem:" in warnings[0], warnings
+        assert "did not take their messages within 1 s of the stop" in warnings[0], warnings
+        assert "database" not in warnings[0] and "reaper" not in warnings[0], warnings
+        assert releases == [True] and not monitor.life.held
+        job = store.job(job_id)
+        assert (job.status, job.worker, job.sent_at) == ("queued", None, None)
+    finally:
+        broker.set()
+        process._STOPPING[0] = 0
+
+
 @pytest.mark.parametrize("store", ["postgresql"], indirect=True)
 def test_a_run_whose_database_falls_silent_as_its_worker_stops_gives_itself_up(
     store: Store, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
