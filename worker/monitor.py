@@ -375,10 +375,11 @@ class WorkerMonitor:
             )
         if stage == HAND_BACK_RECORD:
             return (
-                f"worker {self.name}: its hand-back re-queued and sent its runs (jobs: "
-                f"{jobs}), but the database {label} did not answer the record of the send "
-                f"within {wait_s:g} s of the stop; exiting without it (a second message "
-                f"for a job, sent by a monitor meanwhile, is harmless), {lock}",
+                f"worker {self.name}: its hand-back re-queued its runs (jobs: {jobs}) and "
+                f"sent their messages, but the database {label} did not answer the record "
+                f"of the send within {wait_s:g} s of the stop; exiting without it (a job "
+                f"left unsent is sent by a monitor, a second message for one sent is "
+                f"harmless), {lock}",
                 False,
             )
         what = "the beat under way" if stage == HAND_BACK_BEAT else "its hand-back"
