@@ -1817,6 +1817,30 @@ def test_a_rate_no_gyro_reads_is_written_0(dashboard: Dashboard) -> None:
     ]
 
 
+def test_the_reused_notice_says_which_labels_were_not_applied(dashboard: Dashboard) -> None:
+    """A submission handed a job that stands keeps that job's labels: the name and tags
+    it carried were dropped without a word (the API's ``reused_note`` says so too). The
+    notice names those the job lacks, and nothing where it has them. Called in the page,
+    as the dashboard's own module."""
+    dashboard.open("")
+    shown = dashboard.page.evaluate(
+        """async () => {
+            const jobs = await import("/static/js/components/jobs.js");
+            const job = { id: "0123456789abcdef", status: "running", name: null,
+                          tags: ["baseline"], created_at: "2026-01-01T00:00:00Z" };
+            const text = (body) => jobs.reusedNotice(body, job).textContent;
+            return [
+                text({ name: "flight 2", tags: ["baseline", "flight-2"] }),
+                text({ tags: ["baseline"] }),
+            ];
+        }"""
+    )
+    assert (
+        "This submission's name “flight 2” and tags flight-2 were not applied to it" in shown[0]
+    ), shown
+    assert "not applied" not in shown[1], shown
+
+
 def test_identify_writes_the_candidates_inertia_and_the_estimate_in_one_format(
     dashboard: Dashboard,
 ) -> None:

@@ -207,11 +207,20 @@ export function reusedNotice(body, job) {
   // under way (the service starts no second copy of it), and "Run it again" would.
   const unfinished = job.status === "queued" || job.status === "running";
   if (unfinished) rerun.textContent = "Start a second run anyway";
+  // The submission's labels are not put on a job that stands (it may be someone else's):
+  // said, where it carried ones the job lacks (they were dropped without a word).
+  const name = body.name && body.name !== job.name ? body.name : null;
+  const tags = (body.tags || []).filter((tag) => !(job.tags || []).includes(tag));
+  const dropped = [name ? `name “${name}”` : null, tags.length ? `tags ${tags.join(", ")}` : null].filter(Boolean);
+  const labels = dropped.length
+    ? h("span", { id: "reused-labels" }, `This submission's ${dropped.join(" and ")} were not applied to it: set them under “name and tags” below. `)
+    : null;
   holder.append(
     messageBox("notice", [
       unfinished
         ? `Handed the identical job ${job.id.slice(0, 8)}, still ${job.status} (${created}): it has the same scenario, parameters and seed, so no second copy was started; its result will answer this submission. `
         : `Reused an earlier result: job ${job.id.slice(0, 8)} has the same scenario, parameters and seed (${job.status}, ${created}), so it was not run again. `,
+      ...(labels ? [labels] : []),
       rerun,
     ]),
   );
