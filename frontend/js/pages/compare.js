@@ -10,7 +10,7 @@ import { jobCell, jobDetail, summaryColumns, summaryValue } from "../components/
 import { BestSoFar, COLORS, PLOT_CONFIG, extendWith, layout, plotDiv, plotText, polishMarks, polishStart, tightRange, title } from "../components/plots.js";
 import { dataTable } from "../components/table.js";
 import { classifierName, isTerminal, noiseInfo } from "../vocabulary.js";
-import { fmt, h, link, messageBox, quantity, rateDeg, rateRad, score, statusBadge, tagChips, when } from "../ui.js";
+import { h, link, messageBox, quantity, rateDeg, rateRad, score, statusBadge, tagChips, when } from "../ui.js";
 
 const TYPES = [
   ["search", "Searches"],
