@@ -691,9 +691,10 @@ class IdentifyResult(BaseModel):
     estimated_inertia_std_kg_m2: dict[str, float] | None = Field(
         default=None,
         description="standard error of each estimated parameter (kg m^2), allowing for the "
-        "errors the least-squares windows share (a random walk of disturbance and jitter, "
-        "gyro noise at the window ends), sized from this telemetry's own residuals; a bias "
-        "(a thrust scale off nominal, a poorly excited tensor) is not in it",
+        "errors the least-squares windows share (a random walk of disturbance and gyro "
+        "noise at the window ends, sized from this telemetry's own residuals, and the "
+        "scenario's stated duty jitter per actuation step); a bias (a thrust scale off "
+        "nominal, a poorly excited tensor) is not in it",
     )
     estimate_rejected: str | None = Field(
         default=None,

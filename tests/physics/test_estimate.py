@@ -153,8 +153,7 @@ def test_standard_errors_cover_the_truth(paper: Scenario) -> None:
     200 series at 6x process noise: z = (estimate - truth) / stated error. The
     independent-error figure gave an RMS z of about 7 and put the truth beyond 2 of them
     in about 80 % of the estimates (a helper's review found 2.3-8.2 and 37-83 % at 1x);
-    an honest one gives about 1 and 5 %. (At 1x the random walk hides under the gyro
-    noise and the sandwich's RMS z is 1.3-1.6: bench/estimate_coverage.py.)
+    an honest one gives about 1 and 5 %.
     """
     sim = simulate(paper, TURNING_SEQUENCE, 40, np.random.default_rng(0), process_noise_scale=6.0)
     omega = sim.omega_measured.reshape(-1, *sim.omega_measured.shape[2:])
@@ -167,6 +166,22 @@ def test_standard_errors_cover_the_truth(paper: Scenario) -> None:
     # The textbook figure is kept, under its own name, and is far too small.
     independent = (estimate.parameters_kg_m2 - truth) / estimate.independent_std_kg_m2
     assert float(np.sqrt(np.mean(independent**2))) > 3.0
+
+
+def test_standard_errors_allow_for_the_duty_jitter(paper: Scenario) -> None:
+    """At 1x the duty jitter, drawn once per actuation step for each firing thruster,
+    is most of the error the windows share; the fit absorbs it from the residuals as
+    thrust scale, so the random walk measured there missed it and the RMS z was
+    1.2-1.6 with 8-19 % beyond 2 on these 200 series. Its stated size now enters the
+    sandwich (0.68-0.91, at most 3 % beyond 2 here)."""
+    sim = simulate(paper, TURNING_SEQUENCE, 40, np.random.default_rng(0))
+    omega = sim.omega_measured.reshape(-1, *sim.omega_measured.shape[2:])
+    estimate = estimate_inertia(paper, TURNING_SEQUENCE, omega)
+    truth = np.repeat(parameters_from_tensor(paper.inertia_array), 40, axis=0)
+    z = (estimate.parameters_kg_m2 - truth) / estimate.parameter_std_kg_m2
+    rms = np.sqrt(np.mean(z**2, axis=0))
+    assert np.all((rms >= 0.5) & (rms <= 1.15)), rms
+    assert np.all(np.mean(np.abs(z) > 2.0, axis=0) <= 0.08), np.mean(np.abs(z) > 2.0, axis=0)
 
 
 def test_white_errors_alone_leave_the_textbook_figure(
