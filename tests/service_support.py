@@ -11,7 +11,9 @@ Timing is never asserted here: the deadlines are "it did not happen at all" guar
 
 from __future__ import annotations
 
+import contextlib
 import os
+import select
 import signal
 import socket
 import sqlite3
@@ -317,3 +319,72 @@ def writes_refused_while(refusing: threading.Event) -> Iterator[None]:
     finally:
         event.remove(Engine, "checkout", read_only_while_refusing)
         refusing.clear()
+
+
+class SilentableProxy:
+    """A TCP relay to the PostgreSQL server that can fall silent (:meth:`silence`): it
+    then passes nothing on, either way, while the kernel still acknowledges what is
+    sent, as for a server whose answers are lost on the way (a SIGSTOPped proxy does
+    the same). Closed, it ends its connections, so the server ends their sessions."""
+
+    def __init__(self, host: str, port: int) -> None:
+        self.target = (host, port)
+        self.listener = socket.create_server(("127.0.0.1", 0))
+        self.listener.settimeout(0.1)
+        self.port = self.listener.getsockname()[1]
+        self.silent = threading.Event()
+        self.closing = threading.Event()
+        self.sockets: list[socket.socket] = []
+        self.clients: list[socket.socket] = []
+        self.guard = threading.Lock()
+        self.threads = [threading.Thread(target=self._accept, daemon=True)]
+        self.threads[0].start()
+
+    def silence(self) -> None:
+        self.silent.set()
+
+    def speak_again(self, *, forget: bool = False) -> None:
+        """Pass bytes on again; with ``forget``, first drop the connections from its
+        clients without a word to the server (their goodbyes lost in the silence): the
+        server's sessions live on, as after a long outage."""
+        if forget:
+            with self.guard:
+                clients, self.clients = self.clients, []
+            for client in clients:
+                client.close()
+        self.silent.clear()
+
+    def _accept(self) -> None:
+        while not self.closing.is_set():
+            try:
+                client, _ = self.listener.accept()
+            except TimeoutError:
+                continue
+            server = socket.create_connection(self.target)
+            with self.guard:
+                self.sockets += [client, server]
+                self.clients.append(client)
+            for source, sink in ((client, server), (server, client)):
+                thread = threading.Thread(target=self._relay, args=(source, sink), daemon=True)
+                self.threads.append(thread)
+                thread.start()
+
+    def _relay(self, source: socket.socket, sink: socket.socket) -> None:
+        with contextlib.suppress(OSError, ValueError):
+            while not self.closing.is_set():
+                # Asked after select: what arrives once silent is left unread.
+                if not select.select([source], [], [], 0.1)[0] or self.silent.is_set():
+                    time.sleep(0.05)
+                    continue
+                data = source.recv(65536)
+                if not data:
+                    sink.shutdown(socket.SHUT_WR)
+                    return
+                sink.sendall(data)
+
+    def close(self) -> None:
+        self.closing.set()
+        for thread in self.threads:
+            thread.join(5.0)
+        for sock in [*self.sockets, self.listener]:
+            sock.close()

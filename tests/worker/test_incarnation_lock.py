@@ -12,9 +12,7 @@ worker's task processes leave new jobs queued.
 
 from __future__ import annotations
 
-import contextlib
 import logging
-import select
 import shutil
 import socket
 import threading
@@ -27,7 +25,7 @@ from typing import TYPE_CHECKING, Any
 
 import pytest
 from scenario_support import GOOD_SEQUENCE
-from service_support import wait_for
+from service_support import SilentableProxy, wait_for
 from sqlalchemy import Connection, event, text, update
 from sqlalchemy.engine import make_url
 from test_worker_restart import QUICK_SEARCH
@@ -566,75 +564,6 @@ def test_a_released_lock_is_free_at_once_to_every_other_session(store: Store) ->
     assert still_held == []
 
 
-class _SilentableProxy:
-    """A TCP relay to the PostgreSQL server that can fall silent (:meth:`silence`): it
-    then passes nothing on, either way, while the kernel still acknowledges what is
-    sent, as for a server whose answers are lost on the way (a SIGSTOPped proxy does
-    the same). Closed, it ends its connections, so the server ends their sessions."""
-
-    def __init__(self, host: str, port: int) -> None:
-        self.target = (host, port)
-        self.listener = socket.create_server(("127.0.0.1", 0))
-        self.listener.settimeout(0.1)
-        self.port = self.listener.getsockname()[1]
-        self.silent = threading.Event()
-        self.closing = threading.Event()
-        self.sockets: list[socket.socket] = []
-        self.clients: list[socket.socket] = []
-        self.guard = threading.Lock()
-        self.threads = [threading.Thread(target=self._accept, daemon=True)]
-        self.threads[0].start()
-
-    def silence(self) -> None:
-        self.silent.set()
-
-    def speak_again(self, *, forget: bool = False) -> None:
-        """Pass bytes on again; with ``forget``, first drop the connections from its
-        clients without a word to the server (their goodbyes lost in the silence): the
-        server's sessions live on, as after a long outage."""
-        if forget:
-            with self.guard:
-                clients, self.clients = self.clients, []
-            for client in clients:
-                client.close()
-        self.silent.clear()
-
-    def _accept(self) -> None:
-        while not self.closing.is_set():
-            try:
-                client, _ = self.listener.accept()
-            except TimeoutError:
-                continue
-            server = socket.create_connection(self.target)
-            with self.guard:
-                self.sockets += [client, server]
-                self.clients.append(client)
-            for source, sink in ((client, server), (server, client)):
-                thread = threading.Thread(target=self._relay, args=(source, sink), daemon=True)
-                self.threads.append(thread)
-                thread.start()
-
-    def _relay(self, source: socket.socket, sink: socket.socket) -> None:
-        with contextlib.suppress(OSError, ValueError):
-            while not self.closing.is_set():
-                # Asked after select: what arrives once silent is left unread.
-                if not select.select([source], [], [], 0.1)[0] or self.silent.is_set():
-                    time.sleep(0.05)
-                    continue
-                data = source.recv(65536)
-                if not data:
-                    sink.shutdown(socket.SHUT_WR)
-                    return
-                sink.sendall(data)
-
-    def close(self) -> None:
-        self.closing.set()
-        for thread in self.threads:
-            thread.join(5.0)
-        for sock in [*self.sockets, self.listener]:
-            sock.close()
-
-
 def _within(seconds: float, call: Callable[[], Any], what: str) -> Any:
     """What ``call`` returns, called on a thread of its own; a failure if it still
     waits after ``seconds`` (a bound well past the one it is meant to keep)."""
@@ -659,7 +588,7 @@ def test_a_lock_whose_database_falls_silent_is_let_go_of_without_waiting_on_it(
     cut: a released lock goes when the server sees its session end, said in one line."""
     monkeypatch.setattr(incarnation, "LOCK_ANSWER_S", 1.0, raising=False)
     url = make_url(store.settings.resolved_database_url)
-    proxy = _SilentableProxy(url.host or "127.0.0.1", url.port or 5432)
+    proxy = SilentableProxy(url.host or "127.0.0.1", url.port or 5432)
     try:
         through = url.set(host="127.0.0.1", port=proxy.port).render_as_string(hide_password=False)
         stopping, beating = Life(through, "stopping"), Life(through, "beating")
@@ -702,7 +631,7 @@ def test_a_lock_cut_in_a_silence_the_server_never_heard_of_is_taken_again(
     process's own (its application_name names this incarnation), and holds the lock."""
     monkeypatch.setattr(incarnation, "LOCK_ANSWER_S", 1.0, raising=False)
     url = make_url(store.settings.resolved_database_url)
-    proxy = _SilentableProxy(url.host or "127.0.0.1", url.port or 5432)
+    proxy = SilentableProxy(url.host or "127.0.0.1", url.port or 5432)
     try:
         through = url.set(host="127.0.0.1", port=proxy.port).render_as_string(hide_password=False)
         life = Life(through, "cut")
@@ -876,7 +805,7 @@ def test_the_workers_database_gives_up_a_connect_to_a_silent_server(
 
     monkeypatch.setattr(monitor_module, "DATABASE_SILENT_S", 2.0, raising=False)
     url = make_url(store.settings.resolved_database_url)
-    proxy = _SilentableProxy(url.host or "127.0.0.1", url.port or 5432)
+    proxy = SilentableProxy(url.host or "127.0.0.1", url.port or 5432)
     proxy.silence()
     try:
         through = url.set(host="127.0.0.1", port=proxy.port).render_as_string(hide_password=False)
@@ -909,7 +838,7 @@ def test_a_runs_database_gives_up_a_connect_to_a_silent_server(
     monkeypatch.setattr(runner, "DATABASE_SILENT_S", 2.0)
     monkeypatch.setattr(runner, "_handed_back_in_a_row", 0)  # its back-off: 1 s
     url = make_url(store.settings.resolved_database_url)
-    proxy = _SilentableProxy(url.host or "127.0.0.1", url.port or 5432)
+    proxy = SilentableProxy(url.host or "127.0.0.1", url.port or 5432)
     proxy.silence()
     try:
         through = url.set(host="127.0.0.1", port=proxy.port).render_as_string(hide_password=False)
@@ -950,7 +879,7 @@ def test_a_stop_whose_database_falls_silent_exits_without_waiting_on_it(
     monkeypatch.setattr(monitor_module, "_hand_back_thread", None)
     monkeypatch.setattr(monitor_module, "_stop_began", None, raising=False)
     url = make_url(store.settings.resolved_database_url)
-    proxy = _SilentableProxy(url.host or "127.0.0.1", url.port or 5432)
+    proxy = SilentableProxy(url.host or "127.0.0.1", url.port or 5432)
     try:
         through = url.set(host="127.0.0.1", port=proxy.port).render_as_string(hide_password=False)
         settings = Settings(
@@ -1040,7 +969,7 @@ def test_a_run_whose_database_falls_silent_as_its_worker_stops_gives_itself_up(
 
     monkeypatch.setattr(cut, "STOP_ANSWER_S", 0.5, raising=False)
     url = make_url(store.settings.resolved_database_url)
-    proxy = _SilentableProxy(url.host or "127.0.0.1", url.port or 5432)
+    proxy = SilentableProxy(url.host or "127.0.0.1", url.port or 5432)
     stop = threading.Event()
     try:
         through = url.set(host="127.0.0.1", port=proxy.port).render_as_string(hide_password=False)
