@@ -40,9 +40,23 @@ from .security import (
 from .shutdown import StopCut
 from .verdicts import VerdictProcess
 
-__all__ = ["create_app"]
+__all__ = ["DATABASE_SILENT_S", "create_app"]
 
 log = logging.getLogger("inertia_id.api")
+
+#: The API's database connections are given up after about this many seconds of a silent
+#: network (see service.store.session.Database): a connect (libpq's ``connect_timeout``),
+#: or a pooled connection whose server's machine stopped acknowledging what is sent or
+#: its keepalive probes (``tcp_user_timeout``, ``keepalives_*``). The request is then the
+#: 503 an unreachable database gets. Before, with the database's packets dropped (a
+#: partition, a firewall, a dead host), ``GET /jobs`` waited on for the kernel's limits:
+#: still waiting 150 s on over a pooled connection, 130 s for a connect (its SYN
+#: retries), holding the request and its client. 5 s, not the worker's 10 s: a request
+#: may meet it twice (a pooled connection's check, then a new connect), and ``/health``
+#: (the compose file's check allows it 5 s) and callers wait on it. A slow server is no
+#: silent one (its machine acknowledges at once); a server that takes over 5 s merely to
+#: open a session is taken for an unreachable one.
+DATABASE_SILENT_S = 5.0
 
 DESCRIPTION = """\
 Identify which known inertia configuration a spacecraft is in from its response to a
@@ -99,7 +113,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         # One line, as for a bad setting: it was Alembic's traceback ending in "Can't
         # locate revision identified by '0012'".
         raise SystemExit(f"inertia-id api: {exc}") from None
-    database = Database(url)
+    database = Database(url, silent_after_s=DATABASE_SILENT_S)
     generated_key = ensure_api_key(database, settings)
 
     celery = make_celery(settings)

@@ -4,20 +4,24 @@ from __future__ import annotations
 
 import json
 import logging
+import threading
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import pytest
 from fastapi.routing import APIRoute
-from sqlalchemy import event
+from service_support import SilentableProxy
+from sqlalchemy import event, make_url
 
 import app.api.identify
+import app.main
 from app.api import ROUTERS
 from app.api.routing import UniqueKeysRoute
 from app.verdicts import VerdictProcess
 from inertia_id import InputError
 
-from .support import GOOD_SEQUENCE, Api, TestClient, read_only_postgres
+from .support import GOOD_SEQUENCE, Api, TestClient, make_settings, read_only_postgres
 
 
 def _identify(api: Api, classifier_id: str) -> object:
@@ -247,3 +251,53 @@ def test_a_read_only_postgresql_is_a_503_saying_so_not_a_500(
     assert response.headers["Retry-After"] == "30"
     assert "database cannot store (read-only)" in caplog.text
     assert api.post("/scenarios", json={"preset": "paper"}).status_code == 201
+
+
+def _answered_within(seconds: float, api: Api, path: str) -> Any:
+    """``api.get(path)``'s response, asked on a thread of its own; a failure if it still
+    waits after ``seconds`` (a bound well past the one the API is meant to keep)."""
+    outcome: list[Any] = []
+    thread = threading.Thread(target=lambda: outcome.append(api.get(path)), daemon=True)
+    thread.start()
+    thread.join(seconds)
+    if thread.is_alive() or not outcome:
+        pytest.fail(f"GET {path} still waited {seconds:g} s after the database fell silent")
+    return outcome[0]
+
+
+@pytest.mark.parametrize("database_url", ["postgresql"], indirect=True)
+def test_a_database_gone_silent_is_a_503_not_a_request_left_waiting(
+    make_api: Callable[..., Api],
+    tmp_path: Path,
+    database_url: str,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The API's database stops answering, its packets lost rather than refused (a
+    partition, a firewall, a dead host). Before, a request that needed a new connection
+    waited for ever on its connect (libpq's default; the kernel's SYN retries, about
+    130 s, where nothing takes the connection), holding its request slot and its
+    caller. Now libpq gives the connect up after DATABASE_SILENT_S (2 s here, libpq's
+    least), and the request is the 503 an unreachable database gets; /health says so."""
+    monkeypatch.setattr(app.main, "DATABASE_SILENT_S", 2.0)
+    url = make_url(database_url)
+    proxy = SilentableProxy(url.host or "127.0.0.1", url.port or 5432)
+    try:
+        through = url.set(host="127.0.0.1", port=proxy.port).render_as_string(hide_password=False)
+        api = make_api(make_settings(tmp_path, through))
+        assert api.get("/jobs").status_code == 200
+        proxy.silence()
+        # The pool's connections let go of (as after their server went away): the next
+        # request connects anew, to a proxy that takes the connection and never answers.
+        api.db.dispose()
+        response = _answered_within(30.0, api, "/jobs")
+        assert response.status_code == 503
+        assert response.json() == {"detail": "the database cannot be reached; try again shortly"}
+        health = _answered_within(30.0, api, "/health")
+        assert health.status_code == 200
+        assert health.json()["database"] == {
+            "ok": False,
+            "takes_writes": None,
+            "detail": "postgresql unreachable",
+        }
+    finally:
+        proxy.close()
