@@ -393,11 +393,20 @@ def _error_components(
     zero = np.zeros((n, 3, 3))
     gap = float(np.mean(np.diff(points))) if len(points) > 1 else 1.0
     d = grid_residual[:, points[1:]] - grid_residual[:, points[:-1]]  # (n, m, 3)
-    if rest_start and len(points) and points[0] == 0:
+    rest = rest_start and len(points) > 0 and points[0] == 0
+    if d.shape[1] - rest < 6:
+        # Too few increments to tell the two terms apart (sparse telemetry): all of
+        # their spread is read as the random walk, which the windows accumulate, so the
+        # figure errs large, not at 0 as if the residuals had shown no error at all.
+        # The fit's 6 parameters take 2 of the k increments' 3 k components out of
+        # them (cumulative windows: one window per increment), hence k - 2.
+        k = d.shape[1]
+        if k == 0:
+            return zero, zero
+        return _psd(np.einsum("nka,nkb->nab", d, d) / (max(k - 2, 1) * gap)), zero
+    if rest:
         d = d[:, 1:]
     m = d.shape[1]
-    if m < 6:
-        return zero, zero
     y = scipy_fft.dst(d, type=1, axis=1, norm="ortho")  # (n, m, 3), independent
     white_shape = 2.0 - 2.0 * np.cos(np.pi * np.arange(1, m + 1) / (m + 1))  # (m,)
     products = np.einsum("nka,nkb->nkab", y, y)
@@ -589,10 +598,14 @@ def estimate_inertia(
         else:
             use = measured[starts] & measured[ends]
             starts, ends = starts[use], ends[use]
-    if 3 * len(starts) < len(PARAMETER_NAMES):
+    if 3 * len(starts) <= len(PARAMETER_NAMES):
         gives = "gives" if len(starts) == 1 else "give"
+        fewer = "fewer" if 3 * len(starts) < len(PARAMETER_NAMES) else "no more"
+        # As many equations as parameters fit exactly, whatever the noise: no residual
+        # is left to measure the error by, and both standard errors came out 0.
         raise InputError(
-            f"{counted(len(starts), 'window')} {gives} fewer equations than the 6 parameters"
+            f"{counted(len(starts), 'window')} {gives} {fewer} equations than the 6 "
+            "parameters (at least 3 windows are needed)"
         )
     _check_fittable(rates, float(times[-1] - times[0]), 3 * len(starts))
 
