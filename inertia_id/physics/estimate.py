@@ -181,12 +181,19 @@ def _lowpass_impulse(
     return impulse
 
 
+# Standard deviations past which a normal's density and tail probability are 0 in floats.
+_NORMAL_REACH = 40.0
+
+
 def _jitter_variance(duty: np.ndarray, sigma: float) -> np.ndarray:
     """Variance of the delivered duty clip(u + j, 0, 1) with j ~ N(0, σ²) (a normal
     censored at off and full), on thrusters commanded on (u > 0; off ones deliver
     nothing): σ² in the open interval, a third of it at full duty, where only a
     shortfall gets through."""
-    lower, upper = -duty / sigma, (1.0 - duty) / sigma
+    # Clipped where the normal's density and tails are 0 in floats anyway: a tiny σ
+    # (1e-160) made the squares below overflow (a RuntimeWarning).
+    lower = np.clip(-duty / sigma, -_NORMAL_REACH, _NORMAL_REACH)
+    upper = np.clip((1.0 - duty) / sigma, -_NORMAL_REACH, _NORMAL_REACH)
     inside = special.ndtr(upper) - special.ndtr(lower)
     above = special.ndtr(-upper)
     density_lower = np.exp(-0.5 * lower**2) / math.sqrt(2.0 * math.pi)

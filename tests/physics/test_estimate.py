@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable
 from typing import Any
 
@@ -291,3 +292,16 @@ def test_refuses_as_many_equations_as_parameters(drifting_paper: Scenario) -> No
     measured[75] = True
     estimate = estimate_inertia(drifting_paper, GOOD_SEQUENCE, omega, covered=measured)
     assert np.all(estimate.parameter_std_kg_m2 > 0.0)
+
+
+def test_a_tiny_duty_jitter_gives_no_warning(paper: Scenario) -> None:
+    """A scenario may state a duty jitter as small as it likes: at 1e-160 the censored
+    normal's standardised bounds, squared, overflowed (numpy's RuntimeWarning "overflow
+    encountered in square"); its term is now 0, as at no jitter."""
+    tiny = paper.with_uncertainty(duty_jitter_sigma=1e-160)
+    omega = simulate(tiny, MIXED_SEQUENCE, 1, np.random.default_rng(2)).omega_measured[0, 0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        estimate = estimate_inertia(tiny, MIXED_SEQUENCE, omega)
+    none = estimate_inertia(paper.with_uncertainty(duty_jitter_sigma=0.0), MIXED_SEQUENCE, omega)
+    np.testing.assert_allclose(estimate.parameter_std_kg_m2, none.parameter_std_kg_m2)
