@@ -73,6 +73,10 @@ PARAMETER_NAMES = ("Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz")
 _RCOND = 1e-12
 # ln of the largest float: the normal matrix (the squared singular values) stays below it.
 _LOG_FLOAT_MAX = math.log(sys.float_info.max)
+# The smallest largest rate the least squares takes, rad/s: far below any gyro's
+# resolution, and far above where (ΦᵀΦ)⁺ overflows (the smallest singular value kept is
+# 1e-12 of the largest).
+_SMALLEST_RATE = 1e-100
 
 
 def tensor_from_parameters(parameters: np.ndarray) -> np.ndarray:
@@ -340,7 +344,8 @@ def _windows(
 
 
 def _check_fittable(rates: np.ndarray, span_s: float, n_equations: int) -> None:
-    """Refuse rates too large for the least squares, before any arithmetic on them.
+    """Refuse rates too large (or too small) for the least squares, before any arithmetic
+    on them.
 
     A regressor entry is a rate difference (at most 2 |ω|) plus the gyroscopic term's
     integral over at most ``span_s`` (|ω × Φ(ω)| <= √6 |ω|², so at most 2√6 span |ω|²),
@@ -352,6 +357,14 @@ def _check_fittable(rates: np.ndarray, span_s: float, n_equations: int) -> None:
     quietly, and compared in logarithms.
     """
     peak = float(np.abs(rates).max())
+    if 0.0 < peak < _SMALLEST_RATE:
+        # The inverse singular values squared, (ΦᵀΦ)⁺, passed the float range below about
+        # 1e-142 rad/s: the standard errors came out NaN after RuntimeWarnings "overflow"
+        # and "invalid value". Rates all 0 stay: nothing is excited, the errors are inf.
+        raise InputError(
+            f"the least squares cannot fit rates this small (the largest is {peak:g} "
+            f"rad/s, under {_SMALLEST_RATE:g}): are they in rad/s, and uncorrupted?"
+        )
     entry = 2.0 * peak + 2.0 * math.sqrt(6.0) * span_s * peak * peak
     if entry > 0.0 and 2.0 * math.log(entry) + math.log(6 * n_equations) >= _LOG_FLOAT_MAX:
         raise InputError(

@@ -305,3 +305,20 @@ def test_a_tiny_duty_jitter_gives_no_warning(paper: Scenario) -> None:
         estimate = estimate_inertia(tiny, MIXED_SEQUENCE, omega)
     none = estimate_inertia(paper.with_uncertainty(duty_jitter_sigma=0.0), MIXED_SEQUENCE, omega)
     np.testing.assert_allclose(estimate.parameter_std_kg_m2, none.parameter_std_kg_m2)
+
+
+def test_refuses_rates_too_small_for_the_least_squares(paper: Scenario) -> None:
+    """Rates of 1e-170 rad/s (a unit off by far more than deg/rad): (ΦᵀΦ)⁺ overflowed
+    and the standard errors came out NaN after RuntimeWarnings; they are refused naming
+    the largest. Down to 1e-90 the estimate scales (finite, no warning), and rates all
+    0 still say that nothing is excited."""
+    omega = simulate(paper, MIXED_SEQUENCE, 1, np.random.default_rng(0)).omega_measured[0, 0]
+    peak = float(np.abs(omega).max())
+    with pytest.raises(InputError, match=rf"rates this small \(the largest is {peak * 1e-170:g} "):
+        estimate_inertia(paper, MIXED_SEQUENCE, omega * 1e-170)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        small = estimate_inertia(paper, MIXED_SEQUENCE, omega * 1e-90)
+        still = estimate_inertia(paper, MIXED_SEQUENCE, np.zeros_like(omega))
+    assert np.all(np.isfinite(small.parameter_std_kg_m2) & (small.parameter_std_kg_m2 > 0.0))
+    assert np.all(np.isinf(still.parameter_std_kg_m2))
