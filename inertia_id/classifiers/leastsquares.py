@@ -102,10 +102,12 @@ class LeastSquaresClassifier(BaseClassifier):
     def estimate(self, X: Any) -> InertiaEstimate:
         """The least-squares inertia of each series (batched, see
         :func:`~inertia_id.physics.estimate.estimate_inertia`)."""
-        return self._estimate(self._check_input(X))
+        return self._estimate(self._check_input(X), standard_errors=True)
 
-    def _estimate(self, X: np.ndarray) -> InertiaEstimate:
-        """The estimates of checked series."""
+    def _estimate(self, X: np.ndarray, *, standard_errors: bool = False) -> InertiaEstimate:
+        """The estimates of checked series; the fit and the distances read no standard
+        error, so theirs are skipped unless asked for (see
+        :func:`~inertia_id.physics.estimate.estimate_inertia`)."""
         assert self.scenario_ is not None and self.sequence_ is not None
         return estimate_inertia(
             self.scenario_,
@@ -114,6 +116,7 @@ class LeastSquaresClassifier(BaseClassifier):
             window_s=self.window_s,
             lowpass=self.lowpass,
             start_at_rest=self.start_at_rest,
+            standard_errors=standard_errors,
         )
 
     def _distances(self, estimate: InertiaEstimate) -> np.ndarray:

@@ -105,6 +105,34 @@ def test_estimate_is_the_estimator_on_checked_series(
         classifier.estimate(X[:, :79])
 
 
+def test_fit_and_verdicts_skip_the_standard_errors_they_never_read(
+    paper: Scenario, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The shared-error sandwich holds two more (n, G, 3, 6) arrays (about half again a
+    training's peak memory, helper-142); the fit and the distances read only the
+    estimate, so they skip it. estimate() still gives them, and the estimates agree."""
+    import inertia_id.physics.estimate as estimate_module
+
+    X, y = simulate(paper, MIXED_SEQUENCE, 4, np.random.default_rng(5)).dataset()
+    with_errors = estimate_inertia(paper, MIXED_SEQUENCE, X)
+    without = estimate_inertia(paper, MIXED_SEQUENCE, X, standard_errors=False)
+    np.testing.assert_array_equal(without.parameters_kg_m2, with_errors.parameters_kg_m2)
+    np.testing.assert_array_equal(without.independent_std_kg_m2, with_errors.independent_std_kg_m2)
+    assert np.isnan(without.parameter_std_kg_m2).all()
+    assert np.isfinite(with_errors.parameter_std_kg_m2).all()
+
+    def refuse(*_args: Any, **_kwargs: Any) -> Any:
+        raise AssertionError("the sandwich was computed for a fit or a verdict")
+
+    monkeypatch.setattr(estimate_module, "_sandwich_covariance", refuse)
+    model = LeastSquaresClassifier().fit(X, y, scenario=paper, sequence=MIXED_SEQUENCE)
+    assert model.predict(X).shape == y.shape
+    monkeypatch.undo()
+    np.testing.assert_array_equal(
+        model.estimate(X).parameter_std_kg_m2, with_errors.parameter_std_kg_m2
+    )
+
+
 def test_refuses_bad_windows_and_labels(paper: Scenario) -> None:
     X, y = simulate(paper, GOOD_SEQUENCE, 2, np.random.default_rng(0)).dataset()
     with pytest.raises(ValueError, match=r"window_s = 0.07 is not a whole number"):
