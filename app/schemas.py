@@ -26,6 +26,7 @@ from inertia_id.evaluation.telemetry import (
     MAX_TELEMETRY_SAMPLES,
     MIN_COVERED_FRACTION,
     Telemetry,
+    same_sequence_start,
 )
 from inertia_id.physics.presets import PRESETS
 from inertia_id.physics.scenario import Scenario
@@ -569,12 +570,19 @@ MAX_PRE_START_WINDOW_S = 3600.0
 MAX_ESTIMATE_START_WITHIN_S = 100.0
 
 
+def _comparable(value: Any) -> bool:
+    """A start that :func:`same_sequence_start` can compare (any other is refused later, by
+    name, by the telemetry's own check)."""
+    return isinstance(value, str | int | float) and not isinstance(value, bool)
+
+
 class IdentifyRequest(_Request):
     classifier_id: str = Field(max_length=64)
     sequence_start: float | str | None = Field(
         default=None,
         description="start of the actuation sequence in the stamps' clock (seconds, or an "
-        "ISO-8601 UTC time such as 2025-03-01T12:00:00Z); overrides telemetry.sequence_start",
+        "ISO-8601 UTC time such as 2025-03-01T12:00:00Z); given beside telemetry.sequence_start "
+        "or ?sequence_start=, it must name the same moment",
     )
     telemetry: Telemetry = Field(
         description=f"time stamps (seconds in any clock, or ISO-8601 UTC strings), omega rows "
@@ -584,11 +592,21 @@ class IdentifyRequest(_Request):
     @model_validator(mode="before")
     @classmethod
     def _start_into_telemetry(cls, data: Any) -> Any:
-        # The telemetry is validated against its start, so the start goes in first.
+        # The telemetry is validated against its start, so the start goes in first. A start
+        # given both here and in the telemetry must name the same moment: which one was
+        # meant cannot be told, and taking either silently reads the pass from a start the
+        # sender may not have meant.
         if isinstance(data, dict) and data.get("sequence_start") is not None:
             inner = data.get("telemetry")
             if isinstance(inner, dict):
-                data = {**data, "telemetry": {**inner, "sequence_start": data["sequence_start"]}}
+                start, given = data["sequence_start"], inner.get("sequence_start")
+                if given is not None and _comparable(start) and _comparable(given):
+                    if not same_sequence_start(start, given):
+                        raise ValueError(
+                            f"sequence_start = {start!r} and telemetry.sequence_start = "
+                            f"{given!r} differ; give the start once"
+                        )
+                data = {**data, "telemetry": {**inner, "sequence_start": start}}
         return data
 
     confidence: float | None = Field(

@@ -33,7 +33,12 @@ from inertia_id.evaluation.identify import (
     identify,
     identify_online,
 )
-from inertia_id.evaluation.telemetry import Telemetry, parse_sequence_start, parse_telemetry
+from inertia_id.evaluation.telemetry import (
+    Telemetry,
+    parse_sequence_start,
+    parse_telemetry,
+    same_sequence_start,
+)
 from inertia_id.gzipped import DecompressedTooLarge, gunzip, is_gzip
 from service.exports import identify_table, to_csv
 from service.store.models import ClassifierRow
@@ -295,6 +300,7 @@ def _parse_json(
         # An integer of over 4,300 digits, or arrays nested thousands deep.
         unprocessable(("body",), f"request body is not acceptable JSON: {exc}")
     if start is not None and isinstance(data, dict):
+        _same_start_as_query(data, start)
         data = {**data, "sequence_start": start}
     with refused_at(("body",)):
         parsed = IdentifyRequest.model_validate(data)
@@ -302,6 +308,28 @@ def _parse_json(
         parsed.confidence, parsed.pre_start_window_s, parsed.estimate_start_within_s
     )
     return parsed.classifier_id, parsed.telemetry, options
+
+
+def _same_start_as_query(data: dict[str, Any], start: float | str) -> None:
+    """Refuse a body whose start (its own or its telemetry's) names another moment than
+    ``?sequence_start=``: which one was meant cannot be told (the form path refuses a
+    start given twice in the same way)."""
+    inner = data.get("telemetry")
+    given = (
+        ("sequence_start", data.get("sequence_start")),
+        (
+            "telemetry.sequence_start",
+            inner.get("sequence_start") if isinstance(inner, dict) else None,
+        ),
+    )
+    for name, value in given:
+        if isinstance(value, str | int | float) and not isinstance(value, bool):
+            if not same_sequence_start(value, start):
+                unprocessable(
+                    ("query", "sequence_start"),
+                    f"?sequence_start={start!r} and the body's {name} = {value!r} differ; "
+                    "give the start once",
+                )
 
 
 def _query_start(text: str | None, where: str = "query") -> float | str | None:

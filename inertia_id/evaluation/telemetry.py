@@ -224,6 +224,22 @@ def parse_sequence_start(text: str | float | None) -> float | str | None:
     return value
 
 
+def same_sequence_start(a: str | float, b: str | float) -> bool:
+    """Whether two sequence starts, each as :func:`parse_sequence_start` takes it, name the
+    same moment: equal seconds, or ISO-8601 stamps of the same instant (``12:00:00Z`` and
+    ``13:00:00+01:00``). A number and a stamp never do: they are in different clocks. A
+    start that does not parse compares unequal (its own check names it)."""
+    try:
+        first, second = parse_sequence_start(a), parse_sequence_start(b)
+    except InputError:
+        return False
+    if isinstance(first, float) and isinstance(second, float):
+        return first == second
+    if isinstance(first, str) and isinstance(second, str):
+        return _parse_utc(first, "sequence_start") == _parse_utc(second, "sequence_start")
+    return False
+
+
 class Telemetry(BaseModel):
     """Gyro telemetry: time stamps, body rates (rad/s) and the sequence start.
 
@@ -525,8 +541,8 @@ def parse_telemetry(
     there is one its names are read: columns in any order, rates in deg/s when the names
     say so (``wx_deg_s``), and a name that is no time or axis refused by name.
 
-    :param sequence_start: the sequence start (seconds or ISO-8601 UTC); overrides one
-        in a JSON document.
+    :param sequence_start: the sequence start (seconds or ISO-8601 UTC); a JSON document
+        that holds one too must name the same moment (refused otherwise).
     :param averaged: each rate is the mean over one sample period (the median spacing)
         before its stamp (:attr:`Telemetry.averaged`); true overrides a JSON document's.
     """
@@ -546,6 +562,16 @@ def parse_telemetry(
         if not isinstance(data, dict):
             raise InputError("telemetry JSON must be an object with time_s and omega_rad_s")
         if sequence_start is not None:
+            given = data.get("sequence_start")
+            if (
+                isinstance(given, str | int | float)
+                and not isinstance(given, bool)
+                and not same_sequence_start(given, sequence_start)
+            ):
+                raise InputError(
+                    f"the telemetry's sequence_start = {given!r} and the one given beside it, "
+                    f"{sequence_start!r}, differ; give the start once"
+                )
             data["sequence_start"] = sequence_start
         if averaged:
             data["averaged"] = True

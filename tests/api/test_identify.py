@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import time
@@ -13,6 +14,7 @@ import pytest
 
 from app.api.identify import ClassifierCache
 from inertia_id import InertiaClassifier, Scenario, SimulationResult, simulate
+from inertia_id.evaluation.telemetry import same_sequence_start
 
 from .support import GOOD_SEQUENCE, Api
 
@@ -397,7 +399,12 @@ def test_mission_clock_and_iso_stamps_with_a_sequence_start(
     for body, query in (
         ({"telemetry": {**mission, "sequence_start": MISSION_START_S}}, ""),
         ({"telemetry": mission, "sequence_start": MISSION_START_S}, ""),
-        ({"telemetry": mission, "sequence_start": 5.0}, "?sequence_start=810000000"),
+        ({"telemetry": mission}, f"?sequence_start={MISSION_START_S:.0f}"),
+        ({"telemetry": mission, "sequence_start": MISSION_START_S}, "?sequence_start=810000000"),
+        (
+            {"telemetry": {**mission, "sequence_start": MISSION_START_S}},
+            "?sequence_start=810000000.0",
+        ),
     ):
         response = api.post(f"/identify{query}", json={"classifier_id": classifier_id, **body})
         assert response.status_code == 200, response.text
@@ -428,6 +435,49 @@ def test_mission_clock_and_iso_stamps_with_a_sequence_start(
     unknown = api.post("/identify", data={**field, "units": "deg/s"}, files=upload)
     assert unknown.status_code == 422
     assert "unknown form field 'units'" in unknown.json()["detail"][0]["msg"]
+
+
+def test_a_start_given_twice_must_name_the_same_moment(
+    api: Api, classifier_id: str, flight: SimulationResult
+) -> None:
+    """A start in the query, the body and the telemetry (or a JSON file and the form field
+    beside it) that name different moments is refused, naming both: the query's used to
+    win silently, reading the pass from a start its sender may not have meant."""
+    mission = {
+        "time_s": (flight.time_s + MISSION_START_S).tolist(),
+        "omega_rad_s": flight.omega_measured[1, 0].tolist(),
+    }
+    cases = (
+        ({"telemetry": mission, "sequence_start": 5.0}, "?sequence_start=810000000", "query"),
+        (
+            {"telemetry": {**mission, "sequence_start": 5.0}},
+            "?sequence_start=810000000",
+            "query",
+        ),
+        ({"telemetry": {**mission, "sequence_start": 5.0}, "sequence_start": 810e6}, "", "body"),
+    )
+    for body, query, where in cases:
+        for path in ("/identify", "/identify/partial"):
+            response = api.post(f"{path}{query}", json={"classifier_id": classifier_id, **body})
+            assert response.status_code == 422, (path, body.keys(), response.text)
+            detail = response.json()["detail"][0]
+            assert detail["loc"][0] == where, detail
+            assert "5.0" in detail["msg"] and "810000000" in detail["msg"], detail
+            assert "give the start once" in detail["msg"], detail
+    document = json.dumps({**mission, "sequence_start": 5.0})
+    upload = {"file": ("t.json", document)}
+    field = {"classifier_id": classifier_id, "sequence_start": "810000000"}
+    response = api.post("/identify", data=field, files=upload)
+    assert response.status_code == 422, response.text
+    assert "give the start once" in response.text and "5.0" in response.text
+
+
+def test_same_sequence_start_compares_moments() -> None:
+    assert same_sequence_start(5, "5.0")
+    assert same_sequence_start("2025-03-01T12:00:00Z", "2025-03-01t13:00:00+01:00")
+    assert not same_sequence_start("2025-03-01T12:00:00Z", "2025-03-01T12:00:01Z")
+    assert not same_sequence_start(5.0, "2025-03-01T12:00:00Z")
+    assert not same_sequence_start("noon", "noon")
 
 
 def test_a_missing_or_bad_sequence_start_is_422(
