@@ -2088,6 +2088,30 @@ def test_compare_classifiers_draws_their_accuracy_curves_on_one_plot(
     dashboard.screenshot("compare-classifiers")
 
 
+def test_compare_sweeps_draws_each_accuracy_plot_within_its_cell(dashboard: Dashboard) -> None:
+    """Each source of error's plot is drawn as wide as its cell of the grid: the first
+    was drawn before the others were in the grid, the whole row wide (1,212 px in a
+    599 px cell at 1,280 px), so the next plot hid its highest multiples and its
+    legend."""
+    _needs(dashboard, "sweep")
+    page = dashboard.page
+    page.set_viewport_size({"width": 1280, "height": 900})
+    dashboard.open(f"#/compare?type=sweep&ids={made['sweep']}")
+    page.wait_for_selector("#compare-accuracy-measurement .legend")
+    widths = page.evaluate(
+        "() => [...document.querySelectorAll('#compare-results .js-plotly-plot')].map((p) =>"
+        " [p.id, Math.round(p.querySelector('svg.main-svg').getBoundingClientRect().width),"
+        " Math.round(p.getBoundingClientRect().width)])"
+    )
+    assert [plot for plot, _figure, _cell in widths] == [
+        "compare-accuracy-process",
+        "compare-accuracy-measurement",
+    ]
+    wider = [(plot, figure, cell) for plot, figure, cell in widths if figure > cell + 1]
+    assert wider == [], "figure wider than its cell (plot, figure px, cell px)"
+    assert page.evaluate(LAYOUT_PROBLEMS_JS) == []
+
+
 def test_the_api_docs_render_their_operations_offline(dashboard: Dashboard) -> None:
     page = dashboard.page
     outside: list[str] = []

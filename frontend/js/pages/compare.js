@@ -284,11 +284,14 @@ async function sweepGroup(section, members, suffix, type) {
     section.append(messageBox("notice", "No finished sweep among these yet: accuracy curves appear once one has points."));
     return;
   }
-  const grid = h("div", { class: "grid2" });
-  section.append(grid);
-  for (const noise of noises) {
-    const plot = plotDiv(`compare-accuracy-${noise}${suffix}`);
-    grid.append(plot);
+  // Every plot's cell is in the grid before the first is drawn: Plotly takes its width
+  // from the cell once, and the first plot, drawn alone in the grid, was drawn the whole
+  // row wide (1,212 px in a 599 px cell), its highest multiples and its legend hidden
+  // under the next plot.
+  const plots = noises.map((noise) => plotDiv(`compare-accuracy-${noise}${suffix}`));
+  section.append(h("div", { class: "grid2" }, plots));
+  noises.forEach((noise, n) => {
+    const plot = plots[n];
     const traces = [];
     entries.forEach((e, i) => {
       if (!e.job || !e.job.result) return;
@@ -312,5 +315,5 @@ async function sweepGroup(section, members, suffix, type) {
       layout("multiple of the 1× level", "accuracy", { title: title(`Accuracy vs ${label} (95 % intervals)`), yaxis: { title: { text: "accuracy" }, range: [0, 1.03] }, height: 400, showlegend: true }),
       PLOT_CONFIG,
     );
-  }
+  });
 }
