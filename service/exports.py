@@ -28,6 +28,7 @@ __all__ = [
     "Table",
     "identify_table",
     "job_notes",
+    "job_status_notes",
     "metrics_notes",
     "metrics_table",
     "metrics_with_degrees",
@@ -131,6 +132,14 @@ def job_notes(job: Mapping[str, Any], exported_at: datetime) -> list[tuple[str, 
         ("finished_at", _iso_utc(job.get("finished_at"))),
         ("exported_at", _iso_utc(exported_at)),
     ]
+
+
+def job_status_notes(job: Mapping[str, Any]) -> list[tuple[str, Any]]:
+    """A ``job_status`` line after :func:`job_notes` for a job that did not succeed (a
+    cancelled one keeps what it had made before it stopped), as a cancelled search's
+    plan says it; none for a succeeded job or one whose status is not given."""
+    status = job.get("status")
+    return [] if status in (None, "succeeded") else [("job_status", status)]
 
 
 def plan_notes(
@@ -683,6 +692,7 @@ def _sweep_notes(result: Mapping[str, Any], job: Mapping[str, Any]) -> list[tupl
     params = job.get("params") or {}
     ceiling = result.get("ceiling_realisations", result.get("limit_realisations"))
     return [
+        *_sweep_points_missing(result, job),
         ("classifier_id", params.get("classifier_id")),
         ("test_series_seed", result.get("seed")),
         ("sequence", result.get("sequence")),
@@ -704,6 +714,32 @@ def _sweep_notes(result: Mapping[str, Any], job: Mapping[str, Any]) -> list[tupl
             "at the same point (a check against that interval, not a paired test); empty "
             "for the ceiling itself and without one",
         ),
+    ]
+
+
+def _sweep_points_missing(
+    result: Mapping[str, Any], job: Mapping[str, Any]
+) -> list[tuple[str, Any]]:
+    """A ``points_measured`` line when the sweep stopped before it measured every point
+    it was asked for (cancelled, or at its time limit): its tables then hold the points
+    measured before, and ``multiples`` lists more than they cover."""
+    params = job.get("params") or {}
+    asked = len(params.get("multiples") or []) * len(params.get("noises") or [])
+    measured = len(result.get("points") or [])
+    if not asked or measured >= asked:
+        return []
+    if result.get("stopped") == "time_limit":
+        why = "it reached its time limit"
+    elif job.get("status") == "cancelled":
+        why = "it was cancelled"
+    else:
+        why = "it stopped"
+    return [
+        (
+            "points_measured",
+            f"{measured} of the {asked} asked for (noises x multiples): {why} before the "
+            "rest; the tables hold the points measured before",
+        )
     ]
 
 
@@ -796,6 +832,7 @@ def result_table(
         made.rows,
         [
             *job_notes(job, exported_at or datetime.now(UTC)),
+            *job_status_notes(job),
             *(notes(result, job) if notes is not None else []),
             *made.notes,
         ],

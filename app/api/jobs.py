@@ -29,6 +29,7 @@ from inertia_id.physics.simulate import check_nominal_gyro_range
 from service.exports import (
     RESULT_TABLES,
     job_notes,
+    job_status_notes,
     metrics_notes,
     metrics_table,
     metrics_with_degrees,
@@ -803,6 +804,7 @@ def _job_facts(job: JobRow) -> dict[str, Any]:
         "seed": job.seed,
         "created_at": job.created_at,
         "finished_at": job.finished_at,
+        "status": job.status,
         "params": job.params or {},
     }
 
@@ -868,6 +870,7 @@ def get_metrics(
                     points,
                     [
                         *job_notes(_job_facts(job), utcnow()),
+                        *job_status_notes(_job_facts(job)),
                         *metrics_notes(job.type, job.params or {}),
                     ],
                 )

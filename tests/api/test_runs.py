@@ -714,6 +714,70 @@ def test_a_sweep_result_downloads_its_points_and_confusion_matrices(api: Api) ->
     ]
 
 
+def _stored_sweep(api: Api, status: str, result: dict[str, Any], params: dict[str, Any]) -> str:
+    """A job row of type sweep ended as ``status`` with ``result`` (as a worker stores a
+    sweep it stopped between points)."""
+    scenario_id = api.create_scenario()["id"]
+    job = api.submit("train", scenario_id, params={"sequence": GOOD_SEQUENCE}).json()
+    with api.db.session() as session:
+        claim(session, job["id"], "tests")
+    with api.db.session() as session:
+        from service.store.models import JobRow
+
+        row = session.get(JobRow, job["id"])
+        assert row is not None
+        row.type = "sweep"
+        row.params = params
+    with api.db.session() as session:
+        add_metrics(session, job["id"], [("accuracy_process", 0, 0.9)])
+        finish(session, job["id"], status, result=result)
+    return str(job["id"])
+
+
+def test_a_sweep_stopped_before_its_last_point_says_so_in_every_csv(api: Api) -> None:
+    """A sweep cancelled (or cut by its time limit) keeps the points it measured; its
+    tables listed ``multiples: [1.0, 2.0, 4.0, 8.0]`` over one point with nothing saying
+    the job was cancelled or the rest never measured."""
+    point = {
+        "noise": "process",
+        "multiple": 1.0,
+        "value": 0.05,
+        "accuracy": 0.9,
+        "ci_low": 0.8,
+        "ci_high": 0.95,
+        "f1": 0.9,
+        "n_series": 10,
+        "confusion": [[5, 0], [1, 4]],
+    }
+    result = {
+        "candidate_names": ["a", "b"],
+        "points": [point],
+        "units": {"process": "N m"},
+        "seed": 123,
+        "sequence": GOOD_SEQUENCE,
+    }
+    params = {"classifier_id": "c" * 32, "multiples": [1.0, 2.0, 4.0, 8.0], "noises": ["process"]}
+    cancelled = _stored_sweep(api, "cancelled", result, params)
+    for path in (
+        f"/jobs/{cancelled}/result?format=csv&table=points",
+        f"/jobs/{cancelled}/result?format=csv&table=confusion",
+        f"/jobs/{cancelled}/metrics?format=csv",
+    ):
+        notes = _notes(api.get(path).text)
+        assert notes["job_status"] == "cancelled", path
+    notes = _notes(api.get(f"/jobs/{cancelled}/result?format=csv&table=points").text)
+    assert notes["points_measured"].startswith("1 of the 4 asked for")
+    assert "it was cancelled before the rest" in notes["points_measured"]
+    timed = _stored_sweep(api, "succeeded", {**result, "stopped": "time_limit"}, params)
+    notes = _notes(api.get(f"/jobs/{timed}/result?format=csv&table=points").text)
+    assert "job_status" not in notes
+    assert "it reached its time limit before the rest" in notes["points_measured"]
+    # A sweep that measured every point says neither.
+    whole = _stored_sweep(api, "succeeded", result, {**params, "multiples": [1.0]})
+    notes = _notes(api.get(f"/jobs/{whole}/result?format=csv&table=points").text)
+    assert "job_status" not in notes and "points_measured" not in notes
+
+
 def test_metrics_download_every_point_as_csv(api: Api) -> None:
     job_id = api.submit("search", api.create_scenario()["id"]).json()["id"]
     with api.db.session() as session:
