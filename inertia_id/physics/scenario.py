@@ -191,6 +191,12 @@ class CandidateGenerator(_Model):
         return candidates
 
 
+#: The largest mass flow a thruster may state at full duty, kg/s: past a launcher's
+#: first-stage engine (an F-1 burned about 2,600 kg/s), so no attitude thruster, only a
+#: unit slip or a corrupted figure, reaches it, and a plan's propellant stays finite.
+MAX_MASS_FLOW_KG_S = 1e4
+
+
 def _expand_per_thruster(data: dict[str, Any]) -> dict[str, Any]:
     """A single number for ``thrust_n`` or ``lever_arm_m`` means the same for every thruster."""
     matrix = data.get("torque_matrix_nm")
@@ -297,7 +303,36 @@ class Thrusters(_Model):
         g0 = self.standard_gravity_m_s2
         if not (math.isfinite(g0) and g0 > 0):
             raise InputError(f"standard_gravity_m_s2 must be finite and > 0, got {g0!r}")
+        self._check_mass_flow()
         return self
+
+    def _check_mass_flow(self) -> None:
+        """Refuse a thrust, specific impulse and g0 whose mass flow at full duty is past
+        :data:`MAX_MASS_FLOW_KG_S`: a thrust of 1e308 N made a plan's propellant
+        infinite (``Infinity`` in its JSON, which no strict JSON reader takes), a specific
+        impulse or g0 of 1e-300 one of 1e299 kg."""
+        isp = self.specific_impulse_s
+        if isp is None:
+            return
+        if self.thrust_n is not None:
+            thrust, stated = np.asarray(self.thrust_n, dtype=float), "thrust_n"
+        elif self.lever_arm_m is not None:
+            torque = np.linalg.norm(np.asarray(self.torque_matrix_nm, dtype=float), axis=0)
+            thrust = torque / np.asarray(self.lever_arm_m, dtype=float)
+            stated = "thrust |A_j| / lever_arm_m"
+        else:
+            return
+        with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+            flow = thrust / isp / self.standard_gravity_m_s2
+        worst = float(np.max(flow))
+        if not (math.isfinite(worst) and worst <= MAX_MASS_FLOW_KG_S):
+            raise InputError(
+                f"a thruster burns {worst:.4g} kg/s at full duty ({stated} = "
+                f"{float(np.max(thrust)):.4g} N / (specific_impulse_s = {isp:.4g} s x "
+                f"standard_gravity_m_s2 = {self.standard_gravity_m_s2:.4g} m/s^2)): beyond "
+                f"any attitude thruster (at most {MAX_MASS_FLOW_KG_S:g} kg/s); check the "
+                "units of the thrust, specific impulse and g0"
+            )
 
     @field_validator("levels")
     @classmethod

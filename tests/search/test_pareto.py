@@ -232,6 +232,42 @@ def test_propulsion_fields_are_validated() -> None:
         )
 
 
+@pytest.mark.parametrize(
+    ("fields", "named"),
+    [
+        ({"thrust_n": 1e308, "specific_impulse_s": 220.0}, "thrust_n = 1e+308 N"),
+        ({"thrust_n": 4.0, "specific_impulse_s": 1e-300}, "specific_impulse_s = 1e-300 s"),
+        (
+            {"thrust_n": 4.0, "specific_impulse_s": 220.0, "standard_gravity_m_s2": 1e-300},
+            "standard_gravity_m_s2 = 1e-300",
+        ),
+        ({"lever_arm_m": 1e-300, "specific_impulse_s": 220.0}, "lever_arm_m = 2e+300 N"),
+    ],
+)
+def test_a_mass_flow_past_any_thruster_is_refused_naming_it(
+    fields: dict[str, float], named: str
+) -> None:
+    """A thrust of 1e308 N was taken, and the plan's propellant was infinite (its JSON
+    wrote ``Infinity``, which is not JSON); a specific impulse of 1e-300 s planned 4e299 kg."""
+    with pytest.raises(ValueError, match="kg/s at full duty") as refused:
+        preset("paper", thrusters={"nominal_torque_nm": 2.0, "n_levels": 5, **fields})
+    assert named in str(refused.value) and "beyond any attitude thruster" in str(refused.value)
+    # Specific impulse stated as an exhaust velocity (m/s, with g0 = 1) is a mass flow
+    # like any other; a real thruster's is taken.
+    stated = preset(
+        "paper",
+        thrusters={
+            "nominal_torque_nm": 2.0,
+            "n_levels": 5,
+            "thrust_n": 4.0,
+            "specific_impulse_s": 2157.0,
+            "standard_gravity_m_s2": 1.0,
+        },
+    )
+    propellant = stated.propellant_kg([[4, 0, 0, 0, 0, 0]])
+    assert propellant == pytest.approx(4.0 / 2157.0)
+
+
 def _canted() -> Scenario:
     angles = np.radians([35.0, 25.0, 40.0])
     cx, cy, cz = np.cos(angles)
