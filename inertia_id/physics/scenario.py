@@ -59,6 +59,12 @@ def _fmt(values: Any) -> str:
     return np.array2string(np.asarray(values, dtype=float), precision=6, separator=", ")
 
 
+#: The largest inertia a candidate may state, kg m^2: ten thousand times the
+#: International Space Station's (about 1e8 kg m^2), so a real spacecraft's always fits
+#: and a unit slip (g m^2 or kg mm^2 typed as kg m^2) or a corrupted figure does not.
+MAX_INERTIA_KG_M2 = 1e12
+
+
 def check_inertia_tensor(tensor: Any) -> np.ndarray:
     """Return ``tensor`` as a (3, 3) float array if it is a physical inertia tensor.
 
@@ -75,7 +81,17 @@ def check_inertia_tensor(tensor: Any) -> np.ndarray:
         raise InputError(f"inertia tensor must be 3x3 (kg m^2), got shape {arr.shape}: {_fmt(arr)}")
     if not np.all(np.isfinite(arr)):
         raise InputError(f"inertia tensor has non-finite entries: {_fmt(arr)}")
-    scale = float(np.max(np.abs(arr))) or 1.0
+    largest = float(np.max(np.abs(arr)))
+    if largest > MAX_INERTIA_KG_M2:
+        # Checked before the eigenvalues: 1e308 entries overflowed I + I^T ("Eigenvalues
+        # did not converge"), and past about 1e150 the classifier's factors overflowed
+        # ("Matrix is not positive definite" from a training job).
+        raise InputError(
+            f"inertia tensor has an entry of {largest:.4g} kg m^2, beyond any spacecraft "
+            f"(at most {MAX_INERTIA_KG_M2:g} kg m^2; the ISS's is about 1e8): check its "
+            f"units: {_fmt(arr)}"
+        )
+    scale = largest or 1.0
     asym = float(np.max(np.abs(arr - arr.T)))
     if asym > _RTOL * scale:
         raise InputError(

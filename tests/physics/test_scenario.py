@@ -177,6 +177,10 @@ def test_generator_rejects_unphysical_results() -> None:
         ([[np.nan, 0, 0], [0, 60, 0], [0, 0, 90]], r"non-finite entries: \[\[ *nan"),
         ([[np.inf, 0, 0], [0, 60, 0], [0, 0, 90]], r"non-finite entries"),
         ("abc", r"'abc' is not numeric"),
+        # Past any spacecraft: 1e308 was refused as "Eigenvalues did not converge", and
+        # 1e200 taken, its training job failing on "Matrix is not positive definite".
+        (np.diag([1e308, 1e308, 1e308]), r"an entry of 1e\+308 kg m\^2, beyond any spacecraft"),
+        (np.diag([1e200, 1e200, 1e200]), r"entry of 1e\+200 kg m\^2.*at most 1e\+12"),
     ],
 )
 def test_bad_inertia_tensors_are_rejected(tensor: Any, match: str) -> None:
@@ -188,6 +192,11 @@ def test_bad_inertia_tensors_are_rejected(tensor: Any, match: str) -> None:
     value = np.asarray(tensor).tolist()
     with pytest.raises(pydantic.ValidationError, match=match):
         InertiaCandidate(name="x", inertia_kg_m2=value)
+
+
+def test_the_largest_spacecraft_inertia_is_taken() -> None:
+    """The bound is far past a real spacecraft's: ten thousand ISS (about 1e8 kg m^2)."""
+    assert check_inertia_tensor(np.diag([1e12, 0.9e12, 0.8e12]))[0, 0] == 1e12
 
 
 def test_triangle_inequality_in_a_rotated_frame() -> None:
