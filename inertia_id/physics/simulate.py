@@ -370,11 +370,16 @@ def _drive(scenario: Scenario) -> tuple[float, float]:
 def _overflow_message(simulator: Simulator) -> str:
     scenario = simulator.scenario
     torque, moments = _drive(scenario)
+    noise = scenario.uncertainty
+    # Every figure that can drive the rates: a disturbance, jitter or thrust-scale sigma
+    # of 1e308 overflowed with a message that named the (nominal) torques alone.
     return (
         "the simulated rates overflowed to inf or nan: this scenario drives its bodies "
         f"beyond what the integrator follows (torques up to {torque:g} N m on a smallest "
-        f"principal moment of {moments:g} kg m^2, initial-rate sigma "
-        f"{scenario.uncertainty.initial_rate_sigma_rad_s:g} rad/s, noise multiples "
+        f"principal moment of {moments:g} kg m^2, disturbance torque sigma "
+        f"{noise.disturbance_torque_sigma_nm:g} N m, duty jitter sigma "
+        f"{noise.duty_jitter_sigma:g}, thrust-scale sigma {noise.thrust_scale_sigma:g}, "
+        f"initial-rate sigma {noise.initial_rate_sigma_rad_s:g} rad/s, noise multiples "
         f"process x{simulator.process_noise_scale:g} and gyro "
         f"x{simulator.measurement_noise_scale:g}, integration step "
         f"{scenario.timing.integration_step_s:g} s); scale them down"

@@ -568,6 +568,23 @@ def test_rates_that_overflow_are_refused_naming_the_scenario() -> None:
         simulate(Scenario.paper(), SEQUENCE, 1, None)  # type: ignore[arg-type]
 
 
+@pytest.mark.parametrize(
+    ("field", "named"),
+    [
+        ("disturbance_torque_sigma_nm", "disturbance torque sigma 1e+308 N m"),
+        ("thrust_scale_sigma", "thrust-scale sigma 1e+308"),
+    ],
+)
+def test_rates_that_overflow_name_the_noise_that_drove_them(field: str, named: str) -> None:
+    """A scenario whose disturbance or thrust-scale sigma overflowed the rates was told
+    of its torques (2 N m, nominal) and its initial-rate sigma alone, none of them the
+    cause, and to "scale them down"."""
+    scenario = Scenario.paper().with_uncertainty(**{field: 1e308})
+    with pytest.raises(InputError, match="overflowed to inf or nan") as refused:
+        simulate(scenario, SEQUENCE, 2, np.random.default_rng(0))
+    assert named in str(refused.value)
+
+
 def test_a_sweep_refuses_a_scenario_of_other_candidates(paper: Scenario) -> None:
     classifier = train_classifier(
         paper, SEQUENCE, 3, np.random.default_rng(0), kind="nearest-centroid", metric="euclidean"
