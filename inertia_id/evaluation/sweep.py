@@ -208,7 +208,16 @@ def check_multiples(multiples: Sequence[float]) -> list[float]:
             f"rates lose accuracy and then overflow), got {large} in "
             f"{[float(m) for m in multiples]}"
         )
-    return [float(m) for m in multiples]
+    values = [float(m) for m in multiples]
+    repeated = sorted({m for m in values if values.count(m) > 1})
+    if repeated:
+        # Each multiple is one point of a curve: [1, 1] drew two points at 1x and its
+        # confusion matrices were offered as "x1" twice, the second never told apart.
+        raise InputError(
+            f"noise multiples must each be given once, got {repeated} more than once in "
+            f"{values}"
+        )
+    return values
 
 
 def check_ceiling_realisations(value: Any, name: str = "ceiling_realisations") -> int:

@@ -203,6 +203,15 @@ def test_multiples_beyond_the_largest_are_refused_naming_them(
         check_multiples(multiples)
 
 
+def test_a_multiple_given_twice_is_refused_naming_it(
+    euclidean_classifier: InertiaClassifier,
+) -> None:
+    """[1, 1] was swept as two points at 1x, offered as "x1" twice by the dashboard."""
+    with pytest.raises(ValueError, match=r"each be given once, got \[1\.0\] more than once"):
+        run_sweep(euclidean_classifier, multiples=[1, 2, 1.0], n_test=10)
+    assert check_multiples([0, 1, 2]) == [0.0, 1.0, 2.0]
+
+
 def test_every_source_at_the_largest_multiple_simulates_finite_rates(
     euclidean_classifier: InertiaClassifier,
 ) -> None:
