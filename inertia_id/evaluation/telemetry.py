@@ -206,9 +206,15 @@ def _utc_text(moment: datetime) -> str:
     return moment.isoformat().replace("+00:00", "Z")
 
 
-def parse_sequence_start(text: str | float | None) -> float | str | None:
+def parse_sequence_start(
+    text: str | float | None, where: str = "sequence_start"
+) -> float | str | None:
     """A sequence start as given on a command line or in a query: seconds (a number) or
-    an ISO-8601 UTC string (checked here, so a typo is named at once)."""
+    an ISO-8601 UTC string (checked here, so a typo is named at once).
+
+    :param where: the name a refusal gives the value (``--time-offset`` for
+        ``inertia-id simulate``'s, which had been refused as ``sequence_start``).
+    """
     if text is None or isinstance(text, float | int):
         return None if text is None else float(text)
     text = text.strip()
@@ -216,11 +222,11 @@ def parse_sequence_start(text: str | float | None) -> float | str | None:
         value = parse_decimal(text, non_finite=True)
     except ValueError as exc:
         if _python_number(text):
-            raise InputError(f"sequence_start = {exc}") from None
-        _parse_utc(text, "sequence_start")
+            raise InputError(f"{where} = {exc}") from None
+        _parse_utc(text, where)
         return _capitals(text)  # as Python's datetime reads it, wherever it goes next
     if not math.isfinite(value):
-        raise InputError(f"sequence_start = {text!r} is not finite")
+        raise InputError(f"{where} = {text!r} is not finite")
     return value
 
 

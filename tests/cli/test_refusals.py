@@ -702,6 +702,23 @@ def test_paper_refuses_search_settings_when_no_search_runs(args: list[str], mess
     assert message in refused(["paper", *args])
 
 
+@pytest.mark.parametrize(
+    ("offset", "message"),
+    [
+        ("2026-12-06T10:00:00", "--time-offset = '2026-12-06T10:00:00' has no time zone"),
+        ("12:00", "--time-offset = '12:00' is not an ISO-8601 UTC time stamp"),
+    ],
+)
+def test_a_bad_time_offset_is_refused_by_its_option_name(
+    offset: str, message: str, tmp_path: Path
+) -> None:
+    """``simulate --time-offset`` with no zone was refused as "sequence_start = ...", an
+    option of ``identify``, not the one given."""
+    args = ["simulate", "-n", "1", "--telemetry", str(tmp_path / "t.csv")]
+    assert message in refused([*args, "--time-offset", offset])
+    assert not (tmp_path / "t.csv").exists()
+
+
 def test_a_named_pipe_in_a_telemetry_folder_is_not_waited_on(tmp_path: Path) -> None:
     import os
 
