@@ -408,8 +408,12 @@ class Timing(_Model):
             f"periods at sample_rate_hz = {self.sample_rate_hz}",
         )
         if self.substeps_per_step > 100_000:
+            # In the ratio's own digits: integration_step_s = 1e-300 wrote a 301-digit count.
             raise InputError(
-                f"{self.substeps_per_step} integration steps per actuation step is too many"
+                f"step_duration_s / integration_step_s = {self.step_duration_s:g} / "
+                f"{self.integration_step_s:g} = "
+                f"{self.step_duration_s / self.integration_step_s:.4g} integration steps per "
+                "actuation step is too many (at most 100,000)"
             )
 
     @property

@@ -390,6 +390,18 @@ def test_incommensurate_timing_is_rejected(timing: dict[str, Any], match: str) -
         Timing.model_validate(timing)
 
 
+def test_too_many_integration_steps_are_refused_in_few_digits() -> None:
+    """An integration step of 1e-300 s was refused with the count written out in 301
+    digits."""
+    with pytest.raises(pydantic.ValidationError) as refused:
+        Timing.model_validate({"integration_step_s": 1e-300})
+    message = str(refused.value)
+    assert "integration_step_s = 1 / 1e-300 = 1e+300 integration steps per actuation step" in (
+        message
+    )
+    assert "0" * 20 not in message
+
+
 def test_timing_derived_counts() -> None:
     timing = Timing(step_duration_s=0.5, integration_step_s=0.025, sample_rate_hz=10.0)
     assert (timing.substeps_per_step, timing.samples_per_step, timing.substeps_per_sample) == (
