@@ -214,8 +214,7 @@ def check_multiples(multiples: Sequence[float]) -> list[float]:
         # Each multiple is one point of a curve: [1, 1] drew two points at 1x and its
         # confusion matrices were offered as "x1" twice, the second never told apart.
         raise InputError(
-            f"noise multiples must each be given once, got {repeated} more than once in "
-            f"{values}"
+            f"noise multiples must each be given once, got {repeated} more than once in {values}"
         )
     return values
 
