@@ -121,6 +121,8 @@ class OperatorSettings:
                     f"{scenario.timing.step_duration_s:g} s = {duration:g} s): shorten the "
                     "sequence or raise the bound"
                 )
+        if scenario is not None:
+            _check_a_firing_fits(scenario, constraints)
         return OperatorSettings(
             objectives=objectives,
             design_noise=design_noise,
@@ -377,3 +379,42 @@ def nominal_run(
 def nominal_rates(scenario: Scenario, sequence: Any) -> np.ndarray:
     """:func:`nominal_run`'s body rates, (K, T, 3) rad/s at the gyro's sample times."""
     return np.asarray(nominal_run(scenario, sequence).omega_true[:, 0])
+
+
+#: The constraints on what firing costs, each with the unit its bound is in and the
+#: scenario's figure for a sequence.
+_FIRING_COSTS = {
+    "max_impulse_nms": ("N m s", "impulse_nms"),
+    "max_on_time_s": ("s", "on_time_total_s"),
+    "max_propellant_kg": ("kg", "propellant_kg"),
+}
+
+
+def _check_a_firing_fits(scenario: Scenario, constraints: Mapping[str, float]) -> None:
+    """Refuse a bound on what firing costs that no firing meets: below the cheapest
+    firing (one thruster at the lowest duty level for one step) only the sequence that
+    fires nothing is feasible, and it tells no candidate apart (``max_impulse_nms: 0``
+    ran a search that "succeeded" with the all-off sequence, predicted accuracy 0.25)."""
+    lowest = scenario.level_values[1]
+    for name, (unit, figure) in _FIRING_COSTS.items():
+        bound = constraints.get(name)
+        if bound is None:
+            continue
+        costs = []
+        for j in range(scenario.n_thrusters):
+            step = [[int(k == j) for k in range(scenario.n_thrusters)]]
+            if figure == "on_time_total_s":
+                costs.append(float(scenario.on_time_s(step).sum()))
+            else:
+                costs.append(getattr(scenario, figure)(step))
+        stated = [cost for cost in costs if cost is not None]
+        if not stated:
+            continue  # propellant not stated: check_constraints refuses the bound
+        cheapest = min(stated)
+        if bound < cheapest * (1 - 1e-12):
+            raise InputError(
+                f"constraint {name} = {bound:g} {unit} is below the cheapest firing, "
+                f"{cheapest:.4g} {unit} (one thruster at duty {lowest:g} for one step): only "
+                "the sequence that fires nothing meets it, and it tells no candidate apart; "
+                "raise the bound"
+            )

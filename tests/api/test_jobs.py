@@ -515,6 +515,19 @@ BAD_PARAMS: list[tuple[str, dict[str, Any], str]] = [
         {"method": "nsga2", "sequence_length": 4, "constraints": {"max_duration_s": 1}},
         "max_duration_s = 1 s is below the duration of every sequence of 4 steps",
     ),
+    # A search that "succeeded" with the all-off sequence (predicted accuracy 0.25): no
+    # firing meets a cost bound below the cheapest one.
+    (
+        "search",
+        {"method": "nsga2", "constraints": {"max_impulse_nms": 0}},
+        "max_impulse_nms = 0 N m s is below the cheapest firing, 0.5 N m s (one thruster at "
+        "duty 0.25 for one step)",
+    ),
+    (
+        "search",
+        {"method": "cem", "constraints": {"max_on_time_s": 0.2}},
+        "max_on_time_s = 0.2 s is below the cheapest firing, 0.25 s",
+    ),
     ("train", {"sequence": [[9, 0, 0, 0, 0, 0]]}, "level index 9 is outside 0..4"),
     ("train", {"sequence": [[1, 2]]}, "got shape (1, 2)"),
     ("train", {"sequence": []}, "at least 1 item"),

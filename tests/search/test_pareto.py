@@ -1291,9 +1291,12 @@ def test_a_rate_bound_below_the_initial_rate_spread_is_refused_naming_both() -> 
 def test_a_search_none_of_whose_sequences_met_the_constraints_says_how_near_they_came(
     paper: Scenario,
 ) -> None:
-    # Only the all-off sequence burns nothing, and it tells no candidate apart: each bound
-    # is met by some sequences, both by none. Before, the error named the bounds only.
-    constraints = {"min_accuracy": 0.6, "max_impulse_nms": 0.0}
+    # Only the all-off sequence and the cheapest firing (one thruster at duty 0.25 for one
+    # step, 0.5 N m s) meet the impulse bound, and none of them tells the candidates apart:
+    # each bound is met by some sequences, both by none. Before, the error named the
+    # bounds only. (A bound of 0, which only the all-off sequence meets, is refused before
+    # the search.)
+    constraints = {"min_accuracy": 0.6, "max_impulse_nms": 0.5}
     with pytest.raises(InputError) as caught:
         pareto_search(
             paper,
@@ -1307,7 +1310,7 @@ def test_a_search_none_of_whose_sequences_met_the_constraints_says_how_near_they
     assert "no sequence met the constraints" in message
     nearest = re.search(
         r"min_accuracy = 0.6: best ([\d.]+), met by (\d+) of (\d+) sequences; "
-        r"max_impulse_nms = 0: best 0, met by (\d+) of \3 sequences\)",
+        r"max_impulse_nms = 0.5: best 0, met by (\d+) of \3 sequences\)",
         message,
     )
     assert nearest is not None, message
