@@ -15,10 +15,12 @@ from typing import Any
 
 from fastapi import Depends, FastAPI
 from fastapi.openapi.utils import get_openapi
+from sqlalchemy.exc import InterfaceError, OperationalError
 
 import inertia_id
 from service.config import Settings, settings_or_exit
 from service.queue import make_celery
+from service.store.refusals import database_label, driver_said
 from service.store.session import Database, DatabaseNewerThanCode, upgrade
 
 from .api import ROUTERS
@@ -95,6 +97,15 @@ def _warm_up_core() -> None:
     log.info("science core loaded and kernels compiled in %.1f s", time.perf_counter() - started)
 
 
+def _unanswered(url: str, doing: str, exc: Exception) -> str:
+    """The start's one line for a database that could not be reached (a traceback
+    before): which database, what for, and what the driver said."""
+    return (
+        f"inertia-id api: cannot reach the database {database_label(url)} {doing}: "
+        f"{driver_said(exc)}"
+    )
+
+
 def create_app(settings: Settings | None = None) -> FastAPI:
     """Build the application: migrate the database, make sure an API key exists.
 
@@ -108,13 +119,25 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     settings.data_dir.mkdir(parents=True, exist_ok=True)
     url = settings.resolved_database_url
     try:
-        upgrade(url)
+        # Its connect bounded as the requests' are: a silent database held the start
+        # (uvicorn's, serve's) for ever, printing nothing.
+        upgrade(url, silent_after_s=DATABASE_SILENT_S)
     except DatabaseNewerThanCode as exc:
         # One line, as for a bad setting: it was Alembic's traceback ending in "Can't
         # locate revision identified by '0012'".
         raise SystemExit(f"inertia-id api: {exc}") from None
-    database = Database(url, silent_after_s=DATABASE_SILENT_S)
-    generated_key = ensure_api_key(database, settings)
+    except (OperationalError, InterfaceError) as exc:
+        raise SystemExit(_unanswered(url, "to migrate it", exc)) from None
+    database = Database(
+        url,
+        silent_after_s=DATABASE_SILENT_S,
+        answer_within_s=settings.database_answer_timeout_s,
+    )
+    try:
+        generated_key = ensure_api_key(database, settings)
+    except (OperationalError, InterfaceError) as exc:
+        database.dispose()
+        raise SystemExit(_unanswered(url, "to check its API key", exc)) from None
 
     celery = make_celery(settings)
     verdicts = (

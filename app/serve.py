@@ -73,6 +73,19 @@ PROJECT_ROOT = Path(__file__).resolve().parent.parent
 
 #: Seconds the processes left at shutdown get to exit once asked, before SIGKILL.
 LEFTOVER_GRACE_S = 3.0
+#: serve's own database connections (its start's migration and key, its workers'
+#: announced rows, its stop's hand-back check; PostgreSQL) give up a connect, or a server
+#: whose machine stopped acknowledging, after about this many seconds, as the API's do
+#: (app.main.DATABASE_SILENT_S; see service.store.session.Database). Before, a silent
+#: database held serve's start for ever, printing nothing, and its stop too.
+DATABASE_SILENT_S = 5.0
+#: ...and a statement of theirs still unanswered this many seconds after it was sent
+#: has its connection cut (service.store.answers.AnswerDeadline): behind a proxy that
+#: acknowledges for a server that does not answer (frozen), nothing else ends the wait.
+#: Short, where the API's requests get INERTIA_ID_DATABASE_ANSWER_TIMEOUT_S: these are
+#: one-row statements, and none is needed (a row left unannounced is written by the
+#: worker's first beat; a hand-back left unconfirmed waits out the stop's grace).
+DATABASE_ANSWER_S = 5.0
 #: ``prctl`` option: orphaned descendants are re-parented to this process, not to init.
 _PR_SET_CHILD_SUBREAPER = 36
 
@@ -274,9 +287,7 @@ class WorkerPool:
         #: Where the workers beat: each is announced there as starting (see _announce).
         self._database: Database | None = None
         if settings is not None:
-            from service.store.session import Database
-
-            self._database = Database(settings.resolved_database_url)
+            self._database = _database(settings)
         self._broker_label = "" if settings is None else _broker_label(settings.broker_url)
         self.processes: dict[int, subprocess.Popen[bytes]] = {}
         self.names: dict[int, str] = {}
@@ -289,6 +300,9 @@ class WorkerPool:
         #: serve is its descendants' subreaper: reap the orphans that end meanwhile.
         self.adopts_orphans = False
         self._stopping = threading.Event()
+        #: The database gave no answer while the workers stop: the rows of the workers
+        #: stopped after are left (each try cost a connect's DATABASE_SILENT_S more).
+        self._unanswered_in_stop = False
         #: The pids told to stop (SIGTERM), by the supervisor or by stop(), under its lock.
         self._told: set[int] = set()
         self._told_lock = threading.Lock()
@@ -361,8 +375,10 @@ class WorkerPool:
         try:
             with self._database.session() as session:
                 announce_worker(session, self.node_name(index), self._broker_label)
-        except Exception:
-            logger.warning("could not record worker%d as starting", index, exc_info=True)
+        except Exception as exc:
+            _housekeeping_failed(
+                f"could not record worker{index} as starting", exc, self._database.url
+            )
 
     def _forget(self, index: int) -> None:
         """Worker ``index``'s process has ended: remove its announced row if it never
@@ -372,15 +388,18 @@ class WorkerPool:
         if process.pid in self._ended:
             return
         self._ended.add(process.pid)
-        if self._database is None:
+        if self._database is None or self._unanswered_in_stop:
             return
         from service.store.jobs import forget_announced_worker
 
         try:
             with self._database.session() as session:
                 beat = forget_announced_worker(session, self.node_name(index))
-        except Exception:
-            logger.warning("could not remove worker%d's row", index, exc_info=True)
+        except Exception as exc:
+            unanswered = _housekeeping_failed(
+                f"could not remove worker{index}'s row", exc, self._database.url
+            )
+            self._unanswered_in_stop |= unanswered and self._stopping.is_set()
             return
         if not beat and (self._stopping.is_set() or process.pid in self._told):
             # Told to stop (serve's SIGTERM or Ctrl-C) while it still imported Celery: a
@@ -517,8 +536,11 @@ class WorkerPool:
                 try:
                     if settled(names):
                         break
-                except Exception:  # the database is away: wait out the grace instead
-                    logger.warning("could not check the workers' hand-back", exc_info=True)
+                except Exception as exc:  # the database is away: wait out the grace instead
+                    where = None if self._database is None else self._database.url
+                    self._unanswered_in_stop = _housekeeping_failed(
+                        "could not check the workers' hand-back", exc, where
+                    )
                     settled = None
             time.sleep(0.2)
         for index, process in self.processes.items():
@@ -538,6 +560,33 @@ class WorkerPool:
         self._logs.clear()
         if self._database is not None:
             self._database.dispose()
+
+
+def _database(settings: Settings) -> Database:
+    """serve's own connection to the service's database, bounded (see
+    :data:`DATABASE_SILENT_S`, :data:`DATABASE_ANSWER_S`)."""
+    from service.store.session import Database
+
+    return Database(
+        settings.resolved_database_url,
+        silent_after_s=DATABASE_SILENT_S,
+        answer_within_s=DATABASE_ANSWER_S,
+    )
+
+
+def _housekeeping_failed(what: str, exc: Exception, url: str | None) -> bool:
+    """Log a failed housekeeping statement: one line naming the database and what the
+    driver said where it could not be reached (a connect given up, a statement left
+    unanswered and cut); with its traceback otherwise (a defect). Whether it was not
+    reached."""
+    from service.store.refusals import database_label, driver_said, unreachable
+
+    if unreachable(exc):
+        where = "" if url is None else f" {database_label(url)}"
+        logger.warning("%s: the database%s did not answer (%s)", what, where, driver_said(exc))
+        return True
+    logger.warning(what, exc_info=exc)
+    return False
 
 
 def _broker_label(broker_url: str) -> str:
@@ -664,9 +713,8 @@ def _handed_back(settings: Settings) -> Callable[[list[str]], bool]:
         from sqlalchemy import func, select
 
         from service.store.models import JobRow, WorkerRow
-        from service.store.session import Database
 
-        database = Database(settings.resolved_database_url)
+        database = _database(settings)
         try:
             with database.session() as session:
                 stopping = session.scalar(
@@ -835,23 +883,37 @@ def main(argv: Sequence[str] | None = None) -> int:
     # Orphans among our descendants become our children, stopped at the end.
     subreaper = become_subreaper()
 
-    from service.store.session import Database, DatabaseNewerThanCode, upgrade
+    from sqlalchemy.exc import InterfaceError, OperationalError
+
+    from service.store.refusals import database_label, driver_said
+    from service.store.session import DatabaseNewerThanCode, upgrade
 
     from .main import create_app
     from .request_deadlines import ServerConfig
     from .security import ensure_api_key
 
     # Once, here, before any API process starts: several would race to generate a key.
+    doing = "to migrate it"
     try:
-        upgrade(settings.resolved_database_url)
+        upgrade(settings.resolved_database_url, silent_after_s=DATABASE_SILENT_S)
+        doing = "to check its API key"
+        database = _database(settings)
+        try:
+            generated = ensure_api_key(database, settings)
+        finally:
+            database.dispose()
     except DatabaseNewerThanCode as exc:
         print(f"inertia-id serve: {exc}", file=sys.stderr)
         return 1
-    database = Database(settings.resolved_database_url)
-    try:
-        generated = ensure_api_key(database, settings)
-    finally:
-        database.dispose()
+    except (OperationalError, InterfaceError) as exc:
+        # One line, nothing started: a traceback before (a refused connection), or no
+        # end at all (a silent database).
+        print(
+            f"inertia-id serve: cannot reach the database "
+            f"{database_label(settings.resolved_database_url)} {doing}: {driver_said(exc)}",
+            file=sys.stderr,
+        )
+        return 1
 
     shown_host = f"[{args.host}]" if ":" in args.host else args.host
     url = f"http://{shown_host}:{args.port}"

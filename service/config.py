@@ -183,6 +183,19 @@ class Settings(BaseSettings):
     verdict_timeout_s: float = Field(
         default=30.0, gt=0, le=LONGEST_S, allow_inf_nan=False, alias="INERTIA_ID_VERDICT_TIMEOUT_S"
     )
+    #: Longest a statement of the API (a query, a commit, the pool's ping; PostgreSQL)
+    #: may wait for the database's answer before its connection is cut and the request
+    #: answered 503 (``the database cannot be reached``, Retry-After): a proxy that
+    #: acknowledges for a server that does not answer (frozen) held the request for
+    #: ever, as no network bound fires there. A server that answers within it, however
+    #: slowly, is never cut (a 12 s statement answered under the 30 s default).
+    database_answer_timeout_s: float = Field(
+        default=30.0,
+        gt=0,
+        le=LONGEST_S,
+        allow_inf_nan=False,
+        alias="INERTIA_ID_DATABASE_ANSWER_TIMEOUT_S",
+    )
     #: Host header values accepted besides the loopback names (127.0.0.1, localhost,
     #: ::1, [::1]) and INERTIA_ID_HOST when it names one address; comma-separated.
     #: "*" accepts any (behind a proxy that checks it).

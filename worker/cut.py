@@ -8,8 +8,8 @@ while something still acknowledges what is sent (a frozen proxy). Shutting the s
 down ends the wait of the thread in the statement at once, on an error; the server ends
 the session when it sees the connection end.
 
-- :class:`SocketCut`: one connection's socket, held so that it can be cut later (the
-  incarnation lock's statements: worker.incarnation._ask).
+- :class:`SocketCut` (service.store.answers'): one connection's socket, held so that it
+  can be cut later (the incarnation lock's statements: worker.incarnation._ask).
 - :class:`StopCut`: a run's database (worker.runner): once its worker is stopping, a
   statement unanswered for :data:`STOP_ANSWER_S` has every connection of the run cut,
   and no new one opened; the run then gives itself up (see
@@ -20,8 +20,6 @@ from __future__ import annotations
 
 import contextlib
 import logging
-import os
-import socket
 import threading
 import time
 from collections.abc import Callable
@@ -30,6 +28,7 @@ from typing import Any
 from sqlalchemy import event
 
 from service.store import Database
+from service.store.answers import SocketCut
 from service.store.refusals import database_label
 
 __all__ = ["STOP_ANSWER_S", "SocketCut", "StopCut"]
@@ -46,37 +45,6 @@ logger = logging.getLogger(__name__)
 STOP_ANSWER_S = 2.0
 #: Seconds between two looks at a stopping run's connections.
 STOP_LOOK_S = 0.1
-
-
-class SocketCut:
-    """``connection``'s socket (a psycopg connection's), held to be shut down later
-    from any thread (:meth:`cut`) until :meth:`close`.
-
-    A duplicate of its descriptor is taken now and closed only by :meth:`close`: looked
-    up at the cut, the number could name another socket by then (the connection closed
-    meanwhile, and its number reused by the next connection, or the broker's). Held,
-    the socket outlives the connection's own close until :meth:`close`. A closed
-    connection has none: its statements fail on their own.
-    """
-
-    def __init__(self, connection: Any) -> None:
-        try:
-            self._own = os.dup(connection.fileno())
-        except Exception:
-            self._own = -1
-
-    def cut(self) -> None:
-        """Shut the socket down, both ways: a wait on it ends at once, on an error."""
-        if self._own < 0:
-            return
-        with contextlib.suppress(Exception):
-            with socket.socket(fileno=os.dup(self._own)) as sock:
-                sock.shutdown(socket.SHUT_RDWR)
-
-    def close(self) -> None:
-        if self._own >= 0:
-            os.close(self._own)
-            self._own = -1
 
 
 class StopCut:

@@ -32,7 +32,7 @@ from sqlalchemy.exc import SQLAlchemyError
 
 from service.config import get_settings, setting_problems
 
-from .refusals import database_label, unusable_database
+from .refusals import database_label, driver_said, unusable_database
 from .session import DatabaseNewerThanCode, head_revision, revisions, upgrade
 
 __all__ = ["main"]
@@ -80,9 +80,7 @@ def _name(revision: str | None) -> str:
 
 
 def _unreachable(label: str, exc: SQLAlchemyError) -> str:
-    lines = str(getattr(exc, "orig", exc) or exc).strip().splitlines()
-    why = lines[0] if lines else type(exc).__name__
-    return f"{PROGRAM}: cannot reach the database {label}: {why}"
+    return f"{PROGRAM}: cannot reach the database {label}: {driver_said(exc)}"
 
 
 def _pending(current: str | None, head: str) -> int:

@@ -6,7 +6,13 @@ from __future__ import annotations
 
 import sqlite3
 
-__all__ = ["database_label", "unreachable", "unusable_database", "why_cannot_store"]
+__all__ = [
+    "database_label",
+    "driver_said",
+    "unreachable",
+    "unusable_database",
+    "why_cannot_store",
+]
 
 # SQLite's primary result codes (the low byte of sqlite3's ``sqlite_errorcode``) and
 # PostgreSQL's SQLSTATEs: disk_full, io_error, read_only_sql_transaction (a hot standby,
@@ -91,3 +97,10 @@ def unreachable(exc: BaseException) -> bool:
     # 57P01-57P03 (the server shutting down, or not yet accepting connections).
     sqlstate = orig.sqlstate
     return sqlstate is None or sqlstate.startswith("08") or sqlstate in ("57P01", "57P02", "57P03")
+
+
+def driver_said(exc: BaseException) -> str:
+    """The first line of what the driver said of ``exc`` (SQLAlchemy's own lines, the
+    statement and its parameters, left out), for a one-line refusal."""
+    lines = str(getattr(exc, "orig", exc) or exc).strip().splitlines()
+    return lines[0] if lines else type(exc).__name__

@@ -117,12 +117,29 @@ class Database:
         server's machine stopped acknowledging, after about this many seconds (see
         :data:`SILENT_NETWORK_OPTIONS`); None: libpq's defaults (a connect, or a wait
         for an answer, without end).
+    :param answer_within_s: PostgreSQL: a statement (a query, a commit, the pool's
+        ping) still unanswered this many seconds after it was sent has its connection
+        cut, and fails as on a lost connection (see
+        :class:`service.store.answers.AnswerDeadline`): what ``silent_after_s`` cannot
+        bound, a proxy that acknowledges for a server that does not answer. None: a
+        statement waits for its answer without end.
     """
 
-    def __init__(self, url: str, *, silent_after_s: float | None = None) -> None:
+    def __init__(
+        self,
+        url: str,
+        *,
+        silent_after_s: float | None = None,
+        answer_within_s: float | None = None,
+    ) -> None:
         self.url = url
         self.engine = _engine(url, silent_after_s)
         self._sessions = sessionmaker(self.engine, expire_on_commit=False)
+        if answer_within_s is not None and self.engine.dialect.name == "postgresql":
+            from .answers import AnswerDeadline
+            from .refusals import database_label
+
+            AnswerDeadline(self.engine, answer_within_s, what=database_label(url))
 
     @contextmanager
     def session(self) -> Iterator[Session]:
@@ -206,11 +223,14 @@ def head_revision() -> str:
     return head
 
 
-def revisions(url: str) -> Revisions:
-    """The database's revision at ``url`` beside this code's head (reads only)."""
+def revisions(url: str, *, silent_after_s: float | None = None) -> Revisions:
+    """The database's revision at ``url`` beside this code's head (reads only).
+
+    :param silent_after_s: as :class:`Database`'s: the connect given up after it.
+    """
     scripts = ScriptDirectory.from_config(_config(url))
     head = head_revision()
-    engine = _engine(url)
+    engine = _engine(url, silent_after_s)
     try:
         with engine.connect() as connection:
             current = MigrationContext.configure(connection).get_current_revision()
@@ -221,15 +241,19 @@ def revisions(url: str) -> Revisions:
     return Revisions(current=current, head=head, known=known, pending=pending)
 
 
-def upgrade(url: str, revision: str = "head") -> str | None:
+def upgrade(url: str, revision: str = "head", *, silent_after_s: float | None = None) -> str | None:
     """Apply the Alembic migrations to the database at ``url``, up to ``revision``.
 
+    :param silent_after_s: as :class:`Database`'s: the connect given up after it (the
+        API and ``inertia-id serve`` as they start; before, a silent database held their
+        start for ever). The migration's statements are not given a deadline: one may
+        wait on purpose, for another migration's lock.
     :returns: the database's revision before (None: no schema), read once the other
         migrations running on it have ended (see :func:`_migration_lock`).
     :raises DatabaseNewerThanCode: the database is at a revision this code does not
         have (Alembic said only "Can't locate revision identified by '0012'").
     """
-    return _migrate(url, command.upgrade, revision)
+    return _migrate(url, command.upgrade, revision, silent_after_s)
 
 
 def downgrade(url: str, revision: str) -> None:
@@ -282,10 +306,15 @@ def _migration_lock(url: str) -> Iterator[Callable[[Any], None]]:
             fcntl.flock(lock, fcntl.LOCK_UN)
 
 
-def _migrate(url: str, action: Callable[[Config, str], None], revision: str) -> str | None:
+def _migrate(
+    url: str,
+    action: Callable[[Config, str], None],
+    revision: str,
+    silent_after_s: float | None = None,
+) -> str | None:
     config = _config(url)
     scripts = ScriptDirectory.from_config(config)
-    engine = _engine(url)
+    engine = _engine(url, silent_after_s)
     try:
         with _migration_lock(url) as lock, engine.begin() as connection:
             lock(connection)

@@ -301,3 +301,62 @@ def test_a_database_gone_silent_is_a_503_not_a_request_left_waiting(
         }
     finally:
         proxy.close()
+
+
+@pytest.mark.parametrize("database_url", ["postgresql"], indirect=True)
+def test_a_statement_the_database_never_answers_is_a_503_not_a_request_left_waiting(
+    make_api: Callable[..., Api],
+    tmp_path: Path,
+    database_url: str,
+    monkeypatch: pytest.MonkeyPatch,
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """The API's database behind a proxy that still acknowledges what is sent but passes
+    nothing on (frozen): no network bound fires (the kernel acknowledges), and a
+    server-side statement_timeout cannot (the server hears nothing). Before, a request
+    over a pooled connection waited for ever (still waiting 30 s on, measured). Now a
+    statement unanswered INERTIA_ID_DATABASE_ANSWER_TIMEOUT_S (2 s here) after it was
+    sent has its connection cut: the request is the 503 an unreachable database gets,
+    and the pool discards that connection."""
+    monkeypatch.setattr(app.main, "DATABASE_SILENT_S", 2.0)
+    url = make_url(database_url)
+    proxy = SilentableProxy(url.host or "127.0.0.1", url.port or 5432)
+    try:
+        through = url.set(host="127.0.0.1", port=proxy.port).render_as_string(hide_password=False)
+        api = make_api(make_settings(tmp_path, through, INERTIA_ID_DATABASE_ANSWER_TIMEOUT_S=2.0))
+        assert api.get("/jobs").status_code == 200
+        # The pool keeps its connection open: the next request's ping goes out on it.
+        proxy.silence()
+        with caplog.at_level(logging.WARNING):
+            response = _answered_within(30.0, api, "/jobs")
+        assert response.status_code == 503, response.text
+        assert response.json() == {"detail": "the database cannot be reached; try again shortly"}
+        assert response.headers["Retry-After"] == "5"
+        assert "gave no answer to a statement within 2 s" in caplog.text
+        # Once the database answers again, so does the API, on a new connection.
+        proxy.speak_again()
+        assert api.get("/jobs").status_code == 200
+    finally:
+        proxy.close()
+
+
+@pytest.mark.parametrize("database_url", ["postgresql"], indirect=True)
+def test_a_slow_database_that_answers_within_the_bound_is_not_cut(database_url: str) -> None:
+    """The answer bound cuts a statement that gets no answer, not a server that is slow:
+    a statement answered after most of the bound is kept, and so is a connection that
+    runs statements back to back for longer than the bound, each answered in time."""
+    from sqlalchemy import text
+
+    from service.store import Database
+
+    database = Database(database_url, answer_within_s=3.0)
+    try:
+        with database.session() as session:
+            assert session.execute(text("SELECT pg_sleep(1.5), 7")).one()[1] == 7
+        with database.session() as session:
+            for step in range(22):  # about 4.4 s of statements on one connection
+                assert (
+                    session.execute(text("SELECT pg_sleep(0.2), :n"), {"n": step}).one()[1] == step
+                )
+    finally:
+        database.dispose()
