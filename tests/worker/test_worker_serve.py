@@ -12,6 +12,7 @@ import socket
 import subprocess
 import sys
 import textwrap
+import threading
 import time
 import urllib.request
 from datetime import datetime, timedelta
@@ -19,8 +20,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import pytest
-from service_support import clean_env, free_port, tail, wait_for
-from sqlalchemy import select
+from service_support import SilentableProxy, clean_env, free_port, tail, wait_for
+from sqlalchemy import make_url, select
 
 from inertia_id import Scenario
 from service.config import Settings
@@ -28,6 +29,7 @@ from service.queue import RUN_JOB_TASK, make_celery
 from service.store import Database, JobRow, ScenarioRow, WorkerRow
 from service.store.jobs import config_hash
 from service.store.models import utcnow
+from service.store.refusals import database_label
 
 if TYPE_CHECKING:
     from conftest import Store
@@ -769,3 +771,101 @@ def test_serve_and_the_worker_refuse_an_unusable_database_url_in_one_line(
         )
         assert "secret" not in done.stderr
     assert not (tmp_path / "data").exists()
+
+
+def _proxy(database_url: str) -> SilentableProxy:
+    url = make_url(database_url)
+    return SilentableProxy(url.host or "127.0.0.1", url.port or 5432)
+
+
+def _through(proxy: SilentableProxy, database_url: str) -> str:
+    url = make_url(database_url)
+    return url.set(host="127.0.0.1", port=proxy.port).render_as_string(hide_password=False)
+
+
+@pytest.mark.parametrize("store", ["postgresql"], indirect=True)
+def test_serve_and_the_api_give_up_a_start_on_a_silent_database_in_one_line(
+    store: Store, tmp_path: Path
+) -> None:
+    """The database's address takes the connection but nothing answers (a proxy frozen,
+    or in front of a server that is away). Before, ``serve`` and the API's start (its
+    migration) waited for ever, printing nothing (still waiting 30 s on, measured). Now
+    their connects give up after 5 s (libpq's connect_timeout) and each says, in one
+    line, which database did not answer and what for; nothing is created."""
+    proxy = _proxy(store.settings.resolved_database_url)
+    proxy.silence()
+    through = _through(proxy, store.settings.resolved_database_url)
+    starts = {
+        "serve": [sys.executable, "-m", "app.serve", "--port", str(free_port()), "--workers", "0"],
+        "api": [sys.executable, "-c", "from app.main import create_app; create_app()"],
+    }
+    try:
+        for program, command in starts.items():
+            env = clean_env(DATABASE_URL=through, INERTIA_ID_DATA_DIR=str(tmp_path / program))
+            try:
+                done = subprocess.run(
+                    command, capture_output=True, text=True, env=env, cwd=tmp_path, timeout=90
+                )
+            except subprocess.TimeoutExpired:
+                pytest.fail(f"{program} still waited 90 s on a silent database")
+            assert done.returncode == 1, (program, done.stderr)
+            lines = done.stderr.strip().splitlines()
+            assert len(lines) == 1, (program, done.stderr)
+            assert lines[0].startswith(
+                f"inertia-id {program}: cannot reach the database {database_label(through)} "
+                "to migrate it: "
+            ), (program, done.stderr)
+    finally:
+        proxy.close()
+
+
+@pytest.mark.parametrize("store", ["postgresql"], indirect=True)
+def test_serve_s_own_statements_give_up_on_a_database_that_does_not_answer(
+    store: Store, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    """serve's worker rows (announced as each worker starts, removed as it ends) go out on
+    a pooled connection, and its stop's hand-back check on a new one. Behind a proxy
+    frozen meanwhile, each waited for ever (still waiting 30 s on, measured), and with
+    them serve's stop. Now a statement unanswered DATABASE_ANSWER_S (2 s here) after it
+    was sent is cut, a connect gives up after DATABASE_SILENT_S (2 s here), and each
+    failure is one warning naming the database, as serve's housekeeping fails."""
+    import app.serve
+    from app.serve import WorkerPool, _handed_back
+
+    monkeypatch.setattr(app.serve, "DATABASE_SILENT_S", 2.0, raising=False)
+    monkeypatch.setattr(app.serve, "DATABASE_ANSWER_S", 2.0, raising=False)
+    proxy = _proxy(store.settings.resolved_database_url)
+    settings = store.settings.model_copy(
+        update={"database_url": _through(proxy, store.settings.resolved_database_url)}
+    )
+    pool = WorkerPool(0, tmp_path / "logs", settings=settings)
+    pool.names[1] = "worker1-silent"
+    try:
+        pool._announce(1)  # a pooled connection, open through the proxy
+        with store.db.session() as session:
+            assert session.get(WorkerRow, pool.node_name(1)) is not None
+        proxy.silence()
+        outcome: list[Any] = []
+
+        def housekeeping() -> None:
+            pool._announce(1)
+            with contextlib.suppress(Exception):
+                _handed_back(settings)([pool.node_name(1)])
+                outcome.append("the hand-back check answered")
+            outcome.append("done")
+
+        with caplog.at_level(logging.WARNING, logger="inertia_id.serve"):
+            thread = threading.Thread(target=housekeeping, daemon=True)
+            thread.start()
+            thread.join(60.0)
+        if thread.is_alive():
+            pytest.fail("serve's housekeeping still waited 60 s on a silent database")
+        assert outcome == ["done"]
+        said = [r.getMessage() for r in caplog.records if r.name == "inertia_id.serve"]
+        assert len(said) == 1 and said[0].startswith(
+            f"could not record worker1 as starting: the database "
+            f"{database_label(settings.resolved_database_url)} did not answer ("
+        ), said
+    finally:
+        proxy.close()
+        pool.stop(grace_s=0.0)
