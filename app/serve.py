@@ -311,6 +311,12 @@ class WorkerPool:
         self._supervisor = threading.Thread(
             target=self._supervise, name="inertia-id worker supervisor", daemon=True
         )
+        # The starting workers' rows kept on a thread of their own: a database that did
+        # not answer held the supervisor there (up to DATABASE_ANSWER_S, then a connect's
+        # DATABASE_SILENT_S), and the workers were told to stop that much later.
+        self._row_keeper = threading.Thread(
+            target=self._keep_rows, name="inertia-id worker rows", daemon=True
+        )
 
     def command(self, index: int) -> list[str]:
         return worker_command(self.names.get(index, f"worker{index}"), log_level=self.log_level)
@@ -324,6 +330,7 @@ class WorkerPool:
             self._spawn(index)
         if self.count:
             self._supervisor.start()
+            self._row_keeper.start()
 
     def _spawn(self, index: int) -> None:
         self.names[index] = f"worker{index}-{secrets.token_hex(3)}"
@@ -439,6 +446,10 @@ class WorkerPool:
         except Exception:
             logger.debug("could not refresh the starting workers' rows", exc_info=True)
 
+    def _keep_rows(self) -> None:
+        while not self._stopping.wait(1.0):
+            self._keep_announced()
+
     def request_stop(self) -> None:
         """Have the workers told to stop now, without waiting: safe in a signal handler
         (it sets an event; the supervisor thread sends the signals and logs).
@@ -484,7 +495,6 @@ class WorkerPool:
     def _watch(self) -> None:
         started = {index: time.monotonic() for index in self.processes}
         while not self._stopping.wait(1.0):
-            self._keep_announced()
             if self.adopts_orphans:
                 reap_orphans({p.pid for p in self.processes.values()})
             for index, process in list(self.processes.items()):

@@ -869,3 +869,41 @@ def test_serve_s_own_statements_give_up_on_a_database_that_does_not_answer(
     finally:
         proxy.close()
         pool.stop(grace_s=0.0)
+
+
+@pytest.mark.parametrize("store", ["postgresql"], indirect=True)
+def test_serve_tells_its_workers_to_stop_while_its_database_does_not_answer(
+    store: Store, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The starting workers' rows are kept each second; behind a frozen proxy that
+    statement waits until it is cut (DATABASE_ANSWER_S, 20 s here). It ran on the
+    supervisor's thread, which tells the workers to stop at serve's signal: they were
+    told only once it had given up. Now it runs on a thread of its own, and the workers
+    are told at once."""
+    import app.serve
+    from app.serve import WorkerPool
+
+    monkeypatch.setattr(app.serve, "DATABASE_ANSWER_S", 20.0, raising=False)
+    monkeypatch.setattr(
+        WorkerPool,
+        "command",
+        lambda _self, _index: [sys.executable, "-c", "import time; time.sleep(120)"],
+    )
+    proxy = _proxy(store.settings.resolved_database_url)
+    settings = store.settings.model_copy(
+        update={"database_url": _through(proxy, store.settings.resolved_database_url)}
+    )
+    pool = WorkerPool(1, tmp_path / "logs", settings=settings)
+    try:
+        pool.start()  # announced as starting, through the proxy
+        proxy.silence()
+        time.sleep(2.5)  # a look at the starting workers' rows is under way, unanswered
+        pool.request_stop()
+        try:
+            pool.processes[1].wait(10.0)
+        except subprocess.TimeoutExpired:
+            pytest.fail("the worker was not told to stop within 10 s of serve's signal")
+        assert pool.processes[1].returncode == -signal.SIGTERM
+    finally:
+        proxy.close()
+        pool.stop(grace_s=0.0)
