@@ -57,7 +57,9 @@ log = logging.getLogger("inertia_id.api")
 #: may meet it twice (a pooled connection's check, then a new connect), and ``/health``
 #: (the compose file's check allows it 5 s) and callers wait on it. A slow server is no
 #: silent one (its machine acknowledges at once); a server that takes over 5 s merely to
-#: open a session is taken for an unreachable one.
+#: open a session is taken for an unreachable one. A proxy that acknowledges for a
+#: server that does not answer (frozen) is bounded by INERTIA_ID_DATABASE_ANSWER_TIMEOUT_S
+#: instead (service.store.answers). The start's migration gets the same connect bound.
 DATABASE_SILENT_S = 5.0
 
 DESCRIPTION = """\

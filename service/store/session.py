@@ -34,7 +34,8 @@ MIGRATIONS = Path(__file__).with_name("migrations")
 #: unacknowledged that long (``tcp_user_timeout``) or stopped answering keepalive
 #: probes (``keepalives_*``, within about that long). A slow server is no silent one:
 #: its machine acknowledges at once. A proxy still acknowledging for a server that
-#: does not answer (frozen) is bounded by none of them but the connect.
+#: does not answer (frozen) is bounded by none of them but the connect: ``Database``'s
+#: ``answer_within_s`` bounds that (service.store.answers).
 SILENT_NETWORK_OPTIONS = (
     "connect_timeout",
     "keepalives",
