@@ -130,6 +130,22 @@ class PlanPropellant(_Out):
     )
 
 
+class PlanDust(_Out):
+    """What the plan's figures were read against: one at most ``fraction`` of its scale
+    is rounding dust (thrusters whose torques cancel) and is written 0."""
+
+    fraction: float
+    torque_scale_nm: float = Field(description="the largest thruster's torque, max |A_j|")
+    rate_scale_rad_s: list[float] = Field(
+        description="per candidate: the largest rate the sequence's firings could give it "
+        "(the impulse summed over thrusters over its smallest principal moment)"
+    )
+    attitude_change_scale_deg: list[float] = Field(
+        description="per candidate: that rate over the sequence's duration"
+    )
+    note: str
+
+
 class PlanOut(_Out):
     """A command plan as JSON: the sequence as commands and the predicted response."""
 
@@ -154,3 +170,8 @@ class PlanOut(_Out):
     residual_rate_note: str
     propellant: PlanPropellant
     warnings: list[str]
+    dust: PlanDust | None = Field(
+        default=None,
+        description="the scales dust was read against (a figure at most "
+        "`fraction` of its scale is written 0); null in a plan made without them",
+    )

@@ -80,10 +80,11 @@ export function quantity(value, significant = 3) {
   return Math.abs(value) >= 10 ** significant || text.includes("e+") ? String(whole) : text;
 }
 
-// A rate smaller than this is written 0 (as the plan's CSV writes it: inertia_id/search/
-// plan.py RATE_RESOLUTION_DEG_S): no gyro tells it from rest (1e-9 deg/s is 3.6e-6 deg/h,
-// under the best gyros' bias stability, about 1e-4 deg/h), while thrusters whose torques
-// cancel leave some 1e-16 deg/s of double rounding, which read "3.79e-16 deg/s".
+// A rate smaller than this is written 0 on the page: no gyro tells it from rest (1e-9
+// deg/s is 3.6e-6 deg/h, under the best gyros' bias stability, about 1e-4 deg/h), while
+// thrusters whose torques cancel leave some 1e-16 deg/s of double rounding, which read
+// "3.79e-16 deg/s" (a front's figures). A command plan writes its own dust an exact 0,
+// against its own scales (inertia_id/search/plan.py DUST_FRACTION).
 export const RATE_RESOLUTION_DEG_S = 1e-9;
 
 // A rate in deg/s (or rad/s, with `radians`) as a quantity, or 0 below the resolution.

@@ -11,6 +11,12 @@ the predicted rates, :mod:`inertia_id.physics.attitude`); and the propellant fig
 when the scenario gives thrust and specific impulse). As JSON (:meth:`CommandPlan.to_dict`)
 or CSV (:meth:`CommandPlan.to_csv`: one row per step, the summary as ``#`` lines first).
 
+Rounding dust is an exact 0 in both: a torque, rate, attitude change or quaternion
+component at most :data:`DUST_FRACTION` of its scale (:func:`dust_scales`: the largest
+thruster's torque; per candidate, the largest rate the sequence's firings could give it
+from rest, and the rotation that rate gives over the sequence), which the plan carries
+(:attr:`CommandPlan.dust`, the JSON's ``dust``).
+
 The prediction is the nominal flight. With ``flights`` the plan also flies the sequence
 that many times a candidate at the scenario's own noise (duty jitter, disturbance torque,
 any initial rate) and states how the residual and peak rates spread over single flights
@@ -57,21 +63,48 @@ MAX_FLIGHTS = 100_000
 
 _DEG = 180.0 / np.pi
 
-#: A rate smaller than this is written 0 (the CSV here, the dashboard's tables): no gyro
-#: tells it from rest (1e-9 deg/s is 3.6e-6 deg/h, under the bias stability of the best,
-#: strategic-grade gyros, about 1e-4 deg/h), and it turns a body a microdegree in 1000 s,
-#: while what double rounding leaves where thrusters' torques cancel is some 1e-16 deg/s
-#: (a front member of such thrusters read "residual rate 3.79e-16 deg/s": dust written
-#: as a figure). The JSON keeps every rate as computed: a program reading it decides.
-RATE_RESOLUTION_DEG_S = 1e-9
-RATE_RESOLUTION_RAD_S = RATE_RESOLUTION_DEG_S / _DEG
+#: A plan's figure whose size is at most this share of its scale is rounding dust and is
+#: written an exact 0, in the JSON and the CSV alike (and so in the dashboard's plan): where
+#: thrusters' torques cancel (0.1 + 0.2 - 0.3 N m), double rounding left a torque of
+#: 5.6e-17 N m, rates of some 1e-18 rad/s, a quaternion component of 5.8e-19 and rotation
+#: angles of 1e-16 deg, each written as a figure. The scales (:func:`dust_scales`): a
+#: torque's is the largest thruster's torque, max_j |A_j| (N m); a candidate's rates' is the
+#: largest rate the sequence's firings could give it, its commanded impulse summed over
+#: thrusters (opposed or not) over its smallest principal moment (rad/s: from rest, no
+#: nominal rate can pass it); its rotation angle's that rate over the sequence's duration,
+#: and a quaternion's vector part's half that angle (at most 1; the scalar part's is 1).
+#: Relative, not absolute: a scenario of weak thrusters keeps rates no gyro reads (1e-11
+#: deg/s is a figure of its own there), while double rounding stays some 1e-16 of the scale
+#: (RK4 over 1,280 steps adds at most some 1e-13).
+DUST_FRACTION = 1e-10
 
 
-def _rate_text(value: float, *, deg: bool = False) -> str:
-    """A rate (rad/s, or deg/s with ``deg``) for the CSV: 6 significant digits, or 0 below
-    :data:`RATE_RESOLUTION_DEG_S`."""
-    floor = RATE_RESOLUTION_DEG_S if deg else RATE_RESOLUTION_RAD_S
-    return "0" if abs(value) < floor else f"{value:.6g}"
+@dataclass(frozen=True)
+class DustScales:
+    """What a plan's figures are dust against (see :data:`DUST_FRACTION`)."""
+
+    torque_nm: float
+    #: (K,) per candidate: the largest rate the sequence could give it from rest.
+    rate_rad_s: list[float]
+    #: (K,) per candidate: the largest rotation that rate gives over the sequence.
+    angle_rad: list[float]
+
+
+def dust_scales(scenario: Scenario, rows: np.ndarray) -> DustScales:
+    """The scales a plan of ``rows`` on ``scenario`` reads its dust against
+    (:data:`DUST_FRACTION`)."""
+    torque = float(np.linalg.norm(scenario.torque_matrix, axis=0).max())
+    smallest = np.linalg.eigvalsh(scenario.inertia_array).min(axis=1)  # (K,) kg m^2
+    rate = scenario.impulse_nms(rows) / smallest
+    angle = rate * len(rows) * scenario.timing.step_duration_s
+    return DustScales(torque_nm=torque, rate_rad_s=rate.tolist(), angle_rad=angle.tolist())
+
+
+def _without_dust(values: Any, scale: Any) -> np.ndarray:
+    """``values`` with every one at most :data:`DUST_FRACTION` of ``scale`` (broadcast)
+    an exact 0 (-0.0 too)."""
+    array = np.asarray(values, dtype=float)
+    return np.where(np.abs(array) <= DUST_FRACTION * np.asarray(scale), 0.0, array)
 
 
 def _rate_pair(figures: dict[str, Any], name: str, *, label: str = "", sep: str = ", ") -> str:
@@ -79,8 +112,8 @@ def _rate_pair(figures: dict[str, Any], name: str, *, label: str = "", sep: str 
     them: ``{label}_rad_s value{sep}{label}_deg_s value`` (``label``: ``name``)."""
     label = label or name
     return (
-        f"{label}_rad_s {_rate_text(figures[name + '_rad_s'])}{sep}"
-        f"{label}_deg_s {_rate_text(figures[name + '_deg_s'], deg=True)}"
+        f"{label}_rad_s {figures[name + '_rad_s']:.6g}{sep}"
+        f"{label}_deg_s {figures[name + '_deg_s']:.6g}"
     )
 
 
@@ -183,6 +216,9 @@ class CommandPlan:
     #: How propellant_kg is reached from the fields the scenario gives (thrust_n or the
     #: lever arms); None when it is not stated.
     propellant_basis: str | None = None
+    #: The scales its figures were read against: at most :data:`DUST_FRACTION` of one is
+    #: written 0 (None: a plan made without them, nothing was zeroed).
+    dust: DustScales | None = None
 
     def _propellant_note(self) -> str:
         """How ``propellant_kg`` is reached, or why it is null (the words the CSV's
@@ -285,6 +321,23 @@ class CommandPlan:
                 "propellant_note": self._propellant_note(),
             },
             "warnings": list(self.warnings),
+            "dust": None if self.dust is None else self._dust_dict(),
+        }
+
+    def _dust_dict(self) -> dict[str, Any]:
+        assert self.dust is not None
+        return {
+            "fraction": DUST_FRACTION,
+            "torque_scale_nm": self.dust.torque_nm,
+            "rate_scale_rad_s": self.dust.rate_rad_s,
+            "attitude_change_scale_deg": [a * _DEG for a in self.dust.angle_rad],
+            "note": "a torque, rate, attitude change or quaternion component at most "
+            "`fraction` of its scale is rounding dust (thrusters whose torques cancel) and "
+            "is written 0: a torque's scale is the largest thruster's torque, a candidate's "
+            "rates' the largest rate the sequence's firings could give it (the impulse "
+            "summed over thrusters over its smallest principal moment), its attitude "
+            "change's that rate over the sequence, a quaternion's vector part's half that "
+            "angle (at most 1), its scalar part's 1",
         }
 
     def to_csv(self) -> str:
@@ -378,8 +431,8 @@ class CommandPlan:
             row += [f"{v:.6g}" for v in step["on_time_s"]] + [f"{v:.6g}" for v in step["duty"]]
             row += [f"{v:.6g}" for v in step["torque_nm"]]
             for k in range(len(self.candidate_names)):
-                row += [_rate_text(v) for v in rates[k, i]]
-                row += [_rate_text(v, deg=True) for v in rates[k, i] * _DEG]
+                row += [f"{v:.6g}" for v in rates[k, i]]
+                row += [f"{v:.6g}" for v in rates[k, i] * _DEG]
             writer.writerow(row)
         return out.getvalue()
 
@@ -474,26 +527,38 @@ def command_plan(
     # gyro reports (at 0.1 Hz, from the gyro's samples, it was 4.6 degrees off a 115
     # degree turn).
     quaternions = propagate_attitude(fine, scenario.timing.integration_step_s)[:, -1]
-    end = rates[:, per_step - 1 :: per_step]  # (K, L, 3)
-    residual = np.linalg.norm(settled[:, 0], axis=-1)
+    # Rounding dust where thrusters cancel is written an exact 0 (DUST_FRACTION).
+    scales = dust_scales(scenario, rows)
+    rate_scale = np.asarray(scales.rate_rad_s)  # (K,)
+    angle_scale = np.asarray(scales.angle_rad)  # (K,)
+    part_scale = np.minimum(1.0, angle_scale / 2.0)[:, None]  # |sin(θ/2)| <= θ/2
+    quaternions = _without_dust(
+        quaternions, np.concatenate([np.ones_like(part_scale), np.repeat(part_scale, 3, 1)], 1)
+    )
+    end = _without_dust(rates[:, per_step - 1 :: per_step], rate_scale[:, None, None])
+    residual = _without_dust(np.linalg.norm(settled[:, 0], axis=-1), rate_scale)
     # As the operator's scorer reads it: at every sample, or once the lag has delivered
     # the torque still in it (|ω| moves on a line to the settled rate, convex: see
     # OperatorScorer).
-    peak = np.maximum(np.linalg.norm(rates, axis=-1).max(axis=1), residual)
+    peak = _without_dust(
+        np.maximum(np.linalg.norm(rates, axis=-1).max(axis=1), residual), rate_scale
+    )
     return CommandPlan(
         scenario_name=scenario.name,
         sequence=rows.tolist(),
         step_duration_s=step,
         duty=duty.tolist(),
         on_time_s=(duty * step).tolist(),
-        torque_nm=(duty @ scenario.torque_matrix.T).tolist(),
+        torque_nm=_without_dust(duty @ scenario.torque_matrix.T, scales.torque_nm).tolist(),
         candidate_names=scenario.candidate_names,
         rates_rad_s=end.tolist(),
         residual_rate_rad_s=residual.tolist(),
-        end_rate_rad_s=np.linalg.norm(rates[:, -1], axis=-1).tolist(),
+        end_rate_rad_s=_without_dust(np.linalg.norm(rates[:, -1], axis=-1), rate_scale).tolist(),
         peak_rate_rad_s=peak.tolist(),
         attitude_quaternion=quaternions.tolist(),
-        attitude_change_deg=rotation_angle_deg(quaternions).tolist(),
+        attitude_change_deg=_without_dust(
+            rotation_angle_deg(quaternions), angle_scale * _DEG
+        ).tolist(),
         on_time_per_thruster_s=scenario.on_time_s(rows).tolist(),
         impulse_nms=scenario.impulse_nms(rows),
         propellant_kg=scenario.propellant_kg(rows),
@@ -506,4 +571,5 @@ def command_plan(
         initial_rate_sigma_rad_s=float(scenario.uncertainty.initial_rate_sigma_rad_s),
         propellant_unstated=scenario.propellant_unstated,
         propellant_basis=scenario.propellant_basis,
+        dust=scales,
     )

@@ -156,36 +156,86 @@ def test_opposing_thrusters_cost_propellant() -> None:
     assert by_arm.propellant_kg(opposed) == pytest.approx(expected_kg)
 
 
-def test_a_plans_csv_writes_the_rate_dust_of_cancelling_thrusters_as_0(paper: Scenario) -> None:
-    """Thrusters whose torques cancel (0.1 + 0.2 - 0.3 N m) leave some 1e-17 deg/s of
-    double rounding: the CSV wrote it as a figure ("residual_rate_deg_s 6.36111e-17"),
-    as the dashboard wrote "3.79e-16 deg/s". Written 0 now; the JSON keeps it as computed,
-    and a rate a gyro can read keeps its six digits."""
+def _cancelling(paper: Scenario) -> Scenario:
+    """The paper preset with opposing thrusters about x whose torques cancel only up to
+    double rounding (0.1 + 0.2 - 0.3 N m), and one about y and one about z."""
     thrusters = paper.model_dump()["thrusters"]
     thrusters["torque_matrix_nm"] = [[0.1, 0.2, -0.3, 0, 0], [0, 0, 0, 0.1, 0], [0, 0, 0, 0, 0.1]]
-    cancelling = Scenario.model_validate({**paper.model_dump(), "thrusters": thrusters})
+    return Scenario.model_validate({**paper.model_dump(), "thrusters": thrusters})
+
+
+def test_a_plan_writes_the_rounding_dust_of_opposing_thrusters_as_exact_zeros(
+    paper: Scenario,
+) -> None:
+    """Opposing thrusters fired together (0.1 + 0.2 - 0.3 N m) left 5.6e-17 N m of torque,
+    rates of some 1e-18 rad/s, quaternion components of 1e-19 and a rotation of 1e-16 deg
+    in the plan's JSON and CSV (the CSV wrote "torque_x_nm 5.55112e-17"; an absolute 1e-9
+    deg/s floor hid the rates there alone). Each is now an exact 0 in both, read against
+    the plan's own scales (``dust``), while what the y thruster does after them keeps its
+    digits."""
+    cancelling = _cancelling(paper)
+    assert abs(0.1 + 0.2 - 0.3) > 0  # the dust is there to clean
     plan = command_plan(cancelling, [[4, 4, 4, 0, 0]] * 2 + [[0, 0, 0, 1, 0]])
-    residual = plan.to_dict()["candidates"][0]["residual_rate_deg_s"]
+    document = plan.to_dict()
+    assert [s["torque_nm"] for s in document["steps"][:2]] == [[0.0, 0.0, 0.0]] * 2
+    assert document["steps"][2]["torque_nm"] == [0.0, 0.025, 0.0]
+    dust = document["dust"]
+    assert dust["torque_scale_nm"] == pytest.approx(0.3)
+    # The impulse summed over thrusters (1.2 N m s, plus the y thruster's 0.025) over
+    # each candidate's smallest principal moment.
+    moments = np.linalg.eigvalsh(cancelling.inertia_array).min(axis=1)
+    assert dust["rate_scale_rad_s"] == pytest.approx((1.2 + 0.025) / moments)
     lines = plan.to_csv().splitlines()
-    first = next(x for x in lines if x.startswith("# candidate_1 "))
     steps = [x.split(",") for x in lines if not x.startswith("#")]
     header, rows = steps[0], steps[1:]
-    # Dust while the cancelling thrusters fire, in the JSON (raw) and nowhere in the CSV.
-    dust = plan.to_dict()["steps"][0]["torque_nm"][0]
-    assert 0 < abs(dust) < 1e-15
+    for axis in "xyz":
+        assert [r[header.index(f"torque_{axis}_nm")] for r in rows[:2]] == ["0", "0"]
     rate_columns = [i for i, name in enumerate(header) if name.startswith("candidate_")]
     assert {rows[i][c] for i in (0, 1) for c in rate_columns} == {"0"}
-    # The last step fires the y thruster alone: a real rate, written to six digits.
+    for candidate in document["candidates"]:
+        assert candidate["rates_rad_s"][:2] == [[0.0, 0.0, 0.0]] * 2
+        # The y thruster's step: a real rate, kept to its last digit.
+        assert candidate["rates_rad_s"][2][1] > 1e-5
     wy = float(rows[-1][header.index("candidate_1_wy_deg_s")])
-    assert wy == pytest.approx(np.degrees(plan.rates_rad_s[0][-1][1]), rel=1e-5) and wy > 1e-3
-    assert f"residual_rate_deg_s {residual:.6g}," in first, first
-    # A plan of the cancelling steps alone: every rate on the candidate's line is 0.
+    assert wy == pytest.approx(np.degrees(plan.rates_rad_s[0][-1][1]), rel=1e-5)
+
+    # The cancelling steps alone: every figure of the response is an exact 0.
     still = command_plan(cancelling, [[4, 4, 4, 0, 0]] * 2)
-    raw = still.to_dict()["candidates"][0]
-    assert 0 < raw["residual_rate_deg_s"] < 1e-12 and 0 < raw["peak_rate_deg_s"] < 1e-12
+    for candidate in still.to_dict()["candidates"]:
+        for name in ("residual_rate", "commanded_residual_rate", "end_rate", "peak_rate"):
+            assert candidate[f"{name}_rad_s"] == 0.0 and candidate[f"{name}_deg_s"] == 0.0
+        assert candidate["rates_rad_s"] == [[0.0, 0.0, 0.0]] * 2
+        assert candidate["attitude_quaternion"] == [1.0, 0.0, 0.0, 0.0]
+        assert candidate["attitude_change_deg"] == 0.0
     line = next(x for x in still.to_csv().splitlines() if x.startswith("# candidate_1 "))
     for name in ("residual_rate", "commanded_residual_rate", "end_rate", "peak_rate"):
         assert f" {name}_rad_s 0," in line and f" {name}_deg_s 0," in line, line
+    for part in "xyz":
+        assert f", attitude_quaternion_{part} 0" in line, line
+    assert "attitude_change_deg 0," in line, line
+
+
+def test_a_weak_thrusters_rates_are_figures_not_dust(paper: Scenario) -> None:
+    """Dust is relative to what the sequence produces, not an absolute floor: thrusters
+    of 2e-11 N m turn a body at some 1e-12 rad/s (6e-11 deg/s), no gyro's rate but the
+    scenario's own response; the CSV wrote it 0 below 1e-9 deg/s. Kept to six digits now,
+    in the CSV as in the JSON, and their torques too."""
+    thrusters = paper.model_dump()["thrusters"]
+    thrusters["torque_matrix_nm"] = (np.asarray(paper.torque_matrix) * 1e-11).tolist()
+    weak = Scenario.model_validate({**paper.model_dump(), "thrusters": thrusters})
+    plan = command_plan(weak, [[4, 4, 4, 0, 0, 0]] * 2)
+    rates = np.asarray(plan.rates_rad_s)
+    assert 0 < np.degrees(rates[0, -1, 0]) < 1e-9
+    assert plan.torque_nm[0] == pytest.approx([2e-11] * 3)
+    lines = plan.to_csv().splitlines()
+    steps = [x.split(",") for x in lines if not x.startswith("#")]
+    header, row = steps[0], steps[-1]
+    shown = float(row[header.index("candidate_1_wx_deg_s")])
+    assert shown == pytest.approx(np.degrees(rates[0, -1, 0]), rel=1e-5)
+    assert float(row[header.index("torque_x_nm")]) == pytest.approx(2e-11, rel=1e-5)
+    first = next(x for x in lines if x.startswith("# candidate_1 "))
+    residual = plan.to_dict()["candidates"][0]["residual_rate_deg_s"]
+    assert residual > 0 and f"residual_rate_deg_s {residual:.6g}," in first, first
 
 
 def test_a_plans_csv_says_in_words_when_the_propellant_is_not_stated(paper: Scenario) -> None:
