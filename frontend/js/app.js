@@ -5,6 +5,7 @@
 // and `context.params` holds the route's parameters and query.
 
 import { api, getApiKey, setApiKey } from "./api.js";
+import { fitChartsToWidth } from "./components/plots.js";
 import { h, messageBox } from "./ui.js";
 import { loadVocabulary } from "./vocabulary.js";
 // Pages never import each other: what two pages share lives in components/ and views/.
@@ -211,4 +212,5 @@ function start() {
   route();
 }
 
+fitChartsToWidth();
 start();

@@ -2778,14 +2778,22 @@ def test_an_nsga2_curves_best_only_rises_and_its_polish_start_is_marked_where_it
     # other below: at 969, at the body's 900 px down to 721, at the window's width from
     # 720. Each width's page is loaded afresh: opening the same route again draws nothing
     # new, and the check ran on the figures of the last width while Plotly's resize to the
-    # new one was still pending (at 1024 px, 308 px too wide).
-    for width in (1440, 1366, 1203, 1024, 969, 720):
+    # new one was still pending (at 1024 px, 308 px too wide). Below about 610 px both
+    # titles were cut again (by about 120 px at 375), and from 721 to 899 px the page was
+    # the body's 900 px wide (917 with its scrollbar): a tablet scrolled sideways. A title
+    # too long for its figure now breaks into lines, and the narrow layout holds to 899.
+    for width in (1440, 1366, 1203, 1024, 969, 899, 820, 768, 720, 600, 414, 375):
         page.set_viewport_size({"width": width, "height": 900})
         page.reload()
         page.wait_for_function("() => document.getElementById('f1-plot')?.layout?.shapes?.length")
-        cut = [p for p in page.evaluate(LAYOUT_PROBLEMS_JS) if "plot" in p.split(":")[0]]
+        page.wait_for_function(CHARTS_FITTED_JS)
+        cut = [
+            p
+            for p in page.evaluate(LAYOUT_PROBLEMS_JS)
+            if "plot" in p.split(":")[0] or p.startswith("the page is")
+        ]
         assert cut == [], (width, cut)
-        if width in (1203, 969, 720):
+        if width in (1203, 969, 720, 375):
             dashboard.screenshot(f"nsga2-curves-{width}")
     page.set_viewport_size({"width": 1440, "height": 900})
     page.wait_for_function(
@@ -3599,7 +3607,27 @@ LAYOUT_READY = {
 }
 
 
-@pytest.mark.parametrize("width", [1366, 1920])
+#: Every chart on view is fitted to its figure's width (plots.js fitChartsToWidth marks it
+#: once its titles, legend and colour bars have settled).
+CHARTS_FITTED_JS = """() => [...document.querySelectorAll('.js-plotly-plot')]
+  .filter((p) => p.offsetParent && p._fullLayout)
+  .every((p) => p.dataset.fitted === String(p._fullLayout.width))"""
+#: Every control a user reaches, outside a table (a wide table scrolls in its card).
+CONTROLS_PAST_THE_WINDOW_JS = """(width) =>
+  [...document.querySelectorAll('button, a[href], summary, input, select, textarea')]
+    .filter((e) => e.offsetParent && e.getClientRects().length && !e.closest('table'))
+    .map((e) => [e, e.getBoundingClientRect()])
+    .filter(([, b]) => b.left < -1 || b.right > width + 1)
+    .map(([e, b]) => `${e.tagName}#${e.id}: ${Math.round(b.left)}..${Math.round(b.right)}`)"""
+
+
+# Phone and tablet widths too: below about 610 px both NSGA-II curves' titles were cut
+# (by about 120 px at 375), every page's long chart titles, legends over the plots, a
+# confusion matrix's axis title over its tick labels; from 721 to 899 px the page was held
+# at the body's 900 px, and a tablet scrolled sideways (the jobs page was 1,022 px wide at
+# 768). Titles now break into lines, wide legends go under the plot, and the narrow
+# layout holds up to 899 px (frontend/js/components/plots.js fitChartsToWidth, style.css).
+@pytest.mark.parametrize("width", [375, 414, 600, 768, 820, 899, 1024, 1366, 1920])
 def test_every_page_type_fits_with_no_legend_over_the_plot(
     dashboard: Dashboard, width: int, tmp_path: Path
 ) -> None:
@@ -3620,7 +3648,9 @@ def test_every_page_type_fits_with_no_legend_over_the_plot(
             page.wait_for_selector("#overlay-plot .legend", timeout=60_000)
         if name in LAYOUT_READY:
             page.wait_for_selector(LAYOUT_READY[name], timeout=60_000)
+        page.wait_for_function(CHARTS_FITTED_JS)
         problems = page.evaluate(LAYOUT_PROBLEMS_JS)
+        problems += page.evaluate(CONTROLS_PAST_THE_WINDOW_JS, width)
         assert problems == [], f"{name} at {width} px: {problems}"
         if width == 1366:
             # The finished pages the accessibility test's small data lacks (a sweep, a

@@ -390,3 +390,233 @@ export class BestSoFar {
     return out;
   }
 }
+
+// Every chart fits its figure at any width, a phone's too: Plotly does not wrap a title,
+// and at 375 px the search page's titles ran 120 px past the figure's edge, its legends
+// covered the plot. After every draw (a resize too) each title too long for its room is
+// broken into lines at spaces (the page's own text is kept and rejoined when the room
+// comes back), a legend wider than a third of the figure goes under the plot, in rows,
+// and a colour bar that wide is narrowed.
+const TITLE_ROOM_PAD = 8;
+const TITLE_TOP = 6;
+// A figure narrower than LEGEND_NARROW_PX (a phone's, a tablet's) keeps a legend at its side
+// up to a third of its width; a wider one up to 45 % (the desktop's legends stay put).
+const LEGEND_NARROW_PX = 900;
+const legendShare = (width) => (width < LEGEND_NARROW_PX ? 1 / 3 : 0.45);
+const COLOUR_BAR_TITLE_ROOM = 56;
+const measureContext = document.createElement("canvas").getContext("2d");
+
+function textWidth(text, font) {
+  measureContext.font = `${font.size}px ${font.family}`;
+  return measureContext.measureText(text.replace(/&[a-z#0-9]+;/gi, "&")).width;
+}
+
+// `text` broken at spaces into lines no wider than `room` px ("<br>" between them); a
+// word longer than the room keeps a line of its own.
+function wrapText(text, room, font) {
+  if (textWidth(text, font) <= room) return text;
+  const lines = [];
+  let line = "";
+  for (const word of text.split(" ")) {
+    const longer = line ? `${line} ${word}` : word;
+    if (line && textWidth(longer, font) > room) {
+      lines.push(line);
+      line = word;
+    } else {
+      line = longer;
+    }
+  }
+  if (line) lines.push(line);
+  return lines.join("<br>");
+}
+
+// The room (px) of each title of `plot`: [path, text, room, font] for those that have text.
+function titleRooms(plot) {
+  const full = plot._fullLayout;
+  const rooms = [];
+  const title = full.title;
+  if (title && title.text) rooms.push(["title.text", title.text, full.width - full._size.l - TITLE_ROOM_PAD, title.font]);
+  for (const name of Object.keys(full)) {
+    if (!/^[xy]axis\d*$/.test(name)) continue;
+    const axis = full[name];
+    if (!axis || !axis.title || !axis.title.text || !axis.visible) continue;
+    // Centred on its axis: within the figure, and within the axis's own length (side by
+    // side subplots' titles ran into each other).
+    const span = name.startsWith("x") ? full.width : full.height;
+    const centre = axis._offset + axis._length / 2;
+    const room = Math.min(2 * Math.min(centre, span - centre), axis._length) - TITLE_ROOM_PAD;
+    rooms.push([`${name}.title.text`, axis.title.text, room, axis.title.font]);
+  }
+  return rooms;
+}
+
+function get(layout, path) {
+  return path.split(".").reduce((node, key) => (node == null ? undefined : node[key]), layout);
+}
+
+// A title of several lines hangs from the figure's top and the top margin grows to hold
+// them: the page's margin held one line (Plotly's title automargin left it as it was),
+// and Plotly lifts a block of lines by about a line, so where it landed is measured and
+// the pad set from it.
+function titlePlace(plot, fit, wrapped, font) {
+  const moved = get(plot.layout, "title.yanchor") === "top";
+  if (!moved) fit.ownTop = get(plot.layout, "margin.t") ?? plot._fullLayout.margin.t;
+  const lines = wrapped.split("<br>").length;
+  if (lines > 1) {
+    if (!moved || wrapped !== get(plot.layout, "title.text")) {
+      const pad = TITLE_TOP + (lines - 1) * font.size;
+      return { "title.yref": "container", "title.y": 1, "title.yanchor": "top", "title.pad.t": pad, "margin.t": Math.max(fit.ownTop, Math.ceil(TITLE_TOP + lines * 1.4 * font.size + 8)) };
+    }
+    const text = plot.querySelector(".g-gtitle text");
+    if (!text) return {};
+    const figure = plot.querySelector("svg.main-svg").getBoundingClientRect();
+    const box = text.getBoundingClientRect();
+    const shift = TITLE_TOP - (box.top - figure.top);
+    const top = Math.max(fit.ownTop, Math.ceil(box.bottom + shift - figure.top + 8));
+    const update = {};
+    if (Math.abs(shift) > 1) update["title.pad.t"] = get(plot.layout, "title.pad.t") + shift;
+    if (get(plot.layout, "margin.t") !== top) update["margin.t"] = top;
+    return update;
+  }
+  if (!moved) return {};
+  return { "title.yref": null, "title.y": null, "title.yanchor": null, "title.pad.t": null, "margin.t": fit.ownTop };
+}
+
+const LEGEND_BELOW = { orientation: "h", xref: "container", x: 0, xanchor: "left", yref: "container", y: 0, yanchor: "bottom" };
+
+function fitToWidth(plot) {
+  const full = plot._fullLayout;
+  if (!full || !full._size || !plot.layout) return;
+  const fit = (plot.fitted ||= { texts: {}, passes: 0, width: 0 });
+  if (fit.width !== full.width) {
+    fit.width = full.width;
+    fit.passes = 0;
+  }
+  // A draw that changes the margins changes the room: a few passes settle it, never a loop.
+  if (fit.busy) return;
+  if (fit.passes >= 6) {
+    plot.dataset.fitted = String(full.width);
+    return;
+  }
+  const update = {};
+  for (const [path, shown, room, font] of titleRooms(plot)) {
+    const kept = fit.texts[path];
+    // The page's own text, unless what is shown is the text this wrapped.
+    const own = kept && kept.wrapped === shown ? kept.own : shown;
+    const wrapped = wrapText(own, room, font);
+    fit.texts[path] = { own, wrapped };
+    if (wrapped !== shown) update[path] = wrapped;
+    if (path === "title.text") Object.assign(update, titlePlace(plot, fit, wrapped, font));
+  }
+  Object.assign(update, legendPlace(plot, fit));
+  const restyles = colourBarPlaces(plot, fit);
+  // The figure width it was fitted to, once nothing is left to change (what a test waits for).
+  if (!Object.keys(update).length && !restyles.length) {
+    plot.dataset.fitted = String(full.width);
+    return;
+  }
+  delete plot.dataset.fitted;
+  // One change at a time (two at once failed in Plotly: "Something went wrong with axis
+  // scaling"); the draws they make are fitted once they are all done.
+  fit.passes += 1;
+  fit.busy = true;
+  (async () => {
+    try {
+      for (const [index, change] of restyles) await Plotly.restyle(plot, change, [index]);
+      if (Object.keys(update).length) await Plotly.relayout(plot, update);
+    } finally {
+      fit.busy = false;
+    }
+    fitToWidth(plot);
+  })();
+}
+
+// A legend wider than legendShare of the figure goes under the plot, in rows, and the figure
+// grows by its height (the plot keeps its own); it goes back once the room is there.
+function legendPlace(plot, fit) {
+  const full = plot._fullLayout;
+  const legend = plot.querySelector("g.legend");
+  if (!full.showlegend || !legend) return {};
+  const below = fit.legendOwn !== undefined && get(plot.layout, "legend.yref") === "container";
+  if (!below) {
+    const width = legend.getBBox().width;
+    if (width <= legendShare(full.width) * full.width) return {};
+    fit.legendOwn = plot.layout.legend || {};
+    fit.legendWidth = width;
+    fit.legendRoom = 0;
+    fit.ownHeight = plot.layout.height ?? full.height;
+    fit.ownBottom = get(plot.layout, "margin.b") ?? full.margin.b;
+    return { legend: { ...fit.legendOwn, ...LEGEND_BELOW } };
+  }
+  if (fit.legendWidth <= legendShare(full.width) * full.width) {
+    const own = { legend: fit.legendOwn, height: fit.ownHeight, "margin.b": fit.ownBottom };
+    fit.legendOwn = undefined;
+    return own;
+  }
+  const room = Math.ceil(legend.getBBox().height + 10);
+  if (Math.abs(room - fit.legendRoom) <= 2) return {};
+  fit.legendRoom = room;
+  // Below the lowest x tick label or title the legend starts.
+  const plotBottom = plot.querySelector("svg.main-svg").getBoundingClientRect().top + full._size.t + full._size.h;
+  const labels = [...plot.querySelectorAll('[class^="g-x"][class$="title"] text, [class*="xtick"] text')];
+  const reach = Math.max(0, ...labels.map((el) => el.getBoundingClientRect().bottom - plotBottom));
+  return { height: fit.ownHeight + room, "margin.b": Math.ceil(Math.max(fit.ownBottom, reach + 6) + room) };
+}
+
+// Each colour bar of `plot`: [trace index, its attribute's path, the bar as drawn].
+function colourBars(plot) {
+  return (plot.data || []).flatMap((trace, i) => {
+    const drawn = (plot._fullData || [])[i] || {};
+    if (trace.colorbar && drawn.showscale) return [[i, "colorbar", trace.colorbar]];
+    if (trace.marker && trace.marker.colorbar && drawn.marker && drawn.marker.showscale) return [[i, "marker.colorbar", trace.marker.colorbar]];
+    return [];
+  });
+}
+
+// A colour bar at the plot's side as wide as a quarter of the figure is made narrow, its
+// title over it (a confusion matrix of 375 px had 64 px left for its cells, its axis
+// title over its tick labels); a bar at the figure's foot goes above a legend that went
+// there.
+function colourBarPlaces(plot, fit) {
+  const full = plot._fullLayout;
+  const legend = plot.querySelector("g.legend");
+  const legendBelow = fit.legendOwn !== undefined && legend ? legend.getBBox().height : 0;
+  const drawnBars = [...plot.querySelectorAll(".colorbar")];
+  fit.bars ||= {};
+  const changes = [];
+  colourBars(plot).forEach(([index, path, bar], n) => {
+    const kept = fit.bars[index];
+    const own = kept && JSON.stringify(kept.placed) === JSON.stringify(bar) ? kept.own : bar;
+    const box = drawnBars[n] && drawnBars[n].getBBox();
+    const side = own.orientation !== "h";
+    const wide = side && (kept && kept.own === own ? kept.wide : box && box.width > full.width / 4);
+    let placed = own;
+    if (wide) {
+      const heading = own.title || {};
+      const text = heading.text ? wrapText(heading.text, COLOUR_BAR_TITLE_ROOM, { size: 12, ...heading.font, family: full.font.family }) : heading.text;
+      placed = { ...own, thickness: 10, title: { ...heading, text, side: "top" } };
+    }
+    if (legendBelow && placed.yref === "container" && (placed.y ?? 0) < 0.3) {
+      placed = { ...placed, y: (placed.y ?? 0) + (legendBelow + 8) / full.height };
+    }
+    fit.bars[index] = { own, placed, wide };
+    if (JSON.stringify(placed) !== JSON.stringify(bar)) changes.push([index, { [path]: [placed] }]);
+  });
+  return changes;
+}
+
+// Every newPlot and react of the dashboard fits its chart to the width (fitToWidth), once
+// drawn and after every later draw; called once, by the shell.
+export function fitChartsToWidth() {
+  for (const method of ["newPlot", "react"]) {
+    const draw = Plotly[method];
+    Plotly[method] = async (plot, ...rest) => {
+      const drawn = await draw(plot, ...rest);
+      plot.fitListener ||= () => fitToWidth(plot);
+      plot.removeListener("plotly_afterplot", plot.fitListener);
+      plot.on("plotly_afterplot", plot.fitListener);
+      fitToWidth(plot);
+      return drawn;
+    };
+  }
+}
