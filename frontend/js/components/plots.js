@@ -545,22 +545,19 @@ function legendPlace(plot, fit) {
     fit.legendWidth = width;
     fit.legendRoom = 0;
     fit.ownHeight = plot.layout.height ?? full.height;
-    fit.ownBottom = get(plot.layout, "margin.b") ?? full.margin.b;
     return { legend: { ...fit.legendOwn, ...LEGEND_BELOW } };
   }
   if (fit.legendWidth <= legendShare(full.width) * full.width) {
-    const own = { legend: fit.legendOwn, height: fit.ownHeight, "margin.b": fit.ownBottom };
+    const own = { legend: fit.legendOwn, height: fit.ownHeight };
     fit.legendOwn = undefined;
     return own;
   }
   const room = Math.ceil(legend.getBBox().height + 10);
   if (Math.abs(room - fit.legendRoom) <= 2) return {};
   fit.legendRoom = room;
-  // Below the lowest x tick label or title the legend starts.
-  const plotBottom = plot.querySelector("svg.main-svg").getBoundingClientRect().top + full._size.t + full._size.h;
-  const labels = [...plot.querySelectorAll('[class^="g-x"][class$="title"] text, [class*="xtick"] text')];
-  const reach = Math.max(0, ...labels.map((el) => el.getBoundingClientRect().bottom - plotBottom));
-  return { height: fit.ownHeight + room, "margin.b": Math.ceil(Math.max(fit.ownBottom, reach + 6) + room) };
+  // Plotly's own margin makes the room under the axis (it pushes the foot margin for a
+  // legend there): the figure grows by the legend, the plot keeps its height.
+  return { height: fit.ownHeight + room };
 }
 
 // Each colour bar of `plot`: [trace index, its attribute's path, the bar as drawn].
