@@ -30,8 +30,13 @@ from _common import GOOD_SEQUENCE, add_realisations, base_parser, begin, write_j
 
 from inertia_id import simulate
 from inertia_id.evaluation.telemetry import Telemetry, resample_covered
-from inertia_id.physics.estimate import PARAMETER_NAMES, estimate_inertia, parameters_from_tensor
-from inertia_id.physics.presets import preset
+from inertia_id.physics.estimate import (
+    PARAMETER_NAMES,
+    estimate_inertia,
+    parameters_from_tensor,
+    tensor_from_parameters,
+)
+from inertia_id.physics.presets import NOISE_OFF, preset
 
 # Every axis torqued, alone and in pairs, over eight steps (helper-132's review).
 TURNING_SEQUENCE = [
@@ -44,10 +49,13 @@ TURNING_SEQUENCE = [
     [0, 4, 0, 0, 0, 0],
     [4, 0, 4, 4, 0, 0],
 ]
-NOISES = {
-    "1x": {},
-    "6x process": {"process_noise_scale": 6.0},
-    "6x gyro": {"measurement_noise_scale": 6.0},
+# Each noise row: the simulator's noise scales, and whether every source but the duty
+# jitter is switched off (the jitter's clip at full duty is the estimate's own bias).
+NOISES: dict[str, tuple[dict[str, float], bool]] = {
+    "1x": ({}, False),
+    "6x process": ({"process_noise_scale": 6.0}, False),
+    "6x gyro": ({"measurement_noise_scale": 6.0}, False),
+    "jitter alone": ({}, True),
 }
 
 
@@ -57,17 +65,29 @@ def _row(z: np.ndarray) -> str:
     return "  ".join(f"{r:5.2f} {100 * b:3.0f}%" for r, b in zip(rms, beyond, strict=True))
 
 
+def _relative_error(error: np.ndarray, truth: np.ndarray) -> np.ndarray:
+    """(n, 6) errors as fractions: a moment's of its true value, a product of inertia's
+    of the true mean moment (a product may be 0)."""
+    scale = np.full(6, np.trace(tensor_from_parameters(truth)) / 3.0)
+    scale[:3] = truth[:3]
+    return error / scale
+
+
 def simulated(args: Any) -> dict[str, Any]:
     figures: dict[str, Any] = {}
     header = "  ".join(f"{n:>10}" for n in PARAMETER_NAMES)
     print(f"RMS z and share |z| > 2 per parameter:\n{'':44}{header}")
     for preset_name in ("paper", "paper-in-orbit"):
-        scenario = preset(preset_name)
         for seq_name, sequence in (
             ("8-step", TURNING_SEQUENCE),
             ("[[4,4,4,0,0,0]]*4", GOOD_SEQUENCE),
         ):
-            for noise, scales in NOISES.items():
+            for noise, (scales, jitter_alone) in NOISES.items():
+                scenario = preset(preset_name)
+                if jitter_alone:
+                    scenario = scenario.with_uncertainty(
+                        **{**NOISE_OFF, "duty_jitter_sigma": scenario.uncertainty.duty_jitter_sigma}
+                    )
                 sim = simulate(
                     scenario,
                     sequence,
@@ -75,7 +95,7 @@ def simulated(args: Any) -> dict[str, Any]:
                     np.random.default_rng(args.seed),
                     **scales,
                 )
-                reported, independent, bias = [], [], []
+                reported, independent, bias, relative = [], [], [], []
                 for k in range(scenario.n_candidates):
                     estimate = estimate_inertia(scenario, sequence, sim.omega_measured[k])
                     truth = parameters_from_tensor(scenario.inertia_array[k])
@@ -83,11 +103,19 @@ def simulated(args: Any) -> dict[str, Any]:
                     reported.append(error / estimate.parameter_std_kg_m2)
                     independent.append(error / estimate.independent_std_kg_m2)
                     bias.append(np.abs(error.mean(axis=0)) / error.std(axis=0))
+                    relative.append(_relative_error(error, truth))
                 label = f"{preset_name}, {seq_name}, {noise}"
                 z_reported, z_independent = np.concatenate(reported), np.concatenate(independent)
                 print(f"{label:<44}")
                 print(f"{'  reported (sandwich)':<44}{_row(z_reported)}")
                 print(f"{'  independent-error':<44}{_row(z_independent)}")
+                mean_z = z_reported.mean(axis=0)
+                mean_relative = np.concatenate(relative).mean(axis=0)
+                print(f"{'  mean z (reported)':<44}" + "  ".join(f"{m:+10.2f}" for m in mean_z))
+                print(
+                    f"{'  mean error, % (products: of mean moment)':<44}"
+                    + "  ".join(f"{100 * m:+10.2f}" for m in mean_relative)
+                )
                 worst_bias = np.max(np.asarray(bias), axis=0)
                 print(
                     f"{'  |bias| / spread, worst candidate':<44}"
@@ -99,6 +127,8 @@ def simulated(args: Any) -> dict[str, Any]:
                     "rms_z_independent": np.sqrt(np.mean(z_independent**2, axis=0)),
                     "beyond_2_independent": np.mean(np.abs(z_independent) > 2, axis=0),
                     "worst_bias_over_spread": worst_bias,
+                    "mean_z_reported": mean_z,
+                    "mean_relative_error": mean_relative,
                 }
     return figures
 
