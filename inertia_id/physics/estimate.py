@@ -11,8 +11,11 @@ never differentiated: the rates enter as differences of samples and as trapezoid
 integrals, so white gyro noise is averaged, not amplified.
 
 The torque is the one *commanded*, M = A (s ⊙ u) with nominal thrust (s = 1) and the
-commanded duty u; duty jitter and thrust-scale errors are unknown to the estimator and
-end up in the equation error. The actuation low-pass is a property of the scenario, so
+duty u each thruster delivers on average: the commanded duty, except at full duty, where
+the delivered duty is clipped and the scenario's duty jitter leaves a mean shortfall of
+σ/√(2π) (0.8 % at σ = 0.02; taken as the full duty, it biased the inertia up by as
+much). The jitter about that mean and thrust-scale errors are unknown to the estimator
+and end up in the equation error. The actuation low-pass is a property of the scenario, so
 by default its known time constant τ is applied: with τ dm/dt = c - m, m(0) = 0 and c
 piecewise constant, ``∫_0^t m = ∫_0^t c - τ m(t)`` exactly, which removes a bias of τ c
 from every window that starts before the torque has settled. Because the torque is
@@ -126,9 +129,15 @@ _MOMENTUM_LOCK = threading.Lock()
 def commanded_momentum(
     scenario: Scenario, sequence: Any, *, lowpass: bool = True, at_start: bool = True
 ) -> np.ndarray:
-    """Angular impulse of the nominal commanded torque from the sequence start, N m s.
+    """Angular impulse of the expected commanded torque from the sequence start, N m s.
 
-    :param scenario: gives the torque matrix, levels, timing and the low-pass constant.
+    The torque at nominal thrust and the duty each thruster delivers on average: the
+    commanded duty, less the mean shortfall that clipping the scenario's duty jitter
+    (``duty_jitter_sigma``) at full duty leaves (σ/√(2π)); the commanded duty itself
+    where no jitter is stated.
+
+    :param scenario: gives the torque matrix, levels, duty jitter, timing and the
+        low-pass constant.
     :param sequence: (L, N) level indices.
     :param lowpass: apply the scenario's actuation low-pass (exact for piecewise-constant
         commands); False integrates the commanded steps as if applied instantly.
@@ -155,7 +164,14 @@ def commanded_momentum(
 def _commanded_momentum(
     scenario: Scenario, sequence: np.ndarray, *, lowpass: bool, at_start: bool
 ) -> np.ndarray:
-    command = scenario.duties(sequence) @ scenario.torque_matrix.T  # (L, 3), nominal thrust
+    duty = scenario.duties(sequence)
+    sigma = scenario.uncertainty.duty_jitter_sigma
+    if sigma > 0.0:
+        # The duty a thruster delivers on average: the clip at full duty passes only a
+        # shortfall (σ/√(2π), 0.8 % of the thrust at σ = 0.02), which the nominal duty
+        # left in every window as a bias of the same size on the inertia.
+        duty = _delivered_duty_moments(duty, sigma)[0]
+    command = duty @ scenario.torque_matrix.T  # (L, 3), nominal thrust
     return _lowpass_impulse(scenario, command, lowpass=lowpass, at_start=at_start)
 
 
@@ -189,11 +205,12 @@ def _lowpass_impulse(
 _NORMAL_REACH = 40.0
 
 
-def _jitter_variance(duty: np.ndarray, sigma: float) -> np.ndarray:
-    """Variance of the delivered duty clip(u + j, 0, 1) with j ~ N(0, σ²) (a normal
-    censored at off and full), on thrusters commanded on (u > 0; off ones deliver
-    nothing): σ² in the open interval, a third of it at full duty, where only a
-    shortfall gets through."""
+def _delivered_duty_moments(duty: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and variance of the delivered duty clip(u + j, 0, 1) with j ~ N(0, σ²) (a
+    normal censored at off and full), on thrusters commanded on (u > 0; off ones deliver
+    nothing). In the open interval the mean is u and the variance σ²; at full duty only
+    a shortfall gets through, so the mean is 1 - σ/√(2π) and the variance about a third
+    of σ²."""
     # Clipped where the normal's density and tails are 0 in floats anyway: a tiny σ
     # (1e-160) made the squares below overflow (a RuntimeWarning).
     lower = np.clip(-duty / sigma, -_NORMAL_REACH, _NORMAL_REACH)
@@ -209,7 +226,11 @@ def _jitter_variance(duty: np.ndarray, sigma: float) -> np.ndarray:
         + 2.0 * duty * sigma * (density_lower - density_upper)
         + sigma**2 * (inside + lower * density_lower - upper * density_upper)
     )
-    return np.where(duty > 0.0, np.maximum(square - mean**2, 0.0), 0.0)
+    firing = duty > 0.0
+    return (
+        np.where(firing, mean, 0.0),
+        np.where(firing, np.maximum(square - mean**2, 0.0), 0.0),
+    )
 
 
 def _jitter_meat(
@@ -236,7 +257,7 @@ def _jitter_meat(
         Var(Φᵀε) = Σ_s Ψ_sᵀ A diag(Var e_s) Aᵀ Ψ_s,   Ψ_s = Σ_w h_s(w) Φ_w.
 
     The mean shortfall the clip leaves at full duty (σ/√(2π), 0.8 % of the thrust at
-    σ = 0.02) is a bias, and not in it.
+    σ = 0.02) is in the expected torque (:func:`commanded_momentum`), not here.
     """
     sigma = scenario.uncertainty.duty_jitter_sigma
     if sigma <= 0.0:
@@ -249,7 +270,7 @@ def _jitter_meat(
     # time of the whole estimate without the standard errors on a batch.
     psi = np.matmul(profile.T, regressor.reshape(n, n_windows, 18)).reshape(n, steps, 3, 6)
     torque = scenario.torque_matrix  # (3, N)
-    variance = _jitter_variance(scenario.duties(sequence), sigma)  # (L, N)
+    variance = _delivered_duty_moments(scenario.duties(sequence), sigma)[1]  # (L, N)
     middle = np.einsum("ai,si,bi->sab", torque, variance, torque)  # (L, 3, 3)
     weighted = np.matmul(middle[None], psi)  # (n, L, 3, 6)
     return np.asarray(
