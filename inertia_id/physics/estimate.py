@@ -289,10 +289,10 @@ class InertiaEstimate:
         their ends, both measured from the residuals, and the scenario's stated duty
         jitter per actuation step: :func:`_sandwich_covariance`). On simulated series
         (bench/estimate_coverage.py, 8-step sequence) the RMS of (estimate - truth) /
-        error is 0.58-0.94 at 1x and 6x process noise, paper and paper-in-orbit, with
-        the truth beyond 2 of them in 0-3 % of passes: a little conservative. A
-        systematic error, a thrust scale off nominal or the bias noisy rates give a
-        poorly excited tensor (6x gyro noise: up to 1.7-2.3 on Ixx), is not in them.
+        error is 0.58-1.05 at 1x and 6x process noise, paper and paper-in-orbit, with
+        the truth beyond 2 of them in 0-6 % of passes. A systematic error, a thrust
+        scale off nominal or the bias noisy rates give a poorly excited tensor (6x gyro
+        noise: up to 1.7-2.3 on Ixx), is not in them.
     :param independent_std_kg_m2: (..., 6) the textbook figure, from the residual
         variance as if every equation's error were independent: 3 to 8 times too small
         for overlapping windows, but a fair ranking of which parameters the sequence
