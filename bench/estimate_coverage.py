@@ -17,7 +17,8 @@ and the worst candidate's |mean error| / spread of the errors.
    estimate's diagonal is biased by tens of percent, README). Then the paper preset
    with one source alone, every other off: the duty jitter (both sequences fire at full
    duty, where the clipped jitter leaves a mean thrust shortfall the estimate must
-   allow for) and the gyro noise (in the regressor: the estimate is biased light).
+   allow for) and the gyro noise (in the regressor, which biased the estimate light
+   until its expected share came out of the normal equations).
 2. ``--basilisk N`` (default 2, 0 skips; needs the ``basilisk`` extra): N passes per
    candidate flown by Basilisk on paper-in-orbit at 10 Hz with 30 s before the start,
    resampled as ``identify`` does (the grid times a sample measures): z of the true
