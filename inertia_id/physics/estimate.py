@@ -679,8 +679,9 @@ def estimate_inertia(
         every time.
     :param standard_errors: False skips the shared-error standard errors (their
         sandwich holds two more (n, G, 3, 6) arrays: a least-squares classifier's
-        fit to 1,250 series of 8 steps peaked at 305 MB with them, 207 MB without, by
-        tracemalloc) and
+        fit to 1,250 series of 8 steps peaked at 306 MB with them, 248 MB without, by
+        tracemalloc; 207 MB without before the gyro noise's share was sized from the
+        first fit's residuals) and
         leaves ``parameter_std_kg_m2`` NaN; what reads only the estimate, the normal
         matrix or the excitation ranking (``independent_std_kg_m2``) needs no more.
     """
