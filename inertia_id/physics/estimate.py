@@ -475,9 +475,16 @@ def _error_components(
     pure = cost_walk < np.take_along_axis(cost, best[..., None], axis=-1)[..., 0]
     white_axis = np.where(pure, 0.0, white_axis)
     walk_axis = np.where(pure, walk_only, walk_axis)
-    # Cross terms: y_a y_b ≈ W_ab + R_ab λ_k, weighted by 1 / (S_a S_b).
+    # Cross terms: y_a y_b ≈ W_ab + R_ab λ_k, weighted by 1 / (S_a S_b), each S over its
+    # axis's largest (a factor per pair, which leaves the weighted least squares as it
+    # is). An axis whose residual does not vary (S = 0 throughout: constant rates of
+    # 1e-40 rad/s, no rest start) shares no covariance: weights of 1 / tiny overflowed
+    # the normal matrix, pinv made the cross terms NaN and eigh raised LinAlgError.
     fitted = walk_axis[:, None, :] + white_axis[:, None, :] * white_shape[None, :, None]
-    weight = 1.0 / np.maximum(fitted[:, :, :, None] * fitted[:, :, None, :], tiny)
+    peak = np.max(fitted, axis=1, keepdims=True)
+    scaled = np.divide(fitted, peak, out=np.zeros_like(fitted), where=peak > 0.0)
+    product = scaled[:, :, :, None] * scaled[:, :, None, :]
+    weight = np.divide(1.0, product, out=np.zeros_like(product), where=product > 0.0)
     basis = np.stack([np.ones_like(white_shape), white_shape], axis=-1)  # (m, 2)
     normal = np.einsum("nkab,ki,kj->nabij", weight, basis, basis)
     rhs = np.einsum("nkab,ki,nkab->nabi", weight, basis, products)

@@ -376,6 +376,23 @@ def test_a_tiny_duty_jitter_gives_no_warning(paper: Scenario) -> None:
     np.testing.assert_allclose(estimate.parameter_std_kg_m2, none.parameter_std_kg_m2)
 
 
+def test_a_residual_that_does_not_vary_shares_no_covariance(drifting_paper: Scenario) -> None:
+    """Constant rates of 1e-40 rad/s with no rest start: the fit leaves a residual that
+    is constant to the last bit, whose increments' variance is 0 on every axis. The
+    cross terms' weights of 1 / tiny overflowed, pinv made them NaN and eigh raised
+    LinAlgError ("Eigenvalues did not converge"), with or without standard errors
+    (the gyro noise's share is sized from the same residuals). Such an axis shares no
+    covariance with the others: the estimate is finite."""
+    omega = np.full((len(GOOD_SEQUENCE) * 20, 3), 1e-40)
+    for standard_errors in (False, True):
+        estimate = estimate_inertia(
+            drifting_paper, GOOD_SEQUENCE, omega, standard_errors=standard_errors
+        )
+        assert np.all(np.isfinite(estimate.parameters_kg_m2))
+        assert np.all(np.isfinite(estimate.normal_matrix))
+    assert not np.any(np.isnan(estimate.parameter_std_kg_m2))
+
+
 def test_refuses_rates_too_small_for_the_least_squares(paper: Scenario) -> None:
     """Rates of 1e-170 rad/s (a unit off by far more than deg/rad): (ΦᵀΦ)⁺ overflowed
     and the standard errors came out NaN after RuntimeWarnings; they are refused naming
