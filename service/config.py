@@ -188,7 +188,8 @@ class Settings(BaseSettings):
     #: answered 503 (``the database cannot be reached``, Retry-After): a proxy that
     #: acknowledges for a server that does not answer (frozen) held the request for
     #: ever, as no network bound fires there. A server that answers within it, however
-    #: slowly, is never cut (a 12 s statement answered under the 30 s default).
+    #: slowly, is never cut (a 12 s statement answered under the 30 s default), nor one
+    #: past it that the server says it is at work on (a lock wait, a long query).
     database_answer_timeout_s: float = Field(
         default=30.0,
         gt=0,

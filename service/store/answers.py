@@ -14,14 +14,15 @@ the pool discards it, and the server ends the session when it sees the connectio
 
 - :class:`SocketCut`: one connection's socket, held so that it can be cut later.
 - :class:`AnswerDeadline`: every connection of an engine watched; a statement (a pool's
-  ping, a query, a commit) unanswered ``answer_s`` after it was sent has its connection
-  cut.
+  ping, a query, a commit) unanswered ``answer_s`` after it was sent, and that the server
+  does not say it is at work on, has its connection cut.
 """
 
 from __future__ import annotations
 
 import contextlib
 import logging
+import math
 import os
 import socket
 import threading
@@ -78,7 +79,14 @@ class AnswerDeadline:
     tells of it (each execute, commit, rollback and pool reset); the pool's ping, which
     it does not, is timed from when it is first seen waiting, never from an earlier
     statement's stamp. So no statement is cut before ``answer_s`` have passed since it
-    was sent, and none waits much more than ``answer_s`` + ``look_s``.
+    was sent, and none that gets no answer waits much more than ``answer_s`` +
+    ``ask_s`` + ``look_s`` (the bound, then the server asked, :meth:`_working`).
+
+    Past the bound, the server is asked over a connection of its own whether it is at
+    work on the statement (a long query, a wait for a row lock): then it is slow, not
+    unanswered, and it is left to run, asked again after another ``answer_s``. Cut, it
+    was a 503 "cannot be reached" from a server that answered, and its backend went on
+    (waiting for the lock) with no client.
 
     One watching thread (a daemon) per engine, running while the engine has a
     connection open: it ends once the last is closed (``engine.dispose()``), and starts
@@ -89,12 +97,21 @@ class AnswerDeadline:
         however slowly, within it is never cut.
     :param what: the database as the warning names it (no password).
     :param look_s: seconds between two looks; default ``answer_s`` / 20, at most 1 s.
+    :param ask_s: seconds the server has to say what it is at work on (its connect, then
+        its query; :meth:`_working`); default ``answer_s``.
     """
 
     def __init__(
-        self, engine: Engine, answer_s: float, *, what: str, look_s: float | None = None
+        self,
+        engine: Engine,
+        answer_s: float,
+        *,
+        what: str,
+        look_s: float | None = None,
+        ask_s: float | None = None,
     ) -> None:
         self.answer_s = answer_s
+        self.ask_s = answer_s if ask_s is None else ask_s
         self.what = what
         self.look_s = min(1.0, answer_s / 20) if look_s is None else look_s
         self._guard = threading.Lock()
@@ -103,6 +120,8 @@ class AnswerDeadline:
         #: When each connection's latest statement was sent (monotonic s), by its id.
         self._sent: dict[int, float] = {}
         self._thread: threading.Thread | None = None
+        self._dialect = engine.dialect
+        self._url = engine.url
         event.listen(engine, "connect", self._opened)
         event.listen(engine, "close", self._closed)
         event.listen(engine, "close_detached", self._closed_detached)
@@ -166,11 +185,58 @@ class AnswerDeadline:
             now = time.monotonic()
             waiting = dict(self._waiting())
             seen_since = {key: seen_since.get(key, now) for key in waiting}
+            late = {}
             for key, connection in waiting.items():
                 since = max(seen_since[key], self._sent.get(key, 0.0))
                 if now - since >= self.answer_s:
-                    self._cut(key, connection, now - since)
-                    seen_since.pop(key, None)
+                    late[key] = (connection, now - since)
+            if not late:
+                continue
+            working = self._working({key: connection for key, (connection, _) in late.items()})
+            for key, (connection, waited_s) in late.items():
+                seen_since.pop(key, None)
+                if key in working:
+                    # The server answers, and is at work on it (a lock wait, a long
+                    # query): slow, not lost. Asked again after another answer_s.
+                    self._sent[key] = time.monotonic()
+                else:
+                    self._cut(key, connection, waited_s)
+
+    def _working(self, late: dict[int, Any]) -> set[int]:
+        """Of ``late`` (connections by key), those whose statement the server says it
+        is at work on, asked over a connection of its own: its backend ``active`` in
+        pg_stat_activity (running, or waiting on a lock). None when the server does not
+        answer that question within ``ask_s`` (its connect bounded by libpq's
+        ``connect_timeout``, its query by a cut of its socket): the late ones are cut.
+        A backend not found (behind a pooling proxy, the pid is not the server's) or
+        idle is a statement whose answer was lost: cut too."""
+        import psycopg
+
+        pids: dict[int, int] = {}
+        for key, connection in late.items():
+            with contextlib.suppress(Exception):
+                pids[connection.info.backend_pid] = key
+        if not pids:
+            return set()
+        try:
+            cargs, cparams = self._dialect.create_connect_args(self._url)
+            cparams = {**cparams, "connect_timeout": max(2, math.ceil(self.ask_s))}
+            with psycopg.connect(*cargs, autocommit=True, **cparams) as probe:
+                cut = SocketCut(probe)
+                timer = threading.Timer(self.ask_s, cut.cut)
+                timer.start()
+                try:
+                    rows = probe.execute(
+                        "SELECT pid FROM pg_stat_activity WHERE pid = ANY(%s) AND state = 'active'",
+                        (list(pids),),
+                    ).fetchall()
+                finally:
+                    timer.cancel()
+                    cut.close()
+        except Exception as exc:
+            logger.debug("the database %s did not say what it is at work on: %s", self.what, exc)
+            return set()
+        return {pids[pid] for (pid,) in rows if pid in pids}
 
     def _cut(self, key: int, connection: Any, waited_s: float) -> None:
         with self._guard:

@@ -140,7 +140,11 @@ class Database:
             from .answers import AnswerDeadline
             from .refusals import database_label
 
-            AnswerDeadline(self.engine, answer_within_s, what=database_label(url))
+            # The server asked whether it is at work on a late statement as a request
+            # connects: within silent_after_s, where given.
+            AnswerDeadline(
+                self.engine, answer_within_s, what=database_label(url), ask_s=silent_after_s
+            )
 
     @contextmanager
     def session(self) -> Iterator[Session]:

@@ -360,3 +360,56 @@ def test_a_slow_database_that_answers_within_the_bound_is_not_cut(database_url: 
                 )
     finally:
         database.dispose()
+
+
+@pytest.mark.parametrize("database_url", ["postgresql"], indirect=True)
+def test_a_statement_waiting_on_a_row_lock_past_the_bound_is_not_cut(database_url: str) -> None:
+    """A statement the server is at work on (here, waiting for a row lock another
+    transaction holds for longer than the answer bound) is slow, not unanswered: it is
+    not cut. Before, it was cut at the bound (the request a 503 "cannot be reached",
+    from a database that answered), and its backend went on waiting for the lock, its
+    client gone."""
+    import psycopg
+    from sqlalchemy import text
+
+    from service.store import Database
+
+    raw = make_url(database_url).set(drivername="postgresql").render_as_string(hide_password=False)
+    with psycopg.connect(raw, autocommit=True) as setup:
+        setup.execute("CREATE TABLE answer_bound_lock (id int PRIMARY KEY, n int)")
+        setup.execute("INSERT INTO answer_bound_lock VALUES (1, 0)")
+    database = Database(database_url, answer_within_s=1.0)
+    holder = psycopg.connect(raw)
+    try:
+        holder.execute("SELECT n FROM answer_bound_lock WHERE id = 1 FOR UPDATE")
+        waiter_pid: list[int] = []
+        with psycopg.connect(raw, autocommit=True) as watch:
+
+            def release_once_waiting() -> None:
+                # Released once the session below has waited on the lock for 4 bounds.
+                for _look in range(600):
+                    rows = watch.execute(
+                        "SELECT pid FROM pg_stat_activity WHERE wait_event_type = 'Lock' "
+                        "AND query LIKE '%answer_bound_lock%FOR UPDATE%'"
+                    ).fetchall()
+                    if rows:
+                        waiter_pid.append(rows[0][0])
+                        break
+                    threading.Event().wait(0.05)
+                threading.Event().wait(4.0)
+                holder.commit()
+
+            releaser = threading.Thread(target=release_once_waiting)
+            releaser.start()
+            with database.session() as session:
+                session.execute(
+                    text("SELECT n FROM answer_bound_lock WHERE id = 1 FOR UPDATE")
+                ).all()
+                session.execute(text("UPDATE answer_bound_lock SET n = n + 1 WHERE id = 1"))
+            releaser.join()
+        assert waiter_pid
+        with database.session() as session:
+            assert session.execute(text("SELECT n FROM answer_bound_lock")).scalar_one() == 1
+    finally:
+        holder.close()
+        database.dispose()
