@@ -53,6 +53,10 @@ OUT_OF_RANGE = [
     ("INERTIA_ID_JOB_TIME_LIMIT_S", "1e12"),
     ("INERTIA_ID_REQUEST_HEAD_TIMEOUT_S", "1e12"),
     ("INERTIA_ID_REQUEST_BODY_TIMEOUT_S", "1e12"),
+    # Below 1 s every statement of the API was cut (50 of 50 at 1e-3 s): a 503 each.
+    ("INERTIA_ID_DATABASE_ANSWER_TIMEOUT_S", "0.001"),
+    ("INERTIA_ID_DATABASE_ANSWER_TIMEOUT_S", "1e-9"),
+    ("INERTIA_ID_DATABASE_ANSWER_TIMEOUT_S", "1e308"),
 ]
 
 #: The edges of the same ranges, which are accepted.
@@ -73,6 +77,8 @@ AT_THE_EDGE = [
     ("INERTIA_ID_COMPUTE_QUEUE", "0"),
     ("INERTIA_ID_COMPUTE_QUEUE", str(MAX_COMPUTE_QUEUE)),
     ("INERTIA_ID_JOB_TIME_LIMIT_S", str(LONGEST_S)),
+    ("INERTIA_ID_DATABASE_ANSWER_TIMEOUT_S", "1"),
+    ("INERTIA_ID_DATABASE_ANSWER_TIMEOUT_S", str(LONGEST_S)),
 ]
 
 
