@@ -205,7 +205,9 @@ class AnswerDeadline:
     def _working(self, late: dict[int, Any]) -> set[int]:
         """Of ``late`` (connections by key), those whose statement the server says it
         is at work on, asked over a connection of its own: its backend ``active`` in
-        pg_stat_activity (running, or waiting on a lock). None when the server does not
+        pg_stat_activity (running, or waiting on a lock), but not waiting on its client
+        (``ClientWrite``: its answer sent, and stuck on the way, as behind a proxy
+        frozen on that connection alone). None when the server does not
         answer that question within ``ask_s`` (its connect bounded by libpq's
         ``connect_timeout``, its query by a cut of its socket): the late ones are cut.
         A backend not found (behind a pooling proxy, the pid is not the server's) or
@@ -227,7 +229,8 @@ class AnswerDeadline:
                 timer.start()
                 try:
                     rows = probe.execute(
-                        "SELECT pid FROM pg_stat_activity WHERE pid = ANY(%s) AND state = 'active'",
+                        "SELECT pid FROM pg_stat_activity WHERE pid = ANY(%s) AND state = 'active'"
+                        " AND wait_event_type IS DISTINCT FROM 'Client'",
                         (list(pids),),
                     ).fetchall()
                 finally:

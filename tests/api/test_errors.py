@@ -413,3 +413,30 @@ def test_a_statement_waiting_on_a_row_lock_past_the_bound_is_not_cut(database_ur
     finally:
         holder.close()
         database.dispose()
+
+
+@pytest.mark.parametrize("database_url", ["postgresql"], indirect=True)
+def test_a_statement_whose_answer_is_stuck_on_the_way_is_cut(
+    database_url: str, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A backend that is active only in sending its answer, which does not get through
+    (here, a client that reads none of it; as behind a proxy frozen on that connection
+    alone, the server's new connections still answered), is not at work on the
+    statement: it is cut at the bound. Counted as at work, it was never cut."""
+    from service.store import Database
+
+    database = Database(database_url, answer_within_s=1.0)
+    raw = database.engine.raw_connection()
+    try:
+        pgconn = raw.driver_connection.pgconn  # type: ignore[union-attr]
+        with caplog.at_level(logging.WARNING, logger="service.store.answers"):
+            # An answer far larger than the sockets' buffers, sent, never read.
+            pgconn.send_query(b"SELECT repeat('x', 200000000)")
+            for _look in range(300):
+                if "gave no answer to a statement within 1 s" in caplog.text:
+                    break
+                threading.Event().wait(0.1)
+        assert "gave no answer to a statement within 1 s" in caplog.text
+    finally:
+        raw.invalidate()
+        database.dispose()
