@@ -440,3 +440,35 @@ def test_a_statement_whose_answer_is_stuck_on_the_way_is_cut(
     finally:
         raw.invalidate()
         database.dispose()
+
+
+@pytest.mark.parametrize("database_url", ["postgresql"], indirect=True)
+def test_a_commit_the_server_is_at_work_on_past_the_bound_is_not_cut(database_url: str) -> None:
+    """A COMMIT that takes the server longer than the answer bound (here a deferred
+    trigger's 3 s; a synchronous standby's, a slow disk's) is answered, not cut. Before,
+    it was cut at the bound, the request failed as on a lost connection, and the commit
+    landed all the same: the client told "cannot be reached" of a row stored."""
+    import psycopg
+    from sqlalchemy import text
+
+    from service.store import Database
+
+    raw = make_url(database_url).set(drivername="postgresql").render_as_string(hide_password=False)
+    with psycopg.connect(raw, autocommit=True) as setup:
+        setup.execute("CREATE TABLE answer_bound_commit (id int PRIMARY KEY)")
+        setup.execute(
+            "CREATE FUNCTION answer_bound_slow() RETURNS trigger LANGUAGE plpgsql AS "
+            "$$ BEGIN PERFORM pg_sleep(3); RETURN NULL; END $$"
+        )
+        setup.execute(
+            "CREATE CONSTRAINT TRIGGER answer_bound_slow AFTER INSERT ON answer_bound_commit "
+            "DEFERRABLE INITIALLY DEFERRED FOR EACH ROW EXECUTE FUNCTION answer_bound_slow()"
+        )
+    database = Database(database_url, answer_within_s=1.0)
+    try:
+        with database.session() as session:
+            session.execute(text("INSERT INTO answer_bound_commit VALUES (1)"))
+        with database.session() as session:
+            assert session.execute(text("SELECT id FROM answer_bound_commit")).all() == [(1,)]
+    finally:
+        database.dispose()
