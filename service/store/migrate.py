@@ -44,6 +44,12 @@ PENDING = 1
 NEWER = 3
 UNREACHABLE = 4
 MISCONFIGURED = 5
+#: A connect to PostgreSQL given up after this many seconds (libpq's connect_timeout and
+#: keepalives, as :class:`~service.store.session.Database` sets them): behind a proxy that
+#: takes the connection and never answers, ``migrate`` waited for ever, printing nothing.
+#: The migration's own statements get no such bound: one may wait, on purpose, for
+#: another migration's lock.
+DATABASE_SILENT_S = 10.0
 
 EXIT_STATUS = f"""exit status: 0 at this code's newest revision; {PENDING} with --check, \
 migrations pending; 2 usage error; {NEWER} the database is newer than this code (migrated by \
@@ -120,7 +126,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"{label}: no database yet; this code's newest revision is {head_revision()}")
         return PENDING
     try:
-        found = revisions(url)
+        found = revisions(url, silent_after_s=DATABASE_SILENT_S)
         if not found.known:
             raise DatabaseNewerThanCode(url, str(found.current), found.head)
         if args.check:
@@ -137,8 +143,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return 0
         # The revision before is read again under the migration lock: another migration
         # that ran meanwhile (a second `migrate`, serve or the API starting) made it.
-        before = upgrade(url)
-        after = revisions(url)
+        before = upgrade(url, silent_after_s=DATABASE_SILENT_S)
+        after = revisions(url, silent_after_s=DATABASE_SILENT_S)
         if before == after.current:
             print(f"{label}: at {after.current}, migrated meanwhile by another run; nothing to do")
             return 0

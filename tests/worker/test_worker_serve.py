@@ -820,6 +820,34 @@ def test_serve_and_the_api_give_up_a_start_on_a_silent_database_in_one_line(
 
 
 @pytest.mark.parametrize("store", ["postgresql"], indirect=True)
+def test_migrate_gives_up_on_a_silent_database_in_one_line(store: Store, tmp_path: Path) -> None:
+    """``inertia-id migrate`` (and its ``--check``) behind a proxy that takes the connection
+    and never answers: it waited for ever, printing nothing; now its connect gives up
+    after DATABASE_SILENT_S and it says, in one line, which database it could not reach."""
+    proxy = _proxy(store.settings.resolved_database_url)
+    proxy.silence()
+    through = _through(proxy, store.settings.resolved_database_url)
+    env = clean_env(DATABASE_URL=through, INERTIA_ID_DATA_DIR=str(tmp_path / "data"))
+    try:
+        for extra in ([], ["--check"]):
+            command = [sys.executable, "-m", "service.store.migrate", *extra]
+            try:
+                done = subprocess.run(
+                    command, capture_output=True, text=True, env=env, cwd=tmp_path, timeout=60
+                )
+            except subprocess.TimeoutExpired:
+                pytest.fail(f"migrate {extra} still waited 60 s on a silent database")
+            assert done.returncode == 4, (extra, done.stdout, done.stderr)
+            lines = done.stderr.strip().splitlines()
+            assert len(lines) == 1, (extra, done.stderr)
+            assert lines[0].startswith(
+                f"inertia-id migrate: cannot reach the database {database_label(through)}: "
+            ), (extra, done.stderr)
+    finally:
+        proxy.close()
+
+
+@pytest.mark.parametrize("store", ["postgresql"], indirect=True)
 def test_serve_s_own_statements_give_up_on_a_database_that_does_not_answer(
     store: Store, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
 ) -> None:
