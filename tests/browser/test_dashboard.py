@@ -3628,9 +3628,10 @@ CONTROLS_PAST_THE_WINDOW_JS = """(width) =>
 # at the body's 900 px, and a tablet scrolled sideways (the jobs page was 1,022 px wide at
 # 768). Titles now break into lines, wide legends go under the plot, and the narrow
 # layout holds up to 899 px (frontend/js/components/plots.js fitChartsToWidth, style.css).
-# A phone, a tablet, the narrow layout's last width, a laptop and a wide screen: each of
-# 13 pages at a width costs about 25 s of CI, so the widths between (414, 600, 820 and
-# 1,024 px, where the probe found 0 problems too) are left to the NSGA-II pages' test.
+# A phone, a tablet, the narrow layout's last width, a laptop and a wide screen: the 13
+# pages at one width took 13 to 22 s of a CI run (33 s at 1,366 px, with axe-core), so
+# the widths between (414, 600, 820 and 1,024 px, where the probe found 0 problems too)
+# are left to the NSGA-II pages' test.
 @pytest.mark.parametrize("width", [375, 768, 899, 1366, 1920])
 def test_every_page_type_fits_with_no_legend_over_the_plot(
     dashboard: Dashboard, width: int, tmp_path: Path
