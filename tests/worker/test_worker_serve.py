@@ -490,6 +490,21 @@ def test_a_second_stop_signal_while_serve_stops_does_not_cut_its_shutdown_short(
             "serve did not start its API and worker",
             lambda: tail(log),
         )
+        # Warm first: its worker has beaten, and the verdict process is forked (the fork
+        # server has preloaded). The grace runs from the first signal, and the API's stop
+        # waits for a verdict process still warming: under a loaded CI that ate the whole
+        # grace, and the worker was killed before the second signal could be sent.
+        wait_for(
+            lambda: (
+                (h := _get(f"http://127.0.0.1:{port}/health"))["workers"]["count"] == 1
+                and not h["workers"]["warming"]
+                and sum("forkserver" in c for c in _descendants(server.pid).values()) >= 2
+            ),
+            120,
+            "serve's worker did not beat, or its verdict process did not start",
+            lambda: tail(log),
+        )
+        tree = _descendants(server.pid)
         # A worker that does not stop (frozen): serve waits its grace for it, the window
         # the second signal must land in. The workers are told to stop at the first
         # signal now, and an idle one was gone before this test could send a second.
