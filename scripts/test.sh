@@ -31,7 +31,5 @@ workers=${INERTIA_ID_TEST_WORKERS:-2}
 if [ "$workers" = "0" ]; then
   pytest "$@"
 else
-  # Longest modules first (tests/conftest.py, from tests/module_seconds.json), not
-  # xdist's order by test count, which left the few-but-long ones for the end.
-  pytest -n "$workers" --dist loadscope --no-loadscope-reorder "$@"
+  pytest -n "$workers" --dist loadscope "$@"
 fi

@@ -6,8 +6,6 @@ failure is reproducible and no test depends on timing.
 
 from __future__ import annotations
 
-import json
-import os
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
@@ -49,8 +47,7 @@ _BLAS_LIMIT: Any = None
 
 @pytest.hookimpl(trylast=True)
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """Refuse a collection in which two tests share an id; on pytest-xdist's workers,
-    put the longest test modules first.
+    """Refuse a collection in which two tests share an id.
 
     pytest-xdist hands tests out by id, so it runs only one of a set that share one,
     and says nothing: under ``-n 2`` schemathesis' 26 operation tests ran as one
@@ -63,43 +60,6 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
             f"{len(shared)} test id(s) shared by more than one test (pytest-xdist would run"
             f" only one of each): {', '.join(shared[:5])}"
         )
-    if os.environ.get("PYTEST_XDIST_WORKER"):
-        items[:] = longest_modules_first(items, _module_seconds())
-
-
-def _module_seconds() -> dict[str, float]:
-    """Each test module's seconds in a measured run (``tests/module_seconds.json``,
-    written by ``scripts/module_seconds.py``); empty when the file is unreadable."""
-    try:
-        document = json.loads((Path(__file__).parent / "module_seconds.json").read_text())
-        return {str(k): float(v) for k, v in document["seconds"].items()}
-    except (OSError, ValueError, KeyError, TypeError, AttributeError):
-        return {}
-
-
-def longest_modules_first(items: list[pytest.Item], seconds: dict[str, float]) -> list[pytest.Item]:
-    """``items`` with their modules ordered by ``seconds``, longest first, a module not
-    in it (new since the figures) before all; each module's tests kept together and in
-    their order.
-
-    ``scripts/test.sh`` runs ``--dist loadscope --no-loadscope-reorder``: the workers
-    take the modules in this order, each the next as it runs out. xdist's own order (by
-    test count) gave the modules of few but long tests (tests/fault, tests/deploy: a
-    minute or two each) last, where one worker ran them alone while the other sat idle;
-    longest first is the classic greedy schedule that leaves the short ones to even
-    out the end.
-    """
-    unknown = float("inf")
-    first_index: dict[str, int] = {}
-    for index, item in enumerate(items):
-        first_index.setdefault(item.nodeid.split("::", 1)[0], index)
-
-    def key(pair: tuple[int, pytest.Item]) -> tuple[float, int, int]:
-        index, item = pair
-        module = item.nodeid.split("::", 1)[0]
-        return (-seconds.get(module, unknown), first_index[module], index)
-
-    return [item for _, item in sorted(enumerate(items), key=key)]
 
 
 def _one_blas_thread() -> None:
