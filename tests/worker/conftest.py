@@ -107,12 +107,14 @@ class Service:
     scenario_id: str = ""
     workers: list[WorkerProcess] = field(default_factory=list)
 
-    def start_worker(self, *, prefix: str | None = None, **env: str) -> WorkerProcess:
+    def start_worker(
+        self, *, prefix: str | None = None, warm: bool = True, **env: str
+    ) -> WorkerProcess:
         """Start a worker (extra environment in ``env``) and wait until it is ready:
-        its monitor has written its ``workers`` row, its task process warm. ``prefix``
-        names it as an earlier worker was (its row then shows the new worker's
-        incarnation)."""
-        return self._await_worker(self.spawn_worker(prefix=prefix, **env), warm=True)
+        its monitor has written its ``workers`` row, its task process warm (or only the
+        row, its first beat, with ``warm=False``). ``prefix`` names it as an earlier
+        worker was (its row then shows the new worker's incarnation)."""
+        return self._await_worker(self.spawn_worker(prefix=prefix, **env), warm=warm)
 
     def spawn_worker(self, *, prefix: str | None = None, **env: str) -> WorkerProcess:
         """Start a worker as :meth:`start_worker` does, without waiting for it: its
