@@ -69,12 +69,15 @@ TINY_TRAIN: dict[str, Any] = {
 }
 
 
-def random_search(timesteps: int) -> dict[str, Any]:
+def random_search(timesteps: int, time_limit_s: float | None = None) -> dict[str, Any]:
     """A random search: about 1.2-2 ms of work a step with the compiled simulator on
     the 2-core machine (6,000 steps: about 8 s; 3 ms with numpy's RK4, when 1,200 steps
     were enough to be caught running), stopped within a second by a cancel or a
-    hand-back."""
+    hand-back, or by ``time_limit_s`` (counted from each claim), which then ends it
+    "succeeded" (stopped: time_limit) with a re-score of a second or so."""
+    limit = {} if time_limit_s is None else {"time_limit_s": time_limit_s}
     return {
+        **limit,
         "method": "random",
         "sequence_length": 2,
         "timesteps": timesteps,

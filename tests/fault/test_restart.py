@@ -8,6 +8,9 @@ import signal
 
 from faults import Deployment, assert_settled, random_search
 
+#: Each run's time limit, s (see the submit below).
+RUN_LIMIT_S = 20.0
+
 
 def test_graceful_restarts_hand_the_running_job_back_without_spending_attempts(
     deployment: Deployment,
@@ -18,7 +21,13 @@ def test_graceful_restarts_hand_the_running_job_back_without_spending_attempts(
         if not job_id:
             with serve.client() as client:
                 scenario = deployment.scenario(client)
-                job_id = deployment.submit(client, scenario, "search", random_search(30000))
+                # Long enough to be caught running at each restart whatever the load
+                # (30,000 steps: 40-60 s of work), ended by its time limit on its last
+                # run: that run took 40-60 s of each CI's two parameters, for nothing the
+                # test checks. Each claim counts the limit afresh, and a restart catches
+                # the job within a few seconds of its claim, far inside the 20 s.
+                params = random_search(30000, time_limit_s=RUN_LIMIT_S)
+                job_id = deployment.submit(client, scenario, "search", params)
         job = deployment.wait_job(job_id, ("running",), timeout_s=120)
         assert job.attempts == restart, (job.attempts, job.handbacks)
 
@@ -41,4 +50,6 @@ def test_graceful_restarts_hand_the_running_job_back_without_spending_attempts(
     job = deployment.wait_job(job_id, timeout_s=180)
     assert job.status == "succeeded", (job.status, job.error, deployment.logs())
     assert job.attempts == 3 and job.handbacks == 2 and job.error is None
+    # Its last run went on to its limit: no restart's hand-back was taken for an end.
+    assert job.result is not None and job.result.get("stopped") == "time_limit", job.result
     assert_settled(deployment)
