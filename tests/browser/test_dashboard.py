@@ -70,6 +70,7 @@ def _needs(dashboard: Dashboard, *names: str) -> None:
         "search": lambda: _finished_search(dashboard, SMALL_PPO, "small PPO")["id"],
         "cem": lambda: _finished_search(dashboard, FAST_CEM, "fast CEM")["id"],
         "sweep": lambda: _sweep(dashboard),
+        "sweep1": lambda: _sweep(dashboard, multiples=[1], n_test=20),
         "nsga2": lambda: _finished_search(dashboard, SMALL_NSGA2, "small NSGA-II")["id"],
     }
     for name in names:
@@ -77,13 +78,13 @@ def _needs(dashboard: Dashboard, *names: str) -> None:
             made[name] = makers[name]()
 
 
-def _sweep(dashboard: Dashboard) -> str:
+def _sweep(dashboard: Dashboard, multiples: list[float] | None = None, n_test: int = 50) -> str:
     """A sweep of the classifier as the sweep test submits it (multiples 1, 4, 8 of the
-    default noises, 50 test series), once it has succeeded."""
+    default noises, 50 test series, unless told others), once it has succeeded."""
     service = dashboard.service
     classifier = _classifier(dashboard)
     scenario = service.client.get(f"/classifiers/{classifier}").json()["scenario_id"]
-    params = {"classifier_id": classifier, "multiples": [1, 4, 8], "n_test": 50}
+    params = {"classifier_id": classifier, "multiples": multiples or [1, 4, 8], "n_test": n_test}
     answer = service.client.post(
         "/jobs", json={"type": "sweep", "scenario_id": scenario, "seed": 0, "params": params}
     )
@@ -1034,6 +1035,32 @@ def test_a_sweep_draws_both_accuracy_curves_with_intervals_and_a_confusion_matri
     page.wait_for_selector("#confusion-plot")
     assert _trace_points(dashboard, "accuracy-measurement") == 3
     dashboard.screenshot("classifier")
+
+
+def test_a_one_point_sweep_draws_its_chance_line_across_the_plot(dashboard: Dashboard) -> None:
+    """A sweep of one noise multiple: its chance line was drawn from that multiple to
+    itself, no length, so it did not show. It runs half the multiple either side."""
+    _needs(dashboard, "sweep1")
+    page = dashboard.page
+    dashboard.open(f"#/jobs/{made['sweep1']}")
+    page.wait_for_selector("#confusion-plot", timeout=60_000)
+    for noise in ("process", "measurement"):
+        plot = f"accuracy-{noise}"
+        assert _trace_points(dashboard, plot) == 1
+        drawn = page.evaluate(
+            """id => {
+              const plot = document.getElementById(id);
+              const i = plot.data.findIndex((t) => t.name === 'chance');
+              const trace = plot.querySelectorAll('.scatterlayer .trace')[i];
+              const line = trace.querySelector('path.js-line');
+              return { x: plot.data[i].x, px: line ? line.getBoundingClientRect().width : 0 };
+            }""",
+            plot,
+        )
+        assert drawn["x"] == [0.5, 1.5], drawn
+        # Drawn on the page, the 1-point plot's width across (about 500 px at 1,440).
+        assert drawn["px"] > 100, drawn
+    dashboard.screenshot("sweep-one-point")
 
 
 def _sweep_page_with(dashboard: Dashboard, change: Callable[[dict[str, Any]], None]) -> str:

@@ -59,6 +59,17 @@ function ceilingCheck(result, mainName) {
   );
 }
 
+// Where the chance line runs: from the first multiple to the last, or, with one multiple,
+// half of it either side (at least 0.5; the axis is linear): drawn from the multiple to
+// itself, a 1-point sweep's line had no length and did not show.
+function chanceSpan(x) {
+  const low = Math.min(...x);
+  const high = Math.max(...x);
+  if (high > low) return [low, high];
+  const pad = Math.max(0.5, Math.abs(low) / 2);
+  return [low - pad, high + pad];
+}
+
 export async function sweepPanel(holder, job, classifier, context) {
   const noises = job.params.noises || vocabulary().default_noises;
   const plots = Object.fromEntries(noises.map((n) => [n, plotDiv(`accuracy-${n}`)]));
@@ -91,7 +102,7 @@ export async function sweepPanel(holder, job, classifier, context) {
       traces.push({ x: points.map((p) => p.multiple), y: points.map((p) => p.accuracy), mode: "lines+markers", marker: { size: 5 }, name: style.name, line: { color: style.color, dash: style.dash, width: 1.5 }, hovertemplate: "×%{x}: %{y:.3f}<extra>%{fullData.name}</extra>" });
     });
     if (chance !== null && x.length) {
-      traces.push({ x: [Math.min(...x), Math.max(...x)], y: [chance, chance], mode: "lines", name: "chance", line: { color: "#9a9a9a", dash: "longdash", width: 1 }, hoverinfo: "skip" });
+      traces.push({ x: chanceSpan(x), y: [chance, chance], mode: "lines", name: "chance", line: { color: "#9a9a9a", dash: "longdash", width: 1 }, hoverinfo: "skip" });
     }
     Plotly.react(
       plots[noise],
