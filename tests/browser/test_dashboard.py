@@ -2766,6 +2766,75 @@ def test_an_nsga2_search_draws_its_generations_not_an_empty_reward(dashboard: Da
     assert "predicted accuracy" in accuracy
 
 
+def _best_vs_curve(
+    dashboard: Dashboard, job_id: str, change: Callable[[dict[str, Any]], None]
+) -> str:
+    """The search's job page with its result changed by ``change`` on the way to the page;
+    what the best sequence's card says of the curve."""
+    page = dashboard.page
+    own = re.compile(rf"/jobs/{job_id}(\?.*)?$")
+
+    def changed(route: Any) -> None:
+        answer = route.fetch()
+        body = answer.json()
+        change(body["result"])
+        route.fulfill(response=answer, json=body)
+
+    dashboard.open("#/jobs")  # away first: the same route again would keep its page
+    page.route(own, changed)
+    try:
+        dashboard.open(f"#/jobs/{job_id}")
+        page.wait_for_selector("#best-vs-curve", timeout=60_000)
+        return str(page.inner_text("#best-vs-curve"))
+    finally:
+        page.unroute(own)
+
+
+def test_an_nsga2_best_card_says_why_its_accuracy_is_not_the_curves_highest_point(
+    dashboard: Dashboard,
+) -> None:
+    """The curve is the search's prediction on its own draw; the best is the front's
+    member 0, the most accurate measured on fresh test series. Where a sequence the search
+    predicted higher measured lower (``inertia-id search`` with this search's settings, seeds
+    1 and 4 of 0 to 5; seed 1: the curve ended at 0.9251, member 0 was predicted 0.9165 and
+    measured 0.9260, the curve's sequence, member 1, 0.9255) the two figures differed on
+    the page and nothing said why. The module's search (seed 0) is the other case: the
+    best is the curve's sequence, and the card gives its measured figures beside."""
+    _needs(dashboard, "nsga2")
+    job_id = made["nsga2"]
+    result = dashboard.service.job(job_id)["result"]
+    front = result["front"]
+    top = max(p["best_f1"] for p in result["curve"])
+    first = front["members"][0]["scores"]["accuracy"]
+    confirmed = front["confirmation"]["accuracy"]
+    # As it came: whichever case this seed is, its numbers are the result's.
+    said = _best_vs_curve(dashboard, job_id, lambda r: None)
+    assert said.startswith(f"The curve's highest point, {top:.4f}, is ")
+    assert f"{first:.4f}" in said and f"{confirmed:.4f} on the confirmation's" in said
+    if top == result["best"]["f1"]:
+        assert "is this sequence's accuracy as the search predicted it" in said
+    else:
+        assert f"though the search predicted it {result['best']['f1']:.4f}" in said
+
+    # Member 1 predicted above member 0 by the search (as seeds 1 and 4 had it).
+    def member_1_predicted_higher(changed: dict[str, Any]) -> None:
+        member = changed["front"]["members"][1]
+        member["search_scores"]["accuracy"] = changed["best"]["f1"] + 0.01
+        changed["curve"][-1]["best_f1"] = member["search_scores"]["accuracy"]
+
+    said = _best_vs_curve(dashboard, job_id, member_1_predicted_higher)
+    member_1 = front["members"][1]["scores"]["accuracy"]
+    assert said == (
+        f"The curve's highest point, {result['best']['f1'] + 0.01:.4f}, is the search's "
+        "prediction, on its own draw, for the most accurate feasible sequence up to its last "
+        "point. The best sequence is the front's member 0 instead: the most accurate when the "
+        f"front was measured on {front['fresh_test_series']} fresh test series per candidate "
+        f"at each condition ({first:.4f}; {confirmed:.4f} on the confirmation's other series, "
+        f"the figure to quote; the curve's sequence is front member 1, {member_1:.4f} there), "
+        f"though the search predicted it {result['best']['f1']:.4f}."
+    )
+
+
 def test_an_nsga2_curves_best_only_rises_and_its_polish_start_is_marked_where_it_is_drawn(
     dashboard: Dashboard,
 ) -> None:

@@ -288,6 +288,7 @@ async function searchResult(holder, job, context) {
         h("dt", {}, "wall time, stopped by"),
         h("dd", {}, `${quantity(result.wall_time_s)} s, ${result.stopped}`),
       ),
+      bestVersusCurve(result, best),
       baselineTable(result, best, freshF1),
       h("div", { class: "toolbar" }, link(trainHref, "Train a classifier on this sequence", { class: "button", id: "train-best" })),
       responseWarnings,
@@ -319,6 +320,36 @@ async function searchResult(holder, job, context) {
       responseHolder.replaceWith(messageBox("error", exc.message));
     }
   });
+}
+
+// Why NSGA-II's best is not the curve's highest point (null where no front was built: a
+// cancelled search's best is the curve's). The curve is the search's prediction on its own
+// draw; the best is the front's member 0, the most accurate of the front when every member
+// was measured on fresh test series (pareto.py build_front), so a sequence the search
+// predicted higher can measure lower and sit behind it. Four decimals: a measurement on
+// 2,000 series moves in steps of 0.0005, which three decimals can write alike.
+function bestVersusCurve(result, best) {
+  const front = result.front;
+  if (result.method !== "nsga2" || !front || !(front.members || []).length) return null;
+  const curve = (result.curve || []).map((p) => p.best_f1).filter((v) => typeof v === "number" && Number.isFinite(v));
+  if (!curve.length) return null;
+  const top = Math.max(...curve);
+  const four = (v) => (typeof v === "number" && Number.isFinite(v) ? v.toFixed(4) : "–");
+  const [first] = front.members;
+  const measured = front.accuracy_source === "measured";
+  const how = measured ? `measured on ${front.fresh_test_series} fresh test series per candidate at each condition` : "predicted again on a fresh draw";
+  const confirmed = front.confirmation ? `; ${four(front.confirmation.accuracy)} on the confirmation's other series, the figure to quote` : "";
+  let text;
+  if (top === best.f1) {
+    text = `The curve's highest point, ${four(top)}, is this sequence's accuracy as the search predicted it on its own draw (the figure above); ${how} it scored ${four(first.scores.accuracy)}${confirmed}.`;
+  } else {
+    const curveMember = front.members.find((m) => m.search_scores && m.search_scores.accuracy === top);
+    const where = curveMember ? `front member ${curveMember.index}, ${four(curveMember.scores.accuracy)} there` : "not kept on the front once re-scored on fresh draws";
+    text =
+      `The curve's highest point, ${four(top)}, is the search's prediction, on its own draw, for the most accurate feasible sequence up to its last point. ` +
+      `The best sequence is the front's member 0 instead: the most accurate when the front was ${how} (${four(first.scores.accuracy)}${confirmed}; the curve's sequence is ${where}), though the search predicted it ${four(best.f1)}.`;
+  }
+  return h("p", { class: "hint", id: "best-vs-curve", "data-curve": String(top), "data-best": String(best.f1), "data-member-0": String(first.scores.accuracy) }, text);
 }
 
 // NaN (shown "–") without values: a re-score the time limit's grace cut may hold none.
