@@ -64,9 +64,10 @@ class Dashboard:
         return path
 
 
-#: A function of the page that lists layout problems: a Plotly legend over a plot area,
-#: a tick label, an axis title, a title or a colour bar; text cut at a figure's edge; a
-#: page wider than the window (tests/browser/layout_problems.js).
+#: A function of the page that lists layout problems: a Plotly figure wider than its
+#: cell; a legend over a plot area, a tick label, an axis title, a title or a colour bar;
+#: text cut at a figure's edge; a page wider than the window
+#: (tests/browser/layout_problems.js).
 LAYOUT_PROBLEMS_JS = "\n".join(
     line
     for line in (Path(__file__).parent / "layout_problems.js")

@@ -1,5 +1,5 @@
 // Evaluated in the page by the browser tests: every layout problem of the visible
-// Plotly charts, as text; [] when there is none. Boxes are page pixels. Tick labels and
+// Plotly charts (a figure wider than its cell among them), as text; [] when there is none. Boxes are page pixels. Tick labels and
 // titles of every axis count, the stacked subplots' and the deg/s twins' (y2…y6, x2) too.
 () => {
   const TICKS = ['x', 'y', 'x2', 'y2', 'y3', 'y4', 'y5', 'y6'].map((a) => `.${a}tick text`).join(', ');
@@ -17,6 +17,11 @@
     const svg = plot.querySelector('svg.main-svg');
     if (!svg) continue;
     const figure = box(svg);
+    // A figure wider than its cell: Plotly takes a plot's width from its cell once, and
+    // the compare page drew its first sweep plot before the second cell was in the grid,
+    // 1,212 px wide in a 599 px cell, its highest multiples and legend under the next plot.
+    const cell = box(plot);
+    if (figure.width > cell.width + 1) problems.push(`${name}: figure ${Math.round(figure.width)} px wide in its ${Math.round(cell.width)} px cell`);
     const legend = plot.querySelector('g.legend');
     const others = [
       ...[...plot.querySelectorAll('.nsewdrag')].map((el) => ['plot area', el]),

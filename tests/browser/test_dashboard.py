@@ -2126,17 +2126,12 @@ def test_compare_sweeps_draws_each_accuracy_plot_within_its_cell(dashboard: Dash
     page.set_viewport_size({"width": 1280, "height": 900})
     dashboard.open(f"#/compare?type=sweep&ids={made['sweep']}")
     page.wait_for_selector("#compare-accuracy-measurement .legend")
-    widths = page.evaluate(
-        "() => [...document.querySelectorAll('#compare-results .js-plotly-plot')].map((p) =>"
-        " [p.id, Math.round(p.querySelector('svg.main-svg').getBoundingClientRect().width),"
-        " Math.round(p.getBoundingClientRect().width)])"
+    plots = page.evaluate(
+        "() => [...document.querySelectorAll('#compare-results .js-plotly-plot')].map((p) => p.id)"
     )
-    assert [plot for plot, _figure, _cell in widths] == [
-        "compare-accuracy-process",
-        "compare-accuracy-measurement",
-    ]
-    wider = [(plot, figure, cell) for plot, figure, cell in widths if figure > cell + 1]
-    assert wider == [], "figure wider than its cell (plot, figure px, cell px)"
+    assert plots == ["compare-accuracy-process", "compare-accuracy-measurement"]
+    # The shared check finds a figure wider than its cell on every page
+    # ("compare-accuracy-process: figure 1212 px wide in its 599 px cell").
     assert page.evaluate(LAYOUT_PROBLEMS_JS) == []
 
 
