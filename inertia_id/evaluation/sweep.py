@@ -379,7 +379,8 @@ def run_sweep(
             scales[f"{noise}_noise_scale"] = float(multiple)
             at_level, extra = scenario, scales
         else:
-            at_level, extra = scenario.with_uncertainty(**{NOISE_FIELDS[noise]: value}), {}
+            # Not validated again: 1000x of a sigma at its bound is past it.
+            at_level, extra = scenario.with_swept_noise(**{NOISE_FIELDS[noise]: value}), {}
         try:
             result = simulate(
                 at_level, sequence, per_candidate, np.random.default_rng(streams[i]), **extra

@@ -28,8 +28,12 @@ from ..errors import InputError
 from ..wording import counted
 
 __all__ = [
+    "MAX_DISTURBANCE_TORQUE_SIGMA_NM",
+    "MAX_DUTY_JITTER_SIGMA",
     "MAX_GYRO_RATE_RAD_S",
+    "MAX_LAG_STEPS",
     "MAX_RATE_SIGMA_RAD_S",
+    "MAX_THRUST_SCALE_SIGMA",
     "CandidateGenerator",
     "InertiaCandidate",
     "Scenario",
@@ -465,6 +469,43 @@ MAX_GYRO_RATE_RAD_S = 100.0
 #: Largest gyro noise, bias or initial-rate spread a scenario may state, rad/s: the
 #: largest rate a gyro measures.
 MAX_RATE_SIGMA_RAD_S = MAX_GYRO_RATE_RAD_S
+#: Largest duty jitter a scenario may state, in full duties. The delivered duty is
+#: clipped to [0, 1]: at a sigma of 10 a firing thruster's delivered duty lands inside
+#: (0, 1) in about 4 % of its steps and is otherwise off or full, a coin flip rather than
+#: the timing jitter of a valve (a real one is a few percent of a duty). Past it a figure
+#: means nothing more (1e308 overflowed its draws to infinities, then clipped).
+MAX_DUTY_JITTER_SIGMA = 10.0
+#: Largest relative thrust-scale (calibration) error a scenario may state. A thruster's
+#: torque is scaled by 1 + sigma z, z standard normal, and no thruster pushes backwards:
+#: at 0.5 one draw in 44 (z < -2) already reverses a thruster, at 1 one in 6. At 0.5 a
+#: noise sweep's largest multiple (1000) still simulates the paper preset (rates up to
+#: 180 rad/s; at 700 they overflow).
+MAX_THRUST_SCALE_SIGMA = 0.5
+#: Largest disturbance torque sigma a scenario may state, N m per axis: more than ten
+#: times the torque of the Space Shuttle's primary RCS, among the largest attitude
+#: thrusters flown (3.9 kN on lever arms of about 10 to 20 m, some 4e4 to 8e4 N m),
+#: while the environment's torques (gravity gradient, drag, solar pressure) are far
+#: smaller still.
+#: Past it lies a unit slip or a corrupted figure: 1e308 overflowed the draws, and its
+#: square (the noise model's covariance) was infinite from about 1e154.
+MAX_DISTURBANCE_TORQUE_SIGMA_NM = 1e6
+#: Longest actuation lag a scenario may state, in actuation steps (``step_duration_s``).
+#: A first-order lag of time constant tau delivers, within a step of T from rest, the
+#: fraction 1 - (tau / T)(1 - exp(-T / tau)) of the torque commanded: 0.5 % at tau =
+#: 100 T. Past it the thrusters barely respond within a sequence and the body drifts
+#: under noise alone (1e308 s trained to 0.425 accuracy, without a word).
+MAX_LAG_STEPS = 100.0
+
+
+#: The sigmas a noise sweep scales (:data:`inertia_id.evaluation.sweep.NOISE_FIELDS`),
+#: which :meth:`Scenario.with_swept_noise` may set past what a scenario may state.
+SWEPT_SIGMAS = (
+    "duty_jitter_sigma",
+    "thrust_scale_sigma",
+    "disturbance_torque_sigma_nm",
+    "gyro_noise_sigma_rad_s",
+    "gyro_bias_sigma_rad_s",
+)
 
 
 class Uncertainty(_Model):
@@ -473,13 +514,17 @@ class Uncertainty(_Model):
     :param duty_jitter_sigma: standard deviation of the duty actually delivered by a
         firing thruster around the commanded level (fraction of full duty), redrawn each
         step; the paper's response-time variance. Delivered duty is clipped to [0, 1].
+        At most :data:`MAX_DUTY_JITTER_SIGMA`.
     :param lowpass_time_constant_s: first-order lag between commanded and applied torque
-        (valve and chamber dynamics); 0 applies torque instantly.
+        (valve and chamber dynamics); 0 applies torque instantly. At most
+        :data:`MAX_LAG_STEPS` actuation steps (checked by :class:`Scenario`).
     :param thrust_scale_sigma: relative error of each thruster's torque, drawn once per
         realisation (calibration error; torque and inertia enter Euler's equations as a
-        ratio, so this is the confounder that matters most).
+        ratio, so this is the confounder that matters most). At most
+        :data:`MAX_THRUST_SCALE_SIGMA`.
     :param disturbance_torque_sigma_nm: process noise, a random torque per body axis (N m),
-        piecewise constant, redrawn every ``disturbance_interval_s``.
+        piecewise constant, redrawn every ``disturbance_interval_s``. At most
+        :data:`MAX_DISTURBANCE_TORQUE_SIGMA_NM`.
     :param gyro_noise_sigma_rad_s: white gyro noise per axis and sample (rad/s).
     :param gyro_bias_rad_s: constant gyro bias vector (rad/s).
     :param gyro_bias_sigma_rad_s: random constant bias per realisation and axis (rad/s);
@@ -505,6 +550,42 @@ class Uncertainty(_Model):
         values = value if isinstance(value, tuple) else (value,)
         if not all(math.isfinite(float(v)) for v in values):
             raise InputError(f"{info.field_name} must be finite, got {value!r}")
+        return value
+
+    @field_validator("duty_jitter_sigma", mode="after")
+    @classmethod
+    def _a_jitter_of_a_valve(cls, value: float) -> float:
+        if value > MAX_DUTY_JITTER_SIGMA:
+            raise InputError(
+                f"duty_jitter_sigma = {value!r} (fraction of full duty) is no thruster's "
+                f"timing jitter: at most {MAX_DUTY_JITTER_SIGMA:g} full duties (the "
+                "delivered duty is clipped to [0, 1], so past a few full duties each step "
+                "is a coin flip between off and full)"
+            )
+        return value
+
+    @field_validator("thrust_scale_sigma", mode="after")
+    @classmethod
+    def _a_calibration_error(cls, value: float) -> float:
+        if value > MAX_THRUST_SCALE_SIGMA:
+            raise InputError(
+                f"thrust_scale_sigma = {value!r} (fraction of nominal torque) is no "
+                f"calibration error: at most {MAX_THRUST_SCALE_SIGMA:g} (each thruster's "
+                "torque is scaled by 1 + sigma z, z standard normal; at 0.5 one draw in 44 "
+                "already reverses a thruster, and no thruster pushes backwards)"
+            )
+        return value
+
+    @field_validator("disturbance_torque_sigma_nm", mode="after")
+    @classmethod
+    def _a_torque_a_spacecraft_meets(cls, value: float) -> float:
+        if value > MAX_DISTURBANCE_TORQUE_SIGMA_NM:
+            raise InputError(
+                f"disturbance_torque_sigma_nm = {value!r} N m is beyond any spacecraft's "
+                f"disturbance: at most {MAX_DISTURBANCE_TORQUE_SIGMA_NM:g} N m (more than "
+                "ten times the torque of the Space Shuttle's primary RCS thrusters, some "
+                "4e4 to 8e4 N m); check its units"
+            )
         return value
 
     @field_validator(
@@ -625,6 +706,17 @@ class Scenario(_Model):
         # Refused at dt > 2 tau, a margin short of that edge.
         dt = self.timing.integration_step_s
         tau = self.uncertainty.lowpass_time_constant_s
+        step = self.timing.step_duration_s
+        if tau > MAX_LAG_STEPS * step:
+            # A time constant of 100 steps delivers 0.5 % of a step's commanded torque
+            # within it (MAX_LAG_STEPS): the thrusters never answer their commands.
+            raise InputError(
+                f"lowpass_time_constant_s = {tau!r} s is an actuation lag of "
+                f"{tau / step:.4g} steps of step_duration_s = {step:g} s: at most "
+                f"{MAX_LAG_STEPS:g} steps ({MAX_LAG_STEPS * step:g} s), where a step "
+                "already delivers only 0.5 % of the torque it commands (the thrusters "
+                "would barely respond and the body drift under noise alone)"
+            )
         if 0.0 < tau < dt / LAG_STEPS_PER_TAU:
             raise InputError(
                 f"lowpass_time_constant_s = {tau} is too short for integration_step_s = "
@@ -820,6 +912,28 @@ class Scenario(_Model):
     def duration_s(self, sequence: Any) -> float:
         """How long a sequence lasts, s."""
         return float(len(self.check_sequence(sequence)) * self.timing.step_duration_s)
+
+    def with_swept_noise(self, **levels: float) -> Scenario:
+        """A copy with some noise sigmas at the levels a noise sweep visits: a multiple
+        (at most :data:`~inertia_id.evaluation.sweep.MAX_MULTIPLE`, 1000) of a level the
+        scenario states or of a reference level, so past what a scenario may state.
+
+        Not validated again, unlike :meth:`with_uncertainty`: the bounds on a sigma are
+        on what a person states, and a sweep at 1000x of a sigma at its bound was
+        refused in the middle of its job. The rules that span fields (the disturbance
+        interval on the grid, the lag against the steps) involve no sigma.
+
+        :raises InputError: for a field that is no sigma a sweep scales, or a level
+            that is not finite and >= 0.
+        """
+        unknown = sorted(set(levels) - set(SWEPT_SIGMAS))
+        if unknown:
+            raise InputError(f"a sweep scales {list(SWEPT_SIGMAS)}, not {unknown}")
+        bad = {k: v for k, v in levels.items() if not (math.isfinite(v) and v >= 0.0)}
+        if bad:
+            raise InputError(f"swept noise levels must be finite and >= 0, got {bad}")
+        noise = self.uncertainty.model_copy(update={k: float(v) for k, v in levels.items()})
+        return self.model_copy(update={"uncertainty": noise})
 
     def with_uncertainty(self, **changes: Any) -> Scenario:
         """A copy with some uncertainty fields changed (validated)."""

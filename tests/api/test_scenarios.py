@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from inertia_id import Scenario
+from service.store import ScenarioRow
 
 from .support import Api
 
@@ -247,3 +248,67 @@ def test_baselines_a_short_length_lists_those_that_exist_and_why_the_rest_do_not
     assert "the same sequence as hand-designed" in got["axis-in-turn"]["unavailable"]
     assert got["fire-then-brake"] == [[4, 0], [0, 0], [0, 4]]
     assert "same sequence as fire-then-brake" in got["fire-coast-brake"]["unavailable"]
+
+
+# Noise figures past any spacecraft's (each was stored, and a job accepted that then
+# failed or, with a lag of 1e308 s, trained to 0.425 accuracy without a word).
+ABSURD_NOISE = [
+    ("duty_jitter_sigma", 1e308, "duty_jitter_sigma = 1e+308 (fraction of full", "at most 10"),
+    ("thrust_scale_sigma", 0.75, "thrust_scale_sigma = 0.75 (fraction of nominal", "at most 0.5"),
+    ("disturbance_torque_sigma_nm", 1e308, "disturbance_torque_sigma_nm = 1e+308 N m", "1e+06"),
+    ("lowpass_time_constant_s", 1e308, "lowpass_time_constant_s = 1e+308 s", "at most 100 steps"),
+]
+
+
+@pytest.mark.parametrize(("field", "value", "named", "bound"), ABSURD_NOISE)
+def test_a_noise_figure_past_any_spacecrafts_is_422_naming_it(
+    api: Api, field: str, value: float, named: str, bound: str
+) -> None:
+    """As the dashboard's new-scenario form sends it (a whole document) and as a preset's
+    overrides."""
+    document = Scenario.paper().model_dump(mode="json")
+    document["uncertainty"][field] = value
+    for body in (
+        {"scenario": document},
+        {"preset": "paper", "overrides": {"uncertainty": {field: value}}},
+    ):
+        response = api.post("/scenarios", json=body)
+        assert response.status_code == 422, response.text
+        (error,) = response.json()["detail"]
+        assert named in error["msg"] and bound in error["msg"], error
+        where = "scenario" if "scenario" in body else "overrides"
+        # The lag's bound is against the steps: the scenario's rule, located at it.
+        at = [] if field == "lowpass_time_constant_s" else ["uncertainty", field]
+        assert error["loc"] == ["body", where, *at]
+    assert api.get("/scenarios").json()["total"] == 0
+
+
+@pytest.mark.parametrize(("field", "value", "named", "bound"), ABSURD_NOISE)
+def test_a_scenario_stored_before_its_noise_was_bounded_is_422_for_jobs_and_plans(
+    api: Api, field: str, value: float, named: str, bound: str
+) -> None:
+    """A scenario stored before these bounds is kept, shown, and refused with a 422 naming
+    the figure when a job or a plan reads it, before a job is queued."""
+    document = Scenario.paper().model_dump(mode="json")
+    document["uncertainty"][field] = value
+    with api.db.session() as session:
+        row = ScenarioRow(name="stored before the bound", document=document)
+        session.add(row)
+        session.flush()
+        scenario_id = row.id
+    sequence = [[4, 4, 4, 0, 0, 0]] * 4
+    answers = {
+        "train": api.submit("train", scenario_id, params={"sequence": sequence}),
+        "search": api.submit("search", scenario_id),
+        "plan": api.post(f"/scenarios/{scenario_id}/plan", json={"sequence": sequence}),
+    }
+    for what, response in answers.items():
+        assert response.status_code == 422, (what, response.text)
+        (error,) = response.json()["detail"]
+        assert named in error["msg"] and bound in error["msg"], (what, error)
+        # Located in the stored document (the request named only its id).
+        at = [] if field == "lowpass_time_constant_s" else ["uncertainty", field]
+        assert error["loc"] == at, (what, error)
+    assert api.get("/jobs").json()["total"] == 0 and not api.queued_messages()
+    shown = api.get(f"/scenarios/{scenario_id}")
+    assert shown.status_code == 200 and shown.json()["document"]["uncertainty"][field] == value

@@ -534,6 +534,30 @@ def test_a_scenario_error_is_one_line_without_pydantic_links(tmp_path: Path) -> 
     assert "timing.step_duration_s" in result.output
 
 
+@pytest.mark.parametrize(
+    ("field", "named"),
+    [
+        ("lowpass_time_constant_s", "lowpass_time_constant_s = 1e+308 s is an actuation lag"),
+        ("duty_jitter_sigma", "uncertainty.duty_jitter_sigma: duty_jitter_sigma = 1e+308"),
+        ("disturbance_torque_sigma_nm", "disturbance_torque_sigma_nm = 1e+308 N m is beyond"),
+    ],
+)
+def test_a_scenario_files_absurd_noise_is_refused_in_one_line(
+    tmp_path: Path, field: str, named: str
+) -> None:
+    """A lag of 1e308 s trained to 0.425 accuracy without a word; now every command
+    reading the file refuses it, in one line naming the figure."""
+    document = Scenario.paper().model_dump(mode="json")
+    document["uncertainty"][field] = 1e308
+    path = tmp_path / "s.json"
+    path.write_text(json.dumps(document))
+    for command in (["simulate", "-n", "1"], ["train", "--sequence", "4,4,4,0,0,0"]):
+        result = CliRunner().invoke(main, [*command, "--scenario", str(path)])
+        assert result.exit_code == 1, result.output
+        assert result.output.count("\n") == 1 and "Traceback" not in result.output
+        assert named in result.output
+
+
 @pytest.mark.parametrize("value", ["1_0", True])
 def test_a_scenario_files_number_not_as_written_is_named(tmp_path: Path, value: object) -> None:
     """Pydantic's lax mode read "1_0" as 10 and true as 1 in a scenario file."""
@@ -569,17 +593,22 @@ def test_rates_that_overflow_are_refused_naming_the_scenario() -> None:
 
 
 @pytest.mark.parametrize(
-    ("field", "named"),
+    ("field", "value", "named"),
     [
-        ("disturbance_torque_sigma_nm", "disturbance torque sigma 1e+308 N m"),
-        ("thrust_scale_sigma", "thrust-scale sigma 1e+308"),
+        ("disturbance_torque_sigma_nm", 1e6, "disturbance torque sigma 1e+06 N m"),
+        ("thrust_scale_sigma", 1e3, "thrust-scale sigma 1000"),
     ],
 )
-def test_rates_that_overflow_name_the_noise_that_drove_them(field: str, named: str) -> None:
+def test_rates_that_overflow_name_the_noise_that_drove_them(
+    field: str, value: float, named: str
+) -> None:
     """A scenario whose disturbance or thrust-scale sigma overflowed the rates was told
     of its torques (2 N m, nominal) and its initial-rate sigma alone, none of them the
-    cause, and to "scale them down"."""
-    scenario = Scenario.paper().with_uncertainty(**{field: 1e308})
+    cause, and to "scale them down". The disturbance is the most a scenario may state;
+    the thrust-scale sigma past it, as a noise sweep's copy holds it."""
+    paper = Scenario.paper()
+    made = paper.with_swept_noise if field == "thrust_scale_sigma" else paper.with_uncertainty
+    scenario = made(**{field: value})
     with pytest.raises(InputError, match="overflowed to inf or nan") as refused:
         simulate(scenario, SEQUENCE, 2, np.random.default_rng(0))
     assert named in str(refused.value)

@@ -226,13 +226,14 @@ def test_every_source_at_the_largest_multiple_simulates_finite_rates(
 def test_a_scenario_that_overflows_below_the_bound_names_the_noise_and_multiple(
     euclidean_classifier: InertiaClassifier, paper: Scenario
 ) -> None:
-    # A 200 % thrust-scale error at 1x: 1000x of it drives the rates to inf.
-    wild = paper.with_uncertainty(thrust_scale_sigma=2.0)
-    with pytest.raises(ValueError, match=r"thrust_scale noise at multiple 1000 \(2000 fraction"):
+    # A disturbance of 1000 N m at 1x on bodies of 52 to 100 kg m^2: 1000x of it drives
+    # the rates to inf.
+    wild = paper.with_uncertainty(disturbance_torque_sigma_nm=1000.0)
+    with pytest.raises(ValueError, match=r"process noise at multiple 1000 \(1e\+06 N m\)"):
         run_sweep(
             euclidean_classifier,
             scenario=wild,
-            noises=["thrust_scale"],
+            noises=["process"],
             multiples=(1, 1000),
             n_test=10,
         )
@@ -487,3 +488,62 @@ def test_each_point_says_whether_it_lies_above_the_ceilings_interval(
 def test_a_bad_limit_size_is_quoted(euclidean_classifier: InertiaClassifier, bad: object) -> None:
     with pytest.raises(ValueError, match=f"got {bad!r}"):
         run_sweep(euclidean_classifier, multiples=(1,), n_test=10, limit_realisations=bad)  # type: ignore[arg-type]
+
+
+def test_a_scenario_at_every_noise_bound_is_swept_at_the_largest_multiple() -> None:
+    """The bounds are on what a scenario states; a sweep scales a sigma up to 1000x
+    (MAX_MULTIPLE, the service's cap too) past them. Its jitter and thrust-scale copies
+    were validated again, so a scenario at a bound was refused in the middle of its job
+    (and one at 2x of a bound too). A body the size of the International Space Station
+    (inertia 1e6 times the paper's), so that 1000x its disturbance bound of 1e6 N m still
+    leaves finite rates; every other figure at its bound (the lag at 100 steps)."""
+    from inertia_id import preset, train
+
+    paper = preset("paper")
+    generator = paper.candidate_generator
+    assert generator is not None
+    base = (1e6 * np.asarray(generator.base_inertia_kg_m2)).tolist()
+    at_bounds = preset(
+        "paper",
+        inertia_candidates=[],
+        candidate_generator={**generator.model_dump(), "base_inertia_kg_m2": base},
+        thrusters={"nominal_torque_nm": 2e4, "n_levels": 5},
+        uncertainty={
+            **paper.uncertainty.model_dump(),
+            # MAX_DUTY_JITTER_SIGMA, MAX_THRUST_SCALE_SIGMA, MAX_DISTURBANCE_TORQUE_SIGMA_NM,
+            # MAX_LAG_STEPS steps of 1 s and MAX_RATE_SIGMA_RAD_S.
+            "duty_jitter_sigma": 10.0,
+            "thrust_scale_sigma": 0.5,
+            "disturbance_torque_sigma_nm": 1e6,
+            "lowpass_time_constant_s": 100.0,
+            "gyro_bias_sigma_rad_s": 100.0,
+        },
+    )
+    classifier = train(at_bounds, GOOD_SEQUENCE, 5, np.random.default_rng(0), metric="euclidean")
+    result = run_sweep(
+        classifier, multiples=(2, MAX_MULTIPLE), noises=NOISE_KINDS, n_test=10, seed=1
+    )
+    assert [(p.noise, p.multiple) for p in result.points] == [
+        (noise, m) for noise in NOISE_KINDS for m in (2.0, MAX_MULTIPLE)
+    ]
+    assert all(0.0 <= p.accuracy <= 1.0 for p in result.points)
+    values = {(p.noise, p.multiple): p.value for p in result.points}
+    assert values["jitter", MAX_MULTIPLE] == 1e4 and values["thrust_scale", MAX_MULTIPLE] == 500
+    assert values["process", MAX_MULTIPLE] == 1e9 and values["gyro_bias", MAX_MULTIPLE] == 1e5
+
+
+def test_the_papers_jitter_and_thrust_scale_at_their_bounds_are_swept_at_1000x(
+    euclidean_classifier: InertiaClassifier, paper: Scenario
+) -> None:
+    """On the paper preset's own bodies, 1000x of the thrust-scale bound (0.5) still
+    simulates (it overflows from about 700)."""
+    at_bounds = paper.with_uncertainty(duty_jitter_sigma=10.0, thrust_scale_sigma=0.5)
+    result = run_sweep(
+        euclidean_classifier,
+        scenario=at_bounds,
+        multiples=(MAX_MULTIPLE,),
+        noises=["jitter", "thrust_scale"],
+        n_test=50,
+        seed=4,
+    )
+    assert [p.value for p in result.points] == [1e4, 500.0]

@@ -657,3 +657,93 @@ def test_a_rate_sigma_beyond_any_gyro_is_refused_naming_it(field: str) -> None:
     with pytest.raises(ValueError, match=r"gyro_bias_rad_s = \(0.0, -101.0, 0.0\) rad/s"):
         preset("paper", uncertainty={"gyro_bias_rad_s": (0.0, -101.0, 0.0)})
     assert preset("paper", uncertainty={field: 100.0}).uncertainty.model_dump()[field] == 100.0
+
+
+@pytest.mark.parametrize(
+    ("field", "bound", "past", "message"),
+    [
+        (
+            "duty_jitter_sigma",
+            10.0,
+            1e308,
+            r"duty_jitter_sigma = 1e\+308 \(fraction of full duty\) is no thruster's timing "
+            r"jitter: at most 10 full duties \(the delivered duty is clipped to \[0, 1\]",
+        ),
+        (
+            "thrust_scale_sigma",
+            0.5,
+            0.51,
+            r"thrust_scale_sigma = 0\.51 \(fraction of nominal torque\) is no calibration "
+            r"error: at most 0\.5 .*no thruster pushes backwards",
+        ),
+        (
+            "disturbance_torque_sigma_nm",
+            1e6,
+            1e308,
+            r"disturbance_torque_sigma_nm = 1e\+308 N m is beyond any spacecraft's "
+            r"disturbance: at most 1e\+06 N m .*check its units",
+        ),
+    ],
+)
+def test_a_noise_figure_past_any_spacecrafts_is_refused_naming_it(
+    field: str, bound: float, past: float, message: str
+) -> None:
+    """Each was stored and a job accepted that failed later, or trained on noise alone;
+    now refused where it is stated, naming the field, the value, the unit and the bound.
+    At the bound it is taken."""
+    with pytest.raises(pydantic.ValidationError, match=message) as refused:
+        preset("paper", uncertainty={field: past})
+    assert refused.value.errors()[0]["loc"] == ("uncertainty", field)
+    with pytest.raises(pydantic.ValidationError, match=message):
+        Uncertainty(**{field: past})
+    assert getattr(preset("paper", uncertainty={field: bound}).uncertainty, field) == bound
+
+
+def test_an_actuation_lag_of_more_than_100_steps_is_refused_naming_it() -> None:
+    """A lag of 1e308 s was stored, trained to 0.425 accuracy without a word (the
+    thrusters never answered). The bound is 100 actuation steps, however long a step."""
+    data = paper_data()  # step_duration_s 1
+    data["uncertainty"]["lowpass_time_constant_s"] = 1e308
+    with pytest.raises(
+        pydantic.ValidationError,
+        match=r"lowpass_time_constant_s = 1e\+308 s is an actuation lag of 1e\+308 steps of "
+        r"step_duration_s = 1 s: at most 100 steps \(100 s\), where a step already delivers "
+        r"only 0\.5 % of the torque it commands",
+    ):
+        Scenario.model_validate(data)
+    data["uncertainty"]["lowpass_time_constant_s"] = 100.0
+    assert Scenario.model_validate(data).uncertainty.lowpass_time_constant_s == 100.0
+    data["uncertainty"]["lowpass_time_constant_s"] = 100.5
+    with pytest.raises(pydantic.ValidationError, match=r"= 100\.5 s .* 100\.5 steps"):
+        Scenario.model_validate(data)
+    # Steps of 10 s take a lag of 1000 s; the rule is on the steps, not the seconds.
+    data["timing"]["step_duration_s"] = 10.0
+    data["uncertainty"]["lowpass_time_constant_s"] = 1000.0
+    assert Scenario.model_validate(data).uncertainty.lowpass_time_constant_s == 1000.0
+    # What the bound says: at 100 steps a step delivers 0.5 % of the torque it commands.
+    tau = 100.0
+    assert 1.0 - tau * (1.0 - np.exp(-1.0 / tau)) == pytest.approx(0.005, abs=2e-5)
+
+
+def test_a_sweeps_copy_may_pass_the_bounds_but_not_be_infinite() -> None:
+    """A noise sweep scales a sigma up to 1000x (MAX_MULTIPLE): its copy is not
+    validated again, so a scenario at its bound is swept; what it may set is a sweep's
+    sigma, finite and >= 0."""
+    paper = Scenario.paper()
+    swept = paper.with_swept_noise(duty_jitter_sigma=1e4, thrust_scale_sigma=500.0)
+    assert swept.uncertainty.duty_jitter_sigma == 1e4
+    assert swept.uncertainty.thrust_scale_sigma == 500.0
+    assert swept.inertia_candidates == paper.inertia_candidates
+    with pytest.raises(ValueError, match=r"not \['lowpass_time_constant_s'\]"):
+        paper.with_swept_noise(lowpass_time_constant_s=1.0)
+    with pytest.raises(ValueError, match=r"finite and >= 0, got \{'duty_jitter_sigma': inf\}"):
+        paper.with_swept_noise(duty_jitter_sigma=float("inf"))
+
+
+def test_the_bounds_are_the_figures_the_readme_states() -> None:
+    from inertia_id.physics import scenario
+
+    assert scenario.MAX_DUTY_JITTER_SIGMA == 10.0
+    assert scenario.MAX_THRUST_SCALE_SIGMA == 0.5
+    assert scenario.MAX_DISTURBANCE_TORQUE_SIGMA_NM == 1e6
+    assert scenario.MAX_LAG_STEPS == 100.0

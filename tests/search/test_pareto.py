@@ -1284,11 +1284,17 @@ def test_a_plans_flights_past_any_gyros_range_are_refused_naming_the_flight(
     paper: Scenario,
 ) -> None:
     """The nominal prediction can stay in range while single flights at the scenario's
-    noise do not (a thrust-scale error of 1000 sigma: torques 1000 times the nominal):
-    refused naming the flight."""
-    noisy = paper.with_uncertainty(thrust_scale_sigma=1e3)
+    noise do not (a thrust-scale error of 0.5, the most a scenario may state, on a first
+    candidate of 0.06 kg m^2: 67 rad/s an axis nominally): refused naming the flight."""
+    candidates = paper.model_dump(mode="json")["inertia_candidates"]
+    candidates[0]["inertia_kg_m2"] = (0.06 * np.eye(3)).tolist()
+    noisy = preset(
+        "paper",
+        inertia_candidates=candidates,
+        uncertainty={**paper.uncertainty.model_dump(), "thrust_scale_sigma": 0.5},
+    )
     sequence = [[4, 4, 4, 0, 0, 0]] * 2
-    assert command_plan(noisy, sequence).peak_rate_rad_s[0] < 1.0
+    command_plan(noisy, sequence)  # in range nominally: planned
     with pytest.raises(InputError, match=r"in flight \d+ of 20 at the scenario's noise \(seed 3\)"):
         command_plan(noisy, sequence, flights=20, seed=3)
 
