@@ -107,6 +107,7 @@ def ppo_search(
     params = check_ppo_params(ppo_params)
     import torch
     from stable_baselines3 import PPO
+    from stable_baselines3.common.logger import Logger
 
     from .callback import SearchCallback
 
@@ -125,6 +126,11 @@ def ppo_search(
     torch.set_num_threads(1)
     try:
         model = PPO("MlpPolicy", run.env, seed=run.seed, device="cpu", verbose=0, **params)
+        # A logger of ours that writes nowhere: without one, learn() configures its own,
+        # which makes an empty SB3-<date> folder in the temporary directory even at
+        # verbose 0, one for every PPO search a serve runs. The learning curve is ours
+        # (SearchCallback), so SB3's log is not wanted.
+        model.set_logger(Logger(folder=None, output_formats=[]))
         model.learn(total_timesteps=total_timesteps, callback=callback)
         saved = None
         if policy_path is not None:

@@ -310,6 +310,24 @@ def test_ppo_cancel_stops_at_the_next_step(
     assert result.curve[-1].timesteps == 40
 
 
+def test_ppo_leaves_no_log_folder_in_the_temporary_directory(
+    tiny: Scenario, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # stable-baselines3 made an empty SB3-<date> folder in the temporary directory for
+    # every learn() without a logger of ours (verbose 0 logs nowhere, but its logger is
+    # still given a folder): a serve accumulated one for each PPO search it ran (44 in
+    # /tmp after one CI run).
+    import tempfile
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    monkeypatch.delenv("SB3_LOGDIR", raising=False)
+    ppo_search(
+        tiny, sequence_length=2, total_timesteps=16, settings=SETTINGS, ppo_params=TINY_PPO,
+        n_fresh_draws=1,
+    )  # fmt: skip
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
 def test_ppo_curve_point_before_any_episode_is_null_in_json(tiny: Scenario) -> None:
     # Two-step rollouts of three-step episodes: the first rollout ends mid-episode.
     result = ppo_search(
