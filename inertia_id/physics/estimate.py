@@ -59,10 +59,10 @@ from typing import Any
 
 import numpy as np
 from scipy import fft as scipy_fft
-from scipy import special
 
 from ..errors import InputError
 from ..wording import counted
+from .actuation import delivered_duty_moments
 from .dynamics import cross
 from .scenario import Scenario
 from .series import check_series
@@ -177,7 +177,7 @@ def _commanded_momentum(
         # The duty a thruster delivers on average: the clip at full duty passes only a
         # shortfall (σ/√(2π), 0.8 % of the thrust at σ = 0.02), which the nominal duty
         # left in every window as a bias of the same size on the inertia.
-        duty = _delivered_duty_moments(duty, sigma)[0]
+        duty = delivered_duty_moments(duty, sigma)[0]
     command = duty @ scenario.torque_matrix.T  # (L, 3), nominal thrust
     return _lowpass_impulse(scenario, command, lowpass=lowpass, at_start=at_start)
 
@@ -206,38 +206,6 @@ def _lowpass_impulse(
     if at_start:
         impulse = np.concatenate([np.zeros((1, width)), impulse])
     return impulse
-
-
-# Standard deviations past which a normal's density and tail probability are 0 in floats.
-_NORMAL_REACH = 40.0
-
-
-def _delivered_duty_moments(duty: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray]:
-    """Mean and variance of the delivered duty clip(u + j, 0, 1) with j ~ N(0, σ²) (a
-    normal censored at off and full), on thrusters commanded on (u > 0; off ones deliver
-    nothing). In the open interval the mean is u and the variance σ²; at full duty only
-    a shortfall gets through, so the mean is 1 - σ/√(2π) and the variance about a third
-    of σ²."""
-    # Clipped where the normal's density and tails are 0 in floats anyway: a tiny σ
-    # (1e-160) made the squares below overflow (a RuntimeWarning).
-    lower = np.clip(-duty / sigma, -_NORMAL_REACH, _NORMAL_REACH)
-    upper = np.clip((1.0 - duty) / sigma, -_NORMAL_REACH, _NORMAL_REACH)
-    inside = special.ndtr(upper) - special.ndtr(lower)
-    above = special.ndtr(-upper)
-    density_lower = np.exp(-0.5 * lower**2) / math.sqrt(2.0 * math.pi)
-    density_upper = np.exp(-0.5 * upper**2) / math.sqrt(2.0 * math.pi)
-    mean = above + duty * inside + sigma * (density_lower - density_upper)
-    square = (
-        above
-        + duty**2 * inside
-        + 2.0 * duty * sigma * (density_lower - density_upper)
-        + sigma**2 * (inside + lower * density_lower - upper * density_upper)
-    )
-    firing = duty > 0.0
-    return (
-        np.where(firing, mean, 0.0),
-        np.where(firing, np.maximum(square - mean**2, 0.0), 0.0),
-    )
 
 
 def _jitter_meat(
@@ -277,7 +245,7 @@ def _jitter_meat(
     # time of the whole estimate without the standard errors on a batch.
     psi = np.matmul(profile.T, regressor.reshape(n, n_windows, 18)).reshape(n, steps, 3, 6)
     torque = scenario.torque_matrix  # (3, N)
-    variance = _delivered_duty_moments(scenario.duties(sequence), sigma)[1]  # (L, N)
+    variance = delivered_duty_moments(scenario.duties(sequence), sigma)[1]  # (L, N)
     middle = np.einsum("ai,si,bi->sab", torque, variance, torque)  # (L, 3, 3)
     weighted = np.matmul(middle[None], psi)  # (n, L, 3, 6)
     return np.asarray(

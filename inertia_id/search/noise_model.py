@@ -63,6 +63,9 @@ from itertools import combinations
 
 import numpy as np
 
+# The delivered duty's moments live beside the clip they describe; the estimator takes its
+# expected torque from the same function, and the old name stays importable from here.
+from ..physics.actuation import delivered_duty_moments as clipped_duty_moments
 from ..physics.scenario import Scenario
 from ..physics.simulate import disturbance_walk, nominal_simulator
 
@@ -70,39 +73,6 @@ __all__ = ["LinearNoiseModel", "clipped_duty_moments"]
 
 #: Bytes the arrays of one block of pairs may take (P x pairs x R x R Gram matrices).
 _BLOCK_BYTES = 64 * 2**20
-
-
-def clipped_duty_moments(duty: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray]:
-    """Mean and variance of the delivered duty ``clip(d + ε, 0, 1)``, ε ~ N(0, σ²), for
-    each commanded duty d (0 and 0 where the thruster is off: it does not fire).
-
-    The censored normal's moments, computed in units of σ (stable for any σ): at full
-    duty the mean is 1 − σ/√(2π) and half the jitter is clipped away, the variance
-    (1/2 − 1/(2π)) σ², about a third of σ².
-    """
-    from scipy.special import ndtr
-
-    d = np.asarray(duty, dtype=float)
-    if sigma <= 0.0:
-        return d.copy(), np.zeros_like(d)
-    a, b = -d / sigma, (1.0 - d) / sigma  # the bounds of Z = (Y − d) / σ
-    pdf_a = np.exp(-0.5 * a * a) / math.sqrt(2 * math.pi)
-    pdf_b = np.exp(-0.5 * b * b) / math.sqrt(2 * math.pi)
-    below, above = ndtr(a), 1.0 - ndtr(b)
-    with np.errstate(invalid="ignore"):
-        # a²Φ(a) and a φ(a) are 0 where a is far out (0 · inf): nan_to_num.
-        first = np.nan_to_num(a * below) + np.nan_to_num(b * above) + pdf_a - pdf_b
-        second = (
-            np.nan_to_num(a * a * below)
-            + np.nan_to_num(b * b * above)
-            + (1.0 - below - above)
-            + np.nan_to_num(a * pdf_a)
-            - np.nan_to_num(b * pdf_b)
-        )
-    firing = d > 0.0
-    mean = np.where(firing, d + sigma * first, 0.0)
-    variance = np.where(firing, sigma * sigma * np.maximum(second - first * first, 0.0), 0.0)
-    return mean, variance
 
 
 def _integrated_pulses(scenario: Scenario, length: int, times: np.ndarray) -> np.ndarray:

@@ -10,6 +10,7 @@ from scipy.special import ndtr
 
 from inertia_id import Scenario, preset, simulate
 from inertia_id.evaluation.ceiling import fit_ceiling
+from inertia_id.physics import actuation, estimate
 from inertia_id.physics.presets import NOISE_OFF
 from inertia_id.search.noise_model import LinearNoiseModel, clipped_duty_moments
 
@@ -71,6 +72,33 @@ def test_the_delivered_duty_moments_near_a_bound_match_sampling(duty: float) -> 
     mean, variance = clipped_duty_moments(np.array(duty), 0.1)
     assert mean == pytest.approx(draws.mean(), abs=4 * draws.std() / np.sqrt(len(draws)))
     assert variance == pytest.approx(draws.var(), rel=0.01)
+
+
+@pytest.mark.filterwarnings("error")
+@pytest.mark.parametrize("sigma", [1e-160, 1e-300, 0.0, 5e-324])
+def test_a_tiny_sigma_warns_of_nothing(sigma: float) -> None:
+    """A tiny sigma is legal: its bounds are far past where the normal's tails are 0,
+    and squaring them overflowed (a RuntimeWarning) before they were held there."""
+    mean, variance = clipped_duty_moments(np.array([0.0, 0.5, 1.0]), sigma)
+    np.testing.assert_array_equal(mean, [0.0, 0.5, 1.0])
+    assert (variance <= sigma * sigma).all()
+
+
+def test_the_estimator_and_the_noise_model_take_one_delivered_duty(paper: Scenario) -> None:
+    """Both the search's noise model and the estimator's expected torque take their
+    delivered duty from the one function: the estimator's impulse over the first step
+    is the noise model's mean duty times the torque matrix, to the last bit (its former
+    own copy differed from the search's in the last place at sigma = 0.1)."""
+    sigma = 0.1
+    jittery = paper.with_uncertainty(duty_jitter_sigma=sigma, lowpass_time_constant_s=0.0)
+    sequence = [[4, 3, 2, 1, 0, 4]]
+    impulse = estimate.commanded_momentum(jittery, sequence, lowpass=False, at_start=False)
+    duty = clipped_duty_moments(jittery.duties(sequence), sigma)[0]
+    timing = jittery.timing
+    offsets = np.arange(1, timing.samples_per_step + 1)[:, None] / timing.sample_rate_hz
+    np.testing.assert_array_equal(impulse, offsets * (duty @ jittery.torque_matrix.T))
+    assert clipped_duty_moments is actuation.delivered_duty_moments
+    assert estimate.delivered_duty_moments is actuation.delivered_duty_moments
 
 
 def test_the_mean_response_is_the_simulators_with_clipped_jitter(every_noise: Scenario) -> None:
