@@ -502,9 +502,21 @@ class Trained:
 
 
 def train_for_sequence(
-    scenario: Scenario, request: TrainRequest, *, seed: int | np.random.SeedSequence
+    scenario: Scenario,
+    request: TrainRequest,
+    *,
+    seed: int | np.random.SeedSequence,
+    should_stop: Callable[[], bool] | None = None,
 ) -> Trained:
-    """Train the classifier a request names, on draws from ``default_rng(seed)``."""
+    """Train the classifier a request names, on draws from ``default_rng(seed)``.
+
+    :param should_stop: asked at the training's checkpoints (after each simulation,
+        between the pieces of a kind's fit: the folds of a covariance's shrinkage, the
+        default kind's noise conditions, a DTW barycentre; before and after a library fit
+        with no hook of its own, tslearn's k-means; in the calibration). True stops the
+        training there: :class:`~inertia_id.stopping.TrainingStopped` is raised and
+        nothing half-trained is returned.
+    """
     from .classifiers.registry import train_classifier
     from .physics.simulate import check_nominal_gyro_range, weak_response_warning
 
@@ -514,7 +526,15 @@ def train_for_sequence(
     # One of responses far below the gyro noise classifies noise: said, not refused.
     weak = weak_response_warning(scenario, request.sequence, run)
     rng = np.random.default_rng(seed)
-    model = train_classifier(scenario, request.sequence, n_realisations, rng, kind=kind, **options)
+    model = train_classifier(
+        scenario,
+        request.sequence,
+        n_realisations,
+        rng,
+        kind=kind,
+        should_stop=should_stop,
+        **options,
+    )
     return Trained(model, kind, n_realisations, () if weak is None else (weak,))
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -102,6 +103,50 @@ def test_training_draws_from_the_seed(paper: Scenario) -> None:
     assert trained.summary()["n_realisations"] == 5 and trained.summary()["kind"] == "clustering"
     default = train_for_sequence(paper, TrainRequest(GOOD_SEQUENCE, n_realisations=4), seed=3)
     assert isinstance(default.model, MarginalLikelihoodClassifier)
+
+
+@pytest.mark.parametrize("kind", ["marginal-likelihood", "likelihood", "clustering"])
+def test_a_training_stops_at_the_checkpoint_after_it_is_asked_to(
+    paper: Scenario, kind: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Before, train_for_sequence took no should_stop: a cancel, a worker's stop and a time
+    # limit all waited for the whole training.
+    from inertia_id.physics.simulate import Simulator
+    from inertia_id.stopping import TrainingStopped
+
+    runs: list[int] = []
+    run = Simulator.run
+
+    def counted(self: Simulator, *args: Any, **kwargs: Any) -> Any:
+        runs.append(1)
+        return run(self, *args, **kwargs)
+
+    monkeypatch.setattr(Simulator, "run", counted)
+    request = TrainRequest(GOOD_SEQUENCE, kind=kind, n_realisations=6)
+    asked: list[int] = []
+
+    def never() -> bool:
+        asked.append(1)
+        return False
+
+    whole = train_for_sequence(paper, request, seed=5, should_stop=never)
+    checkpoints, simulations = len(asked), len(runs)
+    # Asked and never stopping, the training is the one trained without asking.
+    assert whole.model.to_json() == train_for_sequence(paper, request, seed=5).model.to_json()
+    asked.clear()
+    runs.clear()
+
+    def after_the_first() -> bool:
+        asked.append(1)
+        return len(asked) > 1
+
+    with pytest.raises(TrainingStopped):
+        train_for_sequence(paper, request, seed=5, should_stop=after_the_first)
+    # Stopped at the second checkpoint, well before the whole training's last one, and
+    # before the calibration's draws (the last simulation).
+    assert len(asked) == 2
+    assert checkpoints >= (40 if kind == "marginal-likelihood" else 4), checkpoints
+    assert len(runs) < simulations, (len(runs), simulations)
 
 
 def test_others_train_one_after_another_from_one_generator(paper: Scenario) -> None:

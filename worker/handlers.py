@@ -25,6 +25,7 @@ from inertia_id.pipelines import (
     train_for_sequence,
 )
 from inertia_id.search import SearchProgress
+from inertia_id.stopping import TrainingStopped
 
 from .context import JobContext, JobTimeLimitExceeded, Outcome
 
@@ -87,13 +88,36 @@ def run_train_job(context: JobContext) -> Outcome:
     """Train the classifier for a sequence; the runner stores it as a ``classifiers`` row.
 
     The training draws (and a seed the kind needs) come from the job's seed. Metrics:
-    "f1" and "accuracy" at step 0. A training cannot stop part-way: one that ends past
-    the job's time limit fails, naming it.
+    "f1" and "accuracy" at step 0. The training stops part-way, at its next checkpoint
+    (:func:`~inertia_id.pipelines.train_for_sequence`), once a cancel is asked for, the
+    run is taken from it (its worker stopping hands the job back: the runner drops the
+    run) or the job's time limit has passed; nothing half-trained is stored. A cancel
+    ends it "cancelled"; the time limit fails it, naming the limit.
     """
     spec = context.spec
-    trained = train_for_sequence(
-        spec.scenario, TrainRequest.from_params(_params(context)), seed=spec.seed
-    )
+    timed_out = False
+
+    def should_stop() -> bool:
+        nonlocal timed_out
+        # The context reads the cancel flag at most every CANCEL_POLL_S; the clock is
+        # cheap to ask at every checkpoint.
+        if context.should_stop():
+            return True
+        timed_out = context.past_time_limit()
+        return timed_out
+
+    try:
+        trained = train_for_sequence(
+            spec.scenario,
+            TrainRequest.from_params(_params(context)),
+            seed=spec.seed,
+            should_stop=should_stop,
+        )
+    except TrainingStopped:
+        if context.cancelled or context.lost or not timed_out:
+            # A lost run's outcome is dropped by the runner, as a stopped search's is.
+            return Outcome(status="cancelled", result=None)
+        raise JobTimeLimitExceeded(context.time_limit_text()) from None
     if context.check_now():
         return Outcome(status="cancelled", result=None)
     if context.past_time_limit():

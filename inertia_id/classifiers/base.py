@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Callable
 from typing import Any, ClassVar, Self
 
 import numpy as np
@@ -38,6 +39,7 @@ from ..errors import InputError
 from ..physics.scenario import Scenario
 from ..physics.series import check_series
 from ..physics.simulate import simulate
+from ..stopping import Checkpoint, checkpoint_of, no_checkpoint
 from . import documents
 from .gaussian import log_softmax
 
@@ -373,29 +375,49 @@ class BaseClassifier(BaseEstimator):
         sequence: Any,
         n_realisations: int,
         rng: np.random.Generator,
+        *,
+        should_stop: Callable[[], bool] | None = None,
     ) -> Self:
         """Simulate every candidate's response to ``sequence`` at 1x noise and fit on it.
 
         :param n_realisations: training series per candidate.
         :param rng: source of the simulated noise (and of a seed the kind needs); the same
             state gives the same model.
+        :param should_stop: asked at the training's checkpoints (after each simulation,
+            between the pieces of a kind's fit, in the calibration); True stops it there
+            with :class:`~inertia_id.stopping.TrainingStopped`, the model left part-fitted
+            (not to be used).
         """
         self._check_params()
         scenario.check_distinguishable()
-        self._fit_simulated(scenario, scenario.check_fires(sequence), n_realisations, rng)
-        # The posterior's novelty tail and temperature from fresh draws of a fixed seed
-        # (the caller's rng untouched): training distances are in-sample, or, for the
-        # marginal likelihood, taken at the grid's extremes, both wider than 1x.
-        from ..evaluation.calibration import calibrate
+        self.__dict__["_stop_checkpoint"] = checkpoint_of(should_stop)
+        try:
+            self._fit_simulated(scenario, scenario.check_fires(sequence), n_realisations, rng)
+            self._checkpoint()
+            # The posterior's novelty tail and temperature from fresh draws of a fixed
+            # seed (the caller's rng untouched): training distances are in-sample, or, for
+            # the marginal likelihood, taken at the grid's extremes, both wider than 1x.
+            from ..evaluation.calibration import calibrate
 
-        calibrate(self, self.CALIBRATION_DRAWS)
+            calibrate(self, self.CALIBRATION_DRAWS, checkpoint=self._checkpoint)
+        finally:
+            # Only for the fit: a fitted model does not hold on to its trainer's callback
+            # (it is copied, pickled and written as a document).
+            self.__dict__.pop("_stop_checkpoint", None)
         return self
+
+    def _checkpoint(self) -> None:
+        """A point where the fit under way may stop (:meth:`fit_scenario`'s
+        ``should_stop``); nothing outside such a fit."""
+        checkpoint: Checkpoint = self.__dict__.get("_stop_checkpoint", no_checkpoint)
+        checkpoint()
 
     def _fit_simulated(
         self, scenario: Scenario, steps: np.ndarray, n_realisations: int, rng: np.random.Generator
     ) -> None:
         """Simulate the training set and fit; a kind that needs other runs overrides it."""
         X, y = simulate(scenario, steps, n_realisations, rng).dataset()
+        self._checkpoint()
         self._draw_seed(rng)
         self.fit(X, y, candidate_names=scenario.candidate_names, scenario=scenario, sequence=steps)
 

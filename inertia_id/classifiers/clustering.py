@@ -199,9 +199,13 @@ class InertiaClassifier(BaseClassifier):
             init=init,
             random_state=self.random_state,
         )
+        # tslearn's k-means (all its initialisations and iterations) is one call with no
+        # callback: a training can stop before it and after it, not inside it.
+        self._checkpoint()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             kmeans.fit(Xs)
+        self._checkpoint()
         self.cluster_centers_ = np.asarray(kmeans.cluster_centers_) * self.scale_
         self.inertia_ = float(kmeans.inertia_)
         by_cluster = self._cluster_distances(X)

@@ -123,7 +123,7 @@ class LikelihoodClassifier(BaseClassifier):
 
             intensity = float(ledoit_wolf_shrinkage(residuals, assume_centered=True))
         elif self.shrinkage == "cv":
-            intensity = cv_intensity(F, y, self.n_candidates_, folds)
+            intensity = cv_intensity(F, y, self.n_candidates_, folds, checkpoint=self._checkpoint)
         else:
             intensity = float(self.shrinkage)
         self.covariance_ = shrink(sample, intensity)
@@ -139,6 +139,7 @@ class LikelihoodClassifier(BaseClassifier):
         """Distance of each series to each candidate's mean, fitted without its fold, (n, K)."""
         out = np.empty((len(F), self.n_candidates_))
         for fold in np.unique(folds):
+            self._checkpoint()
             train, test = folds != fold, folds == fold
             means, _, sample = means_and_scatter(F[train], y[train], self.n_candidates_)
             out[test] = whitened_distances(F[test], means, cholesky(shrink(sample, intensity)))

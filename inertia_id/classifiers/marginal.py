@@ -110,6 +110,7 @@ from ..physics.estimate import parameters_from_tensor, tensor_from_parameters
 from ..physics.scenario import Scenario
 from ..physics.series import check_series
 from ..physics.simulate import Simulator, disturbance_rate_covariance, simulate
+from ..stopping import Checkpoint, no_checkpoint
 from . import gaussian
 from .base import BaseClassifier, is_number
 from .gaussian import log_softmax, logsumexp
@@ -287,7 +288,15 @@ class _Mixture:
     #: steps that take that one's whitened values to its own; None for a factored one.
     _update: tuple[_Mixture, list[_UnitUpdate]] | None = None
 
-    def __init__(self, means: np.ndarray, components: np.ndarray, grid: np.ndarray) -> None:
+    def __init__(
+        self,
+        means: np.ndarray,
+        components: np.ndarray,
+        grid: np.ndarray,
+        checkpoint: Checkpoint = no_checkpoint,
+    ) -> None:
+        """Factor every condition of ``grid``; ``checkpoint`` is called before each (a
+        training's, :mod:`inertia_id.stopping`: 40 factorisations in the joint grid)."""
         dim = means.shape[1]
         # Shared with reweighted copies, like the near-none factors.
         self._formed: dict[str, np.ndarray] = {}
@@ -304,6 +313,7 @@ class _Mixture:
         self.log_diagonal = np.empty((len(grid), dim))
         with gaussian.one_blas_thread():
             for c, (process, measurement) in enumerate(grid):
+                checkpoint()
                 self._factor(c, components, process, measurement, means)
 
     def _factor(
@@ -723,17 +733,19 @@ class MarginalLikelihoodClassifier(BaseClassifier):
         """
         # One child stream, replayed for each run: the same standard-normal draws, scaled.
         stream = rng.spawn(1)[0]
-        runs = [
-            simulate(
-                scenario,
-                steps,
-                n_realisations,
-                copy.deepcopy(stream),
-                process_noise_scale=process,
-                measurement_noise_scale=measurement,
-            ).dataset()
-            for process, measurement in ((0.0, 0.0), (1.0, 0.0), (0.0, 1.0))
-        ]
+        runs = []
+        for process, measurement in ((0.0, 0.0), (1.0, 0.0), (0.0, 1.0)):
+            runs.append(
+                simulate(
+                    scenario,
+                    steps,
+                    n_realisations,
+                    copy.deepcopy(stream),
+                    process_noise_scale=process,
+                    measurement_noise_scale=measurement,
+                ).dataset()
+            )
+            self._checkpoint()
         (X_quiet, y), (X_process, _), (X_measurement, _) = runs
         # The same standard-normal draws again: each series' rate at the sequence start
         # and its gyro bias at 1x, for the offset-free parts (see conditioned_on_offset).
@@ -961,7 +973,7 @@ class MarginalLikelihoodClassifier(BaseClassifier):
         targets = [None, process, None]
         intensities = np.array(
             [
-                gaussian.cv_intensity(F, y, n_candidates, folds, target)
+                gaussian.cv_intensity(F, y, n_candidates, folds, target, self._checkpoint)
                 for F, target in zip(parts, targets, strict=True)
             ]
         )
@@ -977,14 +989,14 @@ class MarginalLikelihoodClassifier(BaseClassifier):
         self.components_ = components
         self.means_ = means.reshape(n_candidates, *X.shape[1:])
         self.grid_ = grid
-        self._mixture = _Mixture(means, components, grid)
+        self._mixture = _Mixture(means, components, grid, self._checkpoint)
         self.__dict__.pop("_observed_mixtures", None)
         self.sensitivity_, self.none_prior_sd_ = None, None
         self.offset_free_means_, self.offset_free_quiet_ = None, None
         self.__dict__.pop("_offset_models", None)
         self.__dict__.pop("_offset_free_factored", None)
         if scenario is not None and self.none_spread > 0:
-            self.sensitivity_ = inertia_sensitivity(scenario, self.sequence_)
+            self.sensitivity_ = inertia_sensitivity(scenario, self.sequence_, self._checkpoint)
             self.none_prior_sd_ = self.none_spread * np.array(
                 [float(np.trace(t)) / 3.0 for t in scenario.inertia_array]
             )
@@ -1061,11 +1073,13 @@ class MarginalLikelihoodClassifier(BaseClassifier):
         out = np.zeros((len(y), self.n_candidates_))
         for fold in np.unique(folds):
             train, test = folds != fold, folds == fold
+            self._checkpoint()
             means, components = self._estimate(
                 [F[train] for F in parts], y[train], self.n_candidates_, intensities, targets
             )
-            mixture = _Mixture(means, components, self.grid_)
+            mixture = _Mixture(means, components, self.grid_, self._checkpoint)
             for condition in self._extremes(self.grid_):
+                self._checkpoint()
                 at = self._at([F[test] for F in parts], condition)
                 out[test] = np.maximum(out[test], mixture.distances(at))
         return out
@@ -1350,14 +1364,17 @@ class MarginalLikelihoodClassifier(BaseClassifier):
 SENSITIVITY_BATCH = 96
 
 
-def inertia_sensitivity(scenario: Scenario, sequence: Any) -> np.ndarray:
+def inertia_sensitivity(
+    scenario: Scenario, sequence: Any, checkpoint: Checkpoint = no_checkpoint
+) -> np.ndarray:
     """How each candidate's noise-free response moves with its six inertia parameters
     (Ixx, Iyy, Izz, Ixy, Ixz, Iyz), by central differences: (K, length, 3, 6) rad/s
     per kg m².
 
     Noise-free: no jitter, disturbance, gyro noise or bias, at rest at the start (the
     lag of the thrusters kept); the step is 1e-4 of the candidate's mean principal
-    moment, small enough to keep every perturbed tensor physical.
+    moment, small enough to keep every perturbed tensor physical. ``checkpoint`` is
+    called after each batch of bodies flown (a training's, :mod:`inertia_id.stopping`).
     """
     steps = scenario.check_sequence(sequence)
     tensors = scenario.inertia_array
@@ -1399,6 +1416,7 @@ def inertia_sensitivity(scenario: Scenario, sequence: Any) -> np.ndarray:
         ]
         quiet = Scenario.model_validate(data)
         flown.append(simulate(quiet, steps, 1, np.random.default_rng(0)).omega_measured[:, 0])
+        checkpoint()
     omega = np.concatenate(flown)
     omega = omega.reshape(len(tensors), 6, 2, *omega.shape[1:])
     h = 1e-4 * np.trace(tensors, axis1=1, axis2=2) / 3.0

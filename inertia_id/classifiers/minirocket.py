@@ -506,6 +506,7 @@ class MiniRocketClassifier(SupervisedClassifier):
             max_dilations_per_kernel=int(self.max_dilations_per_kernel),
         )
         features = minirocket_transform(X, self.parameters_)
+        self._checkpoint()
         std = features.std(axis=0)
         scale = np.where(std > 10 * np.finfo(float).eps, std, 1.0)
         scaled = features / scale

@@ -106,6 +106,8 @@ class NearestCentroidClassifier(_DistanceClassifier):
         scale = rms if rms > 0 else 1.0
         radius = None if self.sakoe_chiba_radius is None else int(self.sakoe_chiba_radius)
         for k in range(len(centroids)):
+            # A DTW barycentre a candidate: each one a piece a training may stop after.
+            self._checkpoint()
             members = X[y == k]
             if self.metric == "euclidean":
                 centroids[k] = members.mean(axis=0)

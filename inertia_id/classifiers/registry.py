@@ -31,6 +31,7 @@ import importlib
 import inspect
 import os
 import pkgutil
+from collections.abc import Callable
 from types import ModuleType
 from typing import Any, ClassVar, Protocol
 
@@ -253,6 +254,7 @@ def train_classifier(
     rng: np.random.Generator,
     *,
     kind: str | None = None,
+    should_stop: Callable[[], bool] | None = None,
     **options: Any,
 ) -> CandidateClassifier:
     """Simulate every candidate under ``sequence`` at 1x noise and fit a classifier.
@@ -263,10 +265,12 @@ def train_classifier(
     model. The classifier remembers the scenario and sequence (identify needs them).
 
     :param kind: see :func:`make_classifier`.
+    :param should_stop: asked at the training's checkpoints; True stops it there
+        (:meth:`~inertia_id.classifiers.base.BaseClassifier.fit_scenario`).
     :param options: constructor arguments of that kind.
     """
     model = _make(resolve_kind(kind, options.get("metric")), options)
-    return model.fit_scenario(scenario, sequence, n_realisations, rng)
+    return model.fit_scenario(scenario, sequence, n_realisations, rng, should_stop=should_stop)
 
 
 #: The name the paper's pipeline has always used for :func:`train_classifier`.

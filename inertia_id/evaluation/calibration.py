@@ -28,6 +28,7 @@ from ..classifiers.base import NONE_PRIOR, NoveltyTail, check_int
 from ..classifiers.gaussian import log_softmax
 from ..errors import InputError
 from ..physics.simulate import simulate
+from ..stopping import Checkpoint, no_checkpoint
 
 if TYPE_CHECKING:
     from ..classifiers.registry import CandidateClassifier
@@ -79,6 +80,7 @@ def calibrate(
     *,
     rng: np.random.Generator | None = None,
     bins: int = 10,
+    checkpoint: Checkpoint = no_checkpoint,
 ) -> dict[str, Any]:
     """Fit the posterior's temperature and novelty tail on fresh draws and report its
     calibration; the report is stored in the classifier (``calibration_``).
@@ -88,6 +90,8 @@ def calibrate(
     :param rng: source of the draws; default a fixed seed of its own, so a calibration
         repeats.
     :param bins: confidence bins of the reliability diagram (10 to 15 are usual).
+    :param checkpoint: called after the draws and after their distances (a training's,
+        :mod:`inertia_id.stopping`): it may stop the calibration there, by raising.
     :returns: temperature, novelty tail, none prior, held-out accuracy, ECE, the
         reliability bins and the number of draws.
     """
@@ -98,7 +102,9 @@ def calibrate(
     # A seed of its own: not the 0 a training is often given, whose draws it would repeat.
     rng = np.random.default_rng(0xCA11B) if rng is None else rng
     X, y = simulate(scenario, sequence, n, rng).dataset()
+    checkpoint()
     distances = classifier.transform(X)
+    checkpoint()
     fit = np.arange(len(y)) % 2 == 0
     held = ~fit
     model: Any = classifier

@@ -376,6 +376,78 @@ def test_a_train_job_past_its_time_limit_fails_naming_it(store: Store) -> None:
         assert session.scalars(select(ClassifierRow.id)).all() == []
 
 
+def _count_training(
+    monkeypatch: pytest.MonkeyPatch, first_run: Callable[[], None]
+) -> dict[str, int]:
+    """Count the simulations and calibrations of the trainings that follow, calling
+    ``first_run`` after the first simulation."""
+    from inertia_id.evaluation import calibration
+    from inertia_id.physics.simulate import Simulator
+
+    counts = {"simulations": 0, "calibrations": 0}
+    run, calibrate = Simulator.run, calibration.calibrate
+
+    def counted_run(self: Simulator, *args: Any, **kwargs: Any) -> Any:
+        result = run(self, *args, **kwargs)
+        counts["simulations"] += 1
+        if counts["simulations"] == 1:
+            first_run()
+        return result
+
+    def counted_calibrate(*args: Any, **kwargs: Any) -> Any:
+        counts["calibrations"] += 1
+        return calibrate(*args, **kwargs)
+
+    monkeypatch.setattr(Simulator, "run", counted_run)
+    monkeypatch.setattr(calibration, "calibrate", counted_calibrate)
+    return counts
+
+
+def test_a_train_job_cancelled_while_it_trains_stops_part_way(
+    store: Store, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Before, the training ran to its end (calibrated) and only then read the cancel.
+    import worker.context
+
+    # The cancel flag read at every checkpoint: the training is caught at the one after
+    # the cancel, however fast this machine trains.
+    monkeypatch.setattr(worker.context, "CANCEL_POLL_S", 0.0)
+    job_id = store.add_job("train", {"sequence": GOOD_SEQUENCE, "n_realisations": 20})
+
+    def cancel_it() -> None:
+        with store.db.session() as session:
+            job = session.get(JobRow, job_id)
+            assert job is not None
+            cancel(session, job)
+
+    counts = _count_training(monkeypatch, cancel_it)
+    assert execute_job(job_id, settings=store.settings, worker_name=WORKER) == "cancelled"
+    # The nominal run (the gyro range's check), then the default kind's three noise runs,
+    # the inertia sensitivity and the calibration's draws: cancelled at the nominal run,
+    # the training stops at the checkpoint after its first noise run.
+    assert counts == {"simulations": 2, "calibrations": 0}
+    job = store.job(job_id)
+    assert job.status == "cancelled" and job.result is None and job.error is None
+    with store.db.session() as session:
+        assert session.scalars(select(ClassifierRow.id)).all() == []
+
+
+def test_a_train_job_past_its_time_limit_stops_part_way_and_fails_naming_it(
+    store: Store, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Before, the training ran to its end and only then failed on the limit.
+    job_id = store.add_job("train", {"sequence": GOOD_SEQUENCE, "n_realisations": 20})
+    counts = _count_training(monkeypatch, lambda: None)
+    limited = store.settings.model_copy(update={"job_time_limit_s": 1e-9})
+    assert execute_job(job_id, settings=limited, worker_name=WORKER) == "failed"
+    # The nominal run, then the first noise run's checkpoint: past the limit already.
+    assert counts == {"simulations": 2, "calibrations": 0}
+    job = store.job(job_id)
+    assert job.error == "JobTimeLimitExceeded: the job exceeded its time limit of 1e-09 s"
+    with store.db.session() as session:
+        assert session.scalars(select(ClassifierRow.id)).all() == []
+
+
 def test_the_heartbeat_ends_a_job_long_past_its_time_limit(store: Store) -> None:
     job_id = store.add_job("search", status="running", attempts=1)
     now = [0.0]
