@@ -1,4 +1,5 @@
-"""Jobs through a real worker: train, sweep, identify, search (random and PPO), cancel."""
+"""Jobs through a real worker: train, sweep, identify, search (random and PPO), cancel
+(a search's and a training's)."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pytest
 from scenario_support import GOOD_SEQUENCE
+from sqlalchemy import select
 
 from inertia_id import InertiaClassifier, identify, simulate
 from inertia_id.classifiers.registry import CLASSIFIER_KINDS, classifier_from_json
@@ -177,3 +179,25 @@ def test_a_running_search_stops_soon_after_a_cancel(service: Service) -> None:
     assert job.status == "cancelled", (job.status, job.error)
     assert time.monotonic() - asked < 10
     assert job.progress < 0.01
+
+
+def test_a_running_training_stops_part_way_after_a_cancel(service: Service) -> None:
+    # Before, a training read its cancel only once it had trained: the default kind on 16
+    # steps (3 x 320 values a series, its covariances factored at 40 noise conditions)
+    # trains for minutes on the 2-core test machine, and the job stayed running.
+    params = {"sequence": [[4, 4, 4, 0, 0, 0], [0, 0, 0, 4, 4, 4]] * 8}
+    job_id = service.submit("train", params, seed=6)
+    service.wait_for(job_id, ("running",), timeout_s=60)
+    with service.db.session() as session:
+        job = session.get(JobRow, job_id)
+        assert job is not None
+        cancel(session, job)
+    job = service.wait_for(job_id, ("succeeded", "failed", "cancelled"), timeout_s=60)
+    assert job.status == "cancelled", (job.status, job.error)
+    # Nothing half-trained is stored.
+    assert job.result is None and job.error is None
+    with service.db.session() as session:
+        assert (
+            session.scalars(select(ClassifierRow.id).where(ClassifierRow.job_id == job_id)).all()
+            == []
+        )

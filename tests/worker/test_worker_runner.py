@@ -432,6 +432,30 @@ def test_a_train_job_cancelled_while_it_trains_stops_part_way(
         assert session.scalars(select(ClassifierRow.id)).all() == []
 
 
+def test_a_train_job_handed_back_by_its_stopping_worker_stops_part_way(
+    store: Store, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # A graceful stop (SIGTERM) hands the running job back; before, its training ran on
+    # to its end (and the stop waited for it), the result then dropped.
+    import worker.context
+    from service.store.jobs import hand_back
+
+    monkeypatch.setattr(worker.context, "CANCEL_POLL_S", 0.0)
+    job_id = store.add_job("train", {"sequence": GOOD_SEQUENCE, "n_realisations": 20})
+
+    def stop_the_worker() -> None:
+        with store.db.session() as session:
+            assert hand_back(session, WORKER, f"worker {WORKER} was asked to stop") == [job_id]
+
+    counts = _count_training(monkeypatch, stop_the_worker)
+    assert execute_job(job_id, settings=store.settings, worker_name=WORKER) == "lost"
+    assert counts == {"simulations": 2, "calibrations": 0}
+    job = store.job(job_id)
+    assert job.status == "queued" and job.handbacks == 1 and job.result is None
+    with store.db.session() as session:
+        assert session.scalars(select(ClassifierRow.id)).all() == []
+
+
 def test_a_train_job_past_its_time_limit_stops_part_way_and_fails_naming_it(
     store: Store, monkeypatch: pytest.MonkeyPatch
 ) -> None:
