@@ -182,10 +182,11 @@ def test_a_running_search_stops_soon_after_a_cancel(service: Service) -> None:
 
 
 def test_a_running_training_stops_part_way_after_a_cancel(service: Service) -> None:
-    # Before, a training read its cancel only once it had trained: the default kind on 16
-    # steps (3 x 320 values a series, its covariances factored at 40 noise conditions)
-    # trains for minutes on the 2-core test machine, and the job stayed running.
-    params = {"sequence": [[4, 4, 4, 0, 0, 0], [0, 0, 0, 4, 4, 4]] * 8}
+    # Before, a training read its cancel only once it had trained: the default kind on 32
+    # steps (3 x 640 values a series, eigendecompositions and 40 noise conditions' factors
+    # in 1920 dimensions) trains far longer than the wait below, and the job stayed
+    # running (on 16 steps it finished within the wait on the 2-core test machine).
+    params = {"sequence": [[4, 4, 4, 0, 0, 0], [0, 0, 0, 4, 4, 4]] * 16}
     job_id = service.submit("train", params, seed=6)
     service.wait_for(job_id, ("running",), timeout_s=60)
     with service.db.session() as session:
