@@ -64,13 +64,15 @@ DATABASE_SILENT_S = 10.0
 #: heartbeat ends it "failed". A search stopped at its limit still finishes the sequence
 #: (NSGA-II: the 16 sequences) it is on, re-scores while the grace lasts and then
 #: finishes the piece under way (a prefix's clustering, 16 front members; seconds); a
-#: sweep finishes the point it is on. This covers those; what ignores the limit (a
-#: training) is ended once past it.
+#: sweep finishes the point it is on; a training stops at its next checkpoint (after the
+#: simulation, eigendecomposition or library fit under way). This covers those; a run
+#: that still goes on is ended once past it.
 TIME_LIMIT_GRACE_S = 600.0
 
 
 class JobTimeLimitExceeded(Exception):
-    """A job that cannot stop by itself ran past its time limit (the job fails)."""
+    """A job whose result is nothing without its end (a training) ran past its time
+    limit, and stopped there (the job fails)."""
 
 
 def broker_label(settings: Settings) -> str:
@@ -341,8 +343,8 @@ class JobContext:
         """One heartbeat: this worker's, then the job's; or, for a job
         :data:`TIME_LIMIT_GRACE_S` past its time limit and a search's re-score grace, its
         end ("failed", the limit named). The run then no longer owns the job: a
-        cooperative one stops at its next check, one that cannot (a training) finishes in
-        vain and its result is dropped.
+        cooperative one (a search, a sweep, a training) stops at its next check; one that
+        still finishes has its result dropped.
 
         In that order: a hand-back (:func:`~service.store.jobs.hand_back`) locks the
         worker's row, then its jobs'; a heartbeat that locked the job's row first and the

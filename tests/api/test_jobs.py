@@ -1093,7 +1093,7 @@ def test_a_time_limit_that_is_no_positive_number_is_422_naming_it(
 
 
 def test_a_train_job_takes_no_time_limit_of_its_own(api: Api) -> None:
-    # A training cannot stop part-way: it has the service's ceiling only.
+    # A training has the service's ceiling only (it stops at its next checkpoint past it).
     scenario_id = api.create_scenario()["id"]
     params = {"sequence": GOOD_SEQUENCE, "time_limit_s": 60}
     response = api.submit("train", scenario_id, params=params)
