@@ -84,6 +84,23 @@ def run_search_job(context: JobContext) -> Outcome:
     return Outcome(status=status, result=result)
 
 
+class _StopOrTimeLimit:
+    """A job's ``should_stop`` for a library call that stops between its pieces: True
+    once the job is cancelled or its run taken from it (:meth:`JobContext.should_stop`,
+    which reads the cancel flag at most every CANCEL_POLL_S) or its time limit has
+    passed (a clock read, cheap at every call); :attr:`timed_out` says it was the limit."""
+
+    def __init__(self, context: JobContext) -> None:
+        self.context = context
+        self.timed_out = False
+
+    def __call__(self) -> bool:
+        if self.context.should_stop():
+            return True
+        self.timed_out = self.context.past_time_limit()
+        return self.timed_out
+
+
 def run_train_job(context: JobContext) -> Outcome:
     """Train the classifier for a sequence; the runner stores it as a ``classifiers`` row.
 
@@ -95,26 +112,16 @@ def run_train_job(context: JobContext) -> Outcome:
     ends it "cancelled"; the time limit fails it, naming the limit.
     """
     spec = context.spec
-    timed_out = False
-
-    def should_stop() -> bool:
-        nonlocal timed_out
-        # The context reads the cancel flag at most every CANCEL_POLL_S; the clock is
-        # cheap to ask at every checkpoint.
-        if context.should_stop():
-            return True
-        timed_out = context.past_time_limit()
-        return timed_out
-
+    stop = _StopOrTimeLimit(context)
     try:
         trained = train_for_sequence(
             spec.scenario,
             TrainRequest.from_params(_params(context)),
             seed=spec.seed,
-            should_stop=should_stop,
+            should_stop=stop,
         )
     except TrainingStopped:
-        if context.cancelled or context.lost or not timed_out:
+        if context.cancelled or context.lost or not stop.timed_out:
             # A lost run's outcome is dropped by the runner, as a stopped search's is.
             return Outcome(status="cancelled", result=None)
         raise JobTimeLimitExceeded(context.time_limit_text()) from None
@@ -148,22 +155,14 @@ def run_sweep_job(context: JobContext) -> Outcome:
     spec = context.spec
     if spec.classifier is None:
         raise ValueError("a sweep job runs with the classifier it names, resolved by the runner")
-    timed_out = False
-
-    def should_stop() -> bool:
-        nonlocal timed_out
-        if context.should_stop():
-            return True
-        timed_out = context.past_time_limit()
-        return timed_out
-
+    stop = _StopOrTimeLimit(context)
     outcome = sweep_with_limit(
         spec.classifier,
         SweepRequest.from_params(_params(context)),
         seed=spec.seed,
         scenario=spec.scenario,
         progress=lambda fraction: context.report(progress=fraction),
-        should_stop=should_stop,
+        should_stop=stop,
     )
     sweep = outcome.sweep
     metrics = [
@@ -173,7 +172,7 @@ def run_sweep_job(context: JobContext) -> Outcome:
     ]
     status = "cancelled" if context.cancelled else "succeeded"
     result = outcome.to_dict()
-    if timed_out and status == "succeeded":
+    if stop.timed_out and status == "succeeded":
         result["stopped"] = "time_limit"
         result["time_limit_s"] = context.time_limit_s
     return Outcome(status=status, result=result, metrics=metrics)

@@ -497,6 +497,33 @@ MAX_DISTURBANCE_TORQUE_SIGMA_NM = 1e6
 MAX_LAG_STEPS = 100.0
 
 
+#: Each bounded noise figure's bound, unit and the refusal's reason (``{bound}`` is the
+#: bound), in :class:`Uncertainty`'s one validator for them.
+_NOISE_BOUNDS: dict[str, tuple[float, str, str]] = {
+    "duty_jitter_sigma": (
+        MAX_DUTY_JITTER_SIGMA,
+        "(fraction of full duty)",
+        "is no thruster's timing jitter: at most {bound:g} full duties (the delivered duty "
+        "is clipped to [0, 1], so past a few full duties each step is a coin flip between "
+        "off and full)",
+    ),
+    "thrust_scale_sigma": (
+        MAX_THRUST_SCALE_SIGMA,
+        "(fraction of nominal torque)",
+        "is no calibration error: at most {bound:g} (each thruster's torque is scaled by "
+        "1 + sigma z, z standard normal; at 0.5 one draw in 44 already reverses a thruster, "
+        "and no thruster pushes backwards)",
+    ),
+    "disturbance_torque_sigma_nm": (
+        MAX_DISTURBANCE_TORQUE_SIGMA_NM,
+        "N m",
+        "is beyond any spacecraft's disturbance: at most {bound:g} N m (more than ten times "
+        "the torque of the Space Shuttle's primary RCS thrusters, some 4e4 to 8e4 N m); "
+        "check its units",
+    ),
+}
+
+
 #: The sigmas a noise sweep scales (:data:`inertia_id.evaluation.sweep.NOISE_FIELDS`),
 #: which :meth:`Scenario.with_swept_noise` may set past what a scenario may state.
 SWEPT_SIGMAS = (
@@ -552,40 +579,12 @@ class Uncertainty(_Model):
             raise InputError(f"{info.field_name} must be finite, got {value!r}")
         return value
 
-    @field_validator("duty_jitter_sigma", mode="after")
+    @field_validator(*_NOISE_BOUNDS, mode="after")
     @classmethod
-    def _a_jitter_of_a_valve(cls, value: float) -> float:
-        if value > MAX_DUTY_JITTER_SIGMA:
-            raise InputError(
-                f"duty_jitter_sigma = {value!r} (fraction of full duty) is no thruster's "
-                f"timing jitter: at most {MAX_DUTY_JITTER_SIGMA:g} full duties (the "
-                "delivered duty is clipped to [0, 1], so past a few full duties each step "
-                "is a coin flip between off and full)"
-            )
-        return value
-
-    @field_validator("thrust_scale_sigma", mode="after")
-    @classmethod
-    def _a_calibration_error(cls, value: float) -> float:
-        if value > MAX_THRUST_SCALE_SIGMA:
-            raise InputError(
-                f"thrust_scale_sigma = {value!r} (fraction of nominal torque) is no "
-                f"calibration error: at most {MAX_THRUST_SCALE_SIGMA:g} (each thruster's "
-                "torque is scaled by 1 + sigma z, z standard normal; at 0.5 one draw in 44 "
-                "already reverses a thruster, and no thruster pushes backwards)"
-            )
-        return value
-
-    @field_validator("disturbance_torque_sigma_nm", mode="after")
-    @classmethod
-    def _a_torque_a_spacecraft_meets(cls, value: float) -> float:
-        if value > MAX_DISTURBANCE_TORQUE_SIGMA_NM:
-            raise InputError(
-                f"disturbance_torque_sigma_nm = {value!r} N m is beyond any spacecraft's "
-                f"disturbance: at most {MAX_DISTURBANCE_TORQUE_SIGMA_NM:g} N m (more than "
-                "ten times the torque of the Space Shuttle's primary RCS thrusters, some "
-                "4e4 to 8e4 N m); check its units"
-            )
+    def _a_figure_of_a_real_spacecraft(cls, value: float, info: Any) -> float:
+        bound, unit, why = _NOISE_BOUNDS[info.field_name]
+        if value > bound:
+            raise InputError(f"{info.field_name} = {value!r} {unit} {why.format(bound=bound)}")
         return value
 
     @field_validator(
