@@ -1063,12 +1063,13 @@ def test_a_one_point_sweep_draws_its_chance_line_across_the_plot(dashboard: Dash
     dashboard.screenshot("sweep-one-point")
 
 
-def _sweep_page_with(dashboard: Dashboard, change: Callable[[dict[str, Any]], None]) -> str:
-    """The sweep's job page with its result changed by ``change`` on the way to the page;
-    the page's statement about the ceiling."""
-    _needs(dashboard, "sweep")
+def _job_page_text(
+    dashboard: Dashboard, job_id: str, change: Callable[[dict[str, Any]], None], selector: str
+) -> str:
+    """A job's page with its result changed by ``change`` on the way to the page; the text
+    of ``selector`` there."""
     page = dashboard.page
-    own = re.compile(rf"/jobs/{made['sweep']}(\?.*)?$")
+    own = re.compile(rf"/jobs/{job_id}(\?.*)?$")
 
     def changed(route: Any) -> None:
         answer = route.fetch()
@@ -1079,11 +1080,18 @@ def _sweep_page_with(dashboard: Dashboard, change: Callable[[dict[str, Any]], No
     dashboard.open("#/jobs")  # away first: the same route again would keep its page
     page.route(own, changed)
     try:
-        dashboard.open(f"#/jobs/{made['sweep']}")
-        page.wait_for_selector("#sweep-ceiling-check", timeout=60_000)
-        return page.inner_text("#sweep-ceiling-check")
+        dashboard.open(f"#/jobs/{job_id}")
+        page.wait_for_selector(selector, timeout=60_000)
+        return str(page.inner_text(selector))
     finally:
         page.unroute(own)
+
+
+def _sweep_page_with(dashboard: Dashboard, change: Callable[[dict[str, Any]], None]) -> str:
+    """The sweep's job page with its result changed by ``change`` on the way to the page;
+    the page's statement about the ceiling."""
+    _needs(dashboard, "sweep")
+    return _job_page_text(dashboard, made["sweep"], change, "#sweep-ceiling-check")
 
 
 def test_the_sweep_page_says_which_classifier_lies_above_the_ceilings_interval(
@@ -2766,23 +2774,7 @@ def _best_vs_curve(
 ) -> str:
     """The search's job page with its result changed by ``change`` on the way to the page;
     what the best sequence's card says of the curve."""
-    page = dashboard.page
-    own = re.compile(rf"/jobs/{job_id}(\?.*)?$")
-
-    def changed(route: Any) -> None:
-        answer = route.fetch()
-        body = answer.json()
-        change(body["result"])
-        route.fulfill(response=answer, json=body)
-
-    dashboard.open("#/jobs")  # away first: the same route again would keep its page
-    page.route(own, changed)
-    try:
-        dashboard.open(f"#/jobs/{job_id}")
-        page.wait_for_selector("#best-vs-curve", timeout=60_000)
-        return str(page.inner_text("#best-vs-curve"))
-    finally:
-        page.unroute(own)
+    return _job_page_text(dashboard, job_id, change, "#best-vs-curve")
 
 
 def test_an_nsga2_best_card_says_why_its_accuracy_is_not_the_curves_highest_point(
