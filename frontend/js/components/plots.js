@@ -492,9 +492,11 @@ function fitToWidth(plot) {
     fit.width = full.width;
     fit.passes = 0;
   }
-  // A draw that changes the margins changes the room: a few passes settle it, never a loop.
+  // A draw that changes the margins changes the room: a few passes settle it, never a loop
+  // (a legend moved under the plot takes two: it moves, then the foot margin is fitted to
+  // it as drawn).
   if (fit.busy) return;
-  if (fit.passes >= 6) {
+  if (fit.passes >= 8) {
     plot.dataset.fitted = String(full.width);
     return;
   }
@@ -543,21 +545,57 @@ function legendPlace(plot, fit) {
     if (width <= legendShare(full.width) * full.width) return {};
     fit.legendOwn = plot.layout.legend || {};
     fit.legendWidth = width;
-    fit.legendRoom = 0;
     fit.ownHeight = plot.layout.height ?? full.height;
+    fit.ownMarginB = get(plot.layout, "margin.b");
+    fit.ownFoot = full.margin.b;
     return { legend: { ...fit.legendOwn, ...LEGEND_BELOW } };
   }
   if (fit.legendWidth <= legendShare(full.width) * full.width) {
-    const own = { legend: fit.legendOwn, height: fit.ownHeight };
+    const own = { legend: fit.legendOwn, height: fit.ownHeight, "margin.b": fit.ownMarginB ?? null };
     fit.legendOwn = undefined;
     return own;
   }
-  const room = Math.ceil(legend.getBBox().height + 10);
-  if (Math.abs(room - fit.legendRoom) <= 2) return {};
-  fit.legendRoom = room;
-  // Plotly's own margin makes the room under the axis (it pushes the foot margin for a
-  // legend there): the figure grows by the legend, the plot keeps its height.
-  return { height: fit.ownHeight + room };
+  // Plotly reserves the legend's height at the figure's foot and lifts an x-axis title
+  // that reaches into it up onto the legend's top edge, so the title sat flush on the
+  // legend (0 px apart at 375 px, its descenders on the first row). The foot margin is set
+  // to hold the axis's tick labels and title where Plotly draws them when it has the
+  // room, a gap, then the legend (Plotly never makes a margin smaller than the layout's):
+  // the legend at the figure's foot clears them. The figure grows by what the margin
+  // gained over the page's own, so the plot keeps its height.
+  const foot = Math.ceil(xAxisDepth(plot) + LEGEND_GAP + Math.max(legend.getBBox().height, full.legend._effHeight || 0));
+  const margin = Math.max(fit.ownFoot, foot);
+  const height = fit.ownHeight + margin - fit.ownFoot;
+  if (Math.abs(margin - (get(plot.layout, "margin.b") ?? 0)) <= 1 && Math.abs(height - (plot.layout.height ?? 0)) <= 1) return {};
+  return { "margin.b": margin, height };
+}
+
+// Between an x axis's title (or tick labels) and a legend under the plot (px).
+const LEGEND_GAP = 8;
+
+// How far the x axes at the plot's foot reach below the plot area (px): their tick labels,
+// and their titles (a title broken into lines too) where Plotly draws them with room to
+// spare. A title short of room is lifted by a translate on its group, undone here: it
+// comes down again once the margin grows, and measured where it was lifted to, each
+// margin let it down by the gap, a pass at a time.
+function xAxisDepth(plot) {
+  const full = plot._fullLayout;
+  const figure = plot.querySelector("svg.main-svg").getBoundingClientRect();
+  const plotFoot = full._size.t + full._size.h;
+  let depth = 0;
+  for (const name of Object.keys(full)) {
+    const axis = full[name];
+    if (!/^xaxis\d*$/.test(name) || !axis || !axis.visible || axis.side === "top") continue;
+    for (const text of plot.querySelectorAll(`.${axis._id}tick text, .g-${axis._id}title text`)) {
+      if (!text.textContent) continue;
+      const group = text.closest(`.g-${axis._id}title`);
+      let lift = 0;
+      const moves = group ? group.transform.baseVal : null;
+      for (let i = 0; moves && i < moves.numberOfItems; i++) lift += moves.getItem(i).matrix.f;
+      lift = Math.min(0, lift);
+      depth = Math.max(depth, text.getBoundingClientRect().bottom - lift - figure.top - plotFoot);
+    }
+  }
+  return depth;
 }
 
 // Each colour bar of `plot`: [trace index, its attribute's path, the bar as drawn].
