@@ -10,6 +10,9 @@
     const h = Math.min(a.bottom, b.bottom) - Math.max(a.top, b.top);
     return w > 1 && h > 1;
   };
+  // How far apart two boxes are: 0 or less where they touch or intersect.
+  const separation = (a, b) => Math.max(a.left - b.right, b.left - a.right, a.top - b.bottom, b.top - a.bottom);
+  const X_TITLES = ['x', 'x2'].map((a) => `.g-${a}title text`).join(', ');
   const problems = [];
   for (const plot of document.querySelectorAll('.js-plotly-plot')) {
     if (!plot.offsetParent) continue;  // hidden (a closed <details>)
@@ -37,6 +40,13 @@
         if (overlap(lb, box(el))) problems.push(`${name}: legend overlaps ${what}`);
       }
       if (lb.right > figure.right + 1 || lb.left < figure.left - 1) problems.push(`${name}: legend outside the figure`);
+      // A legend moved under the plot sat flush against the x-axis title at 375 px (0 px
+      // apart, the title's descenders on the legend's first row): apart by 1 px at least.
+      for (const el of plot.querySelectorAll(X_TITLES)) {
+        if (!el.textContent) continue;
+        const apart = separation(lb, box(el));
+        if (apart < 1) problems.push(`${name}: legend overlaps x-axis title "${el.textContent}" (${apart.toFixed(1)} px apart)`);
+      }
     }
     // Axis titles must not run into each other (stacked subplots) or into tick labels.
     const titles = [...plot.querySelectorAll('[class^="g-"][class$="title"] text')].filter((el) => el.textContent && !el.closest('.g-gtitle'));
