@@ -65,7 +65,8 @@ class Dashboard:
 
 
 #: A function of the page that lists layout problems: a Plotly figure wider than its
-#: cell; a legend over a plot area, a tick label, an axis title, a title or a colour bar;
+#: cell; a legend over a plot area, a tick label, an axis title, a title or a colour bar,
+#: or within 1 px of an x-axis title;
 #: text cut at a figure's edge; a page wider than the window
 #: (tests/browser/layout_problems.js).
 LAYOUT_PROBLEMS_JS = "\n".join(
