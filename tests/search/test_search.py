@@ -325,7 +325,10 @@ def test_ppo_leaves_no_log_folder_in_the_temporary_directory(
         tiny, sequence_length=2, total_timesteps=16, settings=SETTINGS, ppo_params=TINY_PPO,
         n_fresh_draws=1,
     )  # fmt: skip
-    assert sorted(p.name for p in tmp_path.iterdir()) == []
+    # torch may make its per-user compile cache there (torchinductor_<user>, one folder
+    # reused by every process, made by the first search in a process): not ours to judge.
+    left = sorted(p.name for p in tmp_path.iterdir() if not p.name.startswith("torchinductor_"))
+    assert left == []
 
 
 def test_ppo_curve_point_before_any_episode_is_null_in_json(tiny: Scenario) -> None:
