@@ -69,7 +69,8 @@ def _time_limit_field() -> Any:
         "INERTIA_ID_JOB_TIME_LIMIT_S (the ceiling every job has); none: the ceiling. A search "
         "past it stops with its best so far (stopped: time_limit), re-scored only in a grace "
         f"of 10 % of the limit, at least 10 s, at most {GRACE_MAX_S:g} s "
-        "(settings.time_limit_grace_s); a sweep keeps the points done",
+        "(settings.time_limit_grace_s); a sweep keeps the points done; a training stops at "
+        "its next checkpoint and the job fails naming the limit, nothing stored",
         examples=[3600],
     )
 
@@ -314,7 +315,9 @@ class TrainParams(StrictModel):
     ``kind`` chooses the classifier (the registry's kinds); with neither kind nor metric
     it is the default kind, and a metric alone means the paper's clustering. ``metric``
     applies to the kinds that take one and must be left out for the others.
-    ``n_realisations`` defaults to the kind's own default.
+    ``n_realisations`` defaults to the kind's own default. ``time_limit_s``, as a
+    search's or sweep's: the training stops at its next checkpoint past it and the job
+    fails naming the limit.
     """
 
     sequence: list[Annotated[list[int], Field(min_length=1, max_length=64)]] | None = Field(
@@ -345,6 +348,9 @@ class TrainParams(StrictModel):
     )
     metric: ClassifierMetric | None = TrainRequest.default("metric")
     n_realisations: int | None = Field(default=TrainRequest.default("n_realisations"), ge=1, le=400)
+    # No grace beside it, as a search has: a training past its limit has nothing to
+    # re-score, it stops and keeps nothing.
+    time_limit_s: float | None = _time_limit_field()
 
     @model_validator(mode="after")
     def _metric_fits_kind(self) -> Self:

@@ -994,9 +994,12 @@ def test_a_job_may_ask_for_less_time_than_the_ceiling_and_it_is_stored(
     )
     assert sweep.status_code == 202, sweep.text
     assert api.get(f"/jobs/{sweep.json()['id']}").json()["params"]["time_limit_s"] == 1.5
+    train = api.submit("train", scenario_id, params={"sequence": GOOD_SEQUENCE, "time_limit_s": 90})
+    assert train.status_code == 202, train.text
+    assert api.get(f"/jobs/{train.json()['id']}").json()["params"]["time_limit_s"] == 90
 
 
-@pytest.mark.parametrize("job_type", ["search", "sweep"])
+@pytest.mark.parametrize("job_type", ["search", "sweep", "train"])
 def test_a_job_asking_for_more_time_than_the_ceiling_is_422_naming_both(
     make_api: Callable[..., Api],
     settings: Settings,
@@ -1008,6 +1011,8 @@ def test_a_job_asking_for_more_time_than_the_ceiling_is_422_naming_both(
     params: dict[str, Any] = {"time_limit_s": 3600.5}
     if job_type == "sweep":
         params["classifier_id"] = api.insert_classifier(scenario_id, classifier)
+    if job_type == "train":
+        params["sequence"] = GOOD_SEQUENCE
     response = api.submit(job_type, scenario_id, params=params)
     assert response.status_code == 422, response.text
     (error,) = response.json()["detail"]
@@ -1092,13 +1097,35 @@ def test_a_time_limit_that_is_no_positive_number_is_422_naming_it(
     assert api.queued_messages() == []
 
 
-def test_a_train_job_takes_no_time_limit_of_its_own(api: Api) -> None:
-    # A training has the service's ceiling only (it stops at its next checkpoint past it).
+def test_a_train_job_takes_a_time_limit_of_its_own_and_fails_past_it(api: Api) -> None:
+    """A training stops at its next checkpoint past its limit, so a train job takes
+    ``time_limit_s`` as a search or sweep does (it was a 422: the limit could not stop a
+    training part-way). Its limit is part of its configuration, as a search's is."""
+    from worker.runner import execute_job
+
     scenario_id = api.create_scenario()["id"]
-    params = {"sequence": GOOD_SEQUENCE, "time_limit_s": 60}
-    response = api.submit("train", scenario_id, params=params)
-    assert response.status_code == 422, response.text
-    assert response.json()["detail"][0]["loc"][-1] == "time_limit_s"
+    params: dict[str, Any] = {
+        "sequence": GOOD_SEQUENCE,
+        "kind": "nearest-centroid",
+        "metric": "euclidean",
+        "n_realisations": 3,
+        # Spent at the first checkpoint, on any machine.
+        "time_limit_s": 1e-9,
+    }
+    submitted = api.submit("train", scenario_id, params=params)
+    assert submitted.status_code == 202, submitted.text
+    job = submitted.json()
+    assert job["params"]["time_limit_s"] == 1e-9
+    assert job["config_hash"] == config_hash("train", scenario_id, job["params"], job["seed"])
+    # The same training without the limit is other work: a job of its own.
+    unlimited = api.submit("train", scenario_id, params={**params, "time_limit_s": None})
+    assert unlimited.status_code == 202 and unlimited.json()["id"] != job["id"]
+
+    assert execute_job(job["id"], settings=api.settings, worker_name="tests") == "failed"
+    failed = api.get(f"/jobs/{job['id']}").json()
+    assert failed["error"] == "JobTimeLimitExceeded: the job exceeded its time limit of 1e-09 s"
+    assert failed["result"] is None
+    assert api.get("/classifiers").json()["items"] == []
 
 
 def test_jobs_whose_sequences_no_gyro_measures_are_refused_at_submission(

@@ -360,16 +360,22 @@ def test_a_sweep_job_past_its_time_limit_keeps_the_points_done(store: Store) -> 
     assert len(result["points"]) < 4  # stopped before the last of 2 noises x 2 multiples
 
 
-def test_a_train_job_past_its_time_limit_fails_naming_it(store: Store) -> None:
-    params = {
+@pytest.mark.parametrize("whose", ["the service's ceiling", "the job's own"])
+def test_a_train_job_past_its_time_limit_fails_naming_it(store: Store, whose: str) -> None:
+    params: dict[str, Any] = {
         "sequence": GOOD_SEQUENCE,
         "kind": "nearest-centroid",
         "metric": "euclidean",
         "n_realisations": 3,
     }
+    settings = store.settings
+    if whose == "the job's own":
+        # Under the service's ceiling (6 h), as a search or sweep may ask.
+        params["time_limit_s"] = 1e-9
+    else:
+        settings = settings.model_copy(update={"job_time_limit_s": 1e-9})
     job_id = store.add_job("train", params)
-    limited = store.settings.model_copy(update={"job_time_limit_s": 1e-9})
-    assert execute_job(job_id, settings=limited, worker_name=WORKER) == "failed"
+    assert execute_job(job_id, settings=settings, worker_name=WORKER) == "failed"
     job = store.job(job_id)
     assert job.error == "JobTimeLimitExceeded: the job exceeded its time limit of 1e-09 s"
     with store.db.session() as session:
