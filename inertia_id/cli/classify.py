@@ -33,6 +33,7 @@ from .options import (
     scenario_options,
     seed_option,
     sequence_option,
+    time_limit_option,
     write_json,
 )
 
@@ -93,6 +94,10 @@ def _noises() -> tuple[str, ...]:
     help="Sakoe-Chiba band half-width (samples) for dtw (clustering, nearest-centroid, "
     "1nn); default unconstrained.",
 )
+@time_limit_option(
+    "Stop the training after this many seconds (wall clock), at its next checkpoint "
+    "(after a simulation, between the pieces of a fit), and write nothing; none by default."
+)
 @seed_option
 @out_option("classifier.json", "Where to write the classifier JSON.")
 @friendly_errors
@@ -105,13 +110,16 @@ def train_cmd(
     realisations: int | None,
     n_init: int | None,
     band: int | None,
+    time_limit_s: float | None,
     seed: int,
     out: str,
 ) -> None:
     """Train a classifier of any kind for a sequence at 1x noise."""
     from ..classifiers.registry import check_document_size, kind_metrics, resolve_kind
+    from ..deadline import Deadline
     from ..errors import InputError
     from ..pipelines import TrainRequest, train_for_sequence
+    from ..stopping import TrainingStopped
 
     scenario = load_scenario(preset_name, scenario_path)
     resolved = resolve_kind(kind, metric)
@@ -144,7 +152,18 @@ def train_cmd(
         err=True,
     )
     started = time.perf_counter()
-    trained = train_for_sequence(scenario, request, seed=seed)
+    # As a train job's limit: read at the training's checkpoints, so it ends part-way
+    # and nothing half-trained is written. A training that finished is written, even
+    # if its last piece ran past the limit: it is whole.
+    deadline = Deadline(time_limit_s)
+    try:
+        trained = train_for_sequence(scenario, request, seed=seed, should_stop=deadline.expired)
+    except TrainingStopped:
+        raise click.ClickException(
+            f"the training reached its time limit of {time_limit_s:g} s (--time-limit) "
+            f"after {time.perf_counter() - started:.1f} s and stopped part-way; "
+            f"nothing written to {out}"
+        ) from None
     trained.model.save(out)
     click.echo(f"wrote {out} in {time.perf_counter() - started:.1f} s", err=True)
     summary = trained.summary()

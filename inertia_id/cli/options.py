@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import functools
 import json
+import math
 import os
 import re
 import sys
@@ -310,6 +311,30 @@ def n_test_option(default: int) -> Callable[[F], F]:
         show_default=True,
         type=IntRange(1),
         help="Test series per sweep point, spread over the candidates.",
+    )
+
+
+def _time_limit(
+    _context: click.Context, _parameter: click.Parameter, value: float | None
+) -> float | None:
+    """A usage error (exit status 2) for a time limit that is not a number of s > 0."""
+    if value is None or (math.isfinite(value) and value > 0):
+        return value
+    raise click.BadParameter(f"must be a finite number of seconds > 0, got {value!r}")
+
+
+def time_limit_option(help_text: str) -> Callable[[F], F]:
+    """``--time-limit SECONDS`` (``time_limit_s``; none by default): ``search`` and
+    ``train``, read alike."""
+    return click.option(
+        "--time-limit",
+        "time_limit_s",
+        default=None,
+        # Not click's float, which reads 1_0 as 10; _time_limit names inf and nan.
+        type=FloatRange(0, min_open=True),
+        metavar="SECONDS",
+        callback=_time_limit,
+        help=help_text,
     )
 
 

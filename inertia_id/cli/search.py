@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import math
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, TypeVar
 
@@ -23,6 +22,7 @@ from .options import (
     progress_bar,
     scenario_options,
     seed_option,
+    time_limit_option,
     write_output,
 )
 
@@ -65,15 +65,6 @@ def _option(flags: str, field: str, help_text: str, **kwargs: Any) -> Callable[[
 def _pairs(flag: str, help_text: str) -> Callable[[F], F]:
     name = f"{flag.removeprefix('--')}_pairs"
     return click.option(flag, name, multiple=True, metavar="NAME=VALUE", help=help_text)
-
-
-def _time_limit(
-    _context: click.Context, _parameter: click.Parameter, value: float | None
-) -> float | None:
-    """A usage error (exit status 2) for a time limit that is not a number of s > 0."""
-    if value is None or (math.isfinite(value) and value > 0):
-        return value
-    raise click.BadParameter(f"must be a finite number of seconds > 0, got {value!r}")
 
 
 def search_options(func: F) -> F:
@@ -197,16 +188,10 @@ def search_options(func: F) -> F:
             "accuracy is measured; 0 keeps the prediction.",
             type=IntRange(0, 5000),
         ),
-        _option(
-            "--time-limit time_limit_s",
-            "time_limit_s",
+        time_limit_option(
             "Stop the search after this many seconds (wall clock) with the best found so "
             "far (stopped: time_limit), re-scored only in a grace of 10 % of the limit, at "
-            f"least 10 s, at most {GRACE_MAX_S:g} s; none by default.",
-            # Not click's float, which reads 1_0 as 10; _time_limit names inf and nan.
-            type=FloatRange(0, min_open=True),
-            metavar="SECONDS",
-            callback=_time_limit,
+            f"least 10 s, at most {GRACE_MAX_S:g} s; none by default."
         ),
         _option(
             "--time-limit-grace time_limit_grace_s",

@@ -886,6 +886,35 @@ def test_a_search_cut_at_its_time_limit_says_what_was_not_rescored(
     assert "nan" not in result.output
 
 
+def test_train_stops_at_its_time_limit_and_writes_nothing(
+    runner: CliRunner, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``train --time-limit``, as ``search`` has (train had none). The deadline runs on a
+    clock one second further on at every reading, so the limit is spent at the
+    training's first checkpoint on any machine."""
+    args = ["train", "--kind", "nearest-centroid", "--metric", "euclidean", "-n", "3"]
+    roomy = tmp_path / "roomy.json"
+    run_cli([*args, "--time-limit", "600", "--out", str(roomy)])
+    assert json.loads(roomy.read_text())["format"] == "inertia-id/supervised-classifier"
+
+    ticks = itertools.count()
+    init = Deadline.__init__
+
+    def on_ticking_clock(
+        self: Deadline, time_limit_s: Any, clock: Any = None, grace_s: Any = None
+    ) -> None:
+        init(self, time_limit_s, lambda: float(next(ticks)), grace_s)
+
+    monkeypatch.setattr(Deadline, "__init__", on_ticking_clock)
+    out = tmp_path / "c.json"
+    result = runner.invoke(main, [*args, "--time-limit", "1", "--out", str(out)])
+    assert result.exit_code == 1, result.output
+    message = " ".join(result.output.split())
+    assert "the training reached its time limit of 1 s (--time-limit)" in message
+    assert f"stopped part-way; nothing written to {out}" in message
+    assert "Traceback" not in result.output and not out.exists()
+
+
 def test_identify_and_the_plan_number_a_candidate_alike(
     runner: CliRunner, tmp_path: Path, small_classifier: Path
 ) -> None:

@@ -1030,6 +1030,27 @@ def test_a_grace_over_an_hour_is_refused_naming_it(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize(
+    ("value", "message"),
+    [
+        ("0", "0.0 is not in the range x>0"),
+        ("-5", "-5.0 is not in the range x>0"),
+        ("inf", "must be a finite number of seconds > 0, got inf"),
+        ("nan", "must be a finite number of seconds > 0, got nan"),
+        ("1_0", "'1_0' is not a decimal number"),
+    ],
+)
+def test_train_refuses_a_time_limit_that_is_no_number_of_seconds(
+    value: str, message: str, tmp_path: Path
+) -> None:
+    """As ``search --time-limit`` is refused (train had no --time-limit)."""
+    out = tmp_path / "c.json"
+    result = CliRunner().invoke(main, ["train", "--time-limit", value, "--out", str(out)])
+    assert result.exit_code == 2, result.output
+    assert "'--time-limit'" in result.output and message in " ".join(result.output.split())
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
     ("args", "code", "message"),
     [
         # What click reads with int() or float(): a usage error, 2.
