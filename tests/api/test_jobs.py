@@ -672,6 +672,7 @@ def test_get_job(api: Api) -> None:
         "kind": "marginal-likelihood",
         "metric": None,
         "n_realisations": 100,
+        "time_limit_s": None,
     }
     assert job["status"] == "queued"
     assert job["error"] is None and job["result"] is None
