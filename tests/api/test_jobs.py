@@ -672,7 +672,6 @@ def test_get_job(api: Api) -> None:
         "kind": "marginal-likelihood",
         "metric": None,
         "n_realisations": 100,
-        "time_limit_s": None,
     }
     assert job["status"] == "queued"
     assert job["error"] is None and job["result"] is None
@@ -1121,6 +1120,21 @@ def test_a_train_job_takes_a_time_limit_of_its_own_and_fails_past_it(api: Api) -
     # The same training without the limit is other work: a job of its own.
     unlimited = api.submit("train", scenario_id, params={**params, "time_limit_s": None})
     assert unlimited.status_code == 202 and unlimited.json()["id"] != job["id"]
+    # Asked for no limit, its parameters are those of a train job stored before train
+    # jobs took one (no time_limit_s), and so is its identity: such a job is reused by an
+    # identical submission, and a rerun may name it.
+    stored = unlimited.json()["params"]
+    assert "time_limit_s" not in stored and stored == {
+        k: v for k, v in job["params"].items() if k != "time_limit_s"
+    }
+    assert unlimited.json()["config_hash"] == config_hash(
+        "train", scenario_id, stored, unlimited.json()["seed"]
+    )
+    before = {k: v for k, v in params.items() if k != "time_limit_s"}
+    rerun = api.submit(
+        "train", scenario_id, params=before, rerun=True, rerun_of=unlimited.json()["id"]
+    )
+    assert rerun.status_code == 202, rerun.text
 
     assert execute_job(job["id"], settings=api.settings, worker_name="tests") == "failed"
     failed = api.get(f"/jobs/{job['id']}").json()
