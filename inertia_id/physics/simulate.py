@@ -250,6 +250,13 @@ class Simulator:
     def _overflowed(self) -> None:
         raise SimulationOverflow(_overflow_message(self))
 
+    def check_finite(self, omega: np.ndarray) -> None:
+        """Refuse rates that overflowed to inf or nan, naming what drives the bodies
+        (:class:`SimulationOverflow`): for a caller that advances step by step, as
+        :meth:`run` refuses them for a whole sequence."""
+        if not np.isfinite(omega).all():
+            self._overflowed()
+
     def draw_noise(self, rng: np.random.Generator, n_steps: int) -> SequenceNoise:
         initial = self.draw_initial(rng)
         return SequenceNoise(initial, [self.draw_step(rng) for _ in range(n_steps)])

@@ -331,6 +331,9 @@ class PrefixScorer:
         levels = np.asarray(prefix[-1], dtype=int)
         step = len(prefix) - 1
         state, response = self.simulator.advance(parent.state, levels, self.noise.steps[step])
+        # Rates that overflowed are refused here, naming the scenario's drive: clustered,
+        # they ended in k-means' seeding as "Probabilities contain NaN", which names nothing.
+        self.simulator.check_finite(response.omega_measured)
         k, n, samples, _ = response.omega_measured.shape
         series = np.concatenate(
             [parent.series, response.omega_measured.reshape(k * n, samples, 3)], axis=1

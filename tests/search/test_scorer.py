@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from inertia_id import Scenario
+from inertia_id.physics.simulate import SimulationOverflow
 from inertia_id.search import PrefixScorer, ScorerSettings, evaluate_sequence
 from inertia_id.search.operator import nominal_rates
 from inertia_id.search.records import fresh_seed
@@ -224,6 +225,23 @@ def test_prefix_longer_than_the_scorer_is_refused(paper: Scenario) -> None:
         scorer.score(ROWS)
     with pytest.raises(ValueError, match=re.escape("outside 0..4")):
         scorer.score([[5, 0, 0, 0, 0, 0]])
+
+
+@pytest.mark.parametrize("disturbance_nm", [1e4, 1e6])
+def test_a_prefix_whose_rates_overflow_is_refused_naming_the_scenarios_drive(
+    paper: Scenario, disturbance_nm: float
+) -> None:
+    """A scenario within every bound (1e6 N m is the disturbance's) can still drive a
+    body of the paper preset's size past what the integrator follows. A whole simulation
+    says so (SimulationOverflow); the prefix scorer clustered the inf and nan instead, and
+    a search on it failed in k-means' seeding with "Probabilities contain NaN"."""
+    loud = paper.with_uncertainty(disturbance_torque_sigma_nm=disturbance_nm)
+    scorer = PrefixScorer(loud, len(ROWS), ScorerSettings(n_realisations=20), seed=1)
+    with pytest.raises(SimulationOverflow, match="disturbance torque sigma"):
+        for end in range(1, len(ROWS) + 1):
+            scorer.score(ROWS[:end])
+    with pytest.raises(SimulationOverflow, match="overflowed to inf or nan"):
+        evaluate_sequence(loud, ROWS, ScorerSettings(n_realisations=20), seed=1, n_draws=1)
 
 
 # Re-scoring on fresh draws.
