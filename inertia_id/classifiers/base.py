@@ -36,7 +36,7 @@ from sklearn.base import BaseEstimator
 
 from ..checks import is_integer, is_number
 from ..errors import InputError
-from ..physics.scenario import Scenario
+from ..physics.scenario import AS_TRAINED, Scenario
 from ..physics.series import check_series
 from ..physics.simulate import simulate
 from ..stopping import Checkpoint, checkpoint_of, no_checkpoint
@@ -886,7 +886,9 @@ class BaseClassifier(BaseEstimator):
             model.accuracy_ = float(data["accuracy"])
             model.confusion_ = np.asarray(data["confusion"], dtype=int)
             model.scenario_ = (
-                None if data.get("scenario") is None else Scenario.model_validate(data["scenario"])
+                None
+                if data.get("scenario") is None
+                else Scenario.model_validate(data["scenario"], context=AS_TRAINED)
             )
             model.sequence_ = (
                 None if data.get("sequence") is None else np.asarray(data["sequence"], dtype=int)

@@ -107,7 +107,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..physics.estimate import parameters_from_tensor, tensor_from_parameters
-from ..physics.scenario import Scenario
+from ..physics.scenario import AS_TRAINED, Scenario
 from ..physics.series import check_series
 from ..physics.simulate import Simulator, disturbance_rate_covariance, simulate
 from ..stopping import Checkpoint, no_checkpoint
@@ -1414,7 +1414,9 @@ def inertia_sensitivity(
             {"name": f"perturbed {i}", "inertia_kg_m2": perturbed[i].tolist()}
             for i in range(start, min(start + SENSITIVITY_BATCH, len(perturbed)))
         ]
-        quiet = Scenario.model_validate(data)
+        # The classifier's own scenario, noise off: its lag as trained, past today's
+        # bound on a stated lag or not (AS_TRAINED).
+        quiet = Scenario.model_validate(data, context=AS_TRAINED)
         flown.append(simulate(quiet, steps, 1, np.random.default_rng(0)).omega_measured[:, 0])
         checkpoint()
     omega = np.concatenate(flown)

@@ -28,6 +28,7 @@ from ..errors import InputError
 from ..wording import counted
 
 __all__ = [
+    "AS_TRAINED",
     "MAX_DISTURBANCE_TORQUE_SIGMA_NM",
     "MAX_DUTY_JITTER_SIGMA",
     "MAX_GYRO_RATE_RAD_S",
@@ -524,6 +525,19 @@ _NOISE_BOUNDS: dict[str, tuple[float, str, str]] = {
 }
 
 
+#: The validation context of a scenario a classifier was trained on, read back from its
+#: document (``Scenario.model_validate(data, context=AS_TRAINED)``): the bounds on what a
+#: person may state (:data:`_NOISE_BOUNDS`, :data:`MAX_LAG_STEPS`) came after classifiers
+#: were stored, and a classifier trained on a scenario past them is kept usable as it
+#: was trained (its figures are its provenance, not a new statement). Every other rule
+#: holds: a figure that cannot be simulated is refused all the same.
+AS_TRAINED: dict[str, bool] = {"as_trained": True}
+
+
+def _as_trained(info: ValidationInfo) -> bool:
+    return bool(info.context and info.context.get("as_trained"))
+
+
 #: The sigmas a noise sweep scales (:data:`inertia_id.evaluation.sweep.NOISE_FIELDS`),
 #: which :meth:`Scenario.with_swept_noise` may set past what a scenario may state.
 SWEPT_SIGMAS = (
@@ -581,9 +595,9 @@ class Uncertainty(_Model):
 
     @field_validator(*_NOISE_BOUNDS, mode="after")
     @classmethod
-    def _a_figure_of_a_real_spacecraft(cls, value: float, info: Any) -> float:
-        bound, unit, why = _NOISE_BOUNDS[info.field_name]
-        if value > bound:
+    def _a_figure_of_a_real_spacecraft(cls, value: float, info: ValidationInfo) -> float:
+        bound, unit, why = _NOISE_BOUNDS[info.field_name or ""]
+        if value > bound and not _as_trained(info):
             raise InputError(f"{info.field_name} = {value!r} {unit} {why.format(bound=bound)}")
         return value
 
@@ -699,19 +713,19 @@ class Scenario(_Model):
         return self
 
     @model_validator(mode="after")
-    def _lag_resolved(self) -> Self:
+    def _lag_resolved(self, info: ValidationInfo) -> Self:
         # RK4 on the lag dm/dt = (c - m) / tau is stable only while dt <= 2.78 tau;
         # beyond it the applied torque, and every rate, grows without bound (NaN).
         # Refused at dt > 2 tau, a margin short of that edge.
         dt = self.timing.integration_step_s
         tau = self.uncertainty.lowpass_time_constant_s
         step = self.timing.step_duration_s
-        if tau > MAX_LAG_STEPS * step:
+        if tau > MAX_LAG_STEPS * step and not _as_trained(info):
             # A time constant of 100 steps delivers 0.5 % of a step's commanded torque
             # within it (MAX_LAG_STEPS): the thrusters never answer their commands.
             raise InputError(
                 f"lowpass_time_constant_s = {tau!r} s is an actuation lag of "
-                f"{tau / step:.4g} steps of step_duration_s = {step:g} s: at most "
+                f"{tau / step:.12g} steps of step_duration_s = {step:g} s: at most "
                 f"{MAX_LAG_STEPS:g} steps ({MAX_LAG_STEPS * step:g} s), where a step "
                 "already delivers only 0.5 % of the torque it commands (the thrusters "
                 "would barely respond and the body drift under noise alone)"

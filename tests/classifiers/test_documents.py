@@ -14,6 +14,8 @@ from scenario_support import GOOD_SEQUENCE
 from inertia_id import InertiaClassifier, InputError, Scenario
 from inertia_id.classifiers import documents
 from inertia_id.classifiers.registry import load_classifier, train_classifier
+from inertia_id.evaluation.identify import STATUSES, identify
+from inertia_id.physics.simulate import simulate
 
 
 def tamper(text: str, edit: Any) -> str:
@@ -147,3 +149,34 @@ def test_saving_holds_the_documents_text_once_beside_its_payload(
     # The same bytes as to_json, checksum and all: old readers read it, it reads back.
     assert (tmp_path / "c.json").read_text() == text
     assert load_classifier(tmp_path / "c.json").to_json() == text
+
+
+@pytest.mark.parametrize("kind", ["marginal-likelihood", "likelihood"])
+def test_a_classifier_trained_past_todays_noise_bounds_still_loads_and_identifies(
+    paper: Scenario, tmp_path: Path, kind: str
+) -> None:
+    # The bounds on a scenario's stated noise (a duty jitter of at most 10 full duties, a
+    # lag of at most 100 steps) came after classifiers were stored. A classifier trained
+    # on a scenario past them (accepted then) was refused at load, "not a valid
+    # marginal-likelihood classifier document: ... duty_jitter_sigma = 20.0 ...": its
+    # identify answered 422 and a sweep naming it failed in the worker. It is kept usable
+    # as it was trained; a scenario stated today past the bounds is still refused.
+    noise = paper.uncertainty.model_copy(
+        update={"duty_jitter_sigma": 20.0, "lowpass_time_constant_s": 150.0}
+    )
+    past = paper.model_copy(update={"uncertainty": noise})  # as the old code stored it
+    with pytest.raises(ValueError, match=r"duty_jitter_sigma = 20\.0"):
+        Scenario.model_validate(past.model_dump(mode="json"))
+    model = train_classifier(past, GOOD_SEQUENCE, 20, np.random.default_rng(0), kind=kind)
+    model.save(tmp_path / "c.json")
+
+    loaded = load_classifier(tmp_path / "c.json")
+    assert loaded.scenario_ is not None
+    assert loaded.scenario_.uncertainty.duty_jitter_sigma == 20.0
+    assert loaded.scenario_.uncertainty.lowpass_time_constant_s == 150.0
+    flown = simulate(past, GOOD_SEQUENCE, 1, np.random.default_rng(5))
+    verdict = identify(
+        loaded,
+        {"time_s": flown.time_s.tolist(), "omega_rad_s": flown.omega_measured[2, 0].tolist()},
+    )
+    assert verdict.status in STATUSES, verdict.status
