@@ -1061,6 +1061,15 @@ def test_a_one_point_sweep_draws_its_chance_line_across_the_plot(dashboard: Dash
         # Drawn on the page, the 1-point plot's width across (about 500 px at 1,440).
         assert drawn["px"] > 100, drawn
     dashboard.screenshot("sweep-one-point")
+    # Never below 0, where no multiple lies: a pad of at least 0.5 had run a sweep at
+    # x0.001 alone from -0.499; one at 0 alone runs to 1; several, first to last.
+    spans = page.evaluate(
+        """async () => {
+          const sweep = await import("/static/js/views/sweep.js");
+          return [[0.001], [0], [4], [0.5, 2, 8]].map((x) => sweep.chanceSpan(x));
+        }"""
+    )
+    assert spans == [[0.0005, 0.0015], [0, 1], [2, 6], [0.5, 8]], spans
 
 
 def _job_page_text(

@@ -59,15 +59,16 @@ function ceilingCheck(result, mainName) {
   );
 }
 
-// Where the chance line runs: from the first multiple to the last, or, with one multiple,
-// half of it either side (at least 0.5; the axis is linear): drawn from the multiple to
-// itself, a 1-point sweep's line had no length and did not show.
-function chanceSpan(x) {
+// Where the chance line runs: from the first multiple to the last, or, with one multiple
+// m, from m/2 to 3m/2 (the axis is linear; no multiple is negative, so neither is the
+// line: a pad of at least 0.5 had run ×0.001 from −0.499), and from 0 to 1 for a sweep
+// at 0 alone. Drawn from the multiple to itself, a 1-point sweep's line had no length and
+// did not show.
+export function chanceSpan(x) {
   const low = Math.min(...x);
   const high = Math.max(...x);
   if (high > low) return [low, high];
-  const pad = Math.max(0.5, Math.abs(low) / 2);
-  return [low - pad, high + pad];
+  return low > 0 ? [low / 2, (3 * low) / 2] : [0, 1];
 }
 
 export async function sweepPanel(holder, job, classifier, context) {
