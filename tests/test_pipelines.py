@@ -202,6 +202,29 @@ def test_a_sweep_runs_on_the_scenario_it_names(
     assert named.sweep.levels["measurement"] == 3e-3 != own.sweep.levels["measurement"]
 
 
+@pytest.mark.parametrize(
+    "past", [{"duty_jitter_sigma": 20.0}, {"lowpass_time_constant_s": 150.0}], ids=str
+)
+def test_a_sweep_of_a_classifier_trained_past_todays_noise_bounds_runs_on_its_scenario(
+    paper: Scenario, past: dict[str, float]
+) -> None:
+    # A classifier trained on a scenario past today's bounds on a stated figure loads
+    # as trained (AS_TRAINED), and `inertia-id sweep` runs on its scenario by default.
+    # Two rebuilt copies of it were validated as a new statement and refused the sweep:
+    # the nominal (noise-off) one keeps the lag, "lowpass_time_constant_s = 150.0 s is
+    # an actuation lag of 150 steps", and the bodies off the candidates keep the noise,
+    # "duty_jitter_sigma = 20.0".
+    noise = paper.uncertainty.model_copy(update=past)
+    trained_on = paper.model_copy(update={"uncertainty": noise})  # as older code stored it
+    model = train_classifier(
+        trained_on, GOOD_SEQUENCE, 5, np.random.default_rng(0), kind="likelihood"
+    )
+    loaded = type(model).from_json(model.to_json())
+    request = SweepRequest(multiples=(1,), others=(), ceiling_realisations=0, n_test=5)
+    outcome = sweep_with_limit(loaded, request, seed=1)
+    assert outcome.inertia is not None and outcome.sweep.points
+
+
 def test_a_sweep_refuses_a_scenario_with_other_candidates(
     euclidean_classifier: InertiaClassifier, paper: Scenario, scenario_like: type
 ) -> None:

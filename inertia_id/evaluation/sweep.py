@@ -38,7 +38,7 @@ from pydantic import BaseModel
 
 from ..checks import check_seed, is_integer
 from ..errors import InputError
-from ..physics.scenario import Scenario
+from ..physics.scenario import AS_TRAINED, Scenario
 from ..physics.simulate import SimulationOverflow, simulate
 from .identify import DEFAULT_CONFIDENCE, STATUSES, _check_probability, verdicts
 
@@ -505,7 +505,8 @@ def body_series(
     ``SeedSequence(seed).spawn(n_bodies)``)."""
     document = scenario.model_dump()
     # A scenario needs two candidates: simulate the body beside candidate 0 and keep
-    # only the body's series.
+    # only the body's series. Its noise is the scenario's own, which a classifier's
+    # scenario may hold past today's bounds (AS_TRAINED: read as trained).
     test = Scenario.model_validate(
         {
             **document,
@@ -514,7 +515,8 @@ def body_series(
                 {"name": "test body", "inertia_kg_m2": np.asarray(inertia_kg_m2).tolist()},
                 document["inertia_candidates"][0],
             ],
-        }
+        },
+        context=AS_TRAINED,
     )
     return np.asarray(simulate(test, sequence, n_series, rng).omega_measured[0])
 
