@@ -853,13 +853,9 @@ def test_identify_judges_a_dropout_with_the_default_kind_and_reports_it(
     assert "The 'clustering' classifier compares whole series" in refused.output
 
 
-def test_a_search_cut_at_its_time_limit_says_what_was_not_rescored(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    """NSGA-II with --time-limit 1 --time-limit-grace 0: the front's other candidates
-    and the best's fresh draws are left out; the listing said nothing of either. The
-    deadlines run on a clock one second further on at every reading (no sleeps, and no
-    dependence on the machine's speed): the limit is spent at its first check."""
+def _deadlines_on_a_ticking_clock(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every Deadline made from now on reads a clock one second further on at every
+    reading: no sleeps, and no dependence on the machine's speed."""
     ticks = itertools.count()
     init = Deadline.__init__
 
@@ -869,6 +865,16 @@ def test_a_search_cut_at_its_time_limit_says_what_was_not_rescored(
         init(self, time_limit_s, lambda: float(next(ticks)), grace_s)
 
     monkeypatch.setattr(Deadline, "__init__", on_ticking_clock)
+
+
+def test_a_search_cut_at_its_time_limit_says_what_was_not_rescored(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """NSGA-II with --time-limit 1 --time-limit-grace 0: the front's other candidates
+    and the best's fresh draws are left out; the listing said nothing of either. The
+    deadlines run on a clock one second further on at every reading (no sleeps, and no
+    dependence on the machine's speed): the limit is spent at its first check."""
+    _deadlines_on_a_ticking_clock(monkeypatch)
     args = ["search", "--method", "nsga2", "--length", "2", "--nsga2", "population=8"]
     args += ["--nsga2", "generations=2", "--search-realisations", "4"]
     args += ["--fresh-realisations", "4", "--fresh-test-series", "2"]
@@ -897,15 +903,7 @@ def test_train_stops_at_its_time_limit_and_writes_nothing(
     run_cli([*args, "--time-limit", "600", "--out", str(roomy)])
     assert json.loads(roomy.read_text())["format"] == "inertia-id/supervised-classifier"
 
-    ticks = itertools.count()
-    init = Deadline.__init__
-
-    def on_ticking_clock(
-        self: Deadline, time_limit_s: Any, clock: Any = None, grace_s: Any = None
-    ) -> None:
-        init(self, time_limit_s, lambda: float(next(ticks)), grace_s)
-
-    monkeypatch.setattr(Deadline, "__init__", on_ticking_clock)
+    _deadlines_on_a_ticking_clock(monkeypatch)
     out = tmp_path / "c.json"
     result = runner.invoke(main, [*args, "--time-limit", "1", "--out", str(out)])
     assert result.exit_code == 1, result.output
