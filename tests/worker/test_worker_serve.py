@@ -534,6 +534,83 @@ def test_a_second_stop_signal_while_serve_stops_does_not_cut_its_shutdown_short(
     assert f"{signal.Signals(stop_signal).name} while stopping" in text, tail(log)
 
 
+def test_serve_leaves_nothing_in_the_temp_folder_when_it_stops(tmp_path: Path) -> None:
+    """Nothing of serve's is left in ``TMPDIR`` once SIGTERM has stopped it. Before, each
+    stop left an empty ``pymp-*`` folder there: multiprocessing's temp folder of the
+    worker's main process (billiard's pool makes it for its shared memory), which serve
+    kills once the worker has handed its job back, so its exit never removed it."""
+    port = free_port()
+    log = tmp_path / "serve.log"
+    temp = tmp_path / "tmp"
+    temp.mkdir()
+    with open(log, "wb") as out:
+        server = subprocess.Popen(
+            [sys.executable, "-m", "app.serve", "--port", str(port), "--data-dir", "data"],
+            env=clean_env(TMPDIR=str(temp), INERTIA_ID_VERDICT_PROCESS="eager"),
+            cwd=tmp_path,
+            stdout=out,
+            stderr=subprocess.STDOUT,
+        )
+    try:
+        # Warm: the worker has beaten (its pool is started) and the API's fork server
+        # has forked the verdict process; both have made their temp folders by then.
+        wait_for(
+            lambda: (
+                "Uvicorn running" in log.read_text()
+                and (h := _get(f"http://127.0.0.1:{port}/health"))["workers"]["count"] == 1
+                and not h["workers"]["warming"]
+                and sum("forkserver" in c for c in _descendants(server.pid).values()) >= 2
+            ),
+            120,
+            "serve's worker did not beat, or its verdict process did not start",
+            lambda: tail(log),
+        )
+        made = sorted(path.name for path in temp.iterdir())
+    finally:
+        server.send_signal(signal.SIGTERM)
+        try:
+            server.wait(60)
+        except subprocess.TimeoutExpired:
+            server.kill()
+            server.wait()
+            raise
+    assert server.returncode == 128 + signal.SIGTERM, tail(log)
+    assert made, "serve made no temp folder: the test saw nothing to clean up"
+    left = sorted(str(path.relative_to(temp)) for path in temp.rglob("*"))
+    assert not left, f"left in TMPDIR by serve (made while it ran: {made}): {left}\n{tail(log)}"
+
+
+def test_the_worker_s_temp_folder_removed_early_is_not_removed_again_at_exit(
+    tmp_path: Path,
+) -> None:
+    """A worker removes multiprocessing's temp folder when told to stop: its finalizer
+    runs then, not a second time at exit (no traceback), and a folder needed after
+    (a task process started late) is made anew and removed at a normal exit."""
+    script = textwrap.dedent(
+        """
+        import os
+        from multiprocessing import util
+        from worker.process import remove_multiprocessing_temp_dir
+
+        first = util.get_temp_dir()
+        assert remove_multiprocessing_temp_dir()
+        assert not os.path.exists(first), first
+        assert not remove_multiprocessing_temp_dir()
+        second = util.get_temp_dir()
+        assert second != first and os.path.isdir(second), (first, second)
+        """
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", script],
+        env=clean_env(TMPDIR=str(tmp_path)),
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert (done.returncode, done.stderr) == (0, ""), done.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
 @pytest.mark.parametrize("api_workers", ["1", "2"])
 def test_serve_tells_its_workers_to_stop_while_the_api_gives_its_requests_their_grace(
     tmp_path: Path, api_workers: str
