@@ -35,7 +35,7 @@ from service.store.refusals import database_label, why_cannot_store
 from . import incarnation
 from .context import DATABASE_SILENT_S, broker_label
 from .episode import Episode
-from .process import cold_since, mark_stopping, remove_multiprocessing_temp_dir, warm
+from .process import cold_since, mark_stopping, warm
 from .reaper import (
     HAND_BACK_RECORD,
     HAND_BACK_SEND,
@@ -553,9 +553,6 @@ def _hand_back(**_kwargs: Any) -> None:
     # interrupted code holds, so the hand-back runs on a thread of its own.
     global _hand_back_thread, _stop_began
     mark_stopping()
-    # Before the hand-back marks the worker stopping: serve kills it once that is
-    # recorded, and its exit would have removed the folder (a few file operations).
-    remove_multiprocessing_temp_dir()
     if _stop_began is None:
         _stop_began = time.monotonic()
     monitor = _monitor

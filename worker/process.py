@@ -42,7 +42,6 @@ __all__ = [
     "mark_starting",
     "mark_stopping",
     "mark_warm",
-    "remove_multiprocessing_temp_dir",
     "stop_with_launcher",
     "stopping",
     "unique_name",
@@ -127,39 +126,6 @@ def cold_since() -> float | None:
 def mark_stopping() -> None:
     """In the worker's main process: this worker was told to stop."""
     _STOPPING[0] = 1
-
-
-def remove_multiprocessing_temp_dir() -> bool:
-    """In the worker's main process, once told to stop: remove multiprocessing's temp
-    folder (``pymp-*`` in ``TMPDIR``) now, as its finalizer would at a normal exit;
-    whether there was one.
-
-    billiard's pool makes the folder for its shared memory when it starts the task
-    process (the files in it are unlinked at once; only the folder stays), and the
-    finalizer that removes it runs only when this interpreter exits normally. serve kills
-    its worker (SIGKILL to the group) as soon as the job is handed back, rather than
-    wait 7 to 8 s for Celery to wind its pool down, so every serve stop left an empty
-    folder behind. Run here, before the hand-back is recorded, it is gone by the time
-    serve may kill. The finalizer itself is run (it deregisters itself and forgets the
-    folder): a task process started after this, should there be one, gets a new folder,
-    which a normal exit removes as before.
-    """
-    from multiprocessing import util
-
-    # Private names of multiprocessing.util (billiard uses them too); read with getattr so
-    # that a Python without them leaves the folder to the finalizer, as before.
-    registry: dict[Any, Any] = getattr(util, "_finalizer_registry", None) or {}
-    remove = getattr(util, "_remove_temp_dir", None)
-    removed = False
-    for finalizer in list(registry.values()):
-        if remove is None or getattr(finalizer, "_callback", None) is not remove:
-            continue
-        try:
-            finalizer()
-            removed = True
-        except OSError as exc:  # removed meanwhile by someone else: nothing left to do
-            logger.debug("could not remove multiprocessing's temp folder: %s", exc)
-    return removed
 
 
 def stopping() -> bool:
