@@ -70,7 +70,12 @@ def _needs(dashboard: Dashboard, *names: str) -> None:
         "search": lambda: _finished_search(dashboard, SMALL_PPO, "small PPO")["id"],
         "cem": lambda: _finished_search(dashboard, FAST_CEM, "fast CEM")["id"],
         "sweep": lambda: _sweep(dashboard),
-        "sweep1": lambda: _sweep(dashboard, multiples=[1], n_test=20),
+        # On a classifier of its own: the compare and classifier pages draw a
+        # classifier's latest sweep, which a 1-point sweep of the main one became
+        # whenever it finished last (the compare test then read 1 point, not 3).
+        "sweep1": lambda: _sweep(
+            dashboard, multiples=[1], n_test=20, classifier=_second_classifier(dashboard)
+        ),
         "nsga2": lambda: _finished_search(dashboard, SMALL_NSGA2, "small NSGA-II")["id"],
     }
     for name in names:
@@ -78,11 +83,17 @@ def _needs(dashboard: Dashboard, *names: str) -> None:
             made[name] = makers[name]()
 
 
-def _sweep(dashboard: Dashboard, multiples: list[float] | None = None, n_test: int = 50) -> str:
-    """A sweep of the classifier as the sweep test submits it (multiples 1, 4, 8 of the
-    default noises, 50 test series, unless told others), once it has succeeded."""
+def _sweep(
+    dashboard: Dashboard,
+    multiples: list[float] | None = None,
+    n_test: int = 50,
+    classifier: str | None = None,
+) -> str:
+    """A sweep of the classifier (the module's, unless told another) as the sweep test
+    submits it (multiples 1, 4, 8 of the default noises, 50 test series, unless told
+    others), once it has succeeded."""
     service = dashboard.service
-    classifier = _classifier(dashboard)
+    classifier = classifier or _classifier(dashboard)
     scenario = service.client.get(f"/classifiers/{classifier}").json()["scenario_id"]
     params = {"classifier_id": classifier, "multiples": multiples or [1, 4, 8], "n_test": n_test}
     answer = service.client.post(
@@ -168,6 +179,26 @@ def _classifier(dashboard: Dashboard) -> str:
         assert job["status"] == "succeeded", job["error"]
         made["classifier"] = job["result"]["classifier_id"]
     return str(made["classifier"])
+
+
+def _second_classifier(dashboard: Dashboard) -> str:
+    """A small classifier beside the module's, on its scenario (nearest-centroid, 5
+    realisations a candidate), for a test whose sweep must not become the module
+    classifier's latest."""
+    client = dashboard.service.client
+    scenario = client.get(f"/classifiers/{_classifier(dashboard)}").json()["scenario_id"]
+    params = {"sequence": GOOD, "kind": "nearest-centroid", "metric": "euclidean"}
+    body = {"type": "train", "scenario_id": scenario, "seed": 1}
+    submitted = client.post("/jobs", json={**body, "params": {**params, "n_realisations": 5}})
+    assert submitted.status_code in (200, 202), submitted.text
+    job_id = submitted.json()["id"]
+    job = dashboard.service.until(
+        lambda: (j := dashboard.service.job(job_id))["status"] in TERMINAL and j,
+        300,
+        "the second training finished",
+    )
+    assert job["status"] == "succeeded", job["error"]
+    return str(job["result"]["classifier_id"])
 
 
 def _api_verdict(
