@@ -160,24 +160,28 @@ def _telemetry_csv(
     return path
 
 
+def _trained(dashboard: Dashboard, scenario: str, params: dict[str, Any], seed: int) -> str:
+    """The classifier a train job of ``params`` makes on ``scenario``, once it has."""
+    body = {"type": "train", "scenario_id": scenario, "seed": seed, "params": params}
+    submitted = dashboard.service.client.post("/jobs", json=body)
+    assert submitted.status_code in (200, 202), submitted.text
+    job_id = submitted.json()["id"]
+    job = dashboard.service.until(
+        lambda: (j := dashboard.service.job(job_id))["status"] in TERMINAL and j,
+        300,
+        "the training finished",
+    )
+    assert job["status"] == "succeeded", job["error"]
+    return str(job["result"]["classifier_id"])
+
+
 def _classifier(dashboard: Dashboard) -> str:
     """The classifier the training test made; trained here through the API (the paper
     preset, GOOD, the dashboard's defaults) when the identify tests run on their own."""
     if "classifier" not in made:
-        client = dashboard.service.client
-        scenario = client.post("/scenarios", json={"preset": "paper"})
+        scenario = dashboard.service.client.post("/scenarios", json={"preset": "paper"})
         assert scenario.status_code == 201, scenario.text
-        body = {"type": "train", "scenario_id": scenario.json()["id"], "seed": 0}
-        submitted = client.post("/jobs", json={**body, "params": {"sequence": GOOD}})
-        assert submitted.status_code == 202, submitted.text
-        job_id = submitted.json()["id"]
-        job = dashboard.service.until(
-            lambda: (j := dashboard.service.job(job_id))["status"] in TERMINAL and j,
-            300,
-            "the training finished",
-        )
-        assert job["status"] == "succeeded", job["error"]
-        made["classifier"] = job["result"]["classifier_id"]
+        made["classifier"] = _trained(dashboard, scenario.json()["id"], {"sequence": GOOD}, 0)
     return str(made["classifier"])
 
 
@@ -188,17 +192,7 @@ def _second_classifier(dashboard: Dashboard) -> str:
     client = dashboard.service.client
     scenario = client.get(f"/classifiers/{_classifier(dashboard)}").json()["scenario_id"]
     params = {"sequence": GOOD, "kind": "nearest-centroid", "metric": "euclidean"}
-    body = {"type": "train", "scenario_id": scenario, "seed": 1}
-    submitted = client.post("/jobs", json={**body, "params": {**params, "n_realisations": 5}})
-    assert submitted.status_code in (200, 202), submitted.text
-    job_id = submitted.json()["id"]
-    job = dashboard.service.until(
-        lambda: (j := dashboard.service.job(job_id))["status"] in TERMINAL and j,
-        300,
-        "the second training finished",
-    )
-    assert job["status"] == "succeeded", job["error"]
-    return str(job["result"]["classifier_id"])
+    return _trained(dashboard, scenario, {**params, "n_realisations": 5}, seed=1)
 
 
 def _api_verdict(
