@@ -9,6 +9,7 @@ Each test makes what it needs through the API; no job here runs to the end.
 from __future__ import annotations
 
 import json
+import re
 from collections.abc import Callable
 from typing import Any
 
@@ -806,6 +807,9 @@ def test_a_job_forms_refused_fields_are_shown_next_to_them(dashboard: Dashboard)
     length = page.wait_for_selector("#search-sequence_length + .field-error").inner_text()
     assert "greater than or equal to 1" in length, length
     dashboard.open(f"#/jobs?scenario={scenario_id}&type=train")
+    # Playwright's fill selects the box, then types: a default landing between the two
+    # is kept with the typed text after it (the form keeps what is typed after that).
+    page.wait_for_function("document.querySelector('#train-sequence').value !== ''")
     page.fill("#train-sequence", "[[4, 4, 4, 0, 0, 0]]")
     page.fill("#train-n_realisations", "lots")
     with page.expect_response(lambda r: r.url.endswith("/jobs")) as sent:
@@ -813,6 +817,47 @@ def test_a_job_forms_refused_fields_are_shown_next_to_them(dashboard: Dashboard)
     assert [e["loc"] for e in sent.value.json()["detail"]] == [["body", "params", "n_realisations"]]
     shown = page.wait_for_selector("#train-n_realisations + .field-error").inner_text()
     assert "got 'lots'" in shown, shown
+
+
+def test_a_sequence_typed_before_the_default_arrives_is_kept(dashboard: Dashboard) -> None:
+    # The train form fills the hand-designed sequence when GET .../baselines answers. A
+    # slow answer (a loaded machine: CI) landed on what the user had typed meanwhile: the
+    # box read the default followed by the typed text, broken JSON, and the job was never
+    # sent. The baselines' answer is held here until the sequence has been typed.
+    _save_key(dashboard)
+    scenario_id = _scenario(dashboard, ["stowed", "deployed"], "typed before the default")
+    other = _scenario(dashboard, ["stowed", "ejected"], "another default")
+    page = dashboard.page
+
+    def one_held() -> Any:
+        page.wait_for_function("() => true")  # a round trip: the route handler has run
+        assert len(held) == 1, held
+        return held.pop()
+
+    held: list[Any] = []
+    baselines = re.compile(r"/scenarios/[^/]+/baselines")
+    page.route(baselines, lambda route: held.append(route))
+    try:
+        dashboard.open(f"#/jobs?scenario={scenario_id}&type=train")
+        page.wait_for_selector("#train-sequence")
+        page.click("#train-sequence")
+        page.keyboard.insert_text("[[4, 4, 4, 0, 0, 0]]")
+        with page.expect_response(baselines) as answered:
+            one_held().continue_()
+        assert answered.value.ok
+        # The page's handler of that answer runs before the next task: a round trip.
+        page.evaluate("() => new Promise((done) => setTimeout(done, 100))")
+        assert page.input_value("#train-sequence") == "[[4, 4, 4, 0, 0, 0]]"
+        # Choosing a scenario in the form is a new start: its default replaces the box.
+        page.select_option("#train-scenario", other)
+        with page.expect_response(baselines):
+            one_held().continue_()
+        page.wait_for_function(
+            "() => !document.querySelector('#train-sequence').value.includes('4, 4, 4')"
+        )
+        assert json.loads(page.input_value("#train-sequence"))
+    finally:
+        page.unroute(baselines)
 
 
 def test_the_parameters_a_sequence_cannot_see_are_one_it_or_several_them(

@@ -152,16 +152,28 @@ function submitForm(scenarios, classifiers, query) {
   };
   // The core's hand-designed baseline for the chosen scenario's thrusters (a baseline
   // the thrusters do not allow comes as {unavailable: why}: the field is left alone).
+  // It lands only if the box is untouched since it was asked for, and only the latest
+  // ask lands: a slow answer used to overwrite what the user had typed meanwhile, or
+  // land in the middle of it (broken JSON, and the job was never sent).
+  let asked = 0;
+  let typed = false;
+  train.sequence.addEventListener("input", () => {
+    typed = true;
+  });
   const defaultSequence = async () => {
     const scenario = byId[train.scenario.value];
     if (!scenario || query.sequence) return;
+    const mine = ++asked;
     const baselines = await api.baselines(scenario.id, 4).catch(() => null);
     const hand = baselines && baselines["hand-designed"];
-    if (Array.isArray(hand) && !query.sequence) train.sequence.value = JSON.stringify(hand);
+    if (Array.isArray(hand) && !query.sequence && !typed && mine === asked) train.sequence.value = JSON.stringify(hand);
   };
   train.sequence.value = query.sequence || "";
+  // Another scenario is a new start: its default replaces the box, typed or not (the
+  // thrusters, so the sequence's columns, may differ).
   train.scenario.addEventListener("change", () => {
     query.sequence = "";
+    typed = false;
     defaultSequence();
   });
   defaultSequence();
