@@ -875,3 +875,19 @@ def test_the_parameters_a_sequence_cannot_see_are_one_it_or_several_them(
         "this sequence hardly excites Ixx: it cannot see it",
         "this sequence hardly excites Ixy, Iyz: it cannot see them",
     ]
+
+
+def test_opening_a_route_of_the_same_page_waits_for_the_new_page(dashboard: Dashboard) -> None:
+    # From one jobs route to another only the hash changes: the test helper's open used
+    # to return on the old page's h1, before the new page was drawn.
+    _save_key(dashboard)
+    scenario_id = _scenario(dashboard, ["stowed", "deployed"], "same page, new route")
+    page = dashboard.page
+    for kind in ("search", "train", "search"):
+        dashboard.open(f"#/jobs?scenario={scenario_id}&type={kind}")
+        chosen = page.query_selector("#tab-" + kind)
+        assert chosen is not None and chosen.get_attribute("aria-selected") == "true", kind
+    # The same address again is drawn afresh.
+    page.evaluate("() => document.querySelector('#page h1').setAttribute('data-mine', '')")
+    dashboard.open(f"#/jobs?scenario={scenario_id}&type=search")
+    assert page.query_selector("#page h1[data-mine]") is None
