@@ -299,7 +299,9 @@ def search_with_baselines(
     from .search.baselines import STOPPED, compare_with_baselines
 
     if not checked:
-        check_search_scenario(scenario, request.sequence_length, request.constraints)
+        check_search_scenario(
+            scenario, request.sequence_length, request.constraints, request.design_noise
+        )
     from .search.loop import CANCELLED, TIME_LIMIT, Deadline
 
     settings = request.scorer()
@@ -381,12 +383,17 @@ def check_search(scenario: Scenario, request: SearchRequest) -> None:
 
     :raises InputError: naming the setting and its value.
     """
-    request.operator().check(scenario, request.sequence_length)
-    check_search_scenario(scenario, request.sequence_length, request.constraints)
+    checked = request.operator().check(scenario, request.sequence_length)
+    check_search_scenario(
+        scenario, request.sequence_length, request.constraints, checked.design_noise
+    )
 
 
 def check_search_scenario(
-    scenario: Scenario, sequence_length: int, constraints: Mapping[str, float] | None = None
+    scenario: Scenario,
+    sequence_length: int,
+    constraints: Mapping[str, float] | None = None,
+    design_noise: Sequence[Sequence[float]] = (),
 ) -> None:
     """Refuse a search on a scenario whose hand-designed sequence of ``sequence_length``
     steps (full duty on the principal diagonal: the baseline every search is scored
@@ -401,23 +408,53 @@ def check_search_scenario(
     spread alone leaves (:func:`~inertia_id.search.objectives.check_rate_floor`): no
     sequence meets it, and the search would end saying only that none did.
 
+    And refuse one whose rates overflow to inf or nan on that baseline at 1x (what every
+    search scores at) or at any ``design_noise`` condition (process multiple, measurement
+    multiple: what the front's accuracy is measured at)
+    (:func:`~inertia_id.physics.simulable.check_simulable`, a few seeded realisations):
+    such a search was accepted and failed at run time.
+
     :raises InputError: a rate bound below the initial-rate floor, naming both.
     :raises ~inertia_id.physics.simulate.RatesBeyondGyro: naming the scenario, the
         baseline and, in :func:`~inertia_id.physics.simulate.check_gyro_range`'s words,
         the candidate, its rate and the ceiling.
+    :raises ~inertia_id.physics.simulable.NoiseOverflow: naming the noise figure, its
+        value, the multiple and the step by which the rates overflow.
     """
     from .physics.sequences import hand_designed
+    from .physics.simulable import NoiseOverflow, check_conditions
     from .physics.simulate import RatesBeyondGyro, check_nominal_gyro_range
-    from .search.objectives import check_constraints, check_rate_floor
+    from .search.objectives import check_constraints, check_design_noise, check_rate_floor
 
     check_rate_floor(check_constraints(dict(constraints or {})), scenario)
+    baseline = hand_designed(scenario, sequence_length)
     try:
-        check_nominal_gyro_range(scenario, hand_designed(scenario, sequence_length))
+        check_nominal_gyro_range(scenario, baseline)
     except RatesBeyondGyro as exc:
         raise RatesBeyondGyro(
             f"no search on scenario {scenario.name!r}: its hand-designed baseline of "
             f"{sequence_length} steps, what every search is scored against, leaves the "
             f"gyro's range: {exc}"
+        ) from None
+    # The measurement multiple scales the gyro's noise and bias, which never reach the
+    # rates: the process multiple alone can overflow them.
+    pairs = check_design_noise(design_noise) if len(design_noise) else ()
+    process = sorted({p for p, _q in pairs} - {1.0})
+    try:
+        check_conditions(
+            scenario,
+            baseline,
+            [{"disturbance_torque_sigma_nm": p} for p in process],
+            sequence_name=f"the hand-designed baseline of scenario {scenario.name!r}",
+        )
+    except NoiseOverflow as exc:
+        at = "at 1x" if exc.multiple == 1.0 else "at its design noise"
+        raise NoiseOverflow(
+            f"no search on scenario {scenario.name!r} {at}: {exc}",
+            fields=exc.fields,
+            multiple=exc.multiple,
+            step=exc.step,
+            n_steps=exc.n_steps,
         ) from None
 
 
@@ -518,11 +555,15 @@ def train_for_sequence(
         nothing half-trained is returned.
     """
     from .classifiers.registry import train_classifier
+    from .physics.simulable import check_simulable
     from .physics.simulate import check_nominal_gyro_range, weak_response_warning
 
     kind, n_realisations, options = request.resolved()
     # A classifier of responses no gyro measures classifies no telemetry.
     run = check_nominal_gyro_range(scenario, request.sequence)
+    # Nor is one trained where the scenario's own noise overflows the rates: refused
+    # before the first draw (it failed in the middle of the training's simulation).
+    check_simulable(scenario, request.sequence, sequence_name="the training's sequence")
     # One of responses far below the gyro noise classifies noise: said, not refused.
     weak = weak_response_warning(scenario, request.sequence, run)
     rng = np.random.default_rng(seed)
@@ -645,8 +686,11 @@ def sweep_with_limit(
         skips the bodies).
     """
     from .evaluation.sweep import (
+        DEFAULT_MULTIPLES,
+        DEFAULT_NOISES,
         check_ceiling_realisations,
         check_multiples,
+        check_sweep_simulable,
         run_inertia_sweep,
         run_sweep,
     )
@@ -663,6 +707,13 @@ def sweep_with_limit(
         raise InputError("the classifier does not carry its scenario and sequence")
     scenario = check_sweep_scenario(
         classifier.scenario_ if scenario is None else scenario, classifier.scenario_, sequence
+    )
+    # Refused before the others are trained, as run_sweep would refuse it after.
+    check_sweep_simulable(
+        scenario,
+        sequence,
+        DEFAULT_NOISES if request.noises is None else request.noises,
+        DEFAULT_MULTIPLES if request.multiples is None else request.multiples,
     )
     streams = np.random.SeedSequence(seed).spawn(3)
     others = train_others(

@@ -25,6 +25,7 @@ from sqlalchemy.orm import defer
 
 from inertia_id.errors import InputError
 from inertia_id.physics.scenario import Scenario
+from inertia_id.physics.simulable import NoiseOverflow, check_simulable
 from inertia_id.physics.simulate import check_nominal_gyro_range
 from service.exports import (
     RESULT_TABLES,
@@ -138,7 +139,15 @@ def _check_search(body: SearchJobCreate, scenario: Scenario) -> None:
     from inertia_id.pipelines import check_search_scenario
 
     try:
-        check_search_scenario(scenario, params.sequence_length, params.constraints)
+        check_search_scenario(
+            scenario, params.sequence_length, params.constraints, checked.design_noise
+        )
+    except NoiseOverflow as exc:
+        # Past 1x the design noise asked for overflows; at 1x the scenario itself.
+        at_1x = exc.multiple == 1.0
+        unprocessable(
+            ("body", "scenario_id") if at_1x else ("body", "params", "design_noise"), str(exc)
+        )
     except InputError as exc:
         unprocessable(("body", "scenario_id"), str(exc))
     if params.method != "exhaustive":
@@ -306,6 +315,12 @@ def _check_train(body: TrainJobCreate, scenario: Scenario) -> None:
         check_nominal_gyro_range(scenario, rows)
     except InputError as exc:
         unprocessable((*where, "sequence"), str(exc))
+    try:
+        check_simulable(scenario, rows, sequence_name="the training's sequence")
+    except InputError as exc:
+        # The scenario's own noise overflows the rates (a row stored before scenarios
+        # were checked for it, or one that overflows on this sequence's length only).
+        unprocessable(("body", "scenario_id"), str(exc))
 
 
 def _check_sweep(session: SessionDep, body: SweepJobCreate, scenario: Scenario) -> None:
@@ -336,6 +351,16 @@ def _check_sweep(session: SessionDep, body: SweepJobCreate, scenario: Scenario) 
         check_nominal_gyro_range(scenario, classifier.sequence)
     except InputError as exc:
         unprocessable(("body", "params", "classifier_id"), str(exc))
+    from inertia_id.evaluation.sweep import check_sweep_simulable
+
+    try:
+        check_sweep_simulable(scenario, classifier.sequence, params.noises, params.multiples)
+    except NoiseOverflow as exc:
+        # At 1x the scenario itself overflows; past it, the sweep's largest multiple.
+        at_1x = exc.multiple == 1.0
+        unprocessable(
+            ("body", "scenario_id") if at_1x else ("body", "params", "multiples"), str(exc)
+        )
 
 
 def _check_time_limit(body: JobCreate, ceiling_s: float) -> None:

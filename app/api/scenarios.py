@@ -18,6 +18,7 @@ from inertia_id.checks import DuplicateKeyError, control_characters, loads_uniqu
 from inertia_id.errors import InputError
 from inertia_id.physics.presets import PRESETS, preset
 from inertia_id.physics.scenario import Scenario
+from inertia_id.physics.simulable import check_simulable
 from inertia_id.physics.simulate import (
     SimulationOverflow,
     check_gyro_range,
@@ -136,6 +137,21 @@ def _check_storable(scenario: Scenario) -> dict[str, Any]:
     return document
 
 
+def _check_simulable(scenario: Scenario, source: str) -> None:
+    """Refuse a scenario that cannot be simulated at its own noise
+    (:func:`~inertia_id.physics.simulable.check_scenario_simulable`): every job on it
+    would fail. Located at the noise figure when one alone overflows the rates."""
+    from inertia_id.physics.simulable import NoiseOverflow, check_scenario_simulable
+
+    try:
+        check_scenario_simulable(scenario)
+    except NoiseOverflow as exc:
+        where = ("uncertainty", exc.fields[0]) if len(exc.fields) == 1 else ("uncertainty",)
+        unprocessable(("body", source, *where), str(exc))
+    except SimulationOverflow as exc:
+        unprocessable(("body", source), str(exc))
+
+
 @router.post(
     "",
     status_code=status.HTTP_201_CREATED,
@@ -155,7 +171,9 @@ def create_scenario(body: ScenarioCreate, session: SessionDep, idempotent: Idemp
         return replay
     scenario = _build(body)
     document = _check_storable(scenario)
-    _check_names(scenario, "scenario" if body.scenario is not None else "overrides")
+    source = "scenario" if body.scenario is not None else "overrides"
+    _check_names(scenario, source)
+    _check_simulable(scenario, source)
     row = ScenarioRow(name=scenario.name, document=document)
     session.add(row)
     session.flush()
@@ -355,6 +373,9 @@ def _response(
     # best-sequence charts and the classifier page draw this response.
     weak = weak_response_warning(scenario, steps, nominal)
     try:
+        # Told by the figure that overflows (a scenario stored before scenarios were
+        # checked for it), rather than after the realisations are flown.
+        check_simulable(scenario, steps, sequence_name="the sequence")
         result = simulate(scenario, steps, n_realisations, np.random.default_rng(seed))
         # And the realisations shown, with their lag's tails, as a plan checks its flights.
         check_gyro_range(

@@ -52,8 +52,13 @@ def _noise_option(flag: str, source: str) -> Callable[[F], F]:
 )
 @friendly_errors
 def scenario_cmd(preset_name: str, scenario_path: str | None, out: str | None) -> None:
-    """Print a scenario as JSON (a starting point to edit), after validating it."""
+    """Print a scenario as JSON (a starting point to edit), after validating it: its
+    rules, and that it can be simulated at its own noise (the service's rule for a
+    scenario it stores)."""
+    from ..physics.simulable import check_scenario_simulable
+
     scenario = load_scenario(preset_name, scenario_path)
+    check_scenario_simulable(scenario)
     write_json(out, scenario.model_dump(mode="json"))
 
 
@@ -160,6 +165,7 @@ def simulate_cmd(
 
     from ..errors import InputError
     from ..evaluation.telemetry import parse_sequence_start
+    from ..physics.simulable import check_simulable
     from ..physics.simulate import check_nominal_gyro_range, simulate
 
     if telemetry is None:
@@ -186,6 +192,15 @@ def simulate_cmd(
     # The plan's and the response's rule: a scenario that spins its bodies past any
     # gyro's range (wrong units) is refused before either engine flies it.
     check_nominal_gyro_range(scenario, sequence)
+    if engine == "numpy":
+        # And one whose noise, at the multiple asked for, overflows the rates is refused
+        # naming that noise figure (the response's rule), not after the flight.
+        check_simulable(
+            scenario,
+            sequence,
+            multiples={"disturbance_torque_sigma_nm": process_noise},
+            sequence_name="the sequence",
+        )
     if engine == "basilisk":
         _fly_basilisk(
             scenario,

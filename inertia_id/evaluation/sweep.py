@@ -61,6 +61,7 @@ __all__ = [
     "check_ceiling_realisations",
     "check_classifier_scenario",
     "check_multiples",
+    "check_sweep_simulable",
     "noise_level",
     "run_inertia_sweep",
     "run_sweep",
@@ -305,6 +306,55 @@ def check_classifier_scenario(named: Scenario, trained: Scenario | None) -> None
         )
 
 
+def check_sweep_simulable(
+    scenario: Scenario,
+    sequence: Any,
+    noises: Sequence[str] = DEFAULT_NOISES,
+    multiples: Sequence[float] = DEFAULT_MULTIPLES,
+) -> None:
+    """Refuse a sweep whose simulations overflow, before any of it runs: ``sequence`` on
+    ``scenario`` at 1x (what the others train on and the bodies off the candidates fly),
+    then each of ``noises`` at the largest of ``multiples`` with every other source at
+    1x, as the sweep simulates them
+    (:func:`~inertia_id.physics.simulable.check_simulable`: a few seeded realisations,
+    milliseconds). Before it, a sweep whose largest multiple overflowed failed at that
+    point, after every point before it had run.
+
+    :raises ~inertia_id.physics.simulable.NoiseOverflow: naming the source, the multiple
+        and its value, then the noise figure, its 1x value and the step the rates
+        overflow by.
+    """
+    from ..physics.simulable import DRIVING_FIELDS, NoiseOverflow, check_simulable
+
+    unknown = [n for n in noises if n not in NOISE_KINDS]
+    if unknown or not noises:
+        raise InputError(f"noises must be among {list(NOISE_KINDS)}, got {list(noises)}")
+    largest = max(check_multiples(multiples))
+    check_simulable(scenario, sequence, sequence_name="the classifier's sequence")
+    if largest <= 1.0:
+        return
+    # The gyro's noise and bias are added to the readings: they never reach the rates.
+    for noise in (n for n in noises if NOISE_FIELDS[n] in DRIVING_FIELDS):
+        field, level = NOISE_FIELDS[noise], noise_level(scenario, noise)
+        try:
+            check_simulable(
+                scenario,
+                sequence,
+                multiples={field: largest},
+                levels={field: level},
+                sequence_name="the classifier's sequence",
+            )
+        except NoiseOverflow as exc:
+            raise NoiseOverflow(
+                f"{noise} noise at multiple {largest:g} ({largest * level:g} "
+                f"{NOISE_UNITS[noise]}), the sweep's largest: {exc}",
+                fields=exc.fields,
+                multiple=exc.multiple,
+                step=exc.step,
+                n_steps=exc.n_steps,
+            ) from None
+
+
 def run_sweep(
     classifier: CandidateClassifier,
     *,
@@ -354,6 +404,7 @@ def run_sweep(
     if unknown or not noises:
         raise InputError(f"noises must be among {list(NOISE_KINDS)}, got {list(noises)}")
     check_multiples(multiples)
+    check_sweep_simulable(scenario, sequence, noises, multiples)
     others = dict(others or {})
     if n_test < scenario.n_candidates:
         raise InputError(f"n_test = {n_test} is fewer than the {scenario.n_candidates} candidates")

@@ -38,6 +38,7 @@ from ..checks import csv_note_text, is_integer
 from ..errors import InputError
 from ..physics.attitude import propagate_attitude, rotation_angle_deg
 from ..physics.scenario import Scenario
+from ..physics.simulable import check_simulable
 from ..physics.simulate import (
     at_gyro_samples,
     check_gyro_range,
@@ -518,6 +519,10 @@ def command_plan(
     duty = scenario.duties(rows)  # (L, N)
     step = scenario.timing.step_duration_s
     run = check_nominal_gyro_range(scenario, rows)
+    if flights:
+        # Flights fly the scenario's noise: one that overflows the rates is named by
+        # its figure before any is flown.
+        check_simulable(scenario, rows, sequence_name="the plan's sequence")
     weak = weak_response_warning(scenario, rows, run)
     settled = settled_rates(scenario, run.omega_true[:, :, -1], run.applied_torque_nm[:, :, -1])
     fine = run.omega_true[:, 0]  # (K, T_fine, 3) at every integration step
