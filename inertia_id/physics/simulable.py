@@ -27,12 +27,13 @@ import numpy as np
 
 from ..errors import InputError
 from .scenario import Scenario, _shown
-from .simulate import SimulationOverflow, Simulator
+from .simulate import SimulationOverflow, Simulator, check_nominal_gyro_range
 
 __all__ = [
     "CHECK_REALISATIONS",
     "CHECK_SEED",
     "DRIVING_FIELDS",
+    "SCENARIO_CHECK_RK4_STEPS",
     "SCENARIO_CHECK_STEPS",
     "NoiseOverflow",
     "check_conditions",
@@ -52,6 +53,9 @@ CHECK_SEED = 0
 #: overflow within it at its own noise serves no job worth running; one that overflows
 #: only on longer sequences is stored, and a job of those is refused when submitted.
 SCENARIO_CHECK_STEPS = 4
+#: The most RK4 steps a flight of that check takes (the simulated response's cap): a
+#: scenario of longer steps is checked on fewer of them, or, past one, when a job asks.
+SCENARIO_CHECK_RK4_STEPS = 1_280
 #: The noise figures that drive the bodies' rates (the gyro's noise and bias are added to
 #: the readings and never reach the dynamics), with their units.
 DRIVING_FIELDS: dict[str, str] = {
@@ -161,19 +165,20 @@ def check_simulable(
         if float(getattr(at.uncertainty, field)) > 0.0
     }
     quiet = {field: 0.0 for field in driving}
+    if overflow_step(_at(at, quiet), rows) is not None:
+        # No noise is to blame: the sequence overflows the bodies with every source of
+        # it off (torques of 1e300 N m, an inertia of 1e-30 kg m^2).
+        raise SimulationOverflow(
+            f"the simulated rates of {sequence_name} {_shown(rows.tolist(), 120)} overflow to "
+            f"inf or nan within {step} of its {len(rows)} steps with every source of noise "
+            "off: the scenario's torques or inertia are likely wrong in units"
+        )
     alone = tuple(
         field
         for field in driving
         if overflow_step(_at(at, {**quiet, field: driving[field]}), rows) is not None
     )
     fields = alone or tuple(driving)
-    if not fields:
-        # Nothing random drives it: the nominal response itself overflows.
-        raise SimulationOverflow(
-            f"the simulated rates of {sequence_name} overflow to inf or nan within {step} of "
-            f"{len(rows)} steps with every source of noise off: the scenario's torques or "
-            "inertia are likely wrong in units"
-        )
 
     def named(field: str) -> str:
         unit = f" {DRIVING_FIELDS[field]}" if DRIVING_FIELDS[field] else ""
@@ -212,16 +217,38 @@ def check_simulable(
 
 def check_scenario_simulable(scenario: Scenario, n_steps: int = SCENARIO_CHECK_STEPS) -> None:
     """Refuse a scenario that cannot be simulated at its own noise: the representative
-    sequence (:func:`representative_sequence`) of ``n_steps`` steps overflows at 1x.
-    What storing a scenario runs (:data:`SCENARIO_CHECK_STEPS`).
+    sequence (:func:`representative_sequence`) of ``n_steps`` steps overflows at 1x
+    because of its noise. What storing a scenario runs (:data:`SCENARIO_CHECK_STEPS`).
+
+    Not refused here: a scenario whose sequence passes any gyro's range or overflows
+    with every noise off (only the ratio of torque to inertia matters, and a gentler
+    sequence may fly; the plan's and the jobs' rules on each sequence decide, README
+    "Scenario"), and the steps past
+    :data:`SCENARIO_CHECK_RK4_STEPS` (hour-long steps: a job of them is checked when it
+    is submitted, after its size).
 
     :raises NoiseOverflow: as :func:`check_simulable` words it.
     """
-    check_simulable(
-        scenario,
-        representative_sequence(scenario, n_steps),
-        sequence_name=f"the hand-designed sequence of scenario {scenario.name!r}",
-    )
+    n_steps = min(int(n_steps), SCENARIO_CHECK_RK4_STEPS // scenario.timing.substeps_per_step)
+    if n_steps < 1:
+        return
+    sequence = representative_sequence(scenario, n_steps)
+    try:
+        check_nominal_gyro_range(scenario, sequence)
+    except SimulationOverflow:
+        # Spun past any gyro's range (or to inf) with the noise off: the inertia or the
+        # torques, not the noise, and the rules on each sequence refuse it.
+        return
+    try:
+        check_simulable(
+            scenario,
+            sequence,
+            sequence_name=f"the hand-designed sequence of scenario {scenario.name!r}",
+        )
+    except NoiseOverflow:
+        raise
+    except SimulationOverflow:
+        return
 
 
 def check_conditions(

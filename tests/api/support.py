@@ -23,9 +23,9 @@ from scenario_support import GOOD_SEQUENCE
 from service_support import clean_env, free_port, tail, wait_for
 from sqlalchemy import create_engine, text
 
-from inertia_id import InertiaClassifier
+from inertia_id import InertiaClassifier, Scenario
 from service.config import Settings
-from service.store import ClassifierRow, Database
+from service.store import ClassifierRow, Database, ScenarioRow
 
 with warnings.catch_warnings():
     # Starlette nudges towards httpx2; the TestClient works the same with httpx.
@@ -204,6 +204,15 @@ class Api:
         assert response.status_code == 201, response.text
         result: dict[str, Any] = response.json()
         return result
+
+    def insert_scenario(self, scenario: Scenario, name: str = "stored before") -> str:
+        """Store a scenario as a row stored by older code is, past the checks that
+        ``POST /scenarios`` runs today."""
+        with self.db.session() as session:
+            row = ScenarioRow(name=name, document=scenario.model_dump(mode="json"))
+            session.add(row)
+            session.flush()
+            return str(row.id)
 
     def submit(self, job_type: str, scenario_id: str, **fields: Any) -> Any:
         return self.post("/jobs", json={"type": job_type, "scenario_id": scenario_id, **fields})

@@ -1455,3 +1455,58 @@ def test_a_search_runs_its_checks_once(
     else:
         assert isinstance(result.exception, Trained), result.output
     assert len(flown) == 1
+
+
+def test_a_scenario_whose_noise_overflows_is_refused_before_anything_runs(
+    tmp_path: Path,
+) -> None:
+    """The service's rule on the command line: a scenario whose own noise overflows the
+    rates (1e4 N m on the paper preset, within its bound) is refused by ``scenario`` and
+    by every command that would simulate it; one whose multiple overflows (3e3 N m at the
+    sweep's 8x, the search's 6x design noise) by the sweep and the search, naming the
+    figure, its value and the multiple. Before, ``scenario`` printed it and the others
+    failed in the middle of their simulation, naming no figure."""
+    field = "disturbance_torque_sigma_nm"
+    paths = {}
+    for name, sigma in (("overflowing", 1e4), ("loud", 3e3)):
+        paths[name] = tmp_path / f"{name}.json"
+        paths[name].write_text(
+            Scenario.paper().with_uncertainty(**{field: sigma}).model_dump_json()
+        )
+    at_1x = f"{field} = 10000 N m at noise multiple 1 (the scenario's own)"
+    overflowing = str(paths["overflowing"])
+    for args in (
+        ["scenario", "--scenario", overflowing],
+        ["train", "--scenario", overflowing, "-n", "5", "--out", str(tmp_path / "c.json")],
+        ["search", "--scenario", overflowing, "--method", "cem", "--out", str(tmp_path / "s.json")],
+        ["simulate", "--scenario", overflowing, "-n", "2"],
+    ):
+        message = refused(args)
+        assert at_1x in message and "inf or nan within" in message, (args, message)
+    assert not (tmp_path / "c.json").exists() and not (tmp_path / "s.json").exists()
+    loud = str(paths["loud"])
+    message = refused(["search", "--scenario", loud, "--out", str(tmp_path / "s.json")])
+    assert "at its design noise" in message and f"{field} = 3000 N m at noise multiple 6" in message
+    classifier = train_classifier(
+        Scenario.model_validate_json(paths["loud"].read_text()),
+        SEQUENCE,
+        5,
+        np.random.default_rng(0),
+        kind="nearest-centroid",
+        metric="euclidean",
+    )
+    classifier.save(tmp_path / "loud-classifier.json")
+    message = refused(
+        [
+            "sweep",
+            "--classifier",
+            str(tmp_path / "loud-classifier.json"),
+            "--multiples",
+            "1,8",
+            "--out",
+            str(tmp_path / "sweep.json"),
+        ]
+    )
+    assert "process noise at multiple 8 (24000 N m)" in message
+    assert f"{field} = 3000 N m at noise multiple 8" in message
+    assert not (tmp_path / "sweep.json").exists()

@@ -1,0 +1,111 @@
+"""A scenario within every per-field bound whose noise still overflows the simulated rates
+is refused when it is given: stored, or asked of by a job, a plan's flights or a response,
+with a 422 naming the noise figure, its value, the multiple and the step by which the rates
+overflow. Before, it was stored, every job on it was accepted (202), queued, and failed
+at run time with ``SimulationOverflow``."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+
+from inertia_id import InertiaClassifier, Scenario
+
+from .support import GOOD_SEQUENCE, Api
+
+#: On the paper preset the rates overflow within 3 of the hand-designed sequence's 4 steps.
+OVERFLOWING_NM = 1e4
+#: Large but finite at 1x on 4 steps (rates of tens of rad/s); 8x of it overflows.
+LOUD_NM = 3e3
+FIELD = "disturbance_torque_sigma_nm"
+
+
+def _one_error(response: Any) -> dict[str, Any]:
+    assert response.status_code == 422, response.text
+    (error,) = response.json()["detail"]
+    assert isinstance(error, dict)
+    return error
+
+
+def test_a_scenario_whose_own_noise_overflows_is_refused_when_stored(
+    api: Api, paper: Scenario
+) -> None:
+    document = paper.model_dump(mode="json")
+    document["uncertainty"][FIELD] = OVERFLOWING_NM
+    bodies = {
+        "overrides": {"preset": "paper", "overrides": {"uncertainty": {FIELD: OVERFLOWING_NM}}},
+        "scenario": {"scenario": document},
+    }
+    for source, body in bodies.items():
+        error = _one_error(api.post("/scenarios", json=body))
+        assert error["loc"] == ["body", source, "uncertainty", FIELD]
+        assert f"{FIELD} = 10000 N m at noise multiple 1" in error["msg"], error
+        assert "inf or nan within" in error["msg"]
+    assert api.get("/scenarios").json()["total"] == 0
+    # Merely large but finite is stored.
+    api.create_scenario(uncertainty={FIELD: LOUD_NM})
+
+
+def test_a_stored_scenario_whose_noise_overflows_is_refused_by_every_job_and_flight(
+    api: Api, paper: Scenario, classifier: InertiaClassifier
+) -> None:
+    """A row stored before the check is kept and shown; what would simulate it is a 422
+    naming the figure, and nothing is queued."""
+    scenario_id = api.insert_scenario(paper.with_uncertainty(**{FIELD: OVERFLOWING_NM}))
+    classifier_id = api.insert_classifier(scenario_id, classifier)
+    answers = {
+        "train": api.submit("train", scenario_id, params={"sequence": GOOD_SEQUENCE}),
+        "sweep": api.submit("sweep", scenario_id, params={"classifier_id": classifier_id}),
+        "search": api.submit("search", scenario_id, params={"method": "cem"}),
+    }
+    for what, response in answers.items():
+        error = _one_error(response)
+        assert error["loc"] == ["uncertainty", FIELD], (what, error)
+        assert f"{FIELD} = 10000 N m at noise multiple 1" in error["msg"], (what, error)
+    assert api.get("/jobs").json()["total"] == 0 and not api.queued_messages()
+    flights = api.post(
+        f"/scenarios/{scenario_id}/plan?flights=20", json={"sequence": GOOD_SEQUENCE}
+    )
+    error = _one_error(flights)
+    assert error["loc"] == ["query", "flights"] and f"{FIELD} = 10000 N m" in error["msg"]
+    response = api.get_with_key(
+        f"/scenarios/{scenario_id}/response", params={"sequence": str(GOOD_SEQUENCE)}
+    )
+    error = _one_error(response)
+    assert error["loc"] == ["query", "n_realisations"] and f"{FIELD} = 10000 N m" in error["msg"]
+    # The nominal plan flies no noise, and the row is still there.
+    assert api.post(f"/scenarios/{scenario_id}/plan", json={"sequence": GOOD_SEQUENCE}).is_success
+    assert api.get(f"/scenarios/{scenario_id}").status_code == 200
+
+
+@pytest.mark.parametrize(
+    ("job", "params", "loc", "named"),
+    [
+        (
+            "sweep",
+            {"multiples": [1, 8]},
+            "multiples",
+            "process noise at multiple 8 (24000 N m), the sweep's largest",
+        ),
+        ("search", {"method": "cem"}, "design_noise", "no search on scenario"),
+    ],
+)
+def test_a_job_whose_noise_multiple_overflows_is_refused_at_the_multiple(
+    api: Api, classifier: InertiaClassifier, job: str, params: dict[str, Any], loc: str, named: str
+) -> None:
+    """The scenario simulates at 1x; the sweep's largest multiple, or the search's design
+    noise (6x process by default), does not."""
+    scenario_id = api.create_scenario(uncertainty={FIELD: LOUD_NM})["id"]
+    if job == "sweep":
+        params = {**params, "classifier_id": api.insert_classifier(scenario_id, classifier)}
+    error = _one_error(api.submit(job, scenario_id, params=params))
+    assert error["loc"] == ["body", "params", loc]
+    assert named in error["msg"] and f"{FIELD} = 3000 N m at noise multiple" in error["msg"]
+    assert api.get("/jobs").json()["total"] == 0 and not api.queued_messages()
+    # At multiples it simulates, the same job is accepted.
+    within = {"multiples": [0.5, 1]} if job == "sweep" else {"design_noise": [[1, 6]]}
+    accepted = api.submit(job, scenario_id, params={**params, **within})
+    assert accepted.status_code == 202, accepted.text
+    trained = api.submit("train", scenario_id, params={"sequence": GOOD_SEQUENCE})
+    assert trained.status_code == 202, trained.text

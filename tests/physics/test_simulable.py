@@ -1,0 +1,110 @@
+"""A scenario within every per-field bound whose noise overflows the simulated rates is
+refused before anything runs (:mod:`inertia_id.physics.simulable`), naming the noise
+figure, its value, the multiple and the step by which the rates overflow; one whose
+rates are merely large is not."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from inertia_id import Scenario, simulate
+from inertia_id.errors import InputError
+from inertia_id.evaluation.sweep import run_sweep
+from inertia_id.physics.simulable import (
+    NoiseOverflow,
+    check_scenario_simulable,
+    check_simulable,
+    overflow_step,
+)
+from inertia_id.physics.simulate import SimulationOverflow
+from inertia_id.pipelines import SearchRequest, TrainRequest, check_search, train_for_sequence
+
+SEQUENCE = [[4, 4, 4, 0, 0, 0]] * 4
+FIELD = "disturbance_torque_sigma_nm"
+
+
+@pytest.fixture(scope="module")
+def overflowing() -> Scenario:
+    """The paper preset at 1e4 N m: a hundredth of the bound, and its rates go to inf."""
+    return Scenario.paper().with_uncertainty(**{FIELD: 1e4})
+
+
+@pytest.fixture(scope="module")
+def loud() -> Scenario:
+    """The paper preset at 3e3 N m: large but finite rates at 1x on 4 steps."""
+    return Scenario.paper().with_uncertainty(**{FIELD: 3e3})
+
+
+def test_the_check_agrees_with_the_simulator_the_jobs_use(
+    overflowing: Scenario, loud: Scenario
+) -> None:
+    with pytest.raises(SimulationOverflow):
+        simulate(overflowing, SEQUENCE, 20, np.random.default_rng(0))
+    assert overflow_step(overflowing, np.asarray(SEQUENCE)) == 3
+    flown = simulate(loud, SEQUENCE, 20, np.random.default_rng(0))
+    assert np.isfinite(flown.omega_measured).all() and np.abs(flown.omega_true).max() > 10.0
+    assert overflow_step(loud, np.asarray(SEQUENCE)) is None
+
+
+def test_a_scenario_that_overflows_at_its_own_noise_is_refused_naming_the_figure(
+    overflowing: Scenario, loud: Scenario
+) -> None:
+    with pytest.raises(NoiseOverflow) as refused:
+        check_scenario_simulable(overflowing)
+    message = str(refused.value)
+    assert f"{FIELD} = 10000 N m at noise multiple 1 (the scenario's own)" in message
+    assert "inf or nan within 3 of the 4 steps" in message
+    assert refused.value.fields == (FIELD,) and refused.value.multiple == 1.0
+    assert isinstance(refused.value, InputError)
+    check_scenario_simulable(loud)  # merely large: stored
+    check_scenario_simulable(Scenario.paper())
+
+
+def test_a_multiple_that_overflows_names_the_multiple_and_the_scaled_value(
+    loud: Scenario,
+) -> None:
+    with pytest.raises(NoiseOverflow) as refused:
+        check_simulable(loud, SEQUENCE, multiples={FIELD: 8})
+    assert f"{FIELD} = 3000 N m at noise multiple 8 (24000 N m)" in str(refused.value)
+    assert refused.value.multiple == 8.0
+    # A sweep's reference level where the scenario states none (thrust scale).
+    with pytest.raises(
+        NoiseOverflow, match=r"thrust_scale_sigma = 0.02 at noise multiple 100000 \(2000\)"
+    ):
+        check_simulable(
+            Scenario.paper(),
+            SEQUENCE,
+            multiples={"thrust_scale_sigma": 1e5},
+            levels={"thrust_scale_sigma": 0.02},
+        )
+
+
+def test_training_refuses_before_its_first_draw(overflowing: Scenario) -> None:
+    with pytest.raises(NoiseOverflow, match=f"{FIELD} = 10000 N m at noise multiple 1"):
+        train_for_sequence(
+            overflowing, TrainRequest(SEQUENCE, kind="nearest-centroid", metric="euclidean"), seed=0
+        )
+
+
+def test_a_search_refuses_at_1x_and_at_its_design_noise(
+    overflowing: Scenario, loud: Scenario
+) -> None:
+    with pytest.raises(NoiseOverflow, match="no search on scenario 'paper' at 1x"):
+        check_search(overflowing, SearchRequest(method="cem"))
+    with pytest.raises(NoiseOverflow, match=r"at its design noise.*at noise multiple 6"):
+        check_search(loud, SearchRequest(method="cem"))
+    check_search(loud, SearchRequest(method="cem", design_noise=((1.0, 6.0),)))
+
+
+def test_a_sweep_refuses_its_largest_multiple_before_its_first_point(loud: Scenario) -> None:
+    from inertia_id import train_classifier
+
+    classifier = train_classifier(
+        loud, SEQUENCE, 5, np.random.default_rng(0), kind="nearest-centroid", metric="euclidean"
+    )
+    points: list[float] = []
+    with pytest.raises(NoiseOverflow, match=r"process noise at multiple 8 \(24000 N m\)"):
+        run_sweep(classifier, multiples=(1, 2, 8), n_test=10, progress=points.append)
+    assert points == []  # refused before the first point was simulated
+    run_sweep(classifier, multiples=(0.5, 1), n_test=10)
