@@ -108,3 +108,20 @@ def test_a_sweep_refuses_its_largest_multiple_before_its_first_point(loud: Scena
         run_sweep(classifier, multiples=(1, 2, 8), n_test=10, progress=points.append)
     assert points == []  # refused before the first point was simulated
     run_sweep(classifier, multiples=(0.5, 1), n_test=10)
+
+
+def test_a_scenario_spun_past_any_gyro_with_its_noise_off_is_left_to_the_sequence_rules() -> None:
+    """Only the ratio of torque to inertia matters, so a scenario whose hand-designed
+    sequence spins a body past any gyro with every noise off is stored (the plan's and the
+    jobs' gyro-range rule refuses each such sequence, README "Scenario"): the storing check
+    does not blame its noise for it. Nor does it fly hour-long steps (a job of them is
+    checked, after its size, when it is submitted)."""
+    document = Scenario.paper().model_dump(mode="json")
+    document["inertia_candidates"][0]["inertia_kg_m2"] = (1e-30 * np.eye(3)).tolist()
+    document["candidate_generator"] = None
+    tiny = Scenario.model_validate(document)
+    check_scenario_simulable(tiny)
+    hourly = Scenario.model_validate(
+        {**Scenario.paper().model_dump(mode="json"), "timing": {"step_duration_s": 3600.0}}
+    )
+    check_scenario_simulable(hourly.with_uncertainty(**{FIELD: 1e4}))
