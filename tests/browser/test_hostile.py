@@ -860,6 +860,73 @@ def test_a_sequence_typed_before_the_default_arrives_is_kept(dashboard: Dashboar
         page.unroute(baselines)
 
 
+def test_a_job_forms_time_limit_is_sent_refused_beside_its_box_and_shown(
+    dashboard: Dashboard,
+) -> None:
+    # The API takes time_limit_s for every job type; the form had no box for it. Empty, it
+    # is not sent (the service's ceiling holds); refused, the 422 is shown beside it.
+    _save_key(dashboard)
+    scenario_id = _scenario(dashboard, ["stowed", "deployed"], "time limits")
+    page = dashboard.page
+    client = dashboard.service.client
+    dashboard.console.expect(r"status of 422")
+    dashboard.open(f"#/jobs?scenario={scenario_id}&type=search")
+    page.select_option("#search-method", "random")
+    page.fill("#search-sequence_length", "2")
+    page.fill("#search-timesteps", "64")
+    page.fill("#search-seed", "x")
+    with page.expect_response(lambda r: r.url.endswith("/jobs")) as sent:
+        page.click("#submit-job")
+    assert "time_limit_s" not in (sent.value.request.post_data_json or {})["params"]
+    page.wait_for_selector("#search-seed + .field-error")
+    page.fill("#search-seed", "3")
+    for typed, said in [("-1", "greater than 0"), ("abc", "valid number")]:
+        page.fill("#search-time_limit_s", typed)
+        with page.expect_response(lambda r: r.url.endswith("/jobs")) as sent:
+            page.click("#submit-job")
+        assert sent.value.status == 422
+        locs = [e["loc"] for e in sent.value.json()["detail"]]
+        assert locs == [["body", "params", "time_limit_s"]], locs
+        shown = page.wait_for_selector("#search-time_limit_s + .field-error").inner_text()
+        assert said in shown, (typed, shown)
+    page.fill("#search-time_limit_s", "30")
+    page.click("#submit-job")
+    page.wait_for_url(re.compile(r"#/jobs/[^?]+"))
+    job_id = page.url.split("#/jobs/")[1].split("?")[0]
+    client.post(f"/jobs/{job_id}/cancel")
+    assert client.get(f"/jobs/{job_id}").json()["params"]["time_limit_s"] == 30
+    assert page.wait_for_selector("#job-time-limit").inner_text() == "30 s (asked)"
+
+    # A training past its limit fails naming it: the page says it stopped on it.
+    def timed_out(route: Any) -> None:
+        answer = route.fetch()
+        job = answer.json()
+        job["status"], job["error"] = "failed", "the job exceeded its time limit of 30 s"
+        route.fulfill(response=answer, body=json.dumps(job))
+
+    pattern = f"**/jobs/{job_id}"
+    page.route(pattern, timed_out)
+    try:
+        dashboard.open(f"#/jobs/{job_id}?again=1")
+        shown = page.wait_for_selector("#job-time-limit").inner_text()
+        assert shown == "30 s (asked); stopped on it", shown
+    finally:
+        page.unroute(pattern)
+
+    # The train and sweep forms have the box too; more than the service's ceiling is
+    # refused with the service's words beside it.
+    dashboard.open(f"#/jobs?scenario={scenario_id}&type=train")
+    page.wait_for_function("document.querySelector('#train-sequence').value !== ''")
+    page.fill("#train-time_limit_s", "1e9")
+    with page.expect_response(lambda r: r.url.endswith("/jobs")) as sent:
+        page.click("#submit-job")
+    assert sent.value.request.post_data_json["params"]["time_limit_s"] == 1e9
+    shown = page.wait_for_selector("#train-time_limit_s + .field-error").inner_text()
+    assert "ceiling" in shown, shown
+    page.click("#tab-sweep")
+    assert page.is_visible("#sweep-time_limit_s")
+
+
 def test_the_parameters_a_sequence_cannot_see_are_one_it_or_several_them(
     dashboard: Dashboard,
 ) -> None:

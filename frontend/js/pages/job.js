@@ -8,7 +8,7 @@ import { REUSED_KEY, cancelButton, labelEditor, reusedNotice, timingCell } from 
 import { whenKeyed } from "../components/keyed.js";
 import { BAND, BestSoFar, DEG_PER_RAD, PLOT_CONFIG, extendWith, fitFlatSeries, keepTwins, layout, plotDiv, polishMarks, polishStart, responseView, sequencePlot, title, twinAxes, twinTraces } from "../components/plots.js";
 import { isTerminal } from "../vocabulary.js";
-import { clear, fmt, h, link, messageBox, progressBar, put, quantity, rateDeg, rateRad, score, sequenceText, statusBadge, table, tagChips, utcText, warningsBox, whenText } from "../ui.js";
+import { clear, fmt, h, link, messageBox, plain, progressBar, put, quantity, rateDeg, rateRad, score, sequenceText, statusBadge, table, tagChips, utcText, warningsBox, whenText } from "../ui.js";
 import { renderClassifier } from "../views/classifier.js";
 import { frontPanel } from "../views/front.js";
 import { sweepPanel } from "../views/sweep.js";
@@ -43,12 +43,24 @@ function drawHeader(header, job, scenarioName, onLabels, notice) {
       h("dd", {}, whenText(job.finished_at)),
       h("dt", {}, "worker, runs"),
       h("dd", { id: "job-runs" }, `${job.worker || "–"}, ${runsText(job)}`),
+      h("dt", {}, "time limit"),
+      h("dd", { id: "job-time-limit" }, timeLimitText(job)),
       ...lostRuns(job.attempt_history || []),
     ),
     h("details", {}, h("summary", {}, "name and tags"), labelEditor(job, onLabels)),
     h("details", {}, h("summary", {}, "parameters"), h("pre", { class: "mono" }, JSON.stringify(job.params, null, 2))),
     job.result ? downloads("job-downloads", jobDownloads(job), { label: "Download the result" }) : null,
   );
+}
+
+// "600 s (asked); stopped on it" or "the service's ceiling": a search or sweep past its
+// limit succeeds with what it had (result.stopped), a training fails naming the limit
+// (the worker's "the job exceeded its time limit of … s").
+function timeLimitText(job) {
+  const asked = job.params ? job.params.time_limit_s : null;
+  const limit = typeof asked === "number" ? `${plain(asked)} s (asked)` : "the service's ceiling";
+  const stopped = (job.result && job.result.stopped === "time_limit") || (job.status === "failed" && /exceeded its time limit/.test(job.error || ""));
+  return stopped ? `${limit}; stopped on it` : limit;
 }
 
 // "3 runs: 2 handed back, 1 counted": a hand-back (a worker told to stop) costs no

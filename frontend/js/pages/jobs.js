@@ -57,6 +57,17 @@ function constraintsOrText(input) {
   return out;
 }
 
+// A number as the service should see it, else the text itself (quoted by its 422).
+function numberOrText(text) {
+  const trimmed = String(text).trim();
+  return trimmed && Number.isFinite(Number(trimmed)) ? Number(trimmed) : trimmed;
+}
+
+// The job's time limit box: left out when empty, so the service's ceiling holds.
+const timeLimitBox = () => h("input", { value: "", size: 8, placeholder: "the ceiling" });
+const timeLimit = (input) => (input.value.trim() ? { time_limit_s: numberOrText(input.value) } : {});
+const TIME_LIMIT_HINT = "wall-clock seconds; empty: the service's ceiling (INERTIA_ID_JOB_TIME_LIMIT_S)";
+
 function field(id, label, input, hint = "") {
   input.id = id;
   return [h("label", { for: id }, label), h("div", {}, input, hint ? h("span", { class: "hint" }, ` ${hint}`) : null)];
@@ -110,6 +121,7 @@ function submitForm(scenarios, classifiers, query) {
     design_noise: h("input", { value: JSON.stringify(vocabulary().default_design_noise), size: 24 }),
     constraints: h("input", { value: "", size: 48, placeholder: "max_final_rate_deg_s=0.2, max_impulse_nms=20" }),
     seed: h("input", { value: 0, size: 8 }),
+    time_limit_s: timeLimitBox(),
   };
   const chosenObjectives = () => [...search.objectives.querySelectorAll("input:checked")].map((i) => i.value);
   const searchBody = () => ({
@@ -132,6 +144,7 @@ function submitForm(scenarios, classifiers, query) {
       // refused every search, CEM and PPO too ("Input should be a valid list, got ''").
       ...(search.design_noise.value.trim() ? { design_noise: jsonBox(search.design_noise, "design noise", ["body", "params", "design_noise"]) } : {}),
       constraints: constraintsOrText(search.constraints),
+      ...timeLimit(search.time_limit_s),
     },
   });
 
@@ -149,6 +162,7 @@ function submitForm(scenarios, classifiers, query) {
     metric: h("select", {}, [h("option", { value: "" }, "default (dtw where it applies)"), ...["dtw", "euclidean", "softdtw"].map((m) => h("option", { value: m }, m))]),
     n_realisations: h("input", { value: "", size: 6, placeholder: "default" }),
     seed: h("input", { value: 0, size: 8 }),
+    time_limit_s: timeLimitBox(),
   };
   // The core's hand-designed baseline for the chosen scenario's thrusters (a baseline
   // the thrusters do not allow comes as {unavailable: why}: the field is left alone).
@@ -186,6 +200,7 @@ function submitForm(scenarios, classifiers, query) {
       kind: train.kind.value,
       ...(train.metric.value ? { metric: train.metric.value } : {}),
       ...(train.n_realisations.value.trim() ? { n_realisations: intOrText(train.n_realisations.value) } : {}),
+      ...timeLimit(train.time_limit_s),
     },
   });
 
@@ -201,6 +216,7 @@ function submitForm(scenarios, classifiers, query) {
     n_train: h("input", { value: 20, size: 6 }),
     n_test: h("input", { value: 200, size: 8 }),
     seed: h("input", { value: 0, size: 8 }),
+    time_limit_s: timeLimitBox(),
   };
   const fillClassifiers = () => {
     clear(sweep.classifier);
@@ -231,6 +247,7 @@ function submitForm(scenarios, classifiers, query) {
       inertia: sweep.inertia.checked,
       ...(sweep.limit.checked ? {} : { ceiling_realisations: 0 }),
       n_test: intOrText(sweep.n_test.value),
+      ...timeLimit(sweep.time_limit_s),
     },
   });
 
@@ -254,6 +271,7 @@ function submitForm(scenarios, classifiers, query) {
         field("search-design_noise", "design noise", search.design_noise, "[process multiple, gyro multiple] pairs at which accuracy is predicted (their mean)"),
         field("search-constraints", "constraints", search.constraints, `name=bound, comma-separated: ${vocabulary().constraints.map((c) => c.name).join(", ")}`),
         field("search-seed", "seed", search.seed),
+        field("search-time_limit_s", "time limit (s)", search.time_limit_s, TIME_LIMIT_HINT),
       ),
       searchBody,
       { ...search, scenario_id: search.scenario },
@@ -268,6 +286,7 @@ function submitForm(scenarios, classifiers, query) {
         field("train-metric", "metric", train.metric, `${vocabulary().classifier_kinds.filter((k) => k.metrics.length).map((k) => k.kind).join(", ")} only`),
         field("train-n_realisations", "realisations", train.n_realisations, `per candidate (default: ${vocabulary().classifier_kinds.map((k) => `${k.kind} ${k.default_realisations}`).join(", ")})`),
         field("train-seed", "seed", train.seed),
+        field("train-time_limit_s", "time limit (s)", train.time_limit_s, TIME_LIMIT_HINT),
       ),
       trainBody,
       { ...train, scenario_id: train.scenario },
@@ -286,6 +305,7 @@ function submitForm(scenarios, classifiers, query) {
         [h("span", {}, "off the candidates"), h("label", { class: "check" }, sweep.inertia, " also test scaled and in-between bodies: is the answer \"matches none\"?")],
         field("sweep-n_test", "test series", sweep.n_test, "per point, over all candidates"),
         field("sweep-seed", "seed", sweep.seed),
+        field("sweep-time_limit_s", "time limit (s)", sweep.time_limit_s, TIME_LIMIT_HINT),
       ),
       sweepBody,
       { ...sweep, ...sweep.noises, ...sweep.others, classifier_id: sweep.classifier },
