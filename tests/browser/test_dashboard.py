@@ -1173,6 +1173,58 @@ def test_the_sweep_page_says_which_classifier_lies_above_the_ceilings_interval(
     assert f"at {first['noise']} ×{first['multiple']:g}" in check and "least-squares" not in check
 
 
+def test_a_sweep_chosen_on_a_classifier_page_is_not_drawn_over_by_a_slower_earlier_choice(
+    dashboard: Dashboard,
+) -> None:
+    # The classifier page's sweep menu drew whichever sweep's GET /jobs/{id} answered last:
+    # a slow answer for an earlier choice was drawn over the one chosen after it (the
+    # menu named one sweep, the panel showed the other). The earlier one's answer is held
+    # here until the later one is drawn, and then comes back saying it failed.
+    client = dashboard.service.client
+    scenario = client.post("/scenarios", json={"preset": "paper"}).json()["id"]
+    params = {"sequence": GOOD, "kind": "nearest-centroid", "metric": "euclidean"}
+    classifier = _trained(dashboard, scenario, {**params, "n_realisations": 5}, seed=7)
+    sweeps = []
+    for seed in (1, 2):
+        body = {"classifier_id": classifier, "multiples": [1], "n_test": 20}
+        answer = client.post(
+            "/jobs", json={"type": "sweep", "scenario_id": scenario, "seed": seed, "params": body}
+        )
+        assert answer.status_code == 202, answer.text
+        sweeps.append(answer.json()["id"])
+        client.post(f"/jobs/{sweeps[-1]}/cancel")
+    page = dashboard.page
+    dashboard.open(f"#/classifiers/{classifier}")
+    page.wait_for_selector("#sweep-select option >> nth=1", state="attached")
+    later = page.input_value("#sweep-select")
+    earlier = next(s for s in sweeps if s != later)
+    held: list[Any] = []
+    pattern = f"**/jobs/{earlier}"
+    page.route(pattern, lambda route: held.append(route))
+    try:
+        page.select_option("#sweep-select", earlier)
+        page.wait_for_function("() => true")  # a round trip: the route handler has run
+        assert len(held) == 1, held
+        with page.expect_response(lambda r: r.url.endswith(f"/jobs/{later}")):
+            page.select_option("#sweep-select", later)
+        page.wait_for_function("() => document.querySelector('#sweep-state')?.textContent")
+        slow = held.pop()
+        answer = slow.fetch()
+        job = answer.json()
+        job["status"], job["error"], job["result"] = "failed", "the earlier choice's answer", None
+        with page.expect_response(lambda r: r.url.endswith(f"/jobs/{earlier}")):
+            slow.fulfill(response=answer, body=json.dumps(job))
+        # The page's handler of that answer runs before the next task: a round trip.
+        page.evaluate("() => new Promise((done) => setTimeout(done, 100))")
+        assert page.locator("#sweep-state").count() == 1
+        assert "the earlier choice's answer" not in page.inner_text("#sweep-state")
+        assert page.input_value("#sweep-select") == later
+        href = page.get_attribute("#sweep-job-link", "href")
+        assert href == f"#/jobs/{later}", href
+    finally:
+        page.unroute(pattern)
+
+
 def test_identify_telemetry_files_verdict_distances_and_matches_none(
     dashboard: Dashboard, tmp_path: Path
 ) -> None:

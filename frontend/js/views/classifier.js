@@ -159,22 +159,33 @@ async function sweepsOf(card, classifier, context, sweepId) {
   );
   const holder = h("div");
   const compareLink = link(`#/compare?type=classifier&ids=${classifier.id}`, "compare with other classifiers");
-  card.append(h("div", { class: "toolbar" }, h("label", { for: "sweep-select" }, "sweep"), select, link(`#/jobs/${chosen.id}`, "job page"), compareLink), holder);
-  const show = async (job) => {
+  const jobLink = link(`#/jobs/${chosen.id}`, "job page", { id: "sweep-job-link" });
+  card.append(h("div", { class: "toolbar" }, h("label", { for: "sweep-select" }, "sweep"), select, jobLink, compareLink), holder);
+  // Only the sweep chosen last is drawn, and only its poll runs: a slow answer for one
+  // chosen before it was drawn over it (the menu named one sweep, the panel showed
+  // another), and the poll of every sweep once shown went on.
+  let asked = 0;
+  let timer = null;
+  const show = async (id) => {
+    const mine = ++asked;
+    clearInterval(timer);
+    // The list sends no results: the chosen sweep's comes with the job itself.
+    const job = await api.job(id);
+    if (mine !== asked || !context.alive()) return;
     clear(holder);
+    jobLink.setAttribute("href", `#/jobs/${job.id}`);
     const panel = await sweepPanel(holder, job, classifier, context);
-    if (!isTerminal(job.status)) {
-      const timer = setInterval(async () => {
-        if (!context.alive()) return clearInterval(timer);
-        const fresh = await api.job(job.id).catch(() => null);
-        if (!fresh) return;
-        await panel.update(fresh);
-        if (isTerminal(fresh.status)) clearInterval(timer);
-      }, 2000);
-    }
+    if (mine !== asked || isTerminal(job.status)) return;
+    const polling = setInterval(async () => {
+      if (!context.alive() || mine !== asked) return clearInterval(polling);
+      const fresh = await api.job(job.id).catch(() => null);
+      if (!fresh || mine !== asked) return;
+      await panel.update(fresh);
+      if (isTerminal(fresh.status)) clearInterval(polling);
+    }, 2000);
+    timer = polling;
   };
-  select.addEventListener("change", async () => show(await api.job(select.value)));
-  // The list sends no results: the chosen sweep's comes with the job itself.
-  await show(await api.job(chosen.id));
+  select.addEventListener("change", () => show(select.value));
+  await show(chosen.id);
 }
 
