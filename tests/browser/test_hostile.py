@@ -341,6 +341,66 @@ def test_a_job_page_says_when_the_service_stops_answering(dashboard: Dashboard) 
     page.wait_for_function("() => !document.querySelector('#poll-state .message')")
 
 
+def _as_running(answer: Any) -> str:
+    """A job's answer as a job still running would give it (the page keeps polling)."""
+    job = answer.json()
+    job["status"], job["finished_at"], job["result"] = "running", None, None
+    return json.dumps(job)
+
+
+def test_labels_saved_while_a_poll_is_answered_are_not_put_back_by_its_answer(
+    dashboard: Dashboard,
+) -> None:
+    # A running job's page polls GET /jobs/{id}. A poll sent before the labels were saved
+    # and answered after drew the old name and tags back into the header. That poll is
+    # held here (answered with the job as it was before) until the save has been drawn.
+    _save_key(dashboard)
+    scenario_id = _scenario(dashboard, ["stowed", "deployed"], "labels and polls")
+    job_id = _queued_search(dashboard, scenario_id, "before the save")
+    page = dashboard.page
+    held: list[Any] = []
+    holding = [False]
+
+    def running(route: Any) -> None:
+        if route.request.method != "GET":
+            route.continue_()
+        elif holding[0]:
+            held.append(route)
+        else:
+            answer = route.fetch()
+            route.fulfill(response=answer, body=_as_running(answer))
+
+    pattern = f"**/jobs/{job_id}"
+    page.route(pattern, running)
+    try:
+        dashboard.open(f"#/jobs/{job_id}")
+        page.wait_for_selector("#job-name", state="attached")
+        holding[0] = True
+        with page.expect_request(lambda r: r.url.endswith(f"/jobs/{job_id}")):
+            pass
+        page.wait_for_function("() => true")  # a round trip: the route handler has run
+        assert len(held) == 1, held
+        holding[0] = False
+        slow = held.pop()
+        answer = slow.fetch()  # the job as it was before the save
+        page.click("#job-header summary >> text=name and tags")
+        page.fill("#job-name", "after the save")
+        page.fill("#job-tags", "saved")
+        page.click("#save-labels")
+        page.wait_for_function(
+            "() => document.querySelector('h1').textContent.includes('after the save')"
+        )
+        assert answer.json()["name"] == "before the save"
+        with page.expect_response(lambda r: r.url.endswith(f"/jobs/{job_id}")):
+            slow.fulfill(response=answer, body=_as_running(answer))
+        # The page's handler of that answer runs before the next task: a round trip.
+        page.evaluate("() => new Promise((done) => setTimeout(done, 100))")
+        assert page.input_value("#job-name") == "after the save"
+        assert page.inner_text("#job-header .tag") == "saved"
+    finally:
+        page.unroute(pattern)
+
+
 def test_compare_names_ids_it_does_not_know(dashboard: Dashboard) -> None:
     dashboard.console.expect("status of 404")
     dashboard.open("#/compare?type=search&ids=zzz")

@@ -110,7 +110,11 @@ export async function render(root, context) {
   const named = () => {
     heading.replaceChildren(`${job.name ? `${job.name} · ` : ""}${job.type[0].toUpperCase()}${job.type.slice(1)} job `, h("code", {}, job.id.slice(0, 8)));
   };
+  // Labels saved while a poll was answered outdate its answer: it held the old ones, and
+  // drawn after the save it put them back in the header until the next poll.
+  let saves = 0;
   const onLabels = (saved) => {
+    saves += 1;
     job = saved;
     named();
     redraw();
@@ -125,8 +129,9 @@ export async function render(root, context) {
   let done = isTerminal(job.status);
   const tick = async () => {
     if (done) return;
+    const before = saves;
     const fresh = await api.job(id);
-    if (!context.alive()) return;
+    if (!context.alive() || saves !== before) return;
     const labelsOpen = header.querySelector("details[open] #labels-form");
     job = fresh;
     done = isTerminal(job.status);
