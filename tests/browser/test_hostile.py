@@ -401,6 +401,37 @@ def test_labels_saved_while_a_poll_is_answered_are_not_put_back_by_its_answer(
         page.unroute(pattern)
 
 
+def test_a_running_jobs_parameters_opened_stay_open_through_its_polls(
+    dashboard: Dashboard,
+) -> None:
+    # A running job's header is drawn again at every poll: the "parameters" the user had
+    # opened closed every 2 s.
+    _save_key(dashboard)
+    scenario_id = _scenario(dashboard, ["stowed", "deployed"], "open parameters")
+    job_id = _queued_search(dashboard, scenario_id, "parameters read")
+    page = dashboard.page
+
+    def running(route: Any) -> None:
+        answer = route.fetch()
+        route.fulfill(response=answer, body=_as_running(answer))
+
+    pattern = f"**/jobs/{job_id}"
+    page.route(pattern, running)
+    try:
+        dashboard.open(f"#/jobs/{job_id}")
+        page.click("#job-header summary >> text=parameters")
+        assert page.is_visible("#job-header pre")
+        for _ in range(2):
+            with page.expect_response(lambda r: r.url.endswith(f"/jobs/{job_id}")):
+                pass
+            # The page's handler of that answer runs before the next task: a round trip.
+            page.evaluate("() => new Promise((done) => setTimeout(done, 100))")
+        assert page.is_visible("#job-header pre")
+        assert '"method": "random"' in page.inner_text("#job-header pre")
+    finally:
+        page.unroute(pattern)
+
+
 def test_compare_names_ids_it_does_not_know(dashboard: Dashboard) -> None:
     dashboard.console.expect("status of 404")
     dashboard.open("#/compare?type=search&ids=zzz")

@@ -18,7 +18,10 @@ const RAD_TO_DEG = 180 / Math.PI;
 
 // `notice`: what the cancel button says (a refusal, the key it needs), kept across the
 // redraws of a running job's header.
+// The parts the user opened ("parameters", "name and tags") stay open: a running job's
+// header is drawn again at every poll, and closed them every 2 s.
 function drawHeader(header, job, scenarioName, onLabels, notice) {
+  const opened = new Set([...header.querySelectorAll("details[open]")].map((d) => d.id));
   clear(header);
   const cancel = cancelButton(job, notice, () => {}, { id: "cancel-job", text: "Cancel job" });
   put(
@@ -47,8 +50,8 @@ function drawHeader(header, job, scenarioName, onLabels, notice) {
       h("dd", { id: "job-time-limit" }, timeLimitText(job)),
       ...lostRuns(job.attempt_history || []),
     ),
-    h("details", {}, h("summary", {}, "name and tags"), labelEditor(job, onLabels)),
-    h("details", {}, h("summary", {}, "parameters"), h("pre", { class: "mono" }, JSON.stringify(job.params, null, 2))),
+    h("details", { id: "job-labels", open: opened.has("job-labels") }, h("summary", {}, "name and tags"), labelEditor(job, onLabels)),
+    h("details", { id: "job-parameters", open: opened.has("job-parameters") }, h("summary", {}, "parameters"), h("pre", { class: "mono" }, JSON.stringify(job.params, null, 2))),
     job.result ? downloads("job-downloads", jobDownloads(job), { label: "Download the result" }) : null,
   );
 }
@@ -117,6 +120,9 @@ export async function render(root, context) {
     saves += 1;
     job = saved;
     named();
+    // Saved, the editor closes, and the polls draw the header again (an open one they leave).
+    const editor = header.querySelector("#job-labels");
+    if (editor) editor.open = false;
     redraw();
   };
   const cancelNotice = h("div", { id: "cancel-notice" });
