@@ -1347,6 +1347,55 @@ def test_identify_reads_a_gzip_file_and_sends_it_compressed(
     assert page.input_value("#telemetry-text") == ""
 
 
+def test_identify_keeps_the_file_chosen_last_and_what_was_typed_over_a_slow_read(
+    dashboard: Dashboard,
+) -> None:
+    """A file is read into the box when chosen. A slow read (a large gzip file) landed
+    over the file chosen after it, or over telemetry typed meanwhile. The page's read of
+    "slow.csv" is held here until the next file, or the typing, has landed."""
+    client = dashboard.service.client
+    scenario = client.post("/scenarios", json={"preset": "paper"}).json()["id"]
+    params = {"sequence": GOOD, "kind": "nearest-centroid", "metric": "euclidean"}
+    classifier = _trained(dashboard, scenario, {**params, "n_realisations": 5}, seed=7)
+    page = dashboard.page
+    dashboard.open(f"#/identify?classifier={classifier}")
+    # A file named slow.csv is read only once window.releaseSlow() is called.
+    page.evaluate(
+        """() => {
+          const read = Blob.prototype.text;
+          Blob.prototype.text = function () {
+            if (this.name !== "slow.csv") return read.call(this);
+            return new Promise((done) => {
+              window.releaseSlow = () => done(read.call(this));
+            });
+          };
+        }"""
+    )
+
+    def csv(name: str, text: str) -> dict[str, Any]:
+        return {"name": name, "mimeType": "text/csv", "buffer": text.encode()}
+
+    held = "time_s,wx_rad_s,wy_rad_s,wz_rad_s\n0.05,1,1,1\n"
+    chosen = "time_s,wx_rad_s,wy_rad_s,wz_rad_s\n0.05,2,2,2\n"
+    page.set_input_files("#telemetry-file", csv("slow.csv", held))
+    page.wait_for_function("() => typeof window.releaseSlow === 'function'")
+    page.set_input_files("#telemetry-file", csv("fast.csv", chosen))
+    page.wait_for_function(
+        "text => document.getElementById('telemetry-text').value === text", arg=chosen
+    )
+    page.evaluate("() => { window.releaseSlow(); delete window.releaseSlow; }")
+    # The page's handler of that read runs before the next task: a round trip.
+    page.evaluate("() => new Promise((done) => setTimeout(done, 100))")
+    assert page.input_value("#telemetry-text") == chosen
+
+    page.set_input_files("#telemetry-file", csv("slow.csv", held))
+    page.wait_for_function("() => typeof window.releaseSlow === 'function'")
+    page.fill("#telemetry-text", "typed while it was read")
+    page.evaluate("() => window.releaseSlow()")
+    page.evaluate("() => new Promise((done) => setTimeout(done, 100))")
+    assert page.input_value("#telemetry-text") == "typed while it was read"
+
+
 def test_identify_says_the_gyro_averages_when_ticked(dashboard: Dashboard) -> None:
     """The "averaging gyro" box sends ``averaged=true`` with the telemetry (an integrating
     gyro's rates are read at their intervals' midpoints): the page shows the service's

@@ -131,19 +131,35 @@ export async function render(root, context) {
   // A gzip file chosen and the text it holds: sent as chosen (compressed) while the text
   // is not edited.
   let gzipped = null;
+  // A file's text lands only if it is still the file chosen last and nothing was typed in
+  // the box since it was chosen: a large (gzip) file read slowly landed over the file
+  // chosen after it, or over what was typed meanwhile.
+  let chosenCount = 0;
+  let typed = false;
+  text.addEventListener("input", () => {
+    typed = true;
+  });
   file.addEventListener("change", async () => {
+    const mine = ++chosenCount;
+    typed = false;
     gzipped = null;
     clear(general);
     if (!file.files.length) return;
     const chosen = file.files[0];
+    const current = () => mine === chosenCount && !typed && context.alive();
     try {
       if (await isGzip(chosen)) {
-        text.value = await gunzipText(chosen);
+        const unpacked = await gunzipText(chosen);
+        if (!current()) return;
+        text.value = unpacked;
         gzipped = { file: chosen, text: text.value };
       } else {
-        text.value = await chosen.text();
+        const read = await chosen.text();
+        if (!current()) return;
+        text.value = read;
       }
     } catch (exc) {
+      if (!current()) return;
       text.value = "";
       general.append(messageBox("error", exc.message));
     }
