@@ -851,6 +851,53 @@ def test_a_scenarios_propulsion_is_shown_and_kept_by_a_clone_and_an_upload(
     assert "not stated" in page.wait_for_selector("#propulsion").inner_text()
 
 
+#: Holds the page's read of a file named slow.*: it is read once window.releaseSlow()
+#: is called (as a large file, read slowly, would be).
+HOLD_SLOW_READS = """() => {
+  const read = Blob.prototype.text;
+  Blob.prototype.text = function () {
+    if (!String(this.name).startsWith("slow.")) return read.call(this);
+    return new Promise((done) => {
+      window.releaseSlow = () => done(read.call(this));
+    });
+  };
+}"""
+
+
+def test_a_scenario_file_read_slowly_does_not_land_over_a_later_choice_or_typing(
+    dashboard: Dashboard,
+) -> None:
+    """A scenario file's document fills the form when read: a slow read landed over the
+    file chosen after it, a preset loaded after it, or what was typed meanwhile."""
+    page = dashboard.page
+    document = dashboard.service.client.get("/scenarios/presets").json()["paper"]
+
+    def named(file: str, name: str) -> dict[str, Any]:
+        text = json.dumps(dict(document, name=name))
+        return {"name": file, "mimeType": "application/json", "buffer": text.encode()}
+
+    dashboard.open("#/scenarios/new")
+    page.wait_for_selector("#scenario-name")
+    page.evaluate(HOLD_SLOW_READS)
+    page.set_input_files("#scenario-file", named("slow.json", "read slowly"))
+    page.wait_for_function("() => typeof window.releaseSlow === 'function'")
+    page.set_input_files("#scenario-file", named("fast.json", "chosen after it"))
+    page.wait_for_function(
+        "() => document.getElementById('scenario-name').value === 'chosen after it'"
+    )
+    page.evaluate("() => { window.releaseSlow(); delete window.releaseSlow; }")
+    # The page's handler of that read runs before the next task: a round trip.
+    page.evaluate("() => new Promise((done) => setTimeout(done, 100))")
+    assert page.input_value("#scenario-name") == "chosen after it"
+
+    page.set_input_files("#scenario-file", named("slow.json", "read slowly"))
+    page.wait_for_function("() => typeof window.releaseSlow === 'function'")
+    page.fill("#scenario-name", "typed while it was read")
+    page.evaluate("() => window.releaseSlow()")
+    page.evaluate("() => new Promise((done) => setTimeout(done, 100))")
+    assert page.input_value("#scenario-name") == "typed while it was read"
+
+
 def test_a_search_curve_gains_points_while_ppo_runs(dashboard: Dashboard) -> None:
     _scenario(dashboard)
     page = dashboard.page
@@ -1359,18 +1406,7 @@ def test_identify_keeps_the_file_chosen_last_and_what_was_typed_over_a_slow_read
     classifier = _trained(dashboard, scenario, {**params, "n_realisations": 5}, seed=7)
     page = dashboard.page
     dashboard.open(f"#/identify?classifier={classifier}")
-    # A file named slow.csv is read only once window.releaseSlow() is called.
-    page.evaluate(
-        """() => {
-          const read = Blob.prototype.text;
-          Blob.prototype.text = function () {
-            if (this.name !== "slow.csv") return read.call(this);
-            return new Promise((done) => {
-              window.releaseSlow = () => done(read.call(this));
-            });
-          };
-        }"""
-    )
+    page.evaluate(HOLD_SLOW_READS)
 
     def csv(name: str, text: str) -> dict[str, Any]:
         return {"name": name, "mimeType": "text/csv", "buffer": text.encode()}

@@ -254,16 +254,25 @@ export async function renderNew(root, context) {
     clear(formCard);
     formCard.append(h("h2", {}, "Or set every field"), buildForm(doc, general, suffix));
   };
+  // A file's document fills the form only if nothing was loaded, chosen or typed since
+  // the file was chosen: a slow read landed over a file or preset chosen after it, or
+  // over what was typed in the form meanwhile.
+  let choices = 0;
+  for (const event of ["input", "change"]) formCard.addEventListener(event, () => (choices += 1));
   const uploadErrors = h("div", { id: "upload-errors" });
   const upload = h("input", { type: "file", id: "scenario-file", accept: ".json,application/json" });
   upload.addEventListener("change", async () => {
+    const mine = ++choices;
     clear(uploadErrors);
     if (!upload.files.length) return;
     const file = upload.files[0];
     let doc;
     try {
-      doc = JSON.parse(await file.text());
+      const text = await file.text();
+      if (mine !== choices || !context.alive()) return;
+      doc = JSON.parse(text);
     } catch (exc) {
+      if (mine !== choices) return;
       uploadErrors.append(messageBox("error", `${file.name} is not JSON: ${exc.message}`));
       return;
     }
@@ -280,7 +289,13 @@ export async function renderNew(root, context) {
     "div",
     { class: "toolbar" },
     h("span", { class: "hint" }, "The form starts from a preset:"),
-    names.map((n) => h("button", { type: "button", class: "secondary", onclick: () => fill(presets[n]) }, `load ${n}`)),
+    names.map((n) => {
+      const load = () => {
+        choices += 1;
+        fill(presets[n]);
+      };
+      return h("button", { type: "button", class: "secondary", onclick: load }, `load ${n}`);
+    }),
     h("label", { for: "scenario-file" }, "or a scenario file (JSON, as inertia-id scenario --out writes):"),
     upload,
   );
