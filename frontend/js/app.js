@@ -134,8 +134,15 @@ function keyBox() {
     // beside "saved", as if there were none, and Check and save on the empty box forgets it.
     input.placeholder = getApiKey() ? "saved: type another to replace it" : "needed to submit";
   };
+  // Only the key entered last is answered, and the box is emptied (or its text selected)
+  // only while it still holds the key checked: a check answered after the next key was
+  // entered said "wrong key" over the later one's "saved", or saved the older key, and
+  // an answer that came while the user typed on emptied the box or selected the text
+  // (the next keystroke replaced it).
+  let checks = 0;
   form.addEventListener("submit", async (event) => {
     event.preventDefault();
+    const mine = ++checks;
     const key = input.value.trim();
     if (!key) {
       setApiKey("");
@@ -143,15 +150,18 @@ function keyBox() {
       return;
     }
     show("checking…");
+    const unchanged = () => input.value.trim() === key;
     try {
       await api.checkKey(key);
     } catch (exc) {
+      if (mine !== checks) return;
       show(exc.status === 401 ? "wrong key: not saved" : `not checked: ${exc.message}`, true);
-      input.select();
+      if (unchanged()) input.select();
       return;
     }
+    if (mine !== checks) return;
     setApiKey(key);
-    input.value = "";
+    if (unchanged()) input.value = "";
     show();
   });
   window.addEventListener("api-key-rejected", () => show("saved key refused: enter the current one", true));

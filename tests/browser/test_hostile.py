@@ -245,6 +245,49 @@ def test_a_refused_key_says_what_to_do_in_the_form_and_in_the_key_box(
     _save_key(dashboard)
 
 
+@pytest.mark.without_api_key
+def test_a_key_checked_slowly_keeps_what_is_typed_next_and_the_later_keys_answer(
+    dashboard: Dashboard,
+) -> None:
+    # The key box checks a key (GET /auth/check) before saving it. A slow answer emptied
+    # the box the user had gone on typing in, and an answer for a key entered before the
+    # last one said "wrong key" over the later one's "saved". The checks are held here.
+    dashboard.console.expect("status of 401")
+    page = dashboard.page
+    dashboard.open("#/scenarios")
+    held: list[Any] = []
+    page.route("**/auth/check", lambda route: held.append(route))
+
+    def enter(key: str) -> Any:
+        page.fill("#api-key", key)
+        page.press("#api-key", "Enter")
+        page.wait_for_function("() => true")  # a round trip: the route handler has run
+        return held.pop()
+
+    def answered(check: Any) -> None:
+        with page.expect_response("**/auth/check"):
+            check.continue_()
+        # The page's handler of that answer runs before the next task: a round trip.
+        page.evaluate("() => new Promise((done) => setTimeout(done, 100))")
+
+    try:
+        right = enter(API_KEY)
+        page.fill("#api-key", "being typed")
+        answered(right)
+        assert page.text_content("#api-key-state") == "saved"
+        assert page.input_value("#api-key") == "being typed"
+        wrong = enter("a-wrong-key-" + "x" * 30)
+        right = enter(API_KEY)
+        answered(right)
+        assert page.text_content("#api-key-state") == "saved"
+        answered(wrong)
+        assert page.text_content("#api-key-state") == "saved"
+        stored = page.evaluate("k => localStorage.getItem(k)", KEY_STORAGE)
+        assert stored == API_KEY
+    finally:
+        page.unroute("**/auth/check")
+
+
 @pytest.mark.parametrize("route", ["#/jobs", "#/identify", "#/scenarios/new"])
 def test_a_phone_wide_window_does_not_widen_the_page(dashboard: Dashboard, route: str) -> None:
     dashboard.page.set_viewport_size({"width": 375, "height": 800})
