@@ -1432,6 +1432,44 @@ def test_identify_keeps_the_file_chosen_last_and_what_was_typed_over_a_slow_read
     assert page.input_value("#telemetry-text") == "typed while it was read"
 
 
+def test_identify_draws_the_verdict_of_the_classifier_sent_not_one_chosen_meanwhile(
+    dashboard: Dashboard, tmp_path: Path
+) -> None:
+    """The verdict was drawn with the classifier the menu named when it came back: one
+    chosen while the telemetry was identified titled the distances with its metric (and
+    its response went under the telemetry). The verdict is held here until another is
+    chosen."""
+    client = dashboard.service.client
+    scenario = client.post("/scenarios", json={"preset": "paper"}).json()["id"]
+    params = {"sequence": GOOD, "kind": "nearest-centroid", "n_realisations": 5}
+    sent = _trained(dashboard, scenario, {**params, "metric": "euclidean"}, seed=7)
+    other = _trained(dashboard, scenario, {**params, "metric": "dtw"}, seed=7)
+    text = _telemetry_csv(tmp_path / "t.csv", Scenario.paper(), candidate=2, seed=5).read_text()
+    page = dashboard.page
+    dashboard.open(f"#/identify?classifier={sent}")
+    page.fill("#telemetry-text", text)
+    held: list[Any] = []
+    verdicts = re.compile(r"/identify(\?|$)")
+    page.route(verdicts, lambda route: held.append(route))
+    try:
+        page.click("#identify-submit")
+        page.wait_for_function("() => true")  # a round trip: the route handler has run
+        assert len(held) == 1, held
+        slow = held.pop()
+        assert f'name="classifier_id"\r\n\r\n{sent}' in (slow.request.post_data or "")
+        page.select_option("#identify-classifier", other)
+        with page.expect_response(verdicts):
+            slow.continue_()
+        page.wait_for_selector("#verdict")
+        page.wait_for_function(
+            "() => document.getElementById('distance-plot')?.layout?.title?.text"
+        )
+        titled = page.evaluate("() => document.getElementById('distance-plot').layout.title.text")
+        assert titled.startswith("euclidean distance"), titled
+    finally:
+        page.unroute(verdicts)
+
+
 def test_identify_says_the_gyro_averages_when_ticked(dashboard: Dashboard) -> None:
     """The "averaging gyro" box sends ``averaged=true`` with the telemetry (an integrating
     gyro's rates are read at their intervals' midpoints): the page shows the service's

@@ -188,10 +188,13 @@ export async function render(root, context) {
         const name = content.trim().startsWith("{") ? "telemetry.json" : "telemetry.csv";
         const options = { sequenceStart: start.value.trim(), startWithin: startWithin.value.trim(), confidence: confidence.value.trim(), averaged: averaged.checked };
         submit.disabled = true;
+        // The classifier sent, not the one the menu names when the verdict comes: chosen
+        // meanwhile, another one's metric titled the verdict and its response (of other
+        // candidates, on another scenario) was drawn under the telemetry, or failed to be.
+        const classifier = page.items.find((c) => c.id === select.value);
         try {
           const upload = gzipped && gzipped.text === content ? gzipped.file : new File([content], name, { type: "text/plain" });
-          const verdict = await api.identify(select.value, upload, "json", options);
-          const classifier = page.items.find((c) => c.id === select.value);
+          const verdict = await api.identify(classifier.id, upload, "json", options);
           await showVerdict(result, verdict, classifier, { content, context, file: upload, options });
         } catch (exc) {
           showFieldErrors(exc, { file: text, classifier_id: select, sequence_start: start, estimate_start_within_s: startWithin, confidence, averaged }, general);
