@@ -270,16 +270,17 @@ def test_a_key_checked_slowly_keeps_what_is_typed_next_and_the_later_keys_answer
         # The page's handler of that answer runs before the next task: a round trip.
         page.evaluate("() => new Promise((done) => setTimeout(done, 100))")
 
+    saved = "() => document.getElementById('api-key-state').textContent === 'saved'"
     try:
         right = enter(API_KEY)
         page.fill("#api-key", "being typed")
         answered(right)
-        assert page.text_content("#api-key-state") == "saved"
+        page.wait_for_function(saved)
         assert page.input_value("#api-key") == "being typed"
         wrong = enter("a-wrong-key-" + "x" * 30)
         right = enter(API_KEY)
         answered(right)
-        assert page.text_content("#api-key-state") == "saved"
+        page.wait_for_function(saved)
         answered(wrong)
         assert page.text_content("#api-key-state") == "saved"
         stored = page.evaluate("k => localStorage.getItem(k)", KEY_STORAGE)
@@ -1042,7 +1043,7 @@ def test_a_job_forms_time_limit_is_sent_refused_beside_its_box_and_shown(
     page.route(pattern, timed_out)
     try:
         dashboard.open(f"#/jobs/{job_id}?again=1")
-        shown = page.wait_for_selector("#job-time-limit").inner_text()
+        shown = page.wait_for_selector("#job-time-limit >> text=stopped").inner_text()
         assert shown == "30 s (asked); stopped on it", shown
     finally:
         page.unroute(pattern)
