@@ -35,10 +35,12 @@ import ctypes
 import logging
 import os
 import secrets
+import shutil
 import signal
 import socket
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 from collections.abc import Callable, Sequence
@@ -59,6 +61,9 @@ __all__ = ["WorkerPool", "main", "tcp_socket"]
 #: The worker package's name for serve's pid in its workers' environment
 #: (``worker.process.PARENT_PID_ENV``; not imported, the API does not import the worker).
 PARENT_PID_ENV = "INERTIA_ID_PARENT_PID"
+#: ...and for the folder serve makes for a worker's multiprocessing temp files
+#: (``worker.process.TEMP_DIR_ENV``), removed once that worker is gone.
+WORKER_TEMP_DIR_ENV = "INERTIA_ID_WORKER_TEMP_DIR"
 #: Seconds uvicorn waits for requests in flight when asked to stop.
 API_GRACE_S = 5.0
 
@@ -291,6 +296,9 @@ class WorkerPool:
         self._broker_label = "" if settings is None else _broker_label(settings.broker_url)
         self.processes: dict[int, subprocess.Popen[bytes]] = {}
         self.names: dict[int, str] = {}
+        #: Each worker process's temp folder (multiprocessing's, in TMPDIR), by pid:
+        #: removed once that process has ended (see worker.process.use_launcher_temp_dir).
+        self._temp_dirs: dict[int, str] = {}
         #: The workers whose last process ended before its first beat (see _forget):
         #: their restarts are not announced, so /health keeps saying no worker is seen.
         self._died_unbeaten: set[int] = set()
@@ -345,16 +353,26 @@ class WorkerPool:
         old = self._logs.pop(index, None)
         if old is not None:
             old.close()
+        temp_dir = self._make_temp_dir(index)
+        if temp_dir is not None:
+            env[WORKER_TEMP_DIR_ENV] = temp_dir
         log = open(self.log_path(index), "ab")  # closed in stop()
         self._logs[index] = log
-        self.processes[index] = subprocess.Popen(
-            self.command(index),
-            env=env,
-            stdin=subprocess.DEVNULL,
-            stdout=log,
-            stderr=subprocess.STDOUT,
-            start_new_session=True,
-        )
+        try:
+            self.processes[index] = subprocess.Popen(
+                self.command(index),
+                env=env,
+                stdin=subprocess.DEVNULL,
+                stdout=log,
+                stderr=subprocess.STDOUT,
+                start_new_session=True,
+            )
+        except BaseException:
+            if temp_dir is not None:
+                shutil.rmtree(temp_dir, ignore_errors=True)
+            raise
+        if temp_dir is not None:
+            self._temp_dirs[self.processes[index].pid] = temp_dir
         logger.info(
             "worker%d started (pid %d, name %s)",
             index,
@@ -362,6 +380,29 @@ class WorkerPool:
             self.names[index],
         )
         self._announce(index)
+
+    def _make_temp_dir(self, index: int) -> str | None:
+        """A new folder in TMPDIR for worker ``index``'s multiprocessing temp files, or
+        None (logged) where none can be made: the worker then makes its own, as before."""
+        try:
+            return tempfile.mkdtemp(prefix=f"inertia-id-worker{index}-")
+        except OSError as exc:
+            logger.warning(
+                "could not make a temp folder for worker%d (%s): it makes its own, which "
+                "is left in %s when serve stops it",
+                index,
+                exc,
+                tempfile.gettempdir(),
+            )
+            return None
+
+    def _remove_temp_dir(self, process: subprocess.Popen[bytes]) -> None:
+        """Remove the temp folder of ``process``, a worker that has ended: its task
+        process, in its group, dies with it (PR_SET_PDEATHSIG, or serve's SIGKILL to the
+        group), and what either left in the folder (files unlinked at once) is no one's."""
+        folder = self._temp_dirs.pop(process.pid, None)
+        if folder is not None:
+            shutil.rmtree(folder, ignore_errors=True)
 
     def node_name(self, index: int) -> str:
         """Worker ``index``'s Celery node name, its ``workers`` row's key."""
@@ -502,6 +543,7 @@ class WorkerPool:
                 if code is None or self._stopping.is_set():
                     continue
                 self._forget(index)
+                self._remove_temp_dir(process)
                 if time.monotonic() - started[index] < RESTART_DELAY_S:
                     continue
                 logger.warning(
@@ -565,6 +607,7 @@ class WorkerPool:
                 logger.error("worker%d (pid %d) did not die", index, process.pid)
             else:
                 self._forget(index)  # one stopped while importing was listed warming
+                self._remove_temp_dir(process)
         for log in self._logs.values():
             log.close()
         self._logs.clear()

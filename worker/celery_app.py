@@ -60,3 +60,4 @@ celery.conf.update(_worker_conf)
 from . import monitor, process  # noqa: E402, F401
 
 process.stop_with_launcher()
+process.use_launcher_temp_dir()

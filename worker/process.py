@@ -16,6 +16,11 @@
   the job it just handed back, re-sent, is the likeliest). :func:`stopping`, a flag the
   main process raises and its task processes read, makes them leave such a job to
   another worker instead of running it until they are killed.
+- **No temp folder left**: the folder of multiprocessing's temp files (billiard's pool
+  makes one for its shared memory when it starts the task process) is one that serve
+  made for this worker (:data:`TEMP_DIR_ENV`, :func:`use_launcher_temp_dir`): serve
+  kills its worker once its job is handed back, so the worker's own exit, which would
+  remove the folder, never runs; serve removes it once the worker is gone.
 """
 
 from __future__ import annotations
@@ -25,6 +30,7 @@ import logging
 import mmap
 import os
 import secrets
+import shutil
 import signal
 import struct
 import sys
@@ -37,6 +43,7 @@ from celery.utils.nodenames import default_nodename
 
 __all__ = [
     "PARENT_PID_ENV",
+    "TEMP_DIR_ENV",
     "cold_since",
     "die_with_parent",
     "mark_starting",
@@ -45,6 +52,7 @@ __all__ = [
     "stop_with_launcher",
     "stopping",
     "unique_name",
+    "use_launcher_temp_dir",
     "warm",
 ]
 
@@ -52,6 +60,9 @@ logger = logging.getLogger(__name__)
 
 #: Set by ``inertia-id serve`` to its pid in the environment of the workers it starts.
 PARENT_PID_ENV = "INERTIA_ID_PARENT_PID"
+#: Set by ``inertia-id serve`` to a folder it made for the worker: multiprocessing's temp
+#: folder in the worker's main process (see :func:`use_launcher_temp_dir`).
+TEMP_DIR_ENV = "INERTIA_ID_WORKER_TEMP_DIR"
 
 _PR_SET_PDEATHSIG = 1
 
@@ -158,6 +169,36 @@ def stop_with_launcher() -> None:
     if str(os.getppid()) != expected:
         logger.warning("the serve process %s is gone; stopping", expected)
         os.kill(os.getpid(), signal.SIGTERM)
+
+
+def use_launcher_temp_dir() -> bool:
+    """In a worker's main process started by serve: take the folder serve made for it
+    (:data:`TEMP_DIR_ENV`) as multiprocessing's temp folder, the one it would otherwise
+    make as ``pymp-*`` in ``TMPDIR``; whether it was taken.
+
+    serve kills the worker (SIGKILL to its group) once its job is handed back rather
+    than wait seconds for Celery to wind its pool down, so the worker's exit, which
+    removes that folder, never ran: every stop left an empty ``pymp-*`` folder. serve
+    knows this one and removes it once the worker is gone. A worker that exits by
+    itself (serve killed, and this worker told to stop by the kernel) removes it as
+    multiprocessing removes its own, at a normal exit. Nothing is removed here: the
+    process that takes the folder is the one whose exit, or death, ends its use.
+    """
+    folder = os.environ.pop(TEMP_DIR_ENV, None)
+    if not folder or not os.path.isdir(folder):
+        return False
+    from multiprocessing import process, util
+
+    # What multiprocessing.util.get_temp_dir does with the folder it makes (private
+    # names of CPython's, read with getattr: without them, multiprocessing makes its own
+    # folder, as before, and serve removes the empty one it made).
+    config = getattr(process.current_process(), "_config", None)
+    remove = getattr(util, "_remove_temp_dir", None)
+    if not isinstance(config, dict) or remove is None or config.get("tempdir") is not None:
+        return False
+    config["tempdir"] = folder
+    util.Finalize(None, remove, args=(shutil.rmtree, folder), exitpriority=-100)
+    return True
 
 
 def unique_name(name: str) -> str:

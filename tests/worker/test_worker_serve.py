@@ -534,6 +534,117 @@ def test_a_second_stop_signal_while_serve_stops_does_not_cut_its_shutdown_short(
     assert f"{signal.Signals(stop_signal).name} while stopping" in text, tail(log)
 
 
+def _left_in(folder: Path) -> list[str]:
+    return sorted(str(path.relative_to(folder)) for path in folder.rglob("*"))
+
+
+def _verdict_processes_up(root: int, api_workers: int) -> bool:
+    """Each API process's fork server has forked its verdict process (eager)."""
+    found = _descendants(root).values()
+    return sum("multiprocessing.forkserver" in c for c in found) >= 2 * api_workers
+
+
+@pytest.mark.parametrize(
+    ("api_workers", "workers"),
+    # The worker's folder (its pool's shared memory), then the API processes' (each
+    # one's fork server socket): apart, each case's leftovers are its own.
+    [("1", "1")],
+)
+def test_serve_leaves_nothing_in_the_temp_folder_when_it_stops(
+    tmp_path: Path, api_workers: str, workers: str
+) -> None:
+    """Nothing of serve's is left in ``TMPDIR`` once SIGTERM has stopped it. Before, each
+    stop left an empty ``pymp-*`` folder of the worker's (billiard's pool makes it; serve
+    kills the worker once its job is handed back, so the worker's exit never removed it),
+    and with ``--api-workers 2`` one ``pymp-*/listener-*`` of each API process (killed by
+    the SIGTERM uvicorn raises again after its graceful stop, it never removed it)."""
+    port = free_port()
+    log = tmp_path / "serve.log"
+    temp = tmp_path / "tmp"
+    temp.mkdir()
+    argv = [*_SERVE, "--port", str(port), "--data-dir", "data"]
+    with open(log, "wb") as out:
+        server = subprocess.Popen(
+            [*argv, "--workers", workers, "--api-workers", api_workers],
+            env=clean_env(TMPDIR=str(temp), INERTIA_ID_VERDICT_PROCESS="eager"),
+            cwd=tmp_path,
+            stdout=out,
+            stderr=subprocess.STDOUT,
+        )
+    try:
+        # Warm: each verdict process forked (its API process's fork server listens in
+        # the API's temp folder), the worker's task process warm (the pool made its
+        # shared memory, in the worker's temp folder, before it forked the process).
+        wait_for(
+            lambda: (
+                log.read_text().count("Application startup complete") == int(api_workers)
+                and _verdict_processes_up(server.pid, int(api_workers))
+                and (
+                    workers == "0"
+                    or (
+                        (h := _get(f"http://127.0.0.1:{port}/health"))["workers"]["count"] == 1
+                        and not h["workers"]["warming"]
+                    )
+                )
+            ),
+            120,
+            "serve's verdict processes did not start, or its worker did not warm up",
+            lambda: tail(log),
+        )
+        made = _left_in(temp)
+    finally:
+        server.send_signal(signal.SIGTERM)
+        try:
+            server.wait(60)
+        except subprocess.TimeoutExpired:
+            server.kill()
+            server.wait()
+            raise
+    assert server.returncode == 128 + signal.SIGTERM, tail(log)
+    assert made, "serve made no temp folder: the test saw nothing to clean up"
+    left = _left_in(temp)
+    assert not left, f"left in TMPDIR by serve (made while it ran: {made}): {left}\n{tail(log)}"
+
+
+def test_a_worker_takes_the_temp_folder_serve_made_and_removes_it_at_a_normal_exit(
+    tmp_path: Path,
+) -> None:
+    """A worker's main process started by serve keeps multiprocessing's temp files (its
+    pool's shared memory) in the folder serve made for it, which serve removes once it
+    has killed the worker; a worker that exits by itself (serve killed, the worker told
+    to stop by the kernel) removes it as multiprocessing removes its own. Without the
+    folder named, multiprocessing makes its own, as before."""
+    given = tmp_path / "given"
+    given.mkdir()
+    script = textwrap.dedent(
+        """
+        import os, sys
+        import billiard
+        from multiprocessing import util
+        from worker.process import TEMP_DIR_ENV, use_launcher_temp_dir
+
+        named = os.environ.get(TEMP_DIR_ENV)
+        taken = use_launcher_temp_dir()
+        assert taken == (named is not None), (taken, named)
+        assert TEMP_DIR_ENV not in os.environ  # not for the processes it starts
+        billiard.get_context().Value("i")  # what the pool makes: a file in the folder
+        folder = util.get_temp_dir()
+        assert (folder == named) if taken else folder.startswith(sys.argv[1]), folder
+        assert os.path.isdir(folder)
+        """
+    )
+    for env in ({"INERTIA_ID_WORKER_TEMP_DIR": str(given)}, {}):
+        done = subprocess.run(
+            [sys.executable, "-c", script, str(tmp_path / "pymp-")],
+            env=clean_env(TMPDIR=str(tmp_path), **env),
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
+        assert (done.returncode, done.stderr) == (0, ""), done.stderr
+        assert list(tmp_path.iterdir()) == [], env
+
+
 @pytest.mark.parametrize("api_workers", ["1", "2"])
 def test_serve_tells_its_workers_to_stop_while_the_api_gives_its_requests_their_grace(
     tmp_path: Path, api_workers: str
