@@ -60,13 +60,18 @@ request without it), is refused: a 400 naming it, and the connection closed.
 from __future__ import annotations
 
 import asyncio
+import atexit
+import contextlib
 import ctypes
 import json
 import logging
 import os
 import re
 import signal
+import sys
+import threading
 from collections.abc import Callable
+from types import FrameType
 from typing import Any, Literal, NamedTuple
 
 import h11
@@ -164,6 +169,13 @@ class ServerConfig(uvicorn.Config):
             _stop_when_parent_dies(self.stop_with)
         super().load()
 
+    def get_loop_factory(self) -> Callable[[], asyncio.AbstractEventLoop] | None:
+        # uvicorn's Server.run asks for the loop just before it takes the stop signals
+        # over; loaded in an API process of --api-workers > 1, not in serve.
+        if self.stop_with is not None and os.getpid() != self.stop_with:
+            _exit_normally_after_sigterm()
+        return super().get_loop_factory()
+
 
 #: ``prctl`` option: the signal this process gets when its parent dies.
 _PR_SET_PDEATHSIG = 1
@@ -179,6 +191,43 @@ def _stop_when_parent_dies(parent: int) -> None:
         return
     if os.getppid() != parent:
         os.kill(os.getpid(), signal.SIGTERM)
+
+
+def _exit_on_sigterm(signum: int, _frame: FrameType | None) -> None:
+    code = 128 + signum
+    # Run first of the interpreter's exit handlers, once multiprocessing's end of the
+    # process (its finalizers) is done: the interpreter's own teardown of what the API
+    # imported (the core, numba, scikit-learn) took 1.5-2 s more of each stop, which the
+    # signal's default action skipped before.
+    atexit.register(_exit_now, code)
+    raise SystemExit(code)
+
+
+def _exit_now(code: int) -> None:
+    from multiprocessing import util
+
+    # Run already by the end of a process multiprocessing started (a no-op then).
+    end = getattr(util, "_exit_function", None)
+    if end is not None:
+        end()
+    logging.shutdown()
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):
+            if stream is not None:
+                stream.flush()
+    os._exit(code)
+
+
+def _exit_normally_after_sigterm() -> None:
+    """In an API process of serve's (its main thread, before uvicorn's server runs):
+    SIGTERM raises SystemExit (128 + 15), so that the SIGTERM uvicorn raises again once
+    its graceful shutdown is done ends the process through its normal exit rather than
+    the signal's default action. uvicorn takes the signal over while it serves and puts
+    this handler back after. multiprocessing's finalizers then run: its temp folder
+    (``pymp-*`` in TMPDIR, the fork server's socket in it) is removed. Killed by the
+    signal, each API process left that folder behind at every stop."""
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, _exit_on_sigterm)
 
 
 #: The reason phrases of a refused head's answer (400: an upgrade request with a body, on

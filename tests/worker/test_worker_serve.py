@@ -548,7 +548,7 @@ def _verdict_processes_up(root: int, api_workers: int) -> bool:
     ("api_workers", "workers"),
     # The worker's folder (its pool's shared memory), then the API processes' (each
     # one's fork server socket): apart, each case's leftovers are its own.
-    [("1", "1")],
+    [("1", "1"), ("2", "0")],
 )
 def test_serve_leaves_nothing_in_the_temp_folder_when_it_stops(
     tmp_path: Path, api_workers: str, workers: str
@@ -742,14 +742,17 @@ def test_the_orphan_reaper_leaves_multiprocessing_s_own_children_to_it() -> None
 def test_the_api_processes_stop_when_serve_is_killed(tmp_path: Path) -> None:
     """``kill -9`` of serve with --api-workers 2: the kernel tells its API processes to
     stop (PR_SET_PDEATHSIG), as it tells its workers. Before, both served on (ppid 1) for
-    ever, holding serve's port: a new serve on it said "cannot listen"."""
+    ever, holding serve's port: a new serve on it said "cannot listen". They stop as at
+    serve's SIGTERM, and leave nothing in TMPDIR (before, each left its temp folder)."""
     port = free_port()
     log = tmp_path / "serve.log"
+    temp = tmp_path / "tmp"
+    temp.mkdir()
     command = [sys.executable, "-m", "app.serve", "--port", str(port), "--data-dir", "data"]
     with open(log, "wb") as out:
         server = subprocess.Popen(
             [*command, "--workers", "0", "--api-workers", "2"],
-            env=clean_env(),
+            env=clean_env(TMPDIR=str(temp)),
             cwd=tmp_path,
             stdout=out,
             stderr=subprocess.STDOUT,
@@ -761,10 +764,11 @@ def test_the_api_processes_stop_when_serve_is_killed(tmp_path: Path) -> None:
                 len(found := [p for p, c in _descendants(server.pid).items() if "spawn_main" in c])
                 == 2
                 and log.read_text().count("Application startup complete") == 2
+                and _verdict_processes_up(server.pid, 2)
                 and found
             ),
             120,
-            "serve did not start its two API processes",
+            "serve did not start its two API processes and their verdict processes",
             lambda: tail(log),
         )
         server.kill()
@@ -776,6 +780,7 @@ def test_the_api_processes_stop_when_serve_is_killed(tmp_path: Path) -> None:
             lambda: tail(log),
         )
         assert gone
+        assert _left_in(temp) == [], tail(log)
     finally:
         if server.poll() is None:
             server.kill()
