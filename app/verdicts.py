@@ -27,7 +27,10 @@ import contextlib
 import logging
 import multiprocessing
 import os
+import shutil
 import signal
+import sys
+import tempfile
 import threading
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -186,11 +189,81 @@ def _loads() -> int:
 # --------------------------------------------------------------------------- the API side
 
 
+#: Longest path an AF_UNIX socket may be bound at (Linux's ``sun_path`` is 108 bytes,
+#: its terminating NUL included; BSDs' 104).
+_SOCKET_PATH_MAX = 107 if sys.platform.startswith("linux") else 103
+#: The fork server's socket, as multiprocessing names it in its temp folder
+#: (``<TMPDIR>/pymp-XXXXXXXX/listener-XXXXXXXX``): the folder and the socket's own name.
+_SOCKET_IN_TEMP_DIR = len("/pymp-XXXXXXXX") + len("/listener-XXXXXXXX")
+#: Where a short temp folder is made instead when TMPDIR is too long for it: the folders
+#: CPython 3.14's multiprocessing falls back to in that case (gh-132124).
+_SHORT_TEMP_BASES = ("/tmp", "/var/tmp", "/usr/tmp")
+
+
+def _socket_ready_temp_dir() -> str | None:
+    """Make multiprocessing's temp folder of this process one where the fork server's
+    socket fits, if TMPDIR is too long for it; the folder made, or None (none needed, or
+    none could be made: logged).
+
+    The fork server listens on an AF_UNIX socket in multiprocessing's temp folder, made
+    in TMPDIR; past about 75 characters of TMPDIR its path passes what AF_UNIX takes and
+    no verdict process could start (``OSError: AF_UNIX path too long``: every
+    ``/identify`` was a 500). As Python 3.14 does (3.11 does not), the folder is made in
+    ``/tmp`` then, said in the log, and removed at this process's exit as
+    multiprocessing's own is (its finalizer); nothing else of this process's temp files
+    moves. Nothing is done where the folder already in use, or the one TMPDIR gives,
+    has room for the socket (the tests' processes, a usual TMPDIR).
+    """
+    from multiprocessing import process, util
+
+    config = getattr(process.current_process(), "_config", None)
+    remove = getattr(util, "_remove_temp_dir", None)
+    if not isinstance(config, dict) or remove is None:
+        return None  # not CPython's multiprocessing as we know it: left as it is
+    current = config.get("tempdir")
+    base = os.path.dirname(current) if current else tempfile.gettempdir()
+    if len(os.fsencode(base)) + _SOCKET_IN_TEMP_DIR <= _SOCKET_PATH_MAX:
+        return None
+    for short_base in _SHORT_TEMP_BASES:
+        if len(short_base) + _SOCKET_IN_TEMP_DIR > _SOCKET_PATH_MAX:
+            continue
+        try:
+            folder = tempfile.mkdtemp(prefix="pymp-", dir=short_base)
+        except OSError:
+            continue
+        # What multiprocessing.util.get_temp_dir does with the folder it makes. One made
+        # in TMPDIR already stays with its own finalizer: what is in it is still used.
+        config["tempdir"] = folder
+        util.Finalize(None, remove, args=(shutil.rmtree, folder), exitpriority=-100)
+        log.warning(
+            "TMPDIR is too long for the verdict process's fork server socket (%d bytes: "
+            "its socket's path would pass AF_UNIX's %d): its temp folder is %s instead "
+            "(TMPDIR=%s)",
+            len(os.fsencode(base)),
+            _SOCKET_PATH_MAX,
+            folder,
+            base,
+        )
+        return folder
+    log.error(
+        "TMPDIR is too long for the verdict process's fork server socket (%d bytes) and "
+        "no temp folder could be made in %s: /identify cannot start its verdict process "
+        "(set TMPDIR to a shorter folder; TMPDIR=%s)",
+        len(os.fsencode(base)),
+        " or ".join(_SHORT_TEMP_BASES),
+        base,
+    )
+    return None
+
+
 def _fork_server() -> multiprocessing.context.ForkServerContext:
     """multiprocessing's forkserver context with :mod:`app.verdict_preload` preloaded.
 
     The fork server is one per API process, started with the first verdict process and
-    reused by every later one (and by every app a test process builds)."""
+    reused by every later one (and by every app a test process builds). Its socket goes
+    in a short temp folder where TMPDIR is too long for it (:func:`_socket_ready_temp_dir`).
+    """
+    _socket_ready_temp_dir()
     context = multiprocessing.get_context("forkserver")
     context.set_forkserver_preload([_PRELOAD])
     return context

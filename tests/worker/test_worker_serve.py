@@ -645,6 +645,116 @@ def test_a_worker_takes_the_temp_folder_serve_made_and_removes_it_at_a_normal_ex
         assert list(tmp_path.iterdir()) == [], env
 
 
+def _store_classifier(database_url: str, scenario_id: str, model: Any) -> str:
+    """Store a trained classifier as a train job would; its id."""
+    import numpy as np
+
+    from service.store import ClassifierRow
+
+    document = model.to_json()
+    db = Database(database_url)
+    try:
+        with db.session() as session:
+            row = ClassifierRow(
+                scenario_id=scenario_id,
+                metric=model.metric,
+                f1=model.f1_,
+                accuracy=model.accuracy_,
+                sequence=np.asarray(model.sequence_).tolist(),
+                candidate_names=list(model.candidate_names_),
+                confusion=model.confusion_.tolist(),
+                document=document,
+                sha256=json.loads(document)["sha256"],
+            )
+            session.add(row)
+            session.flush()
+            return str(row.id)
+    finally:
+        db.dispose()
+
+
+@pytest.mark.parametrize("api_workers", ["1", "2"])
+def test_serve_identifies_with_a_tmpdir_too_long_for_a_socket_and_leaves_nothing(
+    tmp_path: Path, api_workers: str, euclidean_classifier: Any
+) -> None:
+    """With a TMPDIR of 100 characters the fork server's socket
+    (``$TMPDIR/pymp-*/listener-*``) passes AF_UNIX's 107 bytes: no verdict process could
+    start (``OSError: AF_UNIX path too long``) and every ``/identify`` was a 500. Each API
+    process now says so and puts multiprocessing's temp folder in /tmp, removed at its
+    stop as the one in TMPDIR would have been."""
+    import numpy as np
+    from scenario_support import GOOD_SEQUENCE
+
+    from inertia_id import simulate
+
+    temp = tmp_path / "t"
+    temp = Path(str(temp) + "t" * (100 - len(str(temp))))
+    temp.mkdir()
+    assert len(str(temp)) == 100
+    port = free_port()
+    log = tmp_path / "serve.log"
+    key = "serve-long-tmpdir-" + "k" * 24
+    argv = [*_SERVE, "--port", str(port), "--data-dir", "data", "--workers", "0"]
+    with open(log, "wb") as out:
+        server = subprocess.Popen(
+            [*argv, "--api-workers", api_workers],
+            env=clean_env(TMPDIR=str(temp), INERTIA_ID_API_KEY=key),
+            cwd=tmp_path,
+            stdout=out,
+            stderr=subprocess.STDOUT,
+        )
+    base = f"http://127.0.0.1:{port}"
+    try:
+        wait_for(
+            lambda: (
+                "AF_UNIX path too long" in log.read_text()
+                or (
+                    log.read_text().count("Application startup complete") == int(api_workers)
+                    and _verdict_processes_up(server.pid, int(api_workers))
+                )
+            ),
+            120,
+            "serve's verdict processes did not start",
+            lambda: tail(log),
+        )
+        assert "AF_UNIX path too long" not in log.read_text(), tail(log)
+        headers = {"X-API-Key": key, "Content-Type": "application/json"}
+        request = urllib.request.Request(
+            f"{base}/scenarios", data=b'{"preset": "paper"}', headers=headers
+        )
+        with urllib.request.urlopen(request, timeout=30) as response:
+            scenario_id = json.loads(response.read())["id"]
+        database_url = Settings(INERTIA_ID_DATA_DIR=tmp_path / "data").resolved_database_url
+        classifier_id = _store_classifier(database_url, scenario_id, euclidean_classifier)
+        flight = simulate(Scenario.paper(), GOOD_SEQUENCE, 1, np.random.default_rng(7))
+        body = {
+            "classifier_id": classifier_id,
+            "telemetry": {
+                "time_s": flight.time_s.tolist(),
+                "omega_rad_s": flight.omega_measured[3, 0].tolist(),
+            },
+        }
+        request = urllib.request.Request(
+            f"{base}/identify", data=json.dumps(body).encode(), headers=headers
+        )
+        with urllib.request.urlopen(request, timeout=60) as response:
+            assert response.status == 200
+            assert json.loads(response.read())["status"] == "identified"
+    finally:
+        server.send_signal(signal.SIGTERM)
+        try:
+            server.wait(60)
+        except subprocess.TimeoutExpired:
+            server.kill()
+            server.wait()
+            raise
+    assert server.returncode == 128 + signal.SIGTERM, tail(log)
+    said = re.findall(r"TMPDIR is too long .* its temp folder is (\S+) instead", log.read_text())
+    assert len(said) == int(api_workers), tail(log)
+    assert all(len(folder) < 30 and not os.path.exists(folder) for folder in said), said
+    assert _left_in(temp) == [], tail(log)
+
+
 @pytest.mark.parametrize("api_workers", ["1", "2"])
 def test_serve_tells_its_workers_to_stop_while_the_api_gives_its_requests_their_grace(
     tmp_path: Path, api_workers: str
