@@ -1062,6 +1062,37 @@ def test_a_job_forms_time_limit_is_sent_refused_beside_its_box_and_shown(
     assert page.is_visible("#sweep-time_limit_s")
 
 
+def test_a_hex_time_limit_or_multiple_is_sent_as_typed_not_as_another_number(
+    dashboard: Dashboard,
+) -> None:
+    # Number("0x10") is 16: a time limit typed "0x10" was sent as 16 s (and queued), a
+    # multiple "0x10" as 16, neither what the box showed. Sent as typed, the service's 422
+    # names it beside the box; decimal text is still sent as a number.
+    _save_key(dashboard)
+    scenario_id = _scenario(dashboard, ["stowed", "deployed"], "hex boxes")
+    page = dashboard.page
+    client = dashboard.service.client
+    dashboard.console.expect(r"status of 422")
+    jobs = client.get("/jobs").json()["total"]
+    dashboard.open(f"#/jobs?scenario={scenario_id}&type=train")
+    page.wait_for_function("document.querySelector('#train-sequence').value !== ''")
+    page.fill("#train-time_limit_s", " 0x10 ")
+    with page.expect_response(lambda r: r.url.endswith("/jobs")) as sent:
+        page.click("#submit-job")
+    assert sent.value.request.post_data_json["params"]["time_limit_s"] == "0x10"
+    assert sent.value.status == 422
+    shown = page.wait_for_selector("#train-time_limit_s + .field-error").inner_text()
+    assert "0x10" in shown, shown
+    assert client.get("/jobs").json()["total"] == jobs
+    page.click("#tab-sweep")
+    page.fill("#sweep-multiples", "0x10, 1e-1, 2")
+    with page.expect_response(lambda r: r.url.endswith("/jobs")) as sent:
+        page.click("#submit-job")
+    assert sent.value.request.post_data_json["params"]["multiples"] == ["0x10", 0.1, 2]
+    assert sent.value.status == 422
+    assert client.get("/jobs").json()["total"] == jobs
+
+
 def test_the_parameters_a_sequence_cannot_see_are_one_it_or_several_them(
     dashboard: Dashboard,
 ) -> None:

@@ -58,9 +58,12 @@ function constraintsOrText(input) {
 }
 
 // A number as the service should see it, else the text itself (quoted by its 422).
+// Decimal notation only: Number() also reads "0x10" (16), "0b11" and "0o7", and a time
+// limit or a multiple typed so was sent as another number than the one shown.
+const DECIMAL = /^[+-]?(\d+\.?\d*|\.\d+)(e[+-]?\d+)?$/i;
 function numberOrText(text) {
   const trimmed = String(text).trim();
-  return trimmed && Number.isFinite(Number(trimmed)) ? Number(trimmed) : trimmed;
+  return DECIMAL.test(trimmed) && Number.isFinite(Number(trimmed)) ? Number(trimmed) : trimmed;
 }
 
 // The job's time limit box: left out when empty, so the service's ceiling holds.
@@ -136,7 +139,8 @@ function submitForm(scenarios, classifiers, query) {
       objective: search.objective.value,
       metric: search.metric.value,
       patience_episodes: intOrText(search.patience_episodes.value),
-      fuel_weight: Number.isFinite(Number(search.fuel_weight.value)) ? Number(search.fuel_weight.value) : search.fuel_weight.value,
+      // Empty is 0, as before.
+      fuel_weight: search.fuel_weight.value.trim() ? numberOrText(search.fuel_weight.value) : 0,
       ...(search.method.value === "ppo" ? { ppo: jsonBox(search.ppo, "PPO overrides", ["body", "params", "ppo"], {}) } : {}),
       ...(search.method.value === "nsga2" ? { nsga2: jsonBox(search.nsga2, "NSGA-II settings", ["body", "params", "nsga2"], {}) } : {}),
       objectives: chosenObjectives(),
@@ -240,7 +244,7 @@ function submitForm(scenarios, classifiers, query) {
       multiples: sweep.multiples.value
         .split(/[,\s]+/)
         .filter((v) => v)
-        .map((v) => (Number.isFinite(Number(v)) ? Number(v) : v)),
+        .map(numberOrText),
       noises: vocabulary().noises.map(({ noise }) => noise).filter((n) => sweep.noises[n].checked),
       others: OTHERS.map(([spec]) => spec).filter((spec) => sweep.others[spec].checked),
       n_train: intOrText(sweep.n_train.value),
