@@ -449,13 +449,7 @@ def check_search_scenario(
         )
     except NoiseOverflow as exc:
         at = "at 1x" if exc.multiple == 1.0 else "at its design noise"
-        raise NoiseOverflow(
-            f"no search on scenario {scenario.name!r} {at}: {exc}",
-            fields=exc.fields,
-            multiple=exc.multiple,
-            step=exc.step,
-            n_steps=exc.n_steps,
-        ) from None
+        raise exc.said_of(f"no search on scenario {scenario.name!r} {at}") from None
 
 
 # Training.

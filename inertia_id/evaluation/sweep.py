@@ -345,13 +345,9 @@ def check_sweep_simulable(
                 sequence_name="the classifier's sequence",
             )
         except NoiseOverflow as exc:
-            raise NoiseOverflow(
+            raise exc.said_of(
                 f"{noise} noise at multiple {largest:g} ({largest * level:g} "
-                f"{NOISE_UNITS[noise]}), the sweep's largest: {exc}",
-                fields=exc.fields,
-                multiple=exc.multiple,
-                step=exc.step,
-                n_steps=exc.n_steps,
+                f"{NOISE_UNITS[noise]}), the sweep's largest"
             ) from None
 
 

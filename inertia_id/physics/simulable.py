@@ -85,6 +85,17 @@ class NoiseOverflow(SimulationOverflow):
         self.step = step
         self.n_steps = n_steps
 
+    def said_of(self, context: str) -> NoiseOverflow:
+        """The same refusal with ``context`` (what was checked: a sweep's largest
+        multiple, a search's design noise) before its message; raise it ``from None``."""
+        return NoiseOverflow(
+            f"{context}: {self}",
+            fields=self.fields,
+            multiple=self.multiple,
+            step=self.step,
+            n_steps=self.n_steps,
+        )
+
 
 def representative_sequence(scenario: Scenario, n_steps: int) -> np.ndarray:
     """The hand-designed sequence of ``n_steps`` steps (the baseline every search is

@@ -538,6 +538,17 @@ def _left_in(folder: Path) -> list[str]:
     return sorted(str(path.relative_to(folder)) for path in folder.rglob("*"))
 
 
+def _stop_by_sigterm(server: subprocess.Popen[bytes]) -> None:
+    """Stop serve as an operator does; killed (and the test failed) past 60 s."""
+    server.send_signal(signal.SIGTERM)
+    try:
+        server.wait(60)
+    except subprocess.TimeoutExpired:
+        server.kill()
+        server.wait()
+        raise
+
+
 def _verdict_processes_up(root: int, api_workers: int) -> bool:
     """Each API process's fork server has forked its verdict process (eager)."""
     found = _descendants(root).values()
@@ -593,13 +604,7 @@ def test_serve_leaves_nothing_in_the_temp_folder_when_it_stops(
         )
         made = _left_in(temp)
     finally:
-        server.send_signal(signal.SIGTERM)
-        try:
-            server.wait(60)
-        except subprocess.TimeoutExpired:
-            server.kill()
-            server.wait()
-            raise
+        _stop_by_sigterm(server)
     assert server.returncode == 128 + signal.SIGTERM, tail(log)
     assert made, "serve made no temp folder: the test saw nothing to clean up"
     left = _left_in(temp)
@@ -741,13 +746,7 @@ def test_serve_identifies_with_a_tmpdir_too_long_for_a_socket_and_leaves_nothing
             assert response.status == 200
             assert json.loads(response.read())["status"] == "identified"
     finally:
-        server.send_signal(signal.SIGTERM)
-        try:
-            server.wait(60)
-        except subprocess.TimeoutExpired:
-            server.kill()
-            server.wait()
-            raise
+        _stop_by_sigterm(server)
     assert server.returncode == 128 + signal.SIGTERM, tail(log)
     said = re.findall(r"TMPDIR is too long .* its temp folder is (\S+) instead", log.read_text())
     assert len(said) == int(api_workers), tail(log)
