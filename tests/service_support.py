@@ -388,3 +388,25 @@ class SilentableProxy:
             thread.join(5.0)
         for sock in [*self.sockets, self.listener]:
             sock.close()
+
+
+def classifier_row(scenario_id: str, model: Any) -> Any:
+    """A trained classifier's ``classifiers`` row, as a train job stores it."""
+    import json
+
+    import numpy as np
+
+    from service.store import ClassifierRow
+
+    document = model.to_json()
+    return ClassifierRow(
+        scenario_id=scenario_id,
+        metric=model.metric,
+        f1=model.f1_,
+        accuracy=model.accuracy_,
+        sequence=np.asarray(model.sequence_).tolist(),
+        candidate_names=list(model.candidate_names_),
+        confusion=model.confusion_.tolist(),
+        document=document,
+        sha256=json.loads(document)["sha256"],
+    )

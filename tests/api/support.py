@@ -3,7 +3,6 @@ and an app served by a real uvicorn server in a thread."""
 
 from __future__ import annotations
 
-import json
 import subprocess
 import sys
 import threading
@@ -16,16 +15,15 @@ from pathlib import Path
 from typing import Any
 
 import httpx
-import numpy as np
 import uvicorn
 from fastapi import FastAPI, Request
 from scenario_support import GOOD_SEQUENCE
-from service_support import clean_env, free_port, tail, wait_for
+from service_support import classifier_row, clean_env, free_port, tail, wait_for
 from sqlalchemy import create_engine, text
 
 from inertia_id import InertiaClassifier, Scenario
 from service.config import Settings
-from service.store import ClassifierRow, Database, ScenarioRow
+from service.store import Database, ScenarioRow
 
 with warnings.catch_warnings():
     # Starlette nudges towards httpx2; the TestClient works the same with httpx.
@@ -219,18 +217,7 @@ class Api:
 
     def insert_classifier(self, scenario_id: str, model: InertiaClassifier) -> str:
         """Store a trained classifier the way a train job would."""
-        document = model.to_json()
-        row = ClassifierRow(
-            scenario_id=scenario_id,
-            metric=model.metric,
-            f1=model.f1_,
-            accuracy=model.accuracy_,
-            sequence=np.asarray(model.sequence_).tolist(),
-            candidate_names=list(model.candidate_names_),
-            confusion=model.confusion_.tolist(),
-            document=document,
-            sha256=json.loads(document)["sha256"],
-        )
+        row = classifier_row(scenario_id, model)
         with self.db.session() as session:
             session.add(row)
             session.flush()

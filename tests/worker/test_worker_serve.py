@@ -20,7 +20,14 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import pytest
-from service_support import SilentableProxy, clean_env, free_port, tail, wait_for
+from service_support import (
+    SilentableProxy,
+    classifier_row,
+    clean_env,
+    free_port,
+    tail,
+    wait_for,
+)
 from sqlalchemy import make_url, select
 
 from inertia_id import Scenario
@@ -652,25 +659,10 @@ def test_a_worker_takes_the_temp_folder_serve_made_and_removes_it_at_a_normal_ex
 
 def _store_classifier(database_url: str, scenario_id: str, model: Any) -> str:
     """Store a trained classifier as a train job would; its id."""
-    import numpy as np
-
-    from service.store import ClassifierRow
-
-    document = model.to_json()
     db = Database(database_url)
     try:
         with db.session() as session:
-            row = ClassifierRow(
-                scenario_id=scenario_id,
-                metric=model.metric,
-                f1=model.f1_,
-                accuracy=model.accuracy_,
-                sequence=np.asarray(model.sequence_).tolist(),
-                candidate_names=list(model.candidate_names_),
-                confusion=model.confusion_.tolist(),
-                document=document,
-                sha256=json.loads(document)["sha256"],
-            )
+            row = classifier_row(scenario_id, model)
             session.add(row)
             session.flush()
             return str(row.id)
