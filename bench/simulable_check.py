@@ -1,8 +1,9 @@
 """Cost of the check that a scenario can be simulated at the noise a job asks for.
 
-:func:`inertia_id.physics.simulable.check_simulable` flies a few seeded realisations
-(:data:`~inertia_id.physics.simulable.CHECK_REALISATIONS` a candidate) of one sequence
-with the jobs' simulator and refuses rates that overflow. Every submission (a scenario, a
+:func:`inertia_id.physics.simulable.check_simulable` flies seeded realisations of one
+sequence with the jobs' simulator and refuses rates that overflow: as many a candidate as
+its work budget allows (:func:`~inertia_id.physics.simulable.check_realisations`, 8 to
+256; printed beside each figure). Every submission (a scenario, a
 train, sweep or search job, a plan's flights, a response) runs it, so it must cost
 milliseconds. Prints, on the paper preset, best-of-``--repeats`` wall times of:
 
@@ -29,6 +30,7 @@ from inertia_id.evaluation.sweep import check_sweep_simulable
 from inertia_id.physics.sequences import hand_designed
 from inertia_id.physics.simulable import (
     NoiseOverflow,
+    check_realisations,
     check_scenario_simulable,
     check_simulable,
 )
@@ -52,32 +54,44 @@ def main() -> None:
     overflowing = paper.with_uncertainty(disturbance_torque_sigma_nm=1e4)
     check_simulable(paper, hand_designed(paper, 2))  # numba's warm-up
     figures: dict[str, float] = {}
-    cases: list[tuple[str, Any]] = []
+    realisations: dict[str, int] = {}
+    cases: list[tuple[str, int, Any]] = []
     for length in args.lengths:
         sequence = hand_designed(paper, length)
         cases.append(
-            (f"passes, {length} steps", lambda s=sequence: check_simulable(paper, s)),
+            (
+                f"passes, {length} steps",
+                length,
+                lambda s=sequence: check_simulable(paper, s),
+            ),
         )
     four = hand_designed(paper, 4)
     cases += [
-        ("check_scenario_simulable (4 steps)", lambda: check_scenario_simulable(paper)),
-        ("refuses 1e4 N m, 4 steps", lambda: _refused(overflowing, four)),
+        ("check_scenario_simulable (4 steps)", 4, lambda: check_scenario_simulable(paper)),
+        ("refuses 1e4 N m, 4 steps", 4, lambda: _refused(overflowing, four)),
         (
             "sweep: 1x + process, jitter at 8x (4 steps)",
+            4,
             lambda: check_sweep_simulable(
                 paper, four, ("process", "measurement", "jitter"), range(1, 9)
             ),
         ),
         (
             "search: 1x + design noise 6x (4 steps)",
+            4,
             lambda: check_search_scenario(paper, 4, None, ((6.0, 1.0), (1.0, 6.0))),
         ),
     ]
-    for label, run in cases:
+    for label, length, run in cases:
         best, _all, _ = best_of(run, args.repeats)
         figures[label] = best
-        print(f"{label:45s} {best * 1e3:8.2f} ms (best of {args.repeats})", flush=True)
-    write_json(args.json, args, {"seconds": figures})
+        realisations[label] = check_realisations(paper, length)
+        print(
+            f"{label:45s} {best * 1e3:8.2f} ms (best of {args.repeats}; "
+            f"{realisations[label]} realisations a candidate a flight)",
+            flush=True,
+        )
+    write_json(args.json, args, {"seconds": figures, "realisations": realisations})
 
 
 if __name__ == "__main__":

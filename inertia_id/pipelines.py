@@ -411,8 +411,8 @@ def check_search_scenario(
     And refuse one whose rates overflow to inf or nan on that baseline at 1x (what every
     search scores at) or at any ``design_noise`` condition (process multiple, measurement
     multiple: what the front's accuracy is measured at)
-    (:func:`~inertia_id.physics.simulable.check_simulable`, a few seeded realisations):
-    such a search was accepted and failed at run time.
+    (:func:`~inertia_id.physics.simulable.check_simulable`, up to 256 seeded realisations
+    a candidate): such a search was accepted and failed at run time.
 
     :raises InputError: a rate bound below the initial-rate floor, naming both.
     :raises ~inertia_id.physics.simulate.RatesBeyondGyro: naming the scenario, the

@@ -316,9 +316,9 @@ def check_sweep_simulable(
     ``scenario`` at 1x (what the others train on and the bodies off the candidates fly),
     then each of ``noises`` at the largest of ``multiples`` with every other source at
     1x, as the sweep simulates them
-    (:func:`~inertia_id.physics.simulable.check_simulable`: a few seeded realisations,
-    milliseconds). Before it, a sweep whose largest multiple overflowed failed at that
-    point, after every point before it had run.
+    (:func:`~inertia_id.physics.simulable.check_simulable`: up to 256 seeded realisations
+    a candidate, tens of milliseconds). Before it, a sweep whose largest multiple
+    overflowed failed at that point, after every point before it had run.
 
     :raises ~inertia_id.physics.simulable.NoiseOverflow: naming the source, the multiple
         and its value, then the noise figure, its 1x value and the step the rates

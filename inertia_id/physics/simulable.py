@@ -6,16 +6,21 @@ of 1e4 N m (a hundredth of its bound) spins the bodies past what the RK4 step fo
 within a few steps, and the rates overflow to inf. A job on it was accepted, queued,
 and failed at run time with :class:`~inertia_id.physics.simulate.SimulationOverflow`.
 
-:func:`check_simulable` tells it before: it flies a few seeded realisations of one
+:func:`check_simulable` tells it before: it flies seeded realisations of one
 representative sequence (the job's own, or the hand-designed baseline) with the
 simulator every job uses, at the noise the job asks for, and refuses rates that turn
 inf or nan, naming the noise figure that drives them, its value, the noise multiple and
 the step by which they overflow. Rates that are large but finite are not its business
 (the gyro-range rule is :func:`~inertia_id.physics.simulate.check_nominal_gyro_range`).
 
-A check, not a proof: a job flies more realisations (hundreds, a ceiling thousands)
-than the check's :data:`CHECK_REALISATIONS`, so near the threshold a job that passed it
-may still overflow, and is then refused at run time as before.
+Overflow is a tail event: a job flies hundreds of realisations a candidate (training's
+calibration at least about 200, a ceiling thousands), and a noise that 8 realisations fly
+through may overflow one of those. So the check flies as many realisations a candidate as
+a work budget allows (:func:`check_realisations`: :data:`CHECK_BUDGET` candidate x
+realisation x RK4 steps, between :data:`CHECK_REALISATIONS_MIN` and
+:data:`CHECK_REALISATIONS_MAX`): 256 on the paper preset's 4-step check, fewer on long
+sequences, 8 on huge ones. Still a check, not a proof: near the threshold a job that
+passed it may overflow, and is then refused at run time as before.
 """
 
 from __future__ import annotations
@@ -30,22 +35,33 @@ from .scenario import Scenario, _shown
 from .simulate import SimulationOverflow, Simulator, check_nominal_gyro_range
 
 __all__ = [
-    "CHECK_REALISATIONS",
+    "CHECK_BUDGET",
+    "CHECK_REALISATIONS_MAX",
+    "CHECK_REALISATIONS_MIN",
     "CHECK_SEED",
     "DRIVING_FIELDS",
     "SCENARIO_CHECK_RK4_STEPS",
     "SCENARIO_CHECK_STEPS",
     "NoiseOverflow",
     "check_conditions",
+    "check_realisations",
     "check_scenario_simulable",
     "check_simulable",
     "overflow_step",
     "representative_sequence",
 ]
 
-#: Realisations a candidate the check flies: a few, so that it costs milliseconds (the
-#: step loop, not the bodies, is most of its cost).
-CHECK_REALISATIONS = 8
+#: The work a check's flight may take: candidates x realisations x RK4 steps. 256
+#: realisations a candidate on the paper preset's 4-step check (5 candidates x 80 RK4
+#: steps) are 102,400 of it (about 17 ms on a 2-core machine), so every sequence up to 8
+#: steps of it flies the most realisations; 64 steps fly 40, 256 steps the least.
+CHECK_BUDGET = 262_144
+#: The fewest realisations a candidate a check flies, however long the sequence (a huge
+#: scenario's check then costs more than the budget, as the check of 8 always did).
+CHECK_REALISATIONS_MIN = 8
+#: The most realisations a candidate a check flies: about what a job flies at the least
+#: (training's calibration: about 200), where an overflow is a tail event.
+CHECK_REALISATIONS_MAX = 256
 #: The check's seed: the same scenario and noise are refused, or not, every time.
 CHECK_SEED = 0
 #: Steps of the hand-designed sequence a scenario is checked on when it is stored: the
@@ -109,6 +125,14 @@ def representative_sequence(scenario: Scenario, n_steps: int) -> np.ndarray:
         return np.full((int(n_steps), scenario.n_thrusters), scenario.n_levels - 1)
 
 
+def check_realisations(scenario: Scenario, n_steps: int) -> int:
+    """The realisations a candidate a check flies on ``n_steps`` steps of ``scenario``:
+    :data:`CHECK_BUDGET` // (candidates x RK4 steps), within
+    [:data:`CHECK_REALISATIONS_MIN`, :data:`CHECK_REALISATIONS_MAX`]."""
+    work = max(1, scenario.n_candidates * int(n_steps) * scenario.timing.substeps_per_step)
+    return int(min(CHECK_REALISATIONS_MAX, max(CHECK_REALISATIONS_MIN, CHECK_BUDGET // work)))
+
+
 def _at(scenario: Scenario, levels: Mapping[str, float]) -> Scenario:
     """``scenario`` with some uncertainty figures set, not validated: a noise multiple
     takes a figure past what a person may state (as a noise sweep's copy does)."""
@@ -120,15 +144,18 @@ def overflow_step(
     scenario: Scenario,
     sequence: np.ndarray,
     *,
-    n_realisations: int = CHECK_REALISATIONS,
+    n_realisations: int | None = None,
     seed: int = CHECK_SEED,
 ) -> int | None:
     """The step (from 1) by which some realisation's rates turn inf or nan when
     ``sequence`` is flown on ``scenario`` at its noise; None when they stay finite.
+    ``n_realisations`` a candidate: :func:`check_realisations` unless told.
 
     The job's simulator (:class:`~inertia_id.physics.simulate.Simulator`), advanced a
     step at a time so that it stops at the first step that overflows.
     """
+    if n_realisations is None:
+        n_realisations = check_realisations(scenario, len(sequence))
     simulator = Simulator(scenario, n_realisations)
     rng = np.random.default_rng(seed)
     state = simulator.start(simulator.draw_initial(rng))
@@ -167,7 +194,8 @@ def check_simulable(
     base = {field: float(getattr(scenario.uncertainty, field)) for field in multiples}
     base.update({k: float(v) for k, v in (levels or {}).items() if k in multiples})
     at = _at(scenario, {field: multiples[field] * base[field] for field in multiples})
-    step = overflow_step(at, rows)
+    flown = check_realisations(scenario, len(rows))
+    step = overflow_step(at, rows, n_realisations=flown)
     if step is None:
         return
     driving = {
@@ -176,7 +204,7 @@ def check_simulable(
         if float(getattr(at.uncertainty, field)) > 0.0
     }
     quiet = {field: 0.0 for field in driving}
-    if overflow_step(_at(at, quiet), rows) is not None:
+    if overflow_step(_at(at, quiet), rows, n_realisations=flown) is not None:
         # No noise is to blame: the sequence overflows the bodies with every source of
         # it off (torques of 1e300 N m, an inertia of 1e-30 kg m^2).
         raise SimulationOverflow(
@@ -187,7 +215,8 @@ def check_simulable(
     alone = tuple(
         field
         for field in driving
-        if overflow_step(_at(at, {**quiet, field: driving[field]}), rows) is not None
+        if overflow_step(_at(at, {**quiet, field: driving[field]}), rows, n_realisations=flown)
+        is not None
     )
     fields = alone or tuple(driving)
 
@@ -210,7 +239,7 @@ def check_simulable(
     raise NoiseOverflow(
         f"{drives} the simulated rates to inf or nan within {step} of the {len(rows)} steps "
         f"of {sequence_name} {_shown(rows.tolist(), 120)} (a seeded check of "
-        f"{CHECK_REALISATIONS} realisations a candidate; smallest principal moment "
+        f"{flown} realisations a candidate; smallest principal moment "
         f"{moment:.3g} kg m^2, integration step {scenario.timing.integration_step_s:g} s): "
         "the bodies spin faster than the integrator follows, so nothing can be simulated "
         "at that noise; lower "

@@ -14,7 +14,7 @@ from inertia_id import InertiaClassifier, Scenario
 
 from .support import GOOD_SEQUENCE, Api
 
-#: On the paper preset the rates overflow within 3 of the hand-designed sequence's 4 steps.
+#: On the paper preset the rates overflow within 2 of the hand-designed sequence's 4 steps.
 OVERFLOWING_NM = 1e4
 #: Large but finite at 1x on 4 steps (rates of tens of rad/s); 8x of it overflows.
 LOUD_NM = 3e3
@@ -45,6 +45,20 @@ def test_a_scenario_whose_own_noise_overflows_is_refused_when_stored(
     assert api.get("/scenarios").json()["total"] == 0
     # Merely large but finite is stored.
     api.create_scenario(uncertainty={FIELD: LOUD_NM})
+
+
+def test_a_noise_that_overflows_only_in_a_jobs_tail_is_refused_when_stored(api: Api) -> None:
+    """An initial rate sigma of 40 rad/s on the paper preset: 8 realisations a candidate
+    flew through it, so it was stored (201) and a train job on it accepted (202), yet
+    every job of 210 realisations a candidate overflowed in the worker. The check flies
+    256 on the 4-step check and refuses it when it is stored."""
+    field = "initial_rate_sigma_rad_s"
+    body = {"preset": "paper", "overrides": {"uncertainty": {field: 40}}}
+    error = _one_error(api.post("/scenarios", json=body))
+    assert error["loc"] == ["body", "overrides", "uncertainty", field]
+    assert f"{field} = 40 rad/s at noise multiple 1 (the scenario's own)" in error["msg"]
+    assert "a seeded check of 256 realisations a candidate" in error["msg"]
+    assert api.get("/scenarios").json()["total"] == 0
 
 
 def test_a_stored_scenario_whose_noise_overflows_is_refused_by_every_job_and_flight(

@@ -12,7 +12,11 @@ from inertia_id import Scenario, simulate
 from inertia_id.errors import InputError
 from inertia_id.evaluation.sweep import run_sweep
 from inertia_id.physics.simulable import (
+    CHECK_BUDGET,
+    CHECK_REALISATIONS_MAX,
+    CHECK_REALISATIONS_MIN,
     NoiseOverflow,
+    check_realisations,
     check_scenario_simulable,
     check_simulable,
     overflow_step,
@@ -41,10 +45,49 @@ def test_the_check_agrees_with_the_simulator_the_jobs_use(
 ) -> None:
     with pytest.raises(SimulationOverflow):
         simulate(overflowing, SEQUENCE, 20, np.random.default_rng(0))
-    assert overflow_step(overflowing, np.asarray(SEQUENCE)) == 3
+    assert overflow_step(overflowing, np.asarray(SEQUENCE)) == 2
+    assert overflow_step(overflowing, np.asarray(SEQUENCE), n_realisations=8) == 3
     flown = simulate(loud, SEQUENCE, 20, np.random.default_rng(0))
     assert np.isfinite(flown.omega_measured).all() and np.abs(flown.omega_true).max() > 10.0
     assert overflow_step(loud, np.asarray(SEQUENCE)) is None
+    # Large but finite for real jobs too: 210 realisations a candidate (training's
+    # calibration) on a few seeds stay finite.
+    for seed in range(1, 6):
+        flown = simulate(loud, SEQUENCE, 210, np.random.default_rng(seed))
+        assert np.isfinite(flown.omega_measured).all()
+
+
+def test_the_check_flies_as_many_realisations_as_its_budget_allows() -> None:
+    paper = Scenario.paper()  # 5 candidates, 20 RK4 steps a step
+    assert check_realisations(paper, 4) == CHECK_REALISATIONS_MAX == 256
+    assert check_realisations(paper, 64) == CHECK_BUDGET // (5 * 64 * 20) == 40
+    assert check_realisations(paper, 10_000) == CHECK_REALISATIONS_MIN == 8
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "shown"),
+    [
+        ("initial_rate_sigma_rad_s", 40.0, "initial_rate_sigma_rad_s = 40 rad/s"),
+        ("disturbance_torque_sigma_nm", 7e3, "disturbance_torque_sigma_nm = 7000 N m"),
+    ],
+)
+def test_a_noise_that_overflows_a_job_in_its_tail_is_refused(
+    field: str, value: float, shown: str
+) -> None:
+    """Overflow is a tail event: 8 realisations a candidate flew through these, yet every
+    job of 210 realisations a candidate (training's calibration) overflowed on them. The
+    check flies 256 on the paper preset's 4 steps and refuses them."""
+    noisy = Scenario.paper().with_uncertainty(**{field: value})
+    assert overflow_step(noisy, np.asarray(SEQUENCE), n_realisations=8) is None
+    for seed in (1, 2):
+        with pytest.raises(SimulationOverflow):
+            simulate(noisy, SEQUENCE, 210, np.random.default_rng(seed))
+    with pytest.raises(NoiseOverflow) as refused:
+        check_scenario_simulable(noisy)
+    message = str(refused.value)
+    assert f"{shown} at noise multiple 1 (the scenario's own)" in message
+    assert "a seeded check of 256 realisations a candidate" in message
+    assert refused.value.fields == (field,)
 
 
 def test_a_scenario_that_overflows_at_its_own_noise_is_refused_naming_the_figure(
@@ -54,7 +97,7 @@ def test_a_scenario_that_overflows_at_its_own_noise_is_refused_naming_the_figure
         check_scenario_simulable(overflowing)
     message = str(refused.value)
     assert f"{FIELD} = 10000 N m at noise multiple 1 (the scenario's own)" in message
-    assert "inf or nan within 3 of the 4 steps" in message
+    assert "inf or nan within 2 of the 4 steps" in message
     assert refused.value.fields == (FIELD,) and refused.value.multiple == 1.0
     assert isinstance(refused.value, InputError)
     check_scenario_simulable(loud)  # merely large: stored
