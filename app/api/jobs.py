@@ -88,7 +88,7 @@ from .deps import (
 from .idempotency import IDEMPOTENCY_RESPONSES, IdempotencyDep, replayable
 from .listing import id_filters, one_page, search_text, sort_order, tag_filters
 from .routing import UniqueKeysRoute
-from .scenarios import PlanOptionsDep, plan_for
+from .scenarios import PlanOptionsDep, overflow_loc, plan_for
 
 __all__ = ["router"]
 
@@ -143,7 +143,7 @@ def _check_search(body: SearchJobCreate, scenario: Scenario) -> None:
             scenario, params.sequence_length, params.constraints, checked.design_noise
         )
     except NoiseOverflow as exc:
-        unprocessable(_overflow_loc(exc, ("body", "params", "design_noise")), str(exc))
+        unprocessable(overflow_loc(exc, ("body", "params", "design_noise")), str(exc))
     except InputError as exc:
         unprocessable(("body", "scenario_id"), str(exc))
     if params.method != "exhaustive":
@@ -252,16 +252,6 @@ MAX_HELD_VALUES = 2**23
 MAX_COVARIANCE_VALUES = 2**27
 
 
-def _overflow_loc(exc: NoiseOverflow, past_1x: tuple[str, ...]) -> tuple[str, ...]:
-    """Where a submission whose simulations overflow is refused: at the stored
-    scenario's noise figure when its own noise (1x) overflows (located in the document,
-    as a stored scenario's other refusals are), else at the parameter that asked for
-    the multiple (``past_1x``)."""
-    if exc.multiple != 1.0:
-        return past_1x
-    return ("uncertainty", exc.fields[0]) if len(exc.fields) == 1 else ("uncertainty",)
-
-
 def _check_size(
     scenario: Scenario, n_steps: int, per_candidate: int, where: tuple[str, ...]
 ) -> None:
@@ -326,7 +316,7 @@ def _check_train(body: TrainJobCreate, scenario: Scenario) -> None:
     except NoiseOverflow as exc:
         # The scenario's own noise overflows the rates (a row stored before scenarios
         # were checked for it, or one that overflows on this sequence's length only).
-        unprocessable(_overflow_loc(exc, ("body", "scenario_id")), str(exc))
+        unprocessable(overflow_loc(exc, ("body", "scenario_id")), str(exc))
     except InputError as exc:
         unprocessable(("body", "scenario_id"), str(exc))
 
@@ -364,7 +354,7 @@ def _check_sweep(session: SessionDep, body: SweepJobCreate, scenario: Scenario) 
     try:
         check_sweep_simulable(scenario, classifier.sequence, params.noises, params.multiples)
     except NoiseOverflow as exc:
-        unprocessable(_overflow_loc(exc, ("body", "params", "multiples")), str(exc))
+        unprocessable(overflow_loc(exc, ("body", "params", "multiples")), str(exc))
 
 
 def _check_time_limit(body: JobCreate, ceiling_s: float) -> None:

@@ -18,7 +18,7 @@ from inertia_id.checks import DuplicateKeyError, control_characters, loads_uniqu
 from inertia_id.errors import InputError
 from inertia_id.physics.presets import PRESETS, preset
 from inertia_id.physics.scenario import Scenario
-from inertia_id.physics.simulable import check_simulable
+from inertia_id.physics.simulable import NoiseOverflow, check_simulable
 from inertia_id.physics.simulate import (
     SimulationOverflow,
     check_gyro_range,
@@ -57,7 +57,7 @@ from .idempotency import IDEMPOTENCY_RESPONSES, IdempotencyDep, replayable
 from .listing import one_page
 from .routing import UniqueKeysRoute
 
-__all__ = ["PlanOptions", "PlanOptionsDep", "plan_for", "router", "scenario_out"]
+__all__ = ["PlanOptions", "PlanOptionsDep", "overflow_loc", "plan_for", "router", "scenario_out"]
 
 router = APIRouter(prefix="/scenarios", tags=["scenarios"], route_class=UniqueKeysRoute)
 
@@ -137,17 +137,27 @@ def _check_storable(scenario: Scenario) -> dict[str, Any]:
     return document
 
 
+def overflow_loc(exc: NoiseOverflow, past_1x: tuple[str, ...]) -> tuple[str, ...]:
+    """Where a request whose simulations overflow is refused: when the scenario's own
+    noise (1x) overflows, at its noise figure, located in the scenario document
+    (``("uncertainty", field)``; the section when no figure overflows alone), as a
+    stored scenario's other refusals are: a job, a plan's flights and a response all
+    name it there; else at ``past_1x``, the parameter that asked for the multiple."""
+    if exc.multiple != 1.0:
+        return past_1x
+    return ("uncertainty", exc.fields[0]) if len(exc.fields) == 1 else ("uncertainty",)
+
+
 def _check_simulable(scenario: Scenario, source: str) -> None:
     """Refuse a scenario that cannot be simulated at its own noise
     (:func:`~inertia_id.physics.simulable.check_scenario_simulable`): every job on it
     would fail. Located at the noise figure when one alone overflows the rates."""
-    from inertia_id.physics.simulable import NoiseOverflow, check_scenario_simulable
+    from inertia_id.physics.simulable import check_scenario_simulable
 
     try:
         check_scenario_simulable(scenario)
     except NoiseOverflow as exc:
-        where = ("uncertainty", exc.fields[0]) if len(exc.fields) == 1 else ("uncertainty",)
-        unprocessable(("body", source, *where), str(exc))
+        unprocessable(("body", source, *overflow_loc(exc, ())), str(exc))
     except SimulationOverflow as exc:
         unprocessable(("body", source), str(exc))
 
@@ -387,6 +397,8 @@ def _response(
             ),
             flight=lambda i: f"realisation {i + 1} of {n_realisations} (seed {seed})",
         )
+    except NoiseOverflow as exc:
+        unprocessable(overflow_loc(exc, ("query", "n_realisations")), str(exc))
     except SimulationOverflow as exc:
         unprocessable(("query", "n_realisations"), str(exc))
     omega = result.omega_measured  # (K, n, T, 3)
@@ -491,6 +503,10 @@ def _plan_response(
         )
     try:
         plan = command_plan(scenario, steps, flights=flights, seed=options.seed)
+    except NoiseOverflow as exc:
+        # The scenario's own noise, which the flights fly (a row stored before
+        # scenarios were checked for it): named at its figure, as a job names it.
+        unprocessable(overflow_loc(exc, ("query", "flights")), str(exc))
     except SimulationOverflow as exc:
         # The nominal prediction overflowing is the sequence's (on this scenario), not
         # the flights' (it was named at query.flights with no flights asked for); the

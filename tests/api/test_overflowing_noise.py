@@ -78,16 +78,34 @@ def test_a_stored_scenario_whose_noise_overflows_is_refused_by_every_job_and_fli
         assert error["loc"] == ["uncertainty", FIELD], (what, error)
         assert f"{FIELD} = 10000 N m at noise multiple 1" in error["msg"], (what, error)
     assert api.get("/jobs").json()["total"] == 0 and not api.queued_messages()
-    flights = api.post(
-        f"/scenarios/{scenario_id}/plan?flights=20", json={"sequence": GOOD_SEQUENCE}
-    )
-    error = _one_error(flights)
-    assert error["loc"] == ["query", "flights"] and f"{FIELD} = 10000 N m" in error["msg"]
-    response = api.get_with_key(
-        f"/scenarios/{scenario_id}/response", params={"sequence": str(GOOD_SEQUENCE)}
-    )
-    error = _one_error(response)
-    assert error["loc"] == ["query", "n_realisations"] and f"{FIELD} = 10000 N m" in error["msg"]
+    assert api.get(f"/scenarios/{scenario_id}").status_code == 200
+
+
+@pytest.mark.parametrize("route", ["GET plan", "POST plan", "GET response"])
+def test_a_stored_scenarios_overflowing_noise_is_named_at_its_figure_by_plans_and_responses(
+    api: Api, paper: Scenario, route: str
+) -> None:
+    """Where the jobs name it: the scenario's noise figure, not a query parameter. The
+    plan's flights and the response's realisations put it at ``query.flights`` and
+    ``query.n_realisations``, blaming a number the client had not got wrong (20 flights
+    of a scenario that can be flown overflow as surely as 2 do)."""
+    scenario_id = api.insert_scenario(paper.with_uncertainty(**{FIELD: OVERFLOWING_NM}))
+    sequence = str(GOOD_SEQUENCE)
+    if route == "GET plan":
+        answer = api.get_with_key(
+            f"/scenarios/{scenario_id}/plan", params={"sequence": sequence, "flights": 20}
+        )
+    elif route == "POST plan":
+        answer = api.post(
+            f"/scenarios/{scenario_id}/plan?flights=20", json={"sequence": GOOD_SEQUENCE}
+        )
+    else:
+        answer = api.get_with_key(
+            f"/scenarios/{scenario_id}/response", params={"sequence": sequence}
+        )
+    error = _one_error(answer)
+    assert error["loc"] == ["uncertainty", FIELD], error
+    assert f"{FIELD} = 10000 N m at noise multiple 1" in error["msg"], error
     # The nominal plan flies no noise, and the row is still there.
     assert api.post(f"/scenarios/{scenario_id}/plan", json={"sequence": GOOD_SEQUENCE}).is_success
     assert api.get(f"/scenarios/{scenario_id}").status_code == 200
