@@ -410,3 +410,22 @@ def classifier_row(scenario_id: str, model: Any) -> Any:
         document=document,
         sha256=json.loads(document)["sha256"],
     )
+
+
+def job_clock(monkeypatch: pytest.MonkeyPatch, after_claim: float) -> list[float]:
+    """Every job run from now on (``worker.runner.execute_job``) reads a clock of its own
+    that says 0 at its claim and ``now[0]`` at every reading after it: ``after_claim``
+    until the test moves it (``now`` is returned). So a job's time limit, at least 1 s
+    (``TIME_LIMIT_MIN_S``), runs out where the test says, with no sleep and on a machine
+    of any speed; a limit of 1e-9 s did that before the floor."""
+    import worker.runner
+    from worker.context import JobContext
+
+    now = [after_claim]
+
+    def context(*args: Any, **kwargs: Any) -> JobContext:
+        readings = iter([0.0])
+        return JobContext(*args, clock=lambda: next(readings, now[0]), **kwargs)
+
+    monkeypatch.setattr(worker.runner, "JobContext", context)
+    return now

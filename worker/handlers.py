@@ -150,7 +150,8 @@ def run_sweep_job(context: JobContext) -> Outcome:
     multiple, at step = the multiple's index in the job's ``multiples`` list (0, 1, ...),
     value = the accuracy there. A cancel stops between points; the points done are kept.
     So does the job's time limit: the job then succeeds with the points done, and the
-    result says ``"stopped": "time_limit"``.
+    result says ``"stopped": "time_limit"``; a limit that ran out before the first point
+    fails the job naming it, as a training's does (it had "succeeded" with no point).
     """
     spec = context.spec
     if spec.classifier is None:
@@ -171,6 +172,8 @@ def run_sweep_job(context: JobContext) -> Outcome:
         for step, point in enumerate(sweep.curve(noise))
     ]
     status = "cancelled" if context.cancelled else "succeeded"
+    if stop.timed_out and status == "succeeded" and not sweep.points:
+        raise JobTimeLimitExceeded(f"{context.time_limit_text()} before the first sweep point")
     result = outcome.to_dict()
     if stop.timed_out and status == "succeeded":
         result["stopped"] = "time_limit"

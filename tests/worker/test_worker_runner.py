@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 import pytest
 from scenario_support import GOOD_SEQUENCE
-from service_support import POSTGRES_ADMIN_URL, writes_refused_while
+from service_support import POSTGRES_ADMIN_URL, job_clock, writes_refused_while
 from sqlalchemy import create_engine, make_url, select, text, update
 
 from inertia_id import Scenario
@@ -333,7 +333,8 @@ def test_a_search_job_runs_to_its_own_limit_below_the_ceiling(store: Store) -> N
     assert JobContext(at_ceiling, store.db, six_hours, WORKER).rescore_grace_s == 300.0
 
 
-def test_a_sweep_job_past_its_time_limit_keeps_the_points_done(store: Store) -> None:
+def _sweep_job(store: Store, **params: Any) -> str:
+    """A sweep job (2 noises x 2 multiples) of a quick classifier trained by a job."""
     train = store.add_job(
         "train",
         {
@@ -345,23 +346,66 @@ def test_a_sweep_job_past_its_time_limit_keeps_the_points_done(store: Store) -> 
     )
     assert execute_job(train, settings=store.settings, worker_name=WORKER) == "succeeded"
     classifier_id = (store.job(train).result or {})["classifier_id"]
-    params = {
+    sweep = {
         "classifier_id": classifier_id,
         "multiples": [1.0, 2.0],
         "n_test": 10,
         "others": [],
         "ceiling_realisations": 0,
     }
-    job_id = store.add_job("sweep", params)
-    limited = store.settings.model_copy(update={"job_time_limit_s": 1e-9})
-    assert execute_job(job_id, settings=limited, worker_name=WORKER) == "succeeded"
+    return store.add_job("sweep", {**sweep, **params})
+
+
+def test_a_sweep_job_past_its_time_limit_keeps_the_points_done(
+    store: Store, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    job_id = _sweep_job(store, time_limit_s=1.0)
+    # The job's clock stands at its claim until the first point is reported, then at
+    # its limit: spent after exactly one point, on any machine.
+    now = job_clock(monkeypatch, after_claim=0.0)
+    report = JobContext.report
+
+    def report_then_spend(self: JobContext, **kwargs: Any) -> None:
+        report(self, **kwargs)
+        now[0] = 1.0
+
+    monkeypatch.setattr(JobContext, "report", report_then_spend)
+    assert execute_job(job_id, settings=store.settings, worker_name=WORKER) == "succeeded"
     result = store.job(job_id).result or {}
-    assert result["stopped"] == "time_limit" and result["time_limit_s"] == 1e-9
-    assert len(result["points"]) < 4  # stopped before the last of 2 noises x 2 multiples
+    assert result["stopped"] == "time_limit" and result["time_limit_s"] == 1.0
+    assert len(result["points"]) == 1  # of 2 noises x 2 multiples
 
 
 @pytest.mark.parametrize("whose", ["the service's ceiling", "the job's own"])
-def test_a_train_job_past_its_time_limit_fails_naming_it(store: Store, whose: str) -> None:
+def test_a_sweep_job_whose_limit_ran_out_before_its_first_point_fails_naming_it(
+    store: Store, monkeypatch: pytest.MonkeyPatch, whose: str
+) -> None:
+    """It "succeeded" with no point at all, ``stopped: time_limit``: a job that stored
+    nothing read as done. Now it fails as a training past its limit does."""
+    settings = store.settings
+    if whose == "the job's own":
+        job_id = _sweep_job(store, time_limit_s=1.0)
+        job_clock(monkeypatch, after_claim=1.0)  # spent at the first check
+        limit = "1 s"
+    else:
+        job_id = _sweep_job(store)
+        settings = settings.model_copy(update={"job_time_limit_s": 1e-9})
+        limit = "1e-09 s"
+    assert execute_job(job_id, settings=settings, worker_name=WORKER) == "failed"
+    job = store.job(job_id)
+    assert job.result is None
+    assert job.error == (
+        f"JobTimeLimitExceeded: the job exceeded its time limit of {limit} before the first "
+        "sweep point"
+    )
+    with store.db.session() as session:
+        assert session.scalars(select(MetricRow).where(MetricRow.job_id == job_id)).all() == []
+
+
+@pytest.mark.parametrize("whose", ["the service's ceiling", "the job's own"])
+def test_a_train_job_past_its_time_limit_fails_naming_it(
+    store: Store, monkeypatch: pytest.MonkeyPatch, whose: str
+) -> None:
     params: dict[str, Any] = {
         "sequence": GOOD_SEQUENCE,
         "kind": "nearest-centroid",
@@ -370,14 +414,18 @@ def test_a_train_job_past_its_time_limit_fails_naming_it(store: Store, whose: st
     }
     settings = store.settings
     if whose == "the job's own":
-        # Under the service's ceiling (6 h), as a search or sweep may ask.
-        params["time_limit_s"] = 1e-9
+        # Under the service's ceiling (6 h), as a search or sweep may ask; the job's
+        # clock reads its limit from the claim on: spent at the first checkpoint.
+        params["time_limit_s"] = 1.0
+        job_clock(monkeypatch, after_claim=1.0)
+        limit = "1 s"
     else:
         settings = settings.model_copy(update={"job_time_limit_s": 1e-9})
+        limit = "1e-09 s"
     job_id = store.add_job("train", params)
     assert execute_job(job_id, settings=settings, worker_name=WORKER) == "failed"
     job = store.job(job_id)
-    assert job.error == "JobTimeLimitExceeded: the job exceeded its time limit of 1e-09 s"
+    assert job.error == f"JobTimeLimitExceeded: the job exceeded its time limit of {limit}"
     with store.db.session() as session:
         assert session.scalars(select(ClassifierRow.id)).all() == []
 
