@@ -17,6 +17,7 @@ __all__ = [
     "GRACE_FRACTION",
     "GRACE_MAX_S",
     "GRACE_MIN_S",
+    "TIME_LIMIT_MIN_S",
     "Deadline",
     "check_grace",
     "check_time_limit",
@@ -42,8 +43,18 @@ GRACE_MAX_S = 300.0
 GRACE_ASKED_MAX_S = 3600.0
 
 
+#: The shortest time limit a job (``time_limit_s`` over the API, the service's ceiling
+#: ``INERTIA_ID_JOB_TIME_LIMIT_S``) or a command (``--time-limit``) accepts, s. Below it
+#: a limit is no budget but a slip, most likely a value in the wrong unit (milliseconds):
+#: a training or a sweep would end with nothing done, a search after its first sequence
+#: (whose re-score's grace alone is at least 10 s). Where a caller passes its own clock
+#: (:class:`Deadline`, the core's requests), any span > 0 stands.
+TIME_LIMIT_MIN_S = 1.0
+
+
 def check_time_limit(value: Any) -> float | None:
-    """A search's time budget: None (none), or a finite number of seconds > 0."""
+    """A search's time budget: None (none), or a finite number of seconds > 0 (a job's
+    or a command's at least :data:`TIME_LIMIT_MIN_S`, checked where they are read)."""
     if value is None:
         return None
     if (

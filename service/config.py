@@ -15,6 +15,8 @@ from typing import Literal
 from pydantic import Field, ValidationError, field_validator, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
+from inertia_id.deadline import TIME_LIMIT_MIN_S
+
 __all__ = [
     "LONGEST_S",
     "LOOPBACK_HOSTS",
@@ -208,10 +210,11 @@ class Settings(BaseSettings):
     #: never more. 6 h: a working day's share of a worker. The paper's PPO search (20,480
     #: steps, 20 realisations, L = 4) and the largest sweeps take minutes, so this leaves
     #: room for searches a hundred times larger, while a runaway (an exhaustive search of
-    #: 1e9 sequences runs for weeks) frees its worker the same day.
+    #: 1e9 sequences runs for weeks) frees its worker the same day. At least a second, as
+    #: a job's own ``time_limit_s`` (:data:`~inertia_id.deadline.TIME_LIMIT_MIN_S`).
     job_time_limit_s: float = Field(
         default=6 * 3600.0,
-        gt=0,
+        ge=TIME_LIMIT_MIN_S,
         le=LONGEST_S,
         allow_inf_nan=False,
         alias="INERTIA_ID_JOB_TIME_LIMIT_S",

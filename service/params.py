@@ -28,7 +28,7 @@ from pydantic import (
     model_validator,
 )
 
-from inertia_id.deadline import GRACE_ASKED_MAX_S, GRACE_MAX_S
+from inertia_id.deadline import GRACE_ASKED_MAX_S, GRACE_MAX_S, TIME_LIMIT_MIN_S
 from inertia_id.errors import InputError
 from inertia_id.pipelines import SearchRequest, SweepRequest, TrainRequest
 
@@ -64,13 +64,16 @@ _MAX_INT = 2**53
 def _time_limit_field() -> Any:
     return Field(
         default=None,
-        gt=0,
-        description="wall-clock limit of the job in seconds, at most the service's "
+        ge=TIME_LIMIT_MIN_S,
+        description="wall-clock limit of the job in seconds, at least "
+        f"{TIME_LIMIT_MIN_S:g} (less is no budget for any job's work, and most likely "
+        "milliseconds meant as seconds) and at most the service's "
         "INERTIA_ID_JOB_TIME_LIMIT_S (the ceiling every job has); none: the ceiling. A search "
         "past it stops with its best so far (stopped: time_limit), re-scored only in a grace "
         f"of 10 % of the limit, at least 10 s, at most {GRACE_MAX_S:g} s "
-        "(settings.time_limit_grace_s); a sweep keeps the points done; a training stops at "
-        "its next checkpoint and the job fails naming the limit, nothing stored",
+        "(settings.time_limit_grace_s); a sweep keeps the points done (stopped: time_limit); "
+        "a training stops at its next checkpoint and the job fails naming the limit, nothing "
+        "stored, and so does a sweep stopped before its first point",
         examples=[3600],
     )
 

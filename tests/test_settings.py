@@ -51,6 +51,9 @@ OUT_OF_RANGE = [
     ("INERTIA_ID_COMPUTE_WAIT_S", "inf"),
     ("INERTIA_ID_VERDICT_TIMEOUT_S", "inf"),
     ("INERTIA_ID_JOB_TIME_LIMIT_S", "1e12"),
+    # Under a second, as a job's own time_limit_s: every training and sweep would fail.
+    ("INERTIA_ID_JOB_TIME_LIMIT_S", "0.5"),
+    ("INERTIA_ID_JOB_TIME_LIMIT_S", "1e-9"),
     ("INERTIA_ID_REQUEST_HEAD_TIMEOUT_S", "1e12"),
     ("INERTIA_ID_REQUEST_BODY_TIMEOUT_S", "1e12"),
     # Below 1 s every statement of the API was cut (50 of 50 at 1e-3 s): a 503 each.
@@ -76,6 +79,7 @@ AT_THE_EDGE = [
     ("INERTIA_ID_COMPUTE_THREADS", str(MAX_COMPUTE_THREADS)),
     ("INERTIA_ID_COMPUTE_QUEUE", "0"),
     ("INERTIA_ID_COMPUTE_QUEUE", str(MAX_COMPUTE_QUEUE)),
+    ("INERTIA_ID_JOB_TIME_LIMIT_S", "1"),
     ("INERTIA_ID_JOB_TIME_LIMIT_S", str(LONGEST_S)),
     ("INERTIA_ID_DATABASE_ANSWER_TIMEOUT_S", "1"),
     ("INERTIA_ID_DATABASE_ANSWER_TIMEOUT_S", str(LONGEST_S)),

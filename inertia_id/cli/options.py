@@ -26,6 +26,7 @@ from ..checks import (
     parse_decimal,
     parse_whole,
 )
+from ..deadline import TIME_LIMIT_MIN_S
 from ..errors import InputError
 from ..pipelines import PAPER_SEQUENCE
 from ..wording import counted
@@ -317,24 +318,29 @@ def n_test_option(default: int) -> Callable[[F], F]:
 def _time_limit(
     _context: click.Context, _parameter: click.Parameter, value: float | None
 ) -> float | None:
-    """A usage error (exit status 2) for a time limit that is not a number of s > 0."""
-    if value is None or (math.isfinite(value) and value > 0):
+    """A usage error (exit status 2) for a time limit that is not a finite number of
+    seconds of at least TIME_LIMIT_MIN_S."""
+    if value is None or (math.isfinite(value) and value >= TIME_LIMIT_MIN_S):
         return value
-    raise click.BadParameter(f"must be a finite number of seconds > 0, got {value!r}")
+    raise click.BadParameter(
+        f"must be a finite number of seconds >= {TIME_LIMIT_MIN_S:g}, got {value!r}"
+    )
 
 
 def time_limit_option(help_text: str) -> Callable[[F], F]:
     """``--time-limit SECONDS`` (``time_limit_s``; none by default): ``search`` and
-    ``train``, read alike."""
+    ``train``, read alike; at least :data:`~inertia_id.deadline.TIME_LIMIT_MIN_S`, as a
+    job's ``time_limit_s`` is."""
     return click.option(
         "--time-limit",
         "time_limit_s",
         default=None,
         # Not click's float, which reads 1_0 as 10; _time_limit names inf and nan.
-        type=FloatRange(0, min_open=True),
+        type=FloatRange(TIME_LIMIT_MIN_S),
         metavar="SECONDS",
         callback=_time_limit,
-        help=help_text,
+        help=f"{help_text} At least {TIME_LIMIT_MIN_S:g} s (less is most likely "
+        "milliseconds meant as seconds).",
     )
 
 

@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from service_support import job_clock
 
 from inertia_id import METRICS, InertiaClassifier, Scenario
 from inertia_id.classifiers.registry import CLASSIFIER_KINDS
@@ -1080,8 +1081,8 @@ def test_a_job_field_refused_is_located_where_the_client_sent_it(
 @pytest.mark.parametrize(
     ("value", "quoted"),
     [
-        (0, "greater than 0, got 0"),
-        (-5, "greater than 0, got -5"),
+        (0, "greater than or equal to 1, got 0"),
+        (-5, "greater than or equal to 1, got -5"),
         ("60", "a valid number, got '60'"),
         (True, "a valid number, got True"),
     ],
@@ -1097,7 +1098,38 @@ def test_a_time_limit_that_is_no_positive_number_is_422_naming_it(
     assert api.queued_messages() == []
 
 
-def test_a_train_job_takes_a_time_limit_of_its_own_and_fails_past_it(api: Api) -> None:
+@pytest.mark.parametrize("job_type", ["search", "sweep", "train"])
+def test_a_time_limit_under_a_second_is_422_naming_it_and_the_floor(
+    api: Api, classifier: InertiaClassifier, job_type: str
+) -> None:
+    """1e-9 s was queued: a training then failed on it, a sweep "succeeded" with no
+    point, a search ran one sequence. Less than 1 s is no budget for any job's work,
+    and most likely milliseconds meant as seconds; 1 s is taken."""
+    scenario_id = api.create_scenario()["id"]
+    params: dict[str, Any] = {}
+    if job_type == "sweep":
+        params["classifier_id"] = api.insert_classifier(scenario_id, classifier)
+    if job_type == "train":
+        params["sequence"] = GOOD_SEQUENCE
+    for value in (1e-9, 0.5, 0.999):
+        response = api.submit(job_type, scenario_id, params={**params, "time_limit_s": value})
+        assert response.status_code == 422, response.text
+        (error,) = response.json()["detail"]
+        assert error["loc"] == ["body", "params", "time_limit_s"]
+        assert error["msg"].endswith(f"greater than or equal to 1, got {value!r}"), error
+    assert api.queued_messages() == []
+    response = api.submit(job_type, scenario_id, params={**params, "time_limit_s": 1})
+    assert response.status_code == 202, response.text
+    assert response.json()["params"]["time_limit_s"] == 1
+    schema = api.get("/openapi.json").json()["components"]["schemas"]
+    limit = schema[f"{job_type.capitalize()}Params"]["properties"]["time_limit_s"]
+    assert {"type": "number", "minimum": 1} in limit["anyOf"]
+    assert "at least 1" in limit["description"]
+
+
+def test_a_train_job_takes_a_time_limit_of_its_own_and_fails_past_it(
+    api: Api, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """A training stops at its next checkpoint past its limit, so a train job takes
     ``time_limit_s`` as a search or sweep does (it was a 422: the limit could not stop a
     training part-way). Its limit is part of its configuration, as a search's is."""
@@ -1109,13 +1141,12 @@ def test_a_train_job_takes_a_time_limit_of_its_own_and_fails_past_it(api: Api) -
         "kind": "nearest-centroid",
         "metric": "euclidean",
         "n_realisations": 3,
-        # Spent at the first checkpoint, on any machine.
-        "time_limit_s": 1e-9,
+        "time_limit_s": 1,
     }
     submitted = api.submit("train", scenario_id, params=params)
     assert submitted.status_code == 202, submitted.text
     job = submitted.json()
-    assert job["params"]["time_limit_s"] == 1e-9
+    assert job["params"]["time_limit_s"] == 1
     assert job["config_hash"] == config_hash("train", scenario_id, job["params"], job["seed"])
     # The same training without the limit is other work: a job of its own.
     unlimited = api.submit("train", scenario_id, params={**params, "time_limit_s": None})
@@ -1136,9 +1167,12 @@ def test_a_train_job_takes_a_time_limit_of_its_own_and_fails_past_it(api: Api) -
     )
     assert rerun.status_code == 202, rerun.text
 
+    # The job's clock reads its limit from the claim on: spent at the first checkpoint,
+    # on any machine.
+    job_clock(monkeypatch, after_claim=1.0)
     assert execute_job(job["id"], settings=api.settings, worker_name="tests") == "failed"
     failed = api.get(f"/jobs/{job['id']}").json()
-    assert failed["error"] == "JobTimeLimitExceeded: the job exceeded its time limit of 1e-09 s"
+    assert failed["error"] == "JobTimeLimitExceeded: the job exceeded its time limit of 1 s"
     assert failed["result"] is None
     assert api.get("/classifiers").json()["items"] == []
 

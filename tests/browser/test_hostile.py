@@ -1015,7 +1015,11 @@ def test_a_job_forms_time_limit_is_sent_refused_beside_its_box_and_shown(
     assert "time_limit_s" not in (sent.value.request.post_data_json or {})["params"]
     page.wait_for_selector("#search-seed + .field-error")
     page.fill("#search-seed", "3")
-    for typed, said in [("-1", "greater than 0"), ("abc", "valid number")]:
+    for typed, said in [
+        ("-1", "greater than or equal to 1"),
+        ("0.5", "greater than or equal to 1, got 0.5"),
+        ("abc", "valid number"),
+    ]:
         page.fill("#search-time_limit_s", typed)
         with page.expect_response(lambda r: r.url.endswith("/jobs")) as sent:
             page.click("#submit-job")

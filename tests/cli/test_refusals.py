@@ -1032,10 +1032,13 @@ def test_a_grace_over_an_hour_is_refused_naming_it(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     ("value", "message"),
     [
-        ("0", "0.0 is not in the range x>0"),
-        ("-5", "-5.0 is not in the range x>0"),
-        ("inf", "must be a finite number of seconds > 0, got inf"),
-        ("nan", "must be a finite number of seconds > 0, got nan"),
+        ("0", "0.0 is not in the range x>=1"),
+        ("-5", "-5.0 is not in the range x>=1"),
+        # Less than a second is no budget, most likely milliseconds meant as seconds.
+        ("1e-9", "1e-09 is not in the range x>=1"),
+        ("0.5", "0.5 is not in the range x>=1"),
+        ("inf", "must be a finite number of seconds >= 1, got inf"),
+        ("nan", "must be a finite number of seconds >= 1, got nan"),
         ("1_0", "'1_0' is not a decimal number"),
     ],
 )
@@ -1047,6 +1050,18 @@ def test_train_refuses_a_time_limit_that_is_no_number_of_seconds(
     result = CliRunner().invoke(main, ["train", "--time-limit", value, "--out", str(out)])
     assert result.exit_code == 2, result.output
     assert "'--time-limit'" in result.output and message in " ".join(result.output.split())
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("value", ["1e-9", "0.5"])
+def test_search_refuses_a_time_limit_under_a_second(value: str, tmp_path: Path) -> None:
+    """As a job's ``time_limit_s`` is: ``search --time-limit 1e-9`` ran, one sequence
+    and its re-score, a limit that is most likely milliseconds meant as seconds."""
+    out = tmp_path / "s.json"
+    result = CliRunner().invoke(main, ["search", "--time-limit", value, "--out", str(out)])
+    assert result.exit_code == 2, result.output
+    said = " ".join(result.output.split())
+    assert f"'--time-limit': {float(value)!r} is not in the range x>=1" in said
     assert not out.exists()
 
 
