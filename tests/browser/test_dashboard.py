@@ -1272,6 +1272,65 @@ def test_a_sweep_chosen_on_a_classifier_page_is_not_drawn_over_by_a_slower_earli
         page.unroute(pattern)
 
 
+def test_a_sweep_that_cannot_be_read_on_a_classifier_page_is_said_in_its_card(
+    dashboard: Dashboard,
+) -> None:
+    # A failed GET /jobs/{id} of the sweep the classifier page draws rejected unhandled
+    # when the menu chose it ("Uncaught (in promise)", the card left as it was), and at
+    # the page's first read it ended the page: the sequence's response was never drawn.
+    # Now the card says it, and the rest of the page is drawn. Before: the first read's
+    # message was not in #sweep-card (the route's own error took the page).
+    client = dashboard.service.client
+    scenario = client.post("/scenarios", json={"preset": "paper"}).json()["id"]
+    params = {"sequence": GOOD, "kind": "nearest-centroid", "metric": "euclidean"}
+    classifier = _trained(dashboard, scenario, {**params, "n_realisations": 5}, seed=11)
+    sweeps = []
+    for seed in (1, 2):
+        body = {"classifier_id": classifier, "multiples": [1], "n_test": 20}
+        answer = client.post(
+            "/jobs", json={"type": "sweep", "scenario_id": scenario, "seed": seed, "params": body}
+        )
+        assert answer.status_code == 202, answer.text
+        sweeps.append(answer.json()["id"])
+        client.post(f"/jobs/{sweeps[-1]}/cancel")
+    page = dashboard.page
+    dashboard.console.expect("Failed to load resource")
+
+    def refused(route: Any) -> None:
+        route.fulfill(
+            status=500, content_type="application/json", body=json.dumps({"detail": "store down"})
+        )
+
+    patterns = [f"**/jobs/{s}" for s in sweeps]
+    for pattern in patterns:
+        page.route(pattern, refused)
+    try:
+        dashboard.open(f"#/classifiers/{classifier}")
+        shown = page.wait_for_selector("#sweep-card .message.error", timeout=10_000).inner_text()
+        first = page.input_value("#sweep-select")
+        assert "store down" in shown and first[:8] in shown, shown
+        # The rest of the page is drawn: the sequence's simulated response.
+        page.wait_for_selector("#classifier-response", state="attached")
+    finally:
+        for pattern in patterns:
+            page.unroute(pattern)
+    other = next(s for s in sweeps if s != first)
+    page.select_option("#sweep-select", other)
+    page.wait_for_selector("#sweep-card #sweep-state")
+    assert page.locator("#sweep-card .message.error").count() == 0
+    pattern = f"**/jobs/{first}"
+    page.route(pattern, lambda route: route.abort())
+    try:
+        page.select_option("#sweep-select", first)
+        shown = page.wait_for_selector("#sweep-card .message.error", timeout=10_000).inner_text()
+        assert "could not be reached" in shown and first[:8] in shown, shown
+        assert page.locator("#sweep-state").count() == 0
+    finally:
+        page.unroute(pattern)
+    uncaught = [e for e in dashboard.console.errors if e.startswith("uncaught")]
+    assert uncaught == [], uncaught
+
+
 def test_identify_telemetry_files_verdict_distances_and_matches_none(
     dashboard: Dashboard, tmp_path: Path
 ) -> None:

@@ -143,10 +143,19 @@ async function calibrationOf(card, classifier, context) {
   );
 }
 
+// A failed read (the list, the chosen sweep, a poll of a running one) is said in the card,
+// as the calibration's is; it rejected before, unhandled where the menu's change called it,
+// and the card stayed as it was.
 async function sweepsOf(card, classifier, context, sweepId) {
-  const page = await api.jobs({ type: "sweep", classifier_id: classifier.id, limit: 200 });
-  const sweeps = page.items;
   card.append(h("h2", {}, "Accuracy against noise"));
+  let page;
+  try {
+    page = await api.jobs({ type: "sweep", classifier_id: classifier.id, limit: 200 });
+  } catch (exc) {
+    if (context.alive()) card.append(messageBox("error", `This classifier's sweeps could not be read: ${exc.message}. Reload the page to try again.`));
+    return;
+  }
+  const sweeps = page.items;
   if (!sweeps.length) {
     card.append(messageBox("notice", "No sweep of this classifier yet: run one to see its accuracy as noise grows."));
     return;
@@ -157,35 +166,59 @@ async function sweepsOf(card, classifier, context, sweepId) {
     { id: "sweep-select", "aria-label": "sweep" },
     sweeps.map((j) => h("option", { value: j.id, selected: j.id === chosen.id }, `${j.name || j.id.slice(0, 8)} · ${j.status} · ${utcText(j.created_at)}`)),
   );
+  // A running sweep's failed poll, until one is answered again.
+  const pollNote = h("div", { id: "sweep-poll-state", role: "status" });
   const holder = h("div");
   const compareLink = link(`#/compare?type=classifier&ids=${classifier.id}`, "compare with other classifiers");
   const jobLink = link(`#/jobs/${chosen.id}`, "job page", { id: "sweep-job-link" });
-  card.append(h("div", { class: "toolbar" }, h("label", { for: "sweep-select" }, "sweep"), select, jobLink, compareLink), holder);
+  card.append(h("div", { class: "toolbar" }, h("label", { for: "sweep-select" }, "sweep"), select, jobLink, compareLink), pollNote, holder);
   // Only the sweep chosen last is drawn, and only its poll runs: a slow answer for one
   // chosen before it was drawn over it (the menu named one sweep, the panel showed
   // another), and the poll of every sweep once shown went on.
   let asked = 0;
   let timer = null;
+  const failed = (id, exc) => {
+    clear(holder);
+    holder.append(messageBox("error", `Sweep ${id.slice(0, 8)} could not be read: ${exc.message}. Choose it again to try again.`));
+  };
   const show = async (id) => {
     const mine = ++asked;
     clearInterval(timer);
+    pollNote.replaceChildren();
     // The list sends no results: the chosen sweep's comes with the job itself.
-    const job = await api.job(id);
-    if (mine !== asked || !context.alive()) return;
-    clear(holder);
-    jobLink.setAttribute("href", `#/jobs/${job.id}`);
-    const panel = await sweepPanel(holder, job, classifier, context);
+    let job;
+    let panel;
+    try {
+      job = await api.job(id);
+      if (mine !== asked || !context.alive()) return;
+      clear(holder);
+      jobLink.setAttribute("href", `#/jobs/${job.id}`);
+      panel = await sweepPanel(holder, job, classifier, context);
+    } catch (exc) {
+      if (mine !== asked || !context.alive()) return;
+      jobLink.setAttribute("href", `#/jobs/${id}`);
+      failed(id, exc);
+      return;
+    }
     if (mine !== asked || isTerminal(job.status)) return;
+    let answered = new Date();
     const polling = setInterval(async () => {
       if (!context.alive() || mine !== asked) return clearInterval(polling);
-      const fresh = await api.job(job.id).catch(() => null);
-      if (!fresh || mine !== asked) return;
-      await panel.update(fresh);
-      if (isTerminal(fresh.status)) clearInterval(polling);
+      try {
+        const fresh = await api.job(job.id);
+        if (mine !== asked || !context.alive()) return;
+        await panel.update(fresh);
+        answered = new Date();
+        if (mine === asked) pollNote.replaceChildren();
+        if (isTerminal(fresh.status)) clearInterval(polling);
+      } catch (exc) {
+        if (mine !== asked || !context.alive()) return;
+        const since = answered.toISOString().slice(11, 19);
+        pollNote.replaceChildren(messageBox("error", `Sweep not updated since ${since} UTC: ${exc.message}. The page tries again every 2 s.`));
+      }
     }, 2000);
     timer = polling;
   };
   select.addEventListener("change", () => show(select.value));
   await show(chosen.id);
 }
-
