@@ -41,6 +41,37 @@ export function clear(node) {
   return node;
 }
 
+// Makes `node` read as `wanted` (built afresh to replace it), writing to the DOM only what
+// differs: a node equal to `wanted` is left alone; an element of the same tag keeps itself,
+// takes `wanted`'s attributes and has its children patched in turn; any other node is
+// replaced by `wanted`. Returns the node now in place. Text the user selected, and the
+// focus, stay in whatever did not change (a part drawn again whole lost them at each
+// poll). For display-only nodes: the listeners on `wanted`'s nodes are not carried over
+// to the nodes kept, so a part with listeners is put in whole instead.
+export function patch(node, wanted) {
+  if (node.isEqualNode(wanted)) return node;
+  if (node.nodeType !== wanted.nodeType || node.nodeName !== wanted.nodeName) {
+    node.replaceWith(wanted);
+    return wanted;
+  }
+  if (node.nodeType !== Node.ELEMENT_NODE) {
+    node.nodeValue = wanted.nodeValue;
+    return node;
+  }
+  for (const name of node.getAttributeNames()) {
+    if (!wanted.hasAttribute(name)) node.removeAttribute(name);
+  }
+  for (const name of wanted.getAttributeNames()) {
+    const value = wanted.getAttribute(name);
+    if (node.getAttribute(name) !== value) node.setAttribute(name, value);
+  }
+  const had = [...node.childNodes];
+  const comes = [...wanted.childNodes];
+  comes.forEach((child, i) => (i < had.length ? patch(had[i], child) : node.append(child)));
+  for (const child of had.slice(comes.length)) child.remove();
+  return node;
+}
+
 // The decimals that show `significant` significant digits of `value` (0 where its
 // integer digits already do): with 1, the decimals that resolve a step of `value`.
 export function decimalsFor(value, significant) {

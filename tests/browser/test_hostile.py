@@ -476,6 +476,64 @@ def test_a_running_jobs_parameters_opened_stay_open_through_its_polls(
         page.unroute(pattern)
 
 
+def test_a_running_jobs_header_keeps_a_selection_and_the_focus_through_its_polls(
+    dashboard: Dashboard,
+) -> None:
+    # A running job's header was cleared and drawn again at every poll (2 s): the job id
+    # the user had selected to copy was lost, and the focus left the cancel button. Only
+    # what changed is written now: here the run time, which each answer moves on.
+    # Before: the selection read '' after the first poll.
+    _save_key(dashboard)
+    scenario_id = _scenario(dashboard, ["stowed", "deployed"], "header selection")
+    job_id = _queued_search(dashboard, scenario_id, "selected")
+    page = dashboard.page
+    answers = [0]
+
+    def running(route: Any) -> None:
+        if route.request.method != "GET":
+            route.continue_()
+            return
+        answer = route.fetch()
+        job = json.loads(_as_running(answer))
+        answers[0] += 1
+        job["started_at"], job["run_time_s"] = job["created_at"], 60.0 + answers[0]
+        # Its cancel not yet asked: the button takes the focus (disabled, it would not).
+        job["cancel_requested"] = False
+        route.fulfill(response=answer, body=json.dumps(job))
+
+    def two_polls() -> None:
+        for _ in range(2):
+            with page.expect_response(lambda r: r.url.endswith(f"/jobs/{job_id}")):
+                pass
+            # The page's handler of that answer runs before the next task: a round trip.
+            page.evaluate("() => new Promise((done) => setTimeout(done, 100))")
+
+    pattern = f"**/jobs/{job_id}"
+    page.route(pattern, running)
+    try:
+        dashboard.open(f"#/jobs/{job_id}")
+        page.wait_for_selector("#cancel-job")
+        selected = page.evaluate(
+            """() => {
+                const range = document.createRange();
+                range.selectNodeContents(document.querySelector('#job-header dd code'));
+                getSelection().removeAllRanges();
+                getSelection().addRange(range);
+                return getSelection().toString();
+            }"""
+        )
+        assert selected == job_id
+        ran = page.inner_text("#job-duration")
+        two_polls()
+        assert page.evaluate("() => getSelection().toString()") == job_id
+        assert page.inner_text("#job-duration") != ran, "the run time was not drawn again"
+        page.focus("#cancel-job")
+        two_polls()
+        assert page.evaluate("() => document.activeElement?.id") == "cancel-job"
+    finally:
+        page.unroute(pattern)
+
+
 def test_compare_names_ids_it_does_not_know(dashboard: Dashboard) -> None:
     dashboard.console.expect("status of 404")
     dashboard.open("#/compare?type=search&ids=zzz")

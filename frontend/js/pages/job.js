@@ -8,7 +8,7 @@ import { REUSED_KEY, cancelButton, labelEditor, reusedNotice, timingCell } from 
 import { whenKeyed } from "../components/keyed.js";
 import { BAND, BestSoFar, DEG_PER_RAD, PLOT_CONFIG, extendWith, fitFlatSeries, keepTwins, layout, plotDiv, polishMarks, polishStart, responseView, sequencePlot, title, twinAxes, twinTraces } from "../components/plots.js";
 import { isTerminal } from "../vocabulary.js";
-import { clear, fmt, h, link, messageBox, plain, progressBar, put, quantity, rateDeg, rateRad, score, sequenceText, statusBadge, table, tagChips, utcText, warningsBox, whenText } from "../ui.js";
+import { clear, fmt, h, link, messageBox, patch, plain, progressBar, put, quantity, rateDeg, rateRad, score, sequenceText, statusBadge, table, tagChips, utcText, warningsBox, whenText } from "../ui.js";
 import { renderClassifier } from "../views/classifier.js";
 import { frontPanel } from "../views/front.js";
 import { sweepPanel } from "../views/sweep.js";
@@ -16,44 +16,78 @@ import { sweepPanel } from "../views/sweep.js";
 const POLL_MS = 2000;
 const RAD_TO_DEG = 180 / Math.PI;
 
-// `notice`: what the cancel button says (a refusal, the key it needs), kept across the
-// redraws of a running job's header.
-// The parts the user opened ("parameters", "name and tags") stay open: a running job's
-// header is drawn again at every poll, and closed them every 2 s.
-function drawHeader(header, job, scenarioName, onLabels, notice) {
-  const opened = new Set([...header.querySelectorAll("details[open]")].map((d) => d.id));
-  clear(header);
-  const cancel = cancelButton(job, notice, () => {}, { id: "cancel-job", text: "Cancel job" });
-  put(
-    header,
-    h("div", { class: "toolbar" }, statusBadge(job.status), progressBar(job.progress, job.status), h("span", { id: "job-duration" }, timingCell(job)), tagChips(job.tags), cancel),
-    notice,
-    job.error ? messageBox("error", job.error) : null,
-    h(
-      "dl",
-      { class: "kv" },
-      h("dt", {}, "job"),
-      h("dd", {}, h("code", {}, job.id)),
-      h("dt", {}, "scenario"),
-      h("dd", {}, link(`#/scenarios/${job.scenario_id}`, scenarioName || job.scenario_id)),
-      h("dt", {}, "seed"),
-      h("dd", { id: "job-seed" }, job.seed),
-      h("dt", {}, "created"),
-      h("dd", {}, whenText(job.created_at)),
-      h("dt", {}, "started"),
-      h("dd", {}, whenText(job.started_at)),
-      h("dt", {}, "finished"),
-      h("dd", {}, whenText(job.finished_at)),
-      h("dt", {}, "worker, runs"),
-      h("dd", { id: "job-runs" }, `${job.worker || "–"}, ${runsText(job)}`),
-      h("dt", {}, "time limit"),
-      h("dd", { id: "job-time-limit" }, timeLimitText(job)),
-      ...lostRuns(job.attempt_history || []),
-    ),
-    h("details", { id: "job-labels", open: opened.has("job-labels") }, h("summary", {}, "name and tags"), labelEditor(job, onLabels)),
-    h("details", { id: "job-parameters", open: opened.has("job-parameters") }, h("summary", {}, "parameters"), h("pre", { class: "mono" }, JSON.stringify(job.params, null, 2))),
-    job.result ? downloads("job-downloads", jobDownloads(job), { label: "Download the result" }) : null,
-  );
+// One part of the job's header, a place in `parent`: `show(node)` writes `node` there only
+// where it differs from what the part shows (ui.js patch); `show(node, key)`, for a part
+// with listeners, puts `node` in whole when `key` (what they read of the job) changed, and
+// else keeps the one shown with its listeners. A null node shows nothing.
+function part(parent) {
+  let shown = parent.appendChild(document.createComment(""));
+  let shownKey;
+  return (node, key) => {
+    const wanted = node ?? document.createComment("");
+    if (key === undefined) {
+      shown = patch(shown, wanted);
+    } else if (key !== shownKey) {
+      shown.replaceWith(wanted);
+      shown = wanted;
+      shownKey = key;
+    }
+  };
+}
+
+// The header of a job: `draw(job)` at every poll. A running job's header was cleared and
+// drawn again every 2 s: text the user had selected in it (a job id to copy) was lost, the
+// focus left the cancel button and the header flickered. Each part is compared with what
+// it shows now, and only what changed is written (the time ran, the progress).
+// `notice`: what the cancel button says (a refusal, the key it needs), kept across draws.
+// The parts the user opened ("parameters", "name and tags") stay open.
+function jobHeader(header, scenarioName, onLabels, notice) {
+  const toolbar = h("div", { class: "toolbar" });
+  const [status, progress, duration, tags, cancel] = [0, 1, 2, 3, 4].map(() => part(toolbar));
+  header.append(toolbar, notice);
+  const [error, facts, labels, parameters, results] = [0, 1, 2, 3, 4].map(() => part(header));
+  const open = (id) => Boolean(header.querySelector(`details[open]#${id}`));
+  return (job) => {
+    status(statusBadge(job.status));
+    progress(progressBar(job.progress, job.status));
+    duration(h("span", { id: "job-duration" }, timingCell(job)));
+    // Contents: each tag stays an item of the toolbar, as drawn loose before.
+    tags(h("span", { style: "display: contents" }, tagChips(job.tags)));
+    // Its click asks "Cancel <name>?", worded by the status; disabled once asked.
+    const cancelKey = JSON.stringify([job.id, job.status, job.name, job.cancel_requested]);
+    cancel(cancelButton(job, notice, () => {}, { id: "cancel-job", text: "Cancel job" }), cancelKey);
+    error(job.error ? messageBox("error", job.error) : null);
+    facts(
+      h(
+        "dl",
+        { class: "kv" },
+        h("dt", {}, "job"),
+        h("dd", {}, h("code", {}, job.id)),
+        h("dt", {}, "scenario"),
+        h("dd", {}, link(`#/scenarios/${job.scenario_id}`, scenarioName || job.scenario_id)),
+        h("dt", {}, "seed"),
+        h("dd", { id: "job-seed" }, job.seed),
+        h("dt", {}, "created"),
+        h("dd", {}, whenText(job.created_at)),
+        h("dt", {}, "started"),
+        h("dd", {}, whenText(job.started_at)),
+        h("dt", {}, "finished"),
+        h("dd", {}, whenText(job.finished_at)),
+        h("dt", {}, "worker, runs"),
+        h("dd", { id: "job-runs" }, `${job.worker || "–"}, ${runsText(job)}`),
+        h("dt", {}, "time limit"),
+        h("dd", { id: "job-time-limit" }, timeLimitText(job)),
+        ...lostRuns(job.attempt_history || []),
+      ),
+    );
+    // The editor's inputs start from the name and tags, and its save reads the job's id.
+    labels(
+      h("details", { id: "job-labels", open: open("job-labels") }, h("summary", {}, "name and tags"), labelEditor(job, onLabels)),
+      JSON.stringify([job.id, job.name, job.tags]),
+    );
+    parameters(h("details", { id: "job-parameters", open: open("job-parameters") }, h("summary", {}, "parameters"), h("pre", { class: "mono" }, JSON.stringify(job.params, null, 2))));
+    results(job.result ? downloads("job-downloads", jobDownloads(job), { label: "Download the result" }) : null);
+  };
 }
 
 // "600 s (asked); stopped on it" or "the service's ceiling": a search or sweep past its
@@ -125,8 +159,8 @@ export async function render(root, context) {
     if (editor) editor.open = false;
     redraw();
   };
-  const cancelNotice = h("div", { id: "cancel-notice" });
-  const redraw = () => drawHeader(header, job, scenario && scenario.name, onLabels, cancelNotice);
+  const drawHeader = jobHeader(header, scenario && scenario.name, onLabels, h("div", { id: "cancel-notice" }));
+  const redraw = () => drawHeader(job);
   named();
   put(root, heading, reused(job, context), header, body);
   redraw();
