@@ -1220,6 +1220,26 @@ def test_the_sweep_page_says_which_classifier_lies_above_the_ceilings_interval(
     assert f"at {first['noise']} ×{first['multiple']:g}" in check and "least-squares" not in check
 
 
+def _classifier_with_two_stopped_sweeps(dashboard: Dashboard, seed: int) -> tuple[str, list[str]]:
+    """A nearest-centroid classifier trained on the paper preset, and two sweeps of it
+    (seeds 1 and 2), each cancelled once queued: the classifier page's sweep menu lists both."""
+    client = dashboard.service.client
+    scenario = client.post("/scenarios", json={"preset": "paper"}).json()["id"]
+    params = {"sequence": GOOD, "kind": "nearest-centroid", "metric": "euclidean"}
+    classifier = _trained(dashboard, scenario, {**params, "n_realisations": 5}, seed=seed)
+    sweeps = []
+    for sweep_seed in (1, 2):
+        body = {"classifier_id": classifier, "multiples": [1], "n_test": 20}
+        answer = client.post(
+            "/jobs",
+            json={"type": "sweep", "scenario_id": scenario, "seed": sweep_seed, "params": body},
+        )
+        assert answer.status_code == 202, answer.text
+        sweeps.append(answer.json()["id"])
+        client.post(f"/jobs/{sweeps[-1]}/cancel")
+    return classifier, sweeps
+
+
 def test_a_sweep_chosen_on_a_classifier_page_is_not_drawn_over_by_a_slower_earlier_choice(
     dashboard: Dashboard,
 ) -> None:
@@ -1227,19 +1247,7 @@ def test_a_sweep_chosen_on_a_classifier_page_is_not_drawn_over_by_a_slower_earli
     # a slow answer for an earlier choice was drawn over the one chosen after it (the
     # menu named one sweep, the panel showed the other). The earlier one's answer is held
     # here until the later one is drawn, and then comes back saying it failed.
-    client = dashboard.service.client
-    scenario = client.post("/scenarios", json={"preset": "paper"}).json()["id"]
-    params = {"sequence": GOOD, "kind": "nearest-centroid", "metric": "euclidean"}
-    classifier = _trained(dashboard, scenario, {**params, "n_realisations": 5}, seed=7)
-    sweeps = []
-    for seed in (1, 2):
-        body = {"classifier_id": classifier, "multiples": [1], "n_test": 20}
-        answer = client.post(
-            "/jobs", json={"type": "sweep", "scenario_id": scenario, "seed": seed, "params": body}
-        )
-        assert answer.status_code == 202, answer.text
-        sweeps.append(answer.json()["id"])
-        client.post(f"/jobs/{sweeps[-1]}/cancel")
+    classifier, sweeps = _classifier_with_two_stopped_sweeps(dashboard, seed=7)
     page = dashboard.page
     dashboard.open(f"#/classifiers/{classifier}")
     page.wait_for_selector("#sweep-select option >> nth=1", state="attached")
@@ -1280,19 +1288,7 @@ def test_a_sweep_that_cannot_be_read_on_a_classifier_page_is_said_in_its_card(
     # the page's first read it ended the page: the sequence's response was never drawn.
     # Now the card says it, and the rest of the page is drawn. Before: the first read's
     # message was not in #sweep-card (the route's own error took the page).
-    client = dashboard.service.client
-    scenario = client.post("/scenarios", json={"preset": "paper"}).json()["id"]
-    params = {"sequence": GOOD, "kind": "nearest-centroid", "metric": "euclidean"}
-    classifier = _trained(dashboard, scenario, {**params, "n_realisations": 5}, seed=11)
-    sweeps = []
-    for seed in (1, 2):
-        body = {"classifier_id": classifier, "multiples": [1], "n_test": 20}
-        answer = client.post(
-            "/jobs", json={"type": "sweep", "scenario_id": scenario, "seed": seed, "params": body}
-        )
-        assert answer.status_code == 202, answer.text
-        sweeps.append(answer.json()["id"])
-        client.post(f"/jobs/{sweeps[-1]}/cancel")
+    classifier, sweeps = _classifier_with_two_stopped_sweeps(dashboard, seed=11)
     page = dashboard.page
     dashboard.console.expect("Failed to load resource")
 
