@@ -69,6 +69,13 @@ def add_length(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--length", type=positive_int, default=4, help="sequence steps L")
 
 
+def add_repo(parser: argparse.ArgumentParser) -> None:
+    """--repo: the checkout whose service a benchmark starts (this one by default)."""
+    parser.add_argument(
+        "--repo", type=str, default=str(Path(__file__).resolve().parents[1]), help="checkout run"
+    )
+
+
 def int_list(text: str) -> list[int]:
     """argparse type: a comma-separated list of positive integers."""
     try:

@@ -52,6 +52,7 @@ import httpx
 import numpy as np
 from _common import (
     GOOD_SEQUENCE,
+    add_repo,
     base_parser,
     begin,
     free_port,
@@ -264,9 +265,7 @@ def main() -> None:
     parser.add_argument(
         "--flights", type=positive_int, default=4, help="telemetry bodies sent in turn"
     )
-    parser.add_argument(
-        "--repo", type=str, default=str(Path(__file__).resolve().parents[1]), help="checkout run"
-    )
+    add_repo(parser)
     args = begin(parser, "The API process's resident memory over a request mix")
     with tempfile.TemporaryDirectory(prefix="inertia-bench-") as folder:
         root = Path(folder)

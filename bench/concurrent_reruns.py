@@ -40,6 +40,7 @@ from typing import Any
 import httpx
 import sqlalchemy
 from _common import (
+    add_repo,
     base_parser,
     begin,
     free_port,
@@ -184,9 +185,7 @@ def main() -> None:
     )
     parser.add_argument("--workers", type=int, default=0, help="serve --workers")
     parser.add_argument("--database-url", default=None, help="default: serve's SQLite file")
-    parser.add_argument(
-        "--repo", type=str, default=str(Path(__file__).resolve().parents[1]), help="checkout run"
-    )
+    add_repo(parser)
     args = begin(parser, "Identical reruns sent at once: jobs made")
     with tempfile.TemporaryDirectory(prefix="concurrent-reruns-") as folder:
         root = Path(folder)

@@ -28,6 +28,7 @@ from typing import Any
 
 import httpx
 from _common import (
+    add_repo,
     base_parser,
     begin,
     free_port,
@@ -118,9 +119,7 @@ def main() -> None:
     parser.add_argument(
         "--busy", type=int, default=0, help="processes spinning on the CPU meanwhile (load)"
     )
-    parser.add_argument(
-        "--repo", type=str, default=str(Path(__file__).resolve().parents[1]), help="checkout run"
-    )
+    add_repo(parser)
     args = begin(parser, "/health after a job whose task process retires")
     hogs = [multiprocessing.Process(target=_busy, daemon=True) for _ in range(args.busy)]
     with tempfile.TemporaryDirectory() as folder:

@@ -39,6 +39,7 @@ from typing import Any
 
 import httpx
 from _common import (
+    add_repo,
     base_parser,
     begin,
     free_port,
@@ -182,9 +183,7 @@ def main() -> None:
     parser.add_argument(
         "--busy", type=int, default=0, help="processes spinning on the CPU meanwhile (load)"
     )
-    parser.add_argument(
-        "--repo", type=str, default=str(Path(__file__).resolve().parents[1]), help="checkout run"
-    )
+    add_repo(parser)
     args = begin(parser, "/health while a worker starts")
     if args.shape == "serve" and (args.restart or args.store != "sqlite"):
         parser.error("--restart and --store postgresql are for --shape worker")

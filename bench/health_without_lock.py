@@ -26,6 +26,7 @@ from typing import Any
 
 import httpx
 from _common import (
+    add_repo,
     base_parser,
     begin,
     free_port,
@@ -77,9 +78,7 @@ def main() -> None:
     parser.add_argument("--rounds", type=positive_int, default=3, help="lock kept away, given back")
     parser.add_argument("--interval", type=float, default=0.1, help="s between two polls")
     parser.add_argument("--give-up", type=float, default=30.0, help="s before a round gives up")
-    parser.add_argument(
-        "--repo", type=str, default=str(Path(__file__).resolve().parents[1]), help="checkout run"
-    )
+    add_repo(parser)
     args = begin(parser, "/health while the worker lacks its incarnation lock")
     rounds: list[dict[str, Any]] = []
     with tempfile.TemporaryDirectory() as tmp:
