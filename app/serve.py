@@ -35,7 +35,6 @@ import ctypes
 import logging
 import os
 import secrets
-import shutil
 import signal
 import socket
 import subprocess
@@ -52,6 +51,15 @@ from pydantic import ValidationError
 
 from service.config import Settings, get_settings, setting_problems
 from service.queue import worker_command
+
+from .temp_folders import (
+    SERVE_PREFIX,
+    LockedFolder,
+    make_locked,
+    remove_stale,
+    use_for_multiprocessing,
+    worker_prefix,
+)
 
 if TYPE_CHECKING:
     from service.store.session import Database
@@ -298,7 +306,7 @@ class WorkerPool:
         self.names: dict[int, str] = {}
         #: Each worker process's temp folder (multiprocessing's, in TMPDIR), by pid:
         #: removed once that process has ended (see worker.process.use_launcher_temp_dir).
-        self._temp_dirs: dict[int, str] = {}
+        self._temp_dirs: dict[int, LockedFolder] = {}
         #: The workers whose last process ended before its first beat (see _forget):
         #: their restarts are not announced, so /health keeps saying no worker is seen.
         self._died_unbeaten: set[int] = set()
@@ -355,7 +363,7 @@ class WorkerPool:
             old.close()
         temp_dir = self._make_temp_dir(index)
         if temp_dir is not None:
-            env[WORKER_TEMP_DIR_ENV] = temp_dir
+            env[WORKER_TEMP_DIR_ENV] = temp_dir.path
         log = open(self.log_path(index), "ab")  # closed in stop()
         self._logs[index] = log
         try:
@@ -366,10 +374,13 @@ class WorkerPool:
                 stdout=log,
                 stderr=subprocess.STDOUT,
                 start_new_session=True,
+                # The folder's lock, held by the worker as long as it lives: a later
+                # serve keeps the folder of a worker that outlives this one.
+                pass_fds=() if temp_dir is None else (temp_dir.fd,),
             )
         except BaseException:
             if temp_dir is not None:
-                shutil.rmtree(temp_dir, ignore_errors=True)
+                temp_dir.remove()
             raise
         if temp_dir is not None:
             self._temp_dirs[self.processes[index].pid] = temp_dir
@@ -381,11 +392,12 @@ class WorkerPool:
         )
         self._announce(index)
 
-    def _make_temp_dir(self, index: int) -> str | None:
-        """A new folder in TMPDIR for worker ``index``'s multiprocessing temp files, or
-        None (logged) where none can be made: the worker then makes its own, as before."""
+    def _make_temp_dir(self, index: int) -> LockedFolder | None:
+        """A new folder in TMPDIR for worker ``index``'s multiprocessing temp files,
+        locked (:mod:`app.temp_folders`: a later serve removes it once no process holds
+        it), or None (logged) where none can be made: the worker then makes its own."""
         try:
-            return tempfile.mkdtemp(prefix=f"inertia-id-worker{index}-")
+            return make_locked(worker_prefix(index), owner=f"worker{index}")
         except OSError as exc:
             logger.warning(
                 "could not make a temp folder for worker%d (%s): it makes its own, which "
@@ -402,7 +414,7 @@ class WorkerPool:
         group), and what either left in the folder (files unlinked at once) is no one's."""
         folder = self._temp_dirs.pop(process.pid, None)
         if folder is not None:
-            shutil.rmtree(folder, ignore_errors=True)
+            folder.remove()
 
     def node_name(self, index: int) -> str:
         """Worker ``index``'s Celery node name, its ``workers`` row's key."""
@@ -855,6 +867,52 @@ def _serve_processes(count: int, options: dict[str, Any], on_stop: Callable[[], 
         raise SystemExit(128 + signal.SIGTERM)
 
 
+def _temp_folders(*, own: bool) -> LockedFolder | None:
+    """Remove the temp folders left by serve processes that are gone (killed: no exit of
+    theirs removed them) and their workers; where ``own`` (the API runs in this process),
+    make this process's multiprocessing temp folder, the fork server's socket's, locked
+    so that a later serve removes it if this one is killed (:mod:`app.temp_folders`).
+    The folder, or None: not ``own``, or none made (multiprocessing makes its own)."""
+    from .verdicts import SHORT_TEMP_BASES, has_socket_room, say_moved
+
+    temp = tempfile.gettempdir()
+    removed = remove_stale([temp, *SHORT_TEMP_BASES])
+    if removed:
+        logger.info(
+            "removed %d temp folder(s) left by serve processes that are gone: %s",
+            len(removed),
+            ", ".join(removed),
+        )
+    if not own:
+        return None
+    # The fork server's socket must fit: where TMPDIR is too long, the folder goes in
+    # /tmp (as the verdict process's own would: app.verdicts).
+    name = f"{SERVE_PREFIX}XXXXXXXX"
+    bases = [temp] if has_socket_room(os.path.join(temp, name)) else []
+    bases = bases or [b for b in SHORT_TEMP_BASES if has_socket_room(os.path.join(b, name))]
+    problem: OSError | None = None
+    for base in bases:
+        try:
+            folder = make_locked(SERVE_PREFIX, base, owner="serve")
+        except OSError as exc:
+            problem = problem or exc
+            continue
+        if not use_for_multiprocessing(folder):
+            folder.remove()  # multiprocessing has one already
+            return None
+        if base != temp:
+            say_moved(temp, folder.path)
+        return folder
+    if problem is not None:
+        logger.warning(
+            "could not make serve's temp folder (%s): multiprocessing makes its own, which "
+            "is left in %s if serve is killed",
+            problem,
+            temp,
+        )
+    return None
+
+
 def _raise_on_sigterm(signum: int, _frame: FrameType | None) -> None:
     raise SystemExit(128 + signum)
 
@@ -968,6 +1026,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
         return 1
 
+    # Its descriptor (the lock) stays open until this process ends.
+    _temp_folders(own=args.api_workers == 1)
     shown_host = f"[{args.host}]" if ":" in args.host else args.host
     url = f"http://{shown_host}:{args.port}"
     pool = WorkerPool(

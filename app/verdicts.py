@@ -44,7 +44,14 @@ if TYPE_CHECKING:
 
     from .api.identify import ClassifierCache
 
-__all__ = ["NotFound", "VerdictOptions", "VerdictProcess"]
+__all__ = [
+    "SHORT_TEMP_BASES",
+    "NotFound",
+    "VerdictOptions",
+    "VerdictProcess",
+    "has_socket_room",
+    "say_moved",
+]
 
 log = logging.getLogger("inertia_id.api")
 
@@ -193,11 +200,31 @@ def _loads() -> int:
 #: its terminating NUL included; BSDs' 104).
 _SOCKET_PATH_MAX = 107 if sys.platform.startswith("linux") else 103
 #: The fork server's socket, as multiprocessing names it in its temp folder
-#: (``<TMPDIR>/pymp-XXXXXXXX/listener-XXXXXXXX``): the folder and the socket's own name.
-_SOCKET_IN_TEMP_DIR = len("/pymp-XXXXXXXX") + len("/listener-XXXXXXXX")
+#: (``<TMPDIR>/pymp-XXXXXXXX/listener-XXXXXXXX``).
+_SOCKET_NAME = "/listener-XXXXXXXX"
 #: Where a short temp folder is made instead when TMPDIR is too long for it: the folders
 #: CPython 3.14's multiprocessing falls back to in that case (gh-132124).
-_SHORT_TEMP_BASES = ("/tmp", "/var/tmp", "/usr/tmp")
+SHORT_TEMP_BASES = ("/tmp", "/var/tmp", "/usr/tmp")
+
+
+def has_socket_room(folder: str) -> bool:
+    """Whether the fork server's socket fits in the temp folder ``folder`` (a folder of
+    mkdtemp's: its random end as long as ``XXXXXXXX``)."""
+    return len(os.fsencode(folder)) + len(_SOCKET_NAME) <= _SOCKET_PATH_MAX
+
+
+def say_moved(base: str, folder: str) -> None:
+    """Log that this process's temp folder is ``folder`` rather than one in ``base``
+    (``TMPDIR``), too long for the fork server's socket."""
+    log.warning(
+        "TMPDIR is too long for the verdict process's fork server socket (%d bytes: "
+        "its socket's path would pass AF_UNIX's %d): its temp folder is %s instead "
+        "(TMPDIR=%s)",
+        len(os.fsencode(base)),
+        _SOCKET_PATH_MAX,
+        folder,
+        base,
+    )
 
 
 def _socket_ready_temp_dir() -> str | None:
@@ -222,10 +249,10 @@ def _socket_ready_temp_dir() -> str | None:
         return None  # not CPython's multiprocessing as we know it: left as it is
     current = config.get("tempdir")
     base = os.path.dirname(current) if current else tempfile.gettempdir()
-    if len(os.fsencode(base)) + _SOCKET_IN_TEMP_DIR <= _SOCKET_PATH_MAX:
+    if has_socket_room(current or os.path.join(base, "pymp-XXXXXXXX")):
         return None
-    for short_base in _SHORT_TEMP_BASES:
-        if len(short_base) + _SOCKET_IN_TEMP_DIR > _SOCKET_PATH_MAX:
+    for short_base in SHORT_TEMP_BASES:
+        if not has_socket_room(os.path.join(short_base, "pymp-XXXXXXXX")):
             continue
         try:
             folder = tempfile.mkdtemp(prefix="pymp-", dir=short_base)
@@ -235,22 +262,14 @@ def _socket_ready_temp_dir() -> str | None:
         # in TMPDIR already stays with its own finalizer: what is in it is still used.
         config["tempdir"] = folder
         util.Finalize(None, remove, args=(shutil.rmtree, folder), exitpriority=-100)
-        log.warning(
-            "TMPDIR is too long for the verdict process's fork server socket (%d bytes: "
-            "its socket's path would pass AF_UNIX's %d): its temp folder is %s instead "
-            "(TMPDIR=%s)",
-            len(os.fsencode(base)),
-            _SOCKET_PATH_MAX,
-            folder,
-            base,
-        )
+        say_moved(base, folder)
         return folder
     log.error(
         "TMPDIR is too long for the verdict process's fork server socket (%d bytes) and "
         "no temp folder could be made in %s: /identify cannot start its verdict process "
         "(set TMPDIR to a shorter folder; TMPDIR=%s)",
         len(os.fsencode(base)),
-        " or ".join(_SHORT_TEMP_BASES),
+        " or ".join(SHORT_TEMP_BASES),
         base,
     )
     return None

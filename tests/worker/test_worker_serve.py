@@ -890,6 +890,136 @@ def test_the_api_processes_stop_when_serve_is_killed(tmp_path: Path) -> None:
                 os.kill(pid, signal.SIGKILL)
 
 
+def _folders_open_in(pid: int, folder: Path) -> set[str]:
+    """The names of the folders in ``folder`` that process ``pid`` has open."""
+    found = set()
+    with contextlib.suppress(OSError):
+        for fd in os.listdir(f"/proc/{pid}/fd"):
+            with contextlib.suppress(OSError):
+                target = Path(os.readlink(f"/proc/{pid}/fd/{fd}"))
+                if target.parent == folder:
+                    found.add(target.name)
+    return found
+
+
+def test_serve_removes_the_temp_folders_of_a_killed_serve_and_keeps_a_live_one_s(
+    tmp_path: Path,
+) -> None:
+    """``kill -9`` of serve left its own temp folder in TMPDIR for good (``pymp-*``, the
+    fork server's socket in it; a killed process runs no exit), and its worker's where
+    the worker was killed with it (a supervisor that kills the whole group). The next
+    serve removes them at its start, and keeps the folders of processes still running:
+    another serve's beside, and the killed serve's worker while it lives (handing its
+    job back)."""
+    temp = tmp_path / "tmp"
+    temp.mkdir()
+    servers: list[subprocess.Popen[bytes]] = []
+
+    def start(name: str, *options: str, **env: str) -> Path:
+        log = tmp_path / f"{name}.log"
+        with open(log, "wb") as out:
+            servers.append(
+                subprocess.Popen(
+                    [*_SERVE, "--port", str(free_port()), "--data-dir", name, *options],
+                    env=clean_env(TMPDIR=str(temp), **env),
+                    cwd=tmp_path,
+                    stdout=out,
+                    stderr=subprocess.STDOUT,
+                )
+            )
+        return log
+
+    def logs() -> str:
+        return "\n".join(tail(log, 3000) for log in sorted(tmp_path.glob("*.log")))
+
+    # The one killed: its worker started, its verdict process forked (the fork server
+    # listens in its temp folder). Beside it one that lives on, as cheap as can be.
+    killed_log = start("killed", "--workers", "1", INERTIA_ID_VERDICT_PROCESS="eager")
+    live_log = start("live", "--workers", "0", INERTIA_ID_VERDICT_PROCESS="lazy")
+    killed, live = servers
+    worker = 0
+    try:
+        worker = wait_for(
+            lambda: (
+                _verdict_processes_up(killed.pid, 1)
+                and "Application startup complete" in live_log.read_text()
+                and (started := re.search(r"worker1 started \(pid (\d+),", killed_log.read_text()))
+                and int(started.group(1))
+            ),
+            120,
+            "the serve to kill did not start its worker and verdict process, or the other "
+            "did not start",
+            logs,
+        )
+        made = {path.name for path in temp.iterdir()}
+        lives = _folders_open_in(live.pid, temp)
+        (worker_folder,) = (name for name in made - lives if name.startswith("inertia-id-worker"))
+        serve_folders = made - lives - {worker_folder}
+        assert serve_folders, f"the serve to kill made no temp folder of its own: {made}"
+        os.kill(worker, signal.SIGSTOP)  # not done handing its job back yet
+        killed.kill()
+        killed.wait(10)
+
+        later_log = start("later", "--workers", "0", INERTIA_ID_VERDICT_PROCESS="off")
+        wait_for(
+            lambda: "Application startup complete" in later_log.read_text(),
+            120,
+            "the later serve did not start",
+            logs,
+        )
+        now = {path.name for path in temp.iterdir()}
+        assert not serve_folders & now, f"left by the killed serve: {serve_folders & now}"
+        assert worker_folder in now, "the folder of the killed serve's live worker was removed"
+        assert lives <= now, f"the live serve's folders were removed: {lives - now}"
+
+        # The worker killed too (the whole group): its folder is no one's now.
+        os.killpg(worker, signal.SIGKILL)
+        wait_for(lambda: not _alive(worker), 10, "the worker outlived SIGKILL", logs)
+        from app.temp_folders import remove_stale
+
+        assert remove_stale([str(temp)]) == [str(temp / worker_folder)]
+    finally:
+        if worker:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(worker, signal.SIGKILL)
+        for server in servers:
+            if server.poll() is None:
+                _stop_by_sigterm(server)
+    assert _left_in(temp) == [], logs()
+
+
+def test_only_unheld_temp_folders_serve_marked_as_its_user_s_are_stale(tmp_path: Path) -> None:
+    """What a serve's start removes: the folders it makes for itself and its workers
+    (their names, the file that marks them), of its user, that no process holds locked.
+    A held one (a live process's), another user's, and one without the file (a
+    ``pymp-*`` of any Python program, a worker folder of a serve from before these
+    locks, which may be live) are kept."""
+    from app.temp_folders import MARKER, SERVE_PREFIX, make_locked, remove_stale, worker_prefix
+
+    base = str(tmp_path)
+    held = make_locked(SERVE_PREFIX, base, owner="serve")
+    dead = [make_locked(p, base, owner="test") for p in (SERVE_PREFIX, worker_prefix(12))]
+    for folder in dead:
+        os.close(folder.fd)  # as at its process's end
+    assert (Path(held.path) / MARKER).read_text().startswith("serve: ")
+    unmarked = [tmp_path / "pymp-abcd1234", tmp_path / "inertia-id-worker1-abcd1234"]
+    for folder in unmarked:
+        folder.mkdir()
+    (tmp_path / "pymp-abcd5678").write_text("a file, not a folder")
+    kept = {held.path, *map(str, unmarked)}
+    if os.geteuid() == 0:  # another user's, unheld: root can make one
+        theirs = make_locked(SERVE_PREFIX, base, owner="theirs")
+        os.close(theirs.fd)
+        os.chown(theirs.path, 65534, 65534)
+        kept.add(theirs.path)
+    try:
+        removed = remove_stale([base, str(tmp_path / "missing")])
+        assert sorted(removed) == sorted(folder.path for folder in dead)
+        assert {str(path) for path in tmp_path.iterdir() if path.is_dir()} == kept
+    finally:
+        held.remove()
+
+
 _SERVE = [sys.executable, "-m", "app.serve"]
 _TWO_API_PROCESSES = ["--workers", "0", "--api-workers", "2"]
 
