@@ -6,6 +6,8 @@ failure is reproducible and no test depends on timing.
 
 from __future__ import annotations
 
+import gc
+import os
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
@@ -60,6 +62,31 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
             f"{len(shared)} test id(s) shared by more than one test (pytest-xdist would run"
             f" only one of each): {', '.join(shared[:5])}"
         )
+
+
+@pytest.hookimpl(trylast=True)
+def pytest_sessionfinish(session: pytest.Session) -> None:
+    """In a pytest-xdist worker, once its tests and fixtures are done: collect its
+    garbage now and freeze what is left, so that pytest's own collection at unconfigure
+    is short.
+
+    pytest-xdist's worker reports its end after this hook; the controller then ends the
+    worker's gateway, and execnet gives the rest of the worker's run 5 s before it sends
+    the worker SIGINT (``WorkerGateway._terminate_execution``). That rest is pytest's
+    unconfigure, whose ``gc.collect()`` over a worker's heap after six API modules took
+    over 8 s: the SIGINT landed in a weakref callback (SQLAlchemy's
+    ``_collection_gced``), printed as an unraisable KeyboardInterrupt after the summary,
+    and a worker slower still would be killed in its exit (``atexit`` cleanups cut).
+    Here, before the report, nothing waits on it. Thawed at unconfigure, after pytest's
+    collection (:func:`pytest_unconfigure`)."""
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        gc.collect()
+        gc.freeze()
+
+
+@pytest.hookimpl(trylast=True)
+def pytest_unconfigure(config: pytest.Config) -> None:
+    gc.unfreeze()  # the interpreter's exit collects as it would have
 
 
 def _one_blas_thread() -> None:
