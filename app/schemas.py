@@ -410,6 +410,13 @@ class JobOut(BaseModel):
     config_hash: str
     progress: float = Field(description="fraction done, 0 to 1")
     error: str | None
+    stopped: Literal["time_limit"] | None = Field(
+        default=None,
+        description="time_limit: the job's time limit stopped it (a training, or a sweep "
+        "before its first point, failed naming it; a search or sweep succeeded with what "
+        "it had, as its result's stopped says); null: it ran to its own end, failed "
+        "otherwise, or was cancelled (the status says so)",
+    )
     result: dict[str, Any] | None = Field(description="summary written by the worker")
     cancel_requested: bool
     attempts: int = Field(

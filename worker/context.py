@@ -37,6 +37,7 @@ if TYPE_CHECKING:
 __all__ = [
     "CANCEL_POLL_S",
     "DATABASE_SILENT_S",
+    "TIME_LIMIT",
     "TIME_LIMIT_GRACE_S",
     "JobContext",
     "JobSpec",
@@ -73,6 +74,12 @@ TIME_LIMIT_GRACE_S = 600.0
 class JobTimeLimitExceeded(Exception):
     """A job whose result is nothing without its end (a training) ran past its time
     limit, and stopped there (the job fails)."""
+
+
+#: ``jobs.stopped`` of a job its time limit stopped: failed naming the limit, or a
+#: search or sweep that succeeded with what it had (the word its result's ``stopped``
+#: says, :data:`inertia_id.search.loop.TIME_LIMIT`).
+TIME_LIMIT = "time_limit"
 
 
 def broker_label(settings: Settings) -> str:
@@ -367,6 +374,7 @@ class JobContext:
                 error=f"{self.time_limit_text()} (still running "
                 f"{self.rescore_grace_s + TIME_LIMIT_GRACE_S:g} s after it; ended)",
                 attempt=self.spec.attempt,
+                stopped=TIME_LIMIT,
             ):
                 self.lost = True
                 logger.warning("job %s ended: %s", self.spec.id, self.time_limit_text())

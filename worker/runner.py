@@ -45,6 +45,7 @@ from service.store.refusals import database_label, unreachable, why_cannot_store
 from .context import (
     CANCEL_POLL_S,
     DATABASE_SILENT_S,
+    TIME_LIMIT,
     JobContext,
     JobSpec,
     JobTimeLimitExceeded,
@@ -507,7 +508,16 @@ def _run(
             logger.warning("job %s failed: %s", spec.id, exc)
         else:
             logger.exception("job %s failed", spec.id)
-        return _end(db, spec.id, spec.attempt, "failed", error=_error_text(exc, context.settings))
+        # A field, so that a client need not match the error's words.
+        stopped = TIME_LIMIT if isinstance(exc, JobTimeLimitExceeded) else None
+        return _end(
+            db,
+            spec.id,
+            spec.attempt,
+            "failed",
+            error=_error_text(exc, context.settings),
+            stopped=stopped,
+        )
     if context.lost:
         logger.warning("job %s was taken from this run; dropping its result", spec.id)
         return "lost"
@@ -608,7 +618,16 @@ def _store_outcome(context: JobContext, db: Database, outcome: Outcome) -> bool:
             session.flush()
         add_metrics(session, spec.id, finite_metrics(outcome.metrics))
         result = None if outcome.result is None else json_safe(outcome.result, context.data_dir)
-        if not finish(session, spec.id, outcome.status, result=result, attempt=spec.attempt):
+        # A search or sweep past its limit succeeds with what it had; its result says so.
+        stopped = TIME_LIMIT if (result or {}).get("stopped") == TIME_LIMIT else None
+        if not finish(
+            session,
+            spec.id,
+            outcome.status,
+            result=result,
+            attempt=spec.attempt,
+            stopped=stopped,
+        ):
             session.rollback()
             logger.warning("job %s was taken from this run; dropping its result", spec.id)
             return False
@@ -652,9 +671,17 @@ def _end_once_writable(
         time.sleep(context.settings.heartbeat_interval_s)
 
 
-def _end(db: Database, job_id: str, attempt: int, status: str, *, error: str | None) -> str:
+def _end(
+    db: Database,
+    job_id: str,
+    attempt: int,
+    status: str,
+    *,
+    error: str | None,
+    stopped: str | None = None,
+) -> str:
     with db.session() as session:
-        if not finish(session, job_id, status, error=error, attempt=attempt):
+        if not finish(session, job_id, status, error=error, attempt=attempt, stopped=stopped):
             logger.warning("job %s was taken from this run; not marking it %s", job_id, status)
             return "lost"
     return status

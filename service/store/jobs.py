@@ -42,6 +42,7 @@ from inertia_id.wording import counted as counted_text
 from ..summaries import summarise
 from .models import (
     REUSABLE_STATUSES,
+    STOPPED_REASONS,
     TERMINAL_STATUSES,
     JobRow,
     JobTagRow,
@@ -471,18 +472,29 @@ def finish(
     result: dict[str, Any] | None = None,
     error: str | None = None,
     attempt: int | None = None,
+    stopped: str | None = None,
 ) -> bool:
     """End a running job as succeeded, failed or cancelled.
 
     :param attempt: the run (``attempts`` at claim) finishing it; when given, the job is
         only finished if it is still that run's, not a later re-run's.
+    :param stopped: "time_limit" when the job's time limit stopped it (it failed naming
+        the limit, or succeeded with what it had then); None when it ran to its end,
+        failed otherwise or was cancelled.
 
     Returns False when the job was not running (as that run) any more: reaped, or
     finished by another delivery; the caller's work no longer belongs to it.
     """
     if status not in TERMINAL_STATUSES:
         raise ValueError(f"a job finishes as one of {TERMINAL_STATUSES}, not {status!r}")
-    values: dict[str, Any] = {"status": status, "finished_at": utcnow(), "error": error}
+    if stopped is not None and stopped not in STOPPED_REASONS:
+        raise ValueError(f"a job is stopped by one of {STOPPED_REASONS}, not {stopped!r}")
+    values: dict[str, Any] = {
+        "status": status,
+        "finished_at": utcnow(),
+        "error": error,
+        "stopped": stopped,
+    }
     if status == "succeeded":
         values["progress"] = 1.0
     if result is not None:

@@ -30,6 +30,7 @@ __all__ = [
     "MAX_TAG_LENGTH",
     "REUSABLE_STATUSES",
     "REUSABLE_WHERE",
+    "STOPPED_REASONS",
     "TERMINAL_STATUSES",
     "ApiKey",
     "Base",
@@ -47,6 +48,8 @@ __all__ = [
 JOB_TYPES = ("search", "train", "sweep")
 JOB_STATUSES = ("queued", "running", "succeeded", "failed", "cancelled")
 TERMINAL_STATUSES = ("succeeded", "failed", "cancelled")
+#: What may have stopped a finished job short of its own end (``JobRow.stopped``).
+STOPPED_REASONS = ("time_limit",)
 #: Statuses whose job may stand in for an identical new submission.
 REUSABLE_STATUSES = ("queued", "running", "succeeded")
 #: The rows of the unique index on reusable configurations.
@@ -111,6 +114,10 @@ class JobRow(Base):
     superseded: Mapped[bool] = mapped_column(Boolean, default=False, server_default=false())
     progress: Mapped[float] = mapped_column(Float, default=0.0)
     error: Mapped[str | None] = mapped_column(Text, default=None)
+    #: "time_limit" when the job's time limit stopped it (failed naming the limit, or
+    #: succeeded with what it had then: a search's or sweep's result says ``stopped``);
+    #: NULL otherwise. A cancel is the status's to say.
+    stopped: Mapped[str | None] = mapped_column(String(16), default=None)
     result: Mapped[dict[str, Any] | None] = mapped_column(JSON, default=None)
     cancel_requested: Mapped[bool] = mapped_column(Boolean, default=False)
     #: Runs started (each claim adds one; also the run's token, see ``finish``).

@@ -1146,7 +1146,7 @@ def test_a_train_job_takes_a_time_limit_of_its_own_and_fails_past_it(
     submitted = api.submit("train", scenario_id, params=params)
     assert submitted.status_code == 202, submitted.text
     job = submitted.json()
-    assert job["params"]["time_limit_s"] == 1
+    assert job["params"]["time_limit_s"] == 1 and job["stopped"] is None
     assert job["config_hash"] == config_hash("train", scenario_id, job["params"], job["seed"])
     # The same training without the limit is other work: a job of its own.
     unlimited = api.submit("train", scenario_id, params={**params, "time_limit_s": None})
@@ -1174,6 +1174,11 @@ def test_a_train_job_takes_a_time_limit_of_its_own_and_fails_past_it(
     failed = api.get(f"/jobs/{job['id']}").json()
     assert failed["error"] == "JobTimeLimitExceeded: the job exceeded its time limit of 1 s"
     assert failed["result"] is None
+    # A field says why, for a client to read rather than match the error's words; a
+    # list (which leaves the result out) says it too.
+    assert failed["stopped"] == "time_limit"
+    listed = api.get("/jobs", params={"status": "failed"}).json()["items"]
+    assert [(item["id"], item["stopped"]) for item in listed] == [(job["id"], "time_limit")]
     assert api.get("/classifiers").json()["items"] == []
 
 

@@ -144,6 +144,94 @@ def test_attempt_history_comes_and_goes_keeping_every_job_its_metrics_and_tags(
         engine.dispose()
 
 
+def test_jobs_stopped_by_their_time_limit_say_so_once_migrated(empty_database_url: str) -> None:
+    """0012 adds ``jobs.stopped``, filled for the jobs stored before: "time_limit" for
+    those failed naming the limit (by the worker's words, the heartbeat's end included)
+    and for those that succeeded with what they had (their result's ``stopped``); NULL
+    for every other (another failure, a cancelled search, one stopped by its budget). The
+    downgrade removes the column and nothing else."""
+    from app.schemas import JobOut
+
+    url = empty_database_url
+    upgrade(url, "0011")
+    now = datetime.now(UTC)
+    engine = create_engine(url)
+    limit = "JobTimeLimitExceeded: the job exceeded its time limit of 30 s"
+    jobs: dict[str, tuple[str, str, str | None, dict[str, Any] | None, str | None]] = {
+        "train-limit": ("train", "failed", limit, None, "time_limit"),
+        "sweep-none": (
+            "sweep",
+            "failed",
+            f"{limit} before the first sweep point",
+            None,
+            "time_limit",
+        ),
+        "beat-ended": (
+            "search",
+            "failed",
+            "the job exceeded its time limit of 30 s (still running 640 s after it; ended)",
+            None,
+            "time_limit",
+        ),
+        "search-limit": ("search", "succeeded", None, {"stopped": "time_limit"}, "time_limit"),
+        "sweep-limit": (
+            "sweep",
+            "succeeded",
+            None,
+            {"points": [], "stopped": "time_limit"},
+            "time_limit",
+        ),
+        "search-budget": ("search", "succeeded", None, {"stopped": "budget"}, None),
+        "search-cancelled": ("search", "cancelled", None, {"stopped": "cancelled"}, None),
+        "train-done": ("train", "succeeded", None, {"f1": 1.0}, None),
+        "other-failure": ("train", "failed", "InputError: the time limit of 30 s", None, None),
+        "queued": ("train", "queued", None, None, None),
+    }
+
+    def columns() -> set[str]:
+        with engine.connect() as connection:
+            return {column["name"] for column in inspect(connection).get_columns("jobs")}
+
+    try:
+        with engine.begin() as connection:
+            connection.execute(
+                text("INSERT INTO scenarios VALUES ('s', 'x', '{}', :t)"), {"t": now}
+            )
+            for job_id, (job_type, status, error, result, _stopped) in jobs.items():
+                connection.execute(
+                    text(
+                        "INSERT INTO jobs (id, type, status, scenario_id, params, seed, "
+                        "config_hash, progress, cancel_requested, attempts, handbacks, "
+                        "superseded, created_at, error, result) VALUES (:id, :type, :status, "
+                        "'s', '{}', 0, :id, 1.0, false, 1, 0, false, :t, :error, :result)"
+                    ),
+                    {
+                        "id": job_id,
+                        "type": job_type,
+                        "status": status,
+                        "t": now,
+                        "error": error,
+                        "result": None if result is None else json.dumps(result),
+                    },
+                )
+        assert "stopped" not in columns()
+        upgrade(url)
+        with Session(engine) as session:
+            found = {
+                job_id: JobOut.model_validate(session.get(JobRow, job_id)).stopped
+                for job_id in jobs
+            }
+        assert found == {job_id: job[-1] for job_id, job in jobs.items()}
+        downgrade(url, "0011")
+        assert "stopped" not in columns()
+        with engine.connect() as connection:
+            assert int(connection.execute(text("SELECT count(*) FROM jobs")).scalar_one()) == len(
+                jobs
+            )
+    finally:
+        engine.dispose()
+
+
 def _tables(engine: Engine) -> dict[str, tuple[set[str], list[dict[str, Any]]]]:
     """Each table but Alembic's: its columns, and its rows as column -> value (sorted)."""
     with engine.connect() as connection:
@@ -313,6 +401,7 @@ def test_each_step_down_to_base_and_back_keeps_every_row_the_schema_still_holds(
                         name=f"run {index}",
                         summary={"f1": 0.5},
                         attempt_history=[{"attempt": 1, "cause": "worker lost"}],
+                        stopped="time_limit" if status == "succeeded" else None,
                         tag_rows=[JobTagRow(tag="audit"), JobTagRow(tag=f"t{index}")],
                     )
                 )

@@ -288,3 +288,21 @@ def test_identical_submissions_at_once_replace_a_job_being_cancelled_with_one(
     assert {job_id for job_id, _ in answers} == made
     assert _count_jobs(db) == 2
     assert _submit(db, scenario_id) == (made.pop(), True)
+
+
+def test_a_job_finishes_stopped_by_its_time_limit_or_by_nothing_named(
+    db: Database, scenario_id: str
+) -> None:
+    """``jobs.stopped`` holds what the API's ``JobOut.stopped`` may say: "time_limit", or
+    nothing. A word the API would not know ("cancel": a cancel is the status's) is
+    refused before it is stored, the job left running."""
+    job_id, _ = _submit(db, scenario_id)
+    with db.session() as session:
+        _job(session, job_id).status = "running"
+    with db.session() as session, pytest.raises(ValueError, match="not 'cancel'"):
+        finish(session, job_id, "cancelled", stopped="cancel")
+    with db.session() as session:
+        assert _job(session, job_id).status == "running"
+        assert finish(session, job_id, "failed", error="past it", stopped="time_limit")
+    with db.session() as session:
+        assert _job(session, job_id).stopped == "time_limit"

@@ -2959,7 +2959,7 @@ def test_a_front_the_time_limits_grace_cut_says_what_was_not_re_scored(
     job = service.job(job_id)
     assert job["status"] == "succeeded", job
     result = job["result"]
-    assert result["stopped"] == "time_limit"
+    assert result["stopped"] == "time_limit" and job["stopped"] == "time_limit"
     left = result["front"]["not_rescored"]
     assert left, "a front of one candidate: nothing to leave out"
     assert result["settings"]["time_limit_grace_s"] == 0

@@ -73,6 +73,7 @@ def test_a_job_that_raises_fails_with_a_one_line_reason(
     job = store.job(job_id)
     assert job.status == "failed" and job.finished_at is not None and job.worker == WORKER
     assert job.error is not None and "\n" not in job.error and message in job.error
+    assert job.stopped is None  # no time limit stopped it
 
 
 def test_a_job_cancelled_while_queued_is_not_run(store: Store) -> None:
@@ -305,6 +306,8 @@ def test_a_search_job_past_its_time_limit_succeeds_with_its_best(store: Store) -
     job = store.job(job_id)
     result = job.result or {}
     assert job.status == "succeeded" and result["stopped"] == "time_limit"
+    # The job says it too, as a failed training does: jobs.stopped, for every job alike.
+    assert job.stopped == "time_limit"
     # Re-scored while the grace lasts (10 s of the worker's clock): what it reached, it says.
     assert result["best"]["sequence"] and result["fresh"]["draws_asked"] == 5
     assert len(result["fresh"]["f1"]) <= 5
@@ -371,9 +374,11 @@ def test_a_sweep_job_past_its_time_limit_keeps_the_points_done(
 
     monkeypatch.setattr(JobContext, "report", report_then_spend)
     assert execute_job(job_id, settings=store.settings, worker_name=WORKER) == "succeeded"
-    result = store.job(job_id).result or {}
+    job = store.job(job_id)
+    result = job.result or {}
     assert result["stopped"] == "time_limit" and result["time_limit_s"] == 1.0
     assert len(result["points"]) == 1  # of 2 noises x 2 multiples
+    assert job.stopped == "time_limit"
 
 
 @pytest.mark.parametrize("whose", ["the service's ceiling", "the job's own"])
@@ -393,7 +398,7 @@ def test_a_sweep_job_whose_limit_ran_out_before_its_first_point_fails_naming_it(
         limit = "1e-09 s"
     assert execute_job(job_id, settings=settings, worker_name=WORKER) == "failed"
     job = store.job(job_id)
-    assert job.result is None
+    assert job.result is None and job.stopped == "time_limit"
     assert job.error == (
         f"JobTimeLimitExceeded: the job exceeded its time limit of {limit} before the first "
         "sweep point"
@@ -426,6 +431,8 @@ def test_a_train_job_past_its_time_limit_fails_naming_it(
     assert execute_job(job_id, settings=settings, worker_name=WORKER) == "failed"
     job = store.job(job_id)
     assert job.error == f"JobTimeLimitExceeded: the job exceeded its time limit of {limit}"
+    # A field says it, so that a client need not match the error's words.
+    assert job.stopped == "time_limit"
     with store.db.session() as session:
         assert session.scalars(select(ClassifierRow.id)).all() == []
 
@@ -482,6 +489,7 @@ def test_a_train_job_cancelled_while_it_trains_stops_part_way(
     assert counts == {"simulations": 2, "calibrations": 0}
     job = store.job(job_id)
     assert job.status == "cancelled" and job.result is None and job.error is None
+    assert job.stopped is None  # a cancel is the status's to say
     with store.db.session() as session:
         assert session.scalars(select(ClassifierRow.id)).all() == []
 
@@ -522,6 +530,7 @@ def test_a_train_job_past_its_time_limit_stops_part_way_and_fails_naming_it(
     assert counts == {"simulations": 2, "calibrations": 0}
     job = store.job(job_id)
     assert job.error == "JobTimeLimitExceeded: the job exceeded its time limit of 1e-09 s"
+    assert job.stopped == "time_limit"
     with store.db.session() as session:
         assert session.scalars(select(ClassifierRow.id)).all() == []
 
@@ -543,6 +552,7 @@ def test_the_heartbeat_ends_a_job_long_past_its_time_limit(store: Store) -> None
     job = store.job(job_id)
     assert job.status == "failed" and context.lost and context.should_stop()
     assert job.error is not None and "exceeded its time limit of 100 s" in job.error
+    assert job.stopped == "time_limit"
     assert f"still running {10.0 + TIME_LIMIT_GRACE_S:g} s after it" in job.error
 
 
