@@ -2968,6 +2968,7 @@ def test_a_front_the_time_limits_grace_cut_says_what_was_not_re_scored(
     assert asked > done
     dashboard.open(f"#/jobs/{job['id']}")
     page.wait_for_selector("#front-card")
+    assert page.inner_text("#job-time-limit") == "3 s (asked); stopped on it"
     n = len(result["front"]["members"])
     assert page.inner_text("#front-card h2") == f"Pareto front: {n} sequence{'s' * (n != 1)}"
     note = page.inner_text("#front-not-rescored")

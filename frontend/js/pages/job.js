@@ -90,14 +90,13 @@ function jobHeader(header, scenarioName, onLabels, notice) {
   };
 }
 
-// "600 s (asked); stopped on it" or "the service's ceiling": a search or sweep past its
-// limit succeeds with what it had (result.stopped), a training fails naming the limit
-// (the worker's "the job exceeded its time limit of … s").
+// "600 s (asked); stopped on it" or "the service's ceiling": the job's `stopped` says its
+// limit stopped it (a search or sweep past it succeeds with what it had, a training fails
+// naming it), read as a field, not matched in the error's words.
 function timeLimitText(job) {
   const asked = job.params ? job.params.time_limit_s : null;
   const limit = typeof asked === "number" ? `${plain(asked)} s (asked)` : "the service's ceiling";
-  const stopped = (job.result && job.result.stopped === "time_limit") || (job.status === "failed" && /exceeded its time limit/.test(job.error || ""));
-  return stopped ? `${limit}; stopped on it` : limit;
+  return job.stopped === "time_limit" ? `${limit}; stopped on it` : limit;
 }
 
 // "3 runs: 2 handed back, 1 counted": a hand-back (a worker told to stop) costs no
