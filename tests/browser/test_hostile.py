@@ -534,6 +534,56 @@ def test_a_running_jobs_header_keeps_a_selection_and_the_focus_through_its_polls
         page.unroute(pattern)
 
 
+def test_a_running_jobs_status_and_run_time_update_while_its_labels_are_edited(
+    dashboard: Dashboard,
+) -> None:
+    # The whole header's redraw was skipped while the name-and-tags editor was open: the
+    # run time stood still, and a job that went on running read as it was when the user
+    # began typing. Only the editor is left alone now (a poll with other labels, another
+    # client's rename, would have put it in anew, the text typed lost).
+    # Before: the run time read as before the two polls.
+    _save_key(dashboard)
+    scenario_id = _scenario(dashboard, ["stowed", "deployed"], "labels while running")
+    job_id = _queued_search(dashboard, scenario_id, "editing")
+    page = dashboard.page
+    answers = [0]
+
+    def running(route: Any) -> None:
+        if route.request.method != "GET":
+            route.continue_()
+            return
+        answer = route.fetch()
+        job = json.loads(_as_running(answer))
+        answers[0] += 1
+        job["started_at"], job["run_time_s"] = job["created_at"], 60.0 + answers[0]
+        job["cancel_requested"] = False
+        if answers[0] > 1:
+            job["name"], job["tags"] = "renamed elsewhere", ["elsewhere"]
+        route.fulfill(response=answer, body=json.dumps(job))
+
+    pattern = f"**/jobs/{job_id}"
+    page.route(pattern, running)
+    try:
+        dashboard.open(f"#/jobs/{job_id}")
+        page.wait_for_selector("#cancel-job")
+        page.click("#job-header summary >> text=name and tags")
+        page.fill("#job-name", "typed, not saved")
+        page.focus("#job-name")
+        ran = page.inner_text("#job-duration")
+        for _ in range(2):
+            with page.expect_response(lambda r: r.url.endswith(f"/jobs/{job_id}")):
+                pass
+            # The page's handler of that answer runs before the next task: a round trip.
+            page.evaluate("() => new Promise((done) => setTimeout(done, 100))")
+        assert page.inner_text("#job-duration") != ran, "the run time was not drawn again"
+        assert page.inner_text("#job-header .tag") == "elsewhere"
+        assert page.is_visible("#job-name")
+        assert page.input_value("#job-name") == "typed, not saved"
+        assert page.evaluate("() => document.activeElement?.id") == "job-name"
+    finally:
+        page.unroute(pattern)
+
+
 def test_compare_names_ids_it_does_not_know(dashboard: Dashboard) -> None:
     dashboard.console.expect("status of 404")
     dashboard.open("#/compare?type=search&ids=zzz")

@@ -81,10 +81,14 @@ function jobHeader(header, scenarioName, onLabels, notice) {
       ),
     );
     // The editor's inputs start from the name and tags, and its save reads the job's id.
-    labels(
-      h("details", { id: "job-labels", open: open("job-labels") }, h("summary", {}, "name and tags"), labelEditor(job, onLabels)),
-      JSON.stringify([job.id, job.name, job.tags]),
-    );
+    // Open, it is left alone while the user types (a poll with other labels would put it
+    // in anew); the rest of the header goes on being drawn.
+    if (!open("job-labels")) {
+      labels(
+        h("details", { id: "job-labels" }, h("summary", {}, "name and tags"), labelEditor(job, onLabels)),
+        JSON.stringify([job.id, job.name, job.tags]),
+      );
+    }
     parameters(h("details", { id: "job-parameters", open: open("job-parameters") }, h("summary", {}, "parameters"), h("pre", { class: "mono" }, JSON.stringify(job.params, null, 2))));
     results(job.result ? downloads("job-downloads", jobDownloads(job), { label: "Download the result" }) : null);
   };
@@ -171,11 +175,11 @@ export async function render(root, context) {
     const before = saves;
     const fresh = await api.job(id);
     if (!context.alive() || saves !== before) return;
-    const labelsOpen = header.querySelector("details[open] #labels-form");
     job = fresh;
     done = isTerminal(job.status);
-    // Leave an open labels editor alone while the user types; redraw once the job ends.
-    if (!labelsOpen || done) redraw();
+    // An open labels editor is left alone by the header itself: the status and run time
+    // go on updating while the user types.
+    redraw();
     await view.update(job);
   };
   context.every(POLL_MS, tick);
