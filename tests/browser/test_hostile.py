@@ -1122,6 +1122,9 @@ def test_a_job_forms_time_limit_is_sent_refused_beside_its_box_and_shown(
         page.click("#submit-job")
     assert "time_limit_s" not in (sent.value.request.post_data_json or {})["params"]
     page.wait_for_selector("#search-seed + .field-error")
+    # The box says the service's floor (1 s) before a value under it is refused.
+    hint = page.inner_text("#search-time_limit_s ~ .hint")
+    assert "at least 1;" in hint, hint
     page.fill("#search-seed", "3")
     for typed, said in [
         ("-1", "greater than or equal to 1"),

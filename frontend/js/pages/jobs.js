@@ -69,7 +69,9 @@ function numberOrText(text) {
 // The job's time limit box: left out when empty, so the service's ceiling holds.
 const timeLimitBox = () => h("input", { value: "", size: 8, placeholder: "the ceiling" });
 const timeLimit = (input) => (input.value.trim() ? { time_limit_s: numberOrText(input.value) } : {});
-const TIME_LIMIT_HINT = "wall-clock seconds; empty: the service's ceiling (INERTIA_ID_JOB_TIME_LIMIT_S)";
+// The floor is the service's (inertia_id.deadline.TIME_LIMIT_MIN_S): less is refused
+// with a 422, shown beside the box (most likely milliseconds typed as seconds).
+const TIME_LIMIT_HINT = "wall-clock seconds, at least 1; empty: the service's ceiling (INERTIA_ID_JOB_TIME_LIMIT_S)";
 
 function field(id, label, input, hint = "") {
   input.id = id;
