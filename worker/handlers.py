@@ -27,7 +27,7 @@ from inertia_id.pipelines import (
 from inertia_id.search import SearchProgress
 from inertia_id.stopping import TrainingStopped
 
-from .context import JobContext, JobTimeLimitExceeded, Outcome
+from .context import TIME_LIMIT, JobContext, JobTimeLimitExceeded, Outcome
 
 __all__ = ["HANDLERS", "run_search_job", "run_sweep_job", "run_train_job"]
 
@@ -176,7 +176,7 @@ def run_sweep_job(context: JobContext) -> Outcome:
         raise JobTimeLimitExceeded(f"{context.time_limit_text()} before the first sweep point")
     result = outcome.to_dict()
     if stop.timed_out and status == "succeeded":
-        result["stopped"] = "time_limit"
+        result["stopped"] = TIME_LIMIT
         result["time_limit_s"] = context.time_limit_s
     return Outcome(status=status, result=result, metrics=metrics)
 
