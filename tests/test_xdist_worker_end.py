@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import gc
+from pathlib import Path
 
 import pytest
 
@@ -18,8 +19,14 @@ def test_a_worker_s_garbage_is_collected_before_it_reports_its_end(
     is left, so that the collection after it traverses only what is new. Counted in
     objects, not timed: a collection's time is what they cost, and timings on a shared
     machine are noise."""
-    import conftest
-
+    # The suite's own conftest as pytest loaded it (``import conftest`` may give another
+    # directory's, whichever of them a module of this worker imported last).
+    here = Path(__file__).with_name("conftest.py")
+    conftest = next(
+        plugin
+        for plugin in request.config.pluginmanager.get_plugins()
+        if Path(getattr(plugin, "__file__", None) or "/") == here
+    )
     monkeypatch.setenv("PYTEST_XDIST_WORKER", "gw9")
     tracked = len(gc.get_objects())
     try:
