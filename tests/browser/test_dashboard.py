@@ -1327,6 +1327,34 @@ def test_a_sweep_that_cannot_be_read_on_a_classifier_page_is_said_in_its_card(
     assert uncaught == [], uncaught
 
 
+def test_a_sweep_that_could_not_be_read_is_tried_again_from_its_card(
+    dashboard: Dashboard,
+) -> None:
+    # The card's message said "Choose it again to try again", but choosing the sweep the
+    # menu shows already fires no change: nothing was asked again, and with one sweep
+    # only a reload of the page was left. Its button asks again. Before: no #sweep-retry.
+    classifier, sweeps = _classifier_with_two_stopped_sweeps(dashboard, seed=13)
+    page = dashboard.page
+    dashboard.console.expect("Failed to load resource")
+    patterns = [f"**/jobs/{s}" for s in sweeps]
+    for pattern in patterns:
+        page.route(pattern, lambda route: route.abort())
+    try:
+        dashboard.open(f"#/classifiers/{classifier}")
+        shown = page.wait_for_selector("#sweep-card .message.error", timeout=10_000).inner_text()
+        first = page.input_value("#sweep-select")
+        assert first[:8] in shown, shown
+    finally:
+        for pattern in patterns:
+            page.unroute(pattern)
+    page.click("#sweep-card #sweep-retry", timeout=5_000)
+    page.wait_for_selector("#sweep-card #sweep-state")
+    assert page.input_value("#sweep-select") == first
+    assert page.locator("#sweep-card .message.error").count() == 0
+    uncaught = [e for e in dashboard.console.errors if e.startswith("uncaught")]
+    assert uncaught == [], uncaught
+
+
 def test_identify_telemetry_files_verdict_distances_and_matches_none(
     dashboard: Dashboard, tmp_path: Path
 ) -> None:

@@ -177,9 +177,13 @@ async function sweepsOf(card, classifier, context, sweepId) {
   // another), and the poll of every sweep once shown went on.
   let asked = 0;
   let timer = null;
+  // Its own button tries again: choosing the sweep the menu shows already fires no
+  // change (the message said "choose it again", which did nothing, and a classifier with
+  // one sweep had only a reload of the page left).
   const failed = (id, exc) => {
     clear(holder);
-    holder.append(messageBox("error", `Sweep ${id.slice(0, 8)} could not be read: ${exc.message}. Choose it again to try again.`));
+    const retry = h("button", { type: "button", class: "secondary small", id: "sweep-retry", onclick: () => show(id) }, "Try again");
+    holder.append(h("div", { class: "message error", role: "alert" }, `Sweep ${id.slice(0, 8)} could not be read: ${exc.message}. `, retry));
   };
   const show = async (id) => {
     const mine = ++asked;
