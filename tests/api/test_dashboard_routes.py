@@ -380,8 +380,8 @@ def test_baselines_are_the_cores_for_the_scenarios_thrusters(api: Api, paper: Sc
 def test_a_plan_whose_scenario_overflows_names_the_sequence_not_flights(api: Api) -> None:
     """A scenario the service stores but whose bodies overflow under a sequence (torques
     of 1e300 N m) was refused at ``query.flights`` although no flights were asked for; the
-    plan's nominal prediction is what overflowed, so the sequence is named, and flights
-    only when the nominal plan alone goes through."""
+    plan's nominal prediction is what overflowed, so the sequence is named, and
+    the scenario's noise only when the nominal plan alone goes through."""
     scenario_id = api.create_scenario(thrusters={"nominal_torque_nm": 1e300})["id"]
     sequence = [[4, 4, 4, 0, 0, 0]] * 2
     by_query = api.get_with_key(
@@ -393,16 +393,17 @@ def test_a_plan_whose_scenario_overflows_names_the_sequence_not_flights(api: Api
         (detail,) = response.json()["detail"]
         assert detail["loc"] == loc
         assert "overflowed to inf or nan" in detail["msg"]
-    # A disturbance that overflows only the noisy flights: the nominal plan is fine, so
-    # the flights asked for are what is named. Such a scenario is no longer stored (its
-    # own noise overflows the rates): a row stored before that check.
+    # A disturbance that overflows only the noisy flights: the nominal plan is fine, and
+    # what is named is the scenario's own noise, as a job names it (the flights asked for
+    # were named before: a number the client had not got wrong). Such a scenario is no
+    # longer stored (its own noise overflows the rates): a row stored before that check.
     noisy_id = api.insert_scenario(
         Scenario.paper().with_uncertainty(disturbance_torque_sigma_nm=1e6)
     )
     assert api.post(f"/scenarios/{noisy_id}/plan", json={"sequence": sequence}).status_code == 200
     flown = api.post(f"/scenarios/{noisy_id}/plan?flights=20", json={"sequence": sequence})
     assert flown.status_code == 422, flown.text
-    assert flown.json()["detail"][0]["loc"] == ["query", "flights"]
+    assert flown.json()["detail"][0]["loc"] == ["uncertainty", "disturbance_torque_sigma_nm"]
 
 
 def _noisy_small_body(api: Api) -> str:

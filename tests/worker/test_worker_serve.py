@@ -972,9 +972,14 @@ def test_serve_removes_the_temp_folders_of_a_killed_serve_and_keeps_a_live_one_s
         assert worker_folder in now, "the folder of the killed serve's live worker was removed"
         assert lives <= now, f"the live serve's folders were removed: {lives - now}"
 
-        # The worker killed too (the whole group): its folder is no one's now.
+        # The worker killed too (the whole group): its folder is no one's now, once its
+        # task processes, which hold the folder's lock as forks of the worker, have ended
+        # as well (they die a moment after the worker; in CI the folder was still held).
+        group = [worker, *_descendants(worker)]
         os.killpg(worker, signal.SIGKILL)
-        wait_for(lambda: not _alive(worker), 10, "the worker outlived SIGKILL", logs)
+        wait_for(
+            lambda: not any(map(_alive, group)), 10, "the worker's group outlived SIGKILL", logs
+        )
         from app.temp_folders import remove_stale
 
         assert remove_stale([str(temp)]) == [str(temp / worker_folder)]
