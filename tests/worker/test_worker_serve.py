@@ -7,14 +7,17 @@ import json
 import logging
 import os
 import re
+import shutil
 import signal
 import socket
 import subprocess
 import sys
+import tempfile
 import textwrap
 import threading
 import time
 import urllib.request
+from collections.abc import Iterator
 from datetime import datetime, timedelta
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -567,6 +570,20 @@ def _stop_by_sigterm(server: subprocess.Popen[bytes]) -> None:
         raise
 
 
+@pytest.fixture
+def short_tmpdir() -> Iterator[Path]:
+    """A TMPDIR for serve short enough that the fork server's socket fits in the folder
+    serve makes there (``pymp-*/listener-*``, AF_UNIX's 107 bytes): ``tmp_path`` is not,
+    once pytest's run counter has three digits (``/tmp/pytest-of-root/pytest-127/popen-gw1/
+    test_serve_leaves_nothing_in_t1/tmp``: 108 bytes with the socket), and serve then makes
+    its folder in ``/tmp`` instead, where these tests do not look."""
+    folder = Path(tempfile.mkdtemp(prefix="iid-", dir="/tmp"))
+    try:
+        yield folder
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
 def _verdict_processes_up(root: int, api_workers: int) -> bool:
     """Each API process's fork server has forked its verdict process (eager)."""
     found = _descendants(root).values()
@@ -580,7 +597,7 @@ def _verdict_processes_up(root: int, api_workers: int) -> bool:
     [("1", "1"), ("2", "0")],
 )
 def test_serve_leaves_nothing_in_the_temp_folder_when_it_stops(
-    tmp_path: Path, api_workers: str, workers: str
+    tmp_path: Path, short_tmpdir: Path, api_workers: str, workers: str
 ) -> None:
     """Nothing of serve's is left in ``TMPDIR`` once SIGTERM has stopped it. Before, each
     stop left an empty ``pymp-*`` folder of the worker's (billiard's pool makes it; serve
@@ -589,8 +606,7 @@ def test_serve_leaves_nothing_in_the_temp_folder_when_it_stops(
     the SIGTERM uvicorn raises again after its graceful stop, it never removed it)."""
     port = free_port()
     log = tmp_path / "serve.log"
-    temp = tmp_path / "tmp"
-    temp.mkdir()
+    temp = short_tmpdir
     argv = [*_SERVE, "--port", str(port), "--data-dir", "data"]
     with open(log, "wb") as out:
         server = subprocess.Popen(
@@ -851,15 +867,14 @@ def test_the_orphan_reaper_leaves_multiprocessing_s_own_children_to_it() -> None
     assert process.exitcode == 3
 
 
-def test_the_api_processes_stop_when_serve_is_killed(tmp_path: Path) -> None:
+def test_the_api_processes_stop_when_serve_is_killed(tmp_path: Path, short_tmpdir: Path) -> None:
     """``kill -9`` of serve with --api-workers 2: the kernel tells its API processes to
     stop (PR_SET_PDEATHSIG), as it tells its workers. Before, both served on (ppid 1) for
     ever, holding serve's port: a new serve on it said "cannot listen". They stop as at
     serve's SIGTERM, and leave nothing in TMPDIR (before, each left its temp folder)."""
     port = free_port()
     log = tmp_path / "serve.log"
-    temp = tmp_path / "tmp"
-    temp.mkdir()
+    temp = short_tmpdir
     command = [sys.executable, "-m", "app.serve", "--port", str(port), "--data-dir", "data"]
     with open(log, "wb") as out:
         server = subprocess.Popen(
@@ -914,7 +929,7 @@ def _folders_open_in(pid: int, folder: Path) -> set[str]:
 
 
 def test_serve_removes_the_temp_folders_of_a_killed_serve_and_keeps_a_live_one_s(
-    tmp_path: Path,
+    tmp_path: Path, short_tmpdir: Path
 ) -> None:
     """``kill -9`` of serve left its own temp folder in TMPDIR for good (``pymp-*``, the
     fork server's socket in it; a killed process runs no exit), and its worker's where
@@ -922,8 +937,7 @@ def test_serve_removes_the_temp_folders_of_a_killed_serve_and_keeps_a_live_one_s
     serve removes them at its start, and keeps the folders of processes still running:
     another serve's beside, and the killed serve's worker while it lives (handing its
     job back)."""
-    temp = tmp_path / "tmp"
-    temp.mkdir()
+    temp = short_tmpdir
     servers: list[subprocess.Popen[bytes]] = []
 
     def start(name: str, *options: str, **env: str) -> Path:
