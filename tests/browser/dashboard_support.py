@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import re
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -75,6 +76,20 @@ class Dashboard:
         path = ARTIFACTS / f"{name}.png"
         self.page.screenshot(path=str(path), full_page=True)
         return path
+
+
+def one_held(page: Any, held: list[Any], timeout_s: float = 10.0) -> Any:
+    """The request a test's route handler has put in ``held``, taken out of it.
+
+    A route handler runs only while Playwright's sync API waits on something. One
+    evaluation's round trip (``wait_for_function("() => true")``) was taken for "the
+    handler has run", and in a loaded CI run the list was still empty after it. This
+    waits in 10 ms steps, each letting handlers run, until one request is held."""
+    deadline = time.monotonic() + timeout_s
+    while not held and time.monotonic() < deadline:
+        page.wait_for_timeout(10)
+    assert len(held) == 1, f"{len(held)} requests held after up to {timeout_s} s: {held}"
+    return held.pop()
 
 
 #: A function of the page that lists layout problems: a Plotly figure wider than its

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from dashboard_support import API_KEY, LAYOUT_PROBLEMS_JS, Dashboard, axe_violations
+from dashboard_support import API_KEY, LAYOUT_PROBLEMS_JS, Dashboard, axe_violations, one_held
 
 from inertia_id import Scenario, simulate
 
@@ -1258,12 +1258,10 @@ def test_a_sweep_chosen_on_a_classifier_page_is_not_drawn_over_by_a_slower_earli
     page.route(pattern, lambda route: held.append(route))
     try:
         page.select_option("#sweep-select", earlier)
-        page.wait_for_function("() => true")  # a round trip: the route handler has run
-        assert len(held) == 1, held
+        slow = one_held(page, held)
         with page.expect_response(lambda r: r.url.endswith(f"/jobs/{later}")):
             page.select_option("#sweep-select", later)
         page.wait_for_function("() => document.querySelector('#sweep-state')?.textContent")
-        slow = held.pop()
         answer = slow.fetch()
         job = answer.json()
         job["status"], job["error"], job["result"] = "failed", "the earlier choice's answer", None
@@ -1536,9 +1534,7 @@ def test_identify_draws_the_verdict_of_the_classifier_sent_not_one_chosen_meanwh
     page.route(verdicts, lambda route: held.append(route))
     try:
         page.click("#identify-submit")
-        page.wait_for_function("() => true")  # a round trip: the route handler has run
-        assert len(held) == 1, held
-        slow = held.pop()
+        slow = one_held(page, held)
         assert f'name="classifier_id"\r\n\r\n{sent}' in (slow.request.post_data or "")
         page.select_option("#identify-classifier", other)
         with page.expect_response(verdicts):

@@ -14,7 +14,7 @@ from collections.abc import Callable
 from typing import Any
 
 import pytest
-from dashboard_support import API_KEY, Dashboard, axe_violations
+from dashboard_support import API_KEY, Dashboard, axe_violations, one_held
 
 KEY_STORAGE = "inertia-id-api-key"
 #: Names a user could type, each of which Plotly would draw as markup if given as is.
@@ -261,8 +261,7 @@ def test_a_key_checked_slowly_keeps_what_is_typed_next_and_the_later_keys_answer
     def enter(key: str) -> Any:
         page.fill("#api-key", key)
         page.press("#api-key", "Enter")
-        page.wait_for_function("() => true")  # a round trip: the route handler has run
-        return held.pop()
+        return one_held(page, held)
 
     def answered(check: Any) -> None:
         with page.expect_response("**/auth/check"):
@@ -422,10 +421,8 @@ def test_labels_saved_while_a_poll_is_answered_are_not_put_back_by_its_answer(
         holding[0] = True
         with page.expect_request(lambda r: r.url.endswith(f"/jobs/{job_id}")):
             pass
-        page.wait_for_function("() => true")  # a round trip: the route handler has run
-        assert len(held) == 1, held
+        slow = one_held(page, held)
         holding[0] = False
-        slow = held.pop()
         answer = slow.fetch()  # the job as it was before the save
         page.click("#job-header summary >> text=name and tags")
         page.fill("#job-name", "after the save")
@@ -1072,11 +1069,6 @@ def test_a_sequence_typed_before_the_default_arrives_is_kept(dashboard: Dashboar
     other = _scenario(dashboard, ["stowed", "ejected"], "another default")
     page = dashboard.page
 
-    def one_held() -> Any:
-        page.wait_for_function("() => true")  # a round trip: the route handler has run
-        assert len(held) == 1, held
-        return held.pop()
-
     held: list[Any] = []
     baselines = re.compile(r"/scenarios/[^/]+/baselines")
     page.route(baselines, lambda route: held.append(route))
@@ -1086,7 +1078,7 @@ def test_a_sequence_typed_before_the_default_arrives_is_kept(dashboard: Dashboar
         page.click("#train-sequence")
         page.keyboard.insert_text("[[4, 4, 4, 0, 0, 0]]")
         with page.expect_response(baselines) as answered:
-            one_held().continue_()
+            one_held(page, held).continue_()
         assert answered.value.ok
         # The page's handler of that answer runs before the next task: a round trip.
         page.evaluate("() => new Promise((done) => setTimeout(done, 100))")
@@ -1094,7 +1086,7 @@ def test_a_sequence_typed_before_the_default_arrives_is_kept(dashboard: Dashboar
         # Choosing a scenario in the form is a new start: its default replaces the box.
         page.select_option("#train-scenario", other)
         with page.expect_response(baselines):
-            one_held().continue_()
+            one_held(page, held).continue_()
         page.wait_for_function(
             "() => !document.querySelector('#train-sequence').value.includes('4, 4, 4')"
         )
