@@ -89,6 +89,8 @@ def _clip(text: str, limit: int = 60) -> str:
 
 JobType = Literal["search", "train", "sweep"]
 JobStatus = Literal["queued", "running", "succeeded", "failed", "cancelled"]
+#: What may have stopped a finished job short of its own end (STOPPED_REASONS).
+JobStopped = Literal["time_limit"]
 _TERMINAL = ("succeeded", "failed", "cancelled")
 
 
@@ -410,7 +412,7 @@ class JobOut(BaseModel):
     config_hash: str
     progress: float = Field(description="fraction done, 0 to 1")
     error: str | None
-    stopped: Literal["time_limit"] | None = Field(
+    stopped: JobStopped | None = Field(
         default=None,
         description="time_limit: the job's time limit stopped it (a training, or a sweep "
         "before its first point, failed naming it; a search or sweep succeeded with what "

@@ -58,6 +58,7 @@ from ..schemas import (
     JobOut,
     JobPage,
     JobStatus,
+    JobStopped,
     JobSubmitted,
     JobType,
     JobUpdate,
@@ -666,6 +667,13 @@ def list_jobs(
     ] = None,
     type: Annotated[JobType | None, Query(description="search, train or sweep")] = None,
     status: Annotated[JobStatus | None, Query()] = None,
+    stopped: Annotated[
+        JobStopped | None,
+        Query(
+            description="time_limit: jobs their time limit stopped (failed naming it, or "
+            "succeeded with what they had; GET /vocabulary stopped_reasons)"
+        ),
+    ] = None,
     scenario_id: Annotated[str | None, Query(max_length=64)] = None,
     q: Annotated[
         str | None, text_query("text in the name (any case), an id prefix, or text in a tag")
@@ -687,7 +695,8 @@ def list_jobs(
     ] = "created",
     order: OrderQuery = "desc",
 ) -> JobPage:
-    """Jobs, filtered by type, status, scenario, text, tags and classifier, sorted (newest
+    """Jobs, filtered by type, status, what stopped them, scenario, text, tags and
+    classifier, sorted (newest
     first by default; jobs without the figure sorted by come last), one page at a time.
 
     Each job comes without its result (its ``summary`` has the headline figures) unless
@@ -707,6 +716,8 @@ def list_jobs(
         conditions.append(JobRow.type == type)
     if status is not None:
         conditions.append(JobRow.status == status)
+    if stopped is not None:
+        conditions.append(JobRow.stopped == stopped)
     needle = search_text(q)
     if needle is not None:
         conditions.append(_text_match(needle))

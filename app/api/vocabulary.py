@@ -12,7 +12,7 @@ from fastapi import APIRouter
 from pydantic import BaseModel, Field
 
 from service.exports import RESULT_TABLES
-from service.store.models import JOB_STATUSES, JOB_TYPES, TERMINAL_STATUSES
+from service.store.models import JOB_STATUSES, JOB_TYPES, STOPPED_REASONS, TERMINAL_STATUSES
 from service.summaries import SUMMARY_COLUMNS
 
 from .routing import UniqueKeysRoute
@@ -119,6 +119,10 @@ class VocabularyOut(BaseModel):
     job_types: list[str]
     job_statuses: list[str]
     terminal_statuses: list[str]
+    stopped_reasons: list[str] = Field(
+        description="what may have stopped a finished job short of its own end: a job's "
+        "stopped, and GET /jobs?stopped="
+    )
     job_summaries: dict[str, list[SummaryColumnOut]] = Field(
         description="each job type's headline figures: list columns and sort keys"
     )
@@ -231,6 +235,7 @@ def vocabulary() -> VocabularyOut:
         job_types=list(JOB_TYPES),
         job_statuses=list(JOB_STATUSES),
         terminal_statuses=list(TERMINAL_STATUSES),
+        stopped_reasons=list(STOPPED_REASONS),
         job_summaries={
             job_type: [SummaryColumnOut(**c.as_dict()) for c in columns]
             for job_type, columns in SUMMARY_COLUMNS.items()

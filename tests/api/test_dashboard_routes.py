@@ -314,10 +314,13 @@ def test_the_response_simulation_costs_cpu_and_so_needs_the_key(api: Api) -> Non
 
 
 def test_the_vocabulary_is_the_cores(api: Api) -> None:
+    from typing import get_args
+
+    from app.schemas import JobStopped
     from inertia_id.classifiers.registry import CLASSIFIER_KINDS, DEFAULT_KIND, kind_metrics
     from inertia_id.evaluation.sweep import DEFAULT_NOISES, NOISE_KINDS, NOISE_UNITS
     from inertia_id.search import SEARCH_METHODS
-    from service.store.models import TERMINAL_STATUSES
+    from service.store.models import STOPPED_REASONS, TERMINAL_STATUSES
 
     words = api.get("/vocabulary").json()
     assert [k["kind"] for k in words["classifier_kinds"]] == list(CLASSIFIER_KINDS)
@@ -334,6 +337,8 @@ def test_the_vocabulary_is_the_cores(api: Api) -> None:
     assert words["default_noises"] == list(DEFAULT_NOISES)
     assert [m["name"] for m in words["search_methods"]] == list(SEARCH_METHODS)
     assert words["terminal_statuses"] == list(TERMINAL_STATUSES)
+    # What a job's stopped may say and GET /jobs?stopped= takes: the store's reasons.
+    assert words["stopped_reasons"] == list(STOPPED_REASONS) == list(get_args(JobStopped))
 
 
 def test_the_vocabulary_lists_the_commanded_residual_bounds(api: Api) -> None:

@@ -1180,6 +1180,15 @@ def test_a_train_job_takes_a_time_limit_of_its_own_and_fails_past_it(
     listed = api.get("/jobs", params={"status": "failed"}).json()["items"]
     assert [(item["id"], item["stopped"]) for item in listed] == [(job["id"], "time_limit")]
     assert api.get("/classifiers").json()["items"] == []
+    # The list finds the jobs their limit stopped (the two jobs without a limit are
+    # queued beside it), and names a reason it does not know.
+    assert len(api.get("/jobs").json()["items"]) == 3
+    stopped = api.get("/jobs", params={"stopped": "time_limit"}).json()
+    assert [item["id"] for item in stopped["items"]] == [job["id"]] and stopped["total"] == 1
+    unknown = api.get("/jobs", params={"stopped": "cancelled"})
+    assert unknown.status_code == 422, unknown.text
+    assert unknown.json()["detail"][0]["loc"] == ["query", "stopped"]
+    assert "'time_limit'" in unknown.text and "cancelled" in unknown.text
 
 
 def test_jobs_whose_sequences_no_gyro_measures_are_refused_at_submission(

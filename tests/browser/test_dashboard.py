@@ -3013,6 +3013,40 @@ def test_a_front_the_time_limits_grace_cut_says_what_was_not_re_scored(
         assert page.inner_text("#best-fresh-f1") == "–"
     page.wait_for_selector("#front-plan-table", timeout=60_000)
 
+    # The list says what stopped it beside "succeeded" (which alone read as a search
+    # run to its end), and finds the jobs their limit stopped (GET /jobs?stopped=): not
+    # a job cancelled, nor one still queued.
+    other = client.post(
+        "/jobs",
+        json={"type": "search", "scenario_id": scenario_id, "seed": 1, "params": {}},
+    )
+    assert other.status_code == 202, other.text
+    client.post(f"/jobs/{other.json()['id']}/cancel")
+    row = f"#jobs-rows tr[data-job-id='{job_id}']"
+    dashboard.open(f"#/jobs?list_q={job_id}")
+    page.wait_for_selector(row)
+    assert page.inner_text(f"{row} .stopped-note").strip() == "stopped: time limit"
+    page.fill("#jobs-filter-q", "")
+    page.select_option("#jobs-filter-stopped", "time_limit")
+    page.wait_for_function(
+        """() => {
+          const rows = [...document.querySelectorAll('#jobs-rows tr[data-job-id]')];
+          return rows.length && rows.every((r) => r.querySelector('.stopped-note'));
+        }"""
+    )
+    listed = page.eval_on_selector_all(
+        "#jobs-rows tr[data-job-id]", "rows => rows.map((r) => r.dataset.jobId)"
+    )
+    stopped = client.get("/jobs", params={"stopped": "time_limit", "limit": 100}).json()
+    assert job_id in listed and listed == [item["id"] for item in stopped["items"]]
+    assert "list_stopped=time_limit" in page.url and other.json()["id"] not in listed
+    page.select_option("#jobs-filter-stopped", "")
+    page.wait_for_selector(f"#jobs-rows tr[data-job-id='{other.json()['id']}']")
+    assert (
+        page.locator(f"#jobs-rows tr[data-job-id='{other.json()['id']}'] .stopped-note").count()
+        == 0
+    )
+
 
 def test_an_nsga2_search_draws_its_generations_not_an_empty_reward(dashboard: Dashboard) -> None:
     _needs(dashboard, "nsga2")

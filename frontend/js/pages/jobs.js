@@ -400,7 +400,17 @@ function submitForm(scenarios, classifiers, query) {
 }
 
 //: The job list's state by its name in the page's address.
-const LIST_QUERY = { type: "list", q: "list_q", status: "list_status", scenario_id: "list_scenario", tag: "list_tag", sort: "list_sort", order: "list_order", offset: "list_offset" };
+// What stopped a job short of its own end (GET /vocabulary stopped_reasons), as the list
+// says it beside the status: a search or sweep that its limit stopped succeeds with what
+// it had, and read "succeeded" alone.
+const STOPPED_LABELS = { time_limit: "time limit" };
+
+function stoppedNote(job) {
+  if (!job.stopped) return null;
+  return h("span", { class: "hint stopped-note", title: "its time limit stopped it" }, ` stopped: ${STOPPED_LABELS[job.stopped] || job.stopped}`);
+}
+
+const LIST_QUERY = { type: "list", q: "list_q", status: "list_status", stopped: "list_stopped", scenario_id: "list_scenario", tag: "list_tag", sort: "list_sort", order: "list_order", offset: "list_offset" };
 const LIST_DEFAULTS = { sort: "created", order: "desc", offset: 0 };
 
 export async function render(root, context) {
@@ -444,6 +454,7 @@ export async function render(root, context) {
       { name: "q", label: "search", type: "text", placeholder: "name, tag or id" },
       { name: "type", label: "type", options: [["", "all"], ...vocabulary().job_types.map((t) => [t, t])] },
       { name: "status", label: "status", options: [["", "any"], ...vocabulary().job_statuses.map((t) => [t, t])] },
+      { name: "stopped", label: "stopped by", options: [["", "anything"], ...vocabulary().stopped_reasons.map((t) => [t, STOPPED_LABELS[t] || t])] },
       { name: "scenario_id", label: "scenario", options: [["", "any"], ...scenarios.items.map((s) => [s.id, s.name])] },
       { name: "tag", label: "tag", type: "text", size: 10 },
     ],
@@ -457,7 +468,7 @@ export async function render(root, context) {
     columns: (state) => [
       { key: "run", label: "run", sort: "name", cell: jobCell },
       { key: "type", label: "type", sort: "type", cell: (job) => job.type },
-      { key: "status", label: "status", sort: "status", cell: (job) => [statusBadge(job.status), progressBar(job.progress, job.status)] },
+      { key: "status", label: "status", sort: "status", cell: (job) => [statusBadge(job.status), stoppedNote(job), progressBar(job.progress, job.status)] },
       { key: "scenario", label: "scenario", cell: (job) => link(`#/scenarios/${job.scenario_id}`, names[job.scenario_id] || job.scenario_id.slice(0, 8)) },
       ...(state.type ? summaryTableColumns(state.type) : [{ key: "headline", label: "result", cell: headline }]),
       { key: "created", label: "created", sort: "created", cell: (job) => when(job.created_at) },
