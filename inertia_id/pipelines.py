@@ -579,15 +579,28 @@ def train_others(
     specs: Sequence[str],
     n_train: int,
     rng: np.random.Generator,
+    should_stop: Callable[[], bool] | None = None,
 ) -> dict[str, CandidateClassifier]:
     """Classifiers by spec (``"least-squares"``, ``"1nn:euclidean"``), trained at 1x on
-    ``n_train`` realisations per candidate, one after another from ``rng``."""
+    ``n_train`` realisations per candidate, one after another from ``rng``.
+
+    :param should_stop: asked before each classifier and at its training's checkpoints;
+        True stops there and returns those trained before it (a sweep stopped then
+        measures no point: its poll between points says stop too)."""
     from .classifiers.registry import parse_spec, train_classifier
+    from .stopping import TrainingStopped
 
     others = {}
     for spec in specs:
+        if should_stop is not None and should_stop():
+            break
         kind, options = parse_spec(spec)
-        others[spec] = train_classifier(scenario, sequence, n_train, rng, kind=kind, **options)
+        try:
+            others[spec] = train_classifier(
+                scenario, sequence, n_train, rng, kind=kind, should_stop=should_stop, **options
+            )
+        except TrainingStopped:
+            break
     return others
 
 
@@ -676,8 +689,9 @@ def sweep_with_limit(
     :param scenario: the scenario to sweep; default the classifier's. One with other
         candidates or another sample grid is refused (:func:`check_sweep_scenario`).
     :param progress: called with the fraction done (the bodies take the last fifth).
-    :param should_stop: polled between points; True stops with the points done (and
-        skips the bodies).
+    :param should_stop: asked before each classifier of ``request.others`` is trained
+        and at its training's checkpoints, then between points; True stops with the
+        points done (none, when it comes before the first) and skips the bodies.
     """
     from .evaluation.sweep import (
         DEFAULT_MULTIPLES,
@@ -711,7 +725,12 @@ def sweep_with_limit(
     )
     streams = np.random.SeedSequence(seed).spawn(3)
     others = train_others(
-        scenario, sequence, request.others, request.n_train, np.random.default_rng(streams[0])
+        scenario,
+        sequence,
+        request.others,
+        request.n_train,
+        np.random.default_rng(streams[0]),
+        should_stop=should_stop,
     )
     share = 0.8 if request.inertia else 1.0
     options: dict[str, Any] = {}

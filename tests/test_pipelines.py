@@ -158,6 +158,57 @@ def test_others_train_one_after_another_from_one_generator(paper: Scenario) -> N
     assert others["1nn:euclidean"].metric == "euclidean"
 
 
+def test_others_stop_before_the_next_and_at_a_training_checkpoint(paper: Scenario) -> None:
+    calls: list[int] = []
+
+    def at_call(n: int) -> Any:
+        def should_stop() -> bool:
+            calls.append(1)
+            return len(calls) >= n
+
+        return should_stop
+
+    specs = ["likelihood", "1nn:euclidean"]
+    rng = np.random.default_rng(2)
+    assert train_others(paper, GOOD_SEQUENCE, specs, 4, rng, should_stop=at_call(1)) == {}
+    # Asked before the likelihood (go on), then at its training's first checkpoint: stop.
+    calls.clear()
+    assert train_others(paper, GOOD_SEQUENCE, specs, 4, rng, should_stop=at_call(2)) == {}
+    assert len(calls) == 2
+
+
+def test_a_sweep_stopped_while_its_others_train_trains_no_more_and_measures_nothing(
+    euclidean_classifier: InertiaClassifier, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A sweep's stop (its job's time limit or cancel) was asked between points only, and
+    every comparison classifier was trained before the first ask: a limit spent in their
+    training was overrun by all of it. Now each is asked for first."""
+    from inertia_id.classifiers import registry
+
+    trained: list[str | None] = []
+    real = registry.train_classifier
+
+    def counted(*args: Any, **kwargs: Any) -> Any:
+        model = real(*args, **kwargs)
+        trained.append(kwargs.get("kind"))
+        return model
+
+    monkeypatch.setattr(registry, "train_classifier", counted)
+    request = SweepRequest(
+        multiples=(1, 6),
+        others=("likelihood", "1nn:euclidean"),
+        n_train=4,
+        n_test=20,
+        ceiling_realisations=0,
+        inertia=False,
+    )
+    outcome = sweep_with_limit(
+        euclidean_classifier, request, seed=3, should_stop=lambda: len(trained) >= 1
+    )
+    assert trained == ["likelihood"]
+    assert outcome.sweep.points == []
+
+
 # The sweep: one seeding scheme, and the scenario it names.
 
 
