@@ -315,6 +315,15 @@ def n_test_option(default: int) -> Callable[[F], F]:
     )
 
 
+class _TimeLimitType(FloatRange):
+    """A time limit as written; its floor is shown in ``--help`` as click shows a range,
+    and refused by :func:`_time_limit` in the one sentence it says for inf and nan too
+    (click's own check said "1e-09 is not in the range x>=1.0" instead)."""
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        return FloatRange().convert(value, param, ctx)
+
+
 def _time_limit(
     _context: click.Context, _parameter: click.Parameter, value: float | None
 ) -> float | None:
@@ -335,8 +344,8 @@ def time_limit_option(help_text: str) -> Callable[[F], F]:
         "--time-limit",
         "time_limit_s",
         default=None,
-        # Not click's float, which reads 1_0 as 10; _time_limit names inf and nan.
-        type=FloatRange(TIME_LIMIT_MIN_S),
+        # Not click's float, which reads 1_0 as 10.
+        type=_TimeLimitType(TIME_LIMIT_MIN_S),
         metavar="SECONDS",
         callback=_time_limit,
         help=f"{help_text} At least {TIME_LIMIT_MIN_S:g} s (less is most likely "
