@@ -20,6 +20,16 @@ from service.store.models import Base, JobRow
 from service.store.session import downgrade, upgrade
 
 
+def _scenario_s(connection: Any, now: datetime) -> None:
+    """Scenario 's', as the jobs inserted by hand below name it."""
+    connection.execute(text("INSERT INTO scenarios VALUES ('s', 'x', '{}', :t)"), {"t": now})
+
+
+def _job_columns(engine: Engine) -> set[str]:
+    with engine.connect() as connection:
+        return {column["name"] for column in inspect(connection).get_columns("jobs")}
+
+
 def test_migrating_to_head_gives_the_models_schema(empty_database_url: str) -> None:
     upgrade(empty_database_url)
     engine = create_engine(empty_database_url)
@@ -44,9 +54,7 @@ def test_stored_curve_rates_are_renamed_for_what_they_hold(empty_database_url: s
     metric = text("INSERT INTO metrics (job_id, key, step, value) VALUES (:j, :k, :s, 0.5)")
     try:
         with engine.begin() as connection:
-            connection.execute(
-                text("INSERT INTO scenarios VALUES ('s', 'x', '{}', :t)"), {"t": now}
-            )
+            _scenario_s(connection, now)
             for job_id, method in jobs.items():
                 connection.execute(
                     text(
@@ -108,15 +116,9 @@ def test_attempt_history_comes_and_goes_keeping_every_job_its_metrics_and_tags(
         with engine.connect() as connection:
             return int(connection.execute(text(f"SELECT count(*) FROM {table}")).scalar_one())
 
-    def columns() -> set[str]:
-        with engine.connect() as connection:
-            return {column["name"] for column in inspect(connection).get_columns("jobs")}
-
     try:
         with engine.begin() as connection:
-            connection.execute(
-                text("INSERT INTO scenarios VALUES ('s', 'x', '{}', :t)"), {"t": now}
-            )
+            _scenario_s(connection, now)
             connection.execute(
                 text(
                     "INSERT INTO jobs (id, type, status, scenario_id, params, seed, "
@@ -130,15 +132,15 @@ def test_attempt_history_comes_and_goes_keeping_every_job_its_metrics_and_tags(
                 text("INSERT INTO metrics (job_id, key, step, value) VALUES ('j', 'f1', 0, 1)")
             )
             connection.execute(text("INSERT INTO job_tags (job_id, tag) VALUES ('j', 'audit')"))
-        assert "attempt_history" not in columns()
+        assert "attempt_history" not in _job_columns(engine)
         upgrade(url)
-        assert "attempt_history" in columns()
+        assert "attempt_history" in _job_columns(engine)
         with Session(engine) as session:
             job = session.get(JobRow, "j")
             assert job is not None and job.attempt_history is None
             assert JobOut.model_validate(job).attempt_history == []
         downgrade(url, "0005")
-        assert "attempt_history" not in columns()
+        assert "attempt_history" not in _job_columns(engine)
         assert (count("jobs"), count("metrics"), count("job_tags")) == (1, 1, 1)
     finally:
         engine.dispose()
@@ -188,15 +190,9 @@ def test_jobs_stopped_by_their_time_limit_say_so_once_migrated(empty_database_ur
         "queued": ("train", "queued", None, None, None),
     }
 
-    def columns() -> set[str]:
-        with engine.connect() as connection:
-            return {column["name"] for column in inspect(connection).get_columns("jobs")}
-
     try:
         with engine.begin() as connection:
-            connection.execute(
-                text("INSERT INTO scenarios VALUES ('s', 'x', '{}', :t)"), {"t": now}
-            )
+            _scenario_s(connection, now)
             for job_id, (job_type, status, error, result, _stopped) in jobs.items():
                 connection.execute(
                     text(
@@ -214,7 +210,7 @@ def test_jobs_stopped_by_their_time_limit_say_so_once_migrated(empty_database_ur
                         "result": None if result is None else json.dumps(result),
                     },
                 )
-        assert "stopped" not in columns()
+        assert "stopped" not in _job_columns(engine)
         upgrade(url)
         with Session(engine) as session:
             found = {
@@ -223,7 +219,7 @@ def test_jobs_stopped_by_their_time_limit_say_so_once_migrated(empty_database_ur
             }
         assert found == {job_id: job[-1] for job_id, job in jobs.items()}
         downgrade(url, "0011")
-        assert "stopped" not in columns()
+        assert "stopped" not in _job_columns(engine)
         with engine.connect() as connection:
             assert int(connection.execute(text("SELECT count(*) FROM jobs")).scalar_one()) == len(
                 jobs

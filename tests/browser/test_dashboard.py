@@ -1278,6 +1278,29 @@ def test_a_sweep_chosen_on_a_classifier_page_is_not_drawn_over_by_a_slower_earli
         page.unroute(pattern)
 
 
+def _classifier_page_whose_sweeps_are_not_read(
+    dashboard: Dashboard, seed: int, answer: Callable[[Any], None]
+) -> tuple[list[str], str, str]:
+    """A classifier page opened while ``answer`` answers its two sweeps' reads: the
+    sweeps, the one the menu shows, and the card's error message (which names it). The
+    reads are answered by the service again after."""
+    classifier, sweeps = _classifier_with_two_stopped_sweeps(dashboard, seed=seed)
+    page = dashboard.page
+    dashboard.console.expect("Failed to load resource")
+    patterns = [f"**/jobs/{s}" for s in sweeps]
+    for pattern in patterns:
+        page.route(pattern, answer)
+    try:
+        dashboard.open(f"#/classifiers/{classifier}")
+        shown = page.wait_for_selector("#sweep-card .message.error", timeout=10_000).inner_text()
+        first = page.input_value("#sweep-select")
+        assert first[:8] in shown, shown
+    finally:
+        for pattern in patterns:
+            page.unroute(pattern)
+    return sweeps, first, shown
+
+
 def test_a_sweep_that_cannot_be_read_on_a_classifier_page_is_said_in_its_card(
     dashboard: Dashboard,
 ) -> None:
@@ -1286,28 +1309,16 @@ def test_a_sweep_that_cannot_be_read_on_a_classifier_page_is_said_in_its_card(
     # the page's first read it ended the page: the sequence's response was never drawn.
     # Now the card says it, and the rest of the page is drawn. Before: the first read's
     # message was not in #sweep-card (the route's own error took the page).
-    classifier, sweeps = _classifier_with_two_stopped_sweeps(dashboard, seed=11)
-    page = dashboard.page
-    dashboard.console.expect("Failed to load resource")
-
     def refused(route: Any) -> None:
         route.fulfill(
             status=500, content_type="application/json", body=json.dumps({"detail": "store down"})
         )
 
-    patterns = [f"**/jobs/{s}" for s in sweeps]
-    for pattern in patterns:
-        page.route(pattern, refused)
-    try:
-        dashboard.open(f"#/classifiers/{classifier}")
-        shown = page.wait_for_selector("#sweep-card .message.error", timeout=10_000).inner_text()
-        first = page.input_value("#sweep-select")
-        assert "store down" in shown and first[:8] in shown, shown
-        # The rest of the page is drawn: the sequence's simulated response.
-        page.wait_for_selector("#classifier-response", state="attached")
-    finally:
-        for pattern in patterns:
-            page.unroute(pattern)
+    sweeps, first, shown = _classifier_page_whose_sweeps_are_not_read(dashboard, 11, refused)
+    page = dashboard.page
+    assert "store down" in shown, shown
+    # The rest of the page is drawn: the sequence's simulated response.
+    page.wait_for_selector("#classifier-response", state="attached")
     other = next(s for s in sweeps if s != first)
     page.select_option("#sweep-select", other)
     page.wait_for_selector("#sweep-card #sweep-state")
@@ -1331,20 +1342,10 @@ def test_a_sweep_that_could_not_be_read_is_tried_again_from_its_card(
     # The card's message said "Choose it again to try again", but choosing the sweep the
     # menu shows already fires no change: nothing was asked again, and with one sweep
     # only a reload of the page was left. Its button asks again. Before: no #sweep-retry.
-    classifier, sweeps = _classifier_with_two_stopped_sweeps(dashboard, seed=13)
+    _, first, _ = _classifier_page_whose_sweeps_are_not_read(
+        dashboard, 13, lambda route: route.abort()
+    )
     page = dashboard.page
-    dashboard.console.expect("Failed to load resource")
-    patterns = [f"**/jobs/{s}" for s in sweeps]
-    for pattern in patterns:
-        page.route(pattern, lambda route: route.abort())
-    try:
-        dashboard.open(f"#/classifiers/{classifier}")
-        shown = page.wait_for_selector("#sweep-card .message.error", timeout=10_000).inner_text()
-        first = page.input_value("#sweep-select")
-        assert first[:8] in shown, shown
-    finally:
-        for pattern in patterns:
-            page.unroute(pattern)
     page.click("#sweep-card #sweep-retry", timeout=5_000)
     page.wait_for_selector("#sweep-card #sweep-state")
     assert page.input_value("#sweep-select") == first

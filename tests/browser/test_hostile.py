@@ -391,6 +391,39 @@ def _as_running(answer: Any) -> str:
     return json.dumps(job)
 
 
+def _running_on(renamed_after: int | None = None) -> Callable[[Any], None]:
+    """A route handler that answers a job's GETs as running, its run time moved on at
+    each answer (60 s plus the answer's count) and its cancel not yet asked (the button
+    takes the focus: disabled, it would not); past ``renamed_after`` answers, renamed and
+    retagged elsewhere. Other methods (a save) go through."""
+    answers = [0]
+
+    def running(route: Any) -> None:
+        if route.request.method != "GET":
+            route.continue_()
+            return
+        answer = route.fetch()
+        job = json.loads(_as_running(answer))
+        answers[0] += 1
+        job["started_at"], job["run_time_s"] = job["created_at"], 60.0 + answers[0]
+        job["cancel_requested"] = False
+        if renamed_after is not None and answers[0] > renamed_after:
+            job["name"], job["tags"] = "renamed elsewhere", ["elsewhere"]
+        route.fulfill(response=answer, body=json.dumps(job))
+
+    return running
+
+
+def _two_polls(dashboard: Dashboard, job_id: str) -> None:
+    """Wait for the job page's next two polls of the job to be answered and handled."""
+    page = dashboard.page
+    for _ in range(2):
+        with page.expect_response(lambda r: r.url.endswith(f"/jobs/{job_id}")):
+            pass
+        # The page's handler of that answer runs before the next task: a round trip.
+        page.evaluate("() => new Promise((done) => setTimeout(done, 100))")
+
+
 def test_labels_saved_while_a_poll_is_answered_are_not_put_back_by_its_answer(
     dashboard: Dashboard,
 ) -> None:
@@ -462,11 +495,7 @@ def test_a_running_jobs_parameters_opened_stay_open_through_its_polls(
         dashboard.open(f"#/jobs/{job_id}")
         page.click("#job-header summary >> text=parameters")
         assert page.is_visible("#job-header pre")
-        for _ in range(2):
-            with page.expect_response(lambda r: r.url.endswith(f"/jobs/{job_id}")):
-                pass
-            # The page's handler of that answer runs before the next task: a round trip.
-            page.evaluate("() => new Promise((done) => setTimeout(done, 100))")
+        _two_polls(dashboard, job_id)
         assert page.is_visible("#job-header pre")
         assert '"method": "random"' in page.inner_text("#job-header pre")
     finally:
@@ -484,29 +513,8 @@ def test_a_running_jobs_header_keeps_a_selection_and_the_focus_through_its_polls
     scenario_id = _scenario(dashboard, ["stowed", "deployed"], "header selection")
     job_id = _queued_search(dashboard, scenario_id, "selected")
     page = dashboard.page
-    answers = [0]
-
-    def running(route: Any) -> None:
-        if route.request.method != "GET":
-            route.continue_()
-            return
-        answer = route.fetch()
-        job = json.loads(_as_running(answer))
-        answers[0] += 1
-        job["started_at"], job["run_time_s"] = job["created_at"], 60.0 + answers[0]
-        # Its cancel not yet asked: the button takes the focus (disabled, it would not).
-        job["cancel_requested"] = False
-        route.fulfill(response=answer, body=json.dumps(job))
-
-    def two_polls() -> None:
-        for _ in range(2):
-            with page.expect_response(lambda r: r.url.endswith(f"/jobs/{job_id}")):
-                pass
-            # The page's handler of that answer runs before the next task: a round trip.
-            page.evaluate("() => new Promise((done) => setTimeout(done, 100))")
-
     pattern = f"**/jobs/{job_id}"
-    page.route(pattern, running)
+    page.route(pattern, _running_on())
     try:
         dashboard.open(f"#/jobs/{job_id}")
         page.wait_for_selector("#cancel-job")
@@ -521,11 +529,11 @@ def test_a_running_jobs_header_keeps_a_selection_and_the_focus_through_its_polls
         )
         assert selected == job_id
         ran = page.inner_text("#job-duration")
-        two_polls()
+        _two_polls(dashboard, job_id)
         assert page.evaluate("() => getSelection().toString()") == job_id
         assert page.inner_text("#job-duration") != ran, "the run time was not drawn again"
         page.focus("#cancel-job")
-        two_polls()
+        _two_polls(dashboard, job_id)
         assert page.evaluate("() => document.activeElement?.id") == "cancel-job"
     finally:
         page.unroute(pattern)
@@ -543,23 +551,8 @@ def test_a_running_jobs_status_and_run_time_update_while_its_labels_are_edited(
     scenario_id = _scenario(dashboard, ["stowed", "deployed"], "labels while running")
     job_id = _queued_search(dashboard, scenario_id, "editing")
     page = dashboard.page
-    answers = [0]
-
-    def running(route: Any) -> None:
-        if route.request.method != "GET":
-            route.continue_()
-            return
-        answer = route.fetch()
-        job = json.loads(_as_running(answer))
-        answers[0] += 1
-        job["started_at"], job["run_time_s"] = job["created_at"], 60.0 + answers[0]
-        job["cancel_requested"] = False
-        if answers[0] > 1:
-            job["name"], job["tags"] = "renamed elsewhere", ["elsewhere"]
-        route.fulfill(response=answer, body=json.dumps(job))
-
     pattern = f"**/jobs/{job_id}"
-    page.route(pattern, running)
+    page.route(pattern, _running_on(renamed_after=1))
     try:
         dashboard.open(f"#/jobs/{job_id}")
         page.wait_for_selector("#cancel-job")
@@ -567,11 +560,7 @@ def test_a_running_jobs_status_and_run_time_update_while_its_labels_are_edited(
         page.fill("#job-name", "typed, not saved")
         page.focus("#job-name")
         ran = page.inner_text("#job-duration")
-        for _ in range(2):
-            with page.expect_response(lambda r: r.url.endswith(f"/jobs/{job_id}")):
-                pass
-            # The page's handler of that answer runs before the next task: a round trip.
-            page.evaluate("() => new Promise((done) => setTimeout(done, 100))")
+        _two_polls(dashboard, job_id)
         assert page.inner_text("#job-duration") != ran, "the run time was not drawn again"
         assert page.inner_text("#job-header .tag") == "elsewhere"
         assert page.is_visible("#job-name")
