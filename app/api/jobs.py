@@ -696,8 +696,8 @@ def list_jobs(
     order: OrderQuery = "desc",
 ) -> JobPage:
     """Jobs, filtered by type, status, what stopped them, scenario, text, tags and
-    classifier, sorted (newest
-    first by default; jobs without the figure sorted by come last), one page at a time.
+    classifier, sorted (newest first by default; jobs without the figure sorted by come
+    last), one page at a time.
 
     Each job comes without its result (its ``summary`` has the headline figures) unless
     ``include=result`` asks for it; ``GET /jobs/{id}`` always has it."""

@@ -399,7 +399,6 @@ function submitForm(scenarios, classifiers, query) {
   return form;
 }
 
-//: The job list's state by its name in the page's address.
 // What stopped a job short of its own end (GET /vocabulary stopped_reasons), as the list
 // says it beside the status: a search or sweep that its limit stopped succeeds with what
 // it had, and read "succeeded" alone.
@@ -410,6 +409,7 @@ function stoppedNote(job) {
   return h("span", { class: "hint stopped-note", title: "its time limit stopped it" }, ` stopped: ${STOPPED_LABELS[job.stopped] || job.stopped}`);
 }
 
+//: The job list's state by its name in the page's address.
 const LIST_QUERY = { type: "list", q: "list_q", status: "list_status", stopped: "list_stopped", scenario_id: "list_scenario", tag: "list_tag", sort: "list_sort", order: "list_order", offset: "list_offset" };
 const LIST_DEFAULTS = { sort: "created", order: "desc", offset: 0 };
 
