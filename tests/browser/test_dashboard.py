@@ -3047,6 +3047,10 @@ def test_a_front_the_time_limits_grace_cut_says_what_was_not_re_scored(
         page.locator(f"#jobs-rows tr[data-job-id='{other.json()['id']}'] .stopped-note").count()
         == 0
     )
+    # And the compare page, where it read "succeeded" alone too.
+    dashboard.open(f"#/compare?type=search&ids={job_id}")
+    note = page.wait_for_selector(f"#page tr[data-id='{job_id}'] .stopped-note")
+    assert note.inner_text().strip() == "stopped: time limit"
 
 
 def test_an_nsga2_search_draws_its_generations_not_an_empty_reward(dashboard: Dashboard) -> None:

@@ -14,6 +14,16 @@ import { withoutKey } from "./keyed.js";
 export const REUSED_KEY = "inertia-id-reused-submission";
 
 // "PPO on paper" or "search 1a2b3c4d".
+// What stopped a job short of its own end (GET /vocabulary stopped_reasons), said beside
+// its status in the lists: a search or sweep that its limit stopped succeeds with what it
+// had, and read "succeeded" alone.
+export const STOPPED_LABELS = { time_limit: "time limit" };
+
+export function stoppedNote(job) {
+  if (!job.stopped) return null;
+  return h("span", { class: "hint stopped-note", title: "its time limit stopped it" }, ` stopped: ${STOPPED_LABELS[job.stopped] || job.stopped}`);
+}
+
 export function jobTitle(job) {
   return job.name || `${job.type} ${job.id.slice(0, 8)}`;
 }

@@ -6,7 +6,7 @@
 // Route: #/compare?type=search|sweep|classifier&ids=a,b&scenario=<id>
 
 import { MetricFollower, api } from "../api.js";
-import { jobCell, jobDetail, summaryColumns, summaryValue } from "../components/jobs.js";
+import { jobCell, jobDetail, stoppedNote, summaryColumns, summaryValue } from "../components/jobs.js";
 import { BestSoFar, COLORS, PLOT_CONFIG, extendWith, layout, plotDiv, plotText, polishMarks, polishStart, tightRange, title } from "../components/plots.js";
 import { dataTable } from "../components/table.js";
 import { classifierName, isTerminal, noiseInfo } from "../vocabulary.js";
@@ -125,7 +125,7 @@ function pickerTable(type, ids, scenarioFilter, scenarios) {
     pageSize: 10,
     columns: [
       { key: "run", label: "run", sort: "name", cell: jobCell },
-      { key: "status", label: "status", sort: "status", cell: (job) => statusBadge(job.status) },
+      { key: "status", label: "status", sort: "status", cell: (job) => [statusBadge(job.status), stoppedNote(job)] },
       { key: "scenario", label: "scenario", cell: (job) => names[job.scenario_id] || job.scenario_id.slice(0, 8) },
       ...summaryColumns(type)
         .slice(0, 3)
@@ -174,7 +174,7 @@ async function searchGroup(section, jobs, suffix, context) {
             "tr",
             { dataset: { id: job.id } },
             h("td", {}, h("span", { class: "swatch", style: `background: ${COLORS[i % COLORS.length]}` }), jobCell(job)),
-            h("td", {}, statusBadge(job.status)),
+            h("td", {}, statusBadge(job.status), stoppedNote(job)),
             columns.map((c) => h("td", { class: "num" }, summaryValue(job, c))),
           ),
         ),

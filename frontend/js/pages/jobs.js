@@ -3,7 +3,7 @@
 // every two seconds without reloading the page.
 
 import { api } from "../api.js";
-import { cancelButton, headline, jobCell, parseTags, submitAndOpen, summaryTableColumns, timingCell } from "../components/jobs.js";
+import { STOPPED_LABELS, cancelButton, headline, jobCell, parseTags, stoppedNote, submitAndOpen, summaryTableColumns, timingCell } from "../components/jobs.js";
 import { dataTable } from "../components/table.js";
 import { otherSpecs, vocabulary } from "../vocabulary.js";
 import { clear, h, link, messageBox, progressBar, showFieldErrors, statusBadge, when } from "../ui.js";
@@ -397,16 +397,6 @@ function submitForm(scenarios, classifiers, query) {
     h("div", { class: "toolbar" }, submit),
   );
   return form;
-}
-
-// What stopped a job short of its own end (GET /vocabulary stopped_reasons), as the list
-// says it beside the status: a search or sweep that its limit stopped succeeds with what
-// it had, and read "succeeded" alone.
-const STOPPED_LABELS = { time_limit: "time limit" };
-
-function stoppedNote(job) {
-  if (!job.stopped) return null;
-  return h("span", { class: "hint stopped-note", title: "its time limit stopped it" }, ` stopped: ${STOPPED_LABELS[job.stopped] || job.stopped}`);
 }
 
 //: The job list's state by its name in the page's address.
