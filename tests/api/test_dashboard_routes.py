@@ -142,7 +142,7 @@ def test_a_parameter_given_twice_is_422_not_the_last_one(
     ("path", "name", "takes"),
     [
         # A typo of status: every job was listed, as if no filter had been asked for.
-        ("/jobs?stauts=failed", "stauts", "q, scenario_id, sort, status, tag, type"),
+        ("/jobs?stauts=failed", "stauts", "q, scenario_id, sort, status, stopped, tag, type"),
         ("/classifiers?kidn=1nn", "kidn", "kind, limit, offset, order, q, scenario_id"),
         ("/health?verbose=1", "verbose", "takes: none"),
     ],
