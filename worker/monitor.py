@@ -127,12 +127,22 @@ class WorkerMonitor:
         self._beat_unstored = False
         self._reap_from = 0.0
         self._clock: Callable[[], float] = time.monotonic
+        #: Whether the last beat found no warm task process (it was to store the
+        #: worker as warming): the next beat comes as soon as one is warm.
+        self._beat_cold = False
         self._ticker = Ticker(
             self.beat,
             settings.heartbeat_interval_s,
             name=f"inertia-id monitor {name}",
             immediately=True,
+            sooner=self._warmed_since_beat,
         )
+
+    def _warmed_since_beat(self) -> bool:
+        """Whether a task process has become warm since a beat that found none: the
+        monitor then beats at once, and /health lists the worker warm (one early beat a
+        warm-up: that beat finds it warm)."""
+        return self._beat_cold and warm()
 
     def beat(self) -> None:
         """One beat (:meth:`tick`), its failure logged once an episode rather than with
@@ -236,6 +246,7 @@ class WorkerMonitor:
         elif self._lock_missing_since is None:
             self._lock_missing_since = utcnow()
         is_warm = warm()
+        self._beat_cold = not is_warm
         # Listed from its first beat: while a task process warms up (the first one, as
         # the worker starts, or a replacement: the last one retired after its jobs or
         # its memory limit, or was killed), the worker beats as warming. It takes the

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import logging
 import threading
+import time
 from collections.abc import Callable
 
 __all__ = ["Ticker"]
@@ -21,6 +22,12 @@ class Ticker:
     :param interval_s: seconds between the end of one tick and the start of the next.
     :param name: thread name, for logs and debuggers.
     :param immediately: also tick once as soon as the thread starts.
+    :param sooner: asked every ``poll_s`` between ticks (cheap, no I/O); True ticks at
+        once instead of waiting out the interval. A worker's monitor beats this way as
+        soon as its task process is warm: the warm-up showed in /health up to a whole
+        interval (5 s) after it ended, and every start that waits for a warm worker
+        (a deployment's readiness check, ``inertia-id serve``'s own) waited with it.
+    :param poll_s: seconds between two questions to ``sooner``.
     """
 
     def __init__(
@@ -30,12 +37,18 @@ class Ticker:
         *,
         name: str,
         immediately: bool = False,
+        sooner: Callable[[], bool] | None = None,
+        poll_s: float = 0.2,
     ) -> None:
         if not interval_s > 0:
             raise ValueError(f"a ticker needs an interval > 0 s, got {interval_s!r}")
+        if not poll_s > 0:
+            raise ValueError(f"a ticker needs a poll > 0 s, got {poll_s!r}")
         self.tick = tick
         self.interval_s = float(interval_s)
         self.immediately = immediately
+        self.sooner = sooner
+        self.poll_s = float(poll_s)
         self._stopping = threading.Event()
         self._thread = threading.Thread(target=self._run, name=name, daemon=True)
 
@@ -52,8 +65,30 @@ class Ticker:
     def _run(self) -> None:
         if self.immediately:
             self._safe_tick()
-        while not self._stopping.wait(self.interval_s):
+        while not self._wait():
             self._safe_tick()
+
+    def _wait(self) -> bool:
+        """Wait for the next tick: the interval, or until ``sooner`` says so. True once
+        the ticker is stopped."""
+        if self.sooner is None:
+            return self._stopping.wait(self.interval_s)
+        due = time.monotonic() + self.interval_s
+        while (left := due - time.monotonic()) > 0:
+            if self._stopping.wait(min(self.poll_s, left)):
+                return True
+            if self._ask_sooner():
+                return False
+        return self._stopping.is_set()
+
+    def _ask_sooner(self) -> bool:
+        assert self.sooner is not None
+        try:
+            return bool(self.sooner())
+        except Exception:
+            # A question that fails is no reason to tick early, nor to stop ticking.
+            logger.exception("%s: could not tell whether to tick early", self._thread.name)
+            return False
 
     def _safe_tick(self) -> None:
         try:

@@ -73,6 +73,52 @@ def test_a_starting_worker_is_listed_as_warming_from_its_first_beat(
         monitor.stop()
 
 
+def test_a_worker_beats_as_soon_as_its_task_process_is_warm_not_an_interval_later(
+    store: Store, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The warm-up ended between two beats showed in /health only at the next one, up
+    to a whole interval (5 s) later; every start that waits for a warm worker waited
+    with it. Now the monitor beats once as soon as a task process is warm."""
+    cold = True
+    monkeypatch.setattr(worker.monitor, "warm", lambda: not cold)
+    monkeypatch.setattr(worker.monitor, "cold_since", lambda: None)
+    # An interval far beyond the waits below: only the early beat can list it warm.
+    settings = store.settings.model_copy(
+        update={"heartbeat_interval_s": 600.0, "heartbeat_timeout_s": 1800.0}
+    )
+    monitor = WorkerMonitor(WORKER, settings, Life(settings.resolved_database_url, "first"))
+    beats: list[bool] = []
+    store_beat = monitor._store_beat
+
+    def counted() -> None:
+        store_beat()
+        beats.append(not cold)  # whether that beat found a warm task process
+
+    monkeypatch.setattr(monitor, "_store_beat", counted)
+
+    def warming() -> list[str] | None:
+        report = health(settings, store.db, monitor.celery)
+        return [w.name for w in report.workers.warming] if report.workers.names else None
+
+    try:
+        monitor.start()
+        first = wait_for(warming, 10.0, "no first beat stored", lambda: f"beats {beats}")
+        assert first == [WORKER]
+        time.sleep(0.5)  # cold: no beat but the first
+        assert beats == [False]
+        cold = False
+        wait_for(
+            lambda: warming() == [],
+            10.0,
+            "the warm worker still listed as warming",
+            lambda: f"beats {beats}",
+        )
+        time.sleep(0.5)  # warm: one early beat, then the interval again
+        assert beats == [False, True]
+    finally:
+        monitor.stop()
+
+
 def test_a_worker_process_knows_when_it_was_started() -> None:
     """The first warm-up's date: the process's start, before its imports (seconds)."""
     before = time.time()
