@@ -24,9 +24,7 @@ echo "== mypy"
 mypy
 echo "== pytest"
 # Three pytest-xdist workers, a test module each at a time (--dist loadscope: a module's
-# fixtures are built once and its tests keep their order), the longest modules first
-# (--no-loadscope-reorder keeps the order tests/conftest.py sorts them in, by
-# tests/module_seconds.json: see tests/xdist_order.py). One pytest process kept this
+# fixtures are built once and its tests keep their order). One pytest process kept this
 # 2-core machine about 30 % busy, waiting on the services, workers and browsers its tests
 # start; more workers overlap those waits: two kept it about 51 % busy (pytest 1,215 s),
 # three 58 % (1,003 s), measured one after the other on the same idle machine (README).
@@ -36,5 +34,5 @@ workers=${INERTIA_ID_TEST_WORKERS:-3}
 if [ "$workers" = "0" ]; then
   pytest "$@"
 else
-  pytest -n "$workers" --dist loadscope --no-loadscope-reorder "$@"
+  pytest -n "$workers" --dist loadscope "$@"
 fi

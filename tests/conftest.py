@@ -15,7 +15,6 @@ from typing import Any
 import numpy as np
 import pytest
 from scenario_support import GOOD_SEQUENCE
-from xdist_order import longest_modules_first
 
 from inertia_id import InertiaClassifier, Scenario, preset, train
 from inertia_id.physics.presets import NOISE_OFF
@@ -50,8 +49,7 @@ _BLAS_LIMIT: Any = None
 
 @pytest.hookimpl(trylast=True)
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """Refuse a collection in which two tests share an id; under pytest-xdist, order
-    the modules longest first (:func:`xdist_order.longest_modules_first`).
+    """Refuse a collection in which two tests share an id.
 
     pytest-xdist hands tests out by id, so it runs only one of a set that share one,
     and says nothing: under ``-n 2`` schemathesis' 26 operation tests ran as one
@@ -64,8 +62,6 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
             f"{len(shared)} test id(s) shared by more than one test (pytest-xdist would run"
             f" only one of each): {', '.join(shared[:5])}"
         )
-    if os.environ.get("PYTEST_XDIST_WORKER"):
-        longest_modules_first(items)
 
 
 @pytest.hookimpl(trylast=True)
