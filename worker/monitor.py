@@ -140,9 +140,13 @@ class WorkerMonitor:
 
     def _warmed_since_beat(self) -> bool:
         """Whether a task process has become warm since a beat that found none: the
-        monitor then beats at once, and /health lists the worker warm (one early beat a
-        warm-up: that beat finds it warm)."""
-        return self._beat_cold and warm()
+        monitor then beats at once, and /health lists the worker warm. Answered yes once
+        a beat that found none, whatever that early beat does (one that failed before it
+        looked at the task processes would be asked for again at every poll)."""
+        if self._beat_cold and warm():
+            self._beat_cold = False
+            return True
+        return False
 
     def beat(self) -> None:
         """One beat (:meth:`tick`), its failure logged once an episode rather than with

@@ -7,6 +7,8 @@ import threading
 import time
 from collections.abc import Callable
 
+from .episode import Episode
+
 __all__ = ["Ticker"]
 
 logger = logging.getLogger(__name__)
@@ -49,6 +51,8 @@ class Ticker:
         self.immediately = immediately
         self.sooner = sooner
         self.poll_s = float(poll_s)
+        #: ``sooner`` failing: logged once an episode, not at every poll (5 a second).
+        self._sooner_failing = Episode(logger)
         self._stopping = threading.Event()
         self._thread = threading.Thread(target=self._run, name=name, daemon=True)
 
@@ -83,12 +87,20 @@ class Ticker:
 
     def _ask_sooner(self) -> bool:
         assert self.sooner is not None
+        name = self._thread.name
         try:
-            return bool(self.sooner())
-        except Exception:
+            answer = bool(self.sooner())
+        except Exception as exc:
             # A question that fails is no reason to tick early, nor to stop ticking.
-            logger.exception("%s: could not tell whether to tick early", self._thread.name)
+            self._sooner_failing.seen(
+                f"{type(exc).__name__}: {exc}",
+                f"{name}: could not tell whether to tick early (%s); ticking every "
+                f"{self.interval_s:g} s",
+                exc_info=True,
+            )
             return False
+        self._sooner_failing.cleared(f"{name}: tells whether to tick early again after %.0f s")
+        return answer
 
     def _safe_tick(self) -> None:
         try:

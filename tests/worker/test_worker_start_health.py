@@ -119,6 +119,43 @@ def test_a_worker_beats_as_soon_as_its_task_process_is_warm_not_an_interval_late
         monitor.stop()
 
 
+def test_a_beat_that_fails_before_it_looks_at_the_task_processes_comes_early_once(
+    store: Store, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The early beat is asked for once a beat that found no warm task process. Before,
+    a beat that failed before it looked (here the lock's check) left the question's
+    answer yes, and with a task process warm the monitor beat (database, reaper,
+    re-sender) at every poll, 0.2 s, instead of every interval (found by a review)."""
+    cold = True
+    monkeypatch.setattr(worker.monitor, "warm", lambda: not cold)
+    monkeypatch.setattr(worker.monitor, "cold_since", lambda: None)
+    settings = store.settings.model_copy(
+        update={"heartbeat_interval_s": 600.0, "heartbeat_timeout_s": 1800.0}
+    )
+    monitor = WorkerMonitor(WORKER, settings, Life(settings.resolved_database_url, "first"))
+    ticks: list[float] = []
+    tick = monitor.tick
+
+    def counted() -> None:
+        ticks.append(time.monotonic())
+        tick()
+
+    def keep() -> bool:
+        raise RuntimeError("lock check failed")
+
+    monkeypatch.setattr(monitor, "tick", counted)
+    try:
+        monitor.start()
+        wait_for(lambda: ticks, 10.0, "no first beat", lambda: "")
+        time.sleep(0.3)  # the first beat, cold, stored
+        monkeypatch.setattr(monitor.life, "keep", keep)
+        cold = False
+        time.sleep(2.0)
+    finally:
+        monitor.stop()
+    assert len(ticks) == 2, f"{len(ticks)} beats in about 2 s with a 600 s interval"
+
+
 def test_a_worker_process_knows_when_it_was_started() -> None:
     """The first warm-up's date: the process's start, before its imports (seconds)."""
     before = time.time()
