@@ -58,9 +58,24 @@ def _redis_database() -> int:
     return 9 + index
 
 
-REDIS_URL = os.environ.get(
-    "INERTIA_ID_TEST_REDIS_URL", f"redis://127.0.0.1:6379/{_redis_database()}"
-)
+def _redis_url() -> str:
+    """``INERTIA_ID_TEST_REDIS_URL``, else a database of this worker's own. The override
+    names one database: under more than one pytest-xdist worker each would flush the
+    others' queues, so it is refused there."""
+    url = os.environ.get("INERTIA_ID_TEST_REDIS_URL")
+    if url is None:
+        return f"redis://127.0.0.1:6379/{_redis_database()}"
+    workers = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1") or 1)
+    if workers > 1:
+        raise RuntimeError(
+            f"INERTIA_ID_TEST_REDIS_URL={url} names one Redis database, and the {workers} "
+            "pytest-xdist workers would flush each other's queues in it: run in one "
+            "process (-n 0) with it, or leave it unset (each worker takes 9 + its index)"
+        )
+    return url
+
+
+REDIS_URL = _redis_url()
 WORKER_READY_TIMEOUT_S = 60.0
 
 
