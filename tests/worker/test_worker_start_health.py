@@ -15,6 +15,7 @@ import os
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from datetime import timedelta
 from typing import TYPE_CHECKING, Any
 
@@ -73,6 +74,19 @@ def test_a_starting_worker_is_listed_as_warming_from_its_first_beat(
         monitor.stop()
 
 
+def _slow_beating_monitor(
+    store: Store, monkeypatch: pytest.MonkeyPatch, is_warm: Callable[[], bool]
+) -> WorkerMonitor:
+    """A monitor whose interval (600 s) is far beyond a test's waits, its task
+    processes warm when ``is_warm`` says: only an early beat comes within them."""
+    monkeypatch.setattr(worker.monitor, "warm", is_warm)
+    monkeypatch.setattr(worker.monitor, "cold_since", lambda: None)
+    settings = store.settings.model_copy(
+        update={"heartbeat_interval_s": 600.0, "heartbeat_timeout_s": 1800.0}
+    )
+    return WorkerMonitor(WORKER, settings, Life(settings.resolved_database_url, "first"))
+
+
 def test_a_worker_beats_as_soon_as_its_task_process_is_warm_not_an_interval_later(
     store: Store, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -80,13 +94,8 @@ def test_a_worker_beats_as_soon_as_its_task_process_is_warm_not_an_interval_late
     to a whole interval (5 s) later; every start that waits for a warm worker waited
     with it. Now the monitor beats once as soon as a task process is warm."""
     cold = True
-    monkeypatch.setattr(worker.monitor, "warm", lambda: not cold)
-    monkeypatch.setattr(worker.monitor, "cold_since", lambda: None)
-    # An interval far beyond the waits below: only the early beat can list it warm.
-    settings = store.settings.model_copy(
-        update={"heartbeat_interval_s": 600.0, "heartbeat_timeout_s": 1800.0}
-    )
-    monitor = WorkerMonitor(WORKER, settings, Life(settings.resolved_database_url, "first"))
+    monitor = _slow_beating_monitor(store, monkeypatch, lambda: not cold)
+    settings = monitor.settings
     beats: list[bool] = []
     store_beat = monitor._store_beat
 
@@ -127,12 +136,7 @@ def test_a_beat_that_fails_before_it_looks_at_the_task_processes_comes_early_onc
     answer yes, and with a task process warm the monitor beat (database, reaper,
     re-sender) at every poll, 0.2 s, instead of every interval (found by a review)."""
     cold = True
-    monkeypatch.setattr(worker.monitor, "warm", lambda: not cold)
-    monkeypatch.setattr(worker.monitor, "cold_since", lambda: None)
-    settings = store.settings.model_copy(
-        update={"heartbeat_interval_s": 600.0, "heartbeat_timeout_s": 1800.0}
-    )
-    monitor = WorkerMonitor(WORKER, settings, Life(settings.resolved_database_url, "first"))
+    monitor = _slow_beating_monitor(store, monkeypatch, lambda: not cold)
     ticks: list[float] = []
     tick = monitor.tick
 
