@@ -26,8 +26,8 @@ echo "== pytest"
 # Three pytest-xdist workers, a test module each at a time (--dist loadscope: a module's
 # fixtures are built once and its tests keep their order). One pytest process kept this
 # 2-core machine about 30 % busy, waiting on the services, workers and browsers its tests
-# start; more workers overlap those waits: two kept it about 51 % busy (pytest 1,215 s),
-# three 58 % (1,003 s), measured one after the other on the same idle machine (README).
+# start; more workers overlap those waits: two kept it about 51 % busy, three 58 %. The
+# gain is within the spread of fresh-clone runs (README: "How long CI takes").
 # At most 4 (tests/worker/conftest.py gives each a Redis database of its own).
 # INERTIA_ID_TEST_WORKERS=0 runs the suite in one process.
 workers=${INERTIA_ID_TEST_WORKERS:-3}
