@@ -290,7 +290,9 @@ def take_restarted_runs(
     a worker killed whole and started again under its name, as docker restarts a
     container. By the reaper's ``max_attempts`` rule, within two beats rather than the
     heartbeat timeout: gone means its lock found free at two of ``witness``'s probes
-    two beats apart, and its run silent for two beats; a live process of the same name
+    two beats apart, and its run silent for two beats, the two waits side by side (the
+    lock is probed from this worker's first beat, the run's silence counted from its
+    last heartbeat); a live process of the same name
     keeps its jobs, also while it takes again a lock it lost (see
     :mod:`worker.incarnation`)."""
     url = settings.resolved_database_url

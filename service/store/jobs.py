@@ -791,19 +791,26 @@ def take_earlier_incarnations(
     Returns (re-queued job ids, ended job ids).
     """
     now = now or utcnow()
-    mine = and_(
+    others = and_(
         JobRow.status == "running",
         JobRow.worker == worker,
         JobRow.worker_incarnation.is_not(None),
         JobRow.worker_incarnation != incarnation,
-        func.coalesce(JobRow.heartbeat_at, JobRow.started_at)
-        < now - timedelta(seconds=beat_within_s),
     )
-    earlier = set(session.scalars(select(JobRow.worker_incarnation).where(mine)))
+    # Every earlier incarnation with a run is asked, silent or not, so that the two
+    # waits run side by side: ``alive`` may want the lock found free twice, two beats
+    # apart (worker.incarnation.Witness), and the run must be silent for two beats.
+    # Asked only once its run was silent, the two added up (about 20 s, not 10).
+    earlier = set(session.scalars(select(JobRow.worker_incarnation).where(others)))
     gone = sorted(other for other in earlier if other is not None and not alive(other))
     if not gone:
         return [], []
-    lost = and_(mine, JobRow.worker_incarnation.in_(gone))
+    lost = and_(
+        others,
+        JobRow.worker_incarnation.in_(gone),
+        func.coalesce(JobRow.heartbeat_at, JobRow.started_at)
+        < now - timedelta(seconds=beat_within_s),
+    )
     # As in reap_stale: the write lock (SQLite) or the rows' (PostgreSQL, skipping those
     # another taker holds) before the read, so no run is taken twice.
     if session.get_bind().dialect.name == "sqlite":

@@ -31,7 +31,7 @@ from sqlalchemy.engine import make_url
 from test_worker_restart import QUICK_SEARCH
 
 from service.store import JobRow, WorkerRow
-from service.store.jobs import claim, start_worker
+from service.store.jobs import claim, start_worker, take_earlier_incarnations
 from service.store.models import utcnow
 from worker import incarnation
 from worker.incarnation import Life, Witness, alive
@@ -170,6 +170,47 @@ def test_a_dead_incarnations_run_is_taken_once_its_lock_was_free_at_two_probes(
         assert take().requeued == [job_id]
         (lost,) = store.job(job_id).attempt_history
         assert (lost["cause"], lost["then"]) == ("worker restarted", "re-queued")
+    finally:
+        monitor.stop()
+
+
+def test_a_dead_incarnations_lock_is_probed_while_its_run_falls_silent(
+    store: Store,
+) -> None:
+    """The two waits, the run's silence and the lock's two probes, run side by side:
+    the run is taken two beats after the kill, not four. Before, its lock was first
+    probed once the run had been silent for two beats, and the deciding probe came two
+    beats after that (about 20 s at the default beat)."""
+    url = store.settings.resolved_database_url
+    dead = Life(url, "dead")
+    assert dead.hold()
+    job_id = _running(store, "dead")
+    killed = utcnow()
+    with store.db.session() as session:  # its last beat just before it was killed
+        session.execute(update(JobRow).where(JobRow.id == job_id).values(heartbeat_at=killed))
+    dead.release()  # as its process's death would
+    now = [0.0]
+    witness = Witness(10.0, clock=lambda: now[0])
+    monitor = WorkerMonitor(WORKER, store.settings, Life(url, "again"))
+    try:
+
+        def take(at: float) -> ReapReport:
+            now[0] = at
+            with store.db.session() as session:
+                requeued, ended = take_earlier_incarnations(
+                    session,
+                    WORKER,
+                    "again",
+                    alive=lambda other: not witness.gone(other, not _alive(store, other)),
+                    max_attempts=store.settings.max_attempts,
+                    beat_within_s=10.0,
+                    now=killed + timedelta(seconds=at),
+                )
+            return ReapReport(requeued=requeued, failed=ended)
+
+        assert take(0.0).requeued == []  # the restart's first beat: found free, not silent
+        assert take(5.0).requeued == []
+        assert take(10.5).requeued == [job_id]  # free at two probes, silent two beats
     finally:
         monitor.stop()
 
