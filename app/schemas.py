@@ -827,6 +827,13 @@ class IdentifyResult(BaseModel):
         default=None,
         description="the unit the rates match a candidate in: deg/s or rad/s",
     )
+    pre_start_hint: str | None = Field(
+        default=None,
+        description="with an ambiguous verdict from a kind that conditions on the "
+        "telemetry before the start (the default kind), and no sample there: says so and "
+        "asks for the telemetry from up to pre_start_window_s before the start (the "
+        "status is unchanged)",
+    )
 
     @computed_field(
         description="the candidate's number as plan tables, exports and the CLI number it "

@@ -985,4 +985,6 @@ def identify_table(verdict: Mapping[str, Any]) -> Table:
         notes.append(("sequence_start_note", verdict["sequence_start_note"]))
     if verdict.get("unit_hint"):
         notes.append(("unit_hint", verdict["unit_hint"]))
+    if verdict.get("pre_start_hint"):
+        notes.append(("pre_start_hint", verdict["pre_start_hint"]))
     return Table(["candidate", "distance", "nearest", "posterior", "number"], rows, notes)

@@ -22,6 +22,7 @@ from inertia_id.errors import InputError
 from inertia_id.evaluation.identify import identify
 from inertia_id.evaluation.telemetry import Telemetry
 from inertia_id.physics.presets import preset
+from service.exports import identify_table
 
 
 @pytest.fixture(scope="module")
@@ -315,3 +316,37 @@ def test_rates_in_the_wrong_unit_are_hinted_at(
     assert right.status == "identified" and right.unit_hint is None
     still = {**ten_hz_flight, "omega_rad_s": (0.0 * rates).tolist(), "sequence_start": 0.0}
     assert identify(marginal, still).unit_hint is None
+
+
+def test_an_ambiguous_pass_with_nothing_before_the_start_says_why(
+    marginal: MarginalLikelihoodClassifier, drifting_paper: Scenario
+) -> None:
+    """A 1 Hz pass that begins at the sequence start leaves the body's rate plus the gyro
+    bias, and the noise level, to its own few samples: "ambiguous", where the same pass
+    with its 30 s before the start is identified. Before, the verdict named the top two
+    and said nothing of why; now it says what is missing and how to send it."""
+    quiet = [[0] * drifting_paper.n_thrusters]
+    result = simulate(
+        drifting_paper, quiet * 30 + GOOD_SEQUENCE + quiet * 4, 1, np.random.default_rng(1)
+    )
+    times, rates = result.time_s[::20] - 30.0, result.omega_measured[3, 0][::20]
+    with_before = {"time_s": times.tolist(), "omega_rad_s": rates.tolist(), "sequence_start": 0}
+    later = times >= 0.0
+    without = {
+        "time_s": times[later].tolist(),
+        "omega_rad_s": rates[later].tolist(),
+        "sequence_start": 0.0,
+    }
+    whole = identify(marginal, with_before)
+    assert (whole.status, whole.candidate_index, whole.pre_start_hint) == ("identified", 3, None)
+    verdict = identify(marginal, without)
+    assert (verdict.status, verdict.pre_start_samples) == ("ambiguous", 0)
+    assert verdict.pre_start_hint is not None
+    assert "no sample in the 30 s before the sequence start" in verdict.pre_start_hint
+    assert f"from its {int(later.sum())} samples alone" in verdict.pre_start_hint
+    assert verdict.verdict.endswith(f". Hint: {verdict.pre_start_hint}")
+    # The pre-start window turned off: nothing to ask for.
+    assert identify(marginal, without, pre_start_window_s=0.0).pre_start_hint is None
+    # The CSV says it too, after the notes a reader finds by position.
+    notes = dict(identify_table(verdict.model_dump()).notes)
+    assert notes["pre_start_hint"] == verdict.pre_start_hint
