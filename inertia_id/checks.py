@@ -200,7 +200,12 @@ def is_number(value: Any, *, minimum: float, exclusive: bool = False) -> TypeGua
     """``value`` is a finite real number (a bool is not one) >= ``minimum``, or >
     ``minimum`` when ``exclusive``: the test behind the kinds' checks of a number
     parameter, each with its own message."""
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return False
+    try:
+        if not math.isfinite(value):
+            return False
+    except OverflowError:  # an int past a float's range (10**400): no finite float
         return False
     return value > minimum if exclusive else value >= minimum
 

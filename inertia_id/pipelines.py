@@ -426,7 +426,7 @@ def check_search_scenario(
     from .physics.simulate import RatesBeyondGyro, check_nominal_gyro_range
     from .search.objectives import check_constraints, check_design_noise, check_rate_floor
 
-    check_rate_floor(check_constraints(dict(constraints or {})), scenario)
+    check_rate_floor(check_constraints(dict(constraints or {})), scenario, sequence_length)
     baseline = hand_designed(scenario, sequence_length)
     try:
         check_nominal_gyro_range(scenario, baseline)

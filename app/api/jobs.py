@@ -126,7 +126,7 @@ def _check_search(body: SearchJobCreate, scenario: Scenario) -> None:
     try:
         operator = SearchRequest.from_params(params.model_dump(mode="json")).operator()
         checked = operator.check(scenario, params.sequence_length)
-        check_rate_floor(dict(checked.constraints), scenario)
+        check_rate_floor(dict(checked.constraints), scenario, params.sequence_length)
     except InputError as exc:
         message = str(exc)
         field = (

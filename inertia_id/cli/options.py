@@ -237,7 +237,7 @@ def parse_sequence(text: str) -> list[list[int]]:
             "zeros, e.g. '0,0,0,0,0,0')"
         )
     try:
-        if source.startswith("["):
+        if source.startswith(("[", "{")):
             rows = loads_unique_keys(source)
         else:
             rows = [[parse_whole(v) for v in row.split(",")] for row in parts if row.strip()]
@@ -257,9 +257,29 @@ def parse_sequence(text: str) -> list[list[int]]:
             f"sequence {text!r} is {missing}not rows of level indices like "
             "'4,4,4,0,0,0;0,0,0,4,4,4' or a JSON list of rows"
         ) from None
+    if isinstance(rows, dict):
+        rows = _sequence_in(rows, text)
     if not isinstance(rows, list) or not rows:
         raise InputError(f"sequence {text!r} holds no steps")
     return rows
+
+
+def _sequence_in(document: Any, text: str) -> Any:
+    """The sequence a JSON object holds under ``sequence``: a command plan's (``inertia-id
+    plan`` writes one), so a plan kept is planned again, on another scenario too. A
+    search's result holds many: it is refused naming the option that picks one."""
+    if isinstance(document, dict) and isinstance(document.get("sequence"), list):
+        return document["sequence"]
+    if isinstance(document, dict) and ("front" in document or "best" in document):
+        raise InputError(
+            f"sequence {text!r} is a search's result, not one sequence: plan one of its "
+            f"members with `inertia-id plan --search {text} --member N` (0 is its best), "
+            "or give the rows of front.members[N].sequence"
+        )
+    raise InputError(
+        f"sequence {text!r} is a JSON object with no 'sequence' list: give rows of level "
+        "indices like '4,4,4,0,0,0;0,0,0,4,4,4', a JSON list of rows, or a command plan's JSON"
+    )
 
 
 #: The hand-designed sequence as the command line writes it.
@@ -273,7 +293,7 @@ def sequence_option(
     without it, in the help)."""
     help_text = (
         "Level indices per thruster, steps separated by ';' (e.g. '4,4,4,0,0,0;"
-        "4,4,4,0,0,0'), a JSON list of rows, or a JSON file."
+        "4,4,4,0,0,0'), a JSON list of rows, or a JSON file (a command plan's too)."
     )
     return click.option(
         "--sequence",

@@ -44,7 +44,7 @@ def _plan_file_name(context: click.Context, param: click.Parameter, value: str) 
     "sequence_text",
     default=None,
     help="Level indices, rows separated by ';' (e.g. '4,4,4,0,0,0;0,0,0,4,4,4'), a JSON "
-    "list of rows, or a JSON file holding one.",
+    "list of rows, or a JSON file holding one (a command plan's JSON too).",
 )
 @click.option(
     "--search",

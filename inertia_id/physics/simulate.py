@@ -370,7 +370,10 @@ def _drive(scenario: Scenario) -> tuple[float, float]:
         float(np.linalg.eigvalsh(np.asarray(c.inertia_kg_m2)).min())
         for c in scenario.inertia_candidates
     )
-    torque = float(np.abs(np.asarray(scenario.thrusters.torque_matrix_nm)).max(initial=0.0))
+    # A thruster's torque is its column's length: the largest component understated a
+    # canted thruster's (0.577 N m for a tetrahedral 1 N m one).
+    columns = np.asarray(scenario.thrusters.torque_matrix_nm, dtype=float)
+    torque = float(np.linalg.norm(columns, axis=0).max(initial=0.0))
     return torque, moment
 
 

@@ -301,6 +301,8 @@ class OperatorScorer:
         # The union bound's 1 - error is a lower bound on the Bayes accuracy, and so is
         # chance (1/K, equal priors): the prediction is the larger.
         accuracy = np.clip(1.0 - errors, 1.0 / scenario.n_candidates, 1.0)  # (P, conditions)
+        # The bound itself ranks them where chance would hide their differences.
+        bound = (1.0 - errors).mean(axis=1)  # (P,)
         own, end = self.simulator.population_run(sequences, self.noise)
         speed = np.linalg.norm(own, axis=-1)  # (P, K, n, T)
         planned_fine, planned_end = self.nominal.population_run(sequences, self.nominal_noise)
@@ -359,6 +361,7 @@ class OperatorScorer:
                     propellant_kg=scenario.propellant_kg(sequence),
                     duration_s=scenario.duration_s(sequence),
                     attitude_change_deg=float(turned[i]),
+                    accuracy_bound=float(bound[i]),
                 )
             )
         return out

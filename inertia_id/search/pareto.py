@@ -268,6 +268,7 @@ def _measured(
                 accuracy=float(correct.sum() / (per_condition * len(row))),
                 accuracy_by_noise=[float(c / per_condition) for c in correct],
                 predicted_accuracy_by_noise=list(score.accuracy_by_noise),
+                accuracy_bound=None,
             )
         )
     return out
@@ -542,7 +543,7 @@ def build_front(
     # One member per distinct sequence; the most accurate first.
     order = sorted(
         (int(i) for i in np.flatnonzero(keep)),
-        key=lambda i: (-fresh[i].accuracy, fresh[i].impulse_nms),
+        key=lambda i: (-fresh[i].ranking_accuracy, fresh[i].impulse_nms),
     )
     seen: set[bytes] = set()
     chosen: list[int] = []
@@ -642,8 +643,49 @@ def _initial_population(
     count = max(size - len(seeded), 0)
     levels = rng.integers(1, scenario.n_levels, (count, length, scenario.n_thrusters))
     on = rng.random((count, length, scenario.n_thrusters)) < 0.3
-    population = np.concatenate([np.stack(seeded)[:size], levels * on])
+    population = OpposedFirings(scenario)(np.concatenate([np.stack(seeded)[:size], levels * on]))
     return population.reshape(len(population), -1)
+
+
+class OpposedFirings:
+    """Takes the common part off a thruster and its exact opposite fired in one step:
+    the same net torque (each pair's duties differ by as much), less propellant and less
+    duty jitter. Pairs are thrusters whose torques are equal and opposite (to 1e-9 of
+    their size); a pair whose duties' difference is no duty level is left as it is (the
+    levels not evenly spaced). Before, NSGA-II's fronts kept such firings (paper preset,
+    L = 4: 4 to 8 of 27-35 members, +y and -y both at full duty in one step, 4 N m s for
+    no torque), each dominated by its twin that the search never tried: its crossover and
+    mutation change one level at a time."""
+
+    def __init__(self, scenario: Scenario) -> None:
+        torque = scenario.torque_matrix
+        sizes = np.linalg.norm(torque, axis=0)
+        n = scenario.n_thrusters
+        self.pairs = [
+            (j, k)
+            for j in range(n)
+            for k in range(j + 1, n)
+            if max(sizes[j], sizes[k]) > 0
+            and np.linalg.norm(torque[:, j] + torque[:, k]) <= 1e-9 * max(sizes[j], sizes[k])
+        ]
+        duty = scenario.level_values
+        # difference[a, b]: the level whose duty is duty[a] - duty[b], or -1.
+        gap = duty[:, None] - duty[None, :]
+        close = np.abs(gap[:, :, None] - duty[None, None, :]) <= 1e-9
+        self.difference = np.where(close.any(axis=2), close.argmax(axis=2), -1)
+
+    def __call__(self, rows: np.ndarray) -> np.ndarray:
+        """``rows`` (..., N) of level indices with every opposed pair's common part taken
+        off; a new array."""
+        out = np.array(rows, dtype=int, copy=True)
+        for j, k in self.pairs:
+            a, b = out[..., j], out[..., k]
+            first = a >= b
+            left = np.where(first, self.difference[a, b], self.difference[b, a])
+            take = (a > 0) & (b > 0) & (left >= 0)
+            out[..., j] = np.where(take, np.where(first, left, 0), a)
+            out[..., k] = np.where(take, np.where(first, 0, left), b)
+        return out
 
 
 def opposing_thrusters(torque_matrix: np.ndarray) -> np.ndarray:
@@ -713,7 +755,7 @@ def _neighbours(
 def _rank_key(score: SequenceScores, constraints: dict[str, float]) -> tuple[float, float]:
     """Feasible first (the summed relative violation), then the most accurate."""
     violation = float(np.sum(np.maximum(score.violations(constraints), 0.0)))
-    return violation, -score.accuracy
+    return violation, -score.ranking_accuracy
 
 
 def _polish(
@@ -743,11 +785,13 @@ def _polish(
         returns False."""
     n_levels = scorer.scenario.n_levels
     opposing = opposing_thrusters(scorer.scenario.torque_matrix)
+    opposed = OpposedFirings(scorer.scenario)
     for start in starts:
         current = np.asarray(start)
         best = _rank_key(scorer.score(current[None])[0], constraints)
         for _ in range(iterations):
-            rows = np.unique(_neighbours(current, batch, n_levels, opposing, rng), axis=0)
+            moved = opposed(_neighbours(current, batch, n_levels, opposing, rng))
+            rows = np.unique(moved, axis=0)
             rows = rows[(rows != current).any(axis=(1, 2))]
             if not len(rows):
                 break
@@ -883,6 +927,7 @@ def pareto_search(
     """
     from pymoo.algorithms.moo.nsga2 import NSGA2
     from pymoo.core.problem import Problem
+    from pymoo.core.repair import Repair
     from pymoo.operators.crossover.sbx import SBX
     from pymoo.operators.mutation.pm import PM
     from pymoo.operators.repair.rounding import RoundingRepair
@@ -926,8 +971,19 @@ def pareto_search(
             if constraints:
                 out["G"] = np.stack([s.violations(constraints) for s in scores])
 
+    opposed = OpposedFirings(scenario)
+
+    class _NoOpposedFirings(Repair):
+        """pymoo's hook for offspring (and the first population): each one's opposed
+        firings cancelled (:class:`OpposedFirings`)."""
+
+        def _do(self, problem: Any, X: np.ndarray, **kwargs: Any) -> np.ndarray:
+            rows = np.rint(X).astype(int).clip(0, m - 1).reshape(len(X), sequence_length, n)
+            return opposed(rows).reshape(len(X), -1)
+
     rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(4)[3])
     algorithm = NSGA2(
+        repair=_NoOpposedFirings(),
         pop_size=params["population"],
         sampling=_initial_population(scenario, sequence_length, params["population"], rng),
         crossover=SBX(
@@ -1013,7 +1069,7 @@ def pareto_search(
         best_so_far[:] = [
             max(
                 [*best_so_far, *scored],
-                key=lambda s: (s.feasible(constraints), s.accuracy),
+                key=lambda s: (s.feasible(constraints), s.ranking_accuracy),
             )
         ]
         top = best_so_far[0]
@@ -1076,7 +1132,7 @@ def pareto_search(
         )
     candidates = np.flatnonzero(allowed)[non_dominated(vectors[allowed])]
     candidates = candidates[
-        np.argsort([-entries[i][1].accuracy for i in candidates], kind="stable")
+        np.argsort([-entries[i][1].ranking_accuracy for i in candidates], kind="stable")
     ]
     if len(candidates) > MAX_FRONT_CANDIDATES:
         candidates = candidates[

@@ -1422,6 +1422,26 @@ def test_a_failed_write_to_a_device_or_pipe_says_what_reached_it(tmp_path: Path)
             ["paper", "--search", "random", "--constraint", "max_propellant_kg=1"],
             "Error: constraint max_propellant_kg needs the scenario's thrusters to state",
         ),
+        # Before: the whole search, then "met by 0 of 85 sequences; loosen them or search
+        # longer" (a hostile review): the disturbance alone leaves the all-off sequence
+        # 0.021 deg/s over 2 steps, and no sequence leaves less.
+        (
+            [
+                *("search", "--method", "nsga2", "--length", "2"),
+                *("--constraint", "max_final_rate_deg_s=0.01"),
+            ],
+            "Error: constraint max_final_rate_deg_s = 0.01 deg/s is below what the "
+            "disturbance torque alone leaves over the sequence's 2 s (mean over flights of "
+            "|ω| after the all-off sequence, the candidate it leaves fastest: 0.02096 deg/s",
+        ),
+        # Past a float's range.
+        (
+            [
+                *("search", "--method", "nsga2", "--length", "2"),
+                *("--constraint", "max_final_rate_rad_s=1e400"),
+            ],
+            "Error: constraint max_final_rate_rad_s must be a finite number >= 0, got inf",
+        ),
     ],
 )
 def test_a_search_setting_no_sequence_can_meet_is_refused_before_any_progress(
@@ -1526,3 +1546,52 @@ def test_a_scenario_whose_noise_overflows_is_refused_before_anything_runs(
     assert "process noise at multiple 8 (24000 N m)" in message
     assert f"{field} = 3000 N m at noise multiple 8" in message
     assert not (tmp_path / "sweep.json").exists()
+
+
+def test_a_bound_past_int64_on_the_command_line_is_taken_as_the_number_it_is(
+    tmp_path: Path,
+) -> None:
+    """``--constraint max_impulse_nms=1e20`` was a TypeError traceback (read as the whole
+    number 10**20, which np.isfinite refused); the API took it as a float. Now a bound
+    that loose holds for every sequence."""
+    result = CliRunner().invoke(
+        main,
+        [
+            *("search", "--method", "nsga2", "--length", "2", "--seed", "1"),
+            *("--nsga2", "population=8", "--nsga2", "generations=1"),
+            *("--nsga2", "polish_iterations=1", "--fresh-test-series", "10"),
+            *("--fresh-realisations", "4", "--constraint", "max_impulse_nms=1e20"),
+            *("--out", str(tmp_path / "s.json")),
+        ],
+    )
+    assert result.exit_code == 0, result.output[-500:]
+    front = json.loads((tmp_path / "s.json").read_text())["front"]
+    assert front["constraints"] == {"max_impulse_nms": 1e20}
+
+
+def test_a_command_plans_own_json_is_planned_again(tmp_path: Path) -> None:
+    """A flight team keeps the plan JSON that ``inertia-id plan`` wrote and plans it
+    again (on another scenario, with flights): ``--sequence plan.json`` said the file was
+    "not rows of level indices". A search's result is refused naming how to plan one of
+    its members; another JSON object, naming what a sequence is."""
+    first = tmp_path / "plan.json"
+    result = CliRunner().invoke(
+        main, ["plan", "--sequence", "4,4,4,0,0,0;0,0,0,4,4,4", "--out", str(first)]
+    )
+    assert result.exit_code == 0, result.output
+    again = tmp_path / "again.json"
+    result = CliRunner().invoke(main, ["plan", "--sequence", str(first), "--out", str(again)])
+    assert result.exit_code == 0, result.output
+    assert json.loads(again.read_text())["sequence"] == json.loads(first.read_text())["sequence"]
+    search = tmp_path / "search.json"
+    search.write_text(json.dumps({"best": {"sequence": SEQUENCE}, "front": None}))
+    message = refused(["plan", "--sequence", str(search), "--out", str(again)])
+    assert message == (
+        f"Error: sequence {str(search)!r} is a search's result, not one sequence: plan one "
+        f"of its members with `inertia-id plan --search {search} --member N` (0 is its "
+        "best), or give the rows of front.members[N].sequence"
+    )
+    other = tmp_path / "other.json"
+    other.write_text('{"rows": [[4, 4, 4, 0, 0, 0]]}')
+    message = refused(["plan", "--sequence", str(other), "--out", str(again)])
+    assert "is a JSON object with no 'sequence' list" in message
