@@ -579,17 +579,21 @@ def build_front(
             continue
         sequence, score = entry
         vector = score.objective_vector(settings.objectives)
+        allowed = _feasible(score, constraints, series)
+        # Constrained domination: a baseline the constraints rule out cannot be flown in a
+        # member's place, so it dominates none (the dashboard raised "hand-designed
+        # dominates member 0" beside its own row's "breaks a constraint").
         beaten = [
             member["index"]
             for member, i in zip(front.members, chosen, strict=True)
-            if dominates(vector, vectors[i])
+            if allowed and dominates(vector, vectors[i])
         ]
         for index in beaten:
             front.members[index]["dominated_by"].append(name)
         front.baselines[name] = {
             "sequence": sequence.tolist(),
             "scores": score.as_dict(),
-            "feasible": _feasible(score, constraints, series),
+            "feasible": allowed,
             "dominates": beaten,
         }
     if test_series and len(rows) > 1 and chosen:
@@ -601,7 +605,16 @@ def build_front(
             fresh_seed(seed),
             should_stop,
             None if progress is None else (lambda done: progress(share + done * (1 - share))),
-            rivals=_rivals(rows[best], fresh[best], baselines, settings.objectives),
+            rivals=_rivals(
+                rows[best],
+                fresh[best],
+                {
+                    name: entry
+                    for name, entry in baselines.items()
+                    if front.baselines[name].get("feasible")
+                },
+                settings.objectives,
+            ),
         )
         front.stopped = front.confirmation is None
         if front.confirmation is not None:

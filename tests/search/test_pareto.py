@@ -14,7 +14,7 @@ from inertia_id.physics.attitude import propagate_attitude, rotation_angle_deg
 from inertia_id.physics.sequences import BASELINES, axis_in_turn, hand_designed, principal_axes
 from inertia_id.physics.simulate import Simulator
 from inertia_id.pipelines import check_search_scenario
-from inertia_id.search import OperatorScorer, OperatorSettings, pareto_search
+from inertia_id.search import OperatorScorer, OperatorSettings, build_front, pareto_search
 from inertia_id.search.objectives import initial_rate_floor, rest_rate_floor
 from inertia_id.search.pareto import (
     OpposedFirings,
@@ -96,7 +96,10 @@ def test_a_baseline_that_dominates_a_member_is_flagged(small_front: dict) -> Non
         if "unavailable" in base:
             continue
         for member in small_front["members"]:
-            expected = dominates(vector(base["scores"]), vector(member["scores"]))
+            # Constrained domination: a baseline the constraints rule out dominates none.
+            expected = base["feasible"] and dominates(
+                vector(base["scores"]), vector(member["scores"])
+            )
             assert (member["index"] in base["dominates"]) == expected
             assert (name in member["dominated_by"]) == expected
     assert small_front["dominated_by_baseline"] == any(
@@ -1699,3 +1702,30 @@ def test_the_weak_response_warning_names_the_largest_thruster_torque_on_canted_t
     plan = command_plan(Scenario.model_validate(document), [[2, 0, 0, 0]])
     assert plan.warnings, "the response is 1e6 too weak: a warning was expected"
     assert "up to 1 N m" in plan.warnings[0], plan.warnings[0]
+
+
+def test_a_baseline_that_breaks_the_constraints_is_not_flagged_as_dominating(
+    paper: Scenario,
+) -> None:
+    """A baseline the search's constraints rule out cannot be flown in a member's place,
+    so it dominates none (constrained domination: a feasible sequence beats an infeasible
+    one whatever their objectives). On the dashboard an NSGA-II search on accuracy and
+    impulse with the commanded residual held to 0.2 deg/s raised the red alarm "Baseline
+    hand-designed dominates member 0 of the front" over a baselines table that says, on
+    the same row, that hand-designed (11.2 deg/s commanded residual) "breaks a
+    constraint" (helper-174's review)."""
+    fire_then_brake = [[4, 4, 4, 0, 0, 0]] * 2 + [[0, 0, 0, 4, 4, 4]] * 2  # 24 N m s, brakes
+    settings = OperatorSettings(
+        objectives=("accuracy", "impulse"),
+        constraints={"max_commanded_residual_rate_max_deg_s": 0.2},
+    )
+    front = build_front(paper, [fire_then_brake], settings, seed=1, test_series=40)
+    assert front.members and front.members[0]["feasible"]
+    hand = front.baselines["hand-designed"]
+    assert hand["feasible"] is False  # it never brakes: about 11 deg/s left
+    assert hand["scores"]["accuracy"] > front.members[0]["scores"]["accuracy"]
+    for name, base in front.baselines.items():
+        if "unavailable" in base or base["feasible"]:
+            continue
+        assert base["dominates"] == [], name
+    assert not any("hand-designed" in m["dominated_by"] for m in front.members)
