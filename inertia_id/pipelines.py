@@ -176,7 +176,7 @@ class SearchRequest(_Request):
             objectives=tuple(self.objectives),
             design_noise=tuple((float(p), float(q)) for p, q in self.design_noise),
             constraints=dict(self.constraints),
-            n_realisations=max(self.n_realisations, 2),
+            n_realisations=self.n_realisations,
         )
 
     def scorer(self) -> ScorerSettings:

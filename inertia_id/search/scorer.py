@@ -136,6 +136,13 @@ class ScorerSettings:
                 "the separability objective estimates a covariance: n_realisations must be "
                 f"at least 2, got {self.n_realisations}"
             )
+        if self.n_realisations < 2:
+            # One series a candidate makes every clustering perfect: a search reported
+            # F1 1.000 (fresh too) for a sequence 0.32 accurate at its design noise.
+            raise InputError(
+                "n_realisations must be at least 2: with one series a candidate every "
+                f"clustering is perfect (F1 1.0 whatever the sequence), got {self.n_realisations}"
+            )
 
     def as_dict(self) -> dict[str, Any]:
         return dict(self.__dict__)
