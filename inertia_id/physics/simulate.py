@@ -519,6 +519,12 @@ def weak_response_warning(scenario: Scenario, sequence: Any, run: SimulationResu
     )
     if not peak * WEAK_RESPONSE_FACTOR <= sigma:  # nan is left to the overflow check
         return None
+    try:
+        scenario.check_fires(sequence)
+    except InputError as exc:
+        # Nothing to blame on units: the sequence applies no torque (a front's all-off
+        # member, whose plan had said the inertia or torques were "likely wrong in units").
+        return str(exc)
     below = "(it moves no candidate at all)" if peak == 0.0 else f"by {sigma / peak:.3g}x"
     torque, moment = _drive(scenario)
     return (

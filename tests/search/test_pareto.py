@@ -1729,3 +1729,15 @@ def test_a_baseline_that_breaks_the_constraints_is_not_flagged_as_dominating(
             continue
         assert base["dominates"] == [], name
     assert not any("hand-designed" in m["dominated_by"] for m in front.members)
+
+
+def test_the_plan_of_a_sequence_that_applies_no_torque_blames_no_units(paper: Scenario) -> None:
+    """The front's all-off member's plan warned that the scenario's "inertia ... or
+    torques ... are likely wrong in units" (a dashboard review): it says instead that the
+    sequence applies no torque, as training on it is refused."""
+    for sequence, says in (
+        ([[0] * 6] * 2, "fires no thruster at any step"),
+        ([[4, 0, 0, 4, 0, 0]] * 2, "applies no net torque at any step"),
+    ):
+        (warning,) = command_plan(paper, sequence).warnings
+        assert says in warning and "units" not in warning, warning
