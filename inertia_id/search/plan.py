@@ -497,6 +497,12 @@ def flight_dispersion(
     )
 
 
+def _as_written(seconds: np.ndarray) -> np.ndarray:
+    """On-times to 15 significant digits: what the upload says, without the last bit of
+    binary rounding (a duty of 0.6 for 0.4 s read 0.23999999999999996 s in the JSON)."""
+    return np.array([float(f"{v:.15g}") for v in np.ravel(seconds)]).reshape(np.shape(seconds))
+
+
 def command_plan(
     scenario: Scenario, sequence: Any, *, flights: int = 0, seed: int = 0
 ) -> CommandPlan:
@@ -553,7 +559,7 @@ def command_plan(
         sequence=rows.tolist(),
         step_duration_s=step,
         duty=duty.tolist(),
-        on_time_s=(duty * step).tolist(),
+        on_time_s=_as_written(duty * step).tolist(),
         torque_nm=_without_dust(duty @ scenario.torque_matrix.T, scales.torque_nm).tolist(),
         candidate_names=scenario.candidate_names,
         rates_rad_s=end.tolist(),
@@ -564,7 +570,7 @@ def command_plan(
         attitude_change_deg=_without_dust(
             rotation_angle_deg(quaternions), angle_scale * _DEG
         ).tolist(),
-        on_time_per_thruster_s=scenario.on_time_s(rows).tolist(),
+        on_time_per_thruster_s=_as_written(scenario.on_time_s(rows)).tolist(),
         impulse_nms=scenario.impulse_nms(rows),
         propellant_kg=scenario.propellant_kg(rows),
         dispersion=(

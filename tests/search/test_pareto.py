@@ -1741,3 +1741,15 @@ def test_the_plan_of_a_sequence_that_applies_no_torque_blames_no_units(paper: Sc
     ):
         (warning,) = command_plan(paper, sequence).warnings
         assert says in warning and "units" not in warning, warning
+
+
+def test_a_plans_on_times_read_as_the_upload_writes_them(paper: Scenario) -> None:
+    """On-times read with binary rounding in the plan's JSON (0.23999999999999996 s in a
+    hostile review; a duty of 0.2 for a 0.4 s step, 0.08000000000000002 s): they are
+    given to 15 significant digits."""
+    document = paper.model_dump()
+    document["thrusters"]["levels"] = [0.0, 0.2, 1.0]
+    document["timing"]["step_duration_s"] = 0.4
+    plan = command_plan(Scenario.model_validate(document), [[1, 0, 0, 0, 0, 0]] * 2)
+    assert plan.on_time_s[0][0] == 0.08 and plan.on_time_per_thruster_s[0] == 0.16
+    assert json.loads(json.dumps(plan.to_dict()))["steps"][0]["on_time_s"][0] == 0.08
