@@ -383,7 +383,12 @@ def check_search(scenario: Scenario, request: SearchRequest) -> None:
 
     :raises InputError: naming the setting and its value.
     """
+    from .search.objectives import check_per_flight_realisations
+
     checked = request.operator().check(scenario, request.sequence_length)
+    # A per-flight bound on too few realisations: refused inside the search before, after
+    # the CLI's "searching" line and its bar's first frame.
+    check_per_flight_realisations(dict(checked.constraints), checked.n_realisations)
     check_search_scenario(
         scenario, request.sequence_length, request.constraints, checked.design_noise
     )

@@ -1434,6 +1434,15 @@ def test_a_failed_write_to_a_device_or_pipe_says_what_reached_it(tmp_path: Path)
             "disturbance torque alone leaves over the sequence's 2 s (mean over flights of "
             "|ω| after the all-off sequence, the candidate it leaves fastest: 0.02096 deg/s",
         ),
+        # Before: "searching (nsga2) ..." and the bar's first frame, then the refusal.
+        (
+            [
+                *("search", "--method", "nsga2", "--length", "2"),
+                *("--search-realisations", "5", "--constraint", "max_final_rate_p95_deg_s=5"),
+            ],
+            "Error: constraint max_final_rate_p95_deg_s bounds a spread over flights: the "
+            "search needs n_realisations >= ",
+        ),
         # Past a float's range.
         (
             [
