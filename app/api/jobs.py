@@ -555,11 +555,14 @@ def _labels_not_applied(body: JobCreate, job: JobRow) -> str:
         change["name"] = name
     if missing:
         tagged = f"tagged {have}" if have else "untagged"
-        dropped.append(f"tags {missing} (it is {tagged})")
+        what = f"tag {missing[0]!r}" if len(missing) == 1 else f"tags {missing}"
+        dropped.append(f"{what} (it is {tagged})")
         change["tags"] = [*have, *missing]
+    # One label "was" not applied, several "were" (it said "name 'A again' ... were").
+    verb, them = ("was", "it") if (name is not None) + len(missing) == 1 else ("were", "them")
     return (
-        f"; this submission's {' and '.join(dropped)} were not applied to it, labels of "
-        f"a job that stands being changed only on purpose: to set them, PATCH "
+        f"; this submission's {' and '.join(dropped)} {verb} not applied to it, labels of "
+        f"a job that stands being changed only on purpose: to set {them}, PATCH "
         f"/jobs/{job.id} with {json.dumps(change)}"
     )
 

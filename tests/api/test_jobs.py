@@ -166,7 +166,7 @@ def test_a_submission_handed_a_standing_job_says_which_labels_it_did_not_apply(
     note = handed.json()["reused_note"]
     assert "still running" in note, note
     assert "name 'flight 2' (it is unnamed)" in note, note
-    assert "tags ['flight-2'] (it is tagged ['baseline'])" in note, note
+    assert "tag 'flight-2' (it is tagged ['baseline']) were not applied" in note, note
     change = (
         f'PATCH /jobs/{first["id"]} with {{"name": "flight 2", "tags": ["baseline", "flight-2"]}}'
     )
@@ -182,6 +182,14 @@ def test_a_submission_handed_a_standing_job_says_which_labels_it_did_not_apply(
         "flight 2",
         ["baseline", "flight-2"],
     )
+    # One label "was" not applied, several "were" (a name alone read "name ... were").
+    for labels, said in (
+        ({"name": "A again"}, "name 'A again' (it is named 'flight 2') was not applied"),
+        ({"tags": ["x", "y"]}, "tags ['x', 'y'] (it is tagged ['baseline', 'flight-2']) were"),
+    ):
+        note = api.submit("search", scenario_id, params=params, seed=1, **labels).json()
+        assert said in note["reused_note"], note["reused_note"]
+        assert ("to set it," in note["reused_note"]) == ("was" in said), note["reused_note"]
     # A submission whose labels the job has (or that sends none) is told nothing of them.
     for labels in ({}, {"name": "flight 2", "tags": ["flight-2"]}):
         same = api.submit("search", scenario_id, params=params, seed=1, **labels)

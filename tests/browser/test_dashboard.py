@@ -2157,13 +2157,18 @@ def test_the_reused_notice_says_which_labels_were_not_applied(dashboard: Dashboa
             return [
                 text({ name: "flight 2", tags: ["baseline", "flight-2"] }),
                 text({ tags: ["baseline"] }),
+                text({ name: "A again" }),
+                text({ tags: ["x", "y"] }),
             ];
         }"""
     )
     assert (
-        "This submission's name “flight 2” and tags flight-2 were not applied to it" in shown[0]
+        "This submission's name “flight 2” and tag flight-2 were not applied to it" in shown[0]
     ), shown
     assert "not applied" not in shown[1], shown
+    # One label "was" not applied, several "were" (it said "name “A again” were").
+    assert "This submission's name “A again” was not applied to it: set it " in shown[2], shown
+    assert "This submission's tags x, y were not applied to it: set them " in shown[3], shown
 
 
 def test_identify_writes_the_candidates_inertia_and_the_estimate_in_one_format(

@@ -221,9 +221,11 @@ export function reusedNotice(body, job) {
   // said, where it carried ones the job lacks (they were dropped without a word).
   const name = body.name && body.name !== job.name ? body.name : null;
   const tags = (body.tags || []).filter((tag) => !(job.tags || []).includes(tag));
-  const dropped = [name ? `name “${name}”` : null, tags.length ? `tags ${tags.join(", ")}` : null].filter(Boolean);
+  const dropped = [name ? `name “${name}”` : null, tags.length ? `tag${tags.length === 1 ? "" : "s"} ${tags.join(", ")}` : null].filter(Boolean);
+  // One label "was" not applied, several "were" (it said "name “A again” were").
+  const one = (name ? 1 : 0) + tags.length === 1;
   const labels = dropped.length
-    ? h("span", { id: "reused-labels" }, `This submission's ${dropped.join(" and ")} were not applied to it: set them under “name and tags” below. `)
+    ? h("span", { id: "reused-labels" }, `This submission's ${dropped.join(" and ")} ${one ? "was" : "were"} not applied to it: set ${one ? "it" : "them"} under “name and tags” below. `)
     : null;
   holder.append(
     messageBox("notice", [
