@@ -4079,3 +4079,31 @@ def test_every_page_type_fits_with_no_legend_over_the_plot(
             assert axe_violations(dashboard) == [], name
         if width == 1366:
             dashboard.screenshot(f"page-{name}")
+
+
+# helper-174's review of issue 14 on the dashboard (a flight-team engineer's session).
+
+
+def test_a_refused_key_replaced_in_the_key_box_draws_the_members_command_plan(
+    dashboard: Dashboard,
+) -> None:
+    """A saved key the service refuses (the service restarted with a new key) leaves the
+    member's command plan saying "enter the current one at the top right". Doing just
+    that ("saved") must draw the plan, as it is drawn once a key is saved where none was;
+    it stayed on the refusal until the page was reloaded or another member chosen."""
+    _needs(dashboard, "nsga2")
+    page = dashboard.page
+    job_id = made["nsga2"]
+    dashboard.console.expect("status of 401")
+    page.goto(f"{dashboard.service.base_url}/#/scenarios")
+    page.evaluate(
+        "([k, v]) => localStorage.setItem(k, v)", ["inertia-id-api-key", "old-" + "x" * 40]
+    )
+    page.reload()
+    dashboard.open(f"#/jobs/{job_id}")
+    page.wait_for_selector("#front-plan .message.error", timeout=60_000)
+    assert "refused" in page.inner_text("#front-plan")
+    page.fill("#api-key", API_KEY)
+    page.press("#api-key", "Enter")
+    page.wait_for_function("() => document.getElementById('api-key-state').textContent === 'saved'")
+    page.wait_for_selector("#front-plan-table", timeout=30_000)

@@ -29,6 +29,25 @@ export async function whenKeyed(holder, what, draw) {
   return null;
 }
 
+// After `draw` failed on `exc`: when the service refused the saved key (a 401; the
+// service restarted with a new key, say), runs `draw()` again once a key is saved while
+// `holder` is still on the page, as `whenKeyed` does where none was saved. The part had
+// stayed on the refusal, "enter the current one at the top right", after the user did
+// just that, until the page was reloaded.
+export function redrawWhenRekeyed(holder, exc, draw) {
+  if (!exc || exc.status !== 401) return;
+  const saved = () => {
+    if (!holder.isConnected) {
+      window.removeEventListener("api-key-changed", saved);
+      return;
+    }
+    if (!getApiKey()) return;
+    window.removeEventListener("api-key-changed", saved);
+    draw();
+  };
+  window.addEventListener("api-key-changed", saved);
+}
+
 // For an action whose request needs the key: false when a key is saved (go on and send
 // it); else true, with the notice "<what> needs the API key: …" in `holder` (one, however
 // often it is clicked), which goes once a key is saved: the action then works as usual.

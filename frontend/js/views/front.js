@@ -14,7 +14,7 @@
 import { request } from "../api.js";
 import { downloads } from "../components/downloads.js";
 import { submitAndOpen } from "../components/jobs.js";
-import { whenKeyed, withoutKey } from "../components/keyed.js";
+import { redrawWhenRekeyed, whenKeyed, withoutKey } from "../components/keyed.js";
 import { DEG_PER_RAD, PLOT_CONFIG, keepTwins, layout, plotDiv, twinAxes, twinTraces } from "../components/plots.js";
 import { clear, fmt, h, messageBox, plain, put, quantity, rateDeg, rateRad, score, sequenceText, warningsBox } from "../ui.js";
 
@@ -521,6 +521,8 @@ async function drawPlan(plan, planDownloads, job, member, context, flewWith) {
     if (!plan.isConnected) return;
     clear(plan);
     plan.append(messageBox("error", `The command plan: ${exc.message || String(exc)}`));
+    // A saved key refused: drawn once the current one is saved at the top right.
+    redrawWhenRekeyed(plan, exc, () => drawPlan(plan, planDownloads, job, member, context, flewWith));
   }
 }
 
