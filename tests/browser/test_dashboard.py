@@ -4107,3 +4107,33 @@ def test_a_refused_key_replaced_in_the_key_box_draws_the_members_command_plan(
     page.press("#api-key", "Enter")
     page.wait_for_function("() => document.getElementById('api-key-state').textContent === 'saved'")
     page.wait_for_selector("#front-plan-table", timeout=30_000)
+
+
+@pytest.mark.parametrize("width", [375, 414, 600])
+def test_the_fronts_colour_bar_ticks_do_not_stack_on_a_narrow_window(
+    dashboard: Dashboard, width: int
+) -> None:
+    """The front's colour bar (impulse) under the plot: at 375 to 600 px the bar was
+    drawn about 0 px long beside its title, all five tick labels (0, 5, 10, 15, 20) at
+    one x, stacked into an unreadable blot (LAYOUT_PROBLEMS_JS compares no tick label
+    with another, so the layout test passed)."""
+    _needs(dashboard, "nsga2")
+    page = dashboard.page
+    page.set_viewport_size({"width": width, "height": 900})
+    dashboard.open(f"#/jobs/{made['nsga2']}")
+    page.wait_for_selector("#front-plan-table", timeout=60_000)
+    page.wait_for_function(CHARTS_FITTED_JS)
+    ticks = page.evaluate(
+        """() => [...document.querySelectorAll('#front-plot .colorbar text')]
+            .filter((t) => t.textContent && !t.closest('.cbtitle'))
+            .map((t) => { const b = t.getBoundingClientRect();
+                          return [t.textContent, b.left, b.right, b.top, b.bottom]; })"""
+    )
+    assert len(ticks) >= 2, ticks
+    stacked = [
+        (a[0], b[0])
+        for i, a in enumerate(ticks)
+        for b in ticks[i + 1 :]
+        if min(a[2], b[2]) - max(a[1], b[1]) > 1 and min(a[4], b[4]) - max(a[3], b[3]) > 1
+    ]
+    assert stacked == [], f"colour bar tick labels overlap at {width} px: {stacked}"

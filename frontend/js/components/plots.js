@@ -598,6 +598,11 @@ function xAxisDepth(plot) {
   return depth;
 }
 
+// The least length (px) of a horizontal colour bar beside its title, and what Plotly
+// leaves between the two (px).
+const HORIZONTAL_BAR_MIN = 140;
+const HORIZONTAL_TITLE_GAP = 30;
+
 // Each colour bar of `plot`: [trace index, its attribute's path, the bar as drawn].
 function colourBars(plot) {
   return (plot.data || []).flatMap((trace, i) => {
@@ -630,6 +635,17 @@ function colourBarPlaces(plot, fit) {
       const heading = own.title || {};
       const text = heading.text ? wrapText(heading.text, COLOUR_BAR_TITLE_ROOM, { size: 12, ...heading.font, family: full.font.family }) : heading.text;
       placed = { ...own, thickness: 10, title: { ...heading, text, side: "top" } };
+    }
+    // A bar along the figure's foot, its title at its right, lengthened (up to the
+    // plot's width) so the bar keeps HORIZONTAL_BAR_MIN px beside its title: at 375 to
+    // 600 px the front's bar (0.45 of the plot) was about 0 px long, its five tick labels
+    // stacked at one x.
+    if (!side && drawnBars[n]) {
+      const heading = drawnBars[n].querySelector(".cbtitle");
+      const titleWidth = heading && (own.title || {}).side === "right" ? heading.getBBox().width + HORIZONTAL_TITLE_GAP : 0;
+      const plotWidth = full._size.w;
+      const need = titleWidth + HORIZONTAL_BAR_MIN;
+      if (plotWidth > 0 && (own.len ?? 1) * plotWidth < need) placed = { ...placed, len: Math.min(1, need / plotWidth) };
     }
     if (legendBelow && placed.yref === "container" && (placed.y ?? 0) < 0.3) {
       placed = { ...placed, y: (placed.y ?? 0) + (legendBelow + 8) / full.height };
