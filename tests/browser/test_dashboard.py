@@ -4137,3 +4137,46 @@ def test_the_fronts_colour_bar_ticks_do_not_stack_on_a_narrow_window(
         if min(a[2], b[2]) - max(a[1], b[1]) > 1 and min(a[4], b[4]) - max(a[3], b[3]) > 1
     ]
     assert stacked == [], f"colour bar tick labels overlap at {width} px: {stacked}"
+
+
+def test_a_search_none_of_whose_sequences_was_feasible_does_not_call_its_line_feasible(
+    dashboard: Dashboard,
+) -> None:
+    """An NSGA-II search whose constraints no sequence met fails ("no sequence met the
+    constraints ... met by 0 of N sequences"), yet its curve was drawn as "most accurate
+    feasible so far" (0.83 at 8.5 deg/s, a sequence far past max_impulse_nms = 1) and
+    titled "Residual rate of the most accurate feasible sequence so far": the core keeps
+    the most accurate of all while none is feasible, and the page never says so."""
+    _needs(dashboard, "scenario")
+    client = dashboard.service.client
+    answer = client.post(
+        "/jobs",
+        json={
+            "type": "search",
+            "scenario_id": made["scenario"],
+            "seed": 0,
+            "rerun": True,
+            "params": {
+                "method": "nsga2",
+                "sequence_length": 3,
+                "n_realisations": 10,
+                "nsga2": {"population": 8, "generations": 2, "polish_iterations": 2},
+                "constraints": {"min_accuracy": 0.999, "max_impulse_nms": 1},
+            },
+        },
+    )
+    assert answer.status_code == 202, answer.text
+    job_id = str(answer.json()["id"])
+    service = dashboard.service
+    service.until(lambda: service.job(job_id)["status"] in TERMINAL, 240, "the search ends")
+    job = service.job(job_id)
+    assert job["status"] == "failed" and "no sequence met the constraints" in job["error"]
+    dashboard.open(f"#/jobs/{job_id}")
+    page = dashboard.page
+    page.wait_for_function(
+        "() => (document.getElementById('f1-plot')?.data || []).some((t) => t.x.length > 0)"
+    )
+    names = page.evaluate("() => document.getElementById('f1-plot').data.map((t) => t.name)")
+    titles = page.inner_text("#page")
+    assert "most accurate feasible so far" not in names, names
+    assert "Residual rate of the most accurate feasible sequence so far" not in titles

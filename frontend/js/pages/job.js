@@ -195,6 +195,12 @@ async function searchView(body, job, context) {
   // far (its predicted accuracy at the design noise, and its residual rate), and the
   // mean accuracy of each generation, then of each polish round's neighbours.
   const pareto = job.params.method === "nsga2";
+  // The line holds the most accurate feasible sequence so far, and the most accurate of
+  // all while none is feasible: a search that found none (it fails, "no sequence met the
+  // constraints") drew "most accurate feasible so far" through sequences that break them.
+  const noneFeasible = (current) => pareto && current.status === "failed" && /\bno sequence met the constraints\b/.test(current.error || "");
+  const bestName = (current) => (!pareto ? "best so far" : noneFeasible(current) ? "most accurate so far (none feasible)" : "most accurate feasible so far");
+  const rateTitle = (current) => title(noneFeasible(current) ? "Residual rate of the most accurate sequence so far (none feasible)" : "Residual rate of the most accurate feasible sequence so far", 13);
   const resultHolder = h("div", { id: "search-result" });
   // NSGA-II's curve runs through its generations, then its polish rounds: where the
   // one ends and the other begins, once the result says (and a line on both plots).
@@ -226,7 +232,7 @@ async function searchView(body, job, context) {
       ? [{ x: [], y: [], mode: "lines+markers", name: "residual rate", line: { color: "#1f77b4" } }, ...twinTraces(rateTwins)]
       : [{ x: [], y: [], mode: "lines+markers", name: "mean episode reward", line: { color: "#1f77b4" } }],
     pareto
-      ? layout(steps, "residual rate (rad/s)", { title: title("Residual rate of the most accurate feasible sequence so far", 13), showlegend: false, ...twinAxes(rateTwins) })
+      ? layout(steps, "residual rate (rad/s)", { title: rateTitle(job), showlegend: false, ...twinAxes(rateTwins) })
       : layout(steps, "mean episode reward", { title: title(rewardText, 13), showlegend: false }),
     PLOT_CONFIG,
   );
@@ -235,7 +241,7 @@ async function searchView(body, job, context) {
   Plotly.newPlot(
     f1Plot,
     [
-      { x: [], y: [], mode: "lines+markers", name: pareto ? "most accurate feasible so far" : "best so far", line: { color: "#2ca02c" } },
+      { x: [], y: [], mode: "lines+markers", name: bestName(job), line: { color: "#2ca02c" } },
       { x: [], y: [], mode: "lines+markers", name: pareto ? "mean of the generation (polish round)" : "mean since last point", line: { color: "#ff7f0e", dash: "dot" } },
     ],
     layout(steps, pareto ? accuracyText : what, {
@@ -256,9 +262,15 @@ async function searchView(body, job, context) {
   const bestSoFar = new BestSoFar(job);
   let points = 0;
   let resultShown = false;
+  let infeasibleShown = noneFeasible(job);
   const update = async (current) => {
     const fresh = bestSoFar.apply(await follower.poll());
     if (!context.alive()) return;
+    if (!infeasibleShown && noneFeasible(current)) {
+      // Failed while the page followed it: the line renamed for what it held.
+      infeasibleShown = true;
+      await Promise.all([Plotly.restyle(f1Plot, { name: bestName(current) }, [0]), Plotly.relayout(rewardPlot, { title: rateTitle(current) })]);
+    }
     // Metrics stored before the rate was named for what it is were renamed by the
     // database migration 0005 (NSGA-II's to best_residual_rate_rad_s).
     if (extendWith(rewardPlot, fresh, [pareto ? "best_residual_rate_rad_s" : "mean_episode_reward"])) fitFlatSeries(rewardPlot);
