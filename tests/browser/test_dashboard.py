@@ -4180,3 +4180,30 @@ def test_a_search_none_of_whose_sequences_was_feasible_does_not_call_its_line_fe
     titles = page.inner_text("#page")
     assert "most accurate feasible so far" not in names, names
     assert "Residual rate of the most accurate feasible sequence so far" not in titles
+
+
+def test_the_job_lists_line_of_an_nsga2_search_does_not_call_its_score_f1(
+    dashboard: Dashboard,
+) -> None:
+    """NSGA-II scores a predicted accuracy, never a clustering F1 (the compare page's
+    legend was mended from "(nsga2, F1)" to "(nsga2, predicted accuracy)"), but the job
+    list's line under each run still read "nsga2, F1, L=4, seed 0"."""
+    _needs(dashboard, "scenario")
+    client = dashboard.service.client
+    answer = client.post(
+        "/jobs",
+        json={
+            "type": "search",
+            "scenario_id": made["scenario"],
+            "name": "nsga2 list line",
+            "rerun": True,
+            "params": {"method": "nsga2", "sequence_length": 2, "n_realisations": 10},
+        },
+    )
+    assert answer.status_code == 202, answer.text
+    job_id = str(answer.json()["id"])
+    client.post(f"/jobs/{job_id}/cancel")
+    dashboard.open("#/jobs")
+    line = dashboard.page.inner_text(f"#jobs tr[data-id='{job_id}'] .job-cell .hint")
+    assert line.startswith("nsga2"), line
+    assert "F1" not in line, line

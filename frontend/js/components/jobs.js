@@ -28,10 +28,17 @@ export function jobTitle(job) {
   return job.name || `${job.type} ${job.id.slice(0, 8)}`;
 }
 
-// What distinguishes a job of its type at a glance: method and objective, kind, classifier.
+// What a search scored: NSGA-II a predicted accuracy, never a clustering F1 (the job
+// list's line and the compare page's legend had said "F1" of it).
+export function searchScore(job) {
+  const p = job.params || {};
+  return p.method === "nsga2" ? "predicted accuracy" : p.objective === "separability" ? "separability" : "F1";
+}
+
+// What distinguishes a job of its type at a glance: method and score, kind, classifier.
 export function jobDetail(job) {
   const p = job.params || {};
-  if (job.type === "search") return `${p.method}, ${p.objective === "separability" ? "separability" : "F1"}, L=${p.sequence_length}, seed ${job.seed}`;
+  if (job.type === "search") return `${p.method}, ${searchScore(job)}, L=${p.sequence_length}, seed ${job.seed}`;
   if (job.type === "train") return `${p.kind || ""}${p.metric ? ` ${p.metric}` : ""}, seed ${job.seed}`;
   if (job.type === "sweep") return `${(p.noises || []).join(", ")}, ×${(p.multiples || []).join(", ")}, seed ${job.seed}`;
   return "";

@@ -6,7 +6,7 @@
 // Route: #/compare?type=search|sweep|classifier&ids=a,b&scenario=<id>
 
 import { MetricFollower, api } from "../api.js";
-import { jobCell, jobDetail, stoppedNote, summaryColumns, summaryValue } from "../components/jobs.js";
+import { jobCell, jobDetail, searchScore, stoppedNote, summaryColumns, summaryValue } from "../components/jobs.js";
 import { BestSoFar, COLORS, PLOT_CONFIG, extendWith, layout, plotDiv, plotText, polishMarks, polishStart, tightRange, title } from "../components/plots.js";
 import { dataTable } from "../components/table.js";
 import { classifierName, isTerminal, noiseInfo } from "../vocabulary.js";
@@ -155,7 +155,6 @@ async function load(type, ids) {
 
 // A search's name, method and score: NSGA-II's is a predicted accuracy (its legend said
 // "F1", under a title that says predicted accuracy).
-const searchScore = (job) => (job.params.method === "nsga2" ? "predicted accuracy" : job.params.objective === "separability" ? "separability" : "F1");
 const searchLabel = (job) => `${plotText(job.name || job.id.slice(0, 8))} (${job.params.method}, ${searchScore(job)})`;
 
 // Searches of one scenario: a table of their headline figures, and their curves.
