@@ -4207,3 +4207,41 @@ def test_the_job_lists_line_of_an_nsga2_search_does_not_call_its_score_f1(
     line = dashboard.page.inner_text(f"#jobs tr[data-id='{job_id}'] .job-cell .hint")
     assert line.startswith("nsga2"), line
     assert "F1" not in line, line
+
+
+def test_a_search_cancelled_while_measuring_its_front_does_not_blame_the_time_limit(
+    dashboard: Dashboard,
+) -> None:
+    """A user cancelled an NSGA-II search (L = 6) 9 s in, while its front was measured:
+    the best's clustering F1 had been measured on none of its 5 fresh draws, and the
+    front card said "The best sequence's clustering F1 was measured on 0 of the 5 fresh
+    draws asked: the time limit's grace was spent (the 21600 s limit and its 300 s
+    grace)". The job's ``stopped`` is null and its result's ``stopped`` says
+    "cancelled": the cancel cut it, not the time limit. Served here as such a job by
+    rewriting the finished search's answer on its way to the page."""
+    _needs(dashboard, "nsga2")
+    page = dashboard.page
+    job_id = made["nsga2"]
+    own = re.compile(rf"/jobs/{job_id}(\?.*)?$")
+
+    def as_cancelled_while_measuring(route: Any) -> None:
+        answer = route.fetch()
+        body = answer.json()
+        body["status"] = "cancelled"
+        body["stopped"] = None
+        body["result"]["stopped"] = "cancelled"
+        body["result"]["settings"]["time_limit_s"] = 21600.0
+        body["result"]["settings"]["time_limit_grace_s"] = 300.0
+        fresh = body["result"]["fresh"]
+        fresh.update(f1=[], final_rate_rad_s=[], f1_mean=None, f1_min=None, draws_asked=5)
+        route.fulfill(response=answer, json=body)
+
+    page.route(own, as_cancelled_while_measuring)
+    try:
+        dashboard.open(f"#/jobs/{job_id}")
+        shown = page.wait_for_selector("#front-not-rescored", timeout=60_000).inner_text()
+        assert "0 of the 5 fresh draws" in shown, shown
+        assert "time limit" not in shown, shown
+        assert "cancel" in shown, shown
+    finally:
+        page.unroute(own)

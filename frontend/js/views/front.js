@@ -123,9 +123,10 @@ function confirmationNote(front) {
   );
 }
 
-// What a time limit's grace left out of the re-score on fresh draws: the front's
-// candidates not re-scored (front.not_rescored: judged without them, their scores on the
-// search's draw listed) and the best's fresh draws when fewer than asked; null when none.
+// What a time limit's grace (or a cancel) left out of the re-score on fresh draws: the
+// front's candidates not re-scored (front.not_rescored: judged without them, their scores
+// on the search's draw listed) and the best's fresh draws when fewer than asked; null
+// when none.
 function rescoreCut(job, front) {
   const left = front.not_rescored || [];
   const fresh = job.result.fresh || {};
@@ -135,9 +136,14 @@ function rescoreCut(job, front) {
   const settings = job.result.settings || {};
   const limit = settings.time_limit_s;
   const grace = settings.time_limit_grace_s;
+  // A search cancelled while its front was measured stopped on the cancel, not on its
+  // time limit (the result's `stopped` says which): it had said "the time limit's grace
+  // was spent" of a job that never reached its limit.
+  const cancelled = job.result.stopped === "cancelled" || (job.status === "cancelled" && job.result.stopped !== "time_limit");
   // A grace of 0 is the job's own choice (stop at the limit), not a grace running out.
-  const why =
-    typeof limit === "number" && grace === 0
+  const why = cancelled
+    ? "the search was cancelled"
+    : typeof limit === "number" && grace === 0
       ? `the time limit (${plain(limit)} s) was reached and no grace was asked for`
       : typeof limit === "number" && typeof grace === "number"
         ? `the time limit's grace was spent (the ${plain(limit)} s limit and its ${plain(grace)} s grace)`
