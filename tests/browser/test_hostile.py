@@ -1222,3 +1222,33 @@ def test_opening_a_route_of_the_same_page_waits_for_the_new_page(dashboard: Dash
     page.evaluate("() => document.querySelector('#page h1').setAttribute('data-mine', '')")
     dashboard.open(f"#/jobs?scenario={scenario_id}&type=search")
     assert page.query_selector("#page h1[data-mine]") is None
+
+
+def test_a_constraint_or_setting_with_a_bad_value_is_named_not_called_a_dictionary(
+    dashboard: Dashboard,
+) -> None:
+    # helper-174's review: "max_final_rate_deg_s=abc" (or "=1e400", "=", "0.5 deg/s")
+    # was sent as the whole text and came back "Input should be a valid dictionary, got
+    # 'max_final_rate_deg_s=abc'", the message the JSON boxes were mended away from;
+    # and 1e400 in a JSON box (the NSGA-II settings, the design noise, a constraints
+    # object) became null on its way (JSON.stringify of Infinity): "NSGA-II population
+    # must be an integer in 4..10000, got None", a value nobody typed.
+    _save_key(dashboard)
+    scenario_id = _scenario(dashboard, ["stowed", "deployed", "ejected"], "bad values")
+    dashboard.open(f"#/jobs?scenario={scenario_id}&type=search")
+    page = dashboard.page
+    dashboard.console.expect("status of 422")
+    page.select_option("#search-method", "nsga2")
+    for box, typed in (
+        ("#search-constraints", "max_final_rate_deg_s=abc"),
+        ("#search-constraints", "max_final_rate_deg_s=0.5 deg/s"),
+        ("#search-nsga2", '{"population": 1e400}'),
+        ("#search-design_noise", "[[1e400, 1]]"),
+    ):
+        kept = page.input_value(box)
+        page.fill(box, typed)
+        page.click("#submit-job")
+        shown = page.wait_for_selector(f"{box} + .field-error").inner_text()
+        assert "valid dictionary" not in shown, (typed, shown)
+        assert "None" not in shown, (typed, shown)
+        page.fill(box, kept)

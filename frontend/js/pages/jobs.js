@@ -28,31 +28,56 @@ class BoxError extends Error {
   }
 }
 
+// Where in a parsed value a number past the largest a double holds sits ("population",
+// "[0][0]"), or null: JSON.parse reads 1e400 as Infinity, which JSON.stringify sends as
+// null, and the service answered "... got None", a value nobody typed.
+function infiniteAt(value, path = "") {
+  if (typeof value === "number") return Number.isFinite(value) ? null : path || "the value";
+  if (value === null || typeof value !== "object") return null;
+  for (const [key, item] of Object.entries(value)) {
+    const found = infiniteAt(item, Array.isArray(value) ? `${path}[${key}]` : path ? `${path}.${key}` : key);
+    if (found !== null) return found;
+  }
+  return null;
+}
+
 // The value typed in a box of JSON, or a BoxError naming the box and the parser's
 // reason. An empty box is `empty` (undefined: sent as typed, for the service to name).
 function jsonBox(input, label, loc, empty = undefined) {
   const text = String(input.value).trim();
   if (!text) return empty === undefined ? text : empty;
+  let value;
   try {
-    return JSON.parse(text);
+    value = JSON.parse(text);
   } catch (exc) {
     throw new BoxError(loc, `${label}: not valid JSON: ${exc.message}`);
   }
+  const infinite = infiniteAt(value);
+  if (infinite !== null) throw new BoxError(loc, `${label}: ${infinite} is past the largest number (about 1.8e308)`);
+  return value;
 }
 
 // "max_final_rate_deg_s=0.2, max_impulse_nms=20" as an object of numbers, or a JSON
-// object (broken JSON named before it is sent); anything else that does not parse is
-// sent as typed, so the service's 422 names it.
+// object (broken JSON named before it is sent). A part that is not name=number is
+// refused next to the box, naming it: sent as typed, "max_final_rate_deg_s=abc" came back
+// "Input should be a valid dictionary, got 'max_final_rate_deg_s=abc'".
 function constraintsOrText(input) {
+  const loc = ["body", "params", "constraints"];
   const trimmed = String(input.value).trim();
   if (!trimmed) return {};
-  if (trimmed.startsWith("{")) return jsonBox(input, "constraints", ["body", "params", "constraints"]);
+  if (trimmed.startsWith("{")) return jsonBox(input, "constraints", loc);
   const out = {};
-  for (const part of trimmed.split(/[,;\n]+/)) {
+  for (const raw of trimmed.split(/[,;\n]+/)) {
+    const part = raw.trim();
+    if (!part) continue;
     // Names carry digits too (max_final_rate_p95_deg_s).
-    const match = part.trim().match(/^([A-Za-z_][A-Za-z0-9_]*)\s*(?:=|<=|>=|:)\s*([-+0-9.eE]+)$/);
-    if (!match || !Number.isFinite(Number(match[2]))) return trimmed;
-    out[match[1]] = Number(match[2]);
+    const match = part.match(/^([A-Za-z_][A-Za-z0-9_]*)\s*(?:<=|>=|=|:)\s*(.*)$/);
+    if (!match) throw new BoxError(loc, `constraints: “${part}” is not name=bound (such as max_final_rate_deg_s=0.2)`);
+    const [, name, bound] = match;
+    if (!bound) throw new BoxError(loc, `constraints: ${name} has no bound (such as ${name}=0.2)`);
+    if (!DECIMAL.test(bound)) throw new BoxError(loc, `constraints: ${name}'s bound “${bound}” is not a number (its unit is in its name)`);
+    if (!Number.isFinite(Number(bound))) throw new BoxError(loc, `constraints: ${name}'s bound ${bound} is past the largest number (about 1.8e308)`);
+    out[name] = Number(bound);
   }
   return out;
 }
