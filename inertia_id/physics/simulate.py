@@ -372,8 +372,12 @@ def _drive(scenario: Scenario) -> tuple[float, float]:
     )
     # A thruster's torque is its column's length: the largest component understated a
     # canted thruster's (0.577 N m for a tetrahedral 1 N m one).
-    columns = np.asarray(scenario.thrusters.torque_matrix_nm, dtype=float)
-    torque = float(np.linalg.norm(columns, axis=0).max(initial=0.0))
+    columns = np.abs(np.asarray(scenario.thrusters.torque_matrix_nm, dtype=float))
+    # Scaled by each column's largest component first, so that a torque of 1e300 N m (a
+    # scenario the overflow message describes) is not squared past a float's range.
+    largest = columns.max(axis=0, initial=0.0)
+    shares = columns / np.where(largest > 0.0, largest, 1.0)
+    torque = float((largest * np.sqrt((shares**2).sum(axis=0))).max(initial=0.0))
     return torque, moment
 
 
