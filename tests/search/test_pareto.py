@@ -1753,3 +1753,12 @@ def test_a_plans_on_times_read_as_the_upload_writes_them(paper: Scenario) -> Non
     plan = command_plan(Scenario.model_validate(document), [[1, 0, 0, 0, 0, 0]] * 2)
     assert plan.on_time_s[0][0] == 0.08 and plan.on_time_per_thruster_s[0] == 0.16
     assert json.loads(json.dumps(plan.to_dict()))["steps"][0]["on_time_s"][0] == 0.08
+
+
+def test_the_largest_thruster_torque_of_a_scenario_past_squaring_is_finite() -> None:
+    """Torques of 1e300 N m (a scenario whose rates overflow) are named as such in the
+    overflow message: their vector length was squared past a float's range, 'inf N m'."""
+    from inertia_id.physics.simulate import _drive
+
+    scenario = preset("paper", thrusters={"nominal_torque_nm": 1e300})
+    assert _drive(scenario)[0] == pytest.approx(1e300)
