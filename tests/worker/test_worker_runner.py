@@ -111,10 +111,20 @@ def test_a_stopping_worker_leaves_a_queued_job_to_another_unsent(store: Store) -
 
 def test_a_job_claimed_as_the_stop_came_is_handed_back_at_no_cost(store: Store) -> None:
     job_id = store.add_job("train", {"sequence": GOOD_SEQUENCE}, sent_at=utcnow())
-    asked = iter([False, True])  # the stop arrives between the check and the claim
-    status = execute_job(
-        job_id, settings=store.settings, worker_name=WORKER, stopping=lambda: next(asked)
-    )
+    # The stop arrives between the check and the claim: the run's first look says no,
+    # every later one yes. Only the run's own looks count: its StopCut thread looks every
+    # 0.1 s too, and on a loaded CI it had taken the answers meant for the run
+    # (StopIteration in the run, PostgreSQL).
+    run = threading.get_ident()
+    looks: list[bool] = []
+
+    def stopping() -> bool:
+        if threading.get_ident() != run:
+            return bool(looks) and looks[-1]
+        looks.append(bool(looks))
+        return looks[-1]
+
+    status = execute_job(job_id, settings=store.settings, worker_name=WORKER, stopping=stopping)
     assert status == "passed on"
     job = store.job(job_id)
     assert job.status == "queued" and job.worker is None and job.sent_at is None
