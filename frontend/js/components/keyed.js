@@ -15,6 +15,16 @@ export async function whenKeyed(holder, what, draw) {
   if (getApiKey()) return draw();
   const notice = keyNotice(what);
   holder.append(notice);
+  onceKeyed(holder, () => {
+    notice.remove();
+    draw();
+  });
+  return null;
+}
+
+// Runs `then()` at the first key saved while `holder` is still on the page; listens no
+// more once it ran or `holder` left the page.
+function onceKeyed(holder, then) {
   const saved = () => {
     if (!holder.isConnected) {
       window.removeEventListener("api-key-changed", saved);
@@ -22,11 +32,9 @@ export async function whenKeyed(holder, what, draw) {
     }
     if (!getApiKey()) return;
     window.removeEventListener("api-key-changed", saved);
-    notice.remove();
-    draw();
+    then();
   };
   window.addEventListener("api-key-changed", saved);
-  return null;
 }
 
 // After `draw` failed on `exc`: when the service refused the saved key (a 401; the
@@ -36,16 +44,7 @@ export async function whenKeyed(holder, what, draw) {
 // just that, until the page was reloaded.
 export function redrawWhenRekeyed(holder, exc, draw) {
   if (!exc || exc.status !== 401) return;
-  const saved = () => {
-    if (!holder.isConnected) {
-      window.removeEventListener("api-key-changed", saved);
-      return;
-    }
-    if (!getApiKey()) return;
-    window.removeEventListener("api-key-changed", saved);
-    draw();
-  };
-  window.addEventListener("api-key-changed", saved);
+  onceKeyed(holder, draw);
 }
 
 // For an action whose request needs the key: false when a key is saved (go on and send
