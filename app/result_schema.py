@@ -143,6 +143,12 @@ class SearchCurvePoint(_Open):
         description="rad/s, in results stored before best_residual_rate_rad_s (b4cfab5) "
         "only: NSGA-II's residual rate, the other methods' |ω| when the last command ends",
     )
+    best_feasible: bool | None = Field(
+        default=None,
+        description="whether the best so far meets the search's constraints (always true "
+        "without constraints; while none has, the best is the most accurate of all); null "
+        "in results stored before it",
+    )
 
 
 class SearchScores(_Open):

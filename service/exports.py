@@ -306,6 +306,16 @@ def _search_curve(result: Mapping[str, Any]) -> Table:
             [*columns, name, name.replace("_rad_s", "_deg_s")],
             [[*(p.get(k) for k in _CURVE), p.get(old), _deg(p.get(old))] for p in curve],
         )
+    feasible = "best_feasible"
+    if any(feasible in p for p in curve):
+        # Stored since the curve says whether its best met the constraints.
+        return Table(
+            [*columns, key, key.replace("_rad_s", "_deg_s"), feasible],
+            [
+                [*(p.get(k) for k in (*_CURVE, key)), _deg(p.get(key)), p.get(feasible)]
+                for p in curve
+            ],
+        )
     return Table(
         [*columns, key, key.replace("_rad_s", "_deg_s")],
         [[*(p.get(k) for k in (*_CURVE, key)), _deg(p.get(key))] for p in curve],

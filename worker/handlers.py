@@ -34,6 +34,10 @@ __all__ = ["HANDLERS", "run_search_job", "run_sweep_job", "run_train_job"]
 #: The metric keys a search writes after every rollout (PPO) or report (random,
 #: exhaustive), at step = environment steps so far.
 SEARCH_METRICS = ("mean_episode_reward", "mean_f1", "best_f1", "best_residual_rate_rad_s")
+#: Written beside them by a search with constraints: 1 where the best so far meets
+#: them, 0 while none has (its best is then the most accurate of all), so the live
+#: curve can say which its points are.
+FEASIBLE_METRIC = "best_feasible"
 
 
 def _params(context: JobContext) -> dict[str, Any]:
@@ -43,7 +47,8 @@ def _params(context: JobContext) -> dict[str, Any]:
 def run_search_job(context: JobContext) -> Outcome:
     """Search for the actuation sequence, then score the baselines on its fresh draws.
 
-    Metrics: :data:`SEARCH_METRICS` at step = timesteps, after every curve point.
+    Metrics: :data:`SEARCH_METRICS` at step = timesteps, after every curve point, and
+    :data:`FEASIBLE_METRIC` too where the search has constraints.
     A PPO policy is saved to ``data_dir/policies/<job id>.zip`` and its path and
     SHA-256 put in the result. The search runs to the job's time limit (its own, at most
     the service's ceiling) on the context's clock: past it, it stops with its best so
@@ -65,6 +70,8 @@ def run_search_job(context: JobContext) -> Outcome:
         # the curve the dashboard draws is the stored result's, one point per
         # generation and per polish round.
         metrics = [(key, report.timesteps, getattr(point, key)) for key in SEARCH_METRICS]
+        if request.constraints:
+            metrics.append((FEASIBLE_METRIC, report.timesteps, float(point.best_feasible)))
         context.report(progress=report.fraction, metrics=metrics if report.new_point else [])
 
     outcome = search_with_baselines(

@@ -344,16 +344,17 @@ def search_with_progress(
             bar.update((round(1000 * report.fraction) if by_fraction else report.timesteps) - bar.n)
             if report.phase != "search":  # the search is done; say what runs now
                 bar.set_postfix_str(report.phase)
-            elif by_fraction:
-                bar.set_postfix(best_accuracy=f"{report.point.best_f1:.3f}")
             else:
-                # The point's best_f1 is the objective's score: say which it is.
-                bar.set_postfix(
-                    {
-                        "reward": f"{report.point.mean_episode_reward:.3f}",
-                        f"best_{score}": f"{report.point.best_f1:.3f}",
-                    }
-                )
+                # The point's best_f1 is the objective's score: say which it is, and
+                # whether that best meets the constraints (while none has, it is the
+                # best of all: "feasible" would claim what it is not).
+                best = f"best_{'accuracy' if by_fraction else score}"
+                if request.constraints:
+                    best += "_feasible" if report.point.best_feasible else "_none_feasible_yet"
+                figures = {best: f"{report.point.best_f1:.3f}"}
+                if not by_fraction:
+                    figures = {"reward": f"{report.point.mean_episode_reward:.3f}", **figures}
+                bar.set_postfix(figures)
 
         outcome = search_with_baselines(
             scenario, request, seed=seed, policy_path=policy_path, progress=progress, checked=True

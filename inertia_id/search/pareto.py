@@ -1093,6 +1093,7 @@ def pareto_search(
             mean_f1=float(np.mean([s.accuracy for s in scored])),
             best_f1=top.accuracy,
             best_residual_rate_rad_s=top.final_rate_rad_s,
+            best_feasible=top.feasible(constraints),
         )
 
     def polish_round(scored: list[SequenceScores]) -> bool:

@@ -93,6 +93,9 @@ class CurvePoint:
     :param best_residual_rate_rad_s: the residual rate of the best sequence so far on
         the search's draw (:attr:`EpisodeRecord.residual_rate_rad_s`), rad/s: once the
         lag has delivered the torque still in it, mean over candidates, for every method.
+    :param best_feasible: whether that best sequence meets the search's constraints
+        (always, without constraints). The best so far is the most accurate feasible
+        sequence, and the most accurate of all while none is feasible: this says which.
     """
 
     timesteps: int
@@ -101,6 +104,7 @@ class CurvePoint:
     mean_f1: float
     best_f1: float
     best_residual_rate_rad_s: float
+    best_feasible: bool = True
 
 
 @dataclass(frozen=True)
@@ -301,6 +305,7 @@ class SearchTracker:
             else (previous.mean_f1 if previous else float("nan")),
             best_f1=self.best.f1 if self.best else float("nan"),
             best_residual_rate_rad_s=self.best.residual_rate_rad_s if self.best else float("nan"),
+            best_feasible=self.best is None or self.best.constraint_violation <= 0.0,
         )
         self.curve.append(point)
         self._returns, self._f1s, self._violations = [], [], []

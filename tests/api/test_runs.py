@@ -1258,3 +1258,16 @@ def test_a_curve_stored_before_its_rate_was_named_is_exported_for_what_it_was(
     else:
         assert summary["best_end_rate_rad_s_search_draw"] == "0.12"
         assert summary["best_residual_rate_rad_s_search_draw"] == ""
+
+
+def test_a_curve_that_says_whether_its_best_met_the_constraints_exports_it(api: Api) -> None:
+    # While no sequence met a search's constraints its best so far broke them; the curve
+    # says which of its points did, and so does its CSV.
+    scenario_id = api.create_scenario()["id"]
+    result = _search_result([1.0, 0.8], 20.0, 3.5)
+    for point, feasible in zip(result["curve"], (False, False, True), strict=True):
+        point["best_feasible"] = feasible
+    job_id = _finished(api, scenario_id, 0, result, name="constrained")
+    rows = _csv(api.get(f"/jobs/{job_id}/result", params={"format": "csv", "table": "curve"}).text)
+    assert rows[0][-1] == "best_feasible"
+    assert [r[-1] for r in rows[1:]] == ["False", "False", "True"]

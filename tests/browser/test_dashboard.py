@@ -4182,6 +4182,76 @@ def test_a_search_none_of_whose_sequences_was_feasible_does_not_call_its_line_fe
     assert "Residual rate of the most accurate feasible sequence so far" not in titles
 
 
+def test_a_running_search_none_of_whose_sequences_is_feasible_yet_says_so(
+    dashboard: Dashboard,
+) -> None:
+    """While an NSGA-II search runs and no sequence has met its constraints, its best so
+    far is the most accurate of all: the live curve drew it as "most accurate feasible so
+    far" (only a failed search's error text renamed it). The curve now says, point by
+    point, which its best was: those points go to an open-marker line of their own."""
+    _needs(dashboard, "scenario")
+    client = dashboard.service.client
+    answer = client.post(
+        "/jobs",
+        json={
+            "type": "search",
+            "scenario_id": made["scenario"],
+            "seed": 1,
+            "rerun": True,
+            "params": {
+                "method": "nsga2",
+                "sequence_length": 3,
+                "n_realisations": 10,
+                "nsga2": {"population": 8, "generations": 400, "polish_iterations": 2},
+                "constraints": {"min_accuracy": 0.999, "max_impulse_nms": 1},
+            },
+        },
+    )
+    assert answer.status_code == 202, answer.text
+    job_id = str(answer.json()["id"])
+    try:
+        dashboard.open(f"#/jobs/{job_id}")
+        page = dashboard.page
+        page.wait_for_function(
+            "() => (document.getElementById('f1-plot')?.data || []).some((t) => t.x.length > 1)",
+            timeout=120_000,
+        )
+        assert dashboard.service.job(job_id)["status"] == "running"
+        traces = page.evaluate(
+            "() => document.getElementById('f1-plot').data"
+            ".map((t) => [t.name, t.x.length, (t.marker || {}).symbol || null])"
+        )
+        by_name = {name: (count, symbol) for name, count, symbol in traces}
+        assert by_name["most accurate feasible so far"][0] == 0, traces
+        count, symbol = by_name["most accurate so far, none yet feasible"]
+        assert count > 1 and symbol == "circle-open", traces
+        assert page.is_visible("#curve-infeasible")
+        assert "(open markers: before any was)" in page.inner_text("#reward-plot")
+        assert "no sequence had met the constraints yet" in page.inner_text("#curve-infeasible")
+        rates = page.evaluate(
+            "() => document.getElementById('reward-plot').data.map((t) => [t.name, t.x.length])"
+        )
+        assert (
+            dict(rates)["residual rate"] == 0
+            and dict(rates)["residual rate, none yet feasible"] > 1
+        )
+        for width in (375, 1366):
+            # The third line's legend fits a phone's figure as the others do.
+            page.set_viewport_size({"width": width, "height": 900})
+            dashboard.open(f"#/jobs/{job_id}")
+            page.wait_for_function(
+                "() => (document.getElementById('f1-plot')?.data || [])"
+                ".some((t) => t.x.length > 1)"
+            )
+            page.wait_for_function(CHARTS_FITTED_JS)
+            problems = page.evaluate(LAYOUT_PROBLEMS_JS)
+            assert problems == [], f"at {width} px: {problems}"
+    finally:
+        client.post(f"/jobs/{job_id}/cancel")
+        service = dashboard.service
+        service.until(lambda: service.job(job_id)["status"] in TERMINAL, 120, "the cancel")
+
+
 def test_the_job_lists_line_of_an_nsga2_search_does_not_call_its_score_f1(
     dashboard: Dashboard,
 ) -> None:

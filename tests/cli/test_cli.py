@@ -1057,3 +1057,25 @@ def test_identify_says_when_the_kind_cannot_test_for_bodies_off_the_candidates(
     many = run_cli(["identify", "--classifier", str(classifier), str(folder)])
     assert len(many.stdout.splitlines()) == 2
     assert many.stderr == f"warning (2 identified verdicts): {note}\n"
+
+
+def test_the_search_bar_says_whether_its_best_met_the_constraints(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """No sequence of 3 steps reaches 0.9 on 9 N m s (test_pareto's case): the bar named
+    the best of all, 0.939, "best_accuracy" while it broke the constraints."""
+    import tqdm
+
+    shown: list[str] = []
+    monkeypatch.setattr(
+        tqdm.tqdm, "set_postfix", lambda self, figures=None, **kw: shown.extend(figures or kw)
+    )
+    args = ["search", "--method", "nsga2", "--length", "3", "--nsga2", "population=8"]
+    args += ["--nsga2", "generations=2", "--search-realisations", "4"]
+    args += ["--constraint", "min_accuracy=0.9", "--constraint", "max_impulse_nms=9"]
+    result = CliRunner().invoke(main, [*args, "--out", str(tmp_path / "s.json")])
+    assert "no sequence met the constraints" in result.output
+    assert shown and set(shown) == {"best_accuracy_none_feasible_yet"}
+    shown.clear()
+    run_cli([*args[:-4], "--constraint", "max_impulse_nms=9", "--out", str(tmp_path / "t.json")])
+    assert shown and set(shown) == {"best_accuracy_feasible"}

@@ -411,3 +411,28 @@ def test_exhaustive_refuses_a_space_beyond_float_range_by_its_magnitude() -> Non
     huge = preset("paper", thrusters={"n_levels": 101, "nominal_torque_nm": 2.0})
     with pytest.raises(ValueError, match=r"\(101\^6\)\^100 = about 10\^1202 sequences"):
         exhaustive_search(huge, sequence_length=100)
+
+
+def test_a_trackers_curve_says_whether_its_best_met_the_constraints() -> None:
+    # The other methods rank a sequence that breaks the constraints below any that meets
+    # them; until one does, the best so far breaks them, and its curve point says so.
+    from inertia_id.search.records import SearchTracker
+
+    tracker = SearchTracker()
+
+    def episode(f1: float, violation: float) -> None:
+        info = {
+            "sequence": [[4, 0, 0, 0, 0, 0]],
+            "f1": f1,
+            "final_rate_rad_s": 0.1,
+            "fuel_nms": 2.0,
+            "constraint_violation": violation,
+            "residual_rate_rad_s": 0.1,
+        }
+        tracker.on_step(0.0, True, info)
+
+    episode(0.9, 0.5)
+    assert tracker.add_point().best_feasible is False
+    episode(0.6, 0.0)
+    point = tracker.add_point()
+    assert point.best_feasible is True and point.best_f1 == 0.6

@@ -202,3 +202,20 @@ def test_a_running_training_stops_part_way_after_a_cancel(service: Service) -> N
             session.scalars(select(ClassifierRow.id).where(ClassifierRow.job_id == job_id)).all()
             == []
         )
+
+
+def test_a_constrained_search_stores_whether_its_best_met_the_constraints(
+    service: Service,
+) -> None:
+    # Its best so far is the most accurate of all while none meets the constraints: the
+    # live curve had no way to tell, and called it "feasible". Here none of the 20 random
+    # sequences of 2 steps keeps to 0.5 N m s (one thruster a quarter step), so the point
+    # says 0.
+    constraints = {"max_impulse_nms": 0.5}
+    params = {**SMALL_SEARCH, "method": "random", "timesteps": 40, "constraints": constraints}
+    job = service.wait_for(service.submit("search", params, seed=1))
+    assert job.status == "succeeded", job.error
+    metrics = service.metrics(job.id)
+    assert {key for key, _, _ in metrics} == {*SEARCH_METRICS, "best_feasible"}
+    assert [v for k, _, v in metrics if k == "best_feasible"] == [0.0]
+    assert [p["best_feasible"] for p in (job.result or {})["curve"]] == [False]

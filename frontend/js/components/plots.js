@@ -358,14 +358,18 @@ export class BestSoFar {
     this.rateAt = new Map();
     this.last = undefined;
     this.falls = 0;
+    this.flagged = false;
   }
 
-  // A constrained NSGA-II search stored before its curve held the best feasible so far.
+  // A constrained NSGA-II search stored before its curve held the best feasible so far
+  // (one stored since says which points were feasible: its best falls once, where the
+  // first feasible sequence takes over from the most accurate of all).
   get predates() {
-    return this.falls >= 2;
+    return this.falls >= 2 && !this.flagged;
   }
 
   apply(fresh) {
+    if (fresh.best_feasible) this.flagged = true;
     const f1 = fresh.best_f1;
     if (this.watched && f1) {
       for (const v of f1.values) {
@@ -389,6 +393,28 @@ export class BestSoFar {
     if (rates) out.best_residual_rate_rad_s = { steps: rates.steps, values: rates.steps.map((s, i) => this.rateAt.get(s) ?? rates.values[i]) };
     return out;
   }
+}
+
+// A constrained search's best so far breaks its constraints until some sequence meets
+// them (it is the most accurate of all till then). Its `best_feasible` metric says which
+// points those are: each of `keys` is split, the points marked 0 going to
+// `${key}_infeasible` (a series of their own, drawn apart), the others staying.
+export function splitInfeasible(fresh, keys) {
+  const flags = fresh.best_feasible;
+  if (!flags) return fresh;
+  const broken = new Set(flags.steps.filter((_, i) => flags.values[i] === 0));
+  const out = { ...fresh };
+  for (const key of keys) {
+    const series = fresh[key];
+    if (!series) continue;
+    const part = (infeasible) => {
+      const at = series.steps.map((_, i) => i).filter((i) => broken.has(series.steps[i]) === infeasible);
+      return at.length ? { steps: at.map((i) => series.steps[i]), values: at.map((i) => series.values[i]) } : undefined;
+    };
+    out[key] = part(false);
+    out[`${key}_infeasible`] = part(true);
+  }
+  return out;
 }
 
 // Every chart fits its figure at any width, a phone's too: Plotly does not wrap a title,

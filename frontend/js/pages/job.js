@@ -6,7 +6,7 @@ import { MetricFollower, api } from "../api.js";
 import { downloads, jobDownloads } from "../components/downloads.js";
 import { REUSED_KEY, cancelButton, labelEditor, reusedNotice, timingCell } from "../components/jobs.js";
 import { whenKeyed } from "../components/keyed.js";
-import { BAND, BestSoFar, DEG_PER_RAD, PLOT_CONFIG, extendWith, fitFlatSeries, keepTwins, layout, plotDiv, polishMarks, polishStart, responseView, sequencePlot, title, twinAxes, twinTraces } from "../components/plots.js";
+import { BAND, BestSoFar, DEG_PER_RAD, PLOT_CONFIG, extendWith, fitFlatSeries, keepTwins, layout, plotDiv, polishMarks, polishStart, responseView, sequencePlot, splitInfeasible, title, twinAxes, twinTraces } from "../components/plots.js";
 import { isTerminal } from "../vocabulary.js";
 import { clear, fmt, h, link, messageBox, patch, plain, progressBar, put, quantity, rateDeg, rateRad, score, sequenceText, statusBadge, table, tagChips, utcText, warningsBox, whenText } from "../ui.js";
 import { renderClassifier } from "../views/classifier.js";
@@ -208,6 +208,12 @@ async function searchView(body, job, context) {
   // A constrained NSGA-II search stored before its curve held the best feasible so far:
   // what its line is instead (BestSoFar.predates).
   const predates = h("p", { id: "curve-predates", class: "hint", hidden: true });
+  // A constrained search's best so far, while no sequence had met the constraints, is
+  // the most accurate of all: those points are drawn apart (open markers), and said so.
+  const constrained = Object.keys(job.params.constraints || {}).length > 0;
+  const beforeFeasible = h("p", { id: "curve-infeasible", class: "hint", hidden: true });
+  const infeasibleTrace = (name, color) => ({ x: [], y: [], mode: "lines+markers", name, line: { color, dash: "dash" }, marker: { symbol: "circle-open", size: 8 } });
+  const infeasibleName = pareto ? "most accurate so far, none yet feasible" : "best so far, none yet feasible";
   body.append(
     h(
       "div",
@@ -216,6 +222,7 @@ async function searchView(body, job, context) {
       h("div", { class: "grid2 curves" }, rewardPlot, f1Plot),
       phases,
       predates,
+      beforeFeasible,
     ),
     resultHolder,
   );
@@ -229,7 +236,7 @@ async function searchView(body, job, context) {
   await Plotly.newPlot(
     rewardPlot,
     pareto
-      ? [{ x: [], y: [], mode: "lines+markers", name: "residual rate", line: { color: "#1f77b4" } }, ...twinTraces(rateTwins)]
+      ? [{ x: [], y: [], mode: "lines+markers", name: "residual rate", line: { color: "#1f77b4" } }, ...twinTraces(rateTwins), ...(constrained ? [infeasibleTrace("residual rate, none yet feasible", "#1f77b4")] : [])]
       : [{ x: [], y: [], mode: "lines+markers", name: "mean episode reward", line: { color: "#1f77b4" } }],
     pareto
       ? layout(steps, "residual rate (rad/s)", { title: rateTitle(job), showlegend: false, ...twinAxes(rateTwins) })
@@ -243,6 +250,7 @@ async function searchView(body, job, context) {
     [
       { x: [], y: [], mode: "lines+markers", name: bestName(job), line: { color: "#2ca02c" } },
       { x: [], y: [], mode: "lines+markers", name: pareto ? "mean of the generation (polish round)" : "mean since last point", line: { color: "#ff7f0e", dash: "dot" } },
+      ...(constrained ? [infeasibleTrace(noneFeasible(job) ? bestName(job) : infeasibleName, "#2ca02c")] : []),
     ],
     layout(steps, pareto ? accuracyText : what, {
       // NSGA-II's title short enough for half a 1024 px page: the longer one was cut at the
@@ -269,12 +277,19 @@ async function searchView(body, job, context) {
     if (!infeasibleShown && noneFeasible(current)) {
       // Failed while the page followed it: the line renamed for what it held.
       infeasibleShown = true;
-      await Promise.all([Plotly.restyle(f1Plot, { name: bestName(current) }, [0]), Plotly.relayout(rewardPlot, { title: rateTitle(current) })]);
+      await Promise.all([Plotly.restyle(f1Plot, { name: bestName(current) }, constrained ? [0, 2] : [0]), Plotly.relayout(rewardPlot, { title: rateTitle(current) })]);
     }
     // Metrics stored before the rate was named for what it is were renamed by the
     // database migration 0005 (NSGA-II's to best_residual_rate_rad_s).
-    if (extendWith(rewardPlot, fresh, [pareto ? "best_residual_rate_rad_s" : "mean_episode_reward"])) fitFlatSeries(rewardPlot);
-    extendWith(f1Plot, fresh, ["best_f1", "mean_f1"]);
+    const shown = splitInfeasible(fresh, ["best_f1", "best_residual_rate_rad_s"]);
+    if (extendWith(rewardPlot, shown, pareto ? ["best_residual_rate_rad_s", null, constrained && "best_residual_rate_rad_s_infeasible"] : ["mean_episode_reward"])) fitFlatSeries(rewardPlot);
+    extendWith(f1Plot, shown, ["best_f1", "mean_f1", constrained && "best_f1_infeasible"]);
+    if (beforeFeasible.hidden && shown.best_f1_infeasible) {
+      beforeFeasible.textContent =
+        `Open markers, dashed: no sequence had met the constraints yet. Each such point is the most accurate sequence of all so far, which breaks them${pareto ? "; the residual rate beside it is that sequence's" : ""}. The solid line takes over once a sequence meets them.`;
+      beforeFeasible.hidden = false;
+      if (pareto && !noneFeasible(current)) await Plotly.relayout(rewardPlot, { title: title("Residual rate of the most accurate feasible sequence so far (open markers: before any was)", 13) });
+    }
     if (bestSoFar.predates && predates.hidden) {
       // Its line named for what it holds, not "so far" (which cannot fall), and why.
       await Plotly.restyle(f1Plot, { name: "most accurate feasible of the generation (polish round)" }, [0]);
