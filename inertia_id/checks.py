@@ -24,6 +24,7 @@ import numpy as np
 
 __all__ = [
     "BIDI_CONTROLS",
+    "MAX_SEED",
     "DuplicateKeyError",
     "check_seed",
     "control_characters",
@@ -43,6 +44,12 @@ __all__ = [
 
 #: What a spreadsheet reads as the start of a formula (OWASP, "CSV injection").
 _FORMULA_START = ("=", "+", "-", "@", "\t", "\r")
+
+
+#: The largest seed the service keeps: a 32-bit INTEGER column (PostgreSQL ``integer``).
+#: The command line takes no larger one, so that a run made there can be made again as
+#: a job with the same seed.
+MAX_SEED = 2**31 - 1
 
 
 def check_seed(seed: Any, name: str = "seed") -> int:

@@ -28,6 +28,7 @@ from pydantic import (
     model_validator,
 )
 
+from inertia_id.checks import MAX_SEED
 from inertia_id.deadline import GRACE_ASKED_MAX_S, GRACE_MAX_S, TIME_LIMIT_MIN_S
 from inertia_id.errors import InputError
 from inertia_id.pipelines import SearchRequest, SweepRequest, TrainRequest
@@ -48,8 +49,6 @@ __all__ = [
     "parse_params",
 ]
 
-#: Seeds are stored in a 32-bit INTEGER column (PostgreSQL ``integer``).
-MAX_SEED = 2**31 - 1
 #: Longest search sequence the API accepts (steps).
 MAX_SEARCH_SEQUENCE_LENGTH = 20
 #: Largest search budget in environment steps.

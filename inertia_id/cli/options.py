@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Any, BinaryIO, TypeVar
 import click
 
 from ..checks import (
+    MAX_SEED,
     DuplicateKeyError,
     finite_or_none,
     loads_unique_keys,
@@ -378,8 +379,9 @@ def seed_option(func: F) -> F:
         "--seed",
         default=0,
         show_default=True,
-        type=IntRange(0),
-        help="Seed of every random draw (a whole number >= 0).",
+        type=IntRange(0, MAX_SEED),
+        help=f"Seed of every random draw (a whole number, 0 to {MAX_SEED}: the service's "
+        "largest, so a run made here can be made again as a job).",
     )(func)
 
 

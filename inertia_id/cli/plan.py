@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING
 
 import click
 
+from ..checks import MAX_SEED
 from .options import (
     OTHER_FORMATS,
     IntRange,
@@ -71,7 +72,13 @@ def _plan_file_name(context: click.Context, param: click.Parameter, value: str) 
     "a rate at least 95 % of flights stay under with 95 % confidence; at least 2, and 59 "
     "for that bound to be an order statistic; 0: the nominal prediction alone.",
 )
-@click.option("--seed", type=IntRange(0), default=0, show_default=True, help="Seed of --flights.")
+@click.option(
+    "--seed",
+    type=IntRange(0, MAX_SEED),
+    default=0,
+    show_default=True,
+    help=f"Seed of --flights (0 to {MAX_SEED}, as the service's plan takes).",
+)
 @click.option(
     "--out",
     default="plan.json",

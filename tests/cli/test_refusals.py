@@ -57,7 +57,15 @@ def binary(tmp_path: Path) -> Path:
 
 @pytest.mark.parametrize("command", ["simulate", "train", "search", "paper"])
 def test_a_negative_seed_is_a_usage_error(command: str) -> None:
-    assert "'--seed': -1 is not in the range x>=0" in refused([command, "--seed", "-1"])
+    assert "'--seed': -1 is not in the range 0<=x<=2147483647" in refused([command, "--seed", "-1"])
+
+
+@pytest.mark.parametrize("command", ["simulate", "train", "search", "paper", "plan"])
+def test_a_seed_the_service_could_not_keep_is_a_usage_error(command: str) -> None:
+    # The service keeps seeds in a 32-bit column and refuses 2^31; the command line took
+    # it, so a run made there could not be made again as a job.
+    message = refused([command, "--seed", str(2**31)])
+    assert "'--seed': 2147483648 is not in the range 0<=x<=2147483647" in message
 
 
 def test_a_file_that_is_not_text_is_named(binary: Path, tmp_path: Path) -> None:
@@ -930,7 +938,7 @@ def nearest(paper: Scenario, tmp_path: Path) -> Path:
     ("args", "code", "message"),
     [
         # What click refuses before the command runs: 2.
-        (["simulate", "--seed", "-1"], 2, "-1 is not in the range x>=0"),
+        (["simulate", "--seed", "-1"], 2, "-1 is not in the range 0<=x<=2147483647"),
         (["simulate", "--sample-rate", "0"], 2, "0.0 is not in the range 0<x<=10000"),
         (["sweep", "--classifier", "missing.json"], 2, "'missing.json' does not exist"),
         (["simulate", "--bogus"], 2, "No such option '--bogus'"),
