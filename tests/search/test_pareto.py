@@ -1684,6 +1684,23 @@ def test_the_disturbance_alone_sets_a_floor_no_rate_bound_may_go_below(paper: Sc
     assert rest_rate_floor(paper, 8)["mean"] == pytest.approx(2 * floor["mean"], rel=0.01)
 
 
+def test_the_floor_is_drawn_once_per_scenario_and_length(paper: Scenario) -> None:
+    # A search's submission checks it in the request: it drew 2^18 normals and took
+    # 0.27-0.37 s every time. Kept by its inputs, a scenario changed in any of them is a
+    # new floor.
+    from inertia_id.search.objectives import _rest_rate_floor
+
+    first = rest_rate_floor(paper, 5)
+    hits = _rest_rate_floor.cache_info().hits
+    assert rest_rate_floor(paper.model_copy(deep=True), 5) == first
+    assert _rest_rate_floor.cache_info().hits == hits + 1
+    stronger = paper.model_dump()
+    stronger["uncertainty"]["disturbance_torque_sigma_nm"] *= 2
+    changed = rest_rate_floor(Scenario.model_validate(stronger), 5)
+    assert changed["mean"] == pytest.approx(2 * first["mean"])
+    assert rest_rate_floor(paper, 6) != first
+
+
 def test_the_weak_response_warning_names_the_largest_thruster_torque_on_canted_thrusters(
     paper: Scenario,
 ) -> None:
