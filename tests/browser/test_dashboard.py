@@ -4139,6 +4139,30 @@ def test_the_fronts_colour_bar_ticks_do_not_stack_on_a_narrow_window(
     assert stacked == [], f"colour bar tick labels overlap at {width} px: {stacked}"
 
 
+def _infeasible_search(dashboard: Dashboard, *, seed: int, generations: int) -> str:
+    """An NSGA-II search no sequence of which meets its constraints (0.999 accurate on
+    1 N m s over 3 steps): its job id."""
+    _needs(dashboard, "scenario")
+    answer = dashboard.service.client.post(
+        "/jobs",
+        json={
+            "type": "search",
+            "scenario_id": made["scenario"],
+            "seed": seed,
+            "rerun": True,
+            "params": {
+                "method": "nsga2",
+                "sequence_length": 3,
+                "n_realisations": 10,
+                "nsga2": {"population": 8, "generations": generations, "polish_iterations": 2},
+                "constraints": {"min_accuracy": 0.999, "max_impulse_nms": 1},
+            },
+        },
+    )
+    assert answer.status_code == 202, answer.text
+    return str(answer.json()["id"])
+
+
 def test_a_search_none_of_whose_sequences_was_feasible_does_not_call_its_line_feasible(
     dashboard: Dashboard,
 ) -> None:
@@ -4147,26 +4171,7 @@ def test_a_search_none_of_whose_sequences_was_feasible_does_not_call_its_line_fe
     feasible so far" (0.83 at 8.5 deg/s, a sequence far past max_impulse_nms = 1) and
     titled "Residual rate of the most accurate feasible sequence so far": the core keeps
     the most accurate of all while none is feasible, and the page never says so."""
-    _needs(dashboard, "scenario")
-    client = dashboard.service.client
-    answer = client.post(
-        "/jobs",
-        json={
-            "type": "search",
-            "scenario_id": made["scenario"],
-            "seed": 0,
-            "rerun": True,
-            "params": {
-                "method": "nsga2",
-                "sequence_length": 3,
-                "n_realisations": 10,
-                "nsga2": {"population": 8, "generations": 2, "polish_iterations": 2},
-                "constraints": {"min_accuracy": 0.999, "max_impulse_nms": 1},
-            },
-        },
-    )
-    assert answer.status_code == 202, answer.text
-    job_id = str(answer.json()["id"])
+    job_id = _infeasible_search(dashboard, seed=0, generations=2)
     service = dashboard.service
     service.until(lambda: service.job(job_id)["status"] in TERMINAL, 240, "the search ends")
     job = service.job(job_id)
@@ -4189,26 +4194,8 @@ def test_a_running_search_none_of_whose_sequences_is_feasible_yet_says_so(
     far is the most accurate of all: the live curve drew it as "most accurate feasible so
     far" (only a failed search's error text renamed it). The curve now says, point by
     point, which its best was: those points go to an open-marker line of their own."""
-    _needs(dashboard, "scenario")
+    job_id = _infeasible_search(dashboard, seed=1, generations=400)
     client = dashboard.service.client
-    answer = client.post(
-        "/jobs",
-        json={
-            "type": "search",
-            "scenario_id": made["scenario"],
-            "seed": 1,
-            "rerun": True,
-            "params": {
-                "method": "nsga2",
-                "sequence_length": 3,
-                "n_realisations": 10,
-                "nsga2": {"population": 8, "generations": 400, "polish_iterations": 2},
-                "constraints": {"min_accuracy": 0.999, "max_impulse_nms": 1},
-            },
-        },
-    )
-    assert answer.status_code == 202, answer.text
-    job_id = str(answer.json()["id"])
     try:
         dashboard.open(f"#/jobs/{job_id}")
         page = dashboard.page
@@ -4240,8 +4227,7 @@ def test_a_running_search_none_of_whose_sequences_is_feasible_yet_says_so(
             page.set_viewport_size({"width": width, "height": 900})
             dashboard.open(f"#/jobs/{job_id}")
             page.wait_for_function(
-                "() => (document.getElementById('f1-plot')?.data || [])"
-                ".some((t) => t.x.length > 1)"
+                "() => (document.getElementById('f1-plot')?.data || []).some((t) => t.x.length > 1)"
             )
             page.wait_for_function(CHARTS_FITTED_JS)
             problems = page.evaluate(LAYOUT_PROBLEMS_JS)
