@@ -252,3 +252,49 @@ def test_a_downlink_that_covers_one_grid_time_says_so(
     # Two grid times: an answer, one posterior per time.
     two = Telemetry(time_s=grid[:2].tolist(), omega_rad_s=omega[:2].tolist())
     assert len(identify_online(marginal, two).time_s) == 2
+
+
+def test_fast_telemetry_on_a_coarse_grid_is_not_called_none_of_the_candidates() -> None:
+    """A scenario modelled on a 1 Hz grid (the ground segment's own gyro rate) and a
+    pass downlinked from a 10 Hz gyro: more samples of the same flight, never less
+    information than its 1 Hz samples alone. (Each grid time took the mean of the 10 Hz
+    samples over the whole grid period around it, which bends the rate where a thruster
+    switches on or off at a step boundary by about an eighth of a second's torque, some
+    four gyro sigmas here: every genuine pass, one per candidate, was "matches none of
+    the candidates", P(none) = 1 for four of five, while the same pass cut to its 1 Hz
+    samples named four and called the fifth ambiguous.)"""
+    from inertia_id import train
+
+    document = Scenario.paper().model_dump()
+    document["timing"] = {
+        "step_duration_s": 2.0,
+        "integration_step_s": 0.05,
+        "sample_rate_hz": 1.0,
+    }
+    document["uncertainty"]["initial_rate_sigma_rad_s"] = 0.002
+    coarse = Scenario.model_validate(document)
+    sequence = [[4, 4, 4, 0, 0, 0], [4, 4, 4, 0, 0, 0], [0, 0, 0, 4, 4, 4], [0] * 6]
+    classifier = train(coarse, sequence, 100, np.random.default_rng(0))
+    document["timing"]["sample_rate_hz"] = 10.0
+    gyro_10hz = Scenario.model_validate(document)
+    before = 15  # quiet steps: 30 s before the start, as a pass holds them
+    flown = simulate(gyro_10hz, [[0] * 6] * before + sequence, 1, np.random.default_rng(6))
+    time_s = flown.time_s - before * 2.0
+    whole_second = np.isclose(time_s, np.round(time_s), atol=1e-9)
+    fast, slow = [], []
+    for k in range(coarse.n_candidates):
+        omega = flown.omega_measured[k, 0]
+        fast.append(identify(classifier, {"time_s": time_s, "omega_rad_s": omega}))
+        slow.append(
+            identify(
+                classifier,
+                {"time_s": time_s[whole_second], "omega_rad_s": omega[whole_second]},
+            )
+        )
+    # The control: the 1 Hz samples alone name the candidate flown, or hold back.
+    assert [v.status for v in slow].count("identified") >= 4
+    assert all(v.candidate_index == k for k, v in enumerate(slow))
+    # Ten times the samples: no genuine pass is disowned, and as many are named.
+    assert [v.status for v in fast if v.status in ("matches-none", "not-this-sequence")] == []
+    assert all(v.candidate_index == k for k, v in enumerate(fast) if v.status == "identified")
+    assert [v.status for v in fast].count("identified") >= 4
