@@ -793,6 +793,36 @@ def test_identify_reads_gzip_telemetry_as_the_plain_file(
     assert lines == [expected] * 3
 
 
+def test_identify_reads_telemetry_that_begins_with_a_byte_order_mark(
+    tmp_path: Path, small_classifier: Path
+) -> None:
+    """A spreadsheet's "CSV UTF-8" export (and some ground tools' JSON) begins with a
+    UTF-8 byte order mark: the CLI gives it the plain file's verdict, as the API does with
+    the same upload. (It was refused: "CSV header column 1 is '\\ufefftime_s': not a
+    time ...", and the JSON as not valid JSON.)"""
+    plain = tmp_path / "t.csv"
+    _simulate_telemetry(plain, "4")
+    text = plain.read_text()
+    rows = [line.split(",") for line in text.split()[1:]]
+    document = json.dumps(
+        {
+            "time_s": [float(r[0]) for r in rows],
+            "omega_rad_s": [[float(v) for v in r[1:]] for r in rows],
+        }
+    )
+    marked_csv = tmp_path / "excel.csv"
+    marked_csv.write_text(text, encoding="utf-8-sig")
+    marked_json = tmp_path / "tool.json"
+    marked_json.write_text(document, encoding="utf-8-sig")
+    base = ["identify", "--classifier", str(small_classifier)]
+    expected = json.loads(run_cli([*base, "--telemetry", str(plain)]).stdout)
+    assert expected["candidate"] == "payload 3 ejected"
+    for marked in (marked_csv, marked_json):
+        assert marked.read_bytes().startswith(b"\xef\xbb\xbf")
+        verdict = json.loads(run_cli([*base, "--telemetry", str(marked)]).stdout)
+        assert verdict == expected, marked.name
+
+
 def test_identify_reads_an_averaging_gyro_at_its_intervals_midpoints(
     tmp_path: Path, small_classifier: Path
 ) -> None:
