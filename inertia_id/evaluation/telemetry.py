@@ -552,7 +552,9 @@ def parse_telemetry(
     :param averaged: each rate is the mean over one sample period (the median spacing)
         before its stamp (:attr:`Telemetry.averaged`); true overrides a JSON document's.
     """
-    text = text.strip()
+    # A spreadsheet's "CSV UTF-8" export begins with a byte order mark, which str.strip
+    # keeps: its header then read '\ufefftime_s'.
+    text = text.removeprefix("\ufeff").strip()
     if fmt == "auto":
         fmt = "json" if text.startswith(("{", "[")) else "csv"
     if fmt == "json":
