@@ -1697,6 +1697,36 @@ def test_identify_mission_time_telemetry_with_its_sequence_start(
     assert first == pytest.approx(Scenario.paper().sample_times(len(GOOD))[0], abs=1e-6)
 
 
+def test_identify_a_verdict_after_a_refused_file_leaves_no_stale_error(
+    dashboard: Dashboard, tmp_path: Path
+) -> None:
+    """A flight team sends a file, is told what is wrong with it next to the telemetry,
+    fixes it and sends it again: the verdict stands alone. (The refusal's message stayed
+    next to the box, in red, under the green verdict of the corrected file: a NaN row
+    "not finite" beside "Candidate: payload 2 ejected".)"""
+    _classifier(dashboard)
+    page = dashboard.page
+    mission = _telemetry_csv(
+        tmp_path / "mission.csv", Scenario.paper(), candidate=2, seed=41, clock_s=810_000_000.0
+    )
+    good = mission.read_text(encoding="utf-8")
+    lines = good.splitlines()
+    cells = lines[5].split(",")
+    cells[2] = "nan"
+    lines[5] = ",".join(cells)
+    dashboard.open(f"#/identify?classifier={made['classifier']}")
+    dashboard.console.expect(r"status of 422")
+    page.fill("#telemetry-text", "\n".join(lines))
+    page.fill("#identify-sequence-start", "810000000")
+    page.click("#identify-submit")
+    error = page.wait_for_selector("#telemetry-text + .field-error")
+    assert "not finite" in error.inner_text()
+    verdict = _identify(dashboard, good, start="810000000")
+    assert verdict.get_attribute("data-status") == "identified"
+    assert [e.inner_text() for e in page.query_selector_all("#identify-form .field-error")] == []
+    assert page.query_selector_all("#identify-form .invalid") == []
+
+
 def test_identify_searches_the_start_when_asked_and_says_the_shift(
     dashboard: Dashboard, tmp_path: Path
 ) -> None:
