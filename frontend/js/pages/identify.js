@@ -9,7 +9,7 @@ import { downloads } from "../components/downloads.js";
 import { withoutKey } from "../components/keyed.js";
 import { BAND, COLORS, PLOT_CONFIG, keepTwins, layout, plotDiv, plotText, responseLayout, responseTwins, title, twinTraces, withAlpha } from "../components/plots.js";
 import { kindInfo } from "../vocabulary.js";
-import { clear, decimalsFor, h, jsonBlob, link, measured, messageBox, plain, probability, put, quantity, sequenceText, showFieldErrors, warningsBox } from "../ui.js";
+import { clear, clearFieldErrors, decimalsFor, h, jsonBlob, link, measured, messageBox, plain, probability, put, quantity, sequenceText, showFieldErrors, warningsBox } from "../ui.js";
 
 const DEFAULT_CONFIDENCE = 0.99;
 
@@ -178,7 +178,9 @@ export async function render(root, context) {
       onsubmit: async (event) => {
         event.preventDefault();
         clear(result);
-        clear(general);
+        // The last refusal's messages beside the fields go too: they stayed, in red, under
+        // the verdict of the corrected telemetry.
+        clearFieldErrors(form, general);
         if (withoutKey(general, "Identifying telemetry")) return;
         const content = text.value;
         if (!content.trim()) {
