@@ -373,6 +373,36 @@ def test_a_job_too_large_for_a_worker_is_refused_naming_its_size(
     assert api.submit("train", api.create_scenario()["id"], params=largest).status_code == 202
 
 
+def test_a_job_on_candidates_with_the_same_tensor_is_refused_before_it_runs(
+    api: Api,
+) -> None:
+    """Two candidates given one tensor (a flight team's copy and paste) are told apart by
+    no response: a training on them is refused when it is submitted, naming both, as the
+    worker would refuse it, and so is a search, whose accuracy could never pass (K-1)/K.
+    (Both were queued: the training failed in the worker with that message, and the
+    search ran its whole budget and succeeded, its best accuracy 0.66 of 3 candidates,
+    with no word of why.)"""
+    paper = Scenario.paper()
+    copied = paper.inertia_candidates[0].inertia_kg_m2
+    candidates = [c.model_dump() for c in paper.inertia_candidates]
+    candidates[1]["inertia_kg_m2"] = copied
+    scenario_id = api.create_scenario(inertia_candidates=candidates)["id"]
+    expected = (
+        "candidates 'none ejected' and 'payload 1 ejected' have the same inertia tensor: no "
+        "rate response tells them apart"
+    )
+    for job_type, params in (
+        ("train", {"sequence": GOOD_SEQUENCE}),
+        ("search", {"method": "nsga2", "sequence_length": 2}),
+    ):
+        response = api.submit(job_type, scenario_id, params=params)
+        assert response.status_code == 422, (job_type, response.text)
+        (error,) = response.json()["detail"]
+        assert error["loc"] == ["body", "scenario_id"], job_type
+        assert expected in error["msg"], job_type
+    assert api.queued_messages() == []
+
+
 def test_a_training_whose_classifier_the_cli_could_not_load_is_refused(api: Api) -> None:
     # Before: a training was held to the worker's sizes only, and the default kind on 86
     # steps of the paper preset (a 2-candidate scenario on 136) made a document past the
