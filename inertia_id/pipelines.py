@@ -413,13 +413,18 @@ def check_search_scenario(
     spread alone leaves (:func:`~inertia_id.search.objectives.check_rate_floor`): no
     sequence meets it, and the search would end saying only that none did.
 
+    And refuse one holding two candidates of the same tensor
+    (:meth:`~inertia_id.physics.scenario.Scenario.check_distinguishable`), which no
+    sequence tells apart.
+
     And refuse one whose rates overflow to inf or nan on that baseline at 1x (what every
     search scores at) or at any ``design_noise`` condition (process multiple, measurement
     multiple: what the front's accuracy is measured at)
     (:func:`~inertia_id.physics.simulable.check_simulable`, up to 256 seeded realisations
     a candidate): such a search was accepted and failed at run time.
 
-    :raises InputError: a rate bound below the initial-rate floor, naming both.
+    :raises InputError: a rate bound below the initial-rate floor, naming both; two
+        candidates of one tensor, naming them.
     :raises ~inertia_id.physics.simulate.RatesBeyondGyro: naming the scenario, the
         baseline and, in :func:`~inertia_id.physics.simulate.check_gyro_range`'s words,
         the candidate, its rate and the ceiling.
@@ -432,6 +437,9 @@ def check_search_scenario(
     from .search.objectives import check_constraints, check_design_noise, check_rate_floor
 
     check_rate_floor(check_constraints(dict(constraints or {})), scenario, sequence_length)
+    # Two candidates of one tensor cap every sequence's accuracy at (K-1)/K: the search
+    # ran its whole budget to that and said nothing of why.
+    scenario.check_distinguishable()
     baseline = hand_designed(scenario, sequence_length)
     try:
         check_nominal_gyro_range(scenario, baseline)

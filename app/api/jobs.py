@@ -294,6 +294,11 @@ def _check_train(body: TrainJobCreate, scenario: Scenario) -> None:
 
     where = ("body", "params")
     try:
+        scenario.check_distinguishable()
+    except InputError as exc:
+        # The worker refused it, once the job had waited in the queue.
+        unprocessable(("body", "scenario_id"), str(exc))
+    try:
         rows = scenario.check_fires(body.params.sequence)
     except InputError as exc:
         unprocessable((*where, "sequence"), str(exc))
