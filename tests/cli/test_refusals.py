@@ -448,6 +448,21 @@ def test_a_limit_far_above_memory_costs_only_the_file() -> None:
     assert read_text(__file__, "Python", limit=2**62).startswith('"""Hostile input')
 
 
+def test_too_few_realisations_to_train_on_are_refused_naming_n(tmp_path: Path) -> None:
+    """`train -n 2` says what the API says of n_realisations = 2, before anything is
+    simulated, in the option's words. (It printed the classifier's internal check: "y
+    must label every candidate 0..K-1 (K >= 2) at least 3 time(s); series per
+    candidate: [2, 2, 2, 2, 2]", which names no option, after the training's line.)"""
+    out = tmp_path / "c.json"
+    result = CliRunner().invoke(main, ["train", "-n", "2", "--out", str(out)])
+    assert result.exit_code == 1, result.output
+    assert result.output.strip() == (
+        "Error: -n 2: the 'marginal-likelihood' classifier needs at least 3 realisations "
+        "per candidate"
+    )
+    assert not out.exists()
+
+
 def test_a_sequence_that_applies_no_torque_is_not_trained_on(tmp_path: Path) -> None:
     """Before, the all-off sequence trained (F1 at chance) and the CLI wrote it."""
     out = tmp_path / "c.json"
