@@ -115,7 +115,12 @@ def train_cmd(
     out: str,
 ) -> None:
     """Train a classifier of any kind for a sequence at 1x noise."""
-    from ..classifiers.registry import check_document_size, kind_metrics, resolve_kind
+    from ..classifiers.registry import (
+        check_document_size,
+        kind_class,
+        kind_metrics,
+        resolve_kind,
+    )
     from ..deadline import Deadline
     from ..errors import InputError
     from ..pipelines import TrainRequest, train_for_sequence
@@ -134,6 +139,14 @@ def train_cmd(
         n_init=n_init,
     )
     kind, n_realisations, options = request.resolved()
+    # As the API's train job: in the option's words, before anything is simulated (the
+    # classifier's own check came after the training's line and named its labels, y).
+    least = kind_class(kind).MIN_REALISATIONS
+    if n_realisations < least:
+        raise InputError(
+            f"-n {n_realisations}: the {kind!r} classifier needs at least {least} "
+            "realisations per candidate"
+        )
     scenario.check_fires(request.sequence)
     # A classifier that identify --classifier would refuse to load is not trained.
     check_document_size(kind, scenario, len(request.sequence), n_realisations)
