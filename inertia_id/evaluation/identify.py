@@ -52,6 +52,7 @@ from ..physics.estimate import PARAMETER_NAMES, estimate_inertia, tensor_from_pa
 from ..physics.scenario import Scenario
 from .telemetry import (
     MAX_TELEMETRY_RATE_RAD_S,
+    ResponseShape,
     Telemetry,
     TelemetryGap,
     estimate_sequence_start,
@@ -683,6 +684,7 @@ def _best_start(
         costs=costs,
         marginalise_gaps=marginalise,
         kind=classifier.kind,
+        shape=ResponseShape.of(classifier.scenario_, classifier.sequence_),
     )
     again = rescored()
     if again is not None:
@@ -1057,7 +1059,11 @@ def _identify(
     # Slow telemetry on the grid, or telemetry with a dropout: the likelihood kinds use
     # the measured points only; the others refuse a gap they would read as measured.
     resampled = resample_covered(
-        telemetry, grid, marginalise_gaps=_judges_gaps(classifier), kind=classifier.kind
+        telemetry,
+        grid,
+        marginalise_gaps=_judges_gaps(classifier),
+        kind=classifier.kind,
+        shape=ResponseShape.of(scenario, sequence),
     )
     series, observed = resampled.series, resampled.observed
     model, offset = _offset_model(classifier, scenario, telemetry, pre_start_window_s)
@@ -1239,7 +1245,7 @@ def identify_online(
     :param pre_start_window_s: as for :func:`identify`.
     """
     alpha = _check_probability("alpha", alpha)
-    telemetry, scenario, _, grid = _context(classifier, telemetry)
+    telemetry, scenario, sequence, grid = _context(classifier, telemetry)
     slack = 0.5 / scenario.timing.sample_rate_hz
     covered = int(np.sum(grid <= telemetry.time_array[-1] + slack))
     if covered < 1:
@@ -1256,7 +1262,11 @@ def identify_online(
             f"first two (telemetry up to {grid[1]:.6g} s)"
         )
     resampled = resample_covered(
-        telemetry, grid[:covered], marginalise_gaps=_judges_gaps(classifier), kind=classifier.kind
+        telemetry,
+        grid[:covered],
+        marginalise_gaps=_judges_gaps(classifier),
+        kind=classifier.kind,
+        shape=ResponseShape.of(scenario, sequence),
     )
     partial, measured = resampled.series, resampled.observed
     # The rest of the series is never looked at (each prefix's posterior is its own
