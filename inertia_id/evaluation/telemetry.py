@@ -18,20 +18,20 @@ start are kept (:meth:`Telemetry.before_start`); samples after the sequence are 
 **Resampling rules** (:func:`resample`). The simulator's gyro sample ``k`` is the
 instantaneous rate at ``t_k = k Δ`` (plus white noise), so telemetry faster than the
 grid is averaged over cells of width ``Δ`` centred on the grid times, and the cell means
-(at their mean time stamps) are interpolated linearly onto the grid; slower telemetry
-is interpolated linearly between its samples. Given the sequence's breaks
+(at their mean time stamps) are interpolated linearly onto the grid; slower telemetry is
+interpolated linearly between its samples. Given the sequence's breaks
 (:class:`ResponseShape`, as identify gives them), a cell that a break of the rate's
 slope reaches (a thruster switching, and the low-pass ramp after it) is fitted with a
 line plus that ramp and valued at its grid time instead of averaged: a cell mean is off
-the rate there by about an eighth of the cell's width times the change of slope. At the ends the two nearest cells are
-extrapolated linearly. Coverage, with ``p`` the larger of the grid period and the
-telemetry's median sample period: the first sample may come up to ``1.5 p`` after the
-sequence start and the last up to ``1.5 p`` before the grid's last time; inside the
-sequence no gap between samples may exceed ``4 p``; and the sequence itself must hold at
-least :data:`MIN_SAMPLES_IN_SEQUENCE` samples (stamps in milliseconds read as seconds
-leave one). Otherwise the telemetry is too thin for a verdict and is refused with the
-largest offending gap named. A stamp more than :data:`MAX_OFFSET_S` from the start is
-refused by name.
+the rate there by about an eighth of the cell's width times the change of slope. At the
+ends the two nearest cells are extrapolated linearly. Coverage, with ``p`` the larger of
+the grid period and the telemetry's median sample period: the first sample may come up
+to ``1.5 p`` after the sequence start and the last up to ``1.5 p`` before the grid's
+last time; inside the sequence no gap between samples may exceed ``4 p``; and the
+sequence itself must hold at least :data:`MIN_SAMPLES_IN_SEQUENCE` samples (stamps in
+milliseconds read as seconds leave one). Otherwise the telemetry is too thin for a
+verdict and is refused with the largest offending gap named. A stamp more than
+:data:`MAX_OFFSET_S` from the start is refused by name.
 
 **Gaps judged on the samples present** (``marginalise_gaps=True``, for the kinds with a
 Gaussian model). A longer gap between samples (a dropout of lost packets) is no reason
