@@ -4331,3 +4331,64 @@ def test_a_search_cancelled_while_measuring_its_front_does_not_blame_the_time_li
         assert "cancel" in shown, shown
     finally:
         page.unroute(own)
+
+
+# helper-176's fixes to the Pareto-front search pages.
+
+
+def _open_with_a_refused_key(dashboard: Dashboard, route: str) -> None:
+    """``route`` opened with a saved key the service refuses (the service restarted with
+    a new key, say): every request the page sends with it is a 401."""
+    page = dashboard.page
+    dashboard.console.expect("status of 401")
+    page.goto(f"{dashboard.service.base_url}/#/scenarios")
+    page.evaluate(
+        "([k, v]) => localStorage.setItem(k, v)", ["inertia-id-api-key", "old-" + "x" * 40]
+    )
+    page.reload()
+    dashboard.open(route)
+
+
+def _save_the_current_key(dashboard: Dashboard) -> None:
+    page = dashboard.page
+    page.fill("#api-key", API_KEY)
+    page.press("#api-key", "Enter")
+    page.wait_for_function("() => document.getElementById('api-key-state').textContent === 'saved'")
+
+
+def test_a_refused_key_replaced_in_the_key_box_draws_the_best_sequences_response(
+    dashboard: Dashboard,
+) -> None:
+    """The best sequence's thruster duty and simulated responses, refused with a stale
+    saved key, are drawn once the current key is saved at the top right, as a member's
+    command plan is: they stayed on the refusal until the page was reloaded."""
+    _needs(dashboard, "nsga2")
+    page = dashboard.page
+    _open_with_a_refused_key(dashboard, f"#/jobs/{made['nsga2']}")
+    refusal = page.wait_for_selector("#search-result .card .message.error", timeout=60_000)
+    assert "refused" in refusal.inner_text()
+    assert not page.is_visible("#sequence-plot")
+    _save_the_current_key(dashboard)
+    page.wait_for_selector("#response-plot .legend", timeout=30_000)
+    assert page.is_visible("#sequence-plot")
+    # The refusal went with it: the holder shows the charts alone.
+    assert page.query_selector("#search-result .card .message.error") is None
+
+
+def test_a_refused_key_replaced_in_the_key_box_draws_the_classifiers_response(
+    dashboard: Dashboard,
+) -> None:
+    """A classifier's sequence response (its fuel, final rate and plots) refused with a
+    stale saved key is drawn once the current key is saved, as a member's command plan is:
+    it stayed on the refusal until the page was reloaded."""
+    classifier = _classifier(dashboard)
+    page = dashboard.page
+    _open_with_a_refused_key(dashboard, f"#/classifiers/{classifier}")
+    page.wait_for_function(
+        "() => document.getElementById('classifier-fuel')?.textContent.includes('refused')",
+        timeout=60_000,
+    )
+    _save_the_current_key(dashboard)
+    page.wait_for_selector("#classifier-response .legend", timeout=30_000)
+    assert page.inner_text("#classifier-fuel").endswith("N m s")
+    assert "rad/s" in page.inner_text("#classifier-final-rate")

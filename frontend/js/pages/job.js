@@ -5,7 +5,7 @@
 import { MetricFollower, api } from "../api.js";
 import { downloads, jobDownloads } from "../components/downloads.js";
 import { REUSED_KEY, cancelButton, labelEditor, reusedNotice, timingCell } from "../components/jobs.js";
-import { whenKeyed } from "../components/keyed.js";
+import { redrawWhenRekeyed, whenKeyed } from "../components/keyed.js";
 import { BAND, BestSoFar, DEG_PER_RAD, PLOT_CONFIG, extendWith, fitFlatSeries, keepTwins, layout, plotDiv, polishMarks, polishStart, responseView, sequencePlot, splitInfeasible, title, twinAxes, twinTraces } from "../components/plots.js";
 import { isTerminal } from "../vocabulary.js";
 import { clear, fmt, h, link, messageBox, patch, plain, progressBar, put, quantity, rateDeg, rateRad, score, sequenceText, statusBadge, table, tagChips, utcText, warningsBox, whenText } from "../ui.js";
@@ -393,10 +393,11 @@ async function searchResult(holder, job, context) {
   }
   // Both drawn from the simulated response, which needs the key: hidden until it comes.
   seqPlot.hidden = true;
-  await whenKeyed(responseHolder, "The thruster duty and each candidate's simulated response", async () => {
+  const drawResponse = async () => {
     try {
       const response = await api.response(job.scenario_id, best.sequence, { n_realisations: 20, seed: job.seed });
       if (!context.alive()) return;
+      clear(responseHolder);
       put(responseWarnings, warningsBox(response.warnings, "best-response-warnings"));
       seqPlot.hidden = false;
       sequencePlot(seqPlot, response);
@@ -404,9 +405,14 @@ async function searchResult(holder, job, context) {
       responseHolder.append(view.node);
       view.draw();
     } catch (exc) {
-      responseHolder.replaceWith(messageBox("error", exc.message));
+      if (!responseHolder.isConnected) return;
+      // In the holder, not in its place: a saved key refused is drawn again once the
+      // current one is saved, as a member's plan is (it stayed on the refusal until a reload).
+      responseHolder.replaceChildren(messageBox("error", exc.message));
+      redrawWhenRekeyed(responseHolder, exc, drawResponse);
     }
-  });
+  };
+  await whenKeyed(responseHolder, "The thruster duty and each candidate's simulated response", drawResponse);
 }
 
 // Why NSGA-II's best is not the curve's highest point (null where no front was built: a

@@ -6,7 +6,7 @@
 import { api, getApiKey } from "../api.js";
 import { BAND, PLOT_CONFIG, confusionPlot, layout, plotDiv, responseView, sequencePlot, title } from "../components/plots.js";
 import { downloads, jobDownloads } from "../components/downloads.js";
-import { whenKeyed } from "../components/keyed.js";
+import { redrawWhenRekeyed, whenKeyed } from "../components/keyed.js";
 import { isTerminal } from "../vocabulary.js";
 import { clear, fmt, h, link, messageBox, put, quantity, rateDeg, rateRad, score, sequenceText, tagChips, utcText, warningsBox, when } from "../ui.js";
 import { sweepPanel } from "./sweep.js";
@@ -68,7 +68,7 @@ export async function renderClassifier(container, classifier, context, sweepId =
   // needs the key: without one they wait for it.
   seqPlot.hidden = true;
   if (!getApiKey()) fuel.textContent = finalRate.textContent = "– (needs the API key: see below)";
-  await whenKeyed(responseHolder, "The sequence's simulated response (its fuel, final rate and plots)", async () => {
+  const drawResponse = async () => {
     try {
       const response = await api.response(classifier.scenario_id, classifier.sequence, { n_realisations: 20 });
       if (!context.alive()) return;
@@ -88,8 +88,12 @@ export async function renderClassifier(container, classifier, context, sweepId =
     } catch (exc) {
       fuel.textContent = exc.message;
       finalRate.textContent = "–";
+      // A saved key refused: drawn once the current one is saved at the top right (it
+      // stayed on the refusal until a reload).
+      redrawWhenRekeyed(responseHolder, exc, drawResponse);
     }
-  });
+  };
+  await whenKeyed(responseHolder, "The sequence's simulated response (its fuel, final rate and plots)", drawResponse);
 }
 
 // The calibration report measured on fresh draws at training: the ECE and a reliability
