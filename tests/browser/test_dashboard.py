@@ -4392,3 +4392,152 @@ def test_a_refused_key_replaced_in_the_key_box_draws_the_classifiers_response(
     page.wait_for_selector("#classifier-response .legend", timeout=30_000)
     assert page.inner_text("#classifier-fuel").endswith("N m s")
     assert "rad/s" in page.inner_text("#classifier-final-rate")
+
+
+def _in_orbit_front(dashboard: Dashboard) -> dict[str, Any]:
+    """A small NSGA-II front on ``paper-in-orbit`` (σ = 0.005 rad/s an axis: every
+    flight keeps |ω(0)|, 0.457 deg/s on average), with the module's small search's
+    bound, which the hand-designed baseline breaks."""
+    if "in-orbit nsga2" not in made:
+        created = dashboard.service.client.post("/scenarios", json={"preset": "paper-in-orbit"})
+        assert created.status_code == 201, created.text
+        made["in-orbit nsga2"] = _finished_search(
+            dashboard, SMALL_NSGA2, "small NSGA-II in orbit", created.json()["id"]
+        )
+    return dict(made["in-orbit nsga2"])
+
+
+#: The front chart as drawn: what its x axis plots, its axes' titles, each trace.
+FRONT_CHART_JS = """() => { const p = document.getElementById('front-plot');
+  return { x: p.dataset.x, title: p._fullLayout.xaxis.title.text,
+           twin: p._fullLayout.xaxis2.title.text,
+           traces: p.data.filter((t) => t.marker).map((t) => ({ name: t.name, x: t.x,
+             symbol: t.marker.symbol, text: t.text, index: t.customdata })) } }"""
+
+
+def _front_chart(page: Any) -> dict[str, Any]:
+    """FRONT_CHART_JS, its titles as written (a narrow figure breaks them into lines)."""
+    chart = dict(page.evaluate(FRONT_CHART_JS))
+    for key in ("title", "twin"):
+        chart[key] = chart[key].replace("<br>", " ")
+    return chart
+
+
+@pytest.mark.parametrize("width", [375, 1366])
+def test_an_in_orbit_front_plots_the_commanded_residual_and_says_so(
+    dashboard: Dashboard, width: int
+) -> None:
+    """On ``paper-in-orbit`` the residual rate the front's chart plotted carries
+    |ω(0)|, which no sequence removes: the members stood within a few hundredths of a
+    deg/s of the 0.457 deg/s floor, in one column. The chart plots the commanded residual
+    (the part the sequence leaves, from rest) there, its axes say so in deg/s and rad/s,
+    and a switch puts the total, ω(0) included, back, its titles saying that."""
+    job = _in_orbit_front(dashboard)
+    front = job["result"]["front"]
+    members = {m["index"]: m["scores"] for m in front["members"]}
+    baselines = [b for b in front["baselines"].values() if "unavailable" not in b]
+    page = dashboard.page
+    page.set_viewport_size({"width": width, "height": 900})
+    dashboard.open(f"#/jobs/{job['id']}")
+    page.wait_for_selector("#front-plan-table", timeout=60_000)
+    page.wait_for_function(CHARTS_FITTED_JS)
+    chart = _front_chart(page)
+    drawn = dict(zip(chart["traces"][0]["index"], chart["traces"][0]["x"], strict=True))
+    assert drawn == {i: s["commanded_residual_rate_deg_s"] for i, s in members.items()}
+    assert chart["title"] == "commanded residual, from rest (deg/s, mean over candidates)"
+    assert chart["twin"] == "commanded residual (rad/s)"
+    assert chart["x"] == "commanded"
+    for trace, base in zip(chart["traces"][1 : 1 + len(baselines)], baselines, strict=True):
+        assert trace["x"] == [base["scores"]["commanded_residual_rate_deg_s"]]
+    assert page.get_attribute("#front-x-axis button[data-x='commanded']", "aria-pressed") == (
+        "true"
+    )
+    assert page.evaluate(LAYOUT_PROBLEMS_JS) == []
+    assert page.evaluate(CONTROLS_PAST_THE_WINDOW_JS, width) == []
+    dashboard.screenshot(f"front-in-orbit-commanded-{width}")
+
+    page.click("#front-x-axis button[data-x='total']")
+    page.wait_for_function("() => document.getElementById('front-plot').dataset.x === 'total'")
+    page.wait_for_function(CHARTS_FITTED_JS)
+    chart = _front_chart(page)
+    assert chart["title"] == "residual rate, ω(0) included (deg/s, mean over candidates)"
+    assert chart["twin"] == "residual rate (rad/s)"
+    drawn = dict(zip(chart["traces"][0]["index"], chart["traces"][0]["x"], strict=True))
+    assert drawn == {i: s["final_rate_deg_s"] for i, s in members.items()}
+    # The chosen member's ring follows its member onto the axis now drawn.
+    chosen = members[front["members"][0]["index"]]
+    assert chart["traces"][-1]["x"] == [chosen["final_rate_deg_s"]]
+    assert page.evaluate(LAYOUT_PROBLEMS_JS) == []
+    dashboard.screenshot(f"front-in-orbit-total-{width}")
+
+
+@pytest.mark.parametrize("width", [375, 1366])
+def test_a_baseline_that_breaks_a_constraint_is_drawn_open_and_named_so(
+    dashboard: Dashboard, width: int
+) -> None:
+    """The hand-designed baseline breaks the small search's 8 deg/s bound: the chart drew
+    it as it drew the feasible baselines. It is drawn open (in the legend too), and its
+    hover says "breaks a constraint"; the others are drawn filled, without those words.
+    On a scenario at rest the x axis stays the residual rate the front is judged on."""
+    _needs(dashboard, "nsga2")
+    page = dashboard.page
+    page.set_viewport_size({"width": width, "height": 900})
+    front = dashboard.service.job(made["nsga2"])["result"]["front"]
+    available = {n: b for n, b in front["baselines"].items() if "unavailable" not in b}
+    assert available["hand-designed"]["feasible"] is False
+    dashboard.open(f"#/jobs/{made['nsga2']}")
+    page.wait_for_selector("#front-plan-table", timeout=60_000)
+    page.wait_for_function(CHARTS_FITTED_JS)
+    chart = _front_chart(page)
+    legend = page.text_content("#front-plot .legend")
+    for trace, (name, base) in zip(chart["traces"][1:], available.items(), strict=False):
+        breaks = base["feasible"] is False
+        assert trace["symbol"].endswith("-open") == breaks, (name, trace["symbol"])
+        assert ("breaks a constraint" in trace["text"][0]) == breaks, trace["text"]
+        assert trace["name"] in legend
+    # The legend's symbols as drawn: the breaking baseline's open (no fill), the others filled.
+    fills = page.evaluate(
+        """() => [...document.querySelectorAll('#front-plot .legend .traces')].map((t) =>
+            [t.querySelector('.legendtext').textContent,
+             t.querySelector('.legendpoints path').style.fill])"""
+    )
+    for name, base in available.items():
+        fill = dict(fills)[name]
+        assert (fill in ("", "none", "transparent", "rgba(0, 0, 0, 0)")) == (
+            base["feasible"] is False
+        ), (name, fill)
+    assert chart["title"] == "residual rate once the lag is empty (deg/s, mean over candidates)"
+    assert chart["x"] == "total"
+    assert page.evaluate(LAYOUT_PROBLEMS_JS) == []
+    dashboard.screenshot(f"front-baseline-breaks-{width}")
+
+
+def test_the_front_charts_hover_gives_the_tables_digits(dashboard: Dashboard) -> None:
+    """A member's hover wrote its attitude change to two significant digits (fmt with one
+    decimal: 1.2 deg) where the members' table gives three (1.23): every figure the hover
+    shows is written as the table writes it."""
+    job = _in_orbit_front(dashboard)
+    page = dashboard.page
+    dashboard.open(f"#/jobs/{job['id']}")
+    page.wait_for_selector("#front-plan-table", timeout=60_000)
+    chart = page.evaluate(FRONT_CHART_JS)
+    hovers = dict(zip(chart["traces"][0]["index"], chart["traces"][0]["text"], strict=True))
+    rows = _texts(dashboard, "#front-table")
+    assert len(rows) == len(hovers)
+    figures: list[Callable[[dict[str, str]], str]] = [
+        lambda row: f"attitude change {row['attitude_change_deg']} deg",
+        lambda row: f"accuracy {row['accuracy']}",
+        lambda row: (
+            f"residual rate {row['final_rate_deg_s']} deg/s ({row['final_rate_rad_s']} rad/s)"
+        ),
+        lambda row: f"impulse {row['impulse_nms']} N m s",
+        lambda row: (
+            f"commanded residual, from rest {row['commanded_residual_rate_deg_s']} deg/s "
+            f"({row['commanded_residual_rate_rad_s']} rad/s)"
+        ),
+    ]
+    for figure in figures:
+        for row in rows:
+            part, text = figure(row), hovers[int(row["index"])]
+            lines = text.split("<br>")
+            assert any(line == part or line.startswith(f"{part} ") for line in lines), (part, text)

@@ -168,7 +168,7 @@ export async function render(root, context) {
   put(root, heading, reused(job, context), header, body);
   redraw();
   const views = { search: searchView, train: trainView, sweep: sweepView };
-  const view = await views[job.type](body, job, context);
+  const view = await views[job.type](body, job, context, scenario);
   let done = isTerminal(job.status);
   const tick = async () => {
     if (done) return;
@@ -186,7 +186,8 @@ export async function render(root, context) {
 }
 
 // Search: reward and F1 curves that gain points as PPO writes them, then the result.
-async function searchView(body, job, context) {
+// `scenario`: the search's (null when it could not be read), for its front's chart.
+async function searchView(body, job, context, scenario) {
   const rewardPlot = plotDiv("reward-plot");
   const f1Plot = plotDiv("f1-plot");
   const pointCount = h("span", { id: "curve-points", class: "muted" }, "0 points");
@@ -314,7 +315,7 @@ async function searchView(body, job, context) {
           await Promise.all([Plotly.relayout(rewardPlot, marks), Plotly.relayout(f1Plot, marks)]);
         }
       }
-      await searchResult(resultHolder, current, context);
+      await searchResult(resultHolder, current, context, scenario);
     }
   };
   await update(job);
@@ -337,7 +338,7 @@ function curvePhases(node, job, start) {
   node.hidden = false;
 }
 
-async function searchResult(holder, job, context) {
+async function searchResult(holder, job, context, scenario) {
   const result = job.result;
   const best = result.best;
   const freshF1 = result.fresh.f1;
@@ -386,7 +387,7 @@ async function searchResult(holder, job, context) {
       responseHolder,
     ),
   );
-  const front = frontPanel(job, context);
+  const front = frontPanel(job, context, scenario);
   if (front) {
     holder.append(front.node);
     await front.draw();

@@ -1,9 +1,11 @@
 // A search's front on the operator's objectives (result.front): every member re-scored
 // on fresh draws (the rates, and the accuracy measured on fresh test series), the
 // hand-designed baselines scored on the same draws beside it. A chart of the accuracy at
-// the design noise against the residual rate (deg/s), coloured
-// by impulse (or propellant), the baselines each with its own symbol and a baseline that
-// dominates a member flagged; a table of the members (rates, peak rates included, in deg/s
+// the design noise against the residual rate (deg/s) or the commanded residual (the part
+// the sequence leaves, from rest: what separates the members where an initial-rate spread
+// dominates the total), coloured by impulse (or propellant), the baselines each with its
+// own symbol, a baseline that dominates a member flagged and one that breaks a
+// constraint drawn open; a table of the members (rates, peak rates included, in deg/s
 // and rad/s, attitude change); a chosen member's command plan (per candidate: residual rate and attitude
 // change, from GET /jobs/{id}/plan?member=) as CSV or JSON, and a button that trains a
 // classifier on it (POST /jobs with search_job_id and front_member).
@@ -16,10 +18,29 @@ import { downloads } from "../components/downloads.js";
 import { submitAndOpen } from "../components/jobs.js";
 import { redrawWhenRekeyed, whenKeyed, withoutKey } from "../components/keyed.js";
 import { DEG_PER_RAD, PLOT_CONFIG, keepTwins, layout, plotDiv, twinAxes, twinTraces } from "../components/plots.js";
-import { clear, fmt, h, messageBox, plain, put, quantity, rateDeg, rateRad, score, sequenceText, warningsBox } from "../ui.js";
+import { clear, h, messageBox, plain, put, quantity, rateDeg, rateRad, score, sequenceText, warningsBox } from "../ui.js";
 
 const RAD_TO_DEG = 180 / Math.PI;
-const RATE_TWINS = [{ of: "xaxis", twin: "xaxis2", factor: 1 / DEG_PER_RAD, title: "residual rate (rad/s)" }];
+// What the chart's x axis plots: the residual rate the front is judged on (the scenario's
+// initial rate |ω(0)| included), or the commanded residual, from rest. Each title says
+// exactly which, mean over candidates, deg/s below and rad/s on the top axis (ω(0) named
+// where the scenario's flights start spinning: elsewhere it is 0).
+const X_AXES = {
+  total: {
+    key: "final_rate_deg_s",
+    button: "residual rate, ω(0) included",
+    // Shorter where ω(0) is named: four lines of title at 375 px left the plot no height
+    // once its legend went under it (Plotly: "Something went wrong with axis scaling").
+    title: (spinning) => (spinning ? "residual rate, ω(0) included (deg/s, mean over candidates)" : "residual rate once the lag is empty (deg/s, mean over candidates)"),
+    twin: () => "residual rate (rad/s)",
+  },
+  commanded: {
+    key: "commanded_residual_rate_deg_s",
+    button: "commanded residual, from rest",
+    title: () => "commanded residual, from rest (deg/s, mean over candidates)",
+    twin: () => "commanded residual (rad/s)",
+  },
+};
 const SYMBOLS = ["diamond", "square", "triangle-up", "cross", "star", "hexagon", "pentagon", "triangle-down"];
 const DOMINATES = "#d62728";
 
@@ -183,30 +204,52 @@ function rescoreCut(job, front) {
   ];
 }
 
+// A point's hover: each figure written as the tables write it (the attitude change had
+// two significant digits where the table gives three).
 function hover(label, scores, sequence) {
+  const written = Object.fromEntries(figures(true).map(([key, , format]) => [key, format]));
+  const figure = (key) => written[key](scores[key]);
   const predicted = scores.predicted_accuracy_by_noise;
   const mean = predicted ? predicted.reduce((a, b) => a + b, 0) / predicted.length : null;
+  const commanded = typeof scores.commanded_residual_rate_deg_s === "number";
   return (
-    `${label}<br>accuracy ${scores.accuracy.toFixed(3)}` +
-    (mean === null ? "" : ` (predicted ${mean.toFixed(3)})`) +
-    `<br>residual rate ${rateDeg(scores.final_rate_deg_s)} deg/s (${rateRad(scores.final_rate_rad_s)} rad/s)` +
-    `<br>impulse ${quantity(scores.impulse_nms)} N m s` +
-    `<br>attitude change ${fmt(scores.attitude_change_deg, 1)} deg` +
+    `${label}<br>accuracy ${figure("accuracy")}` +
+    (mean === null ? "" : ` (predicted ${score(mean)})`) +
+    `<br>residual rate ${figure("final_rate_deg_s")} deg/s (${figure("final_rate_rad_s")} rad/s)` +
+    (commanded ? `<br>commanded residual, from rest ${figure("commanded_residual_rate_deg_s")} deg/s (${figure("commanded_residual_rate_rad_s")} rad/s)` : "") +
+    `<br>impulse ${figure("impulse_nms")} N m s` +
+    (typeof scores.propellant_kg === "number" ? `<br>propellant ${figure("propellant_kg")} kg` : "") +
+    `<br>attitude change ${figure("attitude_change_deg")} deg` +
     `<br>${sequenceText(sequence)}`
   );
 }
 
-async function drawPlot(node, front, selected) {
+// Whether the commanded residual can be plotted: every member and baseline states it
+// (results stored before it do not).
+function hasCommanded(front) {
+  return [...front.members, ...available(front).map(([, base]) => base)].every((item) => typeof item.scores.commanded_residual_rate_deg_s === "number");
+}
+
+// The rad/s twin of the x axis `which` plots.
+function rateTwins(which, spinning) {
+  return [{ of: "xaxis", twin: "xaxis2", factor: 1 / DEG_PER_RAD, title: X_AXES[which].twin(spinning) }];
+}
+
+// The front's chart with `which` (a key of X_AXES) on its x axis; `spinning`: whether the
+// scenario's flights start with an initial rate.
+async function drawPlot(node, front, selected, which, spinning) {
   const members = front.members;
+  const xKey = X_AXES[which].key;
+  const twins = rateTwins(which, spinning);
   const [colourKey, colourLabel] = colourBy(front);
   const bases = available(front);
   const values = [...members.map((m) => m.scores[colourKey]), ...bases.map(([, b]) => b.scores[colourKey])].filter((v) => typeof v === "number");
   const cmin = Math.min(...values);
   const cmax = Math.max(...values) > cmin ? Math.max(...values) : cmin + 1;
-  const order = [...members].sort((a, b) => a.scores.final_rate_deg_s - b.scores.final_rate_deg_s);
+  const order = [...members].sort((a, b) => a.scores[xKey] - b.scores[xKey]);
   const traces = [
     {
-      x: order.map((m) => m.scores.final_rate_deg_s),
+      x: order.map((m) => m.scores[xKey]),
       y: order.map((m) => m.scores.accuracy),
       customdata: order.map((m) => m.index),
       text: order.map((m) => hover(`member ${m.index}`, m.scores, m.sequence)),
@@ -239,57 +282,80 @@ async function drawPlot(node, front, selected) {
   ];
   bases.forEach(([name, base], i) => {
     const dominates = (base.dominates || []).length > 0;
+    // Shown for comparison only (it dominates nothing): an open marker (in the legend
+    // too), and its hover says so. It was drawn as the feasible ones were. (Its legend
+    // entry keeps the name alone: a longer one, under a 375 px plot, left the plot no
+    // height and Plotly threw "Something went wrong with axis scaling".)
+    const breaks = base.feasible === false;
+    const flag = dominates ? ` — dominates member${base.dominates.length > 1 ? "s" : ""} ${base.dominates.join(", ")}` : breaks ? " — breaks a constraint" : "";
     traces.push({
-      x: [base.scores.final_rate_deg_s],
+      x: [base.scores[xKey]],
       y: [base.scores.accuracy],
-      text: [hover(`baseline ${name}${dominates ? ` — dominates member${base.dominates.length > 1 ? "s" : ""} ${base.dominates.join(", ")}` : ""}`, base.scores, base.sequence)],
+      text: [hover(`baseline ${name}${flag}`, base.scores, base.sequence)],
       hovertemplate: "%{text}<extra></extra>",
       mode: "markers",
       name: dominates ? `${name}: dominates` : name,
       marker: {
         size: 14,
-        symbol: SYMBOLS[i % SYMBOLS.length],
+        symbol: `${SYMBOLS[i % SYMBOLS.length]}${breaks ? "-open" : ""}`,
         color: [base.scores[colourKey]],
         colorscale: "Viridis",
         cmin,
         cmax,
         showscale: false,
-        line: { color: dominates ? DOMINATES : "#222", width: dominates ? 3 : 1 },
+        // An open marker is drawn in its line alone: thicker, in the marker's colour.
+        line: breaks ? { width: 2.5 } : { color: dominates ? DOMINATES : "#222", width: dominates ? 3 : 1 },
       },
     });
   });
-  // The residual rate in deg/s, and in rad/s on the top axis (the chosen member's
-  // marker stays the last trace: markChosen moves it).
-  traces.push(...twinTraces(RATE_TWINS));
+  // The rate in deg/s, and in rad/s on the top axis (the chosen member's marker stays
+  // the last trace: markChosen moves it).
+  traces.push(...twinTraces(twins));
   const chosen = members.find((m) => m.index === selected);
   traces.push({
-    x: chosen ? [chosen.scores.final_rate_deg_s] : [],
+    x: chosen ? [chosen.scores[xKey]] : [],
     y: chosen ? [chosen.scores.accuracy] : [],
     mode: "markers",
     name: "chosen member",
     hoverinfo: "skip",
     marker: { size: 22, symbol: "circle-open", color: "#1d2330", line: { width: 2 } },
   });
+  // react, not newPlot: the chart is drawn again when its x axis is switched.
   await Plotly.newPlot(
     node,
     traces,
-    layout("residual rate once the lag is empty (deg/s, mean over candidates)", `${accuracyWord(front)} accuracy`, {
+    layout(X_AXES[which].title(spinning), `${accuracyWord(front)} accuracy`, {
       height: 440,
       margin: { l: 60, r: 10, t: 16, b: 96 },
-      ...twinAxes(RATE_TWINS, { anchor: "y" }),
+      ...twinAxes(twins, { anchor: "y" }),
     }),
     PLOT_CONFIG,
   );
-  keepTwins(node, RATE_TWINS);
-  node.on("plotly_click", (event) => {
-    const point = event.points && event.points[0];
-    if (point && point.curveNumber === 0) node.dispatchEvent(new CustomEvent("member", { detail: point.customdata }));
-  });
+  node.dataset.x = which;
+  keepTwins(node, twins);
+  if (!node.clicksHeard) {
+    node.clicksHeard = true;
+    node.on("plotly_click", (event) => {
+      const point = event.points && event.points[0];
+      if (point && point.curveNumber === 0) node.dispatchEvent(new CustomEvent("member", { detail: point.customdata }));
+    });
+  }
 }
 
 function markChosen(node, front, index) {
   const chosen = front.members.find((m) => m.index === index);
-  Plotly.restyle(node, { x: [[chosen.scores.final_rate_deg_s]], y: [[chosen.scores.accuracy]] }, [node.data.length - 1]);
+  Plotly.restyle(node, { x: [[chosen.scores[X_AXES[node.dataset.x || "total"].key]]], y: [[chosen.scores.accuracy]] }, [node.data.length - 1]);
+}
+
+// The buttons that switch the chart's x axis (null where the result has no commanded
+// residual); `draw(which)` draws it.
+function xSwitch(front, draw) {
+  if (!hasCommanded(front)) return null;
+  const buttons = Object.entries(X_AXES).map(([which, { button }]) => h("button", { type: "button", class: "secondary toggle", "data-x": which, onclick: () => draw(which) }, button));
+  return {
+    node: h("div", { class: "toolbar", role: "group", "aria-label": "the front chart's x axis", id: "front-x-axis" }, h("span", { class: "hint" }, "x axis"), buttons),
+    show: (which) => buttons.forEach((b) => b.setAttribute("aria-pressed", String(b.dataset.x === which))),
+  };
 }
 
 function memberTable(front, onPick) {
@@ -532,7 +598,9 @@ async function drawPlan(plan, planDownloads, job, member, context, flewWith) {
   }
 }
 
-export function frontPanel(job, context) {
+// `scenario`: the search's scenario (null when it could not be read): where its flights
+// start spinning (an initial-rate spread) the chart plots the commanded residual first.
+export function frontPanel(job, context, scenario = null) {
   const front = job.result && job.result.front;
   if (!front || !(front.members || []).length) return null;
   const members = front.members;
@@ -541,6 +609,16 @@ export function frontPanel(job, context) {
   const plot = plotDiv("front-plot");
   const memberHolder = h("div", { id: "front-member" });
   let chosen = members[0].index;
+  // |ω(0)| is in every member's total residual, and where it is most of it (0.466 to 0.481
+  // deg/s on paper-in-orbit, over a 0.457 deg/s floor) the members stood in one column.
+  const uncertainty = scenario && scenario.document && scenario.document.uncertainty;
+  const spinning = Boolean(uncertainty && uncertainty.initial_rate_sigma_rad_s > 0);
+  let xShown = spinning && hasCommanded(front) ? "commanded" : "total";
+  const xButtons = xSwitch(front, async (which) => {
+    xShown = which;
+    xButtons.show(which);
+    await drawPlot(plot, front, chosen, which, spinning);
+  });
   const pick = (index) => {
     chosen = index;
     for (const input of card.querySelectorAll("input[name='front-member']")) input.checked = Number(input.value) === index;
@@ -556,7 +634,7 @@ export function frontPanel(job, context) {
     h(
       "p",
       { class: "hint" },
-      `${pareto ? "Non-dominated" : "Judged"} on ${(front.objectives || []).map((o) => OBJECTIVE_WORDS[o] || o).join(", ")}; the rates on a fresh draw (${front.fresh_realisations} realisations per candidate), the baselines on the same draws. Accuracy at the design noise (${designNoiseText(front)}): ${front.accuracy_source === "measured" ? `measured: the scenario's noise model as a Bayes classifier, tested on ${front.fresh_test_series} fresh series per candidate at each condition, every sequence on the same series (the search ranked by a prediction from the same model, kept beside it)` : "predicted from the scenario's own noise model (no draw: the same sequence, the same figure)"}. Colour: ${colourLabel}; a red outline marks a member a baseline dominates.`,
+      `${pareto ? "Non-dominated" : "Judged"} on ${(front.objectives || []).map((o) => OBJECTIVE_WORDS[o] || o).join(", ")}; the rates on a fresh draw (${front.fresh_realisations} realisations per candidate), the baselines on the same draws. Accuracy at the design noise (${designNoiseText(front)}): ${front.accuracy_source === "measured" ? `measured: the scenario's noise model as a Bayes classifier, tested on ${front.fresh_test_series} fresh series per candidate at each condition, every sequence on the same series (the search ranked by a prediction from the same model, kept beside it)` : "predicted from the scenario's own noise model (no draw: the same sequence, the same figure)"}. Colour: ${colourLabel}; a red outline marks a member a baseline dominates, an open symbol a baseline that breaks a constraint.${xButtons ? " The x axis: the residual rate the front is judged on (the rate each flight started with, ω(0), included), or the commanded residual, the part the sequence itself leaves (predicted from rest), which tells braking sequences apart where ω(0) is most of the total." : ""}`,
     ),
     rescoreCut(job, front),
     confirmationNote(front),
@@ -567,6 +645,7 @@ export function frontPanel(job, context) {
           dominating.map(([name, base]) => `Baseline ${name} dominates member${base.dominates.length > 1 ? "s" : ""} ${base.dominates.join(", ")} of the front (no worse on every objective, better on one).`).join("\n"),
         )
       : null,
+    xButtons && xButtons.node,
     plot,
     h("h3", {}, "Members"),
     memberTable(front, (index) => pick(index)),
@@ -586,7 +665,8 @@ export function frontPanel(job, context) {
   return {
     node: card,
     async draw() {
-      await drawPlot(plot, front, chosen);
+      if (xButtons) xButtons.show(xShown);
+      await drawPlot(plot, front, chosen, xShown, spinning);
       pick(chosen);
     },
   };
