@@ -4541,3 +4541,46 @@ def test_the_front_charts_hover_gives_the_tables_digits(dashboard: Dashboard) ->
             part, text = figure(row), hovers[int(row["index"])]
             lines = text.split("<br>")
             assert any(line == part or line.startswith(f"{part} ") for line in lines), (part, text)
+
+
+def test_back_after_training_on_a_member_returns_to_that_member(dashboard: Dashboard) -> None:
+    """A user chose a member, pressed "Train on this sequence", then Back: the search's
+    page came back on member 0, its plan and ring with it. The chosen member is kept in
+    the page's address (?member=), so Back (and a reload) shows the one chosen."""
+    _needs(dashboard, "nsga2")
+    page = dashboard.page
+    service = dashboard.service
+    job_id = made["nsga2"]
+    members = service.job(job_id)["result"]["front"]["members"]
+    chosen = [m for m in members if m.get("fires", True) and m["index"] != 0][-1]
+    dashboard.open(f"#/jobs/{job_id}")
+    page.wait_for_selector("#front-plan-table", timeout=60_000)
+    page.click(f"#front-table tr[data-member='{chosen['index']}'] td[data-key='accuracy']")
+    sequence = json.dumps(chosen["sequence"], separators=(",", ":"))
+    shown = "(seq) => document.getElementById('front-member-sequence')?.textContent === seq"
+    page.wait_for_function(shown, arg=sequence)
+    page.wait_for_selector("#front-plan-table")
+    page.click("#front-train")
+    page.wait_for_function(f"() => !location.hash.includes('{job_id}')")
+    train_id = _hash_id(dashboard, "jobs")
+    try:
+        page.wait_for_selector("#job-header")
+        page.go_back()
+        page.wait_for_function(f"() => location.hash.includes('{job_id}')")
+        page.wait_for_selector("#front-plan-table", timeout=60_000)
+        page.wait_for_function(shown, arg=sequence)
+        assert page.is_checked(f"#front-table input[value='{chosen['index']}']")
+        ring = page.evaluate(
+            "() => { const d = document.getElementById('front-plot').data; "
+            "return d[d.length - 1].x[0] }"
+        )
+        assert ring == chosen["scores"]["final_rate_deg_s"]
+        assert page.evaluate("() => location.hash") == f"#/jobs/{job_id}?member={chosen['index']}"
+        # A reload of the address shows it too.
+        page.reload()
+        page.wait_for_selector("#front-plan-table", timeout=60_000)
+        page.wait_for_function(shown, arg=sequence)
+    finally:
+        # The worker is shared with the later tests: the training is not needed.
+        service.client.post(f"/jobs/{train_id}/cancel")
+        service.until(lambda: service.job(train_id)["status"] in TERMINAL, 120, "training ends")

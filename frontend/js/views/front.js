@@ -598,6 +598,16 @@ async function drawPlan(plan, planDownloads, job, member, context, flewWith) {
   }
 }
 
+// The chosen member in the page's address (#/jobs/<id>?member=3), the other parts of its
+// query kept: Back from a training started on it, a reload or a shared link shows it
+// again (Back had returned to member 0).
+function keepInAddress(index) {
+  const [path, queryText = ""] = location.hash.split("?");
+  const query = new URLSearchParams(queryText);
+  query.set("member", String(index));
+  history.replaceState(history.state, "", `${path}?${query}`);
+}
+
 // `scenario`: the search's scenario (null when it could not be read): where its flights
 // start spinning (an initial-rate spread) the chart plots the commanded residual first.
 export function frontPanel(job, context, scenario = null) {
@@ -608,7 +618,8 @@ export function frontPanel(job, context, scenario = null) {
   const dominating = available(front).filter(([, base]) => (base.dominates || []).length);
   const plot = plotDiv("front-plot");
   const memberHolder = h("div", { id: "front-member" });
-  let chosen = members[0].index;
+  const asked = Number(context.query && context.query.member);
+  let chosen = members.some((m) => m.index === asked) ? asked : members[0].index;
   // |ω(0)| is in every member's total residual, and where it is most of it (0.466 to 0.481
   // deg/s on paper-in-orbit, over a 0.457 deg/s floor) the members stood in one column.
   const uncertainty = scenario && scenario.document && scenario.document.uncertainty;
@@ -619,8 +630,9 @@ export function frontPanel(job, context, scenario = null) {
     xButtons.show(which);
     await drawPlot(plot, front, chosen, which, spinning);
   });
-  const pick = (index) => {
+  const pick = (index, remember = true) => {
     chosen = index;
+    if (remember && context.alive()) keepInAddress(index);
     for (const input of card.querySelectorAll("input[name='front-member']")) input.checked = Number(input.value) === index;
     for (const row of card.querySelectorAll("#front-table tbody tr")) row.classList.toggle("chosen", Number(row.dataset.member) === index);
     markChosen(plot, front, index);
@@ -667,7 +679,7 @@ export function frontPanel(job, context, scenario = null) {
     async draw() {
       if (xButtons) xButtons.show(xShown);
       await drawPlot(plot, front, chosen, xShown, spinning);
-      pick(chosen);
+      pick(chosen, false);
     },
   };
 }
