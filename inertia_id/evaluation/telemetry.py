@@ -788,6 +788,12 @@ class ResponseShape:
 
     boundaries_s: tuple[float, ...]
     lowpass_s: float
+    #: Per break, the largest change of angular acceleration it commands, over the
+    #: candidates and axes, rad/s^2 (0 where only the jitter changes the torque).
+    jumps_rad_s2: tuple[float, ...] = ()
+    #: The scenario's gyro noise at 1x, rad/s: a value read between samples across a
+    #: break is left out of the likelihood where it may be off by half of it.
+    noise_rad_s: float = 0.0
 
     @classmethod
     def of(cls, scenario: Any, sequence: Any) -> ResponseShape:
@@ -797,9 +803,20 @@ class ResponseShape:
         before = np.concatenate([[False], firing])
         after = np.concatenate([firing, [False]])
         step = float(scenario.timing.step_duration_s)
-        boundaries = np.flatnonzero(before | after) * step
-        lowpass = float(scenario.uncertainty.lowpass_time_constant_s)
-        return cls(tuple(float(b) for b in boundaries), lowpass)
+        index = np.flatnonzero(before | after)
+        # The commanded torque each side of each break (none before the first step or
+        # after the last), and what its change does to each candidate's acceleration.
+        torque = scenario.duties(levels) @ scenario.torque_matrix.T
+        padded = np.vstack([np.zeros((1, 3)), torque, np.zeros((1, 3))])
+        change = padded[index + 1] - padded[index]
+        inverse = np.linalg.inv(scenario.inertia_array)
+        jumps = np.abs(np.einsum("kij,bj->kbi", inverse, change)).max(axis=(0, 2))
+        return cls(
+            tuple(float(b) for b in index * step),
+            float(scenario.uncertainty.lowpass_time_constant_s),
+            tuple(float(j) for j in jumps),
+            float(scenario.uncertainty.gyro_noise_sigma_rad_s),
+        )
 
     def ramp(self, t: np.ndarray, boundary: np.ndarray) -> np.ndarray:
         """The rate's response to a unit change of angular acceleration at ``boundary``
@@ -889,7 +906,7 @@ def resample_covered(
     """
     grid = np.asarray(grid_s, dtype=float)
     t = telemetry.time_array
-    series, covered, gaps = _resample(
+    series, covered, gaps, error = _resample(
         t,
         telemetry.omega_array,
         grid,
@@ -900,7 +917,7 @@ def resample_covered(
     )
     return Resampled(
         series=series,
-        observed=_observed(t, grid) & covered,
+        observed=_measured(t, grid, covered, error, shape),
         covered=covered,
         gaps=[TelemetryGap(from_s=a, to_s=b, length_s=b - a) for a, b in gaps],
     )
@@ -939,6 +956,44 @@ def resample_observed(
         telemetry, grid_s, marginalise_gaps=marginalise_gaps, kind=kind, shape=shape
     )
     return resampled.series, resampled.observed
+
+
+#: A grid time read between samples is left out of a likelihood where a break between
+#: them may put its value off by more than this fraction of the gyro noise at 1x.
+ACROSS_BREAK_TOLERANCE = 1.0
+
+
+def _measured(
+    t: np.ndarray,
+    grid_s: np.ndarray,
+    covered: np.ndarray,
+    error: np.ndarray | None,
+    shape: ResponseShape | None,
+) -> np.ndarray:
+    """The grid times a likelihood judges: those holding a real sample within half a grid
+    period (:func:`_observed`) and covered, less those whose value the breaks may put off
+    by more than :data:`ACROSS_BREAK_TOLERANCE` of the gyro noise (``error``, from
+    :func:`_reading_error`); refused when none is left.
+
+    A 1 Hz gyro half a second off a 1 Hz model's grid read each grid time at a thruster
+    switch halfway between samples a second apart: off by a quarter second's change of
+    acceleration, 10 gyro sigmas on the paper's spacecraft reversing, and every genuine
+    pass was called none of the candidates. Left out, the likelihood judges the grid
+    times between switches, which the interpolation reads right. Telemetry faster than
+    the grid is fitted through its breaks (:func:`_fit_cells`) and loses nothing here.
+    """
+    measured = _observed(t, grid_s) & covered
+    if error is None or shape is None or shape.noise_rad_s <= 0.0:
+        return measured
+    misread = error > ACROSS_BREAK_TOLERANCE * shape.noise_rad_s
+    if measured.any() and not (measured & ~misread).any():
+        raise InputError(
+            f"telemetry too thin for a verdict: each of its {int(measured.sum())} measured "
+            "grid times is read between samples on either side of a thruster switch, which "
+            f"may put it off by more than {ACROSS_BREAK_TOLERANCE:g} gyro sigma: send "
+            "telemetry sampled at the classifier's grid times, or faster"
+        )
+    return measured & ~misread
 
 
 def _observed(t: np.ndarray, grid_s: np.ndarray) -> np.ndarray:
@@ -984,11 +1039,13 @@ def _resample(
     kind: str | None = None,
     edge_rule: bool = False,
     shape: ResponseShape | None = None,
-) -> tuple[np.ndarray, np.ndarray, list[tuple[float, float]]]:
+) -> tuple[np.ndarray, np.ndarray, list[tuple[float, float]], np.ndarray | None]:
     """The series on the grid, the grid times outside the gaps judged across, and those
     gaps (none without ``marginalise_gaps``; with ``edge_rule`` a late first or early
     last sample is refused even then). With ``shape``, a cell that a break of the rate's
-    slope reaches is fitted through it (:func:`_fit_cells`), not averaged."""
+    slope reaches is fitted through it (:func:`_fit_cells`), not averaged, and the fourth
+    value bounds how far the breaks may put each grid time's value off
+    (:func:`_reading_error`; None without a shape)."""
     grid_s = np.asarray(grid_s, dtype=float)
     step = _grid_period(grid_s)
     period = max(step, float(np.median(np.diff(t))))
@@ -1013,18 +1070,64 @@ def _resample(
             t, omega, cell, grid_s[0] + ids * step, step, shape, mean_t, mean_w, counts
         )
     if len(mean_t) == 1:
-        return np.repeat(mean_w, len(grid_s), axis=0), covered, gaps
-    # The cell means lie at their mean stamps: interpolate them onto the grid times, and
-    # extrapolate the two nearest linearly past the ends (at most 1.5 periods, see above).
-    # Not into a gap judged at an end: its grid times are not covered, never looked at,
-    # and hold the nearest cell's mean (np.interp's), not a line run on for seconds.
-    out = np.stack([np.interp(grid_s, mean_t, mean_w[:, a]) for a in range(3)], axis=-1)
-    for ends, (i, j) in ((grid_s < mean_t[0], (0, 1)), (grid_s > mean_t[-1], (-1, -2))):
+        return np.repeat(mean_w, len(grid_s), axis=0), covered, gaps, None
+    out = _onto_grid(grid_s, mean_t, mean_w, covered)
+    error = None
+    if shape is not None and any(shape.jumps_rad_s2):
+        error = _reading_error(t, cell, counts, mean_t, grid_s, covered, shape)
+    return out, covered, gaps, error
+
+
+def _onto_grid(
+    grid_s: np.ndarray, node_t: np.ndarray, node_w: np.ndarray, covered: np.ndarray
+) -> np.ndarray:
+    """Cell values (at their stamps) on the grid: interpolated, and the two nearest
+    extrapolated linearly past the ends (at most 1.5 periods, see the module docstring).
+    Not into a gap judged at an end: its grid times are not covered, never looked at,
+    and hold the nearest cell's value (np.interp's), not a line run on for seconds."""
+    flat = node_w.ndim == 1
+    values = node_w[:, None] if flat else node_w
+    out = np.stack(
+        [np.interp(grid_s, node_t, values[:, a]) for a in range(values.shape[1])], axis=-1
+    )
+    for ends, (i, j) in ((grid_s < node_t[0], (0, 1)), (grid_s > node_t[-1], (-1, -2))):
         ends &= covered
         if np.any(ends):
-            slope = (mean_w[j] - mean_w[i]) / (mean_t[j] - mean_t[i])
-            out[ends] = mean_w[i] + (grid_s[ends, None] - mean_t[i]) * slope
-    return out, covered, gaps
+            slope = (values[j] - values[i]) / (node_t[j] - node_t[i])
+            out[ends] = values[i] + (grid_s[ends, None] - node_t[i]) * slope
+    return out[:, 0] if flat else out
+
+
+def _reading_error(
+    t: np.ndarray,
+    cell: np.ndarray,
+    counts: np.ndarray,
+    node_t: np.ndarray,
+    grid_s: np.ndarray,
+    covered: np.ndarray,
+    shape: ResponseShape,
+) -> np.ndarray:
+    """The most the breaks may put each grid time's value off, rad/s: the value is read
+    from the cells (a mean, or a fit through a break) by interpolation, exact for a rate
+    that is a line; each break adds its ramp (:meth:`ResponseShape.ramp`) times its
+    jump, and the same reading of the ramp alone, less the ramp at the grid time, is
+    that break's part of the error. A cell fitted through its break reads the ramp
+    exactly; a cell of one sample reads it at its stamp; a cell of a few samples that no
+    fit took (fewer than :data:`_MIN_FIT_SAMPLES`) reads their mean."""
+    few = (counts > 1) & (counts < _MIN_FIT_SAMPLES)
+    take = few[cell]
+    error = np.zeros(len(grid_s))
+    for boundary, jump in zip(shape.boundaries_s, shape.jumps_rad_s2, strict=True):
+        if jump == 0.0:
+            continue
+        at = np.float64(boundary)
+        nodes = shape.ramp(node_t, at)
+        if take.any():
+            sums = np.bincount(cell[take], weights=shape.ramp(t[take], at), minlength=len(counts))
+            nodes[few] = sums[few] / counts[few]
+        read = _onto_grid(grid_s, node_t, nodes, covered)
+        error += jump * np.abs(read - shape.ramp(grid_s, at))
+    return error
 
 
 #: Fewest samples in a cell for its fit through a break: a line and the break's ramp,
@@ -1303,7 +1406,7 @@ def estimate_sequence_start(
             # reach (its first sample late, or its last early) is not one to score on the
             # part it does. Samples lost near an end of a start the telemetry runs past
             # are a gap judged on the samples present, as between samples.
-            series, covered, _ = _resample(
+            series, covered, _, error = _resample(
                 t - shift,
                 omega,
                 grid_s,
@@ -1312,17 +1415,17 @@ def estimate_sequence_start(
                 edge_rule=True,
                 shape=shape,
             )
+            # The measured grid times at this start, as the verdict judges them
+            # (:func:`resample_covered`); a kind that compares whole series gets the
+            # series.
+            measured = (
+                _measured(t - shift, grid_s, covered, error, shape) if marginalise_gaps else None
+            )
         except InputError as exc:
             if refusal is None or abs(shift) < refusal[0]:
                 refusal = (abs(float(shift)), exc)
             continue
-        # The measured grid times at this start, as the verdict judges them
-        # (:func:`resample_covered`); a kind that compares whole series gets the series.
-        cost = float(
-            score(series, _observed(t - shift, grid_s) & covered)
-            if marginalise_gaps
-            else score(series)
-        )
+        cost = float(score(series, measured) if marginalise_gaps else score(series))
         if tried is not None:
             tried.append(float(shift))
         if costs is not None:

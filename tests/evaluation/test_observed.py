@@ -254,42 +254,56 @@ def test_a_downlink_that_covers_one_grid_time_says_so(
     assert len(identify_online(marginal, two).time_s) == 2
 
 
-def test_fast_telemetry_on_a_coarse_grid_is_not_called_none_of_the_candidates() -> None:
-    """A scenario modelled on a 1 Hz grid (the ground segment's own gyro rate) and a
-    pass downlinked from a 10 Hz gyro: more samples of the same flight, never less
+COARSE_SEQUENCE = [[4, 4, 4, 0, 0, 0], [4, 4, 4, 0, 0, 0], [0, 0, 0, 4, 4, 4], [0] * 6]
+
+
+def _paper_timed(rate_hz: float, step_s: float = 2.0) -> Scenario:
+    """The paper's spacecraft with a residual initial rate, ``step_s`` steps, ``rate_hz``."""
+    document = Scenario.paper().model_dump()
+    document["timing"] = {
+        "step_duration_s": step_s,
+        "integration_step_s": 0.05,
+        "sample_rate_hz": rate_hz,
+    }
+    document["uncertainty"]["initial_rate_sigma_rad_s"] = 0.002
+    return Scenario.model_validate(document)
+
+
+@pytest.fixture(scope="module")
+def coarse() -> Any:
+    """The default kind modelled on a 1 Hz grid (the ground segment's own gyro rate),
+    2 s steps, the thrusters reversing at 4 s and stopping at 6 s."""
+    from inertia_id import train
+
+    return train(_paper_timed(1.0), COARSE_SEQUENCE, 100, np.random.default_rng(0))
+
+
+def _passes(sequence: Any, seed: int, rate_hz: float = 10.0, step_s: float = 2.0) -> Any:
+    """One pass a candidate at ``rate_hz``, from 30 s before the start: (stamps, rates)."""
+    before = round(30 / step_s)
+    flown = simulate(
+        _paper_timed(rate_hz, step_s), [[0] * 6] * before + sequence, 1, np.random.default_rng(seed)
+    )
+    return flown.time_s - before * step_s, flown.omega_measured[:, 0]
+
+
+def test_fast_telemetry_on_a_coarse_grid_is_not_called_none_of_the_candidates(
+    coarse: Any,
+) -> None:
+    """A pass downlinked from a 10 Hz gyro: more samples of the same flight, never less
     information than its 1 Hz samples alone. (Each grid time took the mean of the 10 Hz
     samples over the whole grid period around it, which bends the rate where a thruster
     switches on or off at a step boundary by about an eighth of a second's torque, some
     four gyro sigmas here: every genuine pass, one per candidate, was "matches none of
     the candidates", P(none) = 1 for four of five, while the same pass cut to its 1 Hz
     samples named four and called the fifth ambiguous.)"""
-    from inertia_id import train
-
-    document = Scenario.paper().model_dump()
-    document["timing"] = {
-        "step_duration_s": 2.0,
-        "integration_step_s": 0.05,
-        "sample_rate_hz": 1.0,
-    }
-    document["uncertainty"]["initial_rate_sigma_rad_s"] = 0.002
-    coarse = Scenario.model_validate(document)
-    sequence = [[4, 4, 4, 0, 0, 0], [4, 4, 4, 0, 0, 0], [0, 0, 0, 4, 4, 4], [0] * 6]
-    classifier = train(coarse, sequence, 100, np.random.default_rng(0))
-    document["timing"]["sample_rate_hz"] = 10.0
-    gyro_10hz = Scenario.model_validate(document)
-    before = 15  # quiet steps: 30 s before the start, as a pass holds them
-    flown = simulate(gyro_10hz, [[0] * 6] * before + sequence, 1, np.random.default_rng(6))
-    time_s = flown.time_s - before * 2.0
+    time_s, rates = _passes(COARSE_SEQUENCE, 6)
     whole_second = np.isclose(time_s, np.round(time_s), atol=1e-9)
     fast, slow = [], []
-    for k in range(coarse.n_candidates):
-        omega = flown.omega_measured[k, 0]
-        fast.append(identify(classifier, {"time_s": time_s, "omega_rad_s": omega}))
+    for k, omega in enumerate(rates):
+        fast.append(identify(coarse, {"time_s": time_s, "omega_rad_s": omega}))
         slow.append(
-            identify(
-                classifier,
-                {"time_s": time_s[whole_second], "omega_rad_s": omega[whole_second]},
-            )
+            identify(coarse, {"time_s": time_s[whole_second], "omega_rad_s": omega[whole_second]})
         )
     # The control: the 1 Hz samples alone name the candidate flown, or hold back.
     assert [v.status for v in slow].count("identified") >= 4
@@ -298,3 +312,41 @@ def test_fast_telemetry_on_a_coarse_grid_is_not_called_none_of_the_candidates() 
     assert [v.status for v in fast if v.status in ("matches-none", "not-this-sequence")] == []
     assert all(v.candidate_index == k for k, v in enumerate(fast) if v.status == "identified")
     assert [v.status for v in fast].count("identified") >= 4
+
+
+@pytest.mark.parametrize("offset_s", [0.3, 0.5])
+def test_a_gyro_off_a_coarse_grid_is_not_read_across_a_thruster_switch(
+    coarse: Any, offset_s: float
+) -> None:
+    """A 1 Hz gyro whose clock is not the sequence's: its stamps 0.3 or 0.5 s past the
+    grid times. Each grid time was read between the samples around it, a second apart,
+    and where the thrusters reverse between them (4 s) that is off by up to a quarter
+    second's change of acceleration, 10 gyro sigmas: every genuine pass was "matches
+    none of the candidates". The likelihood now leaves out the grid times so read
+    across a switch, and judges the others, which the interpolation reads right."""
+    time_s, rates = _passes(COARSE_SEQUENCE, 7)
+    shifted = np.isclose(np.mod(time_s - offset_s + 0.5, 1.0), 0.5, atol=1e-6)
+    verdicts = [
+        identify(coarse, {"time_s": time_s[shifted], "omega_rad_s": omega[shifted]})
+        for omega in rates
+    ]
+    assert [v.status for v in verdicts if v.status in ("matches-none", "not-this-sequence")] == []
+    assert all(v.candidate_index == k for k, v in enumerate(verdicts))
+    assert [v.status for v in verdicts].count("identified") >= 4
+    # The grid times read across the switches are the ones left out: 4 s (the reversal)
+    # and 6 s (the stop), and the start's, 0.3 s after which the first sample comes.
+    assert all(v.sequence_measured_fraction < 1.0 for v in verdicts)
+
+
+def test_telemetry_read_across_a_switch_at_every_grid_time_is_refused_saying_why() -> None:
+    """Thrusters reversing every 1 s step on a 1 Hz model, the gyro half a second off
+    its grid: every grid time lies between samples on either side of a reversal. No
+    grid time can be judged; the refusal says so, not "matches none"."""
+    from inertia_id import train
+
+    sequence = [[4, 4, 4, 0, 0, 0], [0, 0, 0, 4, 4, 4]] * 2
+    model = train(_paper_timed(1.0, 1.0), sequence, 100, np.random.default_rng(0))
+    time_s, rates = _passes(sequence, 8, step_s=1.0)
+    half = np.isclose(np.mod(time_s, 1.0), 0.5, atol=1e-6)
+    with pytest.raises(InputError, match="read between samples on either side of a thruster"):
+        identify(model, {"time_s": time_s[half], "omega_rad_s": rates[0][half]})
