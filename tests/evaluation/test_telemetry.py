@@ -462,7 +462,14 @@ def test_response_shape_breaks_where_the_torque_may_change(paper: Scenario) -> N
     # jitter is its own) and as they end; the coasting steps around them break nothing.
     sequence = [[0] * 6, [4, 4, 4, 0, 0, 0], [0, 0, 0, 1, 0, 0], [0] * 6, [0] * 6]
     shape = ResponseShape.of(_one_hz_two_second_steps(paper, 0.1, 1.0), sequence)
-    assert shape == ResponseShape((2.0, 4.0, 6.0), 0.1)
+    assert (shape.boundaries_s, shape.lowpass_s) == ((2.0, 4.0, 6.0), 0.1)
+    # Each break's largest change of acceleration, over candidates and axes: +2 N m on
+    # y at the start (the lightest y, 52.1 kg m^2), the same at the handover, 0.5 N m on x
+    # (one quarter-duty thruster, the lightest x 85.6 kg m^2) at the stop.
+    smallest = paper.inertia_array.min(axis=0).diagonal()
+    expected = (2 / smallest[1], 2 / smallest[1], 0.5 / smallest[0])
+    assert shape.jumps_rad_s2 == pytest.approx(expected)
+    assert shape.noise_rad_s == 0.0  # this scenario's gyro is noise-free
     assert ResponseShape.of(paper, [[0] * 6] * 3).boundaries_s == ()
 
 
