@@ -27,7 +27,7 @@ named right (most probable), identified at the default confidence, and false ala
 genuine series called matches-none or not-this-sequence), each with its Wilson 95 %
 interval.
 
-Run: python bench/fast_telemetry.py [--n 20] (about 5 minutes on the 2-core machine)
+Run: python bench/fast_telemetry.py [--n 20] (about 3 minutes on the 2-core machine)
 """
 
 from __future__ import annotations
