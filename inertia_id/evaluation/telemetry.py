@@ -818,7 +818,7 @@ class ResponseShape:
             float(scenario.uncertainty.gyro_noise_sigma_rad_s),
         )
 
-    def ramp(self, t: np.ndarray, boundary: np.ndarray) -> np.ndarray:
+    def ramp(self, t: np.ndarray, boundary: np.ndarray | float) -> np.ndarray:
         """The rate's response to a unit change of angular acceleration at ``boundary``
         through the low-pass: 0 before it, ``u - τ (1 - exp(-u/τ))`` at ``u`` after."""
         u = np.maximum(t - boundary, 0.0)

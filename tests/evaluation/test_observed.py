@@ -300,7 +300,7 @@ def test_fast_telemetry_on_a_coarse_grid_is_not_called_none_of_the_candidates(
     time_s, rates = _passes(COARSE_SEQUENCE, 6)
     whole_second = np.isclose(time_s, np.round(time_s), atol=1e-9)
     fast, slow = [], []
-    for k, omega in enumerate(rates):
+    for omega in rates:
         fast.append(identify(coarse, {"time_s": time_s, "omega_rad_s": omega}))
         slow.append(
             identify(coarse, {"time_s": time_s[whole_second], "omega_rad_s": omega[whole_second]})
