@@ -3336,6 +3336,8 @@ def test_a_constrained_nsga2_search_stored_before_the_best_so_far_says_what_its_
     def dipping(route: Any) -> None:
         answer = route.fetch()
         body = answer.json()
+        # As stored then: without the best_feasible series a search stores since.
+        body["series"] = [s for s in body["series"] if s["key"] != "best_feasible"]
         for series in body["series"]:
             if series["key"] == "best_f1":
                 series["values"] = [v - 0.1 * (i % 2) for i, v in enumerate(series["values"])]
