@@ -1177,6 +1177,13 @@ def _fit_cells(
     (0.54 σ).
     """
     breaks = np.asarray(shape.boundaries_s, dtype=float)
+    if shape.jumps_rad_s2:
+        # A break whose commanded torque does not change (identical steps, only their
+        # jitter differs) bends nothing a fit could take out, and the fit costs noise:
+        # 0.30 to 0.45 gyro sigma on a 20 Hz grid at 200 Hz.
+        breaks = breaks[np.asarray(shape.jumps_rad_s2) > 0.0]
+        if len(breaks) == 0:
+            return mean_t, mean_w, np.zeros(len(centres), dtype=bool)
     half = 0.5 * step
     # The last break before a cell's end, if its ramp still bends within the cell.
     last = np.searchsorted(breaks, centres + half, side="right") - 1
