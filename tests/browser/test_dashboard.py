@@ -2894,6 +2894,19 @@ def test_a_pareto_front_is_drawn_beside_the_baselines_and_a_member_plans_and_tra
     service.until(lambda: service.job(train_id)["status"] in TERMINAL, 120, "the training ends")
 
 
+def test_the_best_sequences_rate_says_it_is_on_the_searchs_draw(dashboard: Dashboard) -> None:
+    """The best sequence's block gave its residual rate as "residual rate (once the lag
+    is empty)", 0.141 deg/s, where the front's table below gave 0.152 for the same
+    sequence: the one on the search's own draw, the other re-scored on fresh draws. The
+    block now says which it holds, as its score does."""
+    _needs(dashboard, "nsga2")
+    page = dashboard.page
+    dashboard.open(f"#/jobs/{made['nsga2']}")
+    page.wait_for_selector("#best-summary")
+    summary = page.inner_text("#best-summary")
+    assert "residual rate on the search's draw (once the lag is empty)" in summary
+
+
 def test_a_plan_past_the_flight_budget_shows_the_nominal_prediction(dashboard: Dashboard) -> None:
     """A member too long to fly 200 times within one request (the service's 422 on
     ``flights``, served here by rewriting the answer) is planned without flights, and the
