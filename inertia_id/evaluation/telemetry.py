@@ -104,6 +104,7 @@ __all__ = [
     "resample",
     "resample_covered",
     "resample_observed",
+    "start_cost",
 ]
 
 MAX_TELEMETRY_SAMPLES = 200_000
@@ -1380,6 +1381,65 @@ def _check_coverage(
     )
 
 
+def _start_series(
+    t: np.ndarray,
+    omega: np.ndarray,
+    grid_s: np.ndarray,
+    *,
+    marginalise_gaps: bool,
+    kind: str | None,
+    shape: ResponseShape | None,
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """The telemetry with stamps ``t`` (s from the start tried) resampled onto
+    ``grid_s``, and with ``marginalise_gaps`` the grid times measured at that start
+    (else None); InputError where that start does not fit (see
+    :func:`estimate_sequence_start`)."""
+    # The edge rule still bounds the starts tried: a start the telemetry does not reach
+    # (its first sample late, or its last early) is not one to score on the part it
+    # does. Samples lost near an end of a start the telemetry runs past are a gap judged
+    # on the samples present, as between samples.
+    series, covered, _, error = _resample(
+        t,
+        omega,
+        grid_s,
+        marginalise_gaps=marginalise_gaps,
+        kind=kind,
+        edge_rule=True,
+        shape=shape,
+    )
+    # The measured grid times at this start, as the verdict judges them
+    # (:func:`resample_covered`); a kind that compares whole series gets the series.
+    return series, (_measured(t, grid_s, covered, error, shape) if marginalise_gaps else None)
+
+
+def start_cost(
+    telemetry: Telemetry,
+    grid_s: np.ndarray,
+    score: Callable[..., float],
+    shift_s: float,
+    *,
+    marginalise_gaps: bool = False,
+    kind: str | None = None,
+    shape: ResponseShape | None = None,
+) -> float | None:
+    """``score`` of the telemetry resampled at one start, its nominal one plus
+    ``shift_s`` (any shift, not only a grid period's multiple), as
+    :func:`estimate_sequence_start` scores each start it tries; None where the telemetry
+    does not fit that start (its edge rule, a gap the kind refuses)."""
+    try:
+        series, measured = _start_series(
+            telemetry.time_array - shift_s,
+            telemetry.omega_array,
+            np.asarray(grid_s, dtype=float),
+            marginalise_gaps=marginalise_gaps,
+            kind=kind,
+            shape=shape,
+        )
+    except InputError:
+        return None
+    return float(score(series, measured) if marginalise_gaps else score(series))
+
+
 def estimate_sequence_start(
     telemetry: Telemetry,
     grid_s: np.ndarray,
@@ -1446,24 +1506,8 @@ def estimate_sequence_start(
     refusal: tuple[float, InputError] | None = None
     for shift in np.arange(-n, n + 1) * step:
         try:
-            # The edge rule still bounds the starts tried: a start the telemetry does not
-            # reach (its first sample late, or its last early) is not one to score on the
-            # part it does. Samples lost near an end of a start the telemetry runs past
-            # are a gap judged on the samples present, as between samples.
-            series, covered, _, error = _resample(
-                t - shift,
-                omega,
-                grid_s,
-                marginalise_gaps=marginalise_gaps,
-                kind=kind,
-                edge_rule=True,
-                shape=shape,
-            )
-            # The measured grid times at this start, as the verdict judges them
-            # (:func:`resample_covered`); a kind that compares whole series gets the
-            # series.
-            measured = (
-                _measured(t - shift, grid_s, covered, error, shape) if marginalise_gaps else None
+            series, measured = _start_series(
+                t - shift, omega, grid_s, marginalise_gaps=marginalise_gaps, kind=kind, shape=shape
             )
         except InputError as exc:
             if refusal is None or abs(shift) < refusal[0]:
