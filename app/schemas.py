@@ -758,10 +758,11 @@ class IdentifyResult(BaseModel):
         default=None,
         description="with a start search: true when the start was refined below the grid "
         "period (the vertex of a parabola through the scores of the grid start found and "
-        "its neighbours), false when the grid's start was kept (a neighbour the telemetry "
-        "does not reach, scores that bracket no minimum, or a kind that compares whole "
-        "series) or the stated start kept (no sample before it: no score then tells it "
-        "from the next start); null: no search",
+        "its neighbours; on a grid coarse for the response, such as 1 Hz, the start "
+        "between those neighbours that scores lowest), false when the grid's start was "
+        "kept (a neighbour the telemetry does not reach, scores that bracket no minimum, "
+        "or a kind that compares whole series) or the stated start kept (no sample "
+        "before it: no score then tells it from the next start); null: no search",
     )
     sequence_start_note: str | None = Field(
         default=None,

@@ -57,6 +57,7 @@ from .telemetry import (
     TelemetryGap,
     estimate_sequence_start,
     resample_covered,
+    start_cost,
 )
 
 if TYPE_CHECKING:
@@ -657,7 +658,9 @@ def _best_start(
     judges gaps, closest by the distance's novelty deviate on the grid times measured
     at each start (:func:`_start_misfit`), as their count differs between starts. With
     ``refine`` (the search a caller asked for), that kind's start is then refined below
-    the grid step (:func:`_refined_start`), the second value saying whether it was;
+    the grid step (:func:`_refined_start`; on a grid coarse for the response, the starts
+    between the grid's scored, :func:`_scored_start`), the second value saying whether
+    it was;
     unless no offset was measured (no sample before the stated start) and the scenario
     draws an initial rate or gyro bias, where the stated start is kept when the
     telemetry reaches it (the comment there says why).
@@ -674,7 +677,8 @@ def _best_start(
     """
     marginalise = _judges_gaps(classifier)
     costs: list[float] = []
-    score, offset_measured, rescored = _start_score(classifier, telemetry, pre_start_window_s)
+    score = _StartScore(classifier, telemetry, pre_start_window_s)
+    shape = ResponseShape.of(classifier.scenario_, classifier.sequence_)
     shift, _ = estimate_sequence_start(
         telemetry,
         grid,
@@ -684,11 +688,11 @@ def _best_start(
         costs=costs,
         marginalise_gaps=marginalise,
         kind=classifier.kind,
-        shape=ResponseShape.of(classifier.scenario_, classifier.sequence_),
+        shape=shape,
     )
-    again = rescored()
+    again = score.rescored()
     if again is not None:
-        # Every start's square from one noise condition (see _start_score).
+        # Every start's square from one noise condition (see _StartScore).
         costs[:] = again
         shift = tried[int(np.argmin(costs))]
     if not (refine and marginalise):
@@ -697,7 +701,7 @@ def _best_start(
     offset_prior = uncertainty is not None and (
         uncertainty.initial_rate_sigma_rad_s > 0.0 or uncertainty.gyro_bias_sigma_rad_s > 0.0
     )
-    if not offset_measured and offset_prior and 0.0 in tried:
+    if not score.offset_measured and offset_prior and 0.0 in tried:
         # No sample before the stated start, so no offset to condition on: the kind's
         # prior on the initial rate and bias absorbs the near-constant difference a
         # start a period off makes on the thrust's ramp, and neighbouring starts score
@@ -709,22 +713,34 @@ def _best_start(
         # start is kept where the telemetry reaches it; the edge rule still moves a start
         # it does not reach. Without that prior (from rest, an unbiased gyro: the paper
         # preset) the search finds the start since every start's square is taken from
-        # one noise condition (see _start_score): right start 100 of 100 stated right, a
+        # one noise condition (see _StartScore): right start 100 of 100 stated right, a
         # period early and two early, where keeping the stated start took 100, 0 and 0,
         # identified right 100, 58 and 50.
         return 0.0, False
-    refined = _refined_start(shift, tried, costs, float(grid[1] - grid[0]))
+    step = float(grid[1] - grid[0])
+
+    def cost(at: float) -> float:
+        value = start_cost(
+            telemetry, grid, score, at, marginalise_gaps=True, kind=classifier.kind, shape=shape
+        )
+        return math.inf if value is None else value
+
+    here = costs[tried.index(shift)]
+    if _neighbours_rise(shift, tried, score, step, cost) > COARSE_GRID_RISE:
+        scored = _scored_start(shift, here, step, window_s, cost)
+        return (shift, False) if scored is None else (scored, True)
+    refined = _refined_start(shift, tried, costs, step)
     return (shift, False) if refined is None else (refined, True)
 
 
-def _start_score(
-    classifier: CandidateClassifier, telemetry: Telemetry, pre_start_window_s: float
-) -> tuple[Callable[..., float], bool, Callable[[], list[float] | None]]:
+class _StartScore:
     """The start search's score of a resampled series (lower fits better), less the
-    offset measured before ``telemetry``'s sequence start (see :func:`_best_start`),
-    whether that offset was measured (samples before the start, a kind that models it),
-    and a function that gives the scores again once every start is seen, in the order
-    scored, where they must be taken again (else it gives None).
+    offset measured before ``telemetry``'s sequence start (see :func:`_best_start`);
+    ``offset_measured`` says whether that offset was measured (samples before the start,
+    a kind that models it), :meth:`rescored` gives the scores again once every start is
+    seen, in the order scored, where they must be taken again (else None), and
+    ``per_freedom`` holds each scored start's squared distance per degree of freedom
+    (:func:`_per_freedom`), in the order scored, taken again with them.
 
     A kind that weighs its noise conditions by the samples before the start scores
     every start from the one condition they favour (``squared_distances_at_noise``).
@@ -739,48 +755,137 @@ def _start_score(
     bench/late_start_search.py``: right start 37 of 100, now 100). A start error adds
     misfit and never removes noise, so the right start needs the quietest condition of
     those the starts take. The scores the search compared on the way are each start's
-    own condition's, as before.
+    own condition's, as before; once rescored, a start scored after the search (below
+    the grid period, :func:`_scored_start`) is taken from that condition too.
     """
-    scenario = classifier.scenario_
-    assert scenario is not None  # _context checked it
-    model, offset = _offset_model(classifier, scenario, telemetry, pre_start_window_s)
-    less = 0.0 if offset is None else offset.offset_rad_s
 
-    # One noise condition for every start where the kind weighs its conditions by the
-    # telemetry before the start (:meth:`squared_distances_at_noise`).
-    at_noise = getattr(model, "squared_distances_at_noise", None)
-    by_noise = getattr(model, "squared_distances_by_noise", None)
-    # Without those weights: each start's squares at every condition, its own
-    # likeliest condition and the part of the grid it measured, to score again.
-    scored: list[tuple[np.ndarray, int, float]] = []
+    def __init__(
+        self, classifier: CandidateClassifier, telemetry: Telemetry, pre_start_window_s: float
+    ) -> None:
+        scenario = classifier.scenario_
+        assert scenario is not None  # _context checked it
+        self._model, offset = _offset_model(classifier, scenario, telemetry, pre_start_window_s)
+        self._less = 0.0 if offset is None else offset.offset_rad_s
+        self.offset_measured = offset is not None
+        # One noise condition for every start where the kind weighs its conditions by
+        # the telemetry before the start (:meth:`squared_distances_at_noise`).
+        self._at_noise = getattr(self._model, "squared_distances_at_noise", None)
+        self._by_noise = getattr(self._model, "squared_distances_by_noise", None)
+        # Without those weights: each start's squares at every condition, its own
+        # likeliest condition and the part of the grid it measured, to score again.
+        self._scored: list[tuple[np.ndarray, int, float]] = []
+        self._condition: int | None = None
+        self.per_freedom: list[float] = []
 
-    def score(series: np.ndarray, measured: np.ndarray | None = None) -> float:
-        relative = (series - less)[None]
+    def _misfit(self, squared: float, fraction: float) -> float:
+        self.per_freedom.append(_per_freedom(self._model, squared, fraction))
+        return _start_misfit(self._model, squared, fraction)
+
+    def __call__(self, series: np.ndarray, measured: np.ndarray | None = None) -> float:
+        model = self._model
+        relative = (series - self._less)[None]
         if measured is None:
             # A kind that compares whole series: every start scores the same values.
             return float(model.transform(relative)[0].min())
         # As the verdict: the grid times with a real sample only, not those
         # interpolated across a gap or a hole between samples.
         fraction = model.observed_fraction(measured)
-        squares = None if at_noise is None else at_noise(relative, measured)
-        if squares is None and by_noise is not None:
-            every, likeliest = by_noise(relative, measured)
-            scored.append((every[0].min(axis=1), int(likeliest[0]), fraction))
-            return _start_misfit(model, float(every[0, likeliest[0]].min()), fraction)
+        squares = None if self._at_noise is None else self._at_noise(relative, measured)
+        if squares is None and self._by_noise is not None:
+            every, likeliest = self._by_noise(relative, measured)
+            if self._condition is not None:
+                return self._misfit(float(every[0, self._condition].min()), fraction)
+            self._scored.append((every[0].min(axis=1), int(likeliest[0]), fraction))
+            return self._misfit(float(every[0, likeliest[0]].min()), fraction)
         if squares is None:
             squares = model.transform_observed(relative, measured) ** 2
-        return _start_misfit(model, float(squares[0].min()), fraction)
+        return self._misfit(float(squares[0].min()), fraction)
 
-    def rescored() -> list[float] | None:
-        if not scored:
+    def rescored(self) -> list[float] | None:
+        if not self._scored:
             return None  # the conditions were weighed, or the kind has none
-        condition = model.quietest_condition(likeliest for _, likeliest, _ in scored)
+        model = self._model
+        self._condition = model.quietest_condition(likeliest for _, likeliest, _ in self._scored)
+        self.per_freedom = [
+            _per_freedom(model, float(squares[self._condition]), fraction)
+            for squares, _, fraction in self._scored
+        ]
         return [
-            _start_misfit(model, float(squares[condition]), fraction)
-            for squares, _, fraction in scored
+            _start_misfit(model, float(squares[self._condition]), fraction)
+            for squares, _, fraction in self._scored
         ]
 
-    return score, offset is not None, rescored
+
+#: The rise, in squared distance per degree of freedom (:func:`_per_freedom`), from the
+#: grid start the search took to the costliest start one or two grid periods from it
+#: (:func:`_neighbours_rise`) above which the grid is coarse for the response: the start
+#: is then found by scoring starts between the grid's (:func:`_scored_start`), not by
+#: the parabola through the grid's scores (:func:`_refined_start`). Between grid times
+#: the sampling's phase moves the score (interpolating midway between two samples halves
+#: their white noise's variance): by up to 0.54 a degree of freedom (default classifier,
+#: paper-in-orbit at 1x, telemetry at the grid's rate, 20 and 10 Hz), so a start scored
+#: there is trusted only where two periods cost twenty times that. Measured (100 series
+#: each, the true start anywhere within a few periods, a ``/tmp`` script): 0.2 to 0.4 on
+#: the 20 Hz grid, 0.9 to 1.5 on a 10 Hz one, 2.7 to 7.3 on a 5 Hz one (1x and 6x
+#: process noise; the parabola there: |start error| median 0.09 period, scored between:
+#: 0.16), 22 to 41 on a 2 Hz one (parabola 0.10, identified right 0.76; scored between
+#: 0.04, 0.99), 17 to 59 on the 1 Hz grid with 2 s steps (``bench/coarse_start.py``).
+COARSE_GRID_RISE = 10.0
+
+
+def _neighbours_rise(
+    shift: float,
+    tried: list[float],
+    score: _StartScore,
+    step: float,
+    cost: Callable[[float], float],
+) -> float:
+    """How much more the costliest of the starts one and two grid periods either side
+    of ``shift`` (the grid start the search took) scores than ``shift``, per degree of
+    freedom (``score.per_freedom``); a start the search did not try (beyond the window)
+    is scored here, and one the telemetry does not reach is not counted (-inf where none
+    is). Two periods, so that a start the telemetry reaches on one side only still
+    shows the cost of a period: a true start midway between ``shift`` and its one
+    neighbour scores both alike."""
+    where = {round(s / step): i for i, s in enumerate(tried)}
+    middle = round(shift / step)
+    rises = [-math.inf]
+    for d in (-2, -1, 1, 2):
+        if middle + d in where:
+            rises.append(score.per_freedom[where[middle + d]])
+        elif math.isfinite(cost(shift + d * step)):
+            rises.append(score.per_freedom[-1])
+    return max(rises) - score.per_freedom[where[middle]]
+
+
+def _scored_start(
+    shift: float, cost_here: float, step: float, window_s: float, cost: Callable[[float], float]
+) -> float | None:
+    """On a grid coarse for the response (:data:`COARSE_GRID_RISE`), the start between
+    ``shift``'s two neighbours a grid period away, and within ``±window_s`` of the
+    stated one, that scores lowest, scored at each start tried (``cost``, the search's
+    own score at any shift, s; inf where the telemetry does not reach it), to 1 % of the
+    grid period; None where none scores below ``cost_here`` (``shift``'s own score).
+
+    The parabola through the grid's three scores (:func:`_refined_start`) assumes the
+    score quadratic over two periods; on the 1 Hz grid with 2 s steps it is a V whose
+    arms bend over within a period (the deviate grows as the cube root of the squared
+    distance, which grows about linearly a few tenths of a second off), so the vertex
+    lay 0.1 to 0.2 s from a true start 0.2 to 0.4 s between grid times, and a start 0.1
+    s off is called none of the candidates (``bench/coarse_start.py``). Brent's bounded
+    minimisation (scipy) needs no shape but one minimum between the bounds.
+    """
+    from scipy.optimize import minimize_scalar
+
+    low, high = max(shift - step, -window_s), min(shift + step, window_s)
+    if not high > low:
+        return None
+    result = minimize_scalar(
+        cost, bounds=(low, high), method="bounded", options={"xatol": 0.01 * step}
+    )
+    if not (math.isfinite(result.fun) and result.fun < cost_here):
+        return None
+    return float(result.x)
 
 
 def _refined_start(
@@ -812,6 +917,22 @@ def _refined_start(
     if not curvature > 0.0:
         return None
     return shift + 0.5 * (before - after) / curvature * step
+
+
+def _per_freedom(model: Any, squared: float, fraction: float) -> float:
+    """A squared distance on ``fraction`` of the grid's values per degree of freedom of
+    the novelty tail there (:func:`_start_misfit`'s): about 1 for a genuine series."""
+    scale, k = _tail_freedom(model, fraction)
+    return squared / (scale * k)
+
+
+def _tail_freedom(model: Any, fraction: float) -> tuple[float, float]:
+    tail = model.novelty_tail_
+    if tail is None:
+        scale, dof = 1.0, 3.0 * model.length_
+    else:
+        scale, dof = tail.scale, tail.dof
+    return scale, max(dof * fraction, 1.0)
 
 
 def _start_misfit(model: Any, squared: float, fraction: float) -> float:
@@ -850,12 +971,7 @@ def _start_misfit(model: Any, squared: float, fraction: float) -> float:
     through the scores of three starts (the deviate is locally affine in the squared
     distance, itself quadratic in a small start error).
     """
-    tail = model.novelty_tail_
-    if tail is None:
-        scale, dof = 1.0, 3.0 * model.length_
-    else:
-        scale, dof = tail.scale, tail.dof
-    k = max(dof * fraction, 1.0)
+    scale, k = _tail_freedom(model, fraction)
     spread = math.sqrt(2.0 / (9.0 * k))
     # np.cbrt: the square may fall below 0 (one condition's density for every start).
     return (float(np.cbrt(squared / (scale * k))) - (1.0 - spread**2)) / spread
@@ -887,8 +1003,10 @@ def identify(
         which the marginal likelihood then conditions on; 0 ignores them.
     :param estimate_start_within_s: search the starts within this many seconds of the
         stated one, one grid period apart, for the one whose series lies closest to a
-        candidate, and judge from it (``sequence_start_shift_s``; the shifts the
-        telemetry allowed in ``sequence_start_shifts_tried_s``). None: the stated start.
+        candidate (the likelihood kinds then refine it below the grid period, and score
+        the starts between the grid's where the grid is coarse for the response), and
+        judge from it (``sequence_start_shift_s``; the grid's shifts the telemetry
+        allowed in ``sequence_start_shifts_tried_s``). None: the stated start.
         With no sample before the stated start the likelihood kinds keep it where the
         telemetry reaches it (:func:`_best_start`).
     :param start_hint: with no search asked for, a matches-none (or not-this-sequence)
