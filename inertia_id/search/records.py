@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import finite_or_none
+from ..checks import MAX_SEED, finite_or_none
 from ..physics.scenario import Scenario
 from .scorer import PrefixScorer, ScorerSettings
 
@@ -46,9 +46,13 @@ def space_size(scenario: Scenario, sequence_length: int) -> int:
 
 
 def fresh_seed(seed: int) -> int:
-    """A seed independent of ``seed`` (a spawned child of its seed sequence)."""
+    """A seed independent of ``seed`` (a spawned child of its seed sequence), 0 to
+    :data:`~inertia_id.checks.MAX_SEED`: a result stores it and the dashboard shows it, so
+    it stays an exact number in JavaScript (below 2**53) and a seed the command line and
+    the service take back (``--seed``)."""
     child = np.random.SeedSequence(seed).spawn(1)[0]
-    return int(child.generate_state(1, np.uint64)[0] >> np.uint64(1))
+    # MAX_SEED is 2**31 - 1: its low 31 bits.
+    return int(child.generate_state(1, np.uint32)[0]) & MAX_SEED
 
 
 @dataclass(frozen=True)

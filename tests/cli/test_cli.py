@@ -118,6 +118,53 @@ def test_search_writes_the_best_sequence(tmp_path: Path) -> None:
     assert doc["scenario"]["name"] == "paper"  # what `plan --search` plans on
 
 
+def _seeds(document: Any, path: str = "") -> list[tuple[str, Any]]:
+    """Every value under a key that names a seed (``seed``, ``fresh_seed``), with its path."""
+    if isinstance(document, dict):
+        return [
+            found
+            for key, value in document.items()
+            for found in (
+                [(f"{path}.{key}", value)]
+                if key.endswith("seed")
+                else _seeds(value, f"{path}.{key}")
+            )
+        ]
+    if isinstance(document, list):
+        return [found for i, item in enumerate(document) for found in _seeds(item, f"{path}[{i}]")]
+    return []
+
+
+def test_every_seed_a_search_result_stores_is_one_seed_takes_back(tmp_path: Path) -> None:
+    """The fresh draws' seed (``fresh.seed``, ``front.fresh_seed``, the confirmation's)
+    was a 63-bit number: above 2**53 a JavaScript client (the dashboard's JSON.parse)
+    reads another number, and ``--seed`` (0 to 2**31 - 1, the service's) refused it.
+    Every seed stored is now one the command line takes back, and this document holds no
+    integer JavaScript rounds (``space_size``, (M^N)^L, passes 2**53 from L = 4 on the
+    paper preset: a count, not a number to type back)."""
+    args = ["search", "--method", "nsga2", "--length", "2", "--nsga2", "population=8"]
+    args += ["--nsga2", "generations=2", "--search-realisations", "4", "--seed", "5"]
+    args += ["--fresh-realisations", "4", "--fresh-test-series", "2"]
+    doc, _ = run_cli_json(args, tmp_path / "s.json")
+    seeds = dict(_seeds(doc))
+    assert {".fresh.seed", ".front.fresh_seed", ".front.confirmation.seed"} <= set(seeds)
+    for path, seed in seeds.items():
+        telemetry = tmp_path / "t.csv"
+        taken = CliRunner().invoke(
+            main, ["simulate", "-n", "1", "--seed", str(seed), "--telemetry", str(telemetry)]
+        )
+        assert taken.exit_code == 0, (path, seed, taken.output)
+    assert max(abs(n) for n in _integers(doc)) < 2**53
+
+
+def _integers(document: Any) -> list[int]:
+    if isinstance(document, dict):
+        return [n for value in document.values() for n in _integers(value)]
+    if isinstance(document, list):
+        return [n for item in document for n in _integers(item)]
+    return [document] if isinstance(document, int) and not isinstance(document, bool) else []
+
+
 def test_a_best_sequence_that_breaks_a_bound_is_flagged_in_the_listing(tmp_path: Path) -> None:
     """A searcher other than NSGA-II keeps its best sequence even when it breaks a
     constraint; the listing says so beside the figure it breaks."""
