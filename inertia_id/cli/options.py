@@ -262,7 +262,25 @@ def parse_sequence(text: str) -> list[list[int]]:
         rows = _sequence_in(rows, text)
     if not isinstance(rows, list) or not rows:
         raise InputError(f"sequence {text!r} holds no steps")
+    refuse_decimal_levels(rows, text)
     return rows
+
+
+def refuse_decimal_levels(rows: list[Any], text: str) -> None:
+    """A level written as a decimal number in JSON (``1e0``, ``1.0``) is an
+    :class:`InputError` naming it, as the service's sequences refuse it (the API's
+    ``sequence`` and a job's, JSON integers only). The core's check takes a whole float,
+    which a Python caller passes on purpose; typed into a file it is a slip (a level
+    computed, or a duty meant), and the command line took it as the level."""
+    steps = rows if rows and isinstance(rows[0], list) else [rows]
+    for step, row in enumerate(steps):
+        for thruster, level in enumerate(row if isinstance(row, list) else []):
+            if isinstance(level, float):
+                whole = f"write {int(level)}" if level.is_integer() else "e.g. 1"
+                raise InputError(
+                    f"sequence {text!r}: step {step + 1}, thruster {thruster + 1} is "
+                    f"{level!r}, a decimal number; level indices are JSON integers ({whole})"
+                )
 
 
 def _sequence_in(document: Any, text: str) -> Any:

@@ -107,7 +107,7 @@ def plan_cmd(
     from ..checks import csv_note_text
     from ..errors import InputError
     from ..search.plan import command_plan
-    from .options import parse_sequence
+    from .options import parse_sequence, refuse_decimal_levels
 
     if (sequence_text is None) == (search_path is None):
         raise InputError("give --sequence or --search (and --member), one of them")
@@ -120,6 +120,7 @@ def plan_cmd(
     if search_path is not None:
         document = _search_document(search_path)
         sequence = _member_sequence(document, member)
+        refuse_decimal_levels(sequence, search_path)
         scenario = _search_scenario(document, scenario, named_explicitly=named, path=search_path)
     else:
         assert sequence_text is not None

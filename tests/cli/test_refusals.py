@@ -1627,3 +1627,41 @@ def test_a_command_plans_own_json_is_planned_again(tmp_path: Path) -> None:
     other.write_text('{"rows": [[4, 4, 4, 0, 0, 0]]}')
     message = refused(["plan", "--sequence", str(other), "--out", str(again)])
     assert "is a JSON object with no 'sequence' list" in message
+
+
+@pytest.mark.parametrize("command", ["simulate", "train", "plan", "paper"])
+@pytest.mark.parametrize(
+    ("written", "named"),
+    [
+        ("[[1e0,4,4,0,0,0]]", "step 1, thruster 1 is 1.0, a decimal number"),
+        ("[[4,4,4,0,0,0],[0,0,0,4,4,4.0]]", "step 2, thruster 6 is 4.0, a decimal number"),
+        ('{"sequence": [[4,4,4,0,0,2.5]]}', "step 1, thruster 6 is 2.5, a decimal number"),
+    ],
+)
+def test_a_level_written_as_a_decimal_number_is_refused_as_the_service_refuses_it(
+    command: str, written: str, named: str, tmp_path: Path
+) -> None:
+    """The API's ``sequence`` and a job's take JSON integers only; the command line read
+    ``1e0`` or ``4.0`` as the level (the core's check takes a whole float), written in
+    ``--sequence`` or in the file it names."""
+    # Each writes into tmp_path, should the sequence be taken (it was: train wrote
+    # classifier.json into the working folder).
+    out = {"simulate": [], "paper": ["--out-dir", str(tmp_path / "paper")]}.get(
+        command, ["--out", str(tmp_path / "out.json")]
+    )
+    fewer = ["-n", "3"] if command in ("simulate", "train") else []
+    path = tmp_path / "sequence.json"
+    path.write_text(written)
+    for given in (written, str(path)):
+        message = refused([command, "--sequence", given, *fewer, *out])
+        assert message.count("Error:") == 1 and f"sequence {given!r}: {named}" in message
+
+
+def test_a_search_file_planned_with_a_decimal_level_is_refused(tmp_path: Path) -> None:
+    """``plan --search FILE``: the member's sequence is checked as ``--sequence`` is."""
+    search = tmp_path / "search.json"
+    search.write_text(
+        json.dumps({"best": {"sequence": [[4, 4, 4, 0, 0, 0], [1.0, 0, 0, 0, 0, 0]]}})
+    )
+    message = refused(["plan", "--search", str(search), "--out", str(tmp_path / "p.json")])
+    assert f"sequence {str(search)!r}: step 2, thruster 1 is 1.0, a decimal number" in message
