@@ -484,7 +484,12 @@ def parse_pairs(pairs: Sequence[str], option: str, example: str) -> dict[str, An
             ) from None
         if name.strip() in params:
             raise InputError(f"{option} {name.strip()} is given twice; give it once")
-        params[name.strip()] = int(number) if number.is_integer() and "." not in value else number
+        # An integer only when written as one, as JSON reads it: the API's ``1e0`` is a
+        # float a whole-number setting refuses (NSGA-II's generations); here it was 1.
+        try:
+            params[name.strip()] = parse_whole(value)
+        except ValueError:
+            params[name.strip()] = number
     return params
 
 

@@ -1601,6 +1601,24 @@ def test_a_bound_past_int64_on_the_command_line_is_taken_as_the_number_it_is(
     assert front["constraints"] == {"max_impulse_nms": 1e20}
 
 
+@pytest.mark.parametrize("written", ["1e0", "2E0"])
+def test_a_whole_number_setting_written_as_a_decimal_is_refused_as_the_api_refuses_it(
+    written: str, tmp_path: Path
+) -> None:
+    """``--nsga2 generations=1e0`` ran one generation: a value with no '.' that was whole
+    became an int, while the API's ``{"nsga2": {"generations": 1e0}}`` is a JSON float
+    and refused. A setting is an integer only when written as one, as JSON reads it."""
+    message = refused(
+        [
+            *("search", "--method", "nsga2", "--length", "2", "--nsga2", "population=8"),
+            *("--nsga2", f"generations={written}", "--search-realisations", "4"),
+            *("--fresh-test-series", "0", "--out", str(tmp_path / "s.json")),
+        ]
+    )
+    assert f"NSGA-II generations must be an integer in 1..10000, got {float(written)}" in message
+    assert not (tmp_path / "s.json").exists()
+
+
 def test_a_command_plans_own_json_is_planned_again(tmp_path: Path) -> None:
     """A flight team keeps the plan JSON that ``inertia-id plan`` wrote and plans it
     again (on another scenario, with flights): ``--sequence plan.json`` said the file was
