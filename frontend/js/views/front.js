@@ -4,8 +4,8 @@
 // the design noise against the residual rate (deg/s) or the commanded residual (the part
 // the sequence leaves, from rest: what separates the members where an initial-rate spread
 // dominates the total), coloured by impulse (or propellant), the baselines each with its
-// own symbol, a baseline that dominates a member flagged and one that breaks a
-// constraint drawn open; a table of the members (rates, peak rates included, in deg/s
+// own symbol, a baseline that dominates a member flagged, a member or baseline that
+// breaks a constraint drawn open; a table of the members (rates, peak rates included, in deg/s
 // and rad/s, attitude change); a chosen member's command plan (per candidate: residual rate and attitude
 // change, from GET /jobs/{id}/plan?member=) as CSV or JSON, and a button that trains a
 // classifier on it (POST /jobs with search_job_id and front_member).
@@ -247,12 +247,16 @@ async function drawPlot(node, front, selected, which, spinning) {
   const cmin = Math.min(...values);
   const cmax = Math.max(...values) > cmin ? Math.max(...values) : cmin + 1;
   const order = [...members].sort((a, b) => a.scores[xKey] - b.scores[xKey]);
+  // A member that breaks a constraint is drawn open, as a baseline that does: a search
+  // other than NSGA-II keeps its best sequence when it breaks one (cem, random,
+  // exhaustive, ppo with a penalty), which was drawn filled, as if feasible.
+  const breaks = (m) => m.feasible === false;
   const traces = [
     {
       x: order.map((m) => m.scores[xKey]),
       y: order.map((m) => m.scores.accuracy),
       customdata: order.map((m) => m.index),
-      text: order.map((m) => hover(`member ${m.index}`, m.scores, m.sequence)),
+      text: order.map((m) => hover(`member ${m.index}${breaks(m) ? " — breaks a constraint" : ""}`, m.scores, m.sequence)),
       hovertemplate: "%{text}<extra></extra>",
       // Markers only: the front is non-dominated in every objective at once, so in this
       // plane of two of them its members need not lie on a line.
@@ -260,12 +264,13 @@ async function drawPlot(node, front, selected, which, spinning) {
       name: members.length > 1 ? "front members" : "best sequence",
       marker: {
         size: 11,
-        symbol: "circle",
+        symbol: order.map((m) => (breaks(m) ? "circle-open" : "circle")),
         color: order.map((m) => m.scores[colourKey]),
         colorscale: "Viridis",
         cmin,
         cmax,
-        line: { color: order.map((m) => (m.dominated_by.length ? DOMINATES : "#333")), width: order.map((m) => (m.dominated_by.length ? 2.5 : 0.5)) },
+        // An open marker is drawn in its line alone, in the marker's colour: thicker.
+        line: { color: order.map((m) => (m.dominated_by.length ? DOMINATES : "#333")), width: order.map((m) => (m.dominated_by.length || breaks(m) ? 2.5 : 0.5)) },
         colorbar: {
           orientation: "h",
           title: { text: colourLabel, side: "right" },
@@ -646,7 +651,7 @@ export function frontPanel(job, context, scenario = null) {
     h(
       "p",
       { class: "hint" },
-      `${pareto ? "Non-dominated" : "Judged"} on ${(front.objectives || []).map((o) => OBJECTIVE_WORDS[o] || o).join(", ")}; the rates on a fresh draw (${front.fresh_realisations} realisations per candidate), the baselines on the same draws. Accuracy at the design noise (${designNoiseText(front)}): ${front.accuracy_source === "measured" ? `measured: the scenario's noise model as a Bayes classifier, tested on ${front.fresh_test_series} fresh series per candidate at each condition, every sequence on the same series (the search ranked by a prediction from the same model, kept beside it)` : "predicted from the scenario's own noise model (no draw: the same sequence, the same figure)"}. Colour: ${colourLabel}; a red outline marks a member a baseline dominates, an open symbol a baseline that breaks a constraint.${xButtons ? " The x axis: the residual rate the front is judged on (the rate each flight started with, ω(0), included), or the commanded residual, the part the sequence itself leaves (predicted from rest), which tells braking sequences apart where ω(0) is most of the total." : ""}`,
+      `${pareto ? "Non-dominated" : "Judged"} on ${(front.objectives || []).map((o) => OBJECTIVE_WORDS[o] || o).join(", ")}; the rates on a fresh draw (${front.fresh_realisations} realisations per candidate), the baselines on the same draws. Accuracy at the design noise (${designNoiseText(front)}): ${front.accuracy_source === "measured" ? `measured: the scenario's noise model as a Bayes classifier, tested on ${front.fresh_test_series} fresh series per candidate at each condition, every sequence on the same series (the search ranked by a prediction from the same model, kept beside it)` : "predicted from the scenario's own noise model (no draw: the same sequence, the same figure)"}. Colour: ${colourLabel}; a red outline marks a member a baseline dominates, an open symbol a member or baseline that breaks a constraint.${xButtons ? " The x axis: the residual rate the front is judged on (the rate each flight started with, ω(0), included), or the commanded residual, the part the sequence itself leaves (predicted from rest), which tells braking sequences apart where ω(0) is most of the total." : ""}`,
     ),
     rescoreCut(job, front),
     confirmationNote(front),
