@@ -89,7 +89,7 @@ from .deps import (
 from .idempotency import IDEMPOTENCY_RESPONSES, IdempotencyDep, replayable
 from .listing import id_filters, one_page, search_text, sort_order, tag_filters
 from .routing import UniqueKeysRoute
-from .scenarios import PlanOptionsDep, overflow_loc, plan_for
+from .scenarios import MAX_PLAN_INTEGRATION_STEPS, PlanOptionsDep, overflow_loc, plan_for
 
 __all__ = ["router"]
 
@@ -247,7 +247,8 @@ def _same_spacecraft(search: JobRow, scenario_id: str, scenario: Scenario) -> No
 #: to say why; and a classifier document of hundreds of MB was stored for every read to
 #: load. The paper preset at its largest (64 steps, 400 realisations, the 8,000-flight
 #: ceiling) fits each with room to spare.
-MAX_FLIGHT_RK4_STEPS = 100_000
+#: (The most a plan takes too: every sequence a job flies can be planned.)
+MAX_FLIGHT_RK4_STEPS = MAX_PLAN_INTEGRATION_STEPS
 MAX_SERIES_VALUES = 8_192
 MAX_HELD_VALUES = 2**23
 MAX_COVARIANCE_VALUES = 2**27

@@ -286,6 +286,13 @@ def delete_scenario(scenario_id: str, session: SessionDep) -> Response:
 #: 0.4 s of CPU (the cap on both was 13.7 s before).
 MAX_RESPONSE_INTEGRATION_STEPS = 1_280
 MAX_RESPONSE_WORK = 400_000
+#: RK4 steps a plan's nominal prediction may take (one run of the candidates, no
+#: realisations): as many as a job may fly a flight (``app.api.jobs.MAX_FLIGHT_RK4_STEPS``
+#: is this), so that every sequence a search or training was accepted for can be planned.
+#: At the response's 1,280 a 20-step search on a 10 ms RK4 step (a 20 ms thruster lag)
+#: found sequences whose plan was a 422. 100,000 took 2.1 s (1,000 steps on a 10 ms step,
+#: 5 candidates, the 2-core machine under load).
+MAX_PLAN_INTEGRATION_STEPS = 100_000
 #: Flights a plan may fly (``flights=``): candidates x flights x RK4 steps at most this,
 #: about 0.5 s of CPU on the 2-core machine (measured: 1,250 flights of 8 paper steps
 #: 0.50 s; 156 of 64 steps 0.25 s).
@@ -485,13 +492,13 @@ def _plan_response(
 
     timing = scenario.timing
     integration = len(steps) * round(timing.step_duration_s / timing.integration_step_s)
-    if integration > MAX_RESPONSE_INTEGRATION_STEPS:
+    if integration > MAX_PLAN_INTEGRATION_STEPS:
         per_step = round(timing.step_duration_s / timing.integration_step_s)
         unprocessable(
             where,
-            f"{len(steps)} steps: at most {MAX_RESPONSE_INTEGRATION_STEPS // per_step} steps "
+            f"{len(steps)} steps: at most {MAX_PLAN_INTEGRATION_STEPS // per_step} steps "
             f"on this scenario ({per_step} RK4 steps each, at most "
-            f"{MAX_RESPONSE_INTEGRATION_STEPS} in all)",
+            f"{MAX_PLAN_INTEGRATION_STEPS} in all)",
         )
     fmt, flights = options.format, options.flights
     work = scenario.n_candidates * flights * integration

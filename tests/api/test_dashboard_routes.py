@@ -161,12 +161,19 @@ def test_an_unknown_query_parameter_is_422_naming_what_the_route_takes(
 
 
 def test_a_plan_too_long_says_how_many_steps_it_may_have(api: Api) -> None:
-    scenario_id = api.post("/scenarios", json={"preset": "paper"}).json()["id"]
+    """As many RK4 steps as a job may fly (100,000): on a 1 ms RK4 step, 100 steps."""
+    scenario_id = api.create_scenario(timing={"integration_step_s": 0.001})["id"]
     response = api.get_with_key(
         f"/scenarios/{scenario_id}/plan", params={"sequence": json.dumps([[0] * 6] * 1000)}
     )
     assert response.status_code == 422, response.text
-    assert "1000 steps: at most 64 steps" in response.json()["detail"][0]["msg"]
+    assert "1000 steps: at most 100 steps" in response.json()["detail"][0]["msg"]
+    # The paper preset's 1,000 steps (20,000 RK4 steps) are planned.
+    paper_id = api.post("/scenarios", json={"preset": "paper"}).json()["id"]
+    sequence = [[4, 4, 4, 0, 0, 0], [0, 0, 0, 4, 4, 4]] * 500
+    planned = api.post(f"/scenarios/{paper_id}/plan", json={"sequence": sequence})
+    assert planned.status_code == 200, planned.text
+    assert len(planned.json()["steps"]) == 1000
 
 
 def _unstamped(text: str) -> list[str]:
@@ -280,7 +287,7 @@ def test_a_plan_flies_the_sequence_when_asked(api: Api, paper: Scenario) -> None
         ({"sequence": []}, ["body", "sequence"], "at least 1 item"),
         ({"sequence": [[4, 4, 4, 0, 0]]}, ["body", "sequence"], "got shape (1, 5)"),
         ({"sequence": [[4, 4, 4, 0, 0, 9]]}, ["body", "sequence"], "level index 9"),
-        ({"sequence": [[0] * 6] * 1000}, ["body", "sequence"], "1000 steps: at most 64 steps"),
+        ({"sequence": [[0] * 6] * 1001}, ["body", "sequence"], "1001 steps; at most 1000"),
         ({"sequence": [[0] * 6], "format": "csv"}, ["body", "format"], "Extra inputs"),
         ({}, ["body", "sequence"], "Field required"),
     ],

@@ -1271,3 +1271,44 @@ def test_a_curve_that_says_whether_its_best_met_the_constraints_exports_it(api: 
     rows = _csv(api.get(f"/jobs/{job_id}/result", params={"format": "csv", "table": "curve"}).text)
     assert rows[0][-1] == "best_feasible"
     assert [r[-1] for r in rows[1:]] == ["False", "False", "True"]
+
+
+def test_every_sequence_a_search_may_find_has_its_command_plan(api: Api) -> None:
+    """A thruster lag of 20 ms needs a 10 ms RK4 step (two a time constant), 100 a
+    1 s step: the service accepts a 20-step search on it, whose sequences are 2,000 RK4
+    steps, but its plan took at most 1,280 and answered the search's best sequence with
+    a 422 ("16 steps: at most 12 steps on this scenario"): the team could not download
+    the plan of the sequence it had searched for. The plan takes what a job may fly."""
+    from inertia_id.search.plan import command_plan
+
+    scenario_id = api.create_scenario(
+        timing={"integration_step_s": 0.01},
+        uncertainty={"lowpass_time_constant_s": 0.02, "disturbance_interval_s": 0.05},
+    )["id"]
+    scenario = Scenario.model_validate(api.get(f"/scenarios/{scenario_id}").json()["document"])
+    length = 20
+    submitted = api.submit(
+        "search", scenario_id, params={"method": "cem", "sequence_length": length}
+    )
+    assert submitted.status_code == 202, submitted.text
+    sequence = ([[4, 4, 4, 0, 0, 0]] * 2 + [[0, 0, 0, 4, 4, 4]] * 2) * (length // 4)
+    result = _search_result([0.9], 240.0, 2.0)
+    result["best"]["sequence"] = sequence
+    result["front"]["members"][0]["sequence"] = sequence
+    with api.db.session() as session:
+        claim(session, submitted.json()["id"], "tests")
+    with api.db.session() as session:
+        assert finish(session, submitted.json()["id"], "succeeded", result=result)
+    for member in (None, 0):
+        params = {} if member is None else {"member": member}
+        planned = api.get_with_key(f"/jobs/{submitted.json()['id']}/plan", params=params)
+        assert planned.status_code == 200, planned.text
+        document = planned.json()
+        assert len(document["steps"]) == length
+        expected = command_plan(scenario, sequence).to_dict()
+        assert document["residual_rate_max_rad_s"] == expected["residual_rate_max_rad_s"]
+        assert document["propellant"] == expected["propellant"]
+    typed = api.get_with_key(
+        f"/scenarios/{scenario_id}/plan", params={"sequence": json.dumps(sequence)}
+    )
+    assert typed.status_code == 200, typed.text
