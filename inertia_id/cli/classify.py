@@ -131,7 +131,7 @@ def train_cmd(
     if not kind_metrics(resolved) and (metric is not None or band is not None):
         raise InputError(f"--kind {resolved} takes no --metric or --band")
     request = TrainRequest(
-        parse_sequence(sequence_text),
+        parse_sequence(sequence_text, scenario),
         kind=resolved,
         metric=metric,
         n_realisations=realisations,

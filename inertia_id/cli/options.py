@@ -210,9 +210,10 @@ def load_scenario(preset_name: str, scenario_path: str | None) -> Scenario:
     return Scenario.model_validate(document)
 
 
-def parse_sequence(text: str) -> list[list[int]]:
+def parse_sequence(text: str, scenario: Scenario | None = None) -> list[list[int]]:
     """A sequence from ``"4,4,4,0,0,0;0,0,0,4,4,4"`` (rows separated by ';'), a JSON
-    list of rows, or a path to a file holding either (a named pipe too)."""
+    list of rows, or a path to a file holding either (a named pipe too), or a command
+    plan's JSON: on ``scenario``, the plan's commands (:func:`_plan_levels`)."""
     source = text
     # Any file but a folder: a named pipe, /dev/stdin or a process substitution
     # (<(cat seq.json), /dev/fd/63) too, as a flight team pipes files (isfile took
@@ -259,7 +260,10 @@ def parse_sequence(text: str) -> list[list[int]]:
             "'4,4,4,0,0,0;0,0,0,4,4,4' or a JSON list of rows"
         ) from None
     if isinstance(rows, dict):
-        rows = _sequence_in(rows, text)
+        document = rows
+        rows = _sequence_in(document, text)
+        if scenario is not None:
+            rows = _plan_levels(document, rows, scenario, text)
     if not isinstance(rows, list) or not rows:
         raise InputError(f"sequence {text!r} holds no steps")
     refuse_decimal_levels(rows, text)
@@ -299,6 +303,59 @@ def _sequence_in(document: Any, text: str) -> Any:
         f"sequence {text!r} is a JSON object with no 'sequence' list: give rows of level "
         "indices like '4,4,4,0,0,0;0,0,0,4,4,4', a JSON list of rows, or a command plan's JSON"
     )
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _plan_levels(document: dict, rows: Any, scenario: Scenario, text: str) -> Any:
+    """A command plan's sequence on ``scenario``: at each step and thruster the
+    scenario's level of the duty the plan commands (its ``steps[].duty``), on steps of
+    the plan's duration. A plan's level indices name its own scenario's levels: read as
+    another's (11 levels), full-duty firings were flown at 0.4 duty with no word.
+
+    :raises InputError: the plan's steps last another time than the scenario's, or it
+        commands a duty that is no level of the scenario (naming the step and thruster).
+    """
+    steps = document.get("steps")
+    duties = [step.get("duty") if isinstance(step, dict) else None for step in steps or []]
+    if not steps or not all(
+        isinstance(row, list) and len(row) == scenario.n_thrusters and all(map(_is_number, row))
+        for row in duties
+    ):
+        return rows  # no plan's commands (or not this scenario's thrusters): as given
+    commanded: list[list[float]] = [row for row in duties if isinstance(row, list)]
+    planned_step = document.get("step_duration_s")
+    step = scenario.timing.step_duration_s
+    if (
+        isinstance(planned_step, int | float)
+        and _is_number(planned_step)
+        and not math.isclose(planned_step, step, rel_tol=1e-12)
+    ):
+        raise InputError(
+            f"sequence {text!r} is a command plan of {planned_step:g} s steps, and scenario "
+            f"{scenario.name!r} steps {step:g} s: its on-times would change; plan its "
+            f"sequence on a scenario of {planned_step:g} s steps"
+        )
+    levels = list(scenario.thrusters.levels)
+    out = []
+    for i, row in enumerate(commanded):
+        out_row = []
+        for j, duty in enumerate(row):
+            # The plan writes each duty as its scenario's level; 1e-12 takes the last bit
+            # of a level computed another way (0.30000000000000004 for 0.3).
+            match = [k for k, level in enumerate(levels) if abs(level - duty) <= 1e-12]
+            if not match:
+                raise InputError(
+                    f"sequence {text!r} is a command plan whose step {i + 1}, thruster "
+                    f"{j + 1} fires at duty {duty:g}, which is no duty level of scenario "
+                    f"{scenario.name!r} (levels {', '.join(f'{v:g}' for v in levels)}): its "
+                    "commands cannot be flown on it"
+                )
+            out_row.append(match[0])
+        out.append(out_row)
+    return out
 
 
 #: The hand-designed sequence as the command line writes it.

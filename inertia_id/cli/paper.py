@@ -82,6 +82,7 @@ def paper_cmd(
     uses the hand-designed excitation (the three positive-axis thrusters at full duty
     every step).
     """
+    from ..physics.scenario import Scenario
     from ..pipelines import run_paper
     from ..search import SearchProgress
 
@@ -118,7 +119,11 @@ def paper_cmd(
     try:
         outcome = run_paper(
             out_dir,
-            sequence=None if sequence_text is None else parse_sequence(sequence_text),
+            sequence=(
+                None
+                if sequence_text is None
+                else parse_sequence(sequence_text, Scenario.paper())  # a plan's duties on it
+            ),
             search=search,
             metric=metric,
             n_realisations=realisations,

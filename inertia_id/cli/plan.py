@@ -124,7 +124,7 @@ def plan_cmd(
         scenario = _search_scenario(document, scenario, named_explicitly=named, path=search_path)
     else:
         assert sequence_text is not None
-        sequence = parse_sequence(sequence_text)
+        sequence = parse_sequence(sequence_text, scenario)
     plan = command_plan(scenario, sequence, flights=flights, seed=seed)
     for warning in plan.warnings:
         click.echo(f"warning: {warning}", err=True)

@@ -188,7 +188,7 @@ def simulate_cmd(
     # Before the flight, not after it: a candidate the scenario lacks is refused at once.
     k = _candidate_index(scenario.candidate_names, candidate, candidate_number)
     offset = parse_sequence_start(time_offset, "--time-offset")
-    sequence, coast_s = _with_coast(scenario, parse_sequence(sequence_text), pre_start_s)
+    sequence, coast_s = _with_coast(scenario, parse_sequence(sequence_text, scenario), pre_start_s)
     # The plan's and the response's rule: a scenario that spins its bodies past any
     # gyro's range (wrong units) is refused before either engine flies it.
     check_nominal_gyro_range(scenario, sequence)

@@ -21,6 +21,7 @@ from inertia_id import (
     Scenario,
     estimate_inertia,
     load_classifier,
+    preset,
     simulate,
     train_classifier,
 )
@@ -1683,3 +1684,52 @@ def test_a_search_file_planned_with_a_decimal_level_is_refused(tmp_path: Path) -
     )
     message = refused(["plan", "--search", str(search), "--out", str(tmp_path / "p.json")])
     assert f"sequence {str(search)!r}: step 2, thruster 1 is 1.0, a decimal number" in message
+
+
+def test_a_kept_plan_planned_on_another_scenario_flies_its_own_duties(tmp_path: Path) -> None:
+    """A kept plan's JSON states its commands (each step's duties, its step duration):
+    planned again on a scenario of other duty levels (``n_levels: 11``) its level indices
+    were read as that scenario's, and full-duty firings (6.0 s of on-time) became 0.4
+    duty (2.4 s) with no word. Its duties are flown at the scenario's level of the same
+    duty; a duty that is no level of the scenario, or another step duration, is refused
+    naming both, by every command that reads a plan's JSON."""
+    kept = tmp_path / "kept.json"
+    result = CliRunner().invoke(
+        main, ["plan", "--sequence", "4,4,4,0,0,0;0,0,0,4,4,4", "--out", str(kept)]
+    )
+    assert result.exit_code == 0, result.output
+    eleven = preset("paper").model_dump(mode="json")
+    eleven["thrusters"]["levels"] = [i / 10 for i in range(11)]
+    other = tmp_path / "eleven.json"
+    other.write_text(json.dumps(eleven))
+    again = tmp_path / "again.json"
+    result = CliRunner().invoke(
+        main, ["plan", "--sequence", str(kept), "--scenario", str(other), "--out", str(again)]
+    )
+    assert result.exit_code == 0, result.output
+    first, second = json.loads(kept.read_text()), json.loads(again.read_text())
+    assert [s["duty"] for s in second["steps"]] == [s["duty"] for s in first["steps"]]
+    assert second["propellant"]["on_time_s"] == first["propellant"]["on_time_s"] == 6.0
+    assert second["sequence"] == [[10, 10, 10, 0, 0, 0], [0, 0, 0, 10, 10, 10]]
+
+    fifths = preset("paper").model_dump(mode="json")
+    fifths["thrusters"]["levels"] = [0.0, 0.2, 0.4, 0.6, 0.8, 1.0]
+    other.write_text(json.dumps(fifths))
+    half = tmp_path / "half.json"
+    result = CliRunner().invoke(main, ["plan", "--sequence", "2,0,0,0,0,0", "--out", str(half)])
+    assert result.exit_code == 0, result.output
+    for command in (["plan", "--out", str(again)], ["simulate"], ["train", "--out", str(again)]):
+        message = refused([*command, "--sequence", str(half), "--scenario", str(other)])
+        assert message == (
+            f"Error: sequence {str(half)!r} is a command plan whose step 1, thruster 1 fires "
+            "at duty 0.5, which is no duty level of scenario 'paper' (levels 0, 0.2, 0.4, "
+            "0.6, 0.8, 1): its commands cannot be flown on it"
+        ), command
+    slower = preset("paper").model_dump(mode="json")
+    slower["timing"]["step_duration_s"] = 2.0
+    other.write_text(json.dumps(slower))
+    message = refused(["plan", "--sequence", str(kept), "--scenario", str(other)])
+    assert message == (
+        f"Error: sequence {str(kept)!r} is a command plan of 1 s steps, and scenario 'paper' "
+        "steps 2 s: its on-times would change; plan its sequence on a scenario of 1 s steps"
+    )
