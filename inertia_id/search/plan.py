@@ -252,8 +252,10 @@ class CommandPlan:
             steps.append(
                 {
                     "step": i + 1,  # numbered from 1, as the service's sequence tables
-                    "start_s": i * self.step_duration_s,
-                    "end_s": (i + 1) * self.step_duration_s,
+                    # As the on-times, to 15 significant digits (3 x 0.1 s read
+                    # 0.30000000000000004 s).
+                    "start_s": _written(i * self.step_duration_s),
+                    "end_s": _written((i + 1) * self.step_duration_s),
                     "levels": row,
                     "duty": self.duty[i],
                     "on_time_s": self.on_time_s[i],
@@ -264,7 +266,7 @@ class CommandPlan:
             "scenario": self.scenario_name,
             "sequence": self.sequence,
             "step_duration_s": self.step_duration_s,
-            "duration_s": len(self.sequence) * self.step_duration_s,
+            "duration_s": _written(len(self.sequence) * self.step_duration_s),
             "steps": steps,
             "candidates": [
                 {
@@ -350,7 +352,8 @@ class CommandPlan:
         # Names are the user's text: written as JSON strings (csv_note_text), so that a
         # newline or a comma in one cannot end the line or start a spreadsheet cell.
         out.write(f"# scenario: {csv_note_text(self.scenario_name)}\n")
-        out.write(f"# step_duration_s: {self.step_duration_s:g}\n")
+        # All its digits (":g" wrote 0.1234567 s as 0.123457).
+        out.write(f"# step_duration_s: {self.step_duration_s:.15g}\n")
         out.write(f"# attitude_quaternion: {document['attitude_quaternion_convention']}\n")
         out.write(f"# impulse_nms: {self.impulse_nms:.6g}\n")
         out.write(f"# on_time_s: {propellant['on_time_s']:.6g}\n")
@@ -495,6 +498,11 @@ def flight_dispersion(
             per_flight_bound(peak, axis=1), np.maximum(peak.mean(axis=1), nominal_peak)
         ).tolist(),
     )
+
+
+def _written(seconds: float) -> float:
+    """A time to 15 significant digits, as :func:`_as_written` gives on-times."""
+    return float(f"{seconds:.15g}")
 
 
 def _as_written(seconds: np.ndarray) -> np.ndarray:

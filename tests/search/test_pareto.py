@@ -1812,3 +1812,28 @@ def test_the_curve_says_whether_its_best_so_far_met_the_constraints(paper: Scena
     assert none_met and not any(none_met)
     met = _curve_feasibility(paper, 2, {"max_impulse_nms": 6})
     assert met and all(met)
+
+
+def test_a_plans_step_times_read_as_the_upload_writes_them(paper: Scenario) -> None:
+    """On 0.1 s steps a plan's timeline read 0.30000000000000004 s (step 4's start) and
+    0.7000000000000001 s (the duration), in its JSON and in the CSV's rows, and a step of
+    0.1234567 s read 0.123457 in the CSV's line: its times are given as its on-times
+    are, to 15 significant digits."""
+    document = paper.model_dump()
+    document["timing"]["step_duration_s"] = 0.1
+    plan = command_plan(Scenario.model_validate(document), [[4, 0, 0, 0, 0, 0]] * 7)
+    planned = json.loads(json.dumps(plan.to_dict()))
+    assert [step["start_s"] for step in planned["steps"]] == [0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6]
+    assert [step["end_s"] for step in planned["steps"]] == [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7]
+    assert planned["duration_s"] == 0.7
+    rows = [line.split(",")[:3] for line in plan.to_csv().splitlines() if line[0].isdigit()]
+    assert rows[3] == ["4", "0.3", "0.4"] and rows[6] == ["7", "0.6", "0.7"]
+    document["timing"] = {
+        "step_duration_s": 0.1234567,
+        "integration_step_s": 0.1234567,
+        "sample_rate_hz": 1 / 0.1234567,
+    }
+    document["uncertainty"]["lowpass_time_constant_s"] = 0.0
+    document["uncertainty"]["disturbance_interval_s"] = 0.1234567
+    odd = command_plan(Scenario.model_validate(document), [[4, 0, 0, 0, 0, 0]])
+    assert "# step_duration_s: 0.1234567\n" in odd.to_csv()
