@@ -278,7 +278,10 @@ class Thrusters(_Model):
             if not is_integer(n_levels, minimum=2, maximum=101, numpy=False):
                 # Checked before the levels are generated: a huge count would allocate them.
                 raise InputError(f"n_levels must be an integer from 2 to 101, got {n_levels!r}")
-            data["levels"] = np.linspace(0.0, 1.0, n_levels).tolist()
+            # i / (M - 1), the double nearest each fraction: numpy.linspace steps by
+            # 1 / (M - 1) and made duties of 0.30000000000000004 (M = 11), which a
+            # command plan writes as a step's duty.
+            data["levels"] = [i / (n_levels - 1) for i in range(n_levels)]
         elif n_levels is not None and len(data["levels"]) != n_levels:
             raise InputError(
                 f"n_levels = {n_levels!r} disagrees with {counted(len(data['levels']), 'level')} "

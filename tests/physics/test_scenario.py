@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import re
 from typing import Any
 
@@ -747,3 +748,19 @@ def test_the_bounds_are_the_figures_the_readme_states() -> None:
     assert scenario.MAX_THRUST_SCALE_SIGMA == 0.5
     assert scenario.MAX_DISTURBANCE_TORQUE_SIGMA_NM == 1e6
     assert scenario.MAX_LAG_STEPS == 100.0
+
+
+def test_evenly_spaced_duty_levels_read_as_the_upload_writes_them() -> None:
+    """``n_levels: 11`` made duty levels 0.30000000000000004, 0.6000000000000001 and
+    0.7000000000000001 (0.1 x 3, as numpy.linspace steps them), which a command plan
+    writes as each step's duty: each level is i / (M - 1), the double nearest the
+    fraction (0.3)."""
+    from inertia_id.search.plan import command_plan
+
+    for m in (3, 5, 7, 11, 101):
+        scenario = preset("paper", thrusters={"n_levels": m})
+        assert scenario.thrusters.levels == [i / (m - 1) for i in range(m)]
+    eleven = preset("paper", thrusters={"n_levels": 11})
+    assert [repr(v) for v in eleven.thrusters.levels][3] == "0.3"
+    plan = command_plan(eleven, [[3, 6, 7, 0, 0, 0]]).to_dict()
+    assert json.dumps(plan["steps"][0]["duty"]) == "[0.3, 0.6, 0.7, 0.0, 0.0, 0.0]"
