@@ -1837,3 +1837,43 @@ def test_a_plans_step_times_read_as_the_upload_writes_them(paper: Scenario) -> N
     document["uncertainty"]["disturbance_interval_s"] = 0.1234567
     odd = command_plan(Scenario.model_validate(document), [[4, 0, 0, 0, 0, 0]])
     assert "# step_duration_s: 0.1234567\n" in odd.to_csv()
+
+
+def test_a_fronts_figures_are_its_members_plans(paper: Scenario) -> None:
+    """The front's figures of a sequence are its command plan's, to the digit: on
+    canted thrusters fire-then-brake's commanded residual read 6.9e-19 rad/s in the
+    front (its plan writes the rounding dust 0), and an on-time of 0.4 + 0.4 + 0.08 s
+    read 0.8800000000000001 s (the plan: 0.88), its duration 1.2000000000000002 s."""
+    document = paper.model_dump()
+    c, s = np.cos(np.radians(30)), np.sin(np.radians(30))
+    document["thrusters"] = {
+        "torque_matrix_nm": [[c, -c, c, -c], [s, s, -s, -s], [0.3, -0.3, -0.3, 0.3]],
+        "levels": [0.0, 0.2, 0.5, 1.0],
+    }
+    document["timing"]["step_duration_s"] = 0.4
+    canted = Scenario.model_validate(document)
+    brake = [[3, 0, 3, 0], [0, 0, 0, 0], [0, 3, 0, 3]]
+    sequences = [brake, [[3, 0, 3, 0], [0, 0, 0, 0], [0, 0, 0, 1]]]
+    front = build_front(
+        canted,
+        sequences,
+        OperatorSettings(n_realisations=3),
+        seed=4,
+        fresh_realisations=3,
+        keep_infeasible=True,
+        test_series=0,
+    ).to_dict()
+    scored = [(m["sequence"], m["scores"]) for m in front["members"]]
+    scored += [(b["sequence"], b["scores"]) for b in front["baselines"].values() if "scores" in b]
+    assert brake in [sequence for sequence, _ in scored]
+    for sequence, scores in scored:
+        plan = command_plan(canted, sequence).to_dict()
+        assert scores["commanded_residual_rate_max_rad_s"] == plan["residual_rate_max_rad_s"]
+        assert scores["commanded_residual_rate_rad_s"] == pytest.approx(
+            np.mean([c["residual_rate_rad_s"] for c in plan["candidates"]]), rel=1e-12, abs=0
+        )
+        assert scores["on_time_s"] == plan["propellant"]["on_time_s"]
+        assert scores["duration_s"] == plan["duration_s"]
+        assert scores["attitude_change_deg"] == max(
+            c["attitude_change_deg"] for c in plan["candidates"]
+        )
