@@ -361,6 +361,10 @@ class CommandPlan:
         # Kept when unknown, so that a reader by name finds it, in words (it was empty).
         stated = f"{kg:.6g}" if kg is not None else propellant["propellant_note"]
         out.write(f"# propellant_kg: {stated}\n")
+        # What the JSON warns of, in the file a team hands on too (it was in the JSON
+        # alone); as a JSON string: it names the scenario, the user's text.
+        for warning in self.warnings:
+            out.write(f"# warning: {csv_note_text(warning)}\n")
         floor = document["initial_rate_floor"]
         if floor is not None:
             out.write(

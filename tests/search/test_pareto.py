@@ -1877,3 +1877,24 @@ def test_a_fronts_figures_are_its_members_plans(paper: Scenario) -> None:
         assert scores["attitude_change_deg"] == max(
             c["attitude_change_deg"] for c in plan["candidates"]
         )
+
+
+def test_a_plans_csv_carries_its_warnings(paper: Scenario) -> None:
+    """A plan's warnings (rates far below the gyro noise: a scenario in kg mm^2 typed as
+    kg m^2; a sequence that fires nothing) were in its JSON alone: the CSV a team hands
+    on said nothing. Each is a ``# warning:`` line, on one line and in one cell whatever
+    the scenario's name holds, and reads back as the JSON's text."""
+    document = paper.model_dump()
+    document["name"] = "mm,\nunits"
+    for candidate in document["inertia_candidates"]:
+        candidate["inertia_kg_m2"] = [[v * 1e6 for v in row] for row in candidate["inertia_kg_m2"]]
+    plan = command_plan(Scenario.model_validate(document), [[4, 4, 4, 0, 0, 0]] * 2)
+    (warning,) = plan.warnings
+    lines = [x for x in plan.to_csv().splitlines() if x.startswith("# warning: ")]
+    assert len(lines) == 1 and "," not in lines[0]
+    assert json.loads(lines[0].removeprefix("# warning: ")) == warning
+    assert "kg mm^2 typed as kg m^2" in warning
+    idle = command_plan(paper, [[0] * 6])
+    (said,) = [x for x in idle.to_csv().splitlines() if x.startswith("# warning: ")]
+    assert "fires no thruster" in said
+    assert "# warning: " not in command_plan(paper, [[4, 4, 4, 0, 0, 0]]).to_csv()
