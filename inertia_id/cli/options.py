@@ -326,6 +326,18 @@ def _plan_levels(document: dict, rows: Any, scenario: Scenario, text: str) -> An
     ):
         return rows  # no plan's commands (or not this scenario's thrusters): as given
     commanded: list[list[float]] = [row for row in duties if isinstance(row, list)]
+    levels_given = [step.get("levels") for step in steps]
+    if levels_given != rows:
+        # Its sequence edited by hand (or its steps): which one is meant is not known.
+        differs = next(
+            (i for i, (a, b) in enumerate(zip(levels_given, rows, strict=False)) if a != b),
+            min(len(levels_given), len(rows)),
+        )
+        raise InputError(
+            f"sequence {text!r} is a command plan whose sequence and steps disagree (at step "
+            f"{differs + 1}): edited by hand? Give the rows themselves (e.g. "
+            "'4,4,4,0,0,0;0,0,0,4,4,4') or a plan as written"
+        )
     planned_step = document.get("step_duration_s")
     step = scenario.timing.step_duration_s
     if (

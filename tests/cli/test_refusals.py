@@ -1725,6 +1725,11 @@ def test_a_kept_plan_planned_on_another_scenario_flies_its_own_duties(tmp_path: 
             "at duty 0.5, which is no duty level of scenario 'paper' (levels 0, 0.2, 0.4, "
             "0.6, 0.8, 1): its commands cannot be flown on it"
         ), command
+    edited = json.loads(kept.read_text())
+    edited["sequence"][1] = [0, 0, 0, 2, 2, 2]
+    kept.with_name("edited.json").write_text(json.dumps(edited))
+    message = refused(["plan", "--sequence", str(kept.with_name("edited.json"))])
+    assert "is a command plan whose sequence and steps disagree (at step 2)" in message
     slower = preset("paper").model_dump(mode="json")
     slower["timing"]["step_duration_s"] = 2.0
     other.write_text(json.dumps(slower))
