@@ -203,6 +203,9 @@ class SearchFrontBaseline(_Open):
     scores: SearchScores
     feasible: bool
     dominates: list[int] = Field(description="indices of the members it dominates")
+    fires: bool | None = Field(
+        default=None, description="false: it applies no torque (no classifier trains on it)"
+    )
 
 
 class Unavailable(_Open):

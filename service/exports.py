@@ -477,6 +477,7 @@ def _search_front(result: Mapping[str, Any]) -> Table:
                 [],
                 member.get("sequence"),
                 *_front_figures(scores, _FRONT_COMMANDED),
+                member.get("fires"),
             ]
         )
     for name, base in (front.get("baselines") or {}).items():
@@ -496,6 +497,7 @@ def _search_front(result: Mapping[str, Any]) -> Table:
                 list(base.get("dominates") or []),
                 base.get("sequence"),
                 *_front_figures(scores, _FRONT_COMMANDED),
+                base.get("fires"),
             ]
         )
     header = [
@@ -511,6 +513,9 @@ def _search_front(result: Mapping[str, Any]) -> Table:
         "dominates_members",
         "sequence",
         *_FRONT_COMMANDED,
+        # False: it applies no torque, no classifier trains on it (empty for a front
+        # stored before it said so). Last, as the commanded figures were added.
+        "fires",
     ]
     return Table(header, rows)
 

@@ -595,6 +595,7 @@ def build_front(
             "scores": score.as_dict(),
             "feasible": allowed,
             "dominates": beaten,
+            "fires": _fires(scenario, sequence),
         }
     if test_series and len(rows) > 1 and chosen:
         best = chosen[0]

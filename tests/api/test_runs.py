@@ -1312,3 +1312,31 @@ def test_every_sequence_a_search_may_find_has_its_command_plan(api: Api) -> None
         f"/scenarios/{scenario_id}/plan", params={"sequence": json.dumps(sequence)}
     )
     assert typed.status_code == 200, typed.text
+
+
+def test_a_fronts_csv_says_which_members_fire(api: Api) -> None:
+    """The front's JSON marks a member that applies no torque (``fires: false``: the
+    all-off sequence, or firings whose torques cancel, on which no classifier trains);
+    its CSV, the table a flight team reads to pick a member, did not say it. A ``fires``
+    column comes last (every earlier column where it was), for members and baselines."""
+    scenario_id = api.create_scenario()["id"]
+    idle, cancel = [[0] * 6] * 2, [[4, 0, 0, 4, 0, 0]] * 2
+    result = _with_front([[[4, 4, 4, 0, 0, 0]] * 2, idle, cancel])
+    job_id = _finished(api, scenario_id, 0, result)
+    rows = _csv(api.get(f"/jobs/{job_id}/result?format=csv&table=front").text)
+    header, body = rows[0], rows[1:]
+    assert header[-1] == "fires" and header[-5:-1] == [
+        "commanded_residual_rate_rad_s",
+        "commanded_residual_rate_deg_s",
+        "commanded_residual_rate_max_rad_s",
+        "commanded_residual_rate_max_deg_s",
+    ]
+    fires = {row[header.index("sequence")]: row[-1] for row in body if row[0] == "member"}
+    members = result["front"]["members"]
+    assert {json.dumps(m["sequence"], separators=(",", ":")): str(m["fires"]) for m in members} == (
+        fires
+    )
+    assert fires[json.dumps(idle, separators=(",", ":"))] == "False"
+    assert {row[-1] for row in body if row[0] == "baseline"} == {"True"}
+    records = api.get(f"/jobs/{job_id}/result?format=json&table=front").json()
+    assert [r["fires"] for r in records if r["kind"] == "member"] == [m["fires"] for m in members]

@@ -1522,12 +1522,13 @@ def test_the_front_tables_commanded_residual_columns_come_after_every_earlier_co
         "commanded_residual_rate_deg_s",
         "commanded_residual_rate_max_rad_s",
         "commanded_residual_rate_max_deg_s",
+        "fires",  # after them (empty for a member stored without it, as this one)
     ]
     assert list(table.header) == before + added
     (row,) = table.rows
     assert row[before.index("final_rate_max_rad_s")] == 0.0087
     assert row[len(before) :] == [0.0009, pytest.approx(np.degrees(0.0009)), 0.0013,
-                                  pytest.approx(np.degrees(0.0013))]  # fmt: skip
+                                  pytest.approx(np.degrees(0.0013)), None]  # fmt: skip
 
 
 def test_a_plans_json_says_in_words_why_the_propellant_is_null(paper: Scenario) -> None:
