@@ -290,8 +290,9 @@ MAX_RESPONSE_WORK = 400_000
 #: realisations): as many as a job may fly a flight (``app.api.jobs.MAX_FLIGHT_RK4_STEPS``
 #: is this), so that every sequence a search or training was accepted for can be planned.
 #: At the response's 1,280 a 20-step search on a 10 ms RK4 step (a 20 ms thruster lag)
-#: found sequences whose plan was a 422. 100,000 took 2.1 s (1,000 steps on a 10 ms step,
-#: 5 candidates, the 2-core machine under load).
+#: found sequences whose plan was a 422. 100,000 (1,000 steps on a 10 ms step, 5
+#: candidates) took 2.1 s in command_plan and 3.5 to 4.8 s a request with its 875 kB of
+#: JSON (the 2-core machine at a load average of 2); 20 such steps 0.11 s.
 MAX_PLAN_INTEGRATION_STEPS = 100_000
 #: Flights a plan may fly (``flights=``): candidates x flights x RK4 steps at most this,
 #: about 0.5 s of CPU on the 2-core machine (measured: 1,250 flights of 8 paper steps
