@@ -138,6 +138,9 @@ def plan_cmd(
             "member": "best" if member is None else member,
         }
         job = document.get("_job_facts")
+        if (job or {}).get("status") == "cancelled":
+            # As the service's plan of it says: its best is the best found before it stopped.
+            source["job_status"] = "cancelled"
     elif sequence_text is not None and os.path.isfile(sequence_text):
         # A regular file only: a pipe's path (/dev/fd/63) names nothing once it is read.
         source = {"sequence_file": str(Path(sequence_text).resolve())}
@@ -281,7 +284,7 @@ def _search_document(path: str) -> dict:
         job = document
         document = {**document["result"]}
         # Which job it is, for the lines a plan's CSV begins with (as the service's).
-        facts = ("id", "type", "scenario_id", "seed", "created_at", "finished_at")
+        facts = ("id", "type", "scenario_id", "seed", "created_at", "finished_at", "status")
         document["_job_facts"] = {key: job.get(key) for key in facts}
         # A job stored before results recorded their scenario: say whose it was.
         document.setdefault(

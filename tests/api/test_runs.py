@@ -1340,3 +1340,35 @@ def test_a_fronts_csv_says_which_members_fire(api: Api) -> None:
     assert {row[-1] for row in body if row[0] == "baseline"} == {"True"}
     records = api.get(f"/jobs/{job_id}/result?format=json&table=front").json()
     assert [r["fires"] for r in records if r["kind"] == "member"] == [m["fires"] for m in members]
+
+
+def test_the_clis_plan_of_a_cancelled_search_says_so_as_the_services_does(
+    api: Api, tmp_path: Path
+) -> None:
+    """The service's plan of a cancelled search's best sequence says ``job_status:
+    cancelled`` (JSON source, CSV line); ``inertia-id plan --search`` on the same job as
+    downloaded said nothing of it: a best-so-far read as a finished search's best."""
+    from cli_support import run_cli
+
+    scenario_id = api.create_scenario()["id"]
+    result = _search_result([0.9], 12.0, 2.0)
+    job_id = _finished(api, scenario_id, 1, result, "cancelled")
+    served = _notes(api.get_with_key(f"/jobs/{job_id}/plan", params={"format": "csv"}).text)
+    assert served["job_status"] == "cancelled"
+    downloaded = tmp_path / "job.json"
+    downloaded.write_text(api.get(f"/jobs/{job_id}/result").text, encoding="utf-8")
+    out = tmp_path / "plan.csv"
+    run_cli(["plan", "--search", str(downloaded), "--out", str(out)])
+    names = [
+        line[2:].split(": ", 1)[0] for line in out.read_text().splitlines() if line[:2] == "# "
+    ]
+    assert names[:11] == [*_JOB_LINES, "search", "member", "job_status", "scenario"]
+    assert _notes(out.read_text())["job_status"] == "cancelled"
+    as_json = tmp_path / "plan.json"
+    run_cli(["plan", "--search", str(downloaded), "--out", str(as_json)])
+    assert json.loads(as_json.read_text())["source"]["job_status"] == "cancelled"
+    # A succeeded search's plan does not carry it, as the service's.
+    done = _finished(api, scenario_id, 2, result)
+    downloaded.write_text(api.get(f"/jobs/{done}/result").text, encoding="utf-8")
+    run_cli(["plan", "--search", str(downloaded), "--out", str(as_json)])
+    assert "job_status" not in json.loads(as_json.read_text())["source"]
