@@ -89,7 +89,13 @@ from .deps import (
 from .idempotency import IDEMPOTENCY_RESPONSES, IdempotencyDep, replayable
 from .listing import id_filters, one_page, search_text, sort_order, tag_filters
 from .routing import UniqueKeysRoute
-from .scenarios import MAX_PLAN_INTEGRATION_STEPS, PlanOptionsDep, overflow_loc, plan_for
+from .scenarios import (
+    MAX_PLAN_INTEGRATION_STEPS,
+    MAX_RESPONSE_SERIES_VALUES,
+    PlanOptionsDep,
+    overflow_loc,
+    plan_for,
+)
 
 __all__ = ["router"]
 
@@ -249,7 +255,7 @@ def _same_spacecraft(search: JobRow, scenario_id: str, scenario: Scenario) -> No
 #: ceiling) fits each with room to spare.
 #: (The most a plan takes too: every sequence a job flies can be planned.)
 MAX_FLIGHT_RK4_STEPS = MAX_PLAN_INTEGRATION_STEPS
-MAX_SERIES_VALUES = 8_192
+MAX_SERIES_VALUES = MAX_RESPONSE_SERIES_VALUES  # (a response draws any such series)
 MAX_HELD_VALUES = 2**23
 MAX_COVARIANCE_VALUES = 2**27
 

@@ -279,13 +279,15 @@ def delete_scenario(scenario_id: str, session: SessionDep) -> Response:
     return Response(status_code=status.HTTP_204_NO_CONTENT)
 
 
-#: Work caps of one response simulation, measured on the paper preset (2-core machine):
-#: the integrator loops over time in Python (about 4 ms per sequence step of 20 RK4
-#: steps), and each loop works on candidates x realisations at once. 1,280 RK4 steps (64
-#: paper steps) and 400,000 candidate-realisation-RK4-steps keep one request under about
-#: 0.4 s of CPU (the cap on both was 13.7 s before).
-MAX_RESPONSE_INTEGRATION_STEPS = 1_280
+#: Work cap of one response simulation: 400,000 candidate-realisation-RK4-steps (the cap
+#: was 13.7 s of CPU before; the integrator, compiled since, flies them in 0.05 s).
 MAX_RESPONSE_WORK = 400_000
+#: Rate values (samples x 3) a response's series may hold, as a job's series
+#: (``app.api.jobs.MAX_SERIES_VALUES`` is this): with the RK4 steps a job may fly
+#: (:data:`MAX_PLAN_INTEGRATION_STEPS`), every sequence a search may find is drawn. The
+#: response took 1,280 RK4 steps, and a search page could not draw its 16-step best
+#: sequence on a 10 ms RK4 step (1,600).
+MAX_RESPONSE_SERIES_VALUES = 8_192
 #: RK4 steps a plan's nominal prediction may take (one run of the candidates, no
 #: realisations): as many as a job may fly a flight (``app.api.jobs.MAX_FLIGHT_RK4_STEPS``
 #: is this), so that every sequence a search or training was accepted for can be planned.
@@ -365,12 +367,19 @@ def _response(
     timing = scenario.timing
     integration = len(steps) * round(timing.step_duration_s / timing.integration_step_s)
     work = scenario.n_candidates * n_realisations * integration
-    if integration > MAX_RESPONSE_INTEGRATION_STEPS:
+    values = len(steps) * timing.samples_per_step * 3
+    if integration > MAX_PLAN_INTEGRATION_STEPS:
         unprocessable(
             ("query", "sequence"),
             f"{len(steps)} steps of {timing.step_duration_s:g} s at an integration step of "
             f"{timing.integration_step_s:g} s = {integration} RK4 steps; at most "
-            f"{MAX_RESPONSE_INTEGRATION_STEPS}",
+            f"{MAX_PLAN_INTEGRATION_STEPS}",
+        )
+    if values > MAX_RESPONSE_SERIES_VALUES:
+        unprocessable(
+            ("query", "sequence"),
+            f"{len(steps)} steps of {timing.step_duration_s:g} s at {timing.sample_rate_hz:g} "
+            f"Hz = {values} rate values; at most {MAX_RESPONSE_SERIES_VALUES}",
         )
     if work > MAX_RESPONSE_WORK:
         unprocessable(
