@@ -75,6 +75,11 @@ def propagate_attitude(
 
 
 def rotation_angle_deg(quaternion: np.ndarray) -> np.ndarray:
-    """The angle of the rotation a unit quaternion describes, in [0, 180] degrees."""
-    w = np.clip(np.abs(np.asarray(quaternion, dtype=float)[..., 0]), 0.0, 1.0)
-    return np.asarray(np.degrees(2.0 * np.arccos(w)))
+    """The angle of the rotation a unit quaternion describes, in [0, 180] degrees.
+
+    ``2 atan2(|v|, |w|)``, not ``2 arccos(|w|)``: near the identity |w| rounds to 1 and
+    arccos's slope is infinite there, so a turn of 1e-7 degrees read 0 (and one of 1e-5
+    degrees 9.96e-6), where the vector part keeps its full relative precision."""
+    q = np.asarray(quaternion, dtype=float)
+    vector = np.linalg.norm(q[..., 1:], axis=-1)
+    return np.asarray(np.degrees(2.0 * np.arctan2(vector, np.abs(q[..., 0]))))

@@ -374,6 +374,18 @@ def test_quaternion_propagation_matches_a_constant_rate_about_one_axis() -> None
     assert rotation_angle_deg(q[-1]) == pytest.approx(np.degrees(rate * period * samples))
 
 
+@pytest.mark.parametrize("degrees", [1e-7, 1e-5, 1e-3, 0.5, 90.0, 179.999, 180.0])
+def test_a_rotation_angle_keeps_its_precision_however_small(degrees: float) -> None:
+    """A small turn (a residual attitude drift, the gap between two propagations) is
+    read to double precision: from |w| alone (arccos) one of 1e-7 degrees read 0, one of
+    1e-5 degrees 9.96e-6."""
+    half = np.radians(degrees) / 2.0
+    for axis in ([1.0, 0.0, 0.0], [0.0, 0.6, 0.8]):
+        q = np.concatenate([[np.cos(half)], np.sin(half) * np.asarray(axis)])
+        assert float(rotation_angle_deg(q)) == pytest.approx(degrees, rel=1e-12)
+        assert float(rotation_angle_deg(-q)) == pytest.approx(degrees, rel=1e-12)  # -q: same
+
+
 def test_the_plans_on_times_reproduce_the_simulated_impulse(paper: Scenario) -> None:
     sequence = [[4, 2, 0, 0, 1, 3], [0, 0, 4, 4, 0, 0], [1, 1, 1, 0, 0, 0]]
     quiet = paper.with_uncertainty(
