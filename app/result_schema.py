@@ -176,7 +176,10 @@ class SearchScores(_Open):
     on_time_s: float
     propellant_kg: float | None = Field(description="null unless thrust and Isp are stated")
     duration_s: float
-    attitude_change_deg: float
+    attitude_change_deg: float = Field(
+        description="the net rotation when the last command ends, degrees (0 to 180), "
+        "of the candidate that turns most"
+    )
     predicted_accuracy_by_noise: list[float] | None = Field(
         default=None, description="the prediction a measured accuracy replaced"
     )
