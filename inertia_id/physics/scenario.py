@@ -238,8 +238,9 @@ class Thrusters(_Model):
     validation both the matrix and the levels are always filled in.
 
     Propellant (all optional): the thrust of each thruster at full duty, ``thrust_n``
-    (N), or its effective lever arm ``lever_arm_m`` (m; the thrust is then
-    ``|A_j| / lever_arm``), not both; and the specific impulse ``specific_impulse_s`` (s).
+    (N), or its effective lever arm ``lever_arm_m`` (m: the distance from the centre of
+    mass to the thrust's line of action, ``|r × f̂|``, not to the thruster; the thrust is
+    then ``|A_j| / lever_arm``), not both; and the specific impulse ``specific_impulse_s`` (s).
     With a thrust and a specific impulse the propellant of a sequence is
     ``Σ_j thrust_j · on_time_j / (Isp · g0)`` kg (:meth:`Scenario.propellant_kg`). A single
     number for ``thrust_n`` or ``lever_arm_m`` applies to every thruster.
