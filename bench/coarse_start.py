@@ -25,12 +25,25 @@ percentile / largest (s), and identify's median CPU time with the search (ms). "
 is the same code with the coarse-grid branch off
 (``identify.COARSE_GRID_RISE = inf``: the parabola alone, as before this change).
 
+Beyond that configuration (the defaults): ``--preset`` (``paper``: from rest, an
+unbiased gyro; ``canted``: the paper timing with eight canted thrusters and five
+full-tensor candidates, ``bench/telemetry_identify.py``'s), ``--sequence``
+(``fire-brake``, ``hand-designed`` for the scenario's geometry, the engine tests'
+mixed-duty ``canted`` one, or rows as JSON), ``--grid-hz`` and ``--step-s`` (the
+classifier's grid and steps), ``--pre-start-s`` (0: no sample before the true start),
+``--fly-hz`` (the rate the series are flown at; the offsets then in its periods) and
+``--engine basilisk`` (the test series flown by Basilisk, an independent simulator).
+``--show-rise`` prints, per row, how many series "now" took as coarse (the rule's rise
+above ``COARSE_GRID_RISE``) and the rises' least / median / largest: a grid whose rises
+straddle the threshold is borderline, its decision flipping series by series.
+
 Run: OPENBLAS_NUM_THREADS=1 python bench/coarse_start.py [--n 20] [--within 1,2]
 (about 2 minutes on the 2-core machine)
 """
 
 from __future__ import annotations
 
+import json
 import math
 import time
 from typing import Any
@@ -38,20 +51,62 @@ from unittest import mock
 
 import numpy as np
 from _common import GOOD_SEQUENCE, base_parser, begin, float_list, print_table, write_json
-from telemetry_identify import FLAGGED
+from telemetry_identify import FLAGGED, canted_paper
 
+from inertia_id import Scenario
 from inertia_id.classifiers.registry import DEFAULT_KIND, kind_class, train_classifier
 from inertia_id.cli.scenario import _at_rate
 from inertia_id.evaluation import identify as identify_module
 from inertia_id.evaluation.identify import identify
 from inertia_id.evaluation.sweep import wilson_interval
 from inertia_id.evaluation.telemetry import Telemetry
+from inertia_id.physics.engines.basilisk import (
+    CANTED_SEQUENCE,
+    basilisk_available,
+    simulate_basilisk,
+)
 from inertia_id.physics.presets import preset
+from inertia_id.physics.sequences import hand_designed
 from inertia_id.physics.simulate import simulate
 
 FIRE_BRAKE = [[4, 4, 4, 0, 0, 0]] * 2 + [[0, 0, 0, 4, 4, 4]] * 2
-PRE_START_S = 30.0
 CONTROL_WITHIN_S = 0.3
+
+
+def _scenario(name: str, timing: dict | None = None) -> Scenario:
+    """The ``--preset`` scenario, with ``timing`` overriding its own where given."""
+    if name == "canted":
+        scenario = canted_paper()
+        if timing is None:
+            return scenario
+        data = scenario.model_dump()
+        data["timing"] = {**data["timing"], **timing}
+        return Scenario.model_validate(data)
+    return preset(name) if timing is None else preset(name, timing=timing)
+
+
+def _grid_timing(args: Any) -> dict:
+    """The classifier's grid: ``--grid-hz`` samples, ``--step-s`` steps, integrated at
+    0.01 s (as ``bench/fast_telemetry.py``)."""
+    return {
+        "step_duration_s": args.step_s,
+        "integration_step_s": 0.01,
+        "sample_rate_hz": args.grid_hz,
+    }
+
+
+def _sequence(text: str, scenario: Scenario) -> list[list[int]]:
+    """The ``--sequence`` rows for ``scenario``, checked against its thrusters."""
+    if text == "fire-brake":
+        rows = FIRE_BRAKE
+    elif text == "hand-designed":
+        rows = hand_designed(scenario, 4).tolist()
+    elif text == "canted":
+        rows = CANTED_SEQUENCE
+    else:
+        rows = json.loads(text)
+    scenario.check_sequence(rows)
+    return [list(map(int, row)) for row in rows]
 
 
 def _share(hits: int, n: int) -> str:
@@ -60,19 +115,39 @@ def _share(hits: int, n: int) -> str:
 
 
 def _flights(
-    scenario: Any, sequence: Any, n: int, fly_rate: float, process: float, rng: Any
+    scenario: Any, sequence: Any, n: int, args: Any, fly_rate: float, rng: Any
 ) -> tuple[np.ndarray, np.ndarray]:
-    """``n`` series a candidate flown at ``fly_rate`` Hz with 30 s of quiet before the
-    sequence and a step after: stamps in s from the true start, (K, n, T, 3) rates."""
+    """``n`` series a candidate flown at ``fly_rate`` Hz with ``args.pre_start_s`` of
+    quiet before the sequence and a step after, by ``args.engine``: stamps in s from the
+    true start, (K, n, T, 3) rates."""
     step = scenario.timing.step_duration_s
-    coast = round(PRE_START_S / step)
+    coast = round(args.pre_start_s / step)
     quiet = [[0] * scenario.n_thrusters]
+    flown_sequence = quiet * coast + sequence + quiet
+    if args.engine == "basilisk":
+        runs = [
+            [
+                simulate_basilisk(
+                    scenario,
+                    flown_sequence,
+                    k,
+                    rng,
+                    sample_rate_hz=fly_rate,
+                    process_noise_scale=args.process,
+                )
+                for _ in range(n)
+            ]
+            for k in range(scenario.n_candidates)
+        ]
+        t = np.asarray(runs[0][0].time_s)
+        omega = np.array([[np.asarray(r.omega_measured) for r in row] for row in runs])
+        return t - coast * step, omega
     flown = simulate(
         _at_rate(scenario, fly_rate),
-        quiet * coast + sequence + quiet,
+        flown_sequence,
         n,
         rng,
-        process_noise_scale=process,
+        process_noise_scale=args.process,
     )
     return np.asarray(flown.time_s) - coast * step, np.asarray(flown.omega_measured)
 
@@ -88,14 +163,28 @@ def _judge(model: Any, cases: list[tuple[int, Telemetry, float]], within: float)
     """Each case (candidate, telemetry, stated start less the true one, s) judged before
     and now; the figures of each."""
     figures = {}
+    original = identify_module._neighbours_rise
     for name, rise in (("before", math.inf), ("now", identify_module.COARSE_GRID_RISE)):
         named = identified = flagged = 0
-        errors, cpu = [], []
-        with mock.patch.object(identify_module, "COARSE_GRID_RISE", rise):
+        errors, cpu, rises = [], [], []
+        seen: list[float] = []
+
+        def recorded(*a: Any, _seen: list = seen, **kw: Any) -> float:
+            value = original(*a, **kw)
+            _seen.append(value)
+            return value
+
+        with (
+            mock.patch.object(identify_module, "COARSE_GRID_RISE", rise),
+            mock.patch.object(identify_module, "_neighbours_rise", recorded),
+        ):
             for k, telemetry, off in cases:
+                del seen[:]
                 started = time.process_time()
                 verdict = identify(model, telemetry, estimate_start_within_s=within)
                 cpu.append(time.process_time() - started)
+                # The rule's rise where the search asked it (the last such call).
+                rises.append(seen[-1] if seen else math.nan)
                 named += verdict.candidate_index == k
                 identified += verdict.status == "identified" and verdict.candidate_index == k
                 flagged += verdict.status in FLAGGED
@@ -111,6 +200,7 @@ def _judge(model: Any, cases: list[tuple[int, Telemetry, float]], within: float)
                 float(max(errors)),
             ],
             "cpu_ms_median": 1e3 * float(np.median(cpu)),
+            "rises": rises,
         }
     return figures
 
@@ -136,14 +226,10 @@ def _rows(label: str, figures: dict) -> list[list[Any]]:
 
 
 def coarse(args: Any, rng: np.random.Generator) -> tuple[list, dict]:
-    scenario = preset(
-        "paper-in-orbit",
-        timing={"step_duration_s": 2.0, "integration_step_s": 0.01, "sample_rate_hz": 1.0},
-    )
-    model = train_classifier(
-        scenario, FIRE_BRAKE, kind_class(DEFAULT_KIND).DEFAULT_REALISATIONS, rng
-    )
-    t, omega = _flights(scenario, FIRE_BRAKE, args.n, 10.0, args.process, rng)
+    scenario = _scenario(args.preset, _grid_timing(args))
+    sequence = _sequence(args.sequence, scenario)
+    model = train_classifier(scenario, sequence, kind_class(DEFAULT_KIND).DEFAULT_REALISATIONS, rng)
+    t, omega = _flights(scenario, sequence, args.n, args, args.fly_hz, rng)
     rows, figures = [], {}
     for rate in args.rates:
         for offset in args.offsets:
@@ -166,7 +252,8 @@ def coarse(args: Any, rng: np.random.Generator) -> tuple[list, dict]:
                     )
             for within in args.within:
                 label = (
-                    f"1 Hz grid, {rate:g} Hz gyro, start ±{offset:g} s off, search ±{within:g} s"
+                    f"{args.grid_hz:g} Hz grid, {rate:g} Hz gyro, start ±{offset:g} s off, "
+                    f"search ±{within:g} s"
                 )
                 found = _judge(model, cases, within)
                 figures[label] = found
@@ -175,11 +262,10 @@ def coarse(args: Any, rng: np.random.Generator) -> tuple[list, dict]:
 
 
 def control(args: Any, rng: np.random.Generator) -> tuple[list, dict]:
-    scenario = preset("paper-in-orbit")
-    model = train_classifier(
-        scenario, GOOD_SEQUENCE, kind_class(DEFAULT_KIND).DEFAULT_REALISATIONS, rng
-    )
-    t, omega = _flights(scenario, GOOD_SEQUENCE, args.n, 100.0, args.process, rng)
+    scenario = _scenario(args.preset)
+    sequence = GOOD_SEQUENCE if args.preset != "canted" else hand_designed(scenario, 4).tolist()
+    model = train_classifier(scenario, sequence, kind_class(DEFAULT_KIND).DEFAULT_REALISATIONS, rng)
+    t, omega = _flights(scenario, sequence, args.n, args, 100.0, rng)
     keep = _cut(t, 20.0, 0.0)
     cases = []
     for k in range(scenario.n_candidates):
@@ -210,13 +296,67 @@ def main() -> None:
     )
     parser.add_argument("--process", type=float, default=1.0, help="process noise multiple")
     parser.add_argument("--no-control", action="store_true", help="skip the 20 Hz control")
+    parser.add_argument(
+        "--preset",
+        choices=("paper-in-orbit", "paper", "canted"),
+        default="paper-in-orbit",
+        help="scenario (canted: paper timing, canted thrusters, full tensors)",
+    )
+    parser.add_argument(
+        "--sequence",
+        default="fire-brake",
+        help="fire-brake, hand-designed, canted (the engine tests' mixed duty) or JSON rows",
+    )
+    parser.add_argument("--grid-hz", type=float, default=1.0, help="classifier's grid, Hz")
+    parser.add_argument("--step-s", type=float, default=2.0, help="actuation step, s")
+    parser.add_argument(
+        "--pre-start-s", type=float, default=30.0, help="telemetry before the true start, s"
+    )
+    parser.add_argument("--fly-hz", type=float, default=10.0, help="series flown at, Hz")
+    parser.add_argument(
+        "--engine", choices=("numpy", "basilisk"), default="numpy", help="flies the test series"
+    )
+    parser.add_argument(
+        "--show-rise", action="store_true", help="print the coarse-grid rule's rises per row"
+    )
     args = begin(parser, "Start search on a coarse grid")
-    if not all(r in (1.0, 2.0, 5.0, 10.0) for r in args.rates):
+    if args.engine == "basilisk" and not basilisk_available():
+        parser.error("--engine basilisk: Basilisk does not import here")
+    for flag, value in (
+        ("--grid-hz", args.grid_hz),
+        ("--step-s", args.step_s),
+        ("--fly-hz", args.fly_hz),
+    ):
+        if not (math.isfinite(value) and value > 0):
+            parser.error(f"{flag}: give a positive number, got {value:g}")
+    if args.pre_start_s < 0:
+        parser.error(f"--pre-start-s: give 0 or more, got {args.pre_start_s:g}")
+    per = [args.fly_hz / r for r in args.rates]
+    if not all(abs(p - round(p)) < 1e-9 and round(p) >= 1 for p in per):
         parser.error(
-            f"--rates: the series are flown at 10 Hz: give 1, 2, 5 or 10, got {args.rates}"
+            f"--rates: the series are flown at {args.fly_hz:g} Hz: give rates that divide it, "
+            f"got {args.rates}"
         )
-    if not all(0.0 < o < 1.0 and round(o * 10) == o * 10 for o in args.offsets):
-        parser.error(f"--offsets: tenths of a second between 0 and 1 s, got {args.offsets}")
+    ticks = [o * args.fly_hz for o in args.offsets]
+    if not all(
+        0.0 < o < 1.0 and abs(x - round(x)) < 1e-9 for o, x in zip(args.offsets, ticks, strict=True)
+    ):
+        parser.error(
+            f"--offsets: whole periods of the {args.fly_hz:g} Hz flight between 0 and 1 s, "
+            f"got {args.offsets}"
+        )
+    try:
+        grid = _scenario(args.preset, _grid_timing(args))
+    except ValueError as error:
+        parser.error(f"--grid-hz {args.grid_hz:g} / --step-s {args.step_s:g}: {error}")
+    try:
+        _sequence(args.sequence, grid)
+    except (ValueError, TypeError) as error:
+        parser.error(f"--sequence {args.sequence!r}: {error}")
+    try:
+        _at_rate(grid, args.fly_hz)
+    except ValueError as error:
+        parser.error(f"--fly-hz {args.fly_hz:g}: {error}")
     rng = np.random.default_rng(args.seed)
     started = time.perf_counter()
     rows, figures = coarse(args, rng)
@@ -237,6 +377,17 @@ def main() -> None:
         rows,
         title=f"default classifier, {args.process:g}x process noise, {args.n} series a candidate",
     )
+    if args.show_rise:
+        for label, found in figures.items():
+            rises = np.asarray(found["now"]["rises"], dtype=float)
+            finite = rises[np.isfinite(rises)]
+            coarse_n = int(np.sum(finite > identify_module.COARSE_GRID_RISE))
+            spread = (
+                f"{finite.min():.1f} / {np.median(finite):.1f} / {finite.max():.1f}"
+                if finite.size
+                else "none asked"
+            )
+            print(f"{label}: coarse {coarse_n} of {rises.size}; rise least/median/largest {spread}")
     print(f"total {time.perf_counter() - started:.0f} s")
     write_json(args.json, args, {"rows": figures})
 
