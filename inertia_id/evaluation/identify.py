@@ -701,7 +701,16 @@ def _best_start(
     offset_prior = uncertainty is not None and (
         uncertainty.initial_rate_sigma_rad_s > 0.0 or uncertainty.gyro_bias_sigma_rad_s > 0.0
     )
-    if not score.offset_measured and offset_prior and 0.0 in tried:
+    step = float(grid[1] - grid[0])
+
+    def cost(at: float) -> float:
+        value = start_cost(
+            telemetry, grid, score, at, marginalise_gaps=True, kind=classifier.kind, shape=shape
+        )
+        return math.inf if value is None else value
+
+    coarse = _neighbours_rise(shift, tried, score, step, cost) > COARSE_GRID_RISE
+    if not coarse and not score.offset_measured and offset_prior and 0.0 in tried:
         # No sample before the stated start, so no offset to condition on: the kind's
         # prior on the initial rate and bias absorbs the near-constant difference a
         # start a period off makes on the thrust's ramp, and neighbouring starts score
@@ -715,18 +724,15 @@ def _best_start(
         # preset) the search finds the start since every start's square is taken from
         # one noise condition (see _StartScore): right start 100 of 100 stated right, a
         # period early and two early, where keeping the stated start took 100, 0 and 0,
-        # identified right 100, 58 and 50.
+        # identified right 100, 58 and 50. Not on a grid coarse for the response
+        # (COARSE_GRID_RISE), where a start a fraction of a period off costs far more
+        # misfit than the prior absorbs: paper-in-orbit on the 1 Hz grid with no
+        # telemetry before the start kept a stated start 0.4 s off (identified right 0
+        # of 100) and 0.5 s off (matches none 99 of 100), where the search between
+        # the grid's starts finds it (``bench/coarse_start.py --pre-start-s 0``).
         return 0.0, False
-    step = float(grid[1] - grid[0])
-
-    def cost(at: float) -> float:
-        value = start_cost(
-            telemetry, grid, score, at, marginalise_gaps=True, kind=classifier.kind, shape=shape
-        )
-        return math.inf if value is None else value
-
     here = costs[tried.index(shift)]
-    if _neighbours_rise(shift, tried, score, step, cost) > COARSE_GRID_RISE:
+    if coarse:
         scored = _scored_start(shift, here, step, window_s, cost)
         return (shift, False) if scored is None else (scored, True)
     refined = _refined_start(shift, tried, costs, step)
