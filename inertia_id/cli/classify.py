@@ -349,7 +349,9 @@ def sweep_cmd(
     default=None,
     type=FloatRange(0),
     help="Search start times within this many seconds of the given start, one grid period "
-    "apart, for the one whose series is closest to a candidate; the shift is reported.",
+    "apart, for the one whose series is closest to a candidate; the likelihood kinds then "
+    "refine it below the grid period (scoring the starts between the grid's on a coarse "
+    "grid, such as 1 Hz). The shift is reported.",
 )
 @click.option(
     "--pre-start-window",

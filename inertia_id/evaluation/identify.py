@@ -1013,8 +1013,9 @@ def identify(
         the starts between the grid's where the grid is coarse for the response), and
         judge from it (``sequence_start_shift_s``; the grid's shifts the telemetry
         allowed in ``sequence_start_shifts_tried_s``). None: the stated start.
-        With no sample before the stated start the likelihood kinds keep it where the
-        telemetry reaches it (:func:`_best_start`).
+        With no sample before the stated start and a prior on the initial rate or gyro
+        bias, the likelihood kinds keep it where the telemetry reaches it and the grid is
+        fine (:func:`_best_start`).
     :param start_hint: with no search asked for, a matches-none (or not-this-sequence)
         verdict tries the starts within :data:`START_HINT_WINDOW_S` and says in its text
         and ``start_hint`` when one of them identifies a candidate; failing that, it reads
