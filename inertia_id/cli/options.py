@@ -319,7 +319,9 @@ def _plan_levels(document: dict, rows: Any, scenario: Scenario, text: str) -> An
         commands a duty that is no level of the scenario (naming the step and thruster).
     """
     steps = document.get("steps")
-    duties = [step.get("duty") if isinstance(step, dict) else None for step in steps or []]
+    if not isinstance(steps, list):
+        return rows  # no plan's steps ("steps": 5 was iterated): its sequence as given
+    duties = [step.get("duty") if isinstance(step, dict) else None for step in steps]
     if not steps or not all(
         isinstance(row, list) and len(row) == scenario.n_thrusters and all(map(_is_number, row))
         for row in duties

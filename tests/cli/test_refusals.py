@@ -1738,3 +1738,18 @@ def test_a_kept_plan_planned_on_another_scenario_flies_its_own_duties(tmp_path: 
         f"Error: sequence {str(kept)!r} is a command plan of 1 s steps, and scenario 'paper' "
         "steps 2 s: its on-times would change; plan its sequence on a scenario of 1 s steps"
     )
+
+
+@pytest.mark.parametrize("steps", ["5", "true", '{"duty": [1, 1, 1, 0, 0, 0]}'])
+def test_a_sequence_object_whose_steps_are_no_list_is_read_by_its_sequence(
+    steps: str, tmp_path: Path
+) -> None:
+    """A JSON object with a ``sequence`` and a ``steps`` that is no list of a plan's
+    steps (``"steps": 5``) holds no plan's commands: its sequence is flown as given, as
+    before plans were read by their duties (``"steps": 5`` was a TypeError traceback)."""
+    path = tmp_path / "sequence.json"
+    path.write_text(f'{{"sequence": [[4, 4, 4, 0, 0, 0]], "steps": {steps}}}')
+    out = tmp_path / "plan.json"
+    result = CliRunner().invoke(main, ["plan", "--sequence", str(path), "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    assert json.loads(out.read_text())["sequence"] == [[4, 4, 4, 0, 0, 0]]
