@@ -39,7 +39,7 @@ from .objectives import (
     flight_peaks,
     per_flight_bound,
 )
-from .plan import DUST_FRACTION
+from .plan import rate_dust_scale, without_dust, written_s
 
 __all__ = ["OperatorScorer", "OperatorSettings", "nominal_rates", "nominal_run"]
 
@@ -345,12 +345,10 @@ class OperatorScorer:
         attitude = propagate_attitude(planned_fine, scenario.timing.integration_step_s)
         turned = rotation_angle_deg(attitude[..., -1, :]).max(axis=1)  # (P,)
         # The plan's rounding dust (search.plan.DUST_FRACTION of the largest rate the
-        # firings could give a candidate, dust_scales) is 0 here too: fire-then-brake on
-        # canted thrusters read 6.9e-19 rad/s commanded in the front, 0 in its plan.
+        # firings could give a candidate, rate_dust_scale) is 0 here too: fire-then-brake
+        # on canted thrusters read 6.9e-19 rad/s commanded in the front, 0 in its plan.
         impulse = np.array([scenario.impulse_nms(sequence) for sequence in sequences])
-        smallest = np.linalg.eigvalsh(scenario.inertia_array).min(axis=1)  # (K,) kg m^2
-        dust = DUST_FRACTION * impulse[:, None] / smallest  # (P, K) rad/s
-        commanded = np.where(commanded <= dust, 0.0, commanded)
+        commanded = without_dust(commanded, rate_dust_scale(scenario, impulse))  # (P, K)
         out = []
         for i, sequence in enumerate(sequences):
             out.append(
@@ -367,19 +365,14 @@ class OperatorScorer:
                     impulse_nms=float(impulse[i]),
                     # To 15 significant digits, as the plan writes them (0.4 + 0.4 +
                     # 0.08 s read 0.8800000000000001 s here, 0.88 in the plan).
-                    on_time_s=_as_written(scenario.on_time_s(sequence).sum()),
+                    on_time_s=written_s(scenario.on_time_s(sequence).sum()),
                     propellant_kg=scenario.propellant_kg(sequence),
-                    duration_s=_as_written(scenario.duration_s(sequence)),
+                    duration_s=written_s(scenario.duration_s(sequence)),
                     attitude_change_deg=float(turned[i]),
                     accuracy_bound=float(bound[i]),
                 )
             )
         return out
-
-
-def _as_written(seconds: float) -> float:
-    """A time to 15 significant digits (:func:`inertia_id.search.plan.command_plan`'s)."""
-    return float(f"{float(seconds):.15g}")
 
 
 def nominal_run(

@@ -95,13 +95,21 @@ def dust_scales(scenario: Scenario, rows: np.ndarray) -> DustScales:
     """The scales a plan of ``rows`` on ``scenario`` reads its dust against
     (:data:`DUST_FRACTION`)."""
     torque = float(np.linalg.norm(scenario.torque_matrix, axis=0).max())
-    smallest = np.linalg.eigvalsh(scenario.inertia_array).min(axis=1)  # (K,) kg m^2
-    rate = scenario.impulse_nms(rows) / smallest
+    rate = rate_dust_scale(scenario, scenario.impulse_nms(rows))
     angle = rate * len(rows) * scenario.timing.step_duration_s
     return DustScales(torque_nm=torque, rate_rad_s=rate.tolist(), angle_rad=angle.tolist())
 
 
-def _without_dust(values: Any, scale: Any) -> np.ndarray:
+def rate_dust_scale(scenario: Scenario, impulse_nms: Any) -> np.ndarray:
+    """(..., K) the largest rate, rad/s, firings of ``impulse_nms`` (N m s, any shape:
+    summed over thrusters and steps) could give each candidate from rest: its impulse
+    over its smallest principal moment, the scale a rate's dust is read against (the
+    front's commanded residual, :class:`~inertia_id.search.operator.OperatorScorer`, too)."""
+    smallest = np.linalg.eigvalsh(scenario.inertia_array).min(axis=1)  # (K,) kg m^2
+    return np.asarray(impulse_nms, dtype=float)[..., None] / smallest
+
+
+def without_dust(values: Any, scale: Any) -> np.ndarray:
     """``values`` with every one at most :data:`DUST_FRACTION` of ``scale`` (broadcast)
     an exact 0 (-0.0 too)."""
     array = np.asarray(values, dtype=float)
@@ -254,8 +262,8 @@ class CommandPlan:
                     "step": i + 1,  # numbered from 1, as the service's sequence tables
                     # As the on-times, to 15 significant digits (3 x 0.1 s read
                     # 0.30000000000000004 s).
-                    "start_s": _written(i * self.step_duration_s),
-                    "end_s": _written((i + 1) * self.step_duration_s),
+                    "start_s": written_s(i * self.step_duration_s),
+                    "end_s": written_s((i + 1) * self.step_duration_s),
                     "levels": row,
                     "duty": self.duty[i],
                     "on_time_s": self.on_time_s[i],
@@ -266,7 +274,7 @@ class CommandPlan:
             "scenario": self.scenario_name,
             "sequence": self.sequence,
             "step_duration_s": self.step_duration_s,
-            "duration_s": _written(len(self.sequence) * self.step_duration_s),
+            "duration_s": written_s(len(self.sequence) * self.step_duration_s),
             "steps": steps,
             "candidates": [
                 {
@@ -504,15 +512,17 @@ def flight_dispersion(
     )
 
 
-def _written(seconds: float) -> float:
-    """A time to 15 significant digits, as :func:`_as_written` gives on-times."""
-    return float(f"{seconds:.15g}")
+def written_s(seconds: float) -> float:
+    """A time to 15 significant digits: what the upload says, without the last bit of
+    binary rounding (a duty of 0.6 for 0.4 s read 0.23999999999999996 s in the JSON, 3 x
+    0.1 s 0.30000000000000004 s). The front's times are its plans' by it
+    (:class:`~inertia_id.search.operator.OperatorScorer`)."""
+    return float(f"{float(seconds):.15g}")
 
 
 def _as_written(seconds: np.ndarray) -> np.ndarray:
-    """On-times to 15 significant digits: what the upload says, without the last bit of
-    binary rounding (a duty of 0.6 for 0.4 s read 0.23999999999999996 s in the JSON)."""
-    return np.array([float(f"{v:.15g}") for v in np.ravel(seconds)]).reshape(np.shape(seconds))
+    """On-times to 15 significant digits (:func:`written_s`, element by element)."""
+    return np.array([written_s(v) for v in np.ravel(seconds)]).reshape(np.shape(seconds))
 
 
 def command_plan(
@@ -555,15 +565,15 @@ def command_plan(
     rate_scale = np.asarray(scales.rate_rad_s)  # (K,)
     angle_scale = np.asarray(scales.angle_rad)  # (K,)
     part_scale = np.minimum(1.0, angle_scale / 2.0)[:, None]  # |sin(θ/2)| <= θ/2
-    quaternions = _without_dust(
+    quaternions = without_dust(
         quaternions, np.concatenate([np.ones_like(part_scale), np.repeat(part_scale, 3, 1)], 1)
     )
-    end = _without_dust(rates[:, per_step - 1 :: per_step], rate_scale[:, None, None])
-    residual = _without_dust(np.linalg.norm(settled[:, 0], axis=-1), rate_scale)
+    end = without_dust(rates[:, per_step - 1 :: per_step], rate_scale[:, None, None])
+    residual = without_dust(np.linalg.norm(settled[:, 0], axis=-1), rate_scale)
     # As the operator's scorer reads it: at every sample, or once the lag has delivered
     # the torque still in it (|ω| moves on a line to the settled rate, convex: see
     # OperatorScorer).
-    peak = _without_dust(
+    peak = without_dust(
         np.maximum(np.linalg.norm(rates, axis=-1).max(axis=1), residual), rate_scale
     )
     return CommandPlan(
@@ -572,14 +582,14 @@ def command_plan(
         step_duration_s=step,
         duty=duty.tolist(),
         on_time_s=_as_written(duty * step).tolist(),
-        torque_nm=_without_dust(duty @ scenario.torque_matrix.T, scales.torque_nm).tolist(),
+        torque_nm=without_dust(duty @ scenario.torque_matrix.T, scales.torque_nm).tolist(),
         candidate_names=scenario.candidate_names,
         rates_rad_s=end.tolist(),
         residual_rate_rad_s=residual.tolist(),
-        end_rate_rad_s=_without_dust(np.linalg.norm(rates[:, -1], axis=-1), rate_scale).tolist(),
+        end_rate_rad_s=without_dust(np.linalg.norm(rates[:, -1], axis=-1), rate_scale).tolist(),
         peak_rate_rad_s=peak.tolist(),
         attitude_quaternion=quaternions.tolist(),
-        attitude_change_deg=_without_dust(
+        attitude_change_deg=without_dust(
             rotation_angle_deg(quaternions), angle_scale * _DEG
         ).tolist(),
         on_time_per_thruster_s=_as_written(scenario.on_time_s(rows)).tolist(),
