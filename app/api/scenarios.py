@@ -640,10 +640,10 @@ async def scenario_plan_from_body(
 ) -> Response:
     """The command plan of the sequence in the body (``{"sequence": [[4,4,4,0,0,0], ...]}``):
     the same plan as ``GET /scenarios/{id}/plan?sequence=``, for a sequence too long for
-    a URL. A plan takes at most 1,280 RK4 steps (64 steps on the paper preset's 0.05 s
-    integration step, 1,000 on a scenario integrated at its 1 s step); 1,000 steps are
-    30 kB URL-encoded, past what a proxy keeping its default request-line limit passes
-    (nginx: 8 kB, some 280 steps), and the query takes at most 20,000 characters."""
+    a URL. A plan takes at most 100,000 RK4 steps, as many as a job may fly (a sequence's
+    1,000 steps on the paper preset's 0.05 s integration step, 100 on a 1 ms one); 1,000
+    steps are 30 kB URL-encoded, past what a proxy keeping its default request-line limit
+    passes (nginx: 8 kB, some 280 steps), and the query takes at most 20,000 characters."""
     gate: ComputeGate = request.app.state.compute_gate
     planned = functools.partial(plan_for, parsed=True, where=("body", "sequence"))
     return await gate.run(planned, request.app.state.db, scenario_id, body.sequence, options)
