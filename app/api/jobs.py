@@ -225,7 +225,8 @@ def _same_spacecraft(search: JobRow, scenario_id: str, scenario: Scenario) -> No
     """A sequence found on one scenario is level indices of that scenario's thrusters: on
     another (other levels, thrusters or candidates) the same indices fly something else.
     So a training on a search's sequence runs on the search's scenario, or on one that
-    differs from it in name only."""
+    differs from it in name only (:meth:`Scenario.same_spacecraft`: its levels to their
+    last bits of rounding too)."""
     if search.scenario_id == scenario_id:
         return
     searched = (search.result or {}).get("scenario")
@@ -234,9 +235,7 @@ def _same_spacecraft(search: JobRow, scenario_id: str, scenario: Scenario) -> No
             ran_on = Scenario.model_validate(searched)
         except ValueError:  # a result stored by older code: judged by its id alone
             ran_on = None
-        if ran_on is not None and ran_on.model_copy(update={"name": ""}) == (
-            scenario.model_copy(update={"name": ""})
-        ):
+        if ran_on is not None and ran_on.same_spacecraft(scenario):
             return
     unprocessable(
         ("body", "scenario_id"),

@@ -352,14 +352,16 @@ def _plan_levels(document: dict, rows: Any, scenario: Scenario, text: str) -> An
             f"{scenario.name!r} steps {step:g} s: its on-times would change; plan its "
             f"sequence on a scenario of {planned_step:g} s steps"
         )
+    from ..physics.scenario import LEVEL_ROUNDING
+
     levels = list(scenario.thrusters.levels)
     out = []
     for i, row in enumerate(commanded):
         out_row = []
         for j, duty in enumerate(row):
-            # The plan writes each duty as its scenario's level; 1e-12 takes the last bit
-            # of a level computed another way (0.30000000000000004 for 0.3).
-            match = [k for k, level in enumerate(levels) if abs(level - duty) <= 1e-12]
+            # The plan writes each duty as its scenario's level; LEVEL_ROUNDING takes the
+            # last bit of a level computed another way (0.30000000000000004 for 0.3).
+            match = [k for k, level in enumerate(levels) if abs(level - duty) <= LEVEL_ROUNDING]
             if not match:
                 raise InputError(
                     f"sequence {text!r} is a command plan whose step {i + 1}, thruster "

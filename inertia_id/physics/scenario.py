@@ -29,6 +29,7 @@ from ..wording import counted
 
 __all__ = [
     "AS_TRAINED",
+    "LEVEL_ROUNDING",
     "MAX_DISTURBANCE_TORQUE_SIGMA_NM",
     "MAX_DUTY_JITTER_SIGMA",
     "MAX_GYRO_RATE_RAD_S",
@@ -227,6 +228,13 @@ def _expand_per_thruster(data: dict[str, Any]) -> dict[str, Any]:
             if isinstance(matrix, list) and matrix and isinstance(matrix[0], list):
                 data[name] = [float(value)] * len(matrix[0])
     return data
+
+
+#: How far a duty may lie from a level and still be that level: the last bits of a level
+#: computed another way. Scenarios of ``n_levels`` held numpy.linspace's duties
+#: (0.30000000000000004 for 0.3 at 11 levels) until their levels became i / (M - 1), and
+#: searches, plans and stored scenarios of then still hold them.
+LEVEL_ROUNDING = 1e-12
 
 
 class Thrusters(_Model):
@@ -951,6 +959,19 @@ class Scenario(_Model):
             raise InputError(f"swept noise levels must be finite and >= 0, got {bad}")
         noise = self.uncertainty.model_copy(update={k: float(v) for k, v in levels.items()})
         return self.model_copy(update={"uncertainty": noise})
+
+    def same_spacecraft(self, other: Scenario) -> bool:
+        """Whether ``other`` differs from this scenario in its name alone, or in its duty
+        levels by no more than :data:`LEVEL_ROUNDING` each: a sequence's level indices
+        fly the same duties on both."""
+        ours, theirs = self.thrusters.levels, other.thrusters.levels
+        if len(ours) == len(theirs) and all(
+            abs(a - b) <= LEVEL_ROUNDING for a, b in zip(ours, theirs, strict=True)
+        ):
+            thrusters = self.thrusters.model_copy(update={"levels": list(theirs)})
+            mine = self.model_copy(update={"name": other.name, "thrusters": thrusters})
+            return mine == other
+        return False
 
     def with_uncertainty(self, **changes: Any) -> Scenario:
         """A copy with some uncertainty fields changed (validated)."""

@@ -565,6 +565,33 @@ def test_a_front_downloads_as_csv_its_members_plan_by_index_and_a_member_trains(
     assert same.status_code == 202, same.text
 
 
+def test_a_search_on_a_scenario_stored_before_exact_levels_trains_on_its_copy(api: Api) -> None:
+    """Scenarios of ``n_levels`` held numpy.linspace's duties (0.30000000000000004 for
+    0.3) until their levels became i / (M - 1): the same spacecraft stored again since
+    (its levels 0.3) was called another, and training on a search's member on it was
+    refused, though every level is the same duty to the last bit of rounding."""
+    document = Scenario.paper().model_dump(mode="json")
+    document["thrusters"]["levels"] = np.linspace(0.0, 1.0, 11).tolist()
+    stored = Scenario.model_validate(document)
+    assert stored.thrusters.levels[3] == 0.30000000000000004
+    before = api.insert_scenario(stored)
+    result = _with_front([[[4, 4, 4, 0, 0, 0]] * 2, [[2, 2, 2, 0, 0, 0]] * 2])
+    result["scenario"] = stored.model_dump(mode="json")
+    job_id = _finished(api, before, 0, result)
+    again = api.create_scenario(
+        name="stored again", thrusters={"levels": [i / 10 for i in range(11)]}
+    )
+    assert again["document"]["thrusters"]["levels"][3] == 0.3
+    train = api.submit("train", again["id"], params={"search_job_id": job_id, "front_member": 0})
+    assert train.status_code == 202, train.text
+    # A level another duty (0.05 for 0.1) is another spacecraft still.
+    other = api.create_scenario(thrusters={"levels": [0.0, 0.05, *stored.thrusters.levels[2:]]})
+    elsewhere = api.submit(
+        "train", other["id"], params={"search_job_id": job_id, "front_member": 0}
+    )
+    assert elsewhere.status_code == 422 and "not the same spacecraft" in elsewhere.text
+
+
 def test_a_sequence_that_fires_nothing_is_on_the_front_but_is_not_trained_on(api: Api) -> None:
     """The all-off sequence is the front's zero-impulse end (kept, marked); before, a
     train on it was accepted and scored at chance."""
