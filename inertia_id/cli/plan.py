@@ -299,7 +299,8 @@ def _search_scenario(
     document: dict, named: Scenario, *, named_explicitly: bool, path: str
 ) -> Scenario:
     """The scenario to plan a searched sequence on: the one the search recorded. A
-    scenario named on the command line must be that one (its name aside); a result that
+    scenario named on the command line must be that one (its name aside,
+    :meth:`~inertia_id.physics.scenario.Scenario.same_spacecraft`); a result that
     records none (written before results did) is planned on the named one, with a
     warning."""
     from pydantic import ValidationError
@@ -326,10 +327,9 @@ def _search_scenario(
         )
         raise InputError(f"{path}: its recorded scenario is not valid: {problems}") from None
 
-    def physics(scenario: Scenario) -> dict:
-        return {k: v for k, v in scenario.model_dump(mode="json").items() if k != "name"}
-
-    if named_explicitly and physics(named) != physics(searched):
+    # Its name aside, and its levels to their last bits (a search's of then holds
+    # numpy.linspace's: Scenario.same_spacecraft).
+    if named_explicitly and not searched.same_spacecraft(named):
         raise InputError(
             f"{path} was searched on scenario '{searched.name}', which differs from the "
             f"scenario named ('{named.name}'); drop --scenario/--preset to plan on the "

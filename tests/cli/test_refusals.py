@@ -1753,3 +1753,35 @@ def test_a_sequence_object_whose_steps_are_no_list_is_read_by_its_sequence(
     result = CliRunner().invoke(main, ["plan", "--sequence", str(path), "--out", str(out)])
     assert result.exit_code == 0, result.output
     assert json.loads(out.read_text())["sequence"] == [[4, 4, 4, 0, 0, 0]]
+
+
+def test_a_search_recorded_with_linspace_levels_plans_on_the_same_scenario_named(
+    tmp_path: Path,
+) -> None:
+    """A search result recorded its scenario's ``n_levels`` as numpy.linspace's duties
+    (0.30000000000000004 at 11 levels) before levels became i / (M - 1): ``plan --search
+    FILE --scenario`` the same scenario file was refused as another scenario. Its levels
+    are the same to the last bit of rounding; a level another duty is refused still."""
+    document = preset("paper").model_dump(mode="json")
+    document["thrusters"].pop("levels")
+    document["thrusters"]["n_levels"] = 11
+    named = tmp_path / "eleven.json"
+    named.write_text(json.dumps(document))
+    recorded = preset("paper").model_dump(mode="json")
+    recorded["thrusters"]["levels"] = np.linspace(0.0, 1.0, 11).tolist()
+    assert recorded["thrusters"]["levels"][3] == 0.30000000000000004
+    search = tmp_path / "search.json"
+    search.write_text(
+        json.dumps({"best": {"sequence": [[10, 0, 3, 0, 0, 0]]}, "scenario": recorded})
+    )
+    out = tmp_path / "plan.json"
+    args = ["plan", "--search", str(search), "--scenario", str(named), "--out", str(out)]
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == 0, result.output
+    # Planned on the scenario searched, as ever (its duties as it held them).
+    assert json.loads(out.read_text())["steps"][0]["duty"][:3] == [1.0, 0.0, 0.30000000000000004]
+    recorded["thrusters"]["levels"][3] = 0.35
+    search.write_text(
+        json.dumps({"best": {"sequence": [[10, 0, 3, 0, 0, 0]]}, "scenario": recorded})
+    )
+    assert "which differs from the scenario named" in refused(args)
