@@ -762,7 +762,8 @@ class IdentifyResult(BaseModel):
         "between those neighbours that scores lowest), false when the grid's start was "
         "kept (a neighbour the telemetry does not reach, scores that bracket no minimum, "
         "or a kind that compares whole series) or the stated start kept (no sample "
-        "before it: no score then tells it from the next start); null: no search",
+        "before it, a scenario that draws an initial rate or gyro bias, and a grid fine "
+        "for the response: no score then tells it from the next start); null: no search",
     )
     sequence_start_note: str | None = Field(
         default=None,
