@@ -774,7 +774,14 @@ def _search_notes(result: Mapping[str, Any], job: Mapping[str, Any]) -> list[tup
         "fresh_realisations",
         "fresh_test_series",
     )
-    return [(name, params.get(name)) for name in names if name in params]
+    notes = [(name, params.get(name)) for name in names if name in params]
+    if params.get("method") == "nsga2":
+        # NSGA-II ranks by the operator's objectives (the next line), never by the
+        # scorer's objective, whose default (f1) the params keep: "objective: f1" above a
+        # front read as though the front were ranked by an F1 (the summary's row says
+        # "operator objectives" too).
+        notes = [(n, "operator objectives" if n == "objective" else v) for n, v in notes]
+    return notes
 
 
 #: Every job type's tables, first the default: name -> (what it holds, how it is made).

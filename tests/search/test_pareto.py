@@ -948,6 +948,23 @@ def test_nsga2s_best_score_is_called_a_predicted_accuracy(paper: Scenario) -> No
     assert not any(str(name).endswith("_search_draw") and "f1" in str(name) for name in summary)
 
 
+def test_an_nsga2_tables_notes_name_its_objectives_not_the_scorers_f1(paper: Scenario) -> None:
+    """Every table of a search job begins with its params as ``#`` lines; NSGA-II's
+    params keep the scorer's default ``objective: f1``, which it never ranks by: the
+    front's CSV read "# objective: f1" above members ranked by predicted accuracy."""
+    from service.exports import result_table
+
+    document = json.loads(_tiny_search(paper, polish_iterations=0).to_json())
+    params = {"method": "nsga2", "objective": "f1", "objectives": ["accuracy", "impulse"]}
+    job = {"id": "j", "type": "search", "scenario_id": "s", "seed": 0, "params": params}
+    for name in ("summary", "front"):
+        notes = dict(result_table("search", document, name, job=job).notes)
+        assert notes["objective"] == "operator objectives", name
+        assert notes["objectives"] == ["accuracy", "impulse"]
+    cem = {**job, "params": {**params, "method": "cem"}}
+    assert dict(result_table("search", document, "summary", job=cem).notes)["objective"] == "f1"
+
+
 def test_the_measurement_reports_each_batch(paper: Scenario, monkeypatch) -> None:
     from inertia_id.search import operator
 
