@@ -150,6 +150,7 @@ class PlanOut(_Out):
     """A command plan as JSON: the sequence as commands and the predicted response."""
 
     source: PlanSource
+    exported_at: str = Field(description="when the plan was written: ISO 8601 in UTC, with Z")
     scenario: str = Field(description="the scenario's name")
     sequence: list[list[int]]
     step_duration_s: float

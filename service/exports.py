@@ -106,7 +106,7 @@ def to_csv(table: Table) -> str:
     return out.getvalue()
 
 
-def _iso_utc(value: datetime | None) -> str | None:
+def iso_utc(value: datetime | None) -> str | None:
     """A stored time as ISO 8601 in UTC with ``Z`` (SQLite hands back naive datetimes;
     every stored time is UTC), as the job's JSON writes it."""
     if value is None:
@@ -128,9 +128,9 @@ def job_notes(job: Mapping[str, Any], exported_at: datetime) -> list[tuple[str, 
         ("job_type", job.get("type")),
         ("scenario_id", job.get("scenario_id")),
         ("job_seed", job.get("seed")),
-        ("created_at", _iso_utc(job.get("created_at"))),
-        ("finished_at", _iso_utc(job.get("finished_at"))),
-        ("exported_at", _iso_utc(exported_at)),
+        ("created_at", iso_utc(job.get("created_at"))),
+        ("finished_at", iso_utc(job.get("finished_at"))),
+        ("exported_at", iso_utc(exported_at)),
     ]
 
 
@@ -155,7 +155,7 @@ def plan_notes(
     :param job: the job it comes from (what :func:`job_notes` reads), or None.
     """
     if job is None:
-        return [*source.items(), ("exported_at", _iso_utc(exported_at))]
+        return [*source.items(), ("exported_at", iso_utc(exported_at))]
     head = job_notes(job, exported_at)
     named = {name for name, _value in head}
     return [*head, *((name, value) for name, value in source.items() if name not in named)]

@@ -27,7 +27,7 @@ from inertia_id.physics.simulate import (
     simulate,
     weak_response_warning,
 )
-from service.exports import note_lines, plan_notes
+from service.exports import iso_utc, note_lines, plan_notes
 from service.store.models import ClassifierRow, JobRow, ScenarioRow, utcnow
 from service.store.session import Database
 
@@ -540,15 +540,18 @@ def _plan_response(
     )
     if source.get("job_status") == "cancelled":
         stem += "-cancelled"  # the best sequence a cancelled search had found
+    exported_at = utcnow()
     if fmt == "csv":
-        lines = note_lines(plan_notes(source, job, utcnow()))
+        lines = note_lines(plan_notes(source, job, exported_at))
         return Response(
             lines + plan.to_csv(),
             media_type="text/csv",
             headers={"Content-Disposition": f'attachment; filename="{stem}.csv"'},
         )
     return Response(
-        json.dumps({"source": source, **plan.to_dict()}),
+        # When it was written (UTC, as the CSV's `# exported_at` line says it): a plan
+        # handed on to be uploaded says how fresh it is.
+        json.dumps({"source": source, "exported_at": iso_utc(exported_at), **plan.to_dict()}),
         media_type="application/json",
         headers={"Content-Disposition": f'attachment; filename="{stem}.json"'},
     )

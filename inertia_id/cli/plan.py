@@ -144,12 +144,16 @@ def plan_cmd(
     elif sequence_text is not None and os.path.isfile(sequence_text):
         # A regular file only: a pipe's path (/dev/fd/63) names nothing once it is read.
         source = {"sequence_file": str(Path(sequence_text).resolve())}
-    planned = {"source": source, **plan.to_dict()} if source else plan.to_dict()
+    exported_at = datetime.now(UTC)
+    # When it was written (UTC), as the service's plan JSON and every CSV say it.
+    stamp = {"exported_at": _iso_utc(exported_at)}
+    planned = (
+        {"source": source, **stamp, **plan.to_dict()} if source else {**stamp, **plan.to_dict()}
+    )
     if out == "-":
         click.echo(_strict_json(planned))
         return
     if out.lower().endswith(".csv"):
-        exported_at = datetime.now(UTC)
         # Paths are the user's text: JSON strings, so a comma or newline stays put.
         lines = "".join(
             f"# {key}: {csv_note_text(str(value)) if key in _PATHS else value}\n"

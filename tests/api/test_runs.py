@@ -1128,6 +1128,14 @@ def test_a_plan_csv_says_which_job_or_scenario_it_comes_from_and_when_it_was_wri
     assert names[:3] == ["scenario_id", "exported_at", "scenario"]
     assert notes["scenario_id"] == scenario_id
     assert before <= _utc(notes["exported_at"]) <= after
+    # The JSON says when it was written too (UTC, Z), as the CSV's line does.
+    before = datetime.now(UTC)
+    as_json = api.get_with_key(
+        f"/scenarios/{scenario_id}/plan", params={"sequence": json.dumps(GOOD_SEQUENCE[:steps])}
+    ).json()
+    after = datetime.now(UTC)
+    assert as_json["exported_at"].endswith("Z")
+    assert before <= _utc(as_json["exported_at"]) <= after
 
     # The CLI's plan of the job as downloaded: the same job lines.
     downloaded = tmp_path / "job.json"

@@ -263,8 +263,13 @@ def test_a_plan_csv_says_where_its_sequence_comes_from_and_when_it_was_written(
         assert lines[len(named) + 1].startswith("# scenario: ")
         table = pandas.read_csv(io.StringIO(text), comment="#")
         assert list(table["step"]) == [1, 2]
+        before = datetime.now(UTC)
         plan, _ = run_cli_json(["plan", "--sequence", given], tmp_path / "p.json")
+        after = datetime.now(UTC)
         assert plan.get("source", {}) == source
+        # The JSON says when it was written too, as the service's plan JSON does.
+        assert plan["exported_at"].endswith("Z")
+        assert before <= datetime.fromisoformat(plan["exported_at"]) <= after
 
 
 def test_plan_of_a_search_uses_the_scenario_searched(runner: CliRunner, tmp_path: Path) -> None:
