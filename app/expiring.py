@@ -1,6 +1,6 @@
 """Answers the API remembers for a while, so that most requests skip a database look-up:
 API-key checks (:class:`app.security.KeyVerifier`) and classifier checksums
-(:class:`app.api.identify.ClassifierCache`)."""
+(:class:`app.classifier_cache.ClassifierCache`)."""
 
 from __future__ import annotations
 

@@ -26,8 +26,9 @@ from service.store.session import Database, DatabaseNewerThanCode, upgrade
 from .api import ROUTERS
 from .api.deps import numbers_as_written, one_value_each
 from .api.errors import install_error_handlers
-from .api.identify import ClassifierCache, openapi_components
+from .api.identify import openapi_components
 from .capacity import ComputeGate
+from .classifier_cache import ClassifierCache
 from .dashboard import mount_dashboard, mount_docs
 from .result_schema import add_result_schemas
 from .security import (

@@ -42,7 +42,7 @@ if TYPE_CHECKING:
     from inertia_id.evaluation.telemetry import Telemetry
     from service.store.session import Database
 
-    from .api.identify import ClassifierCache
+    from .classifier_cache import ClassifierCache
 
 __all__ = [
     "SHORT_TEMP_BASES",
@@ -140,7 +140,7 @@ def _initialise(database_url: str, cache_size: int, api: int) -> None:
     threadpool_limits(1)
     from service.store.session import Database
 
-    from .api.identify import ClassifierCache
+    from .classifier_cache import ClassifierCache
 
     _cache = ClassifierCache(cache_size)
     _database = Database(database_url)  # connects on the first cold classifier

@@ -14,9 +14,6 @@ from __future__ import annotations
 
 import csv
 import json
-import threading
-import time
-from collections import OrderedDict
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Annotated, Any, Literal
 
@@ -45,7 +42,7 @@ from service.store.models import ClassifierRow
 from service.store.session import Database
 
 from ..capacity import ComputeGate
-from ..expiring import Expiring
+from ..classifier_cache import ClassifierCache
 from ..schemas import (
     MAX_ESTIMATE_START_WITHIN_S,
     MAX_PRE_START_WINDOW_S,
@@ -62,81 +59,9 @@ from .routing import UniqueKeysRoute, content_codings, refuse_json_charset
 if TYPE_CHECKING:
     from inertia_id.classifiers.registry import CandidateClassifier
 
-__all__ = ["ClassifierCache", "openapi_components", "router"]
+__all__ = ["openapi_components", "router"]
 
 router = APIRouter(prefix="/identify", tags=["identify"], route_class=UniqueKeysRoute)
-
-
-class ClassifierCache:
-    """Least-recently-used classifiers by (id, checksum), thread-safe, one load per entry.
-
-    A cold classifier is loaded by one thread while the others asking for it wait for
-    that load (a 2 MB document parsed once, not once per concurrent request); other
-    classifiers are served meanwhile.
-
-    The checksum of a classifier id is remembered for ``checksum_ttl_s``: most requests
-    then reach the database not at all (the look-up was 2 of a request's 8 ms on SQLite).
-
-    :param size: how many classifiers to keep; 0 disables caching.
-    :param checksum_ttl_s: how long an id's checksum is taken as known.
-    :param clock: monotonic seconds (tests pass their own).
-    """
-
-    def __init__(
-        self,
-        size: int,
-        *,
-        checksum_ttl_s: float = 30.0,
-        clock: Callable[[], float] = time.monotonic,
-    ) -> None:
-        self.size = size
-        self.checksum_ttl_s = checksum_ttl_s
-        self._items: OrderedDict[tuple[str, str], CandidateClassifier] = OrderedDict()
-        # More ids than classifiers: an id costs a few bytes, a classifier megabytes.
-        self._checksums: Expiring[str, str] = Expiring(4 * size, clock=clock)
-        self._lock = threading.Lock()
-        self._loading: dict[tuple[str, str], threading.Lock] = {}
-        self.loads = 0
-
-    def checksum_of(self, classifier_id: str) -> str | None:
-        return self._checksums.get(classifier_id)
-
-    def remember_checksum(self, classifier_id: str, checksum: str) -> None:
-        self._checksums.put(classifier_id, checksum, ttl_s=self.checksum_ttl_s)
-
-    def get(
-        self, key: tuple[str, str], load: Callable[[], CandidateClassifier]
-    ) -> CandidateClassifier:
-        with self._lock:
-            model = self._items.get(key)
-            if model is not None:
-                self._items.move_to_end(key)
-                return model
-            gate = self._loading.setdefault(key, threading.Lock())
-        with gate:
-            with self._lock:
-                model = self._items.get(key)
-                if model is not None:
-                    return model
-            try:
-                model = load()
-                self.loads += 1
-                with self._lock:
-                    if self.size > 0:
-                        self._items[key] = model
-                        self._items.move_to_end(key)
-                        while len(self._items) > self.size:
-                            self._items.popitem(last=False)
-            finally:
-                with self._lock:
-                    self._loading.pop(key, None)
-        return model
-
-    def __len__(self) -> int:
-        return len(self._items)
-
-    def __contains__(self, key: object) -> bool:
-        return key in self._items
 
 
 def _load(document: str) -> CandidateClassifier:

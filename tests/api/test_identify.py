@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from app.api.identify import ClassifierCache
+from app.classifier_cache import ClassifierCache
 from inertia_id import InertiaClassifier, Scenario, SimulationResult, simulate
 from inertia_id.evaluation.telemetry import same_sequence_start
 
@@ -343,7 +343,7 @@ def test_a_cold_classifier_is_loaded_once_however_many_ask_at_once() -> None:
     import threading
     import time as clock
 
-    from app.api.identify import ClassifierCache
+    from app.classifier_cache import ClassifierCache
 
     cache = ClassifierCache(4)
     loads: list[int] = []
@@ -370,7 +370,7 @@ def test_a_cold_classifier_is_loaded_once_however_many_ask_at_once() -> None:
 
 
 def test_a_classifiers_checksum_is_remembered_for_a_while_only() -> None:
-    from app.api.identify import ClassifierCache
+    from app.classifier_cache import ClassifierCache
 
     now = [0.0]
     cache = ClassifierCache(4, checksum_ttl_s=30.0, clock=lambda: now[0])
