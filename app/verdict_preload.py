@@ -18,6 +18,6 @@ from inertia_id.classifiers import registry  # noqa: F401  (the kinds, scikit-le
 from inertia_id.evaluation import identify  # noqa: F401
 from service.store import session  # noqa: F401
 
-from .api import identify as api_identify  # noqa: F401
+from . import classifier_cache  # noqa: F401  (the cache each verdict process keeps)
 
 warm_up()
