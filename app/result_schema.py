@@ -75,6 +75,12 @@ class SweepJobResult(SweepResult):
 
     model_config = ConfigDict(extra="allow")
 
+    run_seed: int | None = Field(
+        default=None,
+        description="the job's seed, which gives this result again; `seed` is the test "
+        "series' stream derived from it (up to 2**32 - 1, not a job's seed); absent in "
+        "older results",
+    )
     inertia: InertiaSweepResult | None = Field(
         default=None, description="bodies off the candidates, when the sweep asked (inertia)"
     )

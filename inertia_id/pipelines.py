@@ -656,10 +656,20 @@ class SweepOutcome:
     sweep: SweepResult
     inertia: InertiaSweepResult | None
     others: tuple[str, ...]
+    #: The seed the sweep was run with (``inertia-id sweep --seed``, a sweep job's
+    #: ``seed``): with the same classifier and options it gives the same numbers.
+    #: ``sweep.seed`` and ``inertia.seed`` are streams derived from it, 0 to 2**32 - 1,
+    #: which reproduce their own draws through :func:`~inertia_id.evaluation.sweep.
+    #: run_sweep` and :func:`~inertia_id.evaluation.sweep.run_inertia_sweep` but not the
+    #: sweep through ``--seed``. None: not known (an outcome built by hand).
+    run_seed: int | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        """The sweep as JSON data, with ``"inertia"`` when it was run."""
+        """The sweep as JSON data: ``"run_seed"`` first when known, and ``"inertia"``
+        when it was run."""
         document = self.sweep.model_dump(mode="json")
+        if self.run_seed is not None:
+            document = {"run_seed": self.run_seed, **document}
         if self.inertia is not None:
             document["inertia"] = self.inertia.model_dump(mode="json")
         return document
@@ -706,6 +716,7 @@ def sweep_with_limit(
         and at its training's checkpoints, then between points; True stops with the
         points done (none, when it comes before the first) and skips the bodies.
     """
+    from .checks import check_seed
     from .evaluation.sweep import (
         DEFAULT_MULTIPLES,
         DEFAULT_NOISES,
@@ -736,7 +747,7 @@ def sweep_with_limit(
         DEFAULT_NOISES if request.noises is None else request.noises,
         DEFAULT_MULTIPLES if request.multiples is None else request.multiples,
     )
-    streams = np.random.SeedSequence(seed).spawn(3)
+    streams = np.random.SeedSequence(check_seed(seed)).spawn(3)
     others = train_others(
         scenario,
         sequence,
@@ -776,7 +787,7 @@ def sweep_with_limit(
             else (lambda fraction: progress(share + (1 - share) * fraction)),
             should_stop=should_stop,
         )
-    return SweepOutcome(sweep, inertia, tuple(others))
+    return SweepOutcome(sweep, inertia, tuple(others), run_seed=int(seed))
 
 
 # The paper.
@@ -874,7 +885,7 @@ def run_paper(
         progress=sweep_progress,
     )
     sweep = swept.sweep
-    write_whole(out / "sweep.json", sweep.model_dump_json(indent=2))
+    write_whole(out / "sweep.json", json.dumps(swept.to_dict(), indent=2))
     say("[3/3] report")
     result = simulate(scenario, steps, n_realisations, np.random.default_rng(seeds[2]))
     write_report(

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Any
 
@@ -241,6 +242,8 @@ def test_the_sweep_seeds_its_streams_from_one_seed(
     inertia = run_inertia_sweep(euclidean_classifier, seed=int(streams[2].generate_state(1)[0]))
     assert outcome.inertia == inertia
     assert outcome.to_dict()["inertia"] == inertia.model_dump(mode="json")
+    # The seed that runs it again, beside the derived ones (the test series' 4,053,640,108).
+    assert outcome.run_seed == outcome.to_dict()["run_seed"] == 9
 
 
 def test_a_sweep_runs_on_the_scenario_it_names(
@@ -308,6 +311,7 @@ def test_the_paper_pipeline_keeps_its_seeds(tmp_path: Path) -> None:
     )
     assert classifier.to_json() == again.to_json()
     assert outcome.summary["sequence_from"] == "given" and outcome.summary["seed"] == 2
+    assert json.loads((tmp_path / "sweep.json").read_text())["run_seed"] == 2
     assert set(outcome.sweep.others) == {"least-squares"} and outcome.sweep.limit
     assert not (tmp_path / "search.json").exists()
 

@@ -161,6 +161,9 @@ class SweepResult(BaseModel):
     candidate_names: list[str]
     sequence: list[list[int]]
     metric: str
+    #: The seed of the test series (``run_sweep``'s). A sweep run through
+    #: :func:`~inertia_id.pipelines.sweep_with_limit` (the CLI, a job) derives it from the
+    #: seed it was given, which its document keeps as ``run_seed``: that one re-runs it.
     seed: int
     n_test_per_candidate: int
     points: list[SweepPoint]

@@ -472,6 +472,23 @@ def test_a_sweep_beyond_its_bounds_is_refused_before_any_work(
     assert "Traceback" not in result.output and not out.exists()
 
 
+def test_a_sweep_document_names_the_seed_that_runs_it_again(tmp_path: Path) -> None:
+    """The seed a sweep.json records as its own is one ``--seed`` takes, and it gives the
+    same document. Its ``seed`` is the test series' stream derived from ``--seed``: for
+    ``--seed 2`` 2,240,297,063, which ``--seed`` refused (past 2**31 - 1); a smaller one
+    would have run other draws. The document did not record ``--seed`` at all."""
+    classifier = tmp_path / "c.json"
+    run_cli(["train", "--metric", "euclidean", "-n", "4", "--out", str(classifier)])
+    sweep = ["sweep", "--classifier", str(classifier), "--multiples", "1,6", "--n-test", "10"]
+    sweep += ["--others", "none", "--ceiling-realisations", "0"]
+    first, _ = run_cli_json([*sweep, "--seed", "2"], tmp_path / "first.json")
+    assert first["seed"] == 2_240_297_063  # the derived stream, kept as it was
+    again, _ = run_cli_json([*sweep, "--seed", str(first["run_seed"])], tmp_path / "again.json")
+    assert again == first
+    other, _ = run_cli_json([*sweep, "--seed", "3"], tmp_path / "other.json")
+    assert other["run_seed"] == 3 and other["inertia"] != first["inertia"]
+
+
 def test_the_paper_pipeline_refuses_large_multiples_before_it_trains(
     runner: CliRunner, tmp_path: Path
 ) -> None:
