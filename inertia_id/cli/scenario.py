@@ -218,6 +218,9 @@ def simulate_cmd(
         return
     if sample_rate_hz is not None:
         scenario = _at_rate(scenario, sample_rate_hz)
+    if telemetry:
+        # Stamps the offset cannot hold are refused before the flight.
+        _telemetry_stamps(scenario.sample_times(len(sequence)) - coast_s, offset)
     refuse_past_memory(
         f"-n {realisations}",
         candidates=scenario.n_candidates,
@@ -382,25 +385,67 @@ def _at_rate(scenario: Any, rate_hz: float) -> Any:
 
 def _write_telemetry(path: str, time_s: Any, omega: Any, offset: float | str | None) -> None:
     """Telemetry CSV: time_s (plus a numeric offset) or time_utc (from an ISO start)."""
-    from datetime import UTC, datetime, timedelta
-
-    if isinstance(offset, str):
-        # In UTC, as the column's name says, whatever offset the start was given with.
-        origin = datetime.fromisoformat(offset).astimezone(UTC)
-        stamps = [
-            (origin + timedelta(microseconds=round(1e6 * t))).isoformat().replace("+00:00", "Z")
-            for t in time_s
-        ]
-        header = "time_utc"
-    else:
-        # The offset is added here, once; %.15g keeps 1 µs at mission times of ~1e9 s.
-        stamps = [f"{(offset or 0.0) + t:.15g}" for t in time_s]
-        header = "time_s"
+    header, stamps = _telemetry_stamps(time_s, offset)
     lines = [f"{header},wx_rad_s,wy_rad_s,wz_rad_s"]
     lines += [
         f"{s},{w[0]:.10g},{w[1]:.10g},{w[2]:.10g}" for s, w in zip(stamps, omega, strict=True)
     ]
     write_output(path, "\n".join(lines) + "\n")
+
+
+#: How far a written stamp may lie from its time, as a fraction of the sample period.
+STAMP_TOLERANCE = 0.01
+
+
+def _telemetry_stamps(time_s: Any, offset: float | str | None) -> tuple[str, list[str]]:
+    """The telemetry's time column, its header and stamps, for times ``time_s`` (s from
+    the sequence start) and ``--time-offset``; an offset whose stamps cannot hold those
+    times is an :class:`~inertia_id.errors.InputError` naming it.
+
+    Stamps are written with 15 significant digits (1 µs at mission times below 1e9 s),
+    else with as many as the float holds. At 1e12 s 15 digits are 10 ms, and 200 Hz
+    stamps were written twice each (identify refused the file); at 1e16 s a float is 2 s
+    and every 20 Hz stamp was the same. An ISO start whose stamps leave years 1 to 9999
+    was a traceback (OverflowError).
+    """
+    from datetime import UTC, datetime, timedelta
+
+    import numpy as np
+
+    from ..errors import InputError
+
+    times = np.asarray(time_s, dtype=float)
+    if isinstance(offset, str):
+        # In UTC, as the column's name says, whatever offset the start was given with.
+        origin = datetime.fromisoformat(offset).astimezone(UTC)
+        try:
+            stamps = [
+                (origin + timedelta(microseconds=round(1e6 * t))).isoformat().replace("+00:00", "Z")
+                for t in times
+            ]
+        except OverflowError:
+            raise InputError(
+                f"--time-offset {offset!r}: the telemetry's stamps, {times[0]:g} s to "
+                f"{times[-1]:g} s from it, leave the years 1 to 9999 an ISO-8601 stamp "
+                "can write"
+            ) from None
+        return "time_utc", stamps
+    base = 0.0 if offset is None else float(offset)
+    if len(times) < 2:
+        return "time_s", [f"{base + t:.15g}" for t in times]
+    limit = STAMP_TOLERANCE * float(np.min(np.diff(times)))
+    error = 0.0
+    for write in (lambda stamp: f"{stamp:.15g}", repr):
+        stamps = [write(base + float(t)) for t in times]
+        # What identify reads back, less the start it is given (the same offset).
+        error = float(np.max(np.abs(np.array([float(s) for s in stamps]) - base - times)))
+        if error <= limit:
+            return "time_s", stamps
+    raise InputError(
+        f"--time-offset {base:g} s: stamps that large are off their times by up to "
+        f"{error:.3g} s (a float's precision there), more than {STAMP_TOLERANCE:.0%} of the "
+        f"{limit / STAMP_TOLERANCE:g} s sample period: give seconds from a nearer epoch"
+    )
 
 
 def _fly_basilisk(

@@ -772,6 +772,53 @@ def test_a_bad_time_offset_is_refused_by_its_option_name(
     assert not (tmp_path / "t.csv").exists()
 
 
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        # 15 digits at 1e12 s are 10 ms: 200 Hz stamps were written twice each.
+        (
+            ["--sample-rate", "200", "--time-offset", "1e12"],
+            "--time-offset 1e+12 s: stamps that large are off their times by up to 5.86e-05 s",
+        ),
+        # A float at 1e16 s is 2 s apart: every 20 Hz stamp was the same.
+        (["--time-offset", "1e16"], "more than 1% of the 0.05 s sample period"),
+        # An ISO start whose stamps leave the years a datetime holds: OverflowError.
+        (
+            ["--time-offset", "9999-12-31T23:59:59Z"],
+            "the telemetry's stamps, 0.05 s to 4 s from it, leave the years 1 to 9999",
+        ),
+        (
+            ["--pre-start", "10", "--time-offset", "0001-01-01T00:00:05Z"],
+            "the telemetry's stamps, -9.95 s to 4 s from it, leave the years 1 to 9999",
+        ),
+    ],
+)
+def test_a_time_offset_whose_stamps_cannot_hold_the_times_is_refused(
+    args: list[str], message: str, tmp_path: Path
+) -> None:
+    """Before, ``simulate`` wrote telemetry that its own ``identify`` refused ("time stamps
+    must increase strictly") or raised a traceback; now it is refused before the flight,
+    naming the offset, and writes nothing."""
+    telemetry = tmp_path / "t.csv"
+    out = tmp_path / "s.npz"
+    command = ["simulate", "-n", "1", "--telemetry", str(telemetry), "--out", str(out)]
+    assert message in refused([*command, *args])
+    assert not telemetry.exists() and not out.exists()
+
+
+def test_stamps_at_a_large_offset_are_written_with_the_digits_they_need(tmp_path: Path) -> None:
+    """At 1e12 s, 15 digits are 10 ms: 125 Hz stamps (8 ms apart) were written up to 4 ms
+    off their times; a float holds them to 0.06 ms, and they are written so."""
+    from cli_support import run_cli
+
+    telemetry = tmp_path / "t.csv"
+    run_cli(["simulate", "-n", "1", "--sample-rate", "125", "--time-offset", "1e12",
+             "--telemetry", str(telemetry)])  # fmt: skip
+    rows = telemetry.read_text().splitlines()[1:]
+    stamps = np.array([float(row.split(",")[0]) for row in rows]) - 1e12
+    assert np.max(np.abs(stamps - np.arange(1, len(rows) + 1) / 125)) < 0.01 / 125
+
+
 def test_a_named_pipe_in_a_telemetry_folder_is_not_waited_on(tmp_path: Path) -> None:
     import os
 
