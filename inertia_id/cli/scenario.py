@@ -184,6 +184,23 @@ def simulate_cmd(
             f"--candidate {candidate!r} and --candidate-number {candidate_number} both name "
             "the candidate; give one"
         )
+    if engine == "basilisk":
+        # Basilisk flies one series: these were dropped without a word.
+        context = click.get_current_context()
+        dropped = [
+            option
+            for name, option in (("realisations", "-n"), ("realisation", "--realisation"))
+            if context.get_parameter_source(name) is not click.core.ParameterSource.DEFAULT
+        ]
+        if dropped:
+            verb = "applies" if len(dropped) == 1 else "apply"
+            raise InputError(
+                f"{', '.join(dropped)} {verb} with --engine numpy only: --engine basilisk "
+                "flies the one series --telemetry writes"
+            )
+    elif telemetry and realisation >= realisations:
+        # Before the flight: it had been refused once --out was written.
+        raise InputError(f"--realisation {realisation} but only {realisations} simulated")
     scenario = load_scenario(preset_name, scenario_path)
     # Before the flight, not after it: a candidate the scenario lacks is refused at once.
     k = _candidate_index(scenario.candidate_names, candidate, candidate_number)
@@ -267,8 +284,6 @@ def simulate_cmd(
         click.echo(f"wrote {out}", err=True)
     if telemetry:
         names = scenario.candidate_names
-        if realisation >= realisations:
-            raise InputError(f"--realisation {realisation} but only {realisations} simulated")
         _write_telemetry(
             telemetry, result.time_s - coast_s, result.omega_measured[k, realisation], offset
         )

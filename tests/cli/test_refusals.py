@@ -819,6 +819,30 @@ def test_stamps_at_a_large_offset_are_written_with_the_digits_they_need(tmp_path
     assert np.max(np.abs(stamps - np.arange(1, len(rows) + 1) / 125)) < 0.01 / 125
 
 
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        # Refused once the flight was done and --out written (exit 1, the .npz replaced).
+        (["-n", "2", "--realisation", "5"], "--realisation 5 but only 2 simulated"),
+        # Basilisk flies one series: -n and --realisation were dropped without a word.
+        (["--engine", "basilisk", "-n", "5"], "-n applies with --engine numpy only"),
+        (
+            ["--engine", "basilisk", "--realisation", "1", "-n", "2"],
+            "-n, --realisation apply with --engine numpy only",
+        ),
+    ],
+)
+def test_a_realisation_simulate_cannot_write_is_refused_before_anything_is_written(
+    args: list[str], message: str, tmp_path: Path
+) -> None:
+    telemetry, out = tmp_path / "t.csv", tmp_path / "s.npz"
+    command = ["simulate", "--telemetry", str(telemetry)]
+    if "basilisk" not in args:
+        command += ["--out", str(out)]
+    assert message in refused([*command, *args])
+    assert not telemetry.exists() and not out.exists()
+
+
 def test_a_named_pipe_in_a_telemetry_folder_is_not_waited_on(tmp_path: Path) -> None:
     import os
 
