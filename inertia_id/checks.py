@@ -50,6 +50,10 @@ _FORMULA_START = ("=", "+", "-", "@", "\t", "\r")
 #: The command line takes no larger one, so that a run made there can be made again as
 #: a job with the same seed.
 MAX_SEED = 2**31 - 1
+#: The largest noise multiple a sweep visits and ``simulate`` takes
+#: (:data:`inertia_id.evaluation.sweep.MAX_MULTIPLE`, which says why); here so that the
+#: command line checks it without importing the sweep (and scipy).
+MAX_NOISE_MULTIPLE = 1000.0
 
 
 def check_seed(seed: Any, name: str = "seed") -> int:

@@ -32,13 +32,13 @@ F = TypeVar("F", bound=Callable[..., Any])
 
 
 def _noise_option(flag: str, source: str) -> Callable[[F], F]:
-    """A noise source's scale: a multiple (>= 0, 1 by default) of the scenario's own."""
+    """A noise source's scale: a multiple (0 to 1000, 1 by default) of the scenario's own."""
     return click.option(
         flag,
         default=1.0,
         show_default=True,
         type=FloatRange(0),
-        help=f"Multiple of the scenario's {source}.",
+        help=f"Multiple of the scenario's {source}, 0 to 1000 (a sweep's range).",
     )
 
 
@@ -163,6 +163,7 @@ def simulate_cmd(
     """Simulate every candidate's gyro response to a sequence."""
     import numpy as np
 
+    from ..checks import MAX_NOISE_MULTIPLE
     from ..errors import InputError
     from ..evaluation.telemetry import parse_sequence_start
     from ..physics.simulable import check_simulable
@@ -201,6 +202,18 @@ def simulate_cmd(
     elif telemetry and realisation >= realisations:
         # Before the flight: it had been refused once --out was written.
         raise InputError(f"--realisation {realisation} but only {realisations} simulated")
+    for option, multiple in (
+        ("--process-noise", process_noise),
+        ("--measurement-noise", measurement_noise),
+    ):
+        # nan had been blamed on the scenario's units ("overflow ... with every source of
+        # noise off"), and 1e300 x the gyro noise wrote rates identify refuses.
+        if not 0 <= multiple <= MAX_NOISE_MULTIPLE:
+            raise InputError(
+                f"{option} {multiple:g}: a multiple of the scenario's own, 0 to "
+                f"{MAX_NOISE_MULTIPLE:g} (a sweep's range: beyond it the simulated rates leave "
+                "what the integrator follows)"
+            )
     scenario = load_scenario(preset_name, scenario_path)
     # Before the flight, not after it: a candidate the scenario lacks is refused at once.
     k = _candidate_index(scenario.candidate_names, candidate, candidate_number)

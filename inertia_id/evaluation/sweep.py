@@ -36,7 +36,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from pydantic import BaseModel
 
-from ..checks import check_seed, is_integer
+from ..checks import MAX_NOISE_MULTIPLE, check_seed, is_integer
 from ..errors import InputError
 from ..physics.scenario import AS_TRAINED, Scenario
 from ..physics.simulate import SimulationOverflow, simulate
@@ -85,7 +85,7 @@ DEFAULT_MULTIPLES: tuple[float, ...] = (1, 2, 3, 4, 5, 6, 7, 8)
 #: the RK4 integration still agrees with one at a ten times finer step to 1e-5 (the rates
 #: reach 8 rad/s at 1000x thrust-scale error); at 1e4x thrust-scale error it is 1.4 % off,
 #: at 1e5x the rates overflow to inf and nan. Every classifier is at chance long before.
-MAX_MULTIPLE = 1000.0
+MAX_MULTIPLE = MAX_NOISE_MULTIPLE
 #: Units of each source's absolute level.
 #: What each source is, for a person reading a plot or a form.
 NOISE_LABELS = {

@@ -843,6 +843,28 @@ def test_a_realisation_simulate_cannot_write_is_refused_before_anything_is_writt
     assert not telemetry.exists() and not out.exists()
 
 
+@pytest.mark.parametrize(
+    "args",
+    [
+        # Blamed on the scenario: "overflow to inf or nan ... with every source of noise
+        # off: the scenario's torques or inertia are likely wrong in units".
+        ["--process-noise", "nan"],
+        # Named measurement_noise_scale, an argument of the core, not the option.
+        ["--measurement-noise", "nan"],
+        # Flown: a gyro noise of 1e297 rad/s, telemetry that identify refuses.
+        ["--measurement-noise", "1e300"],
+        ["--process-noise", "1001"],
+    ],
+)
+def test_simulate_refuses_a_noise_multiple_a_sweep_refuses_naming_the_option(
+    args: list[str], tmp_path: Path
+) -> None:
+    out = tmp_path / "s.npz"
+    message = refused(["simulate", "-n", "1", "--out", str(out), *args])
+    assert f"{args[0]} {float(args[1]):g}: a multiple of the scenario's own, 0 to 1000" in message
+    assert not out.exists()
+
+
 def test_a_named_pipe_in_a_telemetry_folder_is_not_waited_on(tmp_path: Path) -> None:
     import os
 
