@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, TypeVar
 
@@ -246,6 +247,26 @@ def search_request(
         raise InputError(f"--cem applies to --method cem only, not {method!r}")
     if nsga2_pairs and method != "nsga2":
         raise InputError(f"--nsga2 applies to --method nsga2 only, not {method!r}")
+    weights = (
+        ("--fuel-weight", fuel_weight),
+        ("--constraint-penalty", constraint_penalty),
+        ("--lagrangian-lr", lagrangian_lr),
+    )
+    for option, weight in weights:
+        # Refused by the core's name (fuel_weight) once the search's bar had started.
+        if not math.isfinite(weight):
+            raise InputError(f"{option} {weight:g}: give a finite number >= 0")
+    if lagrangian_lr and method != "ppo":
+        raise InputError(f"--lagrangian-lr applies to --method ppo only, not {method!r}")
+    if method == "nsga2":
+        # NSGA-II has no reward: both were dropped without a word.
+        for option, weight in weights[:2]:
+            if weight:
+                raise InputError(
+                    f"{option} weighs the reward of --method ppo, cem, random or exhaustive; "
+                    "nsga2 has none: it trades impulse off as an --objectives entry and "
+                    "keeps every --constraint as a constraint"
+                )
     pairs = SearchRequest.default("design_noise")
     if design_noise is not None:
         from ..checks import parse_decimal

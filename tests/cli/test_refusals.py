@@ -865,6 +865,37 @@ def test_simulate_refuses_a_noise_multiple_a_sweep_refuses_naming_the_option(
     assert not out.exists()
 
 
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        # Refused as "fuel_weight must be finite", the core's name, once the bar had started.
+        (["--method", "random", "--fuel-weight", "nan"], "--fuel-weight nan: give a finite"),
+        (["--method", "ppo", "--lagrangian-lr", "inf"], "--lagrangian-lr inf: give a finite"),
+        # Refused as "lagrangian_lr applies to method ppo only", after the bar had started.
+        (
+            ["--method", "random", "--lagrangian-lr", "1"],
+            "--lagrangian-lr applies to --method ppo only, not 'random'",
+        ),
+        # NSGA-II has no reward: these ran and were dropped without a word (nan too).
+        (["--method", "nsga2", "--fuel-weight", "3"], "--fuel-weight weighs the reward of"),
+        (
+            ["--method", "nsga2", "--constraint-penalty", "5"],
+            "--constraint-penalty weighs the reward of --method ppo, cem, random or exhaustive",
+        ),
+        (["--method", "nsga2", "--constraint-penalty", "nan"], "--constraint-penalty nan"),
+    ],
+)
+def test_a_search_weight_that_is_not_finite_or_has_no_effect_is_refused_before_it_runs(
+    args: list[str], message: str, tmp_path: Path
+) -> None:
+    result = CliRunner().invoke(
+        main,
+        ["search", "--length", "1", "--timesteps", "5", "--out", str(tmp_path / "s.json"), *args],
+    )
+    assert result.exit_code == 1 and message in " ".join(result.output.split()), result.output
+    assert "searching" not in result.output and not (tmp_path / "s.json").exists()
+
+
 def test_a_named_pipe_in_a_telemetry_folder_is_not_waited_on(tmp_path: Path) -> None:
     import os
 
