@@ -4,6 +4,7 @@ noise, and verdicts on telemetry."""
 from __future__ import annotations
 
 import json
+import math
 import os
 import time
 from pathlib import Path
@@ -395,6 +396,14 @@ def identify_cmd(
     from ..errors import InputError
     from ..evaluation.telemetry import parse_sequence_start
 
+    for option, seconds in (
+        ("--estimate-start-within", start_window_s),
+        ("--pre-start-window", pre_start_window_s),
+    ):
+        # Once, before any file: nan was refused per file, by the core's name
+        # (estimate_start_within_s, pre_start_window_s).
+        if seconds is not None and not math.isfinite(seconds):
+            raise InputError(f"{option} {seconds:g}: give a finite number of seconds >= 0")
     paths = _telemetry_files((*telemetry_paths, *inputs))
     start = parse_sequence_start(sequence_start)
     classifier = load_classifier(classifier_path)

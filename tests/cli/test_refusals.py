@@ -896,6 +896,21 @@ def test_a_search_weight_that_is_not_finite_or_has_no_effect_is_refused_before_i
     assert "searching" not in result.output and not (tmp_path / "s.json").exists()
 
 
+@pytest.mark.parametrize(
+    ("option", "value"),
+    [("--estimate-start-within", "nan"), ("--pre-start-window", "inf")],
+)
+def test_identify_refuses_a_window_that_is_not_finite_once_by_its_option(
+    option: str, value: str, tmp_path: Path
+) -> None:
+    """It was refused file by file (two JSON error lines for a folder of two), by the
+    core's names estimate_start_within_s and pre_start_window_s."""
+    for name in ("a.csv", "b.csv"):
+        (tmp_path / name).write_text("time_s,wx_rad_s,wy_rad_s,wz_rad_s\n")
+    message = refused(["identify", "--classifier", __file__, option, value, str(tmp_path)])
+    assert message == f"Error: {option} {value}: give a finite number of seconds >= 0"
+
+
 def test_a_named_pipe_in_a_telemetry_folder_is_not_waited_on(tmp_path: Path) -> None:
     import os
 
