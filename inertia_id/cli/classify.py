@@ -279,6 +279,13 @@ def sweep_cmd(
             realisations=max(n_test // k, n_train if set(other_specs) - {"none"} else 0),
             samples=len(model.sequence_) * model.scenario_.timing.samples_per_step,
         )
+        if n_test >= k and n_test % k:
+            # The sweep draws whole series a candidate: the rest was dropped without a word.
+            click.echo(
+                f"warning: --n-test {n_test} over {k} candidates draws {n_test // k} series "
+                f"a candidate, {n_test // k * k} a point",
+                err=True,
+            )
     request = SweepRequest(
         multiples=parse_multiples(multiples),
         noises=noises or None,

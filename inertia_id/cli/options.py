@@ -423,7 +423,8 @@ def n_test_option(default: int) -> Callable[[F], F]:
         default=default,
         show_default=True,
         type=IntRange(1),
-        help="Test series per sweep point, spread over the candidates.",
+        help="Test series per sweep point, spread evenly over the K candidates: "
+        "n-test // K each (the rest is not drawn).",
     )
 
 

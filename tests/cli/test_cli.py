@@ -489,6 +489,21 @@ def test_a_sweep_document_names_the_seed_that_runs_it_again(tmp_path: Path) -> N
     assert other["run_seed"] == 3 and other["inertia"] != first["inertia"]
 
 
+def test_a_sweep_says_when_its_test_series_do_not_spread_evenly(tmp_path: Path) -> None:
+    """--n-test 9 over 5 candidates drew 5 series a point, 1 a candidate, without a word."""
+    classifier = tmp_path / "c.json"
+    run_cli(["train", "--metric", "euclidean", "-n", "4", "--out", str(classifier)])
+    sweep = ["sweep", "--classifier", str(classifier), "--multiples", "1", "--others", "none"]
+    sweep += ["--ceiling-realisations", "0", "--no-inertia"]
+    document, result = run_cli_json([*sweep, "--n-test", "9"], tmp_path / "nine.json")
+    assert [p["n_series"] for p in document["points"]] == [5, 5]
+    assert "warning: --n-test 9 over 5 candidates draws 1 series a candidate, 5 a point" in (
+        result.stderr
+    )
+    _, even = run_cli_json([*sweep, "--n-test", "10"], tmp_path / "ten.json")
+    assert "warning" not in even.stderr
+
+
 def test_the_paper_pipeline_refuses_large_multiples_before_it_trains(
     runner: CliRunner, tmp_path: Path
 ) -> None:
