@@ -209,6 +209,18 @@ def search_options(func: F) -> F:
     return func
 
 
+def _given(name: str) -> bool:
+    """Whether the command's option ``name`` was given (on the command line or from the
+    environment), not left at its default."""
+    from click.core import ParameterSource
+
+    context = click.get_current_context(silent=True)
+    return context is not None and context.get_parameter_source(name) in (
+        ParameterSource.COMMANDLINE,
+        ParameterSource.ENVIRONMENT,
+    )
+
+
 def search_request(
     method: str,
     *,
@@ -266,6 +278,19 @@ def search_request(
                     f"{option} weighs the reward of --method ppo, cem, random or exhaustive; "
                     "nsga2 has none: it trades impulse off as an --objectives entry and "
                     "keeps every --constraint as a constraint"
+                )
+    if method in ("nsga2", "exhaustive"):
+        # Their budgets are others (--nsga2 generations=..., every sequence): both options
+        # ran and were dropped without a word.
+        for option, name in (("--timesteps", "timesteps"), ("--patience", "patience")):
+            if _given(name):
+                raise InputError(
+                    f"{option} applies to --method ppo, cem or random, not {method!r} "
+                    + (
+                        "(its budget is --nsga2 population=... generations=...)"
+                        if method == "nsga2"
+                        else "(it scores every sequence)"
+                    )
                 )
     pairs = SearchRequest.default("design_noise")
     if design_noise is not None:

@@ -896,6 +896,21 @@ def test_a_search_weight_that_is_not_finite_or_has_no_effect_is_refused_before_i
     assert "searching" not in result.output and not (tmp_path / "s.json").exists()
 
 
+@pytest.mark.parametrize("method", ["nsga2", "exhaustive"])
+@pytest.mark.parametrize(("option", "value"), [("--timesteps", "50"), ("--patience", "5")])
+def test_a_search_budget_the_method_does_not_spend_is_refused_before_it_runs(
+    method: str, option: str, value: str, tmp_path: Path
+) -> None:
+    """NSGA-II's budget is its generations and exhaustive scores every sequence: both
+    ran with --timesteps or --patience and dropped it without a word."""
+    out = tmp_path / "s.json"
+    message = refused(
+        ["search", "--method", method, "--length", "1", option, value, "--out", str(out)]
+    )
+    assert f"{option} applies to --method ppo, cem or random, not '{method}'" in message
+    assert not out.exists()
+
+
 @pytest.mark.parametrize(
     ("option", "value"),
     [("--estimate-start-within", "nan"), ("--pre-start-window", "inf")],
