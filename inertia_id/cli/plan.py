@@ -168,7 +168,8 @@ def plan_cmd(
         write_output(out, _strict_json(planned) + "\n")
     summary = plan.to_dict()
     click.echo(
-        f"wrote {out}: {len(plan.sequence)} steps, impulse {plan.impulse_nms:.2f} N m s, "
+        f"wrote {out}: {len(plan.sequence)} step{'' if len(plan.sequence) == 1 else 's'}, "
+        f"impulse {plan.impulse_nms:.2f} N m s, "
         f"on-time {summary['propellant']['on_time_s']:.2f} s, largest residual rate "
         f"{summary['residual_rate_max_rad_s']:.4f} rad/s "
         f"({summary['residual_rate_max_deg_s']:.3f} deg/s)"

@@ -1193,3 +1193,13 @@ def test_the_search_bar_says_whether_its_best_met_the_constraints(
     shown.clear()
     run_cli([*args[:-4], "--constraint", "max_impulse_nms=9", "--out", str(tmp_path / "t.json")])
     assert shown and set(shown) == {"best_accuracy_feasible"}
+
+
+def test_plan_says_one_step_in_the_singular(tmp_path: Path) -> None:
+    """It said 'wrote plan.json: 1 steps, ...'."""
+    for sequence, said in [
+        ("4,4,4,0,0,0", ": 1 step, "),
+        ("4,4,4,0,0,0;0,0,0,4,4,4", ": 2 steps, "),
+    ]:
+        result = run_cli(["plan", "--sequence", sequence, "--out", str(tmp_path / "p.json")])
+        assert said in result.output, result.output
