@@ -120,7 +120,7 @@ def _arrays_file_name(context: click.Context, param: click.Parameter, value: str
     "--sample-rate",
     "sample_rate_hz",
     default=None,
-    type=FloatRange(0, 10_000, min_open=True),
+    type=FloatRange(0.01, 10_000),
     help="Gyro rate, Hz [default: the scenario's]; the gyro noise sigma stays per sample.",
 )
 @click.option(

@@ -496,7 +496,9 @@ def test_a_sequence_that_applies_no_torque_is_not_trained_on(tmp_path: Path) -> 
         (["--pre-start", "nan"], "--pre-start nan s: at most 996 s"),
         (["--pre-start", "1e9"], "--pre-start 1e+09 s: at most 996 s"),
         (["--sample-rate", "nan"], "--sample-rate nan Hz: give a rate from 0.01 Hz"),
-        (["--sample-rate", "1e-300"], "--sample-rate 1e-300 Hz"),
+        # The range --help states (it said 0<x<=10000 while 0.001 was refused at run time).
+        (["--sample-rate", "1e-300"], "'--sample-rate': 1e-300 is not in the range 0.01<=x<=10000"),
+        (["--sample-rate", "0.001"], "'--sample-rate': 0.001 is not in the range 0.01<=x<=10000"),
     ],
 )
 def test_simulate_checks_its_options_before_it_builds_anything(
