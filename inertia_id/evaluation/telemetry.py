@@ -52,6 +52,7 @@ telemetry running on past it are a gap judged on the samples present at every st
 
 from __future__ import annotations
 
+import calendar
 import csv
 import io
 import json
@@ -180,13 +181,32 @@ _RFC3339_LOWER_T = re.compile(r"(?<=\d)t(?=\d)")
 _RFC3339_LOWER_Z = re.compile(r"(?<=\d)z$")
 
 
+#: ISO 8601's ordinal date, the year and the day of the year (``2026-341T12:00:00Z``, or
+#: basic ``2026341T120000Z``): CCSDS's ASCII time code B, in which ground segments stamp
+#: telemetry. Python's ``datetime.fromisoformat`` does not read it (3.11), so such stamps
+#: were refused as "neither seconds nor an ISO-8601 UTC stamp".
+_ORDINAL_DATE = re.compile(r"^(\d{4})-?(\d{3})(?=[T ]|$)")
+
+
+def _calendar(match: re.Match[str]) -> str:
+    year, day = int(match.group(1)), int(match.group(2))
+    if year < 1 or not 1 <= day <= (366 if calendar.isleap(year) else 365):
+        return match.group(0)  # no such day: fromisoformat refuses it as written
+    moment = datetime(year, 1, 1) + timedelta(days=day - 1)
+    return f"{moment.year:04d}-{moment.month:02d}-{moment.day:02d}"
+
+
 def _capitals(text: str) -> str:
-    """``text`` with RFC 3339's lower-case "t" and "z" written as the capitals."""
-    return _RFC3339_LOWER_Z.sub("Z", _RFC3339_LOWER_T.sub("T", text.strip()))
+    """``text`` as Python's ``datetime.fromisoformat`` reads it: RFC 3339's lower-case
+    "t" and "z" written as the capitals, and an ordinal date (the day of the year) as
+    the calendar date."""
+    text = _RFC3339_LOWER_Z.sub("Z", _RFC3339_LOWER_T.sub("T", text.strip()))
+    return _ORDINAL_DATE.sub(_calendar, text, count=1)
 
 
 def _fromisoformat(text: str) -> datetime:
-    """``datetime.fromisoformat``, with RFC 3339's lower-case "t" and "z" taken too."""
+    """``datetime.fromisoformat``, with RFC 3339's lower-case "t" and "z" and ISO 8601's
+    ordinal dates (``2026-341T12:00:00Z``) taken too."""
     return datetime.fromisoformat(_capitals(text))
 
 

@@ -211,6 +211,32 @@ def test_rfc3339_lower_case_t_and_z_are_taken_as_the_capitals() -> None:
         )
 
 
+def test_iso_8601_ordinal_dates_the_day_of_the_year_are_read() -> None:
+    """ISO 8601's ordinal date (``2026-341T12:00:00Z``: CCSDS's ASCII time code B, the
+    day of the year in which ground segments stamp telemetry) was refused as "neither
+    seconds nor an ISO-8601 UTC stamp" (Python's fromisoformat does not read it), and so
+    was a sequence start written that way."""
+    calendar = ["2024-12-31T23:59:59.950Z", "2025-01-01T00:00:00Z", "2025-01-01T00:00:00.050Z"]
+    ordinal = ["2024-366T23:59:59.950Z", "2025-001T00:00:00Z", "2025001T000000.050Z"]
+    rates = [[0.0, 0.0, 0.0]] * 3
+    expected = Telemetry(time_utc=calendar, omega_rad_s=rates, sequence_start=calendar[1])
+    np.testing.assert_allclose(expected.time_array, [-0.05, 0.0, 0.05], atol=1e-12)
+    for stamps, start in ((ordinal, calendar[1]), (calendar, ordinal[1]), (ordinal, ordinal[1])):
+        got = Telemetry(time_utc=stamps, omega_rad_s=rates, sequence_start=start)
+        np.testing.assert_array_equal(got.time_array, expected.time_array)
+    text = "\n".join(f"{s},0,0,0" for s in ordinal)
+    for header in ("time_utc,wx,wy,wz\n", ""):
+        parsed = parse_telemetry(header + text, sequence_start="2025-001T00:00:00Z")
+        np.testing.assert_array_equal(parsed.time_array, expected.time_array)
+    # Passed on as Python's datetime reads it (simulate --time-offset, a stored verdict).
+    assert parse_sequence_start("2026-341t12:00:00z") == "2026-12-07T12:00:00Z"
+    assert parse_sequence_start("2026341T120000Z") == "2026-12-07T120000Z"
+    # A day the year does not have is still refused, as written.
+    for start in ("2025-366T00:00:00Z", "2025-000T00:00:00Z", "9999-366T00:00:00Z"):
+        with pytest.raises(InputError, match=rf"sequence_start = '{start}' is not an ISO-8601"):
+            parse_sequence_start(start)
+
+
 @pytest.mark.parametrize(
     ("data", "match"),
     [
