@@ -353,8 +353,9 @@ class Telemetry(BaseModel):
         if np.any(steps <= 0):
             i = int(np.flatnonzero(steps <= 0)[0])
             raise InputError(
-                f"time stamps must increase strictly: time_s[{i}] = {value[i]!r}, "
-                f"time_s[{i + 1}] = {value[i + 1]!r}"
+                f"time stamps must increase strictly: time_s[{i}] = {value[i]!r}"
+                f"{_csv_cell(info, i, 0)}, time_s[{i + 1}] = {value[i + 1]!r}"
+                f"{_csv_cell(info, i + 1, 0)}: {_disorder(float(steps[i]))}"
             )
         return value
 
@@ -478,7 +479,8 @@ class Telemetry(BaseModel):
             if parsed[i + 1] <= parsed[i]:
                 raise InputError(
                     f"time stamps must increase strictly: {name}[{i}] = {stamps[i]!r}, "
-                    f"{name}[{i + 1}] = {stamps[i + 1]!r}"
+                    f"{name}[{i + 1}] = {stamps[i + 1]!r}: "
+                    f"{_disorder((parsed[i + 1] - parsed[i]).total_seconds())}"
                 )
         if start is None:
             raise InputError(
@@ -660,6 +662,15 @@ def parse_telemetry(
 
 
 _CSV_ROWS = "csv_rows"
+
+
+def _disorder(step_s: float) -> str:
+    """What two stamps that do not increase mean, for the refusal: a downlink's repeated
+    packet or a merge of passes out of order (said by index alone, the refusal sent the
+    reader counting rows from 0 in a CSV whose other refusals count them from 1)."""
+    if step_s == 0.0:
+        return "the same stamp twice (a sample sent twice?): keep one of them"
+    return "out of order: sort the samples by their time stamps"
 
 
 def _csv_cell(info: ValidationInfo, index: int, role: int) -> str:

@@ -304,7 +304,21 @@ def test_parsed_csv_identifies_like_the_arrays(
             "auto",
             r"time_s\[1\] = inf is not finite \(CSV data row 2, written '1e999'\)",
         ),
-        ("0,0,0,0\n-0.1,0,0,0\n", "auto", rf"time_s\[0\] = {F}0\.0\)?, time_s\[1\] = {F}-0\.1"),
+        # Stamps that do not increase are named by their CSV rows, counted from 1 as the
+        # other refusals count them (the index alone, from 0, sent the reader one row
+        # off), with what it means: a repeated sample, or rows out of order.
+        (
+            "0,0,0,0\n-0.1,0,0,0\n",
+            "auto",
+            rf"time_s\[0\] = {F}0\.0\)? \(CSV data row 1, written '0'\), time_s\[1\] = {F}-0\.1\)? "
+            r"\(CSV data row 2, written '-0\.1'\): out of order: sort the samples by their time",
+        ),
+        (
+            "time_s,wx,wy,wz\n0,0,0,0\n0.10,0,0,0\n0.1,0,0,0\n",
+            "auto",
+            r"time_s\[1\] = 0\.1 \(CSV data row 2, written '0\.10'\), time_s\[2\] = 0\.1 \(CSV "
+            r"data row 3, written '0\.1'\): the same stamp twice \(a sample sent twice\?\)",
+        ),
         ('{"time_s": [0, 1], "omega_rad_s": ', "auto", r"telemetry is not valid JSON"),
         ("[[0, 0, 0, 0]]", "auto", r"must be an object with time_s and omega_rad_s"),
         ("0,0,0,0\n1,0,0,0", "xml", r"format must be json, csv or auto, got 'xml'"),

@@ -264,7 +264,15 @@ def test_iso_8601_ordinal_dates_the_day_of_the_year_are_read() -> None:
                 "time_utc": ["2025-03-01T12:00:01Z", "2025-03-01T12:00:01Z"],
                 "sequence_start": "2025-03-01T12:00:00Z",
             },
-            r"increase strictly: time_utc\[0\] = '2025-03-01T12:00:01Z', time_utc\[1\]",
+            r"increase strictly: time_utc\[0\] = '2025-03-01T12:00:01Z', time_utc\[1\] = "
+            r"'2025-03-01T12:00:01Z': the same stamp twice \(a sample sent twice\?\)",
+        ),
+        (
+            {
+                "time_utc": ["2025-03-01T12:00:01Z", "2025-03-01T13:00:00.5+01:00"],
+                "sequence_start": "2025-03-01T12:00:00Z",
+            },
+            r"time_utc\[1\] = '2025-03-01T13:00:00.5\+01:00': out of order: sort the samples",
         ),
         (
             {"time_utc": ["2025-03-01T12:00:00Z", "2025-03-01T12:00:01Z"], "sequence_start": 5.0},
