@@ -27,7 +27,9 @@ and a status:
   beyond its nearest candidate's novelty threshold (the classifier's own rule);
 - ``"not-this-sequence"``: beyond :data:`NOT_THIS_SEQUENCE_FACTOR` times every
   candidate's novelty threshold: telemetry that is no response to this sequence at
-  all (another sequence, a wrong time base, a tumbling spacecraft).
+  all (another sequence, a wrong time base, a tumbling spacecraft); or "matches none"
+  by the rules above with rates that move less than :data:`NO_RESPONSE_FRACTION` of
+  the candidates' response (no thruster fired at the start stated).
 
 :func:`identify_online` gives the posterior after every sample, for the kinds with a
 Gaussian model (exact: the leading block of mean and covariance), and the first time
@@ -37,6 +39,7 @@ body near the candidates better (the verdict's rule on that prefix).
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -49,7 +52,7 @@ from ..checks import is_number
 from ..classifiers.gaussian import log_softmax
 from ..errors import InputError
 from ..physics.estimate import PARAMETER_NAMES, estimate_inertia, tensor_from_parameters
-from ..physics.scenario import Scenario
+from ..physics.scenario import AS_TRAINED, Scenario
 from .telemetry import (
     MAX_TELEMETRY_RATE_RAD_S,
     ResponseShape,
@@ -69,6 +72,7 @@ __all__ = [
     "DEFAULT_CONFIDENCE",
     "DEFAULT_PRE_START_WINDOW_S",
     "NOT_THIS_SEQUENCE_FACTOR",
+    "NO_RESPONSE_FRACTION",
     "OFF_CANDIDATES_LOG_BAYES",
     "OFF_CANDIDATES_UNTESTED",
     "START_HINT_PERIODS",
@@ -97,6 +101,18 @@ DEFAULT_ALPHA = 1e-3
 #: beyond for the Euclidean clustering; a response to the opposite thrusters 6 times
 #: beyond for the marginal likelihood, whose noise grid absorbs much of any misfit).
 NOT_THIS_SEQUENCE_FACTOR = 5.0
+#: A matches-none verdict whose telemetry moves less than this part of the response any
+#: candidate gives (:func:`_response_fraction`: the least-squares scale of each
+#: candidate's noise-free response, an offset per axis free, plus three standard errors)
+#: is "not-this-sequence": the rates show no response to the thrusters at all (they did
+#: not fire at this start, or the start is wrong), not a body that is none of the
+#: candidates. A quiet pass (the body drifting, no thruster fired in the 4 s from the
+#: start stated) had been "matches none of the candidates ... nearest is 'none ejected'"
+#: at 2.8 times the novelty threshold, below :data:`NOT_THIS_SEQUENCE_FACTOR`, and so told
+#: an operator the spacecraft is in a configuration none of the candidates is. The
+#: bodies that are none of the candidates keep their verdict: a body 1.3 times a
+#: candidate scales at 0.77, one of three thrusters dead at 0.67.
+NO_RESPONSE_FRACTION = 0.2
 #: A candidate is named ("identified") only while the telemetry does not favour the
 #: classifier's model of another body near the candidates over the candidates
 #: themselves: their log Bayes factor must stay below this (0: a factor of 1). The
@@ -1173,6 +1189,51 @@ def _with_start_hint(
     )
 
 
+@functools.lru_cache(maxsize=16)
+def _nominal_responses(scenario_json: str, sequence: tuple[tuple[int, ...], ...]) -> np.ndarray:
+    """Each candidate's noise-free response on the grid, (K, T, 3) rad/s, kept for the
+    next verdict on the same classifier (the start hint asks for it at every start it
+    tries)."""
+    from ..physics.simulate import nominal_simulator
+
+    scenario = Scenario.model_validate_json(scenario_json, context=AS_TRAINED)
+    simulator, noise = nominal_simulator(scenario, len(sequence))
+    responses = simulator.run(np.asarray(sequence), noise).omega_true[:, 0]
+    responses.setflags(write=False)
+    return responses
+
+
+def _response_fraction(
+    scenario: Scenario, sequence: np.ndarray, series: np.ndarray, observed: np.ndarray
+) -> tuple[float, float]:
+    """How much of a candidate's response the telemetry shows: for each candidate, the
+    least-squares scale ``a`` of its noise-free response (:func:`nominal_simulator`) that
+    fits the measured grid points with an offset per axis free (``ω(0) + b``, whether
+    or not measured before the start), and its standard error from the residuals. The
+    ``a`` largest in magnitude and its error: about 1 for a response to the sequence,
+    -1 for one to the opposite thrusters, about 0 for rates that do not respond."""
+    responses = _nominal_responses(
+        scenario.model_dump_json(), tuple(map(tuple, np.asarray(sequence).tolist()))
+    )
+    measured = series[observed]
+    if measured.shape[0] < 3:
+        return math.inf, 0.0
+    data = measured - measured.mean(axis=0)
+    fits = []
+    for response in responses:
+        shape = response[observed] - response[observed].mean(axis=0)
+        power = float(np.sum(shape**2))
+        if power <= 0.0:
+            continue
+        scale = float(np.sum(shape * data)) / power
+        freedom = max(data.size - 3 - 1, 1)
+        residual = float(np.sum((data - scale * shape) ** 2)) / freedom
+        fits.append((scale, math.sqrt(residual / power)))
+    if not fits:
+        return math.inf, 0.0
+    return max(fits, key=lambda fit: abs(fit[0]))
+
+
 def _identify(
     classifier: CandidateClassifier,
     telemetry: Telemetry,
@@ -1201,6 +1262,12 @@ def _identify(
     best = int(verdict_arrays.best[0])
     status = STATUSES[int(verdict_arrays.status[0])]
     not_this_sequence = bool(verdict_arrays.not_this_sequence[0])
+    no_response: tuple[float, float] | None = None
+    if status == "matches-none":
+        fraction, error = _response_fraction(scenario, sequence, series, observed)
+        if abs(fraction) + 3.0 * error < NO_RESPONSE_FRACTION:
+            no_response = (fraction, error)
+            status, not_this_sequence = "not-this-sequence", True
     fits_off_candidates = bool(verdict_arrays.fits_off_candidates[0])
     near = verdict_arrays.off_candidates_log_bayes
     off_candidates = None if near is None else float(near[0])
@@ -1211,7 +1278,15 @@ def _identify(
     margin = runner_up - float(distances[best])
     threshold = float(thresholds[best])
     top = float(candidates[best])
-    if status == "not-this-sequence":
+    if no_response is not None:
+        verdict = (
+            f"not a response to this sequence: the rates change by "
+            f"{no_response[0]:.2f} (± {no_response[1]:.2f}) times the response the "
+            f"candidates give, less than {NO_RESPONSE_FRACTION:g}: no thruster response "
+            "in the telemetry from the sequence start stated; did the sequence fire then, "
+            "and is the start right?"
+        )
+    elif status == "not-this-sequence":
         verdict = (
             f"not a response to this sequence: every candidate is more than "
             f"{NOT_THIS_SEQUENCE_FACTOR:g} times beyond its novelty threshold (nearest "

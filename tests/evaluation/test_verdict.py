@@ -271,6 +271,38 @@ def test_a_response_to_another_sequence_is_not_this_sequence(
     assert verdict.matches_none and verdict.not_this_sequence
 
 
+def test_a_pass_with_no_thruster_response_is_not_this_sequence(
+    marginal: MarginalLikelihoodClassifier, drifting_paper: Scenario
+) -> None:
+    """The start stated 20 s before the thrusters fired: the 4 s after it show the body
+    drifting, no response. That was "matches none of the candidates" (2.8 times the
+    novelty threshold, below the not-this-sequence factor), telling an operator the
+    spacecraft is in none of the configurations; it is no response to this sequence."""
+    coast = [[0] * drifting_paper.n_thrusters] * 30
+    flown = simulate(drifting_paper, coast + GOOD_SEQUENCE, 3, np.random.default_rng(16))
+    for k in range(drifting_paper.n_candidates):
+        for i in range(3):
+            # Fired at 30 s; stated at 10 s, with 10 s of telemetry before that.
+            t, w = flown.time_s - 10.0, flown.omega_measured[k, i]
+            verdict = identify(marginal, telemetry_of(t, w))
+            assert verdict.status == "not-this-sequence", verdict.verdict
+            assert verdict.not_this_sequence and verdict.matches_none
+            assert "no thruster response in the telemetry" in verdict.verdict
+            # Stated right, the same pass is named.
+            right = identify(marginal, telemetry_of(flown.time_s - 30.0, w))
+            assert (right.status, right.candidate_index) == ("identified", k)
+    # A body that is none of the candidates responds: it keeps its verdict.
+    data = drifting_paper.model_dump()
+    data["candidate_generator"] = None
+    for candidate in data["inertia_candidates"]:
+        candidate["inertia_kg_m2"] = (1.3 * np.asarray(candidate["inertia_kg_m2"])).tolist()
+    heavier = simulate(Scenario.model_validate(data), GOOD_SEQUENCE, 2, np.random.default_rng(17))
+    for k in range(drifting_paper.n_candidates):
+        for i in range(2):
+            verdict = identify(marginal, telemetry_of(heavier.time_s, heavier.omega_measured[k, i]))
+            assert verdict.status == "matches-none", verdict.verdict
+
+
 def test_the_stop_rule_errs_within_its_bound(
     marginal: MarginalLikelihoodClassifier, fresh: Any
 ) -> None:
