@@ -688,7 +688,9 @@ class IdentifyResult(BaseModel):
         "(fits_off_candidates: thrusters off their stated torque, for one); matches-none: "
         "'none of these' is the most probable or the series is beyond the novelty "
         "threshold; not-this-sequence: far "
-        "beyond every candidate's threshold",
+        "beyond every candidate's threshold, or rates that show no response to the sequence "
+        "(they move less than 0.2 times the candidates' response: no thruster fired at the "
+        "start stated)",
     )
     posterior: dict[str, float] = Field(
         default_factory=dict, description="posterior probability of each candidate"
