@@ -1615,6 +1615,27 @@ def test_identify_shows_the_apis_posterior_and_is_green_only_when_identified(
     dashboard.screenshot("identify-posterior")
 
 
+def test_identify_a_pass_with_no_response_says_so_not_matches_none(
+    dashboard: Dashboard,
+) -> None:
+    """A pass in which no thruster fired (the gyro's noise alone in the 4 s from the start
+    stated): the service says not-this-sequence, and the headline had read "Matches none
+    of the candidates: ...", the words an operator takes to mean a configuration none of
+    the candidates is."""
+    _classifier(dashboard)
+    times = Scenario.paper().sample_times(len(GOOD))
+    quiet = np.random.default_rng(5).normal(0.0, 1e-3, size=(times.size, 3))
+    text = _csv_text(times, quiet)
+    dashboard.open(f"#/identify?classifier={made['classifier']}")
+    verdict = _identify(dashboard, text)
+    assert _api_verdict(dashboard, text)["status"] == "not-this-sequence"
+    assert verdict.get_attribute("data-status") == "not-this-sequence"
+    assert "none" in (verdict.get_attribute("class") or "").split()
+    headline = verdict.inner_text()
+    assert headline.startswith("Not a response to this sequence"), headline
+    assert "Matches none of the candidates" not in headline
+
+
 def test_identify_a_coin_toss_is_amber_naming_the_top_two_never_green(
     dashboard: Dashboard,
 ) -> None:

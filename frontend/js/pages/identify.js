@@ -253,7 +253,7 @@ function verdictBox(verdict, ranked) {
       ? ["ambiguous", `Not identified: ${named(first)} fits best, but the telemetry fits another body better (thrusters off their stated torque?)`]
       : ["ambiguous", `Ambiguous: ${named(first)} or ${second ? named(second) : "none of these"}`],
     "matches-none": ["none", `Matches none of the candidates (none of these: ${probability(verdict.p_none)})`],
-    "not-this-sequence": ["none", "Matches none of the candidates: not a response to this sequence"],
+    "not-this-sequence": ["none", "Not a response to this sequence: check the start stated, and that the sequence fired"],
   }[verdict.status] || ["none", verdict.verdict];
   return h("div", { class: `verdict ${headline[0]}`, id: "verdict", role: "status", "data-status": verdict.status }, headline[1]);
 }
