@@ -4,7 +4,9 @@
 physical, a sequence with a level out of range, telemetry that does not cover the
 sequence, an unknown option, a damaged document); its message names the rule and quotes
 the value. It is a ``ValueError``, so code that caught ``ValueError`` still catches it.
-Anything else the core raises is a defect, not the caller's fault.
+A pydantic model validated from data (a scenario, telemetry) refuses it with pydantic's
+``ValidationError``, a ``ValueError`` too, its entries naming the fields. Anything else
+the core raises is a defect, not the caller's fault.
 """
 
 from __future__ import annotations
