@@ -1719,6 +1719,70 @@ def test_opposed_firings_in_one_step_are_cancelled_to_their_net_torque() -> None
     assert OpposedFirings(Scenario.model_validate(document)).pairs == []
 
 
+def _tetrahedral(levels: list[float] | None = None) -> Scenario:
+    """The paper preset with four tetrahedral 1 N m thrusters (their torques sum to 0)."""
+    s = 1 / np.sqrt(3)
+    return preset(
+        "paper",
+        thrusters={
+            "torque_matrix_nm": [[s, -s, -s, s], [s, -s, s, -s], [s, s, -s, -s]],
+            "levels": levels or [0.0, 0.5, 1.0],
+        },
+    )
+
+
+def test_a_tetrahedral_steps_cancelling_part_is_taken_off() -> None:
+    """Four tetrahedral thrusters have no exact opposite pair, but all four fired
+    together apply no torque: ``[2, 2, 2, 2]`` burned 4 N m s for nothing, and the
+    repair, which knew only exact pairs, left every such step as it was. Each step is
+    now the least on-time on the levels with the same net torque, no duty raised."""
+    tetra = _tetrahedral()
+    rows = np.array([[2, 2, 2, 2], [2, 2, 2, 1], [1, 2, 2, 2], [1, 1, 1, 1], [2, 1, 2, 0]])
+    reduced = OpposedFirings(tetra)(rows)
+    assert reduced.tolist() == [[0, 0, 0, 0], [1, 1, 1, 0], [0, 1, 1, 1], [0] * 4, [2, 1, 2, 0]]
+    duty, torque = tetra.level_values, tetra.torque_matrix
+    assert np.allclose(torque @ duty[reduced].T, torque @ duty[rows].T, atol=1e-12)
+    assert (reduced <= rows).all()
+    # Levels not evenly spaced: the common part is taken off only where what is left
+    # lies on the levels.
+    uneven = _tetrahedral([0.0, 0.3, 1.0])
+    assert OpposedFirings(uneven)(np.array([[2, 2, 2, 1], [2, 2, 1, 0]])).tolist() == [
+        [2, 2, 2, 1],  # 1 - 0.3 = 0.7: no level, nothing to take off
+        [2, 2, 1, 0],  # no cancelling set fired
+    ]
+    assert OpposedFirings(uneven)(np.array([[1, 1, 1, 1]])).tolist() == [[0, 0, 0, 0]]
+
+
+def test_a_tetrahedral_search_scores_no_step_whose_torques_cancel(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """NSGA-II on four tetrahedral thrusters scored sequences with all four fired in one
+    step (3-5 % of them at L = 4, population 64, 30 generations): no torque for their
+    propellant, and a front member's twin with that part off was never tried."""
+    tetra = _tetrahedral()
+    scored: list[np.ndarray] = []
+    score = OperatorScorer.score
+
+    def recording(self: OperatorScorer, rows: np.ndarray) -> list:
+        scored.extend(np.asarray(rows))
+        return score(self, rows)
+
+    monkeypatch.setattr(OperatorScorer, "score", recording)
+    result = pareto_search(
+        tetra,
+        sequence_length=2,
+        seed=0,
+        operator=OperatorSettings(n_realisations=4),
+        nsga2_params={"population": 24, "generations": 6},
+        fresh_realisations=4,
+        fresh_test_series=0,
+        n_fresh_draws=1,
+    )
+    assert result.front is not None and len(scored) > 100
+    wasteful = [row.tolist() for row in scored if (row > 0).all(axis=1).any()]
+    assert wasteful == []
+
+
 def test_no_front_member_wastes_propellant_on_opposed_firings_in_one_step(
     paper: Scenario,
 ) -> None:
