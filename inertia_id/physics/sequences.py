@@ -26,7 +26,10 @@ the body axes):
   the middle coasts. Fire and brake are chosen together (:func:`fire_and_brake`): the
   fire runs at the largest duty level whose brake, on the levels, cancels it to within
   1 % (full duty where the brake is as strong as the fire), or else at the level whose
-  brake cancels it best, so a brake weaker than the fire still ends near rest.
+  brake cancels it best, so a brake weaker than the fire still ends near rest. Where no
+  duties of the thrusters, however large, give the opposite of the fired torque (all of
+  them push one way about some axis: three on one side of the body), there is no brake,
+  and this baseline and the next are unavailable, saying along which direction.
 - :func:`fire_coast_brake`: fire for a quarter of the steps (at least one), coast, brake
   for as many: the same propellant as fire-then-brake of twice the fire steps' length
   spends, held at rate longer (coasting costs nothing). At 3 steps it is fire-then-brake
@@ -244,6 +247,58 @@ def axis_in_turn(scenario: Scenario, length: int) -> np.ndarray:
     return np.stack([rows[step % 3] for step in range(int(length))])
 
 
+def _check_reversible(torque_matrix: np.ndarray, fired_nm: np.ndarray) -> None:
+    """Raise :class:`InputError` unless some non-negative duties (of any size) give the
+    opposite of ``fired_nm`` (3,), N m: else no brake, however strong, stops the fire.
+
+    Where the thrusters all push one way about some axis (three on one side of the
+    body, or eight canted ones that all torque +z), the "brake" of least squares was the
+    thruster nearest to opposing the fire, which left 62-100 % of the fired torque (3-6
+    thrusters with +z torques, 23 geometries) and on three thrusters on one side added
+    z torque: a fire-then-brake that ends spinning. The message names a direction along
+    which no thruster gives a negative torque (a body axis where one is).
+    """
+    from scipy.optimize import linprog
+
+    scale = float(np.abs(torque_matrix).max())
+    opposite = linprog(
+        np.zeros(torque_matrix.shape[1]),
+        A_eq=torque_matrix / scale,
+        b_eq=-fired_nm / scale,
+        bounds=(0.0, None),
+        method="highs",
+    )
+    if opposite.status != 2:  # 2: infeasible
+        return
+    # A direction along which every thruster's torque is >= 0 and the fire's > 0 exists
+    # (Farkas): a body axis where one is, else one a linear program finds.
+    along = None
+    for axis in range(3):
+        for sign, name in ((1.0, "+"), (-1.0, "-")):
+            if sign * fired_nm[axis] > 0 and np.all(sign * torque_matrix[axis] >= 0):
+                along = along or f"body {name}{'xyz'[axis]}"
+    if along is None:
+        certificate = linprog(
+            -fired_nm / scale,
+            A_ub=-torque_matrix.T / scale,
+            b_ub=np.zeros(torque_matrix.shape[1]),
+            bounds=(-1.0, 1.0),
+            method="highs",
+        )
+        if certificate.status == 0:
+            along = str(np.round(certificate.x / np.linalg.norm(certificate.x), 3).tolist())
+    words = (
+        f"every thruster's torque has a component of 0 or more along {along}, the fire's a "
+        "positive one, so"
+        if along is not None
+        else "no duties give its opposite, so"
+    )
+    raise InputError(
+        f"the thrusters cannot reverse the fired torque {np.round(fired_nm, 3).tolist()} "
+        f"N m: {words} there is no brake on this geometry"
+    )
+
+
 def fire_and_brake(scenario: Scenario) -> tuple[np.ndarray, np.ndarray]:
     """The fire step and the brake step that cancels it, level indices, each (N,).
 
@@ -259,6 +314,7 @@ def fire_and_brake(scenario: Scenario) -> tuple[np.ndarray, np.ndarray]:
     """
     thrusters = _fire_row(scenario) > 0
     torque_matrix = scenario.torque_matrix
+    _check_reversible(torque_matrix, torque_matrix @ thrusters.astype(float))
     best: tuple[float, np.ndarray, np.ndarray] | None = None
     for level in range(scenario.n_levels - 1, 0, -1):
         fire_row = thrusters * level
@@ -284,9 +340,9 @@ def _fire_coast_brake(scenario: Scenario, fire: int, coast: int) -> np.ndarray:
 
 def fire_then_brake(scenario: Scenario, length: int) -> np.ndarray:
     """Fire the hand-designed thrusters for half the steps, brake for as many (an odd
-    middle step coasts); needs at least 2 steps. The fire's duty is the largest the brake
-    can cancel (:func:`fire_and_brake`): full duty, the hand-designed step, unless the
-    brake is weaker."""
+    middle step coasts); needs at least 2 steps, and thrusters that can reverse the fired
+    torque. The fire's duty is the largest the brake can cancel (:func:`fire_and_brake`):
+    full duty, the hand-designed step, unless the brake is weaker."""
     _check_length(length)
     if length < 2:
         raise InputError(f"fire then brake needs at least 2 steps, got {length}")

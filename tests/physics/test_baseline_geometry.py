@@ -102,6 +102,36 @@ def test_a_tetrahedral_set_drives_each_axis_with_a_pair() -> None:
     assert np.allclose(_net_impulse_nms(tetra, sequence), 0.0, atol=1e-12)
 
 
+def test_thrusters_that_cannot_reverse_the_fire_have_no_fire_then_brake() -> None:
+    """Three thrusters on one side of the body all torque +z: nothing brakes a fire.
+    fire-then-brake was [[3, 3, 0]] * 2 + [[0, 0, 1]] * 2 all the same, its "brake" (the
+    third thruster at a quarter duty) adding z torque and leaving 95 % of the fired
+    torque; now both braking baselines are unavailable, saying why, and the others stay."""
+    one_side = _with_torques([[1, 0, 0.5], [-0.5, 0.87, 0.5], [-0.5, -0.87, 0.5]])
+    made = baseline_sequences(one_side, 4)
+    for name in ("fire-then-brake", "fire-coast-brake"):
+        why = made[name]
+        assert isinstance(why, str), (name, why)
+        assert "cannot reverse the fired torque [0.5, 0.87, 1.0] N m" in why, why
+        assert "along body +z" in why and "no brake" in why, why
+    assert made["hand-designed"].tolist() == [[4, 4, 0]] * 4  # type: ignore[union-attr]
+    assert made["axis-in-turn"].tolist() == [  # type: ignore[union-attr]
+        [4, 0, 0],
+        [0, 4, 0],
+        [4, 4, 4],
+        [4, 0, 0],
+    ]
+    # A geometry that reverses the fire about no body axis is told so by a direction.
+    skewed = _with_torques([[1, 0, 0.5], [-0.5, 0.87, 0.5], [-0.5, -0.87, 0.2], [0.1, 0.1, -0.01]])
+    with pytest.raises(ValueError, match=r"component of 0 or more along \[0\.\d+, -0\.\d+"):
+        BASELINES["fire-then-brake"](skewed, 2)
+    # Where the opposite of the fire lies among the thrusters' torques, a brake is found:
+    # a weaker one scales the fire down (above), a stronger one brakes it exactly.
+    reversible = _with_torques([[1, 0, 0.5], [-0.5, 0.87, 0.5], [-0.5, -0.87, 0.5], [0, 0, -1]])
+    sequence = BASELINES["fire-then-brake"](reversible, 2)
+    assert np.allclose(_net_impulse_nms(reversible, sequence), 0.0, atol=1e-12)
+
+
 def test_thrusters_that_cancel_are_never_fired_together(paper: Scenario) -> None:
     # On the paper's +-x, +-y, +-z the sets are those without an opposed pair, as before:
     # +x with -x adds nothing along their resultant, even beside +y.
