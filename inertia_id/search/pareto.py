@@ -1271,6 +1271,19 @@ def pareto_search(
             f"no sequence met the constraints {constraints} in {scorer.evaluations} evaluations "
             f"({_nearest(entries, constraints)}); loosen them or search longer"
         )
+    if not any(_fires(scenario, entries[i][0]) for i in np.flatnonzero(allowed)):
+        # Only sequences that apply no torque (the all-off one) met them: a front of it
+        # alone came back as the search's best, which no classifier can be trained on
+        # (three thrusters on one side of the body, L = 4, a 0.01 deg/s commanded
+        # residual: nothing that fires can stop about +z).
+        firing = [entry for entry in entries if _fires(scenario, entry[0])]
+        raise InputError(
+            f"no sequence that fires met the constraints {constraints} in "
+            f"{scorer.evaluations} evaluations, only the all-off sequence (no torque: "
+            "nothing to train a classifier on)"
+            + (f" ({_nearest(firing, constraints)})" if firing else "")
+            + "; loosen them or search longer"
+        )
     candidates = np.flatnonzero(allowed)[non_dominated(vectors[allowed])]
     candidates = candidates[
         np.argsort([-entries[i][1].ranking_accuracy for i in candidates], kind="stable")

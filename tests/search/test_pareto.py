@@ -1408,6 +1408,37 @@ def test_a_search_none_of_whose_sequences_met_the_constraints_says_how_near_they
     assert float(nearest[1]) >= 0.6 and int(nearest[2]) >= 1 and int(nearest[4]) >= 1
 
 
+def test_a_search_that_only_the_all_off_sequence_satisfies_says_so() -> None:
+    """Three thrusters on one side of the body all torque +z: nothing that fires stops
+    about z, so a 0.01 deg/s commanded residual is met by the all-off sequence alone.
+    The search returned a front of it alone as its best, which ``train`` then refuses
+    (no torque); it now says that no sequence that fires met the bound, and how near the
+    firing ones came."""
+    one_side = preset(
+        "paper",
+        thrusters={
+            "torque_matrix_nm": [[1, -0.5, -0.5], [0, 0.87, -0.87], [0.5, 0.5, 0.5]],
+            "n_levels": 5,
+        },
+    )
+    with pytest.raises(InputError) as caught:
+        pareto_search(
+            one_side,
+            sequence_length=2,
+            seed=0,
+            operator=OperatorSettings(
+                constraints={"max_commanded_residual_rate_max_deg_s": 0.01}, n_realisations=4
+            ),
+            nsga2_params={"population": 8, "generations": 2, "polish_iterations": 1},
+            fresh_realisations=4,
+        )
+    message = str(caught.value)
+    assert "no sequence that fires met the constraints" in message, message
+    assert "only the all-off sequence" in message, message
+    nearest = re.search(r"max_commanded_residual_rate_max_deg_s = 0.01: best ([\d.]+)", message)
+    assert nearest is not None and float(nearest[1]) > 0.01, message
+
+
 def test_a_front_member_that_brakes_reports_its_commanded_residual_beside_the_floor() -> None:
     # With an initial-rate spread every member's residual carries |ω(0)| (mean 1.60 σ),
     # which no open-loop sequence removes: a sequence that fires and brakes read about
