@@ -689,34 +689,37 @@ def _initial_population(
 
 class OpposedFirings:
     """Takes off what a step's firings cancel among themselves: each step's duties
-    reduced (no thruster's raised) to the least on-time on the duty levels that gives the
-    same net torque, so less propellant and less duty jitter for the same response.
+    reduced (none raised) while a set of its fired thrusters whose torques cancel can
+    give up a common part on the duty levels, the same net torque for less on-time, so
+    less propellant and less duty jitter for the same response.
 
-    A thruster and its exact opposite (torques equal and opposite to 1e-9 of their size)
-    lose their common part at once (each pair's duties then differ by as much; a pair
-    whose duties' difference is no duty level is left to the general rule). Before,
+    On a geometry where only pairs cancel (the paper's), a thruster and its exact
+    opposite (torques equal and opposite to 1e-9 of their size) lose their common part
+    at once, on every step together (each pair's duties then differ by as much). Before,
     NSGA-II's fronts kept such firings (paper preset, L = 4: 4 to 8 of 27-35 members,
     +y and -y both at full duty in one step, 4 N m s for no torque), each dominated by
     its twin that the search never tried: its crossover and mutation change one level
     at a time.
 
-    Any other cancelling set (a step whose fired thrusters hold a non-negative
-    combination of torques summing to zero: all four of a tetrahedral set, three
-    thrusters 120 degrees apart, a pair against a thruster between their opposites) is
-    reduced by a small integer program (:func:`scipy.optimize.milp`, one binary variable
-    per thruster and level at or below its duty) to the least on-time whose net torque
-    is the step's to :data:`SAME_TORQUE` of the largest thruster torque. Before, the
-    pairs were all it handled: on four tetrahedral thrusters 3-5 % of the sequences an
-    NSGA-II search scored (L = 4, population 64, 30 generations) held a step with all
-    four on, ``[2, 2, 2, 2]`` firing 4 N m s for no torque. Each fired set is tested for
-    a cancellation once (a linear program) and each step solved once, so a geometry
-    without one (the paper's after its pairs) costs no integer program.
+    Any other cancelling set is found once per geometry: every set of 2 to 4 thrusters
+    (a minimal one in three dimensions has at most 4) whose torques have a positive
+    combination ``v`` summing to zero (to :data:`SAME_TORQUE`), all four of a tetrahedral
+    set, three thrusters 120 degrees apart, and on which some multiple of ``v`` is a
+    difference of duty levels on every thruster. A step then gives up the largest such
+    multiple that leaves each duty on a level, the set that saves the most on-time
+    first, until none can. Before, the pairs were all it handled: on four tetrahedral
+    thrusters 3-5 % of the sequences an NSGA-II search scored (L = 4, population 64, 30
+    generations) held a step with all four on, ``[2, 2, 2, 2]`` firing 4 N m s for no
+    torque. On a geometry whose cancelling combinations fit no levels (most irregular
+    ones) nothing is kept, so it costs nothing per step.
     """
 
     #: Two net torques are the same within this fraction of the largest thruster torque:
-    #: far below any duty jitter (2 % on the paper preset), above the solver's
-    #: feasibility tolerance (1e-7) and a torque matrix's rounding as typed.
+    #: far below any duty jitter (2 % on the paper preset), above a torque matrix's
+    #: rounding as typed.
     SAME_TORQUE = 1e-6
+    #: A duty within this of a level is on it.
+    ON_LEVEL = 1e-9
 
     def __init__(self, scenario: Scenario) -> None:
         torque = scenario.torque_matrix
@@ -733,99 +736,103 @@ class OpposedFirings:
         self.duty = duty
         # difference[a, b]: the level whose duty is duty[a] - duty[b], or -1.
         gap = duty[:, None] - duty[None, :]
-        close = np.abs(gap[:, :, None] - duty[None, None, :]) <= 1e-9
+        close = np.abs(gap[:, :, None] - duty[None, None, :]) <= self.ON_LEVEL
         self.difference = np.where(close.any(axis=2), close.argmax(axis=2), -1)
-        # Torques in units of the largest thruster's: the tolerances are relative to it.
         largest = float(sizes.max()) if sizes.size else 0.0
-        self.unit_torque = torque / largest if largest > 0 else torque
-        #: Whether the thrusters of a fired set (a bit mask) can cancel one another.
-        self._cancels: dict[int, bool] = {}
-        #: Each step solved so far (its level indices' bytes) and its reduced levels.
+        unit = torque / largest if largest > 0 else torque
+        #: The cancelling sets: (thrusters, bit mask, v with its largest entry 1, the
+        #: multiples of v that are level differences on each thruster, largest first).
+        self.sets = _cancelling_sets(unit, duty, self.SAME_TORQUE, self.ON_LEVEL)
+        self._pairs_only = all(len(thrusters) == 2 for thrusters, *_ in self.sets)
+        #: Each step reduced so far (its level indices' bytes) and its reduced levels.
         self._reduced: dict[bytes, np.ndarray] = {}
 
     def __call__(self, rows: np.ndarray) -> np.ndarray:
         """``rows`` (..., N) of level indices with every step's cancelling part taken
         off; a new array."""
         out = np.array(rows, dtype=int, copy=True)
-        for j, k in self.pairs:
+        # Where only pairs cancel (the paper's geometry) they are disjoint or share a
+        # thruster the same way whatever the order: taken off at once. Elsewhere the set
+        # that saves the most goes first: on eight thrusters in opposite pairs along the
+        # tetrahedral directions, [4, 4, 4, 4, 4, 0, 0, 0] is thruster 5 alone, not the
+        # [0, 4, 4, 4, 0, 0, 0, 0] its pair taken off first would leave.
+        for j, k in self.pairs if self._pairs_only else ():
             a, b = out[..., j], out[..., k]
             first = a >= b
             left = np.where(first, self.difference[a, b], self.difference[b, a])
             take = (a > 0) & (b > 0) & (left >= 0)
             out[..., j] = np.where(take, np.where(first, left, 0), a)
             out[..., k] = np.where(take, np.where(first, 0, left), b)
-        steps = out.reshape(-1, out.shape[-1])
-        if not steps.size:
+        if self._pairs_only or not out.size:
             return out
+        steps = out.reshape(-1, out.shape[-1])
         unique, inverse = np.unique(steps, axis=0, return_inverse=True)
         reduced = np.array([self._reduce(step) for step in unique])
         return reduced[inverse.reshape(-1)].reshape(out.shape)
 
     def _reduce(self, step: np.ndarray) -> np.ndarray:
-        """One step's levels at the least on-time with the same net torque."""
+        """One step's levels with its cancelling sets' common parts taken off."""
         key = step.tobytes()
-        if key not in self._reduced:
-            fired = np.flatnonzero(step > 0)
-            mask = int(sum(1 << int(j) for j in fired))
-            if len(fired) < 2 or not self._can_cancel(mask, fired):
-                self._reduced[key] = step
-            else:
-                self._reduced[key] = self._least_on_time(step, fired)
-        return self._reduced[key]
-
-    def _can_cancel(self, mask: int, fired: np.ndarray) -> bool:
-        """Whether some non-negative duties on ``fired``, summing to 1, apply no torque
-        (a linear program's feasibility): without that no step firing them can be
-        reduced, since the part taken off would be such a combination."""
-        if mask not in self._cancels:
-            from scipy.optimize import linprog
-
-            columns = self.unit_torque[:, fired]
-            equalities = np.vstack([columns, np.ones(len(fired))])
-            found = linprog(
-                np.zeros(len(fired)),
-                A_eq=equalities,
-                b_eq=np.r_[np.zeros(3), 1.0],
-                bounds=(0.0, 1.0),
-                method="highs",
-            )
-            self._cancels[mask] = bool(found.status == 0)
-        return self._cancels[mask]
-
-    def _least_on_time(self, step: np.ndarray, fired: np.ndarray) -> np.ndarray:
-        """The levels (each at or below the step's) with the least summed duty whose net
-        torque is the step's to :data:`SAME_TORQUE`; the step itself when none saves
-        on-time."""
-        from scipy.optimize import Bounds, LinearConstraint, milp
-
-        # One binary per (thruster, level at or below its own); exactly one set each.
-        owners = np.concatenate([np.full(step[j] + 1, i) for i, j in enumerate(fired)])
-        levels = np.concatenate([np.arange(step[j] + 1) for j in fired])
-        values = self.duty[levels]
-        columns = self.unit_torque[:, fired[owners]] * values
-        target = self.unit_torque[:, fired] @ self.duty[step[fired]]
-        choose = (owners[None, :] == np.arange(len(fired))[:, None]).astype(float)
-        half = self.SAME_TORQUE / 2
-        solution = milp(
-            values,
-            integrality=np.ones(len(values)),
-            bounds=Bounds(0, 1),
-            constraints=[
-                LinearConstraint(choose, 1, 1),
-                LinearConstraint(columns, target - half, target + half),
-            ],
-        )
-        if solution.x is None:
-            return step
-        picked = np.rint(solution.x).astype(bool)
+        if key in self._reduced:
+            return self._reduced[key]
         row = step.copy()
-        row[fired[owners[picked]]] = levels[picked]
-        on_time = self.duty[row].sum()
-        net = self.unit_torque @ self.duty[row]
-        same = np.abs(net - self.unit_torque @ self.duty[step]).max() <= self.SAME_TORQUE
-        if not same or picked.sum() != len(fired) or on_time >= self.duty[step].sum() - 1e-9:
-            return step
+        while True:
+            fired = int(sum(1 << int(j) for j in np.flatnonzero(row > 0)))
+            best: tuple[float, np.ndarray, np.ndarray] | None = None
+            for thrusters, mask, v, multiples in self.sets:
+                if mask & ~fired:
+                    continue
+                duties = self.duty[row[thrusters]]
+                for multiple in multiples[multiples <= (duties / v).min() + self.ON_LEVEL]:
+                    left = duties - multiple * v
+                    nearest = np.abs(left[:, None] - self.duty[None, :]).argmin(axis=1)
+                    if np.all(np.abs(self.duty[nearest] - left) <= self.ON_LEVEL):
+                        saved = float(duties.sum() - self.duty[nearest].sum())
+                        if best is None or saved > best[0] + self.ON_LEVEL:
+                            best = (saved, thrusters, nearest)
+                        break
+            if best is None:
+                break
+            row[best[1]] = best[2]
+        self._reduced[key] = row
         return row
+
+
+def _cancelling_sets(
+    unit_torque: np.ndarray, duty: np.ndarray, same: float, on_level: float
+) -> list[tuple[np.ndarray, int, np.ndarray, np.ndarray]]:
+    """The minimal sets of 2 to 4 thrusters whose torques (``unit_torque``, 3 x N, in
+    units of the largest) have a positive combination ``v`` summing to zero within
+    ``same``, each with the multiples of ``v`` (largest entry 1) that are a difference
+    of two duty levels on every one of its thrusters, largest first; sets with none
+    are left out."""
+    from itertools import combinations
+
+    n = unit_torque.shape[1]
+    gaps = np.unique((duty[:, None] - duty[None, :])[duty[:, None] > duty[None, :]])
+    found: list[tuple[np.ndarray, int, np.ndarray, np.ndarray]] = []
+    for size in range(2, min(n, 4) + 1):
+        for subset in combinations(range(n), size):
+            mask = sum(1 << j for j in subset)
+            if any(other & mask == other for _, other, _, _ in found):
+                continue  # holds a smaller cancelling set
+            columns = unit_torque[:, subset]
+            _, singular, basis = np.linalg.svd(columns)
+            if size - int(np.count_nonzero(singular > same)) != 1:
+                continue
+            v = basis[-1] * np.sign(basis[-1][np.argmax(np.abs(basis[-1]))])
+            if not np.all(v > same):
+                continue
+            v = v / v.max()
+            # Multiples m with m v_j a level difference for every thruster j.
+            multiples = gaps / v[0]
+            for share in v[1:]:
+                scaled = multiples * share
+                nearest = np.abs(scaled[:, None] - gaps[None, :]).min(axis=1)
+                multiples = multiples[nearest <= on_level]
+            if len(multiples) and np.linalg.norm(columns @ v) <= same:
+                found.append((np.array(subset), mask, v, np.sort(multiples)[::-1]))
+    return found
 
 
 def opposing_thrusters(torque_matrix: np.ndarray) -> np.ndarray:

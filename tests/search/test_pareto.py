@@ -1784,6 +1784,39 @@ def test_a_tetrahedral_steps_cancelling_part_is_taken_off() -> None:
     assert OpposedFirings(uneven)(np.array([[1, 1, 1, 1]])).tolist() == [[0, 0, 0, 0]]
 
 
+def test_the_cancelling_sets_are_found_once_per_geometry() -> None:
+    """Eight thrusters in opposite pairs along the tetrahedral directions cancel in
+    four pairs and two tetrahedral sets; twelve irregular ones have cancelling
+    combinations that fit no duty level, so none is kept and a step costs nothing (an
+    integer program per step had not reduced 160 steps of them in 120 s)."""
+    s = 1 / np.sqrt(3)
+    tetra = np.array([[s, s, s], [-s, -s, s], [-s, s, -s], [s, -s, -s]])
+    paired = preset(
+        "paper",
+        thrusters={"torque_matrix_nm": np.vstack([tetra, -tetra]).T.tolist(), "n_levels": 5},
+    )
+    opposed = OpposedFirings(paired)
+    assert [thrusters.tolist() for thrusters, *_ in opposed.sets] == [
+        [0, 4],
+        [1, 5],
+        [2, 6],
+        [3, 7],
+        [0, 1, 2, 3],
+        [4, 5, 6, 7],
+    ]
+    rows = np.array([[2, 2, 2, 4, 0, 0, 0, 1], [4, 4, 4, 4, 4, 0, 0, 0]])
+    reduced = opposed(rows)
+    # The set that saves the most goes first: all four of a tetrahedral set cancel, so
+    # [4, 4, 4, 4, 4, 0, 0, 0] is thruster 5 alone (its pair with thruster 1 taken off
+    # first would have left [0, 4, 4, 4, 0, 0, 0, 0], 3 s of on-time for the same torque).
+    assert reduced.tolist() == [[0, 0, 0, 1, 0, 0, 0, 0], [0, 0, 0, 0, 4, 0, 0, 0]]
+    duty, torque = paired.level_values, paired.torque_matrix
+    assert np.allclose(torque @ duty[reduced].T, torque @ duty[rows].T, atol=1e-12)
+    irregular = np.random.default_rng(0).normal(size=(3, 12))
+    scenario = preset("paper", thrusters={"torque_matrix_nm": irregular.tolist(), "n_levels": 11})
+    assert OpposedFirings(scenario).sets == []
+
+
 def test_a_tetrahedral_search_scores_no_step_whose_torques_cancel(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
