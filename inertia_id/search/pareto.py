@@ -701,10 +701,13 @@ class OpposedFirings:
     its twin that the search never tried: its crossover and mutation change one level
     at a time.
 
-    Any other cancelling set is found once per geometry: every set of 2 to 4 thrusters
+    Any other cancelling set is found once per geometry: every set of 1 to 4 thrusters
     (a minimal one in three dimensions has at most 4) whose torques have a positive
     combination ``v`` summing to zero (to :data:`SAME_TORQUE`), all four of a tetrahedral
-    set, three thrusters 120 degrees apart, and on which some multiple of ``v`` is a
+    set, three thrusters 120 degrees apart, a thruster whose thrust passes through the
+    centre of mass (no torque: on seven thrusters, the paper's six and one such, 30 and
+    33 of 59-60 front members fired it, L = 2, seeds 0-1, on-time and propellant for
+    nothing), and on which some multiple of ``v`` is a
     difference of duty levels on every thruster. A step then gives up the largest such
     multiple that leaves each duty on a level, the set that saves the most on-time
     first, until none can. Before, the pairs were all it handled: on four tetrahedral
@@ -801,7 +804,7 @@ class OpposedFirings:
 def _cancelling_sets(
     unit_torque: np.ndarray, duty: np.ndarray, same: float, on_level: float
 ) -> list[tuple[np.ndarray, int, np.ndarray, np.ndarray]]:
-    """The minimal sets of 2 to 4 thrusters whose torques (``unit_torque``, 3 x N, in
+    """The minimal sets of 1 to 4 thrusters whose torques (``unit_torque``, 3 x N, in
     units of the largest) have a positive combination ``v`` summing to zero within
     ``same``, each with the multiples of ``v`` (largest entry 1) that are a difference
     of two duty levels on every one of its thrusters, largest first; sets with none
@@ -811,7 +814,7 @@ def _cancelling_sets(
     n = unit_torque.shape[1]
     gaps = np.unique((duty[:, None] - duty[None, :])[duty[:, None] > duty[None, :]])
     found: list[tuple[np.ndarray, int, np.ndarray, np.ndarray]] = []
-    for size in range(2, min(n, 4) + 1):
+    for size in range(1, min(n, 4) + 1):
         for subset in combinations(range(n), size):
             mask = sum(1 << j for j in subset)
             if any(other & mask == other for _, other, _, _ in found):

@@ -1817,6 +1817,43 @@ def test_the_cancelling_sets_are_found_once_per_geometry() -> None:
     assert OpposedFirings(scenario).sets == []
 
 
+def test_a_thruster_that_gives_no_torque_is_never_fired() -> None:
+    """A thruster whose thrust passes through the centre of mass (a zero torque column)
+    costs on-time and propellant and changes nothing; its impulse |A_j| x on-time is 0,
+    so the default objectives never saw it: 30 of 59 front members fired it (the paper's
+    six thrusters and one such, L = 2, seed 0)."""
+    seven = preset(
+        "paper",
+        thrusters={
+            "torque_matrix_nm": [
+                [2, -2, 0, 0, 0, 0, 0],
+                [0, 0, 2, -2, 0, 0, 0],
+                [0, 0, 0, 0, 2, -2, 0],
+            ],
+            "n_levels": 5,
+        },
+    )
+    assert OpposedFirings(seven)(
+        np.array([[4, 0, 4, 0, 4, 0, 3], [4, 4, 0, 0, 0, 0, 1]])
+    ).tolist() == [
+        [4, 0, 4, 0, 4, 0, 0],
+        [0, 0, 0, 0, 0, 0, 0],
+    ]
+    result = pareto_search(
+        seven,
+        sequence_length=2,
+        seed=0,
+        operator=OperatorSettings(n_realisations=6),
+        nsga2_params={"population": 24, "generations": 6},
+        fresh_realisations=10,
+        fresh_test_series=0,
+        n_fresh_draws=1,
+    )
+    assert result.front is not None
+    idle = [m["sequence"] for m in result.front["members"] if any(s[6] for s in m["sequence"])]
+    assert idle == []
+
+
 def test_a_tetrahedral_search_scores_no_step_whose_torques_cancel(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
