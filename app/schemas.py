@@ -6,6 +6,7 @@ the job submission bodies here wrap them.
 
 from __future__ import annotations
 
+import math
 from datetime import UTC, datetime
 from typing import Annotated, Any, Literal, Self
 
@@ -585,6 +586,10 @@ def _comparable(value: Any) -> bool:
     return isinstance(value, str | int | float) and not isinstance(value, bool)
 
 
+def _finite(value: Any) -> bool:
+    return not isinstance(value, float) or math.isfinite(value)
+
+
 class IdentifyRequest(_Request):
     classifier_id: str = Field(max_length=64)
     sequence_start: float | str | None = Field(
@@ -605,7 +610,10 @@ class IdentifyRequest(_Request):
         # given both here and in the telemetry must name the same moment: which one was
         # meant cannot be told, and taking either silently reads the pass from a start the
         # sender may not have meant.
-        if isinstance(data, dict) and data.get("sequence_start") is not None:
+        # A start that is no start (true, a list, NaN) stays where it was sent, to be refused
+        # there once: copied, the telemetry refused it again, at a key the client did not use.
+        start = data.get("sequence_start") if isinstance(data, dict) else None
+        if start is not None and _comparable(start) and _finite(start):
             inner = data.get("telemetry")
             if isinstance(inner, dict):
                 start, given = data["sequence_start"], inner.get("sequence_start")

@@ -86,15 +86,26 @@ def format_errors(
     return [_format_error(error, prefix) for error in errors]
 
 
+# No document given (``None`` is a JSON body of its own: ``null``).
+_NOT_SENT: Any = object()
+# Below a key the client did not send (a model's own "before" validator put it there).
+_UNSEEN: Any = object()
+
+
 @contextmanager
-def refused_at(loc: tuple[str | int, ...]) -> Iterator[None]:
+def refused_at(loc: tuple[str | int, ...], sent: Any = _NOT_SENT) -> Iterator[None]:
     """What the models or the core refuse inside the block, as a 422 located at ``loc`` of
     the request (the handlers below can only say ``[]``: they do not know where the value
-    came from)."""
+    came from). ``sent``, the document validated in the block as the client sent it,
+    locates each refusal where the client put the value (:func:`_located`)."""
     try:
         yield
     except ValidationError as exc:
-        raise RequestValidationError(format_errors(exc.errors(include_url=False), loc)) from None
+        errors: Iterable[Mapping[str, Any]] = exc.errors(include_url=False)
+        if sent is not _NOT_SENT:
+            errors = _located(({**e, "loc": ("body", *e["loc"])} for e in errors), sent)
+            errors = ({**e, "loc": tuple(e["loc"])[1:]} for e in errors)
+        raise RequestValidationError(format_errors(errors, loc)) from None
     except InputError as exc:
         unprocessable(loc, str(exc))
 
@@ -110,33 +121,80 @@ def _unprocessable(detail: list[dict[str, Any]]) -> JSONResponse:
 _DISCRIMINATOR = "type"
 
 
-def _without_union_tags(error: Mapping[str, Any], body: Any) -> Mapping[str, Any]:
-    """``error`` located where the client put the value: pydantic puts a discriminated
-    union's tag in ``loc`` (``["body", "search", "seed"]`` for a search job's seed), a key
-    the client never sent. Each tag is dropped, walking ``loc`` down the body (the client's
-    own ``type`` says which job it was)."""
+def _without_union_tags(error: Mapping[str, Any], body: Any) -> tuple[Mapping[str, Any], bool]:
+    """``error`` located where the client put the value, and whether a tag was dropped.
+
+    Pydantic puts a union's tags in ``loc``, keys the client never sent: a discriminated
+    union's (``["body", "search", "seed"]`` for a search job's seed) and a plain union's
+    member types (``["body", "sequence_start", "float"]`` and ``[..., "str"]`` for a start
+    of ``float | str`` that is neither). Each tag is dropped, walking ``loc`` down the body
+    (the client's own ``type`` says which job it was; a name cannot address into a number,
+    a string or a list, so a name below one is a member's tag)."""
     loc = list(error.get("loc", ()))
     if loc[:1] != ["body"]:
-        return error
+        return error, False
     kept: list[Any] = ["body"]
     node = body
-    for part in loc[1:]:
+    dropped = False
+    last = len(loc) - 1
+    for at, part in enumerate(loc[1:], start=1):
         if isinstance(node, Mapping):
-            if isinstance(part, str) and part not in node and node.get(_DISCRIMINATOR) == part:
+            # A member's type refused at a key the object does not hold: {"a": 1} as a start.
+            refused_member = at == last and str(error.get("type", "")).endswith("_type")
+            if (
+                isinstance(part, str)
+                and part not in node
+                and (node.get(_DISCRIMINATOR) == part or refused_member)
+            ):
+                dropped = True
                 continue
-            node = node.get(part)
+            node = node.get(part, _UNSEEN) if isinstance(part, str) else _UNSEEN
         elif isinstance(node, list) and isinstance(part, int) and 0 <= part < len(node):
             node = node[part]
+        elif isinstance(part, str) and node is not _UNSEEN:
+            dropped = True
+            continue
         else:
-            node = None
+            node = _UNSEEN
         kept.append(part)
-    return {**error, "loc": tuple(kept)}
+    return {**error, "loc": tuple(kept)}, dropped
+
+
+# How pydantic's type refusals begin: the second of a union's is joined without it.
+_SHOULD = "Input should be "
+
+
+def _located(errors: Iterable[Mapping[str, Any]], body: Any) -> list[Mapping[str, Any]]:
+    """``errors`` located in ``body`` (:func:`_without_union_tags`), the refusals of one
+    union's members at one place made one: ``sequence_start: true`` was two errors, "a valid
+    number" at ``["body", "sequence_start", "float"]`` and "a valid string" at ``[...,
+    "str"]``; it is one at ``["body", "sequence_start"]``, "Input should be a valid number or
+    a valid string, got True"."""
+    merged: list[Mapping[str, Any]] = []
+    members: dict[tuple[Any, ...], int] = {}
+    for error in errors:
+        located, dropped = _without_union_tags(error, body)
+        where = tuple(located["loc"])
+        if not dropped:
+            merged.append(located)
+            continue
+        if where not in members:
+            members[where] = len(merged)
+            merged.append(located)
+            continue
+        first = merged[members[where]]
+        message, other = str(first.get("msg", "")), str(located.get("msg", ""))
+        if message.startswith(_SHOULD) and other.startswith(_SHOULD):
+            other = other.removeprefix(_SHOULD)
+        merged[members[where]] = {**first, "msg": f"{message} or {other}"}
+    return merged
 
 
 async def _request_validation(_request: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, RequestValidationError)
+    # No body: refused before one was read, or already located (:func:`refused_at`).
     body = getattr(exc, "body", None)
-    return _unprocessable(format_errors(_without_union_tags(e, body) for e in exc.errors()))
+    return _unprocessable(format_errors(_located(exc.errors(), _UNSEEN if body is None else body)))
 
 
 async def _validation_error(_request: Request, exc: Exception) -> JSONResponse:

@@ -227,7 +227,7 @@ def _parse_json(
     if start is not None and isinstance(data, dict):
         _same_start_as_query(data, start)
         data = {**data, "sequence_start": start}
-    with refused_at(("body",)):
+    with refused_at(("body",), data):
         parsed = IdentifyRequest.model_validate(data)
     options = VerdictOptions(
         parsed.confidence, parsed.pre_start_window_s, parsed.estimate_start_within_s

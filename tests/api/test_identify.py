@@ -608,6 +608,62 @@ def test_partial_telemetry_of_a_likelihood_classifier(
         assert result["candidate"] == paper.candidate_names[2]
 
 
+@pytest.mark.parametrize(
+    ("where", "start", "quoted"),
+    [
+        ("body", "true", ", got True"),
+        ("body", "NaN", ", got nan"),
+        ("body", "[1]", ""),
+        ("body", '{"at": 1}', ""),
+        # (NaN in the telemetry is a number, refused once there as not finite.)
+        ("telemetry", "true", ", got True"),
+        ("telemetry", "[1]", ""),
+        ("telemetry", '{"at": 1}', ""),
+    ],
+)
+def test_a_start_that_is_no_number_or_string_is_one_422_where_it_was_sent(
+    api: Api, classifier_id: str, where: str, start: str, quoted: str
+) -> None:
+    """Pydantic refused each member of ``float | str`` at a key of its own, ``["body",
+    "sequence_start", "float"]`` and ``[..., "str"]``, keys no client sent; a start beside
+    the telemetry was refused a third time inside it, at ``["body", "telemetry",
+    "sequence_start", ...]``. One error now, where the start was sent, naming both forms."""
+    samples = '"time_s": [0, 1, 2], "omega_rad_s": [[0, 0, 0], [0, 0, 0], [0, 0, 0]]'
+    if where == "body":
+        body = f'{{"classifier_id": "{classifier_id}", "sequence_start": {start}, '
+        body += f'"telemetry": {{{samples}}}}}'
+        loc = ["body", "sequence_start"]
+    else:
+        body = f'{{"classifier_id": "{classifier_id}", '
+        body += f'"telemetry": {{{samples}, "sequence_start": {start}}}}}'
+        loc = ["body", "telemetry", "sequence_start"]
+    response = api.post_raw_json("/identify", body)
+    assert response.status_code == 422, response.text
+    (error,) = response.json()["detail"]
+    assert error["loc"] == loc
+    assert error["msg"].startswith("Input should be a ") and " or a valid string" in error["msg"]
+    assert error["msg"].endswith(quoted)
+
+
+def test_a_stamp_that_is_no_number_or_string_is_one_422_at_that_stamp(
+    api: Api, classifier_id: str
+) -> None:
+    """``time_s[1] = true`` was refused at ``["body", "telemetry", "time_s", 1, "float"]``
+    and ``[..., "str"]``."""
+    body = f'{{"classifier_id": "{classifier_id}", "telemetry": {{"time_s": [0, true, 2], '
+    body += '"omega_rad_s": [[0, 0, 0], [0, 0, 0], [0, 0, 0]]}}'
+    for route in ("/identify", "/identify/partial"):
+        response = api.post_raw_json(route, body)
+        assert response.status_code == 422, response.text
+        assert response.json()["detail"] == [
+            {
+                "loc": ["body", "telemetry", "time_s", 1],
+                "msg": "Input should be a valid number or a valid string, got True",
+                "type": "float_type",
+            }
+        ]
+
+
 def test_telemetry_before_the_start_is_used_unless_asked_not_to(api: Api, paper: Scenario) -> None:
     # The default classifier measures the rate plus bias before the start (JSON body and
     # form field pre_start_window_s; 0 ignores that part); a bad window is a 422 that
