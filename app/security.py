@@ -359,4 +359,13 @@ class HeadAsGet:
                 message = {**message, "body": b""}
             await send(message)
 
-        await self.app({**scope, "method": "GET"}, receive, without_body)
+        await self.app({**scope, "method": "GET", _ASKED_WITH: "HEAD"}, receive, without_body)
+
+
+# The method a request was sent with, where :class:`HeadAsGet` changed it.
+_ASKED_WITH = "inertia_id.asked_with"
+
+
+def asked_with(scope: Scope) -> str:
+    """The method the client sent (``HEAD`` for a HEAD answered as GET)."""
+    return str(scope.get(_ASKED_WITH, scope["method"]))

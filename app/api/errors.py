@@ -28,13 +28,14 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse, Response
 from pydantic import ValidationError
 from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.routing import Match, Mount
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from inertia_id.checks import DuplicateKeyError
 from inertia_id.errors import InputError
 from service.store.refusals import why_cannot_store
 
-from ..security import scope_header
+from ..security import asked_with, scope_header
 from ..watched_send import WatchedSend
 from .deps import unprocessable
 
@@ -358,7 +359,41 @@ async def _http_error(request: Request, exc: Exception) -> Response:
                 }
             ]
         )
+    if exc.status_code == status.HTTP_405_METHOD_NOT_ALLOWED:
+        return _method_not_allowed(request)
     return await http_exception_handler(request, exc)
+
+
+# The methods a route of this API may take (HEAD is answered as GET).
+_METHODS = ("GET", "POST", "PUT", "PATCH", "DELETE")
+
+
+def _method_not_allowed(request: Request) -> JSONResponse:
+    """405 with ``Allow`` listing every method the path takes (RFC 9110 §15.5.6), and a
+    detail naming the method refused and those. Starlette's router listed the methods of
+    the first route matching the path only: ``DELETE /jobs/{id}`` answered ``Allow:
+    PATCH``, hiding GET, and ``PUT /scenarios/{id}/plan`` ``Allow: GET``, hiding POST."""
+    routes = [route for route in request.app.router.routes if not isinstance(route, Mount)]
+    methods = {
+        method
+        for method in _METHODS
+        if any(
+            route.matches({**request.scope, "method": method})[0] == Match.FULL for route in routes
+        )
+    }
+    if "GET" in methods:
+        methods.add("HEAD")  # answered as GET (app.security.HeadAsGet)
+    allowed = ", ".join(sorted(methods))
+    return JSONResponse(
+        status_code=status.HTTP_405_METHOD_NOT_ALLOWED,
+        content={
+            "detail": _text(
+                f"method {asked_with(request.scope)} is not allowed on {request.url.path}; "
+                f"it takes {allowed}"
+            )
+        },
+        headers={"Allow": allowed},
+    )
 
 
 def duplicate_key_errors(

@@ -95,6 +95,34 @@ def test_the_cores_input_error_is_a_422_quoting_the_value(
     assert "got 1.0" in response.json()["detail"][0]["msg"]  # type: ignore[attr-defined]
 
 
+@pytest.mark.parametrize(
+    ("method", "path", "allowed"),
+    [
+        ("DELETE", "/jobs/0123", "GET, HEAD, PATCH"),
+        ("PUT", "/scenarios/0123/plan", "GET, HEAD, POST"),
+        ("DELETE", "/jobs", "GET, HEAD, POST"),
+        ("HEAD", "/identify", "POST"),
+    ],
+)
+def test_a_method_a_path_does_not_take_is_405_listing_every_method_it_does(
+    api: Api, method: str, path: str, allowed: str
+) -> None:
+    """RFC 9110: a 405's ``Allow`` lists the methods the resource supports. Starlette's
+    router listed those of the first route matching the path: ``DELETE /jobs/{id}``
+    answered ``Allow: PATCH`` (hiding GET), ``PUT /scenarios/{id}/plan`` ``Allow: GET``
+    (hiding POST), and the detail was "Method Not Allowed", naming neither."""
+    response = api.client.request(method, path, headers=api.auth)
+    assert response.status_code == 405
+    assert response.headers["allow"] == allowed
+    if method != "HEAD":
+        assert response.json()["detail"] == (
+            f"method {method} is not allowed on {path}; it takes {allowed}"
+        )
+    # Every method listed is taken: none of them is a 405.
+    for listed in allowed.split(", "):
+        assert api.client.request(listed, path, headers=api.auth).status_code != 405, listed
+
+
 def test_every_answer_carries_a_request_id_and_a_plausible_one_is_kept(api: Api) -> None:
     assert len(api.get("/health").headers["X-Request-ID"]) >= 8
     kept = api.client.get("/health", headers={"X-Request-ID": "client-trace-0001"})
