@@ -210,10 +210,22 @@ def _fromisoformat(text: str) -> datetime:
     return datetime.fromisoformat(_capitals(text))
 
 
+# A leap second, 23:59:60: ISO 8601 and RFC 3339 write one, a datetime cannot hold it.
+_LEAP_SECOND = re.compile(
+    r"\d{4}-?\d{2}-?\d{2}[Tt ]\d{2}:?\d{2}:?60([.,]\d+)?([Zz]|[+-]\d{2}(:?\d{2})?)?"
+)
+
+
 def _parse_utc(text: str, where: str) -> datetime:
     try:
         stamp = _fromisoformat(text)
     except ValueError:
+        if _LEAP_SECOND.fullmatch(text.strip()):
+            raise InputError(
+                f"{where} = {text!r} is a leap second (second 60), which a UTC time stamp "
+                "here cannot hold: give the stamps in seconds of a clock without leap "
+                "seconds (GPS, TAI or mission time), and sequence_start in the same clock"
+            ) from None
         raise InputError(
             f"{where} = {text!r} is not an ISO-8601 UTC time stamp (e.g. {_ISO_EXAMPLE!r})"
         ) from None
@@ -757,7 +769,8 @@ def _iso(cell: str) -> bool:
     try:
         _fromisoformat(cell)
     except ValueError:
-        return False
+        # A leap second is an ISO stamp too, refused by name when the stamps are read.
+        return _LEAP_SECOND.fullmatch(cell.strip()) is not None
     return True
 
 

@@ -303,6 +303,31 @@ def test_bad_time_base_is_refused_naming_the_value(data: dict[str, Any], match: 
         Telemetry.model_validate({"omega_rad_s": [[0.0, 0.0, 0.0]] * 2, **data})
 
 
+LEAP = ["2016-12-31T23:59:59.5Z", "2016-12-31T23:59:60Z", "2016-12-31T23:59:60.5Z"]
+
+
+def test_a_leap_second_is_refused_as_one_not_as_no_iso_stamp() -> None:
+    """23:59:60 is ISO 8601 (RFC 3339 writes it); a datetime cannot hold it. The refusal
+    said the stamp "is not an ISO-8601 UTC time stamp", and a CSV's that it "is neither
+    seconds nor an ISO-8601 UTC stamp", or, first in a CSV, that it named no column; now it
+    says it is a leap second and which clock to give instead."""
+    said = r"time_utc\[1\] = '2016-12-31T23:59:60Z' is a leap second \(second 60\).*GPS, TAI"
+    with pytest.raises(pydantic.ValidationError, match=said):
+        Telemetry(time_utc=LEAP, omega_rad_s=[[0.0, 0.0, 0.0]] * 3, sequence_start=LEAP[0])
+    with pytest.raises(
+        InputError, match=r"sequence_start = '2016-12-31t23:59:60\.25\+00:00' is a leap"
+    ):
+        parse_sequence_start("2016-12-31t23:59:60.25+00:00")
+    with pytest.raises(pydantic.ValidationError, match=r"'2016-12-31T23:59:60Z' is a leap second"):
+        parse_telemetry("\n".join(f"{s},0,0,0" for s in LEAP), sequence_start=LEAP[0])
+    # First in a CSV, it was read as a header naming no column.
+    with pytest.raises(pydantic.ValidationError, match=r"'2016-12-31T23:59:60Z' is a leap second"):
+        parse_telemetry("\n".join(f"{s},0,0,0" for s in LEAP[1:]), sequence_start=LEAP[0])
+    # Second 61 is no time at all: refused as before.
+    with pytest.raises(InputError, match=r"'2016-12-31T23:59:61Z' is not an ISO-8601"):
+        parse_sequence_start("2016-12-31T23:59:61Z")
+
+
 def test_telemetry_from_ten_seconds_before_the_sequence(
     euclidean_classifier: InertiaClassifier, paper: Scenario
 ) -> None:
