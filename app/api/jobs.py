@@ -835,10 +835,14 @@ def download_result(
     matrices and bodies off the candidates)."""
     job = get_or_404(session, JobRow, job_id, "job")
     if job.result is None:
-        raise HTTPException(
-            status.HTTP_409_CONFLICT,
-            detail=f"job {job.id} has no result ({job.status}); nothing to download yet",
+        # "yet" only where one may come: a failed or cancelled job will never have one.
+        why = (
+            f"it {'failed' if job.status == 'failed' else 'was ' + job.status} before it "
+            "made one; there is nothing to download"
+            if job.status in TERMINAL_STATUSES
+            else f"it is {job.status}; nothing to download yet"
         )
+        raise HTTPException(status.HTTP_409_CONFLICT, detail=f"job {job.id} has no result: {why}")
     out = JobOut.model_validate(job)
     stem = f"{job.type}-{job.id[:8]}"
     if format == "json" and table is None:

@@ -366,6 +366,31 @@ def test_a_search_result_downloads_as_json_and_as_each_csv_table(api: Api) -> No
     assert api.get(f"/jobs/{queued}/result").status_code == 409
 
 
+@pytest.mark.parametrize(
+    ("status", "said"),
+    [
+        ("failed", "it failed before it made one; there is nothing to download"),
+        ("cancelled", "it was cancelled before it made one; there is nothing to download"),
+    ],
+)
+def test_a_finished_job_without_a_result_is_409_saying_none_will_come(
+    api: Api, status: str, said: str
+) -> None:
+    """It said "has no result (cancelled); nothing to download yet", as if one might come."""
+    scenario_id = api.create_scenario()["id"]
+    job_id = _finished(api, scenario_id, 3, None, status)
+    for params in ({}, {"format": "csv", "table": "front"}):
+        response = api.get(f"/jobs/{job_id}/result", params=params)
+        assert response.status_code == 409
+        assert response.json()["detail"] == f"job {job_id} has no result: {said}"
+    queued = api.submit("search", scenario_id, seed=4).json()["id"]
+    waiting = api.get(f"/jobs/{queued}/result")
+    assert waiting.status_code == 409
+    assert waiting.json()["detail"] == (
+        f"job {queued} has no result: it is queued; nothing to download yet"
+    )
+
+
 def _with_front(sequences: list[Any]) -> dict[str, Any]:
     """A search result holding a real front of ``sequences`` (paper scenario, small draw)."""
     from inertia_id.search import OperatorSettings, build_front
