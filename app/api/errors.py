@@ -122,6 +122,11 @@ def _unprocessable(detail: list[dict[str, Any]]) -> JSONResponse:
 _DISCRIMINATOR = "type"
 
 
+# How pydantic names a plain union's member in ``loc``: a type ("float", "str",
+# "list[float]", "function-after[...]"), never a field of ours (snake_case).
+_MEMBER_TAG = re.compile(r"(str|int|float|bool|bytes|none)|[a-z]+(-[a-z]+)*\[.*\]")
+
+
 def _without_union_tags(error: Mapping[str, Any], body: Any) -> tuple[Mapping[str, Any], bool]:
     """``error`` located where the client put the value, and whether a tag was dropped.
 
@@ -141,7 +146,12 @@ def _without_union_tags(error: Mapping[str, Any], body: Any) -> tuple[Mapping[st
     for at, part in enumerate(loc[1:], start=1):
         if isinstance(node, Mapping):
             # A member's type refused at a key the object does not hold: {"a": 1} as a start.
-            refused_member = at == last and str(error.get("type", "")).endswith("_type")
+            refused_member = (
+                at == last
+                and str(error.get("type", "")).endswith("_type")
+                and isinstance(part, str)
+                and _MEMBER_TAG.fullmatch(part) is not None
+            )
             if (
                 isinstance(part, str)
                 and part not in node

@@ -123,6 +123,33 @@ def test_a_method_a_path_does_not_take_is_405_listing_every_method_it_does(
         assert api.client.request(listed, path, headers=api.auth).status_code != 405, listed
 
 
+def test_only_a_unions_tags_are_dropped_from_where_an_error_is_located() -> None:
+    """A key the body lacks is a union member's tag only when named as pydantic names a
+    type: a field a model's own validator put there (a renamed or copied key) stays."""
+    from app.api.errors import _located
+
+    body = {"params": {"limit": "x", "start": {"a": 1}}}
+    refused = [
+        {"loc": ("body", "params", "ceiling", "int"), "msg": "m", "type": "int_type"},
+        {"loc": ("body", "params", "ceiling"), "msg": "m", "type": "int_type"},
+        {
+            "loc": ("body", "params", "start", "float"),
+            "msg": "Input should be a",
+            "type": "float_type",
+        },
+        {
+            "loc": ("body", "params", "start", "str"),
+            "msg": "Input should be b",
+            "type": "string_type",
+        },
+    ]
+    assert [(e["loc"], e["msg"]) for e in _located(refused, body)] == [
+        (("body", "params", "ceiling", "int"), "m"),
+        (("body", "params", "ceiling"), "m"),
+        (("body", "params", "start"), "Input should be a or b"),
+    ]
+
+
 def test_every_answer_carries_a_request_id_and_a_plausible_one_is_kept(api: Api) -> None:
     assert len(api.get("/health").headers["X-Request-ID"]) >= 8
     kept = api.client.get("/health", headers={"X-Request-ID": "client-trace-0001"})
