@@ -210,9 +210,10 @@ def _fromisoformat(text: str) -> datetime:
     return datetime.fromisoformat(_capitals(text))
 
 
-# A leap second, 23:59:60: ISO 8601 and RFC 3339 write one, a datetime cannot hold it.
+# A leap second, 23:59:60: ISO 8601 and RFC 3339 write one, a datetime cannot hold it
+# (on a calendar or an ordinal date, 2016-12-31 or 2016-366).
 _LEAP_SECOND = re.compile(
-    r"\d{4}-?\d{2}-?\d{2}[Tt ]\d{2}:?\d{2}:?60([.,]\d+)?([Zz]|[+-]\d{2}(:?\d{2})?)?"
+    r"\d{4}-?(\d{2}-?\d{2}|\d{3})[Tt ]\d{2}:?\d{2}:?60([.,]\d+)?([Zz]|[+-]\d{2}(:?\d{2})?)?"
 )
 
 

@@ -323,6 +323,9 @@ def test_a_leap_second_is_refused_as_one_not_as_no_iso_stamp() -> None:
     # First in a CSV, it was read as a header naming no column.
     with pytest.raises(pydantic.ValidationError, match=r"'2016-12-31T23:59:60Z' is a leap second"):
         parse_telemetry("\n".join(f"{s},0,0,0" for s in LEAP[1:]), sequence_start=LEAP[0])
+    # On an ordinal date (the day of the year, read since the ordinal dates were) too.
+    with pytest.raises(InputError, match=r"'2016-366T23:59:60Z' is a leap second"):
+        parse_sequence_start("2016-366T23:59:60Z")
     # Second 61 is no time at all: refused as before.
     with pytest.raises(InputError, match=r"'2016-12-31T23:59:61Z' is not an ISO-8601"):
         parse_sequence_start("2016-12-31T23:59:61Z")
