@@ -184,10 +184,22 @@ def _resolve_front_member(session: SessionDep, body: TrainJobCreate, scenario: S
     where = ("body", "params", "search_job_id")
     search = get_or_404(session, JobRow, params.search_job_id, "job")
     if search.type != "search" or search.status != "succeeded" or not search.result:
+        # A search stopped after it had found a sequence has it planned (GET
+        # /jobs/{id}/plan): say how to train on it rather than only refuse.
+        found = (
+            (search.result or {}).get("best", {}).get("sequence")
+            if search.type == "search"
+            else None
+        )
         unprocessable(
             where,
             f"job {search.id!r} is a {search.type} job, {search.status}: name a succeeded "
-            "search job",
+            "search job"
+            + (
+                f", or give the best sequence it had found as params.sequence: {found}"
+                if found
+                else ""
+            ),
         )
     result = search.result
     _same_spacecraft(search, body.scenario_id, scenario)

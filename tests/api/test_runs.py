@@ -433,10 +433,19 @@ def test_a_cancelled_search_plans_the_best_sequence_it_had_found(api: Api) -> No
         f'attachment; filename="plan-scenario-{scenario_id[:8]}-job-{partial[:8]}'
         '-member-best-cancelled.csv"'
     )
-    # Cancelled before it found anything: nothing to plan.
+    # Training on it is refused by its id (a training names a succeeded search), saying
+    # how to train on what it had found: it said only "name a succeeded search job".
+    best = document["sequence"]
+    train = api.submit("train", scenario_id, params={"search_job_id": partial})
+    assert train.status_code == 422, train.text
+    said = train.json()["detail"][0]["msg"]
+    assert f"give the best sequence it had found as params.sequence: {best}" in said, said
+    # Cancelled before it found anything: nothing to plan, nor to train on.
     empty = _finished(api, scenario_id, 2, None, "cancelled")
     nothing = api.get_with_key(f"/jobs/{empty}/plan")
     assert nothing.status_code == 409 and "is cancelled" in nothing.text
+    none = api.submit("train", scenario_id, params={"search_job_id": empty})
+    assert none.status_code == 422 and "params.sequence" not in none.text, none.text
     # A succeeded search's plan does not carry the status.
     done = _finished(api, scenario_id, 3, _search_result([0.9], 12.0, 2.0))
     assert "job_status" not in api.get_with_key(f"/jobs/{done}/plan").json()["source"]
