@@ -4147,6 +4147,57 @@ def test_every_page_type_fits_with_no_legend_over_the_plot(
             dashboard.screenshot(f"page-{name}")
 
 
+#: Every chart on view is drawn at its cell's width (within 1 px) and fitted there.
+CHARTS_AT_CELL_WIDTH_JS = """() => [...document.querySelectorAll('.js-plotly-plot')]
+  .filter((p) => p.offsetParent && p._fullLayout)
+  .filter((p) => Math.abs(p._fullLayout.width - p.getBoundingClientRect().width) > 1
+                 || p.dataset.fitted !== String(p._fullLayout.width))
+  .map((p) => `${p.id}: drawn ${Math.round(p._fullLayout.width)} px wide in its `
+              + `${Math.round(p.getBoundingClientRect().width)} px cell`)"""
+
+#: Each chart on view's height as drawn (px), by its id.
+CHART_HEIGHTS_JS = """() => Object.fromEntries([...document.querySelectorAll('.js-plotly-plot')]
+  .filter((p) => p.offsetParent && p._fullLayout).map((p) => [p.id, p._fullLayout.height]))"""
+
+
+@pytest.mark.parametrize("name", ["search-front", "sweep"])
+def test_charts_follow_the_window_from_a_laptop_to_a_phone_and_back(
+    dashboard: Dashboard, name: str
+) -> None:
+    """A page opened at 1,280 px, then the window narrowed to a phone's 375 px (a split
+    screen, a rotated tablet) and widened again: every chart is redrawn at its cell's new
+    width and fitted there. Opened at 1,280 px, the NSGA-II search's page kept its
+    accuracy curve 599 px wide in a 325 px cell (a legend moved under a chart pinned its
+    width), its response plot threw "Something went wrong with axis scaling" (its legend
+    at the side left the plot area -13 px) and stayed 1,212 px wide, cut at the cell's
+    edge; the sweep's confusion matrix kept its colour bar as wide as at 1,280 px, its
+    "true candidate" over its tick labels. And any change of the window's width redrew a
+    chart at its div's height, not its own: the front's 440 px chart came back 320 px
+    tall, its plot area 128 px, not 245."""
+    from playwright.sync_api import TimeoutError as PlaywrightTimeoutError
+
+    _needs(dashboard, "sweep", "nsga2")
+    page = dashboard.page
+    route = LAYOUT_ROUTES[name]()
+    page.set_viewport_size({"width": 1280, "height": 800})
+    dashboard.open(route)
+    page.wait_for_selector(LAYOUT_READY[name], timeout=60_000)
+    page.wait_for_function(CHARTS_FITTED_JS)
+    heights = page.evaluate(CHART_HEIGHTS_JS)
+    for width, height in [(375, 667), (1280, 800)]:
+        page.set_viewport_size({"width": width, "height": height})
+        try:
+            page.wait_for_function(
+                f"() => ({CHARTS_AT_CELL_WIDTH_JS})().length === 0", timeout=15_000
+            )
+        except PlaywrightTimeoutError:
+            pass  # said below, with the layout's problems
+        problems = page.evaluate(CHARTS_AT_CELL_WIDTH_JS) + page.evaluate(LAYOUT_PROBLEMS_JS)
+        assert problems == [], f"{name} at {width} px after {route} was opened at 1,280 px"
+    # Back at the width it was opened at, each chart as tall as it was drawn then.
+    assert page.evaluate(CHART_HEIGHTS_JS) == heights
+
+
 # helper-174's review of issue 14 on the dashboard (a flight-team engineer's session).
 
 

@@ -18,7 +18,8 @@ export const HEAT_SCALE = [
 
 export const BAND = { low: 10, high: 90, label: "10–90 %" };
 
-export const PLOT_CONFIG = { responsive: true, displaylogo: false, modeBarButtonsToRemove: ["lasso2d", "select2d"] };
+// Not Plotly's `responsive`: the charts follow the window's width by fitChartsToCells.
+export const PLOT_CONFIG = { responsive: false, displaylogo: false, modeBarButtonsToRemove: ["lasso2d", "select2d"] };
 
 const LEGEND_RIGHT = { orientation: "v", x: 1.02, xanchor: "left", y: 1, yanchor: "top", font: { size: 12 } };
 
@@ -565,16 +566,10 @@ function legendPlace(plot, fit) {
   const full = plot._fullLayout;
   const legend = plot.querySelector("g.legend");
   if (!full.showlegend || !legend) return {};
-  const below = fit.legendOwn !== undefined && get(plot.layout, "legend.yref") === "container";
-  if (!below) {
+  if (!legendIsBelow(plot, fit)) {
     const width = legend.getBBox().width;
     if (width <= legendShare(full.width) * full.width) return {};
-    fit.legendOwn = plot.layout.legend || {};
-    fit.legendWidth = width;
-    fit.ownHeight = plot.layout.height ?? full.height;
-    fit.ownMarginB = get(plot.layout, "margin.b");
-    fit.ownFoot = full.margin.b;
-    return { legend: { ...fit.legendOwn, ...LEGEND_BELOW } };
+    return { legend: moveLegendBelow(plot, fit, width) };
   }
   if (fit.legendWidth <= legendShare(full.width) * full.width) {
     const own = { legend: fit.legendOwn, height: fit.ownHeight, "margin.b": fit.ownMarginB ?? null };
@@ -593,6 +588,56 @@ function legendPlace(plot, fit) {
   const height = fit.ownHeight + margin - fit.ownFoot;
   if (Math.abs(margin - (get(plot.layout, "margin.b") ?? 0)) <= 1 && Math.abs(height - (plot.layout.height ?? 0)) <= 1) return {};
   return { "margin.b": margin, height };
+}
+
+// Whether fitToWidth has put the legend under the plot.
+function legendIsBelow(plot, fit) {
+  return fit.legendOwn !== undefined && get(plot.layout, "legend.yref") === "container";
+}
+
+// The legend under the plot, the page's own kept to go back to: what the layout's legend
+// becomes. `width`: the legend's as drawn at the side (px).
+function moveLegendBelow(plot, fit, width) {
+  const full = plot._fullLayout;
+  fit.legendOwn = plot.layout.legend || {};
+  fit.legendWidth = width;
+  fit.ownHeight = plot.layout.height ?? full.height;
+  fit.ownMarginB = get(plot.layout, "margin.b");
+  fit.ownFoot = full.margin.b;
+  return { ...fit.legendOwn, ...LEGEND_BELOW };
+}
+
+// A legend at the side that a figure `width` px wide cannot hold goes under the plot, as
+// legendPlace would put it after a draw at that width: the update for Plotly.relayout.
+function legendForWidth(plot, width) {
+  const full = plot._fullLayout;
+  const fit = plot.fitted;
+  const legend = plot.querySelector("g.legend");
+  if (!fit || !full.showlegend || !legend || legendIsBelow(plot, fit)) return {};
+  const legendWidth = legend.getBBox().width;
+  if (legendWidth <= legendShare(width) * width) return {};
+  return { legend: moveLegendBelow(plot, fit, legendWidth) };
+}
+
+// Each chart on view drawn again at its cell's width, once the window's width changed.
+// Plotly's own resize (the `responsive` config) deleted each chart's height, and redrew it
+// at its div's: after any change of the window's width the front's chart was 320 px tall,
+// not 440 (its plot area 128 px, not 245), a confusion matrix 320, not 400. It kept the
+// legend where it was: a legend at the side that the narrower figure cannot hold left the
+// plot area below 0 px (a response plot from 1,280 to 375 px: 101 px of left margin and
+// 237 of right in a 325 px figure), Plotly threw "Something went wrong with axis scaling"
+// and the chart stayed 1,212 px wide, cut at its cell's edge. And a chart whose legend
+// went under it was never resized: its height given to Plotly.relayout set its width too
+// (599 px wide in a 325 px cell). Here the width is set, the height kept, and the legend
+// moved under the plot in the same draw where the new width cannot hold it at the side.
+function fitChartsToCells() {
+  for (const plot of document.querySelectorAll(".js-plotly-plot")) {
+    const full = plot._fullLayout;
+    if (!plot.offsetParent || !full || !plot.layout) continue;
+    const width = plot.getBoundingClientRect().width;
+    if (width < 10 || Math.abs(width - full.width) <= 1) continue;
+    Plotly.relayout(plot, { ...legendForWidth(plot, width), width });
+  }
 }
 
 // Between an x axis's title (or tick labels) and a legend under the plot (px).
@@ -655,7 +700,13 @@ function colourBarPlaces(plot, fit) {
     const own = kept && JSON.stringify(kept.placed) === JSON.stringify(bar) ? kept.own : bar;
     const box = drawnBars[n] && drawnBars[n].getBBox();
     const side = own.orientation !== "h";
-    const wide = side && (kept && kept.own === own ? kept.wide : box && box.width > full.width / 4);
+    // The page's own bar's width, measured where it is drawn as the page gave it (not
+    // narrowed), and weighed against the figure's width at each fit: a bar judged once,
+    // at the width the page was opened at, kept its 1,280 px verdict at 375 px (the
+    // confusion matrix's bar and title took its plot area down to 60 px, "true candidate"
+    // broken over its tick labels).
+    const ownWidth = JSON.stringify(bar) === JSON.stringify(own) && box ? box.width : kept && kept.ownWidth;
+    const wide = side && ownWidth > full.width / 4;
     let placed = own;
     if (wide) {
       const heading = own.title || {};
@@ -676,7 +727,7 @@ function colourBarPlaces(plot, fit) {
     if (legendBelow && placed.yref === "container" && (placed.y ?? 0) < 0.3) {
       placed = { ...placed, y: (placed.y ?? 0) + (legendBelow + 8) / full.height };
     }
-    fit.bars[index] = { own, placed, wide };
+    fit.bars[index] = { own, placed, ownWidth };
     if (JSON.stringify(placed) !== JSON.stringify(bar)) changes.push([index, { [path]: [placed] }]);
   });
   return changes;
@@ -685,6 +736,11 @@ function colourBarPlaces(plot, fit) {
 // Every newPlot and react of the dashboard fits its chart to the width (fitToWidth), once
 // drawn and after every later draw; called once, by the shell.
 export function fitChartsToWidth() {
+  let resized = null;
+  window.addEventListener("resize", () => {
+    clearTimeout(resized);
+    resized = setTimeout(fitChartsToCells, 100);
+  });
   for (const method of ["newPlot", "react"]) {
     const draw = Plotly[method];
     Plotly[method] = async (plot, ...rest) => {
