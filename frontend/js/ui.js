@@ -318,6 +318,12 @@ export function table(headers, rows, attrs = {}) {
   );
 }
 
+// `content` (a table wider than a phone) scrolling in a region a keyboard can reach and
+// a screen reader names (`label`).
+export function scrollRegion(label, content) {
+  return h("div", { class: "table-scroll", tabindex: "0", role: "region", "aria-label": label }, content);
+}
+
 export function link(href, text, attrs = {}) {
   return h("a", { href, ...attrs }, text);
 }

@@ -6,7 +6,7 @@ import { api } from "../api.js";
 import { confirmAction } from "../components/dialog.js";
 import { downloads } from "../components/downloads.js";
 import { COLORS, PLOT_CONFIG, layout, plotText, tightRange } from "../components/plots.js";
-import { clear, h, jsonBlob, link, messageBox, plain, quantity, showError, showFieldErrors, table, when } from "../ui.js";
+import { clear, h, jsonBlob, link, messageBox, plain, quantity, scrollRegion, showError, showFieldErrors, table, when } from "../ui.js";
 
 const UNCERTAINTY_FIELDS = [
   ["duty_jitter_sigma", "duty jitter σ", "fraction of full duty, per firing thruster and step"],
@@ -131,14 +131,19 @@ export async function renderOne(root, context) {
         "div",
         { class: "card grow" },
         h("h2", {}, "Inertia candidates"),
-        table(
-          ["candidate", "inertia tensor (kg m²)", "principal moments (kg m², ascending)"],
-          scenario.candidates.map((c) => [
-            c.name,
-            h("span", { class: "mono" }, c.inertia_kg_m2.map((r) => `[${r.map((v) => quantity(v, 4)).join(", ")}]`).join(" ")),
-            h("span", { class: "mono" }, c.principal_moments_kg_m2.map((v) => quantity(v, 4)).join(", ")),
-          ]),
-          { id: "candidate-table" },
+        // In a region a keyboard reaches: on a phone the tensors run past the card, which
+        // scrolled with no way to it but a pointer (axe-core: scrollable-region-focusable).
+        scrollRegion(
+          "inertia candidates",
+          table(
+            ["candidate", "inertia tensor (kg m²)", "principal moments (kg m², ascending)"],
+            scenario.candidates.map((c) => [
+              c.name,
+              h("span", { class: "mono" }, c.inertia_kg_m2.map((r) => `[${r.map((v) => quantity(v, 4)).join(", ")}]`).join(" ")),
+              h("span", { class: "mono" }, c.principal_moments_kg_m2.map((v) => quantity(v, 4)).join(", ")),
+            ]),
+            { id: "candidate-table" },
+          ),
         ),
       ),
       h("div", { class: "card grow" }, h("h2", {}, "Principal moments (kg m²)"), h("p", { class: "hint" }, "Each moment on its own scale: the candidates differ by 5–15 %."), momentsPlot),
@@ -151,10 +156,13 @@ export async function renderOne(root, context) {
         { class: "card grow" },
         h("h2", {}, "Thrusters"),
         h("p", { class: "hint" }, "Torque at full duty (N m), one column per thruster, numbered from 1."),
-        table(
-          ["axis", ...doc.thrusters.torque_matrix_nm[0].map((_, j) => `thruster ${j + 1}`)],
-          doc.thrusters.torque_matrix_nm.map((row, i) => [["x", "y", "z"][i], ...row.map((v) => plain(v, 4))]),
-          { class: "matrix", id: "thruster-table" },
+        scrollRegion(
+          "thruster torques",
+          table(
+            ["axis", ...doc.thrusters.torque_matrix_nm[0].map((_, j) => `thruster ${j + 1}`)],
+            doc.thrusters.torque_matrix_nm.map((row, i) => [["x", "y", "z"][i], ...row.map((v) => plain(v, 4))]),
+            { class: "matrix", id: "thruster-table" },
+          ),
         ),
         h("p", {}, "Duty levels: ", h("span", { class: "mono" }, doc.thrusters.levels.map((v) => plain(v)).join(", "))),
         h("p", { id: "propulsion" }, propulsionText(doc.thrusters)),
