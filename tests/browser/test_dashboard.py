@@ -328,6 +328,50 @@ def test_create_a_scenario_from_the_preset_shows_its_principal_moments(
     dashboard.screenshot("scenario")
 
 
+def test_a_scenarios_gyro_and_initial_rates_are_shown_in_deg_s_beside_rad_s(
+    dashboard: Dashboard,
+) -> None:
+    """The scenario's page gave its gyro noise, gyro bias and initial-rate spread in rad/s
+    alone ("0.001 (rad/s per axis)"): a flight team reads deg/s, as every chart and table
+    of rates beside it gives them."""
+    created = dashboard.service.client.post(
+        "/scenarios",
+        json={
+            "preset": "paper",
+            "overrides": {
+                "name": "paper, rates in both units",
+                "uncertainty": {
+                    "gyro_bias_rad_s": [0.001, -0.002, 0.0],
+                    "initial_rate_sigma_rad_s": 0.01,
+                },
+            },
+        },
+    )
+    assert created.status_code == 201, created.text
+    dashboard.open(f"#/scenarios/{created.json()['id']}")
+    page = dashboard.page
+    page.wait_for_selector("dl.kv dd")
+    # Each term of the timing and noise card with what its description says.
+    card = page.evaluate(
+        "() => Object.fromEntries([...document.querySelectorAll('dl.kv dt')]"
+        ".map((t) => [t.textContent, t.nextElementSibling.textContent]))"
+    )
+    shown = {
+        key: card[term]
+        for key, term in [
+            ("gyro_noise_sigma_rad_s", "gyro noise σ (measurement noise)"),
+            ("gyro_bias_rad_s", "gyro bias"),
+            ("initial_rate_sigma_rad_s", "initial rate σ"),
+        ]
+    }
+    assert shown == {
+        "gyro_noise_sigma_rad_s": "0.001 (rad/s per axis) = 0.0573 deg/s",
+        "gyro_bias_rad_s": "0.001, -0.002, 0 (rad/s, three values x, y, z)"
+        " = 0.0573, -0.115, 0 deg/s",
+        "initial_rate_sigma_rad_s": "0.01 (rad/s per axis) = 0.573 deg/s",
+    }
+
+
 def test_a_scenario_whose_answer_was_lost_is_sent_again_with_its_key_and_stored_once(
     dashboard: Dashboard,
 ) -> None:

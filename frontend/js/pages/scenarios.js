@@ -5,7 +5,7 @@
 import { api } from "../api.js";
 import { confirmAction } from "../components/dialog.js";
 import { downloads } from "../components/downloads.js";
-import { COLORS, PLOT_CONFIG, layout, plotText, tightRange } from "../components/plots.js";
+import { COLORS, DEG_PER_RAD, PLOT_CONFIG, layout, plotText, tightRange } from "../components/plots.js";
 import { clear, h, jsonBlob, link, messageBox, plain, quantity, scrollRegion, showError, showFieldErrors, table, when } from "../ui.js";
 
 const UNCERTAINTY_FIELDS = [
@@ -25,6 +25,11 @@ const TIMING_FIELDS = [
   ["integration_step_s", "RK4 step", "s"],
   ["sample_rate_hz", "gyro sample rate", "Hz"],
 ];
+
+// A value or a list of them (the gyro bias: x, y, z), each written by `write`.
+function eachWritten(value, write) {
+  return Array.isArray(value) ? value.map(write).join(", ") : write(value);
+}
 
 // Per-thruster values (thrust, lever arm) in words: one value when every thruster has it.
 function perThruster(values, unit) {
@@ -175,9 +180,10 @@ export async function renderOne(root, context) {
           "dl",
           { class: "kv" },
           TIMING_FIELDS.map(([key, label, unit]) => [h("dt", {}, label), h("dd", {}, `${plain(doc.timing[key])} ${unit}`)]),
+          // A rate (gyro noise and bias, initial rate) in deg/s too, as a flight team reads it.
           UNCERTAINTY_FIELDS.map(([key, label, unit]) => [
             h("dt", {}, label),
-            h("dd", {}, `${Array.isArray(doc.uncertainty[key]) ? doc.uncertainty[key].map((v) => plain(v)).join(", ") : plain(doc.uncertainty[key])} (${unit})`),
+            h("dd", {}, `${eachWritten(doc.uncertainty[key], (v) => plain(v))} (${unit})${key.endsWith("_rad_s") ? ` = ${eachWritten(doc.uncertainty[key], (v) => quantity(v * DEG_PER_RAD))} deg/s` : ""}`),
           ]),
         ),
       ),
