@@ -4203,6 +4203,23 @@ CHARTS_AT_CELL_WIDTH_JS = """() => [...document.querySelectorAll('.js-plotly-plo
 CHART_HEIGHTS_JS = """() => Object.fromEntries([...document.querySelectorAll('.js-plotly-plot')]
   .filter((p) => p.offsetParent && p._fullLayout).map((p) => [p.id, p._fullLayout.height]))"""
 
+#: Every chart of a page drawn (the heights are compared once they all are).
+EVERY_CHART_DRAWN = {
+    "search-front": [
+        "#reward-plot .main-svg",
+        "#f1-plot .legend",
+        "#sequence-plot .main-svg",
+        "#response-plot .legend",
+        "#front-plot .legend",
+    ],
+    "sweep": [
+        "#accuracy-process .legend",
+        "#accuracy-measurement .legend",
+        "#confusion-plot .main-svg",
+        "#inertia-plot .legend",
+    ],
+}
+
 
 @pytest.mark.parametrize("name", ["search-front", "sweep"])
 def test_charts_follow_the_window_from_a_laptop_to_a_phone_and_back(
@@ -4225,9 +4242,11 @@ def test_charts_follow_the_window_from_a_laptop_to_a_phone_and_back(
     route = LAYOUT_ROUTES[name]()
     page.set_viewport_size({"width": 1280, "height": 800})
     dashboard.open(route)
-    page.wait_for_selector(LAYOUT_READY[name], timeout=60_000)
+    for drawn in EVERY_CHART_DRAWN[name]:
+        page.wait_for_selector(drawn, timeout=60_000)
     page.wait_for_function(CHARTS_FITTED_JS)
     heights = page.evaluate(CHART_HEIGHTS_JS)
+    assert sorted(heights) == sorted(c.split()[0][1:] for c in EVERY_CHART_DRAWN[name])
     for width, height in [(375, 667), (1280, 800)]:
         page.set_viewport_size({"width": width, "height": height})
         try:
