@@ -1111,7 +1111,7 @@ def nearest(paper: Scenario, tmp_path: Path) -> Path:
     [
         # What click refuses before the command runs: 2.
         (["simulate", "--seed", "-1"], 2, "-1 is not in the range 0<=x<=2147483647"),
-        (["simulate", "--sample-rate", "0"], 2, "0.0 is not in the range 0<x<=10000"),
+        (["simulate", "--sample-rate", "0"], 2, "0.0 is not in the range 0.01<=x<=10000"),
         (["sweep", "--classifier", "missing.json"], 2, "'missing.json' does not exist"),
         (["simulate", "--bogus"], 2, "No such option '--bogus'"),
         # A value the command refuses once it has read it: 1, as the README says.
