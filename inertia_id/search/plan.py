@@ -47,6 +47,7 @@ from ..physics.simulate import (
     simulate,
     weak_response_warning,
 )
+from .firings import cancelling_warning
 from .objectives import (
     FLIGHT_QUANTILE,
     QUANTILE_METHOD,
@@ -601,7 +602,7 @@ def command_plan(
             if flights
             else None
         ),
-        warnings=[] if weak is None else [weak],
+        warnings=[w for w in (weak, cancelling_warning(scenario, rows)) if w is not None],
         initial_rate_sigma_rad_s=float(scenario.uncertainty.initial_rate_sigma_rad_s),
         propellant_unstated=scenario.propellant_unstated,
         propellant_basis=scenario.propellant_basis,

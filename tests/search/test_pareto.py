@@ -15,9 +15,9 @@ from inertia_id.physics.sequences import BASELINES, axis_in_turn, hand_designed,
 from inertia_id.physics.simulate import Simulator
 from inertia_id.pipelines import check_search_scenario
 from inertia_id.search import OperatorScorer, OperatorSettings, build_front, pareto_search
+from inertia_id.search.firings import OpposedFirings
 from inertia_id.search.objectives import initial_rate_floor, rest_rate_floor
 from inertia_id.search.pareto import (
-    OpposedFirings,
     _Archive,
     _neighbours,
     _polish,
@@ -403,7 +403,9 @@ def test_the_plans_on_times_reproduce_the_simulated_impulse(paper: Scenario) -> 
     commanded = result.commanded_torque_nm[0, 0] * quiet.timing.step_duration_s  # (L, 3)
     assert np.allclose(on_time @ quiet.torque_matrix.T, commanded)
     csv_text = plan.to_csv()
-    assert csv_text.count("\n") == 6 + 5 + 1 + 3
+    # ... + 1: the warning that step 1's +y and -y cancel in part (levels 2 and 1).
+    assert csv_text.count("\n") == 6 + 5 + 1 + 3 + 1
+    assert plan.warnings[0].startswith("1 step fires thrusters whose torques cancel in part")
     # The final attitude quaternion, as in the JSON (it was in the JSON only).
     line = next(x for x in csv_text.splitlines() if x.startswith("# candidate_2 "))
     quaternion = [float(line.split(f"attitude_quaternion_{p} ")[1].split(",")[0]) for p in "wxyz"]
@@ -2006,8 +2008,14 @@ def test_the_plan_of_a_sequence_that_applies_no_torque_blames_no_units(paper: Sc
         ([[0] * 6] * 2, "fires no thruster at any step"),
         ([[4, 0, 0, 4, 0, 0]] * 2, "applies no net torque at any step"),
     ):
-        (warning,) = command_plan(paper, sequence).warnings
-        assert says in warning and "units" not in warning, warning
+        warnings = command_plan(paper, sequence).warnings
+        assert [w for w in warnings if "net torque" in w or "fires no" in w] == [
+            w for w in warnings if says in w
+        ], warnings
+        assert len(warnings) == (1 if sequence[0][0] == 0 else 2), warnings
+        assert not any("units" in w for w in warnings), warnings
+    # +x and -x together: the firings that cancel are named too, with what they cost.
+    assert "in all 8 N m s of impulse for no torque" in warnings[1], warnings
 
 
 def test_a_plans_on_times_read_as_the_upload_writes_them(paper: Scenario) -> None:
@@ -2145,3 +2153,41 @@ def test_a_plans_csv_carries_its_warnings(paper: Scenario) -> None:
     (said,) = [x for x in idle.to_csv().splitlines() if x.startswith("# warning: ")]
     assert "fires no thruster" in said
     assert "# warning: " not in command_plan(paper, [[4, 4, 4, 0, 0, 0]]).to_csv()
+
+
+def test_a_plan_warns_of_firings_that_cancel_or_give_no_torque(paper: Scenario) -> None:
+    """A sequence typed by hand may fire thrusters whose torques cancel (+x with -x, all
+    four of a tetrahedral set) or one that gives no torque: its plan gave no word of the
+    propellant spent for nothing (the searches take that part off; a plan did not say
+    when it was there). Now a warning names each such step, the levels that give the
+    same torque and what they save; a plan without such a step has none."""
+
+    def said(scenario: Scenario, rows: list[list[int]]) -> list[str]:
+        return [w for w in command_plan(scenario, rows).warnings if "cancel in part" in w]
+
+    assert said(paper, [[4, 4, 4, 0, 0, 0], [0, 0, 0, 4, 4, 4]]) == []
+    (warning,) = said(paper, [[4, 4, 4, 4, 0, 0], [4, 0, 0, 0, 0, 0]])
+    assert warning.startswith(
+        "1 step fires thrusters whose torques cancel in part: step 1 [4, 4, 4, 4, 0, 0]: "
+        "[0, 4, 4, 0, 0, 0] gives the same torque with 2 s less on-time; in all 4 N m s"
+    ), warning
+    # The JSON and the CSV carry it.
+    plan = command_plan(paper, [[4, 4, 4, 4, 0, 0]])
+    assert plan.to_dict()["warnings"] == plan.warnings
+    notes = [line for line in plan.to_csv().splitlines() if line.startswith("# warning: ")]
+    assert [json.loads(line.removeprefix("# warning: ")) for line in notes] == plan.warnings
+    (tetra,) = said(_tetrahedral(), [[2, 2, 2, 2], [2, 0, 0, 0]])
+    assert "step 1 [2, 2, 2, 2]: [0, 0, 0, 0] gives the same torque with 4 s less" in tetra
+    seven = preset(
+        "paper",
+        thrusters={
+            "torque_matrix_nm": [
+                [2, -2, 0, 0, 0, 0, 0],
+                [0, 0, 2, -2, 0, 0, 0],
+                [0] * 4 + [2, -2, 0],
+            ],
+            "n_levels": 5,
+        },
+    )
+    (idle,) = said(seven, [[4, 0, 0, 0, 0, 0, 4], [4, 0, 0, 0, 0, 0, 0]])
+    assert "or thruster 7, which gives no torque: step 1" in idle, idle
