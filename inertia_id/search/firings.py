@@ -6,6 +6,8 @@ sequence that keeps it.
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 
 from ..physics.scenario import Scenario
@@ -131,6 +133,7 @@ class OpposedFirings:
 #: again: 0.9-1.7 s on 24 thrusters), by their torque matrix and duty levels.
 _GEOMETRIES: dict[bytes, list[tuple[np.ndarray, int, np.ndarray, np.ndarray]]] = {}
 _GEOMETRIES_KEPT = 16
+_GEOMETRIES_LOCK = threading.Lock()
 
 
 def _geometry_sets(
@@ -144,12 +147,14 @@ def _geometry_sets(
             repr((same, on_level)).encode(),
         ]
     )
-    found = _GEOMETRIES.get(key)
+    with _GEOMETRIES_LOCK:  # the API plans on several threads
+        found = _GEOMETRIES.get(key)
     if found is None:
         found = _cancelling_sets(unit_torque, duty, same, on_level)
-        if len(_GEOMETRIES) >= _GEOMETRIES_KEPT:
-            _GEOMETRIES.pop(next(iter(_GEOMETRIES)))
-        _GEOMETRIES[key] = found
+        with _GEOMETRIES_LOCK:
+            while len(_GEOMETRIES) >= _GEOMETRIES_KEPT:
+                _GEOMETRIES.pop(next(iter(_GEOMETRIES)))
+            _GEOMETRIES[key] = found
     return found
 
 
