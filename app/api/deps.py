@@ -41,6 +41,7 @@ __all__ = [
     "not_found",
     "numbers_as_written",
     "plausible_id",
+    "quoted_id",
     "sort_query",
     "text_query",
     "unknown_sort",
@@ -326,9 +327,22 @@ def numbers_as_written(request: Request) -> None:
                 unprocessable((where, name), str(exc))
 
 
+#: The characters of an id that a message quotes; a longer one is cut, and the cut said.
+_ID_QUOTE = 80
+
+
+def quoted_id(row_id: str) -> str:
+    """``row_id`` quoted for a message: whole, or its first :data:`_ID_QUOTE` characters
+    with "…" and its length (cut silently, an id of 5,000 characters read as another id
+    of 80, one that could exist)."""
+    if len(row_id) <= _ID_QUOTE:
+        return repr(row_id)
+    return f"{row_id[:_ID_QUOTE]!r}… ({len(row_id)} characters)"
+
+
 def not_found(what: str, row_id: str) -> HTTPException:
     """The 404 for a ``what`` (job, classifier, ...) that no row ``row_id`` is."""
-    return HTTPException(status.HTTP_404_NOT_FOUND, detail=f"{what} {row_id[:80]!r} not found")
+    return HTTPException(status.HTTP_404_NOT_FOUND, detail=f"{what} {quoted_id(row_id)} not found")
 
 
 def get_or_404(session: Session, model: type[Row], row_id: str, what: str) -> Row:

@@ -527,3 +527,16 @@ def test_a_commit_the_server_is_at_work_on_past_the_bound_is_not_cut(database_ur
             assert session.execute(text("SELECT id FROM answer_bound_commit")).all() == [(1,)]
     finally:
         database.dispose()
+
+
+def test_a_long_unknown_id_is_quoted_with_its_cut_marked(api: Api) -> None:
+    """A 5,000-character id was quoted as its first 80 characters and nothing more: the
+    404 named another id, one that could exist. The cut is marked now, with the length."""
+    long_id = "a" * 80 + "b" * 4920
+    for route, what in (("/jobs/", "job"), ("/scenarios/", "scenario")):
+        response = api.get(route + long_id)
+        assert response.status_code == 404, response.text
+        assert response.json()["detail"] == f"{what} {'a' * 80!r}… (5000 characters) not found"
+    # An id short enough is quoted whole, as before.
+    response = api.get("/jobs/" + "c" * 80)
+    assert response.json()["detail"] == f"job {'c' * 80!r} not found"
