@@ -3,8 +3,8 @@
 The caller's faults are the core's :class:`inertia_id.InputError` and pydantic's
 ``ValidationError`` (the request models, the scenario's rules): 422, all with one shape,
 ``{"detail": [{"loc", "msg", "type"}, ...]}``. The input itself is not echoed (it may be
-200 000 telemetry rows, or hold NaN, which JSON cannot carry); a scalar input is quoted
-in the message instead.
+200 000 telemetry rows, or hold NaN, which JSON cannot carry); it is quoted in the
+message instead, a list or object by its first items (at most 120 characters).
 
 Anything else raised while serving a request is our fault: a 500 whose body says only
 that, with the request's id (``X-Request-ID``), and a traceback in the log under the same
@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import logging
 import re
+import reprlib
 import uuid
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
@@ -53,8 +54,15 @@ def _text(value: str) -> str:
     return value.encode("utf-8", "backslashreplace").decode("utf-8")
 
 
+# A list or object is quoted by its first items and levels (a body may be 200 000 rows:
+# its whole repr would be built only to be cut).
+_BRIEF = reprlib.Repr()
+_BRIEF.maxlevel, _BRIEF.maxlist, _BRIEF.maxdict = 3, 6, 4
+_BRIEF.maxstring = _BRIEF.maxother = _MAX_QUOTE
+
+
 def _quote(value: Any) -> str:
-    text = repr(value)
+    text = _BRIEF.repr(value) if isinstance(value, list | dict) else repr(value)
     if len(text) > _MAX_QUOTE:
         text = text[: _MAX_QUOTE - 3] + "..."
     return text
@@ -71,7 +79,7 @@ def _format_error(error: Mapping[str, Any], prefix: Sequence[str | int]) -> dict
             message = f"{message}: {reason}"
     elif kind not in _NO_QUOTE and "input" in error:
         value = error["input"]
-        if value is None or isinstance(value, bool | int | float | str):
+        if value is None or isinstance(value, bool | int | float | str | list | dict):
             message = f"{message}, got {_quote(value)}"
     loc = [*prefix, *error.get("loc", ())]
     return {

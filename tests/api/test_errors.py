@@ -540,3 +540,26 @@ def test_a_long_unknown_id_is_quoted_with_its_cut_marked(api: Api) -> None:
     # An id short enough is quoted whole, as before.
     response = api.get("/jobs/" + "c" * 80)
     assert response.json()["detail"] == f"job {'c' * 80!r} not found"
+
+
+def test_a_list_where_a_number_goes_is_quoted_in_the_422(api: Api) -> None:
+    """A list or an object sent for a number was refused without the value ("Input should
+    be a valid integer"), where a scalar is quoted; now it is quoted too, cut short."""
+    scenario_id = api.create_scenario()["id"]
+    response = api.submit("train", scenario_id, params={"sequence": [[[4], 4, 4, 0, 0, 0]]})
+    assert response.status_code == 422, response.text
+    (error,) = response.json()["detail"]
+    assert error["loc"] == ["body", "params", "sequence", 0, 0]
+    assert error["msg"] == "Input should be a valid integer, got [4]"
+    overrides = {"timing": {"integration_step_s": 0.05, "sample_rate_hz": [1]}}
+    response = api.post("/scenarios", json={"preset": "paper", "overrides": overrides})
+    assert response.status_code == 422, response.text
+    (error,) = response.json()["detail"]
+    assert error["loc"] == ["body", "overrides", "timing", "sample_rate_hz"]
+    assert error["msg"] == "Input should be a valid number, got [1]"
+    # A long one is quoted by its first items, within 120 characters.
+    overrides = {"timing": {"integration_step_s": 0.05, "sample_rate_hz": [1.5] * 100_000}}
+    response = api.post("/scenarios", json={"preset": "paper", "overrides": overrides})
+    (error,) = response.json()["detail"]
+    quoted = error["msg"].removeprefix("Input should be a valid number, got ")
+    assert quoted == "[1.5, 1.5, 1.5, 1.5, 1.5, 1.5, ...]"
