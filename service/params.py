@@ -27,6 +27,7 @@ from pydantic import (
     field_validator,
     model_validator,
 )
+from pydantic_core import InitErrorDetails, PydanticCustomError
 
 from inertia_id.checks import MAX_SEED
 from inertia_id.deadline import GRACE_ASKED_MAX_S, GRACE_MAX_S, TIME_LIMIT_MIN_S
@@ -241,6 +242,26 @@ class SearchParams(StrictModel):
         f"10 s, at most {GRACE_MAX_S:g} s",
         examples=[0, 60],
     )
+
+    @field_validator("constraints")
+    @classmethod
+    def _constraints(cls, value: dict[str, float]) -> dict[str, float]:
+        """The core's rules on each bound, refused at the bound's own key (at the params
+        before, away from the other constraint refusals, at ``constraints``); the rules
+        between bounds (two units of one rate) at ``constraints``."""
+        from inertia_id.search.objectives import check_constraints
+
+        for name, bound in value.items():
+            try:
+                check_constraints({name: bound})
+            except InputError as exc:
+                # A ValidationError raised here is located below the field's own loc.
+                error = PydanticCustomError("value_error", "{reason}", {"reason": str(exc)})
+                raise ValidationError.from_exception_data(
+                    cls.__name__, [InitErrorDetails(type=error, loc=(name,), input=bound)]
+                ) from None
+        check_constraints(value)
+        return value
 
     @field_validator("nsga2")
     @classmethod

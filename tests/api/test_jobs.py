@@ -1276,6 +1276,42 @@ def test_jobs_whose_sequences_no_gyro_measures_are_refused_at_submission(
     assert api.queued_messages() == []
 
 
+@pytest.mark.parametrize(
+    ("constraints", "loc", "fragment"),
+    [
+        (
+            {"max_final_rate_deg_s": -1},
+            ["constraints", "max_final_rate_deg_s"],
+            "constraint max_final_rate_deg_s must be a finite number >= 0, got -1.0",
+        ),
+        (
+            {"max_impulse_nms": 20, "warp": 1},
+            ["constraints", "warp"],
+            "unknown constraint 'warp'; known: [",
+        ),
+        (
+            {"max_final_rate_rad_s": 0.5, "max_final_rate_deg_s": 1},
+            ["constraints"],
+            "constraints max_final_rate_rad_s = 0.5 and max_final_rate_deg_s = 1 bound the "
+            "same rate",
+        ),
+    ],
+)
+def test_a_bad_constraint_is_refused_at_its_own_key(
+    api: Api, constraints: dict[str, float], loc: list[str], fragment: str
+) -> None:
+    """A bound the core's rules refuse was located at ``params`` alone, away from the
+    other constraint refusals (at ``params.constraints``); now at its key, and a rule
+    between two bounds at ``constraints``."""
+    scenario_id = api.create_scenario()["id"]
+    response = api.submit("search", scenario_id, params={"constraints": constraints})
+    assert response.status_code == 422, response.text
+    (error,) = response.json()["detail"]
+    assert error["loc"] == ["body", "params", *loc]
+    assert error["msg"].startswith(fragment) and error["type"] == "value_error"
+    assert api.queued_messages() == []
+
+
 def test_a_rate_bound_below_the_initial_rate_spread_is_422_naming_both(api: Api) -> None:
     # Accepted before, it ran to "no sequence met the constraints": the spread of the rate
     # at the start alone leaves a mean of 0.2286 deg/s, whatever the sequence.
