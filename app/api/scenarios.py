@@ -63,6 +63,18 @@ router = APIRouter(prefix="/scenarios", tags=["scenarios"], route_class=UniqueKe
 
 _NOT_FOUND = no_such("scenario")
 
+#: What the schema says of the 414 that a route taking a sequence in its query string
+#: answers to a long one: the server refuses the head before the app sees it
+#: (:mod:`app.request_deadlines`), so FastAPI cannot document it by itself.
+_URL_TOO_LONG: dict[int | str, dict[str, Any]] = {
+    414: {
+        "description": "the request target (URL) is over INERTIA_ID_REQUEST_HEADER_MAX_BYTES "
+        "(16,384 bytes by default: some 540 steps of six thrusters, as compact JSON, "
+        "URL-encoded), refused before the route sees it and the connection closed; "
+        "POST /scenarios/{id}/plan takes a longer sequence in its body"
+    }
+}
+
 #: A sequence in the query string: its steps as JSON.
 _SequenceQuery = Annotated[
     str,
@@ -333,6 +345,7 @@ def _parse_sequence(text: str, scenario: Scenario) -> np.ndarray:
     responses={
         **_NOT_FOUND,
         **UNAUTHORIZED,
+        **_URL_TOO_LONG,
         503: {"description": "past capacity: try again after Retry-After seconds"},
     },
 )
@@ -610,7 +623,7 @@ _PLAN_RESPONSES: dict[int | str, dict[str, Any]] = {
 @router.get(
     "/{scenario_id}/plan",
     dependencies=[ApiKeyDep],
-    responses=_PLAN_RESPONSES,
+    responses={**_PLAN_RESPONSES, **_URL_TOO_LONG},
     response_class=Response,
 )
 async def scenario_plan(

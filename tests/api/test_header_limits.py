@@ -192,6 +192,21 @@ def test_a_target_over_16_kib_sent_at_once_is_a_414(port: int) -> None:
     _health(port)
 
 
+def test_the_routes_a_long_sequence_url_reaches_document_their_414(port: int) -> None:
+    """GET /scenarios/{id}/plan and /response take a sequence in the query string, and
+    answer a long one 414 (here 600 steps, 18 KB URL-encoded): /openapi.json left the
+    414 out of both, so a client generated from it had no case for the answer."""
+    sequence = json.dumps([[4, 4, 4, 0, 0, 0]] * 600, separators=(",", ":"))
+    document = httpx.get(f"http://127.0.0.1:{port}/openapi.json", timeout=WAIT_S).json()
+    for route in ("plan", "response"):
+        target = httpx.URL(f"/scenarios/{'a' * 32}/{route}", params={"sequence": sequence})
+        assert len(target.raw_path) > 16_384
+        answer = _send(port, b"GET %s HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n" % target.raw_path)
+        _assert_414(answer, "INERTIA_ID_REQUEST_HEADER_MAX_BYTES=16384")
+        responses = document["paths"]["/scenarios/{scenario_id}/" + route]["get"]["responses"]
+        assert "INERTIA_ID_REQUEST_HEADER_MAX_BYTES" in responses["414"]["description"]
+
+
 def test_a_1_mb_target_sent_in_pieces_is_a_414(port: int) -> None:
     with socket.create_connection(("127.0.0.1", port), timeout=WAIT_S) as sock:
         sock.sendall(b"GET /health?q=")
