@@ -372,6 +372,58 @@ def test_a_scenarios_gyro_and_initial_rates_are_shown_in_deg_s_beside_rad_s(
     }
 
 
+def test_the_new_scenario_forms_rates_show_deg_s_as_typed_and_send_rad_s(
+    dashboard: Dashboard,
+) -> None:
+    """The new-scenario form gave its gyro noise, gyro bias, bias spread and initial-rate
+    spread in rad/s alone, while the scenario's page gives deg/s beside them: each now
+    says its deg/s beside the input, follows what is typed, and the form still sends
+    rad/s."""
+    dashboard.open("#/scenarios/new")
+    page = dashboard.page
+    page.wait_for_selector("#scenario-form")
+    degrees = {
+        key: f"#noise-{key}-deg"
+        for key in (
+            "gyro_noise_sigma_rad_s",
+            "gyro_bias_rad_s",
+            "gyro_bias_sigma_rad_s",
+            "initial_rate_sigma_rad_s",
+        )
+    }
+    # The paper preset's figures, as the form is opened.
+    preset = Scenario.paper().uncertainty
+    shown_js = (
+        "selectors => Object.fromEntries(Object.entries(selectors).map(([k, s]) =>"
+        " [k, document.querySelector(s)?.textContent.trim() ?? null]))"
+    )
+    assert page.evaluate(shown_js, degrees)["gyro_noise_sigma_rad_s"] == (
+        f"= {float(f'{np.degrees(preset.gyro_noise_sigma_rad_s):.3g}'):g} deg/s"
+    )
+    page.fill("#noise-gyro_noise_sigma_rad_s", "0.002")
+    page.fill("#noise-gyro_bias_rad_s", "0.001, -0.002, 0")
+    page.fill("#noise-initial_rate_sigma_rad_s", "0.01")
+    page.fill("#noise-gyro_bias_sigma_rad_s", "not a number")
+    assert page.evaluate(shown_js, degrees) == {
+        "gyro_noise_sigma_rad_s": "= 0.115 deg/s",
+        "gyro_bias_rad_s": "= 0.0573, -0.115, 0 deg/s",
+        "gyro_bias_sigma_rad_s": "",
+        "initial_rate_sigma_rad_s": "= 0.573 deg/s",
+    }
+    # Beside the unit, on the input's line.
+    hint = page.inner_text("#noise-gyro_noise_sigma_rad_s ~ .hint")
+    assert hint == "rad/s per axis = 0.115 deg/s"
+    page.fill("#noise-gyro_bias_sigma_rad_s", "0")
+    page.fill("#scenario-name", "paper, rates typed in rad/s")
+    page.click("#create-scenario")
+    scenario_id = _hash_id(dashboard, "scenarios")
+    stored = dashboard.service.client.get(f"/scenarios/{scenario_id}").json()
+    uncertainty = stored["document"]["uncertainty"]
+    assert uncertainty["gyro_noise_sigma_rad_s"] == 0.002
+    assert uncertainty["gyro_bias_rad_s"] == [0.001, -0.002, 0.0]
+    assert uncertainty["initial_rate_sigma_rad_s"] == 0.01
+
+
 def test_a_scenario_whose_answer_was_lost_is_sent_again_with_its_key_and_stored_once(
     dashboard: Dashboard,
 ) -> None:

@@ -441,7 +441,20 @@ function buildForm(preset, general, suffix = " (edited)") {
     fields[`uncertainty.${key}`] = noiseInputs[key];
   }
 
-  const labelled = (input, label, unit) => [h("label", { for: input.id }, label), h("div", {}, input, " ", h("span", { class: "hint" }, unit))];
+  const labelled = (input, label, unit) => [h("label", { for: input.id }, label), h("div", {}, input, " ", h("span", { class: "hint" }, unit, input.degrees || ""))];
+  // A rate (gyro noise and bias, initial rate) in deg/s too, as the scenario's page gives it
+  // and a flight team reads it, kept to what is typed; the form still sends rad/s.
+  for (const [key, input] of Object.entries(noiseInputs)) {
+    if (!key.endsWith("_rad_s")) continue;
+    input.degrees = h("output", { id: `${input.id}-deg`, for: input.id });
+    const show = () => {
+      // As it is sent: the bias a list, every other rate one value.
+      const values = key === "gyro_bias_rad_s" ? listOf(input.value) : input.value.trim() === "" ? [] : [numberOrText(input.value)];
+      input.degrees.textContent = values.length && values.every((v) => typeof v === "number") ? ` = ${values.map((v) => quantity(v * DEG_PER_RAD)).join(", ")} deg/s` : "";
+    };
+    input.addEventListener("input", show);
+    show();
+  }
 
   const submit = h("button", { type: "submit", id: "create-scenario" }, "Create scenario");
   const candidateRows = () => [...candidateBody.querySelectorAll("tr:not(.field-error)")];
