@@ -27,6 +27,7 @@ from inertia_id.search.pareto import (
     opposing_thrusters,
 )
 from inertia_id.search.plan import command_plan
+from inertia_id.search.records import SearchResult
 
 
 def _small_front(paper: Scenario, constraints: dict[str, float], n: int = 6) -> dict:
@@ -1819,6 +1820,20 @@ def test_the_cancelling_sets_are_found_once_per_geometry() -> None:
     assert OpposedFirings(scenario).sets == []
 
 
+def _two_step_front(scenario: Scenario, realisations: int, fresh: int) -> SearchResult:
+    """A small NSGA-II front at L = 2 (population 24, 6 generations), no accuracy test."""
+    return pareto_search(
+        scenario,
+        sequence_length=2,
+        seed=0,
+        operator=OperatorSettings(n_realisations=realisations),
+        nsga2_params={"population": 24, "generations": 6},
+        fresh_realisations=fresh,
+        fresh_test_series=0,
+        n_fresh_draws=1,
+    )
+
+
 def test_a_thruster_that_gives_no_torque_is_never_fired() -> None:
     """A thruster whose thrust passes through the centre of mass (a zero torque column)
     costs on-time and propellant and changes nothing; its impulse |A_j| x on-time is 0,
@@ -1841,16 +1856,7 @@ def test_a_thruster_that_gives_no_torque_is_never_fired() -> None:
         [4, 0, 4, 0, 4, 0, 0],
         [0, 0, 0, 0, 0, 0, 0],
     ]
-    result = pareto_search(
-        seven,
-        sequence_length=2,
-        seed=0,
-        operator=OperatorSettings(n_realisations=6),
-        nsga2_params={"population": 24, "generations": 6},
-        fresh_realisations=10,
-        fresh_test_series=0,
-        n_fresh_draws=1,
-    )
+    result = _two_step_front(seven, realisations=6, fresh=10)
     assert result.front is not None
     idle = [m["sequence"] for m in result.front["members"] if any(s[6] for s in m["sequence"])]
     assert idle == []
@@ -1871,16 +1877,7 @@ def test_a_tetrahedral_search_scores_no_step_whose_torques_cancel(
         return score(self, rows)
 
     monkeypatch.setattr(OperatorScorer, "score", recording)
-    result = pareto_search(
-        tetra,
-        sequence_length=2,
-        seed=0,
-        operator=OperatorSettings(n_realisations=4),
-        nsga2_params={"population": 24, "generations": 6},
-        fresh_realisations=4,
-        fresh_test_series=0,
-        n_fresh_draws=1,
-    )
+    result = _two_step_front(tetra, realisations=4, fresh=4)
     assert result.front is not None and len(scored) > 100
     wasteful = [row.tolist() for row in scored if (row > 0).all(axis=1).any()]
     assert wasteful == []
