@@ -277,7 +277,10 @@ export function showFieldErrors(error, fields, general, scope = document) {
     const path = item.loc.filter((p) => p !== "body" && p !== "scenario" && p !== "overrides").join(".");
     let best = null;
     for (const [name, element] of Object.entries(fields)) {
-      if (path === name || path.startsWith(`${name}.`) || path.endsWith(`.${name}`)) {
+      // Also a name within the path: a search's constraint is refused at
+      // params.constraints.<its name>, beside the constraints field (it went to the
+      // general box, the field unmarked).
+      if (path === name || path.startsWith(`${name}.`) || path.endsWith(`.${name}`) || path.includes(`.${name}.`)) {
         if (!best || name.length > best[0].length) best = [name, element];
       }
     }
