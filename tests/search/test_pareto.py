@@ -1820,6 +1820,14 @@ def test_the_cancelling_sets_are_found_once_per_geometry() -> None:
     assert OpposedFirings(scenario).sets == []
 
 
+def _with_idle_thruster() -> Scenario:
+    """The paper's six thrusters and a seventh that gives no torque (its thrust through
+    the centre of mass), on five levels."""
+    torque = np.zeros((3, 7))
+    torque[:, :6] = [[2, -2, 0, 0, 0, 0], [0, 0, 2, -2, 0, 0], [0, 0, 0, 0, 2, -2]]
+    return preset("paper", thrusters={"torque_matrix_nm": torque.tolist(), "n_levels": 5})
+
+
 def _two_step_front(scenario: Scenario, realisations: int, fresh: int) -> SearchResult:
     """A small NSGA-II front at L = 2 (population 24, 6 generations), no accuracy test."""
     return pareto_search(
@@ -1839,17 +1847,7 @@ def test_a_thruster_that_gives_no_torque_is_never_fired() -> None:
     costs on-time and propellant and changes nothing; its impulse |A_j| x on-time is 0,
     so the default objectives never saw it: 30 of 59 front members fired it (the paper's
     six thrusters and one such, L = 2, seed 0)."""
-    seven = preset(
-        "paper",
-        thrusters={
-            "torque_matrix_nm": [
-                [2, -2, 0, 0, 0, 0, 0],
-                [0, 0, 2, -2, 0, 0, 0],
-                [0, 0, 0, 0, 2, -2, 0],
-            ],
-            "n_levels": 5,
-        },
-    )
+    seven = _with_idle_thruster()
     assert OpposedFirings(seven)(
         np.array([[4, 0, 4, 0, 4, 0, 3], [4, 4, 0, 0, 0, 0, 1]])
     ).tolist() == [
@@ -2175,16 +2173,6 @@ def test_a_plan_warns_of_firings_that_cancel_or_give_no_torque(paper: Scenario) 
     assert [json.loads(line.removeprefix("# warning: ")) for line in notes] == plan.warnings
     (tetra,) = said(_tetrahedral(), [[2, 2, 2, 2], [2, 0, 0, 0]])
     assert "step 1 [2, 2, 2, 2]: [0, 0, 0, 0] gives the same torque with 4 s less" in tetra
-    seven = preset(
-        "paper",
-        thrusters={
-            "torque_matrix_nm": [
-                [2, -2, 0, 0, 0, 0, 0],
-                [0, 0, 2, -2, 0, 0, 0],
-                [0] * 4 + [2, -2, 0],
-            ],
-            "n_levels": 5,
-        },
-    )
+    seven = _with_idle_thruster()
     (idle,) = said(seven, [[4, 0, 0, 0, 0, 0, 4], [4, 0, 0, 0, 0, 0, 0]])
     assert "or thruster 7, which gives no torque: step 1" in idle, idle
