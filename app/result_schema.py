@@ -289,6 +289,19 @@ class SearchBaseline(_Open):
     fuel_nms: float
 
 
+class SearchFiringsTakenOff(_Open):
+    """What the best sequence found fired for no torque, taken off after the search."""
+
+    sequence_found: Sequence = Field(description="the best sequence as the search found it")
+    score_found: float = Field(
+        description="its score on the search's draw (what best.f1 holds: best.score_name)"
+    )
+    impulse_found_nms: float = Field(description="its impulse, N m s")
+    impulse_saved_nms: float = Field(description="impulse taken off, N m s")
+    on_time_saved_s: float = Field(description="thruster on-time taken off, s")
+    steps: list[int] = Field(description="the steps changed, from 1")
+
+
 class SearchJobResult(_Open):
     """A search's result (:meth:`inertia_id.pipelines.SearchOutcome.to_dict`);
     ``front`` and ``baselines`` are optional: a result stored before them lacks them."""
@@ -309,6 +322,12 @@ class SearchJobResult(_Open):
     cache_hits: int
     cache_misses: int
     policy_sha256: str | None = Field(default=None, description="a PPO search's policy")
+    firings_taken_off: SearchFiringsTakenOff | None = Field(
+        default=None,
+        description="firings of the sequence found whose torques cancelled, taken off its "
+        "best after the search (the same torque each step, less impulse); null when none "
+        "cancelled, absent in results stored before it",
+    )
     front: SearchFront | None = Field(
         default=None,
         description="the front on fresh draws; null when cancelled, absent in results "

@@ -374,6 +374,11 @@ class SearchResult:
     #: search.pareto.Front` as a dict): a Pareto search's front, or for the other
     #: methods a front of their best sequence alone (added by the pipeline).
     front: dict[str, Any] | None = None
+    #: What the best sequence found fired for no torque and was taken off it after the
+    #: search (:meth:`~inertia_id.search.loop.SearchRun.finish`): the sequence found, its
+    #: F1 and impulse, the impulse and on-time saved and the steps changed; None when
+    #: nothing cancelled (and for NSGA-II, which never scores such a sequence).
+    firings_taken_off: dict[str, Any] | None = None
 
     @property
     def best_sequence(self) -> np.ndarray:
@@ -439,8 +444,17 @@ class SearchResult:
             )
         else:
             fresh = f"not re-scored on fresh draws ({self.stopped}) | {settled}"
+        taken = self.firings_taken_off
+        reduced = (
+            f" | firings that cancelled taken off step{'s' if len(taken['steps']) > 1 else ''} "
+            f"{', '.join(map(str, taken['steps']))} of the sequence found "
+            f"{taken['sequence_found']} (the same torque, "
+            f"{taken['impulse_saved_nms']:.2f} N m s less)"
+            if taken
+            else ""
+        )
         return (
             f"{self.method}: best sequence {b.sequence} | {seen}{fresh}"
             f"impulse {b.fuel_nms:.2f} N m s | {self.timesteps} env steps, {self.episodes} "
-            f"episodes, {self.wall_time_s:.1f} s, stopped: {self.stopped}"
+            f"episodes, {self.wall_time_s:.1f} s, stopped: {self.stopped}{reduced}"
         )
