@@ -4832,3 +4832,34 @@ def test_back_after_training_on_a_member_returns_to_that_member(dashboard: Dashb
         # The worker is shared with the later tests: the training is not needed.
         service.client.post(f"/jobs/{train_id}/cancel")
         service.until(lambda: service.job(train_id)["status"] in TERMINAL, 120, "training ends")
+
+
+def test_a_best_whose_cancelling_firings_were_taken_off_says_so(dashboard: Dashboard) -> None:
+    """Random search samples each thruster apart, so its best fired opposing thrusters
+    together; the best is reduced after the search to the same torques for less impulse,
+    and the page shows the sequence found and what was saved beside the one shown."""
+    created = dashboard.service.client.post("/scenarios", json={"preset": "paper"})
+    assert created.status_code == 201, created.text
+    params = {
+        "method": "random",
+        "sequence_length": 3,
+        "timesteps": 300,
+        "objective": "separability",
+        "n_realisations": 10,
+        "fresh_realisations": 10,
+        "fresh_test_series": 0,
+    }
+    job = _finished_search(dashboard, params, "random, reduced", created.json()["id"])
+    taken = job["result"]["firings_taken_off"]
+    assert taken is not None and taken["impulse_saved_nms"] > 0
+    page = dashboard.page
+    dashboard.open(f"#/jobs/{job['id']}")
+    shown = page.wait_for_selector("#best-firings-taken-off", timeout=60_000).inner_text()
+    assert page.inner_text("#best-sequence") == json.dumps(
+        job["result"]["best"]["sequence"], separators=(",", ":")
+    )
+    steps = ", ".join(map(str, taken["steps"]))
+    assert shown.startswith(f"step{'s' * (len(taken['steps']) > 1)} {steps}: the same torque, ")
+    assert f"the same torque, {taken['impulse_saved_nms']:g} N m s and " in shown, shown
+    assert json.dumps(taken["sequence_found"], separators=(",", ":")) in shown, shown
+    assert page.evaluate(LAYOUT_PROBLEMS_JS) == []

@@ -338,6 +338,22 @@ function curvePhases(node, job, start) {
   node.hidden = false;
 }
 
+// The best sequence as found, beside the one shown: the same torque at every step.
+function firingsTakenOff(taken) {
+  if (!taken) return [];
+  const steps = taken.steps || [];
+  return [
+    h("dt", {}, "firings that cancelled, taken off"),
+    h(
+      "dd",
+      { id: "best-firings-taken-off" },
+      `step${steps.length === 1 ? "" : "s"} ${steps.join(", ")}: the same torque, ${quantity(taken.impulse_saved_nms)} N m s and ${quantity(taken.on_time_saved_s)} s of on-time less than the sequence found, `,
+      h("span", { class: "mono" }, sequenceText(taken.sequence_found)),
+      ` (${quantity(taken.impulse_found_nms)} N m s, score ${score(taken.score_found)} on the search's draw)`,
+    ),
+  ];
+}
+
 async function searchResult(holder, job, context, scenario) {
   const result = job.result;
   const best = result.best;
@@ -362,6 +378,9 @@ async function searchResult(holder, job, context, scenario) {
         { class: "kv", id: "best-summary" },
         h("dt", {}, "sequence (level indices)"),
         h("dd", { class: "mono", id: "best-sequence" }, sequenceText(best.sequence)),
+        // CEM, random, exhaustive and PPO sample each thruster apart: firings of the best
+        // found whose torques cancelled were taken off after the search (the result says).
+        ...firingsTakenOff(result.firings_taken_off),
         // NSGA-II ranks by the noise model's predicted accuracy, which no draw produced.
         h("dt", {}, job.params.method === "nsga2" ? "predicted accuracy at the design noise" : job.params.objective === "separability" ? "separability score on the search's draw" : "F1 on the search's noise draw"),
         h("dd", {}, score(best.f1)),
