@@ -449,7 +449,9 @@ class SearchResult:
             f" | firings that cancelled taken off step{'s' if len(taken['steps']) > 1 else ''} "
             f"{', '.join(map(str, taken['steps']))} of the sequence found "
             f"{taken['sequence_found']} (the same torque, "
-            f"{taken['impulse_saved_nms']:.2f} N m s less)"
+            f"{taken['impulse_saved_nms']:.2f} N m s less; it scored "
+            f"{taken['score_found']:.3f} on the search's draw, where one clustering of "
+            "one draw varies: compare on the fresh draws)"
             if taken
             else ""
         )
