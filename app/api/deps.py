@@ -41,6 +41,7 @@ __all__ = [
     "not_found",
     "numbers_as_written",
     "plausible_id",
+    "quoted",
     "quoted_id",
     "sort_query",
     "text_query",
@@ -169,7 +170,7 @@ def sort_query(keys: Iterable[str], description: str) -> Any:
 def unknown_sort(what: str, sort: str, keys: Iterable[str]) -> NoReturn:
     """422 for a ``?sort=`` that is none of ``keys``."""
     unprocessable(
-        ("query", "sort"), f"cannot sort {what} by {sort[:80]!r}; by one of {', '.join(keys)}"
+        ("query", "sort"), f"cannot sort {what} by {quoted(sort)}; by one of {', '.join(keys)}"
     )
 
 
@@ -182,7 +183,7 @@ def checked_tags(tags: list[str] | None) -> list[str]:
             unprocessable(
                 ("query", "tag"),
                 f"a tag is 1 to {MAX_TAG_LENGTH} characters without control characters, "
-                f"got {raw[:80]!r}",
+                f"got {quoted(raw)}",
             )
         out.append(tag)
     return out
@@ -327,17 +328,24 @@ def numbers_as_written(request: Request) -> None:
                 unprocessable((where, name), str(exc))
 
 
-#: The characters of an id that a message quotes; a longer one is cut, and the cut said.
-_ID_QUOTE = 80
+#: The characters of a sent value (an id, a header, a query) that a message quotes; a
+#: longer one is cut, and the cut said.
+_QUOTE = 80
+
+
+def quoted(text: str) -> str:
+    """``text``, a value the client sent, quoted for a message: whole, or its first
+    :data:`_QUOTE` characters with "…" and its length (cut silently, a value of 5,000
+    characters read as another of 80, one the client could have sent)."""
+    if len(text) <= _QUOTE:
+        return repr(text)
+    return f"{text[:_QUOTE]!r}… ({len(text)} characters)"
 
 
 def quoted_id(row_id: str) -> str:
-    """``row_id`` quoted for a message: whole, or its first :data:`_ID_QUOTE` characters
-    with "…" and its length (cut silently, an id of 5,000 characters read as another id
-    of 80, one that could exist)."""
-    if len(row_id) <= _ID_QUOTE:
-        return repr(row_id)
-    return f"{row_id[:_ID_QUOTE]!r}… ({len(row_id)} characters)"
+    """``row_id`` quoted for a message (:func:`quoted`): an id of 5,000 characters cut
+    silently read as another id of 80, one that could exist."""
+    return quoted(row_id)
 
 
 def not_found(what: str, row_id: str) -> HTTPException:

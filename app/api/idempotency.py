@@ -32,7 +32,7 @@ from service.store.models import MAX_IDEMPOTENCY_KEY_LENGTH, utcnow
 from service.store.session import Database
 
 from ..security import API_KEY_HEADER, hash_key
-from .deps import DatabaseDep, SessionDep, SettingsDep, unprocessable
+from .deps import DatabaseDep, SessionDep, SettingsDep, quoted, unprocessable
 
 __all__ = [
     "IDEMPOTENCY_KEY_HEADER",
@@ -141,7 +141,7 @@ def replayable(
 
 
 def _refuse(raw: str, why: str) -> NoReturn:
-    unprocessable(_WHERE, f"{IDEMPOTENCY_KEY_HEADER} {raw[:80]!r} {why}")
+    unprocessable(_WHERE, f"{IDEMPOTENCY_KEY_HEADER} {quoted(raw)} {why}")
 
 
 def _sf_string(raw: str, value: str) -> str:
@@ -243,7 +243,7 @@ def _refuse_empty(raw: str, why: str) -> NoReturn:
     # sent an empty key (an unset variable) to look for a character it did not send.
     unprocessable(
         _WHERE,
-        f"{IDEMPOTENCY_KEY_HEADER} {why} (got {raw[:80]!r}): send a key of 1 to "
+        f"{IDEMPOTENCY_KEY_HEADER} {why} (got {quoted(raw)}): send a key of 1 to "
         f"{MAX_IDEMPOTENCY_KEY_LENGTH} printable ASCII characters (a UUID, say), or no "
         f"{IDEMPOTENCY_KEY_HEADER} header",
     )
@@ -253,7 +253,7 @@ def _refuse_characters(raw: str) -> NoReturn:
     unprocessable(
         _WHERE,
         f"{IDEMPOTENCY_KEY_HEADER} must be 1 to {MAX_IDEMPOTENCY_KEY_LENGTH} printable "
-        f"ASCII characters (a UUID, say), got {raw[:80]!r}",
+        f"ASCII characters (a UUID, say), got {quoted(raw)}",
     )
 
 
@@ -422,7 +422,7 @@ def _idempotent_request(
         unprocessable(
             _WHERE,
             f"send one {IDEMPOTENCY_KEY_HEADER} header, got {len(sent)}: "
-            + ", ".join(repr(value[:80]) for value in sent[:4]),
+            + ", ".join(quoted(value) for value in sent[:4]),
         )
     route = request.scope.get("route")
     handle = IdempotentRequest(

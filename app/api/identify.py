@@ -52,7 +52,15 @@ from ..schemas import (
     finite_or_none,
 )
 from ..verdicts import NotFound, VerdictOptions, VerdictProcess
-from .deps import UNAUTHORIZED, ApiKeyDep, no_such, not_found, plausible_id, unprocessable
+from .deps import (
+    UNAUTHORIZED,
+    ApiKeyDep,
+    no_such,
+    not_found,
+    plausible_id,
+    quoted,
+    unprocessable,
+)
 from .errors import duplicate_key_errors, refused_at
 from .routing import UniqueKeysRoute, content_codings, refuse_json_charset
 
@@ -475,7 +483,7 @@ async def _read_body(
         return await _from_json(request, sequence_start, gzipped=gzipped)
     raise HTTPException(
         status.HTTP_415_UNSUPPORTED_MEDIA_TYPE,
-        detail=f"send application/json or multipart/form-data, not {content_type[:80]!r}",
+        detail=f"send application/json or multipart/form-data, not {quoted(content_type)}",
     )
 
 
@@ -494,7 +502,7 @@ def _gzip_encoded(request: Request) -> bool:
         return True
     raise HTTPException(
         status.HTTP_415_UNSUPPORTED_MEDIA_TYPE,
-        detail=f"Content-Encoding {', '.join(codings)[:80]!r} is not supported: send the body "
+        detail=f"Content-Encoding {quoted(', '.join(codings))} is not supported: send the body "
         "as is or gzip-compressed (Content-Encoding: gzip)",
     )
 

@@ -21,6 +21,8 @@ from fastapi.routing import APIRoute
 
 from inertia_id.checks import loads_unique_keys
 
+from .deps import quoted
+
 __all__ = ["UniqueKeysRoute", "content_codings", "refuse_json_charset"]
 
 
@@ -45,7 +47,7 @@ class _UniqueKeysRequest(Request):
                 # stored. Only /identify and /identify/partial read gzip (their own body).
                 raise HTTPException(
                     status.HTTP_415_UNSUPPORTED_MEDIA_TYPE,
-                    detail=f"Content-Encoding {', '.join(codings)[:80]!r} is not supported "
+                    detail=f"Content-Encoding {quoted(', '.join(codings))} is not supported "
                     "on this route: send the JSON body as is (only POST /identify and "
                     "/identify/partial read a gzip body)",
                 )
@@ -110,7 +112,7 @@ class UniqueKeysRoute(APIRoute):
             content_type = request.headers.get("content-type")
             if takes_json and not (content_type and _is_json(content_type)):
                 if await request.body():
-                    sent = f"not {content_type[:80]!r}" if content_type else "with no type"
+                    sent = f"not {quoted(content_type)}" if content_type else "with no type"
                     raise HTTPException(
                         status.HTTP_415_UNSUPPORTED_MEDIA_TYPE,
                         detail=f"send the JSON body as application/json, {sent} (curl -d "

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import logging
+import re
 import threading
 from collections.abc import Callable
 from pathlib import Path
@@ -540,6 +541,51 @@ def test_a_long_unknown_id_is_quoted_with_its_cut_marked(api: Api) -> None:
     # An id short enough is quoted whole, as before.
     response = api.get("/jobs/" + "c" * 80)
     assert response.json()["detail"] == f"job {'c' * 80!r} not found"
+
+
+def test_a_long_sent_value_is_quoted_with_its_cut_marked(api: Api) -> None:
+    """A header or query value quoted in a refusal was cut at 80 characters without a word
+    (routing, idempotency, identify), where an unknown id's 404 said
+    "…" and the length: the message named a shorter value, one the client could have
+    sent. Every refusal marks the cut now, as the 404's does (deps.quoted)."""
+    long = "a" * 80 + "b" * 20
+    body = b'{"preset": "paper"}'
+    answers = {
+        "415 on a JSON route's Content-Type": api.client.post(
+            "/scenarios", content=body, headers={**api.auth, "content-type": f"text/{long}"}
+        ),
+        "415 on a JSON route's Content-Encoding": api.client.post(
+            "/scenarios",
+            content=body,
+            headers={
+                **api.auth,
+                "content-type": "application/json",
+                "content-encoding": long,
+            },
+        ),
+        "415 on /identify's Content-Type": api.client.post(
+            "/identify", content=body, headers={**api.auth, "content-type": long}
+        ),
+        "415 on /identify's Content-Encoding": api.client.post(
+            "/identify",
+            content=body,
+            headers={**api.auth, "content-type": "application/json", "content-encoding": long},
+        ),
+        "422 on an Idempotency-Key": api.client.post(
+            "/scenarios",
+            content=body,
+            headers={
+                **api.auth,
+                "content-type": "application/json",
+                "idempotency-key": long + ",x",
+            },
+        ),
+    }
+    for what, response in answers.items():
+        assert response.status_code in (415, 422), (what, response.text)
+        detail = response.json()["detail"]
+        text = detail if isinstance(detail, str) else detail[0]["msg"]
+        assert re.search(r"a{70,80}'… \(1[0-9]{2} characters\)", text), (what, text)
 
 
 def test_a_list_where_a_number_goes_is_quoted_in_the_422(api: Api) -> None:
