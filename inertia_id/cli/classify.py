@@ -412,7 +412,7 @@ def identify_cmd(
         if seconds is not None and not math.isfinite(seconds):
             raise InputError(f"{option} {seconds:g}: give a finite number of seconds >= 0")
     paths = _telemetry_files((*telemetry_paths, *inputs))
-    start = parse_sequence_start(sequence_start)
+    start = parse_sequence_start(sequence_start, "--sequence-start")
     classifier = load_classifier(classifier_path)
     options: dict[str, Any] = {}
     if pre_start_window_s is not None:

@@ -698,7 +698,7 @@ def test_identify_iso_stamps_and_an_estimated_start(
     assert "could be tried" not in run_cli(near).stderr
     wrong = runner.invoke(main, [*base, "--sequence-start", "noon"])
     assert wrong.exit_code != 0
-    assert "sequence_start = 'noon' is not an ISO-8601 UTC time stamp" in wrong.output
+    assert "--sequence-start = 'noon' is not an ISO-8601 UTC time stamp" in wrong.output
     # A window beyond use is one line naming it, not a 298 GiB allocation's traceback.
     wide = runner.invoke(
         main, [*base, "--sequence-start", "2025-03-01T12:00:00Z", "--estimate-start-within", "1e9"]

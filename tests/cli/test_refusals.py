@@ -775,6 +775,27 @@ def test_a_bad_time_offset_is_refused_by_its_option_name(
 
 
 @pytest.mark.parametrize(
+    ("start", "message"),
+    [
+        ("nan", "--sequence-start = 'nan' is not finite"),
+        ("-inf", "--sequence-start = '-inf' is not finite"),
+        ("2025-13-01T00:00:00Z", "--sequence-start = '2025-13-01T00:00:00Z' is not an ISO-8601"),
+    ],
+)
+def test_a_bad_sequence_start_is_refused_by_its_option_name(
+    start: str, message: str, tmp_path: Path
+) -> None:
+    """``identify --sequence-start nan`` was refused as "sequence_start = 'nan' is not
+    finite", the JSON field's name, not the option given (simulate's --time-offset had
+    been fixed so; identify's had not)."""
+    classifier, telemetry = tmp_path / "c.json", tmp_path / "t.csv"
+    classifier.write_text("{}")
+    telemetry.write_text("time_s,wx,wy,wz\n")
+    args = ["identify", "--classifier", str(classifier), str(telemetry)]
+    assert message in refused([*args, "--sequence-start", start])
+
+
+@pytest.mark.parametrize(
     ("args", "message"),
     [
         # 15 digits at 1e12 s are 10 ms: 200 Hz stamps were written twice each.
@@ -1276,7 +1297,7 @@ def test_search_refuses_a_time_limit_under_a_second(value: str, tmp_path: Path) 
         (
             ["identify", "--classifier", "{classifier}", "--sequence-start", "1_0"],
             1,
-            "sequence_start = '1_0' is not a decimal number",
+            "--sequence-start = '1_0' is not a decimal number",
         ),
         (["identify", "--classifier", "{classifier}"], 1, "CSV data row 2 is not numeric: '1_0'"),
     ],
