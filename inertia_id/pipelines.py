@@ -896,6 +896,7 @@ def run_paper(
         classifier=model,
         sweep=sweep,
         search=searched,
+        seed=seed,
     )
     write_whole(out / "scenario.json", scenario.model_dump_json(indent=2))
 

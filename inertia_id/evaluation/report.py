@@ -358,9 +358,16 @@ def write_report(
     classifier: CandidateClassifier,
     sweep: SweepResult | None = None,
     search: SearchResult | None = None,
+    seed: int | None = None,
 ) -> None:
     """Write the HTML report: summary, candidates, search, sequence, responses, accuracy,
-    whole or not at all (:func:`~inertia_id.files.write_whole`)."""
+    whole or not at all (:func:`~inertia_id.files.write_whole`).
+
+    :param seed: the run's seed, shown with the version of inertia-id that wrote the
+        report, so that the run can be made again (``summary.json`` has the seed too).
+    """
+    from .. import __version__
+
     candidates = "".join(
         f"<tr><td>{html.escape(c.name)}</td><td>"
         f"{', '.join(f'{m:.2f}' for m in c.principal_moments_kg_m2)}</td></tr>"
@@ -386,6 +393,8 @@ def write_report(
                 f"({math.degrees(result.mean_final_rate_rad_s):.4g} deg/s)",
             ),
             *_search_rows(search),
+            *([] if seed is None else [("seed", seed)]),
+            ("inertia-id version", __version__),
         ]
     )
     figures = [sequence_figure(scenario, sequence), response_figure(result)]

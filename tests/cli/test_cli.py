@@ -14,6 +14,7 @@ import pytest
 from cli_support import run_cli, run_cli_json
 from click.testing import CliRunner
 
+import inertia_id
 from inertia_id import InertiaClassifier
 from inertia_id.cli import main, parse_sequence
 from inertia_id.deadline import Deadline
@@ -61,7 +62,9 @@ def run_paper(out: Path, *options: str) -> dict[str, Any]:
 
 def test_paper_writes_results_and_report(tmp_path: Path) -> None:
     out = tmp_path / "paper"
-    summary = run_paper(out, "--search", "none", "--multiples", "1,8", "--n-test", "50")
+    summary = run_paper(
+        out, "--search", "none", "--multiples", "1,8", "--n-test", "50", "--seed", "7"
+    )
     for name in ("classifier.json", "sweep.json", "scenario.json", "summary.json", "report.html"):
         assert (out / name).is_file(), name
     assert summary["training_f1"] == 1.0
@@ -72,6 +75,11 @@ def test_paper_writes_results_and_report(tmp_path: Path) -> None:
     shown = re.search(r"mean final rate \|ω\|</th><td>(\S+) rad/s \((\S+) deg/s\)", report)
     assert shown is not None
     assert float(shown[2]) == pytest.approx(math.degrees(float(shown[1])), rel=1e-3)
+    # The seed, as summary.json gives it, and the version that wrote the report: the
+    # report alone did not say how to make the run again.
+    assert summary["seed"] == 7
+    assert "<tr><th>seed</th><td>7</td></tr>" in report
+    assert f"<tr><th>inertia-id version</th><td>{inertia_id.__version__}</td></tr>" in report
     assert summary["sequence"] == [[4, 4, 4, 0, 0, 0]] * 4
     assert summary["sequence_from"] == "given"
 
