@@ -537,6 +537,11 @@ class MetricSeries(BaseModel):
 class MetricsOut(BaseModel):
     job_id: str
     series: list[MetricSeries]
+    keys: list[str] = Field(
+        default_factory=list,
+        description="every series the job has recorded so far, whatever `key` and `after` "
+        "ask (a queued or running job's `key` not among them is one it has not written yet)",
+    )
 
 
 # Classifiers.

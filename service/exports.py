@@ -24,11 +24,14 @@ from inertia_id.checks import spreadsheet_safe, spreadsheet_safe_json
 from inertia_id.errors import InputError
 
 __all__ = [
+    "FEASIBLE_METRIC",
     "RESULT_TABLES",
+    "SEARCH_METRICS",
     "Table",
     "identify_table",
     "job_notes",
     "job_status_notes",
+    "metric_keys",
     "metrics_notes",
     "metrics_table",
     "metrics_with_degrees",
@@ -907,6 +910,37 @@ def metrics_notes(job_type: str, params: Mapping[str, Any]) -> list[tuple[str, A
             "pairs each step with its multiple",
         ),
     ]
+
+
+#: The metric keys a search writes after every rollout (PPO) or report (random,
+#: exhaustive), at step = environment steps so far (worker.handlers.run_search_job).
+SEARCH_METRICS = ("mean_episode_reward", "mean_f1", "best_f1", "best_residual_rate_rad_s")
+#: Written beside them by a search with constraints: 1 where the best so far meets
+#: them, 0 while none has (its best is then the most accurate of all), so the live
+#: curve can say which its points are.
+FEASIBLE_METRIC = "best_feasible"
+#: What a training writes once, at its end (worker.handlers.run_train_job).
+TRAIN_METRICS = ("f1", "accuracy")
+
+
+def metric_keys(job_type: str, params: Mapping[str, Any]) -> list[str] | None:
+    """The metric series a job of ``job_type`` with ``params`` can record, each rad/s
+    one followed by its deg/s twin (:func:`metrics_with_degrees`): a search's
+    :data:`SEARCH_METRICS` (and :data:`FEASIBLE_METRIC` with constraints), a training's
+    :data:`TRAIN_METRICS`, a sweep's ``accuracy_<noise>`` for each noise it sweeps
+    (worker.handlers.run_sweep_job). None for a type whose series are not known here."""
+    if job_type == "search":
+        keys = [*SEARCH_METRICS, *([FEASIBLE_METRIC] if params.get("constraints") else [])]
+    elif job_type == "train":
+        keys = list(TRAIN_METRICS)
+    elif job_type == "sweep":
+        from inertia_id.evaluation.sweep import DEFAULT_NOISES
+
+        keys = [f"accuracy_{noise}" for noise in params.get("noises") or DEFAULT_NOISES]
+    else:
+        return None
+    twins = {key: key.replace("_rad_s", "_deg_s") for key in keys}
+    return [name for key in keys for name in dict.fromkeys((key, twins[key]))]
 
 
 #: What the identify CSV's figures are measured in.

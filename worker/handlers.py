@@ -26,18 +26,11 @@ from inertia_id.pipelines import (
 )
 from inertia_id.search import SearchProgress
 from inertia_id.stopping import TrainingStopped
+from service.exports import FEASIBLE_METRIC, SEARCH_METRICS, TRAIN_METRICS
 
 from .context import TIME_LIMIT, JobContext, JobTimeLimitExceeded, Outcome
 
 __all__ = ["HANDLERS", "run_search_job", "run_sweep_job", "run_train_job"]
-
-#: The metric keys a search writes after every rollout (PPO) or report (random,
-#: exhaustive), at step = environment steps so far.
-SEARCH_METRICS = ("mean_episode_reward", "mean_f1", "best_f1", "best_residual_rate_rad_s")
-#: Written beside them by a search with constraints: 1 where the best so far meets
-#: them, 0 while none has (its best is then the most accurate of all), so the live
-#: curve can say which its points are.
-FEASIBLE_METRIC = "best_feasible"
 
 
 def _params(context: JobContext) -> dict[str, Any]:
@@ -140,7 +133,7 @@ def run_train_job(context: JobContext) -> Outcome:
     return Outcome(
         status="succeeded",
         result=summary,
-        metrics=[("f1", 0, summary["f1"]), ("accuracy", 0, summary["accuracy"])],
+        metrics=[(key, 0, summary[key]) for key in TRAIN_METRICS],
         classifier=trained,
     )
 

@@ -31,6 +31,7 @@ from service.exports import (
     RESULT_TABLES,
     job_notes,
     job_status_notes,
+    metric_keys,
     metrics_notes,
     metrics_table,
     metrics_with_degrees,
@@ -81,6 +82,8 @@ from .deps import (
     job_tagged,
     no_such,
     plausible_id,
+    quoted,
+    quoted_id,
     sort_query,
     text_query,
     unknown_sort,
@@ -901,7 +904,12 @@ def get_job(job_id: str, session: SessionDep) -> JobOut:
             "content": {"text/csv": {"schema": {"type": "string"}}},
             "description": "the series (JSON), or with format=csv every point as key,step,value",
         },
-        **_NOT_FOUND,
+        404: {
+            "description": "no such job; or no such series: a `key` the job never records "
+            "(none of its type's, or one its parameters leave out), or one a finished job "
+            "did not record; the detail names the key and lists the job's series. A queued "
+            "or running job's `key` that it records but has not yet is a 200 with no series"
+        },
     },
 )
 def get_metrics(
@@ -909,7 +917,13 @@ def get_metrics(
     session: SessionDep,
     settings: SettingsDep,
     key: Annotated[
-        str | None, Query(max_length=64, pattern=r"^[^\x00]*$", description="one series only")
+        str | None,
+        Query(
+            max_length=64,
+            pattern=r"^[^\x00]*$",
+            description="one series only: one the job's type records (404 otherwise, and for "
+            "a finished job that did not record it)",
+        ),
     ] = None,
     after: Annotated[
         int | None,
@@ -928,6 +942,9 @@ def get_metrics(
     (``best_residual_rate_deg_s``).
     """
     job = get_or_404(session, JobRow, job_id, "job")
+    recorded = _recorded_keys(session, job)
+    if key is not None and key not in recorded:
+        _refuse_unrecorded(job, key, recorded)
     query = select(MetricRow.key, MetricRow.step, MetricRow.value).where(MetricRow.job_id == job.id)
     if key is not None:
         # A deg/s series is made from its rad/s twin (metrics_with_degrees).
@@ -967,7 +984,39 @@ def get_metrics(
             _series(name, steps, values, settings.max_metric_points)
             for name, (steps, values) in by_key.items()
         ],
+        keys=recorded,
     )
+
+
+def _recorded_keys(session: SessionDep, job: JobRow) -> list[str]:
+    """The series ``job`` has recorded so far, each rad/s one with its deg/s twin, in the
+    order the series are listed (:func:`service.exports.metrics_with_degrees`)."""
+    stored = session.scalars(
+        select(MetricRow.key).where(MetricRow.job_id == job.id).distinct()
+    ).all()
+    return [
+        key for key, _step, _value in metrics_with_degrees([(k, 0, 0.0) for k in sorted(stored)])
+    ]
+
+
+def _refuse_unrecorded(job: JobRow, key: str, recorded: list[str]) -> None:
+    """404 for a ``?key=`` that ``job`` has not recorded, where it never will: one its
+    type (and parameters) does not record, or any, once the job has finished. A queued or
+    running job's key that it records later passes (its answer lists no series)."""
+    known = metric_keys(job.type, job.params or {})
+    has = f"it has {', '.join(recorded)}" if recorded else "it has recorded none"
+    if known is not None and key not in known:
+        raise HTTPException(
+            status.HTTP_404_NOT_FOUND,
+            detail=f"job {quoted_id(job.id)} ({job.type}) never records a series "
+            f"{quoted(key)}: its series are {', '.join(known)}; {has}",
+        )
+    if job.status in TERMINAL_STATUSES:
+        raise HTTPException(
+            status.HTTP_404_NOT_FOUND,
+            detail=f"job {quoted_id(job.id)} has no series {quoted(key)} (it {job.status} "
+            f"without recording it); {has}",
+        )
 
 
 def _series(key: str, steps: list[int], values: list[float], cap: int) -> MetricSeries:

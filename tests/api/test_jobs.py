@@ -18,6 +18,7 @@ from inertia_id.classifiers.registry import CLASSIFIER_KINDS
 from inertia_id.evaluation.sweep import DEFAULT_NOISES, NOISE_KINDS
 from inertia_id.search import SEARCH_METHODS
 from service.config import Settings
+from service.exports import metric_keys
 from service.params import SearchParams, SweepParams, TrainParams
 from service.queue import RUN_JOB_TASK
 from service.store.jobs import add_metrics, claim, config_hash, finish, hand_back, reap_stale
@@ -931,7 +932,74 @@ def test_metrics_incremental(api: Api) -> None:
     assert latest["series"][0]["steps"] == [100]
     nothing = api.get(f"/jobs/{job_id}/metrics", params={"key": "reward", "after": 100}).json()
     assert nothing["series"] == []
-    assert api.get(f"/jobs/{job_id}/metrics", params={"key": "loss"}).json()["series"] == []
+    # A key no search records is a 404 (test_a_metric_key_the_job_never_records_is_a_404).
+    assert api.get(f"/jobs/{job_id}/metrics", params={"key": "loss"}).status_code == 404
+
+
+def test_a_metric_key_the_job_never_records_is_a_404(api: Api) -> None:
+    """``?key=nope`` answered 200 with no series, as a series not written yet does: a typo
+    read as a curve still to come, and a finished job's missing series as one that may
+    yet come. A key the job's type (or its parameters) never records is a 404 naming the
+    key and the job's series; so is any key a finished job did not record. A queued or
+    running job's key that it records later is a 200 with no series, and ``keys`` says
+    which it has."""
+    scenario_id = api.create_scenario()["id"]
+    job_id = api.submit("search", scenario_id).json()["id"]
+    with api.db.session() as session:
+        add_metrics(session, job_id, [("best_f1", 0, 0.5), ("best_residual_rate_rad_s", 0, 0.01)])
+    has = "it has best_f1, best_residual_rate_rad_s, best_residual_rate_deg_s"
+    search_keys = (
+        "mean_episode_reward, mean_f1, best_f1, best_residual_rate_rad_s, best_residual_rate_deg_s"
+    )
+    # best_feasible is written only by a search with constraints; this one has none.
+    for key in ("nope", "best_feasible"):
+        for format in ("json", "csv"):
+            response = api.get(f"/jobs/{job_id}/metrics", params={"key": key, "format": format})
+            assert response.status_code == 404, (key, format, response.text)
+            assert response.json()["detail"] == (
+                f"job {job_id!r} (search) never records a series {key!r}: its series are "
+                f"{search_keys}; {has}"
+            )
+    # Queued: a key it records but has not yet is no error.
+    pending = api.get(f"/jobs/{job_id}/metrics", params={"key": "mean_f1"})
+    assert pending.status_code == 200, pending.text
+    assert pending.json()["series"] == []
+    assert pending.json()["keys"] == has.removeprefix("it has ").split(", ")
+    # Finished: what it did not record, it never will.
+    set_status(api, job_id, "succeeded")
+    done = api.get(f"/jobs/{job_id}/metrics", params={"key": "mean_f1"})
+    assert done.status_code == 404, done.text
+    assert done.json()["detail"] == (
+        f"job {job_id!r} has no series 'mean_f1' (it succeeded without recording it); {has}"
+    )
+    # What it recorded is served as before, the deg/s twin too.
+    for key in ("best_f1", "best_residual_rate_deg_s"):
+        (series,) = api.get(f"/jobs/{job_id}/metrics", params={"key": key}).json()["series"]
+        assert series["key"] == key
+    # A search with constraints records best_feasible.
+    bounded = api.submit(
+        "search", scenario_id, params={"method": "cem", "constraints": {"max_impulse_nms": 24}}
+    )
+    assert bounded.status_code == 202, bounded.text
+    feasible = api.get(f"/jobs/{bounded.json()['id']}/metrics", params={"key": "best_feasible"})
+    assert feasible.status_code == 200 and feasible.json() == {
+        "job_id": bounded.json()["id"],
+        "series": [],
+        "keys": [],
+    }
+
+
+def test_each_job_type_names_the_metric_series_it_records() -> None:
+    """What the 404 of an unrecorded ``?key=`` lists: a training's two figures, and a
+    sweep's accuracy for each noise it sweeps (process and measurement by default)."""
+    assert metric_keys("train", {}) == ["f1", "accuracy"]
+    assert metric_keys("sweep", {"noises": ["jitter", "gyro_bias"]}) == [
+        "accuracy_jitter",
+        "accuracy_gyro_bias",
+    ]
+    assert metric_keys("sweep", {}) == ["accuracy_process", "accuracy_measurement"]
+    assert metric_keys("search", {"constraints": {"max_impulse_nms": 24}})[-1] == "best_feasible"
+    assert metric_keys("another", {}) is None
 
 
 def test_metrics_downsampled_on_the_server(
