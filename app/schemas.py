@@ -194,6 +194,12 @@ class ScenarioOut(BaseModel):
     n_levels: int
     candidates: list[CandidateOut]
     document: dict[str, Any] = Field(description="the validated Scenario document")
+    warnings: list[str] = Field(
+        default_factory=list,
+        description="what the service found doubtful in the scenario but did not refuse: "
+        "a thruster that gives no torque (a zero column of torque_matrix_nm, its thrust "
+        "through the centre of mass), named by its number from 1",
+    )
 
 
 class ScenarioPage(BaseModel):

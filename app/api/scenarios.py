@@ -17,7 +17,7 @@ from sqlalchemy.exc import IntegrityError
 from inertia_id.checks import DuplicateKeyError, control_characters, loads_unique_keys
 from inertia_id.errors import InputError
 from inertia_id.physics.presets import PRESETS, preset
-from inertia_id.physics.scenario import Scenario
+from inertia_id.physics.scenario import Scenario, idle_thruster_warning
 from inertia_id.physics.simulable import NoiseOverflow, check_simulable
 from inertia_id.physics.simulate import (
     SimulationOverflow,
@@ -100,6 +100,7 @@ def scenario_out(row: ScenarioRow) -> ScenarioOut:
     ]
     thrusters = document.get("thrusters", {})
     torque = thrusters.get("torque_matrix_nm") or [[]]
+    idle = idle_thruster_warning(torque) if torque[0] else None
     return ScenarioOut(
         id=row.id,
         name=row.name,
@@ -108,6 +109,7 @@ def scenario_out(row: ScenarioRow) -> ScenarioOut:
         n_levels=len(thrusters.get("levels", [])),
         candidates=candidates,
         document=document,
+        warnings=[] if idle is None else [idle],
     )
 
 
@@ -185,7 +187,9 @@ def create_scenario(body: ScenarioCreate, session: SessionDep, idempotent: Idemp
     """Store a scenario from a preset with overrides, or from a full document.
 
     Every rule of the physics is checked, e.g. an inertia tensor whose principal moments
-    break the triangle inequality is refused (422) with the moments. With an
+    break the triangle inequality is refused (422) with the moments. What is allowed but
+    likely a mistake is stored with a word in ``warnings``: a thruster that gives no
+    torque (a zero column of the torque matrix). With an
     ``Idempotency-Key`` the same request sent again is answered as the first time, and
     stores no second scenario (:mod:`app.api.idempotency`).
     """

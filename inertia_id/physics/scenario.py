@@ -43,6 +43,8 @@ __all__ = [
     "Timing",
     "Uncertainty",
     "check_inertia_tensor",
+    "idle_thruster_warning",
+    "idle_thrusters",
 ]
 
 
@@ -228,6 +230,38 @@ def _expand_per_thruster(data: dict[str, Any]) -> dict[str, Any]:
             if isinstance(matrix, list) and matrix and isinstance(matrix[0], list):
                 data[name] = [float(value)] * len(matrix[0])
     return data
+
+
+#: A thruster whose torque at full duty is at most this fraction of the largest one's
+#: gives no torque (its thrust through the centre of mass; the rest is rounding).
+IDLE_TORQUE_FRACTION = 1e-9
+
+
+def idle_thrusters(torque_matrix: Any) -> list[int]:
+    """The thrusters (indices from 0) whose column of ``torque_matrix`` (3 x N, N m) is
+    zero, within :data:`IDLE_TORQUE_FRACTION` of the largest: each gives no torque, its
+    lever arm parallel to its force (its thrust through the centre of mass)."""
+    sizes = np.linalg.norm(np.asarray(torque_matrix, dtype=float), axis=0)
+    largest = max(float(sizes.max(initial=0.0)), 1e-300)
+    return [j for j, size in enumerate(sizes.tolist()) if size <= IDLE_TORQUE_FRACTION * largest]
+
+
+def idle_thruster_warning(torque_matrix: Any) -> str | None:
+    """A sentence naming the thrusters (numbered from 1, as a plan and the dashboard
+    number them) that give no torque (:func:`idle_thrusters`); None when every one gives
+    some. Not a refusal: such a thruster is allowed, but is likely a mistake (a column
+    typed as zeros, a lever arm along the force)."""
+    idle = [j + 1 for j in idle_thrusters(torque_matrix)]
+    if not idle:
+        return None
+    names = ", ".join(map(str, idle[:-1])) + (" and " if len(idle) > 1 else "") + str(idle[-1])
+    one = len(idle) == 1
+    return (
+        f"thruster{'' if one else 's'} {names} give{'s' if one else ''} no torque "
+        f"(column{'' if one else 's'} {names} of torque_matrix_nm "
+        f"{'is' if one else 'are'} zero: the thrust passes through the centre of mass); "
+        "no search fires such a thruster, and a plan that fires one warns of it"
+    )
 
 
 #: How far a duty may lie from a level and still be that level: the last bits of a level
@@ -766,6 +800,11 @@ class Scenario(_Model):
     def torque_matrix(self) -> np.ndarray:
         """Thruster torque matrix A, shape (3, N), N m at full duty."""
         return np.asarray(self.thrusters.torque_matrix_nm, dtype=float)
+
+    @property
+    def idle_thrusters(self) -> list[int]:
+        """The thrusters (from 0) that give no torque (:func:`idle_thrusters`)."""
+        return idle_thrusters(self.torque_matrix)
 
     @property
     def level_values(self) -> np.ndarray:

@@ -217,9 +217,7 @@ def cancelling_warning(scenario: Scenario, rows: np.ndarray, shown: int = 5) -> 
     more = f"; and {len(changed) - shown} more steps" if len(changed) > shown else ""
     # A thruster that gives no torque (thrust through the centre of mass) is a set of
     # one: named as such, not as cancelling.
-    sizes = np.linalg.norm(scenario.torque_matrix, axis=0)
-    idle = [j for j in range(len(sizes)) if sizes[j] <= 1e-9 * max(float(sizes.max()), 1e-300)]
-    fired_idle = [j + 1 for j in idle if (rows[changed, j] > 0).any()]
+    fired_idle = [j + 1 for j in scenario.idle_thrusters if (rows[changed, j] > 0).any()]
     what = (
         ("fires" if len(changed) == 1 else "fire")
         + " thrusters whose torques cancel in part"

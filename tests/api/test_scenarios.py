@@ -312,3 +312,48 @@ def test_a_scenario_stored_before_its_noise_was_bounded_is_422_for_jobs_and_plan
     assert api.get("/jobs").json()["total"] == 0 and not api.queued_messages()
     shown = api.get(f"/scenarios/{scenario_id}")
     assert shown.status_code == 200 and shown.json()["document"]["uncertainty"][field] == value
+
+
+def _with_idle_thrusters(*idle: int) -> list[list[float]]:
+    """The paper's six thrusters and two more, thrusters 7 and 8 (from 1); those in
+    ``idle`` (from 1) give no torque, a zero column: the thrust through the centre of mass."""
+    torque = np.zeros((3, 8))
+    torque[:, :6] = [[2, -2, 0, 0, 0, 0], [0, 0, 2, -2, 0, 0], [0, 0, 0, 0, 2, -2]]
+    torque[:, 6:] = [[1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]
+    for number in idle:
+        torque[:, number - 1] = 0.0
+    return torque.tolist()
+
+
+def test_a_thruster_that_gives_no_torque_is_stored_with_a_warning_naming_it(api: Api) -> None:
+    """A zero column of the torque matrix (a lever arm parallel to the force) was stored
+    without a word, though no search fires such a thruster and a plan that does warns of
+    it. It is stored still, with a warning naming the thruster by its number."""
+    one = api.create_scenario(
+        thrusters={"torque_matrix_nm": _with_idle_thrusters(7), "n_levels": 5}
+    )
+    warning = (
+        "thruster 7 gives no torque (column 7 of torque_matrix_nm is zero: the thrust passes "
+        "through the centre of mass); no search fires such a thruster, and a plan that fires "
+        "one warns of it"
+    )
+    assert one["warnings"] == [warning]
+    assert api.get(f"/scenarios/{one['id']}").json()["warnings"] == [warning]
+    two = api.post(
+        "/scenarios",
+        json={
+            "scenario": {
+                **Scenario.paper().model_dump(mode="json"),
+                "thrusters": {"torque_matrix_nm": _with_idle_thrusters(3, 8), "n_levels": 5},
+            }
+        },
+    )
+    assert two.status_code == 201, two.text
+    (said,) = two.json()["warnings"]
+    assert said.startswith("thrusters 3 and 8 give no torque (columns 3 and 8 of ")
+    # Every thruster gives some torque: nothing to say.
+    assert (
+        api.create_scenario(thrusters={"torque_matrix_nm": _with_idle_thrusters()})["warnings"]
+        == []
+    )
+    assert api.create_scenario()["warnings"] == []

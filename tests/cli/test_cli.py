@@ -1211,3 +1211,24 @@ def test_plan_says_one_step_in_the_singular(tmp_path: Path) -> None:
     ]:
         result = run_cli(["plan", "--sequence", sequence, "--out", str(tmp_path / "p.json")])
         assert said in result.output, result.output
+
+
+def test_scenario_warns_of_a_thruster_that_gives_no_torque(tmp_path: Path) -> None:
+    """``inertia-id scenario`` validated a scenario with a thruster that gives no torque
+    (a zero column of the torque matrix) without a word; it now warns on stderr, naming
+    the thruster by its number, and still writes the scenario."""
+    from inertia_id import preset
+
+    document = preset("paper").model_dump(mode="json")
+    torque = np.zeros((3, 7))
+    torque[:, :6] = [[2, -2, 0, 0, 0, 0], [0, 0, 2, -2, 0, 0], [0, 0, 0, 0, 2, -2]]
+    document["thrusters"] = {"torque_matrix_nm": torque.tolist(), "n_levels": 5}
+    path = tmp_path / "seven.json"
+    path.write_text(json.dumps(document))
+    written, result = run_cli_json(["scenario", "--scenario", str(path)], tmp_path / "out.json")
+    assert "warning: thruster 7 gives no torque (column 7 of torque_matrix_nm is zero" in (
+        result.stderr
+    )
+    assert len(written["thrusters"]["torque_matrix_nm"][0]) == 7
+    # The paper's own thrusters all give torque: nothing on stderr.
+    assert run_cli(["scenario", "--preset", "paper"]).stderr == ""
