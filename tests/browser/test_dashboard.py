@@ -28,7 +28,7 @@ import numpy as np
 import pytest
 from dashboard_support import API_KEY, LAYOUT_PROBLEMS_JS, Dashboard, axe_violations, one_held
 
-from inertia_id import Scenario, simulate
+from inertia_id import Scenario, preset, simulate
 
 GOOD = [[4, 4, 4, 0, 0, 0]] * 4
 TERMINAL = ("succeeded", "failed", "cancelled")
@@ -370,6 +370,32 @@ def test_a_scenarios_gyro_and_initial_rates_are_shown_in_deg_s_beside_rad_s(
         " = 0.0573, -0.115, 0 deg/s",
         "initial_rate_sigma_rad_s": "0.01 (rad/s per axis) = 0.573 deg/s",
     }
+
+
+def test_the_scenario_page_shows_a_thruster_that_gives_no_torque(dashboard: Dashboard) -> None:
+    """A scenario holding a thruster whose torque column is zero is stored with a warning
+    naming it (``POST /scenarios``' ``warnings``); its page showed nothing of it."""
+    matrix = [[*row, 0.0] for row in preset("paper").thrusters.torque_matrix_nm]
+    created = dashboard.service.client.post(
+        "/scenarios",
+        json={
+            "preset": "paper",
+            "overrides": {"name": "an idle thruster", "thrusters": {"torque_matrix_nm": matrix}},
+        },
+    )
+    assert created.status_code == 201, created.text
+    warnings = created.json()["warnings"]
+    assert warnings and "thruster 7 gives no torque" in warnings[0]
+    dashboard.open(f"#/scenarios/{created.json()['id']}")
+    page = dashboard.page
+    shown = page.wait_for_selector("#scenario-warnings").inner_text()
+    assert shown == f"Warning: {warnings[0]}"
+    # A scenario without one shows no box.
+    plain = dashboard.service.client.post("/scenarios", json={"preset": "paper"})
+    dashboard.open(f"#/scenarios/{plain.json()['id']}")
+    page.wait_for_selector("dl.kv dd")
+    assert page.query_selector("#scenario-warnings") is None
+    assert page.evaluate(LAYOUT_PROBLEMS_JS) == []
 
 
 def test_the_new_scenario_forms_rates_show_deg_s_as_typed_and_send_rad_s(

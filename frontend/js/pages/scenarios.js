@@ -6,7 +6,7 @@ import { api } from "../api.js";
 import { confirmAction } from "../components/dialog.js";
 import { downloads } from "../components/downloads.js";
 import { COLORS, DEG_PER_RAD, PLOT_CONFIG, layout, plotText, tightRange } from "../components/plots.js";
-import { clear, h, jsonBlob, link, messageBox, plain, quantity, scrollRegion, showError, showFieldErrors, table, when } from "../ui.js";
+import { clear, h, jsonBlob, link, messageBox, plain, quantity, scrollRegion, showError, showFieldErrors, table, warningsBox, when } from "../ui.js";
 
 const UNCERTAINTY_FIELDS = [
   ["duty_jitter_sigma", "duty jitter σ", "fraction of full duty, per firing thruster and step"],
@@ -129,6 +129,8 @@ export async function renderOne(root, context) {
     h("p", { class: "muted" }, `id `, h("code", {}, scenario.id), " · created ", when(scenario.created_at)),
     actions,
     notice,
+    // What the service found doubtful but stored (a thruster that gives no torque).
+    warningsBox(scenario.warnings, "scenario-warnings"),
     h(
       "div",
       { class: "row" },
