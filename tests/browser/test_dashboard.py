@@ -4399,6 +4399,98 @@ def test_the_fronts_colour_bar_ticks_do_not_stack_on_a_narrow_window(
     assert stacked == [], f"colour bar tick labels overlap at {width} px: {stacked}"
 
 
+def _eight_candidates(dashboard: Dashboard) -> str:
+    """A classifier of the paper preset with three more candidates, eight in all, the
+    longest named "payloads 1 and 4 ejected" (nearest-centroid on 5 realisations a
+    candidate: trained in about a second)."""
+    if "eight" not in made:
+        client = dashboard.service.client
+        paper = client.get("/scenarios/presets").json()["paper"]
+        body = paper["inertia_candidates"][0]["inertia_kg_m2"]
+        more = [
+            {
+                "name": f"payloads 1 and {k} ejected",
+                "inertia_kg_m2": [[v * s for v in row] for row in body],
+            }
+            for k, s in [(2, 0.85), (3, 0.8), (4, 0.75)]
+        ]
+        candidates = paper["inertia_candidates"] + more
+        overrides = {"name": "eight candidates", "inertia_candidates": candidates}
+        created = client.post("/scenarios", json={"preset": "paper", "overrides": overrides})
+        assert created.status_code == 201, created.text
+        params = {"sequence": GOOD, "kind": "nearest-centroid", "metric": "euclidean"}
+        made["eight"] = _trained(
+            dashboard, created.json()["id"], {**params, "n_realisations": 5}, 0
+        )
+    return str(made["eight"])
+
+
+#: The training confusion matrix as drawn: the candidate names written on each axis, its
+#: plot area's and its figure's widths (px), its height, whether it has a colour bar.
+CONFUSION_DRAWN_JS = """() => { const p = document.getElementById('training-confusion');
+  const f = p._fullLayout;
+  const names = (axis) => [...p.querySelectorAll(`.${axis}tick text`)]
+    .filter((t) => t.textContent).length;
+  return { x: names('x'), y: names('y'), plot: f._size.w, figure: f.width, height: f.height,
+           bars: p.querySelectorAll('.colorbar').length }; }"""
+
+
+def _confusion_at(dashboard: Dashboard, width: int) -> dict[str, Any]:
+    """The classifier page's confusion matrix once every chart on view is drawn at its cell's
+    width and fitted there, the window ``width`` px wide."""
+    from playwright.sync_api import TimeoutError as PlaywrightTimeoutError
+
+    page = dashboard.page
+    page.set_viewport_size({"width": width, "height": 900})
+    try:
+        page.wait_for_function(f"() => ({CHARTS_AT_CELL_WIDTH_JS})().length === 0", timeout=15_000)
+    except PlaywrightTimeoutError:
+        pass  # said below, with the layout's problems
+    problems = page.evaluate(CHARTS_AT_CELL_WIDTH_JS) + page.evaluate(LAYOUT_PROBLEMS_JS)
+    assert problems == [], f"at {width} px"
+    return dict(page.evaluate(CONFUSION_DRAWN_JS))
+
+
+@pytest.mark.parametrize("width", [375, 390, 414, 768])
+def test_a_confusion_matrix_on_a_phone_names_every_candidate_with_room_for_its_cells(
+    dashboard: Dashboard, width: int
+) -> None:
+    """Eight candidates at 375 to 414 px: the colour bar and its title took 93 px of the
+    325 px figure, the names at the left 151, and the cells had 64 to 72 px: Plotly wrote
+    4 of the 8 names under them. In the narrow layout the bar goes (each cell writes its
+    count) and the names at the left are broken into lines; at 768 px the names under the
+    cells hang straight down (at 30 degrees the last ran past the plot's right edge)."""
+    page = dashboard.page
+    page.set_viewport_size({"width": width, "height": 900})
+    dashboard.open(f"#/classifiers/{_eight_candidates(dashboard)}")
+    page.wait_for_selector(LAYOUT_READY["classifier"], timeout=60_000)
+    drawn = _confusion_at(dashboard, width)
+    assert (drawn["x"], drawn["y"]) == (8, 8), drawn
+    assert drawn["plot"] >= 0.6 * drawn["figure"], drawn
+    assert drawn["bars"] == 0, drawn
+    if width == 375:
+        assert axe_violations(dashboard) == []
+
+
+def test_a_confusion_matrix_gets_its_colour_bar_back_once_the_window_is_wide_again(
+    dashboard: Dashboard,
+) -> None:
+    """Opened at 1,280 px, narrowed to 375 and widened again: the matrix is drawn as it was
+    at 1,280 px (its colour bar, its names on one line, its height)."""
+    page = dashboard.page
+    page.set_viewport_size({"width": 1280, "height": 900})
+    dashboard.open(f"#/classifiers/{_eight_candidates(dashboard)}")
+    page.wait_for_selector(LAYOUT_READY["classifier"], timeout=60_000)
+    wide = _confusion_at(dashboard, 1280)
+    assert wide["bars"] == 1 and (wide["x"], wide["y"]) == (8, 8), wide
+    narrow = _confusion_at(dashboard, 375)
+    assert narrow["bars"] == 0 and (narrow["x"], narrow["y"]) == (8, 8), narrow
+    assert narrow["plot"] >= 0.6 * narrow["figure"], narrow
+    again = _confusion_at(dashboard, 1280)
+    assert again["bars"] == 1 and again["height"] == wide["height"], (wide, again)
+    assert abs(again["plot"] - wide["plot"]) <= 2, (wide, again)
+
+
 def _infeasible_search(dashboard: Dashboard, *, seed: int, generations: int) -> str:
     """An NSGA-II search no sequence of which meets its constraints (0.999 accurate on
     1 N m s over 3 steps): its job id."""

@@ -538,7 +538,10 @@ function fitToWidth(plot) {
     if (path === "title.text") Object.assign(update, titlePlace(plot, fit, wrapped, font));
   }
   Object.assign(update, legendPlace(plot, fit));
-  const restyles = colourBarPlaces(plot, fit);
+  Object.assign(update, categoryLabelsPlace(plot, fit));
+  // A bar hidden or shown again in this pass is placed in the next, as drawn.
+  const shown = colourBarsShown(plot, fit);
+  const restyles = [...shown, ...colourBarPlaces(plot, fit).filter(([index]) => !shown.some(([i]) => i === index))];
   // The figure width it was fitted to, once nothing is left to change (what a test waits for).
   if (!Object.keys(update).length && !restyles.length) {
     plot.dataset.fitted = String(full.width);
@@ -732,6 +735,126 @@ function colourBarPlaces(plot, fit) {
   });
   return changes;
 }
+
+// The narrow layout (style.css's, up to 899 px of window): a phone's, a tablet's.
+const NARROW_LAYOUT = window.matchMedia("(max-width: 899px)");
+
+// A heatmap that writes its value in every cell (a confusion matrix's counts, a sequence's
+// duties) drops its colour bar in the narrow layout, and gets it back once the window is
+// wide: the cells say what the bar would. At 375 px an eight-candidate confusion matrix's
+// bar, narrowed by colourBarPlaces, and its title kept 83 px of the figure's 325 at its
+// right, the names 178 at its left: the cells had 64 px and Plotly wrote 4 of the 8 names
+// under them. (A bar laid along the foot instead made Plotly throw "Something went wrong
+// with axis scaling" at 414 px.) `fit.hiddenBars`: the traces whose bar this hid (a page's
+// own showscale: false is left alone). Each change: [trace index, restyle].
+function colourBarsShown(plot, fit) {
+  fit.hiddenBars ||= new Set();
+  const changes = [];
+  (plot.data || []).forEach((trace, index) => {
+    if (trace.type !== "heatmap" || !trace.texttemplate) return;
+    // Hidden by this unless the page has drawn the trace again since.
+    const hidden = fit.hiddenBars.has(index) && trace.showscale === false;
+    if (!hidden) fit.hiddenBars.delete(index);
+    if (NARROW_LAYOUT.matches && !hidden && trace.showscale !== false) {
+      fit.hiddenBars.add(index);
+      changes.push([index, { showscale: false }]);
+    } else if (!NARROW_LAYOUT.matches && hidden) {
+      fit.hiddenBars.delete(index);
+      changes.push([index, { showscale: null }]);
+    }
+  });
+  return changes;
+}
+
+// A y axis's category names in the narrow layout: broken into lines once one is wider than
+// CATEGORY_LABEL_SHARE of the figure, each line up to that share or CATEGORY_LABEL_MIN_PX,
+// whichever is wider. Plotly spaces lines of text by 1.3 of the font's size; a name is
+// given CATEGORY_LABEL_GAP px more above or below it.
+const CATEGORY_LABEL_SHARE = 0.2;
+const CATEGORY_LABEL_MIN_PX = 80;
+const CATEGORY_LINE = 1.3;
+const CATEGORY_LABEL_GAP = 2;
+
+// A y axis of categories (a confusion matrix's candidates) whose longest name is too wide
+// for the narrow layout: each name broken into lines at spaces (ticktext; the categories,
+// hovers and the page's own layout keep the names whole), and the figure made taller
+// where its rows cannot hold the lines (the plot area keeps its height otherwise); the
+// names on one line and the page's own height again once the window is wide. At 375 px
+// the names and axis title took 178 of the figure's 325 px. An axis whose ticks the page
+// set itself is left alone. `fit.ticks`: the ticktext this set, by axis; `fit.tickHeight`:
+// { own, set }, the page's height and the one this set.
+function categoryLabelsPlace(plot, fit) {
+  const full = plot._fullLayout;
+  fit.ticks ||= {};
+  const update = {};
+  let wrappedAny = false;
+  // The px the plot area lacks (less than 0: has to spare) to hold the names' lines.
+  let lacking = -Infinity;
+  for (const name of Object.keys(full)) {
+    if (!/^yaxis\d*$/.test(name)) continue;
+    const axis = full[name];
+    if (!axis || !axis.visible || axis.type !== "category" || !axis._categories) continue;
+    const own = (plot.layout && plot.layout[name]) || {};
+    const ours = fit.ticks[name] !== undefined && JSON.stringify(own.ticktext) === JSON.stringify(fit.ticks[name]);
+    if (!ours) delete fit.ticks[name];
+    if (!ours && (own.tickmode !== undefined || own.tickvals !== undefined || own.ticktext !== undefined)) continue;
+    const names = axis._categories.map(String);
+    const font = { size: 12, family: full.font.family, ...axis.tickfont };
+    const widest = Math.max(...names.map((text) => textWidth(text, font)));
+    if (NARROW_LAYOUT.matches && widest > CATEGORY_LABEL_SHARE * full.width) {
+      const wrapped = names.map((text) => wrapText(text, Math.max(CATEGORY_LABEL_SHARE * full.width, CATEGORY_LABEL_MIN_PX), font));
+      wrappedAny = true;
+      const lines = Math.max(...wrapped.map((text) => text.split("<br>").length));
+      lacking = Math.max(lacking, names.length * (lines * CATEGORY_LINE * font.size + 2 * CATEGORY_LABEL_GAP) - axis._length);
+      if (ours && JSON.stringify(own.tickvals) === JSON.stringify(names) && JSON.stringify(own.ticktext) === JSON.stringify(wrapped)) continue;
+      fit.ticks[name] = wrapped;
+      Object.assign(update, { [`${name}.tickmode`]: "array", [`${name}.tickvals`]: names, [`${name}.ticktext`]: wrapped });
+    } else if (ours) {
+      delete fit.ticks[name];
+      Object.assign(update, { [`${name}.tickmode`]: null, [`${name}.tickvals`]: null, [`${name}.ticktext`]: null });
+    }
+  }
+  // An x axis of categories hangs its names straight down in the narrow layout where they
+  // do not fit flat: at 30 degrees the last name ran past the plot's right edge and the
+  // margin Plotly made for it left the cells 128 px of a 364 px figure, too few for
+  // Plotly to write every name (it wrote every other one). `fit.angles`: the axes set so.
+  fit.angles ||= {};
+  for (const name of Object.keys(full)) {
+    if (!/^xaxis\d*$/.test(name)) continue;
+    const axis = full[name];
+    if (!axis || !axis.visible || axis.type !== "category") continue;
+    const own = (plot.layout && plot.layout[name]) || {};
+    const ours = fit.angles[name] && JSON.stringify(own.autotickangles) === JSON.stringify(HANGING);
+    if (!ours) delete fit.angles[name];
+    if (NARROW_LAYOUT.matches && !ours && own.autotickangles === undefined && own.tickangle === undefined) {
+      fit.angles[name] = true;
+      update[`${name}.autotickangles`] = HANGING;
+    } else if (!NARROW_LAYOUT.matches && ours) {
+      delete fit.angles[name];
+      update[`${name}.autotickangles`] = null;
+    }
+  }
+  // The height: the page's own unless this set it (a page's draw since sets its own). A
+  // legend under the plot sets the height itself (legendPlace): left to it.
+  const height = plot.layout.height ?? full.height;
+  if (fit.tickHeight && fit.tickHeight.set !== height) fit.tickHeight = undefined;
+  if (legendIsBelow(plot, fit)) return update;
+  if (wrappedAny) {
+    const own = fit.tickHeight ? fit.tickHeight.own : height;
+    const want = Math.max(own, Math.ceil(height + lacking));
+    if (Math.abs(want - height) > 1) {
+      fit.tickHeight = { own, set: want };
+      update.height = want;
+    }
+  } else if (fit.tickHeight) {
+    update.height = fit.tickHeight.own;
+    fit.tickHeight = undefined;
+  }
+  return update;
+}
+
+// The angles Plotly may give an x axis's names in the narrow layout: flat, or straight down.
+const HANGING = [0, 90];
 
 // Every newPlot and react of the dashboard fits its chart to the width (fitToWidth), once
 // drawn and after every later draw; called once, by the shell.
