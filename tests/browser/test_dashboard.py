@@ -4491,6 +4491,73 @@ def test_a_confusion_matrix_gets_its_colour_bar_back_once_the_window_is_wide_aga
     assert abs(again["plot"] - wide["plot"]) <= 2, (wide, again)
 
 
+#: Two charts drawn on the page as the dashboard draws them (its Plotly.newPlot, which
+#: fitChartsToWidth wraps): one in the open, one in a section, open: a <details>, or a
+#: <div> that its ``hidden`` attribute collapses (display: none, as style.css's [hidden]).
+TWO_CHARTS_JS = """async (kind) => {
+  const chart = (id) => Object.assign(document.createElement('div'), { id, className: 'plot' });
+  const section = document.createElement(kind === 'details' ? 'details' : 'div');
+  section.id = 'section';
+  if (kind === 'details') {
+    section.open = true;
+    section.append(Object.assign(document.createElement('summary'), { textContent: 'more' }));
+  }
+  section.append(chart('chart-in-section'));
+  document.querySelector('#page > div').append(chart('chart-in-the-open'), section);
+  for (const id of ['chart-in-the-open', 'chart-in-section']) {
+    await Plotly.newPlot(document.getElementById(id), [{ x: [1, 2, 3], y: [2, 1, 3] }],
+                         { height: 300, title: { text: id } }, { responsive: false });
+  }
+}"""
+
+#: Closes (``false``) or opens (``true``) the section of TWO_CHARTS_JS.
+SECTION_OPEN_JS = """([kind, open]) => { const section = document.getElementById('section');
+  if (kind === 'details') section.open = open; else section.hidden = !open; }"""
+
+#: A chart's figure and cell widths (px), and the width it was last fitted at.
+WIDTHS_JS = """(id) => { const p = document.getElementById(id);
+  return { figure: p._fullLayout.width, cell: p.getBoundingClientRect().width,
+           fitted: p.dataset.fitted }; }"""
+
+#: Whether a chart is drawn at its cell's width (within 1 px) and fitted there.
+AT_CELL_WIDTH_JS = """(id) => { const p = document.getElementById(id);
+  return Math.abs(p._fullLayout.width - p.getBoundingClientRect().width) <= 1
+    && p.dataset.fitted === String(p._fullLayout.width); }"""
+
+
+@pytest.mark.parametrize("kind", ["hidden", "details"])
+def test_a_chart_in_a_closed_section_fits_its_cell_once_opened_after_a_resize(
+    dashboard: Dashboard, kind: str
+) -> None:
+    """A chart in a collapsed section has no box (display: none), and a change of the
+    window's width skipped it: opened at 1,280 px, the window narrowed to 375 with the
+    section collapsed, the section opened, the chart stayed 1,244 px wide in its 357 px
+    cell, cut at the cell's edge (Plotly's own resize skipped hidden charts too). A chart
+    is now fitted whenever its cell's size changes (a ResizeObserver). A closed <details>
+    keeps its content's boxes in Chromium 156 (content-visibility), so its chart was
+    fitted while closed; it is checked too."""
+    from playwright.sync_api import TimeoutError as PlaywrightTimeoutError
+
+    page = dashboard.page
+    page.set_viewport_size({"width": 1280, "height": 900})
+    dashboard.open("#/scenarios")
+    page.evaluate(TWO_CHARTS_JS, kind)
+    for chart in ["chart-in-the-open", "chart-in-section"]:
+        page.wait_for_function(AT_CELL_WIDTH_JS, arg=chart)
+    page.evaluate(SECTION_OPEN_JS, [kind, False])
+    page.set_viewport_size({"width": 375, "height": 900})
+    # The window's narrowing has been handled: the chart in the open is fitted to it.
+    page.wait_for_function(AT_CELL_WIDTH_JS, arg="chart-in-the-open")
+    page.evaluate(SECTION_OPEN_JS, [kind, True])
+    try:
+        page.wait_for_function(AT_CELL_WIDTH_JS, arg="chart-in-section", timeout=10_000)
+    except PlaywrightTimeoutError:
+        pass  # said below
+    widths = page.evaluate(WIDTHS_JS, "chart-in-section")
+    assert abs(widths["figure"] - widths["cell"]) <= 1, widths
+    assert page.evaluate(LAYOUT_PROBLEMS_JS) == []
+
+
 def _infeasible_search(dashboard: Dashboard, *, seed: int, generations: int) -> str:
     """An NSGA-II search no sequence of which meets its constraints (0.999 accurate on
     1 N m s over 3 steps): its job id."""

@@ -622,7 +622,8 @@ function legendForWidth(plot, width) {
   return { legend: moveLegendBelow(plot, fit, legendWidth) };
 }
 
-// Each chart on view drawn again at its cell's width, once the window's width changed.
+// Each chart on view drawn again at its cell's width, once the window's width or a chart's
+// cell's size changed.
 // Plotly's own resize (the `responsive` config) deleted each chart's height, and redrew it
 // at its div's: after any change of the window's width the front's chart was 320 px tall,
 // not 440 (its plot area 128 px, not 245), a confusion matrix 320, not 400. It kept the
@@ -860,14 +861,24 @@ const HANGING = [0, 90];
 // drawn and after every later draw; called once, by the shell.
 export function fitChartsToWidth() {
   let resized = null;
-  window.addEventListener("resize", () => {
+  const refit = () => {
     clearTimeout(resized);
     resized = setTimeout(fitChartsToCells, 100);
-  });
+  };
+  window.addEventListener("resize", refit);
+  // A chart's cell can change its size while the window keeps its own: a collapsed
+  // section (display: none) opened after the window's width changed (its charts had no
+  // box then and were skipped: one drawn at 1,280 px stayed 1,244 px wide in its 357 px
+  // cell once opened at 375), a grid given its second cell. Each chart's div is watched.
+  const cells = new ResizeObserver(refit);
   for (const method of ["newPlot", "react"]) {
     const draw = Plotly[method];
     Plotly[method] = async (plot, ...rest) => {
       const drawn = await draw(plot, ...rest);
+      if (!plot.cellWatched) {
+        plot.cellWatched = true;
+        cells.observe(plot);
+      }
       plot.fitListener ||= () => fitToWidth(plot);
       plot.removeListener("plotly_afterplot", plot.fitListener);
       plot.on("plotly_afterplot", plot.fitListener);
