@@ -450,8 +450,8 @@ class SearchResult:
             f"{', '.join(map(str, taken['steps']))} of the sequence found "
             f"{taken['sequence_found']} (the same torque, "
             f"{taken['impulse_saved_nms']:.2f} N m s less; it scored "
-            f"{taken['score_found']:.3f} on the search's draw, where one clustering of "
-            "one draw varies: compare on the fresh draws)"
+            f"{taken['score_found']:.3f} on the search's draw, whose one score varies: "
+            "the fresh draws are the figure to compare)"
             if taken
             else ""
         )
