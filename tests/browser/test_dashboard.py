@@ -4582,6 +4582,39 @@ def _infeasible_search(dashboard: Dashboard, *, seed: int, generations: int) -> 
     return str(answer.json()["id"])
 
 
+def test_the_thruster_duty_chart_shows_no_plotly_placeholder_for_its_untitled_axis(
+    dashboard: Dashboard,
+) -> None:
+    """The thruster duty chart (a search's best sequence, a classifier's) leaves its y axis
+    untitled: its rows are named. Plotly holds "Click to enter Y axis title" there, drawn
+    only in an editable chart, but the width fitting wrapped it to the axis's length (a
+    4-thruster chart's is about 190 px), and wrapped it was drawn: a hostile review's
+    search page showed "Click to enter Y axis / title" beside the thrusters. Drawn here by
+    the dashboard's own module, fitted as every chart is."""
+    dashboard.open("")
+    shown = dashboard.page.evaluate(
+        """async () => {
+            const { sequencePlot } = await import("/static/js/components/plots.js");
+            const plot = document.createElement("div");
+            plot.id = "duty-probe";
+            document.getElementById("page").append(plot);
+            sequencePlot(plot, {
+              step_duration_s: 1,
+              duties: [[0, 0, 0, 0.5], [0, 1, 1, 0.5], [1, 1, 0, 0], [1, 0, 0, 0]],
+            });
+            const fitted = () =>
+              plot._fullLayout && plot.dataset.fitted === String(plot._fullLayout.width);
+            for (let i = 0; i < 200 && !fitted(); i++) {
+              await new Promise((r) => setTimeout(r, 50));
+            }
+            return { fitted: fitted(), text: plot.textContent, title: plot.layout.yaxis.title };
+        }"""
+    )
+    assert shown["fitted"], shown
+    assert "Click to enter" not in shown["text"], shown
+    assert "thruster 4" in shown["text"], shown
+
+
 def test_a_search_none_of_whose_sequences_was_feasible_does_not_call_its_line_feasible(
     dashboard: Dashboard,
 ) -> None:

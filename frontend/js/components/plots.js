@@ -458,15 +458,21 @@ function wrapText(text, room, font) {
 }
 
 // The room (px) of each title of `plot`: [path, text, room, font] for those that have text.
+// A title the page left out holds Plotly's placeholder in the full layout ("Click to enter
+// Y axis title"), which Plotly draws only in an editable chart; wrapped, it was no longer
+// the placeholder and was drawn: the thruster duty chart's left edge read "Click to enter
+// Y axis / title".
 function titleRooms(plot) {
   const full = plot._fullLayout;
+  const placeholders = full._dfltTitle || {};
   const rooms = [];
   const title = full.title;
-  if (title && title.text) rooms.push(["title.text", title.text, full.width - full._size.l - TITLE_ROOM_PAD, title.font]);
+  if (title && title.text && title.text !== placeholders.plot) rooms.push(["title.text", title.text, full.width - full._size.l - TITLE_ROOM_PAD, title.font]);
   for (const name of Object.keys(full)) {
     if (!/^[xy]axis\d*$/.test(name)) continue;
     const axis = full[name];
     if (!axis || !axis.title || !axis.title.text || !axis.visible) continue;
+    if (axis.title.text === placeholders[name[0]]) continue;
     // Centred on its axis: within the figure, and within the axis's own length (side by
     // side subplots' titles ran into each other).
     const span = name.startsWith("x") ? full.width : full.height;
