@@ -398,6 +398,45 @@ def test_the_scenario_page_shows_a_thruster_that_gives_no_torque(dashboard: Dash
     assert page.evaluate(LAYOUT_PROBLEMS_JS) == []
 
 
+def test_a_scenarios_page_says_how_far_apart_its_own_candidates_moments_lie(
+    dashboard: Dashboard,
+) -> None:
+    """The principal moments' card said "the candidates differ by 5–15 %" on every
+    scenario: the paper preset's reductions, wrong for a scenario written by a flight
+    team (here 4 candidates whose middle moments lie 19 % apart and whose largest 11 %).
+    It now gives each moment's range over the candidates, from their own moments."""
+    body = [[120, 2, -1], [2, 80, 0.5], [-1, 0.5, 100]]
+
+    def tensor(dx: float, dy: float, dz: float) -> list[list[float]]:
+        return [[body[0][0] + dx, 2, -1], [2, body[1][1] + dy, 0.5], [-1, 0.5, 100 + dz]]
+
+    candidates = [
+        {"name": "stowed", "inertia_kg_m2": tensor(0, 0, 0)},
+        {"name": "array A deployed", "inertia_kg_m2": tensor(15, 0, 12)},
+        {"name": "array B deployed", "inertia_kg_m2": tensor(0, 15, 12)},
+        {"name": "both deployed", "inertia_kg_m2": tensor(15, 15, 24)},
+    ]
+    created = dashboard.service.client.post(
+        "/scenarios",
+        json={
+            "preset": "paper",
+            "overrides": {"name": "four candidates", "inertia_candidates": candidates},
+        },
+    )
+    assert created.status_code == 201, created.text
+    moments = np.array([c["principal_moments_kg_m2"] for c in created.json()["candidates"]])
+    spread = 100 * (moments.max(axis=0) - moments.min(axis=0)) / moments.max(axis=0)
+    dashboard.open(f"#/scenarios/{created.json()['id']}")
+    shown = dashboard.page.inner_text(
+        "xpath=//h2[text()='Principal moments (kg m²)']/following-sibling::p[1]"
+    )
+    assert "5–15 %" not in shown, shown
+    expected = [f"{value:.3g} %" for value in spread]
+    assert [float(p) for p in re.findall(r"([\d.]+) %", shown)] == [
+        float(e.split()[0]) for e in expected
+    ], (shown, expected)
+
+
 def test_the_new_scenario_forms_rates_show_deg_s_as_typed_and_send_rad_s(
     dashboard: Dashboard,
 ) -> None:

@@ -153,7 +153,7 @@ export async function renderOne(root, context) {
           ),
         ),
       ),
-      h("div", { class: "card grow" }, h("h2", {}, "Principal moments (kg m²)"), h("p", { class: "hint" }, "Each moment on its own scale: the candidates differ by 5–15 %."), momentsPlot),
+      h("div", { class: "card grow" }, h("h2", {}, "Principal moments (kg m²)"), h("p", { class: "hint", id: "moments-spread" }, momentsSpreadText(scenario.candidates)), momentsPlot),
     ),
     h(
       "div",
@@ -191,7 +191,7 @@ export async function renderOne(root, context) {
       ),
     ),
   );
-  // Markers, not bars: the candidates differ by 5–15 %, which a bar from 0 hides. Each
+  // Markers, not bars: the candidates differ by a few per cent, which a bar from 0 hides. Each
   // moment gets its own panel with its own (never zero-based) range.
   const moments = [0, 1, 2];
   Plotly.newPlot(
@@ -219,6 +219,19 @@ export async function renderOne(root, context) {
     }),
     PLOT_CONFIG,
   );
+}
+
+// How far apart the candidates' principal moments lie, each moment's range over its
+// largest value, from the scenario's own candidates: the page said "the candidates differ
+// by 5–15 %" (the paper preset's reductions) on every scenario, whatever its candidates.
+export function momentsSpreadText(candidates) {
+  const spreads = [0, 1, 2].map((axis) => {
+    const moments = candidates.map((c) => c.principal_moments_kg_m2[axis]);
+    const top = Math.max(...moments);
+    return top > 0 ? (100 * (top - Math.min(...moments))) / top : 0;
+  });
+  const [smallest, middle, largest] = spreads.map((p) => `${quantity(p)} %`);
+  return `Each moment on its own scale: from one candidate to another the smallest moment differs by up to ${smallest}, the middle by up to ${middle}, the largest by up to ${largest} (of its largest value).`;
 }
 
 // The form: a candidates table, the thruster matrix, levels, timing and noise, all
