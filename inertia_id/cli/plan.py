@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 import click
 
 from ..checks import MAX_SEED
+from ..wording import significant
 from .options import (
     OTHER_FORMATS,
     IntRange,
@@ -171,8 +172,10 @@ def plan_cmd(
         f"wrote {out}: {len(plan.sequence)} step{'' if len(plan.sequence) == 1 else 's'}, "
         f"impulse {plan.impulse_nms:.2f} N m s, "
         f"on-time {summary['propellant']['on_time_s']:.2f} s, largest residual rate "
-        f"{summary['residual_rate_max_rad_s']:.4f} rad/s "
-        f"({summary['residual_rate_max_deg_s']:.3f} deg/s)"
+        # Three significant digits, as the dashboard: a braking sequence's residual of
+        # 1.3e-4 rad/s read "0.0001 rad/s (0.008 deg/s)" at :.4f, the two disagreeing.
+        f"{significant(summary['residual_rate_max_rad_s'])} rad/s "
+        f"({significant(summary['residual_rate_max_deg_s'])} deg/s)"
         + (
             # The prediction starts from rest: beside an initial-rate spread, say so and
             # what the spread adds to every flight.

@@ -11,6 +11,7 @@ import click
 
 from ..deadline import GRACE_ASKED_MAX_S, GRACE_MAX_S
 from ..pipelines import SearchRequest
+from ..wording import significant
 from .options import (
     FloatRange,
     IntRange,
@@ -543,9 +544,12 @@ def search_cmd(
             + f" | {scores['final_rate_rad_s']:.4f} rad/s ({scores['final_rate_deg_s']:.2f} deg/s)"
             + f", worst {scores['final_rate_max_rad_s']:.4f}"
             + (
-                f"; commanded (from rest) {scores['commanded_residual_rate_rad_s']:.4f} rad/s "
-                f"({scores['commanded_residual_rate_deg_s']:.2f} deg/s), worst "
-                f"{scores['commanded_residual_rate_max_rad_s']:.4f}"
+                # Three significant digits, as the dashboard: the figure tells braking
+                # sequences apart below 0.001 rad/s, where :.4f wrote 0.0001 or 0.0000.
+                f"; commanded (from rest) "
+                f"{significant(scores['commanded_residual_rate_rad_s'])} rad/s "
+                f"({significant(scores['commanded_residual_rate_deg_s'])} deg/s), worst "
+                f"{significant(scores['commanded_residual_rate_max_rad_s'])}"
                 if scores.get("commanded_residual_rate_rad_s") is not None
                 else ""
             )

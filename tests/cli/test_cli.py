@@ -18,6 +18,7 @@ import inertia_id
 from inertia_id import InertiaClassifier
 from inertia_id.cli import main, parse_sequence
 from inertia_id.deadline import Deadline
+from inertia_id.wording import significant
 
 
 @pytest.fixture()
@@ -202,10 +203,12 @@ def test_the_search_listing_gives_the_commanded_residual_beside_the_total(tmp_pa
     )
     scores = doc["front"]["members"][0]["scores"]
     line = next(x for x in result.output.splitlines() if x.strip().startswith("#0 "))
+    # Three significant digits, as the dashboard: at :.4f a braking member's 5.8e-5 rad/s
+    # read "0.0001 rad/s (0.00 deg/s)", and members of 9.6e-5, 5.8e-5 and 0 rad/s alike.
     assert (
-        f"commanded (from rest) {scores['commanded_residual_rate_rad_s']:.4f} rad/s "
-        f"({scores['commanded_residual_rate_deg_s']:.2f} deg/s), worst "
-        f"{scores['commanded_residual_rate_max_rad_s']:.4f}"
+        f"commanded (from rest) {significant(scores['commanded_residual_rate_rad_s'])} rad/s "
+        f"({significant(scores['commanded_residual_rate_deg_s'])} deg/s), worst "
+        f"{significant(scores['commanded_residual_rate_max_rad_s'])}"
     ) in line
     assert scores["commanded_residual_rate_max_rad_s"] <= scores["final_rate_max_rad_s"]
 
@@ -231,6 +234,38 @@ def test_a_search_bounds_the_commanded_residual_in_deg_s(tmp_path: Path) -> None
     member = front["members"][0]
     line = next(x for x in result.output.splitlines() if x.strip().startswith("#0 "))
     assert ("BREAKS A CONSTRAINT" in line) is (member["feasible"] is False)
+
+
+def test_the_search_listing_tells_braking_members_commanded_residuals_apart(
+    tmp_path: Path,
+) -> None:
+    """Held to a 0.2 deg/s commanded residual on paper-in-orbit, every member brakes, and
+    the listing's commanded figure is what tells them apart. At :.4f rad/s (:.2f deg/s)
+    members leaving 2.5e-5 and 1.9e-5 rad/s read "0.0000 rad/s (0.00 deg/s)" as the
+    all-off member does, and 1.9e-4 rad/s "0.0002 rad/s (0.01 deg/s)", 0.0002 rad/s
+    being 0.011 deg/s; the dashboard gives three significant digits. So does the CLI."""
+    args = ["search", "--preset", "paper-in-orbit", "--method", "nsga2", "--length", "2"]
+    args += ["--nsga2", "population=8", "--nsga2", "generations=2", "--seed", "4"]
+    args += ["--search-realisations", "6", "--fresh-realisations", "4"]
+    args += ["--fresh-test-series", "2"]
+    args += ["--constraint", "max_commanded_residual_rate_max_deg_s=0.2"]
+    doc, result = run_cli_json(args, tmp_path / "s.json")
+    lines = {
+        int(x.split()[0][1:]): x for x in result.output.splitlines() if re.match(r"\s+#\d+ ", x)
+    }
+    members = doc["front"]["members"]
+    assert sorted(lines) == [m["index"] for m in members]
+    small = 0
+    for member in members:
+        scores = member["scores"]
+        commanded = scores["commanded_residual_rate_rad_s"]
+        small += 0 < commanded < 1e-3
+        assert (
+            f"commanded (from rest) {significant(commanded)} rad/s "
+            f"({significant(scores['commanded_residual_rate_deg_s'])} deg/s), worst "
+            f"{significant(scores['commanded_residual_rate_max_rad_s'])};"
+        ) in lines[member["index"]]
+    assert small > 0, members
 
 
 def _search_document(sequence: list[list[int]], scenario: dict[str, Any]) -> dict[str, Any]:
@@ -365,7 +400,17 @@ def test_plan_names_the_commanded_residual_beside_the_initial_rate_floor(tmp_pat
     assert commanded < 0.001 and commanded == plan["residual_rate_max_rad_s"]
     floor = plan["initial_rate_floor"]
     assert floor["mean_rad_s"] == pytest.approx(0.0079788, rel=1e-4)
-    assert f"largest residual rate {commanded:.4f} rad/s" in result.output
+    # To three significant digits, as the dashboard: at :.4f it read "0.0004 rad/s (0.020
+    # deg/s)" for 0.000356 rad/s, 12 % off, and 0.0004 rad/s is 0.023 deg/s.
+    assert (
+        f"largest residual rate {significant(commanded)} rad/s "
+        f"({significant(plan['commanded_residual_rate_max_deg_s'])} deg/s)"
+    ) in result.output
+    shown = re.search(r"largest residual rate ([\d.]+) rad/s \(([\d.]+) deg/s\)", result.output)
+    assert shown is not None, result.output
+    rad_s, deg_s = float(shown[1]), float(shown[2])
+    assert rad_s == pytest.approx(commanded, rel=5e-3)
+    assert rad_s * 180 / math.pi == pytest.approx(deg_s, rel=5e-3)
     assert "commanded (from rest: commanded_residual_rate_max)" in result.output
     assert f"{floor['mean_rad_s']:.4f} rad/s ({floor['mean_deg_s']:.3f} deg/s) on average" in (
         result.output
