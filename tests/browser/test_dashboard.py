@@ -2728,6 +2728,16 @@ def test_compare_searches_on_one_table_and_on_the_curves(dashboard: Dashboard) -
     assert f"{ppo['summary']['fresh_f1']:.3f}" in rows.nth(0).inner_text()
     title = page.evaluate("() => document.getElementById('compare-best').layout.title.text")
     assert "F1, separability or NSGA-II's predicted accuracy" in title
+    # The commanded impulse (N m s) is named for what it is: the page called it
+    # "propellant" ("Separation against propellant", "Propellant: the sequence's commanded
+    # impulse"), while a scenario's propellant is a mass in kg, a figure of its own.
+    page.wait_for_function("() => document.getElementById('compare-tradeoff')?.layout")
+    tradeoff = page.evaluate(
+        "() => { const l = document.getElementById('compare-tradeoff').layout;"
+        " return [l.title.text, l.xaxis.title.text]; }"
+    )
+    assert ["propellant" in text.lower() for text in tradeoff] == [False, False], tradeoff
+    assert "Propellant: the sequence's commanded impulse" not in page.inner_text("#page")
     # Restricted to another scenario, the two searches are not drawn.
     page.select_option("#compare-scenario", other)
     page.wait_for_selector("#compare-results .message.notice")

@@ -1,4 +1,4 @@
-// Compare runs: searches (fresh F1, residual rate, propellant and time on one table, and
+// Compare runs: searches (fresh F1, residual rate, commanded impulse and time on one table, and
 // their learning curves on the same axes), sweeps, or classifiers (through their latest
 // finished sweep: accuracy curves of several on one plot). Restricted to one scenario,
 // or grouped by scenario: runs of different scenarios never share a plot.
@@ -179,7 +179,7 @@ async function searchGroup(section, jobs, suffix, context) {
         ),
       ),
     ),
-    h("p", { class: "hint" }, "Fresh F1: the best sequence's clustering F1 on fresh noise draws, whatever the search scored. Score on the search's draw: its F1, or its separability score for a separability search. Residual rate: mean final |ω| on the fresh draws. Propellant: the sequence's commanded impulse."),
+    h("p", { class: "hint" }, "Fresh F1: the best sequence's clustering F1 on fresh noise draws, whatever the search scored. Score on the search's draw: its F1, or its separability score for a separability search. Residual rate: |ω| once the actuation lag has delivered its torque (ω(0) included), mean over the candidates on the fresh draws. Commanded impulse: every thruster's torque times its on-time, summed (N m s), a propellant proxy, not a mass: a scenario that states its thrust and specific impulse gives its propellant in kg on the search's page."),
   );
   const reward = plotDiv(`compare-reward${suffix}`);
   const best = plotDiv(`compare-best${suffix}`);
@@ -219,11 +219,11 @@ async function searchGroup(section, jobs, suffix, context) {
       name: searchLabel(job),
       hovertemplate: `%{text}: fresh F1 %{y:.3f}, ${quantity(job.summary.fuel_nms)} N m s, residual ${rateRad(job.summary.residual_rate_rad_s)} rad/s (${rateDeg(Number.isFinite(job.summary.residual_rate_rad_s) ? (job.summary.residual_rate_rad_s * 180) / Math.PI : null)} deg/s)<extra></extra>`,
     })),
-    layout("propellant: commanded impulse (N m s)", "fresh F1 (mean)", {
-      title: title("Separation against propellant"),
+    layout("commanded impulse (N m s)", "fresh F1 (mean)", {
+      title: title("Separation against commanded impulse"),
       height: 340,
       showlegend: false,
-      xaxis: { title: { text: "propellant: commanded impulse (N m s)" }, range: tightRange(done.map((j) => j.summary.fuel_nms), 0.2) },
+      xaxis: { title: { text: "commanded impulse (N m s)" }, range: tightRange(done.map((j) => j.summary.fuel_nms), 0.2) },
       yaxis: { title: { text: "fresh F1 (mean)" }, range: tightRange(done.map((j) => j.summary.fresh_f1), 0.35) },
     }),
     PLOT_CONFIG,
