@@ -190,6 +190,39 @@ class SearchRequest(_Request):
             objective=self.objective,
         )
 
+    def _check_unused_settings(self) -> None:
+        """Refuse a setting, away from its default, that the method never reads, as the
+        CLI refuses its option: NSGA-II has no reward (``fuel_weight``,
+        ``constraint_penalty``) and spends no step budget (``timesteps``,
+        ``patience_episodes``: its budget is ``nsga2`` population and generations), and
+        the exhaustive search scores every sequence. A job had taken ``"timesteps": 100``
+        for nsga2 (202), run its 30 generations and dropped the budget without a word.
+
+        :raises InputError: naming the setting, its value and the methods that read it.
+        """
+        if self.method == "nsga2":
+            for name in ("fuel_weight", "constraint_penalty"):
+                value = getattr(self, name)
+                if value:
+                    raise InputError(
+                        f"{name} = {value:g} weighs the reward of method ppo, cem, random or "
+                        "exhaustive; nsga2 has none: it trades impulse off as an objectives "
+                        "entry and keeps every constraint as a constraint"
+                    )
+        if self.method in ("nsga2", "exhaustive"):
+            for name in ("timesteps", "patience_episodes"):
+                value = getattr(self, name)
+                if value != self.default(name):
+                    budget = (
+                        "its budget is nsga2 population and generations"
+                        if self.method == "nsga2"
+                        else "it scores every sequence"
+                    )
+                    raise InputError(
+                        f"{name} = {value} applies to method ppo, cem or random, not "
+                        f"{self.method!r} ({budget}); leave it out"
+                    )
+
     def options(self) -> dict[str, Any]:
         """The method's own keyword arguments (besides the scenario, seed and scorer)."""
         # Each method's own settings are named after it.
@@ -200,6 +233,7 @@ class SearchRequest(_Request):
                 )
         if self.lagrangian_lr and self.method != "ppo":
             raise InputError(f"lagrangian_lr applies to method ppo only, not {self.method!r}")
+        self._check_unused_settings()
         from .deadline import check_grace
         from .search.loop import check_time_limit
 

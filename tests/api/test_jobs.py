@@ -439,6 +439,25 @@ def test_a_training_whose_classifier_the_cli_could_not_load_is_refused(api: Api)
         ("ppo", {"cem": {"population": 16}}, "cem settings apply to method cem only, not 'ppo'"),
         ("cem", {"nsga2": {"generations": 2}}, "nsga2 settings apply to method nsga2 only"),
         ("random", {"lagrangian_lr": 0.5}, "lagrangian_lr applies to method ppo only"),
+        # Settings NSGA-II and the exhaustive search never read: taken (202) and dropped
+        # without a word before, as the CLI refuses their options.
+        (
+            "nsga2",
+            {"timesteps": 100},
+            "timesteps = 100 applies to method ppo, cem or random, not 'nsga2'",
+        ),
+        (
+            "nsga2",
+            {"patience_episodes": 3},
+            "patience_episodes = 3 applies to method ppo, cem or random, not 'nsga2'",
+        ),
+        ("nsga2", {"fuel_weight": 1.0}, "fuel_weight = 1 weighs the reward of method ppo"),
+        ("nsga2", {"constraint_penalty": 2.0}, "constraint_penalty = 2 weighs the reward"),
+        (
+            "exhaustive",
+            {"timesteps": 5},
+            "timesteps = 5 applies to method ppo, cem or random, not 'exhaustive'",
+        ),
     ],
 )
 def test_another_methods_settings_are_refused_before_the_job_is_queued(

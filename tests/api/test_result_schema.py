@@ -277,7 +277,6 @@ def test_a_search_job_run_by_the_worker_has_the_result_the_schema_describes(api:
     params: dict[str, Any] = {
         "method": "nsga2",
         "sequence_length": 2,
-        "timesteps": 40,
         "n_realisations": 4,
         "fresh_test_series": 2,
         "fresh_realisations": 4,

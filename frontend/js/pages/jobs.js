@@ -291,7 +291,7 @@ function submitForm(scenarios, classifiers, query) {
         field("search-method", "method", search.method, "PPO learns (the paper's); CEM refines a distribution over levels; random is the baseline; exhaustive enumerates short sequences; nsga2 finds a Pareto front of the operator objectives"),
         field("search-objective", "objective", search.objective, "what scores a sequence"),
         field("search-sequence_length", "sequence length", search.sequence_length, "steps"),
-        field("search-timesteps", "budget", search.timesteps, "environment steps (ppo, random)"),
+        field("search-timesteps", "budget", search.timesteps, "environment steps (ppo, cem, random; nsga2's budget is its settings' population and generations, exhaustive scores every sequence: leave it at its default for them)"),
         field("search-n_realisations", "realisations", search.n_realisations, "per candidate"),
         field("search-metric", "clustering metric", search.metric),
         field("search-patience_episodes", "patience", search.patience_episodes, "episodes without improvement after F1 = 1 before stopping"),
