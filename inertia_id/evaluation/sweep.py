@@ -443,7 +443,11 @@ def run_sweep(
                 "scenario: sweep smaller multiples"
             ) from None
         X, y = result.dataset()
-        where = {"noise": noise, "multiple": float(multiple), "value": value}
+        # The level as stated, to 15 significant digits: the product's binary dust
+        # (3 x 0.05 = 0.15000000000000002 N m, 6 x 0.05 = 0.30000000000000004) was
+        # written into every points table and chart a team reads; the simulation is as
+        # before (process and measurement by their multiple, the others by ``value``).
+        where = {"noise": noise, "multiple": float(multiple), "value": float(f"{value:.15g}")}
         points.append(_point(classifier, X, y, **where))
         for label, other in others.items():
             other_points[label].append(_point(other, X, y, **where))

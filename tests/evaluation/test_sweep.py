@@ -132,6 +132,16 @@ def test_zero_noise_multiple_is_allowed(euclidean_classifier: InertiaClassifier)
     assert len(result.points) == 1 and result.points[0].accuracy == 1.0
 
 
+def test_a_points_level_is_written_without_binary_dust(
+    euclidean_classifier: InertiaClassifier,
+) -> None:
+    """3 and 6 times the paper's 0.05 N m disturbance were written 0.15000000000000002 and
+    0.30000000000000004 N m in the points table (a hostile review's sweep CSV)."""
+    result = run_sweep(euclidean_classifier, multiples=[3, 6], noises=["process"], n_test=5)
+    assert [point.value for point in result.points] == [0.15, 0.3]
+    assert "0.15000000000000002" not in result.model_dump_json()
+
+
 def test_progress_is_reported(euclidean_classifier: InertiaClassifier) -> None:
     fractions: list[float] = []
     run_sweep(euclidean_classifier, multiples=(1, 2), n_test=10, progress=fractions.append)
