@@ -857,6 +857,30 @@ class IdentifyResult(BaseModel):
         "asks for the telemetry from up to pre_start_window_s before the start (the "
         "status is unchanged)",
     )
+    pre_start_activity_hint: str | None = Field(
+        default=None,
+        description="whatever the status: the rates changed before the sequence start by "
+        "more than 8 times what the gyro noise and the disturbance give (a thruster "
+        "firing or a manoeuvre before the start, or a start stated late), when and by "
+        "how much, and the pre_start_window_s that leaves it out; in the verdict's text "
+        "too where it is not identified (the status is unchanged); null: no such change "
+        "in the pre_start_window_s before the start",
+    )
+    pre_start_activity_at_s: float | None = Field(
+        default=None, description="when that change began, s from the start (negative)"
+    )
+    pre_start_activity_step_rad_s: list[float] | None = Field(
+        default=None,
+        description="the change per axis: the mean rate over the step duration after it "
+        "less that over the step duration before it (rad/s)",
+    )
+    pre_start_activity_step_deg_s: list[float] | None = Field(
+        default=None, description="the same change in deg/s"
+    )
+    pre_start_activity_sigmas: float | None = Field(
+        default=None,
+        description="its largest axis' change in standard deviations of the noise's",
+    )
 
     @computed_field(
         description="the candidate's number as plan tables, exports and the CLI number it "

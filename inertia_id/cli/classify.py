@@ -502,6 +502,10 @@ def _identify_file(
             # JSON as the verdict's sequence_start_note says it, not only by the false
             # sequence_start_refined.
             click.echo(f"warning: {path}: {verdict.sequence_start_note}", err=True)
+    if verdict.pre_start_activity_hint:
+        # Whatever the status (an identified verdict's text is its name): said beside the
+        # JSON, as its pre_start_activity_hint says it.
+        click.echo(f"warning: {path}: {verdict.pre_start_activity_hint}", err=True)
     return verdict.model_dump(mode="json")
 
 

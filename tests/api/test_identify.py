@@ -1020,3 +1020,43 @@ def test_a_kind_without_the_off_candidates_test_says_so_in_every_answer(
     schema = api.get("/openapi.json").json()["components"]["schemas"]
     for name in ("IdentifyResult", "PartialIdentifyResult"):
         assert "off_candidates_note" in schema[name]["properties"], name
+
+
+def test_a_thruster_pulse_before_the_start_is_named_in_the_answer(
+    api: Api, classifier_id: str, paper: Scenario
+) -> None:
+    """One thruster fired for 1 s, 4 s before the stated start: the answer says when the
+    rates changed there and by how much (the status is the verdict's own), and the CSV
+    export's notes say it too. Before, nothing in it named the step."""
+    quiet = [[0] * paper.n_thrusters]
+    sequence = quiet * 8 + GOOD_SEQUENCE
+    sequence[4] = [4, 0, 0, 0, 0, 0]
+    flown = simulate(paper, sequence, 1, np.random.default_rng(12))
+    series = {
+        "time_s": (flown.time_s - 8.0).tolist(),
+        "omega_rad_s": flown.omega_measured[1, 0].tolist(),
+    }
+    body = {"classifier_id": classifier_id, "telemetry": {**series, "sequence_start": 0.0}}
+    response = api.post("/identify", json=body)
+    assert response.status_code == 200, response.text
+    verdict = response.json()
+    assert verdict["pre_start_activity_hint"] is not None
+    assert "before the sequence start" in verdict["pre_start_activity_hint"]
+    assert -4.5 <= verdict["pre_start_activity_at_s"] <= -3.5
+    assert verdict["pre_start_activity_sigmas"] > 8.0
+    assert len(verdict["pre_start_activity_step_deg_s"]) == 3
+    table = api.post("/identify?format=csv", json=body)
+    assert table.status_code == 200, table.text
+    notes = dict(
+        line[2:].split(": ", 1) for line in table.text.splitlines() if line.startswith("# ")
+    )
+    assert notes["pre_start_activity_hint"] == verdict["pre_start_activity_hint"]
+    # The same pass without the pulse: no hint.
+    calm = simulate(paper, quiet * 8 + GOOD_SEQUENCE, 1, np.random.default_rng(12))
+    still = {"time_s": series["time_s"], "omega_rad_s": calm.omega_measured[1, 0].tolist()}
+    quiet_answer = api.post(
+        "/identify",
+        json={"classifier_id": classifier_id, "telemetry": {**still, "sequence_start": 0.0}},
+    )
+    assert quiet_answer.status_code == 200, quiet_answer.text
+    assert quiet_answer.json()["pre_start_activity_hint"] is None

@@ -882,6 +882,21 @@ def test_telemetry_from_before_the_start_is_written_and_used(
     assert verdict["pre_start_samples"] == 9 and len(verdict["initial_offset_rad_s"]) == 3
     ignored = run_cli([*base, "--pre-start-window", "0", str(telemetry)])
     assert json.loads(ignored.stdout)["pre_start_samples"] == 0
+    assert verdict["pre_start_activity_hint"] is None and "changed" not in ignored.stderr
+    # The rates stepped by 0.02 rad/s about x 4.5 s before the start (a thruster pulse
+    # there): the verdict says so in its JSON and beside it, whatever its status.
+    header, *rows = telemetry.read_text().splitlines()
+    stepped = [
+        ",".join([t, repr(float(wx) + 0.02), *rest]) if float(t) > 809999995 else row
+        for row in rows
+        for t, wx, *rest in [row.split(",")]
+    ]
+    telemetry.write_text("\n".join([header, *stepped]) + "\n")
+    pulsed = run_cli([*base, str(telemetry)])
+    hint = json.loads(pulsed.stdout)["pre_start_activity_hint"]
+    assert hint is not None and "before the sequence start" in hint
+    assert f"warning: {telemetry}: {hint}" in pulsed.stderr
+    assert -5.0 <= json.loads(pulsed.stdout)["pre_start_activity_at_s"] <= -4.0
     refused = runner.invoke(main, ["simulate", "--pre-start", "2.5", "--telemetry", "x.csv"])
     assert refused.exit_code == 1
     assert "--pre-start 2.5 s is not a whole number of the scenario's 1 s steps" in refused.output
