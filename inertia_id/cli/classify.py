@@ -341,7 +341,8 @@ def sweep_cmd(
     type=click.Path(exists=True, dir_okay=True),
     help="Telemetry file or folder (repeatable; paths may also follow the options). CSV "
     "(time_s or time_utc, wx, wy, wz; header optional) or JSON ({time_s or time_utc: [...], "
-    "omega_rad_s: [[...], ...], sequence_start: ...}), either gzip-compressed or not "
+    "omega_rad_s: [[...], ...], sequence_start: ...}; omega_deg_s for deg/s), either "
+    "gzip-compressed or not "
     "(pass.csv.gz). A folder gives its *.csv, *.json, *.csv.gz and *.json.gz.",
 )
 @click.option(

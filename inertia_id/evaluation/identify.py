@@ -1280,8 +1280,8 @@ def _with_unit_hint(
             continue
         hint = (
             f"the telemetry matches {read.candidate!r} (posterior {read.confidence:.3g}) if "
-            f"its rates are in {unit}: check the unit, and send omega_rad_s in rad/s (a CSV "
-            "header may say wx_deg_s, and its rates are converted)"
+            f"its rates are in {unit}: check the unit, and send omega_rad_s in rad/s, or "
+            "omega_deg_s in deg/s (a CSV header may say wx_deg_s; either is converted)"
         )
         return verdict.model_copy(
             update={

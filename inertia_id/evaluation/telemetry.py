@@ -316,10 +316,23 @@ class Telemetry(BaseModel):
         max_length=MAX_TELEMETRY_SAMPLES,
         description=f"time stamps as ISO-8601 UTC strings, e.g. {_ISO_EXAMPLE!r}",
     )
+    # Not required by the schema: omega_deg_s may be given instead (the validator asks
+    # for one of the two, and converts omega_deg_s into it).
     omega_rad_s: tuple[tuple[StrictFloat, ...], ...] = Field(
+        default=(),
         max_length=MAX_TELEMETRY_SAMPLES,
         description="body rates, rad/s, one row of 3 per stamp; each value finite and at "
-        f"most {MAX_TELEMETRY_RATE_RAD_S:g} rad/s in magnitude",
+        f"most {MAX_TELEMETRY_RATE_RAD_S:g} rad/s in magnitude; required unless the rates "
+        "are given in deg/s as omega_deg_s",
+    )
+    omega_deg_s: tuple[tuple[StrictFloat, ...], ...] | None = Field(
+        default=None,
+        max_length=MAX_TELEMETRY_SAMPLES,
+        description="the body rates in deg/s instead of omega_rad_s (give one of the two), "
+        "one row of 3 per stamp, each at most "
+        f"{math.degrees(MAX_TELEMETRY_RATE_RAD_S):,.0f} deg/s in magnitude; converted to "
+        "rad/s on reading, as a CSV header's wx_deg_s columns are (the telemetry then holds "
+        "omega_rad_s)",
     )
     sequence_start: StrictFloat | str | None = Field(
         default=None,
@@ -372,29 +385,34 @@ class Telemetry(BaseModel):
             )
         return value
 
-    @field_validator("omega_rad_s")
+    @field_validator("omega_rad_s", "omega_deg_s")
     @classmethod
     def _rates(
-        cls, value: tuple[tuple[float, ...], ...], info: ValidationInfo
-    ) -> tuple[tuple[float, ...], ...]:
+        cls, value: tuple[tuple[float, ...], ...] | None, info: ValidationInfo
+    ) -> tuple[tuple[float, ...], ...] | None:
+        if value is None:
+            return value
+        name = info.field_name
+        degrees = name == "omega_deg_s"
         for i, row in enumerate(value):
             if len(row) != 3:
                 raise InputError(
-                    f"omega_rad_s row {i} has {counted(len(row), 'column')}, expected 3: "
-                    f"{list(row)}"
+                    f"{name} row {i} has {counted(len(row), 'column')}, expected 3: {list(row)}"
                 )
         arr = np.asarray(value, dtype=float).reshape(-1, 3)
         bad = np.argwhere(~np.isfinite(arr))
         if bad.size:
             i, j = (int(v) for v in bad[0])
             raise InputError(
-                f"omega_rad_s[{i}][{j}] = {value[i][j]!r} is not finite{_csv_cell(info, i, j + 1)}"
+                f"{name}[{i}][{j}] = {value[i][j]!r} is not finite{_csv_cell(info, i, j + 1)}"
             )
-        bad = np.argwhere(np.abs(arr) > MAX_TELEMETRY_RATE_RAD_S)
+        largest = math.degrees(MAX_TELEMETRY_RATE_RAD_S) if degrees else MAX_TELEMETRY_RATE_RAD_S
+        bad = np.argwhere(np.abs(arr) > largest)
         if bad.size:
             i, j = (int(v) for v in bad[0])
+            unit = "deg/s" if degrees else "rad/s"
             raise InputError(
-                f"omega_rad_s[{i}][{j}] = {value[i][j]!r} rad/s{_csv_cell(info, i, j + 1)} is "
+                f"{name}[{i}][{j}] = {value[i][j]!r} {unit}{_csv_cell(info, i, j + 1)} is "
                 "beyond any attitude gyro's "
                 f"range (at most {MAX_TELEMETRY_RATE_RAD_S:g} rad/s, "
                 f"{math.degrees(MAX_TELEMETRY_RATE_RAD_S):,.0f} deg/s, in magnitude): a "
@@ -404,6 +422,22 @@ class Telemetry(BaseModel):
 
     @model_validator(mode="after")
     def _time_base(self) -> Telemetry:
+        if self.omega_deg_s is not None:
+            if "omega_rad_s" in self.model_fields_set:
+                raise InputError(
+                    "give the body rates as omega_rad_s (rad/s) or as omega_deg_s (deg/s), not both"
+                )
+            # Held in rad/s, as a CSV's wx_deg_s columns are: every reader of the rates
+            # (and a copy validated afresh) sees omega_rad_s alone. Set on the frozen
+            # model once, here, as the offsets below are.
+            rates = np.radians(np.asarray(self.omega_deg_s, dtype=float)).reshape(-1, 3)
+            object.__setattr__(self, "omega_rad_s", tuple(map(tuple, rates.tolist())))
+            object.__setattr__(self, "omega_deg_s", None)
+        elif "omega_rad_s" not in self.model_fields_set:
+            raise InputError(
+                "telemetry needs body rates: omega_rad_s (rad/s) or omega_deg_s (deg/s), one "
+                "row of 3 per stamp"
+            )
         if self.time_s is not None and self.time_utc is not None:
             raise InputError("give the time stamps as time_s or as time_utc, not both")
         stamps = self.time_s if self.time_s is not None else self.time_utc
@@ -582,8 +616,9 @@ def parse_telemetry(
 ) -> Telemetry:
     """Parse telemetry from JSON or CSV text.
 
-    JSON: ``{"time_s": [...], "omega_rad_s": [[wx, wy, wz], ...]}`` (or ``time_utc``,
-    optionally ``sequence_start``). CSV: four columns ``time_s, wx, wy, wz`` (seconds) or
+    JSON: ``{"time_s": [...], "omega_rad_s": [[wx, wy, wz], ...]}`` (or ``time_utc``;
+    ``omega_deg_s`` for rates in deg/s, as a CSV header's ``wx_deg_s``; optionally
+    ``sequence_start``). CSV: four columns ``time_s, wx, wy, wz`` (seconds) or
     ``time_utc, wx, wy, wz`` (ISO-8601 UTC stamps), rad/s. A header row is optional; when
     there is one its names are read: columns in any order, rates in deg/s when the names
     say so (``wx_deg_s``), and a name that is no time or axis refused by name.
@@ -609,7 +644,9 @@ def parse_telemetry(
             # An integer of over 4,300 digits, or arrays nested thousands deep.
             raise InputError(f"telemetry JSON is not acceptable: {exc}") from None
         if not isinstance(data, dict):
-            raise InputError("telemetry JSON must be an object with time_s and omega_rad_s")
+            raise InputError(
+                "telemetry JSON must be an object with time_s and omega_rad_s (or omega_deg_s)"
+            )
         if sequence_start is not None:
             given = data.get("sequence_start")
             if (

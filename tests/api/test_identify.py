@@ -1060,3 +1060,28 @@ def test_a_thruster_pulse_before_the_start_is_named_in_the_answer(
     )
     assert quiet_answer.status_code == 200, quiet_answer.text
     assert quiet_answer.json()["pre_start_activity_hint"] is None
+
+
+def test_json_telemetry_in_deg_s_is_identified_as_in_rad_s(
+    api: Api, classifier_id: str, flight: SimulationResult, paper: Scenario
+) -> None:
+    """``omega_deg_s`` states deg/s as a CSV header's ``wx_deg_s`` does: the same verdict
+    as the rates in rad/s, and documented in OpenAPI. Before, the key was refused as
+    unknown (422), and deg/s sent as omega_rad_s was judged 57 times too fast."""
+    k = 3
+    series = telemetry(flight, k)
+    degrees = {
+        "time_s": series["time_s"],
+        "omega_deg_s": np.degrees(series["omega_rad_s"]).tolist(),
+    }
+    in_radians = api.post("/identify", json={"classifier_id": classifier_id, "telemetry": series})
+    in_degrees = api.post("/identify", json={"classifier_id": classifier_id, "telemetry": degrees})
+    assert in_degrees.status_code == 200, in_degrees.text
+    assert in_degrees.json()["candidate"] == paper.candidate_names[k]
+    assert in_degrees.json()["posterior"] == pytest.approx(in_radians.json()["posterior"])
+    both = {**degrees, "omega_rad_s": series["omega_rad_s"]}
+    refused = api.post("/identify", json={"classifier_id": classifier_id, "telemetry": both})
+    assert refused.status_code == 422 and "not both" in refused.text
+    schema = api.get("/openapi.json").json()["components"]["schemas"]["Telemetry"]
+    assert "deg/s" in schema["properties"]["omega_deg_s"]["description"]
+    assert "omega_rad_s" not in schema.get("required", [])

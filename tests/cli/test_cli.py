@@ -1292,3 +1292,26 @@ def test_scenario_warns_of_a_thruster_that_gives_no_torque(tmp_path: Path) -> No
     assert len(written["thrusters"]["torque_matrix_nm"][0]) == 7
     # The paper's own thrusters all give torque: nothing on stderr.
     assert run_cli(["scenario", "--preset", "paper"]).stderr == ""
+
+
+def test_identify_reads_json_telemetry_in_deg_s(tmp_path: Path, small_classifier: Path) -> None:
+    """A JSON file states deg/s with ``omega_deg_s``, as a CSV header does with
+    ``wx_deg_s``: the same verdict as the file in rad/s. (JSON could not say it: the key
+    was refused as unknown.)"""
+    plain = tmp_path / "t.csv"
+    _simulate_telemetry(plain, "4")
+    rows = [line.split(",") for line in plain.read_text().split()[1:]]
+    in_degrees = tmp_path / "t.json"
+    in_degrees.write_text(
+        json.dumps(
+            {
+                "time_s": [float(r[0]) for r in rows],
+                "omega_deg_s": [[math.degrees(float(v)) for v in r[1:]] for r in rows],
+            }
+        )
+    )
+    base = ["identify", "--classifier", str(small_classifier)]
+    expected = json.loads(run_cli([*base, str(plain)]).stdout)
+    verdict = json.loads(run_cli([*base, str(in_degrees)]).stdout)
+    assert verdict["candidate"] == expected["candidate"] == "payload 3 ejected"
+    assert verdict["distances"] == pytest.approx(expected["distances"])

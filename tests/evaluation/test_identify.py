@@ -328,7 +328,7 @@ def test_parsed_csv_identifies_like_the_arrays(
             '{"time_s": [5, 6], "omega_rad_s": [[0, 0, 0], [0, 0, 0]], "sequence_strat": 5}',
             "json",
             r"unknown key\(s\) 'sequence_strat'; its keys are time_s, time_utc, omega_rad_s, "
-            r"sequence_start",
+            r"omega_deg_s, sequence_start",
         ),
         # true was read as 1 rad/s (57 deg/s), a quoted number as a rate.
         (

@@ -761,3 +761,35 @@ def test_a_csv_header_is_read_by_name() -> None:
     np.testing.assert_allclose(
         parse_telemetry("0.05,0.01,0.02,0.03\n0.1,0.04,0.05,0.06").omega_array, expected
     )
+
+
+def test_json_telemetry_states_deg_s_as_a_csv_header_does() -> None:
+    """``omega_deg_s`` is JSON's ``wx_deg_s``: the same rates in deg/s read as the rad/s
+    ones (the telemetry then holds omega_rad_s). Before, JSON had no way to say deg/s: the
+    key was refused as unknown, and deg/s sent as omega_rad_s read 57 times too fast."""
+    radians = [[0.01, 0.02, -0.03], [0.04, 0.05, 0.06]]
+    degrees = np.degrees(radians).tolist()
+    stamps = {"time_s": [0.05, 0.10]}
+    in_degrees = parse_telemetry(json.dumps({**stamps, "omega_deg_s": degrees}))
+    np.testing.assert_allclose(in_degrees.omega_array, radians, rtol=1e-15)
+    assert in_degrees.omega_deg_s is None
+    model = Telemetry.model_validate({**stamps, "omega_deg_s": degrees})
+    np.testing.assert_allclose(model.omega_array, radians, rtol=1e-15)
+    # A copy validated afresh keeps the rates (in rad/s) and the new start.
+    moved = model.model_copy(update={"sequence_start": 0.05})
+    np.testing.assert_allclose(moved.omega_array, radians, rtol=1e-15)
+    np.testing.assert_allclose(moved.time_array, [0.0, 0.05])
+    for document, match in (
+        ({**stamps, "omega_rad_s": radians, "omega_deg_s": degrees}, r"not both"),
+        (stamps, r"needs body rates: omega_rad_s \(rad/s\) or omega_deg_s \(deg/s\)"),
+        ({**stamps, "omega_deg_s": [[1.0, 2.0, 3.0], [1.0, 2.0]]}, r"omega_deg_s row 1 has 2"),
+        (
+            {**stamps, "omega_deg_s": [[1.0, 2.0, 3.0], [1.0, 6000.0, 3.0]]},
+            r"omega_deg_s\[1\]\[1\] = 6000.0 deg/s is beyond any attitude gyro's range",
+        ),
+    ):
+        with pytest.raises(pydantic.ValidationError, match=match):
+            parse_telemetry(json.dumps(document))
+    # Strict numbers, as omega_rad_s: a string is no rate.
+    with pytest.raises(pydantic.ValidationError, match="omega_deg_s"):
+        Telemetry.model_validate({**stamps, "omega_deg_s": [["1", 2.0, 3.0], [1.0, 2.0, 3.0]]})

@@ -95,7 +95,8 @@ export function parseTelemetry(text, sequenceStart = "") {
   if (trimmed.startsWith("{")) {
     const data = JSON.parse(trimmed);
     time = (data.time_s ?? data.time_utc ?? []).map(stampSeconds);
-    omega = data.omega_rad_s;
+    // omega_deg_s states deg/s as a CSV header's wx_deg_s does: drawn in rad/s.
+    omega = data.omega_rad_s ?? (data.omega_deg_s ?? []).map((row) => row.map((v) => v / DEG));
     if (start === "" || start === null || start === undefined) start = data.sequence_start;
   } else {
     for (const line of trimmed.split(/\r?\n/)) {
