@@ -1043,6 +1043,8 @@ def identify_table(verdict: Mapping[str, Any]) -> Table:
         notes.append(("unit_hint", verdict["unit_hint"]))
     if verdict.get("pre_start_hint"):
         notes.append(("pre_start_hint", verdict["pre_start_hint"]))
+    if verdict.get("start_window_hint"):
+        notes.append(("start_window_hint", verdict["start_window_hint"]))
     if verdict.get("pre_start_activity_hint"):
         notes.append(("pre_start_activity_hint", verdict["pre_start_activity_hint"]))
     return Table(["candidate", "distance", "nearest", "posterior", "number"], rows, notes)

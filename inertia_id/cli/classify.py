@@ -503,6 +503,10 @@ def _identify_file(
             # JSON as the verdict's sequence_start_note says it, not only by the false
             # sequence_start_refined.
             click.echo(f"warning: {path}: {verdict.sequence_start_note}", err=True)
+        if verdict.start_window_hint:
+            # Whatever the status: an identified verdict from a start at the window's
+            # edge, with a better one beyond it, is said to be so beside the JSON.
+            click.echo(f"warning: {path}: {verdict.start_window_hint}", err=True)
     if verdict.pre_start_activity_hint:
         # Whatever the status (an identified verdict's text is its name): said beside the
         # JSON, as its pre_start_activity_hint says it.

@@ -258,6 +258,10 @@ class Identification(BaseModel):
     # An "ambiguous" verdict on telemetry with no sample before the start, from a kind
     # that conditions on the pre-start offset (:func:`_with_pre_start_hint`).
     pre_start_hint: str | None = None
+    # A start search whose start lies at its window's edge with a start beyond it that
+    # fits better (:func:`_start_beyond_window`): the words, and that start.
+    start_window_hint: str | None = None
+    start_window_better_shift_s: float | None = None
     # A change of the rates before the start beyond the noise (:func:`pre_start_activity`),
     # said in words whatever the status (the status stays): when, how large, how unlikely.
     pre_start_activity_hint: str | None = None
@@ -1068,6 +1072,11 @@ def identify(
         verdict = _identify(classifier, moved, confidence, pre_start_window_s)
         verdict = _with_pre_start_hint(classifier, verdict, pre_start_window_s)
         verdict = _with_pre_start_activity(classifier, moved, verdict, pre_start_window_s)
+        beyond = _start_beyond_window(
+            classifier, telemetry, grid, window_s, pre_start_window_s, shift
+        )
+        if beyond is not None:
+            verdict = _with_window_hint(verdict, shift, beyond, window_s)
         return verdict.model_copy(
             update={
                 "sequence_start_shift_s": shift,
@@ -1096,6 +1105,80 @@ def identify(
             )
     verdict = _with_pre_start_hint(classifier, verdict, pre_start_window_s)
     return _with_pre_start_activity(classifier, telemetry, verdict, pre_start_window_s)
+
+
+def _start_beyond_window(
+    classifier: CandidateClassifier,
+    telemetry: Telemetry,
+    grid: np.ndarray,
+    window_s: float,
+    pre_start_window_s: float,
+    shift: float,
+) -> float | None:
+    """A start one or two grid periods beyond the edge of the ``±window_s`` searched
+    that fits the telemetry better than the last two grid starts inside it, where the
+    start taken (``shift``) lies within a grid period of that edge; None otherwise (the
+    start taken is not near the edge, the telemetry reaches no start beyond it, or none
+    fits better). The four starts are scored as the search scores its own (one offset,
+    measured before the stated start; from one noise condition), afresh.
+
+    A search whose window misses the true start takes the start at its edge, the
+    nearest it may, and judged from there a genuine pass was "matches none" (10 Hz,
+    paper-in-orbit, the default kind, the true start 1.5 s off, ±1 s searched: 20 of
+    20 taken at the edge, 20 of 20 matches none) with no word that the window was the
+    cause; one 1.2 s off was named (7 of 20) or ambiguous from the edge."""
+    step = float(grid[1] - grid[0])
+    n = math.floor(window_s / step + 1e-9)
+    if n < 1 or abs(shift) <= (n - 1) * step + 1e-9:
+        return None
+    side = 1.0 if shift > 0 else -1.0
+    score = _StartScore(classifier, telemetry, pre_start_window_s)
+    shape = ResponseShape.of(classifier.scenario_, classifier.sequence_)
+    scored: list[tuple[float, float]] = []
+    for d in (-1, 0, 1, 2):
+        at = side * (n + d) * step
+        value = start_cost(
+            telemetry,
+            grid,
+            score,
+            at,
+            marginalise_gaps=_judges_gaps(classifier),
+            kind=classifier.kind,
+            shape=shape,
+        )
+        if value is not None:
+            scored.append((at, value))
+    again = score.rescored()
+    if again is not None:
+        # Every start's square from one noise condition, as the search's (_StartScore).
+        scored = [(at, value) for (at, _), value in zip(scored, again, strict=True)]
+    inside = [value for at, value in scored if abs(at) <= n * step + 1e-9]
+    beyond = [(value, at) for at, value in scored if abs(at) > n * step + 1e-9]
+    if not inside or not beyond:
+        return None
+    value, at = min(beyond)
+    return at if value < min(inside) else None
+
+
+def _with_window_hint(
+    verdict: Identification, shift: float, beyond: float, window_s: float
+) -> Identification:
+    """``verdict`` (from a start search) with a hint that its start lies at the window's
+    edge and a start beyond it fits better (:func:`_start_beyond_window`): in
+    ``start_window_hint`` whatever the status, and in the verdict's text where it is not
+    "identified" (whose text is the name); the status stays."""
+    wider = math.ceil((abs(beyond) + window_s) * 10.0 - 1e-9) / 10.0
+    hint = (
+        f"the start taken ({shift:+.6g} s from the stated one) lies at the edge of the "
+        f"±{window_s:g} s searched, and a start beyond it ({beyond:+.6g} s) fits the "
+        "telemetry better: the true start may lie outside the window, and this verdict "
+        "is from a start that is not the best; check the stated start, or widen the "
+        f"window to ±{wider:g} s (estimate_start_within_s, --estimate-start-within)"
+    )
+    update: dict[str, Any] = {"start_window_hint": hint, "start_window_better_shift_s": beyond}
+    if verdict.status != "identified":
+        update["verdict"] = f"{verdict.verdict}. Hint: {hint}"
+    return verdict.model_copy(update=update)
 
 
 def _with_pre_start_activity(

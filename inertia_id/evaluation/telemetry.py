@@ -1604,5 +1604,33 @@ def estimate_sequence_start(
             best = (cost, float(shift), series)
     if best is None:
         assert refusal is not None
-        raise InputError(f"no start within ±{window_s:g} s fits the telemetry: {refusal[1]}")
+        raise InputError(
+            f"no start within ±{window_s:g} s fits the telemetry: {refusal[1]}"
+            f"{_wider_window(t, np.asarray(grid_s, dtype=float), window_s)}"
+        )
     return best[1], best[2]
+
+
+def _wider_window(t: np.ndarray, grid_s: np.ndarray, window_s: float) -> str:
+    """What a start search that no start fits says when the telemetry reaches starts
+    outside its window (the edge rule: the first sample within ``1.5 p`` after the start,
+    or before it, and the last within ``1.5 p`` of the end, or after it): a window as
+    much wider than the nearest of them as the one asked for, rounded up to a tenth of
+    a second; else nothing (the
+    refusal is the telemetry's, at any start). Before, the refusal named the gap at the
+    stated start alone: a start stated 3 s before the first sample, searched within
+    ±1 s, said "no sample from 0 s to 3.05 s" and not that ±3.9 s finds it."""
+    period = max(_grid_period(grid_s), float(np.median(np.diff(t))) if t.size > 1 else 0.0)
+    reach = EDGE_GAP_PERIODS * period
+    earliest, latest = float(t[0]) - reach, float(t[-1]) - float(grid_s[-1]) + reach
+    if not earliest <= latest or (earliest <= window_s and latest >= -window_s):
+        return ""
+    # As far beyond the nearest start reached as the window asked for reached: a window
+    # that ends at the first start reached would take it at its edge.
+    nearest = earliest if earliest > window_s else latest
+    wider = math.ceil((abs(nearest) + window_s) * 10.0 - 1e-9) / 10.0
+    return (
+        f"; the telemetry reaches only starts {earliest:+.6g} s to {latest:+.6g} s from the "
+        f"stated one, outside the window: check the stated start, or widen the window to "
+        f"±{wider:g} s (estimate_start_within_s, --estimate-start-within)"
+    )

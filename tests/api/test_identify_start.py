@@ -232,3 +232,33 @@ def test_a_csv_in_deg_s_without_its_unit_is_hinted_at(
     assert labelled.status_code == 200, labelled.text
     assert (labelled.json()["status"], labelled.json()["candidate"]) == ("identified", truth)
     assert labelled.json()["unit_hint"] is None
+
+
+def test_a_start_search_that_misses_the_start_says_so(
+    api: Api, classifier_id: str, quiet_around: dict[str, list[Any]]
+) -> None:
+    """The start stated 1.5 s before the thrusters fired, searched within ±1 s: the answer
+    says its start lies at the window's edge with a better one beyond, and how wide to
+    search, in its JSON and its CSV notes (nothing said so before); the status stays."""
+    body = {
+        "classifier_id": classifier_id,
+        "telemetry": {**quiet_around, "sequence_start": -1.5},
+        "estimate_start_within_s": 1.0,
+    }
+    response = api.post("/identify", json=body)
+    assert response.status_code == 200, response.text
+    verdict = response.json()
+    assert verdict["sequence_start_shift_s"] == pytest.approx(1.0)
+    assert verdict["start_window_better_shift_s"] > 1.0
+    assert "lies at the edge of the ±1 s searched" in verdict["start_window_hint"]
+    table = api.post("/identify?format=csv", json=body)
+    assert table.status_code == 200, table.text
+    notes = dict(
+        line[2:].split(": ", 1) for line in table.text.splitlines() if line.startswith("# ")
+    )
+    assert notes["start_window_hint"] == verdict["start_window_hint"]
+    wider = verdict["start_window_hint"].split("window to ±")[1].split(" s")[0]
+    found = api.post("/identify", json={**body, "estimate_start_within_s": float(wider)})
+    assert found.status_code == 200, found.text
+    assert found.json()["start_window_hint"] is None
+    assert found.json()["sequence_start_shift_s"] == pytest.approx(1.5, abs=0.051)

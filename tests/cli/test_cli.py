@@ -1315,3 +1315,31 @@ def test_identify_reads_json_telemetry_in_deg_s(tmp_path: Path, small_classifier
     verdict = json.loads(run_cli([*base, str(in_degrees)]).stdout)
     assert verdict["candidate"] == expected["candidate"] == "payload 3 ejected"
     assert verdict["distances"] == pytest.approx(expected["distances"])
+
+
+def test_a_start_search_that_misses_the_start_says_so_beside_the_json(
+    runner: CliRunner, tmp_path: Path, small_classifier: Path
+) -> None:
+    """The start stated 1.5 s before the thrusters fired, searched within ±1 s: the start
+    taken lies at the window's edge and a start beyond it fits better, said on stderr
+    and in the JSON, with the window that reaches it (nothing said it before); a window
+    that no start fits says how wide a search the telemetry allows."""
+    telemetry = tmp_path / "t.csv"
+    _simulate_telemetry(telemetry, "3", "--pre-start", "10", "--time-offset", "810000000")
+    base = ["identify", "--classifier", str(small_classifier), str(telemetry)]
+    early = run_cli([*base, "--sequence-start", "809999998.5", "--estimate-start-within", "1"])
+    verdict = json.loads(early.stdout)
+    assert verdict["sequence_start_shift_s"] == pytest.approx(1.0)
+    assert verdict["start_window_better_shift_s"] > 1.0
+    assert f"warning: {telemetry}: {verdict['start_window_hint']}" in early.stderr
+    assert "lies at the edge of the ±1 s searched" in early.stderr
+    wider = verdict["start_window_hint"].split("window to ±")[1].split(" s")[0]
+    found = run_cli([*base, "--sequence-start", "809999998.5", "--estimate-start-within", wider])
+    assert json.loads(found.stdout)["start_window_hint"] is None
+    assert json.loads(found.stdout)["sequence_start_shift_s"] == pytest.approx(1.5, abs=0.051)
+    # No start within ±1 s of a start stated 20 s early: the refusal names the window to ask.
+    lost = runner.invoke(
+        main, [*base, "--sequence-start", "809999980", "--estimate-start-within", "1"]
+    )
+    assert lost.exit_code == 1
+    assert "outside the window: check the stated start, or widen the window to ±" in lost.output

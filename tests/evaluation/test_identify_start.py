@@ -65,6 +65,49 @@ def test_a_start_off_by_samples_is_hinted_at_and_found_when_asked(
         identify(marginal, late, estimate_start_within_s=-1)
 
 
+def test_a_start_window_that_misses_the_start_says_so_and_how_wide_to_search(
+    marginal: MarginalLikelihoodClassifier, ten_hz_flight: dict[str, list]
+) -> None:
+    truth = marginal.candidate_names_[2]
+    # Stated 1.5 s before the true start, searched within ±1 s: the search takes the
+    # window's edge, the nearest it may, and judged a genuine pass "matches none" with
+    # no word of the window. Now the verdict says that its start lies at the edge and a
+    # start beyond fits better, and how wide a search reaches it; the status stays.
+    early = {**ten_hz_flight, "sequence_start": -1.5}
+    verdict = identify(marginal, early, estimate_start_within_s=1.0)
+    assert verdict.sequence_start_shift_s == pytest.approx(1.0)
+    assert verdict.status == "matches-none"
+    assert verdict.start_window_better_shift_s is not None
+    assert verdict.start_window_better_shift_s > 1.0
+    hint = verdict.start_window_hint
+    assert hint is not None and "lies at the edge of the ±1 s searched" in hint
+    assert verdict.verdict.endswith(f". Hint: {hint}")
+    wider = float(hint.split("window to ±")[1].split(" s")[0])
+    assert 2.0 <= wider <= 2.2
+    found = identify(marginal, early, estimate_start_within_s=wider)
+    assert (found.status, found.candidate) == ("identified", truth)
+    assert found.sequence_start_shift_s == pytest.approx(1.5, abs=0.05)
+    assert found.start_window_hint is None and found.start_window_better_shift_s is None
+    # The start inside the window: no hint (the search of the test above).
+    inside = identify(marginal, {**ten_hz_flight, "sequence_start": 0.4}, estimate_start_within_s=1)
+    assert inside.status == "identified" and inside.start_window_hint is None
+    # No sample before the true start, stated 3 s before it: no start within ±1 s fits,
+    # and the refusal, which named the gap at the stated start alone, names the starts
+    # the telemetry reaches and a window that finds the start.
+    later = [i for i, t in enumerate(ten_hz_flight["time_s"]) if t >= 0.0]
+    after = {
+        "time_s": [ten_hz_flight["time_s"][i] for i in later],
+        "omega_rad_s": [ten_hz_flight["omega_rad_s"][i] for i in later],
+        "sequence_start": -3.0,
+    }
+    with pytest.raises(InputError, match=r"no start within ±1 s fits the telemetry") as refused:
+        identify(marginal, after, estimate_start_within_s=1.0)
+    assert "the telemetry reaches only starts +2.9 s to " in str(refused.value)
+    assert "widen the window to ±3.9 s (estimate_start_within_s" in str(refused.value)
+    found = identify(marginal, after, estimate_start_within_s=3.9)
+    assert (found.status, found.candidate) == ("identified", truth)
+
+
 def test_matches_none_names_the_test_that_decided(
     marginal: MarginalLikelihoodClassifier, drifting_paper: Scenario
 ) -> None:
