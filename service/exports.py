@@ -252,6 +252,8 @@ def _search_summary(result: Mapping[str, Any]) -> Table:
             *_best_rate_rows(result.get("method"), best),
             # The JSON's fuel_nms: commanded angular impulse, not propellant (a mass).
             ("impulse_nms", best.get("fuel_nms")),
+            *_constraint_rows(result),
+            *_taken_off_rows(result),
             *_confirmation_rows(result),
             ("fresh_f1_mean", fresh.get("f1_mean")),
             ("fresh_f1_min", fresh.get("f1_min")),
@@ -265,6 +267,35 @@ def _search_summary(result: Mapping[str, Any]) -> Table:
         ]
     )
     return Table(["quantity", "value"], [list(p) for p in pairs])
+
+
+def _constraint_rows(result: Mapping[str, Any]) -> list[tuple[str, Any]]:
+    """Whether the best met the search's constraints on its draw: a search other than
+    NSGA-II keeps its best when no sequence it tried met them (the least violating), and
+    the summary said nothing of it while the front, judged on fresh draws, could say
+    "within the constraints". None without constraints."""
+    if not (result.get("settings") or {}).get("constraints"):
+        return []
+    violation = (result.get("best") or {}).get("constraint_violation")
+    if violation is None:
+        return []
+    return [
+        ("best_meets_constraints_search_draw", violation <= 0),
+        ("best_constraint_violation_search_draw", violation),
+    ]
+
+
+def _taken_off_rows(result: Mapping[str, Any]) -> list[tuple[str, Any]]:
+    """The sequence the search found and the impulse taken off it, where its cancelling
+    firings were taken off after the search."""
+    taken = result.get("firings_taken_off")
+    if not isinstance(taken, Mapping):
+        return []
+    return [
+        ("sequence_found", taken.get("sequence_found")),
+        ("impulse_found_nms", taken.get("impulse_found_nms")),
+        ("impulse_saved_nms", taken.get("impulse_saved_nms")),
+    ]
 
 
 def _best_rate_rows(method: Any, best: Mapping[str, Any]) -> list[tuple[str, Any]]:

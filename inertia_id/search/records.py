@@ -444,6 +444,12 @@ class SearchResult:
             )
         else:
             fresh = f"not re-scored on fresh draws ({self.stopped}) | {settled}"
+        broken = (
+            " | breaks the constraints on the search's draw (summed relative violation "
+            f"{b.constraint_violation:.3g}): no sequence tried met them, this one least"
+            if self.settings.get("constraints") and b.constraint_violation > 0
+            else ""
+        )
         taken = self.firings_taken_off
         reduced = (
             f" | firings that cancelled taken off step{'s' if len(taken['steps']) > 1 else ''} "
@@ -458,5 +464,5 @@ class SearchResult:
         return (
             f"{self.method}: best sequence {b.sequence} | {seen}{fresh}"
             f"impulse {b.fuel_nms:.2f} N m s | {self.timesteps} env steps, {self.episodes} "
-            f"episodes, {self.wall_time_s:.1f} s, stopped: {self.stopped}{reduced}"
+            f"episodes, {self.wall_time_s:.1f} s, stopped: {self.stopped}{broken}{reduced}"
         )

@@ -5010,6 +5010,10 @@ def test_a_member_that_breaks_a_constraint_is_drawn_open_whatever_the_method(
     page = dashboard.page
     dashboard.open(f"#/jobs/{job['id']}")
     page.wait_for_selector("#front-plan-table", timeout=60_000)
+    # The best card says it too, on the search's own draw (it said nothing).
+    violation = job["result"]["best"]["constraint_violation"]
+    assert violation > 0
+    assert page.inner_text("#best-constraints").startswith("broken (summed relative violation ")
     page.wait_for_function(CHARTS_FITTED_JS)
     drawn = _front_chart(page)["traces"][0]
     assert drawn["index"] == [member["index"]]

@@ -475,6 +475,11 @@ def test_a_best_found_with_cancelling_firings_has_them_taken_off(method: str) ->
     assert taken["steps"] == [k + 1 for k in range(3) if not np.array_equal(found[k], best[k])]
     assert "firings that cancelled taken off" in result.summary()
     assert json.loads(result.to_json())["firings_taken_off"]["sequence_found"] == found.tolist()
+    from service.exports import result_table
+
+    summary = dict(result_table("search", json.loads(result.to_json()), "summary").rows)
+    assert summary["sequence_found"] == found.tolist()
+    assert summary["impulse_saved_nms"] == taken["impulse_saved_nms"]
 
 
 def test_a_search_whose_best_fires_nothing_says_so() -> None:
@@ -499,3 +504,36 @@ def test_a_search_whose_best_fires_nothing_says_so() -> None:
         )
     assert "(separability 0.000) in all 81 sequences of the space" in str(refused.value)
     assert "a smaller separability_margin" in str(refused.value)
+
+
+def test_a_best_that_breaks_the_constraints_on_the_search_draw_says_so(tiny: Scenario) -> None:
+    """A search other than NSGA-II keeps its best when no sequence it tried met the
+    constraints (the least violating); its summary and the result's CSV summary said
+    nothing of it (a hostile review: CEM, 4,000 steps, every curve point infeasible)."""
+    from service.exports import result_table
+
+    result = random_search(
+        tiny,
+        sequence_length=2,
+        total_timesteps=8,
+        seed=0,
+        settings=SETTINGS,
+        n_fresh_draws=1,
+        constraints={"max_final_rate_rad_s": 1e-6},
+    )
+    violation = result.best.constraint_violation
+    assert violation > 0
+    assert (
+        f"breaks the constraints on the search's draw (summed relative violation {violation:.3g})"
+        in (result.summary())
+    )
+    summary = dict(result_table("search", json.loads(result.to_json()), "summary").rows)
+    assert summary["best_meets_constraints_search_draw"] is False
+    assert summary["best_constraint_violation_search_draw"] == violation
+    # Without constraints there is nothing to meet: no row, no sentence.
+    free = random_search(
+        tiny, sequence_length=2, total_timesteps=8, seed=0, settings=SETTINGS, n_fresh_draws=1
+    )
+    free_summary = dict(result_table("search", json.loads(free.to_json()), "summary").rows)
+    assert "best_meets_constraints_search_draw" not in free_summary
+    assert "breaks the constraints" not in free.summary()

@@ -338,6 +338,23 @@ function curvePhases(node, job, start) {
   node.hidden = false;
 }
 
+// A search other than NSGA-II keeps its best when nothing it tried met the constraints
+// (the least violating): the card said nothing of it, while the front, judged on fresh
+// draws, could call the same sequence within them.
+function constraintsMet(result, best) {
+  const constraints = (result.settings || {}).constraints || {};
+  if (!Object.keys(constraints).length || typeof best.constraint_violation !== "number") return [];
+  const met = best.constraint_violation <= 0;
+  return [
+    h("dt", {}, "constraints, on the search's draw"),
+    h(
+      "dd",
+      { id: "best-constraints" },
+      met ? "met" : `broken (summed relative violation ${quantity(best.constraint_violation)}): no sequence the search tried met them; this one breaks them least`,
+    ),
+  ];
+}
+
 // The best sequence as found, beside the one shown: the same torque at every step.
 function firingsTakenOff(taken) {
   if (!taken) return [];
@@ -392,6 +409,7 @@ async function searchResult(holder, job, context, scenario) {
         h("dd", { id: "best-final-rate" }, `${rateDeg(best.final_rate_rad_s * RAD_TO_DEG)} deg/s (${rateRad(best.final_rate_rad_s)} rad/s)`),
         h("dt", {}, "fuel (commanded impulse)"),
         h("dd", {}, `${quantity(best.fuel_nms)} N m s`),
+        ...constraintsMet(result, best),
         h("dt", {}, "environment steps, episodes"),
         h("dd", {}, `${fmt(result.timesteps)}, ${fmt(result.episodes)}`),
         h("dt", {}, "wall time, stopped by"),
