@@ -8,6 +8,7 @@ from fastapi import APIRouter, HTTPException, Query, Response, status
 from sqlalchemy import func, or_, select
 from sqlalchemy.orm import Session
 
+from service.exports import iso_utc
 from service.store.models import ClassifierRow, JobRow
 
 from ..schemas import ClassifierOut, ClassifierPage
@@ -136,16 +137,33 @@ def get_classifier(classifier_id: str, session: SessionDep) -> ClassifierOut:
     responses={
         200: {
             "content": {"application/json": {"schema": {"type": "object"}}},
-            "description": "the classifier document (inertia-id/classifier, with its sha256)",
+            "description": "the classifier document (inertia-id/classifier, with its sha256) "
+            "and its provenance (classifier_id, job_id, scenario_id, created_at in UTC), "
+            "outside the checksummed payload",
         },
         **_NOT_FOUND,
     },
 )
 def download_classifier(classifier_id: str, session: SessionDep) -> Response:
-    """The stored checksummed JSON document, as written by the classifier's ``to_json``."""
+    """The stored checksummed JSON document, as written by the classifier's ``to_json``,
+    with its ``provenance`` beside the payload: the classifier's id, its training job's id,
+    its scenario's id and when it was stored (UTC, ending in Z). The file a team keeps
+    said nothing of where it came from. The provenance lies outside the checksummed
+    payload, so the ``sha256`` (and the ETag) is the stored classifier's and
+    ``inertia-id identify --classifier`` loads the file as before; the checksum does not
+    cover it."""
+    from inertia_id.classifiers.documents import with_provenance
+
     row = get_or_404(session, ClassifierRow, classifier_id, "classifier")
+    provenance = {
+        "classifier_id": row.id,
+        "job_id": row.job_id,
+        "scenario_id": row.scenario_id,
+        "created_at": iso_utc(row.created_at),
+    }
+    # Bytes made in pieces (a memoryview: the response sends it as it is, not a copy).
     return Response(
-        content=row.document,
+        content=memoryview(with_provenance(row.document, provenance)),
         media_type="application/json",
         headers={
             "Content-Disposition": f'attachment; filename="classifier-{row.id}.json"',

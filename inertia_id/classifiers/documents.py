@@ -4,6 +4,12 @@ Every classifier kind stores itself as ``{"format", "version", "sha256", "classi
 where ``sha256`` hashes the canonical JSON of the ``classifier`` payload. Models are data
 (arrays as lists), never pickles, so a document from anywhere can be loaded safely; the
 checksum catches a document edited or truncated in transit.
+
+A document the service hands out (``GET /classifiers/{id}/download``) also carries
+``provenance`` (:func:`with_provenance`): the classifier's id, its training job's id, its
+scenario's id and when it was stored. It lies outside the checksummed payload, so the
+``sha256`` is the stored classifier's and every reader loads the document as before;
+the checksum does not guard it.
 """
 
 from __future__ import annotations
@@ -11,6 +17,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import re
 from collections.abc import Callable
 from typing import Any, BinaryIO
 
@@ -19,11 +26,14 @@ from ..errors import InputError
 
 __all__ = [
     "MAX_CLASSIFIER_BYTES",
+    "PROVENANCE_KEYS",
     "VERSION",
     "checksum",
     "parse",
+    "provenance_of",
     "read",
     "read_file",
+    "with_provenance",
     "write",
     "writer",
 ]
@@ -55,7 +65,7 @@ def checksum(payload: dict[str, Any]) -> str:
     return hashlib.sha256(_canonical(payload).encode()).hexdigest()
 
 
-def _canonical(payload: dict[str, Any]) -> str:
+def _canonical(payload: Any) -> str:
     return json.dumps(payload, sort_keys=True, separators=(",", ":"))
 
 
@@ -65,12 +75,74 @@ def _canonical(payload: dict[str, Any]) -> str:
 _HEAD = '{"classifier":'
 
 
-def _tail(format_name: Any, sha256: Any, version: Any) -> str:
-    """What follows the payload in a document :func:`write` lays out."""
+def _tail(format_name: Any, sha256: Any, version: Any, provenance: Any = None) -> str:
+    """What follows the payload in a document :func:`write` lays out (with its
+    ``provenance`` in its sorted place, when it has one: :func:`with_provenance`)."""
+    origin = "" if provenance is None else f',"provenance":{_canonical(provenance)}'
     return (
-        f',"format":{json.dumps(format_name)},"sha256":{json.dumps(sha256)},'
+        f',"format":{json.dumps(format_name)}{origin},"sha256":{json.dumps(sha256)},'
         f'"version":{json.dumps(version)}}}'
     )
+
+
+#: What a document's ``provenance`` states (:func:`with_provenance`): the stored
+#: classifier's id, the id of the job that trained it (null for one stored without a
+#: job), its scenario's id, and when it was stored (ISO-8601 UTC, ending in Z).
+PROVENANCE_KEYS = ("classifier_id", "job_id", "scenario_id", "created_at")
+
+#: The tail :func:`write` lays out, at the end of a stored document: its format, checksum
+#: and version, read without parsing the payload before it.
+_PLAIN_TAIL = re.compile(
+    r',"format":("(?:[^"\\]|\\.)*"),"sha256":("[0-9a-f]*"),"version":(\d+)\}[ \t\n\r]*\Z'
+)
+
+
+def with_provenance(document: str, provenance: dict[str, Any]) -> bytearray:
+    """``document`` with ``provenance`` beside its payload, outside the checksum, as UTF-8
+    bytes: the payload's text and its ``sha256`` are unchanged, so the document loads and
+    verifies as before. A document laid out as :func:`write` lays it out stays so (the
+    provenance goes into its tail, in its sorted place; the payload's text is encoded in
+    pieces, never copied whole beside the bytes), and its payload is still verified by
+    hashing the text as read; any other is parsed and laid out so, a provenance it held
+    replaced."""
+    tail = _PLAIN_TAIL.search(document, max(0, len(document) - 400))
+    if not document.startswith(_HEAD) or tail is None:
+        doc = parse(document)
+        head = _HEAD + _canonical(doc.get("classifier"))
+        tail_text = _tail(doc.get("format"), doc.get("sha256"), doc.get("version"), provenance)
+        return bytearray((head + tail_text).encode())
+    format_name, sha256, version = (json.loads(g) for g in tail.groups())
+    out = bytearray()
+    for at in range(0, tail.start(), _PIECE):
+        out += document[at : min(at + _PIECE, tail.start())].encode()
+    out += _tail(format_name, sha256, version, provenance).encode()
+    return out
+
+
+def provenance_of(doc: dict[str, Any]) -> dict[str, str | None] | None:
+    """The document's ``provenance`` (:data:`PROVENANCE_KEYS`, each a string or null),
+    None when it states none; one that is not an object of those is refused by name.
+    The checksum does not cover it: it says where the file came from, as handed out."""
+    provenance = doc.get("provenance")
+    if provenance is None:
+        return None
+    if not isinstance(provenance, dict):
+        raise InputError(
+            f"classifier document's provenance must be a JSON object, got "
+            f"{type(provenance).__name__}: {_clip(provenance)}"
+        )
+    for key, value in provenance.items():
+        if value is not None and not isinstance(value, str):
+            raise InputError(
+                f"classifier document's provenance.{key[:60]} must be a string or null, "
+                f"got {_clip(value)}"
+            )
+    return {key: provenance.get(key) for key in PROVENANCE_KEYS}
+
+
+def _clip(value: Any, limit: int = 60) -> str:
+    text = json.dumps(value) if not isinstance(value, str) else repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def write(format_name: str, payload: dict[str, Any]) -> str:
@@ -216,7 +288,7 @@ def _verified_as_read(source: str | bytes, doc: dict[str, Any]) -> bool:
         start += 1
     while end > start and text[end - 1] in _BLANKS:
         end -= 1
-    tail = _tail(doc.get("format"), stated, doc.get("version"))
+    tail = _tail(doc.get("format"), stated, doc.get("version"), doc.get("provenance"))
     if not text.startswith(_HEAD, start) or not text.endswith(tail, start, end):
         return False
     digest = hashlib.sha256()

@@ -54,6 +54,7 @@ __all__ = [
     "kind_class",
     "kind_metrics",
     "load_classifier",
+    "load_classifier_identified",
     "make_classifier",
     "parse_spec",
     "resolve_kind",
@@ -302,21 +303,40 @@ def load_classifier(path: str | os.PathLike[str]) -> CandidateClassifier:
     """Read any classifier document from a file (see :func:`classifier_from_json`); one
     of more than :data:`~inertia_id.classifiers.documents.MAX_CLASSIFIER_BYTES` is
     refused by its size, unread."""
-    fmt, payload = _read_verified(path)
+    return load_classifier_identified(path)[0]
+
+
+def load_classifier_identified(
+    path: str | os.PathLike[str],
+) -> tuple[CandidateClassifier, dict[str, Any]]:
+    """:func:`load_classifier`, with what identifies the file: ``file`` (the path as
+    given), ``sha256`` (the checksum the document states over its payload, verified: the
+    service's classifier ``sha256`` and its download's ETag, not a hash of the file's
+    bytes) and ``provenance`` (:func:`~inertia_id.classifiers.documents.provenance_of`:
+    the service's classifier id, training job id, scenario id and when it was stored;
+    None for a file that states none, such as ``inertia-id train`` writes)."""
+    fmt, payload, identity = _read_verified(path)
     model = document_class(fmt, payload)._from_dict_unformed(payload)
     del payload  # let go before the model factors its covariances
     model._form_loaded()
-    return model
+    return model, {"file": os.fspath(path), **identity}
 
 
-def _read_verified(path: str | os.PathLike[str]) -> tuple[str, dict[str, Any]]:
-    """The format and verified payload of the document at ``path``; its text is let go
-    on return, before the classifier is built (it was held while the classifier factored
-    its covariances)."""
+def _read_verified(
+    path: str | os.PathLike[str],
+) -> tuple[str, dict[str, Any], dict[str, Any]]:
+    """The format and verified payload of the document at ``path``, and its stated
+    ``sha256`` and ``provenance``; its text is let go on return, before the classifier is
+    built (it was held while the classifier factored its covariances)."""
     text = documents.read_file(path)
     document = documents.parse(text, unique_keys=True)
     fmt = _format_of(document)
-    return fmt, documents.read(document, fmt, source=text)
+    payload = documents.read(document, fmt, source=text)
+    identity = {
+        "sha256": document.get("sha256"),
+        "provenance": documents.provenance_of(document),
+    }
+    return fmt, payload, identity
 
 
 def warm_up() -> None:

@@ -4,6 +4,10 @@ from __future__ import annotations
 
 import hashlib
 import json
+from datetime import datetime, timedelta
+from pathlib import Path
+
+from service_support import classifier_row
 
 from inertia_id import InertiaClassifier, Scenario
 
@@ -47,14 +51,94 @@ def test_download_is_the_stored_checksummed_document(
     assert response.status_code == 200
     assert response.headers["content-type"].startswith("application/json")
     assert f"classifier-{classifier_id}.json" in response.headers["content-disposition"]
-    assert response.text == classifier.to_json()
     document = json.loads(response.text)
+    # The stored document, with its provenance beside the payload (next test).
+    assert {k: v for k, v in document.items() if k != "provenance"} == json.loads(
+        classifier.to_json()
+    )
     assert document["format"] == "inertia-id/classifier"
     canonical = json.dumps(document["classifier"], sort_keys=True, separators=(",", ":"))
     assert hashlib.sha256(canonical.encode()).hexdigest() == document["sha256"]
     assert response.headers["etag"] == f'"{document["sha256"]}"'
     loaded = InertiaClassifier.from_json(response.content)
     assert loaded.candidate_names_ == classifier.candidate_names_
+
+
+def test_download_states_where_it_came_from_outside_the_checksum(
+    api: Api, classifier: InertiaClassifier, tmp_path: Path
+) -> None:
+    """A downloaded classifier file said nothing of where it came from (a hostile review:
+    a flight team keeps that file): it states the classifier's id, its training job's,
+    its scenario's and when it was stored (UTC, with its zone), beside the checksummed
+    payload, so that the checksum, the ETag and ``identify --classifier`` hold as before,
+    and the payload is still verified by hashing its text as read."""
+    from inertia_id.classifiers import documents
+    from inertia_id.classifiers.registry import load_classifier_identified
+    from service.store.models import JobRow
+
+    scenario_id = api.create_scenario()["id"]
+    with api.db.session() as session:
+        job = JobRow(
+            type="train", status="succeeded", scenario_id=scenario_id, config_hash="0" * 64
+        )
+        session.add(job)
+        session.flush()
+        job_id = job.id
+    row = classifier_row(scenario_id, classifier)
+    row.job_id = job_id
+    with api.db.session() as session:
+        session.add(row)
+        session.flush()
+        classifier_id = row.id
+    stored = api.get(f"/classifiers/{classifier_id}").json()
+
+    response = api.get(f"/classifiers/{classifier_id}/download")
+    assert response.status_code == 200
+    document = json.loads(response.text)
+    assert document["provenance"] == {
+        "classifier_id": classifier_id,
+        "job_id": job_id,
+        "scenario_id": scenario_id,
+        "created_at": stored["created_at"],
+    }
+    assert document["provenance"]["created_at"].endswith("Z")
+    assert datetime.fromisoformat(document["provenance"]["created_at"]).utcoffset() == timedelta(0)
+    # The payload and its checksum are the stored classifier's.
+    assert document["sha256"] == stored["sha256"] == json.loads(classifier.to_json())["sha256"]
+    assert response.headers["etag"] == f'"{stored["sha256"]}"'
+    # Laid out as the writer lays out a document: verified by its text as read.
+    assert response.text == json.dumps(document, sort_keys=True, separators=(",", ":"))
+    assert documents._verified_as_read(response.content, document)
+    path = tmp_path / "kept.json"
+    path.write_bytes(response.content)
+    loaded, identity = load_classifier_identified(path)
+    assert loaded.candidate_names_ == classifier.candidate_names_
+    assert identity == {
+        "file": str(path),
+        "sha256": stored["sha256"],
+        "provenance": document["provenance"],
+    }
+    assert InertiaClassifier.from_json(response.content).f1_ == classifier.f1_
+
+
+def test_download_of_a_document_stored_in_another_layout_states_its_provenance(
+    api: Api, classifier: InertiaClassifier
+) -> None:
+    """A document stored indented (as documents were written before the canonical
+    layout) gets its provenance too, and still verifies."""
+    scenario_id = api.create_scenario()["id"]
+    row = classifier_row(scenario_id, classifier)
+    row.document = json.dumps(json.loads(row.document), indent=1)
+    with api.db.session() as session:
+        session.add(row)
+        session.flush()
+        classifier_id = row.id
+    response = api.get(f"/classifiers/{classifier_id}/download")
+    assert response.status_code == 200
+    document = json.loads(response.text)
+    assert document["provenance"]["classifier_id"] == classifier_id
+    assert document["provenance"]["job_id"] is None
+    assert InertiaClassifier.from_json(response.content).f1_ == classifier.f1_
 
 
 def test_unknown_classifier_is_404(api: Api) -> None:
