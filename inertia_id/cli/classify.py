@@ -394,13 +394,18 @@ def identify_cmd(
     The answer also holds the inertia tensor that integral-form least squares estimates
     from the same telemetry, and which parameters the sequence hardly excites.
 
+    Every verdict names its classifier: ``classifier_id`` (the service's id, from the
+    file's provenance; null for a file without one, such as ``train`` writes) and
+    ``classifier`` (the file as given, the sha256 its document states over its payload,
+    and its provenance).
+
     One file: its verdict as indented JSON, and a bad file is an error. Several files or a
     folder: one JSON line per file, {"path": ..., verdict...} or {"path": ..., "error":
     ...}; every file is tried, and the exit code is 1 if any failed.
     """
     from pydantic import ValidationError
 
-    from ..classifiers.registry import load_classifier
+    from ..classifiers.registry import load_classifier_identified
     from ..errors import InputError
     from ..evaluation.telemetry import parse_sequence_start
 
@@ -414,13 +419,17 @@ def identify_cmd(
             raise InputError(f"{option} {seconds:g}: give a finite number of seconds >= 0")
     paths = _telemetry_files((*telemetry_paths, *inputs))
     start = parse_sequence_start(sequence_start, "--sequence-start")
-    classifier = load_classifier(classifier_path)
+    classifier, identity = load_classifier_identified(classifier_path)
+    # Which classifier judged, as the API's verdict names it (classifier_id): a verdict
+    # kept from the CLI said nothing of the classifier (hostile review).
+    provenance = identity["provenance"] or {}
+    named = {"classifier_id": provenance.get("classifier_id"), "classifier": identity}
     options: dict[str, Any] = {}
     if pre_start_window_s is not None:
         options["pre_start_window_s"] = pre_start_window_s
     if len(paths) == 1 and not any(os.path.isdir(p) for p in (*telemetry_paths, *inputs)):
         verdict = _identify_file(classifier, paths[0], start, start_window_s, options, averaged)
-        write_json(None, verdict)
+        write_json(None, {**named, **verdict})
         _warn_untested([verdict])
         return
     failed = 0
@@ -429,7 +438,7 @@ def identify_cmd(
         try:
             verdict = _identify_file(classifier, path, start, start_window_s, options, averaged)
             judged.append(verdict)
-            line = {"path": path, **verdict}
+            line = {"path": path, **named, **verdict}
         except (InputError, ValidationError, OSError, UnicodeDecodeError) as exc:
             failed += 1
             line = {"path": path, "error": one_line(exc)}

@@ -1343,3 +1343,65 @@ def test_a_start_search_that_misses_the_start_says_so_beside_the_json(
     )
     assert lost.exit_code == 1
     assert "outside the window: check the stated start, or widen the window to ±" in lost.output
+
+
+def test_identify_names_its_classifier_in_the_verdict(
+    runner: CliRunner, tmp_path: Path, small_classifier: Path
+) -> None:
+    """The CLI's verdict named no classifier (the API's names its classifier_id; a hostile
+    review): it names the file, the sha256 its document states and, for a file the
+    service handed out, its provenance and classifier_id; in a batch, on every line. A
+    provenance that is not an object of strings is refused by name."""
+    from inertia_id.classifiers import documents
+
+    telemetry = tmp_path / "t.csv"
+    _simulate_telemetry(telemetry, "4")
+    text = small_classifier.read_text()
+    sha256 = json.loads(text)["sha256"]
+    verdict = json.loads(
+        run_cli(["identify", "--classifier", str(small_classifier), str(telemetry)]).stdout
+    )
+    assert verdict["classifier_id"] is None
+    assert verdict["classifier"] == {
+        "file": str(small_classifier),
+        "sha256": sha256,
+        "provenance": None,
+    }
+    assert verdict["candidate"] == "payload 3 ejected"
+
+    provenance = {
+        "classifier_id": "0123456789abcdef0123456789abcdef",
+        "job_id": "fedcba9876543210fedcba9876543210",
+        "scenario_id": "00112233445566778899aabbccddeeff",
+        "created_at": "2026-12-07T17:52:39.123456Z",
+    }
+    downloaded = tmp_path / "classifier-0123.json"
+    downloaded.write_bytes(bytes(documents.with_provenance(text, provenance)))
+    folder = tmp_path / "downlink"
+    folder.mkdir()
+    (folder / "a.csv").write_text(telemetry.read_text())
+    (folder / "b.csv").write_text(telemetry.read_text())
+    lines = [
+        json.loads(line)
+        for line in run_cli(
+            ["identify", "--classifier", str(downloaded), str(folder)]
+        ).stdout.splitlines()
+    ]
+    assert len(lines) == 2
+    for line in lines:
+        assert line["classifier_id"] == provenance["classifier_id"]
+        assert line["classifier"] == {
+            "file": str(downloaded),
+            "sha256": sha256,
+            "provenance": provenance,
+        }
+        assert line["candidate"] == "payload 3 ejected"
+
+    edited = json.loads(text)
+    edited["provenance"] = ["not", "an", "object"]
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(edited))
+    refused = runner.invoke(main, ["identify", "--classifier", str(bad), str(telemetry)])
+    assert refused.exit_code == 1
+    assert "provenance must be a JSON object, got list" in refused.output
+    assert "Traceback" not in refused.output
