@@ -214,7 +214,11 @@ class CandidateResponse(BaseModel):
     mean_rad_s: list[list[float]] = Field(description="mean measured rate per sample, (T, 3)")
     low_rad_s: list[list[float]] = Field(description="10th percentile over realisations, (T, 3)")
     high_rad_s: list[list[float]] = Field(description="90th percentile over realisations, (T, 3)")
-    final_rate_rad_s: float = Field(description="mean |omega| at the end, true rate")
+    final_rate_rad_s: float = Field(
+        description="mean true |omega| over the realisations at the last sample, when the "
+        "last command ends, rad/s: before the torque still in the actuation lag is "
+        "delivered, not the residual rate once the lag is empty"
+    )
 
 
 class ScenarioResponse(BaseModel):

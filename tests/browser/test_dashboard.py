@@ -3816,6 +3816,52 @@ def test_a_plans_end_rate_and_flights_and_a_classifiers_final_rate_show_rad_s_be
     _shows(radians, mean)
 
 
+def test_a_classifiers_rate_is_labelled_as_the_rate_at_the_last_commands_end(
+    dashboard: Dashboard,
+) -> None:
+    """The classifier page said "mean final rate", which names neither of the two rates
+    the project reports (a hostile review). Its figure is the response's
+    final_rate_rad_s: the true |ω| at the last sample, when the last command ends (the
+    simulation's final_rate_rad_s), before the actuation lag has delivered its torque;
+    here 10.9 deg/s where the settled residual is 11.2. The page labels it so."""
+    from inertia_id import Scenario
+    from inertia_id.physics.simulate import simulate
+
+    page = dashboard.page
+    client = dashboard.service.client
+    classifier = _classifier(dashboard)
+    details = client.get(f"/classifiers/{classifier}").json()
+    scenario = Scenario.model_validate(
+        client.get(f"/scenarios/{details['scenario_id']}").json()["document"]
+    )
+    response = client.get(
+        f"/scenarios/{details['scenario_id']}/response",
+        params={"sequence": json.dumps(details["sequence"]), "n_realisations": 20},
+    ).json()
+    flown = simulate(
+        scenario, np.asarray(details["sequence"]), 20, np.random.default_rng(response["seed"])
+    )
+    shown = [c["final_rate_rad_s"] for c in response["candidates"]]
+    assert shown == pytest.approx(flown.final_rate_rad_s.mean(axis=1).tolist(), rel=1e-9)
+    settled = float(flown.settled_rate_rad_s(scenario).mean())
+    assert abs(settled - float(np.mean(shown))) > 0.02 * settled
+
+    dashboard.open(f"#/classifiers/{classifier}")
+    page.wait_for_function(
+        "() => document.getElementById('classifier-final-rate')?.textContent.includes('rad/s')"
+    )
+    label = page.evaluate(
+        "() => document.getElementById('classifier-final-rate').closest('dd')"
+        ".previousElementSibling.textContent"
+    )
+    assert label == "mean |ω| at the last command's end"
+    note = page.inner_text("#classifier-final-rate-note")
+    assert "before the actuation lag empties (not the settled residual)" in note
+    assert "mean over the candidates' 20 realisations" in note
+    degrees, _ = _mean_rate_text(page.inner_text("#classifier-final-rate"))
+    _shows(degrees, float(np.degrees(np.mean(shown))))
+
+
 def _inertia_in_mm2(dashboard: Dashboard) -> str:
     """The paper preset with every inertia typed in kg mm² as kg m² (1e6 too large): its
     rates peak far below the gyro noise, which the service warns of, not refuses."""

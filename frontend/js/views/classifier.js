@@ -56,7 +56,13 @@ export async function renderClassifier(container, classifier, context, sweepId =
   ];
   const fuel = h("span", { id: "classifier-fuel" }, "…");
   const finalRate = h("span", { id: "classifier-final-rate" }, "…");
-  rows.push(["fuel (commanded impulse)", fuel], ["mean final rate", finalRate]);
+  // The response's final_rate_rad_s: the true |ω| at the last sample, when the last
+  // command ends, before the torque still in the actuation lag is delivered (the
+  // simulation's final_rate_rad_s), not the residual once the lag is empty that a
+  // front's "residual rate" gives; its mean over each candidate's 20 realisations, then
+  // over the candidates. It read "mean final rate", which said neither.
+  const rateNote = h("span", { class: "hint", id: "classifier-final-rate-note" }, " true rate, mean over the candidates' 20 realisations each, before the actuation lag empties (not the settled residual)");
+  rows.push(["fuel (commanded impulse)", fuel], ["mean |ω| at the last command's end", [finalRate, rateNote]]);
   for (const [name, value] of rows) summary.append(h("dt", {}, name), h("dd", {}, value));
   confusionPlot(confusion, classifier.confusion, classifier.candidate_names, "training series");
   if (context.alive && !context.alive()) return;
@@ -64,7 +70,7 @@ export async function renderClassifier(container, classifier, context, sweepId =
   await calibrationOf(calibrationCard, classifier, context);
   await sweepsOf(sweepCard, classifier, context, sweepId);
 
-  // The fuel, the final rate and both plots come from the simulated response, which
+  // The fuel, the rate at the last command's end and both plots come from the simulated response, which
   // needs the key: without one they wait for it.
   seqPlot.hidden = true;
   if (!getApiKey()) fuel.textContent = finalRate.textContent = "– (needs the API key: see below)";
@@ -93,7 +99,7 @@ export async function renderClassifier(container, classifier, context, sweepId =
       redrawWhenRekeyed(responseHolder, exc, drawResponse);
     }
   };
-  await whenKeyed(responseHolder, "The sequence's simulated response (its fuel, final rate and plots)", drawResponse);
+  await whenKeyed(responseHolder, "The sequence's simulated response (its fuel, rate at the last command's end and plots)", drawResponse);
 }
 
 // The calibration report measured on fresh draws at training: the ECE and a reliability
