@@ -108,6 +108,35 @@ def test_a_start_window_that_misses_the_start_says_so_and_how_wide_to_search(
     assert (found.status, found.candidate) == ("identified", truth)
 
 
+def test_a_start_stated_late_is_searched_under_the_offset_from_before_the_window(
+    marginal: MarginalLikelihoodClassifier, ten_hz_flight: dict[str, list]
+) -> None:
+    """The offset the start search conditions on is measured before the window's earliest
+    start: with the true start earlier than stated, the samples just before the stated
+    start already hold the thrust's response. Measured there, this pass stated 0.9 s late
+    was put about 0.1 s late, and stated 3 s late and searched within ±3.5 s it was
+    "matches none" from a start 1.1 s late."""
+    truth = marginal.candidate_names_[2]
+    for stated, window in ((0.9, 1.0), (3.0, 3.5)):
+        late = {**ten_hz_flight, "sequence_start": stated}
+        found = identify(marginal, late, estimate_start_within_s=window)
+        assert (found.status, found.candidate) == ("identified", truth), stated
+        assert found.sequence_start_shift_s == pytest.approx(-stated, abs=0.05)
+        assert found.start_window_hint is None
+    # Stated 3 s late and searched within ±1 s: the window's hint leads to the start
+    # (it led to ±2.1 s and stopped there, "matches none" with no further word).
+    late = {**ten_hz_flight, "sequence_start": 3.0}
+    window, searches = 1.0, 0
+    while True:
+        found = identify(marginal, late, estimate_start_within_s=window)
+        if found.start_window_hint is None or searches == 3:
+            break
+        window = float(found.start_window_hint.split("window to ±")[1].split(" s")[0])
+        searches += 1
+    assert (found.status, found.candidate) == ("identified", truth)
+    assert window >= 3.0
+
+
 def test_matches_none_names_the_test_that_decided(
     marginal: MarginalLikelihoodClassifier, drifting_paper: Scenario
 ) -> None:
