@@ -858,12 +858,17 @@ class IdentifyResult(BaseModel):
         default=None,
         description="with a matches-none or not-this-sequence verdict and no start hint: "
         "the candidate the rates identify when read in the other unit (deg/s sent as "
-        "rad/s, or the reverse; the status is unchanged)",
+        "rad/s, or the reverse), or that they read ambiguous among the candidates there "
+        "(the status is unchanged)",
     )
-    unit_hint_candidate: str | None = None
+    unit_hint_candidate: str | None = Field(
+        default=None,
+        description="the candidate the rates identify in the other unit; null where they "
+        "read ambiguous there",
+    )
     unit_hint_rates_unit: str | None = Field(
         default=None,
-        description="the unit the rates match a candidate in: deg/s or rad/s",
+        description="the unit the rates match the candidates in: deg/s or rad/s",
     )
     pre_start_hint: str | None = Field(
         default=None,

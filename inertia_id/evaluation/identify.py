@@ -1384,6 +1384,12 @@ def _with_unit_hint(
     over rad/s values) was otherwise a confident "not a response to this sequence" with
     no hint of the cause, the commonest slip in a flight team's hand-over."""
     rates = np.asarray(telemetry.omega_rad_s, dtype=float)
+    # A reading in the other unit that is ambiguous among the candidates still says the
+    # rates are a response to the sequence there: 10 Hz deg/s sent as rad/s, to a
+    # classifier trained on 20 realisations, was "not-this-sequence" (449 times the
+    # nearest threshold) with no hint, since the right unit itself reads ambiguous
+    # (posterior 0.772). An identified reading is preferred where either unit gives one.
+    fits: tuple[Identification, str] | None = None
     for factor, unit in UNIT_HINTS:
         if np.abs(rates).max(initial=0.0) * factor > MAX_TELEMETRY_RATE_RAD_S:
             continue  # past the largest rate a gyro reads: not this unit
@@ -1392,22 +1398,38 @@ def _with_unit_hint(
             read = _identify(classifier, scaled, confidence, pre_start_window_s)
         except InputError:
             continue  # no verdict in this unit (too little excitation to fit): no hint
-        if read.status != "identified":
-            continue
+        if read.status == "identified":
+            fits = (read, unit)
+            break
+        if read.status == "ambiguous" and fits is None:
+            fits = (read, unit)
+    if fits is None:
+        return verdict
+    read, unit = fits
+    check = (
+        "check the unit, and send omega_rad_s in rad/s, or omega_deg_s in deg/s (a CSV "
+        "header may say wx_deg_s; either is converted)"
+    )
+    if read.status == "identified":
         hint = (
             f"the telemetry matches {read.candidate!r} (posterior {read.confidence:.3g}) if "
-            f"its rates are in {unit}: check the unit, and send omega_rad_s in rad/s, or "
-            "omega_deg_s in deg/s (a CSV header may say wx_deg_s; either is converted)"
+            f"its rates are in {unit}: {check}"
         )
-        return verdict.model_copy(
-            update={
-                "verdict": f"{verdict.verdict}. Hint: {hint}",
-                "unit_hint": hint,
-                "unit_hint_candidate": read.candidate,
-                "unit_hint_rates_unit": unit,
-            }
+    else:
+        hint = (
+            f"the telemetry is a response to this sequence if its rates are in {unit}, "
+            f"ambiguous there ({read.candidate!r} most likely, posterior "
+            f"{read.confidence:.3g}): {check}"
         )
-    return verdict
+    return verdict.model_copy(
+        update={
+            "verdict": f"{verdict.verdict}. Hint: {hint}",
+            "unit_hint": hint,
+            # The candidate the rates match: none where they read ambiguous.
+            "unit_hint_candidate": read.candidate if read.status == "identified" else None,
+            "unit_hint_rates_unit": unit,
+        }
+    )
 
 
 def _with_start_hint(

@@ -390,6 +390,32 @@ def test_rates_in_the_wrong_unit_are_hinted_at(
     assert identify(marginal, still).unit_hint is None
 
 
+def test_rates_in_the_wrong_unit_that_read_ambiguous_there_are_hinted_at(
+    marginal: MarginalLikelihoodClassifier, ten_hz_flight: dict[str, list]
+) -> None:
+    """The hint asked the other unit to identify a candidate: where the right unit itself
+    reads ambiguous (a 10 Hz pass to a classifier trained on 20 realisations, posterior
+    0.772), deg/s sent as rad/s was "not-this-sequence" with no word of the unit. A
+    reading that is ambiguous there now says the rates are a response in that unit."""
+    flight = {**ten_hz_flight, "sequence_start": 0.0}
+    right = identify(marginal, flight)
+    assert right.status == "identified" and right.confidence < 1.0
+    strict = (1.0 + right.confidence) / 2  # above what the right unit reads
+    assert identify(marginal, flight, confidence=strict).status == "ambiguous"
+    rates = np.asarray(ten_hz_flight["omega_rad_s"])
+    wrong = {**flight, "omega_rad_s": (rates * 180.0 / np.pi).tolist()}
+    verdict = identify(marginal, wrong, confidence=strict)
+    assert verdict.matches_none and verdict.start_hint is None
+    assert verdict.unit_hint_rates_unit == "deg/s" and verdict.unit_hint_candidate is None
+    assert (
+        "Hint: the telemetry is a response to this sequence if its rates are in deg/s, "
+        f"ambiguous there ({marginal.candidate_names_[2]!r} most likely"
+    ) in verdict.verdict
+    # A still body (noise alone) is no response in either unit: no hint.
+    still = {**flight, "omega_rad_s": (0.0 * rates).tolist()}
+    assert identify(marginal, still, confidence=strict).unit_hint is None
+
+
 def test_an_ambiguous_pass_with_nothing_before_the_start_says_why(
     marginal: MarginalLikelihoodClassifier, drifting_paper: Scenario
 ) -> None:
