@@ -9,6 +9,8 @@ import threading
 import time
 from collections import OrderedDict
 from collections.abc import Callable
+from dataclasses import dataclass
+from datetime import datetime
 from typing import TYPE_CHECKING
 
 from .expiring import Expiring
@@ -16,7 +18,22 @@ from .expiring import Expiring
 if TYPE_CHECKING:
     from inertia_id.classifiers.registry import CandidateClassifier
 
-__all__ = ["ClassifierCache"]
+__all__ = ["ClassifierCache", "StoredClassifier"]
+
+
+@dataclass(frozen=True)
+class StoredClassifier:
+    """What identifies a stored classifier, as a verdict names it: its id, the checksum
+    over its payload (``sha256``, the key of its loaded copy) and its kind and provenance
+    (training job, scenario, when it was stored). Read from the database in one look-up,
+    its document aside."""
+
+    classifier_id: str
+    sha256: str
+    kind: str
+    job_id: str | None
+    scenario_id: str
+    created_at: datetime
 
 
 class ClassifierCache:
@@ -26,8 +43,9 @@ class ClassifierCache:
     that load (a 2 MB document parsed once, not once per concurrent request); other
     classifiers are served meanwhile.
 
-    The checksum of a classifier id is remembered for ``checksum_ttl_s``: most requests
-    then reach the database not at all (the look-up was 2 of a request's 8 ms on SQLite).
+    The checksum of a classifier id, with its kind and provenance
+    (:class:`StoredClassifier`), is remembered for ``checksum_ttl_s``: most requests then
+    reach the database not at all (the look-up was 2 of a request's 8 ms on SQLite).
 
     :param size: how many classifiers to keep; 0 disables caching.
     :param checksum_ttl_s: how long an id's checksum is taken as known.
@@ -45,16 +63,17 @@ class ClassifierCache:
         self.checksum_ttl_s = checksum_ttl_s
         self._items: OrderedDict[tuple[str, str], CandidateClassifier] = OrderedDict()
         # More ids than classifiers: an id costs a few bytes, a classifier megabytes.
-        self._checksums: Expiring[str, str] = Expiring(4 * size, clock=clock)
+        self._stored: Expiring[str, StoredClassifier] = Expiring(4 * size, clock=clock)
         self._lock = threading.Lock()
         self._loading: dict[tuple[str, str], threading.Lock] = {}
         self.loads = 0
 
-    def checksum_of(self, classifier_id: str) -> str | None:
-        return self._checksums.get(classifier_id)
+    def stored_of(self, classifier_id: str) -> StoredClassifier | None:
+        """The classifier's checksum, kind and provenance, while remembered."""
+        return self._stored.get(classifier_id)
 
-    def remember_checksum(self, classifier_id: str, checksum: str) -> None:
-        self._checksums.put(classifier_id, checksum, ttl_s=self.checksum_ttl_s)
+    def remember_stored(self, stored: StoredClassifier) -> None:
+        self._stored.put(stored.classifier_id, stored, ttl_s=self.checksum_ttl_s)
 
     def get(
         self, key: tuple[str, str], load: Callable[[], CandidateClassifier]

@@ -46,6 +46,7 @@ __all__ = [
     "CandidateResponse",
     "ClassifierOut",
     "ClassifierPage",
+    "ClassifierProvenance",
     "ComponentHealth",
     "DatabaseHealth",
     "HealthOut",
@@ -58,6 +59,7 @@ __all__ = [
     "JobPage",
     "JobSubmitted",
     "JobUpdate",
+    "JudgingClassifier",
     "LostAttempt",
     "MetricSeries",
     "MetricsOut",
@@ -675,8 +677,41 @@ class TelemetryGapResult(BaseModel):
     length_s: float = Field(description="its length, s")
 
 
+class ClassifierProvenance(BaseModel):
+    """Where a stored classifier came from, as its download's ``provenance`` and the CLI
+    verdict's ``classifier.provenance`` state it."""
+
+    classifier_id: str = Field(description="the service's id of the classifier")
+    job_id: str | None = Field(
+        description="the training job that made it; null once that job was deleted"
+    )
+    scenario_id: str = Field(description="the scenario it was trained on")
+    created_at: UtcDatetime = Field(description="when it was stored (UTC)")
+
+
+class JudgingClassifier(BaseModel):
+    """Which version of a classifier judged: its checksum, kind and provenance, the
+    fields the CLI's verdict names under ``classifier`` (less the file's path)."""
+
+    sha256: str = Field(
+        description="the checksum over the stored document's payload: the classifier's "
+        "sha256 in GET /classifiers/{id}, its download's sha256 and ETag"
+    )
+    kind: str = Field(
+        description="clustering, nearest-centroid, 1nn, minirocket, likelihood, least-squares"
+    )
+    provenance: ClassifierProvenance
+
+
+_JUDGING_CLASSIFIER = (
+    "the classifier that judged: its sha256, kind and provenance (classifier_id, job_id, "
+    "scenario_id, created_at), as the CLI's verdict names it"
+)
+
+
 class IdentifyResult(BaseModel):
     classifier_id: str
+    classifier: JudgingClassifier = Field(description=_JUDGING_CLASSIFIER)
     candidate_index: int
     candidate: str = Field(description="nearest candidate, even when it matches none")
     inertia_kg_m2: list[list[float]] | None
@@ -913,6 +948,7 @@ class IdentifyResult(BaseModel):
 
 class PartialIdentifyResult(BaseModel):
     classifier_id: str
+    classifier: JudgingClassifier = Field(description=_JUDGING_CLASSIFIER)
     time_s: list[float] = Field(description="grid times covered, s from the sequence start")
     posterior: dict[str, list[float]] = Field(description="each candidate's posterior over time")
     p_none: list[float]

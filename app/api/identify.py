@@ -1,10 +1,11 @@
 """Identify a spacecraft's configuration from its gyro telemetry, in the API process.
 
 No queue: one series against K candidates takes milliseconds. A request reads only the
-classifier's id and checksum (remembered for a while); the verdict is computed in the
-API's verdict process (:mod:`app.verdicts`), which loads classifiers from their stored
-JSON documents (checksum verified, never unpickled) once and keeps them in a small LRU
-cache by (id, checksum) — or, with ``INERTIA_ID_VERDICT_PROCESS=off``, on the API's own
+classifier's id, checksum, kind and provenance, in one look-up remembered for a while (the
+verdict names them); the verdict is computed in the API's verdict process
+(:mod:`app.verdicts`), which loads classifiers from their stored JSON documents
+(checksum verified, never unpickled) once and keeps them in a small LRU cache by (id,
+checksum) — or, with ``INERTIA_ID_VERDICT_PROCESS=off``, on the API's own
 compute thread with the same cache. Either way it runs behind a compute gate
 (:class:`app.capacity.ComputeGate`): past capacity a request is answered 503 with
 Retry-After, never left to hang.
@@ -42,7 +43,7 @@ from service.store.models import ClassifierRow
 from service.store.session import Database
 
 from ..capacity import ComputeGate
-from ..classifier_cache import ClassifierCache
+from ..classifier_cache import ClassifierCache, StoredClassifier
 from ..schemas import (
     MAX_ESTIMATE_START_WITHIN_S,
     MAX_PRE_START_WINDOW_S,
@@ -90,32 +91,46 @@ def _document(database: Database, classifier_id: str) -> str:
     return document
 
 
-def _checksum(database: Database, cache: ClassifierCache, classifier_id: str) -> str:
-    """The stored classifier's checksum: its id and checksum only are read (the document,
-    up to megabytes, on a cache miss), and remembered for a while (a classifier row is
-    never changed: a new training is a new row)."""
-    remembered = cache.checksum_of(classifier_id)
+def _stored(database: Database, cache: ClassifierCache, classifier_id: str) -> StoredClassifier:
+    """The stored classifier's checksum, kind and provenance: one look-up of those
+    columns (not the document, up to megabytes, read on a cache miss only), remembered for
+    a while (a classifier row is never changed: a new training is a new row)."""
+    remembered = cache.stored_of(classifier_id)
     if remembered is not None:
         return remembered
     row = None
     if plausible_id(classifier_id):
         with database.session() as session:
             row = session.execute(
-                select(ClassifierRow.id, ClassifierRow.sha256).where(
-                    ClassifierRow.id == classifier_id
-                )
+                select(
+                    ClassifierRow.id,
+                    ClassifierRow.sha256,
+                    ClassifierRow.kind,
+                    ClassifierRow.job_id,
+                    ClassifierRow.scenario_id,
+                    ClassifierRow.created_at,
+                ).where(ClassifierRow.id == classifier_id)
             ).first()
     if row is None:
         raise not_found("classifier", classifier_id)
-    cache.remember_checksum(row.id, row.sha256)
-    return str(row.sha256)
+    stored = StoredClassifier(
+        classifier_id=row.id,
+        sha256=row.sha256,
+        kind=row.kind,
+        job_id=row.job_id,
+        scenario_id=row.scenario_id,
+        created_at=row.created_at,
+    )
+    cache.remember_stored(stored)
+    return stored
 
 
 def _classifier(
     database: Database, cache: ClassifierCache, classifier_id: str
-) -> tuple[str, CandidateClassifier]:
-    key = (classifier_id, _checksum(database, cache, classifier_id))
-    return key[0], cache.get(key, lambda: _load(_document(database, classifier_id)))
+) -> tuple[StoredClassifier, CandidateClassifier]:
+    stored = _stored(database, cache, classifier_id)
+    key = (stored.classifier_id, stored.sha256)
+    return stored, cache.get(key, lambda: _load(_document(database, classifier_id)))
 
 
 def _judge(
@@ -128,22 +143,41 @@ def _judge(
 ) -> IdentifyResult | PartialIdentifyResult:
     """The verdict on a compute thread (the verdict process off): ``identify``, or
     ``identify_online`` for a partial one."""
-    found, classifier = _classifier(database, cache, classifier_id)
+    stored, classifier = _classifier(database, cache, classifier_id)
     judge = identify_online if partial else identify
     result = judge(classifier, telemetry, **options.keywords(partial=partial)).model_dump()
-    return _answer(result, found, partial=partial)
+    return _answer(result, stored, partial=partial)
 
 
-def _answer(result: dict[str, Any], classifier_id: str, *, partial: bool) -> Any:
-    """The verdict as its response model. A verdict that does not fit it (a NaN
+def _answer(result: dict[str, Any], stored: StoredClassifier, *, partial: bool) -> Any:
+    """The verdict as its response model, naming the classifier that judged (its id, and
+    its checksum, kind and provenance: a verdict kept from the API could not tell which
+    training made the classifier, the CLI's could). A verdict that does not fit it (a NaN
     posterior, say) is a fault of ours, a 500 with its reason logged, not the client's
     422: the error handlers read a pydantic ValidationError as bad input."""
     model = PartialIdentifyResult if partial else IdentifyResult
+    classifier = {
+        "sha256": stored.sha256,
+        "kind": stored.kind,
+        "provenance": {
+            "classifier_id": stored.classifier_id,
+            "job_id": stored.job_id,
+            "scenario_id": stored.scenario_id,
+            "created_at": stored.created_at,
+        },
+    }
     try:
-        return model.model_validate({**finite_or_none(result), "classifier_id": classifier_id})
+        return model.model_validate(
+            {
+                **finite_or_none(result),
+                "classifier_id": stored.classifier_id,
+                "classifier": classifier,
+            }
+        )
     except ValidationError as exc:
         raise RuntimeError(
-            f"the verdict of classifier {classifier_id} does not fit its response model: {exc}"
+            f"the verdict of classifier {stored.classifier_id} does not fit its response "
+            f"model: {exc}"
         ) from exc
 
 
@@ -164,17 +198,17 @@ async def _verdict(
     if process is None:
         gate: ComputeGate = state.compute_gate
         return await gate.run(_judge, database, cache, classifier_id, telemetry, options, partial)
-    checksum = cache.checksum_of(classifier_id)
-    if checksum is None:
-        checksum = await run_in_threadpool(_checksum, database, cache, classifier_id)
+    stored = cache.stored_of(classifier_id)
+    if stored is None:
+        stored = await run_in_threadpool(_stored, database, cache, classifier_id)
     verdict_gate: ComputeGate = state.verdict_gate
     try:
         result = await verdict_gate.run_async(
-            process.verdict, classifier_id, checksum, telemetry, options, partial
+            process.verdict, classifier_id, stored.sha256, telemetry, options, partial
         )
     except NotFound:
         raise not_found("classifier", classifier_id) from None
-    return _answer(result, classifier_id, partial=partial)
+    return _answer(result, stored, partial=partial)
 
 
 async def _parsed(request: Request, parse: Callable[..., Any], *args: Any) -> Any:

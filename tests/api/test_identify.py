@@ -7,10 +7,14 @@ import os
 import signal
 import time
 from collections.abc import Callable
+from datetime import datetime, timedelta
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
+from cli_support import run_cli
+from service_support import classifier_row
 
 from app.classifier_cache import ClassifierCache
 from inertia_id import InertiaClassifier, Scenario, SimulationResult, simulate
@@ -124,7 +128,66 @@ def test_classifier_is_cached(api: Api, classifier_id: str, flight: SimulationRe
         assert api.post("/identify", json=body).status_code == 200
     assert verdicts.loads() == 1
     cache: ClassifierCache = api.app.state.classifier_cache
-    assert cache.checksum_of(classifier_id) is not None and len(cache) == 0
+    assert cache.stored_of(classifier_id) is not None and len(cache) == 0
+
+
+def test_a_verdict_names_the_classifier_that_judged_as_the_cli_s_does(
+    api: Api, classifier: InertiaClassifier, flight: SimulationResult, tmp_path: Path
+) -> None:
+    """The API's verdict named only ``classifier_id``: a verdict a flight team keeps could
+    not tell which stored classifier judged (its checksum, the training job). It names
+    ``classifier`` too, with the fields the CLI's verdict on the downloaded file names
+    (sha256 and provenance, created_at in UTC with its zone) and the kind, and the schema
+    documents them."""
+    from service.store.models import JobRow
+
+    scenario_id = api.create_scenario()["id"]
+    with api.db.session() as session:
+        job = JobRow(
+            type="train", status="succeeded", scenario_id=scenario_id, config_hash="0" * 64
+        )
+        session.add(job)
+        session.flush()
+        job_id = job.id
+    row = classifier_row(scenario_id, classifier)
+    row.job_id = job_id
+    with api.db.session() as session:
+        session.add(row)
+        session.flush()
+        classifier_id = row.id
+    stored = api.get(f"/classifiers/{classifier_id}").json()
+    body = {"classifier_id": classifier_id, "telemetry": telemetry(flight, 0)}
+    verdict = api.post("/identify", json=body).json()
+    assert verdict["classifier"] == {
+        "sha256": stored["sha256"],
+        "kind": stored["kind"],
+        "provenance": {
+            "classifier_id": classifier_id,
+            "job_id": job_id,
+            "scenario_id": scenario_id,
+            "created_at": stored["created_at"],
+        },
+    }
+    assert datetime.fromisoformat(
+        verdict["classifier"]["provenance"]["created_at"]
+    ).utcoffset() == (timedelta(0))
+    # The second request is answered from the remembered look-up: the same names.
+    assert api.post("/identify", json=body).json()["classifier"] == verdict["classifier"]
+    document = tmp_path / "classifier.json"
+    document.write_bytes(api.get(f"/classifiers/{classifier_id}/download").content)
+    series = tmp_path / "t.csv"
+    series.write_text(csv_text(flight.time_s, flight.omega_measured[0, 0]))
+    cli = run_cli(["identify", "--classifier", str(document), "--telemetry", str(series)])
+    named = json.loads(cli.stdout)["classifier"]
+    assert named["sha256"] == verdict["classifier"]["sha256"]
+    assert named["provenance"] == verdict["classifier"]["provenance"]
+    schema = api.get("/openapi.json").json()["components"]["schemas"]
+    for name in ("IdentifyResult", "PartialIdentifyResult"):
+        assert name in schema and "classifier" in schema[name]["required"], name
+    fields = schema["JudgingClassifier"]["properties"]
+    assert all(fields[key].get("description") for key in ("sha256", "kind")), fields
+    provenance = schema["ClassifierProvenance"]["properties"]
+    assert "UTC" in provenance["created_at"]["description"]
 
 
 def test_the_verdict_process_answers_as_the_compute_threads(
@@ -370,16 +433,17 @@ def test_a_cold_classifier_is_loaded_once_however_many_ask_at_once() -> None:
 
 
 def test_a_classifiers_checksum_is_remembered_for_a_while_only() -> None:
-    from app.classifier_cache import ClassifierCache
+    from app.classifier_cache import ClassifierCache, StoredClassifier
 
     now = [0.0]
     cache = ClassifierCache(4, checksum_ttl_s=30.0, clock=lambda: now[0])
-    assert cache.checksum_of("c1") is None
-    cache.remember_checksum("c1", "abc")
+    assert cache.stored_of("c1") is None
+    stored = StoredClassifier("c1", "abc", "clustering", None, "s1", datetime(2026, 1, 1))
+    cache.remember_stored(stored)
     now[0] = 29.0
-    assert cache.checksum_of("c1") == "abc"
+    assert cache.stored_of("c1") == stored
     now[0] = 31.0
-    assert cache.checksum_of("c1") is None
+    assert cache.stored_of("c1") is None
 
 
 MISSION_START_S = 810_000_000.0
@@ -954,6 +1018,8 @@ def test_the_off_candidates_rule_in_the_partial_answer_and_the_csv(
     partial = api.post("/identify/partial", json=body)
     assert partial.status_code == 200, partial.text
     online = partial.json()
+    assert online["classifier"] == verdict["classifier"]
+    assert online["classifier"]["provenance"]["classifier_id"] == found
     factors = online["off_candidates_log_bayes"]
     assert len(factors) == len(online["time_s"])
     assert factors[0] is None and all(f is not None for f in factors[1:])
