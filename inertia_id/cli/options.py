@@ -185,7 +185,20 @@ def scenario_options(func: F) -> F:
 
 
 def load_scenario(preset_name: str, scenario_path: str | None) -> Scenario:
-    """The scenario the options name."""
+    """The scenario the options name. A thruster of it that gives no torque (a zero
+    column of its torque matrix) is warned of on stderr, as ``inertia-id scenario`` and
+    the API warn of it: allowed, but likely a mistake; every command that takes
+    ``--scenario`` loads it here, once, and stdout (JSON, CSV) is left as it was."""
+    from ..physics.scenario import idle_thruster_warning
+
+    scenario = _read_scenario(preset_name, scenario_path)
+    idle = idle_thruster_warning(scenario.torque_matrix)
+    if idle is not None:
+        click.echo(f"warning: {idle}", err=True)
+    return scenario
+
+
+def _read_scenario(preset_name: str, scenario_path: str | None) -> Scenario:
     if scenario_path is None:
         from ..physics.presets import preset
 

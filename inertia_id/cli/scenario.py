@@ -54,16 +54,12 @@ def _noise_option(flag: str, source: str) -> Callable[[F], F]:
 def scenario_cmd(preset_name: str, scenario_path: str | None, out: str | None) -> None:
     """Print a scenario as JSON (a starting point to edit), after validating it: its
     rules, and that it can be simulated at its own noise (the service's rule for a
-    scenario it stores). A thruster that gives no torque is warned of on stderr."""
-    from ..physics.scenario import idle_thruster_warning
+    scenario it stores). A thruster that gives no torque is warned of on stderr
+    (:func:`~inertia_id.cli.options.load_scenario`, as every command that loads one)."""
     from ..physics.simulable import check_scenario_simulable
 
     scenario = load_scenario(preset_name, scenario_path)
     check_scenario_simulable(scenario)
-    idle = idle_thruster_warning(scenario.torque_matrix)
-    if idle is not None:
-        # Allowed, but likely a mistake (a column typed as zeros): said, not refused.
-        click.echo(f"warning: {idle}", err=True)
     write_json(out, scenario.model_dump(mode="json"))
 
 

@@ -1273,10 +1273,8 @@ def test_plan_says_one_step_in_the_singular(tmp_path: Path) -> None:
         assert said in result.output, result.output
 
 
-def test_scenario_warns_of_a_thruster_that_gives_no_torque(tmp_path: Path) -> None:
-    """``inertia-id scenario`` validated a scenario with a thruster that gives no torque
-    (a zero column of the torque matrix) without a word; it now warns on stderr, naming
-    the thruster by its number, and still writes the scenario."""
+def _seven_thrusters(tmp_path: Path) -> Path:
+    """The paper preset with a seventh thruster that gives no torque (a zero column)."""
     from inertia_id import preset
 
     document = preset("paper").model_dump(mode="json")
@@ -1285,13 +1283,46 @@ def test_scenario_warns_of_a_thruster_that_gives_no_torque(tmp_path: Path) -> No
     document["thrusters"] = {"torque_matrix_nm": torque.tolist(), "n_levels": 5}
     path = tmp_path / "seven.json"
     path.write_text(json.dumps(document))
+    return path
+
+
+def test_scenario_warns_of_a_thruster_that_gives_no_torque(tmp_path: Path) -> None:
+    """``inertia-id scenario`` validated a scenario with a thruster that gives no torque
+    (a zero column of the torque matrix) without a word; it now warns on stderr, naming
+    the thruster by its number, and still writes the scenario."""
+    path = _seven_thrusters(tmp_path)
     written, result = run_cli_json(["scenario", "--scenario", str(path)], tmp_path / "out.json")
-    assert "warning: thruster 7 gives no torque (column 7 of torque_matrix_nm is zero" in (
-        result.stderr
-    )
+    said = "warning: thruster 7 gives no torque (column 7 of torque_matrix_nm is zero"
+    assert result.stderr.count(said) == 1, result.stderr
     assert len(written["thrusters"]["torque_matrix_nm"][0]) == 7
     # The paper's own thrusters all give torque: nothing on stderr.
     assert run_cli(["scenario", "--preset", "paper"]).stderr == ""
+
+
+def test_every_command_that_loads_a_scenario_warns_of_a_thruster_that_gives_no_torque(
+    tmp_path: Path,
+) -> None:
+    """Only ``inertia-id scenario`` warned of a thruster that gives no torque; ``simulate``,
+    ``plan`` (and ``train``, ``search``) loaded the same file without a word. Each warns
+    once, on stderr: stdout still holds the JSON alone."""
+    path = _seven_thrusters(tmp_path)
+    said = "warning: thruster 7 gives no torque (column 7 of torque_matrix_nm is zero"
+    simulated = run_cli(["simulate", "--scenario", str(path), "--sequence", "4,4,4,0,0,0,0"])
+    assert simulated.stderr.count(said) == 1, simulated.stderr
+    assert json.loads(simulated.stdout)["series_shape"][0] == 5
+    planned = run_cli(
+        [
+            "plan",
+            "--scenario",
+            str(path),
+            "--sequence",
+            "0,0,4,0,0,0,0",
+            "--out",
+            str(tmp_path / "plan.json"),
+        ]
+    )
+    assert planned.stderr.count(said) == 1, planned.stderr
+    assert "warning: thruster" not in run_cli(["simulate", "--sequence", "4,4,4,0,0,0"]).stderr
 
 
 def test_identify_reads_json_telemetry_in_deg_s(tmp_path: Path, small_classifier: Path) -> None:
