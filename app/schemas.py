@@ -844,13 +844,15 @@ class IdentifyResult(BaseModel):
     start_window_hint: str | None = Field(
         default=None,
         description="with a start search whose start lies within a grid period of the "
-        "window's edge while a start one or two periods beyond the edge fits the telemetry "
-        "better: says so (the true start may lie outside the window) and how wide a "
-        "window reaches it; whatever the status, and in the verdict's text where it is "
-        "not identified (the status is unchanged); null otherwise",
+        "window's edge while a start beyond the edge fits the telemetry better (the best "
+        "found walking outwards while the fit improves): says so (the true start may lie "
+        "outside the window) and how wide a window reaches that start; whatever the "
+        "status, and in the verdict's text where it is not identified (the status is "
+        "unchanged); null otherwise",
     )
     start_window_better_shift_s: float | None = Field(
-        default=None, description="that start beyond the window, s from the stated one"
+        default=None,
+        description="the best start found beyond the window, s from the stated one",
     )
     telemetry_first_stamp: float | str | None = Field(
         default=None, description="the first stamp as given (ISO ones in UTC)"
