@@ -473,57 +473,21 @@ def _alive(pid: int) -> bool:
         return False
 
 
-@pytest.mark.parametrize("stop_signal", [signal.SIGINT])
-def test_serve_leaves_no_process_behind_when_it_stops(tmp_path: Path, stop_signal: int) -> None:
-    """The fork server and verdict process of the API, the resource tracker and the
-    workers' processes are all gone by the time serve has exited. Before, the fork server
-    (ppid 1) outlived serve by over a second at each of 12 stops (it tears down its
-    preloaded imports once serve's end of its pipe closes)."""
-    port = free_port()
-    log = tmp_path / "serve.log"
-    with open(log, "wb") as out:
-        server = subprocess.Popen(
-            [sys.executable, "-m", "app.serve", "--port", str(port), "--data-dir", "data"],
-            env=clean_env(INERTIA_ID_VERDICT_PROCESS="eager"),
-            cwd=tmp_path,
-            stdout=out,
-            stderr=subprocess.STDOUT,
-        )
-    try:
-        # The eager verdict process: forked from the fork server, a child of serve.
-        tree = wait_for(
-            lambda: (
-                (found := _descendants(server.pid))
-                and sum("multiprocessing.forkserver" in c for c in found.values()) >= 2
-                and any("celery" in c for c in found.values())
-                and found
-            ),
-            120,
-            "serve did not start its worker, fork server and verdict process",
-            lambda: tail(log),
-        )
-    finally:
-        server.send_signal(stop_signal)
-        try:
-            server.wait(60)
-        except subprocess.TimeoutExpired:
-            server.kill()
-            raise
-    left = {pid: command for pid, command in tree.items() if _alive(pid)}
-    for pid in left:
-        with contextlib.suppress(ProcessLookupError):
-            os.kill(pid, signal.SIGKILL)
-    assert not left, f"left behind by serve: {left}\n{tail(log)}"
-    assert "shutdown complete: no process of this service is left" in log.read_text()
-
-
-@pytest.mark.parametrize("stop_signal", [signal.SIGTERM, signal.SIGINT])
 def test_a_second_stop_signal_while_serve_stops_does_not_cut_its_shutdown_short(
-    tmp_path: Path, stop_signal: int
+    tmp_path: Path,
 ) -> None:
     """A second SIGTERM (or Ctrl-C) while serve is stopping its workers is logged and
     the shutdown goes on. Before, it raised out of the cleanup: serve exited at once with
-    its worker (ppid 1) and fork server still running, and no "workers stopped" line."""
+    its worker (ppid 1) and fork server still running, and no "workers stopped" line.
+
+    Stopped by Ctrl-C (SIGINT) here, then SIGTERM: the Ctrl-C stop leaves no process
+    behind either (SIGTERM's is checked in
+    test_serve_runs_the_api_and_a_worker_that_does_jobs_then_stops_both). One start for
+    what four did (both signals, first and second, with a stop of each): with one API
+    process both first signals take uvicorn's one handler (``Server.handle_exit``, which
+    calls ``pool.request_stop``), and once uvicorn returns, each is raised again into
+    serve's ``main`` (SIGTERM as SystemExit(143), SIGINT as KeyboardInterrupt) and both
+    run the same ``finally``, where both second signals take ``_already_stopping``."""
     port = free_port()
     log = tmp_path / "serve.log"
     with open(log, "wb") as out:
@@ -567,14 +531,14 @@ def test_a_second_stop_signal_while_serve_stops_does_not_cut_its_shutdown_short(
         for pid, command in tree.items():
             if "celery" in command:
                 os.kill(pid, signal.SIGSTOP)
-        server.send_signal(stop_signal)
+        server.send_signal(signal.SIGINT)
         wait_for(
             lambda: "stopping workers" in log.read_text(),
             60,
             "serve did not start stopping its workers",
             lambda: tail(log),
         )
-        server.send_signal(stop_signal)
+        server.send_signal(signal.SIGTERM)
         server.wait(60)
     finally:
         if server.poll() is None:
@@ -587,7 +551,9 @@ def test_a_second_stop_signal_while_serve_stops_does_not_cut_its_shutdown_short(
     text = log.read_text()
     assert not left, f"left behind by serve: {left}\n{tail(log)}"
     assert "workers stopped" in text and "shutdown complete" in text, tail(log)
-    assert f"{signal.Signals(stop_signal).name} while stopping" in text, tail(log)
+    assert "SIGTERM while stopping" in text, tail(log)
+    # Ctrl-C ends serve with 0, through the same cleanup; the second signal changes nothing.
+    assert server.returncode == 0, tail(log)
 
 
 def _left_in(folder: Path) -> list[str]:
