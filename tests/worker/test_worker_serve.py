@@ -244,7 +244,7 @@ def test_serve_runs_the_api_and_a_worker_that_does_jobs_then_stops_both(
         # Nothing of the service lands in the working directory.
         assert sorted(p.name for p in tmp_path.iterdir()) == ["data", "serve.log"]
     finally:
-        _stop_by_sigterm(server)
+        _stop_serve(server)
     # SIGTERM ends serve through its cleanup, with the conventional 128 + 15.
     assert server.returncode == 128 + signal.SIGTERM, tail(log)
     text = log.read_text()
@@ -560,9 +560,10 @@ def _left_in(folder: Path) -> list[str]:
     return sorted(str(path.relative_to(folder)) for path in folder.rglob("*"))
 
 
-def _stop_by_sigterm(server: subprocess.Popen[bytes]) -> None:
-    """Stop serve as an operator does; killed (and the test failed) past 60 s."""
-    server.send_signal(signal.SIGTERM)
+def _stop_serve(server: subprocess.Popen[bytes], stop_signal: int = signal.SIGTERM) -> None:
+    """Stop serve as an operator does (SIGTERM, or ``stop_signal``: SIGINT for Ctrl-C);
+    killed (and the test failed) past 60 s."""
+    server.send_signal(stop_signal)
     try:
         server.wait(60)
     except subprocess.TimeoutExpired:
@@ -626,7 +627,7 @@ def test_serve_with_several_api_processes_leaves_nothing_in_the_temp_folder_when
         )
         made = _left_in(temp)
     finally:
-        _stop_by_sigterm(server)
+        _stop_serve(server)
     # SIGTERM ends serve with 128 + 15 whatever --api-workers is. Before, with
     # --api-workers 2 it ended with 0 (uvicorn's supervisor took the signal and
     # returned), with 1 with 143.
@@ -689,15 +690,26 @@ def _store_classifier(database_url: str, scenario_id: str, model: Any) -> str:
         db.dispose()
 
 
-@pytest.mark.parametrize("api_workers", ["1", "2"])
+@pytest.mark.parametrize(
+    ("api_workers", "stop_signal", "code"),
+    # Ctrl-C with two API processes: the supervisor's handle_int and handle_term both
+    # only set should_exit, then stop each API process alike (SIGTERM, uvicorn's
+    # Multiprocess.terminate_all); only serve's exit status tells them apart.
+    [("1", signal.SIGTERM, 128 + signal.SIGTERM), ("2", signal.SIGINT, 0)],
+)
 def test_serve_identifies_with_a_tmpdir_too_long_for_a_socket_and_leaves_nothing(
-    tmp_path: Path, api_workers: str, euclidean_classifier: Any
+    tmp_path: Path, api_workers: str, stop_signal: int, code: int, euclidean_classifier: Any
 ) -> None:
     """With a TMPDIR of 100 characters the fork server's socket
     (``$TMPDIR/pymp-*/listener-*``) passes AF_UNIX's 107 bytes: no verdict process could
     start (``OSError: AF_UNIX path too long``) and every ``/identify`` was a 500. Each API
     process now says so and puts multiprocessing's temp folder in /tmp, removed at its
-    stop as the one in TMPDIR would have been."""
+    stop as the one in TMPDIR would have been.
+
+    Stopped by SIGTERM with one API process and by Ctrl-C with two, which ends serve with
+    0 whatever --api-workers is, as SIGTERM ends it with 128 + 15 (checked with two in
+    test_serve_with_several_api_processes_leaves_nothing_in_the_temp_folder_when_it_stops).
+    """
     import numpy as np
     from scenario_support import GOOD_SEQUENCE
 
@@ -757,8 +769,9 @@ def test_serve_identifies_with_a_tmpdir_too_long_for_a_socket_and_leaves_nothing
             assert response.status == 200
             assert json.loads(response.read())["status"] == "identified"
     finally:
-        _stop_by_sigterm(server)
-    assert server.returncode == 128 + signal.SIGTERM, tail(log)
+        _stop_serve(server, stop_signal)
+    assert server.returncode == code, tail(log)
+    assert "shutdown complete" in log.read_text(), tail(log)
     said = re.findall(r"TMPDIR is too long .* its temp folder is (\S+) instead", log.read_text())
     assert len(said) == int(api_workers), tail(log)
     assert all(len(folder) < 30 and not os.path.exists(folder) for folder in said), said
@@ -1017,7 +1030,7 @@ def test_serve_removes_the_temp_folders_of_a_killed_serve_and_keeps_a_live_one_s
                 os.killpg(worker, signal.SIGKILL)
         for server in servers:
             if server.poll() is None:
-                _stop_by_sigterm(server)
+                _stop_serve(server)
     assert _left_in(temp) == [], logs()
 
 
@@ -1054,42 +1067,6 @@ def test_only_unheld_temp_folders_serve_marked_as_its_user_s_are_stale(tmp_path:
 
 
 _SERVE = [sys.executable, "-m", "app.serve"]
-_TWO_API_PROCESSES = ["--workers", "0", "--api-workers", "2"]
-
-
-@pytest.mark.parametrize(("stop_signal", "code"), [(signal.SIGINT, 0)])
-def test_serve_with_several_api_processes_exits_as_with_one(
-    tmp_path: Path, stop_signal: int, code: int
-) -> None:
-    """SIGTERM ends serve with 128 + 15 and Ctrl-C with 0 whatever --api-workers is.
-    Before, with --api-workers 2 SIGTERM ended it with 0 (uvicorn's supervisor took the
-    signal and returned), with 1 with 143. SIGTERM's case is checked after the same
-    start and stop in
-    test_serve_with_several_api_processes_leaves_nothing_in_the_temp_folder_when_it_stops."""
-    port = free_port()
-    log = tmp_path / "serve.log"
-    with open(log, "wb") as out:
-        server = subprocess.Popen(
-            [*_SERVE, "--port", str(port), "--data-dir", "data", *_TWO_API_PROCESSES],
-            env=clean_env(),
-            cwd=tmp_path,
-            stdout=out,
-            stderr=subprocess.STDOUT,
-        )
-    try:
-        wait_for(
-            lambda: log.read_text().count("Application startup complete") == 2,
-            120,
-            "serve did not start its two API processes",
-            lambda: tail(log),
-        )
-        server.send_signal(stop_signal)
-        assert server.wait(60) == code, tail(log)
-    finally:
-        if server.poll() is None:
-            server.kill()
-            server.wait()
-    assert "shutdown complete" in log.read_text(), tail(log)
 
 
 def test_serve_as_subreaper_reaps_an_orphan_that_ended_and_stops_one_that_lives(
