@@ -158,8 +158,9 @@ def test_serve_runs_the_api_and_a_worker_that_does_jobs_then_stops_both(
     tmp_path: Path, short_tmpdir: Path
 ) -> None:
     """serve as it ships (one API process, one worker, the verdict process eager): its
-    worker does a job written as the API writes it, and SIGTERM ends serve with 128 + 15
-    having stopped everything it started. One start checks what three did:
+    worker does a job written as the API writes it, and SIGTERM, sent with a request in
+    flight, ends serve with 128 + 15 having stopped everything it started. One start
+    checks what four did:
 
     - The fork server and verdict process of the API, the resource tracker and the
       workers' processes are all gone by the time serve has exited. Before, the fork
@@ -167,11 +168,17 @@ def test_serve_runs_the_api_and_a_worker_that_does_jobs_then_stops_both(
       its preloaded imports once serve's end of its pipe closes).
     - Nothing of serve's is left in ``TMPDIR``. Before, each stop left an empty
       ``pymp-*`` folder of the worker's (billiard's pool makes it; serve kills the worker
-      once its job is handed back, so the worker's exit never removed it)."""
+      once its job is handed back, so the worker's exit never removed it).
+    - The workers are told to stop at once, and wind down while uvicorn waits for the
+      requests in flight (an upload left half sent, which holds it for its whole grace);
+      serve waits for them once the API has stopped. Before, they were told only after
+      the API had stopped: under /identify load serve took the grace and then the
+      workers' wind-down, one after the other. Asserted as the order of the log's lines."""
     data_dir = tmp_path / "data"
     port = free_port()
     log = tmp_path / "serve.log"
     temp = short_tmpdir
+    slow: socket.socket | None = None
     with open(log, "wb") as out:
         server = subprocess.Popen(
             [sys.executable, "-m", "app.serve", "--port", str(port), "--data-dir", str(data_dir)],
@@ -195,6 +202,7 @@ def test_serve_runs_the_api_and_a_worker_that_does_jobs_then_stops_both(
         assert f"URL:       {base}" in banner and f"{base}/docs" in banner
         assert re.search(r"API key:   \S{20,}", banner), banner
         worker_pid = int(re.search(r"worker1 started \(pid (\d+),", banner).group(1))  # type: ignore[union-attr]
+        key = re.search(r"API key:   (\S{20,})", banner).group(1)  # type: ignore[union-attr]
 
         # Warm: the verdict process forked from the fork server (it listens in the API's
         # temp folder; eager is the default, so a default that changed fails this wait),
@@ -243,8 +251,14 @@ def test_serve_runs_the_api_and_a_worker_that_does_jobs_then_stops_both(
         db.dispose()
         # Nothing of the service lands in the working directory.
         assert sorted(p.name for p in tmp_path.iterdir()) == ["data", "serve.log"]
+        slow = _hold_a_request_in_flight(port, key)
     finally:
-        _stop_serve(server)
+        try:
+            _stop_serve(server)
+        finally:
+            if slow is not None:
+                slow.close()
+    _assert_workers_told_before_the_api_stopped(log, 1)
     # SIGTERM ends serve through its cleanup, with the conventional 128 + 15.
     assert server.returncode == 128 + signal.SIGTERM, tail(log)
     text = log.read_text()
@@ -778,19 +792,51 @@ def test_serve_identifies_with_a_tmpdir_too_long_for_a_socket_and_leaves_nothing
     assert _left_in(temp) == [], tail(log)
 
 
-@pytest.mark.parametrize("api_workers", ["1", "2"])
+def _hold_a_request_in_flight(port: int, key: str) -> socket.socket:
+    """An upload left half sent: it holds the API's stop for its whole grace."""
+    body = b'{"preset": "paper"}'
+    slow = socket.create_connection(("127.0.0.1", port), timeout=60)
+    slow.sendall(
+        f"POST /scenarios HTTP/1.1\r\nHost: 127.0.0.1\r\nX-API-Key: {key}\r\n"
+        f"Content-Type: application/json\r\nContent-Length: {len(body)}\r\n\r\n".encode()
+        + body[:5]
+    )
+    time.sleep(0.5)  # its head read: a request in flight
+    return slow
+
+
+def _assert_workers_told_before_the_api_stopped(log: Path, api_workers: int) -> None:
+    """serve's log says the workers were told to stop before the API had stopped, and
+    that they had stopped after it."""
+    lines = log.read_text().splitlines()
+
+    def first(*markers: str) -> int:
+        found = [i for i, line in enumerate(lines) if any(m in line for m in markers)]
+        assert found, f"none of {markers} in serve's log:\n{tail(log)}"
+        return found[0]
+
+    # The first word to the workers: its own line now, "stopping workers" before.
+    told = first("told 1 worker(s) to stop", "stopping workers")
+    # One process: uvicorn's own line; several: their supervisor's, after every child's.
+    stopped = "Finished server process" if api_workers == 1 else "Stopping parent process"
+    api_stopped = first(stopped)
+    assert told < api_stopped < first("workers stopped"), "\n".join(lines[told - 5 :])
+
+
 def test_serve_tells_its_workers_to_stop_while_the_api_gives_its_requests_their_grace(
-    tmp_path: Path, api_workers: str
+    tmp_path: Path,
 ) -> None:
     """At SIGTERM the workers are told to stop at once, and wind down while uvicorn waits
     for the requests in flight (here an upload left half sent, which holds it for its
     whole grace); serve waits for them once the API has stopped. Before, they were told
     only after the API had stopped: under /identify load serve took the grace and then the
-    workers' wind-down, one after the other. Asserted as the order of the log's lines."""
+    workers' wind-down, one after the other. Asserted as the order of the log's lines.
+    With two API processes here (their supervisor takes the signal); with one, in
+    test_serve_runs_the_api_and_a_worker_that_does_jobs_then_stops_both."""
     port = free_port()
     log = tmp_path / "serve.log"
     key = "serve-stop-" + "k" * 24
-    argv = [*_SERVE, "--port", str(port), "--data-dir", "data", "--api-workers", api_workers]
+    argv = [*_SERVE, "--port", str(port), "--data-dir", "data", "--api-workers", "2"]
     with open(log, "wb") as out:
         server = subprocess.Popen(
             argv,
@@ -804,7 +850,7 @@ def test_serve_tells_its_workers_to_stop_while_the_api_gives_its_requests_their_
         worker_log = tmp_path / "data" / "logs" / "worker1.log"
         wait_for(
             lambda: (
-                log.read_text().count("Application startup complete") == int(api_workers)
+                log.read_text().count("Application startup complete") == 2
                 and worker_log.exists()
                 and "heartbeat and reaper" in worker_log.read_text(errors="replace")
             ),
@@ -812,14 +858,7 @@ def test_serve_tells_its_workers_to_stop_while_the_api_gives_its_requests_their_
             "serve did not start its API and worker",
             lambda: tail(log) + tail(worker_log),
         )
-        body = b'{"preset": "paper"}'
-        slow = socket.create_connection(("127.0.0.1", port), timeout=60)
-        slow.sendall(
-            f"POST /scenarios HTTP/1.1\r\nHost: 127.0.0.1\r\nX-API-Key: {key}\r\n"
-            f"Content-Type: application/json\r\nContent-Length: {len(body)}\r\n\r\n".encode()
-            + body[:5]
-        )
-        time.sleep(0.5)  # its head read: a request in flight
+        slow = _hold_a_request_in_flight(port, key)
         server.send_signal(signal.SIGTERM)
         server.wait(60)
     finally:
@@ -828,19 +867,7 @@ def test_serve_tells_its_workers_to_stop_while_the_api_gives_its_requests_their_
         if server.poll() is None:
             server.kill()
             server.wait()
-    lines = log.read_text().splitlines()
-
-    def first(*markers: str) -> int:
-        found = [i for i, line in enumerate(lines) if any(m in line for m in markers)]
-        assert found, f"none of {markers} in serve's log:\n{tail(log)}"
-        return found[0]
-
-    # The first word to the workers: its own line now, "stopping workers" before.
-    told = first("told 1 worker(s) to stop", "stopping workers")
-    # One process: uvicorn's own line; several: their supervisor's, after every child's.
-    stopped = "Finished server process" if api_workers == "1" else "Stopping parent process"
-    api_stopped = first(stopped)
-    assert told < api_stopped < first("workers stopped"), "\n".join(lines[told - 5 :])
+    _assert_workers_told_before_the_api_stopped(log, 2)
 
 
 def test_the_orphan_reaper_leaves_multiprocessing_s_own_children_to_it() -> None:
