@@ -606,48 +606,72 @@ def _verdict_processes_up(root: int, api_workers: int) -> bool:
     return sum("multiprocessing.forkserver" in c for c in found) >= 2 * api_workers
 
 
-def test_serve_with_several_api_processes_leaves_nothing_in_the_temp_folder_when_it_stops(
+def test_serve_with_several_api_processes_stops_in_order_and_leaves_nothing(
     tmp_path: Path, short_tmpdir: Path
 ) -> None:
-    """Nothing of serve's is left in ``TMPDIR`` once SIGTERM has stopped it. Before, with
-    ``--api-workers 2`` each stop left one ``pymp-*/listener-*`` of each API process
-    (killed by the SIGTERM uvicorn raises again after its graceful stop, it never removed
-    it). No worker here, so that the leftovers seen are the API processes' own (a
-    worker's, with one API process, are looked for in
-    test_serve_runs_the_api_and_a_worker_that_does_jobs_then_stops_both)."""
+    """serve with ``--api-workers 2`` and a worker, stopped by SIGTERM with a request in
+    flight. One start checks what two did:
+
+    - At SIGTERM the workers are told to stop at once, and wind down while uvicorn waits
+      for the requests in flight (an upload left half sent, which holds it for its whole
+      grace); serve waits for them once the API has stopped. Before, they were told only
+      after the API had stopped: under /identify load serve took the grace and then the
+      workers' wind-down, one after the other. Asserted as the order of the log's lines
+      (with one API process, in
+      test_serve_runs_the_api_and_a_worker_that_does_jobs_then_stops_both).
+    - Nothing of serve's is left in ``TMPDIR``. Before, each stop left one
+      ``pymp-*/listener-*`` of each API process (killed by the SIGTERM uvicorn raises
+      again after its graceful stop, it never removed it). The worker's folder is told
+      apart by its name (``inertia-id-worker1-*``).
+    """
     port = free_port()
     log = tmp_path / "serve.log"
     temp = short_tmpdir
+    key = "serve-stop-" + "k" * 24
     argv = [*_SERVE, "--port", str(port), "--data-dir", "data"]
     with open(log, "wb") as out:
         server = subprocess.Popen(
-            [*argv, "--workers", "0", "--api-workers", "2"],
-            env=clean_env(TMPDIR=str(temp), INERTIA_ID_VERDICT_PROCESS="eager"),
+            [*argv, "--workers", "1", "--api-workers", "2"],
+            env=clean_env(
+                TMPDIR=str(temp), INERTIA_ID_VERDICT_PROCESS="eager", INERTIA_ID_API_KEY=key
+            ),
             cwd=tmp_path,
             stdout=out,
             stderr=subprocess.STDOUT,
         )
+    slow: socket.socket | None = None
     try:
+        worker_log = tmp_path / "data" / "logs" / "worker1.log"
         # Warm: each verdict process forked (its API process's fork server listens in
-        # the API's temp folder).
+        # the API's temp folder), the worker beating.
         wait_for(
             lambda: (
                 log.read_text().count("Application startup complete") == 2
                 and _verdict_processes_up(server.pid, 2)
+                and worker_log.exists()
+                and "heartbeat and reaper" in worker_log.read_text(errors="replace")
             ),
             120,
-            "serve's verdict processes did not start",
-            lambda: tail(log),
+            "serve's verdict processes or its worker did not start",
+            lambda: tail(log) + tail(worker_log),
         )
         made = _left_in(temp)
+        slow = _hold_a_request_in_flight(port, key)
     finally:
-        _stop_serve(server)
+        try:
+            _stop_serve(server)
+        finally:
+            if slow is not None:
+                slow.close()
+    _assert_workers_told_before_the_api_stopped(log, 2)
     # SIGTERM ends serve with 128 + 15 whatever --api-workers is. Before, with
     # --api-workers 2 it ended with 0 (uvicorn's supervisor took the signal and
     # returned), with 1 with 143.
     assert server.returncode == 128 + signal.SIGTERM, tail(log)
     assert "shutdown complete" in log.read_text(), tail(log)
-    assert made, "serve made no temp folder: the test saw nothing to clean up"
+    assert any(name.startswith("pymp-") for name in made), (
+        f"the API processes made no temp folder: the test saw nothing to clean up: {made}"
+    )
     left = _left_in(temp)
     assert not left, f"left in TMPDIR by serve (made while it ran: {made}): {left}\n{tail(log)}"
 
@@ -722,7 +746,7 @@ def test_serve_identifies_with_a_tmpdir_too_long_for_a_socket_and_leaves_nothing
 
     Stopped by SIGTERM with one API process and by Ctrl-C with two, which ends serve with
     0 whatever --api-workers is, as SIGTERM ends it with 128 + 15 (checked with two in
-    test_serve_with_several_api_processes_leaves_nothing_in_the_temp_folder_when_it_stops).
+    test_serve_with_several_api_processes_stops_in_order_and_leaves_nothing).
     """
     import numpy as np
     from scenario_support import GOOD_SEQUENCE
@@ -821,53 +845,6 @@ def _assert_workers_told_before_the_api_stopped(log: Path, api_workers: int) -> 
     stopped = "Finished server process" if api_workers == 1 else "Stopping parent process"
     api_stopped = first(stopped)
     assert told < api_stopped < first("workers stopped"), "\n".join(lines[told - 5 :])
-
-
-def test_serve_tells_its_workers_to_stop_while_the_api_gives_its_requests_their_grace(
-    tmp_path: Path,
-) -> None:
-    """At SIGTERM the workers are told to stop at once, and wind down while uvicorn waits
-    for the requests in flight (here an upload left half sent, which holds it for its
-    whole grace); serve waits for them once the API has stopped. Before, they were told
-    only after the API had stopped: under /identify load serve took the grace and then the
-    workers' wind-down, one after the other. Asserted as the order of the log's lines.
-    With two API processes here (their supervisor takes the signal); with one, in
-    test_serve_runs_the_api_and_a_worker_that_does_jobs_then_stops_both."""
-    port = free_port()
-    log = tmp_path / "serve.log"
-    key = "serve-stop-" + "k" * 24
-    argv = [*_SERVE, "--port", str(port), "--data-dir", "data", "--api-workers", "2"]
-    with open(log, "wb") as out:
-        server = subprocess.Popen(
-            argv,
-            env=clean_env(INERTIA_ID_API_KEY=key),
-            cwd=tmp_path,
-            stdout=out,
-            stderr=subprocess.STDOUT,
-        )
-    slow: socket.socket | None = None
-    try:
-        worker_log = tmp_path / "data" / "logs" / "worker1.log"
-        wait_for(
-            lambda: (
-                log.read_text().count("Application startup complete") == 2
-                and worker_log.exists()
-                and "heartbeat and reaper" in worker_log.read_text(errors="replace")
-            ),
-            120,
-            "serve did not start its API and worker",
-            lambda: tail(log) + tail(worker_log),
-        )
-        slow = _hold_a_request_in_flight(port, key)
-        server.send_signal(signal.SIGTERM)
-        server.wait(60)
-    finally:
-        if slow is not None:
-            slow.close()
-        if server.poll() is None:
-            server.kill()
-            server.wait()
-    _assert_workers_told_before_the_api_stopped(log, 2)
 
 
 def test_the_orphan_reaper_leaves_multiprocessing_s_own_children_to_it() -> None:
