@@ -215,10 +215,22 @@ class Api:
     def submit(self, job_type: str, scenario_id: str, **fields: Any) -> Any:
         return self.post("/jobs", json={"type": job_type, "scenario_id": scenario_id, **fields})
 
-    def insert_classifier(self, scenario_id: str, model: InertiaClassifier) -> str:
-        """Store a trained classifier the way a train job would."""
+    def insert_classifier(
+        self, scenario_id: str, model: InertiaClassifier, *, with_job: bool = False
+    ) -> str:
+        """Store a trained classifier the way a train job would; ``with_job``: with the
+        succeeded training job row it names as its ``job_id``."""
         row = classifier_row(scenario_id, model)
         with self.db.session() as session:
+            if with_job:
+                from service.store.models import JobRow
+
+                job = JobRow(
+                    type="train", status="succeeded", scenario_id=scenario_id, config_hash="0" * 64
+                )
+                session.add(job)
+                session.flush()
+                row.job_id = job.id
             session.add(row)
             session.flush()
             return row.id

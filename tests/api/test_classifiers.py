@@ -74,23 +74,12 @@ def test_download_states_where_it_came_from_outside_the_checksum(
     and the payload is still verified by hashing its text as read."""
     from inertia_id.classifiers import documents
     from inertia_id.classifiers.registry import load_classifier_identified
-    from service.store.models import JobRow
 
     scenario_id = api.create_scenario()["id"]
-    with api.db.session() as session:
-        job = JobRow(
-            type="train", status="succeeded", scenario_id=scenario_id, config_hash="0" * 64
-        )
-        session.add(job)
-        session.flush()
-        job_id = job.id
-    row = classifier_row(scenario_id, classifier)
-    row.job_id = job_id
-    with api.db.session() as session:
-        session.add(row)
-        session.flush()
-        classifier_id = row.id
+    classifier_id = api.insert_classifier(scenario_id, classifier, with_job=True)
     stored = api.get(f"/classifiers/{classifier_id}").json()
+    job_id = stored["job_id"]
+    assert job_id is not None
 
     response = api.get(f"/classifiers/{classifier_id}/download")
     assert response.status_code == 200

@@ -14,7 +14,6 @@ from typing import Any
 import numpy as np
 import pytest
 from cli_support import run_cli
-from service_support import classifier_row
 
 from app.classifier_cache import ClassifierCache
 from inertia_id import InertiaClassifier, Scenario, SimulationResult, simulate
@@ -139,23 +138,11 @@ def test_a_verdict_names_the_classifier_that_judged_as_the_cli_s_does(
     ``classifier`` too, with the fields the CLI's verdict on the downloaded file names
     (sha256 and provenance, created_at in UTC with its zone) and the kind, and the schema
     documents them."""
-    from service.store.models import JobRow
-
     scenario_id = api.create_scenario()["id"]
-    with api.db.session() as session:
-        job = JobRow(
-            type="train", status="succeeded", scenario_id=scenario_id, config_hash="0" * 64
-        )
-        session.add(job)
-        session.flush()
-        job_id = job.id
-    row = classifier_row(scenario_id, classifier)
-    row.job_id = job_id
-    with api.db.session() as session:
-        session.add(row)
-        session.flush()
-        classifier_id = row.id
+    classifier_id = api.insert_classifier(scenario_id, classifier, with_job=True)
     stored = api.get(f"/classifiers/{classifier_id}").json()
+    job_id = stored["job_id"]
+    assert job_id is not None
     body = {"classifier_id": classifier_id, "telemetry": telemetry(flight, 0)}
     verdict = api.post("/identify", json=body).json()
     assert verdict["classifier"] == {
