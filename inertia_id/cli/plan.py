@@ -310,11 +310,13 @@ def _search_scenario(
     scenario named on the command line must be that one (its name aside,
     :meth:`~inertia_id.physics.scenario.Scenario.same_spacecraft`); a result that
     records none (written before results did) is planned on the named one, with a
-    warning."""
+    warning. A thruster of the recorded scenario that gives no torque is warned of on
+    stderr, as :func:`~inertia_id.cli.options.load_scenario` warns of the named one's:
+    once (a named scenario is the same spacecraft, already warned of)."""
     from pydantic import ValidationError
 
     from ..errors import InputError
-    from ..physics.scenario import Scenario
+    from ..physics.scenario import Scenario, idle_thruster_warning
 
     recorded = document.get("scenario")
     if recorded is None:
@@ -343,6 +345,10 @@ def _search_scenario(
             f"scenario named ('{named.name}'); drop --scenario/--preset to plan on the "
             "searched one"
         )
+    if not named_explicitly:
+        idle = idle_thruster_warning(searched.torque_matrix)
+        if idle is not None:
+            click.echo(f"warning: {idle}", err=True)
     return searched
 
 

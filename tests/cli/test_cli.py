@@ -1325,6 +1325,23 @@ def test_every_command_that_loads_a_scenario_warns_of_a_thruster_that_gives_no_t
     assert "warning: thruster" not in run_cli(["simulate", "--sequence", "4,4,4,0,0,0"]).stderr
 
 
+def test_plan_of_a_search_warns_of_a_thruster_of_its_scenario_that_gives_no_torque(
+    tmp_path: Path,
+) -> None:
+    """``plan --search`` without ``--scenario`` plans on the scenario the search
+    recorded, read outside ``load_scenario``: its thruster that gives no torque was not
+    warned of. Now it is, once, on stderr; named beside it too (still once)."""
+    seven = _seven_thrusters(tmp_path)
+    search = tmp_path / "search.json"
+    document = _search_document([[4, 4, 4, 0, 0, 0, 0]], json.loads(seven.read_text()))
+    search.write_text(json.dumps(document))
+    said = "warning: thruster 7 gives no torque (column 7 of torque_matrix_nm is zero"
+    for named in [[], ["--scenario", str(seven)]]:
+        planned = run_cli(["plan", "--search", str(search), *named, "--out", "-"])
+        assert planned.stderr.count(said) == 1, planned.stderr
+        assert json.loads(planned.stdout)["sequence"] == [[4, 4, 4, 0, 0, 0, 0]]
+
+
 def test_identify_reads_json_telemetry_in_deg_s(tmp_path: Path, small_classifier: Path) -> None:
     """A JSON file states deg/s with ``omega_deg_s``, as a CSV header does with
     ``wx_deg_s``: the same verdict as the file in rad/s. (JSON could not say it: the key
