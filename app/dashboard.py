@@ -1,16 +1,14 @@
 """The dashboard and the API documentation: static files served by the API, offline.
 
 No Node build: ``frontend/`` holds plain HTML, CSS and JavaScript modules, and plotly.js
-is the maintained cartesian bundle Plotly publishes (``frontend/vendor/``, see its
-README); the API documentation at ``/docs`` is Swagger UI from the installed
-``swagger-ui-bundle-v2`` package. Nothing is fetched from a CDN, so both work on a
-machine without internet.
+comes from the installed ``plotly`` Python package; the API documentation at ``/docs``
+is Swagger UI from the installed ``swagger-ui-bundle-v2`` package. Nothing is fetched
+from a CDN, so both work on a machine without internet.
 """
 
 from __future__ import annotations
 
 import importlib.util
-import re
 from pathlib import Path
 
 from fastapi import FastAPI, HTTPException, status
@@ -22,15 +20,20 @@ from starlette.types import Scope
 
 from service.config import Settings
 
-__all__ = ["VENDOR_VERSIONED", "mount_dashboard", "mount_docs", "swagger_ui_dir"]
+__all__ = ["mount_dashboard", "mount_docs", "plotly_js_path", "swagger_ui_dir"]
 
 # The pages change with the code: revalidate every time (ETag) rather than cache.
 _REVALIDATE = {"Cache-Control": "no-cache"}
-#: A vendored file whose name carries its version (plotly-cartesian-4.1.1.min.js) never
-#: changes under that name: a browser keeps it a year without asking again.
-_IMMUTABLE = {"Cache-Control": "public, max-age=31536000, immutable"}
-#: The names of the vendored files that carry their version.
-VENDOR_VERSIONED = re.compile(r"^[a-z][a-z-]*-\d+\.\d+\.\d+\.min\.js$")
+
+
+def plotly_js_path() -> Path | None:
+    """``plotly.min.js`` inside the installed plotly package, found without importing it."""
+    spec = importlib.util.find_spec("plotly")
+    for folder in (spec.submodule_search_locations or []) if spec else []:
+        path = Path(folder) / "package_data" / "plotly.min.js"
+        if path.is_file():
+            return path
+    return None
 
 
 def swagger_ui_dir() -> Path | None:
@@ -75,21 +78,27 @@ def mount_docs(app: FastAPI) -> None:
 class _Pages(StaticFiles):
     async def get_response(self, path: str, scope: Scope) -> Response:
         response = await super().get_response(path, scope)
-        folder, _, name = path.rpartition("/")
-        found = response.status_code in (200, 304)
-        versioned = found and folder == "vendor" and VENDOR_VERSIONED.match(name)
-        response.headers.update(_IMMUTABLE if versioned else _REVALIDATE)
+        response.headers.update(_REVALIDATE)
         return response
 
 
 def mount_dashboard(app: FastAPI, settings: Settings) -> None:
-    """Serve ``/`` (the dashboard) and ``/static/...`` (its files, plotly.js among them).
+    """Serve ``/`` (the dashboard), ``/static/...`` (its files) and plotly.js.
 
     A deployment without the ``frontend/`` folder still serves the API; ``/`` then says
     where the dashboard was looked for.
     """
     frontend = settings.resolved_frontend_dir
     index = frontend / "index.html"
+
+    @app.get("/static/vendor/plotly.min.js", include_in_schema=False)
+    def plotly_js() -> FileResponse:
+        path = plotly_js_path()
+        if path is None:
+            raise HTTPException(status.HTTP_404_NOT_FOUND, detail="plotly is not installed")
+        return FileResponse(
+            path, media_type="text/javascript", headers={"Cache-Control": "max-age=86400"}
+        )
 
     @app.get("/", include_in_schema=False)
     def dashboard() -> FileResponse:

